@@ -1,0 +1,591 @@
+//! Run configuration (SPEC §11): TOML, every field optional, unknown fields rejected,
+//! validation errors that name the field, the value and the allowed range.
+
+use serde::{Deserialize, Serialize};
+
+use crate::code::{BlockCode, Repetition, hamming74};
+use crate::observer::Variant;
+use crate::trajectory::{SQUARE, Trajectory};
+
+/// The whole configuration of a run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// The robot and its plant.
+    pub robot: RobotConfig,
+    /// True (physical) noise of the plant and odometry.
+    pub noise: NoiseConfig,
+    /// The reference trajectory.
+    pub trajectory: TrajectoryConfig,
+    /// The tracking controller.
+    pub controller: ControllerConfig,
+    /// The unknown-input observer.
+    pub observer: ObserverConfig,
+    /// The key-agreement protocol.
+    pub protocol: ProtocolConfig,
+    /// The block code and key budget.
+    pub code: CodeConfig,
+    /// The paper's eavesdropper.
+    pub eve: EveConfig,
+    /// Seeds and replicates.
+    pub run: RunConfig,
+}
+
+/// `[robot]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RobotConfig {
+    /// Sample time `T` (s).
+    #[serde(rename = "T")]
+    pub sample_time: f64,
+    /// Wheel radius `r` (m).
+    pub r: f64,
+    /// Axle length `D` (m).
+    #[serde(rename = "D")]
+    pub axle_length: f64,
+    /// The plant's per-wheel speed limit (rad/s).
+    pub wheel_limit: f64,
+}
+
+impl Default for RobotConfig {
+    fn default() -> Self {
+        Self {
+            sample_time: 0.2,
+            r: 0.021,
+            axle_length: 0.1047,
+            wheel_limit: 38.0,
+        }
+    }
+}
+
+/// `[noise]`: standard deviations per component and step.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NoiseConfig {
+    /// Process noise std `[m, m, rad]`.
+    pub process_std: [f64; 3],
+    /// Measurement noise std `[m, m, rad]`.
+    pub measurement_std: [f64; 3],
+}
+
+impl Default for NoiseConfig {
+    fn default() -> Self {
+        Self {
+            process_std: [0.004; 3],
+            measurement_std: [0.0005; 3],
+        }
+    }
+}
+
+/// `[trajectory]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrajectoryConfig {
+    /// Waypoints (m).
+    pub waypoints: Vec<[f64; 2]>,
+    /// Time per segment (s).
+    pub side_time: f64,
+    /// Number of laps.
+    pub laps: u32,
+}
+
+impl Default for TrajectoryConfig {
+    fn default() -> Self {
+        Self {
+            waypoints: SQUARE.to_vec(),
+            side_time: 17.0,
+            laps: 3,
+        }
+    }
+}
+
+/// Which pose the controller feeds back.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Feedback {
+    /// The odometry measurement `y(k)`.
+    Measurement,
+    /// The observer's estimate `x̂(k)`.
+    Estimate,
+}
+
+/// `[controller]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControllerConfig {
+    /// Proportional gain.
+    pub kp: f64,
+    /// Derivative gain.
+    pub kd: f64,
+    /// ξ guard (m/s).
+    pub xi_eps: f64,
+    /// The controller's wheel limit for the rhombus clip (rad/s).
+    pub wheel_limit: f64,
+    /// Pose fed back.
+    pub feedback: Feedback,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        Self {
+            kp: 1.1,
+            kd: 0.8,
+            xi_eps: 1e-3,
+            wheel_limit: 8.07,
+            feedback: Feedback::Measurement,
+        }
+    }
+}
+
+/// `[observer]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ObserverConfig {
+    /// Algebra variant.
+    pub variant: Variant,
+    /// Number of unknown inputs (1 or 2).
+    pub m: u8,
+    /// Design process variance (`W = W_var·I`).
+    #[serde(rename = "W_var")]
+    pub w_var: f64,
+    /// Design measurement variance (`V = V_var·I`).
+    #[serde(rename = "V_var")]
+    pub v_var: f64,
+}
+
+impl Default for ObserverConfig {
+    fn default() -> Self {
+        Self {
+            variant: Variant::Corrected,
+            m: 2,
+            w_var: 1e-2,
+            v_var: 1e-4,
+        }
+    }
+}
+
+/// `[protocol]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ProtocolConfig {
+    /// `false`: the robot applies the nominal command; no key bits (the J_x baseline).
+    pub enabled: bool,
+    /// Δv (m/s).
+    pub delta_v: f64,
+    /// Δω (rad/s).
+    pub delta_omega: f64,
+}
+
+impl Default for ProtocolConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            delta_v: 0.035,
+            delta_omega: 0.0,
+        }
+    }
+}
+
+/// Block code kinds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CodeKind {
+    /// Repetition code of length `n_c`.
+    Repetition,
+    /// Hamming(7,4).
+    Hamming74,
+}
+
+/// `[code]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CodeConfig {
+    /// Code family.
+    pub kind: CodeKind,
+    /// Codeword length; defaults to 3 for repetition and must be 7 for Hamming(7,4).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub n_c: Option<u32>,
+    /// Largest Hamming distance to the nearest codeword that is accepted.
+    pub accept_max_distance: u32,
+    /// Key budget (bits); 0 = no budget.
+    pub key_bits: u32,
+}
+
+impl Default for CodeConfig {
+    fn default() -> Self {
+        Self {
+            kind: CodeKind::Repetition,
+            n_c: None,
+            accept_max_distance: 0,
+            key_bits: 345,
+        }
+    }
+}
+
+impl CodeConfig {
+    /// The codeword length after defaults.
+    #[must_use]
+    pub fn codeword_length(&self) -> u32 {
+        match self.kind {
+            CodeKind::Repetition => self.n_c.unwrap_or(3),
+            CodeKind::Hamming74 => self.n_c.unwrap_or(7),
+        }
+    }
+
+    /// Builds the code (call after [`Config::validate`]).
+    #[must_use]
+    pub fn build(&self) -> std::sync::Arc<dyn BlockCode> {
+        match self.kind {
+            CodeKind::Repetition => std::sync::Arc::new(
+                Repetition::new(self.codeword_length() as usize).expect("validated n_c"),
+            ),
+            CodeKind::Hamming74 => std::sync::Arc::new(hamming74()),
+        }
+    }
+}
+
+/// How Eve's relative errors are drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Draw {
+    /// One draw per parameter.
+    Independent,
+    /// One draw shared by all parameters.
+    Common,
+}
+
+/// `[eve]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EveConfig {
+    /// Whether the run has an eavesdropper.
+    pub enabled: bool,
+    /// Largest relative model error α (fraction).
+    pub alpha: f64,
+    /// Independent or common draws.
+    pub draw: Draw,
+}
+
+impl Default for EveConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            alpha: 0.10,
+            draw: Draw::Independent,
+        }
+    }
+}
+
+/// `[run]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunConfig {
+    /// Master seed of all random streams.
+    pub seed: u64,
+    /// Runs per configuration (sweep point).
+    pub replicates: u32,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        Self {
+            seed: 2023,
+            replicates: 10,
+        }
+    }
+}
+
+/// A configuration problem, naming where it came from, the field, the value and what is
+/// allowed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// A field's value is outside its allowed range.
+    #[error("{origin}: `{field}` = {value} is not allowed (allowed: {allowed})")]
+    Invalid {
+        /// File or source of the configuration.
+        origin: String,
+        /// Dotted field path, e.g. `protocol.delta_v`.
+        field: String,
+        /// The offending value.
+        value: String,
+        /// The allowed range.
+        allowed: String,
+    },
+    /// The TOML does not parse or does not fit the schema (unknown field, wrong type).
+    #[error("{origin}: {message}")]
+    Parse {
+        /// File or source of the configuration.
+        origin: String,
+        /// The parser's message, with the location.
+        message: String,
+    },
+}
+
+impl ConfigError {
+    /// The same error attributed to `origin` (a file name, `--set`, …).
+    #[must_use]
+    pub fn with_origin(self, new_origin: &str) -> Self {
+        match self {
+            Self::Invalid {
+                field,
+                value,
+                allowed,
+                ..
+            } => Self::Invalid {
+                origin: new_origin.to_owned(),
+                field,
+                value,
+                allowed,
+            },
+            Self::Parse { message, .. } => Self::Parse {
+                origin: new_origin.to_owned(),
+                message,
+            },
+        }
+    }
+}
+
+fn invalid(field: &str, value: impl std::fmt::Debug, allowed: &str) -> ConfigError {
+    ConfigError::Invalid {
+        origin: String::new(),
+        field: field.to_owned(),
+        value: format!("{value:?}"),
+        allowed: allowed.to_owned(),
+    }
+}
+
+fn positive(field: &str, x: f64) -> Result<(), ConfigError> {
+    if x > 0.0 && x.is_finite() { Ok(()) } else { Err(invalid(field, x, "> 0, finite")) }
+}
+
+fn non_negative(field: &str, x: f64) -> Result<(), ConfigError> {
+    if x >= 0.0 && x.is_finite() { Ok(()) } else { Err(invalid(field, x, "≥ 0, finite")) }
+}
+
+impl Config {
+    /// Parses TOML text (see [`parse_table`]) and validates it.
+    ///
+    /// # Errors
+    /// A [`ConfigError`] attributed to `origin`.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        Self::from_table(parse_table(text, origin)?, origin)
+    }
+
+    /// Deserializes and validates a TOML table.
+    ///
+    /// # Errors
+    /// A [`ConfigError`] attributed to `origin`.
+    pub fn from_table(table: toml::Table, origin: &str) -> Result<Self, ConfigError> {
+        let config: Self = table.try_into().map_err(|e: toml::de::Error| ConfigError::Parse {
+            origin: origin.to_owned(),
+            message: e.message().to_owned(),
+        })?;
+        config.validate().map_err(|e| e.with_origin(origin))?;
+        Ok(config)
+    }
+
+    /// Checks every field against SPEC §11's allowed range.
+    ///
+    /// # Errors
+    /// The first field out of range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let robot = &self.robot;
+        positive("robot.T", robot.sample_time)?;
+        positive("robot.r", robot.r)?;
+        positive("robot.D", robot.axle_length)?;
+        positive("robot.wheel_limit", robot.wheel_limit)?;
+        for (i, &x) in self.noise.process_std.iter().enumerate() {
+            non_negative(&format!("noise.process_std[{i}]"), x)?;
+        }
+        for (i, &x) in self.noise.measurement_std.iter().enumerate() {
+            non_negative(&format!("noise.measurement_std[{i}]"), x)?;
+        }
+        let traj = &self.trajectory;
+        if traj.waypoints.len() < 2 {
+            return Err(invalid("trajectory.waypoints", &traj.waypoints, "≥ 2 points"));
+        }
+        if traj.waypoints.iter().flatten().any(|x| !x.is_finite()) {
+            return Err(invalid("trajectory.waypoints", &traj.waypoints, "finite coordinates"));
+        }
+        positive("trajectory.side_time", traj.side_time)?;
+        if traj.laps < 1 {
+            return Err(invalid("trajectory.laps", traj.laps, "≥ 1"));
+        }
+        if self.trajectory().steps(robot.sample_time) == 0 {
+            return Err(invalid(
+                "trajectory.side_time",
+                traj.side_time,
+                "long enough for at least one step of robot.T",
+            ));
+        }
+        let ctl = &self.controller;
+        positive("controller.kp", ctl.kp)?;
+        positive("controller.kd", ctl.kd)?;
+        positive("controller.xi_eps", ctl.xi_eps)?;
+        positive("controller.wheel_limit", ctl.wheel_limit)?;
+        let obs = &self.observer;
+        if !(1..=2).contains(&obs.m) {
+            return Err(invalid("observer.m", obs.m, "1 or 2"));
+        }
+        positive("observer.W_var", obs.w_var)?;
+        positive("observer.V_var", obs.v_var)?;
+        let proto = &self.protocol;
+        non_negative("protocol.delta_v", proto.delta_v)?;
+        non_negative("protocol.delta_omega", proto.delta_omega)?;
+        if proto.enabled && proto.delta_v == 0.0 && proto.delta_omega == 0.0 {
+            return Err(invalid(
+                "protocol.delta_v",
+                proto.delta_v,
+                "> 0, or protocol.delta_omega > 0, while protocol.enabled = true",
+            ));
+        }
+        if proto.enabled && obs.m == 1 && proto.delta_omega != 0.0 {
+            return Err(invalid(
+                "protocol.delta_omega",
+                proto.delta_omega,
+                "0 with observer.m = 1 (the observer estimates Δv only)",
+            ));
+        }
+        let code = &self.code;
+        let n_c = code.codeword_length();
+        match code.kind {
+            CodeKind::Repetition if !(1..=64).contains(&n_c) => {
+                return Err(invalid("code.n_c", n_c, "1 to 64 for repetition"));
+            }
+            CodeKind::Hamming74 if n_c != 7 => {
+                return Err(invalid("code.n_c", n_c, "7 for hamming74 (or leave it out)"));
+            }
+            _ => {}
+        }
+        if code.accept_max_distance > n_c {
+            return Err(invalid(
+                "code.accept_max_distance",
+                code.accept_max_distance,
+                &format!("0 to code.n_c = {n_c}"),
+            ));
+        }
+        let eve = &self.eve;
+        if !(0.0..1.0).contains(&eve.alpha) {
+            return Err(invalid("eve.alpha", eve.alpha, "[0, 1)"));
+        }
+        if self.run.replicates < 1 {
+            return Err(invalid("run.replicates", self.run.replicates, "≥ 1"));
+        }
+        Ok(())
+    }
+
+    /// The reference trajectory.
+    ///
+    /// # Panics
+    /// If the configuration was not validated.
+    #[must_use]
+    pub fn trajectory(&self) -> Trajectory {
+        let t = &self.trajectory;
+        Trajectory::new(&t.waypoints, t.side_time, t.laps).expect("validated trajectory")
+    }
+
+    /// The configuration as TOML, every field explicit (`code.n_c` resolved).
+    #[must_use]
+    pub fn to_toml(&self) -> String {
+        let mut resolved = self.clone();
+        resolved.code.n_c = Some(self.code.codeword_length());
+        toml::to_string(&resolved).expect("a config always serializes")
+    }
+}
+
+/// Parses TOML text into a table, attributing errors to `origin`.
+///
+/// # Errors
+/// [`ConfigError::Parse`] with the parser's message and location.
+pub fn parse_table(text: &str, origin: &str) -> Result<toml::Table, ConfigError> {
+    text.parse::<toml::Table>().map_err(|e| ConfigError::Parse {
+        origin: origin.to_owned(),
+        message: e.to_string(),
+    })
+}
+
+/// Sets the dotted `path` (e.g. `controller.kp`) in `table` to `value`, creating tables on
+/// the way. Whether the field exists is checked when the table is deserialized.
+///
+/// # Errors
+/// [`ConfigError::Parse`] when the path is empty or crosses a non-table value.
+pub fn set_path(table: &mut toml::Table, path: &str, value: toml::Value) -> Result<(), ConfigError> {
+    let bad = |why: &str| ConfigError::Parse {
+        origin: String::new(),
+        message: format!("cannot set `{path}`: {why}"),
+    };
+    let mut parts: Vec<&str> = path.split('.').collect();
+    let last = parts.pop().filter(|s| !s.is_empty()).ok_or_else(|| bad("empty field name"))?;
+    let mut current = table;
+    for part in parts {
+        let entry = current
+            .entry(part.to_owned())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        current = entry
+            .as_table_mut()
+            .ok_or_else(|| bad(&format!("`{part}` is not a table")))?;
+    }
+    current.insert(last.to_owned(), value);
+    Ok(())
+}
+
+/// Parses the right-hand side of `--set field=value` as a TOML value; a bare word that is
+/// not valid TOML (e.g. `paper`) is taken as a string.
+#[must_use]
+pub fn parse_value(text: &str) -> toml::Value {
+    format!("v = {text}")
+        .parse::<toml::Table>()
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(text.to_owned()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_round_trip_and_validate() {
+        let config = Config::default();
+        config.validate().unwrap();
+        let back = Config::from_toml(&config.to_toml(), "resolved").unwrap();
+        assert_eq!(back.code.codeword_length(), 3);
+        assert_eq!(Config::from_toml("", "empty").unwrap(), Config::default());
+        assert_eq!(config.trajectory().steps(config.robot.sample_time), 1020);
+    }
+
+    #[test]
+    fn errors_name_origin_field_value_and_range() {
+        let err = Config::from_toml("[protocol]\ndelta_v = 0.0\n", "my.toml").unwrap_err();
+        let text = err.to_string();
+        assert!(text.contains("my.toml") && text.contains("protocol.delta_v"), "{text}");
+        assert!(text.contains("0.0") && text.contains("> 0"), "{text}");
+
+        let err = Config::from_toml("[robot]\nmass = 1.0\n", "a.toml").unwrap_err();
+        assert!(err.to_string().contains("mass"), "{err}");
+
+        let err = Config::from_toml("[eve]\nalpha = 1.5\n", "b.toml").unwrap_err();
+        assert!(err.to_string().contains("eve.alpha"), "{err}");
+
+        let err = Config::from_toml("[code]\nkind = \"hamming74\"\nn_c = 5\n", "c.toml").unwrap_err();
+        assert!(err.to_string().contains("code.n_c"), "{err}");
+        assert_eq!(
+            Config::from_toml("[code]\nkind = \"hamming74\"\n", "d").unwrap().code.codeword_length(),
+            7
+        );
+    }
+
+    #[test]
+    fn paths_and_values_can_be_set() {
+        let mut table = toml::Table::new();
+        set_path(&mut table, "controller.kp", parse_value("1.0")).unwrap();
+        set_path(&mut table, "observer.variant", parse_value("paper")).unwrap();
+        let config = Config::from_table(table, "--set").unwrap();
+        assert_eq!(config.controller.kp, 1.0);
+        assert_eq!(config.observer.variant, Variant::Paper);
+        let mut table = toml::Table::new();
+        set_path(&mut table, "controller.gain", parse_value("1")).unwrap();
+        assert!(Config::from_table(table, "--set").is_err());
+    }
+}

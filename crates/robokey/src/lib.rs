@@ -1,0 +1,23 @@
+//! robokey: a remotely controlled robot and its controller agree on a secret key through
+//! the robot's motion (Naseri, Lucia, Youssef, IFAC 2023).
+//!
+//! This crate is the I/O-free core: kinematics ([`model`]), references ([`trajectory`]),
+//! the tracking controller ([`control`]), the unknown-input observer ([`observer`]), block
+//! codes ([`code`]), the protocol endpoints ([`protocol`]), the eavesdropper ([`eve`]),
+//! configuration ([`config`]), seeded random streams ([`rng`]) and the closed-loop
+//! simulation of one run ([`sim`]). Time is the sample index; randomness is passed in.
+
+pub mod code;
+pub mod config;
+pub mod control;
+pub mod eve;
+pub mod metrics;
+pub mod model;
+pub mod observer;
+pub mod protocol;
+pub mod rng;
+pub mod sim;
+pub mod trajectory;
+
+pub use config::Config;
+pub use metrics::Metrics;

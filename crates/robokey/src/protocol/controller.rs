@@ -1,0 +1,349 @@
+//! The controller endpoint (SPEC §3, §4, §4b): tracks the reference, offers command pairs,
+//! decodes the robot's choices, acks codewords and confirms the key.
+
+use std::collections::VecDeque;
+
+use subtle::ConstantTimeEq;
+
+use super::assembler::CodewordAssembler;
+use super::decoder::{StepDecision, StepDecoder};
+use super::fates::FateLedger;
+use super::message::Message;
+use super::plan::SessionPlan;
+use super::{KeyBits, Outcome, TAG_BYTES, confirmation_tag};
+use crate::config::{Config, Feedback};
+use crate::control::{TrackingController, TrackingGains};
+use crate::model::{Pose, Unicycle, WheelSpeeds};
+use crate::observer::{Observer, ObserverParams};
+use crate::trajectory::Trajectory;
+
+/// Input to the controller endpoint.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ControllerInput {
+    /// A message from the robot.
+    Frame(Message),
+    /// The shell's retransmission timer fired (Finish not acknowledged yet).
+    Timeout,
+}
+
+/// What the controller observed, for traces and metrics.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ControllerEvent {
+    /// Command pair k was computed from the nominal `uU(k)` (m/s, rad/s).
+    Commanded {
+        /// Step k.
+        step: u32,
+        /// Clipped nominal command.
+        nominal: Unicycle,
+    },
+    /// Step `k − 1` was decoded from `y(k)`.
+    Decoded(StepDecision),
+    /// Steps whose measurement never arrived.
+    Missing(std::ops::Range<u32>),
+    /// A codeword was decided.
+    CodewordDecided {
+        /// Codeword index.
+        index: u32,
+        /// Accepted into the key.
+        accepted: bool,
+    },
+    /// The session ended.
+    Finished(Outcome),
+}
+
+/// Output of the controller endpoint.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ControllerOutput {
+    /// Send this message to the robot.
+    Transmit(Message),
+    /// Something happened.
+    Event(ControllerEvent),
+}
+
+/// What the controller waits for.
+#[derive(Clone, Debug, PartialEq)]
+enum Phase {
+    ExpectMeasurement,
+    ExpectFinishAck { tries: u32 },
+    ExpectConfirm,
+    Done,
+}
+
+/// Largest number of Finish transmissions before the session ends unconfirmed.
+const FINISH_TRIES: u32 = 10;
+
+/// The controller side of a session.
+#[derive(Debug)]
+pub struct ControllerEndpoint {
+    plan: SessionPlan,
+    trajectory: Trajectory,
+    tracking: TrackingController,
+    feedback: Feedback,
+    decoder: StepDecoder,
+    assembler: CodewordAssembler,
+    fates: FateLedger,
+    decoded: Vec<u64>,
+    robot_cursor: u32,
+    phase: Phase,
+    key: KeyBits,
+    outputs: VecDeque<ControllerOutput>,
+}
+
+impl ControllerEndpoint {
+    /// A controller for a validated configuration and its plan.
+    #[must_use]
+    pub fn new(config: &Config, plan: SessionPlan) -> Self {
+        let c = &config.controller;
+        let gains = TrackingGains {
+            kp: c.kp,
+            kd: c.kd,
+            xi_eps: c.xi_eps,
+            wheel_limit: c.wheel_limit,
+        };
+        let observer = Observer::new(&observer_params(config)).expect("validated observer.m");
+        Self {
+            trajectory: config.trajectory(),
+            tracking: TrackingController::new(gains, plan.drive, plan.sample_time),
+            feedback: c.feedback,
+            decoder: StepDecoder::new(plan.drive, observer, plan.delta, plan.enabled),
+            assembler: CodewordAssembler::new(plan.code.n() as u32, plan.codewords()),
+            fates: FateLedger::new(plan.codewords()),
+            decoded: Vec::with_capacity(plan.codewords() as usize),
+            robot_cursor: 0,
+            phase: Phase::ExpectMeasurement,
+            key: KeyBits::default(),
+            outputs: VecDeque::new(),
+            plan,
+        }
+    }
+
+    /// Feeds one input.
+    pub fn handle_input(&mut self, input: ControllerInput) {
+        match input {
+            ControllerInput::Frame(message) => self.handle_message(message),
+            ControllerInput::Timeout => self.handle_timeout(),
+        }
+    }
+
+    /// The next output, if any.
+    pub fn poll_output(&mut self) -> Option<ControllerOutput> {
+        self.outputs.pop_front()
+    }
+
+    /// The controller's key `K_c` (complete once the session has finished).
+    #[must_use]
+    pub fn key(&self) -> &[u8] {
+        &self.key
+    }
+
+    /// The session plan.
+    #[must_use]
+    pub fn plan(&self) -> &SessionPlan {
+        &self.plan
+    }
+
+    /// Whether the session is over.
+    #[must_use]
+    pub fn is_done(&self) -> bool {
+        self.phase == Phase::Done
+    }
+
+    fn emit(&mut self, event: ControllerEvent) {
+        self.outputs.push_back(ControllerOutput::Event(event));
+    }
+
+    fn send(&mut self, message: Message) {
+        self.outputs.push_back(ControllerOutput::Transmit(message));
+    }
+
+    fn finish(&mut self, outcome: Outcome) {
+        self.phase = Phase::Done;
+        self.emit(ControllerEvent::Finished(outcome));
+    }
+
+    fn handle_message(&mut self, message: Message) {
+        match (&self.phase, message) {
+            (
+                Phase::ExpectMeasurement,
+                Message::Measurement {
+                    step,
+                    y,
+                    applied_step,
+                    fate_cursor,
+                },
+            ) => self.handle_measurement(step, Pose::from(y), applied_step, fate_cursor),
+            (Phase::ExpectFinishAck { .. }, Message::FinishAck) => {
+                self.send_confirm();
+                self.phase = Phase::ExpectConfirm;
+            }
+            (Phase::ExpectFinishAck { .. }, Message::Confirm { tag }) => {
+                // The FinishAck was lost; the robot's tag proves it had the Finish.
+                self.send_confirm();
+                self.verify(&tag);
+            }
+            (Phase::ExpectConfirm, Message::Confirm { tag }) => self.verify(&tag),
+            (Phase::Done, _) => {}
+            (_, Message::Abort { reason }) => {
+                self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
+            }
+            // Duplicates and messages that do not fit the phase are ignored.
+            _ => {}
+        }
+    }
+
+    fn handle_timeout(&mut self) {
+        if let Phase::ExpectFinishAck { tries } = self.phase {
+            if tries >= FINISH_TRIES {
+                self.finish(Outcome::Unconfirmed(format!(
+                    "no FinishAck after {tries} Finish transmissions"
+                )));
+            } else {
+                self.phase = Phase::ExpectFinishAck { tries: tries + 1 };
+                self.send_finish();
+            }
+        }
+    }
+
+    fn handle_measurement(&mut self, step: u32, y: Pose, applied: Option<u32>, cursor: u32) {
+        if step > self.plan.steps {
+            return;
+        }
+        let measured = match self.decoder.on_measurement(step, &y, applied) {
+            Ok(Some(measured)) => measured,
+            Ok(None) => return,
+            Err(e) => {
+                let reason = format!("step {step}: {e}");
+                self.send(Message::Abort {
+                    reason: reason.clone(),
+                });
+                self.finish(Outcome::Aborted(reason));
+                return;
+            }
+        };
+        self.robot_cursor = self.robot_cursor.max(cursor);
+        if !measured.missing.is_empty() {
+            for gap in measured.missing.clone() {
+                self.record_step(gap, None);
+            }
+            self.emit(ControllerEvent::Missing(measured.missing));
+        }
+        if let Some(decision) = measured.decision {
+            self.record_step(decision.step, decision.bit);
+            self.emit(ControllerEvent::Decoded(decision));
+        }
+        if step < self.plan.steps {
+            self.send_command(step, &y);
+        } else {
+            self.send(Message::Command {
+                step,
+                u0: [0.0; 2],
+                u1: [0.0; 2],
+                fates: self.fates.window(self.robot_cursor),
+            });
+            self.key = self.accepted_key();
+            self.phase = Phase::ExpectFinishAck { tries: 1 };
+            self.send_finish();
+        }
+    }
+
+    fn record_step(&mut self, step: u32, bit: Option<u8>) {
+        if !self.plan.enabled {
+            return;
+        }
+        if let Some(received) = self.assembler.push(step, bit) {
+            let decoded = self.plan.code.decode(received.word);
+            let accepted = !received.erased && decoded.distance <= self.plan.accept_max_distance;
+            self.fates.record(received.index, accepted);
+            self.decoded.push(decoded.message);
+            self.emit(ControllerEvent::CodewordDecided {
+                index: received.index,
+                accepted,
+            });
+        }
+    }
+
+    fn send_command(&mut self, step: u32, y: &Pose) {
+        let pose = match self.feedback {
+            Feedback::Measurement => *y,
+            Feedback::Estimate => self.decoder.state(),
+        };
+        let reference = self.trajectory.at(f64::from(step) * self.plan.sample_time);
+        let nominal = self.tracking.command(&pose, &reference);
+        let (u0, u1) = command_pair(&self.plan, nominal);
+        self.decoder.on_command(step, nominal, u0, u1);
+        self.emit(ControllerEvent::Commanded { step, nominal });
+        self.send(Message::Command {
+            step,
+            u0: u0.into(),
+            u1: u1.into(),
+            fates: self.fates.window(self.robot_cursor),
+        });
+    }
+
+    fn accepted_key(&self) -> KeyBits {
+        let k = self.plan.code.k();
+        let mut key = KeyBits::default();
+        for (index, message) in self.decoded.iter().enumerate() {
+            if self.fates.get(index as u32) == Some(true) {
+                key.extend((0..k).map(|j| (message >> j & 1) as u8));
+            }
+        }
+        key
+    }
+
+    fn tag(&self) -> [u8; TAG_BYTES] {
+        confirmation_tag(
+            self.plan.session,
+            &self.plan.config_digest,
+            &self.fates.bitmap(),
+            &self.key,
+        )
+    }
+
+    fn send_finish(&mut self) {
+        self.send(Message::Finish {
+            codewords: self.fates.len(),
+            bitmap: self.fates.bitmap(),
+        });
+    }
+
+    fn send_confirm(&mut self) {
+        let tag = self.tag();
+        self.send(Message::Confirm { tag });
+    }
+
+    fn verify(&mut self, peer: &[u8; TAG_BYTES]) {
+        let outcome = if bool::from(self.tag().ct_eq(peer)) {
+            Outcome::Confirmed
+        } else {
+            Outcome::Unconfirmed("the robot's confirmation tag differs: keys differ".into())
+        };
+        self.finish(outcome);
+    }
+}
+
+/// The pair `u0D = H⁻¹(uU + Δ)`, `u1D = H⁻¹(uU − Δ)` (protocol off: both `H⁻¹uU`).
+#[must_use]
+pub fn command_pair(plan: &SessionPlan, nominal: Unicycle) -> (WheelSpeeds, WheelSpeeds) {
+    if plan.enabled {
+        (
+            plan.drive.to_wheels(nominal + plan.delta),
+            plan.drive.to_wheels(nominal - plan.delta),
+        )
+    } else {
+        let wheels = plan.drive.to_wheels(nominal);
+        (wheels, wheels)
+    }
+}
+
+/// The observer design of a configuration.
+#[must_use]
+pub fn observer_params(config: &Config) -> ObserverParams {
+    ObserverParams {
+        sample_time: config.robot.sample_time,
+        w_var: config.observer.w_var,
+        v_var: config.observer.v_var,
+        variant: config.observer.variant,
+        channels: config.observer.m,
+    }
+}

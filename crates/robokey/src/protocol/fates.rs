@@ -1,0 +1,143 @@
+//! Codeword fates (accept/reject acks) and their reliable delivery (SPEC §4b).
+
+/// Fates of up to 64 consecutive codewords starting at `first`, carried by a command.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FateWindow {
+    /// Index of the first codeword covered (the robot's fate cursor as last echoed).
+    pub first: u32,
+    /// Number of codewords covered (≤ 64).
+    pub count: u8,
+    /// Bit j = codeword `first + j` accepted.
+    pub accepted: u64,
+}
+
+impl FateWindow {
+    /// Largest number of fates one window carries.
+    pub const CAPACITY: u32 = 64;
+
+    /// The fates it carries, as `(codeword index, accepted)`.
+    pub fn iter(&self) -> impl Iterator<Item = (u32, bool)> + '_ {
+        (0..u32::from(self.count.min(64))).map(|j| (self.first + j, self.accepted >> j & 1 == 1))
+    }
+}
+
+/// Known fates of a session's codewords, with the contiguous cursor.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FateLedger {
+    fates: Vec<Option<bool>>,
+    cursor: u32,
+}
+
+impl FateLedger {
+    /// A ledger for `codewords` codewords, all unknown.
+    #[must_use]
+    pub fn new(codewords: u32) -> Self {
+        Self {
+            fates: vec![None; codewords as usize],
+            cursor: 0,
+        }
+    }
+
+    /// Records a fate the first time it is learned (later reports are ignored); indices
+    /// beyond the session are ignored.
+    pub fn record(&mut self, index: u32, accepted: bool) {
+        if let Some(slot) = self.fates.get_mut(index as usize) {
+            slot.get_or_insert(accepted);
+        }
+        while self.fates.get(self.cursor as usize).is_some_and(Option::is_some) {
+            self.cursor += 1;
+        }
+    }
+
+    /// First codeword whose fate is unknown.
+    #[must_use]
+    pub fn cursor(&self) -> u32 {
+        self.cursor
+    }
+
+    /// The fate of codeword `index`, if known.
+    #[must_use]
+    pub fn get(&self, index: u32) -> Option<bool> {
+        self.fates.get(index as usize).copied().flatten()
+    }
+
+    /// Number of codewords in the session.
+    #[must_use]
+    pub fn len(&self) -> u32 {
+        self.fates.len() as u32
+    }
+
+    /// Whether the session has no codewords.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.fates.is_empty()
+    }
+
+    /// Whether every fate is known.
+    #[must_use]
+    pub fn is_complete(&self) -> bool {
+        self.cursor == self.len()
+    }
+
+    /// The window of fates from `first` that a command carries (at most 64, stopping at
+    /// the first unknown fate).
+    #[must_use]
+    pub fn window(&self, first: u32) -> FateWindow {
+        let mut window = FateWindow {
+            first,
+            ..FateWindow::default()
+        };
+        for j in 0..FateWindow::CAPACITY {
+            match self.get(first + j) {
+                Some(accepted) => {
+                    window.accepted |= u64::from(accepted) << j;
+                    window.count += 1;
+                }
+                None => break,
+            }
+        }
+        window
+    }
+
+    /// The complete bitmap (unknown fates count as rejected).
+    #[must_use]
+    pub fn bitmap(&self) -> Vec<u64> {
+        let mut words = vec![0u64; self.fates.len().div_ceil(64)];
+        for (i, fate) in self.fates.iter().enumerate() {
+            if *fate == Some(true) {
+                words[i / 64] |= 1 << (i % 64);
+            }
+        }
+        words
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_round_trip_and_cursor_is_contiguous() {
+        let mut ledger = FateLedger::new(70);
+        ledger.record(1, true);
+        assert_eq!(ledger.cursor(), 0);
+        ledger.record(0, false);
+        ledger.record(1, false); // ignored: first report wins
+        assert_eq!(ledger.cursor(), 2);
+        for i in 2..70 {
+            ledger.record(i, i % 3 == 0);
+        }
+        let window = ledger.window(2);
+        assert_eq!(window.count, 64);
+        let mut copy = FateLedger::new(70);
+        copy.record(0, false);
+        copy.record(1, true);
+        for (i, accepted) in window.iter().chain(ledger.window(66).iter()) {
+            copy.record(i, accepted);
+        }
+        assert!(copy.is_complete());
+        assert_eq!(copy.get(1), Some(true));
+        assert_eq!(copy.bitmap()[0] >> 2, ledger.bitmap()[0] >> 2);
+        assert_eq!(copy.bitmap()[1], ledger.bitmap()[1]);
+    }
+}

@@ -1,0 +1,63 @@
+//! The messages of SPEC §12 (session id and frame sequence numbers live in the wire
+//! header, added by the network shell).
+
+use super::fates::FateWindow;
+
+/// One protocol message.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Message {
+    /// Controller → robot: opens a session.
+    Hello {
+        /// Protocol version.
+        version: u8,
+        /// SHA-256 of the agreed configuration.
+        config_digest: [u8; 32],
+    },
+    /// Robot → controller: accepts a session with the same configuration digest.
+    HelloAck {
+        /// SHA-256 of the robot's configuration.
+        config_digest: [u8; 32],
+    },
+    /// Robot → controller: odometry `y(k)`.
+    Measurement {
+        /// Sample index k.
+        step: u32,
+        /// `y(k)` = `[px, py, θ]` (m, m, rad).
+        y: [f64; 3],
+        /// The command step applied on `[t_{k−1}, t_k)`, or `None` after a fallback.
+        applied_step: Option<u32>,
+        /// The robot's contiguous fate cursor: first codeword whose fate it lacks.
+        fate_cursor: u32,
+    },
+    /// Controller → robot: the pair of wheel commands for step k, plus acks. At `k = N`
+    /// it is the stop command (both pairs zero).
+    Command {
+        /// Step k.
+        step: u32,
+        /// `u0D(k)` (rad/s, right first).
+        u0: [f64; 2],
+        /// `u1D(k)` (rad/s, right first).
+        u1: [f64; 2],
+        /// Fates of the codewords the robot has not confirmed yet.
+        fates: FateWindow,
+    },
+    /// Controller → robot: every codeword's fate, sent after the stop command.
+    Finish {
+        /// Number of decided codewords.
+        codewords: u32,
+        /// Fate bitmap, bit `i % 64` of word `i / 64` = codeword `i` accepted.
+        bitmap: Vec<u64>,
+    },
+    /// Robot → controller: the Finish arrived.
+    FinishAck,
+    /// Either side: its key-confirmation tag.
+    Confirm {
+        /// Truncated tag over (session, config digest, fates, key).
+        tag: [u8; super::TAG_BYTES],
+    },
+    /// Either side: the session is over, with a reason.
+    Abort {
+        /// Human-readable reason.
+        reason: String,
+    },
+}

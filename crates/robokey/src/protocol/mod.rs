@@ -1,0 +1,36 @@
+//! The key-agreement protocol as sans-I/O endpoints (SPEC §4, §4b): the robot and the
+//! controller each take one input enum and emit one output enum; the shells (simulator,
+//! UDP agents) carry the [`Message`]s.
+
+mod assembler;
+mod confirm;
+pub(crate) mod controller;
+mod decoder;
+mod fates;
+mod message;
+mod plan;
+mod robot;
+
+pub use assembler::{CodewordAssembler, ReceivedWord};
+pub use confirm::{TAG_BYTES, confirmation_tag};
+pub use controller::{ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput};
+pub use decoder::{Measured, StepDecision, StepDecoder};
+pub use fates::{FateLedger, FateWindow};
+pub use message::Message;
+pub use plan::SessionPlan;
+pub use robot::{Actuation, RobotEndpoint, RobotInput, RobotOutput};
+
+/// How a session ended for one side.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    /// The peer's tag matched: both sides hold the same key (up to the tag's collision
+    /// probability).
+    Confirmed,
+    /// The session finished, but the peer's tag did not match or never arrived.
+    Unconfirmed(String),
+    /// The session was aborted.
+    Aborted(String),
+}
+
+/// A key as a bit string (one `u8` of 0/1 per bit), zeroized on drop.
+pub type KeyBits = zeroize::Zeroizing<Vec<u8>>;

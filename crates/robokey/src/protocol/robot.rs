@@ -1,0 +1,308 @@
+//! The robot endpoint (SPEC §4, §4b): owns the key bits and the clock, applies one of the
+//! two offered commands per step (or the fallback), reports odometry.
+
+use std::collections::VecDeque;
+
+use rand::{CryptoRng, RngExt};
+use subtle::ConstantTimeEq;
+
+use super::fates::FateLedger;
+use super::message::Message;
+use super::plan::SessionPlan;
+use super::{KeyBits, Outcome, TAG_BYTES, confirmation_tag};
+use crate::code::low_mask;
+use crate::model::{Pose, WheelSpeeds};
+
+/// Input to the robot endpoint.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RobotInput {
+    /// The odometry pose `y(k)` was sampled at `t_k = k·T`.
+    Sample {
+        /// Step k.
+        step: u32,
+        /// `y(k)` (m, m, rad).
+        y: Pose,
+    },
+    /// A message from the controller.
+    Frame(Message),
+    /// Command `step` has not arrived by its deadline.
+    Deadline {
+        /// Step k.
+        step: u32,
+    },
+}
+
+/// What the robot applies on `[t_k, t_{k+1})`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Actuation {
+    /// Step k.
+    pub step: u32,
+    /// Wheel speeds (rad/s, right first).
+    pub wheels: WheelSpeeds,
+    /// The key bit `b(k)` applied, or `None` (protocol off, erased, or stopped).
+    pub bit: Option<u8>,
+    /// Whether the command was missing and the fallback was applied.
+    pub erased: bool,
+}
+
+/// Output of the robot endpoint.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RobotOutput {
+    /// Send this message to the controller.
+    Transmit(Message),
+    /// Drive the wheels.
+    Apply(Actuation),
+    /// The session ended.
+    Finished(Outcome),
+}
+
+/// What the robot waits for.
+#[derive(Clone, Debug, PartialEq)]
+enum Phase {
+    ExpectCommand,
+    ExpectFinish,
+    ExpectConfirm,
+    Done,
+}
+
+/// The robot side of a session.
+pub struct RobotEndpoint {
+    plan: SessionPlan,
+    messages: zeroize::Zeroizing<Vec<u64>>,
+    codewords: zeroize::Zeroizing<Vec<u64>>,
+    fates: FateLedger,
+    erased: Vec<bool>,
+    last_pair: Option<(WheelSpeeds, WheelSpeeds)>,
+    missing_in_a_row: u32,
+    applied_step: Option<u32>,
+    next_command: u32,
+    phase: Phase,
+    key: KeyBits,
+    outputs: VecDeque<RobotOutput>,
+}
+
+impl std::fmt::Debug for RobotEndpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // Key material is never printed.
+        f.debug_struct("RobotEndpoint")
+            .field("phase", &self.phase)
+            .field("next_command", &self.next_command)
+            .finish_non_exhaustive()
+    }
+}
+
+impl RobotEndpoint {
+    /// A robot that draws its raw key from `key_source` (a CSPRNG: the OS generator in
+    /// deployment, a seeded stream in simulation).
+    pub fn new<R: CryptoRng + ?Sized>(plan: SessionPlan, key_source: &mut R) -> Self {
+        let n = plan.code.n() as u32;
+        // Enough messages for every step, including a trailing partial codeword.
+        let count = if plan.enabled { plan.steps.div_ceil(n) } else { 0 };
+        let mask = low_mask(plan.code.k());
+        let messages: Vec<u64> = (0..count).map(|_| key_source.random::<u64>() & mask).collect();
+        let codewords = messages.iter().map(|&m| plan.code.encode(m)).collect();
+        Self {
+            fates: FateLedger::new(plan.codewords()),
+            erased: vec![false; plan.codewords() as usize],
+            messages: messages.into(),
+            codewords: zeroize::Zeroizing::new(codewords),
+            last_pair: None,
+            missing_in_a_row: 0,
+            applied_step: None,
+            next_command: 0,
+            phase: Phase::ExpectCommand,
+            key: KeyBits::default(),
+            outputs: VecDeque::new(),
+            plan,
+        }
+    }
+
+    /// Feeds one input.
+    pub fn handle_input(&mut self, input: RobotInput) {
+        match input {
+            RobotInput::Sample { step, y } => self.handle_sample(step, &y),
+            RobotInput::Frame(message) => self.handle_message(message),
+            RobotInput::Deadline { step } => self.handle_deadline(step),
+        }
+    }
+
+    /// The next output, if any.
+    pub fn poll_output(&mut self) -> Option<RobotOutput> {
+        self.outputs.pop_front()
+    }
+
+    /// The robot's key `K_r` (complete once the Finish has arrived).
+    #[must_use]
+    pub fn key(&self) -> &[u8] {
+        &self.key
+    }
+
+    /// Whether the session is over.
+    #[must_use]
+    pub fn is_done(&self) -> bool {
+        self.phase == Phase::Done
+    }
+
+    /// The step whose command the robot waits for.
+    #[must_use]
+    pub fn next_command(&self) -> u32 {
+        self.next_command
+    }
+
+    fn send(&mut self, message: Message) {
+        self.outputs.push_back(RobotOutput::Transmit(message));
+    }
+
+    fn finish(&mut self, outcome: Outcome) {
+        self.phase = Phase::Done;
+        self.outputs.push_back(RobotOutput::Finished(outcome));
+    }
+
+    fn handle_sample(&mut self, step: u32, y: &Pose) {
+        let applied_step = self.applied_step.take();
+        self.send(Message::Measurement {
+            step,
+            y: (*y).into(),
+            applied_step,
+            fate_cursor: self.fates.cursor(),
+        });
+    }
+
+    fn handle_message(&mut self, message: Message) {
+        match (&self.phase, message) {
+            (Phase::ExpectCommand, Message::Command { step, u0, u1, fates }) => {
+                if step != self.next_command {
+                    return; // stale, duplicate or from the future
+                }
+                for (index, accepted) in fates.iter() {
+                    self.record_fate(index, accepted);
+                }
+                self.handle_command(step, u0.into(), u1.into());
+            }
+            (Phase::ExpectFinish | Phase::ExpectConfirm, Message::Finish { codewords, bitmap }) => {
+                if codewords != self.fates.len() {
+                    let reason = format!(
+                        "Finish covers {codewords} codewords, the robot sent {}",
+                        self.fates.len()
+                    );
+                    self.send(Message::Abort {
+                        reason: reason.clone(),
+                    });
+                    self.finish(Outcome::Aborted(reason));
+                    return;
+                }
+                for index in 0..codewords {
+                    let accepted = bitmap
+                        .get(index as usize / 64)
+                        .is_some_and(|w| w >> (index % 64) & 1 == 1);
+                    self.record_fate(index, accepted);
+                }
+                self.key = self.accepted_key();
+                self.phase = Phase::ExpectConfirm;
+                self.send(Message::FinishAck);
+                let tag = self.tag();
+                self.send(Message::Confirm { tag });
+            }
+            (Phase::ExpectConfirm, Message::Confirm { tag }) => {
+                let outcome = if bool::from(self.tag().ct_eq(&tag)) {
+                    Outcome::Confirmed
+                } else {
+                    Outcome::Unconfirmed(
+                        "the controller's confirmation tag differs: keys differ".into(),
+                    )
+                };
+                self.finish(outcome);
+            }
+            (Phase::Done, _) => {}
+            (_, Message::Abort { reason }) => {
+                self.stop_wheels(self.next_command);
+                self.finish(Outcome::Aborted(format!("controller aborted: {reason}")));
+            }
+            _ => {}
+        }
+    }
+
+    fn handle_command(&mut self, step: u32, u0: WheelSpeeds, u1: WheelSpeeds) {
+        self.next_command = step + 1;
+        self.missing_in_a_row = 0;
+        self.applied_step = Some(step);
+        if step >= self.plan.steps {
+            self.stop_wheels(step);
+            self.phase = Phase::ExpectFinish;
+            return;
+        }
+        self.last_pair = Some((u0, u1));
+        let bit = self.plan.enabled.then(|| self.bit(step));
+        let wheels = if bit == Some(1) { u1 } else { u0 };
+        self.outputs.push_back(RobotOutput::Apply(Actuation {
+            step,
+            wheels,
+            bit,
+            erased: false,
+        }));
+    }
+
+    fn stop_wheels(&mut self, step: u32) {
+        self.outputs.push_back(RobotOutput::Apply(Actuation {
+            step,
+            wheels: WheelSpeeds::zeros(),
+            bit: None,
+            erased: false,
+        }));
+    }
+
+    fn handle_deadline(&mut self, step: u32) {
+        if self.phase != Phase::ExpectCommand || step != self.next_command {
+            return;
+        }
+        self.next_command = step + 1;
+        self.missing_in_a_row += 1;
+        self.applied_step = None;
+        let (index, _) = self.plan.position(step);
+        if let Some(erased) = self.erased.get_mut(index as usize) {
+            *erased = true;
+        }
+        let wheels = match self.last_pair {
+            Some((u0, u1)) if self.missing_in_a_row <= self.plan.max_hold => (u0 + u1) / 2.0,
+            _ => WheelSpeeds::zeros(),
+        };
+        self.outputs.push_back(RobotOutput::Apply(Actuation {
+            step,
+            wheels,
+            bit: None,
+            erased: true,
+        }));
+    }
+
+    /// Records a fate; a codeword the robot saw erased is never accepted.
+    fn record_fate(&mut self, index: u32, accepted: bool) {
+        let erased = self.erased.get(index as usize).copied().unwrap_or(true);
+        self.fates.record(index, accepted && !erased);
+    }
+
+    fn bit(&self, step: u32) -> u8 {
+        let (index, position) = self.plan.position(step);
+        (self.codewords[index as usize] >> position & 1) as u8
+    }
+
+    fn accepted_key(&self) -> KeyBits {
+        let k = self.plan.code.k();
+        let mut key = KeyBits::default();
+        for index in 0..self.fates.len() {
+            if self.fates.get(index) == Some(true) {
+                let message = self.messages[index as usize];
+                key.extend((0..k).map(|j| (message >> j & 1) as u8));
+            }
+        }
+        key
+    }
+
+    fn tag(&self) -> [u8; TAG_BYTES] {
+        confirmation_tag(
+            self.plan.session,
+            &self.plan.config_digest,
+            &self.fates.bitmap(),
+            &self.key,
+        )
+    }
+}

@@ -1,0 +1,317 @@
+//! Closed-loop simulation of one run: plant with true noise, robot and controller
+//! endpoints exchanging every message, and the eavesdropper listening (SPEC §1–§8).
+
+use rand_distr::{Distribution, StandardNormal};
+use subtle::ConstantTimeEq;
+
+use crate::config::Config;
+use crate::eve::{ModelErrors, PaperEve};
+use crate::metrics::Metrics;
+use crate::model::{Pose, Unicycle, clip_wheels, unicycle_step};
+use crate::protocol::{
+    ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome,
+    RobotEndpoint, RobotInput, RobotOutput, SessionPlan,
+};
+use crate::rng::{Purpose, stream};
+
+/// One row of `trace.csv` (SPEC §8): step k and what each party knew at k.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TraceRow {
+    /// Step k.
+    pub k: u32,
+    /// `t = k·T` (s).
+    pub t: f64,
+    /// Reference position (m).
+    pub reference: [f64; 2],
+    /// True pose `x(k)`.
+    pub pose: [f64; 3],
+    /// Measurement `y(k)`.
+    pub measurement: [f64; 3],
+    /// Clipped nominal `uU(k)` (m/s, rad/s); none at the stop step.
+    pub nominal: Option<[f64; 2]>,
+    /// `u0D(k)` (rad/s).
+    pub u0: Option<[f64; 2]>,
+    /// `u1D(k)` (rad/s).
+    pub u1: Option<[f64; 2]>,
+    /// `b(k)`, applied on `[k, k+1)`.
+    pub bit: Option<u8>,
+    /// `d̂(k−1)` as `[Δv̂, Δω̂]`.
+    pub dhat: Option<[f64; 2]>,
+    /// `x̂(k)`.
+    pub xhat: Option<[f64; 3]>,
+    /// `b̂(k−1)` of the controller.
+    pub bhat: Option<u8>,
+    /// `b̂(k−1)` of Eve.
+    pub bhat_eve: Option<u8>,
+}
+
+impl TraceRow {
+    /// Column names of `trace.csv`.
+    pub const COLUMNS: [&'static str; 24] = [
+        "k", "t", "ref_x", "ref_y", "px", "py", "theta", "meas_x", "meas_y", "meas_theta",
+        "v_nom", "omega_nom", "u0_r", "u0_l", "u1_r", "u1_l", "b", "dhat_v", "dhat_omega",
+        "xhat_x", "xhat_y", "xhat_theta", "bhat", "bhat_eve",
+    ];
+}
+
+/// Everything one run produced.
+#[derive(Clone, Debug)]
+pub struct RunOutput {
+    /// The metrics of SPEC §8.
+    pub metrics: Metrics,
+    /// Per-step rows (empty unless requested).
+    pub trace: Vec<TraceRow>,
+    /// How the session ended for the robot.
+    pub robot_outcome: Option<Outcome>,
+    /// How the session ended for the controller.
+    pub controller_outcome: Option<Outcome>,
+    /// Eve's model errors, when the run had an Eve.
+    pub eve_errors: Option<ModelErrors>,
+}
+
+/// A failure of the simulation itself (not of the protocol).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// The controller aborted the session.
+    #[error("replicate {replicate}: the session aborted: {reason}")]
+    Aborted {
+        /// Replicate index.
+        replicate: u32,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// Per-step record of bits and decisions.
+#[derive(Clone, Debug, Default)]
+struct StepLog {
+    bit: Option<u8>,
+    bhat: Option<u8>,
+    bhat_eve: Option<u8>,
+}
+
+/// Simulates replicate `replicate` of a validated configuration. Deterministic: a pure
+/// function of `(config, replicate)`.
+///
+/// # Errors
+/// [`SimError`] when the observer breaks down and the session aborts.
+pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> Result<RunOutput, SimError> {
+    let plan = SessionPlan::from_config(config, replicate);
+    simulate_plan(config, plan, replicate, record_trace)
+}
+
+/// [`simulate`] with a precomputed plan (the config digest is computed once per sweep
+/// point rather than once per run).
+///
+/// # Errors
+/// [`SimError`] when the session aborts.
+pub fn simulate_plan(
+    config: &Config,
+    plan: SessionPlan,
+    replicate: u32,
+    record_trace: bool,
+) -> Result<RunOutput, SimError> {
+    let seed = config.run.seed;
+    let stream_of = |purpose| stream(seed, purpose, u64::from(replicate));
+    let (mut process_rng, mut measurement_rng) = (stream_of(Purpose::Process), stream_of(Purpose::Measurement));
+    let process_std = Pose::from(config.noise.process_std);
+    let measurement_std = Pose::from(config.noise.measurement_std);
+    let gaussian = |rng: &mut rand::rngs::ChaCha8Rng, std: &Pose| {
+        Pose::new(
+            StandardNormal.sample(rng),
+            StandardNormal.sample(rng),
+            StandardNormal.sample(rng),
+        )
+        .component_mul(std)
+    };
+
+    let steps = plan.steps;
+    let sample_time = plan.sample_time;
+    let drive = plan.drive;
+    let trajectory = config.trajectory();
+    let mut robot = RobotEndpoint::new(plan.clone(), &mut stream_of(Purpose::Key));
+    let mut eve = (config.eve.enabled && plan.enabled).then(|| {
+        let errors = ModelErrors::draw(config.eve.alpha, config.eve.draw, &mut stream_of(Purpose::Eve));
+        PaperEve::new(config, &plan, errors)
+    });
+    let mut controller = ControllerEndpoint::new(config, plan);
+
+    let mut log = vec![StepLog::default(); steps as usize + 1];
+    let mut trace = if record_trace { vec![TraceRow::default(); steps as usize + 1] } else { Vec::new() };
+    let mut pose = Pose::zeros();
+    let mut tracking_error = 0.0;
+    let mut outcomes = (None, None);
+    let mut abort = None;
+
+    for k in 0..=steps {
+        let reference = trajectory.at(f64::from(k) * sample_time).position;
+        if k > 0 {
+            tracking_error += (pose.xy() - reference).norm();
+        }
+        let y = pose + gaussian(&mut measurement_rng, &measurement_std);
+        if record_trace {
+            let row = &mut trace[k as usize];
+            row.k = k;
+            row.t = f64::from(k) * sample_time;
+            row.reference = reference.into();
+            row.pose = pose.into();
+            row.measurement = y.into();
+        }
+        robot.handle_input(RobotInput::Sample { step: k, y });
+        let mut wheels = None;
+        // Deliver until both sides are quiet; the robot's Apply ends the step.
+        loop {
+            let mut quiet = true;
+            while let Some(output) = robot.poll_output() {
+                quiet = false;
+                match output {
+                    RobotOutput::Transmit(message) => {
+                        if let Some(eve) = eve.as_mut() {
+                            if let Some(d) = eve.observe(&message) {
+                                log[d.step as usize].bhat_eve = d.bit;
+                                if record_trace {
+                                    trace[d.step as usize + 1].bhat_eve = d.bit;
+                                }
+                            }
+                        }
+                        controller.handle_input(ControllerInput::Frame(message));
+                    }
+                    RobotOutput::Apply(actuation) => {
+                        log[actuation.step as usize].bit = actuation.bit;
+                        if record_trace {
+                            trace[actuation.step as usize].bit = actuation.bit;
+                        }
+                        wheels = Some(actuation.wheels);
+                    }
+                    RobotOutput::Finished(outcome) => outcomes.0 = Some(outcome),
+                }
+            }
+            while let Some(output) = controller.poll_output() {
+                quiet = false;
+                match output {
+                    ControllerOutput::Transmit(message) => {
+                        if let Some(eve) = eve.as_mut() {
+                            eve.observe(&message);
+                        }
+                        if record_trace {
+                            if let Message::Command { step, u0, u1, .. } = &message {
+                                trace[*step as usize].u0 = Some(*u0);
+                                trace[*step as usize].u1 = Some(*u1);
+                            }
+                        }
+                        robot.handle_input(RobotInput::Frame(message));
+                    }
+                    ControllerOutput::Event(event) => match event {
+                        ControllerEvent::Decoded(d) => {
+                            log[d.step as usize].bhat = d.bit;
+                            if record_trace {
+                                let row = &mut trace[d.step as usize + 1];
+                                row.bhat = d.bit;
+                                row.dhat = Some(d.estimate.deviation.into());
+                                row.xhat = Some(d.estimate.state.into());
+                            }
+                        }
+                        ControllerEvent::Commanded { step, nominal } if record_trace => {
+                            trace[step as usize].nominal = Some(nominal.into());
+                        }
+                        ControllerEvent::Finished(outcome) => {
+                            if let Outcome::Aborted(reason) = &outcome {
+                                abort = Some(reason.clone());
+                            }
+                            outcomes.1 = Some(outcome);
+                        }
+                        _ => {}
+                    },
+                }
+            }
+            if quiet {
+                break;
+            }
+        }
+        if let Some(reason) = abort {
+            return Err(SimError::Aborted { replicate, reason });
+        }
+        if k < steps {
+            let applied = wheels.map_or_else(Unicycle::zeros, |w| {
+                drive.to_unicycle(clip_wheels(w, config.robot.wheel_limit))
+            });
+            pose = unicycle_step(&pose, &applied, sample_time) + gaussian(&mut process_rng, &process_std);
+        }
+    }
+
+    let metrics = compute_metrics(
+        &log[..steps as usize],
+        tracking_error / f64::from(steps.max(1)),
+        &robot,
+        &controller,
+        eve.as_ref(),
+        config.protocol.enabled,
+    );
+    Ok(RunOutput {
+        metrics,
+        trace,
+        robot_outcome: outcomes.0,
+        controller_outcome: outcomes.1,
+        eve_errors: eve.as_ref().map(PaperEve::errors),
+    })
+}
+
+fn compute_metrics(
+    log: &[StepLog],
+    jx: f64,
+    robot: &RobotEndpoint,
+    controller: &ControllerEndpoint,
+    eve: Option<&PaperEve>,
+    enabled: bool,
+) -> Metrics {
+    if !enabled {
+        return Metrics {
+            jx,
+            ..Metrics::default()
+        };
+    }
+    let applied: Vec<&StepLog> = log.iter().filter(|s| s.bit.is_some()).collect();
+    let error_rate = |pick: fn(&StepLog) -> Option<u8>| {
+        let wrong = applied.iter().filter(|s| pick(s) != s.bit).count();
+        (!applied.is_empty()).then(|| wrong as f64 / applied.len() as f64)
+    };
+    let (k_r, k_c) = (robot.key(), controller.key());
+    let k_a = eve.map(PaperEve::key);
+    let codewords = u64::from(controller.plan().codewords());
+    let accepted_bits = k_c.len();
+    let accepted = (accepted_bits / controller.plan().code.k()) as u64;
+    let share = |other: &[u8], equal: bool| {
+        let count = other.iter().zip(k_c).filter(|(a, b)| (a == b) == equal).count();
+        (accepted_bits > 0).then(|| 100.0 * count as f64 / accepted_bits as f64)
+    };
+    let n_bce = eve.map(|_| {
+        let mut table = [0u64; 8];
+        for s in &applied {
+            if let (Some(b), Some(c), Some(a)) = (s.bit, s.bhat, s.bhat_eve) {
+                table[usize::from(b << 2 | c << 1 | a)] += 1;
+            }
+        }
+        table
+    });
+    let n_acc = k_a.as_ref().map(|k_a| {
+        let mut table = [0u64; 8];
+        for ((s, c), a) in k_r.iter().zip(k_c).zip(k_a.iter()) {
+            table[usize::from(s << 2 | c << 1 | a)] += 1;
+        }
+        table
+    });
+    Metrics {
+        codewords_sent: Some(codewords),
+        accepted: Some(accepted),
+        accepted_pct: (codewords > 0).then(|| 100.0 * accepted as f64 / codewords as f64),
+        correct_pct: share(k_r, true),
+        ber_controller: error_rate(|s| s.bhat),
+        ber_eve: eve.and_then(|_| error_rate(|s| s.bhat_eve)),
+        jx,
+        eve_disagreement_pct: k_a.as_ref().and_then(|k_a| share(k_a, false)),
+        key_match: (accepted_bits > 0).then(|| k_r.len() == k_c.len() && bool::from(k_r.ct_eq(k_c))),
+        n_bce,
+        n_acc,
+    }
+}
