@@ -1,1 +1,161 @@
-fn main() {}
+//! The `robokey` command: simulate runs, sweep parameters, reproduce the paper.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use robokey_lab::files::Override;
+use robokey_lab::runner::Shard;
+
+mod commands;
+
+/// Key agreement for remotely controlled robots, through the robot's own motion
+/// (Naseri, Lucia, Youssef, IFAC 2023) — simulated, swept and measured.
+#[derive(Parser, Debug)]
+#[command(name = "robokey", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Simulate one run: print its metrics, write metrics.json, trace.csv and a
+    /// trajectory figure.
+    Run(RunArgs),
+    /// Run a sweep (a config with a [sweep] table, or a suite of [experiment.NAME]).
+    Sweep(SweepArgs),
+    /// Merge the folders of a sharded sweep into one.
+    Merge(MergeArgs),
+    /// Regenerate the paper's experiments, figures and report.
+    Reproduce(ReproduceArgs),
+    /// Print the resolved configuration (defaults, file, overrides) as TOML.
+    Config(ConfigArgs),
+}
+
+/// Options shared by commands that read a configuration.
+#[derive(Args, Debug, Clone)]
+struct ConfigOptions {
+    /// Set any config field, e.g. `--set controller.kp=1.0` (repeatable).
+    #[arg(long = "set", value_name = "FIELD=VALUE", value_parser = parse_override)]
+    set: Vec<Override>,
+}
+
+#[derive(Args, Debug)]
+struct RunArgs {
+    /// Configuration file (TOML); defaults apply to every field it leaves out.
+    #[arg(long, short)]
+    config: Option<PathBuf>,
+    /// Δv (m/s): `protocol.delta_v`.
+    #[arg(long)]
+    delta_v: Option<f64>,
+    /// Δω (rad/s): `protocol.delta_omega`.
+    #[arg(long)]
+    delta_omega: Option<f64>,
+    /// Master seed: `run.seed`.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Which replicate's random streams to use.
+    #[arg(long, default_value_t = 0)]
+    replicate: u32,
+    /// Eve's model error α (fraction): `eve.alpha`.
+    #[arg(long)]
+    alpha: Option<f64>,
+    /// Run without an eavesdropper.
+    #[arg(long)]
+    no_eve: bool,
+    /// Protocol off: the robot applies the nominal command (J_x baseline).
+    #[arg(long)]
+    protocol_off: bool,
+    #[command(flatten)]
+    options: ConfigOptions,
+    /// Output folder.
+    #[arg(long, short, default_value = "robokey-out/run")]
+    out: PathBuf,
+}
+
+#[derive(Args, Debug)]
+struct SweepArgs {
+    /// Sweep file: config fields plus [sweep] axes, or [experiment.NAME] tables.
+    config: PathBuf,
+    #[command(flatten)]
+    options: ConfigOptions,
+    /// Output folder (a suite writes one subfolder per experiment).
+    #[arg(long, short, default_value = "robokey-out/sweep")]
+    out: PathBuf,
+    /// Worker threads (0: one per core). Results do not depend on it.
+    #[arg(long, short, default_value_t = 0)]
+    jobs: usize,
+    /// Run only shard m of n (1-based, round-robin over runs); merge with `robokey merge`.
+    #[arg(long, value_name = "M/N")]
+    shard: Option<Shard>,
+    /// Overwrite a non-empty output folder.
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(Args, Debug)]
+struct MergeArgs {
+    /// Shard folders of one sweep (or of one experiment of a suite).
+    #[arg(required = true)]
+    dirs: Vec<PathBuf>,
+    /// Output folder.
+    #[arg(long, short)]
+    out: PathBuf,
+    /// Overwrite a non-empty output folder.
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(Args, Debug)]
+struct ReproduceArgs {
+    /// Output folder.
+    #[arg(long, short, default_value = "robokey-out/reproduce")]
+    out: PathBuf,
+    /// Worker threads (0: one per core). Results do not depend on it.
+    #[arg(long, short, default_value_t = 0)]
+    jobs: usize,
+    /// 3 replicates per point instead of 10.
+    #[arg(long)]
+    quick: bool,
+    /// Overwrite a non-empty output folder.
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(Args, Debug)]
+struct ConfigArgs {
+    /// Configuration file (TOML).
+    #[arg(long, short)]
+    config: Option<PathBuf>,
+    #[command(flatten)]
+    options: ConfigOptions,
+}
+
+fn parse_override(text: &str) -> Result<Override, String> {
+    let (field, value) = text
+        .split_once('=')
+        .ok_or_else(|| format!("`{text}`: expected FIELD=VALUE, e.g. controller.kp=1.0"))?;
+    Ok(Override {
+        field: field.trim().to_owned(),
+        value: robokey::config::parse_value(value.trim()),
+    })
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Run(args) => commands::run(args),
+        Command::Sweep(args) => commands::sweep(args),
+        Command::Merge(args) => commands::merge(args),
+        Command::Reproduce(args) => commands::reproduce(args),
+        Command::Config(args) => commands::config(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

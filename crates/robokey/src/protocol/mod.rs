@@ -10,6 +10,7 @@ mod fates;
 mod message;
 mod plan;
 mod robot;
+pub mod wire;
 
 pub use assembler::{CodewordAssembler, ReceivedWord};
 pub use confirm::{TAG_BYTES, confirmation_tag};

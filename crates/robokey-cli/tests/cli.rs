@@ -1,0 +1,150 @@
+//! Runs the `robokey` binary as a user would.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn robokey(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args(args)
+        .output()
+        .expect("the robokey binary runs")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = robokey(args);
+    assert!(
+        out.status.success(),
+        "robokey {args:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn fails(args: &[&str]) -> String {
+    let out = robokey(args);
+    assert!(!out.status.success(), "robokey {args:?} should fail");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A fresh scratch folder for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("robokey-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn run_prints_metrics_and_writes_its_files() {
+    let dir = scratch("run");
+    let out = ok(&["run", "--delta-v", "0.035", "--seed", "7", "--out", s(&dir)]);
+    assert!(out.contains("accepted %") && out.contains("J_x"), "{out}");
+    let metrics: serde_json::Value = serde_json::from_str(&read(&dir.join("metrics.json"))).unwrap();
+    assert_eq!(metrics["codewords_sent"], 340);
+    assert!(metrics["accepted_pct"].as_f64().unwrap() > 50.0);
+    assert_eq!(read(&dir.join("trace.csv")).lines().count(), 1022);
+    assert!(read(&dir.join("trajectory.svg")).contains("<svg"));
+    assert!(dir.join("trajectory.png").exists());
+}
+
+#[test]
+fn protocol_off_leaves_key_metrics_null() {
+    let dir = scratch("off");
+    ok(&["run", "--protocol-off", "--out", s(&dir)]);
+    let metrics: serde_json::Value = serde_json::from_str(&read(&dir.join("metrics.json"))).unwrap();
+    assert!(metrics["accepted_pct"].is_null() && metrics["key_match"].is_null());
+    assert!(metrics["jx"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn bad_input_gets_named_errors() {
+    let err = fails(&["run", "--delta-v", "0"]);
+    assert!(err.contains("protocol.delta_v") && err.contains("> 0"), "{err}");
+    let err = fails(&["run", "--set", "controller.gain=2"]);
+    assert!(err.contains("gain"), "{err}");
+    let dir = scratch("bad");
+    let file = dir.join("bad.toml");
+    std::fs::write(&file, "[sweep]\nmode = \"zip\"\n\"controller.kp\" = [1.0]\n\"controller.kd\" = [0.7, 0.8]\n").unwrap();
+    let err = fails(&["sweep", s(&file), "--out", s(&dir.join("o"))]);
+    assert!(err.contains("bad.toml") && err.contains("zip axes differ"), "{err}");
+    std::fs::write(&file, "[sweep]\n\"robot.mass\" = [1.0]\n").unwrap();
+    let err = fails(&["sweep", s(&file), "--out", s(&dir.join("o"))]);
+    assert!(err.contains("bad.toml") && err.contains("mass"), "{err}");
+    std::fs::write(&file, "[sweep]\n\"robot.r\" = []\n").unwrap();
+    let err = fails(&["sweep", s(&file), "--out", s(&dir.join("o"))]);
+    assert!(err.contains("`robot.r` is empty"), "{err}");
+}
+
+const SMALL_SWEEP: &str = "[run]\nreplicates = 3\n[sweep]\n\"protocol.delta_v\" = [0.02, 0.035]\n\"eve.alpha\" = [0.0, 0.1]\n";
+
+#[test]
+fn jobs_and_shards_give_byte_identical_results() {
+    let dir = scratch("shards");
+    let file = dir.join("small.toml");
+    std::fs::write(&file, SMALL_SWEEP).unwrap();
+    let (one, two) = (dir.join("one"), dir.join("two"));
+    ok(&["sweep", s(&file), "--jobs", "1", "--out", s(&one)]);
+    ok(&["sweep", s(&file), "--jobs", "2", "--out", s(&two)]);
+    let runs = read(&one.join("runs.csv"));
+    assert_eq!(runs, read(&two.join("runs.csv")));
+    assert_eq!(runs.lines().count(), 1 + 12);
+    assert!(runs.starts_with("protocol.delta_v,eve.alpha,replicate,codewords_sent,accepted,"));
+    let (a, b, merged) = (dir.join("a"), dir.join("b"), dir.join("merged"));
+    ok(&["sweep", s(&file), "--shard", "1/2", "--out", s(&a)]);
+    ok(&["sweep", s(&file), "--shard", "2/2", "--out", s(&b)]);
+    ok(&["merge", s(&a), s(&b), "--out", s(&merged)]);
+    assert_eq!(read(&merged.join("runs.csv")), runs);
+    assert_eq!(read(&merged.join("summary.json")), read(&one.join("summary.json")));
+    // A shard alone is not a complete sweep.
+    let err = fails(&["merge", s(&a), "--out", s(&dir.join("partial"))]);
+    assert!(err.contains("in none of the shards"), "{err}");
+    // Refuses to overwrite without --force.
+    let err = fails(&["sweep", s(&file), "--out", s(&one)]);
+    assert!(err.contains("--force"), "{err}");
+}
+
+#[test]
+fn reproduce_quick_writes_a_parseable_report_and_sweep_agrees() {
+    let dir = scratch("reproduce");
+    let out = dir.join("r");
+    let printed = ok(&["reproduce", "--quick", "--out", s(&out)]);
+    assert!(printed.contains("report:"), "{printed}");
+    let report = read(&out.join("report.md"));
+    assert!(report.contains("Spearman") && report.contains("does **not** reproduce"), "{report}");
+    for name in ["dv-sweep", "eve-sweep", "baseline", "trajectory"] {
+        let folder = out.join(name);
+        let summary: serde_json::Value = serde_json::from_str(&read(&folder.join("summary.json"))).unwrap();
+        assert!(summary["points"].as_array().is_some_and(|p| !p.is_empty()));
+        let _: serde_json::Value = serde_json::from_str(&read(&folder.join("manifest.json"))).unwrap();
+        let mut csv = csv::Reader::from_path(folder.join("runs.csv")).unwrap();
+        assert!(csv.records().all(|r| r.is_ok()));
+        let _: toml::Table = read(&folder.join("config.resolved.toml")).parse().unwrap();
+    }
+    for figure in ["dv-acceptance", "dv-jx", "eve-disagreement", "trajectory"] {
+        assert!(read(&out.join("figures").join(format!("{figure}.svg"))).contains("<svg"));
+        assert!(out.join("figures").join(format!("{figure}.png")).exists());
+    }
+    // Golden value: replicate 0 at Δv = 0.035 accepts this many codewords of 340.
+    let runs = read(&out.join("dv-sweep/runs.csv"));
+    let row = runs.lines().find(|l| l.starts_with("0.035,0,")).expect("Δv = 0.035, replicate 0");
+    assert_eq!(row.split(',').nth(3), Some(GOLDEN_ACCEPTED));
+
+    // `robokey sweep experiments/paper.toml` gives the same numbers.
+    let paper = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../experiments/paper.toml");
+    let swept = dir.join("s");
+    ok(&["sweep", s(&paper), "--set", "run.replicates=3", "--out", s(&swept)]);
+    for name in ["dv-sweep", "eve-sweep", "baseline", "trajectory"] {
+        assert_eq!(read(&swept.join(name).join("runs.csv")), read(&out.join(name).join("runs.csv")), "{name}");
+    }
+}
+
+const GOLDEN_ACCEPTED: &str = "";
