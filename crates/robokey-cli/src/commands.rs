@@ -31,7 +31,12 @@ fn load_config(path: Option<&std::path::Path>, overrides: &[Override]) -> Result
 
 pub fn run(args: RunArgs) -> Result<()> {
     let mut overrides = args.options.set.clone();
-    let mut flag = |field: &str, value: toml::Value| overrides.push(Override { field: field.into(), value });
+    let mut flag = |field: &str, value: toml::Value| {
+        overrides.push(Override {
+            field: field.into(),
+            value,
+        })
+    };
     if let Some(x) = args.delta_v {
         flag("protocol.delta_v", x.into());
     }
@@ -39,7 +44,8 @@ pub fn run(args: RunArgs) -> Result<()> {
         flag("protocol.delta_omega", x.into());
     }
     if let Some(seed) = args.seed {
-        let seed = i64::try_from(seed).context("--seed must be below 2^63 (TOML integers are signed)")?;
+        let seed =
+            i64::try_from(seed).context("--seed must be below 2^63 (TOML integers are signed)")?;
         flag("run.seed", seed.into());
     }
     if let Some(x) = args.alpha {
@@ -55,16 +61,24 @@ pub fn run(args: RunArgs) -> Result<()> {
     let started = Instant::now();
     let output = robokey::sim::simulate(&config, args.replicate, true)?;
     let elapsed = started.elapsed();
-    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create", args.out.display()))?;
     let mut json = trace::metrics_json(&output.metrics);
     json.insert("replicate".into(), args.replicate.into());
     json.insert("seed".into(), config.run.seed.into());
     let files = [
         write(&args.out.join("config.resolved.toml"), config.to_toml())?,
-        write(&args.out.join("metrics.json"), serde_json::to_string_pretty(&json)? + "\n")?,
+        write(
+            &args.out.join("metrics.json"),
+            serde_json::to_string_pretty(&json)? + "\n",
+        )?,
         write(&args.out.join("trace.csv"), trace::trace_csv(&output.trace))?,
     ];
-    let figures = report::trajectory_figure(&args.out.join("trajectory"), &[("robot", &output.trace)], None)?;
+    let figures = report::trajectory_figure(
+        &args.out.join("trajectory"),
+        &[("robot", &output.trace)],
+        None,
+    )?;
     let proto = &config.protocol;
     println!(
         "robokey run: seed {}, replicate {}, Δv = {} m/s, Δω = {} rad/s, {}, {} ({:.1} ms)",
@@ -72,8 +86,16 @@ pub fn run(args: RunArgs) -> Result<()> {
         args.replicate,
         proto.delta_v,
         proto.delta_omega,
-        if proto.enabled { "protocol on" } else { "protocol off" },
-        if config.eve.enabled && proto.enabled { format!("Eve α = {}", config.eve.alpha) } else { "no Eve".into() },
+        if proto.enabled {
+            "protocol on"
+        } else {
+            "protocol off"
+        },
+        if config.eve.enabled && proto.enabled {
+            format!("Eve α = {}", config.eve.alpha)
+        } else {
+            "no Eve".into()
+        },
         elapsed.as_secs_f64() * 1000.0
     );
     print!("{}", trace::metrics_table(&output.metrics));
@@ -97,10 +119,18 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
         results::write_sweep(&dir, experiment, &records, &[shard])?;
         println!(
             "{}: {} points × {} replicates{} → {}",
-            if experiment.name.is_empty() { "sweep" } else { &experiment.name },
+            if experiment.name.is_empty() {
+                "sweep"
+            } else {
+                &experiment.name
+            },
             experiment.points.len(),
             experiment.replicates(),
-            if shard == Shard::ALL { String::new() } else { format!(" (shard {shard}: {} runs)", records.len()) },
+            if shard == Shard::ALL {
+                String::new()
+            } else {
+                format!(" (shard {shard}: {} runs)", records.len())
+            },
             dir.display()
         );
     }
@@ -111,7 +141,12 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
 pub fn merge(args: MergeArgs) -> Result<()> {
     prepare_output(&args.out, args.force)?;
     let experiment = results::merge(&args.dirs, &args.out)?;
-    println!("merged {} shard folders: {} runs → {}", args.dirs.len(), experiment.runs(), args.out.display());
+    println!(
+        "merged {} shard folders: {} runs → {}",
+        args.dirs.len(),
+        experiment.runs(),
+        args.out.display()
+    );
     Ok(())
 }
 
@@ -126,6 +161,9 @@ pub fn reproduce(args: ReproduceArgs) -> Result<()> {
 }
 
 pub fn config(args: ConfigArgs) -> Result<()> {
-    print!("{}", load_config(args.config.as_deref(), &args.options.set)?.to_toml());
+    print!(
+        "{}",
+        load_config(args.config.as_deref(), &args.options.set)?.to_toml()
+    );
     Ok(())
 }

@@ -48,7 +48,8 @@ fn run_prints_metrics_and_writes_its_files() {
     let dir = scratch("run");
     let out = ok(&["run", "--delta-v", "0.035", "--seed", "7", "--out", s(&dir)]);
     assert!(out.contains("accepted %") && out.contains("J_x"), "{out}");
-    let metrics: serde_json::Value = serde_json::from_str(&read(&dir.join("metrics.json"))).unwrap();
+    let metrics: serde_json::Value =
+        serde_json::from_str(&read(&dir.join("metrics.json"))).unwrap();
     assert_eq!(metrics["codewords_sent"], 340);
     assert!(metrics["accepted_pct"].as_f64().unwrap() > 50.0);
     assert_eq!(read(&dir.join("trace.csv")).lines().count(), 1022);
@@ -60,7 +61,8 @@ fn run_prints_metrics_and_writes_its_files() {
 fn protocol_off_leaves_key_metrics_null() {
     let dir = scratch("off");
     ok(&["run", "--protocol-off", "--out", s(&dir)]);
-    let metrics: serde_json::Value = serde_json::from_str(&read(&dir.join("metrics.json"))).unwrap();
+    let metrics: serde_json::Value =
+        serde_json::from_str(&read(&dir.join("metrics.json"))).unwrap();
     assert!(metrics["accepted_pct"].is_null() && metrics["key_match"].is_null());
     assert!(metrics["jx"].as_f64().unwrap() > 0.0);
 }
@@ -68,14 +70,24 @@ fn protocol_off_leaves_key_metrics_null() {
 #[test]
 fn bad_input_gets_named_errors() {
     let err = fails(&["run", "--delta-v", "0"]);
-    assert!(err.contains("protocol.delta_v") && err.contains("> 0"), "{err}");
+    assert!(
+        err.contains("protocol.delta_v") && err.contains("> 0"),
+        "{err}"
+    );
     let err = fails(&["run", "--set", "controller.gain=2"]);
     assert!(err.contains("gain"), "{err}");
     let dir = scratch("bad");
     let file = dir.join("bad.toml");
-    std::fs::write(&file, "[sweep]\nmode = \"zip\"\n\"controller.kp\" = [1.0]\n\"controller.kd\" = [0.7, 0.8]\n").unwrap();
+    std::fs::write(
+        &file,
+        "[sweep]\nmode = \"zip\"\n\"controller.kp\" = [1.0]\n\"controller.kd\" = [0.7, 0.8]\n",
+    )
+    .unwrap();
     let err = fails(&["sweep", s(&file), "--out", s(&dir.join("o"))]);
-    assert!(err.contains("bad.toml") && err.contains("zip axes differ"), "{err}");
+    assert!(
+        err.contains("bad.toml") && err.contains("zip axes differ"),
+        "{err}"
+    );
     std::fs::write(&file, "[sweep]\n\"robot.mass\" = [1.0]\n").unwrap();
     let err = fails(&["sweep", s(&file), "--out", s(&dir.join("o"))]);
     assert!(err.contains("bad.toml") && err.contains("mass"), "{err}");
@@ -103,7 +115,10 @@ fn jobs_and_shards_give_byte_identical_results() {
     ok(&["sweep", s(&file), "--shard", "2/2", "--out", s(&b)]);
     ok(&["merge", s(&a), s(&b), "--out", s(&merged)]);
     assert_eq!(read(&merged.join("runs.csv")), runs);
-    assert_eq!(read(&merged.join("summary.json")), read(&one.join("summary.json")));
+    assert_eq!(
+        read(&merged.join("summary.json")),
+        read(&one.join("summary.json"))
+    );
     // A shard alone is not a complete sweep.
     let err = fails(&["merge", s(&a), "--out", s(&dir.join("partial"))]);
     assert!(err.contains("in none of the shards"), "{err}");
@@ -119,12 +134,17 @@ fn reproduce_quick_writes_a_parseable_report_and_sweep_agrees() {
     let printed = ok(&["reproduce", "--quick", "--out", s(&out)]);
     assert!(printed.contains("report:"), "{printed}");
     let report = read(&out.join("report.md"));
-    assert!(report.contains("Spearman") && report.contains("does **not** reproduce"), "{report}");
+    assert!(
+        report.contains("Spearman") && report.contains("does **not** reproduce"),
+        "{report}"
+    );
     for name in ["dv-sweep", "eve-sweep", "baseline", "trajectory"] {
         let folder = out.join(name);
-        let summary: serde_json::Value = serde_json::from_str(&read(&folder.join("summary.json"))).unwrap();
+        let summary: serde_json::Value =
+            serde_json::from_str(&read(&folder.join("summary.json"))).unwrap();
         assert!(summary["points"].as_array().is_some_and(|p| !p.is_empty()));
-        let _: serde_json::Value = serde_json::from_str(&read(&folder.join("manifest.json"))).unwrap();
+        let _: serde_json::Value =
+            serde_json::from_str(&read(&folder.join("manifest.json"))).unwrap();
         let mut csv = csv::Reader::from_path(folder.join("runs.csv")).unwrap();
         assert!(csv.records().all(|r| r.is_ok()));
         let _: toml::Table = read(&folder.join("config.resolved.toml")).parse().unwrap();
@@ -135,16 +155,30 @@ fn reproduce_quick_writes_a_parseable_report_and_sweep_agrees() {
     }
     // Golden value: replicate 0 at Δv = 0.035 accepts this many codewords of 340.
     let runs = read(&out.join("dv-sweep/runs.csv"));
-    let row = runs.lines().find(|l| l.starts_with("0.035,0,")).expect("Δv = 0.035, replicate 0");
+    let row = runs
+        .lines()
+        .find(|l| l.starts_with("0.035,0,"))
+        .expect("Δv = 0.035, replicate 0");
     assert_eq!(row.split(',').nth(3), Some(GOLDEN_ACCEPTED));
 
     // `robokey sweep experiments/paper.toml` gives the same numbers.
     let paper = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../experiments/paper.toml");
     let swept = dir.join("s");
-    ok(&["sweep", s(&paper), "--set", "run.replicates=3", "--out", s(&swept)]);
+    ok(&[
+        "sweep",
+        s(&paper),
+        "--set",
+        "run.replicates=3",
+        "--out",
+        s(&swept),
+    ]);
     for name in ["dv-sweep", "eve-sweep", "baseline", "trajectory"] {
-        assert_eq!(read(&swept.join(name).join("runs.csv")), read(&out.join(name).join("runs.csv")), "{name}");
+        assert_eq!(
+            read(&swept.join(name).join("runs.csv")),
+            read(&out.join(name).join("runs.csv")),
+            "{name}"
+        );
     }
 }
 
-const GOLDEN_ACCEPTED: &str = "";
+const GOLDEN_ACCEPTED: &str = "298";

@@ -356,11 +356,19 @@ fn invalid(field: &str, value: impl std::fmt::Debug, allowed: &str) -> ConfigErr
 }
 
 fn positive(field: &str, x: f64) -> Result<(), ConfigError> {
-    if x > 0.0 && x.is_finite() { Ok(()) } else { Err(invalid(field, x, "> 0, finite")) }
+    if x > 0.0 && x.is_finite() {
+        Ok(())
+    } else {
+        Err(invalid(field, x, "> 0, finite"))
+    }
 }
 
 fn non_negative(field: &str, x: f64) -> Result<(), ConfigError> {
-    if x >= 0.0 && x.is_finite() { Ok(()) } else { Err(invalid(field, x, "≥ 0, finite")) }
+    if x >= 0.0 && x.is_finite() {
+        Ok(())
+    } else {
+        Err(invalid(field, x, "≥ 0, finite"))
+    }
 }
 
 impl Config {
@@ -377,10 +385,12 @@ impl Config {
     /// # Errors
     /// A [`ConfigError`] attributed to `origin`.
     pub fn from_table(table: toml::Table, origin: &str) -> Result<Self, ConfigError> {
-        let config: Self = table.try_into().map_err(|e: toml::de::Error| ConfigError::Parse {
-            origin: origin.to_owned(),
-            message: e.message().to_owned(),
-        })?;
+        let config: Self = table
+            .try_into()
+            .map_err(|e: toml::de::Error| ConfigError::Parse {
+                origin: origin.to_owned(),
+                message: e.message().to_owned(),
+            })?;
         config.validate().map_err(|e| e.with_origin(origin))?;
         Ok(config)
     }
@@ -403,10 +413,18 @@ impl Config {
         }
         let traj = &self.trajectory;
         if traj.waypoints.len() < 2 {
-            return Err(invalid("trajectory.waypoints", &traj.waypoints, "≥ 2 points"));
+            return Err(invalid(
+                "trajectory.waypoints",
+                &traj.waypoints,
+                "≥ 2 points",
+            ));
         }
         if traj.waypoints.iter().flatten().any(|x| !x.is_finite()) {
-            return Err(invalid("trajectory.waypoints", &traj.waypoints, "finite coordinates"));
+            return Err(invalid(
+                "trajectory.waypoints",
+                &traj.waypoints,
+                "finite coordinates",
+            ));
         }
         positive("trajectory.side_time", traj.side_time)?;
         if traj.laps < 1 {
@@ -454,7 +472,11 @@ impl Config {
                 return Err(invalid("code.n_c", n_c, "1 to 64 for repetition"));
             }
             CodeKind::Hamming74 if n_c != 7 => {
-                return Err(invalid("code.n_c", n_c, "7 for hamming74 (or leave it out)"));
+                return Err(invalid(
+                    "code.n_c",
+                    n_c,
+                    "7 for hamming74 (or leave it out)",
+                ));
             }
             _ => {}
         }
@@ -510,13 +532,20 @@ pub fn parse_table(text: &str, origin: &str) -> Result<toml::Table, ConfigError>
 ///
 /// # Errors
 /// [`ConfigError::Parse`] when the path is empty or crosses a non-table value.
-pub fn set_path(table: &mut toml::Table, path: &str, value: toml::Value) -> Result<(), ConfigError> {
+pub fn set_path(
+    table: &mut toml::Table,
+    path: &str,
+    value: toml::Value,
+) -> Result<(), ConfigError> {
     let bad = |why: &str| ConfigError::Parse {
         origin: String::new(),
         message: format!("cannot set `{path}`: {why}"),
     };
     let mut parts: Vec<&str> = path.split('.').collect();
-    let last = parts.pop().filter(|s| !s.is_empty()).ok_or_else(|| bad("empty field name"))?;
+    let last = parts
+        .pop()
+        .filter(|s| !s.is_empty())
+        .ok_or_else(|| bad("empty field name"))?;
     let mut current = table;
     for part in parts {
         let entry = current
@@ -559,7 +588,10 @@ mod tests {
     fn errors_name_origin_field_value_and_range() {
         let err = Config::from_toml("[protocol]\ndelta_v = 0.0\n", "my.toml").unwrap_err();
         let text = err.to_string();
-        assert!(text.contains("my.toml") && text.contains("protocol.delta_v"), "{text}");
+        assert!(
+            text.contains("my.toml") && text.contains("protocol.delta_v"),
+            "{text}"
+        );
         assert!(text.contains("0.0") && text.contains("> 0"), "{text}");
 
         let err = Config::from_toml("[robot]\nmass = 1.0\n", "a.toml").unwrap_err();
@@ -568,10 +600,14 @@ mod tests {
         let err = Config::from_toml("[eve]\nalpha = 1.5\n", "b.toml").unwrap_err();
         assert!(err.to_string().contains("eve.alpha"), "{err}");
 
-        let err = Config::from_toml("[code]\nkind = \"hamming74\"\nn_c = 5\n", "c.toml").unwrap_err();
+        let err =
+            Config::from_toml("[code]\nkind = \"hamming74\"\nn_c = 5\n", "c.toml").unwrap_err();
         assert!(err.to_string().contains("code.n_c"), "{err}");
         assert_eq!(
-            Config::from_toml("[code]\nkind = \"hamming74\"\n", "d").unwrap().code.codeword_length(),
+            Config::from_toml("[code]\nkind = \"hamming74\"\n", "d")
+                .unwrap()
+                .code
+                .codeword_length(),
             7
         );
     }

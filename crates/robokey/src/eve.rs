@@ -103,7 +103,12 @@ impl PaperEve {
     /// Observes one message; returns her decision when a measurement decided a step.
     pub fn observe(&mut self, message: &Message) -> Option<StepDecision> {
         match message {
-            Message::Command { step, u0, u1, fates } => {
+            Message::Command {
+                step,
+                u0,
+                u1,
+                fates,
+            } => {
                 if *step < self.steps {
                     let (u0, u1) = ((*u0).into(), (*u1).into());
                     // She never sees uU: her nominal is H_a·(u0D + u1D)/2.

@@ -81,7 +81,8 @@ impl Metrics {
     /// Values in the order of [`Metrics::names`].
     #[must_use]
     pub fn values(&self) -> Vec<MetricValue> {
-        let counts = |table: Option<[u64; 8]>| (0..8).map(move |i| MetricValue::Count(table.map(|t| t[i])));
+        let counts =
+            |table: Option<[u64; 8]>| (0..8).map(move |i| MetricValue::Count(table.map(|t| t[i])));
         [
             MetricValue::Count(self.codewords_sent),
             MetricValue::Count(self.accepted),

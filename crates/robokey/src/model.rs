@@ -110,7 +110,13 @@ mod tests {
 
     #[test]
     fn rhombus_keeps_both_wheels_within_limit() {
-        for &(v, w) in &[(1.0, 0.0), (0.0, 50.0), (0.5, 2.0), (-0.3, -1.5), (0.05, 0.1)] {
+        for &(v, w) in &[
+            (1.0, 0.0),
+            (0.0, 50.0),
+            (0.5, 2.0),
+            (-0.3, -1.5),
+            (0.05, 0.1),
+        ] {
             let clipped = KHEPERA.clip_to_rhombus(Unicycle::new(v, w), 8.07);
             let wheels = KHEPERA.to_wheels(clipped);
             assert!(wheels.abs().max() <= 8.07 + 1e-9, "{v} {w} -> {wheels}");
@@ -121,7 +127,11 @@ mod tests {
 
     #[test]
     fn step_moves_along_heading() {
-        let next = unicycle_step(&Pose::new(1.0, 2.0, std::f64::consts::FRAC_PI_2), &Unicycle::new(0.5, 1.0), 0.2);
+        let next = unicycle_step(
+            &Pose::new(1.0, 2.0, std::f64::consts::FRAC_PI_2),
+            &Unicycle::new(0.5, 1.0),
+            0.2,
+        );
         assert!((next - Pose::new(1.0, 2.1, std::f64::consts::FRAC_PI_2 + 0.2)).norm() < 1e-12);
     }
 }

@@ -126,8 +126,7 @@ impl<const M: usize> Uio<M> {
         let a = state_jacobian(&self.state, input, t);
         let b = input_matrix(self.state.z, t);
         let extra = Matrix2::from_diagonal(&delta.component_mul(delta));
-        self.covariance =
-            a * self.covariance * a.transpose() + self.w + b * extra * b.transpose();
+        self.covariance = a * self.covariance * a.transpose() + self.w + b * extra * b.transpose();
         self.state = unicycle_step(&self.state, input, t);
     }
 }
@@ -174,7 +173,7 @@ fn orthonormal_columns<const M: usize>(a: &SMatrix<f64, 3, M>) -> Option<SMatrix
             q.column_mut(j).axpy(-projection, &previous, 1.0);
         }
         let norm = q.column(j).norm();
-        if !(norm > 0.0) {
+        if norm.is_nan() || norm <= 0.0 {
             return None;
         }
         q.column_mut(j).unscale_mut(norm);
@@ -196,7 +195,10 @@ impl Observer {
     #[must_use]
     pub fn new(params: &ObserverParams) -> Option<Self> {
         match params.channels {
-            1 => Some(Self::One(Uio::new(params, SMatrix::<f64, 2, 1>::new(1.0, 0.0)))),
+            1 => Some(Self::One(Uio::new(
+                params,
+                SMatrix::<f64, 2, 1>::new(1.0, 0.0),
+            ))),
             2 => Some(Self::Two(Uio::new(params, Matrix2::identity()))),
             _ => None,
         }
@@ -272,7 +274,10 @@ mod tests {
         let mut pose = Pose::zeros();
         let mut worst: f64 = 0.0;
         for k in 0..300 {
-            let nominal = Unicycle::new(0.05 + 0.02 * (k as f64 * 0.05).sin(), 0.3 * (k as f64 * 0.03).cos());
+            let nominal = Unicycle::new(
+                0.05 + 0.02 * (k as f64 * 0.05).sin(),
+                0.3 * (k as f64 * 0.03).cos(),
+            );
             let sign = if k % 3 == 0 { -1.0 } else { 1.0 };
             pose = unicycle_step(&pose, &(nominal + delta * sign), 0.2);
             let est = obs.step(&nominal, &pose).unwrap();
@@ -311,7 +316,11 @@ mod tests {
     fn truncated_pinv(a: &Matrix3<f64>, rank: usize) -> Matrix3<f64> {
         let eig = SymmetricEigen::new(*a);
         let mut order: Vec<usize> = (0..3).collect();
-        order.sort_by(|&i, &j| eig.eigenvalues[j].abs().total_cmp(&eig.eigenvalues[i].abs()));
+        order.sort_by(|&i, &j| {
+            eig.eigenvalues[j]
+                .abs()
+                .total_cmp(&eig.eigenvalues[i].abs())
+        });
         let mut out = Matrix3::zeros();
         for &i in &order[..rank] {
             let v = eig.eigenvectors.column(i);
@@ -329,7 +338,10 @@ mod tests {
         let closed = pseudo_inverse(&r_tilde, &null).unwrap();
         let reference = truncated_pinv(&r_tilde, 3 - M);
         let scale = reference.abs().max();
-        assert!((closed - reference).abs().max() < 1e-12 * scale, "{closed} vs {reference}");
+        assert!(
+            (closed - reference).abs().max() < 1e-12 * scale,
+            "{closed} vs {reference}"
+        );
     }
 
     #[test]

@@ -48,9 +48,30 @@ pub struct TraceRow {
 impl TraceRow {
     /// Column names of `trace.csv`.
     pub const COLUMNS: [&'static str; 24] = [
-        "k", "t", "ref_x", "ref_y", "px", "py", "theta", "meas_x", "meas_y", "meas_theta",
-        "v_nom", "omega_nom", "u0_r", "u0_l", "u1_r", "u1_l", "b", "dhat_v", "dhat_omega",
-        "xhat_x", "xhat_y", "xhat_theta", "bhat", "bhat_eve",
+        "k",
+        "t",
+        "ref_x",
+        "ref_y",
+        "px",
+        "py",
+        "theta",
+        "meas_x",
+        "meas_y",
+        "meas_theta",
+        "v_nom",
+        "omega_nom",
+        "u0_r",
+        "u0_l",
+        "u1_r",
+        "u1_l",
+        "b",
+        "dhat_v",
+        "dhat_omega",
+        "xhat_x",
+        "xhat_y",
+        "xhat_theta",
+        "bhat",
+        "bhat_eve",
     ];
 }
 
@@ -96,7 +117,11 @@ struct StepLog {
 ///
 /// # Errors
 /// [`SimError`] when the observer breaks down and the session aborts.
-pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> Result<RunOutput, SimError> {
+pub fn simulate(
+    config: &Config,
+    replicate: u32,
+    record_trace: bool,
+) -> Result<RunOutput, SimError> {
     let plan = SessionPlan::from_config(config, replicate);
     simulate_plan(config, plan, replicate, record_trace)
 }
@@ -114,7 +139,8 @@ pub fn simulate_plan(
 ) -> Result<RunOutput, SimError> {
     let seed = config.run.seed;
     let stream_of = |purpose| stream(seed, purpose, u64::from(replicate));
-    let (mut process_rng, mut measurement_rng) = (stream_of(Purpose::Process), stream_of(Purpose::Measurement));
+    let (mut process_rng, mut measurement_rng) =
+        (stream_of(Purpose::Process), stream_of(Purpose::Measurement));
     let process_std = Pose::from(config.noise.process_std);
     let measurement_std = Pose::from(config.noise.measurement_std);
     let gaussian = |rng: &mut rand::rngs::ChaCha8Rng, std: &Pose| {
@@ -132,13 +158,21 @@ pub fn simulate_plan(
     let trajectory = config.trajectory();
     let mut robot = RobotEndpoint::new(plan.clone(), &mut stream_of(Purpose::Key));
     let mut eve = (config.eve.enabled && plan.enabled).then(|| {
-        let errors = ModelErrors::draw(config.eve.alpha, config.eve.draw, &mut stream_of(Purpose::Eve));
+        let errors = ModelErrors::draw(
+            config.eve.alpha,
+            config.eve.draw,
+            &mut stream_of(Purpose::Eve),
+        );
         PaperEve::new(config, &plan, errors)
     });
     let mut controller = ControllerEndpoint::new(config, plan);
 
     let mut log = vec![StepLog::default(); steps as usize + 1];
-    let mut trace = if record_trace { vec![TraceRow::default(); steps as usize + 1] } else { Vec::new() };
+    let mut trace = if record_trace {
+        vec![TraceRow::default(); steps as usize + 1]
+    } else {
+        Vec::new()
+    };
     let mut pose = Pose::zeros();
     let mut tracking_error = 0.0;
     let mut outcomes = (None, None);
@@ -167,12 +201,10 @@ pub fn simulate_plan(
                 quiet = false;
                 match output {
                     RobotOutput::Transmit(message) => {
-                        if let Some(eve) = eve.as_mut() {
-                            if let Some(d) = eve.observe(&message) {
-                                log[d.step as usize].bhat_eve = d.bit;
-                                if record_trace {
-                                    trace[d.step as usize + 1].bhat_eve = d.bit;
-                                }
+                        if let Some(d) = eve.as_mut().and_then(|eve| eve.observe(&message)) {
+                            log[d.step as usize].bhat_eve = d.bit;
+                            if record_trace {
+                                trace[d.step as usize + 1].bhat_eve = d.bit;
                             }
                         }
                         controller.handle_input(ControllerInput::Frame(message));
@@ -194,11 +226,11 @@ pub fn simulate_plan(
                         if let Some(eve) = eve.as_mut() {
                             eve.observe(&message);
                         }
-                        if record_trace {
-                            if let Message::Command { step, u0, u1, .. } = &message {
-                                trace[*step as usize].u0 = Some(*u0);
-                                trace[*step as usize].u1 = Some(*u1);
-                            }
+                        if let (true, Message::Command { step, u0, u1, .. }) =
+                            (record_trace, &message)
+                        {
+                            trace[*step as usize].u0 = Some(*u0);
+                            trace[*step as usize].u1 = Some(*u1);
                         }
                         robot.handle_input(RobotInput::Frame(message));
                     }
@@ -236,7 +268,8 @@ pub fn simulate_plan(
             let applied = wheels.map_or_else(Unicycle::zeros, |w| {
                 drive.to_unicycle(clip_wheels(w, config.robot.wheel_limit))
             });
-            pose = unicycle_step(&pose, &applied, sample_time) + gaussian(&mut process_rng, &process_std);
+            pose = unicycle_step(&pose, &applied, sample_time)
+                + gaussian(&mut process_rng, &process_std);
         }
     }
 
@@ -282,7 +315,11 @@ fn compute_metrics(
     let accepted_bits = k_c.len();
     let accepted = (accepted_bits / controller.plan().code.k()) as u64;
     let share = |other: &[u8], equal: bool| {
-        let count = other.iter().zip(k_c).filter(|(a, b)| (a == b) == equal).count();
+        let count = other
+            .iter()
+            .zip(k_c)
+            .filter(|(a, b)| (a == b) == equal)
+            .count();
         (accepted_bits > 0).then(|| 100.0 * count as f64 / accepted_bits as f64)
     };
     let n_bce = eve.map(|_| {
@@ -310,7 +347,8 @@ fn compute_metrics(
         ber_eve: eve.and_then(|_| error_rate(|s| s.bhat_eve)),
         jx,
         eve_disagreement_pct: k_a.as_ref().and_then(|k_a| share(k_a, false)),
-        key_match: (accepted_bits > 0).then(|| k_r.len() == k_c.len() && bool::from(k_r.ct_eq(k_c))),
+        key_match: (accepted_bits > 0)
+            .then(|| k_r.len() == k_c.len() && bool::from(k_r.ct_eq(k_c))),
         n_bce,
         n_acc,
     }

@@ -70,7 +70,11 @@ impl Trajectory {
         let segments = self.points.len() - 1;
         let index = (t / self.segment_time + 1e-9).floor();
         if index < 0.0 || index as usize >= segments {
-            let hold = if index < 0.0 { self.points[0] } else { self.points[segments] };
+            let hold = if index < 0.0 {
+                self.points[0]
+            } else {
+                self.points[segments]
+            };
             return ReferencePoint {
                 position: hold,
                 velocity: Vector2::zeros(),

@@ -52,7 +52,9 @@ fn lockstep(config: &Config, drop: impl Fn(&Message) -> bool) -> Session {
                     ControllerOutput::Transmit(m) if !drop(&m) => {
                         robot.handle_input(RobotInput::Frame(m));
                     }
-                    ControllerOutput::Event(ControllerEvent::CodewordDecided { accepted, .. }) => {
+                    ControllerOutput::Event(ControllerEvent::CodewordDecided {
+                        accepted, ..
+                    }) => {
                         fates.push(accepted);
                     }
                     ControllerOutput::Event(ControllerEvent::Finished(o)) => {
@@ -128,7 +130,9 @@ fn a_lost_measurement_erases_exactly_its_codeword_on_both_sides() {
     let config = clean_config();
     // y(46) decides step 45 = codeword 15, position 0; command 46 is never sent, so
     // step 46 (same codeword) is erased as well.
-    let session = lockstep(&config, |m| matches!(m, Message::Measurement { step: 46, .. }));
+    let session = lockstep(&config, |m| {
+        matches!(m, Message::Measurement { step: 46, .. })
+    });
     let rejected: Vec<usize> = (0..session.controller_fates.len())
         .filter(|&i| !session.controller_fates[i])
         .collect();
@@ -154,7 +158,10 @@ fn a_tiny_delta_makes_bits_coin_flips() {
     }
     let rate = wrong / bits;
     let se = (0.25 / bits).sqrt();
-    assert!((rate - 0.5).abs() < 4.5 * se, "bit error rate {rate} (se {se})");
+    assert!(
+        (rate - 0.5).abs() < 4.5 * se,
+        "bit error rate {rate} (se {se})"
+    );
 }
 
 #[test]
@@ -167,7 +174,10 @@ fn keys_stay_aligned_through_rejections() {
     let mut total = 0;
     for replicate in 0..20 {
         let m = simulate(&config, replicate, false).unwrap().metrics;
-        assert!(m.accepted.unwrap() < m.codewords_sent.unwrap(), "some rejections");
+        assert!(
+            m.accepted.unwrap() < m.codewords_sent.unwrap(),
+            "some rejections"
+        );
         let accepted = m.accepted.unwrap() as usize;
         differing += ((100.0 - m.correct_pct.unwrap()) / 100.0 * accepted as f64).round() as usize;
         total += accepted;
@@ -182,7 +192,10 @@ fn protocol_off_defines_only_the_tracking_error() {
     let m = simulate(&config, 0, false).unwrap().metrics;
     assert!(m.jx > 0.0);
     assert_eq!(
-        robokey::Metrics { jx: m.jx, ..Default::default() },
+        robokey::Metrics {
+            jx: m.jx,
+            ..Default::default()
+        },
         m
     );
 }

@@ -27,9 +27,14 @@ fn agrees(name: &str, values: &[f64], reference: f64, reference_se: f64) {
 fn defaults_agree_with_the_reference_implementation() {
     const RUNS: u32 = 40;
     let config = Config::default();
-    let metrics: Vec<_> = (0..RUNS).map(|r| simulate(&config, r, false).unwrap().metrics).collect();
+    let metrics: Vec<_> = (0..RUNS)
+        .map(|r| simulate(&config, r, false).unwrap().metrics)
+        .collect();
     let accepted: Vec<f64> = metrics.iter().map(|m| m.accepted_pct.unwrap()).collect();
-    let ber: Vec<f64> = metrics.iter().map(|m| 100.0 * m.ber_controller.unwrap()).collect();
+    let ber: Vec<f64> = metrics
+        .iter()
+        .map(|m| 100.0 * m.ber_controller.unwrap())
+        .collect();
     let jx: Vec<f64> = metrics.iter().map(|m| 1000.0 * m.jx).collect();
     agrees("accepted %", &accepted, 87.6, 0.18);
     agrees("controller BER %", &ber, 4.31, 0.06);

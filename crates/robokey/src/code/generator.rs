@@ -28,11 +28,13 @@ impl GeneratorCode {
             .iter()
             .map(|row| {
                 (row.len() == n).then_some(())?;
-                row.chars().enumerate().try_fold(0u64, |acc, (j, c)| match c {
-                    '0' => Some(acc),
-                    '1' => Some(acc | 1 << j),
-                    _ => None,
-                })
+                row.chars()
+                    .enumerate()
+                    .try_fold(0u64, |acc, (j, c)| match c {
+                        '0' => Some(acc),
+                        '1' => Some(acc | 1 << j),
+                        _ => None,
+                    })
             })
             .collect::<Option<_>>()?;
         let mut code = Self {

@@ -34,7 +34,11 @@ pub trait BlockCode: std::fmt::Debug + Send + Sync {
 /// Mask of the lowest `bits` bits.
 #[must_use]
 pub(crate) fn low_mask(bits: usize) -> u64 {
-    if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 }
+    if bits >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << bits) - 1
+    }
 }
 
 /// Hamming(7,4) with generator rows `1000110, 0100101, 0010011, 0001111` (message bits
@@ -57,7 +61,12 @@ mod tests {
             for error in 0..(1u64 << n) {
                 if error.count_ones() <= t {
                     let decoded = code.decode(word ^ error);
-                    assert_eq!(decoded.message, message, "{} m={message} e={error:b}", code.name());
+                    assert_eq!(
+                        decoded.message,
+                        message,
+                        "{} m={message} e={error:b}",
+                        code.name()
+                    );
                     assert_eq!(decoded.distance, error.count_ones());
                 }
             }

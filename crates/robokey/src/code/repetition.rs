@@ -26,7 +26,11 @@ impl BlockCode for Repetition {
     }
 
     fn encode(&self, message: u64) -> u64 {
-        if message & 1 == 1 { low_mask(self.n) } else { 0 }
+        if message & 1 == 1 {
+            low_mask(self.n)
+        } else {
+            0
+        }
     }
 
     fn decode(&self, word: u64) -> Decoded {
@@ -34,9 +38,15 @@ impl BlockCode for Repetition {
         let zeros = self.n as u32 - ones;
         // Ties (even n) go to the lowest message index, 0.
         if ones > zeros {
-            Decoded { message: 1, distance: zeros }
+            Decoded {
+                message: 1,
+                distance: zeros,
+            }
         } else {
-            Decoded { message: 0, distance: ones }
+            Decoded {
+                message: 0,
+                distance: ones,
+            }
         }
     }
 
@@ -52,7 +62,13 @@ mod tests {
     #[test]
     fn ties_go_to_zero_and_lengths_are_checked() {
         let code = Repetition::new(4).unwrap();
-        assert_eq!(code.decode(0b0011), Decoded { message: 0, distance: 2 });
+        assert_eq!(
+            code.decode(0b0011),
+            Decoded {
+                message: 0,
+                distance: 2
+            }
+        );
         assert!(Repetition::new(0).is_none());
         assert!(Repetition::new(65).is_none());
         assert_eq!(Repetition::new(64).unwrap().encode(1), u64::MAX);

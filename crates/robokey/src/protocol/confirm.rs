@@ -46,7 +46,11 @@ mod tests {
         for i in 0..key.len() {
             let mut other = key.clone();
             other[i] ^= 1;
-            assert_ne!(confirmation_tag(7, &[1; 32], &[0b1011], &other), base, "bit {i}");
+            assert_ne!(
+                confirmation_tag(7, &[1; 32], &[0b1011], &other),
+                base,
+                "bit {i}"
+            );
         }
         assert_ne!(confirmation_tag(7, &[1; 32], &[0b1010], &key), base);
         assert_ne!(confirmation_tag(8, &[1; 32], &[0b1011], &key), base);

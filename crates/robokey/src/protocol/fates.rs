@@ -44,7 +44,11 @@ impl FateLedger {
         if let Some(slot) = self.fates.get_mut(index as usize) {
             slot.get_or_insert(accepted);
         }
-        while self.fates.get(self.cursor as usize).is_some_and(Option::is_some) {
+        while self
+            .fates
+            .get(self.cursor as usize)
+            .is_some_and(Option::is_some)
+        {
             self.cursor += 1;
         }
     }

@@ -68,7 +68,11 @@ impl SessionPlan {
     /// Number of complete codewords (a trailing partial codeword is dropped).
     #[must_use]
     pub fn codewords(&self) -> u32 {
-        if self.enabled { self.steps / self.code.n() as u32 } else { 0 }
+        if self.enabled {
+            self.steps / self.code.n() as u32
+        } else {
+            0
+        }
     }
 
     /// Codeword index and bit position of step `k`.

@@ -97,9 +97,15 @@ impl RobotEndpoint {
     pub fn new<R: CryptoRng + ?Sized>(plan: SessionPlan, key_source: &mut R) -> Self {
         let n = plan.code.n() as u32;
         // Enough messages for every step, including a trailing partial codeword.
-        let count = if plan.enabled { plan.steps.div_ceil(n) } else { 0 };
+        let count = if plan.enabled {
+            plan.steps.div_ceil(n)
+        } else {
+            0
+        };
         let mask = low_mask(plan.code.k());
-        let messages: Vec<u64> = (0..count).map(|_| key_source.random::<u64>() & mask).collect();
+        let messages: Vec<u64> = (0..count)
+            .map(|_| key_source.random::<u64>() & mask)
+            .collect();
         let codewords = messages.iter().map(|&m| plan.code.encode(m)).collect();
         Self {
             fates: FateLedger::new(plan.codewords()),
@@ -170,7 +176,15 @@ impl RobotEndpoint {
 
     fn handle_message(&mut self, message: Message) {
         match (&self.phase, message) {
-            (Phase::ExpectCommand, Message::Command { step, u0, u1, fates }) => {
+            (
+                Phase::ExpectCommand,
+                Message::Command {
+                    step,
+                    u0,
+                    u1,
+                    fates,
+                },
+            ) => {
                 if step != self.next_command {
                     return; // stale, duplicate or from the future
                 }

@@ -2,9 +2,9 @@
 //! `magic u16 | version u8 | type u8 | session u32 | seq u32 | step u32 | payload |
 //! crc32c u32`. The decoder never panics: every malformed input is a [`WireError`].
 
+use super::TAG_BYTES;
 use super::fates::FateWindow;
 use super::message::Message;
-use super::TAG_BYTES;
 
 /// `"RK"`.
 pub const MAGIC: u16 = 0x524B;
@@ -92,12 +92,20 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
     out.extend_from_slice(&frame.seq.to_be_bytes());
     out.extend_from_slice(&step.to_be_bytes());
     match &frame.message {
-        Message::Hello { version, config_digest } => {
+        Message::Hello {
+            version,
+            config_digest,
+        } => {
             out.push(*version);
             out.extend_from_slice(config_digest);
         }
         Message::HelloAck { config_digest } => out.extend_from_slice(config_digest),
-        Message::Measurement { y, applied_step, fate_cursor, .. } => {
+        Message::Measurement {
+            y,
+            applied_step,
+            fate_cursor,
+            ..
+        } => {
             for v in y {
                 out.extend_from_slice(&v.to_be_bytes());
             }
@@ -167,7 +175,11 @@ fn expect_len(kind: &'static str, payload: &[u8], expected: usize) -> Result<(),
     if payload.len() == expected {
         Ok(())
     } else {
-        Err(WireError::BadLength { kind, got: payload.len(), expected })
+        Err(WireError::BadLength {
+            kind,
+            got: payload.len(),
+            expected,
+        })
     }
 }
 
@@ -191,18 +203,25 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
         return Err(WireError::BadChecksum);
     }
     let kind = bytes[3];
-    let mut header = Reader { bytes: &body[4..HEADER_BYTES] };
+    let mut header = Reader {
+        bytes: &body[4..HEADER_BYTES],
+    };
     let (session, seq, step) = (header.u32(), header.u32(), header.u32());
     let payload = &body[HEADER_BYTES..];
     let mut r = Reader { bytes: payload };
     let message = match kind {
         HELLO => {
             expect_len("Hello", payload, 33)?;
-            Message::Hello { version: r.u8(), config_digest: r.take() }
+            Message::Hello {
+                version: r.u8(),
+                config_digest: r.take(),
+            }
         }
         HELLO_ACK => {
             expect_len("HelloAck", payload, 32)?;
-            Message::HelloAck { config_digest: r.take() }
+            Message::HelloAck {
+                config_digest: r.take(),
+            }
         }
         MEASUREMENT => {
             expect_len("Measurement", payload, 24 + 1 + 4 + 4)?;
@@ -213,23 +232,45 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
                     None
                 }
                 1 => Some(r.u32()),
-                _ => return Err(WireError::BadField("Measurement: applied_step flag is not 0 or 1")),
+                _ => {
+                    return Err(WireError::BadField(
+                        "Measurement: applied_step flag is not 0 or 1",
+                    ));
+                }
             };
-            Message::Measurement { step, y, applied_step: applied, fate_cursor: r.u32() }
+            Message::Measurement {
+                step,
+                y,
+                applied_step: applied,
+                fate_cursor: r.u32(),
+            }
         }
         COMMAND => {
             expect_len("Command", payload, 32 + 4 + 1 + 8)?;
             let u0 = [r.f64(), r.f64()];
             let u1 = [r.f64(), r.f64()];
-            let fates = FateWindow { first: r.u32(), count: r.u8(), accepted: r.u64() };
+            let fates = FateWindow {
+                first: r.u32(),
+                count: r.u8(),
+                accepted: r.u64(),
+            };
             if u32::from(fates.count) > FateWindow::CAPACITY {
                 return Err(WireError::BadField("Command: fate window longer than 64"));
             }
-            Message::Command { step, u0, u1, fates }
+            Message::Command {
+                step,
+                u0,
+                u1,
+                fates,
+            }
         }
         FINISH => {
             if payload.len() < 4 {
-                return Err(WireError::BadLength { kind: "Finish", got: payload.len(), expected: 4 });
+                return Err(WireError::BadLength {
+                    kind: "Finish",
+                    got: payload.len(),
+                    expected: 4,
+                });
             }
             let codewords = r.u32();
             if codewords > MAX_FINISH_CODEWORDS {
@@ -237,7 +278,10 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
             }
             let words = codewords.div_ceil(64) as usize;
             expect_len("Finish", payload, 4 + 8 * words)?;
-            Message::Finish { codewords, bitmap: (0..words).map(|_| r.u64()).collect() }
+            Message::Finish {
+                codewords,
+                bitmap: (0..words).map(|_| r.u64()).collect(),
+            }
         }
         FINISH_ACK => {
             expect_len("FinishAck", payload, 0)?;
@@ -249,19 +293,30 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
         }
         ABORT => {
             if payload.len() < 2 {
-                return Err(WireError::BadLength { kind: "Abort", got: payload.len(), expected: 2 });
+                return Err(WireError::BadLength {
+                    kind: "Abort",
+                    got: payload.len(),
+                    expected: 2,
+                });
             }
             let len = usize::from(u16::from_be_bytes(r.take()));
             if len > MAX_REASON_BYTES {
                 return Err(WireError::BadField("Abort: reason longer than 1024 bytes"));
             }
             expect_len("Abort", payload, 2 + len)?;
-            let reason = std::str::from_utf8(r.bytes).map_err(|_| WireError::BadField("Abort: reason is not UTF-8"))?;
-            Message::Abort { reason: reason.to_owned() }
+            let reason = std::str::from_utf8(r.bytes)
+                .map_err(|_| WireError::BadField("Abort: reason is not UTF-8"))?;
+            Message::Abort {
+                reason: reason.to_owned(),
+            }
         }
         other => return Err(WireError::UnknownType(other)),
     };
-    Ok(Frame { session, seq, message })
+    Ok(Frame {
+        session,
+        seq,
+        message,
+    })
 }
 
 /// CRC-32C (Castagnoli, reflected polynomial 0x82F63B78), bitwise-table free.
@@ -274,7 +329,11 @@ pub fn crc32c(bytes: &[u8]) -> u32 {
             let mut crc = i as u32;
             let mut bit = 0;
             while bit < 8 {
-                crc = if crc & 1 == 1 { (crc >> 1) ^ 0x82F6_3B78 } else { crc >> 1 };
+                crc = if crc & 1 == 1 {
+                    (crc >> 1) ^ 0x82F6_3B78
+                } else {
+                    crc >> 1
+                };
                 bit += 1;
             }
             table[i] = crc;
@@ -282,7 +341,9 @@ pub fn crc32c(bytes: &[u8]) -> u32 {
         }
         table
     };
-    !bytes.iter().fold(!0u32, |crc, &b| (crc >> 8) ^ TABLE[((crc ^ u32::from(b)) & 0xFF) as usize])
+    !bytes.iter().fold(!0u32, |crc, &b| {
+        (crc >> 8) ^ TABLE[((crc ^ u32::from(b)) & 0xFF) as usize]
+    })
 }
 
 #[cfg(test)]
@@ -296,20 +357,46 @@ mod tests {
 
     fn examples() -> Vec<Message> {
         vec![
-            Message::Hello { version: 1, config_digest: [0xAB; 32] },
-            Message::HelloAck { config_digest: [0xCD; 32] },
-            Message::Measurement { step: 7, y: [1.0, -0.5, 0.25], applied_step: Some(6), fate_cursor: 2 },
-            Message::Measurement { step: 8, y: [0.0; 3], applied_step: None, fate_cursor: 2 },
+            Message::Hello {
+                version: 1,
+                config_digest: [0xAB; 32],
+            },
+            Message::HelloAck {
+                config_digest: [0xCD; 32],
+            },
+            Message::Measurement {
+                step: 7,
+                y: [1.0, -0.5, 0.25],
+                applied_step: Some(6),
+                fate_cursor: 2,
+            },
+            Message::Measurement {
+                step: 8,
+                y: [0.0; 3],
+                applied_step: None,
+                fate_cursor: 2,
+            },
             Message::Command {
                 step: 7,
                 u0: [4.0, 3.5],
                 u1: [0.5, -1.0],
-                fates: FateWindow { first: 2, count: 3, accepted: 0b101 },
+                fates: FateWindow {
+                    first: 2,
+                    count: 3,
+                    accepted: 0b101,
+                },
             },
-            Message::Finish { codewords: 65, bitmap: vec![u64::MAX, 1] },
+            Message::Finish {
+                codewords: 65,
+                bitmap: vec![u64::MAX, 1],
+            },
             Message::FinishAck,
-            Message::Confirm { tag: [1, 2, 3, 4, 5, 6, 7, 8] },
-            Message::Abort { reason: "silence".into() },
+            Message::Confirm {
+                tag: [1, 2, 3, 4, 5, 6, 7, 8],
+            },
+            Message::Abort {
+                reason: "silence".into(),
+            },
         ]
     }
 
@@ -322,7 +409,13 @@ mod tests {
     fn golden_bytes_per_message_type() {
         let got: Vec<String> = examples()
             .into_iter()
-            .map(|message| hex(&encode(&Frame { session: 0x0102_0304, seq: 9, message })))
+            .map(|message| {
+                hex(&encode(&Frame {
+                    session: 0x0102_0304,
+                    seq: 9,
+                    message,
+                }))
+            })
             .collect();
         assert_eq!(got.join("\n"), GOLDEN.trim());
     }
@@ -341,7 +434,11 @@ mod tests {
 
     #[test]
     fn typed_errors_for_bad_frames() {
-        let good = encode(&Frame { session: 1, seq: 1, message: Message::FinishAck });
+        let good = encode(&Frame {
+            session: 1,
+            seq: 1,
+            message: Message::FinishAck,
+        });
         assert_eq!(decode(&good[..5]), Err(WireError::TooShort(5)));
         let mut bad = good.clone();
         bad[2] = 9;
@@ -362,14 +459,43 @@ mod tests {
     fn arb_message() -> impl Strategy<Value = Message> {
         let f = proptest::num::f64::ANY;
         prop_oneof![
-            (any::<u8>(), any::<[u8; 32]>()).prop_map(|(version, config_digest)| Message::Hello { version, config_digest }),
-            any::<[u8; 32]>().prop_map(|config_digest| Message::HelloAck { config_digest }),
-            (any::<u32>(), [f, f, f], any::<Option<u32>>(), any::<u32>())
-                .prop_map(|(step, y, applied_step, fate_cursor)| Message::Measurement { step, y, applied_step, fate_cursor }),
-            (any::<u32>(), [f, f], [f, f], any::<u32>(), 0u8..=64, any::<u64>()).prop_map(|(step, u0, u1, first, count, accepted)| {
-                Message::Command { step, u0, u1, fates: FateWindow { first, count, accepted } }
+            (any::<u8>(), any::<[u8; 32]>()).prop_map(|(version, config_digest)| Message::Hello {
+                version,
+                config_digest
             }),
-            proptest::collection::vec(any::<u64>(), 0..5).prop_map(|bitmap| Message::Finish { codewords: bitmap.len() as u32 * 64, bitmap }),
+            any::<[u8; 32]>().prop_map(|config_digest| Message::HelloAck { config_digest }),
+            (any::<u32>(), [f, f, f], any::<Option<u32>>(), any::<u32>()).prop_map(
+                |(step, y, applied_step, fate_cursor)| Message::Measurement {
+                    step,
+                    y,
+                    applied_step,
+                    fate_cursor
+                }
+            ),
+            (
+                any::<u32>(),
+                [f, f],
+                [f, f],
+                any::<u32>(),
+                0u8..=64,
+                any::<u64>()
+            )
+                .prop_map(|(step, u0, u1, first, count, accepted)| {
+                    Message::Command {
+                        step,
+                        u0,
+                        u1,
+                        fates: FateWindow {
+                            first,
+                            count,
+                            accepted,
+                        },
+                    }
+                }),
+            proptest::collection::vec(any::<u64>(), 0..5).prop_map(|bitmap| Message::Finish {
+                codewords: bitmap.len() as u32 * 64,
+                bitmap
+            }),
             Just(Message::FinishAck),
             any::<[u8; 8]>().prop_map(|tag| Message::Confirm { tag }),
             ".{0,40}".prop_map(|reason| Message::Abort { reason }),

@@ -1,0 +1,51 @@
+//! Errors of the experiment shell.
+
+use std::path::PathBuf;
+
+/// What can go wrong while loading, running or writing an experiment.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LabError {
+    /// A configuration problem (names the file, field, value and allowed range).
+    #[error(transparent)]
+    Config(#[from] robokey::config::ConfigError),
+    /// A sweep definition problem.
+    #[error("{origin}: [sweep] {message}")]
+    Sweep {
+        /// File of the sweep.
+        origin: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A simulation aborted.
+    #[error(transparent)]
+    Sim(#[from] robokey::sim::SimError),
+    /// An output folder already holds results.
+    #[error("{0}: the folder is not empty (pass --force to overwrite)")]
+    NotEmpty(PathBuf),
+    /// Shards cannot be merged.
+    #[error("merge: {0}")]
+    Merge(String),
+    /// A figure could not be drawn.
+    #[error("figure {path}: {message}")]
+    Plot {
+        /// The figure's file.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+}
+
+/// Attaches a path to an I/O error.
+pub(crate) fn io_at(path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> LabError {
+    let path = path.into();
+    move |source| LabError::Io { path, source }
+}

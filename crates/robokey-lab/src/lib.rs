@@ -1,0 +1,14 @@
+//! robokey-lab: the experiment shell around the robokey core — configuration files,
+//! sweeps, parallel runs, CSV/JSON outputs, statistics, figures and reports.
+
+pub mod error;
+pub mod files;
+pub mod plot;
+pub mod report;
+pub mod results;
+pub mod runner;
+pub mod stats;
+pub mod sweep;
+pub mod trace;
+
+pub use error::LabError;

@@ -1,0 +1,305 @@
+//! Box plots drawn from primitives: box from Q1 to Q3, a median line, whiskers at the
+//! minimum and maximum (SPEC §9) — never beyond the data.
+
+use std::path::{Path, PathBuf};
+
+use plotters::prelude::*;
+
+use super::{FONT, Figure, PALETTE, PlotError, padded_range, save_both};
+use crate::stats::Summary;
+
+/// One coloured series of boxes: values per x position.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BoxGroup {
+    /// Legend label.
+    pub label: String,
+    /// `(x, values)` per box.
+    pub boxes: Vec<(f64, Vec<f64>)>,
+}
+
+/// A chart of box groups on a numeric x axis, with optional horizontal reference lines.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BoxChart {
+    /// Title.
+    pub title: String,
+    /// X-axis label with unit.
+    pub x_label: String,
+    /// Y-axis label with unit.
+    pub y_label: String,
+    /// Groups, side by side at each x.
+    pub groups: Vec<BoxGroup>,
+    /// `(label, y)` dashed horizontal lines.
+    pub reference_lines: Vec<(String, f64)>,
+}
+
+/// Where one box is drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxGeometry {
+    /// Centre x.
+    pub x: f64,
+    /// Half the box width (x units).
+    pub half_width: f64,
+    /// The statistics drawn: box Q1–Q3, median line, whiskers at min and max.
+    pub summary: Summary,
+}
+
+impl BoxChart {
+    /// The boxes to draw: per group, per x, offset so groups sit side by side; width a
+    /// fraction of the smallest x spacing. Empty or all-NaN boxes are skipped.
+    #[must_use]
+    pub fn geometry(&self) -> Vec<Vec<BoxGeometry>> {
+        let mut xs: Vec<f64> = self
+            .groups
+            .iter()
+            .flat_map(|g| g.boxes.iter().map(|b| b.0))
+            .collect();
+        xs.sort_by(f64::total_cmp);
+        xs.dedup();
+        let spacing = xs
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(f64::INFINITY, f64::min);
+        let spacing = if spacing.is_finite() && spacing > 0.0 {
+            spacing
+        } else {
+            1.0
+        };
+        let groups = self.groups.len().max(1) as f64;
+        let slot = 0.8 * spacing / groups;
+        self.groups
+            .iter()
+            .enumerate()
+            .map(|(g, group)| {
+                let offset = (g as f64 - (groups - 1.0) / 2.0) * slot;
+                group
+                    .boxes
+                    .iter()
+                    .filter_map(|(x, values)| {
+                        Some(BoxGeometry {
+                            x: x + offset,
+                            half_width: 0.4 * slot,
+                            summary: Summary::of(values)?,
+                        })
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Writes `base.svg` and `base.png`.
+    ///
+    /// # Errors
+    /// A file cannot be written.
+    pub fn save(&self, base: &Path) -> Result<Vec<PathBuf>, PlotError> {
+        save_both(base, (1000, 640), self)
+    }
+}
+
+impl Figure for BoxChart {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String> {
+        let geometry = self.geometry();
+        let boxes = || geometry.iter().flatten();
+        let x_range = padded_range(
+            boxes().flat_map(|b| [b.x - 2.0 * b.half_width, b.x + 2.0 * b.half_width]),
+        );
+        let y_range = padded_range(
+            boxes()
+                .flat_map(|b| [b.summary.min, b.summary.max])
+                .chain(self.reference_lines.iter().map(|r| r.1)),
+        );
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.title, (FONT, 24))
+            .margin(20)
+            .x_label_area_size(55)
+            .y_label_area_size(75)
+            .build_cartesian_2d(x_range.0..x_range.1, y_range.0..y_range.1)
+            .map_err(|e| e.to_string())?;
+        let x_values: Vec<f64> = self
+            .groups
+            .iter()
+            .flat_map(|g| g.boxes.iter().map(|b| b.0))
+            .collect();
+        chart
+            .configure_mesh()
+            .x_desc(&self.x_label)
+            .y_desc(&self.y_label)
+            .label_style((FONT, 15))
+            .axis_desc_style((FONT, 18))
+            .x_labels(x_values.len().clamp(2, 12))
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (g, (group, shapes)) in self.groups.iter().zip(&geometry).enumerate() {
+            let color = PALETTE[g % PALETTE.len()];
+            let mut elements: Vec<DynElement<'static, DB, (f64, f64)>> = Vec::new();
+            for b in shapes {
+                let s = b.summary;
+                let (left, right) = (b.x - b.half_width, b.x + b.half_width);
+                let cap = b.half_width * 0.5;
+                elements.push(
+                    Rectangle::new([(left, s.q1), (right, s.q3)], color.mix(0.25).filled())
+                        .into_dyn(),
+                );
+                elements.push(
+                    Rectangle::new([(left, s.q1), (right, s.q3)], color.stroke_width(2)).into_dyn(),
+                );
+                elements.push(
+                    PathElement::new(
+                        vec![(left, s.median), (right, s.median)],
+                        BLACK.stroke_width(3),
+                    )
+                    .into_dyn(),
+                );
+                for (from, to) in [(s.q3, s.max), (s.q1, s.min)] {
+                    elements.push(
+                        PathElement::new(vec![(b.x, from), (b.x, to)], color.stroke_width(2))
+                            .into_dyn(),
+                    );
+                    elements.push(
+                        PathElement::new(
+                            vec![(b.x - cap, to), (b.x + cap, to)],
+                            color.stroke_width(2),
+                        )
+                        .into_dyn(),
+                    );
+                }
+            }
+            chart
+                .draw_series(elements)
+                .map_err(|e| e.to_string())?
+                .label(&group.label)
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 6), (x + 20, y + 6)], color.mix(0.5).filled())
+                });
+        }
+        for (i, (label, y)) in self.reference_lines.iter().enumerate() {
+            let color = PALETTE[(self.groups.len() + i) % PALETTE.len()];
+            chart
+                .draw_series(DashedLineSeries::new(
+                    [(x_range.0, *y), (x_range.1, *y)],
+                    10,
+                    6,
+                    color.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?
+                .label(label)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(2))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .label_font((FONT, 16))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.4))
+            .position(emptiest_corner(&geometry, x_range, y_range))
+            .draw()
+            .map_err(|e| e.to_string())
+    }
+}
+
+/// The legend goes in the corner (a 35 % × 30 % region) that holds the fewest box
+/// extremes and quartiles.
+fn emptiest_corner(
+    geometry: &[Vec<BoxGeometry>],
+    x: (f64, f64),
+    y: (f64, f64),
+) -> SeriesLabelPosition {
+    let points: Vec<(f64, f64)> = geometry
+        .iter()
+        .flatten()
+        .flat_map(|b| [b.summary.min, b.summary.q1, b.summary.q3, b.summary.max].map(|v| (b.x, v)))
+        .collect();
+    let (x_cut_left, x_cut_right) = (x.0 + 0.35 * (x.1 - x.0), x.1 - 0.35 * (x.1 - x.0));
+    let (y_cut_low, y_cut_high) = (y.0 + 0.3 * (y.1 - y.0), y.1 - 0.3 * (y.1 - y.0));
+    let corners = [
+        (SeriesLabelPosition::UpperLeft, true, true),
+        (SeriesLabelPosition::UpperRight, false, true),
+        (SeriesLabelPosition::LowerRight, false, false),
+        (SeriesLabelPosition::LowerLeft, true, false),
+    ];
+    corners
+        .into_iter()
+        .min_by_key(|&(_, left, upper)| {
+            points
+                .iter()
+                .filter(|(px, py)| {
+                    (if left {
+                        *px <= x_cut_left
+                    } else {
+                        *px >= x_cut_right
+                    }) && (if upper {
+                        *py >= y_cut_high
+                    } else {
+                        *py <= y_cut_low
+                    })
+                })
+                .count()
+        })
+        .map_or(SeriesLabelPosition::UpperLeft, |(position, _, _)| position)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn chart() -> BoxChart {
+        BoxChart {
+            title: "Test box chart".into(),
+            x_label: "Δv (m/s)".into(),
+            y_label: "%".into(),
+            groups: vec![
+                BoxGroup {
+                    label: "a".into(),
+                    boxes: vec![
+                        (0.02, vec![1.0, 2.0, 3.0, 4.0]),
+                        (0.03, vec![5.0, 9.0, 7.0]),
+                    ],
+                },
+                BoxGroup {
+                    label: "b".into(),
+                    boxes: vec![(0.02, vec![2.0]), (0.03, vec![])],
+                },
+            ],
+            reference_lines: vec![("ref".into(), 6.0)],
+        }
+    }
+
+    #[test]
+    fn boxes_show_hand_computed_quartiles_and_never_leave_the_data() {
+        let geometry = chart().geometry();
+        let first = geometry[0][0].summary;
+        assert_eq!(
+            (first.q1, first.median, first.q3, first.min, first.max),
+            (1.75, 2.5, 3.25, 1.0, 4.0)
+        );
+        let second = geometry[0][1].summary;
+        assert_eq!((second.q1, second.median, second.q3), (6.0, 7.0, 8.0));
+        assert_eq!(geometry[1].len(), 1, "the empty box is skipped");
+        // Groups sit side by side, without overlapping.
+        assert!(
+            geometry[0][0].x + geometry[0][0].half_width
+                <= geometry[1][0].x - geometry[1][0].half_width + 1e-12
+        );
+    }
+
+    #[test]
+    fn saves_svg_and_png() {
+        let dir = std::env::temp_dir().join(format!("robokey-plot-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let files = chart().save(&dir.join("boxes")).unwrap();
+        let svg = std::fs::read_to_string(&files[0]).unwrap();
+        assert!(svg.contains("Test box chart"));
+        assert!(std::fs::metadata(&files[1]).unwrap().len() > 1000);
+        let empty = BoxChart {
+            groups: Vec::new(),
+            ..chart()
+        };
+        empty.save(&dir.join("empty")).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

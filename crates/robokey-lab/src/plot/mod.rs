@@ -1,0 +1,104 @@
+//! Figures as SVG and PNG, drawn with plotters and a bundled font (DejaVu Sans, licence in
+//! `assets/DejaVuSans.LICENSE`), so no system fonts are needed. Box plots are drawn from
+//! primitives with [`crate::stats::Summary`]: plotters' own whiskers are wrong.
+
+mod boxes;
+mod line;
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use plotters::prelude::*;
+
+pub use boxes::{BoxChart, BoxGeometry, BoxGroup};
+pub use line::{LineChart, Series, SeriesStyle};
+
+/// A figure could not be drawn or written.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlotError {
+    /// The backend failed (file not writable, encoding error).
+    #[error("{path}: {message}")]
+    Draw {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+}
+
+/// Font family name under which the bundled font is registered.
+const FONT: &str = "sans-serif";
+
+/// Registers the bundled font once.
+fn register_font() {
+    static DONE: OnceLock<()> = OnceLock::new();
+    DONE.get_or_init(|| {
+        let bytes: &'static [u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+        // The bundled file is a valid TrueType font; failure would be a packaging bug.
+        let _ = plotters::style::register_font(FONT, FontStyle::Normal, bytes);
+    });
+}
+
+/// Series colours, colour-blind safe (Okabe–Ito).
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(0, 114, 178),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(230, 159, 0),
+    RGBColor(86, 180, 233),
+];
+
+/// Something drawable on any plotters backend.
+trait Figure {
+    /// Draws the figure on `root`.
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String>;
+}
+
+/// Draws `figure` into `base.svg` and `base.png` of `size` pixels.
+fn save_both(
+    base: &Path,
+    size: (u32, u32),
+    figure: &impl Figure,
+) -> Result<Vec<PathBuf>, PlotError> {
+    register_font();
+    let svg = base.with_extension("svg");
+    let png = base.with_extension("png");
+    let fail = |path: &Path, message: String| PlotError::Draw {
+        path: path.to_path_buf(),
+        message,
+    };
+    {
+        let root = SVGBackend::new(&svg, size).into_drawing_area();
+        figure.draw(&root).map_err(|m| fail(&svg, m))?;
+        root.present().map_err(|e| fail(&svg, e.to_string()))?;
+    }
+    {
+        let root = BitMapBackend::new(&png, size).into_drawing_area();
+        figure.draw(&root).map_err(|m| fail(&png, m))?;
+        root.present().map_err(|e| fail(&png, e.to_string()))?;
+    }
+    Ok(vec![svg, png])
+}
+
+/// A `[lo, hi]` range covering `values` with a 5 % margin (a unit span when degenerate).
+fn padded_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let span = hi - lo;
+    if span <= 0.0 {
+        let pad = if lo == 0.0 { 1.0 } else { lo.abs() * 0.1 };
+        return (lo - pad, hi + pad);
+    }
+    (lo - 0.05 * span, hi + 0.05 * span)
+}
