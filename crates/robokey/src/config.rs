@@ -385,11 +385,20 @@ impl Config {
     /// # Errors
     /// A [`ConfigError`] attributed to `origin`.
     pub fn from_table(table: toml::Table, origin: &str) -> Result<Self, ConfigError> {
-        let config: Self = table
-            .try_into()
-            .map_err(|e: toml::de::Error| ConfigError::Parse {
+        let known: toml::Table = Self::default()
+            .to_toml()
+            .parse()
+            .expect("the default config is valid TOML");
+        check_known_fields(&table, &known, "").map_err(|e| e.with_origin(origin))?;
+        // Deserializing from text makes toml's error show the offending line and field.
+        let text = toml::to_string(&table).map_err(|e| ConfigError::Parse {
+            origin: origin.to_owned(),
+            message: e.to_string(),
+        })?;
+        let config: Self =
+            toml::from_str(&text).map_err(|e: toml::de::Error| ConfigError::Parse {
                 origin: origin.to_owned(),
-                message: e.message().to_owned(),
+                message: e.to_string().trim_end().to_owned(),
             })?;
         config.validate().map_err(|e| e.with_origin(origin))?;
         Ok(config)
@@ -516,6 +525,35 @@ impl Config {
     }
 }
 
+/// Rejects fields that the configuration does not have, naming their full path and the
+/// fields allowed there.
+fn check_known_fields(
+    table: &toml::Table,
+    known: &toml::Table,
+    prefix: &str,
+) -> Result<(), ConfigError> {
+    for (key, value) in table {
+        let path = format!("{prefix}{key}");
+        match (known.get(key), value) {
+            (None, _) => {
+                let allowed: Vec<&str> = known.keys().map(String::as_str).collect();
+                return Err(ConfigError::Parse {
+                    origin: String::new(),
+                    message: format!(
+                        "unknown field `{path}` (allowed here: {})",
+                        allowed.join(", ")
+                    ),
+                });
+            }
+            (Some(toml::Value::Table(inner)), toml::Value::Table(given)) => {
+                check_known_fields(given, inner, &format!("{path}."))?;
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// Parses TOML text into a table, attributing errors to `origin`.
 ///
 /// # Errors
@@ -595,7 +633,12 @@ mod tests {
         assert!(text.contains("0.0") && text.contains("> 0"), "{text}");
 
         let err = Config::from_toml("[robot]\nmass = 1.0\n", "a.toml").unwrap_err();
-        assert!(err.to_string().contains("mass"), "{err}");
+        assert!(
+            err.to_string().contains("unknown field `robot.mass`"),
+            "{err}"
+        );
+        let err = Config::from_toml("[robot]\nT = \"fast\"\n", "a.toml").unwrap_err();
+        assert!(err.to_string().contains("a.toml"), "{err}");
 
         let err = Config::from_toml("[eve]\nalpha = 1.5\n", "b.toml").unwrap_err();
         assert!(err.to_string().contains("eve.alpha"), "{err}");
