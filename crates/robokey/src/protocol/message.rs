@@ -10,8 +10,10 @@ pub enum Message {
     Hello {
         /// Protocol version.
         version: u8,
-        /// SHA-256 of the agreed configuration.
+        /// SHA-256 of `terms`.
         config_digest: [u8; 32],
+        /// The agreement terms as `field = value` lines, so a mismatch can be named.
+        terms: String,
     },
     /// Robot → controller: accepts a session with the same configuration digest.
     HelloAck {

@@ -18,7 +18,7 @@ pub use controller::{ControllerEndpoint, ControllerEvent, ControllerInput, Contr
 pub use decoder::{Measured, StepDecision, StepDecoder};
 pub use fates::{FateLedger, FateWindow};
 pub use message::Message;
-pub use plan::SessionPlan;
+pub use plan::{SessionPlan, agreement_terms, config_digest, terms_difference};
 pub use robot::{Actuation, RobotEndpoint, RobotInput, RobotOutput};
 
 /// How a session ended for one side.

@@ -11,7 +11,7 @@ use crate::model::{DiffDrive, Unicycle};
 pub struct SessionPlan {
     /// Session id.
     pub session: u32,
-    /// SHA-256 of the resolved configuration.
+    /// SHA-256 of the agreement terms.
     pub config_digest: [u8; 32],
     /// Sample time `T` (s).
     pub sample_time: f64,
@@ -83,9 +83,85 @@ impl SessionPlan {
     }
 }
 
-/// SHA-256 of the resolved configuration's TOML.
+/// The terms both endpoints must agree on (SPEC §4b: T, code, n_c, k_c, key budget, Δ,
+/// trajectory, protocol on/off), as `field = value` lines in a fixed order.
+#[must_use]
+pub fn agreement_terms(config: &Config) -> String {
+    let code = &config.code;
+    let traj = &config.trajectory;
+    let built = code.build();
+    format!(
+        "robot.T = {}\nprotocol.enabled = {}\nprotocol.delta_v = {}\nprotocol.delta_omega = {}\n\
+         code.kind = {:?}\ncode.n_c = {}\ncode.k_c = {}\ncode.accept_max_distance = {}\n\
+         code.key_bits = {}\ntrajectory.waypoints = {:?}\ntrajectory.side_time = {}\n\
+         trajectory.laps = {}\n",
+        config.robot.sample_time,
+        config.protocol.enabled,
+        config.protocol.delta_v,
+        config.protocol.delta_omega,
+        code.kind,
+        built.n(),
+        built.k(),
+        code.accept_max_distance,
+        code.key_bits,
+        traj.waypoints,
+        traj.side_time,
+        traj.laps,
+    )
+}
+
+/// SHA-256 of the [`agreement_terms`].
 #[must_use]
 pub fn config_digest(config: &Config) -> [u8; 32] {
     use sha2::Digest;
-    sha2::Sha256::digest(config.to_toml().as_bytes()).into()
+    sha2::Sha256::digest(agreement_terms(config).as_bytes()).into()
+}
+
+/// Names the terms on which two [`agreement_terms`] texts differ, e.g.
+/// `robot.T: here 0.2, peer 0.25`.
+#[must_use]
+pub fn terms_difference(ours: &str, theirs: &str) -> String {
+    let parse = |text: &str| -> Vec<(String, String)> {
+        text.lines()
+            .filter_map(|l| l.split_once(" = "))
+            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+            .collect()
+    };
+    let (ours, theirs) = (parse(ours), parse(theirs));
+    let mut differences: Vec<String> = ours
+        .iter()
+        .filter_map(|(key, value)| {
+            let peer = theirs.iter().find(|(k, _)| k == key).map_or("(missing)", |(_, v)| v.as_str());
+            (peer != value).then(|| format!("{key}: here {value}, peer {peer}"))
+        })
+        .collect();
+    differences.extend(
+        theirs
+            .iter()
+            .filter(|(k, _)| !ours.iter().any(|(o, _)| o == k))
+            .map(|(k, v)| format!("{k}: here (missing), peer {v}")),
+    );
+    if differences.is_empty() {
+        "the configuration digests differ".to_owned()
+    } else {
+        differences.join("; ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn differences_are_named() {
+        let a = Config::default();
+        let mut b = Config::default();
+        b.robot.sample_time = 0.25;
+        b.controller.kp = 2.0; // controller-only: not part of the terms
+        assert_ne!(config_digest(&a), config_digest(&b));
+        let text = terms_difference(&agreement_terms(&a), &agreement_terms(&b));
+        assert_eq!(text, "robot.T: here 0.2, peer 0.25");
+        b.robot.sample_time = 0.2;
+        assert_eq!(config_digest(&a), config_digest(&b));
+    }
 }

@@ -14,6 +14,8 @@ pub const VERSION: u8 = 1;
 pub const HEADER_BYTES: usize = 2 + 1 + 1 + 4 + 4 + 4;
 /// Longest `Abort` reason (bytes of UTF-8).
 pub const MAX_REASON_BYTES: usize = 1024;
+/// Longest `Hello` terms text (bytes of UTF-8).
+pub const MAX_TERMS_BYTES: usize = 4096;
 /// Most codewords a `Finish` may cover.
 pub const MAX_FINISH_CODEWORDS: u32 = 1 << 20;
 
@@ -95,9 +97,11 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
         Message::Hello {
             version,
             config_digest,
+            terms,
         } => {
             out.push(*version);
             out.extend_from_slice(config_digest);
+            put_text(&mut out, terms, MAX_TERMS_BYTES);
         }
         Message::HelloAck { config_digest } => out.extend_from_slice(config_digest),
         Message::Measurement {
@@ -132,18 +136,37 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
         }
         Message::FinishAck => {}
         Message::Confirm { tag } => out.extend_from_slice(tag),
-        Message::Abort { reason } => {
-            let mut end = reason.len().min(MAX_REASON_BYTES);
-            while !reason.is_char_boundary(end) {
-                end -= 1;
-            }
-            out.extend_from_slice(&(end as u16).to_be_bytes());
-            out.extend_from_slice(&reason.as_bytes()[..end]);
-        }
+        Message::Abort { reason } => put_text(&mut out, reason, MAX_REASON_BYTES),
     }
     let crc = crc32c(&out);
     out.extend_from_slice(&crc.to_be_bytes());
     out
+}
+
+/// Appends `len u16 | UTF-8 bytes`, truncated at a character boundary to `max` bytes.
+fn put_text(out: &mut Vec<u8>, text: &str, max: usize) {
+    let mut end = text.len().min(max);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    out.extend_from_slice(&(end as u16).to_be_bytes());
+    out.extend_from_slice(&text.as_bytes()[..end]);
+}
+
+/// Reads `len u16 | UTF-8 bytes` filling the rest of the payload.
+fn get_text(kind: &'static str, r: &mut Reader<'_>, max: usize) -> Result<String, WireError> {
+    if r.bytes.len() < 2 {
+        return Err(WireError::BadLength { kind, got: r.bytes.len(), expected: 2 });
+    }
+    let len = usize::from(u16::from_be_bytes(r.take()));
+    if len > max {
+        return Err(WireError::BadField("text longer than allowed"));
+    }
+    if r.bytes.len() != len {
+        return Err(WireError::BadLength { kind, got: r.bytes.len(), expected: len });
+    }
+    let text = std::str::from_utf8(r.bytes).map_err(|_| WireError::BadField("text is not UTF-8"))?;
+    Ok(text.to_owned())
 }
 
 /// A cursor over a payload whose length was checked up front.
@@ -211,10 +234,19 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
     let mut r = Reader { bytes: payload };
     let message = match kind {
         HELLO => {
-            expect_len("Hello", payload, 33)?;
+            if payload.len() < 33 {
+                return Err(WireError::BadLength {
+                    kind: "Hello",
+                    got: payload.len(),
+                    expected: 35,
+                });
+            }
+            let (version, config_digest) = (r.u8(), r.take());
+            let terms = get_text("Hello", &mut r, MAX_TERMS_BYTES)?;
             Message::Hello {
-                version: r.u8(),
-                config_digest: r.take(),
+                version,
+                config_digest,
+                terms,
             }
         }
         HELLO_ACK => {
@@ -291,25 +323,7 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
             expect_len("Confirm", payload, TAG_BYTES)?;
             Message::Confirm { tag: r.take() }
         }
-        ABORT => {
-            if payload.len() < 2 {
-                return Err(WireError::BadLength {
-                    kind: "Abort",
-                    got: payload.len(),
-                    expected: 2,
-                });
-            }
-            let len = usize::from(u16::from_be_bytes(r.take()));
-            if len > MAX_REASON_BYTES {
-                return Err(WireError::BadField("Abort: reason longer than 1024 bytes"));
-            }
-            expect_len("Abort", payload, 2 + len)?;
-            let reason = std::str::from_utf8(r.bytes)
-                .map_err(|_| WireError::BadField("Abort: reason is not UTF-8"))?;
-            Message::Abort {
-                reason: reason.to_owned(),
-            }
-        }
+        ABORT => Message::Abort { reason: get_text("Abort", &mut r, MAX_REASON_BYTES)? },
         other => return Err(WireError::UnknownType(other)),
     };
     Ok(Frame {
@@ -360,6 +374,8 @@ mod tests {
             Message::Hello {
                 version: 1,
                 config_digest: [0xAB; 32],
+                terms: "robot.T = 0.2
+".into(),
             },
             Message::HelloAck {
                 config_digest: [0xCD; 32],
@@ -421,7 +437,7 @@ mod tests {
     }
 
     const GOLDEN: &str = "
-524b010101020304000000090000000001ababababababababababababababababababababababababababababababababf167bb07
+524b010101020304000000090000000001abababababababababababababababababababababababababababababababab000e726f626f742e54203d20302e320a08bfc491
 524b0102010203040000000900000000cdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcd0889cfa5
 524b01030102030400000009000000073ff0000000000000bfe00000000000003fd00000000000000100000006000000023c2e954f
 524b01030102030400000009000000080000000000000000000000000000000000000000000000000000000000000000029cb1c253
@@ -459,10 +475,13 @@ mod tests {
     fn arb_message() -> impl Strategy<Value = Message> {
         let f = proptest::num::f64::ANY;
         prop_oneof![
-            (any::<u8>(), any::<[u8; 32]>()).prop_map(|(version, config_digest)| Message::Hello {
-                version,
-                config_digest
-            }),
+            (any::<u8>(), any::<[u8; 32]>(), ".{0,60}").prop_map(
+                |(version, config_digest, terms)| Message::Hello {
+                    version,
+                    config_digest,
+                    terms
+                }
+            ),
             any::<[u8; 32]>().prop_map(|config_digest| Message::HelloAck { config_digest }),
             (any::<u32>(), [f, f, f], any::<Option<u32>>(), any::<u32>()).prop_map(
                 |(step, y, applied_step, fate_cursor)| Message::Measurement {

@@ -1,0 +1,37 @@
+//! Errors of the network shells.
+
+/// What can go wrong in a network shell.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum NetError {
+    /// A socket, file or device operation failed.
+    #[error("{context}: {source}")]
+    Io {
+        /// What was being done (names the address, file or device).
+        context: String,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// The Khepera IV (or its emulator) answered something unexpected.
+    #[error("kh4: {0}")]
+    Kh4(String),
+    /// A capture file is malformed.
+    #[error("{path}: {message}")]
+    Capture {
+        /// The capture file.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Bad command-line or configuration input.
+    #[error("{0}")]
+    Usage(String),
+}
+
+impl NetError {
+    /// Wraps an I/O error with what was being done.
+    pub fn io(context: impl Into<String>) -> impl FnOnce(std::io::Error) -> Self {
+        let context = context.into();
+        move |source| Self::Io { context, source }
+    }
+}
