@@ -12,7 +12,7 @@ use robokey_lab::{report, results, trace};
 use crate::{ConfigArgs, MergeArgs, ReproduceArgs, RunArgs, SweepArgs};
 
 /// Loads a configuration from an optional file plus overrides.
-fn load_config(path: Option<&std::path::Path>, overrides: &[Override]) -> Result<Config> {
+pub fn load_config(path: Option<&std::path::Path>, overrides: &[Override]) -> Result<Config> {
     let mut table = read_table(path)?;
     if table.contains_key("sweep") || table.contains_key("experiment") {
         bail!(

@@ -8,6 +8,7 @@ use robokey_lab::files::Override;
 use robokey_lab::runner::Shard;
 
 mod commands;
+mod net;
 
 /// Key agreement for remotely controlled robots, through the robot's own motion
 /// (Naseri, Lucia, Youssef, IFAC 2023) — simulated, swept and measured.
@@ -31,11 +32,20 @@ enum Command {
     Reproduce(ReproduceArgs),
     /// Print the resolved configuration (defaults, file, overrides) as TOML.
     Config(ConfigArgs),
+    /// The robot agent: owns the clock and the key bits, drives the wheels, reports odometry
+    /// over UDP. Run it ON the robot (see README: where the robot agent runs matters).
+    Robot(net::RobotArgs),
+    /// The controller: tracks the reference, offers command pairs, decodes and acks.
+    Controller(net::ControllerArgs),
+    /// A faulty network between controller and robot, with an optional pcap capture.
+    Relay(net::RelayArgs),
+    /// The paper's eavesdropper on a relay capture.
+    Eve(net::EveArgs),
 }
 
 /// Options shared by commands that read a configuration.
 #[derive(Args, Debug, Clone)]
-struct ConfigOptions {
+pub struct ConfigOptions {
     /// Set any config field, e.g. `--set controller.kp=1.0` (repeatable).
     #[arg(long = "set", value_name = "FIELD=VALUE", value_parser = parse_override)]
     set: Vec<Override>,
@@ -150,6 +160,10 @@ fn main() -> ExitCode {
         Command::Merge(args) => commands::merge(args),
         Command::Reproduce(args) => commands::reproduce(args),
         Command::Config(args) => commands::config(args),
+        Command::Robot(args) => net::robot(args),
+        Command::Controller(args) => net::controller(args),
+        Command::Relay(args) => net::relay(args),
+        Command::Eve(args) => net::eve(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,6 +2,14 @@
 //! the simulator, carried over UDP between separate processes.
 
 pub mod backend;
+pub mod capture_eve;
+pub mod controller_agent;
 pub mod error;
+pub mod pcap;
+pub mod relay;
+pub mod robot_agent;
+pub mod session;
+pub mod sim_backend;
+pub mod transport;
 
 pub use error::NetError;

@@ -22,7 +22,7 @@ use crate::trajectory::Trajectory;
 pub enum ControllerInput {
     /// A message from the robot.
     Frame(Message),
-    /// The shell's retransmission timer fired (Finish not acknowledged yet).
+    /// The shell's retransmission timer fired (Finish or Confirm not answered yet).
     Timeout,
 }
 
@@ -65,11 +65,12 @@ pub enum ControllerOutput {
 enum Phase {
     ExpectMeasurement,
     ExpectFinishAck { tries: u32 },
-    ExpectConfirm,
+    ExpectConfirm { tries: u32 },
     Done,
 }
 
-/// Largest number of Finish transmissions before the session ends unconfirmed.
+/// Largest number of Finish (and Confirm) transmissions before the session ends
+/// unconfirmed.
 const FINISH_TRIES: u32 = 10;
 
 /// The controller side of a session.
@@ -174,14 +175,14 @@ impl ControllerEndpoint {
             ) => self.handle_measurement(step, Pose::from(y), applied_step, fate_cursor),
             (Phase::ExpectFinishAck { .. }, Message::FinishAck) => {
                 self.send_confirm();
-                self.phase = Phase::ExpectConfirm;
+                self.phase = Phase::ExpectConfirm { tries: 1 };
             }
             (Phase::ExpectFinishAck { .. }, Message::Confirm { tag }) => {
                 // The FinishAck was lost; the robot's tag proves it had the Finish.
                 self.send_confirm();
                 self.verify(&tag);
             }
-            (Phase::ExpectConfirm, Message::Confirm { tag }) => self.verify(&tag),
+            (Phase::ExpectConfirm { .. }, Message::Confirm { tag }) => self.verify(&tag),
             (Phase::Done, _) => {}
             (_, Message::Abort { reason }) => {
                 self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
@@ -192,15 +193,29 @@ impl ControllerEndpoint {
     }
 
     fn handle_timeout(&mut self) {
-        if let Phase::ExpectFinishAck { tries } = self.phase {
-            if tries >= FINISH_TRIES {
+        match self.phase {
+            Phase::ExpectFinishAck { tries } | Phase::ExpectConfirm { tries }
+                if tries >= FINISH_TRIES =>
+            {
+                let waited = if matches!(self.phase, Phase::ExpectFinishAck { .. }) {
+                    "FinishAck"
+                } else {
+                    "confirmation tag"
+                };
                 self.finish(Outcome::Unconfirmed(format!(
-                    "no FinishAck after {tries} Finish transmissions"
+                    "no {waited} from the robot after {tries} transmissions"
                 )));
-            } else {
+            }
+            Phase::ExpectFinishAck { tries } => {
                 self.phase = Phase::ExpectFinishAck { tries: tries + 1 };
                 self.send_finish();
             }
+            // Our tag or the robot's was lost: repeating ours makes the robot repeat its own.
+            Phase::ExpectConfirm { tries } => {
+                self.phase = Phase::ExpectConfirm { tries: tries + 1 };
+                self.send_confirm();
+            }
+            _ => {}
         }
     }
 

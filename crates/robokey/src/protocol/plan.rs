@@ -118,9 +118,9 @@ pub fn config_digest(config: &Config) -> [u8; 32] {
 }
 
 /// Names the terms on which two [`agreement_terms`] texts differ, e.g.
-/// `robot.T: here 0.2, peer 0.25`.
+/// `robot.T: robot has 0.25, controller has 0.2`.
 #[must_use]
-pub fn terms_difference(ours: &str, theirs: &str) -> String {
+pub fn terms_difference(ours: &str, theirs: &str, we: &str, they: &str) -> String {
     let parse = |text: &str| -> Vec<(String, String)> {
         text.lines()
             .filter_map(|l| l.split_once(" = "))
@@ -131,15 +131,18 @@ pub fn terms_difference(ours: &str, theirs: &str) -> String {
     let mut differences: Vec<String> = ours
         .iter()
         .filter_map(|(key, value)| {
-            let peer = theirs.iter().find(|(k, _)| k == key).map_or("(missing)", |(_, v)| v.as_str());
-            (peer != value).then(|| format!("{key}: here {value}, peer {peer}"))
+            let peer = theirs
+                .iter()
+                .find(|(k, _)| k == key)
+                .map_or("(missing)", |(_, v)| v.as_str());
+            (peer != value).then(|| format!("{key}: {we} has {value}, {they} has {peer}"))
         })
         .collect();
     differences.extend(
         theirs
             .iter()
             .filter(|(k, _)| !ours.iter().any(|(o, _)| o == k))
-            .map(|(k, v)| format!("{k}: here (missing), peer {v}")),
+            .map(|(k, v)| format!("{k}: {we} has (missing), {they} has {v}")),
     );
     if differences.is_empty() {
         "the configuration digests differ".to_owned()
@@ -159,8 +162,13 @@ mod tests {
         b.robot.sample_time = 0.25;
         b.controller.kp = 2.0; // controller-only: not part of the terms
         assert_ne!(config_digest(&a), config_digest(&b));
-        let text = terms_difference(&agreement_terms(&a), &agreement_terms(&b));
-        assert_eq!(text, "robot.T: here 0.2, peer 0.25");
+        let text = terms_difference(
+            &agreement_terms(&a),
+            &agreement_terms(&b),
+            "robot",
+            "controller",
+        );
+        assert_eq!(text, "robot.T: robot has 0.2, controller has 0.25");
         b.robot.sample_time = 0.2;
         assert_eq!(config_digest(&a), config_digest(&b));
     }

@@ -149,6 +149,12 @@ impl RobotEndpoint {
         self.phase == Phase::Done
     }
 
+    /// The session plan.
+    #[must_use]
+    pub fn plan(&self) -> &SessionPlan {
+        &self.plan
+    }
+
     /// The step whose command the robot waits for.
     #[must_use]
     pub fn next_command(&self) -> u32 {
@@ -193,7 +199,14 @@ impl RobotEndpoint {
                 }
                 self.handle_command(step, u0.into(), u1.into());
             }
-            (Phase::ExpectFinish | Phase::ExpectConfirm, Message::Finish { codewords, bitmap }) => {
+            (
+                phase @ (Phase::ExpectCommand | Phase::ExpectFinish | Phase::ExpectConfirm),
+                Message::Finish { codewords, bitmap },
+            ) => {
+                if *phase == Phase::ExpectCommand {
+                    // The stop command was lost: the Finish ends the run as well.
+                    self.stop_wheels(self.next_command);
+                }
                 if codewords != self.fates.len() {
                     let reason = format!(
                         "Finish covers {codewords} codewords, the robot sent {}",

@@ -156,16 +156,25 @@ fn put_text(out: &mut Vec<u8>, text: &str, max: usize) {
 /// Reads `len u16 | UTF-8 bytes` filling the rest of the payload.
 fn get_text(kind: &'static str, r: &mut Reader<'_>, max: usize) -> Result<String, WireError> {
     if r.bytes.len() < 2 {
-        return Err(WireError::BadLength { kind, got: r.bytes.len(), expected: 2 });
+        return Err(WireError::BadLength {
+            kind,
+            got: r.bytes.len(),
+            expected: 2,
+        });
     }
     let len = usize::from(u16::from_be_bytes(r.take()));
     if len > max {
         return Err(WireError::BadField("text longer than allowed"));
     }
     if r.bytes.len() != len {
-        return Err(WireError::BadLength { kind, got: r.bytes.len(), expected: len });
+        return Err(WireError::BadLength {
+            kind,
+            got: r.bytes.len(),
+            expected: len,
+        });
     }
-    let text = std::str::from_utf8(r.bytes).map_err(|_| WireError::BadField("text is not UTF-8"))?;
+    let text =
+        std::str::from_utf8(r.bytes).map_err(|_| WireError::BadField("text is not UTF-8"))?;
     Ok(text.to_owned())
 }
 
@@ -323,7 +332,9 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
             expect_len("Confirm", payload, TAG_BYTES)?;
             Message::Confirm { tag: r.take() }
         }
-        ABORT => Message::Abort { reason: get_text("Abort", &mut r, MAX_REASON_BYTES)? },
+        ABORT => Message::Abort {
+            reason: get_text("Abort", &mut r, MAX_REASON_BYTES)?,
+        },
         other => return Err(WireError::UnknownType(other)),
     };
     Ok(Frame {
@@ -375,7 +386,8 @@ mod tests {
                 version: 1,
                 config_digest: [0xAB; 32],
                 terms: "robot.T = 0.2
-".into(),
+"
+                .into(),
             },
             Message::HelloAck {
                 config_digest: [0xCD; 32],

@@ -1,0 +1,394 @@
+//! The network subcommands: robot agent, controller, relay, and Eve on a capture.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use robokey::eve::ModelErrors;
+use robokey::rng::{Purpose, stream};
+use robokey_net::capture_eve::eve_on_capture;
+use robokey_net::controller_agent::{ControllerOptions, run_controller};
+use robokey_net::relay::{Faults, RelayOptions, run_relay};
+use robokey_net::robot_agent::{RobotOptions, run_robot};
+use robokey_net::session::{Pace, SessionReport, Timing, os_rng, read_key_file};
+use robokey_net::sim_backend::SimBackend;
+
+use crate::ConfigOptions;
+use crate::commands::load_config;
+
+/// Clock of a session.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum PaceArg {
+    /// Period T on the wall clock (deployment).
+    Realtime,
+    /// Virtual clock with a per-step timeout (tests, demos).
+    Lockstep,
+}
+
+/// Options shared by robot and controller.
+#[derive(Args, Debug, Clone)]
+pub struct SessionArgs {
+    /// Configuration file (TOML); both sides must agree on T, code, Δ, budget, trajectory.
+    #[arg(long, short)]
+    config: Option<PathBuf>,
+    #[command(flatten)]
+    options: ConfigOptions,
+    /// Write the key here (mode 0600), only once the peer's tag confirmed it.
+    #[arg(long)]
+    key_out: Option<PathBuf>,
+    /// Write the session report (JSON) here.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Clock: realtime (period T) or lockstep (virtual clock).
+    #[arg(long, value_enum, default_value = "realtime")]
+    pace: PaceArg,
+    /// Abort after this many seconds without a valid frame.
+    #[arg(long, default_value_t = 2.0)]
+    silence_timeout: f64,
+    /// Lockstep: milliseconds to wait for each command before treating it as missing.
+    #[arg(long, default_value_t = 50)]
+    step_timeout_ms: u64,
+}
+
+impl SessionArgs {
+    fn timing(&self) -> Result<Timing> {
+        if !(self.silence_timeout > 0.0 && self.silence_timeout.is_finite()) {
+            bail!(
+                "--silence-timeout {} is not allowed (allowed: > 0 seconds)",
+                self.silence_timeout
+            );
+        }
+        let pace = match self.pace {
+            PaceArg::Realtime => Pace::Realtime,
+            PaceArg::Lockstep => Pace::Lockstep,
+        };
+        let mut timing = Timing::new(pace, Duration::from_secs_f64(self.silence_timeout));
+        timing.step_timeout = Duration::from_millis(self.step_timeout_ms);
+        Ok(timing)
+    }
+
+    fn finish(&self, report: &SessionReport) -> Result<()> {
+        println!("{}", report.line());
+        if let Some(path) = &self.report {
+            report.write(path)?;
+        }
+        Ok(())
+    }
+}
+
+/// Where the robot agent's wheels are.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum BackendArg {
+    /// A simulated plant with the configured true noise.
+    Sim,
+    /// A Khepera IV through kh4server (or its emulator).
+    Kh4,
+}
+
+#[derive(Args, Debug)]
+pub struct RobotArgs {
+    /// UDP address to listen on, e.g. 0.0.0.0:7000 (port 0: any; the address is printed).
+    #[arg(long)]
+    listen: SocketAddr,
+    /// Motors and odometry.
+    #[arg(long, value_enum, default_value = "sim")]
+    backend: BackendArg,
+    /// kh4server link for `--backend kh4`: a serial device (e.g. /dev/rfcomm0) or tcp:HOST:PORT.
+    #[arg(long)]
+    kh4: Option<String>,
+    /// TESTS ONLY: draw the key bits (and the simulated noise) from seeded streams instead
+    /// of the OS CSPRNG; the session then equals `robokey run --seed S`.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Seconds to wait for a controller.
+    #[arg(long, default_value_t = 60.0)]
+    wait: f64,
+    #[command(flatten)]
+    session: SessionArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct ControllerArgs {
+    /// The robot agent's UDP address.
+    #[arg(long)]
+    robot: SocketAddr,
+    /// Local address to bind.
+    #[arg(long)]
+    bind: Option<SocketAddr>,
+    #[command(flatten)]
+    session: SessionArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct RelayArgs {
+    /// Address the controller sends to.
+    #[arg(long)]
+    listen: SocketAddr,
+    /// The robot agent's address.
+    #[arg(long)]
+    forward: SocketAddr,
+    /// Loss probability per datagram.
+    #[arg(long, default_value_t = 0.0)]
+    loss: f64,
+    /// Duplication probability.
+    #[arg(long, default_value_t = 0.0)]
+    duplicate: f64,
+    /// Reordering probability (the datagram is held back so later ones overtake it).
+    #[arg(long, default_value_t = 0.0)]
+    reorder: f64,
+    /// One-way delay, `MS` or `MS±MS` (also `MS+-MS`).
+    #[arg(long, default_value = "0")]
+    delay: String,
+    /// Probability of flipping one bit.
+    #[arg(long, default_value_t = 0.0)]
+    corrupt: f64,
+    /// Seed of the fault streams.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Record every datagram to this pcap file (LINKTYPE_RAW, synthetic IPv4/UDP headers).
+    #[arg(long)]
+    capture: Option<PathBuf>,
+    /// Record datagrams as delivered (after faults) instead of as sent.
+    #[arg(long)]
+    capture_after_faults: bool,
+    /// Exit after this many seconds without traffic (default: run until killed).
+    #[arg(long)]
+    idle_exit: Option<f64>,
+}
+
+#[derive(Args, Debug)]
+pub struct EveArgs {
+    /// A relay capture (pcap).
+    #[arg(long)]
+    capture: PathBuf,
+    /// The session's configuration (defaults when omitted).
+    #[arg(long, short)]
+    config: Option<PathBuf>,
+    #[command(flatten)]
+    options: ConfigOptions,
+    /// Largest relative model error α (her errors are drawn from her seeded stream).
+    #[arg(long)]
+    alpha: Option<f64>,
+    /// Her relative errors on r, D, W, V given explicitly, e.g. `0.05,-0.02,0,0`.
+    #[arg(long, value_name = "R,D,W,V", conflicts_with = "alpha")]
+    errors: Option<String>,
+    /// Seed of her draws (stream "eve", replicate 0; `robokey run --seed S` uses the same).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// The controller's key file, to measure her disagreement.
+    #[arg(long)]
+    controller_key: Option<PathBuf>,
+    /// Write her result (JSON: decisions, key length, disagreement) here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+pub fn robot(args: RobotArgs) -> Result<()> {
+    let mut config = load_config(args.session.config.as_deref(), &args.session.options.set)?;
+    let timing = args.session.timing()?;
+    let options = RobotOptions {
+        listen: args.listen,
+        timing,
+        wait_for_hello: Duration::from_secs_f64(args.wait.max(0.0)),
+        key_out: args.session.key_out.clone(),
+    };
+    match args.seed {
+        Some(seed) => {
+            config.run.seed = seed;
+            finish_robot(&args, &config, &options, &mut stream(seed, Purpose::Key, 0))
+        }
+        None => {
+            // The simulated plant's noise is not key material; it just differs per session.
+            use rand::RngExt;
+            config.run.seed = os_rng()?.random();
+            finish_robot(&args, &config, &options, &mut os_rng()?)
+        }
+    }
+}
+
+fn finish_robot<R: rand::CryptoRng>(
+    args: &RobotArgs,
+    config: &robokey::Config,
+    options: &RobotOptions,
+    key_source: &mut R,
+) -> Result<()> {
+    let report = match args.backend {
+        BackendArg::Sim => run_robot(config, &mut SimBackend::new(config, 0), key_source, options)?,
+        BackendArg::Kh4 => {
+            let _link = args
+                .kh4
+                .as_deref()
+                .context("--backend kh4 needs --kh4 DEVICE or --kh4 tcp:HOST:PORT")?;
+            bail!("KH4-PENDING")
+        }
+    };
+    args.session.finish(&report)
+}
+
+pub fn controller(args: ControllerArgs) -> Result<()> {
+    let config = load_config(args.session.config.as_deref(), &args.session.options.set)?;
+    let bind = args.bind.unwrap_or_else(|| {
+        if args.robot.is_ipv4() {
+            "0.0.0.0:0"
+        } else {
+            "[::]:0"
+        }
+        .parse()
+        .expect("valid address")
+    });
+    let options = ControllerOptions {
+        robot: args.robot,
+        bind,
+        timing: args.session.timing()?,
+        key_out: args.session.key_out.clone(),
+        session: None,
+    };
+    let report = run_controller(&config, &options)?;
+    args.session.finish(&report)
+}
+
+fn probability(name: &str, p: f64) -> Result<f64> {
+    if (0.0..=1.0).contains(&p) {
+        Ok(p)
+    } else {
+        bail!("--{name} {p} is not allowed (allowed: a probability in [0, 1])")
+    }
+}
+
+/// Parses `MS`, `MS±MS` or `MS+-MS`.
+fn parse_delay(text: &str) -> Result<(Duration, Duration)> {
+    let (mean, jitter) = match text.split_once('±').or_else(|| text.split_once("+-")) {
+        Some((m, j)) => (m, j),
+        None => (text, "0"),
+    };
+    let ms = |s: &str| -> Result<Duration> {
+        let v: f64 = s
+            .trim()
+            .parse()
+            .with_context(|| format!("--delay {text}: `{s}` is not a number of milliseconds"))?;
+        if !(v >= 0.0 && v.is_finite()) {
+            bail!("--delay {text}: {v} ms is not allowed (allowed: ≥ 0)");
+        }
+        Ok(Duration::from_secs_f64(v / 1000.0))
+    };
+    Ok((ms(mean)?, ms(jitter)?))
+}
+
+pub fn relay(args: RelayArgs) -> Result<()> {
+    let (delay, jitter) = parse_delay(&args.delay)?;
+    let faults = Faults {
+        loss: probability("loss", args.loss)?,
+        duplicate: probability("duplicate", args.duplicate)?,
+        reorder: probability("reorder", args.reorder)?,
+        corrupt: probability("corrupt", args.corrupt)?,
+        delay,
+        jitter,
+    };
+    let options = RelayOptions {
+        listen: args.listen,
+        forward: args.forward,
+        faults,
+        seed: args.seed,
+        capture: args.capture,
+        capture_after_faults: args.capture_after_faults,
+        idle_exit: args.idle_exit.map(|s| Duration::from_secs_f64(s.max(0.0))),
+    };
+    let stats = run_relay(&options)?;
+    println!("relay: {}", serde_json::to_string(&stats)?);
+    Ok(())
+}
+
+pub fn eve(args: EveArgs) -> Result<()> {
+    let mut config = load_config(args.config.as_deref(), &args.options.set)?;
+    if let Some(seed) = args.seed {
+        config.run.seed = seed;
+    }
+    let errors = match (&args.errors, args.alpha) {
+        (Some(text), _) => {
+            let values: Vec<f64> = text
+                .split(',')
+                .map(|v| v.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("--errors {text}: expected four numbers r,D,W,V"))?;
+            let [r, d, w, v] = values[..] else {
+                bail!("--errors {text}: expected four numbers r,D,W,V")
+            };
+            if values.iter().any(|e| e.is_nan() || e.abs() >= 1.0) {
+                bail!("--errors {text}: each relative error must be in (−1, 1)");
+            }
+            ModelErrors { r, d, w, v }
+        }
+        (None, alpha) => {
+            let alpha = alpha.unwrap_or(config.eve.alpha);
+            if !(0.0..1.0).contains(&alpha) {
+                bail!("--alpha {alpha} is not allowed (allowed: [0, 1))");
+            }
+            ModelErrors::draw(
+                alpha,
+                config.eve.draw,
+                &mut stream(config.run.seed, Purpose::Eve, 0),
+            )
+        }
+    };
+    let result = eve_on_capture(&args.capture, &config, errors)?;
+    let decided = result.decisions.iter().flatten().count();
+    println!(
+        "eve: session {:08x}, {} frames ({} undecodable datagrams), {decided} steps decided, key {} bits; model errors r {:+.4}, D {:+.4}, W {:+.4}, V {:+.4}",
+        result.session,
+        result.frames,
+        result.undecodable,
+        result.key.len(),
+        errors.r,
+        errors.d,
+        errors.w,
+        errors.v
+    );
+    let disagreement = match &args.controller_key {
+        Some(path) => {
+            let controller = read_key_file(path)?;
+            if controller.len() != result.key.len() {
+                bail!(
+                    "{}: the controller's key has {} bits, Eve's {}: not the same session?",
+                    path.display(),
+                    controller.len(),
+                    result.key.len()
+                );
+            }
+            let differ = controller
+                .iter()
+                .zip(result.key.iter())
+                .filter(|(a, b)| a != b)
+                .count();
+            let pct = if controller.is_empty() {
+                None
+            } else {
+                Some(100.0 * differ as f64 / controller.len() as f64)
+            };
+            match pct {
+                Some(p) => println!(
+                    "eve: disagrees with the controller's key on {differ} of {} bits ({p:.2} %)",
+                    controller.len()
+                ),
+                None => println!("eve: the controller's key is empty"),
+            }
+            pct
+        }
+        None => None,
+    };
+    if let Some(path) = &args.out {
+        let json = serde_json::json!({
+            "session": result.session,
+            "frames": result.frames,
+            "undecodable": result.undecodable,
+            "model_errors": { "r": errors.r, "D": errors.d, "W": errors.w, "V": errors.v },
+            "decisions": result.decisions,
+            "key_bits": result.key.len(),
+            "disagreement_pct": disagreement,
+        });
+        std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n")
+            .with_context(|| format!("write {}", path.display()))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,362 @@
+//! SPEC §4b's guarantees, each with real processes started through the CLI on loopback.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+use robokey::Config;
+use robokey::sim::simulate;
+
+/// A running `robokey` process whose first stdout line announced its address.
+struct Process {
+    child: Child,
+    address: String,
+}
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Starts `robokey args…` and reads the address from its first line (`… on ADDR[, …]`).
+fn start(args: &[&str]) -> Process {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("robokey starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.as_mut().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let address = line
+        .split(" on ")
+        .nth(1)
+        .and_then(|rest| rest.split([',', '\n']).next())
+        .unwrap_or_else(|| panic!("no address in {line:?}"))
+        .trim()
+        .to_owned();
+    Process { child, address }
+}
+
+/// Runs `robokey args…` to completion; returns (success, stdout + stderr).
+fn run(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    (out.status.success(), text)
+}
+
+fn wait(mut process: Process) -> String {
+    let status = process.child.wait().unwrap();
+    let mut rest = String::new();
+    if let Some(out) = process.child.stdout.as_mut() {
+        let _ = std::io::Read::read_to_string(out, &mut rest);
+    }
+    assert!(status.success(), "process failed: {rest}");
+    rest
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("robokey-net-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(path: &Path) -> String {
+    path.to_str().unwrap().to_owned()
+}
+
+fn report(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// One lockstep session, optionally through a relay; returns the folder with
+/// robot.json, controller.json, keys and capture.
+fn session(name: &str, seed: u64, extra: &[&str], relay: Option<&[&str]>) -> PathBuf {
+    let dir = scratch(name);
+    let file = |f: &str| s(&dir.join(f));
+    let mut robot_args = vec![
+        "robot",
+        "--listen",
+        "127.0.0.1:0",
+        "--pace",
+        "lockstep",
+        "--silence-timeout",
+        "1",
+    ];
+    let seed = seed.to_string();
+    robot_args.extend(["--seed", &seed]);
+    let (robot_key, robot_report) = (file("robot.key"), file("robot.json"));
+    robot_args.extend(["--key-out", &robot_key, "--report", &robot_report]);
+    robot_args.extend(extra);
+    let robot = start(&robot_args);
+    let capture = file("capture.pcap");
+    let relay_process = relay.map(|faults| {
+        let mut args = vec![
+            "relay",
+            "--listen",
+            "127.0.0.1:0",
+            "--forward",
+            &robot.address,
+            "--capture",
+            &capture,
+            "--idle-exit",
+            "3",
+        ];
+        args.extend(faults);
+        start(&args)
+    });
+    let target = relay_process
+        .as_ref()
+        .map_or(robot.address.clone(), |r| r.address.clone());
+    let (controller_key, controller_report) = (file("controller.key"), file("controller.json"));
+    let mut controller_args = vec![
+        "controller",
+        "--robot",
+        &target,
+        "--pace",
+        "lockstep",
+        "--silence-timeout",
+        "1",
+    ];
+    controller_args.extend(["--key-out", &controller_key, "--report", &controller_report]);
+    controller_args.extend(extra);
+    let (ok, text) = run(&controller_args);
+    assert!(ok, "{text}");
+    wait(robot);
+    if let Some(relay) = relay_process {
+        wait(relay);
+    }
+    dir
+}
+
+#[test]
+fn clean_network_confirms_equal_keys_identical_to_the_simulator_and_eve_agrees_on_the_capture() {
+    let dir = session("clean", 11, &[], Some(&[]));
+    let (robot, controller) = (
+        report(&dir.join("robot.json")),
+        report(&dir.join("controller.json")),
+    );
+    assert_eq!(robot["outcome"], "confirmed", "{robot}");
+    assert_eq!(controller["outcome"], "confirmed", "{controller}");
+    let key = std::fs::read_to_string(dir.join("robot.key")).unwrap();
+    assert_eq!(
+        key,
+        std::fs::read_to_string(dir.join("controller.key")).unwrap()
+    );
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(dir.join("robot.key"))
+            .unwrap()
+            .permissions()
+            .mode();
+        assert_eq!(mode & 0o777, 0o600);
+    }
+    // The same session in the simulator: same accepted count and the same Eve decisions.
+    let mut config = Config::default();
+    config.run.seed = 11;
+    let sim = simulate(&config, 0, true).unwrap();
+    assert_eq!(controller["accepted"].as_u64(), sim.metrics.accepted);
+    let out = dir.join("eve.json");
+    let (ok, text) = run(&[
+        "eve",
+        "--capture",
+        &s(&dir.join("capture.pcap")),
+        "--seed",
+        "11",
+        "--controller-key",
+        &s(&dir.join("controller.key")),
+        "--out",
+        &s(&out),
+    ]);
+    assert!(ok, "{text}");
+    let eve = report(&out);
+    let from_capture: Vec<Option<u64>> = eve["decisions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(serde_json::Value::as_u64)
+        .collect();
+    let from_sim: Vec<Option<u64>> = sim.trace[1..]
+        .iter()
+        .map(|r| r.bhat_eve.map(u64::from))
+        .collect();
+    assert_eq!(from_capture, from_sim);
+    assert_eq!(
+        eve["disagreement_pct"].as_f64(),
+        sim.metrics.eve_disagreement_pct
+    );
+}
+
+#[test]
+fn differing_accepted_bits_fail_confirmation_and_write_no_key() {
+    // A seed whose simulated session accepts a wrong bit (K_c ≠ K_r) at Δv = 0.02.
+    let mut config = Config::default();
+    config.protocol.delta_v = 0.02;
+    let seed = (1..200)
+        .find(|&seed| {
+            config.run.seed = seed;
+            simulate(&config, 0, false).unwrap().metrics.key_match == Some(false)
+        })
+        .expect("wrong accepted bits are common at Δv = 0.02");
+    let dir = session("mismatch", seed, &["--set", "protocol.delta_v=0.02"], None);
+    for side in ["robot", "controller"] {
+        let r = report(&dir.join(format!("{side}.json")));
+        assert_eq!(r["outcome"], "unconfirmed", "{r}");
+        assert!(r["reason"].as_str().unwrap().contains("keys differ"), "{r}");
+        assert!(!dir.join(format!("{side}.key")).exists());
+    }
+}
+
+#[test]
+fn faulty_network_never_writes_two_differing_keys() {
+    let short = [
+        "--set",
+        "trajectory.laps=1",
+        "--set",
+        "trajectory.side_time=6",
+        "--step-timeout-ms",
+        "20",
+    ];
+    let faults = [
+        "--loss",
+        "0.1",
+        "--duplicate",
+        "0.05",
+        "--reorder",
+        "0.05",
+        "--corrupt",
+        "0.01",
+        "--delay",
+        "1±1",
+    ];
+    let mut confirmed = 0;
+    for seed in 1..=3u64 {
+        let relay_seed = (100 + seed).to_string();
+        let mut relay_args = faults.to_vec();
+        relay_args.extend(["--seed", &relay_seed]);
+        let dir = session(&format!("faulty-{seed}"), seed, &short, Some(&relay_args));
+        let (robot, controller) = (
+            report(&dir.join("robot.json")),
+            report(&dir.join("controller.json")),
+        );
+        for r in [&robot, &controller] {
+            assert!(
+                ["confirmed", "unconfirmed", "aborted"].contains(&r["outcome"].as_str().unwrap()),
+                "{r}"
+            );
+            if r["outcome"] != "confirmed" {
+                assert!(
+                    r["reason"].as_str().is_some_and(|why| !why.is_empty()),
+                    "{r}"
+                );
+            }
+        }
+        assert!(
+            controller["erased_steps"].as_u64().unwrap() > 0,
+            "10 % loss erases steps"
+        );
+        assert!(
+            controller["frames"]["duplicates"].as_u64().unwrap()
+                + robot["frames"]["duplicates"].as_u64().unwrap()
+                > 0
+        );
+        let keys: Vec<String> = ["robot.key", "controller.key"]
+            .iter()
+            .filter_map(|f| std::fs::read_to_string(dir.join(f)).ok())
+            .collect();
+        if keys.len() == 2 {
+            assert_eq!(keys[0], keys[1], "silent mismatch in {}", dir.display());
+            confirmed += 1;
+        }
+    }
+    assert!(
+        confirmed >= 1,
+        "at least one of three sessions confirms through this mix"
+    );
+}
+
+#[test]
+fn robot_stops_its_wheels_and_aborts_after_silence() {
+    let dir = scratch("silence");
+    let robot_report = s(&dir.join("robot.json"));
+    // Real time (T = 0.2 s): the session would last 204 s; the controller dies after 1 s.
+    let robot = start(&[
+        "robot",
+        "--listen",
+        "127.0.0.1:0",
+        "--seed",
+        "1",
+        "--silence-timeout",
+        "1",
+        "--report",
+        &robot_report,
+    ]);
+    let mut controller = Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args(["controller", "--robot", &robot.address])
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1000));
+    controller.kill().unwrap();
+    controller.wait().unwrap();
+    wait(robot);
+    let r = report(Path::new(&robot_report));
+    assert_eq!(r["outcome"], "aborted", "{r}");
+    assert!(r["reason"].as_str().unwrap().contains("silence"), "{r}");
+    // max_hold = 2 fallbacks, then the wheels stop, before the 1 s silence timeout ends
+    // the session.
+    let stopped = r["wheels_stopped_at_step"]
+        .as_u64()
+        .expect("the wheels were stopped");
+    let done = r["steps_done"].as_u64().unwrap();
+    assert!(
+        stopped >= 3 && stopped <= done && done < 20,
+        "stopped at {stopped}, ended at {done}: {r}"
+    );
+}
+
+#[test]
+fn mismatched_configurations_abort_naming_the_difference() {
+    let dir = scratch("terms");
+    let robot_report = s(&dir.join("robot.json"));
+    let robot = start(&[
+        "robot",
+        "--listen",
+        "127.0.0.1:0",
+        "--pace",
+        "lockstep",
+        "--set",
+        "robot.T=0.25",
+        "--report",
+        &robot_report,
+    ]);
+    let (ok, text) = run(&[
+        "controller",
+        "--robot",
+        &robot.address,
+        "--pace",
+        "lockstep",
+    ]);
+    assert!(ok, "{text}");
+    assert!(
+        text.contains("aborted") && text.contains("robot.T: robot has 0.25, controller has 0.2"),
+        "{text}"
+    );
+    wait(robot);
+    assert!(
+        report(Path::new(&robot_report))["reason"]
+            .as_str()
+            .unwrap()
+            .contains("robot.T")
+    );
+}

@@ -1,0 +1,277 @@
+//! The robot agent: owns the clock and the key bits, applies one of the two offered
+//! commands each period (or the fallback), reports odometry (SPEC §4b).
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use rand::CryptoRng;
+use robokey::Config;
+use robokey::model::WheelSpeeds;
+use robokey::protocol::{
+    Message, Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionPlan, agreement_terms,
+    config_digest, terms_difference,
+};
+
+use crate::backend::Backend;
+use crate::error::NetError;
+use crate::session::{Pace, SessionReport, Timing, linger, write_key_file};
+use crate::transport::Transport;
+
+/// Protocol version spoken in `Hello`.
+pub const PROTOCOL_VERSION: u8 = 1;
+
+/// Options of the robot agent.
+#[derive(Clone, Debug)]
+pub struct RobotOptions {
+    /// UDP address to listen on.
+    pub listen: SocketAddr,
+    /// Pacing and timeouts.
+    pub timing: Timing,
+    /// How long to wait for the controller's `Hello`.
+    pub wait_for_hello: Duration,
+    /// Where to write the key once confirmed.
+    pub key_out: Option<PathBuf>,
+}
+
+/// The robot's side of a running session.
+struct RobotSession<'a, B: Backend + ?Sized> {
+    transport: Transport,
+    endpoint: RobotEndpoint,
+    backend: &'a mut B,
+    timing: Timing,
+    report: SessionReport,
+    outcome: Option<Outcome>,
+    last_frame: Instant,
+    last_confirm: Option<Message>,
+    hello_ack: Message,
+}
+
+impl<B: Backend + ?Sized> RobotSession<'_, B> {
+    fn pump(&mut self) -> Result<(), NetError> {
+        while let Some(output) = self.endpoint.poll_output() {
+            match output {
+                RobotOutput::Transmit(message) => {
+                    if matches!(message, Message::Confirm { .. }) {
+                        self.last_confirm = Some(message.clone());
+                    }
+                    self.transport.send(message)?;
+                }
+                RobotOutput::Apply(actuation) => {
+                    self.report.erased_steps += u32::from(actuation.erased);
+                    if actuation.erased && actuation.wheels == WheelSpeeds::zeros() {
+                        self.report
+                            .wheels_stopped_at_step
+                            .get_or_insert(actuation.step);
+                    }
+                    self.backend.set_wheels(actuation.wheels)?;
+                }
+                RobotOutput::Finished(outcome) => self.outcome = Some(outcome),
+            }
+        }
+        Ok(())
+    }
+
+    /// Receives until `deadline` or until `done(self)`; aborts on silence.
+    fn receive_until(
+        &mut self,
+        deadline: Instant,
+        done: impl Fn(&Self) -> bool,
+    ) -> Result<(), NetError> {
+        while !done(self) && self.outcome.is_none() {
+            match self
+                .transport
+                .recv_until(deadline.min(self.last_frame + self.timing.silence_timeout))?
+            {
+                Some((_, message)) => {
+                    self.last_frame = Instant::now();
+                    if matches!(message, Message::Hello { .. }) {
+                        // Our HelloAck was lost: answer the retransmitted Hello again.
+                        self.transport.send(self.hello_ack.clone())?;
+                        continue;
+                    }
+                    self.endpoint.handle_input(RobotInput::Frame(message));
+                    self.pump()?;
+                }
+                None if self.last_frame.elapsed() >= self.timing.silence_timeout => {
+                    let reason = format!(
+                        "silence: no valid frame from the controller for {:.1} s",
+                        self.timing.silence_timeout.as_secs_f64()
+                    );
+                    self.transport.send(Message::Abort {
+                        reason: reason.clone(),
+                    })?;
+                    self.outcome = Some(Outcome::Aborted(reason));
+                }
+                None => return Ok(()),
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Waits for a `Hello` with matching terms; answers it. Returns the session id, or the
+/// report of a session refused at the handshake.
+fn handshake(
+    transport: &mut Transport,
+    config: &Config,
+    wait: Duration,
+) -> Result<Result<(u32, Message), SessionReport>, NetError> {
+    let digest = config_digest(config);
+    let deadline = Instant::now() + wait;
+    loop {
+        let Some((session, message)) = transport.recv_until(deadline)? else {
+            return Err(NetError::Usage(format!(
+                "no Hello from a controller within {:.0} s",
+                wait.as_secs_f64()
+            )));
+        };
+        let Message::Hello {
+            version,
+            config_digest: theirs,
+            terms,
+        } = message
+        else {
+            continue;
+        };
+        let refusal = if version != PROTOCOL_VERSION {
+            Some(format!(
+                "protocol version {version} is not supported (robot speaks {PROTOCOL_VERSION})"
+            ))
+        } else if theirs != digest {
+            Some(format!(
+                "configurations differ: {}",
+                terms_difference(&agreement_terms(config), &terms, "robot", "controller")
+            ))
+        } else {
+            None
+        };
+        transport.set_session(session);
+        if let Some(reason) = refusal {
+            transport.send(Message::Abort {
+                reason: reason.clone(),
+            })?;
+            let mut report = SessionReport {
+                role: "robot".into(),
+                session,
+                ..SessionReport::default()
+            };
+            report.set_outcome(&Outcome::Aborted(reason));
+            report.frames = transport.counts;
+            return Ok(Err(report));
+        }
+        let ack = Message::HelloAck {
+            config_digest: digest,
+        };
+        transport.send(ack.clone())?;
+        return Ok(Ok((session, ack)));
+    }
+}
+
+/// Runs one session as the robot: waits for the controller, then drives `backend` for N
+/// steps with key bits drawn from `key_source` (the OS CSPRNG in deployment).
+///
+/// # Errors
+/// Socket or backend failures, or no controller within the wait.
+pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
+    config: &Config,
+    backend: &mut B,
+    key_source: &mut R,
+    options: &RobotOptions,
+) -> Result<SessionReport, NetError> {
+    let mut transport = Transport::bind(options.listen, None)?;
+    println!("robot listening on {}", transport.local_addr()?);
+    let (session, hello_ack) = match handshake(&mut transport, config, options.wait_for_hello)? {
+        Ok(accepted) => accepted,
+        Err(refused) => return Ok(refused),
+    };
+    let plan = SessionPlan::from_config(config, session);
+    let steps = plan.steps;
+    let sample_time = Duration::from_secs_f64(plan.sample_time);
+    let report = SessionReport {
+        role: "robot".into(),
+        session,
+        steps,
+        codewords: plan.codewords(),
+        ..SessionReport::default()
+    };
+    let mut s = RobotSession {
+        transport,
+        endpoint: RobotEndpoint::new(plan, key_source),
+        backend,
+        timing: options.timing,
+        report,
+        outcome: None,
+        last_frame: Instant::now(),
+        last_confirm: None,
+        hello_ack,
+    };
+    let start = Instant::now();
+    for k in 0..=steps {
+        if s.outcome.is_some() {
+            break;
+        }
+        let sample_at = start + sample_time * k;
+        if s.timing.pace == Pace::Realtime {
+            std::thread::sleep(sample_at.saturating_duration_since(Instant::now()));
+        }
+        let y = s.backend.sample()?;
+        s.endpoint.handle_input(RobotInput::Sample { step: k, y });
+        s.pump()?;
+        let deadline = match s.timing.pace {
+            Pace::Lockstep => Instant::now() + s.timing.step_timeout,
+            Pace::Realtime => sample_at + sample_time.mul_f64(s.timing.deadline_fraction),
+        };
+        s.receive_until(deadline, |s| s.endpoint.next_command() > k)?;
+        if s.outcome.is_none() && s.endpoint.next_command() <= k {
+            s.endpoint.handle_input(RobotInput::Deadline { step: k });
+            s.pump()?;
+        }
+        s.report.steps_done = k;
+    }
+    // Stopped: wait for the Finish and the controller's tag, repeating ours meanwhile.
+    s.backend.set_wheels(WheelSpeeds::zeros())?;
+    while s.outcome.is_none() {
+        let next = Instant::now() + s.timing.retransmit_interval();
+        s.receive_until(next, |s| s.endpoint.is_done())?;
+        if let (None, Some(confirm)) = (&s.outcome, s.last_confirm.clone()) {
+            s.transport.send(confirm)?;
+        }
+    }
+    s.backend.stop();
+    if let (Some(confirm), false) = (
+        s.last_confirm.clone(),
+        matches!(s.outcome, Some(Outcome::Aborted(_))),
+    ) {
+        linger(&mut s.transport, &s.timing, &[Message::FinishAck, confirm])?;
+    }
+    finish_report(
+        s.report,
+        s.outcome,
+        s.endpoint.key(),
+        s.transport.counts,
+        options.key_out.as_ref(),
+        s.endpoint.plan().code.k(),
+    )
+}
+
+/// Completes a report and writes the key when (and only when) the peer confirmed it.
+pub(crate) fn finish_report(
+    mut report: SessionReport,
+    outcome: Option<Outcome>,
+    key: &[u8],
+    frames: crate::transport::FrameCounts,
+    key_out: Option<&PathBuf>,
+    message_bits: usize,
+) -> Result<SessionReport, NetError> {
+    let outcome = outcome.unwrap_or_else(|| Outcome::Aborted("ended without an outcome".into()));
+    report.set_outcome(&outcome);
+    report.frames = frames;
+    report.key_bits = key.len();
+    report.accepted = (key.len() / message_bits.max(1)) as u32;
+    if let (Outcome::Confirmed, Some(path)) = (&outcome, key_out) {
+        write_key_file(path, key)?;
+        report.key_file = Some(path.display().to_string());
+    }
+    Ok(report)
+}

@@ -1,0 +1,45 @@
+//! Secrecy math for robokey: how many secret bits a run of the robot's motion yields, and the
+//! tools to extract them (see `SECRECY.md`).
+//!
+//! Threat model: Eve is passive — she records every frame, knows the protocol, the trajectory
+//! and her configured model, but never injects or alters frames. Every figure here is a
+//! bound against such an Eve, and names the assumption (i.i.d. errors, per-position
+//! posteriors, a confidence level) it rests on.
+//!
+//! The crate performs no I/O: no files, sockets, clocks, threads or global RNG; randomness
+//! comes in as `&mut impl rand::Rng` (or `CryptoRng` where it must be unpredictable).
+//!
+//! - [`entropy`]: h(p), a ⋆ b, plug-in informations from the joint (b, b̂c, b̂a) table, bootstrap.
+//! - [`interval`]: Clopper–Pearson intervals and bounds, exact binomial test (§2).
+//! - [`advantage`]: repetition advantage distillation for i.i.d. errors (§1).
+//! - [`cascade`]: Cascade reconciliation with exact leak accounting (§3).
+//! - [`confirm`]: 64-bit HMAC-SHA256 key-confirmation tag (§4).
+//! - [`min_entropy`]: smooth min-entropy bounds and the output length ℓ (§5).
+//! - [`toeplitz`]: Toeplitz hashing over GF(2) for privacy amplification (§5).
+//! - [`bitstring`]: packed, zeroized bit strings; [`special`]: ln Γ and incomplete beta.
+
+pub mod advantage;
+pub mod bitstring;
+pub mod cascade;
+pub mod confirm;
+pub mod entropy;
+pub mod interval;
+pub mod min_entropy;
+pub mod special;
+pub mod toeplitz;
+
+pub use advantage::{AdvantageError, RepetitionAdvantage};
+pub use bitstring::{BitString, BitStringError};
+pub use cascade::{
+    Cascade, CascadeSchedule, KeyParities, ParityOracle, ReconcileError, Reconciler, Reconciliation,
+};
+pub use confirm::{ConfirmationContext, ConfirmationTag};
+pub use entropy::{
+    BootstrapIntervals, EntropyError, JointCounts, binary_convolution, binary_entropy,
+};
+pub use interval::{Interval, IntervalError, binomial_test, clopper_pearson};
+pub use min_entropy::{
+    BinomialMinEntropy, MinEntropyError, OutputLength, PosteriorMinEntropy,
+    binomial_smooth_min_entropy, output_length, posterior_smooth_min_entropy,
+};
+pub use toeplitz::{ToeplitzError, ToeplitzHash};
