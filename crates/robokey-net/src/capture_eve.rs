@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use robokey::Config;
-use robokey::eve::{ModelErrors, PaperEve};
+use robokey::eve::{Eavesdropper, ModelErrors, PaperEve};
 use robokey::protocol::wire::decode;
 use robokey::protocol::{
     KeyBits, Message, SessionPlan, agreement_terms, config_digest, terms_difference,

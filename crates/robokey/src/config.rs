@@ -254,12 +254,24 @@ pub enum Draw {
     Common,
 }
 
+/// Which eavesdropper listens (SECRECY.md §6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EveStrategy {
+    /// The paper's Eve: relative model errors up to α on r, D, W, V.
+    Mismatch,
+    /// Exact model: decides exactly as the controller does.
+    Oracle,
+}
+
 /// `[eve]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct EveConfig {
     /// Whether the run has an eavesdropper.
     pub enabled: bool,
+    /// Her strategy.
+    pub strategy: EveStrategy,
     /// Largest relative model error α (fraction).
     pub alpha: f64,
     /// Independent or common draws.
@@ -270,6 +282,7 @@ impl Default for EveConfig {
     fn default() -> Self {
         Self {
             enabled: true,
+            strategy: EveStrategy::Mismatch,
             alpha: 0.10,
             draw: Draw::Independent,
         }

@@ -5,12 +5,12 @@ use rand_distr::{Distribution, StandardNormal};
 use subtle::ConstantTimeEq;
 
 use crate::config::Config;
-use crate::eve::{ModelErrors, PaperEve};
+use crate::eve;
 use crate::metrics::Metrics;
 use crate::model::{Pose, Unicycle, clip_wheels, unicycle_step};
 use crate::protocol::{
-    ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome,
-    RobotEndpoint, RobotInput, RobotOutput, SessionPlan,
+    ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, KeyBits, Message,
+    Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionPlan,
 };
 use crate::rng::{Purpose, stream};
 
@@ -86,8 +86,21 @@ pub struct RunOutput {
     pub robot_outcome: Option<Outcome>,
     /// How the session ended for the controller.
     pub controller_outcome: Option<Outcome>,
-    /// Eve's model errors, when the run had an Eve.
-    pub eve_errors: Option<ModelErrors>,
+    /// The applied bit and both decisions of every step `k < N`.
+    pub steps: Vec<StepBits>,
+    /// The three keys.
+    pub keys: RunKeys,
+}
+
+/// The keys of a run (zeroized on drop).
+#[derive(Clone, Debug, Default)]
+pub struct RunKeys {
+    /// `K_r`, the robot's.
+    pub robot: KeyBits,
+    /// `K_c`, the controller's.
+    pub controller: KeyBits,
+    /// `K_a`, Eve's, when the run had one.
+    pub eve: Option<KeyBits>,
 }
 
 /// A failure of the simulation itself (not of the protocol).
@@ -104,12 +117,15 @@ pub enum SimError {
     },
 }
 
-/// Per-step record of bits and decisions.
-#[derive(Clone, Debug, Default)]
-struct StepLog {
-    bit: Option<u8>,
-    bhat: Option<u8>,
-    bhat_eve: Option<u8>,
+/// Step k's applied bit and the decisions made about it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StepBits {
+    /// `b(k)` (none: protocol off or erased).
+    pub bit: Option<u8>,
+    /// The controller's `b̂(k)`.
+    pub bhat: Option<u8>,
+    /// Eve's `b̂(k)`.
+    pub bhat_eve: Option<u8>,
 }
 
 /// Simulates replicate `replicate` of a validated configuration. Deterministic: a pure
@@ -157,17 +173,11 @@ pub fn simulate_plan(
     let drive = plan.drive;
     let trajectory = config.trajectory();
     let mut robot = RobotEndpoint::new(plan.clone(), &mut stream_of(Purpose::Key));
-    let mut eve = (config.eve.enabled && plan.enabled).then(|| {
-        let errors = ModelErrors::draw(
-            config.eve.alpha,
-            config.eve.draw,
-            &mut stream_of(Purpose::Eve),
-        );
-        PaperEve::new(config, &plan, errors)
-    });
+    let mut eve = (config.eve.enabled && plan.enabled)
+        .then(|| eve::build(config, &plan, &mut stream_of(Purpose::Eve)));
     let mut controller = ControllerEndpoint::new(config, plan);
 
-    let mut log = vec![StepLog::default(); steps as usize + 1];
+    let mut log = vec![StepBits::default(); steps as usize + 1];
     let mut trace = if record_trace {
         vec![TraceRow::default(); steps as usize + 1]
     } else {
@@ -273,12 +283,17 @@ pub fn simulate_plan(
         }
     }
 
+    log.truncate(steps as usize);
+    let keys = RunKeys {
+        robot: robot.key().to_vec().into(),
+        controller: controller.key().to_vec().into(),
+        eve: eve.as_ref().map(|e| e.key()),
+    };
     let metrics = compute_metrics(
-        &log[..steps as usize],
+        &log,
         tracking_error / f64::from(steps.max(1)),
-        &robot,
-        &controller,
-        eve.as_ref(),
+        &keys,
+        controller.plan(),
         config.protocol.enabled,
     );
     Ok(RunOutput {
@@ -286,16 +301,16 @@ pub fn simulate_plan(
         trace,
         robot_outcome: outcomes.0,
         controller_outcome: outcomes.1,
-        eve_errors: eve.as_ref().map(PaperEve::errors),
+        steps: log,
+        keys,
     })
 }
 
 fn compute_metrics(
-    log: &[StepLog],
+    log: &[StepBits],
     jx: f64,
-    robot: &RobotEndpoint,
-    controller: &ControllerEndpoint,
-    eve: Option<&PaperEve>,
+    keys: &RunKeys,
+    plan: &SessionPlan,
     enabled: bool,
 ) -> Metrics {
     if !enabled {
@@ -304,16 +319,16 @@ fn compute_metrics(
             ..Metrics::default()
         };
     }
-    let applied: Vec<&StepLog> = log.iter().filter(|s| s.bit.is_some()).collect();
-    let error_rate = |pick: fn(&StepLog) -> Option<u8>| {
+    let applied: Vec<&StepBits> = log.iter().filter(|s| s.bit.is_some()).collect();
+    let error_rate = |pick: fn(&StepBits) -> Option<u8>| {
         let wrong = applied.iter().filter(|s| pick(s) != s.bit).count();
         (!applied.is_empty()).then(|| wrong as f64 / applied.len() as f64)
     };
-    let (k_r, k_c) = (robot.key(), controller.key());
-    let k_a = eve.map(PaperEve::key);
-    let codewords = u64::from(controller.plan().codewords());
+    let (k_r, k_c) = (keys.robot.as_slice(), keys.controller.as_slice());
+    let k_a = keys.eve.as_ref();
+    let codewords = u64::from(plan.codewords());
     let accepted_bits = k_c.len();
-    let accepted = (accepted_bits / controller.plan().code.k()) as u64;
+    let accepted = (accepted_bits / plan.code.k()) as u64;
     let share = |other: &[u8], equal: bool| {
         let count = other
             .iter()
@@ -322,7 +337,7 @@ fn compute_metrics(
             .count();
         (accepted_bits > 0).then(|| 100.0 * count as f64 / accepted_bits as f64)
     };
-    let n_bce = eve.map(|_| {
+    let n_bce = k_a.map(|_| {
         let mut table = [0u64; 8];
         for s in &applied {
             if let (Some(b), Some(c), Some(a)) = (s.bit, s.bhat, s.bhat_eve) {
@@ -331,7 +346,7 @@ fn compute_metrics(
         }
         table
     });
-    let n_acc = k_a.as_ref().map(|k_a| {
+    let n_acc = k_a.map(|k_a| {
         let mut table = [0u64; 8];
         for ((s, c), a) in k_r.iter().zip(k_c).zip(k_a.iter()) {
             table[usize::from(s << 2 | c << 1 | a)] += 1;
@@ -344,9 +359,9 @@ fn compute_metrics(
         accepted_pct: (codewords > 0).then(|| 100.0 * accepted as f64 / codewords as f64),
         correct_pct: share(k_r, true),
         ber_controller: error_rate(|s| s.bhat),
-        ber_eve: eve.and_then(|_| error_rate(|s| s.bhat_eve)),
+        ber_eve: k_a.and_then(|_| error_rate(|s| s.bhat_eve)),
         jx,
-        eve_disagreement_pct: k_a.as_ref().and_then(|k_a| share(k_a, false)),
+        eve_disagreement_pct: k_a.and_then(|k_a| share(k_a, false)),
         key_match: (accepted_bits > 0)
             .then(|| k_r.len() == k_c.len() && bool::from(k_r.ct_eq(k_c))),
         n_bce,

@@ -209,3 +209,15 @@ fn same_seed_same_run_and_replicates_differ() {
     assert_eq!(a.trace, b.trace);
     assert_ne!(a.metrics, simulate(&config, 4, false).unwrap().metrics);
 }
+
+#[test]
+fn the_oracle_eve_decides_exactly_as_the_controller() {
+    let mut config = Config::default();
+    config.eve.strategy = robokey::config::EveStrategy::Oracle;
+    for replicate in 0..5 {
+        let run = simulate(&config, replicate, false).unwrap();
+        assert!(run.steps.iter().all(|s| s.bhat == s.bhat_eve && s.bhat.is_some()));
+        assert_eq!(run.keys.eve.as_deref(), Some(run.keys.controller.as_slice()));
+        assert_eq!(run.metrics.eve_disagreement_pct, Some(0.0));
+    }
+}

@@ -1,13 +1,13 @@
-//! Key-confirmation tags (SPEC §4b, SECRECY §4).
+//! Key-confirmation tags (SPEC §4b, SECRECY §4): the protocol's view of
+//! [`robokey_secrecy::ConfirmationTag`].
 
-use sha2::{Digest, Sha256};
+use robokey_secrecy::{BitString, ConfirmationContext, ConfirmationTag};
 
-/// Tag length (bytes): 64 bits, so a wrong key passes with probability 2⁻⁶⁴.
+/// Tag length (bytes): 64 bits, counted as leak by the secrecy accounting.
 pub const TAG_BYTES: usize = 8;
 
-/// `SHA-256("robokey confirm v1" ‖ session ‖ config digest ‖ fate bitmap ‖ key)` truncated
-/// to 64 bits. Public data binds the tag to this session; the 64 bits it reveals about the
-/// key are counted as leak by the secrecy accounting.
+/// The 64-bit HMAC-SHA256 tag over (session, config digest, fate bitmap, key). The session
+/// id is fresh per session and serves as the public nonce.
 #[must_use]
 pub fn confirmation_tag(
     session: u32,
@@ -15,24 +15,18 @@ pub fn confirmation_tag(
     fate_bitmap: &[u64],
     key_bits: &[u8],
 ) -> [u8; TAG_BYTES] {
-    let mut hasher = Sha256::new();
-    hasher.update(b"robokey confirm v1");
-    hasher.update(session.to_be_bytes());
-    hasher.update(config_digest);
-    hasher.update((fate_bitmap.len() as u64).to_be_bytes());
-    for word in fate_bitmap {
-        hasher.update(word.to_be_bytes());
-    }
-    hasher.update((key_bits.len() as u64).to_be_bytes());
-    let mut packed = zeroize::Zeroizing::new(vec![0u8; key_bits.len().div_ceil(8)]);
-    for (i, bit) in key_bits.iter().enumerate() {
-        packed[i / 8] |= (bit & 1) << (i % 8);
-    }
-    hasher.update(packed.as_slice());
-    let digest = hasher.finalize();
-    let mut tag = [0u8; TAG_BYTES];
-    tag.copy_from_slice(&digest[..TAG_BYTES]);
-    tag
+    let fates: Vec<u8> = fate_bitmap.iter().flat_map(|w| w.to_be_bytes()).collect();
+    let bools: zeroize::Zeroizing<Vec<bool>> =
+        zeroize::Zeroizing::new(key_bits.iter().map(|&b| b & 1 == 1).collect());
+    let mut nonce = [0u8; 16];
+    nonce[..4].copy_from_slice(&session.to_be_bytes());
+    let context = ConfirmationContext {
+        session_id: session,
+        config_digest: *config_digest,
+        fate_bitmap: &fates,
+        nonce,
+    };
+    ConfirmationTag::compute(&BitString::from_bools(&bools), &context).0
 }
 
 #[cfg(test)]
@@ -40,19 +34,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_single_bit_difference_changes_the_tag() {
+    fn the_tag_binds_key_fates_and_session() {
         let key: Vec<u8> = (0..345).map(|i| ((i * 7 + 3) % 5 % 2) as u8).collect();
         let base = confirmation_tag(7, &[1; 32], &[0b1011], &key);
-        for i in 0..key.len() {
-            let mut other = key.clone();
-            other[i] ^= 1;
-            assert_ne!(
-                confirmation_tag(7, &[1; 32], &[0b1011], &other),
-                base,
-                "bit {i}"
-            );
-        }
+        let mut flipped = key.clone();
+        flipped[100] ^= 1;
+        assert_ne!(confirmation_tag(7, &[1; 32], &[0b1011], &flipped), base);
         assert_ne!(confirmation_tag(7, &[1; 32], &[0b1010], &key), base);
         assert_ne!(confirmation_tag(8, &[1; 32], &[0b1011], &key), base);
+        assert_eq!(confirmation_tag(7, &[1; 32], &[0b1011], &key), base);
     }
 }

@@ -1,8 +1,10 @@
 //! The paper's eavesdropper (SPEC §7): she hears every message, knows `r, D, W, V` up to
-//! relative errors, runs the same observer and decodes every codeword.
+//! relative errors, runs the same observer and decodes every codeword. With zero errors she
+//! is the oracle Eve (SECRECY §6.1).
 
 use rand::{Rng, RngExt};
 
+use super::Eavesdropper;
 use crate::config::{Config, Draw};
 use crate::model::{DiffDrive, Pose};
 use crate::observer::{Observer, ObserverParams};
@@ -100,8 +102,16 @@ impl PaperEve {
         self.decoder.state()
     }
 
+    fn push(&mut self, step: u32, bit: Option<u8>) {
+        if let Some(received) = self.assembler.push(step, bit) {
+            self.decoded[received.index as usize] = self.code.decode(received.word).message;
+        }
+    }
+}
+
+impl Eavesdropper for PaperEve {
     /// Observes one message; returns her decision when a measurement decided a step.
-    pub fn observe(&mut self, message: &Message) -> Option<StepDecision> {
+    fn observe(&mut self, message: &Message) -> Option<StepDecision> {
         match message {
             Message::Command {
                 step,
@@ -150,15 +160,8 @@ impl PaperEve {
         }
     }
 
-    fn push(&mut self, step: u32, bit: Option<u8>) {
-        if let Some(received) = self.assembler.push(step, bit) {
-            self.decoded[received.index as usize] = self.code.decode(received.word).message;
-        }
-    }
-
     /// Her key `K_a`: the decoded messages of the codewords acked so far.
-    #[must_use]
-    pub fn key(&self) -> KeyBits {
+    fn key(&self) -> KeyBits {
         let k = self.code.k();
         let mut key = KeyBits::default();
         for (index, message) in self.decoded.iter().enumerate() {
