@@ -9,7 +9,7 @@ use robokey_lab::runner::{Shard, run_experiment, with_jobs};
 use robokey_lab::sweep::experiments_from_table;
 use robokey_lab::{report, results, trace};
 
-use crate::{ConfigArgs, MergeArgs, ReproduceArgs, RunArgs, SweepArgs};
+use crate::{AdversaryArg, ConfigArgs, MergeArgs, ReproduceArgs, RunArgs, SecrecyArgs, SweepArgs};
 
 /// Loads a configuration from an optional file plus overrides.
 pub fn load_config(path: Option<&std::path::Path>, overrides: &[Override]) -> Result<Config> {
@@ -165,5 +165,99 @@ pub fn config(args: ConfigArgs) -> Result<()> {
         "{}",
         load_config(args.config.as_deref(), &args.options.set)?.to_toml()
     );
+    Ok(())
+}
+
+pub fn secrecy(args: SecrecyArgs) -> Result<()> {
+    use robokey::config::EveStrategy;
+    use robokey_lab::secrecy::{SecrecyOptions, analyze, write_secrecy};
+    if !(args.eps > 0.0 && args.eps < 1.0) {
+        bail!("--eps {} is not allowed (allowed: (0, 1))", args.eps);
+    }
+    if args.block < 64 {
+        bail!("--block {} is not allowed (allowed: ≥ 64 bits)", args.block);
+    }
+    let options = SecrecyOptions {
+        adversaries: args
+            .adversaries
+            .iter()
+            .map(|a| match a {
+                AdversaryArg::Mismatch => EveStrategy::Mismatch,
+                AdversaryArg::Oracle => EveStrategy::Oracle,
+            })
+            .collect(),
+        epsilon: args.eps,
+        block_bits: args.block,
+        blocks: args.blocks.max(1),
+        ..SecrecyOptions::default()
+    };
+    // A sweep folder, or a suite folder whose subfolders are sweeps.
+    let mut folders = Vec::new();
+    if args.run_dir.join("config.resolved.toml").exists() {
+        folders.push(args.run_dir.clone());
+    } else {
+        let entries = std::fs::read_dir(&args.run_dir)
+            .with_context(|| format!("{}: cannot read", args.run_dir.display()))?;
+        let mut subs: Vec<_> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.join("config.resolved.toml").exists())
+            .collect();
+        subs.sort();
+        folders.extend(subs);
+    }
+    if folders.is_empty() {
+        bail!(
+            "{}: no config.resolved.toml here or in its subfolders (is it a sweep folder?)",
+            args.run_dir.display()
+        );
+    }
+    let started = Instant::now();
+    for folder in folders {
+        let origin = folder.join("config.resolved.toml");
+        let text = std::fs::read_to_string(&origin)
+            .with_context(|| format!("{}: cannot read", origin.display()))?;
+        let table = robokey::config::parse_table(&text, &origin.display().to_string())?;
+        let name = folder
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let experiment = robokey_lab::sweep::Experiment::from_table(
+            &name,
+            table,
+            &origin.display().to_string(),
+        )?;
+        if !experiment.points[0].config.protocol.enabled {
+            println!("{}: protocol off, no key: skipped", folder.display());
+            continue;
+        }
+        let results = with_jobs(args.jobs, || analyze(&experiment, &options))??;
+        let files = write_secrecy(&folder, &experiment, &results, &options)?;
+        println!("{}:", folder.display());
+        for r in &results {
+            println!(
+                "  {:<28} {:<9} raw {:.4} bits/step, Eve wrong on {:.3} % of accepted bits, secret {:.5} bits/step ({:.4} bits/s){}",
+                r.point,
+                r.adversary,
+                r.raw_bits_per_step,
+                r.eve_error_accepted.map_or(f64::NAN, |x| 100.0 * x.rate),
+                r.secret_bits_per_step,
+                r.secret_bits_per_second,
+                r.blocks
+                    .iter()
+                    .find_map(|b| b.reason.clone())
+                    .map_or(String::new(), |why| format!(": {why}"))
+            );
+        }
+        println!(
+            "  wrote {}",
+            files
+                .iter()
+                .map(|f| f.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    println!("done in {:.2} s", started.elapsed().as_secs_f64());
     Ok(())
 }

@@ -32,6 +32,9 @@ enum Command {
     Reproduce(ReproduceArgs),
     /// Print the resolved configuration (defaults, file, overrides) as TOML.
     Config(ConfigArgs),
+    /// Count the secret bits of a sweep folder: leakage estimates, reconciliation,
+    /// confirmation and finite-key privacy amplification, per point and adversary.
+    Secrecy(SecrecyArgs),
     /// The robot agent: owns the clock and the key bits, drives the wheels, reports odometry
     /// over UDP. Run it ON the robot (see README: where the robot agent runs matters).
     Robot(net::RobotArgs),
@@ -134,6 +137,36 @@ struct ReproduceArgs {
 }
 
 #[derive(Args, Debug)]
+struct SecrecyArgs {
+    /// A sweep folder (with config.resolved.toml), or a suite folder of them.
+    run_dir: PathBuf,
+    /// Adversaries to evaluate (repeatable).
+    #[arg(long = "adversary", value_enum, default_values = ["mismatch", "oracle"])]
+    adversaries: Vec<AdversaryArg>,
+    /// ε per term (smoothing, amplification, parameter estimation); the key is 4ε-secret.
+    #[arg(long, default_value_t = 1e-6)]
+    eps: f64,
+    /// Pooled raw bits per privacy-amplification block.
+    #[arg(long, default_value_t = 10_000)]
+    block: usize,
+    /// Blocks to fill per point (more sessions are simulated as needed).
+    #[arg(long, default_value_t = 1)]
+    blocks: usize,
+    /// Worker threads (0: one per core). Results do not depend on it.
+    #[arg(long, short, default_value_t = 0)]
+    jobs: usize,
+}
+
+/// Eavesdropper strategies.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum AdversaryArg {
+    /// The paper's Eve (model errors up to the config's eve.alpha).
+    Mismatch,
+    /// Exact model.
+    Oracle,
+}
+
+#[derive(Args, Debug)]
 struct ConfigArgs {
     /// Configuration file (TOML).
     #[arg(long, short)]
@@ -160,6 +193,7 @@ fn main() -> ExitCode {
         Command::Merge(args) => commands::merge(args),
         Command::Reproduce(args) => commands::reproduce(args),
         Command::Config(args) => commands::config(args),
+        Command::Secrecy(args) => commands::secrecy(args),
         Command::Robot(args) => net::robot(args),
         Command::Controller(args) => net::controller(args),
         Command::Relay(args) => net::relay(args),

@@ -7,6 +7,7 @@ pub mod plot;
 pub mod report;
 pub mod results;
 pub mod runner;
+pub mod secrecy;
 pub mod stats;
 pub mod sweep;
 pub mod trace;

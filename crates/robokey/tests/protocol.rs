@@ -216,8 +216,15 @@ fn the_oracle_eve_decides_exactly_as_the_controller() {
     config.eve.strategy = robokey::config::EveStrategy::Oracle;
     for replicate in 0..5 {
         let run = simulate(&config, replicate, false).unwrap();
-        assert!(run.steps.iter().all(|s| s.bhat == s.bhat_eve && s.bhat.is_some()));
-        assert_eq!(run.keys.eve.as_ref().map(|k| k.as_slice()), Some(run.keys.controller.as_slice()));
+        assert!(
+            run.steps
+                .iter()
+                .all(|s| s.bhat == s.bhat_eve && s.bhat.is_some())
+        );
+        assert_eq!(
+            run.keys.eve.as_ref().map(|k| k.as_slice()),
+            Some(run.keys.controller.as_slice())
+        );
         assert_eq!(run.metrics.eve_disagreement_pct, Some(0.0));
     }
 }
