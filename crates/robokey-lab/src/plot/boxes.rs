@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
-use super::{FONT, Figure, PALETTE, PlotError, padded_range, save_both};
+use super::{FONT, Figure, PALETTE, PlotError, legend_corner, padded_range, save_both};
 use crate::stats::Summary;
 
 /// One coloured series of boxes: values per x position.
@@ -196,51 +196,20 @@ impl Figure for BoxChart {
             .label_font((FONT, 16))
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK.mix(0.4))
-            .position(emptiest_corner(&geometry, x_range, y_range))
+            .position(legend_corner(
+                &geometry
+                    .iter()
+                    .flatten()
+                    .flat_map(|b| {
+                        [b.summary.min, b.summary.q1, b.summary.q3, b.summary.max].map(|v| (b.x, v))
+                    })
+                    .collect::<Vec<_>>(),
+                x_range,
+                y_range,
+            ))
             .draw()
             .map_err(|e| e.to_string())
     }
-}
-
-/// The legend goes in the corner (a 35 % × 30 % region) that holds the fewest box
-/// extremes and quartiles.
-fn emptiest_corner(
-    geometry: &[Vec<BoxGeometry>],
-    x: (f64, f64),
-    y: (f64, f64),
-) -> SeriesLabelPosition {
-    let points: Vec<(f64, f64)> = geometry
-        .iter()
-        .flatten()
-        .flat_map(|b| [b.summary.min, b.summary.q1, b.summary.q3, b.summary.max].map(|v| (b.x, v)))
-        .collect();
-    let (x_cut_left, x_cut_right) = (x.0 + 0.35 * (x.1 - x.0), x.1 - 0.35 * (x.1 - x.0));
-    let (y_cut_low, y_cut_high) = (y.0 + 0.3 * (y.1 - y.0), y.1 - 0.3 * (y.1 - y.0));
-    let corners = [
-        (SeriesLabelPosition::UpperLeft, true, true),
-        (SeriesLabelPosition::UpperRight, false, true),
-        (SeriesLabelPosition::LowerRight, false, false),
-        (SeriesLabelPosition::LowerLeft, true, false),
-    ];
-    corners
-        .into_iter()
-        .min_by_key(|&(_, left, upper)| {
-            points
-                .iter()
-                .filter(|(px, py)| {
-                    (if left {
-                        *px <= x_cut_left
-                    } else {
-                        *px >= x_cut_right
-                    }) && (if upper {
-                        *py >= y_cut_high
-                    } else {
-                        *py <= y_cut_low
-                    })
-                })
-                .count()
-        })
-        .map_or(SeriesLabelPosition::UpperLeft, |(position, _, _)| position)
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
-use super::{FONT, Figure, PALETTE, PlotError, padded_range, save_both};
+use super::{FONT, Figure, PALETTE, PlotError, legend_corner, padded_range, save_both};
 
 /// How a series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -124,7 +124,7 @@ impl Figure for LineChart {
             .label_font((FONT, 16))
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK.mix(0.4))
-            .position(SeriesLabelPosition::UpperRight)
+            .position(legend_corner(&all, x_range, y_range))
             .draw()
             .map_err(|e| e.to_string())
     }
