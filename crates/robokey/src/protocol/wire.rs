@@ -267,12 +267,15 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
         MEASUREMENT => {
             expect_len("Measurement", payload, 24 + 1 + 4 + 4)?;
             let y = [r.f64(), r.f64(), r.f64()];
-            let applied = match r.u8() {
-                0 => {
-                    r.u32();
-                    None
+            let (flag, value) = (r.u8(), r.u32());
+            let applied = match (flag, value) {
+                (0, 0) => None,
+                (1, step) => Some(step),
+                (0, _) => {
+                    return Err(WireError::BadField(
+                        "Measurement: applied_step set while flagged absent",
+                    ));
                 }
-                1 => Some(r.u32()),
                 _ => {
                     return Err(WireError::BadField(
                         "Measurement: applied_step flag is not 0 or 1",
