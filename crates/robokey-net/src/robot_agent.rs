@@ -44,6 +44,7 @@ struct RobotSession<'a, B: Backend + ?Sized> {
     outcome: Option<Outcome>,
     last_frame: Instant,
     last_confirm: Option<Message>,
+    last_measurement: Option<Message>,
     hello_ack: Message,
 }
 
@@ -52,8 +53,12 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
         while let Some(output) = self.endpoint.poll_output() {
             match output {
                 RobotOutput::Transmit(message) => {
-                    if matches!(message, Message::Confirm { .. }) {
-                        self.last_confirm = Some(message.clone());
+                    match &message {
+                        Message::Confirm { .. } => self.last_confirm = Some(message.clone()),
+                        Message::Measurement { .. } => {
+                            self.last_measurement = Some(message.clone())
+                        }
+                        _ => {}
                     }
                     self.transport.send(message)?;
                 }
@@ -204,6 +209,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         outcome: None,
         last_frame: Instant::now(),
         last_confirm: None,
+        last_measurement: None,
         hello_ack,
     };
     let start = Instant::now();
@@ -229,13 +235,20 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         }
         s.report.steps_done = k;
     }
-    // Stopped: wait for the Finish and the controller's tag, repeating ours meanwhile.
+    // Stopped: wait for the Finish and the controller's tag. Until the Finish arrives, repeat
+    // the last measurement (the controller finishes on y(N), which has no successor if
+    // lost); after it, repeat our tag.
     s.backend.set_wheels(WheelSpeeds::zeros())?;
     while s.outcome.is_none() {
         let next = Instant::now() + s.timing.retransmit_interval();
         s.receive_until(next, |s| s.endpoint.is_done())?;
-        if let (None, Some(confirm)) = (&s.outcome, s.last_confirm.clone()) {
-            s.transport.send(confirm)?;
+        if s.outcome.is_none()
+            && let Some(repeat) = s
+                .last_confirm
+                .clone()
+                .or_else(|| s.last_measurement.clone())
+        {
+            s.transport.send(repeat)?;
         }
     }
     s.backend.stop();

@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
-use super::{FONT, Figure, PALETTE, PlotError, legend_corner, padded_range, save_both};
+use super::{
+    Axes, FONT, Figure, PALETTE, PlotError, chart_on, legend_corner, padded_range, save_both,
+};
 use crate::stats::Summary;
 
 /// One coloured series of boxes: values per x position.
@@ -110,29 +112,18 @@ impl Figure for BoxChart {
                 .flat_map(|b| [b.summary.min, b.summary.max])
                 .chain(self.reference_lines.iter().map(|r| r.1)),
         );
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(root)
-            .caption(&self.title, (FONT, 24))
-            .margin(20)
-            .x_label_area_size(55)
-            .y_label_area_size(75)
-            .build_cartesian_2d(x_range.0..x_range.1, y_range.0..y_range.1)
-            .map_err(|e| e.to_string())?;
-        let x_values: Vec<f64> = self
-            .groups
-            .iter()
-            .flat_map(|g| g.boxes.iter().map(|b| b.0))
-            .collect();
-        chart
-            .configure_mesh()
-            .x_desc(&self.x_label)
-            .y_desc(&self.y_label)
-            .label_style((FONT, 15))
-            .axis_desc_style((FONT, 18))
-            .x_labels(x_values.len().clamp(2, 12))
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| e.to_string())?;
+        let x_values = self.groups.iter().flat_map(|g| g.boxes.iter()).count();
+        let mut chart = chart_on(
+            root,
+            &Axes {
+                title: &self.title,
+                x_label: &self.x_label,
+                y_label: &self.y_label,
+                x: x_range,
+                y: y_range,
+                x_ticks: x_values.clamp(2, 12),
+            },
+        )?;
         for (g, (group, shapes)) in self.groups.iter().zip(&geometry).enumerate() {
             let color = PALETTE[g % PALETTE.len()];
             let mut elements: Vec<DynElement<'static, DB, (f64, f64)>> = Vec::new();

@@ -4,7 +4,9 @@ use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
-use super::{FONT, Figure, PALETTE, PlotError, legend_corner, padded_range, save_both};
+use super::{
+    Axes, FONT, Figure, PALETTE, PlotError, chart_on, legend_corner, padded_range, save_both,
+};
 
 /// How a series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,23 +84,17 @@ impl Figure for LineChart {
             x_range = (cx - span / 2.0, cx + span / 2.0);
             y_range = (cy - span / 2.0, cy + span / 2.0);
         }
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(root)
-            .caption(&self.title, (FONT, 26))
-            .margin(20)
-            .x_label_area_size(55)
-            .y_label_area_size(75)
-            .build_cartesian_2d(x_range.0..x_range.1, y_range.0..y_range.1)
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc(&self.x_label)
-            .y_desc(&self.y_label)
-            .label_style((FONT, 16))
-            .axis_desc_style((FONT, 18))
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| e.to_string())?;
+        let mut chart = chart_on(
+            root,
+            &Axes {
+                title: &self.title,
+                x_label: &self.x_label,
+                y_label: &self.y_label,
+                x: x_range,
+                y: y_range,
+                x_ticks: 10,
+            },
+        )?;
         for (i, series) in self.series.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
             let style = color.stroke_width(2);

@@ -8,6 +8,7 @@ mod line;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 pub use boxes::{BoxChart, BoxGeometry, BoxGroup};
@@ -83,6 +84,43 @@ fn save_both(
         root.present().map_err(|e| fail(&png, e.to_string()))?;
     }
     Ok(vec![svg, png])
+}
+
+/// The axes every chart shares.
+struct Axes<'a> {
+    title: &'a str,
+    x_label: &'a str,
+    y_label: &'a str,
+    x: (f64, f64),
+    y: (f64, f64),
+    /// Number of x tick labels.
+    x_ticks: usize,
+}
+
+/// A chart context on `root` with a title, labelled axes and light grid, white background.
+fn chart_on<'a, DB: DrawingBackend>(
+    root: &'a DrawingArea<DB, plotters::coord::Shift>,
+    axes: &Axes<'_>,
+) -> Result<ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>, String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let mut chart = ChartBuilder::on(root)
+        .caption(axes.title, (FONT, 24))
+        .margin(20)
+        .x_label_area_size(55)
+        .y_label_area_size(75)
+        .build_cartesian_2d(axes.x.0..axes.x.1, axes.y.0..axes.y.1)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc(axes.x_label)
+        .y_desc(axes.y_label)
+        .label_style((FONT, 15))
+        .axis_desc_style((FONT, 18))
+        .x_labels(axes.x_ticks)
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    Ok(chart)
 }
 
 /// A `[lo, hi]` range covering `values` with a 5 % margin (a unit span when degenerate).

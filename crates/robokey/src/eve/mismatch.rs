@@ -162,13 +162,6 @@ impl Eavesdropper for PaperEve {
 
     /// Her key `K_a`: the decoded messages of the codewords acked so far.
     fn key(&self) -> KeyBits {
-        let k = self.code.k();
-        let mut key = KeyBits::default();
-        for (index, message) in self.decoded.iter().enumerate() {
-            if self.fates.get(index as u32) == Some(true) {
-                key.extend((0..k).map(|j| (message >> j & 1) as u8));
-            }
-        }
-        key
+        self.fates.accepted_key(&self.decoded, self.code.k())
     }
 }

@@ -29,6 +29,16 @@ pub fn confirmation_tag(
     ConfirmationTag::compute(&BitString::from_bools(&bools), &context).0
 }
 
+/// The tag of a session's key under its plan and fates.
+#[must_use]
+pub fn session_tag(
+    plan: &super::SessionPlan,
+    fates: &super::FateLedger,
+    key: &[u8],
+) -> [u8; TAG_BYTES] {
+    confirmation_tag(plan.session, &plan.config_digest, &fates.bitmap(), key)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,7 +10,7 @@ use super::decoder::{StepDecision, StepDecoder};
 use super::fates::FateLedger;
 use super::message::Message;
 use super::plan::SessionPlan;
-use super::{KeyBits, Outcome, TAG_BYTES, confirmation_tag};
+use super::{KeyBits, Outcome, TAG_BYTES, session_tag};
 use crate::config::{Config, Feedback};
 use crate::control::{TrackingController, TrackingGains};
 use crate::model::{Pose, Unicycle, WheelSpeeds};
@@ -255,7 +255,7 @@ impl ControllerEndpoint {
                 u1: [0.0; 2],
                 fates: self.fates.window(self.robot_cursor),
             });
-            self.key = self.accepted_key();
+            self.key = self.fates.accepted_key(&self.decoded, self.plan.code.k());
             self.phase = Phase::ExpectFinishAck { tries: 1 };
             self.send_finish();
         }
@@ -295,24 +295,8 @@ impl ControllerEndpoint {
         });
     }
 
-    fn accepted_key(&self) -> KeyBits {
-        let k = self.plan.code.k();
-        let mut key = KeyBits::default();
-        for (index, message) in self.decoded.iter().enumerate() {
-            if self.fates.get(index as u32) == Some(true) {
-                key.extend((0..k).map(|j| (message >> j & 1) as u8));
-            }
-        }
-        key
-    }
-
     fn tag(&self) -> [u8; TAG_BYTES] {
-        confirmation_tag(
-            self.plan.session,
-            &self.plan.config_digest,
-            &self.fates.bitmap(),
-            &self.key,
-        )
+        session_tag(&self.plan, &self.fates, &self.key)
     }
 
     fn send_finish(&mut self) {

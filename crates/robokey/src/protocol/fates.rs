@@ -103,6 +103,19 @@ impl FateLedger {
         window
     }
 
+    /// The key of a session: the lowest `k` bits (LSB first) of `messages[i]` for every
+    /// accepted codeword i, in order. `messages` holds one message per codeword.
+    #[must_use]
+    pub fn accepted_key(&self, messages: &[u64], k: usize) -> super::KeyBits {
+        let mut key = super::KeyBits::default();
+        for (index, message) in messages.iter().enumerate().take(self.fates.len()) {
+            if self.fates[index] == Some(true) {
+                key.extend((0..k).map(|j| (message >> j & 1) as u8));
+            }
+        }
+        key
+    }
+
     /// The complete bitmap (unknown fates count as rejected).
     #[must_use]
     pub fn bitmap(&self) -> Vec<u64> {

@@ -13,7 +13,7 @@ mod robot;
 pub mod wire;
 
 pub use assembler::{CodewordAssembler, ReceivedWord};
-pub use confirm::{TAG_BYTES, confirmation_tag};
+pub use confirm::{TAG_BYTES, confirmation_tag, session_tag};
 pub use controller::{ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput};
 pub use decoder::{Measured, StepDecision, StepDecoder};
 pub use fates::{FateLedger, FateWindow};

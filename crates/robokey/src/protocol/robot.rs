@@ -9,7 +9,7 @@ use subtle::ConstantTimeEq;
 use super::fates::FateLedger;
 use super::message::Message;
 use super::plan::SessionPlan;
-use super::{KeyBits, Outcome, TAG_BYTES, confirmation_tag};
+use super::{KeyBits, Outcome, TAG_BYTES, session_tag};
 use crate::code::low_mask;
 use crate::model::{Pose, WheelSpeeds};
 
@@ -224,7 +224,7 @@ impl RobotEndpoint {
                         .is_some_and(|w| w >> (index % 64) & 1 == 1);
                     self.record_fate(index, accepted);
                 }
-                self.key = self.accepted_key();
+                self.key = self.fates.accepted_key(&self.messages, self.plan.code.k());
                 self.phase = Phase::ExpectConfirm;
                 self.send(Message::FinishAck);
                 let tag = self.tag();
@@ -312,24 +312,7 @@ impl RobotEndpoint {
         (self.codewords[index as usize] >> position & 1) as u8
     }
 
-    fn accepted_key(&self) -> KeyBits {
-        let k = self.plan.code.k();
-        let mut key = KeyBits::default();
-        for index in 0..self.fates.len() {
-            if self.fates.get(index) == Some(true) {
-                let message = self.messages[index as usize];
-                key.extend((0..k).map(|j| (message >> j & 1) as u8));
-            }
-        }
-        key
-    }
-
     fn tag(&self) -> [u8; TAG_BYTES] {
-        confirmation_tag(
-            self.plan.session,
-            &self.plan.config_digest,
-            &self.fates.bitmap(),
-            &self.key,
-        )
+        session_tag(&self.plan, &self.fates, &self.key)
     }
 }
