@@ -44,6 +44,9 @@ enum Command {
     Relay(net::RelayArgs),
     /// The paper's eavesdropper on a relay capture.
     Eve(net::EveArgs),
+    /// A simulated Khepera IV speaking kh4server's line protocol, for the kh4 backend.
+    #[command(name = "kh4-emulator")]
+    Kh4Emulator(net::EmulatorArgs),
 }
 
 /// Options shared by commands that read a configuration.
@@ -198,6 +201,7 @@ fn main() -> ExitCode {
         Command::Controller(args) => net::controller(args),
         Command::Relay(args) => net::relay(args),
         Command::Eve(args) => net::eve(args),
+        Command::Kh4Emulator(args) => net::kh4_emulator(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

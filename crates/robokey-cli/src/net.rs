@@ -10,6 +10,7 @@ use robokey::eve::ModelErrors;
 use robokey::rng::{Purpose, stream};
 use robokey_net::capture_eve::eve_on_capture;
 use robokey_net::controller_agent::{ControllerOptions, run_controller};
+use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, TimeMode, serve};
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
 use robokey_net::robot_agent::{RobotOptions, run_robot};
 use robokey_net::session::{Pace, SessionReport, Timing, os_rng, read_key_file};
@@ -217,11 +218,16 @@ fn finish_robot<R: rand::CryptoRng>(
     let report = match args.backend {
         BackendArg::Sim => run_robot(config, &mut SimBackend::new(config, 0), key_source, options)?,
         BackendArg::Kh4 => {
-            let _link = args
+            let link = args
                 .kh4
                 .as_deref()
                 .context("--backend kh4 needs --kh4 DEVICE or --kh4 tcp:HOST:PORT")?;
-            bail!("KH4-PENDING")
+            let drive = robokey::model::DiffDrive {
+                wheel_radius: config.robot.r,
+                axle_length: config.robot.axle_length,
+            };
+            let mut backend = Kh4Backend::start(Link::open(link, Duration::from_secs(1))?, drive)?;
+            run_robot(config, &mut backend, key_source, options)?
         }
     };
     args.session.finish(&report)
@@ -390,5 +396,65 @@ pub fn eve(args: EveArgs) -> Result<()> {
         std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n")
             .with_context(|| format!("write {}", path.display()))?;
     }
+    Ok(())
+}
+
+/// How the emulated robot's time advances.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum TimeArg {
+    /// Each encoder read advances one period T: a session runs in seconds.
+    Virtual,
+    /// The wheels turn with the wall clock.
+    Real,
+}
+
+#[derive(Args, Debug)]
+pub struct EmulatorArgs {
+    /// `tcp:ADDR` (port 0: any; the address is printed), or `pty`.
+    #[arg(long)]
+    listen: String,
+    /// Time mode.
+    #[arg(long, value_enum, default_value = "virtual")]
+    time: TimeArg,
+    /// Virtual time advanced per encoder read (s).
+    #[arg(long, default_value_t = 0.2)]
+    period: f64,
+    /// Wheel slip: relative std of each wheel's travel per advance (0: exact).
+    #[arg(long, default_value_t = 0.0)]
+    slip: f64,
+    /// Seed of the slip noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {
+    let Some(address) = args.listen.strip_prefix("tcp:") else {
+        if args.listen == "pty" {
+            bail!(
+                "--listen pty: opening a pseudo-terminal needs unsafe system calls, which this workspace forbids; use --listen tcp:ADDR (the kh4 backend connects with --kh4 tcp:ADDR)"
+            );
+        }
+        bail!("--listen {}: expected tcp:ADDR or pty", args.listen);
+    };
+    let listen: SocketAddr = address
+        .parse()
+        .with_context(|| format!("--listen {}: not an address", args.listen))?;
+    if !(args.period > 0.0 && args.period.is_finite()) {
+        bail!("--period {} is not allowed (allowed: > 0 s)", args.period);
+    }
+    if !(args.slip >= 0.0 && args.slip < 1.0) {
+        bail!("--slip {} is not allowed (allowed: [0, 1))", args.slip);
+    }
+    let time = match args.time {
+        TimeArg::Virtual => TimeMode::Virtual(Duration::from_secs_f64(args.period)),
+        TimeArg::Real => TimeMode::Real,
+    };
+    serve(&EmulatorOptions {
+        listen,
+        time,
+        slip: args.slip,
+        seed: args.seed,
+        connections: None,
+    })?;
     Ok(())
 }

@@ -81,6 +81,17 @@ fn report(path: &Path) -> serde_json::Value {
 /// One lockstep session, optionally through a relay; returns the folder with
 /// robot.json, controller.json, keys and capture.
 fn session(name: &str, seed: u64, extra: &[&str], relay: Option<&[&str]>) -> PathBuf {
+    session_with_robot_args(name, seed, extra, &[], relay)
+}
+
+/// [`session`] with arguments for the robot only (e.g. its backend).
+fn session_with_robot_args(
+    name: &str,
+    seed: u64,
+    extra: &[&str],
+    robot_only: &[&str],
+    relay: Option<&[&str]>,
+) -> PathBuf {
     let dir = scratch(name);
     let file = |f: &str| s(&dir.join(f));
     let mut robot_args = vec![
@@ -97,6 +108,7 @@ fn session(name: &str, seed: u64, extra: &[&str], relay: Option<&[&str]>) -> Pat
     let (robot_key, robot_report) = (file("robot.key"), file("robot.json"));
     robot_args.extend(["--key-out", &robot_key, "--report", &robot_report]);
     robot_args.extend(extra);
+    robot_args.extend(robot_only);
     let robot = start(&robot_args);
     let capture = file("capture.pcap");
     let relay_process = relay.map(|faults| {
@@ -358,5 +370,26 @@ fn mismatched_configurations_abort_naming_the_difference() {
             .as_str()
             .unwrap()
             .contains("robot.T")
+    );
+}
+
+#[test]
+fn kh4_backend_against_the_emulator_confirms_a_key() {
+    let emulator = start(&["kh4-emulator", "--listen", "tcp:127.0.0.1:0"]);
+    let dir = session_with_robot_args(
+        "kh4",
+        5,
+        &[],
+        &["--backend", "kh4", "--kh4", &emulator.address],
+        None,
+    );
+    let robot = report(&dir.join("robot.json"));
+    assert_eq!(robot["outcome"], "confirmed", "{robot}");
+    assert_eq!(report(&dir.join("controller.json"))["outcome"], "confirmed");
+    // The emulator is noise-free: every codeword is accepted.
+    assert_eq!(robot["accepted"], robot["codewords"]);
+    assert_eq!(
+        std::fs::read_to_string(dir.join("robot.key")).unwrap(),
+        std::fs::read_to_string(dir.join("controller.key")).unwrap()
     );
 }

@@ -5,6 +5,7 @@ pub mod backend;
 pub mod capture_eve;
 pub mod controller_agent;
 pub mod error;
+pub mod khepera;
 pub mod pcap;
 pub mod relay;
 pub mod robot_agent;

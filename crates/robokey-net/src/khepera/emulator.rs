@@ -1,0 +1,202 @@
+//! A simulated Khepera IV speaking kh4server's line protocol over TCP, so the `kh4`
+//! backend and a whole session can be tested without hardware.
+
+use std::io::{BufRead, BufReader, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::time::{Duration, Instant};
+
+use rand::rngs::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use robokey::rng::{Purpose, stream};
+
+use super::protocol::{MAX_UNITS, PULSE_M, SPEED_UNIT_M_S};
+use crate::error::NetError;
+
+/// How the emulated robot's time advances.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TimeMode {
+    /// Each encoder read (`R`) advances this many seconds at the current speeds, so a
+    /// session runs as fast as the agent talks.
+    Virtual(Duration),
+    /// The wheels turn with the wall clock.
+    Real,
+}
+
+/// Options of the emulator.
+#[derive(Clone, Debug)]
+pub struct EmulatorOptions {
+    /// TCP address to listen on.
+    pub listen: SocketAddr,
+    /// Time mode.
+    pub time: TimeMode,
+    /// Wheel slip: each advance multiplies each wheel's travel by `1 + N(0, σ²)` (0: exact).
+    pub slip: f64,
+    /// Seed of the slip noise.
+    pub seed: u64,
+    /// Serve this many connections, then return (`None`: forever).
+    pub connections: Option<usize>,
+}
+
+/// The emulated robot: wheel speeds and encoder positions.
+struct Robot {
+    speeds: [i64; 2],
+    pulses: [f64; 2],
+    last: Instant,
+    slip: f64,
+    noise: ChaCha8Rng,
+}
+
+impl Robot {
+    fn advance(&mut self, seconds: f64) {
+        for wheel in 0..2 {
+            let factor = if self.slip > 0.0 {
+                let z: f64 = StandardNormal.sample(&mut self.noise);
+                1.0 + self.slip * z
+            } else {
+                1.0
+            };
+            self.pulses[wheel] +=
+                self.speeds[wheel] as f64 * SPEED_UNIT_M_S * seconds * factor / PULSE_M;
+        }
+    }
+
+    /// Answers one request line.
+    fn answer(&mut self, line: &str, time: TimeMode) -> String {
+        if time == TimeMode::Real {
+            let now = Instant::now();
+            self.advance((now - self.last).as_secs_f64());
+            self.last = now;
+        }
+        let mut parts = line.trim().split(',');
+        let numbers = |parts: std::str::Split<'_, char>| -> Option<Vec<i64>> {
+            parts.map(|p| p.trim().parse().ok()).collect()
+        };
+        let reply = match parts.next() {
+            Some("D") => match numbers(parts).as_deref() {
+                Some(&[left, right]) => {
+                    self.speeds = [
+                        left.clamp(-MAX_UNITS, MAX_UNITS),
+                        right.clamp(-MAX_UNITS, MAX_UNITS),
+                    ];
+                    Some("d".to_owned())
+                }
+                _ => None,
+            },
+            Some("R") => {
+                if let TimeMode::Virtual(period) = time {
+                    self.advance(period.as_secs_f64());
+                }
+                Some(format!(
+                    "r,{},{}",
+                    self.pulses[0].round() as i64,
+                    self.pulses[1].round() as i64
+                ))
+            }
+            Some("E") => Some(format!("e,{},{}", self.speeds[0], self.speeds[1])),
+            Some("I") => {
+                self.pulses = [0.0; 2];
+                Some("i".to_owned())
+            }
+            Some("U") => Some("u".to_owned()),
+            Some("V") => Some("v,3700".to_owned()),
+            _ => None,
+        };
+        reply.unwrap_or_else(|| "$".to_owned()) + "\r\n"
+    }
+}
+
+fn serve_one(client: TcpStream, options: &EmulatorOptions, index: u64) -> Result<(), NetError> {
+    let mut writer = client
+        .try_clone()
+        .map_err(NetError::io("clone the emulator's stream"))?;
+    let mut robot = Robot {
+        speeds: [0; 2],
+        pulses: [0.0; 2],
+        last: Instant::now(),
+        slip: options.slip,
+        noise: stream(options.seed, Purpose::Process, index),
+    };
+    for line in BufReader::new(client).lines() {
+        let Ok(line) = line else { break };
+        let reply = robot.answer(&line, options.time);
+        if writer.write_all(reply.as_bytes()).is_err() {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// Serves kh4server's protocol on TCP, one client at a time; prints the bound address.
+///
+/// # Errors
+/// The address cannot be bound.
+pub fn serve(options: &EmulatorOptions) -> Result<(), NetError> {
+    let listener = TcpListener::bind(options.listen)
+        .map_err(NetError::io(format!("bind TCP {}", options.listen)))?;
+    let address = listener
+        .local_addr()
+        .map_err(NetError::io("local address"))?;
+    println!("kh4-emulator listening on tcp:{address}");
+    let _ = std::io::stdout().flush();
+    for (index, client) in listener.incoming().enumerate() {
+        if let Ok(client) = client {
+            serve_one(client, options, index as u64)?;
+        }
+        if options.connections.is_some_and(|n| index + 1 >= n) {
+            break;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backend::Backend;
+    use crate::khepera::{Kh4Backend, Link};
+    use robokey::model::{DiffDrive, WheelSpeeds};
+
+    #[test]
+    fn the_backend_drives_the_emulator_straight_and_spins() {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let address = listener.local_addr().unwrap();
+        drop(listener);
+        let options = EmulatorOptions {
+            listen: address,
+            time: TimeMode::Virtual(Duration::from_millis(200)),
+            slip: 0.0,
+            seed: 1,
+            connections: Some(1),
+        };
+        let server = std::thread::spawn(move || serve(&options));
+        std::thread::sleep(Duration::from_millis(100));
+        let drive = DiffDrive {
+            wheel_radius: 0.021,
+            axle_length: 0.1047,
+        };
+        let mut robot = Kh4Backend::start(
+            Link::open(&format!("tcp:{address}"), Duration::from_secs(1)).unwrap(),
+            drive,
+        )
+        .unwrap();
+        assert_eq!(robot.sample().unwrap(), robokey::model::Pose::zeros());
+        robot.set_wheels(WheelSpeeds::new(4.0, 4.0)).unwrap();
+        let mut pose = robokey::model::Pose::zeros();
+        for _ in 0..10 {
+            pose = robot.sample().unwrap();
+        }
+        // 124 units = 84.08 mm/s for 2 s: 0.16817 m, within encoder and unit quantization.
+        assert!(
+            (pose.x - 124.0 * SPEED_UNIT_M_S * 2.0).abs() < 2.0 * PULSE_M,
+            "{pose}"
+        );
+        assert!(pose.y.abs() < 1e-9 && pose.z.abs() < 1e-9);
+        robot.set_wheels(WheelSpeeds::new(2.0, -2.0)).unwrap();
+        let spun = robot.sample().unwrap().z;
+        let expected = 2.0 * 62.0 * SPEED_UNIT_M_S * 0.2 / 0.1047;
+        assert!((spun - expected).abs() < 1e-3, "{spun} vs {expected}");
+        robot.stop();
+        drop(robot);
+        server.join().unwrap().unwrap();
+    }
+}
