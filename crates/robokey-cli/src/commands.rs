@@ -9,7 +9,7 @@ use robokey_lab::runner::{Shard, run_experiment, with_jobs};
 use robokey_lab::sweep::experiments_from_table;
 use robokey_lab::{report, results, trace};
 
-use crate::{AdversaryArg, ConfigArgs, MergeArgs, ReproduceArgs, RunArgs, SecrecyArgs, SweepArgs};
+use crate::{ConfigArgs, MergeArgs, ReproduceArgs, RunArgs, SecrecyArgs, SweepArgs};
 
 /// Loads a configuration from an optional file plus overrides.
 pub fn load_config(path: Option<&std::path::Path>, overrides: &[Override]) -> Result<Config> {
@@ -169,7 +169,6 @@ pub fn config(args: ConfigArgs) -> Result<()> {
 }
 
 pub fn secrecy(args: SecrecyArgs) -> Result<()> {
-    use robokey::config::EveStrategy;
     use robokey_lab::secrecy::{SecrecyOptions, analyze, write_secrecy};
     if !(args.eps > 0.0 && args.eps < 1.0) {
         bail!("--eps {} is not allowed (allowed: (0, 1))", args.eps);
@@ -178,14 +177,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         bail!("--block {} is not allowed (allowed: ≥ 64 bits)", args.block);
     }
     let options = SecrecyOptions {
-        adversaries: args
-            .adversaries
-            .iter()
-            .map(|a| match a {
-                AdversaryArg::Mismatch => EveStrategy::Mismatch,
-                AdversaryArg::Oracle => EveStrategy::Oracle,
-            })
-            .collect(),
+        adversaries: args.adversaries.iter().map(|&a| a.into()).collect(),
         epsilon: args.eps,
         block_bits: args.block,
         blocks: args.blocks.max(1),

@@ -8,6 +8,7 @@ use robokey_lab::files::Override;
 use robokey_lab::runner::Shard;
 
 mod commands;
+mod eve;
 mod net;
 
 /// Key agreement for remotely controlled robots, through the robot's own motion
@@ -42,8 +43,10 @@ enum Command {
     Controller(net::ControllerArgs),
     /// A faulty network between controller and robot, with an optional pcap capture.
     Relay(net::RelayArgs),
-    /// The paper's eavesdropper on a relay capture.
-    Eve(net::EveArgs),
+    /// Eavesdroppers of every strategy on simulated sessions (what they learn carries over)
+    /// or on a relay capture: error rates, parameter convergence, time to match the
+    /// controller, disagreement with the controller's key.
+    Eve(eve::EveArgs),
     /// A simulated Khepera IV speaking kh4server's line protocol, for the kh4 backend.
     #[command(name = "kh4-emulator")]
     Kh4Emulator(net::EmulatorArgs),
@@ -145,7 +148,7 @@ struct SecrecyArgs {
     run_dir: PathBuf,
     /// Adversaries to evaluate (repeatable).
     #[arg(long = "adversary", value_enum, default_values = ["mismatch", "oracle"])]
-    adversaries: Vec<AdversaryArg>,
+    adversaries: Vec<StrategyArg>,
     /// ε per term (smoothing, amplification, parameter estimation); the key is 4ε-secret.
     #[arg(long, default_value_t = 1e-6)]
     eps: f64,
@@ -160,13 +163,32 @@ struct SecrecyArgs {
     jobs: usize,
 }
 
-/// Eavesdropper strategies.
+/// Eavesdropper strategies (SECRECY §6); each after `mismatch` adds to the one before.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
-enum AdversaryArg {
-    /// The paper's Eve (model errors up to the config's eve.alpha).
-    Mismatch,
-    /// Exact model.
+pub enum StrategyArg {
+    /// Exact model: decides as the controller does.
     Oracle,
+    /// The paper's Eve: model errors up to eve.alpha, hard decisions.
+    Mismatch,
+    /// mismatch + maximum-likelihood codeword decisions from d̂ and Pᵈ.
+    Soft,
+    /// soft + starts eve.initial_error off on r and D and identifies them online.
+    Identify,
+    /// identify + tests her least reliable bits against the confirmation tag, learns from the
+    /// recovered key.
+    Transcript,
+}
+
+impl From<StrategyArg> for robokey::config::EveStrategy {
+    fn from(arg: StrategyArg) -> Self {
+        match arg {
+            StrategyArg::Oracle => Self::Oracle,
+            StrategyArg::Mismatch => Self::Mismatch,
+            StrategyArg::Soft => Self::Soft,
+            StrategyArg::Identify => Self::Identify,
+            StrategyArg::Transcript => Self::Transcript,
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -200,7 +222,7 @@ fn main() -> ExitCode {
         Command::Robot(args) => net::robot(args),
         Command::Controller(args) => net::controller(args),
         Command::Relay(args) => net::relay(args),
-        Command::Eve(args) => net::eve(args),
+        Command::Eve(args) => eve::eve(args),
         Command::Kh4Emulator(args) => net::kh4_emulator(args),
     };
     match result {

@@ -1,4 +1,4 @@
-//! The network subcommands: robot agent, controller, relay, and Eve on a capture.
+//! The network subcommands: robot agent, controller, relay, Khepera IV emulator.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -6,14 +6,12 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use robokey::eve::ModelErrors;
 use robokey::rng::{Purpose, stream};
-use robokey_net::capture_eve::eve_on_capture;
 use robokey_net::controller_agent::{ControllerOptions, run_controller};
 use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, TimeMode, serve};
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
 use robokey_net::robot_agent::{RobotOptions, run_robot};
-use robokey_net::session::{Pace, SessionReport, Timing, os_rng, read_key_file};
+use robokey_net::session::{Pace, SessionReport, Timing, os_rng};
 use robokey_net::sim_backend::SimBackend;
 
 use crate::ConfigOptions;
@@ -159,33 +157,6 @@ pub struct RelayArgs {
     idle_exit: Option<f64>,
 }
 
-#[derive(Args, Debug)]
-pub struct EveArgs {
-    /// A relay capture (pcap).
-    #[arg(long)]
-    capture: PathBuf,
-    /// The session's configuration (defaults when omitted).
-    #[arg(long, short)]
-    config: Option<PathBuf>,
-    #[command(flatten)]
-    options: ConfigOptions,
-    /// Largest relative model error α (her errors are drawn from her seeded stream).
-    #[arg(long)]
-    alpha: Option<f64>,
-    /// Her relative errors on r, D, W, V given explicitly, e.g. `0.05,-0.02,0,0`.
-    #[arg(long, value_name = "R,D,W,V", conflicts_with = "alpha")]
-    errors: Option<String>,
-    /// Seed of her draws (stream "eve", replicate 0; `robokey run --seed S` uses the same).
-    #[arg(long)]
-    seed: Option<u64>,
-    /// The controller's key file, to measure her disagreement.
-    #[arg(long)]
-    controller_key: Option<PathBuf>,
-    /// Write her result (JSON: decisions, key length, disagreement) here.
-    #[arg(long)]
-    out: Option<PathBuf>,
-}
-
 pub fn robot(args: RobotArgs) -> Result<()> {
     let mut config = load_config(args.session.config.as_deref(), &args.session.options.set)?;
     let timing = args.session.timing()?;
@@ -303,99 +274,6 @@ pub fn relay(args: RelayArgs) -> Result<()> {
     };
     let stats = run_relay(&options)?;
     println!("relay: {}", serde_json::to_string(&stats)?);
-    Ok(())
-}
-
-pub fn eve(args: EveArgs) -> Result<()> {
-    let mut config = load_config(args.config.as_deref(), &args.options.set)?;
-    if let Some(seed) = args.seed {
-        config.run.seed = seed;
-    }
-    let errors = match (&args.errors, args.alpha) {
-        (Some(text), _) => {
-            let values: Vec<f64> = text
-                .split(',')
-                .map(|v| v.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .with_context(|| format!("--errors {text}: expected four numbers r,D,W,V"))?;
-            let [r, d, w, v] = values[..] else {
-                bail!("--errors {text}: expected four numbers r,D,W,V")
-            };
-            if values.iter().any(|e| e.is_nan() || e.abs() >= 1.0) {
-                bail!("--errors {text}: each relative error must be in (−1, 1)");
-            }
-            ModelErrors { r, d, w, v }
-        }
-        (None, alpha) => {
-            let alpha = alpha.unwrap_or(config.eve.alpha);
-            if !(0.0..1.0).contains(&alpha) {
-                bail!("--alpha {alpha} is not allowed (allowed: [0, 1))");
-            }
-            ModelErrors::draw(
-                alpha,
-                config.eve.draw,
-                &mut stream(config.run.seed, Purpose::Eve, 0),
-            )
-        }
-    };
-    let result = eve_on_capture(&args.capture, &config, errors)?;
-    let decided = result.decisions.iter().flatten().count();
-    println!(
-        "eve: session {:08x}, {} frames ({} undecodable datagrams), {decided} steps decided, key {} bits; model errors r {:+.4}, D {:+.4}, W {:+.4}, V {:+.4}",
-        result.session,
-        result.frames,
-        result.undecodable,
-        result.key.len(),
-        errors.r,
-        errors.d,
-        errors.w,
-        errors.v
-    );
-    let disagreement = match &args.controller_key {
-        Some(path) => {
-            let controller = read_key_file(path)?;
-            if controller.len() != result.key.len() {
-                bail!(
-                    "{}: the controller's key has {} bits, Eve's {}: not the same session?",
-                    path.display(),
-                    controller.len(),
-                    result.key.len()
-                );
-            }
-            let differ = controller
-                .iter()
-                .zip(result.key.iter())
-                .filter(|(a, b)| a != b)
-                .count();
-            let pct = if controller.is_empty() {
-                None
-            } else {
-                Some(100.0 * differ as f64 / controller.len() as f64)
-            };
-            match pct {
-                Some(p) => println!(
-                    "eve: disagrees with the controller's key on {differ} of {} bits ({p:.2} %)",
-                    controller.len()
-                ),
-                None => println!("eve: the controller's key is empty"),
-            }
-            pct
-        }
-        None => None,
-    };
-    if let Some(path) = &args.out {
-        let json = serde_json::json!({
-            "session": result.session,
-            "frames": result.frames,
-            "undecodable": result.undecodable,
-            "model_errors": { "r": errors.r, "D": errors.d, "W": errors.w, "V": errors.v },
-            "decisions": result.decisions,
-            "key_bits": result.key.len(),
-            "disagreement_pct": disagreement,
-        });
-        std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n")
-            .with_context(|| format!("write {}", path.display()))?;
-    }
     Ok(())
 }
 

@@ -178,11 +178,13 @@ fn clean_network_confirms_equal_keys_identical_to_the_simulator_and_eve_agrees_o
     config.run.seed = 11;
     let sim = simulate(&config, 0, true).unwrap();
     assert_eq!(controller["accepted"].as_u64(), sim.metrics.accepted);
-    let out = dir.join("eve.json");
+    let out = dir.join("eve");
     let (ok, text) = run(&[
         "eve",
         "--capture",
         &s(&dir.join("capture.pcap")),
+        "--strategy",
+        "oracle,mismatch,soft,identify,transcript",
         "--seed",
         "11",
         "--controller-key",
@@ -191,22 +193,48 @@ fn clean_network_confirms_equal_keys_identical_to_the_simulator_and_eve_agrees_o
         &s(&out),
     ]);
     assert!(ok, "{text}");
-    let eve = report(&out);
-    let from_capture: Vec<Option<u64>> = eve["decisions"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(serde_json::Value::as_u64)
-        .collect();
-    let from_sim: Vec<Option<u64>> = sim.trace[1..]
-        .iter()
-        .map(|r| r.bhat_eve.map(u64::from))
-        .collect();
-    assert_eq!(from_capture, from_sim);
+    let eve = report(&out.join("capture.json"));
+    let strategies = eve["strategies"].as_array().unwrap();
+    assert_eq!(strategies.len(), 5);
+    let decisions = |i: usize| -> Vec<Option<u64>> {
+        strategies[i]["decisions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(serde_json::Value::as_u64)
+            .collect()
+    };
+    let sim_steps = |pick: fn(&robokey::sim::TraceRow) -> Option<u8>| -> Vec<Option<u64>> {
+        sim.trace[1..]
+            .iter()
+            .map(|r| pick(r).map(u64::from))
+            .collect()
+    };
+    // The oracle decides as the controller, the paper's Eve as the simulator's Eve.
+    assert_eq!(decisions(0), sim_steps(|r| r.bhat));
+    assert_eq!(decisions(1), sim_steps(|r| r.bhat_eve));
     assert_eq!(
-        eve["disagreement_pct"].as_f64(),
+        strategies[1]["disagreement_pct"].as_f64(),
         sim.metrics.eve_disagreement_pct
     );
+    for strategy in strategies {
+        assert_eq!(
+            strategy["key_bits"].as_u64(),
+            sim.metrics.accepted,
+            "{strategy}"
+        );
+        assert!(
+            strategy["disagreement_pct"].as_f64().is_some(),
+            "{strategy}"
+        );
+    }
+    // The confirmation tag hands the transcript-aided Eve the key.
+    assert!(
+        strategies[4]["tag_flips"].as_u64().is_some(),
+        "{}",
+        strategies[4]
+    );
+    assert_eq!(strategies[4]["disagreement_pct"].as_f64(), Some(0.0));
 }
 
 #[test]

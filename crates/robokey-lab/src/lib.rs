@@ -1,6 +1,7 @@
 //! robokey-lab: the experiment shell around the robokey core — configuration files,
 //! sweeps, parallel runs, CSV/JSON outputs, statistics, figures and reports.
 
+pub mod adversary;
 pub mod error;
 pub mod files;
 pub mod plot;

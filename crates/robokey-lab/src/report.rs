@@ -21,6 +21,18 @@ const PERMUTATIONS: usize = 9_999;
 /// Seed of the trend tests' permutations.
 const TREND_SEED: u64 = 2023;
 
+/// Adds the eavesdroppers of SECRECY §6 to `reproduce`: every strategy on the default
+/// configuration's sessions, in order (`robokey eve`).
+fn adversary_section(out: &Path) -> Result<String, LabError> {
+    use robokey::config::EveStrategy;
+    let campaign = crate::adversary::run_campaign(&robokey::Config::default(), &EveStrategy::ALL)?;
+    crate::adversary::write_campaign(&out.join("eve"), &campaign)?;
+    Ok(format!(
+        "\n## Adversaries that try harder\n\n{}",
+        crate::adversary::campaign_body(&campaign, "eve/")
+    ))
+}
+
 /// Adds the secrecy section to `reproduce`: the Δv sweep and the α sweep against the paper's
 /// and the oracle Eve.
 fn secrecy_section(
@@ -507,6 +519,7 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
             (eve, "Against α (Δv = 0.035)"),
         ],
     )?);
+    md.push_str(&adversary_section(out)?);
     let path = write(&out.join("report.md"), md)?;
     Ok(Reproduction {
         path,

@@ -6,7 +6,8 @@
 //!
 //! Sessions are re-simulated from the sweep's `config.resolved.toml` and seeds, with the
 //! adversary swapped in; sessions are added (replicates 0, 1, …) until the pooled raw key
-//! fills the requested number of blocks.
+//! fills the requested number of blocks. A learning adversary (identify, transcript) hears
+//! them in that order, so what she learned from earlier sessions serves her on later ones.
 
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
@@ -14,7 +15,7 @@ use rayon::prelude::*;
 use robokey::config::EveStrategy;
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
-use robokey::sim::{RunOutput, simulate_plan};
+use robokey::sim::{RunOutput, simulate_plan, simulate_transcript};
 use robokey_secrecy::interval::clopper_pearson_lower;
 use robokey_secrecy::min_entropy::{binomial_smooth_min_entropy, output_length};
 use robokey_secrecy::{
@@ -24,6 +25,7 @@ use serde::Serialize;
 
 use std::path::{Path, PathBuf};
 
+use crate::adversary::{eavesdropper, overhear};
 use crate::error::LabError;
 use crate::files::write;
 use crate::plot::{LineChart, Series, SeriesStyle};
@@ -172,15 +174,6 @@ pub struct PositionErrors {
 /// Lap-position bins.
 const POSITION_BINS: usize = 20;
 
-/// The adversary's name in files.
-#[must_use]
-pub fn adversary_name(strategy: EveStrategy) -> String {
-    serde_json::to_value(strategy)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_owned))
-        .unwrap_or_else(|| format!("{strategy:?}"))
-}
-
 /// Sessions of one point against one adversary, added in chunks until the pooled raw key
 /// fills the blocks.
 fn sessions(
@@ -196,6 +189,8 @@ fn sessions(
     let needed = options.block_bits * options.blocks;
     let mut runs: Vec<RunOutput> = Vec::new();
     let minimum = experiment.replicates();
+    let mut learner = matches!(adversary, EveStrategy::Identify | EveStrategy::Transcript)
+        .then(|| eavesdropper(&config, adversary));
     while (runs.len() as u32) < options.max_sessions {
         let bits: usize = runs.iter().map(|r| r.keys.controller.len()).sum();
         if bits >= needed && runs.len() as u32 >= minimum {
@@ -203,14 +198,37 @@ fn sessions(
         }
         let start = runs.len() as u32;
         let chunk = 32.min(options.max_sessions - start);
-        let more: Vec<RunOutput> = (start..start + chunk)
-            .into_par_iter()
-            .map(|replicate| {
-                let mut plan = plan.clone();
-                plan.session = replicate;
-                simulate_plan(&config, plan, replicate, false)
-            })
-            .collect::<Result<_, _>>()?;
+        let more: Vec<RunOutput> = match learner.as_mut() {
+            None => (start..start + chunk)
+                .into_par_iter()
+                .map(|replicate| {
+                    let mut plan = plan.clone();
+                    plan.session = replicate;
+                    simulate_plan(&config, plan, replicate, false)
+                })
+                .collect::<Result<_, _>>()?,
+            // What a learning Eve learns carries over: she hears the sessions in order.
+            Some(eve) => {
+                let heard = (start..start + chunk)
+                    .into_par_iter()
+                    .map(|replicate| simulate_transcript(&config, replicate))
+                    .collect::<Result<Vec<_>, _>>()?;
+                heard
+                    .into_iter()
+                    .zip(start..)
+                    .map(|((mut run, transcript), replicate)| {
+                        let steps = &mut run.steps;
+                        let key = overhear(eve, &config, replicate, &transcript, |_, step, bit| {
+                            if let Some(logged) = steps.get_mut(step as usize) {
+                                logged.bhat_eve = bit;
+                            }
+                        });
+                        run.keys.eve = Some(key);
+                        run
+                    })
+                    .collect()
+            }
+        };
         if more.iter().all(|r| r.keys.controller.is_empty()) && runs.is_empty() {
             runs.extend(more);
             break; // nothing is ever accepted here
@@ -368,7 +386,7 @@ fn analyze_point(
         x: params
             .first()
             .and_then(|(_, v)| v.as_float().or_else(|| v.as_integer().map(|i| i as f64))),
-        adversary: adversary_name(adversary),
+        adversary: adversary.name().to_owned(),
         sessions: runs.len() as u32,
         steps,
         sample_time: config.robot.sample_time,
@@ -570,7 +588,7 @@ pub fn write_secrecy(
         .adversaries
         .iter()
         .map(|&a| {
-            let name = adversary_name(a);
+            let name = a.name();
             Series {
                 label: format!("secret bits/step vs {name} Eve"),
                 points: results
@@ -583,7 +601,7 @@ pub fn write_secrecy(
         })
         .collect();
     if let Some(&first) = options.adversaries.first() {
-        let name = adversary_name(first);
+        let name = first.name();
         series.push(Series {
             label: "raw agreed bits/step".into(),
             points: results

@@ -1,10 +1,12 @@
-//! The paper's eavesdropper on a relay capture: the same Eve code as the simulator, fed the
-//! frames in the order they crossed the network.
+//! Eavesdroppers on a relay capture: the same Eve code as the simulator, fed the frames in
+//! the order they crossed the network.
 
 use std::path::Path;
 
 use robokey::Config;
-use robokey::eve::{Eavesdropper, ModelErrors, PaperEve};
+use robokey::config::EveStrategy;
+use robokey::eve::{Eavesdropper, Eve, ModelErrors};
+use robokey::model::DiffDrive;
 use robokey::protocol::wire::decode;
 use robokey::protocol::{
     KeyBits, Message, SessionPlan, agreement_terms, config_digest, terms_difference,
@@ -13,31 +15,36 @@ use robokey::protocol::{
 use crate::error::NetError;
 use crate::pcap;
 
-/// What Eve made of a capture.
+/// The frames of one session in a capture, in the order they crossed the network.
 #[derive(Debug)]
-pub struct CaptureResult {
-    /// Session id she followed.
+pub struct CapturedSession {
+    /// Session id.
     pub session: u32,
-    /// Valid frames of that session (duplicates included, as heard).
-    pub frames: usize,
+    /// Its valid frames' messages (duplicates included, as heard).
+    pub messages: Vec<Message>,
     /// Datagrams that did not decode.
     pub undecodable: usize,
+}
+
+/// What one eavesdropper made of a captured session.
+#[derive(Debug)]
+pub struct CaptureResult {
     /// Her decision per step (`None`: erased or never decided), index = step.
     pub decisions: Vec<Option<u8>>,
     /// Her key `K_a` (messages of the acked codewords).
     pub key: KeyBits,
+    /// Codewords she flipped to match the confirmation tag, when she verified her key.
+    pub tag_flips: Option<u32>,
+    /// Her wheel model at the end (m).
+    pub model: DiffDrive,
 }
 
-/// Runs Eve with `errors` on the first session in `capture`, under `config` (which must
-/// agree with the session's `Hello`, when the capture holds one).
+/// Reads the first session in `capture`, checking that `config` agrees with its `Hello`
+/// (when the capture holds one).
 ///
 /// # Errors
 /// The capture cannot be read, holds no session, or its terms differ from `config`.
-pub fn eve_on_capture(
-    capture: &Path,
-    config: &Config,
-    errors: ModelErrors,
-) -> Result<CaptureResult, NetError> {
+pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, NetError> {
     let datagrams = pcap::read(capture)?;
     let frames: Vec<_> = datagrams
         .iter()
@@ -53,12 +60,17 @@ pub fn eve_on_capture(
             path: capture.display().to_string(),
             message: "no robokey frame in the capture".into(),
         })?;
-    for frame in frames.iter().filter(|f| f.session == session) {
+    let messages: Vec<Message> = frames
+        .into_iter()
+        .filter(|f| f.session == session)
+        .map(|f| f.message)
+        .collect();
+    for message in &messages {
         if let Message::Hello {
             config_digest: digest,
             terms,
             ..
-        } = &frame.message
+        } = message
             && *digest != config_digest(config)
         {
             return Err(NetError::Usage(format!(
@@ -67,23 +79,36 @@ pub fn eve_on_capture(
             )));
         }
     }
-    let plan = SessionPlan::from_config(config, session);
-    let mut eve = PaperEve::new(config, &plan, errors);
+    Ok(CapturedSession {
+        session,
+        messages,
+        undecodable,
+    })
+}
+
+/// Runs an eavesdropper of `strategy`, starting from `errors`, on a captured session.
+#[must_use]
+pub fn listen(
+    captured: &CapturedSession,
+    config: &Config,
+    strategy: EveStrategy,
+    errors: ModelErrors,
+) -> CaptureResult {
+    let plan = SessionPlan::from_config(config, captured.session);
+    let mut eve = Eve::new(config, strategy, errors);
+    eve.begin_session(&plan);
     let mut decisions = vec![None; plan.steps as usize];
-    let mut count = 0;
-    for frame in frames.iter().filter(|f| f.session == session) {
-        count += 1;
-        if let Some(decision) = eve.observe(&frame.message)
+    for message in &captured.messages {
+        if let Some(decision) = eve.observe(message)
             && let Some(slot) = decisions.get_mut(decision.step as usize)
         {
             *slot = decision.bit;
         }
     }
-    Ok(CaptureResult {
-        session,
-        frames: count,
-        undecodable,
+    CaptureResult {
         decisions,
         key: eve.key(),
-    })
+        tag_flips: eve.verified(),
+        model: eve.model(),
+    }
 }

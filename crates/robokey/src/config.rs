@@ -254,15 +254,49 @@ pub enum Draw {
     Common,
 }
 
-/// Which eavesdropper listens (SECRECY.md §6).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+/// Which eavesdropper listens (SECRECY.md §6). Each strategy after `mismatch` adds one
+/// capability to the one before it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum EveStrategy {
-    /// The paper's Eve: relative model errors up to α on r, D, W, V.
-    Mismatch,
     /// Exact model: decides exactly as the controller does.
     Oracle,
+    /// The paper's Eve: relative model errors up to α on r, D, W, V, hard bit decisions.
+    Mismatch,
+    /// `mismatch` deciding codewords by maximum likelihood from `d̂` and `Pᵈ`.
+    Soft,
+    /// `soft` that starts with errors of `initial_error` on r and D and learns them online.
+    Identify,
+    /// `identify` that also searches her least reliable bits for the key matching the public
+    /// confirmation tag, and learns from the recovered key's bits.
+    Transcript,
 }
+
+impl EveStrategy {
+    /// Every strategy, in order of capability.
+    pub const ALL: [Self; 5] = [
+        Self::Oracle,
+        Self::Mismatch,
+        Self::Soft,
+        Self::Identify,
+        Self::Transcript,
+    ];
+
+    /// The name used in configs and on the command line.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Oracle => "oracle",
+            Self::Mismatch => "mismatch",
+            Self::Soft => "soft",
+            Self::Identify => "identify",
+            Self::Transcript => "transcript",
+        }
+    }
+}
+
+/// Largest `eve.max_flips`: `2^24` tag computations per session.
+pub const MAX_TAG_FLIPS: u32 = 24;
 
 /// `[eve]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -272,10 +306,23 @@ pub struct EveConfig {
     pub enabled: bool,
     /// Her strategy.
     pub strategy: EveStrategy,
-    /// Largest relative model error α (fraction).
+    /// Largest relative model error α (fraction) of `mismatch` and `soft`.
     pub alpha: f64,
     /// Independent or common draws.
     pub draw: Draw,
+    /// Relative error on r and D (fraction, signs drawn) that `identify` and `transcript`
+    /// start from.
+    pub initial_error: f64,
+    /// Largest number of least-reliable codewords `transcript` flips while searching for
+    /// the key that matches the confirmation tag (`2^max_flips` tags at most).
+    pub max_flips: u32,
+    /// Sessions `robokey eve` simulates; what Eve learns carries over between them.
+    pub sessions: u32,
+    /// Sliding window (steps) of the error rates `robokey eve` reports.
+    pub window: u32,
+    /// Eve matches the controller once her windowed error rate stays within this many
+    /// percentage points of the controller's.
+    pub match_tolerance_pp: f64,
 }
 
 impl Default for EveConfig {
@@ -285,6 +332,11 @@ impl Default for EveConfig {
             strategy: EveStrategy::Mismatch,
             alpha: 0.10,
             draw: Draw::Independent,
+            initial_error: 0.40,
+            max_flips: 16,
+            sessions: 5,
+            window: 200,
+            match_tolerance_pp: 0.5,
         }
     }
 }
@@ -513,6 +565,29 @@ impl Config {
         if !(0.0..1.0).contains(&eve.alpha) {
             return Err(invalid("eve.alpha", eve.alpha, "[0, 1)"));
         }
+        if !(0.0..1.0).contains(&eve.initial_error) {
+            return Err(invalid("eve.initial_error", eve.initial_error, "[0, 1)"));
+        }
+        if eve.max_flips > MAX_TAG_FLIPS {
+            return Err(invalid(
+                "eve.max_flips",
+                eve.max_flips,
+                &format!("0 to {MAX_TAG_FLIPS}"),
+            ));
+        }
+        if eve.sessions < 1 {
+            return Err(invalid("eve.sessions", eve.sessions, "≥ 1"));
+        }
+        if eve.window < 1 {
+            return Err(invalid("eve.window", eve.window, "≥ 1 step"));
+        }
+        if !(eve.match_tolerance_pp >= 0.0 && eve.match_tolerance_pp <= 100.0) {
+            return Err(invalid(
+                "eve.match_tolerance_pp",
+                eve.match_tolerance_pp,
+                "[0, 100] percentage points",
+            ));
+        }
         if self.run.replicates < 1 {
             return Err(invalid("run.replicates", self.run.replicates, "≥ 1"));
         }
@@ -644,6 +719,19 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("0.0") && text.contains("> 0"), "{text}");
+
+        for (toml, field, allowed) in [
+            ("[eve]\nmax_flips = 30\n", "eve.max_flips", "0 to 24"),
+            (
+                "[eve]\ninitial_error = 1.0\n",
+                "eve.initial_error",
+                "[0, 1)",
+            ),
+            ("[eve]\nstrategy = \"psychic\"\n", "psychic", "transcript"),
+        ] {
+            let text = Config::from_toml(toml, "e.toml").unwrap_err().to_string();
+            assert!(text.contains(field) && text.contains(allowed), "{text}");
+        }
 
         let err = Config::from_toml("[robot]\nmass = 1.0\n", "a.toml").unwrap_err();
         assert!(

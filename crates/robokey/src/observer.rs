@@ -251,6 +251,29 @@ pub fn decide_bit(estimated: &Vector2<f64>, u0: &Vector2<f64>, u1: &Vector2<f64>
     u8::from((estimated - u0).norm() >= (estimated - u1).norm())
 }
 
+/// `ln p(d̂ | b = 1) − ln p(d̂ | b = 0)` for the estimate `d̂ ~ N(d_b, Pᵈ)`, where `d0`, `d1`
+/// are the deviations (m/s, rad/s) that applying `u0D` or `u1D` would produce. `Pᵈ` is
+/// inverted on its range (m = 1: only Δv is observed); a degenerate `Pᵈ` gives 0.
+#[must_use]
+pub fn log_likelihood_ratio(estimate: &InputEstimate, d0: &Unicycle, d1: &Unicycle) -> f64 {
+    let eigen = nalgebra::SymmetricEigen::new(estimate.covariance);
+    let largest = eigen.eigenvalues.amax();
+    if !(largest.is_finite() && largest > 0.0) {
+        return 0.0;
+    }
+    let inverse_on_range = eigen
+        .eigenvalues
+        .map(|l| if l > largest * 1e-12 { 1.0 / l } else { 0.0 });
+    let precision = eigen.eigenvectors
+        * Matrix2::from_diagonal(&inverse_on_range)
+        * eigen.eigenvectors.transpose();
+    let distance = |d: &Unicycle| {
+        let e = estimate.deviation - d;
+        (e.transpose() * precision * e).x
+    };
+    0.5 * (distance(d0) - distance(d1))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -359,6 +382,28 @@ mod tests {
         let u1 = Vector2::new(4.0, 4.0);
         assert_eq!(decide_bit(&Vector2::new(4.9, 4.8), &u0, &u1), 0);
         assert_eq!(decide_bit(&Vector2::new(4.2, 4.1), &u0, &u1), 1);
+    }
+
+    #[test]
+    fn likelihood_ratio_is_the_gaussian_closed_form() {
+        let (delta, x) = (0.035, 0.01);
+        let estimate = |covariance| InputEstimate {
+            deviation: Unicycle::new(x, 0.2),
+            covariance,
+            state: Pose::zeros(),
+        };
+        let (d0, d1) = (Unicycle::new(delta, 0.0), Unicycle::new(-delta, 0.0));
+        // m = 1: Δω̂ carries no information, only Δv counts.
+        let one = estimate(Matrix2::new(4e-4, 0.0, 0.0, 0.0));
+        let expected = -2.0 * x * delta / 4e-4;
+        assert!((log_likelihood_ratio(&one, &d0, &d1) - expected).abs() < 1e-9);
+        // m = 2, diagonal: the ω components of d0 and d1 are equal and cancel.
+        let two = estimate(Matrix2::new(4e-4, 0.0, 0.0, 1e-2));
+        assert!((log_likelihood_ratio(&two, &d0, &d1) - expected).abs() < 1e-9);
+        assert_eq!(
+            log_likelihood_ratio(&estimate(Matrix2::zeros()), &d0, &d1),
+            0.0
+        );
     }
 
     proptest! {

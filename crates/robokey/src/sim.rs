@@ -153,6 +153,31 @@ pub fn simulate_plan(
     replicate: u32,
     record_trace: bool,
 ) -> Result<RunOutput, SimError> {
+    run(config, plan, replicate, record_trace, None)
+}
+
+/// [`simulate`] that also returns every message in the order an eavesdropper hears it, so
+/// that several eavesdroppers can be fed the same session.
+///
+/// # Errors
+/// [`SimError`] when the session aborts.
+pub fn simulate_transcript(
+    config: &Config,
+    replicate: u32,
+) -> Result<(RunOutput, Vec<Message>), SimError> {
+    let mut transcript = Vec::new();
+    let plan = SessionPlan::from_config(config, replicate);
+    let output = run(config, plan, replicate, false, Some(&mut transcript))?;
+    Ok((output, transcript))
+}
+
+fn run(
+    config: &Config,
+    plan: SessionPlan,
+    replicate: u32,
+    record_trace: bool,
+    mut transcript: Option<&mut Vec<Message>>,
+) -> Result<RunOutput, SimError> {
     let seed = config.run.seed;
     let stream_of = |purpose| stream(seed, purpose, u64::from(replicate));
     let (mut process_rng, mut measurement_rng) =
@@ -173,8 +198,11 @@ pub fn simulate_plan(
     let drive = plan.drive;
     let trajectory = config.trajectory();
     let mut robot = RobotEndpoint::new(plan.clone(), &mut stream_of(Purpose::Key));
-    let mut eve = (config.eve.enabled && plan.enabled)
-        .then(|| eve::build(config, &plan, &mut stream_of(Purpose::Eve)));
+    let mut eve = (config.eve.enabled && plan.enabled).then(|| {
+        let mut eve = eve::build(config, &mut stream_of(Purpose::Eve));
+        eve.begin_session(&plan);
+        eve
+    });
     let mut controller = ControllerEndpoint::new(config, plan);
 
     let mut log = vec![StepBits::default(); steps as usize + 1];
@@ -211,6 +239,9 @@ pub fn simulate_plan(
                 quiet = false;
                 match output {
                     RobotOutput::Transmit(message) => {
+                        if let Some(transcript) = transcript.as_deref_mut() {
+                            transcript.push(message.clone());
+                        }
                         if let Some(d) = eve.as_mut().and_then(|eve| eve.observe(&message)) {
                             log[d.step as usize].bhat_eve = d.bit;
                             if record_trace {
@@ -233,6 +264,9 @@ pub fn simulate_plan(
                 quiet = false;
                 match output {
                     ControllerOutput::Transmit(message) => {
+                        if let Some(transcript) = transcript.as_deref_mut() {
+                            transcript.push(message.clone());
+                        }
                         if let Some(eve) = eve.as_mut() {
                             eve.observe(&message);
                         }

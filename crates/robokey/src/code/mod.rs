@@ -16,6 +16,20 @@ pub struct Decoded {
     pub distance: u32,
 }
 
+/// Maximum-likelihood decoding result from per-bit log-likelihood ratios.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SoftDecoded {
+    /// The most likely message.
+    pub message: u64,
+    /// The second most likely message (equal to `message` when `k = 0`).
+    pub runner_up: u64,
+    /// Log-likelihood margin of `message` over `runner_up` (≥ 0; nats).
+    pub margin: f64,
+}
+
+/// Largest message length for which [`BlockCode::decode_soft`] enumerates all messages.
+pub const MAX_SOFT_MESSAGE_BITS: usize = 16;
+
 /// A binary block code `(n, k)` with nearest-codeword decoding.
 pub trait BlockCode: std::fmt::Debug + Send + Sync {
     /// Codeword length `n_c` (bits, ≤ 64).
@@ -29,6 +43,39 @@ pub trait BlockCode: std::fmt::Debug + Send + Sync {
     fn decode(&self, word: u64) -> Decoded;
     /// Short name, e.g. `repetition(3)`.
     fn name(&self) -> String;
+
+    /// Maximum-likelihood decoding from `llr[j] = ln p(obs_j | bit 1) − ln p(obs_j | bit 0)`
+    /// (0 for an erased bit), by enumerating the `2^k` codewords (`k ≤`
+    /// [`MAX_SOFT_MESSAGE_BITS`]): the score of codeword `c` is `Σ_j c_j·llr[j]`. Ties go to
+    /// the lowest message index.
+    fn decode_soft(&self, llr: &[f64]) -> SoftDecoded {
+        let k = self.k().min(MAX_SOFT_MESSAGE_BITS);
+        let score = |message: u64| {
+            let word = self.encode(message);
+            llr.iter()
+                .take(self.n())
+                .enumerate()
+                .filter(|(j, _)| word >> j & 1 == 1)
+                .map(|(_, l)| l)
+                .sum::<f64>()
+        };
+        let (mut best, mut second) = ((0, score(0)), None::<(u64, f64)>);
+        for message in 1..(1u64 << k) {
+            let candidate = (message, score(message));
+            if candidate.1 > best.1 {
+                second = Some(best);
+                best = candidate;
+            } else if second.is_none_or(|s| candidate.1 > s.1) {
+                second = Some(candidate);
+            }
+        }
+        let (runner_up, runner_score) = second.unwrap_or(best);
+        SoftDecoded {
+            message: best.0,
+            runner_up,
+            margin: best.1 - runner_score,
+        }
+    }
 }
 
 /// Mask of the lowest `bits` bits.
@@ -81,6 +128,45 @@ mod tests {
         assert_eq!(min_weight, Some(3));
         assert_eq!(code.encode(0b1000), 0b111_1000);
         assert_eq!(code.encode(0b0001), 0b011_0001);
+    }
+
+    /// With LLRs of ±1 (a hard word), ML decoding is nearest-codeword decoding wherever
+    /// the nearest codeword is unique.
+    fn soft_decoding_of_hard_words_is_nearest_codeword(code: &dyn BlockCode) {
+        let n = code.n();
+        for word in 0..(1u64 << n) {
+            let llr: Vec<f64> = (0..n)
+                .map(|j| if word >> j & 1 == 1 { 1.0 } else { -1.0 })
+                .collect();
+            let soft = code.decode_soft(&llr);
+            let hard = code.decode(word);
+            let ties = (0..(1u64 << code.k()))
+                .filter(|&m| (code.encode(m) ^ word).count_ones() == hard.distance)
+                .count();
+            if ties == 1 {
+                assert_eq!(soft.message, hard.message, "{} word {word:b}", code.name());
+                assert!(soft.margin > 0.0);
+            } else {
+                assert_eq!(soft.margin, 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn soft_decoding_agrees_with_hard_decoding_on_hard_words() {
+        soft_decoding_of_hard_words_is_nearest_codeword(&hamming74());
+        for n in 1..=7 {
+            soft_decoding_of_hard_words_is_nearest_codeword(&Repetition::new(n).unwrap());
+        }
+    }
+
+    #[test]
+    fn soft_decoding_weighs_reliable_bits() {
+        // Two weak ones against one strong zero: majority says 1, likelihood says 0.
+        let decoded = Repetition::new(3).unwrap().decode_soft(&[0.2, 0.3, -2.0]);
+        assert_eq!(decoded.message, 0);
+        assert_eq!(decoded.runner_up, 1);
+        assert!((decoded.margin - 1.5).abs() < 1e-12);
     }
 
     #[test]

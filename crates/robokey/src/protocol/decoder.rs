@@ -5,7 +5,7 @@
 use std::ops::Range;
 
 use crate::model::{DiffDrive, Pose, Unicycle, WheelSpeeds};
-use crate::observer::{InputEstimate, Observer, ObserverError, decide_bit};
+use crate::observer::{InputEstimate, Observer, ObserverError, decide_bit, log_likelihood_ratio};
 
 /// A command pair as the decoder knows it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,6 +26,8 @@ pub struct StepDecision {
     /// `b̂(k−1)`, or `None` when the step is erased (fallback applied, pair unknown) or
     /// the decoder does not decide (protocol off).
     pub bit: Option<u8>,
+    /// `ln p(d̂ | b = 1) − ln p(d̂ | b = 0)` under the decoder's model, when `bit` is decided.
+    pub llr: Option<f64>,
 }
 
 /// The result of a fresh measurement.
@@ -61,6 +63,12 @@ impl StepDecoder {
             last_pair: None,
             next_measurement: 0,
         }
+    }
+
+    /// Replaces the decoder's wheel model (an eavesdropper that identifies `r` and `D`
+    /// online); it applies to the decisions that follow.
+    pub fn set_drive(&mut self, drive: DiffDrive) {
+        self.drive = drive;
     }
 
     /// Records the pair sent for `step` with its nominal input `uU` (m/s, rad/s).
@@ -122,17 +130,26 @@ impl StepDecoder {
             let decided = step - 1;
             let estimate = self.observer.step(&self.input_for(decided), y)?;
             let pair = self.last_pair.filter(|p| p.step == decided);
-            let bit = match pair {
+            let (bit, llr) = match pair {
                 Some(p) if self.decides && applied_step == Some(decided) => {
                     let applied = self.drive.to_wheels(p.nominal + estimate.deviation);
-                    Some(decide_bit(&applied, &p.u0, &p.u1))
+                    let deviation_of = |u| self.drive.to_unicycle(u) - p.nominal;
+                    (
+                        Some(decide_bit(&applied, &p.u0, &p.u1)),
+                        Some(log_likelihood_ratio(
+                            &estimate,
+                            &deviation_of(p.u0),
+                            &deviation_of(p.u1),
+                        )),
+                    )
                 }
-                _ => None,
+                _ => (None, None),
             };
             Some(StepDecision {
                 step: decided,
                 estimate,
                 bit,
+                llr,
             })
         };
         Ok(Some(Measured {

@@ -1,0 +1,253 @@
+//! `robokey eve`: eavesdroppers on simulated sessions or on a relay capture.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use robokey::Config;
+use robokey::config::EveStrategy;
+use robokey::eve::{ModelErrors, starting_errors};
+use robokey::rng::{Purpose, stream};
+use robokey_lab::adversary::{campaign_markdown, run_campaign, write_campaign};
+use robokey_lab::files::{Override, prepare_output, write};
+use robokey_lab::runner::with_jobs;
+use robokey_net::capture_eve::{listen, read_session};
+use robokey_net::session::read_key_file;
+
+use crate::commands::load_config;
+use crate::{ConfigOptions, StrategyArg};
+
+#[derive(Args, Debug)]
+pub struct EveArgs {
+    /// Listen to the session in this relay capture (pcap) instead of simulating sessions.
+    #[arg(long)]
+    capture: Option<PathBuf>,
+    /// Configuration (TOML) of the sessions; defaults when omitted.
+    #[arg(long, short)]
+    config: Option<PathBuf>,
+    #[command(flatten)]
+    options: ConfigOptions,
+    /// Strategies, comma-separated (default: all five; on a capture: the config's
+    /// eve.strategy).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    strategy: Vec<StrategyArg>,
+    /// Sessions to simulate, in order (`eve.sessions`; default 5).
+    #[arg(long)]
+    sessions: Option<u32>,
+    /// Largest relative model error α of mismatch and soft (`eve.alpha`).
+    #[arg(long)]
+    alpha: Option<f64>,
+    /// Relative error on r and D the learning strategies start from (`eve.initial_error`).
+    #[arg(long)]
+    initial_error: Option<f64>,
+    /// Her starting relative errors on r, D, W, V given explicitly, e.g. `0.05,-0.02,0,0`
+    /// (every strategy but oracle).
+    #[arg(long, value_name = "R,D,W,V", conflicts_with = "alpha")]
+    errors: Option<String>,
+    /// Master seed (`run.seed`): the sessions and her draws (stream "eve", replicate 0).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Capture: the controller's key file, to measure her disagreement.
+    #[arg(long, requires = "capture")]
+    controller_key: Option<PathBuf>,
+    /// Output folder (simulation: default robokey-out/eve; capture: writes capture.json
+    /// when given).
+    #[arg(long, short)]
+    out: Option<PathBuf>,
+    /// Worker threads (0: one per core). Results do not depend on it.
+    #[arg(long, short, default_value_t = 0)]
+    jobs: usize,
+    /// Overwrite a non-empty output folder.
+    #[arg(long)]
+    force: bool,
+}
+
+pub fn eve(args: EveArgs) -> Result<()> {
+    let mut overrides = args.options.set.clone();
+    let mut flag = |field: &str, value: toml::Value| {
+        overrides.push(Override {
+            field: field.into(),
+            value,
+        });
+    };
+    if let Some(n) = args.sessions {
+        flag("eve.sessions", i64::from(n).into());
+    }
+    if let Some(x) = args.alpha {
+        flag("eve.alpha", x.into());
+    }
+    if let Some(x) = args.initial_error {
+        flag("eve.initial_error", x.into());
+    }
+    if let Some(seed) = args.seed {
+        let seed =
+            i64::try_from(seed).context("--seed must be below 2^63 (TOML integers are signed)")?;
+        flag("run.seed", seed.into());
+    }
+    let config = load_config(args.config.as_deref(), &overrides)?;
+    let explicit = args.errors.as_deref().map(parse_errors).transpose()?;
+    match &args.capture {
+        Some(capture) => on_capture(&args, capture, &config, explicit),
+        None => simulated(&args, &config, explicit),
+    }
+}
+
+/// `--errors r,D,W,V`.
+fn parse_errors(text: &str) -> Result<ModelErrors> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("--errors {text}: expected four numbers r,D,W,V"))?;
+    let [r, d, w, v] = values[..] else {
+        bail!("--errors {text}: expected four numbers r,D,W,V")
+    };
+    if values.iter().any(|e| e.is_nan() || e.abs() >= 1.0) {
+        bail!("--errors {text}: each relative error must be in (−1, 1)");
+    }
+    Ok(ModelErrors { r, d, w, v })
+}
+
+/// Her starting errors: `--errors` when given (not for the oracle), else drawn from her
+/// seeded stream as the config says.
+fn errors_of(config: &Config, strategy: EveStrategy, explicit: Option<ModelErrors>) -> ModelErrors {
+    match explicit {
+        Some(errors) if strategy != EveStrategy::Oracle => errors,
+        _ => {
+            let mut config = config.clone();
+            config.eve.strategy = strategy;
+            starting_errors(&config, &mut stream(config.run.seed, Purpose::Eve, 0))
+        }
+    }
+}
+
+fn simulated(args: &EveArgs, config: &Config, explicit: Option<ModelErrors>) -> Result<()> {
+    if explicit.is_some() {
+        bail!("--errors applies to a capture; in simulation set eve.alpha or eve.initial_error");
+    }
+    let strategies: Vec<EveStrategy> = if args.strategy.is_empty() {
+        EveStrategy::ALL.to_vec()
+    } else {
+        args.strategy.iter().map(|&s| s.into()).collect()
+    };
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("robokey-out/eve"));
+    prepare_output(&out, args.force)?;
+    let started = Instant::now();
+    let campaign = with_jobs(args.jobs, || run_campaign(config, &strategies))??;
+    let files = write_campaign(&out, &campaign)?;
+    write(&out.join("config.resolved.toml"), config.to_toml())?;
+    print!("{}", campaign_markdown(&campaign));
+    println!(
+        "\n{} sessions × {} strategies in {:.2} s; wrote {} files to {}",
+        config.eve.sessions,
+        strategies.len(),
+        started.elapsed().as_secs_f64(),
+        files.len() + 1,
+        out.display()
+    );
+    Ok(())
+}
+
+fn on_capture(
+    args: &EveArgs,
+    capture: &std::path::Path,
+    config: &Config,
+    explicit: Option<ModelErrors>,
+) -> Result<()> {
+    let strategies: Vec<EveStrategy> = if args.strategy.is_empty() {
+        vec![config.eve.strategy]
+    } else {
+        args.strategy.iter().map(|&s| s.into()).collect()
+    };
+    let captured = read_session(capture, config)?;
+    let controller = args
+        .controller_key
+        .as_deref()
+        .map(read_key_file)
+        .transpose()?;
+    println!(
+        "eve: session {:08x}, {} frames ({} undecodable datagrams)",
+        captured.session,
+        captured.messages.len(),
+        captured.undecodable
+    );
+    let mut reports = Vec::new();
+    for strategy in strategies {
+        let errors = errors_of(config, strategy, explicit);
+        let result = listen(&captured, config, strategy, errors);
+        let decided = result.decisions.iter().flatten().count();
+        let (r, d) = (
+            result.model.wheel_radius / config.robot.r - 1.0,
+            result.model.axle_length / config.robot.axle_length - 1.0,
+        );
+        println!(
+            "eve[{}]: {decided} steps decided, key {} bits; model errors r {:+.4}, D {:+.4} (started at r {:+.4}, D {:+.4}, W {:+.4}, V {:+.4}){}",
+            strategy.name(),
+            result.key.len(),
+            r,
+            d,
+            errors.r,
+            errors.d,
+            errors.w,
+            errors.v,
+            result.tag_flips.map_or(String::new(), |f| format!(
+                "; key verified by the confirmation tag after flipping {f} codewords"
+            )),
+        );
+        let disagreement = match (&controller, args.controller_key.as_deref()) {
+            (Some(key), Some(path)) => {
+                if key.len() != result.key.len() {
+                    bail!(
+                        "{}: the controller's key has {} bits, Eve's {}: not the same session?",
+                        path.display(),
+                        key.len(),
+                        result.key.len()
+                    );
+                }
+                let differ = key
+                    .iter()
+                    .zip(result.key.iter())
+                    .filter(|(a, b)| a != b)
+                    .count();
+                let pct = (!key.is_empty()).then(|| 100.0 * differ as f64 / key.len() as f64);
+                match pct {
+                    Some(p) => println!(
+                        "eve[{}]: disagrees with the controller's key on {differ} of {} bits ({p:.2} %)",
+                        strategy.name(),
+                        key.len()
+                    ),
+                    None => println!("eve[{}]: the controller's key is empty", strategy.name()),
+                }
+                pct
+            }
+            _ => None,
+        };
+        reports.push(serde_json::json!({
+            "strategy": strategy.name(),
+            "start_errors": { "r": errors.r, "D": errors.d, "W": errors.w, "V": errors.v },
+            "end_errors": { "r": r, "D": d },
+            "decisions": result.decisions,
+            "key_bits": result.key.len(),
+            "tag_flips": result.tag_flips,
+            "disagreement_pct": disagreement,
+        }));
+    }
+    if let Some(out) = &args.out {
+        std::fs::create_dir_all(out).with_context(|| format!("create {}", out.display()))?;
+        let json = serde_json::json!({
+            "session": captured.session,
+            "frames": captured.messages.len(),
+            "undecodable": captured.undecodable,
+            "strategies": reports,
+        });
+        write(
+            &out.join("capture.json"),
+            serde_json::to_string_pretty(&json)? + "\n",
+        )?;
+    }
+    Ok(())
+}
