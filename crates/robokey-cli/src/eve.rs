@@ -9,7 +9,7 @@ use robokey::Config;
 use robokey::config::EveStrategy;
 use robokey::eve::{ModelErrors, starting_errors};
 use robokey::rng::{Purpose, stream};
-use robokey_lab::adversary::{campaign_markdown, run_campaign, write_campaign};
+use robokey_lab::adversary::{campaign_markdown, run_campaigns, write_campaign};
 use robokey_lab::files::{Override, prepare_output, write};
 use robokey_lab::runner::with_jobs;
 use robokey_net::capture_eve::{listen, read_session};
@@ -35,6 +35,10 @@ pub struct EveArgs {
     /// Sessions to simulate, in order (`eve.sessions`; default 5).
     #[arg(long)]
     sessions: Option<u32>,
+    /// Independent campaigns of `--sessions` sessions each (new sessions, new starting
+    /// errors); the report adds medians and ranges over them.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    campaigns: u32,
     /// Largest relative model error α of mismatch and soft (`eve.alpha`).
     #[arg(long)]
     alpha: Option<f64>,
@@ -137,12 +141,15 @@ fn simulated(args: &EveArgs, config: &Config, explicit: Option<ModelErrors>) -> 
         .unwrap_or_else(|| PathBuf::from("robokey-out/eve"));
     prepare_output(&out, args.force)?;
     let started = Instant::now();
-    let campaign = with_jobs(args.jobs, || run_campaign(config, &strategies))??;
+    let campaign = with_jobs(args.jobs, || {
+        run_campaigns(config, &strategies, args.campaigns)
+    })??;
     let files = write_campaign(&out, &campaign)?;
     write(&out.join("config.resolved.toml"), config.to_toml())?;
     print!("{}", campaign_markdown(&campaign));
     println!(
-        "\n{} sessions × {} strategies in {:.2} s; wrote {} files to {}",
+        "\n{} × {} sessions × {} strategies in {:.2} s; wrote {} files to {}",
+        args.campaigns,
         config.eve.sessions,
         strategies.len(),
         started.elapsed().as_secs_f64(),

@@ -4,6 +4,7 @@
 //! to match the controller, and her disagreement with `K_c` per session.
 
 use std::fmt::Write as _;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
@@ -23,24 +24,33 @@ use crate::runner::progress_bar;
 /// One simulated session: what happened, and every message in the order Eve heard it.
 #[derive(Debug)]
 pub struct HeardSession {
+    /// Its replicate, which is also its session id.
+    pub replicate: u32,
     /// The run (true bits, the controller's decisions, the keys).
     pub run: RunOutput,
     /// The messages.
     pub transcript: Vec<Message>,
 }
 
-/// Simulates sessions `0..sessions` of `config` (replicate = session id), in parallel.
+/// Simulates the sessions `replicates` of `config` (replicate = session id), in parallel.
 ///
 /// # Errors
 /// A session aborted.
-pub fn simulate_sessions(config: &Config, sessions: u32) -> Result<Vec<HeardSession>, LabError> {
-    let bar = progress_bar(sessions as usize, "sessions");
-    let heard = (0..sessions)
+pub fn simulate_sessions(
+    config: &Config,
+    replicates: Range<u32>,
+) -> Result<Vec<HeardSession>, LabError> {
+    let bar = progress_bar(replicates.len(), "sessions");
+    let heard = replicates
         .into_par_iter()
-        .map(|session| {
-            let (run, transcript) = simulate_transcript(config, session)?;
+        .map(|replicate| {
+            let (run, transcript) = simulate_transcript(config, replicate)?;
             bar.inc(1);
-            Ok(HeardSession { run, transcript })
+            Ok(HeardSession {
+                replicate,
+                run,
+                transcript,
+            })
         })
         .collect();
     bar.finish_and_clear();
@@ -83,11 +93,13 @@ pub struct SessionRecord {
     pub confirmed: bool,
 }
 
-/// Everything one strategy did over the sessions.
+/// Everything one strategy did over the sessions of one campaign.
 #[derive(Clone, Debug, Serialize)]
 pub struct StrategyRun {
     /// The strategy.
     pub strategy: EveStrategy,
+    /// The campaign (independent sessions and starting errors).
+    pub campaign: u32,
     /// Her starting relative errors (r, D, W, V).
     pub start: [f64; 4],
     /// Every period with a known bit that both she and the controller decided.
@@ -98,15 +110,26 @@ pub struct StrategyRun {
     /// The first period from which her windowed error rate stays within the tolerance of
     /// the controller's (`None`: not by the end).
     pub match_period: Option<u64>,
+    /// Sessions heard until her r and D stay within 1 % of the truth at every later
+    /// session's end (0: from the start; `None`: not by the end).
+    pub sessions_to_model: Option<u32>,
 }
 
-/// Eve's starting point for `strategy` under `config`: her errors drawn from the `eve`
-/// stream of replicate 0, so every consumer of the same config meets the same Eve.
+/// A model is "identified" once within this relative error of the truth on r and D.
+pub const MODEL_TOLERANCE: f64 = 0.01;
+
+/// Eve's starting point for `strategy` under `config` in campaign `campaign`: her errors
+/// drawn from the `eve` stream of that replicate, so every consumer of the same config
+/// meets the same Eve.
 #[must_use]
-pub fn eavesdropper(config: &Config, strategy: EveStrategy) -> Eve {
+pub fn eavesdropper(config: &Config, strategy: EveStrategy, campaign: u32) -> Eve {
     let mut config = config.clone();
     config.eve.strategy = strategy;
-    let errors = starting_errors(&config, &mut stream(config.run.seed, Purpose::Eve, 0));
+    let seed = config.run.seed;
+    let errors = starting_errors(
+        &config,
+        &mut stream(seed, Purpose::Eve, u64::from(campaign)),
+    );
     Eve::new(&config, strategy, errors)
 }
 
@@ -128,12 +151,25 @@ pub fn overhear(
     eve.key()
 }
 
-/// Feeds one strategy every session in order.
+/// Feeds one strategy, as campaign `campaign` draws her, every session in order.
 #[must_use]
-pub fn listen(config: &Config, strategy: EveStrategy, heard: &[HeardSession]) -> StrategyRun {
-    let mut eve = eavesdropper(config, strategy);
+pub fn listen(
+    config: &Config,
+    strategy: EveStrategy,
+    campaign: u32,
+    heard: &[HeardSession],
+) -> StrategyRun {
+    let mut eve = eavesdropper(config, strategy, campaign);
     let errors = eve.errors();
-    let truth = (config.robot.r, config.robot.axle_length);
+    let model_error = |eve: &Eve| {
+        let model = eve.model();
+        (
+            model.wheel_radius / config.robot.r - 1.0,
+            model.axle_length / config.robot.axle_length - 1.0,
+        )
+    };
+    let within = |(r, d): (f64, f64)| r.abs().max(d.abs()) < MODEL_TOLERANCE;
+    let mut identified_from = within((errors.r, errors.d)).then_some(0);
     let mut periods = Vec::new();
     let mut sessions = Vec::new();
     let mut elapsed = 0u64;
@@ -143,14 +179,14 @@ pub fn listen(config: &Config, strategy: EveStrategy, heard: &[HeardSession]) ->
         let k_a = overhear(
             &mut eve,
             config,
-            index,
+            session.replicate,
             &session.transcript,
             |eve, step, bit| {
                 let logged = steps.get(step as usize);
                 if let (Some(eve_bit), Some(logged)) = (bit, logged)
                     && let (Some(bit), Some(controller)) = (logged.bit, logged.bhat)
                 {
-                    let model = eve.model();
+                    let (r_error, d_error) = model_error(eve);
                     periods.push(PeriodRecord {
                         session: index,
                         step,
@@ -158,8 +194,8 @@ pub fn listen(config: &Config, strategy: EveStrategy, heard: &[HeardSession]) ->
                         bit,
                         controller,
                         eve: eve_bit,
-                        r_error: model.wheel_radius / truth.0 - 1.0,
-                        d_error: model.axle_length / truth.1 - 1.0,
+                        r_error,
+                        d_error,
                     });
                 }
             },
@@ -175,6 +211,11 @@ pub fn listen(config: &Config, strategy: EveStrategy, heard: &[HeardSession]) ->
             tag_flips: eve.verified(),
             confirmed: session.run.controller_outcome == Some(Outcome::Confirmed),
         });
+        identified_from = match (within(model_error(&eve)), identified_from) {
+            (true, None) => Some(index + 1),
+            (true, kept) => kept,
+            (false, _) => None,
+        };
     }
     let match_period = match_period(
         &periods,
@@ -183,10 +224,12 @@ pub fn listen(config: &Config, strategy: EveStrategy, heard: &[HeardSession]) ->
     );
     StrategyRun {
         strategy,
+        campaign,
         start: [errors.r, errors.d, errors.w, errors.v],
         periods,
         sessions,
         match_period,
+        sessions_to_model: identified_from,
     }
 }
 
@@ -230,28 +273,56 @@ pub fn match_period(periods: &[PeriodRecord], window: usize, tolerance_pp: f64) 
 pub struct Campaign {
     /// The configuration.
     pub config: Config,
-    /// One run per strategy, in the order asked.
+    /// Campaign 0: one run per strategy, in the order asked, with every period.
     pub runs: Vec<StrategyRun>,
+    /// Every campaign's runs (campaign-major, strategies in order), without their periods.
+    pub all: Vec<StrategyRun>,
     /// Periods `N` of one session.
     pub steps_per_session: u32,
 }
 
-/// Simulates `config.eve.sessions` sessions and feeds them to every strategy (strategies
-/// in parallel, each one's sessions in order).
+/// Runs `campaigns` independent campaigns: campaign c simulates the sessions (replicates)
+/// `c·S … c·S + S − 1`, `S = eve.sessions`, and feeds them in order to every strategy, her
+/// starting errors drawn from the `eve` stream of replicate c. Runs in parallel;
+/// deterministic.
+///
+/// # Errors
+/// A session aborted.
+pub fn run_campaigns(
+    config: &Config,
+    strategies: &[EveStrategy],
+    campaigns: u32,
+) -> Result<Campaign, LabError> {
+    let per = config.eve.sessions;
+    let heard = simulate_sessions(config, 0..campaigns.saturating_mul(per))?;
+    let jobs: Vec<(u32, EveStrategy)> = (0..campaigns)
+        .flat_map(|c| strategies.iter().map(move |&s| (c, s)))
+        .collect();
+    let mut all: Vec<StrategyRun> = jobs
+        .par_iter()
+        .map(|&(c, strategy)| {
+            let sessions = &heard[(c * per) as usize..((c + 1) * per) as usize];
+            listen(config, strategy, c, sessions)
+        })
+        .collect();
+    let runs = all[..strategies.len().min(all.len())].to_vec();
+    for run in &mut all {
+        run.periods = Vec::new();
+    }
+    Ok(Campaign {
+        config: config.clone(),
+        runs,
+        all,
+        steps_per_session: SessionPlan::from_config(config, 0).steps,
+    })
+}
+
+/// One campaign ([`run_campaigns`] with one).
 ///
 /// # Errors
 /// A session aborted.
 pub fn run_campaign(config: &Config, strategies: &[EveStrategy]) -> Result<Campaign, LabError> {
-    let heard = simulate_sessions(config, config.eve.sessions)?;
-    let runs = strategies
-        .par_iter()
-        .map(|&strategy| listen(config, strategy, &heard))
-        .collect();
-    Ok(Campaign {
-        config: config.clone(),
-        runs,
-        steps_per_session: SessionPlan::from_config(config, 0).steps,
-    })
+    run_campaigns(config, strategies, 1)
 }
 
 fn percent(value: Option<f64>) -> String {
@@ -290,16 +361,18 @@ pub fn periods_csv(campaign: &Campaign) -> String {
     csv
 }
 
-/// `sessions.csv`: per strategy and session, her disagreement with `K_c`.
+/// `sessions.csv`: per campaign, strategy and session, her disagreement with `K_c`.
 #[must_use]
 pub fn sessions_csv(campaign: &Campaign) -> String {
-    let mut csv =
-        String::from("strategy,session,key_bits,disagreement_pct,tag_flips,controller_confirmed\n");
-    for run in &campaign.runs {
+    let mut csv = String::from(
+        "campaign,strategy,session,key_bits,disagreement_pct,tag_flips,controller_confirmed\n",
+    );
+    for run in &campaign.all {
         for s in &run.sessions {
             let _ = writeln!(
                 csv,
-                "{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{}",
+                run.campaign,
                 run.strategy.name(),
                 s.session,
                 s.key_bits,
@@ -333,10 +406,139 @@ fn match_text(run: &StrategyRun, campaign: &Campaign) -> String {
 #[must_use]
 pub fn campaign_markdown(campaign: &Campaign) -> String {
     format!(
-        "# Eavesdroppers over {} sessions\n\n{}",
+        "# Eavesdroppers over {} sessions\n\n{}{}",
         campaign.config.eve.sessions,
-        campaign_body(campaign, "")
+        campaign_body(campaign, ""),
+        campaigns_summary(campaign, "##")
     )
+}
+
+/// Median and range of some values, e.g. `1067 (225–5094)`.
+fn median_range(mut values: Vec<f64>, digits: usize) -> String {
+    if values.is_empty() {
+        return "–".into();
+    }
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    let median = if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        f64::midpoint(values[n / 2 - 1], values[n / 2])
+    };
+    format!(
+        "{median:.digits$} ({:.digits$}–{:.digits$})",
+        values[0],
+        values[n - 1]
+    )
+}
+
+/// Over every campaign (when there are several): per strategy, how often and how fast she
+/// matched the controller and identified the model, and her disagreement with `K_c`.
+#[must_use]
+pub fn campaigns_summary(campaign: &Campaign, heading: &str) -> String {
+    let count = campaign
+        .all
+        .iter()
+        .map(|r| r.campaign + 1)
+        .max()
+        .unwrap_or(0);
+    if count < 2 {
+        return String::new();
+    }
+    let mut md = format!(
+        "\n{heading} Over {count} independent campaigns\n\nCampaign c hears sessions c·{n} … c·{n} + {last} \
+         (replicates of seed {seed}); her starting errors are drawn anew for each. Medians (min–max) over the \
+         campaigns where the event happened.\n\n\
+         | strategy | matched the controller | periods to match | sessions to r, D within 1 % | disagreement with K_c, first session (mean %) | later sessions (mean %) | keys verified by tag |\n\
+         |---|---|---|---|---|---|---|\n",
+        n = campaign.config.eve.sessions,
+        last = campaign.config.eve.sessions - 1,
+        seed = campaign.config.run.seed,
+    );
+    for strategy in campaign.runs.iter().map(|r| r.strategy) {
+        let runs: Vec<&StrategyRun> = campaign
+            .all
+            .iter()
+            .filter(|r| r.strategy == strategy)
+            .collect();
+        let matched: Vec<f64> = runs
+            .iter()
+            .filter_map(|r| r.match_period.map(|p| p as f64))
+            .collect();
+        let modelled: Vec<f64> = runs
+            .iter()
+            .filter_map(|r| r.sessions_to_model.map(f64::from))
+            .collect();
+        let mean = |values: Vec<f64>| {
+            (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+        };
+        let disagreement = |first: bool| {
+            mean(
+                runs.iter()
+                    .flat_map(|r| r.sessions.iter())
+                    .filter(|s| (s.session == 0) == first)
+                    .filter_map(|s| s.disagreement_pct)
+                    .collect(),
+            )
+        };
+        let sessions: usize = runs.iter().map(|r| r.sessions.len()).sum();
+        let verified = runs
+            .iter()
+            .flat_map(|r| r.sessions.iter())
+            .filter(|s| s.tag_flips.is_some())
+            .count();
+        let _ = writeln!(
+            md,
+            "| {} | {}/{count} | {} | {} ({}/{count}) | {} | {} | {verified}/{sessions} |",
+            strategy.name(),
+            matched.len(),
+            median_range(matched, 0),
+            median_range(modelled.clone(), 0),
+            modelled.len(),
+            percent(disagreement(true)),
+            percent(disagreement(false)),
+        );
+    }
+    md
+}
+
+/// `campaigns.csv`: one row per campaign and strategy.
+#[must_use]
+pub fn campaigns_csv(campaign: &Campaign) -> String {
+    let mut csv = String::from(
+        "campaign,strategy,start_r_error_pct,start_d_error_pct,match_period,sessions_to_model,mean_disagreement_pct,keys_verified\n",
+    );
+    for run in &campaign.all {
+        let disagreements: Vec<f64> = run
+            .sessions
+            .iter()
+            .filter_map(|s| s.disagreement_pct)
+            .collect();
+        let _ = writeln!(
+            csv,
+            "{},{},{:.2},{:.2},{},{},{},{}",
+            run.campaign,
+            run.strategy.name(),
+            100.0 * run.start[0],
+            100.0 * run.start[1],
+            run.match_period.map_or(String::new(), |p| p.to_string()),
+            run.sessions_to_model
+                .map_or(String::new(), |s| s.to_string()),
+            if disagreements.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "{:.4}",
+                    disagreements.iter().sum::<f64>() / disagreements.len() as f64
+                )
+            },
+            run.sessions
+                .iter()
+                .filter(|s| s.tag_flips.is_some())
+                .count(),
+        );
+    }
+    csv
 }
 
 /// The setting, the table, the figures (under `figures`) and what they mean.
@@ -401,20 +603,144 @@ pub fn campaign_body(campaign: &Campaign, figures: &str) -> String {
                 .filter_map(move |s| Some((s.disagreement_pct?, run.strategy.name(), s.session)))
         })
         .max_by(|a, b| a.0.total_cmp(&b.0));
-    if let Some((pct, name, session)) = worst {
-        let _ = writeln!(
-            md,
-            "\nThe largest disagreement of any strategy with any session's K_c is {pct:.2} % ({name}, session {}). \
-             A session makes one key: an eavesdropper who matches the controller within a session hears that key, \
-             and every later one, as well as the controller does.",
-            session + 1
-        );
-    }
+    let _ = writeln!(
+        md,
+        "\n{} A session makes one key: an eavesdropper who matches the controller within a session hears that \
+         key, and every later one, as well as the controller does.",
+        match worst {
+            Some((pct, name, session)) if pct > 0.0 => format!(
+                "The largest disagreement of any strategy with any session's K_c is {pct:.2} % ({name}, session {}).",
+                session + 1
+            ),
+            Some(_) => "No strategy disagrees with any session's K_c on a single bit.".to_owned(),
+            None => "No session accepted a codeword.".to_owned(),
+        }
+    );
     let _ = write!(
         md,
-        "\n![error rates]({figures}eve-error-rate.svg)\n\n![parameter error]({figures}eve-parameters.svg)\n"
+        "\n![error rates]({figures}eve-error-rate.svg)\n\n![excess error]({figures}eve-excess-error.svg)\n\n\
+         ![parameter error]({figures}eve-parameters.svg)\n"
     );
     md
+}
+
+/// `eve-error-rate` (every strategy and the controller), `eve-excess-error` (hers minus
+/// the controller's, with the tolerance) and, for the learning strategies,
+/// `eve-parameters` (relative errors on r and D, logarithmic).
+fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
+    let window = campaign.config.eve.window as usize;
+    let rates: Vec<Vec<(u64, f64, f64)>> = campaign
+        .runs
+        .iter()
+        .map(|run| windowed_error_rates(&run.periods, window))
+        .collect();
+    let line = |label: String, points: Vec<(f64, f64)>, style| Series {
+        label,
+        points,
+        style,
+    };
+    let per_strategy = |value: fn(&(u64, f64, f64)) -> f64| -> Vec<Series> {
+        campaign
+            .runs
+            .iter()
+            .zip(&rates)
+            .map(|(run, rates)| {
+                let points = rates.iter().map(|r| (r.0 as f64, value(r))).collect();
+                line(run.strategy.name().into(), points, SeriesStyle::Line)
+            })
+            .collect()
+    };
+    // A horizontal reference line at `y` across the periods heard.
+    let periods_heard = campaign
+        .runs
+        .first()
+        .map_or(0, |run| run.periods.last().map_or(0, |p| p.period));
+    let level = |label: String, y: f64| {
+        let points = vec![(1.0, y), (periods_heard as f64, y)];
+        line(label, points, SeriesStyle::Dashed)
+    };
+
+    let mut error_rate = per_strategy(|r| r.1);
+    if let Some(first) = rates.first() {
+        let points = first.iter().map(|r| (r.0 as f64, r.2)).collect();
+        error_rate.push(line("controller".into(), points, SeriesStyle::Dashed));
+    }
+    let mut excess = per_strategy(|r| r.1 - r.2);
+    let tolerance = campaign.config.eve.match_tolerance_pp;
+    excess.push(level(format!("tolerance ({tolerance} pp)"), tolerance));
+    let learners: Vec<&StrategyRun> = campaign
+        .runs
+        .iter()
+        .filter(|r| matches!(r.strategy, EveStrategy::Identify | EveStrategy::Transcript))
+        .collect();
+    let mut parameters: Vec<Series> = learners
+        .iter()
+        .flat_map(|run| {
+            let name = run.strategy.name();
+            let error_of = |pick: fn(&PeriodRecord) -> f64| {
+                run.periods
+                    .iter()
+                    .map(|p| (p.period as f64, 100.0 * pick(p).abs()))
+                    .collect()
+            };
+            [
+                line(
+                    format!("{name}: r"),
+                    error_of(|p| p.r_error),
+                    SeriesStyle::Line,
+                ),
+                line(
+                    format!("{name}: D"),
+                    error_of(|p| p.d_error),
+                    SeriesStyle::Dashed,
+                ),
+            ]
+        })
+        .collect();
+    if !learners.is_empty() {
+        parameters.push(level("1 %".into(), 1.0));
+    }
+    let charts = [
+        (
+            "eve-error-rate",
+            format!("Bit error rate over the last {window} periods"),
+            "error rate (%)",
+            error_rate,
+            false,
+        ),
+        (
+            "eve-excess-error",
+            format!("Her error rate minus the controller's, last {window} periods"),
+            "excess error rate (percentage points)",
+            excess,
+            false,
+        ),
+        (
+            "eve-parameters",
+            "Identified wheel geometry: |relative error|".to_owned(),
+            "relative error (%, log scale)",
+            parameters,
+            true,
+        ),
+    ];
+    let mut files = Vec::new();
+    for (name, title, y_label, series, log_y) in charts {
+        if series.iter().all(|s| s.points.is_empty()) {
+            continue;
+        }
+        files.extend(chart(
+            &dir.join(name),
+            &LineChart {
+                title,
+                x_label: "periods heard".into(),
+                y_label: y_label.into(),
+                series,
+                equal_aspect: false,
+                log_y,
+            },
+        )?);
+    }
+    Ok(files)
 }
 
 fn chart(base: &Path, chart: &LineChart) -> Result<Vec<PathBuf>, LabError> {
@@ -424,8 +750,8 @@ fn chart(base: &Path, chart: &LineChart) -> Result<Vec<PathBuf>, LabError> {
     })
 }
 
-/// Writes `periods.csv`, `sessions.csv`, `summary.json`, `report.md` and the figures
-/// `eve-error-rate` and `eve-parameters` into `dir`; returns the files.
+/// Writes `periods.csv` and `sessions.csv` (campaign 0), `campaigns.csv`, `summary.json`,
+/// `report.md` and the figures (see [`figures`]) into `dir`; returns the files.
 ///
 /// # Errors
 /// A file cannot be written.
@@ -437,92 +763,19 @@ pub fn write_campaign(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, L
         "match_tolerance_pp": campaign.config.eve.match_tolerance_pp,
         "steps_per_session": campaign.steps_per_session,
         "strategies": campaign.runs,
+        "campaigns": campaign.all,
     });
     let mut files = vec![
         write(&dir.join("periods.csv"), periods_csv(campaign))?,
         write(&dir.join("sessions.csv"), sessions_csv(campaign))?,
+        write(&dir.join("campaigns.csv"), campaigns_csv(campaign))?,
         write(
             &dir.join("summary.json"),
             serde_json::to_string_pretty(&summary).expect("JSON serializes") + "\n",
         )?,
         write(&dir.join("report.md"), campaign_markdown(campaign))?,
     ];
-    let window = campaign.config.eve.window as usize;
-    let mut series: Vec<Series> = campaign
-        .runs
-        .iter()
-        .map(|run| Series {
-            label: run.strategy.name().into(),
-            points: windowed_error_rates(&run.periods, window)
-                .iter()
-                .map(|&(period, eve, _)| (period as f64, eve))
-                .collect(),
-            style: SeriesStyle::Line,
-        })
-        .collect();
-    if let Some(run) = campaign.runs.first() {
-        series.push(Series {
-            label: "controller".into(),
-            points: windowed_error_rates(&run.periods, window)
-                .iter()
-                .map(|&(period, _, controller)| (period as f64, controller))
-                .collect(),
-            style: SeriesStyle::Dashed,
-        });
-    }
-    files.extend(chart(
-        &dir.join("eve-error-rate"),
-        &LineChart {
-            title: format!("Bit error rate over the last {window} periods"),
-            x_label: "periods heard".into(),
-            y_label: "error rate (%)".into(),
-            series,
-            equal_aspect: false,
-        },
-    )?);
-    let learners: Vec<&StrategyRun> = campaign
-        .runs
-        .iter()
-        .filter(|r| matches!(r.strategy, EveStrategy::Identify | EveStrategy::Transcript))
-        .collect();
-    let parameter_series = learners
-        .iter()
-        .flat_map(|run| {
-            let name = run.strategy.name();
-            [
-                Series {
-                    label: format!("{name}: |r error|"),
-                    points: run
-                        .periods
-                        .iter()
-                        .map(|p| (p.period as f64, 100.0 * p.r_error.abs()))
-                        .collect(),
-                    style: SeriesStyle::Line,
-                },
-                Series {
-                    label: format!("{name}: |D error|"),
-                    points: run
-                        .periods
-                        .iter()
-                        .map(|p| (p.period as f64, 100.0 * p.d_error.abs()))
-                        .collect(),
-                    style: SeriesStyle::Dashed,
-                },
-            ]
-        })
-        .collect::<Vec<_>>();
-    if !parameter_series.is_empty() {
-        files.extend(chart(
-            &dir.join("eve-parameters"),
-            &LineChart {
-                title: "Identified wheel geometry: relative error".into(),
-                x_label: "periods heard".into(),
-                y_label: "relative error (%)".into(),
-                series: parameter_series,
-                equal_aspect: false,
-            },
-        )?);
-    }
+    files.extend(figures(dir, campaign)?);
     Ok(files)
 }
 
@@ -542,8 +795,8 @@ mod tests {
     #[test]
     fn the_identifying_eve_learns_r_and_d_to_one_percent_in_two_sessions() {
         let config = Config::default();
-        let heard = simulate_sessions(&config, 10).unwrap();
-        let run = listen(&config, EveStrategy::Identify, &heard);
+        let heard = simulate_sessions(&config, 0..10).unwrap();
+        let run = listen(&config, EveStrategy::Identify, 0, &heard);
         assert!(run.start[..2].iter().all(|e| (e.abs() - 0.4).abs() < 1e-12));
         let ends = end_of_session_errors(&run);
         // Seed 2023: 2.2 % after the first session, within 1 % from the second on.

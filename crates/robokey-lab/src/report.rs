@@ -21,15 +21,21 @@ const PERMUTATIONS: usize = 9_999;
 /// Seed of the trend tests' permutations.
 const TREND_SEED: u64 = 2023;
 
+/// Independent eavesdropping campaigns in `reproduce`.
+const EVE_CAMPAIGNS: u32 = 20;
+
 /// Adds the eavesdroppers of SECRECY §6 to `reproduce`: every strategy on the default
-/// configuration's sessions, in order (`robokey eve`).
+/// configuration's sessions, in order, over independent campaigns (`robokey eve`).
 fn adversary_section(out: &Path) -> Result<String, LabError> {
+    use crate::adversary::{campaign_body, campaigns_summary, run_campaigns, write_campaign};
     use robokey::config::EveStrategy;
-    let campaign = crate::adversary::run_campaign(&robokey::Config::default(), &EveStrategy::ALL)?;
-    crate::adversary::write_campaign(&out.join("eve"), &campaign)?;
+    let config = robokey::Config::default();
+    let campaign = run_campaigns(&config, &EveStrategy::ALL, EVE_CAMPAIGNS)?;
+    write_campaign(&out.join("eve"), &campaign)?;
     Ok(format!(
-        "\n## Adversaries that try harder\n\n{}",
-        crate::adversary::campaign_body(&campaign, "eve/")
+        "\n## Adversaries that try harder\n\n### One campaign\n\n{}{}",
+        campaign_body(&campaign, "eve/"),
+        campaigns_summary(&campaign, "###")
     ))
 }
 
@@ -130,6 +136,7 @@ pub fn trajectory_figure(
         y_label: "y (m)".into(),
         series,
         equal_aspect: true,
+        log_y: false,
     };
     chart.save(base).map_err(|e| LabError::Plot {
         path: base.to_path_buf(),

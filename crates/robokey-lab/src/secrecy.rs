@@ -190,7 +190,7 @@ fn sessions(
     let mut runs: Vec<RunOutput> = Vec::new();
     let minimum = experiment.replicates();
     let mut learner = matches!(adversary, EveStrategy::Identify | EveStrategy::Transcript)
-        .then(|| eavesdropper(&config, adversary));
+        .then(|| eavesdropper(&config, adversary, 0));
     while (runs.len() as u32) < options.max_sessions {
         let bits: usize = runs.iter().map(|r| r.keys.controller.len()).sum();
         if bits >= needed && runs.len() as u32 >= minimum {
@@ -623,6 +623,7 @@ pub fn write_secrecy(
             y_label: "bits per step".into(),
             series,
             equal_aspect: false,
+            log_y: false,
         };
         let base = dir.join("secrecy-bits-per-step");
         files.extend(chart.save(&base).map_err(|e| LabError::Plot {

@@ -1,9 +1,12 @@
-//! Speed of one default run: 1020 steps, controller and Eve observers, plant noise.
+//! Speed of one default run (1020 steps, controller and Eve observers, plant noise), and of
+//! each eavesdropper strategy listening to one recorded session.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use robokey::Config;
+use robokey::config::EveStrategy;
+use robokey::eve::{Eavesdropper, Eve, ModelErrors};
 use robokey::protocol::SessionPlan;
-use robokey::sim::simulate_plan;
+use robokey::sim::{simulate_plan, simulate_transcript};
 
 fn one_run(c: &mut Criterion) {
     let config = Config::default();
@@ -16,5 +19,32 @@ fn one_run(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, one_run);
+fn eavesdroppers(c: &mut Criterion) {
+    let config = Config::default();
+    let plan = SessionPlan::from_config(&config, 0);
+    let (_, transcript) = simulate_transcript(&config, 0).unwrap();
+    // 20 % off on r and D: the transcript Eve has codewords to flip.
+    let errors = ModelErrors {
+        r: 0.2,
+        d: -0.2,
+        ..ModelErrors::default()
+    };
+    let mut group = c.benchmark_group("eve session");
+    group.throughput(Throughput::Elements(u64::from(plan.steps)));
+    for strategy in EveStrategy::ALL {
+        group.bench_function(strategy.name(), |b| {
+            b.iter(|| {
+                let mut eve = Eve::new(&config, strategy, errors);
+                eve.begin_session(&plan);
+                for message in &transcript {
+                    eve.observe(message);
+                }
+                eve.key()
+            });
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, one_run, eavesdroppers);
 criterion_main!(benches);

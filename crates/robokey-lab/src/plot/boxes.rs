@@ -122,6 +122,7 @@ impl Figure for BoxChart {
                 x: x_range,
                 y: y_range,
                 x_ticks: x_values.clamp(2, 12),
+                y_log10: false,
             },
         )?;
         for (g, (group, shapes)) in self.groups.iter().zip(&geometry).enumerate() {

@@ -43,6 +43,8 @@ pub struct LineChart {
     pub series: Vec<Series>,
     /// Same scale on both axes (a square looks square).
     pub equal_aspect: bool,
+    /// Logarithmic y axis (points with y ≤ 0 are skipped).
+    pub log_y: bool,
 }
 
 impl LineChart {
@@ -65,10 +67,11 @@ impl Figure for LineChart {
         &self,
         root: &DrawingArea<DB, plotters::coord::Shift>,
     ) -> Result<(), String> {
+        let log_y = self.log_y;
         let finite = |s: &Series| -> Vec<(f64, f64)> {
             s.points
                 .iter()
-                .copied()
+                .map(|&(x, y)| (x, if log_y { y.log10() } else { y }))
                 .filter(|(x, y)| x.is_finite() && y.is_finite())
                 .collect()
         };
@@ -93,6 +96,7 @@ impl Figure for LineChart {
                 x: x_range,
                 y: y_range,
                 x_ticks: 10,
+                y_log10: log_y,
             },
         )?;
         for (i, series) in self.series.iter().enumerate() {

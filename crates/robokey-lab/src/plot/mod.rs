@@ -95,6 +95,8 @@ struct Axes<'a> {
     y: (f64, f64),
     /// Number of x tick labels.
     x_ticks: usize,
+    /// The y values are `log10` of the quantity; ticks show the quantity.
+    y_log10: bool,
 }
 
 /// A chart context on `root` with a title, labelled axes and light grid, white background.
@@ -110,17 +112,28 @@ fn chart_on<'a, DB: DrawingBackend>(
         .y_label_area_size(75)
         .build_cartesian_2d(axes.x.0..axes.x.1, axes.y.0..axes.y.1)
         .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc(axes.x_label)
+    let ticks_of_log10 = |v: &f64| format!("{}", significant(10f64.powf(*v)));
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(axes.x_label)
         .y_desc(axes.y_label)
         .label_style((FONT, 15))
         .axis_desc_style((FONT, 18))
         .x_labels(axes.x_ticks)
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(|e| e.to_string())?;
+        .light_line_style(WHITE.mix(0.0));
+    if axes.y_log10 {
+        mesh.y_label_formatter(&ticks_of_log10);
+    }
+    mesh.draw().map_err(|e| e.to_string())?;
     Ok(chart)
+}
+
+/// `x` rounded to two significant digits.
+fn significant(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let scale = 10f64.powi(1 - x.abs().log10().floor() as i32);
+    (x * scale).round() / scale
 }
 
 /// A `[lo, hi]` range covering `values` with a 5 % margin (a unit span when degenerate).
