@@ -29,35 +29,50 @@ pub fn load_config(path: Option<&std::path::Path>, overrides: &[Override]) -> Re
     Ok(Config::from_table(table, &origin)?)
 }
 
+/// `--set` overrides plus the ones a command's own flags stand for.
+pub struct FlagOverrides(Vec<Override>);
+
+impl FlagOverrides {
+    /// Starts from the `--set` overrides.
+    pub fn new(set: &[Override]) -> Self {
+        Self(set.to_vec())
+    }
+
+    /// Sets `field` when the flag was given.
+    pub fn flag<V: Into<toml::Value>>(&mut self, field: &str, value: Option<V>) {
+        if let Some(value) = value {
+            self.0.push(Override {
+                field: field.into(),
+                value: value.into(),
+            });
+        }
+    }
+
+    /// `--seed`, which TOML holds as a signed integer.
+    pub fn seed(&mut self, seed: Option<u64>) -> Result<()> {
+        let seed = seed
+            .map(i64::try_from)
+            .transpose()
+            .context("--seed must be below 2^63 (TOML integers are signed)")?;
+        self.flag("run.seed", seed);
+        Ok(())
+    }
+
+    /// Loads the configuration with these overrides.
+    pub fn load(&self, path: Option<&std::path::Path>) -> Result<Config> {
+        load_config(path, &self.0)
+    }
+}
+
 pub fn run(args: RunArgs) -> Result<()> {
-    let mut overrides = args.options.set.clone();
-    let mut flag = |field: &str, value: toml::Value| {
-        overrides.push(Override {
-            field: field.into(),
-            value,
-        })
-    };
-    if let Some(x) = args.delta_v {
-        flag("protocol.delta_v", x.into());
-    }
-    if let Some(x) = args.delta_omega {
-        flag("protocol.delta_omega", x.into());
-    }
-    if let Some(seed) = args.seed {
-        let seed =
-            i64::try_from(seed).context("--seed must be below 2^63 (TOML integers are signed)")?;
-        flag("run.seed", seed.into());
-    }
-    if let Some(x) = args.alpha {
-        flag("eve.alpha", x.into());
-    }
-    if args.no_eve {
-        flag("eve.enabled", false.into());
-    }
-    if args.protocol_off {
-        flag("protocol.enabled", false.into());
-    }
-    let config = load_config(args.config.as_deref(), &overrides)?;
+    let mut overrides = FlagOverrides::new(&args.options.set);
+    overrides.flag("protocol.delta_v", args.delta_v);
+    overrides.flag("protocol.delta_omega", args.delta_omega);
+    overrides.seed(args.seed)?;
+    overrides.flag("eve.alpha", args.alpha);
+    overrides.flag("eve.enabled", args.no_eve.then_some(false));
+    overrides.flag("protocol.enabled", args.protocol_off.then_some(false));
+    let config = overrides.load(args.config.as_deref())?;
     let started = Instant::now();
     let output = robokey::sim::simulate(&config, args.replicate, true)?;
     let elapsed = started.elapsed();
@@ -92,7 +107,19 @@ pub fn run(args: RunArgs) -> Result<()> {
             "protocol off"
         },
         if config.eve.enabled && proto.enabled {
-            format!("Eve α = {}", config.eve.alpha)
+            use robokey::config::EveStrategy;
+            let eve = &config.eve;
+            match eve.strategy {
+                EveStrategy::Oracle => "oracle Eve".to_owned(),
+                EveStrategy::Mismatch | EveStrategy::Soft => {
+                    format!("{} Eve α = {}", eve.strategy.name(), eve.alpha)
+                }
+                EveStrategy::Identify | EveStrategy::Transcript => format!(
+                    "{} Eve starting {} % off",
+                    eve.strategy.name(),
+                    100.0 * eve.initial_error
+                ),
+            }
         } else {
             "no Eve".into()
         },
@@ -228,7 +255,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         println!("{}:", folder.display());
         for r in &results {
             println!(
-                "  {:<28} {:<9} raw {:.4} bits/step, Eve wrong on {:.3} % of accepted bits, secret {:.5} bits/step ({:.4} bits/s){}",
+                "  {:<28} {:<10} raw {:.4} bits/step, Eve wrong on {:.3} % of accepted bits, secret {:.5} bits/step ({:.4} bits/s){}",
                 r.point,
                 r.adversary,
                 r.raw_bits_per_step,

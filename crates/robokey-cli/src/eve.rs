@@ -10,12 +10,12 @@ use robokey::config::EveStrategy;
 use robokey::eve::{ModelErrors, starting_errors};
 use robokey::rng::{Purpose, stream};
 use robokey_lab::adversary::{campaign_markdown, run_campaigns, write_campaign};
-use robokey_lab::files::{Override, prepare_output, write};
+use robokey_lab::files::{prepare_output, write};
 use robokey_lab::runner::with_jobs;
 use robokey_net::capture_eve::{listen, read_session};
 use robokey_net::session::read_key_file;
 
-use crate::commands::load_config;
+use crate::commands::FlagOverrides;
 use crate::{ConfigOptions, StrategyArg};
 
 #[derive(Args, Debug)]
@@ -45,11 +45,17 @@ pub struct EveArgs {
     /// Relative error on r and D the learning strategies start from (`eve.initial_error`).
     #[arg(long)]
     initial_error: Option<f64>,
-    /// Her starting relative errors on r, D, W, V given explicitly, e.g. `0.05,-0.02,0,0`
-    /// (every strategy but oracle).
-    #[arg(long, value_name = "R,D,W,V", conflicts_with = "alpha")]
+    /// Capture: her starting relative errors on r, D, W, V given explicitly, e.g.
+    /// `0.05,-0.02,0,0` (every strategy but oracle).
+    #[arg(
+        long,
+        value_name = "R,D,W,V",
+        conflicts_with = "alpha",
+        requires = "capture"
+    )]
     errors: Option<String>,
-    /// Master seed (`run.seed`): the sessions and her draws (stream "eve", replicate 0).
+    /// Master seed (`run.seed`): the sessions and her draws (stream "eve", replicate c in
+    /// campaign c; replicate 0 on a capture).
     #[arg(long)]
     seed: Option<u64>,
     /// Capture: the controller's key file, to measure her disagreement.
@@ -68,32 +74,16 @@ pub struct EveArgs {
 }
 
 pub fn eve(args: EveArgs) -> Result<()> {
-    let mut overrides = args.options.set.clone();
-    let mut flag = |field: &str, value: toml::Value| {
-        overrides.push(Override {
-            field: field.into(),
-            value,
-        });
-    };
-    if let Some(n) = args.sessions {
-        flag("eve.sessions", i64::from(n).into());
-    }
-    if let Some(x) = args.alpha {
-        flag("eve.alpha", x.into());
-    }
-    if let Some(x) = args.initial_error {
-        flag("eve.initial_error", x.into());
-    }
-    if let Some(seed) = args.seed {
-        let seed =
-            i64::try_from(seed).context("--seed must be below 2^63 (TOML integers are signed)")?;
-        flag("run.seed", seed.into());
-    }
-    let config = load_config(args.config.as_deref(), &overrides)?;
+    let mut overrides = FlagOverrides::new(&args.options.set);
+    overrides.flag("eve.sessions", args.sessions.map(i64::from));
+    overrides.flag("eve.alpha", args.alpha);
+    overrides.flag("eve.initial_error", args.initial_error);
+    overrides.seed(args.seed)?;
+    let config = overrides.load(args.config.as_deref())?;
     let explicit = args.errors.as_deref().map(parse_errors).transpose()?;
     match &args.capture {
         Some(capture) => on_capture(&args, capture, &config, explicit),
-        None => simulated(&args, &config, explicit),
+        None => simulated(&args, &config),
     }
 }
 
@@ -126,10 +116,7 @@ fn errors_of(config: &Config, strategy: EveStrategy, explicit: Option<ModelError
     }
 }
 
-fn simulated(args: &EveArgs, config: &Config, explicit: Option<ModelErrors>) -> Result<()> {
-    if explicit.is_some() {
-        bail!("--errors applies to a capture; in simulation set eve.alpha or eve.initial_error");
-    }
+fn simulated(args: &EveArgs, config: &Config) -> Result<()> {
     let strategies: Vec<EveStrategy> = if args.strategy.is_empty() {
         EveStrategy::ALL.to_vec()
     } else {

@@ -18,12 +18,12 @@ pub enum LabError {
         message: String,
     },
     /// A file could not be read or written.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// The file or folder.
         path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The underlying error (part of the message, so not repeated as a source).
+        error: std::io::Error,
     },
     /// A simulation aborted.
     #[error(transparent)]
@@ -47,5 +47,8 @@ pub enum LabError {
 /// Attaches a path to an I/O error.
 pub(crate) fn io_at(path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> LabError {
     let path = path.into();
-    move |source| LabError::Io { path, source }
+    move |source| LabError::Io {
+        path,
+        error: source,
+    }
 }

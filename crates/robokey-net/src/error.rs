@@ -5,12 +5,12 @@
 #[non_exhaustive]
 pub enum NetError {
     /// A socket, file or device operation failed.
-    #[error("{context}: {source}")]
+    #[error("{context}: {error}")]
     Io {
         /// What was being done (names the address, file or device).
         context: String,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The underlying error (part of the message, so not repeated as a source).
+        error: std::io::Error,
     },
     /// The Khepera IV (or its emulator) answered something unexpected.
     #[error("kh4: {0}")]
@@ -32,6 +32,9 @@ impl NetError {
     /// Wraps an I/O error with what was being done.
     pub fn io(context: impl Into<String>) -> impl FnOnce(std::io::Error) -> Self {
         let context = context.into();
-        move |source| Self::Io { context, source }
+        move |source| Self::Io {
+            context,
+            error: source,
+        }
     }
 }

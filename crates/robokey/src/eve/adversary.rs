@@ -50,7 +50,7 @@ struct Session {
     decoded: Vec<SoftDecoded>,
     /// Confirmation tags already tried.
     tags_tried: Vec<[u8; TAG_BYTES]>,
-    /// The key behind a confirmation tag, once found.
+    /// The key behind the last confirmation tag she matched.
     verified: Option<TagMatch>,
 }
 
@@ -178,10 +178,9 @@ impl Eve {
         let Some(session) = self.session.as_mut() else {
             return;
         };
-        if session.verified.is_some()
-            || session.tags_tried.contains(tag)
-            || !session.fates.is_complete()
-        {
+        // Both sides send a tag; when they differ (keys differ) the later match wins, which
+        // is normally the controller's: it answers the robot's FinishAck.
+        if session.tags_tried.contains(tag) || !session.fates.is_complete() {
             return;
         }
         session.tags_tried.push(*tag);
