@@ -60,6 +60,8 @@ pub struct Eve {
     strategy: EveStrategy,
     observer: ObserverParams,
     model: WheelModel,
+    /// Her starting wheel model, the fallback while the learned one is not physical.
+    start: DiffDrive,
     errors: ModelErrors,
     max_flips: u32,
     session: Option<Session>,
@@ -95,6 +97,7 @@ impl Eve {
                 ..observer_params(config)
             },
             model,
+            start: drive,
             errors,
             max_flips: config.eve.max_flips,
             session: None,
@@ -111,14 +114,14 @@ impl Eve {
         !matches!(self.strategy, EveStrategy::Oracle | EveStrategy::Mismatch)
     }
 
-    /// The wheel model to decide with: the learned one once it is physical.
-    fn current_drive(&self, fallback: DiffDrive) -> DiffDrive {
+    /// The wheel model to decide with: the learned one once it is physical, else her start.
+    fn current_drive(&self) -> DiffDrive {
         let drive = self.model.drive();
         let physical = |x: f64| x.is_finite() && x > 0.0;
         if physical(drive.wheel_radius) && physical(drive.axle_length) {
             drive
         } else {
-            fallback
+            self.start
         }
     }
 
@@ -126,15 +129,10 @@ impl Eve {
         if let WheelModel::Learned(identifier) = &mut self.model {
             identifier.on_command(step, u0, u1);
         }
-        let Some(session) = self.session.as_ref() else {
+        let drive = self.current_drive();
+        let Some(session) = self.session.as_mut().filter(|s| step < s.plan.steps) else {
             return;
         };
-        if step >= session.plan.steps {
-            return;
-        }
-        let previous = session.plan.drive;
-        let drive = self.current_drive(previous);
-        let session = self.session.as_mut().expect("checked above");
         session.decoder.set_drive(drive);
         // She never sees uU: her nominal is H_a·(u0D + u1D)/2.
         let nominal = drive.to_unicycle((u0 + u1) / 2.0);
@@ -225,7 +223,7 @@ impl Eavesdropper for Eve {
         if let WheelModel::Learned(identifier) = &mut self.model {
             identifier.begin_session();
         }
-        let drive = self.current_drive(plan.drive);
+        let drive = self.current_drive();
         let observer = Observer::new(&self.observer).expect("validated observer.m");
         let codewords = plan.codewords() as usize;
         let empty = hard_decoded(plan.code.as_ref(), 0);
@@ -289,7 +287,7 @@ impl Eavesdropper for Eve {
             }
             Message::Finish { codewords, bitmap } => {
                 let session = self.session.as_mut()?;
-                for index in 0..*codewords {
+                for index in 0..(*codewords).min(session.fates.len()) {
                     let accepted = bitmap
                         .get(index as usize / 64)
                         .is_some_and(|w| w >> (index % 64) & 1 == 1);
@@ -320,7 +318,7 @@ impl Eavesdropper for Eve {
     }
 
     fn model(&self) -> DiffDrive {
-        self.model.drive()
+        self.current_drive()
     }
 
     fn verified(&self) -> Option<u32> {

@@ -340,6 +340,13 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
         },
         other => return Err(WireError::UnknownType(other)),
     };
+    // Only Measurement and Command carry a step; the others encode 0, and a frame must
+    // re-encode to its own bytes.
+    if step != 0 && !matches!(kind, MEASUREMENT | COMMAND) {
+        return Err(WireError::BadField(
+            "header step is set on a message that has none",
+        ));
+    }
     Ok(Frame {
         session,
         seq,
@@ -485,6 +492,24 @@ mod tests {
         let crc = crc32c(&bad);
         bad.extend_from_slice(&crc.to_be_bytes());
         assert_eq!(decode(&bad), Err(WireError::UnknownType(99)));
+    }
+
+    #[test]
+    fn a_step_on_a_stepless_message_is_rejected() {
+        // Found by the wire_payload fuzz target: a HelloAck whose header step was ignored,
+        // so the frame did not re-encode to its bytes.
+        let mut bytes = encode(&Frame {
+            session: 1,
+            seq: 1,
+            message: Message::HelloAck {
+                config_digest: [7; 32],
+            },
+        });
+        bytes.truncate(bytes.len() - 4);
+        bytes[12..16].copy_from_slice(&[249, 252, 151, 82]);
+        let crc = crc32c(&bytes);
+        bytes.extend_from_slice(&crc.to_be_bytes());
+        assert!(matches!(decode(&bytes), Err(WireError::BadField(_))));
     }
 
     fn arb_message() -> impl Strategy<Value = Message> {
