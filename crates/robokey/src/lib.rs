@@ -3,7 +3,7 @@
 //!
 //! This crate is the I/O-free core: kinematics ([`model`]), references ([`trajectory`]),
 //! the tracking controller ([`control`]), the unknown-input observer ([`observer`]), block
-//! codes ([`code`]), the protocol endpoints ([`protocol`]), the eavesdropper ([`eve`]),
+//! codes ([`code`]), the protocol endpoints ([`protocol`]), the eavesdroppers ([`eve`]),
 //! configuration ([`config`]), seeded random streams ([`rng`]) and the closed-loop
 //! simulation of one run ([`sim`]). Time is the sample index; randomness is passed in.
 
