@@ -8,7 +8,7 @@ use super::{Eavesdropper, ModelErrors};
 use crate::code::{BlockCode, SoftDecoded};
 use crate::config::{Config, EveStrategy};
 use crate::model::{DiffDrive, WheelSpeeds};
-use crate::observer::{Observer, ObserverParams};
+use crate::observer::{Observer, ObserverParams, log_likelihood_ratio};
 use crate::protocol::{
     FateLedger, KeyBits, Message, SessionPlan, StepDecision, StepDecoder, TAG_BYTES,
     controller::observer_params,
@@ -44,7 +44,7 @@ struct Session {
     fates: FateLedger,
     /// Per step: her hard decision (`None`: erased or undecided).
     bits: Vec<Option<u8>>,
-    /// Per step: `ln p(·|1) − ln p(·|0)` (0 when erased).
+    /// Per step: `ln p(·|1) − ln p(·|0)` (0 when erased; unused by the hard strategies).
     llrs: Vec<f64>,
     /// Per codeword: her decoded message and its reliability.
     decoded: Vec<SoftDecoded>,
@@ -268,10 +268,12 @@ impl Eavesdropper for Eve {
                         .ok()?
                 });
                 let mut decision = measured.as_ref().and_then(|m| m.decision);
-                if let Some(decision) = decision.as_mut()
-                    && self.soft()
-                    && let Some(llr) = decision.llr
-                {
+                // The soft strategies decide by likelihood; the hard ones keep the decoder's bit.
+                let llr = decision.filter(|_| self.soft()).and_then(|d| {
+                    let [d0, d1] = d.hypotheses?;
+                    Some(log_likelihood_ratio(&d.estimate, &d0, &d1))
+                });
+                if let (Some(decision), Some(llr)) = (decision.as_mut(), llr) {
                     decision.bit = Some(u8::from(llr > 0.0));
                 }
                 if let WheelModel::Learned(identifier) = &mut self.model {
@@ -282,7 +284,7 @@ impl Eavesdropper for Eve {
                     self.settle(gap, None, 0.0);
                 }
                 let decision = decision?;
-                self.settle(decision.step, decision.bit, decision.llr.unwrap_or(0.0));
+                self.settle(decision.step, decision.bit, llr.unwrap_or(0.0));
                 Some(decision)
             }
             Message::Finish { codewords, bitmap } => {

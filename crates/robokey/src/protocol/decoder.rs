@@ -5,7 +5,7 @@
 use std::ops::Range;
 
 use crate::model::{DiffDrive, Pose, Unicycle, WheelSpeeds};
-use crate::observer::{InputEstimate, Observer, ObserverError, decide_bit, log_likelihood_ratio};
+use crate::observer::{InputEstimate, Observer, ObserverError, decide_bit};
 
 /// A command pair as the decoder knows it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,8 +26,10 @@ pub struct StepDecision {
     /// `b̂(k−1)`, or `None` when the step is erased (fallback applied, pair unknown) or
     /// the decoder does not decide (protocol off).
     pub bit: Option<u8>,
-    /// `ln p(d̂ | b = 1) − ln p(d̂ | b = 0)` under the decoder's model, when `bit` is decided.
-    pub llr: Option<f64>,
+    /// The deviations `[d0, d1]` (m/s, rad/s) that applying `u0D` or `u1D` would have
+    /// produced under the decoder's model, when `bit` is decided: the hypotheses a
+    /// likelihood decision weighs `estimate` against.
+    pub hypotheses: Option<[Unicycle; 2]>,
 }
 
 /// The result of a fresh measurement.
@@ -130,17 +132,13 @@ impl StepDecoder {
             let decided = step - 1;
             let estimate = self.observer.step(&self.input_for(decided), y)?;
             let pair = self.last_pair.filter(|p| p.step == decided);
-            let (bit, llr) = match pair {
+            let (bit, hypotheses) = match pair {
                 Some(p) if self.decides && applied_step == Some(decided) => {
                     let applied = self.drive.to_wheels(p.nominal + estimate.deviation);
                     let deviation_of = |u| self.drive.to_unicycle(u) - p.nominal;
                     (
                         Some(decide_bit(&applied, &p.u0, &p.u1)),
-                        Some(log_likelihood_ratio(
-                            &estimate,
-                            &deviation_of(p.u0),
-                            &deviation_of(p.u1),
-                        )),
+                        Some([deviation_of(p.u0), deviation_of(p.u1)]),
                     )
                 }
                 _ => (None, None),
@@ -149,7 +147,7 @@ impl StepDecoder {
                 step: decided,
                 estimate,
                 bit,
-                llr,
+                hypotheses,
             })
         };
         Ok(Some(Measured {
