@@ -195,19 +195,37 @@ pub fn config(args: ConfigArgs) -> Result<()> {
     Ok(())
 }
 
+/// Largest `--block`: 10⁷ raw bits.
+const MAX_BLOCK_BITS: usize = 10_000_000;
+
 pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     use robokey_lab::secrecy::{SecrecyOptions, analyze, write_secrecy};
     if !(args.eps > 0.0 && args.eps < 1.0) {
         bail!("--eps {} is not allowed (allowed: (0, 1))", args.eps);
     }
-    if args.block < 64 {
-        bail!("--block {} is not allowed (allowed: ≥ 64 bits)", args.block);
+    if !(64..=MAX_BLOCK_BITS).contains(&args.block) {
+        bail!(
+            "--block {} is not allowed (allowed: 64 to {MAX_BLOCK_BITS} bits)",
+            args.block
+        );
+    }
+    if !(1..=1_000).contains(&args.blocks) {
+        bail!("--blocks {} is not allowed (allowed: 1 to 1000)", args.blocks);
+    }
+    if !(1..=1_000_000).contains(&args.max_sessions) {
+        bail!(
+            "--max-sessions {} is not allowed (allowed: 1 to 1000000)",
+            args.max_sessions
+        );
     }
     let options = SecrecyOptions {
         adversaries: args.adversaries.iter().map(|&a| a.into()).collect(),
         epsilon: args.eps,
         block_bits: args.block,
-        blocks: args.blocks.max(1),
+        blocks: args.blocks,
+        pooling: args.pooling.into(),
+        sample_bits: args.sample_bits,
+        max_sessions: args.max_sessions,
         ..SecrecyOptions::default()
     };
     // A sweep folder, or a suite folder whose subfolders are sweeps.
@@ -253,19 +271,31 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         let results = with_jobs(args.jobs, || analyze(&experiment, &options))??;
         let files = write_secrecy(&folder, &experiment, &results, &options)?;
         println!("{}:", folder.display());
+        if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
+            println!("  secret key rate 0: {reason}");
+        }
         for r in &results {
+            let leak = |f: fn(&robokey_lab::secrecy::Block) -> u64| -> u64 {
+                r.blocks.iter().map(f).sum()
+            };
             println!(
-                "  {:<28} {:<10} raw {:.4} bits/step, Eve wrong on {:.3} % of accepted bits, secret {:.5} bits/step ({:.4} bits/s){}",
+                "  {:<28} {:<10} ({}) raw {:.4} bits/step, Eve wrong on {:.3} % of accepted bits, leak {} (EC) + {} (tags), H_min {:.1}, secret {:.5} bits/step ({:.4} bits/s){}",
                 r.point,
                 r.adversary,
+                r.adversary_class.name(),
                 r.raw_bits_per_step,
                 r.eve_error_accepted.map_or(f64::NAN, |x| 100.0 * x.rate),
+                leak(|b| b.leak_ec),
+                leak(|b| b.leak_confirmation),
+                r.blocks.iter().map(|b| b.h_min).sum::<f64>(),
                 r.secret_bits_per_step,
                 r.secret_bits_per_second,
-                r.blocks
-                    .iter()
-                    .find_map(|b| b.reason.clone())
-                    .map_or(String::new(), |why| format!(": {why}"))
+                r.zero_reason
+                    .as_ref()
+                    .map_or_else(
+                        || format!(", holds against {}", r.holds_against),
+                        |why| format!(": {why}")
+                    )
             );
         }
         println!(

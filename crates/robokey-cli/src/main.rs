@@ -146,21 +146,51 @@ struct ReproduceArgs {
 struct SecrecyArgs {
     /// A sweep folder (with config.resolved.toml), or a suite folder of them.
     run_dir: PathBuf,
-    /// Adversaries to evaluate (repeatable).
-    #[arg(long = "adversary", value_enum, default_values = ["mismatch", "oracle"])]
+    /// Adversaries to evaluate (repeatable); reports list the strongest class first.
+    #[arg(long = "adversary", value_enum, default_values = ["oracle", "identify", "mismatch"])]
     adversaries: Vec<StrategyArg>,
     /// ε per term (smoothing, amplification, parameter estimation); the key is 4ε-secret.
     #[arg(long, default_value_t = 1e-6)]
     eps: f64,
-    /// Pooled raw bits per privacy-amplification block.
+    /// Least pooled raw bits per privacy-amplification block (whole sessions are pooled).
     #[arg(long, default_value_t = 10_000)]
     block: usize,
     /// Blocks to fill per point (more sessions are simulated as needed).
     #[arg(long, default_value_t = 1)]
     blocks: usize,
+    /// Which sessions are pooled: `confirmed` (today's agents: sessions whose key tags
+    /// matched, their tags charged) or `complete` (the authenticated session's pipeline:
+    /// every completed session, sampled error estimate, Cascade, one block confirmation).
+    #[arg(long, value_enum, default_value = "confirmed")]
+    pooling: PoolingArg,
+    /// Largest sample disclosed to estimate the error rate with `--pooling complete` (at
+    /// most a tenth of the block).
+    #[arg(long, default_value_t = 1_000)]
+    sample_bits: usize,
+    /// Most sessions simulated per point and adversary.
+    #[arg(long, default_value_t = 2_000)]
+    max_sessions: u32,
     /// Worker threads (0: one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
+}
+
+/// Which sessions `robokey secrecy` pools (docs/secrecy.md).
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum PoolingArg {
+    /// Sessions whose key tags matched (today's agents); their tags are charged.
+    Confirmed,
+    /// Every completed session; sampled error estimate, Cascade, one block confirmation.
+    Complete,
+}
+
+impl From<PoolingArg> for robokey_lab::secrecy::Pooling {
+    fn from(p: PoolingArg) -> Self {
+        match p {
+            PoolingArg::Confirmed => Self::Confirmed,
+            PoolingArg::Complete => Self::Complete,
+        }
+    }
 }
 
 /// Eavesdropper strategies (SECRECY §6); each after `mismatch` adds to the one before.

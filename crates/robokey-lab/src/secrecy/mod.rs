@@ -1,0 +1,518 @@
+//! How many of the agreed bits are secret, and against whom (docs/secrecy.md): per grid
+//! point and adversary, error rates with exact intervals, plug-in informations with
+//! bootstrap intervals, Eve on the accepted bits, the acceptance-independence test,
+//! per-position error rates, and the finite-key output length of the post-processing the
+//! agents run ([`pipeline`]) over pooled blocks of whole sessions.
+//!
+//! Sessions are re-simulated from the sweep's `config.resolved.toml` and seeds, with the
+//! adversary swapped in; sessions are added (replicates 0, 1, …) until the pooled raw key
+//! fills the requested number of blocks. A learning adversary (identify, transcript) hears
+//! them in that order, so what she learned from earlier sessions serves her on later ones.
+//! Results are computed here and rendered by [`render`].
+
+pub mod pipeline;
+pub mod render;
+
+use rayon::prelude::*;
+use robokey::config::EveStrategy;
+use robokey::protocol::SessionPlan;
+use robokey::rng::{Purpose, stream};
+use robokey::sim::{RunOutput, simulate_plan, simulate_transcript};
+use robokey_secrecy::{JointCounts, binomial_test, clopper_pearson};
+use serde::Serialize;
+
+use crate::adversary::{eavesdropper, overhear};
+use crate::error::LabError;
+use crate::sweep::{Experiment, describe};
+
+pub use pipeline::{Block, BlockSettings, Pooling};
+pub use render::{secrecy_csv, secrecy_markdown, write_secrecy};
+
+/// What an adversary is, for the secrecy it is credited against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AdversaryClass {
+    /// The best modelled adversary for the configuration: reports lead with it.
+    Strongest,
+    /// Starts with a wrong model and learns it from the traffic.
+    Learning,
+    /// Never learns the model: a figure against it holds only if nobody can.
+    Restricted,
+}
+
+impl AdversaryClass {
+    /// The class of an eavesdropping strategy (odometry mode: the oracle decides exactly as
+    /// the controller does; identify and transcript learn r and D; mismatch and soft keep
+    /// their wrong model forever).
+    #[must_use]
+    pub fn of(strategy: EveStrategy) -> Self {
+        match strategy {
+            EveStrategy::Oracle => Self::Strongest,
+            EveStrategy::Identify | EveStrategy::Transcript => Self::Learning,
+            EveStrategy::Mismatch | EveStrategy::Soft => Self::Restricted,
+        }
+    }
+
+    /// The name in reports.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Strongest => "strongest",
+            Self::Learning => "learning",
+            Self::Restricted => "restricted",
+        }
+    }
+
+    /// Against whom a figure for this class holds.
+    #[must_use]
+    pub fn holds_against(self) -> &'static str {
+        match self {
+            Self::Strongest => "the strongest modelled eavesdropper (exact model, every frame)",
+            Self::Learning => "an eavesdropper who learns r and D from the traffic",
+            Self::Restricted => "only an eavesdropper who never learns r and D",
+        }
+    }
+}
+
+/// Why the odometry mode (the paper's) yields no secret key by structure.
+pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything the controller \
+    decides from is public except r and D, which an eavesdropper learns from the traffic (the \
+    identifying Eve within about one session); she then decides as the controller does, so \
+    I(B; controller | Eve) = 0 and no post-processing yields a secret bit";
+
+/// Settings of the analysis.
+#[derive(Clone, Debug)]
+pub struct SecrecyOptions {
+    /// Adversaries to evaluate.
+    pub adversaries: Vec<EveStrategy>,
+    /// ε of each term: smoothing ε_s, privacy amplification ε_PA and parameter
+    /// estimation ε_PE; the key is then 4ε-secret (2ε_s + ε_PA + ε_PE).
+    pub epsilon: f64,
+    /// Least pooled raw bits per privacy-amplification block (whole sessions are pooled).
+    pub block_bits: usize,
+    /// Which sessions are pooled, and what was published over their keys.
+    pub pooling: Pooling,
+    /// Largest sample disclosed to estimate the error rate (`complete` pooling).
+    pub sample_bits: usize,
+    /// Blocks to fill per point (sessions are added until they are full).
+    pub blocks: usize,
+    /// Most sessions simulated per point and adversary.
+    pub max_sessions: u32,
+    /// Bootstrap resamples for the information intervals.
+    pub bootstrap: usize,
+}
+
+impl Default for SecrecyOptions {
+    fn default() -> Self {
+        Self {
+            adversaries: vec![
+                EveStrategy::Oracle,
+                EveStrategy::Identify,
+                EveStrategy::Mismatch,
+            ],
+            epsilon: 1e-6,
+            block_bits: 10_000,
+            pooling: Pooling::Confirmed,
+            sample_bits: 1_000,
+            blocks: 1,
+            max_sessions: 2_000,
+            bootstrap: 1_000,
+        }
+    }
+}
+
+/// A rate with a two-sided 95 % Clopper–Pearson interval.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Rate {
+    /// Events.
+    pub count: u64,
+    /// Trials.
+    pub trials: u64,
+    /// count / trials.
+    pub rate: f64,
+    /// 95 % interval.
+    pub low: f64,
+    /// 95 % interval.
+    pub high: f64,
+}
+
+impl Rate {
+    fn new(count: u64, trials: u64) -> Option<Self> {
+        let ci = clopper_pearson(count, trials, 0.95).ok()?;
+        Some(Self {
+            count,
+            trials,
+            rate: count as f64 / trials as f64,
+            low: ci.lower,
+            high: ci.upper,
+        })
+    }
+}
+
+/// The secrecy of one grid point against one adversary.
+#[derive(Clone, Debug, Serialize)]
+pub struct PointSecrecy {
+    /// The point's parameters, `field = value, …`.
+    pub point: String,
+    /// The grid point's x value for figures (the first swept field), if numeric.
+    pub x: Option<f64>,
+    /// The adversary.
+    pub adversary: String,
+    /// Its class: strongest, learning or restricted.
+    pub adversary_class: AdversaryClass,
+    /// Against whom the figures of this row hold.
+    pub holds_against: &'static str,
+    /// Which sessions were pooled.
+    pub pooling: Pooling,
+    /// Why the configuration yields no secret key whatever this adversary gives, if it does
+    /// not by structure.
+    pub structural_zero: Option<&'static str>,
+    /// Why ℓ = 0 here (None when ℓ > 0).
+    pub zero_reason: Option<String>,
+    /// The first block's error-rate estimate for reconciliation.
+    pub q_estimate: Option<f64>,
+    /// Where it comes from.
+    pub q_source: Option<String>,
+    /// Sessions simulated.
+    pub sessions: u32,
+    /// Sessions pooled into the blocks.
+    pub sessions_pooled: u32,
+    /// Robot steps over those sessions.
+    pub steps: u64,
+    /// Sample time T (s).
+    pub sample_time: f64,
+    /// Controller's bit error rate over applied bits.
+    pub p_c: Option<Rate>,
+    /// Eve's bit error rate over applied bits.
+    pub p_e: Option<Rate>,
+    /// Plug-in I(B;B̂c) − I(B;B̂a) (bits per step) with a 95 % bootstrap interval.
+    pub information_advantage: Option<[f64; 3]>,
+    /// Plug-in I(B;B̂c|B̂a) with a 95 % bootstrap interval.
+    pub information_conditional: Option<[f64; 3]>,
+    /// Accepted (raw) key bits.
+    pub raw_bits: u64,
+    /// Raw agreed bits per robot step.
+    pub raw_bits_per_step: f64,
+    /// Eve's error rate on accepted bits (her ŝa against K_c).
+    pub eve_error_accepted: Option<Rate>,
+    /// p-value of the exact binomial test of P(s = 1 | accepted) = ½.
+    pub acceptance_independence_p: Option<f64>,
+    /// The privacy-amplification blocks.
+    pub blocks: Vec<Block>,
+    /// Total secret bits over the blocks.
+    pub secret_bits: u64,
+    /// Secret bits per robot step (over every session simulated until the last one pooled,
+    /// dropped sessions included: they cost robot time too).
+    pub secret_bits_per_step: f64,
+    /// Secret bits per second.
+    pub secret_bits_per_second: f64,
+    /// Controller and Eve error rates per position along the lap (20 bins).
+    pub positions: Vec<PositionErrors>,
+}
+
+/// Error rates in one bin of lap position.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PositionErrors {
+    /// Bin start as a fraction of the lap.
+    pub from: f64,
+    /// Applied bits in the bin.
+    pub bits: u64,
+    /// Controller error rate.
+    pub controller: f64,
+    /// Eve error rate.
+    pub eve: f64,
+}
+
+/// Lap-position bins.
+const POSITION_BINS: usize = 20;
+
+/// Sessions of one point against one adversary, added in chunks until the pooled raw key
+/// fills the blocks.
+fn sessions(
+    experiment: &Experiment,
+    point: usize,
+    adversary: EveStrategy,
+    options: &SecrecyOptions,
+) -> Result<Vec<RunOutput>, LabError> {
+    let mut config = experiment.points[point].config.clone();
+    config.eve.enabled = true;
+    config.eve.strategy = adversary;
+    let plan = SessionPlan::from_config(&config, 0);
+    let mut runs: Vec<RunOutput> = Vec::new();
+    let minimum = experiment.replicates();
+    let mut learner = matches!(adversary, EveStrategy::Identify | EveStrategy::Transcript)
+        .then(|| eavesdropper(&config, adversary, 0));
+    while (runs.len() as u32) < options.max_sessions {
+        let filled = pipeline::pools(&runs, options.pooling, options.block_bits).len();
+        if filled >= options.blocks && runs.len() as u32 >= minimum {
+            break;
+        }
+        let start = runs.len() as u32;
+        let chunk = 32.min(options.max_sessions - start);
+        let more: Vec<RunOutput> = match learner.as_mut() {
+            None => (start..start + chunk)
+                .into_par_iter()
+                .map(|replicate| {
+                    let mut plan = plan.clone();
+                    plan.session = replicate;
+                    simulate_plan(&config, plan, replicate, false)
+                })
+                .collect::<Result<_, _>>()?,
+            // What a learning Eve learns carries over: she hears the sessions in order.
+            Some(eve) => {
+                let heard = (start..start + chunk)
+                    .into_par_iter()
+                    .map(|replicate| simulate_transcript(&config, replicate))
+                    .collect::<Result<Vec<_>, _>>()?;
+                heard
+                    .into_iter()
+                    .zip(start..)
+                    .map(|((mut run, transcript), replicate)| {
+                        let steps = &mut run.steps;
+                        let key = overhear(eve, &config, replicate, &transcript, |_, step, bit| {
+                            if let Some(logged) = steps.get_mut(step as usize) {
+                                logged.bhat_eve = bit;
+                            }
+                        });
+                        run.keys.eve = Some(key);
+                        run
+                    })
+                    .collect()
+            }
+        };
+        if runs.is_empty() && !more.iter().any(|r| options.pooling.admits(r)) {
+            runs.extend(more);
+            break; // nothing is ever pooled here
+        }
+        runs.extend(more);
+    }
+    Ok(runs)
+}
+
+/// Analyzes one point against one adversary.
+fn analyze_point(
+    experiment: &Experiment,
+    point: usize,
+    adversary: EveStrategy,
+    options: &SecrecyOptions,
+) -> Result<PointSecrecy, LabError> {
+    let runs = sessions(experiment, point, adversary, options)?;
+    let config = &experiment.points[point].config;
+    let lap_steps = (config.trajectory.waypoints.len().saturating_sub(1) as f64
+        * config.trajectory.side_time
+        / config.robot.sample_time)
+        .round()
+        .max(1.0) as usize;
+    let mut joint = JointCounts::default();
+    let mut positions = vec![(0u64, 0u64, 0u64); POSITION_BINS];
+    let mut steps = 0u64;
+    for run in &runs {
+        steps += run.steps.len() as u64;
+        for (k, s) in run.steps.iter().enumerate() {
+            if let (Some(b), Some(c), Some(a)) = (s.bit, s.bhat, s.bhat_eve) {
+                joint.record(b == 1, c == 1, a == 1);
+                let bin = (k % lap_steps) * POSITION_BINS / lap_steps;
+                positions[bin].0 += 1;
+                positions[bin].1 += u64::from(c != b);
+                positions[bin].2 += u64::from(a != b);
+            }
+        }
+    }
+    let n = joint.total();
+    let rate = |f: fn(&JointCounts) -> Result<f64, robokey_secrecy::EntropyError>| {
+        f(&joint)
+            .ok()
+            .and_then(|r| Rate::new((r * n as f64).round() as u64, n))
+    };
+    let mut rng = stream(config.run.seed, Purpose::Public, point as u64);
+    let intervals =
+        robokey_secrecy::entropy::bootstrap(&joint, options.bootstrap, 0.95, &mut rng).ok();
+    let accepted = |pick: fn(&RunOutput) -> &[u8]| -> Vec<u8> {
+        runs.iter().flat_map(|r| pick(r).iter().copied()).collect()
+    };
+    let (controller_bits, eve_bits) = (
+        zeroize::Zeroizing::new(accepted(|r| &r.keys.controller)),
+        zeroize::Zeroizing::new(accepted(|r| r.keys.eve.as_deref().map_or(&[], Vec::as_slice))),
+    );
+    let raw_bits = controller_bits.len() as u64;
+    let eve_wrong = controller_bits
+        .iter()
+        .zip(eve_bits.iter())
+        .filter(|(a, b)| a != b)
+        .count() as u64;
+    let robot_bits = zeroize::Zeroizing::new(accepted(|r| &r.keys.robot));
+    let ones = robot_bits.iter().filter(|&&b| b == 1).count() as u64;
+    let settings = BlockSettings {
+        pooling: options.pooling,
+        epsilon: options.epsilon,
+        sample_bits: options.sample_bits,
+    };
+    let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
+    let pools = pipeline::pools(&runs, options.pooling, options.block_bits);
+    let blocks: Vec<Block> = pools
+        .iter()
+        .take(options.blocks)
+        .map(|pool| pipeline::post_process(pool, &settings, &mut public))
+        .collect();
+    // Every session run until the last one pooled cost robot time, dropped ones included.
+    let used_steps: u64 = pools
+        .iter()
+        .take(options.blocks)
+        .last()
+        .map_or(0, |pool| {
+            runs[..=pool.last_session]
+                .iter()
+                .map(|r| r.steps.len() as u64)
+                .sum()
+        });
+    let secret_bits: u64 = blocks.iter().map(|b| b.secret_bits).sum();
+    let per_step = if used_steps > 0 {
+        secret_bits as f64 / used_steps as f64
+    } else {
+        0.0
+    };
+    let class = AdversaryClass::of(adversary);
+    let zero_reason = (secret_bits == 0).then(|| {
+        blocks
+            .iter()
+            .find_map(|b| b.reason.clone())
+            .unwrap_or_else(|| {
+                format!(
+                    "fewer than {} raw bits of {} sessions in {} sessions simulated",
+                    options.block_bits,
+                    options.pooling.name(),
+                    runs.len()
+                )
+            })
+    });
+    let params = &experiment.points[point].params;
+    Ok(PointSecrecy {
+        point: describe(params),
+        x: params
+            .first()
+            .and_then(|(_, v)| v.as_float().or_else(|| v.as_integer().map(|i| i as f64))),
+        adversary: adversary.name().to_owned(),
+        adversary_class: class,
+        holds_against: class.holds_against(),
+        pooling: options.pooling,
+        structural_zero: Some(ODOMETRY_ZERO),
+        zero_reason,
+        q_estimate: blocks.first().map(|b| b.q_estimate),
+        q_source: blocks.first().map(|b| b.q_source.clone()),
+        sessions: runs.len() as u32,
+        sessions_pooled: blocks.iter().map(|b| b.sessions).sum(),
+        steps,
+        sample_time: config.robot.sample_time,
+        p_c: rate(JointCounts::controller_error_rate),
+        p_e: rate(JointCounts::eve_error_rate),
+        information_advantage: intervals.as_ref().map(|i| {
+            [
+                i.advantage,
+                i.advantage_interval.lower,
+                i.advantage_interval.upper,
+            ]
+        }),
+        information_conditional: intervals.as_ref().map(|i| {
+            [
+                i.conditional,
+                i.conditional_interval.lower,
+                i.conditional_interval.upper,
+            ]
+        }),
+        raw_bits,
+        raw_bits_per_step: if steps > 0 {
+            raw_bits as f64 / steps as f64
+        } else {
+            0.0
+        },
+        eve_error_accepted: Rate::new(eve_wrong, raw_bits),
+        acceptance_independence_p: binomial_test(ones, robot_bits.len() as u64, 0.5).ok(),
+        blocks,
+        secret_bits,
+        secret_bits_per_step: per_step,
+        secret_bits_per_second: per_step / config.robot.sample_time,
+        positions: positions
+            .iter()
+            .enumerate()
+            .map(|(i, &(bits, c, e))| PositionErrors {
+                from: i as f64 / POSITION_BINS as f64,
+                bits,
+                controller: c as f64 / bits.max(1) as f64,
+                eve: e as f64 / bits.max(1) as f64,
+            })
+            .collect(),
+    })
+}
+
+/// Analyzes every point of an experiment against every adversary, strongest class first
+/// (on the current rayon pool). Deterministic: a pure function of the experiment and the
+/// options.
+///
+/// # Errors
+/// A session aborts.
+pub fn analyze(
+    experiment: &Experiment,
+    options: &SecrecyOptions,
+) -> Result<Vec<PointSecrecy>, LabError> {
+    let mut adversaries = options.adversaries.clone();
+    adversaries.sort_by_key(|&a| (AdversaryClass::of(a), EveStrategy::ALL.iter().position(|&s| s == a)));
+    adversaries.dedup();
+    let jobs: Vec<(usize, EveStrategy)> = (0..experiment.points.len())
+        .flat_map(|p| adversaries.iter().map(move |&a| (p, a)))
+        .collect();
+    jobs.iter()
+        .map(|&(p, a)| analyze_point(experiment, p, a, options))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn experiment(text: &str) -> Experiment {
+        Experiment::from_table("t", text.parse().unwrap(), "test.toml").unwrap()
+    }
+
+    #[test]
+    fn an_oracle_eve_leaves_zero_secret_bits() {
+        let options = SecrecyOptions {
+            adversaries: vec![EveStrategy::Oracle],
+            block_bits: 2_000,
+            bootstrap: 50,
+            ..SecrecyOptions::default()
+        };
+        let results = analyze(&experiment("[run]\nreplicates = 2\n"), &options).unwrap();
+        let r = &results[0];
+        assert_eq!(r.blocks.len(), 1);
+        assert_eq!(r.eve_error_accepted.unwrap().count, 0);
+        assert_eq!(r.secret_bits, 0);
+        assert!(
+            r.blocks[0]
+                .reason
+                .as_deref()
+                .unwrap()
+                .contains("no secret bits"),
+            "{:?}",
+            r.blocks[0].reason
+        );
+        assert!(r.raw_bits_per_step > 0.25);
+    }
+
+    #[test]
+    fn acceptance_does_not_depend_on_the_key_bit() {
+        let options = SecrecyOptions {
+            adversaries: vec![EveStrategy::Mismatch],
+            block_bits: 3_000,
+            bootstrap: 50,
+            ..SecrecyOptions::default()
+        };
+        let r = &analyze(&experiment("[run]\nreplicates = 2\n"), &options).unwrap()[0];
+        // Under independence the p-value is uniform: failing at 1e-3 has probability 1e-3.
+        assert!(r.acceptance_independence_p.unwrap() > 1e-3, "{r:?}");
+        let p_c = r.p_c.unwrap();
+        assert!(
+            p_c.low < 0.0431 + 0.01 && p_c.high > 0.0431 - 0.01,
+            "{p_c:?}"
+        );
+    }
+}

@@ -1,0 +1,226 @@
+//! Renders secrecy results: `secrecy.csv`, `secrecy.json`, `secrecy.md` and the figure.
+
+use std::path::{Path, PathBuf};
+
+use super::{AdversaryClass, PointSecrecy, Rate, SecrecyOptions};
+use crate::error::LabError;
+use crate::files::write;
+use crate::plot::{LineChart, Series, SeriesStyle};
+use crate::sweep::Experiment;
+
+/// A CSV field: quoted, inner quotes doubled.
+fn quoted(text: &str) -> String {
+    format!("\"{}\"", text.replace('"', "\"\""))
+}
+
+/// Sums a block field over a row's blocks.
+fn total(r: &PointSecrecy, field: fn(&super::Block) -> u64) -> u64 {
+    r.blocks.iter().map(field).sum()
+}
+
+/// `secrecy.csv`: one row per point and adversary.
+#[must_use]
+pub fn secrecy_csv(results: &[PointSecrecy]) -> String {
+    let mut out = String::from(
+        "point,adversary,adversary_class,pooling,sessions,sessions_pooled,steps,p_c,p_c_low,p_c_high,p_e,p_e_low,p_e_high,info_advantage,info_advantage_low,info_advantage_high,info_conditional,raw_bits,raw_bits_per_step,eve_error_accepted,eve_error_accepted_high,acceptance_p,blocks,q_estimate,leak_ec,leak_confirmation,h_min,secret_bits,secret_bits_per_step,secret_bits_per_second,zero_reason,structural_zero\n",
+    );
+    for r in results {
+        let rate = |x: &Option<Rate>| {
+            x.map_or(",,".to_owned(), |x| {
+                format!("{},{},{}", x.rate, x.low, x.high)
+            })
+        };
+        let info = |x: &Option<[f64; 3]>| {
+            x.map_or(",,".to_owned(), |x| format!("{},{},{}", x[0], x[1], x[2]))
+        };
+        let h_min: f64 = r.blocks.iter().map(|b| b.h_min).sum();
+        out.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            quoted(&r.point),
+            r.adversary,
+            r.adversary_class.name(),
+            r.pooling.name(),
+            r.sessions,
+            r.sessions_pooled,
+            r.steps,
+            rate(&r.p_c),
+            rate(&r.p_e),
+            info(&r.information_advantage),
+            r.information_conditional
+                .map_or(String::new(), |x| x[0].to_string()),
+            r.raw_bits,
+            r.raw_bits_per_step,
+            r.eve_error_accepted
+                .map_or(",".to_owned(), |x| format!("{},{}", x.rate, x.high)),
+            r.acceptance_independence_p
+                .map_or(String::new(), |p| p.to_string()),
+            r.blocks.len(),
+            r.q_estimate.map_or(String::new(), |q| q.to_string()),
+            total(r, |b| b.leak_ec),
+            total(r, |b| b.leak_confirmation),
+            h_min,
+            r.secret_bits,
+            r.secret_bits_per_step,
+            r.secret_bits_per_second,
+            quoted(r.zero_reason.as_deref().unwrap_or("")),
+            quoted(r.structural_zero.unwrap_or("")),
+        ));
+    }
+    out
+}
+
+fn percent(x: &Option<Rate>) -> String {
+    x.map_or("–".into(), |x| {
+        format!(
+            "{:.2} [{:.2}, {:.2}]",
+            100.0 * x.rate,
+            100.0 * x.low,
+            100.0 * x.high
+        )
+    })
+}
+
+/// A markdown section for `report.md`: the structural verdict first, then one row per
+/// point and adversary (strongest first), each naming whom it holds against.
+#[must_use]
+pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> String {
+    let mut md = String::new();
+    if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
+        md.push_str(&format!(
+            "**Secret key rate: 0.** The configuration yields no secret key, {reason}. \
+             Rows against a restricted adversary hold only if nobody learns r and D.\n\n"
+        ));
+    }
+    md.push_str(
+        "| point | adversary (class) | p_c % | p_e % | raw bits/step | Eve wrong on accepted % | leak_EC | leak_conf | H_min (bits) | secret bits/step | why zero |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in results {
+        let h_min: f64 = r.blocks.iter().map(|b| b.h_min).sum();
+        md.push_str(&format!(
+            "| {} | {} ({}) | {} | {} | {:.4} | {} | {} | {} | {:.2} | {:.5} | {} |\n",
+            r.point,
+            r.adversary,
+            r.adversary_class.name(),
+            percent(&r.p_c),
+            percent(&r.p_e),
+            r.raw_bits_per_step,
+            percent(&r.eve_error_accepted),
+            total(r, |b| b.leak_ec),
+            total(r, |b| b.leak_confirmation),
+            h_min,
+            r.secret_bits_per_step,
+            r.zero_reason.as_deref().unwrap_or("")
+        ));
+    }
+    let pooling = match options.pooling {
+        super::Pooling::Confirmed => {
+            "sessions whose key tags matched (today's agents), each pooled session's two 64-bit tags charged, nothing reconciled"
+        }
+        super::Pooling::Complete => {
+            "every completed session (the authenticated session's pipeline), error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags"
+        }
+    };
+    md.push_str(&format!(
+        "\nPooling: {pooling}; blocks of at least {} raw bits (whole sessions). H_min: {}, with Eve's error p taken as the one-sided Clopper–Pearson lower bound at level 1 − ε_PE. ε_s = ε_PA = ε_PE = {:e} (the key is {:e}-secret). p_c, p_e: 95 % Clopper–Pearson intervals over applied bits. Classes: {}. See docs/secrecy.md.\n",
+        options.block_bits,
+        super::pipeline::H_MIN_BINOMIAL,
+        options.epsilon,
+        4.0 * options.epsilon,
+        [
+            AdversaryClass::Strongest,
+            AdversaryClass::Learning,
+            AdversaryClass::Restricted
+        ]
+        .map(|c| format!("{} = {}", c.name(), c.holds_against()))
+        .join("; "),
+    ));
+    md
+}
+
+/// Writes `secrecy.csv`, `secrecy.json`, `secrecy.md` and the figure
+/// `secrecy-bits-per-step.{svg,png}` into `dir`; returns the files.
+///
+/// # Errors
+/// A file cannot be written.
+pub fn write_secrecy(
+    dir: &Path,
+    experiment: &Experiment,
+    results: &[PointSecrecy],
+    options: &SecrecyOptions,
+) -> Result<Vec<PathBuf>, LabError> {
+    std::fs::create_dir_all(dir).map_err(crate::error::io_at(dir))?;
+    let json = serde_json::json!({
+        "epsilon": options.epsilon,
+        "epsilon_total": 4.0 * options.epsilon,
+        "block_bits": options.block_bits,
+        "pooling": options.pooling,
+        "results": results,
+    });
+    let mut files = vec![
+        write(&dir.join("secrecy.csv"), secrecy_csv(results))?,
+        write(
+            &dir.join("secrecy.json"),
+            serde_json::to_string_pretty(&json).expect("JSON serializes") + "\n",
+        )?,
+        write(&dir.join("secrecy.md"), secrecy_markdown(results, options))?,
+    ];
+    let axis = experiment
+        .axes
+        .first()
+        .map_or_else(|| "point".to_owned(), |a| a.field.clone());
+    let mut names: Vec<&str> = Vec::new();
+    for r in results {
+        if !names.contains(&r.adversary.as_str()) {
+            names.push(&r.adversary);
+        }
+    }
+    let mut series: Vec<Series> = names
+        .iter()
+        .map(|&name| {
+            let class = results
+                .iter()
+                .find(|r| r.adversary == name)
+                .map_or("", |r| r.adversary_class.name());
+            Series {
+                label: format!("secret bits/step vs {name} Eve ({class})"),
+                points: results
+                    .iter()
+                    .filter(|r| r.adversary == name)
+                    .filter_map(|r| Some((r.x?, r.secret_bits_per_step)))
+                    .collect(),
+                style: SeriesStyle::Line,
+            }
+        })
+        .collect();
+    if let Some(&first) = names.first() {
+        series.push(Series {
+            label: "raw agreed bits/step".into(),
+            points: results
+                .iter()
+                .filter(|r| r.adversary == first)
+                .filter_map(|r| Some((r.x?, r.raw_bits_per_step)))
+                .collect(),
+            style: SeriesStyle::Dashed,
+        });
+    }
+    if series.iter().any(|s| !s.points.is_empty()) {
+        let chart = LineChart {
+            title: format!(
+                "Secret bits per robot step (ε = {:e}, blocks of {} bits)",
+                4.0 * options.epsilon,
+                options.block_bits
+            ),
+            x_label: axis,
+            y_label: "bits per step".into(),
+            series,
+            equal_aspect: false,
+            log_y: false,
+        };
+        let base = dir.join("secrecy-bits-per-step");
+        files.extend(chart.save(&base).map_err(|e| LabError::Plot {
+            path: base.clone(),
+            message: e.to_string(),
+        })?);
+    }
+    Ok(files)
+}
