@@ -473,40 +473,102 @@ mod tests {
         Experiment::from_table("t", text.parse().unwrap(), "test.toml").unwrap()
     }
 
-    #[test]
-    fn an_oracle_eve_leaves_zero_secret_bits() {
-        let options = SecrecyOptions {
-            adversaries: vec![EveStrategy::Oracle],
-            block_bits: 2_000,
+    fn options(adversaries: Vec<EveStrategy>, block_bits: usize) -> SecrecyOptions {
+        SecrecyOptions {
+            adversaries,
+            block_bits,
             bootstrap: 50,
             ..SecrecyOptions::default()
-        };
-        let results = analyze(&experiment("[run]\nreplicates = 2\n"), &options).unwrap();
+        }
+    }
+
+    #[test]
+    fn an_oracle_eve_leaves_zero_secret_bits() {
+        let results = analyze(
+            &experiment("[run]\nreplicates = 2\n"),
+            &options(vec![EveStrategy::Oracle], 2_000),
+        )
+        .unwrap();
         let r = &results[0];
         assert_eq!(r.blocks.len(), 1);
+        assert_eq!(r.adversary_class, AdversaryClass::Strongest);
         assert_eq!(r.eve_error_accepted.unwrap().count, 0);
         assert_eq!(r.secret_bits, 0);
-        assert!(
-            r.blocks[0]
-                .reason
-                .as_deref()
-                .unwrap()
-                .contains("no secret bits"),
-            "{:?}",
-            r.blocks[0].reason
-        );
+        let why = r.zero_reason.as_deref().unwrap();
+        assert!(why.contains("no secret bits"), "{why}");
+        assert!(why.contains("pooling cannot help"), "{why}");
+        assert!(r.structural_zero.unwrap().contains("zero by structure"));
         assert!(r.raw_bits_per_step > 0.25);
+    }
+
+    /// Today's agents keep only sessions whose key tags matched, and both tags of every
+    /// pooled session are public functions of its key: all of them are charged.
+    #[test]
+    fn confirmed_pooling_charges_every_sessions_tags() {
+        let r = &analyze(
+            &experiment("[run]\nreplicates = 2\n"),
+            &options(vec![EveStrategy::Mismatch], 3_000),
+        )
+        .unwrap()[0];
+        let block = &r.blocks[0];
+        assert!(block.sessions >= 10, "{block:?}");
+        assert_eq!(
+            block.leak_confirmation,
+            u64::from(block.sessions) * pipeline::CONFIRMATION_BITS
+        );
+        assert_eq!((block.leak_ec, block.errors_before), (0, 0));
+        assert_eq!(block.q_estimate, 0.0);
+        assert!(block.q_source.contains("key tags matched"));
+        // Whole sessions: the block holds at least the requested bits.
+        assert!(block.bits >= 3_000);
+        assert!(block.h_min_method.contains("approximation"));
+    }
+
+    /// The complete pipeline estimates Q from a disclosed sample (never from the true
+    /// error count), removes it from the key, and charges one block confirmation.
+    #[test]
+    fn complete_pooling_estimates_q_from_a_disclosed_sample() {
+        let weak = "[code]\nn_c = 1\n[eve]\nalpha = 0.95\n[run]\nreplicates = 2\n";
+        let mut opts = options(vec![EveStrategy::Mismatch], 5_000);
+        opts.pooling = Pooling::Complete;
+        let r = &analyze(&experiment(weak), &opts).unwrap()[0];
+        let block = &r.blocks[0];
+        assert_eq!(block.sample_bits, block.bits / 10);
+        assert_eq!(block.reconciled_bits, block.bits - block.sample_bits);
+        assert!(block.q_source.contains("disclosed random sample"));
+        assert_eq!(
+            block.q_estimate,
+            block.sample_errors as f64 / block.sample_bits as f64
+        );
+        assert!(block.errors_before > 0 && block.confirmed, "{block:?}");
+        assert_eq!(block.leak_confirmation, pipeline::CONFIRMATION_BITS);
+        assert!(block.leak_ec > 0 && block.leak_ec % 2 == 0);
+        assert_eq!(r.adversary_class, AdversaryClass::Restricted);
+    }
+
+    #[test]
+    fn reports_lead_with_the_strongest_adversary() {
+        let results = analyze(
+            &experiment("[run]\nreplicates = 1\n"),
+            &options(vec![EveStrategy::Mismatch, EveStrategy::Oracle], 500),
+        )
+        .unwrap();
+        let classes: Vec<AdversaryClass> = results.iter().map(|r| r.adversary_class).collect();
+        assert_eq!(
+            classes,
+            [AdversaryClass::Strongest, AdversaryClass::Restricted]
+        );
+        let md = secrecy_markdown(&results, &SecrecyOptions::default());
+        assert!(md.starts_with("**Secret key rate: 0.**"), "{md}");
     }
 
     #[test]
     fn acceptance_does_not_depend_on_the_key_bit() {
-        let options = SecrecyOptions {
-            adversaries: vec![EveStrategy::Mismatch],
-            block_bits: 3_000,
-            bootstrap: 50,
-            ..SecrecyOptions::default()
-        };
-        let r = &analyze(&experiment("[run]\nreplicates = 2\n"), &options).unwrap()[0];
+        let r = &analyze(
+            &experiment("[run]\nreplicates = 2\n"),
+            &options(vec![EveStrategy::Mismatch], 3_000),
+        )
+        .unwrap()[0];
         // Under independence the p-value is uniform: failing at 1e-3 has probability 1e-3.
         assert!(r.acceptance_independence_p.unwrap() > 1e-3, "{r:?}");
         let p_c = r.p_c.unwrap();
