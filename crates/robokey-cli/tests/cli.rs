@@ -182,3 +182,88 @@ fn reproduce_quick_writes_a_parseable_report_and_sweep_agrees() {
 }
 
 const GOLDEN_ACCEPTED: &str = "298";
+
+#[test]
+fn secrecy_labels_adversaries_charges_tags_and_ignores_jobs() {
+    let dir = scratch("secrecy");
+    let config = dir.join("weak.toml");
+    std::fs::write(
+        &config,
+        "[code]\nn_c = 1\n[eve]\nalpha = 0.95\n[run]\nreplicates = 1\n[sweep]\n\"protocol.delta_v\" = [0.035]\n",
+    )
+    .unwrap();
+    let sweep = dir.join("sweep");
+    ok(&["sweep", s(&config), "--out", s(&sweep)]);
+    let mut json = Vec::new();
+    for jobs in ["1", "2"] {
+        let out = ok(&[
+            "secrecy",
+            s(&sweep),
+            "--adversary",
+            "mismatch",
+            "--adversary",
+            "oracle",
+            "--pooling",
+            "complete",
+            "--block",
+            "20000",
+            "--jobs",
+            jobs,
+        ]);
+        assert!(
+            out.contains("secret key rate 0: zero by structure"),
+            "{out}"
+        );
+        assert!(
+            out.contains("(restricted)") && out.contains("(strongest)"),
+            "{out}"
+        );
+        json.push(read(&sweep.join("secrecy.json")));
+    }
+    assert_eq!(json[0], json[1], "--jobs changed the results");
+    let v: serde_json::Value = serde_json::from_str(&json[0]).unwrap();
+    let rows = v["results"].as_array().unwrap();
+    assert_eq!(rows[0]["adversary_class"], "strongest");
+    assert_eq!(rows[0]["secret_bits"], 0);
+    let restricted = &rows[1];
+    assert_eq!(restricted["adversary"], "mismatch");
+    assert_eq!(restricted["adversary_class"], "restricted");
+    assert!(
+        restricted["q_source"]
+            .as_str()
+            .unwrap()
+            .contains("disclosed")
+    );
+    let block = &restricted["blocks"][0];
+    for field in [
+        "leak_ec",
+        "leak_confirmation",
+        "h_min_method",
+        "bits",
+        "errors_before",
+        "h_min",
+        "leak",
+        "secret_bits",
+    ] {
+        assert!(
+            !block[field].is_null(),
+            "block field {field} missing: {block}"
+        );
+    }
+    assert_eq!(block["leak_confirmation"], 128);
+    // ℓ > 0 here only because this Eve never learns the model: labelled so, no zero reason.
+    if restricted["secret_bits"].as_u64().unwrap() > 0 {
+        assert!(restricted["zero_reason"].is_null());
+        assert!(
+            restricted["holds_against"]
+                .as_str()
+                .unwrap()
+                .contains("never learns")
+        );
+    }
+    let err = fails(&["secrecy", s(&sweep), "--block", "10"]);
+    assert!(
+        err.contains("--block 10") && err.contains("allowed"),
+        "{err}"
+    );
+}
