@@ -210,7 +210,10 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         );
     }
     if !(1..=1_000).contains(&args.blocks) {
-        bail!("--blocks {} is not allowed (allowed: 1 to 1000)", args.blocks);
+        bail!(
+            "--blocks {} is not allowed (allowed: 1 to 1000)",
+            args.blocks
+        );
     }
     if !(1..=1_000_000).contains(&args.max_sessions) {
         bail!(
@@ -290,12 +293,10 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
                 r.blocks.iter().map(|b| b.h_min).sum::<f64>(),
                 r.secret_bits_per_step,
                 r.secret_bits_per_second,
-                r.zero_reason
-                    .as_ref()
-                    .map_or_else(
-                        || format!(", holds against {}", r.holds_against),
-                        |why| format!(": {why}")
-                    )
+                r.zero_reason.as_ref().map_or_else(
+                    || format!(", holds against {}", r.holds_against),
+                    |why| format!(": {why}")
+                )
             );
         }
         println!(

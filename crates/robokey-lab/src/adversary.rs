@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::EveStrategy;
 use robokey::eve::{Eavesdropper, Eve, starting_errors};
-use robokey::protocol::{KeyBits, Message, Outcome, SessionPlan};
+use robokey::protocol::{KeyBits, Message, Outcome, SessionPlan, StepDecision};
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, simulate_transcript};
 use serde::Serialize;
@@ -140,12 +140,12 @@ pub fn overhear(
     config: &Config,
     index: u32,
     transcript: &[Message],
-    mut on_decision: impl FnMut(&Eve, u32, Option<u8>),
+    mut on_decision: impl FnMut(&Eve, &StepDecision),
 ) -> KeyBits {
     eve.begin_session(&SessionPlan::from_config(config, index));
     for message in transcript {
         if let Some(decision) = eve.observe(message) {
-            on_decision(eve, decision.step, decision.bit);
+            on_decision(eve, &decision);
         }
     }
     eve.key()
@@ -181,9 +181,10 @@ pub fn listen(
             config,
             session.replicate,
             &session.transcript,
-            |eve, step, bit| {
+            |eve, decision| {
+                let step = decision.step;
                 let logged = steps.get(step as usize);
-                if let (Some(eve_bit), Some(logged)) = (bit, logged)
+                if let (Some(eve_bit), Some(logged)) = (decision.bit, logged)
                     && let (Some(bit), Some(controller)) = (logged.bit, logged.bhat)
                 {
                     let (r_error, d_error) = model_error(eve);

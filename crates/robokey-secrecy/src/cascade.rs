@@ -866,7 +866,11 @@ mod tests {
         let fs: Vec<f64> = (0..runs)
             .map(|_| {
                 let (alice, bob) = keys(n, errors, &mut rng);
-                cascade.reconcile(&alice, &bob, &mut rng).unwrap().alice_parities as f64 / norm
+                cascade
+                    .reconcile(&alice, &bob, &mut rng)
+                    .unwrap()
+                    .alice_parities as f64
+                    / norm
             })
             .collect();
         let mean = fs.iter().sum::<f64>() / runs as f64;

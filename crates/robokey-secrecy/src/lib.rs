@@ -1,5 +1,5 @@
 //! Secrecy math for robokey: how many secret bits a run of the robot's motion yields, and the
-//! tools to extract them (see `SECRECY.md`).
+//! tools to extract them (see docs/secrecy.md).
 //!
 //! Threat model: Eve is passive — she records every frame, knows the protocol, the trajectory
 //! and her configured model, but never injects or alters frames. Every figure here is a
@@ -10,19 +10,24 @@
 //! comes in as `&mut impl rand::Rng` (or `CryptoRng` where it must be unpredictable).
 //!
 //! - [`entropy`]: h(p), a ⋆ b, plug-in informations from the joint (b, b̂c, b̂a) table, bootstrap.
-//! - [`interval`]: Clopper–Pearson intervals and bounds, exact binomial test (§2).
-//! - [`advantage`]: repetition advantage distillation for i.i.d. errors (§1).
-//! - [`cascade`]: Cascade reconciliation with exact leak accounting (§3).
-//! - [`confirm`]: 64-bit HMAC-SHA256 key-confirmation tag (§4).
-//! - [`min_entropy`]: smooth min-entropy bounds and the output length ℓ (§5).
-//! - [`toeplitz`]: Toeplitz hashing over GF(2) for privacy amplification (§5).
+//! - [`interval`]: Clopper–Pearson intervals and bounds, exact binomial test.
+//! - [`advantage`]: repetition advantage distillation for i.i.d. errors.
+//! - [`cascade`]: Cascade reconciliation; its leak charges both sides' parities.
+//! - [`calibration`]: does a posterior predict the errors it claims? (a posterior feeds
+//!   H_min only if it passes).
+//! - [`confirm`]: 64-bit HMAC-SHA256 key-confirmation tag.
+//! - [`min_entropy`]: smooth min-entropy bounds and the output length ℓ.
+//! - [`toeplitz`]: Toeplitz hashing over GF(2) for privacy amplification, by Karatsuba
+//!   carry-less multiplication (O(n^1.58)).
 //! - [`bitstring`]: packed, zeroized bit strings; [`special`]: ln Γ and incomplete beta.
 
 pub mod advantage;
 pub mod bitstring;
+pub mod calibration;
 pub mod cascade;
 pub mod confirm;
 pub mod entropy;
+mod gf2_poly;
 pub mod interval;
 pub mod min_entropy;
 pub mod special;
@@ -30,6 +35,7 @@ pub mod toeplitz;
 
 pub use advantage::{AdvantageError, RepetitionAdvantage};
 pub use bitstring::{BitString, BitStringError};
+pub use calibration::{CalibrationError, CalibrationReport, check_calibration};
 pub use cascade::{
     Cascade, CascadeSchedule, KeyParities, ParityOracle, ReconcileError, Reconciler, Reconciliation,
 };

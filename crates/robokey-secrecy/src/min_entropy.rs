@@ -172,6 +172,9 @@ pub struct OutputLength {
 /// ℓ = max(0, ⌊H_min^ε(X|E) − leak_EC − t_ver − 2·log₂(1/ε_PA) + 2⌋), secure with
 /// ε_sec = 2ε_s + ε_PA + ε_PE. `h_min` must be a lower bound on Eve's smooth min-entropy;
 /// `leak_ec` is the realised reconciliation leak and `t_ver` the confirmation tag length.
+/// The caller must pass as `leak_ec` every public bit that depends on the key (reconciliation
+/// parities and any other disclosed function of it) except the tag length passed as `t_ver`.
+/// The shortfall `reason` states the deficit only; advice on what to do is the caller's.
 pub fn output_length(
     h_min: f64,
     leak_ec: u64,
@@ -197,8 +200,7 @@ pub fn output_length(
     } else {
         format!(
             "no secret bits: H_min^eps = {h_min:.2} bits does not cover leak_EC {leak_ec} + \
-             t_ver {t_ver} + 2*log2(1/eps_PA) - 2 = {cost:.2} bits (raw length {raw:.2}); \
-             pool more confirmed sessions before amplifying"
+             t_ver {t_ver} + 2*log2(1/eps_PA) - 2 = {cost:.2} bits (raw length {raw:.2})"
         )
     };
     Ok(OutputLength {
@@ -301,18 +303,40 @@ mod tests {
         assert!(posterior_smooth_min_entropy(&[0.2, f64::NAN], EPS).is_err());
     }
 
-    /// Exact best removal smoothing for few positions: drop the likeliest keys while their
-    /// total mass stays ≤ ε; the bound is −log₂ of the likeliest key left.
-    fn exact_smooth_min_entropy(q: &[f64], epsilon: f64) -> f64 {
-        let n = q.len();
-        let mut probs: Vec<f64> = (0..1_u32 << n)
-            .map(|m| {
-                (0..n)
-                    .map(|i| if m >> i & 1 == 1 { q[i] } else { 1.0 - q[i] })
-                    .product()
-            })
-            .collect();
-        probs.sort_by(|a, b| b.total_cmp(a));
+    #[test]
+    fn shortfall_reason_states_the_deficit_only() {
+        let l = output_length(80.0, 20, 64, EPS).unwrap();
+        let reason = l.reason.unwrap();
+        assert!(reason.contains("does not cover leak_EC 20"), "{reason}");
+        assert!(
+            reason.ends_with(&format!("(raw length {:.2})", l.raw)),
+            "{reason}"
+        );
+    }
+
+    /// Joint distribution of n independent bits with P[bit i = 1] = q_i, indexed by the
+    /// pattern (bit i of the index is bit i of the pattern).
+    fn product_distribution(q: &[f64]) -> Vec<f64> {
+        let mut probs = Vec::with_capacity(1 << q.len());
+        probs.push(1.0);
+        for &qi in q {
+            let len = probs.len();
+            for j in 0..len {
+                let p = probs[j];
+                probs[j] = p * (1.0 - qi);
+                probs.push(p * qi);
+            }
+        }
+        probs
+    }
+
+    /// Exact best-removal smooth min-entropy of an arbitrary joint distribution over the 2ⁿ
+    /// patterns (Eve's joint posterior of the key given her view): drop the likeliest patterns
+    /// while their total mass stays ≤ ε; the value is −log₂ of the likeliest pattern left.
+    /// (No other removal of mass ≤ ε leaves a smaller maximum: getting below p_k means
+    /// removing p_1..p_k, whose mass exceeds ε.) Sorts once: O(2ⁿ·n).
+    fn exact_smooth_min_entropy(mut probs: Vec<f64>, epsilon: f64) -> f64 {
+        probs.sort_unstable_by(|a, b| b.total_cmp(a));
         let mut removed = 0.0;
         for &p in &probs {
             if removed + p > epsilon {
@@ -323,16 +347,158 @@ mod tests {
         f64::INFINITY
     }
 
+    /// The soundness check every non-approximate bound must pass: bound ≤ exact (with a
+    /// rounding margin of 10⁻⁹ bits).
+    fn exceeds_exact(bound: f64, exact: f64) -> bool {
+        bound > exact + 1e-9
+    }
+
+    #[test]
+    fn exact_reference_on_hand_computed_joints() {
+        // Non-product joint on 2 bits: {0.4, 0.3, 0.2, 0.1}.
+        let joint = vec![0.1, 0.4, 0.2, 0.3];
+        assert!((exact_smooth_min_entropy(joint.clone(), 0.35) + 0.4_f64.log2()).abs() < 1e-12);
+        assert!((exact_smooth_min_entropy(joint.clone(), 0.45) + 0.3_f64.log2()).abs() < 1e-12);
+        assert!((exact_smooth_min_entropy(joint, 0.75) + 0.2_f64.log2()).abs() < 1e-12);
+        // The product builder matches the pattern-by-pattern product.
+        let q = [0.1, 0.25, 0.4];
+        let probs = product_distribution(&q);
+        for (m, &p) in probs.iter().enumerate() {
+            let direct: f64 = (0..3)
+                .map(|i| if m >> i & 1 == 1 { q[i] } else { 1.0 - q[i] })
+                .product();
+            assert!((p - direct).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn the_independence_assumption_is_load_bearing() {
+        // 12 bits with marginals ½ but all equal (two patterns of mass ½): 1 bit of
+        // min-entropy, while the posterior bound, which assumes independence, claims 12.
+        let n = 12;
+        let mut joint = vec![0.0; 1 << n];
+        joint[0] = 0.5;
+        joint[(1 << n) - 1] = 0.5;
+        let exact = exact_smooth_min_entropy(joint, 0.1);
+        assert!((exact - 1.0).abs() < 1e-12);
+        let bound = posterior_smooth_min_entropy(&[0.5; 12], 0.1).unwrap().h_min;
+        assert!(exceeds_exact(bound, exact), "{bound}");
+    }
+
+    #[test]
+    fn the_soundness_check_catches_optimistic_bounds() {
+        // Fixed example: n = 20, q = 0.1, ε = 0.05. Exact: P[Bin(20, 0.1) = 0] = 0.12 > ε, so
+        // nothing is removed and H_min^ε = 20·log₂(1/0.9) ≈ 3.04 bits.
+        let (q, eps) = ([0.1; 20], 0.05);
+        let exact = exact_smooth_min_entropy(product_distribution(&q), eps);
+        assert!(
+            (exact - 20.0 * (1.0 / 0.9_f64).log2()).abs() < 1e-9,
+            "{exact}"
+        );
+        let post = posterior_smooth_min_entropy(&q, eps).unwrap();
+        assert!(!exceeds_exact(post.h_min, exact));
+        // Without the deviation: H₀ + E(L) = Σ h(q_i), the Shannon entropy ≈ 9.38 bits.
+        let no_deviation = post.plain + post.mean_surprise;
+        let shannon: f64 = q.iter().map(|&v| crate::entropy::binary_entropy(v)).sum();
+        assert!((no_deviation - shannon).abs() < 1e-9);
+        assert!(
+            exceeds_exact(no_deviation, exact),
+            "{no_deviation} vs {exact}"
+        );
+        // A binomial bound with the mean n·p = 2 errors in place of the quantile w* = 0.
+        let bin = binomial_smooth_min_entropy(20, 0.1, eps).unwrap();
+        assert!(!exceeds_exact(bin.h_min, exact));
+        let at_mean = 2.0 * (1.0 / 0.1_f64).log2() + 18.0 * (1.0 / 0.9_f64).log2();
+        assert!(exceeds_exact(at_mean, exact), "{at_mean} vs {exact}");
+    }
+
+    /// A per-position error probability: uniform on (0.001, 0.999) or log-uniform near 0.
+    fn posterior_q() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            0.001_f64..0.999,
+            (-4.0_f64..-1.0).prop_map(|e| 10_f64.powf(e))
+        ]
+    }
+
+    /// ε log-uniform in [0.01, 0.3].
+    fn smoothing_epsilon() -> impl Strategy<Value = f64> {
+        (0.01_f64.ln()..=0.3_f64.ln()).prop_map(f64::exp)
+    }
+
+    fn check_posterior_bound(q: &[f64], eps: f64) -> Result<(), TestCaseError> {
+        let bound = posterior_smooth_min_entropy(q, eps).unwrap().h_min;
+        let exact = exact_smooth_min_entropy(product_distribution(q), eps);
+        prop_assert!(
+            !exceeds_exact(bound, exact),
+            "bound {} > exact {}",
+            bound,
+            exact
+        );
+        Ok(())
+    }
+
+    fn check_binomial_bound(n: usize, p: f64, eps: f64) -> Result<(), TestCaseError> {
+        let bound = binomial_smooth_min_entropy(n as u64, p, eps).unwrap().h_min;
+        let exact = exact_smooth_min_entropy(product_distribution(&vec![p; n]), eps);
+        prop_assert!(
+            !exceeds_exact(bound, exact),
+            "bound {} > exact {}",
+            bound,
+            exact
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn bounds_are_sound_at_20_bits() {
+        // Fixed grid at the largest enumerated length (2²⁰ patterns per case).
+        let q: Vec<f64> = (0..20).map(|i| 0.002 + 0.025 * f64::from(i)).collect();
+        for eps in [0.01, 0.05, 0.1, 0.3] {
+            check_posterior_bound(&q, eps).unwrap();
+            for p in [0.02, 0.1, 0.3, 0.5] {
+                check_binomial_bound(20, p, eps).unwrap();
+            }
+        }
+    }
+
     proptest! {
         #[test]
-        fn posterior_bound_is_sound(
-            q in proptest::collection::vec(0.01_f64..0.5, 1..12),
-            log_eps in -6.0_f64..-0.5,
+        fn posterior_bound_is_sound_small_n(
+            q in proptest::collection::vec(posterior_q(), 1..=12),
+            eps in smoothing_epsilon(),
         ) {
-            let eps = 10_f64.powf(log_eps);
-            let bound = posterior_smooth_min_entropy(&q, eps).unwrap().h_min;
-            let exact = exact_smooth_min_entropy(&q, eps);
-            prop_assert!(bound <= exact + 1e-9, "bound {} > exact {}", bound, exact);
+            check_posterior_bound(&q, eps)?;
+        }
+
+        #[test]
+        fn binomial_bound_is_sound_small_n(
+            n in 1_usize..=12,
+            p in 0.001_f64..=0.5,
+            eps in smoothing_epsilon(),
+        ) {
+            check_binomial_bound(n, p, eps)?;
+        }
+    }
+
+    proptest! {
+        // 2¹³..2²⁰ patterns per case: few cases.
+        #![proptest_config(ProptestConfig::with_cases(12))]
+
+        #[test]
+        fn posterior_bound_is_sound_up_to_20_bits(
+            q in proptest::collection::vec(posterior_q(), 13..=20),
+            eps in smoothing_epsilon(),
+        ) {
+            check_posterior_bound(&q, eps)?;
+        }
+
+        #[test]
+        fn binomial_bound_is_sound_up_to_20_bits(
+            n in 13_usize..=20,
+            p in 0.001_f64..=0.5,
+            eps in smoothing_epsilon(),
+        ) {
+            check_binomial_bound(n, p, eps)?;
         }
     }
 }

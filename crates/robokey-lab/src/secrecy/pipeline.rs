@@ -98,9 +98,8 @@ pub fn pools(runs: &[RunOutput], pooling: Pooling, block_bits: usize) -> Vec<Poo
         pool.controller.extend_from_slice(&keys.controller);
         let eve = keys.eve.as_deref().map_or(&[][..], Vec::as_slice);
         // A position Eve made no guess for counts as known to her: the cautious side.
-        pool.eve.extend(
-            (0..keys.robot.len()).map(|i| eve.get(i).copied().unwrap_or(keys.robot[i])),
-        );
+        pool.eve
+            .extend((0..keys.robot.len()).map(|i| eve.get(i).copied().unwrap_or(keys.robot[i])));
         pool.sessions += 1;
         pool.last_session = index;
         if pool.robot.len() >= block_bits {
@@ -176,11 +175,7 @@ fn bits(key: &[u8]) -> BitString {
 
 /// Splits off a uniformly random sample of `size` positions (public randomness): returns
 /// its disagreements and the three keys without it.
-fn disclose(
-    pool: &Pool,
-    size: usize,
-    public: &mut ChaCha8Rng,
-) -> (usize, [Zeroizing<Vec<u8>>; 3]) {
+fn disclose(pool: &Pool, size: usize, public: &mut ChaCha8Rng) -> (usize, [Zeroizing<Vec<u8>>; 3]) {
     let n = pool.robot.len();
     let mut disclosed = vec![false; n];
     for i in rand::seq::index::sample(public, n, size) {
@@ -236,8 +231,9 @@ pub fn post_process(pool: &Pool, settings: &BlockSettings, public: &mut ChaCha8R
             } else {
                 (errors as f64 / size as f64).min(0.5)
             };
-            let source =
-                format!("disclosed random sample of {size} positions ({errors} disagreed), removed from the key");
+            let source = format!(
+                "disclosed random sample of {size} positions ({errors} disagreed), removed from the key"
+            );
             (size, errors, q, source, keys)
         }
     };
@@ -246,11 +242,13 @@ pub fn post_process(pool: &Pool, settings: &BlockSettings, public: &mut ChaCha8R
     let (alice, bob) = (bits(&robot), bits(&controller));
     let (leak_ec, messages, confirmed) = match settings.pooling {
         Pooling::Confirmed => (0, 0, alice == bob),
-        Pooling::Complete => match Cascade::biconf(q_estimate).and_then(|c| c.reconcile(&alice, &bob, public)) {
-            Ok(r) => (r.leak, r.messages, r.corrected == alice),
-            // A failed reconciliation publishes at most the whole key's worth.
-            Err(_) => (2 * m as u64, 0, false),
-        },
+        Pooling::Complete => {
+            match Cascade::biconf(q_estimate).and_then(|c| c.reconcile(&alice, &bob, public)) {
+                Ok(r) => (r.leak, r.messages, r.corrected == alice),
+                // A failed reconciliation publishes at most the whole key's worth.
+                Err(_) => (2 * m as u64, 0, false),
+            }
+        }
     };
     let leak_confirmation = match settings.pooling {
         Pooling::Confirmed => u64::from(pool.sessions) * CONFIRMATION_BITS,
