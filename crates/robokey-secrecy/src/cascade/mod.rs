@@ -1,8 +1,11 @@
-//! Information reconciliation by Cascade (SECRECY §3), with exact leak accounting.
+//! Information reconciliation by Cascade, with exact leak accounting.
 //!
-//! Alice holds the reference key, Bob the noisy one. Bob drives the protocol and learns
-//! Alice's parities only through a [`ParityOracle`]. Parities Bob infers (a sub-block's from
-//! its parent's and sibling's, or any parity he has already been told) are not asked again.
+//! Alice holds the reference key, Bob the noisy one. Bob drives the protocol
+//! ([`CascadeBob`], a state machine without I/O) and learns Alice's parities only by asking:
+//! in memory through a [`ParityOracle`], over a network through [`CascadeAlice`], which
+//! answers compact [`BlockQuery`]s from the same public permutations. Parities Bob infers (a
+//! sub-block's from its parent's and sibling's, or any parity he has already been told) are
+//! not asked again.
 //!
 //! **Leak.** Every answered question publishes Alice's parity of the set, and Bob's next
 //! move publishes whether his own parity of it differs (he searches the block or he does
@@ -27,16 +30,18 @@
 //! already knows: a question still pending is not asked a second time (cascade-cpp repeats
 //! it when a block is queued twice), and the BICONF complement's parity is inferred, not
 //! asked. With cascade-cpp's counting restored (a test-only switch) this implementation
-//! reproduces the SECRECY §3 efficiency table within ±3 standard errors.
+//! reproduces the published efficiency table (docs/secrecy.md) within ±3 standard errors.
 
-use std::collections::VecDeque;
+mod alice;
+mod bob;
 
 use rand::Rng;
-use rand::seq::SliceRandom;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::bitstring::BitString;
+pub use alice::CascadeAlice;
+pub use bob::{BlockQuery, CascadeBob, CascadeStep};
 
 /// Errors of reconciliation.
 #[non_exhaustive]
@@ -246,60 +251,33 @@ impl Cascade {
         k.min(n)
     }
 
-    /// Runs Cascade as Bob with key `bob`, asking Alice through `oracle`.
+    /// Runs Cascade as Bob with key `bob`, asking Alice through `oracle`; `rng` is the
+    /// public generator that draws the permutations.
     pub fn reconcile_with<O: ParityOracle + ?Sized, R: Rng + ?Sized>(
         &self,
         oracle: &mut O,
         bob: &BitString,
         rng: &mut R,
     ) -> Result<Reconciliation, ReconcileError> {
-        let n = bob.len();
-        if n == 0 {
-            return Err(ReconcileError::EmptyKey);
-        }
-        let mut bob_side = Bob::new(bob.clone(), oracle, !self.cascade_cpp_counting);
-        for pass in 1..=self.schedule.passes {
-            let mut perm: Vec<usize> = (0..n).collect();
-            if pass > 1 {
-                perm.shuffle(rng);
-            }
-            bob_side.start_cascade_pass(perm, self.block_size(pass, n));
-            bob_side.service(true)?;
-        }
-        let mut rounds = 0_u32;
-        if self.schedule.biconf_streak > 0 {
-            // Each round that corrects flips a wrong bit: an honest oracle needs at most
-            // (n + 1)·streak rounds.
-            let max_rounds = (n as u64 + 1).saturating_mul(u64::from(self.schedule.biconf_streak));
-            let mut streak = 0;
-            while streak < self.schedule.biconf_streak {
-                if u64::from(rounds) >= max_rounds {
-                    return Err(ReconcileError::OracleInconsistent);
+        let (mut machine, mut step) = CascadeBob::start(*self, bob.clone(), rng)?;
+        loop {
+            match step {
+                CascadeStep::Done(outcome) => return Ok(outcome),
+                CascadeStep::Ask(queries) => {
+                    let answers = {
+                        let sets = queries
+                            .iter()
+                            .map(|q| machine.positions(q))
+                            .collect::<Option<Vec<_>>>()
+                            .ok_or(ReconcileError::OracleInconsistent)?;
+                        oracle
+                            .parities(&sets)
+                            .ok_or(ReconcileError::OracleInconsistent)?
+                    };
+                    step = machine.answer(&answers)?;
                 }
-                rounds += 1;
-                let mut perm: Vec<usize> = (0..n).collect();
-                perm.shuffle(rng);
-                let checkpoint = bob_side.checkpoint();
-                bob_side.start_biconf_round(
-                    perm,
-                    self.schedule.biconf_complement,
-                    self.cascade_cpp_counting,
-                )?;
-                let corrected = bob_side.service(false)?;
-                // Without cascading, the round created blocks only in its own pass.
-                bob_side.restore(checkpoint);
-                streak = if corrected > 0 { 0 } else { streak + 1 };
             }
         }
-        Ok(Reconciliation {
-            leak: 2 * bob_side.answered,
-            alice_parities: bob_side.answered,
-            cascade_passes: self.schedule.passes,
-            biconf_rounds: rounds,
-            messages: bob_side.messages,
-            flipped: bob_side.flipped,
-            corrected: bob_side.key,
-        })
     }
 }
 
@@ -320,325 +298,12 @@ impl Reconciler for Cascade {
     }
 }
 
-/// A block: shuffled positions start..end of one pass, with Alice's parity once known.
-#[derive(Debug)]
-struct Block {
-    pass: usize,
-    start: usize,
-    end: usize,
-    parent: Option<usize>,
-    left: Option<usize>,
-    right: Option<usize>,
-    correct_parity: Option<bool>,
-    asked: bool,
-}
-
-/// A pass: its permutation (shuffled index → key index) and Bob's key in shuffled order.
-#[derive(Debug)]
-struct Pass {
-    permutation: Vec<usize>,
-    inverse: Vec<usize>,
-    shuffled: BitString,
-    block_size: usize,
-    top: Vec<usize>,
-    cascade_target: bool,
-}
-
-/// Bob's state while reconciling.
-struct Bob<'o, O: ?Sized> {
-    key: BitString,
-    oracle: &'o mut O,
-    passes: Vec<Pass>,
-    blocks: Vec<Block>,
-    ask_queue: Vec<(usize, bool)>,
-    try_queue: VecDeque<(usize, bool)>,
-    /// Questions Alice answered.
-    answered: u64,
-    messages: u32,
-    flipped: u32,
-    /// Never repeat a question that is still pending.
-    dedupe: bool,
-}
-
-impl<'o, O: ParityOracle + ?Sized> Bob<'o, O> {
-    fn new(key: BitString, oracle: &'o mut O, dedupe: bool) -> Self {
-        Self {
-            key,
-            oracle,
-            dedupe,
-            passes: Vec::new(),
-            blocks: Vec::new(),
-            ask_queue: Vec::new(),
-            try_queue: VecDeque::new(),
-            answered: 0,
-            messages: 0,
-            flipped: 0,
-        }
-    }
-
-    /// Adds a pass over `permutation` (shuffled index → key index) with Bob's bits in
-    /// shuffled order; returns its index.
-    fn add_pass(
-        &mut self,
-        permutation: Vec<usize>,
-        block_size: usize,
-        cascade_target: bool,
-    ) -> usize {
-        let n = permutation.len();
-        let mut inverse = vec![0; n];
-        let mut shuffled = BitString::zeros(n);
-        for (s, &k) in permutation.iter().enumerate() {
-            inverse[k] = s;
-            if self.key.get(k) == Some(true) {
-                let _ = shuffled.flip(s);
-            }
-        }
-        let top = Vec::new();
-        self.passes.push(Pass {
-            permutation,
-            inverse,
-            shuffled,
-            block_size,
-            top,
-            cascade_target,
-        });
-        self.passes.len() - 1
-    }
-
-    /// A Cascade pass: top blocks of `block_size` (the last shorter), parities queued.
-    fn start_cascade_pass(&mut self, permutation: Vec<usize>, block_size: usize) {
-        let n = permutation.len();
-        let pass = self.add_pass(permutation, block_size, true);
-        let mut start = 0;
-        while start < n {
-            let end = start.saturating_add(block_size).min(n);
-            let id = self.new_block(pass, start, end, None);
-            self.passes[pass].top.push(id);
-            self.queue_ask(id, false);
-            start = end;
-        }
-    }
-
-    /// A BICONF round: the parity of the first ⌊n/2⌋ shuffled bits is asked; with
-    /// `complement`, the rest is searched too, its parity inferred as whole-key parity ⊕ the
-    /// half's (or asked, with `ask_complement`).
-    fn start_biconf_round(
-        &mut self,
-        permutation: Vec<usize>,
-        complement: bool,
-        ask_complement: bool,
-    ) -> Result<(), ReconcileError> {
-        let n = permutation.len();
-        let half = (n / 2).max(1);
-        let pass = self.add_pass(permutation, half, false);
-        let whole_parity = self.whole_key_parity();
-        if !complement || half == n {
-            let chosen = self.new_block(pass, 0, half, None);
-            self.queue_ask(chosen, false);
-            return Ok(());
-        }
-        let whole = self.new_block(pass, 0, n, None);
-        let chosen = self.child(whole, true);
-        let rest = self.child(whole, false);
-        self.queue_ask(chosen, false);
-        match whole_parity {
-            Some(p) if !ask_complement => {
-                self.blocks[whole].correct_parity = Some(p);
-                self.ask()?;
-                self.try_queue.push_back((rest, false));
-            }
-            _ => self.queue_ask(rest, false),
-        }
-        Ok(())
-    }
-
-    /// Alice's whole-key parity: the XOR of her pass-1 top-block parities, once known.
-    fn whole_key_parity(&self) -> Option<bool> {
-        let first = self.passes.first()?;
-        first
-            .top
-            .iter()
-            .try_fold(false, |acc, &b| Some(acc ^ self.blocks[b].correct_parity?))
-    }
-
-    fn new_block(&mut self, pass: usize, start: usize, end: usize, parent: Option<usize>) -> usize {
-        self.blocks.push(Block {
-            pass,
-            start,
-            end,
-            parent,
-            left: None,
-            right: None,
-            correct_parity: None,
-            asked: false,
-        });
-        self.blocks.len() - 1
-    }
-
-    fn checkpoint(&self) -> (usize, usize) {
-        (self.passes.len(), self.blocks.len())
-    }
-
-    /// Drops the passes and blocks created after `checkpoint` (a finished BICONF round).
-    fn restore(&mut self, (passes, blocks): (usize, usize)) {
-        self.passes.truncate(passes);
-        self.blocks.truncate(blocks);
-    }
-
-    fn queue_ask(&mut self, block: usize, correct_right_sibling: bool) {
-        if !self.dedupe || !self.blocks[block].asked {
-            self.blocks[block].asked = true;
-            self.ask_queue.push((block, correct_right_sibling));
-        }
-    }
-
-    /// Runs try-corrects and question rounds until nothing is pending; returns bits flipped.
-    fn service(&mut self, cascade: bool) -> Result<u32, ReconcileError> {
-        let mut corrected = 0;
-        loop {
-            while let Some((block, right)) = self.try_queue.pop_front() {
-                corrected += self.try_correct(block, right, cascade)?;
-            }
-            if self.ask_queue.is_empty() {
-                return Ok(corrected);
-            }
-            self.ask()?;
-        }
-    }
-
-    /// Sends all pending questions in one message and queues the blocks for correction.
-    fn ask(&mut self) -> Result<(), ReconcileError> {
-        let pending = std::mem::take(&mut self.ask_queue);
-        let answers = {
-            let queries: Vec<&[usize]> = pending
-                .iter()
-                .map(|&(b, _)| {
-                    let blk = &self.blocks[b];
-                    &self.passes[blk.pass].permutation[blk.start..blk.end]
-                })
-                .collect();
-            self.oracle
-                .parities(&queries)
-                .ok_or(ReconcileError::OracleInconsistent)?
-        };
-        if answers.len() != pending.len() {
-            return Err(ReconcileError::OracleInconsistent);
-        }
-        self.messages += 1;
-        self.answered += answers.len() as u64;
-        for (&(block, right), parity) in pending.iter().zip(answers) {
-            self.blocks[block].correct_parity = Some(parity);
-            self.try_queue.push_back((block, right));
-        }
-        Ok(())
-    }
-
-    fn current_parity(&self, block: usize) -> bool {
-        let b = &self.blocks[block];
-        self.passes[b.pass]
-            .shuffled
-            .range_parity(b.start, b.end)
-            .unwrap_or(false)
-    }
-
-    /// Alice's parity of `block` if known or inferable as parent ⊕ sibling.
-    fn correct_parity(&mut self, block: usize) -> Option<bool> {
-        if let Some(p) = self.blocks[block].correct_parity {
-            return Some(p);
-        }
-        let parent = self.blocks[block].parent?;
-        let (l, r) = (self.blocks[parent].left?, self.blocks[parent].right?);
-        let sibling = if l == block { r } else { l };
-        let inferred = self.blocks[parent].correct_parity? ^ self.blocks[sibling].correct_parity?;
-        self.blocks[block].correct_parity = Some(inferred);
-        Some(inferred)
-    }
-
-    /// Binary search for one error in `block` (or, if it has even error parity and
-    /// `correct_right_sibling`, in its right sibling). Returns bits flipped (0 or 1).
-    fn try_correct(
-        &mut self,
-        mut block: usize,
-        mut correct_right_sibling: bool,
-        cascade: bool,
-    ) -> Result<u32, ReconcileError> {
-        loop {
-            let Some(correct) = self.correct_parity(block) else {
-                self.queue_ask(block, correct_right_sibling);
-                return Ok(0);
-            };
-            if self.current_parity(block) == correct {
-                if !correct_right_sibling {
-                    return Ok(0);
-                }
-                let Some(parent) = self.blocks[block].parent else {
-                    return Ok(0);
-                };
-                block = self.child(parent, false);
-                correct_right_sibling = false;
-                continue;
-            }
-            let b = &self.blocks[block];
-            if b.end - b.start == 1 {
-                let (pass, position) = (b.pass, b.start);
-                let key_index = self.passes[pass].permutation[position];
-                self.flip(key_index, pass, cascade)?;
-                return Ok(1);
-            }
-            block = self.child(block, true);
-            correct_right_sibling = true;
-        }
-    }
-
-    /// Left (⌊size/2⌋ bits) or right sub-block of `parent`, created on first use.
-    fn child(&mut self, parent: usize, left: bool) -> usize {
-        let p = &self.blocks[parent];
-        if let Some(c) = if left { p.left } else { p.right } {
-            return c;
-        }
-        let (pass, start, end) = (p.pass, p.start, p.end);
-        let mid = start + (end - start) / 2;
-        let (s, e) = if left { (start, mid) } else { (mid, end) };
-        let id = self.new_block(pass, s, e, Some(parent));
-        if left {
-            self.blocks[parent].left = Some(id);
-        } else {
-            self.blocks[parent].right = Some(id);
-        }
-        id
-    }
-
-    /// Flips key bit `key_index` everywhere; with `cascade`, queues the top-level block that
-    /// contains it in every other Cascade pass.
-    fn flip(
-        &mut self,
-        key_index: usize,
-        from_pass: usize,
-        cascade: bool,
-    ) -> Result<(), ReconcileError> {
-        self.flipped += 1;
-        if self.flipped as usize > self.key.len() {
-            return Err(ReconcileError::OracleInconsistent);
-        }
-        let _ = self.key.flip(key_index);
-        for (q, pass) in self.passes.iter_mut().enumerate() {
-            let s = pass.inverse[key_index];
-            let _ = pass.shuffled.flip(s);
-            if cascade && q != from_pass && pass.cascade_target {
-                self.try_queue
-                    .push_back((pass.top[s / pass.block_size], false));
-            }
-        }
-        Ok(())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::entropy::binary_entropy;
-    use rand::SeedableRng;
     use rand::rngs::ChaCha8Rng;
+    use rand::{Rng, SeedableRng};
 
     /// Alice that records every question and answer.
     struct Recording<'a> {
@@ -739,6 +404,73 @@ mod tests {
         assert_eq!(oracle.transcript, asked);
         assert_eq!((r.alice_parities, r.leak, r.flipped), (3, 6, 1));
         assert_eq!(r.corrected, alice);
+    }
+
+    /// Over a network Alice answers compact questions from her own copy of the public
+    /// generator: the outcome is exactly the in-memory one.
+    #[test]
+    fn alice_over_the_network_answers_as_the_oracle() {
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        for (schedule, n, errors) in [
+            (CascadeSchedule::BICONF, 2_000, 40),
+            (CascadeSchedule::ORIGINAL, 1_500, 75),
+            (CascadeSchedule::BICONF, 700, 0),
+        ] {
+            let (alice, bob) = keys(n, errors, &mut rng);
+            let cascade = Cascade::new(schedule, errors.max(1) as f64 / n as f64).unwrap();
+            let seed = rng.next_u64();
+            let expected = cascade
+                .reconcile(&alice, &bob, &mut ChaCha8Rng::seed_from_u64(seed))
+                .unwrap();
+            let mut remote =
+                CascadeAlice::new(alice.clone(), schedule, ChaCha8Rng::seed_from_u64(seed));
+            let (mut machine, mut step) =
+                CascadeBob::start(cascade, bob.clone(), ChaCha8Rng::seed_from_u64(seed)).unwrap();
+            let outcome = loop {
+                match step {
+                    CascadeStep::Done(outcome) => break outcome,
+                    CascadeStep::Ask(queries) => {
+                        step = machine.answer(&remote.answer(&queries).unwrap()).unwrap();
+                    }
+                }
+            };
+            assert_eq!(outcome, expected);
+            assert_eq!(remote.revealed(), outcome.alice_parities);
+            assert_eq!(outcome.corrected, alice);
+        }
+    }
+
+    #[test]
+    fn alice_refuses_questions_no_honest_bob_asks() {
+        let key = BitString::zeros(100);
+        let schedule = CascadeSchedule::BICONF;
+        let mut alice = CascadeAlice::new(key, schedule, ChaCha8Rng::seed_from_u64(1));
+        let q = |permutation, start, end| BlockQuery {
+            permutation,
+            start,
+            end,
+        };
+        // A permutation ahead of the next one, an empty or out-of-range block.
+        for bad in [q(1, 0, 10), q(0, 5, 5), q(0, 90, 101)] {
+            assert_eq!(
+                alice.answer(&[bad]),
+                Err(ReconcileError::OracleInconsistent)
+            );
+        }
+        // Permutations 0 and 1 (the Cascade passes) stay; BICONF rounds replace each other.
+        for p in 0..4 {
+            assert!(alice.answer(&[q(p, 0, 50)]).is_ok());
+        }
+        assert!(alice.answer(&[q(1, 0, 50)]).is_ok());
+        assert!(alice.answer(&[q(2, 0, 50)]).is_err());
+        // Bob refuses answers he did not ask for.
+        let (mut bob, _) = CascadeBob::start(
+            Cascade::biconf(0.01).unwrap(),
+            BitString::zeros(100),
+            ChaCha8Rng::seed_from_u64(1),
+        )
+        .unwrap();
+        assert_eq!(bob.answer(&[]), Err(ReconcileError::OracleInconsistent));
     }
 
     #[test]
