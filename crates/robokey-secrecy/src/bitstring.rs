@@ -3,6 +3,7 @@
 use std::fmt;
 
 use rand::Rng;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use zeroize::{Zeroize, ZeroizeOnDrop};
 
@@ -34,10 +35,36 @@ pub enum BitStringError {
 /// A string of `len` bits packed little-endian into u64 words: bit i is bit i mod 64 of word
 /// i / 64; bits past `len` in the last word are always zero. Zeroized on drop; `Debug` shows
 /// only the length. Equality is not constant-time (compare keys through a confirmation tag).
-#[derive(Clone, PartialEq, Eq, Default, Zeroize, ZeroizeOnDrop)]
+/// Serialized as its length and words; deserializing checks that the words hold the length.
+#[derive(Clone, PartialEq, Eq, Default, Zeroize, ZeroizeOnDrop, Serialize, Deserialize)]
+#[serde(try_from = "PackedBits", into = "PackedBits")]
 pub struct BitString {
     words: Vec<u64>,
     len: usize,
+}
+
+/// The serialized form of a [`BitString`].
+#[derive(Serialize, Deserialize, Zeroize, ZeroizeOnDrop)]
+struct PackedBits {
+    len: usize,
+    words: Vec<u64>,
+}
+
+impl From<BitString> for PackedBits {
+    fn from(bits: BitString) -> Self {
+        Self {
+            len: bits.len,
+            words: bits.words.clone(),
+        }
+    }
+}
+
+impl TryFrom<PackedBits> for BitString {
+    type Error = BitStringError;
+
+    fn try_from(packed: PackedBits) -> Result<Self, Self::Error> {
+        Self::from_words(packed.words.clone(), packed.len)
+    }
 }
 
 impl fmt::Debug for BitString {

@@ -71,6 +71,27 @@ impl ConfirmationTag {
         Self(tag)
     }
 
+    /// A directional tag over a pooled block's reconciled key: the first 64 bits of
+    /// HMAC-SHA256(K, |label| ‖ label ‖ |direction| ‖ direction ‖ |K| in bits ‖ context),
+    /// lengths big-endian u64. The two directions use different labels, so one side's tag
+    /// reflected back never passes as the other's.
+    #[must_use]
+    pub fn directional(key: &BitString, direction: &[u8], context: &[u8]) -> Self {
+        const LABEL: &[u8] = b"robokey/block-confirmation/v1";
+        let key_bytes = Zeroizing::new(key.to_bytes());
+        let mut mac = hmac_sha256(&key_bytes);
+        for part in [LABEL, direction] {
+            mac.update(&(part.len() as u64).to_be_bytes());
+            mac.update(part);
+        }
+        mac.update(&(key.len() as u64).to_be_bytes());
+        mac.update(context);
+        let full = mac.finalize().into_bytes();
+        let mut tag = [0_u8; 8];
+        tag.copy_from_slice(&full[..8]);
+        Self(tag)
+    }
+
     /// Constant-time equality of two tags.
     #[must_use]
     pub fn matches(&self, other: &Self) -> bool {

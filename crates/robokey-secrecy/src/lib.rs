@@ -19,6 +19,8 @@
 //! - [`min_entropy`]: smooth min-entropy bounds and the output length ℓ.
 //! - [`toeplitz`]: Toeplitz hashing over GF(2) for privacy amplification, by Karatsuba
 //!   carry-less multiplication (O(n^1.58)).
+//! - [`postprocess`]: the post-processing protocol's two endpoints (pool sync, Cascade,
+//!   confirmation, amplification, two-phase commit), without I/O.
 //! - [`bitstring`]: packed, zeroized bit strings; [`special`]: ln Γ and incomplete beta.
 
 pub mod advantage;
@@ -30,6 +32,7 @@ pub mod entropy;
 mod gf2_poly;
 pub mod interval;
 pub mod min_entropy;
+pub mod postprocess;
 pub mod special;
 pub mod toeplitz;
 

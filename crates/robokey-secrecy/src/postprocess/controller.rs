@@ -1,0 +1,614 @@
+//! The controller's post-processing endpoint: it pools its (noisy) session bits, proposes
+//! blocks, corrects its bits by Cascade, and coordinates the two-phase commit.
+
+use std::collections::{BTreeSet, VecDeque};
+
+use rand::rngs::ChaCha20Rng;
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+
+use super::public::PublicRandomness;
+use super::{
+    AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, Message, Output,
+    Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, pool_session, split_sample,
+    tag_context,
+};
+use crate::bitstring::BitString;
+use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
+use crate::confirm::ConfirmationTag;
+
+/// What the controller feeds its endpoint.
+#[derive(Debug, Clone)]
+pub enum ControllerInput {
+    /// The raw bits of a session both sides completed.
+    Session {
+        /// Session ID.
+        id: u32,
+        /// The controller's bits (decisions) of the session.
+        bits: BitString,
+    },
+    /// A message from the robot.
+    Frame(Message),
+    /// The retransmission timer fired: repeat the last request.
+    Timeout,
+}
+
+/// A block the durable state must remember across a crash.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum InFlight {
+    /// Proposed, not committed: aborted on recovery.
+    Started {
+        /// Block number.
+        block: u64,
+        /// Sessions proposed.
+        sessions: Vec<u32>,
+    },
+    /// Committed here; the robot's `CommitAck` is outstanding.
+    Committed {
+        /// Block number.
+        block: u64,
+        /// Sessions proposed.
+        sessions: Vec<u32>,
+    },
+    /// Being aborted.
+    Aborting {
+        /// Block number.
+        block: u64,
+        /// Sessions proposed.
+        sessions: Vec<u32>,
+        /// Why.
+        reason: AbortReason,
+    },
+}
+
+/// The controller's durable state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ControllerSnapshot {
+    /// The next block number.
+    pub next_block: u64,
+    /// Sessions pooled and not yet proposed.
+    pub pool: Vec<(u32, BitString)>,
+    /// Sessions proposed in a block (spent).
+    pub spent: Vec<u32>,
+    /// The block in flight, if any.
+    pub in_flight: Option<InFlight>,
+    /// Committed keys.
+    pub keys: Vec<FinalKey>,
+}
+
+/// A block after the robot agreed.
+struct Agreed {
+    sessions: Vec<u32>,
+    nonces: [[u8; 32]; 2],
+    public: PublicRandomness,
+}
+
+/// What the controller waits for.
+enum State {
+    Idle,
+    ExpectAgree {
+        nonce: [u8; 32],
+    },
+    ExpectAnswer {
+        agreed: Agreed,
+        bob: Box<CascadeBob<ChaCha20Rng>>,
+        round: u32,
+    },
+    ExpectConfirmed {
+        agreed: Agreed,
+        reconciled: BitString,
+        key: BitString,
+        length: u64,
+    },
+    ExpectCommitAck,
+    ExpectAbortAck,
+}
+
+/// The controller's endpoint. See the [module](super) documentation for the protocol.
+pub struct ControllerPost {
+    settings: Settings,
+    rng: ChaCha20Rng,
+    pool: Pool,
+    spent: BTreeSet<u32>,
+    next_block: u64,
+    /// The block in flight: its number, proposed sessions and their bits.
+    block: Option<(u64, Vec<u32>, Pool)>,
+    in_flight: Option<InFlight>,
+    state: State,
+    report: Option<BlockReport>,
+    keys: Vec<FinalKey>,
+    last_request: Option<Message>,
+    outputs: VecDeque<Output>,
+}
+
+impl std::fmt::Debug for ControllerPost {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ControllerPost")
+            .field("pooled", &self.pool.len())
+            .field("next_block", &self.next_block)
+            .field("in_flight", &self.in_flight)
+            .field("keys", &self.keys.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl ControllerPost {
+    /// A fresh endpoint; `rng_seed` seeds its nonces (from the OS CSPRNG in a deployment).
+    ///
+    /// # Errors
+    /// [`PostError::Settings`].
+    pub fn new(settings: Settings, rng_seed: [u8; 32]) -> Result<Self, PostError> {
+        settings.check()?;
+        Ok(Self {
+            settings,
+            rng: ChaCha20Rng::from_seed(rng_seed),
+            pool: Pool::new(),
+            spent: BTreeSet::new(),
+            next_block: 0,
+            block: None,
+            in_flight: None,
+            state: State::Idle,
+            report: None,
+            keys: Vec::new(),
+            last_request: None,
+            outputs: VecDeque::new(),
+        })
+    }
+
+    /// The endpoint after a crash, from its last stored snapshot: an uncommitted block is
+    /// aborted, a committed one's `Commit` repeated.
+    ///
+    /// # Errors
+    /// [`PostError::Settings`].
+    pub fn restore(
+        snapshot: ControllerSnapshot,
+        settings: Settings,
+        rng_seed: [u8; 32],
+    ) -> Result<Self, PostError> {
+        let mut endpoint = Self::new(settings, rng_seed)?;
+        endpoint.next_block = snapshot.next_block;
+        endpoint.pool = snapshot.pool.into_iter().collect();
+        endpoint.spent = snapshot.spent.into_iter().collect();
+        endpoint.keys = snapshot.keys;
+        match snapshot.in_flight {
+            None => endpoint.maybe_propose(),
+            Some(InFlight::Committed { block, sessions }) => {
+                endpoint.block = Some((block, sessions.clone(), Pool::new()));
+                endpoint.in_flight = Some(InFlight::Committed { block, sessions });
+                endpoint.report = Some(empty_report(block));
+                endpoint.state = State::ExpectCommitAck;
+                endpoint.request(Message::Commit { block });
+            }
+            Some(
+                InFlight::Started { block, sessions }
+                | InFlight::Aborting {
+                    block, sessions, ..
+                },
+            ) => {
+                endpoint.block = Some((block, sessions, Pool::new()));
+                endpoint.report = Some(empty_report(block));
+                endpoint.abort(AbortReason::Restart, "the controller restarted".into());
+            }
+        }
+        Ok(endpoint)
+    }
+
+    /// The durable state to store on [`Output::Persist`].
+    #[must_use]
+    pub fn snapshot(&self) -> ControllerSnapshot {
+        ControllerSnapshot {
+            next_block: self.next_block,
+            pool: self
+                .pool
+                .iter()
+                .map(|(&id, bits)| (id, bits.clone()))
+                .collect(),
+            spent: self.spent.iter().copied().collect(),
+            in_flight: self.in_flight.clone(),
+            keys: self.keys.clone(),
+        }
+    }
+
+    /// Keys committed so far.
+    #[must_use]
+    pub fn keys(&self) -> &[FinalKey] {
+        &self.keys
+    }
+
+    /// Whether no block is in flight.
+    #[must_use]
+    pub fn is_idle(&self) -> bool {
+        matches!(self.state, State::Idle)
+    }
+
+    /// The next thing to do.
+    pub fn poll_output(&mut self) -> Option<Output> {
+        self.outputs.pop_front()
+    }
+
+    /// Feeds one input.
+    ///
+    /// # Errors
+    /// A session that is a duplicate or of a size outside the bounds (nothing changes).
+    pub fn handle_input(&mut self, input: ControllerInput) -> Result<(), PostError> {
+        match input {
+            ControllerInput::Session { id, bits } => {
+                pool_session(&mut self.pool, &self.spent, id, bits)?;
+                self.outputs.push_back(Output::Persist);
+                self.maybe_propose();
+            }
+            ControllerInput::Timeout => {
+                if let Some(request) = self.last_request.clone() {
+                    self.send(request);
+                }
+            }
+            ControllerInput::Frame(message) => self.handle_message(message),
+        }
+        Ok(())
+    }
+
+    fn handle_message(&mut self, message: Message) {
+        let current = self.block.as_ref().map(|(b, ..)| *b);
+        if current != Some(message.block()) {
+            self.outputs
+                .push_back(Output::Ignored("a message about another block"));
+            return;
+        }
+        match (std::mem::replace(&mut self.state, State::Idle), message) {
+            (
+                State::ExpectAgree { nonce },
+                Message::Agree {
+                    sessions,
+                    nonce: robot_nonce,
+                    sample,
+                    ..
+                },
+            ) => self.on_agree(nonce, sessions, robot_nonce, &sample),
+            (
+                State::ExpectAnswer {
+                    agreed,
+                    mut bob,
+                    round,
+                },
+                Message::Answer {
+                    round: answered,
+                    parities,
+                    ..
+                },
+            ) if answered == round => match bob.answer(&parities) {
+                Ok(step) => self.reconcile(agreed, bob, round, step),
+                Err(e) => self.abort(
+                    AbortReason::Reconciliation,
+                    format!("reconciliation failed: {e}"),
+                ),
+            },
+            (
+                State::ExpectConfirmed {
+                    agreed,
+                    reconciled,
+                    key,
+                    length,
+                },
+                Message::Confirmed { tag, .. },
+            ) => {
+                let context = tag_context(self.current(), &agreed.sessions, &agreed.nonces, length);
+                let expected =
+                    ConfirmationTag::directional(&reconciled, ROBOT_TO_CONTROLLER, &context);
+                if expected.matches(&ConfirmationTag(tag)) {
+                    self.commit(agreed, key);
+                } else {
+                    self.abort(
+                        AbortReason::Reconciliation,
+                        "the robot's tag differs: the reconciled keys differ".into(),
+                    );
+                }
+            }
+            (State::ExpectCommitAck, Message::CommitAck { .. }) => self.end_block(),
+            (State::ExpectAbortAck, Message::AbortAck { .. }) => self.end_block(),
+            (
+                State::ExpectAgree { .. }
+                | State::ExpectAnswer { .. }
+                | State::ExpectConfirmed { .. },
+                Message::Reject { reason, .. },
+            ) => self.abort(
+                AbortReason::Refused,
+                format!("the robot refused the block ({reason:?})"),
+            ),
+            (state, _) => {
+                self.state = state;
+                self.outputs.push_back(Output::Ignored(
+                    "a message the controller does not expect now",
+                ));
+            }
+        }
+    }
+
+    fn current(&self) -> u64 {
+        self.block.as_ref().map_or(0, |(b, ..)| *b)
+    }
+
+    /// Proposes a block when idle and the pool holds enough bits.
+    fn maybe_propose(&mut self) {
+        if !self.is_idle() || self.block.is_some() {
+            return;
+        }
+        let pooled: usize = self.pool.values().map(BitString::len).sum();
+        if pooled < self.settings.block_bits {
+            return;
+        }
+        let mut sessions = Vec::new();
+        let mut bits = Pool::new();
+        let mut total = 0;
+        while total < self.settings.block_bits && sessions.len() < MAX_BLOCK_SESSIONS {
+            let Some((id, session)) = self.pool.pop_first() else {
+                break;
+            };
+            total += session.len();
+            sessions.push(id);
+            bits.insert(id, session);
+        }
+        let block = self.next_block;
+        self.next_block += 1;
+        let mut nonce = [0_u8; 32];
+        self.rng.fill_bytes(&mut nonce);
+        self.in_flight = Some(InFlight::Started {
+            block,
+            sessions: sessions.clone(),
+        });
+        self.block = Some((block, sessions.clone(), bits));
+        self.report = Some(empty_report(block));
+        self.state = State::ExpectAgree { nonce };
+        self.outputs.push_back(Output::Persist);
+        self.request(Message::Propose {
+            block,
+            sessions,
+            nonce,
+        });
+    }
+
+    fn on_agree(
+        &mut self,
+        nonce: [u8; 32],
+        agreed: Vec<u32>,
+        robot_nonce: [u8; 32],
+        sample: &[bool],
+    ) {
+        let Some((block, proposed, bits)) = self.block.as_ref() else {
+            return;
+        };
+        let block = *block;
+        if !is_subsequence(&agreed, proposed) {
+            return self.abort(
+                AbortReason::Refused,
+                "the robot agreed to sessions that were not proposed".into(),
+            );
+        }
+        if agreed.is_empty() {
+            return self.abort(
+                AbortReason::Refused,
+                "the robot holds none of the proposed sessions".into(),
+            );
+        }
+        let nonces = [nonce, robot_nonce];
+        let public = PublicRandomness::new(block, &agreed, &nonces);
+        let key = concatenate(bits, &agreed);
+        let mask = public.sample(key.len(), self.settings.sample_bits);
+        let (own_sample, kept) = split_sample(&key, &mask);
+        if own_sample.len() != sample.len() {
+            return self.abort(
+                AbortReason::Refused,
+                "the robot's sample has the wrong length".into(),
+            );
+        }
+        let errors = own_sample
+            .iter()
+            .zip(sample)
+            .filter(|(a, b)| a != b)
+            .count();
+        let q = if sample.is_empty() {
+            0.0
+        } else {
+            (errors as f64 / sample.len() as f64).min(0.5)
+        };
+        if let Some(report) = self.report.as_mut() {
+            report.sessions.clone_from(&agreed);
+            report.bits = key.len();
+            report.sample_bits = sample.len();
+            report.sample_errors = errors;
+            report.q_estimate = q;
+            report.reconciled_bits = kept.len();
+        }
+        let agreed = Agreed {
+            sessions: agreed,
+            nonces,
+            public,
+        };
+        let started = Cascade::new(self.settings.schedule, q)
+            .and_then(|cascade| CascadeBob::start(cascade, kept, agreed.public.cascade()));
+        match started {
+            Ok((bob, step)) => self.reconcile(agreed, Box::new(bob), 0, step),
+            Err(e) => self.abort(
+                AbortReason::Reconciliation,
+                format!("reconciliation could not start: {e}"),
+            ),
+        }
+    }
+
+    /// Continues Cascade after round `round` with its next step.
+    fn reconcile(
+        &mut self,
+        agreed: Agreed,
+        bob: Box<CascadeBob<ChaCha20Rng>>,
+        round: u32,
+        step: CascadeStep,
+    ) {
+        match step {
+            CascadeStep::Ask(queries) => self.ask(agreed, bob, round + 1, queries),
+            CascadeStep::Done(outcome) => self.confirm(agreed, outcome),
+        }
+    }
+
+    fn ask(
+        &mut self,
+        agreed: Agreed,
+        bob: Box<CascadeBob<ChaCha20Rng>>,
+        round: u32,
+        queries: Vec<BlockQuery>,
+    ) {
+        let block = self.current();
+        self.state = State::ExpectAnswer { agreed, bob, round };
+        self.request(Message::Ask {
+            block,
+            round,
+            queries,
+        });
+    }
+
+    /// Reconciliation is over: ℓ from the assumption, then the controller's tag.
+    fn confirm(&mut self, agreed: Agreed, outcome: Reconciliation) {
+        let n = outcome.corrected.len() as u64;
+        let (h_min, length) =
+            self.settings
+                .assumption
+                .output_length(n, outcome.leak, self.settings.epsilon);
+        if let Some(report) = self.report.as_mut() {
+            report.questions = outcome.alice_parities;
+            report.leak_ec = outcome.leak;
+            report.leak_confirmation = 2 * crate::confirm::TAG_BITS;
+            report.h_min = h_min;
+            report.length = length.bits;
+        }
+        if length.bits == 0 {
+            let reason = length.reason.unwrap_or_else(|| "no secret bits".to_owned());
+            return self.abort(AbortReason::NoSecretBits, reason);
+        }
+        let block = self.current();
+        let key = agreed
+            .public
+            .toeplitz(outcome.corrected.len(), length.bits as usize)
+            .and_then(|hash| hash.hash(&outcome.corrected));
+        let Ok(key) = key else {
+            return self.abort(
+                AbortReason::NoSecretBits,
+                "the Toeplitz hash could not be built".into(),
+            );
+        };
+        let context = tag_context(block, &agreed.sessions, &agreed.nonces, length.bits);
+        let tag = ConfirmationTag::directional(&outcome.corrected, CONTROLLER_TO_ROBOT, &context);
+        self.state = State::ExpectConfirmed {
+            agreed,
+            reconciled: outcome.corrected,
+            key,
+            length: length.bits,
+        };
+        self.request(Message::Confirm {
+            block,
+            length: length.bits,
+            tag: tag.0,
+        });
+    }
+
+    /// The robot's tag proved it prepared the key: commit, durably, then tell it.
+    fn commit(&mut self, agreed: Agreed, key: BitString) {
+        let Some((block, proposed, _)) = self.block.as_ref() else {
+            return;
+        };
+        let (block, proposed) = (*block, proposed.clone());
+        let key = FinalKey {
+            block,
+            key,
+            sessions: agreed.sessions,
+            epsilon: 4.0 * self.settings.epsilon,
+            assumption: self.settings.assumption.describe(),
+        };
+        self.keys.push(key.clone());
+        self.in_flight = Some(InFlight::Committed {
+            block,
+            sessions: proposed,
+        });
+        self.state = State::ExpectCommitAck;
+        self.outputs.push_back(Output::Persist);
+        self.outputs.push_back(Output::KeyCommitted(key));
+        self.request(Message::Commit { block });
+    }
+
+    /// Ends the block without key: durably, then tells the robot.
+    fn abort(&mut self, reason: AbortReason, why: String) {
+        let Some((block, proposed, _)) = self.block.as_ref() else {
+            return;
+        };
+        let (block, sessions) = (*block, proposed.clone());
+        if let Some(report) = self.report.as_mut() {
+            report.reason = Some(why);
+            report.length = 0;
+        }
+        self.in_flight = Some(InFlight::Aborting {
+            block,
+            sessions: sessions.clone(),
+            reason,
+        });
+        self.state = State::ExpectAbortAck;
+        self.outputs.push_back(Output::Persist);
+        self.request(Message::Abort {
+            block,
+            sessions,
+            reason,
+        });
+    }
+
+    /// The robot acknowledged: the block's sessions are spent; propose the next.
+    fn end_block(&mut self) {
+        if let Some((_, sessions, _)) = self.block.take() {
+            self.spent.extend(sessions);
+        }
+        self.in_flight = None;
+        self.state = State::Idle;
+        self.last_request = None;
+        self.outputs.push_back(Output::Persist);
+        if let Some(report) = self.report.take() {
+            self.outputs.push_back(Output::BlockEnded(report));
+        }
+        self.maybe_propose();
+    }
+
+    /// Sends a request and remembers it for retransmission.
+    fn request(&mut self, message: Message) {
+        self.last_request = Some(message.clone());
+        self.send(message);
+    }
+
+    fn send(&mut self, message: Message) {
+        if let Some(report) = self.report.as_mut() {
+            report.messages_sent += 1;
+            report.bits_sent += message.payload_bits();
+        }
+        self.outputs.push_back(Output::Transmit(message));
+    }
+}
+
+/// A report with only its block number.
+pub(super) fn empty_report(block: u64) -> BlockReport {
+    BlockReport {
+        block,
+        sessions: Vec::new(),
+        bits: 0,
+        sample_bits: 0,
+        sample_errors: 0,
+        q_estimate: 0.0,
+        reconciled_bits: 0,
+        questions: 0,
+        leak_ec: 0,
+        leak_confirmation: 0,
+        h_min: 0.0,
+        length: 0,
+        reason: None,
+        messages_sent: 0,
+        bits_sent: 0,
+    }
+}
+
+/// Whether `sub` lists distinct elements of `sequence` in its order.
+fn is_subsequence(sub: &[u32], sequence: &[u32]) -> bool {
+    let mut rest = sequence.iter();
+    sub.iter().all(|id| rest.any(|x| x == id))
+}

@@ -1,0 +1,164 @@
+//! The post-processing messages. Every message names its block, so a stale or duplicated one
+//! is recognised and never changes state.
+
+use serde::{Deserialize, Serialize};
+
+use crate::cascade::BlockQuery;
+
+/// Why the controller ends a block without a key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum AbortReason {
+    /// ℓ = 0 under the stated assumption.
+    NoSecretBits,
+    /// Reconciliation failed or left the keys different (the tags differ).
+    Reconciliation,
+    /// The controller restarted before committing.
+    Restart,
+    /// The robot refused the block.
+    Refused,
+}
+
+/// Why the robot refuses a message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RejectReason {
+    /// It knows nothing of this block (it restarted).
+    UnknownBlock,
+    /// The controller's tag does not match its key.
+    TagMismatch,
+    /// The proposed ℓ is not what the assumption gives.
+    LengthMismatch,
+    /// It is still prepared for another block.
+    Busy,
+    /// The questions are not ones an honest controller asks.
+    BadQuestions,
+}
+
+/// A post-processing message.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Message {
+    /// Controller → robot: pool these sessions, in this order, as block `block`.
+    Propose {
+        /// Block number (increasing).
+        block: u64,
+        /// Session IDs.
+        sessions: Vec<u32>,
+        /// The controller's fresh nonce.
+        nonce: [u8; 32],
+    },
+    /// Robot → controller: the proposed sessions it holds, in the proposed order.
+    Agree {
+        /// Block number.
+        block: u64,
+        /// Session IDs it holds.
+        sessions: Vec<u32>,
+        /// The robot's fresh nonce.
+        nonce: [u8; 32],
+        /// Its bits at the sample positions, in order.
+        sample: Vec<bool>,
+    },
+    /// Controller → robot: Cascade questions.
+    Ask {
+        /// Block number.
+        block: u64,
+        /// Round number (1, 2, …).
+        round: u32,
+        /// The questions.
+        queries: Vec<BlockQuery>,
+    },
+    /// Robot → controller: its parities, in the order asked.
+    Answer {
+        /// Block number.
+        block: u64,
+        /// Round answered.
+        round: u32,
+        /// The parities.
+        parities: Vec<bool>,
+    },
+    /// Controller → robot: reconciliation is over; ℓ and the controller's tag.
+    Confirm {
+        /// Block number.
+        block: u64,
+        /// Final key length ℓ (> 0).
+        length: u64,
+        /// Tag over the controller's reconciled key.
+        tag: [u8; 8],
+    },
+    /// Robot → controller: its tag; it has prepared the key.
+    Confirmed {
+        /// Block number.
+        block: u64,
+        /// Tag over the robot's key.
+        tag: [u8; 8],
+    },
+    /// Controller → robot: the controller committed the key; commit it too.
+    Commit {
+        /// Block number.
+        block: u64,
+    },
+    /// Robot → controller: committed.
+    CommitAck {
+        /// Block number.
+        block: u64,
+    },
+    /// Controller → robot: the block ends without key; drop these sessions.
+    Abort {
+        /// Block number.
+        block: u64,
+        /// Sessions spent.
+        sessions: Vec<u32>,
+        /// Why.
+        reason: AbortReason,
+    },
+    /// Robot → controller: aborted.
+    AbortAck {
+        /// Block number.
+        block: u64,
+    },
+    /// Robot → controller: refused.
+    Reject {
+        /// Block number.
+        block: u64,
+        /// Why.
+        reason: RejectReason,
+    },
+}
+
+impl Message {
+    /// The block the message is about.
+    #[must_use]
+    pub fn block(&self) -> u64 {
+        match self {
+            Self::Propose { block, .. }
+            | Self::Agree { block, .. }
+            | Self::Ask { block, .. }
+            | Self::Answer { block, .. }
+            | Self::Confirm { block, .. }
+            | Self::Confirmed { block, .. }
+            | Self::Commit { block }
+            | Self::CommitAck { block }
+            | Self::Abort { block, .. }
+            | Self::AbortAck { block }
+            | Self::Reject { block, .. } => *block,
+        }
+    }
+
+    /// Payload bits: the fields as they would be encoded (u64 64, u32 32, bool 1, nonce 256,
+    /// tag 64, a reason 8, a list's length 32), before framing.
+    #[must_use]
+    pub fn payload_bits(&self) -> u64 {
+        let list = |items: usize, each: u64| 32 + items as u64 * each;
+        64 + match self {
+            Self::Propose { sessions, .. } => list(sessions.len(), 32) + 256,
+            Self::Agree {
+                sessions, sample, ..
+            } => list(sessions.len(), 32) + 256 + list(sample.len(), 1),
+            Self::Ask { queries, .. } => 32 + list(queries.len(), 96),
+            Self::Answer { parities, .. } => 32 + list(parities.len(), 1),
+            Self::Confirm { .. } => 64 + 64,
+            Self::Confirmed { .. } => 64,
+            Self::Commit { .. } | Self::CommitAck { .. } | Self::AbortAck { .. } => 0,
+            Self::Abort { sessions, .. } => list(sessions.len(), 32) + 8,
+            Self::Reject { .. } => 8,
+        }
+    }
+}

@@ -1,0 +1,245 @@
+//! Post-processing as a protocol without I/O: two endpoints that turn pooled raw session bits
+//! into final keys — pool sync, error-rate estimate, Cascade, block confirmation, privacy
+//! amplification, two-phase commit — driven only by messages in and messages out, so the
+//! same code sizes the key in simulation and makes it on the network (docs/secrecy.md).
+//!
+//! The robot ([`RobotPost`]) holds the reference bits and only answers; the controller
+//! ([`ControllerPost`]) corrects its bits, drives every exchange and retransmits on
+//! [`ControllerPost::timeout`]. One block at a time:
+//!
+//! 1. `Propose` (controller): the sessions of the block, in order, and a fresh nonce.
+//! 2. `Agree` (robot): the proposed sessions it holds, in that order, its nonce, and its bits
+//!    at the disclosed sample positions (public randomness from both nonces, [`public`]).
+//! 3. `Ask` / `Answer`: Cascade questions and parities, one round per pair.
+//! 4. `Confirm` (controller): ℓ from the stated [`Assumption`], and its directional tag.
+//! 5. `Confirmed` (robot): its tag; the robot has *prepared* the key (persisted, not used).
+//! 6. `Commit` (controller, after persisting the key) → `CommitAck` (robot, after persisting).
+//!
+//! `Abort` ends a block without a key (ℓ = 0, tags differ, a restart); every session that
+//! entered a block is spent whatever the outcome, since its sample and parities are public.
+//! The controller commits only after the robot's tag proves it prepared the key, and the robot
+//! commits only on `Commit`, so after any crash and recovery — the controller aborts an
+//! uncommitted block and repeats `Commit` for a committed one — neither side ends up with a
+//! key the other lacks. Endpoints signal [`Output::Persist`] when their durable state changed:
+//! the shell must store [`ControllerPost::snapshot`] / [`RobotPost::snapshot`] before sending
+//! what follows.
+
+mod assumption;
+mod controller;
+mod message;
+pub mod public;
+mod robot;
+#[cfg(test)]
+mod tests;
+
+use serde::{Deserialize, Serialize};
+
+use crate::bitstring::BitString;
+use crate::cascade::CascadeSchedule;
+
+pub use assumption::{Assumption, AssumptionError};
+pub use controller::{ControllerPost, ControllerSnapshot};
+pub use message::{AbortReason, Message, RejectReason};
+pub use robot::{RobotPost, RobotSnapshot};
+
+/// Largest number of sessions one block may pool (bounds a `Propose`).
+pub const MAX_BLOCK_SESSIONS: usize = 1 << 16;
+
+/// Largest number of raw bits one session may contribute.
+pub const MAX_SESSION_BITS: usize = 1 << 20;
+
+/// Largest number of Cascade questions in one `Ask`.
+pub const MAX_QUESTIONS: usize = 1 << 20;
+
+/// What both endpoints must agree on (exchanged out of band, like the session terms).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Settings {
+    /// The controller proposes a block once its pool holds at least this many raw bits.
+    pub block_bits: usize,
+    /// Largest sample disclosed to estimate the error rate (at most a tenth of the block).
+    pub sample_bits: usize,
+    /// ε of each term (smoothing, amplification, parameter estimation).
+    pub epsilon: f64,
+    /// The Cascade schedule (its block sizes follow the sampled error rate).
+    pub schedule: CascadeSchedule,
+    /// What is assumed about Eve: it sets ℓ.
+    pub assumption: Assumption,
+}
+
+/// What happened to one block, for reports (both endpoints produce one).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BlockReport {
+    /// Block number.
+    pub block: u64,
+    /// Sessions pooled.
+    pub sessions: Vec<u32>,
+    /// Raw bits pooled.
+    pub bits: usize,
+    /// Positions disclosed to estimate the error rate.
+    pub sample_bits: usize,
+    /// Disagreements in the sample (controller only; 0 on the robot).
+    pub sample_errors: usize,
+    /// The error-rate estimate that sized Cascade.
+    pub q_estimate: f64,
+    /// Bits reconciled and amplified.
+    pub reconciled_bits: usize,
+    /// Cascade questions answered.
+    pub questions: u64,
+    /// Reconciliation leak: both sides' parities, 2 per question.
+    pub leak_ec: u64,
+    /// Confirmation tags published over the block (two 64-bit tags).
+    pub leak_confirmation: u64,
+    /// Eve's smooth min-entropy bound under the assumption.
+    pub h_min: f64,
+    /// The final key length ℓ.
+    pub length: u64,
+    /// Why the block ended without a key, if it did.
+    pub reason: Option<String>,
+    /// Messages sent by this endpoint for the block (retransmissions included).
+    pub messages_sent: u32,
+    /// Their payload bits (fields, before framing).
+    pub bits_sent: u64,
+}
+
+/// A final key, committed on both sides.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FinalKey {
+    /// Block number: the key's ID.
+    pub block: u64,
+    /// The key bits.
+    pub key: BitString,
+    /// Sessions it came from.
+    pub sessions: Vec<u32>,
+    /// Secret against the stated assumption except with probability 4ε.
+    pub epsilon: f64,
+    /// The assumption it is secret under.
+    pub assumption: String,
+}
+
+/// What an endpoint asks its shell to do.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    /// Send this to the peer.
+    Transmit(Message),
+    /// Durable state changed: store the snapshot before transmitting what follows.
+    Persist,
+    /// A key was committed: hand it to the key store.
+    KeyCommitted(FinalKey),
+    /// A block ended (with or without key).
+    BlockEnded(BlockReport),
+    /// A message was ignored (stale, duplicate, malformed, or from the wrong state).
+    Ignored(&'static str),
+}
+
+/// Errors of endpoint construction and input.
+#[non_exhaustive]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PostError {
+    /// A session with this ID is already pooled or was spent.
+    #[error("session {0} is already pooled or spent")]
+    DuplicateSession(u32),
+    /// A session with no bits, or more than [`MAX_SESSION_BITS`].
+    #[error("session {id} has {bits} bits (allowed: 1 to {MAX_SESSION_BITS})")]
+    SessionSize {
+        /// Session ID.
+        id: u32,
+        /// Its bits.
+        bits: usize,
+    },
+    /// Settings out of range.
+    #[error("invalid post-processing settings: {0}")]
+    Settings(String),
+}
+
+impl Settings {
+    /// Checks the ranges.
+    ///
+    /// # Errors
+    /// [`PostError::Settings`] naming the field.
+    pub fn check(&self) -> Result<(), PostError> {
+        if !(64..=1 << 30).contains(&self.block_bits) {
+            return Err(PostError::Settings(format!(
+                "block_bits {} (allowed: 64 to 2^30)",
+                self.block_bits
+            )));
+        }
+        if !(self.epsilon > 0.0 && self.epsilon < 1.0) {
+            return Err(PostError::Settings(format!(
+                "epsilon {} (allowed: (0, 1))",
+                self.epsilon
+            )));
+        }
+        self.assumption
+            .check()
+            .map_err(|e| PostError::Settings(e.to_string()))
+    }
+}
+
+/// Sessions held, by ID.
+type Pool = std::collections::BTreeMap<u32, BitString>;
+
+/// Adds a session to `pool` unless its ID was seen.
+fn pool_session(
+    pool: &mut Pool,
+    spent: &std::collections::BTreeSet<u32>,
+    id: u32,
+    bits: BitString,
+) -> Result<(), PostError> {
+    if bits.is_empty() || bits.len() > MAX_SESSION_BITS {
+        return Err(PostError::SessionSize {
+            id,
+            bits: bits.len(),
+        });
+    }
+    if pool.contains_key(&id) || spent.contains(&id) {
+        return Err(PostError::DuplicateSession(id));
+    }
+    pool.insert(id, bits);
+    Ok(())
+}
+
+/// The concatenated bits of `sessions` from `pool`, in order.
+fn concatenate(pool: &Pool, sessions: &[u32]) -> BitString {
+    let bits: zeroize::Zeroizing<Vec<bool>> = zeroize::Zeroizing::new(
+        sessions
+            .iter()
+            .filter_map(|id| pool.get(id))
+            .flat_map(|s| (0..s.len()).map(move |i| s.get(i) == Some(true)))
+            .collect(),
+    );
+    BitString::from_bools(&bits)
+}
+
+/// Splits `key` into (the bits at `sample` positions, in order; the rest).
+fn split_sample(key: &BitString, sample: &[bool]) -> (Vec<bool>, BitString) {
+    let mut disclosed = Vec::new();
+    let mut kept = zeroize::Zeroizing::new(Vec::with_capacity(key.len()));
+    for (i, &s) in sample.iter().enumerate() {
+        let bit = key.get(i) == Some(true);
+        if s {
+            disclosed.push(bit);
+        } else {
+            kept.push(bit);
+        }
+    }
+    (disclosed, BitString::from_bools(&kept))
+}
+
+/// The public data both block tags bind: block, sessions, nonces, ℓ.
+fn tag_context(block: u64, sessions: &[u32], nonces: &[[u8; 32]; 2], length: u64) -> Vec<u8> {
+    let mut context = Vec::with_capacity(8 + 4 * sessions.len() + 80);
+    context.extend_from_slice(&block.to_be_bytes());
+    context.extend_from_slice(&(sessions.len() as u64).to_be_bytes());
+    for id in sessions {
+        context.extend_from_slice(&id.to_be_bytes());
+    }
+    for nonce in nonces {
+        context.extend_from_slice(nonce);
+    }
+    context.extend_from_slice(&length.to_be_bytes());
+    context
+}
+
+/// Direction labels of the block tags.
+const CONTROLLER_TO_ROBOT: &[u8] = b"controller->robot";
+const ROBOT_TO_CONTROLLER: &[u8] = b"robot->controller";

@@ -1,0 +1,423 @@
+//! The robot's post-processing endpoint: its bits are the reference; it answers the
+//! controller's requests, each idempotently, and commits a key only on `Commit`.
+
+use std::collections::{BTreeSet, VecDeque};
+
+use rand::rngs::ChaCha20Rng;
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+
+use super::controller::empty_report;
+use super::public::PublicRandomness;
+use super::{
+    BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, MAX_QUESTIONS, Message, Output,
+    Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate, pool_session,
+    split_sample, tag_context,
+};
+use crate::bitstring::BitString;
+use crate::cascade::CascadeAlice;
+use crate::confirm::ConfirmationTag;
+
+/// What the robot feeds its endpoint.
+#[derive(Debug, Clone)]
+pub enum RobotInput {
+    /// The raw bits of a session both sides completed.
+    Session {
+        /// Session ID.
+        id: u32,
+        /// The robot's bits (the reference) of the session.
+        bits: BitString,
+    },
+    /// A message from the controller.
+    Frame(Message),
+}
+
+/// A key the robot prepared: persisted, not yet committed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Prepared {
+    /// Block number.
+    pub block: u64,
+    /// The final key.
+    pub key: FinalKey,
+    /// The robot's tag (repeated if `Confirmed` is lost).
+    pub tag: [u8; 8],
+    /// The block's report.
+    pub report: BlockReport,
+}
+
+/// The robot's durable state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RobotSnapshot {
+    /// Sessions pooled and not yet used.
+    pub pool: Vec<(u32, BitString)>,
+    /// Sessions used or dropped.
+    pub spent: Vec<u32>,
+    /// The highest block number seen.
+    pub highest_block: Option<u64>,
+    /// A prepared key.
+    pub prepared: Option<Prepared>,
+    /// Committed keys.
+    pub keys: Vec<FinalKey>,
+}
+
+/// A block the robot agreed to and is reconciling.
+struct Reconciling {
+    block: u64,
+    sessions: Vec<u32>,
+    nonces: [[u8; 32]; 2],
+    public: PublicRandomness,
+    reference: BitString,
+    alice: CascadeAlice<ChaCha20Rng>,
+    agree: Message,
+    last_answer: Option<Message>,
+    round: u32,
+    report: BlockReport,
+}
+
+/// The robot's endpoint. See the [module](super) documentation for the protocol.
+pub struct RobotPost {
+    settings: Settings,
+    rng: ChaCha20Rng,
+    pool: Pool,
+    spent: BTreeSet<u32>,
+    highest_block: Option<u64>,
+    reconciling: Option<Box<Reconciling>>,
+    prepared: Option<Prepared>,
+    keys: Vec<FinalKey>,
+    outputs: VecDeque<Output>,
+}
+
+impl std::fmt::Debug for RobotPost {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RobotPost")
+            .field("pooled", &self.pool.len())
+            .field("highest_block", &self.highest_block)
+            .field("prepared", &self.prepared.as_ref().map(|p| p.block))
+            .field("keys", &self.keys.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl RobotPost {
+    /// A fresh endpoint; `rng_seed` seeds its nonces (from the OS CSPRNG in a deployment).
+    ///
+    /// # Errors
+    /// [`PostError::Settings`].
+    pub fn new(settings: Settings, rng_seed: [u8; 32]) -> Result<Self, PostError> {
+        settings.check()?;
+        Ok(Self {
+            settings,
+            rng: ChaCha20Rng::from_seed(rng_seed),
+            pool: Pool::new(),
+            spent: BTreeSet::new(),
+            highest_block: None,
+            reconciling: None,
+            prepared: None,
+            keys: Vec::new(),
+            outputs: VecDeque::new(),
+        })
+    }
+
+    /// The endpoint after a crash, from its last stored snapshot (a block it was reconciling
+    /// is forgotten: the controller aborts it).
+    ///
+    /// # Errors
+    /// [`PostError::Settings`].
+    pub fn restore(
+        snapshot: RobotSnapshot,
+        settings: Settings,
+        rng_seed: [u8; 32],
+    ) -> Result<Self, PostError> {
+        let mut endpoint = Self::new(settings, rng_seed)?;
+        endpoint.pool = snapshot.pool.into_iter().collect();
+        endpoint.spent = snapshot.spent.into_iter().collect();
+        endpoint.highest_block = snapshot.highest_block;
+        endpoint.prepared = snapshot.prepared;
+        endpoint.keys = snapshot.keys;
+        Ok(endpoint)
+    }
+
+    /// The durable state to store on [`Output::Persist`].
+    #[must_use]
+    pub fn snapshot(&self) -> RobotSnapshot {
+        RobotSnapshot {
+            pool: self
+                .pool
+                .iter()
+                .map(|(&id, bits)| (id, bits.clone()))
+                .collect(),
+            spent: self.spent.iter().copied().collect(),
+            highest_block: self.highest_block,
+            prepared: self.prepared.clone(),
+            keys: self.keys.clone(),
+        }
+    }
+
+    /// Keys committed so far.
+    #[must_use]
+    pub fn keys(&self) -> &[FinalKey] {
+        &self.keys
+    }
+
+    /// The next thing to do.
+    pub fn poll_output(&mut self) -> Option<Output> {
+        self.outputs.pop_front()
+    }
+
+    /// Feeds one input.
+    ///
+    /// # Errors
+    /// A session that is a duplicate or of a size outside the bounds (nothing changes).
+    pub fn handle_input(&mut self, input: RobotInput) -> Result<(), PostError> {
+        match input {
+            RobotInput::Session { id, bits } => {
+                pool_session(&mut self.pool, &self.spent, id, bits)?;
+                self.outputs.push_back(Output::Persist);
+            }
+            RobotInput::Frame(message) => self.handle_message(message),
+        }
+        Ok(())
+    }
+
+    fn handle_message(&mut self, message: Message) {
+        let block = message.block();
+        match message {
+            Message::Propose {
+                sessions, nonce, ..
+            } => self.on_propose(block, sessions, nonce),
+            Message::Ask { round, queries, .. } => self.on_ask(block, round, &queries),
+            Message::Confirm { length, tag, .. } => self.on_confirm(block, length, tag),
+            Message::Commit { .. } => self.on_commit(block),
+            Message::Abort { sessions, .. } => self.on_abort(block, &sessions),
+            _ => self.ignore("a message only the robot sends"),
+        }
+    }
+
+    fn ignore(&mut self, why: &'static str) {
+        self.outputs.push_back(Output::Ignored(why));
+    }
+
+    fn reject(&mut self, block: u64, reason: RejectReason) {
+        self.outputs
+            .push_back(Output::Transmit(Message::Reject { block, reason }));
+    }
+
+    fn reconciling(&mut self, block: u64) -> Option<&mut Reconciling> {
+        self.reconciling.as_deref_mut().filter(|r| r.block == block)
+    }
+
+    fn on_propose(&mut self, block: u64, proposed: Vec<u32>, nonce: [u8; 32]) {
+        if let Some(r) = self.reconciling(block) {
+            let agree = r.agree.clone();
+            return self.send(agree);
+        }
+        if self.highest_block.is_some_and(|h| block <= h) {
+            return self.ignore("a proposal for a block already seen");
+        }
+        if self.prepared.is_some() {
+            return self.reject(block, RejectReason::Busy);
+        }
+        if proposed.len() > MAX_BLOCK_SESSIONS {
+            return self.ignore("a proposal with too many sessions");
+        }
+        // An abandoned block's sessions were disclosed: spent.
+        if let Some(old) = self.reconciling.take() {
+            self.spent.extend(old.sessions);
+        }
+        self.highest_block = Some(block);
+        let mut agreed = Vec::new();
+        let mut bits = Pool::new();
+        for id in proposed {
+            if let Some(session) = self.pool.remove(&id) {
+                agreed.push(id);
+                bits.insert(id, session);
+            }
+        }
+        let mut robot_nonce = [0_u8; 32];
+        self.rng.fill_bytes(&mut robot_nonce);
+        let nonces = [nonce, robot_nonce];
+        let public = PublicRandomness::new(block, &agreed, &nonces);
+        let key = concatenate(&bits, &agreed);
+        let mask = public.sample(key.len(), self.settings.sample_bits);
+        let (sample, reference) = split_sample(&key, &mask);
+        let mut report = empty_report(block);
+        report.sessions.clone_from(&agreed);
+        report.bits = key.len();
+        report.sample_bits = sample.len();
+        report.reconciled_bits = reference.len();
+        let agree = Message::Agree {
+            block,
+            sessions: agreed.clone(),
+            nonce: robot_nonce,
+            sample,
+        };
+        let alice = CascadeAlice::new(reference.clone(), self.settings.schedule, public.cascade());
+        self.reconciling = Some(Box::new(Reconciling {
+            block,
+            sessions: agreed,
+            nonces,
+            public,
+            reference,
+            alice,
+            agree: agree.clone(),
+            last_answer: None,
+            round: 0,
+            report,
+        }));
+        self.send(agree);
+    }
+
+    fn on_ask(&mut self, block: u64, round: u32, queries: &[crate::cascade::BlockQuery]) {
+        let Some(r) = self.reconciling(block) else {
+            return self.unknown(block);
+        };
+        if round == r.round {
+            return match r.last_answer.clone() {
+                Some(answer) => self.send(answer),
+                None => self.ignore("a repeated question round"),
+            };
+        }
+        if round != r.round + 1 {
+            return self.ignore("a question round out of order");
+        }
+        if queries.len() > MAX_QUESTIONS {
+            return self.reject(block, RejectReason::BadQuestions);
+        }
+        match r.alice.answer(queries) {
+            Ok(parities) => {
+                let answer = Message::Answer {
+                    block,
+                    round,
+                    parities,
+                };
+                r.round = round;
+                r.last_answer = Some(answer.clone());
+                self.send(answer);
+            }
+            Err(_) => self.reject(block, RejectReason::BadQuestions),
+        }
+    }
+
+    fn on_confirm(&mut self, block: u64, length: u64, tag: [u8; 8]) {
+        if let Some(prepared) = self.prepared.as_ref().filter(|p| p.block == block) {
+            let confirmed = Message::Confirmed {
+                block,
+                tag: prepared.tag,
+            };
+            return self.send(confirmed);
+        }
+        let settings = self.settings.clone();
+        let Some(r) = self.reconciling(block) else {
+            return self.unknown(block);
+        };
+        let n = r.reference.len() as u64;
+        let leak_ec = 2 * r.alice.revealed();
+        let (h_min, expected) = settings
+            .assumption
+            .output_length(n, leak_ec, settings.epsilon);
+        if expected.bits != length || length == 0 {
+            return self.reject(block, RejectReason::LengthMismatch);
+        }
+        let context = tag_context(block, &r.sessions, &r.nonces, length);
+        let theirs = ConfirmationTag::directional(&r.reference, CONTROLLER_TO_ROBOT, &context);
+        if !theirs.matches(&ConfirmationTag(tag)) {
+            return self.reject(block, RejectReason::TagMismatch);
+        }
+        let key = r
+            .public
+            .toeplitz(r.reference.len(), length as usize)
+            .and_then(|hash| hash.hash(&r.reference));
+        let Ok(key) = key else {
+            return self.reject(block, RejectReason::LengthMismatch);
+        };
+        let ours = ConfirmationTag::directional(&r.reference, ROBOT_TO_CONTROLLER, &context);
+        let mut report = r.report.clone();
+        report.questions = r.alice.revealed();
+        report.leak_ec = leak_ec;
+        report.leak_confirmation = 2 * crate::confirm::TAG_BITS;
+        report.h_min = h_min;
+        report.length = length;
+        let key = FinalKey {
+            block,
+            key,
+            sessions: r.sessions.clone(),
+            epsilon: 4.0 * settings.epsilon,
+            assumption: settings.assumption.describe(),
+        };
+        if let Some(done) = self.reconciling.take() {
+            self.spent.extend(done.sessions);
+        }
+        self.prepared = Some(Prepared {
+            block,
+            key,
+            tag: ours.0,
+            report,
+        });
+        self.outputs.push_back(Output::Persist);
+        self.send(Message::Confirmed { block, tag: ours.0 });
+    }
+
+    fn on_commit(&mut self, block: u64) {
+        if self.keys.iter().any(|k| k.block == block) {
+            return self.send(Message::CommitAck { block });
+        }
+        let Some(prepared) = self.prepared.take_if(|p| p.block == block) else {
+            return self.unknown(block);
+        };
+        self.keys.push(prepared.key.clone());
+        self.outputs.push_back(Output::Persist);
+        self.outputs.push_back(Output::KeyCommitted(prepared.key));
+        self.outputs.push_back(Output::BlockEnded(prepared.report));
+        self.send(Message::CommitAck { block });
+    }
+
+    fn on_abort(&mut self, block: u64, sessions: &[u32]) {
+        if self.keys.iter().any(|k| k.block == block) {
+            return self.ignore("an abort of a committed block");
+        }
+        let mut report = None;
+        if self.prepared.as_ref().is_some_and(|p| p.block == block) {
+            report = self.prepared.take().map(|p| p.report);
+        }
+        if self.reconciling.as_ref().is_some_and(|r| r.block == block) {
+            report = self.reconciling.take().map(|r| r.report);
+        }
+        for id in sessions {
+            self.pool.remove(id);
+            self.spent.insert(*id);
+        }
+        self.highest_block = self.highest_block.max(Some(block));
+        self.outputs.push_back(Output::Persist);
+        if let Some(mut report) = report {
+            report.reason = Some("the controller aborted the block".into());
+            report.length = 0;
+            self.outputs.push_back(Output::BlockEnded(report));
+        }
+        self.send(Message::AbortAck { block });
+    }
+
+    /// A request about a block the robot is not reconciling: stale if it is older, prepared
+    /// or committed (a late duplicate); unknown otherwise (the robot restarted).
+    fn unknown(&mut self, block: u64) {
+        let stale = self.highest_block.is_some_and(|h| block < h)
+            || self.prepared.as_ref().is_some_and(|p| p.block == block)
+            || self.keys.iter().any(|k| k.block == block);
+        if stale {
+            return self.ignore("a request about a finished block");
+        }
+        self.reject(block, RejectReason::UnknownBlock);
+    }
+
+    fn send(&mut self, message: Message) {
+        let report = match (&mut self.reconciling, &mut self.prepared) {
+            (Some(r), _) if r.block == message.block() => Some(&mut r.report),
+            (_, Some(p)) if p.block == message.block() => Some(&mut p.report),
+            _ => None,
+        };
+        if let Some(report) = report {
+            report.messages_sent += 1;
+            report.bits_sent += message.payload_bits();
+        }
+        self.outputs.push_back(Output::Transmit(message));
+    }
+}

@@ -1,0 +1,390 @@
+//! The endpoints against each other: lossless, over a lossy channel, and with a crash
+//! injected at every message boundary.
+
+use std::collections::VecDeque;
+
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+
+use super::controller::ControllerInput;
+use super::robot::RobotInput;
+use super::*;
+
+fn settings(assumption: Assumption) -> Settings {
+    Settings {
+        block_bits: 2_000,
+        sample_bits: 100,
+        epsilon: 1e-6,
+        schedule: CascadeSchedule::BICONF,
+        assumption,
+    }
+}
+
+fn weak_eve() -> Assumption {
+    Assumption::IndependentErrors { error_rate: 0.3 }
+}
+
+/// Sessions of 300–700 bits; the controller's copy has errors at rate `q`.
+fn sessions(count: u32, q: f64, rng: &mut ChaCha8Rng) -> Vec<(u32, BitString, BitString)> {
+    (0..count)
+        .map(|id| {
+            let n = rng.random_range(300..700);
+            let robot = BitString::random(n, rng);
+            let mut controller = robot.clone();
+            for i in 0..n {
+                if rng.random::<f64>() < q {
+                    controller.flip(i).unwrap();
+                }
+            }
+            (id, robot, controller)
+        })
+        .collect()
+}
+
+/// Faults of the channel: each message is dropped, duplicated or delayed (reordered) with
+/// these probabilities.
+#[derive(Clone, Copy)]
+struct Faults {
+    drop: f64,
+    duplicate: f64,
+    reorder: f64,
+}
+
+/// The two endpoints, the messages between them, and their last stored snapshots.
+struct Pair {
+    settings: Settings,
+    controller: ControllerPost,
+    robot: RobotPost,
+    controller_snapshot: ControllerSnapshot,
+    robot_snapshot: RobotSnapshot,
+    to_robot: VecDeque<Message>,
+    to_controller: VecDeque<Message>,
+    reports: Vec<BlockReport>,
+    delivered: usize,
+    restarts: u8,
+}
+
+impl Pair {
+    fn new(settings: Settings, pool: &[(u32, BitString, BitString)]) -> Self {
+        let controller = ControllerPost::new(settings.clone(), [1; 32]).unwrap();
+        let mut robot = RobotPost::new(settings.clone(), [2; 32]).unwrap();
+        // The robot learns of its sessions first, as on the network.
+        for (id, reference, _) in pool {
+            robot
+                .handle_input(RobotInput::Session {
+                    id: *id,
+                    bits: reference.clone(),
+                })
+                .unwrap();
+        }
+        let robot_snapshot = robot.snapshot();
+        let controller_snapshot = controller.snapshot();
+        let mut pair = Self {
+            settings,
+            controller,
+            robot,
+            controller_snapshot,
+            robot_snapshot,
+            to_robot: VecDeque::new(),
+            to_controller: VecDeque::new(),
+            reports: Vec::new(),
+            delivered: 0,
+            restarts: 0,
+        };
+        pair.collect();
+        for (id, _, bits) in pool {
+            pair.controller
+                .handle_input(ControllerInput::Session {
+                    id: *id,
+                    bits: bits.clone(),
+                })
+                .unwrap();
+            pair.collect();
+        }
+        pair
+    }
+
+    /// Takes every output of both endpoints: transmissions queue, snapshots are stored.
+    fn collect(&mut self) {
+        while let Some(output) = self.controller.poll_output() {
+            match output {
+                Output::Transmit(m) => self.to_robot.push_back(m),
+                Output::Persist => self.controller_snapshot = self.controller.snapshot(),
+                Output::BlockEnded(report) => self.reports.push(report),
+                Output::KeyCommitted(_) | Output::Ignored(_) => {}
+            }
+        }
+        while let Some(output) = self.robot.poll_output() {
+            match output {
+                Output::Transmit(m) => self.to_controller.push_back(m),
+                Output::Persist => self.robot_snapshot = self.robot.snapshot(),
+                Output::BlockEnded(_) | Output::KeyCommitted(_) | Output::Ignored(_) => {}
+            }
+        }
+    }
+
+    /// Delivers one message (the robot's first), through `faults` if given; false when
+    /// nothing is in flight.
+    fn deliver(&mut self, faults: Option<(Faults, &mut ChaCha8Rng)>) -> bool {
+        let (queue, to_robot) = if self.to_controller.is_empty() {
+            (&mut self.to_robot, true)
+        } else {
+            (&mut self.to_controller, false)
+        };
+        let Some(message) = queue.pop_front() else {
+            return false;
+        };
+        if let Some((f, rng)) = faults {
+            if rng.random::<f64>() < f.drop {
+                return true;
+            }
+            if rng.random::<f64>() < f.reorder && !queue.is_empty() {
+                let at = rng.random_range(1..=queue.len());
+                queue.insert(at, message);
+                return true;
+            }
+            if rng.random::<f64>() < f.duplicate {
+                queue.push_back(message.clone());
+            }
+        }
+        self.delivered += 1;
+        if to_robot {
+            self.robot.handle_input(RobotInput::Frame(message)).unwrap();
+        } else {
+            self.controller
+                .handle_input(ControllerInput::Frame(message))
+                .unwrap();
+        }
+        self.collect();
+        true
+    }
+
+    /// Runs until both sides are quiet and no block is in flight (the controller's timer
+    /// fires whenever nothing is in flight); false if `steps` did not suffice.
+    fn settle(&mut self, steps: usize, mut faults: Option<(Faults, &mut ChaCha8Rng)>) -> bool {
+        for _ in 0..steps {
+            let delivered = match faults.as_mut() {
+                Some((f, rng)) => self.deliver(Some((*f, &mut **rng))),
+                None => self.deliver(None),
+            };
+            if !delivered {
+                if self.controller.is_idle() {
+                    return true;
+                }
+                self.controller
+                    .handle_input(ControllerInput::Timeout)
+                    .unwrap();
+                self.collect();
+            }
+        }
+        false
+    }
+
+    fn crash_controller(&mut self) {
+        self.restarts += 1;
+        self.controller = ControllerPost::restore(
+            self.controller_snapshot.clone(),
+            self.settings.clone(),
+            [10 + self.restarts; 32],
+        )
+        .unwrap();
+        self.collect();
+    }
+
+    fn crash_robot(&mut self) {
+        self.restarts += 1;
+        self.robot = RobotPost::restore(
+            self.robot_snapshot.clone(),
+            self.settings.clone(),
+            [20 + self.restarts; 32],
+        )
+        .unwrap();
+        self.collect();
+    }
+
+    /// The committed keys of both sides are the same blocks with the same bits.
+    fn assert_same_keys(&self, what: &str) {
+        let c: Vec<(u64, &BitString)> = self
+            .controller
+            .keys()
+            .iter()
+            .map(|k| (k.block, &k.key))
+            .collect();
+        let r: Vec<(u64, &BitString)> = self
+            .robot
+            .keys()
+            .iter()
+            .map(|k| (k.block, &k.key))
+            .collect();
+        assert_eq!(c, r, "{what}: the committed keys differ");
+        // The durable stores agree too.
+        assert_eq!(
+            self.controller_snapshot.keys,
+            self.controller.keys(),
+            "{what}"
+        );
+        assert_eq!(self.robot_snapshot.keys, self.robot.keys(), "{what}");
+    }
+}
+
+#[test]
+fn both_sides_commit_the_same_keys_on_random_pools() {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let mut committed = 0;
+    for trial in 0..12 {
+        let q = rng.random_range(0.0..0.06);
+        let pool = sessions(rng.random_range(6..20), q, &mut rng);
+        let mut pair = Pair::new(settings(weak_eve()), &pool);
+        assert!(pair.settle(100_000, None), "trial {trial} did not settle");
+        pair.assert_same_keys(&format!("trial {trial}"));
+        committed += pair.controller.keys().len();
+        for report in &pair.reports {
+            // Everything public is charged: both sides' parities and both tags.
+            assert_eq!(report.leak_ec, 2 * report.questions);
+            assert!(report.sample_bits <= 100 && report.sample_bits <= report.bits / 10);
+            assert_eq!(report.reconciled_bits, report.bits - report.sample_bits);
+            if report.length > 0 {
+                assert_eq!(report.leak_confirmation, 128);
+            }
+        }
+        // Every session that entered a block is spent on both sides.
+        let proposed: usize = pair.reports.iter().map(|r| r.sessions.len()).sum();
+        assert!(pair.robot.snapshot().spent.len() >= proposed);
+    }
+    assert!(committed >= 12, "only {committed} keys over 12 trials");
+}
+
+#[test]
+fn no_key_without_secrecy() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let pool = sessions(10, 0.01, &mut rng);
+    let assumption = Assumption::NoSecrecy {
+        reason: "Eve can learn the model".into(),
+    };
+    let mut pair = Pair::new(settings(assumption), &pool);
+    assert!(pair.settle(100_000, None));
+    assert!(pair.controller.keys().is_empty() && pair.robot.keys().is_empty());
+    assert!(!pair.reports.is_empty());
+    for report in &pair.reports {
+        assert_eq!(report.length, 0);
+        assert!(
+            report
+                .reason
+                .as_deref()
+                .unwrap()
+                .contains("Eve can learn the model"),
+            "{report:?}"
+        );
+    }
+    // The sessions are spent: nothing is left to pool.
+    assert!(pair.controller.snapshot().pool.len() < 4);
+}
+
+/// A lossy, duplicating, reordering channel never makes the two sides commit different
+/// keys. 40 seeded trials, 10–30 % loss, 10 % duplication, 10 % reordering.
+#[test]
+fn a_faulty_channel_never_splits_the_keys() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut committed = 0;
+    for trial in 0..40 {
+        let pool = sessions(rng.random_range(5..12), 0.03, &mut rng);
+        let faults = Faults {
+            drop: rng.random_range(0.1..0.3),
+            duplicate: 0.1,
+            reorder: 0.1,
+        };
+        let mut pair = Pair::new(settings(weak_eve()), &pool);
+        let mut channel = ChaCha8Rng::seed_from_u64(1000 + trial);
+        assert!(
+            pair.settle(200_000, Some((faults, &mut channel))),
+            "trial {trial} did not settle"
+        );
+        pair.assert_same_keys(&format!("trial {trial}"));
+        committed += pair.controller.keys().len();
+    }
+    assert!(committed >= 20, "only {committed} keys over 40 trials");
+}
+
+/// A crash of either side at every message boundary of a session with several blocks,
+/// restarting from the last stored snapshot, never leaves one side with a committed key the
+/// other lacks.
+#[test]
+fn a_crash_at_any_message_boundary_never_splits_the_keys() {
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let pool = sessions(14, 0.03, &mut rng);
+    let mut reference = Pair::new(settings(weak_eve()), &pool);
+    assert!(reference.settle(100_000, None));
+    let boundaries = reference.delivered;
+    assert!(boundaries > 30, "{boundaries}");
+    assert!(reference.controller.keys().len() >= 2);
+    let mut trials = 0;
+    for crash_at in 0..=boundaries {
+        for side in ["controller", "robot", "both"] {
+            let mut pair = Pair::new(settings(weak_eve()), &pool);
+            while pair.delivered < crash_at && pair.deliver(None) {}
+            match side {
+                "controller" => pair.crash_controller(),
+                "robot" => pair.crash_robot(),
+                _ => {
+                    pair.crash_robot();
+                    pair.crash_controller();
+                }
+            }
+            assert!(
+                pair.settle(100_000, None),
+                "{side} crash at {crash_at} did not settle"
+            );
+            pair.assert_same_keys(&format!("{side} crash at boundary {crash_at}"));
+            trials += 1;
+        }
+    }
+    println!("{trials} crash trials over {} boundaries", boundaries + 1);
+}
+
+#[test]
+fn the_robot_refuses_what_an_honest_controller_never_sends() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let pool = sessions(6, 0.02, &mut rng);
+    let mut pair = Pair::new(settings(weak_eve()), &pool);
+    // Let the block reach reconciliation, then inject nonsense.
+    while !matches!(pair.to_robot.front(), Some(Message::Ask { .. })) {
+        assert!(pair.deliver(None));
+    }
+    let block = pair.to_robot.front().unwrap().block();
+    let nonsense = [
+        Message::Ask {
+            block,
+            round: 1,
+            queries: vec![crate::cascade::BlockQuery {
+                permutation: 7,
+                start: 0,
+                end: 10,
+            }],
+        },
+        Message::Confirm {
+            block,
+            length: 5,
+            tag: [0; 8],
+        },
+        Message::Commit { block: block + 1 },
+        Message::Agree {
+            block,
+            sessions: vec![],
+            nonce: [0; 32],
+            sample: vec![],
+        },
+    ];
+    for message in nonsense {
+        pair.robot.handle_input(RobotInput::Frame(message)).unwrap();
+    }
+    assert!(pair.robot.keys().is_empty());
+    // Forged replies to the controller change nothing either.
+    pair.controller
+        .handle_input(ControllerInput::Frame(Message::CommitAck { block: 99 }))
+        .unwrap();
+    // The robot's refusals reach the controller, which aborts the block; all ends
+    // consistently.
+    pair.collect();
+    assert!(pair.settle(100_000, None));
+    pair.assert_same_keys("after injected messages");
+}
