@@ -221,6 +221,11 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             args.max_sessions
         );
     }
+    if let Some(p) = args.assume_eve_error
+        && !(p > 0.0 && p <= 0.5)
+    {
+        bail!("--assume-eve-error {p} is not allowed (allowed: (0, 0.5])");
+    }
     let options = SecrecyOptions {
         adversaries: args.adversaries.iter().map(|&a| a.into()).collect(),
         epsilon: args.eps,
@@ -229,6 +234,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         pooling: args.pooling.into(),
         sample_bits: args.sample_bits,
         max_sessions: args.max_sessions,
+        assumed_eve_error: args.assume_eve_error,
         ..SecrecyOptions::default()
     };
     // A sweep folder, or a suite folder whose subfolders are sweeps.
@@ -277,27 +283,39 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
             println!("  secret key rate 0: {reason}");
         }
+        if let Some(first) = results.first() {
+            println!("  key sized under: {}", first.assumption);
+        }
         for r in &results {
-            let leak = |f: fn(&robokey_lab::secrecy::Block) -> u64| -> u64 {
+            let sum = |f: fn(&robokey_lab::secrecy::Block) -> u64| -> u64 {
                 r.blocks.iter().map(f).sum()
             };
             println!(
-                "  {:<28} {:<10} ({}) raw {:.4} bits/step, Eve wrong on {:.3} % of accepted bits, leak {} (EC) + {} (tags), H_min {:.1}, secret {:.5} bits/step ({:.4} bits/s){}",
+                "  {:<28} {:<10} ({}) raw {:.4} bits/step, Eve wrong on {:.3} % of accepted bits, {} messages, leak {} (EC) + {} (tags), ℓ {} = {:.5} bits/step ({:.4} bits/s); realised: H_min {:.1}, ℓ {}{}",
                 r.point,
                 r.adversary,
                 r.adversary_class.name(),
                 r.raw_bits_per_step,
                 r.eve_error_accepted.map_or(f64::NAN, |x| 100.0 * x.rate),
-                leak(|b| b.leak_ec),
-                leak(|b| b.leak_confirmation),
-                r.blocks.iter().map(|b| b.h_min).sum::<f64>(),
+                sum(|b| u64::from(b.messages)),
+                sum(|b| b.leak_ec),
+                sum(|b| b.leak_confirmation),
+                r.secret_bits,
                 r.secret_bits_per_step,
                 r.secret_bits_per_second,
+                r.blocks.iter().map(|b| b.realised.h_min).sum::<f64>(),
+                r.realised_secret_bits,
                 r.zero_reason.as_ref().map_or_else(
-                    || format!(", holds against {}", r.holds_against),
+                    || "; holds only under the stated assumption".to_owned(),
                     |why| format!(": {why}")
                 )
             );
+            if r.assumption_exceeds_realised {
+                println!(
+                    "  WARNING: the assumption credits {} bits, more than the {} Eve's realised view supports ({}): this adversary violates it",
+                    r.secret_bits, r.adversary, r.realised_secret_bits
+                );
+            }
         }
         println!(
             "  wrote {}",

@@ -170,6 +170,12 @@ struct SecrecyArgs {
     /// Most sessions simulated per point and adversary.
     #[arg(long, default_value_t = 2_000)]
     max_sessions: u32,
+    /// State what the key is sized against: Eve's guesses err independently with at least
+    /// this probability, in (0, 0.5] (a restricted assumption in odometry mode). Without
+    /// it the key length is zero by structure; the realised view of each adversary is
+    /// reported beside it either way.
+    #[arg(long, value_name = "P")]
+    assume_eve_error: Option<f64>,
     /// Worker threads (0: one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,

@@ -184,7 +184,7 @@ fn reproduce_quick_writes_a_parseable_report_and_sweep_agrees() {
 const GOLDEN_ACCEPTED: &str = "298";
 
 #[test]
-fn secrecy_labels_adversaries_charges_tags_and_ignores_jobs() {
+fn secrecy_sizes_keys_by_the_assumption_labels_adversaries_and_ignores_jobs() {
     let dir = scratch("secrecy");
     let config = dir.join("weak.toml");
     std::fs::write(
@@ -207,6 +207,8 @@ fn secrecy_labels_adversaries_charges_tags_and_ignores_jobs() {
             "complete",
             "--block",
             "20000",
+            "--assume-eve-error",
+            "0.2",
             "--jobs",
             jobs,
         ]);
@@ -218,13 +220,19 @@ fn secrecy_labels_adversaries_charges_tags_and_ignores_jobs() {
             out.contains("(restricted)") && out.contains("(strongest)"),
             "{out}"
         );
+        // The oracle Eve knows the key: an assumption that credits bits is loudly violated.
+        assert!(
+            out.contains("WARNING: the assumption credits") && out.contains("oracle Eve"),
+            "{out}"
+        );
         json.push(read(&sweep.join("secrecy.json")));
     }
     assert_eq!(json[0], json[1], "--jobs changed the results");
     let v: serde_json::Value = serde_json::from_str(&json[0]).unwrap();
     let rows = v["results"].as_array().unwrap();
     assert_eq!(rows[0]["adversary_class"], "strongest");
-    assert_eq!(rows[0]["secret_bits"], 0);
+    assert_eq!(rows[0]["realised_secret_bits"], 0);
+    assert_eq!(rows[0]["assumption_exceeds_realised"], true);
     let restricted = &rows[1];
     assert_eq!(restricted["adversary"], "mismatch");
     assert_eq!(restricted["adversary_class"], "restricted");
@@ -244,6 +252,8 @@ fn secrecy_labels_adversaries_charges_tags_and_ignores_jobs() {
         "h_min",
         "leak",
         "secret_bits",
+        "messages",
+        "realised",
     ] {
         assert!(
             !block[field].is_null(),
@@ -251,16 +261,30 @@ fn secrecy_labels_adversaries_charges_tags_and_ignores_jobs() {
         );
     }
     assert_eq!(block["leak_confirmation"], 128);
-    // ℓ > 0 here only because this Eve never learns the model: labelled so, no zero reason.
-    if restricted["secret_bits"].as_u64().unwrap() > 0 {
-        assert!(restricted["zero_reason"].is_null());
+    assert!(restricted["secret_bits"].as_u64().unwrap() > 0);
+    assert!(restricted["zero_reason"].is_null());
+    assert!(restricted["assumption"].as_str().unwrap().contains("0.2"));
+    // Without a stated assumption the key length is zero by structure.
+    ok(&[
+        "secrecy",
+        s(&sweep),
+        "--pooling",
+        "complete",
+        "--block",
+        "20000",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&read(&sweep.join("secrecy.json"))).unwrap();
+    for row in v["results"].as_array().unwrap() {
+        assert_eq!(row["secret_bits"], 0, "{row}");
         assert!(
-            restricted["holds_against"]
+            row["zero_reason"]
                 .as_str()
                 .unwrap()
-                .contains("never learns")
+                .contains("zero by structure")
         );
     }
+    let err = fails(&["secrecy", s(&sweep), "--assume-eve-error", "0.7"]);
+    assert!(err.contains("--assume-eve-error 0.7"), "{err}");
     let err = fails(&["secrecy", s(&sweep), "--block", "10"]);
     assert!(
         err.contains("--block 10") && err.contains("allowed"),

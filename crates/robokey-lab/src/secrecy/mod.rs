@@ -18,6 +18,7 @@ use robokey::config::EveStrategy;
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, simulate_plan, simulate_transcript};
+use robokey_secrecy::postprocess::Assumption;
 use robokey_secrecy::{JointCounts, binomial_test, clopper_pearson};
 use serde::Serialize;
 
@@ -94,6 +95,9 @@ pub struct SecrecyOptions {
     pub pooling: Pooling,
     /// Largest sample disclosed to estimate the error rate (`complete` pooling).
     pub sample_bits: usize,
+    /// The operator's statement about Eve that sizes the key: her least independent error
+    /// rate, or `None` (the odometry mode's structural zero).
+    pub assumed_eve_error: Option<f64>,
     /// Blocks to fill per point (sessions are added until they are full).
     pub blocks: usize,
     /// Most sessions simulated per point and adversary.
@@ -114,6 +118,7 @@ impl Default for SecrecyOptions {
             block_bits: 10_000,
             pooling: Pooling::Confirmed,
             sample_bits: 1_000,
+            assumed_eve_error: None,
             blocks: 1,
             max_sessions: 2_000,
             bootstrap: 1_000,
@@ -169,6 +174,13 @@ pub struct PointSecrecy {
     pub structural_zero: Option<&'static str>,
     /// Why ℓ = 0 here (None when ℓ > 0).
     pub zero_reason: Option<String>,
+    /// The stated assumption that sizes the key.
+    pub assumption: String,
+    /// ℓ that this adversary's realised view would support (the diagnostic).
+    pub realised_secret_bits: u64,
+    /// The assumption credits more than this adversary's realised view supports: the
+    /// assumption is violated by this adversary.
+    pub assumption_exceeds_realised: bool,
     /// The first block's error-rate estimate for reconciliation.
     pub q_estimate: Option<f64>,
     /// Where it comes from.
@@ -199,7 +211,7 @@ pub struct PointSecrecy {
     pub acceptance_independence_p: Option<f64>,
     /// The privacy-amplification blocks.
     pub blocks: Vec<Block>,
-    /// Total secret bits over the blocks.
+    /// Total secret bits over the blocks, under the stated assumption.
     pub secret_bits: u64,
     /// Secret bits per robot step (over every session simulated until the last one pooled,
     /// dropped sessions included: they cost robot time too).
@@ -221,6 +233,19 @@ pub struct PositionErrors {
     pub controller: f64,
     /// Eve error rate.
     pub eve: f64,
+}
+
+impl SecrecyOptions {
+    /// The assumption that sizes the key.
+    #[must_use]
+    pub fn assumption(&self) -> Assumption {
+        match self.assumed_eve_error {
+            Some(error_rate) => Assumption::IndependentErrors { error_rate },
+            None => Assumption::NoSecrecy {
+                reason: ODOMETRY_ZERO.to_owned(),
+            },
+        }
+    }
 }
 
 /// Lap-position bins.
@@ -348,16 +373,15 @@ fn analyze_point(
         pooling: options.pooling,
         epsilon: options.epsilon,
         sample_bits: options.sample_bits,
+        block_bits: options.block_bits,
+        assumption: options.assumption(),
     };
     let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
-    let pools = pipeline::pools(&runs, options.pooling, options.block_bits);
-    let blocks: Vec<Block> = pools
-        .iter()
-        .take(options.blocks)
-        .map(|pool| pipeline::post_process(pool, &settings, &mut public))
-        .collect();
+    let mut pools = pipeline::pools(&runs, options.pooling, options.block_bits);
+    pools.truncate(options.blocks);
+    let blocks = pipeline::post_process(&pools, &settings, &mut public);
     // Every session run until the last one pooled cost robot time, dropped ones included.
-    let used_steps: u64 = pools[..blocks.len()].last().map_or(0, |pool| {
+    let used_steps: u64 = pools.last().map_or(0, |pool| {
         runs[..=pool.last_session]
             .iter()
             .map(|r| r.steps.len() as u64)
@@ -395,6 +419,9 @@ fn analyze_point(
         pooling: options.pooling,
         structural_zero: Some(ODOMETRY_ZERO),
         zero_reason,
+        assumption: settings.assumption.describe(),
+        realised_secret_bits: blocks.iter().map(|b| b.realised.secret_bits).sum(),
+        assumption_exceeds_realised: blocks.iter().any(|b| b.assumption_exceeds_realised),
         q_estimate: blocks.first().map(|b| b.q_estimate),
         q_source: blocks.first().map(|b| b.q_source.clone()),
         sessions: runs.len() as u32,
@@ -524,28 +551,39 @@ mod tests {
         assert!(block.q_source.contains("key tags matched"));
         // Whole sessions: the block holds at least the requested bits.
         assert!(block.bits >= 3_000);
-        assert!(block.h_min_method.contains("approximation"));
+        assert!(block.h_min_method.contains("no secrecy"));
+        assert!(block.realised.h_min_method.contains("approximation"));
+        assert_eq!(block.secret_bits, 0);
     }
 
-    /// The complete pipeline estimates Q from a disclosed sample (never from the true
-    /// error count), removes it from the key, and charges one block confirmation.
+    /// The complete pipeline runs the agents' endpoints: Q from a disclosed sample (never
+    /// from the true error count), removed from the key; both sides' parities charged; ℓ
+    /// from the stated assumption, the realised view beside it.
     #[test]
-    fn complete_pooling_estimates_q_from_a_disclosed_sample() {
+    fn complete_pooling_runs_the_endpoints() {
         let weak = "[code]\nn_c = 1\n[eve]\nalpha = 0.95\n[run]\nreplicates = 2\n";
-        let mut opts = options(vec![EveStrategy::Mismatch], 5_000);
+        let mut opts = options(vec![EveStrategy::Mismatch], 20_000);
         opts.pooling = Pooling::Complete;
+        opts.assumed_eve_error = Some(0.2);
         let r = &analyze(&experiment(weak), &opts).unwrap()[0];
         let block = &r.blocks[0];
-        assert_eq!(block.sample_bits, block.bits / 10);
+        assert_eq!(block.sample_bits, 1_000.min(block.bits / 10));
         assert_eq!(block.reconciled_bits, block.bits - block.sample_bits);
         assert!(block.q_source.contains("disclosed random sample"));
         assert_eq!(
             block.q_estimate,
             block.sample_errors as f64 / block.sample_bits as f64
         );
-        assert!(block.errors_before > 0 && block.confirmed, "{block:?}");
-        assert_eq!(block.leak_confirmation, pipeline::CONFIRMATION_BITS);
+        assert!(block.errors_before > 0 && block.consistent, "{block:?}");
         assert!(block.leak_ec > 0 && block.leak_ec.is_multiple_of(2));
+        assert!(block.messages > 4 && block.message_bits > 0);
+        assert!(block.h_min_method.contains("0.2"));
+        assert!(block.secret_bits > 0, "{block:?}");
+        assert_eq!(block.leak_confirmation, pipeline::CONFIRMATION_BITS);
+        assert_eq!(
+            block.assumption_exceeds_realised,
+            block.secret_bits > block.realised.secret_bits
+        );
         assert_eq!(r.adversary_class, AdversaryClass::Restricted);
     }
 

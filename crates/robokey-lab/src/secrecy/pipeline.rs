@@ -1,15 +1,23 @@
 //! The post-processing that ships, run on simulated sessions (docs/secrecy.md): which
-//! sessions are pooled, where the error-rate estimate comes from, reconciliation,
-//! confirmation and privacy amplification — with every public bit that depends on the key
-//! charged as leak, and Eve's min-entropy bound named by its method.
+//! sessions are pooled, and — for `complete` pooling — the post-processing endpoints the
+//! agents run (`robokey_secrecy::postprocess`), driven in memory. ℓ comes from the stated
+//! assumption, as in a deployment; Eve's realised view gives a diagnostic beside it.
 
+use std::collections::BTreeMap;
+
+use rand::RngExt;
 use rand::rngs::ChaCha8Rng;
 use robokey::protocol::Outcome;
 use robokey::sim::RunOutput;
+use robokey_secrecy::BitString;
+use robokey_secrecy::CascadeSchedule;
 use robokey_secrecy::confirm::TAG_BITS;
 use robokey_secrecy::interval::clopper_pearson_lower;
 use robokey_secrecy::min_entropy::{binomial_smooth_min_entropy, output_length};
-use robokey_secrecy::{BitString, Cascade, Reconciler, ToeplitzHash};
+use robokey_secrecy::postprocess::{
+    Assumption, BlockReport, ControllerInput, ControllerPost, Message, Output, RobotInput,
+    RobotPost, Settings,
+};
 use serde::Serialize;
 use zeroize::Zeroizing;
 
@@ -23,9 +31,10 @@ pub enum Pooling {
     /// are charged.
     Confirmed,
     /// The pipeline of the authenticated session (the session is confirmed over its
-    /// transcript, not its key): every session both sides completed is pooled; a disclosed
-    /// random sample estimates the error rate and is removed; Cascade reconciles with both
-    /// sides' parities charged; the block is confirmed by two 64-bit tags (128 bits).
+    /// transcript, not its key): every session both sides completed is pooled and run
+    /// through the post-processing endpoints — a disclosed random sample estimates the error
+    /// rate and is removed, Cascade reconciles with both sides' parities charged, the block
+    /// is confirmed by two 64-bit tags (128 bits) and committed in two phases.
     Complete,
 }
 
@@ -62,10 +71,11 @@ impl Pooling {
 /// Bits of confirmation tags published per confirmation: one 64-bit tag each way.
 pub const CONFIRMATION_BITS: u64 = 2 * TAG_BITS;
 
-/// How Eve's smooth min-entropy is bounded: from her realised hard decisions with the
-/// binomial bound. Labelled an approximation wherever it appears.
+/// How the realised diagnostic bounds Eve's smooth min-entropy: from her realised hard
+/// decisions with the binomial bound. Labelled an approximation wherever it appears.
 pub const H_MIN_BINOMIAL: &str = "binomial bound on Eve's realised hard-decision errors \
-    (approximation: i.i.d. errors; ignores her soft values, her patterns and where her errors fall)";
+    on the block's raw bits (approximation: i.i.d. errors; ignores her soft values, her \
+    patterns and where her errors fall)";
 
 /// The pooled raw bits of whole sessions, in session order: the robot's key is the
 /// reference, the controller's is corrected, Eve's is her guess of the same positions.
@@ -73,7 +83,9 @@ pub const H_MIN_BINOMIAL: &str = "binomial bound on Eve's realised hard-decision
 pub struct Pool {
     /// Sessions pooled.
     pub sessions: u32,
-    /// Index (in the simulated order) of the last session pooled.
+    /// Raw bits of each session pooled.
+    pub lengths: Vec<usize>,
+    /// Index of the last session pooled.
     pub last_session: usize,
     /// The robot's bits.
     pub robot: Zeroizing<Vec<u8>>,
@@ -101,12 +113,31 @@ pub fn pools(runs: &[RunOutput], pooling: Pooling, block_bits: usize) -> Vec<Poo
         pool.eve
             .extend((0..keys.robot.len()).map(|i| eve.get(i).copied().unwrap_or(keys.robot[i])));
         pool.sessions += 1;
+        pool.lengths.push(keys.robot.len());
         pool.last_session = index;
         if pool.robot.len() >= block_bits {
             full.push(std::mem::take(&mut pool));
         }
     }
     full
+}
+
+/// Eve's realised view of a block: a diagnostic beside the assumption, never what sizes the
+/// key.
+#[derive(Clone, Debug, Serialize)]
+pub struct Realised {
+    /// Eve's errors against the robot's raw bits of the block.
+    pub eve_errors: usize,
+    /// Lower confidence bound (level 1 − ε_PE) of her error rate.
+    pub eve_error_lower: f64,
+    /// w* of the binomial bound.
+    pub w_star: u64,
+    /// The smooth min-entropy bound from her realised errors (bits).
+    pub h_min: f64,
+    /// How.
+    pub h_min_method: &'static str,
+    /// ℓ that bound would support with the block's leak.
+    pub secret_bits: u64,
 }
 
 /// One privacy-amplification block, with every public bit it cost.
@@ -129,183 +160,282 @@ pub struct Block {
     pub q_source: String,
     /// Bits reconciled and amplified: `bits − sample_bits`.
     pub reconciled_bits: usize,
-    /// Reconciliation question messages (each answered by one).
-    pub reconciliation_messages: u32,
+    /// Post-processing messages, both directions (retransmissions included).
+    pub messages: u32,
+    /// Their payload bits.
+    pub message_bits: u64,
     /// Reconciliation leak: both sides' parities.
     pub leak_ec: u64,
     /// Confirmation tags published over pooled key bits (per-session or per-block).
     pub leak_confirmation: u64,
     /// leak_ec + leak_confirmation.
     pub leak: u64,
-    /// Whether the reconciled keys agree (else the block's tags differ and it is dropped).
-    pub confirmed: bool,
-    /// Eve's errors against the reference on the reconciled positions.
-    pub eve_errors: usize,
-    /// Lower confidence bound (level 1 − ε_PE) of Eve's error rate.
-    pub eve_error_lower: f64,
-    /// Lower bound on Eve's smooth min-entropy (bits).
+    /// Whether both sides committed the same key, or neither did.
+    pub consistent: bool,
+    /// Eve's smooth min-entropy under the stated assumption (bits).
     pub h_min: f64,
-    /// How `h_min` was obtained.
-    pub h_min_method: &'static str,
-    /// w* of the binomial bound.
-    pub w_star: u64,
-    /// H_min − leak − 2·log₂(1/ε_PA) + 2, before flooring and clamping.
-    pub raw_length: f64,
-    /// Secret bits ℓ.
+    /// The assumption it comes from.
+    pub h_min_method: String,
+    /// ℓ under the assumption: the key the agents would make.
     pub secret_bits: u64,
     /// Why ℓ = 0, and whether pooling more could help.
     pub reason: Option<String>,
+    /// Eve's realised view: the diagnostic.
+    pub realised: Realised,
+    /// The assumption credits more than the realised view of this adversary supports.
+    pub assumption_exceeds_realised: bool,
 }
 
-/// Settings of one block's post-processing.
-#[derive(Clone, Copy, Debug)]
+/// Settings of post-processing in the simulator.
+#[derive(Clone, Debug)]
 pub struct BlockSettings {
     /// Which sessions are pooled.
     pub pooling: Pooling,
     /// ε per term (smoothing, amplification, parameter estimation).
     pub epsilon: f64,
-    /// Largest disclosed sample (at most a tenth of the block is disclosed).
+    /// Largest disclosed sample (at most a tenth of the block).
     pub sample_bits: usize,
+    /// Least raw bits per block.
+    pub block_bits: usize,
+    /// What is assumed about Eve.
+    pub assumption: Assumption,
 }
 
-fn bits(key: &[u8]) -> BitString {
-    let bools: Zeroizing<Vec<bool>> = Zeroizing::new(key.iter().map(|&b| b == 1).collect());
-    BitString::from_bools(&bools)
-}
-
-/// Splits off a uniformly random sample of `size` positions (public randomness): returns
-/// its disagreements and the three keys without it.
-fn disclose(pool: &Pool, size: usize, public: &mut ChaCha8Rng) -> (usize, [Zeroizing<Vec<u8>>; 3]) {
-    let n = pool.robot.len();
-    let mut disclosed = vec![false; n];
-    for i in rand::seq::index::sample(public, n, size) {
-        disclosed[i] = true;
-    }
-    let errors = (0..n)
-        .filter(|&i| disclosed[i] && pool.robot[i] != pool.controller[i])
-        .count();
-    let keep = |key: &[u8]| -> Zeroizing<Vec<u8>> {
-        Zeroizing::new(
-            key.iter()
-                .zip(&disclosed)
-                .filter(|(_, d)| !**d)
-                .map(|(b, _)| *b)
-                .collect(),
-        )
-    };
-    (
-        errors,
-        [keep(&pool.robot), keep(&pool.controller), keep(&pool.eve)],
-    )
-}
-
-/// Runs one pool through the pipeline of `settings.pooling`; `public` supplies the public
-/// randomness (sample, Cascade permutations, Toeplitz seed).
+/// Runs the pools through the pipeline of `settings.pooling`; `public` seeds the
+/// endpoints' nonces.
 #[must_use]
-pub fn post_process(pool: &Pool, settings: &BlockSettings, public: &mut ChaCha8Rng) -> Block {
-    let n = pool.robot.len();
-    let errors_before = pool
-        .robot
-        .iter()
-        .zip(pool.controller.iter())
-        .filter(|(a, b)| a != b)
-        .count();
-    let eps = settings.epsilon;
-    let (sample_bits, sample_errors, q_estimate, q_source, keys) = match settings.pooling {
-        Pooling::Confirmed => (
-            0,
-            0,
-            0.0,
-            "every pooled session's key tags matched: nothing to reconcile".to_owned(),
-            [
-                pool.robot.clone(),
-                pool.controller.clone(),
-                pool.eve.clone(),
-            ],
-        ),
-        Pooling::Complete => {
-            let size = settings.sample_bits.min(n / 10);
-            let (errors, keys) = disclose(pool, size, public);
-            let q = if size == 0 {
-                0.0
-            } else {
-                (errors as f64 / size as f64).min(0.5)
-            };
-            let source = format!(
-                "disclosed random sample of {size} positions ({errors} disagreed), removed from the key"
-            );
-            (size, errors, q, source, keys)
-        }
-    };
-    let [robot, controller, eve] = keys;
-    let m = robot.len();
-    let (alice, bob) = (bits(&robot), bits(&controller));
-    let (leak_ec, messages, confirmed) = match settings.pooling {
-        Pooling::Confirmed => (0, 0, alice == bob),
-        Pooling::Complete => {
-            match Cascade::biconf(q_estimate).and_then(|c| c.reconcile(&alice, &bob, public)) {
-                Ok(r) => (r.leak, r.messages, r.corrected == alice),
-                // A failed reconciliation publishes at most the whole key's worth.
-                Err(_) => (2 * m as u64, 0, false),
-            }
-        }
-    };
-    let leak_confirmation = match settings.pooling {
-        Pooling::Confirmed => u64::from(pool.sessions) * CONFIRMATION_BITS,
-        Pooling::Complete => CONFIRMATION_BITS,
-    };
-    let eve_errors = robot.iter().zip(eve.iter()).filter(|(a, b)| a != b).count();
-    let eve_error_lower = clopper_pearson_lower(eve_errors as u64, m as u64, eps)
-        .unwrap_or(0.0)
-        .min(0.5);
-    let entropy = binomial_smooth_min_entropy(m as u64, eve_error_lower, eps).ok();
-    let h_min = entropy.as_ref().map_or(0.0, |e| e.h_min);
-    let length = output_length(h_min, leak_ec, leak_confirmation, eps).ok();
-    let raw_length = length.as_ref().map_or(f64::NEG_INFINITY, |l| l.raw);
-    let (mut secret_bits, mut reason) = length.map_or(
-        (0, Some("the bound could not be evaluated".to_owned())),
-        |l| (l.bits, l.reason),
-    );
-    if !confirmed {
-        secret_bits = 0;
-        reason = Some(
-            "reconciliation left errors: the block's confirmation tags differ and it is dropped"
-                .into(),
-        );
-    } else if secret_bits > 0 {
-        // Amplify as the agents will. The reconciled keys are equal, so one hash stands for
-        // both sides; its cost is part of the measured wall time.
-        let hashed = ToeplitzHash::random(m, secret_bits as usize, public)
-            .and_then(|hash| hash.hash(&alice));
-        if hashed.is_err() {
-            secret_bits = 0;
-            reason = Some("the Toeplitz hash could not be built".into());
-        }
-    } else if let Some(why) = reason.as_mut() {
-        why.push_str(&pooling_advice(settings, pool.sessions, m, h_min, leak_ec));
+pub fn post_process(
+    pools: &[Pool],
+    settings: &BlockSettings,
+    public: &mut ChaCha8Rng,
+) -> Vec<Block> {
+    match settings.pooling {
+        Pooling::Confirmed => pools
+            .iter()
+            .map(|pool| tagged_sessions(pool, settings))
+            .collect(),
+        Pooling::Complete => through_endpoints(pools, settings, public),
     }
-    Block {
+}
+
+/// Today's agents: keys confirmed per session, nothing reconciled, every tag charged.
+fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
+    let n = pool.robot.len();
+    let leak_confirmation = u64::from(pool.sessions) * CONFIRMATION_BITS;
+    let h_min = settings.assumption.h_min(n as u64, settings.epsilon);
+    let length = output_length(h_min, 0, leak_confirmation, settings.epsilon).ok();
+    let mut block = Block {
         sessions: pool.sessions,
         bits: n,
-        errors_before,
-        sample_bits,
-        sample_errors,
-        q_estimate,
-        q_source,
-        reconciled_bits: m,
-        reconciliation_messages: messages,
-        leak_ec,
+        errors_before: disagreements(&pool.robot, &pool.controller),
+        sample_bits: 0,
+        sample_errors: 0,
+        q_estimate: 0.0,
+        q_source: "every pooled session's key tags matched: nothing to reconcile".into(),
+        reconciled_bits: n,
+        messages: 0,
+        message_bits: 0,
+        leak_ec: 0,
         leak_confirmation,
-        leak: leak_ec + leak_confirmation,
-        confirmed,
-        eve_errors,
-        eve_error_lower,
+        leak: leak_confirmation,
+        consistent: pool.robot == pool.controller,
+        h_min,
+        h_min_method: settings.assumption.describe(),
+        secret_bits: length.as_ref().map_or(0, |l| l.bits),
+        reason: length.and_then(|l| l.reason),
+        realised: realised(pool, n, 0, leak_confirmation, settings.epsilon),
+        assumption_exceeds_realised: false,
+    };
+    finish(&mut block, settings);
+    block
+}
+
+/// The `complete` pipeline: every pooled session handed to the two endpoints, in order,
+/// messages delivered in memory until both are quiet.
+fn through_endpoints(
+    pools: &[Pool],
+    settings: &BlockSettings,
+    public: &mut ChaCha8Rng,
+) -> Vec<Block> {
+    let protocol = Settings {
+        block_bits: settings.block_bits,
+        sample_bits: settings.sample_bits,
+        epsilon: settings.epsilon,
+        schedule: CascadeSchedule::BICONF,
+        assumption: settings.assumption.clone(),
+    };
+    let (Ok(mut controller), Ok(mut robot)) = (
+        ControllerPost::new(protocol.clone(), public.random()),
+        RobotPost::new(protocol, public.random()),
+    ) else {
+        return Vec::new();
+    };
+    for (id, (robot_bits, controller_bits)) in
+        pools.iter().flat_map(|p| p.session_bits()).enumerate()
+    {
+        let id = id as u32;
+        let _ = robot.handle_input(RobotInput::Session {
+            id,
+            bits: robot_bits,
+        });
+        let _ = controller.handle_input(ControllerInput::Session {
+            id,
+            bits: controller_bits,
+        });
+    }
+    let mut controller_reports = Vec::new();
+    let mut robot_reports = BTreeMap::new();
+    let mut keys = (Vec::new(), Vec::new());
+    let (mut to_robot, mut to_controller): (Vec<Message>, Vec<Message>) = (Vec::new(), Vec::new());
+    loop {
+        while let Some(output) = controller.poll_output() {
+            match output {
+                Output::Transmit(m) => to_robot.push(m),
+                Output::BlockEnded(report) => controller_reports.push(report),
+                Output::KeyCommitted(key) => keys.0.push(key),
+                Output::Persist | Output::Ignored(_) => {}
+            }
+        }
+        while let Some(output) = robot.poll_output() {
+            match output {
+                Output::Transmit(m) => to_controller.push(m),
+                Output::BlockEnded(report) => {
+                    robot_reports.insert(report.block, report);
+                }
+                Output::KeyCommitted(key) => keys.1.push(key),
+                Output::Persist | Output::Ignored(_) => {}
+            }
+        }
+        if to_robot.is_empty() && to_controller.is_empty() {
+            break;
+        }
+        for m in std::mem::take(&mut to_robot) {
+            let _ = robot.handle_input(RobotInput::Frame(m));
+        }
+        for m in std::mem::take(&mut to_controller) {
+            let _ = controller.handle_input(ControllerInput::Frame(m));
+        }
+    }
+    controller_reports
+        .iter()
+        .zip(pools)
+        .map(|(report, pool)| {
+            let committed = |list: &Vec<robokey_secrecy::postprocess::FinalKey>| {
+                list.iter()
+                    .find(|k| k.block == report.block)
+                    .map(|k| k.key.clone())
+            };
+            let consistent = committed(&keys.0) == committed(&keys.1);
+            endpoint_block(
+                report,
+                robot_reports.get(&report.block),
+                pool,
+                consistent,
+                settings,
+            )
+        })
+        .collect()
+}
+
+/// A block from the endpoints' reports.
+fn endpoint_block(
+    report: &BlockReport,
+    robot: Option<&BlockReport>,
+    pool: &Pool,
+    consistent: bool,
+    settings: &BlockSettings,
+) -> Block {
+    let leak = report.leak_ec + report.leak_confirmation;
+    let mut block = Block {
+        sessions: pool.sessions,
+        bits: report.bits,
+        errors_before: disagreements(&pool.robot, &pool.controller),
+        sample_bits: report.sample_bits,
+        sample_errors: report.sample_errors,
+        q_estimate: report.q_estimate,
+        q_source: format!(
+            "disclosed random sample of {} positions ({} disagreed), removed from the key",
+            report.sample_bits, report.sample_errors
+        ),
+        reconciled_bits: report.reconciled_bits,
+        messages: report.messages_sent + robot.map_or(0, |r| r.messages_sent),
+        message_bits: report.bits_sent + robot.map_or(0, |r| r.bits_sent),
+        leak_ec: report.leak_ec,
+        leak_confirmation: report.leak_confirmation,
+        leak,
+        consistent,
+        h_min: report.h_min,
+        h_min_method: settings.assumption.describe(),
+        secret_bits: report.length,
+        reason: report.reason.clone(),
+        realised: realised(
+            pool,
+            report.reconciled_bits,
+            report.leak_ec,
+            2 * TAG_BITS,
+            settings.epsilon,
+        ),
+        assumption_exceeds_realised: false,
+    };
+    finish(&mut block, settings);
+    block
+}
+
+/// Flags an assumption that credits more than the realised view, and adds pooling advice.
+fn finish(block: &mut Block, settings: &BlockSettings) {
+    block.assumption_exceeds_realised = block.secret_bits > block.realised.secret_bits;
+    if block.secret_bits == 0
+        && let Some(why) = block.reason.as_mut()
+    {
+        why.push_str(&pooling_advice(
+            settings,
+            block.sessions,
+            block.reconciled_bits,
+            block.h_min,
+            block.leak_ec,
+        ));
+    }
+}
+
+fn disagreements(a: &[u8], b: &[u8]) -> usize {
+    a.iter().zip(b).filter(|(x, y)| x != y).count()
+}
+
+/// Eve's realised errors on the block's raw bits, the binomial bound on `n` reconciled bits
+/// at that rate, and the ℓ it would support.
+fn realised(pool: &Pool, n: usize, leak_ec: u64, tags: u64, epsilon: f64) -> Realised {
+    let errors = disagreements(&pool.robot, &pool.eve);
+    let total = pool.robot.len().max(1) as u64;
+    let lower = clopper_pearson_lower(errors as u64, total, epsilon)
+        .unwrap_or(0.0)
+        .min(0.5);
+    let bound = binomial_smooth_min_entropy(n as u64, lower, epsilon).ok();
+    let h_min = bound.as_ref().map_or(0.0, |b| b.h_min);
+    Realised {
+        eve_errors: errors,
+        eve_error_lower: lower,
+        w_star: bound.map_or(0, |b| b.w_star),
         h_min,
         h_min_method: H_MIN_BINOMIAL,
-        w_star: entropy.map_or(0, |e| e.w_star),
-        raw_length,
-        secret_bits,
-        reason,
+        secret_bits: output_length(h_min, leak_ec, tags, epsilon).map_or(0, |l| l.bits),
+    }
+}
+
+impl Pool {
+    /// Each pooled session's (robot, controller) bits, in order.
+    fn session_bits(&self) -> Vec<(BitString, BitString)> {
+        let mut out = Vec::new();
+        let mut start = 0;
+        for &len in &self.lengths {
+            let take = |key: &[u8]| -> BitString {
+                let bits: Zeroizing<Vec<bool>> =
+                    Zeroizing::new(key[start..start + len].iter().map(|&b| b == 1).collect());
+                BitString::from_bools(&bits)
+            };
+            out.push((take(&self.robot), take(&self.controller)));
+            start += len;
+        }
+        out
     }
 }
 

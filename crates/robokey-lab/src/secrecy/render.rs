@@ -22,7 +22,7 @@ fn total(r: &PointSecrecy, field: fn(&super::Block) -> u64) -> u64 {
 #[must_use]
 pub fn secrecy_csv(results: &[PointSecrecy]) -> String {
     let mut out = String::from(
-        "point,adversary,adversary_class,pooling,sessions,sessions_pooled,steps,p_c,p_c_low,p_c_high,p_e,p_e_low,p_e_high,info_advantage,info_advantage_low,info_advantage_high,info_conditional,raw_bits,raw_bits_per_step,eve_error_accepted,eve_error_accepted_high,acceptance_p,blocks,q_estimate,leak_ec,leak_confirmation,h_min,secret_bits,secret_bits_per_step,secret_bits_per_second,zero_reason,structural_zero\n",
+        "point,adversary,adversary_class,pooling,sessions,sessions_pooled,steps,p_c,p_c_low,p_c_high,p_e,p_e_low,p_e_high,info_advantage,info_advantage_low,info_advantage_high,info_conditional,raw_bits,raw_bits_per_step,eve_error_accepted,eve_error_accepted_high,acceptance_p,blocks,q_estimate,messages,leak_ec,leak_confirmation,h_min,secret_bits,secret_bits_per_step,secret_bits_per_second,realised_h_min,realised_secret_bits,assumption_exceeds_realised,zero_reason,assumption,structural_zero\n",
     );
     for r in results {
         let rate = |x: &Option<Rate>| {
@@ -34,8 +34,9 @@ pub fn secrecy_csv(results: &[PointSecrecy]) -> String {
             x.map_or(",,".to_owned(), |x| format!("{},{},{}", x[0], x[1], x[2]))
         };
         let h_min: f64 = r.blocks.iter().map(|b| b.h_min).sum();
+        let realised: f64 = r.blocks.iter().map(|b| b.realised.h_min).sum();
         out.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             quoted(&r.point),
             r.adversary,
             r.adversary_class.name(),
@@ -56,13 +57,18 @@ pub fn secrecy_csv(results: &[PointSecrecy]) -> String {
                 .map_or(String::new(), |p| p.to_string()),
             r.blocks.len(),
             r.q_estimate.map_or(String::new(), |q| q.to_string()),
+            total(r, |b| u64::from(b.messages)),
             total(r, |b| b.leak_ec),
             total(r, |b| b.leak_confirmation),
             h_min,
             r.secret_bits,
             r.secret_bits_per_step,
             r.secret_bits_per_second,
+            realised,
+            r.realised_secret_bits,
+            r.assumption_exceeds_realised,
             quoted(r.zero_reason.as_deref().unwrap_or("")),
+            quoted(&r.assumption),
             quoted(r.structural_zero.unwrap_or("")),
         ));
     }
@@ -91,13 +97,25 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
              Rows against a restricted adversary hold only if nobody learns r and D.\n\n"
         ));
     }
+    if let Some(first) = results.first() {
+        md.push_str(&format!(
+            "Key length from the stated assumption: {}. The realised columns are a diagnostic \
+             from each adversary's own view (approximation), never what sizes the key.\n\n",
+            first.assumption
+        ));
+    }
     md.push_str(
-        "| point | adversary (class) | p_c % | p_e % | raw bits/step | Eve wrong on accepted % | leak_EC | leak_conf | H_min (bits) | secret bits/step | why zero |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| point | adversary (class) | p_c % | p_e % | raw bits/step | Eve wrong on accepted % | messages | leak_EC | leak_conf | secret bits/step (assumption) | realised H_min | realised ℓ | why zero |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in results {
-        let h_min: f64 = r.blocks.iter().map(|b| b.h_min).sum();
+        let realised: f64 = r.blocks.iter().map(|b| b.realised.h_min).sum();
+        let warning = if r.assumption_exceeds_realised {
+            " **the assumption credits more than this adversary's realised view supports**"
+        } else {
+            ""
+        };
         md.push_str(&format!(
-            "| {} | {} ({}) | {} | {} | {:.4} | {} | {} | {} | {:.2} | {:.5} | {} |\n",
+            "| {} | {} ({}) | {} | {} | {:.4} | {} | {} | {} | {} | {:.5} | {:.2} | {}{} | {} |\n",
             r.point,
             r.adversary,
             r.adversary_class.name(),
@@ -105,10 +123,13 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
             percent(&r.p_e),
             r.raw_bits_per_step,
             percent(&r.eve_error_accepted),
+            total(r, |b| u64::from(b.messages)),
             total(r, |b| b.leak_ec),
             total(r, |b| b.leak_confirmation),
-            h_min,
             r.secret_bits_per_step,
+            realised,
+            r.realised_secret_bits,
+            warning,
             r.zero_reason.as_deref().unwrap_or("")
         ));
     }
@@ -117,11 +138,11 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
             "sessions whose key tags matched (today's agents), each pooled session's two 64-bit tags charged, nothing reconciled"
         }
         super::Pooling::Complete => {
-            "every completed session (the authenticated session's pipeline), error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags"
+            "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags and committed in two phases"
         }
     };
     md.push_str(&format!(
-        "\nPooling: {pooling}; blocks of at least {} raw bits (whole sessions). H_min: {}, with Eve's error p taken as the one-sided Clopper–Pearson lower bound at level 1 − ε_PE. ε_s = ε_PA = ε_PE = {:e} (the key is {:e}-secret). p_c, p_e: 95 % Clopper–Pearson intervals over applied bits. Classes: {}. See docs/secrecy.md.\n",
+        "\nPooling: {pooling}; blocks of at least {} raw bits (whole sessions). Realised H_min: {}, with Eve's error p taken as the one-sided Clopper–Pearson lower bound at level 1 − ε_PE. ε_s = ε_PA = ε_PE = {:e} (the key is {:e}-secret). p_c, p_e: 95 % Clopper–Pearson intervals over applied bits. Classes: {}. See docs/secrecy.md.\n",
         options.block_bits,
         super::pipeline::H_MIN_BINOMIAL,
         options.epsilon,

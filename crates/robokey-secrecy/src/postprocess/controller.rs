@@ -474,7 +474,6 @@ impl ControllerPost {
         if let Some(report) = self.report.as_mut() {
             report.questions = outcome.alice_parities;
             report.leak_ec = outcome.leak;
-            report.leak_confirmation = 2 * crate::confirm::TAG_BITS;
             report.h_min = h_min;
             report.length = length.bits;
         }
@@ -495,6 +494,9 @@ impl ControllerPost {
         };
         let context = tag_context(block, &agreed.sessions, &agreed.nonces, length.bits);
         let tag = ConfirmationTag::directional(&outcome.corrected, CONTROLLER_TO_ROBOT, &context);
+        if let Some(report) = self.report.as_mut() {
+            report.leak_confirmation = 2 * crate::confirm::TAG_BITS;
+        }
         self.state = State::ExpectConfirmed {
             agreed,
             reconciled: outcome.corrected,

@@ -38,9 +38,9 @@ use crate::bitstring::BitString;
 use crate::cascade::CascadeSchedule;
 
 pub use assumption::{Assumption, AssumptionError};
-pub use controller::{ControllerPost, ControllerSnapshot};
+pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
 pub use message::{AbortReason, Message, RejectReason};
-pub use robot::{RobotPost, RobotSnapshot};
+pub use robot::{Prepared, RobotInput, RobotPost, RobotSnapshot};
 
 /// Largest number of sessions one block may pool (bounds a `Propose`).
 pub const MAX_BLOCK_SESSIONS: usize = 1 << 16;
