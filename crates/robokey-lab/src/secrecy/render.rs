@@ -94,16 +94,19 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
     if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
         md.push_str(&format!(
             "**Secret key rate: 0.** The configuration yields no secret key, {reason}. \
-             Rows against a restricted adversary hold only if nobody learns r and D.\n\n"
+             Figures against a restricted adversary hold only if nobody learns r and D.\n\n"
         ));
     }
-    if let Some(first) = results.first() {
+    if let (Some(first), Some(_)) = (results.first(), options.assumed_eve_error) {
         md.push_str(&format!(
-            "Key length from the stated assumption: {}. The realised columns are a diagnostic \
-             from each adversary's own view (approximation), never what sizes the key.\n\n",
+            "Key length from the stated assumption: {}.\n\n",
             first.assumption
         ));
     }
+    md.push_str(
+        "The realised columns are a diagnostic from each adversary's own view (approximation), \
+         never what sizes the key.\n\n",
+    );
     md.push_str(
         "| point | adversary (class) | p_c % | p_e % | raw bits/step | Eve wrong on accepted % | messages | leak_EC | leak_conf | secret bits/step (assumption) | realised H_min | realised ℓ | why zero |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );

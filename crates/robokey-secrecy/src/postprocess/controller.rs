@@ -1,17 +1,14 @@
 //! The controller's post-processing endpoint: it pools its (noisy) session bits, proposes
 //! blocks, corrects its bits by Cascade, and coordinates the two-phase commit.
 
-use std::collections::{BTreeSet, VecDeque};
-
 use rand::rngs::ChaCha20Rng;
-use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
+use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
     AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, Message, Output,
-    Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, pool_session, split_sample,
-    tag_context,
+    Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
@@ -106,28 +103,23 @@ enum State {
 
 /// The controller's endpoint. See the [module](super) documentation for the protocol.
 pub struct ControllerPost {
-    settings: Settings,
-    rng: ChaCha20Rng,
-    pool: Pool,
-    spent: BTreeSet<u32>,
+    ledger: Ledger,
     next_block: u64,
     /// The block in flight: its number, proposed sessions and their bits.
     block: Option<(u64, Vec<u32>, Pool)>,
     in_flight: Option<InFlight>,
     state: State,
     report: Option<BlockReport>,
-    keys: Vec<FinalKey>,
     last_request: Option<Message>,
-    outputs: VecDeque<Output>,
 }
 
 impl std::fmt::Debug for ControllerPost {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ControllerPost")
-            .field("pooled", &self.pool.len())
+            .field("pooled", &self.ledger.pool.len())
             .field("next_block", &self.next_block)
             .field("in_flight", &self.in_flight)
-            .field("keys", &self.keys.len())
+            .field("keys", &self.ledger.keys.len())
             .finish_non_exhaustive()
     }
 }
@@ -138,21 +130,19 @@ impl ControllerPost {
     /// # Errors
     /// [`PostError::Settings`].
     pub fn new(settings: Settings, rng_seed: [u8; 32]) -> Result<Self, PostError> {
-        settings.check()?;
-        Ok(Self {
-            settings,
-            rng: ChaCha20Rng::from_seed(rng_seed),
-            pool: Pool::new(),
-            spent: BTreeSet::new(),
-            next_block: 0,
+        Ok(Self::with(Ledger::new(settings, rng_seed)?, 0))
+    }
+
+    fn with(ledger: Ledger, next_block: u64) -> Self {
+        Self {
+            ledger,
+            next_block,
             block: None,
             in_flight: None,
             state: State::Idle,
             report: None,
-            keys: Vec::new(),
             last_request: None,
-            outputs: VecDeque::new(),
-        })
+        }
     }
 
     /// The endpoint after a crash, from its last stored snapshot: an uncommitted block is
@@ -165,11 +155,14 @@ impl ControllerPost {
         settings: Settings,
         rng_seed: [u8; 32],
     ) -> Result<Self, PostError> {
-        let mut endpoint = Self::new(settings, rng_seed)?;
-        endpoint.next_block = snapshot.next_block;
-        endpoint.pool = snapshot.pool.into_iter().collect();
-        endpoint.spent = snapshot.spent.into_iter().collect();
-        endpoint.keys = snapshot.keys;
+        let ledger = Ledger::restore(
+            settings,
+            rng_seed,
+            snapshot.pool,
+            snapshot.spent,
+            snapshot.keys,
+        )?;
+        let mut endpoint = Self::with(ledger, snapshot.next_block);
         match snapshot.in_flight {
             None => endpoint.maybe_propose(),
             Some(InFlight::Committed { block, sessions }) => {
@@ -198,21 +191,17 @@ impl ControllerPost {
     pub fn snapshot(&self) -> ControllerSnapshot {
         ControllerSnapshot {
             next_block: self.next_block,
-            pool: self
-                .pool
-                .iter()
-                .map(|(&id, bits)| (id, bits.clone()))
-                .collect(),
-            spent: self.spent.iter().copied().collect(),
+            pool: self.ledger.stored_pool(),
+            spent: self.ledger.spent.iter().copied().collect(),
             in_flight: self.in_flight.clone(),
-            keys: self.keys.clone(),
+            keys: self.ledger.keys.clone(),
         }
     }
 
     /// Keys committed so far.
     #[must_use]
     pub fn keys(&self) -> &[FinalKey] {
-        &self.keys
+        &self.ledger.keys
     }
 
     /// Whether no block is in flight.
@@ -223,7 +212,7 @@ impl ControllerPost {
 
     /// The next thing to do.
     pub fn poll_output(&mut self) -> Option<Output> {
-        self.outputs.pop_front()
+        self.ledger.outputs.pop_front()
     }
 
     /// Feeds one input.
@@ -233,8 +222,7 @@ impl ControllerPost {
     pub fn handle_input(&mut self, input: ControllerInput) -> Result<(), PostError> {
         match input {
             ControllerInput::Session { id, bits } => {
-                pool_session(&mut self.pool, &self.spent, id, bits)?;
-                self.outputs.push_back(Output::Persist);
+                self.ledger.add_session(id, bits)?;
                 self.maybe_propose();
             }
             ControllerInput::Timeout => {
@@ -250,7 +238,8 @@ impl ControllerPost {
     fn handle_message(&mut self, message: Message) {
         let current = self.block.as_ref().map(|(b, ..)| *b);
         if current != Some(message.block()) {
-            self.outputs
+            self.ledger
+                .outputs
                 .push_back(Output::Ignored("a message about another block"));
             return;
         }
@@ -316,7 +305,7 @@ impl ControllerPost {
             ),
             (state, _) => {
                 self.state = state;
-                self.outputs.push_back(Output::Ignored(
+                self.ledger.outputs.push_back(Output::Ignored(
                     "a message the controller does not expect now",
                 ));
             }
@@ -332,15 +321,15 @@ impl ControllerPost {
         if !self.is_idle() || self.block.is_some() {
             return;
         }
-        let pooled: usize = self.pool.values().map(BitString::len).sum();
-        if pooled < self.settings.block_bits {
+        let pooled: usize = self.ledger.pool.values().map(BitString::len).sum();
+        if pooled < self.ledger.settings.block_bits {
             return;
         }
         let mut sessions = Vec::new();
         let mut bits = Pool::new();
         let mut total = 0;
-        while total < self.settings.block_bits && sessions.len() < MAX_BLOCK_SESSIONS {
-            let Some((id, session)) = self.pool.pop_first() else {
+        while total < self.ledger.settings.block_bits && sessions.len() < MAX_BLOCK_SESSIONS {
+            let Some((id, session)) = self.ledger.pool.pop_first() else {
                 break;
             };
             total += session.len();
@@ -349,8 +338,7 @@ impl ControllerPost {
         }
         let block = self.next_block;
         self.next_block += 1;
-        let mut nonce = [0_u8; 32];
-        self.rng.fill_bytes(&mut nonce);
+        let nonce = self.ledger.nonce();
         self.in_flight = Some(InFlight::Started {
             block,
             sessions: sessions.clone(),
@@ -358,7 +346,7 @@ impl ControllerPost {
         self.block = Some((block, sessions.clone(), bits));
         self.report = Some(empty_report(block));
         self.state = State::ExpectAgree { nonce };
-        self.outputs.push_back(Output::Persist);
+        self.ledger.outputs.push_back(Output::Persist);
         self.request(Message::Propose {
             block,
             sessions,
@@ -392,7 +380,7 @@ impl ControllerPost {
         let nonces = [nonce, robot_nonce];
         let public = PublicRandomness::new(block, &agreed, &nonces);
         let key = concatenate(bits, &agreed);
-        let mask = public.sample(key.len(), self.settings.sample_bits);
+        let mask = public.sample(key.len(), self.ledger.settings.sample_bits);
         let (own_sample, kept) = split_sample(&key, &mask);
         if own_sample.len() != sample.len() {
             return self.abort(
@@ -423,7 +411,7 @@ impl ControllerPost {
             nonces,
             public,
         };
-        let started = Cascade::new(self.settings.schedule, q)
+        let started = Cascade::new(self.ledger.settings.schedule, q)
             .and_then(|cascade| CascadeBob::start(cascade, kept, agreed.public.cascade()));
         match started {
             Ok((bob, step)) => self.reconcile(agreed, Box::new(bob), 0, step),
@@ -467,10 +455,11 @@ impl ControllerPost {
     /// Reconciliation is over: ℓ from the assumption, then the controller's tag.
     fn confirm(&mut self, agreed: Agreed, outcome: Reconciliation) {
         let n = outcome.corrected.len() as u64;
-        let (h_min, length) =
-            self.settings
-                .assumption
-                .output_length(n, outcome.leak, self.settings.epsilon);
+        let (h_min, length) = self.ledger.settings.assumption.output_length(
+            n,
+            outcome.leak,
+            self.ledger.settings.epsilon,
+        );
         if let Some(report) = self.report.as_mut() {
             report.questions = outcome.alice_parities;
             report.leak_ec = outcome.leak;
@@ -520,17 +509,17 @@ impl ControllerPost {
             block,
             key,
             sessions: agreed.sessions,
-            epsilon: 4.0 * self.settings.epsilon,
-            assumption: self.settings.assumption.describe(),
+            epsilon: 4.0 * self.ledger.settings.epsilon,
+            assumption: self.ledger.settings.assumption.describe(),
         };
-        self.keys.push(key.clone());
+        self.ledger.keys.push(key.clone());
         self.in_flight = Some(InFlight::Committed {
             block,
             sessions: proposed,
         });
         self.state = State::ExpectCommitAck;
-        self.outputs.push_back(Output::Persist);
-        self.outputs.push_back(Output::KeyCommitted(key));
+        self.ledger.outputs.push_back(Output::Persist);
+        self.ledger.outputs.push_back(Output::KeyCommitted(key));
         self.request(Message::Commit { block });
     }
 
@@ -550,7 +539,7 @@ impl ControllerPost {
             reason,
         });
         self.state = State::ExpectAbortAck;
-        self.outputs.push_back(Output::Persist);
+        self.ledger.outputs.push_back(Output::Persist);
         self.request(Message::Abort {
             block,
             sessions,
@@ -561,14 +550,14 @@ impl ControllerPost {
     /// The robot acknowledged: the block's sessions are spent; propose the next.
     fn end_block(&mut self) {
         if let Some((_, sessions, _)) = self.block.take() {
-            self.spent.extend(sessions);
+            self.ledger.spent.extend(sessions);
         }
         self.in_flight = None;
         self.state = State::Idle;
         self.last_request = None;
-        self.outputs.push_back(Output::Persist);
+        self.ledger.outputs.push_back(Output::Persist);
         if let Some(report) = self.report.take() {
-            self.outputs.push_back(Output::BlockEnded(report));
+            self.ledger.outputs.push_back(Output::BlockEnded(report));
         }
         self.maybe_propose();
     }
@@ -584,7 +573,7 @@ impl ControllerPost {
             report.messages_sent += 1;
             report.bits_sent += message.payload_bits();
         }
-        self.outputs.push_back(Output::Transmit(message));
+        self.ledger.outputs.push_back(Output::Transmit(message));
     }
 }
 

@@ -26,6 +26,7 @@
 
 mod assumption;
 mod controller;
+mod ledger;
 mod message;
 pub mod public;
 mod robot;
@@ -177,26 +178,6 @@ impl Settings {
 
 /// Sessions held, by ID.
 type Pool = std::collections::BTreeMap<u32, BitString>;
-
-/// Adds a session to `pool` unless its ID was seen.
-fn pool_session(
-    pool: &mut Pool,
-    spent: &std::collections::BTreeSet<u32>,
-    id: u32,
-    bits: BitString,
-) -> Result<(), PostError> {
-    if bits.is_empty() || bits.len() > MAX_SESSION_BITS {
-        return Err(PostError::SessionSize {
-            id,
-            bits: bits.len(),
-        });
-    }
-    if pool.contains_key(&id) || spent.contains(&id) {
-        return Err(PostError::DuplicateSession(id));
-    }
-    pool.insert(id, bits);
-    Ok(())
-}
 
 /// The concatenated bits of `sessions` from `pool`, in order.
 fn concatenate(pool: &Pool, sessions: &[u32]) -> BitString {

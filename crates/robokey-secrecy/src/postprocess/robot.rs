@@ -1,18 +1,16 @@
 //! The robot's post-processing endpoint: its bits are the reference; it answers the
 //! controller's requests, each idempotently, and commits a key only on `Commit`.
 
-use std::collections::{BTreeSet, VecDeque};
-
 use rand::rngs::ChaCha20Rng;
-use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 use super::controller::empty_report;
+use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
     BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, MAX_QUESTIONS, Message, Output,
-    Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate, pool_session,
-    split_sample, tag_context,
+    Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate, split_sample,
+    tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::CascadeAlice;
@@ -76,24 +74,19 @@ struct Reconciling {
 
 /// The robot's endpoint. See the [module](super) documentation for the protocol.
 pub struct RobotPost {
-    settings: Settings,
-    rng: ChaCha20Rng,
-    pool: Pool,
-    spent: BTreeSet<u32>,
+    ledger: Ledger,
     highest_block: Option<u64>,
     reconciling: Option<Box<Reconciling>>,
     prepared: Option<Prepared>,
-    keys: Vec<FinalKey>,
-    outputs: VecDeque<Output>,
 }
 
 impl std::fmt::Debug for RobotPost {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RobotPost")
-            .field("pooled", &self.pool.len())
+            .field("pooled", &self.ledger.pool.len())
             .field("highest_block", &self.highest_block)
             .field("prepared", &self.prepared.as_ref().map(|p| p.block))
-            .field("keys", &self.keys.len())
+            .field("keys", &self.ledger.keys.len())
             .finish_non_exhaustive()
     }
 }
@@ -104,18 +97,16 @@ impl RobotPost {
     /// # Errors
     /// [`PostError::Settings`].
     pub fn new(settings: Settings, rng_seed: [u8; 32]) -> Result<Self, PostError> {
-        settings.check()?;
-        Ok(Self {
-            settings,
-            rng: ChaCha20Rng::from_seed(rng_seed),
-            pool: Pool::new(),
-            spent: BTreeSet::new(),
-            highest_block: None,
+        Ok(Self::with(Ledger::new(settings, rng_seed)?, None, None))
+    }
+
+    fn with(ledger: Ledger, highest_block: Option<u64>, prepared: Option<Prepared>) -> Self {
+        Self {
+            ledger,
+            highest_block,
             reconciling: None,
-            prepared: None,
-            keys: Vec::new(),
-            outputs: VecDeque::new(),
-        })
+            prepared,
+        }
     }
 
     /// The endpoint after a crash, from its last stored snapshot (a block it was reconciling
@@ -128,40 +119,41 @@ impl RobotPost {
         settings: Settings,
         rng_seed: [u8; 32],
     ) -> Result<Self, PostError> {
-        let mut endpoint = Self::new(settings, rng_seed)?;
-        endpoint.pool = snapshot.pool.into_iter().collect();
-        endpoint.spent = snapshot.spent.into_iter().collect();
-        endpoint.highest_block = snapshot.highest_block;
-        endpoint.prepared = snapshot.prepared;
-        endpoint.keys = snapshot.keys;
-        Ok(endpoint)
+        let ledger = Ledger::restore(
+            settings,
+            rng_seed,
+            snapshot.pool,
+            snapshot.spent,
+            snapshot.keys,
+        )?;
+        Ok(Self::with(
+            ledger,
+            snapshot.highest_block,
+            snapshot.prepared,
+        ))
     }
 
     /// The durable state to store on [`Output::Persist`].
     #[must_use]
     pub fn snapshot(&self) -> RobotSnapshot {
         RobotSnapshot {
-            pool: self
-                .pool
-                .iter()
-                .map(|(&id, bits)| (id, bits.clone()))
-                .collect(),
-            spent: self.spent.iter().copied().collect(),
+            pool: self.ledger.stored_pool(),
+            spent: self.ledger.spent.iter().copied().collect(),
             highest_block: self.highest_block,
             prepared: self.prepared.clone(),
-            keys: self.keys.clone(),
+            keys: self.ledger.keys.clone(),
         }
     }
 
     /// Keys committed so far.
     #[must_use]
     pub fn keys(&self) -> &[FinalKey] {
-        &self.keys
+        &self.ledger.keys
     }
 
     /// The next thing to do.
     pub fn poll_output(&mut self) -> Option<Output> {
-        self.outputs.pop_front()
+        self.ledger.outputs.pop_front()
     }
 
     /// Feeds one input.
@@ -171,8 +163,7 @@ impl RobotPost {
     pub fn handle_input(&mut self, input: RobotInput) -> Result<(), PostError> {
         match input {
             RobotInput::Session { id, bits } => {
-                pool_session(&mut self.pool, &self.spent, id, bits)?;
-                self.outputs.push_back(Output::Persist);
+                self.ledger.add_session(id, bits)?;
             }
             RobotInput::Frame(message) => self.handle_message(message),
         }
@@ -194,11 +185,12 @@ impl RobotPost {
     }
 
     fn ignore(&mut self, why: &'static str) {
-        self.outputs.push_back(Output::Ignored(why));
+        self.ledger.outputs.push_back(Output::Ignored(why));
     }
 
     fn reject(&mut self, block: u64, reason: RejectReason) {
-        self.outputs
+        self.ledger
+            .outputs
             .push_back(Output::Transmit(Message::Reject { block, reason }));
     }
 
@@ -222,23 +214,22 @@ impl RobotPost {
         }
         // An abandoned block's sessions were disclosed: spent.
         if let Some(old) = self.reconciling.take() {
-            self.spent.extend(old.sessions);
+            self.ledger.spent.extend(old.sessions);
         }
         self.highest_block = Some(block);
         let mut agreed = Vec::new();
         let mut bits = Pool::new();
         for id in proposed {
-            if let Some(session) = self.pool.remove(&id) {
+            if let Some(session) = self.ledger.pool.remove(&id) {
                 agreed.push(id);
                 bits.insert(id, session);
             }
         }
-        let mut robot_nonce = [0_u8; 32];
-        self.rng.fill_bytes(&mut robot_nonce);
+        let robot_nonce = self.ledger.nonce();
         let nonces = [nonce, robot_nonce];
         let public = PublicRandomness::new(block, &agreed, &nonces);
         let key = concatenate(&bits, &agreed);
-        let mask = public.sample(key.len(), self.settings.sample_bits);
+        let mask = public.sample(key.len(), self.ledger.settings.sample_bits);
         let (sample, reference) = split_sample(&key, &mask);
         let mut report = empty_report(block);
         report.sessions.clone_from(&agreed);
@@ -251,7 +242,11 @@ impl RobotPost {
             nonce: robot_nonce,
             sample,
         };
-        let alice = CascadeAlice::new(reference.clone(), self.settings.schedule, public.cascade());
+        let alice = CascadeAlice::new(
+            reference.clone(),
+            self.ledger.settings.schedule,
+            public.cascade(),
+        );
         self.reconciling = Some(Box::new(Reconciling {
             block,
             sessions: agreed,
@@ -306,7 +301,7 @@ impl RobotPost {
             };
             return self.send(confirmed);
         }
-        let settings = self.settings.clone();
+        let settings = self.ledger.settings.clone();
         let Some(r) = self.reconciling(block) else {
             return self.unknown(block);
         };
@@ -345,7 +340,7 @@ impl RobotPost {
             assumption: settings.assumption.describe(),
         };
         if let Some(done) = self.reconciling.take() {
-            self.spent.extend(done.sessions);
+            self.ledger.spent.extend(done.sessions);
         }
         self.prepared = Some(Prepared {
             block,
@@ -353,26 +348,30 @@ impl RobotPost {
             tag: ours.0,
             report,
         });
-        self.outputs.push_back(Output::Persist);
+        self.ledger.outputs.push_back(Output::Persist);
         self.send(Message::Confirmed { block, tag: ours.0 });
     }
 
     fn on_commit(&mut self, block: u64) {
-        if self.keys.iter().any(|k| k.block == block) {
+        if self.ledger.keys.iter().any(|k| k.block == block) {
             return self.send(Message::CommitAck { block });
         }
         let Some(prepared) = self.prepared.take_if(|p| p.block == block) else {
             return self.unknown(block);
         };
-        self.keys.push(prepared.key.clone());
-        self.outputs.push_back(Output::Persist);
-        self.outputs.push_back(Output::KeyCommitted(prepared.key));
-        self.outputs.push_back(Output::BlockEnded(prepared.report));
+        self.ledger.keys.push(prepared.key.clone());
+        self.ledger.outputs.push_back(Output::Persist);
+        self.ledger
+            .outputs
+            .push_back(Output::KeyCommitted(prepared.key));
+        self.ledger
+            .outputs
+            .push_back(Output::BlockEnded(prepared.report));
         self.send(Message::CommitAck { block });
     }
 
     fn on_abort(&mut self, block: u64, sessions: &[u32]) {
-        if self.keys.iter().any(|k| k.block == block) {
+        if self.ledger.keys.iter().any(|k| k.block == block) {
             return self.ignore("an abort of a committed block");
         }
         let mut report = None;
@@ -383,15 +382,15 @@ impl RobotPost {
             report = self.reconciling.take().map(|r| r.report);
         }
         for id in sessions {
-            self.pool.remove(id);
-            self.spent.insert(*id);
+            self.ledger.pool.remove(id);
+            self.ledger.spent.insert(*id);
         }
         self.highest_block = self.highest_block.max(Some(block));
-        self.outputs.push_back(Output::Persist);
+        self.ledger.outputs.push_back(Output::Persist);
         if let Some(mut report) = report {
             report.reason = Some("the controller aborted the block".into());
             report.length = 0;
-            self.outputs.push_back(Output::BlockEnded(report));
+            self.ledger.outputs.push_back(Output::BlockEnded(report));
         }
         self.send(Message::AbortAck { block });
     }
@@ -401,7 +400,7 @@ impl RobotPost {
     fn unknown(&mut self, block: u64) {
         let stale = self.highest_block.is_some_and(|h| block < h)
             || self.prepared.as_ref().is_some_and(|p| p.block == block)
-            || self.keys.iter().any(|k| k.block == block);
+            || self.ledger.keys.iter().any(|k| k.block == block);
         if stale {
             return self.ignore("a request about a finished block");
         }
@@ -418,6 +417,6 @@ impl RobotPost {
             report.messages_sent += 1;
             report.bits_sent += message.payload_bits();
         }
-        self.outputs.push_back(Output::Transmit(message));
+        self.ledger.outputs.push_back(Output::Transmit(message));
     }
 }
