@@ -34,7 +34,8 @@ enum Command {
     /// Print the resolved configuration (defaults, file, overrides) as TOML.
     Config(ConfigArgs),
     /// Count the secret bits of a sweep folder: leakage estimates, reconciliation,
-    /// confirmation and finite-key privacy amplification, per point and adversary.
+    /// confirmation and finite-key privacy amplification, per point and adversary
+    /// (docs/secrecy.md, docs/postprocessing.md).
     Secrecy(SecrecyArgs),
     /// The robot agent: owns the clock and the key bits, drives the wheels, reports odometry
     /// over UDP. Run it ON the robot (see README: where the robot agent runs matters).
@@ -186,7 +187,8 @@ struct SecrecyArgs {
 pub enum PoolingArg {
     /// Sessions whose key tags matched (today's agents); their tags are charged.
     Confirmed,
-    /// Every completed session; sampled error estimate, Cascade, one block confirmation.
+    /// Every completed session, through the agents' post-processing endpoints: sampled
+    /// error estimate, Cascade, one block confirmation, two-phase commit.
     Complete,
 }
 
