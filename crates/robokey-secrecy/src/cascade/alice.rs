@@ -55,13 +55,22 @@ impl<R: Rng> CascadeAlice<R> {
 
     /// Her parities of `queries`, in order. A question may name any kept permutation or the
     /// next one to draw (Bob never skips one), so an answer costs at most one new
-    /// permutation: a peer cannot make her draw a million.
+    /// permutation: a peer cannot make her draw a million. The blocks of one round span at
+    /// most (passes + 2)·n positions (an honest round asks one pass's top blocks and halves
+    /// of blocks in the others), so a round costs her O(n).
     ///
     /// # Errors
     /// [`ReconcileError::OracleInconsistent`] for a permutation she dropped or that lies
-    /// ahead, or a range outside the key.
+    /// ahead, a range outside the key, or a round spanning more than (passes + 2)·n.
     pub fn answer(&mut self, queries: &[BlockQuery]) -> Result<Vec<bool>, ReconcileError> {
         let n = self.key.len();
+        let span: u64 = queries
+            .iter()
+            .map(|q| u64::from(q.end.saturating_sub(q.start)))
+            .sum();
+        if span > (u64::from(self.cascade_passes) + 2) * n as u64 {
+            return Err(ReconcileError::OracleInconsistent);
+        }
         queries
             .iter()
             .map(|q| {

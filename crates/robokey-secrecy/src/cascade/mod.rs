@@ -457,6 +457,11 @@ mod tests {
                 Err(ReconcileError::OracleInconsistent)
             );
         }
+        // A round that makes her read the key more than (passes + 2) times.
+        assert_eq!(
+            alice.answer(&vec![q(0, 0, 100); 5]),
+            Err(ReconcileError::OracleInconsistent)
+        );
         // Permutations 0 and 1 (the Cascade passes) stay; BICONF rounds replace each other.
         for p in 0..4 {
             assert!(alice.answer(&[q(p, 0, 50)]).is_ok());

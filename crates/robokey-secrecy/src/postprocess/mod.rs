@@ -164,6 +164,8 @@ impl Settings {
                 self.block_bits
             )));
         }
+        crate::cascade::Cascade::new(self.schedule, 0.0)
+            .map_err(|e| PostError::Settings(e.to_string()))?;
         if !(self.epsilon > 0.0 && self.epsilon < 1.0) {
             return Err(PostError::Settings(format!(
                 "epsilon {} (allowed: (0, 1))",
