@@ -459,7 +459,7 @@ mod tests {
         }
         // A round that makes her read the key more than (passes + 2) times.
         assert_eq!(
-            alice.answer(&vec![q(0, 0, 100); 5]),
+            alice.answer(&[q(0, 0, 100); 5]),
             Err(ReconcileError::OracleInconsistent)
         );
         // Permutations 0 and 1 (the Cascade passes) stay; BICONF rounds replace each other.
