@@ -283,7 +283,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
             println!("  secret key rate 0: {reason}");
         }
-        if let Some(first) = results.first() {
+        if let (Some(first), Some(_)) = (results.first(), args.assume_eve_error) {
             println!("  key sized under: {}", first.assumption);
         }
         for r in &results {
