@@ -1,4 +1,4 @@
-//! Run configuration (SPEC §11): TOML, every field optional, unknown fields rejected,
+//! Run configuration (README, "One run"; `robokey config` prints every field): TOML, every field optional, unknown fields rejected,
 //! validation errors that name the field, the value and the allowed range.
 
 use serde::{Deserialize, Serialize};
@@ -254,7 +254,7 @@ pub enum Draw {
     Common,
 }
 
-/// Which eavesdropper listens (SECRECY.md §6). Each strategy after `mismatch` adds one
+/// Which eavesdropper listens (docs/threat-model.md). Each strategy after `mismatch` adds one
 /// capability to the one before it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -469,7 +469,7 @@ impl Config {
         Ok(config)
     }
 
-    /// Checks every field against SPEC §11's allowed range.
+    /// Checks every field against its allowed range.
     ///
     /// # Errors
     /// The first field out of range.

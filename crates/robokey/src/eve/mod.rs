@@ -1,5 +1,5 @@
 //! Eavesdroppers: strategies behind one interface, fed the same message stream as the
-//! endpoints (simulated sessions or a capture). See SECRECY.md §6.
+//! endpoints (simulated sessions or a capture). See docs/threat-model.md and docs/secrecy.md.
 
 mod adversary;
 mod identify;
