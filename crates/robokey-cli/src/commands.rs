@@ -100,7 +100,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         config.run.seed,
         args.replicate,
         proto.delta_v,
-        proto.delta_omega,
+        config.delta_omega(),
         if proto.enabled {
             "protocol on"
         } else {
@@ -109,16 +109,23 @@ pub fn run(args: RunArgs) -> Result<()> {
         if config.eve.enabled && proto.enabled {
             use robokey::config::EveStrategy;
             let eve = &config.eve;
-            match eve.strategy {
+            let strategy = config.eve_strategy();
+            match strategy {
                 EveStrategy::Oracle => "oracle Eve".to_owned(),
                 EveStrategy::Mismatch | EveStrategy::Soft => {
-                    format!("{} Eve α = {}", eve.strategy.name(), eve.alpha)
+                    format!("{} Eve α = {}", strategy.name(), eve.alpha)
                 }
                 EveStrategy::Identify | EveStrategy::Transcript => format!(
                     "{} Eve starting {} % off",
-                    eve.strategy.name(),
+                    strategy.name(),
                     100.0 * eve.initial_error
                 ),
+                EveStrategy::Camera => format!(
+                    "camera Eve ({} mm, {} mrad)",
+                    1e3 * eve.camera_std[0],
+                    1e3 * eve.camera_std[2]
+                ),
+                EveStrategy::Commands => "commands-only Eve".to_owned(),
             }
         } else {
             "no Eve".into()

@@ -110,7 +110,7 @@ fn errors_of(config: &Config, strategy: EveStrategy, explicit: Option<ModelError
         Some(errors) if strategy != EveStrategy::Oracle => errors,
         _ => {
             let mut config = config.clone();
-            config.eve.strategy = strategy;
+            config.eve.strategy = Some(strategy);
             starting_errors(&config, &mut stream(config.run.seed, Purpose::Eve, 0))
         }
     }
@@ -153,7 +153,7 @@ fn on_capture(
     explicit: Option<ModelErrors>,
 ) -> Result<()> {
     let strategies: Vec<EveStrategy> = if args.strategy.is_empty() {
-        vec![config.eve.strategy]
+        vec![config.eve_strategy()]
     } else {
         args.strategy.iter().map(|&s| s.into()).collect()
     };

@@ -124,7 +124,7 @@ pub const MODEL_TOLERANCE: f64 = 0.01;
 #[must_use]
 pub fn eavesdropper(config: &Config, strategy: EveStrategy, campaign: u32) -> Eve {
     let mut config = config.clone();
-    config.eve.strategy = strategy;
+    config.eve.strategy = Some(strategy);
     let seed = config.run.seed;
     let errors = starting_errors(
         &config,
@@ -553,7 +553,7 @@ pub fn campaign_body(campaign: &Campaign, figures: &str) -> String {
          the controller's. Every strategy hears the same {} sessions in the same order; each one after `mismatch` \
          adds a capability to the one before.\n\n",
         config.protocol.delta_v,
-        config.protocol.delta_omega,
+        config.delta_omega(),
         config.code.build().name(),
         config.run.seed,
         campaign.steps_per_session,

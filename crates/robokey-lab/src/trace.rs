@@ -22,7 +22,8 @@ pub fn trace_csv(rows: &[TraceRow]) -> String {
             vec![opt(r.bit)],
             floats_or_empty(r.dhat.as_ref(), 2),
             floats_or_empty(r.xhat.as_ref(), 3),
-            vec![opt(r.bhat), opt(r.bhat_eve)],
+            vec![opt(r.bhat), opt(r.bhat_eve), opt(r.bit_omega)],
+            floats_or_empty(r.camera.as_ref(), 3),
         ]
         .concat();
         out.push_str(&cells.join(","));

@@ -15,6 +15,8 @@ pub struct Config {
     pub robot: RobotConfig,
     /// True (physical) noise of the plant and odometry.
     pub noise: NoiseConfig,
+    /// What the controller decides from: the robot's odometry or its own pose sensor.
+    pub sensing: SensingConfig,
     /// The reference trajectory.
     pub trajectory: TrajectoryConfig,
     /// The tracking controller.
@@ -73,6 +75,36 @@ impl Default for NoiseConfig {
         Self {
             process_std: [0.004; 3],
             measurement_std: [0.0005; 3],
+        }
+    }
+}
+
+/// What the controller decides from (docs/private-sensing.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SensingMode {
+    /// The paper's mode: the robot sends its odometry, which is public.
+    Odometry,
+    /// The controller reads its own pose sensor; the robot sends no pose; key bits ride on
+    /// doublets.
+    Private,
+}
+
+/// `[sensing]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensingConfig {
+    /// Odometry (the paper's) or private sensing.
+    pub mode: SensingMode,
+    /// Noise std of the controller's own pose sensor `[m, m, rad]` (private mode).
+    pub controller_std: [f64; 3],
+}
+
+impl Default for SensingConfig {
+    fn default() -> Self {
+        Self {
+            mode: SensingMode::Odometry,
+            controller_std: [0.0005; 3],
         }
     }
 }
@@ -172,16 +204,26 @@ pub struct ProtocolConfig {
     pub enabled: bool,
     /// Δv (m/s).
     pub delta_v: f64,
-    /// Δω (rad/s).
-    pub delta_omega: f64,
+    /// Δω (rad/s); defaults to 0, or to [`DOUBLET_DELTA_OMEGA`] with two bits per doublet.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub delta_omega: Option<f64>,
+    /// Key bits per doublet in private mode: 1 (on v) or 2 (a second on ω).
+    pub bits_per_doublet: u8,
+    /// Private mode: doublets whose public nominal turn rate exceeds this carry no bit (rad/s).
+    pub max_turn_rate: f64,
 }
+
+/// The default Δω (rad/s) of the second bit of a doublet.
+pub const DOUBLET_DELTA_OMEGA: f64 = 0.035;
 
 impl Default for ProtocolConfig {
     fn default() -> Self {
         Self {
             enabled: true,
             delta_v: 0.035,
-            delta_omega: 0.0,
+            delta_omega: None,
+            bits_per_doublet: 1,
+            max_turn_rate: 0.5,
         }
     }
 }
@@ -270,17 +312,33 @@ pub enum EveStrategy {
     /// `identify` that also searches her least reliable bits for the key matching the public
     /// confirmation tag, and learns from the recovered key's bits.
     Transcript,
+    /// Private mode, the strongest: exact model, every frame of her own camera, and the
+    /// controller's doublet-boundary samples, which the public commands reveal.
+    Camera,
+    /// Private mode: `camera` without the camera — what the public commands leak.
+    Commands,
 }
 
 impl EveStrategy {
-    /// Every strategy, in order of capability.
-    pub const ALL: [Self; 5] = [
+    /// Every strategy: the odometry mode's in order of capability, then the private mode's.
+    pub const ALL: [Self; 7] = [
         Self::Oracle,
         Self::Mismatch,
         Self::Soft,
         Self::Identify,
         Self::Transcript,
+        Self::Camera,
+        Self::Commands,
     ];
+
+    /// The mode whose sessions this strategy listens to.
+    #[must_use]
+    pub fn mode(self) -> SensingMode {
+        match self {
+            Self::Camera | Self::Commands => SensingMode::Private,
+            _ => SensingMode::Odometry,
+        }
+    }
 
     /// The name used in configs and on the command line.
     #[must_use]
@@ -291,6 +349,8 @@ impl EveStrategy {
             Self::Soft => "soft",
             Self::Identify => "identify",
             Self::Transcript => "transcript",
+            Self::Camera => "camera",
+            Self::Commands => "commands",
         }
     }
 }
@@ -304,8 +364,9 @@ pub const MAX_TAG_FLIPS: u32 = 24;
 pub struct EveConfig {
     /// Whether the run has an eavesdropper.
     pub enabled: bool,
-    /// Her strategy.
-    pub strategy: EveStrategy,
+    /// Her strategy; defaults to `mismatch` in odometry mode and `camera` in private mode.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub strategy: Option<EveStrategy>,
     /// Largest relative model error α (fraction) of `mismatch` and `soft`.
     pub alpha: f64,
     /// Independent or common draws.
@@ -323,13 +384,16 @@ pub struct EveConfig {
     /// Eve matches the controller once her windowed error rate stays within this many
     /// percentage points of the controller's.
     pub match_tolerance_pp: f64,
+    /// Private mode: std of her camera `[m, m, rad]`, her effective noise per sample instant
+    /// after her own filtering (a camera averaging M frames per instant has σ/√M).
+    pub camera_std: [f64; 3],
 }
 
 impl Default for EveConfig {
     fn default() -> Self {
         Self {
             enabled: true,
-            strategy: EveStrategy::Mismatch,
+            strategy: None,
             alpha: 0.10,
             draw: Draw::Independent,
             initial_error: 0.40,
@@ -337,6 +401,7 @@ impl Default for EveConfig {
             sessions: 5,
             window: 200,
             match_tolerance_pp: 0.5,
+            camera_std: [0.008; 3],
         }
     }
 }
@@ -523,21 +588,51 @@ impl Config {
         positive("observer.W_var", obs.w_var)?;
         positive("observer.V_var", obs.v_var)?;
         let proto = &self.protocol;
+        let delta_omega = self.delta_omega();
         non_negative("protocol.delta_v", proto.delta_v)?;
-        non_negative("protocol.delta_omega", proto.delta_omega)?;
-        if proto.enabled && proto.delta_v == 0.0 && proto.delta_omega == 0.0 {
+        non_negative("protocol.delta_omega", delta_omega)?;
+        non_negative("protocol.max_turn_rate", proto.max_turn_rate)?;
+        if !(1..=2).contains(&proto.bits_per_doublet) {
             return Err(invalid(
-                "protocol.delta_v",
-                proto.delta_v,
-                "> 0, or protocol.delta_omega > 0, while protocol.enabled = true",
+                "protocol.bits_per_doublet",
+                proto.bits_per_doublet,
+                "1 (on v) or 2 (on v and ω)",
             ));
         }
-        if proto.enabled && obs.m == 1 && proto.delta_omega != 0.0 {
-            return Err(invalid(
-                "protocol.delta_omega",
-                proto.delta_omega,
-                "0 with observer.m = 1 (the observer estimates Δv only)",
-            ));
+        for (i, &x) in self.sensing.controller_std.iter().enumerate() {
+            positive(&format!("sensing.controller_std[{i}]"), x)?;
+        }
+        for (i, &x) in self.eve.camera_std.iter().enumerate() {
+            positive(&format!("eve.camera_std[{i}]"), x)?;
+        }
+        match self.sensing.mode {
+            SensingMode::Odometry => {
+                if proto.enabled && proto.delta_v == 0.0 && delta_omega == 0.0 {
+                    return Err(invalid(
+                        "protocol.delta_v",
+                        proto.delta_v,
+                        "> 0, or protocol.delta_omega > 0, while protocol.enabled = true",
+                    ));
+                }
+                if proto.enabled && obs.m == 1 && delta_omega != 0.0 {
+                    return Err(invalid(
+                        "protocol.delta_omega",
+                        delta_omega,
+                        "0 with observer.m = 1 (the observer estimates Δv only)",
+                    ));
+                }
+            }
+            SensingMode::Private => self.validate_private()?,
+        }
+        if self.eve_strategy().mode() != self.sensing.mode {
+            let allowed = match self.sensing.mode {
+                SensingMode::Odometry => "oracle, mismatch, soft, identify or transcript",
+                SensingMode::Private => {
+                    "camera or commands in private mode (the odometry mode's eavesdroppers \
+                     decide from odometry the robot no longer sends)"
+                }
+            };
+            return Err(invalid("eve.strategy", self.eve_strategy().name(), allowed));
         }
         let code = &self.code;
         let n_c = code.codeword_length();
@@ -594,6 +689,57 @@ impl Config {
         Ok(())
     }
 
+    /// The combinations private sensing refuses (docs/private-sensing.md).
+    fn validate_private(&self) -> Result<(), ConfigError> {
+        let proto = &self.protocol;
+        if self.controller.feedback == Feedback::Estimate {
+            return Err(invalid(
+                "controller.feedback",
+                "estimate",
+                "\"measurement\" in private mode (an estimate updated with a mid-doublet \
+                 sample would carry the bit into the next commands)",
+            ));
+        }
+        if proto.enabled && proto.delta_v == 0.0 {
+            return Err(invalid(
+                "protocol.delta_v",
+                proto.delta_v,
+                "> 0 in private mode (the first bit of a doublet rides on v)",
+            ));
+        }
+        if proto.enabled && proto.bits_per_doublet == 2 && self.delta_omega() == 0.0 {
+            return Err(invalid(
+                "protocol.delta_omega",
+                self.delta_omega(),
+                "> 0 with protocol.bits_per_doublet = 2",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Δω (rad/s) after defaults: as set, else [`DOUBLET_DELTA_OMEGA`] for two bits per
+    /// doublet in private mode, else 0.
+    #[must_use]
+    pub fn delta_omega(&self) -> f64 {
+        self.protocol.delta_omega.unwrap_or(
+            if self.sensing.mode == SensingMode::Private && self.protocol.bits_per_doublet == 2 {
+                DOUBLET_DELTA_OMEGA
+            } else {
+                0.0
+            },
+        )
+    }
+
+    /// Eve's strategy after defaults: as set, else `mismatch` (odometry) or `camera`
+    /// (private).
+    #[must_use]
+    pub fn eve_strategy(&self) -> EveStrategy {
+        self.eve.strategy.unwrap_or(match self.sensing.mode {
+            SensingMode::Odometry => EveStrategy::Mismatch,
+            SensingMode::Private => EveStrategy::Camera,
+        })
+    }
+
     /// The reference trajectory.
     ///
     /// # Panics
@@ -609,6 +755,8 @@ impl Config {
     pub fn to_toml(&self) -> String {
         let mut resolved = self.clone();
         resolved.code.n_c = Some(self.code.codeword_length());
+        resolved.protocol.delta_omega = Some(self.delta_omega());
+        resolved.eve.strategy = Some(self.eve_strategy());
         toml::to_string(&resolved).expect("a config always serializes")
     }
 }

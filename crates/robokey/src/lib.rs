@@ -3,7 +3,7 @@
 //!
 //! This crate is the I/O-free core: kinematics ([`model`]), references ([`trajectory`]),
 //! the tracking controller ([`control`]), the unknown-input observer ([`observer`]), block
-//! codes ([`code`]), the protocol endpoints ([`protocol`]), the eavesdroppers ([`eve`]),
+//! codes ([`code`]), the protocol endpoints ([`protocol`]), the eavesdroppers ([`eve`]), private sensing ([`private`]),
 //! configuration ([`config`]), seeded random streams ([`rng`]) and the closed-loop
 //! simulation of one run ([`sim`]). Time is the sample index; randomness is passed in.
 
@@ -14,6 +14,7 @@ pub mod eve;
 pub mod metrics;
 pub mod model;
 pub mod observer;
+pub mod private;
 pub mod protocol;
 pub mod rng;
 pub mod sim;

@@ -16,6 +16,8 @@ pub enum Purpose {
     Measurement,
     /// The eavesdropper's model-error draws.
     Eve,
+    /// The eavesdropper's camera noise (private sensing).
+    Camera,
     /// Channel faults (loss, duplication, …).
     Channel,
     /// Public randomness (nonces, hash seeds, permutations).
@@ -31,6 +33,7 @@ impl Purpose {
             Self::Process => "process",
             Self::Measurement => "measurement",
             Self::Eve => "eve",
+            Self::Camera => "camera",
             Self::Channel => "channel",
             Self::Public => "public",
         }

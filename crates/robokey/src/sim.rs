@@ -5,9 +5,11 @@ use rand_distr::{Distribution, StandardNormal};
 use subtle::ConstantTimeEq;
 
 use crate::config::Config;
+use crate::config::SensingMode;
 use crate::eve;
 use crate::metrics::Metrics;
 use crate::model::{Pose, Unicycle, clip_wheels, unicycle_step};
+use crate::private::PrivateRun;
 use crate::protocol::{
     ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, KeyBits, Message,
     Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionPlan,
@@ -43,11 +45,15 @@ pub struct TraceRow {
     pub bhat: Option<u8>,
     /// `b̂(k−1)` of Eve.
     pub bhat_eve: Option<u8>,
+    /// Private mode: the ω bit the step's perturbation carries.
+    pub bit_omega: Option<u8>,
+    /// Private mode: Eve's camera sample `y_e(k)`.
+    pub camera: Option<[f64; 3]>,
 }
 
 impl TraceRow {
     /// Column names of `trace.csv`.
-    pub const COLUMNS: [&'static str; 24] = [
+    pub const COLUMNS: [&'static str; 28] = [
         "k",
         "t",
         "ref_x",
@@ -72,6 +78,10 @@ impl TraceRow {
         "xhat_theta",
         "bhat",
         "bhat_eve",
+        "b_omega",
+        "eve_x",
+        "eve_y",
+        "eve_theta",
     ];
 }
 
@@ -90,6 +100,8 @@ pub struct RunOutput {
     pub steps: Vec<StepBits>,
     /// The three keys.
     pub keys: RunKeys,
+    /// Private mode: the doublets and every party's evidence on each bit.
+    pub private: Option<PrivateRun>,
 }
 
 /// The keys of a run (zeroized on drop).
@@ -178,6 +190,9 @@ fn run(
     record_trace: bool,
     mut transcript: Option<&mut Vec<Message>>,
 ) -> Result<RunOutput, SimError> {
+    if config.sensing.mode == SensingMode::Private {
+        return Ok(crate::private::simulate(config, replicate, record_trace));
+    }
     let seed = config.run.seed;
     let stream_of = |purpose| stream(seed, purpose, u64::from(replicate));
     let (mut process_rng, mut measurement_rng) =
@@ -337,6 +352,7 @@ fn run(
         controller_outcome: outcomes.1,
         steps: log,
         keys,
+        private: None,
     })
 }
 

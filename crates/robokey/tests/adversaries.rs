@@ -26,7 +26,7 @@ fn the_soft_eve_is_wrong_no_more_often_than_the_hard_eve() {
     let mut config = Config::default();
     config.protocol.delta_v = 0.02;
     let mut soft = config.clone();
-    soft.eve.strategy = EveStrategy::Soft;
+    soft.eve.strategy = Some(EveStrategy::Soft);
     let hard: Vec<i64> = (0..M).map(|r| eve_wrong_bits(&config, r)).collect();
     let differences: Vec<f64> = (0..M)
         .map(|r| (eve_wrong_bits(&soft, r) - hard[r as usize]) as f64)

@@ -213,7 +213,7 @@ fn same_seed_same_run_and_replicates_differ() {
 #[test]
 fn the_oracle_eve_decides_exactly_as_the_controller() {
     let mut config = Config::default();
-    config.eve.strategy = robokey::config::EveStrategy::Oracle;
+    config.eve.strategy = Some(robokey::config::EveStrategy::Oracle);
     for replicate in 0..5 {
         let run = simulate(&config, replicate, false).unwrap();
         assert!(

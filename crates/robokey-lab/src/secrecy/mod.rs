@@ -48,9 +48,9 @@ impl AdversaryClass {
     #[must_use]
     pub fn of(strategy: EveStrategy) -> Self {
         match strategy {
-            EveStrategy::Oracle => Self::Strongest,
+            EveStrategy::Oracle | EveStrategy::Camera => Self::Strongest,
             EveStrategy::Identify | EveStrategy::Transcript => Self::Learning,
-            EveStrategy::Mismatch | EveStrategy::Soft => Self::Restricted,
+            EveStrategy::Mismatch | EveStrategy::Soft | EveStrategy::Commands => Self::Restricted,
         }
     }
 
@@ -261,7 +261,7 @@ fn sessions(
 ) -> Result<Vec<RunOutput>, LabError> {
     let mut config = experiment.points[point].config.clone();
     config.eve.enabled = true;
-    config.eve.strategy = adversary;
+    config.eve.strategy = Some(adversary);
     let plan = SessionPlan::from_config(&config, 0);
     let mut runs: Vec<RunOutput> = Vec::new();
     let minimum = experiment.replicates();

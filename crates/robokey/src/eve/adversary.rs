@@ -77,9 +77,12 @@ impl Eve {
             axle_length: config.robot.axle_length * (1.0 + errors.d),
         };
         let model = match strategy {
-            EveStrategy::Oracle | EveStrategy::Mismatch | EveStrategy::Soft => {
-                WheelModel::Fixed(drive)
-            }
+            // The private mode's strategies know the model: on odometry they are the oracle.
+            EveStrategy::Oracle
+            | EveStrategy::Mismatch
+            | EveStrategy::Soft
+            | EveStrategy::Camera
+            | EveStrategy::Commands => WheelModel::Fixed(drive),
             EveStrategy::Identify | EveStrategy::Transcript => {
                 WheelModel::Learned(Box::new(WheelIdentifier::new(
                     drive,

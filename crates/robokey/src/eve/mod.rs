@@ -42,8 +42,9 @@ pub trait Eavesdropper: std::fmt::Debug + Send {
 /// `initial_error` on r and D with random signs for the learning strategies.
 pub fn starting_errors<R: Rng + ?Sized>(config: &Config, rng: &mut R) -> ModelErrors {
     let eve = &config.eve;
-    match eve.strategy {
-        EveStrategy::Oracle => ModelErrors::default(),
+    match config.eve_strategy() {
+        // The private mode's eavesdroppers know the model exactly.
+        EveStrategy::Oracle | EveStrategy::Camera | EveStrategy::Commands => ModelErrors::default(),
         EveStrategy::Mismatch | EveStrategy::Soft => ModelErrors::draw(eve.alpha, eve.draw, rng),
         EveStrategy::Identify | EveStrategy::Transcript => {
             let mut signed = || {
@@ -66,5 +67,5 @@ pub fn starting_errors<R: Rng + ?Sized>(config: &Config, rng: &mut R) -> ModelEr
 /// The eavesdropper a configuration asks for, her starting errors drawn from `rng`.
 pub fn build<R: Rng + ?Sized>(config: &Config, rng: &mut R) -> Box<dyn Eavesdropper> {
     let errors = starting_errors(config, rng);
-    Box::new(Eve::new(config, config.eve.strategy, errors))
+    Box::new(Eve::new(config, config.eve_strategy(), errors))
 }

@@ -54,7 +54,7 @@ impl SessionPlan {
             sample_time: config.robot.sample_time,
             steps,
             enabled: config.protocol.enabled,
-            delta: Unicycle::new(config.protocol.delta_v, config.protocol.delta_omega),
+            delta: Unicycle::new(config.protocol.delta_v, config.delta_omega()),
             code,
             accept_max_distance: config.code.accept_max_distance,
             drive: DiffDrive {
@@ -98,7 +98,7 @@ pub fn agreement_terms(config: &Config) -> String {
         config.robot.sample_time,
         config.protocol.enabled,
         config.protocol.delta_v,
-        config.protocol.delta_omega,
+        config.delta_omega(),
         code.kind,
         built.n(),
         built.k(),

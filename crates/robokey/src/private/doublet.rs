@@ -1,0 +1,201 @@
+//! A doublet: two steps that carry one or two key bits as `u + s·Δ` then `u' − s·Δ`, so that
+//! the robot returns to its nominal path (docs/private-sensing.md).
+
+use nalgebra::Vector2;
+
+use crate::model::{Pose, Unicycle, unicycle_step};
+
+/// The sign a bit gives its perturbation: `s = +1` for bit 0, `−1` for bit 1.
+#[must_use]
+pub fn sign(bit: u8) -> f64 {
+    if bit == 0 { 1.0 } else { -1.0 }
+}
+
+/// The key bits a doublet carries: on v, and on ω when two bits ride per doublet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Perturbation {
+    /// `Δ = [Δv, Δω]` (m/s, rad/s).
+    pub delta: Unicycle,
+    /// 1 (on v) or 2 (on v and ω).
+    pub bits_per_doublet: u8,
+}
+
+impl Perturbation {
+    /// Number of bit patterns a doublet can carry: 2 or 4. Pattern `h` has v-bit `h & 1`
+    /// and ω-bit `h >> 1`.
+    #[must_use]
+    pub fn patterns(&self) -> usize {
+        1 << self.bits_per_doublet
+    }
+
+    /// The first step's offset `s·Δ` for pattern `h` (the second step applies its negative).
+    #[must_use]
+    pub fn offset(&self, pattern: usize) -> Unicycle {
+        let omega = if self.bits_per_doublet == 2 {
+            sign((pattern >> 1) as u8) * self.delta.y
+        } else {
+            0.0
+        };
+        Unicycle::new(sign((pattern & 1) as u8) * self.delta.x, omega)
+    }
+
+    /// The pattern of bits `[v, ω]` (ω ignored with one bit per doublet).
+    #[must_use]
+    pub fn pattern(&self, bits: [u8; 2]) -> usize {
+        usize::from(bits[0] & 1)
+            | if self.bits_per_doublet == 2 {
+                usize::from(bits[1] & 1) << 1
+            } else {
+                0
+            }
+    }
+}
+
+/// The public nominal inputs of a doublet: both come from the controller's sample at its
+/// start, the second through the open-loop prediction with the first.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DoubletInputs {
+    /// `u(2j)` (m/s, rad/s).
+    pub first: Unicycle,
+    /// `u'(2j+1)` (m/s, rad/s).
+    pub second: Unicycle,
+}
+
+impl DoubletInputs {
+    /// The public nominal turn rate `max(|ω(2j)|, |ω'(2j+1)|)` (rad/s) that gates the doublet.
+    #[must_use]
+    pub fn turn_rate(&self) -> f64 {
+        self.first.y.abs().max(self.second.y.abs())
+    }
+
+    /// The two inputs applied with the first step's offset: `[u + offset, u' − offset]`.
+    #[must_use]
+    pub fn applied(&self, offset: Unicycle) -> [Unicycle; 2] {
+        [self.first + offset, self.second - offset]
+    }
+
+    /// The noise-free poses `[x(2j+1), x(2j+2)]` from `start` with `offset` on the first step,
+    /// by the Euler map of the model, sample time `T` (s).
+    #[must_use]
+    pub fn propagate(&self, start: &Pose, offset: Unicycle, sample_time: f64) -> [Pose; 2] {
+        let [a, b] = self.applied(offset);
+        let middle = unicycle_step(start, &a, sample_time);
+        [middle, unicycle_step(&middle, &b, sample_time)]
+    }
+}
+
+/// The position a v-bit leaves at the end of a doublet, `s·T·Δv·(e(θ) − e(θ + T·ω))` (m),
+/// with `θ` the heading at the doublet's start and `ω` the first step's turn rate: zero on a
+/// straight segment, first order in the turn `T·ω` otherwise.
+#[must_use]
+pub fn v_residual(theta: f64, first_turn_rate: f64, s: f64, delta_v: f64, t: f64) -> Vector2<f64> {
+    let e = |angle: f64| Vector2::new(angle.cos(), angle.sin());
+    s * t * delta_v * (e(theta) - e(theta + t * first_turn_rate))
+}
+
+/// To first order in `T·Δω`, the position an ω-bit leaves at the end of a doublet:
+/// `s·T²·v'·Δω·e⊥(θ₁)` (m), lateral to the heading `θ₁` after the first nominal step, with
+/// `v'` the second step's nominal speed.
+#[must_use]
+pub fn omega_residual(
+    theta_1: f64,
+    second_speed: f64,
+    s: f64,
+    delta_omega: f64,
+    t: f64,
+) -> Vector2<f64> {
+    s * t * t * second_speed * delta_omega * Vector2::new(-theta_1.sin(), theta_1.cos())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const T: f64 = 0.2;
+
+    fn end_shift(
+        inputs: &DoubletInputs,
+        start: &Pose,
+        perturbation: &Perturbation,
+        h: usize,
+    ) -> Vector2<f64> {
+        let nominal = inputs.propagate(start, Unicycle::zeros(), T)[1];
+        let perturbed = inputs.propagate(start, perturbation.offset(h), T)[1];
+        (perturbed - nominal).xy()
+    }
+
+    #[test]
+    fn a_doublet_on_a_straight_segment_returns_to_the_nominal_pose() {
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.1, 0.0),
+            second: Unicycle::new(0.1, 0.0),
+        };
+        let p = Perturbation {
+            delta: Unicycle::new(0.035, 0.0),
+            bits_per_doublet: 1,
+        };
+        for h in 0..2 {
+            let shift = end_shift(&inputs, &Pose::new(0.3, -0.2, 0.7), &p, h);
+            assert!(shift.norm() < 1e-15, "{shift}");
+        }
+    }
+
+    /// A noise-free doublet on a turning segment returns to the nominal path up to the
+    /// residual `s·T·Δv·(e(θ) − e(θ + Tω))` (exact for the Euler map), and an ω-bit leaves
+    /// the lateral `s·T²·v'·Δω` to first order.
+    #[test]
+    fn a_turning_doublet_leaves_the_predicted_residual() {
+        let start = Pose::new(1.0, 0.5, 0.9);
+        for &omega in &[0.1, 0.5, -1.2, 2.0] {
+            let inputs = DoubletInputs {
+                first: Unicycle::new(0.12, omega),
+                second: Unicycle::new(0.1, omega * 0.8),
+            };
+            let p = Perturbation {
+                delta: Unicycle::new(0.035, 0.0),
+                bits_per_doublet: 1,
+            };
+            for h in 0..2 {
+                let s = sign(h as u8);
+                let predicted = v_residual(start.z, omega, s, 0.035, T);
+                let shift = end_shift(&inputs, &start, &p, h);
+                assert!(
+                    (shift - predicted).norm() < 1e-15,
+                    "ω {omega}: {shift} vs {predicted}"
+                );
+                assert!(predicted.norm() > 0.5 * T * 0.035 * (T * omega).abs());
+            }
+            let p2 = Perturbation {
+                delta: Unicycle::new(0.0, 0.035),
+                bits_per_doublet: 2,
+            };
+            let theta_1 = start.z + T * omega;
+            for h in [0, 2] {
+                let s = sign((h >> 1) as u8);
+                let predicted = omega_residual(theta_1, 0.1, s, 0.035, T);
+                let shift = end_shift(&inputs, &start, &p2, h);
+                // Second order: the neglected term is ½·T·v'·(T·Δω)².
+                let bound = 0.5 * T * 0.1 * (T * 0.035_f64).powi(2) * 1.01;
+                assert!((shift - predicted).norm() < bound, "{shift} vs {predicted}");
+            }
+        }
+    }
+
+    #[test]
+    fn patterns_and_offsets() {
+        let two = Perturbation {
+            delta: Unicycle::new(0.035, 0.02),
+            bits_per_doublet: 2,
+        };
+        assert_eq!(two.patterns(), 4);
+        assert_eq!(two.offset(0), Unicycle::new(0.035, 0.02));
+        assert_eq!(two.offset(3), Unicycle::new(-0.035, -0.02));
+        assert_eq!(two.pattern([1, 1]), 3);
+        let one = Perturbation {
+            delta: Unicycle::new(0.035, 0.02),
+            bits_per_doublet: 1,
+        };
+        assert_eq!(one.offset(1), Unicycle::new(-0.035, 0.0));
+        assert_eq!(one.pattern([1, 1]), 1);
+    }
+}

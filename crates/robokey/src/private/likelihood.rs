@@ -1,0 +1,244 @@
+//! The true-noise likelihood of a doublet's bits given what one party observed
+//! (docs/private-sensing.md, "Decisions").
+//!
+//! Model: `x(k+1) = f(x(k), u(k)) + w(k)`, `w ~ N(0, Q)` with `Q` the true motion noise, and
+//! observations `y = x + η`, `η ~ N(0, R)` of the party's sensor. For each bit pattern `h`
+//! the means `m₁(h), m₂(h)` of `x(2j+1), x(2j+2)` are propagated exactly (the Euler map, from
+//! the start estimate, so the residual a bit leaves through a turn is in them); the
+//! covariance is propagated through the Jacobians `Aᵢ = ∂f/∂x` of each pattern's path:
+//! `C₁₁ = A₀P₀A₀ᵀ + Q`, `C₁₂ = C₁₁A₁ᵀ`, `C₂₂ = A₁C₁₁A₁ᵀ + Q`. Never the observer's design
+//! covariances.
+
+use nalgebra::{Cholesky, Matrix3, Matrix6, SMatrix, SVector, Vector3, Vector6};
+
+use super::doublet::{DoubletInputs, Perturbation};
+use crate::model::Pose;
+
+/// A direct Gaussian observation of a pose: `y = x + η`, `η ~ N(0, R)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseObservation {
+    /// `y` (m, m, rad).
+    pub value: Pose,
+    /// `R` (m², m², rad²).
+    pub covariance: Matrix3<f64>,
+}
+
+impl PoseObservation {
+    /// An observation with independent components of standard deviation `std`.
+    #[must_use]
+    pub fn new(value: Pose, std: [f64; 3]) -> Self {
+        Self {
+            value,
+            covariance: Matrix3::from_diagonal(
+                &Vector3::from(std).component_mul(&Vector3::from(std)),
+            ),
+        }
+    }
+
+    /// Two independent observations of the same pose fused (exact for Gaussians):
+    /// `R = (R₁⁻¹ + R₂⁻¹)⁻¹`, `y = R·(R₁⁻¹y₁ + R₂⁻¹y₂)`.
+    #[must_use]
+    pub fn fuse(&self, other: &Self) -> Self {
+        let (i1, i2) = (inverse(&self.covariance), inverse(&other.covariance));
+        let covariance = inverse(&(i1 + i2));
+        Self {
+            value: covariance * (i1 * self.value + i2 * other.value),
+            covariance,
+        }
+    }
+}
+
+fn inverse(m: &Matrix3<f64>) -> Matrix3<f64> {
+    m.try_inverse().unwrap_or_else(Matrix3::zeros)
+}
+
+/// What one party holds about a doublet: an estimate of its start pose, and observations of
+/// the pose after its first and after its second step, if any.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DoubletView {
+    /// `x(2j)`: estimate and its covariance `P₀`.
+    pub start: PoseObservation,
+    /// `x(2j+1)`, if observed.
+    pub middle: Option<PoseObservation>,
+    /// `x(2j+2)`, if observed.
+    pub end: Option<PoseObservation>,
+}
+
+/// The true-noise model of a doublet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DoubletModel {
+    /// Sample time `T` (s).
+    pub sample_time: f64,
+    /// Motion noise covariance `Q` per step.
+    pub process_covariance: Matrix3<f64>,
+    /// The bits and their Δ.
+    pub perturbation: Perturbation,
+}
+
+/// What a party can say about each bit of a doublet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BitEvidence {
+    /// `ln P(view | bit 0) − ln P(view | bit 1)`, the other bit marginalised.
+    pub llr: [f64; 2],
+    /// The Mahalanobis distance between the bit's two hypotheses under the model, the other
+    /// bit known (the larger over its values): the consistent Gaussian LLR has mean `d²/2`
+    /// and variance `d²`, and the error rate is `Q(d/2)`.
+    pub separation: [f64; 2],
+}
+
+/// `∂f/∂x` of the Euler map at heading `θ` and speed `v` (m/s).
+fn state_jacobian(theta: f64, speed: f64, sample_time: f64) -> Matrix3<f64> {
+    let (sin, cos) = theta.sin_cos();
+    Matrix3::new(
+        1.0,
+        0.0,
+        -sample_time * speed * sin,
+        0.0,
+        1.0,
+        sample_time * speed * cos,
+        0.0,
+        0.0,
+        1.0,
+    )
+}
+
+/// One pattern's predicted observations: the residuals' mean and covariance, stacked over
+/// the observed poses.
+enum Prediction {
+    Both {
+        mean: Vector6<f64>,
+        covariance: Matrix6<f64>,
+    },
+    One {
+        mean: Vector3<f64>,
+        covariance: Matrix3<f64>,
+    },
+    None,
+}
+
+impl DoubletModel {
+    fn predict(&self, inputs: &DoubletInputs, view: &DoubletView, pattern: usize) -> Prediction {
+        let t = self.sample_time;
+        let offset = self.perturbation.offset(pattern);
+        let [a, b] = inputs.applied(offset);
+        let start = &view.start;
+        let [m1, m2] = inputs.propagate(&start.value, offset, t);
+        let a0 = state_jacobian(start.value.z, a.x, t);
+        let a1 = state_jacobian(m1.z, b.x, t);
+        let q = &self.process_covariance;
+        let c11 = a0 * start.covariance * a0.transpose() + q;
+        let c12 = c11 * a1.transpose();
+        let c22 = a1 * c11 * a1.transpose() + q;
+        match (&view.middle, &view.end) {
+            (Some(y1), Some(y2)) => {
+                let mut covariance = Matrix6::zeros();
+                covariance
+                    .fixed_view_mut::<3, 3>(0, 0)
+                    .copy_from(&(c11 + y1.covariance));
+                covariance.fixed_view_mut::<3, 3>(0, 3).copy_from(&c12);
+                covariance
+                    .fixed_view_mut::<3, 3>(3, 0)
+                    .copy_from(&c12.transpose());
+                covariance
+                    .fixed_view_mut::<3, 3>(3, 3)
+                    .copy_from(&(c22 + y2.covariance));
+                let mut mean = Vector6::zeros();
+                mean.fixed_rows_mut::<3>(0).copy_from(&(y1.value - m1));
+                mean.fixed_rows_mut::<3>(3).copy_from(&(y2.value - m2));
+                Prediction::Both { mean, covariance }
+            }
+            (Some(y1), None) => Prediction::One {
+                mean: y1.value - m1,
+                covariance: c11 + y1.covariance,
+            },
+            (None, Some(y2)) => Prediction::One {
+                mean: y2.value - m2,
+                covariance: c22 + y2.covariance,
+            },
+            (None, None) => Prediction::None,
+        }
+    }
+
+    /// `ln p(view | pattern h)` up to a constant common to all patterns, for every pattern
+    /// (2 or 4; unused entries are −∞).
+    #[must_use]
+    pub fn log_likelihoods(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; 4] {
+        let mut out = [f64::NEG_INFINITY; 4];
+        for (h, slot) in out
+            .iter_mut()
+            .enumerate()
+            .take(self.perturbation.patterns())
+        {
+            *slot = match self.predict(inputs, view, h) {
+                Prediction::Both { mean, covariance } => ln_density(&mean, covariance),
+                Prediction::One { mean, covariance } => ln_density(&mean, covariance),
+                Prediction::None => 0.0,
+            };
+        }
+        out
+    }
+
+    /// The LLR and separation of each bit (the ω entries are 0 with one bit per doublet).
+    #[must_use]
+    pub fn evidence(&self, inputs: &DoubletInputs, view: &DoubletView) -> BitEvidence {
+        let ll = self.log_likelihoods(inputs, view);
+        let two = self.perturbation.bits_per_doublet == 2;
+        let llr = if two {
+            [
+                log_add_exp(ll[0], ll[2]) - log_add_exp(ll[1], ll[3]),
+                log_add_exp(ll[0], ll[1]) - log_add_exp(ll[2], ll[3]),
+            ]
+        } else {
+            [ll[0] - ll[1], 0.0]
+        };
+        let separation = if two {
+            [
+                self.distance(inputs, view, 0, 1)
+                    .max(self.distance(inputs, view, 2, 3)),
+                self.distance(inputs, view, 0, 2)
+                    .max(self.distance(inputs, view, 1, 3)),
+            ]
+        } else {
+            [self.distance(inputs, view, 0, 1), 0.0]
+        };
+        BitEvidence { llr, separation }
+    }
+
+    /// Mahalanobis distance between the predicted observations of patterns `a` and `b`,
+    /// under `a`'s covariance.
+    fn distance(&self, inputs: &DoubletInputs, view: &DoubletView, a: usize, b: usize) -> f64 {
+        match (self.predict(inputs, view, a), self.predict(inputs, view, b)) {
+            (Prediction::Both { mean, covariance }, Prediction::Both { mean: other, .. }) => {
+                mahalanobis(&(other - mean), covariance)
+            }
+            (Prediction::One { mean, covariance }, Prediction::One { mean: other, .. }) => {
+                mahalanobis(&(other - mean), covariance)
+            }
+            _ => 0.0,
+        }
+    }
+}
+
+/// `−½·(rᵀS⁻¹r + ln det S)`: the Gaussian log-density of residual `r` up to its constant;
+/// −∞ when `S` is not positive definite.
+fn ln_density<const N: usize>(r: &SVector<f64, N>, s: SMatrix<f64, N, N>) -> f64 {
+    Cholesky::new(s).map_or(f64::NEG_INFINITY, |c| {
+        -0.5 * (c.solve(r).dot(r) + c.ln_determinant())
+    })
+}
+
+/// `√(dᵀS⁻¹d)`; 0 when `S` is not positive definite.
+fn mahalanobis<const N: usize>(d: &SVector<f64, N>, s: SMatrix<f64, N, N>) -> f64 {
+    Cholesky::new(s).map_or(0.0, |c| c.solve(d).dot(d).sqrt())
+}
+
+/// `ln(eᵃ + eᵇ)` without overflow.
+#[must_use]
+pub fn log_add_exp(a: f64, b: f64) -> f64 {
+    let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
+    if hi == f64::NEG_INFINITY {
+        hi
+    } else {
+        hi + (lo - hi).exp().ln_1p()
+    }
+}

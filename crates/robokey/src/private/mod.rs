@@ -1,0 +1,86 @@
+//! Private sensing (docs/private-sensing.md): the controller decides from its own pose
+//! sensor, the robot sends no pose, and each key bit rides on a doublet (`+s·Δ` then
+//! `−s·Δ`) whose commands come from the doublet's boundary samples. An eavesdropper films
+//! the robot with her own, noisier camera: the wiretap assumption that makes a secret key
+//! possible.
+
+pub mod doublet;
+pub mod likelihood;
+pub mod session;
+
+use serde::Serialize;
+
+use crate::config::EveStrategy;
+
+pub use doublet::{DoubletInputs, Perturbation};
+pub use likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation};
+pub use session::{doublet_model, simulate};
+
+/// Which input a bit rides on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BitKind {
+    /// `±Δv` (the first bit of every doublet).
+    V,
+    /// `±Δω` (the second, with two bits per doublet).
+    Omega,
+}
+
+impl BitKind {
+    /// In the order they ride in a doublet.
+    pub const ALL: [Self; 2] = [Self::V, Self::Omega];
+}
+
+/// One key bit of a private session and what every party made of it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DoubletBit {
+    /// The doublet's first step `2j`.
+    pub step: u32,
+    /// Which input it rides on.
+    pub kind: BitKind,
+    /// The robot's bit.
+    pub bit: u8,
+    /// The doublet's public nominal turn rate (rad/s).
+    pub turn_rate: f64,
+    /// The controller's LLR `ln P(view|0) − ln P(view|1)`.
+    pub controller: f64,
+    /// The camera Eve's LLR.
+    pub camera: f64,
+    /// The commands Eve's LLR.
+    pub commands: f64,
+    /// The bit's separation `d` under the camera Eve's model (her LLR ~ N(±d²/2, d²)).
+    pub camera_separation: f64,
+    /// Its separation under the commands Eve's model: the residual leak the model predicts.
+    pub commands_separation: f64,
+}
+
+impl DoubletBit {
+    /// The LLR of a private-mode eavesdropper (`camera` for any other strategy).
+    #[must_use]
+    pub fn llr_of(&self, strategy: EveStrategy) -> f64 {
+        match strategy {
+            EveStrategy::Commands => self.commands,
+            _ => self.camera,
+        }
+    }
+
+    /// The model separation of a private-mode eavesdropper.
+    #[must_use]
+    pub fn separation_of(&self, strategy: EveStrategy) -> f64 {
+        match strategy {
+            EveStrategy::Commands => self.commands_separation,
+            _ => self.camera_separation,
+        }
+    }
+}
+
+/// What a private session carried, beyond the keys.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PrivateRun {
+    /// Doublets commanded.
+    pub doublets: u32,
+    /// Doublets the turn gate left without a bit.
+    pub gated: u32,
+    /// Every bit carried, in order.
+    pub bits: Vec<DoubletBit>,
+}
