@@ -29,6 +29,7 @@ pub mod calibration;
 pub mod cascade;
 pub mod confirm;
 pub mod entropy;
+pub mod gaussian_llr;
 mod gf2_poly;
 pub mod interval;
 pub mod min_entropy;

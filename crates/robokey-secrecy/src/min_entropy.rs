@@ -19,9 +19,12 @@ pub enum MinEntropyError {
     /// A min-entropy that is negative or not finite.
     #[error("min-entropy {0} must be finite and non-negative")]
     InvalidEntropy(f64),
+    /// A Gaussian view's separation that is negative or not finite.
+    #[error("separation {0} must be finite and non-negative")]
+    InvalidSeparation(f64),
 }
 
-fn check_epsilon(epsilon: f64) -> Result<(), MinEntropyError> {
+pub(crate) fn check_epsilon(epsilon: f64) -> Result<(), MinEntropyError> {
     if epsilon > 0.0 && epsilon < 1.0 {
         Ok(())
     } else {

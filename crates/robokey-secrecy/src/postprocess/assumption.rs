@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::confirm::TAG_BITS;
+use crate::gaussian_llr::{self, gaussian_llr_smooth_min_entropy};
 use crate::min_entropy::{OutputLength, binomial_smooth_min_entropy, output_length};
 
 /// An adversary assumption.
@@ -22,6 +23,16 @@ pub enum Assumption {
         /// Her least error probability, in (0, ½].
         error_rate: f64,
     },
+    /// Under a stated physical model (private sensing: Eve's camera noise, the motion noise,
+    /// the exact model), Eve's view of each pooled bit is at most as informative as a
+    /// consistent Gaussian log-likelihood ratio of Mahalanobis separation `separation`,
+    /// independently across bits (`gaussian_llr`).
+    GaussianViews {
+        /// The largest separation d over the pooled bits, ≥ 0.
+        separation: f64,
+        /// The physical model, for people: e.g. "Eve's camera noise ≥ 8 mm, 8 mrad".
+        statement: String,
+    },
 }
 
 /// An assumption out of range.
@@ -31,6 +42,9 @@ pub enum AssumptionError {
     /// An error rate outside (0, ½].
     #[error("assumed Eve error rate {0} is out of range (allowed: (0, 0.5])")]
     ErrorRate(f64),
+    /// A separation that is negative or not finite.
+    #[error("assumed separation {0} of Eve's view is out of range (allowed: ≥ 0, finite)")]
+    Separation(f64),
 }
 
 impl Assumption {
@@ -42,6 +56,11 @@ impl Assumption {
         match *self {
             Self::IndependentErrors { error_rate } if !(error_rate > 0.0 && error_rate <= 0.5) => {
                 Err(AssumptionError::ErrorRate(error_rate))
+            }
+            Self::GaussianViews { separation, .. }
+                if !(separation >= 0.0 && separation.is_finite()) =>
+            {
+                Err(AssumptionError::Separation(separation))
             }
             _ => Ok(()),
         }
@@ -56,18 +75,32 @@ impl Assumption {
                 "Eve's guesses err independently with probability ≥ {error_rate} \
                  (stated by the operator)"
             ),
+            Self::GaussianViews {
+                separation,
+                statement,
+            } => format!(
+                "{statement}: Eve's view of each bit is at most a Gaussian likelihood ratio of \
+                 separation {separation:.3} (her error rate ≥ {:.4}, information ≤ {:.4} bit), \
+                 independent across bits",
+                gaussian_llr::error_rate(*separation),
+                gaussian_llr::information(*separation),
+            ),
         }
     }
 
     /// A lower bound on Eve's smooth min-entropy (bits) of `n` reconciled bits at smoothing
-    /// ε: 0, or the binomial bound w*·log₂(1/p) + (n − w*)·log₂(1/(1 − p)) with
-    /// w* = min{w : P[Bin(n, p) ≤ w] > ε}, exact for a binary-symmetric view.
+    /// ε: 0; or the binomial bound w*·log₂(1/p) + (n − w*)·log₂(1/(1 − p)) with
+    /// w* = min{w : P[Bin(n, p) ≤ w] > ε}, exact for a binary-symmetric view; or the
+    /// Chernoff bound on the Gaussian views' total surprisal.
     #[must_use]
     pub fn h_min(&self, n: u64, epsilon: f64) -> f64 {
         match *self {
             Self::NoSecrecy { .. } => 0.0,
             Self::IndependentErrors { error_rate } => {
                 binomial_smooth_min_entropy(n, error_rate, epsilon).map_or(0.0, |b| b.h_min)
+            }
+            Self::GaussianViews { separation, .. } => {
+                gaussian_llr_smooth_min_entropy(n, separation, epsilon).map_or(0.0, |b| b.h_min)
             }
         }
     }
@@ -86,7 +119,7 @@ impl Assumption {
                 reason: Some(format!("no secret bits: {reason}")),
                 ..length
             },
-            Self::IndependentErrors { .. } => length,
+            Self::IndependentErrors { .. } | Self::GaussianViews { .. } => length,
         };
         (h_min, length)
     }

@@ -11,6 +11,8 @@
 
 use nalgebra::{Cholesky, Matrix3, Matrix6, SMatrix, SVector, Vector3, Vector6};
 
+use robokey_secrecy::special::ln_add_exp;
+
 use super::doublet::{DoubletInputs, Perturbation};
 use crate::model::Pose;
 
@@ -185,8 +187,8 @@ impl DoubletModel {
         let two = self.perturbation.bits_per_doublet == 2;
         let llr = if two {
             [
-                log_add_exp(ll[0], ll[2]) - log_add_exp(ll[1], ll[3]),
-                log_add_exp(ll[0], ll[1]) - log_add_exp(ll[2], ll[3]),
+                ln_add_exp(ll[0], ll[2]) - ln_add_exp(ll[1], ll[3]),
+                ln_add_exp(ll[0], ll[1]) - ln_add_exp(ll[2], ll[3]),
             ]
         } else {
             [ll[0] - ll[1], 0.0]
@@ -230,15 +232,4 @@ fn ln_density<const N: usize>(r: &SVector<f64, N>, s: SMatrix<f64, N, N>) -> f64
 /// `√(dᵀS⁻¹d)`; 0 when `S` is not positive definite.
 fn mahalanobis<const N: usize>(d: &SVector<f64, N>, s: SMatrix<f64, N, N>) -> f64 {
     Cholesky::new(s).map_or(0.0, |c| c.solve(d).dot(d).sqrt())
-}
-
-/// `ln(eᵃ + eᵇ)` without overflow.
-#[must_use]
-pub fn log_add_exp(a: f64, b: f64) -> f64 {
-    let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
-    if hi == f64::NEG_INFINITY {
-        hi
-    } else {
-        hi + (lo - hi).exp().ln_1p()
-    }
 }
