@@ -100,7 +100,13 @@ pub fn run(args: RunArgs) -> Result<()> {
         config.run.seed,
         args.replicate,
         proto.delta_v,
-        config.delta_omega(),
+        if config.sensing.mode == robokey::config::SensingMode::Private
+            && proto.bits_per_doublet == 1
+        {
+            0.0
+        } else {
+            config.delta_omega()
+        },
         if proto.enabled {
             "protocol on"
         } else {
@@ -206,7 +212,10 @@ pub fn config(args: ConfigArgs) -> Result<()> {
 const MAX_BLOCK_BITS: usize = 10_000_000;
 
 pub fn secrecy(args: SecrecyArgs) -> Result<()> {
-    use robokey_lab::secrecy::{SecrecyOptions, analyze, write_secrecy};
+    use robokey::config::SensingMode;
+    use robokey_lab::secrecy::{
+        Pooling, SecrecyOptions, analyze, default_adversaries, write_secrecy,
+    };
     if !(args.eps > 0.0 && args.eps < 1.0) {
         bail!("--eps {} is not allowed (allowed: (0, 1))", args.eps);
     }
@@ -238,7 +247,6 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         epsilon: args.eps,
         block_bits: args.block,
         blocks: args.blocks,
-        pooling: args.pooling.into(),
         sample_bits: args.sample_bits,
         max_sessions: args.max_sessions,
         assumed_eve_error: args.assume_eve_error,
@@ -284,13 +292,33 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             println!("{}: protocol off, no key: skipped", folder.display());
             continue;
         }
+        // Adversaries and pooling default by the sweep's sensing mode.
+        let mode = experiment.points[0].config.sensing.mode;
+        let options = SecrecyOptions {
+            adversaries: if options.adversaries.is_empty() {
+                default_adversaries(mode)
+            } else {
+                options.adversaries.clone()
+            },
+            pooling: args.pooling.map_or(
+                match mode {
+                    SensingMode::Odometry => Pooling::Confirmed,
+                    SensingMode::Private => Pooling::Complete,
+                },
+                Into::into,
+            ),
+            ..options.clone()
+        };
         let results = with_jobs(args.jobs, || analyze(&experiment, &options))??;
         let files = write_secrecy(&folder, &experiment, &results, &options)?;
         println!("{}:", folder.display());
         if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
             println!("  secret key rate 0: {reason}");
         }
-        if let (Some(first), Some(_)) = (results.first(), args.assume_eve_error) {
+        if let Some(first) = results
+            .first()
+            .filter(|_| args.assume_eve_error.is_some() || mode == SensingMode::Private)
+        {
             println!("  key sized under: {}", first.assumption);
         }
         for r in &results {

@@ -148,7 +148,9 @@ struct SecrecyArgs {
     /// A sweep folder (with config.resolved.toml), or a suite folder of them.
     run_dir: PathBuf,
     /// Adversaries to evaluate (repeatable); reports list the strongest class first.
-    #[arg(long = "adversary", value_enum, default_values = ["oracle", "identify", "mismatch"])]
+    /// Default: oracle, identify, mismatch in odometry mode; camera, commands in private
+    /// sensing (docs/private-sensing.md).
+    #[arg(long = "adversary", value_enum)]
     adversaries: Vec<StrategyArg>,
     /// ε per term (smoothing, amplification, parameter estimation); the key is 4ε-secret.
     #[arg(long, default_value_t = 1e-6)]
@@ -162,8 +164,9 @@ struct SecrecyArgs {
     /// Which sessions are pooled: `confirmed` (today's agents: sessions whose key tags
     /// matched, their tags charged) or `complete` (the authenticated session's pipeline:
     /// every completed session, sampled error estimate, Cascade, one block confirmation).
-    #[arg(long, value_enum, default_value = "confirmed")]
-    pooling: PoolingArg,
+    /// Default: confirmed in odometry mode, complete in private sensing (the only one there).
+    #[arg(long, value_enum)]
+    pooling: Option<PoolingArg>,
     /// Largest sample disclosed to estimate the error rate with `--pooling complete` (at
     /// most a tenth of the block).
     #[arg(long, default_value_t = 1_000)]
@@ -215,6 +218,11 @@ pub enum StrategyArg {
     /// identify + tests her least reliable bits against the confirmation tag, learns from the
     /// recovered key.
     Transcript,
+    /// Private sensing, the strongest: exact model, her own camera (eve.camera_std), the
+    /// controller's boundary samples the commands reveal.
+    Camera,
+    /// Private sensing: camera without the camera (what the public commands leak).
+    Commands,
 }
 
 impl From<StrategyArg> for robokey::config::EveStrategy {
@@ -225,6 +233,8 @@ impl From<StrategyArg> for robokey::config::EveStrategy {
             StrategyArg::Soft => Self::Soft,
             StrategyArg::Identify => Self::Identify,
             StrategyArg::Transcript => Self::Transcript,
+            StrategyArg::Camera => Self::Camera,
+            StrategyArg::Commands => Self::Commands,
         }
     }
 }

@@ -31,6 +31,9 @@ pub enum LabError {
     /// An output folder already holds results.
     #[error("{0}: the folder is not empty (pass --force to overwrite)")]
     NotEmpty(PathBuf),
+    /// Secrecy options that do not fit the experiment.
+    #[error("secrecy: {0}")]
+    Secrecy(String),
     /// Shards cannot be merged.
     #[error("merge: {0}")]
     Merge(String),

@@ -10,7 +10,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::min_entropy::{MinEntropyError, check_epsilon};
+use crate::min_entropy::{MinEntropyError, check_epsilon, chernoff_lower_quantile};
 
 /// Grid of the standard normal variable for the expectations: `z ∈ [−Z, Z]`.
 const Z: f64 = 12.0;
@@ -94,8 +94,8 @@ pub struct GaussianMinEntropy {
 /// `H_min^ε(X|E) ≥ t` for `n` bits whose surprisals `S_i` are independent, each distributed
 /// as for separation `d`: removing the outcomes with total surprisal below `t` (mass ≤ ε)
 /// leaves none likelier than `2^{−t}`. `t` is the largest value the lower-tail Chernoff bound
-/// `P[Σ S_i ≤ t] ≤ min_λ e^{λt}·E[e^{−λS}]ⁿ ≤ ε` allows:
-/// `t = max_λ (n·(−ln E[e^{−λS}]) − ln(1/ε)) / λ`, clamped to `[0, n]`.
+/// `P[Σ S_i ≤ t] ≤ min_λ e^{λt}·E[e^{−λS}]ⁿ ≤ ε` allows
+/// (`t = max_λ (n·(−ln E[e^{−λS}]) − ln(1/ε)) / λ`), clamped to `[0, n]`.
 ///
 /// # Errors
 /// [`MinEntropyError`] for ε outside (0, 1) or a separation that is negative or not finite.
@@ -119,39 +119,17 @@ pub fn gaussian_llr_smooth_min_entropy(
             h_min: nf,
         });
     }
-    let ln_inv_eps = -epsilon.ln();
-    let t_of = |lambda: f64| {
-        let ln_m = expect(separation, |s| (-lambda * s).exp()).ln();
-        (nf * -ln_m - ln_inv_eps) / lambda
-    };
-    // A log-spaced scan of λ, then golden-section refinement around the best point.
-    let grid: Vec<f64> = (0..=120)
-        .map(|i| 10f64.powf(-4.0 + 7.0 * f64::from(i) / 120.0))
-        .collect();
-    let best = (0..grid.len())
-        .max_by(|&a, &b| t_of(grid[a]).total_cmp(&t_of(grid[b])))
-        .unwrap_or(0);
-    let (mut lo, mut hi) = (
-        grid[best.saturating_sub(1)].ln(),
-        grid[(best + 1).min(grid.len() - 1)].ln(),
+    let (t, lambda) = chernoff_lower_quantile(
+        |lambda| nf * expect(separation, |s| (-lambda * s).exp()).ln(),
+        epsilon,
     );
-    let ratio = (5f64.sqrt() - 1.0) / 2.0;
-    for _ in 0..60 {
-        let (a, b) = (hi - ratio * (hi - lo), lo + ratio * (hi - lo));
-        if t_of(a.exp()) > t_of(b.exp()) {
-            hi = b;
-        } else {
-            lo = a;
-        }
-    }
-    let lambda = (0.5 * (lo + hi)).exp();
     Ok(GaussianMinEntropy {
         positions: n,
         separation,
         epsilon,
         shannon: nf * expect(separation, |s| s),
         lambda,
-        h_min: t_of(lambda).clamp(0.0, nf),
+        h_min: t.clamp(0.0, nf),
     })
 }
 

@@ -125,7 +125,10 @@ pub struct PosteriorMinEntropy {
 /// 2^{−(H₀ + E(L) − s)}, so H_min^ε ≥ H₀ + max(0, E(L) − s), where s is the smaller of
 /// Hoeffding's √(ln(1/ε)/2 · Σλ_i²) and Maurer's lower-tail bound for non-negative summands
 /// √(2 ln(1/ε) · Σ q_i λ_i²) (A. Maurer, JIPAM 4(1) 2003). With s = ∞ it is the plain
-/// min-entropy H₀. For constant q it is below the exact [`binomial_smooth_min_entropy`].
+/// min-entropy H₀. The exact lower-tail Chernoff bound on the total surprisal
+/// S = Σ S_i, with E[e^{−μ·ln2·S_i}] = (1 − q_i)^{1+μ} + q_i^{1+μ}, is another valid cut
+/// ([`chernoff_lower_quantile`]); the larger of the two is returned. For constant q it is
+/// below the exact [`binomial_smooth_min_entropy`].
 pub fn posterior_smooth_min_entropy(
     error_probabilities: &[f64],
     epsilon: f64,
@@ -150,14 +153,61 @@ pub fn posterior_smooth_min_entropy(
     let hoeffding = (0.5 * ln_inv_eps * sum_sq).sqrt();
     let maurer = (2.0 * ln_inv_eps * sum_q_sq).sqrt();
     let deviation = hoeffding.min(maurer);
+    let folded: Vec<f64> = error_probabilities
+        .iter()
+        .map(|&q| q.min(1.0 - q))
+        .filter(|&q| q > 0.0)
+        .collect();
+    let chernoff = chernoff_lower_quantile(
+        |lambda| {
+            let mu = lambda / std::f64::consts::LN_2;
+            folded
+                .iter()
+                .map(|&q| ((1.0 - q).powf(1.0 + mu) + q.powf(1.0 + mu)).ln())
+                .sum()
+        },
+        epsilon,
+    );
     Ok(PosteriorMinEntropy {
         positions: error_probabilities.len(),
         epsilon,
         plain,
         mean_surprise: mean,
         deviation,
-        h_min: plain + (mean - deviation).max(0.0),
+        h_min: (plain + (mean - deviation).max(0.0)).max(chernoff.0.min(plain + mean)),
     })
+}
+
+/// The largest `t` that the lower-tail Chernoff bound `P[S ≤ t] ≤ min_λ e^{λt}·E[e^{−λS}]`
+/// keeps at or below ε, for a total surprisal `S` (bits) whose `ln E[e^{−λS}]` is
+/// `ln_mgf(λ)`: `t = max_λ (−ln_mgf(λ) − ln(1/ε)) / λ`, searched over λ ∈ [10⁻⁴, 10³] (a
+/// log-spaced scan, then golden-section refinement). Returns `(t, λ)`; `t` may be negative
+/// (no bound).
+pub(crate) fn chernoff_lower_quantile(ln_mgf: impl Fn(f64) -> f64, epsilon: f64) -> (f64, f64) {
+    let ln_inv_eps = -epsilon.ln();
+    let t_of = |lambda: f64| (-ln_mgf(lambda) - ln_inv_eps) / lambda;
+    let grid: Vec<f64> = (0..=70)
+        .map(|i| 10f64.powf(-4.0 + 7.0 * f64::from(i) / 70.0))
+        .collect();
+    let values: Vec<f64> = grid.iter().map(|&l| t_of(l)).collect();
+    let best = (0..grid.len())
+        .max_by(|&a, &b| values[a].total_cmp(&values[b]))
+        .unwrap_or(0);
+    let (mut lo, mut hi) = (
+        grid[best.saturating_sub(1)].ln(),
+        grid[(best + 1).min(grid.len() - 1)].ln(),
+    );
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..40 {
+        let (a, b) = (hi - ratio * (hi - lo), lo + ratio * (hi - lo));
+        if t_of(a.exp()) > t_of(b.exp()) {
+            hi = b;
+        } else {
+            lo = a;
+        }
+    }
+    let lambda = (0.5 * (lo + hi)).exp();
+    (t_of(lambda).max(values[best]), lambda)
 }
 
 /// The privacy-amplification output length and how it was reached.

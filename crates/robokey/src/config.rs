@@ -204,7 +204,8 @@ pub struct ProtocolConfig {
     pub enabled: bool,
     /// Δv (m/s).
     pub delta_v: f64,
-    /// Δω (rad/s); defaults to 0, or to [`DOUBLET_DELTA_OMEGA`] with two bits per doublet.
+    /// Δω (rad/s); defaults to 0 in odometry mode and to [`DOUBLET_DELTA_OMEGA`] in private
+    /// mode, where it carries the second bit of a doublet.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub delta_omega: Option<f64>,
     /// Key bits per doublet in private mode: 1 (on v) or 2 (a second on ω).
@@ -717,17 +718,14 @@ impl Config {
         Ok(())
     }
 
-    /// Δω (rad/s) after defaults: as set, else [`DOUBLET_DELTA_OMEGA`] for two bits per
-    /// doublet in private mode, else 0.
+    /// Δω (rad/s) after defaults: as set, else [`DOUBLET_DELTA_OMEGA`] in private mode
+    /// (used only with two bits per doublet), else 0.
     #[must_use]
     pub fn delta_omega(&self) -> f64 {
-        self.protocol.delta_omega.unwrap_or(
-            if self.sensing.mode == SensingMode::Private && self.protocol.bits_per_doublet == 2 {
-                DOUBLET_DELTA_OMEGA
-            } else {
-                0.0
-            },
-        )
+        self.protocol.delta_omega.unwrap_or(match self.sensing.mode {
+            SensingMode::Private => DOUBLET_DELTA_OMEGA,
+            SensingMode::Odometry => 0.0,
+        })
     }
 
     /// Eve's strategy after defaults: as set, else `mismatch` (odometry) or `camera`

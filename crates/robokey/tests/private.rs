@@ -33,7 +33,10 @@ fn toward_truth(llr: f64, bit: u8) -> f64 {
     if bit == 0 { llr } else { -llr }
 }
 
-fn wrong(bits: &[&DoubletBit], llr: fn(&DoubletBit) -> f64) -> usize {
+/// One party's LLR of a bit.
+type Llr = fn(&DoubletBit) -> f64;
+
+fn wrong(bits: &[&DoubletBit], llr: Llr) -> usize {
     bits.iter()
         .filter(|b| (llr(b) < 0.0) != (b.bit == 1))
         .count()
@@ -48,7 +51,7 @@ fn every_partys_llr_is_calibrated() {
     for kind in BitKind::ALL {
         let of_kind: Vec<&DoubletBit> = all.iter().filter(|b| b.kind == kind).collect();
         assert!(of_kind.len() > 15_000, "{}", of_kind.len());
-        let parties: [(&str, fn(&DoubletBit) -> f64); 3] = [
+        let parties: [(&str, Llr); 3] = [
             ("controller", |b| b.controller),
             ("camera", |b| b.camera),
             ("commands", |b| b.commands),

@@ -11,10 +11,11 @@
 //! Results are computed here and rendered by [`render`].
 
 pub mod pipeline;
+pub mod private;
 pub mod render;
 
 use rayon::prelude::*;
-use robokey::config::EveStrategy;
+use robokey::config::{EveStrategy, SensingMode};
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, simulate_plan, simulate_transcript};
@@ -27,6 +28,7 @@ use crate::error::LabError;
 use crate::sweep::{Experiment, describe};
 
 pub use pipeline::{Block, BlockSettings, Pooling};
+pub use private::PrivateFigures;
 pub use render::{secrecy_csv, secrecy_markdown, write_secrecy};
 
 /// What an adversary is, for the secrecy it is credited against.
@@ -75,6 +77,32 @@ impl AdversaryClass {
     }
 }
 
+/// Against whom a figure against `strategy` holds.
+#[must_use]
+pub fn holds_against(strategy: EveStrategy) -> &'static str {
+    match strategy {
+        EveStrategy::Camera => {
+            "the strongest modelled eavesdropper of private sensing (exact model, her camera at \
+             every sample instant, the controller's boundary samples the commands reveal)"
+        }
+        EveStrategy::Commands => "only an eavesdropper without a camera (what the commands leak)",
+        other => AdversaryClass::of(other).holds_against(),
+    }
+}
+
+/// The adversaries `robokey secrecy` evaluates by default in `mode`.
+#[must_use]
+pub fn default_adversaries(mode: SensingMode) -> Vec<EveStrategy> {
+    match mode {
+        SensingMode::Odometry => vec![
+            EveStrategy::Oracle,
+            EveStrategy::Identify,
+            EveStrategy::Mismatch,
+        ],
+        SensingMode::Private => vec![EveStrategy::Camera, EveStrategy::Commands],
+    }
+}
+
 /// Why the odometry mode (the paper's) yields no secret key by structure.
 pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything the controller \
     decides from is public except r and D, which an eavesdropper learns from the traffic (the \
@@ -109,11 +137,7 @@ pub struct SecrecyOptions {
 impl Default for SecrecyOptions {
     fn default() -> Self {
         Self {
-            adversaries: vec![
-                EveStrategy::Oracle,
-                EveStrategy::Identify,
-                EveStrategy::Mismatch,
-            ],
+            adversaries: default_adversaries(SensingMode::Odometry),
             epsilon: 1e-6,
             block_bits: 10_000,
             pooling: Pooling::Confirmed,
@@ -220,6 +244,8 @@ pub struct PointSecrecy {
     pub secret_bits_per_second: f64,
     /// Controller and Eve error rates per position along the lap (20 bins).
     pub positions: Vec<PositionErrors>,
+    /// Private sensing: calibration, the leak by turn rate, the gate, J_x.
+    pub private: Option<PrivateFigures>,
 }
 
 /// Error rates in one bin of lap position.
@@ -268,7 +294,7 @@ fn sessions(
     let mut learner = matches!(adversary, EveStrategy::Identify | EveStrategy::Transcript)
         .then(|| eavesdropper(&config, adversary, 0));
     while (runs.len() as u32) < options.max_sessions {
-        let filled = pipeline::pools(&runs, options.pooling, options.block_bits).len();
+        let filled = pipeline::pools(&runs, options.pooling, options.block_bits, adversary).len();
         if filled >= options.blocks && runs.len() as u32 >= minimum {
             break;
         }
@@ -333,14 +359,12 @@ fn analyze_point(
     let mut steps = 0u64;
     for run in &runs {
         steps += run.steps.len() as u64;
-        for (k, s) in run.steps.iter().enumerate() {
-            if let (Some(b), Some(c), Some(a)) = (s.bit, s.bhat, s.bhat_eve) {
-                joint.record(b == 1, c == 1, a == 1);
-                let bin = (k % lap_steps) * POSITION_BINS / lap_steps;
-                positions[bin].0 += 1;
-                positions[bin].1 += u64::from(c != b);
-                positions[bin].2 += u64::from(a != b);
-            }
+        for (k, b, c, a) in decided_bits(run, adversary) {
+            joint.record(b == 1, c == 1, a == 1);
+            let bin = (k % lap_steps) * POSITION_BINS / lap_steps;
+            positions[bin].0 += 1;
+            positions[bin].1 += u64::from(c != b);
+            positions[bin].2 += u64::from(a != b);
         }
     }
     let n = joint.total();
@@ -369,15 +393,20 @@ fn analyze_point(
         .count() as u64;
     let robot_bits = zeroize::Zeroizing::new(accepted(|r| &r.keys.robot));
     let ones = robot_bits.iter().filter(|&&b| b == 1).count() as u64;
+    let is_private = config.sensing.mode == SensingMode::Private;
     let settings = BlockSettings {
         pooling: options.pooling,
         epsilon: options.epsilon,
         sample_bits: options.sample_bits,
         block_bits: options.block_bits,
-        assumption: options.assumption(),
+        assumption: if is_private {
+            private::assumption(config, private::largest_separation(&runs))
+        } else {
+            options.assumption()
+        },
     };
     let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
-    let mut pools = pipeline::pools(&runs, options.pooling, options.block_bits);
+    let mut pools = pipeline::pools(&runs, options.pooling, options.block_bits, adversary);
     pools.truncate(options.blocks);
     let blocks = pipeline::post_process(&pools, &settings, &mut public);
     // Every session run until the last one pooled cost robot time, dropped ones included.
@@ -415,9 +444,9 @@ fn analyze_point(
             .and_then(|(_, v)| v.as_float().or_else(|| v.as_integer().map(|i| i as f64))),
         adversary: adversary.name().to_owned(),
         adversary_class: class,
-        holds_against: class.holds_against(),
+        holds_against: holds_against(adversary),
         pooling: options.pooling,
-        structural_zero: Some(ODOMETRY_ZERO),
+        structural_zero: (!is_private).then_some(ODOMETRY_ZERO),
         zero_reason,
         assumption: settings.assumption.describe(),
         realised_secret_bits: blocks.iter().map(|b| b.realised.secret_bits).sum(),
@@ -466,7 +495,84 @@ fn analyze_point(
                 eve: e as f64 / bits.max(1) as f64,
             })
             .collect(),
+        private: is_private
+            .then(|| private::figures(config, &runs, adversary))
+            .transpose()?,
     })
+}
+
+/// `(step, b, b̂c, b̂a)` of every bit `run` carried that all three hold: the odometry mode's
+/// applied bits, or private sensing's doublet bits (Eve's decision from `adversary`).
+fn decided_bits(run: &RunOutput, adversary: EveStrategy) -> Vec<(usize, u8, u8, u8)> {
+    match &run.private {
+        Some(private) => private
+            .bits
+            .iter()
+            .map(|b| {
+                let decide = |llr: f64| u8::from(llr < 0.0);
+                (
+                    b.step as usize,
+                    b.bit,
+                    decide(b.controller),
+                    decide(b.llr_of(adversary)),
+                )
+            })
+            .collect(),
+        None => run
+            .steps
+            .iter()
+            .enumerate()
+            .filter_map(|(k, s)| Some((k, s.bit?, s.bhat?, s.bhat_eve?)))
+            .collect(),
+    }
+}
+
+/// Refuses options that do not fit a point's sensing mode, naming the problem.
+fn check_fits(
+    experiment: &Experiment,
+    point: usize,
+    options: &SecrecyOptions,
+    adversaries: &[EveStrategy],
+) -> Result<(), LabError> {
+    let config = &experiment.points[point].config;
+    let mode = config.sensing.mode;
+    let name = describe(&experiment.points[point].params);
+    let mode_name = match mode {
+        SensingMode::Odometry => "odometry",
+        SensingMode::Private => "private",
+    };
+    if let Some(a) = adversaries.iter().find(|a| a.mode() != mode) {
+        let allowed = default_adversaries(mode)
+            .iter()
+            .map(|s| s.name())
+            .collect::<Vec<_>>()
+            .join(", ");
+        return Err(LabError::Secrecy(format!(
+            "point {name:?} is in {mode_name} mode, where the {} eavesdropper does not apply \
+             (allowed: {allowed}{})",
+            a.name(),
+            if mode == SensingMode::Odometry {
+                ", soft, transcript"
+            } else {
+                ""
+            }
+        )));
+    }
+    if mode == SensingMode::Private {
+        if options.pooling == Pooling::Confirmed {
+            return Err(LabError::Secrecy(format!(
+                "point {name:?}: --pooling confirmed simulates today's per-session key tags; \
+                 private sensing confirms per post-processing block (allowed: complete)"
+            )));
+        }
+        if let Some(p) = options.assumed_eve_error {
+            return Err(LabError::Secrecy(format!(
+                "point {name:?}: --assume-eve-error {p} does not apply in private mode, whose \
+                 key is sized from Eve's camera noise (set eve.camera_std in the sweep)"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Analyzes every point of an experiment against every adversary, strongest class first
@@ -480,6 +586,9 @@ pub fn analyze(
     options: &SecrecyOptions,
 ) -> Result<Vec<PointSecrecy>, LabError> {
     let mut adversaries = options.adversaries.clone();
+    for point in 0..experiment.points.len() {
+        check_fits(experiment, point, options, &adversaries)?;
+    }
     adversaries.sort_by_key(|&a| {
         (
             AdversaryClass::of(a),

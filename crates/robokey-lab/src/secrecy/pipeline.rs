@@ -7,13 +7,16 @@ use std::collections::BTreeMap;
 
 use rand::RngExt;
 use rand::rngs::ChaCha8Rng;
+use robokey::config::EveStrategy;
 use robokey::protocol::Outcome;
 use robokey::sim::RunOutput;
 use robokey_secrecy::BitString;
 use robokey_secrecy::CascadeSchedule;
 use robokey_secrecy::confirm::TAG_BITS;
 use robokey_secrecy::interval::clopper_pearson_lower;
-use robokey_secrecy::min_entropy::{binomial_smooth_min_entropy, output_length};
+use robokey_secrecy::min_entropy::{
+    binomial_smooth_min_entropy, output_length, posterior_smooth_min_entropy,
+};
 use robokey_secrecy::postprocess::{
     Assumption, BlockReport, ControllerInput, ControllerPost, Message, Output, RobotInput,
     RobotPost, Settings,
@@ -77,6 +80,12 @@ pub const H_MIN_BINOMIAL: &str = "binomial bound on Eve's realised hard-decision
     on the block's raw bits (approximation: i.i.d. errors; ignores her soft values, her \
     patterns and where her errors fall)";
 
+/// How the realised diagnostic bounds Eve's smooth min-entropy in private sensing: from her
+/// own per-bit posteriors (true-noise likelihood, calibration-tested).
+pub const H_MIN_POSTERIOR: &str = "posterior bound on Eve's calibrated per-bit posteriors \
+    (bits independent given her view: checked against her exact joint posterior on short \
+    records)";
+
 /// The pooled raw bits of whole sessions, in session order: the robot's key is the
 /// reference, the controller's is corrected, Eve's is her guess of the same positions.
 #[derive(Default)]
@@ -93,12 +102,20 @@ pub struct Pool {
     pub controller: Zeroizing<Vec<u8>>,
     /// Eve's bits.
     pub eve: Zeroizing<Vec<u8>>,
+    /// Private sensing: Eve's calibrated posterior error probability of each bit.
+    pub eve_posteriors: Vec<f64>,
 }
 
 /// Groups the admitted sessions of `runs`, in order, into pools of at least `block_bits`
-/// bits each (whole sessions, so a session's published tags fall in one block).
+/// bits each (whole sessions, so a session's published tags fall in one block); in private
+/// sensing with `adversary`'s posteriors.
 #[must_use]
-pub fn pools(runs: &[RunOutput], pooling: Pooling, block_bits: usize) -> Vec<Pool> {
+pub fn pools(
+    runs: &[RunOutput],
+    pooling: Pooling,
+    block_bits: usize,
+    adversary: EveStrategy,
+) -> Vec<Pool> {
     let mut full = Vec::new();
     let mut pool = Pool::default();
     for (index, run) in runs.iter().enumerate() {
@@ -112,6 +129,12 @@ pub fn pools(runs: &[RunOutput], pooling: Pooling, block_bits: usize) -> Vec<Poo
         // A position Eve made no guess for counts as known to her: the cautious side.
         pool.eve
             .extend((0..keys.robot.len()).map(|i| eve.get(i).copied().unwrap_or(keys.robot[i])));
+        if let Some(private) = &run.private {
+            pool.eve_posteriors.extend(private.bits.iter().map(|b| {
+                let llr = b.llr_of(adversary);
+                1.0 / (1.0 + llr.abs().exp())
+            }));
+        }
         pool.sessions += 1;
         pool.lengths.push(keys.robot.len());
         pool.last_session = index;
@@ -401,22 +424,36 @@ fn disagreements(a: &[u8], b: &[u8]) -> usize {
     a.iter().zip(b).filter(|(x, y)| x != y).count()
 }
 
-/// Eve's realised errors on the block's raw bits, the binomial bound on `n` reconciled bits
-/// at that rate, and the ℓ it would support.
+/// Eve's realised view of a block: from her calibrated posteriors when she has them
+/// (private sensing; the disclosed sample is taken from her least certain positions, the
+/// cautious side), else from her realised errors on the block's raw bits with the binomial
+/// bound on `n` reconciled bits; and the ℓ that would support.
 fn realised(pool: &Pool, n: usize, leak_ec: u64, tags: u64, epsilon: f64) -> Realised {
     let errors = disagreements(&pool.robot, &pool.eve);
     let total = pool.robot.len().max(1) as u64;
     let lower = clopper_pearson_lower(errors as u64, total, epsilon)
         .unwrap_or(0.0)
         .min(0.5);
-    let bound = binomial_smooth_min_entropy(n as u64, lower, epsilon).ok();
-    let h_min = bound.as_ref().map_or(0.0, |b| b.h_min);
+    let (h_min, w_star, method) = if pool.eve_posteriors.is_empty() {
+        let bound = binomial_smooth_min_entropy(n as u64, lower, epsilon).ok();
+        (
+            bound.as_ref().map_or(0.0, |b| b.h_min),
+            bound.map_or(0, |b| b.w_star),
+            H_MIN_BINOMIAL,
+        )
+    } else {
+        let mut q: Vec<f64> = pool.eve_posteriors.iter().map(|&q| q.min(1.0 - q)).collect();
+        q.sort_by(f64::total_cmp);
+        q.truncate(n);
+        let bound = posterior_smooth_min_entropy(&q, epsilon).ok();
+        (bound.map_or(0.0, |b| b.h_min), 0, H_MIN_POSTERIOR)
+    };
     Realised {
         eve_errors: errors,
         eve_error_lower: lower,
-        w_star: bound.map_or(0, |b| b.w_star),
+        w_star,
         h_min,
-        h_min_method: H_MIN_BINOMIAL,
+        h_min_method: method,
         secret_bits: output_length(h_min, leak_ec, tags, epsilon).map_or(0, |l| l.bits),
     }
 }

@@ -106,6 +106,10 @@ fn state_jacobian(theta: f64, speed: f64, sample_time: f64) -> Matrix3<f64> {
 
 /// One pattern's predicted observations: the residuals' mean and covariance, stacked over
 /// the observed poses.
+#[allow(
+    clippy::large_enum_variant,
+    reason = "a short-lived stack value on the decision path: boxing would allocate per pattern"
+)]
 enum Prediction {
     Both {
         mean: Vector6<f64>,

@@ -1,0 +1,220 @@
+//! What private sensing adds to the secrecy analysis (docs/private-sensing.md): the
+//! assumption that sizes the key, both parties' calibration, the adversary's information
+//! binned by the public turn rate against what the model predicts, the turn gate and the
+//! tracking cost.
+
+use rayon::prelude::*;
+use robokey::Config;
+use robokey::config::EveStrategy;
+use robokey::private::DoubletBit;
+use robokey::sim::{RunOutput, simulate};
+use robokey_secrecy::calibration::check_calibration;
+use robokey_secrecy::gaussian_llr::{information, surprisal};
+use robokey_secrecy::postprocess::Assumption;
+use serde::Serialize;
+
+use super::Rate;
+use crate::error::LabError;
+
+/// Upper edges of the turn-rate bins (rad/s); the last bin is open.
+const TURN_EDGES: [f64; 6] = [0.05, 0.1, 0.2, 0.3, 0.5, 1.0];
+
+/// The outcome of a calibration test of one party's LLRs.
+#[derive(Clone, Debug, Serialize)]
+pub struct Calibration {
+    /// Bits tested.
+    pub bits: u64,
+    /// Every bin within its Bonferroni-corrected level (family-wise α = 10⁻³).
+    pub passed: bool,
+    /// The smallest per-bin p-value.
+    pub worst_p: f64,
+}
+
+/// The adversary's information on the bits of one turn-rate bin.
+#[derive(Clone, Debug, Serialize)]
+pub struct TurnBin {
+    /// Lower edge (rad/s).
+    pub from: f64,
+    /// Upper edge (rad/s; infinite for the last).
+    pub to: f64,
+    /// Bits in the bin.
+    pub bits: u64,
+    /// Her error rate with a 95 % Clopper–Pearson interval.
+    pub error: Option<Rate>,
+    /// Measured information `1 − mean S` (bits per bit) with a 95 % normal interval.
+    pub information: [f64; 3],
+    /// What the model predicts: `mean I(d)` over the bin's separations.
+    pub predicted: f64,
+}
+
+/// The private-sensing figures of one point and adversary.
+#[derive(Clone, Debug, Serialize)]
+pub struct PrivateFigures {
+    /// Doublets commanded over the sessions simulated.
+    pub doublets: u64,
+    /// Fraction of them the turn gate left without a bit.
+    pub gated_fraction: f64,
+    /// Bits per doublet.
+    pub bits_per_doublet: u8,
+    /// The controller's LLRs.
+    pub controller_calibration: Calibration,
+    /// The adversary's LLRs.
+    pub eve_calibration: Calibration,
+    /// Her measured information per bit `1 − mean S`, with a 95 % interval.
+    pub eve_information: [f64; 3],
+    /// The model's prediction of it.
+    pub eve_information_predicted: f64,
+    /// The same binned by the public turn rate.
+    pub turn_bins: Vec<TurnBin>,
+    /// The largest separation of the camera Eve's view over the bits: what the assumption
+    /// credits her with.
+    pub assumed_separation: f64,
+    /// Mean tracking error J_x (mm) over the sessions.
+    pub jx_mm: f64,
+    /// J_x (mm) with the protocol off (same seeds).
+    pub jx_off_mm: f64,
+}
+
+/// The key-sizing statement of private sensing for `config`: Eve's camera noise at least the
+/// configured one, the true motion noise, the exact model, the boundary samples hers.
+#[must_use]
+pub fn assumption(config: &Config, separation: f64) -> Assumption {
+    let mm = |x: f64| 1e3 * x;
+    let (e, w) = (&config.eve.camera_std, &config.noise.process_std);
+    Assumption::GaussianViews {
+        separation,
+        statement: format!(
+            "Eve's camera noise ≥ {} mm, {} mm, {} mrad per sample instant (her effective \
+             noise after her own filtering), motion noise {} mm, {} mm, {} mrad per step, \
+             exact model, the controller's boundary samples known to her",
+            mm(e[0]),
+            mm(e[1]),
+            mm(e[2]),
+            mm(w[0]),
+            mm(w[1]),
+            mm(w[2]),
+        ),
+    }
+}
+
+/// The largest camera-Eve separation over every bit of `runs`.
+#[must_use]
+pub fn largest_separation(runs: &[RunOutput]) -> f64 {
+    bits(runs).fold(0.0, |m, b| m.max(b.camera_separation))
+}
+
+fn bits(runs: &[RunOutput]) -> impl Iterator<Item = &DoubletBit> {
+    runs.iter()
+        .flat_map(|r| r.private.as_ref().map_or(&[][..], |p| p.bits.as_slice()))
+}
+
+fn toward_truth(llr: f64, bit: u8) -> f64 {
+    if bit == 0 { llr } else { -llr }
+}
+
+fn calibration(bits: &[&DoubletBit], llr: impl Fn(&DoubletBit) -> f64) -> Calibration {
+    let pairs: Vec<(f64, bool)> = bits
+        .iter()
+        .map(|b| {
+            let l = llr(b);
+            (1.0 / (1.0 + l.abs().exp()), (l < 0.0) != (b.bit == 1))
+        })
+        .collect();
+    let report = check_calibration(&pairs, 10, 1e-3).ok();
+    Calibration {
+        bits: pairs.len() as u64,
+        passed: report.as_ref().is_some_and(|r| r.passed),
+        worst_p: report.map_or(f64::NAN, |r| {
+            r.bins.iter().map(|b| b.p_value).fold(1.0, f64::min)
+        }),
+    }
+}
+
+/// Mean of `1 − S` with a 95 % normal interval (the sample is ≥ 10³ bits per bin in use).
+fn mean_information(values: &[f64]) -> [f64; 3] {
+    let n = values.len() as f64;
+    if values.is_empty() {
+        return [f64::NAN; 3];
+    }
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+    let half = 1.96 * (var / n).sqrt();
+    [mean, mean - half, mean + half]
+}
+
+/// The figures of `runs` against `adversary`; J_x off is simulated with the same seeds.
+///
+/// # Errors
+/// Never in practice: private sessions do not abort.
+pub fn figures(
+    config: &Config,
+    runs: &[RunOutput],
+    adversary: EveStrategy,
+) -> Result<PrivateFigures, LabError> {
+    let all: Vec<&DoubletBit> = bits(runs).collect();
+    let doublets: u64 = runs
+        .iter()
+        .filter_map(|r| r.private.as_ref())
+        .map(|p| u64::from(p.doublets))
+        .sum();
+    let gated: u64 = runs
+        .iter()
+        .filter_map(|r| r.private.as_ref())
+        .map(|p| u64::from(p.gated))
+        .sum();
+    let info_of = |b: &DoubletBit| 1.0 - surprisal(toward_truth(b.llr_of(adversary), b.bit));
+    let mut turn_bins = Vec::new();
+    let mut from = 0.0;
+    for &to in TURN_EDGES.iter().chain([f64::INFINITY].iter()) {
+        let bin: Vec<&&DoubletBit> = all
+            .iter()
+            .filter(|b| b.turn_rate >= from && b.turn_rate < to)
+            .collect();
+        if !bin.is_empty() {
+            let values: Vec<f64> = bin.iter().map(|b| info_of(b)).collect();
+            let wrong = bin
+                .iter()
+                .filter(|b| (b.llr_of(adversary) < 0.0) != (b.bit == 1))
+                .count() as u64;
+            turn_bins.push(TurnBin {
+                from,
+                to,
+                bits: bin.len() as u64,
+                error: Rate::new(wrong, bin.len() as u64),
+                information: mean_information(&values),
+                predicted: bin
+                    .iter()
+                    .map(|b| information(b.separation_of(adversary)))
+                    .sum::<f64>()
+                    / bin.len() as f64,
+            });
+        }
+        from = to;
+    }
+    let values: Vec<f64> = all.iter().map(|b| info_of(b)).collect();
+    let mut off = config.clone();
+    off.protocol.enabled = false;
+    let jx_off: Vec<f64> = (0..runs.len().min(10) as u32)
+        .into_par_iter()
+        .map(|r| simulate(&off, r, false).map(|o| o.metrics.jx))
+        .collect::<Result<_, _>>()?;
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let jx: Vec<f64> = runs.iter().map(|r| r.metrics.jx).collect();
+    Ok(PrivateFigures {
+        doublets,
+        gated_fraction: gated as f64 / doublets.max(1) as f64,
+        bits_per_doublet: config.protocol.bits_per_doublet,
+        controller_calibration: calibration(&all, |b| b.controller),
+        eve_calibration: calibration(&all, |b| b.llr_of(adversary)),
+        eve_information: mean_information(&values),
+        eve_information_predicted: all
+            .iter()
+            .map(|b| information(b.separation_of(adversary)))
+            .sum::<f64>()
+            / all.len().max(1) as f64,
+        turn_bins,
+        assumed_separation: largest_separation(runs),
+        jx_mm: 1e3 * mean(&jx),
+        jx_off_mm: 1e3 * mean(&jx_off),
+    })
+}
