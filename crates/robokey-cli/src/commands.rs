@@ -100,13 +100,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         config.run.seed,
         args.replicate,
         proto.delta_v,
-        if config.sensing.mode == robokey::config::SensingMode::Private
-            && proto.bits_per_doublet == 1
-        {
-            0.0
-        } else {
-            config.delta_omega()
-        },
+        config.perturbed_delta_omega(),
         if proto.enabled {
             "protocol on"
         } else {
@@ -138,7 +132,10 @@ pub fn run(args: RunArgs) -> Result<()> {
         },
         elapsed.as_secs_f64() * 1000.0
     );
-    print!("{}", trace::metrics_table(&output.metrics));
+    print!(
+        "{}",
+        trace::metrics_table(&output.metrics, output.private.as_ref())
+    );
     println!("wrote:");
     for f in files.iter().chain(&figures) {
         println!("  {}", f.display());
@@ -326,7 +323,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
                 r.blocks.iter().map(f).sum()
             };
             println!(
-                "  {:<28} {:<10} ({}) raw {:.4} bits/step, Eve wrong on {:.3} % of accepted bits, {} messages, leak {} (EC) + {} (tags), ℓ {} = {:.5} bits/step ({:.4} bits/s); realised: H_min {:.1}, ℓ {}{}",
+                "  {:<28} {:<10} ({}) raw {:.4} bits/step, Eve wrong on {:.3} % of raw-key bits, {} messages, leak {} (EC) + {} (tags), ℓ {} = {:.5} bits/step ({:.4} bits/s); realised: H_min {:.1}, ℓ {}{}",
                 r.point,
                 r.adversary,
                 r.adversary_class.name(),

@@ -9,7 +9,11 @@ use robokey::Config;
 use robokey::config::EveStrategy;
 use robokey::eve::{ModelErrors, starting_errors};
 use robokey::rng::{Purpose, stream};
+use robokey::config::SensingMode;
 use robokey_lab::adversary::{campaign_markdown, run_campaigns, write_campaign};
+use robokey_lab::secrecy::default_adversaries;
+use robokey_lab::secrecy::private::eavesdroppers;
+use robokey_lab::secrecy::render_private::{PrivateRow, private_markdown, turn_rates_csv};
 use robokey_lab::files::{prepare_output, write};
 use robokey_lab::runner::with_jobs;
 use robokey_net::capture_eve::{listen, read_session};
@@ -28,8 +32,9 @@ pub struct EveArgs {
     config: Option<PathBuf>,
     #[command(flatten)]
     options: ConfigOptions,
-    /// Strategies, comma-separated (default: all five; on a capture: the config's
-    /// eve.strategy).
+    /// Strategies, comma-separated (default: the sensing mode's — oracle, mismatch, soft,
+    /// identify, transcript in odometry mode; camera, commands in private sensing; on a
+    /// capture: the config's eve.strategy).
     #[arg(long, value_enum, value_delimiter = ',')]
     strategy: Vec<StrategyArg>,
     /// Sessions to simulate, in order (`eve.sessions`; default 5).
@@ -81,10 +86,105 @@ pub fn eve(args: EveArgs) -> Result<()> {
     overrides.seed(args.seed)?;
     let config = overrides.load(args.config.as_deref())?;
     let explicit = args.errors.as_deref().map(parse_errors).transpose()?;
-    match &args.capture {
-        Some(capture) => on_capture(&args, capture, &config, explicit),
-        None => simulated(&args, &config),
+    let strategies: Vec<EveStrategy> = args.strategy.iter().map(|&s| s.into()).collect();
+    if let Some(s) = strategies.iter().find(|s| s.mode() != config.sensing.mode) {
+        bail!(
+            "--strategy {}: does not apply in sensing.mode = {} (allowed: {})",
+            s.name(),
+            config.sensing.mode.name(),
+            EveStrategy::ALL
+                .iter()
+                .filter(|a| a.mode() == config.sensing.mode)
+                .map(|a| a.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
     }
+    match (&args.capture, config.sensing.mode) {
+        (Some(_), SensingMode::Private) => bail!(
+            "--capture: private sensing's eavesdroppers need her camera's record besides the \
+             capture, which the network agents do not produce yet; simulate sessions instead \
+             (omit --capture)"
+        ),
+        (Some(capture), SensingMode::Odometry) => on_capture(&args, capture, &config, explicit),
+        (None, SensingMode::Odometry) => simulated(&args, &config),
+        (None, SensingMode::Private) => private(&args, &config),
+    }
+}
+
+/// Private sensing: the camera and commands eavesdroppers on `eve.sessions` simulated
+/// sessions. They know the model, so there is nothing to learn across campaigns.
+fn private(args: &EveArgs, config: &Config) -> Result<()> {
+    if args.campaigns != 1 {
+        bail!(
+            "--campaigns {}: campaigns measure eavesdroppers who learn the model; private \
+             sensing's know it (allowed: 1; use --sessions for more data)",
+            args.campaigns
+        );
+    }
+    let strategies: Vec<EveStrategy> = if args.strategy.is_empty() {
+        default_adversaries(SensingMode::Private)
+    } else {
+        args.strategy.iter().map(|&s| s.into()).collect()
+    };
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("robokey-out/eve"));
+    prepare_output(&out, args.force)?;
+    let started = Instant::now();
+    let sessions = config.eve.sessions;
+    let measured = with_jobs(args.jobs, || eavesdroppers(config, &strategies, sessions))??;
+    let rows: Vec<PrivateRow> = measured
+        .iter()
+        .map(|(s, figures)| PrivateRow {
+            point: "",
+            adversary: s.name(),
+            figures,
+        })
+        .collect();
+    let mut files = vec![
+        write(&out.join("eve.md"), private_markdown(&rows))?,
+        write(&out.join("turn-rates.csv"), turn_rates_csv(&rows))?,
+        write(
+            &out.join("eve.json"),
+            serde_json::to_string_pretty(&serde_json::json!(
+                measured
+                    .iter()
+                    .map(|(s, f)| serde_json::json!({ "strategy": s.name(), "figures": f }))
+                    .collect::<Vec<_>>()
+            ))? + "\n",
+        )?,
+    ];
+    files.push(write(&out.join("config.resolved.toml"), config.to_toml())?);
+    println!(
+        "eve: private sensing, {sessions} sessions, Eve's camera {} mm / {} mrad",
+        1e3 * config.eve.camera_std[0],
+        1e3 * config.eve.camera_std[2]
+    );
+    for (s, f) in &measured {
+        let pct = |r: Option<&robokey_lab::secrecy::Rate>| r.map_or(f64::NAN, |r| 100.0 * r.rate);
+        println!(
+            "  {:<9} error {:.2} % (controller {:.2} %), information {:.5} bit per bit \
+             [{:.5}, {:.5}], predicted {:.5}; calibrated: {}",
+            s.name(),
+            pct(f.eve_error.as_ref()),
+            pct(f.controller_error.as_ref()),
+            f.eve_information[0],
+            f.eve_information[1],
+            f.eve_information[2],
+            f.eve_information_predicted,
+            if f.eve_calibration.passed { "yes" } else { "NO" },
+        );
+    }
+    println!(
+        "{} files in {} ({:.2} s); by turn rate: {}",
+        files.len(),
+        out.display(),
+        started.elapsed().as_secs_f64(),
+        out.join("eve.md").display()
+    );
+    Ok(())
 }
 
 /// `--errors r,D,W,V`.
@@ -118,7 +218,10 @@ fn errors_of(config: &Config, strategy: EveStrategy, explicit: Option<ModelError
 
 fn simulated(args: &EveArgs, config: &Config) -> Result<()> {
     let strategies: Vec<EveStrategy> = if args.strategy.is_empty() {
-        EveStrategy::ALL.to_vec()
+        EveStrategy::ALL
+            .into_iter()
+            .filter(|s| s.mode() == SensingMode::Odometry)
+            .collect()
     } else {
         args.strategy.iter().map(|&s| s.into()).collect()
     };

@@ -31,9 +31,9 @@ pub enum LabError {
     /// An output folder already holds results.
     #[error("{0}: the folder is not empty (pass --force to overwrite)")]
     NotEmpty(PathBuf),
-    /// Secrecy options that do not fit the experiment.
-    #[error("secrecy: {0}")]
-    Secrecy(String),
+    /// An adversary or option that does not apply in the experiment's sensing mode.
+    #[error("{0}")]
+    SensingMode(String),
     /// Shards cannot be merged.
     #[error("merge: {0}")]
     Merge(String),

@@ -33,10 +33,35 @@ fn csv_header(experiment: &Experiment) -> String {
 
 fn csv_row(experiment: &Experiment, record: &RunRecord) -> String {
     let point = &experiment.points[record.point];
-    let mut cells: Vec<String> = point.params.iter().map(|(_, v)| value_text(v)).collect();
+    let mut cells: Vec<String> = point
+        .params
+        .iter()
+        .map(|(_, v)| param_cell(&value_text(v)))
+        .collect();
     cells.push(record.replicate.to_string());
     cells.extend(record.metrics.values().into_iter().map(csv_cell));
     cells.join(",") + "\n"
+}
+
+/// A parameter's CSV cell: quoted (inner quotes doubled) when it holds a comma or a quote,
+/// as an array value does.
+fn param_cell(text: &str) -> String {
+    if text.contains([',', '"']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_owned()
+    }
+}
+
+/// The cells of one CSV line (quoted cells unquoted).
+fn cells(line: &str) -> Vec<String> {
+    csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_reader(line.as_bytes())
+        .records()
+        .next()
+        .and_then(Result::ok)
+        .map_or_else(Vec::new, |r| r.iter().map(str::to_owned).collect())
 }
 
 /// Parses a `runs.csv` back into `(run index, cells)`, checking that every row belongs to
@@ -63,8 +88,8 @@ fn parse_runs(
     lines
         .enumerate()
         .map(|(i, line)| {
-            let cells: Vec<&str> = line.split(',').collect();
-            let params: Vec<String> = cells.iter().take(axes).map(|s| (*s).to_owned()).collect();
+            let cells = cells(line);
+            let params: Vec<String> = cells.iter().take(axes).cloned().collect();
             let point = *point_of
                 .get(&params)
                 .ok_or_else(|| bad(i + 2, format!("parameters {params:?} are not on the grid")))?;
@@ -91,8 +116,8 @@ pub fn summary_json(experiment: &Experiment, runs_csv: &str) -> Result<String, L
     let replicates = experiment.replicates() as usize;
     let mut values = vec![vec![Vec::new(); names.len()]; experiment.points.len()];
     for (run, line) in &rows {
-        for (m, cell) in line.trim_end().split(',').skip(offset).enumerate() {
-            let value = match cell {
+        for (m, cell) in cells(line.trim_end()).iter().skip(offset).enumerate() {
+            let value = match cell.as_str() {
                 "" => None,
                 "true" => Some(1.0),
                 "false" => Some(0.0),

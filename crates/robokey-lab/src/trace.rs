@@ -3,6 +3,7 @@
 use std::fmt::Write as _;
 
 use robokey::metrics::{MetricValue, Metrics};
+use robokey::private::PrivateRun;
 use robokey::sim::TraceRow;
 
 /// `trace.csv`: N + 1 rows with exactly SPEC §8's columns; undefined cells empty.
@@ -75,11 +76,36 @@ pub fn metrics_json(metrics: &Metrics) -> serde_json::Map<String, serde_json::Va
 
 /// A human-readable metrics table for the terminal.
 #[must_use]
-pub fn metrics_table(metrics: &Metrics) -> String {
+pub fn metrics_table(metrics: &Metrics, private: Option<&PrivateRun>) -> String {
     let mut out = String::new();
     let show = |x: Option<f64>, unit: &str| {
         x.map_or_else(|| "undefined".to_owned(), |x| format!("{x:.3}{unit}"))
     };
+    if let Some(p) = private {
+        let rows = [
+            (
+                "doublets",
+                format!("{} ({} without a bit: turn-gated)", p.doublets, p.gated),
+            ),
+            ("raw key bits", p.bits.len().to_string()),
+            (
+                "controller BER",
+                show(metrics.ber_controller.map(|x| 100.0 * x), " %"),
+            ),
+            ("Eve BER", show(metrics.ber_eve.map(|x| 100.0 * x), " %")),
+            ("J_x", show(Some(1000.0 * metrics.jx), " mm")),
+            (
+                "raw keys equal",
+                metrics.key_match.map_or("undefined".into(), |b| {
+                    format!("{b} (post-processing reconciles them: robokey secrecy)")
+                }),
+            ),
+        ];
+        for (name, value) in rows {
+            let _ = writeln!(out, "  {name:<18} {value}");
+        }
+        return out;
+    }
     let rows = [
         (
             "codewords sent",

@@ -90,6 +90,17 @@ pub enum SensingMode {
     Private,
 }
 
+impl SensingMode {
+    /// Its name in configs.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Odometry => "odometry",
+            Self::Private => "private",
+        }
+    }
+}
+
 /// `[sensing]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -726,6 +737,17 @@ impl Config {
             SensingMode::Private => DOUBLET_DELTA_OMEGA,
             SensingMode::Odometry => 0.0,
         })
+    }
+
+    /// The Δω (rad/s) that perturbs the inputs: [`Self::delta_omega`], but 0 with one bit
+    /// per doublet in private mode (the doublet then carries its bit on v only).
+    #[must_use]
+    pub fn perturbed_delta_omega(&self) -> f64 {
+        if self.sensing.mode == SensingMode::Private && self.protocol.bits_per_doublet == 1 {
+            0.0
+        } else {
+            self.delta_omega()
+        }
     }
 
     /// Eve's strategy after defaults: as set, else `mismatch` (odometry) or `camera`

@@ -13,6 +13,7 @@
 pub mod pipeline;
 pub mod private;
 pub mod render;
+pub mod render_private;
 
 use rayon::prelude::*;
 use robokey::config::{EveStrategy, SensingMode};
@@ -537,17 +538,14 @@ fn check_fits(
     let config = &experiment.points[point].config;
     let mode = config.sensing.mode;
     let name = describe(&experiment.points[point].params);
-    let mode_name = match mode {
-        SensingMode::Odometry => "odometry",
-        SensingMode::Private => "private",
-    };
+    let mode_name = mode.name();
     if let Some(a) = adversaries.iter().find(|a| a.mode() != mode) {
         let allowed = default_adversaries(mode)
             .iter()
             .map(|s| s.name())
             .collect::<Vec<_>>()
             .join(", ");
-        return Err(LabError::Secrecy(format!(
+        return Err(LabError::SensingMode(format!(
             "point {name:?} is in {mode_name} mode, where the {} eavesdropper does not apply \
              (allowed: {allowed}{})",
             a.name(),
@@ -560,13 +558,13 @@ fn check_fits(
     }
     if mode == SensingMode::Private {
         if options.pooling == Pooling::Confirmed {
-            return Err(LabError::Secrecy(format!(
+            return Err(LabError::SensingMode(format!(
                 "point {name:?}: --pooling confirmed simulates today's per-session key tags; \
                  private sensing confirms per post-processing block (allowed: complete)"
             )));
         }
         if let Some(p) = options.assumed_eve_error {
-            return Err(LabError::Secrecy(format!(
+            return Err(LabError::SensingMode(format!(
                 "point {name:?}: --assume-eve-error {p} does not apply in private mode, whose \
                  key is sized from Eve's camera noise (set eve.camera_std in the sweep)"
             )));
@@ -769,5 +767,99 @@ mod tests {
             p_c.low < 0.0431 + 0.01 && p_c.high > 0.0431 - 0.01,
             "{p_c:?}"
         );
+    }
+
+    fn private(extra: &str) -> Experiment {
+        experiment(&format!(
+            "[sensing]\nmode = \"private\"\n[run]\nreplicates = 2\n{extra}"
+        ))
+    }
+
+    fn private_options(adversaries: Vec<EveStrategy>) -> SecrecyOptions {
+        SecrecyOptions {
+            pooling: Pooling::Complete,
+            ..options(adversaries, 10_000)
+        }
+    }
+
+    /// Seed 2023, blocks of 10⁴ bits: the key sized under the camera assumption shrinks as
+    /// Eve's camera improves, and is gone before her camera is as good as the controller's
+    /// sensor (0.5 mm): with a better camera she would know more than the controller.
+    #[test]
+    fn private_secret_rate_falls_as_her_camera_improves_and_ends_before_the_controllers() {
+        let rates: Vec<(f64, f64)> = [8.0, 4.0, 3.0, 2.0, 1.0, 0.5]
+            .iter()
+            .map(|&mm: &f64| {
+                let c = mm / 1e3;
+                let e = private(&format!("[eve]\ncamera_std = [{c}, {c}, {c}]\n"));
+                let r = &analyze(&e, &private_options(vec![EveStrategy::Camera])).unwrap()[0];
+                (mm, r.secret_bits_per_step)
+            })
+            .collect();
+        assert!(rates[0].1 > 0.1, "{rates:?}");
+        for pair in rates.windows(2) {
+            assert!(
+                pair[1].1 < pair[0].1 || pair[1].1 == 0.0,
+                "not falling: {rates:?}"
+            );
+        }
+        let last_positive = rates.iter().rposition(|r| r.1 > 0.0).unwrap();
+        assert!(rates[last_positive].0 > 0.5, "{rates:?}");
+        assert_eq!(rates.last().unwrap().1, 0.0, "{rates:?}");
+    }
+
+    /// Private sensing sizes its key from the camera assumption, runs the endpoints, labels
+    /// its adversaries, and its measured leak through the commands is the model's.
+    #[test]
+    fn private_points_are_accounted_against_the_camera_and_the_commands() {
+        let results = analyze(
+            &private(""),
+            &private_options(default_adversaries(SensingMode::Private)),
+        )
+        .unwrap();
+        let [camera, commands] = &results[..] else {
+            panic!("{results:?}")
+        };
+        assert_eq!(camera.adversary, "camera");
+        assert_eq!(camera.adversary_class, AdversaryClass::Strongest);
+        assert!(camera.structural_zero.is_none());
+        assert!(camera.assumption.contains("camera noise ≥ 8 mm"));
+        assert!(camera.secret_bits > 0 && !camera.assumption_exceeds_realised);
+        // ℓ comes from the assumption, whichever adversary's view is diagnosed beside it.
+        assert_eq!(camera.secret_bits, commands.secret_bits);
+        let figures = commands.private.as_ref().unwrap();
+        assert!(figures.controller_calibration.passed && figures.eve_calibration.passed);
+        let [measured, low, high] = figures.eve_information;
+        assert!(
+            low < figures.eve_information_predicted && figures.eve_information_predicted < high,
+            "{measured} [{low}, {high}] vs {}",
+            figures.eve_information_predicted
+        );
+        assert!(figures.jx_mm < 1.5 * figures.jx_off_mm, "{figures:?}");
+    }
+
+    #[test]
+    fn private_points_refuse_what_does_not_apply() {
+        let e = private("");
+        for (adversaries, pooling, assumed, needle) in [
+            (vec![EveStrategy::Oracle], Pooling::Complete, None, "oracle"),
+            (vec![EveStrategy::Camera], Pooling::Confirmed, None, "pooling"),
+            (vec![EveStrategy::Camera], Pooling::Complete, Some(0.1), "--assume-eve-error"),
+        ] {
+            let opts = SecrecyOptions {
+                pooling,
+                assumed_eve_error: assumed,
+                ..private_options(adversaries)
+            };
+            let error = analyze(&e, &opts).unwrap_err().to_string();
+            assert!(error.contains(needle), "{error}");
+        }
+        let error = analyze(
+            &experiment("[run]\nreplicates = 1\n"),
+            &options(vec![EveStrategy::Camera], 2_000),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(error.contains("camera"), "{error}");
     }
 }

@@ -56,6 +56,10 @@ pub struct PrivateFigures {
     pub gated_fraction: f64,
     /// Bits per doublet.
     pub bits_per_doublet: u8,
+    /// The controller's error rate over the bits carried.
+    pub controller_error: Option<Rate>,
+    /// The adversary's error rate over the bits carried.
+    pub eve_error: Option<Rate>,
     /// The controller's LLRs.
     pub controller_calibration: Calibration,
     /// The adversary's LLRs.
@@ -112,6 +116,12 @@ fn toward_truth(llr: f64, bit: u8) -> f64 {
     if bit == 0 { llr } else { -llr }
 }
 
+/// The error rate of deciding each bit by the sign of `llr`.
+fn error_rate(bits: &[&DoubletBit], llr: impl Fn(&DoubletBit) -> f64) -> Option<Rate> {
+    let wrong = bits.iter().filter(|b| (llr(b) < 0.0) != (b.bit == 1)).count();
+    Rate::new(wrong as u64, bits.len() as u64)
+}
+
 fn calibration(bits: &[&DoubletBit], llr: impl Fn(&DoubletBit) -> f64) -> Calibration {
     let pairs: Vec<(f64, bool)> = bits
         .iter()
@@ -166,21 +176,18 @@ pub fn figures(
     let mut turn_bins = Vec::new();
     let mut from = 0.0;
     for &to in TURN_EDGES.iter().chain([f64::INFINITY].iter()) {
-        let bin: Vec<&&DoubletBit> = all
+        let bin: Vec<&DoubletBit> = all
             .iter()
+            .copied()
             .filter(|b| b.turn_rate >= from && b.turn_rate < to)
             .collect();
         if !bin.is_empty() {
             let values: Vec<f64> = bin.iter().map(|b| info_of(b)).collect();
-            let wrong = bin
-                .iter()
-                .filter(|b| (b.llr_of(adversary) < 0.0) != (b.bit == 1))
-                .count() as u64;
             turn_bins.push(TurnBin {
                 from,
                 to,
                 bits: bin.len() as u64,
-                error: Rate::new(wrong, bin.len() as u64),
+                error: error_rate(&bin, |b| b.llr_of(adversary)),
                 information: mean_information(&values),
                 predicted: bin
                     .iter()
@@ -204,6 +211,8 @@ pub fn figures(
         doublets,
         gated_fraction: gated as f64 / doublets.max(1) as f64,
         bits_per_doublet: config.protocol.bits_per_doublet,
+        controller_error: error_rate(&all, |b| b.controller),
+        eve_error: error_rate(&all, |b| b.llr_of(adversary)),
         controller_calibration: calibration(&all, |b| b.controller),
         eve_calibration: calibration(&all, |b| b.llr_of(adversary)),
         eve_information: mean_information(&values),
@@ -217,4 +226,33 @@ pub fn figures(
         jx_mm: 1e3 * mean(&jx),
         jx_off_mm: 1e3 * mean(&jx_off),
     })
+}
+
+/// `robokey eve` in private sensing: simulates `sessions` replicates of `config` and measures
+/// each of `strategies` on them (every strategy hears the same sessions).
+///
+/// # Errors
+/// A strategy that does not apply in private sensing.
+pub fn eavesdroppers(
+    config: &Config,
+    strategies: &[EveStrategy],
+    sessions: u32,
+) -> Result<Vec<(EveStrategy, PrivateFigures)>, LabError> {
+    if let Some(s) = strategies
+        .iter()
+        .find(|s| s.mode() != robokey::config::SensingMode::Private)
+    {
+        return Err(LabError::SensingMode(format!(
+            "the {} eavesdropper does not apply in private sensing (allowed: camera, commands)",
+            s.name()
+        )));
+    }
+    let runs: Vec<RunOutput> = (0..sessions)
+        .into_par_iter()
+        .map(|r| simulate(config, r, false))
+        .collect::<Result<_, _>>()?;
+    strategies
+        .iter()
+        .map(|&s| Ok((s, figures(config, &runs, s)?)))
+        .collect()
 }

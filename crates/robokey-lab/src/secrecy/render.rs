@@ -1,8 +1,10 @@
-//! Renders secrecy results: `secrecy.csv`, `secrecy.json`, `secrecy.md` and the figure.
+//! Renders secrecy results: `secrecy.csv`, `secrecy.json`, `secrecy.md` (with the
+//! private-sensing section, and `turn-rates.csv`, when the sweep has one) and the figure.
 
 use std::path::{Path, PathBuf};
 
-use super::{AdversaryClass, PointSecrecy, Rate, SecrecyOptions};
+use super::render_private::{PrivateRow, private_markdown, turn_rates_csv};
+use super::{PointSecrecy, Rate, SecrecyOptions};
 use crate::error::LabError;
 use crate::files::write;
 use crate::plot::{LineChart, Series, SeriesStyle};
@@ -97,7 +99,7 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
              Figures against a restricted adversary hold only if nobody learns r and D.\n\n"
         ));
     }
-    if let (Some(first), Some(_)) = (results.first(), options.assumed_eve_error) {
+    if let Some(first) = results.first().filter(|r| r.structural_zero.is_none()) {
         md.push_str(&format!(
             "Key length from the stated assumption: {}.\n\n",
             first.assumption
@@ -108,7 +110,7 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
          never what sizes the key.\n\n",
     );
     md.push_str(
-        "| point | adversary (class) | p_c % | p_e % | raw bits/step | Eve wrong on accepted % | messages | leak_EC | leak_conf | secret bits/step (assumption) | realised H_min | realised ℓ | why zero |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| point | adversary (class) | p_c % | p_e % | raw bits/step | Eve wrong on raw-key bits % | messages | leak_EC | leak_conf | secret bits/step (assumption) | realised H_min | realised ℓ | why zero |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in results {
         let realised: f64 = r.blocks.iter().map(|b| b.realised.h_min).sum();
@@ -144,21 +146,49 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
             "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags and committed in two phases"
         }
     };
+    let mut held: Vec<String> = Vec::new();
+    for r in results {
+        let line = format!("{} = {}", r.adversary, r.holds_against);
+        if !held.contains(&line) {
+            held.push(line);
+        }
+    }
+    let method = results
+        .iter()
+        .find_map(|r| r.blocks.first())
+        .map_or(super::pipeline::H_MIN_BINOMIAL, |b| b.realised.h_min_method);
+    let p_of = if method == super::pipeline::H_MIN_BINOMIAL {
+        ", with Eve's error p taken as the one-sided Clopper–Pearson lower bound at level 1 − ε_PE"
+    } else {
+        ""
+    };
     md.push_str(&format!(
-        "\nPooling: {pooling}; blocks of at least {} raw bits (whole sessions). Realised H_min: {}, with Eve's error p taken as the one-sided Clopper–Pearson lower bound at level 1 − ε_PE. ε_s = ε_PA = ε_PE = {:e} (the key is {:e}-secret). p_c, p_e: 95 % Clopper–Pearson intervals over applied bits. Classes: {}. See docs/secrecy.md.\n",
+        "\nPooling: {pooling}; blocks of at least {} raw bits (whole sessions). Realised H_min: {method}{p_of}. ε_s = ε_PA = ε_PE = {:e} (the key is {:e}-secret). p_c, p_e: 95 % Clopper–Pearson intervals over applied bits. Whom each row holds against: {}. See docs/secrecy.md.\n",
         options.block_bits,
-        super::pipeline::H_MIN_BINOMIAL,
         options.epsilon,
         4.0 * options.epsilon,
-        [
-            AdversaryClass::Strongest,
-            AdversaryClass::Learning,
-            AdversaryClass::Restricted
-        ]
-        .map(|c| format!("{} = {}", c.name(), c.holds_against()))
-        .join("; "),
+        held.join("; "),
     ));
+    let rows = private_rows(results);
+    if !rows.is_empty() {
+        md.push('\n');
+        md.push_str(&private_markdown(&rows));
+    }
     md
+}
+
+/// The rows of `results` that carry private-sensing figures.
+fn private_rows(results: &[PointSecrecy]) -> Vec<PrivateRow<'_>> {
+    results
+        .iter()
+        .filter_map(|r| {
+            Some(PrivateRow {
+                point: &r.point,
+                adversary: &r.adversary,
+                figures: r.private.as_ref()?,
+            })
+        })
+        .collect()
 }
 
 /// Writes `secrecy.csv`, `secrecy.json`, `secrecy.md` and the figure
@@ -188,6 +218,10 @@ pub fn write_secrecy(
         )?,
         write(&dir.join("secrecy.md"), secrecy_markdown(results, options))?,
     ];
+    let rows = private_rows(results);
+    if !rows.is_empty() {
+        files.push(write(&dir.join("turn-rates.csv"), turn_rates_csv(&rows))?);
+    }
     let axis = experiment
         .axes
         .first()

@@ -32,7 +32,7 @@ pub fn doublet_model(config: &Config) -> DoubletModel {
         sample_time: config.robot.sample_time,
         process_covariance: Matrix3::from_diagonal(&q.into()),
         perturbation: Perturbation {
-            delta: Unicycle::new(config.protocol.delta_v, config.delta_omega()),
+            delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
             bits_per_doublet: config.protocol.bits_per_doublet,
         },
     }
