@@ -282,7 +282,7 @@ fn the_model_bound_holds_against_the_exact_joint_posterior() {
                 );
                 largest = record
                     .iter()
-                    .fold(largest, |m, b| m.max(b.camera_separation));
+                    .fold(largest, |m, b| m.max(b.assumed_separation));
             }
             k += 2 * RECORD;
         }

@@ -70,8 +70,8 @@ pub struct PrivateFigures {
     pub eve_information_predicted: f64,
     /// The same binned by the public turn rate.
     pub turn_bins: Vec<TurnBin>,
-    /// The largest separation of the camera Eve's view over the bits: what the assumption
-    /// credits her with.
+    /// The largest separation the camera assumption gives her over the bits: what sizes
+    /// the key.
     pub assumed_separation: f64,
     /// Mean tracking error J_x (mm) over the sessions.
     pub jx_mm: f64,
@@ -101,10 +101,11 @@ pub fn assumption(config: &Config, separation: f64) -> Assumption {
     }
 }
 
-/// The largest camera-Eve separation over every bit of `runs`.
+/// The largest separation the camera assumption gives her over every bit of `runs`,
+/// computed as the controller can (docs/private-sensing.md, "Secrecy accounting").
 #[must_use]
 pub fn largest_separation(runs: &[RunOutput]) -> f64 {
-    bits(runs).fold(0.0, |m, b| m.max(b.camera_separation))
+    bits(runs).fold(0.0, |m, b| m.max(b.assumed_separation))
 }
 
 fn bits(runs: &[RunOutput]) -> impl Iterator<Item = &DoubletBit> {

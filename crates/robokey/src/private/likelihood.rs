@@ -197,7 +197,16 @@ impl DoubletModel {
         } else {
             [ll[0] - ll[1], 0.0]
         };
-        let separation = if two {
+        let separation = self.separations(inputs, view);
+        BitEvidence { llr, separation }
+    }
+
+    /// Each bit's separation: the Mahalanobis distance between its two hypotheses, the
+    /// other bit known (the larger over its values); 0 for an absent ω-bit. It depends on
+    /// the view's covariances and, through the path's Jacobians, on its start value only.
+    #[must_use]
+    pub fn separations(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; 2] {
+        if self.perturbation.bits_per_doublet == 2 {
             [
                 self.distance(inputs, view, 0, 1)
                     .max(self.distance(inputs, view, 2, 3)),
@@ -206,8 +215,7 @@ impl DoubletModel {
             ]
         } else {
             [self.distance(inputs, view, 0, 1), 0.0]
-        };
-        BitEvidence { llr, separation }
+        }
     }
 
     /// Mahalanobis distance between the predicted observations of patterns `a` and `b`,

@@ -50,6 +50,10 @@ pub struct DoubletBit {
     pub commands: f64,
     /// The bit's separation `d` under the camera Eve's model (her LLR ~ N(±d²/2, d²)).
     pub camera_separation: f64,
+    /// The camera Eve's separation as the controller can compute it — her stated camera
+    /// noise, the controller's own samples for the path — which sizes the key: never from
+    /// her realised view.
+    pub assumed_separation: f64,
     /// Its separation under the commands Eve's model: the residual leak the model predicts.
     pub commands_separation: f64,
 }

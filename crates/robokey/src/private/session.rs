@@ -38,11 +38,14 @@ pub fn doublet_model(config: &Config) -> DoubletModel {
     }
 }
 
-/// The views of one doublet: the controller's, the camera Eve's and the commands Eve's.
+/// The views of one doublet: the controller's, the camera Eve's and the commands Eve's;
+/// and the camera Eve's as the controller can model it (her stated noise around its own
+/// samples), which sizes the key.
 struct Views {
     controller: DoubletView,
     camera: DoubletView,
     commands: DoubletView,
+    assumed_camera: DoubletView,
 }
 
 fn views(config: &Config, controller: [Pose; 3], camera: [Pose; 3]) -> Views {
@@ -63,6 +66,11 @@ fn views(config: &Config, controller: [Pose; 3], camera: [Pose; 3]) -> Views {
             start: c(0),
             middle: None,
             end: Some(c(2)),
+        },
+        assumed_camera: DoubletView {
+            start: c(0).fuse(&PoseObservation::new(controller[0], config.eve.camera_std)),
+            middle: Some(PoseObservation::new(controller[1], config.eve.camera_std)),
+            end: Some(c(2).fuse(&PoseObservation::new(controller[2], config.eve.camera_std))),
         },
     }
 }
@@ -143,6 +151,7 @@ pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> RunOutpu
             let controller_evidence = model.evidence(&inputs, &v.controller);
             let camera_evidence = model.evidence(&inputs, &v.camera);
             let commands_evidence = model.evidence(&inputs, &v.commands);
+            let assumed = model.separations(&inputs, &v.assumed_camera);
             for (i, kind) in BitKind::ALL
                 .iter()
                 .enumerate()
@@ -157,6 +166,7 @@ pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> RunOutpu
                     camera: camera_evidence.llr[i],
                     commands: commands_evidence.llr[i],
                     camera_separation: camera_evidence.separation[i],
+                    assumed_separation: assumed[i],
                     commands_separation: commands_evidence.separation[i],
                 });
             }
