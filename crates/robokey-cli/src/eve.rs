@@ -7,15 +7,15 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use robokey::Config;
 use robokey::config::EveStrategy;
+use robokey::config::SensingMode;
 use robokey::eve::{ModelErrors, starting_errors};
 use robokey::rng::{Purpose, stream};
-use robokey::config::SensingMode;
 use robokey_lab::adversary::{campaign_markdown, run_campaigns, write_campaign};
+use robokey_lab::files::{prepare_output, write};
+use robokey_lab::runner::with_jobs;
 use robokey_lab::secrecy::default_adversaries;
 use robokey_lab::secrecy::private::eavesdroppers;
 use robokey_lab::secrecy::render_private::{PrivateRow, private_markdown, turn_rates_csv};
-use robokey_lab::files::{prepare_output, write};
-use robokey_lab::runner::with_jobs;
 use robokey_net::capture_eve::{listen, read_session};
 use robokey_net::session::read_key_file;
 
@@ -174,7 +174,11 @@ fn private(args: &EveArgs, config: &Config) -> Result<()> {
             f.eve_information[1],
             f.eve_information[2],
             f.eve_information_predicted,
-            if f.eve_calibration.passed { "yes" } else { "NO" },
+            if f.eve_calibration.passed {
+                "yes"
+            } else {
+                "NO"
+            },
         );
     }
     println!(

@@ -733,10 +733,12 @@ impl Config {
     /// (used only with two bits per doublet), else 0.
     #[must_use]
     pub fn delta_omega(&self) -> f64 {
-        self.protocol.delta_omega.unwrap_or(match self.sensing.mode {
-            SensingMode::Private => DOUBLET_DELTA_OMEGA,
-            SensingMode::Odometry => 0.0,
-        })
+        self.protocol
+            .delta_omega
+            .unwrap_or(match self.sensing.mode {
+                SensingMode::Private => DOUBLET_DELTA_OMEGA,
+                SensingMode::Odometry => 0.0,
+            })
     }
 
     /// The Δω (rad/s) that perturbs the inputs: [`Self::delta_omega`], but 0 with one bit

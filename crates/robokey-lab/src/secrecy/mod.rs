@@ -843,8 +843,18 @@ mod tests {
         let e = private("");
         for (adversaries, pooling, assumed, needle) in [
             (vec![EveStrategy::Oracle], Pooling::Complete, None, "oracle"),
-            (vec![EveStrategy::Camera], Pooling::Confirmed, None, "pooling"),
-            (vec![EveStrategy::Camera], Pooling::Complete, Some(0.1), "--assume-eve-error"),
+            (
+                vec![EveStrategy::Camera],
+                Pooling::Confirmed,
+                None,
+                "pooling",
+            ),
+            (
+                vec![EveStrategy::Camera],
+                Pooling::Complete,
+                Some(0.1),
+                "--assume-eve-error",
+            ),
         ] {
             let opts = SecrecyOptions {
                 pooling,

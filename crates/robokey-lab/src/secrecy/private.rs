@@ -119,7 +119,10 @@ fn toward_truth(llr: f64, bit: u8) -> f64 {
 
 /// The error rate of deciding each bit by the sign of `llr`.
 fn error_rate(bits: &[&DoubletBit], llr: impl Fn(&DoubletBit) -> f64) -> Option<Rate> {
-    let wrong = bits.iter().filter(|b| (llr(b) < 0.0) != (b.bit == 1)).count();
+    let wrong = bits
+        .iter()
+        .filter(|b| (llr(b) < 0.0) != (b.bit == 1))
+        .count();
     Rate::new(wrong as u64, bits.len() as u64)
 }
 

@@ -111,9 +111,9 @@ pub fn turn_rates_csv(rows: &[PrivateRow]) -> String {
     );
     for row in rows {
         for bin in &row.figures.turn_bins {
-            let error = bin.error.map_or(",,".into(), |e| {
-                format!("{},{},{}", e.rate, e.low, e.high)
-            });
+            let error = bin
+                .error
+                .map_or(",,".into(), |e| format!("{},{},{}", e.rate, e.low, e.high));
             out.push_str(&format!(
                 "\"{}\",{},{},{},{},{},{},{},{},{}\n",
                 row.point.replace('"', "\"\""),
