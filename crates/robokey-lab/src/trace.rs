@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use robokey::metrics::{MetricValue, Metrics};
 use robokey::sim::TraceRow;
 
-/// `trace.csv`: N + 1 rows with exactly SPEC §8's columns; undefined cells empty.
+/// `trace.csv`: N + 1 rows with exactly the columns of docs/experiments.md; undefined cells empty.
 #[must_use]
 pub fn trace_csv(rows: &[TraceRow]) -> String {
     let mut out = TraceRow::COLUMNS.join(",");
