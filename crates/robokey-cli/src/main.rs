@@ -204,7 +204,7 @@ impl From<PoolingArg> for robokey_lab::secrecy::Pooling {
     }
 }
 
-/// Eavesdropper strategies (SECRECY §6); each after `mismatch` adds to the one before.
+/// Eavesdropper strategies (docs/threat-model.md); each after `mismatch` adds to the one before.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 pub enum StrategyArg {
     /// Exact model: decides as the controller does.

@@ -1,4 +1,4 @@
-//! SPEC §4b's guarantees, each with real processes started through the CLI on loopback.
+//! The network rules' guarantees (docs/protocol.md, "On a network"), each with real processes started through the CLI on loopback.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

@@ -1,5 +1,5 @@
 //! `robokey eve`: every eavesdropper strategy fed the same simulated sessions in order, so
-//! that what the learning ones learn carries over (SECRECY §6). Reports each one's windowed
+//! that what the learning ones learn carries over (docs/threat-model.md). Reports each one's windowed
 //! error rate against the controller's, her parameter error over time, how long she needs
 //! to match the controller, and her disagreement with `K_c` per session.
 

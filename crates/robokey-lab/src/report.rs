@@ -1,4 +1,4 @@
-//! `robokey reproduce`: the paper's experiments (SPEC §9), their figures, and `report.md`
+//! `robokey reproduce`: the paper's experiments (docs/experiments.md), their figures, and `report.md`
 //! whose sentences are driven by computed trend tests.
 
 use std::fmt::Write as _;
@@ -24,7 +24,7 @@ const TREND_SEED: u64 = 2023;
 /// Independent eavesdropping campaigns in `reproduce`.
 const EVE_CAMPAIGNS: u32 = 20;
 
-/// Adds the eavesdroppers of SECRECY §6 to `reproduce`: every strategy on the default
+/// Adds the eavesdroppers of docs/threat-model.md to `reproduce`: every strategy on the default
 /// configuration's sessions, in order, over independent campaigns (`robokey eve`).
 fn adversary_section(out: &Path) -> Result<String, LabError> {
     use crate::adversary::{campaign_body, campaigns_summary, run_campaigns, write_campaign};
@@ -512,7 +512,7 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
     let _ = writeln!(md, "\n![Eve](figures/eve-disagreement.svg)\n");
     let _ = writeln!(
         md,
-        "{} Under SPEC §7's model an error on r only biases Eve's nominal v by e_r·v (≤ 8.8 mm/s at 10 %, against \
+        "{} Under the paper's eavesdropper model (docs/protocol.md) an error on r only biases Eve's nominal v by e_r·v (≤ 8.8 mm/s at 10 %, against \
          Δv = 35 mm/s), and with m = 2 an error on D stays in the ω channel, so she is barely hurt.\n",
         trend_sentence(
             "Eve's disagreement",
@@ -531,7 +531,7 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
         "## Deviations from the paper\n\n\
          - 11 grid values instead of \"10\", so that 0.035 is on the Δv grid and 0 on the α grid.\n\
          - The plant's true noise is a calibration (above), not the observer's design covariances W, V.\n\
-         - The errata of the paper's Algorithm 2 are fixed (SPEC §5): cross-covariance −ΓV, balanced L, W/V naming, uU(k−1).\n"
+         - The errata of the paper's Algorithm 2 are fixed (docs/observer.md): cross-covariance −ΓV, balanced L, W/V naming, uU(k−1).\n"
     );
     md.push_str(&secrecy_section(
         out,

@@ -1,4 +1,4 @@
-//! Sweep definitions (SPEC §11): axes over any config field, Cartesian or zipped, and the
+//! Sweep definitions (README, "Sweeps"; docs/experiments.md): axes over any config field, Cartesian or zipped, and the
 //! multi-experiment suites (`[experiment.NAME]`) that `reproduce` runs.
 
 use robokey::Config;

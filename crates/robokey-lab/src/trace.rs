@@ -6,7 +6,7 @@ use robokey::metrics::{MetricValue, Metrics};
 use robokey::private::PrivateRun;
 use robokey::sim::TraceRow;
 
-/// `trace.csv`: N + 1 rows with exactly SPEC §8's columns; undefined cells empty.
+/// `trace.csv`: N + 1 rows with exactly the columns of docs/experiments.md; undefined cells empty.
 #[must_use]
 pub fn trace_csv(rows: &[TraceRow]) -> String {
     let mut out = TraceRow::COLUMNS.join(",");

@@ -1,5 +1,5 @@
 //! The controller agent: opens the session, answers every measurement with a command
-//! pair, acks codewords, finishes and confirms (SPEC §4b).
+//! pair, acks codewords, finishes and confirms (docs/protocol.md, "On a network").
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -152,5 +152,5 @@ pub fn run_controller(
     )
 }
 
-/// Default silence timeout (SPEC §4b).
+/// Default silence timeout (docs/protocol.md).
 pub const DEFAULT_SILENCE: Duration = Duration::from_secs(2);

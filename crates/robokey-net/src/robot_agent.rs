@@ -1,5 +1,5 @@
 //! The robot agent: owns the clock and the key bits, applies one of the two offered
-//! commands each period (or the fallback), reports odometry (SPEC §4b).
+//! commands each period (or the fallback), reports odometry (docs/protocol.md, "On a network").
 
 use std::net::SocketAddr;
 use std::path::PathBuf;

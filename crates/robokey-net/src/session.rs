@@ -10,7 +10,7 @@ use serde::Serialize;
 use crate::error::NetError;
 use crate::transport::FrameCounts;
 
-/// How the robot's clock runs (SPEC §4b).
+/// How the robot's clock runs (docs/protocol.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Pace {
     /// Period T on the wall clock; a command is late after `T·deadline_fraction`.
@@ -33,7 +33,7 @@ pub struct Timing {
 }
 
 impl Timing {
-    /// SPEC §4b defaults for a pace: deadline T/2, lockstep timeout 50 ms, silence 2 s.
+    /// The defaults of docs/protocol.md for a pace: deadline T/2, lockstep timeout 50 ms, silence 2 s.
     #[must_use]
     pub fn new(pace: Pace, silence_timeout: Duration) -> Self {
         Self {

@@ -10,7 +10,7 @@ use robokey::rng::{Purpose, stream};
 use crate::backend::Backend;
 use crate::error::NetError;
 
-/// The SPEC §1 plant with true noise drawn from the `(seed, replicate)` streams.
+/// The plant of docs/model.md with true noise drawn from the `(seed, replicate)` streams.
 #[derive(Debug)]
 pub struct SimBackend {
     pose: Pose,

@@ -1,5 +1,5 @@
 //! A UDP socket that speaks frames: numbers what it sends, drops what does not decode,
-//! belongs to another session, or was seen before (SPEC §4b, §12).
+//! belongs to another session, or was seen before (docs/protocol.md, docs/wire.md).
 
 use std::collections::{HashSet, VecDeque};
 use std::net::{SocketAddr, UdpSocket};

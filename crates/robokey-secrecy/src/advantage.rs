@@ -1,4 +1,4 @@
-//! Repetition-code advantage distillation (Maurer) for i.i.d. errors (SECRECY §1): the
+//! Repetition-code advantage distillation (Maurer) for i.i.d. errors (docs/secrecy.md): the
 //! paper's "repeat each bit N times, keep it only if all N estimates agree".
 //!
 //! These closed forms assume independent, stationary errors for the controller (p_c) and Eve

@@ -1,4 +1,4 @@
-//! Key confirmation (SECRECY §4): a 64-bit tag = HMAC-SHA256 keyed with the reconciled key
+//! Key confirmation (docs/secrecy.md, docs/postprocessing.md): a 64-bit tag = HMAC-SHA256 keyed with the reconciled key
 //! over the session's public data, truncated to 64 bits, compared in constant time.
 //!
 //! Correctness: modelling HMAC-SHA256 as a pseudorandom function, two different keys give the

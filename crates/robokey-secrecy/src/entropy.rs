@@ -1,5 +1,5 @@
 //! Binary entropy, binary convolution, and plug-in information measures from the joint
-//! per-step table of (b, b̂c, b̂a) with seeded bootstrap intervals (SECRECY §1–§2).
+//! per-step table of (b, b̂c, b̂a) with seeded bootstrap intervals (docs/secrecy.md).
 
 use rand::Rng;
 use rand_distr::{Binomial, Distribution};
@@ -308,7 +308,7 @@ mod tests {
         assert!(close(t.information_controller().unwrap(), ic, 1e-12));
         assert!(close(t.information_eve().unwrap(), ie, 1e-12));
         assert!(close(t.information_advantage().unwrap(), ic - ie, 1e-12));
-        // I(B;B̂c|B̂a) = h(pc ⋆ pe) − h(pc) for independent errors (SECRECY §1).
+        // I(B;B̂c|B̂a) = h(pc ⋆ pe) − h(pc) for independent errors (docs/secrecy.md).
         let cond = binary_entropy(binary_convolution(pc, pe)) - binary_entropy(pc);
         assert!(close(
             t.information_controller_given_eve().unwrap(),

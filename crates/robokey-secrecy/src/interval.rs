@@ -1,4 +1,4 @@
-//! Exact binomial inference (SECRECY §2): Clopper–Pearson intervals, one-sided confidence
+//! Exact binomial inference (docs/secrecy.md): Clopper–Pearson intervals, one-sided confidence
 //! bounds, and the two-sided exact binomial test.
 
 use serde::{Deserialize, Serialize};

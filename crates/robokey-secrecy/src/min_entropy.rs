@@ -1,4 +1,4 @@
-//! Finite-key privacy amplification (SECRECY §5): lower bounds on Eve's smooth min-entropy
+//! Finite-key privacy amplification (docs/secrecy.md): lower bounds on Eve's smooth min-entropy
 //! H_min^ε(X|E) and the output length ℓ of the Toeplitz hash.
 
 use serde::{Deserialize, Serialize};
@@ -52,7 +52,7 @@ pub struct BinomialMinEntropy {
     pub h_min: f64,
 }
 
-/// Binomial bound (SECRECY §5): with Eve's errors i.i.d. with probability p ≤ ½,
+/// Binomial bound (docs/secrecy.md): with Eve's errors i.i.d. with probability p ≤ ½,
 /// H_min^ε(X|E) ≥ w*·log₂(1/p) + (n − w*)·log₂(1/(1 − p)),
 /// w* = min{w : P[Bin(n, p) ≤ w] > ε} (removing the error patterns of weight < w*, mass ≤ ε,
 /// leaves none likelier than p^{w*}(1 − p)^{n−w*}).
@@ -221,7 +221,7 @@ pub struct OutputLength {
     pub reason: Option<String>,
 }
 
-/// Output length (SECRECY §5, leftover hash lemma):
+/// Output length (docs/secrecy.md, leftover hash lemma):
 /// ℓ = max(0, ⌊H_min^ε(X|E) − leak_EC − t_ver − 2·log₂(1/ε_PA) + 2⌋), secure with
 /// ε_sec = 2ε_s + ε_PA + ε_PE. `h_min` must be a lower bound on Eve's smooth min-entropy;
 /// `leak_ec` is the realised reconciliation leak and `t_ver` the confirmation tag length.

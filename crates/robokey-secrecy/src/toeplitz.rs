@@ -1,4 +1,4 @@
-//! Toeplitz hashing over GF(2) for privacy amplification (SECRECY §5).
+//! Toeplitz hashing over GF(2) for privacy amplification (docs/secrecy.md).
 
 use rand::CryptoRng;
 use thiserror::Error;

@@ -1,5 +1,5 @@
 //! Dynamic feedback linearization tracking controller (De Luca, Oriolo, Vendittelli 2001,
-//! Eq. 5.18; SPEC §3).
+//! Eq. 5.18; docs/model.md).
 
 use crate::model::{DiffDrive, Pose, Unicycle};
 use crate::trajectory::ReferencePoint;

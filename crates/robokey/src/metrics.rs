@@ -1,4 +1,4 @@
-//! Metrics of one run (SPEC §8).
+//! Metrics of one run (docs/experiments.md).
 
 /// The outcome of one simulated run. `None` = undefined (nothing accepted, no Eve, or
 /// protocol off), written as an empty CSV cell / JSON `null`.
@@ -57,7 +57,7 @@ fn count_names(prefix: &str) -> impl Iterator<Item = String> + '_ {
 }
 
 impl Metrics {
-    /// Names of all metrics in column order: SPEC §8's list, then the 16 joint counts.
+    /// Names of all metrics in column order: the list of docs/experiments.md, then the 16 joint counts.
     #[must_use]
     pub fn names() -> Vec<String> {
         [

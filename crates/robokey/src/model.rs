@@ -1,4 +1,4 @@
-//! Differential-drive and unicycle kinematics (SPEC §1).
+//! Differential-drive and unicycle kinematics (docs/model.md).
 
 use nalgebra::{Matrix2, Matrix3x2, Vector2, Vector3};
 
@@ -47,7 +47,7 @@ impl DiffDrive {
     }
 
     /// Clips a unicycle command to the wheel-speed rhombus `|ωr|, |ωl| ≤ limit` (rad/s)
-    /// as the controller does (SPEC §3): first `|ω| ≤ 2·r·limit/D`, then
+    /// as the controller does (docs/model.md): first `|ω| ≤ 2·r·limit/D`, then
     /// `|v| ≤ r·limit − (D/2)|ω|`.
     #[must_use]
     pub fn clip_to_rhombus(&self, input: Unicycle, limit: f64) -> Unicycle {
@@ -79,7 +79,7 @@ pub fn input_matrix(theta: f64, sample_time: f64) -> Matrix3x2<f64> {
     )
 }
 
-/// The noise-free forward-Euler unicycle map `f(x, u)` of SPEC §1 over one period `T` (s).
+/// The noise-free forward-Euler unicycle map `f(x, u)` of docs/model.md over one period `T` (s).
 #[must_use]
 pub fn unicycle_step(pose: &Pose, input: &Unicycle, sample_time: f64) -> Pose {
     let (sin, cos) = pose.z.sin_cos();

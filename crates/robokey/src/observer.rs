@@ -1,11 +1,11 @@
 //! The unknown-input observer (corrected NUISE; Gillijns & De Moor 2007, Guo et al.;
-//! SPEC §5), in the corrected and the paper's variant, for m = 1 or 2 unknown inputs.
+//! docs/observer.md), in the corrected and the paper's variant, for m = 1 or 2 unknown inputs.
 
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 
 use crate::model::{Pose, Unicycle, input_matrix, unicycle_step};
 
-/// Which algebra of SPEC §5 the observer uses.
+/// Which algebra of docs/observer.md the observer uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Variant {
@@ -119,7 +119,7 @@ impl<const M: usize> Uio<M> {
         })
     }
 
-    /// Prediction across a missing measurement (SPEC §4b): `x̂ ← f(x̂, u)`,
+    /// Prediction across a missing measurement (docs/observer.md): `x̂ ← f(x̂, u)`,
     /// `P ← A P Aᵀ + W + B·diag(Δv², Δω²)·Bᵀ`.
     fn predict(&mut self, input: &Unicycle, delta: &Unicycle) {
         let t = self.sample_time;
@@ -148,7 +148,7 @@ fn state_jacobian(state: &Pose, input: &Unicycle, t: f64) -> Matrix3<f64> {
 }
 
 /// Tolerance-free pseudo-inverse of the singular `R̃` whose null space is known to be
-/// `span(R*⁻¹G)` (SPEC §5). Rank 1 (m = 2): `R̃ / tr(R̃)²`; otherwise
+/// `span(R*⁻¹G)` (docs/observer.md). Rank 1 (m = 2): `R̃ / tr(R̃)²`; otherwise
 /// `(R̃ + QQᵀ)⁻¹ − QQᵀ` with `Q` an orthonormal basis of the null space.
 fn pseudo_inverse<const M: usize>(
     r_tilde: &Matrix3<f64>,
@@ -217,7 +217,7 @@ impl Observer {
     }
 
     /// Propagates across a missing measurement, treating the unknown `±Δ` (m/s, rad/s) as
-    /// extra process noise (SPEC §4b).
+    /// extra process noise (docs/observer.md).
     pub fn predict(&mut self, input: &Unicycle, delta: &Unicycle) {
         match self {
             Self::One(uio) => uio.predict(input, delta),
@@ -244,7 +244,7 @@ impl Observer {
     }
 }
 
-/// Decides the applied bit from the estimated applied wheel speeds `ûD` (SPEC §6):
+/// Decides the applied bit from the estimated applied wheel speeds `ûD` (docs/protocol.md):
 /// 0 if `‖ûD − u0D‖ < ‖ûD − u1D‖`, else 1.
 #[must_use]
 pub fn decide_bit(estimated: &Vector2<f64>, u0: &Vector2<f64>, u1: &Vector2<f64>) -> u8 {

@@ -1,4 +1,4 @@
-//! Seeded random streams, one per purpose and replicate (SPEC §11).
+//! Seeded random streams, one per purpose and replicate (docs/experiments.md).
 
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;

@@ -1,5 +1,5 @@
 //! Closed-loop simulation of one run: plant with true noise, robot and controller
-//! endpoints exchanging every message, and the eavesdropper listening (SPEC §1–§8).
+//! endpoints exchanging every message, and the eavesdropper listening (docs/model.md, docs/protocol.md, docs/experiments.md).
 
 use rand_distr::{Distribution, StandardNormal};
 use subtle::ConstantTimeEq;
@@ -16,7 +16,7 @@ use crate::protocol::{
 };
 use crate::rng::{Purpose, stream};
 
-/// One row of `trace.csv` (SPEC §8): step k and what each party knew at k.
+/// One row of `trace.csv` (docs/experiments.md): step k and what each party knew at k.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TraceRow {
     /// Step k.
@@ -88,7 +88,7 @@ impl TraceRow {
 /// Everything one run produced.
 #[derive(Clone, Debug)]
 pub struct RunOutput {
-    /// The metrics of SPEC §8.
+    /// The metrics of docs/experiments.md.
     pub metrics: Metrics,
     /// Per-step rows (empty unless requested).
     pub trace: Vec<TraceRow>,

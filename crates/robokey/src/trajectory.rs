@@ -1,4 +1,4 @@
-//! Polyline references with cubic zero-velocity segments (SPEC §2), like MATLAB's
+//! Polyline references with cubic zero-velocity segments (docs/model.md), like MATLAB's
 //! `cubicpolytraj` with zero velocity at every waypoint.
 
 use nalgebra::Vector2;

@@ -1,4 +1,4 @@
-//! The eavesdropper strategies of SECRECY §6 on simulated sessions.
+//! The eavesdropper strategies of docs/threat-model.md on simulated sessions.
 
 use robokey::Config;
 use robokey::config::EveStrategy;

@@ -167,7 +167,7 @@ fn a_tiny_delta_makes_bits_coin_flips() {
 #[test]
 fn keys_stay_aligned_through_rejections() {
     // Defaults reject ≈ 12 % of codewords; the keys must still line up position by
-    // position. Wrong accepted bits are rare (≈ 0.03 per run, SPEC §9), so over 20 runs
+    // position. Wrong accepted bits are rare (≈ 0.03 per run, docs/experiments.md), so over 20 runs
     // the count is ≈ Poisson(0.6) and P(> 8) < 1e-8; a shift would mismatch ≈ 50 %.
     let config = Config::default();
     let mut differing = 0;

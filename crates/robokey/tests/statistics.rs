@@ -1,4 +1,4 @@
-//! Seeded statistical agreement with SPEC §9's reference values (mean ± standard error
+//! Seeded statistical agreement with the reference values of docs/experiments.md (mean ± standard error
 //! over 100 runs of an independent implementation).
 
 use robokey::Config;

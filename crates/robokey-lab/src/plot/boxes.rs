@@ -1,5 +1,5 @@
 //! Box plots drawn from primitives: box from Q1 to Q3, a median line, whiskers at the
-//! minimum and maximum (SPEC §9) — never beyond the data.
+//! minimum and maximum (docs/experiments.md) — never beyond the data.
 
 use std::path::{Path, PathBuf};
 

@@ -1,4 +1,4 @@
-//! A Khepera IV through K-Team's `kh4server` line protocol (SPEC §10): the robot agent's
+//! A Khepera IV through K-Team's `kh4server` line protocol (docs/protocol.md): the robot agent's
 //! `kh4` backend, and an emulator of the server so a session runs without hardware.
 //!
 //! The robot agent must run **on the robot**, talking to kh4server locally: driving it over

@@ -1,4 +1,4 @@
-//! kh4server requests and replies, unit conversions, and encoder odometry (SPEC §10).
+//! kh4server requests and replies, unit conversions, and encoder odometry (docs/protocol.md, "The Khepera IV backend").
 
 use robokey::model::Pose;
 
@@ -56,7 +56,7 @@ pub fn parse_reply(
     Ok(numbers)
 }
 
-/// Midpoint odometry from encoder pulses (SPEC §10); θ is never wrapped.
+/// Midpoint odometry from encoder pulses (docs/protocol.md); θ is never wrapped.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Odometry {
     axle_length: f64,

@@ -615,7 +615,7 @@ mod tests {
         (mean, (var / runs as f64).sqrt())
     }
 
-    /// SECRECY §3 reference efficiencies (cascade-cpp study data), n = 1000.
+    /// Published reference efficiencies (docs/secrecy.md) (cascade-cpp study data), n = 1000.
     const REFERENCE: [(&str, CascadeSchedule, [f64; 4]); 2] = [
         (
             "original",

@@ -1,4 +1,4 @@
-//! Linear block codes for the key bits (SPEC §6). A codeword of `n` bits is held in a
+//! Linear block codes for the key bits (docs/protocol.md). A codeword of `n` bits is held in a
 //! `u64`, bit `j` = the bit sent at the codeword's `j`-th step; messages likewise.
 
 mod generator;

@@ -1,4 +1,4 @@
-//! The eavesdropper of every strategy (SECRECY §6): one observer-based listener whose
+//! The eavesdropper of every strategy (docs/threat-model.md): one observer-based listener whose
 //! capabilities the strategy switches on — likelihood decisions, online identification of
 //! `r` and `D`, and the confirmation tag as a key oracle.
 

@@ -1,9 +1,9 @@
-//! Online identification of the wheel geometry from eavesdropped traffic (SECRECY §6.4):
+//! Online identification of the wheel geometry from eavesdropped traffic (the `identify` strategy, docs/threat-model.md):
 //! least squares of the measured displacement on the wheel command.
 //!
 //! Over one period the plant moves by `T·[v cos θ, v sin θ, ω]` plus process noise, with
 //! `v = r·(ωr + ωl)/2` and `ω = (r/D)·(ωr − ωl)` of the applied (clipped) wheel speeds
-//! (SPEC §1). Both are linear in one unknown: `r` for the forward displacement, `r/D` for
+//! (docs/model.md). Both are linear in one unknown: `r` for the forward displacement, `r/D` for
 //! the turn. Without the key Eve regresses on the command of her own decision `b̂`; with no
 //! decision, on the midpoint `(u0D + u1D)/2`. The midpoint alone is biased: a codeword repeats
 //! its bit, and the controller corrects the previous step's `±Δ` in the next midpoint, so

@@ -1,4 +1,4 @@
-//! The paper's model mismatch (SPEC §7): Eve knows `r, D, W, V` up to relative errors.
+//! The paper's model mismatch (docs/protocol.md): Eve knows `r, D, W, V` up to relative errors.
 
 use rand::{Rng, RngExt};
 

@@ -1,4 +1,4 @@
-//! The confirmation tag as a key oracle (SECRECY §6.5): the tag is a public function of the
+//! The confirmation tag as a key oracle (the `transcript` strategy, docs/threat-model.md): the tag is a public function of the
 //! key, so Eve can test candidate keys against it. She flips her least reliable codewords
 //! to their runner-up messages, fewest flips first.
 

@@ -1,4 +1,4 @@
-//! Key-confirmation tags (SPEC §4b, SECRECY §4): the protocol's view of
+//! Key-confirmation tags (docs/protocol.md, docs/secrecy.md): the protocol's view of
 //! [`robokey_secrecy::ConfirmationTag`].
 
 use robokey_secrecy::{BitString, ConfirmationContext, ConfirmationTag};

@@ -1,4 +1,4 @@
-//! The controller endpoint (SPEC §3, §4, §4b): tracks the reference, offers command pairs,
+//! The controller endpoint (docs/model.md, docs/protocol.md): tracks the reference, offers command pairs,
 //! decodes the robot's choices, acks codewords and confirms the key.
 
 use std::collections::VecDeque;

@@ -1,6 +1,6 @@
 //! The observer side of the protocol, shared by the controller and the eavesdroppers:
 //! turns the stream of command pairs and measurements into per-step bit decisions,
-//! handling duplicates, erasures and gaps (SPEC §4b, §5, §6).
+//! handling duplicates, erasures and gaps (docs/protocol.md, docs/observer.md).
 
 use std::ops::Range;
 
@@ -98,7 +98,7 @@ impl StepDecoder {
     }
 
     /// The input believed applied on step `step`: its pair's nominal, or — when that pair
-    /// was never sent — the midpoint of the last pair, which the robot holds (SPEC §4b).
+    /// was never sent — the midpoint of the last pair, which the robot holds (docs/protocol.md).
     fn input_for(&self, step: u32) -> Unicycle {
         self.last_pair
             .filter(|p| p.step <= step)

@@ -1,4 +1,4 @@
-//! Codeword fates (accept/reject acks) and their reliable delivery (SPEC §4b).
+//! Codeword fates (accept/reject acks) and their reliable delivery (docs/protocol.md).
 
 /// Fates of up to 64 consecutive codewords starting at `first`, carried by a command.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -1,4 +1,4 @@
-//! The messages of SPEC §12 (session id and frame sequence numbers live in the wire
+//! The messages of docs/wire.md (session id and frame sequence numbers live in the wire
 //! header, added by the network shell).
 
 use super::fates::FateWindow;

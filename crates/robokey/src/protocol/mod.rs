@@ -1,4 +1,4 @@
-//! The key-agreement protocol as sans-I/O endpoints (SPEC §4, §4b): the robot and the
+//! The key-agreement protocol as sans-I/O endpoints (docs/protocol.md): the robot and the
 //! controller each take one input enum and emit one output enum; the shells (simulator,
 //! UDP agents) carry the [`Message`]s.
 

@@ -83,7 +83,7 @@ impl SessionPlan {
     }
 }
 
-/// The terms both endpoints must agree on (SPEC §4b: T, code, n_c, k_c, key budget, Δ,
+/// The terms both endpoints must agree on (docs/protocol.md, "Confirmation": T, code, n_c, k_c, key budget, Δ,
 /// trajectory, protocol on/off), as `field = value` lines in a fixed order.
 #[must_use]
 pub fn agreement_terms(config: &Config) -> String {

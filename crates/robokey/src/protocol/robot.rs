@@ -1,4 +1,4 @@
-//! The robot endpoint (SPEC §4, §4b): owns the key bits and the clock, applies one of the
+//! The robot endpoint (docs/protocol.md): owns the key bits and the clock, applies one of the
 //! two offered commands per step (or the fallback), reports odometry.
 
 use std::collections::VecDeque;

@@ -1,4 +1,4 @@
-//! The wire format of SPEC §12 (documented in `docs/wire.md`): hand-written, big-endian,
+//! The wire format (documented in `docs/wire.md`): hand-written, big-endian,
 //! `magic u16 | version u8 | type u8 | session u32 | seq u32 | step u32 | payload |
 //! crc32c u32`. The decoder never panics: every malformed input is a [`WireError`].
 
