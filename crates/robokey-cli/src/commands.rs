@@ -205,22 +205,23 @@ pub fn config(args: ConfigArgs) -> Result<()> {
     Ok(())
 }
 
-/// Largest `--block`: 10⁷ raw bits.
-const MAX_BLOCK_BITS: usize = 10_000_000;
-
 pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     use robokey::config::SensingMode;
     use robokey_lab::secrecy::{
         Pooling, SecrecyOptions, analyze, default_adversaries, write_secrecy,
     };
-    if !(args.eps > 0.0 && args.eps < 1.0) {
-        bail!("--eps {} is not allowed (allowed: (0, 1))", args.eps);
+    use robokey_lab::secrecy::map::private_map;
+    use robokey_lab::secrecy::render_private::break_even_text;
+    use robokey_lab::sweep::{MAX_BLOCK_BITS, MIN_BLOCK_BITS};
+    if let Some(eps) = args.eps
+        && !(eps > 0.0 && eps < 1.0)
+    {
+        bail!("--eps {eps} is not allowed (allowed: (0, 1))");
     }
-    if !(64..=MAX_BLOCK_BITS).contains(&args.block) {
-        bail!(
-            "--block {} is not allowed (allowed: 64 to {MAX_BLOCK_BITS} bits)",
-            args.block
-        );
+    if let Some(block) = args.block
+        && !(MIN_BLOCK_BITS..=MAX_BLOCK_BITS).contains(&block)
+    {
+        bail!("--block {block} is not allowed (allowed: {MIN_BLOCK_BITS} to {MAX_BLOCK_BITS} bits)");
     }
     if !(1..=1_000).contains(&args.blocks) {
         bail!(
@@ -241,8 +242,6 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     }
     let options = SecrecyOptions {
         adversaries: args.adversaries.iter().map(|&a| a.into()).collect(),
-        epsilon: args.eps,
-        block_bits: args.block,
         blocks: args.blocks,
         sample_bits: args.sample_bits,
         max_sessions: args.max_sessions,
@@ -297,6 +296,11 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             } else {
                 options.adversaries.clone()
             },
+            epsilon: args.eps.or(experiment.secrecy.epsilon).unwrap_or(options.epsilon),
+            block_bits: args
+                .block
+                .or(experiment.secrecy.block_bits)
+                .map_or(options.block_bits, |b| b as usize),
             pooling: args.pooling.map_or(
                 match mode {
                     SensingMode::Odometry => Pooling::Confirmed,
@@ -307,7 +311,8 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             ..options.clone()
         };
         let results = with_jobs(args.jobs, || analyze(&experiment, &options))??;
-        let files = write_secrecy(&folder, &experiment, &results, &options)?;
+        let map = with_jobs(args.jobs, || private_map(&experiment, &results))??;
+        let files = write_secrecy(&folder, &experiment, &results, &options, map.as_ref())?;
         println!("{}:", folder.display());
         if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
             println!("  secret key rate 0: {reason}");
@@ -316,7 +321,15 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             .first()
             .filter(|_| args.assume_eve_error.is_some() || mode == SensingMode::Private)
         {
-            println!("  key sized under: {}", first.assumption);
+            if results.iter().all(|r| r.assumption == first.assumption) {
+                println!("  key sized under: {}", first.assumption);
+            } else {
+                println!(
+                    "  key sized under each point's own assumption (column `assumption` of \
+                     secrecy.csv), e.g.: {}",
+                    first.assumption
+                );
+            }
         }
         for r in &results {
             let sum = |f: fn(&robokey_lab::secrecy::Block) -> u64| -> u64 {
@@ -346,6 +359,28 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
                 println!(
                     "  WARNING: the assumption credits {} bits, more than the {} Eve's realised view supports ({}): this adversary violates it",
                     r.secret_bits, r.adversary, r.realised_secret_bits
+                );
+            }
+        }
+        if let Some(map) = &map {
+            for curve in &map.camera {
+                println!(
+                    "  break-even camera noise, {}: {}",
+                    curve.label,
+                    break_even_text(curve)
+                );
+            }
+            if map.pareto.len() > 1
+                && let Some(best) = map
+                    .pareto
+                    .iter()
+                    .filter(|p| p.on_front)
+                    .max_by(|a, b| a.bits_per_second.total_cmp(&b.bits_per_second))
+            {
+                println!(
+                    "  best rate: {:.3} secret bits/s at {} (J_x {:.1} mm; the paper's scheme: \
+                     0 at J_x {:.1} mm)",
+                    best.bits_per_second, best.point, best.jx_mm, map.paper_jx_mm
                 );
             }
         }

@@ -153,11 +153,13 @@ struct SecrecyArgs {
     #[arg(long = "adversary", value_enum)]
     adversaries: Vec<StrategyArg>,
     /// ε per term (smoothing, amplification, parameter estimation); the key is 4ε-secret.
-    #[arg(long, default_value_t = 1e-6)]
-    eps: f64,
+    /// Default: the sweep file's `[secrecy] epsilon`, else 1e-6.
+    #[arg(long)]
+    eps: Option<f64>,
     /// Least pooled raw bits per privacy-amplification block (whole sessions are pooled).
-    #[arg(long, default_value_t = 10_000)]
-    block: usize,
+    /// Default: the sweep file's `[secrecy] block_bits`, else 10000.
+    #[arg(long)]
+    block: Option<u64>,
     /// Blocks to fill per point (more sessions are simulated as needed).
     #[arg(long, default_value_t = 1)]
     blocks: usize,

@@ -58,7 +58,7 @@ fn secrecy_section(
     for (experiment, title) in experiments {
         let results = crate::secrecy::analyze(experiment, &options)?;
         let dir = out.join(&experiment.name);
-        crate::secrecy::write_secrecy(&dir, experiment, &results, &options)?;
+        crate::secrecy::write_secrecy(&dir, experiment, &results, &options, None)?;
         md.push_str(&format!("### {title}\n\n"));
         md.push_str(&crate::secrecy::secrecy_markdown(&results, &options));
         md.push_str(&format!(

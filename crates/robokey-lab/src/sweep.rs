@@ -46,6 +46,50 @@ pub struct Experiment {
     pub traces: bool,
     /// The grid, in order.
     pub points: Vec<Point>,
+    /// What `robokey secrecy` uses unless told otherwise (`[secrecy]`).
+    pub secrecy: SecrecyDefaults,
+}
+
+/// `[secrecy]` of a sweep file: the block size and ε a map is computed with, so that they
+/// are written beside the grid they belong to.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SecrecyDefaults {
+    /// Least pooled raw bits per privacy-amplification block, 64 to 10⁷.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub block_bits: Option<u64>,
+    /// ε per term, in (0, 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub epsilon: Option<f64>,
+}
+
+/// Smallest block `[secrecy] block_bits` and `--block` allow.
+pub const MIN_BLOCK_BITS: u64 = 64;
+/// Largest block `[secrecy] block_bits` and `--block` allow.
+pub const MAX_BLOCK_BITS: u64 = 10_000_000;
+
+impl SecrecyDefaults {
+    fn from_value(value: toml::Value) -> Result<Self, String> {
+        let defaults: Self = value
+            .try_into()
+            .map_err(|e: toml::de::Error| format!("[secrecy]: {}", e.message()))?;
+        if let Some(b) = defaults.block_bits
+            && !(MIN_BLOCK_BITS..=MAX_BLOCK_BITS).contains(&b)
+        {
+            return Err(format!(
+                "[secrecy] block_bits = {b} is not allowed (allowed: {MIN_BLOCK_BITS} to \
+                 {MAX_BLOCK_BITS})"
+            ));
+        }
+        if let Some(e) = defaults.epsilon
+            && !(e > 0.0 && e < 1.0)
+        {
+            return Err(format!(
+                "[secrecy] epsilon = {e} is not allowed (allowed: (0, 1))"
+            ));
+        }
+        Ok(defaults)
+    }
 }
 
 impl Experiment {
@@ -76,6 +120,12 @@ impl Experiment {
             Some(toml::Value::Table(t)) => t,
             Some(other) => return Err(sweep_error(format!("must be a table, found {other}"))),
         };
+        let secrecy = table
+            .remove("secrecy")
+            .map(SecrecyDefaults::from_value)
+            .transpose()
+            .map_err(sweep_error)?
+            .unwrap_or_default();
         let mut mode = Mode::Cartesian;
         let mut traces = false;
         let mut axes = Vec::new();
@@ -142,6 +192,7 @@ impl Experiment {
             mode,
             traces,
             points,
+            secrecy,
         })
     }
 
@@ -165,6 +216,15 @@ impl Experiment {
             wrapper.insert("sweep".into(), toml::Value::Table(sweep));
             out.push('\n');
             out.push_str(&toml::to_string(&wrapper).expect("a sweep table serializes"));
+        }
+        if self.secrecy != SecrecyDefaults::default() {
+            let mut wrapper = toml::Table::new();
+            wrapper.insert(
+                "secrecy".into(),
+                toml::Value::try_from(self.secrecy).expect("secrecy defaults serialize"),
+            );
+            out.push('\n');
+            out.push_str(&toml::to_string(&wrapper).expect("a secrecy table serializes"));
         }
         out
     }

@@ -14,6 +14,7 @@ pub mod pipeline;
 pub mod private;
 pub mod render;
 pub mod render_private;
+pub mod map;
 
 use rayon::prelude::*;
 use robokey::config::{EveStrategy, SensingMode};
@@ -182,6 +183,8 @@ impl Rate {
 /// The secrecy of one grid point against one adversary.
 #[derive(Clone, Debug, Serialize)]
 pub struct PointSecrecy {
+    /// The point's index in the experiment's grid.
+    pub point_index: usize,
     /// The point's parameters, `field = value, …`.
     pub point: String,
     /// The grid point's x value for figures (the first swept field), if numeric.
@@ -439,6 +442,7 @@ fn analyze_point(
     });
     let params = &experiment.points[point].params;
     Ok(PointSecrecy {
+        point_index: point,
         point: describe(params),
         x: params
             .first()

@@ -266,7 +266,7 @@ fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
         h_min_method: settings.assumption.describe(),
         secret_bits: length.as_ref().map_or(0, |l| l.bits),
         reason: length.and_then(|l| l.reason),
-        realised: realised(pool, n, 0, leak_confirmation, settings.epsilon),
+        realised: realised(pool, &[], n, 0, leak_confirmation, settings.epsilon),
         assumption_exceeds_realised: false,
     };
     finish(&mut block, settings);
@@ -393,6 +393,7 @@ fn endpoint_block(
         reason: report.reason.clone(),
         realised: realised(
             pool,
+            &report.sampled,
             report.reconciled_bits,
             report.leak_ec,
             2 * TAG_BITS,
@@ -425,10 +426,17 @@ fn disagreements(a: &[u8], b: &[u8]) -> usize {
 }
 
 /// Eve's realised view of a block: from her calibrated posteriors when she has them
-/// (private sensing; the disclosed sample is taken from her least certain positions, the
-/// cautious side), else from her realised errors on the block's raw bits with the binomial
-/// bound on `n` reconciled bits; and the ℓ that would support.
-fn realised(pool: &Pool, n: usize, leak_ec: u64, tags: u64, epsilon: f64) -> Realised {
+/// on the positions kept after the disclosed `sampled` ones (private sensing), else from
+/// her realised errors on the block's raw bits with the binomial bound on `n` reconciled
+/// bits; and the ℓ that would support.
+fn realised(
+    pool: &Pool,
+    sampled: &[u32],
+    n: usize,
+    leak_ec: u64,
+    tags: u64,
+    epsilon: f64,
+) -> Realised {
     let errors = disagreements(&pool.robot, &pool.eve);
     let total = pool.robot.len().max(1) as u64;
     let lower = clopper_pearson_lower(errors as u64, total, epsilon)
@@ -442,13 +450,15 @@ fn realised(pool: &Pool, n: usize, leak_ec: u64, tags: u64, epsilon: f64) -> Rea
             H_MIN_BINOMIAL,
         )
     } else {
-        let mut q: Vec<f64> = pool
+        let mut disclosed = sampled.iter().map(|&i| i as usize).peekable();
+        let q: Vec<f64> = pool
             .eve_posteriors
             .iter()
-            .map(|&q| q.min(1.0 - q))
+            .enumerate()
+            .filter(|&(i, _)| disclosed.next_if_eq(&i).is_none())
+            .map(|(_, &q)| q.min(1.0 - q))
             .collect();
-        q.sort_by(f64::total_cmp);
-        q.truncate(n);
+        debug_assert_eq!(q.len(), n, "kept positions and reconciled bits disagree");
         let bound = posterior_smooth_min_entropy(&q, epsilon).ok();
         (bound.map_or(0.0, |b| b.h_min), 0, H_MIN_POSTERIOR)
     };

@@ -3,7 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
-use super::render_private::{PrivateRow, private_markdown, turn_rates_csv};
+use super::map::PrivateMap;
+use super::render_private::{
+    PrivateRow, map_markdown, private_markdown, turn_rates_csv, write_map,
+};
 use super::{PointSecrecy, Rate, SecrecyOptions};
 use crate::error::LabError;
 use crate::files::write;
@@ -192,7 +195,8 @@ fn private_rows(results: &[PointSecrecy]) -> Vec<PrivateRow<'_>> {
 }
 
 /// Writes `secrecy.csv`, `secrecy.json`, `secrecy.md` and the figure
-/// `secrecy-bits-per-step.{svg,png}` into `dir`; returns the files.
+/// `secrecy-bits-per-step.{svg,png}` into `dir`, and a private-sensing map's figures and
+/// section when given; returns the files.
 ///
 /// # Errors
 /// A file cannot be written.
@@ -201,6 +205,7 @@ pub fn write_secrecy(
     experiment: &Experiment,
     results: &[PointSecrecy],
     options: &SecrecyOptions,
+    map: Option<&PrivateMap>,
 ) -> Result<Vec<PathBuf>, LabError> {
     std::fs::create_dir_all(dir).map_err(crate::error::io_at(dir))?;
     let json = serde_json::json!({
@@ -216,8 +221,17 @@ pub fn write_secrecy(
             &dir.join("secrecy.json"),
             serde_json::to_string_pretty(&json).expect("JSON serializes") + "\n",
         )?,
-        write(&dir.join("secrecy.md"), secrecy_markdown(results, options))?,
+        write(
+            &dir.join("secrecy.md"),
+            secrecy_markdown(results, options)
+                + &map.map_or_else(String::new, |m| {
+                    map_markdown(m, options.block_bits, options.epsilon)
+                }),
+        )?,
     ];
+    if let Some(map) = map {
+        files.extend(write_map(dir, map)?);
+    }
     let rows = private_rows(results);
     if !rows.is_empty() {
         files.push(write(&dir.join("turn-rates.csv"), turn_rates_csv(&rows))?);

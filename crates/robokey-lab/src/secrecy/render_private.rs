@@ -1,8 +1,15 @@
-//! Renders the private-sensing figures of one or more (point, adversary) rows: a markdown
-//! section and `turn-rates.csv` (docs/private-sensing.md).
+//! Renders private sensing: the figures of one or more (point, adversary) rows (a markdown
+//! section and `turn-rates.csv`) and a map's figures, each with its CSV
+//! (docs/private-sensing.md).
+
+use std::path::{Path, PathBuf};
 
 use super::Rate;
+use super::map::{CameraCurve, ParetoPoint, PrivateMap};
 use super::private::{Calibration, PrivateFigures};
+use crate::error::LabError;
+use crate::files::write;
+use crate::plot::{LineChart, Series, SeriesStyle};
 
 /// One row to render: where it comes from and its figures.
 pub struct PrivateRow<'a> {
@@ -134,4 +141,214 @@ pub fn turn_rates_csv(rows: &[PrivateRow]) -> String {
         }
     }
     out
+}
+
+/// The map's markdown: break-even camera noise per curve, the Pareto front, the leak.
+#[must_use]
+pub fn map_markdown(map: &PrivateMap, block_bits: usize, epsilon: f64) -> String {
+    let mut md = String::new();
+    if !map.camera.is_empty() {
+        md.push_str(&format!(
+            "\n### Secret rate against Eve's camera noise\n\n\
+             ![rate against camera noise](private-rate-vs-camera.svg)\n\n\
+             Blocks of {block_bits} bits, ε = {epsilon:e} per term. \
+             The break-even is the camera noise below which no secret bit is left.\n\n\
+             | setting | break-even camera noise | rate at the noisiest camera |\n|---|---|---|\n"
+        ));
+        for curve in &map.camera {
+            let last = curve.points.last().copied().unwrap_or((f64::NAN, f64::NAN));
+            md.push_str(&format!(
+                "| {} | {} | {:.3} bits/s at {} mm |\n",
+                curve.label,
+                break_even_text(curve),
+                last.1,
+                last.0
+            ));
+        }
+    }
+    let front: Vec<&ParetoPoint> = map.pareto.iter().filter(|p| p.on_front).collect();
+    if map.pareto.len() > 1 {
+        md.push_str(&format!(
+            "\n### Secret rate against tracking cost\n\n\
+             ![Pareto front](private-pareto.svg)\n\n\
+             The paper's scheme tracks with J_x = {:.1} mm and yields 0 secret bits (by \
+             structure). Private sensing's Pareto front (no other point tracks at least as \
+             well with a higher rate):\n\n| point | J_x (mm) | secret bits/s |\n|---|---|---|\n",
+            map.paper_jx_mm
+        ));
+        for p in &front {
+            md.push_str(&format!(
+                "| {} | {:.2} | {:.3} |\n",
+                p.point, p.jx_mm, p.bits_per_second
+            ));
+        }
+    }
+    if !map.leak.is_empty() {
+        md.push_str(
+            "\n### What the commands leak, measured against the model\n\n\
+             ![leak](private-leak.svg)\n\n\
+             Each marker is one turn-rate bin of one point: the commands eavesdropper's \
+             measured information per bit against the mean I(d) the model predicts for the \
+             same bits. On the diagonal, the residual leak is the one the model charges.\n",
+        );
+    }
+    md
+}
+
+/// "between A and B mm", "below A mm" or "not reached".
+pub fn break_even_text(curve: &CameraCurve) -> String {
+    match curve.break_even {
+        Some(b) => format!("between {} and {} mm", b.zero_at, b.positive_at),
+        None if curve.points.first().is_some_and(|p| p.1 > 0.0) => format!(
+            "below {} mm (positive on the whole grid)",
+            curve.points[0].0
+        ),
+        None => "not reached: zero on the whole grid".into(),
+    }
+}
+
+fn save(chart: &LineChart, base: &Path) -> Result<Vec<PathBuf>, LabError> {
+    chart.save(base).map_err(|e| LabError::Plot {
+        path: base.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Writes the map's figures, each with the CSV of what it draws, into `dir`.
+///
+/// # Errors
+/// A file cannot be written.
+pub fn write_map(dir: &Path, map: &PrivateMap) -> Result<Vec<PathBuf>, LabError> {
+    let mut files = Vec::new();
+    if !map.camera.is_empty() {
+        let mut csv = String::from("setting,camera_mm,secret_bits_per_second\n");
+        let mut series = Vec::new();
+        for curve in &map.camera {
+            for p in &curve.points {
+                csv.push_str(&format!("\"{}\",{},{}\n", curve.label, p.0, p.1));
+            }
+            series.push(Series {
+                label: curve.label.clone(),
+                points: curve.points.clone(),
+                style: SeriesStyle::Line,
+            });
+        }
+        let breaks: Vec<(f64, f64)> = map
+            .camera
+            .iter()
+            .filter_map(|c| c.break_even.map(|b| (b.zero_at, 0.0)))
+            .collect();
+        if !breaks.is_empty() {
+            series.push(Series {
+                label: "break-even (within one grid step above)".into(),
+                points: breaks,
+                style: SeriesStyle::Markers,
+            });
+        }
+        files.push(write(&dir.join("private-rate-vs-camera.csv"), csv)?);
+        files.extend(save(
+            &LineChart {
+                title: "Secret bits per second against Eve's camera noise".into(),
+                x_label: "Eve's camera noise per sample instant (mm)".into(),
+                y_label: "secret bits per second".into(),
+                series,
+                equal_aspect: false,
+                log_y: false,
+            },
+            &dir.join("private-rate-vs-camera"),
+        )?);
+    }
+    if map.pareto.len() > 1 {
+        let mut csv = String::from("point,jx_mm,secret_bits_per_second,on_front\n");
+        for p in &map.pareto {
+            csv.push_str(&format!(
+                "\"{}\",{},{},{}\n",
+                p.point, p.jx_mm, p.bits_per_second, p.on_front
+            ));
+        }
+        csv.push_str(&format!("\"paper's scheme\",{},0,false\n", map.paper_jx_mm));
+        let mut front: Vec<(f64, f64)> = map
+            .pareto
+            .iter()
+            .filter(|p| p.on_front)
+            .map(|p| (p.jx_mm, p.bits_per_second))
+            .collect();
+        front.sort_by(|a, b| a.0.total_cmp(&b.0));
+        files.push(write(&dir.join("private-pareto.csv"), csv)?);
+        files.extend(save(
+            &LineChart {
+                title: "Secret rate against tracking cost".into(),
+                x_label: "tracking error J_x (mm)".into(),
+                y_label: "secret bits per second".into(),
+                series: vec![
+                    Series {
+                        label: "private sensing, every point".into(),
+                        points: map
+                            .pareto
+                            .iter()
+                            .map(|p| (p.jx_mm, p.bits_per_second))
+                            .collect(),
+                        style: SeriesStyle::Markers,
+                    },
+                    Series {
+                        label: "Pareto front".into(),
+                        points: front,
+                        style: SeriesStyle::Line,
+                    },
+                    Series {
+                        label: "the paper's scheme (0 by structure)".into(),
+                        points: vec![(map.paper_jx_mm, 0.0)],
+                        style: SeriesStyle::Markers,
+                    },
+                ],
+                equal_aspect: false,
+                log_y: false,
+            },
+            &dir.join("private-pareto"),
+        )?);
+    }
+    if !map.leak.is_empty() {
+        let mut csv = String::from(
+            "predicted_information,measured_information,measured_low,measured_high,bits\n",
+        );
+        for b in &map.leak {
+            csv.push_str(&format!(
+                "{},{},{},{},{}\n",
+                b.predicted, b.measured[0], b.measured[1], b.measured[2], b.bits
+            ));
+        }
+        let top = map
+            .leak
+            .iter()
+            .map(|b| b.predicted.max(b.measured[0]))
+            .fold(0.0, f64::max);
+        files.push(write(&dir.join("private-leak.csv"), csv)?);
+        files.extend(save(
+            &LineChart {
+                title: "What the commands leak: measured against the model".into(),
+                x_label: "predicted information per bit (bits)".into(),
+                y_label: "measured information per bit (bits)".into(),
+                series: vec![
+                    Series {
+                        label: "turn-rate bins (commands Eve)".into(),
+                        points: map
+                            .leak
+                            .iter()
+                            .map(|b| (b.predicted, b.measured[0]))
+                            .collect(),
+                        style: SeriesStyle::Markers,
+                    },
+                    Series {
+                        label: "measured = predicted".into(),
+                        points: vec![(0.0, 0.0), (top, top)],
+                        style: SeriesStyle::Dashed,
+                    },
+                ],
+                equal_aspect: false,
+                log_y: false,
+            },
+            &dir.join("private-leak"),
+        )?);
+    }
+    Ok(files)
 }

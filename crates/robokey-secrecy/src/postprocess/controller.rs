@@ -402,6 +402,9 @@ impl ControllerPost {
             report.sessions.clone_from(&agreed);
             report.bits = key.len();
             report.sample_bits = sample.len();
+            report.sampled = (0..mask.len() as u32)
+                .filter(|&i| mask[i as usize])
+                .collect();
             report.sample_errors = errors;
             report.q_estimate = q;
             report.reconciled_bits = kept.len();
@@ -584,6 +587,7 @@ pub(super) fn empty_report(block: u64) -> BlockReport {
         sessions: Vec::new(),
         bits: 0,
         sample_bits: 0,
+        sampled: Vec::new(),
         sample_errors: 0,
         q_estimate: 0.0,
         reconciled_bits: 0,

@@ -78,6 +78,8 @@ pub struct BlockReport {
     pub bits: usize,
     /// Positions disclosed to estimate the error rate.
     pub sample_bits: usize,
+    /// Which positions of the pooled bits they are, in order (public).
+    pub sampled: Vec<u32>,
     /// Disagreements in the sample (controller only; 0 on the robot).
     pub sample_errors: usize,
     /// The error-rate estimate that sized Cascade.

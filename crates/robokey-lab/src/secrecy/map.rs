@@ -1,0 +1,225 @@
+//! Where private sensing pays (docs/private-sensing.md, "Maps"): the secret rate against
+//! Eve's camera noise with its break-even, the Pareto front of secret rate against tracking
+//! cost, and the commands eavesdropper's measured leak against the model's. Computed from
+//! the results of [`super::analyze`]; rendered by [`super::render_private`].
+
+use rayon::prelude::*;
+use robokey::Config;
+use robokey::config::{EveStrategy, SensingMode};
+use robokey::sim::simulate;
+use serde::Serialize;
+
+use super::PointSecrecy;
+use crate::error::LabError;
+use crate::sweep::{Experiment, value_text};
+
+/// The swept field of Eve's camera noise.
+pub const CAMERA_FIELD: &str = "eve.camera_std";
+
+/// One curve of secret rate against Eve's camera noise, every other parameter fixed.
+#[derive(Clone, Debug, Serialize)]
+pub struct CameraCurve {
+    /// The fixed parameters, for people (e.g. "motion 4 mm").
+    pub label: String,
+    /// `(camera noise (mm), secret bits per second)`, by camera noise.
+    pub points: Vec<(f64, f64)>,
+    /// Where the rate reaches zero, if it does on the grid.
+    pub break_even: Option<BreakEven>,
+}
+
+/// The break-even camera noise lies in `(zero_at, positive_at]` (mm): the rate is zero at
+/// `zero_at` and at every smaller noise, positive at `positive_at`.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct BreakEven {
+    /// The largest camera noise on the grid with a zero rate (mm).
+    pub zero_at: f64,
+    /// The next one, with a positive rate (mm).
+    pub positive_at: f64,
+}
+
+/// One operating point of the Pareto figure.
+#[derive(Clone, Debug, Serialize)]
+pub struct ParetoPoint {
+    /// The point's parameters.
+    pub point: String,
+    /// Mean tracking error J_x (mm).
+    pub jx_mm: f64,
+    /// Secret bits per second under the stated assumption.
+    pub bits_per_second: f64,
+    /// No other point tracks at least as well with a higher rate.
+    pub on_front: bool,
+}
+
+/// One turn-rate bin of the commands eavesdropper: what she measured against the model.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct LeakBin {
+    /// Predicted information per bit (bits).
+    pub predicted: f64,
+    /// Measured information per bit with its 95 % interval (bits).
+    pub measured: [f64; 3],
+    /// Bits in the bin.
+    pub bits: u64,
+}
+
+/// The figures of a private-sensing map.
+#[derive(Clone, Debug, Serialize)]
+pub struct PrivateMap {
+    /// Rate against camera noise, one curve per setting of the other axes (empty without a
+    /// camera axis).
+    pub camera: Vec<CameraCurve>,
+    /// Every point against the strongest adversary, when the experiment sweeps the
+    /// perturbation (a `protocol.*` axis); else empty.
+    pub pareto: Vec<ParetoPoint>,
+    /// The paper's scheme at its defaults: J_x (mm) with zero secret bits by structure.
+    pub paper_jx_mm: f64,
+    /// The commands eavesdropper's turn-rate bins over every point she was run on.
+    pub leak: Vec<LeakBin>,
+}
+
+/// A short name for a swept parameter, for legends.
+fn short(field: &str, value: &toml::Value) -> String {
+    let first_mm = |v: &toml::Value| {
+        v.as_array()
+            .and_then(|a| a.first())
+            .and_then(toml::Value::as_float)
+            .map(|x| format!("{} mm", 1e3 * x))
+    };
+    match field {
+        "noise.process_std" => first_mm(value).map(|m| format!("motion {m}")),
+        "sensing.controller_std" => first_mm(value).map(|m| format!("sensor {m}")),
+        "protocol.delta_v" => Some(format!("Δv {} m/s", value_text(value))),
+        "protocol.delta_omega" => Some(format!("Δω {} rad/s", value_text(value))),
+        "protocol.bits_per_doublet" => Some(format!("{} bit/doublet", value_text(value))),
+        _ => None,
+    }
+    .unwrap_or_else(|| format!("{field} = {}", value_text(value)))
+}
+
+/// The J_x (mm) of the paper's scheme at its defaults over `replicates` runs, with the
+/// motion noise and seed of `like`.
+fn paper_jx_mm(like: &Config, replicates: u32) -> Result<f64, LabError> {
+    let mut paper = Config::default();
+    paper.noise = like.noise.clone();
+    paper.run.seed = like.run.seed;
+    let jx: Vec<f64> = (0..replicates)
+        .into_par_iter()
+        .map(|r| simulate(&paper, r, false).map(|o| o.metrics.jx))
+        .collect::<Result<_, _>>()?;
+    Ok(1e3 * jx.iter().sum::<f64>() / f64::from(replicates.max(1)))
+}
+
+/// The map of `results` (private-sensing points of `experiment`).
+///
+/// # Errors
+/// A paper run fails to simulate (never with a validated experiment).
+pub fn private_map(
+    experiment: &Experiment,
+    results: &[PointSecrecy],
+) -> Result<Option<PrivateMap>, LabError> {
+    let Some(first) = experiment.points.first() else {
+        return Ok(None);
+    };
+    if first.config.sensing.mode != SensingMode::Private {
+        return Ok(None);
+    }
+    let strongest: Vec<&PointSecrecy> = results
+        .iter()
+        .filter(|r| r.adversary == EveStrategy::Camera.name())
+        .collect();
+    let mut camera: Vec<CameraCurve> = Vec::new();
+    if experiment.axes.iter().any(|a| a.field == CAMERA_FIELD) {
+        for r in &strongest {
+            let point = &experiment.points[r.point_index];
+            let label = point
+                .params
+                .iter()
+                .filter(|(f, _)| f != CAMERA_FIELD)
+                .map(|(f, v)| short(f, v))
+                .collect::<Vec<_>>()
+                .join(", ");
+            let label = if label.is_empty() {
+                "every point".to_owned()
+            } else {
+                label
+            };
+            let xy = (1e3 * point.config.eve.camera_std[0], r.secret_bits_per_second);
+            match camera.iter_mut().find(|c| c.label == label) {
+                Some(curve) => curve.points.push(xy),
+                None => camera.push(CameraCurve {
+                    label,
+                    points: vec![xy],
+                    break_even: None,
+                }),
+            }
+        }
+        for curve in &mut camera {
+            curve.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            curve.break_even = curve
+                .points
+                .iter()
+                .rposition(|p| p.1 == 0.0)
+                .and_then(|i| {
+                    Some(BreakEven {
+                        zero_at: curve.points[i].0,
+                        positive_at: curve.points.get(i + 1)?.0,
+                    })
+                });
+        }
+    }
+    // A Pareto front over what the operator chooses: the perturbation.
+    let over_delta = experiment
+        .axes
+        .iter()
+        .any(|a| a.field.starts_with("protocol."));
+    let mut pareto: Vec<ParetoPoint> = strongest
+        .iter()
+        .filter(|_| over_delta)
+        .filter_map(|r| {
+            Some(ParetoPoint {
+                point: r.point.clone(),
+                jx_mm: r.private.as_ref()?.jx_mm,
+                bits_per_second: r.secret_bits_per_second,
+                on_front: false,
+            })
+        })
+        .collect();
+    let snapshot = pareto.clone();
+    for p in &mut pareto {
+        p.on_front = p.bits_per_second > 0.0
+            && !snapshot.iter().any(|q| {
+                q.jx_mm <= p.jx_mm
+                    && q.bits_per_second >= p.bits_per_second
+                    && (q.jx_mm < p.jx_mm || q.bits_per_second > p.bits_per_second)
+            });
+    }
+    let leak = results
+        .iter()
+        .filter(|r| r.adversary == EveStrategy::Commands.name())
+        .filter_map(|r| r.private.as_ref())
+        .flat_map(|f| &f.turn_bins)
+        .map(|b| LeakBin {
+            predicted: b.predicted,
+            measured: b.information,
+            bits: b.bits,
+        })
+        .collect();
+    Ok(Some(PrivateMap {
+        camera,
+        pareto,
+        paper_jx_mm: paper_jx_mm(&first.config, first.config.run.replicates.max(10))?,
+        leak,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn legends_name_the_physics() {
+        let mm4: toml::Value = toml::Value::Array(vec![0.004.into(); 3]);
+        assert_eq!(short("noise.process_std", &mm4), "motion 4 mm");
+        assert_eq!(short("protocol.delta_v", &0.035.into()), "Δv 0.035 m/s");
+        assert_eq!(short("run.seed", &7.into()), "run.seed = 7");
+    }
+}
