@@ -207,11 +207,11 @@ pub fn config(args: ConfigArgs) -> Result<()> {
 
 pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     use robokey::config::SensingMode;
+    use robokey_lab::secrecy::map::private_map;
+    use robokey_lab::secrecy::render_private::break_even_text;
     use robokey_lab::secrecy::{
         Pooling, SecrecyOptions, analyze, default_adversaries, write_secrecy,
     };
-    use robokey_lab::secrecy::map::private_map;
-    use robokey_lab::secrecy::render_private::break_even_text;
     use robokey_lab::sweep::{MAX_BLOCK_BITS, MIN_BLOCK_BITS};
     if let Some(eps) = args.eps
         && !(eps > 0.0 && eps < 1.0)
@@ -221,7 +221,9 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     if let Some(block) = args.block
         && !(MIN_BLOCK_BITS..=MAX_BLOCK_BITS).contains(&block)
     {
-        bail!("--block {block} is not allowed (allowed: {MIN_BLOCK_BITS} to {MAX_BLOCK_BITS} bits)");
+        bail!(
+            "--block {block} is not allowed (allowed: {MIN_BLOCK_BITS} to {MAX_BLOCK_BITS} bits)"
+        );
     }
     if !(1..=1_000).contains(&args.blocks) {
         bail!(
@@ -296,7 +298,10 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             } else {
                 options.adversaries.clone()
             },
-            epsilon: args.eps.or(experiment.secrecy.epsilon).unwrap_or(options.epsilon),
+            epsilon: args
+                .eps
+                .or(experiment.secrecy.epsilon)
+                .unwrap_or(options.epsilon),
             block_bits: args
                 .block
                 .or(experiment.secrecy.block_bits)

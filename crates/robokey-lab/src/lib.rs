@@ -5,6 +5,7 @@ pub mod adversary;
 pub mod error;
 pub mod files;
 pub mod plot;
+pub mod private_report;
 pub mod report;
 pub mod results;
 pub mod runner;

@@ -541,6 +541,9 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
         ],
     )?);
     md.push_str(&adversary_section(out)?);
+    let (private, private_terminal) = crate::private_report::private_section(out, quick)?;
+    md.push_str(&private);
+    terminal.push_str(&private_terminal);
     let path = write(&out.join("report.md"), md)?;
     Ok(Reproduction {
         path,

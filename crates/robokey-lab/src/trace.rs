@@ -147,13 +147,40 @@ mod tests {
         let csv = trace_csv(&run.trace);
         let lines: Vec<&str> = csv.lines().collect();
         assert_eq!(lines.len(), 1 + 1021);
-        assert_eq!(lines[0].split(',').count(), 24);
-        assert!(lines.iter().all(|l| l.split(',').count() == 24));
+        // docs/experiments.md's 24 columns, then b_omega and Eve's camera (private sensing).
+        assert_eq!(lines[0].split(',').count(), 28);
+        assert!(lines[0].ends_with(",b_omega,eve_x,eve_y,eve_theta"));
+        assert!(lines.iter().all(|l| l.split(',').count() == 28));
+        assert!(lines[1..].iter().all(|l| l.ends_with(",,,,")));
         // Row 0 has no decision; the last row has no nominal command and no bit.
         let first: Vec<&str> = lines[1].split(',').collect();
         assert_eq!(first[22], "");
         let last: Vec<&str> = lines[1021].split(',').collect();
         assert_eq!((last[10], last[16]), ("", ""));
         assert_eq!(last[12], "0");
+    }
+
+    #[test]
+    fn a_private_trace_has_the_camera_and_both_bits() {
+        let config = robokey::Config::from_toml(
+            "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\n",
+            "test",
+        )
+        .unwrap();
+        let run = robokey::sim::simulate(&config, 0, true).unwrap();
+        let csv = trace_csv(&run.trace);
+        let rows: Vec<Vec<&str>> = csv
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect())
+            .collect();
+        assert!(rows.iter().all(|r| r.len() == 28 && !r[25].is_empty()));
+        // Both steps of a doublet carry its two bits; the decision is on its second step.
+        let doublets_with_bits = run.private.unwrap().bits.len() / 2;
+        let carried = rows.iter().filter(|r| !r[16].is_empty()).count();
+        assert_eq!(carried, 2 * doublets_with_bits);
+        assert!(rows.iter().all(|r| r[16].is_empty() == r[24].is_empty()));
+        let decided = rows.iter().filter(|r| !r[22].is_empty()).count();
+        assert_eq!(decided, doublets_with_bits);
     }
 }

@@ -95,6 +95,30 @@ fn short(field: &str, value: &toml::Value) -> String {
     .unwrap_or_else(|| format!("{field} = {}", value_text(value)))
 }
 
+/// Where a curve of `(camera noise, rate)` sorted by noise reaches zero: the largest noise
+/// with a zero rate and the next one, if both exist.
+fn break_even(points: &[(f64, f64)]) -> Option<BreakEven> {
+    let i = points.iter().rposition(|p| p.1 == 0.0)?;
+    Some(BreakEven {
+        zero_at: points[i].0,
+        positive_at: points.get(i + 1)?.0,
+    })
+}
+
+/// Marks the points no other point dominates (J_x at most as large and rate at least as
+/// high, one of them strictly).
+fn mark_front(points: &mut [ParetoPoint]) {
+    let all: Vec<(f64, f64)> = points
+        .iter()
+        .map(|p| (p.jx_mm, p.bits_per_second))
+        .collect();
+    for p in points.iter_mut() {
+        p.on_front = !all.iter().any(|&(jx, rate)| {
+            jx <= p.jx_mm && rate >= p.bits_per_second && (jx < p.jx_mm || rate > p.bits_per_second)
+        });
+    }
+}
+
 /// The J_x (mm) of the paper's scheme at its defaults over `replicates` runs, with the
 /// motion noise and seed of `like`.
 fn paper_jx_mm(like: &Config, replicates: u32) -> Result<f64, LabError> {
@@ -142,7 +166,10 @@ pub fn private_map(
             } else {
                 label
             };
-            let xy = (1e3 * point.config.eve.camera_std[0], r.secret_bits_per_second);
+            let xy = (
+                1e3 * point.config.eve.camera_std[0],
+                r.secret_bits_per_second,
+            );
             match camera.iter_mut().find(|c| c.label == label) {
                 Some(curve) => curve.points.push(xy),
                 None => camera.push(CameraCurve {
@@ -154,16 +181,7 @@ pub fn private_map(
         }
         for curve in &mut camera {
             curve.points.sort_by(|a, b| a.0.total_cmp(&b.0));
-            curve.break_even = curve
-                .points
-                .iter()
-                .rposition(|p| p.1 == 0.0)
-                .and_then(|i| {
-                    Some(BreakEven {
-                        zero_at: curve.points[i].0,
-                        positive_at: curve.points.get(i + 1)?.0,
-                    })
-                });
+            curve.break_even = break_even(&curve.points);
         }
     }
     // A Pareto front over what the operator chooses: the perturbation.
@@ -183,15 +201,7 @@ pub fn private_map(
             })
         })
         .collect();
-    let snapshot = pareto.clone();
-    for p in &mut pareto {
-        p.on_front = p.bits_per_second > 0.0
-            && !snapshot.iter().any(|q| {
-                q.jx_mm <= p.jx_mm
-                    && q.bits_per_second >= p.bits_per_second
-                    && (q.jx_mm < p.jx_mm || q.bits_per_second > p.bits_per_second)
-            });
-    }
+    mark_front(&mut pareto);
     let leak = results
         .iter()
         .filter(|r| r.adversary == EveStrategy::Commands.name())
@@ -214,6 +224,35 @@ pub fn private_map(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_break_even_is_bracketed_by_the_grid() {
+        let curve = [(1.0, 0.0), (2.0, 0.0), (3.0, 0.2), (4.0, 0.5)];
+        let b = break_even(&curve).unwrap();
+        assert_eq!((b.zero_at, b.positive_at), (2.0, 3.0));
+        assert!(break_even(&[(1.0, 0.1), (2.0, 0.3)]).is_none());
+        assert!(break_even(&[(1.0, 0.0), (2.0, 0.0)]).is_none());
+    }
+
+    #[test]
+    fn the_front_keeps_only_undominated_points() {
+        let point = |jx: f64, rate: f64| ParetoPoint {
+            point: String::new(),
+            jx_mm: jx,
+            bits_per_second: rate,
+            on_front: false,
+        };
+        let mut points = vec![
+            point(12.4, 0.0),
+            point(12.9, 0.85),
+            point(13.6, 0.66),
+            point(14.0, 0.9),
+            point(14.0, 0.9),
+        ];
+        mark_front(&mut points);
+        let front: Vec<bool> = points.iter().map(|p| p.on_front).collect();
+        assert_eq!(front, [true, true, false, true, true]);
+    }
 
     #[test]
     fn legends_name_the_physics() {

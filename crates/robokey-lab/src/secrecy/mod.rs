@@ -10,11 +10,11 @@
 //! them in that order, so what she learned from earlier sessions serves her on later ones.
 //! Results are computed here and rendered by [`render`].
 
+pub mod map;
 pub mod pipeline;
 pub mod private;
 pub mod render;
 pub mod render_private;
-pub mod map;
 
 use rayon::prelude::*;
 use robokey::config::{EveStrategy, SensingMode};
@@ -601,7 +601,8 @@ pub fn analyze(
     let jobs: Vec<(usize, EveStrategy)> = (0..experiment.points.len())
         .flat_map(|p| adversaries.iter().map(move |&a| (p, a)))
         .collect();
-    jobs.iter()
+    // In parallel, collected in job order: the same results for any number of threads.
+    jobs.par_iter()
         .map(|&(p, a)| analyze_point(experiment, p, a, options))
         .collect()
 }
