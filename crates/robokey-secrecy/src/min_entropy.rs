@@ -163,7 +163,8 @@ pub fn posterior_smooth_min_entropy(
             let mu = lambda / std::f64::consts::LN_2;
             folded
                 .iter()
-                .map(|&q| ((1.0 - q).powf(1.0 + mu) + q.powf(1.0 + mu)).ln())
+                // In log space: the powers underflow to 0 for large μ.
+                .map(|&q| ln_add_exp((1.0 + mu) * (1.0 - q).ln(), (1.0 + mu) * q.ln()))
                 .sum()
         },
         epsilon,
@@ -185,7 +186,11 @@ pub fn posterior_smooth_min_entropy(
 /// (no bound).
 pub(crate) fn chernoff_lower_quantile(ln_mgf: impl Fn(f64) -> f64, epsilon: f64) -> (f64, f64) {
     let ln_inv_eps = -epsilon.ln();
-    let t_of = |lambda: f64| (-ln_mgf(lambda) - ln_inv_eps) / lambda;
+    // A λ whose moment underflowed proves nothing: −∞, never +∞.
+    let t_of = |lambda: f64| {
+        let t = (-ln_mgf(lambda) - ln_inv_eps) / lambda;
+        if t.is_finite() { t } else { f64::NEG_INFINITY }
+    };
     let grid: Vec<f64> = (0..=70)
         .map(|i| 10f64.powf(-4.0 + 7.0 * f64::from(i) / 70.0))
         .collect();
