@@ -153,6 +153,25 @@ fn reproduce_quick_writes_a_parseable_report_and_sweep_agrees() {
         assert!(read(&out.join("figures").join(format!("{figure}.svg"))).contains("<svg"));
         assert!(out.join("figures").join(format!("{figure}.png")).exists());
     }
+    // The private-sensing section: sentences from the numbers, each figure with its CSV.
+    assert!(
+        report.contains("## Private sensing") && report.contains("secret bits per second"),
+        "{report}"
+    );
+    assert!(report.contains("Eve's camera noise ≥ 8 mm"), "{report}");
+    for (folder, figure) in [
+        ("camera", "private-rate-vs-camera"),
+        ("pareto-v", "private-pareto"),
+        ("pareto-v", "private-leak"),
+    ] {
+        let base = out.join("private-sensing").join(folder).join(figure);
+        assert!(read(&base.with_extension("svg")).contains("<svg"));
+        assert!(
+            read(&base.with_extension("csv")).lines().count() > 2,
+            "{figure}"
+        );
+    }
+    assert!(printed.contains("break-even camera noise"), "{printed}");
     // Golden value: replicate 0 at Δv = 0.035 accepts this many codewords of 340.
     let runs = read(&out.join("dv-sweep/runs.csv"));
     let row = runs
@@ -290,4 +309,92 @@ fn secrecy_sizes_keys_by_the_assumption_labels_adversaries_and_ignores_jobs() {
         err.contains("--block 10") && err.contains("allowed"),
         "{err}"
     );
+}
+
+#[test]
+fn private_sensing_runs_end_to_end_from_the_command_line() {
+    let dir = scratch("private");
+    let run = ok(&[
+        "run",
+        "--set",
+        "sensing.mode=private",
+        "--out",
+        s(&dir.join("run")),
+    ]);
+    assert!(
+        run.contains("doublets") && run.contains("raw key bits"),
+        "{run}"
+    );
+    let trace = read(&dir.join("run/trace.csv"));
+    assert!(
+        trace
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with("eve_x,eve_y,eve_theta")
+    );
+
+    // A sweep file's [secrecy] table sets the block size; the defaults are the private
+    // adversaries and complete pooling.
+    let file = dir.join("private.toml");
+    std::fs::write(
+        &file,
+        "[sensing]\nmode = \"private\"\n[run]\nreplicates = 2\n[secrecy]\nblock_bits = 3000\n\
+         [sweep]\n\"eve.camera_std\" = [[0.008, 0.008, 0.008], [0.001, 0.001, 0.001]]\n",
+    )
+    .unwrap();
+    let sweep = dir.join("sweep");
+    ok(&["sweep", s(&file), "--out", s(&sweep)]);
+    let printed = ok(&["secrecy", s(&sweep)]);
+    assert!(printed.contains("key sized under"), "{printed}");
+    assert!(
+        printed.contains("camera") && printed.contains("commands"),
+        "{printed}"
+    );
+    assert!(printed.contains("break-even camera noise"), "{printed}");
+    let json: serde_json::Value = serde_json::from_str(&read(&sweep.join("secrecy.json"))).unwrap();
+    assert_eq!(json["block_bits"], 3000);
+    assert_eq!(json["pooling"], "complete");
+    let rows = json["results"].as_array().unwrap();
+    let rate = |camera: &str| {
+        rows.iter()
+            .find(|r| r["adversary"] == "camera" && r["point"].as_str().unwrap().contains(camera))
+            .unwrap()["secret_bits"]
+            .as_u64()
+            .unwrap()
+    };
+    assert!(rate("0.008") > 0 && rate("0.001") == 0, "{json}");
+    for file in [
+        "turn-rates.csv",
+        "private-rate-vs-camera.csv",
+        "private-rate-vs-camera.svg",
+    ] {
+        assert!(sweep.join(file).exists(), "{file}");
+    }
+
+    let refused = fails(&["secrecy", s(&sweep), "--adversary", "oracle"]);
+    assert!(
+        refused.contains("oracle") && refused.contains("private"),
+        "{refused}"
+    );
+
+    let eve = ok(&[
+        "eve",
+        "--set",
+        "sensing.mode=private",
+        "--sessions",
+        "3",
+        "--out",
+        s(&dir.join("eve")),
+    ]);
+    assert!(eve.contains("camera") && eve.contains("predicted"), "{eve}");
+    assert!(read(&dir.join("eve/eve.md")).contains("by public turn rate"));
+    let refused = fails(&[
+        "eve",
+        "--set",
+        "sensing.mode=private",
+        "--strategy",
+        "identify",
+    ]);
+    assert!(refused.contains("identify"), "{refused}");
 }
