@@ -122,8 +122,10 @@ fn mark_front(points: &mut [ParetoPoint]) {
 /// The J_x (mm) of the paper's scheme at its defaults over `replicates` runs, with the
 /// motion noise and seed of `like`.
 fn paper_jx_mm(like: &Config, replicates: u32) -> Result<f64, LabError> {
-    let mut paper = Config::default();
-    paper.noise = like.noise.clone();
+    let mut paper = Config {
+        noise: like.noise.clone(),
+        ..Config::default()
+    };
     paper.run.seed = like.run.seed;
     let jx: Vec<f64> = (0..replicates)
         .into_par_iter()
