@@ -13,7 +13,6 @@ use robokey::rng::{Purpose, stream};
 use robokey_lab::adversary::{campaign_markdown, run_campaigns, write_campaign};
 use robokey_lab::files::{prepare_output, write};
 use robokey_lab::runner::with_jobs;
-use robokey_lab::secrecy::default_adversaries;
 use robokey_lab::secrecy::private::eavesdroppers;
 use robokey_lab::secrecy::render_private::{PrivateRow, private_markdown, turn_rates_csv};
 use robokey_net::capture_eve::{listen, read_session};
@@ -122,16 +121,8 @@ fn private(args: &EveArgs, config: &Config) -> Result<()> {
             args.campaigns
         );
     }
-    let strategies: Vec<EveStrategy> = if args.strategy.is_empty() {
-        default_adversaries(SensingMode::Private)
-    } else {
-        args.strategy.iter().map(|&s| s.into()).collect()
-    };
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("robokey-out/eve"));
-    prepare_output(&out, args.force)?;
+    let strategies = simulated_strategies(args, config.sensing.mode);
+    let out = output_folder(args)?;
     let started = Instant::now();
     let sessions = config.eve.sessions;
     let measured = with_jobs(args.jobs, || eavesdroppers(config, &strategies, sessions))??;
@@ -220,20 +211,31 @@ fn errors_of(config: &Config, strategy: EveStrategy, explicit: Option<ModelError
     }
 }
 
-fn simulated(args: &EveArgs, config: &Config) -> Result<()> {
-    let strategies: Vec<EveStrategy> = if args.strategy.is_empty() {
+/// `--strategy`, or every strategy of `mode`.
+fn simulated_strategies(args: &EveArgs, mode: SensingMode) -> Vec<EveStrategy> {
+    if args.strategy.is_empty() {
         EveStrategy::ALL
             .into_iter()
-            .filter(|s| s.mode() == SensingMode::Odometry)
+            .filter(|s| s.mode() == mode)
             .collect()
     } else {
         args.strategy.iter().map(|&s| s.into()).collect()
-    };
+    }
+}
+
+/// `--out` (default robokey-out/eve), prepared for writing.
+fn output_folder(args: &EveArgs) -> Result<PathBuf> {
     let out = args
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("robokey-out/eve"));
     prepare_output(&out, args.force)?;
+    Ok(out)
+}
+
+fn simulated(args: &EveArgs, config: &Config) -> Result<()> {
+    let strategies = simulated_strategies(args, config.sensing.mode);
+    let out = output_folder(args)?;
     let started = Instant::now();
     let campaign = with_jobs(args.jobs, || {
         run_campaigns(config, &strategies, args.campaigns)

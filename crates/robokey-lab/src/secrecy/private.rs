@@ -117,6 +117,16 @@ fn toward_truth(llr: f64, bit: u8) -> f64 {
     if bit == 0 { llr } else { -llr }
 }
 
+/// The model's prediction of `adversary`'s information per bit: the mean of `I(d)` over
+/// the bits' separations.
+fn predicted_information(bits: &[&DoubletBit], adversary: EveStrategy) -> f64 {
+    let total: f64 = bits
+        .iter()
+        .map(|b| information(b.separation_of(adversary)))
+        .sum();
+    total / bits.len().max(1) as f64
+}
+
 /// The error rate of deciding each bit by the sign of `llr`.
 fn error_rate(bits: &[&DoubletBit], llr: impl Fn(&DoubletBit) -> f64) -> Option<Rate> {
     let wrong = bits
@@ -193,11 +203,7 @@ pub fn figures(
                 bits: bin.len() as u64,
                 error: error_rate(&bin, |b| b.llr_of(adversary)),
                 information: mean_information(&values),
-                predicted: bin
-                    .iter()
-                    .map(|b| information(b.separation_of(adversary)))
-                    .sum::<f64>()
-                    / bin.len() as f64,
+                predicted: predicted_information(&bin, adversary),
             });
         }
         from = to;
@@ -220,11 +226,7 @@ pub fn figures(
         controller_calibration: calibration(&all, |b| b.controller),
         eve_calibration: calibration(&all, |b| b.llr_of(adversary)),
         eve_information: mean_information(&values),
-        eve_information_predicted: all
-            .iter()
-            .map(|b| information(b.separation_of(adversary)))
-            .sum::<f64>()
-            / all.len().max(1) as f64,
+        eve_information_predicted: predicted_information(&all, adversary),
         turn_bins,
         assumed_separation: largest_separation(runs),
         jx_mm: 1e3 * mean(&jx),
