@@ -91,9 +91,8 @@ pub fn eve(args: EveArgs) -> Result<()> {
             "--strategy {}: does not apply in sensing.mode = {} (allowed: {})",
             s.name(),
             config.sensing.mode.name(),
-            EveStrategy::ALL
+            EveStrategy::of_mode(config.sensing.mode)
                 .iter()
-                .filter(|a| a.mode() == config.sensing.mode)
                 .map(|a| a.name())
                 .collect::<Vec<_>>()
                 .join(", ")
@@ -214,10 +213,7 @@ fn errors_of(config: &Config, strategy: EveStrategy, explicit: Option<ModelError
 /// `--strategy`, or every strategy of `mode`.
 fn simulated_strategies(args: &EveArgs, mode: SensingMode) -> Vec<EveStrategy> {
     if args.strategy.is_empty() {
-        EveStrategy::ALL
-            .into_iter()
-            .filter(|s| s.mode() == mode)
-            .collect()
+        EveStrategy::of_mode(mode)
     } else {
         args.strategy.iter().map(|&s| s.into()).collect()
     }

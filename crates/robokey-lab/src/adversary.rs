@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 use robokey::Config;
-use robokey::config::EveStrategy;
+use robokey::config::{EveStrategy, SensingMode};
 use robokey::eve::{Eavesdropper, Eve, starting_errors};
 use robokey::protocol::{KeyBits, Message, Outcome, SessionPlan, StepDecision};
 use robokey::rng::{Purpose, stream};
@@ -288,12 +288,25 @@ pub struct Campaign {
 /// deterministic.
 ///
 /// # Errors
-/// A session aborted.
+/// A strategy of private sensing (they decide from doublets, not from odometry: see
+/// `secrecy::private::eavesdroppers`), a private-sensing config, or a session aborted.
 pub fn run_campaigns(
     config: &Config,
     strategies: &[EveStrategy],
     campaigns: u32,
 ) -> Result<Campaign, LabError> {
+    if let Some(s) = strategies
+        .iter()
+        .find(|s| s.mode() != SensingMode::Odometry || config.sensing.mode != SensingMode::Odometry)
+    {
+        return Err(LabError::SensingMode(format!(
+            "eavesdropping campaigns follow the odometry mode's learning eavesdroppers; the {} \
+             eavesdropper in sensing.mode = {} does not apply (allowed: oracle, mismatch, soft, \
+             identify, transcript in odometry mode)",
+            s.name(),
+            config.sensing.mode.name()
+        )));
+    }
     let per = config.eve.sessions;
     let heard = simulate_sessions(config, 0..campaigns.saturating_mul(per))?;
     let jobs: Vec<(u32, EveStrategy)> = (0..campaigns)

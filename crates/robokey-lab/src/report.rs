@@ -30,7 +30,8 @@ fn adversary_section(out: &Path) -> Result<String, LabError> {
     use crate::adversary::{campaign_body, campaigns_summary, run_campaigns, write_campaign};
     use robokey::config::EveStrategy;
     let config = robokey::Config::default();
-    let campaign = run_campaigns(&config, &EveStrategy::ALL, EVE_CAMPAIGNS)?;
+    let strategies = EveStrategy::of_mode(config.sensing.mode);
+    let campaign = run_campaigns(&config, &strategies, EVE_CAMPAIGNS)?;
     write_campaign(&out.join("eve"), &campaign)?;
     Ok(format!(
         "\n## Adversaries that try harder\n\n### One campaign\n\n{}{}",

@@ -3,7 +3,7 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use robokey::Config;
-use robokey::config::EveStrategy;
+use robokey::config::{EveStrategy, SensingMode};
 use robokey::eve::{Eavesdropper, Eve, ModelErrors};
 use robokey::protocol::SessionPlan;
 use robokey::sim::{simulate_plan, simulate_transcript};
@@ -31,7 +31,7 @@ fn eavesdroppers(c: &mut Criterion) {
     };
     let mut group = c.benchmark_group("eve session");
     group.throughput(Throughput::Elements(u64::from(plan.steps)));
-    for strategy in EveStrategy::ALL {
+    for strategy in EveStrategy::of_mode(SensingMode::Odometry) {
         group.bench_function(strategy.name(), |b| {
             b.iter(|| {
                 let mut eve = Eve::new(&config, strategy, errors);

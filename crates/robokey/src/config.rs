@@ -343,6 +343,12 @@ impl EveStrategy {
         Self::Commands,
     ];
 
+    /// The strategies that apply in `mode`, in the order of [`Self::ALL`].
+    #[must_use]
+    pub fn of_mode(mode: SensingMode) -> Vec<Self> {
+        Self::ALL.into_iter().filter(|s| s.mode() == mode).collect()
+    }
+
     /// The mode whose sessions this strategy listens to.
     #[must_use]
     pub fn mode(self) -> SensingMode {

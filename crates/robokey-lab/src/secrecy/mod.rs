@@ -101,7 +101,7 @@ pub fn default_adversaries(mode: SensingMode) -> Vec<EveStrategy> {
             EveStrategy::Identify,
             EveStrategy::Mismatch,
         ],
-        SensingMode::Private => vec![EveStrategy::Camera, EveStrategy::Commands],
+        SensingMode::Private => EveStrategy::of_mode(SensingMode::Private),
     }
 }
 
