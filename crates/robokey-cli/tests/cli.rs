@@ -149,9 +149,25 @@ fn reproduce_quick_writes_a_parseable_report_and_sweep_agrees() {
         assert!(csv.records().all(|r| r.is_ok()));
         let _: toml::Table = read(&folder.join("config.resolved.toml")).parse().unwrap();
     }
-    for figure in ["dv-acceptance", "dv-jx", "eve-disagreement", "trajectory"] {
-        assert!(read(&out.join("figures").join(format!("{figure}.svg"))).contains("<svg"));
-        assert!(out.join("figures").join(format!("{figure}.png")).exists());
+    for figure in [
+        "dv-acceptance",
+        "dv-correct",
+        "dv-jx",
+        "eve-error-accepted",
+        "trajectory",
+    ] {
+        let base = out.join("figures").join(figure);
+        assert!(read(&base.with_extension("svg")).contains("<svg"));
+        assert!(base.with_extension("png").exists());
+        assert!(
+            std::fs::read(base.with_extension("pdf"))
+                .unwrap()
+                .starts_with(b"%PDF")
+        );
+        assert!(
+            read(&base.with_extension("csv")).lines().count() > 1,
+            "{figure}"
+        );
     }
     // The private-sensing section: sentences from the numbers, each figure with its CSV.
     assert!(

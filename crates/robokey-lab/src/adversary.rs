@@ -648,11 +648,7 @@ fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
         .iter()
         .map(|run| windowed_error_rates(&run.periods, window))
         .collect();
-    let line = |label: String, points: Vec<(f64, f64)>, style| Series {
-        label,
-        points,
-        style,
-    };
+    let line = |label: String, points: Vec<(f64, f64)>, style| Series::new(label, points, style);
     let per_strategy = |value: fn(&(u64, f64, f64)) -> f64| -> Vec<Series> {
         campaign
             .runs

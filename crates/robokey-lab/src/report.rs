@@ -8,10 +8,11 @@ use robokey::sim::TraceRow;
 
 use crate::error::LabError;
 use crate::files::write;
-use crate::plot::{BoxChart, BoxGroup, LineChart, Series, SeriesStyle};
+use crate::plot::{BoxChart, BoxGroup, Interval, LineChart, Series, SeriesStyle};
 use crate::runner::{RunRecord, Shard, run_experiment};
 use crate::stats::{Summary, TrendTest, spearman_permutation_test};
 use crate::sweep::{Experiment, experiments_from_table};
+use robokey_secrecy::interval::clopper_pearson;
 
 /// The paper's experiment suite, embedded so that `reproduce` needs no file.
 pub const PAPER_TOML: &str = include_str!("../../../experiments/paper.toml");
@@ -123,27 +124,27 @@ pub fn trajectory_figure(
     let take = steps.map_or(usize::MAX, |s| s + 1);
     let mut series: Vec<Series> = paths
         .iter()
-        .map(|(label, rows)| Series {
-            label: (*label).to_owned(),
-            points: rows
-                .iter()
-                .take(take)
-                .map(|r| (r.pose[0], r.pose[1]))
-                .collect(),
-            style: SeriesStyle::Line,
+        .map(|(label, rows)| {
+            Series::new(
+                (*label).to_owned(),
+                rows.iter()
+                    .take(take)
+                    .map(|r| (r.pose[0], r.pose[1]))
+                    .collect(),
+                SeriesStyle::Line,
+            )
         })
         .collect();
     // The reference last, on top of the robot paths.
     if let Some((_, rows)) = paths.first() {
-        series.push(Series {
-            label: "reference".into(),
-            points: rows
-                .iter()
+        series.push(Series::new(
+            "reference",
+            rows.iter()
                 .take(take)
                 .map(|r| (r.reference[0], r.reference[1]))
                 .collect(),
-            style: SeriesStyle::Dashed,
-        });
+            SeriesStyle::Dashed,
+        ));
     }
     let chart = LineChart {
         title: "Trajectory".into(),
@@ -175,6 +176,55 @@ fn column(
                 .find(|(f, _)| f == field)
                 .and_then(|(_, v)| v.as_float())?;
             Some((x, metric(&r.metrics)?))
+        })
+        .collect()
+}
+
+/// Eve's error on the accepted key bits per value of `field` (× 100, as %), pooled over the
+/// runs: `(x, rate %, low %, high %)` with a two-sided 95 % Clopper–Pearson interval, from
+/// the joint counts `n_acc` (s, ŝc, ŝa) of each run.
+fn accepted_errors(
+    experiment: &Experiment,
+    records: &[RunRecord],
+    field: &str,
+) -> Vec<(f64, f64, f64, f64)> {
+    let mut pooled: Vec<(f64, u64, u64)> = Vec::new();
+    for r in records {
+        let Some(x) = experiment.points[r.point]
+            .params
+            .iter()
+            .find(|(f, _)| f == field)
+            .and_then(|(_, v)| v.as_float())
+        else {
+            continue;
+        };
+        let Some(counts) = r.metrics.n_acc else {
+            continue;
+        };
+        // Index s·4 + ŝc·2 + ŝa: Eve is wrong where ŝa ≠ s.
+        let wrong: u64 = (0..8)
+            .filter(|i| (i >> 2) != (i & 1))
+            .map(|i| counts[i])
+            .sum();
+        let total: u64 = counts.iter().sum();
+        match pooled.iter_mut().find(|p| p.0 == 100.0 * x) {
+            Some(p) => {
+                p.1 += wrong;
+                p.2 += total;
+            }
+            None => pooled.push((100.0 * x, wrong, total)),
+        }
+    }
+    pooled
+        .into_iter()
+        .filter_map(|(x, wrong, total)| {
+            let ci = clopper_pearson(wrong, total, 0.95).ok()?;
+            Some((
+                x,
+                100.0 * wrong as f64 / total as f64,
+                100.0 * ci.lower,
+                100.0 * ci.upper,
+            ))
         })
         .collect()
 }
@@ -315,28 +365,34 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
         .collect();
     let baseline_median = median_of(&baseline_jx);
     box_chart(
-        "Accepted and correct key bits against Δv",
+        "Accepted codewords against Δv",
         "Δv (m/s)",
-        "%",
-        vec![
-            BoxGroup {
-                label: "accepted %".into(),
-                boxes: boxes(&accepted),
-            },
-            BoxGroup {
-                label: "correct %".into(),
-                boxes: boxes(&correct),
-            },
-        ],
+        "accepted (%)",
+        vec![BoxGroup {
+            label: "accepted %".into(),
+            boxes: boxes(&accepted),
+        }],
         Vec::new(),
         &figures.join("dv-acceptance"),
     )?;
+    // On its own axis: near 100 %, it would be squashed beside the accepted share.
     box_chart(
-        "Tracking error J_x against Δv",
+        "Correct accepted key bits against Δv",
         "Δv (m/s)",
-        "J_x (mm)",
+        "correct (%)",
         vec![BoxGroup {
-            label: "J_x, protocol on".into(),
+            label: "correct %".into(),
+            boxes: boxes(&correct),
+        }],
+        Vec::new(),
+        &figures.join("dv-correct"),
+    )?;
+    box_chart(
+        "Tracking error Jₓ against Δv",
+        "Δv (m/s)",
+        "Jₓ (mm)",
+        vec![BoxGroup {
+            label: "Jₓ, protocol on".into(),
             boxes: boxes(&jx),
         }],
         baseline_median
@@ -351,17 +407,30 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
             .into_iter()
             .map(|(a, d)| (100.0 * a, d))
             .collect();
-    box_chart(
-        "Eve's disagreement with the controller's key against her model error α",
-        "α (%)",
-        "Eve disagreement (%)",
-        vec![BoxGroup {
-            label: "Eve disagreement %".into(),
-            boxes: boxes(&disagreement),
+    let eve_errors = accepted_errors(eve, eve_runs, alpha_field);
+    LineChart {
+        title: "Eve's error on the accepted key bits against her model error α".into(),
+        x_label: "α (%)".into(),
+        y_label: "Eve wrong on accepted bits (%), 95 % Clopper–Pearson".into(),
+        series: vec![Series {
+            intervals: eve_errors
+                .iter()
+                .map(|&(x, _, low, high)| Interval { x, low, high })
+                .collect(),
+            ..Series::new(
+                format!("Eve (pooled over {} runs per α)", eve.replicates()),
+                eve_errors.iter().map(|&(x, rate, ..)| (x, rate)).collect(),
+                SeriesStyle::Line,
+            )
         }],
-        Vec::new(),
-        &figures.join("eve-disagreement"),
-    )?;
+        equal_aspect: false,
+        log_y: false,
+    }
+    .save(&figures.join("eve-error-accepted"))
+    .map_err(|e| LabError::Plot {
+        path: figures.join("eve-error-accepted"),
+        message: e.to_string(),
+    })?;
     let lap_steps = trajectory.points[0]
         .config
         .trajectory
@@ -376,7 +445,7 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
             let on = trajectory.points[r.point].config.protocol.enabled;
             Some((
                 if on {
-                    "robot, protocol on (Δv = 0.035)"
+                    "robot, protocol on (Δv = 0.035 m/s)"
                 } else {
                     "robot, protocol off"
                 },
@@ -457,7 +526,7 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
         "\nMedians over {replicates} runs per point. Protocol off: J_x median {} mm.\n",
         fmt(baseline_median, 1)
     );
-    let _ = writeln!(md, "![accepted and correct](figures/dv-acceptance.svg)\n");
+    let _ = writeln!(md, "![accepted](figures/dv-acceptance.svg)\n");
     let _ = writeln!(
         md,
         "{}\n",
@@ -469,6 +538,7 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
             1.0
         )
     );
+    let _ = writeln!(md, "![correct](figures/dv-correct.svg)\n");
     let _ = writeln!(
         md,
         "{} Wrong accepted bits are rare but possible at any Δv (≈ 0.03 per run at 0.035), so the paper's \
@@ -481,7 +551,7 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
             1.0
         )
     );
-    let _ = writeln!(md, "![J_x](figures/dv-jx.svg)\n");
+    let _ = writeln!(md, "![Jₓ](figures/dv-jx.svg)\n");
     let _ = writeln!(
         md,
         "{}\n",
@@ -494,13 +564,22 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
         )
     );
     let _ = writeln!(md, "## Eve against her model error α (Δv = 0.035)\n");
-    let _ = writeln!(md, "| α (%) | Eve disagreement %, median | max |");
-    let _ = writeln!(md, "|---|---|---|");
+    let _ = writeln!(
+        md,
+        "| α (%) | Eve disagreement %, median | max | Eve wrong on accepted bits %, pooled [95 % CI] |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|");
     for (a, d) in boxes(&disagreement) {
         let s = Summary::of(&d);
+        let pooled = eve_errors
+            .iter()
+            .find(|e| e.0 == a)
+            .map_or("–".into(), |e| {
+                format!("{:.3} [{:.3}, {:.3}]", e.1, e.2, e.3)
+            });
         let _ = writeln!(
             md,
-            "| {a:.0} | {} | {} |",
+            "| {a:.0} | {} | {} | {pooled} |",
             fmt(s.map(|s| s.median), 2),
             fmt(s.map(|s| s.max), 2)
         );
@@ -510,7 +589,7 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
             fmt(s.map(|s| s.median), 2)
         );
     }
-    let _ = writeln!(md, "\n![Eve](figures/eve-disagreement.svg)\n");
+    let _ = writeln!(md, "\n![Eve](figures/eve-error-accepted.svg)\n");
     let _ = writeln!(
         md,
         "{} Under the paper's eavesdropper model (docs/protocol.md) an error on r only biases Eve's nominal v by e_r·v (≤ 8.8 mm/s at 10 %, against \

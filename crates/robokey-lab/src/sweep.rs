@@ -230,6 +230,61 @@ impl Experiment {
     }
 }
 
+/// How people read a swept field: its name, its unit, and the factor from config units.
+struct Reading {
+    name: &'static str,
+    unit: &'static str,
+    scale: f64,
+}
+
+fn reading(field: &str) -> Option<Reading> {
+    let (name, unit, scale) = match field {
+        "protocol.delta_v" => ("Δv", "m/s", 1.0),
+        "protocol.delta_omega" => ("Δω", "rad/s", 1.0),
+        "protocol.bits_per_doublet" => ("bits per doublet", "", 1.0),
+        "eve.alpha" => ("Eve's model error α", "%", 100.0),
+        "eve.camera_std" => ("Eve's camera noise", "mm", 1e3),
+        "noise.process_std" => ("motion noise", "mm", 1e3),
+        "sensing.controller_std" => ("controller sensor noise", "mm", 1e3),
+        _ => return None,
+    };
+    Some(Reading { name, unit, scale })
+}
+
+/// A parameter value as a number in the units people read (`field`'s scale; the first
+/// component of an array), if numeric.
+#[must_use]
+pub fn param_number(field: &str, value: &toml::Value) -> Option<f64> {
+    let first = match value {
+        toml::Value::Array(a) => a.first()?,
+        other => other,
+    };
+    let x = first
+        .as_float()
+        .or_else(|| first.as_integer().map(|i| i as f64))?;
+    Some(x * reading(field).map_or(1.0, |r| r.scale))
+}
+
+/// An axis label with its unit, e.g. "Δv (m/s)"; the field itself when unknown.
+#[must_use]
+pub fn axis_label(field: &str) -> String {
+    match reading(field) {
+        Some(r) if r.unit.is_empty() => r.name.to_owned(),
+        Some(r) => format!("{} ({})", r.name, r.unit),
+        None => field.to_owned(),
+    }
+}
+
+/// A parameter for a legend, e.g. "motion noise 4 mm"; `field = value` when unknown.
+#[must_use]
+pub fn param_label(field: &str, value: &toml::Value) -> String {
+    match (reading(field), param_number(field, value)) {
+        (Some(r), Some(x)) if r.unit.is_empty() => format!("{x} {}", r.name),
+        (Some(r), Some(x)) => format!("{} {x} {}", r.name, r.unit),
+        _ => format!("{field} = {}", value_text(value)),
+    }
+}
+
 /// `field = value, …` for messages.
 #[must_use]
 pub fn describe(params: &[(String, toml::Value)]) -> String {

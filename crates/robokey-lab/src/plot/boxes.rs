@@ -5,8 +5,11 @@ use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
+use super::glyph::Glyph;
+use super::line::SeriesStyle;
 use super::{
-    Axes, FONT, Figure, PALETTE, PlotError, chart_on, legend_corner, padded_range, save_both,
+    Axes, FONT, Figure, PALETTE, PlotError, chart_on, csv_text, legend_corner, padded_range,
+    save_all,
 };
 use crate::stats::Summary;
 
@@ -88,12 +91,12 @@ impl BoxChart {
             .collect()
     }
 
-    /// Writes `base.svg` and `base.png`.
+    /// Writes `base.svg`, `base.png`, `base.pdf` and `base.csv`.
     ///
     /// # Errors
     /// A file cannot be written.
     pub fn save(&self, base: &Path) -> Result<Vec<PathBuf>, PlotError> {
-        save_both(base, (1000, 640), self)
+        save_all(base, (1000, 640), self)
     }
 }
 
@@ -179,8 +182,12 @@ impl Figure for BoxChart {
                 ))
                 .map_err(|e| e.to_string())?
                 .label(label)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(2))
+                .legend(move |at| Glyph {
+                    at,
+                    shape: None,
+                    color,
+                    grow: 0,
+                    legend: Some(SeriesStyle::Dashed),
                 });
         }
         chart
@@ -201,6 +208,26 @@ impl Figure for BoxChart {
             ))
             .draw()
             .map_err(|e| e.to_string())
+    }
+
+    fn csv(&self) -> String {
+        let mut out = String::from("group,x,count,min,q1,median,q3,max,mean\n");
+        for (group, boxes) in self.groups.iter().zip(self.geometry()) {
+            let label = csv_text(&group.label);
+            // The unshifted x of each box: the group's own x values, in order.
+            let xs = group.boxes.iter().filter(|b| Summary::of(&b.1).is_some());
+            for ((x, _), b) in xs.zip(boxes) {
+                let s = b.summary;
+                out.push_str(&format!(
+                    "{label},{x},{},{},{},{},{},{},{}\n",
+                    s.count, s.min, s.q1, s.median, s.q3, s.max, s.mean
+                ));
+            }
+        }
+        for (label, y) in &self.reference_lines {
+            out.push_str(&format!("{},,,,,{y},,,\n", csv_text(label)));
+        }
+        out
     }
 }
 
@@ -249,13 +276,28 @@ mod tests {
     }
 
     #[test]
-    fn saves_svg_and_png() {
+    fn saves_svg_png_pdf_and_csv() {
         let dir = std::env::temp_dir().join(format!("robokey-plot-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let files = chart().save(&dir.join("boxes")).unwrap();
         let svg = std::fs::read_to_string(&files[0]).unwrap();
         assert!(svg.contains("Test box chart"));
         assert!(std::fs::metadata(&files[1]).unwrap().len() > 1000);
+        let pdf = std::fs::read(&files[2]).unwrap();
+        assert!(pdf.starts_with(b"%PDF"));
+        // The bundled font is embedded (subset), not referenced.
+        assert!(pdf.windows(8).any(|w| w == b"FontFile"), "no embedded font");
+        let csv = std::fs::read_to_string(&files[3]).unwrap();
+        assert_eq!(
+            csv.lines().collect::<Vec<_>>(),
+            [
+                "group,x,count,min,q1,median,q3,max,mean",
+                "\"a\",0.02,4,1,1.75,2.5,3.25,4,2.5",
+                "\"a\",0.03,3,5,6,7,8,9,7",
+                "\"b\",0.02,1,2,2,2,2,2,2",
+                "\"ref\",,,,,6,,,",
+            ]
+        );
         let empty = BoxChart {
             groups: Vec::new(),
             ..chart()

@@ -1,11 +1,17 @@
-//! Line charts: trajectories (equal aspect) and time series.
+//! Line charts: trajectories (equal aspect), time series and curves with intervals. Every
+//! series has its colour and its marker shape, in the legend too, so that curves lying on
+//! top of each other stay identifiable; dashed series are dashed in the legend as well.
 
 use std::path::{Path, PathBuf};
 
+use plotters::element::DynElement;
+
+use super::glyph::Glyph;
 use plotters::prelude::*;
 
 use super::{
-    Axes, FONT, Figure, PALETTE, PlotError, chart_on, legend_corner, padded_range, save_both,
+    Axes, FONT, Figure, PALETTE, PlotError, chart_on, csv_text, legend_corner, padded_range,
+    save_all,
 };
 
 /// How a series is drawn.
@@ -19,6 +25,17 @@ pub enum SeriesStyle {
     Markers,
 }
 
+/// A vertical interval at `x` (e.g. a 95 % confidence interval), in the series' units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Interval {
+    /// Where (x units).
+    pub x: f64,
+    /// Lower end.
+    pub low: f64,
+    /// Upper end.
+    pub high: f64,
+}
+
 /// One named series of `(x, y)` points.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Series {
@@ -28,6 +45,21 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
     /// Drawing style.
     pub style: SeriesStyle,
+    /// Intervals drawn as bars with caps in the series' colour (may be empty).
+    pub intervals: Vec<Interval>,
+}
+
+impl Series {
+    /// A series without intervals.
+    #[must_use]
+    pub fn new(label: impl Into<String>, points: Vec<(f64, f64)>, style: SeriesStyle) -> Self {
+        Self {
+            label: label.into(),
+            points,
+            style,
+            intervals: Vec::new(),
+        }
+    }
 }
 
 /// A chart of line series.
@@ -48,7 +80,7 @@ pub struct LineChart {
 }
 
 impl LineChart {
-    /// Writes `base.svg` and `base.png`.
+    /// Writes `base.svg`, `base.png`, `base.pdf` and `base.csv`.
     ///
     /// # Errors
     /// A file cannot be written.
@@ -58,9 +90,12 @@ impl LineChart {
         } else {
             (1000, 640)
         };
-        save_both(base, size, self)
+        save_all(base, size, self)
     }
 }
+
+/// Markers along a line: about this many per series.
+const MARKERS_PER_LINE: usize = 12;
 
 impl Figure for LineChart {
     fn draw<DB: DrawingBackend>(
@@ -68,14 +103,32 @@ impl Figure for LineChart {
         root: &DrawingArea<DB, plotters::coord::Shift>,
     ) -> Result<(), String> {
         let log_y = self.log_y;
+        let scale = |y: f64| if log_y { y.log10() } else { y };
         let finite = |s: &Series| -> Vec<(f64, f64)> {
             s.points
                 .iter()
-                .map(|&(x, y)| (x, if log_y { y.log10() } else { y }))
+                .map(|&(x, y)| (x, scale(y)))
                 .filter(|(x, y)| x.is_finite() && y.is_finite())
                 .collect()
         };
-        let all: Vec<(f64, f64)> = self.series.iter().flat_map(finite).collect();
+        let bars = |s: &Series| -> Vec<(f64, f64, f64)> {
+            s.intervals
+                .iter()
+                .map(|i| (i.x, scale(i.low), scale(i.high)))
+                .filter(|(x, lo, hi)| x.is_finite() && lo.is_finite() && hi.is_finite())
+                .collect()
+        };
+        let all: Vec<(f64, f64)> = self
+            .series
+            .iter()
+            .flat_map(|s| {
+                finite(s).into_iter().chain(
+                    bars(s)
+                        .into_iter()
+                        .flat_map(|(x, lo, hi)| [(x, lo), (x, hi)]),
+                )
+            })
+            .collect();
         let (mut x_range, mut y_range) = (
             padded_range(all.iter().map(|p| p.0)),
             padded_range(all.iter().map(|p| p.1)),
@@ -99,25 +152,58 @@ impl Figure for LineChart {
                 y_log10: log_y,
             },
         )?;
+        let cap = 0.006 * (x_range.1 - x_range.0);
         for (i, series) in self.series.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
-            let style = color.stroke_width(2);
+            // Earlier series are drawn wider, so that series lying on top of each other
+            // show as nested stripes rather than hiding one another.
+            let grow = (self.series.len() - 1 - i).min(3) as u32;
+            let style = color.stroke_width(2 + grow);
             let points = finite(series);
-            let anno = match series.style {
-                SeriesStyle::Line => chart.draw_series(LineSeries::new(points, style)),
-                SeriesStyle::Dashed => {
-                    chart.draw_series(DashedLineSeries::new(points, 8, 6, style))
+            let mut elements: Vec<DynElement<'static, DB, (f64, f64)>> = Vec::new();
+            for (x, lo, hi) in bars(series) {
+                elements.push(PathElement::new(vec![(x, lo), (x, hi)], style).into_dyn());
+                for y in [lo, hi] {
+                    elements
+                        .push(PathElement::new(vec![(x - cap, y), (x + cap, y)], style).into_dyn());
                 }
-                SeriesStyle::Markers => chart.draw_series(
-                    points
-                        .into_iter()
-                        .map(|p| Circle::new(p, 3, color.filled())),
-                ),
+            }
+            let every = match series.style {
+                SeriesStyle::Markers => 1,
+                _ => (points.len() / MARKERS_PER_LINE).max(1),
+            };
+            elements.extend(points.iter().step_by(every).map(|&at| {
+                Glyph {
+                    at,
+                    shape: Some(i),
+                    color,
+                    grow: grow as i32,
+                    legend: None,
+                }
+                .into_dyn()
+            }));
+            match series.style {
+                SeriesStyle::Line => chart
+                    .draw_series(LineSeries::new(points.clone(), style))
+                    .map(|_| ()),
+                SeriesStyle::Dashed => chart
+                    .draw_series(DashedLineSeries::new(points.clone(), 8, 6, style))
+                    .map(|_| ()),
+                SeriesStyle::Markers => Ok(()),
             }
             .map_err(|e| e.to_string())?;
-            anno.label(&series.label).legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(2))
-            });
+            let kind = series.style;
+            chart
+                .draw_series(elements)
+                .map_err(|e| e.to_string())?
+                .label(&series.label)
+                .legend(move |at| Glyph {
+                    at,
+                    shape: Some(i),
+                    color,
+                    grow: 0,
+                    legend: Some(kind),
+                });
         }
         chart
             .configure_series_labels()
@@ -127,5 +213,21 @@ impl Figure for LineChart {
             .position(legend_corner(&all, x_range, y_range))
             .draw()
             .map_err(|e| e.to_string())
+    }
+
+    fn csv(&self) -> String {
+        let mut out = String::from("series,x,y,low,high\n");
+        for series in &self.series {
+            let label = csv_text(&series.label);
+            for &(x, y) in &series.points {
+                let interval = series.intervals.iter().find(|i| i.x == x);
+                out.push_str(&format!(
+                    "{label},{x},{y},{},{}\n",
+                    interval.map_or(String::new(), |i| i.low.to_string()),
+                    interval.map_or(String::new(), |i| i.high.to_string()),
+                ));
+            }
+        }
+        out
     }
 }

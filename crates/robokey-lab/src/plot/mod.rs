@@ -1,8 +1,10 @@
-//! Figures as SVG and PNG, drawn with plotters and a bundled font (DejaVu Sans, licence in
-//! `assets/DejaVuSans.LICENSE`), so no system fonts are needed. Box plots are drawn from
-//! primitives with [`crate::stats::Summary`]: plotters' own whiskers are wrong.
+//! Figures as SVG, PNG and vector PDF, each with the CSV of what it draws, drawn with
+//! plotters and a bundled font (DejaVu Sans, licence in `assets/DejaVuSans.LICENSE`,
+//! embedded in the PDF), so no system fonts are needed. Box plots are drawn from primitives
+//! with [`crate::stats::Summary`]: plotters' own whiskers are wrong.
 
 mod boxes;
+mod glyph;
 mod line;
 
 use std::path::{Path, PathBuf};
@@ -12,6 +14,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 pub use boxes::{BoxChart, BoxGeometry, BoxGroup};
+pub use line::Interval;
 pub use line::{LineChart, Series, SeriesStyle};
 
 /// A figure could not be drawn or written.
@@ -31,24 +34,29 @@ pub enum PlotError {
 /// Font family name under which the bundled font is registered.
 const FONT: &str = "sans-serif";
 
+/// The bundled font.
+const FONT_BYTES: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+
 /// Registers the bundled font once.
 fn register_font() {
     static DONE: OnceLock<()> = OnceLock::new();
     DONE.get_or_init(|| {
-        let bytes: &'static [u8] = include_bytes!("../../assets/DejaVuSans.ttf");
         // The bundled file is a valid TrueType font; failure would be a packaging bug.
-        let _ = plotters::style::register_font(FONT, FontStyle::Normal, bytes);
+        let _ = plotters::style::register_font(FONT, FontStyle::Normal, FONT_BYTES);
     });
 }
 
-/// Series colours, colour-blind safe (Okabe–Ito).
-const PALETTE: [RGBColor; 6] = [
+/// Series colours, colour-blind safe (Okabe–Ito), ordered so that the similar pairs (blue
+/// and sky blue, vermilion and orange) are as far apart as eight colours allow.
+const PALETTE: [RGBColor; 8] = [
     RGBColor(0, 114, 178),
     RGBColor(213, 94, 0),
     RGBColor(0, 158, 115),
+    RGBColor(0, 0, 0),
     RGBColor(204, 121, 167),
     RGBColor(230, 159, 0),
     RGBColor(86, 180, 233),
+    RGBColor(240, 228, 66),
 ];
 
 /// Something drawable on any plotters backend.
@@ -58,10 +66,34 @@ trait Figure {
         &self,
         root: &DrawingArea<DB, plotters::coord::Shift>,
     ) -> Result<(), String>;
+
+    /// The data drawn, as CSV with a header, for people who restyle the figure.
+    fn csv(&self) -> String;
 }
 
-/// Draws `figure` into `base.svg` and `base.png` of `size` pixels.
-fn save_both(
+/// A CSV text field: quoted, inner quotes doubled.
+fn csv_text(text: &str) -> String {
+    format!("\"{}\"", text.replace('"', "\"\""))
+}
+
+/// A PDF of `svg` with the bundled font embedded (vector: nothing rasterised).
+fn svg_to_pdf(svg: &str) -> Result<Vec<u8>, String> {
+    let mut options = svg2pdf::usvg::Options::default();
+    let fonts = options.fontdb_mut();
+    fonts.load_font_data(FONT_BYTES.to_vec());
+    fonts.set_sans_serif_family("DejaVu Sans");
+    let tree = svg2pdf::usvg::Tree::from_str(svg, &options).map_err(|e| e.to_string())?;
+    svg2pdf::to_pdf(
+        &tree,
+        svg2pdf::ConversionOptions::default(),
+        svg2pdf::PageOptions::default(),
+    )
+    .map_err(|e| e.to_string())
+}
+
+/// Draws `figure` into `base.svg`, `base.png` (of `size` pixels) and `base.pdf`, and
+/// writes its data to `base.csv`.
+fn save_all(
     base: &Path,
     size: (u32, u32),
     figure: &impl Figure,
@@ -83,7 +115,13 @@ fn save_both(
         figure.draw(&root).map_err(|m| fail(&png, m))?;
         root.present().map_err(|e| fail(&png, e.to_string()))?;
     }
-    Ok(vec![svg, png])
+    let pdf = base.with_extension("pdf");
+    let drawn = std::fs::read_to_string(&svg).map_err(|e| fail(&svg, e.to_string()))?;
+    std::fs::write(&pdf, svg_to_pdf(&drawn).map_err(|m| fail(&pdf, m))?)
+        .map_err(|e| fail(&pdf, e.to_string()))?;
+    let csv = base.with_extension("csv");
+    std::fs::write(&csv, figure.csv()).map_err(|e| fail(&csv, e.to_string()))?;
+    Ok(vec![svg, png, pdf, csv])
 }
 
 /// The axes every chart shares.
@@ -112,28 +150,38 @@ fn chart_on<'a, DB: DrawingBackend>(
         .y_label_area_size(75)
         .build_cartesian_2d(axes.x.0..axes.x.1, axes.y.0..axes.y.1)
         .map_err(|e| e.to_string())?;
-    let ticks_of_log10 = |v: &f64| format!("{}", significant(10f64.powf(*v)));
+    let ticks_of_log10 = |v: &f64| tick_label(10f64.powf(*v), 2);
+    let ticks = |v: &f64| tick_label(*v, 6);
     let mut mesh = chart.configure_mesh();
     mesh.x_desc(axes.x_label)
         .y_desc(axes.y_label)
         .label_style((FONT, 15))
         .axis_desc_style((FONT, 18))
         .x_labels(axes.x_ticks)
+        .x_label_formatter(&ticks)
         .light_line_style(WHITE.mix(0.0));
     if axes.y_log10 {
         mesh.y_label_formatter(&ticks_of_log10);
+    } else {
+        mesh.y_label_formatter(&ticks);
     }
     mesh.draw().map_err(|e| e.to_string())?;
     Ok(chart)
 }
 
-/// `x` rounded to two significant digits.
-fn significant(x: f64) -> f64 {
+/// `x` rounded to `digits` significant digits, written without a trailing `.0` (a tick at
+/// 1000 reads "1000", not "1000.0").
+fn tick_label(x: f64, digits: i32) -> String {
     if x == 0.0 || !x.is_finite() {
-        return x;
+        return format!("{x}");
     }
-    let scale = 10f64.powi(1 - x.abs().log10().floor() as i32);
-    (x * scale).round() / scale
+    let scale = 10f64.powi(digits - 1 - x.abs().log10().floor() as i32);
+    let rounded = (x * scale).round() / scale;
+    if rounded.fract() == 0.0 && rounded.abs() < 1e15 {
+        format!("{rounded:.0}")
+    } else {
+        format!("{rounded}")
+    }
 }
 
 /// A `[lo, hi]` range covering `values` with a 5 % margin (a unit span when degenerate).
@@ -178,4 +226,18 @@ fn legend_corner(points: &[(f64, f64)], x: (f64, f64), y: (f64, f64)) -> SeriesL
                 .count()
         })
         .map_or(SeriesLabelPosition::UpperRight, |r| r.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tick_labels_have_no_spurious_decimals() {
+        assert_eq!(tick_label(1000.0, 6), "1000");
+        assert_eq!(tick_label(0.30000000000000004, 6), "0.3");
+        assert_eq!(tick_label(0.035, 6), "0.035");
+        assert_eq!(tick_label(10f64.powf(-3.0), 2), "0.001");
+        assert_eq!(tick_label(0.0, 6), "0");
+    }
 }

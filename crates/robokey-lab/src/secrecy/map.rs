@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use super::PointSecrecy;
 use crate::error::LabError;
-use crate::sweep::{Experiment, value_text};
+use crate::sweep::{Experiment, param_label};
 
 /// The swept field of Eve's camera noise.
 pub const CAMERA_FIELD: &str = "eve.camera_std";
@@ -74,25 +74,6 @@ pub struct PrivateMap {
     pub paper_jx_mm: f64,
     /// The commands eavesdropper's turn-rate bins over every point she was run on.
     pub leak: Vec<LeakBin>,
-}
-
-/// A short name for a swept parameter, for legends.
-fn short(field: &str, value: &toml::Value) -> String {
-    let first_mm = |v: &toml::Value| {
-        v.as_array()
-            .and_then(|a| a.first())
-            .and_then(toml::Value::as_float)
-            .map(|x| format!("{} mm", 1e3 * x))
-    };
-    match field {
-        "noise.process_std" => first_mm(value).map(|m| format!("motion {m}")),
-        "sensing.controller_std" => first_mm(value).map(|m| format!("sensor {m}")),
-        "protocol.delta_v" => Some(format!("Δv {} m/s", value_text(value))),
-        "protocol.delta_omega" => Some(format!("Δω {} rad/s", value_text(value))),
-        "protocol.bits_per_doublet" => Some(format!("{} bit/doublet", value_text(value))),
-        _ => None,
-    }
-    .unwrap_or_else(|| format!("{field} = {}", value_text(value)))
 }
 
 /// Where a curve of `(camera noise, rate)` sorted by noise reaches zero: the largest noise
@@ -160,7 +141,7 @@ pub fn private_map(
                 .params
                 .iter()
                 .filter(|(f, _)| f != CAMERA_FIELD)
-                .map(|(f, v)| short(f, v))
+                .map(|(f, v)| param_label(f, v))
                 .collect::<Vec<_>>()
                 .join(", ");
             let label = if label.is_empty() {
@@ -259,8 +240,15 @@ mod tests {
     #[test]
     fn legends_name_the_physics() {
         let mm4: toml::Value = toml::Value::Array(vec![0.004.into(); 3]);
-        assert_eq!(short("noise.process_std", &mm4), "motion 4 mm");
-        assert_eq!(short("protocol.delta_v", &0.035.into()), "Δv 0.035 m/s");
-        assert_eq!(short("run.seed", &7.into()), "run.seed = 7");
+        assert_eq!(param_label("noise.process_std", &mm4), "motion noise 4 mm");
+        assert_eq!(
+            param_label("protocol.delta_v", &0.035.into()),
+            "Δv 0.035 m/s"
+        );
+        assert_eq!(
+            param_label("eve.alpha", &0.05.into()),
+            "Eve's model error α 5 %"
+        );
+        assert_eq!(param_label("run.seed", &7.into()), "run.seed = 7");
     }
 }

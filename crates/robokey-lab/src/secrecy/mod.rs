@@ -187,8 +187,6 @@ pub struct PointSecrecy {
     pub point_index: usize,
     /// The point's parameters, `field = value, …`.
     pub point: String,
-    /// The grid point's x value for figures (the first swept field), if numeric.
-    pub x: Option<f64>,
     /// The adversary.
     pub adversary: String,
     /// Its class: strongest, learning or restricted.
@@ -444,9 +442,6 @@ fn analyze_point(
     Ok(PointSecrecy {
         point_index: point,
         point: describe(params),
-        x: params
-            .first()
-            .and_then(|(_, v)| v.as_float().or_else(|| v.as_integer().map(|i| i as f64))),
         adversary: adversary.name().to_owned(),
         adversary_class: class,
         holds_against: holds_against(adversary),

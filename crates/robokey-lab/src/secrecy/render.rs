@@ -11,7 +11,7 @@ use super::{PointSecrecy, Rate, SecrecyOptions};
 use crate::error::LabError;
 use crate::files::write;
 use crate::plot::{LineChart, Series, SeriesStyle};
-use crate::sweep::Experiment;
+use crate::sweep::{Experiment, axis_label, param_label, param_number};
 
 /// A CSV field: quoted, inner quotes doubled.
 fn quoted(text: &str) -> String {
@@ -236,45 +236,65 @@ pub fn write_secrecy(
     if !rows.is_empty() {
         files.push(write(&dir.join("turn-rates.csv"), turn_rates_csv(&rows))?);
     }
-    let axis = experiment
-        .axes
-        .first()
-        .map_or_else(|| "point".to_owned(), |a| a.field.clone());
-    let mut names: Vec<&str> = Vec::new();
+    // x: the first axis in the units people read; one series per adversary and setting of
+    // the other axes (a multi-axis sweep drawn against its first axis alone is a sawtooth).
+    let axis = experiment.axes.first().map(|a| a.field.as_str());
+    let x_of = |r: &PointSecrecy| {
+        let (field, value) = experiment.points[r.point_index].params.first()?;
+        param_number(field, value)
+    };
+    let setting = |r: &PointSecrecy| {
+        experiment.points[r.point_index].params[1.min(experiment.axes.len())..]
+            .iter()
+            .map(|(f, v)| param_label(f, v))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut series: Vec<Series> = Vec::new();
     for r in results {
-        if !names.contains(&r.adversary.as_str()) {
-            names.push(&r.adversary);
+        let context = setting(r);
+        let label = format!(
+            "vs {} Eve ({}){}",
+            r.adversary,
+            r.adversary_class.name(),
+            if context.is_empty() {
+                String::new()
+            } else {
+                format!(", {context}")
+            }
+        );
+        let Some(x) = x_of(r) else { continue };
+        match series.iter_mut().find(|s| s.label == label) {
+            Some(s) => s.points.push((x, r.secret_bits_per_step)),
+            None => series.push(Series::new(
+                label,
+                vec![(x, r.secret_bits_per_step)],
+                SeriesStyle::Line,
+            )),
         }
     }
-    let mut series: Vec<Series> = names
+    let mut raw: Vec<Series> = Vec::new();
+    for r in results
         .iter()
-        .map(|&name| {
-            let class = results
-                .iter()
-                .find(|r| r.adversary == name)
-                .map_or("", |r| r.adversary_class.name());
-            Series {
-                label: format!("secret bits/step vs {name} Eve ({class})"),
-                points: results
-                    .iter()
-                    .filter(|r| r.adversary == name)
-                    .filter_map(|r| Some((r.x?, r.secret_bits_per_step)))
-                    .collect(),
-                style: SeriesStyle::Line,
-            }
-        })
-        .collect();
-    if let Some(&first) = names.first() {
-        series.push(Series {
-            label: "raw agreed bits/step".into(),
-            points: results
-                .iter()
-                .filter(|r| r.adversary == first)
-                .filter_map(|r| Some((r.x?, r.raw_bits_per_step)))
-                .collect(),
-            style: SeriesStyle::Dashed,
-        });
+        .filter(|r| r.adversary == results[0].adversary)
+    {
+        let context = setting(r);
+        let label = if context.is_empty() {
+            "raw agreed bits".to_owned()
+        } else {
+            format!("raw agreed bits, {context}")
+        };
+        let Some(x) = x_of(r) else { continue };
+        match raw.iter_mut().find(|s| s.label == label) {
+            Some(s) => s.points.push((x, r.raw_bits_per_step)),
+            None => raw.push(Series::new(
+                label,
+                vec![(x, r.raw_bits_per_step)],
+                SeriesStyle::Dashed,
+            )),
+        }
     }
+    series.extend(raw);
     if series.iter().any(|s| !s.points.is_empty()) {
         let chart = LineChart {
             title: format!(
@@ -282,8 +302,8 @@ pub fn write_secrecy(
                 4.0 * options.epsilon,
                 options.block_bits
             ),
-            x_label: axis,
-            y_label: "bits per step".into(),
+            x_label: axis.map_or_else(|| "point".to_owned(), axis_label),
+            y_label: "bits per robot step".into(),
             series,
             equal_aspect: false,
             log_y: false,

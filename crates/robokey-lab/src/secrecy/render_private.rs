@@ -8,8 +8,7 @@ use super::Rate;
 use super::map::{CameraCurve, ParetoPoint, PrivateMap};
 use super::private::{Calibration, PrivateFigures};
 use crate::error::LabError;
-use crate::files::write;
-use crate::plot::{LineChart, Series, SeriesStyle};
+use crate::plot::{Interval, LineChart, Series, SeriesStyle};
 
 /// One row to render: where it comes from and its figures.
 pub struct PrivateRow<'a> {
@@ -214,59 +213,49 @@ fn save(chart: &LineChart, base: &Path) -> Result<Vec<PathBuf>, LabError> {
     })
 }
 
-/// Writes the map's figures, each with the CSV of what it draws, into `dir`.
+/// Writes the map's figures into `dir` (each with the CSV of what it draws).
 ///
 /// # Errors
 /// A file cannot be written.
 pub fn write_map(dir: &Path, map: &PrivateMap) -> Result<Vec<PathBuf>, LabError> {
     let mut files = Vec::new();
+    let chart = |title: &str, x_label: &str, y_label: &str, series: Vec<Series>| LineChart {
+        title: title.into(),
+        x_label: x_label.into(),
+        y_label: y_label.into(),
+        series,
+        equal_aspect: false,
+        log_y: false,
+    };
     if !map.camera.is_empty() {
-        let mut csv = String::from("setting,camera_mm,secret_bits_per_second\n");
-        let mut series = Vec::new();
-        for curve in &map.camera {
-            for p in &curve.points {
-                csv.push_str(&format!("\"{}\",{},{}\n", curve.label, p.0, p.1));
-            }
-            series.push(Series {
-                label: curve.label.clone(),
-                points: curve.points.clone(),
-                style: SeriesStyle::Line,
-            });
-        }
+        let mut series: Vec<Series> = map
+            .camera
+            .iter()
+            .map(|c| Series::new(c.label.clone(), c.points.clone(), SeriesStyle::Line))
+            .collect();
         let breaks: Vec<(f64, f64)> = map
             .camera
             .iter()
             .filter_map(|c| c.break_even.map(|b| (b.zero_at, 0.0)))
             .collect();
         if !breaks.is_empty() {
-            series.push(Series {
-                label: "break-even (within one grid step above)".into(),
-                points: breaks,
-                style: SeriesStyle::Markers,
-            });
+            series.push(Series::new(
+                "break-even (within one grid step above)",
+                breaks,
+                SeriesStyle::Markers,
+            ));
         }
-        files.push(write(&dir.join("private-rate-vs-camera.csv"), csv)?);
         files.extend(save(
-            &LineChart {
-                title: "Secret bits per second against Eve's camera noise".into(),
-                x_label: "Eve's camera noise per sample instant (mm)".into(),
-                y_label: "secret bits per second".into(),
+            &chart(
+                "Secret bits per second against Eve's camera noise",
+                "Eve's camera noise per sample instant (mm)",
+                "secret bits per second",
                 series,
-                equal_aspect: false,
-                log_y: false,
-            },
+            ),
             &dir.join("private-rate-vs-camera"),
         )?);
     }
     if map.pareto.len() > 1 {
-        let mut csv = String::from("point,jx_mm,secret_bits_per_second,on_front\n");
-        for p in &map.pareto {
-            csv.push_str(&format!(
-                "\"{}\",{},{},{}\n",
-                p.point, p.jx_mm, p.bits_per_second, p.on_front
-            ));
-        }
-        csv.push_str(&format!("\"paper's scheme\",{},0,false\n", map.paper_jx_mm));
         let mut front: Vec<(f64, f64)> = map
             .pareto
             .iter()
@@ -274,79 +263,68 @@ pub fn write_map(dir: &Path, map: &PrivateMap) -> Result<Vec<PathBuf>, LabError>
             .map(|p| (p.jx_mm, p.bits_per_second))
             .collect();
         front.sort_by(|a, b| a.0.total_cmp(&b.0));
-        files.push(write(&dir.join("private-pareto.csv"), csv)?);
+        let every = map
+            .pareto
+            .iter()
+            .map(|p| (p.jx_mm, p.bits_per_second))
+            .collect();
         files.extend(save(
-            &LineChart {
-                title: "Secret rate against tracking cost".into(),
-                x_label: "tracking error J_x (mm)".into(),
-                y_label: "secret bits per second".into(),
-                series: vec![
-                    Series {
-                        label: "private sensing, every point".into(),
-                        points: map
-                            .pareto
-                            .iter()
-                            .map(|p| (p.jx_mm, p.bits_per_second))
-                            .collect(),
-                        style: SeriesStyle::Markers,
-                    },
-                    Series {
-                        label: "Pareto front".into(),
-                        points: front,
-                        style: SeriesStyle::Line,
-                    },
-                    Series {
-                        label: "the paper's scheme (0 by structure)".into(),
-                        points: vec![(map.paper_jx_mm, 0.0)],
-                        style: SeriesStyle::Markers,
-                    },
+            &chart(
+                "Secret rate against tracking cost",
+                "tracking error Jₓ (mm)",
+                "secret bits per second",
+                vec![
+                    Series::new("private sensing, every point", every, SeriesStyle::Markers),
+                    Series::new("Pareto front", front, SeriesStyle::Line),
+                    Series::new(
+                        "the paper's scheme (0 by structure)",
+                        vec![(map.paper_jx_mm, 0.0)],
+                        SeriesStyle::Markers,
+                    ),
                 ],
-                equal_aspect: false,
-                log_y: false,
-            },
+            ),
             &dir.join("private-pareto"),
         )?);
     }
     if !map.leak.is_empty() {
-        let mut csv = String::from(
-            "predicted_information,measured_information,measured_low,measured_high,bits\n",
-        );
-        for b in &map.leak {
-            csv.push_str(&format!(
-                "{},{},{},{},{}\n",
-                b.predicted, b.measured[0], b.measured[1], b.measured[2], b.bits
-            ));
-        }
         let top = map
             .leak
             .iter()
             .map(|b| b.predicted.max(b.measured[0]))
             .fold(0.0, f64::max);
-        files.push(write(&dir.join("private-leak.csv"), csv)?);
+        let measured = Series {
+            intervals: map
+                .leak
+                .iter()
+                .map(|b| Interval {
+                    x: b.predicted,
+                    low: b.measured[1],
+                    high: b.measured[2],
+                })
+                .collect(),
+            ..Series::new(
+                "turn-rate bins (commands Eve), 95 % intervals",
+                map.leak
+                    .iter()
+                    .map(|b| (b.predicted, b.measured[0]))
+                    .collect(),
+                SeriesStyle::Markers,
+            )
+        };
         files.extend(save(
-            &LineChart {
-                title: "What the commands leak: measured against the model".into(),
-                x_label: "predicted information per bit (bits)".into(),
-                y_label: "measured information per bit (bits)".into(),
-                series: vec![
-                    Series {
-                        label: "turn-rate bins (commands Eve)".into(),
-                        points: map
-                            .leak
-                            .iter()
-                            .map(|b| (b.predicted, b.measured[0]))
-                            .collect(),
-                        style: SeriesStyle::Markers,
-                    },
-                    Series {
-                        label: "measured = predicted".into(),
-                        points: vec![(0.0, 0.0), (top, top)],
-                        style: SeriesStyle::Dashed,
-                    },
+            &chart(
+                "What the commands leak: measured against the model",
+                "predicted information per bit (bits)",
+                "measured information per bit (bits)",
+                vec![
+                    measured,
+                    Series::new(
+                        "measured = predicted",
+                        vec![(0.0, 0.0), (top, top)],
+                        SeriesStyle::Dashed,
+                    ),
                 ],
-                equal_aspect: false,
-                log_y: false,
-            },
+            ),
             &dir.join("private-leak"),
         )?);
     }
