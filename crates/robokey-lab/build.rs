@@ -14,7 +14,14 @@ fn main() {
             |o| String::from_utf8_lossy(&o.stdout).trim().to_owned(),
         );
     let dirty = Command::new("git")
-        .args(["status", "--porcelain", "--untracked-files=no"])
+        // Without optional locks git does not refresh (rewrite) the index, which would make
+        // the next build rerun this script and rebuild the crate for nothing.
+        .args([
+            "--no-optional-locks",
+            "status",
+            "--porcelain",
+            "--untracked-files=no",
+        ])
         .output()
         .ok()
         .is_some_and(|o| !o.stdout.is_empty());

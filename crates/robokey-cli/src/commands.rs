@@ -73,11 +73,10 @@ pub fn run(args: RunArgs) -> Result<()> {
     overrides.flag("eve.enabled", args.no_eve.then_some(false));
     overrides.flag("protocol.enabled", args.protocol_off.then_some(false));
     let config = overrides.load(args.config.as_deref())?;
+    prepare_output(&args.out, args.force)?;
     let started = Instant::now();
     let output = robokey::sim::simulate(&config, args.replicate, true)?;
     let elapsed = started.elapsed();
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create", args.out.display()))?;
     let mut json = trace::metrics_json(&output.metrics);
     json.insert("replicate".into(), args.replicate.into());
     json.insert("seed".into(), config.run.seed.into());

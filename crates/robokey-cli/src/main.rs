@@ -89,9 +89,12 @@ struct RunArgs {
     protocol_off: bool,
     #[command(flatten)]
     options: ConfigOptions,
-    /// Output folder.
+    /// Output folder (refused when not empty, unless --force).
     #[arg(long, short, default_value = "robokey-out/run")]
     out: PathBuf,
+    /// Empty a non-empty output folder of an earlier run first.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args, Debug)]

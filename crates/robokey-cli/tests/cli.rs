@@ -55,6 +55,15 @@ fn run_prints_metrics_and_writes_its_files() {
     assert_eq!(read(&dir.join("trace.csv")).lines().count(), 1022);
     assert!(read(&dir.join("trajectory.svg")).contains("<svg"));
     assert!(dir.join("trajectory.png").exists());
+    // A second run into the same folder: refused, then emptied and rewritten with --force.
+    std::fs::write(dir.join("stale.csv"), "old").unwrap();
+    let refused = fails(&["run", "--out", s(&dir)]);
+    assert!(
+        refused.contains("not empty") && refused.contains("--force"),
+        "{refused}"
+    );
+    ok(&["run", "--force", "--out", s(&dir)]);
+    assert!(!dir.join("stale.csv").exists());
 }
 
 #[test]

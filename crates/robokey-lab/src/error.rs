@@ -29,8 +29,15 @@ pub enum LabError {
     #[error(transparent)]
     Sim(#[from] robokey::sim::SimError),
     /// An output folder already holds results.
-    #[error("{0}: the folder is not empty (pass --force to overwrite)")]
+    #[error("{0}: the folder is not empty (pass --force to empty it and write anew)")]
     NotEmpty(PathBuf),
+    /// `--force` on a folder that does not hold robokey's output.
+    #[error(
+        "{0}: --force empties only folders holding robokey's output (a manifest.json, \
+         config.resolved.toml, report.md, metrics.json or secrecy.json); this one has none: \
+         choose another --out"
+    )]
+    NotOutput(PathBuf),
     /// An adversary or option that does not apply in the experiment's sensing mode.
     #[error("{0}")]
     SensingMode(String),
