@@ -69,7 +69,7 @@ pub struct EveArgs {
     /// when given).
     #[arg(long, short)]
     out: Option<PathBuf>,
-    /// Worker threads (0: one per core). Results do not depend on it.
+    /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
     /// Overwrite a non-empty output folder.

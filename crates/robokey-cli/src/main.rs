@@ -106,7 +106,7 @@ struct SweepArgs {
     /// Output folder (a suite writes one subfolder per experiment).
     #[arg(long, short, default_value = "robokey-out/sweep")]
     out: PathBuf,
-    /// Worker threads (0: one per core). Results do not depend on it.
+    /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
     /// Run only shard m of n (1-based, round-robin over runs); merge with `robokey merge`.
@@ -135,7 +135,7 @@ struct ReproduceArgs {
     /// Output folder.
     #[arg(long, short, default_value = "robokey-out/reproduce")]
     out: PathBuf,
-    /// Worker threads (0: one per core). Results do not depend on it.
+    /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
     /// 3 replicates per point instead of 10.
@@ -185,7 +185,7 @@ struct SecrecyArgs {
     /// reported beside it either way.
     #[arg(long, value_name = "P")]
     assume_eve_error: Option<f64>,
-    /// Worker threads (0: one per core). Results do not depend on it.
+    /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
 }

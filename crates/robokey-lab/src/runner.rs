@@ -134,11 +134,14 @@ pub fn run_experiment(experiment: &Experiment, shard: Shard) -> Result<Vec<RunRe
     records
 }
 
-/// Runs `f` on a rayon pool of `jobs` threads (0: one per core).
+/// Runs `f` on a rayon pool of `jobs` threads (0: one per core; never more than one per core).
 ///
 /// # Errors
 /// The pool cannot be built.
 pub fn with_jobs<T: Send>(jobs: usize, f: impl FnOnce() -> T + Send) -> Result<T, LabError> {
+    // More threads than cores only add overhead to this CPU-bound work.
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let jobs = if jobs == 0 { cores } else { jobs.min(cores) };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(jobs)
         .build()

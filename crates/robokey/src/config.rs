@@ -7,6 +7,13 @@ use crate::code::{BlockCode, Repetition, hamming74};
 use crate::observer::Variant;
 use crate::trajectory::{SQUARE, Trajectory};
 
+/// Most steps one session may have (a session holds its trace and key in memory).
+pub const MAX_STEPS: u64 = 10_000_000;
+/// Most trajectory waypoints.
+pub const MAX_WAYPOINTS: usize = 10_000;
+/// Most replicates per grid point.
+pub const MAX_REPLICATES: u32 = 1_000_000;
+
 /// The whole configuration of a run.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -587,6 +594,26 @@ impl Config {
         if traj.laps < 1 {
             return Err(invalid("trajectory.laps", traj.laps, "≥ 1"));
         }
+        if traj.waypoints.len() > MAX_WAYPOINTS {
+            return Err(invalid(
+                "trajectory.waypoints",
+                traj.waypoints.len(),
+                &format!("at most {MAX_WAYPOINTS} points"),
+            ));
+        }
+        // Bounded before the trajectory is built: an open polyline adds one return segment.
+        let steps = traj.waypoints.len() as f64 * f64::from(traj.laps) * traj.side_time
+            / robot.sample_time;
+        if steps > MAX_STEPS as f64 {
+            return Err(invalid(
+                "trajectory.laps",
+                traj.laps,
+                &format!(
+                    "at most {MAX_STEPS} steps per session (waypoints × laps × side_time / \
+                     robot.T ≈ {steps:.3e} here)"
+                ),
+            ));
+        }
         if self.trajectory().steps(robot.sample_time) == 0 {
             return Err(invalid(
                 "trajectory.side_time",
@@ -701,8 +728,12 @@ impl Config {
                 "[0, 100] percentage points",
             ));
         }
-        if self.run.replicates < 1 {
-            return Err(invalid("run.replicates", self.run.replicates, "≥ 1"));
+        if !(1..=MAX_REPLICATES).contains(&self.run.replicates) {
+            return Err(invalid(
+                "run.replicates",
+                self.run.replicates,
+                &format!("1 to {MAX_REPLICATES}"),
+            ));
         }
         Ok(())
     }
