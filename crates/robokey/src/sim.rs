@@ -418,3 +418,108 @@ fn compute_metrics(
         n_acc,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use sha2::{Digest, Sha256};
+
+    use super::*;
+    use crate::config::{EveStrategy, Feedback};
+    use crate::observer::Variant;
+
+    /// The configurations whose runs are pinned: the default, m = 1, the paper's variant,
+    /// feedback from the estimate, and the soft and identifying eavesdroppers.
+    fn pinned_configs() -> Vec<(&'static str, Config)> {
+        let with = |edit: fn(&mut Config)| {
+            let mut config = Config::default();
+            edit(&mut config);
+            config.validate().expect("a valid pinned configuration");
+            config
+        };
+        vec![
+            ("default", Config::default()),
+            ("m=1", with(|c| c.observer.m = 1)),
+            ("paper", with(|c| c.observer.variant = Variant::Paper)),
+            (
+                "estimate",
+                with(|c| c.controller.feedback = Feedback::Estimate),
+            ),
+            ("soft", with(|c| c.eve.strategy = Some(EveStrategy::Soft))),
+            (
+                "identify",
+                with(|c| c.eve.strategy = Some(EveStrategy::Identify)),
+            ),
+            ("dv=0.01", with(|c| c.protocol.delta_v = 0.01)),
+            ("alpha=0.3", with(|c| c.eve.alpha = 0.3)),
+        ]
+    }
+
+    /// SHA-256 (first 8 bytes, hex) of every decision, key and metric of replicates 0–2
+    /// (real numbers to 9 significant digits) and of the controller's `d̂` and `x̂` (to 6).
+    fn fingerprint(config: &Config) -> String {
+        let mut hash = Sha256::new();
+        for replicate in 0..3 {
+            let out = simulate(config, replicate, true).expect("the pinned runs complete");
+            for row in &out.trace {
+                for x in row.dhat.iter().flatten().chain(row.xhat.iter().flatten()) {
+                    hash.update(format!("{x:.5e}"));
+                }
+            }
+            for s in &out.steps {
+                hash.update([
+                    s.bit.unwrap_or(9),
+                    s.bhat.unwrap_or(9),
+                    s.bhat_eve.unwrap_or(9),
+                ]);
+            }
+            hash.update(out.keys.robot.as_slice());
+            hash.update(out.keys.controller.as_slice());
+            if let Some(eve) = &out.keys.eve {
+                hash.update(eve.as_slice());
+            }
+            let m = &out.metrics;
+            let real = |x: Option<f64>| x.map_or_else(|| "-".into(), |x| format!("{x:.9e}"));
+            hash.update(format!(
+                "{:?} {:?} {} {} {} {} {} {} {} {:?} {:?} {:?}",
+                m.codewords_sent,
+                m.accepted,
+                real(m.accepted_pct),
+                real(m.correct_pct),
+                real(m.ber_controller),
+                real(m.ber_eve),
+                real(Some(m.jx)),
+                real(m.eve_disagreement_pct),
+                real(m.accepted_pct),
+                m.key_match,
+                m.n_bce,
+                m.n_acc
+            ));
+        }
+        hash.finalize()[..8]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
+    }
+
+    /// Whole runs keep every decision, key and metric (recorded before the observer and the
+    /// simulation loop were rewritten for speed, docs/speed.md).
+    #[test]
+    fn pinned_runs_keep_their_decisions_keys_and_metrics() {
+        let got: Vec<String> = pinned_configs()
+            .iter()
+            .map(|(name, config)| format!("{name} {}", fingerprint(config)))
+            .collect();
+        assert_eq!(got.join("\n"), PINNED.trim());
+    }
+
+    const PINNED: &str = "
+default b430a4a2ebbec88f
+m=1 8dfc3212a670aefb
+paper eaa14f0a00b2a279
+estimate 0142c4a09e0b7394
+soft b430a4a2ebbec88f
+identify f28af9b932546d1a
+dv=0.01 eb2af466b7c3bc55
+alpha=0.3 5af0a2a0aba0e6f1
+";
+}
