@@ -1,6 +1,8 @@
 //! Closed-loop simulation of one run: plant with true noise, robot and controller
 //! endpoints exchanging every message, and the eavesdropper listening (docs/model.md, docs/protocol.md, docs/experiments.md).
 
+use std::collections::VecDeque;
+
 use rand_distr::{Distribution, StandardNormal};
 use subtle::ConstantTimeEq;
 
@@ -90,7 +92,7 @@ impl TraceRow {
 pub struct RunOutput {
     /// The metrics of docs/experiments.md.
     pub metrics: Metrics,
-    /// Per-step rows (empty unless requested).
+    /// Per-step rows (empty unless requested from [`simulate`] or [`simulate_plan`]).
     pub trace: Vec<TraceRow>,
     /// How the session ended for the robot.
     pub robot_outcome: Option<Outcome>,
@@ -165,7 +167,89 @@ pub fn simulate_plan(
     replicate: u32,
     record_trace: bool,
 ) -> Result<RunOutput, SimError> {
-    run(config, plan, replicate, record_trace, None)
+    if !record_trace {
+        return run(config, plan, replicate, None, None);
+    }
+    let mut trace = Vec::new();
+    let mut output = run(
+        config,
+        plan,
+        replicate,
+        Some(&mut |row| trace.push(row)),
+        None,
+    )?;
+    output.trace = trace;
+    Ok(output)
+}
+
+/// [`simulate_plan`] that hands each row of the trace to `sink` as soon as it is complete,
+/// in order of k, instead of keeping them: memory does not grow with the number of steps.
+/// The output's `trace` is empty.
+///
+/// # Errors
+/// [`SimError`] when the session aborts (the rows before the abort have been handed over).
+pub fn simulate_plan_streaming(
+    config: &Config,
+    plan: SessionPlan,
+    replicate: u32,
+    sink: &mut dyn FnMut(TraceRow),
+) -> Result<RunOutput, SimError> {
+    run(config, plan, replicate, Some(sink), None)
+}
+
+/// The rows of a trace still being filled in, between the simulation and its sink. Each
+/// step writes its own row and, in private mode, its neighbours (a doublet spans two steps
+/// and is decided at the sample after it); [`TraceRows::complete_before`] hands over the
+/// rows no later step writes.
+pub(crate) struct TraceRows<'a> {
+    sink: Option<&'a mut dyn FnMut(TraceRow)>,
+    /// Rows `first, first + 1, …` not handed over yet.
+    open: VecDeque<TraceRow>,
+    first: usize,
+}
+
+impl<'a> TraceRows<'a> {
+    /// Rows for `sink`; none are kept without one.
+    pub(crate) fn new(sink: Option<&'a mut dyn FnMut(TraceRow)>) -> Self {
+        Self {
+            sink,
+            open: VecDeque::new(),
+            first: 0,
+        }
+    }
+
+    /// Row `k`, when a trace is recorded.
+    ///
+    /// # Panics
+    /// When row `k` was already handed over (a simulation bug).
+    pub(crate) fn row(&mut self, k: usize) -> Option<&mut TraceRow> {
+        self.sink.as_ref()?;
+        let index = k
+            .checked_sub(self.first)
+            .expect("a trace row is written after it was handed over");
+        if index >= self.open.len() {
+            self.open.resize_with(index + 1, TraceRow::default);
+        }
+        Some(&mut self.open[index])
+    }
+
+    /// Hands every row before `k` to the sink.
+    pub(crate) fn complete_before(&mut self, k: usize) {
+        let Some(sink) = self.sink.as_mut() else {
+            return;
+        };
+        while self.first < k {
+            sink(self.open.pop_front().unwrap_or_default());
+            self.first += 1;
+        }
+    }
+}
+
+impl Drop for TraceRows<'_> {
+    /// The rows still open are complete once the simulation has ended.
+    fn drop(&mut self) {
+        self.complete_before(self.first + self.open.len());
+    }
 }
 
 /// [`simulate`] that also returns every message in the order an eavesdropper hears it, so
@@ -179,7 +263,7 @@ pub fn simulate_transcript(
 ) -> Result<(RunOutput, Vec<Message>), SimError> {
     let mut transcript = Vec::new();
     let plan = SessionPlan::from_config(config, replicate);
-    let output = run(config, plan, replicate, false, Some(&mut transcript))?;
+    let output = run(config, plan, replicate, None, Some(&mut transcript))?;
     Ok((output, transcript))
 }
 
@@ -187,11 +271,12 @@ fn run(
     config: &Config,
     plan: SessionPlan,
     replicate: u32,
-    record_trace: bool,
+    trace_sink: Option<&mut dyn FnMut(TraceRow)>,
     mut transcript: Option<&mut Vec<Message>>,
 ) -> Result<RunOutput, SimError> {
+    let mut trace = TraceRows::new(trace_sink);
     if config.sensing.mode == SensingMode::Private {
-        return Ok(crate::private::simulate(config, replicate, record_trace));
+        return Ok(crate::private::simulate(config, replicate, &mut trace));
     }
     let seed = config.run.seed;
     let stream_of = |purpose| stream(seed, purpose, u64::from(replicate));
@@ -221,11 +306,6 @@ fn run(
     let mut controller = ControllerEndpoint::new(config, plan);
 
     let mut log = vec![StepBits::default(); steps as usize + 1];
-    let mut trace = if record_trace {
-        vec![TraceRow::default(); steps as usize + 1]
-    } else {
-        Vec::new()
-    };
     let mut pose = Pose::zeros();
     let mut tracking_error = 0.0;
     let mut outcomes = (None, None);
@@ -237,8 +317,7 @@ fn run(
             tracking_error += (pose.xy() - reference).norm();
         }
         let y = pose + gaussian(&mut measurement_rng, &measurement_std);
-        if record_trace {
-            let row = &mut trace[k as usize];
+        if let Some(row) = trace.row(k as usize) {
             row.k = k;
             row.t = f64::from(k) * sample_time;
             row.reference = reference.into();
@@ -259,16 +338,16 @@ fn run(
                         }
                         if let Some(d) = eve.as_mut().and_then(|eve| eve.observe(&message)) {
                             log[d.step as usize].bhat_eve = d.bit;
-                            if record_trace {
-                                trace[d.step as usize + 1].bhat_eve = d.bit;
+                            if let Some(row) = trace.row(d.step as usize + 1) {
+                                row.bhat_eve = d.bit;
                             }
                         }
                         controller.handle_input(ControllerInput::Frame(message));
                     }
                     RobotOutput::Apply(actuation) => {
                         log[actuation.step as usize].bit = actuation.bit;
-                        if record_trace {
-                            trace[actuation.step as usize].bit = actuation.bit;
+                        if let Some(row) = trace.row(actuation.step as usize) {
+                            row.bit = actuation.bit;
                         }
                         wheels = Some(actuation.wheels);
                     }
@@ -285,26 +364,27 @@ fn run(
                         if let Some(eve) = eve.as_mut() {
                             eve.observe(&message);
                         }
-                        if let (true, Message::Command { step, u0, u1, .. }) =
-                            (record_trace, &message)
+                        if let Message::Command { step, u0, u1, .. } = &message
+                            && let Some(row) = trace.row(*step as usize)
                         {
-                            trace[*step as usize].u0 = Some(*u0);
-                            trace[*step as usize].u1 = Some(*u1);
+                            row.u0 = Some(*u0);
+                            row.u1 = Some(*u1);
                         }
                         robot.handle_input(RobotInput::Frame(message));
                     }
                     ControllerOutput::Event(event) => match event {
                         ControllerEvent::Decoded(d) => {
                             log[d.step as usize].bhat = d.bit;
-                            if record_trace {
-                                let row = &mut trace[d.step as usize + 1];
+                            if let Some(row) = trace.row(d.step as usize + 1) {
                                 row.bhat = d.bit;
                                 row.dhat = Some(d.estimate.deviation.into());
                                 row.xhat = Some(d.estimate.state.into());
                             }
                         }
-                        ControllerEvent::Commanded { step, nominal } if record_trace => {
-                            trace[step as usize].nominal = Some(nominal.into());
+                        ControllerEvent::Commanded { step, nominal } => {
+                            if let Some(row) = trace.row(step as usize) {
+                                row.nominal = Some(nominal.into());
+                            }
                         }
                         ControllerEvent::Finished(outcome) => {
                             if let Outcome::Aborted(reason) = &outcome {
@@ -323,6 +403,8 @@ fn run(
         if let Some(reason) = abort {
             return Err(SimError::Aborted { replicate, reason });
         }
+        // Every message of step k has been delivered: no later step writes row k.
+        trace.complete_before(k as usize + 1);
         if k < steps {
             let applied = wheels.map_or_else(Unicycle::zeros, |w| {
                 drive.to_unicycle(clip_wheels(w, config.robot.wheel_limit))
@@ -347,7 +429,7 @@ fn run(
     );
     Ok(RunOutput {
         metrics,
-        trace,
+        trace: Vec::new(),
         robot_outcome: outcomes.0,
         controller_outcome: outcomes.1,
         steps: log,
