@@ -74,9 +74,27 @@ pub fn run(args: RunArgs) -> Result<()> {
     overrides.flag("protocol.enabled", args.protocol_off.then_some(false));
     let config = overrides.load(args.config.as_deref())?;
     prepare_output(&args.out, args.force)?;
+    // The trace goes to disk row by row (memory independent of N); the figure draws a
+    // decimated copy.
+    let trace_path = args.out.join("trace.csv");
+    let file = std::fs::File::create(&trace_path)
+        .with_context(|| format!("{}: cannot create", trace_path.display()))?;
+    let mut csv = trace::TraceCsv::new(std::io::BufWriter::new(file))?;
+    let mut written = Ok(());
+    let mut drawn = trace::DrawnRows::default();
+    let plan = robokey::protocol::SessionPlan::from_config(&config, args.replicate);
     let started = Instant::now();
-    let output = robokey::sim::simulate(&config, args.replicate, true)?;
+    let output =
+        robokey::sim::simulate_plan_streaming(&config, plan, args.replicate, &mut |row| {
+            if written.is_ok() {
+                written = csv.write(&row);
+            }
+            drawn.push(row);
+        })?;
     let elapsed = started.elapsed();
+    written
+        .and_then(|()| csv.finish().map(drop))
+        .with_context(|| format!("{}: cannot write", trace_path.display()))?;
     let mut json = trace::metrics_json(&output.metrics);
     json.insert("replicate".into(), args.replicate.into());
     json.insert("seed".into(), config.run.seed.into());
@@ -86,13 +104,25 @@ pub fn run(args: RunArgs) -> Result<()> {
             &args.out.join("metrics.json"),
             serde_json::to_string_pretty(&json)? + "\n",
         )?,
-        write(&args.out.join("trace.csv"), trace::trace_csv(&output.trace))?,
+        trace_path,
     ];
-    let figures = report::trajectory_figure(
-        &args.out.join("trajectory"),
-        &[("robot", &output.trace)],
-        None,
-    )?;
+    let paths = drawn.into_paths();
+    let labels: Vec<String> = match paths.as_slice() {
+        [_] => vec!["robot".into()],
+        _ => paths
+            .iter()
+            .map(|p| {
+                let k = |row: Option<&robokey::sim::TraceRow>| row.map_or(0, |r| r.k);
+                format!("robot, steps {}–{}", k(p.first()), k(p.last()))
+            })
+            .collect(),
+    };
+    let drawn: Vec<(&str, &[robokey::sim::TraceRow])> = labels
+        .iter()
+        .map(String::as_str)
+        .zip(paths.iter().map(Vec::as_slice))
+        .collect();
+    let figures = report::trajectory_figure(&args.out.join("trajectory"), &drawn, None)?;
     let proto = &config.protocol;
     println!(
         "robokey run: seed {}, replicate {}, Δv = {} m/s, Δω = {} rad/s, {}, {} ({:.1} ms)",

@@ -1,6 +1,8 @@
 //! `trace.csv` and `metrics.json` of one run.
 
-use std::fmt::Write as _;
+use std::collections::VecDeque;
+use std::fmt::{Display, Write as _};
+use std::io::{self, Write};
 
 use robokey::metrics::{MetricValue, Metrics};
 use robokey::private::PrivateRun;
@@ -9,36 +11,142 @@ use robokey::sim::TraceRow;
 /// `trace.csv`: N + 1 rows with exactly the columns of docs/experiments.md; undefined cells empty.
 #[must_use]
 pub fn trace_csv(rows: &[TraceRow]) -> String {
-    let mut out = TraceRow::COLUMNS.join(",");
-    out.push('\n');
-    for r in rows {
-        let cells: Vec<String> = [
-            vec![r.k.to_string(), r.t.to_string()],
-            floats(Some(&r.reference)),
-            floats(Some(&r.pose)),
-            floats(Some(&r.measurement)),
-            floats_or_empty(r.nominal.as_ref(), 2),
-            floats_or_empty(r.u0.as_ref(), 2),
-            floats_or_empty(r.u1.as_ref(), 2),
-            vec![opt(r.bit)],
-            floats_or_empty(r.dhat.as_ref(), 2),
-            floats_or_empty(r.xhat.as_ref(), 3),
-            vec![opt(r.bhat), opt(r.bhat_eve), opt(r.bit_omega)],
-            floats_or_empty(r.camera.as_ref(), 3),
-        ]
-        .concat();
-        out.push_str(&cells.join(","));
-        out.push('\n');
+    let mut csv = TraceCsv::new(Vec::new()).expect("writing to memory cannot fail");
+    for row in rows {
+        csv.write(row).expect("writing to memory cannot fail");
     }
-    out
+    String::from_utf8(csv.finish().expect("writing to memory cannot fail"))
+        .expect("the CSV is UTF-8")
 }
 
-fn floats(values: Option<&[f64]>) -> Vec<String> {
-    values.map_or_else(Vec::new, |v| v.iter().map(f64::to_string).collect())
+/// Writes `trace.csv` as the rows come, byte for byte what [`trace_csv`] returns: the header
+/// on creation, then one line per row.
+pub struct TraceCsv<W: Write> {
+    out: W,
+    line: String,
 }
 
-fn floats_or_empty<const N: usize>(values: Option<&[f64; N]>, n: usize) -> Vec<String> {
-    values.map_or_else(|| vec![String::new(); n], |v| floats(Some(v)))
+impl<W: Write> TraceCsv<W> {
+    /// Writes the header to `out`.
+    ///
+    /// # Errors
+    /// `out` fails.
+    pub fn new(mut out: W) -> io::Result<Self> {
+        writeln!(out, "{}", TraceRow::COLUMNS.join(","))?;
+        Ok(Self {
+            out,
+            line: String::new(),
+        })
+    }
+
+    /// Writes one row.
+    ///
+    /// # Errors
+    /// `out` fails.
+    pub fn write(&mut self, row: &TraceRow) -> io::Result<()> {
+        self.line.clear();
+        let mut cells = Cells {
+            line: &mut self.line,
+            first: true,
+        };
+        cells.value(row.k);
+        cells.value(row.t);
+        cells.reals(Some(&row.reference));
+        cells.reals(Some(&row.pose));
+        cells.reals(Some(&row.measurement));
+        cells.reals(row.nominal.as_ref());
+        cells.reals(row.u0.as_ref());
+        cells.reals(row.u1.as_ref());
+        cells.option(row.bit);
+        cells.reals(row.dhat.as_ref());
+        cells.reals(row.xhat.as_ref());
+        cells.option(row.bhat);
+        cells.option(row.bhat_eve);
+        cells.option(row.bit_omega);
+        cells.reals(row.camera.as_ref());
+        self.line.push('\n');
+        self.out.write_all(self.line.as_bytes())
+    }
+
+    /// Flushes and returns the writer.
+    ///
+    /// # Errors
+    /// `out` fails.
+    pub fn finish(mut self) -> io::Result<W> {
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
+/// The cells of one CSV line, comma-separated; an undefined value is an empty cell.
+struct Cells<'a> {
+    line: &'a mut String,
+    first: bool,
+}
+
+impl Cells<'_> {
+    fn value(&mut self, value: impl Display) {
+        if !std::mem::take(&mut self.first) {
+            self.line.push(',');
+        }
+        let _ = write!(self.line, "{value}");
+    }
+
+    fn option(&mut self, value: Option<impl Display>) {
+        match value {
+            Some(v) => self.value(v),
+            None => self.value(""),
+        }
+    }
+
+    fn reals<const N: usize>(&mut self, values: Option<&[f64; N]>) {
+        for i in 0..N {
+            self.option(values.map(|v| v[i]));
+        }
+    }
+}
+
+/// The rows a trajectory figure draws: the first [`DrawnRows::HALF`] and the last
+/// [`DrawnRows::HALF`]. A run of up to twice that is drawn whole; a longer one as its
+/// beginning and its end, so the figure stays readable and small at any N (thinning a
+/// path that repeats its laps would alias it) while `trace.csv` keeps every row.
+#[derive(Clone, Debug, Default)]
+pub struct DrawnRows {
+    first: Vec<TraceRow>,
+    last: VecDeque<TraceRow>,
+}
+
+impl DrawnRows {
+    /// Rows kept at each end.
+    pub const HALF: usize = 2048;
+
+    /// Offers the next row.
+    pub fn push(&mut self, row: TraceRow) {
+        if self.first.len() < Self::HALF {
+            self.first.push(row);
+            return;
+        }
+        if self.last.len() == Self::HALF {
+            self.last.pop_front();
+        }
+        self.last.push_back(row);
+    }
+
+    /// The paths to draw: one when no row was left out, else the beginning and the end.
+    #[must_use]
+    pub fn into_paths(self) -> Vec<Vec<TraceRow>> {
+        let contiguous = self
+            .last
+            .front()
+            .is_none_or(|r| Some(r.k) == self.first.last().map(|f| f.k + 1));
+        if contiguous {
+            let mut whole = self.first;
+            whole.extend(self.last);
+            vec![whole]
+        } else {
+            vec![self.first, self.last.into()]
+        }
+    }
 }
 
 fn opt<T: ToString>(value: Option<T>) -> String {
@@ -158,6 +266,57 @@ mod tests {
         let last: Vec<&str> = lines[1021].split(',').collect();
         assert_eq!((last[10], last[16]), ("", ""));
         assert_eq!(last[12], "0");
+    }
+
+    /// Streams a run's rows to `trace.csv` as the simulation hands them over.
+    fn streamed_csv(config: &robokey::Config) -> (String, DrawnRows) {
+        let plan = robokey::protocol::SessionPlan::from_config(config, 0);
+        let mut csv = TraceCsv::new(Vec::new()).unwrap();
+        let mut drawn = DrawnRows::default();
+        robokey::sim::simulate_plan_streaming(config, plan, 0, &mut |row| {
+            csv.write(&row).unwrap();
+            drawn.push(row);
+        })
+        .unwrap();
+        (String::from_utf8(csv.finish().unwrap()).unwrap(), drawn)
+    }
+
+    #[test]
+    fn streamed_trace_equals_the_one_kept_in_memory() {
+        let private = robokey::Config::from_toml(
+            "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\n",
+            "test",
+        )
+        .unwrap();
+        for config in [robokey::Config::default(), private] {
+            let kept = robokey::sim::simulate(&config, 0, true).unwrap().trace;
+            let (streamed, drawn) = streamed_csv(&config);
+            assert_eq!(streamed, trace_csv(&kept));
+            // Up to 2·DrawnRows::HALF rows, a figure draws every row.
+            assert_eq!(drawn.into_paths(), vec![kept]);
+        }
+    }
+
+    #[test]
+    fn drawn_rows_are_the_beginning_and_the_end() {
+        let mut drawn = DrawnRows::default();
+        let n = 10 * DrawnRows::HALF as u32;
+        for k in 0..=n {
+            drawn.push(TraceRow {
+                k,
+                ..TraceRow::default()
+            });
+        }
+        let paths = drawn.into_paths();
+        let ks: Vec<Vec<u32>> = paths
+            .iter()
+            .map(|p| p.iter().map(|r| r.k).collect())
+            .collect();
+        let half = DrawnRows::HALF as u32;
+        assert_eq!(
+            ks,
+            vec![(0..half).collect::<Vec<_>>(), (n + 1 - half..=n).collect()]
+        );
     }
 
     #[test]

@@ -602,8 +602,8 @@ impl Config {
             ));
         }
         // Bounded before the trajectory is built: an open polyline adds one return segment.
-        let steps = traj.waypoints.len() as f64 * f64::from(traj.laps) * traj.side_time
-            / robot.sample_time;
+        let steps =
+            traj.waypoints.len() as f64 * f64::from(traj.laps) * traj.side_time / robot.sample_time;
         if steps > MAX_STEPS as f64 {
             return Err(invalid(
                 "trajectory.laps",

@@ -65,14 +65,32 @@ pub fn clip_wheels(wheels: WheelSpeeds, limit: f64) -> WheelSpeeds {
     wheels.map(|w| w.clamp(-limit, limit))
 }
 
+/// `(sin θ, cos θ)` of a heading θ, computed once and shared by `f`, `A = ∂f/∂x` and
+/// `B = ∂f/∂u` at the same pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Heading {
+    /// `sin θ`.
+    pub sin: f64,
+    /// `cos θ`.
+    pub cos: f64,
+}
+
+impl Heading {
+    /// The heading of `pose`.
+    #[must_use]
+    pub fn of(pose: &Pose) -> Self {
+        let (sin, cos) = pose.z.sin_cos();
+        Self { sin, cos }
+    }
+}
+
 /// `B(θ) = ∂f/∂u = [[T cos θ, 0], [T sin θ, 0], [0, T]]`.
 #[must_use]
-pub fn input_matrix(theta: f64, sample_time: f64) -> Matrix3x2<f64> {
-    let (sin, cos) = theta.sin_cos();
+pub fn input_matrix(heading: Heading, sample_time: f64) -> Matrix3x2<f64> {
     Matrix3x2::new(
-        sample_time * cos,
+        sample_time * heading.cos,
         0.0,
-        sample_time * sin,
+        sample_time * heading.sin,
         0.0,
         0.0,
         sample_time,
@@ -82,10 +100,15 @@ pub fn input_matrix(theta: f64, sample_time: f64) -> Matrix3x2<f64> {
 /// The noise-free forward-Euler unicycle map `f(x, u)` of docs/model.md over one period `T` (s).
 #[must_use]
 pub fn unicycle_step(pose: &Pose, input: &Unicycle, sample_time: f64) -> Pose {
-    let (sin, cos) = pose.z.sin_cos();
+    unicycle_step_at(pose, Heading::of(pose), input, sample_time)
+}
+
+/// [`unicycle_step`] with the heading's trigonometry already known.
+#[must_use]
+pub fn unicycle_step_at(pose: &Pose, heading: Heading, input: &Unicycle, sample_time: f64) -> Pose {
     Pose::new(
-        pose.x + sample_time * input.x * cos,
-        pose.y + sample_time * input.x * sin,
+        pose.x + sample_time * input.x * heading.cos,
+        pose.y + sample_time * input.x * heading.sin,
         pose.z + sample_time * input.y,
     )
 }

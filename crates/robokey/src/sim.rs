@@ -1,6 +1,8 @@
 //! Closed-loop simulation of one run: plant with true noise, robot and controller
 //! endpoints exchanging every message, and the eavesdropper listening (docs/model.md, docs/protocol.md, docs/experiments.md).
 
+use std::collections::VecDeque;
+
 use rand_distr::{Distribution, StandardNormal};
 use subtle::ConstantTimeEq;
 
@@ -90,7 +92,7 @@ impl TraceRow {
 pub struct RunOutput {
     /// The metrics of docs/experiments.md.
     pub metrics: Metrics,
-    /// Per-step rows (empty unless requested).
+    /// Per-step rows (empty unless requested from [`simulate`] or [`simulate_plan`]).
     pub trace: Vec<TraceRow>,
     /// How the session ended for the robot.
     pub robot_outcome: Option<Outcome>,
@@ -165,7 +167,89 @@ pub fn simulate_plan(
     replicate: u32,
     record_trace: bool,
 ) -> Result<RunOutput, SimError> {
-    run(config, plan, replicate, record_trace, None)
+    if !record_trace {
+        return run(config, plan, replicate, None, None);
+    }
+    let mut trace = Vec::new();
+    let mut output = run(
+        config,
+        plan,
+        replicate,
+        Some(&mut |row| trace.push(row)),
+        None,
+    )?;
+    output.trace = trace;
+    Ok(output)
+}
+
+/// [`simulate_plan`] that hands each row of the trace to `sink` as soon as it is complete,
+/// in order of k, instead of keeping them: memory does not grow with the number of steps.
+/// The output's `trace` is empty.
+///
+/// # Errors
+/// [`SimError`] when the session aborts (the rows before the abort have been handed over).
+pub fn simulate_plan_streaming(
+    config: &Config,
+    plan: SessionPlan,
+    replicate: u32,
+    sink: &mut dyn FnMut(TraceRow),
+) -> Result<RunOutput, SimError> {
+    run(config, plan, replicate, Some(sink), None)
+}
+
+/// The rows of a trace still being filled in, between the simulation and its sink. Each
+/// step writes its own row and, in private mode, its neighbours (a doublet spans two steps
+/// and is decided at the sample after it); [`TraceRows::complete_before`] hands over the
+/// rows no later step writes.
+pub(crate) struct TraceRows<'a> {
+    sink: Option<&'a mut dyn FnMut(TraceRow)>,
+    /// Rows `first, first + 1, …` not handed over yet.
+    open: VecDeque<TraceRow>,
+    first: usize,
+}
+
+impl<'a> TraceRows<'a> {
+    /// Rows for `sink`; none are kept without one.
+    pub(crate) fn new(sink: Option<&'a mut dyn FnMut(TraceRow)>) -> Self {
+        Self {
+            sink,
+            open: VecDeque::new(),
+            first: 0,
+        }
+    }
+
+    /// Row `k`, when a trace is recorded.
+    ///
+    /// # Panics
+    /// When row `k` was already handed over (a simulation bug).
+    pub(crate) fn row(&mut self, k: usize) -> Option<&mut TraceRow> {
+        self.sink.as_ref()?;
+        let index = k
+            .checked_sub(self.first)
+            .expect("a trace row is written after it was handed over");
+        if index >= self.open.len() {
+            self.open.resize_with(index + 1, TraceRow::default);
+        }
+        Some(&mut self.open[index])
+    }
+
+    /// Hands every row before `k` to the sink.
+    pub(crate) fn complete_before(&mut self, k: usize) {
+        let Some(sink) = self.sink.as_mut() else {
+            return;
+        };
+        while self.first < k {
+            sink(self.open.pop_front().unwrap_or_default());
+            self.first += 1;
+        }
+    }
+}
+
+impl Drop for TraceRows<'_> {
+    /// The rows still open are complete once the simulation has ended.
+    fn drop(&mut self) {
+        self.complete_before(self.first + self.open.len());
+    }
 }
 
 /// [`simulate`] that also returns every message in the order an eavesdropper hears it, so
@@ -179,7 +263,7 @@ pub fn simulate_transcript(
 ) -> Result<(RunOutput, Vec<Message>), SimError> {
     let mut transcript = Vec::new();
     let plan = SessionPlan::from_config(config, replicate);
-    let output = run(config, plan, replicate, false, Some(&mut transcript))?;
+    let output = run(config, plan, replicate, None, Some(&mut transcript))?;
     Ok((output, transcript))
 }
 
@@ -187,11 +271,12 @@ fn run(
     config: &Config,
     plan: SessionPlan,
     replicate: u32,
-    record_trace: bool,
+    trace_sink: Option<&mut dyn FnMut(TraceRow)>,
     mut transcript: Option<&mut Vec<Message>>,
 ) -> Result<RunOutput, SimError> {
+    let mut trace = TraceRows::new(trace_sink);
     if config.sensing.mode == SensingMode::Private {
-        return Ok(crate::private::simulate(config, replicate, record_trace));
+        return Ok(crate::private::simulate(config, replicate, &mut trace));
     }
     let seed = config.run.seed;
     let stream_of = |purpose| stream(seed, purpose, u64::from(replicate));
@@ -221,11 +306,6 @@ fn run(
     let mut controller = ControllerEndpoint::new(config, plan);
 
     let mut log = vec![StepBits::default(); steps as usize + 1];
-    let mut trace = if record_trace {
-        vec![TraceRow::default(); steps as usize + 1]
-    } else {
-        Vec::new()
-    };
     let mut pose = Pose::zeros();
     let mut tracking_error = 0.0;
     let mut outcomes = (None, None);
@@ -237,8 +317,7 @@ fn run(
             tracking_error += (pose.xy() - reference).norm();
         }
         let y = pose + gaussian(&mut measurement_rng, &measurement_std);
-        if record_trace {
-            let row = &mut trace[k as usize];
+        if let Some(row) = trace.row(k as usize) {
             row.k = k;
             row.t = f64::from(k) * sample_time;
             row.reference = reference.into();
@@ -259,16 +338,16 @@ fn run(
                         }
                         if let Some(d) = eve.as_mut().and_then(|eve| eve.observe(&message)) {
                             log[d.step as usize].bhat_eve = d.bit;
-                            if record_trace {
-                                trace[d.step as usize + 1].bhat_eve = d.bit;
+                            if let Some(row) = trace.row(d.step as usize + 1) {
+                                row.bhat_eve = d.bit;
                             }
                         }
                         controller.handle_input(ControllerInput::Frame(message));
                     }
                     RobotOutput::Apply(actuation) => {
                         log[actuation.step as usize].bit = actuation.bit;
-                        if record_trace {
-                            trace[actuation.step as usize].bit = actuation.bit;
+                        if let Some(row) = trace.row(actuation.step as usize) {
+                            row.bit = actuation.bit;
                         }
                         wheels = Some(actuation.wheels);
                     }
@@ -285,26 +364,27 @@ fn run(
                         if let Some(eve) = eve.as_mut() {
                             eve.observe(&message);
                         }
-                        if let (true, Message::Command { step, u0, u1, .. }) =
-                            (record_trace, &message)
+                        if let Message::Command { step, u0, u1, .. } = &message
+                            && let Some(row) = trace.row(*step as usize)
                         {
-                            trace[*step as usize].u0 = Some(*u0);
-                            trace[*step as usize].u1 = Some(*u1);
+                            row.u0 = Some(*u0);
+                            row.u1 = Some(*u1);
                         }
                         robot.handle_input(RobotInput::Frame(message));
                     }
                     ControllerOutput::Event(event) => match event {
                         ControllerEvent::Decoded(d) => {
                             log[d.step as usize].bhat = d.bit;
-                            if record_trace {
-                                let row = &mut trace[d.step as usize + 1];
+                            if let Some(row) = trace.row(d.step as usize + 1) {
                                 row.bhat = d.bit;
                                 row.dhat = Some(d.estimate.deviation.into());
                                 row.xhat = Some(d.estimate.state.into());
                             }
                         }
-                        ControllerEvent::Commanded { step, nominal } if record_trace => {
-                            trace[step as usize].nominal = Some(nominal.into());
+                        ControllerEvent::Commanded { step, nominal } => {
+                            if let Some(row) = trace.row(step as usize) {
+                                row.nominal = Some(nominal.into());
+                            }
                         }
                         ControllerEvent::Finished(outcome) => {
                             if let Outcome::Aborted(reason) = &outcome {
@@ -323,6 +403,8 @@ fn run(
         if let Some(reason) = abort {
             return Err(SimError::Aborted { replicate, reason });
         }
+        // Every message of step k has been delivered: no later step writes row k.
+        trace.complete_before(k as usize + 1);
         if k < steps {
             let applied = wheels.map_or_else(Unicycle::zeros, |w| {
                 drive.to_unicycle(clip_wheels(w, config.robot.wheel_limit))
@@ -347,7 +429,7 @@ fn run(
     );
     Ok(RunOutput {
         metrics,
-        trace,
+        trace: Vec::new(),
         robot_outcome: outcomes.0,
         controller_outcome: outcomes.1,
         steps: log,
@@ -417,4 +499,109 @@ fn compute_metrics(
         n_bce,
         n_acc,
     }
+}
+
+#[cfg(test)]
+mod tests {
+    use sha2::{Digest, Sha256};
+
+    use super::*;
+    use crate::config::{EveStrategy, Feedback};
+    use crate::observer::Variant;
+
+    /// The configurations whose runs are pinned: the default, m = 1, the paper's variant,
+    /// feedback from the estimate, and the soft and identifying eavesdroppers.
+    fn pinned_configs() -> Vec<(&'static str, Config)> {
+        let with = |edit: fn(&mut Config)| {
+            let mut config = Config::default();
+            edit(&mut config);
+            config.validate().expect("a valid pinned configuration");
+            config
+        };
+        vec![
+            ("default", Config::default()),
+            ("m=1", with(|c| c.observer.m = 1)),
+            ("paper", with(|c| c.observer.variant = Variant::Paper)),
+            (
+                "estimate",
+                with(|c| c.controller.feedback = Feedback::Estimate),
+            ),
+            ("soft", with(|c| c.eve.strategy = Some(EveStrategy::Soft))),
+            (
+                "identify",
+                with(|c| c.eve.strategy = Some(EveStrategy::Identify)),
+            ),
+            ("dv=0.01", with(|c| c.protocol.delta_v = 0.01)),
+            ("alpha=0.3", with(|c| c.eve.alpha = 0.3)),
+        ]
+    }
+
+    /// SHA-256 (first 8 bytes, hex) of every decision, key and metric of replicates 0–2
+    /// (real numbers to 9 significant digits) and of the controller's `d̂` and `x̂` (to 6).
+    fn fingerprint(config: &Config) -> String {
+        let mut hash = Sha256::new();
+        for replicate in 0..3 {
+            let out = simulate(config, replicate, true).expect("the pinned runs complete");
+            for row in &out.trace {
+                for x in row.dhat.iter().flatten().chain(row.xhat.iter().flatten()) {
+                    hash.update(format!("{x:.5e}"));
+                }
+            }
+            for s in &out.steps {
+                hash.update([
+                    s.bit.unwrap_or(9),
+                    s.bhat.unwrap_or(9),
+                    s.bhat_eve.unwrap_or(9),
+                ]);
+            }
+            hash.update(out.keys.robot.as_slice());
+            hash.update(out.keys.controller.as_slice());
+            if let Some(eve) = &out.keys.eve {
+                hash.update(eve.as_slice());
+            }
+            let m = &out.metrics;
+            let real = |x: Option<f64>| x.map_or_else(|| "-".into(), |x| format!("{x:.9e}"));
+            hash.update(format!(
+                "{:?} {:?} {} {} {} {} {} {} {} {:?} {:?} {:?}",
+                m.codewords_sent,
+                m.accepted,
+                real(m.accepted_pct),
+                real(m.correct_pct),
+                real(m.ber_controller),
+                real(m.ber_eve),
+                real(Some(m.jx)),
+                real(m.eve_disagreement_pct),
+                real(m.accepted_pct),
+                m.key_match,
+                m.n_bce,
+                m.n_acc
+            ));
+        }
+        hash.finalize()[..8]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
+    }
+
+    /// Whole runs keep every decision, key and metric (recorded before the observer and the
+    /// simulation loop were rewritten for speed, docs/speed.md).
+    #[test]
+    fn pinned_runs_keep_their_decisions_keys_and_metrics() {
+        let got: Vec<String> = pinned_configs()
+            .iter()
+            .map(|(name, config)| format!("{name} {}", fingerprint(config)))
+            .collect();
+        assert_eq!(got.join("\n"), PINNED.trim());
+    }
+
+    const PINNED: &str = "
+default b430a4a2ebbec88f
+m=1 8dfc3212a670aefb
+paper eaa14f0a00b2a279
+estimate 0142c4a09e0b7394
+soft b430a4a2ebbec88f
+identify f28af9b932546d1a
+dv=0.01 eb2af466b7c3bc55
+alpha=0.3 5af0a2a0aba0e6f1
+";
 }

@@ -6,7 +6,8 @@
 use nalgebra::{DMatrix, DVector, Matrix3};
 use robokey::Config;
 use robokey::model::{Pose, Unicycle, unicycle_step};
-use robokey::private::{BitKind, DoubletBit, PoseObservation, simulate};
+use robokey::private::{BitKind, DoubletBit, PoseObservation};
+use robokey::sim::simulate;
 use robokey_secrecy::calibration::check_calibration;
 use robokey_secrecy::gaussian_llr::{
     error_rate, gaussian_llr_smooth_min_entropy, information, surprisal,
@@ -19,7 +20,7 @@ fn private(extra: &str) -> Config {
 /// Every bit of `sessions` seeded sessions.
 fn bits(config: &Config, sessions: u32) -> Vec<DoubletBit> {
     (0..sessions)
-        .flat_map(|r| simulate(config, r, false).private.unwrap().bits)
+        .flat_map(|r| simulate(config, r, false).unwrap().private.unwrap().bits)
         .collect()
 }
 
@@ -263,7 +264,7 @@ fn the_model_bound_holds_against_the_exact_joint_posterior() {
     let config = private("");
     let (mut joint, mut factorised, mut largest) = (Vec::new(), Vec::new(), 0.0_f64);
     for replicate in 0..80 {
-        let run = simulate(&config, replicate, true);
+        let run = simulate(&config, replicate, true).unwrap();
         let private = run.private.unwrap();
         let by_step: std::collections::HashMap<u32, &DoubletBit> =
             private.bits.iter().map(|b| (b.step, b)).collect();

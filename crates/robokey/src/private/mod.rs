@@ -14,7 +14,8 @@ use crate::config::EveStrategy;
 
 pub use doublet::{DoubletInputs, Perturbation};
 pub use likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation};
-pub use session::{doublet_model, simulate};
+pub use session::doublet_model;
+pub(crate) use session::simulate;
 
 /// Which input a bit rides on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

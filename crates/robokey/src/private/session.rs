@@ -17,7 +17,7 @@ use crate::metrics::Metrics;
 use crate::model::{DiffDrive, Pose, Unicycle, clip_wheels, unicycle_step};
 use crate::protocol::Outcome;
 use crate::rng::{Purpose, stream};
-use crate::sim::{RunKeys, RunOutput, StepBits, TraceRow};
+use crate::sim::{RunKeys, RunOutput, StepBits, TraceRows};
 
 /// How a private session ends for both sides: its raw bits are confirmed per
 /// post-processing block, never per session.
@@ -85,7 +85,7 @@ fn gaussian(rng: &mut ChaCha8Rng, std: &[f64; 3]) -> Pose {
 /// Simulates replicate `replicate` of a validated private-sensing configuration: a pure
 /// function of `(config, replicate)`.
 #[must_use]
-pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> RunOutput {
+pub(crate) fn simulate(config: &Config, replicate: u32, trace: &mut TraceRows<'_>) -> RunOutput {
     let seed = config.run.seed;
     let stream_of = |purpose| stream(seed, purpose, u64::from(replicate));
     let (mut process_rng, mut sensor_rng, mut camera_rng, mut key_rng) = (
@@ -118,7 +118,6 @@ pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> RunOutpu
     let mut pose = Pose::zeros();
     let mut sensor = Vec::with_capacity(steps + 1);
     let mut camera = Vec::with_capacity(steps + 1);
-    let mut trace = vec![TraceRow::default(); if record_trace { steps + 1 } else { 0 }];
     let mut bits = Vec::new();
     let mut log = vec![StepBits::default(); steps];
     let (mut doublets, mut gated) = (0u32, 0u32);
@@ -132,8 +131,7 @@ pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> RunOutpu
         }
         sensor.push(pose + gaussian(&mut sensor_rng, &config.sensing.controller_std));
         camera.push(pose + gaussian(&mut camera_rng, &config.eve.camera_std));
-        if record_trace {
-            let row = &mut trace[k];
+        if let Some(row) = trace.row(k) {
             row.k = k as u32;
             row.t = k as f64 * t;
             row.reference = reference(k).position.into();
@@ -181,11 +179,13 @@ pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> RunOutpu
                 bhat_eve: config.eve.enabled.then(|| decide(eve_llr)),
             };
             log[start] = logged;
-            if record_trace {
-                trace[start + 1].bhat = logged.bhat;
-                trace[start + 1].bhat_eve = logged.bhat_eve;
+            if let Some(row) = trace.row(start + 1) {
+                row.bhat = logged.bhat;
+                row.bhat_eve = logged.bhat_eve;
             }
         }
+        // Row k − 1 is complete: a doublet's decision lands on its second step's row.
+        trace.complete_before(k);
         if k == steps {
             break;
         }
@@ -199,8 +199,8 @@ pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> RunOutpu
             }
             _ => {
                 let first = controller.command(&sensor[k], &reference(k));
-                if record_trace {
-                    trace[k].nominal = Some(first.into());
+                if let Some(row) = trace.row(k) {
+                    row.nominal = Some(first.into());
                 }
                 if k + 2 <= steps {
                     let predicted = unicycle_step(&sensor[k], &first, t);
@@ -213,10 +213,12 @@ pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> RunOutpu
                     gated += u32::from(config.protocol.enabled && !carries);
                     let carried = carries.then_some(drawn);
                     pending = Some((k, inputs, carried));
-                    if record_trace {
-                        trace[k + 1].nominal = Some(second.into());
-                        if let Some(b) = carried {
-                            for row in &mut trace[k..k + 2] {
+                    if let Some(row) = trace.row(k + 1) {
+                        row.nominal = Some(second.into());
+                    }
+                    if let Some(b) = carried {
+                        for step in [k, k + 1] {
+                            if let Some(row) = trace.row(step) {
                                 row.bit = Some(b[0]);
                                 row.bit_omega =
                                     (config.protocol.bits_per_doublet == 2).then_some(b[1]);
@@ -242,7 +244,7 @@ pub fn simulate(config: &Config, replicate: u32, record_trace: bool) -> RunOutpu
     let jx = tracking_error / steps.max(1) as f64;
     RunOutput {
         metrics: metrics(config, &bits, &keys, jx),
-        trace,
+        trace: Vec::new(),
         robot_outcome: Some(Outcome::Unconfirmed(SESSION_OUTCOME.into())),
         controller_outcome: Some(Outcome::Unconfirmed(SESSION_OUTCOME.into())),
         steps: log,
