@@ -37,6 +37,8 @@ enum Command {
     /// confirmation and finite-key privacy amplification, per point and adversary
     /// (docs/secrecy.md, docs/postprocessing.md).
     Secrecy(SecrecyArgs),
+    /// Write a pairing secret (`DIR/pairing.key`) to install on a robot and its controller.
+    Pair(net::PairArgs),
     /// The robot agent: owns the clock and the key bits, drives the wheels, reports odometry
     /// over UDP. Run it ON the robot (see README: where the robot agent runs matters).
     Robot(net::RobotArgs),
@@ -267,6 +269,7 @@ fn main() -> ExitCode {
         Command::Reproduce(args) => commands::reproduce(args),
         Command::Config(args) => commands::config(args),
         Command::Secrecy(args) => commands::secrecy(args),
+        Command::Pair(args) => net::pair(args),
         Command::Robot(args) => net::robot(args),
         Command::Controller(args) => net::controller(args),
         Command::Relay(args) => net::relay(args),

@@ -6,9 +6,11 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
+use robokey::protocol::auth::PairingSecret;
 use robokey::rng::{Purpose, stream};
 use robokey_net::controller_agent::{ControllerOptions, run_controller};
 use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, TimeMode, serve};
+use robokey_net::pairing::{read_pairing, write_pairing};
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
 use robokey_net::robot_agent::{RobotOptions, run_robot};
 use robokey_net::session::{Pace, SessionReport, Timing, os_rng};
@@ -49,9 +51,41 @@ pub struct SessionArgs {
     /// Lockstep: milliseconds to wait for each command before treating it as missing.
     #[arg(long, default_value_t = 50)]
     step_timeout_ms: u64,
+    /// The pairing file written by `robokey pair`, installed on the robot and the
+    /// controller: every frame of the session is authenticated with it.
+    #[arg(long, value_name = "FILE")]
+    pairing: Option<PathBuf>,
+    /// Run without a pairing: anyone on the network can impersonate either side, inject
+    /// commands and learn the key. Every output is labelled "passive adversary only".
+    #[arg(long, conflicts_with = "pairing")]
+    unauthenticated: bool,
 }
 
 impl SessionArgs {
+    fn pairing(&self) -> Result<PairingSecret> {
+        match (&self.pairing, self.unauthenticated) {
+            (Some(path), _) => {
+                let (secret, warning) = read_pairing(path)?;
+                if let Some(warning) = warning {
+                    eprintln!("{warning}");
+                }
+                Ok(secret)
+            }
+            (None, true) => {
+                eprintln!(
+                    "warning: --unauthenticated: anyone on the network can impersonate either side, \
+                     inject commands and take the key; every result holds against a passive \
+                     adversary only"
+                );
+                Ok(PairingSecret::unauthenticated())
+            }
+            (None, false) => bail!(
+                "no --pairing FILE: create one with `robokey pair --out DIR` and install it on the \
+                 robot and the controller, or pass --unauthenticated (passive adversary only)"
+            ),
+        }
+    }
+
     fn timing(&self) -> Result<Timing> {
         if !(self.silence_timeout > 0.0 && self.silence_timeout.is_finite()) {
             bail!(
@@ -75,6 +109,26 @@ impl SessionArgs {
         }
         Ok(())
     }
+}
+
+#[derive(Args, Debug)]
+pub struct PairArgs {
+    /// Folder to write `pairing.key` into (created if missing; an existing pairing is
+    /// never overwritten).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Writes a fresh pairing secret and prints its public fingerprint.
+pub fn pair(args: PairArgs) -> Result<()> {
+    let (path, secret) = write_pairing(&args.out, &mut os_rng()?)?;
+    println!(
+        "wrote {} (mode 0600), fingerprint {}\ninstall it on the robot and on the controller \
+         (--pairing FILE); both print the fingerprint at start",
+        path.display(),
+        secret.fingerprint()
+    );
+    Ok(())
 }
 
 /// Where the robot agent's wheels are.
@@ -165,6 +219,7 @@ pub fn robot(args: RobotArgs) -> Result<()> {
         timing,
         wait_for_hello: Duration::from_secs_f64(args.wait.max(0.0)),
         key_out: args.session.key_out.clone(),
+        pairing: args.session.pairing()?,
     };
     match args.seed {
         Some(seed) => {
@@ -221,6 +276,7 @@ pub fn controller(args: ControllerArgs) -> Result<()> {
         timing: args.session.timing()?,
         key_out: args.session.key_out.clone(),
         session: None,
+        pairing: args.session.pairing()?,
     };
     let report = run_controller(&config, &options)?;
     args.session.finish(&report)

@@ -722,10 +722,12 @@ impl Config {
     /// (used only with two bits per doublet), else 0.
     #[must_use]
     pub fn delta_omega(&self) -> f64 {
-        self.protocol.delta_omega.unwrap_or(match self.sensing.mode {
-            SensingMode::Private => DOUBLET_DELTA_OMEGA,
-            SensingMode::Odometry => 0.0,
-        })
+        self.protocol
+            .delta_omega
+            .unwrap_or(match self.sensing.mode {
+                SensingMode::Private => DOUBLET_DELTA_OMEGA,
+                SensingMode::Odometry => 0.0,
+            })
     }
 
     /// Eve's strategy after defaults: as set, else `mismatch` (odometry) or `camera`

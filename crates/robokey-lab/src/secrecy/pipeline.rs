@@ -442,7 +442,11 @@ fn realised(pool: &Pool, n: usize, leak_ec: u64, tags: u64, epsilon: f64) -> Rea
             H_MIN_BINOMIAL,
         )
     } else {
-        let mut q: Vec<f64> = pool.eve_posteriors.iter().map(|&q| q.min(1.0 - q)).collect();
+        let mut q: Vec<f64> = pool
+            .eve_posteriors
+            .iter()
+            .map(|&q| q.min(1.0 - q))
+            .collect();
         q.sort_by(f64::total_cmp);
         q.truncate(n);
         let bound = posterior_smooth_min_entropy(&q, epsilon).ok();
