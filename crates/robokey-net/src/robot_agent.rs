@@ -116,8 +116,8 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
 }
 
 /// Answers verified Hellos until a controller binds a session (its first frame under the
-/// controller→robot session key). Returns the session id, or the report of a robot that
-/// refused every Hello it verified.
+/// controller→robot session key). Returns the session id, or the report of a robot that no
+/// controller bound within the wait.
 fn handshake(
     transport: &mut Transport,
     options: &RobotOptions,
@@ -128,36 +128,32 @@ fn handshake(
     loop {
         match transport.recv_until(deadline)? {
             Some(Delivery::Message(_)) => {
-                let session = transport.session();
-                return Ok(Ok(
-                    session.expect("a delivered message means a bound session")
-                ));
+                let session = transport.session().expect("a delivered message binds");
+                return Ok(Ok(session));
             }
             Some(Delivery::Refused(reason)) => refused = Some(reason),
             Some(_) => {}
             None => break,
         }
     }
-    let waited = format!(
-        "no controller bound a session within {:.0} s",
-        wait.as_secs_f64()
+    let rejected = transport.rejected();
+    let mut reason = format!(
+        "no controller bound a session within {:.0} s ({} datagrams rejected)",
+        wait.as_secs_f64(),
+        rejected.total()
     );
-    let Some(reason) = refused else {
-        let rejected = transport.rejected();
-        return Err(NetError::Usage(format!(
-            "{waited} ({} datagrams rejected: {})",
-            rejected.total(),
-            serde_json::to_string(&rejected).expect("counts serialize")
-        )));
-    };
+    if let Some(refused) = refused {
+        reason += &format!("; last Hello refused: {refused}");
+    }
     let mut report = SessionReport {
         role: "robot".into(),
         authentication: authentication_label(&options.pairing),
+        commands_applied: Some(0),
         ..SessionReport::default()
     };
-    report.set_outcome(&Outcome::Aborted(format!("{waited}; refused: {reason}")));
+    report.set_outcome(&Outcome::Aborted(reason));
     report.frames = transport.counts();
-    report.frames_rejected = transport.rejected();
+    report.frames_rejected = rejected;
     Ok(Err(report))
 }
 
@@ -165,7 +161,8 @@ fn handshake(
 /// steps with key bits drawn from `key_source` (the OS CSPRNG in deployment).
 ///
 /// # Errors
-/// Socket or backend failures, or no controller within the wait.
+/// Socket or backend failures. A robot that no controller binds within the wait returns
+/// an aborted report.
 pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     config: &Config,
     backend: &mut B,

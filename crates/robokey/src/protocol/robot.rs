@@ -362,3 +362,57 @@ impl RobotEndpoint {
             .tags(DIRECTION, &self.fates.bitmap(), &self.key)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Config;
+    use crate::protocol::FateWindow;
+    use crate::protocol::controller::command_pair;
+    use rand::SeedableRng;
+
+    fn robot() -> RobotEndpoint {
+        let plan = SessionPlan::from_config(&Config::default(), 1);
+        RobotEndpoint::new(plan, &mut rand::rngs::ChaCha20Rng::seed_from_u64(1))
+    }
+
+    fn command(robot: &mut RobotEndpoint, u0: [f64; 2], u1: [f64; 2]) -> Actuation {
+        robot.handle_input(RobotInput::Frame(Message::Command {
+            step: robot.next_command(),
+            u0,
+            u1,
+            fates: FateWindow::default(),
+        }));
+        match robot.poll_output() {
+            Some(RobotOutput::Apply(actuation)) => actuation,
+            other => panic!("expected an actuation, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn only_pairs_of_the_agreed_delta_within_the_wheel_limit_are_applied() {
+        let mut robot = robot();
+        let (u0, u1) = command_pair(robot.plan(), Unicycle::new(0.1, 0.2));
+        let applied = command(&mut robot, u0.into(), u1.into());
+        assert!(!applied.erased && applied.bit.is_some());
+        // Offers that reveal the bit in the motion, a spread other than 2Δ, a non-finite or
+        // too fast wheel: each is erased as if lost, and the wheels hold the last good pair.
+        let (w0, w1) = command_pair(robot.plan(), Unicycle::new(0.1, 0.25));
+        let wide = command_pair(robot.plan(), Unicycle::new(0.1, 0.2)).0 * 2.0;
+        let mut held = (u0 + u1) / 2.0;
+        for (a, b) in [
+            ([5.0, 5.0], [-5.0, -5.0]),
+            (w0.into(), u1.into()),
+            ([f64::NAN, 0.0], w1.into()),
+            ([39.0, 39.0], [39.0 - 1e-3, 39.0 - 1e-3]),
+            (wide.into(), w1.into()),
+        ] {
+            let erased = command(&mut robot, a, b);
+            assert!(erased.erased && erased.bit.is_none(), "{a:?} {b:?}");
+            assert_eq!(erased.wheels, held);
+            let _ = command(&mut robot, w0.into(), w1.into());
+            held = (w0 + w1) / 2.0;
+        }
+        assert_eq!(robot.commands_applied(), 1 + 5);
+    }
+}
