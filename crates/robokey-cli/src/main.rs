@@ -46,6 +46,8 @@ enum Command {
     Controller(net::ControllerArgs),
     /// A faulty network between controller and robot, with an optional pcap capture.
     Relay(net::RelayArgs),
+    /// Print the robokey frames of a pcap capture as robokey parses them (MACs unchecked).
+    Frames(net::FramesArgs),
     /// Eavesdroppers of every strategy on simulated sessions (what they learn carries over)
     /// or on a relay capture: error rates, parameter convergence, time to match the
     /// controller, disagreement with the controller's key.
@@ -273,6 +275,7 @@ fn main() -> ExitCode {
         Command::Robot(args) => net::robot(args),
         Command::Controller(args) => net::controller(args),
         Command::Relay(args) => net::relay(args),
+        Command::Frames(args) => net::frames(args),
         Command::Eve(args) => eve::eve(args),
         Command::Kh4Emulator(args) => net::kh4_emulator(args),
     };

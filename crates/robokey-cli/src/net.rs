@@ -11,6 +11,7 @@ use robokey::rng::{Purpose, stream};
 use robokey_net::controller_agent::{ControllerOptions, run_controller};
 use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, TimeMode, serve};
 use robokey_net::pairing::{read_pairing, write_pairing};
+use robokey_net::pcap::read as read_capture;
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
 use robokey_net::robot_agent::{RobotOptions, run_robot};
 use robokey_net::session::{Pace, SessionReport, Timing, os_rng};
@@ -128,6 +129,47 @@ pub fn pair(args: PairArgs) -> Result<()> {
         path.display(),
         secret.fingerprint()
     );
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct FramesArgs {
+    /// A pcap capture (e.g. from `robokey relay --capture`).
+    capture: PathBuf,
+}
+
+/// Prints every datagram of a capture as robokey parses it, one tab-separated line each:
+/// number, type, session, seq, step, and the numbers a Measurement (`y`) or a Command
+/// (`u0D`, `u1D`) carries. MACs are not checked (no pairing secret needed).
+pub fn frames(args: FramesArgs) -> Result<()> {
+    use robokey::protocol::Message;
+    use robokey::protocol::wire::decode;
+    for (i, datagram) in read_capture(&args.capture)?.iter().enumerate() {
+        let bytes = &datagram.payload;
+        let frame = match decode(bytes) {
+            Ok(frame) => frame,
+            Err(e) => {
+                println!("{}\tundecodable\t\t\t\t{e}", i + 1);
+                continue;
+            }
+        };
+        let numbers: Vec<f64> = match &frame.message {
+            Message::Measurement { y, .. } => y.to_vec(),
+            Message::Command { u0, u1, .. } => u0.iter().chain(u1).copied().collect(),
+            _ => Vec::new(),
+        };
+        let numbers: Vec<String> = numbers.iter().map(|v| format!("{v:?}")).collect();
+        // A parsed frame has its header: type at byte 3, step at bytes 12..16.
+        let step = u32::from_be_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]);
+        println!(
+            "{}\t{}\t{}\t{}\t{step}\t{}",
+            i + 1,
+            bytes[3],
+            frame.session,
+            frame.seq,
+            numbers.join(",")
+        );
+    }
     Ok(())
 }
 
