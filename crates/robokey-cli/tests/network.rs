@@ -27,7 +27,6 @@ fn session_with_robot_args(
 ) -> PathBuf {
     let dir = scratch(name);
     let file = |f: &str| s(&dir.join(f));
-    let pairing = pairing(&dir);
     let mut robot_args = vec![
         "robot",
         "--listen",
@@ -36,9 +35,15 @@ fn session_with_robot_args(
         "lockstep",
         "--silence-timeout",
         "1",
-        "--pairing",
-        &pairing,
     ];
+    // Paired unless the test asks for --unauthenticated.
+    let pairing = pairing(&dir);
+    let auth = if extra.contains(&"--unauthenticated") {
+        vec![]
+    } else {
+        vec!["--pairing", pairing.as_str()]
+    };
+    robot_args.extend(&auth);
     let seed = seed.to_string();
     robot_args.extend(["--seed", &seed]);
     let (robot_key, robot_report) = (file("robot.key"), file("robot.json"));
@@ -74,9 +79,8 @@ fn session_with_robot_args(
         "lockstep",
         "--silence-timeout",
         "1",
-        "--pairing",
-        &pairing,
     ];
+    controller_args.extend(&auth);
     controller_args.extend(["--key-out", &controller_key, "--report", &controller_report]);
     controller_args.extend(extra);
     let (ok, text) = run(&controller_args);
@@ -174,6 +178,40 @@ fn clean_network_confirms_equal_keys_identical_to_the_simulator_and_eve_agrees_o
     // paired session's capture (the simulator charges them anyway, as if the pairing
     // secret leaked later).
     assert!(strategies[4]["tag_flips"].is_null(), "{}", strategies[4]);
+}
+
+#[test]
+fn an_unauthenticated_session_is_labelled_and_its_tags_are_a_key_oracle() {
+    let dir = session("unauthenticated", 11, &["--unauthenticated"], Some(&[]));
+    for side in ["robot", "controller"] {
+        let r = report(&dir.join(format!("{side}.json")));
+        assert_eq!(r["outcome"], "confirmed", "{r}");
+        assert_eq!(r["authentication"], "none: passive adversary only", "{r}");
+        let key = std::fs::read_to_string(dir.join(format!("{side}.key"))).unwrap();
+        assert!(key.contains("# passive adversary only"), "{key}");
+        assert!(key.contains("# raw: not secret against an eavesdropper who learns the model"));
+    }
+    // Under the public secret the key tags are a public function of the key: the
+    // transcript-aided Eve verifies her key with them.
+    let out = dir.join("eve");
+    let (ok, text) = run(&[
+        "eve",
+        "--capture",
+        &s(&dir.join("capture.pcap")),
+        "--strategy",
+        "transcript",
+        "--seed",
+        "11",
+        "--controller-key",
+        &s(&dir.join("controller.key")),
+        "--out",
+        &s(&out),
+    ]);
+    assert!(ok, "{text}");
+    let eve = report(&out.join("capture.json"));
+    let transcript = &eve["strategies"][0];
+    assert!(transcript["tag_flips"].as_u64().is_some(), "{transcript}");
+    assert_eq!(transcript["disagreement_pct"].as_f64(), Some(0.0));
 }
 
 #[test]

@@ -5,14 +5,15 @@
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
+use crate::error::NetError;
 use rand::rngs::ChaCha20Rng;
 use robokey::protocol::Message;
 use robokey::protocol::auth::{
     ChannelCounts, Confirmer, ControllerChannel, Delivery, RejectionCounts, RobotChannel,
 };
-use robokey::protocol::wire::MAX_FRAME_BYTES;
 
-use crate::error::NetError;
+/// Receive buffer (bytes): the largest UDP payload. A longer frame cannot cross UDP.
+const DATAGRAM_BYTES: usize = 65_536;
 
 /// Frame counters of one endpoint.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -40,6 +41,7 @@ pub struct Transport {
     socket: UdpSocket,
     side: Side,
     sent: u64,
+    buffer: Vec<u8>,
 }
 
 impl Transport {
@@ -55,6 +57,7 @@ impl Transport {
             socket: bind(local)?,
             side: Side::Controller(channel),
             sent: 0,
+            buffer: vec![0; DATAGRAM_BYTES],
         })
     }
 
@@ -71,6 +74,7 @@ impl Transport {
             socket: bind(local)?,
             side: Side::Robot(Box::new(channel), rng),
             sent: 0,
+            buffer: vec![0; DATAGRAM_BYTES],
         })
     }
 
@@ -183,7 +187,6 @@ impl Transport {
     /// # Errors
     /// The socket fails (timeouts are `Ok(None)`).
     pub fn recv_until(&mut self, deadline: Instant) -> Result<Option<Delivery>, NetError> {
-        let mut buffer = vec![0u8; MAX_FRAME_BYTES + 1];
         loop {
             let now = Instant::now();
             if now >= deadline {
@@ -193,7 +196,7 @@ impl Transport {
             self.socket
                 .set_read_timeout(Some(wait))
                 .map_err(NetError::io("set socket timeout"))?;
-            let (len, from) = match self.socket.recv_from(&mut buffer) {
+            let (len, from) = match self.socket.recv_from(&mut self.buffer) {
                 Ok(x) => x,
                 Err(e)
                     if matches!(
@@ -207,7 +210,7 @@ impl Transport {
                 Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
                 Err(e) => return Err(NetError::io("receive")(e)),
             };
-            let bytes = &buffer[..len];
+            let bytes = &self.buffer[..len];
             let delivery = match &mut self.side {
                 Side::Controller(channel) => channel.on_datagram(from, bytes),
                 Side::Robot(channel, rng) => channel.on_datagram(from, bytes, rng),
