@@ -8,7 +8,7 @@ use rand::CryptoRng;
 
 use super::window::{Freshness, ReplayWindow};
 use super::{
-    AuthMode, Confirmer, Direction, MacKey, NONCE_BYTES, PairingSecret, SessionKeys, seal, verifies,
+    Confirmer, Direction, MacKey, NONCE_BYTES, PairingSecret, SessionKeys, seal, verifies,
 };
 use crate::protocol::message::Message;
 use crate::protocol::plan::terms_difference;
@@ -204,7 +204,6 @@ fn handshake_frame(session: u32, message: Message) -> Frame {
 /// matching `HelloAck`, then seals and opens session frames.
 pub struct ControllerChannel<A> {
     robot: A,
-    mode: AuthMode,
     secret: PairingSecret,
     handshake: MacKey,
     session: u32,
@@ -246,7 +245,6 @@ impl<A: Copy + PartialEq> ControllerChannel<A> {
         let hello = seal(&handshake_frame(session, hello), &handshake);
         Self {
             robot,
-            mode: secret.mode(),
             secret,
             handshake,
             session,
@@ -329,7 +327,7 @@ impl<A: Copy + PartialEq> ControllerChannel<A> {
                 nonce_r,
                 ..
             } => {
-                if *auth != self.mode {
+                if *auth != self.secret.mode() {
                     return Err(Rejection::PairingMode);
                 }
                 if !verifies(bytes, &self.handshake) {
@@ -380,7 +378,6 @@ struct Bound<A> {
 /// committing, binds session and peer on the first frame MACed under the controller→robot
 /// key, then seals and opens session frames.
 pub struct RobotChannel<A> {
-    mode: AuthMode,
     secret: PairingSecret,
     handshake: MacKey,
     config_digest: [u8; 32],
@@ -405,7 +402,6 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
     #[must_use]
     pub fn new(secret: PairingSecret, config_digest: [u8; 32], terms: String) -> Self {
         Self {
-            mode: secret.mode(),
             handshake: secret.handshake_key(),
             secret,
             config_digest,
@@ -490,7 +486,7 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
                 config_digest,
                 terms,
             } => {
-                if *auth != self.mode {
+                if *auth != self.secret.mode() {
                     return Err(Rejection::PairingMode);
                 }
                 if !verifies(bytes, &self.handshake) {
@@ -523,7 +519,7 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
                 let mut nonce_r = [0u8; NONCE_BYTES];
                 rng.fill_bytes(&mut nonce_r);
                 let ack = Message::HelloAck {
-                    auth: self.mode,
+                    auth: self.secret.mode(),
                     nonce_c: *nonce,
                     nonce_r,
                     config_digest: self.config_digest,
