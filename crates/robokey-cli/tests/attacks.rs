@@ -448,7 +448,9 @@ fn injected_and_impersonated_commands_are_never_applied_and_the_session_complete
         }),
     );
     controller(&dir, &pairing, &relay.address, &[]);
-    wait(robot);
+    // The robot says so on its console, not only in its report.
+    let console = wait(robot);
+    assert!(console.contains("datagrams rejected"), "{console}");
     relay.thread.join().unwrap();
     let injected = injected.load(Ordering::Relaxed);
     assert!(injected > 10);

@@ -161,8 +161,12 @@ impl SessionReport {
     /// One line for the terminal.
     #[must_use]
     pub fn line(&self) -> String {
+        let rejected = match self.frames_rejected.total() {
+            0 => String::new(),
+            n => format!(" [{n} datagrams rejected, see the report]"),
+        };
         format!(
-            "{}{}: session {:08x}, {} steps ({} erased), {}/{} codewords accepted, {} key bits, {}{}",
+            "{}{}: session {:08x}, {} steps ({} erased), {}/{} codewords accepted, {} key bits, {}{}{rejected}",
             if self.is_unauthenticated() {
                 "[passive adversary only] "
             } else {
