@@ -687,6 +687,48 @@ mod tests {
         );
     }
 
+    proptest::proptest! {
+        /// Random edits of genuine frames (any bytes, any length) and arbitrary datagrams at
+        /// both bound ends: each is rejected or is a genuine frame, and afterwards the genuine
+        /// next frame in each direction still goes through.
+        #[test]
+        fn no_datagram_an_attacker_makes_changes_state(
+            seed in proptest::prelude::any::<u64>(),
+            edits in proptest::collection::vec(
+                (proptest::prelude::any::<usize>(), proptest::prelude::any::<u8>(), 0usize..3),
+                1..6,
+            ),
+            junk in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..120),
+        ) {
+            let mut rng = ChaCha20Rng::seed_from_u64(seed);
+            let (mut controller, mut robot) = established(&mut rng);
+            let genuine = controller.seal(Message::Finish { codewords: 70, bitmap: vec![5, 1] }).unwrap();
+            let mut edited = genuine.clone();
+            for (at, byte, action) in edits {
+                let at = at % (edited.len() + 1);
+                match action {
+                    0 if at < edited.len() => edited[at] ^= byte | 1,
+                    1 => edited.insert(at, byte),
+                    _ if at < edited.len() => { edited.remove(at); }
+                    _ => edited.push(byte),
+                }
+            }
+            for bytes in [&edited, &junk] {
+                proptest::prop_assume!(*bytes != genuine);
+                proptest::prop_assert!(robot.on_datagram(CONTROLLER, bytes, &mut rng).is_err());
+                proptest::prop_assert!(controller.on_datagram(ROBOT, bytes).is_err());
+            }
+            let delivered = robot.on_datagram(CONTROLLER, &genuine, &mut rng);
+            let finish = matches!(delivered, Ok(Delivery::Message(Message::Finish { .. })));
+            proptest::prop_assert!(finish, "{:?}", delivered);
+            let back = robot.seal(Message::FinishAck).unwrap();
+            proptest::prop_assert_eq!(
+                controller.on_datagram(ROBOT, &back),
+                Ok(Delivery::Message(Message::FinishAck))
+            );
+        }
+    }
+
     #[test]
     fn reordering_within_the_window_is_accepted_and_counted_apart() {
         let mut rng = ChaCha20Rng::seed_from_u64(3);
