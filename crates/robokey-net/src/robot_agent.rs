@@ -14,7 +14,7 @@ use robokey::protocol::{
     config_digest,
 };
 
-use crate::backend::Backend;
+use crate::backend::{Backend, WheelGuard};
 use crate::error::NetError;
 use crate::session::{
     Pace, SessionReport, Timing, authentication_label, linger, os_rng, write_key_file,
@@ -40,7 +40,7 @@ pub struct RobotOptions {
 struct RobotSession<'a, B: Backend + ?Sized> {
     transport: Transport,
     endpoint: RobotEndpoint,
-    backend: &'a mut B,
+    backend: WheelGuard<'a, B>,
     timing: Timing,
     report: SessionReport,
     outcome: Option<Outcome>,
@@ -201,7 +201,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     let mut s = RobotSession {
         transport,
         endpoint: RobotEndpoint::new(plan, key_source),
-        backend,
+        backend: WheelGuard::new(backend),
         timing: options.timing,
         report,
         outcome: None,
