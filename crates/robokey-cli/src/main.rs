@@ -37,6 +37,8 @@ enum Command {
     /// confirmation and finite-key privacy amplification, per point and adversary
     /// (docs/secrecy.md, docs/postprocessing.md).
     Secrecy(SecrecyArgs),
+    /// Write a pairing secret (`DIR/pairing.key`) to install on a robot and its controller.
+    Pair(net::PairArgs),
     /// The robot agent: owns the clock and the key bits, drives the wheels, reports odometry
     /// over UDP. Run it ON the robot (see README: where the robot agent runs matters).
     Robot(net::RobotArgs),
@@ -44,6 +46,8 @@ enum Command {
     Controller(net::ControllerArgs),
     /// A faulty network between controller and robot, with an optional pcap capture.
     Relay(net::RelayArgs),
+    /// Print the robokey frames of a pcap capture as robokey parses them (MACs unchecked).
+    Frames(net::FramesArgs),
     /// Eavesdroppers of every strategy on simulated sessions (what they learn carries over)
     /// or on a relay capture: error rates, parameter convergence, time to match the
     /// controller, disagreement with the controller's key.
@@ -272,9 +276,11 @@ fn main() -> ExitCode {
         Command::Reproduce(args) => commands::reproduce(args),
         Command::Config(args) => commands::config(args),
         Command::Secrecy(args) => commands::secrecy(args),
+        Command::Pair(args) => net::pair(args),
         Command::Robot(args) => net::robot(args),
         Command::Controller(args) => net::controller(args),
         Command::Relay(args) => net::relay(args),
+        Command::Frames(args) => net::frames(args),
         Command::Eve(args) => eve::eve(args),
         Command::Kh4Emulator(args) => net::kh4_emulator(args),
     };

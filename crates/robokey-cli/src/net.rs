@@ -6,9 +6,12 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
+use robokey::protocol::auth::PairingSecret;
 use robokey::rng::{Purpose, stream};
 use robokey_net::controller_agent::{ControllerOptions, run_controller};
 use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, TimeMode, serve};
+use robokey_net::pairing::{read_pairing, write_pairing};
+use robokey_net::pcap::read as read_capture;
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
 use robokey_net::robot_agent::{RobotOptions, run_robot};
 use robokey_net::session::{Pace, SessionReport, Timing, os_rng};
@@ -49,9 +52,41 @@ pub struct SessionArgs {
     /// Lockstep: milliseconds to wait for each command before treating it as missing.
     #[arg(long, default_value_t = 50)]
     step_timeout_ms: u64,
+    /// The pairing file written by `robokey pair`, installed on the robot and the
+    /// controller: every frame of the session is authenticated with it.
+    #[arg(long, value_name = "FILE")]
+    pairing: Option<PathBuf>,
+    /// Run without a pairing: anyone on the network can impersonate either side, inject
+    /// commands and learn the key. Every output is labelled "passive adversary only".
+    #[arg(long, conflicts_with = "pairing")]
+    unauthenticated: bool,
 }
 
 impl SessionArgs {
+    fn pairing(&self) -> Result<PairingSecret> {
+        match (&self.pairing, self.unauthenticated) {
+            (Some(path), _) => {
+                let (secret, warning) = read_pairing(path)?;
+                if let Some(warning) = warning {
+                    eprintln!("{warning}");
+                }
+                Ok(secret)
+            }
+            (None, true) => {
+                eprintln!(
+                    "warning: --unauthenticated: anyone on the network can impersonate either side, \
+                     inject commands and take the key; every result holds against a passive \
+                     adversary only"
+                );
+                Ok(PairingSecret::unauthenticated())
+            }
+            (None, false) => bail!(
+                "no --pairing FILE: create one with `robokey pair --out DIR` and install it on the \
+                 robot and the controller, or pass --unauthenticated (passive adversary only)"
+            ),
+        }
+    }
+
     fn timing(&self) -> Result<Timing> {
         if !(self.silence_timeout > 0.0 && self.silence_timeout.is_finite()) {
             bail!(
@@ -75,6 +110,67 @@ impl SessionArgs {
         }
         Ok(())
     }
+}
+
+#[derive(Args, Debug)]
+pub struct PairArgs {
+    /// Folder to write `pairing.key` into (created if missing; an existing pairing is
+    /// never overwritten).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Writes a fresh pairing secret and prints its public fingerprint.
+pub fn pair(args: PairArgs) -> Result<()> {
+    let (path, secret) = write_pairing(&args.out, &mut os_rng()?)?;
+    println!(
+        "wrote {} (mode 0600), fingerprint {}\ninstall it on the robot and on the controller \
+         (--pairing FILE); both print the fingerprint at start",
+        path.display(),
+        secret.fingerprint()
+    );
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct FramesArgs {
+    /// A pcap capture (e.g. from `robokey relay --capture`).
+    capture: PathBuf,
+}
+
+/// Prints every datagram of a capture as robokey parses it, one tab-separated line each:
+/// number, type, session, seq, step, and the numbers a Measurement (`y`) or a Command
+/// (`u0D`, `u1D`) carries. MACs are not checked (no pairing secret needed).
+pub fn frames(args: FramesArgs) -> Result<()> {
+    use robokey::protocol::Message;
+    use robokey::protocol::wire::decode;
+    for (i, datagram) in read_capture(&args.capture)?.iter().enumerate() {
+        let bytes = &datagram.payload;
+        let frame = match decode(bytes) {
+            Ok(frame) => frame,
+            Err(e) => {
+                println!("{}\tundecodable\t\t\t\t{e}", i + 1);
+                continue;
+            }
+        };
+        let numbers: Vec<f64> = match &frame.message {
+            Message::Measurement { y, .. } => y.to_vec(),
+            Message::Command { u0, u1, .. } => u0.iter().chain(u1).copied().collect(),
+            _ => Vec::new(),
+        };
+        let numbers: Vec<String> = numbers.iter().map(|v| format!("{v:?}")).collect();
+        // A parsed frame has its header: type at byte 3, step at bytes 12..16.
+        let step = u32::from_be_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]);
+        println!(
+            "{}\t{}\t{}\t{}\t{step}\t{}",
+            i + 1,
+            bytes[3],
+            frame.session,
+            frame.seq,
+            numbers.join(",")
+        );
+    }
+    Ok(())
 }
 
 /// Where the robot agent's wheels are.
@@ -165,6 +261,7 @@ pub fn robot(args: RobotArgs) -> Result<()> {
         timing,
         wait_for_hello: Duration::from_secs_f64(args.wait.max(0.0)),
         key_out: args.session.key_out.clone(),
+        pairing: args.session.pairing()?,
     };
     match args.seed {
         Some(seed) => {
@@ -221,6 +318,7 @@ pub fn controller(args: ControllerArgs) -> Result<()> {
         timing: args.session.timing()?,
         key_out: args.session.key_out.clone(),
         session: None,
+        pairing: args.session.pairing()?,
     };
     let report = run_controller(&config, &options)?;
     args.session.finish(&report)

@@ -105,6 +105,64 @@ fn bad_input_gets_named_errors() {
     assert!(err.contains("`robot.r` is empty"), "{err}");
 }
 
+#[test]
+fn pairing_is_required_written_once_and_checked() {
+    let dir = scratch("pair");
+    let out = ok(&["pair", "--out", s(&dir)]);
+    let fingerprint = out
+        .split("fingerprint ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no fingerprint in {out}"));
+    assert_eq!(fingerprint.len(), 16, "{out}");
+    let file = dir.join("pairing.key");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(&file).unwrap().permissions().mode();
+        assert_eq!(mode & 0o777, 0o600);
+    }
+    let before = read(&file);
+    let err = fails(&["pair", "--out", s(&dir)]);
+    assert!(err.contains("refusing to overwrite"), "{err}");
+    assert_eq!(read(&file), before);
+    // No pairing and no --unauthenticated: the agents refuse to run, naming the way out.
+    let err = fails(&["robot", "--listen", "127.0.0.1:0"]);
+    assert!(
+        err.contains("no --pairing FILE") && err.contains("robokey pair --out DIR"),
+        "{err}"
+    );
+    let err = fails(&[
+        "controller",
+        "--robot",
+        "127.0.0.1:9",
+        "--pairing",
+        s(&dir.join("nope")),
+    ]);
+    assert!(err.contains("nope: missing"), "{err}");
+    std::fs::write(dir.join("short.key"), "robokey-pairing-v1 00ff\n").unwrap();
+    let err = fails(&[
+        "controller",
+        "--robot",
+        "127.0.0.1:9",
+        "--pairing",
+        s(&dir.join("short.key")),
+    ]);
+    assert!(
+        err.contains("short.key") && err.contains("expected 64 hex digits"),
+        "{err}"
+    );
+    let err = fails(&[
+        "robot",
+        "--listen",
+        "127.0.0.1:0",
+        "--pairing",
+        s(&file),
+        "--unauthenticated",
+    ]);
+    assert!(err.contains("cannot be used with"), "{err}");
+}
+
 const SMALL_SWEEP: &str = "[run]\nreplicates = 3\n[sweep]\n\"protocol.delta_v\" = [0.02, 0.035]\n\"eve.alpha\" = [0.0, 0.1]\n";
 
 #[test]

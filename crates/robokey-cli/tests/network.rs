@@ -1,82 +1,15 @@
-//! The network rules' guarantees (docs/protocol.md, "On a network"), each with real processes started through the CLI on loopback.
+//! The network session's guarantees (docs/wire.md, docs/threat-model.md), each with real
+//! processes started through the CLI on loopback.
 
-use std::io::{BufRead, BufReader};
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
+
+use common::{pairing, report, run, s, scratch, start, wait};
 
 use robokey::Config;
 use robokey::sim::simulate;
-
-/// A running `robokey` process whose first stdout line announced its address.
-struct Process {
-    child: Child,
-    address: String,
-}
-
-impl Drop for Process {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// Starts `robokey args…` and reads the address from its first line (`… on ADDR[, …]`).
-fn start(args: &[&str]) -> Process {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_robokey"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("robokey starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.as_mut().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let address = line
-        .split(" on ")
-        .nth(1)
-        .and_then(|rest| rest.split([',', '\n']).next())
-        .unwrap_or_else(|| panic!("no address in {line:?}"))
-        .trim()
-        .to_owned();
-    Process { child, address }
-}
-
-/// Runs `robokey args…` to completion; returns (success, stdout + stderr).
-fn run(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_robokey"))
-        .args(args)
-        .output()
-        .unwrap();
-    let text =
-        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
-    (out.status.success(), text)
-}
-
-fn wait(mut process: Process) -> String {
-    let status = process.child.wait().unwrap();
-    let mut rest = String::new();
-    if let Some(out) = process.child.stdout.as_mut() {
-        let _ = std::io::Read::read_to_string(out, &mut rest);
-    }
-    assert!(status.success(), "process failed: {rest}");
-    rest
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("robokey-net-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn s(path: &Path) -> String {
-    path.to_str().unwrap().to_owned()
-}
-
-fn report(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
 
 /// One lockstep session, optionally through a relay; returns the folder with
 /// robot.json, controller.json, keys and capture.
@@ -103,6 +36,14 @@ fn session_with_robot_args(
         "--silence-timeout",
         "1",
     ];
+    // Paired unless the test asks for --unauthenticated.
+    let pairing = pairing(&dir);
+    let auth = if extra.contains(&"--unauthenticated") {
+        vec![]
+    } else {
+        vec!["--pairing", pairing.as_str()]
+    };
+    robot_args.extend(&auth);
     let seed = seed.to_string();
     robot_args.extend(["--seed", &seed]);
     let (robot_key, robot_report) = (file("robot.key"), file("robot.json"));
@@ -139,6 +80,7 @@ fn session_with_robot_args(
         "--silence-timeout",
         "1",
     ];
+    controller_args.extend(&auth);
     controller_args.extend(["--key-out", &controller_key, "--report", &controller_report]);
     controller_args.extend(extra);
     let (ok, text) = run(&controller_args);
@@ -153,6 +95,10 @@ fn session_with_robot_args(
 #[test]
 fn clean_network_confirms_equal_keys_identical_to_the_simulator_and_eve_agrees_on_the_capture() {
     let dir = session("clean", 11, &[], Some(&[]));
+    // .ci/run checks the Wireshark dissector on this capture.
+    if let Some(out) = std::env::var_os("ROBOKEY_CAPTURE_OUT") {
+        std::fs::copy(dir.join("capture.pcap"), out).unwrap();
+    }
     let (robot, controller) = (
         report(&dir.join("robot.json")),
         report(&dir.join("controller.json")),
@@ -228,13 +174,44 @@ fn clean_network_confirms_equal_keys_identical_to_the_simulator_and_eve_agrees_o
             "{strategy}"
         );
     }
-    // The confirmation tag hands the transcript-aided Eve the key.
-    assert!(
-        strategies[4]["tag_flips"].as_u64().is_some(),
-        "{}",
-        strategies[4]
-    );
-    assert_eq!(strategies[4]["disagreement_pct"].as_f64(), Some(0.0));
+    // The key tags are MACed under session keys she does not hold: no key oracle on a
+    // paired session's capture (the simulator charges them anyway, as if the pairing
+    // secret leaked later).
+    assert!(strategies[4]["tag_flips"].is_null(), "{}", strategies[4]);
+}
+
+#[test]
+fn an_unauthenticated_session_is_labelled_and_its_tags_are_a_key_oracle() {
+    let dir = session("unauthenticated", 11, &["--unauthenticated"], Some(&[]));
+    for side in ["robot", "controller"] {
+        let r = report(&dir.join(format!("{side}.json")));
+        assert_eq!(r["outcome"], "confirmed", "{r}");
+        assert_eq!(r["authentication"], "none: passive adversary only", "{r}");
+        let key = std::fs::read_to_string(dir.join(format!("{side}.key"))).unwrap();
+        assert!(key.contains("# passive adversary only"), "{key}");
+        assert!(key.contains("# raw: not secret against an eavesdropper who learns the model"));
+    }
+    // Under the public secret the key tags are a public function of the key: the
+    // transcript-aided Eve verifies her key with them.
+    let out = dir.join("eve");
+    let (ok, text) = run(&[
+        "eve",
+        "--capture",
+        &s(&dir.join("capture.pcap")),
+        "--strategy",
+        "transcript",
+        "--seed",
+        "11",
+        "--controller-key",
+        &s(&dir.join("controller.key")),
+        "--out",
+        &s(&out),
+    ]);
+    assert!(ok, "{text}");
+    let eve = report(&out.join("capture.json"));
+    let transcript = &eve["strategies"][0];
+    assert!(transcript["tag_flips"].as_u64().is_some(), "{transcript}");
+    assert_eq!(transcript["disagreement_pct"].as_f64(), Some(0.0));
 }
 
 #[test]
@@ -305,11 +282,10 @@ fn faulty_network_never_writes_two_differing_keys() {
             controller["erased_steps"].as_u64().unwrap() > 0,
             "10 % loss erases steps"
         );
-        assert!(
-            controller["frames"]["duplicates"].as_u64().unwrap()
-                + robot["frames"]["duplicates"].as_u64().unwrap()
-                > 0
-        );
+        // Duplicates are dropped as replays, corrupted datagrams fail their MAC.
+        let rejected =
+            |r: &serde_json::Value, why: &str| r["frames_rejected"][why].as_u64().unwrap();
+        assert!(rejected(&controller, "replayed") + rejected(&robot, "replayed") > 0);
         let keys: Vec<String> = ["robot.key", "controller.key"]
             .iter()
             .filter_map(|f| std::fs::read_to_string(dir.join(f)).ok())
@@ -328,6 +304,7 @@ fn faulty_network_never_writes_two_differing_keys() {
 #[test]
 fn robot_stops_its_wheels_and_aborts_after_silence() {
     let dir = scratch("silence");
+    let pairing = pairing(&dir);
     let robot_report = s(&dir.join("robot.json"));
     // Real time (T = 0.2 s): the session would last 204 s; the controller dies after 1 s.
     let robot = start(&[
@@ -340,9 +317,17 @@ fn robot_stops_its_wheels_and_aborts_after_silence() {
         "1",
         "--report",
         &robot_report,
+        "--pairing",
+        &pairing,
     ]);
     let mut controller = Command::new(env!("CARGO_BIN_EXE_robokey"))
-        .args(["controller", "--robot", &robot.address])
+        .args([
+            "controller",
+            "--robot",
+            &robot.address,
+            "--pairing",
+            &pairing,
+        ])
         .stdout(Stdio::null())
         .spawn()
         .unwrap();
@@ -368,7 +353,10 @@ fn robot_stops_its_wheels_and_aborts_after_silence() {
 #[test]
 fn mismatched_configurations_abort_naming_the_difference() {
     let dir = scratch("terms");
+    let pairing = pairing(&dir);
     let robot_report = s(&dir.join("robot.json"));
+    // The refusal ends nothing at the robot (a replayed old Hello could cause it); it waits
+    // for a Hello it can accept until --wait runs out.
     let robot = start(&[
         "robot",
         "--listen",
@@ -379,6 +367,10 @@ fn mismatched_configurations_abort_naming_the_difference() {
         "robot.T=0.25",
         "--report",
         &robot_report,
+        "--pairing",
+        &pairing,
+        "--wait",
+        "2",
     ]);
     let (ok, text) = run(&[
         "controller",
@@ -386,6 +378,8 @@ fn mismatched_configurations_abort_naming_the_difference() {
         &robot.address,
         "--pace",
         "lockstep",
+        "--pairing",
+        &pairing,
     ]);
     assert!(ok, "{text}");
     assert!(

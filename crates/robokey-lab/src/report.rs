@@ -52,7 +52,7 @@ fn secrecy_section(
     md.push_str(
         "The paper measures Eve only by her disagreement. Here every point is re-simulated until the sessions \
          today's agents would keep (both key tags matched) fill a block of at least 10,000 raw bits; every tag \
-         published over a pooled key is charged (two 64-bit tags per session), and the block's secret length \
+         published over a pooled key is charged (two directional 128-bit key tags per session), and the block's secret length \
          follows from the finite-key bound (docs/secrecy.md), against the oracle Eve (strongest: the exact \
          model), the identifying Eve (learns r and D from the traffic) and the paper's Eve (restricted: she \
          never learns them, so a figure against her holds only if nobody does).\n\n",

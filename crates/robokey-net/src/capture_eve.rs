@@ -7,9 +7,10 @@ use robokey::Config;
 use robokey::config::EveStrategy;
 use robokey::eve::{Eavesdropper, Eve, ModelErrors};
 use robokey::model::DiffDrive;
-use robokey::protocol::wire::decode;
+use robokey::protocol::auth::{AuthMode, PairingSecret};
+use robokey::protocol::wire::{Frame, decode};
 use robokey::protocol::{
-    KeyBits, Message, SessionPlan, agreement_terms, config_digest, terms_difference,
+    Confirmer, KeyBits, Message, SessionPlan, agreement_terms, config_digest, terms_difference,
 };
 
 use crate::error::NetError;
@@ -24,6 +25,10 @@ pub struct CapturedSession {
     pub messages: Vec<Message>,
     /// Datagrams that did not decode.
     pub undecodable: usize,
+    /// An `--unauthenticated` session's confirmer: its keys come from the public secret and
+    /// the nonces on the wire, so the eavesdropper can compute the tags too. `None` for a
+    /// paired session.
+    pub public_confirmer: Option<Confirmer>,
 }
 
 /// What one eavesdropper made of a captured session.
@@ -48,23 +53,24 @@ pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, 
     let datagrams = pcap::read(capture)?;
     let frames: Vec<_> = datagrams
         .iter()
-        .filter_map(|d| decode(&d.payload).ok())
+        .filter_map(|d| decode(&d.payload).ok().map(|f| (f, d.payload.as_slice())))
         .collect();
     let undecodable = datagrams.len() - frames.len();
     let session = frames
         .iter()
-        .find(|f| matches!(f.message, Message::Hello { .. }))
+        .find(|(f, _)| matches!(f.message, Message::Hello { .. }))
         .or(frames.first())
-        .map(|f| f.session)
+        .map(|(f, _)| f.session)
         .ok_or_else(|| NetError::Capture {
             path: capture.display().to_string(),
             message: "no robokey frame in the capture".into(),
         })?;
-    let messages: Vec<Message> = frames
+    let frames: Vec<_> = frames
         .into_iter()
-        .filter(|f| f.session == session)
-        .map(|f| f.message)
+        .filter(|(f, _)| f.session == session)
         .collect();
+    let public_confirmer = public_confirmer(&frames);
+    let messages: Vec<Message> = frames.into_iter().map(|(f, _)| f.message).collect();
     for message in &messages {
         if let Message::Hello {
             config_digest: digest,
@@ -83,7 +89,31 @@ pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, 
         session,
         messages,
         undecodable,
+        public_confirmer,
     })
+}
+
+/// The confirmer of an unauthenticated session's handshake (its first `Hello` and the
+/// `HelloAck` answering it), with the public secret's keys.
+fn public_confirmer(frames: &[(Frame, &[u8])]) -> Option<Confirmer> {
+    let (nonce_c, hello) = frames.iter().find_map(|(f, bytes)| match f.message {
+        Message::Hello {
+            auth: AuthMode::Unauthenticated,
+            nonce,
+            ..
+        } => Some((nonce, *bytes)),
+        _ => None,
+    })?;
+    let (nonce_r, ack) = frames.iter().find_map(|(f, bytes)| match f.message {
+        Message::HelloAck {
+            nonce_c: echoed,
+            nonce_r,
+            ..
+        } if echoed == nonce_c => Some((nonce_r, *bytes)),
+        _ => None,
+    })?;
+    let keys = PairingSecret::unauthenticated().session_keys(&nonce_c, &nonce_r);
+    Some(Confirmer::new(keys, [hello, ack].concat()))
 }
 
 /// Runs an eavesdropper of `strategy`, starting from `errors`, on a captured session.
@@ -94,7 +124,10 @@ pub fn listen(
     strategy: EveStrategy,
     errors: ModelErrors,
 ) -> CaptureResult {
-    let plan = SessionPlan::from_config(config, captured.session);
+    let mut plan = SessionPlan::from_config(config, captured.session);
+    if let Some(confirmer) = &captured.public_confirmer {
+        plan.confirmer = confirmer.clone();
+    }
     let mut eve = Eve::new(config, strategy, errors);
     eve.begin_session(&plan);
     let mut decisions = vec![None; plan.steps as usize];

@@ -6,14 +6,15 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use robokey::Config;
+use robokey::protocol::auth::{AuthMode, ControllerChannel, Delivery, PairingSecret};
 use robokey::protocol::{
     ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome,
     SessionPlan, agreement_terms, config_digest,
 };
 
 use crate::error::NetError;
-use crate::robot_agent::{PROTOCOL_VERSION, finish_report};
-use crate::session::{SessionReport, Timing, linger, os_rng};
+use crate::robot_agent::finish_report;
+use crate::session::{SessionReport, Timing, authentication_label, linger, os_rng};
 use crate::transport::Transport;
 
 /// Options of the controller agent.
@@ -29,6 +30,8 @@ pub struct ControllerOptions {
     pub key_out: Option<PathBuf>,
     /// Session id (random when `None`).
     pub session: Option<u32>,
+    /// The pairing secret ([`PairingSecret::unauthenticated`] for `--unauthenticated`).
+    pub pairing: PairingSecret,
 }
 
 /// Runs one session as the controller.
@@ -39,19 +42,28 @@ pub fn run_controller(
     config: &Config,
     options: &ControllerOptions,
 ) -> Result<SessionReport, NetError> {
+    let mut rng = os_rng()?;
     let session = match options.session {
         Some(id) => id,
         None => {
             use rand::RngExt;
-            os_rng()?.random()
+            rng.random()
         }
     };
-    let mut transport = Transport::bind(options.bind, Some(options.robot))?;
-    transport.set_session(session);
+    let channel = ControllerChannel::new(
+        options.pairing.clone(),
+        options.robot,
+        session,
+        config_digest(config),
+        agreement_terms(config),
+        &mut rng,
+    );
+    let mut transport = Transport::controller(options.bind, channel)?;
     let timing = options.timing;
-    let plan = SessionPlan::from_config(config, session);
+    let mut plan = SessionPlan::from_config(config, session);
     let mut report = SessionReport {
         role: "controller".into(),
+        authentication: authentication_label(&options.pairing),
         session,
         steps: plan.steps,
         codewords: plan.codewords(),
@@ -59,25 +71,29 @@ pub fn run_controller(
     };
     let message_bits = plan.code.k();
 
-    // Handshake: repeat Hello until HelloAck (or a refusal), within the silence timeout.
-    let hello = Message::Hello {
-        version: PROTOCOL_VERSION,
-        config_digest: config_digest(config),
-        terms: agreement_terms(config),
-    };
+    // Handshake: repeat Hello until a HelloAck (or a Refuse) that verifies, within the
+    // silence timeout.
     let give_up = Instant::now() + timing.silence_timeout;
     let accepted = loop {
         if Instant::now() >= give_up {
+            let hint = match options.pairing.mode() {
+                AuthMode::Paired => format!(
+                    "is it paired with the same secret, fingerprint {}?",
+                    options.pairing.fingerprint()
+                ),
+                AuthMode::Unauthenticated => "is it running with --unauthenticated?".into(),
+            };
             break Err(format!(
-                "no HelloAck from the robot at {} within {:.1} s",
+                "no HelloAck that verifies from the robot at {} within {:.1} s ({hint})",
                 options.robot,
                 timing.silence_timeout.as_secs_f64()
             ));
         }
-        transport.send(hello.clone())?;
-        match transport.recv_until(Instant::now() + timing.retransmit_interval())? {
-            Some((_, Message::HelloAck { .. })) => break Ok(()),
-            Some((_, Message::Abort { reason })) => {
+        transport.send_hello()?;
+        let wait_until = Instant::now() + timing.retransmit_interval();
+        match transport.recv_until(wait_until)? {
+            Some(Delivery::Established) => break Ok(()),
+            Some(Delivery::Refused(reason)) => {
                 break Err(format!("robot refused the session: {reason}"));
             }
             _ => {}
@@ -88,23 +104,31 @@ pub fn run_controller(
             report,
             Some(Outcome::Aborted(reason)),
             &[],
-            transport.counts,
+            &transport,
             None,
             message_bits,
         );
     }
+    plan.confirmer = transport
+        .confirmer()
+        .expect("an established session has a confirmer");
 
+    // The first frame under the session key binds the session at the robot; repeat it until
+    // the robot's first measurement shows it arrived.
+    transport.send(Message::Ready)?;
+    let mut robot_heard = false;
     let mut endpoint = ControllerEndpoint::new(config, plan);
     let mut outcome = None;
     let mut last_frame = Instant::now();
     let mut last_confirm = None;
     while outcome.is_none() {
         match transport.recv_until(Instant::now() + timing.retransmit_interval())? {
-            Some((_, Message::HelloAck { .. })) => last_frame = Instant::now(),
-            Some((_, message)) => {
+            Some(Delivery::Message(message)) => {
+                robot_heard = true;
                 last_frame = Instant::now();
                 endpoint.handle_input(ControllerInput::Frame(message));
             }
+            Some(_) => {}
             None if last_frame.elapsed() >= timing.silence_timeout => {
                 let reason = format!(
                     "silence: no valid frame from the robot for {:.1} s",
@@ -115,6 +139,7 @@ pub fn run_controller(
                 })?;
                 outcome = Some(Outcome::Aborted(reason));
             }
+            None if !robot_heard => transport.send(Message::Ready)?,
             // Retransmission timer: Finish until FinishAck (bounded by the endpoint).
             None => endpoint.handle_input(ControllerInput::Timeout),
         }
@@ -146,7 +171,7 @@ pub fn run_controller(
         report,
         outcome,
         endpoint.key(),
-        transport.counts,
+        &transport,
         options.key_out.as_ref(),
         message_bits,
     )

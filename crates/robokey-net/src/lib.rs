@@ -6,6 +6,7 @@ pub mod capture_eve;
 pub mod controller_agent;
 pub mod error;
 pub mod khepera;
+pub mod pairing;
 pub mod pcap;
 pub mod relay;
 pub mod robot_agent;

@@ -8,18 +8,18 @@ use std::time::{Duration, Instant};
 use rand::CryptoRng;
 use robokey::Config;
 use robokey::model::WheelSpeeds;
+use robokey::protocol::auth::{Delivery, PairingSecret, RobotChannel};
 use robokey::protocol::{
     Message, Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionPlan, agreement_terms,
-    config_digest, terms_difference,
+    config_digest,
 };
 
-use crate::backend::Backend;
+use crate::backend::{Backend, WheelGuard};
 use crate::error::NetError;
-use crate::session::{Pace, SessionReport, Timing, linger, write_key_file};
+use crate::session::{
+    Pace, SessionReport, Timing, authentication_label, linger, os_rng, write_key_file,
+};
 use crate::transport::Transport;
-
-/// Protocol version spoken in `Hello`.
-pub const PROTOCOL_VERSION: u8 = 1;
 
 /// Options of the robot agent.
 #[derive(Clone, Debug)]
@@ -32,20 +32,21 @@ pub struct RobotOptions {
     pub wait_for_hello: Duration,
     /// Where to write the key once confirmed.
     pub key_out: Option<PathBuf>,
+    /// The pairing secret ([`PairingSecret::unauthenticated`] for `--unauthenticated`).
+    pub pairing: PairingSecret,
 }
 
 /// The robot's side of a running session.
 struct RobotSession<'a, B: Backend + ?Sized> {
     transport: Transport,
     endpoint: RobotEndpoint,
-    backend: &'a mut B,
+    backend: WheelGuard<'a, B>,
     timing: Timing,
     report: SessionReport,
     outcome: Option<Outcome>,
     last_frame: Instant,
     last_confirm: Option<Message>,
     last_measurement: Option<Message>,
-    hello_ack: Message,
 }
 
 impl<B: Backend + ?Sized> RobotSession<'_, B> {
@@ -88,16 +89,15 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
                 .transport
                 .recv_until(deadline.min(self.last_frame + self.timing.silence_timeout))?
             {
-                Some((_, message)) => {
+                Some(Delivery::Message(message)) => {
                     self.last_frame = Instant::now();
-                    if matches!(message, Message::Hello { .. }) {
-                        // Our HelloAck was lost: answer the retransmitted Hello again.
-                        self.transport.send(self.hello_ack.clone())?;
-                        continue;
+                    // A repeated Ready (the controller has not heard us yet) needs nothing.
+                    if message != Message::Ready {
+                        self.endpoint.handle_input(RobotInput::Frame(message));
+                        self.pump()?;
                     }
-                    self.endpoint.handle_input(RobotInput::Frame(message));
-                    self.pump()?;
                 }
+                Some(_) => {}
                 None if self.last_frame.elapsed() >= self.timing.silence_timeout => {
                     let reason = format!(
                         "silence: no valid frame from the controller for {:.1} s",
@@ -115,86 +115,84 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
     }
 }
 
-/// Waits for a `Hello` with matching terms; answers it. Returns the session id, or the
-/// report of a session refused at the handshake.
+/// Answers verified Hellos until a controller binds a session (its first frame under the
+/// controller→robot session key). Returns the session id, or the report of a robot that no
+/// controller bound within the wait.
 fn handshake(
     transport: &mut Transport,
-    config: &Config,
-    wait: Duration,
-) -> Result<Result<(u32, Message), SessionReport>, NetError> {
-    let digest = config_digest(config);
+    options: &RobotOptions,
+) -> Result<Result<u32, SessionReport>, NetError> {
+    let wait = options.wait_for_hello;
     let deadline = Instant::now() + wait;
+    let mut refused = None;
     loop {
-        let Some((session, message)) = transport.recv_until(deadline)? else {
-            return Err(NetError::Usage(format!(
-                "no Hello from a controller within {:.0} s",
-                wait.as_secs_f64()
-            )));
-        };
-        let Message::Hello {
-            version,
-            config_digest: theirs,
-            terms,
-        } = message
-        else {
-            continue;
-        };
-        let refusal = if version != PROTOCOL_VERSION {
-            Some(format!(
-                "protocol version {version} is not supported (robot speaks {PROTOCOL_VERSION})"
-            ))
-        } else if theirs != digest {
-            Some(format!(
-                "configurations differ: {}",
-                terms_difference(&agreement_terms(config), &terms, "robot", "controller")
-            ))
-        } else {
-            None
-        };
-        transport.set_session(session);
-        if let Some(reason) = refusal {
-            transport.send(Message::Abort {
-                reason: reason.clone(),
-            })?;
-            let mut report = SessionReport {
-                role: "robot".into(),
-                session,
-                ..SessionReport::default()
-            };
-            report.set_outcome(&Outcome::Aborted(reason));
-            report.frames = transport.counts;
-            return Ok(Err(report));
+        match transport.recv_until(deadline)? {
+            Some(Delivery::Message(_)) => {
+                let session = transport.session().expect("a delivered message binds");
+                return Ok(Ok(session));
+            }
+            Some(Delivery::Refused(reason)) => refused = Some(reason),
+            Some(_) => {}
+            None => break,
         }
-        let ack = Message::HelloAck {
-            config_digest: digest,
-        };
-        transport.send(ack.clone())?;
-        return Ok(Ok((session, ack)));
     }
+    let rejected = transport.rejected();
+    let mut reason = format!(
+        "no controller bound a session within {:.0} s ({} datagrams rejected)",
+        wait.as_secs_f64(),
+        rejected.total()
+    );
+    if let Some(refused) = refused {
+        reason += &format!("; last Hello refused: {refused}");
+    }
+    let mut report = SessionReport {
+        role: "robot".into(),
+        authentication: authentication_label(&options.pairing),
+        commands_applied: Some(0),
+        ..SessionReport::default()
+    };
+    report.set_outcome(&Outcome::Aborted(reason));
+    report.frames = transport.counts();
+    report.frames_rejected = rejected;
+    Ok(Err(report))
 }
 
 /// Runs one session as the robot: waits for the controller, then drives `backend` for N
 /// steps with key bits drawn from `key_source` (the OS CSPRNG in deployment).
 ///
 /// # Errors
-/// Socket or backend failures, or no controller within the wait.
+/// Socket or backend failures. A robot that no controller binds within the wait returns
+/// an aborted report.
 pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     config: &Config,
     backend: &mut B,
     key_source: &mut R,
     options: &RobotOptions,
 ) -> Result<SessionReport, NetError> {
-    let mut transport = Transport::bind(options.listen, None)?;
-    println!("robot listening on {}", transport.local_addr()?);
-    let (session, hello_ack) = match handshake(&mut transport, config, options.wait_for_hello)? {
-        Ok(accepted) => accepted,
+    let channel = RobotChannel::new(
+        options.pairing.clone(),
+        config_digest(config),
+        agreement_terms(config),
+    );
+    let mut transport = Transport::robot(options.listen, channel, os_rng()?)?;
+    println!(
+        "robot listening on {}, {}",
+        transport.local_addr()?,
+        authentication_label(&options.pairing)
+    );
+    let session = match handshake(&mut transport, options)? {
+        Ok(session) => session,
         Err(refused) => return Ok(refused),
     };
-    let plan = SessionPlan::from_config(config, session);
+    let mut plan = SessionPlan::from_config(config, session);
+    plan.confirmer = transport
+        .confirmer()
+        .expect("a bound session has a confirmer");
     let steps = plan.steps;
     let sample_time = Duration::from_secs_f64(plan.sample_time);
     let report = SessionReport {
         role: "robot".into(),
+        authentication: authentication_label(&options.pairing),
         session,
         steps,
         codewords: plan.codewords(),
@@ -203,14 +201,13 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     let mut s = RobotSession {
         transport,
         endpoint: RobotEndpoint::new(plan, key_source),
-        backend,
+        backend: WheelGuard::new(backend),
         timing: options.timing,
         report,
         outcome: None,
         last_frame: Instant::now(),
         last_confirm: None,
         last_measurement: None,
-        hello_ack,
     };
     let start = Instant::now();
     for k in 0..=steps {
@@ -258,11 +255,12 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     ) {
         linger(&mut s.transport, &s.timing, &[Message::FinishAck, confirm])?;
     }
+    s.report.commands_applied = Some(s.endpoint.commands_applied());
     finish_report(
         s.report,
         s.outcome,
         s.endpoint.key(),
-        s.transport.counts,
+        &s.transport,
         options.key_out.as_ref(),
         s.endpoint.plan().code.k(),
     )
@@ -273,17 +271,25 @@ pub(crate) fn finish_report(
     mut report: SessionReport,
     outcome: Option<Outcome>,
     key: &[u8],
-    frames: crate::transport::FrameCounts,
+    transport: &Transport,
     key_out: Option<&PathBuf>,
     message_bits: usize,
 ) -> Result<SessionReport, NetError> {
     let outcome = outcome.unwrap_or_else(|| Outcome::Aborted("ended without an outcome".into()));
     report.set_outcome(&outcome);
-    report.frames = frames;
+    report.frames = transport.counts();
+    report.frames_rejected = transport.rejected();
     report.key_bits = key.len();
     report.accepted = (key.len() / message_bits.max(1)) as u32;
     if let (Outcome::Confirmed, Some(path)) = (&outcome, key_out) {
-        write_key_file(path, key)?;
+        let mut labels = vec![
+            "raw: not secret against an eavesdropper who learns the model",
+            "confirmed by the peer's directional key tag",
+        ];
+        if report.is_unauthenticated() {
+            labels.push("passive adversary only: the session was not authenticated");
+        }
+        write_key_file(path, key, &labels)?;
         report.key_file = Some(path.display().to_string());
     }
     Ok(report)

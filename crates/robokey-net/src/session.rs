@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use crate::error::NetError;
 use crate::transport::FrameCounts;
+use robokey::protocol::auth::{AuthMode, PairingSecret, RejectionCounts};
 
 /// How the robot's clock runs (docs/protocol.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -67,14 +68,17 @@ pub fn linger(
     reply: &[robokey::protocol::Message],
 ) -> Result<(), NetError> {
     use robokey::protocol::Message;
+    use robokey::protocol::auth::Delivery;
     use std::time::Instant;
     let interval = timing.retransmit_interval();
     let end = Instant::now() + interval * 10;
     let mut last_answer: Option<Instant> = None;
-    while let Some((_, message)) = transport.recv_until(end)? {
+    while let Some(delivery) = transport.recv_until(end)? {
         let asks = matches!(
-            message,
-            Message::Finish { .. } | Message::FinishAck | Message::Confirm { .. }
+            delivery,
+            Delivery::Message(
+                Message::Finish { .. } | Message::FinishAck | Message::Confirm { .. }
+            )
         );
         if asks && last_answer.is_none_or(|t| t.elapsed() >= interval) {
             last_answer = Some(Instant::now());
@@ -91,6 +95,8 @@ pub fn linger(
 pub struct SessionReport {
     /// `robot` or `controller`.
     pub role: String,
+    /// `paired (fingerprint F)`, or `none: passive adversary only` (`--unauthenticated`).
+    pub authentication: String,
     /// Session id.
     pub session: u32,
     /// Steps N of the session.
@@ -117,6 +123,12 @@ pub struct SessionReport {
     pub key_file: Option<String>,
     /// Frame counters.
     pub frames: FrameCounts,
+    /// Datagrams dropped by the session layer, by reason; none changed any state.
+    pub frames_rejected: RejectionCounts,
+    /// Robot: commands applied to the wheels (authenticated, fresh, within the agreed
+    /// terms; stop commands and fallbacks excluded).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub commands_applied: Option<u32>,
 }
 
 impl SessionReport {
@@ -140,11 +152,26 @@ impl SessionReport {
         std::fs::write(path, text).map_err(NetError::io(format!("write report {}", path.display())))
     }
 
+    /// Whether the session ran without a pairing.
+    #[must_use]
+    pub fn is_unauthenticated(&self) -> bool {
+        self.authentication.starts_with("none")
+    }
+
     /// One line for the terminal.
     #[must_use]
     pub fn line(&self) -> String {
+        let rejected = match self.frames_rejected.total() {
+            0 => String::new(),
+            n => format!(" [{n} datagrams rejected, see the report]"),
+        };
         format!(
-            "{}: session {:08x}, {} steps ({} erased), {}/{} codewords accepted, {} key bits, {}{}",
+            "{}{}: session {:08x}, {} steps ({} erased), {}/{} codewords accepted, {} key bits, {}{}{rejected}",
+            if self.is_unauthenticated() {
+                "[passive adversary only] "
+            } else {
+                ""
+            },
             self.role,
             self.session,
             self.steps_done,
@@ -171,12 +198,22 @@ pub fn os_rng() -> Result<rand::rngs::ChaCha20Rng, NetError> {
         .map_err(|e| NetError::Usage(format!("the OS random generator failed: {e}")))
 }
 
+/// How a report names a session's authentication.
+#[must_use]
+pub fn authentication_label(secret: &PairingSecret) -> String {
+    match secret.mode() {
+        AuthMode::Paired => format!("paired (fingerprint {})", secret.fingerprint()),
+        AuthMode::Unauthenticated => "none: passive adversary only".to_owned(),
+    }
+}
+
 /// Writes a confirmed key (`bits` of 0/1) as hex of the bit-packed key (bit i of the key =
-/// bit i % 8 of byte i / 8), with mode 0600. Refuses to overwrite.
+/// bit i % 8 of byte i / 8), with mode 0600, followed by comment lines saying what it is
+/// (`labels`). Refuses to overwrite.
 ///
 /// # Errors
 /// The file exists or cannot be written.
-pub fn write_key_file(path: &Path, bits: &[u8]) -> Result<(), NetError> {
+pub fn write_key_file(path: &Path, bits: &[u8], labels: &[&str]) -> Result<(), NetError> {
     let mut packed = zeroize::Zeroizing::new(vec![0u8; bits.len().div_ceil(8)]);
     for (i, bit) in bits.iter().enumerate() {
         packed[i / 8] |= (bit & 1) << (i % 8);
@@ -190,7 +227,13 @@ pub fn write_key_file(path: &Path, bits: &[u8]) -> Result<(), NetError> {
     let mut file = options
         .open(path)
         .map_err(NetError::io(format!("create key file {}", path.display())))?;
-    writeln!(file, "robokey-key-v1 bits={}\n{}", bits.len(), hex.as_str())
+    let mut text = format!("robokey-key-v1 bits={}\n{}\n", bits.len(), hex.as_str());
+    for label in labels {
+        text += &format!("# {label}\n");
+    }
+    let text = zeroize::Zeroizing::new(text);
+    file.write_all(text.as_bytes())
+        .and_then(|()| file.sync_all())
         .map_err(NetError::io(format!("write key file {}", path.display())))
 }
 

@@ -1,61 +1,80 @@
-//! A UDP socket that speaks frames: numbers what it sends, drops what does not decode,
-//! belongs to another session, or was seen before (docs/protocol.md, docs/wire.md).
+//! A UDP socket under the session layer: every datagram in goes through the side's
+//! [`ControllerChannel`] or [`RobotChannel`], which authenticates it or drops and counts
+//! it; every message out is sealed under the side's session key (`docs/wire.md`).
 
-use std::collections::{HashSet, VecDeque};
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use robokey::protocol::Message;
-use robokey::protocol::wire::{Frame, decode, encode};
-
 use crate::error::NetError;
+use rand::rngs::ChaCha20Rng;
+use robokey::protocol::Message;
+use robokey::protocol::auth::{
+    ChannelCounts, Confirmer, ControllerChannel, Delivery, RejectionCounts, RobotChannel,
+};
 
-/// How many recent sequence numbers are remembered for duplicate detection.
-const REMEMBERED: usize = 4096;
+/// Receive buffer (bytes): the largest UDP payload. A longer frame cannot cross UDP.
+const DATAGRAM_BYTES: usize = 65_536;
 
 /// Frame counters of one endpoint.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct FrameCounts {
-    /// Frames sent.
+    /// Datagrams sent.
     pub sent: u64,
-    /// Valid frames received and delivered.
+    /// Authenticated, fresh session frames received.
     pub received: u64,
-    /// Datagrams that did not decode (corrupt, truncated, foreign).
-    pub corrupt: u64,
-    /// Valid frames dropped as duplicates.
-    pub duplicates: u64,
-    /// Valid frames of another session.
-    pub foreign: u64,
+    /// Of those, received out of order within the replay window.
+    pub reordered: u64,
 }
 
-/// A framed UDP endpoint talking to one peer.
+/// The session layer of one side.
+#[derive(Debug)]
+enum Side {
+    /// The controller.
+    Controller(ControllerChannel<SocketAddr>),
+    /// The robot, with its generator of `nonce_r`.
+    Robot(Box<RobotChannel<SocketAddr>>, ChaCha20Rng),
+}
+
+/// An authenticated framed UDP endpoint talking to one peer.
 #[derive(Debug)]
 pub struct Transport {
     socket: UdpSocket,
-    peer: Option<SocketAddr>,
-    session: Option<u32>,
-    next_seq: u32,
-    seen: HashSet<u32>,
-    seen_order: VecDeque<u32>,
-    /// Counters for the session report.
-    pub counts: FrameCounts,
+    side: Side,
+    sent: u64,
+    buffer: Vec<u8>,
 }
 
 impl Transport {
-    /// Binds `local`; `peer` is learned from the first valid frame when `None`.
+    /// The controller's transport: binds `local`, talks to the channel's robot.
     ///
     /// # Errors
     /// The address cannot be bound.
-    pub fn bind(local: SocketAddr, peer: Option<SocketAddr>) -> Result<Self, NetError> {
-        let socket = UdpSocket::bind(local).map_err(NetError::io(format!("bind UDP {local}")))?;
+    pub fn controller(
+        local: SocketAddr,
+        channel: ControllerChannel<SocketAddr>,
+    ) -> Result<Self, NetError> {
         Ok(Self {
-            socket,
-            peer,
-            session: None,
-            next_seq: 0,
-            seen: HashSet::new(),
-            seen_order: VecDeque::new(),
-            counts: FrameCounts::default(),
+            socket: bind(local)?,
+            side: Side::Controller(channel),
+            sent: 0,
+            buffer: vec![0; DATAGRAM_BYTES],
+        })
+    }
+
+    /// The robot's transport: listens on `local`; `rng` draws its handshake nonces.
+    ///
+    /// # Errors
+    /// The address cannot be bound.
+    pub fn robot(
+        local: SocketAddr,
+        channel: RobotChannel<SocketAddr>,
+        rng: ChaCha20Rng,
+    ) -> Result<Self, NetError> {
+        Ok(Self {
+            socket: bind(local)?,
+            side: Side::Robot(Box::new(channel), rng),
+            sent: 0,
+            buffer: vec![0; DATAGRAM_BYTES],
         })
     }
 
@@ -69,43 +88,105 @@ impl Transport {
             .map_err(NetError::io("local address"))
     }
 
-    /// Fixes the session id: frames of other sessions are dropped from now on.
-    pub fn set_session(&mut self, session: u32) {
-        self.session = Some(session);
-    }
-
-    /// The peer, once known.
+    /// The peer's address, once known (the robot learns it when the session binds).
     #[must_use]
     pub fn peer(&self) -> Option<SocketAddr> {
-        self.peer
+        match &self.side {
+            Side::Controller(channel) => Some(channel.robot()),
+            Side::Robot(channel, _) => channel.bound().map(|(peer, _)| peer),
+        }
     }
 
-    /// Sends a message in a new frame (no-op before the peer is known).
+    /// The session id: the controller's own; the robot's once bound.
+    #[must_use]
+    pub fn session(&self) -> Option<u32> {
+        match &self.side {
+            Side::Controller(channel) => Some(channel.session()),
+            Side::Robot(channel, _) => channel.bound().map(|(_, session)| session),
+        }
+    }
+
+    /// The session's confirmer, once keyed.
+    #[must_use]
+    pub fn confirmer(&self) -> Option<Confirmer> {
+        match &self.side {
+            Side::Controller(channel) => channel.confirmer(),
+            Side::Robot(channel, _) => channel.confirmer(),
+        }
+    }
+
+    /// Counters of the frames sent and received.
+    #[must_use]
+    pub fn counts(&self) -> FrameCounts {
+        let channel = self.channel_counts();
+        FrameCounts {
+            sent: self.sent,
+            received: channel.accepted,
+            reordered: channel.reordered,
+        }
+    }
+
+    /// Datagrams dropped, by reason.
+    #[must_use]
+    pub fn rejected(&self) -> RejectionCounts {
+        self.channel_counts().rejected
+    }
+
+    fn channel_counts(&self) -> ChannelCounts {
+        match &self.side {
+            Side::Controller(channel) => channel.counts(),
+            Side::Robot(channel, _) => channel.counts(),
+        }
+    }
+
+    fn send_bytes(&mut self, bytes: &[u8], to: SocketAddr) -> Result<(), NetError> {
+        self.socket
+            .send_to(bytes, to)
+            .map_err(NetError::io(format!("send to {to}")))?;
+        self.sent += 1;
+        Ok(())
+    }
+
+    /// Controller: sends (or repeats) the Hello.
+    ///
+    /// # Errors
+    /// The socket fails.
+    pub fn send_hello(&mut self) -> Result<(), NetError> {
+        if let Side::Controller(channel) = &self.side {
+            let (hello, robot) = (channel.hello().to_vec(), channel.robot());
+            self.send_bytes(&hello, robot)?;
+        }
+        Ok(())
+    }
+
+    /// Seals a message under the session key and sends it to the peer (no-op before the
+    /// session is keyed and, at the robot, bound).
     ///
     /// # Errors
     /// The socket fails.
     pub fn send(&mut self, message: Message) -> Result<(), NetError> {
-        let Some(peer) = self.peer else { return Ok(()) };
-        let frame = Frame {
-            session: self.session.unwrap_or(0),
-            seq: self.next_seq,
-            message,
+        let sealed = match &mut self.side {
+            Side::Controller(channel) => {
+                let robot = channel.robot();
+                channel.seal(message).map(|bytes| (bytes, robot))
+            }
+            Side::Robot(channel, _) => {
+                let peer = channel.bound().map(|(peer, _)| peer);
+                channel.seal(message).zip(peer)
+            }
         };
-        self.next_seq = self.next_seq.wrapping_add(1);
-        self.socket
-            .send_to(&encode(&frame), peer)
-            .map_err(NetError::io(format!("send to {peer}")))?;
-        self.counts.sent += 1;
-        Ok(())
+        match sealed {
+            Some((bytes, to)) => self.send_bytes(&bytes, to),
+            None => Ok(()),
+        }
     }
 
-    /// Waits until `deadline` for the next valid, new frame of this session; returns its
-    /// session id and message.
+    /// Waits until `deadline` for the next delivery of the session layer. Rejected
+    /// datagrams are counted and skipped; the robot's answers to Hellos are sent here.
     ///
     /// # Errors
     /// The socket fails (timeouts are `Ok(None)`).
-    pub fn recv_until(&mut self, deadline: Instant) -> Result<Option<(u32, Message)>, NetError> {
-        let mut buffer = [0u8; 65_536];
+    pub fn recv_until(&mut self, deadline: Instant) -> Result<Option<Delivery>, NetError> {
         loop {
             let now = Instant::now();
             if now >= deadline {
@@ -115,7 +196,7 @@ impl Transport {
             self.socket
                 .set_read_timeout(Some(wait))
                 .map_err(NetError::io("set socket timeout"))?;
-            let (len, from) = match self.socket.recv_from(&mut buffer) {
+            let (len, from) = match self.socket.recv_from(&mut self.buffer) {
                 Ok(x) => x,
                 Err(e)
                     if matches!(
@@ -129,27 +210,25 @@ impl Transport {
                 Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
                 Err(e) => return Err(NetError::io("receive")(e)),
             };
-            let Ok(frame) = decode(&buffer[..len]) else {
-                self.counts.corrupt += 1;
-                continue;
+            let bytes = &self.buffer[..len];
+            let delivery = match &mut self.side {
+                Side::Controller(channel) => channel.on_datagram(from, bytes),
+                Side::Robot(channel, rng) => channel.on_datagram(from, bytes, rng),
             };
-            if self.session.is_some_and(|s| s != frame.session) {
-                self.counts.foreign += 1;
-                continue;
+            match delivery {
+                Ok(Delivery::Answer { bytes, refused }) => {
+                    self.send_bytes(&bytes, from)?;
+                    if let Some(reason) = refused {
+                        return Ok(Some(Delivery::Refused(reason)));
+                    }
+                }
+                Ok(delivery) => return Ok(Some(delivery)),
+                Err(_) => {}
             }
-            if !self.seen.insert(frame.seq) {
-                self.counts.duplicates += 1;
-                continue;
-            }
-            self.seen_order.push_back(frame.seq);
-            if self.seen_order.len() > REMEMBERED
-                && let Some(old) = self.seen_order.pop_front()
-            {
-                self.seen.remove(&old);
-            }
-            self.peer.get_or_insert(from);
-            self.counts.received += 1;
-            return Ok(Some((frame.session, frame.message)));
         }
     }
+}
+
+fn bind(local: SocketAddr) -> Result<UdpSocket, NetError> {
+    UdpSocket::bind(local).map_err(NetError::io(format!("bind UDP {local}")))
 }

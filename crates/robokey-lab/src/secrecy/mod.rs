@@ -651,7 +651,7 @@ mod tests {
         assert!(block.sessions >= 10, "{block:?}");
         assert_eq!(
             block.leak_confirmation,
-            u64::from(block.sessions) * pipeline::CONFIRMATION_BITS
+            u64::from(block.sessions) * pipeline::SESSION_KEY_TAG_BITS
         );
         assert_eq!((block.leak_ec, block.errors_before), (0, 0));
         assert_eq!(block.q_estimate, 0.0);

@@ -30,7 +30,7 @@ use zeroize::Zeroizing;
 pub enum Pooling {
     /// What today's agents do (session protocol v1): each side publishes a 64-bit tag over
     /// its session key and only sessions whose tags matched are kept. Their keys already
-    /// agree, so nothing is reconciled, but both tags of every pooled session (128 bits)
+    /// agree, so nothing is reconciled, but both directional key tags of every pooled session (2 × 128 bits)
     /// are charged.
     Confirmed,
     /// The pipeline of the authenticated session (the session is confirmed over its
@@ -71,8 +71,12 @@ impl Pooling {
     }
 }
 
-/// Bits of confirmation tags published per confirmation: one 64-bit tag each way.
+/// Bits of confirmation tags published per post-processing block: one 64-bit tag each way.
 pub const CONFIRMATION_BITS: u64 = 2 * TAG_BITS;
+
+/// Bits of key tags the agents publish per confirmed session: one directional 128-bit
+/// tag each way over the raw key (docs/wire.md). The session tags do not depend on the key.
+pub const SESSION_KEY_TAG_BITS: u64 = 2 * 8 * robokey::protocol::TAG_BYTES as u64;
 
 /// How the realised diagnostic bounds Eve's smooth min-entropy: from her realised hard
 /// decisions with the binomial bound. Labelled an approximation wherever it appears.
@@ -244,7 +248,7 @@ pub fn post_process(
 /// Today's agents: keys confirmed per session, nothing reconciled, every tag charged.
 fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
     let n = pool.robot.len();
-    let leak_confirmation = u64::from(pool.sessions) * CONFIRMATION_BITS;
+    let leak_confirmation = u64::from(pool.sessions) * SESSION_KEY_TAG_BITS;
     let h_min = settings.assumption.h_min(n as u64, settings.epsilon);
     let length = output_length(h_min, 0, leak_confirmation, settings.epsilon).ok();
     let mut block = Block {
@@ -502,7 +506,7 @@ fn pooling_advice(
 ) -> String {
     let growing = leak_ec
         + match settings.pooling {
-            Pooling::Confirmed => u64::from(sessions) * CONFIRMATION_BITS,
+            Pooling::Confirmed => u64::from(sessions) * SESSION_KEY_TAG_BITS,
             Pooling::Complete => 0,
         };
     let fixed = match settings.pooling {

@@ -143,7 +143,7 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
     }
     let pooling = match options.pooling {
         super::Pooling::Confirmed => {
-            "sessions whose key tags matched (today's agents), each pooled session's two 64-bit tags charged, nothing reconciled"
+            "sessions whose key tags matched (today's agents), each pooled session's two directional 128-bit key tags charged, nothing reconciled"
         }
         super::Pooling::Complete => {
             "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags and committed in two phases"

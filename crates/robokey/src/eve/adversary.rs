@@ -3,7 +3,7 @@
 //! `r` and `D`, and the confirmation tag as a key oracle.
 
 use super::identify::WheelIdentifier;
-use super::tag_search::{TagMatch, search_key};
+use super::tag_search::{TagMatch, is_key_tag, search_key};
 use super::{Eavesdropper, ModelErrors};
 use crate::code::{BlockCode, SoftDecoded};
 use crate::config::{Config, EveStrategy};
@@ -184,6 +184,15 @@ impl Eve {
         if session.tags_tried.contains(tag) || !session.fates.is_complete() {
             return;
         }
+        // The peer's tag over a key she already recovered: nothing new.
+        if let Some(found) = &session.verified {
+            let key = session
+                .fates
+                .accepted_key(&found.messages, session.plan.code.k());
+            if is_key_tag(&session.plan, &key, tag) {
+                return;
+            }
+        }
         session.tags_tried.push(*tag);
         let Some(found) = search_key(
             &session.plan,
@@ -300,8 +309,8 @@ impl Eavesdropper for Eve {
                 }
                 None
             }
-            Message::Confirm { tag } => {
-                self.on_confirm(tag);
+            Message::Confirm { key_tag, .. } => {
+                self.on_confirm(key_tag);
                 None
             }
             _ => None,

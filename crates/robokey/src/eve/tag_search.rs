@@ -1,9 +1,10 @@
-//! The confirmation tag as a key oracle (the `transcript` strategy, docs/threat-model.md): the tag is a public function of the
-//! key, so Eve can test candidate keys against it. She flips her least reliable codewords
-//! to their runner-up messages, fewest flips first.
+//! The key tag as a key oracle (the `transcript` strategy, docs/threat-model.md): in the simulator the tag's MAC keys are public
+//! (the worst case of a pairing secret that leaks), so Eve can test candidate keys against
+//! it. She flips her least reliable codewords to their runner-up messages, fewest flips
+//! first.
 
 use crate::code::SoftDecoded;
-use crate::protocol::{FateLedger, KeyBits, SessionPlan, TAG_BYTES, session_tag};
+use crate::protocol::{Direction, FateLedger, KeyBits, SessionPlan, TAG_BYTES};
 
 /// What a search found.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -14,6 +15,15 @@ pub struct TagMatch {
     pub flips: u32,
     /// Tags computed.
     pub tries: u64,
+}
+
+/// Whether `tag` is the key tag of `key`, sent in either direction (a tag on the wire does
+/// not say who sent it).
+#[must_use]
+pub fn is_key_tag(plan: &SessionPlan, key: &[u8], tag: &[u8; TAG_BYTES]) -> bool {
+    [Direction::ToRobot, Direction::ToController]
+        .into_iter()
+        .any(|direction| plan.confirmer.key_tag(direction, key) == *tag)
 }
 
 /// Searches the candidates that differ from `decoded` in at most `max_flips` of the
@@ -38,7 +48,7 @@ pub fn search_key(
     let mut test = |messages: &[u64]| {
         tries += 1;
         let key: KeyBits = fates.accepted_key(messages, k);
-        session_tag(plan, fates, &key) == *tag
+        is_key_tag(plan, &key, tag)
     };
     for flips in 0..=suspects.len() as u32 {
         // Gosper's hack: every subset of `flips` suspects, in increasing bit order.
@@ -83,7 +93,9 @@ mod tests {
             fates.record(i, i % 5 != 0);
         }
         let truth: Vec<u64> = (0..u64::from(codewords)).map(|i| i * 7 % 3 % 2).collect();
-        let tag = session_tag(&plan, &fates, &fates.accepted_key(&truth, 1));
+        let tag = plan
+            .confirmer
+            .key_tag(Direction::ToRobot, &fates.accepted_key(&truth, 1));
         // Her guess is wrong on codewords 3 and 11 (weak) and right elsewhere; codeword 0 is
         // weakest but rejected, so it must not use up a flip.
         let decoded: Vec<SoftDecoded> = truth

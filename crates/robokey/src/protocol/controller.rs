@@ -3,19 +3,20 @@
 
 use std::collections::VecDeque;
 
-use subtle::ConstantTimeEq;
-
 use super::assembler::CodewordAssembler;
 use super::decoder::{StepDecision, StepDecoder};
 use super::fates::FateLedger;
 use super::message::Message;
 use super::plan::SessionPlan;
-use super::{KeyBits, Outcome, TAG_BYTES, session_tag};
+use super::{ConfirmTags, Direction, KeyBits, Outcome, TAG_BYTES};
 use crate::config::{Config, Feedback};
 use crate::control::{TrackingController, TrackingGains};
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use crate::observer::{Observer, ObserverParams};
 use crate::trajectory::Trajectory;
+
+/// The direction the controller sends in.
+const DIRECTION: Direction = Direction::ToRobot;
 
 /// Input to the controller endpoint.
 #[derive(Clone, Debug, PartialEq)]
@@ -177,12 +178,24 @@ impl ControllerEndpoint {
                 self.send_confirm();
                 self.phase = Phase::ExpectConfirm { tries: 1 };
             }
-            (Phase::ExpectFinishAck { .. }, Message::Confirm { tag }) => {
+            (
+                Phase::ExpectFinishAck { .. },
+                Message::Confirm {
+                    session_tag,
+                    key_tag,
+                },
+            ) => {
                 // The FinishAck was lost; the robot's tag proves it had the Finish.
                 self.send_confirm();
-                self.verify(&tag);
+                self.verify(session_tag, key_tag);
             }
-            (Phase::ExpectConfirm { .. }, Message::Confirm { tag }) => self.verify(&tag),
+            (
+                Phase::ExpectConfirm { .. },
+                Message::Confirm {
+                    session_tag,
+                    key_tag,
+                },
+            ) => self.verify(session_tag, key_tag),
             (Phase::Done, _) => {}
             (_, Message::Abort { reason }) => {
                 self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
@@ -295,8 +308,10 @@ impl ControllerEndpoint {
         });
     }
 
-    fn tag(&self) -> [u8; TAG_BYTES] {
-        session_tag(&self.plan, &self.fates, &self.key)
+    fn tags(&self) -> ConfirmTags {
+        self.plan
+            .confirmer
+            .tags(DIRECTION, &self.fates.bitmap(), &self.key)
     }
 
     fn send_finish(&mut self) {
@@ -307,17 +322,23 @@ impl ControllerEndpoint {
     }
 
     fn send_confirm(&mut self) {
-        let tag = self.tag();
-        self.send(Message::Confirm { tag });
+        let ours = self.tags();
+        self.send(Message::Confirm {
+            session_tag: ours.session,
+            key_tag: ours.key,
+        });
     }
 
-    fn verify(&mut self, peer: &[u8; TAG_BYTES]) {
-        let outcome = if bool::from(self.tag().ct_eq(peer)) {
-            Outcome::Confirmed
-        } else {
-            Outcome::Unconfirmed("the robot's confirmation tag differs: keys differ".into())
-        };
-        self.finish(outcome);
+    fn verify(&mut self, session: [u8; TAG_BYTES], key: [u8; TAG_BYTES]) {
+        let peer = ConfirmTags { session, key };
+        let checked = self
+            .plan
+            .confirmer
+            .check(DIRECTION, &self.fates.bitmap(), &self.key, &peer);
+        self.finish(match checked {
+            Ok(()) => Outcome::Confirmed,
+            Err(why) => Outcome::Unconfirmed(format!("the robot's {why}")),
+        });
     }
 }
 

@@ -1,25 +1,46 @@
-//! The messages of docs/wire.md (session id and frame sequence numbers live in the wire
-//! header, added by the network shell).
+//! The messages of the protocol (`docs/wire.md`; session id and frame sequence numbers live
+//! in the wire header, added by the session layer).
 
+use super::auth::{AuthMode, NONCE_BYTES, TAG_BYTES};
 use super::fates::FateWindow;
 
 /// One protocol message.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Message {
-    /// Controller → robot: opens a session.
+    /// Controller → robot: opens a session (MACed under the handshake key).
     Hello {
-        /// Protocol version.
-        version: u8,
+        /// Whether the sender holds a pairing secret.
+        auth: AuthMode,
+        /// `nonce_c`, fresh from the OS CSPRNG.
+        nonce: [u8; NONCE_BYTES],
         /// SHA-256 of `terms`.
         config_digest: [u8; 32],
         /// The agreement terms as `field = value` lines, so a mismatch can be named.
         terms: String,
     },
-    /// Robot → controller: accepts a session with the same configuration digest.
+    /// Robot → controller: accepts a session with the same configuration digest (MACed
+    /// under the handshake key, over both nonces).
     HelloAck {
-        /// SHA-256 of the robot's configuration.
+        /// Whether the sender holds a pairing secret.
+        auth: AuthMode,
+        /// The controller's `nonce_c`, echoed.
+        nonce_c: [u8; NONCE_BYTES],
+        /// `nonce_r`, fresh from the robot's CSPRNG.
+        nonce_r: [u8; NONCE_BYTES],
+        /// SHA-256 of the robot's agreement terms.
         config_digest: [u8; 32],
     },
+    /// Robot → controller: refuses the Hello carrying `nonce_c` (MACed under the handshake
+    /// key), e.g. because the terms differ.
+    Refuse {
+        /// The refused Hello's `nonce_c`.
+        nonce_c: [u8; NONCE_BYTES],
+        /// Human-readable reason.
+        reason: String,
+    },
+    /// Controller → robot: the first frame under the controller→robot session key; it
+    /// binds the session and the controller's address at the robot.
+    Ready,
     /// Robot → controller: odometry `y(k)`.
     Measurement {
         /// Sample index k.
@@ -52,10 +73,12 @@ pub enum Message {
     },
     /// Robot → controller: the Finish arrived.
     FinishAck,
-    /// Either side: its key-confirmation tag.
+    /// Either side: its session and key confirmation tags (see [`super::Confirmer`]).
     Confirm {
-        /// Truncated tag over (session, config digest, fates, key).
-        tag: [u8; super::TAG_BYTES],
+        /// `MAC(k_dir, "confirm" ‖ dir ‖ Hello ‖ HelloAck ‖ fate bitmap)`, truncated.
+        session_tag: [u8; TAG_BYTES],
+        /// `MAC(k_dir, "key" ‖ dir ‖ Hello ‖ HelloAck ‖ key)`, truncated.
+        key_tag: [u8; TAG_BYTES],
     },
     /// Either side: the session is over, with a reason.
     Abort {

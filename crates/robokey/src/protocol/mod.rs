@@ -1,9 +1,10 @@
 //! The key-agreement protocol as sans-I/O endpoints (docs/protocol.md): the robot and the
 //! controller each take one input enum and emit one output enum; the shells (simulator,
-//! UDP agents) carry the [`Message`]s.
+//! UDP agents) carry the [`Message`]s. On a network, the session layer ([`auth`]) lies
+//! between the endpoints and the datagrams.
 
 mod assembler;
-mod confirm;
+pub mod auth;
 pub(crate) mod controller;
 mod decoder;
 mod fates;
@@ -13,7 +14,7 @@ mod robot;
 pub mod wire;
 
 pub use assembler::{CodewordAssembler, ReceivedWord};
-pub use confirm::{TAG_BYTES, confirmation_tag, session_tag};
+pub use auth::{ConfirmTags, Confirmer, Direction, TAG_BYTES};
 pub use controller::{ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput};
 pub use decoder::{Measured, StepDecision, StepDecoder};
 pub use fates::{FateLedger, FateWindow};

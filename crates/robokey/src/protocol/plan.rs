@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use super::auth::Confirmer;
 use crate::code::BlockCode;
 use crate::config::Config;
 use crate::model::{DiffDrive, Unicycle};
@@ -29,6 +30,11 @@ pub struct SessionPlan {
     pub drive: DiffDrive,
     /// Consecutive missing commands after which the robot stops its wheels.
     pub max_hold: u32,
+    /// The robot's wheel-speed limit (rad/s): it applies no command beyond it.
+    pub wheel_limit: f64,
+    /// Computes the confirmation tags: the session layer's once a network handshake is
+    /// done, [`Confirmer::public`] otherwise (the simulator).
+    pub confirmer: Confirmer,
 }
 
 impl SessionPlan {
@@ -48,9 +54,11 @@ impl SessionPlan {
         } else {
             trajectory_steps
         };
+        let digest = config_digest(config);
         Self {
             session,
-            config_digest: config_digest(config),
+            config_digest: digest,
+            confirmer: Confirmer::public(session, &digest),
             sample_time: config.robot.sample_time,
             steps,
             enabled: config.protocol.enabled,
@@ -62,6 +70,7 @@ impl SessionPlan {
                 axle_length: config.robot.axle_length,
             },
             max_hold: 2,
+            wheel_limit: config.robot.wheel_limit,
         }
     }
 
@@ -83,19 +92,22 @@ impl SessionPlan {
     }
 }
 
-/// The terms both endpoints must agree on (docs/protocol.md, "Confirmation": T, code, n_c, k_c, key budget, Δ,
-/// trajectory, protocol on/off), as `field = value` lines in a fixed order.
+/// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
+/// budget, Δ, trajectory, protocol on/off), as `field = value` lines in a fixed order. The
+/// robot checks every command pair against the agreed Δ, r and D.
 #[must_use]
 pub fn agreement_terms(config: &Config) -> String {
     let code = &config.code;
     let traj = &config.trajectory;
     let built = code.build();
     format!(
-        "robot.T = {}\nprotocol.enabled = {}\nprotocol.delta_v = {}\nprotocol.delta_omega = {}\n\
+        "robot.T = {}\nrobot.r = {}\nrobot.D = {}\nprotocol.enabled = {}\nprotocol.delta_v = {}\nprotocol.delta_omega = {}\n\
          code.kind = {:?}\ncode.n_c = {}\ncode.k_c = {}\ncode.accept_max_distance = {}\n\
          code.key_bits = {}\ntrajectory.waypoints = {:?}\ntrajectory.side_time = {}\n\
          trajectory.laps = {}\n",
         config.robot.sample_time,
+        config.robot.r,
+        config.robot.axle_length,
         config.protocol.enabled,
         config.protocol.delta_v,
         config.delta_omega(),

@@ -3,15 +3,16 @@
 
 use std::collections::VecDeque;
 
-use rand::{CryptoRng, RngExt};
-use subtle::ConstantTimeEq;
-
 use super::fates::FateLedger;
 use super::message::Message;
 use super::plan::SessionPlan;
-use super::{KeyBits, Outcome, TAG_BYTES, session_tag};
+use super::{ConfirmTags, Direction, KeyBits, Outcome};
 use crate::code::low_mask;
-use crate::model::{Pose, WheelSpeeds};
+use crate::model::{Pose, Unicycle, WheelSpeeds};
+use rand::{CryptoRng, RngExt};
+
+/// The direction the robot sends in.
+const DIRECTION: Direction = Direction::ToController;
 
 /// Input to the robot endpoint.
 #[derive(Clone, Debug, PartialEq)]
@@ -78,6 +79,7 @@ pub struct RobotEndpoint {
     next_command: u32,
     phase: Phase,
     key: KeyBits,
+    commands_applied: u32,
     outputs: VecDeque<RobotOutput>,
 }
 
@@ -118,6 +120,7 @@ impl RobotEndpoint {
             next_command: 0,
             phase: Phase::ExpectCommand,
             key: KeyBits::default(),
+            commands_applied: 0,
             outputs: VecDeque::new(),
             plan,
         }
@@ -153,6 +156,12 @@ impl RobotEndpoint {
     #[must_use]
     pub fn plan(&self) -> &SessionPlan {
         &self.plan
+    }
+
+    /// Commands applied to the wheels (stop commands and fallbacks excluded).
+    #[must_use]
+    pub fn commands_applied(&self) -> u32 {
+        self.commands_applied
     }
 
     /// The step whose command the robot waits for.
@@ -227,18 +236,31 @@ impl RobotEndpoint {
                 self.key = self.fates.accepted_key(&self.messages, self.plan.code.k());
                 self.phase = Phase::ExpectConfirm;
                 self.send(Message::FinishAck);
-                let tag = self.tag();
-                self.send(Message::Confirm { tag });
+                let ours = self.tags();
+                self.send(Message::Confirm {
+                    session_tag: ours.session,
+                    key_tag: ours.key,
+                });
             }
-            (Phase::ExpectConfirm, Message::Confirm { tag }) => {
-                let outcome = if bool::from(self.tag().ct_eq(&tag)) {
-                    Outcome::Confirmed
-                } else {
-                    Outcome::Unconfirmed(
-                        "the controller's confirmation tag differs: keys differ".into(),
-                    )
+            (
+                Phase::ExpectConfirm,
+                Message::Confirm {
+                    session_tag,
+                    key_tag,
+                },
+            ) => {
+                let peer = ConfirmTags {
+                    session: session_tag,
+                    key: key_tag,
                 };
-                self.finish(outcome);
+                let checked =
+                    self.plan
+                        .confirmer
+                        .check(DIRECTION, &self.fates.bitmap(), &self.key, &peer);
+                self.finish(match checked {
+                    Ok(()) => Outcome::Confirmed,
+                    Err(why) => Outcome::Unconfirmed(format!("the controller's {why}")),
+                });
             }
             (Phase::Done, _) => {}
             (_, Message::Abort { reason }) => {
@@ -250,6 +272,10 @@ impl RobotEndpoint {
     }
 
     fn handle_command(&mut self, step: u32, u0: WheelSpeeds, u1: WheelSpeeds) {
+        if step < self.plan.steps && !self.is_agreed_pair(&u0, &u1) {
+            // Treated as a lost command: the step is erased.
+            return self.handle_deadline(step);
+        }
         self.next_command = step + 1;
         self.missing_in_a_row = 0;
         self.applied_step = Some(step);
@@ -259,6 +285,7 @@ impl RobotEndpoint {
             return;
         }
         self.last_pair = Some((u0, u1));
+        self.commands_applied += 1;
         let bit = self.plan.enabled.then(|| self.bit(step));
         let wheels = if bit == Some(1) { u1 } else { u0 };
         self.outputs.push_back(RobotOutput::Apply(Actuation {
@@ -267,6 +294,23 @@ impl RobotEndpoint {
             bit,
             erased: false,
         }));
+    }
+
+    /// Whether `(u0D, u1D)` is a pair the agreed plan allows: finite, within the wheel
+    /// limit, and `H·u0D − H·u1D = 2Δ` (protocol on) or `u0D = u1D` (off), so an
+    /// impersonated or buggy controller cannot offer a pair that reveals the bit.
+    fn is_agreed_pair(&self, u0: &WheelSpeeds, u1: &WheelSpeeds) -> bool {
+        let within = |w: &WheelSpeeds| w.iter().all(|v| v.abs() <= self.plan.wheel_limit);
+        if !(within(u0) && within(u1)) {
+            return false; // also rejects NaN
+        }
+        let spread = self.plan.drive.to_unicycle(*u0) - self.plan.drive.to_unicycle(*u1);
+        let expected = if self.plan.enabled {
+            self.plan.delta * 2.0
+        } else {
+            Unicycle::zeros()
+        };
+        (spread - expected).amax() <= 1e-9 * (1.0 + expected.amax())
     }
 
     fn stop_wheels(&mut self, step: u32) {
@@ -312,7 +356,63 @@ impl RobotEndpoint {
         (self.codewords[index as usize] >> position & 1) as u8
     }
 
-    fn tag(&self) -> [u8; TAG_BYTES] {
-        session_tag(&self.plan, &self.fates, &self.key)
+    fn tags(&self) -> ConfirmTags {
+        self.plan
+            .confirmer
+            .tags(DIRECTION, &self.fates.bitmap(), &self.key)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Config;
+    use crate::protocol::FateWindow;
+    use crate::protocol::controller::command_pair;
+    use rand::SeedableRng;
+
+    fn robot() -> RobotEndpoint {
+        let plan = SessionPlan::from_config(&Config::default(), 1);
+        RobotEndpoint::new(plan, &mut rand::rngs::ChaCha20Rng::seed_from_u64(1))
+    }
+
+    fn command(robot: &mut RobotEndpoint, u0: [f64; 2], u1: [f64; 2]) -> Actuation {
+        robot.handle_input(RobotInput::Frame(Message::Command {
+            step: robot.next_command(),
+            u0,
+            u1,
+            fates: FateWindow::default(),
+        }));
+        match robot.poll_output() {
+            Some(RobotOutput::Apply(actuation)) => actuation,
+            other => panic!("expected an actuation, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn only_pairs_of_the_agreed_delta_within_the_wheel_limit_are_applied() {
+        let mut robot = robot();
+        let (u0, u1) = command_pair(robot.plan(), Unicycle::new(0.1, 0.2));
+        let applied = command(&mut robot, u0.into(), u1.into());
+        assert!(!applied.erased && applied.bit.is_some());
+        // Offers that reveal the bit in the motion, a spread other than 2Δ, a non-finite or
+        // too fast wheel: each is erased as if lost, and the wheels hold the last good pair.
+        let (w0, w1) = command_pair(robot.plan(), Unicycle::new(0.1, 0.25));
+        let wide = command_pair(robot.plan(), Unicycle::new(0.1, 0.2)).0 * 2.0;
+        let mut held = (u0 + u1) / 2.0;
+        for (a, b) in [
+            ([5.0, 5.0], [-5.0, -5.0]),
+            (w0.into(), u1.into()),
+            ([f64::NAN, 0.0], w1.into()),
+            ([39.0, 39.0], [39.0 - 1e-3, 39.0 - 1e-3]),
+            (wide.into(), w1.into()),
+        ] {
+            let erased = command(&mut robot, a, b);
+            assert!(erased.erased && erased.bit.is_none(), "{a:?} {b:?}");
+            assert_eq!(erased.wheels, held);
+            let _ = command(&mut robot, w0.into(), w1.into());
+            held = (w0 + w1) / 2.0;
+        }
+        assert_eq!(robot.commands_applied(), 1 + 5);
     }
 }

@@ -1,30 +1,38 @@
-//! The wire format (documented in `docs/wire.md`): hand-written, big-endian,
-//! `magic u16 | version u8 | type u8 | session u32 | seq u32 | step u32 | payload |
-//! crc32c u32`. The decoder never panics: every malformed input is a [`WireError`].
+//! The wire format, version 2 (documented in `docs/wire.md`): hand-written, big-endian,
+//! `magic u16 | version u8 | type u8 | session u32 | seq u32 | step u32 | payload | mac [16]`.
+//! This module encodes and parses frames; the MAC is computed and checked by the session
+//! layer ([`super::auth`]). The decoder never panics: every malformed input is a
+//! [`WireError`].
 
-use super::TAG_BYTES;
+use super::auth::{AuthMode, NONCE_BYTES, TAG_BYTES};
 use super::fates::FateWindow;
 use super::message::Message;
 
 /// `"RK"`.
 pub const MAGIC: u16 = 0x524B;
 /// Wire-format version.
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 /// Header length (bytes), before the payload.
 pub const HEADER_BYTES: usize = 2 + 1 + 1 + 4 + 4 + 4;
-/// Longest `Abort` reason (bytes of UTF-8).
+/// Trailer length (bytes): the MAC.
+pub const MAC_BYTES: usize = TAG_BYTES;
+/// Longest `Abort` or `Refuse` reason (bytes of UTF-8).
 pub const MAX_REASON_BYTES: usize = 1024;
 /// Longest `Hello` terms text (bytes of UTF-8).
 pub const MAX_TERMS_BYTES: usize = 4096;
 /// Most codewords a `Finish` may cover.
 pub const MAX_FINISH_CODEWORDS: u32 = 1 << 20;
+/// Longest frame the decoder accepts (bytes): a `Finish` of [`MAX_FINISH_CODEWORDS`].
+pub const MAX_FRAME_BYTES: usize =
+    HEADER_BYTES + 4 + 8 * (MAX_FINISH_CODEWORDS as usize / 64) + MAC_BYTES;
 
 /// A message with its session id and frame sequence number.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {
     /// Session id.
     pub session: u32,
-    /// Frame counter of the sender (retransmissions get new numbers).
+    /// The sender's per-direction sequence number (0 on handshake frames; retransmissions
+    /// get new numbers).
     pub seq: u32,
     /// The message.
     pub message: Message,
@@ -34,9 +42,12 @@ pub struct Frame {
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
 pub enum WireError {
-    /// Shorter than a header plus checksum.
+    /// Shorter than a header plus MAC.
     #[error("frame of {0} bytes is too short")]
     TooShort(usize),
+    /// Longer than any valid frame.
+    #[error("frame of {0} bytes is too long")]
+    TooLong(usize),
     /// The first two bytes are not `RK`.
     #[error("bad magic 0x{0:04x}")]
     BadMagic(u16),
@@ -46,9 +57,9 @@ pub enum WireError {
     /// An unknown message type.
     #[error("unknown message type {0}")]
     UnknownType(u8),
-    /// The CRC-32C does not match (corrupted in transit).
-    #[error("checksum mismatch")]
-    BadChecksum,
+    /// A type reserved for a later use (private-mode measurements, post-processing).
+    #[error("message type {0} is reserved and not spoken by this build")]
+    Reserved(u8),
     /// The payload length does not fit the message type.
     #[error("{kind}: payload of {got} bytes, expected {expected}")]
     BadLength {
@@ -72,13 +83,21 @@ const FINISH: u8 = 5;
 const FINISH_ACK: u8 = 6;
 const CONFIRM: u8 = 7;
 const ABORT: u8 = 8;
+const REFUSE: u8 = 9;
+const READY: u8 = 10;
+/// Reserved: 11 = private-mode measurement (no pose); 16–21 = post-processing (pool sync,
+/// reconciliation query and answer, block confirmation, commit, amplification seed chunk).
+const RESERVED: [u8; 7] = [11, 16, 17, 18, 19, 20, 21];
 
-/// Encodes a frame.
+/// Encodes a frame's header and payload: the bytes its MAC covers (the session layer
+/// appends the MAC).
 #[must_use]
 pub fn encode(frame: &Frame) -> Vec<u8> {
     let (kind, step) = match &frame.message {
         Message::Hello { .. } => (HELLO, 0),
         Message::HelloAck { .. } => (HELLO_ACK, 0),
+        Message::Refuse { .. } => (REFUSE, 0),
+        Message::Ready => (READY, 0),
         Message::Measurement { step, .. } => (MEASUREMENT, *step),
         Message::Command { step, .. } => (COMMAND, *step),
         Message::Finish { .. } => (FINISH, 0),
@@ -95,15 +114,32 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
     out.extend_from_slice(&step.to_be_bytes());
     match &frame.message {
         Message::Hello {
-            version,
+            auth,
+            nonce,
             config_digest,
             terms,
         } => {
-            out.push(*version);
+            out.push(auth.byte());
+            out.extend_from_slice(nonce);
             out.extend_from_slice(config_digest);
             put_text(&mut out, terms, MAX_TERMS_BYTES);
         }
-        Message::HelloAck { config_digest } => out.extend_from_slice(config_digest),
+        Message::HelloAck {
+            auth,
+            nonce_c,
+            nonce_r,
+            config_digest,
+        } => {
+            out.push(auth.byte());
+            out.extend_from_slice(nonce_c);
+            out.extend_from_slice(nonce_r);
+            out.extend_from_slice(config_digest);
+        }
+        Message::Refuse { nonce_c, reason } => {
+            out.extend_from_slice(nonce_c);
+            put_text(&mut out, reason, MAX_REASON_BYTES);
+        }
+        Message::Ready => {}
         Message::Measurement {
             y,
             applied_step,
@@ -135,12 +171,25 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
             }
         }
         Message::FinishAck => {}
-        Message::Confirm { tag } => out.extend_from_slice(tag),
+        Message::Confirm {
+            session_tag,
+            key_tag,
+        } => {
+            out.extend_from_slice(session_tag);
+            out.extend_from_slice(key_tag);
+        }
         Message::Abort { reason } => put_text(&mut out, reason, MAX_REASON_BYTES),
     }
-    let crc = crc32c(&out);
-    out.extend_from_slice(&crc.to_be_bytes());
     out
+}
+
+/// Splits a datagram into the bytes its MAC covers and the MAC.
+#[must_use]
+pub fn split_mac(bytes: &[u8]) -> Option<(&[u8], &[u8])> {
+    bytes
+        .len()
+        .checked_sub(MAC_BYTES)
+        .map(|at| bytes.split_at(at))
 }
 
 /// Appends `len u16 | UTF-8 bytes`, truncated at a character boundary to `max` bytes.
@@ -215,13 +264,18 @@ fn expect_len(kind: &'static str, payload: &[u8], expected: usize) -> Result<(),
     }
 }
 
-/// Decodes a frame, checking magic, version, type, checksum and lengths.
+/// Parses a datagram (header, payload, MAC), checking magic, version, type and lengths.
+/// It does **not** check the MAC: that is the session layer's job ([`super::auth`]); an
+/// eavesdropper reads captures with it.
 ///
 /// # Errors
 /// A [`WireError`] naming what is wrong; never panics.
 pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
-    if bytes.len() < HEADER_BYTES + 4 {
+    if bytes.len() < HEADER_BYTES + MAC_BYTES {
         return Err(WireError::TooShort(bytes.len()));
+    }
+    if bytes.len() > MAX_FRAME_BYTES {
+        return Err(WireError::TooLong(bytes.len()));
     }
     let magic = u16::from_be_bytes([bytes[0], bytes[1]]);
     if magic != MAGIC {
@@ -230,10 +284,7 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
     if bytes[2] != VERSION {
         return Err(WireError::UnsupportedVersion(bytes[2]));
     }
-    let (body, crc) = bytes.split_at(bytes.len() - 4);
-    if crc32c(body) != u32::from_be_bytes(crc.try_into().expect("4 bytes")) {
-        return Err(WireError::BadChecksum);
-    }
+    let body = &bytes[..bytes.len() - MAC_BYTES];
     let kind = bytes[3];
     let mut header = Reader {
         bytes: &body[4..HEADER_BYTES],
@@ -243,26 +294,48 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
     let mut r = Reader { bytes: payload };
     let message = match kind {
         HELLO => {
-            if payload.len() < 33 {
+            if payload.len() < 1 + NONCE_BYTES + 32 {
                 return Err(WireError::BadLength {
                     kind: "Hello",
                     got: payload.len(),
-                    expected: 35,
+                    expected: 1 + NONCE_BYTES + 32 + 2,
                 });
             }
-            let (version, config_digest) = (r.u8(), r.take());
+            let auth = auth_mode(r.u8())?;
+            let (nonce, config_digest) = (r.take(), r.take());
             let terms = get_text("Hello", &mut r, MAX_TERMS_BYTES)?;
             Message::Hello {
-                version,
+                auth,
+                nonce,
                 config_digest,
                 terms,
             }
         }
         HELLO_ACK => {
-            expect_len("HelloAck", payload, 32)?;
+            expect_len("HelloAck", payload, 1 + 2 * NONCE_BYTES + 32)?;
             Message::HelloAck {
+                auth: auth_mode(r.u8())?,
+                nonce_c: r.take(),
+                nonce_r: r.take(),
                 config_digest: r.take(),
             }
+        }
+        REFUSE => {
+            if payload.len() < NONCE_BYTES {
+                return Err(WireError::BadLength {
+                    kind: "Refuse",
+                    got: payload.len(),
+                    expected: NONCE_BYTES + 2,
+                });
+            }
+            Message::Refuse {
+                nonce_c: r.take(),
+                reason: get_text("Refuse", &mut r, MAX_REASON_BYTES)?,
+            }
+        }
+        READY => {
+            expect_len("Ready", payload, 0)?;
+            Message::Ready
         }
         MEASUREMENT => {
             expect_len("Measurement", payload, 24 + 1 + 4 + 4)?;
@@ -332,12 +405,16 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
             Message::FinishAck
         }
         CONFIRM => {
-            expect_len("Confirm", payload, TAG_BYTES)?;
-            Message::Confirm { tag: r.take() }
+            expect_len("Confirm", payload, 2 * TAG_BYTES)?;
+            Message::Confirm {
+                session_tag: r.take(),
+                key_tag: r.take(),
+            }
         }
         ABORT => Message::Abort {
             reason: get_text("Abort", &mut r, MAX_REASON_BYTES)?,
         },
+        other if RESERVED.contains(&other) => return Err(WireError::Reserved(other)),
         other => return Err(WireError::UnknownType(other)),
     };
     // Only Measurement and Command carry a step; the others encode 0, and a frame must
@@ -354,36 +431,14 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
     })
 }
 
-/// CRC-32C (Castagnoli, reflected polynomial 0x82F63B78), bitwise-table free.
-#[must_use]
-pub fn crc32c(bytes: &[u8]) -> u32 {
-    const TABLE: [u32; 256] = {
-        let mut table = [0u32; 256];
-        let mut i = 0;
-        while i < 256 {
-            let mut crc = i as u32;
-            let mut bit = 0;
-            while bit < 8 {
-                crc = if crc & 1 == 1 {
-                    (crc >> 1) ^ 0x82F6_3B78
-                } else {
-                    crc >> 1
-                };
-                bit += 1;
-            }
-            table[i] = crc;
-            i += 1;
-        }
-        table
-    };
-    !bytes.iter().fold(!0u32, |crc, &b| {
-        (crc >> 8) ^ TABLE[((crc ^ u32::from(b)) & 0xFF) as usize]
-    })
+fn auth_mode(byte: u8) -> Result<AuthMode, WireError> {
+    AuthMode::from_byte(byte).ok_or(WireError::BadField("auth mode is not 0 or 1"))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::protocol::auth::{PairingSecret, seal};
     use proptest::prelude::*;
 
     fn hex(bytes: &[u8]) -> String {
@@ -393,15 +448,22 @@ mod tests {
     fn examples() -> Vec<Message> {
         vec![
             Message::Hello {
-                version: 1,
+                auth: AuthMode::Paired,
+                nonce: [0x11; 16],
                 config_digest: [0xAB; 32],
-                terms: "robot.T = 0.2
-"
-                .into(),
+                terms: "robot.T = 0.2\n".into(),
             },
             Message::HelloAck {
+                auth: AuthMode::Paired,
+                nonce_c: [0x11; 16],
+                nonce_r: [0x22; 16],
                 config_digest: [0xCD; 32],
             },
+            Message::Refuse {
+                nonce_c: [0x11; 16],
+                reason: "terms".into(),
+            },
+            Message::Ready,
             Message::Measurement {
                 step: 7,
                 y: [1.0, -0.5, 0.25],
@@ -430,7 +492,8 @@ mod tests {
             },
             Message::FinishAck,
             Message::Confirm {
-                tag: [1, 2, 3, 4, 5, 6, 7, 8],
+                session_tag: [1; 16],
+                key_tag: [2; 16],
             },
             Message::Abort {
                 reason: "silence".into(),
@@ -439,35 +502,36 @@ mod tests {
     }
 
     #[test]
-    fn crc32c_matches_the_standard_check_value() {
-        assert_eq!(crc32c(b"123456789"), 0xE306_9283);
-    }
-
-    #[test]
     fn golden_bytes_per_message_type() {
         let got: Vec<String> = examples()
             .into_iter()
             .map(|message| {
-                hex(&encode(&Frame {
+                let frame = Frame {
                     session: 0x0102_0304,
                     seq: 9,
                     message,
-                }))
+                };
+                hex(&seal(
+                    &frame,
+                    &PairingSecret::from_bytes(&[0x42; 32]).handshake_key(),
+                ))
             })
             .collect();
         assert_eq!(got.join("\n"), GOLDEN.trim());
     }
 
     const GOLDEN: &str = "
-524b010101020304000000090000000001abababababababababababababababababababababababababababababababab000e726f626f742e54203d20302e320a08bfc491
-524b0102010203040000000900000000cdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcd0889cfa5
-524b01030102030400000009000000073ff0000000000000bfe00000000000003fd00000000000000100000006000000023c2e954f
-524b01030102030400000009000000080000000000000000000000000000000000000000000000000000000000000000029cb1c253
-524b01040102030400000009000000074010000000000000400c0000000000003fe0000000000000bff0000000000000000000020300000000000000053d350a5f
-524b010501020304000000090000000000000041ffffffffffffffff000000000000000119c60667
-524b0106010203040000000900000000772732de
-524b0107010203040000000900000000010203040506070869bc30b2
-524b0108010203040000000900000000000773696c656e63658314b32a
+524b02010102030400000009000000000011111111111111111111111111111111abababababababababababababababababababababababababababababababab000e726f626f742e54203d20302e320a9cd17ff836ebce39533e5dc75a037038
+524b0202010203040000000900000000001111111111111111111111111111111122222222222222222222222222222222cdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcdcd44f23def5ad7cfb5a540f541580cc8d4
+524b02090102030400000009000000001111111111111111111111111111111100057465726d7347508f27a01309c326b0ba3693dde018
+524b020a010203040000000900000000be49285fe4e95f417b2d13489b61cf5d
+524b02030102030400000009000000073ff0000000000000bfe00000000000003fd0000000000000010000000600000002f63164cc44079e52303c61cd97638b81
+524b0203010203040000000900000008000000000000000000000000000000000000000000000000000000000000000002a63d9a56de3a5da3848aa055edc256de
+524b02040102030400000009000000074010000000000000400c0000000000003fe0000000000000bff0000000000000000000020300000000000000053b0594da4f956d5f26e6b64f812e561d
+524b020501020304000000090000000000000041ffffffffffffffff00000000000000011b4a5dbf129e269e3f5e542d0f7af339
+524b0206010203040000000900000000d03c19cd1ad7d318d42af9ec58fbfdef
+524b02070102030400000009000000000101010101010101010101010101010102020202020202020202020202020202e8362a11b1a425c3537475c5c2dfe96a
+524b0208010203040000000900000000000773696c656e63650ecfc3100c2974e5fd222aaa9fa04404
 ";
 
     #[test]
@@ -477,21 +541,21 @@ mod tests {
             seq: 1,
             message: Message::FinishAck,
         });
+        let good = [good, vec![0; MAC_BYTES]].concat();
         assert_eq!(decode(&good[..5]), Err(WireError::TooShort(5)));
         let mut bad = good.clone();
-        bad[2] = 9;
-        assert_eq!(decode(&bad), Err(WireError::UnsupportedVersion(9)));
+        bad[2] = 1;
+        assert_eq!(decode(&bad), Err(WireError::UnsupportedVersion(1)));
         let mut bad = good.clone();
         bad[0] = 0;
         assert!(matches!(decode(&bad), Err(WireError::BadMagic(_))));
         let mut bad = good.clone();
-        bad[10] ^= 1;
-        assert_eq!(decode(&bad), Err(WireError::BadChecksum));
-        let mut bad = good[..good.len() - 4].to_vec();
         bad[3] = 99;
-        let crc = crc32c(&bad);
-        bad.extend_from_slice(&crc.to_be_bytes());
         assert_eq!(decode(&bad), Err(WireError::UnknownType(99)));
+        bad[3] = 16;
+        assert_eq!(decode(&bad), Err(WireError::Reserved(16)));
+        let long = vec![0; MAX_FRAME_BYTES + 1];
+        assert_eq!(decode(&long), Err(WireError::TooLong(MAX_FRAME_BYTES + 1)));
     }
 
     #[test]
@@ -501,28 +565,53 @@ mod tests {
         let mut bytes = encode(&Frame {
             session: 1,
             seq: 1,
-            message: Message::HelloAck {
-                config_digest: [7; 32],
-            },
+            message: Message::Ready,
         });
-        bytes.truncate(bytes.len() - 4);
         bytes[12..16].copy_from_slice(&[249, 252, 151, 82]);
-        let crc = crc32c(&bytes);
-        bytes.extend_from_slice(&crc.to_be_bytes());
+        bytes.extend_from_slice(&[0; MAC_BYTES]);
         assert!(matches!(decode(&bytes), Err(WireError::BadField(_))));
+    }
+
+    fn mode(paired: bool) -> AuthMode {
+        if paired {
+            AuthMode::Paired
+        } else {
+            AuthMode::Unauthenticated
+        }
     }
 
     fn arb_message() -> impl Strategy<Value = Message> {
         let f = proptest::num::f64::ANY;
         prop_oneof![
-            (any::<u8>(), any::<[u8; 32]>(), ".{0,60}").prop_map(
-                |(version, config_digest, terms)| Message::Hello {
-                    version,
+            (
+                any::<bool>(),
+                any::<[u8; 16]>(),
+                any::<[u8; 32]>(),
+                ".{0,60}"
+            )
+                .prop_map(|(paired, nonce, config_digest, terms)| Message::Hello {
+                    auth: mode(paired),
+                    nonce,
                     config_digest,
                     terms
-                }
-            ),
-            any::<[u8; 32]>().prop_map(|config_digest| Message::HelloAck { config_digest }),
+                }),
+            (
+                any::<bool>(),
+                any::<[u8; 16]>(),
+                any::<[u8; 16]>(),
+                any::<[u8; 32]>()
+            )
+                .prop_map(|(paired, nonce_c, nonce_r, config_digest)| {
+                    Message::HelloAck {
+                        auth: mode(paired),
+                        nonce_c,
+                        nonce_r,
+                        config_digest,
+                    }
+                }),
+            (any::<[u8; 16]>(), ".{0,40}")
+                .prop_map(|(nonce_c, reason)| Message::Refuse { nonce_c, reason }),
+            Just(Message::Ready),
             (any::<u32>(), [f, f, f], any::<Option<u32>>(), any::<u32>()).prop_map(
                 |(step, y, applied_step, fate_cursor)| Message::Measurement {
                     step,
@@ -556,7 +645,12 @@ mod tests {
                 bitmap
             }),
             Just(Message::FinishAck),
-            any::<[u8; 8]>().prop_map(|tag| Message::Confirm { tag }),
+            (any::<[u8; 16]>(), any::<[u8; 16]>()).prop_map(|(session_tag, key_tag)| {
+                Message::Confirm {
+                    session_tag,
+                    key_tag,
+                }
+            }),
             ".{0,40}".prop_map(|reason| Message::Abort { reason }),
         ]
     }
@@ -574,7 +668,7 @@ mod tests {
 
         #[test]
         fn decoding_corrupted_frames_never_panics(message in arb_message(), flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..4)) {
-            let mut bytes = encode(&Frame { session: 3, seq: 4, message });
+            let mut bytes = [encode(&Frame { session: 3, seq: 4, message }), vec![0; MAC_BYTES]].concat();
             for (at, x) in flips {
                 let i = at % bytes.len();
                 bytes[i] ^= x;
@@ -585,7 +679,7 @@ mod tests {
         #[test]
         fn round_trip(message in arb_message(), session in any::<u32>(), seq in any::<u32>()) {
             let frame = Frame { session, seq, message };
-            let back = decode(&encode(&frame)).unwrap();
+            let back = decode(&[encode(&frame), vec![7; MAC_BYTES]].concat()).unwrap();
             prop_assert!(same(&back, &frame), "{:?} vs {:?}", back, frame);
         }
     }

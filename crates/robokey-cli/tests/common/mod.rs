@@ -1,0 +1,85 @@
+//! Helpers shared by the process-level tests: start `robokey` processes on loopback, read
+//! their reports. (Each test binary uses a subset, hence `dead_code` is allowed here.)
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+/// A running `robokey` process whose first stdout line announced its address.
+pub struct Process {
+    pub child: Child,
+    pub address: String,
+}
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Starts `robokey args…` and reads the address from its first line (`… on ADDR[, …]`).
+pub fn start(args: &[&str]) -> Process {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("robokey starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.as_mut().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let address = line
+        .split(" on ")
+        .nth(1)
+        .and_then(|rest| rest.split([',', '\n']).next())
+        .unwrap_or_else(|| panic!("no address in {line:?}"))
+        .trim()
+        .to_owned();
+    Process { child, address }
+}
+
+/// Runs `robokey args…` to completion; returns (success, stdout + stderr).
+pub fn run(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    (out.status.success(), text)
+}
+
+pub fn wait(mut process: Process) -> String {
+    let status = process.child.wait().unwrap();
+    let mut rest = String::new();
+    if let Some(out) = process.child.stdout.as_mut() {
+        let _ = std::io::Read::read_to_string(out, &mut rest);
+    }
+    assert!(status.success(), "process failed: {rest}");
+    rest
+}
+
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("robokey-net-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+pub fn s(path: &Path) -> String {
+    path.to_str().unwrap().to_owned()
+}
+
+/// Writes a pairing into `dir` with `robokey pair`; returns the file.
+pub fn pairing(dir: &Path) -> String {
+    let (ok, text) = run(&["pair", "--out", &s(dir)]);
+    assert!(ok, "{text}");
+    s(&dir.join("pairing.key"))
+}
+
+pub fn report(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
