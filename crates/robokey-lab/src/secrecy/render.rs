@@ -194,6 +194,14 @@ fn private_rows(results: &[PointSecrecy]) -> Vec<PrivateRow<'_>> {
         .collect()
 }
 
+/// Adds `point` to the series labelled `label`, starting it (with `style`) if new.
+fn push_point(series: &mut Vec<Series>, label: String, point: (f64, f64), style: SeriesStyle) {
+    match series.iter_mut().find(|s| s.label == label) {
+        Some(s) => s.points.push(point),
+        None => series.push(Series::new(label, vec![point], style)),
+    }
+}
+
 /// Writes `secrecy.csv`, `secrecy.json`, `secrecy.md` and the figure
 /// `secrecy-bits-per-step.{svg,png}` into `dir`, and a private-sensing map's figures and
 /// section when given; returns the files.
@@ -263,14 +271,13 @@ pub fn write_secrecy(
                 format!(", {context}")
             }
         );
-        let Some(x) = x_of(r) else { continue };
-        match series.iter_mut().find(|s| s.label == label) {
-            Some(s) => s.points.push((x, r.secret_bits_per_step)),
-            None => series.push(Series::new(
+        if let Some(x) = x_of(r) {
+            push_point(
+                &mut series,
                 label,
-                vec![(x, r.secret_bits_per_step)],
+                (x, r.secret_bits_per_step),
                 SeriesStyle::Line,
-            )),
+            );
         }
     }
     let mut raw: Vec<Series> = Vec::new();
@@ -284,14 +291,13 @@ pub fn write_secrecy(
         } else {
             format!("raw agreed bits, {context}")
         };
-        let Some(x) = x_of(r) else { continue };
-        match raw.iter_mut().find(|s| s.label == label) {
-            Some(s) => s.points.push((x, r.raw_bits_per_step)),
-            None => raw.push(Series::new(
+        if let Some(x) = x_of(r) {
+            push_point(
+                &mut raw,
                 label,
-                vec![(x, r.raw_bits_per_step)],
+                (x, r.raw_bits_per_step),
                 SeriesStyle::Dashed,
-            )),
+            );
         }
     }
     series.extend(raw);
