@@ -124,22 +124,7 @@ fn clean_network_confirms_equal_keys_identical_to_the_simulator_and_eve_agrees_o
     config.run.seed = 11;
     let sim = simulate(&config, 0, true).unwrap();
     assert_eq!(controller["accepted"].as_u64(), sim.metrics.accepted);
-    let out = dir.join("eve");
-    let (ok, text) = run(&[
-        "eve",
-        "--capture",
-        &s(&dir.join("capture.pcap")),
-        "--strategy",
-        "oracle,mismatch,soft,identify,transcript",
-        "--seed",
-        "11",
-        "--controller-key",
-        &s(&dir.join("controller.key")),
-        "--out",
-        &s(&out),
-    ]);
-    assert!(ok, "{text}");
-    let eve = report(&out.join("capture.json"));
+    let eve = eve_on_capture(&dir, "oracle,mismatch,soft,identify,transcript");
     let strategies = eve["strategies"].as_array().unwrap();
     assert_eq!(strategies.len(), 5);
     let decisions = |i: usize| -> Vec<Option<u64>> {
@@ -193,22 +178,7 @@ fn an_unauthenticated_session_is_labelled_and_its_tags_are_a_key_oracle() {
     }
     // Under the public secret the key tags are a public function of the key: the
     // transcript-aided Eve verifies her key with them.
-    let out = dir.join("eve");
-    let (ok, text) = run(&[
-        "eve",
-        "--capture",
-        &s(&dir.join("capture.pcap")),
-        "--strategy",
-        "transcript",
-        "--seed",
-        "11",
-        "--controller-key",
-        &s(&dir.join("controller.key")),
-        "--out",
-        &s(&out),
-    ]);
-    assert!(ok, "{text}");
-    let eve = report(&out.join("capture.json"));
+    let eve = eve_on_capture(&dir, "transcript");
     let transcript = &eve["strategies"][0];
     assert!(transcript["tag_flips"].as_u64().is_some(), "{transcript}");
     assert_eq!(transcript["disagreement_pct"].as_f64(), Some(0.0));
@@ -414,4 +384,25 @@ fn kh4_backend_against_the_emulator_confirms_a_key() {
         std::fs::read_to_string(dir.join("robot.key")).unwrap(),
         std::fs::read_to_string(dir.join("controller.key")).unwrap()
     );
+}
+
+/// `robokey eve` with `strategies` on `dir/capture.pcap` (seed 11, the controller's key
+/// beside it); returns its `capture.json`.
+fn eve_on_capture(dir: &Path, strategies: &str) -> serde_json::Value {
+    let out = dir.join("eve");
+    let (ok, text) = run(&[
+        "eve",
+        "--capture",
+        &s(&dir.join("capture.pcap")),
+        "--strategy",
+        strategies,
+        "--seed",
+        "11",
+        "--controller-key",
+        &s(&dir.join("controller.key")),
+        "--out",
+        &s(&out),
+    ]);
+    assert!(ok, "{text}");
+    report(&out.join("capture.json"))
 }
