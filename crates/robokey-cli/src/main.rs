@@ -12,9 +12,15 @@ mod eve;
 mod net;
 
 /// Key agreement for remotely controlled robots, through the robot's own motion
-/// (Naseri, Lucia, Youssef, IFAC 2023) — simulated, swept and measured.
+/// (Naseri, Lucia, Youssef, IFAC 2023) — simulated, swept, run over authenticated UDP
+/// sessions, and counted: how many of the agreed bits are secret, against whom.
 #[derive(Parser, Debug)]
-#[command(name = "robokey", version, about, long_about = None)]
+#[command(
+    name = "robokey",
+    version,
+    after_help = "Start with `robokey reproduce`. The model, protocol, private sensing, secrecy \
+                  accounting and threat model are explained in the repository's docs/."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
