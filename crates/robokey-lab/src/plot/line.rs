@@ -94,6 +94,9 @@ impl LineChart {
     }
 }
 
+/// More points than this make a series dense (drawn thin).
+const DENSE_POINTS: usize = 1_000;
+
 /// Markers along a line: about this many per series.
 const MARKERS_PER_LINE: usize = 12;
 
@@ -158,7 +161,14 @@ impl Figure for LineChart {
             // Earlier series are drawn wider, so that series lying on top of each other
             // show as nested stripes rather than hiding one another.
             let grow = (self.series.len() - 1 - i).min(3) as u32;
-            let style = color.stroke_width(2 + grow);
+            // Dense series are drawn 1 px wide: plotters' raster backend joins wide strokes
+            // with mitres, which spike far beyond the data at sharp reversals.
+            let width = if series.points.len() > DENSE_POINTS {
+                1
+            } else {
+                2 + grow
+            };
+            let style = color.stroke_width(width);
             let points = finite(series);
             let mut elements: Vec<DynElement<'static, DB, (f64, f64)>> = Vec::new();
             for (x, lo, hi) in bars(series) {
