@@ -9,7 +9,10 @@ use robokey_lab::runner::Shard;
 
 mod commands;
 mod eve;
+mod exit;
 mod net;
+
+use exit::Status;
 
 /// Key agreement for remotely controlled robots, through the robot's own motion
 /// (Naseri, Lucia, Youssef, IFAC 2023) — simulated, swept, run over authenticated UDP
@@ -275,26 +278,21 @@ fn parse_override(text: &str) -> Result<Override, String> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let done = |result: anyhow::Result<()>| result.map(|()| Status::Success);
     let result = match cli.command {
-        Command::Run(args) => commands::run(args),
-        Command::Sweep(args) => commands::sweep(args),
-        Command::Merge(args) => commands::merge(args),
-        Command::Reproduce(args) => commands::reproduce(args),
-        Command::Config(args) => commands::config(args),
-        Command::Secrecy(args) => commands::secrecy(args),
-        Command::Pair(args) => net::pair(args),
+        Command::Run(args) => done(commands::run(args)),
+        Command::Sweep(args) => done(commands::sweep(args)),
+        Command::Merge(args) => done(commands::merge(args)),
+        Command::Reproduce(args) => done(commands::reproduce(args)),
+        Command::Config(args) => done(commands::config(args)),
+        Command::Secrecy(args) => done(commands::secrecy(args)),
+        Command::Pair(args) => done(net::pair(args)),
         Command::Robot(args) => net::robot(args),
         Command::Controller(args) => net::controller(args),
         Command::Relay(args) => net::relay(args),
-        Command::Frames(args) => net::frames(args),
-        Command::Eve(args) => eve::eve(args),
-        Command::Kh4Emulator(args) => net::kh4_emulator(args),
+        Command::Frames(args) => done(net::frames(args)),
+        Command::Eve(args) => done(eve::eve(args)),
+        Command::Kh4Emulator(args) => done(net::kh4_emulator(args)),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(error) => {
-            eprintln!("error: {error:#}");
-            ExitCode::FAILURE
-        }
-    }
+    exit::code(result)
 }

@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
+use robokey::interrupt::Interrupt;
 use robokey::protocol::auth::PairingSecret;
 use robokey::rng::{Purpose, stream};
 use robokey_net::controller_agent::{ControllerOptions, run_controller};
@@ -14,11 +15,12 @@ use robokey_net::pairing::{read_pairing, write_pairing};
 use robokey_net::pcap::read as read_capture;
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
 use robokey_net::robot_agent::{RobotOptions, run_robot};
-use robokey_net::session::{Pace, SessionReport, Timing, os_rng};
+use robokey_net::session::{Ending, Pace, SessionReport, Timing, os_rng};
 use robokey_net::sim_backend::SimBackend;
 
 use crate::ConfigOptions;
 use crate::commands::load_config;
+use crate::exit::{Status, on_signals, usage};
 
 /// Clock of a session.
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -88,27 +90,40 @@ impl SessionArgs {
     }
 
     fn timing(&self) -> Result<Timing> {
-        if !(self.silence_timeout > 0.0 && self.silence_timeout.is_finite()) {
-            bail!(
-                "--silence-timeout {} is not allowed (allowed: > 0 seconds)",
-                self.silence_timeout
+        let silence = seconds("silence-timeout", self.silence_timeout, 0.001)?;
+        if !(1..=MAX_SECONDS as u64 * 1000).contains(&self.step_timeout_ms) {
+            usage!(
+                "--step-timeout-ms {} is not allowed (allowed: 1 to {} ms)",
+                self.step_timeout_ms,
+                MAX_SECONDS as u64 * 1000
             );
         }
         let pace = match self.pace {
             PaceArg::Realtime => Pace::Realtime,
             PaceArg::Lockstep => Pace::Lockstep,
         };
-        let mut timing = Timing::new(pace, Duration::from_secs_f64(self.silence_timeout));
+        let mut timing = Timing::new(pace, silence);
         timing.step_timeout = Duration::from_millis(self.step_timeout_ms);
         Ok(timing)
     }
 
-    fn finish(&self, report: &SessionReport) -> Result<()> {
+    /// Prints and writes the report; the exit status follows how the session ended.
+    fn finish(&self, report: &SessionReport, interrupt: &Interrupt) -> Result<Status> {
         println!("{}", report.line());
         if let Some(path) = &self.report {
             report.write(path)?;
         }
-        Ok(())
+        Ok(match report.ending {
+            Ending::Confirmed => Status::Success,
+            Ending::NoKey => Status::NoKey,
+            Ending::AuthenticationFailed => Status::AuthenticationFailed,
+            Ending::Interrupted => Status::Interrupted(interrupt.signal().unwrap_or(2)),
+            Ending::Failed => bail!(
+                "{} session failed: {}",
+                report.role,
+                report.reason.as_deref().unwrap_or("no reason recorded")
+            ),
+        })
     }
 }
 
@@ -253,18 +268,26 @@ pub struct RelayArgs {
     idle_exit: Option<f64>,
 }
 
-pub fn robot(args: RobotArgs) -> Result<()> {
+pub fn robot(args: RobotArgs) -> Result<Status> {
     let mut config = load_config(args.session.config.as_deref(), &args.session.options.set)?;
     let timing = args.session.timing()?;
+    if args.kh4.is_some() && !matches!(args.backend, BackendArg::Kh4) {
+        usage!("--kh4 is used only with --backend kh4 (the backend is sim)");
+    }
     let options = RobotOptions {
         listen: args.listen,
         timing,
-        wait_for_hello: Duration::from_secs_f64(args.wait.max(0.0)),
+        wait_for_hello: seconds("wait", args.wait, 0.0)?,
         key_out: args.session.key_out.clone(),
         pairing: args.session.pairing()?,
+        interrupt: on_signals()?,
     };
     match args.seed {
         Some(seed) => {
+            eprintln!(
+                "warning: --seed {seed}: the key bits come from a seeded stream, not the OS \
+                 CSPRNG: anyone who knows the seed knows the key (tests only)"
+            );
             config.run.seed = seed;
             finish_robot(&args, &config, &options, &mut stream(seed, Purpose::Key, 0))
         }
@@ -282,7 +305,7 @@ fn finish_robot<R: rand::CryptoRng>(
     config: &robokey::Config,
     options: &RobotOptions,
     key_source: &mut R,
-) -> Result<()> {
+) -> Result<Status> {
     let report = match args.backend {
         BackendArg::Sim => run_robot(config, &mut SimBackend::new(config, 0), key_source, options)?,
         BackendArg::Kh4 => {
@@ -298,10 +321,10 @@ fn finish_robot<R: rand::CryptoRng>(
             run_robot(config, &mut backend, key_source, options)?
         }
     };
-    args.session.finish(&report)
+    args.session.finish(&report, &options.interrupt)
 }
 
-pub fn controller(args: ControllerArgs) -> Result<()> {
+pub fn controller(args: ControllerArgs) -> Result<Status> {
     let config = load_config(args.session.config.as_deref(), &args.session.options.set)?;
     let bind = args.bind.unwrap_or_else(|| {
         if args.robot.is_ipv4() {
@@ -319,16 +342,17 @@ pub fn controller(args: ControllerArgs) -> Result<()> {
         key_out: args.session.key_out.clone(),
         session: None,
         pairing: args.session.pairing()?,
+        interrupt: on_signals()?,
     };
     let report = run_controller(&config, &options)?;
-    args.session.finish(&report)
+    args.session.finish(&report, &options.interrupt)
 }
 
 fn probability(name: &str, p: f64) -> Result<f64> {
     if (0.0..=1.0).contains(&p) {
         Ok(p)
     } else {
-        bail!("--{name} {p} is not allowed (allowed: a probability in [0, 1])")
+        usage!("--{name} {p} is not allowed (allowed: a probability in [0, 1])")
     }
 }
 
@@ -343,15 +367,18 @@ fn parse_delay(text: &str) -> Result<(Duration, Duration)> {
             .trim()
             .parse()
             .with_context(|| format!("--delay {text}: `{s}` is not a number of milliseconds"))?;
-        if !(v >= 0.0 && v.is_finite()) {
-            bail!("--delay {text}: {v} ms is not allowed (allowed: ≥ 0)");
+        if !(0.0..=MAX_SECONDS * 1000.0).contains(&v) {
+            usage!(
+                "--delay {text}: {v} ms is not allowed (allowed: 0 to {} ms)",
+                MAX_SECONDS * 1000.0
+            );
         }
         Ok(Duration::from_secs_f64(v / 1000.0))
     };
     Ok((ms(mean)?, ms(jitter)?))
 }
 
-pub fn relay(args: RelayArgs) -> Result<()> {
+pub fn relay(args: RelayArgs) -> Result<Status> {
     let (delay, jitter) = parse_delay(&args.delay)?;
     let faults = Faults {
         loss: probability("loss", args.loss)?,
@@ -368,11 +395,29 @@ pub fn relay(args: RelayArgs) -> Result<()> {
         seed: args.seed,
         capture: args.capture,
         capture_after_faults: args.capture_after_faults,
-        idle_exit: args.idle_exit.map(|s| Duration::from_secs_f64(s.max(0.0))),
+        idle_exit: args
+            .idle_exit
+            .map(|s| seconds("idle-exit", s, 0.0))
+            .transpose()?,
+        interrupt: on_signals()?,
     };
     let stats = run_relay(&options)?;
     println!("relay: {}", serde_json::to_string(&stats)?);
-    Ok(())
+    Ok(match options.interrupt.signal() {
+        Some(signal) => Status::Interrupted(signal),
+        None => Status::Success,
+    })
+}
+
+/// Longest duration any option takes (s): a day.
+const MAX_SECONDS: f64 = 86_400.0;
+
+/// A duration option in seconds, checked against `[least, MAX_SECONDS]`.
+fn seconds(name: &str, value: f64, least: f64) -> Result<Duration> {
+    if !(least..=MAX_SECONDS).contains(&value) {
+        usage!("--{name} {value} is not allowed (allowed: {least} to {MAX_SECONDS} seconds)");
+    }
+    Ok(Duration::from_secs_f64(value))
 }
 
 /// How the emulated robot's time advances.

@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use common::{Process, pairing, report, run, s, scratch, start, wait};
+use common::{Process, pairing, report, run_code, s, scratch, start, wait_code};
 use robokey::protocol::auth::{AuthMode, PairingSecret, seal};
 use robokey::protocol::wire::{Frame, MAC_BYTES, decode, encode};
 use robokey::protocol::{FateWindow, Message};
@@ -129,8 +129,8 @@ fn robot(dir: &Path, pairing: &str, extra: &[&str]) -> Process {
 }
 
 /// Runs a paired controller towards `target` to its end, writing `controller.json` and
-/// `controller.key` into `dir`; returns its output.
-fn controller(dir: &Path, pairing: &str, target: &str, extra: &[&str]) -> String {
+/// `controller.key` into `dir`; checks its exit code and returns its output.
+fn controller(dir: &Path, pairing: &str, target: &str, code: i32) -> String {
     let (key, json) = (
         s(&dir.join("controller.key")),
         s(&dir.join("controller.json")),
@@ -151,9 +151,15 @@ fn controller(dir: &Path, pairing: &str, target: &str, extra: &[&str]) -> String
         &json,
     ];
     args.extend(SHORT);
-    args.extend(extra);
-    let (ok, text) = run(&args);
-    assert!(ok, "{text}");
+    let (exit, text) = run_code(&args);
+    assert_eq!(exit, code, "{text}");
+    text
+}
+
+/// Waits for a robot and checks its exit code (0 key, 3 no key, 4 authentication failed).
+fn wait_robot(robot: Process, code: i32) -> String {
+    let (exit, text) = wait_code(robot);
+    assert_eq!(exit, code, "{text}");
     text
 }
 
@@ -192,8 +198,8 @@ fn captured_session(dir: &Path, pairing: &str) -> Vec<(To, Vec<u8>)> {
     std::fs::create_dir_all(dir).unwrap();
     let robot = robot(dir, pairing, &[]);
     let relay = relay(&robot.address, forward());
-    controller(dir, pairing, &relay.address, &[]);
-    wait(robot);
+    controller(dir, pairing, &relay.address, 0);
+    wait_robot(robot, 0);
     assert_completed(dir);
     relay.thread.join().unwrap()
 }
@@ -205,7 +211,7 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
     let attacker = pairing(&dir.join("attacker"));
     // Towards the robot: stock controllers, unpaired and with another pairing.
     let robot = robot(&dir, &victim, &[]);
-    let (ok, text) = run(&[
+    let (code, text) = run_code(&[
         "controller",
         "--robot",
         &robot.address,
@@ -213,12 +219,16 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
         "--silence-timeout",
         "1",
     ]);
-    assert!(ok && text.contains("passive adversary only"), "{text}");
+    // The robot drops the Hello unanswered: to the controller, that is silence (no key).
+    assert!(
+        code == 3 && text.contains("passive adversary only"),
+        "{text}"
+    );
     assert!(
         text.contains("aborted: no HelloAck that verifies"),
         "{text}"
     );
-    let (ok, text) = run(&[
+    let (code, text) = run_code(&[
         "controller",
         "--robot",
         &robot.address,
@@ -228,7 +238,7 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
         "1",
     ]);
     assert!(
-        ok && text.contains("aborted: no HelloAck that verifies"),
+        code == 3 && text.contains("aborted: no HelloAck that verifies"),
         "{text}"
     );
     // Towards the controller: a stock robot with the attacker's pairing (it cannot verify
@@ -236,12 +246,12 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
     // echoing the controller's nonce, MACed under the key the attacker has.
     let fake = scratch("attack-mitm-fake-robot");
     let fake_robot = self::robot(&fake, &attacker, &[]);
-    let text = controller(&dir, &victim, &fake_robot.address, &[]);
+    let text = controller(&dir, &victim, &fake_robot.address, 3);
     assert!(
         text.contains("aborted: no HelloAck that verifies"),
         "{text}"
     );
-    wait(fake_robot);
+    wait_robot(fake_robot, 4);
     assert!(!fake.join("robot.key").exists());
     let answering = UdpSocket::bind("127.0.0.1:0").unwrap();
     let address = answering.local_addr().unwrap().to_string();
@@ -282,9 +292,9 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
         }
         answered
     });
-    controller(&dir, &victim, &address, &[]);
+    controller(&dir, &victim, &address, 4);
     assert!(answerer.join().unwrap() > 0);
-    wait(robot);
+    wait_robot(robot, 4);
     let (robot, controller) = reports(&dir);
     assert_eq!(robot["outcome"], "aborted", "{robot}");
     assert_eq!(robot["commands_applied"], 0);
@@ -326,8 +336,8 @@ fn on_path_edits_of_fates_and_tags_are_dropped_and_no_key_is_confirmed() {
             vec![(to, out)]
         }),
     );
-    controller(&dir, &pairing, &relay.address, &[]);
-    wait(robot);
+    controller(&dir, &pairing, &relay.address, 3);
+    wait_robot(robot, 3);
     relay.thread.join().unwrap();
     let (robot, controller) = reports(&dir);
     for r in [&robot, &controller] {
@@ -374,8 +384,8 @@ fn an_early_datagram_and_a_replayed_hello_do_not_steer_the_robot() {
     attacker.send_to(&ready.1, &robot.address).unwrap();
     std::thread::sleep(Duration::from_millis(100));
     // The real controller still gets the session.
-    controller(&dir, &pairing, &robot.address, &[]);
-    wait(robot);
+    controller(&dir, &pairing, &robot.address, 0);
+    wait_robot(robot, 0);
     assert_completed(&dir);
     let (robot, _) = reports(&dir);
     assert!(rejected(&robot, "other_session") >= 1, "{robot}");
@@ -398,8 +408,8 @@ fn a_reflected_confirm_fails_and_the_controller_writes_no_key() {
             }
         }),
     );
-    controller(&dir, &pairing, &relay.address, &[]);
-    wait(robot);
+    controller(&dir, &pairing, &relay.address, 3);
+    wait_robot(robot, 0);
     relay.thread.join().unwrap();
     let (_, controller) = reports(&dir);
     assert_eq!(controller["outcome"], "unconfirmed", "{controller}");
@@ -447,9 +457,9 @@ fn injected_and_impersonated_commands_are_never_applied_and_the_session_complete
             out
         }),
     );
-    controller(&dir, &pairing, &relay.address, &[]);
+    controller(&dir, &pairing, &relay.address, 0);
     // The robot says so on its console, not only in its report.
-    let console = wait(robot);
+    let console = wait_robot(robot, 0);
     assert!(console.contains("datagrams rejected"), "{console}");
     relay.thread.join().unwrap();
     let injected = injected.load(Ordering::Relaxed);
@@ -475,7 +485,7 @@ fn an_old_controller_transcript_replayed_to_a_fresh_robot_drives_nothing() {
         std::thread::sleep(Duration::from_millis(1));
     }
     assert!(sent > 50);
-    wait(robot);
+    wait_robot(robot, 4);
     let r = report(&dir.join("robot.json"));
     assert_eq!(r["outcome"], "aborted", "{r}");
     assert_eq!(r["commands_applied"], 0, "{r}");
@@ -539,8 +549,8 @@ fn a_forged_abort_bad_finish_wrong_version_hello_and_sequence_poisoning_change_n
             out
         }),
     );
-    controller(&dir, &pairing, &relay.address, &[]);
-    wait(robot);
+    controller(&dir, &pairing, &relay.address, 0);
+    wait_robot(robot, 0);
     relay.thread.join().unwrap();
     assert_completed(&dir);
     let (robot, controller) = reports(&dir);

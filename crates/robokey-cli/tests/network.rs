@@ -6,7 +6,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use common::{pairing, report, run, s, scratch, start, wait};
+use common::{pairing, report, run, run_code, s, scratch, start, wait, wait_code};
 
 use robokey::Config;
 use robokey::sim::simulate;
@@ -83,11 +83,19 @@ fn session_with_robot_args(
     controller_args.extend(&auth);
     controller_args.extend(["--key-out", &controller_key, "--report", &controller_report]);
     controller_args.extend(extra);
-    let (ok, text) = run(&controller_args);
-    assert!(ok, "{text}");
-    wait(robot);
+    let (controller_code, text) = run_code(&controller_args);
+    let (robot_code, robot_text) = wait_code(robot);
     if let Some(relay) = relay_process {
         wait(relay);
+    }
+    // Each side's exit code says how its session ended: 0 with a key, 3 without.
+    for (code, json, output) in [
+        (controller_code, &controller_report, &text),
+        (robot_code, &robot_report, &robot_text),
+    ] {
+        let ending = report(Path::new(json))["ending"].clone();
+        let expected = if ending == "confirmed" { 0 } else { 3 };
+        assert_eq!(code, expected, "{ending}: {output}");
     }
     dir
 }
@@ -304,7 +312,7 @@ fn robot_stops_its_wheels_and_aborts_after_silence() {
     std::thread::sleep(std::time::Duration::from_millis(1000));
     controller.kill().unwrap();
     controller.wait().unwrap();
-    wait(robot);
+    assert_eq!(wait_code(robot).0, 3, "no key");
     let r = report(Path::new(&robot_report));
     assert_eq!(r["outcome"], "aborted", "{r}");
     assert!(r["reason"].as_str().unwrap().contains("silence"), "{r}");
@@ -342,7 +350,7 @@ fn mismatched_configurations_abort_naming_the_difference() {
         "--wait",
         "2",
     ]);
-    let (ok, text) = run(&[
+    let (code, text) = run_code(&[
         "controller",
         "--robot",
         &robot.address,
@@ -351,12 +359,12 @@ fn mismatched_configurations_abort_naming_the_difference() {
         "--pairing",
         &pairing,
     ]);
-    assert!(ok, "{text}");
+    assert_eq!(code, 3, "{text}");
     assert!(
         text.contains("aborted") && text.contains("robot.T: robot has 0.25, controller has 0.2"),
         "{text}"
     );
-    wait(robot);
+    assert_eq!(wait_code(robot).0, 3, "no key");
     assert!(
         report(Path::new(&robot_report))["reason"]
             .as_str()

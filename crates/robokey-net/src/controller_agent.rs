@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use robokey::Config;
+use robokey::interrupt::Interrupt;
 use robokey::protocol::auth::{AuthMode, ControllerChannel, Delivery, PairingSecret};
 use robokey::protocol::{
     ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome,
@@ -14,8 +15,10 @@ use robokey::protocol::{
 
 use crate::error::NetError;
 use crate::robot_agent::finish_report;
-use crate::session::{SessionReport, Timing, authentication_label, linger, os_rng};
+use crate::secret_file::check_writable;
+use crate::session::{Ending, SessionReport, Timing, authentication_label, linger, os_rng};
 use crate::transport::Transport;
+use zeroize::Zeroizing;
 
 /// Options of the controller agent.
 #[derive(Clone, Debug)]
@@ -32,16 +35,22 @@ pub struct ControllerOptions {
     pub session: Option<u32>,
     /// The pairing secret ([`PairingSecret::unauthenticated`] for `--unauthenticated`).
     pub pairing: PairingSecret,
+    /// A stop request (SIGINT, SIGTERM): the session ends within 50 ms, report written.
+    pub interrupt: Interrupt,
 }
 
-/// Runs one session as the controller.
+/// Runs one session as the controller. Every way out after the socket is bound returns a
+/// report: a robot that does not answer, a socket error, a stop request.
 ///
 /// # Errors
-/// Socket failures.
+/// `--key-out` exists or has no folder, or the socket cannot be bound.
 pub fn run_controller(
     config: &Config,
     options: &ControllerOptions,
 ) -> Result<SessionReport, NetError> {
+    if let Some(path) = &options.key_out {
+        check_writable(path, "key file")?;
+    }
     let mut rng = os_rng()?;
     let session = match options.session {
         Some(id) => id,
@@ -58,9 +67,9 @@ pub fn run_controller(
         agreement_terms(config),
         &mut rng,
     );
-    let mut transport = Transport::controller(options.bind, channel)?;
-    let timing = options.timing;
-    let mut plan = SessionPlan::from_config(config, session);
+    let mut transport =
+        Transport::controller(options.bind, channel)?.with_interrupt(options.interrupt.clone());
+    let plan = SessionPlan::from_config(config, session);
     let mut report = SessionReport {
         role: "controller".into(),
         authentication: authentication_label(&options.pairing),
@@ -70,6 +79,52 @@ pub fn run_controller(
         ..SessionReport::default()
     };
     let message_bits = plan.code.k();
+    match converse(config, options, plan, &mut transport, &mut report) {
+        Ok(ended) => {
+            let mut report = finish_report(
+                report,
+                Some(ended.outcome),
+                &ended.key,
+                &transport,
+                options.key_out.as_ref(),
+                message_bits,
+            );
+            let rejected = transport.rejected();
+            if !ended.robot_authenticated && rejected.bad_mac + rejected.pairing_mode > 0 {
+                report.ending = Ending::AuthenticationFailed;
+            }
+            Ok(report)
+        }
+        Err(error) => {
+            let _ = transport.send(Message::Abort {
+                reason: format!("controller: {error}"),
+            });
+            report.set_error(&error);
+            report.frames = transport.counts();
+            report.frames_rejected = transport.rejected();
+            Ok(report)
+        }
+    }
+}
+
+/// What a conversation with the robot ended with.
+struct Ended {
+    outcome: Outcome,
+    /// Whether a HelloAck proved that the robot holds the pairing secret.
+    robot_authenticated: bool,
+    /// The key bits (empty unless confirmed); zeroized when dropped.
+    key: Zeroizing<Vec<u8>>,
+}
+
+/// The handshake and the session, counting into `report`.
+fn converse(
+    config: &Config,
+    options: &ControllerOptions,
+    mut plan: SessionPlan,
+    transport: &mut Transport,
+    report: &mut SessionReport,
+) -> Result<Ended, NetError> {
+    let timing = options.timing;
 
     // Handshake: repeat Hello until a HelloAck (or a Refuse) that verifies, within the
     // silence timeout.
@@ -100,14 +155,11 @@ pub fn run_controller(
         }
     };
     if let Err(reason) = accepted {
-        return finish_report(
-            report,
-            Some(Outcome::Aborted(reason)),
-            &[],
-            &transport,
-            None,
-            message_bits,
-        );
+        return Ok(Ended {
+            outcome: Outcome::Aborted(reason),
+            robot_authenticated: false,
+            key: Zeroizing::new(Vec::new()),
+        });
     }
     plan.confirmer = transport
         .confirmer()
@@ -165,16 +217,14 @@ pub fn run_controller(
         }
     }
     if let Some(confirm) = last_confirm {
-        linger(&mut transport, &timing, &[confirm])?;
+        // The key is settled; a signal now only shortens the courtesy to the peer.
+        let _ = linger(transport, &timing, &[confirm]);
     }
-    finish_report(
-        report,
-        outcome,
-        endpoint.key(),
-        &transport,
-        options.key_out.as_ref(),
-        message_bits,
-    )
+    Ok(Ended {
+        outcome: outcome.expect("the loop ends on an outcome"),
+        robot_authenticated: true,
+        key: Zeroizing::new(endpoint.key().to_vec()),
+    })
 }
 
 /// Default silence timeout (docs/protocol.md).

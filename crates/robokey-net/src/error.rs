@@ -26,6 +26,19 @@ pub enum NetError {
     /// Bad command-line or configuration input.
     #[error("{0}")]
     Usage(String),
+    /// A stop was requested by signal n (SIGINT 2, SIGTERM 15).
+    #[error("interrupted by {}", signal_name(*.0))]
+    Interrupted(usize),
+}
+
+/// `SIGINT`, `SIGTERM`, or `signal N`.
+#[must_use]
+pub fn signal_name(signal: usize) -> String {
+    match signal {
+        2 => "SIGINT".to_owned(),
+        15 => "SIGTERM".to_owned(),
+        n => format!("signal {n}"),
+    }
 }
 
 impl NetError {

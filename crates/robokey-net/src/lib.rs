@@ -10,6 +10,7 @@ pub mod pairing;
 pub mod pcap;
 pub mod relay;
 pub mod robot_agent;
+pub mod secret_file;
 pub mod session;
 pub mod sim_backend;
 pub mod transport;

@@ -1,7 +1,6 @@
 //! The pairing file: one 256-bit secret installed on the robot and its controller
 //! (`robokey pair`), as text `robokey-pairing-v1 <64 hex digits>`, mode 0600.
 
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use rand::CryptoRng;
@@ -36,23 +35,7 @@ pub fn write_pairing<R: CryptoRng + ?Sized>(
     let hex: Zeroizing<String> =
         Zeroizing::new(secret.expose().iter().map(|b| format!("{b:02x}")).collect());
     let text = Zeroizing::new(format!("{HEADER} {}\n", hex.as_str()));
-    let temp = dir.join(format!(".{FILE_NAME}.{}.tmp", std::process::id()));
-    let write = || -> std::io::Result<()> {
-        let mut options = std::fs::OpenOptions::new();
-        options.write(true).create_new(true);
-        #[cfg(unix)]
-        std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
-        let mut file = options.open(&temp)?;
-        file.write_all(text.as_bytes())?;
-        file.sync_all()?;
-        // A hard link never replaces an existing name: two concurrent `pair` runs cannot
-        // overwrite each other.
-        std::fs::hard_link(&temp, &path)?;
-        std::fs::File::open(dir)?.sync_all()
-    };
-    let written = write();
-    let _ = std::fs::remove_file(&temp);
-    written.map_err(NetError::io(format!("write {}", path.display())))?;
+    crate::secret_file::write_new(&path, text.as_bytes())?;
     Ok((path, secret))
 }
 

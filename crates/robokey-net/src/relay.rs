@@ -6,10 +6,13 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use rand::RngExt;
 use rand::rngs::ChaCha8Rng;
+use robokey::interrupt::Interrupt;
 use robokey::rng::{Purpose, stream};
 use serde::Serialize;
 
@@ -50,6 +53,8 @@ pub struct RelayOptions {
     pub capture_after_faults: bool,
     /// Exit after this long without traffic (once traffic has started).
     pub idle_exit: Option<Duration>,
+    /// A stop request (SIGINT, SIGTERM): the relay returns its statistics within 50 ms.
+    pub interrupt: Interrupt,
 }
 
 /// What the relay did, per direction.
@@ -127,7 +132,54 @@ fn apply_faults(
     copies
 }
 
-/// Runs the relay until it has been idle for `idle_exit` (forever without it).
+/// A datagram as a receiving thread hands it over.
+struct Arrival {
+    to_robot: bool,
+    from: SocketAddr,
+    bytes: Vec<u8>,
+}
+
+/// Longest the relay blocks before it looks at the stop request again.
+const INTERRUPT_POLL: Duration = Duration::from_millis(50);
+
+/// Receives on `socket` until `stop`, handing each datagram to `arrivals`; blocks in the
+/// kernel between datagrams (no polling loop), waking every 50 ms to look at `stop`.
+fn receive(
+    socket: &UdpSocket,
+    to_robot: bool,
+    arrivals: &mpsc::Sender<Result<Arrival, NetError>>,
+    stop: &AtomicBool,
+) {
+    let mut buffer = vec![0u8; 65_536];
+    while !stop.load(Ordering::Relaxed) {
+        let arrival = match socket.recv_from(&mut buffer) {
+            Ok((len, from)) => Ok(Arrival {
+                to_robot,
+                from,
+                bytes: buffer[..len].to_vec(),
+            }),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock
+                        | std::io::ErrorKind::TimedOut
+                        | std::io::ErrorKind::ConnectionRefused
+                ) =>
+            {
+                continue;
+            }
+            Err(e) => Err(NetError::io("relay receive")(e)),
+        };
+        let failed = arrival.is_err();
+        if arrivals.send(arrival).is_err() || failed {
+            return;
+        }
+    }
+}
+
+/// Runs the relay until it has been idle for `idle_exit` (forever without it) or a stop is
+/// requested. One thread per socket blocks in `recv`; this one applies the faults and
+/// delivers each datagram when it is due, sleeping in between.
 ///
 /// # Errors
 /// Sockets or the capture file fail.
@@ -145,19 +197,40 @@ pub fn run_relay(options: &RelayOptions) -> Result<RelayStats, NetError> {
         UdpSocket::bind(back_bind).map_err(NetError::io("bind the relay's robot-side socket"))?;
     for socket in [&front, &back] {
         socket
-            .set_nonblocking(true)
-            .map_err(NetError::io("set non-blocking"))?;
+            .set_read_timeout(Some(INTERRUPT_POLL))
+            .map_err(NetError::io("set the relay's receive timeout"))?;
     }
     println!(
         "relay listening on {}, forwarding to {}",
         front.local_addr().map_err(NetError::io("local address"))?,
         options.forward
     );
-    let mut capture = options
+    let capture = options
         .capture
         .as_deref()
         .map(PcapWriter::create)
         .transpose()?;
+    let stop = AtomicBool::new(false);
+    let (sender, arrivals) = mpsc::channel();
+    std::thread::scope(|scope| {
+        for (socket, to_robot) in [(&front, true), (&back, false)] {
+            let (sender, stop) = (sender.clone(), &stop);
+            scope.spawn(move || receive(socket, to_robot, &sender, stop));
+        }
+        let relayed = forward(options, &front, &back, &arrivals, capture);
+        stop.store(true, Ordering::Relaxed);
+        relayed
+    })
+}
+
+/// The relay's main loop: faults on arrival, delivery when due.
+fn forward(
+    options: &RelayOptions,
+    front: &UdpSocket,
+    back: &UdpSocket,
+    arrivals: &mpsc::Receiver<Result<Arrival, NetError>>,
+    mut capture: Option<PcapWriter>,
+) -> Result<RelayStats, NetError> {
     let mut rngs = [
         stream(options.seed, Purpose::Channel, 0),
         stream(options.seed, Purpose::Channel, 1),
@@ -167,55 +240,63 @@ pub fn run_relay(options: &RelayOptions) -> Result<RelayStats, NetError> {
     let mut controller: Option<SocketAddr> = None;
     let mut last_traffic: Option<Instant> = None;
     let mut order = 0u64;
-    let mut buffer = [0u8; 65_536];
     let back_addr = back.local_addr().map_err(NetError::io("local address"))?;
     loop {
-        let mut busy = false;
-        for to_robot in [true, false] {
-            let socket = if to_robot { &front } else { &back };
-            match socket.recv_from(&mut buffer) {
-                Ok((len, from)) => {
-                    busy = true;
-                    last_traffic = Some(Instant::now());
-                    if to_robot {
-                        controller.get_or_insert(from);
-                    } else if from != options.forward {
-                        continue;
-                    }
-                    let Some(controller_addr) = controller else {
-                        continue;
-                    };
+        if options.interrupt.is_requested() {
+            return Ok(stats);
+        }
+        let wait = queue.peek().map_or(INTERRUPT_POLL, |Reverse(p)| {
+            p.due
+                .saturating_duration_since(Instant::now())
+                .min(INTERRUPT_POLL)
+        });
+        match arrivals.recv_timeout(wait) {
+            Ok(arrival) => {
+                let Arrival {
+                    to_robot,
+                    from,
+                    bytes,
+                } = arrival?;
+                last_traffic = Some(Instant::now());
+                if to_robot {
+                    controller.get_or_insert(from);
+                }
+                if let (true, Some(controller_addr)) =
+                    (to_robot || from == options.forward, controller)
+                {
                     let (source, destination) = if to_robot {
                         (controller_addr, options.forward)
                     } else {
                         (options.forward, controller_addr)
                     };
                     if let (Some(pcap), false) = (capture.as_mut(), options.capture_after_faults) {
-                        pcap.write(source, destination, &buffer[..len])?;
+                        pcap.write(source, destination, &bytes)?;
                     }
                     let direction = if to_robot {
                         &mut stats.to_robot
                     } else {
                         &mut stats.to_controller
                     };
+                    let now = Instant::now();
                     for (delay, bytes) in apply_faults(
                         &options.faults,
                         &mut rngs[usize::from(!to_robot)],
-                        &buffer[..len],
+                        &bytes,
                         direction,
                     ) {
                         order += 1;
                         queue.push(Reverse(Pending {
-                            due: Instant::now() + delay,
+                            due: now + delay,
                             order,
                             to_robot,
                             bytes,
                         }));
                     }
                 }
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {}
-                Err(e) => return Err(NetError::io("relay receive")(e)),
+            }
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                return Err(NetError::Usage("the relay's receivers stopped".into()));
             }
         }
         while queue
@@ -229,9 +310,9 @@ pub fn run_relay(options: &RelayOptions) -> Result<RelayStats, NetError> {
                 continue;
             };
             let (socket, destination, source) = if pending.to_robot {
-                (&back, options.forward, back_addr)
+                (back, options.forward, back_addr)
             } else {
-                (&front, controller_addr, options.forward)
+                (front, controller_addr, options.forward)
             };
             // A peer that is gone is not the relay's failure.
             let _ = socket.send_to(&pending.bytes, destination);
@@ -255,9 +336,6 @@ pub fn run_relay(options: &RelayOptions) -> Result<RelayStats, NetError> {
             && last.elapsed() >= idle
         {
             return Ok(stats);
-        }
-        if !busy {
-            std::thread::sleep(Duration::from_micros(200));
         }
     }
 }

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use rand::CryptoRng;
 use robokey::Config;
+use robokey::interrupt::Interrupt;
 use robokey::model::WheelSpeeds;
 use robokey::protocol::auth::{Delivery, PairingSecret, RobotChannel};
 use robokey::protocol::{
@@ -16,8 +17,9 @@ use robokey::protocol::{
 
 use crate::backend::{Backend, WheelGuard};
 use crate::error::NetError;
+use crate::secret_file::check_writable;
 use crate::session::{
-    Pace, SessionReport, Timing, authentication_label, linger, os_rng, write_key_file,
+    Ending, Pace, SessionReport, Timing, authentication_label, linger, os_rng, write_key_file,
 };
 use crate::transport::Transport;
 
@@ -34,6 +36,9 @@ pub struct RobotOptions {
     pub key_out: Option<PathBuf>,
     /// The pairing secret ([`PairingSecret::unauthenticated`] for `--unauthenticated`).
     pub pairing: PairingSecret,
+    /// A stop request (SIGINT, SIGTERM): the session ends within 50 ms, wheels stopped,
+    /// report written.
+    pub interrupt: Interrupt,
 }
 
 /// The robot's side of a running session.
@@ -145,58 +150,76 @@ fn handshake(
     if let Some(refused) = refused {
         reason += &format!("; last Hello refused: {refused}");
     }
-    let mut report = SessionReport {
-        role: "robot".into(),
-        authentication: authentication_label(&options.pairing),
-        commands_applied: Some(0),
-        ..SessionReport::default()
-    };
+    let mut report = robot_report(options);
     report.set_outcome(&Outcome::Aborted(reason));
+    if rejected.bad_mac + rejected.pairing_mode > 0 {
+        report.ending = Ending::AuthenticationFailed;
+    }
     report.frames = transport.counts();
     report.frames_rejected = rejected;
     Ok(Err(report))
 }
 
+/// The robot's report before a session binds.
+fn robot_report(options: &RobotOptions) -> SessionReport {
+    SessionReport {
+        role: "robot".into(),
+        authentication: authentication_label(&options.pairing),
+        commands_applied: Some(0),
+        ..SessionReport::default()
+    }
+}
+
 /// Runs one session as the robot: waits for the controller, then drives `backend` for N
 /// steps with key bits drawn from `key_source` (the OS CSPRNG in deployment).
 ///
+/// Every way out after the socket is bound returns a report: a robot no controller bound,
+/// an error of the socket or the backend, a stop request. The wheels are stopped on every
+/// way out that runs destructors (normal end, error, stop request, panic).
+///
 /// # Errors
-/// Socket or backend failures. A robot that no controller binds within the wait returns
-/// an aborted report.
+/// `--key-out` exists or has no folder, or the socket cannot be bound.
 pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     config: &Config,
     backend: &mut B,
     key_source: &mut R,
     options: &RobotOptions,
 ) -> Result<SessionReport, NetError> {
+    if let Some(path) = &options.key_out {
+        check_writable(path, "key file")?;
+    }
     let channel = RobotChannel::new(
         options.pairing.clone(),
         config_digest(config),
         agreement_terms(config),
     );
-    let mut transport = Transport::robot(options.listen, channel, os_rng()?)?;
+    let mut transport = Transport::robot(options.listen, channel, os_rng()?)?
+        .with_interrupt(options.interrupt.clone());
     println!(
         "robot listening on {}, {}",
         transport.local_addr()?,
         authentication_label(&options.pairing)
     );
-    let session = match handshake(&mut transport, options)? {
-        Ok(session) => session,
-        Err(refused) => return Ok(refused),
+    let session = match handshake(&mut transport, options) {
+        Ok(Ok(session)) => session,
+        Ok(Err(report)) => return Ok(report),
+        Err(error) => {
+            let mut report = robot_report(options);
+            report.set_error(&error);
+            report.frames = transport.counts();
+            report.frames_rejected = transport.rejected();
+            return Ok(report);
+        }
     };
     let mut plan = SessionPlan::from_config(config, session);
     plan.confirmer = transport
         .confirmer()
         .expect("a bound session has a confirmer");
-    let steps = plan.steps;
-    let sample_time = Duration::from_secs_f64(plan.sample_time);
     let report = SessionReport {
-        role: "robot".into(),
-        authentication: authentication_label(&options.pairing),
         session,
-        steps,
+        steps: plan.steps,
         codewords: plan.codewords(),
-        ..SessionReport::default()
+        ..robot_report(options)
     };
     let mut s = RobotSession {
         transport,
@@ -209,64 +232,101 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         last_confirm: None,
         last_measurement: None,
     };
-    let start = Instant::now();
-    for k in 0..=steps {
-        if s.outcome.is_some() {
-            break;
-        }
-        let sample_at = start + sample_time * k;
-        if s.timing.pace == Pace::Realtime {
-            std::thread::sleep(sample_at.saturating_duration_since(Instant::now()));
-        }
-        let y = s.backend.sample()?;
-        s.endpoint.handle_input(RobotInput::Sample { step: k, y });
-        s.pump()?;
-        let deadline = match s.timing.pace {
-            Pace::Lockstep => Instant::now() + s.timing.step_timeout,
-            Pace::Realtime => sample_at + sample_time.mul_f64(s.timing.deadline_fraction),
-        };
-        s.receive_until(deadline, |s| s.endpoint.next_command() > k)?;
-        if s.outcome.is_none() && s.endpoint.next_command() <= k {
-            s.endpoint.handle_input(RobotInput::Deadline { step: k });
-            s.pump()?;
-        }
-        s.report.steps_done = k;
-    }
-    // Stopped: wait for the Finish and the controller's tag. Until the Finish arrives, repeat
-    // the last measurement (the controller finishes on y(N), which has no successor if
-    // lost); after it, repeat our tag.
-    s.backend.set_wheels(WheelSpeeds::zeros())?;
-    while s.outcome.is_none() {
-        let next = Instant::now() + s.timing.retransmit_interval();
-        s.receive_until(next, |s| s.endpoint.is_done())?;
-        if s.outcome.is_none()
-            && let Some(repeat) = s
-                .last_confirm
-                .clone()
-                .or_else(|| s.last_measurement.clone())
-        {
-            s.transport.send(repeat)?;
-        }
-    }
+    let driven = s.drive(&options.interrupt);
     s.backend.stop();
+    s.report.commands_applied = Some(s.endpoint.commands_applied());
+    if let Err(error) = driven {
+        // Tell the controller, so that it ends now rather than after its silence timeout.
+        let _ = s.transport.send(Message::Abort {
+            reason: format!("robot: {error}"),
+        });
+        s.report.set_error(&error);
+        s.report.frames = s.transport.counts();
+        s.report.frames_rejected = s.transport.rejected();
+        return Ok(s.report);
+    }
     if let (Some(confirm), false) = (
         s.last_confirm.clone(),
         matches!(s.outcome, Some(Outcome::Aborted(_))),
     ) {
-        linger(&mut s.transport, &s.timing, &[Message::FinishAck, confirm])?;
+        // The key is settled; a signal now only shortens the courtesy to the peer.
+        let _ = linger(&mut s.transport, &s.timing, &[Message::FinishAck, confirm]);
     }
-    s.report.commands_applied = Some(s.endpoint.commands_applied());
-    finish_report(
+    Ok(finish_report(
         s.report,
         s.outcome,
         s.endpoint.key(),
         &s.transport,
         options.key_out.as_ref(),
         s.endpoint.plan().code.k(),
-    )
+    ))
 }
 
-/// Completes a report and writes the key when (and only when) the peer confirmed it.
+impl<B: Backend + ?Sized> RobotSession<'_, B> {
+    /// The N steps, then the wait for the Finish and the controller's tag.
+    fn drive(&mut self, interrupt: &Interrupt) -> Result<(), NetError> {
+        let steps = self.endpoint.plan().steps;
+        let sample_time = Duration::from_secs_f64(self.endpoint.plan().sample_time);
+        let start = Instant::now();
+        for k in 0..=steps {
+            if self.outcome.is_some() {
+                break;
+            }
+            let sample_at = start + sample_time * k;
+            if self.timing.pace == Pace::Realtime {
+                sleep_until(sample_at, interrupt)?;
+            }
+            let y = self.backend.sample()?;
+            self.endpoint
+                .handle_input(RobotInput::Sample { step: k, y });
+            self.pump()?;
+            let deadline = match self.timing.pace {
+                Pace::Lockstep => Instant::now() + self.timing.step_timeout,
+                Pace::Realtime => sample_at + sample_time.mul_f64(self.timing.deadline_fraction),
+            };
+            self.receive_until(deadline, |s| s.endpoint.next_command() > k)?;
+            if self.outcome.is_none() && self.endpoint.next_command() <= k {
+                self.endpoint.handle_input(RobotInput::Deadline { step: k });
+                self.pump()?;
+            }
+            self.report.steps_done = k;
+        }
+        // Stopped: wait for the Finish and the controller's tag. Until the Finish arrives,
+        // repeat the last measurement (the controller finishes on y(N), which has no
+        // successor if lost); after it, repeat our tag.
+        self.backend.set_wheels(WheelSpeeds::zeros())?;
+        while self.outcome.is_none() {
+            let next = Instant::now() + self.timing.retransmit_interval();
+            self.receive_until(next, |s| s.endpoint.is_done())?;
+            if self.outcome.is_none()
+                && let Some(repeat) = self
+                    .last_confirm
+                    .clone()
+                    .or_else(|| self.last_measurement.clone())
+            {
+                self.transport.send(repeat)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Sleeps until `at`, looking at the stop request every 50 ms.
+fn sleep_until(at: Instant, interrupt: &Interrupt) -> Result<(), NetError> {
+    loop {
+        if let Some(signal) = interrupt.signal() {
+            return Err(NetError::Interrupted(signal));
+        }
+        let left = at.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Ok(());
+        }
+        std::thread::sleep(left.min(Duration::from_millis(50)));
+    }
+}
+
+/// Completes a report and writes the key when (and only when) the peer confirmed it. A key
+/// that cannot be written ends the session as failed, with the reason.
 pub(crate) fn finish_report(
     mut report: SessionReport,
     outcome: Option<Outcome>,
@@ -274,7 +334,7 @@ pub(crate) fn finish_report(
     transport: &Transport,
     key_out: Option<&PathBuf>,
     message_bits: usize,
-) -> Result<SessionReport, NetError> {
+) -> SessionReport {
     let outcome = outcome.unwrap_or_else(|| Outcome::Aborted("ended without an outcome".into()));
     report.set_outcome(&outcome);
     report.frames = transport.counts();
@@ -289,8 +349,13 @@ pub(crate) fn finish_report(
         if report.is_unauthenticated() {
             labels.push("passive adversary only: the session was not authenticated");
         }
-        write_key_file(path, key, &labels)?;
-        report.key_file = Some(path.display().to_string());
+        match write_key_file(path, key, &labels) {
+            Ok(()) => report.key_file = Some(path.display().to_string()),
+            Err(error) => {
+                report.ending = Ending::Failed;
+                report.reason = Some(format!("the key was confirmed but not written: {error}"));
+            }
+        }
     }
-    Ok(report)
+    report
 }

@@ -1,6 +1,5 @@
 //! What both agents share: pacing, timeouts, the session report, and the key file.
 
-use std::io::Write as _;
 use std::path::Path;
 use std::time::Duration;
 
@@ -90,6 +89,23 @@ pub fn linger(
     Ok(())
 }
 
+/// How a session ended, for scripts: the agents' exit codes follow it (README, "Exit codes").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Ending {
+    /// The peer proved it holds the same key (its tag verified).
+    Confirmed,
+    /// Aborted or unconfirmed: no key.
+    #[default]
+    NoKey,
+    /// No peer proved it holds the pairing secret, and datagrams that failed to verify came.
+    AuthenticationFailed,
+    /// Stopped by a signal.
+    Interrupted,
+    /// A socket, file or robot error ended it.
+    Failed,
+}
+
 /// The session report each agent writes (JSON).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct SessionReport {
@@ -97,7 +113,8 @@ pub struct SessionReport {
     pub role: String,
     /// `paired (fingerprint F)`, or `none: passive adversary only` (`--unauthenticated`).
     pub authentication: String,
-    /// Session id.
+    /// Session id, in hex as on the terminal.
+    #[serde(serialize_with = "hex_id")]
     pub session: u32,
     /// Steps N of the session.
     pub steps: u32,
@@ -114,6 +131,8 @@ pub struct SessionReport {
     pub key_bits: usize,
     /// `confirmed`, `unconfirmed` or `aborted`.
     pub outcome: String,
+    /// How it ended: `confirmed`, `no-key`, `authentication-failed`, `interrupted`, `failed`.
+    pub ending: Ending,
     /// Why, unless confirmed.
     pub reason: Option<String>,
     /// Robot: the first step at which it stopped its wheels because commands stopped
@@ -141,6 +160,19 @@ impl SessionReport {
         };
         self.outcome = name.to_owned();
         self.reason = reason;
+        self.ending = match outcome {
+            Outcome::Confirmed => Ending::Confirmed,
+            _ => Ending::NoKey,
+        };
+    }
+
+    /// Records a session cut short by `error` (a signal, or a socket, file or robot error).
+    pub fn set_error(&mut self, error: &NetError) {
+        self.set_outcome(&Outcome::Aborted(error.to_string()));
+        self.ending = match error {
+            NetError::Interrupted(_) => Ending::Interrupted,
+            _ => Ending::Failed,
+        };
     }
 
     /// Writes the report as pretty JSON.
@@ -187,6 +219,11 @@ impl SessionReport {
     }
 }
 
+/// Writes a session id as the terminal shows it: 8 hex digits.
+fn hex_id<S: serde::Serializer>(session: &u32, serializer: S) -> Result<S::Ok, S::Error> {
+    serializer.serialize_str(&format!("{session:08x}"))
+}
+
 /// A ChaCha20 generator seeded from the operating system's CSPRNG: the robot's key source
 /// in deployment, and the source of session ids.
 ///
@@ -208,8 +245,8 @@ pub fn authentication_label(secret: &PairingSecret) -> String {
 }
 
 /// Writes a confirmed key (`bits` of 0/1) as hex of the bit-packed key (bit i of the key =
-/// bit i % 8 of byte i / 8), with mode 0600, followed by comment lines saying what it is
-/// (`labels`). Refuses to overwrite.
+/// bit i % 8 of byte i / 8), followed by comment lines saying what it is (`labels`): all or
+/// nothing, mode 0600, never over an existing file ([`crate::secret_file`]).
 ///
 /// # Errors
 /// The file exists or cannot be written.
@@ -218,23 +255,21 @@ pub fn write_key_file(path: &Path, bits: &[u8], labels: &[&str]) -> Result<(), N
     for (i, bit) in bits.iter().enumerate() {
         packed[i / 8] |= (bit & 1) << (i % 8);
     }
-    let hex: zeroize::Zeroizing<String> =
-        zeroize::Zeroizing::new(packed.iter().map(|b| format!("{b:02x}")).collect());
-    let mut options = std::fs::OpenOptions::new();
-    options.write(true).create_new(true);
-    #[cfg(unix)]
-    std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
-    let mut file = options
-        .open(path)
-        .map_err(NetError::io(format!("create key file {}", path.display())))?;
-    let mut text = format!("robokey-key-v1 bits={}\n{}\n", bits.len(), hex.as_str());
-    for label in labels {
-        text += &format!("# {label}\n");
+    // Sized up front: a growing buffer would leave copies of the key in freed memory.
+    let labels_len: usize = labels.iter().map(|l| l.len() + 3).sum();
+    let mut text = zeroize::Zeroizing::new(String::with_capacity(
+        64 + 2 * packed.len() + 1 + labels_len,
+    ));
+    text.push_str(&format!("robokey-key-v1 bits={}\n", bits.len()));
+    for byte in packed.iter() {
+        text.push(char::from(b"0123456789abcdef"[usize::from(byte >> 4)]));
+        text.push(char::from(b"0123456789abcdef"[usize::from(byte & 15)]));
     }
-    let text = zeroize::Zeroizing::new(text);
-    file.write_all(text.as_bytes())
-        .and_then(|()| file.sync_all())
-        .map_err(NetError::io(format!("write key file {}", path.display())))
+    text.push('\n');
+    for label in labels {
+        text.push_str(&format!("# {label}\n"));
+    }
+    crate::secret_file::write_new(path, text.as_bytes())
 }
 
 /// Reads a key file written by [`write_key_file`] back into bits.
@@ -248,10 +283,7 @@ pub fn read_key_file(path: &Path) -> Result<zeroize::Zeroizing<Vec<u8>>, NetErro
             path.display()
         ))
     };
-    let text = zeroize::Zeroizing::new(
-        std::fs::read_to_string(path)
-            .map_err(NetError::io(format!("read key file {}", path.display())))?,
-    );
+    let text = crate::secret_file::read(path, "key file")?;
     let mut lines = text.lines();
     let bits: usize = lines
         .next()

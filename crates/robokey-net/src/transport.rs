@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use crate::error::NetError;
 use rand::rngs::ChaCha20Rng;
+use robokey::interrupt::Interrupt;
 use robokey::protocol::Message;
 use robokey::protocol::auth::{
     ChannelCounts, Confirmer, ControllerChannel, Delivery, RejectionCounts, RobotChannel,
@@ -14,6 +15,9 @@ use robokey::protocol::auth::{
 
 /// Receive buffer (bytes): the largest UDP payload. A longer frame cannot cross UDP.
 const DATAGRAM_BYTES: usize = 65_536;
+
+/// Longest a receive waits before it looks at the stop request again.
+const INTERRUPT_POLL: Duration = Duration::from_millis(50);
 
 /// Frame counters of one endpoint.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -42,6 +46,7 @@ pub struct Transport {
     side: Side,
     sent: u64,
     buffer: Vec<u8>,
+    interrupt: Interrupt,
 }
 
 impl Transport {
@@ -58,6 +63,7 @@ impl Transport {
             side: Side::Controller(channel),
             sent: 0,
             buffer: vec![0; DATAGRAM_BYTES],
+            interrupt: Interrupt::new(),
         })
     }
 
@@ -75,7 +81,15 @@ impl Transport {
             side: Side::Robot(Box::new(channel), rng),
             sent: 0,
             buffer: vec![0; DATAGRAM_BYTES],
+            interrupt: Interrupt::new(),
         })
+    }
+
+    /// Makes receives fail with [`NetError::Interrupted`] within 50 ms of a stop request.
+    #[must_use]
+    pub fn with_interrupt(mut self, interrupt: Interrupt) -> Self {
+        self.interrupt = interrupt;
+        self
     }
 
     /// The bound address.
@@ -185,14 +199,17 @@ impl Transport {
     /// datagrams are counted and skipped; the robot's answers to Hellos are sent here.
     ///
     /// # Errors
-    /// The socket fails (timeouts are `Ok(None)`).
+    /// The socket fails, or a stop was requested (timeouts are `Ok(None)`).
     pub fn recv_until(&mut self, deadline: Instant) -> Result<Option<Delivery>, NetError> {
         loop {
+            if let Some(signal) = self.interrupt.signal() {
+                return Err(NetError::Interrupted(signal));
+            }
             let now = Instant::now();
             if now >= deadline {
                 return Ok(None);
             }
-            let wait = (deadline - now).max(Duration::from_micros(100));
+            let wait = (deadline - now).clamp(Duration::from_micros(100), INTERRUPT_POLL);
             self.socket
                 .set_read_timeout(Some(wait))
                 .map_err(NetError::io("set socket timeout"))?;
@@ -204,7 +221,7 @@ impl Transport {
                         std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
                     ) =>
                 {
-                    return Ok(None);
+                    continue;
                 }
                 // A previous send to a closed port (ICMP unreachable) surfaces here.
                 Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,

@@ -4,13 +4,14 @@
 //! This crate is the I/O-free core: kinematics ([`model`]), references ([`trajectory`]),
 //! the tracking controller ([`control`]), the unknown-input observer ([`observer`]), block
 //! codes ([`code`]), the protocol endpoints ([`protocol`]), the eavesdroppers ([`eve`]), private sensing ([`private`]),
-//! configuration ([`config`]), seeded random streams ([`rng`]) and the closed-loop
+//! configuration ([`config`]), seeded random streams ([`rng`]), stop requests ([`interrupt`]) and the closed-loop
 //! simulation of one run ([`sim`]). Time is the sample index; randomness is passed in.
 
 pub mod code;
 pub mod config;
 pub mod control;
 pub mod eve;
+pub mod interrupt;
 pub mod metrics;
 pub mod model;
 pub mod observer;

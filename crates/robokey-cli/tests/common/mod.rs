@@ -43,23 +43,36 @@ pub fn start(args: &[&str]) -> Process {
 
 /// Runs `robokey args…` to completion; returns (success, stdout + stderr).
 pub fn run(args: &[&str]) -> (bool, String) {
+    let (code, text) = run_code(args);
+    (code == 0, text)
+}
+
+/// Runs `robokey args…` to completion; returns (exit code, stdout + stderr).
+pub fn run_code(args: &[&str]) -> (i32, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_robokey"))
         .args(args)
         .output()
         .unwrap();
     let text =
         String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
-    (out.status.success(), text)
+    (out.status.code().unwrap_or(-1), text)
 }
 
-pub fn wait(mut process: Process) -> String {
+/// Waits for a process that must succeed; returns the rest of its stdout.
+pub fn wait(process: Process) -> String {
+    let (code, rest) = wait_code(process);
+    assert_eq!(code, 0, "process failed: {rest}");
+    rest
+}
+
+/// Waits for a process; returns (exit code, the rest of its stdout).
+pub fn wait_code(mut process: Process) -> (i32, String) {
     let status = process.child.wait().unwrap();
     let mut rest = String::new();
     if let Some(out) = process.child.stdout.as_mut() {
         let _ = std::io::Read::read_to_string(out, &mut rest);
     }
-    assert!(status.success(), "process failed: {rest}");
-    rest
+    (status.code().unwrap_or(-1), rest)
 }
 
 pub fn scratch(name: &str) -> PathBuf {
