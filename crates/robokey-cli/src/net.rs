@@ -10,7 +10,7 @@ use robokey::interrupt::Interrupt;
 use robokey::protocol::auth::PairingSecret;
 use robokey::rng::{Purpose, stream};
 use robokey_net::controller_agent::{ControllerOptions, run_controller};
-use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, TimeMode, serve};
+use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, Listen, TimeMode, serve};
 use robokey_net::pairing::{read_pairing, write_pairing};
 use robokey_net::pcap::read as read_capture;
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
@@ -20,7 +20,7 @@ use robokey_net::sim_backend::SimBackend;
 
 use crate::ConfigOptions;
 use crate::commands::load_config;
-use crate::exit::{Status, on_signals, usage};
+use crate::exit::{Status, Usage, on_signals, usage};
 
 /// Clock of a session.
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -82,7 +82,7 @@ impl SessionArgs {
                 );
                 Ok(PairingSecret::unauthenticated())
             }
-            (None, false) => bail!(
+            (None, false) => usage!(
                 "no --pairing FILE: create one with `robokey pair --out DIR` and install it on the \
                  robot and the controller, or pass --unauthenticated (passive adversary only)"
             ),
@@ -200,7 +200,7 @@ pub enum BackendArg {
 #[derive(Args, Debug)]
 pub struct RobotArgs {
     /// UDP address to listen on, e.g. 0.0.0.0:7000 (port 0: any; the address is printed).
-    #[arg(long)]
+    #[arg(long, value_parser = socket_address)]
     listen: SocketAddr,
     /// Motors and odometry.
     #[arg(long, value_enum, default_value = "sim")]
@@ -221,11 +221,11 @@ pub struct RobotArgs {
 
 #[derive(Args, Debug)]
 pub struct ControllerArgs {
-    /// The robot agent's UDP address.
-    #[arg(long)]
+    /// The robot agent's UDP address (HOST:PORT; a host name resolves to its first address).
+    #[arg(long, value_parser = socket_address)]
     robot: SocketAddr,
     /// Local address to bind.
-    #[arg(long)]
+    #[arg(long, value_parser = socket_address)]
     bind: Option<SocketAddr>,
     #[command(flatten)]
     session: SessionArgs,
@@ -234,10 +234,10 @@ pub struct ControllerArgs {
 #[derive(Args, Debug)]
 pub struct RelayArgs {
     /// Address the controller sends to.
-    #[arg(long)]
+    #[arg(long, value_parser = socket_address)]
     listen: SocketAddr,
     /// The robot agent's address.
-    #[arg(long)]
+    #[arg(long, value_parser = socket_address)]
     forward: SocketAddr,
     /// Loss probability per datagram.
     #[arg(long, default_value_t = 0.0)]
@@ -409,6 +409,16 @@ pub fn relay(args: RelayArgs) -> Result<Status> {
     })
 }
 
+/// `HOST:PORT` or `IP:PORT` (IPv6 in brackets); a host name resolves to its first address.
+fn socket_address(text: &str) -> Result<SocketAddr, String> {
+    use std::net::ToSocketAddrs;
+    let hint = "expected HOST:PORT, e.g. 127.0.0.1:7000, localhost:7000 or [::1]:7000";
+    text.to_socket_addrs()
+        .map_err(|e| format!("{e}; {hint}"))?
+        .next()
+        .ok_or_else(|| format!("`{text}` resolves to no address; {hint}"))
+}
+
 /// Longest duration any option takes (s): a day.
 const MAX_SECONDS: f64 = 86_400.0;
 
@@ -431,7 +441,8 @@ pub enum TimeArg {
 
 #[derive(Args, Debug)]
 pub struct EmulatorArgs {
-    /// `tcp:ADDR` (port 0: any; the address is printed), or `pty`.
+    /// `tcp:ADDR` (port 0: any), or `pty` (a new pseudo-terminal pair; the agent opens the
+    /// device it prints, e.g. `--kh4 /dev/pts/3`). The address or device is printed.
     #[arg(long)]
     listen: String,
     /// Time mode.
@@ -449,22 +460,21 @@ pub struct EmulatorArgs {
 }
 
 pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {
-    let Some(address) = args.listen.strip_prefix("tcp:") else {
-        if args.listen == "pty" {
-            bail!(
-                "--listen pty: opening a pseudo-terminal needs unsafe system calls, which this workspace forbids; use --listen tcp:ADDR (the kh4 backend connects with --kh4 tcp:ADDR)"
-            );
-        }
-        bail!("--listen {}: expected tcp:ADDR or pty", args.listen);
+    let listen = match args.listen.strip_prefix("tcp:") {
+        Some(address) => Listen::Tcp(address.parse().map_err(|_| {
+            Usage(format!(
+                "--listen {}: `{address}` is not an IP address and port (e.g. tcp:127.0.0.1:7200)",
+                args.listen
+            ))
+        })?),
+        None if args.listen == "pty" => Listen::Pty,
+        None => usage!("--listen {}: expected tcp:ADDR or pty", args.listen),
     };
-    let listen: SocketAddr = address
-        .parse()
-        .with_context(|| format!("--listen {}: not an address", args.listen))?;
     if !(args.period > 0.0 && args.period.is_finite()) {
-        bail!("--period {} is not allowed (allowed: > 0 s)", args.period);
+        usage!("--period {} is not allowed (allowed: > 0 s)", args.period);
     }
     if !(args.slip >= 0.0 && args.slip < 1.0) {
-        bail!("--slip {} is not allowed (allowed: [0, 1))", args.slip);
+        usage!("--slip {} is not allowed (allowed: [0, 1))", args.slip);
     }
     let time = match args.time {
         TimeArg::Virtual => TimeMode::Virtual(Duration::from_secs_f64(args.period)),

@@ -374,24 +374,98 @@ fn mismatched_configurations_abort_naming_the_difference() {
 }
 
 #[test]
-fn kh4_backend_against_the_emulator_confirms_a_key() {
-    let emulator = start(&["kh4-emulator", "--listen", "tcp:127.0.0.1:0"]);
-    let dir = session_with_robot_args(
-        "kh4",
-        5,
-        &[],
-        &["--backend", "kh4", "--kh4", &emulator.address],
-        None,
+fn kh4_backend_against_the_emulator_over_tcp_and_a_pty_confirms_a_key() {
+    for listen in ["tcp:127.0.0.1:0", "pty"] {
+        let emulator = start(&["kh4-emulator", "--listen", listen]);
+        // tcp:ADDR, or the device of the pty pair (/dev/pts/N), as on the robot with socat.
+        let dir = session_with_robot_args(
+            &format!("kh4-{}", &listen[..3]),
+            5,
+            &[],
+            &["--backend", "kh4", "--kh4", &emulator.address],
+            None,
+        );
+        let robot = report(&dir.join("robot.json"));
+        assert_eq!(robot["outcome"], "confirmed", "{listen}: {robot}");
+        assert_eq!(report(&dir.join("controller.json"))["outcome"], "confirmed");
+        // The emulator is noise-free: every codeword is accepted.
+        assert_eq!(robot["accepted"], robot["codewords"]);
+        assert_eq!(
+            std::fs::read_to_string(dir.join("robot.key")).unwrap(),
+            std::fs::read_to_string(dir.join("controller.key")).unwrap()
+        );
+    }
+}
+
+#[test]
+fn signals_end_sessions_with_reports_and_exit_codes_128_plus_n() {
+    let dir = scratch("signals");
+    let pairing = pairing(&dir);
+    let (robot_json, controller_json) =
+        (s(&dir.join("robot.json")), s(&dir.join("controller.json")));
+    let robot = start(&[
+        "robot",
+        "--listen",
+        "127.0.0.1:0",
+        "--pairing",
+        &pairing,
+        "--report",
+        &robot_json,
+    ]);
+    let controller = Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args([
+            "controller",
+            "--robot",
+            &robot.address,
+            "--pairing",
+            &pairing,
+            "--report",
+            &controller_json,
+        ])
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Real time, T = 0.2 s: a few steps in, SIGINT to the robot.
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let signal = |pid: u32, name: &str| {
+        let sent = Command::new("kill")
+            .args([name, &pid.to_string()])
+            .status()
+            .unwrap();
+        assert!(sent.success());
+    };
+    signal(robot.child.id(), "-INT");
+    let (code, _) = wait_code(robot);
+    assert_eq!(code, 130);
+    let r = report(Path::new(&robot_json));
+    assert_eq!(r["ending"], "interrupted", "{r}");
+    assert_eq!(r["reason"], "interrupted by SIGINT", "{r}");
+    assert!(r["steps_done"].as_u64().unwrap() > 0, "{r}");
+    // The robot said so to the controller, which ends without a key (exit 3) at once.
+    let mut controller = controller;
+    assert_eq!(controller.wait().unwrap().code(), Some(3));
+    let c = report(Path::new(&controller_json));
+    assert!(
+        c["reason"]
+            .as_str()
+            .unwrap()
+            .contains("robot: interrupted by SIGINT"),
+        "{c}"
     );
-    let robot = report(&dir.join("robot.json"));
-    assert_eq!(robot["outcome"], "confirmed", "{robot}");
-    assert_eq!(report(&dir.join("controller.json"))["outcome"], "confirmed");
-    // The emulator is noise-free: every codeword is accepted.
-    assert_eq!(robot["accepted"], robot["codewords"]);
-    assert_eq!(
-        std::fs::read_to_string(dir.join("robot.key")).unwrap(),
-        std::fs::read_to_string(dir.join("controller.key")).unwrap()
-    );
+    // SIGTERM to a robot waiting for a controller.
+    let waiting = start(&[
+        "robot",
+        "--listen",
+        "127.0.0.1:0",
+        "--pairing",
+        &pairing,
+        "--report",
+        &robot_json,
+    ]);
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    signal(waiting.child.id(), "-TERM");
+    assert_eq!(wait_code(waiting).0, 143);
+    assert_eq!(report(Path::new(&robot_json))["ending"], "interrupted");
 }
 
 /// `robokey eve` with `strategies` on `dir/capture.pcap` (seed 11, the controller's key

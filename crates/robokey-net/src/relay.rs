@@ -163,6 +163,7 @@ fn receive(
                     e.kind(),
                     std::io::ErrorKind::WouldBlock
                         | std::io::ErrorKind::TimedOut
+                        | std::io::ErrorKind::Interrupted
                         | std::io::ErrorKind::ConnectionRefused
                 ) =>
             {

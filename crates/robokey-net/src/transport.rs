@@ -215,10 +215,13 @@ impl Transport {
                 .map_err(NetError::io("set socket timeout"))?;
             let (len, from) = match self.socket.recv_from(&mut self.buffer) {
                 Ok(x) => x,
+                // A signal interrupts the wait (EINTR): the loop looks at the stop request.
                 Err(e)
                     if matches!(
                         e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                        std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::Interrupted
                     ) =>
                 {
                     continue;

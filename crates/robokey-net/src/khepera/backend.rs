@@ -16,11 +16,14 @@ pub struct Kh4Backend {
 }
 
 impl Kh4Backend {
-    /// Starts a robot: ultrasound off, encoders reset, wheels stopped.
+    /// Starts a robot: synchronises with kh4server, then ultrasound off, encoders reset,
+    /// wheels stopped. `drive.axle_length` is the odometry's D (robokey's `robot.axle_length`,
+    /// 104.7 mm from the authors' lab code; kh4server's own wheel distance is 105.4 mm).
     ///
     /// # Errors
     /// The robot does not answer as expected.
     pub fn start(mut link: Link, drive: DiffDrive) -> Result<Self, NetError> {
+        link.synchronise()?;
         for (request, letter) in [("U,0\n", 'U'), ("I\n", 'I'), ("D,0,0\n", 'D')] {
             parse_reply(letter, &link.request(request)?, 0)?;
         }
@@ -35,6 +38,12 @@ impl Kh4Backend {
 impl Backend for Kh4Backend {
     fn sample(&mut self) -> Result<Pose, NetError> {
         let counts = parse_reply('R', &self.link.request("R\n")?, 2)?;
+        // The robot's encoder counters are 32-bit: anything else is not a reading.
+        if let Some(bad) = counts.iter().find(|&&c| i32::try_from(c).is_err()) {
+            return Err(NetError::Kh4(format!(
+                "request R: encoder count {bad} is outside the robot's 32-bit counters"
+            )));
+        }
         Ok(self.odometry.update(counts[0], counts[1]))
     }
 

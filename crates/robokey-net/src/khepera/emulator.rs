@@ -1,13 +1,14 @@
 //! A simulated Khepera IV speaking kh4server's line protocol over TCP, so the `kh4`
 //! backend and a whole session can be tested without hardware.
 
-use std::io::{BufRead, BufReader, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpListener};
 use std::time::{Duration, Instant};
 
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use robokey::rng::{Purpose, stream};
+use robokey::rng::{Purpose, stream as stream_of};
+use serialport::SerialPort as _;
 
 use super::protocol::{MAX_UNITS, PULSE_M, SPEED_UNIT_M_S};
 use crate::error::NetError;
@@ -22,20 +23,34 @@ pub enum TimeMode {
     Real,
 }
 
+/// Where the emulator listens.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Listen {
+    /// A TCP address (port 0: any; the address is printed).
+    Tcp(SocketAddr),
+    /// A new pseudo-terminal pair: the agent opens the printed device path, as it would
+    /// open the pty that `socat` makes on the robot.
+    Pty,
+}
+
 /// Options of the emulator.
 #[derive(Clone, Debug)]
 pub struct EmulatorOptions {
-    /// TCP address to listen on.
-    pub listen: SocketAddr,
+    /// Where to listen.
+    pub listen: Listen,
     /// Time mode.
     pub time: TimeMode,
     /// Wheel slip: each advance multiplies each wheel's travel by `1 + N(0, σ²)` (0: exact).
     pub slip: f64,
     /// Seed of the slip noise.
     pub seed: u64,
-    /// Serve this many connections, then return (`None`: forever).
+    /// Serve this many connections, then return (`None`: forever; a pty is one connection
+    /// that lasts as long as the emulator).
     pub connections: Option<usize>,
 }
+
+/// Longest request line the emulator reads (bytes); a longer one is answered with `$`.
+const MAX_REQUEST_BYTES: usize = 256;
 
 /// The emulated robot: wheel speeds and encoder positions.
 struct Robot {
@@ -99,54 +114,122 @@ impl Robot {
             }
             Some("U") => Some("u".to_owned()),
             Some("V") => Some("v,3700".to_owned()),
+            Some("B") => Some("b,2,0".to_owned()),
             _ => None,
         };
         reply.unwrap_or_else(|| "$".to_owned()) + "\r\n"
     }
 }
 
-fn serve_one(client: TcpStream, options: &EmulatorOptions, index: u64) -> Result<(), NetError> {
-    let mut writer = client
-        .try_clone()
-        .map_err(NetError::io("clone the emulator's stream"))?;
+/// Serves one client: reads request lines (each at most [`MAX_REQUEST_BYTES`]), answers each
+/// but the first (kh4server ignores the first line after a connection, as the authors' lab
+/// code notes), until the stream closes.
+fn serve_one(
+    stream: &mut (impl Read + Write),
+    options: &EmulatorOptions,
+    index: u64,
+) -> Result<(), NetError> {
     let mut robot = Robot {
         speeds: [0; 2],
         pulses: [0.0; 2],
         last: Instant::now(),
         slip: options.slip,
-        noise: stream(options.seed, Purpose::Process, index),
+        noise: stream_of(options.seed, Purpose::Process, index),
     };
-    for line in BufReader::new(client).lines() {
-        let Ok(line) = line else { break };
-        let reply = robot.answer(&line, options.time);
-        if writer.write_all(reply.as_bytes()).is_err() {
-            break;
+    let mut pending = Vec::with_capacity(MAX_REQUEST_BYTES);
+    let mut chunk = [0u8; 256];
+    let mut first = true;
+    loop {
+        let n = match stream.read(&mut chunk) {
+            Ok(0) => return Ok(()),
+            Ok(n) => n,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock
+                        | std::io::ErrorKind::TimedOut
+                        | std::io::ErrorKind::Interrupted
+                ) =>
+            {
+                continue;
+            }
+            Err(_) => return Ok(()),
+        };
+        for &byte in &chunk[..n] {
+            if byte != b'\n' {
+                if pending.len() < MAX_REQUEST_BYTES {
+                    pending.push(byte);
+                }
+                continue;
+            }
+            let line = String::from_utf8_lossy(&pending).into_owned();
+            let too_long = pending.len() >= MAX_REQUEST_BYTES;
+            pending.clear();
+            if std::mem::replace(&mut first, false) {
+                continue;
+            }
+            let reply = if too_long {
+                "$\r\n".to_owned()
+            } else {
+                robot.answer(&line, options.time)
+            };
+            if stream.write_all(reply.as_bytes()).is_err() {
+                return Ok(());
+            }
         }
     }
-    Ok(())
 }
 
-/// Serves kh4server's protocol on TCP, one client at a time; prints the bound address.
+/// Serves kh4server's protocol on TCP (one client at a time) or on a pseudo-terminal;
+/// prints where (`kh4-emulator listening on tcp:ADDR` or `… on /dev/pts/N`).
 ///
 /// # Errors
-/// The address cannot be bound.
+/// The address cannot be bound, or no pseudo-terminal can be made.
 pub fn serve(options: &EmulatorOptions) -> Result<(), NetError> {
-    let listener = TcpListener::bind(options.listen)
-        .map_err(NetError::io(format!("bind TCP {}", options.listen)))?;
-    let address = listener
-        .local_addr()
-        .map_err(NetError::io("local address"))?;
-    println!("kh4-emulator listening on tcp:{address}");
-    let _ = std::io::stdout().flush();
-    for (index, client) in listener.incoming().enumerate() {
-        if let Ok(client) = client {
-            serve_one(client, options, index as u64)?;
+    match options.listen {
+        Listen::Tcp(address) => {
+            let listener =
+                TcpListener::bind(address).map_err(NetError::io(format!("bind TCP {address}")))?;
+            let address = listener
+                .local_addr()
+                .map_err(NetError::io("local address"))?;
+            announce(&format!("tcp:{address}"));
+            for (index, client) in listener.incoming().enumerate() {
+                if let Ok(mut client) = client {
+                    serve_one(&mut client, options, index as u64)?;
+                }
+                if options.connections.is_some_and(|n| index + 1 >= n) {
+                    break;
+                }
+            }
+            Ok(())
         }
-        if options.connections.is_some_and(|n| index + 1 >= n) {
-            break;
+        Listen::Pty => {
+            let (mut emulator, agent) = pty_pair()?;
+            let device = agent
+                .name()
+                .ok_or_else(|| NetError::Kh4("the pseudo-terminal has no device name".into()))?;
+            announce(&device);
+            // Held open while serving: the agent may close and reopen the device.
+            let _agent_end = agent;
+            serve_one(&mut emulator, options, 0)
         }
     }
-    Ok(())
+}
+
+fn announce(address: &str) {
+    println!("kh4-emulator listening on {address}");
+    let _ = std::io::stdout().flush();
+}
+
+/// A pseudo-terminal pair: the emulator's end, and the agent's (whose device path it prints).
+pub(crate) fn pty_pair() -> Result<(serialport::TTYPort, serialport::TTYPort), NetError> {
+    let (mut emulator, agent) = serialport::TTYPort::pair()
+        .map_err(|e| NetError::io("make a pseudo-terminal pair")(e.into()))?;
+    emulator
+        .set_timeout(Duration::from_millis(100))
+        .map_err(|e| NetError::io("set the pty timeout")(e.into()))?;
+    Ok((emulator, agent))
 }
 
 #[cfg(test)]
@@ -162,7 +245,7 @@ mod tests {
         let address = listener.local_addr().unwrap();
         drop(listener);
         let options = EmulatorOptions {
-            listen: address,
+            listen: Listen::Tcp(address),
             time: TimeMode::Virtual(Duration::from_millis(200)),
             slip: 0.0,
             seed: 1,

@@ -10,6 +10,6 @@ mod link;
 mod protocol;
 
 pub use backend::Kh4Backend;
-pub use emulator::{EmulatorOptions, TimeMode, serve};
-pub use link::Link;
+pub use emulator::{EmulatorOptions, Listen, TimeMode, serve};
+pub use link::{Link, MAX_REPLY_BYTES};
 pub use protocol::{MAX_UNITS, Odometry, PULSE_M, SPEED_UNIT_M_S, speed_units};
