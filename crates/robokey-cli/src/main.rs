@@ -22,7 +22,10 @@ use exit::Status;
     name = "robokey",
     version,
     after_help = "Start with `robokey reproduce`. The model, protocol, private sensing, secrecy \
-                  accounting and threat model are explained in the repository's docs/."
+                  accounting and threat model are explained in the repository's docs/.\n\n\
+                  Exit codes: 0 success (robot, controller: key confirmed), 1 error, 2 usage \
+                  error, 3 session without a key, 4 authentication failed, 130/143 interrupted \
+                  by SIGINT/SIGTERM (work saved first)."
 )]
 struct Cli {
     #[command(subcommand)]
