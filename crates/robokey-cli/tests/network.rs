@@ -449,7 +449,7 @@ fn signals_end_sessions_with_reports_and_exit_codes_128_plus_n() {
         c["reason"]
             .as_str()
             .unwrap()
-            .contains("robot: interrupted by SIGINT"),
+            .contains("robot aborted: interrupted by SIGINT"),
         "{c}"
     );
     // SIGTERM to a robot waiting for a controller.

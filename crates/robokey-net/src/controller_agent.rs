@@ -97,7 +97,7 @@ pub fn run_controller(
         }
         Err(error) => {
             let _ = transport.send(Message::Abort {
-                reason: format!("controller: {error}"),
+                reason: error.to_string(),
             });
             report.set_error(&error);
             report.frames = transport.counts();

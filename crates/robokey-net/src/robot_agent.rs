@@ -238,7 +238,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     if let Err(error) = driven {
         // Tell the controller, so that it ends now rather than after its silence timeout.
         let _ = s.transport.send(Message::Abort {
-            reason: format!("robot: {error}"),
+            reason: error.to_string(),
         });
         s.report.set_error(&error);
         s.report.frames = s.transport.counts();

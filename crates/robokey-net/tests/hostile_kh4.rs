@@ -229,7 +229,11 @@ fn a_robot_agent_session_that_fails_reports_it_and_stops_the_wheels() {
     // The robot told the controller, which ended at once rather than after its timeout.
     assert_eq!(controller.ending, Ending::NoKey);
     assert!(
-        controller.reason.as_deref().unwrap().contains("robot: kh4"),
+        controller
+            .reason
+            .as_deref()
+            .unwrap()
+            .contains("robot aborted: kh4"),
         "{controller:?}"
     );
     assert_eq!(requests.last().map(String::as_str), Some("D,0,0"));
@@ -251,7 +255,7 @@ fn an_interrupted_robot_agent_reports_it_and_stops_the_wheels() {
             .reason
             .as_deref()
             .unwrap()
-            .contains("robot: interrupted by SIGINT"),
+            .contains("robot aborted: interrupted by SIGINT"),
         "{controller:?}"
     );
     let driven = requests.iter().filter(|r| r.starts_with("D,")).count();
