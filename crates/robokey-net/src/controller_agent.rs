@@ -16,7 +16,9 @@ use robokey::protocol::{
 use crate::error::NetError;
 use crate::robot_agent::finish_report;
 use crate::secret_file::check_writable;
-use crate::session::{Ending, SessionReport, Timing, authentication_label, linger, os_rng};
+use crate::session::{
+    Ending, Progress, SessionReport, Timing, authentication_label, linger, os_rng,
+};
 use crate::transport::Transport;
 use zeroize::Zeroizing;
 
@@ -173,6 +175,7 @@ fn converse(
     let mut outcome = None;
     let mut last_frame = Instant::now();
     let mut last_confirm = None;
+    let mut progress = Progress::new("controller", report.steps);
     while outcome.is_none() {
         match transport.recv_until(Instant::now() + timing.retransmit_interval())? {
             Some(Delivery::Message(message)) => {
@@ -206,6 +209,7 @@ fn converse(
                 ControllerOutput::Event(event) => match event {
                     ControllerEvent::Decoded(decision) => {
                         report.steps_done = decision.step + 1;
+                        progress.tick(report.steps_done, report.erased_steps);
                         report.erased_steps +=
                             u32::from(decision.bit.is_none() && endpoint.plan().enabled);
                     }

@@ -19,7 +19,8 @@ use crate::backend::{Backend, WheelGuard};
 use crate::error::NetError;
 use crate::secret_file::check_writable;
 use crate::session::{
-    Ending, Pace, SessionReport, Timing, authentication_label, linger, os_rng, write_key_file,
+    Ending, Pace, Progress, SessionReport, Timing, authentication_label, linger, os_rng,
+    write_key_file,
 };
 use crate::transport::Transport;
 
@@ -70,7 +71,11 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
                 }
                 RobotOutput::Apply(actuation) => {
                     self.report.erased_steps += u32::from(actuation.erased);
-                    if actuation.erased && actuation.wheels == WheelSpeeds::zeros() {
+                    // Stopped for want of commands, once they had started the wheels.
+                    if actuation.erased
+                        && actuation.wheels == WheelSpeeds::zeros()
+                        && self.endpoint.commands_applied() > 0
+                    {
                         self.report
                             .wheels_stopped_at_step
                             .get_or_insert(actuation.step);
@@ -268,6 +273,7 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
         let steps = self.endpoint.plan().steps;
         let sample_time = Duration::from_secs_f64(self.endpoint.plan().sample_time);
         let start = Instant::now();
+        let mut progress = Progress::new("robot", steps);
         for k in 0..=steps {
             if self.outcome.is_some() {
                 break;
@@ -290,6 +296,7 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
                 self.pump()?;
             }
             self.report.steps_done = k;
+            progress.tick(k, self.report.erased_steps);
         }
         // Stopped: wait for the Finish and the controller's tag. Until the Finish arrives,
         // repeat the last measurement (the controller finishes on y(N), which has no

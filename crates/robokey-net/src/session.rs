@@ -106,6 +106,41 @@ pub enum Ending {
     Failed,
 }
 
+/// A line on stderr every 10 s while a session runs, so a real-time session (N·T, minutes)
+/// does not look hung.
+#[derive(Debug)]
+pub struct Progress {
+    role: &'static str,
+    steps: u32,
+    last: std::time::Instant,
+}
+
+impl Progress {
+    /// Interval between lines.
+    const EVERY: Duration = Duration::from_secs(10);
+
+    /// Progress of a session of `steps` steps, for `role`.
+    #[must_use]
+    pub fn new(role: &'static str, steps: u32) -> Self {
+        Self {
+            role,
+            steps,
+            last: std::time::Instant::now(),
+        }
+    }
+
+    /// Prints `step k/N, e erased` if 10 s passed since the last line.
+    pub fn tick(&mut self, step: u32, erased: u32) {
+        if self.last.elapsed() >= Self::EVERY {
+            self.last = std::time::Instant::now();
+            eprintln!(
+                "{}: step {step}/{} ({erased} erased so far)",
+                self.role, self.steps
+            );
+        }
+    }
+}
+
 /// The session report each agent writes (JSON).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct SessionReport {
@@ -120,8 +155,10 @@ pub struct SessionReport {
     pub steps: u32,
     /// Steps completed before the end.
     pub steps_done: u32,
-    /// Erased steps (missing command at the robot; missing or fallback measurement at the
-    /// controller).
+    /// Erased steps, which carry no key bit. Robot: steps whose command did not arrive in time
+    /// (it applied the fallback). Controller: steps it could not decode — those same steps
+    /// (their measurement says so), plus steps whose bracketing measurement was lost on the
+    /// way back. The controller's count is therefore the larger one.
     pub erased_steps: u32,
     /// Complete codewords of the session.
     pub codewords: u32,
