@@ -259,8 +259,10 @@ fn forward(
                     bytes,
                 } = arrival?;
                 last_traffic = Some(Instant::now());
+                // The latest controller-side sender is the controller: consecutive sessions
+                // (each controller on a new port) can share one relay.
                 if to_robot {
-                    controller.get_or_insert(from);
+                    controller = Some(from);
                 }
                 if let (true, Some(controller_addr)) =
                     (to_robot || from == options.forward, controller)

@@ -54,13 +54,14 @@ impl Timing {
     }
 }
 
-/// After its outcome, an agent keeps answering the peer's retransmitted Finish, FinishAck
-/// or Confirm with `reply` (its own tag), so that a lost tag does not leave the peer
-/// unconfirmed. It answers at most once per retransmission interval and stops after ten
-/// intervals in all: two lingering agents cannot keep each other busy.
+/// After its outcome: sends `Done` (this side needs nothing more), then keeps answering the peer's retransmitted Finish, FinishAck or Confirm
+/// with `reply` (its own tag, and `Done` again), so that a lost tag does not leave the peer
+/// unconfirmed. It returns as soon as the peer's `Done` arrives — a round trip after the
+/// outcome when nothing is lost — and otherwise after ten retransmission intervals: two
+/// lingering agents cannot keep each other busy. It answers at most once per interval.
 ///
 /// # Errors
-/// The socket fails.
+/// The socket fails, or a stop was requested.
 pub fn linger(
     transport: &mut crate::transport::Transport,
     timing: &Timing,
@@ -71,19 +72,23 @@ pub fn linger(
     use std::time::Instant;
     let interval = timing.retransmit_interval();
     let end = Instant::now() + interval * 10;
+    transport.send(Message::Done)?;
     let mut last_answer: Option<Instant> = None;
     while let Some(delivery) = transport.recv_until(end)? {
-        let asks = matches!(
-            delivery,
-            Delivery::Message(
-                Message::Finish { .. } | Message::FinishAck | Message::Confirm { .. }
-            )
-        );
-        if asks && last_answer.is_none_or(|t| t.elapsed() >= interval) {
-            last_answer = Some(Instant::now());
-            for m in reply {
-                transport.send(m.clone())?;
+        let Delivery::Message(message) = delivery else {
+            continue;
+        };
+        match message {
+            Message::Done => return Ok(()),
+            Message::Finish { .. } | Message::FinishAck | Message::Confirm { .. }
+                if last_answer.is_none_or(|t| t.elapsed() >= interval) =>
+            {
+                last_answer = Some(Instant::now());
+                for m in reply.iter().cloned().chain([Message::Done]) {
+                    transport.send(m)?;
+                }
             }
+            _ => {}
         }
     }
     Ok(())

@@ -80,6 +80,9 @@ pub enum Message {
         /// `MAC(k_dir, "key" ‖ dir ‖ Hello ‖ HelloAck ‖ key)`, truncated.
         key_tag: [u8; TAG_BYTES],
     },
+    /// Either side, after its outcome (confirmed or not): it needs nothing more from the peer,
+    /// which may stop lingering (docs/protocol.md, "Lingering").
+    Done,
     /// Either side: the session is over, with a reason.
     Abort {
         /// Human-readable reason.

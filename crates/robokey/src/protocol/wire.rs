@@ -85,6 +85,7 @@ const CONFIRM: u8 = 7;
 const ABORT: u8 = 8;
 const REFUSE: u8 = 9;
 const READY: u8 = 10;
+const DONE: u8 = 12;
 /// Reserved: 11 = private-mode measurement (no pose); 16–21 = post-processing (pool sync,
 /// reconciliation query and answer, block confirmation, commit, amplification seed chunk).
 const RESERVED: [u8; 7] = [11, 16, 17, 18, 19, 20, 21];
@@ -103,6 +104,7 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
         Message::Finish { .. } => (FINISH, 0),
         Message::FinishAck => (FINISH_ACK, 0),
         Message::Confirm { .. } => (CONFIRM, 0),
+        Message::Done => (DONE, 0),
         Message::Abort { .. } => (ABORT, 0),
     };
     let mut out = Vec::with_capacity(64);
@@ -170,7 +172,7 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
                 out.extend_from_slice(&0u64.to_be_bytes());
             }
         }
-        Message::FinishAck => {}
+        Message::FinishAck | Message::Done => {}
         Message::Confirm {
             session_tag,
             key_tag,
@@ -404,6 +406,10 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
             expect_len("FinishAck", payload, 0)?;
             Message::FinishAck
         }
+        DONE => {
+            expect_len("Done", payload, 0)?;
+            Message::Done
+        }
         CONFIRM => {
             expect_len("Confirm", payload, 2 * TAG_BYTES)?;
             Message::Confirm {
@@ -495,6 +501,7 @@ mod tests {
                 session_tag: [1; 16],
                 key_tag: [2; 16],
             },
+            Message::Done,
             Message::Abort {
                 reason: "silence".into(),
             },
@@ -531,6 +538,7 @@ mod tests {
 524b020501020304000000090000000000000041ffffffffffffffff00000000000000011b4a5dbf129e269e3f5e542d0f7af339
 524b0206010203040000000900000000d03c19cd1ad7d318d42af9ec58fbfdef
 524b02070102030400000009000000000101010101010101010101010101010102020202020202020202020202020202e8362a11b1a425c3537475c5c2dfe96a
+524b020c0102030400000009000000008f36402079b9be4e4a04829c07c27c1c
 524b0208010203040000000900000000000773696c656e63650ecfc3100c2974e5fd222aaa9fa04404
 ";
 
@@ -645,6 +653,7 @@ mod tests {
                 bitmap
             }),
             Just(Message::FinishAck),
+            Just(Message::Done),
             (any::<[u8; 16]>(), any::<[u8; 16]>()).prop_map(|(session_tag, key_tag)| {
                 Message::Confirm {
                     session_tag,
