@@ -274,6 +274,17 @@ fn on_capture(
         captured.messages.len(),
         captured.undecodable
     );
+    if let Some(reason) = &captured.aborted {
+        println!(
+            "eve: the session was aborted ({reason}): no key was agreed; the bits below are \
+             what she would hold had it finished"
+        );
+    }
+    let key_label = if captured.aborted.is_some() {
+        "would-be key"
+    } else {
+        "key"
+    };
     let mut reports = Vec::new();
     for strategy in strategies {
         let errors = errors_of(config, strategy, explicit);
@@ -284,7 +295,7 @@ fn on_capture(
             result.model.axle_length / config.robot.axle_length - 1.0,
         );
         println!(
-            "eve[{}]: {decided} steps decided, key {} bits; model errors r {:+.4}, D {:+.4} (started at r {:+.4}, D {:+.4}, W {:+.4}, V {:+.4}){}",
+            "eve[{}]: {decided} steps decided, {key_label} {} bits; model errors r {:+.4}, D {:+.4} (started at r {:+.4}, D {:+.4}, W {:+.4}, V {:+.4}){}",
             strategy.name(),
             result.key.len(),
             r,
@@ -338,7 +349,8 @@ fn on_capture(
     if let Some(out) = &args.out {
         std::fs::create_dir_all(out).with_context(|| format!("create {}", out.display()))?;
         let json = serde_json::json!({
-            "session": captured.session,
+            "session": format!("{:08x}", captured.session),
+            "session_aborted": captured.aborted,
             "frames": captured.messages.len(),
             "undecodable": captured.undecodable,
             "strategies": reports,

@@ -412,11 +412,21 @@ fn signals_end_sessions_with_reports_and_exit_codes_128_plus_n() {
         "--report",
         &robot_json,
     ]);
+    let capture = s(&dir.join("capture.pcap"));
+    let relay = start(&[
+        "relay",
+        "--listen",
+        "127.0.0.1:0",
+        "--forward",
+        &robot.address,
+        "--capture",
+        &capture,
+    ]);
     let controller = Command::new(env!("CARGO_BIN_EXE_robokey"))
         .args([
             "controller",
             "--robot",
-            &robot.address,
+            &relay.address,
             "--pairing",
             &pairing,
             "--report",

@@ -25,6 +25,9 @@ pub struct CapturedSession {
     pub messages: Vec<Message>,
     /// Datagrams that did not decode.
     pub undecodable: usize,
+    /// The reason of the session's first `Abort`, if it was aborted: then no key was agreed,
+    /// whatever bits an eavesdropper collected.
+    pub aborted: Option<String>,
     /// An `--unauthenticated` session's confirmer: its keys come from the public secret and
     /// the nonces on the wire, so the eavesdropper can compute the tags too. `None` for a
     /// paired session.
@@ -85,10 +88,15 @@ pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, 
             )));
         }
     }
+    let aborted = messages.iter().find_map(|m| match m {
+        Message::Abort { reason } => Some(reason.clone()),
+        _ => None,
+    });
     Ok(CapturedSession {
         session,
         messages,
         undecodable,
+        aborted,
         public_confirmer,
     })
 }
