@@ -15,7 +15,7 @@ local types = {
     [1] = "Hello", [2] = "HelloAck", [3] = "Measurement", [4] = "Command",
     [5] = "Finish", [6] = "FinishAck", [7] = "Confirm", [8] = "Abort",
     [9] = "Refuse", [10] = "Ready",
-    [11] = "reserved: private-mode measurement", [12] = "Done",
+    [11] = "reserved: private-mode measurement", [13] = "Done",
     [16] = "reserved: pool sync", [17] = "reserved: reconciliation query",
     [18] = "reserved: reconciliation answer", [19] = "reserved: block confirmation",
     [20] = "reserved: commit", [21] = "reserved: amplification seed chunk",
@@ -117,7 +117,7 @@ local payloads = {
         return true
     end,
     [6] = function(_, _, n) return n == 0 end,
-    [12] = function(_, _, n) return n == 0 end,
+    [13] = function(_, _, n) return n == 0 end,
     [7] = function(t, p, n)
         if n ~= 32 then return false end
         t:add(f.session_tag, p(0, 16)); t:add(f.key_tag, p(16, 16))
