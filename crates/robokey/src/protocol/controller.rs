@@ -75,7 +75,6 @@ enum Phase {
 const FINISH_TRIES: u32 = 10;
 
 /// The controller side of a session.
-#[derive(Debug)]
 pub struct ControllerEndpoint {
     plan: SessionPlan,
     trajectory: Trajectory,
@@ -84,11 +83,24 @@ pub struct ControllerEndpoint {
     decoder: StepDecoder,
     assembler: CodewordAssembler,
     fates: FateLedger,
-    decoded: Vec<u64>,
+    /// The decoded message of every decided codeword: key material.
+    decoded: zeroize::Zeroizing<Vec<u64>>,
     robot_cursor: u32,
     phase: Phase,
     key: KeyBits,
     outputs: VecDeque<ControllerOutput>,
+}
+
+impl std::fmt::Debug for ControllerEndpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // Key material (decoded messages, key bits) is never printed.
+        f.debug_struct("ControllerEndpoint")
+            .field("phase", &self.phase)
+            .field("next_measurement", &self.decoder.next_measurement())
+            .field("decoded_codewords", &self.decoded.len())
+            .field("key_bits", &self.key.len())
+            .finish_non_exhaustive()
+    }
 }
 
 impl ControllerEndpoint {
@@ -110,7 +122,7 @@ impl ControllerEndpoint {
             decoder: StepDecoder::new(plan.drive, observer, plan.delta, plan.enabled),
             assembler: CodewordAssembler::new(plan.code.n() as u32, plan.codewords()),
             fates: FateLedger::new(plan.codewords()),
-            decoded: Vec::with_capacity(plan.codewords() as usize),
+            decoded: zeroize::Zeroizing::new(Vec::with_capacity(plan.codewords() as usize)),
             robot_cursor: 0,
             phase: Phase::ExpectMeasurement,
             key: KeyBits::default(),
@@ -365,5 +377,46 @@ pub fn observer_params(config: &Config) -> ObserverParams {
         v_var: config.observer.v_var,
         variant: config.observer.variant,
         channels: config.observer.m,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn controller() -> ControllerEndpoint {
+        let config = Config::default();
+        ControllerEndpoint::new(&config, SessionPlan::from_config(&config, 1))
+    }
+
+    fn measure(
+        controller: &mut ControllerEndpoint,
+        step: u32,
+        y: [f64; 3],
+    ) -> Vec<ControllerOutput> {
+        controller.handle_input(ControllerInput::Frame(Message::Measurement {
+            step,
+            y,
+            applied_step: step.checked_sub(1),
+            fate_cursor: 0,
+        }));
+        std::iter::from_fn(|| controller.poll_output()).collect()
+    }
+
+    #[test]
+    fn debug_prints_no_key_material() {
+        let mut controller = controller();
+        for step in 0..30 {
+            measure(&mut controller, step, [0.0; 3]);
+        }
+        assert!(!controller.decoded.is_empty());
+        let text = format!("{controller:?}");
+        assert!(text.starts_with("ControllerEndpoint {"), "{text}");
+        assert!(text.contains("decoded_codewords: 9"), "{text}");
+        assert!(!text.contains('['), "{text}");
+        assert_eq!(
+            format!("{:?}", KeyBits::from(vec![1, 0, 1])),
+            "KeyBits(3 bits)"
+        );
     }
 }
