@@ -244,21 +244,27 @@ impl ControllerEndpoint {
         }
     }
 
+    /// Ends the session and tells the robot why.
+    fn abort(&mut self, reason: String) {
+        self.send(Message::Abort {
+            reason: reason.clone(),
+        });
+        self.finish(Outcome::Aborted(reason));
+    }
+
     fn handle_measurement(&mut self, step: u32, y: Pose, applied: Option<u32>, cursor: u32) {
-        if step > self.plan.steps {
-            return;
+        if step > self.plan.steps || step < self.decoder.next_measurement() {
+            return; // past the end, stale or duplicate
+        }
+        if !y.iter().all(|v| v.is_finite()) {
+            // Broken odometry: tracking it would poison the observer and the controller's
+            // integrator, and every later command would be non-finite.
+            return self.abort(format!("step {step}: the measured pose is not finite"));
         }
         let measured = match self.decoder.on_measurement(step, &y, applied) {
             Ok(Some(measured)) => measured,
             Ok(None) => return,
-            Err(e) => {
-                let reason = format!("step {step}: {e}");
-                self.send(Message::Abort {
-                    reason: reason.clone(),
-                });
-                self.finish(Outcome::Aborted(reason));
-                return;
-            }
+            Err(e) => return self.abort(format!("step {step}: {e}")),
         };
         self.robot_cursor = self.robot_cursor.max(cursor);
         if !measured.missing.is_empty() {
@@ -309,6 +315,10 @@ impl ControllerEndpoint {
         };
         let reference = self.trajectory.at(f64::from(step) * self.plan.sample_time);
         let nominal = self.tracking.command(&pose, &reference);
+        if !nominal.iter().all(|v| v.is_finite()) {
+            // A finite but absurd pose (e.g. 1e308 m) overflows the controller's state.
+            return self.abort(format!("step {step}: the tracking command is not finite"));
+        }
         let (u0, u1) = command_pair(&self.plan, nominal);
         self.decoder.on_command(step, nominal, u0, u1);
         self.emit(ControllerEvent::Commanded { step, nominal });
@@ -401,6 +411,52 @@ mod tests {
             fate_cursor: 0,
         }));
         std::iter::from_fn(|| controller.poll_output()).collect()
+    }
+
+    fn commands(outputs: &[ControllerOutput]) -> Vec<[f64; 4]> {
+        outputs
+            .iter()
+            .filter_map(|o| match o {
+                ControllerOutput::Transmit(Message::Command { u0, u1, .. }) => {
+                    Some([u0[0], u0[1], u1[0], u1[1]])
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Found by the `robot_endpoint` driver: a NaN pose made every later command NaN
+    /// (the integrator ξ stayed NaN). A non-finite measurement now aborts the session.
+    #[test]
+    fn a_non_finite_measurement_aborts_without_a_command() {
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut controller = controller();
+            assert_eq!(commands(&measure(&mut controller, 0, [0.0; 3])).len(), 1);
+            let outputs = measure(&mut controller, 1, [0.0, bad, 0.0]);
+            assert!(commands(&outputs).is_empty(), "{outputs:?}");
+            assert!(matches!(
+                outputs.last(),
+                Some(ControllerOutput::Event(ControllerEvent::Finished(Outcome::Aborted(r))))
+                    if r.contains("not finite")
+            ));
+            assert!(controller.is_done());
+        }
+    }
+
+    /// Found by the `controller_endpoint` driver: a finite but absurd pose (`f64::MAX` m)
+    /// overflowed the tracking controller into a NaN command. Every command sent stays
+    /// finite; a pose that overflows the controller aborts the session.
+    #[test]
+    fn an_absurd_measurement_never_yields_a_non_finite_command() {
+        for huge in [1e300, f64::MAX, -f64::MAX] {
+            let mut controller = controller();
+            let mut sent = Vec::new();
+            for step in 0..4 {
+                sent.extend(commands(&measure(&mut controller, step, [huge, huge, 0.0])));
+            }
+            assert!(sent.iter().flatten().all(|w| w.is_finite()), "{sent:?}");
+            assert_eq!(controller.is_done(), huge.abs() == f64::MAX, "{huge}");
+        }
     }
 
     #[test]
