@@ -5,6 +5,8 @@ pub mod backend;
 pub mod capture_eve;
 pub mod controller_agent;
 pub mod error;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod khepera;
 pub mod pairing;
 pub mod pcap;

@@ -11,6 +11,8 @@ pub mod code;
 pub mod config;
 pub mod control;
 pub mod eve;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod interrupt;
 pub mod metrics;
 pub mod model;

@@ -12,4 +12,4 @@ mod protocol;
 pub use backend::Kh4Backend;
 pub use emulator::{EmulatorOptions, Listen, TimeMode, serve};
 pub use link::{Link, MAX_REPLY_BYTES};
-pub use protocol::{MAX_UNITS, Odometry, PULSE_M, SPEED_UNIT_M_S, speed_units};
+pub use protocol::{MAX_UNITS, Odometry, PULSE_M, SPEED_UNIT_M_S, parse_reply, speed_units};

@@ -57,6 +57,14 @@ pub fn parse_reply(
 }
 
 /// Midpoint odometry from encoder pulses (docs/protocol.md); θ is never wrapped.
+///
+/// The Khepera's encoder counters are 32-bit signed registers on the robot: a count wraps
+/// from `i32::MAX` to `i32::MIN` after about 14.6 km of wheel travel. A wheel's travel
+/// between two reads is therefore the difference of the counts modulo 2³² (wrapping
+/// `i32`), which is exact across a wrap as long as the wheel turns fewer than 2³¹ pulses
+/// between reads (at full speed, about five hours). A reported count outside the `i32`
+/// range is taken modulo 2³², as the register holds it. Each update thus moves each wheel
+/// by at most 14.6 km, and the pose stays finite for any counts and a positive axle length.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Odometry {
     axle_length: f64,
@@ -78,8 +86,8 @@ impl Odometry {
     /// Updates with the encoder counts (left, right); the first call sets the reference.
     pub fn update(&mut self, left: i64, right: i64) -> Pose {
         if let Some((last_left, last_right)) = self.last {
-            let ds_left = (left - last_left) as f64 * PULSE_M;
-            let ds_right = (right - last_right) as f64 * PULSE_M;
+            let ds_left = f64::from(pulses(left, last_left)) * PULSE_M;
+            let ds_right = f64::from(pulses(right, last_right)) * PULSE_M;
             let dtheta = (ds_right - ds_left) / self.axle_length;
             let mid = self.pose.z + dtheta / 2.0;
             let ds = (ds_left + ds_right) / 2.0;
@@ -88,6 +96,12 @@ impl Odometry {
         self.last = Some((left, right));
         self.pose
     }
+}
+
+/// Pulses from count `before` to count `now` of a 32-bit encoder register (see
+/// [`Odometry`]).
+fn pulses(now: i64, before: i64) -> i32 {
+    (now as i32).wrapping_sub(before as i32)
 }
 
 #[cfg(test)]
@@ -115,6 +129,31 @@ mod tests {
         let pose = odo.update(100 + 19_456 - 1000, 200 + 19_456 + 1000);
         assert!((pose.z - 2.0 * s / 0.1047).abs() < 1e-12);
         assert!((pose.x - 0.13194).abs() < 1e-12);
+    }
+
+    /// Found by the `kh4_reply` fuzz target: `left - last_left` overflowed (a panic in
+    /// debug builds) on counts such as `i64::MAX` then `i64::MIN`; and a wrap of the 32-bit
+    /// register read as a jump of 2³² pulses (29 km) backwards.
+    #[test]
+    fn encoder_counts_wrap_as_32_bit_registers() {
+        let mut odo = Odometry::new(0.1047);
+        odo.update(i64::from(i32::MAX) - 99, i64::from(i32::MAX) - 99);
+        // 100 pulses forward on both wheels, across the wrap of the register.
+        let pose = odo.update(i64::from(i32::MIN), i64::from(i32::MIN));
+        assert!((pose - Pose::new(100.0 * PULSE_M, 0.0, 0.0)).norm() < 1e-15);
+        // Counts outside the i32 range are taken modulo 2³²: i64::MAX ≡ −1, i64::MIN ≡ 0.
+        let mut odo = Odometry::new(0.1047);
+        odo.update(i64::MAX, i64::MAX);
+        let pose = odo.update(i64::MIN, i64::MIN);
+        assert!((pose - Pose::new(PULSE_M, 0.0, 0.0)).norm() < 1e-15);
+        // The largest jumps one update can report keep the pose finite.
+        for (left, right) in [
+            (i64::MIN, i64::MAX),
+            (0, i64::from(i32::MIN)),
+            (i64::MAX, 0),
+        ] {
+            assert!(odo.update(left, right).iter().all(|v| v.is_finite()));
+        }
     }
 
     #[test]

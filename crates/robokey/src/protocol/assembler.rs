@@ -1,7 +1,7 @@
 //! Collects per-step bit decisions into codewords.
 
-/// A completed received codeword.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A completed received codeword (key material: its `Debug` omits the bits).
+#[derive(Clone, Copy, PartialEq, Eq)]
 pub struct ReceivedWord {
     /// Codeword index i.
     pub index: u32,
@@ -11,14 +11,33 @@ pub struct ReceivedWord {
     pub erased: bool,
 }
 
+impl std::fmt::Debug for ReceivedWord {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ReceivedWord")
+            .field("index", &self.index)
+            .field("erased", &self.erased)
+            .finish_non_exhaustive()
+    }
+}
+
 /// Assembles bits, pushed in step order, into codewords of `n` bits; steps past the last
-/// complete codeword are ignored.
-#[derive(Clone, Debug)]
+/// complete codeword are ignored. The partial codeword is zeroized on drop and never
+/// printed.
+#[derive(Clone, zeroize::Zeroize, zeroize::ZeroizeOnDrop)]
 pub struct CodewordAssembler {
     n: u32,
     codewords: u32,
     word: u64,
     erased: bool,
+}
+
+impl std::fmt::Debug for CodewordAssembler {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CodewordAssembler")
+            .field("n", &self.n)
+            .field("codewords", &self.codewords)
+            .finish_non_exhaustive()
+    }
 }
 
 impl CodewordAssembler {

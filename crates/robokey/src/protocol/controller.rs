@@ -75,7 +75,6 @@ enum Phase {
 const FINISH_TRIES: u32 = 10;
 
 /// The controller side of a session.
-#[derive(Debug)]
 pub struct ControllerEndpoint {
     plan: SessionPlan,
     trajectory: Trajectory,
@@ -84,11 +83,24 @@ pub struct ControllerEndpoint {
     decoder: StepDecoder,
     assembler: CodewordAssembler,
     fates: FateLedger,
-    decoded: Vec<u64>,
+    /// The decoded message of every decided codeword: key material.
+    decoded: zeroize::Zeroizing<Vec<u64>>,
     robot_cursor: u32,
     phase: Phase,
     key: KeyBits,
     outputs: VecDeque<ControllerOutput>,
+}
+
+impl std::fmt::Debug for ControllerEndpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // Key material (decoded messages, key bits) is never printed.
+        f.debug_struct("ControllerEndpoint")
+            .field("phase", &self.phase)
+            .field("next_measurement", &self.decoder.next_measurement())
+            .field("decoded_codewords", &self.decoded.len())
+            .field("key_bits", &self.key.len())
+            .finish_non_exhaustive()
+    }
 }
 
 impl ControllerEndpoint {
@@ -110,7 +122,7 @@ impl ControllerEndpoint {
             decoder: StepDecoder::new(plan.drive, observer, plan.delta, plan.enabled),
             assembler: CodewordAssembler::new(plan.code.n() as u32, plan.codewords()),
             fates: FateLedger::new(plan.codewords()),
-            decoded: Vec::with_capacity(plan.codewords() as usize),
+            decoded: zeroize::Zeroizing::new(Vec::with_capacity(plan.codewords() as usize)),
             robot_cursor: 0,
             phase: Phase::ExpectMeasurement,
             key: KeyBits::default(),
@@ -232,21 +244,27 @@ impl ControllerEndpoint {
         }
     }
 
+    /// Ends the session and tells the robot why.
+    fn abort(&mut self, reason: String) {
+        self.send(Message::Abort {
+            reason: reason.clone(),
+        });
+        self.finish(Outcome::Aborted(reason));
+    }
+
     fn handle_measurement(&mut self, step: u32, y: Pose, applied: Option<u32>, cursor: u32) {
-        if step > self.plan.steps {
-            return;
+        if step > self.plan.steps || step < self.decoder.next_measurement() {
+            return; // past the end, stale or duplicate
+        }
+        if !y.iter().all(|v| v.is_finite()) {
+            // Broken odometry: tracking it would poison the observer and the controller's
+            // integrator, and every later command would be non-finite.
+            return self.abort(format!("step {step}: the measured pose is not finite"));
         }
         let measured = match self.decoder.on_measurement(step, &y, applied) {
             Ok(Some(measured)) => measured,
             Ok(None) => return,
-            Err(e) => {
-                let reason = format!("step {step}: {e}");
-                self.send(Message::Abort {
-                    reason: reason.clone(),
-                });
-                self.finish(Outcome::Aborted(reason));
-                return;
-            }
+            Err(e) => return self.abort(format!("step {step}: {e}")),
         };
         self.robot_cursor = self.robot_cursor.max(cursor);
         if !measured.missing.is_empty() {
@@ -297,6 +315,10 @@ impl ControllerEndpoint {
         };
         let reference = self.trajectory.at(f64::from(step) * self.plan.sample_time);
         let nominal = self.tracking.command(&pose, &reference);
+        if !nominal.iter().all(|v| v.is_finite()) {
+            // A finite but absurd pose (e.g. 1e308 m) overflows the controller's state.
+            return self.abort(format!("step {step}: the tracking command is not finite"));
+        }
         let (u0, u1) = command_pair(&self.plan, nominal);
         self.decoder.on_command(step, nominal, u0, u1);
         self.emit(ControllerEvent::Commanded { step, nominal });
@@ -365,5 +387,92 @@ pub fn observer_params(config: &Config) -> ObserverParams {
         v_var: config.observer.v_var,
         variant: config.observer.variant,
         channels: config.observer.m,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn controller() -> ControllerEndpoint {
+        let config = Config::default();
+        ControllerEndpoint::new(&config, SessionPlan::from_config(&config, 1))
+    }
+
+    fn measure(
+        controller: &mut ControllerEndpoint,
+        step: u32,
+        y: [f64; 3],
+    ) -> Vec<ControllerOutput> {
+        controller.handle_input(ControllerInput::Frame(Message::Measurement {
+            step,
+            y,
+            applied_step: step.checked_sub(1),
+            fate_cursor: 0,
+        }));
+        std::iter::from_fn(|| controller.poll_output()).collect()
+    }
+
+    fn commands(outputs: &[ControllerOutput]) -> Vec<[f64; 4]> {
+        outputs
+            .iter()
+            .filter_map(|o| match o {
+                ControllerOutput::Transmit(Message::Command { u0, u1, .. }) => {
+                    Some([u0[0], u0[1], u1[0], u1[1]])
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Found by the `robot_endpoint` driver: a NaN pose made every later command NaN
+    /// (the integrator ξ stayed NaN). A non-finite measurement now aborts the session.
+    #[test]
+    fn a_non_finite_measurement_aborts_without_a_command() {
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut controller = controller();
+            assert_eq!(commands(&measure(&mut controller, 0, [0.0; 3])).len(), 1);
+            let outputs = measure(&mut controller, 1, [0.0, bad, 0.0]);
+            assert!(commands(&outputs).is_empty(), "{outputs:?}");
+            assert!(matches!(
+                outputs.last(),
+                Some(ControllerOutput::Event(ControllerEvent::Finished(Outcome::Aborted(r))))
+                    if r.contains("not finite")
+            ));
+            assert!(controller.is_done());
+        }
+    }
+
+    /// Found by the `controller_endpoint` driver: a finite but absurd pose (`f64::MAX` m)
+    /// overflowed the tracking controller into a NaN command. Every command sent stays
+    /// finite; a pose that overflows the controller aborts the session.
+    #[test]
+    fn an_absurd_measurement_never_yields_a_non_finite_command() {
+        for huge in [1e300, f64::MAX, -f64::MAX] {
+            let mut controller = controller();
+            let mut sent = Vec::new();
+            for step in 0..4 {
+                sent.extend(commands(&measure(&mut controller, step, [huge, huge, 0.0])));
+            }
+            assert!(sent.iter().flatten().all(|w| w.is_finite()), "{sent:?}");
+            assert_eq!(controller.is_done(), huge.abs() == f64::MAX, "{huge}");
+        }
+    }
+
+    #[test]
+    fn debug_prints_no_key_material() {
+        let mut controller = controller();
+        for step in 0..30 {
+            measure(&mut controller, step, [0.0; 3]);
+        }
+        assert!(!controller.decoded.is_empty());
+        let text = format!("{controller:?}");
+        assert!(text.starts_with("ControllerEndpoint {"), "{text}");
+        assert!(text.contains("decoded_codewords: 9"), "{text}");
+        assert!(!text.contains('['), "{text}");
+        assert_eq!(
+            format!("{:?}", KeyBits::from(vec![1, 0, 1])),
+            "KeyBits(3 bits)"
+        );
     }
 }

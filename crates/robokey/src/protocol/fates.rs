@@ -15,9 +15,11 @@ impl FateWindow {
     /// Largest number of fates one window carries.
     pub const CAPACITY: u32 = 64;
 
-    /// The fates it carries, as `(codeword index, accepted)`.
+    /// The fates it carries, as `(codeword index, accepted)`; indices past `u32::MAX`
+    /// (a window from a peer that starts near the end of the range) are left out.
     pub fn iter(&self) -> impl Iterator<Item = (u32, bool)> + '_ {
-        (0..u32::from(self.count.min(64))).map(|j| (self.first + j, self.accepted >> j & 1 == 1))
+        (0..u32::from(self.count.min(64)))
+            .map_while(|j| Some((self.first.checked_add(j)?, self.accepted >> j & 1 == 1)))
     }
 }
 
@@ -92,7 +94,7 @@ impl FateLedger {
             ..FateWindow::default()
         };
         for j in 0..FateWindow::CAPACITY {
-            match self.get(first + j) {
+            match first.checked_add(j).and_then(|index| self.get(index)) {
                 Some(accepted) => {
                     window.accepted |= u64::from(accepted) << j;
                     window.count += 1;
@@ -156,5 +158,27 @@ mod tests {
         assert_eq!(copy.get(1), Some(true));
         assert_eq!(copy.bitmap()[0] >> 2, ledger.bitmap()[0] >> 2);
         assert_eq!(copy.bitmap()[1], ledger.bitmap()[1]);
+    }
+
+    /// Found by the `robot_endpoint` fuzz target: `first + j` overflowed (a panic in debug
+    /// builds) for a command's window that starts near `u32::MAX`.
+    #[test]
+    fn windows_at_the_end_of_the_index_range_do_not_overflow() {
+        let window = FateWindow {
+            first: u32::MAX - 3,
+            count: 64,
+            accepted: u64::MAX,
+        };
+        let indices: Vec<u32> = window.iter().map(|(i, _)| i).collect();
+        assert_eq!(
+            indices,
+            [u32::MAX - 3, u32::MAX - 2, u32::MAX - 1, u32::MAX]
+        );
+        let mut ledger = FateLedger::new(3);
+        for (index, accepted) in window.iter() {
+            ledger.record(index, accepted);
+        }
+        assert_eq!(ledger.cursor(), 0);
+        assert_eq!(ledger.window(u32::MAX).count, 0);
     }
 }

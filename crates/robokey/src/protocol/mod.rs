@@ -34,5 +34,33 @@ pub enum Outcome {
     Aborted(String),
 }
 
-/// A key as a bit string (one `u8` of 0/1 per bit), zeroized on drop.
-pub type KeyBits = zeroize::Zeroizing<Vec<u8>>;
+/// A key as a bit string (one `u8` of 0/1 per bit), zeroized on drop; its `Debug` prints
+/// the length only.
+#[derive(Clone, Default, PartialEq, Eq)]
+pub struct KeyBits(zeroize::Zeroizing<Vec<u8>>);
+
+impl std::ops::Deref for KeyBits {
+    type Target = Vec<u8>;
+
+    fn deref(&self) -> &Vec<u8> {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for KeyBits {
+    fn deref_mut(&mut self) -> &mut Vec<u8> {
+        &mut self.0
+    }
+}
+
+impl From<Vec<u8>> for KeyBits {
+    fn from(bits: Vec<u8>) -> Self {
+        Self(zeroize::Zeroizing::new(bits))
+    }
+}
+
+impl std::fmt::Debug for KeyBits {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "KeyBits({} bits)", self.0.len())
+    }
+}

@@ -333,8 +333,14 @@ impl RobotEndpoint {
         if let Some(erased) = self.erased.get_mut(index as usize) {
             *erased = true;
         }
+        // Hold the last pair's midpoint through a short gap; a missing stop command (step
+        // ≥ N) stops the wheels, as the stop command would have.
         let wheels = match self.last_pair {
-            Some((u0, u1)) if self.missing_in_a_row <= self.plan.max_hold => (u0 + u1) / 2.0,
+            Some((u0, u1))
+                if step < self.plan.steps && self.missing_in_a_row <= self.plan.max_hold =>
+            {
+                (u0 + u1) / 2.0
+            }
             _ => WheelSpeeds::zeros(),
         };
         self.outputs.push_back(RobotOutput::Apply(Actuation {
@@ -387,6 +393,48 @@ mod tests {
             Some(RobotOutput::Apply(actuation)) => actuation,
             other => panic!("expected an actuation, got {other:?}"),
         }
+    }
+
+    /// Found by the `robot_endpoint` driver: with the stop command (step N) lost, the
+    /// deadline held the last pair's midpoint, moving the robot past the end of the run.
+    #[test]
+    fn a_missing_stop_command_stops_the_wheels() {
+        let mut robot = robot();
+        let (u0, u1) = command_pair(robot.plan(), Unicycle::new(0.1, 0.0));
+        for _ in 0..robot.plan().steps {
+            assert!(!command(&mut robot, u0.into(), u1.into()).erased);
+        }
+        let steps = robot.plan().steps;
+        robot.handle_input(RobotInput::Deadline { step: steps });
+        match robot.poll_output() {
+            Some(RobotOutput::Apply(a)) => {
+                assert_eq!(
+                    (a.step, a.wheels, a.erased),
+                    (steps, WheelSpeeds::zeros(), true)
+                );
+            }
+            other => panic!("expected an actuation, got {other:?}"),
+        }
+    }
+
+    /// Found by the `robot_endpoint` fuzz target: a window starting near `u32::MAX`
+    /// overflowed `first + j` (a panic with overflow checks).
+    #[test]
+    fn a_fate_window_at_the_end_of_the_index_range_is_ignored() {
+        let mut robot = robot();
+        let (u0, u1) = command_pair(robot.plan(), Unicycle::new(0.1, 0.0));
+        robot.handle_input(RobotInput::Frame(Message::Command {
+            step: 0,
+            u0: u0.into(),
+            u1: u1.into(),
+            fates: FateWindow {
+                first: u32::MAX - 3,
+                count: 64,
+                accepted: u64::MAX,
+            },
+        }));
+        assert!(matches!(robot.poll_output(), Some(RobotOutput::Apply(a)) if !a.erased));
+        assert_eq!(robot.fates.cursor(), 0);
     }
 
     #[test]
