@@ -51,3 +51,16 @@ impl NetError {
         }
     }
 }
+
+/// Whether a read ended without data only because its wait did: a timeout, a non-blocking
+/// socket with nothing to read, or a signal (EINTR). The caller looks at its deadline and its
+/// stop request, then reads again.
+#[must_use]
+pub fn is_wait_over(error: &std::io::Error) -> bool {
+    matches!(
+        error.kind(),
+        std::io::ErrorKind::WouldBlock
+            | std::io::ErrorKind::TimedOut
+            | std::io::ErrorKind::Interrupted
+    )
+}

@@ -16,7 +16,7 @@ use robokey::interrupt::Interrupt;
 use robokey::rng::{Purpose, stream};
 use serde::Serialize;
 
-use crate::error::NetError;
+use crate::error::{NetError, is_wait_over};
 use crate::pcap::PcapWriter;
 
 /// Fault probabilities (per datagram) and delays.
@@ -158,15 +158,8 @@ fn receive(
                 from,
                 bytes: buffer[..len].to_vec(),
             }),
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::WouldBlock
-                        | std::io::ErrorKind::TimedOut
-                        | std::io::ErrorKind::Interrupted
-                        | std::io::ErrorKind::ConnectionRefused
-                ) =>
-            {
+            // A previous send to a closed port (ICMP unreachable) surfaces here too.
+            Err(e) if is_wait_over(&e) || e.kind() == std::io::ErrorKind::ConnectionRefused => {
                 continue;
             }
             Err(e) => Err(NetError::io("relay receive")(e)),

@@ -5,7 +5,7 @@
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use crate::error::NetError;
+use crate::error::{NetError, is_wait_over};
 use rand::rngs::ChaCha20Rng;
 use robokey::interrupt::Interrupt;
 use robokey::protocol::Message;
@@ -215,17 +215,8 @@ impl Transport {
                 .map_err(NetError::io("set socket timeout"))?;
             let (len, from) = match self.socket.recv_from(&mut self.buffer) {
                 Ok(x) => x,
-                // A signal interrupts the wait (EINTR): the loop looks at the stop request.
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::TimedOut
-                            | std::io::ErrorKind::Interrupted
-                    ) =>
-                {
-                    continue;
-                }
+                // A timeout or a signal (EINTR): the loop looks at the deadline and the stop request.
+                Err(e) if is_wait_over(&e) => continue,
                 // A previous send to a closed port (ICMP unreachable) surfaces here.
                 Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
                 Err(e) => return Err(NetError::io("receive")(e)),

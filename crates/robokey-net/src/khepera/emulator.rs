@@ -11,7 +11,7 @@ use robokey::rng::{Purpose, stream as stream_of};
 use serialport::SerialPort as _;
 
 use super::protocol::{MAX_UNITS, PULSE_M, SPEED_UNIT_M_S};
-use crate::error::NetError;
+use crate::error::{NetError, is_wait_over};
 
 /// How the emulated robot's time advances.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -143,16 +143,7 @@ fn serve_one(
         let n = match stream.read(&mut chunk) {
             Ok(0) => return Ok(()),
             Ok(n) => n,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::WouldBlock
-                        | std::io::ErrorKind::TimedOut
-                        | std::io::ErrorKind::Interrupted
-                ) =>
-            {
-                continue;
-            }
+            Err(e) if is_wait_over(&e) => continue,
             Err(_) => return Ok(()),
         };
         for &byte in &chunk[..n] {

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use serialport::SerialPort as _;
 
-use crate::error::NetError;
+use crate::error::{NetError, is_wait_over};
 
 /// Longest reply line accepted (bytes, line end included); kh4server's longest is ~60.
 pub const MAX_REPLY_BYTES: usize = 128;
@@ -173,13 +173,7 @@ impl Link {
             match self.stream.as_io().read(&mut chunk[..room]) {
                 Ok(0) => return Err("the connection closed".to_owned()),
                 Ok(n) => self.pending.extend_from_slice(&chunk[..n]),
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::TimedOut
-                            | std::io::ErrorKind::Interrupted
-                    ) => {}
+                Err(e) if is_wait_over(&e) => {}
                 Err(e) => return Err(format!("read failed: {e}")),
             }
         }
