@@ -47,6 +47,9 @@ fn failure_code(error: &anyhow::Error) -> u8 {
                         | LabError::Sweep { .. }
                         | LabError::NotEmpty(_)
                         | LabError::NotOutput(_)
+                        | LabError::NotSweep(_)
+                        | LabError::Incomplete { .. }
+                        | LabError::Resume { .. }
                         | LabError::SensingMode(_)
                 )
             )
