@@ -235,9 +235,6 @@ pub fn sweep(args: SweepArgs) -> Result<Status> {
         shell_word(&args.config.display().to_string()),
     ];
     again.extend(args.options.set.iter().map(|o| shell_word(&o.flag)));
-    if args.jobs != 0 {
-        again.push(format!("--jobs {}", args.jobs));
-    }
     Ok(finish(&swept, &out, again))
 }
 
@@ -292,10 +289,10 @@ fn announce(start: &Start) {
         ));
     }
     println!(
-        "{}: {} points × {} replicates{} → {}",
+        "{}: {} × {}{} → {}",
         if e.name.is_empty() { "sweep" } else { &e.name },
-        e.points.len(),
-        e.replicates(),
+        count(e.points.len(), "point"),
+        count(e.replicates() as usize, "replicate"),
         if what.is_empty() {
             String::new()
         } else {
@@ -339,6 +336,11 @@ fn finish(swept: &Swept, out: &Path, mut again: Vec<String>) -> Status {
     ));
     eprintln!("continue with: {}", again.join(" "));
     Status::Interrupted(signal)
+}
+
+/// `1 point`, `11 points`.
+fn count(n: usize, noun: &str) -> String {
+    format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
 }
 
 fn signal_name(signal: usize) -> String {

@@ -48,6 +48,7 @@ fn failure_code(error: &anyhow::Error) -> u8 {
                         | LabError::NotEmpty(_)
                         | LabError::NotOutput(_)
                         | LabError::NotSweep(_)
+                        | LabError::NotWhole { .. }
                         | LabError::Incomplete { .. }
                         | LabError::Resume { .. }
                         | LabError::SensingMode(_)

@@ -54,6 +54,21 @@ pub enum LabError {
         /// Runs of its shards.
         planned: usize,
     },
+    /// A shard's folder where the whole sweep is needed.
+    #[error(
+        "{dir}: holds shard {shards} only ({held} of the sweep's {total} runs); merge the shards \
+         first with `robokey merge`"
+    )]
+    NotWhole {
+        /// The folder.
+        dir: PathBuf,
+        /// Its shards, e.g. `1/2`.
+        shards: String,
+        /// Runs it holds.
+        held: usize,
+        /// Runs of the sweep.
+        total: usize,
+    },
     /// A folder that `--resume` cannot continue with this sweep.
     #[error("{dir}: cannot resume: {message}")]
     Resume {

@@ -181,9 +181,9 @@ mod tests {
             "{text}"
         );
         // An error about a field no flag set keeps its origin.
-        let text = blamed(&[flag("--set robot.T=100", "robot.T", 100.into())]);
+        let text = blamed(&[flag("--set robot.T=1e-6", "robot.T", 1e-6.into())]);
         assert!(
-            text.starts_with("the defaults: `trajectory.side_time`"),
+            text.starts_with("the defaults: `trajectory.laps` = 3 is not allowed"),
             "{text}"
         );
     }

@@ -304,19 +304,17 @@ fn load_experiment(dir: &Path, name: Option<String>) -> Result<Loaded, LabError>
     }
     let rows = read_rows(&experiment, dir, &manifest.shards)?;
     if rows.len() != experiment.runs() {
-        return Err(LabError::Merge(format!(
-            "{}: holds {} of the sweep's {} runs (shard {}); merge the shards first with \
-             `robokey merge`",
-            dir.display(),
-            rows.len(),
-            experiment.runs(),
-            manifest
+        return Err(LabError::NotWhole {
+            dir: dir.to_path_buf(),
+            shards: manifest
                 .shards
                 .iter()
                 .map(ToString::to_string)
                 .collect::<Vec<_>>()
-                .join(", ")
-        )));
+                .join(", "),
+            held: rows.len(),
+            total: experiment.runs(),
+        });
     }
     let runs_csv = dir.join("runs.csv");
     let replicates = experiment.replicates() as usize;
