@@ -624,11 +624,11 @@ fn secrecy_table(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
         [
             "point",
             "adversary",
-            "raw bits/step",
+            "raw b/step",
             "Eve wrong",
-            "leak EC + tags",
+            "leak EC+tags",
             "ℓ bits",
-            "ℓ bits/s",
+            "ℓ b/s",
             "realised ℓ",
         ]
         .map(String::from),
@@ -650,11 +650,7 @@ fn secrecy_table(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
             format!("{:.4}", r.raw_bits_per_step),
             r.eve_error_accepted
                 .map_or("–".into(), |x| format!("{:.3} %", 100.0 * x.rate)),
-            format!(
-                "{} + {}",
-                leak(|b| b.leak_ec),
-                leak(|b| b.leak_confirmation)
-            ),
+            format!("{}+{}", leak(|b| b.leak_ec), leak(|b| b.leak_confirmation)),
             r.secret_bits.to_string(),
             format!("{:.4}", r.secret_bits_per_second),
             format!("{} [{}]", r.realised_secret_bits, index + 1),
@@ -668,14 +664,14 @@ fn secrecy_table(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
     }
     let mut out = String::new();
     for row in &rows {
-        let mut line = String::from(" ");
+        let mut line = String::new();
         for (i, (cell, &width)) in row.iter().zip(&widths).enumerate() {
             let pad = " ".repeat(width - cell.chars().count());
             // Names left, numbers right.
             if i < 2 {
-                line.push_str(&format!(" {cell}{pad}"));
+                line.push_str(&format!("  {cell}{pad}"));
             } else {
-                line.push_str(&format!(" {pad}{cell}"));
+                line.push_str(&format!("  {pad}{cell}"));
             }
         }
         out.push_str(line.trim_end());

@@ -50,7 +50,8 @@ fn adversary_section(out: &Path) -> Result<(String, String), LabError> {
         })
         .collect();
     let terminal = format!(
-        "eavesdroppers that decide as well as the controller, of {EVE_CAMPAIGNS} campaigns: {}\n",
+        "eavesdroppers that came to decide as well as the controller, of {EVE_CAMPAIGNS} \
+         campaigns:\n  {}\n",
         matched.join(", ")
     );
     let md = format!(
