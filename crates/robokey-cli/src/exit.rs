@@ -90,3 +90,15 @@ pub fn on_signals() -> anyhow::Result<Interrupt> {
     }
     Ok(interrupt)
 }
+
+/// Ends the process as the default action of SIGPIPE would once stdout's reader is gone
+/// (`robokey secrecy DIR | head`), instead of panicking in `println!` (Rust ignores SIGPIPE).
+/// Only for commands that write files and the terminal: the network agents keep SIGPIPE
+/// ignored, so a closed socket is an error they handle.
+pub fn end_on_broken_pipe() {
+    use signal_hook::consts::SIGPIPE;
+    let always = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    // Registration fails only for forbidden signals, and SIGPIPE is not one: if it ever did,
+    // a broken pipe would panic as before.
+    let _ = signal_hook::flag::register_conditional_default(SIGPIPE, always);
+}

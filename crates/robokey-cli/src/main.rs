@@ -324,6 +324,18 @@ fn parse_override(text: &str) -> Result<Override, String> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if matches!(
+        cli.command,
+        Command::Run(_)
+            | Command::Sweep(_)
+            | Command::Merge(_)
+            | Command::Report(_)
+            | Command::Reproduce(_)
+            | Command::Config(_)
+            | Command::Secrecy(_)
+    ) {
+        exit::end_on_broken_pipe();
+    }
     let done = |result: anyhow::Result<()>| result.map(|()| Status::Success);
     let result = match cli.command {
         Command::Run(args) => done(commands::run(args)),

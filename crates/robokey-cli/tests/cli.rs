@@ -830,3 +830,24 @@ fn arguments_read_as_users_write_them() {
     );
     assert!(err.contains("cannot be used with"), "{err}");
 }
+
+#[test]
+fn a_reader_that_goes_away_ends_the_output_without_a_panic() {
+    use std::os::unix::process::ExitStatusExt;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .arg("config")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // As `robokey config | true` does: the reader is gone before robokey writes.
+    drop(child.stdout.take());
+    let ended = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&ended.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        ended.status.success() || ended.status.signal() == Some(13),
+        "{:?}: {stderr}",
+        ended.status
+    );
+}
