@@ -29,8 +29,21 @@ fn main() {
         "cargo:rustc-env=ROBOKEY_GIT_COMMIT={commit}{}",
         if dirty { "-dirty" } else { "" }
     );
-    println!("cargo:rerun-if-changed=../../.git/HEAD");
-    println!("cargo:rerun-if-changed=../../.git/index");
+    // Where git keeps them: `../../.git/…` in a clone, elsewhere in a worktree (whose .git is
+    // a file). A path that does not exist would rerun this script, and rebuild, every time.
+    for file in ["HEAD", "index"] {
+        if let Some(path) = Command::new("git")
+            .args(["rev-parse", "--git-path", file])
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+        {
+            println!(
+                "cargo:rerun-if-changed={}",
+                String::from_utf8_lossy(&path.stdout).trim()
+            );
+        }
+    }
 
     let lock = std::fs::read_to_string("../../Cargo.lock").unwrap_or_default();
     let mut versions = Vec::new();

@@ -1,32 +1,48 @@
 //! The subcommands: thin wrappers over robokey-lab.
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use robokey::Config;
-use robokey_lab::files::{Override, apply_overrides, prepare_output, read_table, write};
-use robokey_lab::runner::{Shard, run_experiment, with_jobs};
-use robokey_lab::sweep::experiments_from_table;
+use robokey::interrupt::Interrupt;
+use robokey_lab::LabError;
+use robokey_lab::files::{
+    Override, apply_overrides, blame_flags, prepare_output, read_table, write,
+};
+use robokey_lab::folder::{Start, SweepPlan, Swept};
+use robokey_lab::runner::with_jobs;
+use robokey_lab::sweep::{Experiment, experiments_from_table};
 use robokey_lab::{report, results, trace};
 
-use crate::{ConfigArgs, MergeArgs, ReproduceArgs, RunArgs, SecrecyArgs, SweepArgs};
+use crate::exit::{Status, on_signals, usage};
+use crate::{ConfigArgs, MergeArgs, ReportArgs, ReproduceArgs, RunArgs, SecrecyArgs, SweepArgs};
 
-/// Loads a configuration from an optional file plus overrides.
-pub fn load_config(path: Option<&std::path::Path>, overrides: &[Override]) -> Result<Config> {
+/// Loads a configuration from an optional file plus overrides; errors name the flag the
+/// user wrote.
+pub fn load_config(path: Option<&Path>, overrides: &[Override]) -> Result<Config> {
     let mut table = read_table(path)?;
     if table.contains_key("sweep") || table.contains_key("experiment") {
-        bail!(
+        usage!(
             "{}: holds a sweep; run it with `robokey sweep`",
             path.map_or_else(String::new, |p| p.display().to_string())
         );
     }
     apply_overrides(&mut table, overrides)?;
-    let origin = match (path, overrides.is_empty()) {
-        (Some(p), true) => p.display().to_string(),
-        (Some(p), false) => format!("{} with --set/flags", p.display()),
-        (None, _) => "defaults with --set/flags".to_owned(),
-    };
-    Ok(Config::from_table(table, &origin)?)
+    let origin = origin(path.map(Path::display), overrides);
+    Config::from_table(table, &origin).map_err(|e| blame_flags(e.into(), overrides).into())
+}
+
+/// Where a configuration came from, as the user gave it: the file (or the defaults) and
+/// the flags that changed it.
+fn origin(file: Option<impl std::fmt::Display>, overrides: &[Override]) -> String {
+    let base = file.map_or_else(|| "the defaults".to_owned(), |f| f.to_string());
+    if overrides.is_empty() {
+        base
+    } else {
+        let flags: Vec<&str> = overrides.iter().map(|o| o.flag.as_str()).collect();
+        format!("{base} with {}", flags.join(" "))
+    }
 }
 
 /// `--set` overrides plus the ones a command's own flags stand for.
@@ -38,40 +54,69 @@ impl FlagOverrides {
         Self(set.to_vec())
     }
 
-    /// Sets `field` when the flag was given.
-    pub fn flag<V: Into<toml::Value>>(&mut self, field: &str, value: Option<V>) {
+    /// Sets `field` when `flag` was given with a value.
+    pub fn value<V: Into<toml::Value> + std::fmt::Display>(
+        &mut self,
+        flag: &str,
+        field: &str,
+        value: Option<V>,
+    ) {
         if let Some(value) = value {
             self.0.push(Override {
                 field: field.into(),
+                flag: format!("{flag} {value}"),
                 value: value.into(),
+            });
+        }
+    }
+
+    /// Sets `field` to `value` when the switch `flag` was given.
+    pub fn switch(&mut self, flag: &str, given: bool, field: &str, value: bool) {
+        if given {
+            self.0.push(Override {
+                field: field.into(),
+                value: value.into(),
+                flag: flag.into(),
             });
         }
     }
 
     /// `--seed`, which TOML holds as a signed integer.
     pub fn seed(&mut self, seed: Option<u64>) -> Result<()> {
-        let seed = seed
-            .map(i64::try_from)
-            .transpose()
-            .context("--seed must be below 2^63 (TOML integers are signed)")?;
-        self.flag("run.seed", seed);
+        if let Some(seed) = seed {
+            let Ok(signed) = i64::try_from(seed) else {
+                usage!(
+                    "--seed {seed} is not allowed (allowed: 0 to 2^63 − 1; TOML integers are signed)"
+                );
+            };
+            self.0.push(Override {
+                field: "run.seed".into(),
+                value: signed.into(),
+                flag: format!("--seed {seed}"),
+            });
+        }
         Ok(())
     }
 
     /// Loads the configuration with these overrides.
-    pub fn load(&self, path: Option<&std::path::Path>) -> Result<Config> {
+    pub fn load(&self, path: Option<&Path>) -> Result<Config> {
         load_config(path, &self.0)
     }
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
     let mut overrides = FlagOverrides::new(&args.options.set);
-    overrides.flag("protocol.delta_v", args.delta_v);
-    overrides.flag("protocol.delta_omega", args.delta_omega);
+    overrides.value("--delta-v", "protocol.delta_v", args.delta_v);
+    overrides.value("--delta-omega", "protocol.delta_omega", args.delta_omega);
     overrides.seed(args.seed)?;
-    overrides.flag("eve.alpha", args.alpha);
-    overrides.flag("eve.enabled", args.no_eve.then_some(false));
-    overrides.flag("protocol.enabled", args.protocol_off.then_some(false));
+    overrides.value("--alpha", "eve.alpha", args.alpha);
+    overrides.switch("--no-eve", args.no_eve, "eve.enabled", false);
+    overrides.switch(
+        "--protocol-off",
+        args.protocol_off,
+        "protocol.enabled",
+        false,
+    );
     let config = overrides.load(args.config.as_deref())?;
     prepare_output(&args.out, args.force)?;
     // The trace goes to disk row by row (memory independent of N); the figure draws a
@@ -172,65 +217,227 @@ pub fn run(args: RunArgs) -> Result<()> {
     Ok(())
 }
 
-pub fn sweep(args: SweepArgs) -> Result<()> {
+pub fn sweep(args: SweepArgs) -> Result<Status> {
     let mut table = read_table(Some(&args.config))?;
     apply_overrides(&mut table, &args.options.set)?;
-    let experiments = experiments_from_table(table, &args.config.display().to_string())?;
-    prepare_output(&args.out, args.force)?;
-    let shard = args.shard.unwrap_or(Shard::ALL);
-    let started = Instant::now();
-    for experiment in &experiments {
-        let dir = args.out.join(&experiment.name);
-        let records = with_jobs(args.jobs, || run_experiment(experiment, shard))??;
-        results::write_sweep(&dir, experiment, &records, &[shard])?;
-        println!(
-            "{}: {} points × {} replicates{} → {}",
-            if experiment.name.is_empty() {
-                "sweep"
-            } else {
-                &experiment.name
-            },
-            experiment.points.len(),
-            experiment.replicates(),
-            if shard == Shard::ALL {
-                String::new()
-            } else {
-                format!(" (shard {shard}: {} runs)", records.len())
-            },
-            dir.display()
-        );
+    let experiments = experiments_from_table(table, &args.config.display().to_string())
+        .map_err(|e| blame_flags(e, &args.options.set))?;
+    let (out, resume) = output(&args.out, args.resume.as_deref(), args.force)?;
+    let stop = on_signals()?;
+    let plan = SweepPlan {
+        shard: args.shard,
+        resume,
+    };
+    let swept = sweep_into(&out, &experiments, plan, args.jobs, &stop)?;
+    let mut again = vec![
+        "robokey".to_owned(),
+        "sweep".into(),
+        shell_word(&args.config.display().to_string()),
+    ];
+    again.extend(args.options.set.iter().map(|o| shell_word(&o.flag)));
+    Ok(finish(&swept, &out, again))
+}
+
+/// The folder a sweep writes: `--resume DIR` (which must exist), else `--out` made ready.
+fn output(out: &Path, resume: Option<&Path>, force: bool) -> Result<(PathBuf, bool)> {
+    match resume {
+        Some(dir) if !dir.is_dir() => {
+            usage!("--resume {}: no such folder", dir.display())
+        }
+        Some(dir) => Ok((dir.to_path_buf(), true)),
+        None => {
+            prepare_output(out, force)?;
+            Ok((out.to_path_buf(), false))
+        }
     }
-    println!("done in {:.2} s", started.elapsed().as_secs_f64());
-    Ok(())
+}
+
+/// Sweeps on `jobs` threads, announcing each experiment before it runs.
+fn sweep_into(
+    out: &Path,
+    experiments: &[Experiment],
+    plan: SweepPlan,
+    jobs: usize,
+    stop: &Interrupt,
+) -> Result<Swept> {
+    let started = Instant::now();
+    let swept = with_jobs(jobs, || {
+        robokey_lab::folder::sweep(out, experiments, plan, stop, &mut announce, &|| {})
+    })??;
+    if swept.interrupted.is_none() {
+        println!("swept in {:.2} s", started.elapsed().as_secs_f64());
+    }
+    Ok(swept)
+}
+
+/// `dv-sweep: 11 points × 10 replicates (shard 1/2: 55 runs) → out/dv-sweep`.
+fn announce(start: &Start) {
+    let e = start.experiment;
+    let mut what = Vec::new();
+    if start.shards != [robokey_lab::runner::Shard::ALL] {
+        let shards: Vec<String> = start.shards.iter().map(ToString::to_string).collect();
+        what.push(format!(
+            "shard {}: {} runs",
+            shards.join(", "),
+            start.planned
+        ));
+    }
+    if start.done > 0 {
+        what.push(format!(
+            "resumed: {} of {} runs done",
+            start.done, start.planned
+        ));
+    }
+    println!(
+        "{}: {} × {}{} → {}",
+        if e.name.is_empty() { "sweep" } else { &e.name },
+        count(e.points.len(), "point"),
+        count(e.replicates() as usize, "replicate"),
+        if what.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", what.join("; "))
+        },
+        start.dir.display()
+    );
+}
+
+/// The status of a sweep; when interrupted, says what was kept and how to continue
+/// (`again`: the command that made it, to which `--resume` is added).
+fn finish(swept: &Swept, out: &Path, mut again: Vec<String>) -> Status {
+    let Some(signal) = swept.interrupted else {
+        return Status::Success;
+    };
+    let (done, planned) = swept
+        .experiments
+        .iter()
+        .fold((0, 0), |(d, p), e| (d + e.done, p + e.planned));
+    eprintln!(
+        "interrupted by {}: {done} of {planned} runs done and saved in {}",
+        signal_name(signal),
+        out.display()
+    );
+    if swept.experiments.len() > 1 {
+        for e in &swept.experiments {
+            eprintln!(
+                "  {}: {}",
+                e.name,
+                match (e.done, e.complete()) {
+                    (_, true) => "complete".to_owned(),
+                    (0, false) => "not started".to_owned(),
+                    (done, false) => format!("{done} of {} runs", e.planned),
+                }
+            );
+        }
+    }
+    again.push(format!(
+        "--resume {}",
+        shell_word(&out.display().to_string())
+    ));
+    eprintln!("continue with: {}", again.join(" "));
+    Status::Interrupted(signal)
+}
+
+/// `1 point`, `11 points`.
+fn count(n: usize, noun: &str) -> String {
+    format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
+}
+
+fn signal_name(signal: usize) -> String {
+    match signal {
+        2 => "SIGINT".into(),
+        15 => "SIGTERM".into(),
+        n => format!("signal {n}"),
+    }
+}
+
+/// A word for a shell command line: as is when it holds nothing the shell would read,
+/// else single-quoted.
+fn shell_word(word: &str) -> String {
+    let plain = !word.is_empty()
+        && word
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));
+    if plain {
+        word.to_owned()
+    } else if let Some(flag) = word.strip_prefix("--set ") {
+        format!("--set {}", shell_word(flag))
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
 }
 
 pub fn merge(args: MergeArgs) -> Result<()> {
     prepare_output(&args.out, args.force)?;
-    let experiment = results::merge(&args.dirs, &args.out)?;
+    let experiments = results::merge(&args.dirs, &args.out)?;
+    for e in experiments.iter().filter(|e| !e.name.is_empty()) {
+        println!(
+            "{}: {} runs → {}",
+            e.name,
+            e.runs(),
+            args.out.join(&e.name).display()
+        );
+    }
     println!(
         "merged {} shard folders: {} runs → {}",
         args.dirs.len(),
-        experiment.runs(),
+        experiments.iter().map(Experiment::runs).sum::<usize>(),
         args.out.display()
     );
     Ok(())
 }
 
-pub fn reproduce(args: ReproduceArgs) -> Result<()> {
-    prepare_output(&args.out, args.force)?;
+pub fn report(args: ReportArgs) -> Result<Status> {
+    // No signal handlers: Ctrl-C ends it at once, and nothing it writes needs keeping.
+    make_report(&args.dir, args.quick, args.jobs, &Interrupt::new())
+}
+
+/// `robokey report` on `dir`: prints the headline findings and where the report is.
+fn make_report(dir: &Path, quick: bool, jobs: usize, stop: &Interrupt) -> Result<Status> {
     let started = Instant::now();
-    let report = with_jobs(args.jobs, || report::reproduce(&args.out, args.quick))??;
-    println!("{}", report.summary);
-    println!("report: {}", report.path.display());
-    println!("done in {:.2} s", started.elapsed().as_secs_f64());
-    Ok(())
+    match with_jobs(jobs, || report::report(dir, quick, stop))? {
+        Ok(made) => {
+            print!("{}", made.summary);
+            println!("report: {}", made.path.display());
+            println!("reported in {:.2} s", started.elapsed().as_secs_f64());
+            Ok(Status::Success)
+        }
+        Err(LabError::Interrupted(signal)) => {
+            eprintln!(
+                "interrupted by {} while writing the report; the sweep is complete: \
+                 `robokey report {}{}` writes it",
+                signal_name(signal),
+                shell_word(&dir.display().to_string()),
+                if quick { " --quick" } else { "" }
+            );
+            Ok(Status::Interrupted(signal))
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
+pub fn reproduce(args: ReproduceArgs) -> Result<Status> {
+    let experiments = report::paper_suite(args.quick)?;
+    let (out, resume) = output(&args.out, args.resume.as_deref(), args.force)?;
+    let stop = on_signals()?;
+    let plan = SweepPlan {
+        shard: None,
+        resume,
+    };
+    let swept = sweep_into(&out, &experiments, plan, args.jobs, &stop)?;
+    let mut again = vec!["robokey".to_owned(), "reproduce".into()];
+    if args.quick {
+        again.push("--quick".into());
+    }
+    match finish(&swept, &out, again) {
+        Status::Success => make_report(&out, args.quick, args.jobs, &stop),
+        interrupted => Ok(interrupted),
+    }
 }
 
 pub fn config(args: ConfigArgs) -> Result<()> {
-    print!(
-        "{}",
-        load_config(args.config.as_deref(), &args.options.set)?.to_toml()
-    );
+    let config = load_config(args.config.as_deref(), &args.options.set)?;
+    print!("{}", robokey_lab::config_doc::annotated_toml(&config));
     Ok(())
 }
 
@@ -245,23 +452,23 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     if let Some(eps) = args.eps
         && !(eps > 0.0 && eps < 1.0)
     {
-        bail!("--eps {eps} is not allowed (allowed: (0, 1))");
+        usage!("--eps {eps} is not allowed (allowed: (0, 1))");
     }
     if let Some(block) = args.block
         && !(MIN_BLOCK_BITS..=MAX_BLOCK_BITS).contains(&block)
     {
-        bail!(
+        usage!(
             "--block {block} is not allowed (allowed: {MIN_BLOCK_BITS} to {MAX_BLOCK_BITS} bits)"
         );
     }
     if !(1..=1_000).contains(&args.blocks) {
-        bail!(
+        usage!(
             "--blocks {} is not allowed (allowed: 1 to 1000)",
             args.blocks
         );
     }
     if !(1..=1_000_000).contains(&args.max_sessions) {
-        bail!(
+        usage!(
             "--max-sessions {} is not allowed (allowed: 1 to 1000000)",
             args.max_sessions
         );
@@ -269,7 +476,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     if let Some(p) = args.assume_eve_error
         && !(p > 0.0 && p <= 0.5)
     {
-        bail!("--assume-eve-error {p} is not allowed (allowed: (0, 0.5])");
+        usage!("--assume-eve-error {p} is not allowed (allowed: (0, 0.5])");
     }
     let options = SecrecyOptions {
         adversaries: args.adversaries.iter().map(|&a| a.into()).collect(),
@@ -280,41 +487,11 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         ..SecrecyOptions::default()
     };
     // A sweep folder, or a suite folder whose subfolders are sweeps.
-    let mut folders = Vec::new();
-    if args.run_dir.join("config.resolved.toml").exists() {
-        folders.push(args.run_dir.clone());
-    } else {
-        let entries = std::fs::read_dir(&args.run_dir)
-            .with_context(|| format!("{}: cannot read", args.run_dir.display()))?;
-        let mut subs: Vec<_> = entries
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| p.join("config.resolved.toml").exists())
-            .collect();
-        subs.sort();
-        folders.extend(subs);
-    }
-    if folders.is_empty() {
-        bail!(
-            "{}: no config.resolved.toml here or in its subfolders (is it a sweep folder?)",
-            args.run_dir.display()
-        );
-    }
+    let folders =
+        results::experiment_dirs(&args.sweep_dir)?.unwrap_or_else(|| vec![args.sweep_dir.clone()]);
     let started = Instant::now();
     for folder in folders {
-        let origin = folder.join("config.resolved.toml");
-        let text = std::fs::read_to_string(&origin)
-            .with_context(|| format!("{}: cannot read", origin.display()))?;
-        let table = robokey::config::parse_table(&text, &origin.display().to_string())?;
-        let name = folder
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let experiment = robokey_lab::sweep::Experiment::from_table(
-            &name,
-            table,
-            &origin.display().to_string(),
-        )?;
+        let experiment = results::read_experiment(&folder, &results::folder_name(&folder))?;
         if !experiment.points[0].config.protocol.enabled {
             println!("{}: protocol off, no key: skipped", folder.display());
             continue;
@@ -349,59 +526,37 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         let files = write_secrecy(&folder, &experiment, &results, &options, map.as_ref())?;
         println!("{}:", folder.display());
         if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
-            println!("  secret key rate 0: {reason}");
+            print!("{}", wrapped(&format!("secret key rate 0: {reason}")));
         }
         if let Some(first) = results
             .first()
             .filter(|_| args.assume_eve_error.is_some() || mode == SensingMode::Private)
         {
-            if results.iter().all(|r| r.assumption == first.assumption) {
-                println!("  key sized under: {}", first.assumption);
-            } else {
-                println!(
-                    "  key sized under each point's own assumption (column `assumption` of \
-                     secrecy.csv), e.g.: {}",
-                    first.assumption
-                );
-            }
-        }
-        for r in &results {
-            let sum = |f: fn(&robokey_lab::secrecy::Block) -> u64| -> u64 {
-                r.blocks.iter().map(f).sum()
-            };
-            println!(
-                "  {:<28} {:<10} ({}) raw {:.4} bits/step, Eve wrong on {:.3} % of raw-key bits, {} messages, leak {} (EC) + {} (tags), ℓ {} = {:.5} bits/step ({:.4} bits/s); realised: H_min {:.1}, ℓ {}{}",
-                r.point,
-                r.adversary,
-                r.adversary_class.name(),
-                r.raw_bits_per_step,
-                r.eve_error_accepted.map_or(f64::NAN, |x| 100.0 * x.rate),
-                sum(|b| u64::from(b.messages)),
-                sum(|b| b.leak_ec),
-                sum(|b| b.leak_confirmation),
-                r.secret_bits,
-                r.secret_bits_per_step,
-                r.secret_bits_per_second,
-                r.blocks.iter().map(|b| b.realised.h_min).sum::<f64>(),
-                r.realised_secret_bits,
-                r.zero_reason.as_ref().map_or_else(
-                    || "; holds only under the stated assumption".to_owned(),
-                    |why| format!(": {why}")
+            print!(
+                "{}",
+                wrapped(
+                    &if results.iter().all(|r| r.assumption == first.assumption) {
+                        format!("key sized under: {}", first.assumption)
+                    } else {
+                        format!(
+                            "key sized under each point's own assumption (column `assumption` of \
+                         secrecy.csv), e.g.: {}",
+                            first.assumption
+                        )
+                    }
                 )
             );
-            if r.assumption_exceeds_realised {
-                println!(
-                    "  WARNING: the assumption credits {} bits, more than the {} Eve's realised view supports ({}): this adversary violates it",
-                    r.secret_bits, r.adversary, r.realised_secret_bits
-                );
-            }
         }
+        print!("{}", secrecy_table(&results));
         if let Some(map) = &map {
             for curve in &map.camera {
-                println!(
-                    "  break-even camera noise, {}: {}",
-                    curve.label,
-                    break_even_text(curve)
+                print!(
+                    "{}",
+                    wrapped(&format!(
+                        "break-even camera noise, {}: {}",
+                        curve.label,
+                        break_even_text(curve)
+                    ))
                 );
             }
             if map.pareto.len() > 1
@@ -411,22 +566,126 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
                     .filter(|p| p.on_front)
                     .max_by(|a, b| a.bits_per_second.total_cmp(&b.bits_per_second))
             {
-                println!(
-                    "  best rate: {:.3} secret bits/s at {} (J_x {:.1} mm; the paper's scheme: \
-                     0 at J_x {:.1} mm)",
-                    best.bits_per_second, best.point, best.jx_mm, map.paper_jx_mm
+                print!(
+                    "{}",
+                    wrapped(&format!(
+                        "best rate: {:.3} secret bits/s at {} (J_x {:.1} mm; the paper's \
+                         scheme: 0 at J_x {:.1} mm)",
+                        best.bits_per_second, best.point, best.jx_mm, map.paper_jx_mm
+                    ))
                 );
             }
         }
-        println!(
-            "  wrote {}",
-            files
-                .iter()
-                .map(|f| f.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
+        let names: Vec<String> = files
+            .iter()
+            .filter_map(|f| f.strip_prefix(&folder).ok())
+            .map(|f| f.display().to_string())
+            .collect();
+        print!(
+            "{}",
+            wrapped(&format!(
+                "wrote {} (every detail: secrecy.md)",
+                names.join(", ")
+            ))
         );
     }
     println!("done in {:.2} s", started.elapsed().as_secs_f64());
     Ok(())
+}
+
+/// Terminal width the long lines are wrapped to.
+const TERMINAL_COLUMNS: usize = 100;
+
+/// A sentence wrapped to [`TERMINAL_COLUMNS`], indented by two spaces (four after its
+/// first line).
+fn wrapped(text: &str) -> String {
+    let mut out = String::new();
+    let mut line = String::from(" ");
+    for word in text.split_whitespace() {
+        if line.chars().count() + 1 + word.chars().count() > TERMINAL_COLUMNS && line.trim() != "" {
+            out.push_str(&line);
+            out.push('\n');
+            line = String::from("   ");
+        }
+        line.push(' ');
+        line.push_str(word);
+    }
+    out.push_str(&line);
+    out.push('\n');
+    out
+}
+
+/// The secrecy results for the terminal: one line per point and adversary, each reason why
+/// a realised ℓ is what it is once below the table, warnings wrapped. secrecy.md keeps the
+/// detail (messages, H_min, intervals, assumptions).
+fn secrecy_table(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
+    let mut notes: Vec<String> = Vec::new();
+    let mut rows: Vec<[String; 8]> = vec![
+        [
+            "point",
+            "adversary",
+            "raw b/step",
+            "Eve wrong",
+            "leak EC+tags",
+            "ℓ bits",
+            "ℓ b/s",
+            "realised ℓ",
+        ]
+        .map(String::from),
+    ];
+    for r in results {
+        let note = r
+            .zero_reason
+            .clone()
+            .unwrap_or_else(|| "holds only under the stated assumption".into());
+        let index = notes.iter().position(|n| *n == note).unwrap_or_else(|| {
+            notes.push(note);
+            notes.len() - 1
+        });
+        let leak =
+            |f: fn(&robokey_lab::secrecy::Block) -> u64| -> u64 { r.blocks.iter().map(f).sum() };
+        rows.push([
+            r.point.clone(),
+            format!("{} ({})", r.adversary, r.adversary_class.name()),
+            format!("{:.4}", r.raw_bits_per_step),
+            r.eve_error_accepted
+                .map_or("–".into(), |x| format!("{:.3} %", 100.0 * x.rate)),
+            format!("{}+{}", leak(|b| b.leak_ec), leak(|b| b.leak_confirmation)),
+            r.secret_bits.to_string(),
+            format!("{:.4}", r.secret_bits_per_second),
+            format!("{} [{}]", r.realised_secret_bits, index + 1),
+        ]);
+    }
+    let mut widths = [0; 8];
+    for row in &rows {
+        for (width, cell) in widths.iter_mut().zip(row) {
+            *width = (*width).max(cell.chars().count());
+        }
+    }
+    let mut out = String::new();
+    for row in &rows {
+        let mut line = String::new();
+        for (i, (cell, &width)) in row.iter().zip(&widths).enumerate() {
+            let pad = " ".repeat(width - cell.chars().count());
+            // Names left, numbers right.
+            if i < 2 {
+                line.push_str(&format!("  {cell}{pad}"));
+            } else {
+                line.push_str(&format!("  {pad}{cell}"));
+            }
+        }
+        out.push_str(line.trim_end());
+        out.push('\n');
+    }
+    for (i, note) in notes.iter().enumerate() {
+        out.push_str(&wrapped(&format!("[{}] realised ℓ: {note}", i + 1)));
+    }
+    for r in results.iter().filter(|r| r.assumption_exceeds_realised) {
+        out.push_str(&wrapped(&format!(
+            "WARNING: the assumption credits {} bits at {}, more than the {} Eve's realised view \
+             supports ({}): this adversary violates it",
+            r.secret_bits, r.point, r.adversary, r.realised_secret_bits
+        )));
+    }
+    out
 }

@@ -79,9 +79,9 @@ pub struct EveArgs {
 
 pub fn eve(args: EveArgs) -> Result<()> {
     let mut overrides = FlagOverrides::new(&args.options.set);
-    overrides.flag("eve.sessions", args.sessions.map(i64::from));
-    overrides.flag("eve.alpha", args.alpha);
-    overrides.flag("eve.initial_error", args.initial_error);
+    overrides.value("--sessions", "eve.sessions", args.sessions.map(i64::from));
+    overrides.value("--alpha", "eve.alpha", args.alpha);
+    overrides.value("--initial-error", "eve.initial_error", args.initial_error);
     overrides.seed(args.seed)?;
     let config = overrides.load(args.config.as_deref())?;
     let explicit = args.errors.as_deref().map(parse_errors).transpose()?;

@@ -47,6 +47,10 @@ fn failure_code(error: &anyhow::Error) -> u8 {
                         | LabError::Sweep { .. }
                         | LabError::NotEmpty(_)
                         | LabError::NotOutput(_)
+                        | LabError::NotSweep(_)
+                        | LabError::NotWhole { .. }
+                        | LabError::Incomplete { .. }
+                        | LabError::Resume { .. }
                         | LabError::SensingMode(_)
                 )
             )
@@ -85,4 +89,16 @@ pub fn on_signals() -> anyhow::Result<Interrupt> {
         flag::register_usize(signal, interrupt.flag(), signal as usize)?;
     }
     Ok(interrupt)
+}
+
+/// Ends the process as the default action of SIGPIPE would once stdout's reader is gone
+/// (`robokey secrecy DIR | head`), instead of panicking in `println!` (Rust ignores SIGPIPE).
+/// Only for commands that write files and the terminal: the network agents keep SIGPIPE
+/// ignored, so a closed socket is an error they handle.
+pub fn end_on_broken_pipe() {
+    use signal_hook::consts::SIGPIPE;
+    let always = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    // Registration fails only for forbidden signals, and SIGPIPE is not one: if it ever did,
+    // a broken pipe would panic as before.
+    let _ = signal_hook::flag::register_conditional_default(SIGPIPE, always);
 }

@@ -1,4 +1,5 @@
-//! The `robokey` command: simulate runs, sweep parameters, reproduce the paper.
+//! The `robokey` command: simulate runs, sweep parameters, report on them, reproduce the
+//! paper.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -20,12 +21,14 @@ use exit::Status;
 #[derive(Parser, Debug)]
 #[command(
     name = "robokey",
-    version,
+    version = robokey_lab::VERSION,
     after_help = "Start with `robokey reproduce`. The model, protocol, private sensing, secrecy \
                   accounting and threat model are explained in the repository's docs/.\n\n\
-                  Exit codes: 0 success (robot, controller: key confirmed), 1 error, 2 usage \
-                  error, 3 session without a key, 4 authentication failed, 130/143 interrupted \
-                  by SIGINT/SIGTERM (work saved first)."
+                  Exit codes: 0 success (a session: its key confirmed), 1 error, 2 wrong \
+                  command line or input file, 3 a session ended without a key, 4 \
+                  authentication failed, 130/143 stopped by SIGINT/SIGTERM after saving what \
+                  was done (an interrupted sweep continues with `robokey sweep FILE --resume \
+                  DIR`)."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -36,18 +39,30 @@ struct Cli {
 enum Command {
     /// Simulate one run: print its metrics, write metrics.json, trace.csv and a
     /// trajectory figure.
+    #[command(allow_negative_numbers = true)]
     Run(RunArgs),
-    /// Run a sweep (a config with a [sweep] table, or a suite of [experiment.NAME]).
+    /// Run a sweep (a config with a [sweep] table, or a suite of [experiment.NAME]);
+    /// Ctrl-C keeps the finished runs, `--resume` continues.
+    #[command(allow_negative_numbers = true)]
     Sweep(SweepArgs),
-    /// Merge the folders of a sharded sweep into one.
+    /// Merge the folders of a sharded sweep, or of a sharded suite, into one.
     Merge(MergeArgs),
-    /// Regenerate the paper's experiments, figures and report.
+    /// Make the figures and report.md of a sweep folder or suite folder (the paper's report
+    /// for a sweep of experiments/paper.toml).
+    #[command(allow_negative_numbers = true)]
+    Report(ReportArgs),
+    /// Regenerate the paper's experiments, figures and report: `robokey sweep` of
+    /// experiments/paper.toml, then `robokey report`.
+    #[command(allow_negative_numbers = true)]
     Reproduce(ReproduceArgs),
-    /// Print the resolved configuration (defaults, file, overrides) as TOML.
+    /// Print the resolved configuration (defaults, file, overrides) as TOML, each field
+    /// with its unit and meaning as a comment.
+    #[command(allow_negative_numbers = true)]
     Config(ConfigArgs),
     /// Count the secret bits of a sweep folder: leakage estimates, reconciliation,
     /// confirmation and finite-key privacy amplification, per point and adversary
     /// (docs/secrecy.md, docs/postprocessing.md).
+    #[command(allow_negative_numbers = true)]
     Secrecy(SecrecyArgs),
     /// Write a pairing secret (`DIR/pairing.key`) to install on a robot and its controller.
     Pair(net::PairArgs),
@@ -63,6 +78,7 @@ enum Command {
     /// Eavesdroppers of every strategy on simulated sessions (what they learn carries over)
     /// or on a relay capture: error rates, parameter convergence, time to match the
     /// controller, disagreement with the controller's key.
+    #[command(allow_negative_numbers = true)]
     Eve(eve::EveArgs),
     /// A simulated Khepera IV speaking kh4server's line protocol, for the kh4 backend.
     #[command(name = "kh4-emulator")]
@@ -129,13 +145,19 @@ struct SweepArgs {
     #[arg(long, value_name = "M/N")]
     shard: Option<Shard>,
     /// Overwrite a non-empty output folder.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "resume")]
     force: bool,
+    /// Continue the interrupted sweep in DIR (instead of --out): run only the runs it does not
+    /// hold yet. Give the same sweep file and --set options (checked); the shard is the
+    /// folder's. It ends byte-identical to a sweep that was never interrupted.
+    #[arg(long, value_name = "DIR", conflicts_with = "out")]
+    resume: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
 struct MergeArgs {
-    /// Shard folders of one sweep (or of one experiment of a suite).
+    /// Shard folders of one sweep (or of one experiment of a suite), or of a suite: then
+    /// each experiment's subfolders are merged.
     #[arg(required = true)]
     dirs: Vec<PathBuf>,
     /// Output folder.
@@ -147,6 +169,21 @@ struct MergeArgs {
 }
 
 #[derive(Args, Debug)]
+struct ReportArgs {
+    /// A complete sweep folder (with config.resolved.toml), a suite folder of them, or a
+    /// merge of shards.
+    #[arg(value_name = "SWEEP_DIR")]
+    dir: PathBuf,
+    /// For a sweep of experiments/paper.toml: the private-sensing section on the small grid
+    /// of `reproduce --quick` (otherwise that of `reproduce`).
+    #[arg(long)]
+    quick: bool,
+    /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
+    #[arg(long, short, default_value_t = 0)]
+    jobs: usize,
+}
+
+#[derive(Args, Debug)]
 struct ReproduceArgs {
     /// Output folder.
     #[arg(long, short, default_value = "robokey-out/reproduce")]
@@ -154,18 +191,23 @@ struct ReproduceArgs {
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
-    /// 3 replicates per point instead of 10.
+    /// 3 replicates per point instead of 10, and a smaller private-sensing map.
     #[arg(long)]
     quick: bool,
     /// Overwrite a non-empty output folder.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "resume")]
     force: bool,
+    /// Continue the interrupted reproduction in DIR (instead of --out; with the same
+    /// --quick): sweep only the missing runs, then write the report.
+    #[arg(long, value_name = "DIR", conflicts_with = "out")]
+    resume: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
 struct SecrecyArgs {
     /// A sweep folder (with config.resolved.toml), or a suite folder of them.
-    run_dir: PathBuf,
+    #[arg(value_name = "SWEEP_DIR")]
+    sweep_dir: PathBuf,
     /// Adversaries to evaluate (repeatable); reports list the strongest class first.
     /// Default: oracle, identify, mismatch in odometry mode; camera, commands in private
     /// sensing (docs/private-sensing.md).
@@ -276,17 +318,31 @@ fn parse_override(text: &str) -> Result<Override, String> {
     Ok(Override {
         field: field.trim().to_owned(),
         value: robokey::config::parse_value(value.trim()),
+        flag: format!("--set {text}"),
     })
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if matches!(
+        cli.command,
+        Command::Run(_)
+            | Command::Sweep(_)
+            | Command::Merge(_)
+            | Command::Report(_)
+            | Command::Reproduce(_)
+            | Command::Config(_)
+            | Command::Secrecy(_)
+    ) {
+        exit::end_on_broken_pipe();
+    }
     let done = |result: anyhow::Result<()>| result.map(|()| Status::Success);
     let result = match cli.command {
         Command::Run(args) => done(commands::run(args)),
-        Command::Sweep(args) => done(commands::sweep(args)),
+        Command::Sweep(args) => commands::sweep(args),
         Command::Merge(args) => done(commands::merge(args)),
-        Command::Reproduce(args) => done(commands::reproduce(args)),
+        Command::Report(args) => commands::report(args),
+        Command::Reproduce(args) => commands::reproduce(args),
         Command::Config(args) => done(commands::config(args)),
         Command::Secrecy(args) => done(commands::secrecy(args)),
         Command::Pair(args) => done(net::pair(args)),

@@ -27,6 +27,70 @@ fn fails(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// Runs a command that must fail with exit code `code`; its stderr.
+fn fails_with(code: i32, args: &[&str]) -> String {
+    let out = robokey(args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(code), "robokey {args:?}: {stderr}");
+    stderr
+}
+
+/// Every file under `dir` by relative path, with its bytes.
+fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    fn walk(root: &Path, dir: &Path, out: &mut std::collections::BTreeMap<PathBuf, Vec<u8>>) {
+        for entry in dir.read_dir().unwrap().flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                walk(root, &path, out);
+            } else {
+                let bytes = std::fs::read(&path).unwrap();
+                out.insert(path.strip_prefix(root).unwrap().to_path_buf(), bytes);
+            }
+        }
+    }
+    let mut out = std::collections::BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+/// Asserts two folders hold the same files with the same bytes, except that the
+/// manifests may differ in their `shards` (a merge lists the shards it was made of) and
+/// PDF figures are only checked to be PDFs: svg2pdf orders their objects differently from
+/// one process to the next (the SVG, PNG and CSV of each figure are compared).
+fn assert_same_files(a: &Path, b: &Path) {
+    let (a_files, b_files) = (files(a), files(b));
+    assert_eq!(
+        a_files.keys().collect::<Vec<_>>(),
+        b_files.keys().collect::<Vec<_>>(),
+        "{} and {} hold different files",
+        a.display(),
+        b.display()
+    );
+    for (path, bytes) in &a_files {
+        if path.extension().is_some_and(|e| e == "pdf") {
+            assert!(
+                bytes.starts_with(b"%PDF") && b_files[path].starts_with(b"%PDF"),
+                "{}",
+                path.display()
+            );
+        } else if path.ends_with("manifest.json") {
+            let without_shards = |bytes: &[u8]| {
+                let mut json: serde_json::Value = serde_json::from_slice(bytes).unwrap();
+                json.as_object_mut().unwrap().remove("shards");
+                json
+            };
+            assert_eq!(
+                without_shards(bytes),
+                without_shards(&b_files[path]),
+                "{}",
+                path.display()
+            );
+        } else {
+            assert!(bytes == &b_files[path], "{} differs", path.display());
+        }
+    }
+}
+
 /// A fresh scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("robokey-cli-{}-{name}", std::process::id()));
@@ -195,7 +259,7 @@ fn jobs_and_shards_give_byte_identical_results() {
 }
 
 #[test]
-fn reproduce_quick_writes_a_parseable_report_and_sweep_agrees() {
+fn reproduce_quick_writes_a_parseable_report_and_a_cluster_run_the_same_files() {
     let dir = scratch("reproduce");
     let out = dir.join("r");
     let printed = ok(&["reproduce", "--quick", "--out", s(&out)]);
@@ -263,24 +327,43 @@ fn reproduce_quick_writes_a_parseable_report_and_sweep_agrees() {
         .expect("Δv = 0.035, replicate 0");
     assert_eq!(row.split(',').nth(3), Some(GOLDEN_ACCEPTED));
 
-    // `robokey sweep experiments/paper.toml` gives the same numbers.
+    // Its terminal summary states the headline findings.
+    for finding in [
+        "accepted share rises with Δv",
+        "agrees with the paper",
+        "Eve's disagreement: the same at every α; the paper's trend does not reproduce",
+        "secret bits, dv-sweep: 0 at every point, against every adversary",
+        "eavesdroppers that came to decide as well as the controller, of 20 campaigns:\n  oracle",
+        "private sensing:",
+    ] {
+        assert!(printed.contains(finding), "{finding}: {printed}");
+    }
+
+    // A cluster run of the paper: shards of experiments/paper.toml, merged, reported — the
+    // same files as `reproduce`, byte for byte.
     let paper = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../experiments/paper.toml");
-    let swept = dir.join("s");
-    ok(&[
-        "sweep",
-        s(&paper),
-        "--set",
-        "run.replicates=3",
-        "--out",
-        s(&swept),
-    ]);
-    for name in ["dv-sweep", "eve-sweep", "baseline", "trajectory"] {
-        assert_eq!(
-            read(&swept.join(name).join("runs.csv")),
-            read(&out.join(name).join("runs.csv")),
-            "{name}"
+    let shards: Vec<PathBuf> = (1..=2).map(|i| dir.join(format!("shard-{i}"))).collect();
+    for (i, shard) in shards.iter().enumerate() {
+        let printed = ok(&[
+            "sweep",
+            s(&paper),
+            "--set",
+            "run.replicates=3",
+            "--shard",
+            &format!("{}/2", i + 1),
+            "--out",
+            s(shard),
+        ]);
+        assert!(
+            printed.contains("dv-sweep: 11 points × 3 replicates (shard"),
+            "{printed}"
         );
     }
+    let merged = dir.join("merged");
+    let printed = ok(&["merge", s(&shards[0]), s(&shards[1]), "--out", s(&merged)]);
+    assert!(printed.contains("dv-sweep: 33 runs"), "{printed}");
+    ok(&["report", s(&merged), "--quick"]);
+    assert_same_files(&out, &merged);
 }
 
 const GOLDEN_ACCEPTED: &str = "298";
@@ -480,4 +563,291 @@ fn private_sensing_runs_end_to_end_from_the_command_line() {
         "identify",
     ]);
     assert!(refused.contains("identify"), "{refused}");
+}
+
+/// A suite of two small experiments, one keeping traces.
+const SMALL_SUITE: &str = "[trajectory]\nlaps = 1\n[run]\nreplicates = 3\n\
+    [experiment.gains.sweep]\ntraces = true\n\"controller.kp\" = [1.0, 1.2]\n\
+    \"protocol.delta_v\" = [0.02, 0.035]\n[experiment.alpha.sweep]\n\"eve.alpha\" = [0.0, 0.1]\n";
+
+#[test]
+fn a_suite_merges_and_reports_the_same_as_on_one_machine() {
+    let dir = scratch("suite");
+    let file = dir.join("suite.toml");
+    std::fs::write(&file, SMALL_SUITE).unwrap();
+    let local = dir.join("local");
+    ok(&["sweep", s(&file), "--out", s(&local)]);
+    let printed = ok(&["report", s(&local)]);
+    assert!(
+        printed.contains("gains: 4 points × 3 replicates"),
+        "{printed}"
+    );
+    let report = read(&local.join("report.md"));
+    assert!(
+        report.contains("## gains") && report.contains("| controller.kp | Δv (m/s) | accepted (%)"),
+        "{report}"
+    );
+    for figure in [
+        "gains-accepted",
+        "gains-jx",
+        "gains-trajectory",
+        "alpha-eve-disagreement",
+    ] {
+        assert!(read(&local.join("figures").join(figure).with_extension("svg")).contains("<svg"));
+    }
+    let shards: Vec<PathBuf> = (1..=3).map(|i| dir.join(format!("shard-{i}"))).collect();
+    for (i, shard) in shards.iter().enumerate() {
+        ok(&[
+            "sweep",
+            s(&file),
+            "--shard",
+            &format!("{}/3", i + 1),
+            "--out",
+            s(shard),
+        ]);
+    }
+    let merged = dir.join("merged");
+    let dirs: Vec<&str> = shards.iter().map(|d| s(d)).collect();
+    ok(&[&["merge"], dirs.as_slice(), &["--out", s(&merged)]].concat());
+    ok(&["report", s(&merged)]);
+    assert_same_files(&local, &merged);
+    // Shards of different suites, a lone shard, an experiment missing: named errors.
+    let err = fails_with(
+        1,
+        &[
+            "merge",
+            s(&shards[0]),
+            s(&local.join("gains")),
+            "--out",
+            s(&dir.join("x")),
+        ],
+    );
+    assert!(err.contains("shards of different suites"), "{err}");
+    let err = fails_with(2, &["report", s(&shards[0])]);
+    assert!(err.contains("merge the shards first"), "{err}");
+}
+
+#[test]
+fn sigint_keeps_the_finished_runs_and_resume_ends_as_an_uninterrupted_sweep() {
+    use std::io::BufRead;
+    let dir = scratch("sigint");
+    // `long` takes seconds on one thread, so the signal sent once it starts lands in it.
+    let file = dir.join("suite.toml");
+    std::fs::write(
+        &file,
+        "[trajectory]\nlaps = 1\n[run]\nreplicates = 2\n[experiment.first.sweep]\n\
+         \"protocol.delta_v\" = [0.02, 0.035]\n[experiment.long]\nrun.replicates = 5000\n\
+         [experiment.last]\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args(["sweep", s(&file), "--jobs", "1", "--out", s(&out)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = std::io::BufReader::new(child.stdout.take().unwrap()).lines();
+    // The header of each experiment comes before its runs.
+    let header = lines.next().unwrap().unwrap();
+    assert!(
+        header.starts_with("first: 2 points × 2 replicates →"),
+        "{header}"
+    );
+    let header = lines.next().unwrap().unwrap();
+    assert!(header.starts_with("long: 1 point"), "{header}");
+    let killed = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let ended = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&ended.stderr).into_owned();
+    assert_eq!(ended.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted by SIGINT"), "{stderr}");
+    assert!(
+        stderr.contains("  first: complete") && stderr.contains("  last: not started"),
+        "{stderr}"
+    );
+    let manifest = |name: &str| -> serde_json::Value {
+        serde_json::from_str(&read(&out.join(name).join("manifest.json"))).unwrap()
+    };
+    assert_eq!(manifest("first")["complete"], true);
+    assert_eq!(manifest("long")["complete"], false);
+    assert_eq!(manifest("last")["runs_done"], 0);
+    let long_runs = manifest("long")["runs_done"].as_u64().unwrap();
+    assert!(long_runs < 5000, "{long_runs}");
+    assert_eq!(
+        read(&out.join("long/runs.csv")).lines().count() as u64,
+        1 + long_runs
+    );
+    assert!(!out.join("long/summary.json").exists());
+    // An incomplete folder is refused by merge and report, naming the way out.
+    let err = fails_with(2, &["report", s(&out)]);
+    assert!(
+        err.contains("interrupted sweep") && err.contains("--resume"),
+        "{err}"
+    );
+    // The printed command continues it.
+    let again = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("continue with: robokey "))
+        .unwrap_or_else(|| panic!("no way to continue in {stderr}"));
+    let again: Vec<&str> = again.split_whitespace().collect();
+    assert_eq!(again.last(), Some(&s(&out)));
+    let printed = ok(&[again.as_slice(), &["--jobs", "2"]].concat());
+    assert!(
+        printed.contains(&format!("(resumed: {long_runs} of 5000 runs done)")),
+        "{printed}"
+    );
+    let whole = dir.join("whole");
+    ok(&["sweep", s(&file), "--out", s(&whole)]);
+    assert_same_files(&whole, &out);
+    assert!(read(&out.join("long/manifest.json")) == read(&whole.join("long/manifest.json")));
+    // Another sweep file cannot continue it.
+    let err = fails_with(
+        2,
+        &[
+            "sweep",
+            s(&file),
+            "--set",
+            "run.seed=1",
+            "--resume",
+            s(&out),
+        ],
+    );
+    assert!(
+        err.contains("cannot resume") && err.contains("different configuration"),
+        "{err}"
+    );
+
+    // SIGTERM: 143.
+    let single = dir.join("single.toml");
+    std::fs::write(&single, "[run]\nreplicates = 100000\n").unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args([
+            "sweep",
+            s(&single),
+            "--jobs",
+            "1",
+            "--out",
+            s(&dir.join("term")),
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut lines = std::io::BufReader::new(child.stdout.take().unwrap()).lines();
+    assert!(lines.next().unwrap().unwrap().starts_with("sweep: 1 point"));
+    std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert_eq!(child.wait().unwrap().code(), Some(143));
+}
+
+#[test]
+fn force_leaves_nothing_of_the_previous_sweep() {
+    let dir = scratch("stale");
+    let file = dir.join("traces.toml");
+    std::fs::write(
+        &file,
+        "[trajectory]\nlaps = 1\n[run]\nreplicates = 1\n[sweep]\ntraces = true\n\"eve.alpha\" = [0.0, 0.1]\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    ok(&["sweep", s(&file), "--out", s(&out)]);
+    assert!(out.join("traces/point-1.csv").exists());
+    // What `robokey secrecy` and `robokey report` would have added.
+    for stale in ["secrecy.csv", "secrecy.json", "secrecy.md", "report.md"] {
+        std::fs::write(out.join(stale), "old").unwrap();
+    }
+    std::fs::write(&file, "[trajectory]\nlaps = 1\n[run]\nreplicates = 1\n").unwrap();
+    ok(&["sweep", s(&file), "--force", "--out", s(&out)]);
+    let left: Vec<PathBuf> = files(&out).into_keys().collect();
+    assert_eq!(
+        left,
+        [
+            "config.resolved.toml",
+            "manifest.json",
+            "runs.csv",
+            "summary.json"
+        ]
+        .map(PathBuf::from)
+    );
+}
+
+#[test]
+fn arguments_read_as_users_write_them() {
+    // Negative numbers are values, refused by name and range.
+    let err = fails_with(2, &["run", "--delta-v", "-1"]);
+    assert_eq!(
+        err.trim(),
+        "error: --delta-v -1: `protocol.delta_v` = -1.0 is not allowed (allowed: ≥ 0, finite)"
+    );
+    let err = fails_with(2, &["run", "--set", "controller.kp=abc"]);
+    assert!(
+        err.contains("--set controller.kp=abc: invalid type") && !err.contains("TOML parse error"),
+        "{err}"
+    );
+    let err = fails_with(2, &["run", "--seed", "-3"]);
+    assert!(err.contains("invalid value '-3' for '--seed"), "{err}");
+    let sweep = scratch("args");
+    std::fs::write(sweep.join("config.resolved.toml"), "").unwrap();
+    let err = fails_with(2, &["secrecy", s(&sweep), "--blocks", "0"]);
+    assert!(
+        err.contains("--blocks 0 is not allowed (allowed: 1 to 1000)"),
+        "{err}"
+    );
+    let err = fails_with(2, &["secrecy", s(&sweep), "--eps", "-0.1"]);
+    assert!(err.contains("--eps -0.1 is not allowed"), "{err}");
+    let help = ok(&["secrecy", "--help"]);
+    assert!(
+        help.contains("<SWEEP_DIR>") && !help.contains("RUN_DIR"),
+        "{help}"
+    );
+    let help = ok(&["sweep", "--help"]);
+    assert!(help.contains("--resume <DIR>"), "{help}");
+    let help = ok(&["--help"]);
+    assert!(
+        help.contains("Exit codes: 0 success") && help.contains("--resume"),
+        "{help}"
+    );
+    let version = ok(&["--version"]);
+    assert!(
+        version.starts_with("robokey 0.") && version.contains("(commit "),
+        "{version}"
+    );
+    // `robokey config`: units as comments, and still a config robokey reads.
+    let printed = ok(&["config", "--set", "protocol.delta_v=0.03"]);
+    assert!(printed.contains("delta_v = 0.03  # m/s: Δv"), "{printed}");
+    let file = sweep.join("printed.toml");
+    std::fs::write(&file, &printed).unwrap();
+    assert_eq!(ok(&["config", "--config", s(&file)]), printed);
+    let err = fails_with(
+        2,
+        &["sweep", s(&file), "--out", s(&sweep), "--resume", s(&sweep)],
+    );
+    assert!(err.contains("cannot be used with"), "{err}");
+}
+
+#[test]
+fn a_reader_that_goes_away_ends_the_output_without_a_panic() {
+    use std::os::unix::process::ExitStatusExt;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .arg("config")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // As `robokey config | true` does: the reader is gone before robokey writes.
+    drop(child.stdout.take());
+    let ended = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&ended.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        ended.status.success() || ended.status.signal() == Some(13),
+        "{:?}: {stderr}",
+        ended.status
+    );
 }

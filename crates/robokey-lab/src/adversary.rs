@@ -40,7 +40,7 @@ pub fn simulate_sessions(
     config: &Config,
     replicates: Range<u32>,
 ) -> Result<Vec<HeardSession>, LabError> {
-    let bar = progress_bar(replicates.len(), "sessions");
+    let bar = progress_bar(replicates.len(), "sessions", "session");
     let heard = replicates
         .into_par_iter()
         .map(|replicate| {

@@ -38,6 +38,48 @@ pub enum LabError {
          choose another --out"
     )]
     NotOutput(PathBuf),
+    /// A folder that holds neither a sweep nor a suite of sweeps.
+    #[error("{0}: no config.resolved.toml here or in its subfolders (is it a sweep folder?)")]
+    NotSweep(PathBuf),
+    /// A sweep folder that an interrupted sweep left incomplete.
+    #[error(
+        "{dir}: an interrupted sweep ({done} of {planned} runs done): finish it first with \
+         `robokey sweep FILE --resume` on its sweep folder"
+    )]
+    Incomplete {
+        /// The experiment's folder.
+        dir: PathBuf,
+        /// Runs done.
+        done: usize,
+        /// Runs of its shards.
+        planned: usize,
+    },
+    /// A shard's folder where the whole sweep is needed.
+    #[error(
+        "{dir}: holds shard {shards} only ({held} of the sweep's {total} runs); merge the shards \
+         first with `robokey merge`"
+    )]
+    NotWhole {
+        /// The folder.
+        dir: PathBuf,
+        /// Its shards, e.g. `1/2`.
+        shards: String,
+        /// Runs it holds.
+        held: usize,
+        /// Runs of the sweep.
+        total: usize,
+    },
+    /// A folder that `--resume` cannot continue with this sweep.
+    #[error("{dir}: cannot resume: {message}")]
+    Resume {
+        /// The folder.
+        dir: PathBuf,
+        /// Why not.
+        message: String,
+    },
+    /// Stopped by signal `0` (SIGINT 2, SIGTERM 15) before the work was done.
+    #[error("interrupted by signal {0}")]
+    Interrupted(usize),
     /// An adversary or option that does not apply in the experiment's sensing mode.
     #[error("{0}")]
     SensingMode(String),

@@ -7,10 +7,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use robokey::config::{EveStrategy, parse_table};
+use robokey::interrupt::Interrupt;
 
 use crate::error::LabError;
-use crate::results::write_sweep;
-use crate::runner::{Shard, run_experiment};
+use crate::folder::{SweepPlan, sweep};
 use crate::secrecy::map::{CAMERA_FIELD, PrivateMap, private_map};
 use crate::secrecy::render_private::break_even_text;
 use crate::secrecy::{PointSecrecy, Pooling, SecrecyOptions, analyze, write_secrecy};
@@ -83,10 +83,23 @@ struct Computed {
     options: SecrecyOptions,
 }
 
-fn compute(out: &Path, experiment: Experiment) -> Result<Computed, LabError> {
-    let records = run_experiment(&experiment, Shard::ALL)?;
+fn compute(out: &Path, experiment: Experiment, stop: &Interrupt) -> Result<Computed, LabError> {
+    let plan = SweepPlan {
+        shard: None,
+        resume: false,
+    };
+    let swept = sweep(
+        out,
+        std::slice::from_ref(&experiment),
+        plan,
+        stop,
+        &mut |_| {},
+        &|| {},
+    )?;
+    if let Some(signal) = swept.interrupted {
+        return Err(LabError::Interrupted(signal));
+    }
     let dir = out.join(&experiment.name);
-    write_sweep(&dir, &experiment, &records, &[Shard::ALL])?;
     let defaults = SecrecyOptions::default();
     let mut adversaries = vec![EveStrategy::Camera];
     if experiment.name != "camera" {
@@ -116,12 +129,16 @@ fn compute(out: &Path, experiment: Experiment) -> Result<Computed, LabError> {
 /// The section's markdown and its terminal summary; files go to `out/private-sensing/`.
 ///
 /// # Errors
-/// A file cannot be written, or the embedded suite is inconsistent.
-pub fn private_section(out: &Path, quick: bool) -> Result<(String, String), LabError> {
+/// A file cannot be written, the embedded suite is inconsistent, or the stop was requested.
+pub fn private_section(
+    out: &Path,
+    quick: bool,
+    stop: &Interrupt,
+) -> Result<(String, String), LabError> {
     let out = out.join("private-sensing");
     let computed: Vec<Computed> = coarse_suite(quick)?
         .into_iter()
-        .map(|e| compute(&out, e))
+        .map(|e| compute(&out, e, stop))
         .collect::<Result<_, _>>()?;
     let find = |name: &str| {
         computed

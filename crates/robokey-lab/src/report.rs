@@ -1,15 +1,18 @@
-//! `robokey reproduce`: the paper's experiments (docs/experiments.md), their figures, and `report.md`
-//! whose sentences are driven by computed trend tests.
+//! `robokey report`: the figures and `report.md` of a sweep folder; for the paper's
+//! experiments (docs/experiments.md, what `robokey reproduce` sweeps) a report whose
+//! sentences are driven by computed trend tests.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use robokey::interrupt::Interrupt;
 use robokey::sim::TraceRow;
 
 use crate::error::LabError;
 use crate::files::write;
+use crate::folder::Loaded;
 use crate::plot::{BoxChart, BoxGroup, Interval, LineChart, Series, SeriesStyle};
-use crate::runner::{RunRecord, Shard, run_experiment};
+use crate::runner::RunRecord;
 use crate::stats::{Summary, TrendTest, spearman_permutation_test};
 use crate::sweep::{Experiment, experiments_from_table};
 use robokey_secrecy::interval::clopper_pearson;
@@ -25,28 +28,48 @@ const TREND_SEED: u64 = 2023;
 /// Independent eavesdropping campaigns in `reproduce`.
 const EVE_CAMPAIGNS: u32 = 20;
 
-/// Adds the eavesdroppers of docs/threat-model.md to `reproduce`: every strategy on the default
-/// configuration's sessions, in order, over independent campaigns (`robokey eve`).
-fn adversary_section(out: &Path) -> Result<String, LabError> {
+/// The eavesdroppers of docs/threat-model.md: every strategy on the default configuration's
+/// sessions, in order, over independent campaigns (`robokey eve`); markdown and a terminal
+/// line.
+fn adversary_section(out: &Path) -> Result<(String, String), LabError> {
     use crate::adversary::{campaign_body, campaigns_summary, run_campaigns, write_campaign};
     use robokey::config::EveStrategy;
     let config = robokey::Config::default();
     let strategies = EveStrategy::of_mode(config.sensing.mode);
     let campaign = run_campaigns(&config, &strategies, EVE_CAMPAIGNS)?;
     write_campaign(&out.join("eve"), &campaign)?;
-    Ok(format!(
+    let matched: Vec<String> = strategies
+        .iter()
+        .map(|&s| {
+            let count = campaign
+                .all
+                .iter()
+                .filter(|r| r.strategy == s && r.match_period.is_some())
+                .count();
+            format!("{} {count}", s.name())
+        })
+        .collect();
+    let terminal = format!(
+        "eavesdroppers that came to decide as well as the controller, of {EVE_CAMPAIGNS} \
+         campaigns:\n  {}\n",
+        matched.join(", ")
+    );
+    let md = format!(
         "\n## Adversaries that try harder\n\n### One campaign\n\n{}{}",
         campaign_body(&campaign, "eve/"),
         campaigns_summary(&campaign, "###")
-    ))
+    );
+    Ok((md, terminal))
 }
 
-/// Adds the secrecy section to `reproduce`: the Δv sweep and the α sweep against the paper's
-/// and the oracle Eve.
+/// The secrecy section: the Δv sweep and the α sweep against the paper's and the oracle Eve;
+/// markdown and terminal lines.
 fn secrecy_section(
     out: &Path,
     experiments: &[(&Experiment, &'static str)],
-) -> Result<String, LabError> {
+    stop: &Interrupt,
+) -> Result<(String, String), LabError> {
+    let mut terminal = String::new();
     let options = crate::secrecy::SecrecyOptions::default();
     let mut md = String::from("## How many of these bits are secret?\n\n");
     md.push_str(
@@ -58,6 +81,7 @@ fn secrecy_section(
          never learns them, so a figure against her holds only if nobody does).\n\n",
     );
     for (experiment, title) in experiments {
+        stopped(stop)?;
         let results = crate::secrecy::analyze(experiment, &options)?;
         let dir = out.join(&experiment.name);
         crate::secrecy::write_secrecy(&dir, experiment, &results, &options, None)?;
@@ -68,6 +92,16 @@ fn secrecy_section(
             experiment.name
         ));
         let total: u64 = results.iter().map(|r| r.secret_bits).sum();
+        let _ = writeln!(
+            terminal,
+            "secret bits, {}: {}",
+            experiment.name,
+            if total == 0 {
+                "0 at every point, against every adversary".to_owned()
+            } else {
+                format!("{total} over all points (by structure the rate is still 0)")
+            }
+        );
         let worst_eve = results
             .iter()
             .filter_map(|r| r.eve_error_accepted.map(|e| e.rate))
@@ -99,12 +133,18 @@ fn secrecy_section(
             )
         });
     }
-    Ok(md)
+    Ok((md, terminal))
 }
 
-/// What `reproduce` produced.
+/// Stops between the report's sections once a stop is requested.
+fn stopped(stop: &Interrupt) -> Result<(), LabError> {
+    stop.signal()
+        .map_or(Ok(()), |signal| Err(LabError::Interrupted(signal)))
+}
+
+/// What `report` produced.
 #[derive(Clone, Debug)]
-pub struct Reproduction {
+pub struct Report {
     /// `report.md`.
     pub path: PathBuf,
     /// A few lines for the terminal.
@@ -246,6 +286,47 @@ fn trend(pairs: &[(f64, f64)]) -> TrendTest {
     spearman_permutation_test(&x, &y, PERMUTATIONS, TREND_SEED)
 }
 
+/// How a trend test reads against the paper's claim of a rising (`+1`) or falling (`−1`)
+/// trend.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Reading {
+    /// The metric is the same everywhere.
+    Constant,
+    /// No trend at the 1 % level.
+    NoTrend,
+    /// A significant trend the way the paper says.
+    Agrees,
+    /// A significant trend the other way.
+    Contradicts,
+}
+
+fn reading(test: &TrendTest, expected_sign: f64) -> Reading {
+    match test.rho {
+        None => Reading::Constant,
+        Some(_) if test.p_value >= 0.01 => Reading::NoTrend,
+        Some(rho) if rho * expected_sign > 0.0 => Reading::Agrees,
+        Some(_) => Reading::Contradicts,
+    }
+}
+
+/// The permutation p-value, or its floor when no permutation did as well.
+fn p_text(test: &TrendTest) -> String {
+    let floor = 1.0 / (1 + test.permutations) as f64;
+    if test.p_value <= floor * (1.0 + 1e-9) {
+        format!("p ≤ {floor:.0e}")
+    } else {
+        format!("p = {:.3}", test.p_value)
+    }
+}
+
+fn rises(test: &TrendTest) -> &'static str {
+    if test.rho.unwrap_or(0.0) > 0.0 {
+        "rises"
+    } else {
+        "falls"
+    }
+}
+
 /// A sentence for a trend test against the paper's claim of a rising (`+1`) or falling
 /// (`−1`) trend.
 fn trend_sentence(
@@ -255,40 +336,61 @@ fn trend_sentence(
     paper: &str,
     expected_sign: f64,
 ) -> String {
-    let Some(rho) = test.rho else {
-        return format!(
-            "{what} is the same at every {against} value, so it shows no trend: the paper's claim that {paper} does **not** reproduce here."
-        );
-    };
-    let floor = 1.0 / (1 + test.permutations) as f64;
-    let p = if test.p_value <= floor * (1.0 + 1e-9) {
-        format!("p ≤ {floor:.0e}, the smallest attainable")
+    let p = p_text(test);
+    let p = if p.starts_with("p ≤") {
+        format!("{p}, the smallest attainable")
     } else {
-        format!("p = {:.3}", test.p_value)
+        p
     };
     let stats = format!(
-        "Spearman ρ = {rho:.2}, permutation {p}, {} permutations",
+        "Spearman ρ = {:.2}, permutation {p}, {} permutations",
+        test.rho.unwrap_or(0.0),
         test.permutations
     );
-    let significant = test.p_value < 0.01;
-    if significant && rho * expected_sign > 0.0 {
-        format!(
-            "{what} {} with {against} ({stats}): this agrees with the paper, which says {paper}.",
-            if rho > 0.0 { "rises" } else { "falls" }
-        )
-    } else if significant {
-        format!(
-            "{what} {} with {against} ({stats}): this contradicts the paper, which says {paper}.",
-            if rho > 0.0 { "rises" } else { "falls" }
-        )
-    } else {
-        format!(
+    match reading(test, expected_sign) {
+        Reading::Constant => format!(
+            "{what} is the same at every {against} value, so it shows no trend: the paper's claim that {paper} does **not** reproduce here."
+        ),
+        Reading::NoTrend => format!(
             "{what} shows no significant trend with {against} ({stats}): the paper's claim that {paper} does **not** reproduce here."
-        )
+        ),
+        Reading::Agrees => format!(
+            "{what} {} with {against} ({stats}): this agrees with the paper, which says {paper}.",
+            rises(test)
+        ),
+        Reading::Contradicts => format!(
+            "{what} {} with {against} ({stats}): this contradicts the paper, which says {paper}.",
+            rises(test)
+        ),
     }
 }
 
-fn box_chart(
+/// The same finding as [`trend_sentence`], in one line for the terminal.
+fn trend_line(what: &str, against: &str, test: &TrendTest, expected_sign: f64) -> String {
+    let stats = || format!("ρ = {:.2}, {}", test.rho.unwrap_or(0.0), p_text(test));
+    match reading(test, expected_sign) {
+        Reading::Constant => {
+            format!("{what}: the same at every {against}; the paper's trend does not reproduce")
+        }
+        Reading::NoTrend => format!(
+            "{what}: no significant trend with {against} ({}); the paper's trend does not reproduce",
+            stats()
+        ),
+        Reading::Agrees => format!(
+            "{what} {} with {against} ({}): agrees with the paper",
+            rises(test),
+            stats()
+        ),
+        Reading::Contradicts => format!(
+            "{what} {} with {against} ({}): contradicts the paper",
+            rises(test),
+            stats()
+        ),
+    }
+}
+
+/// Draws a box chart into `base`.{svg,png,pdf,csv}.
+pub(crate) fn box_chart(
     title: &str,
     x_label: &str,
     y_label: &str,
@@ -309,40 +411,66 @@ fn box_chart(
     })
 }
 
-fn fmt(x: Option<f64>, digits: usize) -> String {
+/// A number with `digits` decimals, or – when undefined.
+pub(crate) fn fmt(x: Option<f64>, digits: usize) -> String {
     x.map_or_else(|| "–".into(), |x| format!("{x:.digits$}"))
 }
 
-fn median_of(values: &[f64]) -> Option<f64> {
+/// The median, if any value.
+pub(crate) fn median_of(values: &[f64]) -> Option<f64> {
     Summary::of(values).map(|s| s.median)
 }
 
-/// Runs the paper's suite into `out` (one subfolder per experiment, `figures/`,
-/// `report.md`) on the current rayon pool. `quick`: 3 replicates per point.
+/// The experiments of the paper's suite whose sweep folders make the paper's report.
+const PAPER_EXPERIMENTS: [&str; 4] = ["dv-sweep", "eve-sweep", "baseline", "trajectory"];
+
+/// The paper's suite as `reproduce` sweeps it: `experiments/paper.toml`; `quick`: 3
+/// replicates per point.
 ///
 /// # Errors
-/// A run aborts or a file cannot be written.
-pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
+/// The embedded file is inconsistent.
+pub fn paper_suite(quick: bool) -> Result<Vec<Experiment>, LabError> {
     let mut table = robokey::config::parse_table(PAPER_TOML, "experiments/paper.toml")?;
     if quick {
         robokey::config::set_path(&mut table, "run.replicates", 3.into())?;
     }
-    let experiments = experiments_from_table(table, "experiments/paper.toml")?;
-    let mut results = Vec::new();
-    for experiment in &experiments {
-        let records = run_experiment(experiment, Shard::ALL)?;
-        crate::results::write_sweep(
-            &out.join(&experiment.name),
-            experiment,
-            &records,
-            &[Shard::ALL],
-        )?;
-        results.push((experiment, records));
+    experiments_from_table(table, "experiments/paper.toml")
+}
+
+/// Makes the figures (`figures/`) and `report.md` of a complete sweep folder or suite
+/// folder, from its files alone: the paper's report for a sweep of `experiments/paper.toml`
+/// (a suite holding its four experiments), else a report of each experiment's metrics
+/// against its axes. `quick`: the paper report's private-sensing section on the small grid
+/// of `reproduce --quick`. Between the paper report's sections, a requested stop ends it.
+///
+/// # Errors
+/// The folder is not a complete sweep (an interrupted sweep, a lone shard), a run's files do
+/// not read back, a figure or file cannot be written, or the stop was requested.
+pub fn report(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Report, LabError> {
+    let loaded = crate::folder::load(dir)?;
+    let paper = PAPER_EXPERIMENTS
+        .iter()
+        .all(|name| loaded.iter().any(|l| l.experiment.name == *name));
+    if paper {
+        paper_report(dir, &loaded, quick, stop)
+    } else {
+        crate::generic_report::report(dir, &loaded)
     }
+}
+
+/// The paper's report from its suite's folders.
+fn paper_report(
+    out: &Path,
+    loaded: &[Loaded],
+    quick: bool,
+    stop: &Interrupt,
+) -> Result<Report, LabError> {
     let find = |name: &str| {
-        results.iter().find(|(e, _)| e.name == name).ok_or_else(|| {
-            LabError::Merge(format!("experiments/paper.toml has no [experiment.{name}]"))
-        })
+        loaded
+            .iter()
+            .find(|l| l.experiment.name == name)
+            .map(|l| (&l.experiment, l.records.as_slice()))
+            .ok_or_else(|| LabError::Merge(format!("no {name} experiment")))
     };
     let (dv, dv_runs) = find("dv-sweep")?;
     let (eve, eve_runs) = find("eve-sweep")?;
@@ -472,15 +600,16 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
     );
     let _ = writeln!(
         md,
-        "Generated by `robokey reproduce{}` (robokey v{}, commit {}), seed {}, {} replicates per point, \
+        "Generated by `robokey report{q}` from a sweep of experiments/paper.toml (`robokey \
+         reproduce{q}` runs both; robokey v{}, commit {}), seed {}, {} replicates per point, \
          replicate seeds shared by all points (common random numbers). Box plots: median, \
          quartiles (linear interpolation), whiskers at min and max. Trend tests: Spearman's ρ over \
          all runs with a two-sided permutation p-value.\n",
-        if quick { " --quick" } else { "" },
         env!("CARGO_PKG_VERSION"),
         env!("ROBOKEY_GIT_COMMIT"),
         dv.points[0].config.run.seed,
-        replicates
+        replicates,
+        q = if quick { " --quick" } else { "" },
     );
     let _ = writeln!(
         md,
@@ -613,19 +742,42 @@ pub fn reproduce(out: &Path, quick: bool) -> Result<Reproduction, LabError> {
          - The plant's true noise is a calibration (above), not the observer's design covariances W, V.\n\
          - The errata of the paper's Algorithm 2 are fixed (docs/observer.md): cross-covariance −ΓV, balanced L, W/V naming, uU(k−1).\n"
     );
-    md.push_str(&secrecy_section(
+    let _ = writeln!(
+        terminal,
+        "{}",
+        trend_line("accepted share", "Δv", &accepted_trend, 1.0)
+    );
+    let _ = writeln!(
+        terminal,
+        "{}",
+        trend_line("correct share", "Δv", &correct_trend, 1.0)
+    );
+    let _ = writeln!(terminal, "{}", trend_line("J_x", "Δv", &jx_trend, 1.0));
+    let _ = writeln!(
+        terminal,
+        "{}",
+        trend_line("Eve's disagreement", "α", &eve_trend, 1.0)
+    );
+    let (secrecy, secrecy_terminal) = secrecy_section(
         out,
         &[
             (dv, "Against Δv (paper's Eve at α = 10 %)"),
             (eve, "Against α (Δv = 0.035)"),
         ],
-    )?);
-    md.push_str(&adversary_section(out)?);
-    let (private, private_terminal) = crate::private_report::private_section(out, quick)?;
+        stop,
+    )?;
+    md.push_str(&secrecy);
+    terminal.push_str(&secrecy_terminal);
+    stopped(stop)?;
+    let (adversaries, adversaries_terminal) = adversary_section(out)?;
+    md.push_str(&adversaries);
+    terminal.push_str(&adversaries_terminal);
+    stopped(stop)?;
+    let (private, private_terminal) = crate::private_report::private_section(out, quick, stop)?;
     md.push_str(&private);
     terminal.push_str(&private_terminal);
     let path = write(&out.join("report.md"), md)?;
-    Ok(Reproduction {
+    Ok(Report {
         path,
         summary: terminal,
     })

@@ -5,9 +5,10 @@
 use std::io::IsTerminal;
 use std::str::FromStr;
 
-use indicatif::{ParallelProgressIterator, ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use rayon::prelude::*;
 use robokey::Metrics;
+use robokey::interrupt::Interrupt;
 use robokey::protocol::SessionPlan;
 use robokey::sim::{TraceRow, simulate_plan};
 
@@ -72,45 +73,92 @@ pub struct RunRecord {
     pub trace: Option<Vec<TraceRow>>,
 }
 
-/// A progress bar on a terminal, hidden otherwise.
+/// A progress bar on a terminal, hidden otherwise: `label [=====>   ] done/len units, rate,
+/// eta`.
 #[must_use]
-pub fn progress_bar(len: usize, message: &str) -> ProgressBar {
+pub fn progress_bar(len: usize, label: &str, unit: &'static str) -> ProgressBar {
     if !std::io::stderr().is_terminal() {
         return ProgressBar::hidden();
     }
-    let bar = ProgressBar::new(len as u64).with_message(message.to_owned());
+    let bar = ProgressBar::new(len as u64).with_message(label.to_owned());
     bar.set_style(
-        ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} runs, {per_sec}, eta {eta}")
-            .expect("a valid template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(&format!(
+            "{{msg:>12}} [{{bar:40}}] {{pos}}/{{len}} {unit}s, {{rate}}, eta {{eta}}"
+        ))
+        .expect("a valid template")
+        .with_key(
+            "rate",
+            move |state: &ProgressState, out: &mut dyn std::fmt::Write| {
+                let _ = out.write_str(&rate_text(state.per_sec(), unit));
+            },
+        )
+        .progress_chars("=> "),
     );
     bar
 }
 
-/// Runs this shard's part of the experiment on the current rayon pool.
+/// A rate for people: three significant figures at most, e.g. "46,700 runs/s", "12.3 runs/s";
+/// below one per second, the seconds each takes ("4.2 s/run").
+#[must_use]
+pub fn rate_text(per_second: f64, unit: &str) -> String {
+    if !(per_second.is_finite() && per_second > 0.0) {
+        return format!("– {unit}s/s");
+    }
+    if per_second < 1.0 {
+        return format!("{} s/{unit}", significant(1.0 / per_second));
+    }
+    format!("{} {unit}s/s", significant(per_second))
+}
+
+/// Three significant figures; thousands separated by commas.
+fn significant(x: f64) -> String {
+    if x < 100.0 {
+        let decimals = if x < 10.0 { 2 } else { 1 };
+        return format!("{x:.decimals$}");
+    }
+    let magnitude = 10f64.powi(x.log10().floor() as i32 - 2);
+    let rounded = ((x / magnitude).round() * magnitude) as u64;
+    let digits = rounded.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// Runs the given runs of the experiment (run indices, see [`RunRecord::run`]) on the
+/// current rayon pool, starting none once `stop` is requested; `finished` is called after
+/// each run. Returns the runs that finished, in run order: all of them unless stopped.
 ///
 /// # Errors
 /// The first run whose session aborted.
-pub fn run_experiment(experiment: &Experiment, shard: Shard) -> Result<Vec<RunRecord>, LabError> {
+pub fn run_experiment(
+    experiment: &Experiment,
+    runs: &[usize],
+    stop: &Interrupt,
+    finished: &(dyn Fn() + Sync),
+) -> Result<Vec<RunRecord>, LabError> {
     let replicates = experiment.replicates() as usize;
     let plans: Vec<SessionPlan> = experiment
         .points
         .iter()
         .map(|p| SessionPlan::from_config(&p.config, 0))
         .collect();
-    let runs: Vec<usize> = (0..experiment.runs())
-        .filter(|&r| shard.contains(r))
-        .collect();
     let label = if experiment.name.is_empty() {
         "sweep"
     } else {
         &experiment.name
     };
-    let bar = progress_bar(runs.len(), label);
+    let bar = progress_bar(runs.len(), label, "run");
     let records = runs
         .par_iter()
-        .progress_with(bar.clone())
         .map(|&run| {
+            if stop.is_requested() {
+                return Ok(None);
+            }
             let (point, replicate) = (run / replicates, (run % replicates) as u32);
             let mut plan = plans[point].clone();
             plan.session = replicate;
@@ -121,17 +169,19 @@ pub fn run_experiment(experiment: &Experiment, shard: Shard) -> Result<Vec<RunRe
                 replicate,
                 with_trace,
             )?;
-            Ok(RunRecord {
+            bar.inc(1);
+            finished();
+            Ok(Some(RunRecord {
                 run,
                 point,
                 replicate,
                 metrics: output.metrics,
                 trace: with_trace.then_some(output.trace),
-            })
+            }))
         })
         .collect::<Result<Vec<_>, LabError>>();
     bar.finish_and_clear();
-    records
+    Ok(records?.into_iter().flatten().collect())
 }
 
 /// Runs `f` on a rayon pool of `jobs` threads (0: one per core; never more than one per core).
@@ -163,5 +213,16 @@ mod tests {
         for run in 0..20 {
             assert_eq!(shards.iter().filter(|s| s.contains(run)).count(), 1);
         }
+    }
+
+    #[test]
+    fn rates_read_as_people_write_them() {
+        assert_eq!(rate_text(46_698.136_3, "run"), "46,700 runs/s");
+        assert_eq!(rate_text(1_234_567.0, "run"), "1,230,000 runs/s");
+        assert_eq!(rate_text(123.4, "session"), "123 sessions/s");
+        assert_eq!(rate_text(12.345, "run"), "12.3 runs/s");
+        assert_eq!(rate_text(1.5, "run"), "1.50 runs/s");
+        assert_eq!(rate_text(0.25, "run"), "4.00 s/run");
+        assert_eq!(rate_text(0.0, "run"), "– runs/s");
     }
 }

@@ -8,6 +8,8 @@ use robokey::metrics::{MetricValue, Metrics};
 use robokey::private::PrivateRun;
 use robokey::sim::TraceRow;
 
+use crate::error::LabError;
+
 /// `trace.csv`: N + 1 rows with exactly the columns of docs/experiments.md; undefined cells empty.
 #[must_use]
 pub fn trace_csv(rows: &[TraceRow]) -> String {
@@ -75,6 +77,94 @@ impl<W: Write> TraceCsv<W> {
     pub fn finish(mut self) -> io::Result<W> {
         self.out.flush()?;
         Ok(self.out)
+    }
+}
+
+/// Reads a `trace.csv` back (`origin` names it in errors): the inverse of [`trace_csv`], exact
+/// because every real is written in its shortest round-trip form.
+///
+/// # Errors
+/// A wrong header, a row with the wrong number of cells, or a cell that does not parse.
+pub fn parse_trace_csv(text: &str, origin: &std::path::Path) -> Result<Vec<TraceRow>, LabError> {
+    let bad =
+        |line: usize, why: String| LabError::Merge(format!("{}:{line}: {why}", origin.display()));
+    let mut lines = text.lines();
+    if lines.next() != Some(TraceRow::COLUMNS.join(",").as_str()) {
+        return Err(bad(1, "not a trace (header differs)".into()));
+    }
+    lines
+        .enumerate()
+        .map(|(i, line)| {
+            let mut cells = TraceCells(line.split(','));
+            let row = cells.row().map_err(|why| bad(i + 2, why))?;
+            match cells.0.next() {
+                None => Ok(row),
+                Some(_) => Err(bad(i + 2, "too many cells".into())),
+            }
+        })
+        .collect()
+}
+
+/// The cells of one trace line, read in column order.
+struct TraceCells<'a>(std::str::Split<'a, char>);
+
+impl TraceCells<'_> {
+    fn option<T: std::str::FromStr>(&mut self) -> Result<Option<T>, String> {
+        match self.0.next() {
+            None => Err("too few cells".into()),
+            Some("") => Ok(None),
+            Some(cell) => cell
+                .parse()
+                .map(Some)
+                .map_err(|_| format!("`{cell}` is not a number")),
+        }
+    }
+
+    fn value<T: std::str::FromStr>(&mut self) -> Result<T, String> {
+        self.option()?
+            .ok_or_else(|| "an empty cell where a value belongs".into())
+    }
+
+    fn reals<const N: usize>(&mut self) -> Result<Option<[f64; N]>, String> {
+        let mut values = [0.0; N];
+        let mut defined = 0;
+        for value in &mut values {
+            if let Some(x) = self.option()? {
+                *value = x;
+                defined += 1;
+            }
+        }
+        match defined {
+            0 => Ok(None),
+            n if n == N => Ok(Some(values)),
+            _ => Err("a vector with some cells empty".into()),
+        }
+    }
+
+    fn required<const N: usize>(&mut self) -> Result<[f64; N], String> {
+        self.reals()?
+            .ok_or_else(|| "empty cells where a vector belongs".into())
+    }
+
+    /// The row, in the order [`TraceCsv::write`] writes it.
+    fn row(&mut self) -> Result<TraceRow, String> {
+        Ok(TraceRow {
+            k: self.value()?,
+            t: self.value()?,
+            reference: self.required()?,
+            pose: self.required()?,
+            measurement: self.required()?,
+            nominal: self.reals()?,
+            u0: self.reals()?,
+            u1: self.reals()?,
+            bit: self.option()?,
+            dhat: self.reals()?,
+            xhat: self.reals()?,
+            bhat: self.option()?,
+            bhat_eve: self.option()?,
+            bit_omega: self.option()?,
+            camera: self.reals()?,
+        })
     }
 }
 
@@ -292,9 +382,31 @@ mod tests {
             let kept = robokey::sim::simulate(&config, 0, true).unwrap().trace;
             let (streamed, drawn) = streamed_csv(&config);
             assert_eq!(streamed, trace_csv(&kept));
+            let origin = std::path::Path::new("trace.csv");
+            assert_eq!(parse_trace_csv(&streamed, origin).unwrap(), kept);
             // Up to 2·DrawnRows::HALF rows, a figure draws every row.
             assert_eq!(drawn.into_paths(), vec![kept]);
         }
+    }
+
+    #[test]
+    fn damaged_traces_are_refused_naming_the_line() {
+        let csv = trace_csv(
+            &robokey::sim::simulate(&robokey::Config::default(), 0, true)
+                .unwrap()
+                .trace,
+        );
+        let origin = std::path::Path::new("t.csv");
+        let cut = csv.replacen(",0.2,", ",x,", 1);
+        let err = parse_trace_csv(&cut, origin).unwrap_err().to_string();
+        assert!(err.contains("t.csv:3") && err.contains("`x`"), "{err}");
+        let mut lines = csv.lines();
+        let header = lines.next().unwrap();
+        let row = lines.next().unwrap();
+        // The last (empty) cell left out.
+        let short = format!("{header}\n{}\n", &row[..row.len() - 1]);
+        let err = parse_trace_csv(&short, origin).unwrap_err().to_string();
+        assert!(err.contains("t.csv:2: too few cells"), "{err}");
     }
 
     #[test]

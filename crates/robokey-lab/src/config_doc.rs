@@ -1,0 +1,172 @@
+//! `robokey config`: the resolved configuration as TOML with each field's unit and meaning
+//! as a comment (the fields as docs/experiments.md, "Configuration", documents them).
+
+use robokey::Config;
+
+/// Unit and meaning of every configuration field, by dotted path.
+const FIELDS: &[(&str, &str)] = &[
+    ("robot.T", "s: sample time T"),
+    ("robot.r", "m: wheel radius"),
+    ("robot.D", "m: axle length"),
+    ("robot.wheel_limit", "rad/s: the plant's wheel speed limit"),
+    (
+        "noise.process_std",
+        "[m, m, rad] per step: true process noise std",
+    ),
+    (
+        "noise.measurement_std",
+        "[m, m, rad] per step: true odometry noise std",
+    ),
+    (
+        "sensing.mode",
+        "\"odometry\" (the paper's) or \"private\": what the controller decides from",
+    ),
+    (
+        "sensing.controller_std",
+        "[m, m, rad]: the controller's own pose sensor std (private mode)",
+    ),
+    ("trajectory.waypoints", "m: corners of the reference path"),
+    ("trajectory.side_time", "s: time per segment"),
+    ("trajectory.laps", "laps of the path"),
+    ("controller.kp", "1/s²: proportional gain"),
+    ("controller.kd", "1/s: derivative gain"),
+    ("controller.xi_eps", "m/s: ξ guard"),
+    (
+        "controller.wheel_limit",
+        "rad/s: the controller's wheel limit (rhombus clip)",
+    ),
+    (
+        "controller.feedback",
+        "\"measurement\" or \"estimate\": the pose fed back",
+    ),
+    (
+        "observer.variant",
+        "\"corrected\" or \"paper\": algebra variant",
+    ),
+    ("observer.m", "unknown inputs, 1 or 2"),
+    ("observer.W_var", "design process variance (W = W_var·I)"),
+    (
+        "observer.V_var",
+        "design measurement variance (V = V_var·I)",
+    ),
+    (
+        "protocol.enabled",
+        "false: nominal commands only, no key (the J_x baseline)",
+    ),
+    ("protocol.delta_v", "m/s: Δv"),
+    (
+        "protocol.delta_omega",
+        "rad/s: Δω (private mode: the second bit of a doublet)",
+    ),
+    (
+        "protocol.bits_per_doublet",
+        "key bits per doublet, 1 or 2 (private mode)",
+    ),
+    (
+        "protocol.max_turn_rate",
+        "rad/s: doublets turning faster carry no bit (private mode)",
+    ),
+    ("code.kind", "\"repetition\" or \"hamming74\""),
+    ("code.n_c", "codeword length"),
+    (
+        "code.accept_max_distance",
+        "largest Hamming distance to a codeword that is accepted",
+    ),
+    ("code.key_bits", "bits: key budget, 0 = none"),
+    ("eve.enabled", "whether an eavesdropper listens"),
+    ("eve.strategy", "her strategy (docs/threat-model.md)"),
+    (
+        "eve.alpha",
+        "fraction: largest relative model error α (mismatch, soft)",
+    ),
+    (
+        "eve.draw",
+        "\"independent\" or \"common\": how her errors are drawn",
+    ),
+    (
+        "eve.initial_error",
+        "fraction: her starting error on r and D (identify, transcript)",
+    ),
+    (
+        "eve.max_flips",
+        "least-reliable codewords transcript flips per tag search",
+    ),
+    ("eve.sessions", "sessions `robokey eve` simulates"),
+    (
+        "eve.window",
+        "steps: window of the error rates `robokey eve` reports",
+    ),
+    (
+        "eve.match_tolerance_pp",
+        "percentage points: when she matches the controller",
+    ),
+    (
+        "eve.camera_std",
+        "[m, m, rad]: her camera's std per sample instant (private mode)",
+    ),
+    ("run.seed", "master seed of every random stream"),
+    ("run.replicates", "runs per configuration (sweep point)"),
+];
+
+/// The configuration as `robokey config` prints it: `to_toml`'s text, each field followed by
+/// its unit and meaning as a comment (still valid TOML that loads to the same configuration).
+#[must_use]
+pub fn annotated_toml(config: &Config) -> String {
+    let mut section = String::new();
+    let mut out = String::new();
+    for line in config.to_toml().lines() {
+        if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+            section = name.to_owned();
+        }
+        out.push_str(line);
+        if let Some((key, _)) = line.split_once(" = ")
+            && let Some(doc) = doc(&format!("{section}.{key}"))
+        {
+            out.push_str("  # ");
+            out.push_str(doc);
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// The unit and meaning of a field.
+#[must_use]
+pub fn doc(field: &str) -> Option<&'static str> {
+    FIELDS.iter().find(|(f, _)| *f == field).map(|(_, d)| *d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The dotted paths of a table's leaves.
+    fn leaves(table: &toml::Table, prefix: &str, out: &mut Vec<String>) {
+        for (key, value) in table {
+            match value {
+                toml::Value::Table(inner) => leaves(inner, &format!("{prefix}{key}."), out),
+                _ => out.push(format!("{prefix}{key}")),
+            }
+        }
+    }
+
+    #[test]
+    fn every_field_is_documented_and_every_documented_field_exists() {
+        let config = Config::default();
+        let mut fields = Vec::new();
+        leaves(&config.to_toml().parse().unwrap(), "", &mut fields);
+        let documented: Vec<&str> = FIELDS.iter().map(|(f, _)| *f).collect();
+        assert_eq!(fields, documented);
+        assert!(FIELDS.iter().all(|(_, d)| !d.is_empty()));
+    }
+
+    #[test]
+    fn the_annotated_toml_loads_to_the_same_configuration() {
+        let config = Config::from_toml("[sensing]\nmode = \"private\"\n", "test").unwrap();
+        let text = annotated_toml(&config);
+        assert!(text.contains("T = 0.2  # s: sample time T\n"), "{text}");
+        assert!(text.contains("delta_v = 0.035  # m/s: Δv\n"), "{text}");
+        let again = Config::from_toml(&text, "annotated").unwrap();
+        assert_eq!(again.to_toml(), config.to_toml());
+    }
+}
