@@ -308,3 +308,60 @@ fn the_model_bound_holds_against_the_exact_joint_posterior() {
     );
     assert!(bound <= joint[low], "{bound} > {}", joint[low]);
 }
+
+/// SHA-256 (first 8 bytes, hex) of everything `replicates` private runs of `config` produce:
+/// every trace row, step log, key, metric and bit record, reals as their exact `Debug` text.
+fn private_fingerprint(config: &Config, replicates: u32) -> String {
+    use sha2::{Digest, Sha256};
+    let mut hash = Sha256::new();
+    for replicate in 0..replicates {
+        let out = simulate(config, replicate, true).unwrap();
+        hash.update(format!(
+            "{:?}{:?}{:?}{:?}{:?}{:?}{:?}{:?}",
+            out.trace,
+            out.steps,
+            out.keys.robot,
+            out.keys.controller,
+            out.keys.eve,
+            out.metrics,
+            out.private,
+            out.trace.len()
+        ));
+    }
+    hash.finalize()[..8]
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Private runs keep every number they produce (pinned before the simulator was rewritten
+/// to drive the private-mode endpoints, so that agents and simulator share one
+/// implementation): one and two bits per doublet, protocol off, no eavesdropper, the
+/// commands eavesdropper, every doublet gated, and an odd number of steps (a lone last step).
+#[test]
+fn pinned_private_runs_keep_every_number() {
+    let configs = [
+        ("default", ""),
+        ("two bits", "[protocol]\nbits_per_doublet = 2\n"),
+        ("off", "[protocol]\nenabled = false\n"),
+        ("no eve", "[eve]\nenabled = false\n"),
+        ("commands", "[eve]\nstrategy = \"commands\"\n"),
+        ("all gated", "[protocol]\nmax_turn_rate = 0.0\n"),
+        ("odd", "[trajectory]\nside_time = 17.05\nlaps = 1\n"),
+    ];
+    let got: Vec<String> = configs
+        .iter()
+        .map(|(name, extra)| format!("{name} {}", private_fingerprint(&private(extra), 2)))
+        .collect();
+    assert_eq!(got.join("\n"), PINNED_PRIVATE.trim());
+}
+
+const PINNED_PRIVATE: &str = "
+default 3784b24354727eac
+two bits 294ec8b7af703e60
+off b12c313aea2e7887
+no eve 47ceefc9c6542a4c
+commands 8e5342650a75fa42
+all gated cdb1efa43e84f96a
+odd b7250ae27adce128
+";
