@@ -154,8 +154,8 @@ pub struct FramesArgs {
 }
 
 /// Prints every datagram of a capture as robokey parses it, one tab-separated line each:
-/// number, type, session, seq, step, and the numbers a Measurement (`y`) or a Command
-/// (`u0D`, `u1D`) carries. MACs are not checked (no pairing secret needed).
+/// number, type, session, seq, step, and the numbers a Measurement (`y`), a Command
+/// (`u0D`, `u1D`) or a DoubletCommand (`y_c`, `u`, `u'`) carries. MACs are not checked (no pairing secret needed).
 pub fn frames(args: FramesArgs) -> Result<()> {
     use robokey::protocol::Message;
     use robokey::protocol::wire::decode;
@@ -171,6 +171,17 @@ pub fn frames(args: FramesArgs) -> Result<()> {
         let numbers: Vec<f64> = match &frame.message {
             Message::Measurement { y, .. } => y.to_vec(),
             Message::Command { u0, u1, .. } => u0.iter().chain(u1).copied().collect(),
+            Message::DoubletCommand {
+                sample,
+                first,
+                second,
+                ..
+            } => sample
+                .iter()
+                .chain(first)
+                .chain(second.iter().flatten())
+                .copied()
+                .collect(),
             _ => Vec::new(),
         };
         let numbers: Vec<String> = numbers.iter().map(|v| format!("{v:?}")).collect();
