@@ -114,7 +114,7 @@ impl SessionArgs {
             report.write(path)?;
         }
         Ok(match report.ending {
-            Ending::Confirmed => Status::Success,
+            Ending::Confirmed | Ending::Kept => Status::Success,
             Ending::NoKey => Status::NoKey,
             Ending::AuthenticationFailed => Status::AuthenticationFailed,
             Ending::Interrupted => Status::Interrupted(interrupt.signal().unwrap_or(2)),

@@ -95,6 +95,9 @@ pub fn linger(
 pub enum Ending {
     /// The peer proved it holds the same key (its tag verified).
     Confirmed,
+    /// Private sensing: the peer confirmed which doublets were kept; the raw bits await
+    /// post-processing.
+    Kept,
     /// Aborted or unconfirmed: no key.
     #[default]
     NoKey,
@@ -129,9 +132,10 @@ pub struct SessionReport {
     pub accepted: u32,
     /// Key length (bits).
     pub key_bits: usize,
-    /// `confirmed`, `unconfirmed` or `aborted`.
+    /// `confirmed`, `kept` (private sensing), `unconfirmed` or `aborted`.
     pub outcome: String,
-    /// How it ended: `confirmed`, `no-key`, `authentication-failed`, `interrupted`, `failed`.
+    /// How it ended: `confirmed`, `kept`, `no-key`, `authentication-failed`, `interrupted`,
+    /// `failed`.
     pub ending: Ending,
     /// Why, unless confirmed.
     pub reason: Option<String>,
@@ -155,6 +159,7 @@ impl SessionReport {
     pub fn set_outcome(&mut self, outcome: &Outcome) {
         let (name, reason) = match outcome {
             Outcome::Confirmed => ("confirmed", None),
+            Outcome::Kept => ("kept", None),
             Outcome::Unconfirmed(why) => ("unconfirmed", Some(why.clone())),
             Outcome::Aborted(why) => ("aborted", Some(why.clone())),
         };
@@ -162,6 +167,7 @@ impl SessionReport {
         self.reason = reason;
         self.ending = match outcome {
             Outcome::Confirmed => Ending::Confirmed,
+            Outcome::Kept => Ending::Kept,
             _ => Ending::NoKey,
         };
     }
