@@ -152,6 +152,20 @@ pub struct SessionReport {
     /// terms; stop commands and fallbacks excluded).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub commands_applied: Option<u32>,
+    /// Private sensing: doublets without a bit, by cause (`codewords` counts the doublets,
+    /// `accepted` the kept ones).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub doublets: Option<DoubletCounts>,
+}
+
+/// Private sensing: the doublets of a session that carry no kept bit, by cause.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct DoubletCounts {
+    /// Doublets the public turn gate left without a bit.
+    pub gated: u32,
+    /// Carrying doublets dropped because a command, a measurement or (at the controller) a
+    /// sensor sample was lost, or the robot did not apply them.
+    pub erased: u32,
 }
 
 impl SessionReport {
@@ -203,8 +217,18 @@ impl SessionReport {
             0 => String::new(),
             n => format!(" [{n} datagrams rejected, see the report]"),
         };
+        let kept = match &self.doublets {
+            Some(d) => format!(
+                "{}/{} doublets kept ({} gated, {} erased), {} raw bits",
+                self.accepted, self.codewords, d.gated, d.erased, self.key_bits
+            ),
+            None => format!(
+                "{}/{} codewords accepted, {} key bits",
+                self.accepted, self.codewords, self.key_bits
+            ),
+        };
         format!(
-            "{}{}: session {:08x}, {} steps ({} erased), {}/{} codewords accepted, {} key bits, {}{}{rejected}",
+            "{}{}: session {:08x}, {} steps ({} erased), {kept}, {}{}{rejected}",
             if self.is_unauthenticated() {
                 "[passive adversary only] "
             } else {
@@ -214,9 +238,6 @@ impl SessionReport {
             self.session,
             self.steps_done,
             self.erased_steps,
-            self.accepted,
-            self.codewords,
-            self.key_bits,
             self.outcome,
             self.reason
                 .as_ref()

@@ -1,5 +1,7 @@
 //! A simulated Khepera IV speaking kh4server's line protocol over TCP, so the `kh4`
-//! backend and a whole session can be tested without hardware.
+//! backend and a whole session can be tested without hardware. With sensor options it is
+//! also the world: at every encoder read (a sample instant) it serves the motion capture and
+//! the camera from its true pose (docs/sensors.md).
 
 use std::io::{BufRead, BufReader, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
@@ -7,10 +9,12 @@ use std::time::{Duration, Instant};
 
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+use robokey::model::Pose;
 use robokey::rng::{Purpose, stream};
 
 use super::protocol::{MAX_UNITS, PULSE_M, SPEED_UNIT_M_S};
 use crate::error::NetError;
+use crate::world::{SensorOptions, WorldSensors};
 
 /// How the emulated robot's time advances.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,29 +39,48 @@ pub struct EmulatorOptions {
     pub seed: u64,
     /// Serve this many connections, then return (`None`: forever).
     pub connections: Option<usize>,
+    /// The emulated robot's axle length D (m), for its true pose.
+    pub axle_length: f64,
+    /// The world's sensor streams, if served: each connection is a session, replicate
+    /// `i` of their noise for the `i`-th connection.
+    pub sensors: Option<SensorOptions>,
 }
 
-/// The emulated robot: wheel speeds and encoder positions.
-struct Robot {
+/// The emulated robot: wheel speeds, encoder positions, and where it truly is.
+struct Robot<'w> {
     speeds: [i64; 2],
     pulses: [f64; 2],
     last: Instant,
     slip: f64,
     noise: ChaCha8Rng,
+    axle_length: f64,
+    /// The true pose (m, m, rad): the wheels' travel, slip included, by midpoint
+    /// integration.
+    truth: Pose,
+    /// Encoder reads so far: the next sample instant.
+    reads: u32,
+    world: Option<&'w mut WorldSensors>,
 }
 
-impl Robot {
+impl Robot<'_> {
     fn advance(&mut self, seconds: f64) {
-        for wheel in 0..2 {
+        let mut travel = [0.0; 2];
+        for ((distance, pulses), speed) in travel.iter_mut().zip(&mut self.pulses).zip(self.speeds)
+        {
             let factor = if self.slip > 0.0 {
                 let z: f64 = StandardNormal.sample(&mut self.noise);
                 1.0 + self.slip * z
             } else {
                 1.0
             };
-            self.pulses[wheel] +=
-                self.speeds[wheel] as f64 * SPEED_UNIT_M_S * seconds * factor / PULSE_M;
+            *distance = speed as f64 * SPEED_UNIT_M_S * seconds * factor;
+            *pulses += *distance / PULSE_M;
         }
+        let [left, right] = travel;
+        let turn = (right - left) / self.axle_length;
+        let heading = self.truth.z + turn / 2.0;
+        let distance = (left + right) / 2.0;
+        self.truth += Pose::new(distance * heading.cos(), distance * heading.sin(), turn);
     }
 
     /// Answers one request line.
@@ -86,6 +109,10 @@ impl Robot {
                 if let TimeMode::Virtual(period) = time {
                     self.advance(period.as_secs_f64());
                 }
+                if let Some(world) = self.world.as_mut() {
+                    world.publish(self.reads, &self.truth);
+                }
+                self.reads = self.reads.saturating_add(1);
                 Some(format!(
                     "r,{},{}",
                     self.pulses[0].round() as i64,
@@ -105,7 +132,12 @@ impl Robot {
     }
 }
 
-fn serve_one(client: TcpStream, options: &EmulatorOptions, index: u64) -> Result<(), NetError> {
+fn serve_one(
+    client: TcpStream,
+    options: &EmulatorOptions,
+    index: u64,
+    world: Option<&mut WorldSensors>,
+) -> Result<(), NetError> {
     let mut writer = client
         .try_clone()
         .map_err(NetError::io("clone the emulator's stream"))?;
@@ -115,6 +147,10 @@ fn serve_one(client: TcpStream, options: &EmulatorOptions, index: u64) -> Result
         last: Instant::now(),
         slip: options.slip,
         noise: stream(options.seed, Purpose::Process, index),
+        axle_length: options.axle_length,
+        truth: Pose::zeros(),
+        reads: 0,
+        world,
     };
     for line in BufReader::new(client).lines() {
         let Ok(line) = line else { break };
@@ -126,21 +162,36 @@ fn serve_one(client: TcpStream, options: &EmulatorOptions, index: u64) -> Result
     Ok(())
 }
 
-/// Serves kh4server's protocol on TCP, one client at a time; prints the bound address.
+/// Serves kh4server's protocol on TCP, one client at a time; prints the bound address
+/// (and, on a second line, the world's sensor streams).
 ///
 /// # Errors
-/// The address cannot be bound.
+/// An address cannot be bound.
 pub fn serve(options: &EmulatorOptions) -> Result<(), NetError> {
     let listener = TcpListener::bind(options.listen)
         .map_err(NetError::io(format!("bind TCP {}", options.listen)))?;
     let address = listener
         .local_addr()
         .map_err(NetError::io("local address"))?;
+    let mut world = options
+        .sensors
+        .as_ref()
+        .map(WorldSensors::serve)
+        .transpose()?;
     println!("kh4-emulator listening on tcp:{address}");
+    if let Some(world) = &world {
+        println!("{}", world.describe());
+    }
     let _ = std::io::stdout().flush();
     for (index, client) in listener.incoming().enumerate() {
+        if let Some(world) = world.as_mut() {
+            world.begin_session(index as u64);
+        }
         if let Ok(client) = client {
-            serve_one(client, options, index as u64)?;
+            serve_one(client, options, index as u64, world.as_mut())?;
+        }
+        if let Some(world) = world.as_mut() {
+            world.end_session();
         }
         if options.connections.is_some_and(|n| index + 1 >= n) {
             break;
@@ -167,6 +218,8 @@ mod tests {
             slip: 0.0,
             seed: 1,
             connections: Some(1),
+            axle_length: 0.1047,
+            sensors: None,
         };
         let server = std::thread::spawn(move || serve(&options));
         std::thread::sleep(Duration::from_millis(100));
