@@ -43,9 +43,13 @@ struct Pending {
     carries: bool,
     /// `y_c(2j)`, `y_c(2j+1)`, `y_c(2j+2)`.
     samples: [Option<Pose>; 3],
-    /// Whether the robot reported applying steps `2j` and `2j+1`.
-    applied: [bool; 2],
+    /// The robot's reports on steps `2j` and `2j+1`: applied or not, if heard.
+    applied: [Option<bool>; 2],
 }
+
+/// Steps the robot may report beyond a doublet's end before a report of the doublet that
+/// has not come counts as lost (reordering on the network).
+const REORDER_SLACK: u32 = 8;
 
 /// What the controller waits for.
 #[derive(Clone, Debug)]
@@ -68,9 +72,10 @@ pub struct PrivateControllerEndpoint {
     pending: VecDeque<Pending>,
     /// The next doublet to command; one whose start sample never came is dropped.
     next_doublet: u32,
-    /// Sensor samples and measurements before these steps are stale.
+    /// Sensor samples before this step are stale.
     next_sample: u32,
-    next_measurement: u32,
+    /// One past the latest step the robot reported on.
+    reported: u32,
     fates: FateLedger,
     /// Each doublet's decided bits `v | ω << 1` (0 when not decided).
     decided: Vec<u64>,
@@ -100,7 +105,7 @@ impl PrivateControllerEndpoint {
             pending: VecDeque::new(),
             next_doublet: 0,
             next_sample: 0,
-            next_measurement: 0,
+            reported: 0,
             fates: FateLedger::new(plan.doublets()),
             decided: vec![0; plan.doublets() as usize],
             robot_cursor: 0,
@@ -187,18 +192,19 @@ impl PrivateControllerEndpoint {
         }
     }
 
-    /// The robot's report for step k: whether it applied command `k − 1`. Reports that never
-    /// came leave their steps unapplied.
+    /// The robot's report at step k: whether it applied command `k − 1`. Reports may come
+    /// out of order (a doublet's two are sent back to back); one not heard by the time the
+    /// robot reported [`REORDER_SLACK`] steps further, or the end, leaves its step unapplied.
     fn handle_measurement(&mut self, step: u32, applied: Option<u32>, cursor: u32) {
-        if step > self.plan.steps || step < self.next_measurement {
-            return; // from the future, stale or duplicate
+        if step > self.plan.steps {
+            return;
         }
         self.robot_cursor = self.robot_cursor.max(cursor);
-        self.next_measurement = step + 1;
-        if let Some(done) = step.checked_sub(1).filter(|&s| applied == Some(s))
+        self.reported = self.reported.max(step + 1);
+        if let Some(done) = step.checked_sub(1)
             && let Some(p) = self.pending.iter_mut().find(|p| p.doublet == done / 2)
         {
-            p.applied[(done % 2) as usize] = true;
+            p.applied[(done % 2) as usize].get_or_insert(applied == Some(done));
         }
         self.resolve();
     }
@@ -251,7 +257,7 @@ impl PrivateControllerEndpoint {
                     inputs,
                     carries,
                     samples: [Some(pose), None, None],
-                    applied: [false; 2],
+                    applied: [None; 2],
                 });
                 self.next_doublet = step / 2 + 1;
                 self.emit(ControllerEvent::DoubletCommanded {
@@ -282,12 +288,14 @@ impl PrivateControllerEndpoint {
     fn resolve(&mut self) {
         while let Some(&p) = self.pending.front() {
             let end = 2 * p.doublet + 2;
-            if self.next_sample <= end || self.next_measurement <= end {
+            let reports_settled = p.applied.iter().all(Option::is_some)
+                || self.reported > (end + REORDER_SLACK).min(self.plan.steps);
+            if self.next_sample <= end || !reports_settled {
                 break;
             }
             self.pending.pop_front();
             let complete = match p.samples {
-                [Some(start), Some(middle), Some(end)] if p.applied == [true; 2] => {
+                [Some(start), Some(middle), Some(end)] if p.applied == [Some(true); 2] => {
                     Some([start, middle, end])
                 }
                 _ => None,
@@ -301,7 +309,7 @@ impl PrivateControllerEndpoint {
                 }
             }
         }
-        let over = self.next_sample > self.plan.steps && self.next_measurement > self.plan.steps;
+        let over = self.next_sample > self.plan.steps && self.reported > self.plan.steps;
         if matches!(self.phase, Phase::Running) && over && self.pending.is_empty() {
             self.key = self.fates.accepted_key(
                 &self.decided,
