@@ -352,3 +352,52 @@ impl PrivateControllerEndpoint {
         self.emit(ControllerEvent::DoubletDecided(decision));
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_doublets_reports_may_come_in_either_order() {
+        let config = Config::from_toml(
+            "[sensing]\nmode = \"private\"\n[protocol]\nmax_turn_rate = 1000.0\n",
+            "test",
+        )
+        .unwrap();
+        let mut controller =
+            PrivateControllerEndpoint::new(&config, PrivatePlan::from_config(&config, 1));
+        let report = |step, applied_step| {
+            ControllerInput::Frame(Message::PrivateMeasurement {
+                step,
+                applied_step,
+                fate_cursor: 0,
+            })
+        };
+        for input in [
+            ControllerInput::Sensor {
+                step: 0,
+                pose: Pose::zeros(),
+            },
+            report(0, None),
+            ControllerInput::Sensor {
+                step: 1,
+                pose: Pose::new(0.001, 0.0, 0.0),
+            },
+            ControllerInput::Sensor {
+                step: 2,
+                pose: Pose::new(0.002, 0.0, 0.0),
+            },
+            report(2, Some(1)),
+            report(1, Some(0)),
+        ] {
+            controller.handle_input(input);
+        }
+        let decided: Vec<u32> = std::iter::from_fn(|| controller.poll_output())
+            .filter_map(|o| match o {
+                ControllerOutput::Event(ControllerEvent::DoubletDecided(d)) => Some(d.doublet),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(decided, [0]);
+    }
+}
