@@ -169,3 +169,88 @@ fn a_lost_stop_command_changes_nothing() {
     assert_eq!(s.controller_outcome, Some(Outcome::Kept));
     assert_eq!(s.robot_key, s.controller_key);
 }
+
+mod arbitrary_inputs {
+    use super::*;
+    use proptest::prelude::*;
+    use robokey::protocol::FateWindow;
+
+    /// Authenticated but arbitrary frames and sensor samples (a buggy or compromised peer, a
+    /// broken sensor): steps near the session's, any floats, any fates.
+    fn message() -> impl Strategy<Value = Message> {
+        let f = proptest::num::f64::ANY;
+        let step = prop_oneof![0u32..12, 0u32..400, any::<u32>()];
+        prop_oneof![
+            (
+                step.clone(),
+                proptest::option::of(any::<u32>()),
+                any::<u32>()
+            )
+                .prop_map(|(step, applied_step, fate_cursor)| {
+                    Message::PrivateMeasurement {
+                        step,
+                        applied_step,
+                        fate_cursor,
+                    }
+                }),
+            (
+                step,
+                [f, f, f],
+                [f, f],
+                proptest::option::of([f, f]),
+                (any::<u32>(), 0u8..=64, any::<u64>())
+            )
+                .prop_map(
+                    |(step, sample, first, second, (first_fate, count, accepted))| {
+                        Message::DoubletCommand {
+                            step,
+                            sample,
+                            first,
+                            second,
+                            fates: FateWindow {
+                                first: first_fate,
+                                count,
+                                accepted,
+                            },
+                        }
+                    }
+                ),
+            (0u32..300, proptest::collection::vec(any::<u64>(), 0..6))
+                .prop_map(|(codewords, bitmap)| Message::Finish { codewords, bitmap }),
+            Just(Message::FinishAck),
+            (any::<[u8; 16]>(), any::<[u8; 16]>()).prop_map(|(session_tag, key_tag)| {
+                Message::Confirm {
+                    session_tag,
+                    key_tag,
+                }
+            }),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn the_private_endpoints_never_panic_on_arbitrary_frames_and_samples(
+            inputs in proptest::collection::vec(
+                (message(), 0u32..400, [proptest::num::f64::ANY; 3]),
+                0..60
+            )
+        ) {
+            let mut config = clean_config();
+            config.trajectory.side_time = 5.0;
+            let plan = PrivatePlan::from_config(&config, 1);
+            let mut robot =
+                PrivateRobotEndpoint::new(plan.clone(), &mut stream(1, Purpose::Key, 0));
+            let mut controller = PrivateControllerEndpoint::new(&config, plan);
+            for (message, step, pose) in inputs {
+                robot.handle_input(RobotInput::Sample { step, y: Pose::zeros() });
+                robot.handle_input(RobotInput::Frame(message.clone()));
+                robot.handle_input(RobotInput::Deadline { step });
+                controller.handle_input(ControllerInput::Sensor { step, pose: pose.into() });
+                controller.handle_input(ControllerInput::Frame(message));
+                controller.handle_input(ControllerInput::Timeout);
+                while robot.poll_output().is_some() {}
+                while controller.poll_output().is_some() {}
+            }
+        }
+    }
+}
