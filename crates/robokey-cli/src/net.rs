@@ -401,18 +401,6 @@ pub fn controller(args: ControllerArgs) -> Result<Status> {
         .expect("valid address")
     });
     let sensor = args.sensor.as_deref().map(SensorSpec::parse).transpose()?;
-    match (config.sensing.mode, sensor) {
-        (robokey::config::SensingMode::Private, None) => usage!(
-            "private sensing: the controller decides from its own pose sensor: pass --sensor \
-             mocap:ADDR (the world's motion capture; its link must be private: localhost or a \
-             cable)"
-        ),
-        (robokey::config::SensingMode::Odometry, Some(_)) => usage!(
-            "--sensor is used only in private sensing (sensing.mode = private): the odometry \
-             mode decides from the robot's measurements"
-        ),
-        _ => {}
-    }
     let options = ControllerOptions {
         robot: args.robot,
         bind,
