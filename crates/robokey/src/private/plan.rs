@@ -1,8 +1,9 @@
 //! What both private-sensing endpoints agree on before a session starts.
 
 use super::doublet::{DoubletInputs, Perturbation};
+use super::session::doublet_model;
 use crate::config::Config;
-use crate::model::{DiffDrive, Unicycle};
+use crate::model::DiffDrive;
 use crate::protocol::{Confirmer, config_digest};
 
 /// The agreed parameters of a private-sensing session, derived from the configuration.
@@ -38,10 +39,7 @@ impl PrivatePlan {
             sample_time: config.robot.sample_time,
             steps: config.trajectory().steps(config.robot.sample_time) as u32,
             enabled: config.protocol.enabled,
-            perturbation: Perturbation {
-                delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
-                bits_per_doublet: config.protocol.bits_per_doublet,
-            },
+            perturbation: doublet_model(config).perturbation,
             max_turn_rate: config.protocol.max_turn_rate,
             drive: DiffDrive {
                 wheel_radius: config.robot.r,
