@@ -9,13 +9,10 @@ use rand::{CryptoRng, RngExt};
 use super::doublet::DoubletInputs;
 use super::plan::PrivatePlan;
 use crate::model::{Unicycle, WheelSpeeds};
+use crate::protocol::closing::{RobotCloser, bitmap_bit};
 use crate::protocol::{
-    Actuation, ConfirmTags, Direction, FateLedger, FateWindow, KeyBits, Message, Outcome,
-    RobotInput, RobotOutput,
+    Actuation, FateLedger, FateWindow, KeyBits, Message, Outcome, RobotInput, RobotOutput,
 };
-
-/// The direction the robot sends in.
-const DIRECTION: Direction = Direction::ToController;
 
 /// What the robot waits for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -244,22 +241,16 @@ impl PrivateRobotEndpoint {
                     return;
                 }
                 for index in 0..codewords {
-                    let kept = bitmap
-                        .get(index as usize / 64)
-                        .is_some_and(|w| w >> (index % 64) & 1 == 1);
-                    self.record_fate(index, kept);
+                    self.record_fate(index, bitmap_bit(&bitmap, index));
                 }
                 self.key = self.fates.accepted_key(
                     &self.bits,
                     usize::from(self.plan.perturbation.bits_per_doublet),
                 );
                 self.phase = Phase::ExpectConfirm;
-                self.send(Message::FinishAck);
-                let ours = self.tags();
-                self.send(Message::Confirm {
-                    session_tag: ours.session,
-                    key_tag: ours.key,
-                });
+                for message in self.closer(&self.fates.bitmap()).answer() {
+                    self.send(message);
+                }
             }
             (
                 Phase::ExpectConfirm,
@@ -268,18 +259,10 @@ impl PrivateRobotEndpoint {
                     key_tag,
                 },
             ) => {
-                let peer = ConfirmTags {
-                    session: session_tag,
-                    key: key_tag,
-                };
-                let checked =
-                    self.plan
-                        .confirmer
-                        .check(DIRECTION, &self.fates.bitmap(), &[], &peer);
-                self.finish(match checked {
-                    Ok(()) => Outcome::Kept,
-                    Err(why) => Outcome::Unconfirmed(format!("the controller's {why}")),
-                });
+                let outcome =
+                    self.closer(&self.fates.bitmap())
+                        .verdict(session_tag, key_tag, Outcome::Kept);
+                self.finish(outcome);
             }
             (Phase::Done, _) => {}
             (_, Message::Abort { reason }) => {
@@ -383,12 +366,14 @@ impl PrivateRobotEndpoint {
         self.fates.record(index, kept && carried);
     }
 
-    /// The tags: over the fates, and over the empty key (raw bits are confirmed per
-    /// post-processing block, never per session).
-    fn tags(&self) -> ConfirmTags {
-        self.plan
-            .confirmer
-            .tags(DIRECTION, &self.fates.bitmap(), &[])
+    /// The closing handshake: tags over the fates and the empty key (raw bits are
+    /// confirmed per post-processing block, never per session).
+    fn closer<'a>(&'a self, bitmap: &'a [u64]) -> RobotCloser<'a> {
+        RobotCloser {
+            confirmer: &self.plan.confirmer,
+            bitmap,
+            tagged_key: &[],
+        }
     }
 }
 

@@ -1,6 +1,7 @@
-//! How a controller ends a session once every fate is known (docs/protocol.md), in either
-//! sensing mode: `Finish` until the robot's `FinishAck`, then its confirmation tags until the
-//! robot's verify, each sent at most [`FINISH_TRIES`] times.
+//! How a session ends once every fate is known (docs/protocol.md), in either sensing mode:
+//! the controller sends `Finish` until the robot's `FinishAck`, then its confirmation tags
+//! until the robot's verify, each at most [`FINISH_TRIES`] times; the robot answers a
+//! `Finish` with `FinishAck` and its tags.
 
 use std::collections::VecDeque;
 
@@ -146,4 +147,57 @@ impl Closer {
             Err(why) => Outcome::Unconfirmed(format!("the robot's {why}")),
         }
     }
+}
+
+/// The robot's end of a session (docs/protocol.md): a `Finish` is answered with `FinishAck`
+/// and its tags, and the controller's tags decide the outcome.
+#[derive(Clone, Debug)]
+pub(crate) struct RobotCloser<'a> {
+    /// The session's confirmer.
+    pub(crate) confirmer: &'a Confirmer,
+    /// The final fate bitmap.
+    pub(crate) bitmap: &'a [u64],
+    /// The key the tags cover: the raw key in odometry mode, empty in private sensing.
+    pub(crate) tagged_key: &'a [u8],
+}
+
+impl RobotCloser<'_> {
+    /// The answer to a `Finish`: `FinishAck`, then the robot's tags.
+    pub(crate) fn answer(&self) -> [Message; 2] {
+        let ours = self
+            .confirmer
+            .tags(DIRECTION.reverse(), self.bitmap, self.tagged_key);
+        [
+            Message::FinishAck,
+            Message::Confirm {
+                session_tag: ours.session,
+                key_tag: ours.key,
+            },
+        ]
+    }
+
+    /// The outcome the controller's tags give: `verified`, or unconfirmed naming the tag
+    /// that differs.
+    pub(crate) fn verdict(
+        &self,
+        session: [u8; TAG_BYTES],
+        key: [u8; TAG_BYTES],
+        verified: Outcome,
+    ) -> Outcome {
+        let peer = ConfirmTags { session, key };
+        match self
+            .confirmer
+            .check(DIRECTION.reverse(), self.bitmap, self.tagged_key, &peer)
+        {
+            Ok(()) => verified,
+            Err(why) => Outcome::Unconfirmed(format!("the controller's {why}")),
+        }
+    }
+}
+
+/// Whether bit `index` of a `Finish` bitmap is set (bit `i % 64` of word `i / 64`).
+pub(crate) fn bitmap_bit(bitmap: &[u64], index: u32) -> bool {
+    bitmap
+        .get(index as usize / 64)
+        .is_some_and(|w| w >> (index % 64) & 1 == 1)
 }
