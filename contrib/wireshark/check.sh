@@ -9,7 +9,9 @@ here=$(cd "$(dirname "$0")" && pwd)
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
 fields=(frame.number robokey.type robokey.session robokey.seq robokey.step
         robokey.y.px robokey.y.py robokey.y.theta
-        robokey.u0.right robokey.u0.left robokey.u1.right robokey.u1.left)
+        robokey.u0.right robokey.u0.left robokey.u1.right robokey.u1.left
+        robokey.sample.px robokey.sample.py robokey.sample.theta
+        robokey.first.v robokey.first.omega robokey.second.v robokey.second.omega)
 tshark -r "$capture" -X lua_script:"$here/robokey.lua" -T fields -E separator=/t \
     "${fields[@]/#/-e}" > "$work/tshark.tsv" 2> "$work/tshark.err"
 if grep -q "Lua:" "$work/tshark.err"; then

@@ -14,8 +14,8 @@ local HEADER_BYTES = 16
 local types = {
     [1] = "Hello", [2] = "HelloAck", [3] = "Measurement", [4] = "Command",
     [5] = "Finish", [6] = "FinishAck", [7] = "Confirm", [8] = "Abort",
-    [9] = "Refuse", [10] = "Ready",
-    [11] = "reserved: private-mode measurement", [13] = "Done",
+    [9] = "Refuse", [10] = "Ready", [11] = "PrivateMeasurement", [12] = "DoubletCommand",
+    [13] = "Done",
     [16] = "reserved: pool sync", [17] = "reserved: reconciliation query",
     [18] = "reserved: reconciliation answer", [19] = "reserved: block confirmation",
     [20] = "reserved: commit", [21] = "reserved: amplification seed chunk",
@@ -55,14 +55,29 @@ local f = {
     bitmap_word = ProtoField.uint64("robokey.bitmap", "Fate bitmap word", base.HEX),
     session_tag = ProtoField.bytes("robokey.session_tag", "Session tag"),
     key_tag = ProtoField.bytes("robokey.key_tag", "Key tag"),
+    sample_px = ProtoField.double("robokey.sample.px", "y_c: px (m)"),
+    sample_py = ProtoField.double("robokey.sample.py", "y_c: py (m)"),
+    sample_theta = ProtoField.double("robokey.sample.theta", "y_c: theta (rad)"),
+    first_v = ProtoField.double("robokey.first.v", "u: v (m/s)"),
+    first_omega = ProtoField.double("robokey.first.omega", "u: omega (rad/s)"),
+    second_flag = ProtoField.uint8("robokey.second_flag", "Second input", base.DEC, applied_flags),
+    second_v = ProtoField.double("robokey.second.v", "u': v (m/s)"),
+    second_omega = ProtoField.double("robokey.second.omega", "u': omega (rad/s)"),
 }
 robokey.fields = {
     f.magic, f.version, f.type, f.session, f.seq, f.step, f.mac, f.auth, f.nonce_c, f.nonce_r,
     f.digest, f.text_len, f.terms, f.reason, f.px, f.py, f.theta, f.applied_flag,
     f.applied_step, f.fate_cursor, f.u0_right, f.u0_left, f.u1_right, f.u1_left,
     f.fates_first, f.fates_count, f.fates_accepted, f.codewords, f.bitmap_word,
-    f.session_tag, f.key_tag,
+    f.session_tag, f.key_tag, f.sample_px, f.sample_py, f.sample_theta, f.first_v,
+    f.first_omega, f.second_flag, f.second_v, f.second_omega,
 }
+
+-- A fate window (13 bytes) at payload offset `at`.
+local function add_fates(t, p, at)
+    t:add(f.fates_first, p(at, 4)); t:add(f.fates_count, p(at + 4, 1))
+    t:add(f.fates_accepted, p(at + 5, 8))
+end
 
 local e_length = ProtoExpert.new("robokey.bad_length", "Payload length does not fit the type",
     expert.group.MALFORMED, expert.severity.ERROR)
@@ -103,8 +118,7 @@ local payloads = {
         if n ~= 45 then return false end
         t:add(f.u0_right, p(0, 8)); t:add(f.u0_left, p(8, 8))
         t:add(f.u1_right, p(16, 8)); t:add(f.u1_left, p(24, 8))
-        t:add(f.fates_first, p(32, 4)); t:add(f.fates_count, p(36, 1))
-        t:add(f.fates_accepted, p(37, 8))
+        add_fates(t, p, 32)
         return true
     end,
     [5] = function(t, p, n)
@@ -130,6 +144,23 @@ local payloads = {
         return add_text(t, p, n, 16, f.reason)
     end,
     [10] = function(_, _, n) return n == 0 end,
+    [11] = function(t, p, n)
+        if n ~= 9 then return false end
+        t:add(f.applied_flag, p(0, 1)); t:add(f.applied_step, p(1, 4))
+        t:add(f.fate_cursor, p(5, 4))
+        return true
+    end,
+    [12] = function(t, p, n)
+        if n ~= 70 then return false end
+        t:add(f.sample_px, p(0, 8)); t:add(f.sample_py, p(8, 8)); t:add(f.sample_theta, p(16, 8))
+        t:add(f.first_v, p(24, 8)); t:add(f.first_omega, p(32, 8))
+        t:add(f.second_flag, p(40, 1))
+        if p(40, 1):uint() == 1 then
+            t:add(f.second_v, p(41, 8)); t:add(f.second_omega, p(49, 8))
+        end
+        add_fates(t, p, 57)
+        return true
+    end,
 }
 
 local function dissect(tvb, pinfo, root)
@@ -144,7 +175,7 @@ local function dissect(tvb, pinfo, root)
     local payload_len = len - HEADER_BYTES - MAC_BYTES
     local info = string.format("%s session %08x seq %d", types[kind] or ("type " .. kind),
         tvb(4, 4):uint(), tvb(8, 4):uint())
-    if kind == 3 or kind == 4 then info = info .. " step " .. tvb(12, 4):uint() end
+    if kind == 3 or kind == 4 or kind == 11 or kind == 12 then info = info .. " step " .. tvb(12, 4):uint() end
     pinfo.cols.info = info
     local parse = payloads[kind]
     if parse then

@@ -15,10 +15,12 @@ use robokey_lab::files::{prepare_output, write};
 use robokey_lab::runner::with_jobs;
 use robokey_lab::secrecy::private::eavesdroppers;
 use robokey_lab::secrecy::render_private::{PrivateRow, private_markdown, turn_rates_csv};
-use robokey_net::capture_eve::{listen, read_session};
+use robokey_net::capture_eve::{listen, listen_private, read_session};
+use robokey_net::pose_stream::read_log;
 use robokey_net::session::read_key_file;
 
 use crate::commands::FlagOverrides;
+use crate::exit::usage;
 use crate::{ConfigOptions, StrategyArg};
 
 #[derive(Args, Debug)]
@@ -65,6 +67,14 @@ pub struct EveArgs {
     /// Capture: the controller's key file, to measure her disagreement.
     #[arg(long, requires = "capture")]
     controller_key: Option<PathBuf>,
+    /// Capture, private sensing (required there): her camera's record of the session, a
+    /// pose log written by `robokey record` from the world's camera stream.
+    #[arg(long, value_name = "FILE", requires = "capture")]
+    camera_log: Option<PathBuf>,
+    /// Capture, private sensing: the robot's raw bits (its key file), the reference every
+    /// other party's error rate is measured against.
+    #[arg(long, value_name = "FILE", requires = "camera_log")]
+    robot_key: Option<PathBuf>,
     /// Output folder (simulation: default robokey-out/eve; capture: writes capture.json
     /// when given).
     #[arg(long, short)]
@@ -99,10 +109,10 @@ pub fn eve(args: EveArgs) -> Result<()> {
         );
     }
     match (&args.capture, config.sensing.mode) {
-        (Some(_), SensingMode::Private) => bail!(
-            "--capture: private sensing's eavesdroppers need her camera's record besides the \
-             capture, which the network agents do not produce yet; simulate sessions instead \
-             (omit --capture)"
+        (Some(capture), SensingMode::Private) => on_private_capture(&args, capture, &config),
+        (Some(_), SensingMode::Odometry) if args.camera_log.is_some() => usage!(
+            "--camera-log is her camera's record of a private-sensing session (set \
+             sensing.mode=private); in odometry mode she decides from the robot's measurements"
         ),
         (Some(capture), SensingMode::Odometry) => on_capture(&args, capture, &config, explicit),
         (None, SensingMode::Odometry) => simulated(&args, &config),
@@ -353,6 +363,107 @@ fn on_capture(
             "session_aborted": captured.aborted,
             "frames": captured.messages.len(),
             "undecodable": captured.undecodable,
+            "strategies": reports,
+        });
+        write(
+            &out.join("capture.json"),
+            serde_json::to_string_pretty(&json)? + "\n",
+        )?;
+    }
+    Ok(())
+}
+
+/// Private sensing on a capture: the `camera` and `commands` eavesdroppers on the relay's
+/// frames and her camera log, with the error rates against the robot's raw bits when given.
+fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config) -> Result<()> {
+    let Some(camera_log) = &args.camera_log else {
+        usage!(
+            "--capture of a private-sensing session: pass --camera-log FILE too, her camera's \
+             record (`robokey record --from CAMERA_ADDR --out FILE` during the session)"
+        );
+    };
+    let strategies = simulated_strategies(args, config.sensing.mode);
+    let captured = read_session(capture, config)?;
+    let camera = read_log(camera_log)?;
+    let heard = listen_private(&captured, &camera, config);
+    let read_key = |path: &Option<PathBuf>| path.as_deref().map(read_key_file).transpose();
+    let (robot, controller) = (read_key(&args.robot_key)?, read_key(&args.controller_key)?);
+    println!(
+        "eve: session {:08x}, {} frames ({} undecodable datagrams), {} camera samples; \
+         her camera {} mm / {} mrad",
+        captured.session,
+        captured.messages.len(),
+        captured.undecodable,
+        camera.len(),
+        1e3 * config.eve.camera_std[0],
+        1e3 * config.eve.camera_std[2]
+    );
+    // `differ(a, b)`: "n of m bits (p %)", or why they cannot be compared.
+    let differ = |a: &[u8], b: &[u8]| -> String {
+        if a.len() != b.len() {
+            return format!("not comparable: {} bits against {}", a.len(), b.len());
+        }
+        let n = a.iter().zip(b).filter(|(x, y)| x != y).count();
+        let pct = 100.0 * n as f64 / a.len().max(1) as f64;
+        format!("{n} of {} bits ({pct:.2} %)", a.len())
+    };
+    if let (Some(robot), Some(controller)) = (&robot, &controller) {
+        println!(
+            "controller: differs from the robot's raw bits on {}",
+            differ(robot, controller)
+        );
+    }
+    let mut reports = Vec::new();
+    for strategy in strategies {
+        let camera_view = strategy != EveStrategy::Commands;
+        let key = if camera_view {
+            &heard.camera_key
+        } else {
+            &heard.commands_key
+        };
+        let bits = usize::from(config.protocol.bits_per_doublet);
+        let decided: Vec<serde_json::Value> = heard
+            .doublets
+            .iter()
+            .map(|d| {
+                let evidence = if camera_view { d.camera } else { d.commands };
+                let llr = &evidence.llr[..bits];
+                serde_json::json!({
+                    "doublet": d.doublet,
+                    "llr": llr,
+                    "bits": llr.iter().map(|&l| u8::from(l < 0.0)).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        let mut line = format!(
+            "eve[{}]: {} doublets decided, key {} bits",
+            strategy.name(),
+            decided.len(),
+            key.len()
+        );
+        if let Some(robot) = &robot {
+            line += &format!(
+                "; differs from the robot's raw bits on {}",
+                differ(robot, key)
+            );
+        }
+        if let Some(controller) = &controller {
+            line += &format!("; from the controller's on {}", differ(controller, key));
+        }
+        println!("{line}");
+        reports.push(serde_json::json!({
+            "strategy": strategy.name(),
+            "doublets": decided,
+            "key_bits": key.len(),
+        }));
+    }
+    if let Some(out) = &args.out {
+        std::fs::create_dir_all(out).with_context(|| format!("create {}", out.display()))?;
+        let json = serde_json::json!({
+            "session": captured.session,
+            "frames": captured.messages.len(),
+            "undecodable": captured.undecodable,
+            "camera_samples": camera.len(),
             "strategies": reports,
         });
         write(

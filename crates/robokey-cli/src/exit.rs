@@ -8,7 +8,7 @@ use robokey::interrupt::Interrupt;
 /// How a command that ran to its end ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Status {
-    /// Done; a session confirmed its key (exit 0).
+    /// Done; a session confirmed its key, or (private sensing) its kept doublets (exit 0).
     Success,
     /// A session ended without a key: aborted, or not confirmed by the peer (exit 3).
     NoKey,

@@ -80,9 +80,12 @@ enum Command {
     /// controller, disagreement with the controller's key.
     #[command(allow_negative_numbers = true)]
     Eve(eve::EveArgs),
-    /// A simulated Khepera IV speaking kh4server's line protocol, for the kh4 backend.
+    /// A simulated Khepera IV speaking kh4server's line protocol, for the kh4 backend; with
+    /// --mocap and --camera also the world's sensor streams.
     #[command(name = "kh4-emulator")]
     Kh4Emulator(net::EmulatorArgs),
+    /// Record a pose stream of the world (Eve's camera) to a CSV log, until it ends.
+    Record(net::RecordArgs),
 }
 
 /// Options shared by commands that read a configuration.
@@ -352,6 +355,7 @@ fn main() -> ExitCode {
         Command::Frames(args) => done(net::frames(args)),
         Command::Eve(args) => done(eve::eve(args)),
         Command::Kh4Emulator(args) => done(net::kh4_emulator(args)),
+        Command::Record(args) => net::record(args),
     };
     exit::code(result)
 }

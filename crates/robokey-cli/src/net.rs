@@ -13,10 +13,13 @@ use robokey_net::controller_agent::{ControllerOptions, run_controller};
 use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, Listen, TimeMode, serve};
 use robokey_net::pairing::{read_pairing, write_pairing};
 use robokey_net::pcap::read as read_capture;
+use robokey_net::pose_stream::record as record_stream;
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
 use robokey_net::robot_agent::{RobotOptions, run_robot};
+use robokey_net::sensor::SensorSpec;
 use robokey_net::session::{Ending, Pace, SessionReport, Timing, os_rng};
 use robokey_net::sim_backend::SimBackend;
+use robokey_net::world::{SensorOptions, WorldSensors};
 
 use crate::ConfigOptions;
 use crate::commands::load_config;
@@ -114,7 +117,7 @@ impl SessionArgs {
             report.write(path)?;
         }
         Ok(match report.ending {
-            Ending::Confirmed => Status::Success,
+            Ending::Confirmed | Ending::Kept => Status::Success,
             Ending::NoKey => Status::NoKey,
             Ending::AuthenticationFailed => Status::AuthenticationFailed,
             Ending::Interrupted => Status::Interrupted(interrupt.signal().unwrap_or(2)),
@@ -154,8 +157,8 @@ pub struct FramesArgs {
 }
 
 /// Prints every datagram of a capture as robokey parses it, one tab-separated line each:
-/// number, type, session, seq, step, and the numbers a Measurement (`y`) or a Command
-/// (`u0D`, `u1D`) carries. MACs are not checked (no pairing secret needed).
+/// number, type, session, seq, step, and the numbers a Measurement (`y`), a Command
+/// (`u0D`, `u1D`) or a DoubletCommand (`y_c`, `u`, `u'`) carries. MACs are not checked (no pairing secret needed).
 pub fn frames(args: FramesArgs) -> Result<()> {
     use robokey::protocol::Message;
     use robokey::protocol::wire::decode;
@@ -171,6 +174,17 @@ pub fn frames(args: FramesArgs) -> Result<()> {
         let numbers: Vec<f64> = match &frame.message {
             Message::Measurement { y, .. } => y.to_vec(),
             Message::Command { u0, u1, .. } => u0.iter().chain(u1).copied().collect(),
+            Message::DoubletCommand {
+                sample,
+                first,
+                second,
+                ..
+            } => sample
+                .iter()
+                .chain(first)
+                .chain(second.iter().flatten())
+                .copied()
+                .collect(),
             _ => Vec::new(),
         };
         let numbers: Vec<String> = numbers.iter().map(|v| format!("{v:?}")).collect();
@@ -216,7 +230,30 @@ pub struct RobotArgs {
     #[arg(long, default_value_t = 60.0)]
     wait: f64,
     #[command(flatten)]
+    world: WorldArgs,
+    #[command(flatten)]
     session: SessionArgs,
+}
+
+/// The world's sensor streams (private sensing): what the outside sees of the plant.
+#[derive(Args, Debug, Clone)]
+pub struct WorldArgs {
+    /// Serve the controller's motion capture (noise `sensing.controller_std`) on this TCP
+    /// address (port 0: any; printed). Its link must be private: localhost or a cable.
+    #[arg(long, value_name = "ADDR")]
+    mocap: Option<SocketAddr>,
+    /// Serve Eve's camera (noise `eve.camera_std`) on this TCP address (port 0: any;
+    /// printed); `robokey record` writes it to a camera log.
+    #[arg(long, value_name = "ADDR")]
+    camera: Option<SocketAddr>,
+}
+
+impl WorldArgs {
+    /// The streams asked for, with `config`'s noise and seed.
+    fn options(&self, config: &robokey::Config) -> Option<SensorOptions> {
+        (self.mocap.is_some() || self.camera.is_some())
+            .then(|| SensorOptions::of(config, self.mocap, self.camera))
+    }
 }
 
 #[derive(Args, Debug)]
@@ -224,6 +261,11 @@ pub struct ControllerArgs {
     /// The robot agent's UDP address (HOST:PORT; a host name resolves to its first address).
     #[arg(long, value_parser = socket_address)]
     robot: SocketAddr,
+    /// Private sensing (required there): the controller's own pose sensor, `mocap:ADDR`
+    /// for the world's motion capture. Its link must be private: localhost or a cable, never
+    /// the lab network (motion-capture systems multicast there by default).
+    #[arg(long, value_name = "SPEC")]
+    sensor: Option<String>,
     /// Local address to bind.
     #[arg(long, value_parser = socket_address)]
     bind: Option<SocketAddr>,
@@ -274,6 +316,21 @@ pub fn robot(args: RobotArgs) -> Result<Status> {
     if args.kh4.is_some() && !matches!(args.backend, BackendArg::Kh4) {
         usage!("--kh4 is used only with --backend kh4 (the backend is sim)");
     }
+    if args.world.options(&config).is_some() {
+        if matches!(args.backend, BackendArg::Kh4) {
+            usage!(
+                "--mocap and --camera are served by the world: with --backend kh4 pass them to \
+                 `robokey kh4-emulator` (a real robot's world is the room)"
+            );
+        }
+        if config.sensing.mode != robokey::config::SensingMode::Private {
+            usage!(
+                "--mocap and --camera serve private sensing's streams (set \
+                 sensing.mode=private): in odometry mode the controller reads the robot's \
+                 measurements"
+            );
+        }
+    }
     let options = RobotOptions {
         listen: args.listen,
         timing,
@@ -307,7 +364,15 @@ fn finish_robot<R: rand::CryptoRng>(
     key_source: &mut R,
 ) -> Result<Status> {
     let report = match args.backend {
-        BackendArg::Sim => run_robot(config, &mut SimBackend::new(config, 0), key_source, options)?,
+        BackendArg::Sim => {
+            let mut backend = SimBackend::new(config, 0);
+            if let Some(sensors) = args.world.options(config) {
+                let world = WorldSensors::serve(&sensors)?;
+                println!("{}", world.describe());
+                backend = backend.with_world(world);
+            }
+            run_robot(config, &mut backend, key_source, options)?
+        }
         BackendArg::Kh4 => {
             let link = args
                 .kh4
@@ -335,6 +400,7 @@ pub fn controller(args: ControllerArgs) -> Result<Status> {
         .parse()
         .expect("valid address")
     });
+    let sensor = args.sensor.as_deref().map(SensorSpec::parse).transpose()?;
     let options = ControllerOptions {
         robot: args.robot,
         bind,
@@ -343,6 +409,7 @@ pub fn controller(args: ControllerArgs) -> Result<Status> {
         session: None,
         pairing: args.session.pairing()?,
         interrupt: on_signals()?,
+        sensor,
     };
     let report = run_controller(&config, &options)?;
     args.session.finish(&report, &options.interrupt)
@@ -454,9 +521,17 @@ pub struct EmulatorArgs {
     /// Wheel slip: relative std of each wheel's travel per advance (0: exact).
     #[arg(long, default_value_t = 0.0)]
     slip: f64,
-    /// Seed of the slip noise.
+    /// Seed of the slip noise, and of the world's sensor noise (replicate i for the i-th
+    /// connection).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Configuration (TOML) of the world: the sensors' noise, the axle length.
+    #[arg(long, short)]
+    config: Option<PathBuf>,
+    #[command(flatten)]
+    options: ConfigOptions,
+    #[command(flatten)]
+    world: WorldArgs,
 }
 
 pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {
@@ -480,12 +555,42 @@ pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {
         TimeArg::Virtual => TimeMode::Virtual(Duration::from_secs_f64(args.period)),
         TimeArg::Real => TimeMode::Real,
     };
+    let mut config = load_config(args.config.as_deref(), &args.options.set)?;
+    config.run.seed = args.seed;
     serve(&EmulatorOptions {
         listen,
         time,
         slip: args.slip,
         seed: args.seed,
         connections: None,
+        axle_length: config.robot.axle_length,
+        sensors: args.world.options(&config),
     })?;
     Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct RecordArgs {
+    /// The pose stream's TCP address (e.g. the world's camera, `--camera` of the emulator
+    /// or of a simulated robot).
+    #[arg(long, value_name = "ADDR")]
+    from: SocketAddr,
+    /// The log file to create (CSV `step,x,y,theta`; an existing file is refused).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Records a pose stream to a log until the stream ends (or a signal).
+pub fn record(args: RecordArgs) -> Result<Status> {
+    let interrupt = on_signals()?;
+    let samples = record_stream(args.from, &args.out, || interrupt.is_requested())?;
+    println!(
+        "recorded {samples} samples from {} to {}",
+        args.from,
+        args.out.display()
+    );
+    Ok(match interrupt.signal() {
+        Some(signal) => Status::Interrupted(signal),
+        None => Status::Success,
+    })
 }

@@ -7,6 +7,7 @@ use robokey::Config;
 use robokey::config::EveStrategy;
 use robokey::eve::{Eavesdropper, Eve, ModelErrors};
 use robokey::model::DiffDrive;
+use robokey::private::{DoubletEavesdropper, EveDoublet};
 use robokey::protocol::auth::{AuthMode, PairingSecret};
 use robokey::protocol::wire::{Frame, decode};
 use robokey::protocol::{
@@ -15,6 +16,7 @@ use robokey::protocol::{
 
 use crate::error::NetError;
 use crate::pcap;
+use crate::pose_stream::PoseSample;
 
 /// The frames of one session in a capture, in the order they crossed the network.
 #[derive(Debug)]
@@ -151,5 +153,40 @@ pub fn listen(
         key: eve.key(),
         tag_flips: eve.verified(),
         model: eve.model(),
+    }
+}
+
+/// What the private-sensing eavesdroppers made of a captured session and her camera log.
+#[derive(Debug)]
+pub struct PrivateCaptureResult {
+    /// Every carrying doublet they decided, in doublet order.
+    pub doublets: Vec<EveDoublet>,
+    /// The `camera` adversary's key: her decisions on the kept doublets.
+    pub camera_key: KeyBits,
+    /// The `commands` adversary's key.
+    pub commands_key: KeyBits,
+}
+
+/// Runs the `camera` and `commands` eavesdroppers of private sensing on a captured session
+/// and her camera's record: the same code and decisions as in the simulator.
+#[must_use]
+pub fn listen_private(
+    captured: &CapturedSession,
+    camera: &[PoseSample],
+    config: &Config,
+) -> PrivateCaptureResult {
+    let mut eve = DoubletEavesdropper::new(config);
+    for sample in camera {
+        eve.film(sample.step, sample.pose);
+    }
+    for message in &captured.messages {
+        eve.observe(message);
+    }
+    let mut doublets: Vec<EveDoublet> = std::iter::from_fn(|| eve.poll()).collect();
+    doublets.sort_by_key(|d| d.doublet);
+    PrivateCaptureResult {
+        doublets,
+        camera_key: eve.key(true),
+        commands_key: eve.key(false),
     }
 }

@@ -1,23 +1,27 @@
 //! The controller agent: opens the session, answers every measurement with a command
-//! pair, acks codewords, finishes and confirms (docs/protocol.md, "On a network").
+//! pair, acks codewords, finishes and confirms (docs/protocol.md, "On a network"); in
+//! private sensing it commands each doublet from its own sensor's samples.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use robokey::Config;
+use robokey::config::SensingMode;
 use robokey::interrupt::Interrupt;
 use robokey::protocol::auth::{AuthMode, ControllerChannel, Delivery, PairingSecret};
 use robokey::protocol::{
-    ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome,
-    SessionPlan, agreement_terms, config_digest,
+    ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, agreement_terms,
+    config_digest,
 };
 
+use crate::endpoint::shape;
 use crate::error::NetError;
 use crate::robot_agent::finish_report;
 use crate::secret_file::check_writable;
+use crate::sensor::{SensorEvent, SensorFeed, SensorSpec};
 use crate::session::{
-    Ending, Progress, SessionReport, Timing, authentication_label, linger, os_rng,
+    DoubletCounts, Ending, Progress, SessionReport, Timing, authentication_label, linger, os_rng,
 };
 use crate::transport::Transport;
 use zeroize::Zeroizing;
@@ -39,13 +43,17 @@ pub struct ControllerOptions {
     pub pairing: PairingSecret,
     /// A stop request (SIGINT, SIGTERM): the session ends within 50 ms, report written.
     pub interrupt: Interrupt,
+    /// Private sensing: the controller's own pose sensor (required there, refused in
+    /// odometry mode).
+    pub sensor: Option<SensorSpec>,
 }
 
 /// Runs one session as the controller. Every way out after the socket is bound returns a
 /// report: a robot that does not answer, a socket error, a stop request.
 ///
 /// # Errors
-/// `--key-out` exists or has no folder, or the socket cannot be bound.
+/// `--key-out` exists or has no folder, the sensor is missing (private sensing), refused
+/// (odometry mode) or unreachable, or the socket cannot be bound.
 pub fn run_controller(
     config: &Config,
     options: &ControllerOptions,
@@ -53,6 +61,24 @@ pub fn run_controller(
     if let Some(path) = &options.key_out {
         check_writable(path, "key file")?;
     }
+    let sensor = match (config.sensing.mode, &options.sensor) {
+        (SensingMode::Private, Some(spec)) => Some(SensorFeed::start(spec.open()?)),
+        (SensingMode::Private, None) => {
+            return Err(NetError::Usage(
+                "private sensing: the controller decides from its own pose sensor; pass \
+                 --sensor mocap:ADDR (its link must be private: wired or localhost)"
+                    .into(),
+            ));
+        }
+        (SensingMode::Odometry, Some(_)) => {
+            return Err(NetError::Usage(
+                "--sensor is used only in private sensing (sensing.mode = private); the \
+                 odometry mode decides from the robot's measurements"
+                    .into(),
+            ));
+        }
+        (SensingMode::Odometry, None) => None,
+    };
     let mut rng = os_rng()?;
     let session = match options.session {
         Some(id) => id,
@@ -71,17 +97,17 @@ pub fn run_controller(
     );
     let mut transport =
         Transport::controller(options.bind, channel)?.with_interrupt(options.interrupt.clone());
-    let plan = SessionPlan::from_config(config, session);
+    let shape = shape(config);
     let mut report = SessionReport {
         role: "controller".into(),
         authentication: authentication_label(&options.pairing),
         session,
-        steps: plan.steps,
-        codewords: plan.codewords(),
+        steps: shape.steps,
+        codewords: shape.units,
+        doublets: shape.doublets.then(DoubletCounts::default),
         ..SessionReport::default()
     };
-    let message_bits = plan.code.k();
-    match converse(config, options, plan, &mut transport, &mut report) {
+    match converse(config, options, sensor, &mut transport, &mut report) {
         Ok(ended) => {
             let mut report = finish_report(
                 report,
@@ -89,7 +115,7 @@ pub fn run_controller(
                 &ended.key,
                 &transport,
                 options.key_out.as_ref(),
-                message_bits,
+                shape.bits_per_unit,
             );
             let rejected = transport.rejected();
             if !ended.robot_authenticated && rejected.bad_mac + rejected.pairing_mode > 0 {
@@ -122,7 +148,7 @@ struct Ended {
 fn converse(
     config: &Config,
     options: &ControllerOptions,
-    mut plan: SessionPlan,
+    sensor: Option<SensorFeed>,
     transport: &mut Transport,
     report: &mut SessionReport,
 ) -> Result<Ended, NetError> {
@@ -163,27 +189,44 @@ fn converse(
             key: Zeroizing::new(Vec::new()),
         });
     }
-    plan.confirmer = transport
+    let confirmer = transport
         .confirmer()
         .expect("an established session has a confirmer");
+    let session = transport
+        .session()
+        .expect("the controller knows its session");
 
     // The first frame under the session key binds the session at the robot; repeat it until
     // the robot's first measurement shows it arrived.
     transport.send(Message::Ready)?;
     let mut robot_heard = false;
-    let mut endpoint = ControllerEndpoint::new(config, plan);
+    let mut endpoint = crate::endpoint::controller(config, session, confirmer);
     let mut outcome = None;
     let mut last_frame = Instant::now();
     let mut last_confirm = None;
     let mut progress = Progress::new("controller", report.steps);
+    // The retransmission timer restarts at every delivery; with a sensor, the socket is
+    // also left every millisecond to take its samples.
+    let mut timer_from = Instant::now();
+    let mut sensed = SensorClock::new(shape(config).steps);
     while outcome.is_none() {
-        match transport.recv_until(Instant::now() + timing.retransmit_interval())? {
+        let tick = timer_from + timing.retransmit_interval();
+        let wake = match sensor {
+            Some(_) => tick.min(Instant::now() + SENSOR_POLL),
+            None => tick,
+        };
+        let delivery = transport.recv_until(wake)?;
+        if delivery.is_some() || Instant::now() >= tick {
+            timer_from = Instant::now();
+        }
+        match delivery {
             Some(Delivery::Message(message)) => {
                 robot_heard = true;
                 last_frame = Instant::now();
                 endpoint.handle_input(ControllerInput::Frame(message));
             }
             Some(_) => {}
+            None if Instant::now() < tick => {}
             None if last_frame.elapsed() >= timing.silence_timeout => {
                 let reason = format!(
                     "silence: no valid frame from the robot for {:.1} s",
@@ -198,6 +241,27 @@ fn converse(
             // Retransmission timer: Finish until FinishAck (bounded by the endpoint).
             None => endpoint.handle_input(ControllerInput::Timeout),
         }
+        if let Some(feed) = &sensor {
+            while let Some(event) = feed.try_next() {
+                match event {
+                    SensorEvent::Sample(sample) => {
+                        sensed.sampled(sample.step);
+                        report.steps_done = sample.step;
+                        endpoint.handle_input(ControllerInput::Sensor {
+                            step: sample.step,
+                            pose: sample.pose,
+                        });
+                    }
+                    SensorEvent::Stopped(why) => sensed.stopped(why),
+                }
+            }
+            if let Some(reason) = sensed.failure(robot_heard, timing.silence_timeout) {
+                transport.send(Message::Abort {
+                    reason: reason.clone(),
+                })?;
+                outcome = Some(Outcome::Aborted(reason));
+            }
+        }
         while let Some(output) = endpoint.poll_output() {
             match output {
                 ControllerOutput::Transmit(message) => {
@@ -211,9 +275,20 @@ fn converse(
                         report.steps_done = decision.step + 1;
                         progress.tick(report.steps_done, report.erased_steps);
                         report.erased_steps +=
-                            u32::from(decision.bit.is_none() && endpoint.plan().enabled);
+                            u32::from(decision.bit.is_none() && config.protocol.enabled);
                     }
                     ControllerEvent::Missing(range) => report.erased_steps += range.len() as u32,
+                    ControllerEvent::DoubletCommanded { carries, .. } => {
+                        if let Some(counts) = &mut report.doublets {
+                            counts.gated += u32::from(config.protocol.enabled && !carries);
+                        }
+                    }
+                    ControllerEvent::DoubletErased { .. } => {
+                        report.erased_steps += 2;
+                        if let Some(counts) = &mut report.doublets {
+                            counts.erased += 1;
+                        }
+                    }
                     ControllerEvent::Finished(o) => outcome = Some(o),
                     _ => {}
                 },
@@ -229,6 +304,60 @@ fn converse(
         robot_authenticated: true,
         key: Zeroizing::new(endpoint.key().to_vec()),
     })
+}
+
+/// How often the controller's loop takes its sensor's samples.
+const SENSOR_POLL: Duration = Duration::from_millis(1);
+
+/// Whether the controller's sensor keeps up: it must deliver every step up to `N`, and
+/// falls silent only after the robot has been heard (the world samples when the robot does).
+struct SensorClock {
+    steps: u32,
+    last: Option<u32>,
+    at: Instant,
+    stopped: Option<String>,
+}
+
+impl SensorClock {
+    fn new(steps: u32) -> Self {
+        Self {
+            steps,
+            last: None,
+            at: Instant::now(),
+            stopped: None,
+        }
+    }
+
+    fn sampled(&mut self, step: u32) {
+        self.last = Some(step);
+        self.at = Instant::now();
+    }
+
+    fn stopped(&mut self, why: String) {
+        self.stopped.get_or_insert(why);
+    }
+
+    /// Why the session cannot go on, if so: the sensor stopped or fell silent before `N`.
+    fn failure(&mut self, robot_heard: bool, silence: Duration) -> Option<String> {
+        if self.last.is_some_and(|k| k >= self.steps) {
+            return None;
+        }
+        if let Some(why) = &self.stopped {
+            return Some(format!("sensor stopped before step {}: {why}", self.steps));
+        }
+        if !robot_heard {
+            self.at = Instant::now();
+            return None;
+        }
+        (self.at.elapsed() >= silence).then(|| {
+            format!(
+                "sensor: no sample for {:.1} s (last step {})",
+                silence.as_secs_f64(),
+                self.last
+                    .map_or_else(|| "none".to_owned(), |k| k.to_string())
+            )
+        })
+    }
 }
 
 /// Default silence timeout (docs/protocol.md).

@@ -1,20 +1,25 @@
 //! robokey-net: the network shells around the robokey core — the same sans-I/O endpoints as
-//! the simulator, carried over UDP between separate processes.
+//! the simulator, carried over UDP between separate processes — and the world they run in:
+//! the plant and the sensor streams it serves.
 
 pub mod backend;
 pub mod capture_eve;
 pub mod controller_agent;
+pub mod endpoint;
 pub mod error;
 #[doc(hidden)]
 pub mod fuzzing;
 pub mod khepera;
 pub mod pairing;
 pub mod pcap;
+pub mod pose_stream;
 pub mod relay;
 pub mod robot_agent;
 pub mod secret_file;
+pub mod sensor;
 pub mod session;
 pub mod sim_backend;
 pub mod transport;
+pub mod world;
 
 pub use error::NetError;

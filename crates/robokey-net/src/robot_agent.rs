@@ -1,5 +1,6 @@
 //! The robot agent: owns the clock and the key bits, applies one of the two offered
-//! commands each period (or the fallback), reports odometry (docs/protocol.md, "On a network").
+//! commands each period (or the fallback), reports odometry (docs/protocol.md, "On a
+//! network"); in private sensing it applies each doublet's inputs and reports no pose.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -11,16 +12,16 @@ use robokey::interrupt::Interrupt;
 use robokey::model::WheelSpeeds;
 use robokey::protocol::auth::{Delivery, PairingSecret, RobotChannel};
 use robokey::protocol::{
-    Message, Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionPlan, agreement_terms,
-    config_digest,
+    Message, Outcome, RobotInput, RobotOutput, agreement_terms, config_digest,
 };
 
 use crate::backend::{Backend, WheelGuard};
+use crate::endpoint::{RobotSide, Shape, shape};
 use crate::error::NetError;
 use crate::secret_file::check_writable;
 use crate::session::{
-    Ending, Pace, Progress, SessionReport, Timing, authentication_label, linger, os_rng,
-    write_key_file,
+    DoubletCounts, Ending, Pace, Progress, SessionReport, Timing, authentication_label, linger,
+    os_rng, write_key_file,
 };
 use crate::transport::Transport;
 
@@ -45,7 +46,8 @@ pub struct RobotOptions {
 /// The robot's side of a running session.
 struct RobotSession<'a, B: Backend + ?Sized> {
     transport: Transport,
-    endpoint: RobotEndpoint,
+    endpoint: Box<dyn RobotSide>,
+    shape: Shape,
     backend: WheelGuard<'a, B>,
     timing: Timing,
     report: SessionReport,
@@ -62,7 +64,7 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
                 RobotOutput::Transmit(message) => {
                     match &message {
                         Message::Confirm { .. } => self.last_confirm = Some(message.clone()),
-                        Message::Measurement { .. } => {
+                        Message::Measurement { .. } | Message::PrivateMeasurement { .. } => {
                             self.last_measurement = Some(message.clone())
                         }
                         _ => {}
@@ -79,6 +81,16 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
                         self.report
                             .wheels_stopped_at_step
                             .get_or_insert(actuation.step);
+                    }
+                    if let Some(counts) = &mut self.report.doublets
+                        && self.shape.starts_doublet(actuation.step)
+                    {
+                        // A doublet's first step tells its fate at the robot.
+                        if actuation.erased {
+                            counts.erased += 1;
+                        } else if actuation.bit.is_none() && self.shape.enabled {
+                            counts.gated += 1;
+                        }
                     }
                     self.backend.set_wheels(actuation.wheels)?;
                 }
@@ -216,19 +228,21 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
             return Ok(report);
         }
     };
-    let mut plan = SessionPlan::from_config(config, session);
-    plan.confirmer = transport
+    let confirmer = transport
         .confirmer()
         .expect("a bound session has a confirmer");
+    let shape = shape(config);
     let report = SessionReport {
         session,
-        steps: plan.steps,
-        codewords: plan.codewords(),
+        steps: shape.steps,
+        codewords: shape.units,
+        doublets: shape.doublets.then(DoubletCounts::default),
         ..robot_report(options)
     };
     let mut s = RobotSession {
         transport,
-        endpoint: RobotEndpoint::new(plan, key_source),
+        endpoint: crate::endpoint::robot(config, session, confirmer, key_source),
+        shape,
         backend: WheelGuard::new(backend),
         timing: options.timing,
         report,
@@ -263,15 +277,15 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         s.endpoint.key(),
         &s.transport,
         options.key_out.as_ref(),
-        s.endpoint.plan().code.k(),
+        s.shape.bits_per_unit,
     ))
 }
 
 impl<B: Backend + ?Sized> RobotSession<'_, B> {
     /// The N steps, then the wait for the Finish and the controller's tag.
     fn drive(&mut self, interrupt: &Interrupt) -> Result<(), NetError> {
-        let steps = self.endpoint.plan().steps;
-        let sample_time = Duration::from_secs_f64(self.endpoint.plan().sample_time);
+        let steps = self.shape.steps;
+        let sample_time = Duration::from_secs_f64(self.shape.sample_time);
         let start = Instant::now();
         let mut progress = Progress::new("robot", steps);
         for k in 0..=steps {
@@ -332,8 +346,9 @@ fn sleep_until(at: Instant, interrupt: &Interrupt) -> Result<(), NetError> {
     }
 }
 
-/// Completes a report and writes the key when (and only when) the peer confirmed it. A key
-/// that cannot be written ends the session as failed, with the reason.
+/// Completes a report and writes the key when (and only when) the peer confirmed it — in
+/// private sensing the raw bits, once the peer confirmed the kept doublets. A key that cannot
+/// be written ends the session as failed, with the reason.
 pub(crate) fn finish_report(
     mut report: SessionReport,
     outcome: Option<Outcome>,
@@ -348,11 +363,20 @@ pub(crate) fn finish_report(
     report.frames_rejected = transport.rejected();
     report.key_bits = key.len();
     report.accepted = (key.len() / message_bits.max(1)) as u32;
-    if let (Outcome::Confirmed, Some(path)) = (&outcome, key_out) {
-        let mut labels = vec![
+    let written = match &outcome {
+        Outcome::Confirmed => Some(vec![
             "raw: not secret against an eavesdropper who learns the model",
             "confirmed by the peer's directional key tag",
-        ];
+        ]),
+        Outcome::Kept => Some(vec![
+            "raw private-sensing bits of the kept doublets, in order (v, then ω with two bits per \
+             doublet): the robot's are the reference, the controller's differ where it erred; \
+             not a key until reconciled and amplified over a block (docs/postprocessing.md)",
+            "kept positions confirmed by the peer's session tag",
+        ]),
+        _ => None,
+    };
+    if let (Some(mut labels), Some(path)) = (written, key_out) {
         if report.is_unauthenticated() {
             labels.push("passive adversary only: the session was not authenticated");
         }

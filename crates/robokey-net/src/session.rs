@@ -100,6 +100,9 @@ pub fn linger(
 pub enum Ending {
     /// The peer proved it holds the same key (its tag verified).
     Confirmed,
+    /// Private sensing: the peer confirmed which doublets were kept; the raw bits await
+    /// post-processing.
+    Kept,
     /// Aborted or unconfirmed: no key.
     #[default]
     NoKey,
@@ -171,9 +174,10 @@ pub struct SessionReport {
     pub accepted: u32,
     /// Key length (bits).
     pub key_bits: usize,
-    /// `confirmed`, `unconfirmed` or `aborted`.
+    /// `confirmed`, `kept` (private sensing), `unconfirmed` or `aborted`.
     pub outcome: String,
-    /// How it ended: `confirmed`, `no-key`, `authentication-failed`, `interrupted`, `failed`.
+    /// How it ended: `confirmed`, `kept`, `no-key`, `authentication-failed`, `interrupted`,
+    /// `failed`.
     pub ending: Ending,
     /// Why, unless confirmed.
     pub reason: Option<String>,
@@ -190,6 +194,20 @@ pub struct SessionReport {
     /// terms; stop commands and fallbacks excluded).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub commands_applied: Option<u32>,
+    /// Private sensing: doublets without a bit, by cause (`codewords` counts the doublets,
+    /// `accepted` the kept ones).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub doublets: Option<DoubletCounts>,
+}
+
+/// Private sensing: the doublets of a session that carry no kept bit, by cause.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct DoubletCounts {
+    /// Doublets the public turn gate left without a bit.
+    pub gated: u32,
+    /// Carrying doublets dropped because a command, a measurement or (at the controller) a
+    /// sensor sample was lost, or the robot did not apply them.
+    pub erased: u32,
 }
 
 impl SessionReport {
@@ -197,6 +215,7 @@ impl SessionReport {
     pub fn set_outcome(&mut self, outcome: &Outcome) {
         let (name, reason) = match outcome {
             Outcome::Confirmed => ("confirmed", None),
+            Outcome::Kept => ("kept", None),
             Outcome::Unconfirmed(why) => ("unconfirmed", Some(why.clone())),
             Outcome::Aborted(why) => ("aborted", Some(why.clone())),
         };
@@ -204,6 +223,7 @@ impl SessionReport {
         self.reason = reason;
         self.ending = match outcome {
             Outcome::Confirmed => Ending::Confirmed,
+            Outcome::Kept => Ending::Kept,
             _ => Ending::NoKey,
         };
     }
@@ -239,8 +259,18 @@ impl SessionReport {
             0 => String::new(),
             n => format!(" [{n} datagrams rejected, see the report]"),
         };
+        let kept = match &self.doublets {
+            Some(d) => format!(
+                "{}/{} doublets kept ({} gated, {} erased), {} raw bits",
+                self.accepted, self.codewords, d.gated, d.erased, self.key_bits
+            ),
+            None => format!(
+                "{}/{} codewords accepted, {} key bits",
+                self.accepted, self.codewords, self.key_bits
+            ),
+        };
         format!(
-            "{}{}: session {:08x}, {} steps ({} erased), {}/{} codewords accepted, {} key bits, {}{}{rejected}",
+            "{}{}: session {:08x}, {} steps ({} erased), {kept}, {}{}{rejected}",
             if self.is_unauthenticated() {
                 "[passive adversary only] "
             } else {
@@ -250,9 +280,6 @@ impl SessionReport {
             self.session,
             self.steps_done,
             self.erased_steps,
-            self.accepted,
-            self.codewords,
-            self.key_bits,
             self.outcome,
             self.reason
                 .as_ref()

@@ -213,6 +213,7 @@ fn agent_session(
             session: Some(7),
             pairing,
             interrupt: Interrupt::new(),
+            sensor: None,
         },
     )
     .unwrap();

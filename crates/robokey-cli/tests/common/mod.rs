@@ -2,7 +2,6 @@
 //! their reports. (Each test binary uses a subset, hence `dead_code` is allowed here.)
 #![allow(dead_code)]
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
@@ -21,24 +20,42 @@ impl Drop for Process {
 
 /// Starts `robokey args…` and reads the address from its first line (`… on ADDR[, …]`).
 pub fn start(args: &[&str]) -> Process {
+    start_lines(args, 1).0
+}
+
+/// Starts `robokey args…`, reads its first `lines` stdout lines and the address from the
+/// last one (`… on ADDR[, …]`).
+pub fn start_lines(args: &[&str], lines: usize) -> (Process, Vec<String>) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_robokey"))
         .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("robokey starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.as_mut().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let address = line
-        .split(" on ")
+    let mut read = Vec::new();
+    // Byte by byte, so that nothing after the last line is buffered away from `wait`.
+    let stdout = child.stdout.as_mut().unwrap();
+    for _ in 0..lines {
+        let mut line = Vec::new();
+        let mut byte = [0u8];
+        while std::io::Read::read(stdout, &mut byte).unwrap() == 1 && byte[0] != b'\n' {
+            line.push(byte[0]);
+        }
+        read.push(String::from_utf8_lossy(&line).into_owned());
+    }
+    let last = read.last().cloned().unwrap_or_default();
+    let address = address_after(&last, " on ");
+    (Process { child, address }, read)
+}
+
+/// The address after `marker` in `line`, up to a comma or the end.
+pub fn address_after(line: &str, marker: &str) -> String {
+    line.split(marker)
         .nth(1)
         .and_then(|rest| rest.split([',', '\n']).next())
-        .unwrap_or_else(|| panic!("no address in {line:?}"))
+        .unwrap_or_else(|| panic!("no address after {marker:?} in {line:?}"))
         .trim()
-        .to_owned();
-    Process { child, address }
+        .to_owned()
 }
 
 /// Runs `robokey args…` to completion; returns (success, stdout + stderr).

@@ -62,7 +62,10 @@ impl Pooling {
             }
             Self::Complete => {
                 let finished = |o: &Option<Outcome>| {
-                    matches!(o, Some(Outcome::Confirmed | Outcome::Unconfirmed(_)))
+                    matches!(
+                        o,
+                        Some(Outcome::Confirmed | Outcome::Kept | Outcome::Unconfirmed(_))
+                    )
                 };
                 finished(robot) && finished(controller) && same_positions
             }

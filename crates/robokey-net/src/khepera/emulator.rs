@@ -1,5 +1,7 @@
 //! A simulated Khepera IV speaking kh4server's line protocol over TCP, so the `kh4`
-//! backend and a whole session can be tested without hardware.
+//! backend and a whole session can be tested without hardware. With sensor options it is
+//! also the world: at every encoder read (a sample instant) it serves the motion capture and
+//! the camera from its true pose (docs/sensors.md).
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener};
@@ -7,11 +9,13 @@ use std::time::{Duration, Instant};
 
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+use robokey::model::Pose;
 use robokey::rng::{Purpose, stream as stream_of};
 use serialport::SerialPort as _;
 
 use super::protocol::{MAX_UNITS, PULSE_M, SPEED_UNIT_M_S};
 use crate::error::{NetError, is_wait_over};
+use crate::world::{SensorOptions, WorldSensors};
 
 /// How the emulated robot's time advances.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,32 +51,51 @@ pub struct EmulatorOptions {
     /// Serve this many connections, then return (`None`: forever; a pty is one connection
     /// that lasts as long as the emulator).
     pub connections: Option<usize>,
+    /// The emulated robot's axle length D (m), for its true pose.
+    pub axle_length: f64,
+    /// The world's sensor streams, if served: each connection is a session, replicate
+    /// `i` of their noise for the `i`-th connection.
+    pub sensors: Option<SensorOptions>,
 }
 
 /// Longest request line the emulator reads (bytes); a longer one is answered with `$`.
 const MAX_REQUEST_BYTES: usize = 256;
 
-/// The emulated robot: wheel speeds and encoder positions.
-struct Robot {
+/// The emulated robot: wheel speeds, encoder positions, and where it truly is.
+struct Robot<'w> {
     speeds: [i64; 2],
     pulses: [f64; 2],
     last: Instant,
     slip: f64,
     noise: ChaCha8Rng,
+    axle_length: f64,
+    /// The true pose (m, m, rad): the wheels' travel, slip included, by midpoint
+    /// integration.
+    truth: Pose,
+    /// Encoder reads so far: the next sample instant.
+    reads: u32,
+    world: Option<&'w mut WorldSensors>,
 }
 
-impl Robot {
+impl Robot<'_> {
     fn advance(&mut self, seconds: f64) {
-        for wheel in 0..2 {
+        let mut travel = [0.0; 2];
+        for ((distance, pulses), speed) in travel.iter_mut().zip(&mut self.pulses).zip(self.speeds)
+        {
             let factor = if self.slip > 0.0 {
                 let z: f64 = StandardNormal.sample(&mut self.noise);
                 1.0 + self.slip * z
             } else {
                 1.0
             };
-            self.pulses[wheel] +=
-                self.speeds[wheel] as f64 * SPEED_UNIT_M_S * seconds * factor / PULSE_M;
+            *distance = speed as f64 * SPEED_UNIT_M_S * seconds * factor;
+            *pulses += *distance / PULSE_M;
         }
+        let [left, right] = travel;
+        let turn = (right - left) / self.axle_length;
+        let heading = self.truth.z + turn / 2.0;
+        let distance = (left + right) / 2.0;
+        self.truth += Pose::new(distance * heading.cos(), distance * heading.sin(), turn);
     }
 
     /// Answers one request line.
@@ -101,6 +124,10 @@ impl Robot {
                 if let TimeMode::Virtual(period) = time {
                     self.advance(period.as_secs_f64());
                 }
+                if let Some(world) = self.world.as_mut() {
+                    world.publish(self.reads, &self.truth);
+                }
+                self.reads = self.reads.saturating_add(1);
                 Some(format!(
                     "r,{},{}",
                     self.pulses[0].round() as i64,
@@ -128,6 +155,7 @@ fn serve_one(
     stream: &mut (impl Read + Write),
     options: &EmulatorOptions,
     index: u64,
+    world: Option<&mut WorldSensors>,
 ) -> Result<(), NetError> {
     let mut robot = Robot {
         speeds: [0; 2],
@@ -135,6 +163,10 @@ fn serve_one(
         last: Instant::now(),
         slip: options.slip,
         noise: stream_of(options.seed, Purpose::Process, index),
+        axle_length: options.axle_length,
+        truth: Pose::zeros(),
+        reads: 0,
+        world,
     };
     let mut pending = Vec::with_capacity(MAX_REQUEST_BYTES);
     let mut chunk = [0u8; 256];
@@ -172,11 +204,17 @@ fn serve_one(
 }
 
 /// Serves kh4server's protocol on TCP (one client at a time) or on a pseudo-terminal;
-/// prints where (`kh4-emulator listening on tcp:ADDR` or `… on /dev/pts/N`).
+/// prints where (`kh4-emulator listening on tcp:ADDR` or `… on /dev/pts/N`) and, on a second
+/// line, the world's sensor streams.
 ///
 /// # Errors
-/// The address cannot be bound, or no pseudo-terminal can be made.
+/// An address cannot be bound, or no pseudo-terminal can be made.
 pub fn serve(options: &EmulatorOptions) -> Result<(), NetError> {
+    let mut world = options
+        .sensors
+        .as_ref()
+        .map(WorldSensors::serve)
+        .transpose()?;
     match options.listen {
         Listen::Tcp(address) => {
             let listener =
@@ -184,10 +222,16 @@ pub fn serve(options: &EmulatorOptions) -> Result<(), NetError> {
             let address = listener
                 .local_addr()
                 .map_err(NetError::io("local address"))?;
-            announce(&format!("tcp:{address}"));
+            announce(&format!("tcp:{address}"), world.as_ref());
             for (index, client) in listener.incoming().enumerate() {
+                if let Some(world) = world.as_mut() {
+                    world.begin_session(index as u64);
+                }
                 if let Ok(mut client) = client {
-                    serve_one(&mut client, options, index as u64)?;
+                    serve_one(&mut client, options, index as u64, world.as_mut())?;
+                }
+                if let Some(world) = world.as_mut() {
+                    world.end_session();
                 }
                 if options.connections.is_some_and(|n| index + 1 >= n) {
                     break;
@@ -200,16 +244,22 @@ pub fn serve(options: &EmulatorOptions) -> Result<(), NetError> {
             let device = agent
                 .name()
                 .ok_or_else(|| NetError::Kh4("the pseudo-terminal has no device name".into()))?;
-            announce(&device);
+            announce(&device, world.as_ref());
             // Held open while serving: the agent may close and reopen the device.
             let _agent_end = agent;
-            serve_one(&mut emulator, options, 0)
+            if let Some(world) = world.as_mut() {
+                world.begin_session(0);
+            }
+            serve_one(&mut emulator, options, 0, world.as_mut())
         }
     }
 }
 
-fn announce(address: &str) {
+fn announce(address: &str, world: Option<&WorldSensors>) {
     println!("kh4-emulator listening on {address}");
+    if let Some(world) = world {
+        println!("{}", world.describe());
+    }
     let _ = std::io::stdout().flush();
 }
 
@@ -241,6 +291,8 @@ mod tests {
             slip: 0.0,
             seed: 1,
             connections: Some(1),
+            axle_length: 0.1047,
+            sensors: None,
         };
         let server = std::thread::spawn(move || serve(&options));
         std::thread::sleep(Duration::from_millis(100));

@@ -88,6 +88,16 @@ pub struct BitEvidence {
     pub separation: [f64; 2],
 }
 
+impl BitEvidence {
+    /// The bits decided by the LLRs' signs, `v | ω << 1` (a bit is 1 when its LLR is
+    /// negative; an absent ω-bit, LLR 0, reads 0).
+    #[must_use]
+    pub fn bits(&self) -> u64 {
+        let bit = |llr: f64| u64::from(llr < 0.0);
+        bit(self.llr[0]) | bit(self.llr[1]) << 1
+    }
+}
+
 /// `∂f/∂x` of the Euler map at heading `θ` and speed `v` (m/s).
 fn state_jacobian(theta: f64, speed: f64, sample_time: f64) -> Matrix3<f64> {
     let (sin, cos) = theta.sin_cos();

@@ -4,16 +4,24 @@
 //! the robot with her own, noisier camera: the wiretap assumption that makes a secret key
 //! possible.
 
+pub mod controller;
 pub mod doublet;
+pub mod eve;
 pub mod likelihood;
+pub mod plan;
+pub mod robot;
 pub mod session;
 
 use serde::Serialize;
 
 use crate::config::EveStrategy;
 
+pub use controller::{DoubletDecision, PrivateControllerEndpoint};
 pub use doublet::{DoubletInputs, Perturbation};
+pub use eve::{DoubletEavesdropper, EveDoublet};
 pub use likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation};
+pub use plan::PrivatePlan;
+pub use robot::PrivateRobotEndpoint;
 pub use session::doublet_model;
 pub(crate) use session::simulate;
 

@@ -1,28 +1,29 @@
-//! One simulated session of private sensing: the plant with true noise, the controller
-//! reading its own pose sensor and commanding doublets from their boundary samples, the
-//! robot applying `u ± s·Δ`, and the eavesdroppers' views (docs/private-sensing.md).
+//! One simulated session of private sensing: the plant with true noise, the controller's
+//! sensor and Eve's camera, around the same robot, controller and eavesdropper endpoints
+//! the network agents run (docs/private-sensing.md).
+
+use std::collections::{BTreeMap, VecDeque};
 
 use nalgebra::Matrix3;
-use rand::RngExt;
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use subtle::ConstantTimeEq;
 
-use super::doublet::{DoubletInputs, Perturbation};
-use super::likelihood::{DoubletModel, DoubletView, PoseObservation};
+use super::controller::{DoubletDecision, PrivateControllerEndpoint};
+use super::doublet::Perturbation;
+use super::eve::{DoubletEavesdropper, EveDoublet};
+use super::likelihood::DoubletModel;
+use super::plan::PrivatePlan;
+use super::robot::PrivateRobotEndpoint;
 use super::{BitKind, DoubletBit, PrivateRun};
 use crate::config::{Config, EveStrategy};
-use crate::control::{TrackingController, TrackingGains};
 use crate::metrics::Metrics;
-use crate::model::{DiffDrive, Pose, Unicycle, clip_wheels, unicycle_step};
-use crate::protocol::Outcome;
+use crate::model::{Pose, Unicycle, WheelSpeeds, clip_wheels, unicycle_step};
+use crate::protocol::{
+    ControllerEvent, ControllerInput, ControllerOutput, RobotInput, RobotOutput,
+};
 use crate::rng::{Purpose, stream};
 use crate::sim::{RunKeys, RunOutput, StepBits, TraceRows};
-
-/// How a private session ends for both sides: its raw bits are confirmed per
-/// post-processing block, never per session.
-pub const SESSION_OUTCOME: &str =
-    "private sensing: raw bits await post-processing (confirmed per block, not per session)";
 
 /// The true-noise doublet model of `config`.
 #[must_use]
@@ -38,43 +39,6 @@ pub fn doublet_model(config: &Config) -> DoubletModel {
     }
 }
 
-/// The views of one doublet: the controller's, the camera Eve's and the commands Eve's;
-/// and the camera Eve's as the controller can model it (her stated noise around its own
-/// samples), which sizes the key.
-struct Views {
-    controller: DoubletView,
-    camera: DoubletView,
-    commands: DoubletView,
-    assumed_camera: DoubletView,
-}
-
-fn views(config: &Config, controller: [Pose; 3], camera: [Pose; 3]) -> Views {
-    let c = |k: usize| PoseObservation::new(controller[k], config.sensing.controller_std);
-    let e = |k: usize| PoseObservation::new(camera[k], config.eve.camera_std);
-    Views {
-        controller: DoubletView {
-            start: c(0),
-            middle: Some(c(1)),
-            end: Some(c(2)),
-        },
-        camera: DoubletView {
-            start: c(0).fuse(&e(0)),
-            middle: Some(e(1)),
-            end: Some(c(2).fuse(&e(2))),
-        },
-        commands: DoubletView {
-            start: c(0),
-            middle: None,
-            end: Some(c(2)),
-        },
-        assumed_camera: DoubletView {
-            start: c(0).fuse(&PoseObservation::new(controller[0], config.eve.camera_std)),
-            middle: Some(PoseObservation::new(controller[1], config.eve.camera_std)),
-            end: Some(c(2).fuse(&PoseObservation::new(controller[2], config.eve.camera_std))),
-        },
-    }
-}
-
 fn gaussian(rng: &mut ChaCha8Rng, std: &[f64; 3]) -> Pose {
     Pose::from_fn(|i, _| {
         let z: f64 = StandardNormal.sample(rng);
@@ -83,198 +47,203 @@ fn gaussian(rng: &mut ChaCha8Rng, std: &[f64; 3]) -> Pose {
 }
 
 /// Simulates replicate `replicate` of a validated private-sensing configuration: a pure
-/// function of `(config, replicate)`.
+/// function of `(config, replicate)`. The plant and the sensors live here; the robot, the
+/// controller and the eavesdroppers are the endpoints the network agents run.
 #[must_use]
 pub(crate) fn simulate(config: &Config, replicate: u32, trace: &mut TraceRows<'_>) -> RunOutput {
     let seed = config.run.seed;
     let stream_of = |purpose| stream(seed, purpose, u64::from(replicate));
-    let (mut process_rng, mut sensor_rng, mut camera_rng, mut key_rng) = (
+    let (mut process_rng, mut sensor_rng, mut camera_rng) = (
         stream_of(Purpose::Process),
         stream_of(Purpose::Measurement),
         stream_of(Purpose::Camera),
-        stream_of(Purpose::Key),
     );
-    let t = config.robot.sample_time;
-    let drive = DiffDrive {
-        wheel_radius: config.robot.r,
-        axle_length: config.robot.axle_length,
-    };
-    let ctl = &config.controller;
-    let mut controller = TrackingController::new(
-        TrackingGains {
-            kp: ctl.kp,
-            kd: ctl.kd,
-            xi_eps: ctl.xi_eps,
-            wheel_limit: ctl.wheel_limit,
-        },
-        drive,
-        t,
-    );
-    let model = doublet_model(config);
+    let plan = PrivatePlan::from_config(config, replicate);
+    let (steps, t, drive) = (plan.steps, plan.sample_time, plan.drive);
+    let two_bits = plan.perturbation.bits_per_doublet == 2;
+    let mut robot = PrivateRobotEndpoint::new(plan.clone(), &mut stream_of(Purpose::Key));
+    let mut controller = PrivateControllerEndpoint::new(config, plan);
+    let mut eve = DoubletEavesdropper::new(config);
     let trajectory = config.trajectory();
-    let steps = trajectory.steps(t);
-    let reference = |k: usize| trajectory.at(k as f64 * t);
+    let reference = |k: u32| trajectory.at(f64::from(k) * t);
 
     let mut pose = Pose::zeros();
-    let mut sensor = Vec::with_capacity(steps + 1);
-    let mut camera = Vec::with_capacity(steps + 1);
-    let mut bits = Vec::new();
-    let mut log = vec![StepBits::default(); steps];
-    let (mut doublets, mut gated) = (0u32, 0u32);
+    let mut log = vec![StepBits::default(); steps as usize];
+    let mut run = PrivateRun::default();
     let mut tracking_error = 0.0;
-    // The doublet in flight: its first step, inputs and bits (None: gated or protocol off).
-    let mut pending: Option<(usize, DoubletInputs, Option<[u8; 2]>)> = None;
+    let mut outcomes = (None, None);
+    // Decisions of the controller and of the eavesdroppers, paired by doublet.
+    let mut decided: VecDeque<DoubletDecision> = VecDeque::new();
+    let mut heard: BTreeMap<u32, EveDoublet> = BTreeMap::new();
 
     for k in 0..=steps {
         if k > 0 {
             tracking_error += (pose.xy() - reference(k).position).norm();
         }
-        sensor.push(pose + gaussian(&mut sensor_rng, &config.sensing.controller_std));
-        camera.push(pose + gaussian(&mut camera_rng, &config.eve.camera_std));
-        if let Some(row) = trace.row(k) {
-            row.k = k as u32;
-            row.t = k as f64 * t;
+        let sensed = pose + gaussian(&mut sensor_rng, &config.sensing.controller_std);
+        let filmed = pose + gaussian(&mut camera_rng, &config.eve.camera_std);
+        if let Some(row) = trace.row(k as usize) {
+            row.k = k;
+            row.t = f64::from(k) * t;
             row.reference = reference(k).position.into();
             row.pose = pose.into();
-            row.measurement = sensor[k].into();
-            row.camera = Some(camera[k].into());
+            row.measurement = sensed.into();
+            row.camera = Some(filmed.into());
         }
-        // A doublet ends at its boundary sample: every party decides.
-        if let Some((start, inputs, Some(carried))) = pending.filter(|p| p.0 + 2 == k) {
-            let v = views(
-                config,
-                [sensor[start], sensor[start + 1], sensor[k]],
-                [camera[start], camera[start + 1], camera[k]],
-            );
-            let controller_evidence = model.evidence(&inputs, &v.controller);
-            let camera_evidence = model.evidence(&inputs, &v.camera);
-            let commands_evidence = model.evidence(&inputs, &v.commands);
-            let assumed = model.separations(&inputs, &v.assumed_camera);
-            for (i, kind) in BitKind::ALL
-                .iter()
-                .enumerate()
-                .take(usize::from(config.protocol.bits_per_doublet))
-            {
-                bits.push(DoubletBit {
-                    step: start as u32,
-                    kind: *kind,
-                    bit: carried[i],
-                    turn_rate: inputs.turn_rate(),
-                    controller: controller_evidence.llr[i],
-                    camera: camera_evidence.llr[i],
-                    commands: commands_evidence.llr[i],
-                    camera_separation: camera_evidence.separation[i],
-                    assumed_separation: assumed[i],
-                    commands_separation: commands_evidence.separation[i],
-                });
-            }
-            let decide = |llr: f64| u8::from(llr < 0.0);
-            let eve_llr = match config.eve_strategy() {
-                EveStrategy::Commands => commands_evidence.llr[0],
-                _ => camera_evidence.llr[0],
-            };
-            let logged = StepBits {
-                bit: Some(carried[0]),
-                bhat: Some(decide(controller_evidence.llr[0])),
-                bhat_eve: config.eve.enabled.then(|| decide(eve_llr)),
-            };
-            log[start] = logged;
-            if let Some(row) = trace.row(start + 1) {
-                row.bhat = logged.bhat;
-                row.bhat_eve = logged.bhat_eve;
-            }
-        }
-        // Row k − 1 is complete: a doublet's decision lands on its second step's row.
-        trace.complete_before(k);
-        if k == steps {
-            break;
-        }
-        // A doublet starts at an even step with two steps left; an odd last step is lone.
-        let applied = match pending {
-            Some((start, inputs, carried)) if start + 1 == k => {
-                let offset = carried.map_or_else(Unicycle::zeros, |b| {
-                    model.perturbation.offset(model.perturbation.pattern(b))
-                });
-                inputs.applied(offset)[1]
-            }
-            _ => {
-                let first = controller.command(&sensor[k], &reference(k));
-                if let Some(row) = trace.row(k) {
-                    row.nominal = Some(first.into());
-                }
-                if k + 2 <= steps {
-                    let predicted = unicycle_step(&sensor[k], &first, t);
-                    let second = controller.command(&predicted, &reference(k + 1));
-                    let inputs = DoubletInputs { first, second };
-                    let drawn = [key_rng.random_range(0..2u8), key_rng.random_range(0..2u8)];
-                    doublets += 1;
-                    let carries = config.protocol.enabled
-                        && inputs.turn_rate() <= config.protocol.max_turn_rate;
-                    gated += u32::from(config.protocol.enabled && !carries);
-                    let carried = carries.then_some(drawn);
-                    pending = Some((k, inputs, carried));
-                    if let Some(row) = trace.row(k + 1) {
-                        row.nominal = Some(second.into());
+        eve.film(k, filmed);
+        // The simulated robot has no odometry of its own: it would send none anyway.
+        robot.handle_input(RobotInput::Sample { step: k, y: pose });
+        controller.handle_input(ControllerInput::Sensor {
+            step: k,
+            pose: sensed,
+        });
+        let mut wheels = None;
+        // Deliver until both sides are quiet; the robot's Apply ends the step.
+        loop {
+            let mut quiet = true;
+            while let Some(output) = robot.poll_output() {
+                quiet = false;
+                match output {
+                    RobotOutput::Transmit(message) => {
+                        eve.observe(&message);
+                        controller.handle_input(ControllerInput::Frame(message));
                     }
-                    if let Some(b) = carried {
-                        for step in [k, k + 1] {
-                            if let Some(row) = trace.row(step) {
-                                row.bit = Some(b[0]);
-                                row.bit_omega =
-                                    (config.protocol.bits_per_doublet == 2).then_some(b[1]);
+                    RobotOutput::Apply(actuation) => {
+                        if let Some(row) = trace.row(actuation.step as usize) {
+                            row.bit = actuation.bit;
+                            row.bit_omega = actuation
+                                .bit
+                                .and(robot.carried_bits(actuation.step / 2))
+                                .filter(|_| two_bits)
+                                .map(|b| b[1]);
+                        }
+                        wheels = Some(actuation.wheels);
+                    }
+                    RobotOutput::Finished(outcome) => outcomes.0 = Some(outcome),
+                }
+            }
+            while let Some(output) = controller.poll_output() {
+                quiet = false;
+                match output {
+                    ControllerOutput::Transmit(message) => {
+                        eve.observe(&message);
+                        robot.handle_input(RobotInput::Frame(message));
+                    }
+                    ControllerOutput::Event(event) => match event {
+                        ControllerEvent::DoubletCommanded {
+                            step,
+                            inputs,
+                            carries,
+                        } => {
+                            run.doublets += 1;
+                            run.gated += u32::from(config.protocol.enabled && !carries);
+                            for (k, nominal) in [(step, inputs.first), (step + 1, inputs.second)] {
+                                if let Some(row) = trace.row(k as usize) {
+                                    row.nominal = Some(nominal.into());
+                                }
                             }
                         }
-                    }
-                    let offset = carried.map_or_else(Unicycle::zeros, |b| {
-                        model.perturbation.offset(model.perturbation.pattern(b))
-                    });
-                    inputs.applied(offset)[0]
-                } else {
-                    pending = None;
-                    first
+                        ControllerEvent::Commanded { step, nominal } => {
+                            if let Some(row) = trace.row(step as usize) {
+                                row.nominal = Some(nominal.into());
+                            }
+                        }
+                        ControllerEvent::DoubletDecided(decision) => decided.push_back(decision),
+                        ControllerEvent::Finished(outcome) => outcomes.1 = Some(outcome),
+                        _ => {}
+                    },
                 }
             }
-        };
-        let wheels = clip_wheels(drive.to_wheels(applied), config.robot.wheel_limit);
-        pose = unicycle_step(&pose, &drive.to_unicycle(wheels), t)
-            + gaussian(&mut process_rng, &config.noise.process_std);
+            while let Some(doublet) = eve.poll() {
+                heard.insert(doublet.doublet, doublet);
+            }
+            if quiet {
+                break;
+            }
+        }
+        // Every party has decided the doublet that ended at k: record its bits.
+        while let Some(e) = decided.front().and_then(|d| heard.remove(&d.doublet)) {
+            let d = decided.pop_front().expect("paired with the front decision");
+            let bits = robot
+                .carried_bits(d.doublet)
+                .expect("the robot carried every doublet the simulated controller decides");
+            record(config, &d, &e, bits, &mut run, &mut log, trace);
+        }
+        // Row k − 1 is complete: a doublet's decision lands on its second step's row.
+        trace.complete_before(k as usize);
+        if k < steps {
+            let applied = drive.to_unicycle(clip_wheels(
+                wheels.unwrap_or_else(WheelSpeeds::zeros),
+                config.robot.wheel_limit,
+            ));
+            pose = unicycle_step(&pose, &applied, t)
+                + gaussian(&mut process_rng, &config.noise.process_std);
+        }
     }
 
-    let keys = keys(config, &bits);
-    let jx = tracking_error / steps.max(1) as f64;
+    let keys = RunKeys {
+        robot: robot.key().to_vec().into(),
+        controller: controller.key().to_vec().into(),
+        eve: config
+            .eve
+            .enabled
+            .then(|| eve.key(config.eve_strategy() != EveStrategy::Commands)),
+    };
+    let jx = tracking_error / f64::from(steps.max(1));
     RunOutput {
-        metrics: metrics(config, &bits, &keys, jx),
+        metrics: metrics(config, &run.bits, &keys, jx),
         trace: Vec::new(),
-        robot_outcome: Some(Outcome::Unconfirmed(SESSION_OUTCOME.into())),
-        controller_outcome: Some(Outcome::Unconfirmed(SESSION_OUTCOME.into())),
+        robot_outcome: outcomes.0,
+        controller_outcome: outcomes.1,
         steps: log,
         keys,
-        private: Some(PrivateRun {
-            doublets,
-            gated,
-            bits,
-        }),
+        private: Some(run),
     }
 }
 
-/// The raw keys: the robot's bits, the controller's decisions, Eve's decisions.
-fn keys(config: &Config, bits: &[DoubletBit]) -> RunKeys {
+/// Records a decided doublet's bits — the robot's, and every party's evidence — in the run,
+/// the step log and the trace.
+fn record(
+    config: &Config,
+    d: &DoubletDecision,
+    e: &EveDoublet,
+    bits: [u8; 2],
+    run: &mut PrivateRun,
+    log: &mut [StepBits],
+    trace: &mut TraceRows<'_>,
+) {
+    for (i, kind) in BitKind::ALL
+        .iter()
+        .enumerate()
+        .take(usize::from(config.protocol.bits_per_doublet))
+    {
+        run.bits.push(DoubletBit {
+            step: d.step,
+            kind: *kind,
+            bit: bits[i],
+            turn_rate: d.inputs.turn_rate(),
+            controller: d.evidence.llr[i],
+            camera: e.camera.llr[i],
+            commands: e.commands.llr[i],
+            camera_separation: e.camera.separation[i],
+            assumed_separation: d.assumed_separation[i],
+            commands_separation: e.commands.separation[i],
+        });
+    }
     let decide = |llr: f64| u8::from(llr < 0.0);
-    let eve = config.eve.enabled.then(|| {
-        let strategy = config.eve_strategy();
-        bits.iter()
-            .map(|b| decide(b.llr_of(strategy)))
-            .collect::<Vec<u8>>()
-            .into()
-    });
-    RunKeys {
-        robot: bits.iter().map(|b| b.bit).collect::<Vec<u8>>().into(),
-        controller: bits
-            .iter()
-            .map(|b| decide(b.controller))
-            .collect::<Vec<u8>>()
-            .into(),
-        eve,
+    let eve_llr = match config.eve_strategy() {
+        EveStrategy::Commands => e.commands.llr[0],
+        _ => e.camera.llr[0],
+    };
+    let logged = StepBits {
+        bit: Some(bits[0]),
+        bhat: Some(decide(d.evidence.llr[0])),
+        bhat_eve: config.eve.enabled.then(|| decide(eve_llr)),
+    };
+    log[d.step as usize] = logged;
+    if let Some(row) = trace.row(d.step as usize + 1) {
+        row.bhat = logged.bhat;
+        row.bhat_eve = logged.bhat_eve;
     }
 }
 

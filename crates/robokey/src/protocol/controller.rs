@@ -4,25 +4,32 @@
 use std::collections::VecDeque;
 
 use super::assembler::CodewordAssembler;
+use super::closing::Closer;
 use super::decoder::{StepDecision, StepDecoder};
 use super::fates::FateLedger;
 use super::message::Message;
 use super::plan::SessionPlan;
-use super::{ConfirmTags, Direction, KeyBits, Outcome, TAG_BYTES};
+use super::{KeyBits, Outcome};
 use crate::config::{Config, Feedback};
 use crate::control::{TrackingController, TrackingGains};
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use crate::observer::{Observer, ObserverParams};
+use crate::private::{DoubletDecision, DoubletInputs};
 use crate::trajectory::Trajectory;
 
-/// The direction the controller sends in.
-const DIRECTION: Direction = Direction::ToRobot;
-
-/// Input to the controller endpoint.
+/// Input to the controller endpoints (odometry and private sensing).
 #[derive(Clone, Debug, PartialEq)]
 pub enum ControllerInput {
     /// A message from the robot.
     Frame(Message),
+    /// Private sensing: the controller's own sensor sampled `y_c(k)` at `t_k` (the odometry
+    /// mode's controller ignores it).
+    Sensor {
+        /// Step k.
+        step: u32,
+        /// `y_c(k)` (m, m, rad).
+        pose: Pose,
+    },
     /// The shell's retransmission timer fired (Finish or Confirm not answered yet).
     Timeout,
 }
@@ -48,11 +55,29 @@ pub enum ControllerEvent {
         /// Accepted into the key.
         accepted: bool,
     },
+    /// Private sensing: the doublet starting at `step` was commanded with these public
+    /// inputs; it carries bits unless the protocol is off or the turn gate stopped it.
+    DoubletCommanded {
+        /// Its first step `2j`.
+        step: u32,
+        /// `u(2j)` and `u'(2j+1)`.
+        inputs: DoubletInputs,
+        /// Whether it carries bits.
+        carries: bool,
+    },
+    /// Private sensing: a carrying doublet was decided and is kept.
+    DoubletDecided(DoubletDecision),
+    /// Private sensing: a carrying doublet could not be decided (a sample or a measurement
+    /// is missing, or the robot did not apply it): it is dropped on both sides.
+    DoubletErased {
+        /// Doublet index j.
+        doublet: u32,
+    },
     /// The session ended.
     Finished(Outcome),
 }
 
-/// Output of the controller endpoint.
+/// Output of the controller endpoints.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ControllerOutput {
     /// Send this message to the robot.
@@ -62,17 +87,12 @@ pub enum ControllerOutput {
 }
 
 /// What the controller waits for.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 enum Phase {
     ExpectMeasurement,
-    ExpectFinishAck { tries: u32 },
-    ExpectConfirm { tries: u32 },
+    Closing(Box<Closer>),
     Done,
 }
-
-/// Largest number of Finish (and Confirm) transmissions before the session ends
-/// unconfirmed.
-const FINISH_TRIES: u32 = 10;
 
 /// The controller side of a session.
 pub struct ControllerEndpoint {
@@ -135,7 +155,14 @@ impl ControllerEndpoint {
     pub fn handle_input(&mut self, input: ControllerInput) {
         match input {
             ControllerInput::Frame(message) => self.handle_message(message),
-            ControllerInput::Timeout => self.handle_timeout(),
+            ControllerInput::Sensor { .. } => {}
+            ControllerInput::Timeout => {
+                if let Phase::Closing(closer) = &mut self.phase
+                    && let Some(outcome) = closer.on_timeout(&mut self.outputs)
+                {
+                    self.finish(outcome);
+                }
+            }
         }
     }
 
@@ -159,7 +186,7 @@ impl ControllerEndpoint {
     /// Whether the session is over.
     #[must_use]
     pub fn is_done(&self) -> bool {
-        self.phase == Phase::Done
+        matches!(self.phase, Phase::Done)
     }
 
     fn emit(&mut self, event: ControllerEvent) {
@@ -176,7 +203,11 @@ impl ControllerEndpoint {
     }
 
     fn handle_message(&mut self, message: Message) {
-        match (&self.phase, message) {
+        match (&mut self.phase, message) {
+            (Phase::Done, _) => {}
+            (_, Message::Abort { reason }) => {
+                self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
+            }
             (
                 Phase::ExpectMeasurement,
                 Message::Measurement {
@@ -186,60 +217,12 @@ impl ControllerEndpoint {
                     fate_cursor,
                 },
             ) => self.handle_measurement(step, Pose::from(y), applied_step, fate_cursor),
-            (Phase::ExpectFinishAck { .. }, Message::FinishAck) => {
-                self.send_confirm();
-                self.phase = Phase::ExpectConfirm { tries: 1 };
-            }
-            (
-                Phase::ExpectFinishAck { .. },
-                Message::Confirm {
-                    session_tag,
-                    key_tag,
-                },
-            ) => {
-                // The FinishAck was lost; the robot's tag proves it had the Finish.
-                self.send_confirm();
-                self.verify(session_tag, key_tag);
-            }
-            (
-                Phase::ExpectConfirm { .. },
-                Message::Confirm {
-                    session_tag,
-                    key_tag,
-                },
-            ) => self.verify(session_tag, key_tag),
-            (Phase::Done, _) => {}
-            (_, Message::Abort { reason }) => {
-                self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
+            (Phase::Closing(closer), message) => {
+                if let Some(outcome) = closer.on_message(message, &mut self.outputs) {
+                    self.finish(outcome);
+                }
             }
             // Duplicates and messages that do not fit the phase are ignored.
-            _ => {}
-        }
-    }
-
-    fn handle_timeout(&mut self) {
-        match self.phase {
-            Phase::ExpectFinishAck { tries } | Phase::ExpectConfirm { tries }
-                if tries >= FINISH_TRIES =>
-            {
-                let waited = if matches!(self.phase, Phase::ExpectFinishAck { .. }) {
-                    "FinishAck"
-                } else {
-                    "confirmation tag"
-                };
-                self.finish(Outcome::Unconfirmed(format!(
-                    "no {waited} from the robot after {tries} transmissions"
-                )));
-            }
-            Phase::ExpectFinishAck { tries } => {
-                self.phase = Phase::ExpectFinishAck { tries: tries + 1 };
-                self.send_finish();
-            }
-            // Our tag or the robot's was lost: repeating ours makes the robot repeat its own.
-            Phase::ExpectConfirm { tries } => {
-                self.phase = Phase::ExpectConfirm { tries: tries + 1 };
-                self.send_confirm();
-            }
             _ => {}
         }
     }
@@ -287,8 +270,13 @@ impl ControllerEndpoint {
                 fates: self.fates.window(self.robot_cursor),
             });
             self.key = self.fates.accepted_key(&self.decoded, self.plan.code.k());
-            self.phase = Phase::ExpectFinishAck { tries: 1 };
-            self.send_finish();
+            self.phase = Phase::Closing(Box::new(Closer::start(
+                self.plan.confirmer.clone(),
+                &self.fates,
+                &self.key,
+                Outcome::Confirmed,
+                &mut self.outputs,
+            )));
         }
     }
 
@@ -327,39 +315,6 @@ impl ControllerEndpoint {
             u0: u0.into(),
             u1: u1.into(),
             fates: self.fates.window(self.robot_cursor),
-        });
-    }
-
-    fn tags(&self) -> ConfirmTags {
-        self.plan
-            .confirmer
-            .tags(DIRECTION, &self.fates.bitmap(), &self.key)
-    }
-
-    fn send_finish(&mut self) {
-        self.send(Message::Finish {
-            codewords: self.fates.len(),
-            bitmap: self.fates.bitmap(),
-        });
-    }
-
-    fn send_confirm(&mut self) {
-        let ours = self.tags();
-        self.send(Message::Confirm {
-            session_tag: ours.session,
-            key_tag: ours.key,
-        });
-    }
-
-    fn verify(&mut self, session: [u8; TAG_BYTES], key: [u8; TAG_BYTES]) {
-        let peer = ConfirmTags { session, key };
-        let checked = self
-            .plan
-            .confirmer
-            .check(DIRECTION, &self.fates.bitmap(), &self.key, &peer);
-        self.finish(match checked {
-            Ok(()) => Outcome::Confirmed,
-            Err(why) => Outcome::Unconfirmed(format!("the robot's {why}")),
         });
     }
 }

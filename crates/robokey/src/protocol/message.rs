@@ -64,9 +64,38 @@ pub enum Message {
         /// Fates of the codewords the robot has not confirmed yet.
         fates: FateWindow,
     },
-    /// Controller → robot: every codeword's fate, sent after the stop command.
+    /// Robot → controller, private sensing: the sample instant `t_k` has passed. It carries
+    /// no pose: the controller reads its own sensor, and odometry stays on the robot.
+    PrivateMeasurement {
+        /// Sample index k.
+        step: u32,
+        /// The command step applied on `[t_{k−1}, t_k)`, or `None` after a fallback.
+        applied_step: Option<u32>,
+        /// The robot's contiguous fate cursor: first doublet whose fate it lacks.
+        fate_cursor: u32,
+    },
+    /// Controller → robot, private sensing: the nominal inputs of the doublet that starts
+    /// at step k (or of a lone last step), from which the robot derives `u + s·Δ` and
+    /// `u' − s·Δ` itself, plus acks. At `k = N` it is the stop command (inputs zero).
+    DoubletCommand {
+        /// Step k.
+        step: u32,
+        /// The controller's sample `y_c(k)` = `[px, py, θ]` (m, m, rad) the inputs were
+        /// computed from. The tracking law is invertible, so the inputs reveal it anyway
+        /// (docs/private-sensing.md); the secrecy accounting charges it to the eavesdropper.
+        sample: [f64; 3],
+        /// `u(k)` = `[v, ω]` (m/s, rad/s).
+        first: [f64; 2],
+        /// `u'(k+1)`, from the open-loop prediction; `None` on a lone last step and on the
+        /// stop command.
+        second: Option<[f64; 2]>,
+        /// Fates of the doublets the robot has not confirmed yet.
+        fates: FateWindow,
+    },
+    /// Controller → robot: every codeword's (private sensing: doublet's) fate, sent after
+    /// the stop command.
     Finish {
-        /// Number of decided codewords.
+        /// Number of decided codewords (doublets).
         codewords: u32,
         /// Fate bitmap, bit `i % 64` of word `i / 64` = codeword `i` accepted.
         bitmap: Vec<u64>,

@@ -5,6 +5,7 @@
 
 mod assembler;
 pub mod auth;
+pub(crate) mod closing;
 pub(crate) mod controller;
 mod decoder;
 mod fates;
@@ -28,6 +29,10 @@ pub enum Outcome {
     /// The peer's tag matched: both sides hold the same key (up to the tag's collision
     /// probability).
     Confirmed,
+    /// Private sensing: the peer's session tag matched, so both ran the same session and
+    /// kept the same doublets. Their raw bits differ where the controller erred: they become
+    /// a key only through post-processing, confirmed per block (docs/private-sensing.md).
+    Kept,
     /// The session finished, but the peer's tag did not match or never arrived.
     Unconfirmed(String),
     /// The session was aborted.

@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use super::auth::Confirmer;
 use crate::code::BlockCode;
-use crate::config::Config;
+use crate::config::{Config, SensingMode};
 use crate::model::{DiffDrive, Unicycle};
 
 /// The agreed session parameters, derived from the configuration.
@@ -93,18 +93,26 @@ impl SessionPlan {
 }
 
 /// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
-/// budget, Δ, trajectory, protocol on/off), as `field = value` lines in a fixed order. The
-/// robot checks every command pair against the agreed Δ, r and D.
+/// budget, Δ, trajectory, protocol on/off; in private sensing also the mode, the bits per
+/// doublet and the turn gate), as `field = value` lines in a fixed order. The robot checks
+/// every command against the agreed Δ, r and D.
 #[must_use]
 pub fn agreement_terms(config: &Config) -> String {
     let code = &config.code;
     let traj = &config.trajectory;
     let built = code.build();
+    let private = match config.sensing.mode {
+        SensingMode::Odometry => String::new(),
+        SensingMode::Private => format!(
+            "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n",
+            config.protocol.bits_per_doublet, config.protocol.max_turn_rate
+        ),
+    };
     format!(
         "robot.T = {}\nrobot.r = {}\nrobot.D = {}\nprotocol.enabled = {}\nprotocol.delta_v = {}\nprotocol.delta_omega = {}\n\
          code.kind = {:?}\ncode.n_c = {}\ncode.k_c = {}\ncode.accept_max_distance = {}\n\
          code.key_bits = {}\ntrajectory.waypoints = {:?}\ntrajectory.side_time = {}\n\
-         trajectory.laps = {}\n",
+         trajectory.laps = {}\n{private}",
         config.robot.sample_time,
         config.robot.r,
         config.robot.axle_length,

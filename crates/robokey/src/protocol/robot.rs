@@ -3,16 +3,14 @@
 
 use std::collections::VecDeque;
 
+use super::closing::{RobotCloser, bitmap_bit};
 use super::fates::FateLedger;
 use super::message::Message;
 use super::plan::SessionPlan;
-use super::{ConfirmTags, Direction, KeyBits, Outcome};
+use super::{KeyBits, Outcome};
 use crate::code::low_mask;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use rand::{CryptoRng, RngExt};
-
-/// The direction the robot sends in.
-const DIRECTION: Direction = Direction::ToController;
 
 /// Input to the robot endpoint.
 #[derive(Clone, Debug, PartialEq)]
@@ -228,19 +226,13 @@ impl RobotEndpoint {
                     return;
                 }
                 for index in 0..codewords {
-                    let accepted = bitmap
-                        .get(index as usize / 64)
-                        .is_some_and(|w| w >> (index % 64) & 1 == 1);
-                    self.record_fate(index, accepted);
+                    self.record_fate(index, bitmap_bit(&bitmap, index));
                 }
                 self.key = self.fates.accepted_key(&self.messages, self.plan.code.k());
                 self.phase = Phase::ExpectConfirm;
-                self.send(Message::FinishAck);
-                let ours = self.tags();
-                self.send(Message::Confirm {
-                    session_tag: ours.session,
-                    key_tag: ours.key,
-                });
+                for message in self.closer(&self.fates.bitmap()).answer() {
+                    self.send(message);
+                }
             }
             (
                 Phase::ExpectConfirm,
@@ -249,18 +241,12 @@ impl RobotEndpoint {
                     key_tag,
                 },
             ) => {
-                let peer = ConfirmTags {
-                    session: session_tag,
-                    key: key_tag,
-                };
-                let checked =
-                    self.plan
-                        .confirmer
-                        .check(DIRECTION, &self.fates.bitmap(), &self.key, &peer);
-                self.finish(match checked {
-                    Ok(()) => Outcome::Confirmed,
-                    Err(why) => Outcome::Unconfirmed(format!("the controller's {why}")),
-                });
+                let outcome = self.closer(&self.fates.bitmap()).verdict(
+                    session_tag,
+                    key_tag,
+                    Outcome::Confirmed,
+                );
+                self.finish(outcome);
             }
             (Phase::Done, _) => {}
             (_, Message::Abort { reason }) => {
@@ -362,10 +348,12 @@ impl RobotEndpoint {
         (self.codewords[index as usize] >> position & 1) as u8
     }
 
-    fn tags(&self) -> ConfirmTags {
-        self.plan
-            .confirmer
-            .tags(DIRECTION, &self.fates.bitmap(), &self.key)
+    fn closer<'a>(&'a self, bitmap: &'a [u64]) -> RobotCloser<'a> {
+        RobotCloser {
+            confirmer: &self.plan.confirmer,
+            bitmap,
+            tagged_key: &self.key,
+        }
     }
 }
 

@@ -85,10 +85,12 @@ const CONFIRM: u8 = 7;
 const ABORT: u8 = 8;
 const REFUSE: u8 = 9;
 const READY: u8 = 10;
+const PRIVATE_MEASUREMENT: u8 = 11;
+const DOUBLET_COMMAND: u8 = 12;
 const DONE: u8 = 13;
-/// Reserved: 11 = private-mode measurement (no pose); 16–21 = post-processing (pool sync,
-/// reconciliation query and answer, block confirmation, commit, amplification seed chunk).
-const RESERVED: [u8; 7] = [11, 16, 17, 18, 19, 20, 21];
+/// Reserved: 16–21 = post-processing (pool sync, reconciliation query and answer, block
+/// confirmation, commit, amplification seed chunk).
+const RESERVED: [u8; 6] = [16, 17, 18, 19, 20, 21];
 
 /// Encodes a frame's header and payload: the bytes its MAC covers (the session layer
 /// appends the MAC).
@@ -101,6 +103,8 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
         Message::Ready => (READY, 0),
         Message::Measurement { step, .. } => (MEASUREMENT, *step),
         Message::Command { step, .. } => (COMMAND, *step),
+        Message::PrivateMeasurement { step, .. } => (PRIVATE_MEASUREMENT, *step),
+        Message::DoubletCommand { step, .. } => (DOUBLET_COMMAND, *step),
         Message::Finish { .. } => (FINISH, 0),
         Message::FinishAck => (FINISH_ACK, 0),
         Message::Confirm { .. } => (CONFIRM, 0),
@@ -148,20 +152,34 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
             fate_cursor,
             ..
         } => {
-            for v in y {
-                out.extend_from_slice(&v.to_be_bytes());
-            }
-            out.push(u8::from(applied_step.is_some()));
-            out.extend_from_slice(&applied_step.unwrap_or(0).to_be_bytes());
+            put_f64s(&mut out, y);
+            put_optional(&mut out, applied_step.map(u32::to_be_bytes), [0; 4]);
+            out.extend_from_slice(&fate_cursor.to_be_bytes());
+        }
+        Message::PrivateMeasurement {
+            applied_step,
+            fate_cursor,
+            ..
+        } => {
+            put_optional(&mut out, applied_step.map(u32::to_be_bytes), [0; 4]);
             out.extend_from_slice(&fate_cursor.to_be_bytes());
         }
         Message::Command { u0, u1, fates, .. } => {
-            for v in u0.iter().chain(u1) {
-                out.extend_from_slice(&v.to_be_bytes());
-            }
-            out.extend_from_slice(&fates.first.to_be_bytes());
-            out.push(fates.count);
-            out.extend_from_slice(&fates.accepted.to_be_bytes());
+            put_f64s(&mut out, u0);
+            put_f64s(&mut out, u1);
+            put_fates(&mut out, fates);
+        }
+        Message::DoubletCommand {
+            sample,
+            first,
+            second,
+            fates,
+            ..
+        } => {
+            put_f64s(&mut out, sample);
+            put_f64s(&mut out, first);
+            put_optional(&mut out, second.map(pair_bytes), [0; 16]);
+            put_fates(&mut out, fates);
         }
         Message::Finish { codewords, bitmap } => {
             out.extend_from_slice(&codewords.to_be_bytes());
@@ -183,6 +201,32 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
         Message::Abort { reason } => put_text(&mut out, reason, MAX_REASON_BYTES),
     }
     out
+}
+
+fn put_f64s(out: &mut Vec<u8>, values: &[f64]) {
+    for v in values {
+        out.extend_from_slice(&v.to_be_bytes());
+    }
+}
+
+/// `[a, b]` as 16 big-endian bytes.
+fn pair_bytes(pair: [f64; 2]) -> [u8; 16] {
+    let mut bytes = [0; 16];
+    bytes[..8].copy_from_slice(&pair[0].to_be_bytes());
+    bytes[8..].copy_from_slice(&pair[1].to_be_bytes());
+    bytes
+}
+
+/// Appends `present u8 | value`, the value zeroed when absent.
+fn put_optional<const N: usize>(out: &mut Vec<u8>, value: Option<[u8; N]>, absent: [u8; N]) {
+    out.push(u8::from(value.is_some()));
+    out.extend_from_slice(&value.unwrap_or(absent));
+}
+
+fn put_fates(out: &mut Vec<u8>, fates: &FateWindow) {
+    out.extend_from_slice(&fates.first.to_be_bytes());
+    out.push(fates.count);
+    out.extend_from_slice(&fates.accepted.to_be_bytes());
 }
 
 /// Splits a datagram into the bytes its MAC covers and the MAC.
@@ -252,7 +296,35 @@ impl Reader<'_> {
     fn f64(&mut self) -> f64 {
         f64::from_be_bytes(self.take())
     }
+    /// `applied_flag u8 | applied_step u32` of a measurement.
+    fn applied_step(&mut self) -> Result<Option<u32>, WireError> {
+        match (self.u8(), self.u32()) {
+            (0, 0) => Ok(None),
+            (1, step) => Ok(Some(step)),
+            (0, _) => Err(WireError::BadField(
+                "measurement: applied_step set while flagged absent",
+            )),
+            _ => Err(WireError::BadField(
+                "measurement: applied_step flag is not 0 or 1",
+            )),
+        }
+    }
+    /// `first u32 | count u8 | accepted u64` of a command.
+    fn fates(&mut self) -> Result<FateWindow, WireError> {
+        let fates = FateWindow {
+            first: self.u32(),
+            count: self.u8(),
+            accepted: self.u64(),
+        };
+        if u32::from(fates.count) > FateWindow::CAPACITY {
+            return Err(WireError::BadField("command: fate window longer than 64"));
+        }
+        Ok(fates)
+    }
 }
+
+/// Bytes of a fate window on the wire.
+const FATES_BYTES: usize = 4 + 1 + 8;
 
 fn expect_len(kind: &'static str, payload: &[u8], expected: usize) -> Result<(), WireError> {
     if payload.len() == expected {
@@ -341,46 +413,55 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
         }
         MEASUREMENT => {
             expect_len("Measurement", payload, 24 + 1 + 4 + 4)?;
-            let y = [r.f64(), r.f64(), r.f64()];
-            let (flag, value) = (r.u8(), r.u32());
-            let applied = match (flag, value) {
-                (0, 0) => None,
-                (1, step) => Some(step),
-                (0, _) => {
-                    return Err(WireError::BadField(
-                        "Measurement: applied_step set while flagged absent",
-                    ));
-                }
-                _ => {
-                    return Err(WireError::BadField(
-                        "Measurement: applied_step flag is not 0 or 1",
-                    ));
-                }
-            };
             Message::Measurement {
                 step,
-                y,
-                applied_step: applied,
+                y: [r.f64(), r.f64(), r.f64()],
+                applied_step: r.applied_step()?,
+                fate_cursor: r.u32(),
+            }
+        }
+        PRIVATE_MEASUREMENT => {
+            expect_len("PrivateMeasurement", payload, 1 + 4 + 4)?;
+            Message::PrivateMeasurement {
+                step,
+                applied_step: r.applied_step()?,
                 fate_cursor: r.u32(),
             }
         }
         COMMAND => {
-            expect_len("Command", payload, 32 + 4 + 1 + 8)?;
-            let u0 = [r.f64(), r.f64()];
-            let u1 = [r.f64(), r.f64()];
-            let fates = FateWindow {
-                first: r.u32(),
-                count: r.u8(),
-                accepted: r.u64(),
-            };
-            if u32::from(fates.count) > FateWindow::CAPACITY {
-                return Err(WireError::BadField("Command: fate window longer than 64"));
-            }
+            expect_len("Command", payload, 32 + FATES_BYTES)?;
             Message::Command {
                 step,
-                u0,
-                u1,
-                fates,
+                u0: [r.f64(), r.f64()],
+                u1: [r.f64(), r.f64()],
+                fates: r.fates()?,
+            }
+        }
+        DOUBLET_COMMAND => {
+            expect_len("DoubletCommand", payload, 24 + 16 + 1 + 16 + FATES_BYTES)?;
+            let sample = [r.f64(), r.f64(), r.f64()];
+            let first = [r.f64(), r.f64()];
+            let (flag, pair) = (r.u8(), [r.f64(), r.f64()]);
+            let second = match flag {
+                0 if pair.iter().all(|v| v.to_bits() == 0) => None,
+                0 => {
+                    return Err(WireError::BadField(
+                        "DoubletCommand: second input set while flagged absent",
+                    ));
+                }
+                1 => Some(pair),
+                _ => {
+                    return Err(WireError::BadField(
+                        "DoubletCommand: second input flag is not 0 or 1",
+                    ));
+                }
+            };
+            Message::DoubletCommand {
+                step,
+                sample,
+                first,
+                second,
+                fates: r.fates()?,
             }
         }
         FINISH => {
@@ -423,9 +504,14 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
         other if RESERVED.contains(&other) => return Err(WireError::Reserved(other)),
         other => return Err(WireError::UnknownType(other)),
     };
-    // Only Measurement and Command carry a step; the others encode 0, and a frame must
+    // Only measurements and commands carry a step; the others encode 0, and a frame must
     // re-encode to its own bytes.
-    if step != 0 && !matches!(kind, MEASUREMENT | COMMAND) {
+    if step != 0
+        && !matches!(
+            kind,
+            MEASUREMENT | COMMAND | PRIVATE_MEASUREMENT | DOUBLET_COMMAND
+        )
+    {
         return Err(WireError::BadField(
             "header step is set on a message that has none",
         ));
@@ -505,6 +591,29 @@ mod tests {
             Message::Abort {
                 reason: "silence".into(),
             },
+            Message::PrivateMeasurement {
+                step: 7,
+                applied_step: Some(6),
+                fate_cursor: 2,
+            },
+            Message::DoubletCommand {
+                step: 6,
+                sample: [1.0, -0.5, 0.25],
+                first: [0.1, -0.2],
+                second: Some([0.125, 0.5]),
+                fates: FateWindow {
+                    first: 2,
+                    count: 1,
+                    accepted: 1,
+                },
+            },
+            Message::DoubletCommand {
+                step: 9,
+                sample: [0.0; 3],
+                first: [0.0; 2],
+                second: None,
+                fates: FateWindow::default(),
+            },
         ]
     }
 
@@ -540,6 +649,9 @@ mod tests {
 524b02070102030400000009000000000101010101010101010101010101010102020202020202020202020202020202e8362a11b1a425c3537475c5c2dfe96a
 524b020d010203040000000900000000f8fc3135beedf80669dcb65ff4e768fb
 524b0208010203040000000900000000000773696c656e63650ecfc3100c2974e5fd222aaa9fa04404
+524b020b010203040000000900000007010000000600000002307e02dc80f926232919ed1470d8dbc5
+524b020c0102030400000009000000063ff0000000000000bfe00000000000003fd00000000000003fb999999999999abfc999999999999a013fc00000000000003fe000000000000000000002010000000000000001cf71fd3ad249f444883253241f1ba255
+524b020c0102030400000009000000090000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000097adc8c13bf278e19357b6551dd41757
 ";
 
     #[test]
@@ -577,6 +689,28 @@ mod tests {
         });
         bytes[12..16].copy_from_slice(&[249, 252, 151, 82]);
         bytes.extend_from_slice(&[0; MAC_BYTES]);
+        assert!(matches!(decode(&bytes), Err(WireError::BadField(_))));
+    }
+
+    #[test]
+    fn an_absent_second_input_must_be_zero() {
+        let mut bytes = encode(&Frame {
+            session: 1,
+            seq: 1,
+            message: Message::DoubletCommand {
+                step: 4,
+                sample: [0.5; 3],
+                first: [0.1, 0.0],
+                second: None,
+                fates: FateWindow::default(),
+            },
+        });
+        bytes.extend_from_slice(&[0; MAC_BYTES]);
+        assert!(decode(&bytes).is_ok());
+        let flag = HEADER_BYTES + 24 + 16;
+        bytes[flag + 3] = 1;
+        assert!(matches!(decode(&bytes), Err(WireError::BadField(_))));
+        bytes[flag] = 2;
         assert!(matches!(decode(&bytes), Err(WireError::BadField(_))));
     }
 
@@ -661,6 +795,35 @@ mod tests {
                 }
             }),
             ".{0,40}".prop_map(|reason| Message::Abort { reason }),
+            (any::<u32>(), any::<Option<u32>>(), any::<u32>()).prop_map(
+                |(step, applied_step, fate_cursor)| Message::PrivateMeasurement {
+                    step,
+                    applied_step,
+                    fate_cursor
+                }
+            ),
+            (
+                any::<u32>(),
+                [f, f, f],
+                [f, f],
+                proptest::option::of([f, f]),
+                (any::<u32>(), 0u8..=64, any::<u64>())
+            )
+                .prop_map(
+                    |(step, sample, first, second, (first_fate, count, accepted))| {
+                        Message::DoubletCommand {
+                            step,
+                            sample,
+                            first,
+                            second,
+                            fates: FateWindow {
+                                first: first_fate,
+                                count,
+                                accepted,
+                            },
+                        }
+                    }
+                ),
         ]
     }
 

@@ -1,0 +1,256 @@
+//! The private-sensing endpoints driven in lockstep over an in-memory channel that can drop
+//! chosen messages and sensor samples, on a noise-free plant with a perfect sensor: losses
+//! cost doublets, never agreement.
+
+use robokey::Config;
+use robokey::model::{Pose, unicycle_step};
+use robokey::private::{PrivateControllerEndpoint, PrivatePlan, PrivateRobotEndpoint};
+use robokey::protocol::{
+    ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, RobotInput, RobotOutput,
+};
+use robokey::rng::{Purpose, stream};
+
+/// Result of a lockstep session.
+struct Session {
+    robot_key: Vec<u8>,
+    controller_key: Vec<u8>,
+    decided: Vec<u32>,
+    erased: Vec<u32>,
+    robot_outcome: Option<Outcome>,
+    controller_outcome: Option<Outcome>,
+}
+
+/// Runs one session; `drop(message)` removes a message from the channel, `blind(k)` the
+/// controller's sensor sample k. Commands that do not arrive trigger the robot's deadline.
+fn lockstep(
+    config: &Config,
+    drop: impl Fn(&Message) -> bool,
+    blind: impl Fn(u32) -> bool,
+) -> Session {
+    let plan = PrivatePlan::from_config(config, 1);
+    let (drive, steps) = (plan.drive, plan.steps);
+    let mut robot = PrivateRobotEndpoint::new(plan.clone(), &mut stream(9, Purpose::Key, 0));
+    let mut controller = PrivateControllerEndpoint::new(config, plan);
+    let mut pose = Pose::zeros();
+    let (mut decided, mut erased) = (Vec::new(), Vec::new());
+    let (mut robot_outcome, mut controller_outcome) = (None, None);
+    for k in 0..=steps {
+        robot.handle_input(RobotInput::Sample { step: k, y: pose });
+        if !blind(k) {
+            controller.handle_input(ControllerInput::Sensor { step: k, pose });
+        }
+        let mut wheels = None;
+        let mut deadline_passed = false;
+        loop {
+            let mut quiet = true;
+            while let Some(out) = robot.poll_output() {
+                quiet = false;
+                match out {
+                    RobotOutput::Transmit(m) if !drop(&m) => {
+                        controller.handle_input(ControllerInput::Frame(m));
+                    }
+                    RobotOutput::Apply(a) => wheels = Some(a.wheels),
+                    RobotOutput::Finished(o) => robot_outcome = Some(o),
+                    RobotOutput::Transmit(_) => {}
+                }
+            }
+            while let Some(out) = controller.poll_output() {
+                quiet = false;
+                match out {
+                    ControllerOutput::Transmit(m) if !drop(&m) => {
+                        robot.handle_input(RobotInput::Frame(m));
+                    }
+                    ControllerOutput::Event(ControllerEvent::DoubletDecided(d)) => {
+                        decided.push(d.doublet);
+                    }
+                    ControllerOutput::Event(ControllerEvent::DoubletErased { doublet }) => {
+                        erased.push(doublet);
+                    }
+                    ControllerOutput::Event(ControllerEvent::Finished(o)) => {
+                        controller_outcome = Some(o);
+                    }
+                    _ => {}
+                }
+            }
+            if quiet && wheels.is_none() && k < steps && !deadline_passed {
+                deadline_passed = true;
+                robot.handle_input(RobotInput::Deadline { step: k });
+                continue;
+            }
+            if quiet {
+                break;
+            }
+        }
+        if k < steps {
+            let input = drive.to_unicycle(wheels.expect("the robot always applies something"));
+            pose = unicycle_step(&pose, &input, config.robot.sample_time);
+        }
+    }
+    Session {
+        robot_key: robot.key().to_vec(),
+        controller_key: controller.key().to_vec(),
+        decided,
+        erased,
+        robot_outcome,
+        controller_outcome,
+    }
+}
+
+/// One lap, no motion noise, a perfect sensor, two bits per doublet, no turn gate.
+fn clean_config() -> Config {
+    let mut config = Config::from_toml(
+        "[sensing]\nmode = \"private\"\ncontroller_std = [1e-9, 1e-9, 1e-9]\n\
+         [noise]\nprocess_std = [1e-9, 1e-9, 1e-9]\n\
+         [protocol]\nbits_per_doublet = 2\nmax_turn_rate = 1000.0\n",
+        "test",
+    )
+    .unwrap();
+    config.trajectory.laps = 1;
+    config
+}
+
+#[test]
+fn a_clean_session_keeps_every_doublet_with_equal_bits() {
+    let config = clean_config();
+    let s = lockstep(&config, |_| false, |_| false);
+    let plan = PrivatePlan::from_config(&config, 1);
+    assert!(s.erased.is_empty(), "{:?}", s.erased);
+    assert_eq!(s.decided, (0..plan.doublets()).collect::<Vec<_>>());
+    assert_eq!(s.robot_key.len(), 2 * s.decided.len());
+    assert_eq!(s.robot_key, s.controller_key);
+    assert_eq!(s.robot_outcome, Some(Outcome::Kept));
+    assert_eq!(s.controller_outcome, Some(Outcome::Kept));
+}
+
+#[test]
+fn lost_commands_measurements_and_samples_drop_their_doublets_on_both_sides() {
+    let config = clean_config();
+    let clean = lockstep(&config, |_| false, |_| false);
+    let lossy = lockstep(
+        &config,
+        |m| match m {
+            Message::DoubletCommand { step, .. } => [10, 40].contains(step),
+            Message::PrivateMeasurement { step, .. } => [21, 52, 60].contains(step),
+            _ => false,
+        },
+        |k| [31, 70].contains(&k),
+    );
+    // Commands 10 and 40 lost (doublets 5 and 20); the reports of steps 20, 51 and 59 lost
+    // (measurements 21, 52, 60: doublets 10, 25, 29); samples 31 (doublet 15's middle) and
+    // 70 (doublet 34's end, and 35's start: never commanded) missing.
+    let dropped = [5, 10, 15, 20, 25, 29, 34, 35];
+    let expected: Vec<u32> = clean
+        .decided
+        .iter()
+        .copied()
+        .filter(|j| !dropped.contains(j))
+        .collect();
+    assert_eq!(lossy.decided, expected);
+    let mut erased = lossy.erased.clone();
+    erased.sort_unstable();
+    assert_eq!(erased, dropped);
+    assert_eq!(lossy.robot_key.len(), 2 * expected.len());
+    assert_eq!(lossy.robot_key, lossy.controller_key);
+    assert_eq!(lossy.robot_outcome, Some(Outcome::Kept));
+    assert_eq!(lossy.controller_outcome, Some(Outcome::Kept));
+}
+
+#[test]
+fn a_lost_stop_command_changes_nothing() {
+    // The robot stops at N on its own clock; the Finish carries every fate.
+    let config = clean_config();
+    let steps = PrivatePlan::from_config(&config, 1).steps;
+    let s = lockstep(
+        &config,
+        |m| matches!(m, Message::DoubletCommand { step, .. } if *step == steps),
+        |_| false,
+    );
+    assert_eq!(s.robot_outcome, Some(Outcome::Kept));
+    assert_eq!(s.controller_outcome, Some(Outcome::Kept));
+    assert_eq!(s.robot_key, s.controller_key);
+}
+
+mod arbitrary_inputs {
+    use super::*;
+    use proptest::prelude::*;
+    use robokey::protocol::FateWindow;
+
+    /// Authenticated but arbitrary frames and sensor samples (a buggy or compromised peer, a
+    /// broken sensor): steps near the session's, any floats, any fates.
+    fn message() -> impl Strategy<Value = Message> {
+        let f = proptest::num::f64::ANY;
+        let step = prop_oneof![0u32..12, 0u32..400, any::<u32>()];
+        prop_oneof![
+            (
+                step.clone(),
+                proptest::option::of(any::<u32>()),
+                any::<u32>()
+            )
+                .prop_map(|(step, applied_step, fate_cursor)| {
+                    Message::PrivateMeasurement {
+                        step,
+                        applied_step,
+                        fate_cursor,
+                    }
+                }),
+            (
+                step,
+                [f, f, f],
+                [f, f],
+                proptest::option::of([f, f]),
+                (any::<u32>(), 0u8..=64, any::<u64>())
+            )
+                .prop_map(
+                    |(step, sample, first, second, (first_fate, count, accepted))| {
+                        Message::DoubletCommand {
+                            step,
+                            sample,
+                            first,
+                            second,
+                            fates: FateWindow {
+                                first: first_fate,
+                                count,
+                                accepted,
+                            },
+                        }
+                    }
+                ),
+            (0u32..300, proptest::collection::vec(any::<u64>(), 0..6))
+                .prop_map(|(codewords, bitmap)| Message::Finish { codewords, bitmap }),
+            Just(Message::FinishAck),
+            (any::<[u8; 16]>(), any::<[u8; 16]>()).prop_map(|(session_tag, key_tag)| {
+                Message::Confirm {
+                    session_tag,
+                    key_tag,
+                }
+            }),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn the_private_endpoints_never_panic_on_arbitrary_frames_and_samples(
+            inputs in proptest::collection::vec(
+                (message(), 0u32..400, [proptest::num::f64::ANY; 3]),
+                0..60
+            )
+        ) {
+            let mut config = clean_config();
+            config.trajectory.side_time = 5.0;
+            let plan = PrivatePlan::from_config(&config, 1);
+            let mut robot =
+                PrivateRobotEndpoint::new(plan.clone(), &mut stream(1, Purpose::Key, 0));
+            let mut controller = PrivateControllerEndpoint::new(&config, plan);
+            for (message, step, pose) in inputs {
+                robot.handle_input(RobotInput::Sample { step, y: Pose::zeros() });
+                robot.handle_input(RobotInput::Frame(message.clone()));
+                robot.handle_input(RobotInput::Deadline { step });
+                controller.handle_input(ControllerInput::Sensor { step, pose: pose.into() });
+                controller.handle_input(ControllerInput::Frame(message));
+                controller.handle_input(ControllerInput::Timeout);
+                while robot.poll_output().is_some() {}
+                while controller.poll_output().is_some() {}
+            }
+        }
+    }
+}
