@@ -6,8 +6,6 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use rand::RngExt;
@@ -132,99 +130,30 @@ fn apply_faults(
     copies
 }
 
-/// A datagram as a receiving thread hands it over.
-struct Arrival {
-    to_robot: bool,
-    from: SocketAddr,
-    bytes: Vec<u8>,
-}
-
 /// Longest the relay blocks before it looks at the stop request again.
 const INTERRUPT_POLL: Duration = Duration::from_millis(50);
 
-/// Receives on `socket` until `stop`, handing each datagram to `arrivals`; blocks in the
-/// kernel between datagrams (no polling loop), waking every 50 ms to look at `stop`.
-fn receive(
-    socket: &UdpSocket,
-    to_robot: bool,
-    arrivals: &mpsc::Sender<Result<Arrival, NetError>>,
-    stop: &AtomicBool,
-) {
-    let mut buffer = vec![0u8; 65_536];
-    while !stop.load(Ordering::Relaxed) {
-        let arrival = match socket.recv_from(&mut buffer) {
-            Ok((len, from)) => Ok(Arrival {
-                to_robot,
-                from,
-                bytes: buffer[..len].to_vec(),
-            }),
-            // A previous send to a closed port (ICMP unreachable) surfaces here too.
-            Err(e) if is_wait_over(&e) || e.kind() == std::io::ErrorKind::ConnectionRefused => {
-                continue;
-            }
-            Err(e) => Err(NetError::io("relay receive")(e)),
-        };
-        let failed = arrival.is_err();
-        if arrivals.send(arrival).is_err() || failed {
-            return;
-        }
-    }
-}
-
 /// Runs the relay until it has been idle for `idle_exit` (forever without it) or a stop is
-/// requested. One thread per socket blocks in `recv`; this one applies the faults and
-/// delivers each datagram when it is due, sleeping in between.
+/// requested. One socket carries both directions: the controller sends to it, the robot
+/// answers it, and the sender's address tells the direction. One thread blocks in `recv`
+/// until the next datagram or the next delivery due, whichever comes first: no polling
+/// loop, no hand-over between threads.
 ///
 /// # Errors
-/// Sockets or the capture file fail.
+/// The socket or the capture file fails.
 pub fn run_relay(options: &RelayOptions) -> Result<RelayStats, NetError> {
-    let front = UdpSocket::bind(options.listen)
+    let socket = UdpSocket::bind(options.listen)
         .map_err(NetError::io(format!("bind UDP {}", options.listen)))?;
-    let back_bind: SocketAddr = if options.forward.is_ipv4() {
-        "0.0.0.0:0"
-    } else {
-        "[::]:0"
-    }
-    .parse()
-    .expect("valid");
-    let back =
-        UdpSocket::bind(back_bind).map_err(NetError::io("bind the relay's robot-side socket"))?;
-    for socket in [&front, &back] {
-        socket
-            .set_read_timeout(Some(INTERRUPT_POLL))
-            .map_err(NetError::io("set the relay's receive timeout"))?;
-    }
+    let relay_addr = socket.local_addr().map_err(NetError::io("local address"))?;
     println!(
-        "relay listening on {}, forwarding to {}",
-        front.local_addr().map_err(NetError::io("local address"))?,
+        "relay listening on {relay_addr}, forwarding to {}",
         options.forward
     );
-    let capture = options
+    let mut capture = options
         .capture
         .as_deref()
         .map(PcapWriter::create)
         .transpose()?;
-    let stop = AtomicBool::new(false);
-    let (sender, arrivals) = mpsc::channel();
-    std::thread::scope(|scope| {
-        for (socket, to_robot) in [(&front, true), (&back, false)] {
-            let (sender, stop) = (sender.clone(), &stop);
-            scope.spawn(move || receive(socket, to_robot, &sender, stop));
-        }
-        let relayed = forward(options, &front, &back, &arrivals, capture);
-        stop.store(true, Ordering::Relaxed);
-        relayed
-    })
-}
-
-/// The relay's main loop: faults on arrival, delivery when due.
-fn forward(
-    options: &RelayOptions,
-    front: &UdpSocket,
-    back: &UdpSocket,
-    arrivals: &mpsc::Receiver<Result<Arrival, NetError>>,
-    mut capture: Option<PcapWriter>,
-) -> Result<RelayStats, NetError> {
     let mut rngs = [
         stream(options.seed, Purpose::Channel, 0),
         stream(options.seed, Purpose::Channel, 1),
@@ -234,7 +163,7 @@ fn forward(
     let mut controller: Option<SocketAddr> = None;
     let mut last_traffic: Option<Instant> = None;
     let mut order = 0u64;
-    let back_addr = back.local_addr().map_err(NetError::io("local address"))?;
+    let mut buffer = vec![0u8; 65_536];
     loop {
         if options.interrupt.is_requested() {
             return Ok(stats);
@@ -242,31 +171,28 @@ fn forward(
         let wait = queue.peek().map_or(INTERRUPT_POLL, |Reverse(p)| {
             p.due
                 .saturating_duration_since(Instant::now())
-                .min(INTERRUPT_POLL)
+                .clamp(Duration::from_micros(1), INTERRUPT_POLL)
         });
-        match arrivals.recv_timeout(wait) {
-            Ok(arrival) => {
-                let Arrival {
-                    to_robot,
-                    from,
-                    bytes,
-                } = arrival?;
+        socket
+            .set_read_timeout(Some(wait))
+            .map_err(NetError::io("set the relay's receive timeout"))?;
+        match socket.recv_from(&mut buffer) {
+            Ok((len, from)) => {
                 last_traffic = Some(Instant::now());
+                let to_robot = from != options.forward;
                 // The latest controller-side sender is the controller: consecutive sessions
                 // (each controller on a new port) can share one relay.
                 if to_robot {
                     controller = Some(from);
                 }
-                if let (true, Some(controller_addr)) =
-                    (to_robot || from == options.forward, controller)
-                {
+                if let Some(controller_addr) = controller {
                     let (source, destination) = if to_robot {
                         (controller_addr, options.forward)
                     } else {
                         (options.forward, controller_addr)
                     };
                     if let (Some(pcap), false) = (capture.as_mut(), options.capture_after_faults) {
-                        pcap.write(source, destination, &bytes)?;
+                        pcap.write(source, destination, &buffer[..len])?;
                     }
                     let direction = if to_robot {
                         &mut stats.to_robot
@@ -277,7 +203,7 @@ fn forward(
                     for (delay, bytes) in apply_faults(
                         &options.faults,
                         &mut rngs[usize::from(!to_robot)],
-                        &bytes,
+                        &buffer[..len],
                         direction,
                     ) {
                         order += 1;
@@ -290,10 +216,9 @@ fn forward(
                     }
                 }
             }
-            Err(mpsc::RecvTimeoutError::Timeout) => {}
-            Err(mpsc::RecvTimeoutError::Disconnected) => {
-                return Err(NetError::Usage("the relay's receivers stopped".into()));
-            }
+            // A previous send to a closed port (ICMP unreachable) surfaces here too.
+            Err(e) if is_wait_over(&e) || e.kind() == std::io::ErrorKind::ConnectionRefused => {}
+            Err(e) => return Err(NetError::io("relay receive")(e)),
         }
         while queue
             .peek()
@@ -305,20 +230,15 @@ fn forward(
             let Some(controller_addr) = controller else {
                 continue;
             };
-            let (socket, destination, source) = if pending.to_robot {
-                (back, options.forward, back_addr)
+            let (source, destination) = if pending.to_robot {
+                (controller_addr, options.forward)
             } else {
-                (front, controller_addr, options.forward)
+                (options.forward, controller_addr)
             };
             // A peer that is gone is not the relay's failure.
             let _ = socket.send_to(&pending.bytes, destination);
             if let (Some(pcap), true) = (capture.as_mut(), options.capture_after_faults) {
-                let from = if pending.to_robot {
-                    controller_addr
-                } else {
-                    source
-                };
-                pcap.write(from, destination, &pending.bytes)?;
+                pcap.write(source, destination, &pending.bytes)?;
             }
             let direction = if pending.to_robot {
                 &mut stats.to_robot
