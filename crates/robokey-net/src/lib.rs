@@ -10,6 +10,8 @@ pub mod pairing;
 pub mod pcap;
 pub mod relay;
 pub mod robot_agent;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod secret_file;
 pub mod session;
 pub mod sim_backend;
