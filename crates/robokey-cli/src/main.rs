@@ -11,6 +11,7 @@ mod commands;
 mod eve;
 mod exit;
 mod net;
+mod ros2;
 
 use exit::Status;
 
@@ -67,6 +68,10 @@ enum Command {
     /// A simulated Khepera IV speaking kh4server's line protocol, for the kh4 backend.
     #[command(name = "kh4-emulator")]
     Kh4Emulator(net::EmulatorArgs),
+    /// An emulated ROS 2 differential-drive robot (TurtleBot3-like: /cmd_vel in, /odom out,
+    /// localhost only) for `robot --backend ros2`; needs the `ros2` feature (docs/ros2.md).
+    #[command(name = "ros2-sim")]
+    Ros2Sim(ros2::SimArgs),
 }
 
 /// Options shared by commands that read a configuration.
@@ -296,6 +301,7 @@ fn main() -> ExitCode {
         Command::Frames(args) => done(net::frames(args)),
         Command::Eve(args) => done(eve::eve(args)),
         Command::Kh4Emulator(args) => done(net::kh4_emulator(args)),
+        Command::Ros2Sim(args) => ros2::ros2_sim(args),
     };
     exit::code(result)
 }

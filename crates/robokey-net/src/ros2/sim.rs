@@ -214,6 +214,12 @@ impl Ros2Sim {
         )
     }
 
+    /// The stop request it watches.
+    #[must_use]
+    pub fn interrupt(&self) -> &Interrupt {
+        &self.options.interrupt
+    }
+
     /// What the robot applies for a command: clamped to its limits, then truncated.
     fn apply(&self, command: Command) -> (f64, f64) {
         let o = &self.options;
