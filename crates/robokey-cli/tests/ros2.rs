@@ -320,14 +320,12 @@ fn a_missing_robot_and_a_delta_off_the_quantum_are_named_errors() {
             "ros2",
             "--pairing",
             &pairing,
-            "--ros2-wait",
-            "1",
         ];
         args.extend(extra);
         run_code(&logged(&args).iter().map(String::as_str).collect::<Vec<_>>())
     };
     // No ROS 2 robot on this host: an error (1) that says what was missing.
-    let (code, text) = robot(&["--set", "protocol.delta_v=0.04"]);
+    let (code, text) = robot(&["--set", "protocol.delta_v=0.04", "--ros2-wait", "1"]);
     println!("exit {code}: {text}");
     assert_eq!(code, 1, "{text}");
     assert!(text.contains("no valid /odom within 1.0 s"), "{text}");
@@ -343,4 +341,24 @@ fn a_missing_robot_and_a_delta_off_the_quantum_are_named_errors() {
     let (code, text) = robot(&["--set", "protocol.delta_v=0.04", "--ros2-odom", "odom"]);
     assert_eq!(code, 2, "{text}");
     assert!(text.contains("give an absolute ROS name"), "{text}");
+    // A robot that takes Twist while the agent publishes TwistStamped (or the reverse, the
+    // Jazzy TurtleBot3's pitfall): DDS never matches them; the error says what is there.
+    let sim = start(&["ros2-sim", "--idle-exit", "5"]);
+    let (code, text) = robot(&[
+        "--set",
+        "protocol.delta_v=0.04",
+        "--ros2-stamped",
+        "--ros2-wait",
+        "3",
+    ]);
+    println!("exit {code}: {text}");
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains(
+            "the subscribers of /cmd_vel use geometry_msgs::msg::dds_::Twist_, not \
+             geometry_msgs::msg::dds_::TwistStamped_: the robot takes Twist: drop --ros2-stamped"
+        ),
+        "{text}"
+    );
+    drop(sim);
 }

@@ -3,10 +3,10 @@
 use std::time::{Duration, Instant};
 
 use robokey::model::{DiffDrive, Pose, WheelSpeeds};
-use ros2_client::{Node, Publisher};
+use ros2_client::{Context, Node, Publisher};
 
 use super::msg::{Header, Kind, Odometry, Time, Twist, TwistStamped, Unwrap};
-use super::node::{Listener, RobotTopics, localhost_node, topic, wait_for_subscriber};
+use super::node::{Listener, Peer, RobotTopics, localhost_node, topic, wait_for_peer};
 use crate::backend::Backend;
 use crate::error::NetError;
 
@@ -90,8 +90,9 @@ pub struct Ros2Backend {
     origin: Option<OdomSample>,
     wheels: WheelSpeeds,
     ticks: u32,
-    // Dropped last: the publisher and listener above belong to it.
+    // Dropped last: the publisher and listener above belong to them.
     _node: Node,
+    _context: Context,
 }
 
 impl std::fmt::Debug for Ros2Backend {
@@ -112,7 +113,7 @@ impl Ros2Backend {
     /// The participant cannot be created, or the robot does not show up in time.
     pub fn start(options: &Ros2BackendOptions) -> Result<Self, NetError> {
         let topics = &options.topics;
-        let mut node = localhost_node("robot_agent", topics.domain_id)?;
+        let (context, mut node) = localhost_node("robot_agent", topics.domain_id)?;
         let cmd_topic = topic(&node, &topics.cmd_vel, topics.cmd_kind())?;
         let qos = Some(topics.cmd_vel.qos());
         let publisher_error =
@@ -142,20 +143,41 @@ impl Ros2Backend {
         let deadline = Instant::now() + options.timeout;
         let hint = "the robot's ROS 2 driver (or `robokey ros2-sim`) must run on this computer, \
                     in the same ROS domain, with localhost discovery (docs/ros2.md)";
+        let stamped_hint = if topics.stamped {
+            "the robot takes Twist: drop --ros2-stamped"
+        } else {
+            "the robot takes TwistStamped: add --ros2-stamped"
+        };
+        let waited = options.timeout.as_secs_f64();
         if !odom.wait(deadline, false, |_| true)? {
+            let why = wait_for_peer(
+                &context,
+                &topics.odom.name,
+                Kind::Odometry,
+                Peer::Publisher,
+                Instant::now(),
+            )
+            .map_or_else(|why| format!(" ({why})"), |()| String::new());
             return Err(NetError::Ros2(format!(
-                "no valid {} within {:.1} s{}: {hint}",
+                "no valid {} within {waited:.1} s{why}{}: {hint}",
                 topics.odom.name,
-                options.timeout.as_secs_f64(),
                 odom.rejections()
             )));
         }
-        if !wait_for_subscriber(&node, &topics.cmd_vel.name, deadline) {
-            return Err(NetError::Ros2(format!(
-                "no subscriber of {} within {:.1} s: {hint}",
-                topics.cmd_vel.name,
-                options.timeout.as_secs_f64()
-            )));
+        match wait_for_peer(
+            &context,
+            &topics.cmd_vel.name,
+            topics.cmd_kind(),
+            Peer::Subscriber,
+            deadline,
+        ) {
+            Ok(()) => {}
+            Err(why) if why.starts_with("no ") => {
+                return Err(NetError::Ros2(format!(
+                    "{why} within {waited:.1} s: {hint}"
+                )));
+            }
+            Err(why) => return Err(NetError::Ros2(format!("{why}: {stamped_hint}"))),
         }
         let backend = Self {
             cmd,
@@ -169,6 +191,7 @@ impl Ros2Backend {
             wheels: WheelSpeeds::zeros(),
             ticks: 0,
             _node: node,
+            _context: context,
         };
         if matches!(backend.clock, Ros2Clock::Real { .. }) {
             backend.publish(WheelSpeeds::zeros(), Time::now())?;

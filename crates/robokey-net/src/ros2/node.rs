@@ -130,7 +130,7 @@ impl RobotTopics {
 ///
 /// # Errors
 /// The participant or node cannot be created (no free participant id, a bad name).
-pub fn localhost_node(name: &str, domain_id: u16) -> Result<Node, NetError> {
+pub fn localhost_node(name: &str, domain_id: u16) -> Result<(Context, Node), NetError> {
     if domain_id > MAX_DOMAIN_ID {
         return Err(NetError::Usage(format!(
             "ROS domain {domain_id} is not allowed (allowed: 0 to {MAX_DOMAIN_ID})"
@@ -144,14 +144,15 @@ pub fn localhost_node(name: &str, domain_id: u16) -> Result<Node, NetError> {
         .map_err(|e| NetError::Ros2(format!("create the ROS 2 context: {e:?}")))?;
     let node_name = NodeName::new("/robokey", name)
         .map_err(|e| NetError::Ros2(format!("node name {name:?}: {e:?}")))?;
-    context
+    let node = context
         .new_node(
             node_name,
             NodeOptions::new()
                 .enable_rosout(false)
                 .start_parameter_services(false),
         )
-        .map_err(|e| NetError::Ros2(format!("create the ROS 2 node {name}: {e:?}")))
+        .map_err(|e| NetError::Ros2(format!("create the ROS 2 node {name}: {e:?}")))?;
+    Ok((context, node))
 }
 
 /// Creates the topic `spec` of message type `kind` on `node`.
@@ -358,16 +359,70 @@ fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
         .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
-/// Waits until `node`'s participant has discovered a subscriber of `topic` (another
-/// process's), at most until `deadline`, polling every 20 ms.
-#[must_use]
-pub fn wait_for_subscriber(node: &Node, topic: &str, deadline: Instant) -> bool {
+/// Which side of a topic another participant is on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Peer {
+    /// A subscriber (a reader).
+    Subscriber,
+    /// A publisher (a writer).
+    Publisher,
+}
+
+/// The DDS type names of the other participants' `peer`s of ROS topic `topic`.
+fn peer_types(context: &Context, topic: &str, peer: Peer) -> Vec<String> {
+    let dds_name = format!("rt/{}", topic.trim_start_matches('/'));
+    let participant = context.domain_participant();
+    match peer {
+        Peer::Subscriber => participant
+            .discovered_readers()
+            .iter()
+            .map(|r| &r.subscription_topic_data)
+            .filter(|t| *t.topic_name() == dds_name)
+            .map(|t| t.type_name().clone())
+            .collect(),
+        Peer::Publisher => participant
+            .discovered_writers()
+            .iter()
+            .map(|w| &w.publication_topic_data)
+            .filter(|t| t.topic_name == dds_name)
+            .map(|t| t.type_name.clone())
+            .collect(),
+    }
+}
+
+/// Waits until another participant's `peer` of `topic` with message type `kind` is
+/// discovered, at most until `deadline`, looking every 20 ms.
+///
+/// # Errors
+/// None by then: what was found instead (peers of another type, or none), as a sentence.
+pub fn wait_for_peer(
+    context: &Context,
+    topic: &str,
+    kind: Kind,
+    peer: Peer,
+    deadline: Instant,
+) -> Result<(), String> {
+    let wanted = type_name(kind).dds_msg_type();
     loop {
-        if node.subscription_count(topic) > 0 {
-            return true;
+        let found = peer_types(context, topic, peer);
+        if found.contains(&wanted) {
+            return Ok(());
         }
         if Instant::now() >= deadline {
-            return false;
+            let what = match peer {
+                Peer::Subscriber => "subscriber",
+                Peer::Publisher => "publisher",
+            };
+            return Err(if found.is_empty() {
+                format!("no {what} of {topic}")
+            } else {
+                let mut found = found;
+                found.dedup();
+                format!(
+                    "the {what}s of {topic} use {}, not {wanted}",
+                    found.join(", ")
+                )
+            });
         }
         std::thread::sleep(Duration::from_millis(20));
     }

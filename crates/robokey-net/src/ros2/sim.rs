@@ -6,7 +6,7 @@
 use std::time::{Duration, Instant};
 
 use robokey::interrupt::Interrupt;
-use ros2_client::{Node, Publisher};
+use ros2_client::{Context, Node, Publisher};
 
 use super::msg::{Header, Kind, Odometry, Time, Twist, TwistStamped};
 use super::node::{Listener, RobotTopics, localhost_node, topic};
@@ -118,8 +118,9 @@ pub struct Ros2Sim {
     options: SimOptions,
     commands: Listener<Command>,
     odom: Publisher<Odometry>,
-    // Dropped last: the publisher and listener above belong to it.
+    // Dropped last: the publisher and listener above belong to them.
     _node: Node,
+    _context: Context,
 }
 
 impl Ros2Sim {
@@ -153,7 +154,7 @@ impl Ros2Sim {
             )));
         }
         let topics = &options.topics;
-        let mut node = localhost_node("ros2_sim", topics.domain_id)?;
+        let (context, mut node) = localhost_node("ros2_sim", topics.domain_id)?;
         let cmd_topic = topic(&node, &topics.cmd_vel, topics.cmd_kind())?;
         let qos = Some(topics.cmd_vel.qos());
         let subscribe_error =
@@ -185,6 +186,7 @@ impl Ros2Sim {
             commands,
             odom,
             _node: node,
+            _context: context,
         })
     }
 
