@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 use robokey::model::{DiffDrive, Pose, WheelSpeeds};
 use ros2_client::{Context, Node, Publisher};
 
-use super::msg::{Header, Kind, Odometry, Time, Twist, TwistStamped, Unwrap};
+use super::msg::{Header, Kind, Odometry, Time, Twist, TwistStamped, Unwrap, type_name};
 use super::node::{Listener, Peer, RobotTopics, localhost_node, topic, wait_for_peer};
 use crate::backend::Backend;
 use crate::error::NetError;
@@ -107,7 +107,8 @@ impl std::fmt::Debug for Ros2Backend {
 
 impl Ros2Backend {
     /// Joins the ROS 2 graph on localhost, waits (up to `options.timeout`) until an
-    /// `/odom` arrived and a subscriber of `/cmd_vel` is discovered, then stops the wheels.
+    /// `/odom` arrived and a subscriber of `/cmd_vel` taking the agent's message type is
+    /// discovered, then stops the wheels.
     ///
     /// # Errors
     /// The participant cannot be created, or the robot does not show up in time.
@@ -116,8 +117,12 @@ impl Ros2Backend {
         let (context, mut node) = localhost_node("robot_agent", topics.domain_id)?;
         let cmd_topic = topic(&node, &topics.cmd_vel, topics.cmd_kind())?;
         let qos = Some(topics.cmd_vel.qos());
-        let publisher_error =
-            |e| NetError::Ros2(format!("publish on {}: {e:?}", topics.cmd_vel.name));
+        let publisher_error = |e| {
+            NetError::Ros2(format!(
+                "create the publisher of {}: {e:?}",
+                topics.cmd_vel.name
+            ))
+        };
         let cmd = match topics.cmd_kind() {
             Kind::TwistStamped => CmdPublisher::Stamped(
                 node.create_publisher(&cmd_topic, qos)
@@ -143,10 +148,14 @@ impl Ros2Backend {
         let deadline = Instant::now() + options.timeout;
         let hint = "the robot's ROS 2 driver (or `robokey ros2-sim`) must run on this computer, \
                     in the same ROS domain, with localhost discovery (docs/ros2.md)";
-        let stamped_hint = if topics.stamped {
-            "the robot takes Twist: drop --ros2-stamped"
+        // The other command type, which DDS never matches with ours.
+        let (other, flag) = if topics.stamped {
+            (Kind::Twist, "the robot takes Twist: drop --ros2-stamped")
         } else {
-            "the robot takes TwistStamped: add --ros2-stamped"
+            (
+                Kind::TwistStamped,
+                "the robot takes TwistStamped: add --ros2-stamped",
+            )
         };
         let waited = options.timeout.as_secs_f64();
         if !odom.wait(deadline, false, |_| true)? {
@@ -177,7 +186,10 @@ impl Ros2Backend {
                     "{why} within {waited:.1} s: {hint}"
                 )));
             }
-            Err(why) => return Err(NetError::Ros2(format!("{why}: {stamped_hint}"))),
+            Err(why) if why.contains(&type_name(other).dds_msg_type()) => {
+                return Err(NetError::Ros2(format!("{why}: {flag}")));
+            }
+            Err(why) => return Err(NetError::Ros2(why)),
         }
         let backend = Self {
             cmd,

@@ -180,7 +180,12 @@ impl Ros2Sim {
         let odom_topic = topic(&node, &topics.odom, Kind::Odometry)?;
         let odom = node
             .create_publisher(&odom_topic, Some(topics.odom.qos()))
-            .map_err(|e| NetError::Ros2(format!("publish on {}: {e:?}", topics.odom.name)))?;
+            .map_err(|e| {
+                NetError::Ros2(format!(
+                    "create the publisher of {}: {e:?}",
+                    topics.odom.name
+                ))
+            })?;
         Ok(Self {
             options,
             commands,
