@@ -12,6 +12,7 @@ mod commands;
 mod eve;
 mod exit;
 mod net;
+mod ros2;
 
 use exit::Status;
 
@@ -86,6 +87,10 @@ enum Command {
     Kh4Emulator(net::EmulatorArgs),
     /// Record a pose stream of the world (Eve's camera) to a CSV log, until it ends.
     Record(net::RecordArgs),
+    /// An emulated ROS 2 differential-drive robot (TurtleBot3-like: /cmd_vel in, /odom out,
+    /// localhost only) for `robot --backend ros2`; needs the `ros2` feature (docs/ros2.md).
+    #[command(name = "ros2-sim")]
+    Ros2Sim(ros2::SimArgs),
 }
 
 /// Options shared by commands that read a configuration.
@@ -356,6 +361,7 @@ fn main() -> ExitCode {
         Command::Eve(args) => done(eve::eve(args)),
         Command::Kh4Emulator(args) => done(net::kh4_emulator(args)),
         Command::Record(args) => net::record(args),
+        Command::Ros2Sim(args) => ros2::ros2_sim(args),
     };
     exit::code(result)
 }

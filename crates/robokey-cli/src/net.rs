@@ -209,6 +209,9 @@ pub enum BackendArg {
     Sim,
     /// A Khepera IV through kh4server (or its emulator).
     Kh4,
+    /// A ROS 2 differential-drive robot (/cmd_vel out, /odom in) on this computer, or
+    /// `robokey ros2-sim`; needs a build with the `ros2` feature (docs/ros2.md).
+    Ros2,
 }
 
 #[derive(Args, Debug)]
@@ -233,6 +236,8 @@ pub struct RobotArgs {
     world: WorldArgs,
     #[command(flatten)]
     session: SessionArgs,
+    #[command(flatten)]
+    ros2: crate::ros2::Ros2RobotArgs,
 }
 
 /// The world's sensor streams (private sensing): what the outside sees of the plant.
@@ -385,6 +390,7 @@ fn finish_robot<R: rand::CryptoRng>(
             let mut backend = Kh4Backend::start(Link::open(link, Duration::from_secs(1))?, drive)?;
             run_robot(config, &mut backend, key_source, options)?
         }
+        BackendArg::Ros2 => crate::ros2::run_robot(&args.ros2, config, options, key_source)?,
     };
     args.session.finish(&report, &options.interrupt)
 }

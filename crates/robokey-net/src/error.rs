@@ -15,6 +15,10 @@ pub enum NetError {
     /// The Khepera IV (or its emulator) answered something unexpected.
     #[error("kh4: {0}")]
     Kh4(String),
+    /// The ROS 2 robot (or its emulator) is missing, silent, stale or sent something
+    /// unusable.
+    #[error("ros2: {0}")]
+    Ros2(String),
     /// A capture file is malformed.
     #[error("{path}: {message}")]
     Capture {

@@ -15,6 +15,8 @@ pub mod pcap;
 pub mod pose_stream;
 pub mod relay;
 pub mod robot_agent;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod secret_file;
 pub mod sensor;
 pub mod session;

@@ -1,0 +1,364 @@
+//! Sessions over ROS 2 topics (docs/ros2.md): `robokey ros2-sim`, `robokey robot --backend
+//! ros2` and `robokey controller`, each test inside a network namespace it creates.
+//!
+//! DDS multicasts discovery on every multicast-capable interface, so these tests never run
+//! on the machine's interfaces: each re-executes itself under
+//! `unshare -rn sh -c 'ip link set lo up; ip link set lo multicast on; exec …'` (a new user
+//! and network namespace holding only `lo`, and a veth pair the localhost-only test adds), and
+//! its body runs there. Without a working `unshare` they are skipped with a message.
+#![cfg(feature = "ros2")]
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{pairing, report, run_code, s, scratch, start, wait_code};
+
+/// Set in the re-executed test: the body runs.
+const INSIDE: &str = "ROBOKEY_TEST_NETNS";
+/// Longest a namespaced test may take.
+const TEST_TIMEOUT: Duration = Duration::from_secs(180);
+
+/// Returns true inside the namespace. Outside, runs `test` of this binary in a new network
+/// namespace (set up by `setup`, a shell snippet run as root of the namespace), checks it
+/// passed, and returns false; or skips when `unshare` is unavailable.
+fn in_namespace(test: &str, setup: &str) -> bool {
+    if std::env::var_os(INSIDE).is_some() {
+        return true;
+    }
+    let works = Command::new("unshare")
+        .args(["-rn", "true"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|status| status.success());
+    if !works {
+        eprintln!(
+            "SKIPPED {test}: `unshare -rn` is unavailable here (util-linux and user namespaces are \
+             needed); the ROS 2 tests never run on the machine's own interfaces"
+        );
+        return false;
+    }
+    let script = format!(
+        "set -e; ip link set lo up; ip link set lo multicast on; {setup}; exec \"$0\" \"$@\""
+    );
+    let mut child = Command::new("unshare")
+        .args(["-rn", "sh", "-c", &script])
+        .arg(std::env::current_exe().unwrap())
+        .args([test, "--exact", "--nocapture", "--test-threads=1"])
+        .env(INSIDE, "1")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("unshare starts");
+    let deadline = Instant::now() + TEST_TIMEOUT;
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{test} took more than {TEST_TIMEOUT:?} in its namespace");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let output = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&output.stdout).into_owned()
+        + &String::from_utf8_lossy(&output.stderr);
+    // Shown with `cargo test -- --nocapture`: what ran in the namespace and what it printed.
+    println!("{text}");
+    assert!(status.success(), "{test} failed in its namespace:\n{text}");
+    assert!(text.contains("1 passed"), "{test} did not run:\n{text}");
+    false
+}
+
+/// Runs a command inside the namespace and returns its stdout.
+fn sh(command: &str) -> String {
+    let out = Command::new("sh").args(["-c", command]).output().unwrap();
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Runs `robokey args…` with the arguments printed first (the test's log says what ran).
+fn logged(args: &[&str]) -> Vec<String> {
+    println!("$ robokey {}", args.join(" "));
+    args.iter().map(|a| (*a).to_owned()).collect()
+}
+
+/// A whole session: ros2-sim, the robot agent on it, the controller. Returns the folder
+/// with robot.json, controller.json and the keys, and each process's output.
+fn ros2_session(
+    name: &str,
+    sim_args: &[&str],
+    robot_args: &[&str],
+    common_args: &[&str],
+    during: impl FnOnce(&mut common::Process),
+) -> (std::path::PathBuf, [(i32, String); 3]) {
+    let dir = scratch(name);
+    let file = |f: &str| s(&dir.join(f));
+    let pairing = pairing(&dir);
+    let mut sim_all = vec!["ros2-sim", "--idle-exit", "3"];
+    sim_all.extend(sim_args);
+    let mut sim = start(
+        &logged(&sim_all)
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    let (robot_key, robot_json) = (file("robot.key"), file("robot.json"));
+    let mut robot_all = vec![
+        "robot",
+        "--listen",
+        "127.0.0.1:0",
+        "--backend",
+        "ros2",
+        "--pairing",
+        &pairing,
+        "--key-out",
+        &robot_key,
+        "--report",
+        &robot_json,
+        "--silence-timeout",
+        "2",
+    ];
+    robot_all.extend(robot_args);
+    robot_all.extend(common_args);
+    let robot = start(
+        &logged(&robot_all)
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    let (controller_key, controller_json) = (file("controller.key"), file("controller.json"));
+    let mut controller_all = vec![
+        "controller",
+        "--robot",
+        &robot.address,
+        "--pairing",
+        &pairing,
+        "--key-out",
+        &controller_key,
+        "--report",
+        &controller_json,
+        "--silence-timeout",
+        "2",
+    ];
+    controller_all.extend(common_args);
+    let controller_args = logged(&controller_all);
+    let controller = std::thread::spawn(move || {
+        run_code(
+            &controller_args
+                .iter()
+                .map(String::as_str)
+                .collect::<Vec<_>>(),
+        )
+    });
+    during(&mut sim);
+    let controller = controller.join().unwrap();
+    let robot = wait_code(robot);
+    let sim = wait_code(sim);
+    for (who, (code, text)) in [
+        ("controller", &controller),
+        ("robot", &robot),
+        ("ros2-sim", &sim),
+    ] {
+        println!("{who} exited {code}:\n{}", text.trim_end());
+    }
+    (dir, [controller, robot, sim])
+}
+
+fn assert_confirmed_with_equal_keys(dir: &Path) {
+    let (robot, controller) = (
+        report(&dir.join("robot.json")),
+        report(&dir.join("controller.json")),
+    );
+    assert_eq!(robot["outcome"], "confirmed", "{robot}");
+    assert_eq!(controller["outcome"], "confirmed", "{controller}");
+    assert_eq!(robot["erased_steps"], 0, "{robot}");
+    let key = std::fs::read_to_string(dir.join("robot.key")).unwrap();
+    assert_eq!(
+        key,
+        std::fs::read_to_string(dir.join("controller.key")).unwrap()
+    );
+    println!(
+        "keys equal: {} bits, {} codewords accepted",
+        robot["key_bits"], robot["accepted"]
+    );
+}
+
+/// Packets sent through interface `name` so far (from /proc/net/dev, this namespace's).
+fn tx_packets(name: &str) -> u64 {
+    let dev = std::fs::read_to_string("/proc/net/dev").unwrap();
+    let line = dev
+        .lines()
+        .find(|l| l.trim_start().starts_with(&format!("{name}:")))
+        .unwrap_or_else(|| panic!("no {name} in /proc/net/dev:\n{dev}"));
+    let fields: Vec<&str> = line.split(':').nth(1).unwrap().split_whitespace().collect();
+    fields[9].parse().unwrap()
+}
+
+#[test]
+fn lockstep_session_over_ros2_topics_confirms_a_key_and_nothing_leaves_localhost() {
+    // A second interface (a veth pair, IPv6 off so the kernel sends nothing on its own)
+    // that a participant not restricted to localhost would multicast discovery on.
+    if !in_namespace(
+        "lockstep_session_over_ros2_topics_confirms_a_key_and_nothing_leaves_localhost",
+        "sysctl -qw net.ipv6.conf.all.disable_ipv6=1 net.ipv6.conf.default.disable_ipv6=1; \
+         ip link add rk0 type veth peer name rk1; ip addr add 10.213.0.1/24 dev rk0; \
+         ip link set rk1 up; ip link set rk0 up",
+    ) {
+        return;
+    }
+    println!("namespace interfaces:\n{}", sh("ip -brief address"));
+    let before = tx_packets("rk0");
+    let (dir, [controller, robot, sim]) = ros2_session(
+        "ros2-lockstep",
+        &["--time", "virtual", "--period", "0.2"],
+        &["--seed", "11", "--ros2-odom-qos", "reliable"],
+        &["--pace", "lockstep", "--set", "protocol.delta_v=0.04"],
+        |_| {},
+    );
+    assert_eq!((controller.0, robot.0, sim.0), (0, 0, 0));
+    assert_confirmed_with_equal_keys(&dir);
+    let robot_report = report(&dir.join("robot.json"));
+    assert_eq!(robot_report["steps"], 1020);
+    assert_eq!(robot_report["commands_applied"], 1020);
+    // The emulator applied every command: 1020 steps (+ the stops at the end).
+    let stats: serde_json::Value =
+        serde_json::from_str(sim.1.trim().strip_prefix("ros2-sim: ").unwrap()).unwrap();
+    assert!(stats["commands"].as_u64().unwrap() >= 1020, "{stats}");
+    let sent = tx_packets("rk0") - before;
+    println!("packets sent on rk0 (10.213.0.1) during the session: {sent}");
+    assert_eq!(sent, 0, "a participant sent on an interface other than lo");
+}
+
+#[test]
+fn realtime_session_with_twist_stamped_confirms_a_key() {
+    if !in_namespace("realtime_session_with_twist_stamped_confirms_a_key", "true") {
+        return;
+    }
+    // 36 steps of 0.2 s; /odom at 20 Hz, the sample the latest one.
+    let (dir, [controller, robot, sim]) = ros2_session(
+        "ros2-realtime",
+        &["--time", "real", "--stamped"],
+        &["--ros2-stamped"],
+        &[
+            "--pace",
+            "realtime",
+            "--set",
+            "protocol.delta_v=0.04",
+            "--set",
+            "code.key_bits=12",
+        ],
+        |_| {},
+    );
+    assert_eq!((controller.0, robot.0, sim.0), (0, 0, 0));
+    assert_confirmed_with_equal_keys(&dir);
+    assert_eq!(report(&dir.join("robot.json"))["steps"], 36);
+}
+
+#[test]
+fn a_silent_robot_ends_the_session_with_a_named_stale_odom_error() {
+    if !in_namespace(
+        "a_silent_robot_ends_the_session_with_a_named_stale_odom_error",
+        "true",
+    ) {
+        return;
+    }
+    let (dir, [controller, robot, _]) = ros2_session(
+        "ros2-stale",
+        &["--time", "real"],
+        &[],
+        &["--pace", "realtime", "--set", "protocol.delta_v=0.04"],
+        |sim| {
+            // The robot's driver dies 3 s into the session (as `kill -9` would do it).
+            std::thread::sleep(Duration::from_secs(3));
+            sim.child.kill().unwrap();
+        },
+    );
+    // The robot failed (1: its robot failed) and told the controller, which ended without a
+    // key (3); both name the reason.
+    assert_eq!((controller.0, robot.0), (3, 1));
+    let robot_report = report(&dir.join("robot.json"));
+    let reason = robot_report["reason"].as_str().unwrap();
+    assert!(
+        reason.contains("stale /odom") && reason.contains("limit 0.100 s"),
+        "{robot_report}"
+    );
+    assert!(
+        robot_report["steps_done"].as_u64().unwrap() < 30,
+        "{robot_report}"
+    );
+    let controller_report = report(&dir.join("controller.json"));
+    assert!(
+        controller_report["reason"]
+            .as_str()
+            .unwrap()
+            .contains("stale /odom"),
+        "{controller_report}"
+    );
+}
+
+#[test]
+fn a_missing_robot_and_a_delta_off_the_quantum_are_named_errors() {
+    if !in_namespace(
+        "a_missing_robot_and_a_delta_off_the_quantum_are_named_errors",
+        "true",
+    ) {
+        return;
+    }
+    let dir = scratch("ros2-errors");
+    let pairing = pairing(&dir);
+    let robot = |extra: &[&str]| {
+        let mut args = vec![
+            "robot",
+            "--listen",
+            "127.0.0.1:0",
+            "--backend",
+            "ros2",
+            "--pairing",
+            &pairing,
+        ];
+        args.extend(extra);
+        run_code(&logged(&args).iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    // No ROS 2 robot on this host: an error (1) that says what was missing.
+    let (code, text) = robot(&["--set", "protocol.delta_v=0.04", "--ros2-wait", "1"]);
+    println!("exit {code}: {text}");
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains("no valid /odom within 1.0 s"), "{text}");
+    // The default Δv = 0.035 m/s is not a multiple of the TurtleBot3's 0.01: a usage error.
+    let (code, text) = robot(&[]);
+    println!("exit {code}: {text}");
+    assert_eq!(code, 2, "{text}");
+    assert!(
+        text.contains("protocol.delta_v = 0.035 m/s is not a multiple") && text.contains("0.0400"),
+        "{text}"
+    );
+    // A topic that is not an absolute ROS name.
+    let (code, text) = robot(&["--set", "protocol.delta_v=0.04", "--ros2-odom", "odom"]);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("give an absolute ROS name"), "{text}");
+    // A robot that takes Twist while the agent publishes TwistStamped (or the reverse, the
+    // Jazzy TurtleBot3's pitfall): DDS never matches them; the error says what is there.
+    let sim = start(&["ros2-sim", "--idle-exit", "5"]);
+    let (code, text) = robot(&[
+        "--set",
+        "protocol.delta_v=0.04",
+        "--ros2-stamped",
+        "--ros2-wait",
+        "3",
+    ]);
+    println!("exit {code}: {text}");
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains(
+            "the subscribers of /cmd_vel use geometry_msgs::msg::dds_::Twist_, not \
+             geometry_msgs::msg::dds_::TwistStamped_: the robot takes Twist: drop --ros2-stamped"
+        ),
+        "{text}"
+    );
+    drop(sim);
+}

@@ -1,0 +1,372 @@
+//! `robokey ros2-sim`: an emulated ROS 2 differential-drive robot. It subscribes to
+//! `/cmd_vel`, applies each command as a TurtleBot3 does (clamped to its speed limits, then
+//! truncated to the command quantum), integrates the unicycle exactly, and publishes
+//! `/odom`, so the `ros2` backend and a whole session run without hardware or ROS.
+
+use std::time::{Duration, Instant};
+
+use robokey::interrupt::Interrupt;
+use ros2_client::{Context, Node, Publisher};
+
+use super::msg::{Header, Kind, Odometry, Time, Twist, TwistStamped};
+use super::node::{Listener, RobotTopics, localhost_node, topic};
+use crate::error::NetError;
+
+/// How the emulated robot's time advances.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SimTime {
+    /// Each `/cmd_vel` message advances the robot by this period (s) at its speeds and
+    /// publishes the `/odom` stamped with the new virtual time, so a lockstep session runs
+    /// as fast as the agents talk. `/odom` is also repeated at the rate, unchanged, so a
+    /// late joiner finds the robot.
+    Virtual(f64),
+    /// The wheels turn with the wall clock; `/odom` is published at the rate, stamped with
+    /// the wall clock.
+    Real,
+}
+
+/// Options of the emulator.
+#[derive(Clone, Debug)]
+pub struct SimOptions {
+    /// Topics, message types and QoS.
+    pub topics: RobotTopics,
+    /// Time mode.
+    pub time: SimTime,
+    /// `/odom` rate (Hz): 20 on a TurtleBot3.
+    pub rate: f64,
+    /// Command quantum (m/s and rad/s): each of v and ω is truncated toward zero to a
+    /// multiple of it, as the TurtleBot3 does with `int32(x * 100)` (0.01); 0 for none.
+    pub quantum: f64,
+    /// Largest |v| (m/s): 0.22 on a TurtleBot3 Burger.
+    pub max_v: f64,
+    /// Largest |ω| (rad/s): 2.84 on a TurtleBot3 Burger.
+    pub max_omega: f64,
+    /// `header.frame_id` of `/odom`.
+    pub frame_id: String,
+    /// `child_frame_id` of `/odom`.
+    pub child_frame_id: String,
+    /// Exit after this long without a command (after the first), or without any if none came.
+    pub idle_exit: Option<Duration>,
+    /// A stop request (SIGINT, SIGTERM).
+    pub interrupt: Interrupt,
+}
+
+/// What the emulator did, printed when it exits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SimStats {
+    /// Commands applied.
+    pub commands: u64,
+    /// `/odom` messages published.
+    pub odometry: u64,
+    /// Virtual time reached or wall time run (s).
+    pub time: f64,
+    /// The final pose (m, m, rad; θ unwrapped).
+    pub pose: [f64; 3],
+}
+
+/// A command as received: planar speeds, finite.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Command {
+    v: f64,
+    omega: f64,
+}
+
+fn command(twist: &Twist) -> Result<Command, String> {
+    let (v, omega) = (twist.linear.x, twist.angular.z);
+    if v.is_finite() && omega.is_finite() {
+        Ok(Command { v, omega })
+    } else {
+        Err(format!("speeds ({v}, {omega}) are not finite"))
+    }
+}
+
+/// Truncates `x` toward zero to a multiple of `quantum` (0: unchanged), computed as the
+/// TurtleBot3 does, `int32(x * 100) / 100` for 0.01.
+#[must_use]
+pub fn quantise(x: f64, quantum: f64) -> f64 {
+    if quantum <= 0.0 {
+        return x;
+    }
+    let scale = 1.0 / quantum;
+    let scale = if (scale - scale.round()).abs() < 1e-9 {
+        scale.round()
+    } else {
+        scale
+    };
+    (x * scale).trunc() / scale
+}
+
+/// Advances the pose `(x, y, θ)` by `dt` at constant `(v, ω)`: the exact arc.
+#[must_use]
+pub fn integrate(pose: [f64; 3], v: f64, omega: f64, dt: f64) -> [f64; 3] {
+    let [x, y, theta] = pose;
+    let turn = omega * dt;
+    let (dx, dy) = if turn.abs() < 1e-9 {
+        let mid = theta + turn / 2.0;
+        (v * dt * mid.cos(), v * dt * mid.sin())
+    } else {
+        (
+            v / omega * ((theta + turn).sin() - theta.sin()),
+            -v / omega * ((theta + turn).cos() - theta.cos()),
+        )
+    };
+    [x + dx, y + dy, theta + turn]
+}
+
+/// The emulated robot, joined to the graph.
+pub struct Ros2Sim {
+    options: SimOptions,
+    commands: Listener<Command>,
+    odom: Publisher<Odometry>,
+    // Dropped last: the publisher and listener above belong to them.
+    _node: Node,
+    _context: Context,
+}
+
+impl Ros2Sim {
+    /// Joins the ROS 2 graph on localhost: subscribes to `/cmd_vel`, offers `/odom`.
+    ///
+    /// # Errors
+    /// Bad options, or the participant cannot be created.
+    pub fn start(options: SimOptions) -> Result<Self, NetError> {
+        for (name, value, least) in [
+            ("rate", options.rate, 0.0),
+            ("max-v", options.max_v, 0.0),
+            ("max-omega", options.max_omega, 0.0),
+        ] {
+            if !(value > least && value.is_finite()) {
+                return Err(NetError::Usage(format!(
+                    "--{name} {value} is not allowed (allowed: > {least})"
+                )));
+            }
+        }
+        if !(options.quantum >= 0.0 && options.quantum.is_finite()) {
+            return Err(NetError::Usage(format!(
+                "--quantum {} is not allowed (allowed: ≥ 0; 0 for none)",
+                options.quantum
+            )));
+        }
+        if let SimTime::Virtual(period) = options.time
+            && !(period > 0.0 && period.is_finite())
+        {
+            return Err(NetError::Usage(format!(
+                "--period {period} is not allowed (allowed: > 0 s)"
+            )));
+        }
+        let topics = &options.topics;
+        let (context, mut node) = localhost_node("ros2_sim", topics.domain_id)?;
+        let cmd_topic = topic(&node, &topics.cmd_vel, topics.cmd_kind())?;
+        let qos = Some(topics.cmd_vel.qos());
+        let subscribe_error =
+            |e| NetError::Ros2(format!("subscribe to {}: {e:?}", topics.cmd_vel.name));
+        // Every command counts in virtual time: keep the unread ones, not only the latest.
+        let queue = 1024;
+        let commands = match topics.cmd_kind() {
+            Kind::TwistStamped => Listener::spawn(
+                node.create_subscription::<TwistStamped>(&cmd_topic, qos)
+                    .map_err(subscribe_error)?,
+                &topics.cmd_vel.name,
+                queue,
+                |m: TwistStamped| command(&m.twist),
+            )?,
+            _ => Listener::spawn(
+                node.create_subscription::<Twist>(&cmd_topic, qos)
+                    .map_err(subscribe_error)?,
+                &topics.cmd_vel.name,
+                queue,
+                |m: Twist| command(&m),
+            )?,
+        };
+        let odom_topic = topic(&node, &topics.odom, Kind::Odometry)?;
+        let odom = node
+            .create_publisher(&odom_topic, Some(topics.odom.qos()))
+            .map_err(|e| {
+                NetError::Ros2(format!(
+                    "create the publisher of {}: {e:?}",
+                    topics.odom.name
+                ))
+            })?;
+        Ok(Self {
+            options,
+            commands,
+            odom,
+            _node: node,
+            _context: context,
+        })
+    }
+
+    /// One line saying what runs (the CLI prints it first).
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let o = &self.options;
+        let kind = if o.topics.stamped {
+            "TwistStamped"
+        } else {
+            "Twist"
+        };
+        let time = match o.time {
+            SimTime::Virtual(period) => format!("virtual time, {period} s per command"),
+            SimTime::Real => "real time".to_owned(),
+        };
+        format!(
+            "ros2-sim on ROS domain {}, localhost only: {} ({kind}) in, {} at {} Hz out, {time}, \
+             quantum {}, |v| ≤ {} m/s, |ω| ≤ {} rad/s",
+            o.topics.domain_id,
+            o.topics.cmd_vel.name,
+            o.topics.odom.name,
+            o.rate,
+            o.quantum,
+            o.max_v,
+            o.max_omega
+        )
+    }
+
+    /// The stop request it watches.
+    #[must_use]
+    pub fn interrupt(&self) -> &Interrupt {
+        &self.options.interrupt
+    }
+
+    /// What the robot applies for a command: clamped to its limits, then truncated.
+    fn apply(&self, command: Command) -> (f64, f64) {
+        let o = &self.options;
+        (
+            quantise(command.v.clamp(-o.max_v, o.max_v), o.quantum),
+            quantise(command.omega.clamp(-o.max_omega, o.max_omega), o.quantum),
+        )
+    }
+
+    fn publish(&self, pose: [f64; 3], speeds: (f64, f64), stamp: Time) -> Result<(), NetError> {
+        let header = Header {
+            stamp,
+            frame_id: self.options.frame_id.clone(),
+        };
+        let message = Odometry::planar(
+            header,
+            &self.options.child_frame_id,
+            pose,
+            [speeds.0, speeds.1],
+        );
+        self.odom.publish(message).map_err(|e| {
+            NetError::Ros2(format!(
+                "publish on {}: {e:?}",
+                self.options.topics.odom.name
+            ))
+        })
+    }
+
+    /// Runs until the idle timeout or a stop request.
+    ///
+    /// # Errors
+    /// Publishing fails, or the command listener fails.
+    pub fn run(&self) -> Result<SimStats, NetError> {
+        let o = &self.options;
+        let odom_period = Duration::from_secs_f64(1.0 / o.rate);
+        let started = Instant::now();
+        let mut stats = SimStats::default();
+        let mut pose = [0.0; 3];
+        let mut speeds = (0.0, 0.0);
+        let mut virtual_time = 0.0;
+        let mut integrated_to = started;
+        let mut last_command = started;
+        let mut next_odom = started;
+        loop {
+            if o.interrupt.signal().is_some() {
+                break;
+            }
+            let now = Instant::now();
+            if o.idle_exit.is_some_and(|idle| now - last_command >= idle) {
+                break;
+            }
+            if now >= next_odom {
+                let stamp = match o.time {
+                    SimTime::Real => {
+                        pose = integrate(
+                            pose,
+                            speeds.0,
+                            speeds.1,
+                            (now - integrated_to).as_secs_f64(),
+                        );
+                        integrated_to = now;
+                        Time::now()
+                    }
+                    SimTime::Virtual(_) => Time::from_secs_f64(virtual_time),
+                };
+                self.publish(pose, speeds, stamp)?;
+                stats.odometry += 1;
+                next_odom += odom_period;
+                if next_odom < now {
+                    next_odom = now + odom_period;
+                }
+            }
+            let wake = next_odom.min(Instant::now() + Duration::from_millis(50));
+            self.commands.wait(wake, true, |_| false)?;
+            for arrival in self.commands.drain() {
+                last_command = arrival.at;
+                stats.commands += 1;
+                match o.time {
+                    SimTime::Real => {
+                        let dt = arrival.at.saturating_duration_since(integrated_to);
+                        pose = integrate(pose, speeds.0, speeds.1, dt.as_secs_f64());
+                        integrated_to = integrated_to.max(arrival.at);
+                        speeds = self.apply(arrival.value);
+                    }
+                    SimTime::Virtual(period) => {
+                        speeds = self.apply(arrival.value);
+                        pose = integrate(pose, speeds.0, speeds.1, period);
+                        virtual_time += period;
+                        self.publish(pose, speeds, Time::from_secs_f64(virtual_time))?;
+                        stats.odometry += 1;
+                    }
+                }
+            }
+        }
+        stats.time = match o.time {
+            SimTime::Real => started.elapsed().as_secs_f64(),
+            SimTime::Virtual(_) => virtual_time,
+        };
+        stats.pose = pose;
+        Ok(stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn commands_are_truncated_toward_zero_as_the_turtlebot3_does() {
+        // int32(x * 100): 0.29 * 100 = 28.999999999999996, so 0.29 becomes 0.28.
+        assert_eq!(quantise(0.29, 0.01), 0.28);
+        assert_eq!(quantise(0.057, 0.01), 0.05);
+        assert_eq!(quantise(-0.057, 0.01), -0.05);
+        assert_eq!(quantise(0.009, 0.01), 0.0);
+        assert_eq!(quantise(0.057, 0.0), 0.057);
+        // With Δ a multiple of the quantum, each offered command u ± Δ is applied as
+        // Q(u) ± Δ exactly (u ± Δ of the same sign): the offset from the quantised nominal
+        // is ±Δ, as the observer models it. With Δ = 0.035 the two offsets differ.
+        let q = |x: f64| quantise(x, 0.01);
+        for u in [0.051, 0.0573, 0.1299, 0.2] {
+            assert!((q(u + 0.04) - q(u) - 0.04).abs() < 1e-12, "{u}");
+            assert!((q(u) - q(u - 0.04) - 0.04).abs() < 1e-12, "{u}");
+        }
+        let (up, down) = (q(0.051 + 0.035) - q(0.051), q(0.051) - q(0.051 - 0.035));
+        assert!(
+            (up - 0.03).abs() < 1e-12 && (down - 0.04).abs() < 1e-12,
+            "{up} {down}"
+        );
+    }
+
+    #[test]
+    fn the_arc_is_exact() {
+        // A quarter circle of radius 1.
+        let pose = integrate([0.0, 0.0, 0.0], 1.0, 1.0, std::f64::consts::FRAC_PI_2);
+        assert!((pose[0] - 1.0).abs() < 1e-12 && (pose[1] - 1.0).abs() < 1e-12);
+        assert!((pose[2] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        // Straight on, and the limit ω → 0 agrees.
+        assert_eq!(integrate([1.0, 2.0, 0.0], 0.5, 0.0, 2.0), [2.0, 2.0, 0.0]);
+        let nearly = integrate([0.0, 0.0, 0.3], 0.2, 1e-7, 0.2);
+        let straight = integrate([0.0, 0.0, 0.3], 0.2, 0.0, 0.2);
+        assert!((nearly[0] - straight[0]).abs() < 1e-9 && (nearly[1] - straight[1]).abs() < 1e-9);
+    }
+}
