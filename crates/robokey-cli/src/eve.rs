@@ -229,6 +229,31 @@ fn simulated_strategies(args: &EveArgs, mode: SensingMode) -> Vec<EveStrategy> {
     }
 }
 
+/// A report's markdown as the terminal shows it: the figures' image links become one line
+/// naming the files (in `out`), and the blank lines they leave collapse.
+fn for_terminal(markdown: &str, out: &std::path::Path) -> String {
+    let mut figures = Vec::new();
+    let mut text = String::new();
+    for line in markdown.lines() {
+        match line
+            .strip_prefix("![")
+            .and_then(|rest| rest.split_once("]("))
+            .and_then(|(_, target)| target.strip_suffix(')'))
+        {
+            Some(file) => figures.push(out.join(file).display().to_string()),
+            None if line.is_empty() && text.ends_with("\n\n") => {}
+            None => {
+                text.push_str(line);
+                text.push('\n');
+            }
+        }
+    }
+    if !figures.is_empty() {
+        text.push_str(&format!("figures: {}\n", figures.join(", ")));
+    }
+    text
+}
+
 /// `--out` (default robokey-out/eve), prepared for writing.
 fn output_folder(args: &EveArgs) -> Result<PathBuf> {
     let out = args
@@ -248,7 +273,7 @@ fn simulated(args: &EveArgs, config: &Config) -> Result<()> {
     })??;
     let files = write_campaign(&out, &campaign)?;
     write(&out.join("config.resolved.toml"), config.to_toml())?;
-    print!("{}", campaign_markdown(&campaign));
+    print!("{}", for_terminal(&campaign_markdown(&campaign), &out));
     println!(
         "\n{} × {} sessions × {} strategies in {:.2} s; wrote {} files to {}",
         args.campaigns,
@@ -472,4 +497,16 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
         )?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_terminal_gets_figure_files_instead_of_image_links() {
+        let text = super::for_terminal(
+            "# Title\n\ntext\n\n![error rates](a.svg)\n\n![b](b.svg)\n",
+            std::path::Path::new("out"),
+        );
+        assert_eq!(text, "# Title\n\ntext\n\nfigures: out/a.svg, out/b.svg\n");
+    }
 }

@@ -69,10 +69,13 @@ enum Command {
     Pair(net::PairArgs),
     /// The robot agent: owns the clock and the key bits, drives the wheels, reports odometry
     /// over UDP. Run it ON the robot (see README: where the robot agent runs matters).
+    #[command(allow_negative_numbers = true)]
     Robot(net::RobotArgs),
     /// The controller: tracks the reference, offers command pairs, decodes and acks.
+    #[command(allow_negative_numbers = true)]
     Controller(net::ControllerArgs),
     /// A faulty network between controller and robot, with an optional pcap capture.
+    #[command(allow_negative_numbers = true)]
     Relay(net::RelayArgs),
     /// Print the robokey frames of a pcap capture as robokey parses them (MACs unchecked).
     Frames(net::FramesArgs),
@@ -83,7 +86,7 @@ enum Command {
     Eve(eve::EveArgs),
     /// A simulated Khepera IV speaking kh4server's line protocol, for the kh4 backend; with
     /// --mocap and --camera also the world's sensor streams.
-    #[command(name = "kh4-emulator")]
+    #[command(allow_negative_numbers = true, name = "kh4-emulator")]
     Kh4Emulator(net::EmulatorArgs),
     /// Record a pose stream of the world (Eve's camera) to a CSV log, until it ends.
     Record(net::RecordArgs),
