@@ -133,11 +133,18 @@ fn apply_faults(
 /// Longest the relay blocks before it looks at the stop request again.
 const INTERRUPT_POLL: Duration = Duration::from_millis(50);
 
+/// Coarsest a socket receive timeout may be (the kernel rounds it up to its tick).
+const TIMEOUT_GRAIN: Duration = Duration::from_millis(5);
+
+/// Sleep between non-blocking receives while a delivery is due within [`TIMEOUT_GRAIN`].
+const PRECISE_SLEEP: Duration = Duration::from_micros(100);
+
 /// Runs the relay until it has been idle for `idle_exit` (forever without it) or a stop is
 /// requested. One socket carries both directions: the controller sends to it, the robot
 /// answers it, and the sender's address tells the direction. One thread blocks in `recv`
-/// until the next datagram or the next delivery due, whichever comes first: no polling
-/// loop, no hand-over between threads.
+/// until the next datagram or the next delivery due, whichever comes first (within 5 ms of
+/// a delivery, short sleeps between non-blocking receives keep its time): no hand-over
+/// between threads, no polling while idle.
 ///
 /// # Errors
 /// The socket or the capture file fails.
@@ -168,14 +175,23 @@ pub fn run_relay(options: &RelayOptions) -> Result<RelayStats, NetError> {
         if options.interrupt.is_requested() {
             return Ok(stats);
         }
-        let wait = queue.peek().map_or(INTERRUPT_POLL, |Reverse(p)| {
-            p.due
-                .saturating_duration_since(Instant::now())
-                .clamp(Duration::from_micros(1), INTERRUPT_POLL)
-        });
+        // A socket timeout is only as fine as the kernel's tick (4 ms here): a delivery due
+        // sooner is waited for with short sleeps between non-blocking receives.
+        let until_due = queue
+            .peek()
+            .map(|Reverse(p)| p.due.saturating_duration_since(Instant::now()));
+        let precise = until_due.is_some_and(|d| d < TIMEOUT_GRAIN);
         socket
-            .set_read_timeout(Some(wait))
-            .map_err(NetError::io("set the relay's receive timeout"))?;
+            .set_nonblocking(precise)
+            .map_err(NetError::io("set the relay's socket mode"))?;
+        if !precise {
+            let wait = until_due.map_or(INTERRUPT_POLL, |d| {
+                (d - TIMEOUT_GRAIN).clamp(Duration::from_micros(1), INTERRUPT_POLL)
+            });
+            socket
+                .set_read_timeout(Some(wait))
+                .map_err(NetError::io("set the relay's receive timeout"))?;
+        }
         match socket.recv_from(&mut buffer) {
             Ok((len, from)) => {
                 last_traffic = Some(Instant::now());
@@ -215,6 +231,9 @@ pub fn run_relay(options: &RelayOptions) -> Result<RelayStats, NetError> {
                         }));
                     }
                 }
+            }
+            Err(e) if precise && e.kind() == std::io::ErrorKind::WouldBlock => {
+                std::thread::sleep(until_due.unwrap_or_default().min(PRECISE_SLEEP));
             }
             // A previous send to a closed port (ICMP unreachable) surfaces here too.
             Err(e) if is_wait_over(&e) || e.kind() == std::io::ErrorKind::ConnectionRefused => {}
