@@ -128,8 +128,7 @@ pub fn run_controller(
                 reason: error.to_string(),
             });
             report.set_error(&error);
-            report.frames = transport.counts();
-            report.frames_rejected = transport.rejected();
+            report.count_frames(&transport);
             Ok(report)
         }
     }

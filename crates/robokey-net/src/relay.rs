@@ -16,6 +16,7 @@ use serde::Serialize;
 
 use crate::error::{NetError, is_wait_over};
 use crate::pcap::PcapWriter;
+use crate::session::STOP_POLL;
 
 /// Fault probabilities (per datagram) and delays.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -130,9 +131,6 @@ fn apply_faults(
     copies
 }
 
-/// Longest the relay blocks before it looks at the stop request again.
-const INTERRUPT_POLL: Duration = Duration::from_millis(50);
-
 /// Coarsest a socket receive timeout may be (the kernel rounds it up to its tick).
 const TIMEOUT_GRAIN: Duration = Duration::from_millis(5);
 
@@ -185,8 +183,8 @@ pub fn run_relay(options: &RelayOptions) -> Result<RelayStats, NetError> {
             .set_nonblocking(precise)
             .map_err(NetError::io("set the relay's socket mode"))?;
         if !precise {
-            let wait = until_due.map_or(INTERRUPT_POLL, |d| {
-                (d - TIMEOUT_GRAIN).clamp(Duration::from_micros(1), INTERRUPT_POLL)
+            let wait = until_due.map_or(STOP_POLL, |d| {
+                (d - TIMEOUT_GRAIN).clamp(Duration::from_micros(1), STOP_POLL)
             });
             socket
                 .set_read_timeout(Some(wait))

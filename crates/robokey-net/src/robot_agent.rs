@@ -20,8 +20,8 @@ use crate::endpoint::{RobotSide, Shape, shape};
 use crate::error::NetError;
 use crate::secret_file::check_writable;
 use crate::session::{
-    DoubletCounts, Ending, Pace, Progress, SessionReport, Timing, authentication_label, linger,
-    os_rng, write_key_file,
+    DoubletCounts, Ending, Pace, Progress, STOP_POLL, SessionReport, Timing, authentication_label,
+    linger, os_rng, write_key_file,
 };
 use crate::transport::Transport;
 
@@ -172,8 +172,7 @@ fn handshake(
     if rejected.bad_mac + rejected.pairing_mode > 0 {
         report.ending = Ending::AuthenticationFailed;
     }
-    report.frames = transport.counts();
-    report.frames_rejected = rejected;
+    report.count_frames(transport);
     Ok(Err(report))
 }
 
@@ -223,8 +222,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         Err(error) => {
             let mut report = robot_report(options);
             report.set_error(&error);
-            report.frames = transport.counts();
-            report.frames_rejected = transport.rejected();
+            report.count_frames(&transport);
             return Ok(report);
         }
     };
@@ -260,8 +258,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
             reason: error.to_string(),
         });
         s.report.set_error(&error);
-        s.report.frames = s.transport.counts();
-        s.report.frames_rejected = s.transport.rejected();
+        s.report.count_frames(&s.transport);
         return Ok(s.report);
     }
     if let (Some(confirm), false) = (
@@ -342,7 +339,7 @@ fn sleep_until(at: Instant, interrupt: &Interrupt) -> Result<(), NetError> {
         if left.is_zero() {
             return Ok(());
         }
-        std::thread::sleep(left.min(Duration::from_millis(50)));
+        std::thread::sleep(left.min(STOP_POLL));
     }
 }
 
@@ -359,8 +356,7 @@ pub(crate) fn finish_report(
 ) -> SessionReport {
     let outcome = outcome.unwrap_or_else(|| Outcome::Aborted("ended without an outcome".into()));
     report.set_outcome(&outcome);
-    report.frames = transport.counts();
-    report.frames_rejected = transport.rejected();
+    report.count_frames(transport);
     report.key_bits = key.len();
     report.accepted = (key.len() / message_bits.max(1)) as u32;
     let written = match &outcome {

@@ -10,6 +10,10 @@ use crate::error::NetError;
 use crate::transport::FrameCounts;
 use robokey::protocol::auth::{AuthMode, PairingSecret, RejectionCounts};
 
+/// Longest a blocking wait (a receive, a sleep) lasts before it looks at the stop request
+/// again.
+pub const STOP_POLL: Duration = Duration::from_millis(50);
+
 /// How the robot's clock runs (docs/protocol.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Pace {
@@ -226,6 +230,12 @@ impl SessionReport {
             Outcome::Kept => Ending::Kept,
             _ => Ending::NoKey,
         };
+    }
+
+    /// Copies the transport's frame counters and rejections into the report.
+    pub fn count_frames(&mut self, transport: &crate::transport::Transport) {
+        self.frames = transport.counts();
+        self.frames_rejected = transport.rejected();
     }
 
     /// Records a session cut short by `error` (a signal, or a socket, file or robot error).

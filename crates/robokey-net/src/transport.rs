@@ -6,6 +6,7 @@ use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
 use crate::error::{NetError, is_wait_over};
+use crate::session::STOP_POLL;
 use rand::rngs::ChaCha20Rng;
 use robokey::interrupt::Interrupt;
 use robokey::protocol::Message;
@@ -15,9 +16,6 @@ use robokey::protocol::auth::{
 
 /// Receive buffer (bytes): the largest UDP payload. A longer frame cannot cross UDP.
 const DATAGRAM_BYTES: usize = 65_536;
-
-/// Longest a receive waits before it looks at the stop request again.
-const INTERRUPT_POLL: Duration = Duration::from_millis(50);
 
 /// Frame counters of one endpoint.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -209,7 +207,7 @@ impl Transport {
             if now >= deadline {
                 return Ok(None);
             }
-            let wait = (deadline - now).clamp(Duration::from_micros(100), INTERRUPT_POLL);
+            let wait = (deadline - now).clamp(Duration::from_micros(100), STOP_POLL);
             self.socket
                 .set_read_timeout(Some(wait))
                 .map_err(NetError::io("set socket timeout"))?;
