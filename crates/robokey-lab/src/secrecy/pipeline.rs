@@ -311,6 +311,8 @@ fn through_endpoints(
         let _ = controller.handle_input(ControllerInput::Session {
             id,
             bits: controller_bits,
+            // The block's separation is the settings' (the largest over every run).
+            separation: 0.0,
         });
     }
     let mut controller_reports = Vec::new();

@@ -66,6 +66,31 @@ impl Assumption {
         }
     }
 
+    /// Whether the assumption is restricted: stated by the operator about an Eve who never
+    /// learns the model, rather than derived from a physical statement. Keys made under it
+    /// are labelled so, and the agents make them only when told to.
+    #[must_use]
+    pub fn is_restricted(&self) -> bool {
+        matches!(self, Self::IndependentErrors { .. })
+    }
+
+    /// The assumption for one block whose bits have Eve separations up to
+    /// `separation_micros` millionths: a Gaussian-views separation is raised to it; the
+    /// other assumptions have none.
+    #[must_use]
+    pub fn for_block(&self, separation_micros: u64) -> Self {
+        match self {
+            Self::GaussianViews {
+                separation,
+                statement,
+            } => Self::GaussianViews {
+                separation: separation.max(separation_micros as f64 * 1e-6),
+                statement: statement.clone(),
+            },
+            Self::NoSecrecy { .. } | Self::IndependentErrors { .. } => self.clone(),
+        }
+    }
+
     /// For people: what is assumed.
     #[must_use]
     pub fn describe(&self) -> String {

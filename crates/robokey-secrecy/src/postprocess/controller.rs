@@ -8,7 +8,7 @@ use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
     AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, Message, Output,
-    Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, split_sample, tag_context,
+    Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, key_id, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
@@ -23,6 +23,9 @@ pub enum ControllerInput {
         id: u32,
         /// The controller's bits (decisions) of the session.
         bits: BitString,
+        /// The largest separation of Eve's view over these bits under a Gaussian-views
+        /// assumption, as the controller computes it from its own samples (0 otherwise).
+        separation: f64,
     },
     /// A message from the robot.
     Frame(Message),
@@ -65,12 +68,14 @@ pub struct ControllerSnapshot {
     pub next_block: u64,
     /// Sessions pooled and not yet proposed.
     pub pool: Vec<(u32, BitString)>,
+    /// Their Eve separations, in millionths (only those above 0).
+    pub separations: Vec<(u32, u64)>,
     /// Sessions proposed in a block (spent).
     pub spent: Vec<u32>,
     /// The block in flight, if any.
     pub in_flight: Option<InFlight>,
-    /// Committed keys.
-    pub keys: Vec<FinalKey>,
+    /// Blocks whose keys were committed.
+    pub committed: Vec<u64>,
 }
 
 /// A block after the robot agreed.
@@ -107,6 +112,9 @@ pub struct ControllerPost {
     next_block: u64,
     /// The block in flight: its number, proposed sessions and their bits.
     block: Option<(u64, Vec<u32>, Pool)>,
+    /// Pooled sessions' Eve separations (millionths), and the block in flight's largest.
+    separations: std::collections::BTreeMap<u32, u64>,
+    block_separation: u64,
     in_flight: Option<InFlight>,
     state: State,
     report: Option<BlockReport>,
@@ -119,7 +127,7 @@ impl std::fmt::Debug for ControllerPost {
             .field("pooled", &self.ledger.pool.len())
             .field("next_block", &self.next_block)
             .field("in_flight", &self.in_flight)
-            .field("keys", &self.ledger.keys.len())
+            .field("committed", &self.ledger.committed.len())
             .finish_non_exhaustive()
     }
 }
@@ -138,6 +146,8 @@ impl ControllerPost {
             ledger,
             next_block,
             block: None,
+            separations: std::collections::BTreeMap::new(),
+            block_separation: 0,
             in_flight: None,
             state: State::Idle,
             report: None,
@@ -160,9 +170,10 @@ impl ControllerPost {
             rng_seed,
             snapshot.pool,
             snapshot.spent,
-            snapshot.keys,
+            snapshot.committed,
         )?;
         let mut endpoint = Self::with(ledger, snapshot.next_block);
+        endpoint.separations = snapshot.separations.into_iter().collect();
         match snapshot.in_flight {
             None => endpoint.maybe_propose(),
             Some(InFlight::Committed { block, sessions }) => {
@@ -192,16 +203,11 @@ impl ControllerPost {
         ControllerSnapshot {
             next_block: self.next_block,
             pool: self.ledger.stored_pool(),
+            separations: self.separations.iter().map(|(&id, &s)| (id, s)).collect(),
             spent: self.ledger.spent.iter().copied().collect(),
             in_flight: self.in_flight.clone(),
-            keys: self.ledger.keys.clone(),
+            committed: self.ledger.committed.iter().copied().collect(),
         }
-    }
-
-    /// Keys committed so far.
-    #[must_use]
-    pub fn keys(&self) -> &[FinalKey] {
-        &self.ledger.keys
     }
 
     /// Whether no block is in flight.
@@ -218,11 +224,24 @@ impl ControllerPost {
     /// Feeds one input.
     ///
     /// # Errors
-    /// A session that is a duplicate or of a size outside the bounds (nothing changes).
+    /// A session that is a duplicate, of a size outside the bounds, or with a separation
+    /// outside [0, 10⁶] (nothing changes).
     pub fn handle_input(&mut self, input: ControllerInput) -> Result<(), PostError> {
         match input {
-            ControllerInput::Session { id, bits } => {
+            ControllerInput::Session {
+                id,
+                bits,
+                separation,
+            } => {
+                if !(0.0..=1e6).contains(&separation) {
+                    return Err(PostError::Separation { id, separation });
+                }
                 self.ledger.add_session(id, bits)?;
+                // Rounded up: the key is sized as if Eve saw a little more, never less.
+                let micros = (separation * 1e6).ceil() as u64;
+                if micros > 0 {
+                    self.separations.insert(id, micros);
+                }
                 self.maybe_propose();
             }
             ControllerInput::Timeout => {
@@ -336,6 +355,12 @@ impl ControllerPost {
             sessions.push(id);
             bits.insert(id, session);
         }
+        let separation_micros = sessions
+            .iter()
+            .filter_map(|id| self.separations.remove(id))
+            .max()
+            .unwrap_or(0);
+        self.block_separation = separation_micros;
         let block = self.next_block;
         self.next_block += 1;
         let nonce = self.ledger.nonce();
@@ -351,6 +376,7 @@ impl ControllerPost {
             block,
             sessions,
             nonce,
+            separation_micros,
         });
     }
 
@@ -458,11 +484,12 @@ impl ControllerPost {
     /// Reconciliation is over: ℓ from the assumption, then the controller's tag.
     fn confirm(&mut self, agreed: Agreed, outcome: Reconciliation) {
         let n = outcome.corrected.len() as u64;
-        let (h_min, length) = self.ledger.settings.assumption.output_length(
-            n,
-            outcome.leak,
-            self.ledger.settings.epsilon,
-        );
+        let (h_min, length) = self
+            .ledger
+            .settings
+            .assumption
+            .for_block(self.block_separation)
+            .output_length(n, outcome.leak, self.ledger.settings.epsilon);
         if let Some(report) = self.report.as_mut() {
             report.questions = outcome.alice_parities;
             report.leak_ec = outcome.leak;
@@ -509,13 +536,24 @@ impl ControllerPost {
         };
         let (block, proposed) = (*block, proposed.clone());
         let key = FinalKey {
+            id: key_id(&tag_context(
+                block,
+                &agreed.sessions,
+                &agreed.nonces,
+                key.len() as u64,
+            )),
             block,
             key,
             sessions: agreed.sessions,
             epsilon: 4.0 * self.ledger.settings.epsilon,
-            assumption: self.ledger.settings.assumption.describe(),
+            assumption: self
+                .ledger
+                .settings
+                .assumption
+                .for_block(self.block_separation)
+                .describe(),
         };
-        self.ledger.keys.push(key.clone());
+        self.ledger.committed.insert(block);
         self.in_flight = Some(InFlight::Committed {
             block,
             sessions: proposed,

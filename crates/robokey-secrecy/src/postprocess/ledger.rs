@@ -1,12 +1,12 @@
 //! What both endpoints keep: the settings, a nonce generator, the sessions pooled and spent,
-//! the committed keys and the outputs not yet polled.
+//! the committed blocks and the outputs not yet polled.
 
 use std::collections::{BTreeSet, VecDeque};
 
 use rand::rngs::ChaCha20Rng;
 use rand::{Rng, SeedableRng};
 
-use super::{FinalKey, MAX_SESSION_BITS, Output, Pool, PostError, Settings};
+use super::{MAX_SESSION_BITS, Output, Pool, PostError, Settings};
 use crate::bitstring::BitString;
 
 pub(super) struct Ledger {
@@ -14,7 +14,8 @@ pub(super) struct Ledger {
     rng: ChaCha20Rng,
     pub(super) pool: Pool,
     pub(super) spent: BTreeSet<u32>,
-    pub(super) keys: Vec<FinalKey>,
+    /// Blocks whose keys were committed (the keys themselves go to the shell's store).
+    pub(super) committed: BTreeSet<u64>,
     pub(super) outputs: VecDeque<Output>,
 }
 
@@ -27,7 +28,7 @@ impl Ledger {
             rng: ChaCha20Rng::from_seed(rng_seed),
             pool: Pool::new(),
             spent: BTreeSet::new(),
-            keys: Vec::new(),
+            committed: BTreeSet::new(),
             outputs: VecDeque::new(),
         })
     }
@@ -38,12 +39,12 @@ impl Ledger {
         rng_seed: [u8; 32],
         pool: Vec<(u32, BitString)>,
         spent: Vec<u32>,
-        keys: Vec<FinalKey>,
+        committed: Vec<u64>,
     ) -> Result<Self, PostError> {
         let mut ledger = Self::new(settings, rng_seed)?;
         ledger.pool = pool.into_iter().collect();
         ledger.spent = spent.into_iter().collect();
-        ledger.keys = keys;
+        ledger.committed = committed.into_iter().collect();
         Ok(ledger)
     }
 

@@ -44,6 +44,12 @@ pub enum Message {
         sessions: Vec<u32>,
         /// The controller's fresh nonce.
         nonce: [u8; 32],
+        /// The largest separation of Eve's view over the proposed sessions' bits, in
+        /// millionths, rounded up (0 unless the assumption is [`Assumption::GaussianViews`],
+        /// whose statement the controller evaluates on its own samples).
+        ///
+        /// [`Assumption::GaussianViews`]: super::Assumption::GaussianViews
+        separation_micros: u64,
     },
     /// Robot → controller: the proposed sessions it holds, in the proposed order.
     Agree {
@@ -148,7 +154,7 @@ impl Message {
     pub fn payload_bits(&self) -> u64 {
         let list = |items: usize, each: u64| 32 + items as u64 * each;
         64 + match self {
-            Self::Propose { sessions, .. } => list(sessions.len(), 32) + 256,
+            Self::Propose { sessions, .. } => list(sessions.len(), 32) + 256 + 64,
             Self::Agree {
                 sessions, sample, ..
             } => list(sessions.len(), 32) + 256 + list(sample.len(), 1),

@@ -15,6 +15,10 @@
 //! 5. `Confirmed` (robot): its tag; the robot has *prepared* the key (persisted, not used).
 //! 6. `Commit` (controller, after persisting the key) → `CommitAck` (robot, after persisting).
 //!
+//! Outputs polled after one input form a batch: a [`Output::KeyCommitted`] belongs to the
+//! durable state of that batch's [`Output::Persist`], so the shell stores the snapshot and the
+//! keys committed in the batch before transmitting anything from it.
+//!
 //! `Abort` ends a block without a key (ℓ = 0, tags differ, a restart); every session that
 //! entered a block is spent whatever the outcome, since its sample and parities are public.
 //! The controller commits only after the robot's tag proves it prepared the key, and the robot
@@ -107,7 +111,11 @@ pub struct BlockReport {
 /// A final key, committed on both sides.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FinalKey {
-    /// Block number: the key's ID.
+    /// The key's ID, the same on both sides: 16 hex digits of
+    /// SHA-256("robokey/key-id/v1" ‖ block ‖ sessions ‖ nonces ‖ ℓ) — public, and unique
+    /// even when a store is reset and block numbers start again.
+    pub id: String,
+    /// Block number.
     pub block: u64,
     /// The key bits.
     pub key: BitString,
@@ -152,6 +160,14 @@ pub enum PostError {
     /// Settings out of range.
     #[error("invalid post-processing settings: {0}")]
     Settings(String),
+    /// A session's Eve separation outside [0, 10⁶].
+    #[error("session {id} has Eve separation {separation} (allowed: 0 to 10^6)")]
+    Separation {
+        /// Session ID.
+        id: u32,
+        /// Its separation.
+        separation: f64,
+    },
 }
 
 impl Settings {
@@ -223,6 +239,16 @@ fn tag_context(block: u64, sessions: &[u32], nonces: &[[u8; 32]; 2], length: u64
     }
     context.extend_from_slice(&length.to_be_bytes());
     context
+}
+
+/// The key ID both sides derive from a block's tag context.
+fn key_id(context: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    let digest = Sha256::new()
+        .chain_update(b"robokey/key-id/v1")
+        .chain_update(context)
+        .finalize();
+    digest[..8].iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// Direction labels of the block tags.

@@ -9,8 +9,8 @@ use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
     BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, MAX_QUESTIONS, Message, Output,
-    Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate, split_sample,
-    tag_context,
+    Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate, key_id,
+    split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::CascadeAlice;
@@ -54,8 +54,8 @@ pub struct RobotSnapshot {
     pub highest_block: Option<u64>,
     /// A prepared key.
     pub prepared: Option<Prepared>,
-    /// Committed keys.
-    pub keys: Vec<FinalKey>,
+    /// Blocks whose keys were committed.
+    pub committed: Vec<u64>,
 }
 
 /// A block the robot agreed to and is reconciling.
@@ -67,6 +67,8 @@ struct Reconciling {
     reference: BitString,
     alice: CascadeAlice<ChaCha20Rng>,
     agree: Message,
+    /// The block's Eve separation the controller stated (millionths).
+    separation_micros: u64,
     last_answer: Option<Message>,
     round: u32,
     report: BlockReport,
@@ -86,7 +88,7 @@ impl std::fmt::Debug for RobotPost {
             .field("pooled", &self.ledger.pool.len())
             .field("highest_block", &self.highest_block)
             .field("prepared", &self.prepared.as_ref().map(|p| p.block))
-            .field("keys", &self.ledger.keys.len())
+            .field("committed", &self.ledger.committed.len())
             .finish_non_exhaustive()
     }
 }
@@ -124,7 +126,7 @@ impl RobotPost {
             rng_seed,
             snapshot.pool,
             snapshot.spent,
-            snapshot.keys,
+            snapshot.committed,
         )?;
         Ok(Self::with(
             ledger,
@@ -141,14 +143,8 @@ impl RobotPost {
             spent: self.ledger.spent.iter().copied().collect(),
             highest_block: self.highest_block,
             prepared: self.prepared.clone(),
-            keys: self.ledger.keys.clone(),
+            committed: self.ledger.committed.iter().copied().collect(),
         }
-    }
-
-    /// Keys committed so far.
-    #[must_use]
-    pub fn keys(&self) -> &[FinalKey] {
-        &self.ledger.keys
     }
 
     /// The next thing to do.
@@ -174,8 +170,11 @@ impl RobotPost {
         let block = message.block();
         match message {
             Message::Propose {
-                sessions, nonce, ..
-            } => self.on_propose(block, sessions, nonce),
+                sessions,
+                nonce,
+                separation_micros,
+                ..
+            } => self.on_propose(block, sessions, nonce, separation_micros),
             Message::Ask { round, queries, .. } => self.on_ask(block, round, &queries),
             Message::Confirm { length, tag, .. } => self.on_confirm(block, length, tag),
             Message::Commit { .. } => self.on_commit(block),
@@ -198,7 +197,13 @@ impl RobotPost {
         self.reconciling.as_deref_mut().filter(|r| r.block == block)
     }
 
-    fn on_propose(&mut self, block: u64, proposed: Vec<u32>, nonce: [u8; 32]) {
+    fn on_propose(
+        &mut self,
+        block: u64,
+        proposed: Vec<u32>,
+        nonce: [u8; 32],
+        separation_micros: u64,
+    ) {
         if let Some(r) = self.reconciling(block) {
             let agree = r.agree.clone();
             return self.send(agree);
@@ -255,6 +260,7 @@ impl RobotPost {
             reference,
             alice,
             agree: agree.clone(),
+            separation_micros,
             last_answer: None,
             round: 0,
             report,
@@ -307,9 +313,8 @@ impl RobotPost {
         };
         let n = r.reference.len() as u64;
         let leak_ec = 2 * r.alice.revealed();
-        let (h_min, expected) = settings
-            .assumption
-            .output_length(n, leak_ec, settings.epsilon);
+        let assumption = settings.assumption.for_block(r.separation_micros);
+        let (h_min, expected) = assumption.output_length(n, leak_ec, settings.epsilon);
         if expected.bits != length || length == 0 {
             return self.reject(block, RejectReason::LengthMismatch);
         }
@@ -333,11 +338,12 @@ impl RobotPost {
         report.h_min = h_min;
         report.length = length;
         let key = FinalKey {
+            id: key_id(&context),
             block,
             key,
             sessions: r.sessions.clone(),
             epsilon: 4.0 * settings.epsilon,
-            assumption: settings.assumption.describe(),
+            assumption: assumption.describe(),
         };
         if let Some(done) = self.reconciling.take() {
             self.ledger.spent.extend(done.sessions);
@@ -353,13 +359,13 @@ impl RobotPost {
     }
 
     fn on_commit(&mut self, block: u64) {
-        if self.ledger.keys.iter().any(|k| k.block == block) {
+        if self.ledger.committed.contains(&block) {
             return self.send(Message::CommitAck { block });
         }
         let Some(prepared) = self.prepared.take_if(|p| p.block == block) else {
             return self.unknown(block);
         };
-        self.ledger.keys.push(prepared.key.clone());
+        self.ledger.committed.insert(block);
         self.ledger.outputs.push_back(Output::Persist);
         self.ledger
             .outputs
@@ -371,7 +377,7 @@ impl RobotPost {
     }
 
     fn on_abort(&mut self, block: u64, sessions: &[u32]) {
-        if self.ledger.keys.iter().any(|k| k.block == block) {
+        if self.ledger.committed.contains(&block) {
             return self.ignore("an abort of a committed block");
         }
         let mut report = None;
@@ -400,7 +406,7 @@ impl RobotPost {
     fn unknown(&mut self, block: u64) {
         let stale = self.highest_block.is_some_and(|h| block < h)
             || self.prepared.as_ref().is_some_and(|p| p.block == block)
-            || self.ledger.keys.iter().any(|k| k.block == block);
+            || self.ledger.committed.contains(&block);
         if stale {
             return self.ignore("a request about a finished block");
         }
