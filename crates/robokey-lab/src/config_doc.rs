@@ -106,6 +106,22 @@ const FIELDS: &[(&str, &str)] = &[
     ),
     ("run.seed", "master seed of every random stream"),
     ("run.replicates", "runs per configuration (sweep point)"),
+    (
+        "postprocess.block_bits",
+        "bits: the agents' controller proposes a block once its pool holds this many",
+    ),
+    (
+        "postprocess.sample_bits",
+        "bits: largest sample disclosed to estimate the error rate",
+    ),
+    (
+        "postprocess.epsilon",
+        "ε per term: final keys are 4ε-secret under the stated assumption",
+    ),
+    (
+        "postprocess.assumed_eve_error",
+        "odometry mode: restricted assumption (Eve never learns the model); keys need --allow-restricted",
+    ),
 ];
 
 /// The configuration as `robokey config` prints it: `to_toml`'s text, each field followed by
@@ -152,7 +168,9 @@ mod tests {
 
     #[test]
     fn every_field_is_documented_and_every_documented_field_exists() {
-        let config = Config::default();
+        let mut config = Config::default();
+        // Printed only when set.
+        config.postprocess.assumed_eve_error = Some(0.2);
         let mut fields = Vec::new();
         leaves(&config.to_toml().parse().unwrap(), "", &mut fields);
         let documented: Vec<&str> = FIELDS.iter().map(|(f, _)| *f).collect();

@@ -38,6 +38,8 @@ pub struct Config {
     pub eve: EveConfig,
     /// Seeds and replicates.
     pub run: RunConfig,
+    /// How the agents turn pooled raw bits into final keys.
+    pub postprocess: PostprocessConfig,
 }
 
 /// `[robot]`
@@ -431,6 +433,35 @@ impl Default for EveConfig {
     }
 }
 
+/// `[postprocess]`: the agents' pooled post-processing (docs/postprocessing.md). Both
+/// agents must hold the same values: they are part of the configuration digest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PostprocessConfig {
+    /// The controller proposes a block once its pool holds at least this many raw bits.
+    pub block_bits: u32,
+    /// Largest sample disclosed to estimate the error rate (at most a tenth of the block).
+    pub sample_bits: u32,
+    /// ε of each term (smoothing, amplification, parameter estimation): keys are 4ε-secret.
+    pub epsilon: f64,
+    /// Odometry mode only — a *restricted* assumption: Eve never learns the model, and her
+    /// guesses of the bits err independently with at least this probability. Keys made
+    /// under it are labelled restricted and need the agents' `--allow-restricted`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub assumed_eve_error: Option<f64>,
+}
+
+impl Default for PostprocessConfig {
+    fn default() -> Self {
+        Self {
+            block_bits: 10_000,
+            sample_bits: 1_000,
+            epsilon: 1e-6,
+            assumed_eve_error: None,
+        }
+    }
+}
+
 /// `[run]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -727,6 +758,27 @@ impl Config {
                 eve.match_tolerance_pp,
                 "[0, 100] percentage points",
             ));
+        }
+        let post = &self.postprocess;
+        if !(64..=1 << 30).contains(&post.block_bits) {
+            return Err(invalid("postprocess.block_bits", post.block_bits, "64 to 2^30"));
+        }
+        if !(post.epsilon > 0.0 && post.epsilon <= 0.01) {
+            return Err(invalid("postprocess.epsilon", post.epsilon, "(0, 0.01]"));
+        }
+        match (post.assumed_eve_error, self.sensing.mode) {
+            (Some(p), SensingMode::Odometry) if !(p > 0.0 && p <= 0.5) => {
+                return Err(invalid("postprocess.assumed_eve_error", p, "(0, 0.5]"));
+            }
+            (Some(p), SensingMode::Private) => {
+                return Err(invalid(
+                    "postprocess.assumed_eve_error",
+                    p,
+                    "absent in private mode (the key is sized by the camera statement, \
+                     eve.camera_std)",
+                ));
+            }
+            _ => {}
         }
         if !(1..=MAX_REPLICATES).contains(&self.run.replicates) {
             return Err(invalid(

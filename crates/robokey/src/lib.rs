@@ -17,6 +17,7 @@ pub mod interrupt;
 pub mod metrics;
 pub mod model;
 pub mod observer;
+pub mod post_settings;
 pub mod private;
 pub mod protocol;
 pub mod rng;

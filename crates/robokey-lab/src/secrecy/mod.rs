@@ -18,6 +18,7 @@ pub mod render_private;
 
 use rayon::prelude::*;
 use robokey::config::{EveStrategy, SensingMode};
+use robokey::post_settings::ODOMETRY_ZERO;
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, simulate_plan, simulate_transcript};
@@ -104,12 +105,6 @@ pub fn default_adversaries(mode: SensingMode) -> Vec<EveStrategy> {
         SensingMode::Private => EveStrategy::of_mode(SensingMode::Private),
     }
 }
-
-/// Why the odometry mode (the paper's) yields no secret key by structure.
-pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything the controller \
-    decides from is public except r and D, which an eavesdropper learns from the traffic (the \
-    identifying Eve within about one session); she then decides as the controller does, so \
-    I(B; controller | Eve) = 0 and no post-processing yields a secret bit";
 
 /// Settings of the analysis.
 #[derive(Clone, Debug)]
@@ -402,7 +397,7 @@ fn analyze_point(
         sample_bits: options.sample_bits,
         block_bits: options.block_bits,
         assumption: if is_private {
-            private::assumption(config, private::largest_separation(&runs))
+            robokey::post_settings::camera_assumption(config, private::largest_separation(&runs))
         } else {
             options.assumption()
         },

@@ -10,7 +10,6 @@ use robokey::private::DoubletBit;
 use robokey::sim::{RunOutput, simulate};
 use robokey_secrecy::calibration::check_calibration;
 use robokey_secrecy::gaussian_llr::{information, surprisal};
-use robokey_secrecy::postprocess::Assumption;
 use serde::Serialize;
 
 use super::Rate;
@@ -77,28 +76,6 @@ pub struct PrivateFigures {
     pub jx_mm: f64,
     /// J_x (mm) with the protocol off (same seeds).
     pub jx_off_mm: f64,
-}
-
-/// The key-sizing statement of private sensing for `config`: Eve's camera noise at least the
-/// configured one, the true motion noise, the exact model, the boundary samples hers.
-#[must_use]
-pub fn assumption(config: &Config, separation: f64) -> Assumption {
-    let mm = |x: f64| 1e3 * x;
-    let (e, w) = (&config.eve.camera_std, &config.noise.process_std);
-    Assumption::GaussianViews {
-        separation,
-        statement: format!(
-            "Eve's camera noise ≥ {} mm, {} mm, {} mrad per sample instant (her effective \
-             noise after her own filtering), motion noise {} mm, {} mm, {} mrad per step, \
-             exact model, the controller's boundary samples known to her",
-            mm(e[0]),
-            mm(e[1]),
-            mm(e[2]),
-            mm(w[0]),
-            mm(w[1]),
-            mm(w[2]),
-        ),
-    }
 }
 
 /// The largest separation the camera assumption gives her over every bit of `runs`,
