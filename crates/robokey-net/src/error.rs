@@ -27,6 +27,14 @@ pub enum NetError {
         /// What is wrong.
         message: String,
     },
+    /// A store's journal or key file is malformed.
+    #[error("{path}: {message}")]
+    Store {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
     /// Bad command-line or configuration input.
     #[error("{0}")]
     Usage(String),

@@ -9,10 +9,13 @@ pub mod endpoint;
 pub mod error;
 #[doc(hidden)]
 pub mod fuzzing;
+pub mod journal;
+pub mod key_store;
 pub mod khepera;
 pub mod pairing;
 pub mod pcap;
 pub mod pose_stream;
+pub mod post_store;
 pub mod relay;
 pub mod robot_agent;
 #[cfg(feature = "ros2")]

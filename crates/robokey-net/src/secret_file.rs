@@ -50,6 +50,19 @@ pub fn write_new(path: &Path, text: &[u8]) -> Result<(), NetError> {
     write.finish()
 }
 
+/// Writes `text` as `path`, replacing what is there in one atomic step (a rename after the
+/// text is durable): a crash leaves the old file or the new one, never a mix.
+///
+/// # Errors
+/// A step fails (the old file is then untouched).
+pub fn replace(path: &Path, text: &[u8]) -> Result<(), NetError> {
+    let mut write = SecretWrite::begin(path)?;
+    write.write(text)?;
+    std::fs::rename(&write.temp, &write.path)
+        .and_then(|()| File::open(folder_of(&write.path))?.sync_all())
+        .map_err(NetError::io(format!("replace {}", path.display())))
+}
+
 /// One write in progress, step by step (tests stop it between any two, as a crash would).
 pub(crate) struct SecretWrite {
     path: PathBuf,
