@@ -11,6 +11,7 @@ use robokey_lab::runner::Shard;
 mod commands;
 mod eve;
 mod exit;
+mod keys;
 mod net;
 mod ros2;
 
@@ -94,6 +95,10 @@ enum Command {
     /// localhost only) for `robot --backend ros2`; needs the `ros2` feature (docs/ros2.md).
     #[command(name = "ros2-sim")]
     Ros2Sim(ros2::SimArgs),
+    /// The final keys of an agent's store (--store): list, get (hex), delete. Both agents'
+    /// stores list the same IDs (docs/postprocessing.md).
+    #[command(subcommand_required = true)]
+    Keys(keys::KeysArgs),
 }
 
 /// Options shared by commands that read a configuration.
@@ -365,6 +370,7 @@ fn main() -> ExitCode {
         Command::Kh4Emulator(args) => done(net::kh4_emulator(args)),
         Command::Record(args) => net::record(args),
         Command::Ros2Sim(args) => ros2::ros2_sim(args),
+        Command::Keys(args) => done(keys::keys(args)),
     };
     exit::code(result)
 }

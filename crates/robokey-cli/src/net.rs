@@ -45,6 +45,15 @@ pub struct SessionArgs {
     /// Write the key here (mode 0600), only once the peer's tag confirmed it.
     #[arg(long)]
     key_out: Option<PathBuf>,
+    /// Pool this session's raw bits in the store DIR (created if missing; one per agent and
+    /// pairing) and post-process full blocks with the peer into final keys, listed by
+    /// `robokey keys list --store DIR` (docs/postprocessing.md). Needs a pairing.
+    #[arg(long, value_name = "DIR")]
+    store: Option<PathBuf>,
+    /// Make final keys under a restricted assumption (`postprocess.assumed_eve_error` in
+    /// odometry mode: an Eve who never learns the model); they are labelled restricted.
+    #[arg(long, requires = "store")]
+    allow_restricted: bool,
     /// Write the session report (JSON) here.
     #[arg(long)]
     report: Option<PathBuf>,
@@ -343,6 +352,8 @@ pub fn robot(args: RobotArgs) -> Result<Status> {
         key_out: args.session.key_out.clone(),
         pairing: args.session.pairing()?,
         interrupt: on_signals()?,
+        store: args.session.store.clone(),
+        allow_restricted: args.session.allow_restricted,
     };
     match args.seed {
         Some(seed) => {
@@ -416,6 +427,8 @@ pub fn controller(args: ControllerArgs) -> Result<Status> {
         pairing: args.session.pairing()?,
         interrupt: on_signals()?,
         sensor,
+        store: args.session.store.clone(),
+        allow_restricted: args.session.allow_restricted,
     };
     let report = run_controller(&config, &options)?;
     args.session.finish(&report, &options.interrupt)

@@ -14,15 +14,16 @@ use robokey::sim::simulate;
 /// One lockstep session, optionally through a relay; returns the folder with
 /// robot.json, controller.json, keys and capture.
 fn session(name: &str, seed: u64, extra: &[&str], relay: Option<&[&str]>) -> PathBuf {
-    session_with_robot_args(name, seed, extra, &[], relay)
+    session_with_agent_args(name, seed, extra, [&[], &[]], relay)
 }
 
-/// [`session`] with arguments for the robot only (e.g. its backend).
-fn session_with_robot_args(
+/// [`session`] with arguments for the robot only (e.g. its backend) and for the controller
+/// only.
+fn session_with_agent_args(
     name: &str,
     seed: u64,
     extra: &[&str],
-    robot_only: &[&str],
+    [robot_only, controller_only]: [&[&str]; 2],
     relay: Option<&[&str]>,
 ) -> PathBuf {
     let dir = scratch(name);
@@ -36,9 +37,9 @@ fn session_with_robot_args(
         "--silence-timeout",
         "1",
     ];
-    // Paired unless the test asks for --unauthenticated.
+    // Paired unless the test asks for --unauthenticated or brings its own pairing.
     let pairing = pairing(&dir);
-    let auth = if extra.contains(&"--unauthenticated") {
+    let auth = if extra.contains(&"--unauthenticated") || extra.contains(&"--pairing") {
         vec![]
     } else {
         vec!["--pairing", pairing.as_str()]
@@ -83,6 +84,7 @@ fn session_with_robot_args(
     controller_args.extend(&auth);
     controller_args.extend(["--key-out", &controller_key, "--report", &controller_report]);
     controller_args.extend(extra);
+    controller_args.extend(controller_only);
     let (controller_code, text) = run_code(&controller_args);
     let (robot_code, robot_text) = wait_code(robot);
     if let Some(relay) = relay_process {
@@ -378,11 +380,11 @@ fn kh4_backend_against_the_emulator_over_tcp_and_a_pty_confirms_a_key() {
     for listen in ["tcp:127.0.0.1:0", "pty"] {
         let emulator = start(&["kh4-emulator", "--listen", listen]);
         // tcp:ADDR, or the device of the pty pair (/dev/pts/N), as on the robot with socat.
-        let dir = session_with_robot_args(
+        let dir = session_with_agent_args(
             &format!("kh4-{}", &listen[..3]),
             5,
             &[],
-            &["--backend", "kh4", "--kh4", &emulator.address],
+            [&["--backend", "kh4", "--kh4", &emulator.address], &[]],
             None,
         );
         let robot = report(&dir.join("robot.json"));
@@ -497,4 +499,113 @@ fn eve_on_capture(dir: &Path, strategies: &str) -> serde_json::Value {
     ]);
     assert!(ok, "{text}");
     report(&out.join("capture.json"))
+}
+
+/// The odometry mode pools and post-processes like private sensing, and ends every block
+/// without a key, saying why; a restricted assumption makes keys only with
+/// `--allow-restricted`, labelled so.
+#[test]
+fn odometry_blocks_end_without_a_key_and_a_restricted_assumption_needs_its_flag() {
+    let stores = scratch("odometry-stores");
+    let pairing = pairing(&stores);
+    let store = |role: &str, kind: &str| s(&stores.join(format!("{kind}-{role}")));
+    let agents = |kind: &str, extra: &[&str]| -> Vec<String> {
+        let mut args: Vec<String> = ["--set", "postprocess.block_bits=600"]
+            .map(str::to_owned)
+            .to_vec();
+        args.extend(extra.iter().map(|&x| x.to_owned()));
+        args.push(format!("--store={}", store("ROLE", kind)));
+        args
+    };
+    for seed in 0..2 {
+        let args = agents("learning", &[]);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let dir = session_with_stores(&format!("odometry-pool-{seed}"), 30 + seed, &pairing, &args);
+        let controller = report(&dir.join("controller.json"));
+        assert_eq!(controller["ending"], "confirmed", "{controller}");
+        for block in controller["post"]["blocks"].as_array().unwrap() {
+            assert_eq!(block["length"], 0, "{block}");
+            let reason = block["reason"].as_str().unwrap();
+            assert!(reason.contains("zero by structure"), "{reason}");
+        }
+        if seed == 1 {
+            assert_eq!(controller["post"]["blocks"].as_array().unwrap().len(), 1);
+        }
+    }
+    for role in ["robot", "controller"] {
+        let (ok, text) = run(&["keys", "list", "--store", &store(role, "learning")]);
+        assert!(ok, "{text}");
+        assert_eq!(text.trim(), "no keys");
+    }
+    // A restricted assumption: refused without the flag (usage error naming it) …
+    let (code, text) = run_code(&[
+        "controller",
+        "--robot",
+        "127.0.0.1:9",
+        "--pairing",
+        &pairing,
+        "--store",
+        &store("controller", "refused"),
+        "--set",
+        "postprocess.assumed_eve_error=0.25",
+    ]);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("--allow-restricted"), "{text}");
+    // … and with it, keys labelled restricted.
+    let restricted = agents(
+        "restricted",
+        &[
+            "--set",
+            "postprocess.assumed_eve_error=0.25",
+            "--allow-restricted",
+        ],
+    );
+    let restricted: Vec<&str> = restricted.iter().map(String::as_str).collect();
+    for seed in 0..3 {
+        session_with_stores(
+            &format!("odometry-restricted-{seed}"),
+            40 + seed,
+            &pairing,
+            &restricted,
+        );
+    }
+    let list = |role: &str| {
+        let (ok, text) = run(&[
+            "keys",
+            "list",
+            "--json",
+            "--store",
+            &store(role, "restricted"),
+        ]);
+        assert!(ok, "{text}");
+        serde_json::from_str::<Vec<serde_json::Value>>(&text).unwrap()
+    };
+    let (robot, controller) = (list("robot"), list("controller"));
+    assert!(!controller.is_empty());
+    assert_eq!(
+        robot.iter().map(|k| &k["id"]).collect::<Vec<_>>(),
+        controller.iter().map(|k| &k["id"]).collect::<Vec<_>>()
+    );
+    for key in &controller {
+        assert_eq!(key["label"], "restricted", "{key}");
+    }
+}
+
+/// [`session`] under `pairing` with `args` for both agents, `ROLE` in them replaced by each
+/// agent's role.
+fn session_with_stores(name: &str, seed: u64, pairing: &str, args: &[&str]) -> PathBuf {
+    let robot: Vec<String> = args.iter().map(|a| a.replace("ROLE", "robot")).collect();
+    let controller: Vec<String> = args
+        .iter()
+        .map(|a| a.replace("ROLE", "controller"))
+        .collect();
+    let robot: Vec<&str> = robot.iter().map(String::as_str).collect();
+    let controller: Vec<&str> = controller.iter().map(String::as_str).collect();
+    session_with_agent_args(
+        name,
+        seed,
+        &["--pairing", pairing],
+        [&robot, &controller],
+        None,
+    )
 }

@@ -41,12 +41,19 @@ fn recorder(from: &str, out: &Path) -> Child {
 
 /// One private lockstep session: a world (the simulated robot's, or the Khepera emulator's
 /// with `kh4`), Eve's camera recorder, the relay with `faults` and a capture, and the
-/// controller reading the motion capture. Returns the folder with robot.json,
-/// controller.json, both keys, capture.pcap and camera.csv.
-fn private_session(name: &str, seed: u64, faults: &[&str], kh4: bool) -> PathBuf {
+/// controller reading the motion capture; with `stores`, both agents pool into them. Returns
+/// the folder with robot.json, controller.json, both keys, capture.pcap and camera.csv.
+fn private_session(
+    name: &str,
+    seed: u64,
+    faults: &[&str],
+    kh4: bool,
+    stores: Option<&Stores>,
+) -> PathBuf {
     let dir = scratch(name);
     let file = |f: &str| s(&dir.join(f));
-    let pairing = pairing(&dir);
+    // Sessions that pool share the pairing their stores belong to.
+    let pairing = stores.map_or_else(|| pairing(&dir), |st| st.pairing.clone());
     let seed = seed.to_string();
     let (_emulator, world_line, backend) = if kh4 {
         let (emulator, lines) = start_lines(
@@ -100,6 +107,8 @@ fn private_session(name: &str, seed: u64, faults: &[&str], kh4: bool) -> PathBuf
     ];
     robot_args.extend(PRIVATE);
     robot_args.extend(backend.iter().map(String::as_str));
+    let robot_store = stores.map(|st| st.args("robot"));
+    robot_args.extend(robot_store.iter().flatten().map(String::as_str));
     let (robot, lines) = start_lines(&robot_args, if kh4 { 1 } else { 2 });
     let world_line = world_line.unwrap_or_else(|| lines[0].clone());
     let mocap = address_after(&world_line, "motion capture on ");
@@ -139,6 +148,8 @@ fn private_session(name: &str, seed: u64, faults: &[&str], kh4: bool) -> PathBuf
         &controller_report,
     ];
     controller_args.extend(PRIVATE);
+    let controller_store = stores.map(|st| st.args("controller"));
+    controller_args.extend(controller_store.iter().flatten().map(String::as_str));
     let (code, text) = run_code(&controller_args);
     assert_eq!(code, 0, "{text}");
     wait(robot);
@@ -148,6 +159,44 @@ fn private_session(name: &str, seed: u64, faults: &[&str], kh4: bool) -> PathBuf
     let recorded = camera_log.wait().unwrap();
     assert!(recorded.success());
     dir
+}
+
+/// The stores of a pooling test: one pairing, a store per agent, the post-processing
+/// settings.
+struct Stores {
+    dir: PathBuf,
+    pairing: String,
+    set: Vec<String>,
+}
+
+impl Stores {
+    fn new(name: &str, set: &[&str]) -> Self {
+        let dir = scratch(name);
+        let pairing = pairing(&dir);
+        Self {
+            dir,
+            pairing,
+            set: set.iter().map(|&x| x.to_owned()).collect(),
+        }
+    }
+
+    fn store(&self, role: &str) -> String {
+        s(&self.dir.join(role))
+    }
+
+    /// `--store DIR/role` and the settings.
+    fn args(&self, role: &str) -> Vec<String> {
+        let mut args = vec!["--store".to_owned(), self.store(role)];
+        args.extend(self.set.iter().cloned());
+        args
+    }
+
+    /// `robokey keys list --json` of a role's store.
+    fn keys(&self, role: &str) -> Vec<serde_json::Value> {
+        let (ok, text) = run(&["keys", "list", "--store", &self.store(role), "--json"]);
+        assert!(ok, "{text}");
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"))
+    }
 }
 
 /// The simulator's run of `seed` in private sensing (replicate 0, as the agents with
@@ -187,7 +236,7 @@ fn eve_on(dir: &Path) -> serde_json::Value {
 #[test]
 fn a_lockstep_private_session_keeps_the_simulators_bits_and_eve_makes_its_decisions() {
     let seed = 2023;
-    let dir = private_session("private-clean", seed, &[], false);
+    let dir = private_session("private-clean", seed, &[], false, None);
     // .ci/run checks the Wireshark dissector on the private frames too.
     if let Some(out) = std::env::var_os("ROBOKEY_PRIVATE_CAPTURE_OUT") {
         std::fs::copy(dir.join("capture.pcap"), out).unwrap();
@@ -261,6 +310,7 @@ fn a_private_session_through_the_faulty_relay_keeps_the_same_positions() {
             "1±1",
         ],
         false,
+        None,
     );
     let (robot, controller) = (
         report(&dir.join("robot.json")),
@@ -298,7 +348,7 @@ fn a_private_session_through_the_faulty_relay_keeps_the_same_positions() {
 
 #[test]
 fn the_khepera_emulators_world_serves_a_private_session() {
-    let dir = private_session("private-kh4", 3, &[], true);
+    let dir = private_session("private-kh4", 3, &[], true, None);
     let controller = report(&dir.join("controller.json"));
     assert_eq!(controller["outcome"], "kept", "{controller}");
     let (robot_bits, controller_bits) = (
@@ -340,4 +390,77 @@ fn a_private_controller_without_a_sensor_is_a_usage_error_naming_the_flag() {
         text.contains("--sensor is used only in private sensing"),
         "{text}"
     );
+}
+
+/// Private sessions pooled in both agents' stores become final keys: both stores list the
+/// same IDs, `keys get` gives the same bits on both sides, and each key states its length,
+/// ε and the camera assumption it is secret under.
+#[test]
+fn pooled_private_sessions_become_the_same_final_keys_in_both_stores() {
+    let stores = Stores::new(
+        "private-stores",
+        &[
+            "--set",
+            "postprocess.block_bits=1500",
+            "--set",
+            "postprocess.sample_bits=150",
+        ],
+    );
+    let mut blocks = Vec::new();
+    for seed in 0..5 {
+        let dir = private_session(
+            &format!("private-pool-{seed}"),
+            100 + seed,
+            &[],
+            false,
+            Some(&stores),
+        );
+        let (robot, controller) = (
+            report(&dir.join("robot.json")),
+            report(&dir.join("controller.json")),
+        );
+        for r in [&robot, &controller] {
+            assert_eq!(r["ending"], "kept", "{r}");
+            assert!(r["post"]["session_bits"].as_u64().unwrap() > 300, "{r}");
+            assert!(r["post"]["note"].is_null(), "{r}");
+        }
+        blocks.extend(controller["post"]["blocks"].as_array().unwrap().clone());
+    }
+    assert!(
+        !blocks.is_empty(),
+        "no block in 5 sessions of 1,500-bit blocks"
+    );
+    let (robot_keys, controller_keys) = (stores.keys("robot"), stores.keys("controller"));
+    let ids = |keys: &[serde_json::Value]| -> Vec<String> {
+        keys.iter()
+            .map(|k| k["id"].as_str().unwrap().to_owned())
+            .collect()
+    };
+    assert_eq!(ids(&robot_keys), ids(&controller_keys));
+    let keyed: Vec<&serde_json::Value> = blocks.iter().filter(|b| b["length"] != 0).collect();
+    assert_eq!(keyed.len(), controller_keys.len(), "{blocks:?}");
+    assert!(!controller_keys.is_empty(), "{blocks:?}");
+    for key in &controller_keys {
+        let id = key["id"].as_str().unwrap();
+        let get = |role: &str| {
+            let (ok, text) = run(&["keys", "get", "--store", &stores.store(role), id]);
+            assert!(ok, "{text}");
+            text.trim().to_owned()
+        };
+        let hex = get("controller");
+        assert_eq!(hex, get("robot"));
+        let bits = key["bits"].as_u64().unwrap();
+        assert_eq!(hex.len() as u64, bits.div_ceil(8) * 2);
+        assert_eq!(key["label"], "physical");
+        assert_eq!(key["epsilon"].as_f64(), Some(4e-6));
+        let assumption = key["assumption"].as_str().unwrap();
+        assert!(assumption.contains("camera noise ≥ 8 mm"), "{assumption}");
+    }
+    // A deleted key is gone from one store only: the IDs still name the same keys.
+    let first = controller_keys[0]["id"].as_str().unwrap();
+    let (ok, text) = run(&["keys", "delete", "--store", &stores.store("robot"), first]);
+    assert!(ok, "{text}");
+    let (code, text) = run_code(&["keys", "get", "--store", &stores.store("robot"), first]);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("no key"), "{text}");
 }

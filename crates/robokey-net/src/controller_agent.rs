@@ -17,13 +17,16 @@ use robokey::protocol::{
 
 use crate::endpoint::shape;
 use crate::error::NetError;
+use crate::post_link::PostSide;
 use crate::robot_agent::finish_report;
 use crate::secret_file::check_writable;
 use crate::sensor::{SensorEvent, SensorFeed, SensorSpec};
 use crate::session::{
-    DoubletCounts, Ending, Progress, SessionReport, Timing, authentication_label, linger, os_rng,
+    Courtesy, DoubletCounts, Ending, Progress, SessionReport, Timing, authentication_label, linger,
+    os_rng,
 };
 use crate::transport::Transport;
+use robokey_secrecy::postprocess::ControllerPost;
 use zeroize::Zeroizing;
 
 /// Options of the controller agent.
@@ -46,6 +49,10 @@ pub struct ControllerOptions {
     /// Private sensing: the controller's own pose sensor (required there, refused in
     /// odometry mode).
     pub sensor: Option<SensorSpec>,
+    /// The post-processing store (`--store`): pool, journal and final keys.
+    pub store: Option<PathBuf>,
+    /// Make keys under a restricted assumption (`--allow-restricted`).
+    pub allow_restricted: bool,
 }
 
 /// Runs one session as the controller. Every way out after the socket is bound returns a
@@ -61,6 +68,12 @@ pub fn run_controller(
     if let Some(path) = &options.key_out {
         check_writable(path, "key file")?;
     }
+    let mut post = PostSide::<ControllerPost>::for_agent(
+        config,
+        options.store.as_ref(),
+        &options.pairing,
+        options.allow_restricted,
+    )?;
     let sensor = match (config.sensing.mode, &options.sensor) {
         (SensingMode::Private, Some(spec)) => Some(SensorFeed::start(spec.open()?)),
         (SensingMode::Private, None) => {
@@ -107,7 +120,16 @@ pub fn run_controller(
         doublets: shape.doublets.then(DoubletCounts::default),
         ..SessionReport::default()
     };
-    match converse(config, options, sensor, &mut transport, &mut report) {
+    let conversed = converse(
+        config,
+        options,
+        sensor,
+        &mut transport,
+        &mut report,
+        post.as_mut(),
+    );
+    let post = post.map(PostSide::finish);
+    match conversed {
         Ok(ended) => {
             let mut report = finish_report(
                 report,
@@ -121,6 +143,7 @@ pub fn run_controller(
             if !ended.robot_authenticated && rejected.bad_mac + rejected.pairing_mode > 0 {
                 report.ending = Ending::AuthenticationFailed;
             }
+            report.post = post;
             Ok(report)
         }
         Err(error) => {
@@ -129,6 +152,7 @@ pub fn run_controller(
             });
             report.set_error(&error);
             report.count_frames(&transport);
+            report.post = post;
             Ok(report)
         }
     }
@@ -150,6 +174,7 @@ fn converse(
     sensor: Option<SensorFeed>,
     transport: &mut Transport,
     report: &mut SessionReport,
+    post: Option<&mut PostSide<ControllerPost>>,
 ) -> Result<Ended, NetError> {
     let timing = options.timing;
 
@@ -208,6 +233,10 @@ fn converse(
     // also left every millisecond to take its samples.
     let mut timer_from = Instant::now();
     let mut sensed = SensorClock::new(shape(config).steps);
+    // The largest Eve separation the camera statement gives over the decided bits: it
+    // sizes the keys of the blocks this session enters (private sensing).
+    let mut separation: f64 = 0.0;
+    let bits_per_doublet = shape(config).bits_per_unit;
     while outcome.is_none() {
         let tick = timer_from + timing.retransmit_interval();
         let wake = match sensor {
@@ -288,18 +317,35 @@ fn converse(
                             counts.erased += 1;
                         }
                     }
+                    ControllerEvent::DoubletDecided(decision) => {
+                        separation = decision.assumed_separation[..bits_per_doublet]
+                            .iter()
+                            .fold(separation, |m, &d| m.max(d));
+                    }
                     ControllerEvent::Finished(o) => outcome = Some(o),
                     _ => {}
                 },
             }
         }
     }
+    let outcome = outcome.expect("the loop ends on an outcome");
     if let Some(confirm) = last_confirm {
+        let reply = [confirm];
+        let mut courtesy = Courtesy::new(&reply, &timing);
+        let mut peer_done = false;
+        if let Some(post) = post {
+            if matches!(outcome, Outcome::Confirmed | Outcome::Kept) {
+                post.pool(session, endpoint.key(), separation)?;
+            } else {
+                post.report.not_pooled = Some("the session was not confirmed".into());
+            }
+            peer_done = post.run(transport, &timing, &mut courtesy)?;
+        }
         // The key is settled; a signal now only shortens the courtesy to the peer.
-        let _ = linger(transport, &timing, &[confirm]);
+        let _ = linger(transport, &timing, &mut courtesy, peer_done, None);
     }
     Ok(Ended {
-        outcome: outcome.expect("the loop ends on an outcome"),
+        outcome,
         robot_authenticated: true,
         key: Zeroizing::new(endpoint.key().to_vec()),
     })

@@ -59,7 +59,10 @@ impl Journal {
         if torn_bytes > 0 {
             file.set_len(intact as u64)
                 .and_then(|()| file.sync_all())
-                .map_err(NetError::io(format!("cut the torn tail of {}", path.display())))?;
+                .map_err(NetError::io(format!(
+                    "cut the torn tail of {}",
+                    path.display()
+                )))?;
         }
         let journal = Self {
             path: path.to_owned(),
@@ -211,7 +214,10 @@ pub(crate) mod tests {
         journal.append(b"then").unwrap();
         drop(journal);
         let (_, contents) = Journal::open(&path).unwrap();
-        assert_eq!(payloads(&contents), vec![b"only".to_vec(), b"then".to_vec()]);
+        assert_eq!(
+            payloads(&contents),
+            vec![b"only".to_vec(), b"then".to_vec()]
+        );
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt as _;

@@ -247,7 +247,9 @@ mod tests {
         let final_key = FinalKey {
             id: "00112233aabbccdd".into(),
             block: 3,
-            key: BitString::from_bools(&[true, false, true, true, false, false, false, false, true]),
+            key: BitString::from_bools(&[
+                true, false, true, true, false, false, false, false, true,
+            ]),
             sessions: vec![7, 9],
             epsilon: 4e-6,
             assumption: "stated".into(),

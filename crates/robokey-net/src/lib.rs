@@ -15,6 +15,7 @@ pub mod khepera;
 pub mod pairing;
 pub mod pcap;
 pub mod pose_stream;
+pub mod post_link;
 pub mod post_store;
 pub mod relay;
 pub mod robot_agent;

@@ -29,6 +29,8 @@ use crate::key_store::{KeyStore, StoredKey, create_private_dir};
 pub trait Snapshot: Serialize + DeserializeOwned {
     /// The store's role name: `robot` or `controller`.
     const ROLE: &'static str;
+    /// The pooled sessions.
+    fn pool(&self) -> &[(u32, BitString)];
     /// Takes the pooled sessions out of the snapshot.
     fn take_pool(&mut self) -> Vec<(u32, BitString)>;
     /// Puts them back.
@@ -37,6 +39,9 @@ pub trait Snapshot: Serialize + DeserializeOwned {
 
 impl Snapshot for RobotSnapshot {
     const ROLE: &'static str = "robot";
+    fn pool(&self) -> &[(u32, BitString)] {
+        &self.pool
+    }
     fn take_pool(&mut self) -> Vec<(u32, BitString)> {
         std::mem::take(&mut self.pool)
     }
@@ -47,6 +52,9 @@ impl Snapshot for RobotSnapshot {
 
 impl Snapshot for ControllerSnapshot {
     const ROLE: &'static str = "controller";
+    fn pool(&self) -> &[(u32, BitString)] {
+        &self.pool
+    }
     fn take_pool(&mut self) -> Vec<(u32, BitString)> {
         std::mem::take(&mut self.pool)
     }

@@ -18,12 +18,14 @@ use robokey::protocol::{
 use crate::backend::{Backend, WheelGuard};
 use crate::endpoint::{RobotSide, Shape, shape};
 use crate::error::NetError;
+use crate::post_link::PostSide;
 use crate::secret_file::check_writable;
 use crate::session::{
-    DoubletCounts, Ending, Pace, Progress, STOP_POLL, SessionReport, Timing, authentication_label,
-    linger, os_rng, write_key_file,
+    Courtesy, DoubletCounts, Ending, Pace, Progress, STOP_POLL, SessionReport, Timing,
+    authentication_label, linger, os_rng, write_key_file,
 };
 use crate::transport::Transport;
+use robokey_secrecy::postprocess::RobotPost;
 
 /// Options of the robot agent.
 #[derive(Clone, Debug)]
@@ -41,6 +43,10 @@ pub struct RobotOptions {
     /// A stop request (SIGINT, SIGTERM): the session ends within 50 ms, wheels stopped,
     /// report written.
     pub interrupt: Interrupt,
+    /// The post-processing store (`--store`): pool, journal and final keys.
+    pub store: Option<PathBuf>,
+    /// Make keys under a restricted assumption (`--allow-restricted`).
+    pub allow_restricted: bool,
 }
 
 /// The robot's side of a running session.
@@ -204,6 +210,12 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     if let Some(path) = &options.key_out {
         check_writable(path, "key file")?;
     }
+    let mut post = PostSide::<RobotPost>::for_agent(
+        config,
+        options.store.as_ref(),
+        &options.pairing,
+        options.allow_restricted,
+    )?;
     let channel = RobotChannel::new(
         options.pairing.clone(),
         config_digest(config),
@@ -265,17 +277,28 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         s.last_confirm.clone(),
         matches!(s.outcome, Some(Outcome::Aborted(_))),
     ) {
-        // The key is settled; a signal now only shortens the courtesy to the peer.
-        let _ = linger(&mut s.transport, &s.timing, &[Message::FinishAck, confirm]);
+        let reply = [Message::FinishAck, confirm];
+        let mut courtesy = Courtesy::new(&reply, &s.timing);
+        let lingered = match post.as_mut() {
+            Some(post) => settle(post, &mut s, &mut courtesy, session),
+            // The key is settled; a signal now only shortens the courtesy to the peer.
+            None => linger(&mut s.transport, &s.timing, &mut courtesy, false, None),
+        };
+        if let (Err(error), Some(post)) = (lingered, post.as_mut()) {
+            eprintln!("robot: post-processing stopped: {error}");
+            post.report.note = Some(format!("post-processing stopped: {error}"));
+        }
     }
-    Ok(finish_report(
+    let mut report = finish_report(
         s.report,
         s.outcome,
         s.endpoint.key(),
         &s.transport,
         options.key_out.as_ref(),
         s.shape.bits_per_unit,
-    ))
+    );
+    report.post = post.map(PostSide::finish);
+    Ok(report)
 }
 
 impl<B: Backend + ?Sized> RobotSession<'_, B> {
@@ -327,6 +350,23 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
         }
         Ok(())
     }
+}
+
+/// After a session both sides closed: pools its bits if the controller confirmed them, then
+/// answers post-processing until the controller's `Done`.
+fn settle<B: Backend + ?Sized>(
+    post: &mut PostSide<RobotPost>,
+    s: &mut RobotSession<'_, B>,
+    courtesy: &mut Courtesy<'_>,
+    session: u32,
+) -> Result<(), NetError> {
+    if matches!(s.outcome, Some(Outcome::Confirmed | Outcome::Kept)) {
+        post.pool(session, s.endpoint.key(), 0.0)?;
+        post.flush(&mut s.transport)?;
+    } else {
+        post.report.not_pooled = Some("the session was not confirmed".into());
+    }
+    linger(&mut s.transport, &s.timing, courtesy, false, Some(post))
 }
 
 /// Sleeps until `at`, looking at the stop request every 50 ms.

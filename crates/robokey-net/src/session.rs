@@ -58,41 +58,88 @@ impl Timing {
     }
 }
 
-/// After its outcome: sends `Done` (this side needs nothing more), then keeps answering the peer's retransmitted Finish, FinishAck or Confirm
-/// with `reply` (its own tag, and `Done` again), so that a lost tag does not leave the peer
-/// unconfirmed. It returns as soon as the peer's `Done` arrives — a round trip after the
-/// outcome when nothing is lost — and otherwise after ten retransmission intervals: two
-/// lingering agents cannot keep each other busy. It answers at most once per interval.
+/// Answers the peer's retransmitted `Finish`, `FinishAck` or `Confirm` with `reply` and
+/// `Done`, at most once per retransmission interval, so that a lost tag does not leave the
+/// peer unconfirmed.
+#[derive(Debug)]
+pub struct Courtesy<'a> {
+    reply: &'a [robokey::protocol::Message],
+    interval: Duration,
+    last: Option<std::time::Instant>,
+}
+
+impl<'a> Courtesy<'a> {
+    /// Answers with `reply` (this side's tag).
+    #[must_use]
+    pub fn new(reply: &'a [robokey::protocol::Message], timing: &Timing) -> Self {
+        Self {
+            reply,
+            interval: timing.retransmit_interval(),
+            last: None,
+        }
+    }
+
+    /// Answers `message` if it is a repeat; true when it is the peer's `Done`.
+    ///
+    /// # Errors
+    /// The socket fails.
+    pub fn answer(
+        &mut self,
+        transport: &mut crate::transport::Transport,
+        message: &robokey::protocol::Message,
+    ) -> Result<bool, NetError> {
+        use robokey::protocol::Message;
+        match message {
+            Message::Done => Ok(true),
+            Message::Finish { .. } | Message::FinishAck | Message::Confirm { .. }
+                if self.last.is_none_or(|t| t.elapsed() >= self.interval) =>
+            {
+                self.last = Some(std::time::Instant::now());
+                for m in self.reply.iter().cloned().chain([Message::Done]) {
+                    transport.send(m)?;
+                }
+                Ok(false)
+            }
+            _ => Ok(false),
+        }
+    }
+}
+
+/// After its outcome: sends `Done` (this side needs nothing more), then answers the peer
+/// with `courtesy` — and, on the robot, post-processing with `post` — until the peer's
+/// `Done` (at once if it came already: `peer_done`), or ten retransmission intervals without
+/// a post-processing frame: two lingering agents cannot keep each other busy. Without loss,
+/// it returns a round trip after the outcome.
 ///
 /// # Errors
-/// The socket fails, or a stop was requested.
+/// The socket or the store fails, or a stop was requested.
 pub fn linger(
     transport: &mut crate::transport::Transport,
     timing: &Timing,
-    reply: &[robokey::protocol::Message],
+    courtesy: &mut Courtesy<'_>,
+    peer_done: bool,
+    mut post: Option<&mut crate::post_link::PostSide<robokey_secrecy::postprocess::RobotPost>>,
 ) -> Result<(), NetError> {
     use robokey::protocol::Message;
     use robokey::protocol::auth::Delivery;
     use std::time::Instant;
-    let interval = timing.retransmit_interval();
-    let end = Instant::now() + interval * 10;
     transport.send(Message::Done)?;
-    let mut last_answer: Option<Instant> = None;
+    if peer_done {
+        return Ok(());
+    }
+    let quiet = timing.retransmit_interval() * 10;
+    let mut end = Instant::now() + quiet;
     while let Some(delivery) = transport.recv_until(end)? {
         let Delivery::Message(message) = delivery else {
             continue;
         };
-        match message {
-            Message::Done => return Ok(()),
-            Message::Finish { .. } | Message::FinishAck | Message::Confirm { .. }
-                if last_answer.is_none_or(|t| t.elapsed() >= interval) =>
-            {
-                last_answer = Some(Instant::now());
-                for m in reply.iter().cloned().chain([Message::Done]) {
-                    transport.send(m)?;
-                }
-            }
-            _ => {}
+        if let Some(post) = post.as_deref_mut()
+            && post.receive(&message)
+        {
+            post.flush(transport)?;
+            end = Instant::now() + quiet;
+        } else if courtesy.answer(transport, &message)? {
+            return Ok(());
         }
     }
     Ok(())
@@ -202,6 +249,9 @@ pub struct SessionReport {
     /// `accepted` the kept ones).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub doublets: Option<DoubletCounts>,
+    /// Post-processing during this run (`--store`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub post: Option<crate::post_link::PostReport>,
 }
 
 /// Private sensing: the doublets of a session that carry no kept bit, by cause.

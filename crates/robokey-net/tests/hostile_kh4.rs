@@ -188,6 +188,8 @@ fn agent_session(
         key_out: None,
         pairing: pairing.clone(),
         interrupt: interrupt.clone(),
+        store: None,
+        allow_restricted: false,
     };
     let robot_config = config.clone();
     let robot = std::thread::spawn(move || {
@@ -214,6 +216,8 @@ fn agent_session(
             pairing,
             interrupt: Interrupt::new(),
             sensor: None,
+            store: None,
+            allow_restricted: false,
         },
     )
     .unwrap();

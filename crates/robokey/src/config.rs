@@ -761,7 +761,11 @@ impl Config {
         }
         let post = &self.postprocess;
         if !(64..=1 << 30).contains(&post.block_bits) {
-            return Err(invalid("postprocess.block_bits", post.block_bits, "64 to 2^30"));
+            return Err(invalid(
+                "postprocess.block_bits",
+                post.block_bits,
+                "64 to 2^30",
+            ));
         }
         if !(post.epsilon > 0.0 && post.epsilon <= 0.01) {
             return Err(invalid("postprocess.epsilon", post.epsilon, "(0, 0.01]"));

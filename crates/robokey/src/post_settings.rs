@@ -71,10 +71,7 @@ mod tests {
     fn the_defaults_give_valid_settings_in_both_modes() {
         let mut config = Config::default();
         assert!(post_settings(&config).check().is_ok());
-        assert!(matches!(
-            assumption(&config),
-            Assumption::NoSecrecy { .. }
-        ));
+        assert!(matches!(assumption(&config), Assumption::NoSecrecy { .. }));
         config.postprocess.assumed_eve_error = Some(0.2);
         assert!(assumption(&config).is_restricted());
         config.postprocess.assumed_eve_error = None;
@@ -82,6 +79,11 @@ mod tests {
         let private = post_settings(&config);
         assert!(private.check().is_ok());
         assert!(!private.assumption.is_restricted());
-        assert!(private.assumption.describe().contains("camera noise ≥ 8 mm"));
+        assert!(
+            private
+                .assumption
+                .describe()
+                .contains("camera noise ≥ 8 mm")
+        );
     }
 }

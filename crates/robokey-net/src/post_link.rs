@@ -1,0 +1,488 @@
+//! Post-processing between the agents (docs/postprocessing.md, "Between the agents"): after
+//! a session both sides confirmed, each agent pools its raw bits in its store; the
+//! controller then drives the post-processing endpoints over the session's authenticated
+//! channel — fragments of wire type 16 — until no block is in flight, and the robot answers
+//! until the controller's `Done`. A key is written to both stores only through the
+//! endpoints' two-phase commit.
+
+use std::path::Path;
+use std::time::Instant;
+
+use robokey::Config;
+use robokey::post_settings::post_settings;
+use robokey::protocol::Message;
+use robokey::protocol::auth::Delivery;
+use robokey_secrecy::BitString;
+use robokey_secrecy::postprocess::{
+    self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, FinalKey, Output,
+    PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot, Settings,
+};
+use serde::Serialize;
+
+use crate::error::NetError;
+use crate::post_store::{PostStore, Snapshot};
+use crate::session::{Courtesy, Timing, os_rng};
+use crate::transport::Transport;
+
+/// A post-processing endpoint as the agents drive it.
+pub trait PostEndpoint: Sized {
+    /// Its durable state.
+    type Snapshot: Snapshot;
+    /// A fresh endpoint.
+    ///
+    /// # Errors
+    /// Settings out of range.
+    fn new(settings: Settings, seed: [u8; 32]) -> Result<Self, PostError>;
+    /// The endpoint from its stored state.
+    ///
+    /// # Errors
+    /// Settings out of range.
+    fn restore(
+        snapshot: Self::Snapshot,
+        settings: Settings,
+        seed: [u8; 32],
+    ) -> Result<Self, PostError>;
+    /// Its durable state now.
+    fn snapshot(&self) -> Self::Snapshot;
+    /// Pools a session's raw bits (`separation`: the controller's largest Eve separation
+    /// over them; the robot ignores it).
+    ///
+    /// # Errors
+    /// A duplicate session or one of a size out of bounds.
+    fn pool(&mut self, id: u32, bits: BitString, separation: f64) -> Result<(), PostError>;
+    /// A message from the peer.
+    fn frame(&mut self, message: postprocess::Message);
+    /// The next output.
+    fn poll_output(&mut self) -> Option<Output>;
+}
+
+impl PostEndpoint for ControllerPost {
+    type Snapshot = ControllerSnapshot;
+    fn new(settings: Settings, seed: [u8; 32]) -> Result<Self, PostError> {
+        ControllerPost::new(settings, seed)
+    }
+    fn restore(
+        s: ControllerSnapshot,
+        settings: Settings,
+        seed: [u8; 32],
+    ) -> Result<Self, PostError> {
+        ControllerPost::restore(s, settings, seed)
+    }
+    fn snapshot(&self) -> ControllerSnapshot {
+        ControllerPost::snapshot(self)
+    }
+    fn pool(&mut self, id: u32, bits: BitString, separation: f64) -> Result<(), PostError> {
+        self.handle_input(ControllerInput::Session {
+            id,
+            bits,
+            separation,
+        })
+    }
+    fn frame(&mut self, message: postprocess::Message) {
+        // A frame never fails: only sessions are checked.
+        let _ = self.handle_input(ControllerInput::Frame(message));
+    }
+    fn poll_output(&mut self) -> Option<Output> {
+        ControllerPost::poll_output(self)
+    }
+}
+
+impl PostEndpoint for RobotPost {
+    type Snapshot = RobotSnapshot;
+    fn new(settings: Settings, seed: [u8; 32]) -> Result<Self, PostError> {
+        RobotPost::new(settings, seed)
+    }
+    fn restore(s: RobotSnapshot, settings: Settings, seed: [u8; 32]) -> Result<Self, PostError> {
+        RobotPost::restore(s, settings, seed)
+    }
+    fn snapshot(&self) -> RobotSnapshot {
+        RobotPost::snapshot(self)
+    }
+    fn pool(&mut self, id: u32, bits: BitString, _separation: f64) -> Result<(), PostError> {
+        self.handle_input(RobotInput::Session { id, bits })
+    }
+    fn frame(&mut self, message: postprocess::Message) {
+        let _ = self.handle_input(RobotInput::Frame(message));
+    }
+    fn poll_output(&mut self) -> Option<Output> {
+        RobotPost::poll_output(self)
+    }
+}
+
+/// What post-processing did during one agent run, for its report.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PostReport {
+    /// The store.
+    pub store: String,
+    /// The assumption about Eve that sizes the keys.
+    pub assumption: String,
+    /// Whether it is restricted (keys labelled so).
+    pub restricted: bool,
+    /// Raw bits this session added to the pool (0 if it was not pooled).
+    pub session_bits: usize,
+    /// Why this session's bits were not pooled, if so.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_pooled: Option<String>,
+    /// Raw bits in the pool after this run.
+    pub pool_bits: usize,
+    /// The controller proposes a block at this many pooled bits.
+    pub block_bits: usize,
+    /// Blocks that ended during this run.
+    pub blocks: Vec<BlockSummary>,
+    /// Keys committed during this run (IDs).
+    pub keys: Vec<String>,
+    /// Bytes of a torn journal tail cut when the store opened (a crash during a write).
+    pub torn_bytes: u64,
+    /// Committed keys written to `keys/` only when the store opened (a crash came between).
+    pub keys_recovered: usize,
+    /// Post-processing messages sent (retransmissions included) and received.
+    pub messages_sent: u32,
+    /// Messages received and accepted by the endpoint or ignored by it.
+    pub messages_received: u32,
+    /// How the exchange ended, when not with every block settled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
+}
+
+/// One block, as reported.
+#[derive(Clone, Debug, Serialize)]
+pub struct BlockSummary {
+    /// Block number.
+    pub block: u64,
+    /// Sessions pooled into it.
+    pub sessions: usize,
+    /// Raw bits.
+    pub bits: usize,
+    /// Disclosed sample, and the disagreements in it (controller).
+    pub sample_bits: usize,
+    /// Disagreements in the sample (controller only).
+    pub sample_errors: usize,
+    /// Bits reconciled.
+    pub reconciled_bits: usize,
+    /// Cascade leak (bits).
+    pub leak_ec: u64,
+    /// Confirmation tags (bits).
+    pub leak_confirmation: u64,
+    /// Eve's smooth min-entropy under the assumption (bits).
+    pub h_min: f64,
+    /// The key length ℓ (0: no key).
+    pub length: u64,
+    /// Why no key, if so.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+}
+
+impl From<&BlockReport> for BlockSummary {
+    fn from(r: &BlockReport) -> Self {
+        Self {
+            block: r.block,
+            sessions: r.sessions.len(),
+            bits: r.bits,
+            sample_bits: r.sample_bits,
+            sample_errors: r.sample_errors,
+            reconciled_bits: r.reconciled_bits,
+            leak_ec: r.leak_ec,
+            leak_confirmation: r.leak_confirmation,
+            h_min: r.h_min,
+            length: r.length,
+            reason: r.reason.clone(),
+        }
+    }
+}
+
+/// One side of post-processing: its endpoint, its store and its half of the link.
+pub struct PostSide<E: PostEndpoint> {
+    endpoint: E,
+    store: PostStore<E::Snapshot>,
+    reassembler: Reassembler,
+    next_message: u32,
+    role: &'static str,
+    /// What happened, for the report.
+    pub report: PostReport,
+}
+
+impl<E: PostEndpoint> PostSide<E> {
+    /// The post-processing side of an agent run with `--store store` (none without), for
+    /// `pairing`: post-processing runs only over an authenticated channel.
+    ///
+    /// # Errors
+    /// `--store` with `--unauthenticated`, or [`Self::open`]'s.
+    pub fn for_agent(
+        config: &Config,
+        store: Option<&std::path::PathBuf>,
+        pairing: &robokey::protocol::auth::PairingSecret,
+        allow_restricted: bool,
+    ) -> Result<Option<Self>, NetError> {
+        let Some(dir) = store else {
+            return Ok(None);
+        };
+        if pairing.mode() != robokey::protocol::auth::AuthMode::Paired {
+            return Err(NetError::Usage(
+                "--store needs a paired session: post-processing over an unauthenticated \
+                 channel would hand the keys to anyone in the middle (drop --unauthenticated)"
+                    .into(),
+            ));
+        }
+        Self::open(config, dir, &pairing.fingerprint(), allow_restricted).map(Some)
+    }
+
+    /// Opens the store at `dir` and restores the endpoint from it, for the pairing of
+    /// `fingerprint`. A restricted assumption needs `allow_restricted`.
+    ///
+    /// # Errors
+    /// A restricted assumption without `allow_restricted`; the store cannot be opened
+    /// (in use, another role or pairing, unreadable).
+    pub fn open(
+        config: &Config,
+        dir: &Path,
+        fingerprint: &str,
+        allow_restricted: bool,
+    ) -> Result<Self, NetError> {
+        let settings = post_settings(config);
+        let restricted = settings.assumption.is_restricted();
+        if restricted && !allow_restricted {
+            return Err(NetError::Usage(format!(
+                "postprocess.assumed_eve_error = {} states a restricted assumption (an Eve who \
+                 never learns the model), which the odometry mode's traffic does not support \
+                 (docs/threat-model.md): pass --allow-restricted to make keys under it anyway; \
+                 they are labelled restricted",
+                config.postprocess.assumed_eve_error.unwrap_or_default()
+            )));
+        }
+        let (store, recovery) = PostStore::open(dir, fingerprint, restricted)?;
+        let mut seed = [0_u8; 32];
+        rand::RngExt::fill(&mut os_rng()?, &mut seed[..]);
+        let endpoint = match recovery.snapshot {
+            Some(snapshot) => E::restore(snapshot, settings.clone(), seed),
+            None => E::new(settings.clone(), seed),
+        }
+        .map_err(|e| NetError::Usage(format!("post-processing: {e}")))?;
+        let report = PostReport {
+            store: dir.display().to_string(),
+            assumption: settings.assumption.describe(),
+            restricted,
+            block_bits: settings.block_bits,
+            torn_bytes: recovery.torn_bytes,
+            keys_recovered: recovery.keys_recovered,
+            ..PostReport::default()
+        };
+        if recovery.torn_bytes > 0 || recovery.keys_recovered > 0 {
+            eprintln!(
+                "store {}: recovered after a crash ({} torn bytes cut, {} committed keys \
+                 written now)",
+                dir.display(),
+                recovery.torn_bytes,
+                recovery.keys_recovered
+            );
+        }
+        Ok(Self {
+            endpoint,
+            store,
+            reassembler: Reassembler::new(),
+            next_message: 0,
+            role: E::Snapshot::ROLE,
+            report,
+        })
+    }
+
+    /// Pools the raw bits of session `id` (one `u8` 0/1 per bit), durably. A session the
+    /// endpoint refuses (a duplicate ID, no bits) is reported and left out.
+    ///
+    /// # Errors
+    /// The store cannot be written.
+    pub fn pool(&mut self, id: u32, bits: &[u8], separation: f64) -> Result<(), NetError> {
+        let bools: zeroize::Zeroizing<Vec<bool>> =
+            zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());
+        match self
+            .endpoint
+            .pool(id, BitString::from_bools(&bools), separation)
+        {
+            Ok(()) => self.report.session_bits = bits.len(),
+            Err(e) => self.report.not_pooled = Some(e.to_string()),
+        }
+        Ok(())
+    }
+
+    /// Takes the endpoint's outputs as one batch — stores the snapshot with the keys
+    /// committed in it, compacts after a block, then transmits — and says whether it sent.
+    ///
+    /// # Errors
+    /// The store or the socket fails.
+    pub fn flush(&mut self, transport: &mut Transport) -> Result<bool, NetError> {
+        let (mut persist, mut keys, mut sends, mut ended) = (false, Vec::new(), Vec::new(), false);
+        while let Some(output) = self.endpoint.poll_output() {
+            match output {
+                Output::Transmit(message) => sends.push(message),
+                Output::Persist => persist = true,
+                Output::KeyCommitted(key) => keys.push(key),
+                Output::BlockEnded(report) => {
+                    ended = true;
+                    self.block_ended(&report);
+                }
+                Output::Ignored(_) => {}
+            }
+        }
+        if persist || !keys.is_empty() {
+            let mut snapshot = self.endpoint.snapshot();
+            for key in self.store.persist(&mut snapshot, &keys)? {
+                self.report.keys.push(key.id.clone());
+            }
+            self.report.pool_bits = pool_bits(&snapshot);
+            if ended {
+                self.store.compact(&mut snapshot)?;
+            }
+        }
+        announce_keys(&keys, self.role);
+        let sent = !sends.is_empty();
+        for message in &sends {
+            self.send(transport, message)?;
+        }
+        Ok(sent)
+    }
+
+    fn block_ended(&mut self, report: &BlockReport) {
+        let summary = BlockSummary::from(report);
+        match &summary.reason {
+            None => println!(
+                "{}: block {}: {} raw bits of {} sessions, {} disclosed ({} differ), {} \
+                 reconciled, leak {} + {} bits, H_min {:.0} → key of {} bits",
+                self.role,
+                summary.block,
+                summary.bits,
+                summary.sessions,
+                summary.sample_bits,
+                summary.sample_errors,
+                summary.reconciled_bits,
+                summary.leak_ec,
+                summary.leak_confirmation,
+                summary.h_min,
+                summary.length
+            ),
+            Some(reason) => println!(
+                "{}: block {}: {} raw bits of {} sessions, no key: {reason}",
+                self.role, summary.block, summary.bits, summary.sessions
+            ),
+        }
+        self.report.blocks.push(summary);
+    }
+
+    /// Sends `message` as fragments under a fresh message number.
+    fn send(
+        &mut self,
+        transport: &mut Transport,
+        message: &postprocess::Message,
+    ) -> Result<(), NetError> {
+        let bytes = postprocess::encode(message);
+        let number = self.next_message;
+        self.next_message = self.next_message.wrapping_add(1);
+        for (index, count, chunk) in postprocess::fragments(&bytes) {
+            transport.send(Message::PostFragment {
+                message: number,
+                index,
+                count,
+                bytes: chunk.to_vec(),
+            })?;
+        }
+        self.report.messages_sent += 1;
+        Ok(())
+    }
+
+    /// Takes a frame from the peer: true if it was a post-processing fragment (whether or
+    /// not it completed a message).
+    pub fn receive(&mut self, message: &Message) -> bool {
+        let Message::PostFragment {
+            message: number,
+            index,
+            count,
+            bytes,
+        } = message
+        else {
+            return false;
+        };
+        if let Some(whole) = self.reassembler.accept(*number, *index, *count, bytes)
+            && let Ok(decoded) = postprocess::decode(&whole)
+        {
+            self.report.messages_received += 1;
+            self.endpoint.frame(decoded);
+        }
+        true
+    }
+
+    /// The report, with the pool as it stands.
+    #[must_use]
+    pub fn finish(self) -> PostReport {
+        let mut report = self.report;
+        report.pool_bits = pool_bits(&self.endpoint.snapshot());
+        report
+    }
+}
+
+impl PostSide<ControllerPost> {
+    /// Drives post-processing until no block is in flight, answering the robot's repeated
+    /// closing messages with `courtesy` meanwhile. A robot silent for the silence timeout
+    /// leaves its block in flight: the next session settles it (aborted, or its commit
+    /// repeated). Returns whether the robot's `Done` came.
+    ///
+    /// # Errors
+    /// The store or the socket fails, or a stop was requested.
+    pub fn run(
+        &mut self,
+        transport: &mut Transport,
+        timing: &Timing,
+        courtesy: &mut Courtesy<'_>,
+    ) -> Result<bool, NetError> {
+        let interval = timing.retransmit_interval();
+        let mut peer_done = false;
+        let mut heard = Instant::now();
+        let mut timer = Instant::now() + interval;
+        loop {
+            if self.flush(transport)? {
+                timer = Instant::now() + interval;
+            }
+            if self.endpoint.is_idle() {
+                return Ok(peer_done);
+            }
+            if heard.elapsed() >= timing.silence_timeout {
+                self.report.note = Some(format!(
+                    "the robot did not answer post-processing for {:.1} s (does it run with \
+                     --store?): the block in flight is settled in the next session",
+                    timing.silence_timeout.as_secs_f64()
+                ));
+                return Ok(peer_done);
+            }
+            match transport.recv_until(timer)? {
+                Some(Delivery::Message(message)) => {
+                    if self.receive(&message) {
+                        heard = Instant::now();
+                    } else {
+                        peer_done |= courtesy.answer(transport, &message)?;
+                    }
+                }
+                Some(_) => {}
+                None if Instant::now() >= timer => {
+                    timer = Instant::now() + interval;
+                    let _ = self.endpoint.handle_input(ControllerInput::Timeout);
+                }
+                None => {}
+            }
+        }
+    }
+}
+
+/// Raw bits in a snapshot's pool.
+fn pool_bits<S: Snapshot>(snapshot: &S) -> usize {
+    snapshot.pool().iter().map(|(_, bits)| bits.len()).sum()
+}
+
+/// Prints the keys committed in a batch.
+fn announce_keys(keys: &[FinalKey], role: &str) {
+    for key in keys {
+        println!(
+            "{role}: key {} committed: {} bits, ε {:.0e}, secret under: {}",
+            key.id,
+            key.key.len(),
+            key.epsilon,
+            key.assumption
+        );
+    }
+}
