@@ -9,6 +9,9 @@ use robokey::protocol::{
 };
 use robokey::rng::{Purpose, stream};
 use robokey::sim::simulate;
+use support::post_fragment;
+
+mod support;
 
 /// Result of a lockstep session.
 struct Session {
@@ -21,6 +24,8 @@ struct Session {
 
 /// Runs one session; `drop(message)` removes a message from the channel. Commands that
 /// do not arrive trigger the robot's deadline.
+/// Every delivered message follows a post-processing fragment, which session endpoints must
+/// ignore: the tests' exact outcomes show that it changed nothing.
 fn lockstep(config: &Config, drop: impl Fn(&Message) -> bool) -> Session {
     let plan = SessionPlan::from_config(config, 1);
     let drive = plan.drive;
@@ -39,7 +44,9 @@ fn lockstep(config: &Config, drop: impl Fn(&Message) -> bool) -> Session {
                 quiet = false;
                 match out {
                     RobotOutput::Transmit(m) if !drop(&m) => {
-                        controller.handle_input(ControllerInput::Frame(m));
+                        for m in [post_fragment(), m] {
+                            controller.handle_input(ControllerInput::Frame(m));
+                        }
                     }
                     RobotOutput::Apply(a) => wheels = Some(a.wheels),
                     RobotOutput::Finished(o) => robot_outcome = Some(o),
@@ -50,7 +57,9 @@ fn lockstep(config: &Config, drop: impl Fn(&Message) -> bool) -> Session {
                 quiet = false;
                 match out {
                     ControllerOutput::Transmit(m) if !drop(&m) => {
-                        robot.handle_input(RobotInput::Frame(m));
+                        for m in [post_fragment(), m] {
+                            robot.handle_input(RobotInput::Frame(m));
+                        }
                     }
                     ControllerOutput::Event(ControllerEvent::CodewordDecided {
                         accepted, ..

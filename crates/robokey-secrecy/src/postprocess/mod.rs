@@ -30,6 +30,8 @@
 
 mod assumption;
 mod controller;
+mod encoding;
+mod fragment;
 mod ledger;
 mod message;
 pub mod public;
@@ -44,6 +46,10 @@ use crate::cascade::CascadeSchedule;
 
 pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
+pub use encoding::{EncodingError, decode, encode};
+pub use fragment::{
+    FRAGMENT_BYTES, MAX_FRAGMENTS, MAX_MESSAGE_BYTES, Reassembler, fits, fragments,
+};
 pub use message::{AbortReason, Message, RejectReason};
 pub use robot::{Prepared, RobotInput, RobotPost, RobotSnapshot};
 
@@ -53,15 +59,19 @@ pub const MAX_BLOCK_SESSIONS: usize = 1 << 16;
 /// Largest number of raw bits one session may contribute.
 pub const MAX_SESSION_BITS: usize = 1 << 20;
 
-/// Largest number of Cascade questions in one `Ask`.
+/// Largest number of Cascade questions in one `Ask` (and parities in one `Answer`).
 pub const MAX_QUESTIONS: usize = 1 << 20;
+
+/// Largest sample one `Agree` discloses (bits); bounds [`Settings::sample_bits`].
+pub const MAX_SAMPLE_BITS: usize = 1 << 20;
 
 /// What both endpoints must agree on (exchanged out of band, like the session terms).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Settings {
     /// The controller proposes a block once its pool holds at least this many raw bits.
     pub block_bits: usize,
-    /// Largest sample disclosed to estimate the error rate (at most a tenth of the block).
+    /// Largest sample disclosed to estimate the error rate (at most a tenth of the block, and
+    /// at most [`MAX_SAMPLE_BITS`]).
     pub sample_bits: usize,
     /// ε of each term (smoothing, amplification, parameter estimation).
     pub epsilon: f64,
@@ -180,6 +190,12 @@ impl Settings {
             return Err(PostError::Settings(format!(
                 "block_bits {} (allowed: 64 to 2^30)",
                 self.block_bits
+            )));
+        }
+        if self.sample_bits > MAX_SAMPLE_BITS {
+            return Err(PostError::Settings(format!(
+                "sample_bits {} (allowed: 0 to 2^20)",
+                self.sample_bits
             )));
         }
         crate::cascade::Cascade::new(self.schedule, 0.0)

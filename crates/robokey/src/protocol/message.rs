@@ -112,6 +112,19 @@ pub enum Message {
     /// Either side, after its outcome (confirmed or not): it needs nothing more from the peer,
     /// which may stop lingering (docs/protocol.md, "Lingering").
     Done,
+    /// Either side: one fragment of an encoded post-processing message
+    /// (`robokey_secrecy::postprocess::encode`), which the receiver reassembles. It belongs to
+    /// no session step: session endpoints ignore it.
+    PostFragment {
+        /// The sender's id of the encoded message (fresh for every transmission).
+        message: u32,
+        /// This fragment's position, `0..count`.
+        index: u16,
+        /// Fragments of the message, `1..=MAX_POST_FRAGMENTS`.
+        count: u16,
+        /// The chunk, 1 to `MAX_POST_FRAGMENT_BYTES` bytes.
+        bytes: Vec<u8>,
+    },
     /// Either side: the session is over, with a reason.
     Abort {
         /// Human-readable reason.

@@ -22,6 +22,10 @@ pub const MAX_REASON_BYTES: usize = 1024;
 pub const MAX_TERMS_BYTES: usize = 4096;
 /// Most codewords a `Finish` may cover.
 pub const MAX_FINISH_CODEWORDS: u32 = 1 << 20;
+/// Most fragments one encoded post-processing message may be split into.
+pub const MAX_POST_FRAGMENTS: u16 = 1024;
+/// Longest chunk of an encoded post-processing message one `PostFragment` carries (bytes).
+pub const MAX_POST_FRAGMENT_BYTES: u16 = 1024;
 /// Longest frame the decoder accepts (bytes): a `Finish` of [`MAX_FINISH_CODEWORDS`].
 pub const MAX_FRAME_BYTES: usize =
     HEADER_BYTES + 4 + 8 * (MAX_FINISH_CODEWORDS as usize / 64) + MAC_BYTES;
@@ -88,9 +92,17 @@ const READY: u8 = 10;
 const PRIVATE_MEASUREMENT: u8 = 11;
 const DOUBLET_COMMAND: u8 = 12;
 const DONE: u8 = 13;
-/// Reserved: 16–21 = post-processing (pool sync, reconciliation query and answer, block
-/// confirmation, commit, amplification seed chunk).
-const RESERVED: [u8; 6] = [16, 17, 18, 19, 20, 21];
+/// One fragment of an encoded post-processing message.
+const POST_FRAGMENT: u8 = 16;
+/// Reserved: 17–21 = later post-processing use.
+const RESERVED: [u8; 5] = [17, 18, 19, 20, 21];
+/// Bytes of a `PostFragment` payload before its chunk: `message u32 | index u16 | count u16 |
+/// len u16`.
+const POST_FRAGMENT_HEAD: usize = 4 + 2 + 2 + 2;
+const _: () = assert!(
+    HEADER_BYTES + POST_FRAGMENT_HEAD + MAX_POST_FRAGMENT_BYTES as usize + MAC_BYTES
+        <= MAX_FRAME_BYTES
+);
 
 /// Encodes a frame's header and payload: the bytes its MAC covers (the session layer
 /// appends the MAC).
@@ -110,6 +122,7 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
         Message::Confirm { .. } => (CONFIRM, 0),
         Message::Done => (DONE, 0),
         Message::Abort { .. } => (ABORT, 0),
+        Message::PostFragment { .. } => (POST_FRAGMENT, 0),
     };
     let mut out = Vec::with_capacity(64);
     out.extend_from_slice(&MAGIC.to_be_bytes());
@@ -199,6 +212,20 @@ pub fn encode(frame: &Frame) -> Vec<u8> {
             out.extend_from_slice(key_tag);
         }
         Message::Abort { reason } => put_text(&mut out, reason, MAX_REASON_BYTES),
+        Message::PostFragment {
+            message,
+            index,
+            count,
+            bytes,
+        } => {
+            out.extend_from_slice(&message.to_be_bytes());
+            out.extend_from_slice(&index.to_be_bytes());
+            out.extend_from_slice(&count.to_be_bytes());
+            // Like a text, a chunk over the bound (which no valid sender builds) is cut.
+            let len = bytes.len().min(usize::from(MAX_POST_FRAGMENT_BYTES));
+            out.extend_from_slice(&(len as u16).to_be_bytes());
+            out.extend_from_slice(&bytes[..len]);
+        }
     }
     out
 }
@@ -501,6 +528,7 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
         ABORT => Message::Abort {
             reason: get_text("Abort", &mut r, MAX_REASON_BYTES)?,
         },
+        POST_FRAGMENT => post_fragment(payload)?,
         other if RESERVED.contains(&other) => return Err(WireError::Reserved(other)),
         other => return Err(WireError::UnknownType(other)),
     };
@@ -520,6 +548,50 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
         session,
         seq,
         message,
+    })
+}
+
+/// Parses a `PostFragment` payload: `message u32 | index u16 | count u16 | len u16 |
+/// bytes[len]`, exactly, with `1 ≤ count ≤ MAX_POST_FRAGMENTS`, `index < count` and
+/// `1 ≤ len ≤ MAX_POST_FRAGMENT_BYTES`.
+fn post_fragment(payload: &[u8]) -> Result<Message, WireError> {
+    if payload.len() < POST_FRAGMENT_HEAD {
+        return Err(WireError::BadLength {
+            kind: "PostFragment",
+            got: payload.len(),
+            expected: POST_FRAGMENT_HEAD + 1,
+        });
+    }
+    let mut r = Reader { bytes: payload };
+    let message = r.u32();
+    let index = u16::from_be_bytes(r.take());
+    let count = u16::from_be_bytes(r.take());
+    let len = u16::from_be_bytes(r.take());
+    if !(1..=MAX_POST_FRAGMENTS).contains(&count) {
+        return Err(WireError::BadField(
+            "PostFragment: count is not 1 to MAX_POST_FRAGMENTS",
+        ));
+    }
+    if index >= count {
+        return Err(WireError::BadField(
+            "PostFragment: index is not below count",
+        ));
+    }
+    if !(1..=MAX_POST_FRAGMENT_BYTES).contains(&len) {
+        return Err(WireError::BadField(
+            "PostFragment: chunk length is not 1 to MAX_POST_FRAGMENT_BYTES",
+        ));
+    }
+    expect_len(
+        "PostFragment",
+        payload,
+        POST_FRAGMENT_HEAD + usize::from(len),
+    )?;
+    Ok(Message::PostFragment {
+        message,
+        index,
+        count,
+        bytes: r.bytes.to_vec(),
     })
 }
 
@@ -614,6 +686,12 @@ mod tests {
                 second: None,
                 fates: FateWindow::default(),
             },
+            Message::PostFragment {
+                message: 0x0A0B_0C0D,
+                index: 2,
+                count: 3,
+                bytes: vec![0xEE, 0xFF, 0x01],
+            },
         ]
     }
 
@@ -652,6 +730,7 @@ mod tests {
 524b020b010203040000000900000007010000000600000002307e02dc80f926232919ed1470d8dbc5
 524b020c0102030400000009000000063ff0000000000000bfe00000000000003fd00000000000003fb999999999999abfc999999999999a013fc00000000000003fe000000000000000000002010000000000000001cf71fd3ad249f444883253241f1ba255
 524b020c0102030400000009000000090000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000097adc8c13bf278e19357b6551dd41757
+524b02100102030400000009000000000a0b0c0d000200030003eeff018eeaeb30e8bf5cd9e217805a78aaff92
 ";
 
     #[test]
@@ -672,10 +751,74 @@ mod tests {
         let mut bad = good.clone();
         bad[3] = 99;
         assert_eq!(decode(&bad), Err(WireError::UnknownType(99)));
-        bad[3] = 16;
-        assert_eq!(decode(&bad), Err(WireError::Reserved(16)));
+        bad[3] = 17;
+        assert_eq!(decode(&bad), Err(WireError::Reserved(17)));
         let long = vec![0; MAX_FRAME_BYTES + 1];
         assert_eq!(decode(&long), Err(WireError::TooLong(MAX_FRAME_BYTES + 1)));
+    }
+
+    #[test]
+    fn typed_errors_for_bad_post_fragments() {
+        let frame = |index, count, bytes: Vec<u8>| {
+            let message = Message::PostFragment {
+                message: 5,
+                index,
+                count,
+                bytes,
+            };
+            let frame = Frame {
+                session: 1,
+                seq: 1,
+                message,
+            };
+            [encode(&frame), vec![0; MAC_BYTES]].concat()
+        };
+        let field = |bytes: &[u8]| match decode(bytes) {
+            Err(WireError::BadField(why)) => why,
+            other => panic!("expected a bad field, got {other:?}"),
+        };
+        assert!(decode(&frame(1023, 1024, vec![1; 1024])).is_ok());
+        assert!(field(&frame(0, 0, vec![1])).contains("count"));
+        assert!(field(&frame(0, MAX_POST_FRAGMENTS + 1, vec![1])).contains("count"));
+        assert!(field(&frame(3, 3, vec![1])).contains("index"));
+        assert!(field(&frame(0, 1, Vec::new())).contains("length"));
+        // The encoder cuts an oversized chunk; a forged length over the bound is refused.
+        let mut long = frame(0, 1, vec![1; 1024]);
+        long[HEADER_BYTES + 8..HEADER_BYTES + 10].copy_from_slice(&1025u16.to_be_bytes());
+        long.insert(HEADER_BYTES + 10, 1);
+        assert!(field(&long).contains("length"));
+        // The chunk must fill the payload exactly.
+        let mut extra = frame(0, 1, vec![1; 4]);
+        extra.insert(HEADER_BYTES + 10, 1);
+        assert_eq!(
+            decode(&extra),
+            Err(WireError::BadLength {
+                kind: "PostFragment",
+                got: 15,
+                expected: 14
+            })
+        );
+        let short = [&frame(0, 1, vec![1])[..HEADER_BYTES + 9], &[0; MAC_BYTES]].concat();
+        assert!(matches!(
+            decode(&short),
+            Err(WireError::BadLength {
+                kind: "PostFragment",
+                got: 9,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn post_fragment_bounds_match_the_secrecy_crate() {
+        assert_eq!(
+            usize::from(MAX_POST_FRAGMENT_BYTES),
+            robokey_secrecy::postprocess::FRAGMENT_BYTES
+        );
+        assert_eq!(
+            usize::from(MAX_POST_FRAGMENTS),
+            robokey_secrecy::postprocess::MAX_FRAGMENTS
+        );
     }
 
     #[test]
@@ -824,6 +967,19 @@ mod tests {
                         }
                     }
                 ),
+            (
+                any::<u32>(),
+                1..=MAX_POST_FRAGMENTS,
+                proptest::collection::vec(any::<u8>(), 1..=usize::from(MAX_POST_FRAGMENT_BYTES))
+            )
+                .prop_flat_map(|(message, count, bytes)| {
+                    (0..count).prop_map(move |index| Message::PostFragment {
+                        message,
+                        index,
+                        count,
+                        bytes: bytes.clone(),
+                    })
+                }),
         ]
     }
 
