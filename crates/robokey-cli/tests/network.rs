@@ -510,7 +510,7 @@ fn odometry_blocks_end_without_a_key_and_a_restricted_assumption_needs_its_flag(
     let pairing = pairing(&stores);
     let store = |role: &str, kind: &str| s(&stores.join(format!("{kind}-{role}")));
     let agents = |kind: &str, extra: &[&str]| -> Vec<String> {
-        let mut args: Vec<String> = ["--set", "postprocess.block_bits=600"]
+        let mut args: Vec<String> = ["--set", "postprocess.block_bits=500"]
             .map(str::to_owned)
             .to_vec();
         args.extend(extra.iter().map(|&x| x.to_owned()));

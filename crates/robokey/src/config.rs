@@ -571,7 +571,10 @@ impl Config {
     /// # Errors
     /// A [`ConfigError`] attributed to `origin`.
     pub fn from_table(table: toml::Table, origin: &str) -> Result<Self, ConfigError> {
-        let known: toml::Table = Self::default()
+        // Every field, the optional ones that print only when set included.
+        let mut every = Self::default();
+        every.postprocess.assumed_eve_error = Some(0.5);
+        let known: toml::Table = every
             .to_toml()
             .parse()
             .expect("the default config is valid TOML");
