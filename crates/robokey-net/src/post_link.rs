@@ -14,8 +14,8 @@ use robokey::protocol::Message;
 use robokey::protocol::auth::Delivery;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
-    self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, FinalKey, Output,
-    PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot, Settings,
+    self, Assumption, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, FinalKey,
+    Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot, Settings,
 };
 use serde::Serialize;
 
@@ -259,7 +259,13 @@ impl<E: PostEndpoint> PostSide<E> {
         .map_err(|e| NetError::Usage(format!("post-processing: {e}")))?;
         let report = PostReport {
             store: dir.display().to_string(),
-            assumption: settings.assumption.describe(),
+            assumption: match &settings.assumption {
+                Assumption::GaussianViews { statement, .. } => format!(
+                    "{statement}; each block sized by the largest separation of Eve's view over \
+                     its bits, computed by the controller from its samples"
+                ),
+                other => other.describe(),
+            },
             restricted,
             block_bits: settings.block_bits,
             torn_bytes: recovery.torn_bytes,
@@ -299,6 +305,16 @@ impl<E: PostEndpoint> PostSide<E> {
         {
             Ok(()) => self.report.session_bits = bits.len(),
             Err(e) => self.report.not_pooled = Some(e.to_string()),
+        }
+        let pooled = pool_bits(&self.endpoint.snapshot());
+        match &self.report.not_pooled {
+            None => println!(
+                "{}: session {id:08x} pooled: {} raw bits, {pooled} in the pool (a block at {})",
+                self.role,
+                bits.len(),
+                self.report.block_bits
+            ),
+            Some(why) => println!("{}: session {id:08x} not pooled: {why}", self.role),
         }
         Ok(())
     }
@@ -358,6 +374,10 @@ impl<E: PostEndpoint> PostSide<E> {
                 summary.h_min,
                 summary.length
             ),
+            // A block a restart aborted has no figures here.
+            Some(reason) if summary.bits == 0 => {
+                println!("{}: block {}: no key: {reason}", self.role, summary.block);
+            }
             Some(reason) => println!(
                 "{}: block {}: {} raw bits of {} sessions, no key: {reason}",
                 self.role, summary.block, summary.bits, summary.sessions
@@ -373,6 +393,14 @@ impl<E: PostEndpoint> PostSide<E> {
         message: &postprocess::Message,
     ) -> Result<(), NetError> {
         let bytes = postprocess::encode(message);
+        if !postprocess::fits(bytes.len()) {
+            return Err(NetError::Usage(format!(
+                "a post-processing message of {} bytes exceeds the {} bytes its fragments can \
+                 carry: lower postprocess.block_bits",
+                bytes.len(),
+                postprocess::MAX_MESSAGE_BYTES
+            )));
+        }
         let number = self.next_message;
         self.next_message = self.next_message.wrapping_add(1);
         for (index, count, chunk) in postprocess::fragments(&bytes) {
@@ -455,7 +483,8 @@ impl PostSide<ControllerPost> {
                     if self.receive(&message) {
                         heard = Instant::now();
                     } else {
-                        peer_done |= courtesy.answer(transport, &message)?;
+                        // No `Done` yet: it would end the robot's wait for post-processing.
+                        peer_done |= courtesy.answer(transport, &message, false)?;
                     }
                 }
                 Some(_) => {}

@@ -58,9 +58,9 @@ impl Timing {
     }
 }
 
-/// Answers the peer's retransmitted `Finish`, `FinishAck` or `Confirm` with `reply` and
-/// `Done`, at most once per retransmission interval, so that a lost tag does not leave the
-/// peer unconfirmed.
+/// Answers the peer's retransmitted `Finish`, `FinishAck` or `Confirm` with `reply` (and
+/// `Done` once this side needs nothing more), at most once per retransmission interval, so
+/// that a lost tag does not leave the peer unconfirmed.
 #[derive(Debug)]
 pub struct Courtesy<'a> {
     reply: &'a [robokey::protocol::Message],
@@ -79,7 +79,8 @@ impl<'a> Courtesy<'a> {
         }
     }
 
-    /// Answers `message` if it is a repeat; true when it is the peer's `Done`.
+    /// Answers `message` if it is a repeat, with `Done` after the reply if `done`; true when
+    /// it is the peer's `Done`.
     ///
     /// # Errors
     /// The socket fails.
@@ -87,6 +88,7 @@ impl<'a> Courtesy<'a> {
         &mut self,
         transport: &mut crate::transport::Transport,
         message: &robokey::protocol::Message,
+        done: bool,
     ) -> Result<bool, NetError> {
         use robokey::protocol::Message;
         match message {
@@ -95,7 +97,8 @@ impl<'a> Courtesy<'a> {
                 if self.last.is_none_or(|t| t.elapsed() >= self.interval) =>
             {
                 self.last = Some(std::time::Instant::now());
-                for m in self.reply.iter().cloned().chain([Message::Done]) {
+                let done = done.then_some(Message::Done);
+                for m in self.reply.iter().cloned().chain(done) {
                     transport.send(m)?;
                 }
                 Ok(false)
@@ -138,7 +141,7 @@ pub fn linger(
         {
             post.flush(transport)?;
             end = Instant::now() + quiet;
-        } else if courtesy.answer(transport, &message)? {
+        } else if courtesy.answer(transport, &message, true)? {
             return Ok(());
         }
     }

@@ -1,0 +1,231 @@
+#!/usr/bin/env python3
+"""Runs lockstep sessions between two real agents that pool into their stores, and sums up.
+
+    scripts/pooled-sessions.py OUT --sessions N [--mode private|odometry] [--set FIELD=VALUE …]
+                               [--kill-trials K] [--seed S] [-- relay fault options…]
+
+Every session: the robot agent (simulated plant; in private mode also the world's motion
+capture and camera), Eve's camera recorder (private mode), the relay with the given faults and a
+capture, and the controller; both agents with --store OUT/robot and OUT/controller and --key-out
+for the raw session keys. Afterwards: raw bits pooled, blocks, final key bits per session and per
+second of robot time, leak, ε, `robokey keys list` of both stores (identical IDs required) and
+`robokey keys get` equal on both sides.
+
+With --kill-trials K, K more sessions follow in which, once the controller prints that it pooled
+the session, the robot or the controller (alternately) is sent SIGKILL after a random delay
+within the post-processing that follows; the next session is a recovery run, after which both
+stores must list identical keys with equal bits. The relay then delays each datagram by 2 ms so
+that post-processing lasts long enough to be hit.
+
+The default relay faults are the README's mix: --loss 0.1 --duplicate 0.05 --reorder 0.05
+--corrupt 0.01 --delay 1±1. ROBOKEY (env) names the binary (default target/release/robokey).
+"""
+
+import argparse
+import json
+import os
+import random
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+BIN = os.environ.get("ROBOKEY", "target/release/robokey")
+MIX = ["--loss", "0.1", "--duplicate", "0.05", "--reorder", "0.05", "--corrupt", "0.01",
+       "--delay", "1±1"]
+
+
+def robokey(*args, check=True):
+    out = subprocess.run([BIN, *args], capture_output=True, text=True)
+    if check and out.returncode != 0:
+        sys.exit(f"robokey {' '.join(args)} failed ({out.returncode}): {out.stdout}{out.stderr}")
+    return out
+
+
+def start(args, out_path):
+    """Starts robokey with stdout and stderr to a file; waits for its first line."""
+    log = open(out_path, "w")
+    process = subprocess.Popen([BIN, *args], stdout=log, stderr=subprocess.STDOUT, text=True)
+    deadline = time.time() + 10
+    while time.time() < deadline:
+        text = open(out_path).read()
+        if "\n" in text:
+            return process, text
+        time.sleep(0.01)
+    sys.exit(f"{args[0]} printed nothing within 10 s")
+
+
+def address_after(text, marker):
+    match = re.search(re.escape(marker) + r"([0-9.:\[\]]+)", text)
+    if not match:
+        sys.exit(f"no address after {marker!r} in {text!r}")
+    return match.group(1)
+
+
+def session(a, d, index, kill=None):
+    """One session in folder d; with kill = (victim, delay s), SIGKILL the victim that long
+    after the controller pooled the session. Returns what the kill hit, if it did."""
+    os.makedirs(d, exist_ok=True)
+    common = ["--pace", "lockstep", "--pairing", a.pairing, "--silence-timeout", "2"]
+    common += [x for s in a.set for x in ("--set", s)]
+    if a.mode == "private":
+        common += ["--set", "sensing.mode=private"]
+    robot_args = ["robot", "--listen", "127.0.0.1:0", "--step-timeout-ms", "20",
+                  "--store", os.path.join(a.out, "robot"), "--key-out", f"{d}/robot.key",
+                  "--report", f"{d}/robot.json"] + common
+    if a.mode == "private":
+        robot_args += ["--mocap", "127.0.0.1:0", "--camera", "127.0.0.1:0"]
+    robot, _ = start(robot_args, f"{d}/robot.out")
+    while "listening on" not in open(f"{d}/robot.out").read():
+        time.sleep(0.01)
+    robot_text = open(f"{d}/robot.out").read()
+    recorder = None
+    if a.mode == "private":
+        camera = address_after(robot_text, "camera on ")
+        recorder = subprocess.Popen([BIN, "record", "--from", camera, "--out", f"{d}/camera.csv"],
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    faults = ["--delay", "2"] if kill else a.faults
+    relay, relay_text = start(["relay", "--listen", "127.0.0.1:0", "--forward",
+                               address_after(robot_text, "listening on "), "--seed", str(index),
+                               "--idle-exit", "3", "--capture", f"{d}/capture.pcap"] + faults,
+                              f"{d}/relay.out")
+    controller_args = ["controller", "--robot", address_after(relay_text, "on "),
+                       "--store", os.path.join(a.out, "controller"),
+                       "--key-out", f"{d}/controller.key", "--report", f"{d}/controller.json"]
+    controller_args += common
+    if a.mode == "private":
+        controller_args += ["--sensor", "mocap:" + address_after(robot_text, "motion capture on ")]
+    log = open(f"{d}/controller.out", "w")
+    controller = subprocess.Popen([BIN, *controller_args], stdout=subprocess.PIPE,
+                                  stderr=log, text=True)
+    hit = None
+    for line in controller.stdout:
+        log.write(line)
+        log.flush()
+        if kill and hit is None and " pooled: " in line:
+            victim, delay = kill
+            time.sleep(delay)
+            process = robot if victim == "robot" else controller
+            if process.poll() is None:
+                process.send_signal(signal.SIGKILL)
+                hit = f"{victim} killed {delay * 1000:.0f} ms after pooling"
+            else:
+                hit = f"{victim} had ended before {delay * 1000:.0f} ms"
+            if victim == "controller":
+                break
+    controller.wait()
+    robot.wait()
+    relay.wait()
+    if recorder:
+        recorder.wait()
+    return hit
+
+
+def stores_agree(a):
+    """Both stores list the same IDs, and every key has the same bits on both sides."""
+    lists = {}
+    for role in ("robot", "controller"):
+        lists[role] = json.loads(robokey("keys", "list", "--json", "--store",
+                                         os.path.join(a.out, role)).stdout)
+    ids = [k["id"] for k in lists["controller"]]
+    if ids != [k["id"] for k in lists["robot"]]:
+        return False, lists
+    for key_id in ids:
+        bits = {role: robokey("keys", "get", "--store", os.path.join(a.out, role), key_id).stdout
+                for role in ("robot", "controller")}
+        if bits["robot"] != bits["controller"]:
+            return False, lists
+    return True, lists
+
+
+def summary(a, folders):
+    pooled = {"robot": 0, "controller": 0}
+    blocks, robot_seconds, eve = [], 0.0, {}
+    for d in folders:
+        for role in pooled:
+            path = f"{d}/{role}.json"
+            if not os.path.exists(path):
+                continue
+            r = json.load(open(path))
+            post = r.get("post") or {}
+            pooled[role] += post.get("session_bits", 0)
+            if role == "controller":
+                blocks += post.get("blocks", [])
+            else:
+                robot_seconds += r["steps_done"] * a.sample_time
+    keyed = [b for b in blocks if b["length"] > 0]
+    key_bits = sum(b["length"] for b in keyed)
+    print(f"sessions: {len(folders)}, robot time {robot_seconds:.0f} s")
+    print(f"raw bits pooled: robot {pooled['robot']}, controller {pooled['controller']}")
+    for b in blocks:
+        print(f"block {b['block']}: {b['bits']} raw bits of {b['sessions']} sessions, "
+              f"sample {b['sample_bits']} ({b['sample_errors']} differ), reconciled "
+              f"{b['reconciled_bits']}, leak {b['leak_ec']} + {b['leak_confirmation']}, "
+              f"H_min {b['h_min']:.0f}, key {b['length']} bits"
+              + (f" — no key: {b['reason'][:90]}…" if b.get("reason") else ""))
+    print(f"final key bits: {key_bits} in {len(keyed)} keys; "
+          f"{key_bits / max(len(folders), 1):.1f} per session, "
+          f"{key_bits / max(robot_seconds, 1e-9):.3f} per second of robot time")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("out")
+    p.add_argument("--sessions", type=int, required=True)
+    p.add_argument("--mode", choices=["private", "odometry"], default="private")
+    p.add_argument("--set", action="append", default=[])
+    p.add_argument("--kill-trials", type=int, default=0)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("faults", nargs="*")
+    a = p.parse_args()
+    a.faults = a.faults or MIX
+    a.sample_time = 0.2
+    shutil.rmtree(a.out, ignore_errors=True)
+    os.makedirs(a.out)
+    robokey("pair", "--out", a.out)
+    a.pairing = os.path.join(a.out, "pairing.key")
+    started = time.time()
+    folders = []
+    for i in range(a.sessions):
+        d = os.path.join(a.out, f"session-{i:03}")
+        session(a, d, i)
+        folders.append(d)
+    print(f"{a.sessions} sessions in {time.time() - started:.0f} s wall")
+    summary(a, folders)
+    agree, lists = stores_agree(a)
+    print(f"stores agree: {agree}")
+    for role in ("robot", "controller"):
+        print(f"$ robokey keys list --store {a.out}/{role}")
+        print(robokey("keys", "list", "--store", os.path.join(a.out, role)).stdout, end="")
+    if not agree:
+        sys.exit("the stores differ")
+    rng = random.Random(a.seed)
+    failures = 0
+    for t in range(a.kill_trials):
+        victim = ("robot", "controller")[t % 2]
+        delay = rng.uniform(0.0, 0.15)
+        d = os.path.join(a.out, f"kill-{t:02}")
+        hit = session(a, d, 1000 + t, kill=(victim, delay))
+        recovery = os.path.join(a.out, f"kill-{t:02}-recovery")
+        session(a, recovery, 2000 + t)
+        agree, lists = stores_agree(a)
+        failures += not agree
+        notes = []
+        for role in ("robot", "controller"):
+            path = f"{recovery}/{role}.json"
+            post = json.load(open(path)).get("post", {}) if os.path.exists(path) else {}
+            if post.get("torn_bytes") or post.get("keys_recovered"):
+                notes.append(f"{role} recovered {post['torn_bytes']} torn bytes, "
+                             f"{post['keys_recovered']} keys")
+        print(f"trial {t + 1}: {hit}; after recovery: {len(lists['controller'])} keys, "
+              f"stores agree: {agree}" + (f" ({'; '.join(notes)})" if notes else ""))
+    if a.kill_trials:
+        print(f"kill trials: {a.kill_trials}, stores disagreeing after recovery: {failures}")
+        if failures:
+            sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()
