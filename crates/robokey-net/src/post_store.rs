@@ -335,3 +335,91 @@ pub fn lock_store(dir: &Path) -> Result<File, NetError> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::journal::tests::tempdir;
+
+    fn snapshot(pool: &[(u32, bool)], committed: &[u64]) -> ControllerSnapshot {
+        ControllerSnapshot {
+            next_block: committed.len() as u64,
+            pool: pool
+                .iter()
+                .map(|&(id, bit)| (id, BitString::from_bools(&[bit; 100])))
+                .collect(),
+            separations: Vec::new(),
+            spent: Vec::new(),
+            in_flight: None,
+            committed: committed.to_vec(),
+        }
+    }
+
+    fn key(block: u64) -> FinalKey {
+        FinalKey {
+            id: format!("{block:016x}"),
+            block,
+            key: BitString::from_bools(&[true, false, true]),
+            sessions: vec![1, 2],
+            epsilon: 4e-6,
+            assumption: "stated".into(),
+        }
+    }
+
+    #[test]
+    fn the_pool_and_state_survive_reopening_and_the_store_is_exclusive() {
+        let dir = tempdir("post-store");
+        let (mut store, recovery) =
+            PostStore::<ControllerSnapshot>::open(&dir, "f1", false).unwrap();
+        assert!(recovery.snapshot.is_none());
+        let mut state = snapshot(&[(1, true), (2, false)], &[]);
+        store.persist(&mut state, &[]).unwrap();
+        // A second process is refused while the first holds the store.
+        let error = PostStore::<ControllerSnapshot>::open(&dir, "f1", false).unwrap_err();
+        assert!(error.to_string().contains("in use"), "{error}");
+        drop(store);
+        let (_, recovery) = PostStore::<ControllerSnapshot>::open(&dir, "f1", false).unwrap();
+        assert_eq!(recovery.snapshot, Some(state));
+        // The other role and another pairing are refused, naming what differs.
+        let error = PostStore::<RobotSnapshot>::open(&dir, "f1", false).unwrap_err();
+        assert!(error.to_string().contains("controller agent"), "{error}");
+        let error = PostStore::<ControllerSnapshot>::open(&dir, "f2", false).unwrap_err();
+        assert!(error.to_string().contains("fingerprint f1"), "{error}");
+    }
+
+    /// A crash after the state that carries a committed key and before its key file: the
+    /// store writes the key when it opens. Then compaction drops spent bits.
+    #[test]
+    fn a_committed_key_whose_file_a_crash_prevented_is_written_on_opening() {
+        let dir = tempdir("post-store-crash");
+        let (mut store, _) = PostStore::<ControllerSnapshot>::open(&dir, "f", true).unwrap();
+        let mut state = snapshot(&[(3, true)], &[0]);
+        let stored = store.persist(&mut state, &[key(0)]).unwrap();
+        assert_eq!(stored[0].hex, "a0");
+        assert!(stored[0].restricted);
+        drop(store);
+        // Undo the key file and the state record that followed it, as a crash would.
+        let (mut journal, contents) = Journal::open(&dir.join("journal")).unwrap();
+        let n = contents.records.len();
+        journal.rewrite(&contents.records[..n - 1]).unwrap();
+        let keys = KeyStore::open(&dir).unwrap();
+        keys.delete(&key(0).id).unwrap();
+        let (mut store, recovery) = PostStore::<ControllerSnapshot>::open(&dir, "f", true).unwrap();
+        assert_eq!(recovery.keys_recovered, 1);
+        let recovered = keys.get(&key(0).id).unwrap();
+        assert_eq!((recovered.hex.as_str(), recovered.block), ("a0", 0));
+        // The pool emptied (a block took the session): its bits leave the journal.
+        let mut state = recovery.snapshot.unwrap();
+        state.pool.clear();
+        store.persist(&mut state, &[]).unwrap();
+        store.compact(&mut state).unwrap();
+        let (_, contents) = Journal::open(&dir.join("journal")).unwrap();
+        assert_eq!(contents.records.len(), 2, "header and state only");
+        let recovery = PostStore::<ControllerSnapshot>::open(&dir, "f", true);
+        assert!(recovery.is_err(), "still held by `store`");
+        drop(store);
+        let (_, recovery) = PostStore::<ControllerSnapshot>::open(&dir, "f", true).unwrap();
+        assert_eq!(recovery.keys_recovered, 0);
+        assert!(recovery.snapshot.unwrap().pool.is_empty());
+    }
+}
