@@ -37,31 +37,26 @@ pub trait Snapshot: Serialize + DeserializeOwned {
     fn set_pool(&mut self, pool: Vec<(u32, BitString)>);
 }
 
-impl Snapshot for RobotSnapshot {
-    const ROLE: &'static str = "robot";
-    fn pool(&self) -> &[(u32, BitString)] {
-        &self.pool
-    }
-    fn take_pool(&mut self) -> Vec<(u32, BitString)> {
-        std::mem::take(&mut self.pool)
-    }
-    fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
-        self.pool = pool;
-    }
+/// Both endpoints' snapshots keep their pool in a `pool` field.
+macro_rules! snapshot {
+    ($snapshot:ty, $role:literal) => {
+        impl Snapshot for $snapshot {
+            const ROLE: &'static str = $role;
+            fn pool(&self) -> &[(u32, BitString)] {
+                &self.pool
+            }
+            fn take_pool(&mut self) -> Vec<(u32, BitString)> {
+                std::mem::take(&mut self.pool)
+            }
+            fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
+                self.pool = pool;
+            }
+        }
+    };
 }
 
-impl Snapshot for ControllerSnapshot {
-    const ROLE: &'static str = "controller";
-    fn pool(&self) -> &[(u32, BitString)] {
-        &self.pool
-    }
-    fn take_pool(&mut self) -> Vec<(u32, BitString)> {
-        std::mem::take(&mut self.pool)
-    }
-    fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
-        self.pool = pool;
-    }
-}
+snapshot!(RobotSnapshot, "robot");
+snapshot!(ControllerSnapshot, "controller");
 
 /// One journal record.
 #[derive(Serialize, Deserialize)]
