@@ -16,9 +16,9 @@ local types = {
     [5] = "Finish", [6] = "FinishAck", [7] = "Confirm", [8] = "Abort",
     [9] = "Refuse", [10] = "Ready", [11] = "PrivateMeasurement", [12] = "DoubletCommand",
     [13] = "Done",
-    [16] = "reserved: pool sync", [17] = "reserved: reconciliation query",
-    [18] = "reserved: reconciliation answer", [19] = "reserved: block confirmation",
-    [20] = "reserved: commit", [21] = "reserved: amplification seed chunk",
+    [16] = "PostFragment", [17] = "reserved: post-processing", [18] = "reserved: post-processing",
+    [19] = "reserved: post-processing", [20] = "reserved: post-processing",
+    [21] = "reserved: post-processing",
 }
 local auth_modes = { [0] = "paired", [1] = "unauthenticated" }
 local applied_flags = { [0] = "none", [1] = "present" }
@@ -63,6 +63,11 @@ local f = {
     second_flag = ProtoField.uint8("robokey.second_flag", "Second input", base.DEC, applied_flags),
     second_v = ProtoField.double("robokey.second.v", "u': v (m/s)"),
     second_omega = ProtoField.double("robokey.second.omega", "u': omega (rad/s)"),
+    post_message = ProtoField.uint32("robokey.post.message", "Post-processing message id", base.DEC),
+    post_index = ProtoField.uint16("robokey.post.index", "Fragment index", base.DEC),
+    post_count = ProtoField.uint16("robokey.post.count", "Fragment count", base.DEC),
+    post_len = ProtoField.uint16("robokey.post.len", "Chunk length", base.DEC),
+    post_bytes = ProtoField.bytes("robokey.post.bytes", "Chunk of the encoded message"),
 }
 robokey.fields = {
     f.magic, f.version, f.type, f.session, f.seq, f.step, f.mac, f.auth, f.nonce_c, f.nonce_r,
@@ -70,7 +75,8 @@ robokey.fields = {
     f.applied_step, f.fate_cursor, f.u0_right, f.u0_left, f.u1_right, f.u1_left,
     f.fates_first, f.fates_count, f.fates_accepted, f.codewords, f.bitmap_word,
     f.session_tag, f.key_tag, f.sample_px, f.sample_py, f.sample_theta, f.first_v,
-    f.first_omega, f.second_flag, f.second_v, f.second_omega,
+    f.first_omega, f.second_flag, f.second_v, f.second_omega, f.post_message, f.post_index,
+    f.post_count, f.post_len, f.post_bytes,
 }
 
 -- A fate window (13 bytes) at payload offset `at`.
@@ -81,7 +87,9 @@ end
 
 local e_length = ProtoExpert.new("robokey.bad_length", "Payload length does not fit the type",
     expert.group.MALFORMED, expert.severity.ERROR)
-robokey.experts = { e_length }
+local e_field = ProtoExpert.new("robokey.bad_field", "A field holds a value the protocol does not allow",
+    expert.group.MALFORMED, expert.severity.ERROR)
+robokey.experts = { e_length, e_field }
 
 -- Adds `len u16 | UTF-8 text` at payload offset `at` (the rest of the payload) as `field`.
 local function add_text(t, p, n, at, field)
@@ -159,6 +167,20 @@ local payloads = {
             t:add(f.second_v, p(41, 8)); t:add(f.second_omega, p(49, 8))
         end
         add_fates(t, p, 57)
+        return true
+    end,
+    -- PostFragment: message u32 | index u16 | count u16 | len u16 | chunk; 1 <= count <= 1024,
+    -- index < count, 1 <= len <= 1024.
+    [16] = function(t, p, n)
+        if n < 10 then return false end
+        t:add(f.post_message, p(0, 4)); t:add(f.post_index, p(4, 2))
+        t:add(f.post_count, p(6, 2)); t:add(f.post_len, p(8, 2))
+        local index, count, len = p(4, 2):uint(), p(6, 2):uint(), p(8, 2):uint()
+        if count < 1 or count > 1024 or index >= count or len < 1 or len > 1024 then
+            t:add_proto_expert_info(e_field)
+        end
+        if n ~= 10 + len then return false end
+        t:add(f.post_bytes, p(10, len))
         return true
     end,
 }

@@ -61,7 +61,7 @@ pub enum WireError {
     /// An unknown message type.
     #[error("unknown message type {0}")]
     UnknownType(u8),
-    /// A type reserved for a later use (private-mode measurements, post-processing).
+    /// A type reserved for a later use (post-processing).
     #[error("message type {0} is reserved and not spoken by this build")]
     Reserved(u8),
     /// The payload length does not fit the message type.
