@@ -11,6 +11,10 @@ for the raw session keys. Afterwards: raw bits pooled, blocks, final key bits pe
 second of robot time, leak, ε, `robokey keys list` of both stores (identical IDs required) and
 `robokey keys get` equal on both sides.
 
+With --eve (private mode), Eve's camera and commands adversaries run on every session's capture
+and camera log, and their disagreement with the robot's raw bits is summed over all sessions.
+With --summary-only, OUT is not run again, only summed up.
+
 With --kill-trials K, K more sessions follow in which, once the controller prints that it pooled
 the session, the robot or the controller (alternately) is sent SIGKILL after a random delay
 within the post-processing that follows; the next session is a recovery run, after which both
@@ -170,6 +174,25 @@ def summary(a, folders):
           f"{key_bits / max(robot_seconds, 1e-9):.3f} per second of robot time")
 
 
+def eve_summary(folders):
+    """Eve on every session's capture and camera log: disagreements with the robot's raw bits."""
+    pattern = re.compile(r"^(controller|eve\[(\w+)\]).*?differs from the robot's raw bits on "
+                         r"(\d+) of (\d+) bits", re.M)
+    totals = {}
+    for d in folders:
+        out = robokey("eve", "--capture", f"{d}/capture.pcap", "--camera-log", f"{d}/camera.csv",
+                      "--set", "sensing.mode=private", "--robot-key", f"{d}/robot.key",
+                      "--controller-key", f"{d}/controller.key", "--out", f"{d}/eve").stdout
+        for match in pattern.finditer(out):
+            who = match.group(2) or match.group(1)
+            wrong, bits = totals.get(who, (0, 0))
+            totals[who] = (wrong + int(match.group(3)), bits + int(match.group(4)))
+    for who, (wrong, bits) in totals.items():
+        name = "the controller" if who == "controller" else f"Eve ({who})"
+        print(f"{name} differs from the robot's raw bits on {wrong} of {bits} "
+              f"({100 * wrong / max(bits, 1):.2f} %)")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("out")
@@ -178,22 +201,25 @@ def main():
     p.add_argument("--set", action="append", default=[])
     p.add_argument("--kill-trials", type=int, default=0)
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--eve", action="store_true")
+    p.add_argument("--summary-only", action="store_true")
     p.add_argument("faults", nargs="*")
     a = p.parse_args()
     a.faults = a.faults or MIX
     a.sample_time = 0.2
-    shutil.rmtree(a.out, ignore_errors=True)
-    os.makedirs(a.out)
-    robokey("pair", "--out", a.out)
     a.pairing = os.path.join(a.out, "pairing.key")
-    started = time.time()
-    folders = []
-    for i in range(a.sessions):
-        d = os.path.join(a.out, f"session-{i:03}")
-        session(a, d, i)
-        folders.append(d)
-    print(f"{a.sessions} sessions in {time.time() - started:.0f} s wall")
+    folders = [os.path.join(a.out, f"session-{i:03}") for i in range(a.sessions)]
+    if not a.summary_only:
+        shutil.rmtree(a.out, ignore_errors=True)
+        os.makedirs(a.out)
+        robokey("pair", "--out", a.out)
+        started = time.time()
+        for i, d in enumerate(folders):
+            session(a, d, i)
+        print(f"{a.sessions} sessions in {time.time() - started:.0f} s wall")
     summary(a, folders)
+    if a.eve:
+        eve_summary(folders)
     agree, lists = stores_agree(a)
     print(f"stores agree: {agree}")
     for role in ("robot", "controller"):

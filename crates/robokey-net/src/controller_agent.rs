@@ -335,7 +335,7 @@ fn converse(
         let mut peer_done = false;
         if let Some(post) = post {
             if matches!(outcome, Outcome::Confirmed | Outcome::Kept) {
-                post.pool(session, endpoint.key(), separation)?;
+                post.pool(session, endpoint.key(), separation);
             } else {
                 post.report.not_pooled = Some("the session was not confirmed".into());
             }

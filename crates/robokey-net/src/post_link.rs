@@ -291,32 +291,32 @@ impl<E: PostEndpoint> PostSide<E> {
         })
     }
 
-    /// Pools the raw bits of session `id` (one `u8` 0/1 per bit), durably. A session the
-    /// endpoint refuses (a duplicate ID, no bits) is reported and left out.
-    ///
-    /// # Errors
-    /// The store cannot be written.
-    pub fn pool(&mut self, id: u32, bits: &[u8], separation: f64) -> Result<(), NetError> {
+    /// Pools the raw bits of session `id` (one `u8` 0/1 per bit); the next [`Self::flush`]
+    /// stores them. A session the endpoint refuses (a duplicate ID, no bits) is reported and
+    /// left out.
+    pub fn pool(&mut self, id: u32, bits: &[u8], separation: f64) {
+        let before = pool_bits(&self.endpoint.snapshot());
         let bools: zeroize::Zeroizing<Vec<bool>> =
             zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());
         match self
             .endpoint
             .pool(id, BitString::from_bools(&bools), separation)
         {
-            Ok(()) => self.report.session_bits = bits.len(),
-            Err(e) => self.report.not_pooled = Some(e.to_string()),
+            Ok(()) => {
+                self.report.session_bits = bits.len();
+                println!(
+                    "{}: session {id:08x} pooled: {} raw bits, {} in the pool (a block at {})",
+                    self.role,
+                    bits.len(),
+                    before + bits.len(),
+                    self.report.block_bits
+                );
+            }
+            Err(e) => {
+                println!("{}: session {id:08x} not pooled: {e}", self.role);
+                self.report.not_pooled = Some(e.to_string());
+            }
         }
-        let pooled = pool_bits(&self.endpoint.snapshot());
-        match &self.report.not_pooled {
-            None => println!(
-                "{}: session {id:08x} pooled: {} raw bits, {pooled} in the pool (a block at {})",
-                self.role,
-                bits.len(),
-                self.report.block_bits
-            ),
-            Some(why) => println!("{}: session {id:08x} not pooled: {why}", self.role),
-        }
-        Ok(())
     }
 
     /// Takes the endpoint's outputs as one batch — stores the snapshot with the keys

@@ -361,7 +361,7 @@ fn settle<B: Backend + ?Sized>(
     session: u32,
 ) -> Result<(), NetError> {
     if matches!(s.outcome, Some(Outcome::Confirmed | Outcome::Kept)) {
-        post.pool(session, s.endpoint.key(), 0.0)?;
+        post.pool(session, s.endpoint.key(), 0.0);
         post.flush(&mut s.transport)?;
     } else {
         post.report.not_pooled = Some("the session was not confirmed".into());
