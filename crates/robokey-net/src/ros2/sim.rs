@@ -292,7 +292,7 @@ impl Ros2Sim {
         )
     }
 
-    /// Publishes `/odom` at the true `pose` and, with a motion capture, what it `seen`.
+    /// Publishes `/odom` at the true `pose` and, with a motion capture, its measurement `seen`.
     fn publish(
         &self,
         pose: [f64; 3],
