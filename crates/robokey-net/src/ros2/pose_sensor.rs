@@ -14,8 +14,8 @@ use crate::error::NetError;
 use crate::pose_stream::{PoseSample, Reading};
 use crate::sensor::Sensor;
 
-/// Unread poses kept (the oldest are dropped beyond it): 51 s of steps at T = 0.2 s, far more
-/// than the controller's loop, which takes them every millisecond, leaves unread.
+/// Unread poses kept (the oldest are dropped beyond it): 51 s of steps at T = 0.2 s, or 13 s
+/// of the emulator's repeats at 20 Hz; the sensor's thread takes them as they come.
 const QUEUE: usize = 256;
 
 /// Where and how to read the pose topic.
@@ -33,8 +33,7 @@ pub struct PoseTopicOptions {
 
 /// Which step a pose's stamp falls on, if any: `(stamp − origin)/T` within a quarter period
 /// of a whole number from 0 to `u32::MAX`.
-#[must_use]
-pub fn step_of(stamp: f64, origin: f64, period: f64) -> Option<u32> {
+fn step_of(stamp: f64, origin: f64, period: f64) -> Option<u32> {
     let steps = (stamp - origin) / period;
     let step = steps.round();
     ((steps - step).abs() <= 0.25 && (0.0..=f64::from(u32::MAX)).contains(&step))
@@ -50,8 +49,8 @@ pub fn step_of(stamp: f64, origin: f64, period: f64) -> Option<u32> {
 /// counted and skipped. Stamps on the step grid are what the emulator's virtual time gives
 /// (`ros2-sim --time virtual`); a real motion-capture clock is not matched to the robot's
 /// sample instants (docs/ros2.md).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct StepGrid {
+#[derive(Clone, Debug, PartialEq)]
+struct StepGrid {
     period: f64,
     origin: Option<Stamped>,
     /// The next step a pose may be delivered for (`None` once `u32::MAX` was).
@@ -61,8 +60,7 @@ pub struct StepGrid {
 
 impl StepGrid {
     /// A grid of period `T` (s), origin at the first pose.
-    #[must_use]
-    pub fn new(period: f64) -> Self {
+    fn new(period: f64) -> Self {
         Self {
             period,
             origin: None,
@@ -72,7 +70,7 @@ impl StepGrid {
     }
 
     /// The sample a pose gives, if it is the first of a new step.
-    pub fn sample(&mut self, pose: Stamped) -> Option<PoseSample> {
+    fn sample(&mut self, pose: Stamped) -> Option<PoseSample> {
         let origin = *self.origin.get_or_insert(pose);
         let Some(step) = step_of(pose.stamp, origin.stamp, self.period) else {
             self.off_grid += 1;
@@ -89,8 +87,7 @@ impl StepGrid {
     }
 
     /// Poses skipped because their stamp was off the step grid.
-    #[must_use]
-    pub fn off_grid(&self) -> u64 {
+    fn off_grid(&self) -> u64 {
         self.off_grid
     }
 }
