@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Golden CDR bytes of the ROS 2 messages robokey exchanges, from two independent pure-Python
+"""Golden CDR bytes of the ROS 2 messages robokey exchanges (Twist, TwistStamped, Odometry,
+PoseStamped), from two independent pure-Python
 serialisers: rosbags (its own ROS 2 Jazzy message definitions) and pycdr2 (Cyclone DDS's IDL
 layer, with the layouts written out below). Prints each message's bytes as hex once both agree;
 crates/robokey-net/src/ros2/msg.rs checks robokey's encoding against them.
@@ -56,6 +57,18 @@ rosbags_bytes = {
             ),
         ),
         "nav_msgs/msg/Odometry",
+    ),
+    "PoseStamped": ts.serialize_cdr(
+        T["geometry_msgs/msg/PoseStamped"](
+            header=T["std_msgs/msg/Header"](stamp=time, frame_id="mocap"),
+            pose=T["geometry_msgs/msg/Pose"](
+                position=T["geometry_msgs/msg/Point"](x=POSITION[0], y=POSITION[1], z=POSITION[2]),
+                orientation=T["geometry_msgs/msg/Quaternion"](
+                    x=ORIENTATION[0], y=ORIENTATION[1], z=ORIENTATION[2], w=ORIENTATION[3]
+                ),
+            ),
+        ),
+        "geometry_msgs/msg/PoseStamped",
     ),
 }
 
@@ -133,6 +146,12 @@ class Odometry(IdlStruct, typename="nav_msgs::msg::Odometry"):
     twist: TwistWithCovariance
 
 
+@dataclass
+class PoseStamped(IdlStruct, typename="geometry_msgs::msg::PoseStamped"):
+    header: Header
+    pose: Pose
+
+
 ptwist = Twist(Vector3(*LINEAR), Vector3(*ANGULAR))
 ptime = Time(*STAMP)
 pycdr2_bytes = {
@@ -143,6 +162,9 @@ pycdr2_bytes = {
         "base_footprint",
         PoseWithCovariance(Pose(Point(*POSITION), Quaternion(*ORIENTATION)), POSE_COV),
         TwistWithCovariance(ptwist, TWIST_COV),
+    ).serialize(),
+    "PoseStamped": PoseStamped(
+        Header(ptime, "mocap"), Pose(Point(*POSITION), Quaternion(*ORIENTATION))
     ).serialize(),
 }
 

@@ -276,8 +276,10 @@ pub struct ControllerArgs {
     #[arg(long, value_parser = socket_address)]
     robot: SocketAddr,
     /// Private sensing (required there): the controller's own pose sensor, `mocap:ADDR`
-    /// for the world's motion capture. Its link must be private: localhost or a cable, never
-    /// the lab network (motion-capture systems multicast there by default).
+    /// for the world's motion capture, or `ros2:TOPIC` for a geometry_msgs/PoseStamped topic
+    /// read on localhost only (needs the `ros2` feature and --pace lockstep). Its link must
+    /// be private: localhost or a cable, never the lab network (motion-capture systems and
+    /// ROS 2 multicast there by default).
     #[arg(long, value_name = "SPEC")]
     sensor: Option<String>,
     /// Local address to bind.
@@ -285,6 +287,8 @@ pub struct ControllerArgs {
     bind: Option<SocketAddr>,
     #[command(flatten)]
     session: SessionArgs,
+    #[command(flatten)]
+    ros2: crate::ros2::Ros2SensorArgs,
 }
 
 #[derive(Args, Debug)]
@@ -417,11 +421,18 @@ pub fn controller(args: ControllerArgs) -> Result<Status> {
         .parse()
         .expect("valid address")
     });
-    let sensor = args.sensor.as_deref().map(SensorSpec::parse).transpose()?;
+    let timing = args.session.timing()?;
+    let sensor = match args.sensor.as_deref() {
+        Some(text) => Some(match text.strip_prefix("ros2:") {
+            Some(topic) => crate::ros2::sensor(topic, &args.ros2, &config, timing.pace)?,
+            None => SensorSpec::parse(text)?,
+        }),
+        None => None,
+    };
     let options = ControllerOptions {
         robot: args.robot,
         bind,
-        timing: args.session.timing()?,
+        timing,
         key_out: args.session.key_out.clone(),
         session: None,
         pairing: args.session.pairing()?,
@@ -540,17 +551,35 @@ pub struct EmulatorArgs {
     /// Wheel slip: relative std of each wheel's travel per advance (0: exact).
     #[arg(long, default_value_t = 0.0)]
     slip: f64,
-    /// Seed of the slip noise, and of the world's sensor noise (replicate i for the i-th
-    /// connection).
+    #[command(flatten)]
+    noise: WorldNoiseArgs,
+    #[command(flatten)]
+    world: WorldArgs,
+}
+
+/// The seed and configuration of an emulated world's noise (`kh4-emulator`, `ros2-sim`).
+#[derive(Args, Debug)]
+pub struct WorldNoiseArgs {
+    /// Seed of the world's noise, drawn from the simulator's random streams of this seed:
+    /// kh4-emulator's wheel slip and sensors (replicate i for the i-th connection),
+    /// ros2-sim's motion capture (replicate 0).
     #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Configuration (TOML) of the world: the sensors' noise, the axle length.
+    pub seed: u64,
+    /// Configuration (TOML) of the world: the sensors' noise (`sensing.controller_std`,
+    /// `eve.camera_std`), kh4-emulator's axle length.
     #[arg(long, short)]
     config: Option<PathBuf>,
     #[command(flatten)]
     options: ConfigOptions,
-    #[command(flatten)]
-    world: WorldArgs,
+}
+
+impl WorldNoiseArgs {
+    /// The configuration, its `run.seed` the seed.
+    pub fn load(&self) -> Result<robokey::Config> {
+        let mut config = load_config(self.config.as_deref(), &self.options.set)?;
+        config.run.seed = self.seed;
+        Ok(config)
+    }
 }
 
 pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {
@@ -574,13 +603,12 @@ pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {
         TimeArg::Virtual => TimeMode::Virtual(Duration::from_secs_f64(args.period)),
         TimeArg::Real => TimeMode::Real,
     };
-    let mut config = load_config(args.config.as_deref(), &args.options.set)?;
-    config.run.seed = args.seed;
+    let config = args.noise.load()?;
     serve(&EmulatorOptions {
         listen,
         time,
         slip: args.slip,
-        seed: args.seed,
+        seed: args.noise.seed,
         connections: None,
         axle_length: config.robot.axle_length,
         sensors: args.world.options(&config),

@@ -1,5 +1,6 @@
-//! The ROS 2 options of `robokey robot --backend ros2`, and `robokey ros2-sim` (docs/ros2.md).
-//! Both need a build with the `ros2` feature; without it they are a usage error that says so.
+//! The ROS 2 options of `robokey robot --backend ros2`, of the controller's
+//! `--sensor ros2:TOPIC`, and `robokey ros2-sim` (docs/ros2.md). All need a build with the
+//! `ros2` feature; without it they are a usage error that says so.
 
 use clap::{Args, ValueEnum};
 
@@ -50,6 +51,24 @@ pub struct Ros2RobotArgs {
     ros2_quantum: f64,
     /// Seconds to wait at start for /odom and a /cmd_vel subscriber (and, with --pace
     /// lockstep, for each step's /odom).
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    ros2_wait: f64,
+}
+
+/// The options of the controller's `--sensor ros2:TOPIC`.
+#[derive(Args, Debug, Clone)]
+#[command(next_help_heading = "ROS 2 pose sensor (--sensor ros2:TOPIC; docs/ros2.md)")]
+pub struct Ros2SensorArgs {
+    /// Reliability of the pose subscription (best-effort matches either publisher).
+    #[arg(long, value_enum, default_value = "best-effort", value_name = "QOS")]
+    ros2_pose_qos: QosArg,
+    /// History depth of the pose topic.
+    #[arg(long, default_value_t = 10, value_name = "N")]
+    ros2_depth: usize,
+    /// ROS domain (default: $ROS_DOMAIN_ID, else 0).
+    #[arg(long, value_name = "ID")]
+    ros2_domain: Option<u16>,
+    /// Seconds to wait at start for the first pose.
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
     ros2_wait: f64,
 }
@@ -114,6 +133,19 @@ pub struct SimArgs {
     /// Exit after this many seconds without a command (default: run until killed).
     #[arg(long)]
     idle_exit: Option<f64>,
+    /// Also play the controller's motion capture (private sensing): publish the true pose
+    /// plus noise `sensing.controller_std` as geometry_msgs/PoseStamped on this topic, e.g.
+    /// /mocap/robot/pose, with each /odom. The controller reads it with --sensor ros2:TOPIC.
+    #[arg(long, value_name = "TOPIC")]
+    mocap_topic: Option<String>,
+    /// Reliability of the motion-capture publisher.
+    #[arg(long, value_enum, default_value = "reliable")]
+    mocap_qos: QosArg,
+    /// header.frame_id of the motion-capture poses.
+    #[arg(long, default_value = "mocap")]
+    mocap_frame_id: String,
+    #[command(flatten)]
+    noise: crate::net::WorldNoiseArgs,
 }
 
 #[cfg(not(feature = "ros2"))]
@@ -124,6 +156,17 @@ const NOT_BUILT: &str = "this robokey was built without ROS 2 support: build it 
 #[cfg(not(feature = "ros2"))]
 pub fn ros2_sim(_args: SimArgs) -> anyhow::Result<crate::exit::Status> {
     crate::exit::usage!("{NOT_BUILT}")
+}
+
+/// The controller's `--sensor ros2:TOPIC`, without the feature.
+#[cfg(not(feature = "ros2"))]
+pub fn sensor(
+    topic: &str,
+    _args: &Ros2SensorArgs,
+    _config: &robokey::Config,
+    _pace: robokey_net::session::Pace,
+) -> anyhow::Result<robokey_net::sensor::SensorSpec> {
+    crate::exit::usage!("--sensor ros2:{topic}: {NOT_BUILT}")
 }
 
 /// The robot agent's session over the `ros2` backend, without the feature.
@@ -138,7 +181,7 @@ pub fn run_robot<R: rand::CryptoRng>(
 }
 
 #[cfg(feature = "ros2")]
-pub use with_ros2::{ros2_sim, run_robot};
+pub use with_ros2::{ros2_sim, run_robot, sensor};
 
 #[cfg(feature = "ros2")]
 mod with_ros2 {
@@ -147,12 +190,13 @@ mod with_ros2 {
     use anyhow::Result;
     use robokey_net::robot_agent::{RobotOptions, run_robot as run_session};
     use robokey_net::ros2::{
-        Delivery, RobotTopics, Ros2Backend, Ros2BackendOptions, Ros2Clock, Ros2Sim, SimOptions,
-        SimTime, TopicSpec, check_quantum,
+        Delivery, MocapOptions, PoseTopicOptions, RobotTopics, Ros2Backend, Ros2BackendOptions,
+        Ros2Clock, Ros2Sim, SimOptions, SimTime, TopicSpec, check_quantum,
     };
+    use robokey_net::sensor::SensorSpec;
     use robokey_net::session::{Pace, SessionReport};
 
-    use super::{QosArg, Ros2RobotArgs, SimArgs, SimTimeArg};
+    use super::{QosArg, Ros2RobotArgs, Ros2SensorArgs, SimArgs, SimTimeArg};
     use crate::exit::{Status, on_signals, usage};
 
     fn delivery(qos: QosArg) -> Delivery {
@@ -239,6 +283,37 @@ mod with_ros2 {
         Ok(run_session(config, &mut backend, key_source, options)?)
     }
 
+    /// The controller's `--sensor ros2:TOPIC`.
+    pub fn sensor(
+        topic: &str,
+        args: &Ros2SensorArgs,
+        config: &robokey::Config,
+        pace: Pace,
+    ) -> Result<SensorSpec> {
+        let spec = TopicSpec {
+            name: topic.to_owned(),
+            delivery: delivery(args.ros2_pose_qos),
+            depth: args.ros2_depth,
+        };
+        if let Err(e) = spec.ros_name() {
+            usage!("--sensor ros2:{topic}: {e}");
+        }
+        if pace != Pace::Lockstep {
+            usage!(
+                "--sensor ros2:{topic} needs --pace lockstep: its poses are matched to the \
+                 robot's steps by their stamps in the emulator's virtual time (ros2-sim --time \
+                 virtual); matching a real motion-capture clock to the robot's sample instants \
+                 is not implemented (docs/ros2.md)"
+            );
+        }
+        Ok(SensorSpec::Ros2(PoseTopicOptions {
+            domain_id: domain("ros2-domain", args.ros2_domain)?,
+            topic: spec,
+            period: config.robot.sample_time,
+            timeout: Duration::from_secs_f64(positive("ros2-wait", args.ros2_wait)?),
+        }))
+    }
+
     /// `robokey ros2-sim`.
     pub fn ros2_sim(args: SimArgs) -> Result<Status> {
         let time = match args.time {
@@ -249,6 +324,17 @@ mod with_ros2 {
             .idle_exit
             .map(|s| positive("idle-exit", s).map(Duration::from_secs_f64))
             .transpose()?;
+        let config = args.noise.load()?;
+        let mocap = args.mocap_topic.map(|name| MocapOptions {
+            topic: TopicSpec {
+                name,
+                delivery: delivery(args.mocap_qos),
+                depth: args.depth,
+            },
+            frame_id: args.mocap_frame_id,
+            std: config.sensing.controller_std,
+            seed: args.noise.seed,
+        });
         let sim = Ros2Sim::start(SimOptions {
             topics: RobotTopics {
                 domain_id: domain("domain", args.domain)?,
@@ -271,6 +357,7 @@ mod with_ros2 {
             max_omega: args.max_omega,
             frame_id: args.frame_id,
             child_frame_id: args.child_frame_id,
+            mocap,
             idle_exit,
             interrupt: on_signals()?,
         })?;

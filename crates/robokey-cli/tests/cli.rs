@@ -851,3 +851,32 @@ fn a_reader_that_goes_away_ends_the_output_without_a_panic() {
         ended.status
     );
 }
+
+/// Without the `ros2` feature every ROS 2 entry point is a usage error saying how to build.
+#[cfg(not(feature = "ros2"))]
+#[test]
+fn ros2_without_the_feature_says_how_to_build() {
+    let built = "built without ROS 2 support: build it with `cargo build --release --features \
+                 robokey-cli/ros2`";
+    let text = fails_with(
+        2,
+        &[
+            "controller",
+            "--robot",
+            "127.0.0.1:9",
+            "--unauthenticated",
+            "--pace",
+            "lockstep",
+            "--set",
+            "sensing.mode=private",
+            "--sensor",
+            "ros2:/mocap/robot/pose",
+        ],
+    );
+    assert!(
+        text.contains("--sensor ros2:/mocap/robot/pose") && text.contains(built),
+        "{text}"
+    );
+    let text = fails_with(2, &["ros2-sim"]);
+    assert!(text.contains(built), "{text}");
+}

@@ -87,12 +87,40 @@ fn logged(args: &[&str]) -> Vec<String> {
     args.iter().map(|a| (*a).to_owned()).collect()
 }
 
+/// Runs `robokey base… extra…`, printing the command first and its exit code and output
+/// after; returns them.
+fn run_logged(base: &[&str], extra: &[&str]) -> (i32, String) {
+    let args: Vec<&str> = base.iter().chain(extra).copied().collect();
+    let (code, text) = run_code(&logged(&args).iter().map(String::as_str).collect::<Vec<_>>());
+    println!("exit {code}: {}", text.trim_end());
+    (code, text)
+}
+
+/// The robot agent on the `ros2` backend, listening on loopback; its pairing file follows.
+const ROBOT: [&str; 6] = [
+    "robot",
+    "--listen",
+    "127.0.0.1:0",
+    "--backend",
+    "ros2",
+    "--pairing",
+];
+
+/// Checks that a command exited with `code` and printed each of `needles`.
+fn assert_fails((code, text): (i32, String), expected: i32, needles: &[&str]) {
+    assert_eq!(code, expected, "{text}");
+    for needle in needles {
+        assert!(text.contains(needle), "{needle:?} not in {text}");
+    }
+}
+
 /// A whole session: ros2-sim, the robot agent on it, the controller. Returns the folder
 /// with robot.json, controller.json and the keys, and each process's output.
 fn ros2_session(
     name: &str,
     sim_args: &[&str],
     robot_args: &[&str],
+    controller_args: &[&str],
     common_args: &[&str],
     during: impl FnOnce(&mut common::Process),
 ) -> (std::path::PathBuf, [(i32, String); 3]) {
@@ -108,21 +136,16 @@ fn ros2_session(
             .collect::<Vec<_>>(),
     );
     let (robot_key, robot_json) = (file("robot.key"), file("robot.json"));
-    let mut robot_all = vec![
-        "robot",
-        "--listen",
-        "127.0.0.1:0",
-        "--backend",
-        "ros2",
-        "--pairing",
-        &pairing,
+    let mut robot_all = ROBOT.to_vec();
+    robot_all.extend([
+        pairing.as_str(),
         "--key-out",
         &robot_key,
         "--report",
         &robot_json,
         "--silence-timeout",
         "2",
-    ];
+    ]);
     robot_all.extend(robot_args);
     robot_all.extend(common_args);
     let robot = start(
@@ -145,6 +168,7 @@ fn ros2_session(
         "--silence-timeout",
         "2",
     ];
+    controller_all.extend(controller_args);
     controller_all.extend(common_args);
     let controller_args = logged(&controller_all);
     let controller = std::thread::spawn(move || {
@@ -199,39 +223,130 @@ fn tx_packets(name: &str) -> u64 {
     fields[9].parse().unwrap()
 }
 
-#[test]
-fn lockstep_session_over_ros2_topics_confirms_a_key_and_nothing_leaves_localhost() {
-    // A second interface (a veth pair, IPv6 off so the kernel sends nothing on its own)
-    // that a participant not restricted to localhost would multicast discovery on.
-    if !in_namespace(
-        "lockstep_session_over_ros2_topics_confirms_a_key_and_nothing_leaves_localhost",
-        "sysctl -qw net.ipv6.conf.all.disable_ipv6=1 net.ipv6.conf.default.disable_ipv6=1; \
-         ip link add rk0 type veth peer name rk1; ip addr add 10.213.0.1/24 dev rk0; \
-         ip link set rk1 up; ip link set rk0 up",
-    ) {
-        return;
+/// A second interface (a veth pair `rk0`–`rk1`, rk0 at 10.213.0.1, IPv6 off so the kernel
+/// sends nothing on its own) that a participant not restricted to localhost would multicast
+/// discovery on.
+const SECOND_INTERFACE: &str = "sysctl -qw net.ipv6.conf.all.disable_ipv6=1 net.ipv6.conf.default.disable_ipv6=1; \
+     ip link add rk0 type veth peer name rk1; ip addr add 10.213.0.1/24 dev rk0; \
+     ip link set rk1 up; ip link set rk0 up";
+
+/// Test `test`, in its namespace with [`SECOND_INTERFACE`]: a session ([`ros2_session`] with
+/// these arguments) during which nothing is sent through that interface. `None` outside
+/// the namespace (the test ran there, or was skipped).
+fn lo_only_session(
+    test: &str,
+    name: &str,
+    [sim, robot, controller, common]: [&[&str]; 4],
+) -> Option<(std::path::PathBuf, [(i32, String); 3])> {
+    if !in_namespace(test, SECOND_INTERFACE) {
+        return None;
     }
     println!("namespace interfaces:\n{}", sh("ip -brief address"));
     let before = tx_packets("rk0");
-    let (dir, [controller, robot, sim]) = ros2_session(
+    let out = ros2_session(name, sim, robot, controller, common, |_| {});
+    let sent = tx_packets("rk0") - before;
+    println!("packets sent on rk0 (10.213.0.1) during the session: {sent}");
+    assert_eq!(sent, 0, "a participant sent on an interface other than lo");
+    Some(out)
+}
+
+/// The statistics `ros2-sim` prints last (`ros2-sim: {…}`).
+fn sim_stats(output: &str) -> serde_json::Value {
+    let line = output.lines().last().unwrap_or_default();
+    let json = line
+        .strip_prefix("ros2-sim: ")
+        .unwrap_or_else(|| panic!("no statistics in {output}"));
+    serde_json::from_str(json).unwrap()
+}
+
+#[test]
+fn lockstep_session_over_ros2_topics_confirms_a_key_and_nothing_leaves_localhost() {
+    let Some((dir, [controller, robot, sim])) = lo_only_session(
+        "lockstep_session_over_ros2_topics_confirms_a_key_and_nothing_leaves_localhost",
         "ros2-lockstep",
-        &["--time", "virtual", "--period", "0.2"],
-        &["--seed", "11", "--ros2-odom-qos", "reliable"],
-        &["--pace", "lockstep", "--set", "protocol.delta_v=0.04"],
-        |_| {},
-    );
+        [
+            &["--time", "virtual", "--period", "0.2"],
+            &["--seed", "11", "--ros2-odom-qos", "reliable"],
+            &[],
+            &["--pace", "lockstep", "--set", "protocol.delta_v=0.04"],
+        ],
+    ) else {
+        return;
+    };
     assert_eq!((controller.0, robot.0, sim.0), (0, 0, 0));
     assert_confirmed_with_equal_keys(&dir);
     let robot_report = report(&dir.join("robot.json"));
     assert_eq!(robot_report["steps"], 1020);
     assert_eq!(robot_report["commands_applied"], 1020);
     // The emulator applied every command: 1020 steps (+ the stops at the end).
-    let stats: serde_json::Value =
-        serde_json::from_str(sim.1.trim().strip_prefix("ros2-sim: ").unwrap()).unwrap();
+    let stats = sim_stats(&sim.1);
     assert!(stats["commands"].as_u64().unwrap() >= 1020, "{stats}");
-    let sent = tx_packets("rk0") - before;
-    println!("packets sent on rk0 (10.213.0.1) during the session: {sent}");
-    assert_eq!(sent, 0, "a participant sent on an interface other than lo");
+}
+
+#[test]
+fn private_session_reads_the_controllers_pose_from_a_ros2_topic_and_keeps_equal_bits() {
+    // The emulator plays the robot (/cmd_vel, /odom) and the controller's motion capture
+    // (/mocap/robot/pose, 0.5 mm / 0.5 mrad noise, seeded); the controller decides every
+    // doublet from that topic; the robot sends no pose.
+    let Some((dir, [controller, robot, sim])) = lo_only_session(
+        "private_session_reads_the_controllers_pose_from_a_ros2_topic_and_keeps_equal_bits",
+        "ros2-private",
+        [
+            &[
+                "--time",
+                "virtual",
+                "--mocap-topic",
+                "/mocap/robot/pose",
+                "--seed",
+                "5",
+            ],
+            &["--seed", "11", "--ros2-odom-qos", "reliable"],
+            &[
+                "--sensor",
+                "ros2:/mocap/robot/pose",
+                "--ros2-pose-qos",
+                "reliable",
+            ],
+            &[
+                "--pace",
+                "lockstep",
+                "--set",
+                "protocol.delta_v=0.04",
+                "--set",
+                "sensing.mode=private",
+            ],
+        ],
+    ) else {
+        return;
+    };
+    assert_eq!((controller.0, robot.0, sim.0), (0, 0, 0));
+    let (robot_report, controller_report) = (
+        report(&dir.join("robot.json")),
+        report(&dir.join("controller.json")),
+    );
+    for r in [&robot_report, &controller_report] {
+        assert_eq!(r["outcome"], "kept", "{r}");
+        assert_eq!(r["steps"], 1020, "{r}");
+        assert_eq!(r["doublets"]["erased"], 0, "{r}");
+        assert_eq!(r["accepted"], robot_report["accepted"], "{r}");
+    }
+    let accepted = robot_report["accepted"].as_u64().unwrap();
+    assert!(accepted > 400, "{robot_report}");
+    // Same kept positions (confirmed by both session tags), and no bit decided wrong: the
+    // emulator has no motion noise, its motion capture 0.5 mm, and Δv = 0.04 m/s is a whole
+    // number of command quanta, so the truncation shifts both hypotheses alike.
+    let key = std::fs::read_to_string(dir.join("robot.key")).unwrap();
+    assert!(
+        key.starts_with(&format!("robokey-key-v1 bits={accepted}\n")),
+        "{key}"
+    );
+    assert_eq!(
+        key,
+        std::fs::read_to_string(dir.join("controller.key")).unwrap()
+    );
+    let stats = sim_stats(&sim.1);
+    assert!(stats["mocap"].as_u64().unwrap() >= 1021, "{stats}");
+    println!("raw bits equal on both sides: {accepted} kept doublets; emulator {stats}");
 }
 
 #[test]
@@ -244,6 +359,7 @@ fn realtime_session_with_twist_stamped_confirms_a_key() {
         "ros2-realtime",
         &["--time", "real", "--stamped"],
         &["--ros2-stamped"],
+        &[],
         &[
             "--pace",
             "realtime",
@@ -270,6 +386,7 @@ fn a_silent_robot_ends_the_session_with_a_named_stale_odom_error() {
     let (dir, [controller, robot, _]) = ros2_session(
         "ros2-stale",
         &["--time", "real"],
+        &[],
         &[],
         &["--pace", "realtime", "--set", "protocol.delta_v=0.04"],
         |sim| {
@@ -302,63 +419,89 @@ fn a_silent_robot_ends_the_session_with_a_named_stale_odom_error() {
 }
 
 #[test]
-fn a_missing_robot_and_a_delta_off_the_quantum_are_named_errors() {
+fn missing_peers_bad_names_and_a_delta_off_the_quantum_are_named_errors() {
     if !in_namespace(
-        "a_missing_robot_and_a_delta_off_the_quantum_are_named_errors",
+        "missing_peers_bad_names_and_a_delta_off_the_quantum_are_named_errors",
         "true",
     ) {
         return;
     }
     let dir = scratch("ros2-errors");
     let pairing = pairing(&dir);
-    let robot = |extra: &[&str]| {
-        let mut args = vec![
-            "robot",
-            "--listen",
-            "127.0.0.1:0",
-            "--backend",
-            "ros2",
-            "--pairing",
-            &pairing,
-        ];
-        args.extend(extra);
-        run_code(&logged(&args).iter().map(String::as_str).collect::<Vec<_>>())
-    };
+    let robot = |extra: &[&str]| run_logged(&[&ROBOT[..], &[pairing.as_str()]].concat(), extra);
     // No ROS 2 robot on this host: an error (1) that says what was missing.
-    let (code, text) = robot(&["--set", "protocol.delta_v=0.04", "--ros2-wait", "1"]);
-    println!("exit {code}: {text}");
-    assert_eq!(code, 1, "{text}");
-    assert!(text.contains("no valid /odom within 1.0 s"), "{text}");
+    assert_fails(
+        robot(&["--set", "protocol.delta_v=0.04", "--ros2-wait", "1"]),
+        1,
+        &["no valid /odom within 1.0 s"],
+    );
     // The default Δv = 0.035 m/s is not a multiple of the TurtleBot3's 0.01: a usage error.
-    let (code, text) = robot(&[]);
-    println!("exit {code}: {text}");
-    assert_eq!(code, 2, "{text}");
-    assert!(
-        text.contains("protocol.delta_v = 0.035 m/s is not a multiple") && text.contains("0.0400"),
-        "{text}"
+    assert_fails(
+        robot(&[]),
+        2,
+        &["protocol.delta_v = 0.035 m/s is not a multiple", "0.0400"],
     );
     // A topic that is not an absolute ROS name.
-    let (code, text) = robot(&["--set", "protocol.delta_v=0.04", "--ros2-odom", "odom"]);
-    assert_eq!(code, 2, "{text}");
-    assert!(text.contains("give an absolute ROS name"), "{text}");
+    assert_fails(
+        robot(&["--set", "protocol.delta_v=0.04", "--ros2-odom", "odom"]),
+        2,
+        &["give an absolute ROS name"],
+    );
     // A robot that takes Twist while the agent publishes TwistStamped (or the reverse, the
     // Jazzy TurtleBot3's pitfall): DDS never matches them; the error says what is there.
     let sim = start(&["ros2-sim", "--idle-exit", "5"]);
-    let (code, text) = robot(&[
-        "--set",
-        "protocol.delta_v=0.04",
-        "--ros2-stamped",
-        "--ros2-wait",
-        "3",
-    ]);
-    println!("exit {code}: {text}");
-    assert_eq!(code, 1, "{text}");
-    assert!(
-        text.contains(
+    assert_fails(
+        robot(&[
+            "--set",
+            "protocol.delta_v=0.04",
+            "--ros2-stamped",
+            "--ros2-wait",
+            "3",
+        ]),
+        1,
+        &[
             "the subscribers of /cmd_vel use geometry_msgs::msg::dds_::Twist_, not \
-             geometry_msgs::msg::dds_::TwistStamped_: the robot takes Twist: drop --ros2-stamped"
-        ),
-        "{text}"
+             geometry_msgs::msg::dds_::TwistStamped_: the robot takes Twist: drop --ros2-stamped",
+        ],
     );
     drop(sim);
+    // The controller's pose sensor.
+    let controller = |extra: &[&str]| {
+        run_logged(
+            &[
+                "controller",
+                "--robot",
+                "127.0.0.1:9",
+                "--pairing",
+                &pairing,
+                "--set",
+                "sensing.mode=private",
+            ],
+            extra,
+        )
+    };
+    // Nothing publishes the pose: an error (1) naming the topic, the wait and what is missing.
+    assert_fails(
+        controller(&[
+            "--pace",
+            "lockstep",
+            "--sensor",
+            "ros2:/mocap/robot/pose",
+            "--ros2-wait",
+            "1",
+        ]),
+        1,
+        &["no valid /mocap/robot/pose within 1.0 s (no publisher of /mocap/robot/pose)"],
+    );
+    // A relative name, and real time: usage errors (2) that say why.
+    assert_fails(
+        controller(&["--pace", "lockstep", "--sensor", "ros2:mocap/pose"]),
+        2,
+        &["--sensor ros2:mocap/pose", "give an absolute ROS name"],
+    );
+    assert_fails(
+        controller(&["--pace", "realtime", "--sensor", "ros2:/mocap/robot/pose"]),
+        2,
+        &["needs --pace lockstep"],
+    );
 }

@@ -1,7 +1,7 @@
 //! Where the controller's pose comes from in private sensing: its own sensor, behind one
-//! trait like the robot's drive backends (docs/sensors.md). Today: the world's emulated
-//! motion capture. A ROS 2 pose topic or a real motion-capture protocol is another
-//! implementation of [`Sensor`] and another [`SensorSpec`].
+//! trait like the robot's drive backends (docs/sensors.md): the world's emulated motion
+//! capture, and (with the `ros2` feature) a ROS 2 `geometry_msgs/PoseStamped` topic. A real
+//! motion-capture protocol is another implementation of [`Sensor`] and another [`SensorSpec`].
 //!
 //! The sensor's link is part of the secret: wired or localhost, never a topic or a
 //! multicast stream on the lab network (docs/threat-model.md).
@@ -40,14 +40,18 @@ impl Sensor for PoseStreamClient {
 }
 
 /// A sensor named on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum SensorSpec {
     /// `mocap:ADDR`: the world's emulated motion capture, a pose stream on TCP.
     Mocap(SocketAddr),
+    /// `ros2:TOPIC`: a `geometry_msgs/PoseStamped` topic on a localhost-only participant
+    /// (the CLI builds it: the topic's QoS, domain and wait are flags of their own).
+    #[cfg(feature = "ros2")]
+    Ros2(crate::ros2::PoseTopicOptions),
 }
 
 impl SensorSpec {
-    /// Parses `mocap:HOST:PORT`.
+    /// Parses `mocap:HOST:PORT` (`ros2:TOPIC` is the CLI's, which knows its flags).
     ///
     /// # Errors
     /// Names what is wrong.
@@ -59,7 +63,8 @@ impl SensorSpec {
                 .map(Self::Mocap)
                 .map_err(|_| usage("expected mocap:HOST:PORT with a numeric address")),
             _ => Err(usage(
-                "expected mocap:HOST:PORT (the world's motion capture)",
+                "expected mocap:HOST:PORT (the world's motion capture) or ros2:TOPIC (a \
+                 geometry_msgs/PoseStamped topic)",
             )),
         }
     }
@@ -69,11 +74,13 @@ impl SensorSpec {
     /// # Errors
     /// It cannot be reached.
     pub fn open(&self) -> Result<Box<dyn Sensor>, NetError> {
-        match *self {
+        match self {
             Self::Mocap(address) => Ok(Box::new(PoseStreamClient::connect(
-                address,
+                *address,
                 Duration::from_secs(5),
             )?)),
+            #[cfg(feature = "ros2")]
+            Self::Ros2(options) => Ok(Box::new(crate::ros2::Ros2PoseSensor::open(options)?)),
         }
     }
 }
@@ -157,7 +164,7 @@ mod tests {
             SensorSpec::parse("mocap:127.0.0.1:7400").unwrap(),
             SensorSpec::Mocap("127.0.0.1:7400".parse().unwrap())
         );
-        for bad in ["mocap:localhost", "ros2:/pose", "127.0.0.1:7400", ""] {
+        for bad in ["mocap:localhost", "127.0.0.1:7400", ""] {
             let error = SensorSpec::parse(bad).unwrap_err().to_string();
             assert!(error.contains("--sensor"), "{error}");
         }

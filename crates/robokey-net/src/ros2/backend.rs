@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 use robokey::model::{DiffDrive, Pose, WheelSpeeds};
 use ros2_client::{Context, Node, Publisher};
 
-use super::msg::{Header, Kind, Odometry, Time, Twist, TwistStamped, Unwrap, type_name};
+use super::msg::{Header, Kind, Odometry, Stamped, Time, Twist, TwistStamped, Unwrap, type_name};
 use super::node::{Listener, Peer, RobotTopics, localhost_node, topic, wait_for_peer};
 use crate::backend::Backend;
 use crate::error::NetError;
@@ -43,13 +43,6 @@ pub struct Ros2BackendOptions {
     pub timeout: Duration,
 }
 
-/// What the listener keeps of an `/odom`: the planar pose with θ unwrapped, its stamp.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct OdomSample {
-    pose: Pose,
-    stamp: f64,
-}
-
 /// The command publisher: `Twist` or `TwistStamped`.
 enum CmdPublisher {
     Plain(Publisher<Twist>),
@@ -82,12 +75,12 @@ impl CmdPublisher {
 pub struct Ros2Backend {
     cmd: CmdPublisher,
     cmd_topic: String,
-    odom: Listener<OdomSample>,
+    odom: Listener<Stamped>,
     odom_topic: String,
     drive: DiffDrive,
     clock: Ros2Clock,
     timeout: Duration,
-    origin: Option<OdomSample>,
+    origin: Option<Stamped>,
     wheels: WheelSpeeds,
     ticks: u32,
     // Dropped last: the publisher and listener above belong to them.
@@ -139,11 +132,7 @@ impl Ros2Backend {
             .map_err(|e| NetError::Ros2(format!("subscribe to {}: {e:?}", topics.odom.name)))?;
         let mut unwrap = Unwrap::default();
         let odom = Listener::spawn(subscription, &topics.odom.name, 0, move |odom: Odometry| {
-            let [x, y, yaw] = odom.planar_pose()?;
-            Ok(OdomSample {
-                pose: Pose::new(x, y, unwrap.next(yaw)),
-                stamp: odom.header.stamp.as_secs_f64(),
-            })
+            unwrap.stamped(&odom.header, &odom.pose.pose)
         })?;
         let deadline = Instant::now() + options.timeout;
         let hint = "the robot's ROS 2 driver (or `robokey ros2-sim`) must run on this computer, \
@@ -157,22 +146,8 @@ impl Ros2Backend {
                 "the robot takes TwistStamped: add --ros2-stamped",
             )
         };
+        odom.wait_for_first(&context, Kind::Odometry, options.timeout, hint)?;
         let waited = options.timeout.as_secs_f64();
-        if !odom.wait(deadline, false, |_| true)? {
-            let why = wait_for_peer(
-                &context,
-                &topics.odom.name,
-                Kind::Odometry,
-                Peer::Publisher,
-                Instant::now(),
-            )
-            .map_or_else(|why| format!(" ({why})"), |()| String::new());
-            return Err(NetError::Ros2(format!(
-                "no valid {} within {waited:.1} s{why}{}: {hint}",
-                topics.odom.name,
-                odom.rejections()
-            )));
-        }
         match wait_for_peer(
             &context,
             &topics.cmd_vel.name,
@@ -220,15 +195,8 @@ impl Ros2Backend {
     }
 
     /// The latest `/odom` in the frame of the first sample.
-    fn relative(&mut self, sample: OdomSample) -> Pose {
-        let origin = *self.origin.get_or_insert(sample);
-        let (sin, cos) = origin.pose.z.sin_cos();
-        let (dx, dy) = (sample.pose.x - origin.pose.x, sample.pose.y - origin.pose.y);
-        Pose::new(
-            cos * dx + sin * dy,
-            -sin * dx + cos * dy,
-            sample.pose.z - origin.pose.z,
-        )
+    fn relative(&mut self, sample: Stamped) -> Pose {
+        sample.relative_to(self.origin.get_or_insert(sample))
     }
 }
 

@@ -1,7 +1,7 @@
 //! The ROS 2 messages robokey exchanges, written as serde structs whose field order is the
 //! message definition's (the CDR encoding is the fields in order, each aligned to its size,
-//! docs/ros2.md): `geometry_msgs/Twist`, `geometry_msgs/TwistStamped`, `nav_msgs/Odometry`
-//! and what they contain.
+//! docs/ros2.md): `geometry_msgs/Twist`, `geometry_msgs/TwistStamped`, `nav_msgs/Odometry`,
+//! `geometry_msgs/PoseStamped` and what they contain.
 
 use ros2_client::MessageTypeName;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -178,6 +178,46 @@ pub struct Pose {
     pub orientation: Quaternion,
 }
 
+impl Pose {
+    /// The pose at `(x, y)` on the ground, turned `yaw` about z.
+    #[must_use]
+    pub fn planar([x, y, yaw]: [f64; 3]) -> Self {
+        Self {
+            position: Point { x, y, z: 0.0 },
+            orientation: Quaternion::from_yaw(yaw),
+        }
+    }
+
+    /// The planar pose `(x, y, yaw)` with yaw in (−π, π].
+    ///
+    /// # Errors
+    /// A non-finite position, or an orientation without a defined yaw.
+    pub fn to_planar(&self) -> Result<[f64; 3], String> {
+        let Point { x, y, .. } = self.position;
+        if !(x.is_finite() && y.is_finite()) {
+            return Err(format!("position ({x}, {y}) is not finite"));
+        }
+        let q = self.orientation;
+        let yaw = q.yaw().ok_or_else(|| {
+            format!(
+                "orientation (x {}, y {}, z {}, w {}) has no defined yaw",
+                q.x, q.y, q.z, q.w
+            )
+        })?;
+        Ok([x, y, yaw])
+    }
+}
+
+/// `geometry_msgs/PoseStamped`: what a motion-capture bridge publishes for a tracked body
+/// (e.g. `/mocap/robot/pose`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseStamped {
+    /// When the pose was measured, and its frame.
+    pub header: Header,
+    /// The pose.
+    pub pose: Pose,
+}
+
 /// A 6×6 row-major covariance (`float64[36]`): a CDR fixed array, no length prefix.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Covariance(pub [f64; 36]);
@@ -264,14 +304,7 @@ impl Odometry {
             header,
             child_frame_id: child_frame_id.to_owned(),
             pose: PoseWithCovariance {
-                pose: Pose {
-                    position: Point {
-                        x: pose[0],
-                        y: pose[1],
-                        z: 0.0,
-                    },
-                    orientation: Quaternion::from_yaw(pose[2]),
-                },
+                pose: Pose::planar(pose),
                 covariance: Covariance::default(),
             },
             twist: TwistWithCovariance {
@@ -279,28 +312,6 @@ impl Odometry {
                 covariance: Covariance::default(),
             },
         }
-    }
-
-    /// The planar pose `(x, y, yaw)` with yaw in (−π, π].
-    ///
-    /// # Errors
-    /// A non-finite position, or an orientation without a defined yaw.
-    pub fn planar_pose(&self) -> Result<[f64; 3], String> {
-        let position = self.pose.pose.position;
-        if !(position.x.is_finite() && position.y.is_finite()) {
-            return Err(format!(
-                "position ({}, {}) is not finite",
-                position.x, position.y
-            ));
-        }
-        let orientation = self.pose.pose.orientation;
-        let yaw = orientation.yaw().ok_or_else(|| {
-            format!(
-                "orientation (x {}, y {}, z {}, w {}) has no defined yaw",
-                orientation.x, orientation.y, orientation.z, orientation.w
-            )
-        })?;
-        Ok([position.x, position.y, yaw])
     }
 }
 
@@ -311,6 +322,7 @@ pub fn type_name(message: Kind) -> MessageTypeName {
         Kind::Twist => MessageTypeName::new("geometry_msgs", "Twist"),
         Kind::TwistStamped => MessageTypeName::new("geometry_msgs", "TwistStamped"),
         Kind::Odometry => MessageTypeName::new("nav_msgs", "Odometry"),
+        Kind::PoseStamped => MessageTypeName::new("geometry_msgs", "PoseStamped"),
     }
 }
 
@@ -323,6 +335,8 @@ pub enum Kind {
     TwistStamped,
     /// `nav_msgs/Odometry`.
     Odometry,
+    /// `geometry_msgs/PoseStamped`.
+    PoseStamped,
 }
 
 /// Serialises a message as the publisher puts it on the wire: the 4-byte encapsulation
@@ -366,6 +380,29 @@ pub fn from_cdr<M: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<M, Strin
         .map_err(|e| e.to_string())
 }
 
+/// A planar pose as robokey uses it — `(x, y, θ)` with θ unwrapped — and its stamp (s).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stamped {
+    /// The pose (m, m, rad).
+    pub pose: robokey::model::Pose,
+    /// `header.stamp` in seconds.
+    pub stamp: f64,
+}
+
+impl Stamped {
+    /// This pose in the frame of `origin` (its position the origin, its heading +x).
+    #[must_use]
+    pub fn relative_to(&self, origin: &Self) -> robokey::model::Pose {
+        let (sin, cos) = origin.pose.z.sin_cos();
+        let (dx, dy) = (self.pose.x - origin.pose.x, self.pose.y - origin.pose.y);
+        robokey::model::Pose::new(
+            cos * dx + sin * dy,
+            -sin * dx + cos * dy,
+            self.pose.z - origin.pose.z,
+        )
+    }
+}
+
 /// Unwraps a yaw in (−π, π] into a continuous angle (robokey never wraps θ): each new yaw
 /// is taken within π of the previous angle. Right as long as the robot turns less than π
 /// between two messages (a TurtleBot3 at 2.84 rad/s turns 0.14 rad between /odom
@@ -393,6 +430,18 @@ impl Unwrap {
         self.last = Some(angle);
         angle
     }
+
+    /// The planar pose of a message's `header` and `pose`, θ unwrapped.
+    ///
+    /// # Errors
+    /// The pose has no planar form ([`Pose::to_planar`]); the unwrapping is not advanced.
+    pub fn stamped(&mut self, header: &Header, pose: &Pose) -> Result<Stamped, String> {
+        let [x, y, yaw] = pose.to_planar()?;
+        Ok(Stamped {
+            pose: robokey::model::Pose::new(x, y, self.next(yaw)),
+            stamp: header.stamp.as_secs_f64(),
+        })
+    }
 }
 
 #[cfg(test)]
@@ -408,7 +457,9 @@ mod tests {
     // of the body): Twist is six float64; TwistStamped is stamp (int32 sec, uint32
     // nanosec), frame_id (uint32 length with the NUL, bytes, NUL), padding to 8, the
     // Twist; Odometry is the header, child_frame_id, the pose (7 float64), 36 float64, the
-    // twist (6 float64), 36 float64, with no length before a fixed array.
+    // twist (6 float64), 36 float64, with no length before a fixed array; PoseStamped is the
+    // header (frame `mocap`: length 6, 5 bytes and NUL, then 6 bytes of padding, to offset 24)
+    // and the pose (7 float64).
     const TWIST: &str = "00010000000000000000d03f000000000000f8bf000000000000084000000000\
                          0000c03f000000000000b0bfb81e85eb51b80640";
     const TWIST_STAMPED: &str = "0001000000f1536515cd5b070a000000626173655f6c696e6b00000000000000\
@@ -437,6 +488,10 @@ mod tests {
                             000019c00000000000001ac00000000000001bc00000000000001cc000000000\
                             00001dc00000000000001ec00000000000001fc000000000000020c000000000\
                             008020c000000000000021c000000000008021c0";
+
+    const POSE_STAMPED: &str = "0001000000f1536515cd5b07060000006d6f6361700000000000000000000000\
+                                0000f83f00000000000002c00000000000000000000000000000000000000000\
+                                0000000064a9aea6e27dd83f468d32cf6b90ed3f";
 
     fn hex(text: &str) -> Vec<u8> {
         let text: String = text.split_whitespace().collect();
@@ -516,9 +571,76 @@ mod tests {
         );
         let odom = from_cdr::<Odometry>(&hex(ODOMETRY)).unwrap();
         assert_eq!(odom, odometry());
-        let [x, y, yaw] = odom.planar_pose().unwrap();
+        let [x, y, yaw] = odom.pose.pose.to_planar().unwrap();
         assert_eq!((x, y), (1.5, -2.25));
         assert!((yaw - std::f64::consts::FRAC_PI_4).abs() < 1e-15);
+    }
+
+    #[test]
+    fn pose_stamped_bytes_equal_two_independent_serialisers_and_decode_to_a_planar_pose() {
+        let pose = PoseStamped {
+            header: header("mocap"),
+            pose: odometry().pose.pose,
+        };
+        assert_eq!(to_cdr(&pose).unwrap(), hex(POSE_STAMPED));
+        let decoded = from_cdr::<PoseStamped>(&hex(POSE_STAMPED)).unwrap();
+        assert_eq!(decoded, pose);
+        let stamped = Unwrap::default()
+            .stamped(&decoded.header, &decoded.pose)
+            .unwrap();
+        assert_eq!((stamped.pose.x, stamped.pose.y), (1.5, -2.25));
+        assert!((stamped.pose.z - std::f64::consts::FRAC_PI_4).abs() < 1e-15);
+        assert_eq!(stamped.stamp, header("mocap").stamp.as_secs_f64());
+        assert!((stamped.stamp - 1_700_000_000.123_457).abs() < 1e-6);
+        // Big-endian CDR (`00 00`) is read too: the same message.
+        let mut big = vec![0x00, 0x00, 0x00, 0x00];
+        big.extend_from_slice(&1_700_000_000i32.to_be_bytes());
+        big.extend_from_slice(&123_456_789u32.to_be_bytes());
+        big.extend_from_slice(&6u32.to_be_bytes());
+        big.extend_from_slice(b"mocap\0\0\0\0\0\0\0");
+        for value in [
+            1.5,
+            -2.25,
+            0.0,
+            0.0,
+            0.0,
+            0.382_683_432_365_089_84,
+            0.923_879_532_511_286_7,
+        ] {
+            big.extend_from_slice(&f64::to_be_bytes(value));
+        }
+        assert_eq!(from_cdr::<PoseStamped>(&big).unwrap(), pose);
+        // Cut short, it is an error, not a pose.
+        assert!(from_cdr::<PoseStamped>(&hex(POSE_STAMPED)[..60]).is_err());
+    }
+
+    #[test]
+    fn a_pose_turning_through_pi_unwraps_and_a_bad_one_leaves_the_unwrapping_alone() {
+        // Poses turning 0.4 rad per message, past ±π twice: θ keeps growing.
+        let mut unwrap = Unwrap::default();
+        let header = header("mocap");
+        for k in 0..20 {
+            let truth = 0.4 * f64::from(k);
+            let pose = Pose::planar([0.1, 0.2, truth]);
+            let theta = unwrap.stamped(&header, &pose).unwrap().pose.z;
+            assert!((theta - truth).abs() < 1e-9, "{k}: {theta} vs {truth}");
+            // An invalid pose in between is an error and does not move the unwrapping.
+            let bad = Pose {
+                orientation: Quaternion {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                    w: 0.0,
+                },
+                ..pose
+            };
+            assert!(
+                unwrap
+                    .stamped(&header, &bad)
+                    .unwrap_err()
+                    .contains("no defined yaw")
+            );
+        }
     }
 
     #[test]
@@ -534,6 +656,10 @@ mod tests {
         assert_eq!(
             type_name(Kind::Odometry).dds_msg_type(),
             "nav_msgs::msg::dds_::Odometry_"
+        );
+        assert_eq!(
+            type_name(Kind::PoseStamped).dds_msg_type(),
+            "geometry_msgs::msg::dds_::PoseStamped_"
         );
     }
 
@@ -588,7 +714,13 @@ mod tests {
     fn bad_odometry_is_a_named_error() {
         let mut odom = odometry();
         odom.pose.pose.position.x = f64::INFINITY;
-        assert!(odom.planar_pose().unwrap_err().contains("not finite"));
+        assert!(
+            odom.pose
+                .pose
+                .to_planar()
+                .unwrap_err()
+                .contains("not finite")
+        );
         let mut odom = odometry();
         odom.pose.pose.orientation = Quaternion {
             x: 0.0,
@@ -596,7 +728,13 @@ mod tests {
             z: 0.0,
             w: 0.0,
         };
-        assert!(odom.planar_pose().unwrap_err().contains("no defined yaw"));
+        assert!(
+            odom.pose
+                .pose
+                .to_planar()
+                .unwrap_err()
+                .contains("no defined yaw")
+        );
     }
 
     #[test]
@@ -615,6 +753,7 @@ mod tests {
             let _ = from_cdr::<Odometry>(&bytes);
             let _ = from_cdr::<TwistStamped>(&bytes);
             let _ = from_cdr::<Twist>(&bytes);
+            let _ = from_cdr::<PoseStamped>(&bytes);
         }
 
         /// Every cut or flipped byte of a genuine message parses or fails, never panics.
@@ -624,6 +763,10 @@ mod tests {
             bytes[index] ^= flip;
             let _ = from_cdr::<Odometry>(&bytes);
             let _ = from_cdr::<Odometry>(&bytes[..cut]);
+            let mut pose = hex(POSE_STAMPED);
+            pose[index % 84] ^= flip;
+            let _ = from_cdr::<PoseStamped>(&pose);
+            let _ = from_cdr::<PoseStamped>(&pose[..cut % 85]);
         }
     }
 }

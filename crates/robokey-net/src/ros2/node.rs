@@ -67,7 +67,7 @@ impl TopicSpec {
     pub fn ros_name(&self) -> Result<Name, NetError> {
         if !self.name.starts_with('/') {
             return Err(NetError::Usage(format!(
-                "topic {:?}: give an absolute ROS name, e.g. /cmd_vel",
+                "topic {:?}: give an absolute ROS name, starting with /",
                 self.name
             )));
         }
@@ -330,6 +330,32 @@ impl<V: Clone + Send + 'static> Listener<V> {
                 .wait_timeout(state, left)
                 .map_or_else(|e| e.into_inner().0, |(guard, _)| guard);
         }
+    }
+
+    /// Waits up to `timeout` for the first valid message, a `kind` published on this
+    /// listener's topic.
+    ///
+    /// # Errors
+    /// None came: a named error saying what was found on the graph (no publisher, or
+    /// publishers of another type), how many messages were invalid and why, then `hint`.
+    pub fn wait_for_first(
+        &self,
+        context: &Context,
+        kind: Kind,
+        timeout: Duration,
+        hint: &str,
+    ) -> Result<(), NetError> {
+        if self.wait(Instant::now() + timeout, false, |_| true)? {
+            return Ok(());
+        }
+        let why = wait_for_peer(context, &self.topic, kind, Peer::Publisher, Instant::now())
+            .map_or_else(|why| format!(" ({why})"), |()| String::new());
+        Err(NetError::Ros2(format!(
+            "no valid {} within {:.1} s{why}{}: {hint}",
+            self.topic,
+            timeout.as_secs_f64(),
+            self.rejections()
+        )))
     }
 
     /// `", N rejected (last: why)"` when messages were rejected, else empty.

@@ -1,16 +1,21 @@
 //! `robokey ros2-sim`: an emulated ROS 2 differential-drive robot. It subscribes to
 //! `/cmd_vel`, applies each command as a TurtleBot3 does (clamped to its speed limits, then
 //! truncated to the command quantum), integrates the unicycle exactly, and publishes
-//! `/odom`, so the `ros2` backend and a whole session run without hardware or ROS.
+//! `/odom`, so the `ros2` backend and a whole session run without hardware or ROS. For
+//! private sensing it also plays the motion capture: the true pose, with the controller's
+//! sensor noise, as `geometry_msgs/PoseStamped`.
 
 use std::time::{Duration, Instant};
 
+use rand::rngs::ChaCha8Rng;
 use robokey::interrupt::Interrupt;
+use robokey::rng::{Purpose, stream};
 use ros2_client::{Context, Node, Publisher};
 
-use super::msg::{Header, Kind, Odometry, Time, Twist, TwistStamped};
-use super::node::{Listener, RobotTopics, localhost_node, topic};
+use super::msg::{Header, Kind, Odometry, Pose, PoseStamped, Time, Twist, TwistStamped};
+use super::node::{Listener, RobotTopics, TopicSpec, localhost_node, topic};
 use crate::error::NetError;
+use crate::world::gaussian;
 
 /// How the emulated robot's time advances.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -23,6 +28,21 @@ pub enum SimTime {
     /// The wheels turn with the wall clock; `/odom` is published at the rate, stamped with
     /// the wall clock.
     Real,
+}
+
+/// The emulated motion capture: the robot's true pose plus Gaussian noise, published as
+/// `geometry_msgs/PoseStamped` with each `/odom` (same stamp). In virtual time the noise is
+/// drawn once per step and the repeats carry the same pose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MocapOptions {
+    /// The topic and its QoS, e.g. `/mocap/robot/pose`.
+    pub topic: TopicSpec,
+    /// `header.frame_id` of the poses.
+    pub frame_id: String,
+    /// Noise std (m, m, rad): `sensing.controller_std`, as the world's motion capture.
+    pub std: [f64; 3],
+    /// Seed of the noise: the simulator's `measurement` stream of this seed, replicate 0.
+    pub seed: u64,
 }
 
 /// Options of the emulator.
@@ -45,6 +65,8 @@ pub struct SimOptions {
     pub frame_id: String,
     /// `child_frame_id` of `/odom`.
     pub child_frame_id: String,
+    /// The motion capture, if published.
+    pub mocap: Option<MocapOptions>,
     /// Exit after this long without a command (after the first), or without any if none came.
     pub idle_exit: Option<Duration>,
     /// A stop request (SIGINT, SIGTERM).
@@ -58,6 +80,8 @@ pub struct SimStats {
     pub commands: u64,
     /// `/odom` messages published.
     pub odometry: u64,
+    /// Motion-capture poses published.
+    pub mocap: u64,
     /// Virtual time reached or wall time run (s).
     pub time: f64,
     /// The final pose (m, m, rad; θ unwrapped).
@@ -118,6 +142,7 @@ pub struct Ros2Sim {
     options: SimOptions,
     commands: Listener<Command>,
     odom: Publisher<Odometry>,
+    mocap: Option<Publisher<PoseStamped>>,
     // Dropped last: the publisher and listener above belong to them.
     _node: Node,
     _context: Context,
@@ -144,6 +169,15 @@ impl Ros2Sim {
             return Err(NetError::Usage(format!(
                 "--quantum {} is not allowed (allowed: ≥ 0; 0 for none)",
                 options.quantum
+            )));
+        }
+        if let Some(mocap) = &options.mocap
+            && !mocap.std.iter().all(|s| *s >= 0.0 && s.is_finite())
+        {
+            return Err(NetError::Usage(format!(
+                "sensing.controller_std {:?} is not allowed for the motion capture (allowed: \
+                 each ≥ 0 and finite)",
+                mocap.std
             )));
         }
         if let SimTime::Virtual(period) = options.time
@@ -186,10 +220,26 @@ impl Ros2Sim {
                     topics.odom.name
                 ))
             })?;
+        let mocap = match &options.mocap {
+            Some(mocap) => {
+                let pose_topic = topic(&node, &mocap.topic, Kind::PoseStamped)?;
+                Some(
+                    node.create_publisher(&pose_topic, Some(mocap.topic.qos()))
+                        .map_err(|e| {
+                            NetError::Ros2(format!(
+                                "create the publisher of {}: {e:?}",
+                                mocap.topic.name
+                            ))
+                        })?,
+                )
+            }
+            None => None,
+        };
         Ok(Self {
             options,
             commands,
             odom,
+            mocap,
             _node: node,
             _context: context,
         })
@@ -208,9 +258,15 @@ impl Ros2Sim {
             SimTime::Virtual(period) => format!("virtual time, {period} s per command"),
             SimTime::Real => "real time".to_owned(),
         };
+        let mocap = o.mocap.as_ref().map_or_else(String::new, |m| {
+            format!(
+                ", motion capture on {} (noise std {:?}, seed {})",
+                m.topic.name, m.std, m.seed
+            )
+        });
         format!(
             "ros2-sim on ROS domain {}, localhost only: {} ({kind}) in, {} at {} Hz out, {time}, \
-             quantum {}, |v| ≤ {} m/s, |ω| ≤ {} rad/s",
+             quantum {}, |v| ≤ {} m/s, |ω| ≤ {} rad/s{mocap}",
             o.topics.domain_id,
             o.topics.cmd_vel.name,
             o.topics.odom.name,
@@ -236,23 +292,42 @@ impl Ros2Sim {
         )
     }
 
-    fn publish(&self, pose: [f64; 3], speeds: (f64, f64), stamp: Time) -> Result<(), NetError> {
+    /// Publishes `/odom` at the true `pose` and, with a motion capture, its measurement `seen`.
+    fn publish(
+        &self,
+        pose: [f64; 3],
+        speeds: (f64, f64),
+        seen: [f64; 3],
+        stamp: Time,
+        stats: &mut SimStats,
+    ) -> Result<(), NetError> {
+        let o = &self.options;
         let header = Header {
             stamp,
-            frame_id: self.options.frame_id.clone(),
+            frame_id: o.frame_id.clone(),
         };
-        let message = Odometry::planar(
-            header,
-            &self.options.child_frame_id,
-            pose,
-            [speeds.0, speeds.1],
-        );
-        self.odom.publish(message).map_err(|e| {
-            NetError::Ros2(format!(
-                "publish on {}: {e:?}",
-                self.options.topics.odom.name
-            ))
-        })
+        let message = Odometry::planar(header, &o.child_frame_id, pose, [speeds.0, speeds.1]);
+        let failed = |name: &str, e: &dyn std::fmt::Debug| {
+            NetError::Ros2(format!("publish on {name}: {e:?}"))
+        };
+        self.odom
+            .publish(message)
+            .map_err(|e| failed(&o.topics.odom.name, &e))?;
+        stats.odometry += 1;
+        if let (Some(publisher), Some(mocap)) = (&self.mocap, &o.mocap) {
+            let message = PoseStamped {
+                header: Header {
+                    stamp,
+                    frame_id: mocap.frame_id.clone(),
+                },
+                pose: Pose::planar(seen),
+            };
+            publisher
+                .publish(message)
+                .map_err(|e| failed(&mocap.topic.name, &e))?;
+            stats.mocap += 1;
+        }
+        Ok(())
     }
 
     /// Runs until the idle timeout or a stop request.
@@ -270,6 +345,11 @@ impl Ros2Sim {
         let mut integrated_to = started;
         let mut last_command = started;
         let mut next_odom = started;
+        let mut mocap = o.mocap.as_ref().map(|m| MocapNoise {
+            std: robokey::model::Pose::from(m.std),
+            rng: stream(m.seed, Purpose::Measurement, 0),
+        });
+        let mut seen = see(mocap.as_mut(), pose);
         loop {
             if o.interrupt.signal().is_some() {
                 break;
@@ -288,12 +368,12 @@ impl Ros2Sim {
                             (now - integrated_to).as_secs_f64(),
                         );
                         integrated_to = now;
+                        seen = see(mocap.as_mut(), pose);
                         Time::now()
                     }
                     SimTime::Virtual(_) => Time::from_secs_f64(virtual_time),
                 };
-                self.publish(pose, speeds, stamp)?;
-                stats.odometry += 1;
+                self.publish(pose, speeds, seen, stamp, &mut stats)?;
                 next_odom += odom_period;
                 if next_odom < now {
                     next_odom = now + odom_period;
@@ -315,8 +395,9 @@ impl Ros2Sim {
                         speeds = self.apply(arrival.value);
                         pose = integrate(pose, speeds.0, speeds.1, period);
                         virtual_time += period;
-                        self.publish(pose, speeds, Time::from_secs_f64(virtual_time))?;
-                        stats.odometry += 1;
+                        seen = see(mocap.as_mut(), pose);
+                        let stamp = Time::from_secs_f64(virtual_time);
+                        self.publish(pose, speeds, seen, stamp, &mut stats)?;
                     }
                 }
             }
@@ -327,6 +408,24 @@ impl Ros2Sim {
         };
         stats.pose = pose;
         Ok(stats)
+    }
+}
+
+/// The motion capture's noise and its random stream.
+struct MocapNoise {
+    std: robokey::model::Pose,
+    rng: ChaCha8Rng,
+}
+
+/// What the motion capture sees of the true `pose` (the pose itself without one): one draw
+/// of its noise, as the world's motion capture does (`crate::world`).
+fn see(noise: Option<&mut MocapNoise>, pose: [f64; 3]) -> [f64; 3] {
+    match noise {
+        Some(n) => {
+            let seen = robokey::model::Pose::from(pose) + gaussian(&mut n.rng, &n.std);
+            [seen.x, seen.y, seen.z]
+        }
+        None => pose,
     }
 }
 
@@ -355,6 +454,28 @@ mod tests {
             (up - 0.03).abs() < 1e-12 && (down - 0.04).abs() < 1e-12,
             "{up} {down}"
         );
+    }
+
+    #[test]
+    fn the_motion_capture_draws_the_world_sensors_noise() {
+        // The same numbers as the world's motion capture (`--mocap` of the simulated robot
+        // and the Khepera IV emulator) with this seed: the simulator's measurement stream.
+        let std = [0.0005, 0.001, 0.002];
+        let mut noise = MocapNoise {
+            std: robokey::model::Pose::from(std),
+            rng: stream(7, Purpose::Measurement, 0),
+        };
+        let mut world = stream(7, Purpose::Measurement, 0);
+        let pose = [1.0, -2.0, 10.0];
+        for _ in 0..3 {
+            let seen = see(Some(&mut noise), pose);
+            let expected = gaussian(&mut world, &robokey::model::Pose::from(std));
+            for i in 0..3 {
+                assert_eq!(seen[i], pose[i] + expected[i]);
+            }
+            assert_ne!(seen, pose);
+        }
+        assert_eq!(see(None, pose), pose);
     }
 
     #[test]
