@@ -770,6 +770,13 @@ impl Config {
                 "64 to 2^30",
             ));
         }
+        if post.sample_bits > robokey_secrecy::postprocess::MAX_SAMPLE_BITS as u32 {
+            return Err(invalid(
+                "postprocess.sample_bits",
+                post.sample_bits,
+                "0 to 2^20",
+            ));
+        }
         if !(post.epsilon > 0.0 && post.epsilon <= 0.01) {
             return Err(invalid("postprocess.epsilon", post.epsilon, "(0, 0.01]"));
         }

@@ -86,4 +86,27 @@ mod tests {
                 .contains("camera noise ≥ 8 mm")
         );
     }
+
+    #[test]
+    fn out_of_range_fields_are_named() {
+        for (toml, field) in [
+            ("[postprocess]\nblock_bits = 10\n", "postprocess.block_bits"),
+            (
+                "[postprocess]\nsample_bits = 2000000\n",
+                "postprocess.sample_bits",
+            ),
+            ("[postprocess]\nepsilon = 0.5\n", "postprocess.epsilon"),
+            (
+                "[postprocess]\nassumed_eve_error = 0.7\n",
+                "postprocess.assumed_eve_error",
+            ),
+            (
+                "[sensing]\nmode = \"private\"\n[postprocess]\nassumed_eve_error = 0.2\n",
+                "postprocess.assumed_eve_error",
+            ),
+        ] {
+            let error = Config::from_toml(toml, "test").unwrap_err().to_string();
+            assert!(error.contains(field), "{toml}: {error}");
+        }
+    }
 }
