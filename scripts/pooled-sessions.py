@@ -15,11 +15,13 @@ With --eve (private mode), Eve's camera and commands adversaries run on every se
 and camera log, and their disagreement with the robot's raw bits is summed over all sessions.
 With --summary-only, OUT is not run again, only summed up.
 
-With --kill-trials K, K more sessions follow in which, once the controller prints that it pooled
-the session, the robot or the controller (alternately) is sent SIGKILL after a random delay
-within the post-processing that follows; the next session is a recovery run, after which both
-stores must list identical keys with equal bits. The relay then delays each datagram by 2 ms so
-that post-processing lasts long enough to be hit.
+With --kill-trials K, K more sessions follow, each of which kills one agent with SIGKILL during
+the post-processing that follows the session, in turn: the robot, or the controller, a random
+0–250 ms after the controller pooled the session; the controller as soon as it prints a committed
+key (between its commit and the robot's); the robot as soon as it prints one (between its commit
+and its CommitAck). The next session is a recovery run, after which both stores must list
+identical keys with equal bits. The relay then delays each datagram by 2 ms so that
+post-processing lasts long enough to be hit.
 
 The default relay faults are the README's mix: --loss 0.1 --duplicate 0.05 --reorder 0.05
 --corrupt 0.01 --delay 1±1. ROBOKEY (env) names the binary (default target/release/robokey).
@@ -105,18 +107,26 @@ def session(a, d, index, kill=None):
     controller = subprocess.Popen([BIN, *controller_args], stdout=subprocess.PIPE,
                                   stderr=log, text=True)
     hit = None
+    if kill and kill[0] == "robot" and kill[1] == "commit":
+        hit = kill_robot_at_commit(robot, f"{d}/robot.out")
     for line in controller.stdout:
         log.write(line)
         log.flush()
-        if kill and hit is None and " pooled: " in line:
-            victim, delay = kill
-            time.sleep(delay)
+        if not kill or hit is not None:
+            continue
+        victim, moment = kill
+        if victim == "controller" and moment == "commit" and " committed: " in line:
+            controller.send_signal(signal.SIGKILL)
+            hit = "controller killed at its commit"
+            break
+        if moment != "commit" and " pooled: " in line:
+            time.sleep(moment)
             process = robot if victim == "robot" else controller
             if process.poll() is None:
                 process.send_signal(signal.SIGKILL)
-                hit = f"{victim} killed {delay * 1000:.0f} ms after pooling"
+                hit = f"{victim} killed {moment * 1000:.0f} ms after pooling"
             else:
-                hit = f"{victim} had ended before {delay * 1000:.0f} ms"
+                hit = f"{victim} had ended before {moment * 1000:.0f} ms"
             if victim == "controller":
                 break
     controller.wait()
@@ -124,7 +134,27 @@ def session(a, d, index, kill=None):
     relay.wait()
     if recorder:
         recorder.wait()
-    return hit
+    if callable(hit):
+        hit = hit()
+    return hit or "no kill: the session ended without a committed key"
+
+
+def kill_robot_at_commit(robot, out_path):
+    """Kills the robot as soon as its output says it committed a key (a watcher thread);
+    returns a function that says what happened."""
+    import threading
+    result = []
+
+    def watch():
+        while robot.poll() is None:
+            if " committed: " in open(out_path).read():
+                robot.send_signal(signal.SIGKILL)
+                result.append("robot killed at its commit")
+                return
+            time.sleep(0.001)
+    thread = threading.Thread(target=watch)
+    thread.start()
+    return lambda: (thread.join(), result[0] if result else None)[1]
 
 
 def stores_agree(a):
@@ -231,9 +261,9 @@ def main():
     failures = 0
     for t in range(a.kill_trials):
         victim = ("robot", "controller")[t % 2]
-        delay = rng.uniform(0.0, 0.15)
+        moment = "commit" if t % 4 >= 2 else rng.uniform(0.0, 0.25)
         d = os.path.join(a.out, f"kill-{t:02}")
-        hit = session(a, d, 1000 + t, kill=(victim, delay))
+        hit = session(a, d, 1000 + t, kill=(victim, moment))
         recovery = os.path.join(a.out, f"kill-{t:02}-recovery")
         session(a, recovery, 2000 + t)
         agree, lists = stores_agree(a)
