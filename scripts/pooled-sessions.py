@@ -163,8 +163,8 @@ def stores_agree(a):
     for role in ("robot", "controller"):
         lists[role] = json.loads(robokey("keys", "list", "--json", "--store",
                                          os.path.join(a.out, role)).stdout)
-    ids = [k["id"] for k in lists["controller"]]
-    if ids != [k["id"] for k in lists["robot"]]:
+    ids = sorted(k["id"] for k in lists["controller"])
+    if ids != sorted(k["id"] for k in lists["robot"]):
         return False, lists
     for key_id in ids:
         bits = {role: robokey("keys", "get", "--store", os.path.join(a.out, role), key_id).stdout

@@ -126,7 +126,8 @@ impl KeyStore {
         written
     }
 
-    /// Every stored key, oldest first (by creation, then ID).
+    /// Every stored key, by block then ID: the same order in both agents' stores (creation
+    /// times differ between the sides, and after a crash).
     ///
     /// # Errors
     /// The folder or a key file cannot be read, or a key file is malformed (named).
@@ -142,7 +143,7 @@ impl KeyStore {
                 keys.push(read_key(&path)?);
             }
         }
-        keys.sort_by(|a, b| (&a.created, &a.id).cmp(&(&b.created, &b.id)));
+        keys.sort_by(|a, b| (a.block, &a.id).cmp(&(b.block, &b.id)));
         Ok(keys)
     }
 
