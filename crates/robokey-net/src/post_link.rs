@@ -359,6 +359,12 @@ impl<E: PostEndpoint> PostSide<E> {
     fn block_ended(&mut self, report: &BlockReport) {
         let summary = BlockSummary::from(report);
         match &summary.reason {
+            // A block whose commit the restarted controller repeated: its key was stored
+            // before the crash, and the figures went with the process.
+            None if summary.bits == 0 => println!(
+                "{}: block {}: the robot acknowledged the commit repeated after a restart",
+                self.role, summary.block
+            ),
             None => println!(
                 "{}: block {}: {} raw bits of {} sessions, {} disclosed ({} differ), {} \
                  reconciled, leak {} + {} bits, H_min {:.0} → key of {} bits",
