@@ -143,6 +143,9 @@ pub fn run_controller(
             if !ended.robot_authenticated && rejected.bad_mac + rejected.pairing_mode > 0 {
                 report.ending = Ending::AuthenticationFailed;
             }
+            if let Some(error) = ended.post_error {
+                report.post_stopped(&error);
+            }
             report.post = post;
             Ok(report)
         }
@@ -165,6 +168,8 @@ struct Ended {
     robot_authenticated: bool,
     /// The key bits (empty unless confirmed); zeroized when dropped.
     key: Zeroizing<Vec<u8>>,
+    /// What stopped post-processing after the session, if anything did.
+    post_error: Option<NetError>,
 }
 
 /// The handshake and the session, counting into `report`.
@@ -211,6 +216,7 @@ fn converse(
             outcome: Outcome::Aborted(reason),
             robot_authenticated: false,
             key: Zeroizing::new(Vec::new()),
+            post_error: None,
         });
     }
     let confirmer = transport
@@ -329,6 +335,7 @@ fn converse(
         }
     }
     let outcome = outcome.expect("the loop ends on an outcome");
+    let mut post_error = None;
     if let Some(confirm) = last_confirm {
         let reply = [confirm];
         let mut courtesy = Courtesy::new(&reply, &timing);
@@ -339,15 +346,21 @@ fn converse(
             } else {
                 post.report.not_pooled = Some("the session was not confirmed".into());
             }
-            peer_done = post.run(transport, &timing, &mut courtesy)?;
+            match post.run(transport, &timing, &mut courtesy) {
+                Ok(done) => peer_done = done,
+                Err(error) => post_error = Some(error),
+            }
         }
-        // The key is settled; a signal now only shortens the courtesy to the peer.
-        let _ = linger(transport, &timing, &mut courtesy, peer_done, None);
+        if post_error.is_none() {
+            // The key is settled; a signal now only shortens the courtesy to the peer.
+            let _ = linger(transport, &timing, &mut courtesy, peer_done, None);
+        }
     }
     Ok(Ended {
         outcome,
         robot_authenticated: true,
         key: Zeroizing::new(endpoint.key().to_vec()),
+        post_error,
     })
 }
 

@@ -273,21 +273,21 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         s.report.count_frames(&s.transport);
         return Ok(s.report);
     }
+    let mut post_error = None;
     if let (Some(confirm), false) = (
         s.last_confirm.clone(),
         matches!(s.outcome, Some(Outcome::Aborted(_))),
     ) {
         let reply = [Message::FinishAck, confirm];
         let mut courtesy = Courtesy::new(&reply, &s.timing);
-        let lingered = match post.as_mut() {
-            Some(post) => settle(post, &mut s, &mut courtesy, session),
-            // The key is settled; a signal now only shortens the courtesy to the peer.
-            None => linger(&mut s.transport, &s.timing, &mut courtesy, false, None),
+        post_error = match post.as_mut() {
+            Some(post) => settle(post, &mut s, &mut courtesy, session).err(),
+            None => {
+                // The key is settled; a signal now only shortens the courtesy to the peer.
+                let _ = linger(&mut s.transport, &s.timing, &mut courtesy, false, None);
+                None
+            }
         };
-        if let (Err(error), Some(post)) = (lingered, post.as_mut()) {
-            eprintln!("robot: post-processing stopped: {error}");
-            post.report.note = Some(format!("post-processing stopped: {error}"));
-        }
     }
     let mut report = finish_report(
         s.report,
@@ -297,6 +297,9 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         options.key_out.as_ref(),
         s.shape.bits_per_unit,
     );
+    if let Some(error) = post_error {
+        report.post_stopped(&error);
+    }
     report.post = post.map(PostSide::finish);
     Ok(report)
 }

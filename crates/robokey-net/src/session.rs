@@ -294,10 +294,21 @@ impl SessionReport {
     /// Records a session cut short by `error` (a signal, or a socket, file or robot error).
     pub fn set_error(&mut self, error: &NetError) {
         self.set_outcome(&Outcome::Aborted(error.to_string()));
-        self.ending = match error {
+        self.ending = Self::ending_of(error);
+    }
+
+    /// Post-processing after the session stopped on `error`: the session's outcome (and its
+    /// key file) stand; the run ends interrupted or failed, saying why.
+    pub fn post_stopped(&mut self, error: &NetError) {
+        self.ending = Self::ending_of(error);
+        self.reason = Some(format!("post-processing stopped: {error}"));
+    }
+
+    fn ending_of(error: &NetError) -> Ending {
+        match error {
             NetError::Interrupted(_) => Ending::Interrupted,
             _ => Ending::Failed,
-        };
+        }
     }
 
     /// Writes the report as pretty JSON.
