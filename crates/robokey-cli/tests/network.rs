@@ -609,3 +609,84 @@ fn session_with_stores(name: &str, seed: u64, pairing: &str, args: &[&str]) -> P
         None,
     )
 }
+
+/// SIGKILL of either agent as soon as it prints a committed key, then a recovery session:
+/// both stores list the same keys with the same bits (the two-phase commit, on processes).
+#[test]
+fn an_agent_killed_at_its_commit_leaves_the_stores_agreeing_after_the_next_session() {
+    for victim in ["controller", "robot"] {
+        let dir = scratch(&format!("commit-kill-{victim}"));
+        let pairing = pairing(&dir);
+        let store = |role: &str| s(&dir.join(role));
+        let settings = [
+            "--set",
+            "postprocess.block_bits=500",
+            "--set",
+            "postprocess.assumed_eve_error=0.25",
+            "--allow-restricted",
+            "--store=DIR/ROLE",
+        ];
+        let settings: Vec<String> = settings
+            .iter()
+            .map(|a| a.replace("DIR", &s(&dir)))
+            .collect();
+        let settings: Vec<&str> = settings.iter().map(String::as_str).collect();
+        // The first session fills half a block; the second makes one and is killed.
+        session_with_stores(&format!("commit-kill-{victim}-0"), 60, &pairing, &settings);
+        let role_args = |role: &str| -> Vec<String> {
+            let mut args: Vec<String> =
+                ["--pace", "lockstep", "--silence-timeout", "1", "--pairing"]
+                    .map(str::to_owned)
+                    .to_vec();
+            args.push(pairing.clone());
+            args.extend(settings.iter().map(|a| a.replace("ROLE", role)));
+            args
+        };
+        let mut robot_args = vec!["robot".to_owned(), "--listen".into(), "127.0.0.1:0".into()];
+        robot_args.extend(role_args("robot"));
+        let robot_args: Vec<&str> = robot_args.iter().map(String::as_str).collect();
+        let mut robot = start(&robot_args);
+        let mut controller = Command::new(env!("CARGO_BIN_EXE_robokey"))
+            .args(["controller", "--robot", &robot.address])
+            .args(role_args("controller"))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let stdout = match victim {
+            "controller" => controller.stdout.take().unwrap(),
+            _ => robot.child.stdout.take().unwrap(),
+        };
+        let committed = std::io::BufRead::lines(std::io::BufReader::new(stdout))
+            .map_while(Result::ok)
+            .any(|line| line.contains(" committed: "));
+        assert!(
+            committed,
+            "{victim}: no key committed in the second session"
+        );
+        match victim {
+            "controller" => controller.kill().unwrap(),
+            _ => robot.child.kill().unwrap(),
+        }
+        let _ = controller.wait();
+        let _ = robot.child.wait();
+        session_with_stores(&format!("commit-kill-{victim}-2"), 62, &pairing, &settings);
+        let keys = |role: &str| -> Vec<(String, String)> {
+            let (ok, text) = run(&["keys", "list", "--json", "--store", &store(role)]);
+            assert!(ok, "{text}");
+            let listed: Vec<serde_json::Value> = serde_json::from_str(&text).unwrap();
+            listed
+                .iter()
+                .map(|k| {
+                    let id = k["id"].as_str().unwrap().to_owned();
+                    let (ok, hex) = run(&["keys", "get", "--store", &store(role), &id]);
+                    assert!(ok, "{hex}");
+                    (id, hex)
+                })
+                .collect()
+        };
+        let robot_keys = keys("robot");
+        assert!(!robot_keys.is_empty(), "{victim}");
+        assert_eq!(robot_keys, keys("controller"), "{victim}");
+    }
+}
