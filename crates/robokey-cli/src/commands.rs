@@ -399,7 +399,20 @@ fn make_report(dir: &Path, quick: bool, jobs: usize, stop: &Interrupt) -> Result
         Ok(made) => {
             print!("{}", made.summary);
             println!("report: {}", made.path.display());
-            println!("reported in {:.2} s", started.elapsed().as_secs_f64());
+            let parts: Vec<String> = made
+                .timings
+                .iter()
+                .map(|(part, seconds)| format!("{part} {seconds:.2} s"))
+                .collect();
+            println!(
+                "reported in {:.2} s{}",
+                started.elapsed().as_secs_f64(),
+                if parts.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", parts.join(", "))
+                }
+            );
             Ok(Status::Success)
         }
         Err(LabError::Interrupted(signal)) => {

@@ -115,6 +115,7 @@ pub fn report(out: &Path, loaded: &[Loaded]) -> Result<Report, LabError> {
     Ok(Report {
         path,
         summary: terminal,
+        timings: Vec::new(),
     })
 }
 
