@@ -152,21 +152,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         trace_path,
     ];
     let paths = drawn.into_paths();
-    let labels: Vec<String> = match paths.as_slice() {
-        [_] => vec!["robot".into()],
-        _ => paths
-            .iter()
-            .map(|p| {
-                let k = |row: Option<&robokey::sim::TraceRow>| row.map_or(0, |r| r.k);
-                format!("robot, steps {}–{}", k(p.first()), k(p.last()))
-            })
-            .collect(),
-    };
-    let drawn: Vec<(&str, &[robokey::sim::TraceRow])> = labels
-        .iter()
-        .map(String::as_str)
-        .zip(paths.iter().map(Vec::as_slice))
-        .collect();
+    let labelled = trace::labelled_paths("robot", &paths);
+    let drawn: Vec<(&str, &[robokey::sim::TraceRow])> =
+        labelled.iter().map(|(l, p)| (l.as_str(), *p)).collect();
     let figures = report::trajectory_figure(&args.out.join("trajectory"), &drawn, None)?;
     let proto = &config.protocol;
     println!(

@@ -604,7 +604,7 @@ fn paper_report(
                 } else {
                     "robot, protocol off"
                 },
-                r.trace.as_deref()?,
+                r.trace.as_deref()?.first()?.as_slice(),
             ))
         })
         .collect();

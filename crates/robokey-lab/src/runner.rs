@@ -3,17 +3,21 @@
 //! so any `--jobs` and any sharding give the same numbers.
 
 use std::io::IsTerminal;
+use std::path::Path;
 use std::str::FromStr;
 
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use rayon::prelude::*;
+use robokey::Config;
 use robokey::Metrics;
 use robokey::interrupt::Interrupt;
 use robokey::protocol::SessionPlan;
-use robokey::sim::{TraceRow, simulate_plan};
+use robokey::sim::{RunOutput, TraceRow, simulate_plan, simulate_plan_streaming};
 
-use crate::error::LabError;
+use crate::error::{LabError, io_at};
+use crate::results::trace_path;
 use crate::sweep::Experiment;
+use crate::trace::TraceCsv;
 
 /// Shard `index` of `count` (1-based): runs whose index ≡ index − 1 (mod count).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -69,8 +73,10 @@ pub struct RunRecord {
     pub replicate: u32,
     /// The run's metrics.
     pub metrics: Metrics,
-    /// The trace, for replicate 0 when the sweep asks for traces.
-    pub trace: Option<Vec<TraceRow>>,
+    /// Read back from a sweep folder when the sweep kept traces (replicate 0): the paths a
+    /// trajectory figure draws of it ([`crate::trace::DrawnRows`]). A sweep streams the
+    /// trace to disk as it runs and never holds it.
+    pub trace: Option<Vec<Vec<TraceRow>>>,
 }
 
 /// A progress bar on a terminal, hidden otherwise: `label [=====>   ] done/len units, rate,
@@ -131,12 +137,16 @@ fn significant(x: f64) -> String {
 
 /// Runs the given runs of the experiment (run indices, see [`RunRecord::run`]) on the
 /// current rayon pool, starting none once `stop` is requested; `finished` is called after
-/// each run. Returns the runs that finished, in run order: all of them unless stopped.
+/// each run. When the experiment keeps traces, replicate 0 of each point streams its trace
+/// into `dir`'s `traces/point-<i>.csv` as it runs (complete files only: a run stopped
+/// half-way leaves none). Returns the runs that finished, in run order: all of them unless
+/// stopped.
 ///
 /// # Errors
-/// The first run whose session aborted.
+/// The first run whose session aborted, or a trace that cannot be written.
 pub fn run_experiment(
     experiment: &Experiment,
+    dir: &Path,
     runs: &[usize],
     stop: &Interrupt,
     finished: &(dyn Fn() + Sync),
@@ -162,13 +172,12 @@ pub fn run_experiment(
             let (point, replicate) = (run / replicates, (run % replicates) as u32);
             let mut plan = plans[point].clone();
             plan.session = replicate;
-            let with_trace = experiment.traces && replicate == 0;
-            let output = simulate_plan(
-                &experiment.points[point].config,
-                plan,
-                replicate,
-                with_trace,
-            )?;
+            let config = &experiment.points[point].config;
+            let output = if experiment.traces && replicate == 0 {
+                streamed(config, plan, &trace_path(dir, point))?
+            } else {
+                simulate_plan(config, plan, replicate, false)?
+            };
             bar.inc(1);
             finished();
             Ok(Some(RunRecord {
@@ -176,12 +185,34 @@ pub fn run_experiment(
                 point,
                 replicate,
                 metrics: output.metrics,
-                trace: with_trace.then_some(output.trace),
+                trace: None,
             }))
         })
         .collect::<Result<Vec<_>, LabError>>();
     bar.finish_and_clear();
     Ok(records?.into_iter().flatten().collect())
+}
+
+/// Replicate 0 of `config`, its trace written row by row to `path` (through a `.partial`
+/// file renamed once complete).
+fn streamed(config: &Config, plan: SessionPlan, path: &Path) -> Result<RunOutput, LabError> {
+    let partial = path.with_extension("csv.partial");
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent).map_err(io_at(parent))?;
+    }
+    let file = std::fs::File::create(&partial).map_err(io_at(&partial))?;
+    let mut csv = TraceCsv::new(std::io::BufWriter::new(file)).map_err(io_at(&partial))?;
+    let mut written = Ok(());
+    let output = simulate_plan_streaming(config, plan, 0, &mut |row| {
+        if written.is_ok() {
+            written = csv.write(&row);
+        }
+    })?;
+    written
+        .and_then(|()| csv.finish().map(drop))
+        .map_err(io_at(&partial))?;
+    std::fs::rename(&partial, path).map_err(io_at(path))?;
+    Ok(output)
 }
 
 /// Runs `f` on a rayon pool of `jobs` threads (0: one per core; never more than one per core).
