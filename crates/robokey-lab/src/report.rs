@@ -12,7 +12,7 @@ use crate::error::LabError;
 use crate::files::write;
 use crate::folder::Loaded;
 use crate::plot::{BoxChart, BoxGroup, Interval, LineChart, Series, SeriesStyle};
-use crate::runner::RunRecord;
+use crate::runner::{RunRecord, thousands};
 use crate::sessions::SessionBank;
 use crate::stats::{Summary, TrendTest, spearman_permutation_test};
 use crate::sweep::{Experiment, experiments_from_table};
@@ -145,19 +145,6 @@ fn secrecy_section(
         });
     }
     Ok((md, terminal))
-}
-
-/// `10,000`.
-fn thousands(n: usize) -> String {
-    let digits = n.to_string();
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
 }
 
 /// Stops between the report's sections once a stop is requested.

@@ -124,7 +124,12 @@ fn significant(x: f64) -> String {
     }
     let magnitude = 10f64.powi(x.log10().floor() as i32 - 2);
     let rounded = ((x / magnitude).round() * magnitude) as u64;
-    let digits = rounded.to_string();
+    thousands(rounded)
+}
+
+/// An integer with its thousands separated by commas: `10,000`.
+pub(crate) fn thousands(n: impl ToString) -> String {
+    let digits = n.to_string();
     let mut out = String::new();
     for (i, c) in digits.chars().enumerate() {
         if i > 0 && (digits.len() - i).is_multiple_of(3) {
