@@ -2,6 +2,7 @@
 //! run-index order, and every run draws from its own per-purpose, per-replicate streams,
 //! so any `--jobs` and any sharding give the same numbers.
 
+use std::collections::HashMap;
 use std::io::IsTerminal;
 use std::path::Path;
 use std::str::FromStr;
@@ -12,10 +13,13 @@ use robokey::Config;
 use robokey::Metrics;
 use robokey::interrupt::Interrupt;
 use robokey::protocol::SessionPlan;
-use robokey::sim::{RunOutput, TraceRow, simulate_plan, simulate_plan_streaming};
+use robokey::sim::{
+    RunOutput, TraceRow, replay, simulate_plan, simulate_plan_streaming, simulate_transcript,
+};
 
 use crate::error::{LabError, io_at};
 use crate::results::trace_path;
+use crate::sessions::physical_key;
 use crate::sweep::Experiment;
 use crate::trace::TraceCsv;
 
@@ -168,34 +172,74 @@ pub fn run_experiment(
         &experiment.name
     };
     let bar = progress_bar(runs.len(), label, "run");
-    let records = runs
+    // Runs of points that differ only in Eve's settings (e.g. an α sweep) are one physical
+    // session: simulated once, each point's Eve hears its transcript (sessions.rs).
+    let keys: Vec<String> = experiment
+        .points
+        .iter()
+        .map(|p| physical_key(&p.config))
+        .collect();
+    let mut sessions: Vec<Vec<usize>> = Vec::new();
+    let mut session_of: HashMap<(&str, usize), usize> = HashMap::new();
+    for &run in runs {
+        let (point, replicate) = (run / replicates, run % replicates);
+        if experiment.traces && replicate == 0 {
+            sessions.push(vec![run]);
+            continue;
+        }
+        let index = *session_of
+            .entry((keys[point].as_str(), replicate))
+            .or_insert_with(|| {
+                sessions.push(Vec::new());
+                sessions.len() - 1
+            });
+        sessions[index].push(run);
+    }
+    let records = sessions
         .par_iter()
-        .map(|&run| {
+        .map(|session| {
             if stop.is_requested() {
-                return Ok(None);
+                return Ok(Vec::new());
             }
-            let (point, replicate) = (run / replicates, (run % replicates) as u32);
+            let record = |run: usize, output: RunOutput| {
+                bar.inc(1);
+                finished();
+                RunRecord {
+                    run,
+                    point: run / replicates,
+                    replicate: (run % replicates) as u32,
+                    metrics: output.metrics,
+                    trace: None,
+                }
+            };
+            let (point, replicate) = (session[0] / replicates, (session[0] % replicates) as u32);
+            let config = &experiment.points[point].config;
             let mut plan = plans[point].clone();
             plan.session = replicate;
-            let config = &experiment.points[point].config;
-            let output = if experiment.traces && replicate == 0 {
-                streamed(config, plan, &trace_path(dir, point))?
-            } else {
-                simulate_plan(config, plan, replicate, false)?
-            };
-            bar.inc(1);
-            finished();
-            Ok(Some(RunRecord {
-                run,
-                point,
-                replicate,
-                metrics: output.metrics,
-                trace: None,
-            }))
+            if let [run] = session[..] {
+                let output = if experiment.traces && replicate == 0 {
+                    streamed(config, plan, &trace_path(dir, point))?
+                } else {
+                    simulate_plan(config, plan, replicate, false)?
+                };
+                return Ok(vec![record(run, output)]);
+            }
+            let mut silent = config.clone();
+            silent.eve.enabled = false;
+            let (output, transcript) = simulate_transcript(&silent, replicate)?;
+            Ok(session
+                .iter()
+                .map(|&run| {
+                    let config = &experiment.points[run / replicates].config;
+                    record(run, replay(config, replicate, &output, &transcript))
+                })
+                .collect())
         })
-        .collect::<Result<Vec<_>, LabError>>();
+        .collect::<Result<Vec<Vec<RunRecord>>, LabError>>();
     bar.finish_and_clear();
-    Ok(records?.into_iter().flatten().collect())
+    let mut records: Vec<RunRecord> = records?.into_iter().flatten().collect();
+    records.sort_by_key(|r| r.run);
+    Ok(records)
 }
 
 /// Replicate 0 of `config`, its trace written row by row to `path` (through a `.partial`

@@ -11,19 +11,24 @@ use std::collections::{HashMap, HashSet};
 
 use rayon::prelude::*;
 use robokey::Config;
-use robokey::config::EveConfig;
+use robokey::config::{EveConfig, SensingMode};
 use robokey::protocol::Message;
 use robokey::sim::{RunOutput, simulate_transcript};
 
 use crate::error::LabError;
 use crate::runner::progress_bar;
 
-/// What identifies a physical session: the configuration without its `[eve]` table and
-/// without `run.replicates` (which says how many sessions, not what happens in one).
+/// What identifies a physical session: the configuration without `run.replicates` (which
+/// says how many sessions, not what happens in one) and, in odometry mode, without its
+/// `[eve]` table. In private sensing Eve films the robot from within the session (her camera
+/// draws, her evidence in the output), so there her settings stay in the key: such sessions
+/// are never shared.
 #[must_use]
 pub fn physical_key(config: &Config) -> String {
     let mut physical = config.clone();
-    physical.eve = EveConfig::default();
+    if config.sensing.mode == SensingMode::Odometry {
+        physical.eve = EveConfig::default();
+    }
     physical.run.replicates = Config::default().run.replicates;
     physical.to_toml()
 }
@@ -178,5 +183,23 @@ mod tests {
         }
         // One physical configuration: the α and strategy changes share it.
         assert_eq!(bank.groups.len(), 1);
+    }
+
+    /// In private sensing Eve's camera is part of the session: no sharing across her settings.
+    #[test]
+    fn private_sessions_keep_eves_camera_in_their_key() {
+        let private = |camera: f64| {
+            let mut config = Config::default();
+            config.sensing.mode = SensingMode::Private;
+            config.eve.camera_std = [camera; 3];
+            config
+        };
+        assert_ne!(physical_key(&private(0.004)), physical_key(&private(0.008)));
+        let odometry = |alpha: f64| {
+            let mut config = Config::default();
+            config.eve.alpha = alpha;
+            config
+        };
+        assert_eq!(physical_key(&odometry(0.0)), physical_key(&odometry(0.1)));
     }
 }
