@@ -453,8 +453,8 @@ pub fn paper_suite(quick: bool) -> Result<Vec<Experiment>, LabError> {
 /// Makes the figures (`figures/`) and `report.md` of a complete sweep folder or suite
 /// folder, from its files alone: the paper's report for a sweep of `experiments/paper.toml`
 /// (a suite holding its four experiments), else a report of each experiment's metrics
-/// against its axes. `quick`: the paper report's private-sensing section on the small grid
-/// of `reproduce --quick`. Between the paper report's sections, a requested stop ends it.
+/// against its axes. `quick`: the paper report's small grids of `reproduce --quick` (5
+/// eavesdropping campaigns, 2,000-bit secrecy blocks, the small private-sensing map). Between the paper report's sections, a requested stop ends it.
 ///
 /// # Errors
 /// The folder is not a complete sweep (an interrupted sweep, a lone shard), a run's files do

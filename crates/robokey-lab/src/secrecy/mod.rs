@@ -4,10 +4,11 @@
 //! per-position error rates, and the finite-key output length of the post-processing the
 //! agents run ([`pipeline`]) over pooled blocks of whole sessions.
 //!
-//! Sessions are re-simulated from the sweep's `config.resolved.toml` and seeds, with the
-//! adversary swapped in; sessions are added (replicates 0, 1, …) until the pooled raw key
-//! fills the requested number of blocks. A learning adversary (identify, transcript) hears
-//! them in that order, so what she learned from earlier sessions serves her on later ones.
+//! Sessions are re-simulated from the sweep's `config.resolved.toml` and seeds; sessions are
+//! added (replicates 0, 1, …) until the pooled raw key fills the requested number of blocks.
+//! In odometry mode each session is simulated once and every adversary hears its transcript
+//! ([`crate::sessions`]); a learning adversary (identify, transcript) hears them in order, so
+//! what she learned from earlier sessions serves her on later ones.
 //! Results are computed here and rendered by [`render`].
 
 pub mod map;
