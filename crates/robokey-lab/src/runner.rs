@@ -174,21 +174,25 @@ pub fn run_experiment(
     let bar = progress_bar(runs.len(), label, "run");
     // Runs of points that differ only in Eve's settings (e.g. an α sweep) are one physical
     // session: simulated once, each point's Eve hears its transcript (sessions.rs).
-    let keys: Vec<String> = experiment
-        .points
-        .iter()
-        .map(|p| physical_key(&p.config))
+    // The first point of each point's physical configuration.
+    let mut first_of: HashMap<String, usize> = HashMap::new();
+    let physical: Vec<usize> = (0..experiment.points.len())
+        .map(|p| {
+            *first_of
+                .entry(physical_key(&experiment.points[p].config))
+                .or_insert(p)
+        })
         .collect();
-    let mut sessions: Vec<Vec<usize>> = Vec::new();
-    let mut session_of: HashMap<(&str, usize), usize> = HashMap::new();
+    let mut sessions: Vec<Vec<usize>> = Vec::with_capacity(runs.len());
+    let mut session_of: HashMap<(usize, usize), usize> = HashMap::new();
     for &run in runs {
         let (point, replicate) = (run / replicates, run % replicates);
-        if experiment.traces && replicate == 0 {
+        if experiment.traces && replicate == 0 || first_of.len() == physical.len() {
             sessions.push(vec![run]);
             continue;
         }
         let index = *session_of
-            .entry((keys[point].as_str(), replicate))
+            .entry((physical[point], replicate))
             .or_insert_with(|| {
                 sessions.push(Vec::new());
                 sessions.len() - 1
