@@ -140,14 +140,15 @@ impl PrivateControllerEndpoint {
     }
 
     fn handle_message(&mut self, message: Message) {
-        // Duplicates and messages that do not fit the phase are ignored.
-        if let Some(Message::PrivateMeasurement {
-            step,
-            applied_step,
-            fate_cursor,
-        }) = self.lifecycle.on_message(message)
-        {
-            self.handle_measurement(step, applied_step, fate_cursor);
+        match message {
+            Message::PrivateMeasurement {
+                step,
+                applied_step,
+                fate_cursor,
+            } if self.lifecycle.running() => {
+                self.handle_measurement(step, applied_step, fate_cursor);
+            }
+            message => self.lifecycle.on_message(message),
         }
     }
 

@@ -105,23 +105,21 @@ impl ControllerLifecycle {
         }
     }
 
-    /// A message from the robot: ignored once done, an `Abort` ends the session, a closing
-    /// session hands it to its [`Closer`]; a running session's message is returned for the
-    /// endpoint to handle.
-    pub(crate) fn on_message(&mut self, message: Message) -> Option<Message> {
+    /// A message from the robot that the running endpoint did not take: ignored once done,
+    /// an `Abort` ends the session, a closing session hands it to its [`Closer`]; anything
+    /// else (a duplicate, a message that does not fit the phase) is ignored.
+    pub(crate) fn on_message(&mut self, message: Message) {
         match (&mut self.phase, message) {
-            (Phase::Done, _) => None,
+            (Phase::Done, _) => {}
             (_, Message::Abort { reason }) => {
                 self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
-                None
             }
             (Phase::Closing(closer), message) => {
                 if let Some(outcome) = closer.on_message(message, &mut self.outputs) {
                     self.finish(outcome);
                 }
-                None
             }
-            (Phase::Running, message) => Some(message),
+            (Phase::Running, _) => {}
         }
     }
 }

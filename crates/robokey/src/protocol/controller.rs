@@ -172,15 +172,16 @@ impl ControllerEndpoint {
     }
 
     fn handle_message(&mut self, message: Message) {
-        // Duplicates and messages that do not fit the phase are ignored.
-        if let Some(Message::Measurement {
-            step,
-            y,
-            applied_step,
-            fate_cursor,
-        }) = self.lifecycle.on_message(message)
-        {
-            self.handle_measurement(step, Pose::from(y), applied_step, fate_cursor);
+        match message {
+            Message::Measurement {
+                step,
+                y,
+                applied_step,
+                fate_cursor,
+            } if self.lifecycle.running() => {
+                self.handle_measurement(step, Pose::from(y), applied_step, fate_cursor);
+            }
+            message => self.lifecycle.on_message(message),
         }
     }
 
