@@ -152,21 +152,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         trace_path,
     ];
     let paths = drawn.into_paths();
-    let labels: Vec<String> = match paths.as_slice() {
-        [_] => vec!["robot".into()],
-        _ => paths
-            .iter()
-            .map(|p| {
-                let k = |row: Option<&robokey::sim::TraceRow>| row.map_or(0, |r| r.k);
-                format!("robot, steps {}–{}", k(p.first()), k(p.last()))
-            })
-            .collect(),
-    };
-    let drawn: Vec<(&str, &[robokey::sim::TraceRow])> = labels
-        .iter()
-        .map(String::as_str)
-        .zip(paths.iter().map(Vec::as_slice))
-        .collect();
+    let labelled = trace::labelled_paths("robot", &paths);
+    let drawn: Vec<(&str, &[robokey::sim::TraceRow])> =
+        labelled.iter().map(|(l, p)| (l.as_str(), *p)).collect();
     let figures = report::trajectory_figure(&args.out.join("trajectory"), &drawn, None)?;
     let proto = &config.protocol;
     println!(
@@ -399,7 +387,20 @@ fn make_report(dir: &Path, quick: bool, jobs: usize, stop: &Interrupt) -> Result
         Ok(made) => {
             print!("{}", made.summary);
             println!("report: {}", made.path.display());
-            println!("reported in {:.2} s", started.elapsed().as_secs_f64());
+            let parts: Vec<String> = made
+                .timings
+                .iter()
+                .map(|(part, seconds)| format!("{part} {seconds:.2} s"))
+                .collect();
+            println!(
+                "reported in {:.2} s{}",
+                started.elapsed().as_secs_f64(),
+                if parts.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", parts.join(", "))
+                }
+            );
             Ok(Status::Success)
         }
         Err(LabError::Interrupted(signal)) => {

@@ -190,8 +190,8 @@ struct ReportArgs {
     /// merge of shards.
     #[arg(value_name = "SWEEP_DIR")]
     dir: PathBuf,
-    /// For a sweep of experiments/paper.toml: the private-sensing section on the small grid
-    /// of `reproduce --quick` (otherwise that of `reproduce`).
+    /// For a sweep of experiments/paper.toml: the small grids of `reproduce --quick` (5
+    /// eavesdropping campaigns, 2,000-bit secrecy blocks, a smaller private-sensing map).
     #[arg(long)]
     quick: bool,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
@@ -207,7 +207,8 @@ struct ReproduceArgs {
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
-    /// 3 replicates per point instead of 10, and a smaller private-sensing map.
+    /// 3 replicates per point instead of 10, 5 eavesdropping campaigns instead of 20,
+    /// 2,000-bit secrecy blocks instead of 10,000, and a smaller private-sensing map.
     #[arg(long)]
     quick: bool,
     /// Overwrite a non-empty output folder.

@@ -333,7 +333,7 @@ fn reproduce_quick_writes_a_parseable_report_and_a_cluster_run_the_same_files() 
         "agrees with the paper",
         "Eve's disagreement: the same at every α; the paper's trend does not reproduce",
         "secret bits, dv-sweep: 0 at every point, against every adversary",
-        "eavesdroppers that came to decide as well as the controller, of 20 campaigns:\n  oracle",
+        "eavesdroppers that came to decide as well as the controller, of 5 campaigns:\n  oracle",
         "private sensing:",
     ] {
         assert!(printed.contains(finding), "{finding}: {printed}");

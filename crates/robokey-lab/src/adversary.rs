@@ -4,7 +4,6 @@
 //! to match the controller, and her disagreement with `K_c` per session.
 
 use std::fmt::Write as _;
-use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
@@ -13,49 +12,12 @@ use robokey::config::{EveStrategy, SensingMode};
 use robokey::eve::{Eavesdropper, Eve, starting_errors};
 use robokey::protocol::{KeyBits, Message, Outcome, SessionPlan, StepDecision};
 use robokey::rng::{Purpose, stream};
-use robokey::sim::{RunOutput, simulate_transcript};
 use serde::Serialize;
 
 use crate::error::LabError;
 use crate::files::write;
 use crate::plot::{LineChart, Series, SeriesStyle};
-use crate::runner::progress_bar;
-
-/// One simulated session: what happened, and every message in the order Eve heard it.
-#[derive(Debug)]
-pub struct HeardSession {
-    /// Its replicate, which is also its session id.
-    pub replicate: u32,
-    /// The run (true bits, the controller's decisions, the keys).
-    pub run: RunOutput,
-    /// The messages.
-    pub transcript: Vec<Message>,
-}
-
-/// Simulates the sessions `replicates` of `config` (replicate = session id), in parallel.
-///
-/// # Errors
-/// A session aborted.
-pub fn simulate_sessions(
-    config: &Config,
-    replicates: Range<u32>,
-) -> Result<Vec<HeardSession>, LabError> {
-    let bar = progress_bar(replicates.len(), "sessions", "session");
-    let heard = replicates
-        .into_par_iter()
-        .map(|replicate| {
-            let (run, transcript) = simulate_transcript(config, replicate)?;
-            bar.inc(1);
-            Ok(HeardSession {
-                replicate,
-                run,
-                transcript,
-            })
-        })
-        .collect();
-    bar.finish_and_clear();
-    heard
-}
+use crate::sessions::{Heard, SessionBank};
 
 /// One decided period, as one strategy saw it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -140,15 +102,14 @@ pub fn overhear(
     config: &Config,
     index: u32,
     transcript: &[Message],
-    mut on_decision: impl FnMut(&Eve, &StepDecision),
+    on_decision: impl FnMut(&Eve, &StepDecision),
 ) -> KeyBits {
-    eve.begin_session(&SessionPlan::from_config(config, index));
-    for message in transcript {
-        if let Some(decision) = eve.observe(message) {
-            on_decision(eve, &decision);
-        }
-    }
-    eve.key()
+    robokey::eve::hear(
+        eve,
+        &SessionPlan::from_config(config, index),
+        transcript,
+        on_decision,
+    )
 }
 
 /// Feeds one strategy, as campaign `campaign` draws her, every session in order.
@@ -157,7 +118,7 @@ pub fn listen(
     config: &Config,
     strategy: EveStrategy,
     campaign: u32,
-    heard: &[HeardSession],
+    heard: Heard<'_>,
 ) -> StrategyRun {
     let mut eve = eavesdropper(config, strategy, campaign);
     let errors = eve.errors();
@@ -173,36 +134,30 @@ pub fn listen(
     let mut periods = Vec::new();
     let mut sessions = Vec::new();
     let mut elapsed = 0u64;
-    for (index, session) in heard.iter().enumerate() {
+    for (index, (replicate, run, transcript)) in heard.iter().enumerate() {
         let index = index as u32;
-        let steps = &session.run.steps;
-        let k_a = overhear(
-            &mut eve,
-            config,
-            session.replicate,
-            &session.transcript,
-            |eve, decision| {
-                let step = decision.step;
-                let logged = steps.get(step as usize);
-                if let (Some(eve_bit), Some(logged)) = (decision.bit, logged)
-                    && let (Some(bit), Some(controller)) = (logged.bit, logged.bhat)
-                {
-                    let (r_error, d_error) = model_error(eve);
-                    periods.push(PeriodRecord {
-                        session: index,
-                        step,
-                        period: elapsed + u64::from(step) + 1,
-                        bit,
-                        controller,
-                        eve: eve_bit,
-                        r_error,
-                        d_error,
-                    });
-                }
-            },
-        );
+        let steps = &run.steps;
+        let k_a = overhear(&mut eve, config, replicate, transcript, |eve, decision| {
+            let step = decision.step;
+            let logged = steps.get(step as usize);
+            if let (Some(eve_bit), Some(logged)) = (decision.bit, logged)
+                && let (Some(bit), Some(controller)) = (logged.bit, logged.bhat)
+            {
+                let (r_error, d_error) = model_error(eve);
+                periods.push(PeriodRecord {
+                    session: index,
+                    step,
+                    period: elapsed + u64::from(step) + 1,
+                    bit,
+                    controller,
+                    eve: eve_bit,
+                    r_error,
+                    d_error,
+                });
+            }
+        });
         elapsed += steps.len() as u64;
-        let k_c = &session.run.keys.controller;
+        let k_c = &run.keys.controller;
         let wrong = k_c.iter().zip(k_a.iter()).filter(|(c, a)| c != a).count()
             + k_c.len().abs_diff(k_a.len());
         sessions.push(SessionRecord {
@@ -210,7 +165,7 @@ pub fn listen(
             key_bits: k_c.len(),
             disagreement_pct: (!k_c.is_empty()).then(|| 100.0 * wrong as f64 / k_c.len() as f64),
             tag_flips: eve.verified(),
-            confirmed: session.run.controller_outcome == Some(Outcome::Confirmed),
+            confirmed: run.controller_outcome == Some(Outcome::Confirmed),
         });
         identified_from = match (within(model_error(&eve)), identified_from) {
             (true, None) => Some(index + 1),
@@ -295,6 +250,19 @@ pub fn run_campaigns(
     strategies: &[EveStrategy],
     campaigns: u32,
 ) -> Result<Campaign, LabError> {
+    run_campaigns_with(config, strategies, campaigns, &mut SessionBank::new())
+}
+
+/// [`run_campaigns`] on the sessions of `bank` (simulating those it lacks).
+///
+/// # Errors
+/// As [`run_campaigns`].
+pub fn run_campaigns_with(
+    config: &Config,
+    strategies: &[EveStrategy],
+    campaigns: u32,
+    bank: &mut SessionBank,
+) -> Result<Campaign, LabError> {
     if let Some(s) = strategies
         .iter()
         .find(|s| s.mode() != SensingMode::Odometry || config.sensing.mode != SensingMode::Odometry)
@@ -308,14 +276,14 @@ pub fn run_campaigns(
         )));
     }
     let per = config.eve.sessions;
-    let heard = simulate_sessions(config, 0..campaigns.saturating_mul(per))?;
+    let heard = bank.heard(config, campaigns.saturating_mul(per))?;
     let jobs: Vec<(u32, EveStrategy)> = (0..campaigns)
         .flat_map(|c| strategies.iter().map(move |&s| (c, s)))
         .collect();
     let mut all: Vec<StrategyRun> = jobs
         .par_iter()
         .map(|&(c, strategy)| {
-            let sessions = &heard[(c * per) as usize..((c + 1) * per) as usize];
+            let sessions = heard.slice((c * per) as usize..((c + 1) * per) as usize);
             listen(config, strategy, c, sessions)
         })
         .collect();
@@ -805,8 +773,9 @@ mod tests {
     #[test]
     fn the_identifying_eve_learns_r_and_d_to_one_percent_in_two_sessions() {
         let config = Config::default();
-        let heard = simulate_sessions(&config, 0..10).unwrap();
-        let run = listen(&config, EveStrategy::Identify, 0, &heard);
+        let mut bank = SessionBank::new();
+        let heard = bank.heard(&config, 10).unwrap();
+        let run = listen(&config, EveStrategy::Identify, 0, heard);
         assert!(run.start[..2].iter().all(|e| (e.abs() - 0.4).abs() < 1e-12));
         let ends = end_of_session_errors(&run);
         // Seed 2023: 2.2 % after the first session, within 1 % from the second on.

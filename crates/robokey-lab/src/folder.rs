@@ -8,11 +8,11 @@ use robokey::interrupt::Interrupt;
 use crate::error::LabError;
 use crate::results::{
     Rows, csv_row, experiment_dirs, folder_name, metrics_of_line, planned, read, read_experiment,
-    read_manifest, read_rows, sha256_hex, trace_path, write_folder, write_traces,
+    read_manifest, read_rows, sha256_hex, trace_path, write_folder,
 };
 use crate::runner::{RunRecord, Shard, run_experiment};
 use crate::sweep::Experiment;
-use crate::trace::parse_trace_csv;
+use crate::trace::drawn_trace;
 
 /// Which runs a sweep does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -143,9 +143,9 @@ pub fn sweep(
                 done: f.rows.len(),
                 planned: planned.len(),
             });
-            let records = run_experiment(e, &to_run, stop, finished)?;
-            // Traces before the rows that vouch for them, the manifest last.
-            write_traces(&f.dir, &records)?;
+            // Traces (written as the runs go) before the rows that vouch for them, the
+            // manifest last.
+            let records = run_experiment(e, &f.dir, &to_run, stop, finished)?;
             f.rows
                 .extend(records.iter().map(|r| (r.run, csv_row(e, r))));
             write_folder(&f.dir, e, &f.rows, &f.shards)?;
@@ -327,7 +327,7 @@ fn load_experiment(dir: &Path, name: Option<String>) -> Result<Loaded, LabError>
             })?;
             let trace = if experiment.traces && replicate == 0 {
                 let path = trace_path(dir, point);
-                Some(parse_trace_csv(&read(&path)?, &path)?)
+                Some(drawn_trace(&path)?)
             } else {
                 None
             };
@@ -477,8 +477,11 @@ mod tests {
         assert_eq!(loaded.len(), 2);
         assert_eq!(loaded[0].records.len(), 6);
         assert_eq!(
-            loaded[0].records[3].trace.as_ref().map(Vec::len),
-            Some(1 + 4 * 85)
+            loaded[0].records[3]
+                .trace
+                .as_ref()
+                .map(|paths| paths.iter().map(Vec::len).collect::<Vec<_>>()),
+            Some(vec![1 + 4 * 85])
         );
         std::fs::remove_dir_all(&reference).unwrap();
     }

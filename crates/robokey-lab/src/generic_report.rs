@@ -14,6 +14,7 @@ use crate::folder::Loaded;
 use crate::plot::BoxGroup;
 use crate::report::{Report, box_chart, fmt, median_of, trajectory_figure};
 use crate::sweep::{Experiment, axis_label, describe, param_label, param_number};
+use crate::trace::labelled_paths;
 
 /// A metric the report shows: name, unit, decimals, and its value in those units.
 struct Shown {
@@ -115,6 +116,7 @@ pub fn report(out: &Path, loaded: &[Loaded]) -> Result<Report, LabError> {
     Ok(Report {
         path,
         summary: terminal,
+        timings: Vec::new(),
     })
 }
 
@@ -225,18 +227,19 @@ fn draw(c: &Computed, figures: &Path, prefix: &str) -> Result<(), LabError> {
     }
     if e.traces {
         let labels: Vec<String> = e.points.iter().map(|p| describe(&p.params)).collect();
-        let paths: Vec<(&str, &[TraceRow])> = c
+        let labelled: Vec<(String, &[TraceRow])> = c
             .loaded
             .records
             .iter()
             .filter_map(|r| {
                 let label = labels[r.point].as_str();
-                Some((
-                    if label.is_empty() { "robot" } else { label },
-                    r.trace.as_deref()?,
-                ))
+                let label = if label.is_empty() { "robot" } else { label };
+                Some(labelled_paths(label, r.trace.as_deref()?))
             })
+            .flatten()
             .collect();
+        let paths: Vec<(&str, &[TraceRow])> =
+            labelled.iter().map(|(l, p)| (l.as_str(), *p)).collect();
         trajectory_figure(&figures.join(format!("{prefix}trajectory")), &paths, None)?;
     }
     Ok(())

@@ -13,6 +13,7 @@ pub mod report;
 pub mod results;
 pub mod runner;
 pub mod secrecy;
+pub mod sessions;
 pub mod stats;
 pub mod sweep;
 pub mod trace;

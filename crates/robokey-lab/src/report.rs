@@ -12,7 +12,8 @@ use crate::error::LabError;
 use crate::files::write;
 use crate::folder::Loaded;
 use crate::plot::{BoxChart, BoxGroup, Interval, LineChart, Series, SeriesStyle};
-use crate::runner::RunRecord;
+use crate::runner::{RunRecord, thousands};
+use crate::sessions::SessionBank;
 use crate::stats::{Summary, TrendTest, spearman_permutation_test};
 use crate::sweep::{Experiment, experiments_from_table};
 use robokey_secrecy::interval::clopper_pearson;
@@ -25,18 +26,26 @@ const PERMUTATIONS: usize = 9_999;
 /// Seed of the trend tests' permutations.
 const TREND_SEED: u64 = 2023;
 
-/// Independent eavesdropping campaigns in `reproduce`.
+/// Independent eavesdropping campaigns in `reproduce` (`--quick`: fewer).
 const EVE_CAMPAIGNS: u32 = 20;
+const QUICK_EVE_CAMPAIGNS: u32 = 5;
+
+/// Least raw bits of a secrecy block in `reproduce --quick` (the default: 10,000).
+const QUICK_BLOCK_BITS: usize = 2_000;
 
 /// The eavesdroppers of docs/threat-model.md: every strategy on the default configuration's
 /// sessions, in order, over independent campaigns (`robokey eve`); markdown and a terminal
 /// line.
-fn adversary_section(out: &Path) -> Result<(String, String), LabError> {
-    use crate::adversary::{campaign_body, campaigns_summary, run_campaigns, write_campaign};
+fn adversary_section(
+    out: &Path,
+    campaigns: u32,
+    bank: &mut SessionBank,
+) -> Result<(String, String), LabError> {
+    use crate::adversary::{campaign_body, campaigns_summary, run_campaigns_with, write_campaign};
     use robokey::config::EveStrategy;
     let config = robokey::Config::default();
     let strategies = EveStrategy::of_mode(config.sensing.mode);
-    let campaign = run_campaigns(&config, &strategies, EVE_CAMPAIGNS)?;
+    let campaign = run_campaigns_with(&config, &strategies, campaigns, bank)?;
     write_campaign(&out.join("eve"), &campaign)?;
     let matched: Vec<String> = strategies
         .iter()
@@ -50,7 +59,7 @@ fn adversary_section(out: &Path) -> Result<(String, String), LabError> {
         })
         .collect();
     let terminal = format!(
-        "eavesdroppers that came to decide as well as the controller, of {EVE_CAMPAIGNS} \
+        "eavesdroppers that came to decide as well as the controller, of {campaigns} \
          campaigns:\n  {}\n",
         matched.join(", ")
     );
@@ -67,26 +76,28 @@ fn adversary_section(out: &Path) -> Result<(String, String), LabError> {
 fn secrecy_section(
     out: &Path,
     experiments: &[(&Experiment, &'static str)],
+    options: &crate::secrecy::SecrecyOptions,
+    bank: &mut SessionBank,
     stop: &Interrupt,
 ) -> Result<(String, String), LabError> {
     let mut terminal = String::new();
-    let options = crate::secrecy::SecrecyOptions::default();
     let mut md = String::from("## How many of these bits are secret?\n\n");
-    md.push_str(
+    md.push_str(&format!(
         "The paper measures Eve only by her disagreement. Here every point is re-simulated until the sessions \
-         today's agents would keep (both key tags matched) fill a block of at least 10,000 raw bits; every tag \
+         today's agents would keep (both key tags matched) fill a block of at least {} raw bits; every tag \
          published over a pooled key is charged (two directional 128-bit key tags per session), and the block's secret length \
          follows from the finite-key bound (docs/secrecy.md), against the oracle Eve (strongest: the exact \
          model), the identifying Eve (learns r and D from the traffic) and the paper's Eve (restricted: she \
          never learns them, so a figure against her holds only if nobody does).\n\n",
-    );
+        thousands(options.block_bits)
+    ));
     for (experiment, title) in experiments {
         stopped(stop)?;
-        let results = crate::secrecy::analyze(experiment, &options)?;
+        let results = crate::secrecy::analyze_with(experiment, options, bank)?;
         let dir = out.join(&experiment.name);
-        crate::secrecy::write_secrecy(&dir, experiment, &results, &options, None)?;
+        crate::secrecy::write_secrecy(&dir, experiment, &results, options, None)?;
         md.push_str(&format!("### {title}\n\n"));
-        md.push_str(&crate::secrecy::secrecy_markdown(&results, &options));
+        md.push_str(&crate::secrecy::secrecy_markdown(&results, options));
         md.push_str(&format!(
             "\n![secret bits]({}/secrecy-bits-per-step.svg)\n\n",
             experiment.name
@@ -149,6 +160,8 @@ pub struct Report {
     pub path: PathBuf,
     /// A few lines for the terminal.
     pub summary: String,
+    /// The paper report's parts and how long each took (s), for the terminal.
+    pub timings: Vec<(&'static str, f64)>,
 }
 
 /// Draws a trajectory figure: the reference of the first trace, then each named robot
@@ -440,8 +453,8 @@ pub fn paper_suite(quick: bool) -> Result<Vec<Experiment>, LabError> {
 /// Makes the figures (`figures/`) and `report.md` of a complete sweep folder or suite
 /// folder, from its files alone: the paper's report for a sweep of `experiments/paper.toml`
 /// (a suite holding its four experiments), else a report of each experiment's metrics
-/// against its axes. `quick`: the paper report's private-sensing section on the small grid
-/// of `reproduce --quick`. Between the paper report's sections, a requested stop ends it.
+/// against its axes. `quick`: the paper report's small grids of `reproduce --quick` (5
+/// eavesdropping campaigns, 2,000-bit secrecy blocks, the small private-sensing map). Between the paper report's sections, a requested stop ends it.
 ///
 /// # Errors
 /// The folder is not a complete sweep (an interrupted sweep, a lone shard), a run's files do
@@ -465,6 +478,7 @@ fn paper_report(
     quick: bool,
     stop: &Interrupt,
 ) -> Result<Report, LabError> {
+    let started = std::time::Instant::now();
     let find = |name: &str| {
         loaded
             .iter()
@@ -577,7 +591,7 @@ fn paper_report(
                 } else {
                     "robot, protocol off"
                 },
-                r.trace.as_deref()?,
+                r.trace.as_deref()?.first()?.as_slice(),
             ))
         })
         .collect();
@@ -758,21 +772,45 @@ fn paper_report(
         "{}",
         trend_line("Eve's disagreement", "α", &eve_trend, 1.0)
     );
+    // Every physical session is simulated once: the α points share the Δv = 0.035 sessions,
+    // and so do the eavesdropping campaigns (the default configuration), so the bank keeps
+    // them from the Δv sweep's secrecy to the campaigns.
+    let mut bank = SessionBank::new();
+    for point in &eve.points {
+        bank.keep(&point.config);
+    }
+    bank.keep(&robokey::Config::default());
     let (secrecy, secrecy_terminal) = secrecy_section(
         out,
         &[
             (dv, "Against Δv (paper's Eve at α = 10 %)"),
             (eve, "Against α (Δv = 0.035)"),
         ],
+        &crate::secrecy::SecrecyOptions {
+            block_bits: if quick {
+                QUICK_BLOCK_BITS
+            } else {
+                crate::secrecy::SecrecyOptions::default().block_bits
+            },
+            ..crate::secrecy::SecrecyOptions::default()
+        },
+        &mut bank,
         stop,
     )?;
     md.push_str(&secrecy);
     terminal.push_str(&secrecy_terminal);
     stopped(stop)?;
-    let (adversaries, adversaries_terminal) = adversary_section(out)?;
+    let campaigns = if quick {
+        QUICK_EVE_CAMPAIGNS
+    } else {
+        EVE_CAMPAIGNS
+    };
+    let (adversaries, adversaries_terminal) = adversary_section(out, campaigns, &mut bank)?;
+    drop(bank);
     md.push_str(&adversaries);
     terminal.push_str(&adversaries_terminal);
     stopped(stop)?;
+    let paper_seconds = started.elapsed().as_secs_f64();
     let (private, private_terminal) = crate::private_report::private_section(out, quick, stop)?;
     md.push_str(&private);
     terminal.push_str(&private_terminal);
@@ -780,5 +818,12 @@ fn paper_report(
     Ok(Report {
         path,
         summary: terminal,
+        timings: vec![
+            ("the paper's sections", paper_seconds),
+            (
+                "private sensing",
+                started.elapsed().as_secs_f64() - paper_seconds,
+            ),
+        ],
     })
 }

@@ -12,7 +12,7 @@ use crate::files::write;
 use crate::runner::{RunRecord, Shard};
 use crate::stats::Summary;
 use crate::sweep::{Experiment, value_text};
-use crate::trace::{csv_cell, trace_csv};
+use crate::trace::csv_cell;
 
 /// The rows of a `runs.csv` that are done: run index → its line (newline included).
 pub type Rows = BTreeMap<usize, String>;
@@ -400,22 +400,6 @@ pub fn write_folder(
         manifest_json(experiment, &manifest),
     )?;
     Ok(manifest)
-}
-
-/// Writes `traces/point-<i>.csv` of the records that carry a trace.
-///
-/// # Errors
-/// A file cannot be written.
-pub fn write_traces(dir: &Path, records: &[RunRecord]) -> Result<(), LabError> {
-    for record in records {
-        if let Some(trace) = &record.trace {
-            let path = trace_path(dir, record.point);
-            let traces = dir.join("traces");
-            std::fs::create_dir_all(&traces).map_err(io_at(&traces))?;
-            write(&path, trace_csv(trace))?;
-        }
-    }
-    Ok(())
 }
 
 /// Where the trace of a point's replicate 0 is kept.

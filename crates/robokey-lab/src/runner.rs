@@ -2,18 +2,26 @@
 //! run-index order, and every run draws from its own per-purpose, per-replicate streams,
 //! so any `--jobs` and any sharding give the same numbers.
 
+use std::collections::HashMap;
 use std::io::IsTerminal;
+use std::path::Path;
 use std::str::FromStr;
 
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use rayon::prelude::*;
+use robokey::Config;
 use robokey::Metrics;
 use robokey::interrupt::Interrupt;
 use robokey::protocol::SessionPlan;
-use robokey::sim::{TraceRow, simulate_plan};
+use robokey::sim::{
+    RunOutput, TraceRow, replay, simulate_plan, simulate_plan_streaming, simulate_transcript,
+};
 
-use crate::error::LabError;
+use crate::error::{LabError, io_at};
+use crate::results::trace_path;
+use crate::sessions::physical_key;
 use crate::sweep::Experiment;
+use crate::trace::TraceCsv;
 
 /// Shard `index` of `count` (1-based): runs whose index ≡ index − 1 (mod count).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -69,8 +77,10 @@ pub struct RunRecord {
     pub replicate: u32,
     /// The run's metrics.
     pub metrics: Metrics,
-    /// The trace, for replicate 0 when the sweep asks for traces.
-    pub trace: Option<Vec<TraceRow>>,
+    /// Read back from a sweep folder when the sweep kept traces (replicate 0): the paths a
+    /// trajectory figure draws of it ([`crate::trace::DrawnRows`]). A sweep streams the
+    /// trace to disk as it runs and never holds it.
+    pub trace: Option<Vec<Vec<TraceRow>>>,
 }
 
 /// A progress bar on a terminal, hidden otherwise: `label [=====>   ] done/len units, rate,
@@ -118,7 +128,12 @@ fn significant(x: f64) -> String {
     }
     let magnitude = 10f64.powi(x.log10().floor() as i32 - 2);
     let rounded = ((x / magnitude).round() * magnitude) as u64;
-    let digits = rounded.to_string();
+    thousands(rounded)
+}
+
+/// An integer with its thousands separated by commas: `10,000`.
+pub(crate) fn thousands(n: impl ToString) -> String {
+    let digits = n.to_string();
     let mut out = String::new();
     for (i, c) in digits.chars().enumerate() {
         if i > 0 && (digits.len() - i).is_multiple_of(3) {
@@ -131,12 +146,16 @@ fn significant(x: f64) -> String {
 
 /// Runs the given runs of the experiment (run indices, see [`RunRecord::run`]) on the
 /// current rayon pool, starting none once `stop` is requested; `finished` is called after
-/// each run. Returns the runs that finished, in run order: all of them unless stopped.
+/// each run. When the experiment keeps traces, replicate 0 of each point streams its trace
+/// into `dir`'s `traces/point-<i>.csv` as it runs (complete files only: a run stopped
+/// half-way leaves none). Returns the runs that finished, in run order: all of them unless
+/// stopped.
 ///
 /// # Errors
-/// The first run whose session aborted.
+/// The first run whose session aborted, or a trace that cannot be written.
 pub fn run_experiment(
     experiment: &Experiment,
+    dir: &Path,
     runs: &[usize],
     stop: &Interrupt,
     finished: &(dyn Fn() + Sync),
@@ -153,35 +172,100 @@ pub fn run_experiment(
         &experiment.name
     };
     let bar = progress_bar(runs.len(), label, "run");
-    let records = runs
+    // Runs of points that differ only in Eve's settings (e.g. an α sweep) are one physical
+    // session: simulated once, each point's Eve hears its transcript (sessions.rs).
+    // The first point of each point's physical configuration.
+    let mut first_of: HashMap<String, usize> = HashMap::new();
+    let physical: Vec<usize> = (0..experiment.points.len())
+        .map(|p| {
+            *first_of
+                .entry(physical_key(&experiment.points[p].config))
+                .or_insert(p)
+        })
+        .collect();
+    let mut sessions: Vec<Vec<usize>> = Vec::with_capacity(runs.len());
+    let mut session_of: HashMap<(usize, usize), usize> = HashMap::new();
+    for &run in runs {
+        let (point, replicate) = (run / replicates, run % replicates);
+        if experiment.traces && replicate == 0 || first_of.len() == physical.len() {
+            sessions.push(vec![run]);
+            continue;
+        }
+        let index = *session_of
+            .entry((physical[point], replicate))
+            .or_insert_with(|| {
+                sessions.push(Vec::new());
+                sessions.len() - 1
+            });
+        sessions[index].push(run);
+    }
+    let records = sessions
         .par_iter()
-        .map(|&run| {
+        .map(|session| {
             if stop.is_requested() {
-                return Ok(None);
+                return Ok(Vec::new());
             }
-            let (point, replicate) = (run / replicates, (run % replicates) as u32);
+            let record = |run: usize, output: RunOutput| {
+                bar.inc(1);
+                finished();
+                RunRecord {
+                    run,
+                    point: run / replicates,
+                    replicate: (run % replicates) as u32,
+                    metrics: output.metrics,
+                    trace: None,
+                }
+            };
+            let (point, replicate) = (session[0] / replicates, (session[0] % replicates) as u32);
+            let config = &experiment.points[point].config;
             let mut plan = plans[point].clone();
             plan.session = replicate;
-            let with_trace = experiment.traces && replicate == 0;
-            let output = simulate_plan(
-                &experiment.points[point].config,
-                plan,
-                replicate,
-                with_trace,
-            )?;
-            bar.inc(1);
-            finished();
-            Ok(Some(RunRecord {
-                run,
-                point,
-                replicate,
-                metrics: output.metrics,
-                trace: with_trace.then_some(output.trace),
-            }))
+            if let [run] = session[..] {
+                let output = if experiment.traces && replicate == 0 {
+                    streamed(config, plan, &trace_path(dir, point))?
+                } else {
+                    simulate_plan(config, plan, replicate, false)?
+                };
+                return Ok(vec![record(run, output)]);
+            }
+            let mut silent = config.clone();
+            silent.eve.enabled = false;
+            let (output, transcript) = simulate_transcript(&silent, replicate)?;
+            Ok(session
+                .iter()
+                .map(|&run| {
+                    let config = &experiment.points[run / replicates].config;
+                    record(run, replay(config, replicate, &output, &transcript))
+                })
+                .collect())
         })
-        .collect::<Result<Vec<_>, LabError>>();
+        .collect::<Result<Vec<Vec<RunRecord>>, LabError>>();
     bar.finish_and_clear();
-    Ok(records?.into_iter().flatten().collect())
+    let mut records: Vec<RunRecord> = records?.into_iter().flatten().collect();
+    records.sort_by_key(|r| r.run);
+    Ok(records)
+}
+
+/// Replicate 0 of `config`, its trace written row by row to `path` (through a `.partial`
+/// file renamed once complete).
+fn streamed(config: &Config, plan: SessionPlan, path: &Path) -> Result<RunOutput, LabError> {
+    let partial = path.with_extension("csv.partial");
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent).map_err(io_at(parent))?;
+    }
+    let file = std::fs::File::create(&partial).map_err(io_at(&partial))?;
+    let mut csv = TraceCsv::new(std::io::BufWriter::new(file)).map_err(io_at(&partial))?;
+    let mut written = Ok(());
+    let output = simulate_plan_streaming(config, plan, 0, &mut |row| {
+        if written.is_ok() {
+            written = csv.write(&row);
+        }
+    })?;
+    written
+        .and_then(|()| csv.finish().map(drop))
+        .map_err(io_at(&partial))?;
+    std::fs::rename(&partial, path).map_err(io_at(path))?;
+    Ok(output)
 }
 
 /// Runs `f` on a rayon pool of `jobs` threads (0: one per core; never more than one per core).

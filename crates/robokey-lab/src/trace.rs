@@ -10,19 +10,8 @@ use robokey::sim::TraceRow;
 
 use crate::error::LabError;
 
-/// `trace.csv`: N + 1 rows with exactly the columns of docs/experiments.md; undefined cells empty.
-#[must_use]
-pub fn trace_csv(rows: &[TraceRow]) -> String {
-    let mut csv = TraceCsv::new(Vec::new()).expect("writing to memory cannot fail");
-    for row in rows {
-        csv.write(row).expect("writing to memory cannot fail");
-    }
-    String::from_utf8(csv.finish().expect("writing to memory cannot fail"))
-        .expect("the CSV is UTF-8")
-}
-
-/// Writes `trace.csv` as the rows come, byte for byte what [`trace_csv`] returns: the header
-/// on creation, then one line per row.
+/// Writes `trace.csv` as the rows come: the header on creation, then one line per row, with
+/// exactly the columns of docs/experiments.md (N + 1 rows; undefined cells empty).
 pub struct TraceCsv<W: Write> {
     out: W,
     line: String,
@@ -80,27 +69,68 @@ impl<W: Write> TraceCsv<W> {
     }
 }
 
-/// Reads a `trace.csv` back (`origin` names it in errors): the inverse of [`trace_csv`], exact
-/// because every real is written in its shortest round-trip form.
+/// Reads a `trace.csv` back row by row (`origin` names it in errors), handing each row to
+/// `sink` in order: the inverse of [`TraceCsv`], exact because every real is written in its
+/// shortest round-trip form. Memory does not grow with the number of rows.
 ///
 /// # Errors
-/// A wrong header, a row with the wrong number of cells, or a cell that does not parse.
-pub fn parse_trace_csv(text: &str, origin: &std::path::Path) -> Result<Vec<TraceRow>, LabError> {
+/// A wrong header, a row with the wrong number of cells, a cell that does not parse, or the
+/// reader fails.
+pub fn read_trace(
+    text: impl io::BufRead,
+    origin: &std::path::Path,
+    mut sink: impl FnMut(TraceRow),
+) -> Result<(), LabError> {
     let bad =
         |line: usize, why: String| LabError::Merge(format!("{}:{line}: {why}", origin.display()));
     let mut lines = text.lines();
-    if lines.next() != Some(TraceRow::COLUMNS.join(",").as_str()) {
+    let header = lines
+        .next()
+        .transpose()
+        .map_err(crate::error::io_at(origin))?;
+    if header.as_deref() != Some(TraceRow::COLUMNS.join(",").as_str()) {
         return Err(bad(1, "not a trace (header differs)".into()));
     }
-    lines
-        .enumerate()
-        .map(|(i, line)| {
-            let mut cells = TraceCells(line.split(','));
-            let row = cells.row().map_err(|why| bad(i + 2, why))?;
-            match cells.0.next() {
-                None => Ok(row),
-                Some(_) => Err(bad(i + 2, "too many cells".into())),
-            }
+    for (i, line) in lines.enumerate() {
+        let line = line.map_err(crate::error::io_at(origin))?;
+        let mut cells = TraceCells(line.split(','));
+        let row = cells.row().map_err(|why| bad(i + 2, why))?;
+        if cells.0.next().is_some() {
+            return Err(bad(i + 2, "too many cells".into()));
+        }
+        sink(row);
+    }
+    Ok(())
+}
+
+/// The paths a trajectory figure draws of the trace file at `path` ([`DrawnRows`]), read
+/// without holding the whole trace.
+///
+/// # Errors
+/// As [`read_trace`], or the file cannot be opened.
+pub fn drawn_trace(path: &std::path::Path) -> Result<Vec<Vec<TraceRow>>, LabError> {
+    let file = std::fs::File::open(path).map_err(crate::error::io_at(path))?;
+    let mut drawn = DrawnRows::default();
+    read_trace(io::BufReader::new(file), path, |row| drawn.push(row))?;
+    Ok(drawn.into_paths())
+}
+
+/// Each drawn path with its label: `label` for a whole run, `label, steps a–b` for each
+/// end of a long one.
+#[must_use]
+pub fn labelled_paths<'a>(
+    label: &str,
+    paths: &'a [Vec<TraceRow>],
+) -> Vec<(String, &'a [TraceRow])> {
+    let k = |row: Option<&TraceRow>| row.map_or(0, |r| r.k);
+    paths
+        .iter()
+        .map(|p| {
+            let text = match paths {
+                [_] => label.to_owned(),
+                _ => format!("{label}, steps {}–{}", k(p.first()), k(p.last())),
+            };
+            (text, p.as_slice())
         })
         .collect()
 }
@@ -338,6 +368,21 @@ pub fn metrics_table(metrics: &Metrics, private: Option<&PrivateRun>) -> String 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A whole trace in memory.
+    fn trace_csv(rows: &[TraceRow]) -> String {
+        let mut csv = TraceCsv::new(Vec::new()).unwrap();
+        for row in rows {
+            csv.write(row).unwrap();
+        }
+        String::from_utf8(csv.finish().unwrap()).unwrap()
+    }
+
+    fn parse_trace_csv(text: &str, origin: &std::path::Path) -> Result<Vec<TraceRow>, LabError> {
+        let mut rows = Vec::new();
+        read_trace(text.as_bytes(), origin, |row| rows.push(row))?;
+        Ok(rows)
+    }
 
     #[test]
     fn trace_has_n_plus_one_rows_and_exact_columns() {

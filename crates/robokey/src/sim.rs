@@ -267,6 +267,69 @@ pub fn simulate_transcript(
     Ok((output, transcript))
 }
 
+/// What [`simulate`] gives for replicate `replicate` of `config`, from the session simulated
+/// once without an eavesdropper: `run` and `transcript` are what [`simulate_transcript`]
+/// returned for the same replicate of a configuration that differs at most in its `[eve]`
+/// table (she never changes the session). The eavesdropper `config` asks for, drawn as
+/// [`simulate`] draws her, hears the transcript: the output is bit for bit the live run's.
+#[must_use]
+pub fn replay(
+    config: &Config,
+    replicate: u32,
+    run: &RunOutput,
+    transcript: &[Message],
+) -> RunOutput {
+    if !(config.eve.enabled && config.protocol.enabled) {
+        let mut output = run.clone();
+        output.keys.eve = None;
+        output.steps.iter_mut().for_each(|s| s.bhat_eve = None);
+        output.metrics = compute_metrics(
+            &output.steps,
+            run.metrics.jx,
+            &output.keys,
+            &SessionPlan::from_config(config, replicate),
+            config.protocol.enabled,
+        );
+        return output;
+    }
+    let mut eve = eve::build(
+        config,
+        &mut stream(config.run.seed, Purpose::Eve, u64::from(replicate)),
+    );
+    overheard(config, replicate, run, transcript, eve.as_mut(), |_, _| {})
+}
+
+/// [`replay`] with a given eavesdropper (e.g. one who learned from earlier sessions):
+/// `eve` hears `transcript` as session `replicate`; her decisions and key are written into a
+/// copy of `run` and its metrics recomputed. `on_decision` sees her after each decision.
+pub fn overheard<E: eve::Eavesdropper + ?Sized>(
+    config: &Config,
+    replicate: u32,
+    run: &RunOutput,
+    transcript: &[Message],
+    eve: &mut E,
+    mut on_decision: impl FnMut(&E, &crate::protocol::StepDecision),
+) -> RunOutput {
+    let plan = SessionPlan::from_config(config, replicate);
+    let mut output = run.clone();
+    let steps = &mut output.steps;
+    let key = eve::hear(eve, &plan, transcript, |eve, d| {
+        if let Some(logged) = steps.get_mut(d.step as usize) {
+            logged.bhat_eve = d.bit;
+        }
+        on_decision(eve, d);
+    });
+    output.keys.eve = Some(key);
+    output.metrics = compute_metrics(
+        &output.steps,
+        run.metrics.jx,
+        &output.keys,
+        &plan,
+        config.protocol.enabled,
+    );
+    output
+}
+
 fn run(
     config: &Config,
     plan: SessionPlan,

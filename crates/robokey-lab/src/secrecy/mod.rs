@@ -4,10 +4,11 @@
 //! per-position error rates, and the finite-key output length of the post-processing the
 //! agents run ([`pipeline`]) over pooled blocks of whole sessions.
 //!
-//! Sessions are re-simulated from the sweep's `config.resolved.toml` and seeds, with the
-//! adversary swapped in; sessions are added (replicates 0, 1, …) until the pooled raw key
-//! fills the requested number of blocks. A learning adversary (identify, transcript) hears
-//! them in that order, so what she learned from earlier sessions serves her on later ones.
+//! Sessions are re-simulated from the sweep's `config.resolved.toml` and seeds; sessions are
+//! added (replicates 0, 1, …) until the pooled raw key fills the requested number of blocks.
+//! In odometry mode each session is simulated once and every adversary hears its transcript
+//! ([`crate::sessions`]); a learning adversary (identify, transcript) hears them in order, so
+//! what she learned from earlier sessions serves her on later ones.
 //! Results are computed here and rendered by [`render`].
 
 pub mod map;
@@ -17,17 +18,19 @@ pub mod render;
 pub mod render_private;
 
 use rayon::prelude::*;
+use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
 use robokey::post_settings::ODOMETRY_ZERO;
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
-use robokey::sim::{RunOutput, simulate_plan, simulate_transcript};
+use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
 use robokey_secrecy::postprocess::Assumption;
 use robokey_secrecy::{JointCounts, binomial_test, clopper_pearson};
 use serde::Serialize;
 
-use crate::adversary::{eavesdropper, overhear};
+use crate::adversary::eavesdropper;
 use crate::error::LabError;
+use crate::sessions::{Heard, SessionBank, physical_key};
 use crate::sweep::{Experiment, describe};
 
 pub use pipeline::{Block, BlockSettings, Pooling};
@@ -274,67 +277,104 @@ impl SecrecyOptions {
 /// Lap-position bins.
 const POSITION_BINS: usize = 20;
 
-/// Sessions of one point against one adversary, added in chunks until the pooled raw key
-/// fills the blocks.
-fn sessions(
+/// Sessions are added in chunks of this many until the pooled raw key fills the blocks.
+const CHUNK: u32 = 32;
+
+/// How many sessions (replicates 0, 1, …) a point simulates: chunks are added until the
+/// pooled raw key fills `options.blocks` blocks and the sweep's own replicates are in, or
+/// nothing of the first chunk is ever pooled. `pooled(n)` pools the first `n` sessions.
+fn sessions_needed(
+    minimum: u32,
+    options: &SecrecyOptions,
+    mut pooled: impl FnMut(u32) -> Result<(usize, bool), LabError>,
+) -> Result<u32, LabError> {
+    let mut count = 0;
+    while count < options.max_sessions {
+        if pooled(count)?.0 >= options.blocks && count >= minimum {
+            break;
+        }
+        let chunk = CHUNK.min(options.max_sessions - count);
+        if count == 0 && !pooled(chunk)?.1 {
+            return Ok(chunk); // nothing is ever pooled here
+        }
+        count += chunk;
+    }
+    Ok(count)
+}
+
+/// Full blocks of the first `runs`, and whether any of them is admitted to a pool.
+fn filled(runs: &[RunOutput], options: &SecrecyOptions, adversary: EveStrategy) -> (usize, bool) {
+    (
+        pipeline::pools(runs, options.pooling, options.block_bits, adversary).len(),
+        runs.iter().any(|r| options.pooling.admits(r)),
+    )
+}
+
+/// `config` with `adversary` listening.
+fn with_adversary(config: &Config, adversary: EveStrategy) -> Config {
+    let mut config = config.clone();
+    config.eve.enabled = true;
+    config.eve.strategy = Some(adversary);
+    config
+}
+
+/// Private sensing: the sessions of one point against one adversary, simulated with her
+/// doublet evidence.
+fn private_sessions(
     experiment: &Experiment,
     point: usize,
     adversary: EveStrategy,
     options: &SecrecyOptions,
 ) -> Result<Vec<RunOutput>, LabError> {
-    let mut config = experiment.points[point].config.clone();
-    config.eve.enabled = true;
-    config.eve.strategy = Some(adversary);
+    let config = with_adversary(&experiment.points[point].config, adversary);
     let plan = SessionPlan::from_config(&config, 0);
     let mut runs: Vec<RunOutput> = Vec::new();
-    let minimum = experiment.replicates();
-    let mut learner = matches!(adversary, EveStrategy::Identify | EveStrategy::Transcript)
-        .then(|| eavesdropper(&config, adversary, 0));
-    while (runs.len() as u32) < options.max_sessions {
-        let filled = pipeline::pools(&runs, options.pooling, options.block_bits, adversary).len();
-        if filled >= options.blocks && runs.len() as u32 >= minimum {
-            break;
-        }
-        let start = runs.len() as u32;
-        let chunk = 32.min(options.max_sessions - start);
-        let more: Vec<RunOutput> = match learner.as_mut() {
-            None => (start..start + chunk)
-                .into_par_iter()
-                .map(|replicate| {
-                    let mut plan = plan.clone();
-                    plan.session = replicate;
-                    simulate_plan(&config, plan, replicate, false)
-                })
-                .collect::<Result<_, _>>()?,
-            // What a learning Eve learns carries over: she hears the sessions in order.
-            Some(eve) => {
-                let heard = (start..start + chunk)
-                    .into_par_iter()
-                    .map(|replicate| simulate_transcript(&config, replicate))
-                    .collect::<Result<Vec<_>, _>>()?;
-                heard
-                    .into_iter()
-                    .zip(start..)
-                    .map(|((mut run, transcript), replicate)| {
-                        let steps = &mut run.steps;
-                        let key = overhear(eve, &config, replicate, &transcript, |_, d| {
-                            if let Some(logged) = steps.get_mut(d.step as usize) {
-                                logged.bhat_eve = d.bit;
-                            }
-                        });
-                        run.keys.eve = Some(key);
-                        run
-                    })
-                    .collect()
-            }
-        };
-        if runs.is_empty() && !more.iter().any(|r| options.pooling.admits(r)) {
-            runs.extend(more);
-            break; // nothing is ever pooled here
-        }
+    let count = sessions_needed(experiment.replicates(), options, |n| {
+        let more: Vec<RunOutput> = (runs.len() as u32..n)
+            .into_par_iter()
+            .map(|replicate| {
+                let mut plan = plan.clone();
+                plan.session = replicate;
+                simulate_plan(&config, plan, replicate, false)
+            })
+            .collect::<Result<_, _>>()?;
         runs.extend(more);
-    }
+        Ok(filled(&runs[..n as usize], options, adversary))
+    })?;
+    runs.truncate(count as usize);
     Ok(runs)
+}
+
+/// Odometry mode: the first `count` shared sessions as `adversary` hears them. A learning
+/// adversary (identify, transcript) hears them in order, so what she learns carries over.
+fn heard_by(config: &Config, adversary: EveStrategy, heard: Heard<'_>) -> Vec<RunOutput> {
+    let config = with_adversary(config, adversary);
+    if matches!(adversary, EveStrategy::Identify | EveStrategy::Transcript) {
+        let mut eve = eavesdropper(&config, adversary, 0);
+        return heard
+            .iter()
+            .map(|(replicate, run, transcript)| {
+                overheard(&config, replicate, run, transcript, &mut eve, |_, _| {})
+            })
+            .collect();
+    }
+    let sessions: Vec<_> = heard.iter().collect();
+    sessions
+        .into_par_iter()
+        .map(|(replicate, run, transcript)| replay(&config, replicate, run, transcript))
+        .collect()
+}
+
+/// What makes two adversaries of the same physical sessions decide alike: her strategy and
+/// the settings that draw her starting model (α only moves the `mismatch` and `soft` Eves).
+fn listener_key(config: &Config, adversary: EveStrategy) -> String {
+    let eve = &config.eve;
+    let start = match adversary {
+        EveStrategy::Mismatch | EveStrategy::Soft => format!("{:?} {:?}", eve.alpha, eve.draw),
+        EveStrategy::Identify | EveStrategy::Transcript => format!("{:?}", eve.initial_error),
+        _ => String::new(),
+    };
+    format!("{} {} {start}", adversary.name(), eve.max_flips)
 }
 
 /// Analyzes one point against one adversary.
@@ -343,8 +383,8 @@ fn analyze_point(
     point: usize,
     adversary: EveStrategy,
     options: &SecrecyOptions,
+    runs: &[RunOutput],
 ) -> Result<PointSecrecy, LabError> {
-    let runs = sessions(experiment, point, adversary, options)?;
     let config = &experiment.points[point].config;
     let lap_steps = (config.trajectory.waypoints.len().saturating_sub(1) as f64
         * config.trajectory.side_time
@@ -354,7 +394,7 @@ fn analyze_point(
     let mut joint = JointCounts::default();
     let mut positions = vec![(0u64, 0u64, 0u64); POSITION_BINS];
     let mut steps = 0u64;
-    for run in &runs {
+    for run in runs {
         steps += run.steps.len() as u64;
         for (k, b, c, a) in decided_bits(run, adversary) {
             joint.record(b == 1, c == 1, a == 1);
@@ -397,13 +437,13 @@ fn analyze_point(
         sample_bits: options.sample_bits,
         block_bits: options.block_bits,
         assumption: if is_private {
-            robokey::post_settings::camera_assumption(config, private::largest_separation(&runs))
+            robokey::post_settings::camera_assumption(config, private::largest_separation(runs))
         } else {
             options.assumption()
         },
     };
     let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
-    let mut pools = pipeline::pools(&runs, options.pooling, options.block_bits, adversary);
+    let mut pools = pipeline::pools(runs, options.pooling, options.block_bits, adversary);
     pools.truncate(options.blocks);
     let blocks = pipeline::post_process(&pools, &settings, &mut public);
     // Every session run until the last one pooled cost robot time, dropped ones included.
@@ -491,7 +531,7 @@ fn analyze_point(
             })
             .collect(),
         private: is_private
-            .then(|| private::figures(config, &runs, adversary))
+            .then(|| private::figures(config, runs, adversary))
             .transpose()?,
     })
 }
@@ -577,6 +617,21 @@ pub fn analyze(
     experiment: &Experiment,
     options: &SecrecyOptions,
 ) -> Result<Vec<PointSecrecy>, LabError> {
+    analyze_with(experiment, options, &mut SessionBank::new())
+}
+
+/// [`analyze`] hearing the sessions of `bank`: in odometry mode every physical session is
+/// simulated once, whatever the number of adversaries and of points that differ only in
+/// Eve's settings, and an adversary who would decide alike at two such points is heard
+/// once. Sessions the bank keeps serve a later consumer.
+///
+/// # Errors
+/// A session aborts.
+pub fn analyze_with(
+    experiment: &Experiment,
+    options: &SecrecyOptions,
+    bank: &mut SessionBank,
+) -> Result<Vec<PointSecrecy>, LabError> {
     let mut adversaries = options.adversaries.clone();
     for point in 0..experiment.points.len() {
         check_fits(experiment, point, options, &adversaries)?;
@@ -591,15 +646,82 @@ pub fn analyze(
     let jobs: Vec<(usize, EveStrategy)> = (0..experiment.points.len())
         .flat_map(|p| adversaries.iter().map(move |&a| (p, a)))
         .collect();
-    // In parallel, collected in job order: the same results for any number of threads.
-    jobs.par_iter()
-        .map(|&(p, a)| analyze_point(experiment, p, a, options))
-        .collect()
+    let private = |p: usize| experiment.points[p].config.sensing.mode == SensingMode::Private;
+    let mut results: Vec<Option<PointSecrecy>> = vec![None; jobs.len()];
+    // Private sensing: every adversary's evidence comes from her own simulation.
+    let private_jobs: Vec<usize> = (0..jobs.len()).filter(|&j| private(jobs[j].0)).collect();
+    let computed = private_jobs
+        .par_iter()
+        .map(|&j| {
+            let (p, a) = jobs[j];
+            analyze_point(
+                experiment,
+                p,
+                a,
+                options,
+                &private_sessions(experiment, p, a, options)?,
+            )
+        })
+        .collect::<Result<Vec<_>, LabError>>()?;
+    for (j, result) in private_jobs.into_iter().zip(computed) {
+        results[j] = Some(result);
+    }
+    // Odometry: the points of one physical configuration hear the same sessions.
+    let mut groups: Vec<(String, Vec<usize>)> = Vec::new();
+    for p in (0..experiment.points.len()).filter(|&p| !private(p)) {
+        let key = physical_key(&experiment.points[p].config);
+        match groups.iter_mut().find(|g| g.0 == key) {
+            Some(group) => group.1.push(p),
+            None => groups.push((key, vec![p])),
+        }
+    }
+    for (_, points) in groups {
+        let config = &experiment.points[points[0]].config;
+        // The pools do not depend on Eve: one count serves every adversary.
+        let count = sessions_needed(experiment.replicates(), options, |n| {
+            Ok(filled(bank.heard(config, n)?.runs, options, adversaries[0]))
+        })?;
+        let heard = bank.heard(config, count)?;
+        let mut listeners: Vec<(String, usize, EveStrategy)> = Vec::new();
+        let mut listener_of = Vec::new();
+        for &p in &points {
+            for &a in &adversaries {
+                let key = listener_key(&experiment.points[p].config, a);
+                let index = listeners
+                    .iter()
+                    .position(|l| l.0 == key)
+                    .unwrap_or_else(|| {
+                        listeners.push((key, p, a));
+                        listeners.len() - 1
+                    });
+                listener_of.push(((p, a), index));
+            }
+        }
+        let runs: Vec<Vec<RunOutput>> = listeners
+            .par_iter()
+            .map(|(_, p, a)| heard_by(&experiment.points[*p].config, *a, heard))
+            .collect();
+        let computed = listener_of
+            .par_iter()
+            .map(|&((p, a), l)| analyze_point(experiment, p, a, options, &runs[l]))
+            .collect::<Result<Vec<_>, LabError>>()?;
+        for (((p, a), _), result) in listener_of.iter().zip(computed) {
+            let j = jobs.iter().position(|job| *job == (*p, *a)).expect("a job");
+            results[j] = Some(result);
+        }
+        bank.release(config);
+    }
+    Ok(results
+        .into_iter()
+        .map(|r| r.expect("every job analyzed"))
+        .collect())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::adversary::overhear;
+    use robokey::sim::simulate_transcript;
 
     fn experiment(text: &str) -> Experiment {
         Experiment::from_table("t", text.parse().unwrap(), "test.toml").unwrap()

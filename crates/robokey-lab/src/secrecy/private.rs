@@ -94,14 +94,11 @@ fn toward_truth(llr: f64, bit: u8) -> f64 {
     if bit == 0 { llr } else { -llr }
 }
 
-/// The model's prediction of `adversary`'s information per bit: the mean of `I(d)` over
-/// the bits' separations.
-fn predicted_information(bits: &[&DoubletBit], adversary: EveStrategy) -> f64 {
-    let total: f64 = bits
-        .iter()
-        .map(|b| information(b.separation_of(adversary)))
-        .sum();
-    total / bits.len().max(1) as f64
+/// The model's prediction of the information per bit: the mean of `I(d)` over bits whose
+/// `I(d)` (one numerical integral each, so computed once per bit) are `informations`.
+fn predicted_information(informations: impl ExactSizeIterator<Item = f64>) -> f64 {
+    let count = informations.len();
+    informations.sum::<f64>() / count.max(1) as f64
 }
 
 /// The error rate of deciding each bit by the sign of `llr`.
@@ -164,15 +161,22 @@ pub fn figures(
         .map(|p| u64::from(p.gated))
         .sum();
     let info_of = |b: &DoubletBit| 1.0 - surprisal(toward_truth(b.llr_of(adversary), b.bit));
+    let predicted: Vec<f64> = all
+        .iter()
+        .map(|b| information(b.separation_of(adversary)))
+        .collect();
     let mut turn_bins = Vec::new();
     let mut from = 0.0;
     for &to in TURN_EDGES.iter().chain([f64::INFINITY].iter()) {
-        let bin: Vec<&DoubletBit> = all
-            .iter()
-            .copied()
-            .filter(|b| b.turn_rate >= from && b.turn_rate < to)
-            .collect();
+        let in_bin = |b: &&DoubletBit| b.turn_rate >= from && b.turn_rate < to;
+        let bin: Vec<&DoubletBit> = all.iter().copied().filter(in_bin).collect();
         if !bin.is_empty() {
+            let bin_predicted: Vec<f64> = all
+                .iter()
+                .zip(&predicted)
+                .filter(|(b, _)| in_bin(b))
+                .map(|(_, &p)| p)
+                .collect();
             let values: Vec<f64> = bin.iter().map(|b| info_of(b)).collect();
             turn_bins.push(TurnBin {
                 from,
@@ -180,7 +184,7 @@ pub fn figures(
                 bits: bin.len() as u64,
                 error: error_rate(&bin, |b| b.llr_of(adversary)),
                 information: mean_information(&values),
-                predicted: predicted_information(&bin, adversary),
+                predicted: predicted_information(bin_predicted.into_iter()),
             });
         }
         from = to;
@@ -203,7 +207,7 @@ pub fn figures(
         controller_calibration: calibration(&all, |b| b.controller),
         eve_calibration: calibration(&all, |b| b.llr_of(adversary)),
         eve_information: mean_information(&values),
-        eve_information_predicted: predicted_information(&all, adversary),
+        eve_information_predicted: predicted_information(predicted.into_iter()),
         turn_bins,
         assumed_separation: largest_separation(runs),
         jx_mm: 1e3 * mean(&jx),

@@ -69,3 +69,20 @@ pub fn build<R: Rng + ?Sized>(config: &Config, rng: &mut R) -> Box<dyn Eavesdrop
     let errors = starting_errors(config, rng);
     Box::new(Eve::new(config, config.eve_strategy(), errors))
 }
+
+/// Feeds `eve` one session's messages in order, as session `plan.session`, and returns her
+/// key; `on_decision` sees her after every step she decided.
+pub fn hear<E: Eavesdropper + ?Sized>(
+    eve: &mut E,
+    plan: &SessionPlan,
+    transcript: &[Message],
+    mut on_decision: impl FnMut(&E, &StepDecision),
+) -> KeyBits {
+    eve.begin_session(plan);
+    for message in transcript {
+        if let Some(decision) = eve.observe(message) {
+            on_decision(eve, &decision);
+        }
+    }
+    eve.key()
+}

@@ -12,7 +12,7 @@ use super::session::doublet_model;
 use crate::config::Config;
 use crate::control::{TrackingController, TrackingGains};
 use crate::model::{Pose, Unicycle, unicycle_step};
-use crate::protocol::closing::Closer;
+use crate::protocol::closing::ControllerLifecycle;
 use crate::protocol::{
     ControllerEvent, ControllerInput, ControllerOutput, FateLedger, KeyBits, Message, Outcome,
 };
@@ -51,14 +51,6 @@ struct Pending {
 /// has not come counts as lost (reordering on the network).
 const REORDER_SLACK: u32 = 8;
 
-/// What the controller waits for.
-#[derive(Clone, Debug)]
-enum Phase {
-    Running,
-    Closing(Box<Closer>),
-    Done,
-}
-
 /// The controller side of a private-sensing session. It takes [`ControllerInput`]s — the
 /// robot's frames and its own sensor's samples — and emits [`ControllerOutput`]s.
 #[derive(Debug)]
@@ -80,9 +72,8 @@ pub struct PrivateControllerEndpoint {
     /// Each doublet's decided bits `v | ω << 1` (0 when not decided).
     decided: Vec<u64>,
     robot_cursor: u32,
-    phase: Phase,
+    lifecycle: ControllerLifecycle,
     key: KeyBits,
-    outputs: VecDeque<ControllerOutput>,
 }
 
 impl PrivateControllerEndpoint {
@@ -109,9 +100,8 @@ impl PrivateControllerEndpoint {
             fates: FateLedger::new(plan.doublets()),
             decided: vec![0; plan.doublets() as usize],
             robot_cursor: 0,
-            phase: Phase::Running,
+            lifecycle: ControllerLifecycle::new(),
             key: KeyBits::default(),
-            outputs: VecDeque::new(),
             plan,
         }
     }
@@ -121,19 +111,13 @@ impl PrivateControllerEndpoint {
         match input {
             ControllerInput::Frame(message) => self.handle_message(message),
             ControllerInput::Sensor { step, pose } => self.handle_sample(step, pose),
-            ControllerInput::Timeout => {
-                if let Phase::Closing(closer) = &mut self.phase
-                    && let Some(outcome) = closer.on_timeout(&mut self.outputs)
-                {
-                    self.finish(outcome);
-                }
-            }
+            ControllerInput::Timeout => self.lifecycle.on_timeout(),
         }
     }
 
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<ControllerOutput> {
-        self.outputs.pop_front()
+        self.lifecycle.poll()
     }
 
     /// The controller's decisions on the kept doublets, `[v, ω]` each (complete once the
@@ -152,43 +136,19 @@ impl PrivateControllerEndpoint {
     /// Whether the session is over.
     #[must_use]
     pub fn is_done(&self) -> bool {
-        matches!(self.phase, Phase::Done)
-    }
-
-    fn emit(&mut self, event: ControllerEvent) {
-        self.outputs.push_back(ControllerOutput::Event(event));
-    }
-
-    fn send(&mut self, message: Message) {
-        self.outputs.push_back(ControllerOutput::Transmit(message));
-    }
-
-    fn finish(&mut self, outcome: Outcome) {
-        self.phase = Phase::Done;
-        self.emit(ControllerEvent::Finished(outcome));
+        self.lifecycle.is_done()
     }
 
     fn handle_message(&mut self, message: Message) {
-        match (&mut self.phase, message) {
-            (Phase::Done, _) => {}
-            (_, Message::Abort { reason }) => {
-                self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
+        match message {
+            Message::PrivateMeasurement {
+                step,
+                applied_step,
+                fate_cursor,
+            } if self.lifecycle.running() => {
+                self.handle_measurement(step, applied_step, fate_cursor);
             }
-            (
-                Phase::Running,
-                Message::PrivateMeasurement {
-                    step,
-                    applied_step,
-                    fate_cursor,
-                },
-            ) => self.handle_measurement(step, applied_step, fate_cursor),
-            (Phase::Closing(closer), message) => {
-                if let Some(outcome) = closer.on_message(message, &mut self.outputs) {
-                    self.finish(outcome);
-                }
-            }
-            // Duplicates and messages that do not fit the phase are ignored.
-            _ => {}
+            message => self.lifecycle.on_message(message),
         }
     }
 
@@ -214,7 +174,7 @@ impl PrivateControllerEndpoint {
     /// mid-doublet sample, which carries the bit); `y_c(N)` goes with the stop command.
     fn handle_sample(&mut self, step: u32, pose: Pose) {
         let fresh = step >= self.next_sample && step <= self.plan.steps;
-        if !matches!(self.phase, Phase::Running) || !fresh || !pose.iter().all(|v| v.is_finite()) {
+        if !self.lifecycle.running() || !fresh || !pose.iter().all(|v| v.is_finite()) {
             return;
         }
         self.next_sample = step + 1;
@@ -229,7 +189,7 @@ impl PrivateControllerEndpoint {
         // Doublets whose first sample never came were never commanded.
         while self.next_doublet < self.plan.doublets() && 2 * self.next_doublet < step {
             self.fates.record(self.next_doublet, false);
-            self.emit(ControllerEvent::DoubletErased {
+            self.lifecycle.emit(ControllerEvent::DoubletErased {
                 doublet: self.next_doublet,
             });
             self.next_doublet += 1;
@@ -260,21 +220,21 @@ impl PrivateControllerEndpoint {
                     applied: [None; 2],
                 });
                 self.next_doublet = step / 2 + 1;
-                self.emit(ControllerEvent::DoubletCommanded {
+                self.lifecycle.emit(ControllerEvent::DoubletCommanded {
                     step,
                     inputs,
                     carries,
                 });
                 (first, Some(second))
             } else {
-                self.emit(ControllerEvent::Commanded {
+                self.lifecycle.emit(ControllerEvent::Commanded {
                     step,
                     nominal: first,
                 });
                 (first, None)
             }
         };
-        self.send(Message::DoubletCommand {
+        self.lifecycle.send(Message::DoubletCommand {
             step,
             sample: pose.into(),
             first: first.into(),
@@ -305,23 +265,19 @@ impl PrivateControllerEndpoint {
                 (true, Some(samples)) => self.decide(&p, samples),
                 (true, None) => {
                     self.fates.record(p.doublet, false);
-                    self.emit(ControllerEvent::DoubletErased { doublet: p.doublet });
+                    self.lifecycle
+                        .emit(ControllerEvent::DoubletErased { doublet: p.doublet });
                 }
             }
         }
         let over = self.next_sample > self.plan.steps && self.reported > self.plan.steps;
-        if matches!(self.phase, Phase::Running) && over && self.pending.is_empty() {
+        if self.lifecycle.running() && over && self.pending.is_empty() {
             self.key = self.fates.accepted_key(
                 &self.decided,
                 usize::from(self.plan.perturbation.bits_per_doublet),
             );
-            self.phase = Phase::Closing(Box::new(Closer::start(
-                self.plan.confirmer.clone(),
-                &self.fates,
-                &[],
-                Outcome::Kept,
-                &mut self.outputs,
-            )));
+            self.lifecycle
+                .close(self.plan.confirmer.clone(), &self.fates, &[], Outcome::Kept);
         }
     }
 
@@ -349,7 +305,8 @@ impl PrivateControllerEndpoint {
         };
         self.decided[p.doublet as usize] = decision.evidence.bits();
         self.fates.record(p.doublet, true);
-        self.emit(ControllerEvent::DoubletDecided(decision));
+        self.lifecycle
+            .emit(ControllerEvent::DoubletDecided(decision));
     }
 }
 

@@ -5,7 +5,7 @@
 
 use std::collections::VecDeque;
 
-use super::controller::ControllerOutput;
+use super::controller::{ControllerEvent, ControllerOutput};
 use super::fates::FateLedger;
 use super::message::Message;
 use super::{ConfirmTags, Confirmer, Direction, KeyBits, Outcome, TAG_BYTES};
@@ -16,6 +16,113 @@ const DIRECTION: Direction = Direction::ToRobot;
 /// Largest number of Finish (and Confirm) transmissions before the session ends
 /// unconfirmed.
 pub(crate) const FINISH_TRIES: u32 = 10;
+
+/// Where a controller endpoint's session is.
+#[derive(Clone, Debug)]
+enum Phase {
+    /// Measurements (or reports) drive it.
+    Running,
+    Closing(Box<Closer>),
+    Done,
+}
+
+/// What both controller endpoints (odometry and private sensing) share: their outputs, in
+/// order, and where the session is — running, closing (every fate known: [`Closer`]) or done.
+#[derive(Clone)]
+pub(crate) struct ControllerLifecycle {
+    phase: Phase,
+    outputs: VecDeque<ControllerOutput>,
+}
+
+impl std::fmt::Debug for ControllerLifecycle {
+    /// The phase and how many outputs wait (they may carry decisions: not printed).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ControllerLifecycle")
+            .field("phase", &self.phase)
+            .field("outputs", &self.outputs.len())
+            .finish()
+    }
+}
+
+impl ControllerLifecycle {
+    /// A running session with no output yet.
+    pub(crate) fn new() -> Self {
+        Self {
+            phase: Phase::Running,
+            outputs: VecDeque::new(),
+        }
+    }
+
+    /// Whether measurements still drive the session.
+    pub(crate) fn running(&self) -> bool {
+        matches!(self.phase, Phase::Running)
+    }
+
+    /// Whether the session is over.
+    pub(crate) fn is_done(&self) -> bool {
+        matches!(self.phase, Phase::Done)
+    }
+
+    /// The next output, if any.
+    pub(crate) fn poll(&mut self) -> Option<ControllerOutput> {
+        self.outputs.pop_front()
+    }
+
+    /// Reports an event.
+    pub(crate) fn emit(&mut self, event: ControllerEvent) {
+        self.outputs.push_back(ControllerOutput::Event(event));
+    }
+
+    /// Sends a message to the robot.
+    pub(crate) fn send(&mut self, message: Message) {
+        self.outputs.push_back(ControllerOutput::Transmit(message));
+    }
+
+    /// Ends the session with `outcome`.
+    pub(crate) fn finish(&mut self, outcome: Outcome) {
+        self.phase = Phase::Done;
+        self.emit(ControllerEvent::Finished(outcome));
+    }
+
+    /// Starts closing ([`Closer::start`]).
+    pub(crate) fn close(
+        &mut self,
+        confirmer: Confirmer,
+        fates: &FateLedger,
+        tagged_key: &[u8],
+        verified: Outcome,
+    ) {
+        let closer = Closer::start(confirmer, fates, tagged_key, verified, &mut self.outputs);
+        self.phase = Phase::Closing(Box::new(closer));
+    }
+
+    /// The retransmission timer fired.
+    pub(crate) fn on_timeout(&mut self) {
+        if let Phase::Closing(closer) = &mut self.phase
+            && let Some(outcome) = closer.on_timeout(&mut self.outputs)
+        {
+            self.finish(outcome);
+        }
+    }
+
+    /// A message from the robot that the running endpoint did not take: ignored once done,
+    /// an `Abort` ends the session, a closing session hands it to its [`Closer`]; anything
+    /// else (a duplicate, a message that does not fit the phase) is ignored.
+    pub(crate) fn on_message(&mut self, message: Message) {
+        match (&mut self.phase, message) {
+            (Phase::Done, _) => {}
+            (_, Message::Abort { reason }) => {
+                self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
+            }
+            (Phase::Closing(closer), message) => {
+                if let Some(outcome) = closer.on_message(message, &mut self.outputs) {
+                    self.finish(outcome);
+                }
+            }
+            (Phase::Running, _) => {}
+        }
+    }
+}
 
 /// What the closing controller waits for, and how often it has sent.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

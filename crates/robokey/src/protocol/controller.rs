@@ -1,10 +1,8 @@
 //! The controller endpoint (docs/model.md, docs/protocol.md): tracks the reference, offers command pairs,
 //! decodes the robot's choices, acks codewords and confirms the key.
 
-use std::collections::VecDeque;
-
 use super::assembler::CodewordAssembler;
-use super::closing::Closer;
+use super::closing::ControllerLifecycle;
 use super::decoder::{StepDecision, StepDecoder};
 use super::fates::FateLedger;
 use super::message::Message;
@@ -86,14 +84,6 @@ pub enum ControllerOutput {
     Event(ControllerEvent),
 }
 
-/// What the controller waits for.
-#[derive(Clone, Debug)]
-enum Phase {
-    ExpectMeasurement,
-    Closing(Box<Closer>),
-    Done,
-}
-
 /// The controller side of a session.
 pub struct ControllerEndpoint {
     plan: SessionPlan,
@@ -106,16 +96,15 @@ pub struct ControllerEndpoint {
     /// The decoded message of every decided codeword: key material.
     decoded: zeroize::Zeroizing<Vec<u64>>,
     robot_cursor: u32,
-    phase: Phase,
+    lifecycle: ControllerLifecycle,
     key: KeyBits,
-    outputs: VecDeque<ControllerOutput>,
 }
 
 impl std::fmt::Debug for ControllerEndpoint {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         // Key material (decoded messages, key bits) is never printed.
         f.debug_struct("ControllerEndpoint")
-            .field("phase", &self.phase)
+            .field("lifecycle", &self.lifecycle)
             .field("next_measurement", &self.decoder.next_measurement())
             .field("decoded_codewords", &self.decoded.len())
             .field("key_bits", &self.key.len())
@@ -144,9 +133,8 @@ impl ControllerEndpoint {
             fates: FateLedger::new(plan.codewords()),
             decoded: zeroize::Zeroizing::new(Vec::with_capacity(plan.codewords() as usize)),
             robot_cursor: 0,
-            phase: Phase::ExpectMeasurement,
+            lifecycle: ControllerLifecycle::new(),
             key: KeyBits::default(),
-            outputs: VecDeque::new(),
             plan,
         }
     }
@@ -156,19 +144,13 @@ impl ControllerEndpoint {
         match input {
             ControllerInput::Frame(message) => self.handle_message(message),
             ControllerInput::Sensor { .. } => {}
-            ControllerInput::Timeout => {
-                if let Phase::Closing(closer) = &mut self.phase
-                    && let Some(outcome) = closer.on_timeout(&mut self.outputs)
-                {
-                    self.finish(outcome);
-                }
-            }
+            ControllerInput::Timeout => self.lifecycle.on_timeout(),
         }
     }
 
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<ControllerOutput> {
-        self.outputs.pop_front()
+        self.lifecycle.poll()
     }
 
     /// The controller's key `K_c` (complete once the session has finished).
@@ -186,53 +168,29 @@ impl ControllerEndpoint {
     /// Whether the session is over.
     #[must_use]
     pub fn is_done(&self) -> bool {
-        matches!(self.phase, Phase::Done)
-    }
-
-    fn emit(&mut self, event: ControllerEvent) {
-        self.outputs.push_back(ControllerOutput::Event(event));
-    }
-
-    fn send(&mut self, message: Message) {
-        self.outputs.push_back(ControllerOutput::Transmit(message));
-    }
-
-    fn finish(&mut self, outcome: Outcome) {
-        self.phase = Phase::Done;
-        self.emit(ControllerEvent::Finished(outcome));
+        self.lifecycle.is_done()
     }
 
     fn handle_message(&mut self, message: Message) {
-        match (&mut self.phase, message) {
-            (Phase::Done, _) => {}
-            (_, Message::Abort { reason }) => {
-                self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
+        match message {
+            Message::Measurement {
+                step,
+                y,
+                applied_step,
+                fate_cursor,
+            } if self.lifecycle.running() => {
+                self.handle_measurement(step, Pose::from(y), applied_step, fate_cursor);
             }
-            (
-                Phase::ExpectMeasurement,
-                Message::Measurement {
-                    step,
-                    y,
-                    applied_step,
-                    fate_cursor,
-                },
-            ) => self.handle_measurement(step, Pose::from(y), applied_step, fate_cursor),
-            (Phase::Closing(closer), message) => {
-                if let Some(outcome) = closer.on_message(message, &mut self.outputs) {
-                    self.finish(outcome);
-                }
-            }
-            // Duplicates and messages that do not fit the phase are ignored.
-            _ => {}
+            message => self.lifecycle.on_message(message),
         }
     }
 
     /// Ends the session and tells the robot why.
     fn abort(&mut self, reason: String) {
-        self.send(Message::Abort {
+        self.lifecycle.send(Message::Abort {
             reason: reason.clone(),
         });
-        self.finish(Outcome::Aborted(reason));
+        self.lifecycle.finish(Outcome::Aborted(reason));
     }
 
     fn handle_measurement(&mut self, step: u32, y: Pose, applied: Option<u32>, cursor: u32) {
@@ -254,29 +212,29 @@ impl ControllerEndpoint {
             for gap in measured.missing.clone() {
                 self.record_step(gap, None);
             }
-            self.emit(ControllerEvent::Missing(measured.missing));
+            self.lifecycle
+                .emit(ControllerEvent::Missing(measured.missing));
         }
         if let Some(decision) = measured.decision {
             self.record_step(decision.step, decision.bit);
-            self.emit(ControllerEvent::Decoded(decision));
+            self.lifecycle.emit(ControllerEvent::Decoded(decision));
         }
         if step < self.plan.steps {
             self.send_command(step, &y);
         } else {
-            self.send(Message::Command {
+            self.lifecycle.send(Message::Command {
                 step,
                 u0: [0.0; 2],
                 u1: [0.0; 2],
                 fates: self.fates.window(self.robot_cursor),
             });
             self.key = self.fates.accepted_key(&self.decoded, self.plan.code.k());
-            self.phase = Phase::Closing(Box::new(Closer::start(
+            self.lifecycle.close(
                 self.plan.confirmer.clone(),
                 &self.fates,
                 &self.key,
                 Outcome::Confirmed,
-                &mut self.outputs,
-            )));
+            );
         }
     }
 
@@ -289,7 +247,7 @@ impl ControllerEndpoint {
             let accepted = !received.erased && decoded.distance <= self.plan.accept_max_distance;
             self.fates.record(received.index, accepted);
             self.decoded.push(decoded.message);
-            self.emit(ControllerEvent::CodewordDecided {
+            self.lifecycle.emit(ControllerEvent::CodewordDecided {
                 index: received.index,
                 accepted,
             });
@@ -309,8 +267,9 @@ impl ControllerEndpoint {
         }
         let (u0, u1) = command_pair(&self.plan, nominal);
         self.decoder.on_command(step, nominal, u0, u1);
-        self.emit(ControllerEvent::Commanded { step, nominal });
-        self.send(Message::Command {
+        self.lifecycle
+            .emit(ControllerEvent::Commanded { step, nominal });
+        self.lifecycle.send(Message::Command {
             step,
             u0: u0.into(),
             u1: u1.into(),
