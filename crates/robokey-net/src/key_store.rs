@@ -11,8 +11,8 @@ use zeroize::Zeroize;
 use crate::error::NetError;
 use crate::secret_file;
 
-/// One final key as stored.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// One final key as stored. Its `Debug` omits the bits.
+#[derive(Clone, PartialEq, Serialize, Deserialize)]
 pub struct StoredKey {
     /// The ID both sides share (16 hex digits).
     pub id: String,
@@ -35,6 +35,18 @@ pub struct StoredKey {
     pub created: String,
     /// The sessions whose raw bits it came from.
     pub sessions: Vec<u32>,
+}
+
+impl std::fmt::Debug for StoredKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("StoredKey")
+            .field("id", &self.id)
+            .field("role", &self.role)
+            .field("block", &self.block)
+            .field("bits", &self.bits)
+            .field("restricted", &self.restricted)
+            .finish_non_exhaustive()
+    }
 }
 
 impl Drop for StoredKey {
