@@ -345,6 +345,8 @@ fn mismatched_configurations_abort_naming_the_difference() {
         "lockstep",
         "--set",
         "robot.T=0.25",
+        "--set",
+        "postprocess.epsilon=1e-9",
         "--report",
         &robot_report,
         "--pairing",
@@ -364,6 +366,11 @@ fn mismatched_configurations_abort_naming_the_difference() {
     assert_eq!(code, 3, "{text}");
     assert!(
         text.contains("aborted") && text.contains("robot.T: robot has 0.25, controller has 0.2"),
+        "{text}"
+    );
+    // The post-processing terms too: they size the final keys.
+    assert!(
+        text.contains("postprocess.epsilon: robot has 0.000000001, controller has 0.000001"),
         "{text}"
     );
     assert_eq!(wait_code(robot).0, 3, "no key");

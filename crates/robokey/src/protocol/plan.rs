@@ -94,8 +94,9 @@ impl SessionPlan {
 
 /// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
 /// budget, Δ, trajectory, protocol on/off; in private sensing also the mode, the bits per
-/// doublet and the turn gate), as `field = value` lines in a fixed order. The robot checks
-/// every command against the agreed Δ, r and D.
+/// doublet, the turn gate and Eve's stated camera noise; the `[postprocess]` table, which
+/// sizes the final keys), as `field = value` lines in a fixed order. The robot checks every
+/// command against the agreed Δ, r and D.
 #[must_use]
 pub fn agreement_terms(config: &Config) -> String {
     let code = &config.code;
@@ -104,15 +105,23 @@ pub fn agreement_terms(config: &Config) -> String {
     let private = match config.sensing.mode {
         SensingMode::Odometry => String::new(),
         SensingMode::Private => format!(
-            "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n",
-            config.protocol.bits_per_doublet, config.protocol.max_turn_rate
+            "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
+             eve.camera_std = {:?}\n",
+            config.protocol.bits_per_doublet, config.protocol.max_turn_rate, config.eve.camera_std
         ),
     };
+    // What sizes and labels the final keys both stores hold.
+    let post = &config.postprocess;
+    let assumed = post
+        .assumed_eve_error
+        .map_or_else(|| "none".to_owned(), |p| p.to_string());
     format!(
         "robot.T = {}\nrobot.r = {}\nrobot.D = {}\nprotocol.enabled = {}\nprotocol.delta_v = {}\nprotocol.delta_omega = {}\n\
          code.kind = {:?}\ncode.n_c = {}\ncode.k_c = {}\ncode.accept_max_distance = {}\n\
          code.key_bits = {}\ntrajectory.waypoints = {:?}\ntrajectory.side_time = {}\n\
-         trajectory.laps = {}\n{private}",
+         trajectory.laps = {}\n{private}postprocess.block_bits = {}\n\
+         postprocess.sample_bits = {}\npostprocess.epsilon = {}\n\
+         postprocess.assumed_eve_error = {assumed}\n",
         config.robot.sample_time,
         config.robot.r,
         config.robot.axle_length,
@@ -127,6 +136,9 @@ pub fn agreement_terms(config: &Config) -> String {
         traj.waypoints,
         traj.side_time,
         traj.laps,
+        post.block_bits,
+        post.sample_bits,
+        post.epsilon,
     )
 }
 
