@@ -2,26 +2,15 @@
 //! the key bits and the clock, applies `u + s·Δ` then `u' − s·Δ` from each doublet's nominal
 //! inputs, and reports which command it applied — never a pose.
 
-use std::collections::VecDeque;
-
 use rand::{CryptoRng, RngExt};
 
 use super::doublet::DoubletInputs;
 use super::plan::PrivatePlan;
-use crate::model::{Unicycle, WheelSpeeds};
-use crate::protocol::closing::{RobotCloser, bitmap_bit};
+use crate::model::Unicycle;
+use crate::protocol::closing::{RobotClosing, RobotLifecycle};
 use crate::protocol::{
-    Actuation, FateLedger, FateWindow, KeyBits, Message, Outcome, RobotInput, RobotOutput,
+    Actuation, FateLedger, FateWindow, Message, Outcome, RobotInput, RobotOutput,
 };
-
-/// What the robot waits for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Phase {
-    ExpectCommand,
-    ExpectFinish,
-    ExpectConfirm,
-    Done,
-}
 
 /// The robot side of a private-sensing session. It takes the odometry mode's
 /// [`RobotInput`]s (the pose of a `Sample` stays on the robot) and emits [`RobotOutput`]s.
@@ -31,26 +20,18 @@ pub struct PrivateRobotEndpoint {
     bits: zeroize::Zeroizing<Vec<u64>>,
     /// Whether the robot applied doublet j with its bits (not gated, not erased).
     carried: Vec<bool>,
-    fates: FateLedger,
     /// The input for the second step of the doublet in flight, with its step.
     second: Option<(u32, Unicycle)>,
     /// The last nominal input received: held for up to `max_hold` missing steps.
     last_nominal: Option<Unicycle>,
-    missing_in_a_row: u32,
-    applied_step: Option<u32>,
-    next_command: u32,
-    phase: Phase,
-    key: KeyBits,
-    commands_applied: u32,
-    outputs: VecDeque<RobotOutput>,
+    lifecycle: RobotLifecycle,
 }
 
 impl std::fmt::Debug for PrivateRobotEndpoint {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         // Key material is never printed.
         f.debug_struct("PrivateRobotEndpoint")
-            .field("phase", &self.phase)
-            .field("next_command", &self.next_command)
+            .field("lifecycle", &self.lifecycle)
             .finish_non_exhaustive()
     }
 }
@@ -71,16 +52,9 @@ impl PrivateRobotEndpoint {
         Self {
             bits: bits.into(),
             carried: vec![false; doublets as usize],
-            fates: FateLedger::new(doublets),
             second: None,
             last_nominal: None,
-            missing_in_a_row: 0,
-            applied_step: None,
-            next_command: 0,
-            phase: Phase::ExpectCommand,
-            key: KeyBits::default(),
-            commands_applied: 0,
-            outputs: VecDeque::new(),
+            lifecycle: RobotLifecycle::new(doublets),
             plan,
         }
     }
@@ -96,14 +70,14 @@ impl PrivateRobotEndpoint {
 
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<RobotOutput> {
-        self.outputs.pop_front()
+        self.lifecycle.poll()
     }
 
     /// The robot's raw bits of the kept doublets, `[v, ω]` each (complete once the Finish
     /// has arrived): the reference key that reconciliation corrects the controller's to.
     #[must_use]
     pub fn key(&self) -> &[u8] {
-        &self.key
+        self.lifecycle.key()
     }
 
     /// The bits `[v, ω]` doublet `doublet` carries, once the robot applied it with them.
@@ -120,7 +94,7 @@ impl PrivateRobotEndpoint {
     /// Whether the session is over.
     #[must_use]
     pub fn is_done(&self) -> bool {
-        self.phase == Phase::Done
+        self.lifecycle.is_done()
     }
 
     /// The session plan.
@@ -132,40 +106,22 @@ impl PrivateRobotEndpoint {
     /// Steps applied from commands (fallbacks and the stop excluded).
     #[must_use]
     pub fn commands_applied(&self) -> u32 {
-        self.commands_applied
+        self.lifecycle.commands_applied
     }
 
     /// The step whose command the robot waits for.
     #[must_use]
     pub fn next_command(&self) -> u32 {
-        self.next_command
-    }
-
-    fn send(&mut self, message: Message) {
-        self.outputs.push_back(RobotOutput::Transmit(message));
-    }
-
-    fn finish(&mut self, outcome: Outcome) {
-        self.phase = Phase::Done;
-        self.outputs.push_back(RobotOutput::Finished(outcome));
+        self.lifecycle.next_command
     }
 
     fn apply(&mut self, step: u32, input: Unicycle, bit: Option<u8>, erased: bool) {
-        self.outputs.push_back(RobotOutput::Apply(Actuation {
+        self.lifecycle.apply(Actuation {
             step,
             wheels: self.plan.drive.to_wheels(input),
             bit,
             erased,
-        }));
-    }
-
-    fn stop_wheels(&mut self, step: u32) {
-        self.outputs.push_back(RobotOutput::Apply(Actuation {
-            step,
-            wheels: WheelSpeeds::zeros(),
-            bit: None,
-            erased: false,
-        }));
+        });
     }
 
     /// Sample instant `t_k`: reports which command was applied before it; applies a
@@ -173,27 +129,26 @@ impl PrivateRobotEndpoint {
     /// `k = N` stops the wheels (the robot owns the clock: the stop command only carries the
     /// controller's last sample and fates).
     fn handle_sample(&mut self, step: u32) {
-        let applied_step = self.applied_step.take();
-        self.send(Message::PrivateMeasurement {
+        let applied_step = self.lifecycle.applied_step.take();
+        let fate_cursor = self.lifecycle.fates.cursor();
+        self.lifecycle.send(Message::PrivateMeasurement {
             step,
             applied_step,
-            fate_cursor: self.fates.cursor(),
+            fate_cursor,
         });
-        if self.phase != Phase::ExpectCommand || step != self.next_command {
+        if !self.lifecycle.awaits(step) {
             return;
         }
         if step >= self.plan.steps {
-            self.stop_wheels(step);
-            self.next_command = step + 1;
-            self.phase = Phase::ExpectFinish;
+            self.lifecycle.stop_wheels(step);
+            self.lifecycle.next_command = step + 1;
+            self.lifecycle.end_run();
         } else if step % 2 == 1 {
             // The second step of a doublet: its input came with the first.
             match self.second.take().filter(|(s, _)| *s == step) {
                 Some((_, input)) => {
-                    self.commands_applied += 1;
-                    self.missing_in_a_row = 0;
-                    self.applied_step = Some(step);
-                    self.next_command = step + 1;
+                    self.lifecycle.commands_applied += 1;
+                    self.lifecycle.command_arrived(step);
                     let bit = self.carried_bits(step / 2).map(|b| b[0]);
                     self.apply(step, input, bit, false);
                 }
@@ -203,73 +158,40 @@ impl PrivateRobotEndpoint {
     }
 
     fn handle_message(&mut self, message: Message) {
-        match (self.phase, message) {
-            (
-                Phase::ExpectCommand,
-                Message::DoubletCommand {
-                    step,
-                    first,
-                    second,
-                    fates,
-                    ..
-                },
-            ) => {
-                if step != self.next_command || step >= self.plan.steps || step % 2 == 1 {
+        match message {
+            Message::DoubletCommand {
+                step,
+                first,
+                second,
+                fates,
+                ..
+            } if self.lifecycle.expects_command() => {
+                if step != self.lifecycle.next_command || step >= self.plan.steps || step % 2 == 1 {
                     return; // stale, duplicate, from the future, or not a command step
                 }
                 self.record(fates);
                 self.handle_command(step, first.into(), second.map(Unicycle::from));
             }
-            (Phase::ExpectFinish, Message::DoubletCommand { fates, .. }) => self.record(fates),
-            (
-                phase @ (Phase::ExpectCommand | Phase::ExpectFinish | Phase::ExpectConfirm),
-                Message::Finish { codewords, bitmap },
-            ) => {
-                if phase == Phase::ExpectCommand {
-                    // The Finish ends the run wherever the robot is.
-                    self.stop_wheels(self.next_command);
-                }
-                if codewords != self.fates.len() {
-                    let reason = format!(
-                        "Finish covers {codewords} doublets, the session has {}",
-                        self.fates.len()
-                    );
-                    self.send(Message::Abort {
-                        reason: reason.clone(),
-                    });
-                    self.finish(Outcome::Aborted(reason));
-                    return;
-                }
-                for index in 0..codewords {
-                    self.record_fate(index, bitmap_bit(&bitmap, index));
-                }
-                self.key = self.fates.accepted_key(
-                    &self.bits,
-                    usize::from(self.plan.perturbation.bits_per_doublet),
-                );
-                self.phase = Phase::ExpectConfirm;
-                for message in self.closer(&self.fates.bitmap()).answer() {
-                    self.send(message);
-                }
+            Message::DoubletCommand { fates, .. } if self.lifecycle.expects_finish() => {
+                self.record(fates);
             }
-            (
-                Phase::ExpectConfirm,
-                Message::Confirm {
-                    session_tag,
-                    key_tag,
-                },
-            ) => {
-                let outcome =
-                    self.closer(&self.fates.bitmap())
-                        .verdict(session_tag, key_tag, Outcome::Kept);
-                self.finish(outcome);
+            message => {
+                let carried = &self.carried;
+                let bits = &self.bits;
+                let bits_per_doublet = usize::from(self.plan.perturbation.bits_per_doublet);
+                let closing = RobotClosing {
+                    confirmer: &self.plan.confirmer,
+                    keepable: &|index| was_carried(carried, index),
+                    key: &|fates: &FateLedger| fates.accepted_key(bits, bits_per_doublet),
+                    // Raw bits are confirmed per post-processing block, never per session.
+                    tags_cover_key: false,
+                    verified: Outcome::Kept,
+                    count_mismatch: |codewords, len| {
+                        format!("Finish covers {codewords} doublets, the session has {len}")
+                    },
+                };
+                self.lifecycle.on_message(message, &closing);
             }
-            (Phase::Done, _) => {}
-            (_, Message::Abort { reason }) => {
-                self.stop_wheels(self.next_command);
-                self.finish(Outcome::Aborted(format!("controller aborted: {reason}")));
-            }
-            _ => {}
         }
     }
 
@@ -285,10 +207,8 @@ impl PrivateRobotEndpoint {
         if !self.is_allowed(first, inputs.as_ref()) {
             return self.handle_missing(step);
         }
-        self.commands_applied += 1;
-        self.missing_in_a_row = 0;
-        self.applied_step = Some(step);
-        self.next_command = step + 1;
+        self.lifecycle.commands_applied += 1;
+        self.lifecycle.command_arrived(step);
         let Some(inputs) = inputs else {
             self.last_nominal = Some(first);
             return self.apply(step, first, None, false);
@@ -336,18 +256,15 @@ impl PrivateRobotEndpoint {
     /// Step `step`'s command is missing: the robot holds the last nominal input for up to
     /// `max_hold` steps, then stops; a doublet with a missing step carries no bit.
     fn handle_missing(&mut self, step: u32) {
-        if self.phase != Phase::ExpectCommand || step != self.next_command {
+        let Some(missing_in_a_row) = self.lifecycle.command_missing(step) else {
             return;
-        }
-        self.next_command = step + 1;
-        self.missing_in_a_row += 1;
-        self.applied_step = None;
+        };
         if let Some(carried) = self.carried.get_mut((step / 2) as usize) {
             *carried = false;
         }
         self.second = None;
         let input = match self.last_nominal {
-            Some(u) if self.missing_in_a_row <= self.plan.max_hold => u,
+            Some(u) if missing_in_a_row <= self.plan.max_hold => u,
             _ => Unicycle::zeros(),
         };
         self.apply(step, input, None, true);
@@ -362,19 +279,14 @@ impl PrivateRobotEndpoint {
 
     /// Records a fate; a doublet the robot did not carry is never kept.
     fn record_fate(&mut self, index: u32, kept: bool) {
-        let carried = self.carried.get(index as usize).copied().unwrap_or(false);
-        self.fates.record(index, kept && carried);
+        let carried = was_carried(&self.carried, index);
+        self.lifecycle.fates.record(index, kept && carried);
     }
+}
 
-    /// The closing handshake: tags over the fates and the empty key (raw bits are
-    /// confirmed per post-processing block, never per session).
-    fn closer<'a>(&'a self, bitmap: &'a [u64]) -> RobotCloser<'a> {
-        RobotCloser {
-            confirmer: &self.plan.confirmer,
-            bitmap,
-            tagged_key: &[],
-        }
-    }
+/// Whether the robot applied doublet `index` with its bits (one beyond the session was not).
+fn was_carried(carried: &[bool], index: u32) -> bool {
+    carried.get(index as usize).copied().unwrap_or(false)
 }
 
 #[cfg(test)]

@@ -1,13 +1,11 @@
 //! The robot endpoint (docs/protocol.md): owns the key bits and the clock, applies one of the
 //! two offered commands per step (or the fallback), reports odometry.
 
-use std::collections::VecDeque;
-
-use super::closing::{RobotCloser, bitmap_bit};
+use super::Outcome;
+use super::closing::{RobotClosing, RobotLifecycle};
 use super::fates::FateLedger;
 use super::message::Message;
 use super::plan::SessionPlan;
-use super::{KeyBits, Outcome};
 use crate::code::low_mask;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use rand::{CryptoRng, RngExt};
@@ -55,38 +53,22 @@ pub enum RobotOutput {
     Finished(Outcome),
 }
 
-/// What the robot waits for.
-#[derive(Clone, Debug, PartialEq)]
-enum Phase {
-    ExpectCommand,
-    ExpectFinish,
-    ExpectConfirm,
-    Done,
-}
-
 /// The robot side of a session.
 pub struct RobotEndpoint {
     plan: SessionPlan,
     messages: zeroize::Zeroizing<Vec<u64>>,
     codewords: zeroize::Zeroizing<Vec<u64>>,
-    fates: FateLedger,
+    /// Whether the robot saw codeword j erased (a command missing): it is never accepted.
     erased: Vec<bool>,
     last_pair: Option<(WheelSpeeds, WheelSpeeds)>,
-    missing_in_a_row: u32,
-    applied_step: Option<u32>,
-    next_command: u32,
-    phase: Phase,
-    key: KeyBits,
-    commands_applied: u32,
-    outputs: VecDeque<RobotOutput>,
+    lifecycle: RobotLifecycle,
 }
 
 impl std::fmt::Debug for RobotEndpoint {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         // Key material is never printed.
         f.debug_struct("RobotEndpoint")
-            .field("phase", &self.phase)
-            .field("next_command", &self.next_command)
+            .field("lifecycle", &self.lifecycle)
             .finish_non_exhaustive()
     }
 }
@@ -108,18 +90,11 @@ impl RobotEndpoint {
             .collect();
         let codewords = messages.iter().map(|&m| plan.code.encode(m)).collect();
         Self {
-            fates: FateLedger::new(plan.codewords()),
+            lifecycle: RobotLifecycle::new(plan.codewords()),
             erased: vec![false; plan.codewords() as usize],
             messages: messages.into(),
             codewords: zeroize::Zeroizing::new(codewords),
             last_pair: None,
-            missing_in_a_row: 0,
-            applied_step: None,
-            next_command: 0,
-            phase: Phase::ExpectCommand,
-            key: KeyBits::default(),
-            commands_applied: 0,
-            outputs: VecDeque::new(),
             plan,
         }
     }
@@ -135,19 +110,19 @@ impl RobotEndpoint {
 
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<RobotOutput> {
-        self.outputs.pop_front()
+        self.lifecycle.poll()
     }
 
     /// The robot's key `K_r` (complete once the Finish has arrived).
     #[must_use]
     pub fn key(&self) -> &[u8] {
-        &self.key
+        self.lifecycle.key()
     }
 
     /// Whether the session is over.
     #[must_use]
     pub fn is_done(&self) -> bool {
-        self.phase == Phase::Done
+        self.lifecycle.is_done()
     }
 
     /// The session plan.
@@ -159,46 +134,35 @@ impl RobotEndpoint {
     /// Commands applied to the wheels (stop commands and fallbacks excluded).
     #[must_use]
     pub fn commands_applied(&self) -> u32 {
-        self.commands_applied
+        self.lifecycle.commands_applied
     }
 
     /// The step whose command the robot waits for.
     #[must_use]
     pub fn next_command(&self) -> u32 {
-        self.next_command
-    }
-
-    fn send(&mut self, message: Message) {
-        self.outputs.push_back(RobotOutput::Transmit(message));
-    }
-
-    fn finish(&mut self, outcome: Outcome) {
-        self.phase = Phase::Done;
-        self.outputs.push_back(RobotOutput::Finished(outcome));
+        self.lifecycle.next_command
     }
 
     fn handle_sample(&mut self, step: u32, y: &Pose) {
-        let applied_step = self.applied_step.take();
-        self.send(Message::Measurement {
+        let applied_step = self.lifecycle.applied_step.take();
+        let fate_cursor = self.lifecycle.fates.cursor();
+        self.lifecycle.send(Message::Measurement {
             step,
             y: (*y).into(),
             applied_step,
-            fate_cursor: self.fates.cursor(),
+            fate_cursor,
         });
     }
 
     fn handle_message(&mut self, message: Message) {
-        match (&self.phase, message) {
-            (
-                Phase::ExpectCommand,
-                Message::Command {
-                    step,
-                    u0,
-                    u1,
-                    fates,
-                },
-            ) => {
-                if step != self.next_command {
+        match message {
+            Message::Command {
+                step,
+                u0,
+                u1,
+                fates,
+            } if self.lifecycle.expects_command() => {
+                if step != self.lifecycle.next_command {
                     return; // stale, duplicate or from the future
                 }
                 for (index, accepted) in fates.iter() {
@@ -206,54 +170,22 @@ impl RobotEndpoint {
                 }
                 self.handle_command(step, u0.into(), u1.into());
             }
-            (
-                phase @ (Phase::ExpectCommand | Phase::ExpectFinish | Phase::ExpectConfirm),
-                Message::Finish { codewords, bitmap },
-            ) => {
-                if *phase == Phase::ExpectCommand {
-                    // The stop command was lost: the Finish ends the run as well.
-                    self.stop_wheels(self.next_command);
-                }
-                if codewords != self.fates.len() {
-                    let reason = format!(
-                        "Finish covers {codewords} codewords, the robot sent {}",
-                        self.fates.len()
-                    );
-                    self.send(Message::Abort {
-                        reason: reason.clone(),
-                    });
-                    self.finish(Outcome::Aborted(reason));
-                    return;
-                }
-                for index in 0..codewords {
-                    self.record_fate(index, bitmap_bit(&bitmap, index));
-                }
-                self.key = self.fates.accepted_key(&self.messages, self.plan.code.k());
-                self.phase = Phase::ExpectConfirm;
-                for message in self.closer(&self.fates.bitmap()).answer() {
-                    self.send(message);
-                }
+            message => {
+                let erased = &self.erased;
+                let messages = &self.messages;
+                let k = self.plan.code.k();
+                let closing = RobotClosing {
+                    confirmer: &self.plan.confirmer,
+                    keepable: &|index| !was_erased(erased, index),
+                    key: &|fates: &FateLedger| fates.accepted_key(messages, k),
+                    tags_cover_key: true,
+                    verified: Outcome::Confirmed,
+                    count_mismatch: |codewords, len| {
+                        format!("Finish covers {codewords} codewords, the robot sent {len}")
+                    },
+                };
+                self.lifecycle.on_message(message, &closing);
             }
-            (
-                Phase::ExpectConfirm,
-                Message::Confirm {
-                    session_tag,
-                    key_tag,
-                },
-            ) => {
-                let outcome = self.closer(&self.fates.bitmap()).verdict(
-                    session_tag,
-                    key_tag,
-                    Outcome::Confirmed,
-                );
-                self.finish(outcome);
-            }
-            (Phase::Done, _) => {}
-            (_, Message::Abort { reason }) => {
-                self.stop_wheels(self.next_command);
-                self.finish(Outcome::Aborted(format!("controller aborted: {reason}")));
-            }
-            _ => {}
         }
     }
 
@@ -262,24 +194,22 @@ impl RobotEndpoint {
             // Treated as a lost command: the step is erased.
             return self.handle_deadline(step);
         }
-        self.next_command = step + 1;
-        self.missing_in_a_row = 0;
-        self.applied_step = Some(step);
+        self.lifecycle.command_arrived(step);
         if step >= self.plan.steps {
-            self.stop_wheels(step);
-            self.phase = Phase::ExpectFinish;
+            self.lifecycle.stop_wheels(step);
+            self.lifecycle.end_run();
             return;
         }
         self.last_pair = Some((u0, u1));
-        self.commands_applied += 1;
+        self.lifecycle.commands_applied += 1;
         let bit = self.plan.enabled.then(|| self.bit(step));
         let wheels = if bit == Some(1) { u1 } else { u0 };
-        self.outputs.push_back(RobotOutput::Apply(Actuation {
+        self.lifecycle.apply(Actuation {
             step,
             wheels,
             bit,
             erased: false,
-        }));
+        });
     }
 
     /// Whether `(u0D, u1D)` is a pair the agreed plan allows: finite, within the wheel
@@ -299,22 +229,10 @@ impl RobotEndpoint {
         (spread - expected).amax() <= 1e-9 * (1.0 + expected.amax())
     }
 
-    fn stop_wheels(&mut self, step: u32) {
-        self.outputs.push_back(RobotOutput::Apply(Actuation {
-            step,
-            wheels: WheelSpeeds::zeros(),
-            bit: None,
-            erased: false,
-        }));
-    }
-
     fn handle_deadline(&mut self, step: u32) {
-        if self.phase != Phase::ExpectCommand || step != self.next_command {
+        let Some(missing_in_a_row) = self.lifecycle.command_missing(step) else {
             return;
-        }
-        self.next_command = step + 1;
-        self.missing_in_a_row += 1;
-        self.applied_step = None;
+        };
         let (index, _) = self.plan.position(step);
         if let Some(erased) = self.erased.get_mut(index as usize) {
             *erased = true;
@@ -322,39 +240,34 @@ impl RobotEndpoint {
         // Hold the last pair's midpoint through a short gap; a missing stop command (step
         // ≥ N) stops the wheels, as the stop command would have.
         let wheels = match self.last_pair {
-            Some((u0, u1))
-                if step < self.plan.steps && self.missing_in_a_row <= self.plan.max_hold =>
-            {
+            Some((u0, u1)) if step < self.plan.steps && missing_in_a_row <= self.plan.max_hold => {
                 (u0 + u1) / 2.0
             }
             _ => WheelSpeeds::zeros(),
         };
-        self.outputs.push_back(RobotOutput::Apply(Actuation {
+        self.lifecycle.apply(Actuation {
             step,
             wheels,
             bit: None,
             erased: true,
-        }));
+        });
     }
 
     /// Records a fate; a codeword the robot saw erased is never accepted.
     fn record_fate(&mut self, index: u32, accepted: bool) {
-        let erased = self.erased.get(index as usize).copied().unwrap_or(true);
-        self.fates.record(index, accepted && !erased);
+        let erased = was_erased(&self.erased, index);
+        self.lifecycle.fates.record(index, accepted && !erased);
     }
 
     fn bit(&self, step: u32) -> u8 {
         let (index, position) = self.plan.position(step);
         (self.codewords[index as usize] >> position & 1) as u8
     }
+}
 
-    fn closer<'a>(&'a self, bitmap: &'a [u64]) -> RobotCloser<'a> {
-        RobotCloser {
-            confirmer: &self.plan.confirmer,
-            bitmap,
-            tagged_key: &self.key,
-        }
-    }
+/// Whether the robot saw codeword `index` erased (one beyond the session counts as erased).
+fn was_erased(erased: &[bool], index: u32) -> bool {
+    erased.get(index as usize).copied().unwrap_or(true)
 }
 
 #[cfg(test)]
@@ -422,7 +335,7 @@ mod tests {
             },
         }));
         assert!(matches!(robot.poll_output(), Some(RobotOutput::Apply(a)) if !a.erased));
-        assert_eq!(robot.fates.cursor(), 0);
+        assert_eq!(robot.lifecycle.fates.cursor(), 0);
     }
 
     #[test]
