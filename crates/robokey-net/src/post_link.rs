@@ -135,9 +135,9 @@ pub struct PostReport {
     pub torn_bytes: u64,
     /// Committed keys written to `keys/` only when the store opened (a crash came between).
     pub keys_recovered: usize,
-    /// Post-processing messages sent (retransmissions included) and received.
+    /// Post-processing messages sent (retransmissions included).
     pub messages_sent: u32,
-    /// Messages received and accepted by the endpoint or ignored by it.
+    /// Whole messages received and handed to the endpoint (which may ignore a stale one).
     pub messages_received: u32,
     /// How the exchange ended, when not with every block settled.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -153,7 +153,7 @@ pub struct BlockSummary {
     pub sessions: usize,
     /// Raw bits.
     pub bits: usize,
-    /// Disclosed sample, and the disagreements in it (controller).
+    /// Bits disclosed to estimate the error rate.
     pub sample_bits: usize,
     /// Disagreements in the sample (controller only).
     pub sample_errors: usize,
