@@ -29,6 +29,12 @@ fn key_bits(path: &Path) -> Vec<u8> {
         .collect()
 }
 
+/// The controller's raw bits differ from the robot's on fewer than 5 % of positions.
+fn assert_few_disagreements(robot: &[u8], controller: &[u8]) {
+    let differ = robot.iter().zip(controller).filter(|(a, b)| a != b).count();
+    assert!(differ * 20 < robot.len(), "{differ} of {}", robot.len());
+}
+
 /// Starts `robokey record`, which exits when the stream ends.
 fn recorder(from: &str, out: &Path) -> Child {
     Command::new(env!("CARGO_BIN_EXE_robokey"))
@@ -329,16 +335,7 @@ fn a_private_session_through_the_faulty_relay_keeps_the_same_positions() {
     );
     assert_eq!(robot_bits.len(), controller_bits.len());
     assert!(robot_bits.len() > 100, "{}", robot_bits.len());
-    let differ = robot_bits
-        .iter()
-        .zip(&controller_bits)
-        .filter(|(a, b)| a != b)
-        .count();
-    assert!(
-        differ * 20 < robot_bits.len(),
-        "{differ} of {}",
-        robot_bits.len()
-    );
+    assert_few_disagreements(&robot_bits, &controller_bits);
     let eve = eve_on(&dir);
     assert_eq!(
         eve["strategies"][0]["key_bits"].as_u64(),
@@ -356,16 +353,7 @@ fn the_khepera_emulators_world_serves_a_private_session() {
         key_bits(&dir.join("controller.key")),
     );
     assert!(robot_bits.len() > 300, "{}", robot_bits.len());
-    let differ = robot_bits
-        .iter()
-        .zip(&controller_bits)
-        .filter(|(a, b)| a != b)
-        .count();
-    assert!(
-        differ * 20 < robot_bits.len(),
-        "{differ} of {}",
-        robot_bits.len()
-    );
+    assert_few_disagreements(&robot_bits, &controller_bits);
     let lines = std::fs::read_to_string(dir.join("camera.csv")).unwrap();
     assert_eq!(lines.lines().count(), 1 + 1021);
 }

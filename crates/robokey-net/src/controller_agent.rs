@@ -341,11 +341,7 @@ fn converse(
         let mut courtesy = Courtesy::new(&reply, &timing);
         let mut peer_done = false;
         if let Some(post) = post {
-            if matches!(outcome, Outcome::Confirmed | Outcome::Kept) {
-                post.pool(session, endpoint.key(), separation);
-            } else {
-                post.report.not_pooled = Some("the session was not confirmed".into());
-            }
+            post.pool(session, Some(&outcome), endpoint.key(), separation);
             match post.run(transport, &timing, &mut courtesy) {
                 Ok(done) => peer_done = done,
                 Err(error) => post_error = Some(error),

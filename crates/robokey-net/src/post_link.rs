@@ -10,8 +10,8 @@ use std::time::Instant;
 
 use robokey::Config;
 use robokey::post_settings::post_settings;
-use robokey::protocol::Message;
 use robokey::protocol::auth::Delivery;
+use robokey::protocol::{Message, Outcome};
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, Assumption, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, FinalKey,
@@ -291,10 +291,14 @@ impl<E: PostEndpoint> PostSide<E> {
         })
     }
 
-    /// Pools the raw bits of session `id` (one `u8` 0/1 per bit); the next [`Self::flush`]
-    /// stores them. A session the endpoint refuses (a duplicate ID, no bits) is reported and
-    /// left out.
-    pub fn pool(&mut self, id: u32, bits: &[u8], separation: f64) {
+    /// Pools the raw bits of session `id` (one `u8` 0/1 per bit) if the session ended
+    /// `outcome` confirmed or kept; the next [`Self::flush`] stores them. A session that was
+    /// not, or that the endpoint refuses (a duplicate ID, no bits), is reported and left out.
+    pub fn pool(&mut self, id: u32, outcome: Option<&Outcome>, bits: &[u8], separation: f64) {
+        if !matches!(outcome, Some(Outcome::Confirmed | Outcome::Kept)) {
+            self.report.not_pooled = Some("the session was not confirmed".into());
+            return;
+        }
         let before = pool_bits(&self.endpoint.snapshot());
         let bools: zeroize::Zeroizing<Vec<bool>> =
             zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());

@@ -356,19 +356,15 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
 }
 
 /// After a session both sides closed: pools its bits if the controller confirmed them, then
-/// answers post-processing until the controller's `Done`.
+/// answers post-processing until the controller's `Done` (flushing first stores the pool).
 fn settle<B: Backend + ?Sized>(
     post: &mut PostSide<RobotPost>,
     s: &mut RobotSession<'_, B>,
     courtesy: &mut Courtesy<'_>,
     session: u32,
 ) -> Result<(), NetError> {
-    if matches!(s.outcome, Some(Outcome::Confirmed | Outcome::Kept)) {
-        post.pool(session, s.endpoint.key(), 0.0);
-        post.flush(&mut s.transport)?;
-    } else {
-        post.report.not_pooled = Some("the session was not confirmed".into());
-    }
+    post.pool(session, s.outcome.as_ref(), s.endpoint.key(), 0.0);
+    post.flush(&mut s.transport)?;
     linger(&mut s.transport, &s.timing, courtesy, false, Some(post))
 }
 
