@@ -5,23 +5,26 @@
 
 mod assembler;
 pub mod auth;
-pub(crate) mod closing;
-pub(crate) mod controller;
-mod decoder;
-mod fates;
+pub mod controller;
+pub(crate) mod decoder;
+pub(crate) mod fates;
 mod message;
-mod plan;
-mod robot;
+pub(crate) mod plan;
+pub mod robot;
+mod terms;
+pub mod timing;
 pub mod wire;
 
 pub use assembler::{CodewordAssembler, ReceivedWord};
 pub use auth::{ConfirmTags, Confirmer, Direction, TAG_BYTES};
-pub use controller::{ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput};
+pub use controller::{Controller, ControllerEvent, ControllerInput, ControllerOutput};
 pub use decoder::{Measured, StepDecision, StepDecoder};
 pub use fates::{FateLedger, FateWindow};
 pub use message::Message;
-pub use plan::{SessionPlan, agreement_terms, config_digest, terms_difference};
-pub use robot::{Actuation, RobotEndpoint, RobotInput, RobotOutput};
+pub use plan::{Agreed, ModePlan, OdometryPlan, SessionPlan};
+pub use robot::{Actuation, Robot, RobotInput, RobotOutput};
+pub use terms::{agreement_terms, config_digest, terms_difference};
+pub use timing::{Pace, Time, Timing};
 
 /// How a session ended for one side.
 #[derive(Clone, Debug, PartialEq, Eq)]
