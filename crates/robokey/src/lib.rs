@@ -13,8 +13,8 @@ pub mod code;
 pub mod config;
 pub mod control;
 pub mod eve;
-// FUZZ-TEMP #[doc(hidden)]
-// FUZZ-TEMP pub mod fuzzing;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod interrupt;
 pub mod metrics;
 pub mod model;

@@ -152,9 +152,17 @@ impl PrivateController {
             return; // mid-doublet: its input went with the first
         } else {
             let first = self.tracking.command(&pose, &reference(step));
+            let finite = |u: &Unicycle| u.iter().all(|v| v.is_finite());
+            if !finite(&first) {
+                // A finite but absurd pose (e.g. 1e308 m) overflows the controller's state.
+                return life.abort(format!("step {step}: the tracking command is not finite"));
+            }
             if step + 2 <= agreed.steps {
                 let predicted = unicycle_step(&pose, &first, t);
                 let second = self.tracking.command(&predicted, &reference(step + 1));
+                if !finite(&second) {
+                    return life.abort(format!("step {step}: the tracking command is not finite"));
+                }
                 let inputs = DoubletInputs { first, second };
                 let carries = self.plan.carries(agreed.enabled, &inputs);
                 self.pending.push_back(Pending {
