@@ -323,11 +323,12 @@ mod tests {
     use sha2::{Digest, Sha256};
 
     use super::*;
-    use crate::config::{EveStrategy, Feedback};
+    use crate::config::{EveStrategy, Feedback, SensingMode};
     use crate::observer::Variant;
 
     /// The configurations whose runs are pinned: the default, m = 1, the paper's variant,
-    /// feedback from the estimate, and the soft and identifying eavesdroppers.
+    /// feedback from the estimate, the soft and identifying eavesdroppers, and private
+    /// sensing (one and two bits per doublet, the camera and the commands eavesdroppers).
     fn pinned_configs() -> Vec<(&'static str, Config)> {
         let with = |edit: fn(&mut Config)| {
             let mut config = Config::default();
@@ -350,11 +351,28 @@ mod tests {
             ),
             ("dv=0.01", with(|c| c.protocol.delta_v = 0.01)),
             ("alpha=0.3", with(|c| c.eve.alpha = 0.3)),
+            ("private", with(|c| c.sensing.mode = SensingMode::Private)),
+            (
+                "private, two bits",
+                with(|c| {
+                    c.sensing.mode = SensingMode::Private;
+                    c.protocol.bits_per_doublet = 2;
+                    c.protocol.delta_omega = Some(0.035);
+                }),
+            ),
+            (
+                "private, commands Eve",
+                with(|c| {
+                    c.sensing.mode = SensingMode::Private;
+                    c.eve.strategy = Some(EveStrategy::Commands);
+                }),
+            ),
         ]
     }
 
     /// SHA-256 (first 8 bytes, hex) of every decision, key and metric of replicates 0–2
-    /// (real numbers to 9 significant digits) and of the controller's `d̂` and `x̂` (to 6).
+    /// (real numbers to 9 significant digits), of the controller's `d̂` and `x̂` (to 6), and
+    /// in private sensing of every bit's evidence.
     fn fingerprint(config: &Config) -> String {
         let mut hash = Sha256::new();
         for replicate in 0..3 {
@@ -376,8 +394,26 @@ mod tests {
             if let Some(eve) = &out.keys.eve {
                 hash.update(eve.as_slice());
             }
-            let m = &out.metrics;
             let real = |x: Option<f64>| x.map_or_else(|| "-".into(), |x| format!("{x:.9e}"));
+            if let Some(private) = &out.private {
+                hash.update(format!("{} {}", private.doublets, private.gated));
+                for b in &private.bits {
+                    hash.update(format!(
+                        "{} {:?} {} {} {} {} {} {} {} {}",
+                        b.step,
+                        b.kind,
+                        b.bit,
+                        real(Some(b.turn_rate)),
+                        real(Some(b.controller)),
+                        real(Some(b.camera)),
+                        real(Some(b.commands)),
+                        real(Some(b.camera_separation)),
+                        real(Some(b.assumed_separation)),
+                        real(Some(b.commands_separation))
+                    ));
+                }
+            }
+            let m = &out.metrics;
             hash.update(format!(
                 "{:?} {:?} {} {} {} {} {} {} {} {:?} {:?} {:?}",
                 m.codewords_sent,
@@ -420,5 +456,8 @@ soft b430a4a2ebbec88f
 identify f28af9b932546d1a
 dv=0.01 eb2af466b7c3bc55
 alpha=0.3 5af0a2a0aba0e6f1
+private 5d971265101167fc
+private, two bits 0fd1404aa740f626
+private, commands Eve 62af15a5ef685d26
 ";
 }
