@@ -11,7 +11,7 @@ use std::time::Instant;
 use robokey::Config;
 use robokey::post_settings::post_settings;
 use robokey::protocol::auth::Delivery;
-use robokey::protocol::{Message, Outcome};
+use robokey::protocol::{Message, Outcome, PostFragment};
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, Assumption, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, FinalKey,
@@ -414,12 +414,12 @@ impl<E: PostEndpoint> PostSide<E> {
         let number = self.next_message;
         self.next_message = self.next_message.wrapping_add(1);
         for (index, count, chunk) in postprocess::fragments(&bytes) {
-            transport.send(Message::PostFragment {
+            transport.send(Message::Post(PostFragment {
                 message: number,
                 index,
                 count,
                 bytes: chunk.to_vec(),
-            })?;
+            }))?;
         }
         self.report.messages_sent += 1;
         Ok(())
@@ -428,12 +428,12 @@ impl<E: PostEndpoint> PostSide<E> {
     /// Takes a frame from the peer: true if it was a post-processing fragment (whether or
     /// not it completed a message).
     pub fn receive(&mut self, message: &Message) -> bool {
-        let Message::PostFragment {
+        let Message::Post(PostFragment {
             message: number,
             index,
             count,
             bytes,
-        } = message
+        }) = message
         else {
             return false;
         };

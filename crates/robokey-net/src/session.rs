@@ -90,14 +90,16 @@ impl<'a> Courtesy<'a> {
         message: &robokey::protocol::Message,
         done: bool,
     ) -> Result<bool, NetError> {
-        use robokey::protocol::Message;
+        use robokey::protocol::{Closing, Message};
         match message {
-            Message::Done => Ok(true),
-            Message::Finish { .. } | Message::FinishAck | Message::Confirm { .. }
+            Message::Closing(Closing::Done) => Ok(true),
+            Message::Closing(Closing::Finish { .. })
+            | Message::Closing(Closing::FinishAck)
+            | Message::Closing(Closing::Confirm { .. })
                 if self.last.is_none_or(|t| t.elapsed() >= self.interval) =>
             {
                 self.last = Some(std::time::Instant::now());
-                let done = done.then_some(Message::Done);
+                let done = done.then_some(Message::Closing(Closing::Done));
                 for m in self.reply.iter().cloned().chain(done) {
                     transport.send(m)?;
                 }
@@ -123,10 +125,10 @@ pub fn linger(
     peer_done: bool,
     mut post: Option<&mut crate::post_link::PostSide<robokey_secrecy::postprocess::RobotPost>>,
 ) -> Result<(), NetError> {
-    use robokey::protocol::Message;
     use robokey::protocol::auth::Delivery;
+    use robokey::protocol::{Closing, Message};
     use std::time::Instant;
-    transport.send(Message::Done)?;
+    transport.send(Message::Closing(Closing::Done))?;
     if peer_done {
         return Ok(());
     }

@@ -10,8 +10,9 @@ use crate::model::{Pose, WheelSpeeds, unicycle_step};
 use crate::protocol::controller::command_pair;
 use crate::protocol::wire::{self, Frame, MAC_BYTES};
 use crate::protocol::{
-    ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, FateWindow, Message,
-    Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionPlan, TAG_BYTES,
+    Closing, ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, FateWindow,
+    Handshake, Message, Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionMessage,
+    SessionPlan, TAG_BYTES,
 };
 
 /// Arbitrary bytes read front to back; reads past the end give zeros.
@@ -290,7 +291,7 @@ impl Harness {
         match output {
             ControllerOutput::Transmit(m) => {
                 assert!(check.finished.is_none(), "a message after the end: {m:?}");
-                if let Message::Command { step, u0, u1, .. } = m {
+                if let Message::Session(SessionMessage::Command { step, u0, u1, .. }) = m {
                     assert!(
                         *step <= plan.steps,
                         "a command past the stop command: {m:?}"
@@ -398,14 +399,14 @@ impl Harness {
                     count: bytes.u8(),
                     accepted: bytes.u64(),
                 };
-                Message::Command {
+                Message::Session(SessionMessage::Command {
                     step,
                     u0,
                     u1,
                     fates,
-                }
+                })
             }
-            1 => Message::Measurement {
+            1 => Message::Session(SessionMessage::Measurement {
                 step: bytes.u32_near(self.clock),
                 y: [
                     bytes.f64_near(self.pose.x),
@@ -416,26 +417,26 @@ impl Harness {
                     .bool()
                     .then(|| bytes.u32_near(self.clock.saturating_sub(1))),
                 fate_cursor: bytes.u32_near(codewords),
-            },
-            2 => Message::Finish {
+            }),
+            2 => Message::Closing(Closing::Finish {
                 codewords: bytes.u32_near(codewords),
                 bitmap: (0..bytes.u8() % 4).map(|_| bytes.u64()).collect(),
-            },
-            3 => Message::FinishAck,
-            4 => Message::Confirm {
+            }),
+            3 => Message::Closing(Closing::FinishAck),
+            4 => Message::Closing(Closing::Confirm {
                 session_tag: bytes.array::<TAG_BYTES>(),
                 key_tag: bytes.array::<TAG_BYTES>(),
-            },
-            5 => Message::Abort {
+            }),
+            5 => Message::Closing(Closing::Abort {
                 reason: String::from_utf8_lossy(bytes.take(8)).into_owned(),
-            },
-            6 => Message::Ready,
+            }),
+            6 => Message::Handshake(Handshake::Ready),
             _ => {
                 // Arbitrary bytes through the wire decoder, with a MAC trailer.
                 let len = usize::from(bytes.u8());
                 let mut frame = bytes.take(len).to_vec();
                 frame.extend_from_slice(&[0; MAC_BYTES]);
-                wire::decode(&frame).map_or(Message::FinishAck, |f| f.message)
+                wire::decode(&frame).map_or(Message::Closing(Closing::FinishAck), |f| f.message)
             }
         }
     }

@@ -14,7 +14,7 @@ use crate::model::{Pose, Unicycle, clip_wheels, unicycle_step};
 use crate::private::PrivateRun;
 use crate::protocol::{
     ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, KeyBits, Message,
-    Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionPlan,
+    Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionMessage, SessionPlan,
 };
 use crate::rng::{Purpose, stream};
 
@@ -427,7 +427,8 @@ fn run(
                         if let Some(eve) = eve.as_mut() {
                             eve.observe(&message);
                         }
-                        if let Message::Command { step, u0, u1, .. } = &message
+                        if let Message::Session(SessionMessage::Command { step, u0, u1, .. }) =
+                            &message
                             && let Some(row) = trace.row(*step as usize)
                         {
                             row.u0 = Some(*u0);

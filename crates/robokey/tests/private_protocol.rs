@@ -6,7 +6,8 @@ use robokey::Config;
 use robokey::model::{Pose, unicycle_step};
 use robokey::private::{PrivateControllerEndpoint, PrivatePlan, PrivateRobotEndpoint};
 use robokey::protocol::{
-    ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, RobotInput, RobotOutput,
+    Closing, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, RobotInput,
+    RobotOutput, SessionMessage,
 };
 use robokey::rng::{Purpose, stream};
 use support::post_fragment;
@@ -138,8 +139,12 @@ fn lost_commands_measurements_and_samples_drop_their_doublets_on_both_sides() {
     let lossy = lockstep(
         &config,
         |m| match m {
-            Message::DoubletCommand { step, .. } => [10, 40].contains(step),
-            Message::PrivateMeasurement { step, .. } => [21, 52, 60].contains(step),
+            Message::Session(SessionMessage::DoubletCommand { step, .. }) => {
+                [10, 40].contains(step)
+            }
+            Message::Session(SessionMessage::PrivateMeasurement { step, .. }) => {
+                [21, 52, 60].contains(step)
+            }
             _ => false,
         },
         |k| [31, 70].contains(&k),
@@ -171,7 +176,7 @@ fn a_lost_stop_command_changes_nothing() {
     let steps = PrivatePlan::from_config(&config, 1).steps;
     let s = lockstep(
         &config,
-        |m| matches!(m, Message::DoubletCommand { step, .. } if *step == steps),
+        |m| matches!(m, Message::Session(SessionMessage::DoubletCommand { step, .. }) if *step == steps),
         |_| false,
     );
     assert_eq!(s.robot_outcome, Some(Outcome::Kept));
@@ -196,11 +201,11 @@ mod arbitrary_inputs {
                 any::<u32>()
             )
                 .prop_map(|(step, applied_step, fate_cursor)| {
-                    Message::PrivateMeasurement {
+                    Message::Session(SessionMessage::PrivateMeasurement {
                         step,
                         applied_step,
                         fate_cursor,
-                    }
+                    })
                 }),
             (
                 step,
@@ -211,7 +216,7 @@ mod arbitrary_inputs {
             )
                 .prop_map(
                     |(step, sample, first, second, (first_fate, count, accepted))| {
-                        Message::DoubletCommand {
+                        Message::Session(SessionMessage::DoubletCommand {
                             step,
                             sample,
                             first,
@@ -221,17 +226,18 @@ mod arbitrary_inputs {
                                 count,
                                 accepted,
                             },
-                        }
+                        })
                     }
                 ),
-            (0u32..300, proptest::collection::vec(any::<u64>(), 0..6))
-                .prop_map(|(codewords, bitmap)| Message::Finish { codewords, bitmap }),
-            Just(Message::FinishAck),
+            (0u32..300, proptest::collection::vec(any::<u64>(), 0..6)).prop_map(
+                |(codewords, bitmap)| Message::Closing(Closing::Finish { codewords, bitmap })
+            ),
+            Just(Message::Closing(Closing::FinishAck)),
             (any::<[u8; 16]>(), any::<[u8; 16]>()).prop_map(|(session_tag, key_tag)| {
-                Message::Confirm {
+                Message::Closing(Closing::Confirm {
                     session_tag,
                     key_tag,
-                }
+                })
             }),
         ]
     }

@@ -5,7 +5,7 @@ use robokey::Config;
 use robokey::model::{Pose, unicycle_step};
 use robokey::protocol::{
     ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome,
-    RobotEndpoint, RobotInput, RobotOutput, SessionPlan,
+    RobotEndpoint, RobotInput, RobotOutput, SessionMessage, SessionPlan,
 };
 use robokey::rng::{Purpose, stream};
 use robokey::sim::simulate;
@@ -124,7 +124,12 @@ fn large_delta_without_noise_accepts_everything_and_confirms() {
 fn a_lost_command_erases_exactly_its_codeword_on_both_sides() {
     let config = clean_config();
     // Command 31 is step 31 = codeword 10, position 1.
-    let session = lockstep(&config, |m| matches!(m, Message::Command { step: 31, .. }));
+    let session = lockstep(&config, |m| {
+        matches!(
+            m,
+            Message::Session(SessionMessage::Command { step: 31, .. })
+        )
+    });
     let rejected: Vec<usize> = (0..session.controller_fates.len())
         .filter(|&i| !session.controller_fates[i])
         .collect();
@@ -140,7 +145,10 @@ fn a_lost_measurement_erases_exactly_its_codeword_on_both_sides() {
     // y(46) decides step 45 = codeword 15, position 0; command 46 is never sent, so
     // step 46 (same codeword) is erased as well.
     let session = lockstep(&config, |m| {
-        matches!(m, Message::Measurement { step: 46, .. })
+        matches!(
+            m,
+            Message::Session(SessionMessage::Measurement { step: 46, .. })
+        )
     });
     let rejected: Vec<usize> = (0..session.controller_fates.len())
         .filter(|&i| !session.controller_fates[i])

@@ -15,6 +15,7 @@ use crate::model::{Pose, Unicycle, unicycle_step};
 use crate::protocol::closing::ControllerLifecycle;
 use crate::protocol::{
     ControllerEvent, ControllerInput, ControllerOutput, FateLedger, KeyBits, Message, Outcome,
+    SessionMessage,
 };
 use crate::trajectory::Trajectory;
 
@@ -141,14 +142,17 @@ impl PrivateControllerEndpoint {
 
     fn handle_message(&mut self, message: Message) {
         match message {
-            Message::PrivateMeasurement {
+            Message::Session(SessionMessage::PrivateMeasurement {
                 step,
                 applied_step,
                 fate_cursor,
-            } if self.lifecycle.running() => {
+            }) if self.lifecycle.running() => {
                 self.handle_measurement(step, applied_step, fate_cursor);
             }
-            message => self.lifecycle.on_message(message),
+            Message::Closing(message) => self.lifecycle.on_message(message),
+            // Handshake and post-processing messages are not the endpoint's; a session
+            // message after the run is a late duplicate.
+            _ => {}
         }
     }
 
@@ -234,13 +238,16 @@ impl PrivateControllerEndpoint {
                 (first, None)
             }
         };
-        self.lifecycle.send(Message::DoubletCommand {
-            step,
-            sample: pose.into(),
-            first: first.into(),
-            second: second.map(Into::into),
-            fates: self.fates.window(self.robot_cursor),
-        });
+        self.lifecycle.send(
+            SessionMessage::DoubletCommand {
+                step,
+                sample: pose.into(),
+                first: first.into(),
+                second: second.map(Into::into),
+                fates: self.fates.window(self.robot_cursor),
+            }
+            .into(),
+        );
     }
 
     /// Resolves, in order, every doublet whose samples and measurements are all in or
@@ -324,11 +331,11 @@ mod tests {
         let mut controller =
             PrivateControllerEndpoint::new(&config, PrivatePlan::from_config(&config, 1));
         let report = |step, applied_step| {
-            ControllerInput::Frame(Message::PrivateMeasurement {
+            ControllerInput::Frame(Message::Session(SessionMessage::PrivateMeasurement {
                 step,
                 applied_step,
                 fate_cursor: 0,
-            })
+            }))
         };
         for input in [
             ControllerInput::Sensor {

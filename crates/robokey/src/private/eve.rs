@@ -11,7 +11,7 @@ use super::plan::PrivatePlan;
 use super::session::doublet_model;
 use crate::config::Config;
 use crate::model::Pose;
-use crate::protocol::{KeyBits, Message};
+use crate::protocol::{Closing, KeyBits, Message, SessionMessage};
 
 /// What both eavesdroppers make of one carrying doublet.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -77,13 +77,13 @@ impl DoubletEavesdropper {
     /// and the doublets' inputs, the `Finish` which doublets were kept.
     pub fn observe(&mut self, message: &Message) {
         match message {
-            Message::DoubletCommand {
+            Message::Session(SessionMessage::DoubletCommand {
                 step,
                 sample,
                 first,
                 second,
                 ..
-            } if *step <= self.plan.steps => {
+            }) if *step <= self.plan.steps => {
                 let inputs = second
                     .filter(|_| self.plan.starts_doublet(*step))
                     .map(|second| DoubletInputs {
@@ -96,7 +96,9 @@ impl DoubletEavesdropper {
                 });
                 self.try_decide(*step);
             }
-            Message::Finish { codewords, bitmap } if *codewords == self.plan.doublets() => {
+            Message::Closing(Closing::Finish { codewords, bitmap })
+                if *codewords == self.plan.doublets() =>
+            {
                 self.kept.get_or_insert_with(|| bitmap.clone());
             }
             _ => {}

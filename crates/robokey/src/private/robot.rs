@@ -9,7 +9,7 @@ use super::plan::PrivatePlan;
 use crate::model::Unicycle;
 use crate::protocol::closing::{RobotClosing, RobotLifecycle};
 use crate::protocol::{
-    Actuation, FateLedger, FateWindow, Message, Outcome, RobotInput, RobotOutput,
+    Actuation, FateLedger, FateWindow, Message, Outcome, RobotInput, RobotOutput, SessionMessage,
 };
 
 /// The robot side of a private-sensing session. It takes the odometry mode's
@@ -131,11 +131,14 @@ impl PrivateRobotEndpoint {
     fn handle_sample(&mut self, step: u32) {
         let applied_step = self.lifecycle.applied_step.take();
         let fate_cursor = self.lifecycle.fates.cursor();
-        self.lifecycle.send(Message::PrivateMeasurement {
-            step,
-            applied_step,
-            fate_cursor,
-        });
+        self.lifecycle.send(
+            SessionMessage::PrivateMeasurement {
+                step,
+                applied_step,
+                fate_cursor,
+            }
+            .into(),
+        );
         if !self.lifecycle.awaits(step) {
             return;
         }
@@ -159,23 +162,25 @@ impl PrivateRobotEndpoint {
 
     fn handle_message(&mut self, message: Message) {
         match message {
-            Message::DoubletCommand {
+            Message::Session(SessionMessage::DoubletCommand {
                 step,
                 first,
                 second,
                 fates,
                 ..
-            } if self.lifecycle.expects_command() => {
+            }) if self.lifecycle.expects_command() => {
                 if step != self.lifecycle.next_command || step >= self.plan.steps || step % 2 == 1 {
                     return; // stale, duplicate, from the future, or not a command step
                 }
                 self.record(fates);
                 self.handle_command(step, first.into(), second.map(Unicycle::from));
             }
-            Message::DoubletCommand { fates, .. } if self.lifecycle.expects_finish() => {
+            Message::Session(SessionMessage::DoubletCommand { fates, .. })
+                if self.lifecycle.expects_finish() =>
+            {
                 self.record(fates);
             }
-            message => {
+            Message::Closing(message) => {
                 let carried = &self.carried;
                 let bits = &self.bits;
                 let bits_per_doublet = usize::from(self.plan.perturbation.bits_per_doublet);
@@ -192,6 +197,9 @@ impl PrivateRobotEndpoint {
                 };
                 self.lifecycle.on_message(message, &closing);
             }
+            // Handshake and post-processing messages are not the endpoint's; a session
+            // message after the run is a late duplicate.
+            _ => {}
         }
     }
 
@@ -308,13 +316,15 @@ mod tests {
             step,
             y: crate::model::Pose::zeros(),
         });
-        robot.handle_input(RobotInput::Frame(Message::DoubletCommand {
-            step,
-            sample: [0.0; 3],
-            first,
-            second: Some(second),
-            fates: FateWindow::default(),
-        }));
+        robot.handle_input(RobotInput::Frame(Message::Session(
+            SessionMessage::DoubletCommand {
+                step,
+                sample: [0.0; 3],
+                first,
+                second: Some(second),
+                fates: FateWindow::default(),
+            },
+        )));
         let applied = std::iter::from_fn(|| robot.poll_output())
             .find_map(|o| match o {
                 RobotOutput::Apply(a) => Some(a),

@@ -7,7 +7,7 @@ use std::collections::VecDeque;
 
 use super::controller::{ControllerEvent, ControllerOutput};
 use super::fates::FateLedger;
-use super::message::Message;
+use super::message::{Closing, Message};
 use super::robot::{Actuation, RobotOutput};
 use super::{ConfirmTags, Confirmer, Direction, KeyBits, Outcome, TAG_BYTES};
 use crate::model::WheelSpeeds;
@@ -107,13 +107,13 @@ impl ControllerLifecycle {
         }
     }
 
-    /// A message from the robot that the running endpoint did not take: ignored once done,
-    /// an `Abort` ends the session, a closing session hands it to its [`Closer`]; anything
-    /// else (a duplicate, a message that does not fit the phase) is ignored.
-    pub(crate) fn on_message(&mut self, message: Message) {
+    /// A closing-layer message from the robot: ignored once done, an `Abort` ends the
+    /// session, a closing session hands it to its [`Closer`]; anything else (a duplicate, a
+    /// message that does not fit the phase) is ignored.
+    pub(crate) fn on_message(&mut self, message: Closing) {
         match (&mut self.phase, message) {
             (Phase::Done, _) => {}
-            (_, Message::Abort { reason }) => {
+            (_, Closing::Abort { reason }) => {
                 self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
             }
             (Phase::Closing(closer), message) => {
@@ -171,18 +171,18 @@ impl Closer {
     /// A message from the robot; the outcome when it ends the session.
     pub(crate) fn on_message(
         &mut self,
-        message: Message,
+        message: Closing,
         out: &mut VecDeque<ControllerOutput>,
     ) -> Option<Outcome> {
         match (self.waiting, message) {
-            (Waiting::FinishAck { .. }, Message::FinishAck) => {
+            (Waiting::FinishAck { .. }, Closing::FinishAck) => {
                 self.send_confirm(out);
                 self.waiting = Waiting::Confirm { tries: 1 };
                 None
             }
             (
                 Waiting::FinishAck { .. },
-                Message::Confirm {
+                Closing::Confirm {
                     session_tag,
                     key_tag,
                 },
@@ -193,7 +193,7 @@ impl Closer {
             }
             (
                 Waiting::Confirm { .. },
-                Message::Confirm {
+                Closing::Confirm {
                     session_tag,
                     key_tag,
                 },
@@ -230,20 +230,26 @@ impl Closer {
     }
 
     fn send_finish(&self, out: &mut VecDeque<ControllerOutput>) {
-        out.push_back(ControllerOutput::Transmit(Message::Finish {
-            codewords: self.codewords,
-            bitmap: self.bitmap.clone(),
-        }));
+        out.push_back(ControllerOutput::Transmit(
+            Closing::Finish {
+                codewords: self.codewords,
+                bitmap: self.bitmap.clone(),
+            }
+            .into(),
+        ));
     }
 
     fn send_confirm(&self, out: &mut VecDeque<ControllerOutput>) {
         let ours = self
             .confirmer
             .tags(DIRECTION, &self.bitmap, &self.tagged_key);
-        out.push_back(ControllerOutput::Transmit(Message::Confirm {
-            session_tag: ours.session,
-            key_tag: ours.key,
-        }));
+        out.push_back(ControllerOutput::Transmit(
+            Closing::Confirm {
+                session_tag: ours.session,
+                key_tag: ours.key,
+            }
+            .into(),
+        ));
     }
 
     fn verify(&self, session: [u8; TAG_BYTES], key: [u8; TAG_BYTES]) -> Outcome {
@@ -407,17 +413,17 @@ impl RobotLifecycle {
         self.outputs.push_back(RobotOutput::Finished(outcome));
     }
 
-    /// A message from the controller that the endpoint did not take (its commands):
-    /// ignored once done; a `Finish` fixes the fates and the key and is answered with
-    /// `FinishAck` and the robot's tags, the controller's tags then decide the outcome, an
-    /// `Abort` stops the wheels and ends the session; anything else is ignored.
-    pub(crate) fn on_message(&mut self, message: Message, closing: &RobotClosing<'_>) {
+    /// A closing-layer message from the controller: ignored once done; a `Finish` fixes the
+    /// fates and the key and is answered with `FinishAck` and the robot's tags, the
+    /// controller's tags then decide the outcome, an `Abort` stops the wheels and ends the
+    /// session; anything else is ignored.
+    pub(crate) fn on_message(&mut self, message: Closing, closing: &RobotClosing<'_>) {
         match (self.phase, message) {
             (
                 phase @ (RobotPhase::ExpectCommand
                 | RobotPhase::ExpectFinish
                 | RobotPhase::ExpectConfirm),
-                Message::Finish { codewords, bitmap },
+                Closing::Finish { codewords, bitmap },
             ) => {
                 if phase == RobotPhase::ExpectCommand {
                     // The stop command was lost: the Finish ends the run wherever it is.
@@ -425,9 +431,12 @@ impl RobotLifecycle {
                 }
                 if codewords != self.fates.len() {
                     let reason = (closing.count_mismatch)(codewords, self.fates.len());
-                    self.send(Message::Abort {
-                        reason: reason.clone(),
-                    });
+                    self.send(
+                        Closing::Abort {
+                            reason: reason.clone(),
+                        }
+                        .into(),
+                    );
                     self.finish(Outcome::Aborted(reason));
                     return;
                 }
@@ -438,12 +447,12 @@ impl RobotLifecycle {
                 self.key = (closing.key)(&self.fates);
                 self.phase = RobotPhase::ExpectConfirm;
                 for message in self.closer(closing, &self.fates.bitmap()).answer() {
-                    self.send(message);
+                    self.send(message.into());
                 }
             }
             (
                 RobotPhase::ExpectConfirm,
-                Message::Confirm {
+                Closing::Confirm {
                     session_tag,
                     key_tag,
                 },
@@ -456,7 +465,7 @@ impl RobotLifecycle {
                 self.finish(outcome);
             }
             (RobotPhase::Done, _) => {}
-            (_, Message::Abort { reason }) => {
+            (_, Closing::Abort { reason }) => {
                 self.stop_wheels(self.next_command);
                 self.finish(Outcome::Aborted(format!("controller aborted: {reason}")));
             }
@@ -491,13 +500,13 @@ pub(crate) struct RobotCloser<'a> {
 
 impl RobotCloser<'_> {
     /// The answer to a `Finish`: `FinishAck`, then the robot's tags.
-    pub(crate) fn answer(&self) -> [Message; 2] {
+    pub(crate) fn answer(&self) -> [Closing; 2] {
         let ours = self
             .confirmer
             .tags(DIRECTION.reverse(), self.bitmap, self.tagged_key);
         [
-            Message::FinishAck,
-            Message::Confirm {
+            Closing::FinishAck,
+            Closing::Confirm {
                 session_tag: ours.session,
                 key_tag: ours.key,
             },

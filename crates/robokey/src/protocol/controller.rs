@@ -5,7 +5,7 @@ use super::assembler::CodewordAssembler;
 use super::closing::ControllerLifecycle;
 use super::decoder::{StepDecision, StepDecoder};
 use super::fates::FateLedger;
-use super::message::Message;
+use super::message::{Closing, Message, SessionMessage};
 use super::plan::SessionPlan;
 use super::{KeyBits, Outcome};
 use crate::config::{Config, Feedback};
@@ -173,23 +173,29 @@ impl ControllerEndpoint {
 
     fn handle_message(&mut self, message: Message) {
         match message {
-            Message::Measurement {
+            Message::Session(SessionMessage::Measurement {
                 step,
                 y,
                 applied_step,
                 fate_cursor,
-            } if self.lifecycle.running() => {
+            }) if self.lifecycle.running() => {
                 self.handle_measurement(step, Pose::from(y), applied_step, fate_cursor);
             }
-            message => self.lifecycle.on_message(message),
+            Message::Closing(message) => self.lifecycle.on_message(message),
+            // Handshake and post-processing messages are not the endpoint's; a session
+            // message after the run is a late duplicate.
+            _ => {}
         }
     }
 
     /// Ends the session and tells the robot why.
     fn abort(&mut self, reason: String) {
-        self.lifecycle.send(Message::Abort {
-            reason: reason.clone(),
-        });
+        self.lifecycle.send(
+            Closing::Abort {
+                reason: reason.clone(),
+            }
+            .into(),
+        );
         self.lifecycle.finish(Outcome::Aborted(reason));
     }
 
@@ -222,12 +228,15 @@ impl ControllerEndpoint {
         if step < self.plan.steps {
             self.send_command(step, &y);
         } else {
-            self.lifecycle.send(Message::Command {
-                step,
-                u0: [0.0; 2],
-                u1: [0.0; 2],
-                fates: self.fates.window(self.robot_cursor),
-            });
+            self.lifecycle.send(
+                SessionMessage::Command {
+                    step,
+                    u0: [0.0; 2],
+                    u1: [0.0; 2],
+                    fates: self.fates.window(self.robot_cursor),
+                }
+                .into(),
+            );
             self.key = self.fates.accepted_key(&self.decoded, self.plan.code.k());
             self.lifecycle.close(
                 self.plan.confirmer.clone(),
@@ -269,12 +278,15 @@ impl ControllerEndpoint {
         self.decoder.on_command(step, nominal, u0, u1);
         self.lifecycle
             .emit(ControllerEvent::Commanded { step, nominal });
-        self.lifecycle.send(Message::Command {
-            step,
-            u0: u0.into(),
-            u1: u1.into(),
-            fates: self.fates.window(self.robot_cursor),
-        });
+        self.lifecycle.send(
+            SessionMessage::Command {
+                step,
+                u0: u0.into(),
+                u1: u1.into(),
+                fates: self.fates.window(self.robot_cursor),
+            }
+            .into(),
+        );
     }
 }
 
@@ -318,12 +330,14 @@ mod tests {
         step: u32,
         y: [f64; 3],
     ) -> Vec<ControllerOutput> {
-        controller.handle_input(ControllerInput::Frame(Message::Measurement {
-            step,
-            y,
-            applied_step: step.checked_sub(1),
-            fate_cursor: 0,
-        }));
+        controller.handle_input(ControllerInput::Frame(Message::Session(
+            SessionMessage::Measurement {
+                step,
+                y,
+                applied_step: step.checked_sub(1),
+                fate_cursor: 0,
+            },
+        )));
         std::iter::from_fn(|| controller.poll_output()).collect()
     }
 
@@ -331,9 +345,11 @@ mod tests {
         outputs
             .iter()
             .filter_map(|o| match o {
-                ControllerOutput::Transmit(Message::Command { u0, u1, .. }) => {
-                    Some([u0[0], u0[1], u1[0], u1[1]])
-                }
+                ControllerOutput::Transmit(Message::Session(SessionMessage::Command {
+                    u0,
+                    u1,
+                    ..
+                })) => Some([u0[0], u0[1], u1[0], u1[1]]),
                 _ => None,
             })
             .collect()

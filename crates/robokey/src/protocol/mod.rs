@@ -15,11 +15,14 @@ mod robot;
 pub mod wire;
 
 pub use assembler::{CodewordAssembler, ReceivedWord};
-pub use auth::{ConfirmTags, Confirmer, Direction, TAG_BYTES};
+pub use auth::{ConfirmTags, Confirmer, Direction};
 pub use controller::{ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput};
 pub use decoder::{Measured, StepDecision, StepDecoder};
 pub use fates::{FateLedger, FateWindow};
-pub use message::Message;
+pub use message::{
+    AuthMode, Closing, Handshake, Layer, Message, MessageType, PostFragment, SessionMessage,
+    TAG_BYTES, TypeError,
+};
 pub use plan::{SessionPlan, agreement_terms, config_digest, terms_difference};
 pub use robot::{Actuation, RobotEndpoint, RobotInput, RobotOutput};
 

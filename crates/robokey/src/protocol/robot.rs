@@ -4,7 +4,7 @@
 use super::Outcome;
 use super::closing::{RobotClosing, RobotLifecycle};
 use super::fates::FateLedger;
-use super::message::Message;
+use super::message::{Message, SessionMessage};
 use super::plan::SessionPlan;
 use crate::code::low_mask;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
@@ -146,22 +146,25 @@ impl RobotEndpoint {
     fn handle_sample(&mut self, step: u32, y: &Pose) {
         let applied_step = self.lifecycle.applied_step.take();
         let fate_cursor = self.lifecycle.fates.cursor();
-        self.lifecycle.send(Message::Measurement {
-            step,
-            y: (*y).into(),
-            applied_step,
-            fate_cursor,
-        });
+        self.lifecycle.send(
+            SessionMessage::Measurement {
+                step,
+                y: (*y).into(),
+                applied_step,
+                fate_cursor,
+            }
+            .into(),
+        );
     }
 
     fn handle_message(&mut self, message: Message) {
         match message {
-            Message::Command {
+            Message::Session(SessionMessage::Command {
                 step,
                 u0,
                 u1,
                 fates,
-            } if self.lifecycle.expects_command() => {
+            }) if self.lifecycle.expects_command() => {
                 if step != self.lifecycle.next_command {
                     return; // stale, duplicate or from the future
                 }
@@ -170,7 +173,7 @@ impl RobotEndpoint {
                 }
                 self.handle_command(step, u0.into(), u1.into());
             }
-            message => {
+            Message::Closing(message) => {
                 let erased = &self.erased;
                 let messages = &self.messages;
                 let k = self.plan.code.k();
@@ -186,6 +189,9 @@ impl RobotEndpoint {
                 };
                 self.lifecycle.on_message(message, &closing);
             }
+            // Handshake and post-processing messages are not the endpoint's; a session
+            // message after the run is a late duplicate.
+            _ => {}
         }
     }
 
@@ -284,12 +290,14 @@ mod tests {
     }
 
     fn command(robot: &mut RobotEndpoint, u0: [f64; 2], u1: [f64; 2]) -> Actuation {
-        robot.handle_input(RobotInput::Frame(Message::Command {
-            step: robot.next_command(),
-            u0,
-            u1,
-            fates: FateWindow::default(),
-        }));
+        robot.handle_input(RobotInput::Frame(Message::Session(
+            SessionMessage::Command {
+                step: robot.next_command(),
+                u0,
+                u1,
+                fates: FateWindow::default(),
+            },
+        )));
         match robot.poll_output() {
             Some(RobotOutput::Apply(actuation)) => actuation,
             other => panic!("expected an actuation, got {other:?}"),
@@ -324,16 +332,18 @@ mod tests {
     fn a_fate_window_at_the_end_of_the_index_range_is_ignored() {
         let mut robot = robot();
         let (u0, u1) = command_pair(robot.plan(), Unicycle::new(0.1, 0.0));
-        robot.handle_input(RobotInput::Frame(Message::Command {
-            step: 0,
-            u0: u0.into(),
-            u1: u1.into(),
-            fates: FateWindow {
-                first: u32::MAX - 3,
-                count: 64,
-                accepted: u64::MAX,
+        robot.handle_input(RobotInput::Frame(Message::Session(
+            SessionMessage::Command {
+                step: 0,
+                u0: u0.into(),
+                u1: u1.into(),
+                fates: FateWindow {
+                    first: u32::MAX - 3,
+                    count: 64,
+                    accepted: u64::MAX,
+                },
             },
-        }));
+        )));
         assert!(matches!(robot.poll_output(), Some(RobotOutput::Apply(a)) if !a.erased));
         assert_eq!(robot.lifecycle.fates.cursor(), 0);
     }

@@ -1,14 +1,14 @@
 //! Helpers shared by the lockstep tests.
 
-use robokey::protocol::Message;
+use robokey::protocol::{Message, PostFragment};
 
 /// A post-processing fragment: traffic of another protocol on the same channel, which session
 /// endpoints must ignore.
 pub fn post_fragment() -> Message {
-    Message::PostFragment {
+    Message::Post(PostFragment {
         message: 1,
         index: 0,
         count: 1,
         bytes: vec![1; 9],
-    }
+    })
 }
