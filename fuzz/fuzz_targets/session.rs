@@ -30,19 +30,19 @@ fuzz_target!(|data: &[u8]| {
         controller.on_datagram(ROBOT, &bytes),
         Ok(Delivery::Established)
     );
-    let ready = controller.seal(Message::Handshake(Handshake::Ready)).unwrap();
+    let ready = controller.seal(Handshake::Ready.into()).unwrap();
     assert!(robot.on_datagram(CONTROLLER, &ready, &mut rng).is_ok());
     // Arbitrary bytes at both bound ends.
     for chunk in data.split(|&b| b == 0xFF) {
         let _ = robot.on_datagram(CONTROLLER, chunk, &mut rng);
         let _ = controller.on_datagram(ROBOT, chunk);
     }
-    let next = controller.seal(Message::Closing(Closing::FinishAck)).unwrap();
+    let next = controller.seal(Closing::FinishAck.into()).unwrap();
     assert_eq!(
         robot.on_datagram(CONTROLLER, &next, &mut rng),
         Ok(Delivery::Message(Message::Closing(Closing::FinishAck)))
     );
-    let back = robot.seal(Message::Closing(Closing::FinishAck)).unwrap();
+    let back = robot.seal(Closing::FinishAck.into()).unwrap();
     assert_eq!(
         controller.on_datagram(ROBOT, &back),
         Ok(Delivery::Message(Message::Closing(Closing::FinishAck)))

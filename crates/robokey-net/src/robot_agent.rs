@@ -135,9 +135,12 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
                         "silence: no valid frame from the controller for {:.1} s",
                         self.timing.silence_timeout.as_secs_f64()
                     );
-                    self.transport.send(Message::Closing(Closing::Abort {
-                        reason: reason.clone(),
-                    }))?;
+                    self.transport.send(
+                        Closing::Abort {
+                            reason: reason.clone(),
+                        }
+                        .into(),
+                    )?;
                     self.outcome = Some(Outcome::Aborted(reason));
                 }
                 None => return Ok(()),
@@ -270,9 +273,12 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     s.report.commands_applied = Some(s.endpoint.commands_applied());
     if let Err(error) = driven {
         // Tell the controller, so that it ends now rather than after its silence timeout.
-        let _ = s.transport.send(Message::Closing(Closing::Abort {
-            reason: error.to_string(),
-        }));
+        let _ = s.transport.send(
+            Closing::Abort {
+                reason: error.to_string(),
+            }
+            .into(),
+        );
         s.report.set_error(&error);
         s.report.count_frames(&s.transport);
         return Ok(s.report);

@@ -93,11 +93,9 @@ impl<'a> Courtesy<'a> {
         use robokey::protocol::{Closing, Message};
         match message {
             Message::Closing(Closing::Done) => Ok(true),
-            Message::Closing(Closing::Finish { .. })
-            | Message::Closing(Closing::FinishAck)
-            | Message::Closing(Closing::Confirm { .. })
-                if self.last.is_none_or(|t| t.elapsed() >= self.interval) =>
-            {
+            Message::Closing(
+                Closing::Finish { .. } | Closing::FinishAck | Closing::Confirm { .. },
+            ) if self.last.is_none_or(|t| t.elapsed() >= self.interval) => {
                 self.last = Some(std::time::Instant::now());
                 let done = done.then_some(Message::Closing(Closing::Done));
                 for m in self.reply.iter().cloned().chain(done) {
@@ -128,7 +126,7 @@ pub fn linger(
     use robokey::protocol::auth::Delivery;
     use robokey::protocol::{Closing, Message};
     use std::time::Instant;
-    transport.send(Message::Closing(Closing::Done))?;
+    transport.send(Closing::Done.into())?;
     if peer_done {
         return Ok(());
     }
@@ -138,13 +136,17 @@ pub fn linger(
         let Delivery::Message(message) = delivery else {
             continue;
         };
-        if let Some(post) = post.as_deref_mut()
-            && post.receive(&message)
-        {
-            post.flush(transport)?;
-            end = Instant::now() + quiet;
-        } else if courtesy.answer(transport, &message, true)? {
-            return Ok(());
+        match (message, post.as_deref_mut()) {
+            (Message::Post(fragment), Some(post)) => {
+                post.receive(&fragment);
+                post.flush(transport)?;
+                end = Instant::now() + quiet;
+            }
+            (message, _) => {
+                if courtesy.answer(transport, &message, true)? {
+                    return Ok(());
+                }
+            }
         }
     }
     Ok(())

@@ -609,9 +609,7 @@ mod tests {
             controller.on_datagram(ROBOT, &bytes),
             Ok(Delivery::Established)
         );
-        let ready = controller
-            .seal(Message::Handshake(Handshake::Ready))
-            .unwrap();
+        let ready = controller.seal(Handshake::Ready.into()).unwrap();
         assert_eq!(
             robot.on_datagram(CONTROLLER, &ready, rng),
             Ok(Delivery::Message(Message::Handshake(Handshake::Ready)))
@@ -625,9 +623,12 @@ mod tests {
         let mut rng = ChaCha20Rng::seed_from_u64(1);
         let (mut controller, mut robot) = established(&mut rng);
         let abort = controller
-            .seal(Message::Closing(Closing::Abort {
-                reason: "forged".into(),
-            }))
+            .seal(
+                Closing::Abort {
+                    reason: "forged".into(),
+                }
+                .into(),
+            )
             .unwrap();
         for at in 0..abort.len() {
             for flip in [0x01, 0x80] {
@@ -665,9 +666,7 @@ mod tests {
     fn reflected_frames_other_peers_and_truncation_are_rejected() {
         let mut rng = ChaCha20Rng::seed_from_u64(2);
         let (mut controller, mut robot) = established(&mut rng);
-        let finish_ack = controller
-            .seal(Message::Closing(Closing::FinishAck))
-            .unwrap();
+        let finish_ack = controller.seal(Closing::FinishAck.into()).unwrap();
         // The controller's own frame, reflected to it, is under the other direction's key.
         assert_eq!(
             controller.on_datagram(ROBOT, &finish_ack),
@@ -687,7 +686,7 @@ mod tests {
             robot.on_datagram(CONTROLLER, controller.hello(), &mut rng),
             Err(Rejection::Unexpected)
         );
-        let reply = robot.seal(Message::Closing(Closing::FinishAck)).unwrap();
+        let reply = robot.seal(Closing::FinishAck.into()).unwrap();
         assert_eq!(
             controller.on_datagram(ATTACKER, &reply),
             Err(Rejection::WrongPeer)
@@ -713,7 +712,7 @@ mod tests {
         ) {
             let mut rng = ChaCha20Rng::seed_from_u64(seed);
             let (mut controller, mut robot) = established(&mut rng);
-            let genuine = controller.seal(Message::Closing(Closing::Finish { codewords: 70, bitmap: vec![5, 1] })).unwrap();
+            let genuine = controller.seal(Closing::Finish { codewords: 70, bitmap: vec![5, 1] }.into()).unwrap();
             let mut edited = genuine.clone();
             for (at, byte, action) in edits {
                 let at = at % (edited.len() + 1);
@@ -732,7 +731,7 @@ mod tests {
             let delivered = robot.on_datagram(CONTROLLER, &genuine, &mut rng);
             let finish = matches!(delivered, Ok(Delivery::Message(Message::Closing(Closing::Finish { .. }))));
             proptest::prop_assert!(finish, "{:?}", delivered);
-            let back = robot.seal(Message::Closing(Closing::FinishAck)).unwrap();
+            let back = robot.seal(Closing::FinishAck.into()).unwrap();
             proptest::prop_assert_eq!(
                 controller.on_datagram(ROBOT, &back),
                 Ok(Delivery::Message(Message::Closing(Closing::FinishAck)))
@@ -745,11 +744,7 @@ mod tests {
         let mut rng = ChaCha20Rng::seed_from_u64(3);
         let (mut controller, mut robot) = established(&mut rng);
         let frames: Vec<Vec<u8>> = (0..70)
-            .map(|_| {
-                controller
-                    .seal(Message::Closing(Closing::FinishAck))
-                    .unwrap()
-            })
+            .map(|_| controller.seal(Closing::FinishAck.into()).unwrap())
             .collect();
         for bytes in frames[1..68].iter().chain([&frames[0], &frames[69]]) {
             let _ = robot.on_datagram(CONTROLLER, bytes, &mut rng);
