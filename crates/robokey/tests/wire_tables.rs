@@ -9,7 +9,9 @@ use std::path::Path;
 use robokey::protocol::{Layer, MessageType};
 
 fn read(relative: &str) -> String {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(relative);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(relative);
     std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
@@ -63,7 +65,9 @@ fn docs_wire_md_lists_every_type_with_its_number_name_and_layer() {
             reserved = Some(first.parse::<u8>().unwrap()..=last.parse::<u8>().unwrap());
             continue;
         }
-        let byte: u8 = row[0].parse().unwrap_or_else(|_| panic!("type {:?}", row[0]));
+        let byte: u8 = row[0]
+            .parse()
+            .unwrap_or_else(|_| panic!("type {:?}", row[0]));
         let name = row[1].trim_matches('`').to_owned();
         let kind = MessageType::from_byte(byte).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(row[2], layer_word(kind.layer()), "layer of {name}");
@@ -104,7 +108,10 @@ fn the_wireshark_dissector_names_every_type_and_reserved_byte() {
         let (byte, rest) = entry.split_once(']').expect("[N]");
         let name = rest.split('"').nth(1).expect("a quoted name");
         let byte: u8 = byte.trim().parse().expect("a type number");
-        assert!(entries.insert(byte, name.to_owned()).is_none(), "type {byte} twice");
+        assert!(
+            entries.insert(byte, name.to_owned()).is_none(),
+            "type {byte} twice"
+        );
     }
     let mut expected = rust_types();
     for byte in MessageType::RESERVED {

@@ -5,10 +5,9 @@
 
 use std::collections::VecDeque;
 
-use super::controller::{ControllerEvent, ControllerOutput};
+use super::endpoint_io::{Actuation, ControllerEvent, ControllerOutput, RobotOutput};
 use super::fates::FateLedger;
 use super::message::{Closing, Message};
-use super::robot::{Actuation, RobotOutput};
 use super::{ConfirmTags, Confirmer, Direction, KeyBits, Outcome, TAG_BYTES};
 use crate::model::WheelSpeeds;
 

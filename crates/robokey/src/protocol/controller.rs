@@ -3,7 +3,8 @@
 
 use super::assembler::CodewordAssembler;
 use super::closing::ControllerLifecycle;
-use super::decoder::{StepDecision, StepDecoder};
+use super::decoder::StepDecoder;
+use super::endpoint_io::{ControllerEvent, ControllerInput, ControllerOutput};
 use super::fates::FateLedger;
 use super::message::{Closing, Message, SessionMessage};
 use super::plan::SessionPlan;
@@ -12,77 +13,7 @@ use crate::config::{Config, Feedback};
 use crate::control::{TrackingController, TrackingGains};
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use crate::observer::{Observer, ObserverParams};
-use crate::private::{DoubletDecision, DoubletInputs};
 use crate::trajectory::Trajectory;
-
-/// Input to the controller endpoints (odometry and private sensing).
-#[derive(Clone, Debug, PartialEq)]
-pub enum ControllerInput {
-    /// A message from the robot.
-    Frame(Message),
-    /// Private sensing: the controller's own sensor sampled `y_c(k)` at `t_k` (the odometry
-    /// mode's controller ignores it).
-    Sensor {
-        /// Step k.
-        step: u32,
-        /// `y_c(k)` (m, m, rad).
-        pose: Pose,
-    },
-    /// The shell's retransmission timer fired (Finish or Confirm not answered yet).
-    Timeout,
-}
-
-/// What the controller observed, for traces and metrics.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ControllerEvent {
-    /// Command pair k was computed from the nominal `uU(k)` (m/s, rad/s).
-    Commanded {
-        /// Step k.
-        step: u32,
-        /// Clipped nominal command.
-        nominal: Unicycle,
-    },
-    /// Step `k − 1` was decoded from `y(k)`.
-    Decoded(StepDecision),
-    /// Steps whose measurement never arrived.
-    Missing(std::ops::Range<u32>),
-    /// A codeword was decided.
-    CodewordDecided {
-        /// Codeword index.
-        index: u32,
-        /// Accepted into the key.
-        accepted: bool,
-    },
-    /// Private sensing: the doublet starting at `step` was commanded with these public
-    /// inputs; it carries bits unless the protocol is off or the turn gate stopped it.
-    DoubletCommanded {
-        /// Its first step `2j`.
-        step: u32,
-        /// `u(2j)` and `u'(2j+1)`.
-        inputs: DoubletInputs,
-        /// Whether it carries bits.
-        carries: bool,
-    },
-    /// Private sensing: a carrying doublet was decided and is kept.
-    DoubletDecided(DoubletDecision),
-    /// Private sensing: a carrying doublet could not be decided (a sample or a measurement
-    /// is missing, or the robot did not apply it): it is dropped on both sides.
-    DoubletErased {
-        /// Doublet index j.
-        doublet: u32,
-    },
-    /// The session ended.
-    Finished(Outcome),
-}
-
-/// Output of the controller endpoints.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ControllerOutput {
-    /// Send this message to the robot.
-    Transmit(Message),
-    /// Something happened.
-    Event(ControllerEvent),
-}
 
 /// The controller side of a session.
 pub struct ControllerEndpoint {

@@ -8,6 +8,7 @@ pub mod auth;
 pub(crate) mod closing;
 pub(crate) mod controller;
 mod decoder;
+mod endpoint_io;
 mod fates;
 mod message;
 mod plan;
@@ -16,15 +17,18 @@ pub mod wire;
 
 pub use assembler::{CodewordAssembler, ReceivedWord};
 pub use auth::{ConfirmTags, Confirmer, Direction};
-pub use controller::{ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput};
+pub use controller::ControllerEndpoint;
 pub use decoder::{Measured, StepDecision, StepDecoder};
+pub use endpoint_io::{
+    Actuation, ControllerEvent, ControllerInput, ControllerOutput, RobotInput, RobotOutput,
+};
 pub use fates::{FateLedger, FateWindow};
 pub use message::{
     AuthMode, Closing, Handshake, Layer, Message, MessageType, PostFragment, SessionMessage,
     TAG_BYTES, TypeError,
 };
 pub use plan::{SessionPlan, agreement_terms, config_digest, terms_difference};
-pub use robot::{Actuation, RobotEndpoint, RobotInput, RobotOutput};
+pub use robot::RobotEndpoint;
 
 /// How a session ended for one side.
 #[derive(Clone, Debug, PartialEq, Eq)]

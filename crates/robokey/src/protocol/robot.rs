@@ -3,55 +3,13 @@
 
 use super::Outcome;
 use super::closing::{RobotClosing, RobotLifecycle};
+use super::endpoint_io::{Actuation, RobotInput, RobotOutput};
 use super::fates::FateLedger;
 use super::message::{Message, SessionMessage};
 use super::plan::SessionPlan;
 use crate::code::low_mask;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use rand::{CryptoRng, RngExt};
-
-/// Input to the robot endpoint.
-#[derive(Clone, Debug, PartialEq)]
-pub enum RobotInput {
-    /// The odometry pose `y(k)` was sampled at `t_k = k·T`.
-    Sample {
-        /// Step k.
-        step: u32,
-        /// `y(k)` (m, m, rad).
-        y: Pose,
-    },
-    /// A message from the controller.
-    Frame(Message),
-    /// Command `step` has not arrived by its deadline.
-    Deadline {
-        /// Step k.
-        step: u32,
-    },
-}
-
-/// What the robot applies on `[t_k, t_{k+1})`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Actuation {
-    /// Step k.
-    pub step: u32,
-    /// Wheel speeds (rad/s, right first).
-    pub wheels: WheelSpeeds,
-    /// The key bit `b(k)` applied, or `None` (protocol off, erased, or stopped).
-    pub bit: Option<u8>,
-    /// Whether the command was missing and the fallback was applied.
-    pub erased: bool,
-}
-
-/// Output of the robot endpoint.
-#[derive(Clone, Debug, PartialEq)]
-pub enum RobotOutput {
-    /// Send this message to the controller.
-    Transmit(Message),
-    /// Drive the wheels.
-    Apply(Actuation),
-    /// The session ended.
-    Finished(Outcome),
-}
 
 /// The robot side of a session.
 pub struct RobotEndpoint {
