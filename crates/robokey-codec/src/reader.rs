@@ -16,12 +16,6 @@ impl<'a> Reader<'a> {
         Self { bytes }
     }
 
-    /// Bytes not read yet.
-    #[must_use]
-    pub fn left(&self) -> usize {
-        self.bytes.len()
-    }
-
     /// The next `n` bytes of `field`.
     ///
     /// # Errors
@@ -116,11 +110,6 @@ impl<'a> Reader<'a> {
             .ok_or(DecodeError::TooLong { field, len, max })
     }
 
-    /// Everything left.
-    pub fn rest(&mut self) -> &'a [u8] {
-        std::mem::take(&mut self.bytes)
-    }
-
     /// Ends reading: every byte must have been read.
     ///
     /// # Errors
@@ -160,8 +149,7 @@ mod tests {
         assert_eq!(r.f64("e"), Ok(-0.5));
         assert_eq!(r.f64s::<2>("f"), Ok([1.0, f64::INFINITY]));
         assert_eq!(r.len_u32("g", 3), Ok(3));
-        assert_eq!(r.left(), 3);
-        assert_eq!(r.clone().rest(), &[9, 8, 7]);
+        assert_eq!(r.clone().finish(), Err(DecodeError::TrailingBytes(3)));
         assert_eq!(r.array::<3>("h"), Ok([9, 8, 7]));
         assert_eq!(r.finish(), Ok(()));
     }

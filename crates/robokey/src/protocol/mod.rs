@@ -1,7 +1,9 @@
 //! The key-agreement protocol as sans-I/O endpoints (docs/protocol.md): the robot and the
 //! controller each take one input enum and emit one output enum; the shells (simulator,
-//! UDP agents) carry the [`Message`]s. On a network, the session layer ([`auth`]) lies
-//! between the endpoints and the datagrams.
+//! UDP agents) carry the [`Message`]s. A message belongs to one [`Layer`] — handshake,
+//! session, closing or post-processing — and [`MessageType`] is the one table of their wire
+//! types. On a network, the session layer ([`auth`]) lies between the endpoints and the
+//! datagrams ([`wire`]).
 
 mod assembler;
 pub mod auth;

@@ -1,7 +1,7 @@
 //! The wire format, version 2 (documented in `docs/wire.md`): hand-written, big-endian,
 //! `magic u16 | version u8 | type u8 | session u32 | seq u32 | step u32 | payload | mac [16]`.
 //! This module encodes and parses frames: the header here, the type through the one
-//! [`MessageType`] table, the payload through each layer's codec ([`super::message`]). The
+//! [`MessageType`] table, the payload through the codec of its [`Message`] layer. The
 //! MAC is computed and checked by the session layer ([`super::auth`]). The decoder never
 //! panics: every malformed input is a [`WireError`].
 
