@@ -5,7 +5,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use rand::SeedableRng;
-use robokey::protocol::Message;
+use robokey::protocol::{Closing, Handshake, Message};
 use robokey::protocol::auth::{ControllerChannel, Delivery, PairingSecret, RobotChannel};
 
 const CONTROLLER: u8 = 1;
@@ -30,21 +30,21 @@ fuzz_target!(|data: &[u8]| {
         controller.on_datagram(ROBOT, &bytes),
         Ok(Delivery::Established)
     );
-    let ready = controller.seal(Message::Ready).unwrap();
+    let ready = controller.seal(Handshake::Ready.into()).unwrap();
     assert!(robot.on_datagram(CONTROLLER, &ready, &mut rng).is_ok());
     // Arbitrary bytes at both bound ends.
     for chunk in data.split(|&b| b == 0xFF) {
         let _ = robot.on_datagram(CONTROLLER, chunk, &mut rng);
         let _ = controller.on_datagram(ROBOT, chunk);
     }
-    let next = controller.seal(Message::FinishAck).unwrap();
+    let next = controller.seal(Closing::FinishAck.into()).unwrap();
     assert_eq!(
         robot.on_datagram(CONTROLLER, &next, &mut rng),
-        Ok(Delivery::Message(Message::FinishAck))
+        Ok(Delivery::Message(Message::Closing(Closing::FinishAck)))
     );
-    let back = robot.seal(Message::FinishAck).unwrap();
+    let back = robot.seal(Closing::FinishAck.into()).unwrap();
     assert_eq!(
         controller.on_datagram(ROBOT, &back),
-        Ok(Delivery::Message(Message::FinishAck))
+        Ok(Delivery::Message(Message::Closing(Closing::FinishAck)))
     );
 });

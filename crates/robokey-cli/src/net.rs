@@ -169,8 +169,8 @@ pub struct FramesArgs {
 /// number, type, session, seq, step, and the numbers a Measurement (`y`), a Command
 /// (`u0D`, `u1D`) or a DoubletCommand (`y_c`, `u`, `u'`) carries. MACs are not checked (no pairing secret needed).
 pub fn frames(args: FramesArgs) -> Result<()> {
-    use robokey::protocol::Message;
     use robokey::protocol::wire::decode;
+    use robokey::protocol::{Message, SessionMessage};
     for (i, datagram) in read_capture(&args.capture)?.iter().enumerate() {
         let bytes = &datagram.payload;
         let frame = match decode(bytes) {
@@ -181,14 +181,16 @@ pub fn frames(args: FramesArgs) -> Result<()> {
             }
         };
         let numbers: Vec<f64> = match &frame.message {
-            Message::Measurement { y, .. } => y.to_vec(),
-            Message::Command { u0, u1, .. } => u0.iter().chain(u1).copied().collect(),
-            Message::DoubletCommand {
+            Message::Session(SessionMessage::Measurement { y, .. }) => y.to_vec(),
+            Message::Session(SessionMessage::Command { u0, u1, .. }) => {
+                u0.iter().chain(u1).copied().collect()
+            }
+            Message::Session(SessionMessage::DoubletCommand {
                 sample,
                 first,
                 second,
                 ..
-            } => sample
+            }) => sample
                 .iter()
                 .chain(first)
                 .chain(second.iter().flatten())

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use common::{Process, pairing, report, run_code, s, scratch, start, wait_code};
 use robokey::protocol::auth::{AuthMode, PairingSecret, seal};
 use robokey::protocol::wire::{Frame, MAC_BYTES, decode, encode};
-use robokey::protocol::{FateWindow, Message};
+use robokey::protocol::{Closing, FateWindow, Handshake, Message, SessionMessage};
 
 /// A short session: one lap with 6 s sides.
 const SHORT: [&str; 4] = [
@@ -265,22 +265,22 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
             let Ok(Frame {
                 session,
                 message:
-                    Message::Hello {
+                    Message::Handshake(Handshake::Hello {
                         nonce,
                         config_digest,
                         ..
-                    },
+                    }),
                 ..
             }) = decode(&buffer[..len])
             else {
                 continue;
             };
-            let ack = Message::HelloAck {
+            let ack = Message::Handshake(Handshake::HelloAck {
                 auth: AuthMode::Paired,
                 nonce_c: nonce,
                 nonce_r: [9; 16],
                 config_digest,
-            };
+            });
             let frame = Frame {
                 session,
                 seq: 0,
@@ -314,20 +314,23 @@ fn on_path_edits_of_fates_and_tags_are_dropped_and_no_key_is_confirmed() {
         &robot.address,
         Box::new(move |to, bytes| {
             let mut out = bytes.clone();
-            if let Some(mut frame) = is(&bytes, |m| matches!(m, Message::Confirm { .. })) {
+            if let Some(mut frame) = is(&bytes, |m| {
+                matches!(m, Message::Closing(Closing::Confirm { .. }))
+            }) {
                 // Both sides' tags replaced.
-                frame.message = Message::Confirm {
+                frame.message = Message::Closing(Closing::Confirm {
                     session_tag: [0xAA; 16],
                     key_tag: [0xBB; 16],
-                };
+                });
                 out = edited(&bytes, &frame);
             } else if let Some(mut frame) = is(
                 &bytes,
-                |m| matches!(m, Message::Command { fates, .. } if fates.accepted != 0),
+                |m| matches!(m, Message::Session(SessionMessage::Command { fates, .. }) if fates.accepted != 0),
             ) && !cleared
             {
                 // One accepted fate cleared towards the robot.
-                if let Message::Command { fates, .. } = &mut frame.message {
+                if let Message::Session(SessionMessage::Command { fates, .. }) = &mut frame.message
+                {
                     fates.accepted = 0;
                 }
                 out = edited(&bytes, &frame);
@@ -354,11 +357,16 @@ fn an_early_datagram_and_a_replayed_hello_do_not_steer_the_robot() {
     let old = captured_session(&dir.join("old"), &pairing);
     let hello = old
         .iter()
-        .find(|(_, b)| is(b, |m| matches!(m, Message::Hello { .. })).is_some())
+        .find(|(_, b)| {
+            is(b, |m| {
+                matches!(m, Message::Handshake(Handshake::Hello { .. }))
+            })
+            .is_some()
+        })
         .unwrap();
     let ready = old
         .iter()
-        .find(|(_, b)| is(b, |m| *m == Message::Ready).is_some())
+        .find(|(_, b)| is(b, |m| *m == Message::Handshake(Handshake::Ready)).is_some())
         .unwrap();
     let robot = robot(&dir, &pairing, &[]);
     let attacker = UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -370,7 +378,7 @@ fn an_early_datagram_and_a_replayed_hello_do_not_steer_the_robot() {
     let finish_ack = Frame {
         session: 0,
         seq: 1,
-        message: Message::FinishAck,
+        message: Message::Closing(Closing::FinishAck),
     };
     attacker
         .send_to(&forged(&finish_ack), &robot.address)
@@ -380,7 +388,13 @@ fn an_early_datagram_and_a_replayed_hello_do_not_steer_the_robot() {
     let (len, _) = attacker
         .recv_from(&mut answer)
         .expect("a replayed Hello is answered");
-    assert!(is(&answer[..len], |m| matches!(m, Message::HelloAck { .. })).is_some());
+    assert!(
+        is(&answer[..len], |m| matches!(
+            m,
+            Message::Handshake(Handshake::HelloAck { .. })
+        ))
+        .is_some()
+    );
     attacker.send_to(&ready.1, &robot.address).unwrap();
     std::thread::sleep(Duration::from_millis(100));
     // The real controller still gets the session.
@@ -400,7 +414,12 @@ fn a_reflected_confirm_fails_and_the_controller_writes_no_key() {
     let relay = relay(
         &robot.address,
         Box::new(|to, bytes| {
-            match (to, is(&bytes, |m| matches!(m, Message::Confirm { .. }))) {
+            match (
+                to,
+                is(&bytes, |m| {
+                    matches!(m, Message::Closing(Closing::Confirm { .. }))
+                }),
+            ) {
                 // The robot's tags never reach the controller; its own come back to it.
                 (To::Controller, Some(_)) => vec![],
                 (To::Robot, Some(_)) => vec![(To::Robot, bytes.clone()), (To::Controller, bytes)],
@@ -430,10 +449,12 @@ fn injected_and_impersonated_commands_are_never_applied_and_the_session_complete
         &robot.address,
         Box::new(move |to, bytes| {
             let mut out = vec![(to, bytes.clone())];
-            let Some(frame) = is(&bytes, |m| matches!(m, Message::Command { .. })) else {
+            let Some(frame) = is(&bytes, |m| {
+                matches!(m, Message::Session(SessionMessage::Command { .. }))
+            }) else {
                 return out;
             };
-            let Message::Command { step, .. } = frame.message else {
+            let Message::Session(SessionMessage::Command { step, .. }) = frame.message else {
                 unreachable!("matched above")
             };
             // Offers that spin the robot and reveal the bit, for the next step: edited
@@ -441,12 +462,12 @@ fn injected_and_impersonated_commands_are_never_applied_and_the_session_complete
             let spin = Frame {
                 session: frame.session,
                 seq: frame.seq + 1,
-                message: Message::Command {
+                message: Message::Session(SessionMessage::Command {
                     step: step + 1,
                     u0: [5.0, 5.0],
                     u1: [-5.0, -5.0],
                     fates: FateWindow::default(),
-                },
+                }),
             };
             out.push((To::Robot, edited(&bytes, &spin)));
             out.push((To::Robot, forged(&spin)));
@@ -503,7 +524,12 @@ fn a_forged_abort_bad_finish_wrong_version_hello_and_sequence_poisoning_change_n
         &robot.address,
         Box::new(move |to, bytes| {
             let mut out = vec![(to, bytes.clone())];
-            let Some(frame) = is(&bytes, |m| matches!(m, Message::Command { step: 20, .. })) else {
+            let Some(frame) = is(&bytes, |m| {
+                matches!(
+                    m,
+                    Message::Session(SessionMessage::Command { step: 20, .. })
+                )
+            }) else {
                 return out;
             };
             if std::mem::replace(&mut done, true) {
@@ -516,30 +542,30 @@ fn a_forged_abort_bad_finish_wrong_version_hello_and_sequence_poisoning_change_n
             };
             let abort = at(
                 frame.seq + 1,
-                Message::Abort {
+                Message::Closing(Closing::Abort {
                     reason: "forged".into(),
-                },
+                }),
             );
             let finish = at(
                 frame.seq + 2,
-                Message::Finish {
+                Message::Closing(Closing::Finish {
                     codewords: 1,
                     bitmap: vec![1],
-                },
+                }),
             );
             // Sequence poisoning: a number far ahead, which must not move the window.
-            let poison = at(u32::MAX - 1, Message::FinishAck);
+            let poison = at(u32::MAX - 1, Message::Closing(Closing::FinishAck));
             for bytes in [forged(&abort), forged(&finish), forged(&poison)] {
                 out.push((To::Robot, bytes.clone()));
                 out.push((To::Controller, bytes));
             }
             // A Hello for this session as version 1 and as version 3.
-            let hello = Message::Hello {
+            let hello = Message::Handshake(Handshake::Hello {
                 auth: AuthMode::Paired,
                 nonce: [7; 16],
                 config_digest: [0; 32],
                 terms: String::new(),
-            };
+            });
             let hello = forged(&at(0, hello));
             for version in [1, 3] {
                 let mut bytes = hello.clone();

@@ -11,7 +11,8 @@ use robokey::private::{DoubletEavesdropper, EveDoublet};
 use robokey::protocol::auth::{AuthMode, PairingSecret};
 use robokey::protocol::wire::{Frame, decode};
 use robokey::protocol::{
-    Confirmer, KeyBits, Message, SessionPlan, agreement_terms, config_digest, terms_difference,
+    Closing, Confirmer, Handshake, KeyBits, Message, SessionPlan, agreement_terms, config_digest,
+    terms_difference,
 };
 
 use crate::error::NetError;
@@ -63,7 +64,7 @@ pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, 
     let undecodable = datagrams.len() - frames.len();
     let session = frames
         .iter()
-        .find(|(f, _)| matches!(f.message, Message::Hello { .. }))
+        .find(|(f, _)| matches!(f.message, Message::Handshake(Handshake::Hello { .. })))
         .or(frames.first())
         .map(|(f, _)| f.session)
         .ok_or_else(|| NetError::Capture {
@@ -77,11 +78,11 @@ pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, 
     let public_confirmer = public_confirmer(&frames);
     let messages: Vec<Message> = frames.into_iter().map(|(f, _)| f.message).collect();
     for message in &messages {
-        if let Message::Hello {
+        if let Message::Handshake(Handshake::Hello {
             config_digest: digest,
             terms,
             ..
-        } = message
+        }) = message
             && *digest != config_digest(config)
         {
             return Err(NetError::Usage(format!(
@@ -91,7 +92,7 @@ pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, 
         }
     }
     let aborted = messages.iter().find_map(|m| match m {
-        Message::Abort { reason } => Some(reason.clone()),
+        Message::Closing(Closing::Abort { reason }) => Some(reason.clone()),
         _ => None,
     });
     Ok(CapturedSession {
@@ -107,19 +108,19 @@ pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, 
 /// `HelloAck` answering it), with the public secret's keys.
 fn public_confirmer(frames: &[(Frame, &[u8])]) -> Option<Confirmer> {
     let (nonce_c, hello) = frames.iter().find_map(|(f, bytes)| match f.message {
-        Message::Hello {
+        Message::Handshake(Handshake::Hello {
             auth: AuthMode::Unauthenticated,
             nonce,
             ..
-        } => Some((nonce, *bytes)),
+        }) => Some((nonce, *bytes)),
         _ => None,
     })?;
     let (nonce_r, ack) = frames.iter().find_map(|(f, bytes)| match f.message {
-        Message::HelloAck {
+        Message::Handshake(Handshake::HelloAck {
             nonce_c: echoed,
             nonce_r,
             ..
-        } if echoed == nonce_c => Some((nonce_r, *bytes)),
+        }) if echoed == nonce_c => Some((nonce_r, *bytes)),
         _ => None,
     })?;
     let keys = PairingSecret::unauthenticated().session_keys(&nonce_c, &nonce_r);

@@ -11,8 +11,8 @@ use robokey::config::SensingMode;
 use robokey::interrupt::Interrupt;
 use robokey::protocol::auth::{AuthMode, ControllerChannel, Delivery, PairingSecret};
 use robokey::protocol::{
-    ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, agreement_terms,
-    config_digest,
+    Closing, ControllerEvent, ControllerInput, ControllerOutput, Handshake, Message, Outcome,
+    agreement_terms, config_digest,
 };
 
 use crate::endpoint::shape;
@@ -150,9 +150,12 @@ pub fn run_controller(
             Ok(report)
         }
         Err(error) => {
-            let _ = transport.send(Message::Abort {
-                reason: error.to_string(),
-            });
+            let _ = transport.send(
+                Closing::Abort {
+                    reason: error.to_string(),
+                }
+                .into(),
+            );
             report.set_error(&error);
             report.count_frames(&transport);
             report.post = post;
@@ -228,7 +231,7 @@ fn converse(
 
     // The first frame under the session key binds the session at the robot; repeat it until
     // the robot's first measurement shows it arrived.
-    transport.send(Message::Ready)?;
+    transport.send(Handshake::Ready.into())?;
     let mut robot_heard = false;
     let mut endpoint = crate::endpoint::controller(config, session, confirmer);
     let mut outcome = None;
@@ -266,12 +269,15 @@ fn converse(
                     "silence: no valid frame from the robot for {:.1} s",
                     timing.silence_timeout.as_secs_f64()
                 );
-                transport.send(Message::Abort {
-                    reason: reason.clone(),
-                })?;
+                transport.send(
+                    Closing::Abort {
+                        reason: reason.clone(),
+                    }
+                    .into(),
+                )?;
                 outcome = Some(Outcome::Aborted(reason));
             }
-            None if !robot_heard => transport.send(Message::Ready)?,
+            None if !robot_heard => transport.send(Handshake::Ready.into())?,
             // Retransmission timer: Finish until FinishAck (bounded by the endpoint).
             None => endpoint.handle_input(ControllerInput::Timeout),
         }
@@ -290,16 +296,19 @@ fn converse(
                 }
             }
             if let Some(reason) = sensed.failure(robot_heard, timing.silence_timeout) {
-                transport.send(Message::Abort {
-                    reason: reason.clone(),
-                })?;
+                transport.send(
+                    Closing::Abort {
+                        reason: reason.clone(),
+                    }
+                    .into(),
+                )?;
                 outcome = Some(Outcome::Aborted(reason));
             }
         }
         while let Some(output) = endpoint.poll_output() {
             match output {
                 ControllerOutput::Transmit(message) => {
-                    if matches!(message, Message::Confirm { .. }) {
+                    if matches!(message, Message::Closing(Closing::Confirm { .. })) {
                         last_confirm = Some(message.clone());
                     }
                     transport.send(message)?;

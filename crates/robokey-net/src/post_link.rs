@@ -11,7 +11,7 @@ use std::time::Instant;
 use robokey::Config;
 use robokey::post_settings::post_settings;
 use robokey::protocol::auth::Delivery;
-use robokey::protocol::{Message, Outcome};
+use robokey::protocol::{Message, Outcome, PostFragment};
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, Assumption, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, FinalKey,
@@ -414,36 +414,33 @@ impl<E: PostEndpoint> PostSide<E> {
         let number = self.next_message;
         self.next_message = self.next_message.wrapping_add(1);
         for (index, count, chunk) in postprocess::fragments(&bytes) {
-            transport.send(Message::PostFragment {
-                message: number,
-                index,
-                count,
-                bytes: chunk.to_vec(),
-            })?;
+            transport.send(
+                PostFragment {
+                    message: number,
+                    index,
+                    count,
+                    bytes: chunk.to_vec(),
+                }
+                .into(),
+            )?;
         }
         self.report.messages_sent += 1;
         Ok(())
     }
 
-    /// Takes a frame from the peer: true if it was a post-processing fragment (whether or
-    /// not it completed a message).
-    pub fn receive(&mut self, message: &Message) -> bool {
-        let Message::PostFragment {
-            message: number,
-            index,
-            count,
-            bytes,
-        } = message
-        else {
-            return false;
-        };
-        if let Some(whole) = self.reassembler.accept(*number, *index, *count, bytes)
-            && let Ok(decoded) = postprocess::decode(&whole)
+    /// Takes a post-processing fragment from the peer; the message it completes, if any,
+    /// goes to the endpoint.
+    pub fn receive(&mut self, fragment: &PostFragment) {
+        if let Some(whole) = self.reassembler.accept(
+            fragment.message,
+            fragment.index,
+            fragment.count,
+            &fragment.bytes,
+        ) && let Ok(decoded) = postprocess::decode(&whole)
         {
             self.report.messages_received += 1;
             self.endpoint.frame(decoded);
         }
-        true
     }
 
     /// The report, with the pool as it stands.
@@ -489,13 +486,13 @@ impl PostSide<ControllerPost> {
                 return Ok(peer_done);
             }
             match transport.recv_until(timer)? {
+                Some(Delivery::Message(Message::Post(fragment))) => {
+                    self.receive(&fragment);
+                    heard = Instant::now();
+                }
                 Some(Delivery::Message(message)) => {
-                    if self.receive(&message) {
-                        heard = Instant::now();
-                    } else {
-                        // No `Done` yet: it would end the robot's wait for post-processing.
-                        peer_done |= courtesy.answer(transport, &message, false)?;
-                    }
+                    // No `Done` yet: it would end the robot's wait for post-processing.
+                    peer_done |= courtesy.answer(transport, &message, false)?;
                 }
                 Some(_) => {}
                 None if Instant::now() >= timer => {

@@ -12,7 +12,8 @@ use robokey::interrupt::Interrupt;
 use robokey::model::WheelSpeeds;
 use robokey::protocol::auth::{Delivery, PairingSecret, RobotChannel};
 use robokey::protocol::{
-    Message, Outcome, RobotInput, RobotOutput, agreement_terms, config_digest,
+    Closing, Handshake, Message, Outcome, RobotInput, RobotOutput, SessionMessage, agreement_terms,
+    config_digest,
 };
 
 use crate::backend::{Backend, WheelGuard};
@@ -69,8 +70,11 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
             match output {
                 RobotOutput::Transmit(message) => {
                     match &message {
-                        Message::Confirm { .. } => self.last_confirm = Some(message.clone()),
-                        Message::Measurement { .. } | Message::PrivateMeasurement { .. } => {
+                        Message::Closing(Closing::Confirm { .. }) => {
+                            self.last_confirm = Some(message.clone())
+                        }
+                        Message::Session(SessionMessage::Measurement { .. })
+                        | Message::Session(SessionMessage::PrivateMeasurement { .. }) => {
                             self.last_measurement = Some(message.clone())
                         }
                         _ => {}
@@ -120,7 +124,7 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
                 Some(Delivery::Message(message)) => {
                     self.last_frame = Instant::now();
                     // A repeated Ready (the controller has not heard us yet) needs nothing.
-                    if message != Message::Ready {
+                    if message != Message::Handshake(Handshake::Ready) {
                         self.endpoint.handle_input(RobotInput::Frame(message));
                         self.pump()?;
                     }
@@ -131,9 +135,12 @@ impl<B: Backend + ?Sized> RobotSession<'_, B> {
                         "silence: no valid frame from the controller for {:.1} s",
                         self.timing.silence_timeout.as_secs_f64()
                     );
-                    self.transport.send(Message::Abort {
-                        reason: reason.clone(),
-                    })?;
+                    self.transport.send(
+                        Closing::Abort {
+                            reason: reason.clone(),
+                        }
+                        .into(),
+                    )?;
                     self.outcome = Some(Outcome::Aborted(reason));
                 }
                 None => return Ok(()),
@@ -266,9 +273,12 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     s.report.commands_applied = Some(s.endpoint.commands_applied());
     if let Err(error) = driven {
         // Tell the controller, so that it ends now rather than after its silence timeout.
-        let _ = s.transport.send(Message::Abort {
-            reason: error.to_string(),
-        });
+        let _ = s.transport.send(
+            Closing::Abort {
+                reason: error.to_string(),
+            }
+            .into(),
+        );
         s.report.set_error(&error);
         s.report.count_frames(&s.transport);
         return Ok(s.report);
@@ -278,7 +288,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         s.last_confirm.clone(),
         matches!(s.outcome, Some(Outcome::Aborted(_))),
     ) {
-        let reply = [Message::FinishAck, confirm];
+        let reply = [Message::Closing(Closing::FinishAck), confirm];
         let mut courtesy = Courtesy::new(&reply, &s.timing);
         post_error = match post.as_mut() {
             Some(post) => settle(post, &mut s, &mut courtesy, session).err(),

@@ -90,14 +90,14 @@ impl<'a> Courtesy<'a> {
         message: &robokey::protocol::Message,
         done: bool,
     ) -> Result<bool, NetError> {
-        use robokey::protocol::Message;
+        use robokey::protocol::{Closing, Message};
         match message {
-            Message::Done => Ok(true),
-            Message::Finish { .. } | Message::FinishAck | Message::Confirm { .. }
-                if self.last.is_none_or(|t| t.elapsed() >= self.interval) =>
-            {
+            Message::Closing(Closing::Done) => Ok(true),
+            Message::Closing(
+                Closing::Finish { .. } | Closing::FinishAck | Closing::Confirm { .. },
+            ) if self.last.is_none_or(|t| t.elapsed() >= self.interval) => {
                 self.last = Some(std::time::Instant::now());
-                let done = done.then_some(Message::Done);
+                let done = done.then_some(Message::Closing(Closing::Done));
                 for m in self.reply.iter().cloned().chain(done) {
                     transport.send(m)?;
                 }
@@ -123,10 +123,10 @@ pub fn linger(
     peer_done: bool,
     mut post: Option<&mut crate::post_link::PostSide<robokey_secrecy::postprocess::RobotPost>>,
 ) -> Result<(), NetError> {
-    use robokey::protocol::Message;
     use robokey::protocol::auth::Delivery;
+    use robokey::protocol::{Closing, Message};
     use std::time::Instant;
-    transport.send(Message::Done)?;
+    transport.send(Closing::Done.into())?;
     if peer_done {
         return Ok(());
     }
@@ -136,13 +136,17 @@ pub fn linger(
         let Delivery::Message(message) = delivery else {
             continue;
         };
-        if let Some(post) = post.as_deref_mut()
-            && post.receive(&message)
-        {
-            post.flush(transport)?;
-            end = Instant::now() + quiet;
-        } else if courtesy.answer(transport, &message, true)? {
-            return Ok(());
+        match (message, post.as_deref_mut()) {
+            (Message::Post(fragment), Some(post)) => {
+                post.receive(&fragment);
+                post.flush(transport)?;
+                end = Instant::now() + quiet;
+            }
+            (message, _) => {
+                if courtesy.answer(transport, &message, true)? {
+                    return Ok(());
+                }
+            }
         }
     }
     Ok(())

@@ -9,7 +9,7 @@ use robokey::config::{EveStrategy, SensingMode};
 use robokey::eve::{Eavesdropper, Eve, ModelErrors};
 use robokey::protocol::auth::{ControllerChannel, Delivery, PairingSecret, RobotChannel};
 use robokey::protocol::wire::{Frame, MAC_BYTES, decode, encode};
-use robokey::protocol::{FateWindow, Message, SessionPlan};
+use robokey::protocol::{FateWindow, Message, SessionMessage, SessionPlan};
 use robokey::sim::{simulate_plan, simulate_transcript};
 
 fn one_run(c: &mut Criterion) {
@@ -53,12 +53,12 @@ fn eavesdroppers(c: &mut Criterion) {
 /// One `Command` through the frame codec alone, and sealed by the controller's channel and
 /// opened (MAC, replay window) by the robot's: the difference is what authentication costs.
 fn frame(c: &mut Criterion) {
-    let command = Message::Command {
+    let command = Message::Session(SessionMessage::Command {
         step: 7,
         u0: [4.0, 3.5],
         u1: [0.5, -1.0],
         fates: FateWindow::default(),
-    };
+    });
     let secret = PairingSecret::from_bytes(&[7; 32]);
     let mut rng = rand::rngs::ChaCha20Rng::seed_from_u64(1);
     let mut controller =

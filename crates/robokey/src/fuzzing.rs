@@ -11,8 +11,9 @@ use crate::model::{Pose, WheelSpeeds};
 use crate::protocol::controller::command_pair;
 use crate::protocol::wire::{self, Frame, MAC_BYTES};
 use crate::protocol::{
-    Controller, ControllerEvent, ControllerInput, ControllerOutput, FateWindow, Message, Outcome,
-    Robot, RobotInput, RobotOutput, SessionPlan, TAG_BYTES, Time, Timing,
+    Closing, Controller, ControllerEvent, ControllerInput, ControllerOutput, FateWindow, Handshake,
+    Message, Outcome, Robot, RobotInput, RobotOutput, SessionMessage, SessionPlan, TAG_BYTES,
+    Time, Timing,
 };
 use crate::sim::{Noise, Plant};
 
@@ -351,7 +352,7 @@ impl Harness {
             ControllerOutput::Transmit(m) => {
                 assert!(check.finished.is_none(), "a message after the end: {m:?}");
                 match m {
-                    Message::Command { step, u0, u1, .. } => {
+                    Message::Session(SessionMessage::Command { step, u0, u1, .. }) => {
                         assert!(*step <= agreed.steps, "a command past the stop command: {m:?}");
                         assert!(
                             finite_within(u0) && finite_within(u1),
@@ -361,13 +362,13 @@ impl Harness {
                             assert_eq!((*u0, *u1), ([0.0; 2], [0.0; 2]), "the stop command");
                         }
                     }
-                    Message::DoubletCommand {
+                    Message::Session(SessionMessage::DoubletCommand {
                         step,
                         sample,
                         first,
                         second,
                         ..
-                    } => {
+                    }) => {
                         assert!(*step <= agreed.steps, "a command past the stop command: {m:?}");
                         let finite = |u: &[f64]| u.iter().all(|x| x.is_finite());
                         assert!(
@@ -491,13 +492,14 @@ impl Harness {
             0 if private => {
                 let mut input = || [bytes.f64_near(0.1), bytes.f64_near(0.0)];
                 let (first, second) = (input(), input());
-                Message::DoubletCommand {
+                SessionMessage::DoubletCommand {
                     step: bytes.u32_near(self.robot.next_command()),
                     sample: self.pose(bytes).into(),
                     first,
                     second: bytes.bool().then_some(second),
                     fates: fates(bytes),
                 }
+                .into()
             }
             0 => {
                 let step = bytes.u32_near(self.robot.next_command());
@@ -510,45 +512,51 @@ impl Harness {
                     let mut wheel = || bytes.f64_near(4.0);
                     ([wheel(), wheel()], [wheel(), wheel()])
                 };
-                Message::Command {
+                SessionMessage::Command {
                     step,
                     u0,
                     u1,
                     fates: fates(bytes),
                 }
+                .into()
             }
-            1 if private => Message::PrivateMeasurement {
+            1 if private => SessionMessage::PrivateMeasurement {
                 step: bytes.u32_near(self.sensed),
                 applied_step: bytes
                     .bool()
                     .then(|| bytes.u32_near(self.sensed.saturating_sub(1))),
                 fate_cursor: bytes.u32_near(units),
-            },
-            1 => Message::Measurement {
+            }
+            .into(),
+            1 => SessionMessage::Measurement {
                 step: bytes.u32_near(self.sensed),
                 y: self.pose(bytes).into(),
                 applied_step: bytes
                     .bool()
                     .then(|| bytes.u32_near(self.sensed.saturating_sub(1))),
                 fate_cursor: bytes.u32_near(units),
-            },
-            2 => Message::Finish {
+            }
+            .into(),
+            2 => Closing::Finish {
                 codewords: bytes.u32_near(units),
                 bitmap: (0..bytes.u8() % 4).map(|_| bytes.u64()).collect(),
-            },
-            3 => Message::FinishAck,
-            4 => Message::Confirm {
+            }
+            .into(),
+            3 => Closing::FinishAck.into(),
+            4 => Closing::Confirm {
                 session_tag: bytes.array::<TAG_BYTES>(),
                 key_tag: bytes.array::<TAG_BYTES>(),
-            },
-            5 => Message::Abort {
+            }
+            .into(),
+            5 => Closing::Abort {
                 reason: String::from_utf8_lossy(bytes.take(8)).into_owned(),
-            },
+            }
+            .into(),
             6 => {
                 if bytes.bool() {
-                    Message::Ready
+                    Handshake::Ready.into()
                 } else {
-                    Message::Done
+                    Closing::Done.into()
                 }
             }
             _ => {
@@ -556,7 +564,7 @@ impl Harness {
                 let len = usize::from(bytes.u8());
                 let mut frame = bytes.take(len).to_vec();
                 frame.extend_from_slice(&[0; MAC_BYTES]);
-                wire::decode(&frame).map_or(Message::FinishAck, |f| f.message)
+                wire::decode(&frame).map_or(Closing::FinishAck.into(), |f| f.message)
             }
         }
     }

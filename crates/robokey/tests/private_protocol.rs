@@ -5,7 +5,8 @@
 use robokey::Config;
 use robokey::model::Pose;
 use robokey::protocol::{
-    Controller, ControllerInput, Message, Outcome, Robot, RobotInput, SessionPlan, Time, Timing,
+    Closing, Controller, ControllerInput, Message, Outcome, Robot, RobotInput, SessionMessage,
+    SessionPlan, Time, Timing,
 };
 use robokey::rng::{Purpose, stream};
 use support::{Network, session};
@@ -55,8 +56,12 @@ fn lost_commands_measurements_and_samples_drop_their_doublets_on_both_sides() {
     let lossy = lockstep(
         &config,
         |m| match m {
-            Message::DoubletCommand { step, .. } => [10, 40].contains(step),
-            Message::PrivateMeasurement { step, .. } => [21, 52, 60].contains(step),
+            Message::Session(SessionMessage::DoubletCommand { step, .. }) => {
+                [10, 40].contains(step)
+            }
+            Message::Session(SessionMessage::PrivateMeasurement { step, .. }) => {
+                [21, 52, 60].contains(step)
+            }
             _ => false,
         },
         |k| [31, 70].contains(&k),
@@ -88,7 +93,9 @@ fn a_lost_stop_command_changes_nothing() {
     let steps = SessionPlan::from_config(&config, 1).agreed.steps;
     let s = lockstep(
         &config,
-        |m| matches!(m, Message::DoubletCommand { step, .. } if *step == steps),
+        |m| {
+            matches!(m, Message::Session(SessionMessage::DoubletCommand { step, .. }) if *step == steps)
+        },
         |_| false,
     );
     assert_eq!(s.robot_outcome, Some(Outcome::Kept));
@@ -113,11 +120,11 @@ mod arbitrary_inputs {
                 any::<u32>()
             )
                 .prop_map(|(step, applied_step, fate_cursor)| {
-                    Message::PrivateMeasurement {
+                    Message::from(SessionMessage::PrivateMeasurement {
                         step,
                         applied_step,
                         fate_cursor,
-                    }
+                    })
                 }),
             (
                 step,
@@ -128,7 +135,7 @@ mod arbitrary_inputs {
             )
                 .prop_map(
                     |(step, sample, first, second, (first_fate, count, accepted))| {
-                        Message::DoubletCommand {
+                        Message::from(SessionMessage::DoubletCommand {
                             step,
                             sample,
                             first,
@@ -138,17 +145,18 @@ mod arbitrary_inputs {
                                 count,
                                 accepted,
                             },
-                        }
+                        })
                     }
                 ),
             (0u32..300, proptest::collection::vec(any::<u64>(), 0..6))
-                .prop_map(|(codewords, bitmap)| Message::Finish { codewords, bitmap }),
-            Just(Message::FinishAck),
+                .prop_map(|(codewords, bitmap)| Closing::Finish { codewords, bitmap }.into()),
+            Just(Closing::FinishAck.into()),
             (any::<[u8; 16]>(), any::<[u8; 16]>()).prop_map(|(session_tag, key_tag)| {
-                Message::Confirm {
+                Closing::Confirm {
                     session_tag,
                     key_tag,
                 }
+                .into()
             }),
         ]
     }

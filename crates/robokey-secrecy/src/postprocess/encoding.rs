@@ -1,58 +1,18 @@
-//! The byte encoding of [`Message`] (docs/postprocessing.md, "Encoding"): one tag byte, then
-//! the fields in declaration order, big-endian. Lists are `len u32` then the items; bit lists
-//! are `len u32` (bits) then ⌈len/8⌉ bytes, first bit in the most significant bit, padding
-//! bits zero. The decoder never panics, checks every length against its bound and against the
-//! bytes left before allocating, and accepts only canonical encodings: what decodes
-//! re-encodes to the same bytes.
+//! The byte encoding of [`Message`] (docs/postprocessing.md, "Encoding"), on the codec
+//! robokey's wire format uses too ([`robokey_codec`]): one tag byte, then the fields in
+//! declaration order, big-endian. Lists are `len u32` then the items; bit lists are `len u32`
+//! (bits) then ⌈len/8⌉ bytes, first bit in the most significant bit, padding bits zero. The
+//! decoder never panics, checks every length against its bound and against the bytes left
+//! before allocating, and accepts only canonical encodings: what decodes re-encodes to the
+//! same bytes.
+
+use robokey_codec::{Codec, DecodeError, Reader, Writer};
 
 use crate::cascade::BlockQuery;
 
 use super::{
     AbortReason, MAX_BLOCK_SESSIONS, MAX_QUESTIONS, MAX_SAMPLE_BITS, Message, RejectReason,
 };
-
-/// Why bytes are not an encoded post-processing message.
-#[non_exhaustive]
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum EncodingError {
-    /// The first byte names no message (or there is none).
-    #[error("unknown message tag {0}")]
-    UnknownTag(u8),
-    /// The input ends inside a field.
-    #[error("truncated: {field} needs {needed} bytes, {left} left")]
-    Truncated {
-        /// The field being read.
-        field: &'static str,
-        /// Bytes it needs.
-        needed: usize,
-        /// Bytes left.
-        left: usize,
-    },
-    /// Bytes follow a complete message.
-    #[error("{0} bytes after the end of the message")]
-    TrailingBytes(usize),
-    /// A list longer than its bound.
-    #[error("{field} has {len} items (at most {max})")]
-    TooLong {
-        /// The list.
-        field: &'static str,
-        /// Its declared length.
-        len: u32,
-        /// Its bound.
-        max: usize,
-    },
-    /// A reason byte outside its enumeration.
-    #[error("{field} {value} is not a known reason")]
-    BadReason {
-        /// The field.
-        field: &'static str,
-        /// The byte.
-        value: u8,
-    },
-    /// The padding bits after a bit list are not zero.
-    #[error("{0}: padding bits are not zero")]
-    NonZeroPadding(&'static str),
-}
 
 const PROPOSE: u8 = 1;
 const AGREE: u8 = 2;
@@ -66,317 +26,286 @@ const ABORT: u8 = 9;
 const ABORT_ACK: u8 = 10;
 const REJECT: u8 = 11;
 
-/// Bytes of one [`BlockQuery`]: `permutation u32 | start u32 | end u32`.
-const QUERY_BYTES: usize = 12;
-
 /// Encodes `message`. It never fails; a message whose lists exceed the bounds
 /// ([`MAX_BLOCK_SESSIONS`], [`MAX_QUESTIONS`], [`MAX_SAMPLE_BITS`]), which the endpoints never
 /// send, encodes but does not decode.
 #[must_use]
 pub fn encode(message: &Message) -> Vec<u8> {
-    let mut out = Vec::with_capacity(64);
-    match message {
-        Message::Propose {
-            block,
-            sessions,
-            nonce,
-            separation_micros,
-        } => {
-            head(&mut out, PROPOSE, *block);
-            put_sessions(&mut out, sessions);
-            out.extend_from_slice(nonce);
-            out.extend_from_slice(&separation_micros.to_be_bytes());
-        }
-        Message::Agree {
-            block,
-            sessions,
-            nonce,
-            sample,
-        } => {
-            head(&mut out, AGREE, *block);
-            put_sessions(&mut out, sessions);
-            out.extend_from_slice(nonce);
-            put_bits(&mut out, sample);
-        }
-        Message::Ask {
-            block,
-            round,
-            queries,
-        } => {
-            head(&mut out, ASK, *block);
-            out.extend_from_slice(&round.to_be_bytes());
-            put_len(&mut out, queries.len());
-            for q in queries {
-                for field in [q.permutation, q.start, q.end] {
-                    out.extend_from_slice(&field.to_be_bytes());
-                }
-            }
-        }
-        Message::Answer {
-            block,
-            round,
-            parities,
-        } => {
-            head(&mut out, ANSWER, *block);
-            out.extend_from_slice(&round.to_be_bytes());
-            put_bits(&mut out, parities);
-        }
-        Message::Confirm { block, length, tag } => {
-            head(&mut out, CONFIRM, *block);
-            out.extend_from_slice(&length.to_be_bytes());
-            out.extend_from_slice(tag);
-        }
-        Message::Confirmed { block, tag } => {
-            head(&mut out, CONFIRMED, *block);
-            out.extend_from_slice(tag);
-        }
-        Message::Commit { block } => head(&mut out, COMMIT, *block),
-        Message::CommitAck { block } => head(&mut out, COMMIT_ACK, *block),
-        Message::Abort {
-            block,
-            sessions,
-            reason,
-        } => {
-            head(&mut out, ABORT, *block);
-            put_sessions(&mut out, sessions);
-            out.push(abort_byte(*reason));
-        }
-        Message::AbortAck { block } => head(&mut out, ABORT_ACK, *block),
-        Message::Reject { block, reason } => {
-            head(&mut out, REJECT, *block);
-            out.push(reject_byte(*reason));
-        }
-    }
-    out
+    message.to_bytes()
 }
 
 /// Decodes one message filling all of `bytes`.
 ///
 /// # Errors
-/// An [`EncodingError`] naming what is wrong; never panics.
-pub fn decode(bytes: &[u8]) -> Result<Message, EncodingError> {
-    let mut r = Reader { bytes };
-    let tag = r.u8("tag")?;
-    let block = r.u64("block")?;
-    let message = match tag {
-        PROPOSE => Message::Propose {
-            block,
-            sessions: r.sessions()?,
-            nonce: r.array("nonce")?,
-            separation_micros: r.u64("separation_micros")?,
-        },
-        AGREE => Message::Agree {
-            block,
-            sessions: r.sessions()?,
-            nonce: r.array("nonce")?,
-            sample: r.bits("sample", MAX_SAMPLE_BITS)?,
-        },
-        ASK => Message::Ask {
-            block,
-            round: r.u32("round")?,
-            queries: r.queries()?,
-        },
-        ANSWER => Message::Answer {
-            block,
-            round: r.u32("round")?,
-            parities: r.bits("parities", MAX_QUESTIONS)?,
-        },
-        CONFIRM => Message::Confirm {
-            block,
-            length: r.u64("length")?,
-            tag: r.array("tag")?,
-        },
-        CONFIRMED => Message::Confirmed {
-            block,
-            tag: r.array("tag")?,
-        },
-        COMMIT => Message::Commit { block },
-        COMMIT_ACK => Message::CommitAck { block },
-        ABORT => Message::Abort {
-            block,
-            sessions: r.sessions()?,
-            reason: abort_reason(r.u8("reason")?)?,
-        },
-        ABORT_ACK => Message::AbortAck { block },
-        REJECT => Message::Reject {
-            block,
-            reason: reject_reason(r.u8("reason")?)?,
-        },
-        other => return Err(EncodingError::UnknownTag(other)),
-    };
-    if r.bytes.is_empty() {
-        Ok(message)
-    } else {
-        Err(EncodingError::TrailingBytes(r.bytes.len()))
+/// A [`DecodeError`] naming what is wrong; never panics.
+pub fn decode(bytes: &[u8]) -> Result<Message, DecodeError> {
+    Message::from_bytes(bytes)
+}
+
+impl Codec for Message {
+    fn encode(&self, w: &mut Writer) {
+        match self {
+            Self::Propose {
+                block,
+                sessions,
+                nonce,
+                separation_micros,
+            } => {
+                head(w, PROPOSE, *block);
+                put_sessions(w, sessions);
+                w.bytes(nonce);
+                w.u64(*separation_micros);
+            }
+            Self::Agree {
+                block,
+                sessions,
+                nonce,
+                sample,
+            } => {
+                head(w, AGREE, *block);
+                put_sessions(w, sessions);
+                w.bytes(nonce);
+                put_bits(w, sample);
+            }
+            Self::Ask {
+                block,
+                round,
+                queries,
+            } => {
+                head(w, ASK, *block);
+                w.u32(*round);
+                w.len_u32(queries.len());
+                for query in queries {
+                    query.encode(w);
+                }
+            }
+            Self::Answer {
+                block,
+                round,
+                parities,
+            } => {
+                head(w, ANSWER, *block);
+                w.u32(*round);
+                put_bits(w, parities);
+            }
+            Self::Confirm { block, length, tag } => {
+                head(w, CONFIRM, *block);
+                w.u64(*length);
+                w.bytes(tag);
+            }
+            Self::Confirmed { block, tag } => {
+                head(w, CONFIRMED, *block);
+                w.bytes(tag);
+            }
+            Self::Commit { block } => head(w, COMMIT, *block),
+            Self::CommitAck { block } => head(w, COMMIT_ACK, *block),
+            Self::Abort {
+                block,
+                sessions,
+                reason,
+            } => {
+                head(w, ABORT, *block);
+                put_sessions(w, sessions);
+                reason.encode(w);
+            }
+            Self::AbortAck { block } => head(w, ABORT_ACK, *block),
+            Self::Reject { block, reason } => {
+                head(w, REJECT, *block);
+                reason.encode(w);
+            }
+        }
+    }
+
+    fn decode(r: &mut Reader<'_>) -> Result<Self, DecodeError> {
+        let tag = r.u8("tag")?;
+        let block = r.u64("block")?;
+        Ok(match tag {
+            PROPOSE => Self::Propose {
+                block,
+                sessions: read_sessions(r)?,
+                nonce: r.array("nonce")?,
+                separation_micros: r.u64("separation_micros")?,
+            },
+            AGREE => Self::Agree {
+                block,
+                sessions: read_sessions(r)?,
+                nonce: r.array("nonce")?,
+                sample: read_bits(r, "sample", MAX_SAMPLE_BITS)?,
+            },
+            ASK => Self::Ask {
+                block,
+                round: r.u32("round")?,
+                queries: read_queries(r)?,
+            },
+            ANSWER => Self::Answer {
+                block,
+                round: r.u32("round")?,
+                parities: read_bits(r, "parities", MAX_QUESTIONS)?,
+            },
+            CONFIRM => Self::Confirm {
+                block,
+                length: r.u64("length")?,
+                tag: r.array("tag")?,
+            },
+            CONFIRMED => Self::Confirmed {
+                block,
+                tag: r.array("tag")?,
+            },
+            COMMIT => Self::Commit { block },
+            COMMIT_ACK => Self::CommitAck { block },
+            ABORT => Self::Abort {
+                block,
+                sessions: read_sessions(r)?,
+                reason: AbortReason::decode(r)?,
+            },
+            ABORT_ACK => Self::AbortAck { block },
+            REJECT => Self::Reject {
+                block,
+                reason: RejectReason::decode(r)?,
+            },
+            other => {
+                return Err(DecodeError::Invalid {
+                    field: "tag",
+                    value: other.into(),
+                    allowed: "1 to 11",
+                });
+            }
+        })
     }
 }
 
 /// Appends `tag u8 | block u64`.
-fn head(out: &mut Vec<u8>, tag: u8, block: u64) {
-    out.push(tag);
-    out.extend_from_slice(&block.to_be_bytes());
-}
-
-/// Appends a list length as a u32 (saturating: such a list is over every bound anyway).
-fn put_len(out: &mut Vec<u8>, len: usize) {
-    out.extend_from_slice(&u32::try_from(len).unwrap_or(u32::MAX).to_be_bytes());
+fn head(w: &mut Writer, tag: u8, block: u64) {
+    w.u8(tag);
+    w.u64(block);
 }
 
 /// Appends `len u32 | len × u32`.
-fn put_sessions(out: &mut Vec<u8>, sessions: &[u32]) {
-    put_len(out, sessions.len());
-    for id in sessions {
-        out.extend_from_slice(&id.to_be_bytes());
+fn put_sessions(w: &mut Writer, sessions: &[u32]) {
+    w.len_u32(sessions.len());
+    for &id in sessions {
+        w.u32(id);
     }
+}
+
+/// Reads `len u32 | len × u32`, at most [`MAX_BLOCK_SESSIONS`].
+fn read_sessions(r: &mut Reader<'_>) -> Result<Vec<u32>, DecodeError> {
+    let len = r.len_u32("sessions", MAX_BLOCK_SESSIONS)?;
+    let raw = r.take("sessions", 4 * len)?;
+    let mut ids = Reader::new(raw);
+    (0..len).map(|_| ids.u32("sessions")).collect()
 }
 
 /// Appends `len u32 | ⌈len/8⌉ bytes`, packed MSB-first, padding zero.
-fn put_bits(out: &mut Vec<u8>, bits: &[bool]) {
-    put_len(out, bits.len());
+fn put_bits(w: &mut Writer, bits: &[bool]) {
+    w.len_u32(bits.len());
     for chunk in bits.chunks(8) {
-        out.push(
-            chunk
-                .iter()
-                .enumerate()
-                .fold(0u8, |byte, (i, &bit)| byte | (u8::from(bit) << (7 - i))),
-        );
+        w.u8(chunk
+            .iter()
+            .enumerate()
+            .fold(0u8, |byte, (i, &bit)| byte | (u8::from(bit) << (7 - i))));
     }
 }
 
-fn abort_byte(reason: AbortReason) -> u8 {
-    match reason {
-        AbortReason::NoSecretBits => 0,
-        AbortReason::Reconciliation => 1,
-        AbortReason::Restart => 2,
-        AbortReason::Refused => 3,
+/// Reads `len u32 | ⌈len/8⌉ bytes` of `field`, MSB-first, padding zero, `len ≤ max`.
+fn read_bits(
+    r: &mut Reader<'_>,
+    field: &'static str,
+    max: usize,
+) -> Result<Vec<bool>, DecodeError> {
+    let len = r.len_u32(field, max)?;
+    let packed = r.take(field, len.div_ceil(8))?;
+    if !len.is_multiple_of(8) && packed.last().is_some_and(|&b| b << (len % 8) != 0) {
+        return Err(DecodeError::NonZeroPadding(field));
+    }
+    Ok((0..len)
+        .map(|i| packed[i / 8] & (0x80 >> (i % 8)) != 0)
+        .collect())
+}
+
+/// Bytes of one [`BlockQuery`]: `permutation u32 | start u32 | end u32`.
+const QUERY_BYTES: usize = 12;
+
+/// Reads `len u32 | len × query`, at most [`MAX_QUESTIONS`].
+fn read_queries(r: &mut Reader<'_>) -> Result<Vec<BlockQuery>, DecodeError> {
+    let len = r.len_u32("queries", MAX_QUESTIONS)?;
+    let mut queries = Reader::new(r.take("queries", QUERY_BYTES * len)?);
+    (0..len).map(|_| BlockQuery::decode(&mut queries)).collect()
+}
+
+impl Codec for BlockQuery {
+    /// `permutation u32 | start u32 | end u32`.
+    fn encode(&self, w: &mut Writer) {
+        w.u32(self.permutation);
+        w.u32(self.start);
+        w.u32(self.end);
+    }
+
+    fn decode(r: &mut Reader<'_>) -> Result<Self, DecodeError> {
+        Ok(Self {
+            permutation: r.u32("queries")?,
+            start: r.u32("queries")?,
+            end: r.u32("queries")?,
+        })
     }
 }
 
-fn abort_reason(value: u8) -> Result<AbortReason, EncodingError> {
-    Ok(match value {
-        0 => AbortReason::NoSecretBits,
-        1 => AbortReason::Reconciliation,
-        2 => AbortReason::Restart,
-        3 => AbortReason::Refused,
-        value => {
-            return Err(EncodingError::BadReason {
-                field: "abort reason",
-                value,
-            });
-        }
-    })
-}
+impl Codec for AbortReason {
+    /// `reason u8`: 0 no secret bits, 1 reconciliation, 2 restart, 3 refused.
+    fn encode(&self, w: &mut Writer) {
+        w.u8(match self {
+            Self::NoSecretBits => 0,
+            Self::Reconciliation => 1,
+            Self::Restart => 2,
+            Self::Refused => 3,
+        });
+    }
 
-fn reject_byte(reason: RejectReason) -> u8 {
-    match reason {
-        RejectReason::UnknownBlock => 0,
-        RejectReason::TagMismatch => 1,
-        RejectReason::LengthMismatch => 2,
-        RejectReason::Busy => 3,
-        RejectReason::BadQuestions => 4,
+    fn decode(r: &mut Reader<'_>) -> Result<Self, DecodeError> {
+        Ok(match r.u8("abort reason")? {
+            0 => Self::NoSecretBits,
+            1 => Self::Reconciliation,
+            2 => Self::Restart,
+            3 => Self::Refused,
+            value => {
+                return Err(DecodeError::Invalid {
+                    field: "abort reason",
+                    value: value.into(),
+                    allowed: "0 to 3",
+                });
+            }
+        })
     }
 }
 
-fn reject_reason(value: u8) -> Result<RejectReason, EncodingError> {
-    Ok(match value {
-        0 => RejectReason::UnknownBlock,
-        1 => RejectReason::TagMismatch,
-        2 => RejectReason::LengthMismatch,
-        3 => RejectReason::Busy,
-        4 => RejectReason::BadQuestions,
-        value => {
-            return Err(EncodingError::BadReason {
-                field: "reject reason",
-                value,
-            });
-        }
-    })
-}
-
-/// A big-endian u32 from exactly 4 bytes.
-fn be_u32(bytes: &[u8]) -> u32 {
-    bytes.iter().fold(0, |n, &b| n << 8 | u32::from(b))
-}
-
-/// A cursor that checks every read against the bytes left.
-struct Reader<'a> {
-    bytes: &'a [u8],
-}
-
-impl<'a> Reader<'a> {
-    /// The next `n` bytes.
-    fn take(&mut self, field: &'static str, n: usize) -> Result<&'a [u8], EncodingError> {
-        if n > self.bytes.len() {
-            return Err(EncodingError::Truncated {
-                field,
-                needed: n,
-                left: self.bytes.len(),
-            });
-        }
-        let (head, rest) = self.bytes.split_at(n);
-        self.bytes = rest;
-        Ok(head)
+impl Codec for RejectReason {
+    /// `reason u8`: 0 unknown block, 1 tag mismatch, 2 length mismatch, 3 busy, 4 bad
+    /// questions.
+    fn encode(&self, w: &mut Writer) {
+        w.u8(match self {
+            Self::UnknownBlock => 0,
+            Self::TagMismatch => 1,
+            Self::LengthMismatch => 2,
+            Self::Busy => 3,
+            Self::BadQuestions => 4,
+        });
     }
 
-    fn array<const N: usize>(&mut self, field: &'static str) -> Result<[u8; N], EncodingError> {
-        let mut array = [0; N];
-        array.copy_from_slice(self.take(field, N)?);
-        Ok(array)
-    }
-
-    fn u8(&mut self, field: &'static str) -> Result<u8, EncodingError> {
-        // An empty input has no tag: reported as truncated, like any missing field.
-        Ok(self.array::<1>(field)?[0])
-    }
-
-    fn u32(&mut self, field: &'static str) -> Result<u32, EncodingError> {
-        self.array(field).map(u32::from_be_bytes)
-    }
-
-    fn u64(&mut self, field: &'static str) -> Result<u64, EncodingError> {
-        self.array(field).map(u64::from_be_bytes)
-    }
-
-    /// A list length `u32`, at most `max` (≤ 2²⁰, so any item size times it fits a usize).
-    fn len(&mut self, field: &'static str, max: usize) -> Result<usize, EncodingError> {
-        let len = self.u32(field)?;
-        usize::try_from(len)
-            .ok()
-            .filter(|&n| n <= max)
-            .ok_or(EncodingError::TooLong { field, len, max })
-    }
-
-    /// `len u32 | len × u32`.
-    fn sessions(&mut self) -> Result<Vec<u32>, EncodingError> {
-        let len = self.len("sessions", MAX_BLOCK_SESSIONS)?;
-        let raw = self.take("sessions", 4 * len)?;
-        Ok(raw.chunks_exact(4).map(be_u32).collect())
-    }
-
-    /// `len u32 | len × (permutation u32 | start u32 | end u32)`.
-    fn queries(&mut self) -> Result<Vec<BlockQuery>, EncodingError> {
-        let len = self.len("queries", MAX_QUESTIONS)?;
-        let raw = self.take("queries", QUERY_BYTES * len)?;
-        Ok(raw
-            .chunks_exact(QUERY_BYTES)
-            .map(|q| BlockQuery {
-                permutation: be_u32(&q[..4]),
-                start: be_u32(&q[4..8]),
-                end: be_u32(&q[8..]),
-            })
-            .collect())
-    }
-
-    /// `len u32 | ⌈len/8⌉ bytes`, MSB-first, padding zero.
-    fn bits(&mut self, field: &'static str, max: usize) -> Result<Vec<bool>, EncodingError> {
-        let len = self.len(field, max)?;
-        let packed = self.take(field, len.div_ceil(8))?;
-        if !len.is_multiple_of(8) && packed.last().is_some_and(|&b| b << (len % 8) != 0) {
-            return Err(EncodingError::NonZeroPadding(field));
-        }
-        Ok((0..len)
-            .map(|i| packed[i / 8] & (0x80 >> (i % 8)) != 0)
-            .collect())
+    fn decode(r: &mut Reader<'_>) -> Result<Self, DecodeError> {
+        Ok(match r.u8("reject reason")? {
+            0 => Self::UnknownBlock,
+            1 => Self::TagMismatch,
+            2 => Self::LengthMismatch,
+            3 => Self::Busy,
+            4 => Self::BadQuestions,
+            value => {
+                return Err(DecodeError::Invalid {
+                    field: "reject reason",
+                    value: value.into(),
+                    allowed: "0 to 4",
+                });
+            }
+        })
     }
 }
 
@@ -553,17 +482,22 @@ mod tests {
         let propose = encode(&examples()[0]);
         assert_eq!(
             decode(&[]),
-            Err(EncodingError::Truncated {
+            Err(DecodeError::Truncated {
                 field: "tag",
                 needed: 1,
                 left: 0
             })
         );
-        assert_eq!(decode(&[0; 9]), Err(EncodingError::UnknownTag(0)));
-        assert_eq!(decode(&[12; 9]), Err(EncodingError::UnknownTag(12)));
+        let unknown_tag = |value| DecodeError::Invalid {
+            field: "tag",
+            value,
+            allowed: "1 to 11",
+        };
+        assert_eq!(decode(&[0; 9]), Err(unknown_tag(0)));
+        assert_eq!(decode(&[12; 9]), Err(unknown_tag(12)));
         assert_eq!(
             decode(&propose[..propose.len() - 1]),
-            Err(EncodingError::Truncated {
+            Err(DecodeError::Truncated {
                 field: "separation_micros",
                 needed: 8,
                 left: 7
@@ -571,14 +505,14 @@ mod tests {
         );
         assert_eq!(
             decode(&[&propose[..], &[0, 0]].concat()),
-            Err(EncodingError::TrailingBytes(2))
+            Err(DecodeError::TrailingBytes(2))
         );
         // A session count over the bound, and one the input cannot hold.
         let mut long = propose.clone();
         long[9..13].copy_from_slice(&(MAX_BLOCK_SESSIONS as u32 + 1).to_be_bytes());
         assert_eq!(
             decode(&long),
-            Err(EncodingError::TooLong {
+            Err(DecodeError::TooLong {
                 field: "sessions",
                 len: MAX_BLOCK_SESSIONS as u32 + 1,
                 max: MAX_BLOCK_SESSIONS
@@ -587,7 +521,7 @@ mod tests {
         long[9..13].copy_from_slice(&(MAX_BLOCK_SESSIONS as u32).to_be_bytes());
         assert!(matches!(
             decode(&long),
-            Err(EncodingError::Truncated {
+            Err(DecodeError::Truncated {
                 field: "sessions",
                 needed: 262_144,
                 ..
@@ -597,7 +531,7 @@ mod tests {
         answer[13..17].copy_from_slice(&u32::MAX.to_be_bytes());
         assert!(matches!(
             decode(&answer),
-            Err(EncodingError::TooLong {
+            Err(DecodeError::TooLong {
                 field: "parities",
                 ..
             })
@@ -606,16 +540,21 @@ mod tests {
         reject[9] = 5;
         assert_eq!(
             decode(&reject),
-            Err(EncodingError::BadReason {
+            Err(DecodeError::Invalid {
                 field: "reject reason",
-                value: 5
+                value: 5,
+                allowed: "0 to 4"
             })
         );
         let mut abort = encode(&examples()[8]);
         *abort.last_mut().unwrap() = 4;
         assert!(matches!(
             decode(&abort),
-            Err(EncodingError::BadReason { value: 4, .. })
+            Err(DecodeError::Invalid {
+                field: "abort reason",
+                value: 4,
+                ..
+            })
         ));
     }
 
@@ -628,12 +567,12 @@ mod tests {
             *answer.last_mut().unwrap() = 0b0110_0000 | (1 << bit);
             assert_eq!(
                 decode(&answer),
-                Err(EncodingError::NonZeroPadding("parities"))
+                Err(DecodeError::NonZeroPadding("parities"))
             );
         }
         let mut agree = encode(&examples()[1]);
         *agree.last_mut().unwrap() |= 1;
-        assert_eq!(decode(&agree), Err(EncodingError::NonZeroPadding("sample")));
+        assert_eq!(decode(&agree), Err(DecodeError::NonZeroPadding("sample")));
     }
 
     #[test]
@@ -661,7 +600,7 @@ mod tests {
             }
             for extra in 1..4 {
                 let longer = [&bytes[..], &vec![0; extra]].concat();
-                assert_eq!(decode(&longer), Err(EncodingError::TrailingBytes(extra)));
+                assert_eq!(decode(&longer), Err(DecodeError::TrailingBytes(extra)));
             }
         }
     }

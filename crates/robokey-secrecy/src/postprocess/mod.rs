@@ -46,11 +46,12 @@ use crate::cascade::CascadeSchedule;
 
 pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
-pub use encoding::{EncodingError, decode, encode};
+pub use encoding::{decode, encode};
 pub use fragment::{
     FRAGMENT_BYTES, MAX_FRAGMENTS, MAX_MESSAGE_BYTES, Reassembler, fits, fragments,
 };
 pub use message::{AbortReason, Message, RejectReason};
+pub use robokey_codec::DecodeError;
 pub use robot::{Prepared, RobotInput, RobotPost, RobotSnapshot};
 
 /// Largest number of sessions one block may pool (bounds a `Propose`).

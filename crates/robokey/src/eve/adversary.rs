@@ -10,9 +10,8 @@ use crate::config::{Config, EveStrategy};
 use crate::model::{DiffDrive, WheelSpeeds};
 use crate::observer::{Observer, ObserverParams, log_likelihood_ratio};
 use crate::protocol::{
-    Agreed, FateLedger, KeyBits, Message, OdometryPlan, SessionPlan, StepDecision, StepDecoder,
-    TAG_BYTES,
-    controller::observer_params,
+    Agreed, Closing, FateLedger, KeyBits, Message, OdometryPlan, SessionMessage, SessionPlan,
+    StepDecision, StepDecoder, TAG_BYTES, controller::observer_params,
 };
 
 /// The learning strategies' starting model is worth one period at this wheel speed
@@ -266,12 +265,12 @@ impl Eavesdropper for Eve {
 
     fn observe(&mut self, message: &Message) -> Option<StepDecision> {
         match message {
-            Message::Command {
+            Message::Session(SessionMessage::Command {
                 step,
                 u0,
                 u1,
                 fates,
-            } => {
+            }) => {
                 self.on_command(*step, (*u0).into(), (*u1).into());
                 let session = self.session.as_mut()?;
                 for (index, accepted) in fates.iter() {
@@ -279,12 +278,12 @@ impl Eavesdropper for Eve {
                 }
                 None
             }
-            Message::Measurement {
+            Message::Session(SessionMessage::Measurement {
                 step,
                 y,
                 applied_step,
                 ..
-            } => {
+            }) => {
                 let y = (*y).into();
                 let measured = self.session.as_mut().and_then(|session| {
                     session
@@ -312,7 +311,7 @@ impl Eavesdropper for Eve {
                 self.settle(decision.step, decision.bit, llr.unwrap_or(0.0));
                 Some(decision)
             }
-            Message::Finish { codewords, bitmap } => {
+            Message::Closing(Closing::Finish { codewords, bitmap }) => {
                 let session = self.session.as_mut()?;
                 for index in 0..(*codewords).min(session.fates.len()) {
                     let accepted = bitmap
@@ -322,7 +321,7 @@ impl Eavesdropper for Eve {
                 }
                 None
             }
-            Message::Confirm { key_tag, .. } => {
+            Message::Closing(Closing::Confirm { key_tag, .. }) => {
                 self.on_confirm(key_tag);
                 None
             }

@@ -16,7 +16,7 @@ use crate::protocol::controller::io::ControllerEvent;
 use crate::protocol::controller::lifecycle::ControllerLifecycle;
 use crate::protocol::controller::mode::ControllerMode;
 use crate::protocol::plan::Agreed;
-use crate::protocol::{Message, Outcome};
+use crate::protocol::{Outcome, SessionMessage};
 use crate::trajectory::Trajectory;
 
 /// A doublet commanded and not yet resolved.
@@ -187,7 +187,7 @@ impl PrivateController {
                 (first, None)
             }
         };
-        life.send(Message::DoubletCommand {
+        life.send(SessionMessage::DoubletCommand {
             step,
             sample: pose.into(),
             first: first.into(),
@@ -263,18 +263,16 @@ impl ControllerMode for PrivateController {
         &mut self,
         agreed: &Agreed,
         life: &mut ControllerLifecycle,
-        message: Message,
-    ) -> Option<Message> {
-        match message {
-            Message::PrivateMeasurement {
-                step,
-                applied_step,
-                fate_cursor,
-            } if life.running() => {
-                self.handle_measurement(agreed, life, step, applied_step, fate_cursor);
-                None
-            }
-            message => Some(message),
+        message: SessionMessage,
+    ) {
+        if let SessionMessage::PrivateMeasurement {
+            step,
+            applied_step,
+            fate_cursor,
+        } = message
+            && life.running()
+        {
+            self.handle_measurement(agreed, life, step, applied_step, fate_cursor);
         }
     }
 
@@ -304,11 +302,14 @@ mod tests {
         let plan = SessionPlan::from_config(&config, 1);
         let mut controller = Controller::new(&config, plan, Timing::default(), Time::ZERO);
         let report = |step, applied_step| {
-            ControllerInput::Frame(Message::PrivateMeasurement {
-                step,
-                applied_step,
-                fate_cursor: 0,
-            })
+            ControllerInput::Frame(
+                SessionMessage::PrivateMeasurement {
+                    step,
+                    applied_step,
+                    fate_cursor: 0,
+                }
+                .into(),
+            )
         };
         for input in [
             ControllerInput::Sensor {

@@ -9,7 +9,7 @@ use super::doublet::DoubletInputs;
 use super::likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model};
 use crate::config::Config;
 use crate::model::Pose;
-use crate::protocol::{KeyBits, Message, SessionPlan};
+use crate::protocol::{Closing, KeyBits, Message, SessionMessage, SessionPlan};
 
 /// What both eavesdroppers make of one carrying doublet.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -75,13 +75,13 @@ impl DoubletEavesdropper {
     /// and the doublets' inputs, the `Finish` which doublets were kept.
     pub fn observe(&mut self, message: &Message) {
         match message {
-            Message::DoubletCommand {
+            Message::Session(SessionMessage::DoubletCommand {
                 step,
                 sample,
                 first,
                 second,
                 ..
-            } if *step <= self.plan.agreed.steps => {
+            }) if *step <= self.plan.agreed.steps => {
                 let inputs = second
                     .filter(|_| self.plan.starts_doublet(*step))
                     .map(|second| DoubletInputs {
@@ -94,7 +94,9 @@ impl DoubletEavesdropper {
                 });
                 self.try_decide(*step);
             }
-            Message::Finish { codewords, bitmap } if *codewords == self.plan.units() => {
+            Message::Closing(Closing::Finish { codewords, bitmap })
+                if *codewords == self.plan.units() =>
+            {
                 self.kept.get_or_insert_with(|| bitmap.clone());
             }
             _ => {}

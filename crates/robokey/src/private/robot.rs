@@ -11,7 +11,7 @@ use crate::protocol::plan::Agreed;
 use crate::protocol::robot::io::Actuation;
 use crate::protocol::robot::lifecycle::RobotLifecycle;
 use crate::protocol::robot::mode::RobotMode;
-use crate::protocol::{FateLedger, FateWindow, KeyBits, Message, Outcome};
+use crate::protocol::{FateLedger, FateWindow, KeyBits, Outcome, SessionMessage};
 
 /// Private sensing's part of a robot endpoint: each doublet's bits, which doublets it
 /// carried, the doublet in flight and the input it holds through a short gap.
@@ -150,7 +150,7 @@ impl RobotMode for PrivateRobot {
     fn on_sample(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, step: u32, _y: &Pose) {
         let applied_step = life.applied_step.take();
         let fate_cursor = life.fates.cursor();
-        life.send(Message::PrivateMeasurement {
+        life.send(SessionMessage::PrivateMeasurement {
             step,
             applied_step,
             fate_cursor,
@@ -176,32 +176,26 @@ impl RobotMode for PrivateRobot {
         }
     }
 
-    fn on_message(
-        &mut self,
-        agreed: &Agreed,
-        life: &mut RobotLifecycle,
-        message: Message,
-    ) -> Option<Message> {
-        match message {
-            Message::DoubletCommand {
-                step,
-                first,
-                second,
-                fates,
-                ..
-            } if life.expects_command() => {
-                if step == life.next_command && step < agreed.steps && step % 2 == 0 {
-                    self.record(life, fates);
-                    self.command(agreed, life, step, first.into(), second.map(Unicycle::from));
-                }
-                // Otherwise stale, duplicate, from the future, or not a command step.
-                None
-            }
-            Message::DoubletCommand { fates, .. } if life.expects_finish() => {
+    fn on_message(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, message: SessionMessage) {
+        let SessionMessage::DoubletCommand {
+            step,
+            first,
+            second,
+            fates,
+            ..
+        } = message
+        else {
+            return;
+        };
+        if life.expects_command() {
+            // Otherwise stale, duplicate, from the future, or not a command step.
+            if step == life.next_command && step < agreed.steps && step % 2 == 0 {
                 self.record(life, fates);
-                None
+                self.command(agreed, life, step, first.into(), second.map(Unicycle::from));
             }
-            message => Some(message),
+        } else if life.expects_finish() {
+            // The stop command: its fates.
+            self.record(life, fates);
         }
     }
 
@@ -258,7 +252,7 @@ mod tests {
     use crate::config::Config;
     use crate::protocol::robot::testing::{drain, next_sample};
     use crate::protocol::{
-        Actuation, FateWindow, Message, Robot, RobotInput, RobotOutput, SessionPlan, Timing,
+        Actuation, FateWindow, Robot, RobotInput, RobotOutput, SessionMessage, SessionPlan, Timing,
     };
 
     fn robot(seed: u64) -> Robot {
@@ -276,13 +270,16 @@ mod tests {
             .expect("a doublet's first step");
         robot.handle_input(
             now,
-            RobotInput::Frame(Message::DoubletCommand {
-                step,
-                sample: [0.0; 3],
-                first,
-                second: Some(second),
-                fates: FateWindow::default(),
-            }),
+            RobotInput::Frame(
+                SessionMessage::DoubletCommand {
+                    step,
+                    sample: [0.0; 3],
+                    first,
+                    second: Some(second),
+                    fates: FateWindow::default(),
+                }
+                .into(),
+            ),
         );
         drain(robot, now)
             .into_iter()

@@ -1,12 +1,17 @@
 //! The wire format, version 2 (documented in `docs/wire.md`): hand-written, big-endian,
 //! `magic u16 | version u8 | type u8 | session u32 | seq u32 | step u32 | payload | mac [16]`.
-//! This module encodes and parses frames; the MAC is computed and checked by the session
-//! layer ([`super::auth`]). The decoder never panics: every malformed input is a
-//! [`WireError`].
+//! This module encodes and parses frames: the header here, the type through the one
+//! [`MessageType`] table, the payload through the codec of its [`Message`] layer. The
+//! MAC is computed and checked by the session layer ([`super::auth`]). The decoder never
+//! panics: every malformed input is a [`WireError`].
 
-use super::auth::{AuthMode, NONCE_BYTES, TAG_BYTES};
-use super::fates::FateWindow;
-use super::message::Message;
+use robokey_codec::{DecodeError, Reader, Writer};
+
+pub use super::message::{
+    MAX_FINISH_CODEWORDS, MAX_POST_FRAGMENT_BYTES, MAX_POST_FRAGMENTS, MAX_REASON_BYTES,
+    MAX_TERMS_BYTES,
+};
+use super::message::{Message, MessageType, TAG_BYTES, TypeError};
 
 /// `"RK"`.
 pub const MAGIC: u16 = 0x524B;
@@ -16,19 +21,16 @@ pub const VERSION: u8 = 2;
 pub const HEADER_BYTES: usize = 2 + 1 + 1 + 4 + 4 + 4;
 /// Trailer length (bytes): the MAC.
 pub const MAC_BYTES: usize = TAG_BYTES;
-/// Longest `Abort` or `Refuse` reason (bytes of UTF-8).
-pub const MAX_REASON_BYTES: usize = 1024;
-/// Longest `Hello` terms text (bytes of UTF-8).
-pub const MAX_TERMS_BYTES: usize = 4096;
-/// Most codewords a `Finish` may cover.
-pub const MAX_FINISH_CODEWORDS: u32 = 1 << 20;
-/// Most fragments one encoded post-processing message may be split into.
-pub const MAX_POST_FRAGMENTS: u16 = 1024;
-/// Longest chunk of an encoded post-processing message one `PostFragment` carries (bytes).
-pub const MAX_POST_FRAGMENT_BYTES: u16 = 1024;
 /// Longest frame the decoder accepts (bytes): a `Finish` of [`MAX_FINISH_CODEWORDS`].
 pub const MAX_FRAME_BYTES: usize =
     HEADER_BYTES + 4 + 8 * (MAX_FINISH_CODEWORDS as usize / 64) + MAC_BYTES;
+/// Bytes of a `PostFragment` payload before its chunk: `message u32 | index u16 | count u16 |
+/// len u16`.
+const POST_FRAGMENT_HEAD: usize = 4 + 2 + 2 + 2;
+const _: () = assert!(
+    HEADER_BYTES + POST_FRAGMENT_HEAD + MAX_POST_FRAGMENT_BYTES as usize + MAC_BYTES
+        <= MAX_FRAME_BYTES
+);
 
 /// A message with its session id and frame sequence number.
 #[derive(Clone, Debug, PartialEq)]
@@ -58,202 +60,33 @@ pub enum WireError {
     /// A version this build does not speak.
     #[error("unsupported wire version {0} (this build speaks {VERSION})")]
     UnsupportedVersion(u8),
-    /// An unknown message type.
-    #[error("unknown message type {0}")]
-    UnknownType(u8),
-    /// A type reserved for a later use (post-processing).
-    #[error("message type {0} is reserved and not spoken by this build")]
-    Reserved(u8),
-    /// The payload length does not fit the message type.
-    #[error("{kind}: payload of {got} bytes, expected {expected}")]
-    BadLength {
-        /// Message type.
-        kind: &'static str,
-        /// Bytes present.
-        got: usize,
-        /// Bytes expected.
-        expected: usize,
+    /// A type byte that is unknown or reserved ([`MessageType::from_byte`]).
+    #[error(transparent)]
+    Type(#[from] TypeError),
+    /// The header's `step` or the payload does not fit the message type: a field missing,
+    /// out of its range, or bytes left over.
+    #[error("{kind}: {error}")]
+    Invalid {
+        /// The message type.
+        kind: MessageType,
+        /// What is wrong, naming the field.
+        error: DecodeError,
     },
-    /// A field holds a value the protocol does not allow.
-    #[error("{0}")]
-    BadField(&'static str),
 }
-
-const HELLO: u8 = 1;
-const HELLO_ACK: u8 = 2;
-const MEASUREMENT: u8 = 3;
-const COMMAND: u8 = 4;
-const FINISH: u8 = 5;
-const FINISH_ACK: u8 = 6;
-const CONFIRM: u8 = 7;
-const ABORT: u8 = 8;
-const REFUSE: u8 = 9;
-const READY: u8 = 10;
-const PRIVATE_MEASUREMENT: u8 = 11;
-const DOUBLET_COMMAND: u8 = 12;
-const DONE: u8 = 13;
-/// One fragment of an encoded post-processing message.
-const POST_FRAGMENT: u8 = 16;
-/// Reserved: 17–21 = later post-processing use.
-const RESERVED: [u8; 5] = [17, 18, 19, 20, 21];
-/// Bytes of a `PostFragment` payload before its chunk: `message u32 | index u16 | count u16 |
-/// len u16`.
-const POST_FRAGMENT_HEAD: usize = 4 + 2 + 2 + 2;
-const _: () = assert!(
-    HEADER_BYTES + POST_FRAGMENT_HEAD + MAX_POST_FRAGMENT_BYTES as usize + MAC_BYTES
-        <= MAX_FRAME_BYTES
-);
 
 /// Encodes a frame's header and payload: the bytes its MAC covers (the session layer
 /// appends the MAC).
 #[must_use]
 pub fn encode(frame: &Frame) -> Vec<u8> {
-    let (kind, step) = match &frame.message {
-        Message::Hello { .. } => (HELLO, 0),
-        Message::HelloAck { .. } => (HELLO_ACK, 0),
-        Message::Refuse { .. } => (REFUSE, 0),
-        Message::Ready => (READY, 0),
-        Message::Measurement { step, .. } => (MEASUREMENT, *step),
-        Message::Command { step, .. } => (COMMAND, *step),
-        Message::PrivateMeasurement { step, .. } => (PRIVATE_MEASUREMENT, *step),
-        Message::DoubletCommand { step, .. } => (DOUBLET_COMMAND, *step),
-        Message::Finish { .. } => (FINISH, 0),
-        Message::FinishAck => (FINISH_ACK, 0),
-        Message::Confirm { .. } => (CONFIRM, 0),
-        Message::Done => (DONE, 0),
-        Message::Abort { .. } => (ABORT, 0),
-        Message::PostFragment { .. } => (POST_FRAGMENT, 0),
-    };
-    let mut out = Vec::with_capacity(64);
-    out.extend_from_slice(&MAGIC.to_be_bytes());
-    out.push(VERSION);
-    out.push(kind);
-    out.extend_from_slice(&frame.session.to_be_bytes());
-    out.extend_from_slice(&frame.seq.to_be_bytes());
-    out.extend_from_slice(&step.to_be_bytes());
-    match &frame.message {
-        Message::Hello {
-            auth,
-            nonce,
-            config_digest,
-            terms,
-        } => {
-            out.push(auth.byte());
-            out.extend_from_slice(nonce);
-            out.extend_from_slice(config_digest);
-            put_text(&mut out, terms, MAX_TERMS_BYTES);
-        }
-        Message::HelloAck {
-            auth,
-            nonce_c,
-            nonce_r,
-            config_digest,
-        } => {
-            out.push(auth.byte());
-            out.extend_from_slice(nonce_c);
-            out.extend_from_slice(nonce_r);
-            out.extend_from_slice(config_digest);
-        }
-        Message::Refuse { nonce_c, reason } => {
-            out.extend_from_slice(nonce_c);
-            put_text(&mut out, reason, MAX_REASON_BYTES);
-        }
-        Message::Ready => {}
-        Message::Measurement {
-            y,
-            applied_step,
-            fate_cursor,
-            ..
-        } => {
-            put_f64s(&mut out, y);
-            put_optional(&mut out, applied_step.map(u32::to_be_bytes), [0; 4]);
-            out.extend_from_slice(&fate_cursor.to_be_bytes());
-        }
-        Message::PrivateMeasurement {
-            applied_step,
-            fate_cursor,
-            ..
-        } => {
-            put_optional(&mut out, applied_step.map(u32::to_be_bytes), [0; 4]);
-            out.extend_from_slice(&fate_cursor.to_be_bytes());
-        }
-        Message::Command { u0, u1, fates, .. } => {
-            put_f64s(&mut out, u0);
-            put_f64s(&mut out, u1);
-            put_fates(&mut out, fates);
-        }
-        Message::DoubletCommand {
-            sample,
-            first,
-            second,
-            fates,
-            ..
-        } => {
-            put_f64s(&mut out, sample);
-            put_f64s(&mut out, first);
-            put_optional(&mut out, second.map(pair_bytes), [0; 16]);
-            put_fates(&mut out, fates);
-        }
-        Message::Finish { codewords, bitmap } => {
-            out.extend_from_slice(&codewords.to_be_bytes());
-            for word in bitmap.iter().take(codewords.div_ceil(64) as usize) {
-                out.extend_from_slice(&word.to_be_bytes());
-            }
-            for _ in bitmap.len()..codewords.div_ceil(64) as usize {
-                out.extend_from_slice(&0u64.to_be_bytes());
-            }
-        }
-        Message::FinishAck | Message::Done => {}
-        Message::Confirm {
-            session_tag,
-            key_tag,
-        } => {
-            out.extend_from_slice(session_tag);
-            out.extend_from_slice(key_tag);
-        }
-        Message::Abort { reason } => put_text(&mut out, reason, MAX_REASON_BYTES),
-        Message::PostFragment {
-            message,
-            index,
-            count,
-            bytes,
-        } => {
-            out.extend_from_slice(&message.to_be_bytes());
-            out.extend_from_slice(&index.to_be_bytes());
-            out.extend_from_slice(&count.to_be_bytes());
-            // Like a text, a chunk over the bound (which no valid sender builds) is cut.
-            let len = bytes.len().min(usize::from(MAX_POST_FRAGMENT_BYTES));
-            out.extend_from_slice(&(len as u16).to_be_bytes());
-            out.extend_from_slice(&bytes[..len]);
-        }
-    }
-    out
-}
-
-fn put_f64s(out: &mut Vec<u8>, values: &[f64]) {
-    for v in values {
-        out.extend_from_slice(&v.to_be_bytes());
-    }
-}
-
-/// `[a, b]` as 16 big-endian bytes.
-fn pair_bytes(pair: [f64; 2]) -> [u8; 16] {
-    let mut bytes = [0; 16];
-    bytes[..8].copy_from_slice(&pair[0].to_be_bytes());
-    bytes[8..].copy_from_slice(&pair[1].to_be_bytes());
-    bytes
-}
-
-/// Appends `present u8 | value`, the value zeroed when absent.
-fn put_optional<const N: usize>(out: &mut Vec<u8>, value: Option<[u8; N]>, absent: [u8; N]) {
-    out.push(u8::from(value.is_some()));
-    out.extend_from_slice(&value.unwrap_or(absent));
-}
-
-fn put_fates(out: &mut Vec<u8>, fates: &FateWindow) {
-    out.extend_from_slice(&fates.first.to_be_bytes());
-    out.push(fates.count);
-    out.extend_from_slice(&fates.accepted.to_be_bytes());
+    let mut writer = Writer::with_capacity(64);
+    writer.u16(MAGIC);
+    writer.u8(VERSION);
+    writer.u8(frame.message.message_type().byte());
+    writer.u32(frame.session);
+    writer.u32(frame.seq);
+    writer.u32(frame.message.step());
+    frame.message.encode_payload(&mut writer);
+    writer.into_bytes()
 }
 
 /// Splits a datagram into the bytes its MAC covers and the MAC.
@@ -265,109 +98,9 @@ pub fn split_mac(bytes: &[u8]) -> Option<(&[u8], &[u8])> {
         .map(|at| bytes.split_at(at))
 }
 
-/// Appends `len u16 | UTF-8 bytes`, truncated at a character boundary to `max` bytes.
-fn put_text(out: &mut Vec<u8>, text: &str, max: usize) {
-    let mut end = text.len().min(max);
-    while !text.is_char_boundary(end) {
-        end -= 1;
-    }
-    out.extend_from_slice(&(end as u16).to_be_bytes());
-    out.extend_from_slice(&text.as_bytes()[..end]);
-}
-
-/// Reads `len u16 | UTF-8 bytes` filling the rest of the payload.
-fn get_text(kind: &'static str, r: &mut Reader<'_>, max: usize) -> Result<String, WireError> {
-    if r.bytes.len() < 2 {
-        return Err(WireError::BadLength {
-            kind,
-            got: r.bytes.len(),
-            expected: 2,
-        });
-    }
-    let len = usize::from(u16::from_be_bytes(r.take()));
-    if len > max {
-        return Err(WireError::BadField("text longer than allowed"));
-    }
-    if r.bytes.len() != len {
-        return Err(WireError::BadLength {
-            kind,
-            got: r.bytes.len(),
-            expected: len,
-        });
-    }
-    let text =
-        std::str::from_utf8(r.bytes).map_err(|_| WireError::BadField("text is not UTF-8"))?;
-    Ok(text.to_owned())
-}
-
-/// A cursor over a payload whose length was checked up front.
-struct Reader<'a> {
-    bytes: &'a [u8],
-}
-
-impl Reader<'_> {
-    fn take<const N: usize>(&mut self) -> [u8; N] {
-        let (head, rest) = self.bytes.split_at(N);
-        self.bytes = rest;
-        head.try_into().expect("length checked before reading")
-    }
-    fn u8(&mut self) -> u8 {
-        self.take::<1>()[0]
-    }
-    fn u32(&mut self) -> u32 {
-        u32::from_be_bytes(self.take())
-    }
-    fn u64(&mut self) -> u64 {
-        u64::from_be_bytes(self.take())
-    }
-    fn f64(&mut self) -> f64 {
-        f64::from_be_bytes(self.take())
-    }
-    /// `applied_flag u8 | applied_step u32` of a measurement.
-    fn applied_step(&mut self) -> Result<Option<u32>, WireError> {
-        match (self.u8(), self.u32()) {
-            (0, 0) => Ok(None),
-            (1, step) => Ok(Some(step)),
-            (0, _) => Err(WireError::BadField(
-                "measurement: applied_step set while flagged absent",
-            )),
-            _ => Err(WireError::BadField(
-                "measurement: applied_step flag is not 0 or 1",
-            )),
-        }
-    }
-    /// `first u32 | count u8 | accepted u64` of a command.
-    fn fates(&mut self) -> Result<FateWindow, WireError> {
-        let fates = FateWindow {
-            first: self.u32(),
-            count: self.u8(),
-            accepted: self.u64(),
-        };
-        if u32::from(fates.count) > FateWindow::CAPACITY {
-            return Err(WireError::BadField("command: fate window longer than 64"));
-        }
-        Ok(fates)
-    }
-}
-
-/// Bytes of a fate window on the wire.
-const FATES_BYTES: usize = 4 + 1 + 8;
-
-fn expect_len(kind: &'static str, payload: &[u8], expected: usize) -> Result<(), WireError> {
-    if payload.len() == expected {
-        Ok(())
-    } else {
-        Err(WireError::BadLength {
-            kind,
-            got: payload.len(),
-            expected,
-        })
-    }
-}
-
-/// Parses a datagram (header, payload, MAC), checking magic, version, type and lengths.
-/// It does **not** check the MAC: that is the session layer's job ([`super::auth`]); an
-/// eavesdropper reads captures with it.
+/// Parses a datagram (header, payload, MAC), checking magic, version, type, the header's
+/// step and the payload. It does **not** check the MAC: that is the session layer's job
+/// ([`super::auth`]); an eavesdropper reads captures with it.
 ///
 /// # Errors
 /// A [`WireError`] naming what is wrong; never panics.
@@ -378,172 +111,33 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
     if bytes.len() > MAX_FRAME_BYTES {
         return Err(WireError::TooLong(bytes.len()));
     }
-    let magic = u16::from_be_bytes([bytes[0], bytes[1]]);
+    // Header fields cannot run short past the length check above; if they did, the frame
+    // would be too short.
+    let short = |_: DecodeError| WireError::TooShort(bytes.len());
+    let mut reader = Reader::new(&bytes[..bytes.len() - MAC_BYTES]);
+    let magic = reader.u16("magic").map_err(short)?;
     if magic != MAGIC {
         return Err(WireError::BadMagic(magic));
     }
-    if bytes[2] != VERSION {
-        return Err(WireError::UnsupportedVersion(bytes[2]));
+    let version = reader.u8("version").map_err(short)?;
+    if version != VERSION {
+        return Err(WireError::UnsupportedVersion(version));
     }
-    let body = &bytes[..bytes.len() - MAC_BYTES];
-    let kind = bytes[3];
-    let mut header = Reader {
-        bytes: &body[4..HEADER_BYTES],
-    };
-    let (session, seq, step) = (header.u32(), header.u32(), header.u32());
-    let payload = &body[HEADER_BYTES..];
-    let mut r = Reader { bytes: payload };
-    let message = match kind {
-        HELLO => {
-            if payload.len() < 1 + NONCE_BYTES + 32 {
-                return Err(WireError::BadLength {
-                    kind: "Hello",
-                    got: payload.len(),
-                    expected: 1 + NONCE_BYTES + 32 + 2,
-                });
-            }
-            let auth = auth_mode(r.u8())?;
-            let (nonce, config_digest) = (r.take(), r.take());
-            let terms = get_text("Hello", &mut r, MAX_TERMS_BYTES)?;
-            Message::Hello {
-                auth,
-                nonce,
-                config_digest,
-                terms,
-            }
-        }
-        HELLO_ACK => {
-            expect_len("HelloAck", payload, 1 + 2 * NONCE_BYTES + 32)?;
-            Message::HelloAck {
-                auth: auth_mode(r.u8())?,
-                nonce_c: r.take(),
-                nonce_r: r.take(),
-                config_digest: r.take(),
-            }
-        }
-        REFUSE => {
-            if payload.len() < NONCE_BYTES {
-                return Err(WireError::BadLength {
-                    kind: "Refuse",
-                    got: payload.len(),
-                    expected: NONCE_BYTES + 2,
-                });
-            }
-            Message::Refuse {
-                nonce_c: r.take(),
-                reason: get_text("Refuse", &mut r, MAX_REASON_BYTES)?,
-            }
-        }
-        READY => {
-            expect_len("Ready", payload, 0)?;
-            Message::Ready
-        }
-        MEASUREMENT => {
-            expect_len("Measurement", payload, 24 + 1 + 4 + 4)?;
-            Message::Measurement {
-                step,
-                y: [r.f64(), r.f64(), r.f64()],
-                applied_step: r.applied_step()?,
-                fate_cursor: r.u32(),
-            }
-        }
-        PRIVATE_MEASUREMENT => {
-            expect_len("PrivateMeasurement", payload, 1 + 4 + 4)?;
-            Message::PrivateMeasurement {
-                step,
-                applied_step: r.applied_step()?,
-                fate_cursor: r.u32(),
-            }
-        }
-        COMMAND => {
-            expect_len("Command", payload, 32 + FATES_BYTES)?;
-            Message::Command {
-                step,
-                u0: [r.f64(), r.f64()],
-                u1: [r.f64(), r.f64()],
-                fates: r.fates()?,
-            }
-        }
-        DOUBLET_COMMAND => {
-            expect_len("DoubletCommand", payload, 24 + 16 + 1 + 16 + FATES_BYTES)?;
-            let sample = [r.f64(), r.f64(), r.f64()];
-            let first = [r.f64(), r.f64()];
-            let (flag, pair) = (r.u8(), [r.f64(), r.f64()]);
-            let second = match flag {
-                0 if pair.iter().all(|v| v.to_bits() == 0) => None,
-                0 => {
-                    return Err(WireError::BadField(
-                        "DoubletCommand: second input set while flagged absent",
-                    ));
-                }
-                1 => Some(pair),
-                _ => {
-                    return Err(WireError::BadField(
-                        "DoubletCommand: second input flag is not 0 or 1",
-                    ));
-                }
-            };
-            Message::DoubletCommand {
-                step,
-                sample,
-                first,
-                second,
-                fates: r.fates()?,
-            }
-        }
-        FINISH => {
-            if payload.len() < 4 {
-                return Err(WireError::BadLength {
-                    kind: "Finish",
-                    got: payload.len(),
-                    expected: 4,
-                });
-            }
-            let codewords = r.u32();
-            if codewords > MAX_FINISH_CODEWORDS {
-                return Err(WireError::BadField("Finish: too many codewords"));
-            }
-            let words = codewords.div_ceil(64) as usize;
-            expect_len("Finish", payload, 4 + 8 * words)?;
-            Message::Finish {
-                codewords,
-                bitmap: (0..words).map(|_| r.u64()).collect(),
-            }
-        }
-        FINISH_ACK => {
-            expect_len("FinishAck", payload, 0)?;
-            Message::FinishAck
-        }
-        DONE => {
-            expect_len("Done", payload, 0)?;
-            Message::Done
-        }
-        CONFIRM => {
-            expect_len("Confirm", payload, 2 * TAG_BYTES)?;
-            Message::Confirm {
-                session_tag: r.take(),
-                key_tag: r.take(),
-            }
-        }
-        ABORT => Message::Abort {
-            reason: get_text("Abort", &mut r, MAX_REASON_BYTES)?,
-        },
-        POST_FRAGMENT => post_fragment(payload)?,
-        other if RESERVED.contains(&other) => return Err(WireError::Reserved(other)),
-        other => return Err(WireError::UnknownType(other)),
-    };
-    // Only measurements and commands carry a step; the others encode 0, and a frame must
-    // re-encode to its own bytes.
-    if step != 0
-        && !matches!(
-            kind,
-            MEASUREMENT | COMMAND | PRIVATE_MEASUREMENT | DOUBLET_COMMAND
-        )
-    {
-        return Err(WireError::BadField(
-            "header step is set on a message that has none",
-        ));
+    let kind = MessageType::from_byte(reader.u8("type").map_err(short)?)?;
+    let session = reader.u32("session").map_err(short)?;
+    let seq = reader.u32("seq").map_err(short)?;
+    let step = reader.u32("step").map_err(short)?;
+    let invalid = |error| WireError::Invalid { kind, error };
+    // A frame must re-encode to its own bytes: a type without a step sends 0.
+    if step != 0 && !kind.carries_step() {
+        return Err(invalid(DecodeError::Invalid {
+            field: "step",
+            value: step.into(),
+            allowed: "0 (this type carries no step)",
+        }));
     }
+    let message = Message::decode_payload(kind, step, &mut reader).map_err(invalid)?;
+    reader.finish().map_err(invalid)?;
     Ok(Frame {
         session,
         seq,
@@ -551,58 +145,12 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, WireError> {
     })
 }
 
-/// Parses a `PostFragment` payload: `message u32 | index u16 | count u16 | len u16 |
-/// bytes[len]`, exactly, with `1 ≤ count ≤ MAX_POST_FRAGMENTS`, `index < count` and
-/// `1 ≤ len ≤ MAX_POST_FRAGMENT_BYTES`.
-fn post_fragment(payload: &[u8]) -> Result<Message, WireError> {
-    if payload.len() < POST_FRAGMENT_HEAD {
-        return Err(WireError::BadLength {
-            kind: "PostFragment",
-            got: payload.len(),
-            expected: POST_FRAGMENT_HEAD + 1,
-        });
-    }
-    let mut r = Reader { bytes: payload };
-    let message = r.u32();
-    let index = u16::from_be_bytes(r.take());
-    let count = u16::from_be_bytes(r.take());
-    let len = u16::from_be_bytes(r.take());
-    if !(1..=MAX_POST_FRAGMENTS).contains(&count) {
-        return Err(WireError::BadField(
-            "PostFragment: count is not 1 to MAX_POST_FRAGMENTS",
-        ));
-    }
-    if index >= count {
-        return Err(WireError::BadField(
-            "PostFragment: index is not below count",
-        ));
-    }
-    if !(1..=MAX_POST_FRAGMENT_BYTES).contains(&len) {
-        return Err(WireError::BadField(
-            "PostFragment: chunk length is not 1 to MAX_POST_FRAGMENT_BYTES",
-        ));
-    }
-    expect_len(
-        "PostFragment",
-        payload,
-        POST_FRAGMENT_HEAD + usize::from(len),
-    )?;
-    Ok(Message::PostFragment {
-        message,
-        index,
-        count,
-        bytes: r.bytes.to_vec(),
-    })
-}
-
-fn auth_mode(byte: u8) -> Result<AuthMode, WireError> {
-    AuthMode::from_byte(byte).ok_or(WireError::BadField("auth mode is not 0 or 1"))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::protocol::FateWindow;
     use crate::protocol::auth::{PairingSecret, seal};
+    use crate::protocol::message::{AuthMode, Closing, Handshake, PostFragment, SessionMessage};
     use proptest::prelude::*;
 
     fn hex(bytes: &[u8]) -> String {
@@ -611,36 +159,36 @@ mod tests {
 
     fn examples() -> Vec<Message> {
         vec![
-            Message::Hello {
+            Message::Handshake(Handshake::Hello {
                 auth: AuthMode::Paired,
                 nonce: [0x11; 16],
                 config_digest: [0xAB; 32],
                 terms: "robot.T = 0.2\n".into(),
-            },
-            Message::HelloAck {
+            }),
+            Message::Handshake(Handshake::HelloAck {
                 auth: AuthMode::Paired,
                 nonce_c: [0x11; 16],
                 nonce_r: [0x22; 16],
                 config_digest: [0xCD; 32],
-            },
-            Message::Refuse {
+            }),
+            Message::Handshake(Handshake::Refuse {
                 nonce_c: [0x11; 16],
                 reason: "terms".into(),
-            },
-            Message::Ready,
-            Message::Measurement {
+            }),
+            Message::Handshake(Handshake::Ready),
+            Message::Session(SessionMessage::Measurement {
                 step: 7,
                 y: [1.0, -0.5, 0.25],
                 applied_step: Some(6),
                 fate_cursor: 2,
-            },
-            Message::Measurement {
+            }),
+            Message::Session(SessionMessage::Measurement {
                 step: 8,
                 y: [0.0; 3],
                 applied_step: None,
                 fate_cursor: 2,
-            },
-            Message::Command {
+            }),
+            Message::Session(SessionMessage::Command {
                 step: 7,
                 u0: [4.0, 3.5],
                 u1: [0.5, -1.0],
@@ -649,26 +197,26 @@ mod tests {
                     count: 3,
                     accepted: 0b101,
                 },
-            },
-            Message::Finish {
+            }),
+            Message::Closing(Closing::Finish {
                 codewords: 65,
                 bitmap: vec![u64::MAX, 1],
-            },
-            Message::FinishAck,
-            Message::Confirm {
+            }),
+            Message::Closing(Closing::FinishAck),
+            Message::Closing(Closing::Confirm {
                 session_tag: [1; 16],
                 key_tag: [2; 16],
-            },
-            Message::Done,
-            Message::Abort {
+            }),
+            Message::Closing(Closing::Done),
+            Message::Closing(Closing::Abort {
                 reason: "silence".into(),
-            },
-            Message::PrivateMeasurement {
+            }),
+            Message::Session(SessionMessage::PrivateMeasurement {
                 step: 7,
                 applied_step: Some(6),
                 fate_cursor: 2,
-            },
-            Message::DoubletCommand {
+            }),
+            Message::Session(SessionMessage::DoubletCommand {
                 step: 6,
                 sample: [1.0, -0.5, 0.25],
                 first: [0.1, -0.2],
@@ -678,20 +226,20 @@ mod tests {
                     count: 1,
                     accepted: 1,
                 },
-            },
-            Message::DoubletCommand {
+            }),
+            Message::Session(SessionMessage::DoubletCommand {
                 step: 9,
                 sample: [0.0; 3],
                 first: [0.0; 2],
                 second: None,
                 fates: FateWindow::default(),
-            },
-            Message::PostFragment {
+            }),
+            Message::Post(PostFragment {
                 message: 0x0A0B_0C0D,
                 index: 2,
                 count: 3,
                 bytes: vec![0xEE, 0xFF, 0x01],
-            },
+            }),
         ]
     }
 
@@ -738,7 +286,7 @@ mod tests {
         let good = encode(&Frame {
             session: 1,
             seq: 1,
-            message: Message::FinishAck,
+            message: Message::Closing(Closing::FinishAck),
         });
         let good = [good, vec![0; MAC_BYTES]].concat();
         assert_eq!(decode(&good[..5]), Err(WireError::TooShort(5)));
@@ -750,9 +298,9 @@ mod tests {
         assert!(matches!(decode(&bad), Err(WireError::BadMagic(_))));
         let mut bad = good.clone();
         bad[3] = 99;
-        assert_eq!(decode(&bad), Err(WireError::UnknownType(99)));
+        assert_eq!(decode(&bad), Err(WireError::Type(TypeError::Unknown(99))));
         bad[3] = 17;
-        assert_eq!(decode(&bad), Err(WireError::Reserved(17)));
+        assert_eq!(decode(&bad), Err(WireError::Type(TypeError::Reserved(17))));
         let long = vec![0; MAX_FRAME_BYTES + 1];
         assert_eq!(decode(&long), Err(WireError::TooLong(MAX_FRAME_BYTES + 1)));
     }
@@ -760,12 +308,12 @@ mod tests {
     #[test]
     fn typed_errors_for_bad_post_fragments() {
         let frame = |index, count, bytes: Vec<u8>| {
-            let message = Message::PostFragment {
+            let message = Message::Post(PostFragment {
                 message: 5,
                 index,
                 count,
                 bytes,
-            };
+            });
             let frame = Frame {
                 session: 1,
                 seq: 1,
@@ -774,39 +322,44 @@ mod tests {
             [encode(&frame), vec![0; MAC_BYTES]].concat()
         };
         let field = |bytes: &[u8]| match decode(bytes) {
-            Err(WireError::BadField(why)) => why,
+            Err(WireError::Invalid {
+                kind: MessageType::PostFragment,
+                error: DecodeError::Invalid { field, .. },
+            }) => field,
             other => panic!("expected a bad field, got {other:?}"),
         };
         assert!(decode(&frame(1023, 1024, vec![1; 1024])).is_ok());
-        assert!(field(&frame(0, 0, vec![1])).contains("count"));
-        assert!(field(&frame(0, MAX_POST_FRAGMENTS + 1, vec![1])).contains("count"));
-        assert!(field(&frame(3, 3, vec![1])).contains("index"));
-        assert!(field(&frame(0, 1, Vec::new())).contains("length"));
+        assert_eq!(field(&frame(0, 0, vec![1])), "count");
+        assert_eq!(field(&frame(0, MAX_POST_FRAGMENTS + 1, vec![1])), "count");
+        assert_eq!(field(&frame(3, 3, vec![1])), "index");
+        assert_eq!(field(&frame(0, 1, Vec::new())), "len");
         // The encoder cuts an oversized chunk; a forged length over the bound is refused.
         let mut long = frame(0, 1, vec![1; 1024]);
         long[HEADER_BYTES + 8..HEADER_BYTES + 10].copy_from_slice(&1025u16.to_be_bytes());
         long.insert(HEADER_BYTES + 10, 1);
-        assert!(field(&long).contains("length"));
+        assert_eq!(field(&long), "len");
         // The chunk must fill the payload exactly.
         let mut extra = frame(0, 1, vec![1; 4]);
         extra.insert(HEADER_BYTES + 10, 1);
         assert_eq!(
             decode(&extra),
-            Err(WireError::BadLength {
-                kind: "PostFragment",
-                got: 15,
-                expected: 14
+            Err(WireError::Invalid {
+                kind: MessageType::PostFragment,
+                error: DecodeError::TrailingBytes(1)
             })
         );
         let short = [&frame(0, 1, vec![1])[..HEADER_BYTES + 9], &[0; MAC_BYTES]].concat();
-        assert!(matches!(
+        assert_eq!(
             decode(&short),
-            Err(WireError::BadLength {
-                kind: "PostFragment",
-                got: 9,
-                ..
+            Err(WireError::Invalid {
+                kind: MessageType::PostFragment,
+                error: DecodeError::Truncated {
+                    field: "len",
+                    needed: 2,
+                    left: 1
+                }
             })
-        ));
+        );
     }
 
     #[test]
@@ -828,11 +381,11 @@ mod tests {
         let mut bytes = encode(&Frame {
             session: 1,
             seq: 1,
-            message: Message::Ready,
+            message: Message::Handshake(Handshake::Ready),
         });
         bytes[12..16].copy_from_slice(&[249, 252, 151, 82]);
         bytes.extend_from_slice(&[0; MAC_BYTES]);
-        assert!(matches!(decode(&bytes), Err(WireError::BadField(_))));
+        assert!(matches!(decode(&bytes), Err(WireError::Invalid { .. })));
     }
 
     #[test]
@@ -840,21 +393,21 @@ mod tests {
         let mut bytes = encode(&Frame {
             session: 1,
             seq: 1,
-            message: Message::DoubletCommand {
+            message: Message::Session(SessionMessage::DoubletCommand {
                 step: 4,
                 sample: [0.5; 3],
                 first: [0.1, 0.0],
                 second: None,
                 fates: FateWindow::default(),
-            },
+            }),
         });
         bytes.extend_from_slice(&[0; MAC_BYTES]);
         assert!(decode(&bytes).is_ok());
         let flag = HEADER_BYTES + 24 + 16;
         bytes[flag + 3] = 1;
-        assert!(matches!(decode(&bytes), Err(WireError::BadField(_))));
+        assert!(matches!(decode(&bytes), Err(WireError::Invalid { .. })));
         bytes[flag] = 2;
-        assert!(matches!(decode(&bytes), Err(WireError::BadField(_))));
+        assert!(matches!(decode(&bytes), Err(WireError::Invalid { .. })));
     }
 
     fn mode(paired: bool) -> AuthMode {
@@ -874,12 +427,14 @@ mod tests {
                 any::<[u8; 32]>(),
                 ".{0,60}"
             )
-                .prop_map(|(paired, nonce, config_digest, terms)| Message::Hello {
-                    auth: mode(paired),
-                    nonce,
-                    config_digest,
-                    terms
-                }),
+                .prop_map(|(paired, nonce, config_digest, terms)| Message::Handshake(
+                    Handshake::Hello {
+                        auth: mode(paired),
+                        nonce,
+                        config_digest,
+                        terms
+                    }
+                )),
             (
                 any::<bool>(),
                 any::<[u8; 16]>(),
@@ -887,23 +442,26 @@ mod tests {
                 any::<[u8; 32]>()
             )
                 .prop_map(|(paired, nonce_c, nonce_r, config_digest)| {
-                    Message::HelloAck {
+                    Message::Handshake(Handshake::HelloAck {
                         auth: mode(paired),
                         nonce_c,
                         nonce_r,
                         config_digest,
-                    }
+                    })
                 }),
-            (any::<[u8; 16]>(), ".{0,40}")
-                .prop_map(|(nonce_c, reason)| Message::Refuse { nonce_c, reason }),
-            Just(Message::Ready),
+            (any::<[u8; 16]>(), ".{0,40}").prop_map(|(nonce_c, reason)| Message::Handshake(
+                Handshake::Refuse { nonce_c, reason }
+            )),
+            Just(Message::Handshake(Handshake::Ready)),
             (any::<u32>(), [f, f, f], any::<Option<u32>>(), any::<u32>()).prop_map(
-                |(step, y, applied_step, fate_cursor)| Message::Measurement {
-                    step,
-                    y,
-                    applied_step,
-                    fate_cursor
-                }
+                |(step, y, applied_step, fate_cursor)| Message::Session(
+                    SessionMessage::Measurement {
+                        step,
+                        y,
+                        applied_step,
+                        fate_cursor
+                    }
+                )
             ),
             (
                 any::<u32>(),
@@ -914,7 +472,7 @@ mod tests {
                 any::<u64>()
             )
                 .prop_map(|(step, u0, u1, first, count, accepted)| {
-                    Message::Command {
+                    Message::Session(SessionMessage::Command {
                         step,
                         u0,
                         u1,
@@ -923,27 +481,31 @@ mod tests {
                             count,
                             accepted,
                         },
-                    }
+                    })
                 }),
-            proptest::collection::vec(any::<u64>(), 0..5).prop_map(|bitmap| Message::Finish {
-                codewords: bitmap.len() as u32 * 64,
-                bitmap
-            }),
-            Just(Message::FinishAck),
-            Just(Message::Done),
+            proptest::collection::vec(any::<u64>(), 0..5).prop_map(|bitmap| Message::Closing(
+                Closing::Finish {
+                    codewords: bitmap.len() as u32 * 64,
+                    bitmap
+                }
+            )),
+            Just(Message::Closing(Closing::FinishAck)),
+            Just(Message::Closing(Closing::Done)),
             (any::<[u8; 16]>(), any::<[u8; 16]>()).prop_map(|(session_tag, key_tag)| {
-                Message::Confirm {
+                Message::Closing(Closing::Confirm {
                     session_tag,
                     key_tag,
-                }
+                })
             }),
-            ".{0,40}".prop_map(|reason| Message::Abort { reason }),
+            ".{0,40}".prop_map(|reason| Message::Closing(Closing::Abort { reason })),
             (any::<u32>(), any::<Option<u32>>(), any::<u32>()).prop_map(
-                |(step, applied_step, fate_cursor)| Message::PrivateMeasurement {
-                    step,
-                    applied_step,
-                    fate_cursor
-                }
+                |(step, applied_step, fate_cursor)| Message::Session(
+                    SessionMessage::PrivateMeasurement {
+                        step,
+                        applied_step,
+                        fate_cursor
+                    }
+                )
             ),
             (
                 any::<u32>(),
@@ -954,7 +516,7 @@ mod tests {
             )
                 .prop_map(
                     |(step, sample, first, second, (first_fate, count, accepted))| {
-                        Message::DoubletCommand {
+                        Message::Session(SessionMessage::DoubletCommand {
                             step,
                             sample,
                             first,
@@ -964,7 +526,7 @@ mod tests {
                                 count,
                                 accepted,
                             },
-                        }
+                        })
                     }
                 ),
             (
@@ -973,11 +535,13 @@ mod tests {
                 proptest::collection::vec(any::<u8>(), 1..=usize::from(MAX_POST_FRAGMENT_BYTES))
             )
                 .prop_flat_map(|(message, count, bytes)| {
-                    (0..count).prop_map(move |index| Message::PostFragment {
-                        message,
-                        index,
-                        count,
-                        bytes: bytes.clone(),
+                    (0..count).prop_map(move |index| {
+                        Message::Post(PostFragment {
+                            message,
+                            index,
+                            count,
+                            bytes: bytes.clone(),
+                        })
                     })
                 }),
         ]

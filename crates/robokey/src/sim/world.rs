@@ -14,7 +14,7 @@ use crate::pair::{Side, Surroundings};
 use crate::private::{BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, EveDoublet, PrivateRun};
 use crate::protocol::{
     Controller, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, Robot,
-    RobotInput, RobotOutput, Time,
+    RobotInput, RobotOutput, SessionMessage, Time,
 };
 use crate::trajectory::Trajectory;
 
@@ -249,7 +249,7 @@ impl Surroundings<Robot, Controller> for World<'_> {
                         row.bhat_eve = d.bit;
                     }
                 }
-                if let Message::Command { step, u0, u1, .. } = message
+                if let Message::Session(SessionMessage::Command { step, u0, u1, .. }) = message
                     && let Some(row) = self.trace.row(*step as usize)
                 {
                     row.u0 = Some(*u0);

@@ -10,7 +10,7 @@ use super::window::{Freshness, ReplayWindow};
 use super::{
     Confirmer, Direction, MacKey, NONCE_BYTES, PairingSecret, SessionKeys, seal, verifies,
 };
-use crate::protocol::message::Message;
+use crate::protocol::message::{Handshake, Message};
 use crate::protocol::terms::terms_difference;
 use crate::protocol::wire::{Frame, decode};
 
@@ -185,18 +185,22 @@ impl Keyed {
     }
 }
 
+/// Whether a message is MACed under the handshake key (every other one is under a session
+/// key, `Ready` included).
 fn is_handshake(message: &Message) -> bool {
     matches!(
         message,
-        Message::Hello { .. } | Message::HelloAck { .. } | Message::Refuse { .. }
+        Message::Handshake(
+            Handshake::Hello { .. } | Handshake::HelloAck { .. } | Handshake::Refuse { .. }
+        )
     )
 }
 
-fn handshake_frame(session: u32, message: Message) -> Frame {
+fn handshake_frame(session: u32, message: Handshake) -> Frame {
     Frame {
         session,
         seq: 0,
-        message,
+        message: message.into(),
     }
 }
 
@@ -236,7 +240,7 @@ impl<A: Copy + PartialEq> ControllerChannel<A> {
         let mut nonce = [0u8; NONCE_BYTES];
         rng.fill_bytes(&mut nonce);
         let handshake = secret.handshake_key();
-        let hello = Message::Hello {
+        let hello = Handshake::Hello {
             auth: secret.mode(),
             nonce,
             config_digest,
@@ -321,12 +325,12 @@ impl<A: Copy + PartialEq> ControllerChannel<A> {
             return Err(Rejection::OtherSession);
         }
         match &frame.message {
-            Message::HelloAck {
+            Message::Handshake(Handshake::HelloAck {
                 auth,
                 nonce_c,
                 nonce_r,
                 ..
-            } => {
+            }) => {
                 if *auth != self.secret.mode() {
                     return Err(Rejection::PairingMode);
                 }
@@ -341,7 +345,7 @@ impl<A: Copy + PartialEq> ControllerChannel<A> {
                 self.keyed = Some(Keyed::new(self.session, keys, transcript));
                 Ok(Delivery::Established)
             }
-            Message::Refuse { nonce_c, reason } => {
+            Message::Handshake(Handshake::Refuse { nonce_c, reason }) => {
                 if !verifies(bytes, &self.handshake) {
                     return Err(Rejection::BadMac);
                 }
@@ -350,7 +354,7 @@ impl<A: Copy + PartialEq> ControllerChannel<A> {
                 }
                 Ok(Delivery::Refused(reason.clone()))
             }
-            Message::Hello { .. } => Err(Rejection::Unexpected),
+            Message::Handshake(Handshake::Hello { .. }) => Err(Rejection::Unexpected),
             _ => {
                 let keyed = self.keyed.as_mut().ok_or(Rejection::Unexpected)?;
                 let freshness = keyed.open(&frame, bytes, Direction::ToController)?;
@@ -480,12 +484,12 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
             return Ok(Delivery::Message(frame.message));
         }
         match &frame.message {
-            Message::Hello {
+            Message::Handshake(Handshake::Hello {
                 auth,
                 nonce,
                 config_digest,
                 terms,
-            } => {
+            }) => {
                 if *auth != self.secret.mode() {
                     return Err(Rejection::PairingMode);
                 }
@@ -507,7 +511,7 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
                         "configurations differ: {}",
                         terms_difference(&self.terms, terms, "robot", "controller")
                     );
-                    let refuse = Message::Refuse {
+                    let refuse = Handshake::Refuse {
                         nonce_c: *nonce,
                         reason: reason.clone(),
                     };
@@ -518,7 +522,7 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
                 }
                 let mut nonce_r = [0u8; NONCE_BYTES];
                 rng.fill_bytes(&mut nonce_r);
-                let ack = Message::HelloAck {
+                let ack = Handshake::HelloAck {
                     auth: self.secret.mode(),
                     nonce_c: *nonce,
                     nonce_r,
@@ -540,7 +544,9 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
                     refused: None,
                 })
             }
-            Message::HelloAck { .. } | Message::Refuse { .. } => Err(Rejection::Unexpected),
+            Message::Handshake(Handshake::HelloAck { .. } | Handshake::Refuse { .. }) => {
+                Err(Rejection::Unexpected)
+            }
             _ => {
                 let mut candidates = self
                     .half_open
@@ -571,6 +577,7 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::protocol::message::Closing;
     use rand::SeedableRng;
     use rand::rngs::ChaCha20Rng;
 
@@ -602,10 +609,10 @@ mod tests {
             controller.on_datagram(ROBOT, &bytes),
             Ok(Delivery::Established)
         );
-        let ready = controller.seal(Message::Ready).unwrap();
+        let ready = controller.seal(Handshake::Ready.into()).unwrap();
         assert_eq!(
             robot.on_datagram(CONTROLLER, &ready, rng),
-            Ok(Delivery::Message(Message::Ready))
+            Ok(Delivery::Message(Message::Handshake(Handshake::Ready)))
         );
         assert_eq!(robot.bound(), Some((CONTROLLER, 77)));
         (controller, robot)
@@ -616,9 +623,12 @@ mod tests {
         let mut rng = ChaCha20Rng::seed_from_u64(1);
         let (mut controller, mut robot) = established(&mut rng);
         let abort = controller
-            .seal(Message::Abort {
-                reason: "forged".into(),
-            })
+            .seal(
+                Closing::Abort {
+                    reason: "forged".into(),
+                }
+                .into(),
+            )
             .unwrap();
         for at in 0..abort.len() {
             for flip in [0x01, 0x80] {
@@ -643,7 +653,7 @@ mod tests {
         // The genuine frame still goes through: nothing was consumed by the forgeries.
         assert!(matches!(
             robot.on_datagram(CONTROLLER, &abort, &mut rng),
-            Ok(Delivery::Message(Message::Abort { .. }))
+            Ok(Delivery::Message(Message::Closing(Closing::Abort { .. })))
         ));
         // Sent again, it is a replay.
         assert_eq!(
@@ -656,7 +666,7 @@ mod tests {
     fn reflected_frames_other_peers_and_truncation_are_rejected() {
         let mut rng = ChaCha20Rng::seed_from_u64(2);
         let (mut controller, mut robot) = established(&mut rng);
-        let finish_ack = controller.seal(Message::FinishAck).unwrap();
+        let finish_ack = controller.seal(Closing::FinishAck.into()).unwrap();
         // The controller's own frame, reflected to it, is under the other direction's key.
         assert_eq!(
             controller.on_datagram(ROBOT, &finish_ack),
@@ -676,14 +686,14 @@ mod tests {
             robot.on_datagram(CONTROLLER, controller.hello(), &mut rng),
             Err(Rejection::Unexpected)
         );
-        let reply = robot.seal(Message::FinishAck).unwrap();
+        let reply = robot.seal(Closing::FinishAck.into()).unwrap();
         assert_eq!(
             controller.on_datagram(ATTACKER, &reply),
             Err(Rejection::WrongPeer)
         );
         assert_eq!(
             controller.on_datagram(ROBOT, &reply),
-            Ok(Delivery::Message(Message::FinishAck))
+            Ok(Delivery::Message(Message::Closing(Closing::FinishAck)))
         );
     }
 
@@ -702,7 +712,7 @@ mod tests {
         ) {
             let mut rng = ChaCha20Rng::seed_from_u64(seed);
             let (mut controller, mut robot) = established(&mut rng);
-            let genuine = controller.seal(Message::Finish { codewords: 70, bitmap: vec![5, 1] }).unwrap();
+            let genuine = controller.seal(Closing::Finish { codewords: 70, bitmap: vec![5, 1] }.into()).unwrap();
             let mut edited = genuine.clone();
             for (at, byte, action) in edits {
                 let at = at % (edited.len() + 1);
@@ -719,12 +729,12 @@ mod tests {
                 proptest::prop_assert!(controller.on_datagram(ROBOT, bytes).is_err());
             }
             let delivered = robot.on_datagram(CONTROLLER, &genuine, &mut rng);
-            let finish = matches!(delivered, Ok(Delivery::Message(Message::Finish { .. })));
+            let finish = matches!(delivered, Ok(Delivery::Message(Message::Closing(Closing::Finish { .. }))));
             proptest::prop_assert!(finish, "{:?}", delivered);
-            let back = robot.seal(Message::FinishAck).unwrap();
+            let back = robot.seal(Closing::FinishAck.into()).unwrap();
             proptest::prop_assert_eq!(
                 controller.on_datagram(ROBOT, &back),
-                Ok(Delivery::Message(Message::FinishAck))
+                Ok(Delivery::Message(Message::Closing(Closing::FinishAck)))
             );
         }
     }
@@ -734,7 +744,7 @@ mod tests {
         let mut rng = ChaCha20Rng::seed_from_u64(3);
         let (mut controller, mut robot) = established(&mut rng);
         let frames: Vec<Vec<u8>> = (0..70)
-            .map(|_| controller.seal(Message::FinishAck).unwrap())
+            .map(|_| controller.seal(Closing::FinishAck.into()).unwrap())
             .collect();
         for bytes in frames[1..68].iter().chain([&frames[0], &frames[69]]) {
             let _ = robot.on_datagram(CONTROLLER, bytes, &mut rng);
@@ -743,7 +753,7 @@ mod tests {
         assert_eq!(robot.counts().rejected.behind_window, 1);
         assert_eq!(
             robot.on_datagram(CONTROLLER, &frames[68], &mut rng),
-            Ok(Delivery::Message(Message::FinishAck))
+            Ok(Delivery::Message(Message::Closing(Closing::FinishAck)))
         );
         assert_eq!(robot.counts().reordered, 1);
         assert_eq!(robot.counts().accepted, 1 + 69);
@@ -765,7 +775,7 @@ mod tests {
             &Frame {
                 session: 77,
                 seq: 1,
-                message: Message::Ready,
+                message: Message::Handshake(Handshake::Ready),
             },
             &secret.handshake_key(),
         );

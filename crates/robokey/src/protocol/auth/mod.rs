@@ -24,46 +24,13 @@ use sha2::{Digest, Sha256};
 use subtle::ConstantTimeEq;
 use zeroize::Zeroizing;
 
+pub use super::message::{AuthMode, NONCE_BYTES, TAG_BYTES};
 use super::wire::{Frame, encode, split_mac};
 
 /// Pairing-secret length (bytes): 256 bits.
 pub const SECRET_BYTES: usize = 32;
-/// Nonce length (bytes): 128 bits.
-pub const NONCE_BYTES: usize = 16;
-/// MAC and tag length (bytes): 128 bits.
-pub const TAG_BYTES: usize = 16;
 /// Fingerprint length (bytes).
 pub const FINGERPRINT_BYTES: usize = 8;
-
-/// Whether an agent holds a pairing secret (declared in `Hello` and `HelloAck`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum AuthMode {
-    /// A secret installed with `robokey pair`: an active attacker cannot forge frames.
-    Paired,
-    /// The all-zero public secret: integrity against faults only, "passive adversary only".
-    Unauthenticated,
-}
-
-impl AuthMode {
-    /// Its wire byte.
-    #[must_use]
-    pub fn byte(self) -> u8 {
-        match self {
-            Self::Paired => 0,
-            Self::Unauthenticated => 1,
-        }
-    }
-
-    /// The mode of a wire byte.
-    #[must_use]
-    pub fn from_byte(byte: u8) -> Option<Self> {
-        match byte {
-            0 => Some(Self::Paired),
-            1 => Some(Self::Unauthenticated),
-            _ => None,
-        }
-    }
-}
 
 /// The 256-bit secret shared by a robot and its controller. Zeroized on drop; its `Debug`
 /// shows the public fingerprint only.

@@ -7,7 +7,9 @@ use std::collections::VecDeque;
 
 use super::{ControllerEvent, ControllerOutput};
 use crate::protocol::fates::FateLedger;
-use crate::protocol::{ConfirmTags, Confirmer, Direction, KeyBits, Message, Outcome, TAG_BYTES};
+use crate::protocol::{
+    Closing, ConfirmTags, Confirmer, Direction, KeyBits, Message, Outcome, TAG_BYTES,
+};
 
 /// The direction the controller sends in.
 const DIRECTION: Direction = Direction::ToRobot;
@@ -70,7 +72,7 @@ impl ControllerLifecycle {
 
     /// Ends the session and tells the robot why.
     pub(crate) fn abort(&mut self, reason: String) {
-        self.send(Message::Abort {
+        self.send(Closing::Abort {
             reason: reason.clone(),
         });
         self.finish(Outcome::Aborted(reason));
@@ -97,8 +99,8 @@ impl ControllerLifecycle {
     }
 
     /// Sends a message to the robot.
-    pub(crate) fn send(&mut self, message: Message) {
-        self.outputs.push_back(ControllerOutput::Transmit(message));
+    pub(crate) fn send(&mut self, message: impl Into<Message>) {
+        self.outputs.push_back(ControllerOutput::Transmit(message.into()));
     }
 
     /// Ends the session with `outcome`.
@@ -135,10 +137,10 @@ impl ControllerLifecycle {
     /// A message from the robot that the running endpoint did not take: ignored once done,
     /// an `Abort` ends the session, a closing session hands it to its [`Closer`]; anything
     /// else (a duplicate, a message that does not fit the phase) is ignored.
-    pub(crate) fn on_message(&mut self, message: Message) {
+    pub(crate) fn on_message(&mut self, message: Closing) {
         match (&mut self.phase, message) {
             (Phase::Done, _) => {}
-            (_, Message::Abort { reason }) => {
+            (_, Closing::Abort { reason }) => {
                 self.finish(Outcome::Aborted(format!("robot aborted: {reason}")));
             }
             (Phase::Closing(closer), message) => {
@@ -196,18 +198,18 @@ impl Closer {
     /// A message from the robot; the outcome when it ends the session.
     pub(crate) fn on_message(
         &mut self,
-        message: Message,
+        message: Closing,
         out: &mut VecDeque<ControllerOutput>,
     ) -> Option<Outcome> {
         match (self.waiting, message) {
-            (Waiting::FinishAck { .. }, Message::FinishAck) => {
+            (Waiting::FinishAck { .. }, Closing::FinishAck) => {
                 self.send_confirm(out);
                 self.waiting = Waiting::Confirm { tries: 1 };
                 None
             }
             (
                 Waiting::FinishAck { .. },
-                Message::Confirm {
+                Closing::Confirm {
                     session_tag,
                     key_tag,
                 },
@@ -218,7 +220,7 @@ impl Closer {
             }
             (
                 Waiting::Confirm { .. },
-                Message::Confirm {
+                Closing::Confirm {
                     session_tag,
                     key_tag,
                 },
@@ -255,20 +257,22 @@ impl Closer {
     }
 
     fn send_finish(&self, out: &mut VecDeque<ControllerOutput>) {
-        out.push_back(ControllerOutput::Transmit(Message::Finish {
+        let finish = Closing::Finish {
             codewords: self.codewords,
             bitmap: self.bitmap.clone(),
-        }));
+        };
+        out.push_back(ControllerOutput::Transmit(finish.into()));
     }
 
     fn send_confirm(&self, out: &mut VecDeque<ControllerOutput>) {
         let ours = self
             .confirmer
             .tags(DIRECTION, &self.bitmap, &self.tagged_key);
-        out.push_back(ControllerOutput::Transmit(Message::Confirm {
+        let confirm = Closing::Confirm {
             session_tag: ours.session,
             key_tag: ours.key,
-        }));
+        };
+        out.push_back(ControllerOutput::Transmit(confirm.into()));
     }
 
     fn verify(&self, session: [u8; TAG_BYTES], key: [u8; TAG_BYTES]) -> Outcome {

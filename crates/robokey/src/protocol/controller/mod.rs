@@ -17,7 +17,7 @@ use self::mode::ControllerMode;
 use self::odometry::OdometryController;
 use super::plan::{ModePlan, SessionPlan};
 use super::timing::{Time, Timing, earliest};
-use super::Message;
+use super::{Closing, Message};
 use crate::config::Config;
 use crate::private::PrivateController;
 
@@ -107,11 +107,14 @@ impl Controller {
                     clock.robot_heard = true;
                     clock.last_sample = clock.last_sample.max(now);
                 }
-                if let Some(message) =
-                    self.mode
-                        .on_message(&self.plan.agreed, &mut self.lifecycle, message)
-                {
-                    self.lifecycle.on_message(message);
+                match message {
+                    Message::Session(message) => {
+                        self.mode
+                            .on_message(&self.plan.agreed, &mut self.lifecycle, message);
+                    }
+                    Message::Closing(message) => self.lifecycle.on_message(message),
+                    // The channel's and post-processing's layers are not the session's.
+                    Message::Handshake(_) | Message::Post(_) => {}
                 }
             }
             ControllerInput::Sensor { step, pose } => {
@@ -179,7 +182,9 @@ impl Controller {
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<ControllerOutput> {
         let output = self.lifecycle.poll()?;
-        if let ControllerOutput::Transmit(message @ Message::Confirm { .. }) = &output {
+        if let ControllerOutput::Transmit(message @ Message::Closing(Closing::Confirm { .. })) =
+            &output
+        {
             self.last_confirm = Some(message.clone());
         }
         Some(output)

@@ -4,7 +4,7 @@
 use super::lifecycle::ControllerLifecycle;
 use crate::model::Pose;
 use crate::protocol::plan::Agreed;
-use crate::protocol::Message;
+use crate::protocol::SessionMessage;
 
 /// The part of a controller endpoint that depends on the sensing mode (odometry: command
 /// pairs decoded from the robot's measurements; private sensing: doublets decided from the
@@ -12,14 +12,14 @@ use crate::protocol::Message;
 /// [`ControllerLifecycle::close`] once every fate is known. Its `Debug` prints no key
 /// material.
 pub(crate) trait ControllerMode: std::fmt::Debug + Send {
-    /// A message from the robot while the session runs; the message back when the mode
-    /// does not take it (it then goes to the lifecycle's closing).
+    /// A session message from the robot (its reports); one that does not fit the session's
+    /// state is ignored.
     fn on_message(
         &mut self,
         agreed: &Agreed,
         life: &mut ControllerLifecycle,
-        message: Message,
-    ) -> Option<Message>;
+        message: SessionMessage,
+    );
 
     /// The controller's own sensor sampled `y_c(k)` (private sensing; the odometry mode
     /// ignores it).

@@ -12,7 +12,7 @@ use crate::observer::{Observer, ObserverParams};
 use crate::protocol::assembler::CodewordAssembler;
 use crate::protocol::decoder::StepDecoder;
 use crate::protocol::plan::{Agreed, OdometryPlan};
-use crate::protocol::{Message, Outcome};
+use crate::protocol::{Outcome, SessionMessage};
 use crate::trajectory::Trajectory;
 
 /// The odometry mode's part of a controller endpoint.
@@ -92,7 +92,7 @@ impl OdometryController {
         if step < agreed.steps {
             self.send_command(agreed, life, step, &y);
         } else {
-            life.send(Message::Command {
+            life.send(SessionMessage::Command {
                 step,
                 u0: [0.0; 2],
                 u1: [0.0; 2],
@@ -133,7 +133,7 @@ impl OdometryController {
         let (u0, u1) = command_pair(agreed, &self.plan, nominal);
         self.decoder.on_command(step, nominal, u0, u1);
         life.emit(ControllerEvent::Commanded { step, nominal });
-        life.send(Message::Command {
+        life.send(SessionMessage::Command {
             step,
             u0: u0.into(),
             u1: u1.into(),
@@ -147,19 +147,17 @@ impl ControllerMode for OdometryController {
         &mut self,
         agreed: &Agreed,
         life: &mut ControllerLifecycle,
-        message: Message,
-    ) -> Option<Message> {
-        match message {
-            Message::Measurement {
-                step,
-                y,
-                applied_step,
-                fate_cursor,
-            } if life.running() => {
-                self.on_measurement(agreed, life, step, Pose::from(y), applied_step, fate_cursor);
-                None
-            }
-            message => Some(message),
+        message: SessionMessage,
+    ) {
+        if let SessionMessage::Measurement {
+            step,
+            y,
+            applied_step,
+            fate_cursor,
+        } = message
+            && life.running()
+        {
+            self.on_measurement(agreed, life, step, Pose::from(y), applied_step, fate_cursor);
         }
     }
 
@@ -200,7 +198,7 @@ pub fn observer_params(config: &Config) -> ObserverParams {
 mod tests {
     use super::*;
     use crate::protocol::{
-        Controller, ControllerInput, ControllerOutput, KeyBits, SessionPlan, Time, Timing,
+        Controller, ControllerInput, ControllerOutput, KeyBits, Message, SessionPlan, Time, Timing,
     };
 
     fn controller() -> Controller {
@@ -216,12 +214,15 @@ mod tests {
     ) -> Vec<ControllerOutput> {
         controller.handle_input(
             Time::ZERO,
-            ControllerInput::Frame(Message::Measurement {
-                step,
-                y,
-                applied_step: step.checked_sub(1),
-                fate_cursor: 0,
-            }),
+            ControllerInput::Frame(
+                SessionMessage::Measurement {
+                    step,
+                    y,
+                    applied_step: step.checked_sub(1),
+                    fate_cursor: 0,
+                }
+                .into(),
+            ),
         );
         std::iter::from_fn(|| controller.poll_output()).collect()
     }
@@ -230,7 +231,9 @@ mod tests {
         outputs
             .iter()
             .filter_map(|o| match o {
-                ControllerOutput::Transmit(Message::Command { u0, u1, .. }) => {
+                ControllerOutput::Transmit(Message::Session(SessionMessage::Command {
+                    u0, u1, ..
+                })) => {
                     Some([u0[0], u0[1], u1[0], u1[1]])
                 }
                 _ => None,

@@ -9,7 +9,9 @@ use super::mode::RobotMode;
 use super::io::{Actuation, RobotOutput};
 use crate::model::WheelSpeeds;
 use crate::protocol::fates::{FateLedger, bitmap_bit};
-use crate::protocol::{ConfirmTags, Confirmer, Direction, KeyBits, Message, Outcome, TAG_BYTES};
+use crate::protocol::{
+    Closing, ConfirmTags, Confirmer, Direction, KeyBits, Message, Outcome, TAG_BYTES,
+};
 
 /// The direction the robot sends in.
 const SENDS: Direction = Direction::ToController;
@@ -124,8 +126,8 @@ impl RobotLifecycle {
     }
 
     /// Sends a message to the controller.
-    pub(crate) fn send(&mut self, message: Message) {
-        self.outputs.push_back(RobotOutput::Transmit(message));
+    pub(crate) fn send(&mut self, message: impl Into<Message>) {
+        self.outputs.push_back(RobotOutput::Transmit(message.into()));
     }
 
     /// Drives the wheels.
@@ -171,7 +173,7 @@ impl RobotLifecycle {
     /// `Abort` stops the wheels and ends the session; anything else is ignored.
     pub(crate) fn on_message(
         &mut self,
-        message: Message,
+        message: Closing,
         confirmer: &Confirmer,
         mode: &dyn RobotMode,
     ) {
@@ -180,7 +182,7 @@ impl RobotLifecycle {
                 phase @ (RobotPhase::ExpectCommand
                 | RobotPhase::ExpectFinish
                 | RobotPhase::ExpectConfirm),
-                Message::Finish { codewords, bitmap },
+                Closing::Finish { codewords, bitmap },
             ) => {
                 if phase == RobotPhase::ExpectCommand {
                     // The stop command was lost: the Finish ends the run wherever it is.
@@ -188,7 +190,7 @@ impl RobotLifecycle {
                 }
                 if codewords != self.fates.len() {
                     let reason = mode.count_mismatch(codewords, self.fates.len());
-                    self.send(Message::Abort {
+                    self.send(Closing::Abort {
                         reason: reason.clone(),
                     });
                     self.finish(Outcome::Aborted(reason));
@@ -206,7 +208,7 @@ impl RobotLifecycle {
             }
             (
                 RobotPhase::ExpectConfirm,
-                Message::Confirm {
+                Closing::Confirm {
                     session_tag,
                     key_tag,
                 },
@@ -219,7 +221,7 @@ impl RobotLifecycle {
                 self.finish(outcome);
             }
             (RobotPhase::Done, _) => {}
-            (_, Message::Abort { reason }) => {
+            (_, Closing::Abort { reason }) => {
                 self.stop_wheels(self.next_command);
                 self.finish(Outcome::Aborted(format!("controller aborted: {reason}")));
             }
@@ -259,13 +261,13 @@ pub(crate) struct RobotCloser<'a> {
 
 impl RobotCloser<'_> {
     /// The answer to a `Finish`: `FinishAck`, then the robot's tags.
-    pub(crate) fn answer(&self) -> [Message; 2] {
+    pub(crate) fn answer(&self) -> [Closing; 2] {
         let ours = self
             .confirmer
             .tags(SENDS, self.bitmap, self.tagged_key);
         [
-            Message::FinishAck,
-            Message::Confirm {
+            Closing::FinishAck,
+            Closing::Confirm {
                 session_tag: ours.session,
                 key_tag: ours.key,
             },

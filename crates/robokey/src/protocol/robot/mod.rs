@@ -19,7 +19,7 @@ use self::mode::RobotMode;
 use self::odometry::OdometryRobot;
 use super::plan::{ModePlan, SessionPlan};
 use super::timing::{Pace, Time, Timing, earliest};
-use super::{Message, Outcome};
+use super::{Closing, Message, Outcome};
 use crate::model::Pose;
 use crate::private::PrivateRobot;
 
@@ -148,7 +148,7 @@ impl Robot {
                 "silence: no valid frame from the controller for {:.1} s",
                 self.clock.timing.silence_timeout.as_secs_f64()
             );
-            self.lifecycle.send(Message::Abort {
+            self.lifecycle.send(Closing::Abort {
                 reason: reason.clone(),
             });
             self.lifecycle.abort(reason);
@@ -199,10 +199,10 @@ impl Robot {
         let output = self.lifecycle.poll()?;
         if let RobotOutput::Transmit(message) = &output {
             match message {
-                Message::Confirm { .. } => self.last_confirm = Some(message.clone()),
-                Message::Measurement { .. } | Message::PrivateMeasurement { .. } => {
-                    self.last_report = Some(message.clone());
+                Message::Closing(Closing::Confirm { .. }) => {
+                    self.last_confirm = Some(message.clone());
                 }
+                Message::Session(_) => self.last_report = Some(message.clone()),
                 _ => {}
             }
         }
@@ -255,7 +255,7 @@ impl Robot {
     pub fn courtesy_reply(&self) -> Option<Vec<Message>> {
         let confirm = self.last_confirm.clone()?;
         let aborted = matches!(self.lifecycle.outcome(), Some(Outcome::Aborted(_)));
-        (!aborted).then(|| vec![Message::FinishAck, confirm])
+        (!aborted).then(|| vec![Closing::FinishAck.into(), confirm])
     }
 
     fn on_sample(&mut self, now: Time, step: u32, y: &Pose) {
@@ -278,17 +278,19 @@ impl Robot {
             return;
         }
         self.clock.last_frame = now;
-        // A repeated Ready (the controller has not heard the robot yet) needs nothing.
-        if message == Message::Ready {
-            return;
-        }
-        if let Some(message) =
-            self.mode
-                .on_message(&self.plan.agreed, &mut self.lifecycle, message)
-        {
-            let confirmer = self.plan.agreed.confirmer.clone();
-            self.lifecycle
-                .on_message(message, &confirmer, self.mode.as_ref());
+        match message {
+            Message::Session(message) => {
+                self.mode
+                    .on_message(&self.plan.agreed, &mut self.lifecycle, message);
+            }
+            Message::Closing(message) => {
+                let confirmer = self.plan.agreed.confirmer.clone();
+                self.lifecycle
+                    .on_message(message, &confirmer, self.mode.as_ref());
+            }
+            // A repeated Ready (the controller has not heard the robot yet) needs nothing;
+            // post-processing is not the session's.
+            Message::Handshake(_) | Message::Post(_) => {}
         }
     }
 

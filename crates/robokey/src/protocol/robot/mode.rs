@@ -4,7 +4,7 @@
 use super::lifecycle::RobotLifecycle;
 use crate::model::Pose;
 use crate::protocol::plan::Agreed;
-use crate::protocol::{FateLedger, KeyBits, Message, Outcome};
+use crate::protocol::{FateLedger, KeyBits, Outcome, SessionMessage};
 
 /// The part of a robot endpoint that depends on the sensing mode (odometry: codewords of
 /// command pairs; private sensing: doublets). The shared [`RobotLifecycle`] holds the rest.
@@ -14,14 +14,9 @@ pub(crate) trait RobotMode: Send {
     /// or stops at `k = N`).
     fn on_sample(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, step: u32, y: &Pose);
 
-    /// A message from the controller; the message back when the mode does not take it (it
-    /// then goes to the lifecycle's closing).
-    fn on_message(
-        &mut self,
-        agreed: &Agreed,
-        life: &mut RobotLifecycle,
-        message: Message,
-    ) -> Option<Message>;
+    /// A session message from the controller (its commands); one that does not fit the
+    /// robot's state is ignored.
+    fn on_message(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, message: SessionMessage);
 
     /// Step `step`'s command is missing at its deadline: the fallback.
     fn on_missing(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, step: u32);

@@ -9,7 +9,7 @@ use super::io::Actuation;
 use crate::code::low_mask;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use crate::protocol::plan::{Agreed, OdometryPlan};
-use crate::protocol::{FateLedger, KeyBits, Message, Outcome};
+use crate::protocol::{FateLedger, KeyBits, Outcome, SessionMessage};
 
 /// The odometry mode's part of a robot endpoint: the key's messages and codewords, which
 /// codewords it saw erased, and the last pair (held through a short gap).
@@ -109,7 +109,7 @@ impl RobotMode for OdometryRobot {
     fn on_sample(&mut self, _agreed: &Agreed, life: &mut RobotLifecycle, step: u32, y: &Pose) {
         let applied_step = life.applied_step.take();
         let fate_cursor = life.fates.cursor();
-        life.send(Message::Measurement {
+        life.send(SessionMessage::Measurement {
             step,
             y: (*y).into(),
             applied_step,
@@ -117,29 +117,21 @@ impl RobotMode for OdometryRobot {
         });
     }
 
-    fn on_message(
-        &mut self,
-        agreed: &Agreed,
-        life: &mut RobotLifecycle,
-        message: Message,
-    ) -> Option<Message> {
-        match message {
-            Message::Command {
-                step,
-                u0,
-                u1,
-                fates,
-            } if life.expects_command() => {
-                if step == life.next_command {
-                    for (index, accepted) in fates.iter() {
-                        self.record_fate(life, index, accepted);
-                    }
-                    self.command(agreed, life, step, u0.into(), u1.into());
-                }
-                // Otherwise stale, duplicate or from the future.
-                None
+    fn on_message(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, message: SessionMessage) {
+        if let SessionMessage::Command {
+            step,
+            u0,
+            u1,
+            fates,
+        } = message
+            // Otherwise stale, duplicate, from the future, or after the run.
+            && life.expects_command()
+            && step == life.next_command
+        {
+            for (index, accepted) in fates.iter() {
+                self.record_fate(life, index, accepted);
             }
-            message => Some(message),
+            self.command(agreed, life, step, u0.into(), u1.into());
         }
     }
 
@@ -222,12 +214,15 @@ mod tests {
     fn command(robot: &mut Robot, u0: [f64; 2], u1: [f64; 2]) -> Actuation {
         robot.handle_input(
             Time::ZERO,
-            RobotInput::Frame(Message::Command {
-                step: robot.next_command(),
-                u0,
-                u1,
-                fates: FateWindow::default(),
-            }),
+            RobotInput::Frame(
+                SessionMessage::Command {
+                    step: robot.next_command(),
+                    u0,
+                    u1,
+                    fates: FateWindow::default(),
+                }
+                .into(),
+            ),
         );
         match robot.poll_output() {
             Some(RobotOutput::Apply(actuation)) => actuation,
@@ -269,16 +264,19 @@ mod tests {
         let (u0, u1) = pair(&robot, Unicycle::new(0.1, 0.0));
         robot.handle_input(
             Time::ZERO,
-            RobotInput::Frame(Message::Command {
-                step: 0,
-                u0: u0.into(),
-                u1: u1.into(),
-                fates: FateWindow {
-                    first: u32::MAX - 3,
-                    count: 64,
-                    accepted: u64::MAX,
-                },
-            }),
+            RobotInput::Frame(
+                SessionMessage::Command {
+                    step: 0,
+                    u0: u0.into(),
+                    u1: u1.into(),
+                    fates: FateWindow {
+                        first: u32::MAX - 3,
+                        count: 64,
+                        accepted: u64::MAX,
+                    },
+                }
+                .into(),
+            ),
         );
         assert!(matches!(robot.poll_output(), Some(RobotOutput::Apply(a)) if !a.erased));
         assert_eq!(robot.lifecycle.fates.cursor(), 0);
