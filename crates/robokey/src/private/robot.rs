@@ -9,7 +9,7 @@ use super::plan::PrivatePlan;
 use crate::model::{Pose, Unicycle};
 use crate::protocol::plan::Agreed;
 use crate::protocol::robot::io::Actuation;
-use crate::protocol::robot::lifecycle::RobotLifecycle;
+use crate::protocol::robot::lifecycle::{ClosingRules, RobotLifecycle};
 use crate::protocol::robot::mode::RobotMode;
 use crate::protocol::{FateLedger, FateWindow, KeyBits, Outcome, SessionMessage};
 
@@ -142,6 +142,30 @@ impl PrivateRobot {
     }
 }
 
+impl ClosingRules for PrivateRobot {
+    /// One beyond the session was not carried.
+    fn keepable(&self, index: u32) -> bool {
+        self.carried.get(index as usize).copied().unwrap_or(false)
+    }
+
+    fn key(&self, fates: &FateLedger) -> KeyBits {
+        fates.accepted_key(&self.bits, usize::from(self.plan.perturbation.bits_per_doublet))
+    }
+
+    /// Raw bits are confirmed per post-processing block, never per session.
+    fn tags_cover_key(&self) -> bool {
+        false
+    }
+
+    fn verified(&self) -> Outcome {
+        Outcome::Kept
+    }
+
+    fn count_mismatch(&self, codewords: u32, len: u32) -> String {
+        format!("Finish covers {codewords} doublets, the session has {len}")
+    }
+}
+
 impl RobotMode for PrivateRobot {
     /// Reports which command was applied before `t_k`; applies a doublet's second input,
     /// or its fallback when the doublet's command never came; at `k = N` stops the wheels
@@ -214,28 +238,6 @@ impl RobotMode for PrivateRobot {
             _ => Unicycle::zeros(),
         };
         Self::apply(agreed, life, step, input, None, true);
-    }
-
-    /// One beyond the session was not carried.
-    fn keepable(&self, index: u32) -> bool {
-        self.carried.get(index as usize).copied().unwrap_or(false)
-    }
-
-    fn key(&self, fates: &FateLedger) -> KeyBits {
-        fates.accepted_key(&self.bits, usize::from(self.plan.perturbation.bits_per_doublet))
-    }
-
-    /// Raw bits are confirmed per post-processing block, never per session.
-    fn tags_cover_key(&self) -> bool {
-        false
-    }
-
-    fn verified(&self) -> Outcome {
-        Outcome::Kept
-    }
-
-    fn count_mismatch(&self, codewords: u32, len: u32) -> String {
-        format!("Finish covers {codewords} doublets, the session has {len}")
     }
 
     fn carried_bits(&self, doublet: u32) -> Option<[u8; 2]> {

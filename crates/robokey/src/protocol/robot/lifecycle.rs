@@ -5,7 +5,6 @@
 
 use std::collections::VecDeque;
 
-use super::mode::RobotMode;
 use super::io::{Actuation, RobotOutput};
 use crate::model::WheelSpeeds;
 use crate::protocol::fates::{FateLedger, bitmap_bit};
@@ -53,6 +52,25 @@ impl std::fmt::Debug for RobotLifecycle {
             .field("next_command", &self.next_command)
             .finish_non_exhaustive()
     }
+}
+
+/// How a sensing mode closes a session: which units its key keeps, and what its tags cover.
+pub(crate) trait ClosingRules {
+    /// Whether unit `index` may be kept: one the robot saw erased, or did not carry, never is.
+    fn keepable(&self, index: u32) -> bool;
+
+    /// The robot's key from the final fates.
+    fn key(&self, fates: &FateLedger) -> KeyBits;
+
+    /// Whether the confirmation tags cover the key (odometry) or not (private sensing: its
+    /// raw bits are confirmed per post-processing block).
+    fn tags_cover_key(&self) -> bool;
+
+    /// The outcome once the controller's tags verify.
+    fn verified(&self) -> Outcome;
+
+    /// The `Abort` reason for a `Finish` covering `codewords` units when the session has `len`.
+    fn count_mismatch(&self, codewords: u32, len: u32) -> String;
 }
 
 impl RobotLifecycle {
@@ -175,7 +193,7 @@ impl RobotLifecycle {
         &mut self,
         message: Closing,
         confirmer: &Confirmer,
-        mode: &dyn RobotMode,
+        mode: &dyn ClosingRules,
     ) {
         match (self.phase, message) {
             (
@@ -232,7 +250,7 @@ impl RobotLifecycle {
     fn closer<'a>(
         &'a self,
         confirmer: &'a Confirmer,
-        mode: &dyn RobotMode,
+        mode: &dyn ClosingRules,
         bitmap: &'a [u64],
     ) -> RobotCloser<'a> {
         RobotCloser {

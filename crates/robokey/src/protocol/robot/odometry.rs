@@ -3,7 +3,7 @@
 
 use rand::{CryptoRng, RngExt};
 
-use super::lifecycle::RobotLifecycle;
+use super::lifecycle::{ClosingRules, RobotLifecycle};
 use super::mode::RobotMode;
 use super::io::Actuation;
 use crate::code::low_mask;
@@ -105,6 +105,29 @@ impl OdometryRobot {
     }
 }
 
+impl ClosingRules for OdometryRobot {
+    /// One beyond the session counts as erased.
+    fn keepable(&self, index: u32) -> bool {
+        !self.erased.get(index as usize).copied().unwrap_or(true)
+    }
+
+    fn key(&self, fates: &FateLedger) -> KeyBits {
+        fates.accepted_key(&self.messages, self.plan.code.k())
+    }
+
+    fn tags_cover_key(&self) -> bool {
+        true
+    }
+
+    fn verified(&self) -> Outcome {
+        Outcome::Confirmed
+    }
+
+    fn count_mismatch(&self, codewords: u32, len: u32) -> String {
+        format!("Finish covers {codewords} codewords, the robot sent {len}")
+    }
+}
+
 impl RobotMode for OdometryRobot {
     fn on_sample(&mut self, _agreed: &Agreed, life: &mut RobotLifecycle, step: u32, y: &Pose) {
         let applied_step = life.applied_step.take();
@@ -157,27 +180,6 @@ impl RobotMode for OdometryRobot {
             bit: None,
             erased: true,
         });
-    }
-
-    /// One beyond the session counts as erased.
-    fn keepable(&self, index: u32) -> bool {
-        !self.erased.get(index as usize).copied().unwrap_or(true)
-    }
-
-    fn key(&self, fates: &FateLedger) -> KeyBits {
-        fates.accepted_key(&self.messages, self.plan.code.k())
-    }
-
-    fn tags_cover_key(&self) -> bool {
-        true
-    }
-
-    fn verified(&self) -> Outcome {
-        Outcome::Confirmed
-    }
-
-    fn count_mismatch(&self, codewords: u32, len: u32) -> String {
-        format!("Finish covers {codewords} codewords, the robot sent {len}")
     }
 
     fn carried_bits(&self, _doublet: u32) -> Option<[u8; 2]> {
