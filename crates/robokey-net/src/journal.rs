@@ -508,7 +508,10 @@ pub(crate) mod tests {
         spliced.extend_from_slice(&old[start..]);
         std::fs::write(&path, &spliced).unwrap();
         let (_, contents) = open(&path).unwrap();
-        assert_eq!(payloads(&contents), vec![b"only".to_vec(), b"then".to_vec()]);
+        assert_eq!(
+            payloads(&contents),
+            vec![b"only".to_vec(), b"then".to_vec()]
+        );
         assert_eq!(contents.torn_bytes, (old.len() - start) as u64);
         use std::os::unix::fs::PermissionsExt as _;
         let mode = std::fs::metadata(&path).unwrap().permissions().mode();

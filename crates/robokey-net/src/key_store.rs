@@ -345,13 +345,13 @@ impl KeyStore {
         let mut text = Zeroizing::new(String::new());
         file.read_to_string(&mut text)
             .map_err(|e| bad(format!("cannot be read: {e}")))?;
-        let (open, tail) = text
-            .rsplit_once(MAC_FIELD)
-            .ok_or_else(|| bad("has no MAC: not a key file of this robokey".into()))?;
+        let (open, tail) = text.rsplit_once(MAC_FIELD).ok_or_else(|| {
+            bad("does not verify: it has no MAC (not a key file this store wrote)".into())
+        })?;
         let tag = tail
             .strip_suffix("\"\n}\n")
             .and_then(unhex)
-            .ok_or_else(|| bad("its MAC is malformed".into()))?;
+            .ok_or_else(|| bad("does not verify: its MAC is malformed".into()))?;
         let body = Zeroizing::new(format!("{open}\n}}"));
         if tag.len() != 32 || !self.mac.verify(&[MAC_DOMAIN, body.as_bytes()], &tag) {
             return Err(bad(format!(

@@ -146,7 +146,9 @@ mod tests {
                 .to_string()
                 .contains("not a pairing file")
         );
-        let missing = read_pairing(&dir.join("nope"), false).unwrap_err().to_string();
+        let missing = read_pairing(&dir.join("nope"), false)
+            .unwrap_err()
+            .to_string();
         assert!(missing.contains("nope: missing"), "{missing}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -165,7 +167,10 @@ mod tests {
             std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
             let error = read_pairing(&path, false).unwrap_err().to_string();
             assert!(error.contains(&format!("mode {mode:03o}")), "{error}");
-            assert!(error.contains("chmod 600") && error.contains(INSECURE_FLAG), "{error}");
+            assert!(
+                error.contains("chmod 600") && error.contains(INSECURE_FLAG),
+                "{error}"
+            );
             let (read, warning) = read_pairing(&path, true).unwrap();
             assert_eq!(read.fingerprint(), secret.fingerprint());
             assert!(warning.unwrap().contains(&format!("mode {mode:03o}")));

@@ -310,10 +310,11 @@ fn a_forged_record_is_refused_and_writes_no_key() {
     store.persist(&mut state, &[]).unwrap();
     drop(store);
     let genuine = std::fs::read(dir.join("journal")).unwrap();
-    let last = genuine.len() - (genuine.len() - start).min(
-        // The last record: the state just appended.
-        HEADER_AND_TAG + encode_state(&state_without_pool(&state), &[1], &[]).len(),
-    );
+    let last = genuine.len()
+        - (genuine.len() - start).min(
+            // The last record: the state just appended.
+            HEADER_AND_TAG + encode_state(&state_without_pool(&state), &[1], &[]).len(),
+        );
     let mut inserted = genuine[..last].to_vec();
     inserted.extend_from_slice(&record);
     inserted.extend_from_slice(&genuine[last..]);
