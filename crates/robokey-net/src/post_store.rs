@@ -59,18 +59,28 @@ pub trait Snapshot: Serialize + DeserializeOwned {
     const ROLE: &'static str;
     /// The pooled sessions.
     fn pool(&self) -> &[(u32, BitString)];
-    /// Takes the pooled sessions out of the snapshot.
-    fn take_pool(&mut self) -> Vec<(u32, BitString)>;
-    /// Puts them back.
-    fn set_pool(&mut self, pool: Vec<(u32, BitString)>);
-    /// Marks `sessions` spent, dropping those pooled; returns how many were.
-    fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize;
+    /// The pooled sessions and the spent session IDs, to change.
+    fn ledger_mut(&mut self) -> (&mut Vec<(u32, BitString)>, &mut Vec<u32>);
     /// The block whose key awaits the peer here, if any.
     fn unsettled(&self) -> Option<Unsettled<'_>>;
     /// Whether `block`'s key was committed here.
     fn committed(&self, block: u64) -> bool;
     /// Whether `block` ended here without a key after its key was prepared.
     fn aborted(&self, block: u64) -> bool;
+
+    /// Takes the pooled sessions out of the snapshot.
+    fn take_pool(&mut self) -> Vec<(u32, BitString)> {
+        std::mem::take(self.ledger_mut().0)
+    }
+    /// Puts them back.
+    fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
+        *self.ledger_mut().0 = pool;
+    }
+    /// Marks `sessions` spent, dropping those pooled; returns how many were.
+    fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
+        let (pool, spent) = self.ledger_mut();
+        spend_in(pool, spent, sessions)
+    }
 }
 
 /// Drops `sessions` from `pool` and adds them to `spent`; how many were pooled.
@@ -81,11 +91,10 @@ fn spend_in(
 ) -> usize {
     let before = pool.len();
     pool.retain(|(id, _)| !sessions.contains(id));
-    let dropped = before - pool.len();
     spent.extend(sessions);
     spent.sort_unstable();
     spent.dedup();
-    dropped
+    before - pool.len()
 }
 
 impl Snapshot for RobotSnapshot {
@@ -93,14 +102,8 @@ impl Snapshot for RobotSnapshot {
     fn pool(&self) -> &[(u32, BitString)] {
         &self.pool
     }
-    fn take_pool(&mut self) -> Vec<(u32, BitString)> {
-        std::mem::take(&mut self.pool)
-    }
-    fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
-        self.pool = pool;
-    }
-    fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
-        spend_in(&mut self.pool, &mut self.spent, sessions)
+    fn ledger_mut(&mut self) -> (&mut Vec<(u32, BitString)>, &mut Vec<u32>) {
+        (&mut self.pool, &mut self.spent)
     }
     fn unsettled(&self) -> Option<Unsettled<'_>> {
         self.prepared.as_ref().map(|p| Unsettled {
@@ -124,12 +127,10 @@ impl Snapshot for ControllerSnapshot {
     fn pool(&self) -> &[(u32, BitString)] {
         &self.pool
     }
-    fn take_pool(&mut self) -> Vec<(u32, BitString)> {
-        std::mem::take(&mut self.pool)
+    fn ledger_mut(&mut self) -> (&mut Vec<(u32, BitString)>, &mut Vec<u32>) {
+        (&mut self.pool, &mut self.spent)
     }
-    fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
-        self.pool = pool;
-    }
+    /// Also forgets the spent sessions' Eve separations.
     fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
         self.separations.retain(|(id, _)| !sessions.contains(id));
         spend_in(&mut self.pool, &mut self.spent, sessions)

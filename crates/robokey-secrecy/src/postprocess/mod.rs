@@ -84,8 +84,9 @@ pub struct Settings {
     pub assumption: Assumption,
 }
 
-/// What happened to one block, for reports (both endpoints produce one).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// What happened to one block, for reports (both endpoints produce one). Its `Default` is
+/// block 0 with nothing done yet.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct BlockReport {
     /// Block number.
     pub block: u64,

@@ -257,6 +257,22 @@ impl Pair {
         self.assert_settled_keys_held_by_both("after a robot restart");
     }
 
+    /// A later session after messages were lost: both endpoints restarted from their stores
+    /// (`restart`), or the controller's timer (`timer`); it must settle every key alike.
+    fn later_session(&mut self, later: &str) {
+        if later == "restart" {
+            self.crash_robot();
+            self.crash_controller();
+        } else {
+            self.controller
+                .handle_input(ControllerInput::Timeout)
+                .unwrap();
+            self.collect();
+        }
+        assert!(self.settle(100_000, None), "{later}");
+        self.assert_same_keys(later);
+    }
+
     /// Delivers until the next message in flight is one `is_it` picks, and returns it, taken
     /// off the channel (lost); `None` if the exchange ended first.
     fn lose_next(&mut self, is_it: impl Fn(&Message) -> bool) -> Option<Message> {
@@ -492,20 +508,7 @@ fn a_lost_commit_leaves_both_keys_pending_until_a_later_session_settles_them() {
             Some(block)
         );
         assert_eq!(pair.robot.block_in_flight(), Some(block));
-        match later {
-            "restart" => {
-                pair.crash_robot();
-                pair.crash_controller();
-            }
-            _ => {
-                pair.controller
-                    .handle_input(ControllerInput::Timeout)
-                    .unwrap();
-                pair.collect();
-            }
-        }
-        assert!(pair.settle(100_000, None), "{later}");
-        pair.assert_same_keys(later);
+        pair.later_session(later);
         assert_eq!(pair.robot.block_in_flight(), None);
     }
 }
@@ -525,15 +528,6 @@ fn a_lost_commit_ack_leaves_the_controllers_key_pending_until_a_later_session() 
         assert!(controller.is_empty());
         assert_eq!(robot.len(), 1);
         assert_eq!(pair.robot.block_in_flight(), None);
-        if later == "restart" {
-            pair.crash_controller();
-        } else {
-            pair.controller
-                .handle_input(ControllerInput::Timeout)
-                .unwrap();
-            pair.collect();
-        }
-        assert!(pair.settle(100_000, None), "{later}");
-        pair.assert_same_keys(later);
+        pair.later_session(later);
     }
 }
