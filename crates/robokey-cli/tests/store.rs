@@ -470,3 +470,34 @@ fn open_pairing_files_planted_links_and_open_stores_are_refused() {
     assert_eq!(code, 2, "{text}");
     assert!(text.contains("belongs to the pairing"), "{text}");
 }
+
+/// The rollback: both journals restored from a copy taken before a key was made. The
+/// sessions the key came from are back in both pools, and are dropped there (a stored key
+/// lists them), so the next session makes no second key from them.
+#[test]
+fn journals_restored_from_an_older_copy_never_make_a_second_key_from_spent_bits() {
+    let dir = scratch("store-rollback");
+    let pairing = pairing(&dir);
+    let journal = |role: &str| dir.join(role).join("journal");
+    session(&dir, &pairing, 100, Attack::None);
+    let copies = ["robot", "controller"].map(|role| std::fs::read(journal(role)).unwrap());
+    let (codes, [_, controller]) = session(&dir, &pairing, 101, Attack::None);
+    assert_eq!(codes, [0, 0]);
+    assert_eq!(controller["post"]["keys"].as_array().unwrap().len(), 1);
+    let made = listed(&dir, &pairing, "controller");
+    let sources = made[0]["sessions"].clone();
+    for (role, copy) in ["robot", "controller"].iter().zip(&copies) {
+        std::fs::write(journal(role), copy).unwrap();
+    }
+    let (codes, reports) = session(&dir, &pairing, 102, Attack::None);
+    assert_eq!(codes, [0, 0]);
+    for r in &reports {
+        assert_eq!(r["post"]["sessions_already_spent"], 1, "{r}");
+        assert!(r["post"]["keys"].as_array().unwrap().is_empty(), "{r}");
+    }
+    for role in ["robot", "controller"] {
+        let keys = listed(&dir, &pairing, role);
+        assert_eq!(keys.len(), 1, "{role}: a second key");
+        assert_eq!(keys[0]["sessions"], sources);
+    }
+}

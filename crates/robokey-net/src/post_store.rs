@@ -255,7 +255,12 @@ impl<S: Snapshot> PostStore<S> {
         let (journal, contents) = match Journal::open(&path, &secrets.journal, &owner)? {
             Some((journal, contents)) => (journal, Some(contents)),
             None => (
-                Journal::create(&path, &secrets.journal, &owner, &[header.clone()])?,
+                Journal::create(
+                    &path,
+                    &secrets.journal,
+                    &owner,
+                    std::slice::from_ref(&header),
+                )?,
                 None,
             ),
         };
