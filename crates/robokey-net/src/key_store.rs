@@ -223,6 +223,17 @@ impl KeyStore {
         Ok(Stored::Present)
     }
 
+    /// Gives the stored key `id` the status `status`, replacing its file atomically.
+    ///
+    /// # Errors
+    /// No such key (a usage error), it does not verify, or the write fails.
+    pub fn restate(&self, id: &str, status: KeyStatus) -> Result<(), NetError> {
+        let mut key = self.get(id)?;
+        key.status = status;
+        secret_file::replace(&self.path(id), &self.seal(&key)?)?;
+        Ok(())
+    }
+
     /// Removes the pending key `id` (its block was aborted before the peer committed).
     ///
     /// # Errors

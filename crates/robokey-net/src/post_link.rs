@@ -575,6 +575,10 @@ impl PostReport {
             (r.keys_settled as u64, "pending keys settled"),
             (r.pending_removed as u64, "aborted pending keys removed"),
             (
+                r.pending_superseded as u64,
+                "pending keys the journal does not know marked superseded",
+            ),
+            (
                 r.sessions_already_spent as u64,
                 "pooled sessions dropped as sources of stored keys",
             ),

@@ -41,6 +41,10 @@ const AWAITING_COMMIT_ACK: &str = "committed here; the robot's acknowledgement (
                                    has not arrived";
 /// Why a robot's prepared key is pending.
 const AWAITING_COMMIT: &str = "prepared here; the controller's Commit has not arrived";
+/// Why a pending key the journal does not know stays pending.
+const SUPERSEDED: &str = "left pending by a journal that was since removed or restored from \
+                          an older copy: whether the peer acknowledged it can no longer be \
+                          told, so it is never delivered (remove the file once checked)";
 
 /// A block whose key awaits the peer.
 #[derive(Debug)]
@@ -170,6 +174,7 @@ enum Record<S> {
         snapshot: S,
         pooled: Vec<u32>,
         keys: Vec<StoredKey>,
+        pending: Vec<String>,
     },
 }
 
@@ -184,6 +189,9 @@ pub struct StoreRecovery {
     pub keys_settled: usize,
     /// Pending prepared keys of blocks the durable state had aborted, removed only now.
     pub pending_removed: usize,
+    /// Pending keys the journal does not know (it was removed or restored from an older copy),
+    /// marked so and never settled.
+    pub pending_superseded: usize,
     /// Pooled sessions dropped because a stored key already lists them as a source (the
     /// journal was restored from an older copy).
     pub sessions_already_spent: usize,
@@ -276,16 +284,16 @@ impl<S: Snapshot> PostStore<S> {
             pending: BTreeMap::new(),
             _snapshot: std::marker::PhantomData,
         };
+        let mut found = BTreeMap::new();
         for key in store.keys.list()? {
             store.sources.extend(&key.sessions);
             if let KeyStatus::Pending(reason) = &key.status {
-                store
-                    .pending
-                    .insert(key.id.clone(), pending_key(&key, reason));
+                found.insert(key.id.clone(), pending_key(&key, reason));
             }
         }
         let mut figures = StoreRecovery::default();
         let Some(contents) = contents else {
+            figures.pending_superseded = store.supersede(found.keys())?;
             return Ok((
                 store,
                 Recovery {
@@ -321,10 +329,12 @@ impl<S: Snapshot> PostStore<S> {
                     snapshot,
                     pooled,
                     keys,
-                } => state = Some((snapshot, pooled, keys)),
+                    pending,
+                } => state = Some((snapshot, pooled, keys, pending)),
             }
         }
-        let Some((mut snapshot, pooled, carried)) = state else {
+        let Some((mut snapshot, pooled, carried, known)) = state else {
+            figures.pending_superseded = store.supersede(found.keys())?;
             store.journal.rewrite(&[header])?;
             return Ok((
                 store,
@@ -343,10 +353,20 @@ impl<S: Snapshot> PostStore<S> {
             })
             .collect::<Result<Vec<_>, _>>()?;
         snapshot.set_pool(pool);
+        store.pending = found
+            .iter()
+            .filter(|(id, _)| known.contains(id))
+            .map(|(id, key)| (id.clone(), key.clone()))
+            .collect();
         let written = store.write_keys(&snapshot, &carried)?;
         figures.keys_recovered = written.written;
         figures.keys_settled = written.settled;
         figures.pending_removed = written.removed;
+        let unknown: Vec<&String> = found
+            .keys()
+            .filter(|id| !store.pending.contains_key(*id) && !carried.iter().any(|k| &k.id == *id))
+            .collect();
+        figures.pending_superseded = store.supersede(unknown)?;
         figures.sessions_already_spent = snapshot.spend(&store.sources.clone());
         store.compact(&mut snapshot)?;
         Ok((
@@ -419,11 +439,16 @@ impl<S: Snapshot> PostStore<S> {
             .iter()
             .map(|key| StoredKey::new(key, S::ROLE, self.restricted, status(snapshot, key.block)))
             .collect();
-        self.journal
-            .append(&encode_state(snapshot, &pooled, &stored))?;
+        self.journal.append(&encode_state(
+            snapshot,
+            &pooled,
+            &stored,
+            &self.pending_ids(),
+        ))?;
         let changed = self.write_keys(snapshot, &stored)?;
         if !stored.is_empty() || changed.any() {
-            self.journal.append(&encode_state(snapshot, &pooled, &[]))?;
+            self.journal
+                .append(&encode_state(snapshot, &pooled, &[], &self.pending_ids()))?;
         }
         Ok(stored)
     }
@@ -460,12 +485,8 @@ impl<S: Snapshot> PostStore<S> {
                 continue;
             }
             if snapshot.committed(pending.block) {
-                match self.keys.get(&id) {
-                    Ok(mut key) => {
-                        key.status = KeyStatus::Settled;
-                        self.keys.store(&key)?;
-                        changes.settled += 1;
-                    }
+                match self.keys.restate(&id, KeyStatus::Settled) {
+                    Ok(()) => changes.settled += 1,
                     // A pending key removed by hand is forgotten, not written again.
                     Err(NetError::Usage(_)) => {}
                     Err(error) => return Err(error),
@@ -479,6 +500,20 @@ impl<S: Snapshot> PostStore<S> {
             self.pending.remove(&id);
         }
         Ok(changes)
+    }
+
+    /// Marks the pending keys `ids` superseded (unless they are so already): the journal does
+    /// not know them, so nothing will ever settle them. Returns how many changed.
+    fn supersede<'a>(&self, ids: impl IntoIterator<Item = &'a String>) -> Result<usize, NetError> {
+        let mut changed = 0;
+        for id in ids {
+            if self.keys.get(id)?.status != KeyStatus::Pending(SUPERSEDED.to_owned()) {
+                self.keys
+                    .restate(id, KeyStatus::Pending(SUPERSEDED.to_owned()))?;
+                changed += 1;
+            }
+        }
+        Ok(changed)
     }
 
     /// Rewrites the journal with only what `snapshot` needs: the header, the pooled sessions'
@@ -499,11 +534,15 @@ impl<S: Snapshot> PostStore<S> {
                 bits: bits.clone(),
             })
         }));
-        records.push(encode_state(snapshot, &pooled, &[]));
+        records.push(encode_state(snapshot, &pooled, &[], &self.pending_ids()));
         snapshot.set_pool(pool);
         self.journal.rewrite(&records)?;
         self.journaled = pooled.into_iter().collect();
         Ok(())
+    }
+
+    fn pending_ids(&self) -> Vec<String> {
+        self.pending.keys().cloned().collect()
     }
 
     fn corrupt(&self, message: String) -> NetError {
@@ -548,10 +587,13 @@ fn encode<S: Serialize>(record: &Record<S>) -> Zeroizing<Vec<u8>> {
     Zeroizing::new(serde_json::to_vec(record).expect("a record always serialises"))
 }
 
+/// A `state` record: the snapshot, the sessions pooled, the keys its batch committed, and
+/// the IDs of the keys pending in `keys/`.
 fn encode_state<S: Serialize>(
     snapshot: &S,
     pooled: &[u32],
     keys: &[StoredKey],
+    pending: &[String],
 ) -> Zeroizing<Vec<u8>> {
     #[derive(Serialize)]
     #[serde(tag = "record", rename = "state")]
@@ -559,12 +601,14 @@ fn encode_state<S: Serialize>(
         snapshot: &'a S,
         pooled: &'a [u32],
         keys: &'a [StoredKey],
+        pending: &'a [String],
     }
     Zeroizing::new(
         serde_json::to_vec(&State {
             snapshot,
             pooled,
             keys,
+            pending,
         })
         .expect("a state always serialises"),
     )

@@ -277,7 +277,7 @@ fn a_forged_record_is_refused_and_writes_no_key() {
     let genuine = std::fs::read(dir.join("journal")).unwrap();
     // The attacker frames the record under a key of their own.
     let planted = StoredKey::new(&key(7, &[1]), "controller", false, KeyStatus::Settled);
-    let forged = encode_state(&controller(&[], &[7]), &[], &[planted]);
+    let forged = encode_state(&controller(&[], &[7]), &[], &[planted], &[]);
     let owner = format!("controller {}", pairing(1).fingerprint());
     let other = tempdir("post-store-forger");
     let theirs = StoreKeys::new(&pairing(9), "controller").journal;
@@ -300,7 +300,7 @@ fn a_forged_record_is_refused_and_writes_no_key() {
     let last = genuine.len()
         - (genuine.len() - start).min(
             // The last record: the state just appended.
-            HEADER_AND_TAG + encode_state(&state_without_pool(&state), &[1], &[]).len(),
+            HEADER_AND_TAG + encode_state(&state_without_pool(&state), &[1], &[], &[]).len(),
         );
     let mut inserted = genuine[..last].to_vec();
     inserted.extend_from_slice(&record);
@@ -320,4 +320,48 @@ fn state_without_pool(state: &ControllerSnapshot) -> ControllerSnapshot {
     let mut state = state.clone();
     state.pool.clear();
     state
+}
+
+/// A pending key the journal does not know — the journal was restored from a copy taken
+/// before the key's commit — is marked superseded and never settled, even when the same
+/// block number is committed again with another key.
+#[test]
+fn a_pending_key_a_restored_journal_does_not_know_is_never_settled() {
+    let dir = tempdir("post-store-superseded");
+    let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    let mut state = controller(&[], &[]);
+    store.persist(&mut state, &[]).unwrap();
+    drop(store);
+    let old = std::fs::read(dir.join("journal")).unwrap();
+    let (mut store, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    let mut state = recovery.snapshot.unwrap();
+    let committed = |state: &mut ControllerSnapshot| {
+        state.committed.push(0);
+        state.in_flight = Some(InFlight::Committed {
+            block: 0,
+            sessions: vec![1],
+        });
+    };
+    committed(&mut state);
+    store.persist(&mut state, &[key(0, &[1])]).unwrap();
+    drop(store);
+    std::fs::write(dir.join("journal"), &old).unwrap();
+    let (mut store, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    assert_eq!(recovery.figures.pending_superseded, 1);
+    assert!(store.pending().is_empty());
+    // Block 0 again, with another key, committed and acknowledged.
+    let mut state = recovery.snapshot.unwrap();
+    committed(&mut state);
+    let mut other = key(0, &[2]);
+    other.id = "00000000000000ff".into();
+    store.persist(&mut state, &[other.clone()]).unwrap();
+    state.in_flight = None;
+    store.persist(&mut state, &[]).unwrap();
+    let keys = keys_of(&dir, 1);
+    assert!(keys.deliver(&other.id).unwrap().is_settled());
+    let error = keys.deliver(&key(0, &[]).id).unwrap_err().to_string();
+    assert!(error.contains("restored from an older copy"), "{error}");
+    drop(store);
+    let (_, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    assert_eq!(recovery.figures.pending_superseded, 0, "marked once");
 }
