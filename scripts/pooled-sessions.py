@@ -158,16 +158,19 @@ def kill_robot_at_commit(robot, out_path):
 
 
 def stores_agree(a):
-    """Both stores list the same IDs, and every key has the same bits on both sides."""
+    """Both stores list the same IDs with the same status (settled, or pending: the peer has
+    not acknowledged it yet), and every settled key has the same bits on both sides."""
     lists = {}
     for role in ("robot", "controller"):
         lists[role] = json.loads(robokey("keys", "list", "--json", "--store",
-                                         os.path.join(a.out, role)).stdout)
-    ids = sorted(k["id"] for k in lists["controller"])
-    if ids != sorted(k["id"] for k in lists["robot"]):
+                                         os.path.join(a.out, role), "--pairing",
+                                         a.pairing).stdout)
+    listed = sorted((k["id"], k["status"]) for k in lists["controller"])
+    if listed != sorted((k["id"], k["status"]) for k in lists["robot"]):
         return False, lists
-    for key_id in ids:
-        bits = {role: robokey("keys", "get", "--store", os.path.join(a.out, role), key_id).stdout
+    for key_id in (i for i, status in listed if status == "settled"):
+        bits = {role: robokey("keys", "get", "--store", os.path.join(a.out, role), "--pairing",
+                              a.pairing, key_id).stdout
                 for role in ("robot", "controller")}
         if bits["robot"] != bits["controller"]:
             return False, lists
@@ -253,8 +256,9 @@ def main():
     agree, lists = stores_agree(a)
     print(f"stores agree: {agree}")
     for role in ("robot", "controller"):
-        print(f"$ robokey keys list --store {a.out}/{role}")
-        print(robokey("keys", "list", "--store", os.path.join(a.out, role)).stdout, end="")
+        print(f"$ robokey keys list --store {a.out}/{role} --pairing {a.pairing}")
+        print(robokey("keys", "list", "--store", os.path.join(a.out, role), "--pairing",
+                      a.pairing).stdout, end="")
     if not agree:
         sys.exit("the stores differ")
     rng = random.Random(a.seed)

@@ -14,6 +14,9 @@ pub enum Status {
     NoKey,
     /// No peer proved it holds the pairing secret (exit 4).
     AuthenticationFailed,
+    /// The session confirmed its key, but post-processing left a block or a final key in
+    /// flight, pending until a later session settles it (exit 5).
+    InFlight,
     /// Stopped by signal `n` after saving what it had (exit 128 + n: 130 for SIGINT, 143
     /// for SIGTERM).
     Interrupted(usize),
@@ -32,10 +35,17 @@ macro_rules! usage {
 }
 pub(crate) use usage;
 
-/// Exit code of a failure: 2 when the input was wrong, 1 otherwise (I/O, a runtime error).
+/// Exit code of a failure: 5 for a pending key (`keys get`, `keys delete`), 2 when the input
+/// was wrong, 1 otherwise (I/O, a runtime error, a store file that does not verify).
 fn failure_code(error: &anyhow::Error) -> u8 {
     use robokey_lab::LabError;
     use robokey_net::NetError;
+    if error
+        .chain()
+        .any(|cause| matches!(cause.downcast_ref::<NetError>(), Some(NetError::Pending(_))))
+    {
+        return 5;
+    }
     let usage = error.chain().any(|cause| {
         cause.is::<Usage>()
             || cause.is::<robokey::config::ConfigError>()
@@ -64,6 +74,7 @@ pub fn code(result: anyhow::Result<Status>) -> ExitCode {
         Ok(Status::Success) => ExitCode::SUCCESS,
         Ok(Status::NoKey) => ExitCode::from(3),
         Ok(Status::AuthenticationFailed) => ExitCode::from(4),
+        Ok(Status::InFlight) => ExitCode::from(5),
         Ok(Status::Interrupted(signal)) => ExitCode::from(128 + (signal as u8 & 0x7f)),
         Err(error) => {
             eprintln!("error: {error:#}");

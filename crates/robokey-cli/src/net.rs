@@ -70,6 +70,10 @@ pub struct SessionArgs {
     /// controller: every frame of the session is authenticated with it.
     #[arg(long, value_name = "FILE")]
     pairing: Option<PathBuf>,
+    /// Use a pairing file that group or others may read or write, or that another user owns
+    /// (refused by default, as ssh refuses such a private key; fix it with `chmod 600`).
+    #[arg(long, requires = "pairing")]
+    insecure_pairing_file: bool,
     /// Run without a pairing: anyone on the network can impersonate either side, inject
     /// commands and learn the key. Every output is labelled "passive adversary only".
     #[arg(long, conflicts_with = "pairing")]
@@ -79,13 +83,7 @@ pub struct SessionArgs {
 impl SessionArgs {
     fn pairing(&self) -> Result<PairingSecret> {
         match (&self.pairing, self.unauthenticated) {
-            (Some(path), _) => {
-                let (secret, warning) = read_pairing(path)?;
-                if let Some(warning) = warning {
-                    eprintln!("{warning}");
-                }
-                Ok(secret)
-            }
+            (Some(path), _) => pairing_from(path, self.insecure_pairing_file),
             (None, true) => {
                 eprintln!(
                     "warning: --unauthenticated: anyone on the network can impersonate either side, \
@@ -127,6 +125,7 @@ impl SessionArgs {
         }
         Ok(match report.ending {
             Ending::Confirmed | Ending::Kept => Status::Success,
+            Ending::InFlight => Status::InFlight,
             Ending::NoKey => Status::NoKey,
             Ending::AuthenticationFailed => Status::AuthenticationFailed,
             Ending::Interrupted => Status::Interrupted(interrupt.signal().unwrap_or(2)),
@@ -137,6 +136,16 @@ impl SessionArgs {
             ),
         })
     }
+}
+
+/// Reads the pairing file `path` (refused if others may access it, unless `insecure`),
+/// printing any warning.
+pub fn pairing_from(path: &std::path::Path, insecure: bool) -> Result<PairingSecret> {
+    let (secret, warning) = read_pairing(path, insecure)?;
+    if let Some(warning) = warning {
+        eprintln!("{warning}");
+    }
+    Ok(secret)
 }
 
 #[derive(Args, Debug)]

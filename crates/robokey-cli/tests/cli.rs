@@ -205,6 +205,13 @@ fn pairing_is_required_written_once_and_checked() {
     ]);
     assert!(err.contains("nope: missing"), "{err}");
     std::fs::write(dir.join("short.key"), "robokey-pairing-v1 00ff\n").unwrap();
+    #[cfg(unix)]
+    {
+        // Private, as the agents require of a pairing file, so that its format is checked.
+        use std::os::unix::fs::PermissionsExt;
+        let private = std::fs::Permissions::from_mode(0o600);
+        std::fs::set_permissions(dir.join("short.key"), private).unwrap();
+    }
     let err = fails(&[
         "controller",
         "--robot",

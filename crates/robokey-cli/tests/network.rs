@@ -90,13 +90,18 @@ fn session_with_agent_args(
     if let Some(relay) = relay_process {
         wait(relay);
     }
-    // Each side's exit code says how its session ended: 0 with a key, 3 without.
+    // Each side's exit code says how its session ended: 0 with a key, 5 with a key and a
+    // post-processing block left in flight, 3 without.
     for (code, json, output) in [
         (controller_code, &controller_report, &text),
         (robot_code, &robot_report, &robot_text),
     ] {
         let ending = report(Path::new(json))["ending"].clone();
-        let expected = if ending == "confirmed" { 0 } else { 3 };
+        let expected = match ending.as_str() {
+            Some("confirmed") => 0,
+            Some("in-flight") => 5,
+            _ => 3,
+        };
         assert_eq!(code, expected, "{ending}: {output}");
     }
     dir
@@ -540,7 +545,14 @@ fn odometry_blocks_end_without_a_key_and_a_restricted_assumption_needs_its_flag(
         }
     }
     for role in ["robot", "controller"] {
-        let (ok, text) = run(&["keys", "list", "--store", &store(role, "learning")]);
+        let (ok, text) = run(&[
+            "keys",
+            "list",
+            "--store",
+            &store(role, "learning"),
+            "--pairing",
+            &pairing,
+        ]);
         assert!(ok, "{text}");
         assert_eq!(text.trim(), "no keys");
     }
@@ -583,6 +595,8 @@ fn odometry_blocks_end_without_a_key_and_a_restricted_assumption_needs_its_flag(
             "--json",
             "--store",
             &store(role, "restricted"),
+            "--pairing",
+            &pairing,
         ]);
         assert!(ok, "{text}");
         serde_json::from_str::<Vec<serde_json::Value>>(&text).unwrap()
@@ -679,14 +693,30 @@ fn an_agent_killed_at_its_commit_leaves_the_stores_agreeing_after_the_next_sessi
         let _ = robot.child.wait();
         session_with_stores(&format!("commit-kill-{victim}-2"), 62, &pairing, &settings);
         let keys = |role: &str| -> Vec<(String, String)> {
-            let (ok, text) = run(&["keys", "list", "--json", "--store", &store(role)]);
+            let (ok, text) = run(&[
+                "keys",
+                "list",
+                "--json",
+                "--store",
+                &store(role),
+                "--pairing",
+                &pairing,
+            ]);
             assert!(ok, "{text}");
             let listed: Vec<serde_json::Value> = serde_json::from_str(&text).unwrap();
             listed
                 .iter()
                 .map(|k| {
                     let id = k["id"].as_str().unwrap().to_owned();
-                    let (ok, hex) = run(&["keys", "get", "--store", &store(role), &id]);
+                    let (ok, hex) = run(&[
+                        "keys",
+                        "get",
+                        "--store",
+                        &store(role),
+                        "--pairing",
+                        &pairing,
+                        &id,
+                    ]);
                     assert!(ok, "{hex}");
                     (id, hex)
                 })

@@ -199,7 +199,15 @@ impl Stores {
 
     /// `robokey keys list --json` of a role's store.
     fn keys(&self, role: &str) -> Vec<serde_json::Value> {
-        let (ok, text) = run(&["keys", "list", "--store", &self.store(role), "--json"]);
+        let (ok, text) = run(&[
+            "keys",
+            "list",
+            "--store",
+            &self.store(role),
+            "--pairing",
+            &self.pairing,
+            "--json",
+        ]);
         assert!(ok, "{text}");
         serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"))
     }
@@ -431,7 +439,15 @@ fn pooled_private_sessions_become_the_same_final_keys_in_both_stores() {
     for key in &controller_keys {
         let id = key["id"].as_str().unwrap();
         let get = |role: &str| {
-            let (ok, text) = run(&["keys", "get", "--store", &stores.store(role), id]);
+            let (ok, text) = run(&[
+                "keys",
+                "get",
+                "--store",
+                &stores.store(role),
+                "--pairing",
+                &stores.pairing,
+                id,
+            ]);
             assert!(ok, "{text}");
             text.trim().to_owned()
         };
@@ -446,9 +462,25 @@ fn pooled_private_sessions_become_the_same_final_keys_in_both_stores() {
     }
     // A deleted key is gone from one store only: the IDs still name the same keys.
     let first = controller_keys[0]["id"].as_str().unwrap();
-    let (ok, text) = run(&["keys", "delete", "--store", &stores.store("robot"), first]);
+    let (ok, text) = run(&[
+        "keys",
+        "delete",
+        "--store",
+        &stores.store("robot"),
+        "--pairing",
+        &stores.pairing,
+        first,
+    ]);
     assert!(ok, "{text}");
-    let (code, text) = run_code(&["keys", "get", "--store", &stores.store("robot"), first]);
+    let (code, text) = run_code(&[
+        "keys",
+        "get",
+        "--store",
+        &stores.store("robot"),
+        "--pairing",
+        &stores.pairing,
+        first,
+    ]);
     assert_eq!(code, 2, "{text}");
     assert!(text.contains("no key"), "{text}");
 }

@@ -146,7 +146,7 @@ pub fn run_controller(
             if let Some(error) = ended.post_error {
                 report.post_stopped(&error);
             }
-            report.post = post;
+            report.set_post(post);
             Ok(report)
         }
         Err(error) => {
@@ -158,7 +158,7 @@ pub fn run_controller(
             );
             report.set_error(&error);
             report.count_frames(&transport);
-            report.post = post;
+            report.set_post(post);
             Ok(report)
         }
     }

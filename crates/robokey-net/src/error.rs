@@ -35,6 +35,9 @@ pub enum NetError {
         /// What is wrong.
         message: String,
     },
+    /// A key is pending: the peer has not acknowledged it, so it is withheld.
+    #[error("{0}")]
+    Pending(String),
     /// Bad command-line or configuration input.
     #[error("{0}")]
     Usage(String),

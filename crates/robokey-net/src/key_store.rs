@@ -1,15 +1,45 @@
-//! The final keys of a store (`DIR/keys/`): one file per key, `ID.key`, JSON, mode 0600,
-//! written all or nothing (docs/postprocessing.md, "Key store"). Both agents name a key by
-//! the same ID, so an application finds the same key on the robot and on the controller.
+//! The final keys of a store (`DIR/keys/`): one file per key, `ID.key`, mode 0600, written
+//! all or nothing (docs/postprocessing.md, "Key store"). Both agents name a key by the same
+//! ID, so an application finds the same key on the robot and on the controller.
+//!
+//! A key file is the key's JSON with a last field `mac`: HMAC-SHA256 under the store's
+//! key-file key ([`crate::store_keys`], derived from the pairing secret and the role) over
+//! `"robokey key file v2" ‖` the JSON before that field, exactly as written. A file that
+//! does not verify — planted, edited, another pairing's or role's — is refused by name and
+//! never reported as a commit; so is any name that exists already (a file, a link, a dangling
+//! link) when a key is written, unless it is this very key. A key is `pending` while the peer
+//! has not acknowledged it, and only a `settled` key is delivered.
 
+use std::fs::OpenOptions;
+use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use robokey_secrecy::postprocess::FinalKey;
 use serde::{Deserialize, Serialize};
-use zeroize::Zeroize;
+use zeroize::{Zeroize, Zeroizing};
 
 use crate::error::NetError;
+use crate::owned_file::{self, ANY_ACCESS_BY_OTHERS};
 use crate::secret_file;
+use crate::store_keys::StoreMac;
+
+/// Domain of a key file's MAC.
+const MAC_DOMAIN: &[u8] = b"robokey key file v2";
+/// What separates a key file's JSON from its MAC.
+const MAC_FIELD: &str = ",\n  \"mac\": \"";
+/// Longest ID an error message quotes in full.
+const QUOTED_ID: usize = 24;
+
+/// Whether a key may be delivered to applications.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum KeyStatus {
+    /// Both sides committed it: deliverable.
+    Settled,
+    /// Committed or prepared here, not yet acknowledged by the peer (the reason): withheld
+    /// until the acknowledgement or a later session settles it.
+    Pending(String),
+}
 
 /// One final key as stored. Its `Debug` omits the bits.
 #[derive(Clone, PartialEq, Serialize, Deserialize)]
@@ -35,6 +65,8 @@ pub struct StoredKey {
     pub created: String,
     /// The sessions whose raw bits it came from.
     pub sessions: Vec<u32>,
+    /// Settled, or pending and why.
+    pub status: KeyStatus,
 }
 
 impl std::fmt::Debug for StoredKey {
@@ -45,6 +77,7 @@ impl std::fmt::Debug for StoredKey {
             .field("block", &self.block)
             .field("bits", &self.bits)
             .field("restricted", &self.restricted)
+            .field("status", &self.status)
             .finish_non_exhaustive()
     }
 }
@@ -56,9 +89,9 @@ impl Drop for StoredKey {
 }
 
 impl StoredKey {
-    /// The stored form of `key`, committed now by `role`.
+    /// The stored form of `key`, committed (or prepared) now by `role`.
     #[must_use]
-    pub fn new(key: &FinalKey, role: &str, restricted: bool) -> Self {
+    pub fn new(key: &FinalKey, role: &str, restricted: bool, status: KeyStatus) -> Self {
         let mut hex = String::with_capacity(key.key.len().div_ceil(4));
         let mut bytes = vec![0_u8; key.key.len().div_ceil(8)];
         for i in 0..key.key.len() {
@@ -81,68 +114,149 @@ impl StoredKey {
             restricted,
             created: utc_now(),
             sessions: key.sessions.clone(),
+            status,
         }
+    }
+
+    /// Whether it may be delivered.
+    #[must_use]
+    pub fn is_settled(&self) -> bool {
+        self.status == KeyStatus::Settled
+    }
+
+    /// Whether `other` is the same key (ID, block, sessions, bits), whatever its status.
+    fn same_key(&self, other: &Self) -> bool {
+        (&self.id, self.block, &self.sessions, &self.hex)
+            == (&other.id, other.block, &other.sessions, &other.hex)
     }
 }
 
-/// The key folder of a store.
+/// What [`KeyStore::store`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stored {
+    /// The file was written.
+    Written,
+    /// This key was stored already, as settled as asked or more.
+    Present,
+    /// This key was stored pending and is now settled.
+    Settled,
+}
+
+/// The key folder of a store, for one role and pairing.
 #[derive(Clone, Debug)]
 pub struct KeyStore {
     dir: PathBuf,
+    mac: StoreMac,
+    role: String,
 }
 
 impl KeyStore {
-    /// The key folder of the store at `store` (`store/keys`), created (0700) if missing.
+    /// The key folder of the store at `store` (`store/keys`), created (0700) if missing;
+    /// `mac` is the store's key-file key for `role`.
     ///
     /// # Errors
-    /// The folder cannot be created.
-    pub fn create(store: &Path) -> Result<Self, NetError> {
+    /// The folder cannot be created, or it is a link, another user's or writable by others.
+    pub fn create(store: &Path, mac: &StoreMac, role: &str) -> Result<Self, NetError> {
         let dir = store.join("keys");
         create_private_dir(&dir)?;
-        Ok(Self { dir })
+        Self::open(store, mac, role)
     }
 
     /// The key folder of an existing store.
     ///
     /// # Errors
-    /// `store` is not a store (no `keys` folder).
-    pub fn open(store: &Path) -> Result<Self, NetError> {
+    /// `store` is not a store (no `keys` folder), or a folder is a link, another user's or
+    /// writable by others.
+    pub fn open(store: &Path, mac: &StoreMac, role: &str) -> Result<Self, NetError> {
         let dir = store.join("keys");
-        if !dir.is_dir() {
+        owned_file::check_folder(store, "store")?;
+        if std::fs::symlink_metadata(&dir).is_err() {
             return Err(NetError::Usage(format!(
                 "{} is not a key store (no keys/ folder; agents create it with --store)",
                 store.display()
             )));
         }
-        Ok(Self { dir })
+        owned_file::check_inner_folder(&dir, "key folder")?;
+        Ok(Self {
+            dir,
+            mac: mac.clone(),
+            role: role.to_owned(),
+        })
     }
 
     fn path(&self, id: &str) -> PathBuf {
         self.dir.join(format!("{id}.key"))
     }
 
-    /// Writes `key` unless a key of its ID is stored already (a recovery that writes a
-    /// committed key again changes nothing).
+    /// Stores `key`: writes its file if its name is free; if this very key is stored
+    /// already, leaves it (settling it if it was pending and `key` is settled). Never writes
+    /// over anything else.
     ///
     /// # Errors
-    /// The write fails.
-    pub fn write(&self, key: &StoredKey) -> Result<(), NetError> {
+    /// The name is taken by a link, a file that does not verify, or another key (named: it
+    /// is then not reported as committed); a write fails.
+    pub fn store(&self, key: &StoredKey) -> Result<Stored, NetError> {
         let path = self.path(&key.id);
-        if path.exists() {
-            return Ok(());
+        let text = self.seal(key)?;
+        if secret_file::create(&path, &text)? {
+            return Ok(Stored::Written);
         }
-        let mut text = serde_json::to_vec_pretty(key).expect("a key always serialises");
-        text.push(b'\n');
-        let written = secret_file::write_new(&path, &text);
-        text.zeroize();
-        written
+        let existing = self.read(&path, &key.id).map_err(|error| NetError::Store {
+            path: path.display().to_string(),
+            message: format!(
+                "the name of key {} is taken by something this store did not write ({error}): \
+                 refusing to report the key as committed; remove it, and the agent writes \
+                 the key from its journal when it next opens the store",
+                key.id
+            ),
+        })?;
+        if !existing.same_key(key) {
+            return Err(NetError::Store {
+                path: path.display().to_string(),
+                message: format!("holds another key under the ID {}", key.id),
+            });
+        }
+        if key.is_settled() && !existing.is_settled() {
+            secret_file::replace(&path, &text)?;
+            return Ok(Stored::Settled);
+        }
+        Ok(Stored::Present)
     }
 
-    /// Every stored key, by block then ID: the same order in both agents' stores (creation
-    /// times differ between the sides, and after a crash).
+    /// Gives the stored key `id` the status `status`, replacing its file atomically.
     ///
     /// # Errors
-    /// The folder or a key file cannot be read, or a key file is malformed (named).
+    /// No such key (a usage error), it does not verify, or the write fails.
+    pub fn restate(&self, id: &str, status: KeyStatus) -> Result<(), NetError> {
+        let mut key = self.get(id)?;
+        key.status = status;
+        secret_file::replace(&self.path(id), &self.seal(&key)?)?;
+        Ok(())
+    }
+
+    /// Removes the pending key `id` (its block was aborted before the peer committed).
+    ///
+    /// # Errors
+    /// The key is settled, does not verify, or the removal fails.
+    pub fn remove_pending(&self, id: &str) -> Result<(), NetError> {
+        let path = self.path(id);
+        let key = self.read(&path, id)?;
+        if key.is_settled() {
+            return Err(NetError::Store {
+                path: path.display().to_string(),
+                message: "is settled: only a pending key is removed when its block aborts".into(),
+            });
+        }
+        remove_durably(&path, &self.dir)
+    }
+
+    /// Every stored key, verified, by block then ID: the same order in both agents' stores
+    /// (creation times differ between the sides, and after a crash). Temporary files of
+    /// interrupted writes (`.NAME.tmp`) are skipped.
+    ///
+    /// # Errors
+    /// The folder cannot be read, or a `.key` entry is a link, not this store's or malformed
+    /// (named).
     pub fn list(&self) -> Result<Vec<StoredKey>, NetError> {
         let entries = std::fs::read_dir(&self.dir)
             .map_err(NetError::io(format!("read {}", self.dir.display())))?;
@@ -151,59 +265,156 @@ impl KeyStore {
             let path = entry
                 .map_err(NetError::io(format!("read {}", self.dir.display())))?
                 .path();
-            if path.extension().is_some_and(|e| e == "key") {
-                keys.push(read_key(&path)?);
+            let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+            let Some(id) = name.as_deref().and_then(|n| n.strip_suffix(".key")) else {
+                continue;
+            };
+            if !id.starts_with('.') {
+                keys.push(self.read(&path, id)?);
             }
         }
         keys.sort_by(|a, b| (a.block, &a.id).cmp(&(b.block, &b.id)));
         Ok(keys)
     }
 
-    /// The key `id`.
+    /// The key `id`, verified, whatever its status.
     ///
     /// # Errors
-    /// No such key (a usage error naming it), or its file is unreadable or malformed.
+    /// No such key (a usage error naming it), or its file does not verify.
     pub fn get(&self, id: &str) -> Result<StoredKey, NetError> {
-        read_key(&self.existing(id)?)
+        let path = self.existing(id)?;
+        self.read(&path, id)
     }
 
-    /// Deletes the key `id` durably.
+    /// The key `id` for an application: settled only.
     ///
     /// # Errors
-    /// No such key, or the removal fails.
+    /// As [`Self::get`], or [`NetError::Pending`] naming the key and why it is pending.
+    pub fn deliver(&self, id: &str) -> Result<StoredKey, NetError> {
+        let key = self.get(id)?;
+        match &key.status {
+            KeyStatus::Settled => Ok(key),
+            KeyStatus::Pending(reason) => Err(NetError::Pending(format!(
+                "key {id} is pending — {reason} — and is withheld until the acknowledgement \
+                 or a later session settles it (`robokey keys list` shows its state)"
+            ))),
+        }
+    }
+
+    /// Deletes the settled key `id` durably.
+    ///
+    /// # Errors
+    /// No such key, it is pending ([`NetError::Pending`]), it does not verify, or the
+    /// removal fails.
     pub fn delete(&self, id: &str) -> Result<(), NetError> {
-        let path = self.existing(id)?;
-        std::fs::remove_file(&path)
-            .and_then(|()| std::fs::File::open(&self.dir)?.sync_all())
-            .map_err(NetError::io(format!("delete {}", path.display())))
+        self.deliver(id)?;
+        remove_durably(&self.path(id), &self.dir)
     }
 
     fn existing(&self, id: &str) -> Result<PathBuf, NetError> {
         let valid = id.len() == 16 && id.bytes().all(|b| b.is_ascii_hexdigit());
         let path = self.path(id);
-        if !valid || !path.is_file() {
+        if !valid || std::fs::symlink_metadata(&path).is_err() {
             return Err(NetError::Usage(format!(
-                "no key {id:?} in {} (IDs are 16 hex digits; `robokey keys list` shows them)",
+                "no key {} in {} (IDs are 16 hex digits; `robokey keys list` shows them)",
+                brief(id),
                 self.dir.display()
             )));
         }
         Ok(path)
     }
+
+    /// `key` as its file's text: its JSON, then the MAC over it.
+    fn seal(&self, key: &StoredKey) -> Result<Zeroizing<Vec<u8>>, NetError> {
+        if key.role != self.role {
+            return Err(NetError::Usage(format!(
+                "a {} key cannot be stored in a {} store",
+                key.role, self.role
+            )));
+        }
+        let body = Zeroizing::new(serde_json::to_string_pretty(key).expect("a key serialises"));
+        let open = body
+            .strip_suffix("\n}")
+            .expect("a pretty JSON object ends so");
+        let tag = self.mac.tag(&[MAC_DOMAIN, body.as_bytes()]);
+        let mut text = Zeroizing::new(Vec::with_capacity(body.len() + 100));
+        text.extend_from_slice(open.as_bytes());
+        text.extend_from_slice(MAC_FIELD.as_bytes());
+        text.extend_from_slice(hex(&tag).as_bytes());
+        text.extend_from_slice(b"\"\n}\n");
+        Ok(text)
+    }
+
+    /// Reads and verifies the key file `path` of ID `id`.
+    fn read(&self, path: &Path, id: &str) -> Result<StoredKey, NetError> {
+        let bad = |message: String| NetError::Store {
+            path: path.display().to_string(),
+            message,
+        };
+        let mut file = owned_file::open(path, OpenOptions::new().read(true), "key file")?;
+        owned_file::check_file(&file, path, "key file", ANY_ACCESS_BY_OTHERS)?;
+        let mut text = Zeroizing::new(String::new());
+        file.read_to_string(&mut text)
+            .map_err(|e| bad(format!("cannot be read: {e}")))?;
+        let (open, tail) = text.rsplit_once(MAC_FIELD).ok_or_else(|| {
+            bad("does not verify: it has no MAC (not a key file this store wrote)".into())
+        })?;
+        let tag = tail
+            .strip_suffix("\"\n}\n")
+            .and_then(unhex)
+            .ok_or_else(|| bad("does not verify: its MAC is malformed".into()))?;
+        let body = Zeroizing::new(format!("{open}\n}}"));
+        if tag.len() != 32 || !self.mac.verify(&[MAC_DOMAIN, body.as_bytes()], &tag) {
+            return Err(bad(format!(
+                "does not verify under this pairing's {} key-file key: not written by this \
+                 store (planted, edited, or another pairing's or role's)",
+                self.role
+            )));
+        }
+        let key: StoredKey =
+            serde_json::from_str(&body).map_err(|e| bad(format!("is malformed: {e}")))?;
+        if key.id != id || key.role != self.role {
+            return Err(bad(format!(
+                "holds the {} key {}, not {} key {id}",
+                key.role, key.id, self.role
+            )));
+        }
+        Ok(key)
+    }
 }
 
-fn read_key(path: &Path) -> Result<StoredKey, NetError> {
-    let text = secret_file::read(path, "key")?;
-    serde_json::from_str(&text).map_err(|e| NetError::Store {
-        path: path.display().to_string(),
-        message: format!("not a robokey key file: {e}"),
-    })
+/// `id` as an error quotes it: whole if short, else its start and its length.
+fn brief(id: &str) -> String {
+    if id.chars().count() <= QUOTED_ID {
+        return format!("{id:?}");
+    }
+    let start: String = id.chars().take(QUOTED_ID).collect();
+    format!("{start:?}… ({} characters)", id.chars().count())
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn unhex(text: &str) -> Option<Vec<u8>> {
+    if !text.len().is_multiple_of(2) || !text.is_ascii() {
+        return None;
+    }
+    (0..text.len() / 2)
+        .map(|i| u8::from_str_radix(&text[2 * i..2 * i + 2], 16).ok())
+        .collect()
+}
+
+fn remove_durably(path: &Path, dir: &Path) -> Result<(), NetError> {
+    std::fs::remove_file(path)
+        .and_then(|()| std::fs::File::open(dir)?.sync_all())
+        .map_err(NetError::io(format!("delete {}", path.display())))
 }
 
 /// Creates `dir` (and its parents) readable by its owner only, if missing.
 pub(crate) fn create_private_dir(dir: &Path) -> Result<(), NetError> {
     let mut builder = std::fs::DirBuilder::new();
     builder.recursive(true);
-    #[cfg(unix)]
     std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
     builder
         .create(dir)
@@ -242,8 +453,9 @@ fn utc(seconds: u64) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use robokey::protocol::auth::PairingSecret;
     use robokey_secrecy::BitString;
 
     #[test]
@@ -253,11 +465,12 @@ mod tests {
         assert_eq!(utc(1_795_000_000), "2026-11-18T11:06:40Z");
     }
 
-    #[test]
-    fn keys_are_written_once_listed_got_and_deleted_by_id() {
-        let dir = crate::journal::tests::tempdir("keystore");
-        let store = KeyStore::create(&dir).unwrap();
-        let final_key = FinalKey {
+    pub(crate) fn mac(seed: u8, role: &str) -> StoreMac {
+        StoreMac::derive(&PairingSecret::from_bytes(&[seed; 32]), "key-file", role)
+    }
+
+    fn final_key() -> FinalKey {
+        FinalKey {
             id: "00112233aabbccdd".into(),
             block: 3,
             key: BitString::from_bools(&[
@@ -266,22 +479,167 @@ mod tests {
             sessions: vec![7, 9],
             epsilon: 4e-6,
             assumption: "stated".into(),
-        };
-        let key = StoredKey::new(&final_key, "robot", false);
-        assert_eq!(key.hex, "b080");
-        store.write(&key).unwrap();
-        // A second write of the same ID keeps the first.
-        let mut other = key.clone();
+        }
+    }
+
+    #[test]
+    fn keys_are_written_once_settled_listed_delivered_and_deleted_by_id() {
+        let dir = crate::journal::tests::tempdir("keystore");
+        let store = KeyStore::create(&dir, &mac(1, "robot"), "robot").unwrap();
+        let pending = StoredKey::new(
+            &final_key(),
+            "robot",
+            false,
+            KeyStatus::Pending("prepared".into()),
+        );
+        assert_eq!(pending.hex, "b080");
+        assert_eq!(store.store(&pending).unwrap(), Stored::Written);
+        assert_eq!(store.store(&pending).unwrap(), Stored::Present);
+        // A pending key is listed, got, and withheld from delivery and deletion.
+        assert_eq!(store.list().unwrap(), vec![pending.clone()]);
+        let withheld = store.deliver(&pending.id).unwrap_err();
+        assert!(matches!(withheld, NetError::Pending(_)), "{withheld}");
+        assert!(withheld.to_string().contains("prepared"), "{withheld}");
+        assert!(matches!(
+            store.delete(&pending.id),
+            Err(NetError::Pending(_))
+        ));
+        // Settling replaces it; a pending write after that changes nothing.
+        let mut settled = pending.clone();
+        settled.status = KeyStatus::Settled;
+        assert_eq!(store.store(&settled).unwrap(), Stored::Settled);
+        assert_eq!(store.store(&pending).unwrap(), Stored::Present);
+        assert_eq!(store.deliver(&settled.id).unwrap(), settled);
+        // Another key under the same ID is refused.
+        let mut other = settled.clone();
         other.hex = "ffff".into();
-        store.write(&other).unwrap();
-        assert_eq!(store.get(&key.id).unwrap(), key);
-        assert_eq!(store.list().unwrap(), vec![key.clone()]);
+        let error = store.store(&other).unwrap_err().to_string();
+        assert!(error.contains("another key"), "{error}");
+        assert!(store.remove_pending(&settled.id).is_err());
         for bad in ["nope", "00112233aabbccde", "../keys/x"] {
             let error = store.get(bad).unwrap_err().to_string();
             assert!(error.contains("no key"), "{error}");
         }
-        store.delete(&key.id).unwrap();
+        store.delete(&settled.id).unwrap();
         assert!(store.list().unwrap().is_empty());
-        assert!(store.delete(&key.id).is_err());
+        assert!(store.delete(&settled.id).is_err());
+    }
+
+    #[test]
+    fn a_five_thousand_character_id_is_named_briefly() {
+        let dir = crate::journal::tests::tempdir("keystore-long");
+        let store = KeyStore::create(&dir, &mac(1, "robot"), "robot").unwrap();
+        let error = store.get(&"a".repeat(5000)).unwrap_err().to_string();
+        assert!(error.contains("(5000 characters)"), "{error}");
+        assert!(error.len() < 200, "{} characters: {error}", error.len());
+    }
+
+    /// Whatever an attacker beside the store puts under a key's name — a file of their own,
+    /// a link, a dangling link, another pairing's or role's genuine key file, an edited one —
+    /// the write fails naming it, and no listing or delivery accepts it.
+    #[test]
+    fn a_planted_name_is_never_taken_for_the_key() {
+        let dir = crate::journal::tests::tempdir("keystore-planted");
+        let store = KeyStore::create(&dir, &mac(1, "robot"), "robot").unwrap();
+        let key = StoredKey::new(&final_key(), "robot", false, KeyStatus::Settled);
+        let path = dir.join("keys").join(format!("{}.key", key.id));
+        let victim = dir.join("victim");
+        std::fs::write(&victim, b"attacker's bits").unwrap();
+        let forged = {
+            let other = KeyStore::create(
+                &crate::journal::tests::tempdir("keystore-other"),
+                &mac(2, "robot"),
+                "robot",
+            )
+            .unwrap();
+            String::from_utf8(other.seal(&key).unwrap().to_vec()).unwrap()
+        };
+        let controllers = {
+            let mut theirs = key.clone();
+            theirs.role = "controller".into();
+            let other = KeyStore::create(
+                &crate::journal::tests::tempdir("keystore-role"),
+                &mac(1, "controller"),
+                "controller",
+            )
+            .unwrap();
+            String::from_utf8(other.seal(&theirs).unwrap().to_vec()).unwrap()
+        };
+        let genuine = String::from_utf8(store.seal(&key).unwrap().to_vec()).unwrap();
+        let edited = genuine.replace(&key.hex, "ffff");
+        type Plant<'a> = Box<dyn Fn(&Path) + 'a>;
+        let plants: Vec<(&str, Plant<'_>)> = vec![
+            (
+                "a file",
+                Box::new(|p| std::fs::write(p, b"{\"hex\": \"ff\"}").unwrap()),
+            ),
+            (
+                "a link",
+                Box::new(|p| std::os::unix::fs::symlink(&victim, p).unwrap()),
+            ),
+            (
+                "a dangling link",
+                Box::new(|p| std::os::unix::fs::symlink(dir.join("nowhere"), p).unwrap()),
+            ),
+            (
+                "another pairing's key",
+                Box::new(move |p| std::fs::write(p, &forged).unwrap()),
+            ),
+            (
+                "another role's key",
+                Box::new(move |p| std::fs::write(p, &controllers).unwrap()),
+            ),
+            (
+                "an edited key",
+                Box::new(move |p| std::fs::write(p, &edited).unwrap()),
+            ),
+        ];
+        use std::os::unix::fs::PermissionsExt as _;
+        for (what, plant) in &plants {
+            plant(&path);
+            if !std::fs::symlink_metadata(&path)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+            {
+                std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+            }
+            let error = store.store(&key).unwrap_err().to_string();
+            assert!(
+                error.contains("refusing to report the key as committed"),
+                "{what}: {error}"
+            );
+            assert!(store.list().is_err(), "{what}");
+            assert!(store.deliver(&key.id).is_err(), "{what}");
+            assert_eq!(
+                std::fs::read(&victim).unwrap(),
+                b"attacker's bits",
+                "{what}"
+            );
+            assert!(!dir.join("nowhere").exists(), "{what}");
+            std::fs::remove_file(&path).unwrap();
+        }
+        // The name freed, the key is written.
+        assert_eq!(store.store(&key).unwrap(), Stored::Written);
+        assert_eq!(store.deliver(&key.id).unwrap().hex, "b080");
+    }
+
+    #[test]
+    fn a_key_folder_others_can_write_or_that_is_a_link_is_refused() {
+        use std::os::unix::fs::PermissionsExt as _;
+        let dir = crate::journal::tests::tempdir("keystore-modes");
+        KeyStore::create(&dir, &mac(1, "robot"), "robot").unwrap();
+        std::fs::set_permissions(dir.join("keys"), std::fs::Permissions::from_mode(0o777)).unwrap();
+        let error = KeyStore::open(&dir, &mac(1, "robot"), "robot")
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("mode 777"), "{error}");
+        std::fs::remove_dir(dir.join("keys")).unwrap();
+        let elsewhere = crate::journal::tests::tempdir("keystore-elsewhere");
+        std::os::unix::fs::symlink(&elsewhere, dir.join("keys")).unwrap();
+        let error = KeyStore::create(&dir, &mac(1, "robot"), "robot")
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("symbolic link"), "{error}");
     }
 }

@@ -12,6 +12,7 @@ pub mod fuzzing;
 pub mod journal;
 pub mod key_store;
 pub mod khepera;
+pub mod owned_file;
 pub mod pairing;
 pub mod pcap;
 pub mod pose_stream;
@@ -25,6 +26,7 @@ pub mod secret_file;
 pub mod sensor;
 pub mod session;
 pub mod sim_backend;
+pub mod store_keys;
 pub mod transport;
 pub mod world;
 

@@ -10,17 +10,18 @@ use std::time::Instant;
 
 use robokey::Config;
 use robokey::post_settings::post_settings;
-use robokey::protocol::auth::Delivery;
+use robokey::protocol::auth::{Delivery, PairingSecret};
 use robokey::protocol::{Message, Outcome, PostFragment};
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
-    self, Assumption, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, FinalKey,
+    self, Assumption, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, InFlight,
     Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot, Settings,
 };
 use serde::Serialize;
 
 use crate::error::NetError;
-use crate::post_store::{PostStore, Snapshot};
+use crate::key_store::{KeyStatus, StoredKey};
+use crate::post_store::{PendingKey, PostStore, Snapshot, StoreRecovery};
 use crate::session::{Courtesy, Timing, os_rng};
 use crate::transport::Transport;
 
@@ -54,6 +55,8 @@ pub trait PostEndpoint: Sized {
     fn frame(&mut self, message: postprocess::Message);
     /// The next output.
     fn poll_output(&mut self) -> Option<Output>;
+    /// The block left in flight here, and what settles it, if any.
+    fn in_flight(&self) -> Option<String>;
 }
 
 impl PostEndpoint for ControllerPost {
@@ -85,6 +88,21 @@ impl PostEndpoint for ControllerPost {
     fn poll_output(&mut self) -> Option<Output> {
         ControllerPost::poll_output(self)
     }
+    fn in_flight(&self) -> Option<String> {
+        Some(match self.snapshot().in_flight? {
+            InFlight::Started { block, .. } => {
+                format!("block {block} proposed and not committed: the next session aborts it")
+            }
+            InFlight::Aborting { block, .. } => format!(
+                "block {block} aborted here, the robot's AbortAck has not arrived: the next \
+                 session repeats the Abort"
+            ),
+            InFlight::Committed { block, .. } => format!(
+                "block {block} committed here, its key pending: the robot's CommitAck has not \
+                 arrived; the next session repeats the Commit"
+            ),
+        })
+    }
 }
 
 impl PostEndpoint for RobotPost {
@@ -106,6 +124,20 @@ impl PostEndpoint for RobotPost {
     }
     fn poll_output(&mut self) -> Option<Output> {
         RobotPost::poll_output(self)
+    }
+    fn in_flight(&self) -> Option<String> {
+        let block = self.block_in_flight()?;
+        Some(if self.snapshot().prepared.is_some() {
+            format!(
+                "block {block} prepared here, its key pending: the controller's Commit has not \
+                 arrived; the next session commits or aborts it"
+            )
+        } else {
+            format!(
+                "block {block} was being reconciled; nothing of it is stored: the next \
+                 session aborts it"
+            )
+        })
     }
 }
 
@@ -129,12 +161,17 @@ pub struct PostReport {
     pub block_bits: usize,
     /// Blocks that ended during this run.
     pub blocks: Vec<BlockSummary>,
-    /// Keys committed during this run (IDs).
+    /// Keys committed during this run (IDs), pending or settled.
     pub keys: Vec<String>,
-    /// Bytes of a torn journal tail cut when the store opened (a crash during a write).
-    pub torn_bytes: u64,
-    /// Committed keys written to `keys/` only when the store opened (a crash came between).
-    pub keys_recovered: usize,
+    /// Keys pending in the store when the run ended: committed or prepared here, not yet
+    /// acknowledged by the peer, withheld from `keys get` until a later session settles them.
+    pub pending_keys: Vec<PendingKey>,
+    /// The block this run left in flight, and what settles it (the exit code is then 5).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub in_flight: Option<String>,
+    /// What opening the store found and repaired.
+    #[serde(flatten)]
+    pub recovery: StoreRecovery,
     /// Post-processing messages sent (retransmissions included).
     pub messages_sent: u32,
     /// Whole messages received and handed to the endpoint (which may ignore a stale one).
@@ -210,7 +247,7 @@ impl<E: PostEndpoint> PostSide<E> {
     pub fn for_agent(
         config: &Config,
         store: Option<&std::path::PathBuf>,
-        pairing: &robokey::protocol::auth::PairingSecret,
+        pairing: &PairingSecret,
         allow_restricted: bool,
     ) -> Result<Option<Self>, NetError> {
         let Some(dir) = store else {
@@ -223,11 +260,11 @@ impl<E: PostEndpoint> PostSide<E> {
                     .into(),
             ));
         }
-        Self::open(config, dir, &pairing.fingerprint(), allow_restricted).map(Some)
+        Self::open(config, dir, pairing, allow_restricted).map(Some)
     }
 
-    /// Opens the store at `dir` and restores the endpoint from it, for the pairing of
-    /// `fingerprint`. A restricted assumption needs `allow_restricted`.
+    /// Opens the store at `dir` and restores the endpoint from it, for `pairing`. A
+    /// restricted assumption needs `allow_restricted`.
     ///
     /// # Errors
     /// A restricted assumption without `allow_restricted`; the store cannot be opened
@@ -235,7 +272,7 @@ impl<E: PostEndpoint> PostSide<E> {
     pub fn open(
         config: &Config,
         dir: &Path,
-        fingerprint: &str,
+        pairing: &PairingSecret,
         allow_restricted: bool,
     ) -> Result<Self, NetError> {
         let settings = post_settings(config);
@@ -249,7 +286,7 @@ impl<E: PostEndpoint> PostSide<E> {
                 config.postprocess.assumed_eve_error.unwrap_or_default()
             )));
         }
-        let (store, recovery) = PostStore::open(dir, fingerprint, restricted)?;
+        let (store, recovery) = PostStore::open(dir, pairing, restricted)?;
         let mut seed = [0_u8; 32];
         rand::RngExt::fill(&mut os_rng()?, &mut seed[..]);
         let endpoint = match recovery.snapshot {
@@ -268,18 +305,12 @@ impl<E: PostEndpoint> PostSide<E> {
             },
             restricted,
             block_bits: settings.block_bits,
-            torn_bytes: recovery.torn_bytes,
-            keys_recovered: recovery.keys_recovered,
+            pending_keys: store.pending(),
+            recovery: recovery.figures,
             ..PostReport::default()
         };
-        if recovery.torn_bytes > 0 || recovery.keys_recovered > 0 {
-            eprintln!(
-                "store {}: recovered after a crash ({} torn bytes cut, {} committed keys \
-                 written now)",
-                dir.display(),
-                recovery.torn_bytes,
-                recovery.keys_recovered
-            );
+        if let Some(recovered) = report.recovered() {
+            eprintln!("store {}: {recovered}", dir.display());
         }
         Ok(Self {
             endpoint,
@@ -297,6 +328,12 @@ impl<E: PostEndpoint> PostSide<E> {
     pub fn pool(&mut self, id: u32, outcome: Option<&Outcome>, bits: &[u8], separation: f64) {
         if !matches!(outcome, Some(Outcome::Confirmed | Outcome::Kept)) {
             self.report.not_pooled = Some("the session was not confirmed".into());
+            return;
+        }
+        if self.store.is_source(id) {
+            let why = format!("session {id:08x} is a source of a stored key: its bits are spent");
+            println!("{}: {why}", self.role);
+            self.report.not_pooled = Some(why);
             return;
         }
         let before = pool_bits(&self.endpoint.snapshot());
@@ -345,6 +382,7 @@ impl<E: PostEndpoint> PostSide<E> {
         if persist || !keys.is_empty() {
             let mut snapshot = self.endpoint.snapshot();
             for key in self.store.persist(&mut snapshot, &keys)? {
+                announce_key(&key);
                 self.report.keys.push(key.id.clone());
             }
             self.report.pool_bits = pool_bits(&snapshot);
@@ -352,7 +390,6 @@ impl<E: PostEndpoint> PostSide<E> {
                 self.store.compact(&mut snapshot)?;
             }
         }
-        announce_keys(&keys, self.role);
         let sent = !sends.is_empty();
         for message in &sends {
             self.send(transport, message)?;
@@ -443,11 +480,13 @@ impl<E: PostEndpoint> PostSide<E> {
         }
     }
 
-    /// The report, with the pool as it stands.
+    /// The report, with the pool, the pending keys and the block in flight as they stand.
     #[must_use]
     pub fn finish(self) -> PostReport {
         let mut report = self.report;
         report.pool_bits = pool_bits(&self.endpoint.snapshot());
+        report.pending_keys = self.store.pending();
+        report.in_flight = self.endpoint.in_flight();
         report
     }
 }
@@ -510,15 +549,60 @@ fn pool_bits<S: Snapshot>(snapshot: &S) -> usize {
     snapshot.pool().iter().map(|(_, bits)| bits.len()).sum()
 }
 
-/// Prints the keys committed in a batch.
-fn announce_keys(keys: &[FinalKey], role: &str) {
-    for key in keys {
-        println!(
-            "{role}: key {} committed: {} bits, ε {:.0e}, secret under: {}",
-            key.id,
-            key.key.len(),
-            key.epsilon,
-            key.assumption
+/// Prints a key committed in a batch, and whether it is pending.
+fn announce_key(key: &StoredKey) {
+    let status = match &key.status {
+        KeyStatus::Settled => "settled".to_owned(),
+        KeyStatus::Pending(reason) => format!("pending ({reason})"),
+    };
+    println!(
+        "{}: key {} committed: {} bits, ε {:.0e}, {status}, secret under: {}",
+        key.role, key.id, key.bits, key.epsilon, key.assumption
+    );
+}
+
+impl PostReport {
+    /// What opening the store repaired, in words, if anything.
+    #[must_use]
+    pub fn recovered(&self) -> Option<String> {
+        let r = &self.recovery;
+        let parts: Vec<String> = [
+            (r.torn_bytes, "torn journal bytes cut"),
+            (r.keys_recovered as u64, "committed keys written"),
+            (r.keys_settled as u64, "pending keys settled"),
+            (r.pending_removed as u64, "aborted pending keys removed"),
+            (
+                r.pending_superseded as u64,
+                "pending keys the journal does not know marked superseded",
+            ),
+            (
+                r.sessions_already_spent as u64,
+                "pooled sessions dropped as sources of stored keys",
+            ),
+        ]
+        .iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, what)| format!("{n} {what}"))
+        .collect();
+        (!parts.is_empty()).then(|| format!("recovered on opening: {}", parts.join(", ")))
+    }
+
+    /// One clause for the agent's terminal line: keys, pending keys, the block in flight and
+    /// what the store recovered.
+    #[must_use]
+    pub fn line(&self) -> String {
+        let mut line = format!(
+            "post-processing: {} keys committed, {} pending in the store, {} bits pooled",
+            self.keys.len(),
+            self.pending_keys.len(),
+            self.pool_bits
         );
+        if let Some(in_flight) = &self.in_flight {
+            line += &format!("; left in flight: {in_flight}");
+        }
+        if let Some(recovered) = self.recovered() {
+            line += &format!("; {recovered}");
+        }
+        line
     }
 }

@@ -1,6 +1,9 @@
 //! An agent's post-processing store (`--store DIR`): the pool of raw session bits and the
-//! post-processing endpoint's durable state in a [`Journal`], the final keys in a
-//! [`KeyStore`] (docs/postprocessing.md, "The store").
+//! post-processing endpoint's durable state in an authenticated [`Journal`], the final keys
+//! in a [`KeyStore`] (docs/postprocessing.md, "The store"). Both are keyed by the pairing
+//! secret and the role ([`StoreKeys`]): whoever can write beside the store but does not hold
+//! the pairing secret can delete or roll back what is there, never make the agent accept
+//! or report something it did not write.
 //!
 //! Records: a header (role, pairing fingerprint), one `session` record per pooled session
 //! (its raw bits, written once), and `state` records (the endpoint's snapshot without the
@@ -8,22 +11,51 @@
 //! `state` record is the durable state; a session not named by it was never pooled. A key is
 //! committed by the `state` record that carries it and then written to `keys/`; recovery
 //! writes again any key a last `state` record carries, so a crash between the two loses
-//! nothing. The journal is compacted when the store opens and after every block: spent raw
-//! bits and settled keys leave the file.
+//! nothing. A key is stored `pending` while the state says its block awaits the peer (the
+//! controller's key until the robot's `CommitAck`, the robot's prepared key until the
+//! `Commit`), and settled (or, for an aborted prepared key, removed) once the state says
+//! otherwise. A session that a stored key lists as a source is never pooled again, even if
+//! the journal was restored from an older copy. The journal is compacted when the store
+//! opens and after every block: spent raw bits and settled keys leave the file.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::fs::File;
+use std::fs::{File, OpenOptions};
+use std::io::{BufRead as _, BufReader, Read as _};
 use std::path::{Path, PathBuf};
 
+use robokey::protocol::auth::PairingSecret;
 use robokey_secrecy::BitString;
-use robokey_secrecy::postprocess::{ControllerSnapshot, FinalKey, RobotSnapshot};
+use robokey_secrecy::postprocess::{ControllerSnapshot, FinalKey, InFlight, RobotSnapshot};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use zeroize::Zeroizing;
 
 use crate::error::NetError;
 use crate::journal::Journal;
-use crate::key_store::{KeyStore, StoredKey, create_private_dir};
+use crate::key_store::{KeyStatus, KeyStore, Stored, StoredKey, create_private_dir};
+use crate::owned_file::{self, WRITABLE_BY_OTHERS};
+use crate::store_keys::StoreKeys;
+
+/// Why a controller's committed key is pending.
+const AWAITING_COMMIT_ACK: &str = "committed here; the robot's acknowledgement (CommitAck) \
+                                   has not arrived";
+/// Why a robot's prepared key is pending.
+const AWAITING_COMMIT: &str = "prepared here; the controller's Commit has not arrived";
+/// Why a pending key the journal does not know stays pending.
+const SUPERSEDED: &str = "left pending by a journal that was since removed or restored from \
+                          an older copy: whether the peer acknowledged it can no longer be \
+                          told, so it is never delivered (remove the file once checked)";
+
+/// A block whose key awaits the peer.
+#[derive(Debug)]
+pub struct Unsettled<'a> {
+    /// The block.
+    pub block: u64,
+    /// Its key, when the durable state holds it (the robot's prepared key).
+    pub key: Option<&'a FinalKey>,
+    /// Why it is pending.
+    pub reason: &'static str,
+}
 
 /// A post-processing endpoint's durable state.
 pub trait Snapshot: Serialize + DeserializeOwned {
@@ -31,32 +63,100 @@ pub trait Snapshot: Serialize + DeserializeOwned {
     const ROLE: &'static str;
     /// The pooled sessions.
     fn pool(&self) -> &[(u32, BitString)];
+    /// The pooled sessions and the spent session IDs, to change.
+    fn ledger_mut(&mut self) -> (&mut Vec<(u32, BitString)>, &mut Vec<u32>);
+    /// The block whose key awaits the peer here, if any.
+    fn unsettled(&self) -> Option<Unsettled<'_>>;
+    /// Whether `block`'s key was committed here.
+    fn committed(&self, block: u64) -> bool;
+    /// Whether `block` ended here without a key after its key was prepared.
+    fn aborted(&self, block: u64) -> bool;
+
     /// Takes the pooled sessions out of the snapshot.
-    fn take_pool(&mut self) -> Vec<(u32, BitString)>;
+    fn take_pool(&mut self) -> Vec<(u32, BitString)> {
+        std::mem::take(self.ledger_mut().0)
+    }
     /// Puts them back.
-    fn set_pool(&mut self, pool: Vec<(u32, BitString)>);
+    fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
+        *self.ledger_mut().0 = pool;
+    }
+    /// Marks `sessions` spent, dropping those pooled; returns how many were.
+    fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
+        let (pool, spent) = self.ledger_mut();
+        spend_in(pool, spent, sessions)
+    }
 }
 
-/// Both endpoints' snapshots keep their pool in a `pool` field.
-macro_rules! snapshot {
-    ($snapshot:ty, $role:literal) => {
-        impl Snapshot for $snapshot {
-            const ROLE: &'static str = $role;
-            fn pool(&self) -> &[(u32, BitString)] {
-                &self.pool
-            }
-            fn take_pool(&mut self) -> Vec<(u32, BitString)> {
-                std::mem::take(&mut self.pool)
-            }
-            fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
-                self.pool = pool;
-            }
+/// Drops `sessions` from `pool` and adds them to `spent`; how many were pooled.
+fn spend_in(
+    pool: &mut Vec<(u32, BitString)>,
+    spent: &mut Vec<u32>,
+    sessions: &BTreeSet<u32>,
+) -> usize {
+    let before = pool.len();
+    pool.retain(|(id, _)| !sessions.contains(id));
+    spent.extend(sessions);
+    spent.sort_unstable();
+    spent.dedup();
+    before - pool.len()
+}
+
+impl Snapshot for RobotSnapshot {
+    const ROLE: &'static str = "robot";
+    fn pool(&self) -> &[(u32, BitString)] {
+        &self.pool
+    }
+    fn ledger_mut(&mut self) -> (&mut Vec<(u32, BitString)>, &mut Vec<u32>) {
+        (&mut self.pool, &mut self.spent)
+    }
+    fn unsettled(&self) -> Option<Unsettled<'_>> {
+        self.prepared.as_ref().map(|p| Unsettled {
+            block: p.block,
+            key: Some(&p.key),
+            reason: AWAITING_COMMIT,
+        })
+    }
+    fn committed(&self, block: u64) -> bool {
+        self.committed.contains(&block)
+    }
+    fn aborted(&self, block: u64) -> bool {
+        !self.committed(block)
+            && self.prepared.as_ref().is_none_or(|p| p.block != block)
+            && self.highest_block.is_some_and(|h| h >= block)
+    }
+}
+
+impl Snapshot for ControllerSnapshot {
+    const ROLE: &'static str = "controller";
+    fn pool(&self) -> &[(u32, BitString)] {
+        &self.pool
+    }
+    fn ledger_mut(&mut self) -> (&mut Vec<(u32, BitString)>, &mut Vec<u32>) {
+        (&mut self.pool, &mut self.spent)
+    }
+    /// Also forgets the spent sessions' Eve separations.
+    fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
+        self.separations.retain(|(id, _)| !sessions.contains(id));
+        spend_in(&mut self.pool, &mut self.spent, sessions)
+    }
+    fn unsettled(&self) -> Option<Unsettled<'_>> {
+        match self.in_flight {
+            Some(InFlight::Committed { block, .. }) => Some(Unsettled {
+                block,
+                key: None,
+                reason: AWAITING_COMMIT_ACK,
+            }),
+            _ => None,
         }
-    };
+    }
+    fn committed(&self, block: u64) -> bool {
+        self.committed.contains(&block)
+    }
+    /// A controller never aborts a block it committed.
+    fn aborted(&self, _block: u64) -> bool {
+        false
+    }
 }
-
-snapshot!(RobotSnapshot, "robot");
-snapshot!(ControllerSnapshot, "controller");
 
 /// One journal record.
 #[derive(Serialize, Deserialize)]
@@ -73,8 +173,28 @@ enum Record<S> {
     State {
         snapshot: S,
         pooled: Vec<u32>,
-        pending: Vec<StoredKey>,
+        keys: Vec<StoredKey>,
+        pending: Vec<String>,
     },
+}
+
+/// What opening a store found and repaired, for the reports.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct StoreRecovery {
+    /// Bytes of a torn journal tail that were cut (a crash during an append).
+    pub torn_bytes: u64,
+    /// Committed (or prepared) keys written to `keys/` only now (a crash came between).
+    pub keys_recovered: usize,
+    /// Pending keys the durable state had settled, settled only now.
+    pub keys_settled: usize,
+    /// Pending prepared keys of blocks the durable state had aborted, removed only now.
+    pub pending_removed: usize,
+    /// Pending keys the journal does not know (it was removed or restored from an older copy),
+    /// marked so and never settled.
+    pub pending_superseded: usize,
+    /// Pooled sessions dropped because a stored key already lists them as a source (the
+    /// journal was restored from an older copy).
+    pub sessions_already_spent: usize,
 }
 
 /// What opening a store recovered.
@@ -82,97 +202,180 @@ enum Record<S> {
 pub struct Recovery<S> {
     /// The durable state, pool included (`None` for a new store).
     pub snapshot: Option<S>,
-    /// Bytes of a torn journal tail that were cut.
-    pub torn_bytes: u64,
-    /// Committed keys written to `keys/` only now (a crash came between).
-    pub keys_recovered: usize,
+    /// What was found and repaired.
+    pub figures: StoreRecovery,
+}
+
+/// A key pending in a store, for the reports.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct PendingKey {
+    /// Its ID.
+    pub id: String,
+    /// Its block.
+    pub block: u64,
+    /// Why it is pending.
+    pub reason: String,
 }
 
 /// An open store, locked against any other process for its life.
 #[derive(Debug)]
 pub struct PostStore<S> {
     dir: PathBuf,
-    pairing: String,
+    fingerprint: String,
     restricted: bool,
     _lock: File,
     journal: Journal,
     keys: KeyStore,
     /// Sessions with a `session` record in the journal.
     journaled: BTreeSet<u32>,
+    /// Sessions that stored keys list as sources: never pooled again.
+    sources: BTreeSet<u32>,
+    /// Pending keys in `keys/`, by ID.
+    pending: BTreeMap<String, PendingKey>,
     _snapshot: std::marker::PhantomData<S>,
 }
 
 impl<S: Snapshot> PostStore<S> {
-    /// Opens (creating) the store at `dir` for `S::ROLE` and the pairing of `fingerprint`,
-    /// recovers its state and compacts it. Keys committed through it are labelled
-    /// `restricted` as told.
+    /// Opens (creating) the store at `dir` for `S::ROLE` and `pairing`, recovers its state
+    /// and compacts it. Keys committed through it are labelled `restricted` as told.
     ///
     /// # Errors
-    /// Another process holds the store; it belongs to the other role or another pairing; its
-    /// journal is inconsistent; a file operation fails.
+    /// Another process holds the store; it belongs to the other role or another pairing; a
+    /// folder or file is a link, another user's or open to others; the journal or a key file
+    /// does not authenticate (named); a file operation fails.
     pub fn open(
         dir: &Path,
-        fingerprint: &str,
+        pairing: &PairingSecret,
         restricted: bool,
     ) -> Result<(Self, Recovery<S>), NetError> {
         create_private_dir(dir)?;
-        let keys = KeyStore::create(dir)?;
+        owned_file::check_folder(dir, "store")?;
+        let secrets = StoreKeys::new(pairing, S::ROLE);
+        let keys = KeyStore::create(dir, &secrets.key_files, S::ROLE)?;
         let lock = lock_store(dir)?;
-        let (journal, contents) = Journal::open(&dir.join("journal"))?;
+        let fingerprint = pairing.fingerprint();
+        let owner = format!("{} {fingerprint}", S::ROLE);
+        let path = dir.join("journal");
+        let header = encode(&Record::<S>::Header {
+            role: S::ROLE.to_owned(),
+            pairing: fingerprint.clone(),
+        });
+        let (journal, contents) = match Journal::open(&path, &secrets.journal, &owner)? {
+            Some((journal, contents)) => (journal, Some(contents)),
+            None => (
+                Journal::create(
+                    &path,
+                    &secrets.journal,
+                    &owner,
+                    std::slice::from_ref(&header),
+                )?,
+                None,
+            ),
+        };
         let mut store = Self {
             dir: dir.to_owned(),
-            pairing: fingerprint.to_owned(),
+            fingerprint: fingerprint.clone(),
             restricted,
             _lock: lock,
             journal,
             keys,
             journaled: BTreeSet::new(),
+            sources: BTreeSet::new(),
+            pending: BTreeMap::new(),
             _snapshot: std::marker::PhantomData,
         };
+        let mut found = BTreeMap::new();
+        for key in store.keys.list()? {
+            store.sources.extend(&key.sessions);
+            if let KeyStatus::Pending(reason) = &key.status {
+                found.insert(key.id.clone(), pending_key(&key, reason));
+            }
+        }
+        let mut figures = StoreRecovery::default();
+        let Some(contents) = contents else {
+            figures.pending_superseded = store.supersede(found.keys())?;
+            return Ok((
+                store,
+                Recovery {
+                    snapshot: None,
+                    figures,
+                },
+            ));
+        };
+        figures.torn_bytes = contents.torn_bytes;
         let mut sessions = BTreeMap::new();
         let mut state = None;
         for (i, payload) in contents.records.iter().enumerate() {
             let record: Record<S> = serde_json::from_slice(payload)
                 .map_err(|e| store.corrupt(format!("record {i} is malformed: {e}")))?;
             match record {
-                Record::Header { role, pairing } => store.check_owner(&role, &pairing)?,
+                Record::Header { role, pairing } if i == 0 => {
+                    if (role.as_str(), pairing.as_str()) != (S::ROLE, fingerprint.as_str()) {
+                        return Err(store.corrupt(format!(
+                            "its header names the {role} of pairing {pairing}, not this {} of \
+                             pairing {fingerprint}",
+                            S::ROLE
+                        )));
+                    }
+                }
+                Record::Header { .. } => {
+                    return Err(store.corrupt(format!("record {i} is a second header")));
+                }
+                _ if i == 0 => return Err(store.corrupt("it does not begin with a header".into())),
                 Record::Session { id, bits } => {
                     sessions.insert(id, bits);
                 }
                 Record::State {
                     snapshot,
                     pooled,
+                    keys,
                     pending,
-                } => state = Some((snapshot, pooled, pending)),
+                } => state = Some((snapshot, pooled, keys, pending)),
             }
         }
-        let mut recovery = Recovery {
-            snapshot: None,
-            torn_bytes: contents.torn_bytes,
-            keys_recovered: 0,
+        let Some((mut snapshot, pooled, carried, known)) = state else {
+            figures.pending_superseded = store.supersede(found.keys())?;
+            store.journal.rewrite(&[header])?;
+            return Ok((
+                store,
+                Recovery {
+                    snapshot: None,
+                    figures,
+                },
+            ));
         };
-        if let Some((mut snapshot, pooled, pending)) = state {
-            for key in &pending {
-                if store.keys.get(&key.id).is_err() {
-                    store.keys.write(key)?;
-                    recovery.keys_recovered += 1;
-                }
-            }
-            let pool = pooled
-                .iter()
-                .map(|id| {
-                    sessions.remove(id).map(|bits| (*id, bits)).ok_or_else(|| {
-                        store.corrupt(format!("session {id} is pooled but its bits are missing"))
-                    })
+        let pool = pooled
+            .iter()
+            .map(|id| {
+                sessions.remove(id).map(|bits| (*id, bits)).ok_or_else(|| {
+                    store.corrupt(format!("session {id} is pooled but its bits are missing"))
                 })
-                .collect::<Result<Vec<_>, _>>()?;
-            snapshot.set_pool(pool);
-            store.compact(&mut snapshot)?;
-            recovery.snapshot = Some(snapshot);
-        } else {
-            store.journal.rewrite(&[store.header()])?;
-        }
-        Ok((store, recovery))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        snapshot.set_pool(pool);
+        store.pending = found
+            .iter()
+            .filter(|(id, _)| known.contains(id))
+            .map(|(id, key)| (id.clone(), key.clone()))
+            .collect();
+        let written = store.write_keys(&snapshot, &carried)?;
+        figures.keys_recovered = written.written;
+        figures.keys_settled = written.settled;
+        figures.pending_removed = written.removed;
+        let unknown: Vec<&String> = found
+            .keys()
+            .filter(|id| !store.pending.contains_key(*id) && !carried.iter().any(|k| &k.id == *id))
+            .collect();
+        figures.pending_superseded = store.supersede(unknown)?;
+        figures.sessions_already_spent = snapshot.spend(&store.sources.clone());
+        store.compact(&mut snapshot)?;
+        Ok((
+            store,
+            Recovery {
+                snapshot: Some(snapshot),
+                figures,
+            },
+        ))
     }
 
     /// The store's folder.
@@ -181,12 +384,30 @@ impl<S: Snapshot> PostStore<S> {
         &self.dir
     }
 
-    /// Stores `snapshot` with the keys committed in the same batch, then writes the keys to
-    /// `keys/`: the new sessions' bits first, then the state that names them and carries the
-    /// keys, then the key files, then the state without them. Returns the keys as stored.
+    /// Whether a stored key lists session `id` as a source: it is never pooled again.
+    #[must_use]
+    pub fn is_source(&self, id: u32) -> bool {
+        self.sources.contains(&id)
+    }
+
+    /// The keys pending in the store, by block.
+    #[must_use]
+    pub fn pending(&self) -> Vec<PendingKey> {
+        let mut pending: Vec<PendingKey> = self.pending.values().cloned().collect();
+        pending.sort_by_key(|p| p.block);
+        pending
+    }
+
+    /// Stores `snapshot` with the keys committed in the same batch, then brings `keys/` in
+    /// line with it: the new sessions' bits first, then the state that names them and carries
+    /// the keys, then the key files (pending while the state says the peer has not
+    /// acknowledged; settled or removed when it says so), then the state without the keys.
+    /// Returns the committed keys as stored.
     ///
     /// # Errors
-    /// A write fails (the last durable state is then the one before).
+    /// A write fails, or a key's name is taken by something this store did not write (the
+    /// last durable state is then the one before, or the one that carries the keys, which the
+    /// next opening writes).
     pub fn persist(
         &mut self,
         snapshot: &mut S,
@@ -216,17 +437,83 @@ impl<S: Snapshot> PostStore<S> {
         let pooled: Vec<u32> = pool.iter().map(|(id, _)| *id).collect();
         let stored: Vec<StoredKey> = committed
             .iter()
-            .map(|key| StoredKey::new(key, S::ROLE, self.restricted))
+            .map(|key| StoredKey::new(key, S::ROLE, self.restricted, status(snapshot, key.block)))
             .collect();
-        self.journal
-            .append(&encode_state(snapshot, &pooled, &stored))?;
-        if !stored.is_empty() {
-            for key in &stored {
-                self.keys.write(key)?;
-            }
-            self.journal.append(&encode_state(snapshot, &pooled, &[]))?;
+        self.journal.append(&encode_state(
+            snapshot,
+            &pooled,
+            &stored,
+            &self.pending_ids(),
+        ))?;
+        let changed = self.write_keys(snapshot, &stored)?;
+        if !stored.is_empty() || changed.any() {
+            self.journal
+                .append(&encode_state(snapshot, &pooled, &[], &self.pending_ids()))?;
         }
         Ok(stored)
+    }
+
+    /// Brings `keys/` in line with `snapshot`: stores `carried` (the keys its batch
+    /// committed) and the key it holds pending, settles the pending keys whose block it
+    /// committed, removes those whose block it aborted.
+    fn write_keys(&mut self, snapshot: &S, carried: &[StoredKey]) -> Result<KeyChanges, NetError> {
+        let mut changes = KeyChanges::default();
+        let unsettled = snapshot.unsettled();
+        let held = unsettled.as_ref().and_then(|u| {
+            u.key.map(|key| {
+                StoredKey::new(key, S::ROLE, self.restricted, status(snapshot, key.block))
+            })
+        });
+        for key in carried.iter().chain(&held) {
+            let mut key = key.clone();
+            key.status = status(snapshot, key.block);
+            match self.keys.store(&key)? {
+                Stored::Written => changes.written += 1,
+                Stored::Settled => changes.settled += 1,
+                Stored::Present => {}
+            }
+            self.sources.extend(&key.sessions);
+            self.pending.remove(&key.id);
+            if let KeyStatus::Pending(reason) = &key.status {
+                self.pending
+                    .insert(key.id.clone(), pending_key(&key, reason));
+            }
+        }
+        let waiting = unsettled.map(|u| u.block);
+        for (id, pending) in self.pending.clone() {
+            if waiting == Some(pending.block) {
+                continue;
+            }
+            if snapshot.committed(pending.block) {
+                match self.keys.restate(&id, KeyStatus::Settled) {
+                    Ok(()) => changes.settled += 1,
+                    // A pending key removed by hand is forgotten, not written again.
+                    Err(NetError::Usage(_)) => {}
+                    Err(error) => return Err(error),
+                }
+            } else if snapshot.aborted(pending.block) {
+                self.keys.remove_pending(&id)?;
+                changes.removed += 1;
+            } else {
+                continue;
+            }
+            self.pending.remove(&id);
+        }
+        Ok(changes)
+    }
+
+    /// Marks the pending keys `ids` superseded (unless they are so already): the journal does
+    /// not know them, so nothing will ever settle them. Returns how many changed.
+    fn supersede<'a>(&self, ids: impl IntoIterator<Item = &'a String>) -> Result<usize, NetError> {
+        let mut changed = 0;
+        for id in ids {
+            if self.keys.get(id)?.status != KeyStatus::Pending(SUPERSEDED.to_owned()) {
+                self.keys
+                    .restate(id, KeyStatus::Pending(SUPERSEDED.to_owned()))?;
+                changed += 1;
+            }
+        }
+        Ok(changed)
     }
 
     /// Rewrites the journal with only what `snapshot` needs: the header, the pooled sessions'
@@ -237,44 +524,25 @@ impl<S: Snapshot> PostStore<S> {
     pub fn compact(&mut self, snapshot: &mut S) -> Result<(), NetError> {
         let pool = snapshot.take_pool();
         let pooled: Vec<u32> = pool.iter().map(|(id, _)| *id).collect();
-        let mut records = vec![self.header()];
+        let mut records = vec![encode(&Record::<S>::Header {
+            role: S::ROLE.to_owned(),
+            pairing: self.fingerprint.clone(),
+        })];
         records.extend(pool.iter().map(|(id, bits)| {
             encode(&Record::<S>::Session {
                 id: *id,
                 bits: bits.clone(),
             })
         }));
-        records.push(encode_state(snapshot, &pooled, &[]));
+        records.push(encode_state(snapshot, &pooled, &[], &self.pending_ids()));
         snapshot.set_pool(pool);
         self.journal.rewrite(&records)?;
         self.journaled = pooled.into_iter().collect();
         Ok(())
     }
 
-    fn header(&self) -> Zeroizing<Vec<u8>> {
-        encode(&Record::<S>::Header {
-            role: S::ROLE.to_owned(),
-            pairing: self.pairing.clone(),
-        })
-    }
-
-    fn check_owner(&self, role: &str, pairing: &str) -> Result<(), NetError> {
-        if role != S::ROLE {
-            return Err(NetError::Usage(format!(
-                "store {} belongs to a {role} agent, not to this {}",
-                self.dir.display(),
-                S::ROLE
-            )));
-        }
-        if pairing != self.pairing {
-            return Err(NetError::Usage(format!(
-                "store {} belongs to the pairing with fingerprint {pairing}, not to this one \
-                 ({}): each pairing has its own store",
-                self.dir.display(),
-                self.pairing
-            )));
-        }
-        Ok(())
+    fn pending_ids(&self) -> Vec<String> {
+        self.pending.keys().cloned().collect()
     }
 
     fn corrupt(&self, message: String) -> NetError {
@@ -285,26 +553,61 @@ impl<S: Snapshot> PostStore<S> {
     }
 }
 
+/// What [`PostStore::write_keys`] changed in `keys/`.
+#[derive(Debug, Default)]
+struct KeyChanges {
+    written: usize,
+    settled: usize,
+    removed: usize,
+}
+
+impl KeyChanges {
+    fn any(&self) -> bool {
+        self.written + self.settled + self.removed > 0
+    }
+}
+
+/// The status `snapshot` gives a committed key of `block`.
+fn status<S: Snapshot>(snapshot: &S, block: u64) -> KeyStatus {
+    match snapshot.unsettled() {
+        Some(u) if u.block == block => KeyStatus::Pending(u.reason.to_owned()),
+        _ => KeyStatus::Settled,
+    }
+}
+
+fn pending_key(key: &StoredKey, reason: &str) -> PendingKey {
+    PendingKey {
+        id: key.id.clone(),
+        block: key.block,
+        reason: reason.to_owned(),
+    }
+}
+
 fn encode<S: Serialize>(record: &Record<S>) -> Zeroizing<Vec<u8>> {
     Zeroizing::new(serde_json::to_vec(record).expect("a record always serialises"))
 }
 
+/// A `state` record: the snapshot, the sessions pooled, the keys its batch committed, and
+/// the IDs of the keys pending in `keys/`.
 fn encode_state<S: Serialize>(
     snapshot: &S,
     pooled: &[u32],
-    pending: &[StoredKey],
+    keys: &[StoredKey],
+    pending: &[String],
 ) -> Zeroizing<Vec<u8>> {
     #[derive(Serialize)]
     #[serde(tag = "record", rename = "state")]
     struct State<'a, S> {
         snapshot: &'a S,
         pooled: &'a [u32],
-        pending: &'a [StoredKey],
+        keys: &'a [StoredKey],
+        pending: &'a [String],
     }
     Zeroizing::new(
         serde_json::to_vec(&State {
             snapshot,
             pooled,
+            keys,
             pending,
         })
         .expect("a state always serialises"),
@@ -312,13 +615,19 @@ fn encode_state<S: Serialize>(
 }
 
 /// Takes the lock of the store at `dir` without waiting: agents hold it for their life,
-/// `keys delete` for its change.
+/// `keys delete` for its change. The lock file is opened without following a link and never
+/// truncated.
 ///
 /// # Errors
-/// Another process holds it, or the lock file cannot be created.
+/// Another process holds it; the lock file is a link, not a regular file, another user's or
+/// writable by others; it cannot be created.
 pub fn lock_store(dir: &Path) -> Result<File, NetError> {
     let path = dir.join("lock");
-    let file = File::create(&path).map_err(NetError::io(format!("create {}", path.display())))?;
+    let mut options = OpenOptions::new();
+    options.write(true).create(true);
+    std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+    let file = owned_file::open(&path, &mut options, "lock file")?;
+    owned_file::check_file(&file, &path, "lock file", WRITABLE_BY_OTHERS)?;
     match file.try_lock() {
         Ok(()) => Ok(file),
         Err(std::fs::TryLockError::WouldBlock) => Err(NetError::Usage(format!(
@@ -331,90 +640,56 @@ pub fn lock_store(dir: &Path) -> Result<File, NetError> {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::journal::tests::tempdir;
-
-    fn snapshot(pool: &[(u32, bool)], committed: &[u64]) -> ControllerSnapshot {
-        ControllerSnapshot {
-            next_block: committed.len() as u64,
-            pool: pool
-                .iter()
-                .map(|&(id, bit)| (id, BitString::from_bools(&[bit; 100])))
-                .collect(),
-            separations: Vec::new(),
-            spent: Vec::new(),
-            in_flight: None,
-            committed: committed.to_vec(),
+/// The key folder of the existing store at `dir`, for `pairing`: its role is read from the
+/// journal's first line and proved by every key file's MAC.
+///
+/// # Errors
+/// No store or journal there; the store belongs to another pairing; a folder or the journal
+/// is a link, another user's or open to others.
+pub fn open_keys(dir: &Path, pairing: &PairingSecret) -> Result<KeyStore, NetError> {
+    let path = dir.join("journal");
+    let file =
+        owned_file::open(&path, OpenOptions::new().read(true), "journal").map_err(|e| match e {
+            NetError::Io { error, .. } if error.kind() == std::io::ErrorKind::NotFound => {
+                NetError::Usage(format!(
+                    "{} is not a store (no journal; agents create one with --store)",
+                    dir.display()
+                ))
+            }
+            other => other,
+        })?;
+    owned_file::check_file(&file, &path, "journal", owned_file::ANY_ACCESS_BY_OTHERS)?;
+    let mut line = String::new();
+    BufReader::new(file.take(200))
+        .read_line(&mut line)
+        .map_err(NetError::io(format!("read {}", path.display())))?;
+    let owner = line.trim_end().strip_prefix("robokey-journal-v2 ");
+    let Some((role, fingerprint)) = owner.and_then(|o| o.split_once(' ')) else {
+        return Err(NetError::Store {
+            path: path.display().to_string(),
+            message: "not a robokey-journal-v2 journal".into(),
+        });
+    };
+    let role = match role {
+        "robot" => "robot",
+        "controller" => "controller",
+        other => {
+            return Err(NetError::Store {
+                path: path.display().to_string(),
+                message: format!("names the role {other:?}"),
+            });
         }
+    };
+    if fingerprint != pairing.fingerprint() {
+        return Err(NetError::Usage(format!(
+            "store {} belongs to the pairing with fingerprint {fingerprint}, not to this one ({}): \
+             pass the pairing file its agents use",
+            dir.display(),
+            pairing.fingerprint()
+        )));
     }
-
-    fn key(block: u64) -> FinalKey {
-        FinalKey {
-            id: format!("{block:016x}"),
-            block,
-            key: BitString::from_bools(&[true, false, true]),
-            sessions: vec![1, 2],
-            epsilon: 4e-6,
-            assumption: "stated".into(),
-        }
-    }
-
-    #[test]
-    fn the_pool_and_state_survive_reopening_and_the_store_is_exclusive() {
-        let dir = tempdir("post-store");
-        let (mut store, recovery) =
-            PostStore::<ControllerSnapshot>::open(&dir, "f1", false).unwrap();
-        assert!(recovery.snapshot.is_none());
-        let mut state = snapshot(&[(1, true), (2, false)], &[]);
-        store.persist(&mut state, &[]).unwrap();
-        // A second process is refused while the first holds the store.
-        let error = PostStore::<ControllerSnapshot>::open(&dir, "f1", false).unwrap_err();
-        assert!(error.to_string().contains("in use"), "{error}");
-        drop(store);
-        let (_, recovery) = PostStore::<ControllerSnapshot>::open(&dir, "f1", false).unwrap();
-        assert_eq!(recovery.snapshot, Some(state));
-        // The other role and another pairing are refused, naming what differs.
-        let error = PostStore::<RobotSnapshot>::open(&dir, "f1", false).unwrap_err();
-        assert!(error.to_string().contains("controller agent"), "{error}");
-        let error = PostStore::<ControllerSnapshot>::open(&dir, "f2", false).unwrap_err();
-        assert!(error.to_string().contains("fingerprint f1"), "{error}");
-    }
-
-    /// A crash after the state that carries a committed key and before its key file: the
-    /// store writes the key when it opens. Then compaction drops spent bits.
-    #[test]
-    fn a_committed_key_whose_file_a_crash_prevented_is_written_on_opening() {
-        let dir = tempdir("post-store-crash");
-        let (mut store, _) = PostStore::<ControllerSnapshot>::open(&dir, "f", true).unwrap();
-        let mut state = snapshot(&[(3, true)], &[0]);
-        let stored = store.persist(&mut state, &[key(0)]).unwrap();
-        assert_eq!(stored[0].hex, "a0");
-        assert!(stored[0].restricted);
-        drop(store);
-        // Undo the key file and the state record that followed it, as a crash would.
-        let (mut journal, contents) = Journal::open(&dir.join("journal")).unwrap();
-        let n = contents.records.len();
-        journal.rewrite(&contents.records[..n - 1]).unwrap();
-        let keys = KeyStore::open(&dir).unwrap();
-        keys.delete(&key(0).id).unwrap();
-        let (mut store, recovery) = PostStore::<ControllerSnapshot>::open(&dir, "f", true).unwrap();
-        assert_eq!(recovery.keys_recovered, 1);
-        let recovered = keys.get(&key(0).id).unwrap();
-        assert_eq!((recovered.hex.as_str(), recovered.block), ("a0", 0));
-        // The pool emptied (a block took the session): its bits leave the journal.
-        let mut state = recovery.snapshot.unwrap();
-        state.pool.clear();
-        store.persist(&mut state, &[]).unwrap();
-        store.compact(&mut state).unwrap();
-        let (_, contents) = Journal::open(&dir.join("journal")).unwrap();
-        assert_eq!(contents.records.len(), 2, "header and state only");
-        let recovery = PostStore::<ControllerSnapshot>::open(&dir, "f", true);
-        assert!(recovery.is_err(), "still held by `store`");
-        drop(store);
-        let (_, recovery) = PostStore::<ControllerSnapshot>::open(&dir, "f", true).unwrap();
-        assert_eq!(recovery.keys_recovered, 0);
-        assert!(recovery.snapshot.unwrap().pool.is_empty());
-    }
+    KeyStore::open(dir, &StoreKeys::new(pairing, role).key_files, role)
 }
+
+#[cfg(test)]
+mod tests;

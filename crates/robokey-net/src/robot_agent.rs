@@ -237,11 +237,15 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     );
     let session = match handshake(&mut transport, options) {
         Ok(Ok(session)) => session,
-        Ok(Err(report)) => return Ok(report),
+        Ok(Err(mut report)) => {
+            report.set_post(post.map(PostSide::finish));
+            return Ok(report);
+        }
         Err(error) => {
             let mut report = robot_report(options);
             report.set_error(&error);
             report.count_frames(&transport);
+            report.set_post(post.map(PostSide::finish));
             return Ok(report);
         }
     };
@@ -281,6 +285,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
         );
         s.report.set_error(&error);
         s.report.count_frames(&s.transport);
+        s.report.set_post(post.map(PostSide::finish));
         return Ok(s.report);
     }
     let mut post_error = None;
@@ -310,7 +315,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     if let Some(error) = post_error {
         report.post_stopped(&error);
     }
-    report.post = post.map(PostSide::finish);
+    report.set_post(post.map(PostSide::finish));
     Ok(report)
 }
 

@@ -44,23 +44,41 @@ pub fn check_writable(path: &Path, what: &str) -> Result<(), NetError> {
 /// # Errors
 /// `path` exists, or a step fails (nothing is left under `path` then).
 pub fn write_new(path: &Path, text: &[u8]) -> Result<(), NetError> {
+    if create(path, text)? {
+        return Ok(());
+    }
+    Err(NetError::Usage(format!(
+        "{} appeared during the session: refusing to overwrite it",
+        path.display()
+    )))
+}
+
+/// Writes `text` as the new file `path` if the name is free (see the module documentation);
+/// false, with nothing written, if anything has that name (a file, a link, a dangling link).
+///
+/// # Errors
+/// A step fails (nothing is left under `path` then).
+pub fn create(path: &Path, text: &[u8]) -> Result<bool, NetError> {
     let mut write = SecretWrite::begin(path)?;
     write.write(text)?;
-    write.link()?;
-    write.finish()
+    let linked = write.link()?;
+    write.finish()?;
+    Ok(linked)
 }
 
 /// Writes `text` as `path`, replacing what is there in one atomic step (a rename after the
-/// text is durable): a crash leaves the old file or the new one, never a mix.
+/// text is durable; a link at `path` is replaced, never followed): a crash leaves the old
+/// file or the new one, never a mix. Returns the new file, open for writing at its end.
 ///
 /// # Errors
 /// A step fails (the old file is then untouched).
-pub fn replace(path: &Path, text: &[u8]) -> Result<(), NetError> {
+pub fn replace(path: &Path, text: &[u8]) -> Result<File, NetError> {
     let mut write = SecretWrite::begin(path)?;
     write.write(text)?;
     std::fs::rename(&write.temp, &write.path)
         .and_then(|()| File::open(folder_of(&write.path))?.sync_all())
-        .map_err(NetError::io(format!("replace {}", path.display())))
+        .map_err(NetError::io(format!("replace {}", path.display())))?;
+    Ok(write.file.take().expect("the file is open until linked"))
 }
 
 /// One write in progress, step by step (tests stop it between any two, as a crash would).
@@ -117,18 +135,17 @@ impl SecretWrite {
             .map_err(NetError::io(format!("write {}", self.temp.display())))
     }
 
-    /// Gives the complete file its name (never over an existing one) durably.
-    pub(crate) fn link(&mut self) -> Result<(), NetError> {
+    /// Gives the complete file its name durably, unless the name is taken (false): `link(2)`
+    /// never replaces an existing name and never follows a link there.
+    pub(crate) fn link(&mut self) -> Result<bool, NetError> {
         self.file = None;
-        std::fs::hard_link(&self.temp, &self.path)
-            .and_then(|()| File::open(folder_of(&self.path))?.sync_all())
-            .map_err(|e| match e.kind() {
-                std::io::ErrorKind::AlreadyExists => NetError::Usage(format!(
-                    "{} appeared during the session: refusing to overwrite it",
-                    self.path.display()
-                )),
-                _ => NetError::io(format!("write {}", self.path.display()))(e),
-            })
+        match std::fs::hard_link(&self.temp, &self.path) {
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
+            linked => linked
+                .and_then(|()| File::open(folder_of(&self.path))?.sync_all())
+                .map(|()| true)
+                .map_err(NetError::io(format!("write {}", self.path.display()))),
+        }
     }
 
     /// Removes the temporary name.
@@ -185,7 +202,7 @@ mod tests {
             write.write(text).unwrap();
         }
         if steps >= 3 {
-            write.link().unwrap();
+            assert!(write.link().unwrap());
         }
         std::mem::forget(write);
     }

@@ -161,6 +161,9 @@ pub enum Ending {
     /// Private sensing: the peer confirmed which doublets were kept; the raw bits await
     /// post-processing.
     Kept,
+    /// Confirmed or kept, but post-processing left a block or a final key in flight: pending
+    /// until a later session settles it (`post.in_flight` says which and how).
+    InFlight,
     /// Aborted or unconfirmed: no key.
     #[default]
     NoKey,
@@ -234,8 +237,8 @@ pub struct SessionReport {
     pub key_bits: usize,
     /// `confirmed`, `kept` (private sensing), `unconfirmed` or `aborted`.
     pub outcome: String,
-    /// How it ended: `confirmed`, `kept`, `no-key`, `authentication-failed`, `interrupted`,
-    /// `failed`.
+    /// How it ended: `confirmed`, `kept`, `in-flight`, `no-key`, `authentication-failed`,
+    /// `interrupted`, `failed`.
     pub ending: Ending,
     /// Why, unless confirmed.
     pub reason: Option<String>,
@@ -308,6 +311,16 @@ impl SessionReport {
         self.reason = Some(format!("post-processing stopped: {error}"));
     }
 
+    /// Attaches post-processing's report; a confirmed (or kept) session whose
+    /// post-processing left a block or key in flight ends [`Ending::InFlight`].
+    pub fn set_post(&mut self, post: Option<crate::post_link::PostReport>) {
+        let in_flight = post.as_ref().is_some_and(|p| p.in_flight.is_some());
+        if in_flight && matches!(self.ending, Ending::Confirmed | Ending::Kept) {
+            self.ending = Ending::InFlight;
+        }
+        self.post = post;
+    }
+
     fn ending_of(error: &NetError) -> Ending {
         match error {
             NetError::Interrupted(_) => Ending::Interrupted,
@@ -347,8 +360,12 @@ impl SessionReport {
                 self.accepted, self.codewords, self.key_bits
             ),
         };
+        let post = self
+            .post
+            .as_ref()
+            .map_or(String::new(), |p| format!("; {}", p.line()));
         format!(
-            "{}{}: session {:08x}, {} steps ({} erased), {kept}, {}{}{rejected}",
+            "{}{}: session {:08x}, {} steps ({} erased), {kept}, {}{}{rejected}{post}",
             if self.is_unauthenticated() {
                 "[passive adversary only] "
             } else {

@@ -622,21 +622,7 @@ impl ControllerPost {
 pub(super) fn empty_report(block: u64) -> BlockReport {
     BlockReport {
         block,
-        sessions: Vec::new(),
-        bits: 0,
-        sample_bits: 0,
-        sampled: Vec::new(),
-        sample_errors: 0,
-        q_estimate: 0.0,
-        reconciled_bits: 0,
-        questions: 0,
-        leak_ec: 0,
-        leak_confirmation: 0,
-        h_min: 0.0,
-        length: 0,
-        reason: None,
-        messages_sent: 0,
-        bits_sent: 0,
+        ..BlockReport::default()
     }
 }
 

@@ -24,7 +24,10 @@
 //! The controller commits only after the robot's tag proves it prepared the key, and the robot
 //! commits only on `Commit`, so after any crash and recovery — the controller aborts an
 //! uncommitted block and repeats `Commit` for a committed one — neither side ends up with a
-//! key the other lacks. Endpoints signal [`Output::Persist`] when their durable state changed:
+//! key the other lacks once both are quiet. Until then the key is *pending* on the side whose
+//! peer has not acknowledged it (the controller's until `CommitAck`, the robot's prepared key
+//! until `Commit`): the shell withholds it, so that a key either side delivers is always held
+//! by the other. Endpoints signal [`Output::Persist`] when their durable state changed:
 //! the shell must store [`ControllerPost::snapshot`] / [`RobotPost::snapshot`] before sending
 //! what follows.
 
@@ -82,8 +85,9 @@ pub struct Settings {
     pub assumption: Assumption,
 }
 
-/// What happened to one block, for reports (both endpoints produce one).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// What happened to one block, for reports (both endpoints produce one). Its `Default` is
+/// block 0 with nothing done yet.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct BlockReport {
     /// Block number.
     pub block: u64,

@@ -147,6 +147,16 @@ impl RobotPost {
         }
     }
 
+    /// The block in flight here, if any: being reconciled (not durable: the controller
+    /// aborts it after a restart) or prepared (its key awaits the `Commit`).
+    #[must_use]
+    pub fn block_in_flight(&self) -> Option<u64> {
+        self.reconciling
+            .as_ref()
+            .map(|r| r.block)
+            .or(self.prepared.as_ref().map(|p| p.block))
+    }
+
     /// The next thing to do.
     pub fn poll_output(&mut self) -> Option<Output> {
         self.ledger.outputs.pop_front()

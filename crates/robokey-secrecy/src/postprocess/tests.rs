@@ -164,7 +164,52 @@ impl Pair {
                 .unwrap();
         }
         self.collect();
+        self.assert_settled_keys_held_by_both("after a delivery");
         true
+    }
+
+    /// The block whose key the controller committed and the robot has not acknowledged.
+    fn controller_pending(&self) -> Option<u64> {
+        match self.controller_snapshot.in_flight {
+            Some(InFlight::Committed { block, .. }) => Some(block),
+            _ => None,
+        }
+    }
+
+    /// The keys each side's store would deliver: the robot's committed keys, and the
+    /// controller's but the one whose `CommitAck` is outstanding (pending).
+    fn settled(&self) -> (Vec<&FinalKey>, Vec<&FinalKey>) {
+        let pending = self.controller_pending();
+        let controller = self
+            .controller_keys
+            .iter()
+            .filter(|k| Some(k.block) != pending)
+            .collect();
+        (controller, self.robot_keys.iter().collect())
+    }
+
+    /// At every moment, a key one side would deliver is held by the other — settled, or
+    /// pending there: neither side ever delivers a key the other may lack.
+    fn assert_settled_keys_held_by_both(&self, what: &str) {
+        let (controller, robot) = self.settled();
+        for key in controller {
+            assert!(
+                self.robot_keys.contains(key),
+                "{what}: the controller delivers key {} the robot lacks",
+                key.id
+            );
+        }
+        let robot_prepared = self.robot_snapshot.prepared.as_ref().map(|p| &p.key);
+        for key in robot {
+            assert!(
+                self.controller_keys.contains(key),
+                "{what}: the robot delivers key {} the controller lacks",
+                key.id
+            );
+        }
+        if let Some(prepared) = robot_prepared {
+            assert!(!self.robot_keys.contains(prepared), "{what}");
+        }
     }
 
     /// Runs until both sides are quiet and no block is in flight (the controller's timer
@@ -197,6 +242,7 @@ impl Pair {
         )
         .unwrap();
         self.collect();
+        self.assert_settled_keys_held_by_both("after a controller restart");
     }
 
     fn crash_robot(&mut self) {
@@ -208,6 +254,38 @@ impl Pair {
         )
         .unwrap();
         self.collect();
+        self.assert_settled_keys_held_by_both("after a robot restart");
+    }
+
+    /// A later session after messages were lost: both endpoints restarted from their stores
+    /// (`restart`), or the controller's timer (`timer`); it must settle every key alike.
+    fn later_session(&mut self, later: &str) {
+        if later == "restart" {
+            self.crash_robot();
+            self.crash_controller();
+        } else {
+            self.controller
+                .handle_input(ControllerInput::Timeout)
+                .unwrap();
+            self.collect();
+        }
+        assert!(self.settle(100_000, None), "{later}");
+        self.assert_same_keys(later);
+    }
+
+    /// Delivers until the next message in flight is one `is_it` picks, and returns it, taken
+    /// off the channel (lost); `None` if the exchange ended first.
+    fn lose_next(&mut self, is_it: impl Fn(&Message) -> bool) -> Option<Message> {
+        loop {
+            let next = self.to_controller.front().or(self.to_robot.front())?;
+            if is_it(next) {
+                return match self.to_controller.front() {
+                    Some(_) => self.to_controller.pop_front(),
+                    None => self.to_robot.pop_front(),
+                };
+            }
+            self.deliver(None);
+        }
     }
 
     /// The key stores of both sides hold the same keys (IDs, blocks, bits), and each
@@ -234,6 +312,9 @@ impl Pair {
             blocks(&self.robot_keys),
             "{what}"
         );
+        // Settled: nothing is left pending on either side.
+        assert_eq!(self.controller_pending(), None, "{what}");
+        assert!(self.robot_snapshot.prepared.is_none(), "{what}");
     }
 }
 
@@ -397,4 +478,56 @@ fn the_robot_refuses_what_an_honest_controller_never_sends() {
     pair.collect();
     assert!(pair.settle(100_000, None));
     pair.assert_same_keys("after injected messages");
+}
+
+/// The `Commit` lost, and every retransmission of it until the session ends: the controller's
+/// key is pending, the robot's key prepared (pending) and not committed; neither delivers
+/// it. A later session — the controller restarted from its store, or its timer — repeats the
+/// `Commit` and settles both.
+#[test]
+fn a_lost_commit_leaves_both_keys_pending_until_a_later_session_settles_them() {
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let pool = sessions(8, 0.02, &mut rng);
+    for later in ["restart", "timer"] {
+        let mut pair = Pair::new(settings(weak_eve()), &pool);
+        let lost = pair.lose_next(|m| matches!(m, Message::Commit { .. }));
+        let block = lost.expect("a block reaches its commit").block();
+        // Its retransmissions are lost too: the session ends here.
+        for _ in 0..3 {
+            pair.controller
+                .handle_input(ControllerInput::Timeout)
+                .unwrap();
+            pair.collect();
+            pair.to_robot.clear();
+        }
+        assert_eq!(pair.controller_pending(), Some(block));
+        assert!(pair.settled().0.is_empty() && pair.settled().1.is_empty());
+        assert_eq!(pair.controller_keys.len(), 1);
+        assert_eq!(
+            pair.robot_snapshot.prepared.as_ref().map(|p| p.block),
+            Some(block)
+        );
+        assert_eq!(pair.robot.block_in_flight(), Some(block));
+        pair.later_session(later);
+        assert_eq!(pair.robot.block_in_flight(), None);
+    }
+}
+
+/// The `CommitAck` lost: the robot's key is settled, the controller's pending until a later
+/// `Commit` — after a restart or on its timer — draws the acknowledgement again.
+#[test]
+fn a_lost_commit_ack_leaves_the_controllers_key_pending_until_a_later_session() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let pool = sessions(8, 0.02, &mut rng);
+    for later in ["restart", "timer"] {
+        let mut pair = Pair::new(settings(weak_eve()), &pool);
+        let lost = pair.lose_next(|m| matches!(m, Message::CommitAck { .. }));
+        let block = lost.expect("a block reaches its acknowledgement").block();
+        assert_eq!(pair.controller_pending(), Some(block));
+        let (controller, robot) = pair.settled();
+        assert!(controller.is_empty());
+        assert_eq!(robot.len(), 1);
+        assert_eq!(pair.robot.block_in_flight(), None);
+        pair.later_session(later);
+    }
 }

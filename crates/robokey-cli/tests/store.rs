@@ -1,0 +1,503 @@
+//! The post-processing store between real agents, against lost messages and an attacker who
+//! can write beside it (docs/threat-model.md, "Beside the store"): a key the peer has not
+//! acknowledged stays pending, withheld from `keys get`, until a later session settles it;
+//! a name planted in `keys/` is never reported as a commit; links, open modes and foreign
+//! pairings are refused by name.
+
+mod common;
+
+use std::net::{SocketAddr, UdpSocket};
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use common::{pairing, report, run, run_code, s, scratch, start, wait_code};
+use robokey::protocol::{Message, PostFragment};
+use robokey_secrecy::postprocess::{self, Message as Post};
+
+/// The agents' settings: small blocks under a restricted assumption, so that the second
+/// session makes a key.
+const SETTINGS: [&str; 5] = [
+    "--set",
+    "postprocess.block_bits=500",
+    "--set",
+    "postprocess.assumed_eve_error=0.25",
+    "--allow-restricted",
+];
+
+/// What the man in the middle does to post-processing.
+#[derive(Clone, Copy, PartialEq)]
+enum Attack {
+    /// Forwards everything.
+    None,
+    /// Drops every `Commit` (controller → robot).
+    DropCommit,
+    /// Drops every `CommitAck` (robot → controller).
+    DropCommitAck,
+    /// Reads the key's ID off the clear messages and plants a file of that name in the
+    /// robot's `keys/` before the robot prepares the key.
+    Plant,
+}
+
+/// A UDP relay on loopback between the controller and the robot at `robot`, doing `attack`
+/// to the post-processing messages it can read (they are authenticated, not encrypted). It
+/// stops when told, or after 5 s without traffic.
+struct Relay {
+    address: SocketAddr,
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<usize>>,
+}
+
+impl Relay {
+    fn start(robot: SocketAddr, attack: Attack, robot_store: &Path) -> Self {
+        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+        socket
+            .set_read_timeout(Some(Duration::from_millis(20)))
+            .unwrap();
+        let address = socket.local_addr().unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let keys = robot_store.join("keys");
+        let thread = std::thread::spawn({
+            let stop = Arc::clone(&stop);
+            move || {
+                let mut controller = None;
+                let mut seen = IdParts::default();
+                let mut dropped = 0;
+                let mut heard = Instant::now();
+                let mut buffer = [0_u8; 2048];
+                while !stop.load(Ordering::Relaxed) && heard.elapsed() < Duration::from_secs(5) {
+                    let Ok((n, from)) = socket.recv_from(&mut buffer) else {
+                        continue;
+                    };
+                    heard = Instant::now();
+                    let to_robot = from != robot;
+                    if to_robot {
+                        controller = Some(from);
+                    }
+                    let bytes = &buffer[..n];
+                    if let Some(message) = post_message(bytes) {
+                        seen.note(&message);
+                        let drop = match (attack, &message) {
+                            (Attack::DropCommit, Post::Commit { .. }) => true,
+                            (Attack::DropCommitAck, Post::CommitAck { .. }) => true,
+                            (Attack::Plant, Post::Confirm { .. }) => {
+                                seen.plant(&keys);
+                                false
+                            }
+                            _ => false,
+                        };
+                        if drop {
+                            dropped += 1;
+                            continue;
+                        }
+                    }
+                    let target = if to_robot { Some(robot) } else { controller };
+                    if let Some(target) = target {
+                        let _ = socket.send_to(bytes, target);
+                    }
+                }
+                dropped
+            }
+        });
+        Self {
+            address,
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    /// Stops the relay; the number of messages it dropped.
+    fn finish(mut self) -> usize {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread.take().unwrap().join().unwrap()
+    }
+}
+
+impl Drop for Relay {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
+/// The post-processing message a datagram carries whole, if any.
+fn post_message(datagram: &[u8]) -> Option<Post> {
+    let frame = robokey::protocol::wire::decode(datagram).ok()?;
+    match frame.message {
+        Message::Post(PostFragment {
+            count: 1, bytes, ..
+        }) => postprocess::decode(&bytes).ok(),
+        _ => None,
+    }
+}
+
+/// The public parts of a key's ID, as a man in the middle reads them.
+#[derive(Default)]
+struct IdParts {
+    block: u64,
+    nonce_c: [u8; 32],
+    nonce_r: [u8; 32],
+    sessions: Vec<u32>,
+    length: u64,
+}
+
+impl IdParts {
+    fn note(&mut self, message: &Post) {
+        match message {
+            Post::Propose { block, nonce, .. } => (self.block, self.nonce_c) = (*block, *nonce),
+            Post::Agree {
+                sessions, nonce, ..
+            } => (self.sessions, self.nonce_r) = (sessions.clone(), *nonce),
+            Post::Confirm { length, .. } => self.length = *length,
+            _ => {}
+        }
+    }
+
+    /// The key's ID: 16 hex digits of SHA-256("robokey/key-id/v1" ‖ block ‖ sessions ‖
+    /// nonces ‖ ℓ) (docs/postprocessing.md, "Key store").
+    fn id(&self) -> String {
+        use sha2::{Digest, Sha256};
+        let mut hash = Sha256::new();
+        hash.update(b"robokey/key-id/v1");
+        hash.update(self.block.to_be_bytes());
+        hash.update((self.sessions.len() as u64).to_be_bytes());
+        for id in &self.sessions {
+            hash.update(id.to_be_bytes());
+        }
+        hash.update(self.nonce_c);
+        hash.update(self.nonce_r);
+        hash.update(self.length.to_be_bytes());
+        hash.finalize()[..8]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
+    }
+
+    /// Plants the attacker's key file under the ID the agents are about to use.
+    fn plant(&self, keys: &Path) {
+        use std::os::unix::fs::PermissionsExt as _;
+        let path = keys.join(format!("{}.key", self.id()));
+        let text = format!(
+            "{{\"id\": \"{}\", \"role\": \"robot\", \"hex\": \"00000000\", \"status\": \"settled\"}}\n",
+            self.id()
+        );
+        if std::fs::write(&path, text).is_ok() {
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+        }
+    }
+}
+
+/// One session between the agents, with stores `DIR/robot` and `DIR/controller`, through a
+/// relay doing `attack`. Returns the exit codes (robot, controller) and the reports.
+fn session(
+    dir: &Path,
+    pairing: &str,
+    seed: u64,
+    attack: Attack,
+) -> ([i32; 2], [serde_json::Value; 2]) {
+    let file = |name: &str| s(&dir.join(format!("{name}-{seed}.json")));
+    let store = |role: &str| s(&dir.join(role));
+    let common = |role: &'static str| -> Vec<String> {
+        let mut args: Vec<String> = [
+            "--pace",
+            "lockstep",
+            "--silence-timeout",
+            "1",
+            "--pairing",
+            pairing,
+            "--store",
+            &store(role),
+            "--report",
+            &file(role),
+        ]
+        .map(str::to_owned)
+        .to_vec();
+        args.extend(SETTINGS.map(str::to_owned));
+        args
+    };
+    let mut robot_args = vec!["robot".to_owned(), "--listen".into(), "127.0.0.1:0".into()];
+    robot_args.extend(["--seed".to_owned(), seed.to_string()]);
+    robot_args.extend(common("robot"));
+    let robot_args: Vec<&str> = robot_args.iter().map(String::as_str).collect();
+    let robot = start(&robot_args);
+    let relay = Relay::start(robot.address.parse().unwrap(), attack, &dir.join("robot"));
+    let mut controller_args = vec![
+        "controller".to_owned(),
+        "--robot".into(),
+        relay.address.to_string(),
+    ];
+    controller_args.extend(common("controller"));
+    let controller_args: Vec<&str> = controller_args.iter().map(String::as_str).collect();
+    let (controller_code, text) = run_code(&controller_args);
+    let (robot_code, robot_text) = wait_code(robot);
+    let dropped = relay.finish();
+    if matches!(attack, Attack::DropCommit | Attack::DropCommitAck) {
+        assert!(dropped > 0, "nothing dropped: {text}\n{robot_text}");
+    }
+    (
+        [robot_code, controller_code],
+        [
+            report(Path::new(&file("robot"))),
+            report(Path::new(&file("controller"))),
+        ],
+    )
+}
+
+/// `robokey keys list --json` of a role's store.
+fn listed(dir: &Path, pairing: &str, role: &str) -> Vec<serde_json::Value> {
+    let store = s(&dir.join(role));
+    let (ok, text) = run(&[
+        "keys",
+        "list",
+        "--json",
+        "--store",
+        &store,
+        "--pairing",
+        pairing,
+    ]);
+    assert!(ok, "{text}");
+    serde_json::from_str(&text).unwrap()
+}
+
+/// `robokey keys get` of a role's store: (exit code, output).
+fn get(dir: &Path, pairing: &str, role: &str, id: &str) -> (i32, String) {
+    let store = s(&dir.join(role));
+    run_code(&["keys", "get", "--store", &store, "--pairing", pairing, id])
+}
+
+/// The statuses of a role's keys, by ID.
+fn statuses(dir: &Path, pairing: &str, role: &str) -> Vec<(String, String)> {
+    listed(dir, pairing, role)
+        .iter()
+        .map(|k| {
+            (
+                k["id"].as_str().unwrap().to_owned(),
+                k["status"].as_str().unwrap().to_owned(),
+            )
+        })
+        .collect()
+}
+
+/// After a settling session, both stores hold the same settled keys with the same bits.
+fn assert_settled_alike(dir: &Path, pairing: &str) {
+    let robot = statuses(dir, pairing, "robot");
+    assert!(!robot.is_empty());
+    assert_eq!(robot, statuses(dir, pairing, "controller"));
+    for (id, status) in &robot {
+        assert_eq!(status, "settled", "{id}");
+        let (code, hex) = get(dir, pairing, "robot", id);
+        assert_eq!(code, 0, "{hex}");
+        assert_eq!((code, hex.clone()), get(dir, pairing, "controller", id));
+    }
+}
+
+/// Every `Commit` lost: the controller's key pending, the robot's prepared key pending; both
+/// agents say so (report, terminal line, exit 5) and `keys get` withholds it on both sides
+/// (exit 5) until the next session settles it.
+#[test]
+fn a_lost_commit_leaves_both_keys_pending_until_the_next_session() {
+    let dir = scratch("store-lost-commit");
+    let pairing = pairing(&dir);
+    let (codes, _) = session(&dir, &pairing, 70, Attack::None);
+    assert_eq!(codes, [0, 0]);
+    let (codes, [robot, controller]) = session(&dir, &pairing, 71, Attack::DropCommit);
+    assert_eq!(codes, [5, 5], "{robot}\n{controller}");
+    for (r, what) in [
+        (&robot, "Commit has not arrived"),
+        (&controller, "CommitAck"),
+    ] {
+        assert_eq!(r["ending"], "in-flight", "{r}");
+        let in_flight = r["post"]["in_flight"].as_str().unwrap();
+        assert!(in_flight.contains("pending"), "{in_flight}");
+        assert_eq!(
+            r["post"]["pending_keys"].as_array().unwrap().len(),
+            1,
+            "{r}"
+        );
+        let reason = r["post"]["pending_keys"][0]["reason"].as_str().unwrap();
+        assert!(reason.contains(what), "{reason}");
+    }
+    let pending = statuses(&dir, &pairing, "controller");
+    assert_eq!(pending.len(), 1);
+    assert_eq!(pending, statuses(&dir, &pairing, "robot"));
+    assert_eq!(pending[0].1, "pending");
+    for role in ["robot", "controller"] {
+        let (code, text) = get(&dir, &pairing, role, &pending[0].0);
+        assert_eq!(code, 5, "{role}: {text}");
+        assert!(text.contains("is pending"), "{text}");
+    }
+    let (codes, [robot, controller]) = session(&dir, &pairing, 72, Attack::None);
+    assert!(codes.iter().all(|&c| c == 0 || c == 5), "{codes:?}");
+    assert!(
+        controller["post"]["recovery"].is_null(),
+        "flattened: {controller}"
+    );
+    assert_eq!(robot["post"]["torn_bytes"], 0);
+    assert_settled_alike(&dir, &pairing);
+}
+
+/// Every `CommitAck` lost: the robot's key settled, the controller's pending (exit 5 for the
+/// controller only) until the next session repeats the `Commit`.
+#[test]
+fn a_lost_commit_ack_leaves_the_controllers_key_pending_until_the_next_session() {
+    let dir = scratch("store-lost-ack");
+    let pairing = pairing(&dir);
+    session(&dir, &pairing, 80, Attack::None);
+    let (codes, [robot, controller]) = session(&dir, &pairing, 81, Attack::DropCommitAck);
+    assert_eq!(codes, [0, 5], "{robot}\n{controller}");
+    let line_says = controller["post"]["in_flight"].as_str().unwrap();
+    assert!(line_says.contains("CommitAck"), "{line_says}");
+    let controller_keys = statuses(&dir, &pairing, "controller");
+    let robot_keys = statuses(&dir, &pairing, "robot");
+    assert_eq!(controller_keys[0].1, "pending");
+    assert_eq!(robot_keys[0].1, "settled");
+    assert_eq!(controller_keys[0].0, robot_keys[0].0);
+    assert_eq!(
+        get(&dir, &pairing, "controller", &controller_keys[0].0).0,
+        5
+    );
+    session(&dir, &pairing, 82, Attack::None);
+    assert_settled_alike(&dir, &pairing);
+}
+
+/// The attack: a file planted under the key's ID (computed from the clear messages)
+/// before the robot prepares the key. No agent reports a commit, the robot fails naming the
+/// file, and `keys` refuses the planted file.
+#[test]
+fn a_key_file_planted_before_the_commit_is_never_reported_as_one() {
+    let dir = scratch("store-planted");
+    let pairing = pairing(&dir);
+    session(&dir, &pairing, 90, Attack::None);
+    let (codes, [robot, controller]) = session(&dir, &pairing, 91, Attack::Plant);
+    assert_eq!(codes[0], 1, "the robot fails: {robot}");
+    let reason = robot["reason"].as_str().unwrap();
+    assert!(
+        reason.contains("refusing to report the key as committed"),
+        "{reason}"
+    );
+    assert_ne!(codes[1], 0, "{controller}");
+    for r in [&robot, &controller] {
+        assert!(r["post"]["keys"].as_array().unwrap().is_empty(), "{r}");
+    }
+    let store = s(&dir.join("robot"));
+    let (code, text) = run_code(&["keys", "list", "--store", &store, "--pairing", &pairing]);
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains("does not verify"), "{text}");
+}
+
+/// A pairing file others may read is refused (exit 2, naming the mode and the fix) unless
+/// `--insecure-pairing-file`; links at the store's lock or journal are refused and their
+/// targets kept; a pre-made store others can write is refused; `keys get` names a
+/// 5,000-character ID briefly.
+#[test]
+fn open_pairing_files_planted_links_and_open_stores_are_refused() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = scratch("store-files");
+    let pairing = pairing(&dir);
+    let robot = |store: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "robot",
+            "--listen",
+            "127.0.0.1:0",
+            "--wait",
+            "0.05",
+            "--pairing",
+            &pairing,
+        ];
+        let store = s(store);
+        args.extend(["--store", &store]);
+        args.extend(extra);
+        run_code(&args)
+    };
+    std::fs::set_permissions(&pairing, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let (code, text) = robot(&dir.join("store"), &[]);
+    assert_eq!(code, 2, "{text}");
+    assert!(
+        text.contains("mode 644") && text.contains("chmod 600"),
+        "{text}"
+    );
+    assert!(text.contains("--insecure-pairing-file"), "{text}");
+    let (code, text) = robot(&dir.join("store"), &["--insecure-pairing-file"]);
+    assert_eq!(code, 3, "runs, and no controller comes: {text}");
+    assert!(text.contains("warning"), "{text}");
+    std::fs::set_permissions(&pairing, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let victim = dir.join("victim");
+    for name in ["lock", "journal"] {
+        std::fs::write(&victim, b"precious").unwrap();
+        let store = dir.join(format!("links-{name}"));
+        std::fs::create_dir(&store).unwrap();
+        std::os::unix::fs::symlink(&victim, store.join(name)).unwrap();
+        let (code, text) = robot(&store, &[]);
+        assert_eq!(code, 2, "{name}: {text}");
+        assert!(text.contains("symbolic link"), "{name}: {text}");
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious", "{name}");
+    }
+    let open = dir.join("open");
+    std::fs::create_dir(&open).unwrap();
+    std::fs::set_permissions(&open, std::fs::Permissions::from_mode(0o777)).unwrap();
+    let (code, text) = robot(&open, &[]);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("mode 777"), "{text}");
+    // A store that works, for `keys`.
+    let store = dir.join("store");
+    let long = "a".repeat(5000);
+    let (code, text) = run_code(&[
+        "keys",
+        "get",
+        "--store",
+        &s(&store),
+        "--pairing",
+        &pairing,
+        &long,
+    ]);
+    assert_eq!(code, 2, "{text}");
+    assert!(
+        text.contains("(5000 characters)") && text.len() < 300,
+        "{text}"
+    );
+    let other = dir.join("other");
+    std::fs::create_dir(&other).unwrap();
+    let other = run(&["pair", "--out", &s(&other)]);
+    assert!(other.0);
+    let (code, text) = run_code(&[
+        "keys",
+        "list",
+        "--store",
+        &s(&store),
+        "--pairing",
+        &s(&dir.join("other/pairing.key")),
+    ]);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("belongs to the pairing"), "{text}");
+}
+
+/// The rollback: both journals restored from a copy taken before a key was made. The
+/// sessions the key came from are back in both pools, and are dropped there (a stored key
+/// lists them), so the next session makes no second key from them.
+#[test]
+fn journals_restored_from_an_older_copy_never_make_a_second_key_from_spent_bits() {
+    let dir = scratch("store-rollback");
+    let pairing = pairing(&dir);
+    let journal = |role: &str| dir.join(role).join("journal");
+    session(&dir, &pairing, 100, Attack::None);
+    let copies = ["robot", "controller"].map(|role| std::fs::read(journal(role)).unwrap());
+    let (codes, [_, controller]) = session(&dir, &pairing, 101, Attack::None);
+    assert_eq!(codes, [0, 0]);
+    assert_eq!(controller["post"]["keys"].as_array().unwrap().len(), 1);
+    let made = listed(&dir, &pairing, "controller");
+    let sources = made[0]["sessions"].clone();
+    for (role, copy) in ["robot", "controller"].iter().zip(&copies) {
+        std::fs::write(journal(role), copy).unwrap();
+    }
+    let (codes, reports) = session(&dir, &pairing, 102, Attack::None);
+    assert_eq!(codes, [0, 0]);
+    for r in &reports {
+        assert_eq!(r["post"]["sessions_already_spent"], 1, "{r}");
+        assert!(r["post"]["keys"].as_array().unwrap().is_empty(), "{r}");
+    }
+    for role in ["robot", "controller"] {
+        let keys = listed(&dir, &pairing, role);
+        assert_eq!(keys.len(), 1, "{role}: a second key");
+        assert_eq!(keys[0]["sessions"], sources);
+    }
+}
