@@ -16,6 +16,7 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 
 pub use faults::{Datagram, LinkFaults};
+pub use peers::Connected;
 
 use crate::protocol::Time;
 use crate::protocol::timing::earliest;
