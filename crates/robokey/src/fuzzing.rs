@@ -12,8 +12,8 @@ use crate::protocol::controller::command_pair;
 use crate::protocol::wire::{self, Frame, MAC_BYTES};
 use crate::protocol::{
     Closing, Controller, ControllerEvent, ControllerInput, ControllerOutput, FateWindow, Handshake,
-    Message, Outcome, Robot, RobotInput, RobotOutput, SessionMessage, SessionPlan, TAG_BYTES,
-    Time, Timing,
+    Message, Outcome, Robot, RobotInput, RobotOutput, SessionMessage, SessionPlan, TAG_BYTES, Time,
+    Timing,
 };
 use crate::sim::{Noise, Plant};
 
@@ -313,7 +313,10 @@ impl Harness {
                     assert_eq!(a.wheels, WheelSpeeds::zeros(), "moving after the last step");
                 }
                 if a.bit.is_some() {
-                    assert!(agreed.enabled && !a.erased && a.step < agreed.steps, "{a:?}");
+                    assert!(
+                        agreed.enabled && !a.erased && a.step < agreed.steps,
+                        "{a:?}"
+                    );
                 }
             }
             RobotOutput::Sense { step } => {
@@ -346,14 +349,19 @@ impl Harness {
     fn check_controller(&mut self, output: &ControllerOutput) {
         let check = &mut self.controller_check;
         let agreed = &self.plan.agreed;
-        let finite_within =
-            |w: &[f64]| w.iter().all(|w| w.is_finite() && w.abs() <= agreed.wheel_limit);
+        let finite_within = |w: &[f64]| {
+            w.iter()
+                .all(|w| w.is_finite() && w.abs() <= agreed.wheel_limit)
+        };
         match output {
             ControllerOutput::Transmit(m) => {
                 assert!(check.finished.is_none(), "a message after the end: {m:?}");
                 match m {
                     Message::Session(SessionMessage::Command { step, u0, u1, .. }) => {
-                        assert!(*step <= agreed.steps, "a command past the stop command: {m:?}");
+                        assert!(
+                            *step <= agreed.steps,
+                            "a command past the stop command: {m:?}"
+                        );
                         assert!(
                             finite_within(u0) && finite_within(u1),
                             "a command the robot must refuse: {m:?}"
@@ -369,7 +377,10 @@ impl Harness {
                         second,
                         ..
                     }) => {
-                        assert!(*step <= agreed.steps, "a command past the stop command: {m:?}");
+                        assert!(
+                            *step <= agreed.steps,
+                            "a command past the stop command: {m:?}"
+                        );
                         let finite = |u: &[f64]| u.iter().all(|x| x.is_finite());
                         assert!(
                             finite(sample) && finite(first) && second.is_none_or(|s| finite(&s)),
@@ -392,7 +403,9 @@ impl Harness {
             }
             ControllerOutput::Event(
                 ControllerEvent::DoubletErased { doublet }
-                | ControllerEvent::DoubletDecided(crate::private::DoubletDecision { doublet, .. }),
+                | ControllerEvent::DoubletDecided(crate::private::DoubletDecision {
+                    doublet, ..
+                }),
             ) => {
                 let slot = check
                     .resolved
@@ -432,7 +445,11 @@ impl Harness {
             self.robot.handle_timeout(self.now);
             self.drain_robot();
         }
-        if self.controller.poll_timeout().is_some_and(|t| t <= self.now) {
+        if self
+            .controller
+            .poll_timeout()
+            .is_some_and(|t| t <= self.now)
+        {
             self.controller.handle_timeout(self.now);
             self.drain_controller();
         }
@@ -598,7 +615,7 @@ impl Harness {
                 let y = self.pose(bytes);
                 self.feed_robot(RobotInput::Sample { step, y });
             }
-            Focus::Controller if bytes.u8() % 16 == 0 => {
+            Focus::Controller if bytes.u8().is_multiple_of(16) => {
                 let why = String::from_utf8_lossy(bytes.take(8)).into_owned();
                 self.feed_controller(ControllerInput::SensorStopped(why));
             }

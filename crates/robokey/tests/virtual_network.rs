@@ -4,8 +4,8 @@
 
 use std::time::Duration;
 
-use rand::{RngExt, SeedableRng};
 use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use robokey::Config;
 use robokey::pair::{Ending, LinkFaults};
 use robokey::protocol::{Outcome, Timing};
@@ -19,9 +19,7 @@ const SEEDS: u64 = 10_000;
 /// A short session: four sides of 2 s, 40 steps.
 fn short(mode: &str) -> Config {
     Config::from_toml(
-        &format!(
-            "[sensing]\nmode = \"{mode}\"\n[trajectory]\nside_time = 2.0\nlaps = 1\n"
-        ),
+        &format!("[sensing]\nmode = \"{mode}\"\n[trajectory]\nside_time = 2.0\nlaps = 1\n"),
         "test",
     )
     .expect("a valid configuration")
@@ -62,14 +60,25 @@ fn agrees(outcome: Option<&Outcome>) -> bool {
 /// peer's key; private sensing's raw bits differ where the controller erred, but both sides
 /// keep the same doublets, so their raw keys have the same length.
 fn check(seed: u64, s: &Session) -> bool {
-    assert_eq!(s.ending, Ending::Done, "seed {seed}: a side never ended: {s:?}");
+    assert_eq!(
+        s.ending,
+        Ending::Done,
+        "seed {seed}: a side never ended: {s:?}"
+    );
     let either = agrees(s.robot_outcome.as_ref()) || agrees(s.controller_outcome.as_ref());
     let kept = matches!(s.robot_outcome, Some(Outcome::Kept))
         || matches!(s.controller_outcome, Some(Outcome::Kept));
     if kept {
-        assert_eq!(s.robot_key.len(), s.controller_key.len(), "seed {seed}: kept sets differ: {s:?}");
+        assert_eq!(
+            s.robot_key.len(),
+            s.controller_key.len(),
+            "seed {seed}: kept sets differ: {s:?}"
+        );
     } else if either {
-        assert_eq!(s.robot_key, s.controller_key, "seed {seed}: keys differ: {s:?}");
+        assert_eq!(
+            s.robot_key, s.controller_key,
+            "seed {seed}: keys differ: {s:?}"
+        );
     }
     agrees(s.robot_outcome.as_ref()) && agrees(s.controller_outcome.as_ref())
 }
@@ -81,11 +90,19 @@ fn property(mode: &str) {
         let s = session(&config, network(seed), |_, _| false, |_| false);
         both += u64::from(check(seed, &s));
         bits += s.robot_key.len();
-        differ += s.robot_key.iter().zip(&s.controller_key).filter(|(a, b)| a != b).count();
+        differ += s
+            .robot_key
+            .iter()
+            .zip(&s.controller_key)
+            .filter(|(a, b)| a != b)
+            .count();
     }
     println!("{mode}: {bits} raw bits, {differ} differ");
     // Sanity, not a rate claim: the faults are harsh, but most sessions still agree.
-    assert!(both > SEEDS / 2, "{mode}: only {both} of {SEEDS} sessions agreed");
+    assert!(
+        both > SEEDS / 2,
+        "{mode}: only {both} of {SEEDS} sessions agreed"
+    );
     println!("{mode}: {both} of {SEEDS} sessions agreed on both sides");
 }
 
@@ -108,7 +125,6 @@ fn an_ideal_link_agrees_in_both_modes() {
     }
 }
 
-
 /// The two sides' addresses on the virtual network.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Address {
@@ -126,7 +142,7 @@ mod through_the_session_layer {
     use super::*;
     use rand::rngs::ChaCha20Rng;
     use robokey::connection::{
-        ControllerAction, ControllerConnection, Output, RobotAction, RobotConnection,
+        ControllerAction, ControllerConnection, Output, RobotAction, RobotConnection, Setup,
     };
     use robokey::pair::{Connected, Pair, Surroundings};
     use robokey::protocol::auth::PairingSecret;
@@ -134,7 +150,7 @@ mod through_the_session_layer {
     use robokey::rng::{Purpose, stream};
     use robokey::sim::{Noise, Plant};
 
-    type RobotSide = Connected<RobotConnection<Address>, Address>;
+    type RobotSide = Connected<RobotConnection<Address, ChaCha20Rng>, Address>;
     type ControllerSide = Connected<ControllerConnection<Address>, Address>;
 
     /// The plant both agents' worlds share, and how each side ended.
@@ -194,22 +210,23 @@ mod through_the_session_layer {
     fn conversation(config: &Config, network: Network) -> Session {
         let seed = network.seed;
         let pairing = PairingSecret::generate(&mut stream(seed, Purpose::Key, 1));
-        let timing = network.timing;
-        let robot = RobotConnection::new(
+        let setup = Setup {
             config,
-            &pairing,
-            timing,
+            pairing: &pairing,
+            timing: network.timing,
+        };
+        let robot = RobotConnection::new(
+            setup,
             Duration::from_secs(5),
             None,
             <ChaCha20Rng as SeedableRng>::seed_from_u64(seed),
+            <ChaCha20Rng as SeedableRng>::seed_from_u64(!seed),
             Time::ZERO,
         );
         let controller = ControllerConnection::new(
-            config,
-            &pairing,
+            setup,
             Address::Robot,
             seed as u32,
-            timing,
             None,
             &mut stream(seed, Purpose::Key, 2),
             Time::ZERO,
@@ -266,7 +283,10 @@ mod through_the_session_layer {
             let s = conversation(&config, network(seed));
             both += u64::from(check(seed, &s));
         }
-        assert!(both > SEEDS / 2, "{mode}: only {both} of {SEEDS} conversations agreed");
+        assert!(
+            both > SEEDS / 2,
+            "{mode}: only {both} of {SEEDS} conversations agreed"
+        );
         println!("{mode}, session layer: {both} of {SEEDS} conversations agreed on both sides");
     }
 

@@ -10,7 +10,7 @@ use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot};
 
 use super::linger::{Courtesy, Linger};
 use super::post::{PostLink, PostOutput};
-use super::Output;
+use super::{Output, Setup};
 use crate::config::Config;
 use crate::model::Pose;
 use crate::protocol::auth::{AuthMode, ControllerChannel, Delivery, PairingSecret};
@@ -27,9 +27,14 @@ pub type ControllerAction<A> = Output<A, ControllerEvent, ControllerSnapshot>;
 #[derive(Debug)]
 enum Stage {
     /// `Hello` repeats until a `HelloAck` (or a `Refuse`) verifies, until `give_up`.
-    Handshake { next_hello: Time, give_up: Time },
+    Handshake {
+        next_hello: Time,
+        give_up: Time,
+    },
     /// The session runs; `Ready` repeats at `ready_at` until the robot is heard.
-    Session { ready_at: Time },
+    Session {
+        ready_at: Time,
+    },
     /// After the outcome: post-processing until no block is in flight, its retransmission
     /// timer, and when the robot last answered it.
     Post {
@@ -69,18 +74,17 @@ impl<A> std::fmt::Debug for ControllerConnection<A> {
 
 impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
     /// Opens session `session` with the robot at `robot` at `now` (the first `Hello` goes
-    /// out), under `pairing`, for a validated `config`; `post` post-processes confirmed
-    /// sessions (`--store`); `rng` (the OS CSPRNG) draws `nonce_c`.
+    /// out), as `setup` says; `post` post-processes confirmed sessions (`--store`); `rng` (the
+    /// OS CSPRNG) draws `nonce_c`.
     pub fn new<R: CryptoRng + ?Sized>(
-        config: &Config,
-        pairing: &PairingSecret,
+        setup: Setup<'_>,
         robot: A,
         session: u32,
-        timing: Timing,
         post: Option<PostLink<ControllerPost>>,
         rng: &mut R,
         now: Time,
     ) -> Self {
+        let (config, pairing, timing) = (setup.config, setup.pairing, setup.timing);
         let channel = ControllerChannel::new(
             pairing.clone(),
             robot,
@@ -115,7 +119,9 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                 self.establish(now);
             }
             Ok(Delivery::Refused(reason)) if matches!(self.stage, Stage::Handshake { .. }) => {
-                self.end(Outcome::Aborted(format!("robot refused the session: {reason}")));
+                self.end(Outcome::Aborted(format!(
+                    "robot refused the session: {reason}"
+                )));
             }
             Ok(Delivery::Message(message)) => self.on_message(now, message),
             // Rejected (and counted by the channel), or not for this stage.
@@ -200,12 +206,14 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         self.outputs.pop_front()
     }
 
-    /// Ends the conversation now (a stop request, a failing sensor or socket): tells the robot
-    /// why, once the session is keyed.
+    /// Ends the conversation now (a stop request, a failing sensor or socket): drops the
+    /// outputs not taken yet and tells the robot why, once the session is keyed.
     pub fn abort(&mut self, reason: String) {
         if matches!(self.stage, Stage::Closed) {
             return;
         }
+        // What was queued is moot: only the abort goes out.
+        self.outputs.clear();
         self.send(
             Closing::Abort {
                 reason: reason.clone(),
@@ -213,7 +221,8 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             .into(),
         );
         if matches!(self.stage, Stage::Handshake { .. } | Stage::Session { .. }) {
-            self.outputs.push_back(Output::Finished(Outcome::Aborted(reason)));
+            self.outputs
+                .push_back(Output::Finished(Outcome::Aborted(reason)));
         }
         self.close();
     }
@@ -405,11 +414,12 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             self.send(fragment.into());
         }
         if silent && !idle {
-            self.outputs.push_back(Output::Post(PostOutput::Note(format!(
-                "the robot did not answer post-processing for {:.1} s (does it run with \
+            self.outputs
+                .push_back(Output::Post(PostOutput::Note(format!(
+                    "the robot did not answer post-processing for {:.1} s (does it run with \
                  --store?): the block in flight is settled in the next session",
-                self.timing.silence_timeout.as_secs_f64()
-            ))));
+                    self.timing.silence_timeout.as_secs_f64()
+                ))));
         }
         if (idle || silent)
             && let Stage::Post { courtesy, .. } = std::mem::replace(&mut self.stage, Stage::Closed)

@@ -14,7 +14,20 @@ pub use controller::{ControllerAction, ControllerConnection};
 pub use post::{PostEndpoint, PostLink, PostOutput};
 pub use robot::{RobotAction, RobotConnection};
 
-use crate::protocol::Outcome;
+use crate::config::Config;
+use crate::protocol::auth::PairingSecret;
+use crate::protocol::{Outcome, Timing};
+
+/// What a side's conversation is configured with.
+#[derive(Clone, Copy, Debug)]
+pub struct Setup<'a> {
+    /// A validated configuration: the agreement terms and the side's own settings.
+    pub config: &'a Config,
+    /// The pairing secret ([`PairingSecret::unauthenticated`] for `--unauthenticated`).
+    pub pairing: &'a PairingSecret,
+    /// Pacing and timeouts.
+    pub timing: Timing,
+}
 
 /// What a connection asks of its shell, or tells it, in order.
 #[derive(Clone, Debug)]

@@ -6,15 +6,15 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
+use rand::CryptoRng;
 use rand::rngs::ChaCha20Rng;
 use robokey_secrecy::postprocess::{RobotPost, RobotSnapshot};
 
 use super::linger::{Courtesy, Linger};
 use super::post::PostLink;
-use super::Output;
-use crate::config::Config;
+use super::{Output, Setup};
 use crate::model::Pose;
-use crate::protocol::auth::{Delivery, PairingSecret, RobotChannel};
+use crate::protocol::auth::{Delivery, RobotChannel};
 use crate::protocol::{
     Closing, Message, Outcome, Robot, RobotInput, RobotOutput, SessionPlan, Time, Timing,
     agreement_terms, config_digest,
@@ -28,7 +28,9 @@ pub type RobotAction<A> = Output<A, RobotOutput, RobotSnapshot>;
 #[derive(Debug)]
 enum Stage {
     /// Answering `Hello`s until a controller binds a session, or `until`.
-    Listening { until: Time },
+    Listening {
+        until: Time,
+    },
     /// The session runs.
     Session,
     /// `Done` sent: answering post-processing and the controller's repeated closing.
@@ -36,8 +38,9 @@ enum Stage {
     Closed,
 }
 
-/// The robot side of a conversation over the network, with addresses of type `A`.
-pub struct RobotConnection<A> {
+/// The robot side of a conversation over the network, with addresses of type `A`, its raw
+/// key bits drawn from `K`.
+pub struct RobotConnection<A, K> {
     channel: RobotChannel<A>,
     plan: SessionPlan,
     timing: Timing,
@@ -45,14 +48,16 @@ pub struct RobotConnection<A> {
     stage: Stage,
     endpoint: Option<Robot>,
     post: Option<PostLink<RobotPost>>,
-    /// Draws `nonce_r` and the raw key bits: the OS CSPRNG's stream.
-    rng: ChaCha20Rng,
+    /// Draws each `nonce_r`: the OS CSPRNG's stream, whatever the key bits come from.
+    nonces: ChaCha20Rng,
+    /// Draws the raw key bits.
+    key_source: K,
     /// Why the last verified `Hello` was refused, if one was.
     refused: Option<String>,
     outputs: VecDeque<RobotAction<A>>,
 }
 
-impl<A> std::fmt::Debug for RobotConnection<A> {
+impl<A, K> std::fmt::Debug for RobotConnection<A, K> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RobotConnection")
             .field("stage", &self.stage)
@@ -61,32 +66,34 @@ impl<A> std::fmt::Debug for RobotConnection<A> {
     }
 }
 
-impl<A: Copy + PartialEq> RobotConnection<A> {
-    /// Listens from `now` for `wait` for a controller under `pairing`, with a validated
-    /// `config`'s terms; `post` post-processes the sessions it keeps (`--store`); `rng` (seeded
-    /// from the OS CSPRNG) draws the handshake's nonces and the raw key bits.
+impl<A: Copy + PartialEq, K: CryptoRng> RobotConnection<A, K> {
+    /// Listens from `now` for `wait` for a controller, as `setup` says; `post`
+    /// post-processes the sessions it keeps (`--store`); `nonces` (seeded from the OS CSPRNG,
+    /// always) draws the handshake's nonces, `key_source` the raw key bits (the OS CSPRNG in
+    /// deployment, a seeded stream in a reproducible test).
     pub fn new(
-        config: &Config,
-        pairing: &PairingSecret,
-        timing: Timing,
+        setup: Setup<'_>,
         wait: Duration,
         post: Option<PostLink<RobotPost>>,
-        rng: ChaCha20Rng,
+        nonces: ChaCha20Rng,
+        key_source: K,
         now: Time,
     ) -> Self {
+        let config = setup.config;
         Self {
             channel: RobotChannel::new(
-                pairing.clone(),
+                setup.pairing.clone(),
                 config_digest(config),
                 agreement_terms(config),
             ),
             plan: SessionPlan::from_config(config, 0),
-            timing,
+            timing: setup.timing,
             wait,
             stage: Stage::Listening { until: now + wait },
             endpoint: None,
             post,
-            rng,
+            nonces,
+            key_source,
             refused: None,
             outputs: VecDeque::new(),
         }
@@ -94,7 +101,7 @@ impl<A: Copy + PartialEq> RobotConnection<A> {
 
     /// A datagram from `from` arrived at `now`.
     pub fn handle_datagram(&mut self, now: Time, from: A, bytes: &[u8]) {
-        match self.channel.on_datagram(from, bytes, &mut self.rng) {
+        match self.channel.on_datagram(from, bytes, &mut self.nonces) {
             Ok(Delivery::Answer { bytes, refused }) => {
                 self.outputs.push_back(Output::Transmit { to: from, bytes });
                 if refused.is_some() {
@@ -135,7 +142,8 @@ impl<A: Copy + PartialEq> RobotConnection<A> {
                 if let Some(refused) = &self.refused {
                     reason += &format!("; last Hello refused: {refused}");
                 }
-                self.outputs.push_back(Output::Finished(Outcome::Aborted(reason)));
+                self.outputs
+                    .push_back(Output::Finished(Outcome::Aborted(reason)));
                 self.close();
             }
             Stage::Session => {
@@ -165,12 +173,14 @@ impl<A: Copy + PartialEq> RobotConnection<A> {
         self.outputs.pop_front()
     }
 
-    /// Ends the conversation now (a stop request, a failing robot or socket): tells the
-    /// controller why, once a session is bound.
+    /// Ends the conversation now (a stop request, a failing robot or socket): drops the
+    /// outputs not taken yet and tells the controller why, once a session is bound.
     pub fn abort(&mut self, reason: String) {
         if matches!(self.stage, Stage::Closed) {
             return;
         }
+        // What was queued is moot: only the abort goes out.
+        self.outputs.clear();
         self.send(
             Closing::Abort {
                 reason: reason.clone(),
@@ -178,7 +188,8 @@ impl<A: Copy + PartialEq> RobotConnection<A> {
             .into(),
         );
         if matches!(self.stage, Stage::Listening { .. } | Stage::Session) {
-            self.outputs.push_back(Output::Finished(Outcome::Aborted(reason)));
+            self.outputs
+                .push_back(Output::Finished(Outcome::Aborted(reason)));
         }
         self.close();
     }
@@ -225,7 +236,7 @@ impl<A: Copy + PartialEq> RobotConnection<A> {
             _ => return,
         };
         let plan = self.plan.clone().for_session(session, confirmer);
-        self.endpoint = Some(Robot::new(plan, self.timing, &mut self.rng, now));
+        self.endpoint = Some(Robot::new(plan, self.timing, &mut self.key_source, now));
         self.outputs.push_back(Output::Established(session));
         self.stage = Stage::Session;
     }

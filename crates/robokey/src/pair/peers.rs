@@ -70,7 +70,7 @@ pub struct Connected<C, A> {
     pub peer: A,
 }
 
-impl<A: Copy + PartialEq> Peer for Connected<RobotConnection<A>, A> {
+impl<A: Copy + PartialEq, K: rand::CryptoRng> Peer for Connected<RobotConnection<A, K>, A> {
     type Datagram = Vec<u8>;
     /// Every output but `Transmit`.
     type Output = RobotAction<A>;

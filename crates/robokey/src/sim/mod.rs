@@ -226,10 +226,10 @@ fn run<'a>(
     let steps = agreed.steps;
     let senses = match &plan.mode {
         ModePlan::Odometry(_) => Senses::Odometry {
-            odometry: Sensor::new(Noise::new(
+            odometry: Box::new(Sensor::new(Noise::new(
                 stream_of(Purpose::Measurement),
                 config.noise.measurement_std,
-            )),
+            ))),
             eve: (config.eve.enabled && agreed.enabled).then(|| {
                 let mut eve = eve::build(config, &mut stream_of(Purpose::Eve));
                 eve.begin_session(&plan);
@@ -242,7 +242,10 @@ fn run<'a>(
                 stream_of(Purpose::Measurement),
                 config.sensing.controller_std,
             )),
-            camera: Sensor::new(Noise::new(stream_of(Purpose::Camera), config.eve.camera_std)),
+            camera: Sensor::new(Noise::new(
+                stream_of(Purpose::Camera),
+                config.eve.camera_std,
+            )),
             eve: DoubletEavesdropper::new(config),
             decided: VecDeque::new(),
             heard: BTreeMap::new(),
@@ -268,7 +271,12 @@ fn run<'a>(
         abort: None,
     };
     let timing = Timing::default();
-    let robot = Robot::new(plan.clone(), timing, &mut stream_of(Purpose::Key), Time::ZERO);
+    let robot = Robot::new(
+        plan.clone(),
+        timing,
+        &mut stream_of(Purpose::Key),
+        Time::ZERO,
+    );
     let controller = Controller::new(config, plan.clone(), timing, Time::ZERO);
     let mut pair = Pair::ideal(robot, controller);
     // The session ends at `t_N`; the limit only bounds a session that would not end.

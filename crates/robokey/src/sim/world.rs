@@ -11,7 +11,9 @@ use super::trace::TraceRows;
 use crate::config::{Config, EveStrategy};
 use crate::eve::Eavesdropper;
 use crate::pair::{Side, Surroundings};
-use crate::private::{BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, EveDoublet, PrivateRun};
+use crate::private::{
+    BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, EveDoublet, PrivateRun,
+};
 use crate::protocol::{
     Controller, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, Robot,
     RobotInput, RobotOutput, SessionMessage, Time,
@@ -23,7 +25,7 @@ pub(super) enum Senses<'a> {
     /// The robot's odometry; the eavesdropper (if any) hears the messages.
     Odometry {
         /// The robot's odometry sensor.
-        odometry: Sensor,
+        odometry: Box<Sensor>,
         /// The eavesdropper, when the run has one.
         eve: Option<Box<dyn Eavesdropper>>,
         /// Every message in the order a tap hears it, when asked for.
@@ -88,33 +90,36 @@ impl World<'_> {
         if step > 0 {
             self.tracking_error += (pose.xy() - reference).norm();
         }
-        let row = self.trace.row(step as usize).map(|row| {
+        let (measured, filmed) = match &mut self.senses {
+            Senses::Odometry { odometry, .. } => (odometry.sample(&pose), None),
+            Senses::Private(p) => (p.controller.sample(&pose), Some(p.camera.sample(&pose))),
+        };
+        if let Some(row) = self.trace.row(step as usize) {
             row.k = step;
             row.t = t;
             row.reference = reference.into();
             row.pose = pose.into();
-            row
-        });
+            row.measurement = measured.into();
+            row.camera = filmed.map(Into::into);
+        }
         match &mut self.senses {
-            Senses::Odometry { odometry, .. } => {
-                let y = odometry.sample(&pose);
-                if let Some(row) = row {
-                    row.measurement = y.into();
-                }
-                robot.handle_input(now, RobotInput::Sample { step, y });
+            Senses::Odometry { .. } => {
+                robot.handle_input(now, RobotInput::Sample { step, y: measured });
             }
             Senses::Private(p) => {
-                let sensed = p.controller.sample(&pose);
-                let filmed = p.camera.sample(&pose);
-                if let Some(row) = row {
-                    row.measurement = sensed.into();
-                    row.camera = Some(filmed.into());
+                if let Some(filmed) = filmed {
+                    p.eve.film(step, filmed);
+                    p.collect();
                 }
-                p.eve.film(step, filmed);
-                p.collect();
                 // The simulated robot has no odometry of its own: it would send none anyway.
                 robot.handle_input(now, RobotInput::Sample { step, y: pose });
-                controller.handle_input(now, ControllerInput::Sensor { step, pose: sensed });
+                controller.handle_input(
+                    now,
+                    ControllerInput::Sensor {
+                        step,
+                        pose: measured,
+                    },
+                );
             }
         }
     }
@@ -126,11 +131,22 @@ impl World<'_> {
             return;
         };
         while let Some(e) = p.decided.front().and_then(|d| p.heard.remove(&d.doublet)) {
-            let d = p.decided.pop_front().expect("paired with the front decision");
+            let d = p
+                .decided
+                .pop_front()
+                .expect("paired with the front decision");
             let bits = robot
                 .carried_bits(d.doublet)
                 .expect("the robot carried every doublet the simulated controller decides");
-            record(self.config, &d, &e, bits, &mut p.run, &mut self.log, &mut self.trace);
+            record(
+                self.config,
+                &d,
+                &e,
+                bits,
+                &mut p.run,
+                &mut self.log,
+                &mut self.trace,
+            );
         }
     }
 }
@@ -145,7 +161,13 @@ impl PrivateSenses {
 }
 
 impl Surroundings<Robot, Controller> for World<'_> {
-    fn robot_output(&mut self, now: Time, output: RobotOutput, robot: &mut Robot, controller: &mut Controller) {
+    fn robot_output(
+        &mut self,
+        now: Time,
+        output: RobotOutput,
+        robot: &mut Robot,
+        controller: &mut Controller,
+    ) {
         match output {
             RobotOutput::Sense { step } => self.sense(now, step, robot, controller),
             RobotOutput::Apply(actuation) => {
@@ -220,7 +242,8 @@ impl Surroundings<Robot, Controller> for World<'_> {
                 self.record_private(robot);
             }
             ControllerEvent::Finished(outcome) => {
-                if let (Senses::Odometry { .. }, Outcome::Aborted(reason)) = (&self.senses, &outcome)
+                if let (Senses::Odometry { .. }, Outcome::Aborted(reason)) =
+                    (&self.senses, &outcome)
                 {
                     self.abort = Some(reason.clone());
                 }

@@ -132,7 +132,10 @@ pub fn session(
             agreed.drive,
             config.robot.wheel_limit,
             agreed.sample_time,
-            Noise::new(stream(9, Purpose::Process, network.seed), config.noise.process_std),
+            Noise::new(
+                stream(9, Purpose::Process, network.seed),
+                config.noise.process_std,
+            ),
         ),
         private: plan.private().is_some(),
         drop,
