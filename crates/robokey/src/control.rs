@@ -17,6 +17,19 @@ pub struct TrackingGains {
     pub wheel_limit: f64,
 }
 
+impl TrackingGains {
+    /// The gains of a configuration's `[controller]` table.
+    #[must_use]
+    pub fn of(c: &crate::config::ControllerConfig) -> Self {
+        Self {
+            kp: c.kp,
+            kd: c.kd,
+            xi_eps: c.xi_eps,
+            wheel_limit: c.wheel_limit,
+        }
+    }
+}
+
 /// The controller with its integrator state `ξ` (= v, m/s).
 #[derive(Clone, Debug)]
 pub struct TrackingController {

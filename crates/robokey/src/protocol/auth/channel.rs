@@ -11,7 +11,7 @@ use super::{
     Confirmer, Direction, MacKey, NONCE_BYTES, PairingSecret, SessionKeys, seal, verifies,
 };
 use crate::protocol::message::{Handshake, Message};
-use crate::protocol::plan::terms_difference;
+use crate::protocol::terms::terms_difference;
 use crate::protocol::wire::{Frame, decode};
 
 /// Most half-open handshakes (verified Hellos without a session-key frame yet) the robot

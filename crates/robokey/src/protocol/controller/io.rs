@@ -1,14 +1,12 @@
-//! What the endpoints take and give (docs/protocol.md): each side's input, output and, for
-//! the controller, the events it reports. The shells (simulator, UDP agents) feed the inputs
-//! and carry out the outputs; both sensing modes share them.
+//! What goes into and comes out of the controller endpoint.
 
-use super::Outcome;
-use super::decoder::StepDecision;
-use super::message::Message;
-use crate::model::{Pose, Unicycle, WheelSpeeds};
-use crate::private::{DoubletDecision, DoubletInputs};
+use crate::model::{Pose, Unicycle};
+use crate::private::decision::DoubletDecision;
+use crate::private::doublet::DoubletInputs;
+use crate::protocol::decoder::StepDecision;
+use crate::protocol::{Message, Outcome};
 
-/// Input to the controller endpoints (odometry and private sensing).
+/// Input to the controller endpoint.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ControllerInput {
     /// A message from the robot.
@@ -21,8 +19,8 @@ pub enum ControllerInput {
         /// `y_c(k)` (m, m, rad).
         pose: Pose,
     },
-    /// The shell's retransmission timer fired (Finish or Confirm not answered yet).
-    Timeout,
+    /// Private sensing: the controller's sensor stopped for good, with the reason.
+    SensorStopped(String),
 }
 
 /// What the controller observed, for traces and metrics.
@@ -68,54 +66,11 @@ pub enum ControllerEvent {
     Finished(Outcome),
 }
 
-/// Output of the controller endpoints.
+/// Output of the controller endpoint.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ControllerOutput {
     /// Send this message to the robot.
     Transmit(Message),
     /// Something happened.
     Event(ControllerEvent),
-}
-
-/// Input to the robot endpoint.
-#[derive(Clone, Debug, PartialEq)]
-pub enum RobotInput {
-    /// The odometry pose `y(k)` was sampled at `t_k = k·T`.
-    Sample {
-        /// Step k.
-        step: u32,
-        /// `y(k)` (m, m, rad).
-        y: Pose,
-    },
-    /// A message from the controller.
-    Frame(Message),
-    /// Command `step` has not arrived by its deadline.
-    Deadline {
-        /// Step k.
-        step: u32,
-    },
-}
-
-/// What the robot applies on `[t_k, t_{k+1})`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Actuation {
-    /// Step k.
-    pub step: u32,
-    /// Wheel speeds (rad/s, right first).
-    pub wheels: WheelSpeeds,
-    /// The key bit `b(k)` applied, or `None` (protocol off, erased, or stopped).
-    pub bit: Option<u8>,
-    /// Whether the command was missing and the fallback was applied.
-    pub erased: bool,
-}
-
-/// Output of the robot endpoint.
-#[derive(Clone, Debug, PartialEq)]
-pub enum RobotOutput {
-    /// Send this message to the controller.
-    Transmit(Message),
-    /// Drive the wheels.
-    Apply(Actuation),
-    /// The session ended.
-    Finished(Outcome),
 }
