@@ -4,105 +4,18 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use robokey::Config;
+use robokey::config::source;
 use robokey::interrupt::Interrupt;
 use robokey_lab::LabError;
-use robokey_lab::files::{
-    Override, apply_overrides, blame_flags, prepare_output, read_table, write,
-};
+use robokey_lab::files::{prepare_output, write};
 use robokey_lab::folder::{Start, SweepPlan, Swept};
 use robokey_lab::runner::with_jobs;
 use robokey_lab::sweep::{Experiment, experiments_from_table};
 use robokey_lab::{report, results, trace};
 
+use crate::configuration::{FlagOverrides, load_config, read_table};
 use crate::exit::{Status, on_signals, usage};
 use crate::{ConfigArgs, MergeArgs, ReportArgs, ReproduceArgs, RunArgs, SecrecyArgs, SweepArgs};
-
-/// Loads a configuration from an optional file plus overrides; errors name the flag the
-/// user wrote.
-pub fn load_config(path: Option<&Path>, overrides: &[Override]) -> Result<Config> {
-    let mut table = read_table(path)?;
-    if table.contains_key("sweep") || table.contains_key("experiment") {
-        usage!(
-            "{}: holds a sweep; run it with `robokey sweep`",
-            path.map_or_else(String::new, |p| p.display().to_string())
-        );
-    }
-    apply_overrides(&mut table, overrides)?;
-    let origin = origin(path.map(Path::display), overrides);
-    Config::from_table(table, &origin).map_err(|e| blame_flags(e.into(), overrides).into())
-}
-
-/// Where a configuration came from, as the user gave it: the file (or the defaults) and
-/// the flags that changed it.
-fn origin(file: Option<impl std::fmt::Display>, overrides: &[Override]) -> String {
-    let base = file.map_or_else(|| "the defaults".to_owned(), |f| f.to_string());
-    if overrides.is_empty() {
-        base
-    } else {
-        let flags: Vec<&str> = overrides.iter().map(|o| o.flag.as_str()).collect();
-        format!("{base} with {}", flags.join(" "))
-    }
-}
-
-/// `--set` overrides plus the ones a command's own flags stand for.
-pub struct FlagOverrides(Vec<Override>);
-
-impl FlagOverrides {
-    /// Starts from the `--set` overrides.
-    pub fn new(set: &[Override]) -> Self {
-        Self(set.to_vec())
-    }
-
-    /// Sets `field` when `flag` was given with a value.
-    pub fn value<V: Into<toml::Value> + std::fmt::Display>(
-        &mut self,
-        flag: &str,
-        field: &str,
-        value: Option<V>,
-    ) {
-        if let Some(value) = value {
-            self.0.push(Override {
-                field: field.into(),
-                flag: format!("{flag} {value}"),
-                value: value.into(),
-            });
-        }
-    }
-
-    /// Sets `field` to `value` when the switch `flag` was given.
-    pub fn switch(&mut self, flag: &str, given: bool, field: &str, value: bool) {
-        if given {
-            self.0.push(Override {
-                field: field.into(),
-                value: value.into(),
-                flag: flag.into(),
-            });
-        }
-    }
-
-    /// `--seed`, which TOML holds as a signed integer.
-    pub fn seed(&mut self, seed: Option<u64>) -> Result<()> {
-        if let Some(seed) = seed {
-            let Ok(signed) = i64::try_from(seed) else {
-                usage!(
-                    "--seed {seed} is not allowed (allowed: 0 to 2^63 − 1; TOML integers are signed)"
-                );
-            };
-            self.0.push(Override {
-                field: "run.seed".into(),
-                value: signed.into(),
-                flag: format!("--seed {seed}"),
-            });
-        }
-        Ok(())
-    }
-
-    /// Loads the configuration with these overrides.
-    pub fn load(&self, path: Option<&Path>) -> Result<Config> {
-        load_config(path, &self.0)
-    }
-}
 
 pub fn run(args: RunArgs) -> Result<()> {
     let mut overrides = FlagOverrides::new(&args.options.set);
@@ -206,10 +119,14 @@ pub fn run(args: RunArgs) -> Result<()> {
 }
 
 pub fn sweep(args: SweepArgs) -> Result<Status> {
-    let mut table = read_table(Some(&args.config))?;
-    apply_overrides(&mut table, &args.options.set)?;
-    let experiments = experiments_from_table(table, &args.config.display().to_string())
-        .map_err(|e| blame_flags(e, &args.options.set))?;
+    let set = &args.options.set;
+    let mut table = read_table(&args.config)?;
+    source::apply(&mut table, set)?;
+    let experiments =
+        experiments_from_table(table, &args.config.display().to_string()).map_err(|e| match e {
+            LabError::Config(e) => LabError::Config(source::blame(e, set)),
+            other => other,
+        })?;
     let (out, resume) = output(&args.out, args.resume.as_deref(), args.force)?;
     let stop = on_signals()?;
     let plan = SweepPlan {

@@ -19,9 +19,9 @@ use robokey_net::capture_eve::{listen, listen_private, read_session};
 use robokey_net::pose_stream::read_log;
 use robokey_net::session::read_key_file;
 
-use crate::commands::FlagOverrides;
+use crate::StrategyArg;
+use crate::configuration::{ConfigOptions, FlagOverrides};
 use crate::exit::usage;
-use crate::{ConfigOptions, StrategyArg};
 
 #[derive(Args, Debug)]
 pub struct EveArgs {

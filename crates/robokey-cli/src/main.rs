@@ -5,16 +5,17 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use robokey_lab::files::Override;
 use robokey_lab::runner::Shard;
 
 mod commands;
+mod configuration;
 mod eve;
 mod exit;
 mod keys;
 mod net;
 mod ros2;
 
+use configuration::ConfigOptions;
 use exit::Status;
 
 /// Key agreement for remotely controlled robots, through the robot's own motion
@@ -99,14 +100,6 @@ enum Command {
     /// stores list the same IDs (docs/postprocessing.md).
     #[command(subcommand_required = true)]
     Keys(keys::KeysArgs),
-}
-
-/// Options shared by commands that read a configuration.
-#[derive(Args, Debug, Clone)]
-pub struct ConfigOptions {
-    /// Set any config field, e.g. `--set controller.kp=1.0` (repeatable).
-    #[arg(long = "set", value_name = "FIELD=VALUE", value_parser = parse_override)]
-    set: Vec<Override>,
 }
 
 #[derive(Args, Debug)]
@@ -326,17 +319,6 @@ struct ConfigArgs {
     config: Option<PathBuf>,
     #[command(flatten)]
     options: ConfigOptions,
-}
-
-fn parse_override(text: &str) -> Result<Override, String> {
-    let (field, value) = text
-        .split_once('=')
-        .ok_or_else(|| format!("`{text}`: expected FIELD=VALUE, e.g. controller.kp=1.0"))?;
-    Ok(Override {
-        field: field.trim().to_owned(),
-        value: robokey::config::parse_value(value.trim()),
-        flag: format!("--set {text}"),
-    })
 }
 
 fn main() -> ExitCode {

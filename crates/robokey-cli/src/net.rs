@@ -21,8 +21,7 @@ use robokey_net::session::{Ending, Pace, SessionReport, Timing, os_rng};
 use robokey_net::sim_backend::SimBackend;
 use robokey_net::world::{SensorOptions, WorldSensors};
 
-use crate::ConfigOptions;
-use crate::commands::load_config;
+use crate::configuration::{ConfigOptions, WorldNoiseArgs, load_config};
 use crate::exit::{Status, Usage, on_signals, usage};
 
 /// Clock of a session.
@@ -139,6 +138,12 @@ impl SessionArgs {
     }
 }
 
+/// The OS random generator. Its failure is the machine's, never the command line's, so it
+/// is reported as a plain error (exit 1) whichever `NetError` carries it.
+fn system_rng() -> Result<rand::rngs::ChaCha20Rng> {
+    os_rng().map_err(|e| anyhow::anyhow!("{e}"))
+}
+
 #[derive(Args, Debug)]
 pub struct PairArgs {
     /// Folder to write `pairing.key` into (created if missing; an existing pairing is
@@ -149,7 +154,7 @@ pub struct PairArgs {
 
 /// Writes a fresh pairing secret and prints its public fingerprint.
 pub fn pair(args: PairArgs) -> Result<()> {
-    let (path, secret) = write_pairing(&args.out, &mut os_rng()?)?;
+    let (path, secret) = write_pairing(&args.out, &mut system_rng()?)?;
     println!(
         "wrote {} (mode 0600), fingerprint {}\ninstall it on the robot and on the controller \
          (--pairing FILE); both print the fingerprint at start",
@@ -371,8 +376,8 @@ pub fn robot(args: RobotArgs) -> Result<Status> {
         None => {
             // The simulated plant's noise is not key material; it just differs per session.
             use rand::RngExt;
-            config.run.seed = os_rng()?.random();
-            finish_robot(&args, &config, &options, &mut os_rng()?)
+            config.run.seed = system_rng()?.random();
+            finish_robot(&args, &config, &options, &mut system_rng()?)
         }
     }
 }
@@ -555,31 +560,6 @@ pub struct EmulatorArgs {
     noise: WorldNoiseArgs,
     #[command(flatten)]
     world: WorldArgs,
-}
-
-/// The seed and configuration of an emulated world's noise (`kh4-emulator`, `ros2-sim`).
-#[derive(Args, Debug)]
-pub struct WorldNoiseArgs {
-    /// Seed of the world's noise, drawn from the simulator's random streams of this seed:
-    /// kh4-emulator's wheel slip and sensors (replicate i for the i-th connection),
-    /// ros2-sim's motion capture (replicate 0).
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Configuration (TOML) of the world: the sensors' noise (`sensing.controller_std`,
-    /// `eve.camera_std`), kh4-emulator's axle length.
-    #[arg(long, short)]
-    config: Option<PathBuf>,
-    #[command(flatten)]
-    options: ConfigOptions,
-}
-
-impl WorldNoiseArgs {
-    /// The configuration, its `run.seed` the seed.
-    pub fn load(&self) -> Result<robokey::Config> {
-        let mut config = load_config(self.config.as_deref(), &self.options.set)?;
-        config.run.seed = self.seed;
-        Ok(config)
-    }
 }
 
 pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {

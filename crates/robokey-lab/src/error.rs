@@ -96,6 +96,32 @@ pub enum LabError {
     },
 }
 
+impl LabError {
+    /// Whether the error is the user's input: a configuration, a sweep definition, an
+    /// output or input folder that does not fit the command, an option the sensing mode
+    /// does not allow. Not: a file the system cannot read or write, a simulation that
+    /// aborted, a figure, a merge of inconsistent shards, a stop by signal.
+    #[must_use]
+    pub fn is_usage(&self) -> bool {
+        match self {
+            Self::Config(e) => e.is_usage(),
+            Self::Sweep { .. }
+            | Self::NotEmpty(_)
+            | Self::NotOutput(_)
+            | Self::NotSweep(_)
+            | Self::NotWhole { .. }
+            | Self::Incomplete { .. }
+            | Self::Resume { .. }
+            | Self::SensingMode(_) => true,
+            Self::Io { .. }
+            | Self::Sim(_)
+            | Self::Interrupted(_)
+            | Self::Merge(_)
+            | Self::Plot { .. } => false,
+        }
+    }
+}
+
 /// Attaches a path to an I/O error.
 pub(crate) fn io_at(path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> LabError {
     let path = path.into();
