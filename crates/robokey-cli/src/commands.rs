@@ -7,11 +7,12 @@ use anyhow::{Context, Result};
 use robokey::config::source;
 use robokey::interrupt::Interrupt;
 use robokey_lab::LabError;
-use robokey_lab::files::{prepare_output, write};
-use robokey_lab::folder::{Start, SweepPlan, Swept};
-use robokey_lab::runner::with_jobs;
-use robokey_lab::sweep::{Experiment, experiments_from_table};
-use robokey_lab::{report, results, trace};
+use robokey_lab::experiment::{Experiment, experiments_from_table};
+use robokey_lab::folder::sweep::{Start, SweepPlan, Swept};
+use robokey_lab::folder::{layout, merge};
+use robokey_lab::output::{prepare_output, write};
+use robokey_lab::run::with_jobs;
+use robokey_lab::{metric_table, report, trace};
 
 use crate::configuration::{FlagOverrides, load_config, read_table};
 use crate::exit::{Status, on_signals, usage};
@@ -53,7 +54,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     written
         .and_then(|()| csv.finish().map(drop))
         .with_context(|| format!("{}: cannot write", trace_path.display()))?;
-    let mut json = trace::metrics_json(&output.metrics);
+    let mut json = metric_table::metrics_json(&output.metrics);
     json.insert("replicate".into(), args.replicate.into());
     json.insert("seed".into(), config.run.seed.into());
     let files = [
@@ -167,7 +168,7 @@ fn sweep_into(
 ) -> Result<Swept> {
     let started = Instant::now();
     let swept = with_jobs(jobs, || {
-        robokey_lab::folder::sweep(out, experiments, plan, stop, &mut announce, &|| {})
+        robokey_lab::folder::sweep::sweep(out, experiments, plan, stop, &mut announce, &|| {})
     })??;
     if swept.interrupted.is_none() {
         println!("swept in {:.2} s", started.elapsed().as_secs_f64());
@@ -179,7 +180,7 @@ fn sweep_into(
 fn announce(start: &Start) {
     let e = start.experiment;
     let mut what = Vec::new();
-    if start.shards != [robokey_lab::runner::Shard::ALL] {
+    if start.shards != [robokey_lab::run::Shard::ALL] {
         let shards: Vec<String> = start.shards.iter().map(ToString::to_string).collect();
         what.push(format!(
             "shard {}: {} runs",
@@ -274,7 +275,7 @@ fn shell_word(word: &str) -> String {
 
 pub fn merge(args: MergeArgs) -> Result<()> {
     prepare_output(&args.out, args.force)?;
-    let experiments = results::merge(&args.dirs, &args.out)?;
+    let experiments = merge::merge(&args.dirs, &args.out)?;
     for e in experiments.iter().filter(|e| !e.name.is_empty()) {
         println!(
             "{}: {} runs → {}",
@@ -361,12 +362,12 @@ pub fn config(args: ConfigArgs) -> Result<()> {
 
 pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     use robokey::config::SensingMode;
+    use robokey_lab::experiment::{MAX_BLOCK_BITS, MIN_BLOCK_BITS};
     use robokey_lab::secrecy::map::private_map;
     use robokey_lab::secrecy::render_private::break_even_text;
     use robokey_lab::secrecy::{
         Pooling, SecrecyOptions, analyze, default_adversaries, write_secrecy,
     };
-    use robokey_lab::sweep::{MAX_BLOCK_BITS, MIN_BLOCK_BITS};
     if let Some(eps) = args.eps
         && !(eps > 0.0 && eps < 1.0)
     {
@@ -406,10 +407,10 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     };
     // A sweep folder, or a suite folder whose subfolders are sweeps.
     let folders =
-        results::experiment_dirs(&args.sweep_dir)?.unwrap_or_else(|| vec![args.sweep_dir.clone()]);
+        layout::experiment_dirs(&args.sweep_dir)?.unwrap_or_else(|| vec![args.sweep_dir.clone()]);
     let started = Instant::now();
     for folder in folders {
-        let experiment = results::read_experiment(&folder, &results::folder_name(&folder))?;
+        let experiment = layout::read_experiment(&folder, &layout::folder_name(&folder))?;
         if !experiment.points[0].config.protocol.enabled {
             println!("{}: protocol off, no key: skipped", folder.display());
             continue;

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use robokey_lab::runner::Shard;
+use robokey_lab::run::Shard;
 
 mod commands;
 mod configuration;

@@ -15,9 +15,9 @@ use robokey::rng::{Purpose, stream};
 use serde::Serialize;
 
 use crate::error::LabError;
-use crate::files::write;
+use crate::output::write;
 use crate::plot::{LineChart, Series, SeriesStyle};
-use crate::sessions::{Heard, SessionBank};
+use crate::run::sessions::{Heard, SessionBank};
 
 /// One decided period, as one strategy saw it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -796,10 +796,10 @@ mod tests {
         let mut config = Config::default();
         config.eve.sessions = 2;
         let strategies = [EveStrategy::Soft, EveStrategy::Transcript];
-        let one = crate::runner::with_jobs(1, || run_campaign(&config, &strategies))
+        let one = crate::run::with_jobs(1, || run_campaign(&config, &strategies))
             .unwrap()
             .unwrap();
-        let two = crate::runner::with_jobs(2, || run_campaign(&config, &strategies))
+        let two = crate::run::with_jobs(2, || run_campaign(&config, &strategies))
             .unwrap()
             .unwrap();
         assert_eq!(periods_csv(&one), periods_csv(&two));

@@ -86,6 +86,22 @@ pub enum LabError {
     /// Shards cannot be merged.
     #[error("merge: {0}")]
     Merge(String),
+    /// A file of an output folder does not read back as robokey wrote it.
+    #[error("{place}: {message}")]
+    Malformed {
+        /// The file, with the line when known (`runs.csv:12`).
+        place: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The worker threads could not be started.
+    #[error("cannot start {jobs} worker threads: {message}")]
+    Threads {
+        /// Threads asked for.
+        jobs: usize,
+        /// Why not.
+        message: String,
+    },
     /// A figure could not be drawn.
     #[error("figure {path}: {message}")]
     Plot {
@@ -117,6 +133,8 @@ impl LabError {
             | Self::Sim(_)
             | Self::Interrupted(_)
             | Self::Merge(_)
+            | Self::Malformed { .. }
+            | Self::Threads { .. }
             | Self::Plot { .. } => false,
         }
     }

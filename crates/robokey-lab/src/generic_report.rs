@@ -9,11 +9,11 @@ use robokey::Metrics;
 use robokey::sim::TraceRow;
 
 use crate::error::{LabError, io_at};
-use crate::files::write;
-use crate::folder::Loaded;
+use crate::experiment::{Experiment, axis_label, describe, param_label, param_number};
+use crate::folder::load::Loaded;
+use crate::output::write;
 use crate::plot::BoxGroup;
 use crate::report::{Report, box_chart, fmt, median_of, trajectory_figure};
-use crate::sweep::{Experiment, axis_label, describe, param_label, param_number};
 use crate::trace::labelled_paths;
 
 /// A metric the report shows: name, unit, decimals, and its value in those units.
@@ -72,9 +72,9 @@ struct Computed<'a> {
 
 fn compute(loaded: &Loaded) -> Computed<'_> {
     let mut values = vec![vec![Vec::new(); SHOWN.len()]; loaded.experiment.points.len()];
-    for record in &loaded.records {
-        for (column, shown) in values[record.point].iter_mut().zip(&SHOWN) {
-            column.extend((shown.value)(&record.metrics));
+    for row in &loaded.rows {
+        for (column, shown) in values[row.point].iter_mut().zip(&SHOWN) {
+            column.extend((shown.value)(&row.metrics));
         }
     }
     Computed { loaded, values }
@@ -157,7 +157,7 @@ fn section(c: &Computed, prefix: &str) -> String {
             .iter()
             .map(|(field, value)| {
                 param_number(field, value)
-                    .map_or_else(|| crate::sweep::value_text(value), |x| x.to_string())
+                    .map_or_else(|| crate::experiment::value_text(value), |x| x.to_string())
             })
             .collect();
         cells.extend(
@@ -229,14 +229,13 @@ fn draw(c: &Computed, figures: &Path, prefix: &str) -> Result<(), LabError> {
         let labels: Vec<String> = e.points.iter().map(|p| describe(&p.params)).collect();
         let labelled: Vec<(String, &[TraceRow])> = c
             .loaded
-            .records
+            .traces
             .iter()
-            .filter_map(|r| {
-                let label = labels[r.point].as_str();
+            .flat_map(|(&point, paths)| {
+                let label = labels[point].as_str();
                 let label = if label.is_empty() { "robot" } else { label };
-                Some(labelled_paths(label, r.trace.as_deref()?))
+                labelled_paths(label, paths)
             })
-            .flatten()
             .collect();
         let paths: Vec<(&str, &[TraceRow])> =
             labelled.iter().map(|(l, p)| (l.as_str(), *p)).collect();

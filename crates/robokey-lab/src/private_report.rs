@@ -10,11 +10,11 @@ use robokey::config::{EveStrategy, parse_table};
 use robokey::interrupt::Interrupt;
 
 use crate::error::LabError;
-use crate::folder::{SweepPlan, sweep};
+use crate::experiment::{Experiment, experiments_from_table};
+use crate::folder::sweep::{SweepPlan, sweep};
 use crate::secrecy::map::{CAMERA_FIELD, PrivateMap, private_map};
 use crate::secrecy::render_private::break_even_text;
 use crate::secrecy::{PointSecrecy, Pooling, SecrecyOptions, analyze, write_secrecy};
-use crate::sweep::{Experiment, experiments_from_table};
 
 /// The full map, embedded: `reproduce` computes a coarse version of it.
 pub const PRIVATE_SENSING_TOML: &str = include_str!("../../../experiments/private-sensing.toml");

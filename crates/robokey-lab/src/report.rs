@@ -9,13 +9,14 @@ use robokey::interrupt::Interrupt;
 use robokey::sim::TraceRow;
 
 use crate::error::LabError;
-use crate::files::write;
-use crate::folder::Loaded;
+use crate::experiment::{Experiment, experiments_from_table};
+use crate::folder::load::{Loaded, load};
+use crate::output::write;
 use crate::plot::{BoxChart, BoxGroup, Interval, LineChart, Series, SeriesStyle};
-use crate::runner::{RunRecord, thousands};
-use crate::sessions::SessionBank;
+use crate::progress::thousands;
+use crate::run::RunRow;
+use crate::run::sessions::SessionBank;
 use crate::stats::{Summary, TrendTest, spearman_permutation_test};
-use crate::sweep::{Experiment, experiments_from_table};
 use robokey_secrecy::interval::clopper_pearson;
 
 /// The paper's experiment suite, embedded so that `reproduce` needs no file.
@@ -216,7 +217,7 @@ pub fn trajectory_figure(
 /// The values of one metric per run (undefined runs skipped), with the run's parameter.
 fn column(
     experiment: &Experiment,
-    records: &[RunRecord],
+    records: &[RunRow],
     field: &str,
     metric: impl Fn(&robokey::Metrics) -> Option<f64>,
 ) -> Vec<(f64, f64)> {
@@ -238,7 +239,7 @@ fn column(
 /// the joint counts `n_acc` (s, ŝc, ŝa) of each run.
 fn accepted_errors(
     experiment: &Experiment,
-    records: &[RunRecord],
+    records: &[RunRow],
     field: &str,
 ) -> Vec<(f64, f64, f64, f64)> {
     let mut pooled: Vec<(f64, u64, u64)> = Vec::new();
@@ -460,7 +461,7 @@ pub fn paper_suite(quick: bool) -> Result<Vec<Experiment>, LabError> {
 /// The folder is not a complete sweep (an interrupted sweep, a lone shard), a run's files do
 /// not read back, a figure or file cannot be written, or the stop was requested.
 pub fn report(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Report, LabError> {
-    let loaded = crate::folder::load(dir)?;
+    let loaded = load(dir)?;
     let paper = PAPER_EXPERIMENTS
         .iter()
         .all(|name| loaded.iter().any(|l| l.experiment.name == *name));
@@ -483,13 +484,13 @@ fn paper_report(
         loaded
             .iter()
             .find(|l| l.experiment.name == name)
-            .map(|l| (&l.experiment, l.records.as_slice()))
+            .map(|l| (&l.experiment, l.rows.as_slice(), &l.traces))
             .ok_or_else(|| LabError::Merge(format!("no {name} experiment")))
     };
-    let (dv, dv_runs) = find("dv-sweep")?;
-    let (eve, eve_runs) = find("eve-sweep")?;
-    let (_, baseline_runs) = find("baseline")?;
-    let (trajectory, trajectory_runs) = find("trajectory")?;
+    let (dv, dv_runs, _) = find("dv-sweep")?;
+    let (eve, eve_runs, _) = find("eve-sweep")?;
+    let (_, baseline_runs, _) = find("baseline")?;
+    let (trajectory, _, trajectory_traces) = find("trajectory")?;
     let figures = out.join("figures");
     std::fs::create_dir_all(&figures).map_err(crate::error::io_at(&figures))?;
 
@@ -581,17 +582,17 @@ fn paper_report(
         .saturating_sub(1) as f64
         * trajectory.points[0].config.trajectory.side_time
         / trajectory.points[0].config.robot.sample_time;
-    let traces: Vec<(&str, &[TraceRow])> = trajectory_runs
+    let traces: Vec<(&str, &[TraceRow])> = trajectory_traces
         .iter()
-        .filter_map(|r| {
-            let on = trajectory.points[r.point].config.protocol.enabled;
+        .filter_map(|(&point, paths)| {
+            let on = trajectory.points[point].config.protocol.enabled;
             Some((
                 if on {
                     "robot, protocol on (Δv = 0.035 m/s)"
                 } else {
                     "robot, protocol off"
                 },
-                r.trace.as_deref()?.first()?.as_slice(),
+                paths.first()?.as_slice(),
             ))
         })
         .collect();

@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use super::PointSecrecy;
 use crate::error::LabError;
-use crate::sweep::{Experiment, param_label};
+use crate::experiment::{Experiment, param_label};
 
 /// The swept field of Eve's camera noise.
 pub const CAMERA_FIELD: &str = "eve.camera_std";

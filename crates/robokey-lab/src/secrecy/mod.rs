@@ -30,8 +30,8 @@ use serde::Serialize;
 
 use crate::adversary::eavesdropper;
 use crate::error::LabError;
-use crate::sessions::{Heard, SessionBank, physical_key};
-use crate::sweep::{Experiment, describe};
+use crate::experiment::{Experiment, describe};
+use crate::run::sessions::{Heard, SessionBank, physical_key};
 
 pub use pipeline::{Block, BlockSettings, Pooling};
 pub use private::PrivateFigures;

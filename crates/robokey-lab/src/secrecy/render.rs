@@ -9,9 +9,9 @@ use super::render_private::{
 };
 use super::{PointSecrecy, Rate, SecrecyOptions};
 use crate::error::LabError;
-use crate::files::write;
+use crate::experiment::{Experiment, axis_label, param_label, param_number};
+use crate::output::write;
 use crate::plot::{LineChart, Series, SeriesStyle};
-use crate::sweep::{Experiment, axis_label, param_label, param_number};
 
 /// A CSV field: quoted, inner quotes doubled.
 fn quoted(text: &str) -> String {

@@ -58,6 +58,14 @@ pub fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<PathBuf, LabErro
     Ok(path.to_path_buf())
 }
 
+/// Reads a file, naming it in the error.
+///
+/// # Errors
+/// The file cannot be read (or is not UTF-8).
+pub fn read(path: &Path) -> Result<String, LabError> {
+    std::fs::read_to_string(path).map_err(io_at(path))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
