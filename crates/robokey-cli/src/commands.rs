@@ -11,6 +11,8 @@ use robokey_lab::experiment::{Experiment, experiments_from_table};
 use robokey_lab::folder::sweep::{Start, SweepPlan, Swept};
 use robokey_lab::folder::{layout, merge};
 use robokey_lab::output::{prepare_output, write};
+use robokey_lab::reproduce::compute_stages;
+use robokey_lab::reproduce::suite::paper_suite;
 use robokey_lab::run::with_jobs;
 use robokey_lab::{metric_table, report, trace};
 
@@ -293,50 +295,22 @@ pub fn merge(args: MergeArgs) -> Result<()> {
     Ok(())
 }
 
-pub fn report(args: ReportArgs) -> Result<Status> {
-    // No signal handlers: Ctrl-C ends it at once, and nothing it writes needs keeping.
-    make_report(&args.dir, args.quick, args.jobs, &Interrupt::new())
+pub fn report(args: ReportArgs) -> Result<()> {
+    make_report(&args.dir, args.jobs)
 }
 
 /// `robokey report` on `dir`: prints the headline findings and where the report is.
-fn make_report(dir: &Path, quick: bool, jobs: usize, stop: &Interrupt) -> Result<Status> {
+fn make_report(dir: &Path, jobs: usize) -> Result<()> {
     let started = Instant::now();
-    match with_jobs(jobs, || report::report(dir, quick, stop))? {
-        Ok(made) => {
-            print!("{}", made.summary);
-            println!("report: {}", made.path.display());
-            let parts: Vec<String> = made
-                .timings
-                .iter()
-                .map(|(part, seconds)| format!("{part} {seconds:.2} s"))
-                .collect();
-            println!(
-                "reported in {:.2} s{}",
-                started.elapsed().as_secs_f64(),
-                if parts.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({})", parts.join(", "))
-                }
-            );
-            Ok(Status::Success)
-        }
-        Err(LabError::Interrupted(signal)) => {
-            eprintln!(
-                "interrupted by {} while writing the report; the sweep is complete: \
-                 `robokey report {}{}` writes it",
-                signal_name(signal),
-                shell_word(&dir.display().to_string()),
-                if quick { " --quick" } else { "" }
-            );
-            Ok(Status::Interrupted(signal))
-        }
-        Err(e) => Err(e.into()),
-    }
+    let made = with_jobs(jobs, || report::report(dir))??;
+    print!("{}", made.summary);
+    println!("report: {}", made.path.display());
+    println!("reported in {:.2} s", started.elapsed().as_secs_f64());
+    Ok(())
 }
 
 pub fn reproduce(args: ReproduceArgs) -> Result<Status> {
-    let experiments = report::paper_suite(args.quick)?;
+    let experiments = paper_suite(args.quick)?;
     let (out, resume) = output(&args.out, args.resume.as_deref(), args.force)?;
     let stop = on_signals()?;
     let plan = SweepPlan {
@@ -348,10 +322,37 @@ pub fn reproduce(args: ReproduceArgs) -> Result<Status> {
     if args.quick {
         again.push("--quick".into());
     }
-    match finish(&swept, &out, again) {
-        Status::Success => make_report(&out, args.quick, args.jobs, &stop),
-        interrupted => Ok(interrupted),
+    let status = finish(&swept, &out, again);
+    if status != Status::Success {
+        return Ok(status);
     }
+    let started = Instant::now();
+    match with_jobs(args.jobs, || compute_stages(&out, args.quick, &stop))? {
+        Ok(times) => {
+            let parts: Vec<String> = times
+                .iter()
+                .map(|(stage, seconds)| format!("{stage} {seconds:.2} s"))
+                .collect();
+            println!(
+                "computed in {:.2} s ({})",
+                started.elapsed().as_secs_f64(),
+                parts.join(", ")
+            );
+        }
+        Err(LabError::Interrupted(signal)) => {
+            eprintln!(
+                "interrupted by {} while computing the report's stages; the sweep is complete: \
+                 `robokey reproduce --resume {}{}` computes them and writes the report",
+                signal_name(signal),
+                shell_word(&out.display().to_string()),
+                if args.quick { " --quick" } else { "" }
+            );
+            return Ok(Status::Interrupted(signal));
+        }
+        Err(e) => return Err(e.into()),
+    }
+    make_report(&out, args.jobs)?;
+    Ok(Status::Success)
 }
 
 pub fn config(args: ConfigArgs) -> Result<()> {
@@ -363,11 +364,10 @@ pub fn config(args: ConfigArgs) -> Result<()> {
 pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     use robokey::config::SensingMode;
     use robokey_lab::experiment::{MAX_BLOCK_BITS, MIN_BLOCK_BITS};
-    use robokey_lab::secrecy::map::private_map;
-    use robokey_lab::secrecy::render_private::break_even_text;
-    use robokey_lab::secrecy::{
-        Pooling, SecrecyOptions, analyze, default_adversaries, write_secrecy,
-    };
+    use robokey_lab::report::private::break_even_text;
+    use robokey_lab::report::secrecy::write_secrecy;
+    use robokey_lab::run::sessions::SessionBank;
+    use robokey_lab::secrecy::{Pooling, Secrecy, SecrecyOptions, default_adversaries};
     if let Some(eps) = args.eps
         && !(eps > 0.0 && eps < 1.0)
     {
@@ -440,11 +440,14 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             ),
             ..options.clone()
         };
-        let results = with_jobs(args.jobs, || analyze(&experiment, &options))??;
-        let map = with_jobs(args.jobs, || private_map(&experiment, &results))??;
-        let files = write_secrecy(&folder, &experiment, &results, &options, map.as_ref())?;
+        let secrecy = with_jobs(args.jobs, || {
+            Secrecy::compute(&experiment, &options, &mut SessionBank::new())
+        })??;
+        let mut files = secrecy.write(&folder)?;
+        files.extend(write_secrecy(&folder, &experiment, &secrecy)?);
+        let (results, map) = (&secrecy.results, &secrecy.map);
         println!("{}:", folder.display());
-        if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
+        if let Some(reason) = results.iter().find_map(|r| r.structural_zero.as_deref()) {
             print!("{}", wrapped(&format!("secret key rate 0: {reason}")));
         }
         if let Some(first) = results
@@ -466,7 +469,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
                 )
             );
         }
-        print!("{}", secrecy_table(&results));
+        print!("{}", secrecy_table(results));
         if let Some(map) = &map {
             for curve in &map.camera {
                 print!(

@@ -86,6 +86,19 @@ pub enum LabError {
     /// Shards cannot be merged.
     #[error("merge: {0}")]
     Merge(String),
+    /// A folder of the paper's suite without the stages `reproduce` computes.
+    #[error(
+        "{}: the paper's report renders the stages `robokey reproduce` computes (secrecy, \
+         eavesdropping campaigns, private sensing), and no reproduce.json vouches for them \
+         here: {how}",
+        dir.display()
+    )]
+    Uncomputed {
+        /// The folder.
+        dir: PathBuf,
+        /// How to compute them, or why they cannot be.
+        how: String,
+    },
     /// A file of an output folder does not read back as robokey wrote it.
     #[error("{place}: {message}")]
     Malformed {
@@ -128,6 +141,7 @@ impl LabError {
             | Self::NotWhole { .. }
             | Self::Incomplete { .. }
             | Self::Resume { .. }
+            | Self::Uncomputed { .. }
             | Self::SensingMode(_) => true,
             Self::Io { .. }
             | Self::Sim(_)

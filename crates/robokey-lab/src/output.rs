@@ -66,6 +66,17 @@ pub fn read(path: &Path) -> Result<String, LabError> {
     std::fs::read_to_string(path).map_err(io_at(path))
 }
 
+/// Reads a JSON file robokey wrote.
+///
+/// # Errors
+/// The file cannot be read, or does not hold what `T` is.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, LabError> {
+    serde_json::from_str(&read(path)?).map_err(|e| LabError::Malformed {
+        place: path.display().to_string(),
+        message: e.to_string(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

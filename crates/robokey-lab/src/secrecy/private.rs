@@ -10,7 +10,7 @@ use robokey::private::DoubletBit;
 use robokey::sim::{RunOutput, simulate};
 use robokey_secrecy::calibration::check_calibration;
 use robokey_secrecy::gaussian_llr::{information, surprisal};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::Rate;
 use crate::error::LabError;
@@ -19,35 +19,38 @@ use crate::error::LabError;
 const TURN_EDGES: [f64; 6] = [0.05, 0.1, 0.2, 0.3, 0.5, 1.0];
 
 /// The outcome of a calibration test of one party's LLRs.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Calibration {
     /// Bits tested.
     pub bits: u64,
     /// Every bin within its Bonferroni-corrected level (family-wise α = 10⁻³).
     pub passed: bool,
-    /// The smallest per-bin p-value.
+    /// The smallest per-bin p-value (NaN when the test could not run).
+    #[serde(deserialize_with = "crate::reals::nan_if_null")]
     pub worst_p: f64,
 }
 
 /// The adversary's information on the bits of one turn-rate bin.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TurnBin {
     /// Lower edge (rad/s).
     pub from: f64,
     /// Upper edge (rad/s; infinite for the last).
+    #[serde(deserialize_with = "crate::reals::infinity_if_null")]
     pub to: f64,
     /// Bits in the bin.
     pub bits: u64,
     /// Her error rate with a 95 % Clopper–Pearson interval.
     pub error: Option<Rate>,
     /// Measured information `1 − mean S` (bits per bit) with a 95 % normal interval.
+    #[serde(deserialize_with = "crate::reals::nans_if_null")]
     pub information: [f64; 3],
     /// What the model predicts: `mean I(d)` over the bin's separations.
     pub predicted: f64,
 }
 
 /// The private-sensing figures of one point and adversary.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PrivateFigures {
     /// Doublets commanded over the sessions simulated.
     pub doublets: u64,
@@ -63,7 +66,9 @@ pub struct PrivateFigures {
     pub controller_calibration: Calibration,
     /// The adversary's LLRs.
     pub eve_calibration: Calibration,
-    /// Her measured information per bit `1 − mean S`, with a 95 % interval.
+    /// Her measured information per bit `1 − mean S`, with a 95 % interval (NaN without
+    /// bits).
+    #[serde(deserialize_with = "crate::reals::nans_if_null")]
     pub eve_information: [f64; 3],
     /// The model's prediction of it.
     pub eve_information_predicted: f64,
