@@ -3,11 +3,13 @@
 //! [`crate::report::adversary`] renders them.
 
 pub mod campaign;
+pub mod period;
 pub mod stage;
 pub mod window;
 
 pub use campaign::{
-    Campaign, MODEL_TOLERANCE, PeriodRecord, SessionRecord, StrategyRun, eavesdropper, listen,
-    overhear, run_campaigns, run_campaigns_with,
+    Campaign, MODEL_TOLERANCE, SessionRecord, StrategyRun, eavesdropper, listen, overhear,
+    run_campaigns, run_campaigns_with,
 };
+pub use period::PeriodRecord;
 pub use window::{match_period, windowed_error_rates};

@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use robokey::Config;
 use serde::{Deserialize, Serialize};
 
-use super::campaign::{Campaign, PeriodRecord, StrategyRun};
+use super::campaign::{Campaign, StrategyRun};
+use super::period::PeriodRecord;
 use crate::error::{LabError, io_at};
 use crate::output::{read_json, write};
 

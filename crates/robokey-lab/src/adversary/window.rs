@@ -1,6 +1,6 @@
 //! Windowed error rates and when an eavesdropper comes to decide as well as the controller.
 
-use super::campaign::PeriodRecord;
+use super::period::PeriodRecord;
 
 /// Error rates (%) over the last `window` decided periods, for her and the controller, at
 /// every period from the first full window on.

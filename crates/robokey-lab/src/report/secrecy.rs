@@ -311,3 +311,41 @@ pub fn write_secrecy(
     }
     Ok(files)
 }
+
+#[cfg(test)]
+mod tests {
+    use robokey::config::EveStrategy;
+
+    use super::*;
+    use crate::run::sessions::SessionBank;
+    use crate::secrecy::SecrecyOptions;
+
+    #[test]
+    fn reports_lead_with_the_verdict_and_the_strongest_adversary() {
+        let experiment =
+            Experiment::from_table("t", "[run]\nreplicates = 1\n".parse().unwrap(), "t.toml")
+                .unwrap();
+        let options = SecrecyOptions {
+            adversaries: vec![EveStrategy::Mismatch, EveStrategy::Oracle],
+            block_bits: 500,
+            bootstrap: 50,
+            ..SecrecyOptions::default()
+        };
+        let secrecy = Secrecy::compute(&experiment, &options, &mut SessionBank::new()).unwrap();
+        let md = secrecy_markdown(&secrecy);
+        assert!(md.starts_with("**Secret key rate: 0.**"), "{md}");
+        let row = |adversary: &str| md.find(&format!("| {adversary} |")).unwrap();
+        assert!(
+            row("oracle (strongest)") < row("mismatch (restricted)"),
+            "{md}"
+        );
+        let csv = secrecy_csv(&secrecy.results);
+        assert_eq!(csv.lines().count(), 3);
+        assert!(
+            csv.lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("\"\",oracle,strongest,")
+        );
+    }
+}

@@ -498,7 +498,12 @@ mod tests {
         let why = r.zero_reason.as_deref().unwrap();
         assert!(why.contains("no secret bits"), "{why}");
         assert!(why.contains("pooling cannot help"), "{why}");
-        assert!(r.structural_zero.unwrap().contains("zero by structure"));
+        assert!(
+            r.structural_zero
+                .as_deref()
+                .unwrap()
+                .contains("zero by structure")
+        );
         assert!(r.raw_bits_per_step > 0.25);
     }
 
