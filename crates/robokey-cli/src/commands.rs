@@ -334,7 +334,7 @@ pub fn reproduce(args: ReproduceArgs) -> Result<Status> {
                 .map(|(stage, seconds)| format!("{stage} {seconds:.2} s"))
                 .collect();
             println!(
-                "computed in {:.2} s ({})",
+                "computed the report's stages in {:.2} s (side by side: {})",
                 started.elapsed().as_secs_f64(),
                 parts.join(", ")
             );

@@ -63,12 +63,13 @@ impl Reproduction {
     }
 }
 
-/// How long each stage took (s), for the terminal.
+/// How long each stage took (s), for the terminal; the odometry stages (secrecy, then the
+/// eavesdroppers) and the private-sensing map run side by side.
 pub type StageTimes = Vec<(&'static str, f64)>;
 
 /// Computes the stages of the paper's report into `dir`, the folder of a complete sweep of
-/// [`suite::paper_suite`]`(quick)`, on the current rayon pool; between stages, a requested
-/// stop ends it. `reproduce.json` is removed first and written last, so it vouches only
+/// [`suite::paper_suite`]`(quick)`, on the current rayon pool: the odometry stages and the
+/// private-sensing map side by side. Between stages, a requested stop ends it. `reproduce.json` is removed first and written last, so it vouches only
 /// for stages that all finished.
 ///
 /// # Errors
@@ -79,14 +80,34 @@ pub fn compute_stages(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Stage
         std::fs::remove_file(&record).map_err(io_at(&record))?;
     }
     let suite = suite::paper_suite(quick)?;
-    let mut times = StageTimes::new();
-    let mut timed = |name: &'static str, stage: &mut dyn FnMut() -> Result<(), LabError>| {
-        stopped(stop)?;
-        let started = Instant::now();
-        stage()?;
-        times.push((name, started.elapsed().as_secs_f64()));
-        Ok::<(), LabError>(())
-    };
+    // The odometry stages share their sessions; the private-sensing map shares nothing with
+    // them, so the two run side by side on the pool.
+    let (odometry, private) = rayon::join(
+        || odometry_stages(dir, &suite, quick, stop),
+        || private_stage(dir, quick, stop),
+    );
+    let mut times = odometry?;
+    times.push(("private sensing", private?));
+    let json = serde_json::to_string_pretty(&Reproduction { quick }).expect("JSON serializes");
+    write(&record, json + "\n")?;
+    Ok(times)
+}
+
+/// Runs `stage` unless a stop was requested; returns how long it took (s).
+fn timed(stop: &Interrupt, stage: impl FnOnce() -> Result<(), LabError>) -> Result<f64, LabError> {
+    stopped(stop)?;
+    let started = Instant::now();
+    stage()?;
+    Ok(started.elapsed().as_secs_f64())
+}
+
+/// The secrecy of the Δv and α sweeps, then the eavesdropping campaigns, into `dir`.
+fn odometry_stages(
+    dir: &Path,
+    suite: &[Experiment],
+    quick: bool,
+    stop: &Interrupt,
+) -> Result<StageTimes, LabError> {
     // Every physical session is simulated once: the α points share the Δv = 0.035
     // sessions, and so do the campaigns (the default configuration), so the bank keeps them
     // from the Δv sweep's secrecy to the campaigns.
@@ -97,7 +118,7 @@ pub fn compute_stages(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Stage
         }
     }
     bank.keep(&Config::default());
-    timed("secrecy", &mut || {
+    let secrecy = timed(stop, || {
         let options = SecrecyOptions {
             block_bits: if quick {
                 QUICK_BLOCK_BITS
@@ -108,12 +129,12 @@ pub fn compute_stages(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Stage
         };
         for (name, _) in SECRECY_EXPERIMENTS {
             stopped(stop)?;
-            let experiment = find(&suite, name)?;
+            let experiment = find(suite, name)?;
             Secrecy::compute(experiment, &options, &mut bank)?.write(&dir.join(name))?;
         }
         Ok(())
     })?;
-    timed("eavesdroppers", &mut || {
+    let eavesdroppers = timed(stop, || {
         let config = Config::default();
         let strategies = EveStrategy::of_mode(config.sensing.mode);
         let campaigns = if quick {
@@ -125,8 +146,13 @@ pub fn compute_stages(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Stage
             .write(&dir.join(EVE_DIR))?;
         Ok(())
     })?;
-    drop(bank);
-    timed("private sensing", &mut || {
+    Ok(vec![("secrecy", secrecy), ("eavesdroppers", eavesdroppers)])
+}
+
+/// The coarse private-sensing map: each experiment swept into `dir/private-sensing`, then
+/// its secrecy. Returns how long it took (s).
+fn private_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabError> {
+    timed(stop, || {
         let out = dir.join(private_suite::PRIVATE_SENSING_DIR);
         for experiment in private_suite::coarse_suite(quick)? {
             let plan = SweepPlan {
@@ -149,10 +175,7 @@ pub fn compute_stages(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Stage
                 .write(&out.join(&experiment.name))?;
         }
         Ok(())
-    })?;
-    let json = serde_json::to_string_pretty(&Reproduction { quick }).expect("JSON serializes");
-    write(&record, json + "\n")?;
-    Ok(times)
+    })
 }
 
 /// The experiment `name` of the suite.

@@ -15,7 +15,7 @@ use robokey_secrecy::{JointCounts, binomial_test};
 use super::options::{SecrecyOptions, default_adversaries};
 use super::pipeline::{self, BlockSettings, Pooling};
 use super::point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
-use super::private;
+use super::private::{self, OffRuns};
 use crate::adversary::eavesdropper;
 use crate::error::LabError;
 use crate::experiment::{Experiment, describe};
@@ -131,6 +131,7 @@ fn analyze_point(
     adversary: EveStrategy,
     options: &SecrecyOptions,
     runs: &[RunOutput],
+    off: &OffRuns,
 ) -> Result<PointSecrecy, LabError> {
     let config = &experiment.points[point].config;
     let lap_steps = (config.trajectory.waypoints.len().saturating_sub(1) as f64
@@ -278,7 +279,7 @@ fn analyze_point(
             })
             .collect(),
         private: is_private
-            .then(|| private::figures(config, runs, adversary))
+            .then(|| private::figures(config, runs, adversary, off))
             .transpose()?,
     })
 }
@@ -397,17 +398,20 @@ pub fn analyze_with(
     let mut results: Vec<Option<PointSecrecy>> = vec![None; jobs.len()];
     // Private sensing: every adversary's evidence comes from her own simulation.
     let private_jobs: Vec<usize> = (0..jobs.len()).filter(|&j| private(jobs[j].0)).collect();
+    let sessions = private_jobs
+        .par_iter()
+        .map(|&j| private_sessions(experiment, jobs[j].0, jobs[j].1, options))
+        .collect::<Result<Vec<_>, LabError>>()?;
+    let off = OffRuns::simulate(private_jobs.iter().zip(&sessions).map(|(&j, runs)| {
+        let config = &experiment.points[jobs[j].0].config;
+        (config, private::off_replicates(runs.len()))
+    }))?;
     let computed = private_jobs
         .par_iter()
-        .map(|&j| {
+        .zip(&sessions)
+        .map(|(&j, runs)| {
             let (p, a) = jobs[j];
-            analyze_point(
-                experiment,
-                p,
-                a,
-                options,
-                &private_sessions(experiment, p, a, options)?,
-            )
+            analyze_point(experiment, p, a, options, runs, &off)
         })
         .collect::<Result<Vec<_>, LabError>>()?;
     for (j, result) in private_jobs.into_iter().zip(computed) {
@@ -450,7 +454,9 @@ pub fn analyze_with(
             .collect();
         let computed = listener_of
             .par_iter()
-            .map(|&((p, a), l)| analyze_point(experiment, p, a, options, &runs[l]))
+            .map(|&((p, a), l)| {
+                analyze_point(experiment, p, a, options, &runs[l], &OffRuns::default())
+            })
             .collect::<Result<Vec<_>, LabError>>()?;
         for (((p, a), _), result) in listener_of.iter().zip(computed) {
             let j = jobs.iter().position(|job| *job == (*p, *a)).expect("a job");
