@@ -177,12 +177,53 @@ fn accepted_errors(
 }
 
 /// The paper's report from its suite's folders (`loaded`, holding every experiment of
-/// [`PAPER_EXPERIMENTS`]) and the stages `reproduce` computed into `out`.
+/// [`PAPER_EXPERIMENTS`]) and the stages `reproduce` computed into `out`. Its sections are
+/// drawn side by side on the current rayon pool, then written in order.
 pub(super) fn paper_report(
     out: &Path,
     loaded: &[Loaded],
     stages: &PaperStages,
 ) -> Result<Report, LabError> {
+    let secrecy: Vec<(&Experiment, &Secrecy, &str)> = stages
+        .secrecy
+        .iter()
+        .map(|(experiment, secrecy, title)| (experiment, secrecy, *title))
+        .collect();
+    let private_out = out.join(PRIVATE_SENSING_DIR);
+    let ((sweeps, secrecy), (adversaries, private)) = rayon::join(
+        || {
+            rayon::join(
+                || sweep_sections(out, loaded, stages.quick),
+                || secrecy_section(out, &secrecy),
+            )
+        },
+        || {
+            rayon::join(
+                || adversary_section(&out.join(EVE_DIR), &stages.campaign),
+                || private_section(&private_out, &stages.camera, &stages.front),
+            )
+        },
+    );
+    let (mut md, mut terminal) = (String::new(), String::new());
+    for (section, lines) in [sweeps?, secrecy?, adversaries?, private?] {
+        md.push_str(&section);
+        terminal.push_str(&lines);
+    }
+    let path = write(&out.join("report.md"), md)?;
+    Ok(Report {
+        path,
+        summary: terminal,
+    })
+}
+
+/// The sections of the sweeps: key agreement against Δv, Eve against α, the trajectory,
+/// the deviations from the paper; their figures go to `out/figures`. Markdown and terminal
+/// lines.
+fn sweep_sections(
+    out: &Path,
+    loaded: &[Loaded],
+    quick: bool,
+) -> Result<(String, String), LabError> {
     let find = |name: &str| {
         loaded
             .iter()
@@ -194,7 +235,6 @@ pub(super) fn paper_report(
     let (eve, eve_runs, _) = find(PAPER_EXPERIMENTS[1])?;
     let (_, baseline_runs, _) = find(PAPER_EXPERIMENTS[2])?;
     let (trajectory, _, trajectory_traces) = find(PAPER_EXPERIMENTS[3])?;
-    let quick = stages.quick;
     let figures = out.join("figures");
     std::fs::create_dir_all(&figures).map_err(crate::error::io_at(&figures))?;
 
@@ -477,30 +517,5 @@ pub(super) fn paper_report(
         "{}",
         trend_line("Eve's disagreement", "α", &eve_trend, 1.0)
     );
-    let (secrecy, secrecy_terminal) = secrecy_section(
-        out,
-        &stages
-            .secrecy
-            .iter()
-            .map(|(experiment, secrecy, title)| (experiment, secrecy, *title))
-            .collect::<Vec<_>>(),
-    )?;
-    md.push_str(&secrecy);
-    terminal.push_str(&secrecy_terminal);
-    let (adversaries, adversaries_terminal) =
-        adversary_section(&out.join(EVE_DIR), &stages.campaign)?;
-    md.push_str(&adversaries);
-    terminal.push_str(&adversaries_terminal);
-    let (private, private_terminal) = private_section(
-        &out.join(PRIVATE_SENSING_DIR),
-        &stages.camera,
-        &stages.front,
-    )?;
-    md.push_str(&private);
-    terminal.push_str(&private_terminal);
-    let path = write(&out.join("report.md"), md)?;
-    Ok(Report {
-        path,
-        summary: terminal,
-    })
+    Ok((md, terminal))
 }
