@@ -80,7 +80,7 @@ fn expected_surprisal(separation: f64) -> f64 {
     for (_, _, term) in terms {
         sum += term;
         i += 1;
-        if i % 8 == 0 && term < sum * NEGLIGIBLE {
+        if i.is_multiple_of(8) && term < sum * NEGLIGIBLE {
             break;
         }
     }
