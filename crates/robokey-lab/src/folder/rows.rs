@@ -1,5 +1,5 @@
 //! `runs.csv`: a column per swept field, `replicate`, then the metrics of
-//! [`METRICS`](crate::metric_table::METRICS); one row per finished run, in run order.
+//! [`crate::metric_table::METRICS`]; one row per finished run, in run order.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;

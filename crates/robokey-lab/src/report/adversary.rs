@@ -435,8 +435,8 @@ fn chart(base: &Path, chart: &LineChart) -> Result<Vec<PathBuf>, LabError> {
 }
 
 /// Renders `campaign` into `dir`: `periods.csv` and `sessions.csv` (campaign 0),
-/// `campaigns.csv`, `summary.json`, `report.md` and the figures (see [`figures`]); returns
-/// the files.
+/// `campaigns.csv`, `summary.json`, `report.md` and the figures (`eve-error-rate`,
+/// `eve-excess-error`, `eve-parameters`); returns the files.
 ///
 /// # Errors
 /// A file cannot be written.

@@ -49,7 +49,7 @@ pub fn run_experiment(
     };
     let bar = progress_bar(runs.len(), label, "run");
     // Runs of points that differ only in Eve's settings (e.g. an α sweep) are one physical
-    // session: simulated once, each point's Eve hears its transcript (sessions.rs).
+    // session: simulated once, each point's Eve hears its transcript (run/sessions.rs).
     // The first point of each point's physical configuration.
     let mut first_of: HashMap<String, usize> = HashMap::new();
     let physical: Vec<usize> = (0..experiment.points.len())

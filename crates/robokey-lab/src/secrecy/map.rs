@@ -1,7 +1,7 @@
 //! Where private sensing pays (docs/private-sensing.md, "Maps"): the secret rate against
 //! Eve's camera noise with its break-even, the Pareto front of secret rate against tracking
 //! cost, and the commands eavesdropper's measured leak against the model's. Computed from
-//! the results of [`super::analyze`]; rendered by [`super::render_private`].
+//! the results of [`super::analyze()`]; rendered by [`crate::report::private`].
 
 use rayon::prelude::*;
 use robokey::Config;
