@@ -1,5 +1,7 @@
-//! robokey-lab: the experiment shell around the robokey core — sweeps, parallel runs,
-//! CSV/JSON outputs, statistics, figures and reports.
+//! robokey-lab: the experiment shell around the robokey core. It computes — sweeps of
+//! parallel runs ([`run`]) into folders ([`folder`]), the secrecy analysis ([`secrecy`]), the
+//! eavesdropping campaigns ([`adversary`]), the paper's stages ([`reproduce`]) — and writes
+//! each result into its folder; then it renders reports from the folders alone ([`report`]).
 
 pub mod adversary;
 pub mod config_doc;

@@ -279,11 +279,6 @@ impl Metric {
     }
 }
 
-/// The metrics shown by reports, with their display settings.
-pub fn shown() -> impl Iterator<Item = (&'static Metric, Shown)> {
-    METRICS.iter().filter_map(|m| Some((m, m.shown?)))
-}
-
 /// The metrics as a JSON object in column order (`metrics.json`).
 #[must_use]
 pub fn metrics_json(metrics: &Metrics) -> serde_json::Map<String, serde_json::Value> {
@@ -370,6 +365,28 @@ mod tests {
         let docs = include_str!("../../../docs/experiments.md");
         for column in &columns[..9] {
             assert!(docs.contains(&format!("`{column}`")), "{column}");
+        }
+    }
+
+    /// Each shown metric's scale is the conversion from its stored unit to the shown one.
+    #[test]
+    fn shown_scales_convert_the_stored_units() {
+        let factor = |from: &str, to: &str| match (from, to) {
+            (a, b) if a == b => Some(1.0),
+            ("fraction", "%") => Some(100.0),
+            ("m", "mm") => Some(1000.0),
+            _ => None,
+        };
+        let shown: Vec<(&Metric, Shown)> =
+            METRICS.iter().filter_map(|m| Some((m, m.shown?))).collect();
+        assert_eq!(shown.len(), 5);
+        for (metric, shown) in shown {
+            assert_eq!(
+                factor(metric.unit, shown.unit),
+                Some(shown.scale),
+                "{metric:?} shown in {}",
+                shown.unit
+            );
         }
     }
 

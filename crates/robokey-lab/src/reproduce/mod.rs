@@ -69,8 +69,9 @@ pub type StageTimes = Vec<(&'static str, f64)>;
 
 /// Computes the stages of the paper's report into `dir`, the folder of a complete sweep of
 /// [`suite::paper_suite`]`(quick)`, on the current rayon pool: the odometry stages and the
-/// private-sensing map side by side. Between stages, a requested stop ends it. `reproduce.json` is removed first and written last, so it vouches only
-/// for stages that all finished.
+/// private-sensing map side by side. Between stages, a requested stop ends it.
+/// `reproduce.json` is removed first and written last, so it vouches only for stages that
+/// all finished.
 ///
 /// # Errors
 /// A session aborts, a file cannot be written, or the stop was requested.
