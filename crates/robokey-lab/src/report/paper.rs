@@ -87,14 +87,17 @@ impl PaperStages {
                     .find(|l| l.experiment.name == name)
                     .map(|l| l.experiment.clone())
                     .ok_or_else(|| LabError::NotSweep(out.join(name)))?;
-                Ok((experiment, Secrecy::read(&out.join(name))?, title))
+                let secrecy = Secrecy::read(&out.join(name), &experiment)?;
+                Ok((experiment, secrecy, title))
             })
             .collect::<Result<_, LabError>>()?;
         let part = |name: &str| -> Result<MapPart, LabError> {
             let dir = out.join(PRIVATE_SENSING_DIR).join(name);
+            let experiment = read_experiment(&dir, name)?;
+            let secrecy = Secrecy::read(&dir, &experiment)?;
             Ok(MapPart {
-                experiment: read_experiment(&dir, name)?,
-                secrecy: Secrecy::read(&dir)?,
+                experiment,
+                secrecy,
             })
         };
         Ok(Self {

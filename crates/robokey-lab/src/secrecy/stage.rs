@@ -95,12 +95,25 @@ impl Secrecy {
         Ok(files)
     }
 
-    /// Reads the results [`Secrecy::write`] wrote into `dir`.
+    /// Reads the results [`Secrecy::write`] wrote into `dir`, the folder of `experiment`.
     ///
     /// # Errors
-    /// `secrecy.json` is missing, or a file does not read back.
-    pub fn read(dir: &Path) -> Result<Self, LabError> {
-        let file: SecrecyFile = read_json(&dir.join(SECRECY_JSON))?;
+    /// `secrecy.json` is missing, a file does not read back, or a result names a point the
+    /// experiment does not have.
+    pub fn read(dir: &Path, experiment: &Experiment) -> Result<Self, LabError> {
+        let path = dir.join(SECRECY_JSON);
+        let file: SecrecyFile = read_json(&path)?;
+        let points = experiment.points.len();
+        if let Some(r) = file.results.iter().find(|r| r.point_index >= points) {
+            return Err(LabError::Malformed {
+                place: path.display().to_string(),
+                message: format!(
+                    "a result of point {}, and the sweep has {points} points: not this \
+                     folder's analysis",
+                    r.point_index
+                ),
+            });
+        }
         let map_file = dir.join(PRIVATE_MAP_JSON);
         let map = if map_file.exists() {
             Some(read_json(&map_file)?)
@@ -144,7 +157,13 @@ mod tests {
         let computed = Secrecy::compute(&odometry, &options, &mut SessionBank::new()).unwrap();
         assert!(computed.map.is_none() && computed.results.len() == 6);
         computed.write(&dir).unwrap();
-        assert_eq!(Secrecy::read(&dir).unwrap(), computed);
+        assert_eq!(Secrecy::read(&dir, &odometry).unwrap(), computed);
+        let single = experiment("[run]\nreplicates = 1\n");
+        let err = Secrecy::read(&dir, &single).unwrap_err().to_string();
+        assert!(
+            err.contains("a result of point 1, and the sweep has 1 points"),
+            "{err}"
+        );
         let private = experiment(
             "[sensing]\nmode = \"private\"\n[run]\nreplicates = 1\n\
              [sweep]\n\"protocol.delta_v\" = [0.035, 0.05]\n",
@@ -160,7 +179,7 @@ mod tests {
         assert!(computed.map.as_ref().is_some_and(|m| m.pareto.len() == 2));
         let files = computed.write(&dir).unwrap();
         assert_eq!(files.len(), 2);
-        assert_eq!(Secrecy::read(&dir).unwrap(), computed);
+        assert_eq!(Secrecy::read(&dir, &private).unwrap(), computed);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
