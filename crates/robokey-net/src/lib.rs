@@ -9,6 +9,8 @@ pub mod error;
 #[doc(hidden)]
 pub mod fuzzing;
 pub mod journal;
+pub mod key_delivery;
+pub mod key_slice;
 pub mod key_store;
 pub mod khepera;
 pub mod owned_file;
