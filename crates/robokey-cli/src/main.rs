@@ -97,8 +97,9 @@ enum Command {
     /// localhost only) for `robot --backend ros2`; needs the `ros2` feature (docs/ros2.md).
     #[command(name = "ros2-sim")]
     Ros2Sim(ros2::SimArgs),
-    /// The final keys of an agent's store (--store): list, get (hex), delete. Both agents'
-    /// stores list the same IDs (docs/postprocessing.md).
+    /// The final keys of an agent's store (--store): list, take a key for an application
+    /// (each once; the robot's store by the ID the controller's gave), get a whole final key
+    /// to compare the stores, delete. Both agents' stores list the same IDs (docs/keys.md).
     #[command(subcommand_required = true)]
     Keys(keys::KeysArgs),
 }

@@ -63,6 +63,20 @@ pub struct Delivered {
     pub key: Zeroizing<Vec<u8>>,
 }
 
+impl Delivered {
+    /// The key in lowercase hex.
+    #[must_use]
+    pub fn hex(&self) -> Zeroizing<String> {
+        Zeroizing::new(base16ct::lower::encode_string(&self.key))
+    }
+
+    /// The key in standard base64 with padding (RFC 4648), constant-time.
+    #[must_use]
+    pub fn base64(&self) -> Zeroizing<String> {
+        Zeroizing::new(<base64ct::Base64 as base64ct::Encoding>::encode_string(&self.key))
+    }
+}
+
 impl std::fmt::Debug for Delivered {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Delivered")
