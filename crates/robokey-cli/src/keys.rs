@@ -147,11 +147,7 @@ impl<'a> From<&'a StoredKey> for Listed<'a> {
                 0
             },
             taken_bits: key.taken_bits(),
-            taken: key
-                .taken
-                .iter()
-                .map(|span| taken_id(key, *span))
-                .collect(),
+            taken: key.taken.iter().map(|span| taken_id(key, *span)).collect(),
             epsilon: key.epsilon,
             label: if key.restricted {
                 "restricted"

@@ -73,7 +73,9 @@ impl Delivered {
     /// The key in standard base64 with padding (RFC 4648), constant-time.
     #[must_use]
     pub fn base64(&self) -> Zeroizing<String> {
-        Zeroizing::new(<base64ct::Base64 as base64ct::Encoding>::encode_string(&self.key))
+        Zeroizing::new(<base64ct::Base64 as base64ct::Encoding>::encode_string(
+            &self.key,
+        ))
     }
 }
 
@@ -305,4 +307,4 @@ fn count(finals: &[StoredKey], bits: u32, side: Side) -> Availability {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

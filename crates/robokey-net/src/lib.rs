@@ -13,6 +13,7 @@ pub mod key_delivery;
 pub mod key_slice;
 pub mod key_store;
 pub mod khepera;
+pub mod kme;
 pub mod owned_file;
 pub mod pairing;
 pub mod pcap;

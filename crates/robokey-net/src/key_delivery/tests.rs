@@ -10,12 +10,12 @@ use super::*;
 use crate::journal::tests::tempdir;
 use crate::post_store::{PostStore, Snapshot};
 
-fn pairing() -> PairingSecret {
+pub(crate) fn pairing() -> PairingSecret {
     PairingSecret::from_bytes(&[5; 32])
 }
 
 /// A final key of `bits` bits whose byte `i` is `i + seed` (wrapping).
-fn final_key(block: u64, bits: usize, seed: u8) -> FinalKey {
+pub(crate) fn final_key(block: u64, bits: usize, seed: u8) -> FinalKey {
     let bools: Vec<bool> = (0..bits)
         .map(|i| ((i / 8) as u8).wrapping_add(seed) & (0x80 >> (i % 8)) != 0)
         .collect();
@@ -30,12 +30,12 @@ fn final_key(block: u64, bits: usize, seed: u8) -> FinalKey {
 }
 
 /// The bytes of `final_key(_, _, seed)` in `range`.
-fn expected(seed: u8, range: std::ops::Range<usize>) -> Vec<u8> {
+pub(crate) fn expected(seed: u8, range: std::ops::Range<usize>) -> Vec<u8> {
     range.map(|i| (i as u8).wrapping_add(seed)).collect()
 }
 
 /// A store of `S::ROLE` (with its journal) holding `keys`, each settled or pending.
-fn store_with<S: Snapshot>(
+pub(crate) fn store_with<S: Snapshot>(
     name: &str,
     keys: &[(FinalKey, bool)],
 ) -> (std::path::PathBuf, KeyDelivery) {
