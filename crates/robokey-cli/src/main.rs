@@ -12,6 +12,7 @@ mod configuration;
 mod eve;
 mod exit;
 mod keys;
+mod kme;
 mod net;
 mod ros2;
 
@@ -102,6 +103,10 @@ enum Command {
     /// to compare the stores, delete. Both agents' stores list the same IDs (docs/keys.md).
     #[command(subcommand_required = true)]
     Keys(keys::KeysArgs),
+    /// An ETSI GS QKD 014 key-delivery server (HTTPS, mutual TLS) on an agent's store: the
+    /// controller's store gives new keys (enc_keys), the robot's the same keys by ID
+    /// (dec_keys), each once (docs/keys.md).
+    Kme(kme::KmeArgs),
 }
 
 #[derive(Args, Debug)]
@@ -353,6 +358,7 @@ fn main() -> ExitCode {
         Command::Record(args) => net::record(args),
         Command::Ros2Sim(args) => ros2::ros2_sim(args),
         Command::Keys(args) => done(keys::keys(args)),
+        Command::Kme(args) => kme::kme(args),
     };
     exit::code(result)
 }

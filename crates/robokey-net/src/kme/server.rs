@@ -23,6 +23,10 @@ pub const MAX_CONNECTIONS: usize = 16;
 pub const CONNECTION_DEADLINE: Duration = Duration::from_secs(10);
 /// How often the listener looks at its stop request while no client connects.
 const POLL: Duration = Duration::from_millis(50);
+/// How long a refused request's remaining bytes are taken in before the connection closes.
+const LINGER: Duration = Duration::from_secs(1);
+/// How many of them at most.
+const LINGER_BYTES: u64 = 1 << 20;
 /// Longest request target a log line quotes (characters).
 const LOGGED_TARGET: usize = 120;
 
@@ -194,6 +198,14 @@ fn serve_connection(
     }
     connection.send_close_notify();
     let _ = connection.complete_io(&mut socket);
+    if response.status == 400 {
+        // A refused request may still be arriving (a body too long to read): take in what
+        // comes for a moment, so that closing does not reset the connection before the
+        // client has read the refusal.
+        socket.deadline = socket.deadline.min(Instant::now() + LINGER);
+        let mut stream = rustls::Stream::new(&mut connection, &mut socket);
+        let _ = std::io::copy(&mut (&mut stream).take(LINGER_BYTES), &mut std::io::sink());
+    }
     line
 }
 

@@ -1,0 +1,382 @@
+//! Keys delivered to applications (docs/keys.md): `robokey kme` on both sides' stores over
+//! loopback with certificates made for the test, fetched with curl as an ETSI GS QKD 014
+//! application would; `robokey keys take` on both sides. The same keys by ID on both sides,
+//! each once; never a pending key; a wrong client certificate refused; malformed requests
+//! answered with the standard's errors while the server keeps serving.
+
+mod common;
+
+use std::io::{Read as _, Write as _};
+use std::path::{Path, PathBuf};
+
+use common::kme::{CONTROLLER_SAE, Pki, ROBOT_SAE, curl, have_curl, start_kme};
+use common::{pairing, run_code, s, scratch};
+use robokey_net::key_store::{KeyStatus, StoredKey};
+use robokey_net::post_store::{PostStore, open_keys};
+use robokey_secrecy::BitString;
+use robokey_secrecy::postprocess::{ControllerSnapshot, FinalKey, RobotSnapshot};
+
+/// The final keys of both stores: 2,048 bits settled, 1,024 bits pending.
+const SETTLED: &str = "5e771ed0000000aa";
+const PENDING: &str = "9e9d1e9000000bbb";
+/// The first 256 bits of the pending key: the ID a controller side would give them.
+const INTO_PENDING: &str = "9e9d1e90-0000-80bb-8b00-000000000100";
+
+/// A final key of `bits` bits whose byte `i` is `i ^ seed`.
+fn final_key(id: &str, bits: usize, seed: u8) -> FinalKey {
+    let bools: Vec<bool> = (0..bits)
+        .map(|i| ((i / 8) as u8 ^ seed) & (0x80 >> (i % 8)) != 0)
+        .collect();
+    FinalKey {
+        id: id.into(),
+        block: u64::from(seed),
+        key: BitString::from_bools(&bools),
+        sessions: vec![u32::from(seed)],
+        epsilon: 4e-6,
+        assumption: "stated for the test".into(),
+    }
+}
+
+/// Both agents' stores under `dir`, as their agents leave them: the same settled key and the
+/// same pending key in each.
+fn stores(dir: &Path, pairing: &str) -> (PathBuf, PathBuf) {
+    let (secret, _) = robokey_net::pairing::read_pairing(Path::new(pairing), false).unwrap();
+    let (controller, robot) = (dir.join("controller"), dir.join("robot"));
+    drop(PostStore::<ControllerSnapshot>::open(&controller, &secret, false).unwrap());
+    drop(PostStore::<RobotSnapshot>::open(&robot, &secret, false).unwrap());
+    for (store, role) in [(&controller, "controller"), (&robot, "robot")] {
+        let keys = open_keys(store, &secret).unwrap();
+        for (key, status) in [
+            (final_key(SETTLED, 2048, 0x5a), KeyStatus::Settled),
+            (
+                final_key(PENDING, 1024, 0x33),
+                KeyStatus::Pending("awaiting the peer's acknowledgement".into()),
+            ),
+        ] {
+            keys.store(&StoredKey::new(&key, role, false, status))
+                .unwrap();
+        }
+    }
+    (controller, robot)
+}
+
+fn key_ids(json: &serde_json::Value) -> Vec<String> {
+    json["keys"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k["key_ID"].as_str().unwrap().to_owned())
+        .collect()
+}
+
+/// The issue's test: both sides' servers, keys of 256 bits from the controller side and the
+/// same keys by ID from the robot side, equal; a taken key not delivered again; a wrong
+/// client certificate refused; a pending key never delivered.
+#[test]
+fn both_sides_deliver_the_same_keys_by_id_once_to_their_applications_only() {
+    if !have_curl() {
+        return;
+    }
+    let dir = scratch("kme-pair");
+    let pki = Pki::new(&dir);
+    let pairing = pairing(&dir);
+    let (controller_store, robot_store) = stores(&dir, &pairing);
+    let (_controller, master) =
+        start_kme(&pki, &controller_store, &pairing, CONTROLLER_SAE, ROBOT_SAE);
+    let (_robot, slave) = start_kme(&pki, &robot_store, &pairing, ROBOT_SAE, CONTROLLER_SAE);
+    let me = Some(&pki.controller_app);
+    let it = Some(&pki.robot_app);
+
+    let status = curl(
+        &pki,
+        me,
+        "GET",
+        &format!("{master}/api/v1/keys/{ROBOT_SAE}/status"),
+        None,
+    );
+    assert_eq!(status.status, 200, "{status:?}");
+    let status = status.json();
+    // 2,048 settled bits: 8 keys of 256 bits now; 4 more once the pending key settles.
+    assert_eq!(
+        (&status["stored_key_count"], &status["max_key_count"]),
+        (&8.into(), &12.into())
+    );
+    assert_eq!(status["master_SAE_ID"], CONTROLLER_SAE);
+    assert_eq!(status["slave_SAE_ID"], ROBOT_SAE);
+
+    let enc = format!("{master}/api/v1/keys/{ROBOT_SAE}/enc_keys");
+    let dec = format!("{slave}/api/v1/keys/{CONTROLLER_SAE}/dec_keys");
+    let got = curl(
+        &pki,
+        me,
+        "POST",
+        &enc,
+        Some(r#"{"number": 3, "size": 256}"#),
+    );
+    assert_eq!(got.status, 200, "{got:?}");
+    let sent = got.json();
+    let ids = key_ids(&sent);
+    assert_eq!(ids.len(), 3);
+    let one = curl(&pki, it, "GET", &format!("{dec}?key_ID={}", ids[0]), None);
+    assert_eq!(one.status, 200, "{one:?}");
+    let body = serde_json::json!({"key_IDs": [{"key_ID": ids[2]}, {"key_ID": ids[1]}]});
+    let two = curl(&pki, it, "POST", &dec, Some(&body.to_string()));
+    assert_eq!(two.status, 200, "{two:?}");
+    let (one, two) = (one.json(), two.json());
+    assert_eq!(one["keys"][0], sent["keys"][0]);
+    assert_eq!(
+        (&two["keys"][0], &two["keys"][1]),
+        (&sent["keys"][2], &sent["keys"][1])
+    );
+    for key in sent["keys"].as_array().unwrap() {
+        let bytes = key["key"].as_str().unwrap();
+        assert_eq!(bytes.len(), 44, "256 bits in base64: {key}");
+        assert!(
+            key["key_ID"]
+                .as_str()
+                .unwrap()
+                .starts_with("5e771ed0-0000-800a-8a")
+        );
+    }
+
+    // Taken: not delivered again, on either side.
+    let again = curl(&pki, it, "GET", &format!("{dec}?key_ID={}", ids[0]), None);
+    assert_eq!(again.status, 400, "{again:?}");
+    assert!(
+        again.json()["message"]
+            .as_str()
+            .unwrap()
+            .contains("delivered already")
+    );
+    let rest = curl(&pki, me, "GET", &format!("{enc}?number=5&size=256"), None);
+    assert_eq!(rest.status, 200, "{rest:?}");
+    assert!(key_ids(&rest.json()).iter().all(|id| !ids.contains(id)));
+
+    // The settled key is used up; the pending one is never delivered, on either side.
+    let none = curl(&pki, me, "GET", &enc, None);
+    assert_eq!(none.status, 503, "{none:?}");
+    assert!(
+        none.json()["message"].as_str().unwrap().contains("pending"),
+        "{none:?}"
+    );
+    let pending = curl(
+        &pki,
+        it,
+        "GET",
+        &format!("{dec}?key_ID={INTO_PENDING}"),
+        None,
+    );
+    assert_eq!(pending.status, 503, "{pending:?}");
+    assert!(
+        pending.json()["message"]
+            .as_str()
+            .unwrap()
+            .contains("pending")
+    );
+
+    // A wrong client certificate: another CA's fails the handshake, none too; the right
+    // CA's for another application is unauthorised; the other side's application too.
+    for client in [Some(&pki.rogue_app), None] {
+        let refused = curl(&pki, client, "GET", &enc, None);
+        assert_ne!(refused.exit, 0, "{refused:?}");
+        assert_eq!(refused.status, 0, "no HTTP answer: {refused:?}");
+    }
+    for client in [&pki.other_app, &pki.robot_app] {
+        let refused = curl(
+            &pki,
+            Some(client),
+            "GET",
+            &format!("{master}/api/v1/keys/{ROBOT_SAE}/status"),
+            None,
+        );
+        assert_eq!(refused.status, 401, "{refused:?}");
+    }
+}
+
+/// Requests no application should send get the standard's errors (400), bytes that are not
+/// TLS or not HTTP end the connection, and the server goes on serving.
+#[test]
+fn malformed_requests_are_answered_and_the_server_goes_on() {
+    if !have_curl() {
+        return;
+    }
+    let dir = scratch("kme-malformed");
+    let pki = Pki::new(&dir);
+    let pairing = pairing(&dir);
+    let (controller_store, _) = stores(&dir, &pairing);
+    let (_kme, master) = start_kme(&pki, &controller_store, &pairing, CONTROLLER_SAE, ROBOT_SAE);
+    let me = Some(&pki.controller_app);
+    let enc = format!("{master}/api/v1/keys/{ROBOT_SAE}/enc_keys");
+    let huge = format!("{{\"number\": 1, \"pad\": \"{}\"}}", "x".repeat(70_000));
+    for (method, url, body, says) in [
+        ("POST", enc.clone(), Some("{\"number\": 1,"), "JSON body"),
+        ("POST", enc.clone(), Some("{\"number\": 1e9}"), "JSON body"),
+        ("POST", enc.clone(), Some(huge.as_str()), "exceeds 65536"),
+        ("BREW", enc.clone(), None, "not allowed"),
+        ("GET", format!("{enc}?size=12"), None, "multiples of 8"),
+        (
+            "GET",
+            format!("{master}/../../etc/passwd"),
+            None,
+            "no such resource",
+        ),
+        (
+            "GET",
+            format!("{master}/api/v1/keys/{ROBOT_SAE}/dec_keys?key_ID=x"),
+            None,
+            "controller side",
+        ),
+    ] {
+        let answer = curl(&pki, me, method, &url, body);
+        assert_eq!(answer.status, 400, "{method} {url}: {answer:?}");
+        let message = answer.json()["message"].as_str().unwrap().to_owned();
+        assert!(message.contains(says), "{method} {url}: {message}");
+    }
+    // Plain bytes on the TLS port: the handshake fails, the connection ends.
+    let address = master.trim_start_matches("https://");
+    for garbage in [
+        &b"GET / HTTP/1.1\r\n\r\n"[..],
+        &[0x16, 0x03, 0x01, 0xff, 0xff, 0x01][..],
+        &[0_u8; 4096][..],
+    ] {
+        let mut socket = std::net::TcpStream::connect(address).unwrap();
+        socket
+            .set_read_timeout(Some(std::time::Duration::from_secs(15)))
+            .unwrap();
+        let _ = socket.write_all(garbage);
+        let mut answer = Vec::new();
+        let _ = socket.read_to_end(&mut answer);
+        assert!(!answer.starts_with(b"HTTP"), "{answer:?}");
+    }
+    // Nothing was taken, and the server still serves.
+    let status = curl(
+        &pki,
+        me,
+        "GET",
+        &format!("{master}/api/v1/keys/{ROBOT_SAE}/status"),
+        None,
+    );
+    assert_eq!(status.status, 200, "{status:?}");
+    assert_eq!(status.json()["stored_key_count"], 8);
+    assert_eq!(curl(&pki, me, "GET", &enc, None).status, 200);
+}
+
+/// `robokey keys take`: the controller's store cuts a new key and prints its ID and the key;
+/// the robot's store gives the same key by that ID, once; each refuses the other's way; a
+/// pending key is withheld (exit 5), none left is exit 3; `keys list` shows what is taken;
+/// `keys get` refuses a final key something was taken from.
+#[test]
+fn keys_take_gives_the_same_key_on_both_sides_once() {
+    let dir = scratch("keys-take");
+    let pairing = pairing(&dir);
+    let (controller, robot) = stores(&dir, &pairing);
+    let take = |store: &Path, extra: &[&str]| {
+        let store = s(store);
+        let mut args = vec!["keys", "take", "--store", &store, "--pairing", &pairing];
+        args.extend(extra);
+        run_code(&args)
+    };
+    let (code, text) = take(&controller, &["--format", "base64"]);
+    assert_eq!(code, 0, "{text}");
+    let lines: Vec<&str> = text.lines().collect();
+    let (id, key) = (lines[0], lines[1]);
+    assert_eq!(key.len(), 44, "{text}");
+    let (code, theirs) = take(&robot, &["--id", id, "--format", "base64"]);
+    assert_eq!(code, 0, "{theirs}");
+    assert_eq!(theirs, text);
+    let (code, again) = take(&robot, &["--id", id]);
+    assert_eq!(code, 2, "{again}");
+    assert!(again.contains("delivered already"), "{again}");
+    // Hex and raw give the same bits in other clothes.
+    let (code, hex) = take(&controller, &["--bits", "512"]);
+    assert_eq!(code, 0, "{hex}");
+    let hex_id = hex.lines().next().unwrap().to_owned();
+    let raw_file = dir.join("raw");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args([
+            "keys",
+            "take",
+            "--store",
+            &s(&robot),
+            "--pairing",
+            &pairing,
+            "--id",
+            &hex_id,
+            "--format",
+            "raw",
+        ])
+        .stdout(std::fs::File::create(&raw_file).unwrap())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    assert_eq!(String::from_utf8_lossy(&out.stderr).trim(), hex_id);
+    let raw = std::fs::read(&raw_file).unwrap();
+    assert_eq!(raw.len(), 64);
+    let hex_key = hex.lines().nth(1).unwrap();
+    let raw_hex: String = raw.iter().map(|b| format!("{b:02x}")).collect();
+    assert_eq!(raw_hex, hex_key);
+    // Each side refuses the other's way.
+    let (code, text) = take(&controller, &["--id", id]);
+    assert!(code == 2 && text.contains("drop --id"), "{text}");
+    let (code, text) = take(&robot, &[]);
+    assert!(code == 2 && text.contains("pass --id"), "{text}");
+    let (code, text) = take(&robot, &["--id", &hex_id, "--bits", "256"]);
+    assert!(code == 2 && text.contains("has 512 bits"), "{text}");
+    // 2,048 − 256 − 512 bits settled are left: five keys of 256 bits, then none (exit 3,
+    // naming the pending key's bits to come).
+    for _ in 0..5 {
+        assert_eq!(take(&controller, &[]).0, 0);
+    }
+    let (code, text) = take(&controller, &[]);
+    assert_eq!(code, 3, "{text}");
+    assert!(
+        text.contains("4 more once the pending ones settle"),
+        "{text}"
+    );
+    let (code, text) = take(&robot, &["--id", INTO_PENDING]);
+    assert_eq!(code, 5, "{text}");
+    // The list says what was taken, by ID, and what is left.
+    let (code, text) = run_code(&[
+        "keys",
+        "list",
+        "--json",
+        "--store",
+        &s(&robot),
+        "--pairing",
+        &pairing,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let listed: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let settled = &listed
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|k| k["id"] == SETTLED)
+        .unwrap();
+    assert_eq!(settled["taken"], serde_json::json!([id, hex_id]));
+    assert_eq!(
+        (&settled["taken_bits"], &settled["available_bits"]),
+        (&768.into(), &1280.into())
+    );
+    let pending = listed
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|k| k["id"] == PENDING)
+        .unwrap();
+    assert_eq!(
+        (&pending["status"], &pending["available_bits"]),
+        (&"pending".into(), &0.into())
+    );
+    let (code, text) = run_code(&[
+        "keys",
+        "get",
+        "--store",
+        &s(&robot),
+        "--pairing",
+        &pairing,
+        SETTLED,
+    ]);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("were taken"), "{text}");
+}
