@@ -25,6 +25,7 @@ pub struct Identity {
 }
 
 /// The certificates of a test, in `dir`.
+#[derive(Clone)]
 pub struct Pki {
     /// The CA of the servers' and the applications' certificates.
     pub ca: PathBuf,
