@@ -380,3 +380,76 @@ fn keys_take_gives_the_same_key_on_both_sides_once() {
     assert_eq!(code, 2, "{text}");
     assert!(text.contains("were taken"), "{text}");
 }
+
+/// The WireGuard recipe's hand-over (`contrib/wireguard/robokey-wg-psk`): the controller side
+/// sets a 256-bit preshared key and prints its ID, the robot side sets the same key by that
+/// ID; a rotation gives a new key; an ID is good once. No WireGuard device can be made on this
+/// test's machine (its kernel has no wireguard module), so `wg` is a stand-in that records
+/// what `wg set` would get: the interface, the peer, the key file's mode and the key.
+#[test]
+fn wireguard_preshared_keys_are_handed_over_by_id() {
+    let dir = scratch("wireguard");
+    let pairing = pairing(&dir);
+    let (controller, robot) = stores(&dir, &pairing);
+    let wg = dir.join("wg");
+    std::fs::write(
+        &wg,
+        "#!/bin/sh\n[ \"$1 $3 $5\" = 'set peer preshared-key' ] || exit 9\n\
+         printf '%s %s %s %s %s\\n' \"$2\" \"$4\" \"$(stat -c %a \"$6\")\" \"$(cat \"$6\")\" \"$6\" >> \"$WG_LOG\"\n",
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt as _;
+    std::fs::set_permissions(&wg, std::fs::Permissions::from_mode(0o700)).unwrap();
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../contrib/wireguard/robokey-wg-psk"
+    );
+    let log = dir.join("wg.log");
+    let rotate = |args: &[&str]| {
+        let out = std::process::Command::new("bash")
+            .arg(script)
+            .args(args)
+            .env("ROBOKEY", env!("CARGO_BIN_EXE_robokey"))
+            .env("WG", &wg)
+            .env("WG_LOG", &log)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).trim().to_owned();
+        (
+            out.status.code().unwrap_or(-1),
+            text + &String::from_utf8_lossy(&out.stderr),
+        )
+    };
+    let (controller, robot) = (s(&controller), s(&robot));
+    let robot_public = "RobotPublicKeyRobotPublicKeyRobotPublicKey0=";
+    let controller_public = "ControllerPublicKeyControllerPublicKeyCont=";
+    let mut ids = Vec::new();
+    for _ in 0..2 {
+        let (code, id) = rotate(&["controller", "wg0", robot_public, &controller, &pairing]);
+        assert_eq!(code, 0, "{id}");
+        let (code, same) = rotate(&["robot", "wg1", controller_public, &robot, &pairing, &id]);
+        assert_eq!((code, &same), (0, &id));
+        ids.push(id);
+    }
+    assert_ne!(ids[0], ids[1]);
+    let text = std::fs::read_to_string(&log).unwrap();
+    let calls: Vec<Vec<&str>> = text.lines().map(|l| l.split(' ').collect()).collect();
+    assert_eq!(calls.len(), 4, "{text}");
+    for pair in calls.chunks(2) {
+        let (theirs, ours) = (&pair[0], &pair[1]);
+        assert_eq!(theirs[..3], ["wg0", robot_public, "600"]);
+        assert_eq!(ours[..3], ["wg1", controller_public, "600"]);
+        assert_eq!(theirs[3], ours[3], "the same preshared key on both ends");
+        let key = <base64ct::Base64 as base64ct::Encoding>::decode_vec(theirs[3]).unwrap();
+        assert_eq!(key.len(), 32, "{}", theirs[3]);
+        assert!(!Path::new(theirs[4]).exists(), "the key file is removed");
+    }
+    assert_ne!(calls[0][3], calls[2][3], "a rotation brings a new key");
+    // An ID is good once: the robot side refuses it again and calls no `wg`.
+    let (code, text) = rotate(&["robot", "wg1", controller_public, &robot, &pairing, &ids[0]]);
+    assert_ne!(code, 0, "{text}");
+    assert!(text.contains("delivered already"), "{text}");
+    let (code, _) = rotate(&["robot", "wg1", controller_public, &robot, &pairing]);
+    assert_eq!(code, 2);
+    assert_eq!(std::fs::read_to_string(&log).unwrap().lines().count(), 4);
+}
