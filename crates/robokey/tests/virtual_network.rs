@@ -228,7 +228,7 @@ mod through_the_session_layer {
             Address::Robot,
             seed as u32,
             None,
-            &mut stream(seed, Purpose::Key, 2),
+            <ChaCha20Rng as SeedableRng>::seed_from_u64(seed ^ 0x5eed),
             Time::ZERO,
         );
         let plan = robokey::protocol::SessionPlan::from_config(config, 0);

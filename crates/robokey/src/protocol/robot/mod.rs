@@ -277,9 +277,7 @@ impl Robot {
         self.mode
             .on_sample(&self.plan.agreed, &mut self.lifecycle, step, y);
         if self.lifecycle.awaits(step) {
-            let at = self
-                .clock
-                .deadline_of(step, now);
+            let at = self.clock.deadline_of(step, now);
             self.clock.deadline = Some((step, at));
         }
     }
