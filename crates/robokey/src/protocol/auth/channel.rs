@@ -855,6 +855,65 @@ mod tests {
         assert_eq!(robot.half_open.len(), HALF_OPEN);
     }
 
+    /// The lock-out: ten recorded Hellos cycled at the robot pushed a fresh
+    /// controller's half-open handshake out. Each is now answered once; its replays are
+    /// rejected as such and take no slot, so the fresh controller's `Ready` binds.
+    #[test]
+    fn cycled_old_hellos_are_answered_once_and_never_push_a_fresh_handshake_out() {
+        let mut rng = ChaCha20Rng::seed_from_u64(6);
+        let secret = PairingSecret::from_bytes(&[3; 32]);
+        let old: Vec<Vec<u8>> = (0..10)
+            .map(|session| {
+                let c = ControllerChannel::<u8>::new(
+                    secret.clone(),
+                    ROBOT,
+                    1000 + session,
+                    [5; 32],
+                    "t = 1\n".into(),
+                    &mut rng,
+                );
+                c.hello().to_vec()
+            })
+            .collect();
+        let (mut controller, mut robot) = pair(&secret, &mut rng);
+        for hello in &old {
+            assert!(matches!(
+                robot.on_datagram(ATTACKER, hello, &mut rng),
+                Ok(Delivery::Answer { .. })
+            ));
+        }
+        let Ok(Delivery::Answer { bytes, .. }) =
+            robot.on_datagram(CONTROLLER, controller.hello(), &mut rng)
+        else {
+            panic!("the fresh Hello is answered");
+        };
+        // The three oldest were pushed out by the others: their replays are rejected. The
+        // seven still waiting get their same answer again, which takes no slot.
+        for _ in 0..100 {
+            for (i, hello) in old.iter().enumerate() {
+                let answer = robot.on_datagram(ATTACKER, hello, &mut rng);
+                if i < 3 {
+                    assert_eq!(answer, Err(Rejection::Replayed));
+                } else {
+                    assert!(matches!(answer, Ok(Delivery::Answer { .. })), "{answer:?}");
+                }
+            }
+        }
+        assert_eq!(
+            controller.on_datagram(ROBOT, &bytes),
+            Ok(Delivery::Established)
+        );
+        let ready = controller.seal(Handshake::Ready.into()).unwrap();
+        assert!(robot.on_datagram(CONTROLLER, &ready, &mut rng).is_ok());
+        assert_eq!(robot.bound(), Some((CONTROLLER, 77)));
+        // Every answer and every replay is counted.
+        let counts = robot.counts();
+        assert_eq!(
+            (counts.hellos_answered, counts.rejected.replayed),
+            (11 + 700, 300)
+        );
+    }
+
     #[test]
     fn pairing_secrets_and_modes_must_match_and_terms_are_refused_by_name() {
         let mut rng = ChaCha20Rng::seed_from_u64(5);
@@ -871,7 +930,7 @@ mod tests {
         let (controller, _) = pair(&PairingSecret::from_bytes(&[4; 32]), &mut rng);
         assert_eq!(
             robot.on_datagram(CONTROLLER, controller.hello(), &mut rng),
-            Err(Rejection::BadMac)
+            Err(Rejection::HandshakeBadMac)
         );
         let secret = PairingSecret::from_bytes(&[3; 32]);
         let mut controller =
