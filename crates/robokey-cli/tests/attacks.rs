@@ -300,7 +300,10 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
     assert_eq!(robot["commands_applied"], 0);
     assert!(rejected(&robot, "pairing_mode") > 0 && rejected(&robot, "handshake_bad_mac") > 0);
     assert_eq!(controller["outcome"], "aborted", "{controller}");
-    assert!(rejected(&controller, "handshake_bad_mac") > 0, "{controller}");
+    assert!(
+        rejected(&controller, "handshake_bad_mac") > 0,
+        "{controller}"
+    );
     assert!(!dir.join("robot.key").exists() && !dir.join("controller.key").exists());
 }
 
@@ -662,7 +665,10 @@ fn a_hello_from_port_zero_gets_no_answer_and_the_robot_goes_on() {
     controller(&dir, &pairing, &robot.address, 0);
     wait_robot(robot, 0);
     let r = report(&dir.join("robot.json"));
-    assert!(r["frames"]["impossible_source"].as_u64().unwrap() >= 1, "{r}");
+    assert!(
+        r["frames"]["impossible_source"].as_u64().unwrap() >= 1,
+        "{r}"
+    );
     assert_completed(&dir);
 }
 
@@ -701,6 +707,9 @@ fn cycled_old_hellos_never_lock_a_fresh_controller_out() {
     wait_robot(robot, 0);
     assert_completed(&dir);
     let r = report(&dir.join("robot.json"));
-    assert!(r["frames"]["hellos_answered"].as_u64().unwrap() >= 11, "{r}");
+    assert!(
+        r["frames"]["hellos_answered"].as_u64().unwrap() >= 11,
+        "{r}"
+    );
     assert!(rejected(&r, "replayed") > 0, "{r}");
 }

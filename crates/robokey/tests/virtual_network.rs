@@ -144,9 +144,9 @@ mod through_the_session_layer {
     use robokey::connection::{
         ControllerAction, ControllerConnection, Output, RobotAction, RobotConnection, Setup,
     };
+    use robokey::pair::Side;
     use robokey::pair::{Connected, Pair, Surroundings};
     use robokey::protocol::auth::PairingSecret;
-    use robokey::pair::Side;
     use robokey::protocol::{Handshake, Message, RobotOutput, Time};
     use robokey::rng::{Purpose, stream};
     use robokey::sim::{Noise, Plant};

@@ -173,4 +173,3 @@ pub fn in_namespace(test: &str, setup: &str) -> bool {
     assert!(text.contains("1 passed"), "{test} did not run:\n{text}");
     false
 }
-

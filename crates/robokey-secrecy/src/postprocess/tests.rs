@@ -555,7 +555,10 @@ fn honest_schedules_stay_within_the_robots_bound_on_questions() {
                         .reason
                         .as_deref()
                         .is_some_and(|why| why.contains("BadQuestions"));
-                    assert!(!refused, "{schedule:?} at Q {q}, {block_bits} bits: {report:?}");
+                    assert!(
+                        !refused,
+                        "{schedule:?} at Q {q}, {block_bits} bits: {report:?}"
+                    );
                 }
             }
         }
