@@ -21,7 +21,7 @@ use crate::protocol::{
 };
 
 /// How many `Ready`s go unanswered before the controller starts a fresh handshake.
-const READY_TRIES: u32 = 5;
+const READY_TRIES: u32 = 10;
 
 /// Most handshakes one conversation starts.
 const HANDSHAKES: u32 = 3;
