@@ -101,7 +101,7 @@ pub fn run_controller(
         timing: options.timing,
     };
     let mut connection =
-        ControllerConnection::new(setup, options.robot, session, link, &mut rng, socket.now());
+        ControllerConnection::new(setup, options.robot, session, link, rng, socket.now());
     let plan = SessionPlan::from_config(config, session);
     let mut report = SessionReport::new("controller", pairing);
     report.bound(session, &plan);
@@ -178,8 +178,8 @@ pub fn run_controller(
     }
     let counted = Counted {
         socket: socket.counts(),
-        channel: connection.channel().counts(),
-        authenticated: connection.channel().is_established(),
+        channel: connection.counts(),
+        authenticated: connection.is_established(),
     };
     let key = connection.endpoint().map_or(&[][..], |e| e.key());
     let store = store.zip(connection.post().map(|link| link.endpoint()));

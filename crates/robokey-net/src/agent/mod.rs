@@ -73,8 +73,10 @@ pub(crate) fn finish<E: StoredEndpoint>(
         .outcome
         .unwrap_or_else(|| Outcome::Aborted("ended without an outcome".into()));
     conclude(&mut report, &outcome, key, key_out, bits_per_unit);
+    // A peer tried the handshake with another secret (or another pairing mode), and none
+    // proved it holds ours: a stray datagram with a bad MAC is no such attempt.
     let rejected = counted.channel.rejected;
-    if !counted.authenticated && rejected.bad_mac + rejected.pairing_mode > 0 {
+    if !counted.authenticated && rejected.handshake_bad_mac + rejected.pairing_mode > 0 {
         report.ending = Ending::AuthenticationFailed;
     }
     if let Some(error) = &run.stopped {

@@ -166,7 +166,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     wheels.stop();
     let counted = Counted {
         socket: socket.counts(),
-        channel: connection.channel().counts(),
+        channel: connection.counts(),
         authenticated: connection.endpoint().is_some(),
     };
     if let Some(endpoint) = connection.endpoint() {
