@@ -8,6 +8,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::{Args, Subcommand, ValueEnum};
+use robokey::protocol::auth::PairingSecret;
 use robokey_net::key_delivery::{KeyDelivery, Side};
 use robokey_net::key_slice::{DEFAULT_SLICE_BITS, SliceId, Span};
 use robokey_net::key_store::{KeyStatus, KeyStore, StoredKey};
@@ -24,10 +25,10 @@ pub struct KeysArgs {
 
 /// The store and the pairing that verifies it.
 #[derive(Args, Debug)]
-struct StoreArgs {
-    /// The store (an agent's --store).
+pub(crate) struct StoreArgs {
+    /// The store (an agent's --store; the agent may be running).
     #[arg(long)]
-    store: PathBuf,
+    pub(crate) store: PathBuf,
     /// The pairing file of the store's agent: key files are verified under a key derived
     /// from it, so a file planted or edited beside the store is refused.
     #[arg(long, value_name = "FILE")]
@@ -38,9 +39,14 @@ struct StoreArgs {
 }
 
 impl StoreArgs {
-    fn keys(&self) -> Result<KeyStore> {
-        let pairing = crate::net::pairing_from(&self.pairing, self.insecure_pairing_file)?;
-        Ok(open_keys(&self.store, &pairing)?)
+    /// The pairing secret, from a file checked as the agents check it.
+    pub(crate) fn pairing(&self) -> Result<PairingSecret> {
+        crate::net::pairing_from(&self.pairing, self.insecure_pairing_file)
+    }
+
+    /// The store's key folder, verified under the pairing.
+    pub(crate) fn keys(&self) -> Result<KeyStore> {
+        Ok(open_keys(&self.store, &self.pairing()?)?)
     }
 }
 

@@ -15,22 +15,15 @@ use robokey_net::kme::server::KmeServer;
 use robokey_net::kme::tls::{TlsFiles, server_config};
 
 use crate::exit::{Status, on_signals, usage};
+use crate::keys::StoreArgs;
 
 /// Longest SAE ID (characters).
 const MAX_SAE_ID: usize = 64;
 
 #[derive(Args, Debug)]
 pub struct KmeArgs {
-    /// The store (an agent's --store) whose keys it hands out; the agent may run meanwhile.
-    #[arg(long)]
-    store: PathBuf,
-    /// The pairing file of the store's agent: key files are verified under a key derived
-    /// from it.
-    #[arg(long, value_name = "FILE")]
-    pairing: PathBuf,
-    /// Use a pairing file that group or others may read or write, or that another user owns.
-    #[arg(long)]
-    insecure_pairing_file: bool,
+    #[command(flatten)]
+    store: StoreArgs,
     /// Address to serve HTTPS on. Loopback by default: the application runs on this host.
     #[arg(long, default_value = "127.0.0.1:8443")]
     listen: SocketAddr,
@@ -74,8 +67,8 @@ pub fn kme(args: KmeArgs) -> Result<Status> {
             args.sae_id
         );
     }
-    let pairing = crate::net::pairing_from(&args.pairing, args.insecure_pairing_file)?;
-    let delivery = KeyDelivery::open(&args.store, &pairing)?;
+    let pairing = args.store.pairing()?;
+    let delivery = KeyDelivery::open(&args.store.store, &pairing)?;
     let side = delivery.side();
     let fingerprint = pairing.fingerprint();
     let identity = KmeIdentity {
@@ -108,7 +101,7 @@ pub fn kme(args: KmeArgs) -> Result<Status> {
     };
     println!(
         "kme: {role} of store {}, for SAE {} with SAE {}, HTTPS on {address}",
-        args.store.display(),
+        args.store.store.display(),
         args.sae_id,
         args.peer_sae_id
     );

@@ -9,7 +9,7 @@ mod common;
 use std::io::{Read as _, Write as _};
 use std::path::{Path, PathBuf};
 
-use common::kme::{CONTROLLER_SAE, Pki, ROBOT_SAE, curl, have_curl, start_kme};
+use common::kme::{CONTROLLER_SAE, Pki, ROBOT_SAE, curl, have_curl, start_pair};
 use common::{pairing, run_code, s, scratch};
 use robokey_net::key_store::{KeyStatus, StoredKey};
 use robokey_net::post_store::{PostStore, open_keys};
@@ -60,6 +60,15 @@ fn stores(dir: &Path, pairing: &str) -> (PathBuf, PathBuf) {
     (controller, robot)
 }
 
+/// A scratch folder named `name` with certificates, a pairing and both stores.
+fn scene(name: &str) -> (PathBuf, Pki, String) {
+    let dir = scratch(name);
+    let pki = Pki::new(&dir);
+    let pairing = pairing(&dir);
+    stores(&dir, &pairing);
+    (dir, pki, pairing)
+}
+
 fn key_ids(json: &serde_json::Value) -> Vec<String> {
     json["keys"]
         .as_array()
@@ -77,13 +86,8 @@ fn both_sides_deliver_the_same_keys_by_id_once_to_their_applications_only() {
     if !have_curl() {
         return;
     }
-    let dir = scratch("kme-pair");
-    let pki = Pki::new(&dir);
-    let pairing = pairing(&dir);
-    let (controller_store, robot_store) = stores(&dir, &pairing);
-    let (_controller, master) =
-        start_kme(&pki, &controller_store, &pairing, CONTROLLER_SAE, ROBOT_SAE);
-    let (_robot, slave) = start_kme(&pki, &robot_store, &pairing, ROBOT_SAE, CONTROLLER_SAE);
+    let (dir, pki, pairing) = scene("kme-pair");
+    let (_controller, master, _robot, slave) = start_pair(&pki, &dir, &pairing);
     let me = Some(&pki.controller_app);
     let it = Some(&pki.robot_app);
 
@@ -200,11 +204,8 @@ fn malformed_requests_are_answered_and_the_server_goes_on() {
     if !have_curl() {
         return;
     }
-    let dir = scratch("kme-malformed");
-    let pki = Pki::new(&dir);
-    let pairing = pairing(&dir);
-    let (controller_store, _) = stores(&dir, &pairing);
-    let (_kme, master) = start_kme(&pki, &controller_store, &pairing, CONTROLLER_SAE, ROBOT_SAE);
+    let (dir, pki, pairing) = scene("kme-malformed");
+    let (_controller, master, _robot, _) = start_pair(&pki, &dir, &pairing);
     let me = Some(&pki.controller_app);
     let enc = format!("{master}/api/v1/keys/{ROBOT_SAE}/enc_keys");
     let huge = format!("{{\"number\": 1, \"pad\": \"{}\"}}", "x".repeat(70_000));

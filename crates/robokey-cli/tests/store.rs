@@ -13,7 +13,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use common::kme::{CONTROLLER_SAE, Pki, ROBOT_SAE, curl, have_curl, start_kme};
+use common::kme::{CONTROLLER_SAE, Pki, ROBOT_SAE, curl, have_curl, start_pair};
 use common::{pairing, report, run, run_code, s, scratch, start, wait_code};
 use robokey::protocol::{Message, PostFragment};
 use robokey_secrecy::postprocess::{self, Message as Post};
@@ -524,20 +524,7 @@ fn key_servers_beside_the_agents_deliver_only_settled_keys_the_same_by_id() {
     let pairing = pairing(&dir);
     let pki = Pki::new(&dir);
     assert_eq!(session(&dir, &pairing, 110, Attack::None).0, [0, 0]);
-    let (_master, master) = start_kme(
-        &pki,
-        &dir.join("controller"),
-        &pairing,
-        CONTROLLER_SAE,
-        ROBOT_SAE,
-    );
-    let (_slave, slave) = start_kme(
-        &pki,
-        &dir.join("robot"),
-        &pairing,
-        ROBOT_SAE,
-        CONTROLLER_SAE,
-    );
+    let (_master, master, _slave, slave) = start_pair(&pki, &dir, &pairing);
     let enc = format!("{master}/api/v1/keys/{ROBOT_SAE}/enc_keys?size=128");
     let dec = format!("{slave}/api/v1/keys/{CONTROLLER_SAE}/dec_keys");
     let fetch_all = |into: &mut Vec<serde_json::Value>| -> serde_json::Value {

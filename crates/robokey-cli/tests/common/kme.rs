@@ -131,6 +131,20 @@ pub fn start_kme(
     (process, url)
 }
 
+/// Both sides' servers, on the stores `dir/controller` and `dir/robot`: (controller side's
+/// process, its URL, robot side's process, its URL).
+pub fn start_pair(pki: &Pki, dir: &Path, pairing: &str) -> (Process, String, Process, String) {
+    let (master, master_url) = start_kme(
+        pki,
+        &dir.join("controller"),
+        pairing,
+        CONTROLLER_SAE,
+        ROBOT_SAE,
+    );
+    let (slave, slave_url) = start_kme(pki, &dir.join("robot"), pairing, ROBOT_SAE, CONTROLLER_SAE);
+    (master, master_url, slave, slave_url)
+}
+
 /// What curl got: its exit code, the HTTP status (0 when none) and the body.
 #[derive(Debug)]
 pub struct Fetched {

@@ -178,7 +178,7 @@ fn bad_requests_get_the_standards_errors() {
     )
     .unwrap()
     .uuid();
-    let cases: [(&KeyApi, &str, String, &str, u16, &str); 20] = [
+    let cases: Vec<(&KeyApi, &str, String, &str, u16, &str)> = vec![
         (
             &controller,
             "GET",
@@ -339,21 +339,10 @@ fn bad_requests_get_the_standards_errors() {
             503,
             "pending",
         ),
-    ];
-    for (api, method, target, body, status, says) in &cases {
-        let (code, error) = ask(api, method, target, body);
-        let message = error["message"].as_str().unwrap();
-        assert_eq!(
-            (code, message.contains(says)),
-            (*status, true),
-            "{target}: {message}"
-        );
-    }
-    let more: [(&KeyApi, &str, &str, &str, u16, &str); 6] = [
         (
             &controller,
             "GET",
-            "/api/v1/keys/bot-app/dec_keys?key_ID=x",
+            "/api/v1/keys/bot-app/dec_keys?key_ID=x".into(),
             "",
             400,
             "controller side",
@@ -361,7 +350,7 @@ fn bad_requests_get_the_standards_errors() {
         (
             &robot,
             "GET",
-            "/api/v1/keys/ctl-app/dec_keys",
+            "/api/v1/keys/ctl-app/dec_keys".into(),
             "",
             400,
             "1 to 128",
@@ -369,7 +358,7 @@ fn bad_requests_get_the_standards_errors() {
         (
             &robot,
             "GET",
-            "/api/v1/keys/ctl-app/dec_keys?key_ID=nope",
+            "/api/v1/keys/ctl-app/dec_keys?key_ID=nope".into(),
             "",
             400,
             "not a UUID",
@@ -377,7 +366,7 @@ fn bad_requests_get_the_standards_errors() {
         (
             &robot,
             "POST",
-            "/api/v1/keys/ctl-app/dec_keys",
+            "/api/v1/keys/ctl-app/dec_keys".into(),
             "{\"key_IDs\": []}",
             400,
             "1 to 128",
@@ -385,7 +374,7 @@ fn bad_requests_get_the_standards_errors() {
         (
             &robot,
             "POST",
-            "/api/v1/keys/ctl-app/dec_keys",
+            "/api/v1/keys/ctl-app/dec_keys".into(),
             "[1, 2",
             400,
             "JSON body",
@@ -393,13 +382,13 @@ fn bad_requests_get_the_standards_errors() {
         (
             &robot,
             "POST",
-            "/api/v1/keys/ctl-app/dec_keys",
+            "/api/v1/keys/ctl-app/dec_keys".into(),
             "{\"key_IDs\": [{\"id\": \"x\"}]}",
             400,
             "unknown field",
         ),
     ];
-    for (api, method, target, body, status, says) in &more {
+    for (api, method, target, body, status, says) in &cases {
         let (code, error) = ask(api, method, target, body);
         let message = error["message"].as_str().unwrap();
         assert_eq!(
