@@ -87,7 +87,8 @@ fn both_sides_deliver_the_same_keys_by_id_once_to_their_applications_only() {
         return;
     }
     let (dir, pki, pairing) = scene("kme-pair");
-    let (_controller, master, _robot, slave) = start_pair(&pki, &dir, &pairing);
+    let (controller, robot) = start_pair(&pki, &dir, &pairing);
+    let (master, slave) = (&controller.url, &robot.url);
     let me = Some(&pki.controller_app);
     let it = Some(&pki.robot_app);
 
@@ -195,6 +196,50 @@ fn both_sides_deliver_the_same_keys_by_id_once_to_their_applications_only() {
         );
         assert_eq!(refused.status, 401, "{refused:?}");
     }
+
+    // Each server logs a line per connection — the SAE, the request, the status, the IDs —
+    // and never a key.
+    let logged = |kme: &common::kme::Kme, what: &str| {
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+        loop {
+            let log = kme.log.lock().unwrap().clone();
+            if log.contains(what) || std::time::Instant::now() > deadline {
+                return log;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+    };
+    let master_log = logged(&controller, "SAE robot-app: GET");
+    let slave_log = logged(&robot, "→ 503");
+    assert!(
+        master_log.contains(&format!(
+            "SAE controller-app: POST /api/v1/keys/robot-app/enc_keys → 200, keys {} {} {}",
+            ids[0], ids[1], ids[2]
+        )),
+        "{master_log}"
+    );
+    assert!(master_log.contains("TLS handshake failed"), "{master_log}");
+    assert!(
+        master_log.contains("SAE eve-app: GET /api/v1/keys/robot-app/status → 401"),
+        "{master_log}"
+    );
+    assert!(
+        slave_log.contains(&format!(
+            "SAE robot-app: GET /api/v1/keys/controller-app/dec_keys?key_ID={} → 200",
+            ids[0]
+        )),
+        "{slave_log}"
+    );
+    let rest = rest.json();
+    let keys = sent["keys"].as_array().unwrap().iter();
+    let keys = keys.chain(rest["keys"].as_array().unwrap());
+    for key in keys {
+        let key = key["key"].as_str().unwrap();
+        assert!(
+            !master_log.contains(key) && !slave_log.contains(key),
+            "{key} in a log"
+        );
+    }
 }
 
 /// Requests no application should send get the standard's errors (400), bytes that are not
@@ -205,7 +250,8 @@ fn malformed_requests_are_answered_and_the_server_goes_on() {
         return;
     }
     let (dir, pki, pairing) = scene("kme-malformed");
-    let (_controller, master, _robot, _) = start_pair(&pki, &dir, &pairing);
+    let (controller, _robot) = start_pair(&pki, &dir, &pairing);
+    let master = &controller.url;
     let me = Some(&pki.controller_app);
     let enc = format!("{master}/api/v1/keys/{ROBOT_SAE}/enc_keys");
     let huge = format!("{{\"number\": 1, \"pad\": \"{}\"}}", "x".repeat(70_000));

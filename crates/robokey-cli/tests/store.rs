@@ -524,7 +524,8 @@ fn key_servers_beside_the_agents_deliver_only_settled_keys_the_same_by_id() {
     let pairing = pairing(&dir);
     let pki = Pki::new(&dir);
     assert_eq!(session(&dir, &pairing, 110, Attack::None).0, [0, 0]);
-    let (_master, master, _slave, slave) = start_pair(&pki, &dir, &pairing);
+    let (controller, robot) = start_pair(&pki, &dir, &pairing);
+    let (master, slave) = (&controller.url, &robot.url);
     let enc = format!("{master}/api/v1/keys/{ROBOT_SAE}/enc_keys?size=128");
     let dec = format!("{slave}/api/v1/keys/{CONTROLLER_SAE}/dec_keys");
     let fetch_all = |into: &mut Vec<serde_json::Value>| -> serde_json::Value {

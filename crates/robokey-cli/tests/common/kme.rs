@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::{Arc, Mutex};
 
 use rcgen::{
     BasicConstraints, CertificateParams, CertifiedIssuer, DnType, ExtendedKeyUsagePurpose, IsCa,
@@ -99,16 +100,18 @@ fn authority(name: &str) -> CertifiedIssuer<'static, KeyPair> {
     CertifiedIssuer::self_signed(params, KeyPair::generate().unwrap()).unwrap()
 }
 
+/// A running `robokey kme`: its process, its base URL, and its log as it comes (read as it
+/// is written, so that the server never waits on a full pipe).
+pub struct Kme {
+    pub process: Process,
+    pub url: String,
+    pub log: Arc<Mutex<String>>,
+}
+
 /// `robokey kme` on the store `store` for the application `sae` (whose peer is `peer`), on
-/// a port of loopback the system chooses; returns the process and its base URL.
-pub fn start_kme(
-    pki: &Pki,
-    store: &Path,
-    pairing: &str,
-    sae: &str,
-    peer: &str,
-) -> (Process, String) {
-    let process = start(&[
+/// a port of loopback the system chooses.
+pub fn start_kme(pki: &Pki, store: &Path, pairing: &str, sae: &str, peer: &str) -> Kme {
+    let mut process = start(&[
         "kme",
         "--store",
         &s(store),
@@ -127,22 +130,36 @@ pub fn start_kme(
         "--peer-sae-id",
         peer,
     ]);
+    let log = Arc::new(Mutex::new(String::new()));
+    let mut stdout = process.child.stdout.take().expect("piped");
+    std::thread::spawn({
+        let log = Arc::clone(&log);
+        move || {
+            let mut line = [0_u8; 4096];
+            while let Ok(n @ 1..) = std::io::Read::read(&mut stdout, &mut line) {
+                log.lock()
+                    .unwrap()
+                    .push_str(&String::from_utf8_lossy(&line[..n]));
+            }
+        }
+    });
     let url = format!("https://{}", process.address);
-    (process, url)
+    Kme { process, url, log }
 }
 
-/// Both sides' servers, on the stores `dir/controller` and `dir/robot`: (controller side's
-/// process, its URL, robot side's process, its URL).
-pub fn start_pair(pki: &Pki, dir: &Path, pairing: &str) -> (Process, String, Process, String) {
-    let (master, master_url) = start_kme(
-        pki,
-        &dir.join("controller"),
-        pairing,
-        CONTROLLER_SAE,
-        ROBOT_SAE,
-    );
-    let (slave, slave_url) = start_kme(pki, &dir.join("robot"), pairing, ROBOT_SAE, CONTROLLER_SAE);
-    (master, master_url, slave, slave_url)
+/// Both sides' servers, on the stores `dir/controller` and `dir/robot`: (the controller
+/// side's, the robot side's).
+pub fn start_pair(pki: &Pki, dir: &Path, pairing: &str) -> (Kme, Kme) {
+    (
+        start_kme(
+            pki,
+            &dir.join("controller"),
+            pairing,
+            CONTROLLER_SAE,
+            ROBOT_SAE,
+        ),
+        start_kme(pki, &dir.join("robot"), pairing, ROBOT_SAE, CONTROLLER_SAE),
+    )
 }
 
 /// What curl got: its exit code, the HTTP status (0 when none) and the body.

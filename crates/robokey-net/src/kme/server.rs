@@ -102,22 +102,37 @@ impl KmeServer {
                 ));
                 continue;
             }
-            active.fetch_add(1, Ordering::SeqCst);
-            let (tls, api, log, active) = (
+            let open = OpenConnection::count(&active);
+            let (tls, api, log) = (
                 Arc::clone(&self.tls),
                 Arc::clone(&self.api),
                 Arc::clone(log),
-                Arc::clone(&active),
             );
             threads.push(std::thread::spawn(move || {
+                let _open = open;
                 log(&serve_connection(stream, peer, tls, &api));
-                active.fetch_sub(1, Ordering::SeqCst);
             }));
         }
         for thread in threads {
             let _ = thread.join();
         }
         Ok(())
+    }
+}
+
+/// One open connection in the count, until dropped (however its thread ends).
+struct OpenConnection(Arc<AtomicUsize>);
+
+impl OpenConnection {
+    fn count(active: &Arc<AtomicUsize>) -> Self {
+        active.fetch_add(1, Ordering::SeqCst);
+        Self(Arc::clone(active))
+    }
+}
+
+impl Drop for OpenConnection {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
     }
 }
 
@@ -166,7 +181,10 @@ fn serve_connection(
         .and_then(|certificate| common_name(certificate));
     let who = format!(
         "{peer} SAE {}",
-        client.as_deref().unwrap_or("(no common name)")
+        client.as_deref().map_or_else(
+            || "(no common name)".to_owned(),
+            |c| c.escape_debug().to_string()
+        )
     );
     let mut stream = rustls::Stream::new(&mut connection, &mut socket);
     let (response, line) = match read_request(&mut stream) {

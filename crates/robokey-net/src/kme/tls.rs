@@ -114,11 +114,12 @@ fn certificates(path: &Path, flag: &str) -> Result<Vec<CertificateDer<'static>>,
     Ok(chain)
 }
 
-/// The private key in the PEM file `path`, which only this user may access.
+/// The private key in the PEM file `path` (a link is followed, as certificate tools lay
+/// them out), which only this user may access.
 fn private_key(path: &Path) -> Result<PrivateKeyDer<'static>, NetError> {
     let bad = |message: String| NetError::Usage(format!("--tls-key {}: {message}", path.display()));
-    let mut file = owned_file::open(path, std::fs::OpenOptions::new().read(true), "TLS key")?;
-    owned_file::check_file(&file, path, "TLS key", ANY_ACCESS_BY_OTHERS)?;
+    let mut file = std::fs::File::open(path).map_err(|e| bad(format!("cannot be opened: {e}")))?;
+    owned_file::check_file(&file, path, "--tls-key", ANY_ACCESS_BY_OTHERS)?;
     let mut text = Zeroizing::new(Vec::new());
     file.read_to_end(&mut text)
         .map_err(|e| bad(format!("cannot be read: {e}")))?;
