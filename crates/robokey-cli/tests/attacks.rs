@@ -713,3 +713,24 @@ fn cycled_old_hellos_never_lock_a_fresh_controller_out() {
     );
     assert!(rejected(&r, "replayed") > 0, "{r}");
 }
+
+/// One stray datagram with a bad MAC turned a waiting robot's "no controller" (exit 3) into
+/// "authentication failed" (4). Exit 4 now means that a peer kept trying the handshake with
+/// another secret (three `Hello`s that failed to verify, as a controller repeating its `Hello`
+/// sends) or the other pairing mode; a stray frame is counted, and the robot that no controller
+/// bound exits 3.
+#[test]
+fn a_stray_datagram_does_not_turn_no_controller_into_authentication_failed() {
+    let dir = scratch("attack-stray");
+    let pairing = pairing(&dir);
+    let robot = robot(&dir, &pairing, &[]);
+    let hello = old_hellos(&PairingSecret::from_bytes(&[7; 32]), 1).remove(0);
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .send_to(&hello, &robot.address)
+        .unwrap();
+    wait_robot(robot, 3);
+    let r = report(&dir.join("robot.json"));
+    assert_eq!(rejected(&r, "handshake_bad_mac"), 1, "{r}");
+    assert_eq!(r["ending"], "no-key", "{r}");
+}

@@ -21,6 +21,11 @@ use self::report::{Ending, SessionReport};
 use self::socket::SocketCounts;
 use crate::error::NetError;
 
+/// Handshake frames that fail to verify before an agent that authenticated no peer calls it an
+/// authentication failure (exit 4): a peer paired with another secret repeats its `Hello` every
+/// retransmission interval; one stray datagram is no such peer.
+const HANDSHAKE_TRIES: u64 = 3;
+
 /// How an agent's run went beyond its report's counters.
 #[derive(Debug, Default)]
 pub(crate) struct Run {
@@ -73,10 +78,12 @@ pub(crate) fn finish<E: StoredEndpoint>(
         .outcome
         .unwrap_or_else(|| Outcome::Aborted("ended without an outcome".into()));
     conclude(&mut report, &outcome, key, key_out, bits_per_unit);
-    // A peer tried the handshake with another secret (or another pairing mode), and none
-    // proved it holds ours: a stray datagram with a bad MAC is no such attempt.
+    // A peer kept trying the handshake with another secret (a controller repeats its Hello), or
+    // declared the other pairing mode, and none proved it holds ours: a stray datagram with a
+    // bad MAC is no such attempt.
     let rejected = counted.channel.rejected;
-    if !counted.authenticated && rejected.handshake_bad_mac + rejected.pairing_mode > 0 {
+    let tried = rejected.handshake_bad_mac >= HANDSHAKE_TRIES || rejected.pairing_mode > 0;
+    if !counted.authenticated && tried {
         report.ending = Ending::AuthenticationFailed;
     }
     if let Some(error) = &run.stopped {
