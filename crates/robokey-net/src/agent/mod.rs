@@ -10,15 +10,17 @@ pub mod report;
 pub mod robot;
 pub mod socket;
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
 
-use robokey::protocol::Outcome;
+use robokey::connection::{Output, PostLink};
 use robokey::protocol::auth::ChannelCounts;
+use robokey::protocol::{Outcome, SessionPlan};
 
 use self::key_file::conclude;
 use self::post::{AgentStore, StoredEndpoint};
 use self::report::{Ending, SessionReport};
-use self::socket::SocketCounts;
+use self::socket::{Socket, SocketCounts};
 use crate::error::NetError;
 
 /// Handshake frames that fail to verify before an agent that authenticated no peer calls it an
@@ -50,6 +52,44 @@ impl Run {
         } else if post_running {
             self.post_error.get_or_insert(error);
         }
+    }
+}
+
+/// What an agent's run holds while it carries out its connection's outputs.
+pub(crate) struct Carry<'a, P: StoredEndpoint> {
+    pub(crate) socket: &'a mut Socket,
+    pub(crate) run: &'a mut Run,
+    pub(crate) report: &'a mut SessionReport,
+    pub(crate) plan: &'a SessionPlan,
+    pub(crate) store: Option<&'a mut AgentStore<P>>,
+}
+
+impl<P: StoredEndpoint> Carry<'_, P> {
+    /// Carries out an output both agents treat alike — sends it, notes the bound session and
+    /// the session's end, stores what post-processing asks (before anything that follows is
+    /// sent) — and hands back the endpoint's own (a sample request, an actuation, an event).
+    ///
+    /// # Errors
+    /// The store fails, or post-processing stopped.
+    pub(crate) fn output<E>(
+        &mut self,
+        output: Output<SocketAddr, E, P::Snapshot>,
+        link: Option<&PostLink<P>>,
+    ) -> Result<Option<E>, NetError> {
+        match output {
+            Output::Transmit { to, bytes } => self.socket.send(to, &bytes),
+            Output::Endpoint(own) => return Ok(Some(own)),
+            Output::Established(session) => self.report.bound(session, self.plan),
+            Output::Finished(outcome) => self.run.outcome = Some(outcome),
+            Output::Post(output) => {
+                if let (Some(store), Some(link)) = (self.store.as_deref_mut(), link) {
+                    store.apply(output, link.endpoint())?;
+                }
+            }
+            Output::PostFailed(why) => return Err(NetError::Usage(why)),
+            Output::Closed => {}
+        }
+        Ok(None)
     }
 }
 
