@@ -9,7 +9,7 @@ mod common;
 use std::io::{Read as _, Write as _};
 use std::path::{Path, PathBuf};
 
-use common::kme::{CONTROLLER_SAE, Pki, ROBOT_SAE, curl, have_curl, start_pair};
+use common::kme::{CONTROLLER_SAE, Kme, Pki, ROBOT_SAE, curl, have_curl, start_pair};
 use common::{pairing, run_code, s, scratch};
 use robokey_net::key_store::{KeyStatus, StoredKey};
 use robokey_net::post_store::{PostStore, open_keys};
@@ -60,13 +60,19 @@ fn stores(dir: &Path, pairing: &str) -> (PathBuf, PathBuf) {
     (controller, robot)
 }
 
-/// A scratch folder named `name` with certificates, a pairing and both stores.
-fn scene(name: &str) -> (PathBuf, Pki, String) {
+/// Both sides' servers on the stores of a scratch folder named `name`, with certificates made
+/// for it: (the certificates, the controller side's server, the robot side's); `None`, said,
+/// where curl is missing.
+fn served_pair(name: &str) -> Option<(Pki, Kme, Kme)> {
+    if !have_curl() {
+        return None;
+    }
     let dir = scratch(name);
     let pki = Pki::new(&dir);
     let pairing = pairing(&dir);
     stores(&dir, &pairing);
-    (dir, pki, pairing)
+    let (controller, robot) = start_pair(&pki, &dir, &pairing);
+    Some((pki, controller, robot))
 }
 
 fn key_ids(json: &serde_json::Value) -> Vec<String> {
@@ -83,22 +89,15 @@ fn key_ids(json: &serde_json::Value) -> Vec<String> {
 /// client certificate refused; a pending key never delivered.
 #[test]
 fn both_sides_deliver_the_same_keys_by_id_once_to_their_applications_only() {
-    if !have_curl() {
+    let Some((pki, controller, robot)) = served_pair("kme-pair") else {
         return;
-    }
-    let (dir, pki, pairing) = scene("kme-pair");
-    let (controller, robot) = start_pair(&pki, &dir, &pairing);
+    };
     let (master, slave) = (&controller.url, &robot.url);
     let me = Some(&pki.controller_app);
     let it = Some(&pki.robot_app);
 
-    let status = curl(
-        &pki,
-        me,
-        "GET",
-        &format!("{master}/api/v1/keys/{ROBOT_SAE}/status"),
-        None,
-    );
+    let status_url = format!("{master}/api/v1/keys/{ROBOT_SAE}/status");
+    let status = curl(&pki, me, "GET", &status_url, None);
     assert_eq!(status.status, 200, "{status:?}");
     let status = status.json();
     // 2,048 settled bits: 8 keys of 256 bits now; 4 more once the pending key settles.
@@ -146,38 +145,15 @@ fn both_sides_deliver_the_same_keys_by_id_once_to_their_applications_only() {
 
     // Taken: not delivered again, on either side.
     let again = curl(&pki, it, "GET", &format!("{dec}?key_ID={}", ids[0]), None);
-    assert_eq!(again.status, 400, "{again:?}");
-    assert!(
-        again.json()["message"]
-            .as_str()
-            .unwrap()
-            .contains("delivered already")
-    );
+    again.assert_error(400, "delivered already");
     let rest = curl(&pki, me, "GET", &format!("{enc}?number=5&size=256"), None);
     assert_eq!(rest.status, 200, "{rest:?}");
     assert!(key_ids(&rest.json()).iter().all(|id| !ids.contains(id)));
 
     // The settled key is used up; the pending one is never delivered, on either side.
-    let none = curl(&pki, me, "GET", &enc, None);
-    assert_eq!(none.status, 503, "{none:?}");
-    assert!(
-        none.json()["message"].as_str().unwrap().contains("pending"),
-        "{none:?}"
-    );
-    let pending = curl(
-        &pki,
-        it,
-        "GET",
-        &format!("{dec}?key_ID={INTO_PENDING}"),
-        None,
-    );
-    assert_eq!(pending.status, 503, "{pending:?}");
-    assert!(
-        pending.json()["message"]
-            .as_str()
-            .unwrap()
-            .contains("pending")
-    );
+    curl(&pki, me, "GET", &enc, None).assert_error(503, "pending");
+    let pending = format!("{dec}?key_ID={INTO_PENDING}");
+    curl(&pki, it, "GET", &pending, None).assert_error(503, "pending");
 
     // A wrong client certificate: another CA's fails the handshake, none too; the right
     // CA's for another application is unauthorised; the other side's application too.
@@ -187,19 +163,13 @@ fn both_sides_deliver_the_same_keys_by_id_once_to_their_applications_only() {
         assert_eq!(refused.status, 0, "no HTTP answer: {refused:?}");
     }
     for client in [&pki.other_app, &pki.robot_app] {
-        let refused = curl(
-            &pki,
-            Some(client),
-            "GET",
-            &format!("{master}/api/v1/keys/{ROBOT_SAE}/status"),
-            None,
-        );
+        let refused = curl(&pki, Some(client), "GET", &status_url, None);
         assert_eq!(refused.status, 401, "{refused:?}");
     }
 
     // Each server logs a line per connection — the SAE, the request, the status, the IDs —
     // and never a key.
-    let logged = |kme: &common::kme::Kme, what: &str| {
+    let logged = |kme: &Kme, what: &str| {
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
         loop {
             let log = kme.log.lock().unwrap().clone();
@@ -246,11 +216,9 @@ fn both_sides_deliver_the_same_keys_by_id_once_to_their_applications_only() {
 /// TLS or not HTTP end the connection, and the server goes on serving.
 #[test]
 fn malformed_requests_are_answered_and_the_server_goes_on() {
-    if !have_curl() {
+    let Some((pki, controller, _robot)) = served_pair("kme-malformed") else {
         return;
-    }
-    let (dir, pki, pairing) = scene("kme-malformed");
-    let (controller, _robot) = start_pair(&pki, &dir, &pairing);
+    };
     let master = &controller.url;
     let me = Some(&pki.controller_app);
     let enc = format!("{master}/api/v1/keys/{ROBOT_SAE}/enc_keys");
@@ -274,10 +242,7 @@ fn malformed_requests_are_answered_and_the_server_goes_on() {
             "controller side",
         ),
     ] {
-        let answer = curl(&pki, me, method, &url, body);
-        assert_eq!(answer.status, 400, "{method} {url}: {answer:?}");
-        let message = answer.json()["message"].as_str().unwrap().to_owned();
-        assert!(message.contains(says), "{method} {url}: {message}");
+        curl(&pki, me, method, &url, body).assert_error(400, says);
     }
     // Plain bytes on the TLS port: the handshake fails, the connection ends.
     let address = master.trim_start_matches("https://");
@@ -296,13 +261,8 @@ fn malformed_requests_are_answered_and_the_server_goes_on() {
         assert!(!answer.starts_with(b"HTTP"), "{answer:?}");
     }
     // Nothing was taken, and the server still serves.
-    let status = curl(
-        &pki,
-        me,
-        "GET",
-        &format!("{master}/api/v1/keys/{ROBOT_SAE}/status"),
-        None,
-    );
+    let status_url = format!("{master}/api/v1/keys/{ROBOT_SAE}/status");
+    let status = curl(&pki, me, "GET", &status_url, None);
     assert_eq!(status.status, 200, "{status:?}");
     assert_eq!(status.json()["stored_key_count"], 8);
     assert_eq!(curl(&pki, me, "GET", &enc, None).status, 200);

@@ -226,18 +226,8 @@ mod tests {
 
     #[test]
     fn spans_overlap_exactly_when_they_share_a_bit() {
-        let a = Span {
-            offset: 0,
-            bits: 256,
-        };
-        let b = Span {
-            offset: 256,
-            bits: 64,
-        };
-        let c = Span {
-            offset: 248,
-            bits: 64,
-        };
+        let [a, b, c] =
+            [(0, 256), (256, 64), (248, 64)].map(|(offset, bits)| Span { offset, bits });
         assert!(!a.overlaps(&b) && !b.overlaps(&a));
         assert!(a.overlaps(&c) && c.overlaps(&b) && a.overlaps(&a));
         assert_eq!(c.bytes(), 31..39);

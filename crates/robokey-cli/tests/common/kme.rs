@@ -175,6 +175,17 @@ impl Fetched {
     pub fn json(&self) -> serde_json::Value {
         serde_json::from_str(&self.body).unwrap_or_else(|e| panic!("{e}: {self:?}"))
     }
+
+    /// Asserts an answer of the standard's error container: HTTP `status` with a `message`
+    /// that contains `says`.
+    pub fn assert_error(&self, status: u16, says: &str) {
+        assert_eq!(self.status, status, "{self:?}");
+        let message = self.json()["message"]
+            .as_str()
+            .unwrap_or_default()
+            .to_owned();
+        assert!(message.contains(says), "not {says:?}: {self:?}");
+    }
 }
 
 /// Whether curl is here; false only where CI=true is not set (CI must have it).

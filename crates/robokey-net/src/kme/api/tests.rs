@@ -132,20 +132,18 @@ fn enc_keys_then_dec_keys_give_the_same_keys_once() {
     assert_eq!(code, 200, "{one}");
     assert_eq!(one["keys"][0], *keys[1]);
     let body = json!({"key_IDs": [{"key_ID": id(2)}, {"key_ID": id(0), "key_ID_extension": {}}]});
-    let (code, two) = ask(
-        &robot,
-        "POST",
-        "/api/v1/keys/ctl-app/dec_keys",
-        &body.to_string(),
-    );
+    let ask_both = || {
+        ask(
+            &robot,
+            "POST",
+            "/api/v1/keys/ctl-app/dec_keys",
+            &body.to_string(),
+        )
+    };
+    let (code, two) = ask_both();
     assert_eq!(code, 200, "{two}");
     assert_eq!((&two["keys"][0], &two["keys"][1]), (keys[2], keys[0]));
-    let (code, again) = ask(
-        &robot,
-        "POST",
-        "/api/v1/keys/ctl-app/dec_keys",
-        &body.to_string(),
-    );
+    let (code, again) = ask_both();
     assert_eq!(code, 400, "{again}");
     assert!(
         again["message"]
