@@ -19,6 +19,7 @@ pub mod run;
 pub mod secrecy;
 pub mod stats;
 pub mod trace;
+pub mod trace_table;
 
 pub use error::LabError;
 

@@ -1,0 +1,156 @@
+//! The columns of a trace ([`TraceRow`], docs/experiments.md "`trace.csv`") declared once with
+//! their units and typed values, for the columnar outputs (the Python package's tables); the
+//! names are [`TraceRow::COLUMNS`] and the values those `trace.csv` writes.
+
+use robokey::sim::TraceRow;
+
+/// One trace column's value in a row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TraceValue {
+    /// A real number, or undefined.
+    Real(Option<f64>),
+    /// A step index or a bit, or undefined.
+    Count(Option<u64>),
+}
+
+/// How a column is read from a row.
+#[derive(Clone, Copy)]
+enum Read {
+    /// A real number every row defines.
+    Required(fn(&TraceRow) -> f64),
+    /// A real number, or undefined.
+    Real(fn(&TraceRow) -> Option<f64>),
+    /// A count every row defines.
+    Count(fn(&TraceRow) -> u64),
+    /// A bit, or undefined.
+    Bit(fn(&TraceRow) -> Option<u8>),
+}
+
+/// One column of a trace.
+#[derive(Clone, Copy)]
+pub struct TraceColumn {
+    /// Its name, as in `trace.csv`.
+    pub name: &'static str,
+    /// The unit of its values (empty for steps and bits).
+    pub unit: &'static str,
+    read: Read,
+}
+
+impl std::fmt::Debug for TraceColumn {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TraceColumn")
+            .field("name", &self.name)
+            .field("unit", &self.unit)
+            .finish_non_exhaustive()
+    }
+}
+
+impl TraceColumn {
+    /// Its value in `row`.
+    #[must_use]
+    pub fn value(&self, row: &TraceRow) -> TraceValue {
+        match self.read {
+            Read::Required(get) => TraceValue::Real(Some(get(row))),
+            Read::Real(get) => TraceValue::Real(get(row)),
+            Read::Count(get) => TraceValue::Count(Some(get(row))),
+            Read::Bit(get) => TraceValue::Count(get(row).map(u64::from)),
+        }
+    }
+}
+
+/// Component `$i` of the vector `$field` (an array every row has, or an `Option` of one).
+macro_rules! column {
+    ($name:literal, $unit:literal, required $field:ident[$i:literal]) => {
+        TraceColumn {
+            name: $name,
+            unit: $unit,
+            read: Read::Required(|r| r.$field[$i]),
+        }
+    };
+    ($name:literal, $unit:literal, optional $field:ident[$i:literal]) => {
+        TraceColumn {
+            name: $name,
+            unit: $unit,
+            read: Read::Real(|r| r.$field.map(|v| v[$i])),
+        }
+    };
+    ($name:literal, bit $field:ident) => {
+        TraceColumn {
+            name: $name,
+            unit: "",
+            read: Read::Bit(|r| r.$field),
+        }
+    };
+}
+
+/// Every column of a trace, in `trace.csv`'s order.
+pub static TRACE_COLUMNS: [TraceColumn; 28] = [
+    TraceColumn {
+        name: "k",
+        unit: "",
+        read: Read::Count(|r| u64::from(r.k)),
+    },
+    TraceColumn {
+        name: "t",
+        unit: "s",
+        read: Read::Required(|r| r.t),
+    },
+    column!("ref_x", "m", required reference[0]),
+    column!("ref_y", "m", required reference[1]),
+    column!("px", "m", required pose[0]),
+    column!("py", "m", required pose[1]),
+    column!("theta", "rad", required pose[2]),
+    column!("meas_x", "m", required measurement[0]),
+    column!("meas_y", "m", required measurement[1]),
+    column!("meas_theta", "rad", required measurement[2]),
+    column!("v_nom", "m/s", optional nominal[0]),
+    column!("omega_nom", "rad/s", optional nominal[1]),
+    column!("u0_r", "rad/s", optional u0[0]),
+    column!("u0_l", "rad/s", optional u0[1]),
+    column!("u1_r", "rad/s", optional u1[0]),
+    column!("u1_l", "rad/s", optional u1[1]),
+    column!("b", bit bit),
+    column!("dhat_v", "m/s", optional dhat[0]),
+    column!("dhat_omega", "rad/s", optional dhat[1]),
+    column!("xhat_x", "m", optional xhat[0]),
+    column!("xhat_y", "m", optional xhat[1]),
+    column!("xhat_theta", "rad", optional xhat[2]),
+    column!("bhat", bit bhat),
+    column!("bhat_eve", bit bhat_eve),
+    column!("b_omega", bit bit_omega),
+    column!("eve_x", "m", optional camera[0]),
+    column!("eve_y", "m", optional camera[1]),
+    column!("eve_theta", "rad", optional camera[2]),
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trace::TraceCsv;
+
+    #[test]
+    fn the_columns_are_those_trace_csv_writes() {
+        let names: Vec<&str> = TRACE_COLUMNS.iter().map(|c| c.name).collect();
+        assert_eq!(names, TraceRow::COLUMNS);
+        let private =
+            robokey::Config::from_toml("[sensing]\nmode = \"private\"\n", "test").unwrap();
+        for config in [robokey::Config::default(), private] {
+            let trace = robokey::sim::simulate(&config, 0, true).unwrap().trace;
+            let mut csv = TraceCsv::new(Vec::new()).unwrap();
+            for row in &trace {
+                csv.write(row).unwrap();
+            }
+            let text = String::from_utf8(csv.finish().unwrap()).unwrap();
+            for (row, line) in trace.iter().zip(text.lines().skip(1)) {
+                let cells: Vec<String> = TRACE_COLUMNS
+                    .iter()
+                    .map(|c| match c.value(row) {
+                        TraceValue::Real(x) => x.map_or_else(String::new, |x| x.to_string()),
+                        TraceValue::Count(n) => n.map_or_else(String::new, |n| n.to_string()),
+                    })
+                    .collect();
+                assert_eq!(cells.join(","), line);
+            }
+        }
+    }
+}

@@ -1,0 +1,33 @@
+//! robokey from Python: the native module `robokey._native` behind the `robokey` package
+//! (python/robokey, docs/python.md). It calls the library's own functions — configuration,
+//! simulation, sweeps, secrecy, the eavesdroppers, the folder readers — and hands results to
+//! Python column by column; the package turns them into Arrow tables and numpy arrays.
+
+mod columns;
+mod config;
+mod errors;
+mod run;
+mod sweep;
+
+use pyo3::prelude::*;
+
+/// The native half of the `robokey` package; use `robokey`, not this module.
+#[pymodule]
+mod _native {
+    use pyo3::prelude::*;
+
+    #[pymodule_export]
+    use crate::errors::{ConfigError, InputError, SimulationError, SweepError};
+    #[pymodule_export]
+    use crate::run::run;
+    #[pymodule_export]
+    use crate::sweep::sweep;
+
+    /// The version: the crate's and the git commit it was built from.
+    #[pymodule_init]
+    fn init(module: &Bound<'_, PyModule>) -> PyResult<()> {
+        module.add("__version__", robokey_lab::VERSION)?;
+        module.add("METRIC_UNITS", crate::columns::metric_units(module.py())?)?;
+        Ok(())
+    }
+}

@@ -1,0 +1,151 @@
+"""robokey from Python: the library itself, not the command line parsed.
+
+A remotely controlled robot and its controller agree on a secret key through the robot's
+motion, and robokey says how secret that key is (docs/python.md, README.md). This package calls
+the Rust library: the numbers are those of the ``robokey`` command for the same configuration
+and seed, bit for bit.
+
+Configurations are None (the defaults), a dict (``{"protocol": {"delta_v": 0.035}}``, or
+dotted top-level keys ``{"protocol.delta_v": 0.035}``) or a TOML string, validated with the
+library's named errors: :class:`ConfigError` carries ``field``, ``value`` and ``allowed``.
+Tables are :class:`pyarrow.Table` (``.to_pandas()``, ``polars.from_arrow``,
+``.column(name).to_numpy()``), each column's unit in its field's metadata (``b"unit"``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
+
+import numpy as np
+import pyarrow as pa
+
+from . import _native
+from ._native import ConfigError, InputError, SimulationError, SweepError
+
+__version__: str = _native.__version__
+
+#: The unit of each metric (``runs.csv``'s and ``metrics.json``'s columns); empty for counts
+#: and flags.
+METRIC_UNITS: Dict[str, str] = dict(_native.METRIC_UNITS)
+
+Config = Union[None, str, Mapping[str, Any]]
+"""A configuration: None (the defaults), a TOML string or a dict."""
+
+Progress = Union[None, bool, Callable[[int, int], Any]]
+"""How a long computation shows its progress: None (a tqdm bar if tqdm is installed, else
+nothing), False (nothing), True (a tqdm bar, which must be installed) or a callable
+``progress(done, total)``."""
+
+__all__ = [
+    "ConfigError",
+    "InputError",
+    "METRIC_UNITS",
+    "SimulationError",
+    "SweepError",
+    "run",
+    "sweep",
+]
+
+_Column = Tuple[str, str, str, str, Any, Optional[bytes]]
+
+
+def _array(dtype: str, data: Any, valid: Optional[bytes]) -> pa.Array:
+    """One column's values as an Arrow array, undefined values null."""
+    if dtype == "str":
+        return pa.array(data, type=pa.string())
+    values = np.frombuffer(data, dtype=np.dtype(dtype))
+    if valid is None:
+        return pa.array(values)
+    return pa.array(values, mask=~np.frombuffer(valid, dtype=np.bool_))
+
+
+def _table(columns: List[_Column], metadata: Optional[Dict[str, str]] = None) -> pa.Table:
+    """The columns the native module hands over as an Arrow table; each field's metadata holds
+    its unit (``b"unit"``) and, where known, what it means (``b"description"``)."""
+    arrays = []
+    fields = []
+    for name, unit, description, dtype, data, valid in columns:
+        array = _array(dtype, data, valid)
+        field_metadata = {"unit": unit}
+        if description:
+            field_metadata["description"] = description
+        arrays.append(array)
+        fields.append(pa.field(name, array.type, nullable=True, metadata=field_metadata))
+    return pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=metadata))
+
+
+def _progress_callable(progress: Progress, label: str) -> Tuple[Optional[Callable[[int, int], Any]], Callable[[], None]]:
+    """The callable a native computation reports ``(done, total)`` to, and what closes it."""
+    if progress is False:
+        return None, lambda: None
+    if callable(progress):
+        return progress, lambda: None
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:
+        if progress is True:
+            raise
+        return None, lambda: None
+    bar: Any = None
+
+    def report(done: int, total: int) -> None:
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=total, desc=label, unit="run")
+        bar.update(done - bar.n)
+
+    def close() -> None:
+        if bar is not None:
+            bar.close()
+
+    return report, close
+
+
+def run(config: Config = None, *, seed: Optional[int] = None, replicate: int = 0) -> Dict[str, Any]:
+    """One simulated session, as ``robokey run`` makes it, without writing files.
+
+    ``seed`` sets ``run.seed`` (as ``--seed``), ``replicate`` the replicate (``--replicate``).
+    Returns a dict:
+
+    - ``metrics``: ``metrics.json``'s columns in order (``METRIC_UNITS`` has their units),
+      None where undefined (e.g. ``correct_pct`` when nothing was accepted);
+    - ``trace``: every row of ``trace.csv`` (k = 0 … N) as an Arrow table, undefined cells null;
+    - ``table``: the metrics as ``robokey run`` prints them;
+    - ``config``: the resolved configuration as TOML; ``seed``, ``replicate``.
+
+    Raises :class:`ConfigError` for an invalid configuration, :class:`SimulationError` if the
+    session aborts.
+    """
+    result = _native.run(config, seed=seed, replicate=replicate)
+    columns = result.pop("trace_columns")
+    result["trace"] = _table(columns, {"robokey.config": result["config"]})
+    return result
+
+
+def sweep(
+    config: Config,
+    *,
+    seed: Optional[int] = None,
+    jobs: int = 0,
+    progress: Progress = None,
+) -> pa.Table:
+    """Runs a sweep as ``robokey sweep`` does, in parallel on ``jobs`` threads (0: one per core)
+    with the GIL released, and returns its runs as an Arrow table, one row per run in run order:
+    a column per swept field, ``replicate``, then the metrics — ``runs.csv``'s columns and
+    values for the same definition and seed, whatever ``jobs``.
+
+    ``config`` is a configuration with a ``sweep`` table (as a sweep file:
+    ``{"run": {"replicates": 10}, "sweep": {"protocol.delta_v": [0.02, 0.035]}}``, ranges as
+    ``{"start": …, "stop": …, "step": …}``, ``"mode": "zip"``); ``sweep.traces`` is ignored (use
+    :func:`run` for a trace). The table's metadata ``robokey.sweep`` holds the resolved
+    definition. Ctrl-C stops the sweep once the running runs end and raises KeyboardInterrupt.
+
+    Raises :class:`ConfigError`, :class:`SweepError` for a bad axis or a suite of experiments,
+    :class:`SimulationError` if a session aborts.
+    """
+    report, close = _progress_callable(progress, "sweep")
+    try:
+        columns, resolved = _native.sweep(config, seed=seed, jobs=jobs, progress=report)
+    finally:
+        close()
+    return _table(columns, {"robokey.sweep": resolved})
