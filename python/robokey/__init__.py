@@ -14,13 +14,17 @@ Tables are :class:`pyarrow.Table` (``.to_pandas()``, ``polars.from_arrow``,
 
 from __future__ import annotations
 
-from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
+import io
+import json
+import os
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.csv
 
 from . import _native
-from ._native import ConfigError, InputError, SimulationError, SweepError
+from ._native import ConfigError, InputError, OptionError, SimulationError, SweepError
 
 __version__: str = _native.__version__
 
@@ -40,9 +44,11 @@ __all__ = [
     "ConfigError",
     "InputError",
     "METRIC_UNITS",
+    "OptionError",
     "SimulationError",
     "SweepError",
     "run",
+    "secrecy",
     "sweep",
 ]
 
@@ -149,3 +155,89 @@ def sweep(
     finally:
         close()
     return _table(columns, {"robokey.sweep": resolved})
+
+
+def _csv_table(text: str) -> pa.Table:
+    """A CSV that robokey rendered, read into a table (its cells typed as written)."""
+    return pyarrow.csv.read_csv(io.BytesIO(text.encode()))
+
+
+def _block_rows(results: List[Dict[str, Any]]) -> List[Dict[str, Any]]:
+    """One row per privacy-amplification block of every point and adversary; the realised
+    view's fields prefixed ``realised_``."""
+    rows = []
+    for result in results:
+        for index, block in enumerate(result["blocks"]):
+            row: Dict[str, Any] = {
+                "point": result["point"],
+                "adversary": result["adversary"],
+                "adversary_class": result["adversary_class"],
+                "block": index,
+            }
+            for key, value in block.items():
+                if key == "realised":
+                    row.update({f"realised_{k}": v for k, v in value.items()})
+                else:
+                    row[key] = value
+            rows.append(row)
+    return rows
+
+
+def secrecy(
+    sweep: Union[Config, "os.PathLike[str]"],
+    *,
+    seed: Optional[int] = None,
+    adversaries: Optional[Sequence[str]] = None,
+    epsilon: Optional[float] = None,
+    block_bits: Optional[int] = None,
+    blocks: int = 1,
+    pooling: Optional[str] = None,
+    sample_bits: int = 1000,
+    max_sessions: int = 2000,
+    assume_eve_error: Optional[float] = None,
+    jobs: int = 0,
+) -> Dict[str, Any]:
+    """How many of a sweep's agreed bits are secret, and against whom, as ``robokey secrecy``
+    computes it (docs/secrecy.md), without writing files.
+
+    ``sweep`` is a sweep definition (as :func:`sweep` takes it) or a sweep folder written by
+    ``robokey sweep`` (a :class:`pathlib.Path`; a ``str`` is TOML). The keywords are the
+    command's options: ``adversaries`` (``"oracle"``, ``"mismatch"``, ``"soft"``,
+    ``"identify"``, ``"transcript"``, ``"camera"``, ``"commands"``; default: the sensing
+    mode's), ``epsilon`` (``--eps``), ``block_bits`` (``--block``), ``blocks``, ``pooling``
+    (``"confirmed"`` or ``"complete"``), ``sample_bits``, ``max_sessions``,
+    ``assume_eve_error``; unset ones take the sweep's ``[secrecy]`` table, then the defaults.
+
+    Returns a dict: ``table`` (``secrecy.csv``: one row per point and adversary, strongest
+    class first — ℓ in ``secret_bits``, the realised bound in ``realised_secret_bits``),
+    ``blocks`` (one row per privacy-amplification block: its sessions, bits, leak, ℓ and the
+    adversary's realised view), ``results`` (``secrecy.json``'s results, every detail),
+    ``epsilon``, ``block_bits``, ``pooling`` and ``map`` (private sensing's map, else None).
+
+    Raises :class:`OptionError` for an option out of range, :class:`InputError` for an unknown
+    adversary or pooling or a folder that is not a sweep's, :class:`ConfigError` and
+    :class:`SweepError` for a definition that is not valid.
+    """
+    secrecy_json, csv_text, map_json = _native.secrecy(
+        sweep,
+        seed=seed,
+        adversaries=None if adversaries is None else list(adversaries),
+        epsilon=epsilon,
+        block_bits=block_bits,
+        blocks=blocks,
+        pooling=pooling,
+        sample_bits=sample_bits,
+        max_sessions=max_sessions,
+        assume_eve_error=assume_eve_error,
+        jobs=jobs,
+    )
+    data = json.loads(secrecy_json)
+    return {
+        "table": _csv_table(csv_text),
+        "blocks": pa.Table.from_pylist(_block_rows(data["results"])),
+        "results": data["results"],
+        "epsilon": data["epsilon"],
+        "block_bits": data["block_bits"],
+        "pooling": data["pooling"],
+        "map": None if map_json is None else json.loads(map_json),
+    }

@@ -49,6 +49,8 @@ def cli() -> Cli:
 
 def cell_value(text: str, like: Any) -> Any:
     """A CSV cell read as the type of ``like`` (the package's value): empty is None."""
+    if isinstance(like, str):
+        return text
     if text == "":
         return None
     if isinstance(like, bool):

@@ -363,48 +363,23 @@ pub fn config(args: ConfigArgs) -> Result<()> {
 
 pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     use robokey::config::SensingMode;
-    use robokey_lab::experiment::{MAX_BLOCK_BITS, MIN_BLOCK_BITS};
     use robokey_lab::report::private::break_even_text;
     use robokey_lab::report::secrecy::write_secrecy;
     use robokey_lab::run::sessions::SessionBank;
-    use robokey_lab::secrecy::{Pooling, Secrecy, SecrecyOptions, default_adversaries};
-    if let Some(eps) = args.eps
-        && !(eps > 0.0 && eps < 1.0)
-    {
-        usage!("--eps {eps} is not allowed (allowed: (0, 1))");
-    }
-    if let Some(block) = args.block
-        && !(MIN_BLOCK_BITS..=MAX_BLOCK_BITS).contains(&block)
-    {
-        usage!(
-            "--block {block} is not allowed (allowed: {MIN_BLOCK_BITS} to {MAX_BLOCK_BITS} bits)"
-        );
-    }
-    if !(1..=1_000).contains(&args.blocks) {
-        usage!(
-            "--blocks {} is not allowed (allowed: 1 to 1000)",
-            args.blocks
-        );
-    }
-    if !(1..=1_000_000).contains(&args.max_sessions) {
-        usage!(
-            "--max-sessions {} is not allowed (allowed: 1 to 1000000)",
-            args.max_sessions
-        );
-    }
-    if let Some(p) = args.assume_eve_error
-        && !(p > 0.0 && p <= 0.5)
-    {
-        usage!("--assume-eve-error {p} is not allowed (allowed: (0, 0.5])");
-    }
-    let options = SecrecyOptions {
+    use robokey_lab::secrecy::{Secrecy, SecrecyRequest};
+    let request = SecrecyRequest {
         adversaries: args.adversaries.iter().map(|&a| a.into()).collect(),
+        epsilon: args.eps,
+        block_bits: args.block,
         blocks: args.blocks,
+        pooling: args.pooling.map(Into::into),
         sample_bits: args.sample_bits,
         max_sessions: args.max_sessions,
         assumed_eve_error: args.assume_eve_error,
-        ..SecrecyOptions::default()
     };
+    if let Err(e) = request.validate() {
+        usage!("{}", e.message(&format!("{} {}", e.option.flag(), e.value)));
+    }
     // A sweep folder, or a suite folder whose subfolders are sweeps.
     let folders =
         layout::experiment_dirs(&args.sweep_dir)?.unwrap_or_else(|| vec![args.sweep_dir.clone()]);
@@ -415,31 +390,8 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             println!("{}: protocol off, no key: skipped", folder.display());
             continue;
         }
-        // Adversaries and pooling default by the sweep's sensing mode.
         let mode = experiment.points[0].config.sensing.mode;
-        let options = SecrecyOptions {
-            adversaries: if options.adversaries.is_empty() {
-                default_adversaries(mode)
-            } else {
-                options.adversaries.clone()
-            },
-            epsilon: args
-                .eps
-                .or(experiment.secrecy.epsilon)
-                .unwrap_or(options.epsilon),
-            block_bits: args
-                .block
-                .or(experiment.secrecy.block_bits)
-                .map_or(options.block_bits, |b| b as usize),
-            pooling: args.pooling.map_or(
-                match mode {
-                    SensingMode::Odometry => Pooling::Confirmed,
-                    SensingMode::Private => Pooling::Complete,
-                },
-                Into::into,
-            ),
-            ..options.clone()
-        };
+        let options = request.options(&experiment);
         let secrecy = with_jobs(args.jobs, || {
             Secrecy::compute(&experiment, &options, &mut SessionBank::new())
         })??;

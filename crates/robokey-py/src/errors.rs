@@ -50,14 +50,22 @@ pub fn config_error(py: Python<'_>, error: &LibConfigError) -> PyErr {
         LibConfigError::Parse { origin, .. } => (origin, None, None, None),
         _ => return err,
     };
-    let attributes = [
-        ("origin", Some(origin)),
-        ("field", field),
-        ("value", value),
-        ("allowed", allowed),
-    ];
+    with_attributes(
+        py,
+        err,
+        &[
+            ("origin", Some(origin)),
+            ("field", field),
+            ("value", value),
+            ("allowed", allowed),
+        ],
+    )
+}
+
+/// `err` with these attributes set (None as Python's None).
+fn with_attributes(py: Python<'_>, err: PyErr, attributes: &[(&str, Option<&String>)]) -> PyErr {
     for (name, text) in attributes {
-        if let Err(failed) = err.value(py).setattr(name, text) {
+        if let Err(failed) = err.value(py).setattr(*name, *text) {
             return failed;
         }
     }
@@ -77,4 +85,27 @@ pub fn lab_error(py: Python<'_>, error: LabError) -> PyErr {
         other if other.is_usage() => InputError::new_err(message),
         _ => PyRuntimeError::new_err(message),
     }
+}
+
+pyo3::create_exception!(
+    robokey,
+    OptionError,
+    PyValueError,
+    "An analysis option out of its allowed range (the message is the command line's, naming \
+     the keyword). Attributes: `option` (the keyword), `value`, `allowed`."
+);
+
+/// An option of a secrecy request out of range, as [`OptionError`].
+pub fn option_error(py: Python<'_>, error: &robokey_lab::secrecy::OptionError) -> PyErr {
+    let keyword = error.option.keyword().to_owned();
+    let err = OptionError::new_err(error.message(&format!("{keyword}={}", error.value)));
+    with_attributes(
+        py,
+        err,
+        &[
+            ("option", Some(&keyword)),
+            ("value", Some(&error.value)),
+            ("allowed", Some(&error.allowed)),
+        ],
+    )
 }

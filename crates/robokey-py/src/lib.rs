@@ -7,6 +7,7 @@ mod columns;
 mod config;
 mod errors;
 mod run;
+mod secrecy;
 mod sweep;
 
 use pyo3::prelude::*;
@@ -17,9 +18,11 @@ mod _native {
     use pyo3::prelude::*;
 
     #[pymodule_export]
-    use crate::errors::{ConfigError, InputError, SimulationError, SweepError};
+    use crate::errors::{ConfigError, InputError, OptionError, SimulationError, SweepError};
     #[pymodule_export]
     use crate::run::run;
+    #[pymodule_export]
+    use crate::secrecy::secrecy;
     #[pymodule_export]
     use crate::sweep::sweep;
 

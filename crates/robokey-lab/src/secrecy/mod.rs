@@ -20,6 +20,7 @@ pub mod options;
 pub mod pipeline;
 pub mod point;
 pub mod private;
+pub mod request;
 pub mod stage;
 
 pub use analyze::{analyze, analyze_with};
@@ -27,4 +28,5 @@ pub use options::{SecrecyOptions, default_adversaries};
 pub use pipeline::{Block, BlockSettings, Pooling};
 pub use point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
 pub use private::PrivateFigures;
+pub use request::{OptionError, RequestOption, SecrecyRequest};
 pub use stage::Secrecy;

@@ -69,6 +69,25 @@ impl Secrecy {
         })
     }
 
+    /// The contents of `secrecy.json`: the settings (`epsilon_total`, for people, is 4ε) and
+    /// every result.
+    #[must_use]
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "epsilon": self.epsilon,
+            "epsilon_total": 4.0 * self.epsilon,
+            "block_bits": self.block_bits,
+            "pooling": self.pooling,
+            "results": self.results,
+        })
+    }
+
+    /// The contents of `private-map.json`, if the sweep has a map.
+    #[must_use]
+    pub fn map_json(&self) -> Option<serde_json::Value> {
+        self.map.as_ref().map(|map| serde_json::json!(map))
+    }
+
     /// Writes `secrecy.json` and, with a map, `private-map.json` into `dir` (removing a map
     /// an earlier analysis left); returns the files.
     ///
@@ -76,17 +95,10 @@ impl Secrecy {
     /// A file cannot be written.
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>, LabError> {
         std::fs::create_dir_all(dir).map_err(io_at(dir))?;
-        let json = serde_json::json!({
-            "epsilon": self.epsilon,
-            "epsilon_total": 4.0 * self.epsilon,
-            "block_bits": self.block_bits,
-            "pooling": self.pooling,
-            "results": self.results,
-        });
-        let mut files = vec![write(&dir.join(SECRECY_JSON), pretty(&json))?];
+        let mut files = vec![write(&dir.join(SECRECY_JSON), pretty(&self.json()))?];
         let map_file = dir.join(PRIVATE_MAP_JSON);
-        match &self.map {
-            Some(map) => files.push(write(&map_file, pretty(&serde_json::json!(map)))?),
+        match self.map_json() {
+            Some(map) => files.push(write(&map_file, pretty(&map))?),
             None if map_file.exists() => {
                 std::fs::remove_file(&map_file).map_err(io_at(&map_file))?;
             }

@@ -1,0 +1,187 @@
+//! What a caller asks of a secrecy analysis — the adversaries, ε, the block size, how many
+//! blocks, the pooling, the disclosed sample, the most sessions, the assumption — checked
+//! against the allowed ranges and resolved, against the sweep's `[secrecy]` table and its
+//! sensing mode, into [`SecrecyOptions`]. `robokey secrecy` and the Python package ask through
+//! it, so both refuse and default alike.
+
+use robokey::config::{EveStrategy, SensingMode};
+
+use super::options::{SecrecyOptions, default_adversaries};
+use super::pipeline::Pooling;
+use crate::experiment::{Experiment, MAX_BLOCK_BITS, MIN_BLOCK_BITS};
+
+/// An analysis as asked; `None` and an empty list take the defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SecrecyRequest {
+    /// Adversaries (none: [`default_adversaries`] of the sweep's sensing mode).
+    pub adversaries: Vec<EveStrategy>,
+    /// ε per term (none: the sweep's `[secrecy] epsilon`, else 10⁻⁶).
+    pub epsilon: Option<f64>,
+    /// Least pooled raw bits per block (none: the sweep's `[secrecy] block_bits`, else 10⁴).
+    pub block_bits: Option<u64>,
+    /// Blocks to fill per point.
+    pub blocks: usize,
+    /// Which sessions are pooled (none: confirmed in odometry mode, complete in private
+    /// sensing).
+    pub pooling: Option<Pooling>,
+    /// Largest sample disclosed to estimate the error rate.
+    pub sample_bits: usize,
+    /// Most sessions simulated per point and adversary.
+    pub max_sessions: u32,
+    /// Eve's least independent error rate that sizes the key (none: no assumption).
+    pub assumed_eve_error: Option<f64>,
+}
+
+impl Default for SecrecyRequest {
+    fn default() -> Self {
+        let options = SecrecyOptions::default();
+        Self {
+            adversaries: Vec::new(),
+            epsilon: None,
+            block_bits: None,
+            blocks: options.blocks,
+            pooling: None,
+            sample_bits: options.sample_bits,
+            max_sessions: options.max_sessions,
+            assumed_eve_error: None,
+        }
+    }
+}
+
+/// An option of [`SecrecyRequest`], named as each caller names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RequestOption {
+    /// [`SecrecyRequest::epsilon`].
+    Epsilon,
+    /// [`SecrecyRequest::block_bits`].
+    BlockBits,
+    /// [`SecrecyRequest::blocks`].
+    Blocks,
+    /// [`SecrecyRequest::max_sessions`].
+    MaxSessions,
+    /// [`SecrecyRequest::assumed_eve_error`].
+    AssumedEveError,
+}
+
+impl RequestOption {
+    /// Its command-line flag, e.g. `--eps`.
+    #[must_use]
+    pub fn flag(self) -> &'static str {
+        match self {
+            Self::Epsilon => "--eps",
+            Self::BlockBits => "--block",
+            Self::Blocks => "--blocks",
+            Self::MaxSessions => "--max-sessions",
+            Self::AssumedEveError => "--assume-eve-error",
+        }
+    }
+
+    /// Its keyword argument in the Python package, e.g. `epsilon`.
+    #[must_use]
+    pub fn keyword(self) -> &'static str {
+        match self {
+            Self::Epsilon => "epsilon",
+            Self::BlockBits => "block_bits",
+            Self::Blocks => "blocks",
+            Self::MaxSessions => "max_sessions",
+            Self::AssumedEveError => "assume_eve_error",
+        }
+    }
+}
+
+/// An option out of its allowed range.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OptionError {
+    /// The option.
+    pub option: RequestOption,
+    /// Its value.
+    pub value: String,
+    /// What is allowed.
+    pub allowed: String,
+}
+
+impl OptionError {
+    /// The message, the option named as the caller wrote it (`--eps 2`, `epsilon=2`).
+    #[must_use]
+    pub fn message(&self, written: &str) -> String {
+        format!("{written} is not allowed (allowed: {})", self.allowed)
+    }
+}
+
+impl SecrecyRequest {
+    /// Checks every option against its allowed range.
+    ///
+    /// # Errors
+    /// The first option out of range.
+    pub fn validate(&self) -> Result<(), OptionError> {
+        let refuse = |option, value: String, allowed: &str| {
+            Err(OptionError {
+                option,
+                value,
+                allowed: allowed.to_owned(),
+            })
+        };
+        if let Some(eps) = self.epsilon
+            && !(eps > 0.0 && eps < 1.0)
+        {
+            return refuse(RequestOption::Epsilon, eps.to_string(), "(0, 1)");
+        }
+        if let Some(block) = self.block_bits
+            && !(MIN_BLOCK_BITS..=MAX_BLOCK_BITS).contains(&block)
+        {
+            return refuse(
+                RequestOption::BlockBits,
+                block.to_string(),
+                &format!("{MIN_BLOCK_BITS} to {MAX_BLOCK_BITS} bits"),
+            );
+        }
+        if !(1..=1_000).contains(&self.blocks) {
+            return refuse(RequestOption::Blocks, self.blocks.to_string(), "1 to 1000");
+        }
+        if !(1..=1_000_000).contains(&self.max_sessions) {
+            return refuse(
+                RequestOption::MaxSessions,
+                self.max_sessions.to_string(),
+                "1 to 1000000",
+            );
+        }
+        if let Some(p) = self.assumed_eve_error
+            && !(p > 0.0 && p <= 0.5)
+        {
+            return refuse(RequestOption::AssumedEveError, p.to_string(), "(0, 0.5]");
+        }
+        Ok(())
+    }
+
+    /// The options for `experiment`: what was asked, else the sweep's `[secrecy]` table, else
+    /// the defaults of its sensing mode.
+    #[must_use]
+    pub fn options(&self, experiment: &Experiment) -> SecrecyOptions {
+        let defaults = SecrecyOptions::default();
+        let mode = experiment.points[0].config.sensing.mode;
+        SecrecyOptions {
+            adversaries: if self.adversaries.is_empty() {
+                default_adversaries(mode)
+            } else {
+                self.adversaries.clone()
+            },
+            epsilon: self
+                .epsilon
+                .or(experiment.secrecy.epsilon)
+                .unwrap_or(defaults.epsilon),
+            block_bits: self
+                .block_bits
+                .or(experiment.secrecy.block_bits)
+                .map_or(defaults.block_bits, |b| b as usize),
+            pooling: self.pooling.unwrap_or(match mode {
+                SensingMode::Odometry => Pooling::Confirmed,
+                SensingMode::Private => Pooling::Complete,
+            }),
+            sample_bits: self.sample_bits,
+            assumed_eve_error: self.assumed_eve_error,
+            blocks: self.blocks,
+            max_sessions: self.max_sessions,
+            ..defaults
+        }
+    }
+}
