@@ -128,8 +128,10 @@ pub struct Pair<R: Peer, C: Peer<Datagram = R::Datagram>> {
     /// The controller side.
     pub controller: C,
     now: Time,
-    to_controller: LinkFaults,
-    to_robot: LinkFaults,
+    /// The faults towards the controller and towards the robot; `None` for an ideal
+    /// direction (decided once here rather than for every datagram).
+    to_controller: Option<LinkFaults>,
+    to_robot: Option<LinkFaults>,
     rng: ChaCha8Rng,
     in_flight: BinaryHeap<Reverse<InFlight<R::Datagram>>>,
     sent: u64,
@@ -161,8 +163,8 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
             robot,
             controller,
             now: Time::ZERO,
-            to_controller,
-            to_robot,
+            to_controller: (!to_controller.is_ideal()).then_some(to_controller),
+            to_robot: (!to_robot.is_ideal()).then_some(to_robot),
             rng: ChaCha8Rng::seed_from_u64(seed),
             in_flight: BinaryHeap::new(),
             sent: 0,
@@ -270,9 +272,9 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
             Side::Controller => self.to_controller,
             Side::Robot => self.to_robot,
         };
-        if faults.is_ideal() {
+        let Some(faults) = faults else {
             return self.deliver(to, datagram);
-        }
+        };
         for (delay, corrupted) in faults.fate(&mut self.rng) {
             let copy = if corrupted {
                 match datagram.clone().corrupt(&mut self.rng) {

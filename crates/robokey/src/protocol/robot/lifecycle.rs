@@ -94,6 +94,14 @@ impl RobotLifecycle {
         self.outputs.pop_front()
     }
 
+    /// The last message queued for sending and not yet polled, if any.
+    pub(crate) fn last_queued_message(&self) -> Option<&Message> {
+        self.outputs.iter().rev().find_map(|output| match output {
+            RobotOutput::Transmit(message) => Some(message),
+            _ => None,
+        })
+    }
+
     /// The robot's key (complete once the Finish has arrived).
     pub(crate) fn key(&self) -> &[u8] {
         &self.key
