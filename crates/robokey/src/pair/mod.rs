@@ -28,7 +28,7 @@ pub trait Peer {
     /// Its other outputs, for the world around it.
     type Output;
     /// A datagram arrived at `now`.
-    fn handle_datagram(&mut self, now: Time, datagram: Self::Datagram);
+    fn handle_datagram(&mut self, now: Time, datagram: &Self::Datagram);
     /// Its timers due at `now`.
     fn handle_timeout(&mut self, now: Time);
     /// When it must next be woken.
@@ -207,7 +207,7 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
         let mut delivered = false;
         while self.in_flight.peek().is_some_and(|f| f.0.at <= self.now) {
             if let Some(Reverse(f)) = self.in_flight.pop() {
-                self.deliver(f.to, f.datagram);
+                self.deliver(f.to, &f.datagram);
                 self.drain(world);
                 delivered = true;
             }
@@ -273,7 +273,7 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
             Side::Robot => self.to_robot,
         };
         let Some(faults) = faults else {
-            return self.deliver(to, datagram);
+            return self.deliver(to, &datagram);
         };
         for (delay, corrupted) in faults.fate(&mut self.rng) {
             let copy = if corrupted {
@@ -294,7 +294,7 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
         }
     }
 
-    fn deliver(&mut self, to: Side, datagram: R::Datagram) {
+    fn deliver(&mut self, to: Side, datagram: &R::Datagram) {
         match to {
             Side::Robot => self.robot.handle_datagram(self.now, datagram),
             Side::Controller => self.controller.handle_datagram(self.now, datagram),

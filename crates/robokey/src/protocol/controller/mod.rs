@@ -99,24 +99,7 @@ impl Controller {
             return;
         }
         match input {
-            ControllerInput::Frame(message) => {
-                let clock = &mut self.clock;
-                clock.last_frame = now;
-                clock.retransmit_from = now;
-                if !clock.robot_heard {
-                    clock.robot_heard = true;
-                    clock.last_sample = clock.last_sample.max(now);
-                }
-                match message {
-                    Message::Session(message) => {
-                        self.mode
-                            .on_message(&self.plan.agreed, &mut self.lifecycle, message);
-                    }
-                    Message::Closing(message) => self.lifecycle.on_message(message),
-                    // The channel's and post-processing's layers are not the session's.
-                    Message::Handshake(_) | Message::Post(_) => {}
-                }
-            }
+            ControllerInput::Frame(message) => self.on_frame(now, &message),
             ControllerInput::Sensor { step, pose } => {
                 self.clock.last_sample = now;
                 self.clock.last_step = Some(step);
@@ -130,6 +113,33 @@ impl Controller {
                         .abort(format!("sensor stopped before step {steps}: {why}"));
                 }
             }
+        }
+    }
+
+    /// Feeds a message from the robot at `now`, by reference: what
+    /// [`ControllerInput::Frame`] does without moving the message (the simulator's link).
+    pub fn handle_frame(&mut self, now: Time, message: &Message) {
+        if !self.lifecycle.is_done() {
+            self.on_frame(now, message);
+        }
+    }
+
+    fn on_frame(&mut self, now: Time, message: &Message) {
+        let clock = &mut self.clock;
+        clock.last_frame = now;
+        clock.retransmit_from = now;
+        if !clock.robot_heard {
+            clock.robot_heard = true;
+            clock.last_sample = clock.last_sample.max(now);
+        }
+        match message {
+            Message::Session(message) => {
+                self.mode
+                    .on_message(&self.plan.agreed, &mut self.lifecycle, message);
+            }
+            Message::Closing(message) => self.lifecycle.on_message(message),
+            // The channel's and post-processing's layers are not the session's.
+            Message::Handshake(_) | Message::Post(_) => {}
         }
     }
 

@@ -135,8 +135,15 @@ impl Robot {
     pub fn handle_input(&mut self, now: Time, input: RobotInput) {
         match input {
             RobotInput::Sample { step, y } => self.on_sample(now, step, &y),
-            RobotInput::Frame(message) => self.on_frame(now, message),
+            RobotInput::Frame(message) => self.on_frame(now, &message),
         }
+        self.after(now);
+    }
+
+    /// Feeds a message from the controller at `now`, by reference: what
+    /// [`RobotInput::Frame`] does without moving the message (the simulator's link).
+    pub fn handle_frame(&mut self, now: Time, message: &Message) {
+        self.on_frame(now, message);
         self.after(now);
     }
 
@@ -273,7 +280,7 @@ impl Robot {
         }
     }
 
-    fn on_frame(&mut self, now: Time, message: Message) {
+    fn on_frame(&mut self, now: Time, message: &Message) {
         if self.lifecycle.is_done() {
             return;
         }
