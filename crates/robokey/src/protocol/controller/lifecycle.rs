@@ -88,6 +88,11 @@ impl ControllerLifecycle {
         matches!(self.phase, Phase::Done)
     }
 
+    /// The next output, left in the queue.
+    pub(crate) fn next_output(&self) -> Option<&ControllerOutput> {
+        self.outputs.front()
+    }
+
     /// The next output, if any.
     pub(crate) fn poll(&mut self) -> Option<ControllerOutput> {
         self.outputs.pop_front()
