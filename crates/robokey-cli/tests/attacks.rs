@@ -248,7 +248,9 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
     let fake_robot = self::robot(&fake, &attacker, &[]);
     let text = controller(&dir, &victim, &fake_robot.address, 3);
     assert!(
-        text.contains("aborted: no HelloAck that verifies"),
+        text.contains("aborted: no HelloAck that verifies")
+            && text.contains("nothing came from it: no robot agent listens there")
+            && text.contains("or it holds another pairing secret"),
         "{text}"
     );
     wait_robot(fake_robot, 4);
@@ -292,7 +294,11 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
         }
         answered
     });
-    controller(&dir, &victim, &address, 4);
+    let text = controller(&dir, &victim, &address, 4);
+    assert!(
+        text.contains("HelloAck(s) from it failed to verify: it holds another pairing secret"),
+        "{text}"
+    );
     assert!(answerer.join().unwrap() > 0);
     wait_robot(robot, 4);
     let (robot, controller) = reports(&dir);
@@ -712,4 +718,25 @@ fn cycled_old_hellos_never_lock_a_fresh_controller_out() {
         "{r}"
     );
     assert!(rejected(&r, "replayed") > 0, "{r}");
+}
+
+/// One stray datagram with a bad MAC turned a waiting robot's "no controller" (exit 3) into
+/// "authentication failed" (4). Exit 4 now means that a peer kept trying the handshake with
+/// another secret (three `Hello`s that failed to verify, as a controller repeating its `Hello`
+/// sends) or the other pairing mode; a stray frame is counted, and the robot that no controller
+/// bound exits 3.
+#[test]
+fn a_stray_datagram_does_not_turn_no_controller_into_authentication_failed() {
+    let dir = scratch("attack-stray");
+    let pairing = pairing(&dir);
+    let robot = robot(&dir, &pairing, &[]);
+    let hello = old_hellos(&PairingSecret::from_bytes(&[7; 32]), 1).remove(0);
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .send_to(&hello, &robot.address)
+        .unwrap();
+    wait_robot(robot, 3);
+    let r = report(&dir.join("robot.json"));
+    assert_eq!(rejected(&r, "handshake_bad_mac"), 1, "{r}");
+    assert_eq!(r["ending"], "no-key", "{r}");
 }

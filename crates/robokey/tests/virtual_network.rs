@@ -329,7 +329,7 @@ mod through_the_session_layer {
     #[test]
     fn a_controller_whose_ready_goes_unanswered_starts_a_fresh_handshake() {
         let config = short("odometry");
-        let s = conversation_dropping_readies(&config, Network::default(), 5);
+        let s = conversation_dropping_readies(&config, Network::default(), 10);
         assert!(check(0, &s), "{s:?}");
         let s = conversation_dropping_readies(&config, Network::default(), u32::MAX);
         let Some(Outcome::Aborted(why)) = &s.controller_outcome else {
