@@ -272,7 +272,11 @@ impl Robot {
         if step >= self.plan.agreed.steps {
             // Only the report of sample N is ever repeated: the controller finishes on it,
             // and it has no successor to stand in for it if lost.
-            self.last_report = self.lifecycle.last_queued_message().cloned();
+            if let Some(report @ Message::Session(message)) = self.lifecycle.last_queued_message()
+                && message.step() >= self.plan.agreed.steps
+            {
+                self.last_report = Some(report.clone());
+            }
         }
         if self.lifecycle.awaits(step) {
             let at = self.clock.deadline_of(step, now);
