@@ -341,15 +341,16 @@ fn parse_override(text: &str) -> Result<Override, String> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if matches!(
+    // The commands that talk over sockets keep SIGPIPE ignored (a closed socket is an error
+    // they handle); every other one only writes files and the terminal.
+    if !matches!(
         cli.command,
-        Command::Run(_)
-            | Command::Sweep(_)
-            | Command::Merge(_)
-            | Command::Report(_)
-            | Command::Reproduce(_)
-            | Command::Config(_)
-            | Command::Secrecy(_)
+        Command::Robot(_)
+            | Command::Controller(_)
+            | Command::Relay(_)
+            | Command::Kh4Emulator(_)
+            | Command::Record(_)
+            | Command::Ros2Sim(_)
     ) {
         exit::end_on_broken_pipe();
     }
