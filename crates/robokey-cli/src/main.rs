@@ -12,6 +12,7 @@ mod commands;
 mod eve;
 mod exit;
 mod keys;
+mod logging;
 mod net;
 mod ros2;
 
@@ -35,6 +36,11 @@ use exit::Status;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Which diagnostic messages of robokey's libraries (RustDDS, ros2-client: discovery,
+    /// matching, QoS) reach stderr: a level (off, error, warn, info, debug, trace) or
+    /// TARGET=LEVEL pairs, e.g. `warn,rustdds=debug`. Default: $RUST_LOG, else off.
+    #[arg(long, global = true, value_name = "FILTER")]
+    log: Option<String>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -353,6 +359,9 @@ fn main() -> ExitCode {
             | Command::Ros2Sim(_)
     ) {
         exit::end_on_broken_pipe();
+    }
+    if let Err(error) = logging::install(cli.log.as_deref()) {
+        return exit::code(Err(error));
     }
     let done = |result: anyhow::Result<()>| result.map(|()| Status::Success);
     let result = match cli.command {

@@ -149,6 +149,33 @@ fn bad_input_gets_named_errors() {
     );
     let err = fails(&["run", "--set", "controller.gain=2"]);
     assert!(err.contains("gain"), "{err}");
+    // Offered wheel speeds the robot would refuse: named, with the largest Δv that fits.
+    for (flag, value) in [
+        ("--delta-v", "1"),
+        ("--delta-v", "35"),
+        ("--set", "protocol.delta_v=1e308"),
+    ] {
+        let err = fails_with(2, &["run", flag, value]);
+        assert!(
+            err.contains("`protocol.delta_v`")
+                && err.contains("≤ 0.6285 m/s")
+                && err.contains("above robot.wheel_limit = 38 rad/s"),
+            "{err}"
+        );
+    }
+    // A logging filter that does not parse, from the flag or the environment.
+    let err = fails_with(2, &["config", "--log", "rustdds=loud"]);
+    assert!(
+        err.contains("--log rustdds=loud") && err.contains("warn,rustdds=debug"),
+        "{err}"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .arg("config")
+        .env("RUST_LOG", "debug,rustdds=loud")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("RUST_LOG debug,rustdds=loud"));
     let dir = scratch("bad");
     let file = dir.join("bad.toml");
     std::fs::write(
