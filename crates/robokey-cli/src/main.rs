@@ -9,6 +9,7 @@ use robokey_lab::files::Override;
 use robokey_lab::runner::Shard;
 
 mod commands;
+mod demo;
 mod eve;
 mod exit;
 mod keys;
@@ -25,7 +26,8 @@ use exit::Status;
 #[command(
     name = "robokey",
     version = robokey_lab::VERSION,
-    after_help = "Start with `robokey reproduce`. The model, protocol, private sensing, secrecy \
+    after_help = "Start with `robokey reproduce` (the paper's experiments) and `robokey demo` (a \
+                  final key between two agents). The model, protocol, private sensing, secrecy \
                   accounting and threat model are explained in the repository's docs/.\n\n\
                   Exit codes: 0 success (a session: its key confirmed), 1 error, 2 wrong \
                   command line or input file, 3 a session ended without a key, 4 \
@@ -105,6 +107,11 @@ enum Command {
     /// stores list the same IDs (docs/postprocessing.md).
     #[command(subcommand_required = true)]
     Keys(keys::KeysArgs),
+    /// A final key in one command: paired agents on 127.0.0.1 (simulated robot and world,
+    /// the relay with faults, stores), session after session until both stores hold the same
+    /// final key; shows its ID and length on both sides and checks the bits are equal.
+    #[command(allow_negative_numbers = true)]
+    Demo(demo::DemoArgs),
 }
 
 /// Options shared by commands that read a configuration.
@@ -382,6 +389,7 @@ fn main() -> ExitCode {
         Command::Record(args) => net::record(args),
         Command::Ros2Sim(args) => ros2::ros2_sim(args),
         Command::Keys(args) => done(keys::keys(args)),
+        Command::Demo(args) => demo::demo(args),
     };
     exit::code(result)
 }
