@@ -14,7 +14,6 @@ use clap::{Args, ValueEnum};
 use robokey::config::SensingMode;
 use robokey::interrupt::Interrupt;
 
-use crate::ConfigOptions;
 use crate::commands::load_config;
 use crate::exit::{Status, on_signals, usage};
 
@@ -69,8 +68,10 @@ pub struct DemoArgs {
     /// Configuration file (TOML) of both agents.
     #[arg(long, short)]
     config: Option<PathBuf>,
-    #[command(flatten)]
-    options: ConfigOptions,
+    /// Set any config field of both agents, e.g. `--set postprocess.block_bits=2000`
+    /// (repeatable).
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    set: Vec<String>,
 }
 
 /// A key as `robokey keys list --json` lists it.
@@ -130,26 +131,25 @@ struct Demo {
 }
 
 pub fn demo(args: DemoArgs) -> Result<Status> {
-    let mut settings: Vec<String> = Vec::new();
-    if let Some(config) = &args.config {
-        settings.extend(["--config".into(), config.display().to_string()]);
-    }
-    for option in &args.options.set {
-        settings.push("--set".into());
-        settings.push(option.flag.trim_start_matches("--set ").to_owned());
-    }
     let mode = match args.mode {
         DemoMode::Private => SensingMode::Private,
         DemoMode::Odometry => SensingMode::Odometry,
     };
-    settings.extend(["--set".into(), format!("sensing.mode={}", mode_name(mode))]);
-    // The agents would refuse a configuration that does not load; say so before any start.
-    let mut overrides = args.options.set.clone();
-    overrides.push(
-        crate::parse_override(&format!("sensing.mode={}", mode_name(mode)))
-            .map_err(crate::exit::Usage)?,
-    );
+    let mut set = args.set.clone();
+    set.push(format!("sensing.mode={}", mode.name()));
+    // The agents would refuse a configuration that does not load: say so before any start.
+    let overrides = set
+        .iter()
+        .map(|text| crate::parse_override(text).map_err(crate::exit::Usage))
+        .collect::<Result<Vec<_>, _>>()?;
     let config = load_config(args.config.as_deref(), &overrides)?;
+    let mut settings: Vec<String> = Vec::new();
+    if let Some(config) = &args.config {
+        settings.extend(["--config".into(), config.display().to_string()]);
+    }
+    for text in set {
+        settings.extend(["--set".into(), text]);
+    }
     if !(args.timeout > 0.0 && args.timeout <= 86_400.0) {
         usage!(
             "--timeout {} is not allowed (allowed: > 0 and ≤ 86400 s)",
@@ -183,13 +183,6 @@ pub fn demo(args: DemoArgs) -> Result<Status> {
     demo.run(args.max_sessions)
 }
 
-fn mode_name(mode: SensingMode) -> &'static str {
-    match mode {
-        SensingMode::Private => "private",
-        SensingMode::Odometry => "odometry",
-    }
-}
-
 impl Demo {
     fn run(&self, max_sessions: u32) -> Result<Status> {
         let started = Instant::now();
@@ -198,7 +191,7 @@ impl Demo {
             "demo: {} sensing, paired agents on 127.0.0.1 through a relay that loses 10 %, \
              duplicates 5 %, reorders 5 % and corrupts 1 % of the datagrams; a block is {} \
              pooled raw bits (postprocess.block_bits) → {}",
-            mode_name(self.mode),
+            self.mode.name(),
             self.block_bits,
             self.out.display()
         );

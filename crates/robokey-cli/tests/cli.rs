@@ -131,6 +131,23 @@ fn run_prints_metrics_and_writes_its_files() {
 }
 
 #[test]
+fn frames_prints_what_dumpcap_and_tcpdump_recorded_as_it_prints_the_relays_capture() {
+    // One session recorded by the relay and by the tools at once (robokey-net's tests/captures).
+    let fixture = |name: &str| {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../robokey-net/tests/captures")
+            .join(name)
+            .display()
+            .to_string()
+    };
+    let relay = ok(&["frames", &fixture("relay-after-faults.pcap")]);
+    assert_eq!(relay.lines().count(), 91);
+    for name in ["dumpcap-lo.pcapng", "tcpdump-lo.pcap", "tcpdump-any.pcap"] {
+        assert_eq!(ok(&["frames", &fixture(name)]), relay, "{name}");
+    }
+}
+
+#[test]
 fn protocol_off_leaves_key_metrics_null() {
     let dir = scratch("off");
     ok(&["run", "--protocol-off", "--out", s(&dir)]);
