@@ -12,9 +12,10 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use robokey::config::SensingMode;
+use robokey::config::source::Override;
 use robokey::interrupt::Interrupt;
 
-use crate::commands::load_config;
+use crate::configuration::load_config;
 use crate::exit::{Status, on_signals, usage};
 
 /// The relay's faults: the README's mix (10 % loss, 5 % duplicates, 5 % reordered, 1 %
@@ -140,7 +141,7 @@ pub fn demo(args: DemoArgs) -> Result<Status> {
     // The agents would refuse a configuration that does not load: say so before any start.
     let overrides = set
         .iter()
-        .map(|text| crate::parse_override(text).map_err(crate::exit::Usage))
+        .map(|text| Override::from_set(text).map_err(crate::exit::Usage))
         .collect::<Result<Vec<_>, _>>()?;
     let config = load_config(args.config.as_deref(), &overrides)?;
     let mut settings: Vec<String> = Vec::new();

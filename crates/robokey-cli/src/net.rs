@@ -8,21 +8,22 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use robokey::interrupt::Interrupt;
 use robokey::protocol::auth::PairingSecret;
+use robokey::protocol::{Pace, Timing};
 use robokey::rng::{Purpose, stream};
-use robokey_net::controller_agent::{ControllerOptions, run_controller};
+use robokey_net::agent::controller::{ControllerOptions, run_controller};
+use robokey_net::agent::report::{Ending, SessionReport};
+use robokey_net::agent::robot::{RobotOptions, run_robot};
 use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, Listen, TimeMode, serve};
 use robokey_net::pairing::{read_pairing, write_pairing};
 use robokey_net::pcap::read as read_capture;
 use robokey_net::pose_stream::record as record_stream;
+use robokey_net::random::os_rng;
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
-use robokey_net::robot_agent::{RobotOptions, run_robot};
 use robokey_net::sensor::SensorSpec;
-use robokey_net::session::{Ending, Pace, SessionReport, Timing, os_rng};
 use robokey_net::sim_backend::SimBackend;
 use robokey_net::world::{SensorOptions, WorldSensors};
 
-use crate::ConfigOptions;
-use crate::commands::load_config;
+use crate::configuration::{ConfigOptions, WorldNoiseArgs, load_config};
 use crate::exit::{Status, Usage, on_signals, usage};
 
 /// Clock of a session.
@@ -570,31 +571,6 @@ pub struct EmulatorArgs {
     noise: WorldNoiseArgs,
     #[command(flatten)]
     world: WorldArgs,
-}
-
-/// The seed and configuration of an emulated world's noise (`kh4-emulator`, `ros2-sim`).
-#[derive(Args, Debug)]
-pub struct WorldNoiseArgs {
-    /// Seed of the world's noise, drawn from the simulator's random streams of this seed:
-    /// kh4-emulator's wheel slip and sensors (replicate i for the i-th connection),
-    /// ros2-sim's motion capture (replicate 0).
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Configuration (TOML) of the world: the sensors' noise (`sensing.controller_std`,
-    /// `eve.camera_std`), kh4-emulator's axle length.
-    #[arg(long, short)]
-    config: Option<PathBuf>,
-    #[command(flatten)]
-    options: ConfigOptions,
-}
-
-impl WorldNoiseArgs {
-    /// The configuration, its `run.seed` the seed.
-    pub fn load(&self) -> Result<robokey::Config> {
-        let mut config = load_config(self.config.as_deref(), &self.options.set)?;
-        config.run.seed = self.seed;
-        Ok(config)
-    }
 }
 
 pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {

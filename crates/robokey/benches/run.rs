@@ -16,7 +16,7 @@ fn one_run(c: &mut Criterion) {
     let config = Config::default();
     let plan = SessionPlan::from_config(&config, 0);
     let mut group = c.benchmark_group("simulate");
-    group.throughput(Throughput::Elements(u64::from(plan.steps)));
+    group.throughput(Throughput::Elements(u64::from(plan.agreed.steps)));
     group.bench_function("default run (steps)", |b| {
         b.iter(|| simulate_plan(&config, plan.clone(), 0, false).unwrap());
     });
@@ -34,7 +34,7 @@ fn eavesdroppers(c: &mut Criterion) {
         ..ModelErrors::default()
     };
     let mut group = c.benchmark_group("eve session");
-    group.throughput(Throughput::Elements(u64::from(plan.steps)));
+    group.throughput(Throughput::Elements(u64::from(plan.agreed.steps)));
     for strategy in EveStrategy::of_mode(SensingMode::Odometry) {
         group.bench_function(strategy.name(), |b| {
             b.iter(|| {

@@ -17,6 +17,19 @@ pub struct TrackingGains {
     pub wheel_limit: f64,
 }
 
+impl TrackingGains {
+    /// The gains of a configuration's `[controller]` table.
+    #[must_use]
+    pub fn of(c: &crate::config::ControllerConfig) -> Self {
+        Self {
+            kp: c.kp,
+            kd: c.kd,
+            xi_eps: c.xi_eps,
+            wheel_limit: c.wheel_limit,
+        }
+    }
+}
+
 /// The controller with its integrator state `ξ` (= v, m/s).
 #[derive(Clone, Debug)]
 pub struct TrackingController {
@@ -66,6 +79,34 @@ impl TrackingController {
         let omega = (u2 * cos - u1 * sin) / xi_guarded;
         self.drive
             .clip_to_rhombus(Unicycle::new(self.xi, omega), self.gains.wheel_limit)
+    }
+}
+
+/// The controller's tracking of the reference: the trajectory and the tracking law, as both
+/// controller modes use them.
+#[derive(Clone, Debug)]
+pub struct ReferenceTracker {
+    trajectory: crate::trajectory::Trajectory,
+    law: TrackingController,
+    sample_time: f64,
+}
+
+impl ReferenceTracker {
+    /// The tracking of a validated configuration's trajectory, with the agreed wheel geometry
+    /// `drive` and sample time `T` (s).
+    #[must_use]
+    pub fn new(config: &crate::config::Config, drive: DiffDrive, sample_time: f64) -> Self {
+        Self {
+            trajectory: config.trajectory(),
+            law: TrackingController::new(TrackingGains::of(&config.controller), drive, sample_time),
+            sample_time,
+        }
+    }
+
+    /// The nominal command `uU(k)` (m/s, rad/s) from `pose` towards the reference at `t_k`.
+    pub fn command(&mut self, pose: &Pose, step: u32) -> Unicycle {
+        let reference = self.trajectory.at(f64::from(step) * self.sample_time);
+        self.law.command(pose, &reference)
     }
 }
 

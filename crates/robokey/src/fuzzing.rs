@@ -1,19 +1,21 @@
 //! Drivers shared by the fuzz targets (`fuzz/`) and the proptest drivers of the test suite:
-//! arbitrary bytes become a configuration and a sequence of endpoint inputs, and every
-//! output is checked against the endpoints' invariants. A violated invariant panics. Not a
-//! stable API.
+//! arbitrary bytes become a configuration (either sensing mode) and a sequence of endpoint
+//! inputs and timer firings, and every output is checked against the endpoints' invariants.
+//! A violated invariant panics. Not a stable API.
 
 use std::collections::VecDeque;
+use std::time::Duration;
 
-use crate::config::{CodeKind, Config, Feedback};
-use crate::model::{Pose, WheelSpeeds, unicycle_step};
+use crate::config::{CodeKind, Config, Feedback, SensingMode};
+use crate::model::{Pose, WheelSpeeds};
 use crate::protocol::controller::command_pair;
 use crate::protocol::wire::{self, Frame, MAC_BYTES};
 use crate::protocol::{
-    Closing, ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, FateWindow,
-    Handshake, Message, Outcome, RobotEndpoint, RobotInput, RobotOutput, SessionMessage,
-    SessionPlan, TAG_BYTES,
+    Closing, Controller, ControllerEvent, ControllerInput, ControllerOutput, FateWindow, Handshake,
+    Message, Outcome, Robot, RobotInput, RobotOutput, SessionMessage, SessionPlan, TAG_BYTES, Time,
+    Timing,
 };
+use crate::sim::{Noise, Plant};
 
 /// Arbitrary bytes read front to back; reads past the end give zeros.
 #[derive(Clone, Debug)]
@@ -124,15 +126,16 @@ enum Focus {
 
 /// Most messages in flight per direction (the rest are dropped, as a full buffer would).
 const QUEUE: usize = 32;
-/// Most outputs one robot input may cause (stop, FinishAck and Confirm after a Finish).
+/// Most outputs one robot input or timer may cause (stop, FinishAck and Confirm after a
+/// Finish; abort, stop and the end on silence).
 const ROBOT_OUTPUTS: usize = 4;
 
-/// A small configuration (a few steps, so a run reaches the end of the session), or the
-/// default one.
+/// A small configuration of either sensing mode (a few steps, so a run reaches the end of
+/// the session), or the default one.
 fn config(bytes: &mut Bytes<'_>) -> Config {
     let mut config = Config::default();
     let choice = bytes.u8();
-    match choice % 4 {
+    match choice % 6 {
         0 => config.code.key_bits = 1 + u32::from(bytes.u8() % 6),
         1 => {
             config.code.kind = CodeKind::Hamming74;
@@ -144,9 +147,19 @@ fn config(bytes: &mut Bytes<'_>) -> Config {
             config.trajectory.laps = 1;
             config.trajectory.side_time = 0.2 * f64::from(1 + bytes.u8() % 5);
         }
-        _ => {}
+        3 => {}
+        private => {
+            config.sensing.mode = SensingMode::Private;
+            config.trajectory.laps = 1;
+            config.trajectory.side_time = 0.2 * f64::from(1 + bytes.u8() % 10);
+            if private == 5 {
+                config.protocol.bits_per_doublet = 2;
+                config.protocol.max_turn_rate = 1000.0;
+            }
+        }
     }
-    if choice & 0x10 != 0 {
+    // Private sensing decides from measurements only (an estimate would carry the bit on).
+    if choice & 0x10 != 0 && config.sensing.mode == SensingMode::Odometry {
         config.controller.feedback = Feedback::Estimate;
     }
     if choice & 0x20 != 0 {
@@ -168,21 +181,25 @@ struct RobotCheck {
 /// Checks every controller output.
 #[derive(Default)]
 struct ControllerCheck {
+    /// Codewords decided (odometry: in order).
     decided: u32,
+    /// Doublets resolved, decided or erased (each once).
+    resolved: Vec<bool>,
     finished: Option<Outcome>,
 }
 
-/// Both endpoints, the messages between them and a noise-free plant.
+/// Both endpoints, the messages between them, a clock and a noise-free plant.
 struct Harness {
     focus: Focus,
     plan: SessionPlan,
-    robot: RobotEndpoint,
-    controller: ControllerEndpoint,
+    robot: Robot,
+    controller: Controller,
     to_robot: VecDeque<Message>,
     to_controller: VecDeque<Message>,
-    pose: Pose,
-    wheels: WheelSpeeds,
-    clock: u32,
+    plant: Plant,
+    /// The plant's pose is `x(sensed)`.
+    sensed: u32,
+    now: Time,
     robot_check: RobotCheck,
     controller_check: ControllerCheck,
 }
@@ -194,24 +211,37 @@ impl Harness {
         let session = bytes.u32();
         let plan = SessionPlan::from_config(&config, session);
         let mut key_source = rand::rngs::ChaCha20Rng::seed_from_u64(bytes.u64());
+        let timing = Timing::default();
+        let still = Noise::new(rand::rngs::ChaCha8Rng::seed_from_u64(0), [0.0; 3]);
+        let agreed = &plan.agreed;
         Self {
             focus,
-            robot: RobotEndpoint::new(plan.clone(), &mut key_source),
-            controller: ControllerEndpoint::new(&config, plan.clone()),
+            robot: Robot::new(plan.clone(), timing, &mut key_source, Time::ZERO),
+            controller: Controller::new(&config, plan.clone(), timing, Time::ZERO),
+            plant: Plant::new(agreed.drive, agreed.wheel_limit, agreed.sample_time, still),
+            controller_check: ControllerCheck {
+                resolved: vec![false; plan.units() as usize],
+                ..ControllerCheck::default()
+            },
             plan,
             to_robot: VecDeque::new(),
             to_controller: VecDeque::new(),
-            pose: Pose::zeros(),
-            wheels: WheelSpeeds::zeros(),
-            clock: 0,
+            sensed: 0,
+            now: Time::ZERO,
             robot_check: RobotCheck::default(),
-            controller_check: ControllerCheck::default(),
         }
     }
 
     fn feed_robot(&mut self, input: RobotInput) {
-        self.robot.handle_input(input);
+        self.robot.handle_input(self.now, input);
+        self.drain_robot();
+    }
+
+    /// Takes the robot's outputs; answers a sample request from the plant (and, in private
+    /// sensing, gives the controller's sensor the same pose).
+    fn drain_robot(&mut self) {
         let mut count = 0;
+        let mut sense = None;
         while let Some(output) = self.robot.poll_output() {
             count += 1;
             assert!(
@@ -223,15 +253,31 @@ impl Harness {
                 RobotOutput::Transmit(m) if self.to_controller.len() < QUEUE => {
                     self.to_controller.push_back(m);
                 }
-                RobotOutput::Apply(a) => self.wheels = a.wheels,
+                RobotOutput::Apply(a) => self.plant.apply(a.wheels),
+                RobotOutput::Sense { step } => sense = Some(step),
                 _ => {}
+            }
+        }
+        if let Some(step) = sense {
+            while self.sensed < step {
+                self.plant.step();
+                self.sensed += 1;
+            }
+            let pose = self.plant.pose();
+            self.feed_robot(RobotInput::Sample { step, y: pose });
+            if self.plan.private().is_some() {
+                self.feed_controller(ControllerInput::Sensor { step, pose });
             }
         }
     }
 
     fn feed_controller(&mut self, input: ControllerInput) {
-        self.controller.handle_input(input);
-        let bound = 8 + self.plan.codewords() as usize;
+        self.controller.handle_input(self.now, input);
+        self.drain_controller();
+    }
+
+    fn drain_controller(&mut self) {
+        let bound = 8 + self.plan.units() as usize;
         let mut count = 0;
         while let Some(output) = self.controller.poll_output() {
             count += 1;
@@ -247,14 +293,14 @@ impl Harness {
 
     fn check_robot(&mut self, output: &RobotOutput) {
         let check = &mut self.robot_check;
-        let plan = &self.plan;
+        let agreed = &self.plan.agreed;
         match output {
             RobotOutput::Apply(a) => {
                 assert!(check.finished.is_none(), "actuation after the end: {a:?}");
                 assert!(
                     a.wheels
                         .iter()
-                        .all(|w| w.is_finite() && w.abs() <= plan.wheel_limit),
+                        .all(|w| w.is_finite() && w.abs() <= agreed.wheel_limit),
                     "wheel speeds beyond the agreed limit: {a:?}"
                 );
                 assert!(
@@ -263,12 +309,19 @@ impl Harness {
                     check.last_applied
                 );
                 check.last_applied = Some(a.step);
-                if a.step >= plan.steps {
+                if a.step >= agreed.steps {
                     assert_eq!(a.wheels, WheelSpeeds::zeros(), "moving after the last step");
                 }
                 if a.bit.is_some() {
-                    assert!(plan.enabled && !a.erased && a.step < plan.steps, "{a:?}");
+                    assert!(
+                        agreed.enabled && !a.erased && a.step < agreed.steps,
+                        "{a:?}"
+                    );
                 }
+            }
+            RobotOutput::Sense { step } => {
+                assert!(check.finished.is_none(), "a sample after the end");
+                assert!(*step <= agreed.steps, "a sample past the last step");
             }
             RobotOutput::Finished(outcome) => {
                 assert!(
@@ -279,32 +332,65 @@ impl Harness {
             }
             RobotOutput::Transmit(_) => {}
         }
-        let k = plan.code.k();
-        let key = self.robot.key();
-        assert!(key.len().is_multiple_of(k) && key.len() <= plan.codewords() as usize * k);
-        assert!(self.robot.commands_applied() <= plan.steps);
+        self.check_key(self.robot.key());
+        assert!(self.robot.commands_applied() <= agreed.steps);
+    }
+
+    /// A key holds whole units, at most one per unit of the session.
+    fn check_key(&self, key: &[u8]) {
+        let bits = self.plan.bits_per_unit();
+        assert!(
+            key.len().is_multiple_of(bits) && key.len() <= self.plan.units() as usize * bits,
+            "a key of {} bits",
+            key.len()
+        );
     }
 
     fn check_controller(&mut self, output: &ControllerOutput) {
         let check = &mut self.controller_check;
-        let plan = &self.plan;
+        let agreed = &self.plan.agreed;
+        let finite_within = |w: &[f64]| {
+            w.iter()
+                .all(|w| w.is_finite() && w.abs() <= agreed.wheel_limit)
+        };
         match output {
             ControllerOutput::Transmit(m) => {
                 assert!(check.finished.is_none(), "a message after the end: {m:?}");
-                if let Message::Session(SessionMessage::Command { step, u0, u1, .. }) = m {
-                    assert!(
-                        *step <= plan.steps,
-                        "a command past the stop command: {m:?}"
-                    );
-                    assert!(
-                        u0.iter()
-                            .chain(u1)
-                            .all(|w| w.is_finite() && w.abs() <= plan.wheel_limit),
-                        "a command the robot must refuse: {m:?}"
-                    );
-                    if *step == plan.steps {
-                        assert_eq!((*u0, *u1), ([0.0; 2], [0.0; 2]), "the stop command");
+                match m {
+                    Message::Session(SessionMessage::Command { step, u0, u1, .. }) => {
+                        assert!(
+                            *step <= agreed.steps,
+                            "a command past the stop command: {m:?}"
+                        );
+                        assert!(
+                            finite_within(u0) && finite_within(u1),
+                            "a command the robot must refuse: {m:?}"
+                        );
+                        if *step == agreed.steps {
+                            assert_eq!((*u0, *u1), ([0.0; 2], [0.0; 2]), "the stop command");
+                        }
                     }
+                    Message::Session(SessionMessage::DoubletCommand {
+                        step,
+                        sample,
+                        first,
+                        second,
+                        ..
+                    }) => {
+                        assert!(
+                            *step <= agreed.steps,
+                            "a command past the stop command: {m:?}"
+                        );
+                        let finite = |u: &[f64]| u.iter().all(|x| x.is_finite());
+                        assert!(
+                            finite(sample) && finite(first) && second.is_none_or(|s| finite(&s)),
+                            "a command that is not finite: {m:?}"
+                        );
+                        if *step == agreed.steps {
+                            assert_eq!((*first, *second), ([0.0; 2], None), "the stop command");
+                        }
+                    }
+                    _ => {}
                 }
             }
             ControllerOutput::Event(ControllerEvent::CodewordDecided { index, .. }) => {
@@ -313,11 +399,24 @@ impl Harness {
                     "codewords are decided once, in order"
                 );
                 check.decided += 1;
-                assert!(check.decided <= plan.codewords());
+                assert!(check.decided <= self.plan.units());
+            }
+            ControllerOutput::Event(
+                ControllerEvent::DoubletErased { doublet }
+                | ControllerEvent::DoubletDecided(crate::private::DoubletDecision {
+                    doublet, ..
+                }),
+            ) => {
+                let slot = check
+                    .resolved
+                    .get_mut(*doublet as usize)
+                    .expect("a doublet of the session");
+                assert!(!*slot, "doublet {doublet} resolved twice");
+                *slot = true;
             }
             ControllerOutput::Event(ControllerEvent::Decoded(decision)) => {
                 assert!(decision.bit.is_none_or(|b| b <= 1));
-                assert!(decision.step < plan.steps);
+                assert!(decision.step < agreed.steps);
             }
             ControllerOutput::Event(ControllerEvent::Finished(outcome)) => {
                 assert!(check.finished.is_none(), "the controller finished twice");
@@ -325,18 +424,35 @@ impl Harness {
             }
             ControllerOutput::Event(_) => {}
         }
-        let k = plan.code.k();
-        let key = self.controller.key();
-        assert!(key.len().is_multiple_of(k) && key.len() <= plan.codewords() as usize * k);
+        self.check_key(self.controller.key());
     }
 
-    /// The robot samples the plant, which then moves on under the applied wheels.
-    fn tick(&mut self) {
-        let (step, y) = (self.clock, self.pose);
-        self.feed_robot(RobotInput::Sample { step, y });
-        let input = self.plan.drive.to_unicycle(self.wheels);
-        self.pose = unicycle_step(&self.pose, &input, self.plan.sample_time);
-        self.clock = self.clock.saturating_add(1);
+    /// Moves the clock to the next timer of either side (if any) and fires what is due.
+    fn advance(&mut self) {
+        let next = [self.robot.poll_timeout(), self.controller.poll_timeout()]
+            .into_iter()
+            .flatten()
+            .min();
+        if let Some(next) = next {
+            self.now = self.now.max(next);
+        }
+        self.fire();
+    }
+
+    /// Fires both sides' timers due now.
+    fn fire(&mut self) {
+        if self.robot.poll_timeout().is_some_and(|t| t <= self.now) {
+            self.robot.handle_timeout(self.now);
+            self.drain_robot();
+        }
+        if self
+            .controller
+            .poll_timeout()
+            .is_some_and(|t| t <= self.now)
+        {
+            self.controller.handle_timeout(self.now);
+            self.drain_controller();
+        }
     }
 
     fn deliver_to_robot(&mut self) {
@@ -362,16 +478,6 @@ impl Harness {
         }
     }
 
-    /// One step in lockstep: sample, exchange, and the deadline if no command came.
-    fn lockstep(&mut self) {
-        let step = self.clock;
-        self.tick();
-        self.settle();
-        if self.robot.next_command() <= step {
-            self.feed_robot(RobotInput::Deadline { step });
-        }
-    }
-
     /// Sends arbitrary input to the side under test.
     fn inject(&mut self, message: Message) {
         match self.focus {
@@ -380,63 +486,102 @@ impl Harness {
         }
     }
 
-    /// An arbitrary message, built around the session's current state.
+    /// An arbitrary pose near the plant's.
+    fn pose(&self, bytes: &mut Bytes<'_>) -> Pose {
+        let pose = self.plant.pose();
+        Pose::new(
+            bytes.f64_near(pose.x),
+            bytes.f64_near(pose.y),
+            bytes.f64_near(pose.z),
+        )
+    }
+
+    /// An arbitrary message of the session's mode, built around its current state.
     fn message(&self, bytes: &mut Bytes<'_>) -> Message {
-        let codewords = self.plan.codewords();
+        let units = self.plan.units();
+        let private = self.plan.private().is_some();
+        let fates = |bytes: &mut Bytes<'_>| FateWindow {
+            first: bytes.u32_near(0),
+            count: bytes.u8(),
+            accepted: bytes.u64(),
+        };
         match bytes.u8() % 8 {
+            0 if private => {
+                let mut input = || [bytes.f64_near(0.1), bytes.f64_near(0.0)];
+                let (first, second) = (input(), input());
+                SessionMessage::DoubletCommand {
+                    step: bytes.u32_near(self.robot.next_command()),
+                    sample: self.pose(bytes).into(),
+                    first,
+                    second: bytes.bool().then_some(second),
+                    fates: fates(bytes),
+                }
+                .into()
+            }
             0 => {
                 let step = bytes.u32_near(self.robot.next_command());
+                let odometry = self.plan.odometry().expect("odometry");
                 let (u0, u1) = if bytes.bool() {
                     let nominal = [bytes.f64_near(0.1), bytes.f64_near(0.0)].into();
-                    let (u0, u1) = command_pair(&self.plan, nominal);
+                    let (u0, u1) = command_pair(&self.plan.agreed, odometry, nominal);
                     (u0.into(), u1.into())
                 } else {
                     let mut wheel = || bytes.f64_near(4.0);
                     ([wheel(), wheel()], [wheel(), wheel()])
                 };
-                let fates = FateWindow {
-                    first: bytes.u32_near(0),
-                    count: bytes.u8(),
-                    accepted: bytes.u64(),
-                };
-                Message::Session(SessionMessage::Command {
+                SessionMessage::Command {
                     step,
                     u0,
                     u1,
-                    fates,
-                })
+                    fates: fates(bytes),
+                }
+                .into()
             }
-            1 => Message::Session(SessionMessage::Measurement {
-                step: bytes.u32_near(self.clock),
-                y: [
-                    bytes.f64_near(self.pose.x),
-                    bytes.f64_near(self.pose.y),
-                    bytes.f64_near(self.pose.z),
-                ],
+            1 if private => SessionMessage::PrivateMeasurement {
+                step: bytes.u32_near(self.sensed),
                 applied_step: bytes
                     .bool()
-                    .then(|| bytes.u32_near(self.clock.saturating_sub(1))),
-                fate_cursor: bytes.u32_near(codewords),
-            }),
-            2 => Message::Closing(Closing::Finish {
-                codewords: bytes.u32_near(codewords),
+                    .then(|| bytes.u32_near(self.sensed.saturating_sub(1))),
+                fate_cursor: bytes.u32_near(units),
+            }
+            .into(),
+            1 => SessionMessage::Measurement {
+                step: bytes.u32_near(self.sensed),
+                y: self.pose(bytes).into(),
+                applied_step: bytes
+                    .bool()
+                    .then(|| bytes.u32_near(self.sensed.saturating_sub(1))),
+                fate_cursor: bytes.u32_near(units),
+            }
+            .into(),
+            2 => Closing::Finish {
+                codewords: bytes.u32_near(units),
                 bitmap: (0..bytes.u8() % 4).map(|_| bytes.u64()).collect(),
-            }),
-            3 => Message::Closing(Closing::FinishAck),
-            4 => Message::Closing(Closing::Confirm {
+            }
+            .into(),
+            3 => Closing::FinishAck.into(),
+            4 => Closing::Confirm {
                 session_tag: bytes.array::<TAG_BYTES>(),
                 key_tag: bytes.array::<TAG_BYTES>(),
-            }),
-            5 => Message::Closing(Closing::Abort {
+            }
+            .into(),
+            5 => Closing::Abort {
                 reason: String::from_utf8_lossy(bytes.take(8)).into_owned(),
-            }),
-            6 => Message::Handshake(Handshake::Ready),
+            }
+            .into(),
+            6 => {
+                if bytes.bool() {
+                    Handshake::Ready.into()
+                } else {
+                    Closing::Done.into()
+                }
+            }
             _ => {
                 // Arbitrary bytes through the wire decoder, with a MAC trailer.
                 let len = usize::from(bytes.u8());
                 let mut frame = bytes.take(len).to_vec();
                 frame.extend_from_slice(&[0; MAC_BYTES]);
-                wire::decode(&frame).map_or(Message::Closing(Closing::FinishAck), |f| f.message)
+                wire::decode(&frame).map_or(Closing::FinishAck.into(), |f| f.message)
             }
         }
     }
@@ -450,7 +595,7 @@ impl Harness {
         };
         let message = queue.pop_front()?;
         let frame = Frame {
-            session: self.plan.session,
+            session: self.plan.agreed.session,
             seq: 0,
             message,
         };
@@ -461,11 +606,35 @@ impl Harness {
         wire::decode(&encoded).ok().map(|f| f.message)
     }
 
+    /// What the side under test's own senses deliver, arbitrary: the robot's odometry, the
+    /// controller's sensor (or its failure).
+    fn sense(&mut self, bytes: &mut Bytes<'_>) {
+        match self.focus {
+            Focus::Robot => {
+                let step = bytes.u32_near(self.sensed);
+                let y = self.pose(bytes);
+                self.feed_robot(RobotInput::Sample { step, y });
+            }
+            Focus::Controller if bytes.u8().is_multiple_of(16) => {
+                let why = String::from_utf8_lossy(bytes.take(8)).into_owned();
+                self.feed_controller(ControllerInput::SensorStopped(why));
+            }
+            Focus::Controller => {
+                let step = bytes.u32_near(self.sensed);
+                let pose = self.pose(bytes);
+                self.feed_controller(ControllerInput::Sensor { step, pose });
+            }
+        }
+    }
+
     fn run(&mut self, bytes: &mut Bytes<'_>) {
         while !bytes.is_empty() {
             match bytes.u8() % 12 {
-                0..=2 => self.lockstep(),
-                3 => self.tick(),
+                0..=2 => {
+                    self.advance();
+                    self.settle();
+                }
+                3 => self.advance(),
                 4 => self.deliver_to_robot(),
                 5 => self.deliver_to_controller(),
                 6 => {
@@ -477,19 +646,11 @@ impl Harness {
                     };
                 }
                 7 => {
-                    let step = bytes.u32_near(self.robot.next_command());
-                    self.feed_robot(RobotInput::Deadline { step });
+                    // Time jumps by up to 2.55 s: any timer may fire.
+                    self.now = self.now + Duration::from_millis(10 * u64::from(bytes.u8()));
+                    self.fire();
                 }
-                8 => self.feed_controller(ControllerInput::Timeout),
-                9 if self.focus == Focus::Robot && bytes.bool() => {
-                    let step = bytes.u32_near(self.clock);
-                    let y = [
-                        bytes.f64_near(self.pose.x),
-                        bytes.f64_near(self.pose.y),
-                        bytes.f64_near(self.pose.z),
-                    ];
-                    self.feed_robot(RobotInput::Sample { step, y: y.into() });
-                }
+                8 => self.sense(bytes),
                 9 | 10 => {
                     let message = self.message(bytes);
                     self.inject(message);
@@ -516,27 +677,29 @@ impl Harness {
     }
 }
 
-/// The robot endpoint under arbitrary samples, deadlines and messages (structured,
-/// mutated genuine ones, and arbitrary bytes through the wire decoder), with a genuine
-/// controller as its peer.
+/// The robot endpoint, in either sensing mode, under arbitrary samples, timers and messages
+/// (structured, mutated genuine ones, and arbitrary bytes through the wire decoder), with a
+/// genuine controller as its peer.
 ///
 /// # Panics
 /// When the robot (or its peer) breaks an invariant: an actuation beyond the agreed wheel
-/// limit, non-finite, out of step order or after the end; too many outputs for one input;
-/// a key longer than the session allows; a confirmed session with different keys.
+/// limit, non-finite, out of step order or after the end; a sample request past the end;
+/// too many outputs for one input; a key longer than the session allows; a confirmed
+/// session with different keys.
 pub fn robot_endpoint(data: &[u8]) {
     let mut bytes = Bytes::new(data);
     Harness::new(&mut bytes, Focus::Robot).run(&mut bytes);
 }
 
-/// The controller endpoint under arbitrary measurements (non-finite, huge, out of order,
-/// duplicated, past the end), timeouts and messages, with a genuine robot as its peer.
+/// The controller endpoint, in either sensing mode, under arbitrary measurements and sensor
+/// samples (non-finite, huge, out of order, duplicated, past the end), a failing sensor,
+/// timers and messages, with a genuine robot as its peer.
 ///
 /// # Panics
-/// When the controller (or its peer) breaks an invariant: a command that is not finite or
-/// beyond the robot's wheel limit, a command past the stop command, codewords decided out
-/// of order, too many outputs for one input, output after the end, a confirmed session
-/// with different keys.
+/// When the controller (or its peer) breaks an invariant: a command that is not finite (or,
+/// in odometry mode, beyond the robot's wheel limit), a command past the stop command, units
+/// decided out of order or twice, too many outputs for one input, output after the end, a
+/// confirmed session with different keys.
 pub fn controller_endpoint(data: &[u8]) {
     let mut bytes = Bytes::new(data);
     Harness::new(&mut bytes, Focus::Controller).run(&mut bytes);

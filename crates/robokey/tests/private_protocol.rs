@@ -1,109 +1,26 @@
-//! The private-sensing endpoints driven in lockstep over an in-memory channel that can drop
-//! chosen messages and sensor samples, on a noise-free plant with a perfect sensor: losses
-//! cost doublets, never agreement.
+//! The private-sensing endpoints on the virtual network, with chosen messages dropped and
+//! chosen sensor samples missing, on a noise-free plant with a perfect sensor: losses cost
+//! doublets, never agreement.
 
 use robokey::Config;
-use robokey::model::{Pose, unicycle_step};
-use robokey::private::{PrivateControllerEndpoint, PrivatePlan, PrivateRobotEndpoint};
+use robokey::model::Pose;
 use robokey::protocol::{
-    Closing, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, RobotInput,
-    RobotOutput, SessionMessage,
+    Closing, Controller, ControllerInput, Message, Outcome, Robot, RobotInput, SessionMessage,
+    SessionPlan, Time, Timing,
 };
 use robokey::rng::{Purpose, stream};
-use support::post_fragment;
+use support::{Network, session};
 
 mod support;
 
-/// Result of a lockstep session.
-struct Session {
-    robot_key: Vec<u8>,
-    controller_key: Vec<u8>,
-    decided: Vec<u32>,
-    erased: Vec<u32>,
-    robot_outcome: Option<Outcome>,
-    controller_outcome: Option<Outcome>,
-}
-
-/// Runs one session; `drop(message)` removes a message from the channel, `blind(k)` the
-/// controller's sensor sample k. Commands that do not arrive trigger the robot's deadline.
-/// Every delivered message follows a post-processing fragment, which session endpoints must
-/// ignore: the tests' exact outcomes show that it changed nothing.
+/// Runs one session on an ideal link, dropping the messages `drop` picks and the sensor
+/// samples `blind` picks.
 fn lockstep(
     config: &Config,
     drop: impl Fn(&Message) -> bool,
     blind: impl Fn(u32) -> bool,
-) -> Session {
-    let plan = PrivatePlan::from_config(config, 1);
-    let (drive, steps) = (plan.drive, plan.steps);
-    let mut robot = PrivateRobotEndpoint::new(plan.clone(), &mut stream(9, Purpose::Key, 0));
-    let mut controller = PrivateControllerEndpoint::new(config, plan);
-    let mut pose = Pose::zeros();
-    let (mut decided, mut erased) = (Vec::new(), Vec::new());
-    let (mut robot_outcome, mut controller_outcome) = (None, None);
-    for k in 0..=steps {
-        robot.handle_input(RobotInput::Sample { step: k, y: pose });
-        if !blind(k) {
-            controller.handle_input(ControllerInput::Sensor { step: k, pose });
-        }
-        let mut wheels = None;
-        let mut deadline_passed = false;
-        loop {
-            let mut quiet = true;
-            while let Some(out) = robot.poll_output() {
-                quiet = false;
-                match out {
-                    RobotOutput::Transmit(m) if !drop(&m) => {
-                        for m in [post_fragment(), m] {
-                            controller.handle_input(ControllerInput::Frame(m));
-                        }
-                    }
-                    RobotOutput::Apply(a) => wheels = Some(a.wheels),
-                    RobotOutput::Finished(o) => robot_outcome = Some(o),
-                    RobotOutput::Transmit(_) => {}
-                }
-            }
-            while let Some(out) = controller.poll_output() {
-                quiet = false;
-                match out {
-                    ControllerOutput::Transmit(m) if !drop(&m) => {
-                        for m in [post_fragment(), m] {
-                            robot.handle_input(RobotInput::Frame(m));
-                        }
-                    }
-                    ControllerOutput::Event(ControllerEvent::DoubletDecided(d)) => {
-                        decided.push(d.doublet);
-                    }
-                    ControllerOutput::Event(ControllerEvent::DoubletErased { doublet }) => {
-                        erased.push(doublet);
-                    }
-                    ControllerOutput::Event(ControllerEvent::Finished(o)) => {
-                        controller_outcome = Some(o);
-                    }
-                    _ => {}
-                }
-            }
-            if quiet && wheels.is_none() && k < steps && !deadline_passed {
-                deadline_passed = true;
-                robot.handle_input(RobotInput::Deadline { step: k });
-                continue;
-            }
-            if quiet {
-                break;
-            }
-        }
-        if k < steps {
-            let input = drive.to_unicycle(wheels.expect("the robot always applies something"));
-            pose = unicycle_step(&pose, &input, config.robot.sample_time);
-        }
-    }
-    Session {
-        robot_key: robot.key().to_vec(),
-        controller_key: controller.key().to_vec(),
-        decided,
-        erased,
-        robot_outcome,
-        controller_outcome,
-    }
+) -> support::Session {
+    session(config, Network::default(), |_, m| drop(m), blind)
 }
 
 /// One lap, no motion noise, a perfect sensor, two bits per doublet, no turn gate.
@@ -123,9 +40,9 @@ fn clean_config() -> Config {
 fn a_clean_session_keeps_every_doublet_with_equal_bits() {
     let config = clean_config();
     let s = lockstep(&config, |_| false, |_| false);
-    let plan = PrivatePlan::from_config(&config, 1);
+    let plan = SessionPlan::from_config(&config, 1);
     assert!(s.erased.is_empty(), "{:?}", s.erased);
-    assert_eq!(s.decided, (0..plan.doublets()).collect::<Vec<_>>());
+    assert_eq!(s.decided, (0..plan.units()).collect::<Vec<_>>());
     assert_eq!(s.robot_key.len(), 2 * s.decided.len());
     assert_eq!(s.robot_key, s.controller_key);
     assert_eq!(s.robot_outcome, Some(Outcome::Kept));
@@ -173,7 +90,7 @@ fn lost_commands_measurements_and_samples_drop_their_doublets_on_both_sides() {
 fn a_lost_stop_command_changes_nothing() {
     // The robot stops at N on its own clock; the Finish carries every fate.
     let config = clean_config();
-    let steps = PrivatePlan::from_config(&config, 1).steps;
+    let steps = SessionPlan::from_config(&config, 1).agreed.steps;
     let s = lockstep(
         &config,
         |m| matches!(m, Message::Session(SessionMessage::DoubletCommand { step, .. }) if *step == steps),
@@ -201,7 +118,7 @@ mod arbitrary_inputs {
                 any::<u32>()
             )
                 .prop_map(|(step, applied_step, fate_cursor)| {
-                    Message::Session(SessionMessage::PrivateMeasurement {
+                    Message::from(SessionMessage::PrivateMeasurement {
                         step,
                         applied_step,
                         fate_cursor,
@@ -216,7 +133,7 @@ mod arbitrary_inputs {
             )
                 .prop_map(
                     |(step, sample, first, second, (first_fate, count, accepted))| {
-                        Message::Session(SessionMessage::DoubletCommand {
+                        Message::from(SessionMessage::DoubletCommand {
                             step,
                             sample,
                             first,
@@ -229,15 +146,15 @@ mod arbitrary_inputs {
                         })
                     }
                 ),
-            (0u32..300, proptest::collection::vec(any::<u64>(), 0..6)).prop_map(
-                |(codewords, bitmap)| Message::Closing(Closing::Finish { codewords, bitmap })
-            ),
-            Just(Message::Closing(Closing::FinishAck)),
+            (0u32..300, proptest::collection::vec(any::<u64>(), 0..6))
+                .prop_map(|(codewords, bitmap)| Closing::Finish { codewords, bitmap }.into()),
+            Just(Closing::FinishAck.into()),
             (any::<[u8; 16]>(), any::<[u8; 16]>()).prop_map(|(session_tag, key_tag)| {
-                Message::Closing(Closing::Confirm {
+                Closing::Confirm {
                     session_tag,
                     key_tag,
-                })
+                }
+                .into()
             }),
         ]
     }
@@ -252,17 +169,20 @@ mod arbitrary_inputs {
         ) {
             let mut config = clean_config();
             config.trajectory.side_time = 5.0;
-            let plan = PrivatePlan::from_config(&config, 1);
+            let plan = SessionPlan::from_config(&config, 1);
+            let timing = Timing::default();
             let mut robot =
-                PrivateRobotEndpoint::new(plan.clone(), &mut stream(1, Purpose::Key, 0));
-            let mut controller = PrivateControllerEndpoint::new(&config, plan);
-            for (message, step, pose) in inputs {
-                robot.handle_input(RobotInput::Sample { step, y: Pose::zeros() });
-                robot.handle_input(RobotInput::Frame(message.clone()));
-                robot.handle_input(RobotInput::Deadline { step });
-                controller.handle_input(ControllerInput::Sensor { step, pose: pose.into() });
-                controller.handle_input(ControllerInput::Frame(message));
-                controller.handle_input(ControllerInput::Timeout);
+                Robot::new(plan.clone(), timing, &mut stream(1, Purpose::Key, 0), Time::ZERO);
+            let mut controller = Controller::new(&config, plan, timing, Time::ZERO);
+            for (i, (message, step, pose)) in inputs.into_iter().enumerate() {
+                // Time runs on by 100 ms an input: every timer fires at some point.
+                let now = Time::ZERO + std::time::Duration::from_millis(100 * i as u64);
+                robot.handle_input(now, RobotInput::Sample { step, y: Pose::zeros() });
+                robot.handle_input(now, RobotInput::Frame(message.clone()));
+                robot.handle_timeout(now);
+                controller.handle_input(now, ControllerInput::Sensor { step, pose: pose.into() });
+                controller.handle_input(now, ControllerInput::Frame(message));
+                controller.handle_timeout(now);
                 while robot.poll_output().is_some() {}
                 while controller.poll_output().is_some() {}
             }

@@ -1,101 +1,16 @@
-//! End-to-end protocol properties: the endpoints driven in lockstep over an in-memory
-//! channel that can drop chosen messages, on a noise-free plant.
+//! End-to-end protocol properties: the endpoints on the virtual network, with chosen
+//! messages dropped, on a noise-free plant; and whole simulated runs.
 
 use robokey::Config;
-use robokey::model::{Pose, unicycle_step};
-use robokey::protocol::{
-    ControllerEndpoint, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome,
-    RobotEndpoint, RobotInput, RobotOutput, SessionMessage, SessionPlan,
-};
-use robokey::rng::{Purpose, stream};
+use robokey::protocol::{Message, Outcome, SessionMessage};
 use robokey::sim::simulate;
-use support::post_fragment;
+use support::{Network, session};
 
 mod support;
 
-/// Result of a lockstep session.
-struct Session {
-    robot_key: Vec<u8>,
-    controller_key: Vec<u8>,
-    controller_fates: Vec<bool>,
-    robot_outcome: Option<Outcome>,
-    controller_outcome: Option<Outcome>,
-}
-
-/// Runs one session; `drop(message)` removes a message from the channel. Commands that
-/// do not arrive trigger the robot's deadline.
-/// Every delivered message follows a post-processing fragment, which session endpoints must
-/// ignore: the tests' exact outcomes show that it changed nothing.
-fn lockstep(config: &Config, drop: impl Fn(&Message) -> bool) -> Session {
-    let plan = SessionPlan::from_config(config, 1);
-    let drive = plan.drive;
-    let steps = plan.steps;
-    let mut robot = RobotEndpoint::new(plan.clone(), &mut stream(9, Purpose::Key, 0));
-    let mut controller = ControllerEndpoint::new(config, plan);
-    let mut pose = Pose::zeros();
-    let mut fates = Vec::new();
-    let (mut robot_outcome, mut controller_outcome) = (None, None);
-    for k in 0..=steps {
-        robot.handle_input(RobotInput::Sample { step: k, y: pose });
-        let mut wheels = None;
-        loop {
-            let mut quiet = true;
-            while let Some(out) = robot.poll_output() {
-                quiet = false;
-                match out {
-                    RobotOutput::Transmit(m) if !drop(&m) => {
-                        for m in [post_fragment(), m] {
-                            controller.handle_input(ControllerInput::Frame(m));
-                        }
-                    }
-                    RobotOutput::Apply(a) => wheels = Some(a.wheels),
-                    RobotOutput::Finished(o) => robot_outcome = Some(o),
-                    RobotOutput::Transmit(_) => {}
-                }
-            }
-            while let Some(out) = controller.poll_output() {
-                quiet = false;
-                match out {
-                    ControllerOutput::Transmit(m) if !drop(&m) => {
-                        for m in [post_fragment(), m] {
-                            robot.handle_input(RobotInput::Frame(m));
-                        }
-                    }
-                    ControllerOutput::Event(ControllerEvent::CodewordDecided {
-                        accepted, ..
-                    }) => {
-                        fates.push(accepted);
-                    }
-                    ControllerOutput::Event(ControllerEvent::Finished(o)) => {
-                        controller_outcome = Some(o);
-                    }
-                    _ => {}
-                }
-            }
-            if quiet {
-                break;
-            }
-        }
-        if wheels.is_none() && k < steps {
-            robot.handle_input(RobotInput::Deadline { step: k });
-            while let Some(out) = robot.poll_output() {
-                if let RobotOutput::Apply(a) = out {
-                    wheels = Some(a.wheels);
-                }
-            }
-        }
-        if k < steps {
-            let input = drive.to_unicycle(wheels.expect("the robot always applies something"));
-            pose = unicycle_step(&pose, &input, config.robot.sample_time);
-        }
-    }
-    Session {
-        robot_key: robot.key().to_vec(),
-        controller_key: controller.key().to_vec(),
-        controller_fates: fates,
-        robot_outcome,
-        controller_outcome,
-    }
+/// Runs one session on an ideal link, dropping the messages `drop` picks.
+fn lockstep(config: &Config, drop: impl Fn(&Message) -> bool) -> support::Session {
+    session(config, Network::default(), |_, m| drop(m), |_| false)
 }
 
 /// A short, noise-free session with a large Δ: every clean codeword must be accepted.
@@ -112,8 +27,8 @@ fn clean_config() -> Config {
 fn large_delta_without_noise_accepts_everything_and_confirms() {
     let config = clean_config();
     let session = lockstep(&config, |_| false);
-    assert_eq!(session.controller_fates.len(), 340 / 3);
-    assert!(session.controller_fates.iter().all(|&a| a));
+    assert_eq!(session.fates.len(), 340 / 3);
+    assert!(session.fates.iter().all(|&a| a));
     assert_eq!(session.robot_key.len(), 340 / 3);
     assert_eq!(session.robot_key, session.controller_key);
     assert_eq!(session.robot_outcome, Some(Outcome::Confirmed));
@@ -130,8 +45,8 @@ fn a_lost_command_erases_exactly_its_codeword_on_both_sides() {
             Message::Session(SessionMessage::Command { step: 31, .. })
         )
     });
-    let rejected: Vec<usize> = (0..session.controller_fates.len())
-        .filter(|&i| !session.controller_fates[i])
+    let rejected: Vec<usize> = (0..session.fates.len())
+        .filter(|&i| !session.fates[i])
         .collect();
     assert_eq!(rejected, vec![10]);
     assert_eq!(session.robot_key.len(), 340 / 3 - 1);
@@ -150,8 +65,8 @@ fn a_lost_measurement_erases_exactly_its_codeword_on_both_sides() {
             Message::Session(SessionMessage::Measurement { step: 46, .. })
         )
     });
-    let rejected: Vec<usize> = (0..session.controller_fates.len())
-        .filter(|&i| !session.controller_fates[i])
+    let rejected: Vec<usize> = (0..session.fates.len())
+        .filter(|&i| !session.fates[i])
         .collect();
     assert_eq!(rejected, vec![15]);
     assert_eq!(session.robot_key, session.controller_key);

@@ -10,8 +10,8 @@ use crate::config::{Config, EveStrategy};
 use crate::model::{DiffDrive, WheelSpeeds};
 use crate::observer::{Observer, ObserverParams, log_likelihood_ratio};
 use crate::protocol::{
-    Closing, FateLedger, KeyBits, Message, SessionMessage, SessionPlan, StepDecision, StepDecoder,
-    TAG_BYTES, controller::observer_params,
+    Agreed, Closing, FateLedger, KeyBits, Message, OdometryPlan, SessionMessage, SessionPlan,
+    StepDecision, StepDecoder, TAG_BYTES, controller::observer_params,
 };
 
 /// The learning strategies' starting model is worth one period at this wheel speed
@@ -39,7 +39,10 @@ impl WheelModel {
 /// What she holds about the session she is listening to.
 #[derive(Debug)]
 struct Session {
-    plan: SessionPlan,
+    agreed: Agreed,
+    plan: OdometryPlan,
+    /// Complete codewords of the session.
+    codewords: u32,
     decoder: StepDecoder,
     fates: FateLedger,
     /// Per step: her hard decision (`None`: erased or undecided).
@@ -133,7 +136,7 @@ impl Eve {
             identifier.on_command(step, u0, u1);
         }
         let drive = self.current_drive();
-        let Some(session) = self.session.as_mut().filter(|s| step < s.plan.steps) else {
+        let Some(session) = self.session.as_mut().filter(|s| step < s.agreed.steps) else {
             return;
         };
         session.decoder.set_drive(drive);
@@ -156,7 +159,7 @@ impl Eve {
         let code = &session.plan.code;
         let n = code.n() as u32;
         let index = step / n;
-        if step % n + 1 != n || index >= session.plan.codewords() {
+        if step % n + 1 != n || index >= session.codewords {
             return;
         }
         let steps = (index * n) as usize..((index + 1) * n) as usize;
@@ -189,13 +192,14 @@ impl Eve {
             let key = session
                 .fates
                 .accepted_key(&found.messages, session.plan.code.k());
-            if is_key_tag(&session.plan, &key, tag) {
+            if is_key_tag(&session.agreed.confirmer, &key, tag) {
                 return;
             }
         }
         session.tags_tried.push(*tag);
         let Some(found) = search_key(
-            &session.plan,
+            &session.agreed.confirmer,
+            session.plan.code.k(),
             &session.fates,
             &session.decoded,
             tag,
@@ -235,17 +239,25 @@ impl Eavesdropper for Eve {
         if let WheelModel::Learned(identifier) = &mut self.model {
             identifier.begin_session();
         }
+        // She decodes command pairs: a private session gives her nothing to decode.
+        let Some(odometry) = plan.odometry() else {
+            self.session = None;
+            return;
+        };
         let drive = self.current_drive();
         let observer = Observer::new(&self.observer).expect("validated observer.m");
-        let codewords = plan.codewords() as usize;
-        let empty = hard_decoded(plan.code.as_ref(), 0);
+        let codewords = plan.units();
+        let empty = hard_decoded(odometry.code.as_ref(), 0);
+        let steps = plan.agreed.steps as usize;
         self.session = Some(Session {
-            plan: plan.clone(),
-            decoder: StepDecoder::new(drive, observer, plan.delta, true),
-            fates: FateLedger::new(plan.codewords()),
-            bits: vec![None; plan.steps as usize],
-            llrs: vec![0.0; plan.steps as usize],
-            decoded: vec![empty; codewords],
+            agreed: plan.agreed.clone(),
+            plan: odometry.clone(),
+            codewords,
+            decoder: StepDecoder::new(drive, observer, odometry.delta, true),
+            fates: FateLedger::new(codewords),
+            bits: vec![None; steps],
+            llrs: vec![0.0; steps],
+            decoded: vec![empty; codewords as usize],
             tags_tried: Vec::new(),
             verified: None,
         });

@@ -4,7 +4,7 @@
 //! first.
 
 use crate::code::SoftDecoded;
-use crate::protocol::{Direction, FateLedger, KeyBits, SessionPlan, TAG_BYTES};
+use crate::protocol::{Confirmer, Direction, FateLedger, KeyBits, TAG_BYTES};
 
 /// What a search found.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -20,10 +20,10 @@ pub struct TagMatch {
 /// Whether `tag` is the key tag of `key`, sent in either direction (a tag on the wire does
 /// not say who sent it).
 #[must_use]
-pub fn is_key_tag(plan: &SessionPlan, key: &[u8], tag: &[u8; TAG_BYTES]) -> bool {
+pub fn is_key_tag(confirmer: &Confirmer, key: &[u8], tag: &[u8; TAG_BYTES]) -> bool {
     [Direction::ToRobot, Direction::ToController]
         .into_iter()
-        .any(|direction| plan.confirmer.key_tag(direction, key) == *tag)
+        .any(|direction| confirmer.key_tag(direction, key) == *tag)
 }
 
 /// Searches the candidates that differ from `decoded` in at most `max_flips` of the
@@ -31,13 +31,13 @@ pub fn is_key_tag(plan: &SessionPlan, key: &[u8], tag: &[u8; TAG_BYTES]) -> bool
 /// `tag`. At most `2^max_flips` tags are computed.
 #[must_use]
 pub fn search_key(
-    plan: &SessionPlan,
+    confirmer: &Confirmer,
+    k: usize,
     fates: &FateLedger,
     decoded: &[SoftDecoded],
     tag: &[u8; TAG_BYTES],
     max_flips: u32,
 ) -> Option<TagMatch> {
-    let k = plan.code.k();
     let mut suspects: Vec<usize> = (0..decoded.len())
         .filter(|&i| fates.get(i as u32) == Some(true))
         .collect();
@@ -48,7 +48,7 @@ pub fn search_key(
     let mut test = |messages: &[u64]| {
         tries += 1;
         let key: KeyBits = fates.accepted_key(messages, k);
-        is_key_tag(plan, &key, tag)
+        is_key_tag(confirmer, &key, tag)
     };
     for flips in 0..=suspects.len() as u32 {
         // Gosper's hack: every subset of `flips` suspects, in increasing bit order.
@@ -83,6 +83,7 @@ pub fn search_key(
 mod tests {
     use super::*;
     use crate::config::Config;
+    use crate::protocol::SessionPlan;
 
     #[test]
     fn finds_the_key_behind_a_tag_by_flipping_unreliable_codewords() {
@@ -93,9 +94,8 @@ mod tests {
             fates.record(i, i % 5 != 0);
         }
         let truth: Vec<u64> = (0..u64::from(codewords)).map(|i| i * 7 % 3 % 2).collect();
-        let tag = plan
-            .confirmer
-            .key_tag(Direction::ToRobot, &fates.accepted_key(&truth, 1));
+        let confirmer = &plan.agreed.confirmer;
+        let tag = confirmer.key_tag(Direction::ToRobot, &fates.accepted_key(&truth, 1));
         // Her guess is wrong on codewords 3 and 11 (weak) and right elsewhere; codeword 0 is
         // weakest but rejected, so it must not use up a flip.
         let decoded: Vec<SoftDecoded> = truth
@@ -115,7 +115,7 @@ mod tests {
                 }
             })
             .collect();
-        let found = search_key(&plan, &fates, &decoded, &tag, 4).expect("within 4 flips");
+        let found = search_key(confirmer, 1, &fates, &decoded, &tag, 4).expect("within 4 flips");
         assert_eq!(found.flips, 2);
         assert_eq!(
             fates.accepted_key(&found.messages, 1),
@@ -123,6 +123,6 @@ mod tests {
         );
         // No flip, 4 single flips, then {11, 3}, the two weakest: the first pair tried.
         assert_eq!(found.tries, 1 + 4 + 1);
-        assert_eq!(search_key(&plan, &fates, &decoded, &tag, 1), None);
+        assert_eq!(search_key(confirmer, 1, &fates, &decoded, &tag, 1), None);
     }
 }

@@ -1,40 +1,22 @@
-//! The controller endpoint of private sensing (docs/private-sensing.md, docs/protocol.md):
-//! tracks the reference from its own pose sensor, commands each doublet from the sample at
-//! its start, decides each bit from a calibrated true-noise likelihood of its samples around
-//! the doublet, and sends the fates.
+//! Private sensing's controller (docs/private-sensing.md, docs/protocol.md): tracks the
+//! reference from its own pose sensor, commands each doublet from the sample at its start,
+//! decides each bit from a calibrated true-noise likelihood of its samples around the
+//! doublet, and decides the doublets' fates.
 
 use std::collections::VecDeque;
 
+use super::decision::DoubletDecision;
 use super::doublet::DoubletInputs;
-use super::likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation};
+use super::likelihood::{DoubletModel, DoubletView, PoseObservation, doublet_model};
 use super::plan::PrivatePlan;
-use super::session::doublet_model;
 use crate::config::Config;
-use crate::control::{TrackingController, TrackingGains};
+use crate::control::ReferenceTracker;
 use crate::model::{Pose, Unicycle, unicycle_step};
-use crate::protocol::closing::ControllerLifecycle;
-use crate::protocol::{
-    ControllerEvent, ControllerInput, ControllerOutput, FateLedger, KeyBits, Message, Outcome,
-    SessionMessage,
-};
-use crate::trajectory::Trajectory;
-
-/// What the controller made of one carrying doublet.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DoubletDecision {
-    /// Doublet index j.
-    pub doublet: u32,
-    /// Its first step `2j`.
-    pub step: u32,
-    /// Its public inputs.
-    pub inputs: DoubletInputs,
-    /// The controller's LLR and separation of each bit; the bit is the LLR's sign
-    /// (`ln P(view|0) − ln P(view|1)`, 1 when negative).
-    pub evidence: BitEvidence,
-    /// Each bit's separation under the camera Eve's model as the controller can compute it
-    /// — her stated camera noise around its own samples — which sizes the key.
-    pub assumed_separation: [f64; 2],
-}
+use crate::protocol::controller::io::ControllerEvent;
+use crate::protocol::controller::lifecycle::ControllerLifecycle;
+use crate::protocol::controller::mode::ControllerMode;
+use crate::protocol::plan::Agreed;
+use crate::protocol::{Outcome, SessionMessage};
 
 /// A doublet commanded and not yet resolved.
 #[derive(Clone, Copy, Debug)]
@@ -52,13 +34,11 @@ struct Pending {
 /// has not come counts as lost (reordering on the network).
 const REORDER_SLACK: u32 = 8;
 
-/// The controller side of a private-sensing session. It takes [`ControllerInput`]s — the
-/// robot's frames and its own sensor's samples — and emits [`ControllerOutput`]s.
-#[derive(Debug)]
-pub struct PrivateControllerEndpoint {
+/// Private sensing's part of a controller endpoint: the model it decides with, the
+/// doublets in flight, and its view of the samples and the robot's reports.
+pub(crate) struct PrivateController {
     plan: PrivatePlan,
-    trajectory: Trajectory,
-    tracking: TrackingController,
+    tracking: ReferenceTracker,
     model: DoubletModel,
     controller_std: [f64; 3],
     camera_std: [f64; 3],
@@ -69,28 +49,27 @@ pub struct PrivateControllerEndpoint {
     next_sample: u32,
     /// One past the latest step the robot reported on.
     reported: u32,
-    fates: FateLedger,
     /// Each doublet's decided bits `v | ω << 1` (0 when not decided).
     decided: Vec<u64>,
-    robot_cursor: u32,
-    lifecycle: ControllerLifecycle,
-    key: KeyBits,
 }
 
-impl PrivateControllerEndpoint {
-    /// A controller for a validated private-sensing configuration and its plan.
-    #[must_use]
-    pub fn new(config: &Config, plan: PrivatePlan) -> Self {
-        let c = &config.controller;
-        let gains = TrackingGains {
-            kp: c.kp,
-            kd: c.kd,
-            xi_eps: c.xi_eps,
-            wheel_limit: c.wheel_limit,
-        };
+impl std::fmt::Debug for PrivateController {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // Its decisions are key material: never printed.
+        f.debug_struct("PrivateController")
+            .field("next_doublet", &self.next_doublet)
+            .field("next_sample", &self.next_sample)
+            .field("reported", &self.reported)
+            .field("pending", &self.pending.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl PrivateController {
+    /// The controller of a validated private-sensing configuration: `doublets` to decide.
+    pub(crate) fn new(config: &Config, agreed: &Agreed, plan: PrivatePlan, doublets: u32) -> Self {
         Self {
-            trajectory: config.trajectory(),
-            tracking: TrackingController::new(gains, plan.drive, plan.sample_time),
+            tracking: ReferenceTracker::new(config, agreed.drive, agreed.sample_time),
             model: doublet_model(config),
             controller_std: config.sensing.controller_std,
             camera_std: config.eve.camera_std,
@@ -98,87 +77,47 @@ impl PrivateControllerEndpoint {
             next_doublet: 0,
             next_sample: 0,
             reported: 0,
-            fates: FateLedger::new(plan.doublets()),
-            decided: vec![0; plan.doublets() as usize],
-            robot_cursor: 0,
-            lifecycle: ControllerLifecycle::new(),
-            key: KeyBits::default(),
+            decided: vec![0; doublets as usize],
             plan,
-        }
-    }
-
-    /// Feeds one input.
-    pub fn handle_input(&mut self, input: ControllerInput) {
-        match input {
-            ControllerInput::Frame(message) => self.handle_message(message),
-            ControllerInput::Sensor { step, pose } => self.handle_sample(step, pose),
-            ControllerInput::Timeout => self.lifecycle.on_timeout(),
-        }
-    }
-
-    /// The next output, if any.
-    pub fn poll_output(&mut self) -> Option<ControllerOutput> {
-        self.lifecycle.poll()
-    }
-
-    /// The controller's decisions on the kept doublets, `[v, ω]` each (complete once the
-    /// session has finished): the raw bits reconciliation corrects.
-    #[must_use]
-    pub fn key(&self) -> &[u8] {
-        &self.key
-    }
-
-    /// The session plan.
-    #[must_use]
-    pub fn plan(&self) -> &PrivatePlan {
-        &self.plan
-    }
-
-    /// Whether the session is over.
-    #[must_use]
-    pub fn is_done(&self) -> bool {
-        self.lifecycle.is_done()
-    }
-
-    fn handle_message(&mut self, message: Message) {
-        match message {
-            Message::Session(SessionMessage::PrivateMeasurement {
-                step,
-                applied_step,
-                fate_cursor,
-            }) if self.lifecycle.running() => {
-                self.handle_measurement(step, applied_step, fate_cursor);
-            }
-            Message::Closing(message) => self.lifecycle.on_message(message),
-            // Handshake and post-processing messages are not the endpoint's; a session
-            // message after the run is a late duplicate.
-            _ => {}
         }
     }
 
     /// The robot's report at step k: whether it applied command `k − 1`. Reports may come
     /// out of order (a doublet's two are sent back to back); one not heard by the time the
     /// robot reported [`REORDER_SLACK`] steps further, or the end, leaves its step unapplied.
-    fn handle_measurement(&mut self, step: u32, applied: Option<u32>, cursor: u32) {
-        if step > self.plan.steps {
+    fn handle_measurement(
+        &mut self,
+        agreed: &Agreed,
+        life: &mut ControllerLifecycle,
+        step: u32,
+        applied: Option<u32>,
+        cursor: u32,
+    ) {
+        if step > agreed.steps {
             return;
         }
-        self.robot_cursor = self.robot_cursor.max(cursor);
+        life.robot_cursor = life.robot_cursor.max(cursor);
         self.reported = self.reported.max(step + 1);
         if let Some(done) = step.checked_sub(1)
             && let Some(p) = self.pending.iter_mut().find(|p| p.doublet == done / 2)
         {
             p.applied[(done % 2) as usize].get_or_insert(applied == Some(done));
         }
-        self.resolve();
+        self.resolve(agreed, life);
     }
 
     /// Sample `y_c(k)`: recorded for the doublets around it; a doublet's first sample
     /// commands it (its second input from the open-loop prediction, never from the
     /// mid-doublet sample, which carries the bit); `y_c(N)` goes with the stop command.
-    fn handle_sample(&mut self, step: u32, pose: Pose) {
-        let fresh = step >= self.next_sample && step <= self.plan.steps;
-        if !self.lifecycle.running() || !fresh || !pose.iter().all(|v| v.is_finite()) {
+    fn handle_sample(
+        &mut self,
+        agreed: &Agreed,
+        life: &mut ControllerLifecycle,
+        step: u32,
+        pose: Pose,
+    ) {
+        let fresh = step >= self.next_sample && step <= agreed.steps;
+        if !life.running() || !fresh || !pose.iter().all(|v| v.is_finite()) {
             return;
         }
         self.next_sample = step + 1;
@@ -191,31 +130,39 @@ impl PrivateControllerEndpoint {
             }
         }
         // Doublets whose first sample never came were never commanded.
-        while self.next_doublet < self.plan.doublets() && 2 * self.next_doublet < step {
-            self.fates.record(self.next_doublet, false);
-            self.lifecycle.emit(ControllerEvent::DoubletErased {
+        let doublets = agreed.steps / 2;
+        while self.next_doublet < doublets && 2 * self.next_doublet < step {
+            life.fates.record(self.next_doublet, false);
+            life.emit(ControllerEvent::DoubletErased {
                 doublet: self.next_doublet,
             });
             self.next_doublet += 1;
         }
-        self.command(step, pose);
-        self.resolve();
+        self.command(agreed, life, step, pose);
+        self.resolve(agreed, life);
     }
 
-    fn command(&mut self, step: u32, pose: Pose) {
-        let t = self.plan.sample_time;
-        let reference = |k: u32| self.trajectory.at(f64::from(k) * t);
-        let (first, second) = if step >= self.plan.steps {
+    fn command(&mut self, agreed: &Agreed, life: &mut ControllerLifecycle, step: u32, pose: Pose) {
+        let t = agreed.sample_time;
+        let (first, second) = if step >= agreed.steps {
             (Unicycle::zeros(), None)
         } else if step % 2 == 1 {
             return; // mid-doublet: its input went with the first
         } else {
-            let first = self.tracking.command(&pose, &reference(step));
-            if self.plan.starts_doublet(step) {
+            let first = self.tracking.command(&pose, step);
+            let finite = |u: &Unicycle| u.iter().all(|v| v.is_finite());
+            if !finite(&first) {
+                // A finite but absurd pose (e.g. 1e308 m) overflows the controller's state.
+                return life.abort(format!("step {step}: the tracking command is not finite"));
+            }
+            if step + 2 <= agreed.steps {
                 let predicted = unicycle_step(&pose, &first, t);
-                let second = self.tracking.command(&predicted, &reference(step + 1));
+                let second = self.tracking.command(&predicted, step + 1);
+                if !finite(&second) {
+                    return life.abort(format!("step {step}: the tracking command is not finite"));
+                }
                 let inputs = DoubletInputs { first, second };
-                let carries = self.plan.carries(&inputs);
+                let carries = self.plan.carries(agreed.enabled, &inputs);
                 self.pending.push_back(Pending {
                     doublet: step / 2,
                     inputs,
@@ -224,39 +171,36 @@ impl PrivateControllerEndpoint {
                     applied: [None; 2],
                 });
                 self.next_doublet = step / 2 + 1;
-                self.lifecycle.emit(ControllerEvent::DoubletCommanded {
+                life.emit(ControllerEvent::DoubletCommanded {
                     step,
                     inputs,
                     carries,
                 });
                 (first, Some(second))
             } else {
-                self.lifecycle.emit(ControllerEvent::Commanded {
+                life.emit(ControllerEvent::Commanded {
                     step,
                     nominal: first,
                 });
                 (first, None)
             }
         };
-        self.lifecycle.send(
-            SessionMessage::DoubletCommand {
-                step,
-                sample: pose.into(),
-                first: first.into(),
-                second: second.map(Into::into),
-                fates: self.fates.window(self.robot_cursor),
-            }
-            .into(),
-        );
+        life.send(SessionMessage::DoubletCommand {
+            step,
+            sample: pose.into(),
+            first: first.into(),
+            second: second.map(Into::into),
+            fates: life.fates.window(life.robot_cursor),
+        });
     }
 
     /// Resolves, in order, every doublet whose samples and measurements are all in or
     /// known lost; once every step is, closes the session.
-    fn resolve(&mut self) {
+    fn resolve(&mut self, agreed: &Agreed, life: &mut ControllerLifecycle) {
         while let Some(&p) = self.pending.front() {
             let end = 2 * p.doublet + 2;
             let reports_settled = p.applied.iter().all(Option::is_some)
-                || self.reported > (end + REORDER_SLACK).min(self.plan.steps);
+                || self.reported > (end + REORDER_SLACK).min(agreed.steps);
             if self.next_sample <= end || !reports_settled {
                 break;
             }
@@ -268,27 +212,23 @@ impl PrivateControllerEndpoint {
                 _ => None,
             };
             match (p.carries, complete) {
-                (false, _) => self.fates.record(p.doublet, false),
-                (true, Some(samples)) => self.decide(&p, samples),
+                (false, _) => life.fates.record(p.doublet, false),
+                (true, Some(samples)) => self.decide(life, &p, samples),
                 (true, None) => {
-                    self.fates.record(p.doublet, false);
-                    self.lifecycle
-                        .emit(ControllerEvent::DoubletErased { doublet: p.doublet });
+                    life.fates.record(p.doublet, false);
+                    life.emit(ControllerEvent::DoubletErased { doublet: p.doublet });
                 }
             }
         }
-        let over = self.next_sample > self.plan.steps && self.reported > self.plan.steps;
-        if self.lifecycle.running() && over && self.pending.is_empty() {
-            self.key = self.fates.accepted_key(
-                &self.decided,
-                usize::from(self.plan.perturbation.bits_per_doublet),
-            );
-            self.lifecycle
-                .close(self.plan.confirmer.clone(), &self.fates, &[], Outcome::Kept);
+        let over = self.next_sample > agreed.steps && self.reported > agreed.steps;
+        if life.running() && over && self.pending.is_empty() {
+            let bits_per_doublet = usize::from(self.plan.perturbation.bits_per_doublet);
+            let key = life.fates.accepted_key(&self.decided, bits_per_doublet);
+            life.close(agreed.confirmer.clone(), key, false, Outcome::Kept);
         }
     }
 
-    fn decide(&mut self, p: &Pending, samples: [Pose; 3]) {
+    fn decide(&mut self, life: &mut ControllerLifecycle, p: &Pending, samples: [Pose; 3]) {
         let own = |k: usize| PoseObservation::new(samples[k], self.controller_std);
         let stated_camera = |k: usize| PoseObservation::new(samples[k], self.camera_std);
         let view = DoubletView {
@@ -311,15 +251,50 @@ impl PrivateControllerEndpoint {
             assumed_separation: self.model.separations(&p.inputs, &assumed),
         };
         self.decided[p.doublet as usize] = decision.evidence.bits();
-        self.fates.record(p.doublet, true);
-        self.lifecycle
-            .emit(ControllerEvent::DoubletDecided(decision));
+        life.fates.record(p.doublet, true);
+        life.emit(ControllerEvent::DoubletDecided(decision));
+    }
+}
+
+impl ControllerMode for PrivateController {
+    fn on_message(
+        &mut self,
+        agreed: &Agreed,
+        life: &mut ControllerLifecycle,
+        message: SessionMessage,
+    ) {
+        if let SessionMessage::PrivateMeasurement {
+            step,
+            applied_step,
+            fate_cursor,
+        } = message
+            && life.running()
+        {
+            self.handle_measurement(agreed, life, step, applied_step, fate_cursor);
+        }
+    }
+
+    fn on_sensor(
+        &mut self,
+        agreed: &Agreed,
+        life: &mut ControllerLifecycle,
+        step: u32,
+        pose: Pose,
+    ) {
+        self.handle_sample(agreed, life, step, pose);
+    }
+
+    fn uses_sensor(&self) -> bool {
+        true
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::protocol::{
+        Controller, ControllerInput, ControllerOutput, SessionPlan, Time, Timing,
+    };
 
     #[test]
     fn a_doublets_reports_may_come_in_either_order() {
@@ -328,14 +303,17 @@ mod tests {
             "test",
         )
         .unwrap();
-        let mut controller =
-            PrivateControllerEndpoint::new(&config, PrivatePlan::from_config(&config, 1));
+        let plan = SessionPlan::from_config(&config, 1);
+        let mut controller = Controller::new(&config, plan, Timing::default(), Time::ZERO);
         let report = |step, applied_step| {
-            ControllerInput::Frame(Message::Session(SessionMessage::PrivateMeasurement {
-                step,
-                applied_step,
-                fate_cursor: 0,
-            }))
+            ControllerInput::Frame(
+                SessionMessage::PrivateMeasurement {
+                    step,
+                    applied_step,
+                    fate_cursor: 0,
+                }
+                .into(),
+            )
         };
         for input in [
             ControllerInput::Sensor {
@@ -354,7 +332,7 @@ mod tests {
             report(2, Some(1)),
             report(1, Some(0)),
         ] {
-            controller.handle_input(input);
+            controller.handle_input(Time::ZERO, input);
         }
         let decided: Vec<u32> = std::iter::from_fn(|| controller.poll_output())
             .filter_map(|o| match o {

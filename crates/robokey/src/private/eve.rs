@@ -6,12 +6,10 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use super::doublet::DoubletInputs;
-use super::likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation};
-use super::plan::PrivatePlan;
-use super::session::doublet_model;
+use super::likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model};
 use crate::config::Config;
 use crate::model::Pose;
-use crate::protocol::{Closing, KeyBits, Message, SessionMessage};
+use crate::protocol::{Closing, KeyBits, Message, SessionMessage, SessionPlan};
 
 /// What both eavesdroppers make of one carrying doublet.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,7 +38,7 @@ struct Commanded {
 /// her camera (`eve.camera_std`, her effective noise per sample instant).
 #[derive(Debug)]
 pub struct DoubletEavesdropper {
-    plan: PrivatePlan,
+    plan: SessionPlan,
     model: DoubletModel,
     controller_std: [f64; 3],
     camera_std: [f64; 3],
@@ -59,9 +57,9 @@ impl DoubletEavesdropper {
     /// The eavesdroppers of a validated private-sensing configuration.
     #[must_use]
     pub fn new(config: &Config) -> Self {
-        let plan = PrivatePlan::from_config(config, 0);
+        let plan = SessionPlan::from_config(config, 0);
         Self {
-            decided: vec![None; plan.doublets() as usize],
+            decided: vec![None; plan.units() as usize],
             model: doublet_model(config),
             controller_std: config.sensing.controller_std,
             camera_std: config.eve.camera_std,
@@ -83,7 +81,7 @@ impl DoubletEavesdropper {
                 first,
                 second,
                 ..
-            }) if *step <= self.plan.steps => {
+            }) if *step <= self.plan.agreed.steps => {
                 let inputs = second
                     .filter(|_| self.plan.starts_doublet(*step))
                     .map(|second| DoubletInputs {
@@ -97,7 +95,7 @@ impl DoubletEavesdropper {
                 self.try_decide(*step);
             }
             Message::Closing(Closing::Finish { codewords, bitmap })
-                if *codewords == self.plan.doublets() =>
+                if *codewords == self.plan.units() =>
             {
                 self.kept.get_or_insert_with(|| bitmap.clone());
             }
@@ -107,7 +105,7 @@ impl DoubletEavesdropper {
 
     /// Her camera's sample `y_e(k)`.
     pub fn film(&mut self, step: u32, pose: Pose) {
-        if step <= self.plan.steps && pose.iter().all(|v| v.is_finite()) {
+        if step <= self.plan.agreed.steps && pose.iter().all(|v| v.is_finite()) {
             self.camera.entry(step).or_insert(pose);
             self.try_decide(step);
         }
@@ -123,7 +121,7 @@ impl DoubletEavesdropper {
     /// `camera` picks the `camera` adversary's decisions, else the `commands` one's.
     #[must_use]
     pub fn key(&self, camera: bool) -> KeyBits {
-        let bits = usize::from(self.plan.perturbation.bits_per_doublet);
+        let bits = self.plan.bits_per_unit();
         let mut key = KeyBits::default();
         let Some(kept) = &self.kept else {
             return key;

@@ -14,7 +14,22 @@ use nalgebra::{Cholesky, Matrix3, Matrix6, SMatrix, SVector, Vector3, Vector6};
 use robokey_secrecy::special::ln_add_exp;
 
 use super::doublet::{DoubletInputs, Perturbation};
-use crate::model::Pose;
+use crate::config::Config;
+use crate::model::{Pose, Unicycle};
+
+/// The true-noise doublet model of `config`.
+#[must_use]
+pub fn doublet_model(config: &Config) -> DoubletModel {
+    let q = config.noise.process_std.map(|s| s * s);
+    DoubletModel {
+        sample_time: config.robot.sample_time,
+        process_covariance: Matrix3::from_diagonal(&q.into()),
+        perturbation: Perturbation {
+            delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
+            bits_per_doublet: config.protocol.bits_per_doublet,
+        },
+    }
+}
 
 /// A direct Gaussian observation of a pose: `y = x + η`, `η ~ N(0, R)`.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -4,26 +4,25 @@
 //! the robot with her own, noisier camera: the wiretap assumption that makes a secret key
 //! possible.
 
-pub mod controller;
+pub(crate) mod controller;
+pub mod decision;
 pub mod doublet;
 pub mod eve;
 pub mod likelihood;
 pub mod plan;
-pub mod robot;
-pub mod session;
+pub(crate) mod robot;
 
 use serde::Serialize;
 
 use crate::config::EveStrategy;
 
-pub use controller::{DoubletDecision, PrivateControllerEndpoint};
+pub(crate) use controller::PrivateController;
+pub use decision::DoubletDecision;
 pub use doublet::{DoubletInputs, Perturbation};
 pub use eve::{DoubletEavesdropper, EveDoublet};
-pub use likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation};
+pub use likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model};
 pub use plan::PrivatePlan;
-pub use robot::PrivateRobotEndpoint;
-pub use session::doublet_model;
-pub(crate) use session::simulate;
+pub(crate) use robot::PrivateRobot;
 
 /// Which input a bit rides on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

@@ -131,6 +131,13 @@ impl FateLedger {
     }
 }
 
+/// Whether bit `index` of a `Finish` bitmap is set (bit `i % 64` of word `i / 64`).
+pub(crate) fn bitmap_bit(bitmap: &[u64], index: u32) -> bool {
+    bitmap
+        .get(index as usize / 64)
+        .is_some_and(|w| w >> (index % 64) & 1 == 1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

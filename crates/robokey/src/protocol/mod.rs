@@ -1,36 +1,35 @@
 //! The key-agreement protocol as sans-I/O endpoints (docs/protocol.md): the robot and the
-//! controller each take one input enum and emit one output enum; the shells (simulator,
-//! UDP agents) carry the [`Message`]s. A message belongs to one [`Layer`] — handshake,
-//! session, closing or post-processing — and [`MessageType`] is the one table of their wire
-//! types. On a network, the session layer ([`auth`]) lies between the endpoints and the
-//! datagrams ([`wire`]).
+//! controller each take one input enum and emit one output enum, with time as an input
+//! ([`timing`]); the shells (simulator, UDP agents) carry the [`Message`]s. A message belongs
+//! to one [`Layer`] — handshake, session, closing or post-processing — and [`MessageType`] is
+//! the one table of their wire types. On a network, the session layer ([`auth`]) lies between
+//! the endpoints and the datagrams ([`wire`]).
 
 mod assembler;
 pub mod auth;
-pub(crate) mod closing;
-pub(crate) mod controller;
-mod decoder;
-mod endpoint_io;
-mod fates;
-mod message;
-mod plan;
-mod robot;
+pub mod controller;
+pub(crate) mod decoder;
+pub(crate) mod fates;
+pub(crate) mod message;
+pub(crate) mod plan;
+pub mod robot;
+mod terms;
+pub mod timing;
 pub mod wire;
 
 pub use assembler::{CodewordAssembler, ReceivedWord};
 pub use auth::{ConfirmTags, Confirmer, Direction};
-pub use controller::ControllerEndpoint;
+pub use controller::{Controller, ControllerEvent, ControllerInput, ControllerOutput};
 pub use decoder::{Measured, StepDecision, StepDecoder};
-pub use endpoint_io::{
-    Actuation, ControllerEvent, ControllerInput, ControllerOutput, RobotInput, RobotOutput,
-};
 pub use fates::{FateLedger, FateWindow};
 pub use message::{
     AuthMode, Closing, Handshake, Layer, Message, MessageType, PostFragment, SessionMessage,
     TAG_BYTES, TypeError,
 };
-pub use plan::{SessionPlan, agreement_terms, config_digest, terms_difference};
-pub use robot::RobotEndpoint;
+pub use plan::{Agreed, ModePlan, OdometryPlan, SessionPlan};
+pub use robot::{Actuation, Robot, RobotInput, RobotOutput};
+pub use terms::{agreement_terms, config_digest, terms_difference};
+pub use timing::{Pace, Time, Timing};
 
 /// How a session ended for one side.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -1,15 +1,29 @@
-//! What both endpoints agree on before a session starts.
+//! What both endpoints agree on before a session starts: the parameters every session shares
+//! ([`Agreed`]) and those of its sensing mode ([`ModePlan`]).
 
 use std::sync::Arc;
 
 use super::auth::Confirmer;
+use super::terms::config_digest;
 use crate::code::BlockCode;
 use crate::config::{Config, SensingMode};
 use crate::model::{DiffDrive, Unicycle};
+use crate::private::doublet::DoubletInputs;
+use crate::private::likelihood::doublet_model;
+use crate::private::plan::PrivatePlan;
 
 /// The agreed session parameters, derived from the configuration.
 #[derive(Clone, Debug)]
 pub struct SessionPlan {
+    /// What every session agrees on, whatever its sensing mode.
+    pub agreed: Agreed,
+    /// What its sensing mode adds.
+    pub mode: ModePlan,
+}
+
+/// What every session agrees on.
+#[derive(Clone, Debug)]
+pub struct Agreed {
     /// Session id.
     pub session: u32,
     /// SHA-256 of the agreement terms.
@@ -20,12 +34,6 @@ pub struct SessionPlan {
     pub steps: u32,
     /// Whether key bits are sent (false: the J_x baseline).
     pub enabled: bool,
-    /// `Δ = [Δv, Δω]` (m/s, rad/s).
-    pub delta: Unicycle,
-    /// The block code.
-    pub code: Arc<dyn BlockCode>,
-    /// Largest accepted distance to the nearest codeword.
-    pub accept_max_distance: u32,
     /// The agreed wheel geometry.
     pub drive: DiffDrive,
     /// Consecutive missing commands after which the robot stops its wheels.
@@ -37,53 +45,27 @@ pub struct SessionPlan {
     pub confirmer: Confirmer,
 }
 
-impl SessionPlan {
-    /// The plan of a validated configuration. The run is `N` commands long: the
-    /// trajectory's length, cut short when the key budget (`⌊key_bits/k_c⌋` messages) is
-    /// spent earlier.
-    #[must_use]
-    pub fn from_config(config: &Config, session: u32) -> Self {
-        let code = config.code.build();
-        let trajectory_steps = config.trajectory().steps(config.robot.sample_time) as u32;
-        let budget_steps = match config.code.key_bits {
-            0 => u32::MAX,
-            bits => (bits / code.k() as u32).saturating_mul(code.n() as u32),
-        };
-        let steps = if config.protocol.enabled {
-            trajectory_steps.min(budget_steps)
-        } else {
-            trajectory_steps
-        };
-        let digest = config_digest(config);
-        Self {
-            session,
-            config_digest: digest,
-            confirmer: Confirmer::public(session, &digest),
-            sample_time: config.robot.sample_time,
-            steps,
-            enabled: config.protocol.enabled,
-            delta: Unicycle::new(config.protocol.delta_v, config.delta_omega()),
-            code,
-            accept_max_distance: config.code.accept_max_distance,
-            drive: DiffDrive {
-                wheel_radius: config.robot.r,
-                axle_length: config.robot.axle_length,
-            },
-            max_hold: 2,
-            wheel_limit: config.robot.wheel_limit,
-        }
-    }
+/// The parameters of a session's sensing mode.
+#[derive(Clone, Debug)]
+pub enum ModePlan {
+    /// The paper's scheme: the controller decides from the robot's odometry.
+    Odometry(OdometryPlan),
+    /// Private sensing: the controller decides from its own pose sensor.
+    Private(PrivatePlan),
+}
 
-    /// Number of complete codewords (a trailing partial codeword is dropped).
-    #[must_use]
-    pub fn codewords(&self) -> u32 {
-        if self.enabled {
-            self.steps / self.code.n() as u32
-        } else {
-            0
-        }
-    }
+/// The odometry mode's parameters: command pairs `H⁻¹(uU ± Δ)` and a block code.
+#[derive(Clone, Debug)]
+pub struct OdometryPlan {
+    /// `Δ = [Δv, Δω]` (m/s, rad/s).
+    pub delta: Unicycle,
+    /// The block code.
+    pub code: Arc<dyn BlockCode>,
+    /// Largest accepted distance to the nearest codeword.
+    pub accept_max_distance: u32,
+}
 
+impl OdometryPlan {
     /// Codeword index and bit position of step `k`.
     #[must_use]
     pub fn position(&self, step: u32) -> (u32, u32) {
@@ -92,116 +74,118 @@ impl SessionPlan {
     }
 }
 
-/// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
-/// budget, Δ, trajectory, protocol on/off; in private sensing also the mode, the bits per
-/// doublet, the turn gate and Eve's stated camera noise; the `[postprocess]` table, which
-/// sizes the final keys), as `field = value` lines in a fixed order. The robot checks every
-/// command against the agreed Δ, r and D.
-#[must_use]
-pub fn agreement_terms(config: &Config) -> String {
-    let code = &config.code;
-    let traj = &config.trajectory;
-    let built = code.build();
-    let private = match config.sensing.mode {
-        SensingMode::Odometry => String::new(),
-        SensingMode::Private => format!(
-            "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
-             eve.camera_std = {:?}\n",
-            config.protocol.bits_per_doublet, config.protocol.max_turn_rate, config.eve.camera_std
-        ),
-    };
-    // What sizes and labels the final keys both stores hold.
-    let post = &config.postprocess;
-    let assumed = post
-        .assumed_eve_error
-        .map_or_else(|| "none".to_owned(), |p| p.to_string());
-    format!(
-        "robot.T = {}\nrobot.r = {}\nrobot.D = {}\nprotocol.enabled = {}\nprotocol.delta_v = {}\nprotocol.delta_omega = {}\n\
-         code.kind = {:?}\ncode.n_c = {}\ncode.k_c = {}\ncode.accept_max_distance = {}\n\
-         code.key_bits = {}\ntrajectory.waypoints = {:?}\ntrajectory.side_time = {}\n\
-         trajectory.laps = {}\n{private}postprocess.block_bits = {}\n\
-         postprocess.sample_bits = {}\npostprocess.epsilon = {}\n\
-         postprocess.assumed_eve_error = {assumed}\n",
-        config.robot.sample_time,
-        config.robot.r,
-        config.robot.axle_length,
-        config.protocol.enabled,
-        config.protocol.delta_v,
-        config.delta_omega(),
-        code.kind,
-        built.n(),
-        built.k(),
-        code.accept_max_distance,
-        code.key_bits,
-        traj.waypoints,
-        traj.side_time,
-        traj.laps,
-        post.block_bits,
-        post.sample_bits,
-        post.epsilon,
-    )
-}
-
-/// SHA-256 of the [`agreement_terms`].
-#[must_use]
-pub fn config_digest(config: &Config) -> [u8; 32] {
-    use sha2::Digest;
-    sha2::Sha256::digest(agreement_terms(config).as_bytes()).into()
-}
-
-/// Names the terms on which two [`agreement_terms`] texts differ, e.g.
-/// `robot.T: robot has 0.25, controller has 0.2`.
-#[must_use]
-pub fn terms_difference(ours: &str, theirs: &str, we: &str, they: &str) -> String {
-    let parse = |text: &str| -> Vec<(String, String)> {
-        text.lines()
-            .filter_map(|l| l.split_once(" = "))
-            .map(|(k, v)| (k.to_owned(), v.to_owned()))
-            .collect()
-    };
-    let (ours, theirs) = (parse(ours), parse(theirs));
-    let mut differences: Vec<String> = ours
-        .iter()
-        .filter_map(|(key, value)| {
-            let peer = theirs
-                .iter()
-                .find(|(k, _)| k == key)
-                .map_or("(missing)", |(_, v)| v.as_str());
-            (peer != value).then(|| format!("{key}: {we} has {value}, {they} has {peer}"))
-        })
-        .collect();
-    differences.extend(
-        theirs
-            .iter()
-            .filter(|(k, _)| !ours.iter().any(|(o, _)| o == k))
-            .map(|(k, v)| format!("{k}: {we} has (missing), {they} has {v}")),
-    );
-    if differences.is_empty() {
-        "the configuration digests differ".to_owned()
-    } else {
-        differences.join("; ")
+impl SessionPlan {
+    /// The plan of a validated configuration for session `session`. An odometry session is
+    /// `N` commands long: the trajectory's length, cut short when the key budget
+    /// (`⌊key_bits/k_c⌋` messages) is spent earlier; a private one is the trajectory's length.
+    #[must_use]
+    pub fn from_config(config: &Config, session: u32) -> Self {
+        let trajectory_steps = config.trajectory().steps(config.robot.sample_time) as u32;
+        let (steps, mode) = match config.sensing.mode {
+            SensingMode::Odometry => {
+                let code = config.code.build();
+                let budget_steps = match config.code.key_bits {
+                    0 => u32::MAX,
+                    bits => (bits / code.k() as u32).saturating_mul(code.n() as u32),
+                };
+                let steps = if config.protocol.enabled {
+                    trajectory_steps.min(budget_steps)
+                } else {
+                    trajectory_steps
+                };
+                let plan = OdometryPlan {
+                    delta: Unicycle::new(config.protocol.delta_v, config.delta_omega()),
+                    code,
+                    accept_max_distance: config.code.accept_max_distance,
+                };
+                (steps, ModePlan::Odometry(plan))
+            }
+            SensingMode::Private => {
+                let plan = PrivatePlan {
+                    perturbation: doublet_model(config).perturbation,
+                    max_turn_rate: config.protocol.max_turn_rate,
+                };
+                (trajectory_steps, ModePlan::Private(plan))
+            }
+        };
+        let digest = config_digest(config);
+        Self {
+            agreed: Agreed {
+                session,
+                config_digest: digest,
+                confirmer: Confirmer::public(session, &digest),
+                sample_time: config.robot.sample_time,
+                steps,
+                enabled: config.protocol.enabled,
+                drive: DiffDrive {
+                    wheel_radius: config.robot.r,
+                    axle_length: config.robot.axle_length,
+                },
+                max_hold: 2,
+                wheel_limit: config.robot.wheel_limit,
+            },
+            mode,
+        }
     }
-}
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+    /// The same plan for session `session`, confirming with `confirmer` (the session
+    /// layer's, once a network handshake bound the session).
+    #[must_use]
+    pub fn for_session(mut self, session: u32, confirmer: Confirmer) -> Self {
+        self.agreed.session = session;
+        self.agreed.confirmer = confirmer;
+        self
+    }
 
-    #[test]
-    fn differences_are_named() {
-        let a = Config::default();
-        let mut b = Config::default();
-        b.robot.sample_time = 0.25;
-        b.controller.kp = 2.0; // controller-only: not part of the terms
-        assert_ne!(config_digest(&a), config_digest(&b));
-        let text = terms_difference(
-            &agreement_terms(&a),
-            &agreement_terms(&b),
-            "robot",
-            "controller",
-        );
-        assert_eq!(text, "robot.T: robot has 0.2, controller has 0.25");
-        b.robot.sample_time = 0.2;
-        assert_eq!(config_digest(&a), config_digest(&b));
+    /// Units whose fates the session decides: complete codewords (a trailing partial one is
+    /// dropped; none with the protocol off) or doublets `⌊N/2⌋`.
+    #[must_use]
+    pub fn units(&self) -> u32 {
+        match &self.mode {
+            ModePlan::Odometry(_) if !self.agreed.enabled => 0,
+            ModePlan::Odometry(o) => self.agreed.steps / o.code.n() as u32,
+            ModePlan::Private(_) => self.agreed.steps / 2,
+        }
+    }
+
+    /// Key bits a kept unit adds: `k_c`, or the bits per doublet.
+    #[must_use]
+    pub fn bits_per_unit(&self) -> usize {
+        match &self.mode {
+            ModePlan::Odometry(o) => o.code.k(),
+            ModePlan::Private(p) => usize::from(p.perturbation.bits_per_doublet),
+        }
+    }
+
+    /// The odometry mode's parameters, if this is an odometry session.
+    #[must_use]
+    pub fn odometry(&self) -> Option<&OdometryPlan> {
+        match &self.mode {
+            ModePlan::Odometry(o) => Some(o),
+            ModePlan::Private(_) => None,
+        }
+    }
+
+    /// Private sensing's parameters, if this is a private session.
+    #[must_use]
+    pub fn private(&self) -> Option<&PrivatePlan> {
+        match &self.mode {
+            ModePlan::Private(p) => Some(p),
+            ModePlan::Odometry(_) => None,
+        }
+    }
+
+    /// Whether a doublet with these public inputs carries bits: private sensing, the
+    /// protocol on, and its nominal turn rate within the gate.
+    #[must_use]
+    pub fn carries(&self, inputs: &DoubletInputs) -> bool {
+        self.private()
+            .is_some_and(|p| p.carries(self.agreed.enabled, inputs))
+    }
+
+    /// Whether step `k` starts a doublet (private sensing; never in odometry mode).
+    #[must_use]
+    pub fn starts_doublet(&self, step: u32) -> bool {
+        self.private().is_some() && step.is_multiple_of(2) && step + 2 <= self.agreed.steps
     }
 }

@@ -1,0 +1,351 @@
+//! Renders the secrecy stage of a sweep folder ([`Secrecy`]): `secrecy.csv`, `secrecy.md`
+//! (with the private-sensing section and map, and `turn-rates.csv`, when the sweep has one)
+//! and the figures.
+
+use std::path::{Path, PathBuf};
+
+use super::private::{PrivateRow, map_markdown, private_markdown, turn_rates_csv, write_map};
+use crate::error::LabError;
+use crate::experiment::{Experiment, axis_label, param_label, param_number};
+use crate::output::write;
+use crate::plot::{LineChart, Series, SeriesStyle};
+use crate::secrecy::pipeline::H_MIN_BINOMIAL;
+use crate::secrecy::{Block, PointSecrecy, Pooling, Rate, Secrecy};
+
+/// A CSV field: quoted, inner quotes doubled.
+fn quoted(text: &str) -> String {
+    format!("\"{}\"", text.replace('"', "\"\""))
+}
+
+/// Sums a block field over a row's blocks.
+fn total(r: &PointSecrecy, field: fn(&Block) -> u64) -> u64 {
+    r.blocks.iter().map(field).sum()
+}
+
+/// `secrecy.csv`: one row per point and adversary.
+#[must_use]
+pub fn secrecy_csv(results: &[PointSecrecy]) -> String {
+    let mut out = String::from(
+        "point,adversary,adversary_class,pooling,sessions,sessions_pooled,steps,p_c,p_c_low,p_c_high,p_e,p_e_low,p_e_high,info_advantage,info_advantage_low,info_advantage_high,info_conditional,raw_bits,raw_bits_per_step,eve_error_accepted,eve_error_accepted_high,acceptance_p,blocks,q_estimate,messages,leak_ec,leak_confirmation,h_min,secret_bits,secret_bits_per_step,secret_bits_per_second,realised_h_min,realised_secret_bits,assumption_exceeds_realised,zero_reason,assumption,structural_zero\n",
+    );
+    for r in results {
+        let rate = |x: &Option<Rate>| {
+            x.map_or(",,".to_owned(), |x| {
+                format!("{},{},{}", x.rate, x.low, x.high)
+            })
+        };
+        let info = |x: &Option<[f64; 3]>| {
+            x.map_or(",,".to_owned(), |x| format!("{},{},{}", x[0], x[1], x[2]))
+        };
+        let h_min: f64 = r.blocks.iter().map(|b| b.h_min).sum();
+        let realised: f64 = r.blocks.iter().map(|b| b.realised.h_min).sum();
+        out.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            quoted(&r.point),
+            r.adversary,
+            r.adversary_class.name(),
+            r.pooling.name(),
+            r.sessions,
+            r.sessions_pooled,
+            r.steps,
+            rate(&r.p_c),
+            rate(&r.p_e),
+            info(&r.information_advantage),
+            r.information_conditional
+                .map_or(String::new(), |x| x[0].to_string()),
+            r.raw_bits,
+            r.raw_bits_per_step,
+            r.eve_error_accepted
+                .map_or(",".to_owned(), |x| format!("{},{}", x.rate, x.high)),
+            r.acceptance_independence_p
+                .map_or(String::new(), |p| p.to_string()),
+            r.blocks.len(),
+            r.q_estimate.map_or(String::new(), |q| q.to_string()),
+            total(r, |b| u64::from(b.messages)),
+            total(r, |b| b.leak_ec),
+            total(r, |b| b.leak_confirmation),
+            h_min,
+            r.secret_bits,
+            r.secret_bits_per_step,
+            r.secret_bits_per_second,
+            realised,
+            r.realised_secret_bits,
+            r.assumption_exceeds_realised,
+            quoted(r.zero_reason.as_deref().unwrap_or("")),
+            quoted(&r.assumption),
+            quoted(r.structural_zero.as_deref().unwrap_or("")),
+        ));
+    }
+    out
+}
+
+fn percent(x: &Option<Rate>) -> String {
+    x.map_or("–".into(), |x| {
+        format!(
+            "{:.2} [{:.2}, {:.2}]",
+            100.0 * x.rate,
+            100.0 * x.low,
+            100.0 * x.high
+        )
+    })
+}
+
+/// A markdown section for `report.md`: the structural verdict first, then one row per
+/// point and adversary (strongest first), each naming whom it holds against.
+#[must_use]
+pub fn secrecy_markdown(secrecy: &Secrecy) -> String {
+    let results = &secrecy.results;
+    let mut md = String::new();
+    if let Some(reason) = results.iter().find_map(|r| r.structural_zero.as_deref()) {
+        md.push_str(&format!(
+            "**Secret key rate: 0.** The configuration yields no secret key, {reason}. \
+             Figures against a restricted adversary hold only if nobody learns r and D.\n\n"
+        ));
+    }
+    if let Some(first) = results.first().filter(|r| r.structural_zero.is_none()) {
+        md.push_str(&format!(
+            "Key length from the stated assumption: {}.\n\n",
+            first.assumption
+        ));
+    }
+    md.push_str(
+        "The realised columns are a diagnostic from each adversary's own view (approximation), \
+         never what sizes the key.\n\n",
+    );
+    md.push_str(
+        "| point | adversary (class) | p_c % | p_e % | raw bits/step | Eve wrong on raw-key bits % | messages | leak_EC | leak_conf | secret bits/step (assumption) | realised H_min | realised ℓ | why zero |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in results {
+        let realised: f64 = r.blocks.iter().map(|b| b.realised.h_min).sum();
+        let warning = if r.assumption_exceeds_realised {
+            " **the assumption credits more than this adversary's realised view supports**"
+        } else {
+            ""
+        };
+        md.push_str(&format!(
+            "| {} | {} ({}) | {} | {} | {:.4} | {} | {} | {} | {} | {:.5} | {:.2} | {}{} | {} |\n",
+            r.point,
+            r.adversary,
+            r.adversary_class.name(),
+            percent(&r.p_c),
+            percent(&r.p_e),
+            r.raw_bits_per_step,
+            percent(&r.eve_error_accepted),
+            total(r, |b| u64::from(b.messages)),
+            total(r, |b| b.leak_ec),
+            total(r, |b| b.leak_confirmation),
+            r.secret_bits_per_step,
+            realised,
+            r.realised_secret_bits,
+            warning,
+            r.zero_reason.as_deref().unwrap_or("")
+        ));
+    }
+    let pooling = match secrecy.pooling {
+        Pooling::Confirmed => {
+            "sessions whose key tags matched (today's agents), each pooled session's two directional 128-bit key tags charged, nothing reconciled"
+        }
+        Pooling::Complete => {
+            "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags and committed in two phases"
+        }
+    };
+    let mut held: Vec<String> = Vec::new();
+    for r in results {
+        let line = format!("{} = {}", r.adversary, r.holds_against);
+        if !held.contains(&line) {
+            held.push(line);
+        }
+    }
+    let method = results
+        .iter()
+        .find_map(|r| r.blocks.first())
+        .map_or(H_MIN_BINOMIAL, |b| b.realised.h_min_method.as_str());
+    let p_of = if method == H_MIN_BINOMIAL {
+        ", with Eve's error p taken as the one-sided Clopper–Pearson lower bound at level 1 − ε_PE"
+    } else {
+        ""
+    };
+    md.push_str(&format!(
+        "\nPooling: {pooling}; blocks of at least {} raw bits (whole sessions). Realised H_min: {method}{p_of}. ε_s = ε_PA = ε_PE = {:e} (the key is {:e}-secret). p_c, p_e: 95 % Clopper–Pearson intervals over applied bits. Whom each row holds against: {}. See docs/secrecy.md.\n",
+        secrecy.block_bits,
+        secrecy.epsilon,
+        4.0 * secrecy.epsilon,
+        held.join("; "),
+    ));
+    let rows = private_rows(results);
+    if !rows.is_empty() {
+        md.push('\n');
+        md.push_str(&private_markdown(&rows));
+    }
+    md
+}
+
+/// The rows of `results` that carry private-sensing figures.
+fn private_rows(results: &[PointSecrecy]) -> Vec<PrivateRow<'_>> {
+    results
+        .iter()
+        .filter_map(|r| {
+            Some(PrivateRow {
+                point: &r.point,
+                adversary: &r.adversary,
+                figures: r.private.as_ref()?,
+            })
+        })
+        .collect()
+}
+
+/// Adds `point` to the series labelled `label`, starting it (with `style`) if new.
+fn push_point(series: &mut Vec<Series>, label: String, point: (f64, f64), style: SeriesStyle) {
+    match series.iter_mut().find(|s| s.label == label) {
+        Some(s) => s.points.push(point),
+        None => series.push(Series::new(label, vec![point], style)),
+    }
+}
+
+/// Renders `secrecy` (of `experiment`'s points) into `dir`: `secrecy.csv`, `secrecy.md`, the
+/// figure `secrecy-bits-per-step.{svg,png,pdf,csv}`, and in private sensing the map's
+/// figures and `turn-rates.csv`; returns the files.
+///
+/// # Errors
+/// A file cannot be written.
+pub fn write_secrecy(
+    dir: &Path,
+    experiment: &Experiment,
+    secrecy: &Secrecy,
+) -> Result<Vec<PathBuf>, LabError> {
+    std::fs::create_dir_all(dir).map_err(crate::error::io_at(dir))?;
+    let results = &secrecy.results;
+    let map = secrecy.map.as_ref();
+    let mut files = vec![
+        write(&dir.join("secrecy.csv"), secrecy_csv(results))?,
+        write(
+            &dir.join("secrecy.md"),
+            secrecy_markdown(secrecy)
+                + &map.map_or_else(String::new, |m| {
+                    map_markdown(m, secrecy.block_bits, secrecy.epsilon)
+                }),
+        )?,
+    ];
+    if let Some(map) = map {
+        files.extend(write_map(dir, map)?);
+    }
+    let rows = private_rows(results);
+    if !rows.is_empty() {
+        files.push(write(&dir.join("turn-rates.csv"), turn_rates_csv(&rows))?);
+    }
+    // x: the first axis in the units people read; one series per adversary and setting of
+    // the other axes (a multi-axis sweep drawn against its first axis alone is a sawtooth).
+    let axis = experiment.axes.first().map(|a| a.field.as_str());
+    let x_of = |r: &PointSecrecy| {
+        let (field, value) = experiment.points[r.point_index].params.first()?;
+        param_number(field, value)
+    };
+    let setting = |r: &PointSecrecy| {
+        experiment.points[r.point_index].params[1.min(experiment.axes.len())..]
+            .iter()
+            .map(|(f, v)| param_label(f, v))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut series: Vec<Series> = Vec::new();
+    for r in results {
+        let context = setting(r);
+        let label = format!(
+            "vs {} Eve ({}){}",
+            r.adversary,
+            r.adversary_class.name(),
+            if context.is_empty() {
+                String::new()
+            } else {
+                format!(", {context}")
+            }
+        );
+        if let Some(x) = x_of(r) {
+            push_point(
+                &mut series,
+                label,
+                (x, r.secret_bits_per_step),
+                SeriesStyle::Line,
+            );
+        }
+    }
+    let mut raw: Vec<Series> = Vec::new();
+    for r in results
+        .iter()
+        .filter(|r| r.adversary == results[0].adversary)
+    {
+        let context = setting(r);
+        let label = if context.is_empty() {
+            "raw agreed bits".to_owned()
+        } else {
+            format!("raw agreed bits, {context}")
+        };
+        if let Some(x) = x_of(r) {
+            push_point(
+                &mut raw,
+                label,
+                (x, r.raw_bits_per_step),
+                SeriesStyle::Dashed,
+            );
+        }
+    }
+    series.extend(raw);
+    if series.iter().any(|s| !s.points.is_empty()) {
+        let chart = LineChart {
+            title: format!(
+                "Secret bits per robot step (ε = {:e}, blocks of {} bits)",
+                4.0 * secrecy.epsilon,
+                secrecy.block_bits
+            ),
+            x_label: axis.map_or_else(|| "point".to_owned(), axis_label),
+            y_label: "bits per robot step".into(),
+            series,
+            equal_aspect: false,
+            log_y: false,
+        };
+        let base = dir.join("secrecy-bits-per-step");
+        files.extend(chart.save(&base).map_err(|e| LabError::Plot {
+            path: base.clone(),
+            message: e.to_string(),
+        })?);
+    }
+    Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use robokey::config::EveStrategy;
+
+    use super::*;
+    use crate::run::sessions::SessionBank;
+    use crate::secrecy::SecrecyOptions;
+
+    #[test]
+    fn reports_lead_with_the_verdict_and_the_strongest_adversary() {
+        let experiment =
+            Experiment::from_table("t", "[run]\nreplicates = 1\n".parse().unwrap(), "t.toml")
+                .unwrap();
+        let options = SecrecyOptions {
+            adversaries: vec![EveStrategy::Mismatch, EveStrategy::Oracle],
+            block_bits: 500,
+            bootstrap: 50,
+            ..SecrecyOptions::default()
+        };
+        let secrecy = Secrecy::compute(&experiment, &options, &mut SessionBank::new()).unwrap();
+        let md = secrecy_markdown(&secrecy);
+        assert!(md.starts_with("**Secret key rate: 0.**"), "{md}");
+        let row = |adversary: &str| md.find(&format!("| {adversary} |")).unwrap();
+        assert!(
+            row("oracle (strongest)") < row("mismatch (restricted)"),
+            "{md}"
+        );
+        let csv = secrecy_csv(&secrecy.results);
+        assert_eq!(csv.lines().count(), 3);
+        assert!(
+            csv.lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("\"\",oracle,strongest,")
+        );
+    }
+}

@@ -1,0 +1,21 @@
+//! What the controller decided about a carrying doublet.
+
+use super::doublet::DoubletInputs;
+use super::likelihood::BitEvidence;
+
+/// What the controller made of one carrying doublet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DoubletDecision {
+    /// Doublet index j.
+    pub doublet: u32,
+    /// Its first step `2j`.
+    pub step: u32,
+    /// Its public inputs.
+    pub inputs: DoubletInputs,
+    /// The controller's LLR and separation of each bit; the bit is the LLR's sign
+    /// (`ln P(view|0) − ln P(view|1)`, 1 when negative).
+    pub evidence: BitEvidence,
+    /// Each bit's separation under the camera Eve's model as the controller can compute it
+    /// — her stated camera noise around its own samples — which sizes the key.
+    pub assumed_separation: [f64; 2],
+}

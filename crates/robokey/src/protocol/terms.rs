@@ -1,0 +1,118 @@
+//! The agreement terms: what both sides must hold equal before a session starts, their digest
+//! (carried in `Hello` and `HelloAck`), and how a difference is named.
+
+use crate::config::{Config, SensingMode};
+
+/// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
+/// budget, Δ, trajectory, protocol on/off; in private sensing also the mode, the bits per
+/// doublet, the turn gate and Eve's stated camera noise; the `[postprocess]` table, which
+/// sizes the final keys), as `field = value` lines in a fixed order. The robot checks every
+/// command against the agreed Δ, r and D.
+#[must_use]
+pub fn agreement_terms(config: &Config) -> String {
+    let code = &config.code;
+    let traj = &config.trajectory;
+    let built = code.build();
+    let private = match config.sensing.mode {
+        SensingMode::Odometry => String::new(),
+        SensingMode::Private => format!(
+            "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
+             eve.camera_std = {:?}\n",
+            config.protocol.bits_per_doublet, config.protocol.max_turn_rate, config.eve.camera_std
+        ),
+    };
+    // What sizes and labels the final keys both stores hold.
+    let post = &config.postprocess;
+    let assumed = post
+        .assumed_eve_error
+        .map_or_else(|| "none".to_owned(), |p| p.to_string());
+    format!(
+        "robot.T = {}\nrobot.r = {}\nrobot.D = {}\nprotocol.enabled = {}\nprotocol.delta_v = {}\nprotocol.delta_omega = {}\n\
+         code.kind = {:?}\ncode.n_c = {}\ncode.k_c = {}\ncode.accept_max_distance = {}\n\
+         code.key_bits = {}\ntrajectory.waypoints = {:?}\ntrajectory.side_time = {}\n\
+         trajectory.laps = {}\n{private}postprocess.block_bits = {}\n\
+         postprocess.sample_bits = {}\npostprocess.epsilon = {}\n\
+         postprocess.assumed_eve_error = {assumed}\n",
+        config.robot.sample_time,
+        config.robot.r,
+        config.robot.axle_length,
+        config.protocol.enabled,
+        config.protocol.delta_v,
+        config.delta_omega(),
+        code.kind,
+        built.n(),
+        built.k(),
+        code.accept_max_distance,
+        code.key_bits,
+        traj.waypoints,
+        traj.side_time,
+        traj.laps,
+        post.block_bits,
+        post.sample_bits,
+        post.epsilon,
+    )
+}
+
+/// SHA-256 of the [`agreement_terms`].
+#[must_use]
+pub fn config_digest(config: &Config) -> [u8; 32] {
+    use sha2::Digest;
+    sha2::Sha256::digest(agreement_terms(config).as_bytes()).into()
+}
+
+/// Names the terms on which two [`agreement_terms`] texts differ, e.g.
+/// `robot.T: robot has 0.25, controller has 0.2`.
+#[must_use]
+pub fn terms_difference(ours: &str, theirs: &str, we: &str, they: &str) -> String {
+    let parse = |text: &str| -> Vec<(String, String)> {
+        text.lines()
+            .filter_map(|l| l.split_once(" = "))
+            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+            .collect()
+    };
+    let (ours, theirs) = (parse(ours), parse(theirs));
+    let mut differences: Vec<String> = ours
+        .iter()
+        .filter_map(|(key, value)| {
+            let peer = theirs
+                .iter()
+                .find(|(k, _)| k == key)
+                .map_or("(missing)", |(_, v)| v.as_str());
+            (peer != value).then(|| format!("{key}: {we} has {value}, {they} has {peer}"))
+        })
+        .collect();
+    differences.extend(
+        theirs
+            .iter()
+            .filter(|(k, _)| !ours.iter().any(|(o, _)| o == k))
+            .map(|(k, v)| format!("{k}: {we} has (missing), {they} has {v}")),
+    );
+    if differences.is_empty() {
+        "the configuration digests differ".to_owned()
+    } else {
+        differences.join("; ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn differences_are_named() {
+        let a = Config::default();
+        let mut b = Config::default();
+        b.robot.sample_time = 0.25;
+        b.controller.kp = 2.0; // controller-only: not part of the terms
+        assert_ne!(config_digest(&a), config_digest(&b));
+        let text = terms_difference(
+            &agreement_terms(&a),
+            &agreement_terms(&b),
+            "robot",
+            "controller",
+        );
+        assert_eq!(text, "robot.T: robot has 0.2, controller has 0.25");
+        b.robot.sample_time = 0.2;
+        assert_eq!(config_digest(&a), config_digest(&b));
+    }
+}

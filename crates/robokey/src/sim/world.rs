@@ -1,0 +1,338 @@
+//! The world of one simulated session: the plant and its sensors around the robot and the
+//! controller on an ideal virtual link, and the eavesdropper listening — in either sensing
+//! mode. It answers the robot's sample requests, drives the plant with what the robot
+//! applies, and records what every party decided.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use super::StepBits;
+use super::plant::{Plant, Sensor};
+use super::trace::TraceRows;
+use crate::config::{Config, EveStrategy};
+use crate::eve::Eavesdropper;
+use crate::pair::{Side, Surroundings};
+use crate::private::{
+    BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, EveDoublet, PrivateRun,
+};
+use crate::protocol::{
+    Controller, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, Robot,
+    RobotInput, RobotOutput, SessionMessage, Time,
+};
+use crate::trajectory::Trajectory;
+
+/// What the sensors of a sensing mode observe, and who listens.
+pub(super) enum Senses<'a> {
+    /// The robot's odometry; the eavesdropper (if any) hears the messages.
+    Odometry {
+        /// The robot's odometry sensor.
+        odometry: Box<Sensor>,
+        /// The eavesdropper, when the run has one.
+        eve: Option<Box<dyn Eavesdropper>>,
+        /// Every message in the order a tap hears it, when asked for.
+        transcript: Option<&'a mut Vec<Message>>,
+    },
+    /// The controller's own sensor and Eve's camera; both private-sensing eavesdroppers.
+    Private(Box<PrivateSenses>),
+}
+
+/// Private sensing's sensors, eavesdroppers and bookkeeping.
+pub(super) struct PrivateSenses {
+    /// The controller's own pose sensor.
+    pub(super) controller: Sensor,
+    /// Eve's camera.
+    pub(super) camera: Sensor,
+    /// The `camera` and `commands` eavesdroppers.
+    pub(super) eve: DoubletEavesdropper,
+    /// The controller's decisions, waiting for the eavesdroppers' on the same doublet.
+    pub(super) decided: VecDeque<DoubletDecision>,
+    /// The eavesdroppers' decisions, by doublet.
+    pub(super) heard: BTreeMap<u32, EveDoublet>,
+    /// What the session carried.
+    pub(super) run: PrivateRun,
+}
+
+/// The world of one simulated session.
+pub(super) struct World<'a> {
+    pub(super) config: &'a Config,
+    pub(super) trajectory: Trajectory,
+    pub(super) sample_time: f64,
+    pub(super) plant: Plant,
+    pub(super) senses: Senses<'a>,
+    /// `Σ_k ‖p(k) − r(k)‖` over `k = 1…N` (m).
+    pub(super) tracking_error: f64,
+    /// The applied bit and both decisions of every step `k ≤ N`.
+    pub(super) log: Vec<StepBits>,
+    pub(super) trace: TraceRows<'a>,
+    pub(super) robot_outcome: Option<Outcome>,
+    pub(super) controller_outcome: Option<Outcome>,
+    /// Odometry: why the controller aborted (the run fails).
+    pub(super) abort: Option<String>,
+}
+
+impl World<'_> {
+    /// Sample instant `t_k`: the plant moves one period (from `k = 1`), the sensors observe
+    /// it, and the robot — and in private sensing the controller — get their samples.
+    fn sense(&mut self, now: Time, step: u32, robot: &mut Robot, controller: &mut Controller) {
+        self.record_private(robot);
+        if step > 0 {
+            self.plant.step();
+        }
+        // No later step writes the rows before this one (in private sensing, the row before
+        // it: a doublet's decision lands on its second step's row).
+        let settled = match self.senses {
+            Senses::Odometry { .. } => step,
+            Senses::Private(_) => step.saturating_sub(1),
+        };
+        self.trace.complete_before(settled as usize);
+        let pose = self.plant.pose();
+        let t = f64::from(step) * self.sample_time;
+        let reference = self.trajectory.at(t).position;
+        if step > 0 {
+            self.tracking_error += (pose.xy() - reference).norm();
+        }
+        let (measured, filmed) = match &mut self.senses {
+            Senses::Odometry { odometry, .. } => (odometry.sample(&pose), None),
+            Senses::Private(p) => (p.controller.sample(&pose), Some(p.camera.sample(&pose))),
+        };
+        if let Some(row) = self.trace.row(step as usize) {
+            row.k = step;
+            row.t = t;
+            row.reference = reference.into();
+            row.pose = pose.into();
+            row.measurement = measured.into();
+            row.camera = filmed.map(Into::into);
+        }
+        match &mut self.senses {
+            Senses::Odometry { .. } => {
+                robot.handle_input(now, RobotInput::Sample { step, y: measured });
+            }
+            Senses::Private(p) => {
+                if let Some(filmed) = filmed {
+                    p.eve.film(step, filmed);
+                    p.collect();
+                }
+                // The simulated robot has no odometry of its own: it would send none anyway.
+                robot.handle_input(now, RobotInput::Sample { step, y: pose });
+                controller.handle_input(
+                    now,
+                    ControllerInput::Sensor {
+                        step,
+                        pose: measured,
+                    },
+                );
+            }
+        }
+    }
+
+    /// Records, in the controller's order, every doublet both it and the eavesdroppers have
+    /// decided (private sensing).
+    pub(super) fn record_private(&mut self, robot: &Robot) {
+        let Senses::Private(p) = &mut self.senses else {
+            return;
+        };
+        while let Some(e) = p.decided.front().and_then(|d| p.heard.remove(&d.doublet)) {
+            let d = p
+                .decided
+                .pop_front()
+                .expect("paired with the front decision");
+            let bits = robot
+                .carried_bits(d.doublet)
+                .expect("the robot carried every doublet the simulated controller decides");
+            record(
+                self.config,
+                &d,
+                &e,
+                bits,
+                &mut p.run,
+                &mut self.log,
+                &mut self.trace,
+            );
+        }
+    }
+}
+
+impl PrivateSenses {
+    /// Takes the eavesdroppers' decisions.
+    fn collect(&mut self) {
+        while let Some(doublet) = self.eve.poll() {
+            self.heard.insert(doublet.doublet, doublet);
+        }
+    }
+}
+
+impl Surroundings<Robot, Controller> for World<'_> {
+    fn robot_output(
+        &mut self,
+        now: Time,
+        output: RobotOutput,
+        robot: &mut Robot,
+        controller: &mut Controller,
+    ) {
+        match output {
+            RobotOutput::Sense { step } => self.sense(now, step, robot, controller),
+            RobotOutput::Apply(actuation) => {
+                self.plant.apply(actuation.wheels);
+                if let Some(row) = self.trace.row(actuation.step as usize) {
+                    row.bit = actuation.bit;
+                    if self.config.protocol.bits_per_doublet == 2
+                        && matches!(self.senses, Senses::Private(_))
+                    {
+                        row.bit_omega = actuation
+                            .bit
+                            .and(robot.carried_bits(actuation.step / 2))
+                            .map(|b| b[1]);
+                    }
+                }
+                if let Senses::Odometry { .. } = self.senses
+                    && let Some(logged) = self.log.get_mut(actuation.step as usize)
+                {
+                    logged.bit = actuation.bit;
+                }
+            }
+            RobotOutput::Finished(outcome) => self.robot_outcome = Some(outcome),
+            RobotOutput::Transmit(_) => {}
+        }
+    }
+
+    fn controller_output(
+        &mut self,
+        _now: Time,
+        output: ControllerOutput,
+        robot: &mut Robot,
+        _controller: &mut Controller,
+    ) {
+        let ControllerOutput::Event(event) = output else {
+            return;
+        };
+        match event {
+            ControllerEvent::Decoded(d) => {
+                if let Some(logged) = self.log.get_mut(d.step as usize) {
+                    logged.bhat = d.bit;
+                }
+                if let Some(row) = self.trace.row(d.step as usize + 1) {
+                    row.bhat = d.bit;
+                    row.dhat = Some(d.estimate.deviation.into());
+                    row.xhat = Some(d.estimate.state.into());
+                }
+            }
+            ControllerEvent::Commanded { step, nominal } => {
+                if let Some(row) = self.trace.row(step as usize) {
+                    row.nominal = Some(nominal.into());
+                }
+            }
+            ControllerEvent::DoubletCommanded {
+                step,
+                inputs,
+                carries,
+            } => {
+                if let Senses::Private(p) = &mut self.senses {
+                    p.run.doublets += 1;
+                    p.run.gated += u32::from(self.config.protocol.enabled && !carries);
+                }
+                for (k, nominal) in [(step, inputs.first), (step + 1, inputs.second)] {
+                    if let Some(row) = self.trace.row(k as usize) {
+                        row.nominal = Some(nominal.into());
+                    }
+                }
+            }
+            ControllerEvent::DoubletDecided(decision) => {
+                if let Senses::Private(p) = &mut self.senses {
+                    p.decided.push_back(decision);
+                }
+                self.record_private(robot);
+            }
+            ControllerEvent::Finished(outcome) => {
+                if let (Senses::Odometry { .. }, Outcome::Aborted(reason)) =
+                    (&self.senses, &outcome)
+                {
+                    self.abort = Some(reason.clone());
+                }
+                self.controller_outcome = Some(outcome);
+            }
+            ControllerEvent::Missing(_)
+            | ControllerEvent::CodewordDecided { .. }
+            | ControllerEvent::DoubletErased { .. } => {}
+        }
+    }
+
+    fn heard(&mut self, from: Side, message: &Message) {
+        match &mut self.senses {
+            Senses::Odometry {
+                eve, transcript, ..
+            } => {
+                if let Some(transcript) = transcript.as_deref_mut() {
+                    transcript.push(message.clone());
+                }
+                let decision = eve.as_mut().and_then(|eve| eve.observe(message));
+                if let (Side::Robot, Some(d)) = (from, decision) {
+                    if let Some(logged) = self.log.get_mut(d.step as usize) {
+                        logged.bhat_eve = d.bit;
+                    }
+                    if let Some(row) = self.trace.row(d.step as usize + 1) {
+                        row.bhat_eve = d.bit;
+                    }
+                }
+                if let Message::Session(SessionMessage::Command { step, u0, u1, .. }) = message
+                    && let Some(row) = self.trace.row(*step as usize)
+                {
+                    row.u0 = Some(*u0);
+                    row.u1 = Some(*u1);
+                }
+            }
+            Senses::Private(p) => {
+                p.eve.observe(message);
+                p.collect();
+            }
+        }
+    }
+
+    fn done(&self) -> bool {
+        self.abort.is_some() || (self.robot_outcome.is_some() && self.controller_outcome.is_some())
+    }
+}
+
+/// Records a decided doublet's bits — the robot's, and every party's evidence — in the run,
+/// the step log and the trace.
+fn record(
+    config: &Config,
+    d: &DoubletDecision,
+    e: &EveDoublet,
+    bits: [u8; 2],
+    run: &mut PrivateRun,
+    log: &mut [StepBits],
+    trace: &mut TraceRows<'_>,
+) {
+    for (i, kind) in BitKind::ALL
+        .iter()
+        .enumerate()
+        .take(usize::from(config.protocol.bits_per_doublet))
+    {
+        run.bits.push(DoubletBit {
+            step: d.step,
+            kind: *kind,
+            bit: bits[i],
+            turn_rate: d.inputs.turn_rate(),
+            controller: d.evidence.llr[i],
+            camera: e.camera.llr[i],
+            commands: e.commands.llr[i],
+            camera_separation: e.camera.separation[i],
+            assumed_separation: d.assumed_separation[i],
+            commands_separation: e.commands.separation[i],
+        });
+    }
+    let decide = |llr: f64| u8::from(llr < 0.0);
+    let eve_llr = match config.eve_strategy() {
+        EveStrategy::Commands => e.commands.llr[0],
+        _ => e.camera.llr[0],
+    };
+    let logged = StepBits {
+        bit: Some(bits[0]),
+        bhat: Some(decide(d.evidence.llr[0])),
+        bhat_eve: config.eve.enabled.then(|| decide(eve_llr)),
+    };
+    log[d.step as usize] = logged;
+    if let Some(row) = trace.row(d.step as usize + 1) {
+        row.bhat = logged.bhat;
+        row.bhat_eve = logged.bhat_eve;
+    }
+}
