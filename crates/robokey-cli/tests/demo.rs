@@ -10,8 +10,8 @@ fn the_demo_ends_with_the_same_settled_key_in_both_stores_and_never_prints_it() 
     let dir = scratch("demo");
     let out = dir.join("demo");
     // Two bits per doublet (a session pools about 600 raw bits through the relay's faults)
-    // and 1,600-bit blocks: a block after three sessions, whose key (about 300 bits; the
-    // shortest of six 1,200-bit blocks was 49) is long enough to look for in the output.
+    // and 1,600-bit blocks: a block after three sessions, whose key (475 bits in a trial;
+    // six 1,200-bit blocks gave 49 to 229) is long enough to look for in the output.
     let (code, text) = run_code(&[
         "demo",
         "--out",
