@@ -110,17 +110,14 @@ impl StoredKey {
     /// The stored form of `key`, committed (or prepared) now by `role`.
     #[must_use]
     pub fn new(key: &FinalKey, role: &str, restricted: bool, status: KeyStatus) -> Self {
-        let mut hex = String::with_capacity(key.key.len().div_ceil(4));
-        let mut bytes = vec![0_u8; key.key.len().div_ceil(8)];
+        let mut bytes = Zeroizing::new(vec![0_u8; key.key.len().div_ceil(8)]);
         for i in 0..key.key.len() {
             if key.key.get(i) == Some(true) {
                 bytes[i / 8] |= 0x80 >> (i % 8);
             }
         }
-        for byte in &bytes {
-            hex.push_str(&format!("{byte:02x}"));
-        }
-        bytes.zeroize();
+        // Hex without data-dependent branches or table look-ups (base16ct): it is the key.
+        let hex = base16ct::lower::encode_string(&bytes);
         Self {
             id: key.id.clone(),
             role: role.to_owned(),
@@ -130,7 +127,7 @@ impl StoredKey {
             epsilon: key.epsilon,
             assumption: key.assumption.clone(),
             restricted,
-            created: utc_now(),
+            created: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
             sessions: key.sessions.clone(),
             status,
             taken: Vec::new(),
@@ -394,7 +391,7 @@ impl KeyStore {
         let mut text = Zeroizing::new(Vec::with_capacity(body.len() + 100));
         text.extend_from_slice(open.as_bytes());
         text.extend_from_slice(MAC_FIELD.as_bytes());
-        text.extend_from_slice(hex(&tag).as_bytes());
+        text.extend_from_slice(base16ct::lower::encode_string(&tag).as_bytes());
         text.extend_from_slice(b"\"\n}\n");
         Ok(text)
     }
@@ -415,7 +412,7 @@ impl KeyStore {
         })?;
         let tag = tail
             .strip_suffix("\"\n}\n")
-            .and_then(unhex)
+            .and_then(|hex| base16ct::mixed::decode_vec(hex).ok())
             .ok_or_else(|| bad("does not verify: its MAC is malformed".into()))?;
         let body = Zeroizing::new(format!("{open}\n}}"));
         let domain = [MAC_DOMAIN, SLICED_MAC_DOMAIN]
@@ -469,19 +466,6 @@ fn brief(id: &str) -> String {
     format!("{start:?}… ({} characters)", id.chars().count())
 }
 
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-fn unhex(text: &str) -> Option<Vec<u8>> {
-    if !text.len().is_multiple_of(2) || !text.is_ascii() {
-        return None;
-    }
-    (0..text.len() / 2)
-        .map(|i| u8::from_str_radix(&text[2 * i..2 * i + 2], 16).ok())
-        .collect()
-}
-
 fn remove_durably(path: &Path, dir: &Path) -> Result<(), NetError> {
     std::fs::remove_file(path)
         .and_then(|()| std::fs::File::open(dir)?.sync_all())
@@ -498,49 +482,11 @@ pub(crate) fn create_private_dir(dir: &Path) -> Result<(), NetError> {
         .map_err(NetError::io(format!("create {}", dir.display())))
 }
 
-/// Now, UTC, as `YYYY-MM-DDTHH:MM:SSZ`.
-fn utc_now() -> String {
-    let seconds = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    utc(seconds)
-}
-
-/// `seconds` after the Unix epoch as `YYYY-MM-DDTHH:MM:SSZ` (the proleptic Gregorian
-/// calendar; H. Hinnant's `civil_from_days`).
-fn utc(seconds: u64) -> String {
-    let days = (seconds / 86_400) as i64;
-    let second_of_day = seconds % 86_400;
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let day_of_era = z.rem_euclid(146_097);
-    let year_of_era =
-        (day_of_era - day_of_era / 1460 + day_of_era / 36_524 - day_of_era / 146_096) / 365;
-    let day_of_year = day_of_era - (365 * year_of_era + year_of_era / 4 - year_of_era / 100);
-    let mp = (5 * day_of_year + 2) / 153;
-    let day = day_of_year - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = year_of_era + era * 400 + i64::from(month <= 2);
-    format!(
-        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z",
-        second_of_day / 3600,
-        second_of_day / 60 % 60,
-        second_of_day % 60
-    )
-}
-
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
     use robokey::protocol::auth::PairingSecret;
     use robokey_secrecy::BitString;
-
-    #[test]
-    fn dates_are_civil() {
-        assert_eq!(utc(0), "1970-01-01T00:00:00Z");
-        assert_eq!(utc(951_782_400), "2000-02-29T00:00:00Z");
-        assert_eq!(utc(1_795_000_000), "2026-11-18T11:06:40Z");
-    }
 
     pub(crate) fn mac(seed: u8, role: &str) -> StoreMac {
         StoreMac::derive(&PairingSecret::from_bytes(&[seed; 32]), "key-file", role)
@@ -570,6 +516,16 @@ pub(crate) mod tests {
             KeyStatus::Pending("prepared".into()),
         );
         assert_eq!(pending.hex, "b080");
+        // Committed now, in UTC to the second: `YYYY-MM-DDTHH:MM:SSZ`.
+        let created = humantime::parse_rfc3339(&pending.created).unwrap();
+        let age = std::time::SystemTime::now()
+            .duration_since(created)
+            .unwrap();
+        assert!(
+            age.as_secs() < 3600 && pending.created.len() == 20,
+            "{}",
+            pending.created
+        );
         assert_eq!(store.store(&pending).unwrap(), Stored::Written);
         assert_eq!(store.store(&pending).unwrap(), Stored::Present);
         // A pending key is listed, got, and withheld from delivery and deletion.
