@@ -47,6 +47,8 @@ __all__ = [
     "OptionError",
     "SimulationError",
     "SweepError",
+    "read_sweep",
+    "read_trace",
     "run",
     "secrecy",
     "sweep",
@@ -241,3 +243,28 @@ def secrecy(
         "pooling": data["pooling"],
         "map": None if map_json is None else json.loads(map_json),
     }
+
+
+def read_sweep(folder: "os.PathLike[str] | str") -> Union[pa.Table, Dict[str, pa.Table]]:
+    """The runs of a sweep folder that ``robokey sweep`` (or ``reproduce``) wrote, read back as
+    robokey's reports read them — the same table :func:`sweep` returns for its definition; a
+    suite folder gives a dict of tables by experiment name.
+
+    Raises :class:`InputError` for a folder that is not a complete sweep's (interrupted, a
+    shard only, a file that does not read back), OSError for a file that cannot be read.
+    """
+    experiments = _native.read_sweep(os.fspath(folder))
+    tables = {
+        name: _table(columns, {"robokey.sweep": resolved})
+        for name, columns, resolved in experiments
+    }
+    if len(experiments) == 1 and experiments[0][0] == "":
+        return tables[""]
+    return tables
+
+
+def read_trace(path: "os.PathLike[str] | str") -> pa.Table:
+    """A ``trace.csv`` (of ``robokey run``, or a sweep's ``traces/point-<i>.csv``) as the
+    table :func:`run` returns as ``trace``. Raises :class:`InputError` naming the line that
+    does not read back."""
+    return _table(_native.read_trace(os.fspath(path)))

@@ -6,6 +6,7 @@
 mod columns;
 mod config;
 mod errors;
+mod readers;
 mod run;
 mod secrecy;
 mod sweep;
@@ -19,6 +20,8 @@ mod _native {
 
     #[pymodule_export]
     use crate::errors::{ConfigError, InputError, OptionError, SimulationError, SweepError};
+    #[pymodule_export]
+    use crate::readers::{read_sweep, read_trace};
     #[pymodule_export]
     use crate::run::run;
     #[pymodule_export]
