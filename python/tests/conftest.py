@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def _binary() -> Path:
     """The ``robokey`` binary: ``$ROBOKEY_BIN``, else the workspace's release or debug build."""
     if "ROBOKEY_BIN" in os.environ:
-        return Path(os.environ["ROBOKEY_BIN"])
+        return Path(os.environ["ROBOKEY_BIN"]).resolve()
     target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
     for profile in ("release", "debug"):
         if (target / profile / "robokey").exists():

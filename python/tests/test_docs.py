@@ -5,14 +5,17 @@ import re
 from conftest import ROOT
 
 
-def test_the_examples_of_docs_python_md_run(tmp_path, monkeypatch, capsys):
+def test_the_examples_of_docs_python_md_run(cli, tmp_path, monkeypatch, capsys):
     text = (ROOT / "docs" / "python.md").read_text()
     blocks = re.findall(r"^```python\n(.*?)^```$", text, flags=re.M | re.S)
     assert len(blocks) >= 5
     monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("ROBOKEY_BIN", str(cli.binary))
     namespace: dict = {}
     for i, block in enumerate(blocks):
         exec(compile(block, f"docs/python.md, block {i + 1}", "exec"), namespace)
     printed = capsys.readouterr().out
     assert "`protocol.delta_v` = 0.0 is not allowed" in printed
     assert "codewords sent     340" in printed
+    assert "camera" in printed and "secret_bits" in printed
+    assert "folder" in namespace and (namespace["folder"] / "trace.csv").exists()
