@@ -92,11 +92,14 @@ impl Column {
     }
 }
 
+/// A table as Python receives it: the tuples [`Column::into_py`] makes.
+pub type PyColumns<'py> = Vec<Bound<'py, PyAny>>;
+
 /// Columns as a list of the tuples [`Column::into_py`] makes.
 ///
 /// # Errors
 /// Python cannot allocate them.
-pub fn to_py(py: Python<'_>, columns: Vec<Column>) -> PyResult<Vec<Bound<'_, PyAny>>> {
+pub fn to_py(py: Python<'_>, columns: Vec<Column>) -> PyResult<PyColumns<'_>> {
     columns.into_iter().map(|c| c.into_py(py)).collect()
 }
 

@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use robokey_lab::folder::load::load;
 use robokey_lab::trace::read_trace as read_trace_rows;
 
-use crate::columns::{TraceColumns, to_py};
+use crate::columns::{PyColumns, TraceColumns, to_py};
 use crate::errors::lab_error;
 use crate::sweep::run_columns;
 
@@ -19,7 +19,7 @@ use crate::sweep::run_columns;
 pub fn read_sweep(
     py: Python<'_>,
     folder: PathBuf,
-) -> PyResult<Vec<(String, Vec<Bound<'_, PyAny>>, String)>> {
+) -> PyResult<Vec<(String, PyColumns<'_>, String)>> {
     let loaded = py.detach(|| load(&folder)).map_err(|e| lab_error(py, e))?;
     loaded
         .into_iter()
@@ -37,7 +37,7 @@ pub fn read_sweep(
 /// Every row of a `trace.csv` (a run's, or a sweep's `traces/point-<i>.csv`), column by
 /// column as [`crate::run::run`] returns its trace.
 #[pyfunction]
-pub fn read_trace(py: Python<'_>, path: PathBuf) -> PyResult<Vec<Bound<'_, PyAny>>> {
+pub fn read_trace(py: Python<'_>, path: PathBuf) -> PyResult<PyColumns<'_>> {
     let mut trace = TraceColumns::default();
     py.detach(|| {
         let file = std::fs::File::open(&path).map_err(|error| robokey_lab::LabError::Io {

@@ -13,7 +13,7 @@ use robokey_lab::LabError;
 use robokey_lab::experiment::{Experiment, experiments_from_table, value_text};
 use robokey_lab::run::{RunRow, run_experiment, with_jobs};
 
-use crate::columns::{Column, Values, metric_columns, to_py};
+use crate::columns::{Column, PyColumns, Values, metric_columns, to_py};
 use crate::config::{ORIGIN, seed_override, table};
 use crate::errors::{SweepError, lab_error};
 
@@ -171,7 +171,7 @@ pub fn sweep<'py>(
     seed: Option<i64>,
     jobs: usize,
     progress: Option<&Bound<'py, PyAny>>,
-) -> PyResult<(Vec<Bound<'py, PyAny>>, String)> {
+) -> PyResult<(PyColumns<'py>, String)> {
     let mut experiment = experiment(py, config, seed)?;
     experiment.traces = false;
     let rows = run_all(py, &experiment, jobs, progress.filter(|p| !p.is_none()))?;
