@@ -11,7 +11,7 @@ use robokey::config::EveStrategy;
 use crate::adversary::{Campaign, PeriodRecord, StrategyRun, windowed_error_rates};
 use crate::error::LabError;
 use crate::output::write;
-use crate::plot::{LineChart, Series, SeriesStyle};
+use crate::plot::{LineChart, Panel, Panels, Series, SeriesStyle};
 
 fn percent(value: Option<f64>) -> String {
     value.map_or_else(|| "–".into(), |v| format!("{v:.2}"))
@@ -344,10 +344,46 @@ fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
         line(label, points, SeriesStyle::Dashed)
     };
 
-    let mut error_rate = per_strategy(|r| r.1);
-    if let Some(first) = rates.first() {
-        let points = first.iter().map(|r| (r.0 as f64, r.2)).collect();
-        error_rate.push(line("controller".into(), points, SeriesStyle::Dashed));
+    // One panel per strategy, each with the controller's rate: six step lines in one chart
+    // lie on top of each other, while the question each answers is whether she matches him.
+    let controller: Vec<(f64, f64)> = rates
+        .first()
+        .map(|first| first.iter().map(|r| (r.0 as f64, r.2)).collect())
+        .unwrap_or_default();
+    let error_rate = Panels {
+        title: format!("Bit error rate over the last {window} periods"),
+        x_label: "periods heard".into(),
+        y_label: "error rate (%)".into(),
+        panels: per_strategy(|r| r.1)
+            .into_iter()
+            .map(|eve| Panel {
+                title: eve.label.clone(),
+                series: vec![
+                    Series {
+                        color: Some(0),
+                        ..Series::new("Eve", eve.points, SeriesStyle::Line)
+                    },
+                    Series {
+                        color: Some(3),
+                        ..Series::new("controller", controller.clone(), SeriesStyle::Dashed)
+                    },
+                ],
+            })
+            .collect(),
+        log_y: false,
+    };
+    let mut files = Vec::new();
+    if error_rate
+        .panels
+        .iter()
+        .flat_map(|p| &p.series)
+        .any(|s| !s.points.is_empty())
+    {
+        let base = dir.join("eve-error-rate");
+        files.extend(error_rate.save(&base).map_err(|e| LabError::Plot {
+            path: base.clone(),
+            message: e.to_string(),
+        })?);
     }
     let mut excess = per_strategy(|r| r.1 - r.2);
     let tolerance = campaign.config.eve.match_tolerance_pp;
@@ -361,23 +397,31 @@ fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
         .iter()
         .flat_map(|run| {
             let name = run.strategy.name();
-            let error_of = |pick: fn(&PeriodRecord) -> f64| {
-                run.periods
-                    .iter()
-                    .map(|p| (p.period as f64, 100.0 * pick(p).abs()))
-                    .collect()
+            // Her guess before the first period heard (period 0), then after each period.
+            let error_of = |start: f64, pick: fn(&PeriodRecord) -> f64| Series {
+                notes: vec!["start".to_owned()],
+                ..line(
+                    String::new(),
+                    std::iter::once((0.0, 100.0 * start.abs()))
+                        .chain(
+                            run.periods
+                                .iter()
+                                .map(|p| (p.period as f64, 100.0 * pick(p).abs())),
+                        )
+                        .collect(),
+                    SeriesStyle::Line,
+                )
             };
             [
-                line(
-                    format!("{name}: r"),
-                    error_of(|p| p.r_error),
-                    SeriesStyle::Line,
-                ),
-                line(
-                    format!("{name}: D"),
-                    error_of(|p| p.d_error),
-                    SeriesStyle::Dashed,
-                ),
+                Series {
+                    label: format!("{name}: r"),
+                    ..error_of(run.start[0], |p| p.r_error)
+                },
+                Series {
+                    label: format!("{name}: D"),
+                    style: SeriesStyle::Dashed,
+                    ..error_of(run.start[1], |p| p.d_error)
+                },
             ]
         })
         .collect();
@@ -385,13 +429,6 @@ fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
         parameters.push(level("1 %".into(), 1.0));
     }
     let charts = [
-        (
-            "eve-error-rate",
-            format!("Bit error rate over the last {window} periods"),
-            "error rate (%)",
-            error_rate,
-            false,
-        ),
         (
             "eve-excess-error",
             format!("Her error rate minus the controller's, last {window} periods"),
@@ -407,7 +444,6 @@ fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
             true,
         ),
     ];
-    let mut files = Vec::new();
     for (name, title, y_label, series, log_y) in charts {
         if series.iter().all(|s| s.points.is_empty()) {
             continue;

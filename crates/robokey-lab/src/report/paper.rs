@@ -130,13 +130,34 @@ fn column(
         .collect()
 }
 
-/// Eve's error on the accepted key bits per value of `field` (× 100, as %), pooled over the
-/// runs: `(x, rate %, low %, high %)` with a two-sided 95 % Clopper–Pearson interval, from
-/// the joint counts `n_acc` (s, ŝc, ŝa) of each run.
+/// Who decides a bit of the joint counts `n_acc`, indexed s·4 + ŝc·2 + ŝa.
+#[derive(Clone, Copy)]
+enum Decider {
+    /// The controller: ŝc.
+    Controller,
+    /// Eve: ŝa.
+    Eve,
+}
+
+impl Decider {
+    /// Whether the decider is wrong (its bit differs from s) at joint-count index `i`.
+    fn wrong(self, i: usize) -> bool {
+        let decided = match self {
+            Self::Controller => (i >> 1) & 1,
+            Self::Eve => i & 1,
+        };
+        (i >> 2) != decided
+    }
+}
+
+/// The error of `decider` on the accepted key bits per value of `field` (× 100, as %),
+/// pooled over the runs: `(x, rate %, low %, high %)` with a two-sided 95 % Clopper–Pearson
+/// interval, from the joint counts `n_acc` (s, ŝc, ŝa) of each run.
 fn accepted_errors(
     experiment: &Experiment,
     records: &[RunRow],
     field: &str,
+    decider: Decider,
 ) -> Vec<(f64, f64, f64, f64)> {
     let mut pooled: Vec<(f64, u64, u64)> = Vec::new();
     for r in records {
@@ -151,9 +172,8 @@ fn accepted_errors(
         let Some(counts) = r.metrics.n_acc else {
             continue;
         };
-        // Index s·4 + ŝc·2 + ŝa: Eve is wrong where ŝa ≠ s.
         let wrong: u64 = (0..8)
-            .filter(|i| (i >> 2) != (i & 1))
+            .filter(|&i| decider.wrong(i))
             .map(|i| counts[i])
             .sum();
         let total: u64 = counts.iter().sum();
@@ -297,22 +317,42 @@ fn sweep_sections(
             .into_iter()
             .map(|(a, d)| (100.0 * a, d))
             .collect();
-    let eve_errors = accepted_errors(eve, eve_runs, alpha_field);
-    LineChart {
-        title: "Eve's error on the accepted key bits against her model error α".into(),
-        x_label: "α (%)".into(),
-        y_label: "Eve wrong on accepted bits (%), 95 % Clopper–Pearson".into(),
-        series: vec![Series {
-            intervals: eve_errors
+    // Side by side at each α (dodged by ±0.15 %), so that neither interval hides the other.
+    let eve_errors = accepted_errors(eve, eve_runs, alpha_field, Decider::Eve);
+    let accepted_series = |decider, label: String, dodge: f64| {
+        let errors = match decider {
+            Decider::Eve => eve_errors.clone(),
+            Decider::Controller => accepted_errors(eve, eve_runs, alpha_field, decider),
+        };
+        Series {
+            intervals: errors
                 .iter()
                 .map(|&(x, _, low, high)| Interval { x, low, high })
                 .collect(),
+            dodge,
             ..Series::new(
-                format!("Eve (pooled over {} runs per α)", eve.replicates()),
-                eve_errors.iter().map(|&(x, rate, ..)| (x, rate)).collect(),
+                label,
+                errors.iter().map(|&(x, rate, ..)| (x, rate)).collect(),
                 SeriesStyle::Line,
             )
-        }],
+        }
+    };
+    LineChart {
+        title: "Error on the accepted key bits against Eve's model error α".into(),
+        x_label: "α (%)".into(),
+        y_label: "wrong on accepted bits (%), 95 % Clopper–Pearson".into(),
+        series: vec![
+            accepted_series(
+                Decider::Eve,
+                format!("Eve (pooled over {} runs per α)", eve.replicates()),
+                -0.15,
+            ),
+            accepted_series(
+                Decider::Controller,
+                format!("controller (pooled over {} runs per α)", eve.replicates()),
+                0.15,
+            ),
+        ],
         equal_aspect: false,
         log_y: false,
     }

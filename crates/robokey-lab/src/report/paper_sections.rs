@@ -7,7 +7,7 @@ use std::path::Path;
 use robokey::config::EveStrategy;
 
 use super::adversary::{campaign_body, campaigns_summary, write_campaign};
-use super::private::break_even_text;
+use super::private::{break_even_text, pooled_leak_text};
 use super::secrecy::{secrecy_markdown, write_secrecy};
 use crate::adversary::Campaign;
 use crate::error::LabError;
@@ -222,8 +222,10 @@ pub(super) fn private_section(
             "![Pareto front](private-sensing/pareto-v/private-pareto.svg)\n\n\
              What the public commands leak is charged, not assumed away: the commands \
              eavesdropper's measured information lies within its 95 % interval of the model's \
-             prediction in {inside} of {bins} turn-rate bins.\n\n\
-             ![leak](private-sensing/pareto-v/private-leak.svg)\n"
+             prediction in {inside} of {bins} turn-rate bins.{}\n\n\
+             ![leak](private-sensing/pareto-v/private-leak.svg)\n",
+            map.pooled_leak()
+                .map_or_else(String::new, |p| format!(" {}", pooled_leak_text(&p)))
         );
     }
     let _ = writeln!(

@@ -239,6 +239,7 @@ fn analyze_point(
         sessions: runs.len() as u32,
         sessions_pooled: blocks.iter().map(|b| b.sessions).sum(),
         steps,
+        used_steps,
         sample_time: config.robot.sample_time,
         p_c: rate(JointCounts::controller_error_rate),
         p_e: rate(JointCounts::eve_error_rate),

@@ -132,6 +132,10 @@ pub struct PointSecrecy {
     pub sessions_pooled: u32,
     /// Robot steps over those sessions.
     pub steps: u64,
+    /// Robot steps of the sessions simulated until the last one pooled, dropped ones
+    /// included: the denominator of the per-step rates (0 in files written before it).
+    #[serde(default)]
+    pub used_steps: u64,
     /// Sample time T (s).
     pub sample_time: f64,
     /// Controller's bit error rate over applied bits.
