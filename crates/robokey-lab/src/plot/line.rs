@@ -251,10 +251,11 @@ pub(super) fn draw_series<DB: DrawingBackend>(
         let mark = match series.marks {
             Marks::Shapes => Mark::Shape(look.shape),
             Marks::Arrows => {
-                let (from, to) = (
-                    pixel(points[i.saturating_sub(1)]),
-                    pixel(points[(i + 1).min(points.len() - 1)]),
-                );
+                // The way the path goes over the stretch between neighbouring marks: a
+                // jittery path's next point may point anywhere.
+                let reach = (every / 2).max(1);
+                let from = pixel(points[i.saturating_sub(reach)]);
+                let to = pixel(points[(i + reach).min(points.len() - 1)]);
                 Mark::Arrow(f64::from(to.0 - from.0), f64::from(to.1 - from.1))
             }
             Marks::None => continue,

@@ -339,55 +339,74 @@ fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
         .runs
         .first()
         .map_or(0, |run| run.periods.last().map_or(0, |p| p.period));
-    let level = |label: String, y: f64| {
-        let points = vec![(1.0, y), (periods_heard as f64, y)];
-        line(label, points, SeriesStyle::Dashed)
-    };
+    let level =
+        |label: String, y: f64| Series::reference(label, vec![(1.0, y), (periods_heard as f64, y)]);
 
-    // One panel per strategy, each with the controller's rate: six step lines in one chart
-    // lie on top of each other, while the question each answers is whether she matches him.
-    let controller: Vec<(f64, f64)> = rates
-        .first()
-        .map(|first| first.iter().map(|r| (r.0 as f64, r.2)).collect())
-        .unwrap_or_default();
-    let error_rate = Panels {
-        title: format!("Bit error rate over the last {window} periods"),
+    // One panel per strategy, each with the line she is measured against (the
+    // controller's rate, the tolerance): six step lines in one chart lie on top of each
+    // other, while the question each answers is whether she matches him. The reference
+    // beneath, hers on top in a colour that stands out from it.
+    let panels = |title: String, y_label: &str, hers: Vec<Series>, against: Series| Panels {
+        title,
         x_label: "periods heard".into(),
-        y_label: "error rate (%)".into(),
-        panels: per_strategy(|r| r.1)
+        y_label: y_label.into(),
+        panels: hers
             .into_iter()
             .map(|eve| Panel {
                 title: eve.label.clone(),
                 series: vec![
                     Series {
-                        color: Some(0),
-                        ..Series::new("Eve", eve.points, SeriesStyle::Line)
+                        color: Some(3),
+                        ..against.clone()
                     },
                     Series {
-                        color: Some(3),
-                        ..Series::new("controller", controller.clone(), SeriesStyle::Dashed)
+                        color: Some(1),
+                        ..Series::new("Eve", eve.points, SeriesStyle::Line)
                     },
                 ],
             })
             .collect(),
         log_y: false,
     };
-    let mut files = Vec::new();
-    if error_rate
-        .panels
-        .iter()
-        .flat_map(|p| &p.series)
-        .any(|s| !s.points.is_empty())
-    {
-        let base = dir.join("eve-error-rate");
-        files.extend(error_rate.save(&base).map_err(|e| LabError::Plot {
-            path: base.clone(),
-            message: e.to_string(),
-        })?);
-    }
-    let mut excess = per_strategy(|r| r.1 - r.2);
+    let controller: Vec<(f64, f64)> = rates
+        .first()
+        .map(|first| first.iter().map(|r| (r.0 as f64, r.2)).collect())
+        .unwrap_or_default();
     let tolerance = campaign.config.eve.match_tolerance_pp;
-    excess.push(level(format!("tolerance ({tolerance} pp)"), tolerance));
+    let mut files = Vec::new();
+    for (name, figure) in [
+        (
+            "eve-error-rate",
+            panels(
+                format!("Bit error rate over the last {window} periods"),
+                "error rate (%)",
+                per_strategy(|r| r.1),
+                Series::new("controller", controller, SeriesStyle::Dashed),
+            ),
+        ),
+        (
+            "eve-excess-error",
+            panels(
+                format!("Her error rate minus the controller's, last {window} periods"),
+                "excess error rate (percentage points)",
+                per_strategy(|r| r.1 - r.2),
+                level(format!("tolerance ({tolerance} pp)"), tolerance),
+            ),
+        ),
+    ] {
+        if figure
+            .panels
+            .iter()
+            .flat_map(|p| &p.series)
+            .any(|s| !s.points.is_empty())
+        {
+            let base = dir.join(name);
+            files.extend(figure.save(&base).map_err(|e| LabError::Plot {
+                path: base.clone(),
+                message: e.to_string(),
+            })?);
+        }
+    }
     let learners: Vec<&StrategyRun> = campaign
         .runs
         .iter()
@@ -398,52 +417,54 @@ fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
         .flat_map(|run| {
             let name = run.strategy.name();
             // Her guess before the first period heard (period 0), then after each period.
-            let error_of = |start: f64, pick: fn(&PeriodRecord) -> f64| Series {
-                notes: vec!["start".to_owned()],
-                ..line(
-                    String::new(),
-                    std::iter::once((0.0, 100.0 * start.abs()))
-                        .chain(
-                            run.periods
-                                .iter()
-                                .map(|p| (p.period as f64, 100.0 * pick(p).abs())),
-                        )
-                        .collect(),
-                    SeriesStyle::Line,
-                )
+            let error_of = |label: String, style, start: f64, pick: fn(&PeriodRecord) -> f64| {
+                let after = run
+                    .periods
+                    .iter()
+                    .map(|p| (p.period as f64, 100.0 * pick(p).abs()));
+                let points = std::iter::once((0.0, 100.0 * start.abs()))
+                    .chain(after)
+                    .collect();
+                line(label, points, style)
             };
             [
-                Series {
-                    label: format!("{name}: r"),
-                    ..error_of(run.start[0], |p| p.r_error)
-                },
-                Series {
-                    label: format!("{name}: D"),
-                    style: SeriesStyle::Dashed,
-                    ..error_of(run.start[1], |p| p.d_error)
-                },
+                error_of(format!("{name}: r"), SeriesStyle::Line, run.start[0], |p| {
+                    p.r_error
+                }),
+                error_of(
+                    format!("{name}: D"),
+                    SeriesStyle::Dashed,
+                    run.start[1],
+                    |p| p.d_error,
+                ),
             ]
         })
         .collect();
     if !learners.is_empty() {
+        // Where each learner starts: her guess before the first period (period 0).
+        let mut starts: Vec<(f64, f64)> = Vec::new();
+        for run in &learners {
+            for error in &run.start[..2] {
+                let point = (0.0, 100.0 * error.abs());
+                if !starts.contains(&point) {
+                    starts.push(point);
+                }
+            }
+        }
+        parameters.push(Series::new(
+            "start: her guess before period 1",
+            starts,
+            SeriesStyle::Markers,
+        ));
         parameters.push(level("1 %".into(), 1.0));
     }
-    let charts = [
-        (
-            "eve-excess-error",
-            format!("Her error rate minus the controller's, last {window} periods"),
-            "excess error rate (percentage points)",
-            excess,
-            false,
-        ),
-        (
-            "eve-parameters",
-            "Identified wheel geometry: |relative error|".to_owned(),
-            "relative error (%, log scale)",
-            parameters,
-            true,
-        ),
-    ];
+    let charts = [(
+        "eve-parameters",
+        "Identified wheel geometry: |relative error|".to_owned(),
+        "relative error (%, log scale)",
+        parameters,
+        true,
+    )];
     for (name, title, y_label, series, log_y) in charts {
         if series.iter().all(|s| s.points.is_empty()) {
             continue;

@@ -302,15 +302,20 @@ pub fn write_map(
             .iter()
             .map(|c| Series::new(c.label.clone(), c.points.clone(), SeriesStyle::Line))
             .collect();
-        // Each curve's break-even in that curve's colour.
+        // Each curve's break-even in that curve's colour: a vertical line at the largest
+        // camera noise with a zero rate (the break-even lies within one grid step above).
+        let top = map
+            .camera
+            .iter()
+            .flat_map(|c| c.points.iter().map(|p| p.1))
+            .fold(0.0, f64::max);
         for (i, curve) in map.camera.iter().enumerate() {
             if let Some(b) = curve.break_even {
                 series.push(Series {
                     color: Some(i),
-                    ..Series::new(
-                        format!("break-even, {} (within one grid step above)", curve.label),
-                        vec![(b.zero_at, 0.0)],
-                        SeriesStyle::Markers,
+                    ..Series::reference(
+                        format!("break-even above {} mm, {}", b.zero_at, curve.label),
+                        vec![(b.zero_at, 0.0), (b.zero_at, top)],
                     )
                 });
             }

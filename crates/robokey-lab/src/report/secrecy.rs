@@ -276,7 +276,8 @@ fn bits_per_step_chart(experiment: &Experiment, secrecy: &Secrecy) -> Option<Lin
         .into_iter()
         .map(|(context, adversaries, points)| {
             let label = if assumed {
-                "key length ℓ (the stated assumption: whoever listens)".to_owned()
+                "key length ℓ from the stated assumption (sizes the key, whoever listens)"
+                    .to_owned()
             } else {
                 format!("vs {} Eve", adversaries.join(", "))
             };
