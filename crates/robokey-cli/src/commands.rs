@@ -367,7 +367,9 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     use robokey_lab::report::private::break_even_text;
     use robokey_lab::report::secrecy::write_secrecy;
     use robokey_lab::run::sessions::SessionBank;
-    use robokey_lab::secrecy::{Pooling, Secrecy, SecrecyOptions, default_adversaries};
+    use robokey_lab::secrecy::{
+        MAX_SESSIONS, Pooling, Secrecy, SecrecyOptions, default_adversaries, default_max_sessions,
+    };
     if let Some(eps) = args.eps
         && !(eps > 0.0 && eps < 1.0)
     {
@@ -386,11 +388,10 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             args.blocks
         );
     }
-    if !(1..=1_000_000).contains(&args.max_sessions) {
-        usage!(
-            "--max-sessions {} is not allowed (allowed: 1 to 1000000)",
-            args.max_sessions
-        );
+    if let Some(max) = args.max_sessions
+        && !(1..=MAX_SESSIONS).contains(&max)
+    {
+        usage!("--max-sessions {max} is not allowed (allowed: 1 to {MAX_SESSIONS})");
     }
     if let Some(p) = args.assume_eve_error
         && !(p > 0.0 && p <= 0.5)
@@ -401,7 +402,6 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         adversaries: args.adversaries.iter().map(|&a| a.into()).collect(),
         blocks: args.blocks,
         sample_bits: args.sample_bits,
-        max_sessions: args.max_sessions,
         assumed_eve_error: args.assume_eve_error,
         ..SecrecyOptions::default()
     };
@@ -417,6 +417,10 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         }
         // Adversaries and pooling default by the sweep's sensing mode.
         let mode = experiment.points[0].config.sensing.mode;
+        let block_bits = args
+            .block
+            .or(experiment.secrecy.block_bits)
+            .map_or(options.block_bits, |b| b as usize);
         let options = SecrecyOptions {
             adversaries: if options.adversaries.is_empty() {
                 default_adversaries(mode)
@@ -427,10 +431,10 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
                 .eps
                 .or(experiment.secrecy.epsilon)
                 .unwrap_or(options.epsilon),
-            block_bits: args
-                .block
-                .or(experiment.secrecy.block_bits)
-                .map_or(options.block_bits, |b| b as usize),
+            block_bits,
+            max_sessions: args
+                .max_sessions
+                .unwrap_or_else(|| default_max_sessions(block_bits, args.blocks)),
             pooling: args.pooling.map_or(
                 match mode {
                     SensingMode::Odometry => Pooling::Confirmed,

@@ -242,9 +242,10 @@ struct SecrecyArgs {
     /// most a tenth of the block).
     #[arg(long, default_value_t = 1_000)]
     sample_bits: usize,
-    /// Most sessions simulated per point and adversary.
-    #[arg(long, default_value_t = 2_000)]
-    max_sessions: u32,
+    /// Most sessions simulated per point and adversary. Default: 2,000 per 10,000 bits the
+    /// blocks need (--blocks × --block), so that a large block is filled, at most 1000000.
+    #[arg(long)]
+    max_sessions: Option<u32>,
     /// State what the key is sized against: Eve's guesses err independently with at least
     /// this probability, in (0, 0.5] (a restricted assumption in odometry mode). Without
     /// it the key length is zero by structure; the realised view of each adversary is
