@@ -220,9 +220,9 @@ pub(super) fn private_section(
         let _ = writeln!(
             md,
             "![Pareto front](private-sensing/pareto-v/private-pareto.svg)\n\n\
-             What the public commands leak is charged, not assumed away: the commands \
-             eavesdropper's measured information lies within its 95 % interval of the model's \
-             prediction in {inside} of {bins} turn-rate bins.{}\n\n\
+             What the public commands leak is charged as the model predicts it, not assumed \
+             away. Bin by bin, the commands eavesdropper's measured information lies within its \
+             95 % interval of the prediction in {inside} of {bins} turn-rate bins.{}\n\n\
              ![leak](private-sensing/pareto-v/private-leak.svg)\n",
             map.pooled_leak()
                 .map_or_else(String::new, |p| format!(" {}", pooled_leak_text(&p)))
