@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::csv_field::quoted;
 use crate::error::LabError;
 use crate::experiment::param_label;
 use crate::plot::{Interval, LineChart, Series, SeriesStyle};
@@ -122,8 +123,8 @@ pub fn turn_rates_csv(rows: &[PrivateRow]) -> String {
                 .error
                 .map_or(",,".into(), |e| format!("{},{},{}", e.rate, e.low, e.high));
             out.push_str(&format!(
-                "\"{}\",{},{},{},{},{},{},{},{},{}\n",
-                row.point.replace('"', "\"\""),
+                "{},{},{},{},{},{},{},{},{},{}\n",
+                quoted(row.point),
                 row.adversary,
                 bin.from,
                 if bin.to.is_finite() {
