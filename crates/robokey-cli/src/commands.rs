@@ -10,7 +10,7 @@ use robokey_lab::LabError;
 use robokey_lab::experiment::{Experiment, experiments_from_table};
 use robokey_lab::folder::sweep::{Start, SweepPlan, Swept};
 use robokey_lab::folder::{layout, merge};
-use robokey_lab::output::{prepare_output, write};
+use robokey_lab::output::write;
 use robokey_lab::reproduce::compute_stages;
 use robokey_lab::reproduce::suite::paper_suite;
 use robokey_lab::run::with_jobs;
@@ -19,6 +19,22 @@ use robokey_lab::{metric_table, report, trace};
 use crate::configuration::{FlagOverrides, load_config, read_table};
 use crate::exit::{Status, on_signals, usage};
 use crate::{ConfigArgs, MergeArgs, ReportArgs, ReproduceArgs, RunArgs, SecrecyArgs, SweepArgs};
+
+/// Prepares an output folder (see [`robokey_lab::output::prepare_output`]) and says which
+/// files `--force` kept because robokey did not write them.
+pub fn prepare_output(dir: &Path, force: bool) -> Result<()> {
+    let kept = robokey_lab::output::prepare_output(dir, force)?;
+    if !kept.is_empty() {
+        let names: Vec<String> = kept.iter().map(|p| p.display().to_string()).collect();
+        eprintln!(
+            "{}: --force removed robokey's files and kept {} it did not write: {}",
+            dir.display(),
+            names.len(),
+            names.join(", ")
+        );
+    }
+    Ok(())
+}
 
 pub fn run(args: RunArgs) -> Result<()> {
     let mut overrides = FlagOverrides::new(&args.options.set);

@@ -11,7 +11,7 @@ use robokey::config::SensingMode;
 use robokey::eve::{ModelErrors, starting_errors};
 use robokey::rng::{Purpose, stream};
 use robokey_lab::adversary::run_campaigns;
-use robokey_lab::output::{prepare_output, write};
+use robokey_lab::output::write;
 use robokey_lab::report::adversary::{campaign_markdown, write_campaign};
 use robokey_lab::report::private::{PrivateRow, private_markdown, turn_rates_csv};
 use robokey_lab::run::with_jobs;
@@ -21,6 +21,7 @@ use robokey_net::capture_eve::{listen, listen_private, read_session};
 use robokey_net::pose_stream::read_log;
 
 use crate::StrategyArg;
+use crate::commands::prepare_output;
 use crate::configuration::{ConfigOptions, FlagOverrides};
 use crate::exit::usage;
 
@@ -83,7 +84,8 @@ pub struct EveArgs {
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
-    /// Overwrite a non-empty output folder.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long)]
     force: bool,
 }

@@ -134,7 +134,8 @@ struct RunArgs {
     /// Output folder (refused when not empty, unless --force).
     #[arg(long, short, default_value = "robokey-out/run")]
     out: PathBuf,
-    /// Empty a non-empty output folder of an earlier run first.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long)]
     force: bool,
 }
@@ -154,7 +155,8 @@ struct SweepArgs {
     /// Run only shard m of n (1-based, round-robin over runs); merge with `robokey merge`.
     #[arg(long, value_name = "M/N")]
     shard: Option<Shard>,
-    /// Overwrite a non-empty output folder.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long, conflicts_with = "resume")]
     force: bool,
     /// Continue the interrupted sweep in DIR (instead of --out): run only the runs it does not
@@ -173,7 +175,8 @@ struct MergeArgs {
     /// Output folder.
     #[arg(long, short)]
     out: PathBuf,
-    /// Overwrite a non-empty output folder.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long)]
     force: bool,
 }
@@ -201,7 +204,8 @@ struct ReproduceArgs {
     /// 2,000-bit secrecy blocks instead of 10,000, and a smaller private-sensing map.
     #[arg(long)]
     quick: bool,
-    /// Overwrite a non-empty output folder.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long, conflicts_with = "resume")]
     force: bool,
     /// Continue the reproduction in DIR (instead of --out; with the same --quick): sweep only
