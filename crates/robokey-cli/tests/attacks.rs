@@ -248,7 +248,9 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
     let fake_robot = self::robot(&fake, &attacker, &[]);
     let text = controller(&dir, &victim, &fake_robot.address, 3);
     assert!(
-        text.contains("aborted: no HelloAck that verifies"),
+        text.contains("aborted: no HelloAck that verifies")
+            && text.contains("nothing came from it: no robot agent listens there")
+            && text.contains("or it holds another pairing secret"),
         "{text}"
     );
     wait_robot(fake_robot, 4);
@@ -292,7 +294,11 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
         }
         answered
     });
-    controller(&dir, &victim, &address, 4);
+    let text = controller(&dir, &victim, &address, 4);
+    assert!(
+        text.contains("HelloAck(s) from it failed to verify: it holds another pairing secret"),
+        "{text}"
+    );
     assert!(answerer.join().unwrap() > 0);
     wait_robot(robot, 4);
     let (robot, controller) = reports(&dir);

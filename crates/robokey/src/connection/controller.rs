@@ -323,16 +323,34 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         }
     }
 
+    /// Why no `HelloAck` verified, from what came back: a robot drops a `Hello` it cannot
+    /// verify unanswered, so silence means no robot listens there *or* it holds another
+    /// secret; `HelloAck`s that fail to verify or declare the other pairing mode say which.
     fn no_hello_ack(&self) -> String {
-        let hint = match self.pairing.mode() {
-            AuthMode::Paired => format!(
-                "is it paired with the same secret, fingerprint {}?",
-                self.pairing.fingerprint()
-            ),
-            AuthMode::Unauthenticated => "is it running with --unauthenticated?".into(),
+        let rejected = self.earlier.plus(self.channel.counts()).rejected;
+        let from_robot = rejected.total() - rejected.wrong_peer;
+        let ours = match self.pairing.mode() {
+            AuthMode::Paired => format!("fingerprint {}", self.pairing.fingerprint()),
+            AuthMode::Unauthenticated => "this controller runs --unauthenticated".into(),
+        };
+        let cause = if rejected.pairing_mode > 0 {
+            format!("it answered in the other pairing mode ({ours})")
+        } else if rejected.handshake_bad_mac > 0 {
+            format!(
+                "{} HelloAck(s) from it failed to verify: it holds another pairing secret ({ours})",
+                rejected.handshake_bad_mac
+            )
+        } else if from_robot == 0 {
+            format!(
+                "nothing came from it: no robot agent listens there (one that failed to start \
+                 says why in its own output), or it holds another pairing secret and drops our \
+                 Hellos unanswered ({ours})"
+            )
+        } else {
+            format!("{from_robot} datagram(s) from it were dropped unverified ({ours})")
         };
         format!(
-            "no HelloAck that verifies from the robot at {} within {:.1} s ({hint})",
+            "no HelloAck that verifies from the robot at {} within {:.1} s: {cause}",
             self.channel.robot(),
             self.timing.silence_timeout.as_secs_f64()
         )
