@@ -198,6 +198,14 @@ fn push_point(series: &mut Vec<Series>, label: String, point: (f64, f64), style:
     }
 }
 
+/// One key-length curve: a setting of the other axes, the adversaries that give it, its
+/// points.
+struct KeyCurve {
+    setting: String,
+    adversaries: Vec<String>,
+    points: Vec<(f64, f64)>,
+}
+
 /// `label`, followed by `, setting` when there is one.
 fn with_setting(label: &str, setting: &str) -> String {
     if setting.is_empty() {
@@ -254,34 +262,44 @@ fn bits_per_step_chart(experiment: &Experiment, secrecy: &Secrecy) -> Option<Lin
             contexts.push(context);
         }
     }
-    let mut keys: Vec<(String, Vec<String>, Vec<(f64, f64)>)> = Vec::new();
+    let mut keys: Vec<KeyCurve> = Vec::new();
     for context in contexts {
-        let mut by_adversary: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        let mut by_adversary: Vec<Series> = Vec::new();
         for r in results.iter().filter(|r| setting(r) == context) {
-            let Some(x) = x_of(r) else { continue };
-            let adversary = format!("{} ({})", r.adversary, r.adversary_class.name());
-            match by_adversary.iter_mut().find(|a| a.0 == adversary) {
-                Some(a) => a.1.push((x, r.secret_bits_per_step)),
-                None => by_adversary.push((adversary, vec![(x, r.secret_bits_per_step)])),
+            if let Some(x) = x_of(r) {
+                let adversary = format!("{} ({})", r.adversary, r.adversary_class.name());
+                let point = (x, r.secret_bits_per_step);
+                push_point(&mut by_adversary, adversary, point, SeriesStyle::Line);
             }
         }
-        for (adversary, points) in by_adversary {
-            match keys.iter_mut().find(|k| k.0 == context && k.2 == points) {
-                Some(k) => k.1.push(adversary),
-                None => keys.push((context.clone(), vec![adversary], points)),
+        for curve in by_adversary {
+            match keys
+                .iter_mut()
+                .find(|k| k.setting == context && k.points == curve.points)
+            {
+                Some(k) => k.adversaries.push(curve.label),
+                None => keys.push(KeyCurve {
+                    setting: context.clone(),
+                    adversaries: vec![curve.label],
+                    points: curve.points,
+                }),
             }
         }
     }
     let mut series: Vec<Series> = keys
         .into_iter()
-        .map(|(context, adversaries, points)| {
+        .map(|k| {
             let label = if assumed {
                 "key length ℓ from the stated assumption (sizes the key, whoever listens)"
                     .to_owned()
             } else {
-                format!("vs {} Eve", adversaries.join(", "))
+                format!("vs {} Eve", k.adversaries.join(", "))
             };
-            Series::new(with_setting(&label, &context), points, SeriesStyle::Line)
+            Series::new(
+                with_setting(&label, &k.setting),
+                k.points,
+                SeriesStyle::Line,
+            )
         })
         .collect();
     if assumed {

@@ -12,8 +12,6 @@ use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
 use robokey_secrecy::{JointCounts, binomial_test};
 
-#[cfg(test)]
-use super::options::default_max_sessions;
 use super::options::{SecrecyOptions, default_adversaries};
 use super::pipeline::{self, BlockSettings, Pooling};
 use super::point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
