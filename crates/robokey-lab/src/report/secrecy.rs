@@ -190,11 +190,20 @@ fn private_rows(results: &[PointSecrecy]) -> Vec<PrivateRow<'_>> {
         .collect()
 }
 
-/// Adds `point` to the series labelled `label`, starting it (with `style`) if new.
-fn push_point(series: &mut Vec<Series>, label: String, point: (f64, f64), style: SeriesStyle) {
+/// Adds `point` to the series labelled `label`, starting it (with `style` and palette
+/// colour `color`) if new.
+fn push_point(
+    series: &mut Vec<Series>,
+    label: String,
+    point: (f64, f64),
+    (style, color): (SeriesStyle, Option<usize>),
+) {
     match series.iter_mut().find(|s| s.label == label) {
         Some(s) => s.points.push(point),
-        None => series.push(Series::new(label, vec![point], style)),
+        None => series.push(Series {
+            color,
+            ..Series::new(label, vec![point], style)
+        }),
     }
 }
 
@@ -262,14 +271,26 @@ fn bits_per_step_chart(experiment: &Experiment, secrecy: &Secrecy) -> Option<Lin
             contexts.push(context);
         }
     }
+    // With several settings, each has one colour (its key length, realised ℓ and raw bits
+    // told apart by line and marker); with one, every series has its own.
+    let colour = |context: &str| {
+        (contexts.len() > 1)
+            .then(|| contexts.iter().position(|c| c == context))
+            .flatten()
+    };
     let mut keys: Vec<KeyCurve> = Vec::new();
-    for context in contexts {
+    for context in contexts.clone() {
         let mut by_adversary: Vec<Series> = Vec::new();
         for r in results.iter().filter(|r| setting(r) == context) {
             if let Some(x) = x_of(r) {
                 let adversary = format!("{} ({})", r.adversary, r.adversary_class.name());
                 let point = (x, r.secret_bits_per_step);
-                push_point(&mut by_adversary, adversary, point, SeriesStyle::Line);
+                push_point(
+                    &mut by_adversary,
+                    adversary,
+                    point,
+                    (SeriesStyle::Line, None),
+                );
             }
         }
         for curve in by_adversary {
@@ -295,11 +316,14 @@ fn bits_per_step_chart(experiment: &Experiment, secrecy: &Secrecy) -> Option<Lin
             } else {
                 format!("vs {} Eve", k.adversaries.join(", "))
             };
-            Series::new(
-                with_setting(&label, &k.setting),
-                k.points,
-                SeriesStyle::Line,
-            )
+            Series {
+                color: colour(&k.setting),
+                ..Series::new(
+                    with_setting(&label, &k.setting),
+                    k.points,
+                    SeriesStyle::Line,
+                )
+            }
         })
         .collect();
     if assumed {
@@ -311,11 +335,12 @@ fn bits_per_step_chart(experiment: &Experiment, secrecy: &Secrecy) -> Option<Lin
                 "realised ℓ from {} Eve's own view (diagnostic)",
                 r.adversary
             );
+            let context = setting(r);
             push_point(
                 &mut series,
-                with_setting(&label, &setting(r)),
+                with_setting(&label, &context),
                 (x, y),
-                SeriesStyle::Markers,
+                (SeriesStyle::Markers, colour(&context)),
             );
         }
     }
@@ -324,12 +349,12 @@ fn bits_per_step_chart(experiment: &Experiment, secrecy: &Secrecy) -> Option<Lin
         .filter(|r| r.adversary == results[0].adversary)
     {
         if let Some(x) = x_of(r) {
-            let label = with_setting("raw agreed bits", &setting(r));
+            let context = setting(r);
             push_point(
                 &mut series,
-                label,
+                with_setting("raw agreed bits", &context),
                 (x, r.raw_bits_per_step),
-                SeriesStyle::Dashed,
+                (SeriesStyle::Dashed, colour(&context)),
             );
         }
     }
