@@ -70,14 +70,20 @@ def address_after(text, marker):
     return match.group(1)
 
 
+def settings(a):
+    """The --set options every process of a session gets: the user's, then the mode."""
+    options = [x for s in a.set for x in ("--set", s)]
+    if a.mode == "private":
+        options += ["--set", "sensing.mode=private"]
+    return options
+
+
 def session(a, d, index, kill=None):
     """One session in folder d; with kill = (victim, delay s), SIGKILL the victim that long
     after the controller pooled the session. Returns what the kill hit, if it did."""
     os.makedirs(d, exist_ok=True)
     common = ["--pace", "lockstep", "--pairing", a.pairing, "--silence-timeout", "2"]
-    common += [x for s in a.set for x in ("--set", s)]
-    if a.mode == "private":
-        common += ["--set", "sensing.mode=private"]
+    common += settings(a)
     robot_args = ["robot", "--listen", "127.0.0.1:0", "--step-timeout-ms", "20",
                   "--store", os.path.join(a.out, "robot"), "--key-out", f"{d}/robot.key",
                   "--report", f"{d}/robot.json"] + common
@@ -207,14 +213,15 @@ def summary(a, folders):
           f"{key_bits / max(robot_seconds, 1e-9):.3f} per second of robot time")
 
 
-def eve_summary(folders):
-    """Eve on every session's capture and camera log: disagreements with the robot's raw bits."""
+def eve_summary(a, folders):
+    """Eve on every session's capture and camera log, with the sessions' --set options (the
+    capture's terms must match hers): disagreements with the robot's raw bits."""
     pattern = re.compile(r"^(controller|eve\[(\w+)\]).*?differs from the robot's raw bits on "
                          r"(\d+) of (\d+) bits", re.M)
     totals = {}
     for d in folders:
         out = robokey("eve", "--capture", f"{d}/capture.pcap", "--camera-log", f"{d}/camera.csv",
-                      "--set", "sensing.mode=private", "--robot-key", f"{d}/robot.key",
+                      *settings(a), "--robot-key", f"{d}/robot.key",
                       "--controller-key", f"{d}/controller.key", "--out", f"{d}/eve").stdout
         for match in pattern.finditer(out):
             who = match.group(2) or match.group(1)
@@ -239,7 +246,8 @@ def main():
     p.add_argument("faults", nargs="*")
     a = p.parse_args()
     a.faults = a.faults or MIX
-    a.sample_time = 0.2
+    a.sample_time = float(re.search(r"^T = (\S+)", robokey("config", *settings(a)).stdout,
+                                    re.M).group(1))
     a.pairing = os.path.join(a.out, "pairing.key")
     folders = [os.path.join(a.out, f"session-{i:03}") for i in range(a.sessions)]
     if not a.summary_only:
@@ -252,7 +260,7 @@ def main():
         print(f"{a.sessions} sessions in {time.time() - started:.0f} s wall")
     summary(a, folders)
     if a.eve:
-        eve_summary(folders)
+        eve_summary(a, folders)
     agree, lists = stores_agree(a)
     print(f"stores agree: {agree}")
     for role in ("robot", "controller"):

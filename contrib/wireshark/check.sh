@@ -12,7 +12,9 @@ fields=(frame.number robokey.type robokey.session robokey.seq robokey.step
         robokey.u0.right robokey.u0.left robokey.u1.right robokey.u1.left
         robokey.sample.px robokey.sample.py robokey.sample.theta
         robokey.first.v robokey.first.omega robokey.second.v robokey.second.omega)
-tshark -r "$capture" -X lua_script:"$here/robokey.lua" -T fields -E separator=/t \
+# Heuristic dissectors first: a test capture's ephemeral port may be one Wireshark assigns to
+# another protocol (e.g. 47000).
+tshark -r "$capture" -X lua_script:"$here/robokey.lua" -o udp.try_heuristic_first:TRUE -T fields -E separator=/t \
     "${fields[@]/#/-e}" > "$work/tshark.tsv" 2> "$work/tshark.err"
 if grep -q "Lua:" "$work/tshark.err"; then
     echo "dissector: Lua errors:" >&2; cat "$work/tshark.err" >&2; exit 1

@@ -27,7 +27,8 @@ use crate::exit::usage;
 
 #[derive(Args, Debug)]
 pub struct EveArgs {
-    /// Listen to the session in this relay capture (pcap) instead of simulating sessions.
+    /// Listen to the session in this capture instead of simulating sessions: pcap or pcapng,
+    /// from `robokey relay --capture`, tcpdump, dumpcap or Wireshark.
     #[arg(long)]
     capture: Option<PathBuf>,
     /// Configuration (TOML) of the sessions; defaults when omitted.
@@ -302,6 +303,7 @@ fn on_capture(
         args.strategy.iter().map(|&s| s.into()).collect()
     };
     let captured = read_session(capture, config)?;
+    warn_of_shortfalls(capture, &captured.shortfalls);
     let controller = args
         .controller_key
         .as_deref()
@@ -392,6 +394,7 @@ fn on_capture(
             "session_aborted": captured.aborted,
             "frames": captured.messages.len(),
             "undecodable": captured.undecodable,
+            "shortfalls": captured.shortfalls,
             "strategies": reports,
         });
         write(
@@ -413,6 +416,7 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
     };
     let strategies = simulated_strategies(args, config.sensing.mode);
     let captured = read_session(capture, config)?;
+    warn_of_shortfalls(capture, &captured.shortfalls);
     let camera = read_log(camera_log)?;
     let heard = listen_private(&captured, &camera, config);
     let read_key = |path: &Option<PathBuf>| path.as_deref().map(read_key_file).transpose();
@@ -489,9 +493,10 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
     if let Some(out) = &args.out {
         std::fs::create_dir_all(out).with_context(|| format!("create {}", out.display()))?;
         let json = serde_json::json!({
-            "session": captured.session,
+            "session": format!("{:08x}", captured.session),
             "frames": captured.messages.len(),
             "undecodable": captured.undecodable,
+            "shortfalls": captured.shortfalls,
             "camera_samples": camera.len(),
             "strategies": reports,
         });
@@ -501,6 +506,14 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
         )?;
     }
     Ok(())
+}
+
+/// Says on stderr what of `capture` could not be read (a cut-off end, packets cut by the
+/// snap length): the results hold for what was read.
+pub fn warn_of_shortfalls(capture: &std::path::Path, shortfalls: &[String]) {
+    for shortfall in shortfalls {
+        eprintln!("warning: {}: {shortfall}", capture.display());
+    }
 }
 
 #[cfg(test)]

@@ -9,9 +9,12 @@ use robokey_lab::run::Shard;
 
 mod commands;
 mod configuration;
+mod demo;
 mod eve;
 mod exit;
 mod keys;
+mod kme;
+mod logging;
 mod net;
 mod ros2;
 
@@ -25,7 +28,8 @@ use exit::Status;
 #[command(
     name = "robokey",
     version = robokey_lab::VERSION,
-    after_help = "Start with `robokey reproduce`. The model, protocol, private sensing, secrecy \
+    after_help = "Start with `robokey reproduce` (the paper's experiments) and `robokey demo` (a \
+                  final key between two agents). The model, protocol, private sensing, secrecy \
                   accounting and threat model are explained in the repository's docs/.\n\n\
                   Exit codes: 0 success (a session: its key confirmed), 1 error, 2 wrong \
                   command line or input file, 3 a session ended without a key, 4 \
@@ -36,6 +40,11 @@ use exit::Status;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Which diagnostic messages of robokey's libraries (RustDDS, ros2-client: discovery,
+    /// matching, QoS) reach stderr: a level (off, error, warn, info, debug, trace) or
+    /// TARGET=LEVEL pairs, e.g. `warn,rustdds=debug`. Default: $RUST_LOG, else off.
+    #[arg(long, global = true, value_name = "FILTER")]
+    log: Option<String>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -97,10 +106,20 @@ enum Command {
     /// localhost only) for `robot --backend ros2`; needs the `ros2` feature (docs/ros2.md).
     #[command(name = "ros2-sim")]
     Ros2Sim(ros2::SimArgs),
-    /// The final keys of an agent's store (--store): list, get (hex), delete. Both agents'
-    /// stores list the same IDs (docs/postprocessing.md).
+    /// The final keys of an agent's store (--store): list, take a key for an application
+    /// (each once; the robot's store by the ID the controller's gave), get a whole final key
+    /// to compare the stores, delete. Both agents' stores list the same IDs (docs/keys.md).
     #[command(subcommand_required = true)]
     Keys(keys::KeysArgs),
+    /// An ETSI GS QKD 014 key-delivery server (HTTPS, mutual TLS) on an agent's store: the
+    /// controller's store gives new keys (enc_keys), the robot's the same keys by ID
+    /// (dec_keys), each once (docs/keys.md).
+    Kme(kme::KmeArgs),
+    /// A final key in one command: paired agents on 127.0.0.1 (simulated robot and world,
+    /// the relay with faults, stores), session after session until both stores hold the same
+    /// final key; shows its ID and length on both sides and checks the bits are equal.
+    #[command(allow_negative_numbers = true)]
+    Demo(demo::DemoArgs),
 }
 
 #[derive(Args, Debug)]
@@ -326,17 +345,21 @@ struct ConfigArgs {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if matches!(
+    // The commands that talk over sockets keep SIGPIPE ignored (a closed socket is an error
+    // they handle); every other one only writes files and the terminal.
+    if !matches!(
         cli.command,
-        Command::Run(_)
-            | Command::Sweep(_)
-            | Command::Merge(_)
-            | Command::Report(_)
-            | Command::Reproduce(_)
-            | Command::Config(_)
-            | Command::Secrecy(_)
+        Command::Robot(_)
+            | Command::Controller(_)
+            | Command::Relay(_)
+            | Command::Kh4Emulator(_)
+            | Command::Record(_)
+            | Command::Ros2Sim(_)
     ) {
         exit::end_on_broken_pipe();
+    }
+    if let Err(error) = logging::install(cli.log.as_deref()) {
+        return exit::code(Err(error));
     }
     let done = |result: anyhow::Result<()>| result.map(|()| Status::Success);
     let result = match cli.command {
@@ -357,6 +380,8 @@ fn main() -> ExitCode {
         Command::Record(args) => net::record(args),
         Command::Ros2Sim(args) => ros2::ros2_sim(args),
         Command::Keys(args) => done(keys::keys(args)),
+        Command::Kme(args) => kme::kme(args),
+        Command::Demo(args) => demo::demo(args),
     };
     exit::code(result)
 }

@@ -171,7 +171,8 @@ pub fn pair(args: PairArgs) -> Result<()> {
 
 #[derive(Args, Debug)]
 pub struct FramesArgs {
-    /// A pcap capture (e.g. from `robokey relay --capture`).
+    /// A pcap or pcapng capture: from `robokey relay --capture`, tcpdump, dumpcap or
+    /// Wireshark (raw IP, Ethernet, Linux cooked or BSD loopback framing).
     capture: PathBuf,
 }
 
@@ -181,7 +182,9 @@ pub struct FramesArgs {
 pub fn frames(args: FramesArgs) -> Result<()> {
     use robokey::protocol::wire::decode;
     use robokey::protocol::{Message, SessionMessage};
-    for (i, datagram) in read_capture(&args.capture)?.iter().enumerate() {
+    let capture = read_capture(&args.capture)?;
+    crate::eve::warn_of_shortfalls(&args.capture, &capture.shortfalls);
+    for (i, datagram) in capture.datagrams.iter().enumerate() {
         let bytes = &datagram.payload;
         let frame = match decode(bytes) {
             Ok(frame) => frame,
@@ -329,7 +332,8 @@ pub struct RelayArgs {
     /// Seed of the fault streams.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Record every datagram to this pcap file (LINKTYPE_RAW, synthetic IPv4/UDP headers).
+    /// Record every datagram to this pcap file (LINKTYPE_RAW: IPv4 or IPv6 and UDP headers
+    /// with checksums, made up by the relay).
     #[arg(long)]
     capture: Option<PathBuf>,
     /// Record datagrams as delivered (after faults) instead of as sent.

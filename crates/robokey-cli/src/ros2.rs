@@ -23,6 +23,9 @@ pub struct Ros2RobotArgs {
     /// Publish geometry_msgs/TwistStamped (ROS 2 Jazzy's TurtleBot3) instead of Twist.
     #[arg(long)]
     ros2_stamped: bool,
+    /// header.frame_id of each TwistStamped: the robot's base frame.
+    #[arg(long, default_value = "base_link", value_name = "FRAME")]
+    ros2_frame_id: String,
     /// Odometry topic (nav_msgs/Odometry).
     #[arg(long, default_value = "/odom", value_name = "TOPIC")]
     ros2_odom: String,
@@ -279,6 +282,7 @@ mod with_ros2 {
                 axle_length: config.robot.axle_length,
             },
             clock,
+            cmd_frame_id: args.ros2_frame_id.clone(),
             timeout: Duration::from_secs_f64(wait),
         })?;
         Ok(run_session(config, &mut backend, key_source, options)?)

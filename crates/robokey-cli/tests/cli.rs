@@ -144,6 +144,23 @@ fn run_prints_metrics_and_writes_its_files() {
 }
 
 #[test]
+fn frames_prints_what_dumpcap_and_tcpdump_recorded_as_it_prints_the_relays_capture() {
+    // One session recorded by the relay and by the tools at once (robokey-net's tests/captures).
+    let fixture = |name: &str| {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../robokey-net/tests/captures")
+            .join(name)
+            .display()
+            .to_string()
+    };
+    let relay = ok(&["frames", &fixture("relay-after-faults.pcap")]);
+    assert_eq!(relay.lines().count(), 91);
+    for name in ["dumpcap-lo.pcapng", "tcpdump-lo.pcap", "tcpdump-any.pcap"] {
+        assert_eq!(ok(&["frames", &fixture(name)]), relay, "{name}");
+    }
+}
+
+#[test]
 fn protocol_off_leaves_key_metrics_null() {
     let dir = scratch("off");
     ok(&["run", "--protocol-off", "--out", s(&dir)]);
@@ -162,6 +179,33 @@ fn bad_input_gets_named_errors() {
     );
     let err = fails(&["run", "--set", "controller.gain=2"]);
     assert!(err.contains("gain"), "{err}");
+    // Offered wheel speeds the robot would refuse: named, with the largest Δv that fits.
+    for (flag, value) in [
+        ("--delta-v", "1"),
+        ("--delta-v", "35"),
+        ("--set", "protocol.delta_v=1e308"),
+    ] {
+        let err = fails_with(2, &["run", flag, value]);
+        assert!(
+            err.contains("`protocol.delta_v`")
+                && err.contains("≤ 0.6285 m/s")
+                && err.contains("above robot.wheel_limit = 38 rad/s"),
+            "{err}"
+        );
+    }
+    // A logging filter that does not parse, from the flag or the environment.
+    let err = fails_with(2, &["config", "--log", "rustdds=loud"]);
+    assert!(
+        err.contains("--log rustdds=loud") && err.contains("warn,rustdds=debug"),
+        "{err}"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .arg("config")
+        .env("RUST_LOG", "debug,rustdds=loud")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("RUST_LOG debug,rustdds=loud"));
     let dir = scratch("bad");
     let file = dir.join("bad.toml");
     std::fs::write(

@@ -178,6 +178,59 @@ fn clean_network_confirms_equal_keys_identical_to_the_simulator_and_eve_agrees_o
     // paired session's capture (the simulator charges them anyway, as if the pairing
     // secret leaked later).
     assert!(strategies[4]["tag_flips"].is_null(), "{}", strategies[4]);
+    // Cut short, the capture is heard up to its last whole packet, and eve says so.
+    let whole = std::fs::read(dir.join("capture.pcap")).unwrap();
+    std::fs::write(dir.join("cut.pcap"), &whole[..whole.len() / 2]).unwrap();
+    let cut_out = dir.join("eve-cut");
+    let (ok, text) = run(&[
+        "eve",
+        "--capture",
+        &s(&dir.join("cut.pcap")),
+        "--seed",
+        "11",
+        "--out",
+        &s(&cut_out),
+    ]);
+    assert!(ok, "{text}");
+    let cut = report(&cut_out.join("capture.json"));
+    let shortfall = cut["shortfalls"][0].as_str().unwrap();
+    assert!(
+        shortfall.starts_with("the file ends inside a block at byte"),
+        "{shortfall}"
+    );
+    let frames = cut["frames"].as_u64().unwrap();
+    assert!(
+        frames > 0 && frames < eve["frames"].as_u64().unwrap(),
+        "{cut}"
+    );
+    let (ok, text) = run(&["frames", &s(&dir.join("cut.pcap"))]);
+    assert!(
+        ok && text.contains("warning: ") && text.contains("cut.pcap: the file ends"),
+        "{text}"
+    );
+    // A reader that stops early (`robokey frames … | head`) ends it quietly.
+    let mut frames = Command::new(env!("CARGO_BIN_EXE_robokey"))
+        .args(["frames", &s(&dir.join("capture.pcap"))])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = [0u8; 16];
+    std::io::Read::read_exact(frames.stdout.as_mut().unwrap(), &mut first).unwrap();
+    drop(frames.stdout.take());
+    let out = frames.wait_with_output().unwrap();
+    use std::os::unix::process::ExitStatusExt;
+    assert!(
+        out.status.signal() == Some(13) || out.status.success(),
+        "{:?}: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 #[test]

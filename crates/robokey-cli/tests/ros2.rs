@@ -314,6 +314,8 @@ fn realtime_session_with_twist_stamped_confirms_a_key() {
     assert_eq!((controller.0, robot.0, sim.0), (0, 0, 0));
     assert_confirmed_with_equal_keys(&dir);
     assert_eq!(report(&dir.join("robot.json"))["steps"], 36);
+    // Each TwistStamped says the frame of its twist, the robot's base.
+    assert_eq!(sim_stats(&sim.1)["cmd_frame_id"], "base_link", "{}", sim.1);
 }
 
 #[test]
@@ -370,11 +372,24 @@ fn missing_peers_bad_names_and_a_delta_off_the_quantum_are_named_errors() {
     let dir = scratch("ros2-errors");
     let pairing = pairing(&dir);
     let robot = |extra: &[&str]| run_logged(&[&ROBOT[..], &[pairing.as_str()]].concat(), extra);
-    // No ROS 2 robot on this host: an error (1) that says what was missing.
+    // No ROS 2 robot on this host: an error (1) that says what was missing; with --log,
+    // RustDDS's own messages on stderr too.
     assert_fails(
         robot(&["--set", "protocol.delta_v=0.04", "--ros2-wait", "1"]),
         1,
         &["no valid /odom within 1.0 s"],
+    );
+    assert_fails(
+        robot(&[
+            "--set",
+            "protocol.delta_v=0.04",
+            "--ros2-wait",
+            "1",
+            "--log",
+            "rustdds=info",
+        ]),
+        1,
+        &[" INFO rustdds::", "no valid /odom within 1.0 s"],
     );
     // The default Δv = 0.035 m/s is not a multiple of the TurtleBot3's 0.01: a usage error.
     assert_fails(
@@ -403,6 +418,43 @@ fn missing_peers_bad_names_and_a_delta_off_the_quantum_are_named_errors() {
         &[
             "the subscribers of /cmd_vel use geometry_msgs::msg::dds_::Twist_, not \
              geometry_msgs::msg::dds_::TwistStamped_: the robot takes Twist: drop --ros2-stamped",
+        ],
+    );
+    drop(sim);
+    // Reliability QoS that DDS never matches, on either topic, is named as such.
+    let sim = start(&["ros2-sim", "--idle-exit", "5", "--odom-qos", "best-effort"]);
+    assert_fails(
+        robot(&[
+            "--set",
+            "protocol.delta_v=0.04",
+            "--ros2-odom-qos",
+            "reliable",
+            "--ros2-wait",
+            "3",
+        ]),
+        1,
+        &[
+            "no valid /odom within 3.0 s: a QoS reliability mismatch: the publishers of /odom \
+             are best effort and this subscription is reliable",
+            "(--ros2-odom-qos best-effort)",
+        ],
+    );
+    drop(sim);
+    let sim = start(&["ros2-sim", "--idle-exit", "5"]);
+    assert_fails(
+        robot(&[
+            "--set",
+            "protocol.delta_v=0.04",
+            "--ros2-cmd-qos",
+            "best-effort",
+            "--ros2-wait",
+            "3",
+        ]),
+        1,
+        &[
+            "a QoS reliability mismatch: the subscribers of /cmd_vel are reliable and this \
+             publisher is best effort",
+            "(--ros2-cmd-qos reliable)",
         ],
     );
     drop(sim);

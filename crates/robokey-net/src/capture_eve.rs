@@ -28,6 +28,8 @@ pub struct CapturedSession {
     pub messages: Vec<Message>,
     /// Datagrams that did not decode.
     pub undecodable: usize,
+    /// What the capture held that could not be read ([`pcap::Capture::shortfalls`]).
+    pub shortfalls: Vec<String>,
     /// The reason of the session's first `Abort`, if it was aborted: then no key was agreed,
     /// whatever bits an eavesdropper collected.
     pub aborted: Option<String>,
@@ -56,7 +58,10 @@ pub struct CaptureResult {
 /// # Errors
 /// The capture cannot be read, holds no session, or its terms differ from `config`.
 pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, NetError> {
-    let datagrams = pcap::read(capture)?;
+    let pcap::Capture {
+        datagrams,
+        shortfalls,
+    } = pcap::read(capture)?;
     let frames: Vec<_> = datagrams
         .iter()
         .filter_map(|d| decode(&d.payload).ok().map(|f| (f, d.payload.as_slice())))
@@ -99,6 +104,7 @@ pub fn read_session(capture: &Path, config: &Config) -> Result<CapturedSession, 
         session,
         messages,
         undecodable,
+        shortfalls,
         aborted,
         public_confirmer,
     })

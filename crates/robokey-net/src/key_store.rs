@@ -8,7 +8,16 @@
 //! does not verify — planted, edited, another pairing's or role's — is refused by name and
 //! never reported as a commit; so is any name that exists already (a file, a link, a dangling
 //! link) when a key is written, unless it is this very key. A key is `pending` while the peer
-//! has not acknowledged it, and only a `settled` key is delivered.
+//! has not acknowledged it, and only a `settled` key is delivered: cut into slices, each taken
+//! once ([`slices`], docs/keys.md), its taken bits erased from the file. A file with taken
+//! slices is sealed under another MAC domain, so that a robokey that predates slices refuses
+//! it rather than read its erased bits as a key.
+//!
+//! Every change to `keys/` — an agent writing, settling or removing a key, a slice taken by
+//! `robokey keys take` or `robokey kme`, `keys delete` — holds the folder's lock
+//! ([`KeyStore::lock`], `flock` on the folder itself) for that one change: an agent and a key
+//! server on the same store never interleave their changes to a file, and two takers never
+//! take the same slice.
 
 use std::fs::OpenOptions;
 use std::io::Read as _;
@@ -19,12 +28,17 @@ use serde::{Deserialize, Serialize};
 use zeroize::{Zeroize, Zeroizing};
 
 use crate::error::NetError;
+use crate::key_slice::Span;
 use crate::owned_file::{self, ANY_ACCESS_BY_OTHERS};
 use crate::secret_file;
 use crate::store_keys::StoreMac;
 
+pub mod slices;
+
 /// Domain of a key file's MAC.
 const MAC_DOMAIN: &[u8] = b"robokey key file v2";
+/// Domain of the MAC of a key file from which slices were taken.
+const SLICED_MAC_DOMAIN: &[u8] = b"robokey key file v3 with taken slices";
 /// What separates a key file's JSON from its MAC.
 const MAC_FIELD: &str = ",\n  \"mac\": \"";
 /// Longest ID an error message quotes in full.
@@ -67,6 +81,9 @@ pub struct StoredKey {
     pub sessions: Vec<u32>,
     /// Settled, or pending and why.
     pub status: KeyStatus,
+    /// The slices taken from it, by offset: their bits are erased (zero) in `hex`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub taken: Vec<Span>,
 }
 
 impl std::fmt::Debug for StoredKey {
@@ -78,6 +95,7 @@ impl std::fmt::Debug for StoredKey {
             .field("bits", &self.bits)
             .field("restricted", &self.restricted)
             .field("status", &self.status)
+            .field("taken", &self.taken)
             .finish_non_exhaustive()
     }
 }
@@ -92,17 +110,14 @@ impl StoredKey {
     /// The stored form of `key`, committed (or prepared) now by `role`.
     #[must_use]
     pub fn new(key: &FinalKey, role: &str, restricted: bool, status: KeyStatus) -> Self {
-        let mut hex = String::with_capacity(key.key.len().div_ceil(4));
-        let mut bytes = vec![0_u8; key.key.len().div_ceil(8)];
+        let mut bytes = Zeroizing::new(vec![0_u8; key.key.len().div_ceil(8)]);
         for i in 0..key.key.len() {
             if key.key.get(i) == Some(true) {
                 bytes[i / 8] |= 0x80 >> (i % 8);
             }
         }
-        for byte in &bytes {
-            hex.push_str(&format!("{byte:02x}"));
-        }
-        bytes.zeroize();
+        // Hex without data-dependent branches or table look-ups (base16ct): it is the key.
+        let hex = base16ct::lower::encode_string(&bytes);
         Self {
             id: key.id.clone(),
             role: role.to_owned(),
@@ -112,9 +127,10 @@ impl StoredKey {
             epsilon: key.epsilon,
             assumption: key.assumption.clone(),
             restricted,
-            created: utc_now(),
+            created: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
             sessions: key.sessions.clone(),
             status,
+            taken: Vec::new(),
         }
     }
 
@@ -124,10 +140,12 @@ impl StoredKey {
         self.status == KeyStatus::Settled
     }
 
-    /// Whether `other` is the same key (ID, block, sessions, bits), whatever its status.
+    /// Whether `other` is the same key (ID, block, sessions, bits), whatever its status and
+    /// the slices taken from either (their bits are left out of the comparison).
     fn same_key(&self, other: &Self) -> bool {
-        (&self.id, self.block, &self.sessions, &self.hex)
-            == (&other.id, other.block, &other.sessions, &other.hex)
+        let erased = [self.taken.as_slice(), other.taken.as_slice()].concat();
+        (&self.id, self.block, &self.sessions) == (&other.id, other.block, &other.sessions)
+            && self.erased_hex(&erased) == other.erased_hex(&erased)
     }
 }
 
@@ -184,6 +202,12 @@ impl KeyStore {
         })
     }
 
+    /// `robot` or `controller`: whose store.
+    #[must_use]
+    pub fn role(&self) -> &str {
+        &self.role
+    }
+
     fn path(&self, id: &str) -> PathBuf {
         self.dir.join(format!("{id}.key"))
     }
@@ -196,6 +220,7 @@ impl KeyStore {
     /// The name is taken by a link, a file that does not verify, or another key (named: it
     /// is then not reported as committed); a write fails.
     pub fn store(&self, key: &StoredKey) -> Result<Stored, NetError> {
+        let _lock = self.lock()?;
         let path = self.path(&key.id);
         let text = self.seal(key)?;
         if secret_file::create(&path, &text)? {
@@ -228,6 +253,7 @@ impl KeyStore {
     /// # Errors
     /// No such key (a usage error), it does not verify, or the write fails.
     pub fn restate(&self, id: &str, status: KeyStatus) -> Result<(), NetError> {
+        let _lock = self.lock()?;
         let mut key = self.get(id)?;
         key.status = status;
         secret_file::replace(&self.path(id), &self.seal(&key)?)?;
@@ -239,6 +265,7 @@ impl KeyStore {
     /// # Errors
     /// The key is settled, does not verify, or the removal fails.
     pub fn remove_pending(&self, id: &str) -> Result<(), NetError> {
+        let _lock = self.lock()?;
         let path = self.path(id);
         let key = self.read(&path, id)?;
         if key.is_settled() {
@@ -286,11 +313,11 @@ impl KeyStore {
         self.read(&path, id)
     }
 
-    /// The key `id` for an application: settled only.
+    /// The key `id` if it is settled.
     ///
     /// # Errors
     /// As [`Self::get`], or [`NetError::Pending`] naming the key and why it is pending.
-    pub fn deliver(&self, id: &str) -> Result<StoredKey, NetError> {
+    pub fn settled(&self, id: &str) -> Result<StoredKey, NetError> {
         let key = self.get(id)?;
         match &key.status {
             KeyStatus::Settled => Ok(key),
@@ -307,8 +334,32 @@ impl KeyStore {
     /// No such key, it is pending ([`NetError::Pending`]), it does not verify, or the
     /// removal fails.
     pub fn delete(&self, id: &str) -> Result<(), NetError> {
-        self.deliver(id)?;
+        let _lock = self.lock()?;
+        self.settled(id)?;
         remove_durably(&self.path(id), &self.dir)
+    }
+
+    /// Takes the lock of the key folder (`flock` on the folder), waiting for another
+    /// process's change to end; held until the guard is dropped. Every change to `keys/`
+    /// holds it, and never takes it twice (a second lock in one process waits for the first).
+    ///
+    /// # Errors
+    /// The folder cannot be opened or locked.
+    pub fn lock(&self) -> Result<KeyFolderLock, NetError> {
+        let folder = std::fs::File::open(&self.dir)
+            .and_then(|folder| folder.lock().map(|()| folder))
+            .map_err(NetError::io(format!("lock {}", self.dir.display())))?;
+        Ok(KeyFolderLock { _folder: folder })
+    }
+
+    /// Replaces the file of `key` (already stored) by its new state, atomically. The caller
+    /// holds [`Self::lock`].
+    ///
+    /// # Errors
+    /// The write fails (the old file is then intact).
+    pub(crate) fn rewrite(&self, key: &StoredKey, _lock: &KeyFolderLock) -> Result<(), NetError> {
+        secret_file::replace(&self.path(&key.id), &self.seal(key)?)?;
+        Ok(())
     }
 
     fn existing(&self, id: &str) -> Result<PathBuf, NetError> {
@@ -336,11 +387,11 @@ impl KeyStore {
         let open = body
             .strip_suffix("\n}")
             .expect("a pretty JSON object ends so");
-        let tag = self.mac.tag(&[MAC_DOMAIN, body.as_bytes()]);
+        let tag = self.mac.tag(&[mac_domain(key), body.as_bytes()]);
         let mut text = Zeroizing::new(Vec::with_capacity(body.len() + 100));
         text.extend_from_slice(open.as_bytes());
         text.extend_from_slice(MAC_FIELD.as_bytes());
-        text.extend_from_slice(hex(&tag).as_bytes());
+        text.extend_from_slice(base16ct::lower::encode_string(&tag).as_bytes());
         text.extend_from_slice(b"\"\n}\n");
         Ok(text)
     }
@@ -361,18 +412,26 @@ impl KeyStore {
         })?;
         let tag = tail
             .strip_suffix("\"\n}\n")
-            .and_then(unhex)
+            .and_then(|hex| base16ct::mixed::decode_vec(hex).ok())
             .ok_or_else(|| bad("does not verify: its MAC is malformed".into()))?;
         let body = Zeroizing::new(format!("{open}\n}}"));
-        if tag.len() != 32 || !self.mac.verify(&[MAC_DOMAIN, body.as_bytes()], &tag) {
-            return Err(bad(format!(
-                "does not verify under this pairing's {} key-file key: not written by this \
-                 store (planted, edited, or another pairing's or role's)",
-                self.role
-            )));
-        }
+        let domain = [MAC_DOMAIN, SLICED_MAC_DOMAIN]
+            .into_iter()
+            .find(|domain| tag.len() == 32 && self.mac.verify(&[domain, body.as_bytes()], &tag))
+            .ok_or_else(|| {
+                bad(format!(
+                    "does not verify under this pairing's {} key-file key: not written by this \
+                     store (planted, edited, or another pairing's or role's)",
+                    self.role
+                ))
+            })?;
         let key: StoredKey =
             serde_json::from_str(&body).map_err(|e| bad(format!("is malformed: {e}")))?;
+        if domain != mac_domain(&key) || !key.taken_spans_fit() {
+            return Err(bad(
+                "is malformed: its taken slices do not match its MAC domain or its length".into(),
+            ));
+        }
         if key.id != id || key.role != self.role {
             return Err(bad(format!(
                 "holds the {} key {}, not {} key {id}",
@@ -383,6 +442,21 @@ impl KeyStore {
     }
 }
 
+/// The MAC domain of `key`'s file: another once a slice was taken.
+fn mac_domain(key: &StoredKey) -> &'static [u8] {
+    if key.taken.is_empty() {
+        MAC_DOMAIN
+    } else {
+        SLICED_MAC_DOMAIN
+    }
+}
+
+/// The lock of a key folder, held while alive ([`KeyStore::lock`]).
+#[derive(Debug)]
+pub struct KeyFolderLock {
+    _folder: std::fs::File,
+}
+
 /// `id` as an error quotes it: whole if short, else its start and its length.
 fn brief(id: &str) -> String {
     if id.chars().count() <= QUOTED_ID {
@@ -390,19 +464,6 @@ fn brief(id: &str) -> String {
     }
     let start: String = id.chars().take(QUOTED_ID).collect();
     format!("{start:?}… ({} characters)", id.chars().count())
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-fn unhex(text: &str) -> Option<Vec<u8>> {
-    if !text.len().is_multiple_of(2) || !text.is_ascii() {
-        return None;
-    }
-    (0..text.len() / 2)
-        .map(|i| u8::from_str_radix(&text[2 * i..2 * i + 2], 16).ok())
-        .collect()
 }
 
 fn remove_durably(path: &Path, dir: &Path) -> Result<(), NetError> {
@@ -421,49 +482,11 @@ pub(crate) fn create_private_dir(dir: &Path) -> Result<(), NetError> {
         .map_err(NetError::io(format!("create {}", dir.display())))
 }
 
-/// Now, UTC, as `YYYY-MM-DDTHH:MM:SSZ`.
-fn utc_now() -> String {
-    let seconds = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    utc(seconds)
-}
-
-/// `seconds` after the Unix epoch as `YYYY-MM-DDTHH:MM:SSZ` (the proleptic Gregorian
-/// calendar; H. Hinnant's `civil_from_days`).
-fn utc(seconds: u64) -> String {
-    let days = (seconds / 86_400) as i64;
-    let second_of_day = seconds % 86_400;
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let day_of_era = z.rem_euclid(146_097);
-    let year_of_era =
-        (day_of_era - day_of_era / 1460 + day_of_era / 36_524 - day_of_era / 146_096) / 365;
-    let day_of_year = day_of_era - (365 * year_of_era + year_of_era / 4 - year_of_era / 100);
-    let mp = (5 * day_of_year + 2) / 153;
-    let day = day_of_year - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = year_of_era + era * 400 + i64::from(month <= 2);
-    format!(
-        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z",
-        second_of_day / 3600,
-        second_of_day / 60 % 60,
-        second_of_day % 60
-    )
-}
-
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
     use robokey::protocol::auth::PairingSecret;
     use robokey_secrecy::BitString;
-
-    #[test]
-    fn dates_are_civil() {
-        assert_eq!(utc(0), "1970-01-01T00:00:00Z");
-        assert_eq!(utc(951_782_400), "2000-02-29T00:00:00Z");
-        assert_eq!(utc(1_795_000_000), "2026-11-18T11:06:40Z");
-    }
 
     pub(crate) fn mac(seed: u8, role: &str) -> StoreMac {
         StoreMac::derive(&PairingSecret::from_bytes(&[seed; 32]), "key-file", role)
@@ -493,11 +516,21 @@ pub(crate) mod tests {
             KeyStatus::Pending("prepared".into()),
         );
         assert_eq!(pending.hex, "b080");
+        // Committed now, in UTC to the second: `YYYY-MM-DDTHH:MM:SSZ`.
+        let created = humantime::parse_rfc3339(&pending.created).unwrap();
+        let age = std::time::SystemTime::now()
+            .duration_since(created)
+            .unwrap();
+        assert!(
+            age.as_secs() < 3600 && pending.created.len() == 20,
+            "{}",
+            pending.created
+        );
         assert_eq!(store.store(&pending).unwrap(), Stored::Written);
         assert_eq!(store.store(&pending).unwrap(), Stored::Present);
         // A pending key is listed, got, and withheld from delivery and deletion.
         assert_eq!(store.list().unwrap(), vec![pending.clone()]);
-        let withheld = store.deliver(&pending.id).unwrap_err();
+        let withheld = store.settled(&pending.id).unwrap_err();
         assert!(matches!(withheld, NetError::Pending(_)), "{withheld}");
         assert!(withheld.to_string().contains("prepared"), "{withheld}");
         assert!(matches!(
@@ -509,7 +542,7 @@ pub(crate) mod tests {
         settled.status = KeyStatus::Settled;
         assert_eq!(store.store(&settled).unwrap(), Stored::Settled);
         assert_eq!(store.store(&pending).unwrap(), Stored::Present);
-        assert_eq!(store.deliver(&settled.id).unwrap(), settled);
+        assert_eq!(store.settled(&settled.id).unwrap(), settled);
         // Another key under the same ID is refused.
         let mut other = settled.clone();
         other.hex = "ffff".into();
@@ -610,7 +643,7 @@ pub(crate) mod tests {
                 "{what}: {error}"
             );
             assert!(store.list().is_err(), "{what}");
-            assert!(store.deliver(&key.id).is_err(), "{what}");
+            assert!(store.settled(&key.id).is_err(), "{what}");
             assert_eq!(
                 std::fs::read(&victim).unwrap(),
                 b"attacker's bits",
@@ -621,7 +654,7 @@ pub(crate) mod tests {
         }
         // The name freed, the key is written.
         assert_eq!(store.store(&key).unwrap(), Stored::Written);
-        assert_eq!(store.deliver(&key.id).unwrap().hex, "b080");
+        assert_eq!(store.settled(&key.id).unwrap().hex, "b080");
     }
 
     #[test]

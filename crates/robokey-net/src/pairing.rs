@@ -34,9 +34,11 @@ pub fn write_pairing<R: CryptoRng + ?Sized>(
     }
     std::fs::create_dir_all(dir).map_err(NetError::io(format!("create {}", dir.display())))?;
     let secret = PairingSecret::generate(rng);
-    let hex: Zeroizing<String> =
-        Zeroizing::new(secret.expose().iter().map(|b| format!("{b:02x}")).collect());
-    let text = Zeroizing::new(format!("{HEADER} {}\n", hex.as_str()));
+    // Hex without data-dependent branches or table look-ups (base16ct): it is the secret.
+    let mut hex = Zeroizing::new([0u8; 2 * SECRET_BYTES]);
+    let hex = base16ct::lower::encode_str(secret.expose(), hex.as_mut_slice())
+        .expect("the buffer holds two digits per byte");
+    let text = Zeroizing::new(format!("{HEADER} {hex}\n"));
     crate::secret_file::write_new(&path, text.as_bytes())?;
     Ok((path, secret))
 }
@@ -104,10 +106,8 @@ pub fn read_pairing(
         )));
     }
     let mut bytes = Zeroizing::new([0u8; SECRET_BYTES]);
-    for (i, byte) in bytes.iter_mut().enumerate() {
-        *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16)
-            .map_err(|_| bad("the secret is not hex".into()))?;
-    }
+    base16ct::mixed::decode(hex, bytes.as_mut_slice())
+        .map_err(|_| bad("the secret is not hex".into()))?;
     Ok((PairingSecret::from_bytes(&bytes), warning))
 }
 

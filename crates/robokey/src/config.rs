@@ -712,6 +712,7 @@ impl Config {
             }
             SensingMode::Private => self.validate_private()?,
         }
+        self.validate_wheel_speeds()?;
         if self.eve_strategy().mode() != self.sensing.mode {
             let allowed = match self.sensing.mode {
                 SensingMode::Odometry => "oracle, mismatch, soft, identify or transcript",
@@ -839,6 +840,62 @@ impl Config {
             ));
         }
         Ok(())
+    }
+
+    /// Every wheel speed the controller can offer is one the robot applies: the nominal
+    /// command, clipped to `controller.wheel_limit` per wheel, plus the largest per-wheel
+    /// offset of the protocol, `(Δv + Δω·D/2)/r` (rad/s), stays within `robot.wheel_limit`.
+    /// The robot refuses a pair outside its limit, so a larger Δ would make sessions whose
+    /// steps are all erased: no bit, and no word why.
+    fn validate_wheel_speeds(&self) -> Result<(), ConfigError> {
+        let (robot, controller) = (&self.robot, &self.controller);
+        let (delta_v, delta_omega) = if self.protocol.enabled {
+            (self.protocol.delta_v, self.perturbed_delta_omega())
+        } else {
+            (0.0, 0.0)
+        };
+        let half_axle = robot.axle_length / 2.0;
+        let offset = (delta_v + delta_omega * half_axle) / robot.r;
+        let room = robot.wheel_limit - controller.wheel_limit;
+        if room < 0.0 {
+            return Err(invalid(
+                "controller.wheel_limit",
+                controller.wheel_limit,
+                &format!(
+                    "≤ robot.wheel_limit = {} rad/s, minus the protocol's largest wheel offset \
+                     (Δv + Δω·D/2)/r = {offset:.4} rad/s: the robot refuses commands above its \
+                     limit",
+                    robot.wheel_limit
+                ),
+            ));
+        }
+        if offset <= room {
+            return Ok(());
+        }
+        let why = format!(
+            "the offered wheel speeds reach controller.wheel_limit + (Δv + Δω·D/2)/r = {} + \
+             {offset:.4} = {:.4} rad/s, above robot.wheel_limit = {} rad/s, and the robot \
+             refuses such pairs, so no step would carry a bit",
+            controller.wheel_limit,
+            controller.wheel_limit + offset,
+            robot.wheel_limit
+        );
+        // Name Δω when it alone leaves no room, else Δv, with its largest value that fits.
+        Err(if delta_omega * half_axle / robot.r > room {
+            let most = robot.r * room / half_axle;
+            invalid(
+                "protocol.delta_omega",
+                delta_omega,
+                &format!("≤ {most:.4} rad/s with these limits: {why}"),
+            )
+        } else {
+            let most = robot.r * room - delta_omega * half_axle;
+            invalid(
+                "protocol.delta_v",
+                delta_v,
+                &format!("≤ {most:.4} m/s with these limits: {why}"),
+            )
+        })
     }
 
     /// Δω (rad/s) after defaults: as set, else [`DOUBLET_DELTA_OMEGA`] in private mode
@@ -1036,6 +1093,35 @@ mod tests {
                 .codeword_length(),
             7
         );
+    }
+
+    #[test]
+    fn a_delta_whose_offered_wheel_speeds_exceed_the_robots_limit_is_named() {
+        // r = 0.021 m, D = 0.1047 m, limits 8.07 (controller) and 38 rad/s (robot): the
+        // wheel offset Δv/r may be at most 29.93 rad/s, Δv ≤ 0.62853 m/s.
+        let field_and_allowed = |toml: &str| match Config::from_toml(toml, "t").unwrap_err() {
+            ConfigError::Invalid { field, allowed, .. } => (field, allowed),
+            other => panic!("{other}"),
+        };
+        for delta_v in ["1.0", "35.0", "1e308", "0.6286"] {
+            let (field, allowed) = field_and_allowed(&format!("[protocol]\ndelta_v = {delta_v}\n"));
+            assert_eq!(field, "protocol.delta_v");
+            assert!(
+                allowed.starts_with("≤ 0.6285 m/s") && allowed.contains("robot.wheel_limit = 38"),
+                "{allowed}"
+            );
+        }
+        Config::from_toml("[protocol]\ndelta_v = 0.6285\n", "t").unwrap();
+        // Δω alone: its offset Δω·D/(2r) may be at most 29.93 rad/s, Δω ≤ 12.0063 rad/s.
+        let (field, allowed) =
+            field_and_allowed("[protocol]\ndelta_v = 0.0\ndelta_omega = 12.01\n");
+        assert_eq!(field, "protocol.delta_omega");
+        assert!(allowed.starts_with("≤ 12.0063 rad/s"), "{allowed}");
+        // A controller allowed to command more than the robot applies.
+        let (field, _) = field_and_allowed("[robot]\nwheel_limit = 6.0\n");
+        assert_eq!(field, "controller.wheel_limit");
+        // Without the protocol only the controller's limit counts.
+        Config::from_toml("[protocol]\nenabled = false\ndelta_v = 35.0\n", "t").unwrap();
     }
 
     #[test]

@@ -360,9 +360,25 @@ impl Observer {
 
 /// Decides the applied bit from the estimated applied wheel speeds `ûD` (docs/protocol.md):
 /// 0 if `‖ûD − u0D‖ < ‖ûD − u1D‖`, else 1.
+///
+/// For speed the squared distances decide when they can: the rounded square root is
+/// monotone, so `‖·‖₀² ≥ ‖·‖₁²` gives 1, and `‖·‖₀² < (1 − 2⁻⁴⁸)·‖·‖₁²` (a normal
+/// `‖·‖₁²`) gives 0 because the roots then differ by more than their rounding. Only closer
+/// squares (or subnormal ones) take both roots, so every decision is the one the roots give.
 #[must_use]
 pub fn decide_bit(estimated: &Vector2<f64>, u0: &Vector2<f64>, u1: &Vector2<f64>) -> u8 {
-    u8::from((estimated - u0).norm() >= (estimated - u1).norm())
+    const CLEARLY_SHORTER: f64 = 1.0 - 1.0 / (1u64 << 48) as f64;
+    let (to_u0, to_u1) = (
+        (estimated - u0).norm_squared(),
+        (estimated - u1).norm_squared(),
+    );
+    let farther = to_u0 >= to_u1;
+    let clearly_nearer = to_u1 >= f64::MIN_POSITIVE && to_u0 < to_u1 * CLEARLY_SHORTER;
+    // `|`, not `||`: the bit is random, a branch on it would be mispredicted half the time.
+    if farther | clearly_nearer {
+        return u8::from(farther);
+    }
+    u8::from(to_u0.sqrt() >= to_u1.sqrt())
 }
 
 /// `ln p(d̂ | b = 1) − ln p(d̂ | b = 0)` for the estimate `d̂ ~ N(d_b, Pᵈ)`, where `d0`, `d1`
@@ -587,6 +603,45 @@ mod tests {
         let u1 = Vector2::new(4.0, 4.0);
         assert_eq!(decide_bit(&Vector2::new(4.9, 4.8), &u0, &u1), 0);
         assert_eq!(decide_bit(&Vector2::new(4.2, 4.1), &u0, &u1), 1);
+    }
+
+    /// The squared distances decide as the distances do, also where they are within a few
+    /// ulps of each other (equal roots of unequal squares: 1), subnormal, infinite or NaN.
+    #[test]
+    fn decision_from_squared_distances_is_the_decision_from_distances() {
+        let by_norms = |e: &Vector2<f64>, u0: &Vector2<f64>, u1: &Vector2<f64>| {
+            u8::from((e - u0).norm() >= (e - u1).norm())
+        };
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(31);
+        let mut cases = Vec::new();
+        for _ in 0..20_000 {
+            let e = Vector2::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0));
+            let u0 = Vector2::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0));
+            // u1 is u0 mirrored through e, nudged by a few ulps: distances within rounding.
+            let nudge = f64::EPSILON * f64::from(rng.random_range(-8..=8));
+            let u1 = e * 2.0 - u0 + (e - u0) * nudge;
+            cases.push((e, u0, u1));
+            cases.push((e, u0, e * 2.0 - u0));
+            let far = Vector2::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0));
+            cases.push((e, u0, far));
+        }
+        let tiny = f64::MIN_POSITIVE.sqrt() / 4.0;
+        for special in [0.0, tiny, -tiny, f64::INFINITY, f64::NAN, 1e300] {
+            let z = Vector2::zeros();
+            cases.push((z, Vector2::new(special, 0.0), Vector2::new(0.0, tiny)));
+            cases.push((z, Vector2::new(0.0, tiny), Vector2::new(special, special)));
+        }
+        let mut ties = 0;
+        for (e, u0, u1) in &cases {
+            assert_eq!(decide_bit(e, u0, u1), by_norms(e, u0, u1), "{e} {u0} {u1}");
+            let (a, b) = ((e - u0).norm_squared(), (e - u1).norm_squared());
+            ties += usize::from(a < b && a.sqrt() == b.sqrt());
+        }
+        assert!(
+            ties > 100,
+            "the close cases reached only {ties} equal roots"
+        );
     }
 
     #[test]

@@ -65,12 +65,19 @@ impl Trajectory {
 
     /// The reference at time `t` (s). Segments are right-continuous: at a waypoint time the
     /// next segment applies.
+    ///
+    /// Inlined, so that a caller who reads only the position does not compute the rest.
     #[must_use]
+    #[inline]
     pub fn at(&self, t: f64) -> ReferencePoint {
         let segments = self.points.len() - 1;
-        let index = (t / self.segment_time + 1e-9).floor();
-        if index < 0.0 || index as usize >= segments {
-            let hold = if index < 0.0 {
+        // The segment is `⌊t/T_s + 10⁻⁹⌋`: for a non-negative argument the truncating cast
+        // is that floor (`floor` itself is a library call on baseline x86-64), and a NaN
+        // falls on segment 0 either way.
+        let scaled = t / self.segment_time + 1e-9;
+        let index = scaled as usize;
+        if scaled < 0.0 || index >= segments {
+            let hold = if scaled < 0.0 {
                 self.points[0]
             } else {
                 self.points[segments]
@@ -81,7 +88,6 @@ impl Trajectory {
                 acceleration: Vector2::zeros(),
             };
         }
-        let index = index as usize;
         let (start, end) = (self.points[index], self.points[index + 1]);
         let ts = self.segment_time;
         let s = ((t - index as f64 * ts) / ts).clamp(0.0, 1.0);

@@ -6,7 +6,9 @@ use robokey::model::{DiffDrive, Pose, WheelSpeeds};
 use ros2_client::{Context, Node, Publisher};
 
 use super::msg::{Header, Kind, Odometry, Stamped, Time, Twist, TwistStamped, Unwrap, type_name};
-use super::node::{Listener, Peer, RobotTopics, localhost_node, topic, wait_for_peer};
+use super::node::{
+    Listener, Peer, RobotTopics, localhost_node, reliability_mismatch, topic, wait_for_peer,
+};
 use crate::backend::Backend;
 use crate::error::NetError;
 
@@ -38,26 +40,35 @@ pub struct Ros2BackendOptions {
     pub drive: DiffDrive,
     /// Real or virtual time.
     pub clock: Ros2Clock,
+    /// `header.frame_id` of each `TwistStamped`: the frame the twist is expressed in, the
+    /// robot's base (`base_link` on a TurtleBot3).
+    pub cmd_frame_id: String,
     /// How long to wait at start for the robot (its `/odom` and a `/cmd_vel` subscriber),
     /// and in virtual time for each step's `/odom`.
     pub timeout: Duration,
 }
 
-/// The command publisher: `Twist` or `TwistStamped`.
+/// The command publisher: `Twist`, or `TwistStamped` in the frame `frame_id`.
 enum CmdPublisher {
     Plain(Publisher<Twist>),
-    Stamped(Publisher<TwistStamped>),
+    Stamped {
+        publisher: Publisher<TwistStamped>,
+        frame_id: String,
+    },
 }
 
 impl CmdPublisher {
     fn publish(&self, twist: Twist, stamp: Time) -> Result<(), String> {
         match self {
             Self::Plain(publisher) => publisher.publish(twist).map_err(|e| format!("{e:?}")),
-            Self::Stamped(publisher) => publisher
+            Self::Stamped {
+                publisher,
+                frame_id,
+            } => publisher
                 .publish(TwistStamped {
                     header: Header {
                         stamp,
-                        frame_id: String::new(),
+                        frame_id: frame_id.clone(),
                     },
                     twist,
                 })
@@ -117,10 +128,12 @@ impl Ros2Backend {
             ))
         };
         let cmd = match topics.cmd_kind() {
-            Kind::TwistStamped => CmdPublisher::Stamped(
-                node.create_publisher(&cmd_topic, qos)
+            Kind::TwistStamped => CmdPublisher::Stamped {
+                publisher: node
+                    .create_publisher(&cmd_topic, qos)
                     .map_err(publisher_error)?,
-            ),
+                frame_id: options.cmd_frame_id.clone(),
+            },
             _ => CmdPublisher::Plain(
                 node.create_publisher(&cmd_topic, qos)
                     .map_err(publisher_error)?,
@@ -146,7 +159,13 @@ impl Ros2Backend {
                 "the robot takes TwistStamped: add --ros2-stamped",
             )
         };
-        odom.wait_for_first(&context, Kind::Odometry, options.timeout, hint)?;
+        odom.wait_for_first(
+            &context,
+            Kind::Odometry,
+            (topics.odom.delivery, "--ros2-odom-qos"),
+            options.timeout,
+            hint,
+        )?;
         let waited = options.timeout.as_secs_f64();
         match wait_for_peer(
             &context,
@@ -155,7 +174,19 @@ impl Ros2Backend {
             Peer::Subscriber,
             deadline,
         ) {
-            Ok(()) => {}
+            Ok(()) => {
+                if let Some(mismatch) = reliability_mismatch(
+                    &context,
+                    &topics.cmd_vel.name,
+                    topics.cmd_kind(),
+                    Peer::Subscriber,
+                    topics.cmd_vel.delivery,
+                ) {
+                    return Err(NetError::Ros2(format!(
+                        "{mismatch}: publish reliable (--ros2-cmd-qos reliable)"
+                    )));
+                }
+            }
             Err(why) if why.starts_with("no ") => {
                 return Err(NetError::Ros2(format!(
                     "{why} within {waited:.1} s: {hint}"

@@ -494,11 +494,7 @@ mod tests {
                                 0000000064a9aea6e27dd83f468d32cf6b90ed3f";
 
     fn hex(text: &str) -> Vec<u8> {
-        let text: String = text.split_whitespace().collect();
-        (0..text.len())
-            .step_by(2)
-            .map(|i| u8::from_str_radix(&text[i..i + 2], 16).unwrap())
-            .collect()
+        base16ct::lower::decode_vec(text.split_whitespace().collect::<String>()).unwrap()
     }
 
     fn twist() -> Twist {

@@ -333,27 +333,43 @@ impl<V: Clone + Send + 'static> Listener<V> {
     }
 
     /// Waits up to `timeout` for the first valid message, a `kind` published on this
-    /// listener's topic.
+    /// listener's topic, to which it subscribed with `delivery` (set by the flag `qos_flag`).
     ///
     /// # Errors
-    /// None came: a named error saying what was found on the graph (no publisher, or
-    /// publishers of another type), how many messages were invalid and why, then `hint`.
+    /// None came: a named error saying what was found on the graph (no publisher,
+    /// publishers of another type, or only best-effort publishers for a reliable
+    /// subscription), how many messages were invalid and why, then `hint`.
     pub fn wait_for_first(
         &self,
         context: &Context,
         kind: Kind,
+        (delivery, qos_flag): (Delivery, &str),
         timeout: Duration,
         hint: &str,
     ) -> Result<(), NetError> {
         if self.wait(Instant::now() + timeout, false, |_| true)? {
             return Ok(());
         }
-        let why = wait_for_peer(context, &self.topic, kind, Peer::Publisher, Instant::now())
-            .map_or_else(|why| format!(" ({why})"), |()| String::new());
-        Err(NetError::Ros2(format!(
-            "no valid {} within {:.1} s{why}{}: {hint}",
+        let waited = format!(
+            "no valid {} within {:.1} s",
             self.topic,
-            timeout.as_secs_f64(),
+            timeout.as_secs_f64()
+        );
+        let why = match wait_for_peer(context, &self.topic, kind, Peer::Publisher, Instant::now()) {
+            Err(why) => format!(" ({why})"),
+            Ok(()) => {
+                if let Some(mismatch) =
+                    reliability_mismatch(context, &self.topic, kind, Peer::Publisher, delivery)
+                {
+                    return Err(NetError::Ros2(format!(
+                        "{waited}: {mismatch}: subscribe best effort ({qos_flag} best-effort)"
+                    )));
+                }
+                String::new()
+            }
+        };
+        Err(NetError::Ros2(format!(
+            "{waited}{why}{}: {hint}",
             self.rejections()
         )))
     }
@@ -394,26 +410,91 @@ pub enum Peer {
     Publisher,
 }
 
-/// The DDS type names of the other participants' `peer`s of ROS topic `topic`.
-fn peer_types(context: &Context, topic: &str, peer: Peer) -> Vec<String> {
+/// One of the other participants' readers or writers of a topic, as discovered.
+struct Endpoint {
+    /// Its DDS type name.
+    type_name: String,
+    /// Whether it is best effort (else reliable).
+    best_effort: bool,
+}
+
+/// The other participants' `peer`s of ROS topic `topic`. A reliability left out of the
+/// discovery data is DDS's default: reliable for a writer, best effort for a reader.
+fn peer_endpoints(context: &Context, topic: &str, peer: Peer) -> Vec<Endpoint> {
+    use ros2_client::dds::rustdds::policy::Reliability as Given;
     let dds_name = format!("rt/{}", topic.trim_start_matches('/'));
     let participant = context.domain_participant();
+    let best_effort = |given: Option<Given>, default: bool| {
+        given.map_or(default, |given| matches!(given, Given::BestEffort))
+    };
     match peer {
         Peer::Subscriber => participant
             .discovered_readers()
             .iter()
             .map(|r| &r.subscription_topic_data)
             .filter(|t| *t.topic_name() == dds_name)
-            .map(|t| t.type_name().clone())
+            .map(|t| Endpoint {
+                type_name: t.type_name().clone(),
+                best_effort: best_effort(t.qos().reliability(), true),
+            })
             .collect(),
         Peer::Publisher => participant
             .discovered_writers()
             .iter()
             .map(|w| &w.publication_topic_data)
             .filter(|t| t.topic_name == dds_name)
-            .map(|t| t.type_name.clone())
+            .map(|t| Endpoint {
+                type_name: t.type_name.clone(),
+                best_effort: best_effort(t.reliability, false),
+            })
             .collect(),
     }
+}
+
+/// The DDS type names of the other participants' `peer`s of ROS topic `topic`.
+fn peer_types(context: &Context, topic: &str, peer: Peer) -> Vec<String> {
+    peer_endpoints(context, topic, peer)
+        .into_iter()
+        .map(|e| e.type_name)
+        .collect()
+}
+
+/// When every discovered `peer` of `topic` with message type `kind` has a reliability DDS
+/// does not match with `ours` — it never delivers from a best-effort writer to a reliable
+/// reader —, the sentence that says so; `None` when one matches or none is there.
+pub fn reliability_mismatch(
+    context: &Context,
+    topic: &str,
+    kind: Kind,
+    peer: Peer,
+    ours: Delivery,
+) -> Option<String> {
+    let wanted = type_name(kind).dds_msg_type();
+    let ours_best_effort = ours == Delivery::BestEffort;
+    let theirs: Vec<bool> = peer_endpoints(context, topic, peer)
+        .into_iter()
+        .filter(|e| e.type_name == wanted)
+        .map(|e| e.best_effort)
+        .collect();
+    let delivered = |theirs_best_effort: bool| match peer {
+        Peer::Publisher => !theirs_best_effort || ours_best_effort,
+        Peer::Subscriber => !ours_best_effort || theirs_best_effort,
+    };
+    if theirs.is_empty() || theirs.into_iter().any(delivered) {
+        return None;
+    }
+    Some(match peer {
+        Peer::Publisher => format!(
+            "a QoS reliability mismatch: the publishers of {topic} are best effort and this \
+             subscription is reliable, and DDS never delivers from a best-effort writer to a \
+             reliable reader"
+        ),
+        Peer::Subscriber => format!(
+            "a QoS reliability mismatch: the subscribers of {topic} are reliable and this \
+             publisher is best effort, and DDS never delivers from a best-effort writer to a \
+             reliable reader"
+        ),
+    })
 }
 
 /// Waits until another participant's `peer` of `topic` with message type `kind` is

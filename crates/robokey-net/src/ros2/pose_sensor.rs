@@ -131,6 +131,7 @@ impl Ros2PoseSensor {
         poses.wait_for_first(
             &context,
             Kind::PoseStamped,
+            (spec.delivery, "--ros2-pose-qos"),
             options.timeout,
             "the motion-capture bridge (or `robokey ros2-sim --mocap-topic`) must publish \
              geometry_msgs/PoseStamped on this computer, in the same ROS domain, with \

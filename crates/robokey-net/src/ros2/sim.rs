@@ -74,7 +74,7 @@ pub struct SimOptions {
 }
 
 /// What the emulator did, printed when it exits.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct SimStats {
     /// Commands applied.
     pub commands: u64,
@@ -86,19 +86,27 @@ pub struct SimStats {
     pub time: f64,
     /// The final pose (m, m, rad; θ unwrapped).
     pub pose: [f64; 3],
+    /// `header.frame_id` of the last `TwistStamped` command (`--stamped`), the frame its
+    /// sender said the twist is in.
+    pub cmd_frame_id: Option<String>,
 }
 
-/// A command as received: planar speeds, finite.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A command as received: planar speeds, finite, and the frame of a `TwistStamped`.
+#[derive(Clone, Debug, PartialEq)]
 struct Command {
     v: f64,
     omega: f64,
+    frame_id: Option<String>,
 }
 
-fn command(twist: &Twist) -> Result<Command, String> {
+fn command(twist: &Twist, frame_id: Option<&str>) -> Result<Command, String> {
     let (v, omega) = (twist.linear.x, twist.angular.z);
     if v.is_finite() && omega.is_finite() {
-        Ok(Command { v, omega })
+        Ok(Command {
+            v,
+            omega,
+            frame_id: frame_id.map(str::to_owned),
+        })
     } else {
         Err(format!("speeds ({v}, {omega}) are not finite"))
     }
@@ -201,14 +209,14 @@ impl Ros2Sim {
                     .map_err(subscribe_error)?,
                 &topics.cmd_vel.name,
                 queue,
-                |m: TwistStamped| command(&m.twist),
+                |m: TwistStamped| command(&m.twist, Some(&m.header.frame_id)),
             )?,
             _ => Listener::spawn(
                 node.create_subscription::<Twist>(&cmd_topic, qos)
                     .map_err(subscribe_error)?,
                 &topics.cmd_vel.name,
                 queue,
-                |m: Twist| command(&m),
+                |m: Twist| command(&m, None),
             )?,
         };
         let odom_topic = topic(&node, &topics.odom, Kind::Odometry)?;
@@ -284,7 +292,7 @@ impl Ros2Sim {
     }
 
     /// What the robot applies for a command: clamped to its limits, then truncated.
-    fn apply(&self, command: Command) -> (f64, f64) {
+    fn apply(&self, command: &Command) -> (f64, f64) {
         let o = &self.options;
         (
             quantise(command.v.clamp(-o.max_v, o.max_v), o.quantum),
@@ -384,15 +392,18 @@ impl Ros2Sim {
             for arrival in self.commands.drain() {
                 last_command = arrival.at;
                 stats.commands += 1;
+                if arrival.value.frame_id.is_some() {
+                    stats.cmd_frame_id.clone_from(&arrival.value.frame_id);
+                }
                 match o.time {
                     SimTime::Real => {
                         let dt = arrival.at.saturating_duration_since(integrated_to);
                         pose = integrate(pose, speeds.0, speeds.1, dt.as_secs_f64());
                         integrated_to = integrated_to.max(arrival.at);
-                        speeds = self.apply(arrival.value);
+                        speeds = self.apply(&arrival.value);
                     }
                     SimTime::Virtual(period) => {
-                        speeds = self.apply(arrival.value);
+                        speeds = self.apply(&arrival.value);
                         pose = integrate(pose, speeds.0, speeds.1, period);
                         virtual_time += period;
                         seen = see(mocap.as_mut(), pose);

@@ -132,14 +132,20 @@ impl Eve {
     }
 
     fn on_command(&mut self, step: u32, u0: WheelSpeeds, u1: WheelSpeeds) {
-        if let WheelModel::Learned(identifier) = &mut self.model {
+        // A fixed model is her start, which her decoder already holds.
+        let learned = if let WheelModel::Learned(identifier) = &mut self.model {
             identifier.on_command(step, u0, u1);
-        }
-        let drive = self.current_drive();
+            Some(self.current_drive())
+        } else {
+            None
+        };
         let Some(session) = self.session.as_mut().filter(|s| step < s.agreed.steps) else {
             return;
         };
-        session.decoder.set_drive(drive);
+        if let Some(drive) = learned {
+            session.decoder.set_drive(drive);
+        }
+        let drive = session.decoder.drive();
         // She never sees uU: her nominal is H_a·(u0D + u1D)/2.
         let nominal = drive.to_unicycle((u0 + u1) / 2.0);
         session.decoder.on_command(step, nominal, u0, u1);
@@ -253,7 +259,7 @@ impl Eavesdropper for Eve {
             agreed: plan.agreed.clone(),
             plan: odometry.clone(),
             codewords,
-            decoder: StepDecoder::new(drive, observer, odometry.delta, true),
+            decoder: StepDecoder::new(drive, observer, odometry.delta, true).weighing(),
             fates: FateLedger::new(codewords),
             bits: vec![None; steps],
             llrs: vec![0.0; steps],

@@ -28,7 +28,7 @@ pub trait Peer {
     /// Its other outputs, for the world around it.
     type Output;
     /// A datagram arrived at `now`.
-    fn handle_datagram(&mut self, now: Time, datagram: Self::Datagram);
+    fn handle_datagram(&mut self, now: Time, datagram: &Self::Datagram);
     /// Its timers due at `now`.
     fn handle_timeout(&mut self, now: Time);
     /// When it must next be woken.
@@ -128,8 +128,10 @@ pub struct Pair<R: Peer, C: Peer<Datagram = R::Datagram>> {
     /// The controller side.
     pub controller: C,
     now: Time,
-    to_controller: LinkFaults,
-    to_robot: LinkFaults,
+    /// The faults towards the controller and towards the robot; `None` for an ideal
+    /// direction (decided once here rather than for every datagram).
+    to_controller: Option<LinkFaults>,
+    to_robot: Option<LinkFaults>,
     rng: ChaCha8Rng,
     in_flight: BinaryHeap<Reverse<InFlight<R::Datagram>>>,
     sent: u64,
@@ -161,8 +163,8 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
             robot,
             controller,
             now: Time::ZERO,
-            to_controller,
-            to_robot,
+            to_controller: (!to_controller.is_ideal()).then_some(to_controller),
+            to_robot: (!to_robot.is_ideal()).then_some(to_robot),
             rng: ChaCha8Rng::seed_from_u64(seed),
             in_flight: BinaryHeap::new(),
             sent: 0,
@@ -205,7 +207,7 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
         let mut delivered = false;
         while self.in_flight.peek().is_some_and(|f| f.0.at <= self.now) {
             if let Some(Reverse(f)) = self.in_flight.pop() {
-                self.deliver(f.to, f.datagram);
+                self.deliver(f.to, &f.datagram);
                 self.drain(world);
                 delivered = true;
             }
@@ -270,9 +272,9 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
             Side::Controller => self.to_controller,
             Side::Robot => self.to_robot,
         };
-        if faults.is_ideal() {
-            return self.deliver(to, datagram);
-        }
+        let Some(faults) = faults else {
+            return self.deliver(to, &datagram);
+        };
         for (delay, corrupted) in faults.fate(&mut self.rng) {
             let copy = if corrupted {
                 match datagram.clone().corrupt(&mut self.rng) {
@@ -292,7 +294,7 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
         }
     }
 
-    fn deliver(&mut self, to: Side, datagram: R::Datagram) {
+    fn deliver(&mut self, to: Side, datagram: &R::Datagram) {
         match to {
             Side::Robot => self.robot.handle_datagram(self.now, datagram),
             Side::Controller => self.controller.handle_datagram(self.now, datagram),

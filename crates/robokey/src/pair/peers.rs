@@ -6,17 +6,15 @@ use super::{Peer, Polled};
 use crate::connection::{
     ControllerAction, ControllerConnection, Output, RobotAction, RobotConnection,
 };
-use crate::protocol::{
-    Controller, ControllerInput, ControllerOutput, Message, Robot, RobotInput, RobotOutput, Time,
-};
+use crate::protocol::{Controller, ControllerOutput, Message, Robot, RobotOutput, Time};
 
 impl Peer for Robot {
     type Datagram = Message;
     /// Every output but `Transmit`.
     type Output = RobotOutput;
 
-    fn handle_datagram(&mut self, now: Time, message: Message) {
-        self.handle_input(now, RobotInput::Frame(message));
+    fn handle_datagram(&mut self, now: Time, message: &Message) {
+        self.handle_frame(now, message);
     }
 
     fn handle_timeout(&mut self, now: Time) {
@@ -40,8 +38,8 @@ impl Peer for Controller {
     /// Every output but `Transmit`.
     type Output = ControllerOutput;
 
-    fn handle_datagram(&mut self, now: Time, message: Message) {
-        self.handle_input(now, ControllerInput::Frame(message));
+    fn handle_datagram(&mut self, now: Time, message: &Message) {
+        self.handle_frame(now, message);
     }
 
     fn handle_timeout(&mut self, now: Time) {
@@ -75,8 +73,8 @@ impl<A: Copy + PartialEq, K: rand::CryptoRng> Peer for Connected<RobotConnection
     /// Every output but `Transmit`.
     type Output = RobotAction<A>;
 
-    fn handle_datagram(&mut self, now: Time, bytes: Vec<u8>) {
-        self.connection.handle_datagram(now, self.peer, &bytes);
+    fn handle_datagram(&mut self, now: Time, bytes: &Vec<u8>) {
+        self.connection.handle_datagram(now, self.peer, bytes);
     }
 
     fn handle_timeout(&mut self, now: Time) {
@@ -100,8 +98,8 @@ impl<A: Copy + PartialEq + std::fmt::Display> Peer for Connected<ControllerConne
     /// Every output but `Transmit`.
     type Output = ControllerAction<A>;
 
-    fn handle_datagram(&mut self, now: Time, bytes: Vec<u8>) {
-        self.connection.handle_datagram(now, self.peer, &bytes);
+    fn handle_datagram(&mut self, now: Time, bytes: &Vec<u8>) {
+        self.connection.handle_datagram(now, self.peer, bytes);
     }
 
     fn handle_timeout(&mut self, now: Time) {

@@ -261,9 +261,9 @@ impl ControllerMode for PrivateController {
         &mut self,
         agreed: &Agreed,
         life: &mut ControllerLifecycle,
-        message: SessionMessage,
+        message: &SessionMessage,
     ) {
-        if let SessionMessage::PrivateMeasurement {
+        if let &SessionMessage::PrivateMeasurement {
             step,
             applied_step,
             fate_cursor,

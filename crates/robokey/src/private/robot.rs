@@ -203,8 +203,8 @@ impl RobotMode for PrivateRobot {
         }
     }
 
-    fn on_message(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, message: SessionMessage) {
-        let SessionMessage::DoubletCommand {
+    fn on_message(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, message: &SessionMessage) {
+        let &SessionMessage::DoubletCommand {
             step,
             first,
             second,

@@ -27,8 +27,9 @@ pub struct StepDecision {
     /// the decoder does not decide (protocol off).
     pub bit: Option<u8>,
     /// The deviations `[d0, d1]` (m/s, rad/s) that applying `u0D` or `u1D` would have
-    /// produced under the decoder's model, when `bit` is decided: the hypotheses a
-    /// likelihood decision weighs `estimate` against.
+    /// produced under the decoder's model, when `bit` is decided by a decoder that
+    /// [weighs](StepDecoder::weighing) them: the hypotheses a likelihood decision weighs
+    /// `estimate` against (an eavesdropper's; the controller decides by distance only).
     pub hypotheses: Option<[Unicycle; 2]>,
 }
 
@@ -48,6 +49,7 @@ pub struct StepDecoder {
     observer: Observer,
     delta: Unicycle,
     decides: bool,
+    weighs: bool,
     last_pair: Option<Pair>,
     next_measurement: u32,
 }
@@ -62,9 +64,26 @@ impl StepDecoder {
             observer,
             delta,
             decides,
+            weighs: false,
             last_pair: None,
             next_measurement: 0,
         }
+    }
+
+    /// The decoder whose decisions also carry their two hypotheses
+    /// ([`StepDecision::hypotheses`]).
+    #[must_use]
+    pub fn weighing(self) -> Self {
+        Self {
+            weighs: true,
+            ..self
+        }
+    }
+
+    /// The decoder's wheel model.
+    #[must_use]
+    pub fn drive(&self) -> DiffDrive {
+        self.drive
     }
 
     /// Replaces the decoder's wheel model (an eavesdropper that identifies `r` and `D`
@@ -138,7 +157,8 @@ impl StepDecoder {
                     let deviation_of = |u| self.drive.to_unicycle(u) - p.nominal;
                     (
                         Some(decide_bit(&applied, &p.u0, &p.u1)),
-                        Some([deviation_of(p.u0), deviation_of(p.u1)]),
+                        self.weighs
+                            .then(|| [deviation_of(p.u0), deviation_of(p.u1)]),
                     )
                 }
                 _ => (None, None),

@@ -23,11 +23,19 @@ pub(super) fn odometry(
             ..Metrics::default()
         };
     }
-    let applied: Vec<&StepBits> = log.iter().filter(|s| s.bit.is_some()).collect();
-    let error_rate = |pick: fn(&StepBits) -> Option<u8>| {
-        let wrong = applied.iter().filter(|s| pick(s) != s.bit).count();
-        (!applied.is_empty()).then(|| wrong as f64 / applied.len() as f64)
-    };
+    // One pass over the steps a bit was applied at: how many there were, how many each
+    // party decided wrong, and (with an eavesdropper) the joint counts of the decided ones.
+    let (mut applied, mut wrong_controller, mut wrong_eve) = (0usize, 0usize, 0usize);
+    let mut joint = [0u64; 8];
+    for s in log.iter().filter(|s| s.bit.is_some()) {
+        applied += 1;
+        wrong_controller += usize::from(s.bhat != s.bit);
+        wrong_eve += usize::from(s.bhat_eve != s.bit);
+        if let (Some(b), Some(c), Some(a)) = (s.bit, s.bhat, s.bhat_eve) {
+            joint[usize::from(b << 2 | c << 1 | a)] += 1;
+        }
+    }
+    let error_rate = |wrong: usize| (applied > 0).then(|| wrong as f64 / applied as f64);
     let (k_r, k_c) = (keys.robot.as_slice(), keys.controller.as_slice());
     let k_a = keys.eve.as_ref();
     let codewords = u64::from(plan.units());
@@ -41,15 +49,7 @@ pub(super) fn odometry(
             .count();
         (accepted_bits > 0).then(|| 100.0 * count as f64 / accepted_bits as f64)
     };
-    let n_bce = k_a.map(|_| {
-        let mut table = [0u64; 8];
-        for s in &applied {
-            if let (Some(b), Some(c), Some(a)) = (s.bit, s.bhat, s.bhat_eve) {
-                table[usize::from(b << 2 | c << 1 | a)] += 1;
-            }
-        }
-        table
-    });
+    let n_bce = k_a.map(|_| joint);
     let n_acc = k_a.map(|k_a| {
         let mut table = [0u64; 8];
         for ((s, c), a) in k_r.iter().zip(k_c).zip(k_a.iter()) {
@@ -62,8 +62,8 @@ pub(super) fn odometry(
         accepted: Some(accepted),
         accepted_pct: (codewords > 0).then(|| 100.0 * accepted as f64 / codewords as f64),
         correct_pct: share(k_r, true),
-        ber_controller: error_rate(|s| s.bhat),
-        ber_eve: k_a.and_then(|_| error_rate(|s| s.bhat_eve)),
+        ber_controller: error_rate(wrong_controller),
+        ber_eve: k_a.and_then(|_| error_rate(wrong_eve)),
         jx,
         eve_disagreement_pct: k_a.and_then(|k_a| share(k_a, false)),
         key_match: (accepted_bits > 0)

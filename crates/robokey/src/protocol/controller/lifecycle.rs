@@ -88,6 +88,11 @@ impl ControllerLifecycle {
         matches!(self.phase, Phase::Done)
     }
 
+    /// The next output, left in the queue.
+    pub(crate) fn next_output(&self) -> Option<&ControllerOutput> {
+        self.outputs.front()
+    }
+
     /// The next output, if any.
     pub(crate) fn poll(&mut self) -> Option<ControllerOutput> {
         self.outputs.pop_front()
@@ -138,7 +143,7 @@ impl ControllerLifecycle {
     /// A message from the robot that the running endpoint did not take: ignored once done,
     /// an `Abort` ends the session, a closing session hands it to its [`Closer`]; anything
     /// else (a duplicate, a message that does not fit the phase) is ignored.
-    pub(crate) fn on_message(&mut self, message: Closing) {
+    pub(crate) fn on_message(&mut self, message: &Closing) {
         match (&mut self.phase, message) {
             (Phase::Done, _) => {}
             (_, Closing::Abort { reason }) => {
@@ -199,7 +204,7 @@ impl Closer {
     /// A message from the robot; the outcome when it ends the session.
     pub(crate) fn on_message(
         &mut self,
-        message: Closing,
+        message: &Closing,
         out: &mut VecDeque<ControllerOutput>,
     ) -> Option<Outcome> {
         match (self.waiting, message) {
@@ -210,7 +215,7 @@ impl Closer {
             }
             (
                 Waiting::FinishAck { .. },
-                Closing::Confirm {
+                &Closing::Confirm {
                     session_tag,
                     key_tag,
                 },
@@ -221,7 +226,7 @@ impl Closer {
             }
             (
                 Waiting::Confirm { .. },
-                Closing::Confirm {
+                &Closing::Confirm {
                     session_tag,
                     key_tag,
                 },

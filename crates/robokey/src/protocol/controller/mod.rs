@@ -33,6 +33,9 @@ struct Clock {
     /// Whether the robot has been heard: the world samples when the robot does, so the
     /// sensor's silence counts only from then.
     robot_heard: bool,
+    /// Whether the mode decides from the controller's own sensor (asked once, not per
+    /// timer).
+    uses_sensor: bool,
     /// Private sensing: when the sensor last delivered (or the robot was first heard).
     last_sample: Time,
     /// The last step the sensor delivered.
@@ -77,6 +80,7 @@ impl Controller {
                 Box::new(PrivateController::new(config, &plan.agreed, *p, units))
             }
         };
+        let uses_sensor = mode.uses_sensor();
         Self {
             lifecycle: ControllerLifecycle::new(units),
             mode,
@@ -85,6 +89,7 @@ impl Controller {
                 last_frame: now,
                 retransmit_from: now,
                 robot_heard: false,
+                uses_sensor,
                 last_sample: now,
                 last_step: None,
             },
@@ -99,24 +104,7 @@ impl Controller {
             return;
         }
         match input {
-            ControllerInput::Frame(message) => {
-                let clock = &mut self.clock;
-                clock.last_frame = now;
-                clock.retransmit_from = now;
-                if !clock.robot_heard {
-                    clock.robot_heard = true;
-                    clock.last_sample = clock.last_sample.max(now);
-                }
-                match message {
-                    Message::Session(message) => {
-                        self.mode
-                            .on_message(&self.plan.agreed, &mut self.lifecycle, message);
-                    }
-                    Message::Closing(message) => self.lifecycle.on_message(message),
-                    // The channel's and post-processing's layers are not the session's.
-                    Message::Handshake(_) | Message::Post(_) => {}
-                }
-            }
+            ControllerInput::Frame(message) => self.on_frame(now, &message),
             ControllerInput::Sensor { step, pose } => {
                 self.clock.last_sample = now;
                 self.clock.last_step = Some(step);
@@ -124,12 +112,39 @@ impl Controller {
                     .on_sensor(&self.plan.agreed, &mut self.lifecycle, step, pose);
             }
             ControllerInput::SensorStopped(why) => {
-                if self.mode.uses_sensor() && !self.all_sampled() {
+                if self.clock.uses_sensor && !self.all_sampled() {
                     let steps = self.plan.agreed.steps;
                     self.lifecycle
                         .abort(format!("sensor stopped before step {steps}: {why}"));
                 }
             }
+        }
+    }
+
+    /// Feeds a message from the robot at `now`, by reference: what
+    /// [`ControllerInput::Frame`] does without moving the message (the simulator's link).
+    pub fn handle_frame(&mut self, now: Time, message: &Message) {
+        if !self.lifecycle.is_done() {
+            self.on_frame(now, message);
+        }
+    }
+
+    fn on_frame(&mut self, now: Time, message: &Message) {
+        let clock = &mut self.clock;
+        clock.last_frame = now;
+        clock.retransmit_from = now;
+        if !clock.robot_heard {
+            clock.robot_heard = true;
+            clock.last_sample = clock.last_sample.max(now);
+        }
+        match message {
+            Message::Session(message) => {
+                self.mode
+                    .on_message(&self.plan.agreed, &mut self.lifecycle, message);
+            }
+            Message::Closing(message) => self.lifecycle.on_message(message),
+            // The channel's and post-processing's layers are not the session's.
+            Message::Handshake(_) | Message::Post(_) => {}
         }
     }
 
@@ -182,13 +197,14 @@ impl Controller {
 
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<ControllerOutput> {
-        let output = self.lifecycle.poll()?;
-        if let ControllerOutput::Transmit(message @ Message::Closing(Closing::Confirm { .. })) =
-            &output
+        // Looked at in the queue, so that the output itself is handed over without a copy.
+        if let Some(ControllerOutput::Transmit(
+            message @ Message::Closing(Closing::Confirm { .. }),
+        )) = self.lifecycle.next_output()
         {
             self.last_confirm = Some(message.clone());
         }
-        Some(output)
+        self.lifecycle.poll()
     }
 
     /// The controller's key `K_c` (complete once the session has finished): in private
@@ -234,7 +250,7 @@ impl Controller {
     /// Private sensing: when the sensor counts as silent, once the robot has been heard and
     /// until the sensor delivered step `N`.
     fn sensor_silence_at(&self) -> Option<Time> {
-        let watched = self.mode.uses_sensor() && self.clock.robot_heard && !self.all_sampled();
+        let watched = self.clock.uses_sensor && self.clock.robot_heard && !self.all_sampled();
         watched.then(|| self.clock.last_sample + self.clock.timing.silence_timeout)
     }
 }

@@ -18,7 +18,7 @@ pub(crate) trait ControllerMode: std::fmt::Debug + Send {
         &mut self,
         agreed: &Agreed,
         life: &mut ControllerLifecycle,
-        message: SessionMessage,
+        message: &SessionMessage,
     );
 
     /// The controller's own sensor sampled `y_c(k)` (private sensing; the odometry mode

@@ -151,9 +151,9 @@ impl ControllerMode for OdometryController {
         &mut self,
         agreed: &Agreed,
         life: &mut ControllerLifecycle,
-        message: SessionMessage,
+        message: &SessionMessage,
     ) {
-        if let SessionMessage::Measurement {
+        if let &SessionMessage::Measurement {
             step,
             y,
             applied_step,

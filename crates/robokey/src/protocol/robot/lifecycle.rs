@@ -94,6 +94,14 @@ impl RobotLifecycle {
         self.outputs.pop_front()
     }
 
+    /// The last message queued for sending and not yet polled, if any.
+    pub(crate) fn last_queued_message(&self) -> Option<&Message> {
+        self.outputs.iter().rev().find_map(|output| match output {
+            RobotOutput::Transmit(message) => Some(message),
+            _ => None,
+        })
+    }
+
     /// The robot's key (complete once the Finish has arrived).
     pub(crate) fn key(&self) -> &[u8] {
         &self.key
@@ -192,7 +200,7 @@ impl RobotLifecycle {
     /// `Abort` stops the wheels and ends the session; anything else is ignored.
     pub(crate) fn on_message(
         &mut self,
-        message: Closing,
+        message: &Closing,
         confirmer: &Confirmer,
         mode: &dyn ClosingRules,
     ) {
@@ -201,7 +209,10 @@ impl RobotLifecycle {
                 phase @ (RobotPhase::ExpectCommand
                 | RobotPhase::ExpectFinish
                 | RobotPhase::ExpectConfirm),
-                Closing::Finish { codewords, bitmap },
+                &Closing::Finish {
+                    codewords,
+                    ref bitmap,
+                },
             ) => {
                 if phase == RobotPhase::ExpectCommand {
                     // The stop command was lost: the Finish ends the run wherever it is.
@@ -216,7 +227,7 @@ impl RobotLifecycle {
                     return;
                 }
                 for index in 0..codewords {
-                    let accepted = bitmap_bit(&bitmap, index) && mode.keepable(index);
+                    let accepted = bitmap_bit(bitmap, index) && mode.keepable(index);
                     self.fates.record(index, accepted);
                 }
                 self.key = mode.key(&self.fates);
@@ -227,7 +238,7 @@ impl RobotLifecycle {
             }
             (
                 RobotPhase::ExpectConfirm,
-                Closing::Confirm {
+                &Closing::Confirm {
                     session_tag,
                     key_tag,
                 },

@@ -135,8 +135,15 @@ impl Robot {
     pub fn handle_input(&mut self, now: Time, input: RobotInput) {
         match input {
             RobotInput::Sample { step, y } => self.on_sample(now, step, &y),
-            RobotInput::Frame(message) => self.on_frame(now, message),
+            RobotInput::Frame(message) => self.on_frame(now, &message),
         }
+        self.after(now);
+    }
+
+    /// Feeds a message from the controller at `now`, by reference: what
+    /// [`RobotInput::Frame`] does without moving the message (the simulator's link).
+    pub fn handle_frame(&mut self, now: Time, message: &Message) {
+        self.on_frame(now, message);
         self.after(now);
     }
 
@@ -203,21 +210,7 @@ impl Robot {
 
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<RobotOutput> {
-        let output = self.lifecycle.poll()?;
-        if let RobotOutput::Transmit(message) = &output {
-            match message {
-                Message::Closing(Closing::Confirm { .. }) => {
-                    self.last_confirm = Some(message.clone());
-                }
-                // Only the report of sample N is ever repeated: the controller finishes on
-                // it, and it has no successor to stand in for it if lost.
-                Message::Session(report) if report.step() >= self.plan.agreed.steps => {
-                    self.last_report = Some(message.clone());
-                }
-                _ => {}
-            }
-        }
-        Some(output)
+        self.lifecycle.poll()
     }
 
     /// The robot's key `K_r` (complete once the Finish has arrived): in private sensing its
@@ -276,13 +269,22 @@ impl Robot {
         self.clock.sensing = None;
         self.mode
             .on_sample(&self.plan.agreed, &mut self.lifecycle, step, y);
+        if step >= self.plan.agreed.steps {
+            // Only the report of sample N is ever repeated: the controller finishes on it,
+            // and it has no successor to stand in for it if lost.
+            if let Some(report @ Message::Session(message)) = self.lifecycle.last_queued_message()
+                && message.step() >= self.plan.agreed.steps
+            {
+                self.last_report = Some(report.clone());
+            }
+        }
         if self.lifecycle.awaits(step) {
             let at = self.clock.deadline_of(step, now);
             self.clock.deadline = Some((step, at));
         }
     }
 
-    fn on_frame(&mut self, now: Time, message: Message) {
+    fn on_frame(&mut self, now: Time, message: &Message) {
         if self.lifecycle.is_done() {
             return;
         }
@@ -296,6 +298,11 @@ impl Robot {
                 let confirmer = self.plan.agreed.confirmer.clone();
                 self.lifecycle
                     .on_message(message, &confirmer, self.mode.as_ref());
+                if let Some(confirm @ Message::Closing(Closing::Confirm { .. })) =
+                    self.lifecycle.last_queued_message()
+                {
+                    self.last_confirm = Some(confirm.clone());
+                }
             }
             // A repeated Ready (the controller has not heard the robot yet) needs nothing;
             // post-processing is not the session's.

@@ -17,7 +17,7 @@ pub(crate) trait RobotMode: ClosingRules + Send {
 
     /// A session message from the controller (its commands); one that does not fit the
     /// robot's state is ignored.
-    fn on_message(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, message: SessionMessage);
+    fn on_message(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, message: &SessionMessage);
 
     /// Step `step`'s command is missing at its deadline: the fallback.
     fn on_missing(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, step: u32);

@@ -147,8 +147,8 @@ impl RobotMode for OdometryRobot {
         });
     }
 
-    fn on_message(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, message: SessionMessage) {
-        if let SessionMessage::Command {
+    fn on_message(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, message: &SessionMessage) {
+        if let &SessionMessage::Command {
             step,
             u0,
             u1,
