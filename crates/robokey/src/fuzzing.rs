@@ -12,10 +12,10 @@ use crate::protocol::controller::command_pair;
 use crate::protocol::wire::{self, Frame, MAC_BYTES};
 use crate::protocol::{
     Closing, Controller, ControllerEvent, ControllerInput, ControllerOutput, FateWindow, Handshake,
-    Message, Outcome, Robot, RobotInput, RobotOutput, SessionMessage, SessionPlan, TAG_BYTES,
-    Time, Timing,
+    Message, Outcome, Robot, RobotInput, RobotOutput, SessionMessage, SessionPlan, TAG_BYTES, Time,
+    Timing,
 };
-use crate::sim::{Noise, Plant};
+use crate::world::{PlantStreams, WorldModel, WorldPlant};
 
 /// Arbitrary bytes read front to back; reads past the end give zeros.
 #[derive(Clone, Debug)]
@@ -196,7 +196,7 @@ struct Harness {
     controller: Controller,
     to_robot: VecDeque<Message>,
     to_controller: VecDeque<Message>,
-    plant: Plant,
+    plant: WorldPlant,
     /// The plant's pose is `x(sensed)`.
     sensed: u32,
     now: Time,
@@ -212,13 +212,25 @@ impl Harness {
         let plan = SessionPlan::from_config(&config, session);
         let mut key_source = rand::rngs::ChaCha20Rng::seed_from_u64(bytes.u64());
         let timing = Timing::default();
-        let still = Noise::new(rand::rngs::ChaCha8Rng::seed_from_u64(0), [0.0; 3]);
+        let mut still = WorldModel::ideal(&config);
+        still.process_std = [0.0; 3];
+        let streams = PlantStreams {
+            process: rand::rngs::ChaCha8Rng::seed_from_u64(0),
+            slip: rand::rngs::ChaCha8Rng::seed_from_u64(0),
+        };
         let agreed = &plan.agreed;
         Self {
             focus,
             robot: Robot::new(plan.clone(), timing, &mut key_source, Time::ZERO),
             controller: Controller::new(&config, plan.clone(), timing, Time::ZERO),
-            plant: Plant::new(agreed.drive, agreed.wheel_limit, agreed.sample_time, still),
+            plant: WorldPlant::new(
+                &still,
+                agreed.drive,
+                agreed.wheel_limit,
+                agreed.sample_time,
+                streams,
+                false,
+            ),
             controller_check: ControllerCheck {
                 resolved: vec![false; plan.units() as usize],
                 ..ControllerCheck::default()
@@ -313,7 +325,10 @@ impl Harness {
                     assert_eq!(a.wheels, WheelSpeeds::zeros(), "moving after the last step");
                 }
                 if a.bit.is_some() {
-                    assert!(agreed.enabled && !a.erased && a.step < agreed.steps, "{a:?}");
+                    assert!(
+                        agreed.enabled && !a.erased && a.step < agreed.steps,
+                        "{a:?}"
+                    );
                 }
             }
             RobotOutput::Sense { step } => {
@@ -346,14 +361,19 @@ impl Harness {
     fn check_controller(&mut self, output: &ControllerOutput) {
         let check = &mut self.controller_check;
         let agreed = &self.plan.agreed;
-        let finite_within =
-            |w: &[f64]| w.iter().all(|w| w.is_finite() && w.abs() <= agreed.wheel_limit);
+        let finite_within = |w: &[f64]| {
+            w.iter()
+                .all(|w| w.is_finite() && w.abs() <= agreed.wheel_limit)
+        };
         match output {
             ControllerOutput::Transmit(m) => {
                 assert!(check.finished.is_none(), "a message after the end: {m:?}");
                 match m {
                     Message::Session(SessionMessage::Command { step, u0, u1, .. }) => {
-                        assert!(*step <= agreed.steps, "a command past the stop command: {m:?}");
+                        assert!(
+                            *step <= agreed.steps,
+                            "a command past the stop command: {m:?}"
+                        );
                         assert!(
                             finite_within(u0) && finite_within(u1),
                             "a command the robot must refuse: {m:?}"
@@ -369,7 +389,10 @@ impl Harness {
                         second,
                         ..
                     }) => {
-                        assert!(*step <= agreed.steps, "a command past the stop command: {m:?}");
+                        assert!(
+                            *step <= agreed.steps,
+                            "a command past the stop command: {m:?}"
+                        );
                         let finite = |u: &[f64]| u.iter().all(|x| x.is_finite());
                         assert!(
                             finite(sample) && finite(first) && second.is_none_or(|s| finite(&s)),
@@ -392,7 +415,9 @@ impl Harness {
             }
             ControllerOutput::Event(
                 ControllerEvent::DoubletErased { doublet }
-                | ControllerEvent::DoubletDecided(crate::private::DoubletDecision { doublet, .. }),
+                | ControllerEvent::DoubletDecided(crate::private::DoubletDecision {
+                    doublet, ..
+                }),
             ) => {
                 let slot = check
                     .resolved
@@ -432,7 +457,11 @@ impl Harness {
             self.robot.handle_timeout(self.now);
             self.drain_robot();
         }
-        if self.controller.poll_timeout().is_some_and(|t| t <= self.now) {
+        if self
+            .controller
+            .poll_timeout()
+            .is_some_and(|t| t <= self.now)
+        {
             self.controller.handle_timeout(self.now);
             self.drain_controller();
         }

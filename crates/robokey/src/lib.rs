@@ -5,8 +5,9 @@
 //! the tracking controller ([`control`]), the unknown-input observer ([`observer`]), block
 //! codes ([`code`]), the protocol endpoints ([`protocol`]), the eavesdroppers ([`eve`]),
 //! private sensing ([`private`]), configuration ([`config`]), seeded random streams
-//! ([`rng`]), stop requests ([`interrupt`]), a virtual network ([`pair`]) and the closed-loop
-//! simulation of one run ([`sim`]). Time is an input ([`protocol::Time`]); randomness is
+//! ([`rng`]), stop requests ([`interrupt`]), a virtual network ([`pair`]), the true physics
+//! apart from the parties' configuration ([`world`]) and the closed-loop simulation of one
+//! run ([`sim`]). Time is an input ([`protocol::Time`]); randomness is
 //! passed in.
 
 pub mod code;
@@ -26,6 +27,7 @@ pub mod protocol;
 pub mod rng;
 pub mod sim;
 pub mod trajectory;
+pub mod world;
 
 pub use config::Config;
 pub use metrics::Metrics;

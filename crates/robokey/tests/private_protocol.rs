@@ -93,9 +93,7 @@ fn a_lost_stop_command_changes_nothing() {
     let steps = SessionPlan::from_config(&config, 1).agreed.steps;
     let s = lockstep(
         &config,
-        |m| {
-            matches!(m, Message::Session(SessionMessage::DoubletCommand { step, .. }) if *step == steps)
-        },
+        |m| matches!(m, Message::Session(SessionMessage::DoubletCommand { step, .. }) if *step == steps),
         |_| false,
     );
     assert_eq!(s.robot_outcome, Some(Outcome::Kept));

@@ -39,7 +39,12 @@ fn large_delta_without_noise_accepts_everything_and_confirms() {
 fn a_lost_command_erases_exactly_its_codeword_on_both_sides() {
     let config = clean_config();
     // Command 31 is step 31 = codeword 10, position 1.
-    let session = lockstep(&config, |m| matches!(m, Message::Session(SessionMessage::Command { step: 31, .. })));
+    let session = lockstep(&config, |m| {
+        matches!(
+            m,
+            Message::Session(SessionMessage::Command { step: 31, .. })
+        )
+    });
     let rejected: Vec<usize> = (0..session.fates.len())
         .filter(|&i| !session.fates[i])
         .collect();
@@ -55,7 +60,10 @@ fn a_lost_measurement_erases_exactly_its_codeword_on_both_sides() {
     // y(46) decides step 45 = codeword 15, position 0; command 46 is never sent, so
     // step 46 (same codeword) is erased as well.
     let session = lockstep(&config, |m| {
-        matches!(m, Message::Session(SessionMessage::Measurement { step: 46, .. }))
+        matches!(
+            m,
+            Message::Session(SessionMessage::Measurement { step: 46, .. })
+        )
     });
     let rejected: Vec<usize> = (0..session.fates.len())
         .filter(|&i| !session.fates[i])

@@ -4,8 +4,8 @@
 
 use std::time::Duration;
 
-use rand::{RngExt, SeedableRng};
 use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use robokey::Config;
 use robokey::pair::{Ending, LinkFaults};
 use robokey::protocol::{Outcome, Timing};
@@ -19,9 +19,7 @@ const SEEDS: u64 = 10_000;
 /// A short session: four sides of 2 s, 40 steps.
 fn short(mode: &str) -> Config {
     Config::from_toml(
-        &format!(
-            "[sensing]\nmode = \"{mode}\"\n[trajectory]\nside_time = 2.0\nlaps = 1\n"
-        ),
+        &format!("[sensing]\nmode = \"{mode}\"\n[trajectory]\nside_time = 2.0\nlaps = 1\n"),
         "test",
     )
     .expect("a valid configuration")
@@ -62,14 +60,25 @@ fn agrees(outcome: Option<&Outcome>) -> bool {
 /// peer's key; private sensing's raw bits differ where the controller erred, but both sides
 /// keep the same doublets, so their raw keys have the same length.
 fn check(seed: u64, s: &Session) -> bool {
-    assert_eq!(s.ending, Ending::Done, "seed {seed}: a side never ended: {s:?}");
+    assert_eq!(
+        s.ending,
+        Ending::Done,
+        "seed {seed}: a side never ended: {s:?}"
+    );
     let either = agrees(s.robot_outcome.as_ref()) || agrees(s.controller_outcome.as_ref());
     let kept = matches!(s.robot_outcome, Some(Outcome::Kept))
         || matches!(s.controller_outcome, Some(Outcome::Kept));
     if kept {
-        assert_eq!(s.robot_key.len(), s.controller_key.len(), "seed {seed}: kept sets differ: {s:?}");
+        assert_eq!(
+            s.robot_key.len(),
+            s.controller_key.len(),
+            "seed {seed}: kept sets differ: {s:?}"
+        );
     } else if either {
-        assert_eq!(s.robot_key, s.controller_key, "seed {seed}: keys differ: {s:?}");
+        assert_eq!(
+            s.robot_key, s.controller_key,
+            "seed {seed}: keys differ: {s:?}"
+        );
     }
     agrees(s.robot_outcome.as_ref()) && agrees(s.controller_outcome.as_ref())
 }
@@ -81,11 +90,19 @@ fn property(mode: &str) {
         let s = session(&config, network(seed), |_, _| false, |_| false);
         both += u64::from(check(seed, &s));
         bits += s.robot_key.len();
-        differ += s.robot_key.iter().zip(&s.controller_key).filter(|(a, b)| a != b).count();
+        differ += s
+            .robot_key
+            .iter()
+            .zip(&s.controller_key)
+            .filter(|(a, b)| a != b)
+            .count();
     }
     println!("{mode}: {bits} raw bits, {differ} differ");
     // Sanity, not a rate claim: the faults are harsh, but most sessions still agree.
-    assert!(both > SEEDS / 2, "{mode}: only {both} of {SEEDS} sessions agreed");
+    assert!(
+        both > SEEDS / 2,
+        "{mode}: only {both} of {SEEDS} sessions agreed"
+    );
     println!("{mode}: {both} of {SEEDS} sessions agreed on both sides");
 }
 
@@ -107,4 +124,3 @@ fn an_ideal_link_agrees_in_both_modes() {
         assert!(!s.robot_key.is_empty(), "{mode}");
     }
 }
-

@@ -95,8 +95,7 @@ mod tests {
         }
         let truth: Vec<u64> = (0..u64::from(codewords)).map(|i| i * 7 % 3 % 2).collect();
         let confirmer = &plan.agreed.confirmer;
-        let tag = confirmer
-            .key_tag(Direction::ToRobot, &fates.accepted_key(&truth, 1));
+        let tag = confirmer.key_tag(Direction::ToRobot, &fates.accepted_key(&truth, 1));
         // Her guess is wrong on codewords 3 and 11 (weak) and right elsewhere; codeword 0 is
         // weakest but rejected, so it must not use up a flip.
         let decoded: Vec<SoftDecoded> = truth

@@ -138,7 +138,13 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
     /// Both sides on an ideal link (every datagram delivered at once, in order), at time
     /// zero.
     pub fn ideal(robot: R, controller: C) -> Self {
-        Self::new(robot, controller, LinkFaults::default(), LinkFaults::default(), 0)
+        Self::new(
+            robot,
+            controller,
+            LinkFaults::default(),
+            LinkFaults::default(),
+            0,
+        )
     }
 
     /// Both sides on a link with these faults towards the controller and towards the robot;
@@ -201,7 +207,11 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
         if self.robot.poll_timeout().is_some_and(|t| t <= self.now) {
             self.robot.handle_timeout(self.now);
         }
-        if self.controller.poll_timeout().is_some_and(|t| t <= self.now) {
+        if self
+            .controller
+            .poll_timeout()
+            .is_some_and(|t| t <= self.now)
+        {
             self.controller.handle_timeout(self.now);
         }
     }

@@ -116,7 +116,13 @@ impl PrivateController {
     /// Sample `y_c(k)`: recorded for the doublets around it; a doublet's first sample
     /// commands it (its second input from the open-loop prediction, never from the
     /// mid-doublet sample, which carries the bit); `y_c(N)` goes with the stop command.
-    fn handle_sample(&mut self, agreed: &Agreed, life: &mut ControllerLifecycle, step: u32, pose: Pose) {
+    fn handle_sample(
+        &mut self,
+        agreed: &Agreed,
+        life: &mut ControllerLifecycle,
+        step: u32,
+        pose: Pose,
+    ) {
         let fresh = step >= self.next_sample && step <= agreed.steps;
         if !life.running() || !fresh || !pose.iter().all(|v| v.is_finite()) {
             return;
@@ -276,7 +282,13 @@ impl ControllerMode for PrivateController {
         }
     }
 
-    fn on_sensor(&mut self, agreed: &Agreed, life: &mut ControllerLifecycle, step: u32, pose: Pose) {
+    fn on_sensor(
+        &mut self,
+        agreed: &Agreed,
+        life: &mut ControllerLifecycle,
+        step: u32,
+        pose: Pose,
+    ) {
         self.handle_sample(agreed, life, step, pose);
     }
 

@@ -149,7 +149,10 @@ impl ClosingRules for PrivateRobot {
     }
 
     fn key(&self, fates: &FateLedger) -> KeyBits {
-        fates.accepted_key(&self.bits, usize::from(self.plan.perturbation.bits_per_doublet))
+        fates.accepted_key(
+            &self.bits,
+            usize::from(self.plan.perturbation.bits_per_doublet),
+        )
     }
 
     /// Raw bits are confirmed per post-processing block, never per session.
@@ -261,7 +264,12 @@ mod tests {
         let config = Config::from_toml("[sensing]\nmode = \"private\"\n", "test").unwrap();
         let plan = SessionPlan::from_config(&config, 1);
         let mut key_source = rand::rngs::ChaCha20Rng::seed_from_u64(seed);
-        Robot::new(plan, Timing::default(), &mut key_source, crate::protocol::Time::ZERO)
+        Robot::new(
+            plan,
+            Timing::default(),
+            &mut key_source,
+            crate::protocol::Time::ZERO,
+        )
     }
 
     /// Offers the doublet that starts at the robot's next even sample; returns what it

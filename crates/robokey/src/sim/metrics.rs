@@ -73,7 +73,6 @@ pub(super) fn odometry(
     }
 }
 
-
 /// Private sensing's metrics over the bits of the kept doublets.
 pub(super) fn private(config: &Config, bits: &[DoubletBit], keys: &RunKeys, jx: f64) -> Metrics {
     if !config.protocol.enabled {

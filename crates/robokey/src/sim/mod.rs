@@ -4,18 +4,16 @@
 //! listening. One loop for both sensing modes.
 
 mod metrics;
-mod plant;
 mod trace;
 mod world;
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
-pub use plant::{Noise, Plant, Sensor};
 pub use trace::TraceRow;
 pub(crate) use trace::TraceRows;
 
-use self::world::{PrivateSenses, Senses, World};
+use self::world::{EveCamera, PrivateSenses, Senses, World};
 use crate::config::{Config, EveStrategy};
 use crate::eve;
 use crate::metrics::Metrics;
@@ -25,6 +23,7 @@ use crate::protocol::{
     Controller, KeyBits, Message, ModePlan, Outcome, Robot, SessionPlan, Time, Timing,
 };
 use crate::rng::{Purpose, stream};
+use crate::world::{Camera, FrameCamera, InstantSensor, Noise, PlantStreams, WorldPlant};
 
 /// Everything one run produced.
 #[derive(Clone, Debug)]
@@ -224,12 +223,25 @@ fn run<'a>(
     let stream_of = |purpose| stream(config.run.seed, purpose, u64::from(replicate));
     let agreed = &plan.agreed;
     let steps = agreed.steps;
+    let world = config.world_model();
+    let sensor = |purpose, std| {
+        InstantSensor::new(
+            Noise::new(stream_of(purpose), std),
+            (stream_of(Purpose::Jitter), world.jitter),
+            0.0,
+        )
+    };
+    let films_between = matches!(world.camera, Camera::Frames { .. });
     let senses = match &plan.mode {
         ModePlan::Odometry(_) => Senses::Odometry {
-            odometry: Sensor::new(Noise::new(
-                stream_of(Purpose::Measurement),
-                config.noise.measurement_std,
-            )),
+            odometry: InstantSensor::new(
+                Noise::new(
+                    stream_of(Purpose::Measurement),
+                    config.noise.measurement_std,
+                ),
+                (stream_of(Purpose::Jitter), world.jitter),
+                world.encoder_quantum,
+            ),
             eve: (config.eve.enabled && agreed.enabled).then(|| {
                 let mut eve = eve::build(config, &mut stream_of(Purpose::Eve));
                 eve.begin_session(&plan);
@@ -238,11 +250,18 @@ fn run<'a>(
             transcript,
         },
         ModePlan::Private(_) => Senses::Private(Box::new(PrivateSenses {
-            controller: Sensor::new(Noise::new(
-                stream_of(Purpose::Measurement),
-                config.sensing.controller_std,
-            )),
-            camera: Sensor::new(Noise::new(stream_of(Purpose::Camera), config.eve.camera_std)),
+            controller: sensor(Purpose::Measurement, world.controller_std),
+            camera: match world.camera {
+                Camera::Instants { std } => {
+                    EveCamera::Instants(Noise::new(stream_of(Purpose::Camera), std))
+                }
+                Camera::Frames { fps, frame_std } => EveCamera::Frames(FrameCamera::new(
+                    fps,
+                    Noise::new(stream_of(Purpose::Camera), frame_std),
+                    stream_of(Purpose::CameraPhase),
+                )),
+            },
+            frames: Vec::new(),
             eve: DoubletEavesdropper::new(config),
             decided: VecDeque::new(),
             heard: BTreeMap::new(),
@@ -253,11 +272,16 @@ fn run<'a>(
         config,
         trajectory: config.trajectory(),
         sample_time: agreed.sample_time,
-        plant: Plant::new(
+        plant: WorldPlant::new(
+            &world,
             agreed.drive,
             config.robot.wheel_limit,
             agreed.sample_time,
-            Noise::new(stream_of(Purpose::Process), config.noise.process_std),
+            PlantStreams {
+                process: stream_of(Purpose::Process),
+                slip: stream_of(Purpose::Slip),
+            },
+            films_between && matches!(plan.mode, ModePlan::Private(_)),
         ),
         senses,
         tracking_error: 0.0,
@@ -268,7 +292,12 @@ fn run<'a>(
         abort: None,
     };
     let timing = Timing::default();
-    let robot = Robot::new(plan.clone(), timing, &mut stream_of(Purpose::Key), Time::ZERO);
+    let robot = Robot::new(
+        plan.clone(),
+        timing,
+        &mut stream_of(Purpose::Key),
+        Time::ZERO,
+    );
     let controller = Controller::new(config, plan.clone(), timing, Time::ZERO);
     let mut pair = Pair::ideal(robot, controller);
     // The session ends at `t_N`; the limit only bounds a session that would not end.
@@ -277,6 +306,10 @@ fn run<'a>(
     pair.drive(&mut world, limit);
     if let Some(reason) = world.abort {
         return Err(SimError::Aborted { replicate, reason });
+    }
+    if let Senses::Private(p) = &mut world.senses {
+        p.eve.finish();
+        p.collect();
     }
     world.record_private(&pair.robot);
     let mut log = std::mem::take(&mut world.log);

@@ -126,4 +126,3 @@ impl Drop for TraceRows<'_> {
         self.complete_before(self.first + self.open.len());
     }
 }
-

@@ -6,24 +6,26 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use super::StepBits;
-use super::plant::{Plant, Sensor};
 use super::trace::TraceRows;
 use crate::config::{Config, EveStrategy};
 use crate::eve::Eavesdropper;
 use crate::pair::{Side, Surroundings};
-use crate::private::{BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, EveDoublet, PrivateRun};
+use crate::private::{
+    BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, EveDoublet, PrivateRun,
+};
 use crate::protocol::{
     Controller, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, Robot,
     RobotInput, RobotOutput, SessionMessage, Time,
 };
 use crate::trajectory::Trajectory;
+use crate::world::{Frame, FrameCamera, InstantSensor, Noise, WorldPlant};
 
 /// What the sensors of a sensing mode observe, and who listens.
 pub(super) enum Senses<'a> {
     /// The robot's odometry; the eavesdropper (if any) hears the messages.
     Odometry {
         /// The robot's odometry sensor.
-        odometry: Sensor,
+        odometry: InstantSensor,
         /// The eavesdropper, when the run has one.
         eve: Option<Box<dyn Eavesdropper>>,
         /// Every message in the order a tap hears it, when asked for.
@@ -36,9 +38,11 @@ pub(super) enum Senses<'a> {
 /// Private sensing's sensors, eavesdroppers and bookkeeping.
 pub(super) struct PrivateSenses {
     /// The controller's own pose sensor.
-    pub(super) controller: Sensor,
+    pub(super) controller: InstantSensor,
     /// Eve's camera.
-    pub(super) camera: Sensor,
+    pub(super) camera: EveCamera,
+    /// The frames of the stretch just filmed.
+    pub(super) frames: Vec<Frame>,
     /// The `camera` and `commands` eavesdroppers.
     pub(super) eve: DoubletEavesdropper,
     /// The controller's decisions, waiting for the eavesdroppers' on the same doublet.
@@ -49,12 +53,20 @@ pub(super) struct PrivateSenses {
     pub(super) run: PrivateRun,
 }
 
+/// Eve's camera as the world has it.
+pub(super) enum EveCamera {
+    /// One frame at each sample instant, with this noise.
+    Instants(Noise),
+    /// Frames at a rate, filming the motion between the instants.
+    Frames(FrameCamera),
+}
+
 /// The world of one simulated session.
 pub(super) struct World<'a> {
     pub(super) config: &'a Config,
     pub(super) trajectory: Trajectory,
     pub(super) sample_time: f64,
-    pub(super) plant: Plant,
+    pub(super) plant: WorldPlant,
     pub(super) senses: Senses<'a>,
     /// `Σ_k ‖p(k) − r(k)‖` over `k = 1…N` (m).
     pub(super) tracking_error: f64,
@@ -97,20 +109,33 @@ impl World<'_> {
         });
         match &mut self.senses {
             Senses::Odometry { odometry, .. } => {
-                let y = odometry.sample(&pose);
+                let y = odometry.sample(&self.plant);
                 if let Some(row) = row {
                     row.measurement = y.into();
                 }
                 robot.handle_input(now, RobotInput::Sample { step, y });
             }
             Senses::Private(p) => {
-                let sensed = p.controller.sample(&pose);
-                let filmed = p.camera.sample(&pose);
+                let sensed = p.controller.sample(&self.plant);
+                let filmed = match &mut p.camera {
+                    EveCamera::Instants(noise) => {
+                        let filmed = pose + noise.draw();
+                        p.eve.film(step, filmed);
+                        Some(filmed.into())
+                    }
+                    EveCamera::Frames(camera) => {
+                        p.frames.clear();
+                        camera.film(&self.plant.take_trail(), &mut p.frames);
+                        for frame in &p.frames {
+                            p.eve.film_frame(*frame);
+                        }
+                        None
+                    }
+                };
                 if let Some(row) = row {
                     row.measurement = sensed.into();
-                    row.camera = Some(filmed.into());
+                    row.camera = filmed;
                 }
-                p.eve.film(step, filmed);
                 p.collect();
                 // The simulated robot has no odometry of its own: it would send none anyway.
                 robot.handle_input(now, RobotInput::Sample { step, y: pose });
@@ -126,18 +151,29 @@ impl World<'_> {
             return;
         };
         while let Some(e) = p.decided.front().and_then(|d| p.heard.remove(&d.doublet)) {
-            let d = p.decided.pop_front().expect("paired with the front decision");
+            let d = p
+                .decided
+                .pop_front()
+                .expect("paired with the front decision");
             let bits = robot
                 .carried_bits(d.doublet)
                 .expect("the robot carried every doublet the simulated controller decides");
-            record(self.config, &d, &e, bits, &mut p.run, &mut self.log, &mut self.trace);
+            record(
+                self.config,
+                &d,
+                &e,
+                bits,
+                &mut p.run,
+                &mut self.log,
+                &mut self.trace,
+            );
         }
     }
 }
 
 impl PrivateSenses {
     /// Takes the eavesdroppers' decisions.
-    fn collect(&mut self) {
+    pub(super) fn collect(&mut self) {
         while let Some(doublet) = self.eve.poll() {
             self.heard.insert(doublet.doublet, doublet);
         }
@@ -145,7 +181,13 @@ impl PrivateSenses {
 }
 
 impl Surroundings<Robot, Controller> for World<'_> {
-    fn robot_output(&mut self, now: Time, output: RobotOutput, robot: &mut Robot, controller: &mut Controller) {
+    fn robot_output(
+        &mut self,
+        now: Time,
+        output: RobotOutput,
+        robot: &mut Robot,
+        controller: &mut Controller,
+    ) {
         match output {
             RobotOutput::Sense { step } => self.sense(now, step, robot, controller),
             RobotOutput::Apply(actuation) => {
@@ -220,7 +262,8 @@ impl Surroundings<Robot, Controller> for World<'_> {
                 self.record_private(robot);
             }
             ControllerEvent::Finished(outcome) => {
-                if let (Senses::Odometry { .. }, Outcome::Aborted(reason)) = (&self.senses, &outcome)
+                if let (Senses::Odometry { .. }, Outcome::Aborted(reason)) =
+                    (&self.senses, &outcome)
                 {
                     self.abort = Some(reason.clone());
                 }

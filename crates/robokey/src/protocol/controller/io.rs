@@ -74,4 +74,3 @@ pub enum ControllerOutput {
     /// Something happened.
     Event(ControllerEvent),
 }
-

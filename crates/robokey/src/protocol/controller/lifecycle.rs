@@ -100,7 +100,8 @@ impl ControllerLifecycle {
 
     /// Sends a message to the robot.
     pub(crate) fn send(&mut self, message: impl Into<Message>) {
-        self.outputs.push_back(ControllerOutput::Transmit(message.into()));
+        self.outputs
+            .push_back(ControllerOutput::Transmit(message.into()));
     }
 
     /// Ends the session with `outcome`.
@@ -286,4 +287,3 @@ impl Closer {
         }
     }
 }
-

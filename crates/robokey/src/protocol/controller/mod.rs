@@ -174,9 +174,10 @@ impl Controller {
             .lifecycle
             .closing()
             .then(|| self.clock.retransmit_from + timing.retransmit_interval());
-        [retransmit, self.sensor_silence_at()]
-            .into_iter()
-            .fold(Some(self.clock.last_frame + timing.silence_timeout), earliest)
+        [retransmit, self.sensor_silence_at()].into_iter().fold(
+            Some(self.clock.last_frame + timing.silence_timeout),
+            earliest,
+        )
     }
 
     /// The next output, if any.
@@ -233,8 +234,7 @@ impl Controller {
     /// Private sensing: when the sensor counts as silent, once the robot has been heard and
     /// until the sensor delivered step `N`.
     fn sensor_silence_at(&self) -> Option<Time> {
-        let watched =
-            self.mode.uses_sensor() && self.clock.robot_heard && !self.all_sampled();
+        let watched = self.mode.uses_sensor() && self.clock.robot_heard && !self.all_sampled();
         watched.then(|| self.clock.last_sample + self.clock.timing.silence_timeout)
     }
 }

@@ -3,8 +3,8 @@
 
 use super::lifecycle::ControllerLifecycle;
 use crate::model::Pose;
-use crate::protocol::plan::Agreed;
 use crate::protocol::SessionMessage;
+use crate::protocol::plan::Agreed;
 
 /// The part of a controller endpoint that depends on the sensing mode (odometry: command
 /// pairs decoded from the robot's measurements; private sensing: doublets decided from the

@@ -2,9 +2,9 @@
 //! from the robot's measurements, offers command pairs, decodes the robot's choices with the
 //! unknown-input observer, and decides each codeword's fate.
 
+use super::ControllerEvent;
 use super::lifecycle::ControllerLifecycle;
 use super::mode::ControllerMode;
-use super::ControllerEvent;
 use crate::config::{Config, Feedback};
 use crate::control::{TrackingController, TrackingGains};
 use crate::model::{Pose, Unicycle, WheelSpeeds};
@@ -103,7 +103,13 @@ impl OdometryController {
         }
     }
 
-    fn record_step(&mut self, agreed: &Agreed, life: &mut ControllerLifecycle, step: u32, bit: Option<u8>) {
+    fn record_step(
+        &mut self,
+        agreed: &Agreed,
+        life: &mut ControllerLifecycle,
+        step: u32,
+        bit: Option<u8>,
+    ) {
         if !agreed.enabled {
             return;
         }
@@ -119,7 +125,13 @@ impl OdometryController {
         }
     }
 
-    fn send_command(&mut self, agreed: &Agreed, life: &mut ControllerLifecycle, step: u32, y: &Pose) {
+    fn send_command(
+        &mut self,
+        agreed: &Agreed,
+        life: &mut ControllerLifecycle,
+        step: u32,
+        y: &Pose,
+    ) {
         let pose = match self.feedback {
             Feedback::Measurement => *y,
             Feedback::Estimate => self.decoder.state(),
@@ -170,7 +182,11 @@ impl ControllerMode for OdometryController {
 
 /// The pair `u0D = H⁻¹(uU + Δ)`, `u1D = H⁻¹(uU − Δ)` (protocol off: both `H⁻¹uU`).
 #[must_use]
-pub fn command_pair(agreed: &Agreed, plan: &OdometryPlan, nominal: Unicycle) -> (WheelSpeeds, WheelSpeeds) {
+pub fn command_pair(
+    agreed: &Agreed,
+    plan: &OdometryPlan,
+    nominal: Unicycle,
+) -> (WheelSpeeds, WheelSpeeds) {
     if agreed.enabled {
         (
             agreed.drive.to_wheels(nominal + plan.delta),
@@ -207,11 +223,7 @@ mod tests {
         Controller::new(&config, plan, Timing::default(), Time::ZERO)
     }
 
-    fn measure(
-        controller: &mut Controller,
-        step: u32,
-        y: [f64; 3],
-    ) -> Vec<ControllerOutput> {
+    fn measure(controller: &mut Controller, step: u32, y: [f64; 3]) -> Vec<ControllerOutput> {
         controller.handle_input(
             Time::ZERO,
             ControllerInput::Frame(
@@ -232,10 +244,10 @@ mod tests {
             .iter()
             .filter_map(|o| match o {
                 ControllerOutput::Transmit(Message::Session(SessionMessage::Command {
-                    u0, u1, ..
-                })) => {
-                    Some([u0[0], u0[1], u1[0], u1[1]])
-                }
+                    u0,
+                    u1,
+                    ..
+                })) => Some([u0[0], u0[1], u1[0], u1[1]]),
                 _ => None,
             })
             .collect()

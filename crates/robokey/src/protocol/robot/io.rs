@@ -46,4 +46,3 @@ pub enum RobotOutput {
     /// The session ended.
     Finished(Outcome),
 }
-

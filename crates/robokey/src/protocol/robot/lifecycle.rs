@@ -145,7 +145,8 @@ impl RobotLifecycle {
 
     /// Sends a message to the controller.
     pub(crate) fn send(&mut self, message: impl Into<Message>) {
-        self.outputs.push_back(RobotOutput::Transmit(message.into()));
+        self.outputs
+            .push_back(RobotOutput::Transmit(message.into()));
     }
 
     /// Drives the wheels.
@@ -280,9 +281,7 @@ pub(crate) struct RobotCloser<'a> {
 impl RobotCloser<'_> {
     /// The answer to a `Finish`: `FinishAck`, then the robot's tags.
     pub(crate) fn answer(&self) -> [Closing; 2] {
-        let ours = self
-            .confirmer
-            .tags(SENDS, self.bitmap, self.tagged_key);
+        let ours = self.confirmer.tags(SENDS, self.bitmap, self.tagged_key);
         [
             Closing::FinishAck,
             Closing::Confirm {
@@ -310,4 +309,3 @@ impl RobotCloser<'_> {
         }
     }
 }
-

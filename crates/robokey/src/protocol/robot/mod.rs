@@ -165,13 +165,18 @@ impl Robot {
             && now >= at
         {
             self.clock.deadline = None;
-            self.mode.on_missing(&self.plan.agreed, &mut self.lifecycle, step);
+            self.mode
+                .on_missing(&self.plan.agreed, &mut self.lifecycle, step);
         }
         if let Some(at) = self.clock.repeat
             && now >= at
         {
             self.clock.repeat = Some(now + self.clock.timing.retransmit_interval());
-            if let Some(repeat) = self.last_confirm.clone().or_else(|| self.last_report.clone()) {
+            if let Some(repeat) = self
+                .last_confirm
+                .clone()
+                .or_else(|| self.last_report.clone())
+            {
                 self.lifecycle.send(repeat);
             }
         }
@@ -342,7 +347,13 @@ pub(crate) mod testing {
         let mut outputs = Vec::new();
         while let Some(output) = robot.poll_output() {
             if let RobotOutput::Sense { step } = output {
-                robot.handle_input(now, RobotInput::Sample { step, y: Pose::zeros() });
+                robot.handle_input(
+                    now,
+                    RobotInput::Sample {
+                        step,
+                        y: Pose::zeros(),
+                    },
+                );
             }
             outputs.push(output);
         }

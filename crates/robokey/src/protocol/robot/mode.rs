@@ -3,8 +3,8 @@
 
 use super::lifecycle::{ClosingRules, RobotLifecycle};
 use crate::model::Pose;
-use crate::protocol::plan::Agreed;
 use crate::protocol::SessionMessage;
+use crate::protocol::plan::Agreed;
 
 /// The part of a robot endpoint that depends on the sensing mode (odometry: codewords of
 /// command pairs; private sensing: doublets). The shared [`RobotLifecycle`] holds the rest,

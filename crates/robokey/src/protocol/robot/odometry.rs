@@ -3,9 +3,9 @@
 
 use rand::{CryptoRng, RngExt};
 
+use super::io::Actuation;
 use super::lifecycle::{ClosingRules, RobotLifecycle};
 use super::mode::RobotMode;
-use super::io::Actuation;
 use crate::code::low_mask;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use crate::protocol::plan::{Agreed, OdometryPlan};
@@ -53,7 +53,14 @@ impl OdometryRobot {
         }
     }
 
-    fn command(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, step: u32, u0: WheelSpeeds, u1: WheelSpeeds) {
+    fn command(
+        &mut self,
+        agreed: &Agreed,
+        life: &mut RobotLifecycle,
+        step: u32,
+        u0: WheelSpeeds,
+        u1: WheelSpeeds,
+    ) {
         if step < agreed.steps && !self.is_agreed_pair(agreed, &u0, &u1) {
             // Treated as a lost command: the step is erased.
             return self.on_missing(agreed, life, step);
