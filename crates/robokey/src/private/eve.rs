@@ -33,6 +33,14 @@ pub struct EveDoublet {
     pub camera: BitEvidence,
     /// The `commands` adversary's evidence: the boundary samples alone.
     pub commands: BitEvidence,
+    /// The `camera` adversary's evidence given also the true bits of every other doublet
+    /// acting on its window (revealed for this measurement, never to decide with): her view
+    /// of each bit as if she knew the rest of the block, which errs on her side — the sum
+    /// over a block of `H(B_j | E, B_{≠j})` is at most `H(B | E)`. Where doublets are
+    /// screened it is `camera`; none when those bits were not revealed.
+    pub camera_given_others: Option<BitEvidence>,
+    /// The same for the `commands` adversary.
+    pub commands_given_others: Option<BitEvidence>,
 }
 
 /// How the eavesdroppers weigh what they recorded.
@@ -73,6 +81,9 @@ pub struct DoubletEavesdropper {
     next: u32,
     /// No more data will come: decide what is left with what there is.
     finished: bool,
+    /// The robot's true bits of each doublet, where revealed (a measurement: see
+    /// [`EveDoublet::camera_given_others`]).
+    truth: Vec<Option<[u8; 2]>>,
 }
 
 impl DoubletEavesdropper {
@@ -109,7 +120,16 @@ impl DoubletEavesdropper {
             ready: VecDeque::new(),
             next: 0,
             finished: false,
+            truth: vec![None; plan.units() as usize],
             plan,
+        }
+    }
+
+    /// Reveals doublet `j`'s true bits `[v, ω]` — never to decide with: to measure her view
+    /// of each bit given the rest of the block ([`EveDoublet::camera_given_others`]).
+    pub fn reveal(&mut self, j: u32, bits: [u8; 2]) {
+        if let Some(slot) = self.truth.get_mut(j as usize) {
+            *slot = Some(bits);
         }
     }
 
@@ -272,14 +292,18 @@ impl DoubletEavesdropper {
             frames: &self.frames,
         };
         let inputs = self.commands.get(&(2 * j))?.inputs?;
-        let camera = smoother.evidence(j, &recorded, true)?;
-        let commands = smoother.evidence(j, &recorded, false)?;
-        self.decided[j as usize] = Some([camera.bits(), commands.bits()]);
+        let truth = &self.truth;
+        let revealed = |i: u32| truth.get(i as usize).copied().flatten();
+        let camera = smoother.evidence(j, &recorded, true, &revealed)?;
+        let commands = smoother.evidence(j, &recorded, false, &revealed)?;
+        self.decided[j as usize] = Some([camera.own.bits(), commands.own.bits()]);
         Some(EveDoublet {
             doublet: j,
             inputs,
-            camera,
-            commands,
+            camera: camera.own,
+            commands: commands.own,
+            camera_given_others: camera.given_others,
+            commands_given_others: commands.given_others,
         })
     }
 
@@ -328,6 +352,8 @@ impl DoubletEavesdropper {
             inputs,
             camera,
             commands,
+            camera_given_others: Some(camera),
+            commands_given_others: Some(commands),
         })
     }
 }

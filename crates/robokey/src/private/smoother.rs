@@ -82,11 +82,92 @@ struct Observation {
     noise_inverse: Matrix3<f64>,
 }
 
-/// A column of the Gram filter for a bit of another doublet: which of the window's
-/// nuisance bits its sign multiplies (one, or two for the v·ω interaction).
+/// Doublet `j`'s evidence, on her own and given the other doublets' true bits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Judged {
+    /// From what she recorded alone: her decision.
+    pub own: BitEvidence,
+    /// Given also the true bits of every other doublet acting on the window (when known):
+    /// `P(b_j | view, b_{≠j})`. Over a block, `Σ_j H(B_j | E, B_{≠j}) ≤ H(B | E)`: her
+    /// uncertainty counted this way errs on her side.
+    pub given_others: Option<BitEvidence>,
+}
+
+/// Another carrying doublet acting on the window, and its effect columns with the sign
+/// recipe of each (which of its bits multiply: v, ω, or both).
+struct Other {
+    doublet: u32,
+    in_window: bool,
+    columns: Vec<(usize, Vec<usize>)>,
+}
+
+/// A column whose sign is summed over: which of the enumerated bits multiply it.
 struct NuisanceColumn {
     column: usize,
     bits: Vec<usize>,
+}
+
+/// How the other doublets' bits enter a likelihood: known (their effect taken off the
+/// residual), summed over exactly (the window's), or Gaussian (the lead's).
+struct Treatment {
+    /// The residual as a combination of the columns, without the hypothesis' own.
+    residual: DVector<f64>,
+    nuisance: Vec<NuisanceColumn>,
+    nuisance_bits: usize,
+    gaussian: Vec<usize>,
+}
+
+impl Treatment {
+    /// `known(o)`: the pattern of doublet `o` when known.
+    fn new(others: &[Other], known: impl Fn(&Other) -> Option<usize>, columns: usize) -> Self {
+        let mut residual = DVector::zeros(columns);
+        residual[0] = 1.0;
+        let mut treatment = Self {
+            residual,
+            nuisance: Vec::new(),
+            nuisance_bits: 0,
+            gaussian: Vec::new(),
+        };
+        for other in others {
+            match known(other) {
+                Some(pattern) => {
+                    for (column, recipe) in &other.columns {
+                        treatment.residual[*column] -= pattern_sign(pattern, recipe);
+                    }
+                }
+                None if other.in_window => {
+                    let first_bit = treatment.nuisance_bits;
+                    let mut width = 0;
+                    for (column, recipe) in &other.columns {
+                        width = width.max(recipe.iter().max().map_or(0, |b| b + 1));
+                        treatment.nuisance.push(NuisanceColumn {
+                            column: *column,
+                            bits: recipe.iter().map(|b| first_bit + b).collect(),
+                        });
+                    }
+                    treatment.nuisance_bits += width;
+                }
+                None => treatment
+                    .gaussian
+                    .extend(other.columns.iter().map(|(column, _)| *column)),
+            }
+        }
+        treatment
+    }
+
+    /// `ln p(y | h)` up to a constant common to all hypotheses, `h` the hypothesis' column.
+    fn log_likelihood(&self, gram: &DMatrix<f64>, log_det: f64, hypothesis: usize) -> f64 {
+        let mut residual = self.residual.clone();
+        residual[hypothesis] -= 1.0;
+        log_likelihood(
+            gram,
+            log_det,
+            &residual,
+            &self.nuisance,
+            self.nuisance_bits,
+            &self.gaussian,
+        )
+    }
 }
 
 /// The slip latents of one window step: each wheel's mean speed per update, and its
@@ -159,10 +240,18 @@ impl WindowSmoother {
     }
 
     /// The evidence on doublet `j`'s bits from everything recorded over its window: with
-    /// her camera (`camera`) or from the commands alone. None when `j` carries no bits or
-    /// its own commands are not recorded.
+    /// her camera (`camera`) or from the commands alone — her own (the window's other bits
+    /// unknown), and, when `truth` tells the true bits of every other doublet that acts on
+    /// the window, given those. None when `j` carries no bits or its own commands are not
+    /// recorded.
     #[must_use]
-    pub fn evidence(&self, j: u32, rec: &Recorded<'_>, camera: bool) -> Option<BitEvidence> {
+    pub fn evidence(
+        &self,
+        j: u32,
+        rec: &Recorded<'_>,
+        camera: bool,
+        truth: &dyn Fn(u32) -> Option<[u8; 2]>,
+    ) -> Option<Judged> {
         let (first, last) = self.window_of(j, rec)?;
         let inputs = |i: u32| rec.commands.get(&(2 * i)).and_then(|c| c.inputs);
         if !rec.plan.carries(&inputs(j)?) {
@@ -247,10 +336,7 @@ impl WindowSmoother {
                     .collect(),
             );
         }
-        let in_window = |i: u32| i >= first;
-        let mut nuisance: Vec<NuisanceColumn> = Vec::new();
-        let mut lead_columns: Vec<usize> = Vec::new();
-        let mut nuisance_bits = 0;
+        let mut others: Vec<Other> = Vec::new();
         for (c, (&(i, _), doublet_runs)) in carrying.iter().zip(&runs).enumerate() {
             if c == target {
                 continue;
@@ -260,6 +346,11 @@ impl WindowSmoother {
             let recipes: Vec<Vec<usize>> = match bits {
                 1 => vec![vec![0]],
                 _ => vec![vec![0], vec![1], vec![0, 1]],
+            };
+            let mut other = Other {
+                doublet: i,
+                in_window: i >= first,
+                columns: Vec::new(),
             };
             for recipe in recipes {
                 let effect: Vec<Vector3<f64>> = observations
@@ -276,18 +367,9 @@ impl WindowSmoother {
                     })
                     .collect();
                 columns.push(effect);
-                if in_window(i) {
-                    nuisance.push(NuisanceColumn {
-                        column: columns.len() - 1,
-                        bits: recipe.iter().map(|b| nuisance_bits + b).collect(),
-                    });
-                } else {
-                    lead_columns.push(columns.len() - 1);
-                }
+                other.columns.push((columns.len() - 1, recipe));
             }
-            if in_window(i) {
-                nuisance_bits += bits;
-            }
+            others.push(other);
         }
         // Slip profiles of every window step, the target's per hypothesis.
         let slips: Vec<Vec<SlipProfile>> = (0..self.covariance_runs(patterns))
@@ -298,24 +380,28 @@ impl WindowSmoother {
             .map(|slip| self.filter(&nominal, &observations, &columns, slip, steps))
             .collect();
         let gram_of = |h: usize| &grams[h.min(grams.len() - 1)];
-        let ll: Vec<f64> = (0..patterns)
-            .map(|h| {
-                let (gram, log_det) = gram_of(h);
-                log_likelihood(
-                    gram,
-                    *log_det,
-                    1 + h,
-                    &nuisance,
-                    nuisance_bits,
-                    &lead_columns,
-                )
-            })
-            .collect();
-        let distance = |a: usize, b: usize| {
-            let (gram, _) = gram_of(a);
-            separation(gram, 1 + a, 1 + b, &lead_columns)
+        let evidence_under = |treatment: &Treatment| {
+            let ll: Vec<f64> = (0..patterns)
+                .map(|h| {
+                    let (gram, log_det) = gram_of(h);
+                    treatment.log_likelihood(gram, *log_det, 1 + h)
+                })
+                .collect();
+            let distance = |a: usize, b: usize| {
+                let (gram, _) = gram_of(a);
+                separation(gram, 1 + a, 1 + b, &treatment.gaussian)
+            };
+            self.bit_evidence(&ll, distance)
         };
-        Some(self.bit_evidence(&ll, distance))
+        let own = evidence_under(&Treatment::new(&others, |_| None, columns.len()));
+        let given_others = others
+            .iter()
+            .all(|o| truth(o.doublet).is_some())
+            .then(|| {
+                let pattern = |o: &Other| truth(o.doublet).map(|b| self.perturbation.pattern(b));
+                evidence_under(&Treatment::new(&others, pattern, columns.len()))
+            });
+        Some(Judged { own, given_others })
     }
 
     /// Runs of the Gram filter needed: one per hypothesis when the slip's covariance depends
@@ -679,28 +765,27 @@ fn pattern_sign(h: usize, recipe: &[usize]) -> f64 {
     recipe.iter().map(|&b| sign(((h >> b) & 1) as u8)).product()
 }
 
-/// `ln p(y | h)` up to a constant common to all hypotheses: the window's other bits summed
-/// over, the lead's integrated as Gaussians.
+/// `ln p(y | h)` up to a constant common to all hypotheses: `residual` the residual under
+/// `h` as a combination of the columns, the `nuisance` columns' bits summed over, the
+/// `gaussian` columns' integrated as unit Gaussians.
 fn log_likelihood(
     gram: &DMatrix<f64>,
     log_det: f64,
-    hypothesis: usize,
+    residual: &DVector<f64>,
     nuisance: &[NuisanceColumn],
     nuisance_bits: usize,
-    lead: &[usize],
+    gaussian: &[usize],
 ) -> f64 {
-    // The residual under hypothesis h is column 0 minus its column.
     let g = |a: usize, b: usize| gram[(a, b)];
-    let h = hypothesis;
-    let rr = g(0, 0) - 2.0 * g(0, h) + g(h, h);
-    let against = |a: usize| g(a, 0) - g(a, h);
-    let (fold, lead_log_det) = Fold::new(gram, lead);
+    let toward = gram * residual;
+    let rr = residual.dot(&toward);
+    let (fold, gaussian_log_det) = Fold::new(gram, gaussian);
     let n = nuisance.len();
-    let b_lead = DVector::from_iterator(lead.len(), lead.iter().map(|&p| against(p)));
-    let rr = rr - fold.quadratic(&b_lead, &b_lead);
+    let b_gaussian = DVector::from_iterator(gaussian.len(), gaussian.iter().map(|&p| toward[p]));
+    let rr = rr - fold.quadratic(&b_gaussian, &b_gaussian);
     let b: Vec<f64> = nuisance
         .iter()
-        .map(|c| against(c.column) - fold.quadratic(&fold.cross(gram, c.column), &b_lead))
+        .map(|c| toward[c.column] - fold.quadratic(&fold.cross(gram, c.column), &b_gaussian))
         .collect();
     let c: Vec<Vec<f64>> = nuisance
         .iter()
@@ -717,10 +802,7 @@ fn log_likelihood(
     let terms = DVector::from_iterator(
         1 << nuisance_bits,
         (0..1usize << nuisance_bits).map(|pattern| {
-            let u: Vec<f64> = nuisance
-                .iter()
-                .map(|col| pattern_sign(pattern, &col.bits))
-                .collect();
+            let u: Vec<f64> = nuisance.iter().map(|col| pattern_sign(pattern, &col.bits)).collect();
             let mut q = rr;
             for a in 0..n {
                 q -= 2.0 * u[a] * b[a];
@@ -731,7 +813,7 @@ fn log_likelihood(
             -0.5 * q
         }),
     );
-    ln_sum_exp(&terms) - 0.5 * log_det - 0.5 * lead_log_det
+    ln_sum_exp(&terms) - 0.5 * log_det - 0.5 * gaussian_log_det
 }
 
 /// The lead's Gaussian bits integrated out: `M = (C_LL + I)⁻¹` and `ln det(C_LL + I)`.

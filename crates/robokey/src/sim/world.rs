@@ -192,6 +192,12 @@ impl Surroundings<Robot, Controller> for World<'_> {
             RobotOutput::Sense { step } => self.sense(now, step, robot, controller),
             RobotOutput::Apply(actuation) => {
                 self.plant.apply(actuation.wheels);
+                if let Senses::Private(p) = &mut self.senses
+                    && actuation.bit.is_some()
+                    && let Some(bits) = robot.carried_bits(actuation.step / 2)
+                {
+                    p.eve.reveal(actuation.step / 2, bits);
+                }
                 if let Some(row) = self.trace.row(actuation.step as usize) {
                     row.bit = actuation.bit;
                     if self.config.protocol.bits_per_doublet == 2
@@ -333,8 +339,8 @@ fn record(
             bit: bits[i],
             turn_rate: d.inputs.turn_rate(),
             controller: d.evidence.llr[i],
-            camera: e.camera.llr[i],
-            commands: e.commands.llr[i],
+            camera: e.camera_given_others.unwrap_or(e.camera).llr[i],
+            commands: e.commands_given_others.unwrap_or(e.commands).llr[i],
             camera_separation: e.camera.separation[i],
             assumed_separation: d.assumed_separation[i],
             commands_separation: e.commands.separation[i],
