@@ -15,9 +15,9 @@ use robokey_lab::files::{prepare_output, write};
 use robokey_lab::runner::with_jobs;
 use robokey_lab::secrecy::private::eavesdroppers;
 use robokey_lab::secrecy::render_private::{PrivateRow, private_markdown, turn_rates_csv};
+use robokey_net::agent::key_file::read_key_file;
 use robokey_net::capture_eve::{listen, listen_private, read_session};
 use robokey_net::pose_stream::read_log;
-use robokey_net::session::read_key_file;
 
 use crate::commands::FlagOverrides;
 use crate::exit::usage;

@@ -164,7 +164,7 @@ pub fn sensor(
     topic: &str,
     _args: &Ros2SensorArgs,
     _config: &robokey::Config,
-    _pace: robokey_net::session::Pace,
+    _pace: robokey::protocol::Pace,
 ) -> anyhow::Result<robokey_net::sensor::SensorSpec> {
     crate::exit::usage!("--sensor ros2:{topic}: {NOT_BUILT}")
 }
@@ -174,9 +174,9 @@ pub fn sensor(
 pub fn run_robot<R: rand::CryptoRng>(
     _args: &Ros2RobotArgs,
     _config: &robokey::Config,
-    _options: &robokey_net::robot_agent::RobotOptions,
+    _options: &robokey_net::agent::robot::RobotOptions,
     _key_source: &mut R,
-) -> anyhow::Result<robokey_net::session::SessionReport> {
+) -> anyhow::Result<robokey_net::agent::report::SessionReport> {
     crate::exit::usage!("--backend ros2: {NOT_BUILT}")
 }
 
@@ -188,13 +188,14 @@ mod with_ros2 {
     use std::time::Duration;
 
     use anyhow::Result;
-    use robokey_net::robot_agent::{RobotOptions, run_robot as run_session};
+    use robokey::protocol::Pace;
+    use robokey_net::agent::report::SessionReport;
+    use robokey_net::agent::robot::{RobotOptions, run_robot as run_session};
     use robokey_net::ros2::{
         Delivery, MocapOptions, PoseTopicOptions, RobotTopics, Ros2Backend, Ros2BackendOptions,
         Ros2Clock, Ros2Sim, SimOptions, SimTime, TopicSpec, check_quantum,
     };
     use robokey_net::sensor::SensorSpec;
-    use robokey_net::session::{Pace, SessionReport};
 
     use super::{QosArg, Ros2RobotArgs, Ros2SensorArgs, SimArgs, SimTimeArg};
     use crate::exit::{Status, on_signals, usage};

@@ -295,7 +295,7 @@ pub fn run_campaigns_with(
         config: config.clone(),
         runs,
         all,
-        steps_per_session: SessionPlan::from_config(config, 0).steps,
+        steps_per_session: SessionPlan::from_config(config, 0).agreed.steps,
     })
 }
 

@@ -219,7 +219,7 @@ pub fn run_experiment(
             let (point, replicate) = (session[0] / replicates, (session[0] % replicates) as u32);
             let config = &experiment.points[point].config;
             let mut plan = plans[point].clone();
-            plan.session = replicate;
+            plan.agreed.session = replicate;
             if let [run] = session[..] {
                 let output = if experiment.traces && replicate == 0 {
                     streamed(config, plan, &trace_path(dir, point))?

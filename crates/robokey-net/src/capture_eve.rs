@@ -137,11 +137,11 @@ pub fn listen(
 ) -> CaptureResult {
     let mut plan = SessionPlan::from_config(config, captured.session);
     if let Some(confirmer) = &captured.public_confirmer {
-        plan.confirmer = confirmer.clone();
+        plan.agreed.confirmer = confirmer.clone();
     }
     let mut eve = Eve::new(config, strategy, errors);
     eve.begin_session(&plan);
-    let mut decisions = vec![None; plan.steps as usize];
+    let mut decisions = vec![None; plan.agreed.steps as usize];
     for message in &captured.messages {
         if let Some(decision) = eve.observe(message)
             && let Some(slot) = decisions.get_mut(decision.step as usize)

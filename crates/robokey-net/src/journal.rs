@@ -219,7 +219,7 @@ fn write_whole(
     payloads: &[Zeroizing<Vec<u8>>],
 ) -> Result<(File, [u8; FILE_ID]), NetError> {
     let mut file_id = [0_u8; FILE_ID];
-    rand::RngExt::fill(&mut crate::session::os_rng()?, &mut file_id[..]);
+    rand::RngExt::fill(&mut crate::random::os_rng()?, &mut file_id[..]);
     let mut text = Zeroizing::new(preamble(owner).into_bytes());
     text.extend_from_slice(&file_id);
     for (index, payload) in payloads.iter().enumerate() {

@@ -2,10 +2,9 @@
 //! the simulator, carried over UDP between separate processes — and the world they run in:
 //! the plant and the sensor streams it serves.
 
+pub mod agent;
 pub mod backend;
 pub mod capture_eve;
-pub mod controller_agent;
-pub mod endpoint;
 pub mod error;
 #[doc(hidden)]
 pub mod fuzzing;
@@ -16,18 +15,15 @@ pub mod owned_file;
 pub mod pairing;
 pub mod pcap;
 pub mod pose_stream;
-pub mod post_link;
 pub mod post_store;
+pub mod random;
 pub mod relay;
-pub mod robot_agent;
 #[cfg(feature = "ros2")]
 pub mod ros2;
 pub mod secret_file;
 pub mod sensor;
-pub mod session;
 pub mod sim_backend;
 pub mod store_keys;
-pub mod transport;
 pub mod world;
 
 pub use error::NetError;

@@ -384,10 +384,10 @@ impl<S: Snapshot> PostStore<S> {
         &self.dir
     }
 
-    /// Whether a stored key lists session `id` as a source: it is never pooled again.
+    /// The sessions stored keys list as sources: they are never pooled again.
     #[must_use]
-    pub fn is_source(&self, id: u32) -> bool {
-        self.sources.contains(&id)
+    pub fn sources(&self) -> &BTreeSet<u32> {
+        &self.sources
     }
 
     /// The keys pending in the store, by block.

@@ -14,9 +14,9 @@ use robokey::interrupt::Interrupt;
 use robokey::rng::{Purpose, stream};
 use serde::Serialize;
 
+use crate::agent::socket::STOP_POLL;
 use crate::error::{NetError, is_wait_over};
 use crate::pcap::PcapWriter;
-use crate::session::STOP_POLL;
 
 /// Fault probabilities (per datagram) and delays.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

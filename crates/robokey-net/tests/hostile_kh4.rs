@@ -12,11 +12,12 @@ use robokey::Config;
 use robokey::interrupt::Interrupt;
 use robokey::model::{DiffDrive, WheelSpeeds};
 use robokey::protocol::auth::PairingSecret;
+use robokey::protocol::{Pace, Timing};
+use robokey_net::agent::controller::{ControllerOptions, run_controller};
+use robokey_net::agent::report::{Ending, SessionReport};
+use robokey_net::agent::robot::{RobotOptions, run_robot};
 use robokey_net::backend::{Backend, WheelGuard};
-use robokey_net::controller_agent::{ControllerOptions, run_controller};
 use robokey_net::khepera::{Kh4Backend, Link, MAX_REPLY_BYTES};
-use robokey_net::robot_agent::{RobotOptions, run_robot};
-use robokey_net::session::{Ending, Pace, SessionReport, Timing};
 
 /// What the fake server answers to the first `R` (every other request is answered
 /// correctly, so the robot starts and its wheels turn first).

@@ -627,7 +627,7 @@ impl Harness {
                 let y = self.pose(bytes);
                 self.feed_robot(RobotInput::Sample { step, y });
             }
-            Focus::Controller if bytes.u8() % 16 == 0 => {
+            Focus::Controller if bytes.u8().is_multiple_of(16) => {
                 let why = String::from_utf8_lossy(bytes.take(8)).into_owned();
                 self.feed_controller(ControllerInput::SensorStopped(why));
             }

@@ -4,14 +4,16 @@
 //! This crate is the I/O-free core: kinematics ([`model`]), references ([`trajectory`]),
 //! the tracking controller ([`control`]), the unknown-input observer ([`observer`]), block
 //! codes ([`code`]), the protocol endpoints ([`protocol`]), the eavesdroppers ([`eve`]),
-//! private sensing ([`private`]), configuration ([`config`]), seeded random streams
-//! ([`rng`]), stop requests ([`interrupt`]), a virtual network ([`pair`]), the true physics
-//! apart from the parties' configuration ([`world`]) and the closed-loop simulation of one
-//! run ([`sim`]). Time is an input ([`protocol::Time`]); randomness is
+//! private sensing ([`private`]), a side's whole conversation over the network
+//! ([`connection`]), configuration ([`config`]), seeded random streams ([`rng`]), stop
+//! requests ([`interrupt`]), a virtual network ([`pair`]), the true physics apart from the
+//! parties' configuration ([`world`]) and the closed-loop simulation of one run ([`sim`]).
+//! Time is an input ([`protocol::Time`]); randomness is
 //! passed in.
 
 pub mod code;
 pub mod config;
+pub mod connection;
 pub mod control;
 pub mod eve;
 #[doc(hidden)]

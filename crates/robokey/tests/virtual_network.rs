@@ -124,3 +124,193 @@ fn an_ideal_link_agrees_in_both_modes() {
         assert!(!s.robot_key.is_empty(), "{mode}");
     }
 }
+
+/// The two sides' addresses on the virtual network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Address {
+    Robot,
+    Controller,
+}
+
+impl std::fmt::Display for Address {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{self:?}")
+    }
+}
+
+mod through_the_session_layer {
+    use super::*;
+    use rand::rngs::ChaCha20Rng;
+    use robokey::connection::{
+        ControllerAction, ControllerConnection, Output, RobotAction, RobotConnection, Setup,
+    };
+    use robokey::pair::{Connected, Pair, Surroundings};
+    use robokey::protocol::auth::PairingSecret;
+    use robokey::protocol::{RobotOutput, Time};
+    use robokey::rng::{Purpose, stream};
+    use robokey::world::{PlantStreams, WorldPlant};
+
+    type RobotSide = Connected<RobotConnection<Address, ChaCha20Rng>, Address>;
+    type ControllerSide = Connected<ControllerConnection<Address>, Address>;
+
+    /// The plant both agents' worlds share, and how each side ended.
+    struct World {
+        plant: WorldPlant,
+        private: bool,
+        outcomes: [Option<Outcome>; 2],
+        closed: [bool; 2],
+    }
+
+    impl Surroundings<RobotSide, ControllerSide> for World {
+        fn robot_output(
+            &mut self,
+            now: Time,
+            output: RobotAction<Address>,
+            robot: &mut RobotSide,
+            controller: &mut ControllerSide,
+        ) {
+            match output {
+                Output::Endpoint(RobotOutput::Sense { step }) => {
+                    if step > 0 {
+                        self.plant.step();
+                    }
+                    let pose = self.plant.pose();
+                    robot.connection.handle_sample(now, step, pose);
+                    if self.private {
+                        controller.connection.handle_sensor(now, step, pose);
+                    }
+                }
+                Output::Endpoint(RobotOutput::Apply(a)) => self.plant.apply(a.wheels),
+                Output::Finished(outcome) => self.outcomes[0] = Some(outcome),
+                Output::Closed => self.closed[0] = true,
+                _ => {}
+            }
+        }
+
+        fn controller_output(
+            &mut self,
+            _now: Time,
+            output: ControllerAction<Address>,
+            _robot: &mut RobotSide,
+            _controller: &mut ControllerSide,
+        ) {
+            match output {
+                Output::Finished(outcome) => self.outcomes[1] = Some(outcome),
+                Output::Closed => self.closed[1] = true,
+                _ => {}
+            }
+        }
+
+        fn done(&self) -> bool {
+            self.closed == [true; 2]
+        }
+    }
+
+    /// One whole conversation of `config` between two paired agents on `network`.
+    fn conversation(config: &Config, network: Network) -> Session {
+        let seed = network.seed;
+        let pairing = PairingSecret::generate(&mut stream(seed, Purpose::Key, 1));
+        let setup = Setup {
+            config,
+            pairing: &pairing,
+            timing: network.timing,
+        };
+        let robot = RobotConnection::new(
+            setup,
+            Duration::from_secs(5),
+            None,
+            <ChaCha20Rng as SeedableRng>::seed_from_u64(seed),
+            <ChaCha20Rng as SeedableRng>::seed_from_u64(!seed),
+            Time::ZERO,
+        );
+        let controller = ControllerConnection::new(
+            setup,
+            Address::Robot,
+            seed as u32,
+            None,
+            &mut stream(seed, Purpose::Key, 2),
+            Time::ZERO,
+        );
+        let plan = robokey::protocol::SessionPlan::from_config(config, 0);
+        let mut world = World {
+            plant: WorldPlant::new(
+                &config.world_model(),
+                plan.agreed.drive,
+                config.robot.wheel_limit,
+                plan.agreed.sample_time,
+                PlantStreams {
+                    process: stream(seed, Purpose::Process, 0),
+                    slip: stream(seed, Purpose::Slip, 0),
+                },
+                false,
+            ),
+            private: plan.private().is_some(),
+            outcomes: [None, None],
+            closed: [false; 2],
+        };
+        let mut pair = Pair::new(
+            Connected {
+                connection: robot,
+                peer: Address::Controller,
+            },
+            Connected {
+                connection: controller,
+                peer: Address::Robot,
+            },
+            network.to_controller,
+            network.to_robot,
+            seed,
+        );
+        let limit = Duration::from_secs_f64(plan.agreed.sample_time * f64::from(plan.agreed.steps))
+            + Duration::from_secs(30);
+        let ending = pair.drive(&mut world, limit);
+        let key = |endpoint: Option<&[u8]>| endpoint.unwrap_or_default().to_vec();
+        let [robot_outcome, controller_outcome] = world.outcomes;
+        Session {
+            robot_key: key(pair.robot.connection.endpoint().map(|e| e.key())),
+            controller_key: key(pair.controller.connection.endpoint().map(|e| e.key())),
+            fates: Vec::new(),
+            decided: Vec::new(),
+            erased: Vec::new(),
+            robot_outcome,
+            controller_outcome,
+            ending,
+        }
+    }
+
+    /// Seeds per sensing mode through the session layer (each frame sealed and verified).
+    const SEEDS: u64 = 2_000;
+
+    fn property(mode: &str) {
+        let config = short(mode);
+        let mut both = 0;
+        for seed in 0..SEEDS {
+            let s = conversation(&config, network(seed));
+            both += u64::from(check(seed, &s));
+        }
+        assert!(
+            both > SEEDS / 2,
+            "{mode}: only {both} of {SEEDS} conversations agreed"
+        );
+        println!("{mode}, session layer: {both} of {SEEDS} conversations agreed on both sides");
+    }
+
+    #[test]
+    fn over_a_faulty_network_odometry_conversations_close_and_never_hold_differing_keys() {
+        property("odometry");
+    }
+
+    #[test]
+    fn over_a_faulty_network_private_conversations_close_and_never_hold_differing_keys() {
+        property("private");
+    }
+
+    #[test]
+    fn an_ideal_link_confirms_through_the_session_layer() {
+        for mode in ["odometry", "private"] {
+            let s = conversation(&short(mode), Network::default());
+            assert!(check(0, &s), "{mode}: {s:?}");
+            assert!(!s.robot_key.is_empty(), "{mode}");
+        }
+    }
+}

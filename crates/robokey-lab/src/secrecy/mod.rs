@@ -334,7 +334,7 @@ fn private_sessions(
             .into_par_iter()
             .map(|replicate| {
                 let mut plan = plan.clone();
-                plan.session = replicate;
+                plan.agreed.session = replicate;
                 simulate_plan(&config, plan, replicate, false)
             })
             .collect::<Result<_, _>>()?;

@@ -216,7 +216,7 @@ fn a_journal_restored_from_an_older_copy_never_pools_a_keys_sources_again() {
     state.pool.retain(|(id, _)| *id == 3);
     state.committed.push(0);
     store.persist(&mut state, &[key(0, &[1, 2])]).unwrap();
-    assert!(store.is_source(1) && !store.is_source(3));
+    assert!(store.sources().contains(&1) && !store.sources().contains(&3));
     drop(store);
     std::fs::write(dir.join("journal"), &old).unwrap();
     let (store, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
@@ -227,7 +227,7 @@ fn a_journal_restored_from_an_older_copy_never_pools_a_keys_sources_again() {
         [3]
     );
     assert!(state.spent.contains(&1) && state.spent.contains(&2));
-    assert!(store.is_source(2));
+    assert!(store.sources().contains(&2));
 }
 
 /// Links planted at `lock` and `journal` are refused, their targets keep every byte, and an

@@ -16,6 +16,7 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 
 pub use faults::{Datagram, LinkFaults};
+pub use peers::Connected;
 
 use crate::protocol::Time;
 use crate::protocol::timing::earliest;
@@ -183,7 +184,8 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
             if world.done() {
                 return Ending::Done;
             }
-            let next = [self.robot.poll_timeout(), self.controller.poll_timeout()]
+            let timers = [self.robot.poll_timeout(), self.controller.poll_timeout()];
+            let next = timers
                 .into_iter()
                 .fold(self.in_flight.peek().map(|f| f.0.at), earliest);
             let Some(next) = next else {
@@ -193,25 +195,30 @@ impl<R: Peer, C: Peer<Datagram = R::Datagram>> Pair<R, C> {
                 return Ending::TimeLimit;
             }
             self.now = self.now.max(next);
-            self.step(world);
+            self.step(world, timers);
         }
     }
 
-    /// Delivers what arrives by now, then fires the timers due.
-    fn step<W: Surroundings<R, C>>(&mut self, world: &mut W) {
+    /// Delivers what arrives by now, then fires the timers due (`timers`: the robot's and the
+    /// controller's before the deliveries, asked again only if something was delivered).
+    fn step<W: Surroundings<R, C>>(&mut self, world: &mut W, timers: [Option<Time>; 2]) {
+        let mut delivered = false;
         while self.in_flight.peek().is_some_and(|f| f.0.at <= self.now) {
-            let Reverse(f) = self.in_flight.pop().expect("peeked");
-            self.deliver(f.to, f.datagram);
-            self.drain(world);
+            if let Some(Reverse(f)) = self.in_flight.pop() {
+                self.deliver(f.to, f.datagram);
+                self.drain(world);
+                delivered = true;
+            }
         }
-        if self.robot.poll_timeout().is_some_and(|t| t <= self.now) {
+        let [robot, controller] = if delivered {
+            [self.robot.poll_timeout(), self.controller.poll_timeout()]
+        } else {
+            timers
+        };
+        if robot.is_some_and(|t| t <= self.now) {
             self.robot.handle_timeout(self.now);
         }
-        if self
-            .controller
-            .poll_timeout()
-            .is_some_and(|t| t <= self.now)
-        {
+        if controller.is_some_and(|t| t <= self.now) {
             self.controller.handle_timeout(self.now);
         }
     }

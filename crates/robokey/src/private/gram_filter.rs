@@ -140,6 +140,14 @@ impl GramFilter {
         self.batch = Batch::new(l.nrows(), self.means.ncols());
     }
 
+    /// Adds a known offset to the state's mean in each column (`offsets` is `dim × columns`):
+    /// a deterministic input, e.g. where the path the state deviates from restarts.
+    /// Conditions pending observations first.
+    pub fn shift(&mut self, offsets: &DMatrix<f64>) {
+        self.condition();
+        self.means += offsets;
+    }
+
     /// The Gram matrix `cᵀΣ⁻¹c'` of the columns and `ln det Σ` (up to a constant common to
     /// every run with the same observation noises), after conditioning what is pending.
     pub fn finish(mut self) -> (DMatrix<f64>, f64) {

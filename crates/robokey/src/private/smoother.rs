@@ -101,6 +101,24 @@ struct Other {
     columns: Vec<(usize, Vec<usize>)>,
 }
 
+/// An observation sequence run through the Gram filter: its value at each observation, and
+/// the offset its state takes on entering each window step (where the path restarts).
+struct Column {
+    values: Vec<Vector3<f64>>,
+    shifts: Vec<Vector3<f64>>,
+}
+
+impl Column {
+    fn subtract(&mut self, other: &Self) {
+        for (a, b) in self.values.iter_mut().zip(&other.values) {
+            *a -= b;
+        }
+        for (a, b) in self.shifts.iter_mut().zip(&other.shifts) {
+            *a -= b;
+        }
+    }
+}
+
 /// A column whose sign is summed over: which of the enumerated bits multiply it.
 struct NuisanceColumn {
     column: usize,
@@ -276,6 +294,9 @@ impl WindowSmoother {
                 .collect(),
             before,
             start: rec.commands[&(2 * first)].sample,
+            anchors: (0..2 * (last - first + 1))
+                .map(|s| (s > 0 && s % 2 == 0).then(|| rec.commands[&(2 * first + s)].sample))
+                .collect(),
         };
         let carrying: Vec<(u32, usize)> = doublets
             .iter()
@@ -309,35 +330,50 @@ impl WindowSmoother {
             .iter()
             .position(|&(i, _)| i == j)
             .expect("j carries");
-        let at = |run: &WindowRun, o: &Observation| run.at(o.instant);
-        let mut columns: Vec<Vec<Vector3<f64>>> = Vec::new();
-        let residual: Vec<Vector3<f64>> = observations
-            .iter()
-            .map(|o| {
-                let base = at(&nominal, o);
-                let shift: Vector3<f64> = runs
-                    .iter()
-                    .enumerate()
-                    .filter(|(c, _)| *c != target)
-                    .map(|(_, r)| {
-                        r.iter().map(|run| at(run, o) - base).sum::<Vector3<f64>>()
-                            / patterns as f64
-                    })
-                    .sum();
-                o.value - base - shift
-            })
-            .collect();
-        columns.push(residual);
+        // A column is a combination of runs, relative to the nominal one.
+        let derived = |weights: &[(&WindowRun, f64)]| Column {
+            values: observations
+                .iter()
+                .map(|o| {
+                    let base = nominal.at(o.instant);
+                    weights
+                        .iter()
+                        .map(|(run, w)| (run.at(o.instant) - base) * *w)
+                        .sum()
+                })
+                .collect(),
+            shifts: (0..steps)
+                .map(|s| {
+                    -weights
+                        .iter()
+                        .map(|(run, w)| (run.jumps[s] - nominal.jumps[s]) * *w)
+                        .sum::<Vector3<f64>>()
+                })
+                .collect(),
+        };
+        let mean_of = |c: usize| -> Vec<(&WindowRun, f64)> {
+            runs[c]
+                .iter()
+                .map(|run| (run, 1.0 / patterns as f64))
+                .collect()
+        };
+        // The residual about the nominal path and the other doublets' mean effects.
+        let mut residual = Column {
+            values: observations
+                .iter()
+                .map(|o| o.value - nominal.at(o.instant))
+                .collect(),
+            shifts: nominal.jumps.clone(),
+        };
+        for c in (0..carrying.len()).filter(|&c| c != target) {
+            residual.subtract(&derived(&mean_of(c)));
+        }
+        let mut columns: Vec<Column> = vec![residual];
         for run in &runs[target] {
-            columns.push(
-                observations
-                    .iter()
-                    .map(|o| at(run, o) - at(&nominal, o))
-                    .collect(),
-            );
+            columns.push(derived(&[(run, 1.0)]));
         }
         let mut others: Vec<Other> = Vec::new();
-        for (c, (&(i, _), doublet_runs)) in carrying.iter().zip(&runs).enumerate() {
+        for (c, &(i, _)) in carrying.iter().enumerate() {
             if c == target {
                 continue;
             }
@@ -353,34 +389,29 @@ impl WindowSmoother {
                 columns: Vec::new(),
             };
             for recipe in recipes {
-                let effect: Vec<Vector3<f64>> = observations
+                let weights: Vec<(&WindowRun, f64)> = runs[c]
                     .iter()
-                    .map(|o| {
-                        doublet_runs
-                            .iter()
-                            .enumerate()
-                            .map(|(h, run)| {
-                                (at(run, o) - at(&nominal, o)) * pattern_sign(h, &recipe)
-                            })
-                            .sum::<Vector3<f64>>()
-                            / patterns as f64
-                    })
+                    .enumerate()
+                    .map(|(h, run)| (run, pattern_sign(h, &recipe) / patterns as f64))
                     .collect();
-                columns.push(effect);
+                columns.push(derived(&weights));
                 other.columns.push((columns.len() - 1, recipe));
             }
             others.push(other);
         }
-        // Slip profiles of every window step, the target's per hypothesis.
-        let slips: Vec<Vec<SlipProfile>> = (0..self.covariance_runs(patterns))
-            .map(|h| self.slip_profiles(&nominal, &runs, &carrying, target, h, first, steps))
-            .collect();
-        let grams: Vec<(DMatrix<f64>, f64)> = slips
-            .iter()
-            .map(|slip| self.filter(&nominal, &observations, &columns, slip, steps))
-            .collect();
-        let gram_of = |h: usize| &grams[h.min(grams.len() - 1)];
-        let evidence_under = |treatment: &Treatment| {
+        // One Gram filter pass per covariance: with slip, per hypothesis of the target and
+        // per what is known of the other doublets (their slip's variance follows their bits).
+        let grams_with = |known: &dyn Fn(usize) -> Option<usize>| -> Vec<(DMatrix<f64>, f64)> {
+            (0..self.covariance_runs(patterns))
+                .map(|h| {
+                    let slips = self
+                        .slip_profiles(&nominal, &runs, &carrying, target, h, known, first, steps);
+                    self.filter(&nominal, &observations, &columns, &slips, steps)
+                })
+                .collect()
+        };
+        let evidence_under = |treatment: &Treatment, grams: &[(DMatrix<f64>, f64)]| {
+            let gram_of = |h: usize| &grams[h.min(grams.len() - 1)];
             let ll: Vec<f64> = (0..patterns)
                 .map(|h| {
                     let (gram, log_det) = gram_of(h);
@@ -393,14 +424,18 @@ impl WindowSmoother {
             };
             self.bit_evidence(&ll, distance)
         };
-        let own = evidence_under(&Treatment::new(&others, |_| None, columns.len()));
-        let given_others = others
-            .iter()
-            .all(|o| truth(o.doublet).is_some())
-            .then(|| {
-                let pattern = |o: &Other| truth(o.doublet).map(|b| self.perturbation.pattern(b));
-                evidence_under(&Treatment::new(&others, pattern, columns.len()))
-            });
+        let unknown = grams_with(&|_| None);
+        let own = evidence_under(&Treatment::new(&others, |_| None, columns.len()), &unknown);
+        let pattern_of = |i: u32| truth(i).map(|b| self.perturbation.pattern(b));
+        let given_others = others.iter().all(|o| truth(o.doublet).is_some()).then(|| {
+            let treatment = Treatment::new(&others, |o| pattern_of(o.doublet), columns.len());
+            if self.eve.world.slip_std > 0.0 {
+                let known = |c: usize| pattern_of(carrying[c].0);
+                evidence_under(&treatment, &grams_with(&known))
+            } else {
+                evidence_under(&treatment, &unknown)
+            }
+        });
         Some(Judged { own, given_others })
     }
 
@@ -477,8 +512,8 @@ impl WindowSmoother {
     }
 
     /// Each window step's slip profile: the target's steps under hypothesis `h`, other
-    /// carrying doublets' steps at their mean with the bits' half-differences, the rest at
-    /// the nominal path.
+    /// carrying doublets' steps under their pattern where `known` tells it, else at their
+    /// mean with the bits' half-differences, the rest at the nominal path.
     #[allow(
         clippy::too_many_arguments,
         reason = "the window's pieces, each used once"
@@ -490,6 +525,7 @@ impl WindowSmoother {
         carrying: &[(u32, usize)],
         target: usize,
         h: usize,
+        known: &dyn Fn(usize) -> Option<usize>,
         first: u32,
         steps: usize,
     ) -> Vec<SlipProfile> {
@@ -503,6 +539,10 @@ impl WindowSmoother {
                 match owner {
                     Some(c) if c == target => SlipProfile {
                         mean: wheels(&runs[c][h], step),
+                        bit_effects: Vec::new(),
+                    },
+                    Some(c) if known(c).is_some() => SlipProfile {
+                        mean: wheels(&runs[c][known(c).expect("known")], step),
                         bit_effects: Vec::new(),
                     },
                     Some(c) => {
@@ -537,7 +577,7 @@ impl WindowSmoother {
         &self,
         nominal: &WindowRun,
         observations: &[Observation],
-        columns: &[Vec<Vector3<f64>>],
+        columns: &[Column],
         slips: &[SlipProfile],
         steps: usize,
     ) -> (DMatrix<f64>, f64) {
@@ -557,9 +597,22 @@ impl WindowSmoother {
             cov.view_mut((3, 3), (3, 3)).copy_from(&q);
         }
         let mut filter = GramFilter::new(cov, columns.len());
-        let values = |o: usize| -> Vec<Vector3<f64>> { columns.iter().map(|c| c[o]).collect() };
+        let values =
+            |o: usize| -> Vec<Vector3<f64>> { columns.iter().map(|c| c.values[o]).collect() };
         let mut next = 0;
         for step in 0..=steps {
+            if step > 0
+                && step < steps
+                && columns.iter().any(|c| c.shifts[step] != Vector3::zeros())
+            {
+                let mut offsets = DMatrix::zeros(filter.dim(), columns.len());
+                for (c, column) in columns.iter().enumerate() {
+                    offsets
+                        .view_mut((0, c), (3, 1))
+                        .copy_from(&column.shifts[step]);
+                }
+                filter.shift(&offsets);
+            }
             // Observations at the instant that starts this step (or ends the window).
             while next < observations.len()
                 && matches!(observations[next].instant, Instant::Sample(s) if s == step)
@@ -802,7 +855,10 @@ fn log_likelihood(
     let terms = DVector::from_iterator(
         1 << nuisance_bits,
         (0..1usize << nuisance_bits).map(|pattern| {
-            let u: Vec<f64> = nuisance.iter().map(|col| pattern_sign(pattern, &col.bits)).collect();
+            let u: Vec<f64> = nuisance
+                .iter()
+                .map(|col| pattern_sign(pattern, &col.bits))
+                .collect();
             let mut q = rr;
             for a in 0..n {
                 q -= 2.0 * u[a] * b[a];

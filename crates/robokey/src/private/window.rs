@@ -67,6 +67,10 @@ pub struct Window {
     pub before: Option<Unicycle>,
     /// The pose the window starts from: the controller's sample at its first instant.
     pub start: Pose,
+    /// Per window step, the pose its path restarts from, if any: the controller's samples
+    /// at the doublets' boundaries, so that the path Eve linearises about never strays
+    /// from where the robot was (the noise's effect stays small).
+    pub anchors: Vec<Option<Pose>>,
 }
 
 /// A simulated window: each step's pose updates and the pose at every observation.
@@ -78,6 +82,9 @@ pub struct WindowRun {
     pub offsets: Vec<Vec<f64>>,
     /// Per window step: its pose updates.
     pub updates: Vec<Vec<SubStep>>,
+    /// Per window step: how far the path had got from the anchor it restarts from there,
+    /// `path − anchor` (zero where it does not restart).
+    pub jumps: Vec<Pose>,
 }
 
 impl WindowRun {
@@ -149,6 +156,7 @@ impl WindowWorld {
             poses: Vec::with_capacity(steps),
             offsets: Vec::with_capacity(steps),
             updates: Vec::with_capacity(steps),
+            jumps: Vec::with_capacity(steps),
         };
         let mut pose = window.start;
         let mut pieces: Vec<Piece> = Vec::new();
@@ -160,6 +168,12 @@ impl WindowWorld {
             if i < window.lead {
                 continue;
             }
+            let mut jump = Pose::zeros();
+            if let Some(Some(anchor)) = window.anchors.get(i - window.lead) {
+                jump = pose - anchor;
+                pose = *anchor;
+            }
+            run.jumps.push(jump);
             trail.clear();
             let mut updates = Vec::new();
             let end = self.motion.integrate(
@@ -228,6 +242,7 @@ mod tests {
             inputs: inputs.clone(),
             before: None,
             start: Pose::zeros(),
+            anchors: Vec::new(),
         };
         let run = eve.run(&window, |_| Unicycle::zeros());
         for (k, pose) in poses.iter().enumerate() {

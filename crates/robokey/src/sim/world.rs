@@ -100,46 +100,50 @@ impl World<'_> {
         if step > 0 {
             self.tracking_error += (pose.xy() - reference).norm();
         }
-        let row = self.trace.row(step as usize).map(|row| {
+        let (measured, filmed) = match &mut self.senses {
+            Senses::Odometry { odometry, .. } => (odometry.sample(&self.plant), None),
+            Senses::Private(p) => {
+                let measured = p.controller.sample(&self.plant);
+                let filmed = match &mut p.camera {
+                    EveCamera::Instants(noise) => Some(pose + noise.draw()),
+                    EveCamera::Frames(camera) => {
+                        p.frames.clear();
+                        camera.film(&self.plant.take_trail(), &mut p.frames);
+                        None
+                    }
+                };
+                (measured, filmed)
+            }
+        };
+        if let Some(row) = self.trace.row(step as usize) {
             row.k = step;
             row.t = t;
             row.reference = reference.into();
             row.pose = pose.into();
-            row
-        });
+            row.measurement = measured.into();
+            row.camera = filmed.map(Into::into);
+        }
         match &mut self.senses {
-            Senses::Odometry { odometry, .. } => {
-                let y = odometry.sample(&self.plant);
-                if let Some(row) = row {
-                    row.measurement = y.into();
-                }
-                robot.handle_input(now, RobotInput::Sample { step, y });
+            Senses::Odometry { .. } => {
+                robot.handle_input(now, RobotInput::Sample { step, y: measured });
             }
             Senses::Private(p) => {
-                let sensed = p.controller.sample(&self.plant);
-                let filmed = match &mut p.camera {
-                    EveCamera::Instants(noise) => {
-                        let filmed = pose + noise.draw();
-                        p.eve.film(step, filmed);
-                        Some(filmed.into())
-                    }
-                    EveCamera::Frames(camera) => {
-                        p.frames.clear();
-                        camera.film(&self.plant.take_trail(), &mut p.frames);
-                        for frame in &p.frames {
-                            p.eve.film_frame(*frame);
-                        }
-                        None
-                    }
-                };
-                if let Some(row) = row {
-                    row.measurement = sensed.into();
-                    row.camera = filmed;
+                if let Some(filmed) = filmed {
+                    p.eve.film(step, filmed);
+                }
+                for frame in &p.frames {
+                    p.eve.film_frame(*frame);
                 }
                 p.collect();
                 // The simulated robot has no odometry of its own: it would send none anyway.
                 robot.handle_input(now, RobotInput::Sample { step, y: pose });
-                controller.handle_input(now, ControllerInput::Sensor { step, pose: sensed });
+                controller.handle_input(
+                    now,
+                    ControllerInput::Sensor {
+                        step,
+                        pose: measured,
+                    },
+                );
             }
         }
     }

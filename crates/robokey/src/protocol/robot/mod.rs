@@ -30,6 +30,10 @@ struct Clock {
     timing: Timing,
     /// `t₀`: when the session started.
     start: Time,
+    /// The sample time `T`.
+    period: Duration,
+    /// How long after its sample a command is late in real time: `T·deadline_fraction`.
+    late: Duration,
     /// The next sample to ask for, and when.
     sample: Option<(u32, Time)>,
     /// The sample asked for and not fed back yet.
@@ -43,23 +47,19 @@ struct Clock {
 }
 
 impl Clock {
-    /// The instant of sample `step` after `now` (the realtime grid, or now in lockstep).
-    fn sample_at(&self, step: u32, now: Time, sample_time: f64) -> Time {
+    /// The instant of sample `step` after `now`: `t₀ + k·T` (realtime), or now (lockstep).
+    fn sample_at(&self, step: u32, now: Time) -> Time {
         match self.timing.pace {
-            Pace::Realtime => self.start + Duration::from_secs_f64(sample_time * f64::from(step)),
+            Pace::Realtime => self.start + self.period * step,
             Pace::Lockstep => now,
         }
     }
 
-    /// The deadline of command `step`, sampled at `now`.
-    fn deadline_of(&self, step: u32, now: Time, sample_time: f64) -> Time {
+    /// The deadline of command `step`, sampled at `now`: `t_k + T·deadline_fraction`
+    /// (realtime), or `step_timeout` after now (lockstep).
+    fn deadline_of(&self, step: u32, now: Time) -> Time {
         match self.timing.pace {
-            Pace::Realtime => {
-                self.start
-                    + Duration::from_secs_f64(
-                        sample_time * (f64::from(step) + self.timing.deadline_fraction),
-                    )
-            }
+            Pace::Realtime => self.start + self.period * step + self.late,
             Pace::Lockstep => now + self.timing.step_timeout,
         }
     }
@@ -75,8 +75,8 @@ pub struct Robot {
     lifecycle: RobotLifecycle,
     mode: Box<dyn RobotMode>,
     clock: Clock,
-    /// The last report and the last tags sent: repeated after the run, and the courtesy
-    /// reply to a controller that repeats its closing.
+    /// The report of sample N and the last tags sent: repeated after the run, and the
+    /// courtesy reply to a controller that repeats its closing.
     last_report: Option<Message>,
     last_confirm: Option<Message>,
 }
@@ -117,6 +117,8 @@ impl Robot {
             clock: Clock {
                 timing,
                 start: now,
+                period: Duration::from_secs_f64(plan.agreed.sample_time),
+                late: Duration::from_secs_f64(plan.agreed.sample_time * timing.deadline_fraction),
                 sample: Some((0, now)),
                 sensing: None,
                 deadline: None,
@@ -207,7 +209,11 @@ impl Robot {
                 Message::Closing(Closing::Confirm { .. }) => {
                     self.last_confirm = Some(message.clone());
                 }
-                Message::Session(_) => self.last_report = Some(message.clone()),
+                // Only the report of sample N is ever repeated: the controller finishes on
+                // it, and it has no successor to stand in for it if lost.
+                Message::Session(report) if report.step() >= self.plan.agreed.steps => {
+                    self.last_report = Some(message.clone());
+                }
                 _ => {}
             }
         }
@@ -271,9 +277,7 @@ impl Robot {
         self.mode
             .on_sample(&self.plan.agreed, &mut self.lifecycle, step, y);
         if self.lifecycle.awaits(step) {
-            let at = self
-                .clock
-                .deadline_of(step, now, self.plan.agreed.sample_time);
+            let at = self.clock.deadline_of(step, now);
             self.clock.deadline = Some((step, at));
         }
     }
@@ -319,7 +323,7 @@ impl Robot {
         }
         let next = self.lifecycle.next_command;
         if self.lifecycle.expects_command() && next <= self.plan.agreed.steps {
-            let at = clock.sample_at(next, now, self.plan.agreed.sample_time);
+            let at = clock.sample_at(next, now);
             clock.sample = Some((next, at));
         } else if clock.repeat.is_none() {
             clock.repeat = Some(now + clock.timing.retransmit_interval());

@@ -1,155 +1,31 @@
-//! What both agents share: pacing, timeouts, the session report, and the key file.
+//! The session report each agent writes (JSON) and prints (one line), and how a run ended
+//! for scripts (README, "Exit codes").
 
 use std::path::Path;
 use std::time::Duration;
 
-use robokey::protocol::Outcome;
+use robokey::protocol::auth::{AuthMode, ChannelCounts, PairingSecret, RejectionCounts};
+use robokey::protocol::{Actuation, ControllerEvent, Outcome, SessionPlan};
 use serde::Serialize;
 
+use super::post::PostReport;
+use super::socket::SocketCounts;
 use crate::error::NetError;
-use crate::transport::FrameCounts;
-use robokey::protocol::auth::{AuthMode, PairingSecret, RejectionCounts};
 
-/// Longest a blocking wait (a receive, a sleep) lasts before it looks at the stop request
-/// again.
-pub const STOP_POLL: Duration = Duration::from_millis(50);
-
-/// How the robot's clock runs (docs/protocol.md).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Pace {
-    /// Period T on the wall clock; a command is late after `T·deadline_fraction`.
-    Realtime,
-    /// Virtual clock: wait up to `step_timeout` for each command, then go on.
-    Lockstep,
-}
-
-/// Timing of a session.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Timing {
-    /// Pacing mode.
-    pub pace: Pace,
-    /// Lockstep: wall time to wait for a command before treating it as missing.
-    pub step_timeout: Duration,
-    /// Realtime: a command is late after this fraction of T.
-    pub deadline_fraction: f64,
-    /// The session aborts after this long without a valid frame.
-    pub silence_timeout: Duration,
-}
-
-impl Timing {
-    /// The defaults of docs/protocol.md for a pace: deadline T/2, lockstep timeout 50 ms, silence 2 s.
-    #[must_use]
-    pub fn new(pace: Pace, silence_timeout: Duration) -> Self {
-        Self {
-            pace,
-            step_timeout: Duration::from_millis(50),
-            deadline_fraction: 0.5,
-            silence_timeout,
-        }
-    }
-
-    /// Interval between retransmissions of Hello, Finish and Confirm.
-    #[must_use]
-    pub fn retransmit_interval(&self) -> Duration {
-        match self.pace {
-            Pace::Lockstep => Duration::from_millis(30),
-            Pace::Realtime => Duration::from_millis(100),
-        }
-    }
-}
-
-/// Answers the peer's retransmitted `Finish`, `FinishAck` or `Confirm` with `reply` (and
-/// `Done` once this side needs nothing more), at most once per retransmission interval, so
-/// that a lost tag does not leave the peer unconfirmed.
-#[derive(Debug)]
-pub struct Courtesy<'a> {
-    reply: &'a [robokey::protocol::Message],
-    interval: Duration,
-    last: Option<std::time::Instant>,
-}
-
-impl<'a> Courtesy<'a> {
-    /// Answers with `reply` (this side's tag).
-    #[must_use]
-    pub fn new(reply: &'a [robokey::protocol::Message], timing: &Timing) -> Self {
-        Self {
-            reply,
-            interval: timing.retransmit_interval(),
-            last: None,
-        }
-    }
-
-    /// Answers `message` if it is a repeat, with `Done` after the reply if `done`; true when
-    /// it is the peer's `Done`.
-    ///
-    /// # Errors
-    /// The socket fails.
-    pub fn answer(
-        &mut self,
-        transport: &mut crate::transport::Transport,
-        message: &robokey::protocol::Message,
-        done: bool,
-    ) -> Result<bool, NetError> {
-        use robokey::protocol::{Closing, Message};
-        match message {
-            Message::Closing(Closing::Done) => Ok(true),
-            Message::Closing(
-                Closing::Finish { .. } | Closing::FinishAck | Closing::Confirm { .. },
-            ) if self.last.is_none_or(|t| t.elapsed() >= self.interval) => {
-                self.last = Some(std::time::Instant::now());
-                let done = done.then_some(Message::Closing(Closing::Done));
-                for m in self.reply.iter().cloned().chain(done) {
-                    transport.send(m)?;
-                }
-                Ok(false)
-            }
-            _ => Ok(false),
-        }
-    }
-}
-
-/// After its outcome: sends `Done` (this side needs nothing more), then answers the peer
-/// with `courtesy` — and, on the robot, post-processing with `post` — until the peer's
-/// `Done` (at once if it came already: `peer_done`), or ten retransmission intervals without
-/// a post-processing frame: two lingering agents cannot keep each other busy. Without loss,
-/// it returns a round trip after the outcome.
-///
-/// # Errors
-/// The socket or the store fails, or a stop was requested.
-pub fn linger(
-    transport: &mut crate::transport::Transport,
-    timing: &Timing,
-    courtesy: &mut Courtesy<'_>,
-    peer_done: bool,
-    mut post: Option<&mut crate::post_link::PostSide<robokey_secrecy::postprocess::RobotPost>>,
-) -> Result<(), NetError> {
-    use robokey::protocol::auth::Delivery;
-    use robokey::protocol::{Closing, Message};
-    use std::time::Instant;
-    transport.send(Closing::Done.into())?;
-    if peer_done {
-        return Ok(());
-    }
-    let quiet = timing.retransmit_interval() * 10;
-    let mut end = Instant::now() + quiet;
-    while let Some(delivery) = transport.recv_until(end)? {
-        let Delivery::Message(message) = delivery else {
-            continue;
-        };
-        match (message, post.as_deref_mut()) {
-            (Message::Post(fragment), Some(post)) => {
-                post.receive(&fragment);
-                post.flush(transport)?;
-                end = Instant::now() + quiet;
-            }
-            (message, _) => {
-                if courtesy.answer(transport, &message, true)? {
-                    return Ok(());
-                }
-            }
-        }
-    }
-    Ok(())
+/// Frame counters of one agent.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct FrameCounts {
+    /// Datagrams sent.
+    pub sent: u64,
+    /// Datagrams the OS refused to send (each lost, like a dropped one).
+    pub unsent: u64,
+    /// Authenticated, fresh session frames received.
+    pub received: u64,
+    /// Of those, received out of order within the replay window.
+    pub reordered: u64,
+    /// Datagrams from a source that cannot be a peer (port 0, an unspecified, broadcast or
+    /// multicast address), dropped unread.
+    pub impossible_source: u64,
 }
 
 /// How a session ended, for scripts: the agents' exit codes follow it (README, "Exit codes").
@@ -261,7 +137,7 @@ pub struct SessionReport {
     pub doublets: Option<DoubletCounts>,
     /// Post-processing during this run (`--store`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub post: Option<crate::post_link::PostReport>,
+    pub post: Option<PostReport>,
 }
 
 /// Private sensing: the doublets of a session that carry no kept bit, by cause.
@@ -275,6 +151,67 @@ pub struct DoubletCounts {
 }
 
 impl SessionReport {
+    /// The report of `role` under `pairing`, before a session binds.
+    #[must_use]
+    pub fn new(role: &str, pairing: &PairingSecret) -> Self {
+        Self {
+            role: role.to_owned(),
+            authentication: authentication_label(pairing),
+            ..Self::default()
+        }
+    }
+
+    /// Session `session` of `plan` is bound.
+    pub fn bound(&mut self, session: u32, plan: &SessionPlan) {
+        self.session = session;
+        self.steps = plan.agreed.steps;
+        self.codewords = plan.units();
+        self.doublets = plan.private().map(|_| DoubletCounts::default());
+    }
+
+    /// The robot applied `actuation`, having applied `commands_applied` commands so far.
+    pub fn applied(&mut self, actuation: &Actuation, plan: &SessionPlan, commands_applied: u32) {
+        self.erased_steps += u32::from(actuation.erased);
+        self.commands_applied = Some(commands_applied);
+        // Stopped for want of commands, once they had started the wheels.
+        if actuation.erased && actuation.wheels.iter().all(|w| *w == 0.0) && commands_applied > 0 {
+            self.wheels_stopped_at_step.get_or_insert(actuation.step);
+        }
+        if let Some(counts) = &mut self.doublets
+            && plan.starts_doublet(actuation.step)
+        {
+            // A doublet's first step tells its fate at the robot.
+            if actuation.erased {
+                counts.erased += 1;
+            } else if actuation.bit.is_none() && plan.agreed.enabled {
+                counts.gated += 1;
+            }
+        }
+    }
+
+    /// The controller reported `event` in a session whose protocol is on when `enabled`.
+    pub fn controller_event(&mut self, event: &ControllerEvent, enabled: bool) {
+        match event {
+            ControllerEvent::Decoded(decision) => {
+                self.steps_done = decision.step + 1;
+                self.erased_steps += u32::from(decision.bit.is_none() && enabled);
+            }
+            ControllerEvent::Missing(range) => self.erased_steps += range.len() as u32,
+            ControllerEvent::DoubletCommanded { carries, .. } => {
+                if let Some(counts) = &mut self.doublets {
+                    counts.gated += u32::from(enabled && !carries);
+                }
+            }
+            ControllerEvent::DoubletErased { .. } => {
+                self.erased_steps += 2;
+                if let Some(counts) = &mut self.doublets {
+                    counts.erased += 1;
+                }
+            }
+            _ => {}
+        }
+    }
+
     /// Records the outcome.
     pub fn set_outcome(&mut self, outcome: &Outcome) {
         let (name, reason) = match outcome {
@@ -292,10 +229,16 @@ impl SessionReport {
         };
     }
 
-    /// Copies the transport's frame counters and rejections into the report.
-    pub fn count_frames(&mut self, transport: &crate::transport::Transport) {
-        self.frames = transport.counts();
-        self.frames_rejected = transport.rejected();
+    /// Copies the socket's and the session layer's counters into the report.
+    pub fn count_frames(&mut self, socket: SocketCounts, channel: ChannelCounts) {
+        self.frames = FrameCounts {
+            sent: socket.sent,
+            unsent: socket.unsent,
+            received: channel.accepted,
+            reordered: channel.reordered,
+            impossible_source: socket.impossible_source,
+        };
+        self.frames_rejected = channel.rejected;
     }
 
     /// Records a session cut short by `error` (a signal, or a socket, file or robot error).
@@ -313,7 +256,7 @@ impl SessionReport {
 
     /// Attaches post-processing's report; a confirmed (or kept) session whose
     /// post-processing left a block or key in flight ends [`Ending::InFlight`].
-    pub fn set_post(&mut self, post: Option<crate::post_link::PostReport>) {
+    pub fn set_post(&mut self, post: Option<PostReport>) {
         let in_flight = post.as_ref().is_some_and(|p| p.in_flight.is_some());
         if in_flight && matches!(self.ending, Ending::Confirmed | Ending::Kept) {
             self.ending = Ending::InFlight;
@@ -388,17 +331,6 @@ fn hex_id<S: serde::Serializer>(session: &u32, serializer: S) -> Result<S::Ok, S
     serializer.serialize_str(&format!("{session:08x}"))
 }
 
-/// A ChaCha20 generator seeded from the operating system's CSPRNG: the robot's key source
-/// in deployment, and the source of session ids.
-///
-/// # Errors
-/// The OS generator is unavailable.
-pub fn os_rng() -> Result<rand::rngs::ChaCha20Rng, NetError> {
-    use rand::SeedableRng;
-    rand::rngs::ChaCha20Rng::try_from_rng(&mut rand::rngs::SysRng)
-        .map_err(|e| NetError::Usage(format!("the OS random generator failed: {e}")))
-}
-
 /// How a report names a session's authentication.
 #[must_use]
 pub fn authentication_label(secret: &PairingSecret) -> String {
@@ -406,63 +338,4 @@ pub fn authentication_label(secret: &PairingSecret) -> String {
         AuthMode::Paired => format!("paired (fingerprint {})", secret.fingerprint()),
         AuthMode::Unauthenticated => "none: passive adversary only".to_owned(),
     }
-}
-
-/// Writes a confirmed key (`bits` of 0/1) as hex of the bit-packed key (bit i of the key =
-/// bit i % 8 of byte i / 8), followed by comment lines saying what it is (`labels`): all or
-/// nothing, mode 0600, never over an existing file ([`crate::secret_file`]).
-///
-/// # Errors
-/// The file exists or cannot be written.
-pub fn write_key_file(path: &Path, bits: &[u8], labels: &[&str]) -> Result<(), NetError> {
-    let mut packed = zeroize::Zeroizing::new(vec![0u8; bits.len().div_ceil(8)]);
-    for (i, bit) in bits.iter().enumerate() {
-        packed[i / 8] |= (bit & 1) << (i % 8);
-    }
-    // Sized up front: a growing buffer would leave copies of the key in freed memory.
-    let labels_len: usize = labels.iter().map(|l| l.len() + 3).sum();
-    let mut text = zeroize::Zeroizing::new(String::with_capacity(
-        64 + 2 * packed.len() + 1 + labels_len,
-    ));
-    text.push_str(&format!("robokey-key-v1 bits={}\n", bits.len()));
-    for byte in packed.iter() {
-        text.push(char::from(b"0123456789abcdef"[usize::from(byte >> 4)]));
-        text.push(char::from(b"0123456789abcdef"[usize::from(byte & 15)]));
-    }
-    text.push('\n');
-    for label in labels {
-        text.push_str(&format!("# {label}\n"));
-    }
-    crate::secret_file::write_new(path, text.as_bytes())
-}
-
-/// Reads a key file written by [`write_key_file`] back into bits.
-///
-/// # Errors
-/// The file cannot be read or is malformed.
-pub fn read_key_file(path: &Path) -> Result<zeroize::Zeroizing<Vec<u8>>, NetError> {
-    let bad = |why: &str| {
-        NetError::Usage(format!(
-            "{}: not a robokey key file ({why})",
-            path.display()
-        ))
-    };
-    let text = crate::secret_file::read(path, "key file")?;
-    let mut lines = text.lines();
-    let bits: usize = lines
-        .next()
-        .and_then(|l| l.strip_prefix("robokey-key-v1 bits="))
-        .and_then(|n| n.parse().ok())
-        .ok_or_else(|| bad("header"))?;
-    let hex = lines.next().unwrap_or("");
-    if hex.len() != bits.div_ceil(8) * 2 || !hex.is_ascii() {
-        return Err(bad("length"));
-    }
-    let mut out = zeroize::Zeroizing::new(Vec::with_capacity(bits));
-    for i in 0..bits {
-        let byte =
-            u8::from_str_radix(&hex[i / 8 * 2..i / 8 * 2 + 2], 16).map_err(|_| bad("hex"))?;
-        out.push(byte >> (i % 8) & 1);
-    }
-    Ok(out)
 }

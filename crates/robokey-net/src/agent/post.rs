@@ -1,0 +1,390 @@
+//! An agent's post-processing shell (docs/postprocessing.md, "Between the agents"): it opens
+//! the store (`--store`) and restores the endpoint from it for the connection to drive, carries
+//! out what post-processing asks — store before sending — and reports what happened.
+
+use robokey::Config;
+use robokey::connection::{PostEndpoint, PostLink, PostOutput};
+use robokey::post_settings::post_settings;
+use robokey::protocol::auth::{AuthMode, PairingSecret};
+use robokey_secrecy::postprocess::{Assumption, BlockReport, PostError, Settings};
+use serde::Serialize;
+
+use crate::error::NetError;
+use crate::key_store::{KeyStatus, StoredKey};
+use crate::post_store::{PendingKey, PostStore, Snapshot, StoreRecovery};
+use crate::random::os_rng;
+
+/// A post-processing endpoint an agent restores from its store.
+pub trait StoredEndpoint: PostEndpoint<Snapshot: Snapshot> + Sized {
+    /// A fresh endpoint.
+    ///
+    /// # Errors
+    /// Settings out of range.
+    fn fresh(settings: Settings, seed: [u8; 32]) -> Result<Self, PostError>;
+    /// The endpoint from its stored state.
+    ///
+    /// # Errors
+    /// Settings out of range.
+    fn restore(
+        snapshot: Self::Snapshot,
+        settings: Settings,
+        seed: [u8; 32],
+    ) -> Result<Self, PostError>;
+}
+
+impl StoredEndpoint for robokey_secrecy::postprocess::ControllerPost {
+    fn fresh(settings: Settings, seed: [u8; 32]) -> Result<Self, PostError> {
+        Self::new(settings, seed)
+    }
+    fn restore(
+        snapshot: Self::Snapshot,
+        settings: Settings,
+        seed: [u8; 32],
+    ) -> Result<Self, PostError> {
+        Self::restore(snapshot, settings, seed)
+    }
+}
+
+impl StoredEndpoint for robokey_secrecy::postprocess::RobotPost {
+    fn fresh(settings: Settings, seed: [u8; 32]) -> Result<Self, PostError> {
+        Self::new(settings, seed)
+    }
+    fn restore(
+        snapshot: Self::Snapshot,
+        settings: Settings,
+        seed: [u8; 32],
+    ) -> Result<Self, PostError> {
+        Self::restore(snapshot, settings, seed)
+    }
+}
+
+/// What post-processing did during one agent run, for its report.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PostReport {
+    /// The store.
+    pub store: String,
+    /// The assumption about Eve that sizes the keys.
+    pub assumption: String,
+    /// Whether it is restricted (keys labelled so).
+    pub restricted: bool,
+    /// Raw bits this session added to the pool (0 if it was not pooled).
+    pub session_bits: usize,
+    /// Why this session's bits were not pooled, if so.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_pooled: Option<String>,
+    /// Raw bits in the pool after this run.
+    pub pool_bits: usize,
+    /// The controller proposes a block at this many pooled bits.
+    pub block_bits: usize,
+    /// Blocks that ended during this run.
+    pub blocks: Vec<BlockSummary>,
+    /// Keys committed during this run (IDs), pending or settled.
+    pub keys: Vec<String>,
+    /// Keys pending in the store when the run ended: committed or prepared here, not yet
+    /// acknowledged by the peer, withheld from `keys get` until a later session settles them.
+    pub pending_keys: Vec<PendingKey>,
+    /// The block this run left in flight, and what settles it (the exit code is then 5).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub in_flight: Option<String>,
+    /// What opening the store found and repaired.
+    #[serde(flatten)]
+    pub recovery: StoreRecovery,
+    /// Post-processing messages sent (retransmissions included).
+    pub messages_sent: u32,
+    /// Whole messages received and handed to the endpoint (which may ignore a stale one).
+    pub messages_received: u32,
+    /// How the exchange ended, when not with every block settled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
+}
+
+/// One block, as reported.
+#[derive(Clone, Debug, Serialize)]
+pub struct BlockSummary {
+    /// Block number.
+    pub block: u64,
+    /// Sessions pooled into it.
+    pub sessions: usize,
+    /// Raw bits.
+    pub bits: usize,
+    /// Bits disclosed to estimate the error rate.
+    pub sample_bits: usize,
+    /// Disagreements in the sample (controller only).
+    pub sample_errors: usize,
+    /// Bits reconciled.
+    pub reconciled_bits: usize,
+    /// Cascade leak (bits).
+    pub leak_ec: u64,
+    /// Confirmation tags (bits).
+    pub leak_confirmation: u64,
+    /// Eve's smooth min-entropy under the assumption (bits).
+    pub h_min: f64,
+    /// The key length ℓ (0: no key).
+    pub length: u64,
+    /// Why no key, if so.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+}
+
+impl From<&BlockReport> for BlockSummary {
+    fn from(r: &BlockReport) -> Self {
+        Self {
+            block: r.block,
+            sessions: r.sessions.len(),
+            bits: r.bits,
+            sample_bits: r.sample_bits,
+            sample_errors: r.sample_errors,
+            reconciled_bits: r.reconciled_bits,
+            leak_ec: r.leak_ec,
+            leak_confirmation: r.leak_confirmation,
+            h_min: r.h_min,
+            length: r.length,
+            reason: r.reason.clone(),
+        }
+    }
+}
+
+/// An agent's store and what its post-processing did.
+pub struct AgentStore<E: StoredEndpoint> {
+    store: PostStore<E::Snapshot>,
+    role: &'static str,
+    /// What happened, for the report.
+    pub report: PostReport,
+}
+
+impl<E: StoredEndpoint> AgentStore<E> {
+    /// The post-processing of an agent run with `--store store` (none without), for
+    /// `pairing`: post-processing runs only over an authenticated channel. Returns the link
+    /// for the connection and the store.
+    ///
+    /// # Errors
+    /// `--store` with `--unauthenticated`, or [`Self::open`]'s.
+    pub fn for_agent(
+        config: &Config,
+        store: Option<&std::path::PathBuf>,
+        pairing: &PairingSecret,
+        allow_restricted: bool,
+    ) -> Result<Option<(PostLink<E>, Self)>, NetError> {
+        let Some(dir) = store else {
+            return Ok(None);
+        };
+        if pairing.mode() != AuthMode::Paired {
+            return Err(NetError::Usage(
+                "--store needs a paired session: post-processing over an unauthenticated \
+                 channel would hand the keys to anyone in the middle (drop --unauthenticated)"
+                    .into(),
+            ));
+        }
+        Self::open(config, dir, pairing, allow_restricted).map(Some)
+    }
+
+    /// Opens the store at `dir` and restores the endpoint from it, for `pairing`. A
+    /// restricted assumption needs `allow_restricted`.
+    ///
+    /// # Errors
+    /// A restricted assumption without `allow_restricted`; the store cannot be opened
+    /// (in use, another role or pairing, unreadable).
+    pub fn open(
+        config: &Config,
+        dir: &std::path::Path,
+        pairing: &PairingSecret,
+        allow_restricted: bool,
+    ) -> Result<(PostLink<E>, Self), NetError> {
+        let settings = post_settings(config);
+        let restricted = settings.assumption.is_restricted();
+        if restricted && !allow_restricted {
+            return Err(NetError::Usage(format!(
+                "postprocess.assumed_eve_error = {} states a restricted assumption (an Eve who \
+                 never learns the model), which the odometry mode's traffic does not support \
+                 (docs/threat-model.md): pass --allow-restricted to make keys under it anyway; \
+                 they are labelled restricted",
+                config.postprocess.assumed_eve_error.unwrap_or_default()
+            )));
+        }
+        let (store, recovery) = PostStore::open(dir, pairing, restricted)?;
+        let mut seed = [0_u8; 32];
+        rand::RngExt::fill(&mut os_rng()?, &mut seed[..]);
+        let endpoint = match recovery.snapshot {
+            Some(snapshot) => E::restore(snapshot, settings.clone(), seed),
+            None => E::fresh(settings.clone(), seed),
+        }
+        .map_err(|e| NetError::Usage(format!("post-processing: {e}")))?;
+        let report = PostReport {
+            store: dir.display().to_string(),
+            assumption: match &settings.assumption {
+                Assumption::GaussianViews { statement, .. } => format!(
+                    "{statement}; each block sized by the largest separation of Eve's view over \
+                     its bits, computed by the controller from its samples"
+                ),
+                other => other.describe(),
+            },
+            restricted,
+            block_bits: settings.block_bits,
+            pending_keys: store.pending(),
+            recovery: recovery.figures,
+            ..PostReport::default()
+        };
+        if let Some(recovered) = report.recovered() {
+            eprintln!("store {}: {recovered}", dir.display());
+        }
+        let link = PostLink::new(endpoint, store.sources().clone());
+        let store = Self {
+            store,
+            role: <E::Snapshot as Snapshot>::ROLE,
+            report,
+        };
+        Ok((link, store))
+    }
+
+    /// Carries out what post-processing asks (`endpoint` is the link's, for the pool's size):
+    /// stores before anything that follows is sent, and reports.
+    ///
+    /// # Errors
+    /// The store fails.
+    pub fn apply(&mut self, output: PostOutput<E::Snapshot>, endpoint: &E) -> Result<(), NetError> {
+        match output {
+            PostOutput::Persist {
+                mut snapshot,
+                keys,
+                compact,
+            } => {
+                for key in self.store.persist(&mut snapshot, &keys)? {
+                    announce_key(&key);
+                    self.report.keys.push(key.id.clone());
+                }
+                self.report.pool_bits = pool_bits(&snapshot);
+                if compact {
+                    self.store.compact(&mut snapshot)?;
+                }
+            }
+            PostOutput::Pooled { session, bits } => {
+                self.report.session_bits = bits;
+                println!(
+                    "{}: session {session:08x} pooled: {bits} raw bits, {} in the pool (a block \
+                     at {})",
+                    self.role,
+                    pool_bits(&endpoint.snapshot()),
+                    self.report.block_bits
+                );
+            }
+            PostOutput::NotPooled { session, reason } => {
+                println!("{}: session {session:08x} not pooled: {reason}", self.role);
+                self.report.not_pooled = Some(reason);
+            }
+            PostOutput::BlockEnded(report) => self.block_ended(&report),
+            PostOutput::Sent(_) => self.report.messages_sent += 1,
+            PostOutput::Received => self.report.messages_received += 1,
+            PostOutput::Note(note) => self.report.note = Some(note),
+        }
+        Ok(())
+    }
+
+    /// The report, with the pool, the pending keys and the block in flight as they stand.
+    #[must_use]
+    pub fn finish(self, endpoint: &E) -> PostReport {
+        let mut report = self.report;
+        report.pool_bits = pool_bits(&endpoint.snapshot());
+        report.pending_keys = self.store.pending();
+        report.in_flight = endpoint.in_flight();
+        report
+    }
+
+    fn block_ended(&mut self, report: &BlockReport) {
+        let summary = BlockSummary::from(report);
+        match &summary.reason {
+            // A block whose commit the restarted controller repeated: its key was stored
+            // before the crash, and the figures went with the process.
+            None if summary.bits == 0 => println!(
+                "{}: block {}: the robot acknowledged the commit repeated after a restart",
+                self.role, summary.block
+            ),
+            None => println!(
+                "{}: block {}: {} raw bits of {} sessions, {} disclosed ({} differ), {} \
+                 reconciled, leak {} + {} bits, H_min {:.0} → key of {} bits",
+                self.role,
+                summary.block,
+                summary.bits,
+                summary.sessions,
+                summary.sample_bits,
+                summary.sample_errors,
+                summary.reconciled_bits,
+                summary.leak_ec,
+                summary.leak_confirmation,
+                summary.h_min,
+                summary.length
+            ),
+            // A block a restart aborted has no figures here.
+            Some(reason) if summary.bits == 0 => {
+                println!("{}: block {}: no key: {reason}", self.role, summary.block);
+            }
+            Some(reason) => println!(
+                "{}: block {}: {} raw bits of {} sessions, no key: {reason}",
+                self.role, summary.block, summary.bits, summary.sessions
+            ),
+        }
+        self.report.blocks.push(summary);
+    }
+}
+
+/// Raw bits in a snapshot's pool.
+fn pool_bits<S: Snapshot>(snapshot: &S) -> usize {
+    snapshot.pool().iter().map(|(_, bits)| bits.len()).sum()
+}
+
+/// Prints a key committed in a batch, and whether it is pending.
+fn announce_key(key: &StoredKey) {
+    let status = match &key.status {
+        KeyStatus::Settled => "settled".to_owned(),
+        KeyStatus::Pending(reason) => format!("pending ({reason})"),
+    };
+    println!(
+        "{}: key {} committed: {} bits, ε {:.0e}, {status}, secret under: {}",
+        key.role, key.id, key.bits, key.epsilon, key.assumption
+    );
+}
+
+impl PostReport {
+    /// What opening the store repaired, in words, if anything.
+    #[must_use]
+    pub fn recovered(&self) -> Option<String> {
+        let r = &self.recovery;
+        let parts: Vec<String> = [
+            (r.torn_bytes, "torn journal bytes cut"),
+            (r.keys_recovered as u64, "committed keys written"),
+            (r.keys_settled as u64, "pending keys settled"),
+            (r.pending_removed as u64, "aborted pending keys removed"),
+            (
+                r.pending_superseded as u64,
+                "pending keys the journal does not know marked superseded",
+            ),
+            (
+                r.sessions_already_spent as u64,
+                "pooled sessions dropped as sources of stored keys",
+            ),
+        ]
+        .iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, what)| format!("{n} {what}"))
+        .collect();
+        (!parts.is_empty()).then(|| format!("recovered on opening: {}", parts.join(", ")))
+    }
+
+    /// One clause for the agent's terminal line: keys, pending keys, the block in flight and
+    /// what the store recovered.
+    #[must_use]
+    pub fn line(&self) -> String {
+        let mut line = format!(
+            "post-processing: {} keys committed, {} pending in the store, {} bits pooled",
+            self.keys.len(),
+            self.pending_keys.len(),
+            self.pool_bits
+        );
+        if let Some(in_flight) = &self.in_flight {
+            line += &format!("; left in flight: {in_flight}");
+        }
+        if let Some(recovered) = self.recovered() {
+            line += &format!("; {recovered}");
+        }
+        line
+    }
+}

@@ -1,0 +1,450 @@
+//! The controller's conversation: `Hello` until the robot's `HelloAck` verifies, `Ready` until
+//! the robot is heard, the session, then — after a confirmed session, with a store —
+//! post-processing until no block is in flight, and the courtesy of a side that has its
+//! outcome.
+
+use std::collections::VecDeque;
+
+use rand::CryptoRng;
+use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot};
+
+use super::linger::{Courtesy, Linger};
+use super::post::{PostLink, PostOutput};
+use super::{Output, Setup};
+use crate::config::Config;
+use crate::model::Pose;
+use crate::protocol::auth::{AuthMode, ControllerChannel, Delivery, PairingSecret};
+use crate::protocol::timing::earliest;
+use crate::protocol::{
+    Closing, Controller, ControllerEvent, ControllerInput, ControllerOutput, Handshake, Message,
+    Outcome, SessionPlan, Time, Timing, agreement_terms, config_digest,
+};
+
+/// What the controller's shell is asked to do.
+pub type ControllerAction<A> = Output<A, ControllerEvent, ControllerSnapshot>;
+
+/// Where the conversation is.
+#[derive(Debug)]
+enum Stage {
+    /// `Hello` repeats until a `HelloAck` (or a `Refuse`) verifies, until `give_up`.
+    Handshake {
+        next_hello: Time,
+        give_up: Time,
+    },
+    /// The session runs; `Ready` repeats at `ready_at` until the robot is heard.
+    Session {
+        ready_at: Time,
+    },
+    /// After the outcome: post-processing until no block is in flight, its retransmission
+    /// timer, and when the robot last answered it.
+    Post {
+        courtesy: Courtesy,
+        timer: Time,
+        heard: Time,
+    },
+    /// `Done` sent: answering until the robot's `Done` or quiet.
+    Linger(Linger),
+    Closed,
+}
+
+/// The controller side of a conversation over the network, with addresses of type `A`.
+pub struct ControllerConnection<A> {
+    channel: ControllerChannel<A>,
+    config: Config,
+    plan: SessionPlan,
+    pairing: PairingSecret,
+    timing: Timing,
+    stage: Stage,
+    endpoint: Option<Controller>,
+    post: Option<PostLink<ControllerPost>>,
+    /// The largest Eve separation the camera statement gives over the decided bits: it sizes
+    /// the keys of the blocks this session enters (private sensing).
+    separation: f64,
+    outputs: VecDeque<ControllerAction<A>>,
+}
+
+impl<A> std::fmt::Debug for ControllerConnection<A> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ControllerConnection")
+            .field("stage", &self.stage)
+            .field("endpoint", &self.endpoint)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
+    /// Opens session `session` with the robot at `robot` at `now` (the first `Hello` goes
+    /// out), as `setup` says; `post` post-processes confirmed sessions (`--store`); `rng` (the
+    /// OS CSPRNG) draws `nonce_c`.
+    pub fn new<R: CryptoRng + ?Sized>(
+        setup: Setup<'_>,
+        robot: A,
+        session: u32,
+        post: Option<PostLink<ControllerPost>>,
+        rng: &mut R,
+        now: Time,
+    ) -> Self {
+        let (config, pairing, timing) = (setup.config, setup.pairing, setup.timing);
+        let channel = ControllerChannel::new(
+            pairing.clone(),
+            robot,
+            session,
+            config_digest(config),
+            agreement_terms(config),
+            rng,
+        );
+        let mut connection = Self {
+            plan: SessionPlan::from_config(config, session),
+            config: config.clone(),
+            pairing: pairing.clone(),
+            timing,
+            stage: Stage::Handshake {
+                next_hello: now + timing.retransmit_interval(),
+                give_up: now + timing.silence_timeout,
+            },
+            endpoint: None,
+            post,
+            separation: 0.0,
+            outputs: VecDeque::new(),
+            channel,
+        };
+        connection.send_hello();
+        connection
+    }
+
+    /// A datagram from `from` arrived at `now`.
+    pub fn handle_datagram(&mut self, now: Time, from: A, bytes: &[u8]) {
+        match self.channel.on_datagram(from, bytes) {
+            Ok(Delivery::Established) if matches!(self.stage, Stage::Handshake { .. }) => {
+                self.establish(now);
+            }
+            Ok(Delivery::Refused(reason)) if matches!(self.stage, Stage::Handshake { .. }) => {
+                self.end(Outcome::Aborted(format!(
+                    "robot refused the session: {reason}"
+                )));
+            }
+            Ok(Delivery::Message(message)) => self.on_message(now, message),
+            // Rejected (and counted by the channel), or not for this stage.
+            _ => {}
+        }
+        self.after(now);
+    }
+
+    /// The controller's own sensor sampled `y_c(k)` at `now` (private sensing).
+    pub fn handle_sensor(&mut self, now: Time, step: u32, pose: Pose) {
+        self.feed(now, ControllerInput::Sensor { step, pose });
+    }
+
+    /// The controller's own sensor stopped for good (private sensing).
+    pub fn handle_sensor_stopped(&mut self, now: Time, why: String) {
+        self.feed(now, ControllerInput::SensorStopped(why));
+    }
+
+    /// Fires every timer due at `now`.
+    pub fn handle_timeout(&mut self, now: Time) {
+        match &mut self.stage {
+            Stage::Handshake {
+                next_hello,
+                give_up,
+            } => {
+                if now >= *give_up {
+                    let reason = self.no_hello_ack();
+                    return self.end(Outcome::Aborted(reason));
+                }
+                if now >= *next_hello {
+                    *next_hello = now + self.timing.retransmit_interval();
+                    self.send_hello();
+                }
+            }
+            Stage::Session { ready_at } => {
+                let heard = self.endpoint.as_ref().is_some_and(Controller::robot_heard);
+                if !heard && now >= *ready_at {
+                    *ready_at = now + self.timing.retransmit_interval();
+                    self.send(Handshake::Ready.into());
+                }
+                if let Some(endpoint) = &mut self.endpoint {
+                    endpoint.handle_timeout(now);
+                }
+                self.drain(now);
+            }
+            Stage::Post { timer, .. } => {
+                if now >= *timer {
+                    *timer = now + self.timing.retransmit_interval();
+                    if let Some(post) = &mut self.post {
+                        post.on_timeout();
+                    }
+                }
+            }
+            Stage::Linger(_) | Stage::Closed => {}
+        }
+        self.after(now);
+    }
+
+    /// When the connection must next be woken (`None` once closed).
+    #[must_use]
+    pub fn poll_timeout(&self) -> Option<Time> {
+        match &self.stage {
+            Stage::Handshake {
+                next_hello,
+                give_up,
+            } => Some((*next_hello).min(*give_up)),
+            Stage::Session { ready_at } => {
+                let endpoint = self.endpoint.as_ref();
+                let ready = (!endpoint.is_some_and(Controller::robot_heard)).then_some(*ready_at);
+                earliest(ready, endpoint.and_then(Controller::poll_timeout))
+            }
+            Stage::Post { timer, heard, .. } => {
+                Some((*timer).min(*heard + self.timing.silence_timeout))
+            }
+            Stage::Linger(linger) => Some(linger.deadline()),
+            Stage::Closed => None,
+        }
+    }
+
+    /// The next output, if any.
+    pub fn poll_output(&mut self) -> Option<ControllerAction<A>> {
+        self.outputs.pop_front()
+    }
+
+    /// Ends the conversation now (a stop request, a failing sensor or socket): drops the
+    /// outputs not taken yet and tells the robot why, once the session is keyed.
+    pub fn abort(&mut self, reason: String) {
+        if matches!(self.stage, Stage::Closed) {
+            return;
+        }
+        // What was queued is moot: only the abort goes out.
+        self.outputs.clear();
+        self.send(
+            Closing::Abort {
+                reason: reason.clone(),
+            }
+            .into(),
+        );
+        if matches!(self.stage, Stage::Handshake { .. } | Stage::Session { .. }) {
+            self.outputs
+                .push_back(Output::Finished(Outcome::Aborted(reason)));
+        }
+        self.close();
+    }
+
+    /// The session layer.
+    #[must_use]
+    pub fn channel(&self) -> &ControllerChannel<A> {
+        &self.channel
+    }
+
+    /// The session endpoint, once the handshake is done.
+    #[must_use]
+    pub fn endpoint(&self) -> Option<&Controller> {
+        self.endpoint.as_ref()
+    }
+
+    /// Post-processing, with a store.
+    #[must_use]
+    pub fn post(&self) -> Option<&PostLink<ControllerPost>> {
+        self.post.as_ref()
+    }
+
+    /// Whether the conversation is over.
+    #[must_use]
+    pub fn is_closed(&self) -> bool {
+        matches!(self.stage, Stage::Closed)
+    }
+
+    fn send_hello(&mut self) {
+        let (to, bytes) = (self.channel.robot(), self.channel.hello().to_vec());
+        self.outputs.push_back(Output::Transmit { to, bytes });
+    }
+
+    /// Seals `message` under the session key and sends it to the robot (nothing before the
+    /// handshake is done).
+    fn send(&mut self, message: Message) {
+        if let Some(bytes) = self.channel.seal(message) {
+            let to = self.channel.robot();
+            self.outputs.push_back(Output::Transmit { to, bytes });
+        }
+    }
+
+    fn no_hello_ack(&self) -> String {
+        let hint = match self.pairing.mode() {
+            AuthMode::Paired => format!(
+                "is it paired with the same secret, fingerprint {}?",
+                self.pairing.fingerprint()
+            ),
+            AuthMode::Unauthenticated => "is it running with --unauthenticated?".into(),
+        };
+        format!(
+            "no HelloAck that verifies from the robot at {} within {:.1} s ({hint})",
+            self.channel.robot(),
+            self.timing.silence_timeout.as_secs_f64()
+        )
+    }
+
+    /// The `HelloAck` verified: the session runs, bound at the robot by `Ready`.
+    fn establish(&mut self, now: Time) {
+        let confirmer = self
+            .channel
+            .confirmer()
+            .expect("an established channel has a confirmer");
+        let session = self.channel.session();
+        let plan = self.plan.clone().for_session(session, confirmer);
+        self.endpoint = Some(Controller::new(&self.config, plan, self.timing, now));
+        self.outputs.push_back(Output::Established(session));
+        self.send(Handshake::Ready.into());
+        self.stage = Stage::Session {
+            ready_at: now + self.timing.retransmit_interval(),
+        };
+    }
+
+    fn feed(&mut self, now: Time, input: ControllerInput) {
+        if let (Stage::Session { .. }, Some(endpoint)) = (&self.stage, &mut self.endpoint) {
+            endpoint.handle_input(now, input);
+            self.drain(now);
+        }
+        self.after(now);
+    }
+
+    fn on_message(&mut self, now: Time, message: Message) {
+        match (&mut self.stage, message) {
+            (Stage::Session { .. }, message) => {
+                if let Some(endpoint) = &mut self.endpoint {
+                    endpoint.handle_input(now, ControllerInput::Frame(message));
+                }
+                self.drain(now);
+            }
+            (Stage::Post { heard, .. }, Message::Post(fragment)) => {
+                *heard = now;
+                if let Some(post) = &mut self.post {
+                    let mut out = Vec::new();
+                    post.receive(&fragment, &mut out);
+                    self.outputs.extend(out.into_iter().map(Output::Post));
+                }
+            }
+            (Stage::Post { courtesy, .. }, Message::Closing(closing)) => {
+                // No `Done` yet: it would end the robot's wait for post-processing.
+                for reply in courtesy.answer(now, &closing, false) {
+                    self.send(reply);
+                }
+            }
+            (Stage::Linger(linger), Message::Closing(closing)) => {
+                for reply in linger.answer(now, &closing) {
+                    self.send(reply);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Takes the endpoint's outputs; its outcome moves the conversation on.
+    fn drain(&mut self, now: Time) {
+        while let Some(output) = self.endpoint.as_mut().and_then(Controller::poll_output) {
+            match output {
+                ControllerOutput::Transmit(message) => self.send(message),
+                ControllerOutput::Event(ControllerEvent::Finished(outcome)) => {
+                    self.on_outcome(now, outcome);
+                }
+                ControllerOutput::Event(event) => {
+                    if let ControllerEvent::DoubletDecided(decision) = &event {
+                        let bits = self.plan.bits_per_unit();
+                        self.separation = decision.assumed_separation[..bits]
+                            .iter()
+                            .fold(self.separation, |m, &d| m.max(d));
+                    }
+                    self.outputs.push_back(Output::Endpoint(event));
+                }
+            }
+        }
+    }
+
+    /// The session ended: without tags sent there is nothing to answer; otherwise its raw
+    /// bits are pooled and post-processed (with a store), then the courtesy.
+    fn on_outcome(&mut self, now: Time, outcome: Outcome) {
+        self.outputs.push_back(Output::Finished(outcome.clone()));
+        let Some(endpoint) = &self.endpoint else {
+            return self.close();
+        };
+        let Some(reply) = endpoint.courtesy_reply() else {
+            return self.close();
+        };
+        let courtesy = Courtesy::new(reply, &self.timing);
+        match &mut self.post {
+            Some(post) => {
+                let session = self.channel.session();
+                let pooled = post.pool(session, &outcome, endpoint.key(), self.separation);
+                self.outputs.push_back(Output::Post(pooled));
+                self.stage = Stage::Post {
+                    courtesy,
+                    timer: now + self.timing.retransmit_interval(),
+                    heard: now,
+                };
+            }
+            None => self.linger(now, courtesy),
+        }
+    }
+
+    /// Moves post-processing on after an input or a timer: flushes the endpoint (store, then
+    /// send), and ends it when no block is in flight or the robot fell silent.
+    fn after(&mut self, now: Time) {
+        let Stage::Post { timer, heard, .. } = &mut self.stage else {
+            if let Stage::Linger(linger) = &self.stage
+                && linger.is_over(now)
+            {
+                self.close();
+            }
+            return;
+        };
+        let Some(post) = &mut self.post else {
+            return;
+        };
+        let mut out = Vec::new();
+        let flushed = post.flush(&mut out);
+        self.outputs.extend(out.into_iter().map(Output::Post));
+        let fragments = match flushed {
+            Ok(fragments) => fragments,
+            Err(why) => {
+                self.outputs.push_back(Output::PostFailed(why));
+                return self.close();
+            }
+        };
+        if !fragments.is_empty() {
+            *timer = now + self.timing.retransmit_interval();
+        }
+        let (idle, silent) = (post.is_idle(), now >= *heard + self.timing.silence_timeout);
+        for fragment in fragments {
+            self.send(fragment.into());
+        }
+        if silent && !idle {
+            self.outputs
+                .push_back(Output::Post(PostOutput::Note(format!(
+                    "the robot did not answer post-processing for {:.1} s (does it run with \
+                 --store?): the block in flight is settled in the next session",
+                    self.timing.silence_timeout.as_secs_f64()
+                ))));
+        }
+        if (idle || silent)
+            && let Stage::Post { courtesy, .. } = std::mem::replace(&mut self.stage, Stage::Closed)
+        {
+            self.linger(now, courtesy);
+        }
+    }
+
+    /// Sends `Done` and answers until the robot's `Done` or quiet.
+    fn linger(&mut self, now: Time, courtesy: Courtesy) {
+        self.send(Closing::Done.into());
+        if courtesy.peer_done {
+            return self.close();
+        }
+        self.stage = Stage::Linger(Linger::new(courtesy, &self.timing, now));
+    }
+
+    /// Ends the conversation with `outcome` before any tags were sent.
+    fn end(&mut self, outcome: Outcome) {
+        self.outputs.push_back(Output::Finished(outcome));
+        self.close();
+    }
+
+    fn close(&mut self) {
+        self.stage = Stage::Closed;
+        self.outputs.push_back(Output::Closed);
+    }
+}

@@ -1,0 +1,286 @@
+//! Post-processing between the agents (docs/postprocessing.md, "Between the agents"), as a
+//! connection drives it: the endpoint's messages encoded and cut into fragments of wire type
+//! 16 under fresh message numbers, the peer's fragments reassembled, and every batch of the
+//! endpoint's outputs turned into what the shell must do — store, then send.
+
+use std::collections::BTreeSet;
+
+use robokey_secrecy::BitString;
+use robokey_secrecy::postprocess::{
+    self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, FinalKey, InFlight,
+    Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot,
+};
+
+use crate::protocol::{Outcome, PostFragment};
+
+/// A post-processing endpoint as a connection drives it.
+pub trait PostEndpoint {
+    /// Its durable state.
+    type Snapshot;
+    /// Its durable state now.
+    fn snapshot(&self) -> Self::Snapshot;
+    /// Pools a session's raw bits (`separation`: the controller's largest Eve separation
+    /// over them; the robot ignores it).
+    ///
+    /// # Errors
+    /// A duplicate session or one of a size out of bounds.
+    fn pool(&mut self, id: u32, bits: BitString, separation: f64) -> Result<(), PostError>;
+    /// A message from the peer.
+    fn frame(&mut self, message: postprocess::Message);
+    /// The next output.
+    fn poll_output(&mut self) -> Option<Output>;
+    /// The block left in flight here, and what settles it, if any.
+    fn in_flight(&self) -> Option<String>;
+}
+
+impl PostEndpoint for ControllerPost {
+    type Snapshot = ControllerSnapshot;
+    fn snapshot(&self) -> ControllerSnapshot {
+        ControllerPost::snapshot(self)
+    }
+    fn pool(&mut self, id: u32, bits: BitString, separation: f64) -> Result<(), PostError> {
+        self.handle_input(ControllerInput::Session {
+            id,
+            bits,
+            separation,
+        })
+    }
+    fn frame(&mut self, message: postprocess::Message) {
+        // A frame never fails: only sessions are checked.
+        let _ = self.handle_input(ControllerInput::Frame(message));
+    }
+    fn poll_output(&mut self) -> Option<Output> {
+        ControllerPost::poll_output(self)
+    }
+    fn in_flight(&self) -> Option<String> {
+        Some(match self.snapshot().in_flight? {
+            InFlight::Started { block, .. } => {
+                format!("block {block} proposed and not committed: the next session aborts it")
+            }
+            InFlight::Aborting { block, .. } => format!(
+                "block {block} aborted here, the robot's AbortAck has not arrived: the next \
+                 session repeats the Abort"
+            ),
+            InFlight::Committed { block, .. } => format!(
+                "block {block} committed here, its key pending: the robot's CommitAck has not \
+                 arrived; the next session repeats the Commit"
+            ),
+        })
+    }
+}
+
+impl PostEndpoint for RobotPost {
+    type Snapshot = RobotSnapshot;
+    fn snapshot(&self) -> RobotSnapshot {
+        RobotPost::snapshot(self)
+    }
+    fn pool(&mut self, id: u32, bits: BitString, _separation: f64) -> Result<(), PostError> {
+        self.handle_input(RobotInput::Session { id, bits })
+    }
+    fn frame(&mut self, message: postprocess::Message) {
+        let _ = self.handle_input(RobotInput::Frame(message));
+    }
+    fn poll_output(&mut self) -> Option<Output> {
+        RobotPost::poll_output(self)
+    }
+    fn in_flight(&self) -> Option<String> {
+        let block = self.block_in_flight()?;
+        Some(if self.snapshot().prepared.is_some() {
+            format!(
+                "block {block} prepared here, its key pending: the controller's Commit has not \
+                 arrived; the next session commits or aborts it"
+            )
+        } else {
+            format!(
+                "block {block} was being reconciled; nothing of it is stored: the next \
+                 session aborts it"
+            )
+        })
+    }
+}
+
+/// What post-processing asks of the shell and tells it.
+#[derive(Clone, Debug)]
+pub enum PostOutput<S> {
+    /// Store `snapshot` with the keys committed in it, before anything that follows is sent;
+    /// then, when `compact`, rewrite the journal without what the ended block spent.
+    Persist {
+        /// The endpoint's durable state.
+        snapshot: S,
+        /// Keys committed in this batch.
+        keys: Vec<FinalKey>,
+        /// A block ended in this batch.
+        compact: bool,
+    },
+    /// A session's raw bits joined the pool.
+    Pooled {
+        /// Session id.
+        session: u32,
+        /// Its raw bits.
+        bits: usize,
+    },
+    /// A session's raw bits did not join the pool, and why.
+    NotPooled {
+        /// Session id.
+        session: u32,
+        /// Why.
+        reason: String,
+    },
+    /// A block ended (with or without a key).
+    BlockEnded(BlockReport),
+    /// A message went out (retransmissions included), as this many fragments.
+    Sent(usize),
+    /// A whole message came in and went to the endpoint.
+    Received,
+    /// How the exchange ended, when not with every block settled.
+    Note(String),
+}
+
+/// One side of post-processing: its endpoint, the fragments' reassembly, the numbering of
+/// its messages, and the sessions it must never pool again.
+#[derive(Debug)]
+pub struct PostLink<E> {
+    endpoint: E,
+    reassembler: Reassembler,
+    next_message: u32,
+    /// Sessions a stored key lists as sources: their bits are spent.
+    spent: BTreeSet<u32>,
+}
+
+impl<E: PostEndpoint> PostLink<E> {
+    /// Drives `endpoint` (fresh, or restored from its store), never pooling a session in
+    /// `spent`.
+    pub fn new(endpoint: E, spent: BTreeSet<u32>) -> Self {
+        Self {
+            endpoint,
+            reassembler: Reassembler::new(),
+            next_message: 0,
+            spent,
+        }
+    }
+
+    /// The endpoint.
+    pub fn endpoint(&self) -> &E {
+        &self.endpoint
+    }
+
+    /// Pools the raw bits of session `id` (one `u8` 0/1 per bit) if the session ended
+    /// `outcome` confirmed or kept and its bits are not spent; says what happened.
+    pub fn pool(
+        &mut self,
+        id: u32,
+        outcome: &Outcome,
+        bits: &[u8],
+        separation: f64,
+    ) -> PostOutput<E::Snapshot> {
+        let refused = |reason: String| PostOutput::NotPooled {
+            session: id,
+            reason,
+        };
+        if !matches!(outcome, Outcome::Confirmed | Outcome::Kept) {
+            return refused("the session was not confirmed".into());
+        }
+        if self.spent.contains(&id) {
+            return refused(format!(
+                "session {id:08x} is a source of a stored key: its bits are spent"
+            ));
+        }
+        let bools: zeroize::Zeroizing<Vec<bool>> =
+            zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());
+        match self
+            .endpoint
+            .pool(id, BitString::from_bools(&bools), separation)
+        {
+            Ok(()) => PostOutput::Pooled {
+                session: id,
+                bits: bits.len(),
+            },
+            Err(e) => refused(e.to_string()),
+        }
+    }
+
+    /// Takes a fragment from the peer; a message it completes goes to the endpoint.
+    pub fn receive(&mut self, fragment: &PostFragment, out: &mut Vec<PostOutput<E::Snapshot>>) {
+        if let Some(whole) = self.reassembler.accept(
+            fragment.message,
+            fragment.index,
+            fragment.count,
+            &fragment.bytes,
+        ) && let Ok(decoded) = postprocess::decode(&whole)
+        {
+            out.push(PostOutput::Received);
+            self.endpoint.frame(decoded);
+        }
+    }
+
+    /// Takes the endpoint's outputs as one batch: what to store first (the snapshot with the
+    /// keys committed in it, compaction after a block), the blocks that ended, then the
+    /// fragments to send. Returns the fragments.
+    ///
+    /// # Errors
+    /// A message too long for its fragments (`postprocess.block_bits` too large).
+    pub fn flush(
+        &mut self,
+        out: &mut Vec<PostOutput<E::Snapshot>>,
+    ) -> Result<Vec<PostFragment>, String> {
+        let (mut persist, mut keys, mut sends, mut ended) = (false, Vec::new(), Vec::new(), false);
+        let mut blocks = Vec::new();
+        while let Some(output) = self.endpoint.poll_output() {
+            match output {
+                Output::Transmit(message) => sends.push(message),
+                Output::Persist => persist = true,
+                Output::KeyCommitted(key) => keys.push(key),
+                Output::BlockEnded(report) => {
+                    ended = true;
+                    blocks.push(report);
+                }
+                Output::Ignored(_) => {}
+            }
+        }
+        if persist || !keys.is_empty() {
+            out.push(PostOutput::Persist {
+                snapshot: self.endpoint.snapshot(),
+                keys,
+                compact: ended,
+            });
+        }
+        out.extend(blocks.into_iter().map(PostOutput::BlockEnded));
+        let mut fragments = Vec::new();
+        for message in &sends {
+            let bytes = postprocess::encode(message);
+            if !postprocess::fits(bytes.len()) {
+                return Err(format!(
+                    "a post-processing message of {} bytes exceeds the {} bytes its fragments \
+                     can carry: lower postprocess.block_bits",
+                    bytes.len(),
+                    postprocess::MAX_MESSAGE_BYTES
+                ));
+            }
+            let number = self.next_message;
+            self.next_message = self.next_message.wrapping_add(1);
+            let before = fragments.len();
+            fragments.extend(postprocess::fragments(&bytes).map(|(index, count, chunk)| {
+                PostFragment {
+                    message: number,
+                    index,
+                    count,
+                    bytes: chunk.to_vec(),
+                }
+            }));
+            out.push(PostOutput::Sent(fragments.len() - before));
+        }
+        Ok(fragments)
+    }
+}
+
+impl PostLink<ControllerPost> {
+    /// Whether no block is in flight: the controller has nothing more to drive.
+    pub fn is_idle(&self) -> bool {
+        self.endpoint.is_idle()
+    }
+
+    /// The retransmission timer fired: the endpoint repeats what is unanswered.
+    pub fn on_timeout(&mut self) {
+        let _ = self.endpoint.handle_input(ControllerInput::Timeout);
+    }
+}
