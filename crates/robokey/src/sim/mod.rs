@@ -13,7 +13,7 @@ use std::time::Duration;
 pub use trace::TraceRow;
 pub(crate) use trace::TraceRows;
 
-use self::world::{EveCamera, PrivateSenses, Senses, World};
+use self::world::{PrivateSenses, Senses, World};
 use crate::config::{Config, EveStrategy};
 use crate::eve;
 use crate::metrics::Metrics;
@@ -23,7 +23,7 @@ use crate::protocol::{
     Controller, KeyBits, Message, ModePlan, Outcome, Robot, SessionPlan, Time, Timing,
 };
 use crate::rng::{Purpose, stream};
-use crate::world::{Camera, FrameCamera, InstantSensor, Noise, PlantStreams, WorldPlant};
+use crate::world::Scene;
 
 /// Everything one run produced.
 #[derive(Clone, Debug)]
@@ -223,25 +223,8 @@ fn run<'a>(
     let stream_of = |purpose| stream(config.run.seed, purpose, u64::from(replicate));
     let agreed = &plan.agreed;
     let steps = agreed.steps;
-    let world = config.world_model();
-    let sensor = |purpose, std| {
-        InstantSensor::new(
-            Noise::new(stream_of(purpose), std),
-            (stream_of(Purpose::Jitter), world.jitter),
-            0.0,
-        )
-    };
-    let films_between = matches!(world.camera, Camera::Frames { .. });
     let senses = match &plan.mode {
         ModePlan::Odometry(_) => Senses::Odometry {
-            odometry: InstantSensor::new(
-                Noise::new(
-                    stream_of(Purpose::Measurement),
-                    config.noise.measurement_std,
-                ),
-                (stream_of(Purpose::Jitter), world.jitter),
-                world.encoder_quantum,
-            ),
             eve: (config.eve.enabled && agreed.enabled).then(|| {
                 let mut eve = eve::build(config, &mut stream_of(Purpose::Eve));
                 eve.begin_session(&plan);
@@ -250,18 +233,6 @@ fn run<'a>(
             transcript,
         },
         ModePlan::Private(_) => Senses::Private(Box::new(PrivateSenses {
-            controller: sensor(Purpose::Measurement, world.controller_std),
-            camera: match world.camera {
-                Camera::Instants { std } => {
-                    EveCamera::Instants(Noise::new(stream_of(Purpose::Camera), std))
-                }
-                Camera::Frames { fps, frame_std } => EveCamera::Frames(FrameCamera::new(
-                    fps,
-                    Noise::new(stream_of(Purpose::Camera), frame_std),
-                    stream_of(Purpose::CameraPhase),
-                )),
-            },
-            frames: Vec::new(),
             eve: DoubletEavesdropper::new(config),
             decided: VecDeque::new(),
             heard: BTreeMap::new(),
@@ -272,17 +243,7 @@ fn run<'a>(
         config,
         trajectory: config.trajectory(),
         sample_time: agreed.sample_time,
-        plant: WorldPlant::new(
-            &world,
-            agreed.drive,
-            config.robot.wheel_limit,
-            agreed.sample_time,
-            PlantStreams {
-                process: stream_of(Purpose::Process),
-                slip: stream_of(Purpose::Slip),
-            },
-            films_between && matches!(plan.mode, ModePlan::Private(_)),
-        ),
+        scene: Scene::new(config, stream_of),
         senses,
         tracking_error: 0.0,
         log: vec![StepBits::default(); steps as usize + 1],

@@ -18,14 +18,12 @@ use crate::protocol::{
     RobotInput, RobotOutput, SessionMessage, Time,
 };
 use crate::trajectory::Trajectory;
-use crate::world::{Frame, FrameCamera, InstantSensor, Noise, WorldPlant};
+use crate::world::Scene;
 
 /// What the sensors of a sensing mode observe, and who listens.
 pub(super) enum Senses<'a> {
     /// The robot's odometry; the eavesdropper (if any) hears the messages.
     Odometry {
-        /// The robot's odometry sensor.
-        odometry: InstantSensor,
         /// The eavesdropper, when the run has one.
         eve: Option<Box<dyn Eavesdropper>>,
         /// Every message in the order a tap hears it, when asked for.
@@ -37,12 +35,6 @@ pub(super) enum Senses<'a> {
 
 /// Private sensing's sensors, eavesdroppers and bookkeeping.
 pub(super) struct PrivateSenses {
-    /// The controller's own pose sensor.
-    pub(super) controller: InstantSensor,
-    /// Eve's camera.
-    pub(super) camera: EveCamera,
-    /// The frames of the stretch just filmed.
-    pub(super) frames: Vec<Frame>,
     /// The `camera` and `commands` eavesdroppers.
     pub(super) eve: DoubletEavesdropper,
     /// The controller's decisions, waiting for the eavesdroppers' on the same doublet.
@@ -53,20 +45,13 @@ pub(super) struct PrivateSenses {
     pub(super) run: PrivateRun,
 }
 
-/// Eve's camera as the world has it.
-pub(super) enum EveCamera {
-    /// One frame at each sample instant, with this noise.
-    Instants(Noise),
-    /// Frames at a rate, filming the motion between the instants.
-    Frames(FrameCamera),
-}
-
 /// The world of one simulated session.
 pub(super) struct World<'a> {
     pub(super) config: &'a Config,
     pub(super) trajectory: Trajectory,
     pub(super) sample_time: f64,
-    pub(super) plant: WorldPlant,
+    /// The plant and its sensors.
+    pub(super) scene: Scene,
     pub(super) senses: Senses<'a>,
     /// `Σ_k ‖p(k) − r(k)‖` over `k = 1…N` (m).
     pub(super) tracking_error: f64,
@@ -85,7 +70,7 @@ impl World<'_> {
     fn sense(&mut self, now: Time, step: u32, robot: &mut Robot, controller: &mut Controller) {
         self.record_private(robot);
         if step > 0 {
-            self.plant.step();
+            self.scene.step();
         }
         // No later step writes the rows before this one (in private sensing, the row before
         // it: a doublet's decision lands on its second step's row).
@@ -94,27 +79,13 @@ impl World<'_> {
             Senses::Private(_) => step.saturating_sub(1),
         };
         self.trace.complete_before(settled as usize);
-        let pose = self.plant.pose();
+        let observed = self.scene.observe();
+        let (pose, measured, filmed) = (observed.pose, observed.measured, observed.filmed);
         let t = f64::from(step) * self.sample_time;
         let reference = self.trajectory.at(t).position;
         if step > 0 {
             self.tracking_error += (pose.xy() - reference).norm();
         }
-        let (measured, filmed) = match &mut self.senses {
-            Senses::Odometry { odometry, .. } => (odometry.sample(&self.plant), None),
-            Senses::Private(p) => {
-                let measured = p.controller.sample(&self.plant);
-                let filmed = match &mut p.camera {
-                    EveCamera::Instants(noise) => Some(pose + noise.draw()),
-                    EveCamera::Frames(camera) => {
-                        p.frames.clear();
-                        camera.film(&self.plant.take_trail(), &mut p.frames);
-                        None
-                    }
-                };
-                (measured, filmed)
-            }
-        };
         if let Some(row) = self.trace.row(step as usize) {
             row.k = step;
             row.t = t;
@@ -131,7 +102,7 @@ impl World<'_> {
                 if let Some(filmed) = filmed {
                     p.eve.film(step, filmed);
                 }
-                for frame in &p.frames {
+                for frame in &observed.frames {
                     p.eve.film_frame(*frame);
                 }
                 p.collect();
@@ -195,7 +166,7 @@ impl Surroundings<Robot, Controller> for World<'_> {
         match output {
             RobotOutput::Sense { step } => self.sense(now, step, robot, controller),
             RobotOutput::Apply(actuation) => {
-                self.plant.apply(actuation.wheels);
+                self.scene.apply(actuation.wheels);
                 if let Senses::Private(p) = &mut self.senses
                     && actuation.bit.is_some()
                     && let Some(bits) = robot.carried_bits(actuation.step / 2)

@@ -11,6 +11,7 @@ mod model;
 mod motion;
 mod plant;
 mod preset;
+mod scene;
 mod sensor;
 
 pub use actuator::{Actuator, MAX_PENDING, Piece, lagged, quantise};
@@ -23,4 +24,5 @@ pub use model::{Camera, MAX_SUBSTEPS, WorldModel, per_frame_std, per_instant_std
 pub use motion::{Motion, StepNoise, SubStep, sinc};
 pub use plant::{Noise, PlantStreams, WorldPlant};
 pub use preset::WorldPreset;
+pub use scene::{Observed, Scene};
 pub use sensor::InstantSensor;
