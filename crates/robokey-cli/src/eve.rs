@@ -10,6 +10,7 @@ use robokey::config::EveStrategy;
 use robokey::config::SensingMode;
 use robokey::eve::{ModelErrors, starting_errors};
 use robokey::rng::{Purpose, stream};
+use robokey::world::Camera;
 use robokey_lab::adversary::{campaign_markdown, run_campaigns, write_campaign};
 use robokey_lab::files::{prepare_output, write};
 use robokey_lab::runner::with_jobs;
@@ -17,7 +18,7 @@ use robokey_lab::secrecy::private::eavesdroppers;
 use robokey_lab::secrecy::render_private::{PrivateRow, private_markdown, turn_rates_csv};
 use robokey_net::agent::key_file::read_key_file;
 use robokey_net::capture_eve::{listen, listen_private, read_session};
-use robokey_net::pose_stream::read_log;
+use robokey_net::pose_stream::{CameraLog, read_log};
 
 use crate::commands::FlagOverrides;
 use crate::exit::usage;
@@ -75,6 +76,8 @@ pub struct EveArgs {
     /// other party's error rate is measured against.
     #[arg(long, value_name = "FILE", requires = "camera_log")]
     robot_key: Option<PathBuf>,
+    #[command(flatten)]
+    world: crate::world::WorldSpecArgs,
     /// Output folder (simulation: default robokey-out/eve; capture: writes capture.json
     /// when given).
     #[arg(long, short)]
@@ -93,7 +96,8 @@ pub fn eve(args: EveArgs) -> Result<()> {
     overrides.value("--alpha", "eve.alpha", args.alpha);
     overrides.value("--initial-error", "eve.initial_error", args.initial_error);
     overrides.seed(args.seed)?;
-    let config = overrides.load(args.config.as_deref())?;
+    let mut config = overrides.load(args.config.as_deref())?;
+    args.world.apply(&mut config)?;
     let explicit = args.errors.as_deref().map(parse_errors).transpose()?;
     let strategies: Vec<EveStrategy> = args.strategy.iter().map(|&s| s.into()).collect();
     if let Some(s) = strategies.iter().find(|s| s.mode() != config.sensing.mode) {
@@ -410,19 +414,51 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
     let strategies = simulated_strategies(args, config.sensing.mode);
     let captured = read_session(capture, config)?;
     let camera = read_log(camera_log)?;
-    let heard = listen_private(&captured, &camera, config);
+    let world = config.world_model();
+    match (&camera, world.camera) {
+        (CameraLog::Frames(_), Camera::Instants { .. }) => usage!(
+            "--camera-log {}: a log of frames between the instants, but the world's camera \
+             films at the instants (give --world with world.camera_fps)",
+            camera_log.display()
+        ),
+        (CameraLog::Instants(_), Camera::Frames { .. }) => usage!(
+            "--camera-log {}: a log of samples at the instants, but the world's camera films \
+             frames at world.camera_fps",
+            camera_log.display()
+        ),
+        _ => {}
+    }
     let read_key = |path: &Option<PathBuf>| path.as_deref().map(read_key_file).transpose();
     let (robot, controller) = (read_key(&args.robot_key)?, read_key(&args.controller_key)?);
+    let heard = listen_private(
+        &captured,
+        &camera,
+        config,
+        robot.as_ref().map(|k| k.as_slice()),
+    );
+    let her_camera = match world.camera {
+        Camera::Instants { std } => format!(
+            "{} mm / {} mrad at the instants",
+            1e3 * std[0],
+            1e3 * std[2]
+        ),
+        Camera::Frames { fps, frame_std } => format!(
+            "{} mm / {} mrad per frame at {fps} frames/s",
+            1e3 * frame_std[0],
+            1e3 * frame_std[2]
+        ),
+    };
     println!(
         "eve: session {:08x}, {} frames ({} undecodable datagrams), {} camera samples; \
-         her camera {} mm / {} mrad",
+         her camera {her_camera}",
         captured.session,
         captured.messages.len(),
         captured.undecodable,
         camera.len(),
-        1e3 * config.eve.camera_std[0],
-        1e3 * config.eve.camera_std[2]
     );
+    for difference in world.differences(config) {
+        println!("eve: the world is not the parties': {difference}");
+    }
     // `differ(a, b)`: "n of m bits (p %)", or why they cannot be compared.
     let differ = |a: &[u8], b: &[u8]| -> String {
         if a.len() != b.len() {
@@ -451,12 +487,17 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
             .doublets
             .iter()
             .map(|d| {
-                let evidence = if camera_view { d.camera } else { d.commands };
+                let (evidence, given) = if camera_view {
+                    (d.camera, d.camera_given_others)
+                } else {
+                    (d.commands, d.commands_given_others)
+                };
                 let llr = &evidence.llr[..bits];
                 serde_json::json!({
                     "doublet": d.doublet,
                     "llr": llr,
                     "bits": llr.iter().map(|&l| u8::from(l < 0.0)).collect::<Vec<_>>(),
+                    "llr_given_others": given.map(|g| g.llr[..bits].to_vec()),
                 })
             })
             .collect();
@@ -476,6 +517,27 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
             line += &format!("; from the controller's on {}", differ(controller, key));
         }
         println!("{line}");
+        if let Some(robot) = &robot {
+            let view = given_others_view(&heard, robot, bits, camera_view);
+            println!(
+                "eve[{}]: her view of the robot's {} raw bits, each given the others: {:.4} bit \
+                 of information per bit; H_min^ε ≥ {:.1} bits at ε = {:e}{}",
+                strategy.name(),
+                view.bits,
+                view.information,
+                robokey_secrecy::posterior_smooth_min_entropy(
+                    &view.error_probabilities,
+                    config.postprocess.epsilon
+                )?
+                .h_min,
+                config.postprocess.epsilon,
+                if view.missing > 0 {
+                    format!(" ({} bits without it: their own LLR counted)", view.missing)
+                } else {
+                    String::new()
+                }
+            );
+        }
         reports.push(serde_json::json!({
             "strategy": strategy.name(),
             "doublets": decided,
@@ -497,6 +559,55 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
         )?;
     }
     Ok(())
+}
+
+/// A private eavesdropper's view of the robot's raw bits of a capture.
+struct GivenOthers {
+    /// Raw bits measured.
+    bits: usize,
+    /// Mean information `1 − S` per bit (bits).
+    information: f64,
+    /// Her posterior error probability of each bit.
+    error_probabilities: Vec<f64>,
+    /// Bits whose view given the others was not measured (their own LLR taken).
+    missing: usize,
+}
+
+/// Her view of each of the robot's raw bits (kept doublets in order, `bits` per doublet) given
+/// the others, from the `camera` or the `commands` adversary.
+fn given_others_view(
+    heard: &robokey_net::capture_eve::PrivateCaptureResult,
+    robot: &[u8],
+    bits: usize,
+    camera: bool,
+) -> GivenOthers {
+    use robokey_secrecy::gaussian_llr::surprisal;
+    let mut view = GivenOthers {
+        bits: 0,
+        information: 0.0,
+        error_probabilities: Vec::new(),
+        missing: 0,
+    };
+    for (&j, truth) in heard.kept.iter().zip(robot.chunks_exact(bits)) {
+        let Some(d) = heard.doublets.iter().find(|d| d.doublet == j) else {
+            continue;
+        };
+        let (own, given) = if camera {
+            (d.camera, d.camera_given_others)
+        } else {
+            (d.commands, d.commands_given_others)
+        };
+        view.missing += usize::from(given.is_none()) * bits;
+        let evidence = given.unwrap_or(own);
+        for (i, &bit) in truth.iter().enumerate() {
+            let llr = evidence.llr[i];
+            view.information += 1.0 - surprisal(if bit == 0 { llr } else { -llr });
+            view.error_probabilities.push(1.0 / (1.0 + llr.abs().exp()));
+            view.bits += 1;
+        }
+    }
+    view.information /= view.bits.max(1) as f64;
+    view
 }
 
 #[cfg(test)]

@@ -14,6 +14,7 @@ mod exit;
 mod keys;
 mod net;
 mod ros2;
+mod world;
 
 use exit::Status;
 

@@ -99,7 +99,10 @@ fn mean_and_error(values: &[f64]) -> (f64, f64) {
 fn the_window_smoother_converges_in_its_width() {
     let lag = "[world]\nlag = 0.05\nprocess_std = [0.001, 0.001, 0.001]\n";
     let at = |extra: &str, width: u32| {
-        bits(&private(&format!("[eve]\nsmoother_window = {width}\n{extra}")), 10)
+        bits(
+            &private(&format!("[eve]\nsmoother_window = {width}\n{extra}")),
+            10,
+        )
     };
     let paired = |a: &[DoubletBit], b: &[DoubletBit]| {
         assert_eq!(a.len(), b.len());
@@ -115,11 +118,17 @@ fn the_window_smoother_converges_in_its_width() {
     };
     let (w0, w2, w3) = (at(lag, 0), at(lag, 2), at(lag, 3));
     let (gain, se) = paired(&w3, &w2);
-    assert!(gain.abs() < 3.0 * se + 1e-9 && gain.abs() < 0.003, "W 3 − 2: {gain} ± {se}");
+    assert!(
+        gain.abs() < 3.0 * se + 1e-9 && gain.abs() < 0.003,
+        "W 3 − 2: {gain} ± {se}"
+    );
     let (gain, se) = paired(&w2, &w0);
     assert!(gain > 0.1 && gain > 10.0 * se, "W 2 − 0: {gain} ± {se}");
     let alone = bits(&private(""), 10);
     let window = at("", 2);
     let (gain, se) = paired(&window, &alone);
-    assert!(gain.abs() < 3.0 * se + 1e-9 && gain.abs() < 0.003, "ideal: {gain} ± {se}");
+    assert!(
+        gain.abs() < 3.0 * se + 1e-9 && gain.abs() < 0.003,
+        "ideal: {gain} ± {se}"
+    );
 }

@@ -243,7 +243,7 @@ fn run<'a>(
         config,
         trajectory: config.trajectory(),
         sample_time: agreed.sample_time,
-        scene: Scene::new(config, stream_of),
+        scene: Scene::new(config, config.sensing.mode, stream_of),
         senses,
         tracking_error: 0.0,
         log: vec![StepBits::default(); steps as usize + 1],

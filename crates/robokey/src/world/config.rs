@@ -211,6 +211,33 @@ impl WorldConfig {
         Ok(())
     }
 
+    /// The `[world]` table of a world file's text (TOML holding that table and nothing
+    /// else), its fields checked by name; their ranges are checked with the configuration
+    /// it joins ([`crate::Config::validate`]).
+    ///
+    /// # Errors
+    /// A [`crate::config::ConfigError`] attributed to `origin`: the text does not parse,
+    /// holds another table or value, or the table an unknown field or a wrong type.
+    pub fn from_file_text(text: &str, origin: &str) -> Result<Self, crate::config::ConfigError> {
+        let parse_error = |message: String| crate::config::ConfigError::Parse {
+            origin: origin.to_owned(),
+            message,
+        };
+        let mut table = crate::config::parse_table(text, origin)?;
+        if let Some(other) = table.keys().find(|k| *k != "world") {
+            return Err(parse_error(format!(
+                "a world file holds a [world] table and nothing else; `{other}` is not part of \
+                 it (the parties' settings belong in their configuration)"
+            )));
+        }
+        let world = table
+            .remove("world")
+            .ok_or_else(|| parse_error("a world file holds a [world] table; it has none".into()))?;
+        world
+            .try_into::<Self>()
+            .map_err(|e| parse_error(format!("[world]: {}", e.to_string().trim_end())))
+    }
+
     /// This table's fields, each falling back on `under`'s where absent.
     #[must_use]
     pub fn over(&self, under: &Self) -> Self {
@@ -319,5 +346,32 @@ mod tests {
             assert!(text.contains(allowed), "{text}");
         }
         WorldConfig::every().validate(0.2).unwrap();
+    }
+
+    #[test]
+    fn a_world_file_holds_a_world_table_and_nothing_else() {
+        let world = WorldConfig::from_file_text(
+            "[world]\npreset = \"khepera-iv\"\nlag = 0.05\n",
+            "lab.toml",
+        )
+        .unwrap();
+        assert_eq!(world.lag, Some(0.05));
+        assert_eq!(world.preset, Some(WorldPreset::KheperaIv));
+        for (text, expected) in [
+            ("[robot]\nT = 0.1\n", "`robot` is not part of it"),
+            ("lag = 0.05\n", "`lag` is not part of it"),
+            ("", "it has none"),
+            ("[world]\nlagg = 0.05\n", "lagg"),
+            ("[world]\nlag = \"slow\"\n", "lag"),
+            ("[world", "lab.toml"),
+        ] {
+            let error = WorldConfig::from_file_text(text, "lab.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                error.contains("lab.toml") && error.contains(expected),
+                "{error}"
+            );
+        }
     }
 }

@@ -46,23 +46,30 @@ pub struct Scene {
 impl Scene {
     /// The world of `config` for one session, each noise from `stream(purpose)` (the
     /// simulator's `(seed, purpose, replicate)` streams); a robot at rest at the origin.
-    /// Private sensing has Eve's camera; the `measurement` stream is the odometry's (std
-    /// `noise.measurement_std`, the encoders' resolution) or the controller's sensor's.
+    /// With `sensing` private, Eve's camera films it and the `measurement` stream is the
+    /// controller's own sensor's; with odometry, it is the robot's odometry (std
+    /// `noise.measurement_std`, the encoders' resolution).
     #[must_use]
-    pub fn new(config: &Config, stream: impl Fn(Purpose) -> ChaCha8Rng) -> Self {
+    pub fn new(
+        config: &Config,
+        sensing: SensingMode,
+        stream: impl Fn(Purpose) -> ChaCha8Rng,
+    ) -> Self {
         let world = config.world_model();
         let drive = DiffDrive {
             wheel_radius: config.robot.r,
             axle_length: config.robot.axle_length,
         };
-        let private = config.sensing.mode == SensingMode::Private;
+        let private = sensing == SensingMode::Private;
         let (std, encoder) = if private {
             (world.controller_std, 0.0)
         } else {
             (config.noise.measurement_std, world.encoder_quantum)
         };
         let camera = private.then(|| match world.camera {
-            Camera::Instants { std } => EveCamera::Instants(Noise::new(stream(Purpose::Camera), std)),
+            Camera::Instants { std } => {
+                EveCamera::Instants(Noise::new(stream(Purpose::Camera), std))
+            }
             Camera::Frames { fps, frame_std } => EveCamera::Frames(FrameCamera::new(
                 fps,
                 Noise::new(stream(Purpose::Camera), frame_std),
