@@ -4,105 +4,21 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use robokey::Config;
+use robokey::config::source;
 use robokey::interrupt::Interrupt;
 use robokey_lab::LabError;
-use robokey_lab::files::{
-    Override, apply_overrides, blame_flags, prepare_output, read_table, write,
-};
-use robokey_lab::folder::{Start, SweepPlan, Swept};
-use robokey_lab::runner::with_jobs;
-use robokey_lab::sweep::{Experiment, experiments_from_table};
-use robokey_lab::{report, results, trace};
+use robokey_lab::experiment::{Experiment, experiments_from_table};
+use robokey_lab::folder::sweep::{Start, SweepPlan, Swept};
+use robokey_lab::folder::{layout, merge};
+use robokey_lab::output::{prepare_output, write};
+use robokey_lab::reproduce::compute_stages;
+use robokey_lab::reproduce::suite::paper_suite;
+use robokey_lab::run::with_jobs;
+use robokey_lab::{metric_table, report, trace};
 
+use crate::configuration::{FlagOverrides, load_config, read_table};
 use crate::exit::{Status, on_signals, usage};
 use crate::{ConfigArgs, MergeArgs, ReportArgs, ReproduceArgs, RunArgs, SecrecyArgs, SweepArgs};
-
-/// Loads a configuration from an optional file plus overrides; errors name the flag the
-/// user wrote.
-pub fn load_config(path: Option<&Path>, overrides: &[Override]) -> Result<Config> {
-    let mut table = read_table(path)?;
-    if table.contains_key("sweep") || table.contains_key("experiment") {
-        usage!(
-            "{}: holds a sweep; run it with `robokey sweep`",
-            path.map_or_else(String::new, |p| p.display().to_string())
-        );
-    }
-    apply_overrides(&mut table, overrides)?;
-    let origin = origin(path.map(Path::display), overrides);
-    Config::from_table(table, &origin).map_err(|e| blame_flags(e.into(), overrides).into())
-}
-
-/// Where a configuration came from, as the user gave it: the file (or the defaults) and
-/// the flags that changed it.
-fn origin(file: Option<impl std::fmt::Display>, overrides: &[Override]) -> String {
-    let base = file.map_or_else(|| "the defaults".to_owned(), |f| f.to_string());
-    if overrides.is_empty() {
-        base
-    } else {
-        let flags: Vec<&str> = overrides.iter().map(|o| o.flag.as_str()).collect();
-        format!("{base} with {}", flags.join(" "))
-    }
-}
-
-/// `--set` overrides plus the ones a command's own flags stand for.
-pub struct FlagOverrides(Vec<Override>);
-
-impl FlagOverrides {
-    /// Starts from the `--set` overrides.
-    pub fn new(set: &[Override]) -> Self {
-        Self(set.to_vec())
-    }
-
-    /// Sets `field` when `flag` was given with a value.
-    pub fn value<V: Into<toml::Value> + std::fmt::Display>(
-        &mut self,
-        flag: &str,
-        field: &str,
-        value: Option<V>,
-    ) {
-        if let Some(value) = value {
-            self.0.push(Override {
-                field: field.into(),
-                flag: format!("{flag} {value}"),
-                value: value.into(),
-            });
-        }
-    }
-
-    /// Sets `field` to `value` when the switch `flag` was given.
-    pub fn switch(&mut self, flag: &str, given: bool, field: &str, value: bool) {
-        if given {
-            self.0.push(Override {
-                field: field.into(),
-                value: value.into(),
-                flag: flag.into(),
-            });
-        }
-    }
-
-    /// `--seed`, which TOML holds as a signed integer.
-    pub fn seed(&mut self, seed: Option<u64>) -> Result<()> {
-        if let Some(seed) = seed {
-            let Ok(signed) = i64::try_from(seed) else {
-                usage!(
-                    "--seed {seed} is not allowed (allowed: 0 to 2^63 − 1; TOML integers are signed)"
-                );
-            };
-            self.0.push(Override {
-                field: "run.seed".into(),
-                value: signed.into(),
-                flag: format!("--seed {seed}"),
-            });
-        }
-        Ok(())
-    }
-
-    /// Loads the configuration with these overrides.
-    pub fn load(&self, path: Option<&Path>) -> Result<Config> {
-        load_config(path, &self.0)
-    }
-}
 
 pub fn run(args: RunArgs) -> Result<()> {
     let mut overrides = FlagOverrides::new(&args.options.set);
@@ -140,7 +56,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     written
         .and_then(|()| csv.finish().map(drop))
         .with_context(|| format!("{}: cannot write", trace_path.display()))?;
-    let mut json = trace::metrics_json(&output.metrics);
+    let mut json = metric_table::metrics_json(&output.metrics);
     json.insert("replicate".into(), args.replicate.into());
     json.insert("seed".into(), config.run.seed.into());
     let files = [
@@ -206,10 +122,14 @@ pub fn run(args: RunArgs) -> Result<()> {
 }
 
 pub fn sweep(args: SweepArgs) -> Result<Status> {
-    let mut table = read_table(Some(&args.config))?;
-    apply_overrides(&mut table, &args.options.set)?;
-    let experiments = experiments_from_table(table, &args.config.display().to_string())
-        .map_err(|e| blame_flags(e, &args.options.set))?;
+    let set = &args.options.set;
+    let mut table = read_table(&args.config)?;
+    source::apply(&mut table, set)?;
+    let experiments =
+        experiments_from_table(table, &args.config.display().to_string()).map_err(|e| match e {
+            LabError::Config(e) => LabError::Config(source::blame(e, set)),
+            other => other,
+        })?;
     let (out, resume) = output(&args.out, args.resume.as_deref(), args.force)?;
     let stop = on_signals()?;
     let plan = SweepPlan {
@@ -250,7 +170,7 @@ fn sweep_into(
 ) -> Result<Swept> {
     let started = Instant::now();
     let swept = with_jobs(jobs, || {
-        robokey_lab::folder::sweep(out, experiments, plan, stop, &mut announce, &|| {})
+        robokey_lab::folder::sweep::sweep(out, experiments, plan, stop, &mut announce, &|| {})
     })??;
     if swept.interrupted.is_none() {
         println!("swept in {:.2} s", started.elapsed().as_secs_f64());
@@ -262,7 +182,7 @@ fn sweep_into(
 fn announce(start: &Start) {
     let e = start.experiment;
     let mut what = Vec::new();
-    if start.shards != [robokey_lab::runner::Shard::ALL] {
+    if start.shards != [robokey_lab::run::Shard::ALL] {
         let shards: Vec<String> = start.shards.iter().map(ToString::to_string).collect();
         what.push(format!(
             "shard {}: {} runs",
@@ -357,7 +277,7 @@ fn shell_word(word: &str) -> String {
 
 pub fn merge(args: MergeArgs) -> Result<()> {
     prepare_output(&args.out, args.force)?;
-    let experiments = results::merge(&args.dirs, &args.out)?;
+    let experiments = merge::merge(&args.dirs, &args.out)?;
     for e in experiments.iter().filter(|e| !e.name.is_empty()) {
         println!(
             "{}: {} runs → {}",
@@ -375,50 +295,22 @@ pub fn merge(args: MergeArgs) -> Result<()> {
     Ok(())
 }
 
-pub fn report(args: ReportArgs) -> Result<Status> {
-    // No signal handlers: Ctrl-C ends it at once, and nothing it writes needs keeping.
-    make_report(&args.dir, args.quick, args.jobs, &Interrupt::new())
+pub fn report(args: ReportArgs) -> Result<()> {
+    make_report(&args.dir, args.jobs)
 }
 
 /// `robokey report` on `dir`: prints the headline findings and where the report is.
-fn make_report(dir: &Path, quick: bool, jobs: usize, stop: &Interrupt) -> Result<Status> {
+fn make_report(dir: &Path, jobs: usize) -> Result<()> {
     let started = Instant::now();
-    match with_jobs(jobs, || report::report(dir, quick, stop))? {
-        Ok(made) => {
-            print!("{}", made.summary);
-            println!("report: {}", made.path.display());
-            let parts: Vec<String> = made
-                .timings
-                .iter()
-                .map(|(part, seconds)| format!("{part} {seconds:.2} s"))
-                .collect();
-            println!(
-                "reported in {:.2} s{}",
-                started.elapsed().as_secs_f64(),
-                if parts.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({})", parts.join(", "))
-                }
-            );
-            Ok(Status::Success)
-        }
-        Err(LabError::Interrupted(signal)) => {
-            eprintln!(
-                "interrupted by {} while writing the report; the sweep is complete: \
-                 `robokey report {}{}` writes it",
-                signal_name(signal),
-                shell_word(&dir.display().to_string()),
-                if quick { " --quick" } else { "" }
-            );
-            Ok(Status::Interrupted(signal))
-        }
-        Err(e) => Err(e.into()),
-    }
+    let made = with_jobs(jobs, || report::report(dir))??;
+    print!("{}", made.summary);
+    println!("report: {}", made.path.display());
+    println!("reported in {:.2} s", started.elapsed().as_secs_f64());
+    Ok(())
 }
 
 pub fn reproduce(args: ReproduceArgs) -> Result<Status> {
-    let experiments = report::paper_suite(args.quick)?;
+    let experiments = paper_suite(args.quick)?;
     let (out, resume) = output(&args.out, args.resume.as_deref(), args.force)?;
     let stop = on_signals()?;
     let plan = SweepPlan {
@@ -430,10 +322,37 @@ pub fn reproduce(args: ReproduceArgs) -> Result<Status> {
     if args.quick {
         again.push("--quick".into());
     }
-    match finish(&swept, &out, again) {
-        Status::Success => make_report(&out, args.quick, args.jobs, &stop),
-        interrupted => Ok(interrupted),
+    let status = finish(&swept, &out, again);
+    if status != Status::Success {
+        return Ok(status);
     }
+    let started = Instant::now();
+    match with_jobs(args.jobs, || compute_stages(&out, args.quick, &stop))? {
+        Ok(times) => {
+            let parts: Vec<String> = times
+                .iter()
+                .map(|(stage, seconds)| format!("{stage} {seconds:.2} s"))
+                .collect();
+            println!(
+                "computed the report's stages in {:.2} s (side by side: {})",
+                started.elapsed().as_secs_f64(),
+                parts.join(", ")
+            );
+        }
+        Err(LabError::Interrupted(signal)) => {
+            eprintln!(
+                "interrupted by {} while computing the report's stages; the sweep is complete: \
+                 `robokey reproduce --resume {}{}` computes them and writes the report",
+                signal_name(signal),
+                shell_word(&out.display().to_string()),
+                if args.quick { " --quick" } else { "" }
+            );
+            return Ok(Status::Interrupted(signal));
+        }
+        Err(e) => return Err(e.into()),
+    }
+    make_report(&out, args.jobs)?;
+    Ok(Status::Success)
 }
 
 pub fn config(args: ConfigArgs) -> Result<()> {
@@ -444,12 +363,11 @@ pub fn config(args: ConfigArgs) -> Result<()> {
 
 pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     use robokey::config::SensingMode;
-    use robokey_lab::secrecy::map::private_map;
-    use robokey_lab::secrecy::render_private::break_even_text;
-    use robokey_lab::secrecy::{
-        Pooling, SecrecyOptions, analyze, default_adversaries, write_secrecy,
-    };
-    use robokey_lab::sweep::{MAX_BLOCK_BITS, MIN_BLOCK_BITS};
+    use robokey_lab::experiment::{MAX_BLOCK_BITS, MIN_BLOCK_BITS};
+    use robokey_lab::report::private::break_even_text;
+    use robokey_lab::report::secrecy::write_secrecy;
+    use robokey_lab::run::sessions::SessionBank;
+    use robokey_lab::secrecy::{Pooling, Secrecy, SecrecyOptions, default_adversaries};
     if let Some(eps) = args.eps
         && !(eps > 0.0 && eps < 1.0)
     {
@@ -489,10 +407,10 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     };
     // A sweep folder, or a suite folder whose subfolders are sweeps.
     let folders =
-        results::experiment_dirs(&args.sweep_dir)?.unwrap_or_else(|| vec![args.sweep_dir.clone()]);
+        layout::experiment_dirs(&args.sweep_dir)?.unwrap_or_else(|| vec![args.sweep_dir.clone()]);
     let started = Instant::now();
     for folder in folders {
-        let experiment = results::read_experiment(&folder, &results::folder_name(&folder))?;
+        let experiment = layout::read_experiment(&folder, &layout::folder_name(&folder))?;
         if !experiment.points[0].config.protocol.enabled {
             println!("{}: protocol off, no key: skipped", folder.display());
             continue;
@@ -522,11 +440,14 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             ),
             ..options.clone()
         };
-        let results = with_jobs(args.jobs, || analyze(&experiment, &options))??;
-        let map = with_jobs(args.jobs, || private_map(&experiment, &results))??;
-        let files = write_secrecy(&folder, &experiment, &results, &options, map.as_ref())?;
+        let secrecy = with_jobs(args.jobs, || {
+            Secrecy::compute(&experiment, &options, &mut SessionBank::new())
+        })??;
+        let mut files = secrecy.write(&folder)?;
+        files.extend(write_secrecy(&folder, &experiment, &secrecy)?);
+        let (results, map) = (&secrecy.results, &secrecy.map);
         println!("{}:", folder.display());
-        if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
+        if let Some(reason) = results.iter().find_map(|r| r.structural_zero.as_deref()) {
             print!("{}", wrapped(&format!("secret key rate 0: {reason}")));
         }
         if let Some(first) = results
@@ -548,7 +469,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
                 )
             );
         }
-        print!("{}", secrecy_table(&results));
+        print!("{}", secrecy_table(results));
         if let Some(map) = &map {
             for curve in &map.camera {
                 print!(

@@ -11,18 +11,19 @@ use robokey::config::SensingMode;
 use robokey::eve::{ModelErrors, starting_errors};
 use robokey::rng::{Purpose, stream};
 use robokey::world::Camera;
-use robokey_lab::adversary::{campaign_markdown, run_campaigns, write_campaign};
-use robokey_lab::files::{prepare_output, write};
-use robokey_lab::runner::with_jobs;
+use robokey_lab::adversary::run_campaigns;
+use robokey_lab::output::{prepare_output, write};
+use robokey_lab::report::adversary::{campaign_markdown, write_campaign};
+use robokey_lab::report::private::{PrivateRow, private_markdown, turn_rates_csv};
+use robokey_lab::run::with_jobs;
 use robokey_lab::secrecy::private::eavesdroppers;
-use robokey_lab::secrecy::render_private::{PrivateRow, private_markdown, turn_rates_csv};
 use robokey_net::agent::key_file::read_key_file;
 use robokey_net::capture_eve::{listen, listen_private, read_session};
 use robokey_net::pose_stream::{CameraLog, read_log};
 
-use crate::commands::FlagOverrides;
+use crate::StrategyArg;
+use crate::configuration::{ConfigOptions, FlagOverrides};
 use crate::exit::usage;
-use crate::{ConfigOptions, StrategyArg};
 
 #[derive(Args, Debug)]
 pub struct EveArgs {
@@ -275,7 +276,8 @@ fn simulated(args: &EveArgs, config: &Config) -> Result<()> {
     let campaign = with_jobs(args.jobs, || {
         run_campaigns(config, &strategies, args.campaigns)
     })??;
-    let files = write_campaign(&out, &campaign)?;
+    let mut files = vec![campaign.write(&out)?];
+    files.extend(write_campaign(&out, &campaign)?);
     write(&out.join("config.resolved.toml"), config.to_toml())?;
     print!("{}", for_terminal(&campaign_markdown(&campaign), &out));
     println!(

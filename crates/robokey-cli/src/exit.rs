@@ -38,34 +38,33 @@ pub(crate) use usage;
 /// Exit code of a failure: 5 for a pending key (`keys get`, `keys delete`), 2 when the input
 /// was wrong, 1 otherwise (I/O, a runtime error, a store file that does not verify).
 fn failure_code(error: &anyhow::Error) -> u8 {
+    use robokey_net::NetError;
+    let pending = |cause: &(dyn std::error::Error + 'static)| {
+        matches!(cause.downcast_ref::<NetError>(), Some(NetError::Pending(_)))
+    };
+    if error.chain().any(pending) {
+        5
+    } else if error.chain().any(is_usage) {
+        2
+    } else {
+        1
+    }
+}
+
+/// Whether one cause of a failure is the user's input: each error type of the crates the
+/// commands call answers for itself.
+fn is_usage(cause: &(dyn std::error::Error + 'static)) -> bool {
     use robokey_lab::LabError;
     use robokey_net::NetError;
-    if error
-        .chain()
-        .any(|cause| matches!(cause.downcast_ref::<NetError>(), Some(NetError::Pending(_))))
-    {
-        return 5;
-    }
-    let usage = error.chain().any(|cause| {
+    if let Some(e) = cause.downcast_ref::<LabError>() {
+        e.is_usage()
+    } else if let Some(e) = cause.downcast_ref::<robokey::config::ConfigError>() {
+        e.is_usage()
+    } else if let Some(e) = cause.downcast_ref::<NetError>() {
+        e.is_usage()
+    } else {
         cause.is::<Usage>()
-            || cause.is::<robokey::config::ConfigError>()
-            || matches!(cause.downcast_ref::<NetError>(), Some(NetError::Usage(_)))
-            || matches!(
-                cause.downcast_ref::<LabError>(),
-                Some(
-                    LabError::Config(_)
-                        | LabError::Sweep { .. }
-                        | LabError::NotEmpty(_)
-                        | LabError::NotOutput(_)
-                        | LabError::NotSweep(_)
-                        | LabError::NotWhole { .. }
-                        | LabError::Incomplete { .. }
-                        | LabError::Resume { .. }
-                        | LabError::SensingMode(_)
-                )
-            )
-    });
-    if usage { 2 } else { 1 }
+    }
 }
 
 /// The process's exit code for a command's result; prints the error.

@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use robokey_lab::files::Override;
-use robokey_lab::runner::Shard;
+use robokey_lab::run::Shard;
 
 mod commands;
+mod configuration;
 mod eve;
 mod exit;
 mod keys;
@@ -16,6 +16,7 @@ mod net;
 mod ros2;
 mod world;
 
+use configuration::ConfigOptions;
 use exit::Status;
 
 /// Key agreement for remotely controlled robots, through the robot's own motion
@@ -50,12 +51,13 @@ enum Command {
     Sweep(SweepArgs),
     /// Merge the folders of a sharded sweep, or of a sharded suite, into one.
     Merge(MergeArgs),
-    /// Make the figures and report.md of a sweep folder or suite folder (the paper's report
-    /// for a sweep of experiments/paper.toml).
+    /// Make the figures and report.md of a sweep folder or suite folder from its files alone
+    /// (the paper's report for a folder of `robokey reproduce`).
     #[command(allow_negative_numbers = true)]
     Report(ReportArgs),
     /// Regenerate the paper's experiments, figures and report: `robokey sweep` of
-    /// experiments/paper.toml, then `robokey report`.
+    /// experiments/paper.toml, the stages its report renders (secrecy, eavesdropping
+    /// campaigns, private sensing), then `robokey report`.
     #[command(allow_negative_numbers = true)]
     Reproduce(ReproduceArgs),
     /// Print the resolved configuration (defaults, file, overrides) as TOML, each field
@@ -100,14 +102,6 @@ enum Command {
     /// stores list the same IDs (docs/postprocessing.md).
     #[command(subcommand_required = true)]
     Keys(keys::KeysArgs),
-}
-
-/// Options shared by commands that read a configuration.
-#[derive(Args, Debug, Clone)]
-pub struct ConfigOptions {
-    /// Set any config field, e.g. `--set controller.kp=1.0` (repeatable).
-    #[arg(long = "set", value_name = "FIELD=VALUE", value_parser = parse_override)]
-    set: Vec<Override>,
 }
 
 #[derive(Args, Debug)]
@@ -188,13 +182,9 @@ struct MergeArgs {
 #[derive(Args, Debug)]
 struct ReportArgs {
     /// A complete sweep folder (with config.resolved.toml), a suite folder of them, or a
-    /// merge of shards.
+    /// merge of shards; the paper's report needs the stages `robokey reproduce` computes.
     #[arg(value_name = "SWEEP_DIR")]
     dir: PathBuf,
-    /// For a sweep of experiments/paper.toml: the small grids of `reproduce --quick` (5
-    /// eavesdropping campaigns, 2,000-bit secrecy blocks, a smaller private-sensing map).
-    #[arg(long)]
-    quick: bool,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
@@ -215,8 +205,9 @@ struct ReproduceArgs {
     /// Overwrite a non-empty output folder.
     #[arg(long, conflicts_with = "resume")]
     force: bool,
-    /// Continue the interrupted reproduction in DIR (instead of --out; with the same
-    /// --quick): sweep only the missing runs, then write the report.
+    /// Continue the reproduction in DIR (instead of --out; with the same --quick): sweep only
+    /// the missing runs, compute the report's stages, then write the report. Also completes
+    /// a merge of shards of experiments/paper.toml swept as reproduce sweeps it.
     #[arg(long, value_name = "DIR", conflicts_with = "out")]
     resume: Option<PathBuf>,
 }
@@ -329,17 +320,6 @@ struct ConfigArgs {
     options: ConfigOptions,
 }
 
-fn parse_override(text: &str) -> Result<Override, String> {
-    let (field, value) = text
-        .split_once('=')
-        .ok_or_else(|| format!("`{text}`: expected FIELD=VALUE, e.g. controller.kp=1.0"))?;
-    Ok(Override {
-        field: field.trim().to_owned(),
-        value: robokey::config::parse_value(value.trim()),
-        flag: format!("--set {text}"),
-    })
-}
-
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if matches!(
@@ -359,7 +339,7 @@ fn main() -> ExitCode {
         Command::Run(args) => done(commands::run(args)),
         Command::Sweep(args) => commands::sweep(args),
         Command::Merge(args) => done(commands::merge(args)),
-        Command::Report(args) => commands::report(args),
+        Command::Report(args) => done(commands::report(args)),
         Command::Reproduce(args) => commands::reproduce(args),
         Command::Config(args) => done(commands::config(args)),
         Command::Secrecy(args) => done(commands::secrecy(args)),

@@ -23,8 +23,7 @@ use robokey_net::sensor::SensorSpec;
 use robokey_net::sim_backend::SimBackend;
 use robokey_net::world::{StreamAddresses, WorldProcess};
 
-use crate::ConfigOptions;
-use crate::commands::load_config;
+use crate::configuration::{ConfigOptions, WorldNoiseArgs, load_config};
 use crate::exit::{Status, Usage, on_signals, usage};
 
 /// Clock of a session.
@@ -577,35 +576,6 @@ pub struct EmulatorArgs {
     noise: WorldNoiseArgs,
     #[command(flatten)]
     world: WorldArgs,
-}
-
-/// The world of an emulator (`kh4-emulator`, `ros2-sim`): its seed, the parties'
-/// configuration whose values it takes where it sets none, and `--world`.
-#[derive(Args, Debug)]
-pub struct WorldNoiseArgs {
-    /// Seed of the world's noise, drawn from the simulator's random streams of this seed:
-    /// kh4-emulator's motion and sensors (replicate i for the i-th connection), ros2-sim's
-    /// (replicate 0).
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Configuration (TOML): the parties' values the world takes where it sets none (motion
-    /// noise, the sensors' noise), the wheel geometry (`robot.r`, `robot.D`), a [world].
-    #[arg(long, short)]
-    config: Option<PathBuf>,
-    #[command(flatten)]
-    options: ConfigOptions,
-    #[command(flatten)]
-    world: crate::world::WorldSpecArgs,
-}
-
-impl WorldNoiseArgs {
-    /// The configuration with `--world`, its `run.seed` the seed.
-    pub fn load(&self) -> Result<robokey::Config> {
-        let mut config = load_config(self.config.as_deref(), &self.options.set)?;
-        self.world.apply(&mut config)?;
-        config.run.seed = self.seed;
-        Ok(config)
-    }
 }
 
 pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {

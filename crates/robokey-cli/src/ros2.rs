@@ -145,7 +145,7 @@ pub struct SimArgs {
     #[arg(long, default_value = "mocap")]
     mocap_frame_id: String,
     #[command(flatten)]
-    noise: crate::net::WorldNoiseArgs,
+    noise: crate::configuration::WorldNoiseArgs,
 }
 
 #[cfg(not(feature = "ros2"))]

@@ -369,7 +369,16 @@ fn reproduce_quick_writes_a_parseable_report_and_a_cluster_run_the_same_files() 
     let merged = dir.join("merged");
     let printed = ok(&["merge", s(&shards[0]), s(&shards[1]), "--out", s(&merged)]);
     assert!(printed.contains("dv-sweep: 33 runs"), "{printed}");
-    ok(&["report", s(&merged), "--quick"]);
+    // The paper's report renders the stages `reproduce` computes: a merge has none yet, and
+    // `reproduce --resume` computes them.
+    let err = fails_with(2, &["report", s(&merged)]);
+    let resume = format!("robokey reproduce --resume {} --quick", merged.display());
+    assert!(err.contains(&resume), "{err}");
+    ok(&["reproduce", "--resume", s(&merged), "--quick"]);
+    assert_same_files(&out, &merged);
+    // A report is a function of its folder: rendered again, every file is the same.
+    let printed = ok(&["report", s(&out)]);
+    assert!(printed.contains("private sensing:"), "{printed}");
     assert_same_files(&out, &merged);
 }
 

@@ -86,6 +86,35 @@ pub enum LabError {
     /// Shards cannot be merged.
     #[error("merge: {0}")]
     Merge(String),
+    /// A folder of the paper's suite without the stages `reproduce` computes.
+    #[error(
+        "{}: the paper's report renders the stages `robokey reproduce` computes (secrecy, \
+         eavesdropping campaigns, private sensing), and no reproduce.json vouches for them \
+         here: {how}",
+        dir.display()
+    )]
+    Uncomputed {
+        /// The folder.
+        dir: PathBuf,
+        /// How to compute them, or why they cannot be.
+        how: String,
+    },
+    /// A file of an output folder does not read back as robokey wrote it.
+    #[error("{place}: {message}")]
+    Malformed {
+        /// The file, with the line when known (`runs.csv:12`).
+        place: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The worker threads could not be started.
+    #[error("cannot start {jobs} worker threads: {message}")]
+    Threads {
+        /// Threads asked for.
+        jobs: usize,
+        /// Why not.
+        message: String,
+    },
     /// A figure could not be drawn.
     #[error("figure {path}: {message}")]
     Plot {
@@ -94,6 +123,35 @@ pub enum LabError {
         /// What failed.
         message: String,
     },
+}
+
+impl LabError {
+    /// Whether the error is the user's input: a configuration, a sweep definition, an
+    /// output or input folder that does not fit the command, an option the sensing mode
+    /// does not allow. Not: a file the system cannot read or write, a simulation that
+    /// aborted, a figure, a merge of inconsistent shards, a stop by signal.
+    #[must_use]
+    pub fn is_usage(&self) -> bool {
+        match self {
+            Self::Config(e) => e.is_usage(),
+            Self::Sweep { .. }
+            | Self::NotEmpty(_)
+            | Self::NotOutput(_)
+            | Self::NotSweep(_)
+            | Self::NotWhole { .. }
+            | Self::Incomplete { .. }
+            | Self::Resume { .. }
+            | Self::Uncomputed { .. }
+            | Self::SensingMode(_) => true,
+            Self::Io { .. }
+            | Self::Sim(_)
+            | Self::Interrupted(_)
+            | Self::Merge(_)
+            | Self::Malformed { .. }
+            | Self::Threads { .. }
+            | Self::Plot { .. } => false,
+        }
+    }
 }
 
 /// Attaches a path to an I/O error.

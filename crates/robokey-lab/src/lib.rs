@@ -1,21 +1,23 @@
-//! robokey-lab: the experiment shell around the robokey core — configuration files,
-//! sweeps, parallel runs, CSV/JSON outputs, statistics, figures and reports.
+//! robokey-lab: the experiment shell around the robokey core. It computes — sweeps of
+//! parallel runs ([`run`]) into folders ([`folder`]), the secrecy analysis ([`secrecy`]), the
+//! eavesdropping campaigns ([`adversary`]), the paper's stages ([`reproduce`]) — and writes
+//! each result into its folder; then it renders reports from the folders alone ([`report`]).
 
 pub mod adversary;
 pub mod config_doc;
 pub mod error;
-pub mod files;
+pub mod experiment;
 pub mod folder;
-pub mod generic_report;
+pub mod metric_table;
+pub mod output;
 pub mod plot;
-pub mod private_report;
+pub mod progress;
+pub mod reals;
 pub mod report;
-pub mod results;
-pub mod runner;
+pub mod reproduce;
+pub mod run;
 pub mod secrecy;
-pub mod sessions;
 pub mod stats;
-pub mod sweep;
 pub mod trace;
 
 pub use error::LabError;

@@ -1,10 +1,11 @@
-//! `trace.csv` and `metrics.json` of one run.
+//! `trace.csv` of one run — written as the run goes, read back row by row, the rows a
+//! figure draws, where a sweep keeps a point's — and one run's metrics for the terminal.
 
 use std::collections::VecDeque;
 use std::fmt::{Display, Write as _};
 use std::io::{self, Write};
 
-use robokey::metrics::{MetricValue, Metrics};
+use robokey::Metrics;
 use robokey::private::PrivateRun;
 use robokey::sim::TraceRow;
 
@@ -81,8 +82,10 @@ pub fn read_trace(
     origin: &std::path::Path,
     mut sink: impl FnMut(TraceRow),
 ) -> Result<(), LabError> {
-    let bad =
-        |line: usize, why: String| LabError::Merge(format!("{}:{line}: {why}", origin.display()));
+    let bad = |line: usize, message: String| LabError::Malformed {
+        place: format!("{}:{line}", origin.display()),
+        message,
+    };
     let mut lines = text.lines();
     let header = lines
         .next()
@@ -101,6 +104,12 @@ pub fn read_trace(
         sink(row);
     }
     Ok(())
+}
+
+/// Where a sweep folder `dir` keeps the trace of point `point`'s replicate 0.
+#[must_use]
+pub fn point_trace_path(dir: &std::path::Path, point: usize) -> std::path::PathBuf {
+    dir.join("traces").join(format!("point-{point}.csv"))
 }
 
 /// The paths a trajectory figure draws of the trace file at `path` ([`DrawnRows`]), read
@@ -267,39 +276,6 @@ impl DrawnRows {
             vec![self.first, self.last.into()]
         }
     }
-}
-
-fn opt<T: ToString>(value: Option<T>) -> String {
-    value.map_or_else(String::new, |v| v.to_string())
-}
-
-/// A metric value as a CSV cell (empty when undefined).
-#[must_use]
-pub fn csv_cell(value: MetricValue) -> String {
-    match value {
-        MetricValue::Real(x) => opt(x),
-        MetricValue::Count(n) => opt(n),
-        MetricValue::Flag(b) => opt(b),
-    }
-}
-
-/// A metric value as JSON (`null` when undefined).
-#[must_use]
-pub fn json_value(value: MetricValue) -> serde_json::Value {
-    match value {
-        MetricValue::Real(x) => x.map_or(serde_json::Value::Null, serde_json::Value::from),
-        MetricValue::Count(n) => n.map_or(serde_json::Value::Null, serde_json::Value::from),
-        MetricValue::Flag(b) => b.map_or(serde_json::Value::Null, serde_json::Value::from),
-    }
-}
-
-/// The metrics as a JSON object in column order.
-#[must_use]
-pub fn metrics_json(metrics: &Metrics) -> serde_json::Map<String, serde_json::Value> {
-    Metrics::names()
-        .into_iter()
-        .zip(metrics.values().into_iter().map(json_value))
-        .collect()
 }
 
 /// A human-readable metrics table for the terminal.

@@ -57,6 +57,13 @@ pub fn signal_name(signal: usize) -> String {
 }
 
 impl NetError {
+    /// Whether the error is the user's input (exit 2): a flag, a file or a configuration that
+    /// is refused, never a failure of the machine or the network (exit 1).
+    #[must_use]
+    pub fn is_usage(&self) -> bool {
+        matches!(self, Self::Usage(_))
+    }
+
     /// Wraps an I/O error with what was being done.
     pub fn io(context: impl Into<String>) -> impl FnOnce(std::io::Error) -> Self {
         let context = context.into();

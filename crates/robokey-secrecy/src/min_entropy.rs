@@ -153,18 +153,20 @@ pub fn posterior_smooth_min_entropy(
     let hoeffding = (0.5 * ln_inv_eps * sum_sq).sqrt();
     let maurer = (2.0 * ln_inv_eps * sum_q_sq).sqrt();
     let deviation = hoeffding.min(maurer);
-    let folded: Vec<f64> = error_probabilities
+    // ln(1 − q) and ln q of each bit, which do not depend on λ: computed once for the
+    // search's ~150 evaluations.
+    let logs: Vec<(f64, f64)> = error_probabilities
         .iter()
         .map(|&q| q.min(1.0 - q))
         .filter(|&q| q > 0.0)
+        .map(|q| ((1.0 - q).ln(), q.ln()))
         .collect();
     let chernoff = chernoff_lower_quantile(
         |lambda| {
             let mu = lambda / std::f64::consts::LN_2;
-            folded
-                .iter()
+            logs.iter()
                 // In log space: the powers underflow to 0 for large μ.
-                .map(|&q| ln_add_exp((1.0 + mu) * (1.0 - q).ln(), (1.0 + mu) * q.ln()))
+                .map(|&(ln_p, ln_q)| ln_add_exp((1.0 + mu) * ln_p, (1.0 + mu) * ln_q))
                 .sum()
         },
         epsilon,

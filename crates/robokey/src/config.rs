@@ -8,6 +8,8 @@ use crate::observer::Variant;
 use crate::trajectory::{SQUARE, Trajectory};
 use crate::world::{WorldConfig, WorldModel};
 
+pub mod source;
+
 /// Most steps one session may have (a session holds its trace and key in memory).
 pub const MAX_STEPS: u64 = 10_000_000;
 /// Most trajectory waypoints.
@@ -520,6 +522,13 @@ pub enum ConfigError {
 }
 
 impl ConfigError {
+    /// Whether the error is the user's input (a file or a flag): always, for a
+    /// configuration. A command line maps it to its usage exit status.
+    #[must_use]
+    pub fn is_usage(&self) -> bool {
+        true
+    }
+
     /// The same error attributed to `origin` (a file name, `--set`, …).
     #[must_use]
     pub fn with_origin(self, new_origin: &str) -> Self {

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 
 use super::glyph::Glyph;
-use super::line::SeriesStyle;
+use super::style::SeriesStyle;
 use super::{
     Axes, FONT, Figure, PALETTE, PlotError, chart_on, csv_text, legend_corner, padded_range,
     save_all,

@@ -5,7 +5,7 @@ use plotters::element::{Drawable, PointCollection};
 use plotters::prelude::*;
 use plotters_backend::{BackendCoord, DrawingErrorKind};
 
-use super::line::SeriesStyle;
+use super::style::SeriesStyle;
 
 /// Marker radius (pixels) of the last series; earlier ones are larger (see `size`).
 const MARKER_SIZE: i32 = 4;

@@ -6,24 +6,15 @@ use std::path::{Path, PathBuf};
 
 use plotters::element::DynElement;
 
-use super::glyph::Glyph;
 use plotters::prelude::*;
+
+use super::glyph::Glyph;
+use super::style::SeriesStyle;
 
 use super::{
     Axes, FONT, Figure, PALETTE, PlotError, chart_on, csv_text, legend_corner, padded_range,
     save_all,
 };
-
-/// How a series is drawn.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SeriesStyle {
-    /// Solid line.
-    Line,
-    /// Dashed line (e.g. a reference).
-    Dashed,
-    /// Markers only.
-    Markers,
-}
 
 /// A vertical interval at `x` (e.g. a 95 % confidence interval), in the series' units.
 #[derive(Clone, Copy, Debug, PartialEq)]

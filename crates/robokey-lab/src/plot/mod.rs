@@ -6,6 +6,7 @@
 mod boxes;
 mod glyph;
 mod line;
+mod style;
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -15,7 +16,8 @@ use plotters::prelude::*;
 
 pub use boxes::{BoxChart, BoxGeometry, BoxGroup};
 pub use line::Interval;
-pub use line::{LineChart, Series, SeriesStyle};
+pub use line::{LineChart, Series};
+pub use style::SeriesStyle;
 
 /// A figure could not be drawn or written.
 #[derive(Debug, thiserror::Error)]

@@ -1,23 +1,23 @@
 //! Where private sensing pays (docs/private-sensing.md, "Maps"): the secret rate against
 //! Eve's camera noise with its break-even, the Pareto front of secret rate against tracking
 //! cost, and the commands eavesdropper's measured leak against the model's. Computed from
-//! the results of [`super::analyze`]; rendered by [`super::render_private`].
+//! the results of [`super::analyze()`]; rendered by [`crate::report::private`].
 
 use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
 use robokey::sim::simulate;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::PointSecrecy;
 use crate::error::LabError;
-use crate::sweep::{Experiment, param_label};
+use crate::experiment::{Experiment, param_label};
 
 /// The swept field of Eve's camera noise.
 pub const CAMERA_FIELD: &str = "eve.camera_std";
 
 /// One curve of secret rate against Eve's camera noise, every other parameter fixed.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CameraCurve {
     /// The fixed parameters, for people (e.g. "motion 4 mm").
     pub label: String,
@@ -29,7 +29,7 @@ pub struct CameraCurve {
 
 /// The break-even camera noise lies in `(zero_at, positive_at]` (mm): the rate is zero at
 /// `zero_at` and at every smaller noise, positive at `positive_at`.
-#[derive(Clone, Copy, Debug, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BreakEven {
     /// The largest camera noise on the grid with a zero rate (mm).
     pub zero_at: f64,
@@ -38,7 +38,7 @@ pub struct BreakEven {
 }
 
 /// One operating point of the Pareto figure.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ParetoPoint {
     /// The point's parameters.
     pub point: String,
@@ -51,18 +51,19 @@ pub struct ParetoPoint {
 }
 
 /// One turn-rate bin of the commands eavesdropper: what she measured against the model.
-#[derive(Clone, Copy, Debug, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LeakBin {
     /// Predicted information per bit (bits).
     pub predicted: f64,
     /// Measured information per bit with its 95 % interval (bits).
+    #[serde(deserialize_with = "crate::reals::nans_if_null")]
     pub measured: [f64; 3],
     /// Bits in the bin.
     pub bits: u64,
 }
 
 /// The figures of a private-sensing map.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PrivateMap {
     /// Rate against camera noise, one curve per setting of the other axes (empty without a
     /// camera axis).

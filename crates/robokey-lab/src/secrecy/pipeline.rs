@@ -21,11 +21,11 @@ use robokey_secrecy::postprocess::{
     Assumption, BlockReport, ControllerInput, ControllerPost, Message, Output, RobotInput,
     RobotPost, Settings,
 };
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use zeroize::Zeroizing;
 
 /// Which sessions are pooled, and what was published over their keys.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Pooling {
     /// What today's agents do (session protocol v1): each side publishes a 64-bit tag over
@@ -154,7 +154,7 @@ pub fn pools(
 
 /// Eve's realised view of a block: a diagnostic beside the assumption, never what sizes the
 /// key.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Realised {
     /// Eve's errors against the robot's raw bits of the block.
     pub eve_errors: usize,
@@ -165,13 +165,13 @@ pub struct Realised {
     /// The smooth min-entropy bound from her realised errors (bits).
     pub h_min: f64,
     /// How.
-    pub h_min_method: &'static str,
+    pub h_min_method: String,
     /// ℓ that bound would support with the block's leak.
     pub secret_bits: u64,
 }
 
 /// One privacy-amplification block, with every public bit it cost.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Block {
     /// Sessions pooled.
     pub sessions: u32,
@@ -476,7 +476,7 @@ fn realised(
         eve_error_lower: lower,
         w_star,
         h_min,
-        h_min_method: method,
+        h_min_method: method.to_owned(),
         secret_bits: output_length(h_min, leak_ec, tags, epsilon).map_or(0, |l| l.bits),
     }
 }

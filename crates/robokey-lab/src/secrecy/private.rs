@@ -4,13 +4,15 @@
 //! tracking cost.
 
 use rayon::prelude::*;
+use std::collections::HashMap;
+
 use robokey::Config;
-use robokey::config::EveStrategy;
+use robokey::config::{EveConfig, EveStrategy};
 use robokey::private::DoubletBit;
 use robokey::sim::{RunOutput, simulate};
 use robokey_secrecy::calibration::check_calibration;
 use robokey_secrecy::gaussian_llr::{information, surprisal};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::Rate;
 use crate::error::LabError;
@@ -19,35 +21,38 @@ use crate::error::LabError;
 const TURN_EDGES: [f64; 6] = [0.05, 0.1, 0.2, 0.3, 0.5, 1.0];
 
 /// The outcome of a calibration test of one party's LLRs.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Calibration {
     /// Bits tested.
     pub bits: u64,
     /// Every bin within its Bonferroni-corrected level (family-wise α = 10⁻³).
     pub passed: bool,
-    /// The smallest per-bin p-value.
+    /// The smallest per-bin p-value (NaN when the test could not run).
+    #[serde(deserialize_with = "crate::reals::nan_if_null")]
     pub worst_p: f64,
 }
 
 /// The adversary's information on the bits of one turn-rate bin.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TurnBin {
     /// Lower edge (rad/s).
     pub from: f64,
     /// Upper edge (rad/s; infinite for the last).
+    #[serde(deserialize_with = "crate::reals::infinity_if_null")]
     pub to: f64,
     /// Bits in the bin.
     pub bits: u64,
     /// Her error rate with a 95 % Clopper–Pearson interval.
     pub error: Option<Rate>,
     /// Measured information `1 − mean S` (bits per bit) with a 95 % normal interval.
+    #[serde(deserialize_with = "crate::reals::nans_if_null")]
     pub information: [f64; 3],
     /// What the model predicts: `mean I(d)` over the bin's separations.
     pub predicted: f64,
 }
 
 /// The private-sensing figures of one point and adversary.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PrivateFigures {
     /// Doublets commanded over the sessions simulated.
     pub doublets: u64,
@@ -63,7 +68,9 @@ pub struct PrivateFigures {
     pub controller_calibration: Calibration,
     /// The adversary's LLRs.
     pub eve_calibration: Calibration,
-    /// Her measured information per bit `1 − mean S`, with a 95 % interval.
+    /// Her measured information per bit `1 − mean S`, with a 95 % interval (NaN without
+    /// bits).
+    #[serde(deserialize_with = "crate::reals::nans_if_null")]
     pub eve_information: [f64; 3],
     /// The model's prediction of it.
     pub eve_information_predicted: f64,
@@ -140,7 +147,73 @@ fn mean_information(values: &[f64]) -> [f64; 3] {
     [mean, mean - half, mean + half]
 }
 
-/// The figures of `runs` against `adversary`; J_x off is simulated with the same seeds.
+/// Protocol-off runs J_x is compared with: replicates 0 … n − 1 for `n` sessions, at most 10.
+#[must_use]
+pub fn off_replicates(sessions: usize) -> usize {
+    sessions.min(10)
+}
+
+/// The plant of a point: its configuration with the protocol off and without Eve's
+/// settings. She only films, from her own random stream, and never acts, so the robot's
+/// path with the protocol off — J_x — does not depend on her: the points of a camera map
+/// share their protocol-off runs.
+fn plant(config: &Config) -> Config {
+    let mut off = config.clone();
+    off.protocol.enabled = false;
+    off.eve = EveConfig::default();
+    off
+}
+
+/// J_x (m) of each plant's protocol-off runs, replicates 0, 1, …: simulated once per plant,
+/// however many points and adversaries compare with it.
+#[derive(Debug, Default)]
+pub struct OffRuns(HashMap<String, Vec<f64>>);
+
+impl OffRuns {
+    /// Simulates, in parallel, replicates `0 … n − 1` of the plant of each `(config, n)`
+    /// (the largest `n` of a plant).
+    ///
+    /// # Errors
+    /// Never in practice: private sessions do not abort.
+    pub fn simulate<'a>(
+        wanted: impl IntoIterator<Item = (&'a Config, usize)>,
+    ) -> Result<Self, LabError> {
+        let mut plants: Vec<(String, Config, usize)> = Vec::new();
+        for (config, n) in wanted {
+            let plant = plant(config);
+            let key = plant.to_toml();
+            match plants.iter_mut().find(|p| p.0 == key) {
+                Some(p) => p.2 = p.2.max(n),
+                None => plants.push((key, plant, n)),
+            }
+        }
+        let runs: Vec<(usize, u32)> = plants
+            .iter()
+            .enumerate()
+            .flat_map(|(i, p)| (0..p.2 as u32).map(move |r| (i, r)))
+            .collect();
+        let jx: Vec<f64> = runs
+            .par_iter()
+            .map(|&(i, r)| simulate(&plants[i].1, r, false).map(|o| o.metrics.jx))
+            .collect::<Result<_, _>>()?;
+        let mut by_plant: HashMap<String, Vec<f64>> = HashMap::new();
+        for (&(i, _), jx) in runs.iter().zip(jx) {
+            by_plant.entry(plants[i].0.clone()).or_default().push(jx);
+        }
+        Ok(Self(by_plant))
+    }
+
+    /// J_x of the first `n` protocol-off runs of `config`'s plant (fewer if fewer were
+    /// simulated).
+    #[must_use]
+    pub fn jx(&self, config: &Config, n: usize) -> &[f64] {
+        self.0
+            .get(&plant(config).to_toml())
+            .map_or(&[], |jx| &jx[..n.min(jx.len())])
+    }
+}
+
+/// The figures of `runs` against `adversary`; J_x with the protocol off from `off`.
 ///
 /// # Errors
 /// Never in practice: private sessions do not abort.
@@ -148,6 +221,7 @@ pub fn figures(
     config: &Config,
     runs: &[RunOutput],
     adversary: EveStrategy,
+    off: &OffRuns,
 ) -> Result<PrivateFigures, LabError> {
     let all: Vec<&DoubletBit> = bits(runs).collect();
     let doublets: u64 = runs
@@ -190,12 +264,7 @@ pub fn figures(
         from = to;
     }
     let values: Vec<f64> = all.iter().map(|b| info_of(b)).collect();
-    let mut off = config.clone();
-    off.protocol.enabled = false;
-    let jx_off: Vec<f64> = (0..runs.len().min(10) as u32)
-        .into_par_iter()
-        .map(|r| simulate(&off, r, false).map(|o| o.metrics.jx))
-        .collect::<Result<_, _>>()?;
+    let jx_off = off.jx(config, off_replicates(runs.len()));
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let jx: Vec<f64> = runs.iter().map(|r| r.metrics.jx).collect();
     Ok(PrivateFigures {
@@ -211,7 +280,7 @@ pub fn figures(
         turn_bins,
         assumed_separation: largest_separation(runs),
         jx_mm: 1e3 * mean(&jx),
-        jx_off_mm: 1e3 * mean(&jx_off),
+        jx_off_mm: 1e3 * mean(jx_off),
     })
 }
 
@@ -238,8 +307,9 @@ pub fn eavesdroppers(
         .into_par_iter()
         .map(|r| simulate(config, r, false))
         .collect::<Result<_, _>>()?;
+    let off = OffRuns::simulate([(config, off_replicates(runs.len()))])?;
     strategies
         .iter()
-        .map(|&s| Ok((s, figures(config, &runs, s)?)))
+        .map(|&s| Ok((s, figures(config, &runs, s, &off)?)))
         .collect()
 }

@@ -1,18 +1,17 @@
-//! Sweeping into a folder — interruptible, and resumable to the same bytes — and loading a
-//! finished folder back for reports.
+//! Sweeping into a folder: interruptible, and resumable to the same bytes.
 
 use std::path::{Path, PathBuf};
 
 use robokey::interrupt::Interrupt;
 
+use super::layout::{experiment_dirs, folder_name, read_rows, write_folder};
+use super::manifest::{planned, read_manifest, sha256_hex};
+use super::rows::Rows;
 use crate::error::LabError;
-use crate::results::{
-    Rows, csv_row, experiment_dirs, folder_name, metrics_of_line, planned, read, read_experiment,
-    read_manifest, read_rows, sha256_hex, trace_path, write_folder,
-};
-use crate::runner::{RunRecord, Shard, run_experiment};
-use crate::sweep::Experiment;
-use crate::trace::drawn_trace;
+use crate::experiment::Experiment;
+use crate::output::read;
+use crate::run::{Shard, run_experiment};
+use crate::trace::point_trace_path;
 
 /// Which runs a sweep does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -145,9 +144,8 @@ pub fn sweep(
             });
             // Traces (written as the runs go) before the rows that vouch for them, the
             // manifest last.
-            let records = run_experiment(e, &f.dir, &to_run, stop, finished)?;
-            f.rows
-                .extend(records.iter().map(|r| (r.run, csv_row(e, r))));
+            let rows = run_experiment(e, &f.dir, &to_run, stop, finished)?;
+            f.rows.extend(rows.into_iter().map(|r| (r.run, r)));
             write_folder(&f.dir, e, &f.rows, &f.shards)?;
         }
         progress.push(Progress {
@@ -256,94 +254,13 @@ fn resumable(
     // A run whose trace did not reach the disk runs again.
     let replicates = experiment.replicates() as usize;
     rows.retain(|&run, _| {
-        !(experiment.traces && run % replicates == 0) || trace_path(&dir, run / replicates).exists()
+        !(experiment.traces && run % replicates == 0)
+            || point_trace_path(&dir, run / replicates).exists()
     });
     Ok(Folder {
         dir,
         shards: manifest.shards,
         rows,
-    })
-}
-
-/// A complete sweep folder, read back.
-#[derive(Clone, Debug)]
-pub struct Loaded {
-    /// Its folder.
-    pub dir: PathBuf,
-    /// The experiment, from its `config.resolved.toml`.
-    pub experiment: Experiment,
-    /// Every run, in run order, with the traces the sweep kept.
-    pub records: Vec<RunRecord>,
-}
-
-/// Reads a sweep folder, or every experiment folder of a suite folder (by name).
-///
-/// # Errors
-/// Not a sweep folder; a folder that an interrupted sweep left incomplete, or that holds
-/// only some shards; files that do not read back.
-pub fn load(dir: &Path) -> Result<Vec<Loaded>, LabError> {
-    match experiment_dirs(dir)? {
-        None => Ok(vec![load_experiment(dir, None)?]),
-        Some(subs) => subs
-            .iter()
-            .map(|d| load_experiment(d, Some(folder_name(d))))
-            .collect(),
-    }
-}
-
-fn load_experiment(dir: &Path, name: Option<String>) -> Result<Loaded, LabError> {
-    let manifest = read_manifest(dir)?;
-    let experiment = read_experiment(dir, &name.unwrap_or(manifest.experiment))?;
-    let planned = planned(&experiment, &manifest.shards).count();
-    if !manifest.complete {
-        return Err(LabError::Incomplete {
-            dir: dir.to_path_buf(),
-            done: manifest.runs_done,
-            planned,
-        });
-    }
-    let rows = read_rows(&experiment, dir, &manifest.shards)?;
-    if rows.len() != experiment.runs() {
-        return Err(LabError::NotWhole {
-            dir: dir.to_path_buf(),
-            shards: manifest
-                .shards
-                .iter()
-                .map(ToString::to_string)
-                .collect::<Vec<_>>()
-                .join(", "),
-            held: rows.len(),
-            total: experiment.runs(),
-        });
-    }
-    let runs_csv = dir.join("runs.csv");
-    let replicates = experiment.replicates() as usize;
-    let records = rows
-        .iter()
-        .map(|(&run, line)| {
-            let (point, replicate) = (run / replicates, run % replicates);
-            let metrics = metrics_of_line(&experiment, line).map_err(|why| {
-                LabError::Merge(format!("{}: run {run}: {why}", runs_csv.display()))
-            })?;
-            let trace = if experiment.traces && replicate == 0 {
-                let path = trace_path(dir, point);
-                Some(drawn_trace(&path)?)
-            } else {
-                None
-            };
-            Ok(RunRecord {
-                run,
-                point,
-                replicate: replicate as u32,
-                metrics,
-                trace,
-            })
-        })
-        .collect::<Result<Vec<_>, LabError>>()?;
-    Ok(Loaded {
-        dir: dir.to_path_buf(),
-        experiment,
-        records,
     })
 }
 
@@ -353,8 +270,9 @@ mod tests {
     use std::sync::atomic::{AtomicUsize, Ordering};
 
     use super::*;
-    use crate::runner::with_jobs;
-    use crate::sweep::experiments_from_table;
+    use crate::experiment::experiments_from_table;
+    use crate::folder::load::load;
+    use crate::run::with_jobs;
 
     /// Two experiments, 6 + 2 short runs; `a` keeps traces.
     const SUITE: &str = "[trajectory]\nlaps = 1\n[run]\nreplicates = 3\n\
@@ -475,11 +393,11 @@ mod tests {
         assert!(files(&reference) == expected);
         let loaded = load(&reference).unwrap();
         assert_eq!(loaded.len(), 2);
-        assert_eq!(loaded[0].records.len(), 6);
+        assert_eq!(loaded[0].rows.len(), 6);
         assert_eq!(
-            loaded[0].records[3]
-                .trace
-                .as_ref()
+            loaded[0]
+                .traces
+                .get(&1)
                 .map(|paths| paths.iter().map(Vec::len).collect::<Vec<_>>()),
             Some(vec![1 + 4 * 85])
         );

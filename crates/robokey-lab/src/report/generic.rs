@@ -5,63 +5,37 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use robokey::Metrics;
 use robokey::sim::TraceRow;
 
+use super::Report;
+use super::figures::{box_chart, fmt, median_of, trajectory_figure};
 use crate::error::{LabError, io_at};
-use crate::files::write;
-use crate::folder::Loaded;
+use crate::experiment::{Experiment, axis_label, describe, param_label, param_number};
+use crate::folder::load::Loaded;
+use crate::metric_table::{METRICS, Metric, Shown};
+use crate::output::write;
 use crate::plot::BoxGroup;
-use crate::report::{Report, box_chart, fmt, median_of, trajectory_figure};
-use crate::sweep::{Experiment, axis_label, describe, param_label, param_number};
 use crate::trace::labelled_paths;
 
-/// A metric the report shows: name, unit, decimals, and its value in those units.
-struct Shown {
-    name: &'static str,
-    file: &'static str,
-    unit: &'static str,
-    digits: usize,
-    value: fn(&Metrics) -> Option<f64>,
-}
-
-const SHOWN: [Shown; 5] = [
-    Shown {
-        name: "accepted",
-        file: "accepted",
-        unit: "%",
-        digits: 1,
-        value: |m| m.accepted_pct,
-    },
-    Shown {
-        name: "correct",
-        file: "correct",
-        unit: "%",
-        digits: 2,
-        value: |m| m.correct_pct,
-    },
-    Shown {
-        name: "controller BER",
-        file: "ber",
-        unit: "%",
-        digits: 2,
-        value: |m| m.ber_controller.map(|b| 100.0 * b),
-    },
-    Shown {
-        name: "Eve disagreement",
-        file: "eve-disagreement",
-        unit: "%",
-        digits: 2,
-        value: |m| m.eve_disagreement_pct,
-    },
-    Shown {
-        name: "J_x",
-        file: "jx",
-        unit: "mm",
-        digits: 1,
-        value: |m| Some(1000.0 * m.jx),
-    },
+/// The metrics the report shows, in order (each shown as [`METRICS`] says).
+const SHOWN_COLUMNS: [&str; 5] = [
+    "accepted_pct",
+    "correct_pct",
+    "ber_controller",
+    "eve_disagreement_pct",
+    "jx",
 ];
+
+/// The shown metrics with how they are shown.
+fn shown() -> Vec<(&'static Metric, Shown)> {
+    SHOWN_COLUMNS
+        .iter()
+        .filter_map(|&column| {
+            let metric = METRICS.iter().find(|m| m.column == column)?;
+            Some((metric, metric.shown?))
+        })
+        .collect()
+}
 
 /// One experiment's numbers, computed before anything is drawn or written.
 struct Computed<'a> {
@@ -71,10 +45,11 @@ struct Computed<'a> {
 }
 
 fn compute(loaded: &Loaded) -> Computed<'_> {
-    let mut values = vec![vec![Vec::new(); SHOWN.len()]; loaded.experiment.points.len()];
-    for record in &loaded.records {
-        for (column, shown) in values[record.point].iter_mut().zip(&SHOWN) {
-            column.extend((shown.value)(&record.metrics));
+    let shown = shown();
+    let mut values = vec![vec![Vec::new(); shown.len()]; loaded.experiment.points.len()];
+    for row in &loaded.rows {
+        for (column, (metric, _)) in values[row.point].iter_mut().zip(&shown) {
+            column.extend(metric.shown_value(&row.metrics));
         }
     }
     Computed { loaded, values }
@@ -116,7 +91,6 @@ pub fn report(out: &Path, loaded: &[Loaded]) -> Result<Report, LabError> {
     Ok(Report {
         path,
         summary: terminal,
-        timings: Vec::new(),
     })
 }
 
@@ -148,7 +122,8 @@ fn section(c: &Computed, prefix: &str) -> String {
         e.points[0].config.run.seed,
     );
     let mut header: Vec<String> = e.axes.iter().map(|a| axis_label(&a.field)).collect();
-    header.extend(SHOWN.iter().map(|s| format!("{} ({})", s.name, s.unit)));
+    let shown: Vec<Shown> = shown().into_iter().map(|(_, s)| s).collect();
+    header.extend(shown.iter().map(|s| format!("{} ({})", s.name, s.unit)));
     let _ = writeln!(md, "| {} |", header.join(" | "));
     let _ = writeln!(md, "|{}", "---|".repeat(header.len()));
     for (point, columns) in e.points.iter().zip(&c.values) {
@@ -157,11 +132,11 @@ fn section(c: &Computed, prefix: &str) -> String {
             .iter()
             .map(|(field, value)| {
                 param_number(field, value)
-                    .map_or_else(|| crate::sweep::value_text(value), |x| x.to_string())
+                    .map_or_else(|| crate::experiment::value_text(value), |x| x.to_string())
             })
             .collect();
         cells.extend(
-            SHOWN
+            shown
                 .iter()
                 .zip(columns)
                 .map(|(s, values)| fmt(median_of(values), s.digits)),
@@ -170,7 +145,7 @@ fn section(c: &Computed, prefix: &str) -> String {
     }
     md.push('\n');
     if numeric_x(e).is_some() {
-        for (i, s) in SHOWN.iter().enumerate() {
+        for (i, s) in shown.iter().enumerate() {
             if c.values.iter().any(|columns| !columns[i].is_empty()) {
                 let _ = writeln!(md, "![{}](figures/{prefix}{}.svg)\n", s.name, s.file);
             }
@@ -191,7 +166,7 @@ fn section(c: &Computed, prefix: &str) -> String {
 fn draw(c: &Computed, figures: &Path, prefix: &str) -> Result<(), LabError> {
     let e = &c.loaded.experiment;
     if let Some((field, xs)) = numeric_x(e) {
-        for (i, s) in SHOWN.iter().enumerate() {
+        for (i, (_, s)) in shown().iter().enumerate() {
             if c.values.iter().all(|columns| columns[i].is_empty()) {
                 continue;
             }
@@ -229,14 +204,13 @@ fn draw(c: &Computed, figures: &Path, prefix: &str) -> Result<(), LabError> {
         let labels: Vec<String> = e.points.iter().map(|p| describe(&p.params)).collect();
         let labelled: Vec<(String, &[TraceRow])> = c
             .loaded
-            .records
+            .traces
             .iter()
-            .filter_map(|r| {
-                let label = labels[r.point].as_str();
+            .flat_map(|(&point, paths)| {
+                let label = labels[point].as_str();
                 let label = if label.is_empty() { "robot" } else { label };
-                Some(labelled_paths(label, r.trace.as_deref()?))
+                labelled_paths(label, paths)
             })
-            .flatten()
             .collect();
         let paths: Vec<(&str, &[TraceRow])> =
             labelled.iter().map(|(l, p)| (l.as_str(), *p)).collect();
@@ -249,8 +223,9 @@ fn draw(c: &Computed, figures: &Path, prefix: &str) -> Result<(), LabError> {
 /// people look at first (the report has them all).
 fn terminal_line(c: &Computed) -> String {
     let e = &c.loaded.experiment;
-    let ranges: Vec<String> = SHOWN
+    let ranges: Vec<String> = shown()
         .iter()
+        .map(|(_, s)| s)
         .enumerate()
         .filter(|(_, s)| ["accepted", "Eve disagreement", "J_x"].contains(&s.name))
         .filter_map(|(i, s)| {
@@ -276,4 +251,14 @@ fn terminal_line(c: &Computed) -> String {
         e.replicates(),
         ranges.join(", ")
     )
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn every_shown_column_is_a_metric_reports_show() {
+        let shown = super::shown();
+        assert_eq!(shown.len(), super::SHOWN_COLUMNS.len());
+        assert_eq!(shown[2].1.name, "controller BER");
+    }
 }

@@ -16,7 +16,7 @@ use robokey::protocol::Message;
 use robokey::sim::{RunOutput, simulate_transcript};
 
 use crate::error::LabError;
-use crate::runner::progress_bar;
+use crate::progress::progress_bar;
 
 /// What identifies a physical session: the configuration without `run.replicates` (which
 /// says how many sessions, not what happens in one) and, in odometry mode, without its

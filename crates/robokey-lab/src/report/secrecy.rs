@@ -1,17 +1,16 @@
-//! Renders secrecy results: `secrecy.csv`, `secrecy.json`, `secrecy.md` (with the
-//! private-sensing section, and `turn-rates.csv`, when the sweep has one) and the figure.
+//! Renders the secrecy stage of a sweep folder ([`Secrecy`]): `secrecy.csv`, `secrecy.md`
+//! (with the private-sensing section and map, and `turn-rates.csv`, when the sweep has one)
+//! and the figures.
 
 use std::path::{Path, PathBuf};
 
-use super::map::PrivateMap;
-use super::render_private::{
-    PrivateRow, map_markdown, private_markdown, turn_rates_csv, write_map,
-};
-use super::{PointSecrecy, Rate, SecrecyOptions};
+use super::private::{PrivateRow, map_markdown, private_markdown, turn_rates_csv, write_map};
 use crate::error::LabError;
-use crate::files::write;
+use crate::experiment::{Experiment, axis_label, param_label, param_number};
+use crate::output::write;
 use crate::plot::{LineChart, Series, SeriesStyle};
-use crate::sweep::{Experiment, axis_label, param_label, param_number};
+use crate::secrecy::pipeline::H_MIN_BINOMIAL;
+use crate::secrecy::{Block, PointSecrecy, Pooling, Rate, Secrecy};
 
 /// A CSV field: quoted, inner quotes doubled.
 fn quoted(text: &str) -> String {
@@ -19,7 +18,7 @@ fn quoted(text: &str) -> String {
 }
 
 /// Sums a block field over a row's blocks.
-fn total(r: &PointSecrecy, field: fn(&super::Block) -> u64) -> u64 {
+fn total(r: &PointSecrecy, field: fn(&Block) -> u64) -> u64 {
     r.blocks.iter().map(field).sum()
 }
 
@@ -74,7 +73,7 @@ pub fn secrecy_csv(results: &[PointSecrecy]) -> String {
             r.assumption_exceeds_realised,
             quoted(r.zero_reason.as_deref().unwrap_or("")),
             quoted(&r.assumption),
-            quoted(r.structural_zero.unwrap_or("")),
+            quoted(r.structural_zero.as_deref().unwrap_or("")),
         ));
     }
     out
@@ -94,9 +93,10 @@ fn percent(x: &Option<Rate>) -> String {
 /// A markdown section for `report.md`: the structural verdict first, then one row per
 /// point and adversary (strongest first), each naming whom it holds against.
 #[must_use]
-pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> String {
+pub fn secrecy_markdown(secrecy: &Secrecy) -> String {
+    let results = &secrecy.results;
     let mut md = String::new();
-    if let Some(reason) = results.iter().find_map(|r| r.structural_zero) {
+    if let Some(reason) = results.iter().find_map(|r| r.structural_zero.as_deref()) {
         md.push_str(&format!(
             "**Secret key rate: 0.** The configuration yields no secret key, {reason}. \
              Figures against a restricted adversary hold only if nobody learns r and D.\n\n"
@@ -141,11 +141,11 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
             r.zero_reason.as_deref().unwrap_or("")
         ));
     }
-    let pooling = match options.pooling {
-        super::Pooling::Confirmed => {
+    let pooling = match secrecy.pooling {
+        Pooling::Confirmed => {
             "sessions whose key tags matched (today's agents), each pooled session's two directional 128-bit key tags charged, nothing reconciled"
         }
-        super::Pooling::Complete => {
+        Pooling::Complete => {
             "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags and committed in two phases"
         }
     };
@@ -159,17 +159,17 @@ pub fn secrecy_markdown(results: &[PointSecrecy], options: &SecrecyOptions) -> S
     let method = results
         .iter()
         .find_map(|r| r.blocks.first())
-        .map_or(super::pipeline::H_MIN_BINOMIAL, |b| b.realised.h_min_method);
-    let p_of = if method == super::pipeline::H_MIN_BINOMIAL {
+        .map_or(H_MIN_BINOMIAL, |b| b.realised.h_min_method.as_str());
+    let p_of = if method == H_MIN_BINOMIAL {
         ", with Eve's error p taken as the one-sided Clopper–Pearson lower bound at level 1 − ε_PE"
     } else {
         ""
     };
     md.push_str(&format!(
         "\nPooling: {pooling}; blocks of at least {} raw bits (whole sessions). Realised H_min: {method}{p_of}. ε_s = ε_PA = ε_PE = {:e} (the key is {:e}-secret). p_c, p_e: 95 % Clopper–Pearson intervals over applied bits. Whom each row holds against: {}. See docs/secrecy.md.\n",
-        options.block_bits,
-        options.epsilon,
-        4.0 * options.epsilon,
+        secrecy.block_bits,
+        secrecy.epsilon,
+        4.0 * secrecy.epsilon,
         held.join("; "),
     ));
     let rows = private_rows(results);
@@ -202,38 +202,27 @@ fn push_point(series: &mut Vec<Series>, label: String, point: (f64, f64), style:
     }
 }
 
-/// Writes `secrecy.csv`, `secrecy.json`, `secrecy.md` and the figure
-/// `secrecy-bits-per-step.{svg,png}` into `dir`, and a private-sensing map's figures and
-/// section when given; returns the files.
+/// Renders `secrecy` (of `experiment`'s points) into `dir`: `secrecy.csv`, `secrecy.md`, the
+/// figure `secrecy-bits-per-step.{svg,png,pdf,csv}`, and in private sensing the map's
+/// figures and `turn-rates.csv`; returns the files.
 ///
 /// # Errors
 /// A file cannot be written.
 pub fn write_secrecy(
     dir: &Path,
     experiment: &Experiment,
-    results: &[PointSecrecy],
-    options: &SecrecyOptions,
-    map: Option<&PrivateMap>,
+    secrecy: &Secrecy,
 ) -> Result<Vec<PathBuf>, LabError> {
     std::fs::create_dir_all(dir).map_err(crate::error::io_at(dir))?;
-    let json = serde_json::json!({
-        "epsilon": options.epsilon,
-        "epsilon_total": 4.0 * options.epsilon,
-        "block_bits": options.block_bits,
-        "pooling": options.pooling,
-        "results": results,
-    });
+    let results = &secrecy.results;
+    let map = secrecy.map.as_ref();
     let mut files = vec![
         write(&dir.join("secrecy.csv"), secrecy_csv(results))?,
         write(
-            &dir.join("secrecy.json"),
-            serde_json::to_string_pretty(&json).expect("JSON serializes") + "\n",
-        )?,
-        write(
             &dir.join("secrecy.md"),
-            secrecy_markdown(results, options)
+            secrecy_markdown(secrecy)
                 + &map.map_or_else(String::new, |m| {
-                    map_markdown(m, options.block_bits, options.epsilon)
+                    map_markdown(m, secrecy.block_bits, secrecy.epsilon)
                 }),
         )?,
     ];
@@ -305,8 +294,8 @@ pub fn write_secrecy(
         let chart = LineChart {
             title: format!(
                 "Secret bits per robot step (ε = {:e}, blocks of {} bits)",
-                4.0 * options.epsilon,
-                options.block_bits
+                4.0 * secrecy.epsilon,
+                secrecy.block_bits
             ),
             x_label: axis.map_or_else(|| "point".to_owned(), axis_label),
             y_label: "bits per robot step".into(),
@@ -321,4 +310,42 @@ pub fn write_secrecy(
         })?);
     }
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use robokey::config::EveStrategy;
+
+    use super::*;
+    use crate::run::sessions::SessionBank;
+    use crate::secrecy::SecrecyOptions;
+
+    #[test]
+    fn reports_lead_with_the_verdict_and_the_strongest_adversary() {
+        let experiment =
+            Experiment::from_table("t", "[run]\nreplicates = 1\n".parse().unwrap(), "t.toml")
+                .unwrap();
+        let options = SecrecyOptions {
+            adversaries: vec![EveStrategy::Mismatch, EveStrategy::Oracle],
+            block_bits: 500,
+            bootstrap: 50,
+            ..SecrecyOptions::default()
+        };
+        let secrecy = Secrecy::compute(&experiment, &options, &mut SessionBank::new()).unwrap();
+        let md = secrecy_markdown(&secrecy);
+        assert!(md.starts_with("**Secret key rate: 0.**"), "{md}");
+        let row = |adversary: &str| md.find(&format!("| {adversary} |")).unwrap();
+        assert!(
+            row("oracle (strongest)") < row("mismatch (restricted)"),
+            "{md}"
+        );
+        let csv = secrecy_csv(&secrecy.results);
+        assert_eq!(csv.lines().count(), 3);
+        assert!(
+            csv.lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("\"\",oracle,strongest,")
+        );
+    }
 }

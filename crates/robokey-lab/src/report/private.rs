@@ -1,14 +1,14 @@
-//! Renders private sensing: the figures of one or more (point, adversary) rows (a markdown
-//! section and `turn-rates.csv`) and a map's figures, each with its CSV
-//! (docs/private-sensing.md).
+//! Renders private sensing (docs/private-sensing.md): the figures of one or more (point,
+//! adversary) rows — a markdown section and `turn-rates.csv` — and a map's figures, each
+//! with its CSV.
 
 use std::path::{Path, PathBuf};
 
-use super::Rate;
-use super::map::{CameraCurve, ParetoPoint, PrivateMap};
-use super::private::{Calibration, PrivateFigures};
 use crate::error::LabError;
 use crate::plot::{Interval, LineChart, Series, SeriesStyle};
+use crate::secrecy::Rate;
+use crate::secrecy::map::{CameraCurve, ParetoPoint, PrivateMap};
+use crate::secrecy::private::{Calibration, PrivateFigures};
 
 /// One row to render: where it comes from and its figures.
 pub struct PrivateRow<'a> {

@@ -1,0 +1,174 @@
+//! `runs.csv`: a column per swept field, `replicate`, then the metrics of
+//! [`crate::metric_table::METRICS`]; one row per finished run, in run order.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+use crate::error::LabError;
+use crate::experiment::{Experiment, value_text};
+use crate::metric_table::{METRICS, read_metrics};
+use crate::run::RunRow;
+
+/// The finished runs of a folder, by run index.
+pub type Rows = BTreeMap<usize, RunRow>;
+
+/// The header line of `runs.csv` (newline included).
+fn header(experiment: &Experiment) -> String {
+    let mut columns: Vec<&str> = experiment.axes.iter().map(|a| a.field.as_str()).collect();
+    columns.push("replicate");
+    columns.extend(METRICS.iter().map(|m| m.column));
+    columns.join(",") + "\n"
+}
+
+/// A parameter's CSV cell: quoted (inner quotes doubled) when it holds a comma or a quote,
+/// as an array value does.
+fn param_cell(text: &str) -> String {
+    if text.contains([',', '"']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_owned()
+    }
+}
+
+/// `runs.csv` of `rows`.
+#[must_use]
+pub fn runs_csv(experiment: &Experiment, rows: &Rows) -> String {
+    // The swept values' cells, once per point.
+    let points: Vec<String> = experiment
+        .points
+        .iter()
+        .map(|p| {
+            p.params
+                .iter()
+                .map(|(_, v)| param_cell(&value_text(v)) + ",")
+                .collect()
+        })
+        .collect();
+    let mut csv = header(experiment);
+    for row in rows.values() {
+        csv.push_str(&points[row.point]);
+        csv.push_str(&row.replicate.to_string());
+        for metric in &METRICS {
+            csv.push(',');
+            csv.push_str(&metric.value(&row.metrics).cell());
+        }
+        csv.push('\n');
+    }
+    csv
+}
+
+/// Reads the rows of a `runs.csv` (`origin` names it in errors), checking that every row
+/// belongs to the experiment's grid: the inverse of [`runs_csv`].
+///
+/// # Errors
+/// A header that is not the experiment's, a row whose swept values are not a point of the
+/// grid, a replicate out of range, a metric cell that does not parse.
+pub fn read_runs(
+    experiment: &Experiment,
+    text: &str,
+    origin: &Path,
+) -> Result<Vec<RunRow>, LabError> {
+    let bad = |line: u64, message: String| LabError::Malformed {
+        place: format!("{}:{line}", origin.display()),
+        message,
+    };
+    if text.lines().next().map(|h| format!("{h}\n")) != Some(header(experiment)) {
+        return Err(bad(1, "header does not match the sweep".into()));
+    }
+    let axes = experiment.axes.len();
+    let point_of: HashMap<Vec<String>, usize> = experiment
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (p.params.iter().map(|(_, v)| value_text(v)).collect(), i))
+        .collect();
+    let replicates = experiment.replicates() as usize;
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    reader
+        .records()
+        .map(|record| {
+            let record = record.map_err(|e| {
+                let line = e.position().map_or(0, csv::Position::line);
+                bad(line, e.to_string())
+            })?;
+            let line = record.position().map_or(0, csv::Position::line);
+            let params: Vec<String> = record.iter().take(axes).map(str::to_owned).collect();
+            let point = *point_of
+                .get(&params)
+                .ok_or_else(|| bad(line, format!("parameters {params:?} are not on the grid")))?;
+            let replicate = record
+                .get(axes)
+                .and_then(|r| r.parse::<usize>().ok())
+                .filter(|&r| r < replicates)
+                .ok_or_else(|| bad(line, "bad replicate".into()))?;
+            let cells = record.iter().skip(axes + 1).collect::<Vec<_>>();
+            let metrics = read_metrics(cells.into_iter()).map_err(|why| bad(line, why))?;
+            Ok(RunRow {
+                run: point * replicates + replicate,
+                point,
+                replicate: replicate as u32,
+                metrics,
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_read_back_from_runs_csv_exactly() {
+        let experiment = Experiment::from_table(
+            "t",
+            "[run]\nreplicates = 2\n[sweep]\n\"protocol.enabled\" = [true, false]\n\
+             \"noise.process_std\" = [[0.004, 0.004, 0.004]]\n"
+                .parse()
+                .unwrap(),
+            "t.toml",
+        )
+        .unwrap();
+        let rows: Rows = (0..4)
+            .map(|run| {
+                let (point, replicate) = (run / 2, (run % 2) as u32);
+                let config = &experiment.points[point].config;
+                let output = robokey::sim::simulate(config, replicate, false).unwrap();
+                let row = RunRow {
+                    run,
+                    point,
+                    replicate,
+                    metrics: output.metrics,
+                };
+                (run, row)
+            })
+            .collect();
+        let csv = runs_csv(&experiment, &rows);
+        assert!(
+            csv.lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("true,\"[0.004, 0.004, 0.004]\",0,")
+        );
+        let back = read_runs(&experiment, &csv, Path::new("runs.csv")).unwrap();
+        assert_eq!(back, rows.values().cloned().collect::<Vec<_>>());
+        let err = read_runs(
+            &experiment,
+            &csv.replacen("true,", "maybe,", 1),
+            Path::new("r"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.starts_with("r:2: parameters [\"maybe\""), "{err}");
+        let short = csv.lines().take(2).collect::<Vec<_>>().join("\n") + ",1\n";
+        let err = read_runs(&experiment, &short, Path::new("r"))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(err, "r:2: 26 metric cells, expected 25");
+        let err = read_runs(&experiment, "replicate\n", Path::new("r"))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(err, "r:1: header does not match the sweep");
+    }
+}

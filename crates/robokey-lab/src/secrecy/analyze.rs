@@ -1,0 +1,748 @@
+//! The analysis: per grid point and adversary, the sessions (simulated once per physical
+//! configuration in odometry mode, every adversary hearing their transcripts), the error
+//! rates, informations and per-position errors, and the blocks of the post-processing the
+//! agents run.
+
+use rayon::prelude::*;
+use robokey::Config;
+use robokey::config::{EveStrategy, SensingMode};
+use robokey::post_settings::ODOMETRY_ZERO;
+use robokey::protocol::SessionPlan;
+use robokey::rng::{Purpose, stream};
+use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
+use robokey_secrecy::{JointCounts, binomial_test};
+
+use super::options::{SecrecyOptions, default_adversaries};
+use super::pipeline::{self, BlockSettings, Pooling};
+use super::point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
+use super::private::{self, OffRuns};
+use crate::adversary::eavesdropper;
+use crate::error::LabError;
+use crate::experiment::{Experiment, describe};
+use crate::run::sessions::{Heard, SessionBank, physical_key};
+
+/// Lap-position bins.
+const POSITION_BINS: usize = 20;
+
+/// Sessions are added in chunks of this many until the pooled raw key fills the blocks.
+const CHUNK: u32 = 32;
+
+/// How many sessions (replicates 0, 1, …) a point simulates: chunks are added until the
+/// pooled raw key fills `options.blocks` blocks and the sweep's own replicates are in, or
+/// nothing of the first chunk is ever pooled. `pooled(n)` pools the first `n` sessions.
+fn sessions_needed(
+    minimum: u32,
+    options: &SecrecyOptions,
+    mut pooled: impl FnMut(u32) -> Result<(usize, bool), LabError>,
+) -> Result<u32, LabError> {
+    let mut count = 0;
+    while count < options.max_sessions {
+        if pooled(count)?.0 >= options.blocks && count >= minimum {
+            break;
+        }
+        let chunk = CHUNK.min(options.max_sessions - count);
+        if count == 0 && !pooled(chunk)?.1 {
+            return Ok(chunk); // nothing is ever pooled here
+        }
+        count += chunk;
+    }
+    Ok(count)
+}
+
+/// Full blocks of the first `runs`, and whether any of them is admitted to a pool.
+fn filled(runs: &[RunOutput], options: &SecrecyOptions, adversary: EveStrategy) -> (usize, bool) {
+    (
+        pipeline::pools(runs, options.pooling, options.block_bits, adversary).len(),
+        runs.iter().any(|r| options.pooling.admits(r)),
+    )
+}
+
+/// `config` with `adversary` listening.
+fn with_adversary(config: &Config, adversary: EveStrategy) -> Config {
+    let mut config = config.clone();
+    config.eve.enabled = true;
+    config.eve.strategy = Some(adversary);
+    config
+}
+
+/// Private sensing: the sessions of one point against one adversary, simulated with her
+/// doublet evidence.
+fn private_sessions(
+    experiment: &Experiment,
+    point: usize,
+    adversary: EveStrategy,
+    options: &SecrecyOptions,
+) -> Result<Vec<RunOutput>, LabError> {
+    let config = with_adversary(&experiment.points[point].config, adversary);
+    let plan = SessionPlan::from_config(&config, 0);
+    let mut runs: Vec<RunOutput> = Vec::new();
+    let count = sessions_needed(experiment.replicates(), options, |n| {
+        let more: Vec<RunOutput> = (runs.len() as u32..n)
+            .into_par_iter()
+            .map(|replicate| {
+                let mut plan = plan.clone();
+                plan.agreed.session = replicate;
+                simulate_plan(&config, plan, replicate, false)
+            })
+            .collect::<Result<_, _>>()?;
+        runs.extend(more);
+        Ok(filled(&runs[..n as usize], options, adversary))
+    })?;
+    runs.truncate(count as usize);
+    Ok(runs)
+}
+
+/// Odometry mode: the first `count` shared sessions as `adversary` hears them. A learning
+/// adversary (identify, transcript) hears them in order, so what she learns carries over.
+fn heard_by(config: &Config, adversary: EveStrategy, heard: Heard<'_>) -> Vec<RunOutput> {
+    let config = with_adversary(config, adversary);
+    if matches!(adversary, EveStrategy::Identify | EveStrategy::Transcript) {
+        let mut eve = eavesdropper(&config, adversary, 0);
+        return heard
+            .iter()
+            .map(|(replicate, run, transcript)| {
+                overheard(&config, replicate, run, transcript, &mut eve, |_, _| {})
+            })
+            .collect();
+    }
+    let sessions: Vec<_> = heard.iter().collect();
+    sessions
+        .into_par_iter()
+        .map(|(replicate, run, transcript)| replay(&config, replicate, run, transcript))
+        .collect()
+}
+
+/// What makes two adversaries of the same physical sessions decide alike: her strategy and
+/// the settings that draw her starting model (α only moves the `mismatch` and `soft` Eves).
+fn listener_key(config: &Config, adversary: EveStrategy) -> String {
+    let eve = &config.eve;
+    let start = match adversary {
+        EveStrategy::Mismatch | EveStrategy::Soft => format!("{:?} {:?}", eve.alpha, eve.draw),
+        EveStrategy::Identify | EveStrategy::Transcript => format!("{:?}", eve.initial_error),
+        _ => String::new(),
+    };
+    format!("{} {} {start}", adversary.name(), eve.max_flips)
+}
+
+/// Analyzes one point against one adversary.
+fn analyze_point(
+    experiment: &Experiment,
+    point: usize,
+    adversary: EveStrategy,
+    options: &SecrecyOptions,
+    runs: &[RunOutput],
+    off: &OffRuns,
+) -> Result<PointSecrecy, LabError> {
+    let config = &experiment.points[point].config;
+    let lap_steps = (config.trajectory.waypoints.len().saturating_sub(1) as f64
+        * config.trajectory.side_time
+        / config.robot.sample_time)
+        .round()
+        .max(1.0) as usize;
+    let mut joint = JointCounts::default();
+    let mut positions = vec![(0u64, 0u64, 0u64); POSITION_BINS];
+    let mut steps = 0u64;
+    for run in runs {
+        steps += run.steps.len() as u64;
+        for (k, b, c, a) in decided_bits(run, adversary) {
+            joint.record(b == 1, c == 1, a == 1);
+            let bin = (k % lap_steps) * POSITION_BINS / lap_steps;
+            positions[bin].0 += 1;
+            positions[bin].1 += u64::from(c != b);
+            positions[bin].2 += u64::from(a != b);
+        }
+    }
+    let n = joint.total();
+    let rate = |f: fn(&JointCounts) -> Result<f64, robokey_secrecy::EntropyError>| {
+        f(&joint)
+            .ok()
+            .and_then(|r| Rate::new((r * n as f64).round() as u64, n))
+    };
+    let mut rng = stream(config.run.seed, Purpose::Public, point as u64);
+    let intervals =
+        robokey_secrecy::entropy::bootstrap(&joint, options.bootstrap, 0.95, &mut rng).ok();
+    let accepted = |pick: fn(&RunOutput) -> &[u8]| -> Vec<u8> {
+        runs.iter().flat_map(|r| pick(r).iter().copied()).collect()
+    };
+    let (controller_bits, eve_bits) = (
+        zeroize::Zeroizing::new(accepted(|r| &r.keys.controller)),
+        zeroize::Zeroizing::new(accepted(|r| {
+            r.keys.eve.as_deref().map_or(&[], Vec::as_slice)
+        })),
+    );
+    let raw_bits = controller_bits.len() as u64;
+    let eve_wrong = controller_bits
+        .iter()
+        .zip(eve_bits.iter())
+        .filter(|(a, b)| a != b)
+        .count() as u64;
+    let robot_bits = zeroize::Zeroizing::new(accepted(|r| &r.keys.robot));
+    let ones = robot_bits.iter().filter(|&&b| b == 1).count() as u64;
+    let is_private = config.sensing.mode == SensingMode::Private;
+    let settings = BlockSettings {
+        pooling: options.pooling,
+        epsilon: options.epsilon,
+        sample_bits: options.sample_bits,
+        block_bits: options.block_bits,
+        assumption: if is_private {
+            robokey::post_settings::camera_assumption(config, private::largest_separation(runs))
+        } else {
+            options.assumption()
+        },
+    };
+    let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
+    let mut pools = pipeline::pools(runs, options.pooling, options.block_bits, adversary);
+    pools.truncate(options.blocks);
+    let blocks = pipeline::post_process(&pools, &settings, &mut public);
+    // Every session run until the last one pooled cost robot time, dropped ones included.
+    let used_steps: u64 = pools.last().map_or(0, |pool| {
+        runs[..=pool.last_session]
+            .iter()
+            .map(|r| r.steps.len() as u64)
+            .sum()
+    });
+    let secret_bits: u64 = blocks.iter().map(|b| b.secret_bits).sum();
+    let per_step = if used_steps > 0 {
+        secret_bits as f64 / used_steps as f64
+    } else {
+        0.0
+    };
+    let class = AdversaryClass::of(adversary);
+    let zero_reason = (secret_bits == 0).then(|| {
+        blocks
+            .iter()
+            .find_map(|b| b.reason.clone())
+            .unwrap_or_else(|| {
+                format!(
+                    "fewer than {} raw bits of {} sessions in {} sessions simulated",
+                    options.block_bits,
+                    options.pooling.name(),
+                    runs.len()
+                )
+            })
+    });
+    let params = &experiment.points[point].params;
+    Ok(PointSecrecy {
+        point_index: point,
+        point: describe(params),
+        adversary: adversary.name().to_owned(),
+        adversary_class: class,
+        holds_against: holds_against(adversary).to_owned(),
+        pooling: options.pooling,
+        structural_zero: (!is_private).then(|| ODOMETRY_ZERO.to_owned()),
+        zero_reason,
+        assumption: settings.assumption.describe(),
+        realised_secret_bits: blocks.iter().map(|b| b.realised.secret_bits).sum(),
+        assumption_exceeds_realised: blocks.iter().any(|b| b.assumption_exceeds_realised),
+        q_estimate: blocks.first().map(|b| b.q_estimate),
+        q_source: blocks.first().map(|b| b.q_source.clone()),
+        sessions: runs.len() as u32,
+        sessions_pooled: blocks.iter().map(|b| b.sessions).sum(),
+        steps,
+        sample_time: config.robot.sample_time,
+        p_c: rate(JointCounts::controller_error_rate),
+        p_e: rate(JointCounts::eve_error_rate),
+        information_advantage: intervals.as_ref().map(|i| {
+            [
+                i.advantage,
+                i.advantage_interval.lower,
+                i.advantage_interval.upper,
+            ]
+        }),
+        information_conditional: intervals.as_ref().map(|i| {
+            [
+                i.conditional,
+                i.conditional_interval.lower,
+                i.conditional_interval.upper,
+            ]
+        }),
+        raw_bits,
+        raw_bits_per_step: if steps > 0 {
+            raw_bits as f64 / steps as f64
+        } else {
+            0.0
+        },
+        eve_error_accepted: Rate::new(eve_wrong, raw_bits),
+        acceptance_independence_p: binomial_test(ones, robot_bits.len() as u64, 0.5).ok(),
+        blocks,
+        secret_bits,
+        secret_bits_per_step: per_step,
+        secret_bits_per_second: per_step / config.robot.sample_time,
+        positions: positions
+            .iter()
+            .enumerate()
+            .map(|(i, &(bits, c, e))| PositionErrors {
+                from: i as f64 / POSITION_BINS as f64,
+                bits,
+                controller: c as f64 / bits.max(1) as f64,
+                eve: e as f64 / bits.max(1) as f64,
+            })
+            .collect(),
+        private: is_private
+            .then(|| private::figures(config, runs, adversary, off))
+            .transpose()?,
+    })
+}
+
+/// `(step, b, b̂c, b̂a)` of every bit `run` carried that all three hold: the odometry mode's
+/// applied bits, or private sensing's doublet bits (Eve's decision from `adversary`).
+fn decided_bits(run: &RunOutput, adversary: EveStrategy) -> Vec<(usize, u8, u8, u8)> {
+    match &run.private {
+        Some(private) => private
+            .bits
+            .iter()
+            .map(|b| {
+                let decide = |llr: f64| u8::from(llr < 0.0);
+                (
+                    b.step as usize,
+                    b.bit,
+                    decide(b.controller),
+                    decide(b.llr_of(adversary)),
+                )
+            })
+            .collect(),
+        None => run
+            .steps
+            .iter()
+            .enumerate()
+            .filter_map(|(k, s)| Some((k, s.bit?, s.bhat?, s.bhat_eve?)))
+            .collect(),
+    }
+}
+
+/// Refuses options that do not fit a point's sensing mode, naming the problem.
+fn check_fits(
+    experiment: &Experiment,
+    point: usize,
+    options: &SecrecyOptions,
+    adversaries: &[EveStrategy],
+) -> Result<(), LabError> {
+    let config = &experiment.points[point].config;
+    let mode = config.sensing.mode;
+    let name = describe(&experiment.points[point].params);
+    let mode_name = mode.name();
+    if let Some(a) = adversaries.iter().find(|a| a.mode() != mode) {
+        let allowed = default_adversaries(mode)
+            .iter()
+            .map(|s| s.name())
+            .collect::<Vec<_>>()
+            .join(", ");
+        return Err(LabError::SensingMode(format!(
+            "point {name:?} is in {mode_name} mode, where the {} eavesdropper does not apply \
+             (allowed: {allowed}{})",
+            a.name(),
+            if mode == SensingMode::Odometry {
+                ", soft, transcript"
+            } else {
+                ""
+            }
+        )));
+    }
+    if mode == SensingMode::Private {
+        if options.pooling == Pooling::Confirmed {
+            return Err(LabError::SensingMode(format!(
+                "point {name:?}: --pooling confirmed simulates today's per-session key tags; \
+                 private sensing confirms per post-processing block (allowed: complete)"
+            )));
+        }
+        if let Some(p) = options.assumed_eve_error {
+            return Err(LabError::SensingMode(format!(
+                "point {name:?}: --assume-eve-error {p} does not apply in private mode, whose \
+                 key is sized from Eve's camera noise (set eve.camera_std in the sweep)"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Analyzes every point of an experiment against every adversary, strongest class first
+/// (on the current rayon pool). Deterministic: a pure function of the experiment and the
+/// options.
+///
+/// # Errors
+/// A session aborts.
+pub fn analyze(
+    experiment: &Experiment,
+    options: &SecrecyOptions,
+) -> Result<Vec<PointSecrecy>, LabError> {
+    analyze_with(experiment, options, &mut SessionBank::new())
+}
+
+/// [`analyze`] hearing the sessions of `bank`: in odometry mode every physical session is
+/// simulated once, whatever the number of adversaries and of points that differ only in
+/// Eve's settings, and an adversary who would decide alike at two such points is heard
+/// once. Sessions the bank keeps serve a later consumer.
+///
+/// # Errors
+/// A session aborts.
+pub fn analyze_with(
+    experiment: &Experiment,
+    options: &SecrecyOptions,
+    bank: &mut SessionBank,
+) -> Result<Vec<PointSecrecy>, LabError> {
+    let mut adversaries = options.adversaries.clone();
+    for point in 0..experiment.points.len() {
+        check_fits(experiment, point, options, &adversaries)?;
+    }
+    adversaries.sort_by_key(|&a| {
+        (
+            AdversaryClass::of(a),
+            EveStrategy::ALL.iter().position(|&s| s == a),
+        )
+    });
+    adversaries.dedup();
+    let jobs: Vec<(usize, EveStrategy)> = (0..experiment.points.len())
+        .flat_map(|p| adversaries.iter().map(move |&a| (p, a)))
+        .collect();
+    let private = |p: usize| experiment.points[p].config.sensing.mode == SensingMode::Private;
+    let mut results: Vec<Option<PointSecrecy>> = vec![None; jobs.len()];
+    // Private sensing: every adversary's evidence comes from her own simulation.
+    let private_jobs: Vec<usize> = (0..jobs.len()).filter(|&j| private(jobs[j].0)).collect();
+    let sessions = private_jobs
+        .par_iter()
+        .map(|&j| private_sessions(experiment, jobs[j].0, jobs[j].1, options))
+        .collect::<Result<Vec<_>, LabError>>()?;
+    let off = OffRuns::simulate(private_jobs.iter().zip(&sessions).map(|(&j, runs)| {
+        let config = &experiment.points[jobs[j].0].config;
+        (config, private::off_replicates(runs.len()))
+    }))?;
+    let computed = private_jobs
+        .par_iter()
+        .zip(&sessions)
+        .map(|(&j, runs)| {
+            let (p, a) = jobs[j];
+            analyze_point(experiment, p, a, options, runs, &off)
+        })
+        .collect::<Result<Vec<_>, LabError>>()?;
+    for (j, result) in private_jobs.into_iter().zip(computed) {
+        results[j] = Some(result);
+    }
+    // Odometry: the points of one physical configuration hear the same sessions.
+    let mut groups: Vec<(String, Vec<usize>)> = Vec::new();
+    for p in (0..experiment.points.len()).filter(|&p| !private(p)) {
+        let key = physical_key(&experiment.points[p].config);
+        match groups.iter_mut().find(|g| g.0 == key) {
+            Some(group) => group.1.push(p),
+            None => groups.push((key, vec![p])),
+        }
+    }
+    for (_, points) in groups {
+        let config = &experiment.points[points[0]].config;
+        // The pools do not depend on Eve: one count serves every adversary.
+        let count = sessions_needed(experiment.replicates(), options, |n| {
+            Ok(filled(bank.heard(config, n)?.runs, options, adversaries[0]))
+        })?;
+        let heard = bank.heard(config, count)?;
+        let mut listeners: Vec<(String, usize, EveStrategy)> = Vec::new();
+        let mut listener_of = Vec::new();
+        for &p in &points {
+            for &a in &adversaries {
+                let key = listener_key(&experiment.points[p].config, a);
+                let index = listeners
+                    .iter()
+                    .position(|l| l.0 == key)
+                    .unwrap_or_else(|| {
+                        listeners.push((key, p, a));
+                        listeners.len() - 1
+                    });
+                listener_of.push(((p, a), index));
+            }
+        }
+        let runs: Vec<Vec<RunOutput>> = listeners
+            .par_iter()
+            .map(|(_, p, a)| heard_by(&experiment.points[*p].config, *a, heard))
+            .collect();
+        let computed = listener_of
+            .par_iter()
+            .map(|&((p, a), l)| {
+                analyze_point(experiment, p, a, options, &runs[l], &OffRuns::default())
+            })
+            .collect::<Result<Vec<_>, LabError>>()?;
+        for (((p, a), _), result) in listener_of.iter().zip(computed) {
+            let j = jobs.iter().position(|job| *job == (*p, *a)).expect("a job");
+            results[j] = Some(result);
+        }
+        bank.release(config);
+    }
+    Ok(results
+        .into_iter()
+        .map(|r| r.expect("every job analyzed"))
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::adversary::overhear;
+    use robokey::sim::simulate_transcript;
+
+    fn experiment(text: &str) -> Experiment {
+        Experiment::from_table("t", text.parse().unwrap(), "test.toml").unwrap()
+    }
+
+    fn options(adversaries: Vec<EveStrategy>, block_bits: usize) -> SecrecyOptions {
+        SecrecyOptions {
+            adversaries,
+            block_bits,
+            bootstrap: 50,
+            ..SecrecyOptions::default()
+        }
+    }
+
+    #[test]
+    fn an_oracle_eve_leaves_zero_secret_bits() {
+        let results = analyze(
+            &experiment("[run]\nreplicates = 2\n"),
+            &options(vec![EveStrategy::Oracle], 2_000),
+        )
+        .unwrap();
+        let r = &results[0];
+        assert_eq!(r.blocks.len(), 1);
+        assert_eq!(r.adversary_class, AdversaryClass::Strongest);
+        assert_eq!(r.eve_error_accepted.unwrap().count, 0);
+        assert_eq!(r.secret_bits, 0);
+        let why = r.zero_reason.as_deref().unwrap();
+        assert!(why.contains("no secret bits"), "{why}");
+        assert!(why.contains("pooling cannot help"), "{why}");
+        assert!(
+            r.structural_zero
+                .as_deref()
+                .unwrap()
+                .contains("zero by structure")
+        );
+        assert!(r.raw_bits_per_step > 0.25);
+    }
+
+    /// Today's agents keep only sessions whose key tags matched, and both tags of every
+    /// pooled session are public functions of its key: all of them are charged.
+    #[test]
+    fn confirmed_pooling_charges_every_sessions_tags() {
+        let r = &analyze(
+            &experiment("[run]\nreplicates = 2\n"),
+            &options(vec![EveStrategy::Mismatch], 3_000),
+        )
+        .unwrap()[0];
+        let block = &r.blocks[0];
+        assert!(block.sessions >= 10, "{block:?}");
+        assert_eq!(
+            block.leak_confirmation,
+            u64::from(block.sessions) * pipeline::SESSION_KEY_TAG_BITS
+        );
+        assert_eq!((block.leak_ec, block.errors_before), (0, 0));
+        assert_eq!(block.q_estimate, 0.0);
+        assert!(block.q_source.contains("key tags matched"));
+        // Whole sessions: the block holds at least the requested bits.
+        assert!(block.bits >= 3_000);
+        assert!(block.h_min_method.contains("no secrecy"));
+        assert!(block.realised.h_min_method.contains("approximation"));
+        assert_eq!(block.secret_bits, 0);
+    }
+
+    /// The complete pipeline runs the agents' endpoints: Q from a disclosed sample (never
+    /// from the true error count), removed from the key; both sides' parities charged; ℓ
+    /// from the stated assumption, the realised view beside it.
+    #[test]
+    fn complete_pooling_runs_the_endpoints() {
+        let weak = "[code]\nn_c = 1\n[eve]\nalpha = 0.95\n[run]\nreplicates = 2\n";
+        let mut opts = options(vec![EveStrategy::Mismatch], 20_000);
+        opts.pooling = Pooling::Complete;
+        opts.assumed_eve_error = Some(0.2);
+        let r = &analyze(&experiment(weak), &opts).unwrap()[0];
+        let block = &r.blocks[0];
+        assert_eq!(block.sample_bits, 1_000.min(block.bits / 10));
+        assert_eq!(block.reconciled_bits, block.bits - block.sample_bits);
+        assert!(block.q_source.contains("disclosed random sample"));
+        assert_eq!(
+            block.q_estimate,
+            block.sample_errors as f64 / block.sample_bits as f64
+        );
+        assert!(block.errors_before > 0 && block.consistent, "{block:?}");
+        assert!(block.leak_ec > 0 && block.leak_ec.is_multiple_of(2));
+        assert!(block.messages > 4 && block.message_bits > 0);
+        assert!(block.h_min_method.contains("0.2"));
+        assert!(block.secret_bits > 0, "{block:?}");
+        assert_eq!(block.leak_confirmation, pipeline::CONFIRMATION_BITS);
+        assert_eq!(
+            block.assumption_exceeds_realised,
+            block.secret_bits > block.realised.secret_bits
+        );
+        assert_eq!(r.adversary_class, AdversaryClass::Restricted);
+    }
+
+    #[test]
+    fn reports_lead_with_the_strongest_adversary() {
+        let results = analyze(
+            &experiment("[run]\nreplicates = 1\n"),
+            &options(vec![EveStrategy::Mismatch, EveStrategy::Oracle], 500),
+        )
+        .unwrap();
+        let classes: Vec<AdversaryClass> = results.iter().map(|r| r.adversary_class).collect();
+        assert_eq!(
+            classes,
+            [AdversaryClass::Strongest, AdversaryClass::Restricted]
+        );
+    }
+
+    /// The observer's Pᵈ comes from the design covariances W, V, not the true noise: the
+    /// posteriors it gives (here the oracle's, i.e. the controller's own) are far too wide,
+    /// fail the calibration test, and would credit Eve with min-entropy she does not have.
+    /// That is why no Pᵈ posterior feeds H_min. Seed 2023, 4 sessions (≈ 4,000 steps).
+    #[test]
+    fn design_covariance_posteriors_fail_calibration() {
+        use robokey_secrecy::calibration::check_calibration;
+        use robokey_secrecy::posterior_smooth_min_entropy;
+        let config = experiment("[run]\nreplicates = 1\n").points[0]
+            .config
+            .clone();
+        let mut eve = eavesdropper(&config, EveStrategy::Oracle, 0);
+        let mut pairs = Vec::new();
+        for replicate in 0..4 {
+            let (run, transcript) = simulate_transcript(&config, replicate).unwrap();
+            overhear(&mut eve, &config, replicate, &transcript, |_, d| {
+                let truth = run.steps.get(d.step as usize).and_then(|s| s.bit);
+                if let (Some(truth), Some([d0, d1])) = (truth, d.hypotheses) {
+                    let llr = robokey::observer::log_likelihood_ratio(&d.estimate, &d0, &d1);
+                    let wrong = (llr > 0.0) != (truth == 1);
+                    pairs.push((1.0 / (1.0 + llr.abs().exp()), wrong));
+                }
+            });
+        }
+        assert!(pairs.len() > 3_000, "{}", pairs.len());
+        let report = check_calibration(&pairs, 10, 1e-3).unwrap();
+        let predicted: f64 = report.bins.iter().map(|b| b.predicted_errors).sum();
+        let observed: u64 = report.bins.iter().map(|b| b.observed_errors).sum();
+        assert!(!report.passed, "{report:?}");
+        // What the posterior bound would (wrongly) credit per step.
+        let q: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+        let credited = posterior_smooth_min_entropy(&q, 1e-6).unwrap().h_min / q.len() as f64;
+        println!(
+            "Pᵈ posteriors: {predicted:.0} errors predicted, {observed} observed over {} steps; \
+             the posterior bound would credit {credited:.3} bit per step",
+            pairs.len()
+        );
+        assert!(
+            predicted > 3.0 * observed as f64,
+            "{predicted} vs {observed}"
+        );
+    }
+
+    #[test]
+    fn acceptance_does_not_depend_on_the_key_bit() {
+        let r = &analyze(
+            &experiment("[run]\nreplicates = 2\n"),
+            &options(vec![EveStrategy::Mismatch], 3_000),
+        )
+        .unwrap()[0];
+        // Under independence the p-value is uniform: failing at 1e-3 has probability 1e-3.
+        assert!(r.acceptance_independence_p.unwrap() > 1e-3, "{r:?}");
+        let p_c = r.p_c.unwrap();
+        assert!(
+            p_c.low < 0.0431 + 0.01 && p_c.high > 0.0431 - 0.01,
+            "{p_c:?}"
+        );
+    }
+
+    fn private(extra: &str) -> Experiment {
+        experiment(&format!(
+            "[sensing]\nmode = \"private\"\n[run]\nreplicates = 2\n{extra}"
+        ))
+    }
+
+    fn private_options(adversaries: Vec<EveStrategy>) -> SecrecyOptions {
+        SecrecyOptions {
+            pooling: Pooling::Complete,
+            ..options(adversaries, 10_000)
+        }
+    }
+
+    /// Seed 2023, blocks of 10⁴ bits: the key sized under the camera assumption shrinks as
+    /// Eve's camera improves, and is gone before her camera is as good as the controller's
+    /// sensor (0.5 mm): with a better camera she would know more than the controller.
+    #[test]
+    fn private_secret_rate_falls_as_her_camera_improves_and_ends_before_the_controllers() {
+        let rates: Vec<(f64, f64)> = [8.0, 4.0, 3.0, 2.0, 1.0, 0.5]
+            .iter()
+            .map(|&mm: &f64| {
+                let c = mm / 1e3;
+                let e = private(&format!("[eve]\ncamera_std = [{c}, {c}, {c}]\n"));
+                let r = &analyze(&e, &private_options(vec![EveStrategy::Camera])).unwrap()[0];
+                (mm, r.secret_bits_per_step)
+            })
+            .collect();
+        assert!(rates[0].1 > 0.1, "{rates:?}");
+        for pair in rates.windows(2) {
+            assert!(
+                pair[1].1 < pair[0].1 || pair[1].1 == 0.0,
+                "not falling: {rates:?}"
+            );
+        }
+        let last_positive = rates.iter().rposition(|r| r.1 > 0.0).unwrap();
+        assert!(rates[last_positive].0 > 0.5, "{rates:?}");
+        assert_eq!(rates.last().unwrap().1, 0.0, "{rates:?}");
+    }
+
+    /// Private sensing sizes its key from the camera assumption, runs the endpoints, labels
+    /// its adversaries, and its measured leak through the commands is the model's.
+    #[test]
+    fn private_points_are_accounted_against_the_camera_and_the_commands() {
+        let results = analyze(
+            &private(""),
+            &private_options(default_adversaries(SensingMode::Private)),
+        )
+        .unwrap();
+        let [camera, commands] = &results[..] else {
+            panic!("{results:?}")
+        };
+        assert_eq!(camera.adversary, "camera");
+        assert_eq!(camera.adversary_class, AdversaryClass::Strongest);
+        assert!(camera.structural_zero.is_none());
+        assert!(camera.assumption.contains("camera noise ≥ 8 mm"));
+        assert!(camera.secret_bits > 0 && !camera.assumption_exceeds_realised);
+        // ℓ comes from the assumption, whichever adversary's view is diagnosed beside it.
+        assert_eq!(camera.secret_bits, commands.secret_bits);
+        let figures = commands.private.as_ref().unwrap();
+        assert!(figures.controller_calibration.passed && figures.eve_calibration.passed);
+        let [measured, low, high] = figures.eve_information;
+        assert!(
+            low < figures.eve_information_predicted && figures.eve_information_predicted < high,
+            "{measured} [{low}, {high}] vs {}",
+            figures.eve_information_predicted
+        );
+        assert!(figures.jx_mm < 1.5 * figures.jx_off_mm, "{figures:?}");
+    }
+
+    #[test]
+    fn private_points_refuse_what_does_not_apply() {
+        let e = private("");
+        for (adversaries, pooling, assumed, needle) in [
+            (vec![EveStrategy::Oracle], Pooling::Complete, None, "oracle"),
+            (
+                vec![EveStrategy::Camera],
+                Pooling::Confirmed,
+                None,
+                "pooling",
+            ),
+            (
+                vec![EveStrategy::Camera],
+                Pooling::Complete,
+                Some(0.1),
+                "--assume-eve-error",
+            ),
+        ] {
+            let opts = SecrecyOptions {
+                pooling,
+                assumed_eve_error: assumed,
+                ..private_options(adversaries)
+            };
+            let error = analyze(&e, &opts).unwrap_err().to_string();
+            assert!(error.contains(needle), "{error}");
+        }
+        let error = analyze(
+            &experiment("[run]\nreplicates = 1\n"),
+            &options(vec![EveStrategy::Camera], 2_000),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(error.contains("camera"), "{error}");
+    }
+}
