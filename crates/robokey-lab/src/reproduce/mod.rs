@@ -1,10 +1,12 @@
 //! `robokey reproduce`: the paper's suite swept ([`suite`]), then the stages computed into
 //! its folder — the secrecy of the Δv and α sweeps, the eavesdropping campaigns, the coarse
-//! private-sensing map ([`private_suite`]) — and `reproduce.json` written last, vouching for
-//! them. `robokey report` then renders the paper's report from the folder alone.
+//! private-sensing map ([`private_suite`]) and the coarse worlds ([`world_suite`]) — and
+//! `reproduce.json` written last, vouching for them. `robokey report` then renders the
+//! paper's report from the folder alone.
 
 pub mod private_suite;
 pub mod suite;
+pub mod world_suite;
 
 use std::path::Path;
 use std::time::Instant;
@@ -81,14 +83,20 @@ pub fn compute_stages(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Stage
         std::fs::remove_file(&record).map_err(io_at(&record))?;
     }
     let suite = suite::paper_suite(quick)?;
-    // The odometry stages share their sessions; the private-sensing map shares nothing with
-    // them, so the two run side by side on the pool.
-    let (odometry, private) = rayon::join(
+    // The odometry stages share their sessions; the private-sensing map and the worlds share
+    // nothing with them, so the three run side by side on the pool.
+    let (odometry, (private, worlds)) = rayon::join(
         || odometry_stages(dir, &suite, quick, stop),
-        || private_stage(dir, quick, stop),
+        || {
+            rayon::join(
+                || private_stage(dir, quick, stop),
+                || worlds_stage(dir, quick, stop),
+            )
+        },
     );
     let mut times = odometry?;
     times.push(("private sensing", private?));
+    times.push(("worlds", worlds?));
     let json = serde_json::to_string_pretty(&Reproduction { quick }).expect("JSON serializes");
     write(&record, json + "\n")?;
     Ok(times)
@@ -172,6 +180,35 @@ fn private_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabEr
                 return Err(LabError::Interrupted(signal));
             }
             let options = private_suite::options(&experiment);
+            Secrecy::compute(&experiment, &options, &mut SessionBank::new())?
+                .write(&out.join(&experiment.name))?;
+        }
+        Ok(())
+    })
+}
+
+/// The coarse worlds: each swept into `dir/worlds`, then its secrecy against the
+/// eavesdroppers who know it. Returns how long it took (s).
+fn worlds_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabError> {
+    timed(stop, || {
+        let out = dir.join(world_suite::WORLDS_DIR);
+        for experiment in world_suite::coarse_suite(quick)? {
+            let plan = SweepPlan {
+                shard: None,
+                resume: false,
+            };
+            let swept = sweep(
+                &out,
+                std::slice::from_ref(&experiment),
+                plan,
+                stop,
+                &mut |_| {},
+                &|| {},
+            )?;
+            if let Some(signal) = swept.interrupted {
+                return Err(LabError::Interrupted(signal));
+            }
+            let options = world_suite::options(&experiment, quick);
             Secrecy::compute(&experiment, &options, &mut SessionBank::new())?
                 .write(&out.join(&experiment.name))?;
         }

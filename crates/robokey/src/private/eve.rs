@@ -294,8 +294,7 @@ impl DoubletEavesdropper {
         let inputs = self.commands.get(&(2 * j))?.inputs?;
         let truth = &self.truth;
         let revealed = |i: u32| truth.get(i as usize).copied().flatten();
-        let camera = smoother.evidence(j, &recorded, true, &revealed)?;
-        let commands = smoother.evidence(j, &recorded, false, &revealed)?;
+        let [camera, commands] = smoother.evidence(j, &recorded, &revealed)?;
         self.decided[j as usize] = Some([camera.own.bits(), commands.own.bits()]);
         Some(EveDoublet {
             doublet: j,

@@ -82,6 +82,22 @@ struct Observation {
     noise_inverse: Matrix3<f64>,
 }
 
+/// A window simulated under every bit pattern of its carrying doublets.
+struct Simulated {
+    /// Its first doublet.
+    first: u32,
+    /// Its steps.
+    steps: usize,
+    /// The nominal run (no bits).
+    nominal: WindowRun,
+    /// Each carrying doublet's runs, one per bit pattern.
+    runs: Vec<Vec<WindowRun>>,
+    /// The carrying doublets and their positions among the simulated ones.
+    carrying: Vec<(u32, usize)>,
+    /// The target's index among the carrying.
+    target: usize,
+}
+
 /// Doublet `j`'s evidence, on her own and given the other doublets' true bits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Judged {
@@ -257,19 +273,18 @@ impl WindowSmoother {
         Some((first, last))
     }
 
-    /// The evidence on doublet `j`'s bits from everything recorded over its window: with
-    /// her camera (`camera`) or from the commands alone — her own (the window's other bits
-    /// unknown), and, when `truth` tells the true bits of every other doublet that acts on
-    /// the window, given those. None when `j` carries no bits or its own commands are not
-    /// recorded.
+    /// The evidence on doublet `j`'s bits from everything recorded over its window, of the
+    /// `camera` adversary (with her camera) and of the `commands` one (from the commands
+    /// alone) — each her own (the window's other bits unknown) and, when `truth` tells the
+    /// true bits of every other doublet that acts on the window, given those. None when `j`
+    /// carries no bits or its own commands are not recorded.
     #[must_use]
     pub fn evidence(
         &self,
         j: u32,
         rec: &Recorded<'_>,
-        camera: bool,
         truth: &dyn Fn(u32) -> Option<[u8; 2]>,
-    ) -> Option<Judged> {
+    ) -> Option<[Judged; 2]> {
         let (first, last) = self.window_of(j, rec)?;
         let inputs = |i: u32| rec.commands.get(&(2 * i)).and_then(|c| c.inputs);
         if !rec.plan.carries(&inputs(j)?) {
@@ -322,14 +337,41 @@ impl WindowSmoother {
                     .collect()
             })
             .collect();
-        let k0 = 2 * first;
-        let steps = 2 * (last - first + 1) as usize;
-        let observations = self.observations(rec, &nominal, k0, steps, camera);
-        // Columns: the residual, the target's hypotheses, the window's other bits, the lead's.
         let target = carrying
             .iter()
             .position(|&(i, _)| i == j)
             .expect("j carries");
+        let window = Simulated {
+            first,
+            steps: 2 * (last - first + 1) as usize,
+            nominal,
+            runs,
+            carrying,
+            target,
+        };
+        Some([true, false].map(|camera| self.judge(rec, &window, camera, truth)))
+    }
+
+    /// One adversary's evidence on the window's target doublet from her observations over it.
+    fn judge(
+        &self,
+        rec: &Recorded<'_>,
+        window: &Simulated,
+        camera: bool,
+        truth: &dyn Fn(u32) -> Option<[u8; 2]>,
+    ) -> Judged {
+        let Simulated {
+            first,
+            steps,
+            nominal,
+            runs,
+            carrying,
+            target,
+        } = window;
+        let (first, steps, target) = (*first, *steps, *target);
+        let patterns = self.perturbation.patterns();
+        let observations = self.observations(rec, nominal, 2 * first, steps, camera);
+        // Columns: the residual, the target's hypotheses, the window's other bits, the lead's.
         // A column is a combination of runs, relative to the nominal one.
         let derived = |weights: &[(&WindowRun, f64)]| Column {
             values: observations
@@ -436,7 +478,7 @@ impl WindowSmoother {
                 evidence_under(&treatment, &unknown)
             }
         });
-        Some(Judged { own, given_others })
+        Judged { own, given_others }
     }
 
     /// Runs of the Gram filter needed: one per hypothesis when the slip's covariance depends
