@@ -207,7 +207,7 @@ pub fn write_over_claims(
         for (label, y, interval) in [
             (format!("over-claim vs {} Eve{context}", r.adversary), r.per_raw_bit, None),
             (
-                format!("her information per raw bit{context}"),
+                format!("{} Eve's information per raw bit{context}", r.adversary),
                 r.information[0],
                 Some((r.information[1], r.information[2])),
             ),
