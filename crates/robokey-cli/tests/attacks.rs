@@ -248,7 +248,9 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
     let fake_robot = self::robot(&fake, &attacker, &[]);
     let text = controller(&dir, &victim, &fake_robot.address, 3);
     assert!(
-        text.contains("aborted: no HelloAck that verifies"),
+        text.contains("aborted: no HelloAck that verifies")
+            && text.contains("nothing came from it: no robot agent listens there")
+            && text.contains("or it holds another pairing secret"),
         "{text}"
     );
     wait_robot(fake_robot, 4);
@@ -292,15 +294,22 @@ fn a_man_in_the_middle_with_stock_binaries_gets_no_session_and_no_key() {
         }
         answered
     });
-    controller(&dir, &victim, &address, 4);
+    let text = controller(&dir, &victim, &address, 4);
+    assert!(
+        text.contains("HelloAck(s) from it failed to verify: it holds another pairing secret"),
+        "{text}"
+    );
     assert!(answerer.join().unwrap() > 0);
     wait_robot(robot, 4);
     let (robot, controller) = reports(&dir);
     assert_eq!(robot["outcome"], "aborted", "{robot}");
     assert_eq!(robot["commands_applied"], 0);
-    assert!(rejected(&robot, "pairing_mode") > 0 && rejected(&robot, "bad_mac") > 0);
+    assert!(rejected(&robot, "pairing_mode") > 0 && rejected(&robot, "handshake_bad_mac") > 0);
     assert_eq!(controller["outcome"], "aborted", "{controller}");
-    assert!(rejected(&controller, "bad_mac") > 0, "{controller}");
+    assert!(
+        rejected(&controller, "handshake_bad_mac") > 0,
+        "{controller}"
+    );
     assert!(!dir.join("robot.key").exists() && !dir.join("controller.key").exists());
 }
 
@@ -506,11 +515,14 @@ fn an_old_controller_transcript_replayed_to_a_fresh_robot_drives_nothing() {
         std::thread::sleep(Duration::from_millis(1));
     }
     assert!(sent > 50);
-    wait_robot(robot, 4);
+    // The old Hello is authentic and answered; its session's frames fail under the fresh
+    // keys: no controller bound a session (exit 3), and nobody tried another secret (4).
+    wait_robot(robot, 3);
     let r = report(&dir.join("robot.json"));
     assert_eq!(r["outcome"], "aborted", "{r}");
     assert_eq!(r["commands_applied"], 0, "{r}");
     assert!(rejected(&r, "bad_mac") > 0, "{r}");
+    assert_eq!(rejected(&r, "handshake_bad_mac"), 0, "{r}");
     assert!(!dir.join("robot.key").exists());
 }
 
@@ -584,4 +596,147 @@ fn a_forged_abort_bad_finish_wrong_version_hello_and_sequence_poisoning_change_n
     for r in [&robot, &controller] {
         assert!(rejected(r, "bad_mac") >= 3, "{r}");
     }
+}
+
+/// The secret of the pairing file `path`.
+fn secret(path: &str) -> PairingSecret {
+    robokey_net::pairing::read_pairing(Path::new(path), false)
+        .unwrap()
+        .0
+}
+
+/// The configuration the test agents run (`SHORT`): its `Hello`s are answered with a
+/// `HelloAck`.
+fn short_config() -> robokey::Config {
+    let mut config = robokey::Config::default();
+    config.trajectory.laps = 1;
+    config.trajectory.side_time = 6.0;
+    config
+}
+
+/// Authentic `Hello`s of `count` sessions that never ran (what an attacker who recorded old
+/// sessions holds).
+fn old_hellos(secret: &PairingSecret, count: u32) -> Vec<Vec<u8>> {
+    use rand::SeedableRng;
+    let config = short_config();
+    let mut rng = rand::rngs::ChaCha20Rng::seed_from_u64(12);
+    (0..count)
+        .map(|i| {
+            robokey::protocol::auth::ControllerChannel::new(
+                secret.clone(),
+                0u8,
+                1000 + i,
+                robokey::protocol::config_digest(&config),
+                robokey::protocol::agreement_terms(&config),
+                &mut rng,
+            )
+            .hello()
+            .to_vec()
+        })
+        .collect()
+}
+
+/// An authentic `Hello` re-sent from source port 0 (through a raw socket, as root of the
+/// test's own network namespace) made the waiting robot's answer fail to send, and the error
+/// ended it with exit 1. A source that cannot be a controller now gets no answer, the robot
+/// counts it and goes on, and a genuine controller then confirms.
+#[test]
+fn a_hello_from_port_zero_gets_no_answer_and_the_robot_goes_on() {
+    const TEST: &str = "a_hello_from_port_zero_gets_no_answer_and_the_robot_goes_on";
+    if !common::in_namespace(TEST, "true") {
+        return;
+    }
+    let dir = scratch("attack-port-zero");
+    let pairing = pairing(&dir);
+    let robot = robot(&dir, &pairing, &[]);
+    let port: u16 = robot.address.rsplit(':').next().unwrap().parse().unwrap();
+    let hello = old_hellos(&secret(&pairing), 1).remove(0);
+    // A UDP header from port 0 to the robot (checksum 0: none), then the Hello; the kernel
+    // adds the IPv4 header from 127.0.0.1.
+    let mut datagram = vec![0u8; 8];
+    datagram[2..4].copy_from_slice(&port.to_be_bytes());
+    datagram[4..6].copy_from_slice(&u16::try_from(8 + hello.len()).unwrap().to_be_bytes());
+    datagram.extend_from_slice(&hello);
+    let raw = socket2::Socket::new(
+        socket2::Domain::IPV4,
+        socket2::Type::RAW,
+        Some(socket2::Protocol::UDP),
+    )
+    .expect("a raw socket, as root of the namespace");
+    let to: SocketAddr = ([127, 0, 0, 1], port).into();
+    for _ in 0..3 {
+        raw.send_to(&datagram, &to.into()).unwrap();
+    }
+    std::thread::sleep(Duration::from_millis(200));
+    controller(&dir, &pairing, &robot.address, 0);
+    wait_robot(robot, 0);
+    let r = report(&dir.join("robot.json"));
+    assert!(
+        r["frames"]["impossible_source"].as_u64().unwrap() >= 1,
+        "{r}"
+    );
+    assert_completed(&dir);
+}
+
+/// Ten recorded `Hello`s cycled at the robot pushed a fresh controller's half-open handshake
+/// out (4 of 14 runs), and its `Ready` went unanswered until its silence timeout. Each
+/// recording is now answered once and rejected as replayed after, a controller whose `Ready`
+/// goes unanswered starts a fresh handshake, and the session confirms; every answer and replay
+/// is counted.
+#[test]
+fn cycled_old_hellos_never_lock_a_fresh_controller_out() {
+    let dir = scratch("attack-cycled-hellos");
+    let pairing = pairing(&dir);
+    let robot = robot(&dir, &pairing, &[]);
+    let hellos = old_hellos(&secret(&pairing), 10);
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let attacker = {
+        let (stop, target) = (Arc::clone(&stop), robot.address.clone());
+        std::thread::spawn(move || {
+            let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+            let deadline = Instant::now() + Duration::from_secs(20);
+            let mut sent = 0u64;
+            while !stop.load(Ordering::Relaxed) && Instant::now() < deadline {
+                for hello in &hellos {
+                    let _ = socket.send_to(hello, &target);
+                    sent += 1;
+                }
+                std::thread::sleep(Duration::from_micros(200));
+            }
+            sent
+        })
+    };
+    std::thread::sleep(Duration::from_millis(100));
+    controller(&dir, &pairing, &robot.address, 0);
+    stop.store(true, Ordering::Relaxed);
+    assert!(attacker.join().unwrap() > 100);
+    wait_robot(robot, 0);
+    assert_completed(&dir);
+    let r = report(&dir.join("robot.json"));
+    assert!(
+        r["frames"]["hellos_answered"].as_u64().unwrap() >= 11,
+        "{r}"
+    );
+    assert!(rejected(&r, "replayed") > 0, "{r}");
+}
+
+/// One stray datagram with a bad MAC turned a waiting robot's "no controller" (exit 3) into
+/// "authentication failed" (4). Exit 4 now means that a peer kept trying the handshake with
+/// another secret (three `Hello`s that failed to verify, as a controller repeating its `Hello`
+/// sends) or the other pairing mode; a stray frame is counted, and the robot that no controller
+/// bound exits 3.
+#[test]
+fn a_stray_datagram_does_not_turn_no_controller_into_authentication_failed() {
+    let dir = scratch("attack-stray");
+    let pairing = pairing(&dir);
+    let robot = robot(&dir, &pairing, &[]);
+    let hello = old_hellos(&PairingSecret::from_bytes(&[7; 32]), 1).remove(0);
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .send_to(&hello, &robot.address)
+        .unwrap();
+    wait_robot(robot, 3);
+    let r = report(&dir.join("robot.json"));
+    assert_eq!(rejected(&r, "handshake_bad_mac"), 1, "{r}");
+    assert_eq!(r["ending"], "no-key", "{r}");
 }

@@ -82,6 +82,34 @@ impl TrackingController {
     }
 }
 
+/// The controller's tracking of the reference: the trajectory and the tracking law, as both
+/// controller modes use them.
+#[derive(Clone, Debug)]
+pub struct ReferenceTracker {
+    trajectory: crate::trajectory::Trajectory,
+    law: TrackingController,
+    sample_time: f64,
+}
+
+impl ReferenceTracker {
+    /// The tracking of a validated configuration's trajectory, with the agreed wheel geometry
+    /// `drive` and sample time `T` (s).
+    #[must_use]
+    pub fn new(config: &crate::config::Config, drive: DiffDrive, sample_time: f64) -> Self {
+        Self {
+            trajectory: config.trajectory(),
+            law: TrackingController::new(TrackingGains::of(&config.controller), drive, sample_time),
+            sample_time,
+        }
+    }
+
+    /// The nominal command `uU(k)` (m/s, rad/s) from `pose` towards the reference at `t_k`.
+    pub fn command(&mut self, pose: &Pose, step: u32) -> Unicycle {
+        let reference = self.trajectory.at(f64::from(step) * self.sample_time);
+        self.law.command(pose, &reference)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -144,21 +144,24 @@ mod through_the_session_layer {
     use robokey::connection::{
         ControllerAction, ControllerConnection, Output, RobotAction, RobotConnection, Setup,
     };
+    use robokey::pair::Side;
     use robokey::pair::{Connected, Pair, Surroundings};
     use robokey::protocol::auth::PairingSecret;
-    use robokey::protocol::{RobotOutput, Time};
+    use robokey::protocol::{Handshake, Message, RobotOutput, Time};
     use robokey::rng::{Purpose, stream};
     use robokey::world::{PlantStreams, WorldPlant};
 
     type RobotSide = Connected<RobotConnection<Address, ChaCha20Rng>, Address>;
     type ControllerSide = Connected<ControllerConnection<Address>, Address>;
 
-    /// The plant both agents' worlds share, and how each side ended.
+    /// The plant both agents' worlds share, how each side ended, and how many of the
+    /// controller's `Ready`s an attacker drops.
     struct World {
         plant: WorldPlant,
         private: bool,
         outcomes: [Option<Outcome>; 2],
         closed: [bool; 2],
+        drop_readies: u32,
     }
 
     impl Surroundings<RobotSide, ControllerSide> for World {
@@ -204,10 +207,29 @@ mod through_the_session_layer {
         fn done(&self) -> bool {
             self.closed == [true; 2]
         }
+
+        fn intercept(&mut self, from: Side, bytes: Vec<u8>) -> Option<Vec<u8>> {
+            let ready = robokey::protocol::wire::decode(&bytes)
+                .is_ok_and(|f| f.message == Message::Handshake(Handshake::Ready));
+            if from == Side::Controller && ready && self.drop_readies > 0 {
+                self.drop_readies -= 1;
+                return None;
+            }
+            Some(bytes)
+        }
     }
 
     /// One whole conversation of `config` between two paired agents on `network`.
     fn conversation(config: &Config, network: Network) -> Session {
+        conversation_dropping_readies(config, network, 0)
+    }
+
+    /// [`conversation`], with the first `drop_readies` of the controller's `Ready`s lost.
+    fn conversation_dropping_readies(
+        config: &Config,
+        network: Network,
+        drop_readies: u32,
+    ) -> Session {
         let seed = network.seed;
         let pairing = PairingSecret::generate(&mut stream(seed, Purpose::Key, 1));
         let setup = Setup {
@@ -228,7 +250,7 @@ mod through_the_session_layer {
             Address::Robot,
             seed as u32,
             None,
-            &mut stream(seed, Purpose::Key, 2),
+            <ChaCha20Rng as SeedableRng>::seed_from_u64(seed ^ 0x5eed),
             Time::ZERO,
         );
         let plan = robokey::protocol::SessionPlan::from_config(config, 0);
@@ -247,6 +269,7 @@ mod through_the_session_layer {
             private: plan.private().is_some(),
             outcomes: [None, None],
             closed: [false; 2],
+            drop_readies,
         };
         let mut pair = Pair::new(
             Connected {
@@ -303,6 +326,21 @@ mod through_the_session_layer {
     #[test]
     fn over_a_faulty_network_private_conversations_close_and_never_hold_differing_keys() {
         property("private");
+    }
+
+    /// A controller whose `Ready`s all go unanswered (an attacker drops them, or a replayed
+    /// `Hello` pushed its handshake out at the robot) starts a fresh handshake, and the
+    /// session confirms; a robot that never binds one ends the controller with the reason.
+    #[test]
+    fn a_controller_whose_ready_goes_unanswered_starts_a_fresh_handshake() {
+        let config = short("odometry");
+        let s = conversation_dropping_readies(&config, Network::default(), 10);
+        assert!(check(0, &s), "{s:?}");
+        let s = conversation_dropping_readies(&config, Network::default(), u32::MAX);
+        let Some(Outcome::Aborted(why)) = &s.controller_outcome else {
+            panic!("{s:?}");
+        };
+        assert!(why.contains("never bound"), "{why}");
     }
 
     #[test]

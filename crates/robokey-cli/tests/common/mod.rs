@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
 
 /// A running `robokey` process whose first stdout line announced its address.
 pub struct Process {
@@ -112,4 +113,63 @@ pub fn pairing(dir: &Path) -> String {
 
 pub fn report(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Set in the re-executed test: the body runs.
+const INSIDE: &str = "ROBOKEY_TEST_NETNS";
+/// Longest a namespaced test may take.
+const TEST_TIMEOUT: Duration = Duration::from_secs(180);
+
+/// Returns true inside the namespace. Outside, runs `test` of this binary in a new network
+/// namespace (set up by `setup`, a shell snippet run as root of the namespace), checks it
+/// passed, and returns false; or skips when `unshare` is unavailable.
+pub fn in_namespace(test: &str, setup: &str) -> bool {
+    if std::env::var_os(INSIDE).is_some() {
+        return true;
+    }
+    let works = Command::new("unshare")
+        .args(["-rn", "true"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|status| status.success());
+    if !works {
+        eprintln!(
+            "SKIPPED {test}: `unshare -rn` is unavailable here (util-linux and user namespaces are \
+             needed); this test never runs on the machine's own interfaces"
+        );
+        return false;
+    }
+    let script = format!(
+        "set -e; ip link set lo up; ip link set lo multicast on; {setup}; exec \"$0\" \"$@\""
+    );
+    let mut child = Command::new("unshare")
+        .args(["-rn", "sh", "-c", &script])
+        .arg(std::env::current_exe().unwrap())
+        .args([test, "--exact", "--nocapture", "--test-threads=1"])
+        .env(INSIDE, "1")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("unshare starts");
+    let deadline = Instant::now() + TEST_TIMEOUT;
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{test} took more than {TEST_TIMEOUT:?} in its namespace");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let output = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&output.stdout).into_owned()
+        + &String::from_utf8_lossy(&output.stderr);
+    // Shown with `cargo test -- --nocapture`: what ran in the namespace and what it printed.
+    println!("{text}");
+    assert!(status.success(), "{test} failed in its namespace:\n{text}");
+    assert!(text.contains("1 passed"), "{test} did not run:\n{text}");
+    false
 }

@@ -9,7 +9,7 @@ use std::time::Duration;
 use rand::RngExt;
 use robokey::Config;
 use robokey::config::SensingMode;
-use robokey::connection::{ControllerConnection, Output, Setup};
+use robokey::connection::{ControllerConnection, Setup};
 use robokey::interrupt::Interrupt;
 use robokey::protocol::auth::PairingSecret;
 use robokey::protocol::{ControllerEvent, SessionPlan, Timing};
@@ -18,7 +18,7 @@ use robokey_secrecy::postprocess::ControllerPost;
 use super::post::AgentStore;
 use super::report::{Progress, SessionReport};
 use super::socket::Socket;
-use super::{Counted, Run, finish};
+use super::{Carry, Counted, Run, finish};
 use crate::error::NetError;
 use crate::random::os_rng;
 use crate::secret_file::check_writable;
@@ -101,7 +101,7 @@ pub fn run_controller(
         timing: options.timing,
     };
     let mut connection =
-        ControllerConnection::new(setup, options.robot, session, link, &mut rng, socket.now());
+        ControllerConnection::new(setup, options.robot, session, link, rng, socket.now());
     let plan = SessionPlan::from_config(config, session);
     let mut report = SessionReport::new("controller", pairing);
     report.bound(session, &plan);
@@ -110,29 +110,21 @@ pub fn run_controller(
     loop {
         while let Some(output) = connection.poll_output() {
             let post_running = connection.post().is_some() && run.outcome.is_some();
-            let failed = match output {
-                Output::Transmit { to, bytes } => {
-                    socket.send(to, &bytes);
-                    Ok(())
-                }
-                Output::Endpoint(event) => {
+            let mut carry = Carry {
+                socket: &mut socket,
+                run: &mut run,
+                report: &mut report,
+                plan: &plan,
+                store: store.as_mut(),
+            };
+            let failed = carry.output(output, connection.post()).map(|event| {
+                if let Some(event) = event {
                     report.controller_event(&event, plan.agreed.enabled);
                     if let ControllerEvent::Decoded(_) = event {
                         progress.tick(report.steps_done, report.erased_steps);
                     }
-                    Ok(())
                 }
-                Output::Established(_) | Output::Closed => Ok(()),
-                Output::Finished(outcome) => {
-                    run.outcome = Some(outcome);
-                    Ok(())
-                }
-                Output::Post(output) => match (&mut store, connection.post()) {
-                    (Some(store), Some(link)) => store.apply(output, link.endpoint()),
-                    _ => Ok(()),
-                },
-                Output::PostFailed(why) => Err(NetError::Usage(why)),
-            };
+            });
             if let Err(error) = failed {
                 // Nothing that follows goes out: the store must be written first.
                 run.stop(error, post_running);
@@ -178,8 +170,8 @@ pub fn run_controller(
     }
     let counted = Counted {
         socket: socket.counts(),
-        channel: connection.channel().counts(),
-        authenticated: connection.channel().is_established(),
+        channel: connection.counts(),
+        authenticated: connection.is_established(),
     };
     let key = connection.endpoint().map_or(&[][..], |e| e.key());
     let store = store.zip(connection.post().map(|link| link.endpoint()));

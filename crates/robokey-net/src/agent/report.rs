@@ -23,6 +23,9 @@ pub struct FrameCounts {
     pub received: u64,
     /// Of those, received out of order within the replay window.
     pub reordered: u64,
+    /// Robot: verified `Hello`s answered, retransmissions included (a replayed old one until
+    /// it is known as one: then it is rejected as `replayed`).
+    pub hellos_answered: u64,
     /// Datagrams from a source that cannot be a peer (port 0, an unspecified, broadcast or
     /// multicast address), dropped unread.
     pub impossible_source: u64,
@@ -236,6 +239,7 @@ impl SessionReport {
             unsent: socket.unsent,
             received: channel.accepted,
             reordered: channel.reordered,
+            hellos_answered: channel.hellos_answered,
             impossible_source: socket.impossible_source,
         };
         self.frames_rejected = channel.rejected;

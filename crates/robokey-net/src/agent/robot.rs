@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use rand::CryptoRng;
 use robokey::Config;
-use robokey::connection::{Output, RobotConnection, Setup};
+use robokey::connection::{RobotConnection, Setup};
 use robokey::interrupt::Interrupt;
 use robokey::protocol::auth::PairingSecret;
 use robokey::protocol::{RobotOutput, SessionPlan, Timing};
@@ -17,7 +17,7 @@ use robokey_secrecy::postprocess::RobotPost;
 use super::post::AgentStore;
 use super::report::{Progress, SessionReport, authentication_label};
 use super::socket::Socket;
-use super::{Counted, Run, finish};
+use super::{Carry, Counted, Run, finish};
 use crate::backend::{Backend, WheelGuard};
 use crate::error::NetError;
 use crate::random::os_rng;
@@ -100,35 +100,26 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     loop {
         while let Some(output) = connection.poll_output() {
             let post_running = connection.post().is_some() && run.outcome.is_some();
-            let failed = match output {
-                Output::Transmit { to, bytes } => {
-                    socket.send(to, &bytes);
-                    Ok(())
-                }
-                Output::Endpoint(RobotOutput::Sense { step }) => wheels.sample().map(|y| {
+            let mut carry = Carry {
+                socket: &mut socket,
+                run: &mut run,
+                report: &mut report,
+                plan: &plan,
+                store: store.as_mut(),
+            };
+            let failed = match carry.output(output, connection.post()) {
+                Ok(Some(RobotOutput::Sense { step })) => wheels.sample().map(|y| {
                     report.steps_done = step;
                     progress.tick(step, report.erased_steps);
                     connection.handle_sample(socket.now(), step, y);
                 }),
-                Output::Endpoint(RobotOutput::Apply(actuation)) => {
+                Ok(Some(RobotOutput::Apply(actuation))) => {
                     let applied = connection.endpoint().map_or(0, |e| e.commands_applied());
                     report.applied(&actuation, &plan, applied);
                     wheels.set_wheels(actuation.wheels)
                 }
-                Output::Endpoint(_) | Output::Closed => Ok(()),
-                Output::Established(session) => {
-                    report.bound(session, &plan);
-                    Ok(())
-                }
-                Output::Finished(outcome) => {
-                    run.outcome = Some(outcome);
-                    Ok(())
-                }
-                Output::Post(output) => match (&mut store, connection.post()) {
-                    (Some(store), Some(link)) => store.apply(output, link.endpoint()),
-                    _ => Ok(()),
-                },
-                Output::PostFailed(why) => Err(NetError::Usage(why)),
+                Ok(_) => Ok(()),
+                Err(error) => Err(error),
             };
             if let Err(error) = failed {
                 // Nothing queued goes out: what the failure left undone (a sample, a write
@@ -166,7 +157,7 @@ pub fn run_robot<B: Backend + ?Sized, R: CryptoRng + ?Sized>(
     wheels.stop();
     let counted = Counted {
         socket: socket.counts(),
-        channel: connection.channel().counts(),
+        channel: connection.counts(),
         authenticated: connection.endpoint().is_some(),
     };
     if let Some(endpoint) = connection.endpoint() {

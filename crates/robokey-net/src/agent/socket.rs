@@ -154,4 +154,15 @@ mod tests {
             assert!(can_be_peer(good.parse().unwrap()), "{good}");
         }
     }
+
+    /// A datagram the OS refuses (to port 0, or to a broadcast address without
+    /// `SO_BROADCAST`) is counted and lost, never an error that ends the agent.
+    #[test]
+    fn sends_are_best_effort() {
+        let mut socket = Socket::bind("127.0.0.1:0".parse().unwrap(), Interrupt::new()).unwrap();
+        socket.send("127.0.0.1:0".parse().unwrap(), b"x");
+        socket.send("255.255.255.255:5000".parse().unwrap(), b"x");
+        let counts = socket.counts();
+        assert_eq!((counts.sent, counts.unsent), (0, 2));
+    }
 }

@@ -279,6 +279,7 @@ impl RobotPost {
     }
 
     fn on_ask(&mut self, block: u64, round: u32, queries: &[crate::cascade::BlockQuery]) {
+        let schedule = self.ledger.settings.schedule;
         let Some(r) = self.reconciling(block) else {
             return self.unknown(block);
         };
@@ -291,7 +292,14 @@ impl RobotPost {
         if round != r.round + 1 {
             return self.ignore("a question round out of order");
         }
-        if queries.len() > MAX_QUESTIONS {
+        let n = r.reference.len();
+        let revealed = r.alice.revealed();
+        if queries.len() > MAX_QUESTIONS
+            || u64::from(round) > u64::from(max_rounds(n, &schedule)) + revealed
+            || revealed.saturating_add(queries.len() as u64) > 2 * n as u64
+        {
+            // More than an honest schedule asks: a paired peer cannot make the robot work
+            // without bound.
             return self.reject(block, RejectReason::BadQuestions);
         }
         match r.alice.answer(queries) {
@@ -435,4 +443,18 @@ impl RobotPost {
         }
         self.ledger.outputs.push_back(Output::Transmit(message));
     }
+}
+
+/// The question rounds the robot answers for a block of `n` bits before any parity is out:
+/// twice what an honest `schedule` asks of an error-free block — each pass and each BICONF round
+/// one round of parities and at most `⌈log₂ n⌉ + 1` rounds of binary search — plus a fixed
+/// margin. Every parity revealed allows one round more (an honest binary search asks at least
+/// one per round), and the parities are capped at `2n` (beyond `n` no secret can be left; an
+/// honest schedule at error rates near 30 % may reveal about `n`): a paired controller makes the
+/// robot compute at most `2n` parities over at most `max_rounds + 2n` rounds per block.
+#[must_use]
+pub fn max_rounds(n: usize, schedule: &crate::cascade::CascadeSchedule) -> u32 {
+    let depth = usize::BITS - n.leading_zeros() + 1;
+    let passes = schedule.passes + schedule.biconf_streak + 1;
+    2 * passes * (depth + 1) + 64
 }

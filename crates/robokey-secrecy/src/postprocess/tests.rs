@@ -531,3 +531,75 @@ fn a_lost_commit_ack_leaves_the_controllers_key_pending_until_a_later_session() 
         pair.later_session(later);
     }
 }
+
+/// The robot answers at most [`super::robot::max_rounds`] question rounds beyond the parities
+/// already revealed, and never more parities than the block has bits. Honest schedules stay
+/// within it at every error rate and size tried, so only a controller that asks more than an
+/// honest one could is refused.
+#[test]
+fn honest_schedules_stay_within_the_robots_bound_on_questions() {
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    for schedule in [CascadeSchedule::ORIGINAL, CascadeSchedule::BICONF] {
+        for q in [0.005, 0.02, 0.05, 0.1, 0.2] {
+            for block_bits in [2_000, 20_000] {
+                let settings = Settings {
+                    block_bits,
+                    schedule,
+                    ..settings(weak_eve())
+                };
+                let pool = sessions((block_bits / 300 + 2) as u32, q, &mut rng);
+                let mut pair = Pair::new(settings, &pool);
+                assert!(pair.settle(1_000_000, None), "{q} {block_bits}");
+                for report in &pair.reports {
+                    let refused = report
+                        .reason
+                        .as_deref()
+                        .is_some_and(|why| why.contains("BadQuestions"));
+                    assert!(
+                        !refused,
+                        "{schedule:?} at Q {q}, {block_bits} bits: {report:?}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_controller_asking_beyond_an_honest_schedule_is_refused() {
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let pool = sessions(6, 0.02, &mut rng);
+    let mut pair = Pair::new(settings(weak_eve()), &pool);
+    while !matches!(pair.to_robot.front(), Some(Message::Ask { .. })) {
+        assert!(pair.deliver(None));
+    }
+    let block = pair.to_robot.front().unwrap().block();
+    pair.to_robot.clear();
+    // Empty rounds reveal nothing and so allow nothing more than the bound for the block's
+    // size (about 2,000 bits, the sample taken out).
+    let (low, high) = (
+        super::robot::max_rounds(1_000, &CascadeSchedule::BICONF),
+        super::robot::max_rounds(4_000, &CascadeSchedule::BICONF),
+    );
+    let mut answered = 0;
+    for round in 1..=high + 1 {
+        let ask = Message::Ask {
+            block,
+            round,
+            queries: Vec::new(),
+        };
+        pair.robot.handle_input(RobotInput::Frame(ask)).unwrap();
+        while let Some(output) = pair.robot.poll_output() {
+            match output {
+                Output::Transmit(Message::Answer { .. }) => answered += 1,
+                Output::Transmit(Message::Reject { reason, .. }) => {
+                    assert_eq!(reason, RejectReason::BadQuestions);
+                    assert!((low..=high).contains(&answered), "refused after {answered}");
+                    return;
+                }
+                _ => {}
+            }
+        }
+    }
+    panic!("{answered} rounds answered, the bound is at most {high}");
+}

@@ -5,7 +5,7 @@
 
 use std::collections::VecDeque;
 
-use rand::CryptoRng;
+use rand::rngs::ChaCha20Rng;
 use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot};
 
 use super::linger::{Courtesy, Linger};
@@ -13,12 +13,18 @@ use super::post::{PostLink, PostOutput};
 use super::{Output, Setup};
 use crate::config::Config;
 use crate::model::Pose;
-use crate::protocol::auth::{AuthMode, ControllerChannel, Delivery, PairingSecret};
+use crate::protocol::auth::{AuthMode, ChannelCounts, ControllerChannel, Delivery, PairingSecret};
 use crate::protocol::timing::earliest;
 use crate::protocol::{
     Closing, Controller, ControllerEvent, ControllerInput, ControllerOutput, Handshake, Message,
     Outcome, SessionPlan, Time, Timing, agreement_terms, config_digest,
 };
+
+/// How many `Ready`s go unanswered before the controller starts a fresh handshake.
+const READY_TRIES: u32 = 10;
+
+/// Most handshakes one conversation starts.
+const HANDSHAKES: u32 = 3;
 
 /// What the controller's shell is asked to do.
 pub type ControllerAction<A> = Output<A, ControllerEvent, ControllerSnapshot>;
@@ -31,9 +37,11 @@ enum Stage {
         next_hello: Time,
         give_up: Time,
     },
-    /// The session runs; `Ready` repeats at `ready_at` until the robot is heard.
+    /// The session runs; `Ready` repeats at `ready_at` until the robot is heard, `readies`
+    /// sent so far.
     Session {
         ready_at: Time,
+        readies: u32,
     },
     /// After the outcome: post-processing until no block is in flight, its retransmission
     /// timer, and when the robot last answered it.
@@ -50,6 +58,13 @@ enum Stage {
 /// The controller side of a conversation over the network, with addresses of type `A`.
 pub struct ControllerConnection<A> {
     channel: ControllerChannel<A>,
+    /// The counts of the channels of earlier handshakes (restarted when `Ready` went
+    /// unanswered).
+    earlier: ChannelCounts,
+    /// Handshakes started.
+    handshakes: u32,
+    /// Draws each handshake's `nonce_c`: seeded from the OS CSPRNG.
+    nonces: ChaCha20Rng,
     config: Config,
     plan: SessionPlan,
     pairing: PairingSecret,
@@ -74,14 +89,14 @@ impl<A> std::fmt::Debug for ControllerConnection<A> {
 
 impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
     /// Opens session `session` with the robot at `robot` at `now` (the first `Hello` goes
-    /// out), as `setup` says; `post` post-processes confirmed sessions (`--store`); `rng` (the
-    /// OS CSPRNG) draws `nonce_c`.
-    pub fn new<R: CryptoRng + ?Sized>(
+    /// out), as `setup` says; `post` post-processes confirmed sessions (`--store`); `nonces`
+    /// (seeded from the OS CSPRNG) draws each handshake's `nonce_c`.
+    pub fn new(
         setup: Setup<'_>,
         robot: A,
         session: u32,
         post: Option<PostLink<ControllerPost>>,
-        rng: &mut R,
+        mut nonces: ChaCha20Rng,
         now: Time,
     ) -> Self {
         let (config, pairing, timing) = (setup.config, setup.pairing, setup.timing);
@@ -91,7 +106,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             session,
             config_digest(config),
             agreement_terms(config),
-            rng,
+            &mut nonces,
         );
         let mut connection = Self {
             plan: SessionPlan::from_config(config, session),
@@ -107,6 +122,9 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             separation: 0.0,
             outputs: VecDeque::new(),
             channel,
+            earlier: ChannelCounts::default(),
+            handshakes: 1,
+            nonces,
         };
         connection.send_hello();
         connection
@@ -156,10 +174,16 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                     self.send_hello();
                 }
             }
-            Stage::Session { ready_at } => {
+            Stage::Session { ready_at, readies } => {
                 let heard = self.endpoint.as_ref().is_some_and(Controller::robot_heard);
                 if !heard && now >= *ready_at {
+                    if *readies >= READY_TRIES {
+                        // The robot never bound this handshake (a replayed Hello may have
+                        // pushed it out): start a fresh one.
+                        return self.rehandshake(now);
+                    }
                     *ready_at = now + self.timing.retransmit_interval();
+                    *readies += 1;
                     self.send(Handshake::Ready.into());
                 }
                 if let Some(endpoint) = &mut self.endpoint {
@@ -188,7 +212,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                 next_hello,
                 give_up,
             } => Some((*next_hello).min(*give_up)),
-            Stage::Session { ready_at } => {
+            Stage::Session { ready_at, .. } => {
                 let endpoint = self.endpoint.as_ref();
                 let ready = (!endpoint.is_some_and(Controller::robot_heard)).then_some(*ready_at);
                 earliest(ready, endpoint.and_then(Controller::poll_timeout))
@@ -227,10 +251,16 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         self.close();
     }
 
-    /// The session layer.
+    /// The session layer's counts, over every handshake.
     #[must_use]
-    pub fn channel(&self) -> &ControllerChannel<A> {
-        &self.channel
+    pub fn counts(&self) -> ChannelCounts {
+        self.earlier.plus(self.channel.counts())
+    }
+
+    /// Whether a `HelloAck` verified: the robot proved it holds the pairing secret.
+    #[must_use]
+    pub fn is_established(&self) -> bool {
+        self.channel.is_established()
     }
 
     /// The session endpoint, once the handshake is done.
@@ -251,6 +281,34 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         matches!(self.stage, Stage::Closed)
     }
 
+    /// Starts a fresh handshake at `now` (a new `nonce_c`, the same session id), at most
+    /// [`HANDSHAKES`] in all.
+    fn rehandshake(&mut self, now: Time) {
+        if self.handshakes >= HANDSHAKES {
+            return self.end(Outcome::Aborted(format!(
+                "the robot answered {HANDSHAKES} handshakes but never bound one: its Ready went \
+                 unanswered each time"
+            )));
+        }
+        self.handshakes += 1;
+        let fresh = ControllerChannel::new(
+            self.pairing.clone(),
+            self.channel.robot(),
+            self.channel.session(),
+            config_digest(&self.config),
+            agreement_terms(&self.config),
+            &mut self.nonces,
+        );
+        let earlier = std::mem::replace(&mut self.channel, fresh).counts();
+        self.earlier = self.earlier.plus(earlier);
+        self.endpoint = None;
+        self.stage = Stage::Handshake {
+            next_hello: now + self.timing.retransmit_interval(),
+            give_up: now + self.timing.silence_timeout,
+        };
+        self.send_hello();
+    }
+
     fn send_hello(&mut self) {
         let (to, bytes) = (self.channel.robot(), self.channel.hello().to_vec());
         self.outputs.push_back(Output::Transmit { to, bytes });
@@ -265,16 +323,34 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         }
     }
 
+    /// Why no `HelloAck` verified, from what came back: a robot drops a `Hello` it cannot
+    /// verify unanswered, so silence means no robot listens there *or* it holds another
+    /// secret; `HelloAck`s that fail to verify or declare the other pairing mode say which.
     fn no_hello_ack(&self) -> String {
-        let hint = match self.pairing.mode() {
-            AuthMode::Paired => format!(
-                "is it paired with the same secret, fingerprint {}?",
-                self.pairing.fingerprint()
-            ),
-            AuthMode::Unauthenticated => "is it running with --unauthenticated?".into(),
+        let rejected = self.earlier.plus(self.channel.counts()).rejected;
+        let from_robot = rejected.total() - rejected.wrong_peer;
+        let ours = match self.pairing.mode() {
+            AuthMode::Paired => format!("fingerprint {}", self.pairing.fingerprint()),
+            AuthMode::Unauthenticated => "this controller runs --unauthenticated".into(),
+        };
+        let cause = if rejected.pairing_mode > 0 {
+            format!("it answered in the other pairing mode ({ours})")
+        } else if rejected.handshake_bad_mac > 0 {
+            format!(
+                "{} HelloAck(s) from it failed to verify: it holds another pairing secret ({ours})",
+                rejected.handshake_bad_mac
+            )
+        } else if from_robot == 0 {
+            format!(
+                "nothing came from it: no robot agent listens there (one that failed to start \
+                 says why in its own output), or it holds another pairing secret and drops our \
+                 Hellos unanswered ({ours})"
+            )
+        } else {
+            format!("{from_robot} datagram(s) from it were dropped unverified ({ours})")
         };
         format!(
-            "no HelloAck that verifies from the robot at {} within {:.1} s ({hint})",
+            "no HelloAck that verifies from the robot at {} within {:.1} s: {cause}",
             self.channel.robot(),
             self.timing.silence_timeout.as_secs_f64()
         )
@@ -293,6 +369,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         self.send(Handshake::Ready.into());
         self.stage = Stage::Session {
             ready_at: now + self.timing.retransmit_interval(),
+            readies: 1,
         };
     }
 

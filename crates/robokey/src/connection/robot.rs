@@ -14,7 +14,7 @@ use super::linger::{Courtesy, Linger};
 use super::post::PostLink;
 use super::{Output, Setup};
 use crate::model::Pose;
-use crate::protocol::auth::{Delivery, RobotChannel};
+use crate::protocol::auth::{ChannelCounts, Delivery, RobotChannel};
 use crate::protocol::{
     Closing, Message, Outcome, Robot, RobotInput, RobotOutput, SessionPlan, Time, Timing,
     agreement_terms, config_digest,
@@ -194,10 +194,10 @@ impl<A: Copy + PartialEq, K: CryptoRng> RobotConnection<A, K> {
         self.close();
     }
 
-    /// The session layer.
+    /// The session layer's counts.
     #[must_use]
-    pub fn channel(&self) -> &RobotChannel<A> {
-        &self.channel
+    pub fn counts(&self) -> ChannelCounts {
+        self.channel.counts()
     }
 
     /// The session endpoint, once a session is bound.

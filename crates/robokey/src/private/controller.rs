@@ -10,14 +10,13 @@ use super::doublet::DoubletInputs;
 use super::likelihood::{DoubletModel, DoubletView, PoseObservation, doublet_model};
 use super::plan::PrivatePlan;
 use crate::config::Config;
-use crate::control::{TrackingController, TrackingGains};
+use crate::control::ReferenceTracker;
 use crate::model::{Pose, Unicycle, unicycle_step};
 use crate::protocol::controller::io::ControllerEvent;
 use crate::protocol::controller::lifecycle::ControllerLifecycle;
 use crate::protocol::controller::mode::ControllerMode;
 use crate::protocol::plan::Agreed;
 use crate::protocol::{Outcome, SessionMessage};
-use crate::trajectory::Trajectory;
 
 /// A doublet commanded and not yet resolved.
 #[derive(Clone, Copy, Debug)]
@@ -39,8 +38,7 @@ const REORDER_SLACK: u32 = 8;
 /// doublets in flight, and its view of the samples and the robot's reports.
 pub(crate) struct PrivateController {
     plan: PrivatePlan,
-    trajectory: Trajectory,
-    tracking: TrackingController,
+    tracking: ReferenceTracker,
     model: DoubletModel,
     controller_std: [f64; 3],
     camera_std: [f64; 3],
@@ -71,12 +69,7 @@ impl PrivateController {
     /// The controller of a validated private-sensing configuration: `doublets` to decide.
     pub(crate) fn new(config: &Config, agreed: &Agreed, plan: PrivatePlan, doublets: u32) -> Self {
         Self {
-            trajectory: config.trajectory(),
-            tracking: TrackingController::new(
-                TrackingGains::of(&config.controller),
-                agreed.drive,
-                agreed.sample_time,
-            ),
+            tracking: ReferenceTracker::new(config, agreed.drive, agreed.sample_time),
             model: doublet_model(config),
             controller_std: config.sensing.controller_std,
             camera_std: config.eve.camera_std,
@@ -151,13 +144,12 @@ impl PrivateController {
 
     fn command(&mut self, agreed: &Agreed, life: &mut ControllerLifecycle, step: u32, pose: Pose) {
         let t = agreed.sample_time;
-        let reference = |k: u32| self.trajectory.at(f64::from(k) * t);
         let (first, second) = if step >= agreed.steps {
             (Unicycle::zeros(), None)
         } else if step % 2 == 1 {
             return; // mid-doublet: its input went with the first
         } else {
-            let first = self.tracking.command(&pose, &reference(step));
+            let first = self.tracking.command(&pose, step);
             let finite = |u: &Unicycle| u.iter().all(|v| v.is_finite());
             if !finite(&first) {
                 // A finite but absurd pose (e.g. 1e308 m) overflows the controller's state.
@@ -165,7 +157,7 @@ impl PrivateController {
             }
             if step + 2 <= agreed.steps {
                 let predicted = unicycle_step(&pose, &first, t);
-                let second = self.tracking.command(&predicted, &reference(step + 1));
+                let second = self.tracking.command(&predicted, step + 1);
                 if !finite(&second) {
                     return life.abort(format!("step {step}: the tracking command is not finite"));
                 }

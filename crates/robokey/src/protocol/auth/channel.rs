@@ -18,6 +18,10 @@ use crate::protocol::wire::{Frame, decode};
 /// remembers; the oldest is forgotten first.
 pub const HALF_OPEN: usize = 8;
 
+/// How many answered `Hello`s (their `nonce_c`) the robot remembers, so that a replayed one is
+/// answered at most once: far more distinct recordings than an attacker can have of one robot.
+pub const ANSWERED: usize = 4096;
+
 /// Why a datagram was dropped. None of these changes state, resets a timer or ends a
 /// session.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
@@ -30,6 +34,10 @@ pub enum Rejection {
     /// The MAC does not verify.
     #[error("MAC does not verify")]
     BadMac,
+    /// A handshake frame (`Hello`, `HelloAck`, `Refuse`) whose MAC does not verify under the
+    /// handshake key: a peer that tried to pair with another secret (or a forgery).
+    #[error("handshake MAC does not verify")]
+    HandshakeBadMac,
     /// A sequence number already accepted, or a handshake frame answering another Hello.
     #[error("replayed")]
     Replayed,
@@ -58,6 +66,8 @@ pub struct RejectionCounts {
     pub malformed: u64,
     /// [`Rejection::BadMac`].
     pub bad_mac: u64,
+    /// [`Rejection::HandshakeBadMac`].
+    pub handshake_bad_mac: u64,
     /// [`Rejection::Replayed`].
     pub replayed: u64,
     /// [`Rejection::BehindWindow`].
@@ -77,6 +87,7 @@ impl RejectionCounts {
         let slot = match rejection {
             Rejection::Malformed => &mut self.malformed,
             Rejection::BadMac => &mut self.bad_mac,
+            Rejection::HandshakeBadMac => &mut self.handshake_bad_mac,
             Rejection::Replayed => &mut self.replayed,
             Rejection::BehindWindow => &mut self.behind_window,
             Rejection::WrongPeer => &mut self.wrong_peer,
@@ -92,6 +103,7 @@ impl RejectionCounts {
     pub fn total(&self) -> u64 {
         self.malformed
             + self.bad_mac
+            + self.handshake_bad_mac
             + self.replayed
             + self.behind_window
             + self.wrong_peer
@@ -108,8 +120,36 @@ pub struct ChannelCounts {
     pub accepted: u64,
     /// Of those, accepted out of order within the replay window.
     pub reordered: u64,
+    /// Robot: verified `Hello`s answered (a `HelloAck` or a `Refuse`), each controller's
+    /// retransmissions included. A replayed old `Hello` answered before it was known as one
+    /// is among them; once known, it is rejected as replayed.
+    pub hellos_answered: u64,
     /// Dropped datagrams by reason.
     pub rejected: RejectionCounts,
+}
+
+impl ChannelCounts {
+    /// The counts of two channels in turn (a controller that restarted its handshake).
+    #[must_use]
+    pub fn plus(self, other: Self) -> Self {
+        let (a, b) = (self.rejected, other.rejected);
+        Self {
+            accepted: self.accepted + other.accepted,
+            reordered: self.reordered + other.reordered,
+            hellos_answered: self.hellos_answered + other.hellos_answered,
+            rejected: RejectionCounts {
+                malformed: a.malformed + b.malformed,
+                bad_mac: a.bad_mac + b.bad_mac,
+                handshake_bad_mac: a.handshake_bad_mac + b.handshake_bad_mac,
+                replayed: a.replayed + b.replayed,
+                behind_window: a.behind_window + b.behind_window,
+                wrong_peer: a.wrong_peer + b.wrong_peer,
+                other_session: a.other_session + b.other_session,
+                pairing_mode: a.pairing_mode + b.pairing_mode,
+                unexpected: a.unexpected + b.unexpected,
+            },
+        }
+    }
 }
 
 /// What an accepted datagram gives.
@@ -335,7 +375,7 @@ impl<A: Copy + PartialEq> ControllerChannel<A> {
                     return Err(Rejection::PairingMode);
                 }
                 if !verifies(bytes, &self.handshake) {
-                    return Err(Rejection::BadMac);
+                    return Err(Rejection::HandshakeBadMac);
                 }
                 if *nonce_c != self.nonce || self.keyed.is_some() {
                     return Err(Rejection::Replayed);
@@ -347,7 +387,7 @@ impl<A: Copy + PartialEq> ControllerChannel<A> {
             }
             Message::Handshake(Handshake::Refuse { nonce_c, reason }) => {
                 if !verifies(bytes, &self.handshake) {
-                    return Err(Rejection::BadMac);
+                    return Err(Rejection::HandshakeBadMac);
                 }
                 if *nonce_c != self.nonce || self.keyed.is_some() {
                     return Err(Rejection::Replayed);
@@ -387,6 +427,8 @@ pub struct RobotChannel<A> {
     config_digest: [u8; 32],
     terms: String,
     half_open: VecDeque<HalfOpen>,
+    /// The `nonce_c` of every `Hello` answered, the last [`ANSWERED`].
+    answered: VecDeque<[u8; NONCE_BYTES]>,
     bound: Option<Bound<A>>,
     counts: ChannelCounts,
 }
@@ -411,6 +453,7 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
             config_digest,
             terms,
             half_open: VecDeque::new(),
+            answered: VecDeque::new(),
             bound: None,
             counts: ChannelCounts::default(),
         }
@@ -494,18 +537,31 @@ impl<A: Copy + PartialEq> RobotChannel<A> {
                     return Err(Rejection::PairingMode);
                 }
                 if !verifies(bytes, &self.handshake) {
-                    return Err(Rejection::BadMac);
+                    return Err(Rejection::HandshakeBadMac);
                 }
                 if let Some(open) = self
                     .half_open
                     .iter()
                     .find(|h| h.nonce_c == *nonce && h.keyed.session == frame.session)
                 {
+                    // The controller's retransmission: the same answer.
+                    self.counts.hellos_answered += 1;
                     return Ok(Delivery::Answer {
                         bytes: open.answer.clone(),
                         refused: None,
                     });
                 }
+                // A Hello answered before and no longer waiting: an old one replayed (or a
+                // controller whose handshake was pushed out, which starts a fresh one). It
+                // never takes a fresh controller's slot.
+                if self.answered.contains(nonce) {
+                    return Err(Rejection::Replayed);
+                }
+                if self.answered.len() == ANSWERED {
+                    self.answered.pop_front();
+                }
+                self.answered.push_back(*nonce);
+                self.counts.hellos_answered += 1;
                 if *config_digest != self.config_digest {
                     let reason = format!(
                         "configurations differ: {}",
@@ -799,6 +855,65 @@ mod tests {
         assert_eq!(robot.half_open.len(), HALF_OPEN);
     }
 
+    /// The lock-out: ten recorded Hellos cycled at the robot pushed a fresh
+    /// controller's half-open handshake out. Each is now answered once; its replays are
+    /// rejected as such and take no slot, so the fresh controller's `Ready` binds.
+    #[test]
+    fn cycled_old_hellos_are_answered_once_and_never_push_a_fresh_handshake_out() {
+        let mut rng = ChaCha20Rng::seed_from_u64(6);
+        let secret = PairingSecret::from_bytes(&[3; 32]);
+        let old: Vec<Vec<u8>> = (0..10)
+            .map(|session| {
+                let c = ControllerChannel::<u8>::new(
+                    secret.clone(),
+                    ROBOT,
+                    1000 + session,
+                    [5; 32],
+                    "t = 1\n".into(),
+                    &mut rng,
+                );
+                c.hello().to_vec()
+            })
+            .collect();
+        let (mut controller, mut robot) = pair(&secret, &mut rng);
+        for hello in &old {
+            assert!(matches!(
+                robot.on_datagram(ATTACKER, hello, &mut rng),
+                Ok(Delivery::Answer { .. })
+            ));
+        }
+        let Ok(Delivery::Answer { bytes, .. }) =
+            robot.on_datagram(CONTROLLER, controller.hello(), &mut rng)
+        else {
+            panic!("the fresh Hello is answered");
+        };
+        // The three oldest were pushed out by the others: their replays are rejected. The
+        // seven still waiting get their same answer again, which takes no slot.
+        for _ in 0..100 {
+            for (i, hello) in old.iter().enumerate() {
+                let answer = robot.on_datagram(ATTACKER, hello, &mut rng);
+                if i < 3 {
+                    assert_eq!(answer, Err(Rejection::Replayed));
+                } else {
+                    assert!(matches!(answer, Ok(Delivery::Answer { .. })), "{answer:?}");
+                }
+            }
+        }
+        assert_eq!(
+            controller.on_datagram(ROBOT, &bytes),
+            Ok(Delivery::Established)
+        );
+        let ready = controller.seal(Handshake::Ready.into()).unwrap();
+        assert!(robot.on_datagram(CONTROLLER, &ready, &mut rng).is_ok());
+        assert_eq!(robot.bound(), Some((CONTROLLER, 77)));
+        // Every answer and every replay is counted.
+        let counts = robot.counts();
+        assert_eq!(
+            (counts.hellos_answered, counts.rejected.replayed),
+            (11 + 700, 300)
+        );
+    }
+
     #[test]
     fn pairing_secrets_and_modes_must_match_and_terms_are_refused_by_name() {
         let mut rng = ChaCha20Rng::seed_from_u64(5);
@@ -815,7 +930,7 @@ mod tests {
         let (controller, _) = pair(&PairingSecret::from_bytes(&[4; 32]), &mut rng);
         assert_eq!(
             robot.on_datagram(CONTROLLER, controller.hello(), &mut rng),
-            Err(Rejection::BadMac)
+            Err(Rejection::HandshakeBadMac)
         );
         let secret = PairingSecret::from_bytes(&[3; 32]);
         let mut controller =

@@ -6,20 +6,18 @@ use super::ControllerEvent;
 use super::lifecycle::ControllerLifecycle;
 use super::mode::ControllerMode;
 use crate::config::{Config, Feedback};
-use crate::control::{TrackingController, TrackingGains};
+use crate::control::ReferenceTracker;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use crate::observer::{Observer, ObserverParams};
 use crate::protocol::assembler::CodewordAssembler;
 use crate::protocol::decoder::StepDecoder;
 use crate::protocol::plan::{Agreed, OdometryPlan};
 use crate::protocol::{Outcome, SessionMessage};
-use crate::trajectory::Trajectory;
 
 /// The odometry mode's part of a controller endpoint.
 pub(crate) struct OdometryController {
     plan: OdometryPlan,
-    trajectory: Trajectory,
-    tracking: TrackingController,
+    tracking: ReferenceTracker,
     feedback: Feedback,
     decoder: StepDecoder,
     assembler: CodewordAssembler,
@@ -42,12 +40,7 @@ impl OdometryController {
     pub(crate) fn new(config: &Config, agreed: &Agreed, plan: OdometryPlan, units: u32) -> Self {
         let observer = Observer::new(&observer_params(config)).expect("validated observer.m");
         Self {
-            trajectory: config.trajectory(),
-            tracking: TrackingController::new(
-                TrackingGains::of(&config.controller),
-                agreed.drive,
-                agreed.sample_time,
-            ),
+            tracking: ReferenceTracker::new(config, agreed.drive, agreed.sample_time),
             feedback: config.controller.feedback,
             decoder: StepDecoder::new(agreed.drive, observer, plan.delta, agreed.enabled),
             assembler: CodewordAssembler::new(plan.code.n() as u32, units),
@@ -136,8 +129,7 @@ impl OdometryController {
             Feedback::Measurement => *y,
             Feedback::Estimate => self.decoder.state(),
         };
-        let reference = self.trajectory.at(f64::from(step) * agreed.sample_time);
-        let nominal = self.tracking.command(&pose, &reference);
+        let nominal = self.tracking.command(&pose, step);
         if !nominal.iter().all(|v| v.is_finite()) {
             // A finite but absurd pose (e.g. 1e308 m) overflows the controller's state.
             return life.abort(format!("step {step}: the tracking command is not finite"));
