@@ -364,7 +364,10 @@ fn on_capture(
                 "; key verified by the confirmation tag after flipping {f} codewords"
             )),
         );
-        let disagreement = match (&controller, args.controller_key.first().map(|p| p.as_path())) {
+        let disagreement = match (
+            &controller,
+            args.controller_key.first().map(|p| p.as_path()),
+        ) {
             (Some(key), Some(path)) => {
                 if key.len() != result.key.len() {
                     bail!(
@@ -647,7 +650,11 @@ struct ReportedBlock {
 /// WARNING naming the world's parameters where the key exceeds it. The disclosed sample's
 /// positions are not in the report: the bound leaves out the `sample_bits` bits she knows
 /// least, so it never credits her uncertainty she may not have. Returns the JSON of it.
-fn block_verdict(report: &std::path::Path, q: &[f64], config: &Config) -> Result<serde_json::Value> {
+fn block_verdict(
+    report: &std::path::Path,
+    q: &[f64],
+    config: &Config,
+) -> Result<serde_json::Value> {
     let text = std::fs::read_to_string(report)
         .with_context(|| format!("read the agent report {}", report.display()))?;
     let json: serde_json::Value = serde_json::from_str(&text)
@@ -676,7 +683,8 @@ fn block_verdict(report: &std::path::Path, q: &[f64], config: &Config) -> Result
     kept.sort_by(|a, b| b.total_cmp(a));
     let kept = &kept[block.sample_bits.min(kept.len())..];
     let h_min = robokey_secrecy::posterior_smooth_min_entropy(kept, epsilon)?.h_min;
-    let realised = robokey_secrecy::output_length(h_min, block.leak_ec, block.leak_confirmation, epsilon)?;
+    let realised =
+        robokey_secrecy::output_length(h_min, block.leak_ec, block.leak_confirmation, epsilon)?;
     println!(
         "block {}: {} raw bits of {} sessions, {} amplified; the agents committed a key of {} \
          bits (H_min {:.0} under their assumption); the camera eavesdropper who knows the world \

@@ -145,9 +145,15 @@ const FIELDS: &[(&str, &str)] = &[
         "world.integration",
         "\"euler\" (the parties' map) or \"continuous\"",
     ),
-    ("world.command_quantum", "rad/s: wheel-speed command resolution"),
+    (
+        "world.command_quantum",
+        "rad/s: wheel-speed command resolution",
+    ),
     ("world.encoder_quantum", "rad: encoder resolution"),
-    ("world.jitter", "s: std of the sample instants' timing error"),
+    (
+        "world.jitter",
+        "s: std of the sample instants' timing error",
+    ),
     (
         "world.controller_std",
         "[m, m, rad]: the controller's sensor as it really is",

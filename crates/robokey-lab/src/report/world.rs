@@ -205,17 +205,24 @@ pub fn write_over_claims(
             format!(", {}", r.setting)
         };
         for (label, y, interval) in [
-            (format!("over-claim vs {} Eve{context}", r.adversary), r.per_raw_bit, None),
+            (
+                format!("over-claim vs {} Eve{context}", r.adversary),
+                r.per_raw_bit,
+                None,
+            ),
             (
                 format!("{} Eve's information per raw bit{context}", r.adversary),
                 r.information[0],
                 Some((r.information[1], r.information[2])),
             ),
         ] {
-            let index = series.iter().position(|s| s.label == label).unwrap_or_else(|| {
-                series.push(Series::new(label, Vec::new(), SeriesStyle::Line));
-                series.len() - 1
-            });
+            let index = series
+                .iter()
+                .position(|s| s.label == label)
+                .unwrap_or_else(|| {
+                    series.push(Series::new(label, Vec::new(), SeriesStyle::Line));
+                    series.len() - 1
+                });
             series[index].points.push((x, y));
             if let Some((low, high)) = interval {
                 series[index].intervals.push(Interval { x, low, high });

@@ -104,11 +104,8 @@ mod tests {
 
     #[test]
     fn the_coarse_worlds_are_one_point_each_of_the_full_file() {
-        let full = experiments_from_table(
-            parse_table(WORLDS_TOML, "worlds").unwrap(),
-            "worlds",
-        )
-        .unwrap();
+        let full =
+            experiments_from_table(parse_table(WORLDS_TOML, "worlds").unwrap(), "worlds").unwrap();
         assert_eq!(full.len(), 6);
         for quick in [false, true] {
             let coarse = coarse_suite(quick).unwrap();
@@ -116,7 +113,11 @@ mod tests {
             for e in &coarse {
                 assert_eq!(e.points.len(), 1, "{}", e.name);
                 let config = &e.points[0].config;
-                assert!(!config.world_model().differences(config).is_empty(), "{}", e.name);
+                assert!(
+                    !config.world_model().differences(config).is_empty(),
+                    "{}",
+                    e.name
+                );
                 let blocks = options(e, quick).block_bits;
                 assert_eq!(blocks, if quick { 2_000 } else { 10_000 });
             }
