@@ -35,15 +35,18 @@ macro_rules! usage {
 }
 pub(crate) use usage;
 
-/// Exit code of a failure: 5 for a pending key (`keys get`, `keys delete`), 2 when the input
-/// was wrong, 1 otherwise (I/O, a runtime error, a store file that does not verify).
+/// Exit code of a failure: 5 for a pending key (`keys take`, `keys get`, `keys delete`), 3
+/// when no key is available yet (`keys take`), 2 when the input was wrong, 1 otherwise (I/O, a
+/// runtime error, a store file that does not verify).
 fn failure_code(error: &anyhow::Error) -> u8 {
     use robokey_net::NetError;
-    let pending = |cause: &(dyn std::error::Error + 'static)| {
-        matches!(cause.downcast_ref::<NetError>(), Some(NetError::Pending(_)))
-    };
-    if error.chain().any(pending) {
+    let net = error
+        .chain()
+        .filter_map(|cause| cause.downcast_ref::<NetError>());
+    if net.clone().any(|e| matches!(e, NetError::Pending(_))) {
         5
+    } else if net.clone().any(|e| matches!(e, NetError::NoKey(_))) {
+        3
     } else if error.chain().any(is_usage) {
         2
     } else {

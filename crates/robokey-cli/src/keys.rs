@@ -1,14 +1,21 @@
-//! `robokey keys`: the final keys of an agent's store (docs/postprocessing.md, "Key store").
-//! Every key file is verified under the pairing's store key before it is listed or given out,
-//! and a pending key is listed but never given out.
+//! `robokey keys`: the final keys of an agent's store (docs/postprocessing.md, "Key store")
+//! and the keys cut from them for applications (docs/keys.md). Every key file is verified
+//! under the pairing's store key before it is listed or taken from, a pending key is listed
+//! but never given out, and a key taken is never given out again.
 
+use std::io::{IsTerminal as _, Write as _};
 use std::path::PathBuf;
 
 use anyhow::Result;
-use clap::{Args, Subcommand};
+use clap::{Args, Subcommand, ValueEnum};
+use robokey::protocol::auth::PairingSecret;
+use robokey_net::key_delivery::{KeyDelivery, Side};
+use robokey_net::key_slice::{DEFAULT_SLICE_BITS, SliceId, Span};
 use robokey_net::key_store::{KeyStatus, KeyStore, StoredKey};
 use robokey_net::post_store::{lock_store, open_keys};
 use serde::Serialize;
+
+use crate::exit::usage;
 
 #[derive(Args, Debug)]
 pub struct KeysArgs {
@@ -18,10 +25,10 @@ pub struct KeysArgs {
 
 /// The store and the pairing that verifies it.
 #[derive(Args, Debug)]
-struct StoreArgs {
-    /// The store (an agent's --store).
+pub(crate) struct StoreArgs {
+    /// The store (an agent's --store; the agent may be running).
     #[arg(long)]
-    store: PathBuf,
+    pub(crate) store: PathBuf,
     /// The pairing file of the store's agent: key files are verified under a key derived
     /// from it, so a file planted or edited beside the store is refused.
     #[arg(long, value_name = "FILE")]
@@ -32,17 +39,33 @@ struct StoreArgs {
 }
 
 impl StoreArgs {
-    fn keys(&self) -> Result<KeyStore> {
-        let pairing = crate::net::pairing_from(&self.pairing, self.insecure_pairing_file)?;
-        Ok(open_keys(&self.store, &pairing)?)
+    /// The pairing secret, from a file checked as the agents check it.
+    pub(crate) fn pairing(&self) -> Result<PairingSecret> {
+        crate::net::pairing_from(&self.pairing, self.insecure_pairing_file)
     }
+
+    /// The store's key folder, verified under the pairing.
+    pub(crate) fn keys(&self) -> Result<KeyStore> {
+        Ok(open_keys(&self.store, &self.pairing()?)?)
+    }
+}
+
+/// How `keys take` writes a key.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum KeyFormat {
+    /// Lowercase hex.
+    Hex,
+    /// Standard base64 with padding (RFC 4648), as WireGuard and the ETSI interface take it.
+    Base64,
+    /// The bytes alone (never onto a terminal); the key ID goes to stderr.
+    Raw,
 }
 
 #[derive(Subcommand, Debug)]
 enum KeysCommand {
-    /// List the final keys of a store: ID, length, ε, label, status (settled, or pending and
-    /// why), creation time, sessions, and the assumption about Eve each is secret under.
-    /// Never prints key bits.
+    /// List the final keys of a store: ID, length, bits still available to take and bits
+    /// taken, ε, label, status (settled, or pending and why), creation time, sessions, and
+    /// the assumption about Eve each is secret under. Never prints key bits.
     List {
         #[command(flatten)]
         store: StoreArgs,
@@ -50,9 +73,31 @@ enum KeysCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Print a settled key's bits as hex on stdout (most significant bit first, the last byte
-    /// zero-padded to the key's length). A pending key — one the peer has not acknowledged —
-    /// is withheld (exit 5).
+    /// Take a key for an application: its ID, then the key, on stdout (`--format raw`: the
+    /// bytes alone, the ID on stderr). It is marked taken and erased from the store before it
+    /// is printed, and never given out again by this store. The controller's store cuts a new
+    /// key of `--bits` from the first settled final key with room (exit 3 when there is none
+    /// yet); the robot's store gives a key only by the ID the controller's gave (`--id`), with
+    /// the same bits. A pending final key is never cut (exit 5).
+    Take {
+        #[command(flatten)]
+        store: StoreArgs,
+        /// The key's length (bits; a multiple of 8 from 64 to 8192). Default 256 on the
+        /// controller's store; on the robot's, the ID says it.
+        #[arg(long)]
+        bits: Option<u32>,
+        /// The ID the controller's store gave the key (robot's store only): a UUID.
+        #[arg(long)]
+        id: Option<String>,
+        /// How to write the key.
+        #[arg(long, value_enum, default_value = "hex")]
+        format: KeyFormat,
+    },
+    /// Print a whole settled final key as hex on stdout (most significant bit first, the last
+    /// byte zero-padded to the key's length), to compare the two stores. This is no delivery:
+    /// nothing is marked taken (applications use `keys take` or `robokey kme`), and a final
+    /// key from which a key was taken is refused (its taken bits were erased). A pending key
+    /// — one the peer has not acknowledged — is withheld (exit 5).
     Get {
         #[command(flatten)]
         store: StoreArgs,
@@ -76,6 +121,11 @@ struct Listed<'a> {
     role: &'a str,
     block: u64,
     bits: usize,
+    /// Whole bytes' bits not taken yet, deliverable once settled.
+    available_bits: u64,
+    taken_bits: u64,
+    /// The IDs of the keys taken from it.
+    taken: Vec<String>,
     epsilon: f64,
     label: &'static str,
     status: &'static str,
@@ -97,6 +147,13 @@ impl<'a> From<&'a StoredKey> for Listed<'a> {
             role: &key.role,
             block: key.block,
             bits: key.bits,
+            available_bits: if key.is_settled() {
+                key.untaken_bits()
+            } else {
+                0
+            },
+            taken_bits: key.taken_bits(),
+            taken: key.taken.iter().map(|span| taken_id(key, *span)).collect(),
             epsilon: key.epsilon,
             label: if key.restricted {
                 "restricted"
@@ -123,8 +180,21 @@ pub fn keys(args: KeysArgs) -> Result<()> {
                 print!("{}", table(&listed));
             }
         }
+        KeysCommand::Take {
+            store,
+            bits,
+            id,
+            format,
+        } => take(&store, bits, id.as_deref(), format)?,
         KeysCommand::Get { store, id } => {
-            let key = store.keys()?.deliver(&id)?;
+            let key = store.keys()?.settled(&id)?;
+            if !key.taken.is_empty() {
+                usage!(
+                    "{} bits of final key {id} were taken (delivered) and erased: `keys get` \
+                     gives only a final key nothing was taken from",
+                    key.taken_bits()
+                );
+            }
             println!("{}", key.hex);
         }
         KeysCommand::Delete { store, id } => {
@@ -137,6 +207,54 @@ pub fn keys(args: KeysArgs) -> Result<()> {
     Ok(())
 }
 
+/// Takes one key (see `KeysCommand::Take`) and writes it.
+fn take(store: &StoreArgs, bits: Option<u32>, id: Option<&str>, format: KeyFormat) -> Result<()> {
+    if matches!(format, KeyFormat::Raw) && std::io::stdout().is_terminal() {
+        usage!("--format raw writes the key's bytes: redirect stdout to a file or a pipe");
+    }
+    let delivery = KeyDelivery::new(store.keys()?);
+    let delivered = match (delivery.side(), id) {
+        (Side::Controller, None) => delivery.take_new(bits.unwrap_or(DEFAULT_SLICE_BITS), 1)?,
+        (Side::Controller, Some(_)) => usage!(
+            "{} is a controller's store, which hands out new keys: drop --id (the robot's \
+             store gives the same key by the ID this one prints)",
+            store.store.display()
+        ),
+        (Side::Robot, None) => usage!(
+            "{} is a robot's store, which gives a key only by the ID the controller's store \
+             gave it: pass --id",
+            store.store.display()
+        ),
+        (Side::Robot, Some(id)) => {
+            let asked = SliceId::parse(id).map_err(crate::exit::Usage)?;
+            if let Some(bits) = bits.filter(|&b| b != asked.span.bits) {
+                usage!(
+                    "--bits {bits}, but the key {id} has {} bits (drop --bits)",
+                    asked.span.bits
+                );
+            }
+            delivery.take_by_id(&[id])?
+        }
+    };
+    let key = &delivered[0];
+    let mut stdout = std::io::stdout().lock();
+    match format {
+        KeyFormat::Hex => writeln!(stdout, "{}\n{}", key.id, *key.hex())?,
+        KeyFormat::Base64 => writeln!(stdout, "{}\n{}", key.id, *key.base64())?,
+        KeyFormat::Raw => {
+            stdout.write_all(&key.key)?;
+            eprintln!("{}", key.id);
+        }
+    }
+    stdout.flush()?;
+    Ok(())
+}
+
+/// The ID of the key taken as `span` from `key`.
+fn taken_id(key: &StoredKey, span: Span) -> String {
+    SliceId::new(&key.id, span).map_or_else(|e| e, |id| id.uuid().to_string())
+}
+
 /// One line per key, then each assumption once, then why each pending key is pending.
 fn table(keys: &[Listed<'_>]) -> String {
     if keys.is_empty() {
@@ -144,8 +262,8 @@ fn table(keys: &[Listed<'_>]) -> String {
     }
     let mut assumptions: Vec<&str> = Vec::new();
     let mut out = format!(
-        "{:<16}  {:>7}  {:>7}  {:<10}  {:<8}  {:<20}  {:>8}  assumption\n",
-        "ID", "bits", "ε", "label", "status", "created", "sessions"
+        "{:<16}  {:>7}  {:>9}  {:>7}  {:>7}  {:<10}  {:<8}  {:<20}  {:>8}  assumption\n",
+        "ID", "bits", "available", "taken", "ε", "label", "status", "created", "sessions"
     );
     for key in keys {
         let number = match assumptions.iter().position(|a| *a == key.assumption) {
@@ -156,9 +274,11 @@ fn table(keys: &[Listed<'_>]) -> String {
             }
         };
         out.push_str(&format!(
-            "{:<16}  {:>7}  {:>7.0e}  {:<10}  {:<8}  {:<20}  {:>8}  [{}]\n",
+            "{:<16}  {:>7}  {:>9}  {:>7}  {:>7.0e}  {:<10}  {:<8}  {:<20}  {:>8}  [{}]\n",
             key.id,
             key.bits,
+            key.available_bits,
+            key.taken_bits,
             key.epsilon,
             key.label,
             key.status,
@@ -173,7 +293,7 @@ fn table(keys: &[Listed<'_>]) -> String {
     for key in keys {
         if let Some(reason) = key.pending_reason {
             out.push_str(&format!(
-                "{} is pending: {reason}; withheld from `keys get` until settled\n",
+                "{} is pending: {reason}; nothing is taken from it until it settles\n",
                 key.id
             ));
         }

@@ -12,6 +12,7 @@ mod configuration;
 mod eve;
 mod exit;
 mod keys;
+mod kme;
 mod net;
 mod ros2;
 mod world;
@@ -98,10 +99,15 @@ enum Command {
     /// localhost only) for `robot --backend ros2`; needs the `ros2` feature (docs/ros2.md).
     #[command(name = "ros2-sim")]
     Ros2Sim(ros2::SimArgs),
-    /// The final keys of an agent's store (--store): list, get (hex), delete. Both agents'
-    /// stores list the same IDs (docs/postprocessing.md).
+    /// The final keys of an agent's store (--store): list, take a key for an application
+    /// (each once; the robot's store by the ID the controller's gave), get a whole final key
+    /// to compare the stores, delete. Both agents' stores list the same IDs (docs/keys.md).
     #[command(subcommand_required = true)]
     Keys(keys::KeysArgs),
+    /// An ETSI GS QKD 014 key-delivery server (HTTPS, mutual TLS) on an agent's store: the
+    /// controller's store gives new keys (enc_keys), the robot's the same keys by ID
+    /// (dec_keys), each once (docs/keys.md).
+    Kme(kme::KmeArgs),
 }
 
 #[derive(Args, Debug)]
@@ -353,6 +359,7 @@ fn main() -> ExitCode {
         Command::Record(args) => net::record(args),
         Command::Ros2Sim(args) => ros2::ros2_sim(args),
         Command::Keys(args) => done(keys::keys(args)),
+        Command::Kme(args) => kme::kme(args),
     };
     exit::code(result)
 }

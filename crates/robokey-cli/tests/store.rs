@@ -2,7 +2,8 @@
 //! can write beside it (docs/threat-model.md, "Beside the store"): a key the peer has not
 //! acknowledged stays pending, withheld from `keys get`, until a later session settles it;
 //! a name planted in `keys/` is never reported as a commit; links, open modes and foreign
-//! pairings are refused by name.
+//! pairings are refused by name; key servers beside the running agents deliver only settled
+//! keys, the same by ID on both sides.
 
 mod common;
 
@@ -12,6 +13,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use common::kme::{CONTROLLER_SAE, Pki, ROBOT_SAE, curl, have_curl, start_pair};
 use common::{pairing, report, run, run_code, s, scratch, start, wait_code};
 use robokey::protocol::{Message, PostFragment};
 use robokey_secrecy::postprocess::{self, Message as Post};
@@ -499,5 +501,138 @@ fn journals_restored_from_an_older_copy_never_make_a_second_key_from_spent_bits(
         let keys = listed(&dir, &pairing, role);
         assert_eq!(keys.len(), 1, "{role}: a second key");
         assert_eq!(keys[0]["sessions"], sources);
+    }
+}
+
+/// The final key a robokey key ID names: the hex digits around its version and variant.
+fn final_key_of(key_id: &str) -> String {
+    let hex: String = key_id.chars().filter(|c| *c != '-').collect();
+    format!("{}{}{}", &hex[..12], &hex[13..16], &hex[17..18])
+}
+
+/// Key servers beside the running agents: an application fetches 128-bit keys from the
+/// controller side's `robokey kme` as fast as it can while the agents pool sessions, make,
+/// settle and compact (an agent and a server on one store); a key left pending by lost
+/// `Commit`s is never delivered on either side until the next session settles it; the robot
+/// side's server then gives every key by its ID with the same bits, once; both stores verify.
+#[test]
+fn key_servers_beside_the_agents_deliver_only_settled_keys_the_same_by_id() {
+    if !have_curl() {
+        return;
+    }
+    let dir = scratch("store-kme");
+    let pairing = pairing(&dir);
+    let pki = Pki::new(&dir);
+    assert_eq!(session(&dir, &pairing, 110, Attack::None).0, [0, 0]);
+    let (controller, robot) = start_pair(&pki, &dir, &pairing);
+    let (master, slave) = (&controller.url, &robot.url);
+    let enc = format!("{master}/api/v1/keys/{ROBOT_SAE}/enc_keys?size=128");
+    let dec = format!("{slave}/api/v1/keys/{CONTROLLER_SAE}/dec_keys");
+    let fetch_all = |into: &mut Vec<serde_json::Value>| -> serde_json::Value {
+        loop {
+            let got = curl(&pki, Some(&pki.controller_app), "GET", &enc, None);
+            match got.status {
+                200 => into.extend(got.json()["keys"].as_array().unwrap().clone()),
+                503 => return got.json(),
+                _ => panic!("{got:?}"),
+            }
+        }
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let application = std::thread::spawn({
+        let (pki, enc, stop) = (Pki::clone(&pki), enc.clone(), Arc::clone(&stop));
+        move || {
+            let mut keys = Vec::new();
+            for _ in 0..2000 {
+                if stop.load(Ordering::SeqCst) {
+                    break;
+                }
+                let got = curl(&pki, Some(&pki.controller_app), "GET", &enc, None);
+                match got.status {
+                    200 => keys.extend(got.json()["keys"].as_array().unwrap().clone()),
+                    503 => std::thread::sleep(Duration::from_millis(20)),
+                    _ => panic!("{got:?}"),
+                }
+            }
+            keys
+        }
+    });
+    for seed in 111..115 {
+        assert_eq!(session(&dir, &pairing, seed, Attack::None).0, [0, 0]);
+    }
+    let (codes, _) = session(&dir, &pairing, 115, Attack::DropCommit);
+    assert_eq!(codes, [5, 5]);
+    stop.store(true, Ordering::SeqCst);
+    let mut delivered = application.join().unwrap();
+    assert!(!delivered.is_empty(), "no key while the agents ran");
+    let none = fetch_all(&mut delivered);
+    assert!(
+        none["message"].as_str().unwrap().contains("pending"),
+        "{none}"
+    );
+    let pending: Vec<String> = statuses(&dir, &pairing, "controller")
+        .into_iter()
+        .filter(|(_, status)| status == "pending")
+        .map(|(id, _)| id)
+        .collect();
+    assert_eq!(pending.len(), 1);
+    let ids: Vec<String> = delivered
+        .iter()
+        .map(|k| k["key_ID"].as_str().unwrap().to_owned())
+        .collect();
+    assert!(
+        ids.iter().all(|id| final_key_of(id) != pending[0]),
+        "a pending key was delivered"
+    );
+    let hex: String = pending[0].clone();
+    let into_pending = format!(
+        "{}-{}-8{}-8{}00-000000000080",
+        &hex[..8],
+        &hex[8..12],
+        &hex[12..15],
+        &hex[15..]
+    );
+    assert_eq!(final_key_of(&into_pending), pending[0]);
+    let withheld = curl(
+        &pki,
+        Some(&pki.robot_app),
+        "GET",
+        &format!("{dec}?key_ID={into_pending}"),
+        None,
+    );
+    assert_eq!(withheld.status, 503, "{withheld:?}");
+    // The next session settles it: its keys are delivered now.
+    let (codes, _) = session(&dir, &pairing, 116, Attack::None);
+    assert!(codes.iter().all(|&c| c == 0 || c == 5), "{codes:?}");
+    let before = delivered.len();
+    fetch_all(&mut delivered);
+    assert!(
+        delivered[before..]
+            .iter()
+            .any(|k| final_key_of(k["key_ID"].as_str().unwrap()) == pending[0])
+    );
+    // The robot side gives every key by its ID, the same bits, once.
+    for batch in delivered.chunks(100) {
+        let asked: Vec<serde_json::Value> = batch
+            .iter()
+            .map(|k| serde_json::json!({"key_ID": k["key_ID"]}))
+            .collect();
+        let body = serde_json::json!({"key_IDs": asked}).to_string();
+        let got = curl(&pki, Some(&pki.robot_app), "POST", &dec, Some(&body));
+        assert_eq!(got.status, 200, "{got:?}");
+        assert_eq!(got.json()["keys"].as_array().unwrap(), batch);
+        let again = curl(&pki, Some(&pki.robot_app), "POST", &dec, Some(&body));
+        assert_eq!(again.status, 400, "{again:?}");
+    }
+    for role in ["robot", "controller"] {
+        let (code, text) = run_code(&[
+            "keys",
+            "list",
+            "--store",
+            &s(&dir.join(role)),
+            "--pairing",
+            &pairing,
+        ]);
+        assert_eq!(code, 0, "{role}: {text}");
     }
 }

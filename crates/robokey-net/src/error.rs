@@ -38,6 +38,9 @@ pub enum NetError {
     /// A key is pending: the peer has not acknowledged it, so it is withheld.
     #[error("{0}")]
     Pending(String),
+    /// No key of the length asked is available (yet): the store holds too few settled bits.
+    #[error("{0}")]
+    NoKey(String),
     /// Bad command-line or configuration input.
     #[error("{0}")]
     Usage(String),

@@ -8,7 +8,16 @@
 //! does not verify — planted, edited, another pairing's or role's — is refused by name and
 //! never reported as a commit; so is any name that exists already (a file, a link, a dangling
 //! link) when a key is written, unless it is this very key. A key is `pending` while the peer
-//! has not acknowledged it, and only a `settled` key is delivered.
+//! has not acknowledged it, and only a `settled` key is delivered: cut into slices, each taken
+//! once ([`slices`], docs/keys.md), its taken bits erased from the file. A file with taken
+//! slices is sealed under another MAC domain, so that a robokey that predates slices refuses
+//! it rather than read its erased bits as a key.
+//!
+//! Every change to `keys/` — an agent writing, settling or removing a key, a slice taken by
+//! `robokey keys take` or `robokey kme`, `keys delete` — holds the folder's lock
+//! ([`KeyStore::lock`], `flock` on the folder itself) for that one change: an agent and a key
+//! server on the same store never interleave their changes to a file, and two takers never
+//! take the same slice.
 
 use std::fs::OpenOptions;
 use std::io::Read as _;
@@ -19,12 +28,17 @@ use serde::{Deserialize, Serialize};
 use zeroize::{Zeroize, Zeroizing};
 
 use crate::error::NetError;
+use crate::key_slice::Span;
 use crate::owned_file::{self, ANY_ACCESS_BY_OTHERS};
 use crate::secret_file;
 use crate::store_keys::StoreMac;
 
+pub mod slices;
+
 /// Domain of a key file's MAC.
 const MAC_DOMAIN: &[u8] = b"robokey key file v2";
+/// Domain of the MAC of a key file from which slices were taken.
+const SLICED_MAC_DOMAIN: &[u8] = b"robokey key file v3 with taken slices";
 /// What separates a key file's JSON from its MAC.
 const MAC_FIELD: &str = ",\n  \"mac\": \"";
 /// Longest ID an error message quotes in full.
@@ -67,6 +81,9 @@ pub struct StoredKey {
     pub sessions: Vec<u32>,
     /// Settled, or pending and why.
     pub status: KeyStatus,
+    /// The slices taken from it, by offset: their bits are erased (zero) in `hex`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub taken: Vec<Span>,
 }
 
 impl std::fmt::Debug for StoredKey {
@@ -78,6 +95,7 @@ impl std::fmt::Debug for StoredKey {
             .field("bits", &self.bits)
             .field("restricted", &self.restricted)
             .field("status", &self.status)
+            .field("taken", &self.taken)
             .finish_non_exhaustive()
     }
 }
@@ -115,6 +133,7 @@ impl StoredKey {
             created: utc_now(),
             sessions: key.sessions.clone(),
             status,
+            taken: Vec::new(),
         }
     }
 
@@ -124,10 +143,12 @@ impl StoredKey {
         self.status == KeyStatus::Settled
     }
 
-    /// Whether `other` is the same key (ID, block, sessions, bits), whatever its status.
+    /// Whether `other` is the same key (ID, block, sessions, bits), whatever its status and
+    /// the slices taken from either (their bits are left out of the comparison).
     fn same_key(&self, other: &Self) -> bool {
-        (&self.id, self.block, &self.sessions, &self.hex)
-            == (&other.id, other.block, &other.sessions, &other.hex)
+        let erased = [self.taken.as_slice(), other.taken.as_slice()].concat();
+        (&self.id, self.block, &self.sessions) == (&other.id, other.block, &other.sessions)
+            && self.erased_hex(&erased) == other.erased_hex(&erased)
     }
 }
 
@@ -184,6 +205,12 @@ impl KeyStore {
         })
     }
 
+    /// `robot` or `controller`: whose store.
+    #[must_use]
+    pub fn role(&self) -> &str {
+        &self.role
+    }
+
     fn path(&self, id: &str) -> PathBuf {
         self.dir.join(format!("{id}.key"))
     }
@@ -196,6 +223,7 @@ impl KeyStore {
     /// The name is taken by a link, a file that does not verify, or another key (named: it
     /// is then not reported as committed); a write fails.
     pub fn store(&self, key: &StoredKey) -> Result<Stored, NetError> {
+        let _lock = self.lock()?;
         let path = self.path(&key.id);
         let text = self.seal(key)?;
         if secret_file::create(&path, &text)? {
@@ -228,6 +256,7 @@ impl KeyStore {
     /// # Errors
     /// No such key (a usage error), it does not verify, or the write fails.
     pub fn restate(&self, id: &str, status: KeyStatus) -> Result<(), NetError> {
+        let _lock = self.lock()?;
         let mut key = self.get(id)?;
         key.status = status;
         secret_file::replace(&self.path(id), &self.seal(&key)?)?;
@@ -239,6 +268,7 @@ impl KeyStore {
     /// # Errors
     /// The key is settled, does not verify, or the removal fails.
     pub fn remove_pending(&self, id: &str) -> Result<(), NetError> {
+        let _lock = self.lock()?;
         let path = self.path(id);
         let key = self.read(&path, id)?;
         if key.is_settled() {
@@ -286,11 +316,11 @@ impl KeyStore {
         self.read(&path, id)
     }
 
-    /// The key `id` for an application: settled only.
+    /// The key `id` if it is settled.
     ///
     /// # Errors
     /// As [`Self::get`], or [`NetError::Pending`] naming the key and why it is pending.
-    pub fn deliver(&self, id: &str) -> Result<StoredKey, NetError> {
+    pub fn settled(&self, id: &str) -> Result<StoredKey, NetError> {
         let key = self.get(id)?;
         match &key.status {
             KeyStatus::Settled => Ok(key),
@@ -307,8 +337,32 @@ impl KeyStore {
     /// No such key, it is pending ([`NetError::Pending`]), it does not verify, or the
     /// removal fails.
     pub fn delete(&self, id: &str) -> Result<(), NetError> {
-        self.deliver(id)?;
+        let _lock = self.lock()?;
+        self.settled(id)?;
         remove_durably(&self.path(id), &self.dir)
+    }
+
+    /// Takes the lock of the key folder (`flock` on the folder), waiting for another
+    /// process's change to end; held until the guard is dropped. Every change to `keys/`
+    /// holds it, and never takes it twice (a second lock in one process waits for the first).
+    ///
+    /// # Errors
+    /// The folder cannot be opened or locked.
+    pub fn lock(&self) -> Result<KeyFolderLock, NetError> {
+        let folder = std::fs::File::open(&self.dir)
+            .and_then(|folder| folder.lock().map(|()| folder))
+            .map_err(NetError::io(format!("lock {}", self.dir.display())))?;
+        Ok(KeyFolderLock { _folder: folder })
+    }
+
+    /// Replaces the file of `key` (already stored) by its new state, atomically. The caller
+    /// holds [`Self::lock`].
+    ///
+    /// # Errors
+    /// The write fails (the old file is then intact).
+    pub(crate) fn rewrite(&self, key: &StoredKey, _lock: &KeyFolderLock) -> Result<(), NetError> {
+        secret_file::replace(&self.path(&key.id), &self.seal(key)?)?;
+        Ok(())
     }
 
     fn existing(&self, id: &str) -> Result<PathBuf, NetError> {
@@ -336,7 +390,7 @@ impl KeyStore {
         let open = body
             .strip_suffix("\n}")
             .expect("a pretty JSON object ends so");
-        let tag = self.mac.tag(&[MAC_DOMAIN, body.as_bytes()]);
+        let tag = self.mac.tag(&[mac_domain(key), body.as_bytes()]);
         let mut text = Zeroizing::new(Vec::with_capacity(body.len() + 100));
         text.extend_from_slice(open.as_bytes());
         text.extend_from_slice(MAC_FIELD.as_bytes());
@@ -364,15 +418,23 @@ impl KeyStore {
             .and_then(unhex)
             .ok_or_else(|| bad("does not verify: its MAC is malformed".into()))?;
         let body = Zeroizing::new(format!("{open}\n}}"));
-        if tag.len() != 32 || !self.mac.verify(&[MAC_DOMAIN, body.as_bytes()], &tag) {
-            return Err(bad(format!(
-                "does not verify under this pairing's {} key-file key: not written by this \
-                 store (planted, edited, or another pairing's or role's)",
-                self.role
-            )));
-        }
+        let domain = [MAC_DOMAIN, SLICED_MAC_DOMAIN]
+            .into_iter()
+            .find(|domain| tag.len() == 32 && self.mac.verify(&[domain, body.as_bytes()], &tag))
+            .ok_or_else(|| {
+                bad(format!(
+                    "does not verify under this pairing's {} key-file key: not written by this \
+                     store (planted, edited, or another pairing's or role's)",
+                    self.role
+                ))
+            })?;
         let key: StoredKey =
             serde_json::from_str(&body).map_err(|e| bad(format!("is malformed: {e}")))?;
+        if domain != mac_domain(&key) || !key.taken_spans_fit() {
+            return Err(bad(
+                "is malformed: its taken slices do not match its MAC domain or its length".into(),
+            ));
+        }
         if key.id != id || key.role != self.role {
             return Err(bad(format!(
                 "holds the {} key {}, not {} key {id}",
@@ -381,6 +443,21 @@ impl KeyStore {
         }
         Ok(key)
     }
+}
+
+/// The MAC domain of `key`'s file: another once a slice was taken.
+fn mac_domain(key: &StoredKey) -> &'static [u8] {
+    if key.taken.is_empty() {
+        MAC_DOMAIN
+    } else {
+        SLICED_MAC_DOMAIN
+    }
+}
+
+/// The lock of a key folder, held while alive ([`KeyStore::lock`]).
+#[derive(Debug)]
+pub struct KeyFolderLock {
+    _folder: std::fs::File,
 }
 
 /// `id` as an error quotes it: whole if short, else its start and its length.
@@ -497,7 +574,7 @@ pub(crate) mod tests {
         assert_eq!(store.store(&pending).unwrap(), Stored::Present);
         // A pending key is listed, got, and withheld from delivery and deletion.
         assert_eq!(store.list().unwrap(), vec![pending.clone()]);
-        let withheld = store.deliver(&pending.id).unwrap_err();
+        let withheld = store.settled(&pending.id).unwrap_err();
         assert!(matches!(withheld, NetError::Pending(_)), "{withheld}");
         assert!(withheld.to_string().contains("prepared"), "{withheld}");
         assert!(matches!(
@@ -509,7 +586,7 @@ pub(crate) mod tests {
         settled.status = KeyStatus::Settled;
         assert_eq!(store.store(&settled).unwrap(), Stored::Settled);
         assert_eq!(store.store(&pending).unwrap(), Stored::Present);
-        assert_eq!(store.deliver(&settled.id).unwrap(), settled);
+        assert_eq!(store.settled(&settled.id).unwrap(), settled);
         // Another key under the same ID is refused.
         let mut other = settled.clone();
         other.hex = "ffff".into();
@@ -610,7 +687,7 @@ pub(crate) mod tests {
                 "{what}: {error}"
             );
             assert!(store.list().is_err(), "{what}");
-            assert!(store.deliver(&key.id).is_err(), "{what}");
+            assert!(store.settled(&key.id).is_err(), "{what}");
             assert_eq!(
                 std::fs::read(&victim).unwrap(),
                 b"attacker's bits",
@@ -621,7 +698,7 @@ pub(crate) mod tests {
         }
         // The name freed, the key is written.
         assert_eq!(store.store(&key).unwrap(), Stored::Written);
-        assert_eq!(store.deliver(&key.id).unwrap().hex, "b080");
+        assert_eq!(store.settled(&key.id).unwrap().hex, "b080");
     }
 
     #[test]

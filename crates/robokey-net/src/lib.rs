@@ -9,8 +9,11 @@ pub mod error;
 #[doc(hidden)]
 pub mod fuzzing;
 pub mod journal;
+pub mod key_delivery;
+pub mod key_slice;
 pub mod key_store;
 pub mod khepera;
+pub mod kme;
 pub mod owned_file;
 pub mod pairing;
 pub mod pcap;

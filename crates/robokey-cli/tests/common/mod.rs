@@ -2,6 +2,8 @@
 //! their reports. (Each test binary uses a subset, hence `dead_code` is allowed here.)
 #![allow(dead_code)]
 
+pub mod kme;
+
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};

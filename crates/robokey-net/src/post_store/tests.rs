@@ -95,7 +95,7 @@ fn a_committed_key_whose_file_a_crash_prevented_is_written_on_opening() {
     keys_of(&dir, 1).delete(&key(0, &[]).id).unwrap();
     let (mut store, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
     assert_eq!(recovery.figures.keys_recovered, 1);
-    let recovered = keys_of(&dir, 1).deliver(&key(0, &[]).id).unwrap();
+    let recovered = keys_of(&dir, 1).settled(&key(0, &[]).id).unwrap();
     assert_eq!((recovered.hex.as_str(), recovered.block), ("a0", 0));
     // The pool emptied (a block took the session): its bits leave the journal.
     let mut state = recovery.snapshot.unwrap();
@@ -121,7 +121,7 @@ fn the_controllers_key_is_pending_until_the_robot_acknowledges() {
     });
     store.persist(&mut state, &[key(0, &[1, 2])]).unwrap();
     let id = key(0, &[]).id;
-    let error = keys_of(&dir, 1).deliver(&id).unwrap_err();
+    let error = keys_of(&dir, 1).settled(&id).unwrap_err();
     assert!(matches!(error, NetError::Pending(_)), "{error}");
     assert!(error.to_string().contains("CommitAck"), "{error}");
     assert_eq!(store.pending().len(), 1);
@@ -134,7 +134,7 @@ fn the_controllers_key_is_pending_until_the_robot_acknowledges() {
     state.in_flight = None;
     store.persist(&mut state, &[]).unwrap();
     assert!(store.pending().is_empty());
-    assert!(keys_of(&dir, 1).deliver(&id).unwrap().is_settled());
+    assert!(keys_of(&dir, 1).settled(&id).unwrap().is_settled());
     // Settled by the state, not yet in the file (a crash between): settled on opening.
     drop(store);
     let (mut store, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
@@ -183,13 +183,13 @@ fn the_robots_prepared_key_is_pending_until_the_commit_and_removed_on_abort() {
     let mut state = prepared(0);
     store.persist(&mut state, &[]).unwrap();
     let id = key(0, &[]).id;
-    let error = keys_of(&dir, 1).deliver(&id).unwrap_err().to_string();
+    let error = keys_of(&dir, 1).settled(&id).unwrap_err().to_string();
     assert!(error.contains("Commit has not arrived"), "{error}");
     // The Commit: the key settles.
     state.prepared = None;
     state.committed.push(0);
     store.persist(&mut state, &[key(0, &[1, 2])]).unwrap();
-    assert!(keys_of(&dir, 1).deliver(&id).unwrap().is_settled());
+    assert!(keys_of(&dir, 1).settled(&id).unwrap().is_settled());
     // Block 1 prepared, then aborted: its pending key goes.
     let mut state = prepared(1);
     state.committed.push(0);
@@ -358,8 +358,8 @@ fn a_pending_key_a_restored_journal_does_not_know_is_never_settled() {
     state.in_flight = None;
     store.persist(&mut state, &[]).unwrap();
     let keys = keys_of(&dir, 1);
-    assert!(keys.deliver(&other.id).unwrap().is_settled());
-    let error = keys.deliver(&key(0, &[]).id).unwrap_err().to_string();
+    assert!(keys.settled(&other.id).unwrap().is_settled());
+    let error = keys.settled(&key(0, &[]).id).unwrap_err().to_string();
     assert!(error.contains("restored from an older copy"), "{error}");
     drop(store);
     let (_, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
