@@ -48,6 +48,9 @@ fn the_ideal_world_is_no_world_number_for_number() {
     }
 }
 
+/// An eavesdropper's log-likelihood ratio of a bit.
+type Llr = fn(&DoubletBit) -> f64;
+
 /// Worlds unlike the parties' — lag, AR(1) noise, slip, delay, a camera between the
 /// instants, and the Khepera IV preset (continuous motion, jitter, quanta, lag, delay, slip):
 /// the `camera` and `commands` eavesdroppers' LLRs pass the calibration test (10 equal-count
@@ -66,9 +69,9 @@ fn the_eavesdroppers_stay_calibrated_in_other_worlds() {
     for world in worlds {
         let all = bits(&private(&format!("[world]\n{world}")), 12);
         assert!(all.len() > 4_500, "{world}: {}", all.len());
-        let parties: [(&str, fn(&DoubletBit) -> f64); 2] =
+        let adversaries: [(&str, Llr); 2] =
             [("camera", |b| b.camera), ("commands", |b| b.commands)];
-        for (name, llr) in parties {
+        for (name, llr) in adversaries {
             let pairs: Vec<(f64, bool)> = all
                 .iter()
                 .map(|b| {

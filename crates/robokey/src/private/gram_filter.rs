@@ -222,8 +222,8 @@ mod tests {
         for (i, (row, block)) in h_rows.iter().zip(&r_blocks).enumerate() {
             h.view_mut((3 * i, 0), (3, total)).copy_from(row);
             r.view_mut((3 * i, 3 * i), (3, 3)).copy_from(block);
-            for col in 0..columns {
-                c.view_mut((3 * i, col), (3, 1)).copy_from(&values[i][col]);
+            for (col, value) in values[i].iter().enumerate().take(columns) {
+                c.view_mut((3 * i, col), (3, 1)).copy_from(value);
             }
         }
         let mut prior = DMatrix::identity(total, total);

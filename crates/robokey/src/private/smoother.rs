@@ -446,9 +446,9 @@ impl WindowSmoother {
         let grams_with = |known: &dyn Fn(usize) -> Option<usize>| -> Vec<(DMatrix<f64>, f64)> {
             (0..self.covariance_runs(patterns))
                 .map(|h| {
-                    let slips = self
-                        .slip_profiles(&nominal, &runs, &carrying, target, h, known, first, steps);
-                    self.filter(&nominal, &observations, &columns, &slips, steps)
+                    let slips =
+                        self.slip_profiles(nominal, runs, carrying, target, h, known, first, steps);
+                    self.filter(nominal, &observations, &columns, &slips, steps)
                 })
                 .collect()
         };
@@ -664,10 +664,10 @@ impl WindowSmoother {
                 filter.observe(&f, &observations[next].noise_inverse, &values(next));
                 next += 1;
             }
-            if step == steps {
+            // `slips` holds one profile per step: none past the window's last instant.
+            let Some(slip) = slips.get(step) else {
                 break;
-            }
-            let slip = &slips[step];
+            };
             let effects = if slipping { slip.bit_effects.len() } else { 0 };
             let extra = 3 + if slipping { 2 + 2 * effects } else { 0 };
             filter.augment(extra);

@@ -289,14 +289,16 @@ mod tests {
     /// continuous motion, lands on the same pose to rounding.
     #[test]
     fn a_period_in_pieces_is_a_period() {
-        let mut config = Config::default();
-        config.world = Some(crate::world::WorldConfig {
-            integration: Some(crate::world::Integration::Continuous),
-            lag: Some(0.05),
-            process_rho: Some(0.5),
-            slip_std: Some(0.05),
+        let config = Config {
+            world: Some(crate::world::WorldConfig {
+                integration: Some(crate::world::Integration::Continuous),
+                lag: Some(0.05),
+                process_rho: Some(0.5),
+                slip_std: Some(0.05),
+                ..Default::default()
+            }),
             ..Default::default()
-        });
+        };
         let world = WorldModel::of(&config);
         let mut whole = WorldPlant::new(&world, DRIVE, 38.0, 0.2, streams(3), true);
         let mut pieces = WorldPlant::new(&world, DRIVE, 38.0, 0.2, streams(3), true);
@@ -323,11 +325,13 @@ mod tests {
     /// The AR(1) noise keeps its stationary variance and has lag-1 correlation ρ.
     #[test]
     fn correlated_noise_has_its_variance_and_correlation() {
-        let mut config = Config::default();
-        config.world = Some(crate::world::WorldConfig {
-            process_rho: Some(0.9),
+        let config = Config {
+            world: Some(crate::world::WorldConfig {
+                process_rho: Some(0.9),
+                ..Default::default()
+            }),
             ..Default::default()
-        });
+        };
         let world = WorldModel::of(&config);
         let mut plant = WorldPlant::new(&world, DRIVE, 38.0, 0.2, streams(11), false);
         let n = 40_000;

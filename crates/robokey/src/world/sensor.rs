@@ -71,8 +71,10 @@ mod tests {
     use crate::world::{PlantStreams, WorldConfig, WorldModel};
 
     fn plant(world: &WorldConfig) -> WorldPlant {
-        let mut config = Config::default();
-        config.world = Some(world.clone());
+        let config = Config {
+            world: Some(world.clone()),
+            ..Default::default()
+        };
         WorldPlant::new(
             &WorldModel::of(&config),
             DiffDrive {
