@@ -162,28 +162,12 @@ fn odometry_stages(
 /// its secrecy. Returns how long it took (s).
 fn private_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabError> {
     timed(stop, || {
-        let out = dir.join(private_suite::PRIVATE_SENSING_DIR);
-        for experiment in private_suite::coarse_suite(quick)? {
-            let plan = SweepPlan {
-                shard: None,
-                resume: false,
-            };
-            let swept = sweep(
-                &out,
-                std::slice::from_ref(&experiment),
-                plan,
-                stop,
-                &mut |_| {},
-                &|| {},
-            )?;
-            if let Some(signal) = swept.interrupted {
-                return Err(LabError::Interrupted(signal));
-            }
-            let options = private_suite::options(&experiment);
-            Secrecy::compute(&experiment, &options, &mut SessionBank::new())?
-                .write(&out.join(&experiment.name))?;
-        }
-        Ok(())
+        sweep_each_then_secrecy(
+            &dir.join(private_suite::PRIVATE_SENSING_DIR),
+            private_suite::coarse_suite(quick)?,
+            private_suite::options,
+            stop,
+        )
     })
 }
 
@@ -191,29 +175,43 @@ fn private_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabEr
 /// eavesdroppers who know it. Returns how long it took (s).
 fn worlds_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabError> {
     timed(stop, || {
-        let out = dir.join(world_suite::WORLDS_DIR);
-        for experiment in world_suite::coarse_suite(quick)? {
-            let plan = SweepPlan {
-                shard: None,
-                resume: false,
-            };
-            let swept = sweep(
-                &out,
-                std::slice::from_ref(&experiment),
-                plan,
-                stop,
-                &mut |_| {},
-                &|| {},
-            )?;
-            if let Some(signal) = swept.interrupted {
-                return Err(LabError::Interrupted(signal));
-            }
-            let options = world_suite::options(&experiment, quick);
-            Secrecy::compute(&experiment, &options, &mut SessionBank::new())?
-                .write(&out.join(&experiment.name))?;
-        }
-        Ok(())
+        sweep_each_then_secrecy(
+            &dir.join(world_suite::WORLDS_DIR),
+            world_suite::coarse_suite(quick)?,
+            |experiment| world_suite::options(experiment, quick),
+            stop,
+        )
     })
+}
+
+/// Sweeps each experiment into `out`, one at a time, then computes and writes its secrecy
+/// with `options(experiment)` into its folder.
+fn sweep_each_then_secrecy(
+    out: &Path,
+    experiments: Vec<Experiment>,
+    options: impl Fn(&Experiment) -> SecrecyOptions,
+    stop: &Interrupt,
+) -> Result<(), LabError> {
+    for experiment in experiments {
+        let plan = SweepPlan {
+            shard: None,
+            resume: false,
+        };
+        let swept = sweep(
+            out,
+            std::slice::from_ref(&experiment),
+            plan,
+            stop,
+            &mut |_| {},
+            &|| {},
+        )?;
+        if let Some(signal) = swept.interrupted {
+            return Err(LabError::Interrupted(signal));
+        }
+        Secrecy::compute(&experiment, &options(&experiment), &mut SessionBank::new())?
+            .write(&out.join(&experiment.name))?;
+    }
+    Ok(())
 }
 
 /// The experiment `name` of the suite.
