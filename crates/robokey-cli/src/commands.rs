@@ -490,6 +490,11 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             );
         }
         print!("{}", secrecy_table(results));
+        for sentence in robokey_lab::report::world::over_claim_sentences(
+            &robokey_lab::report::world::over_claims(&experiment, results),
+        ) {
+            print!("{}", wrapped(&sentence));
+        }
         if let Some(map) = &map {
             for curve in &map.camera {
                 print!(
@@ -628,6 +633,52 @@ fn secrecy_table(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
              supports ({}): this adversary violates it",
             r.secret_bits, r.point, r.adversary, r.realised_secret_bits
         )));
+    }
+    out.push_str(&world_blocks(results));
+    out
+}
+
+/// Where a point's world is not the parties' (docs/world.md): for each block, ℓ beside the
+/// realised bound of the eavesdropper who knows the world, and a WARNING naming the world's
+/// parameters wherever ℓ exceeds it.
+fn world_blocks(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
+    let mut out = String::new();
+    let camera = robokey::config::EveStrategy::Camera.name();
+    for r in results
+        .iter()
+        .filter(|r| !r.world_differences.is_empty() && r.adversary == camera)
+    {
+        let world = r.world_differences.join("; ");
+        out.push_str(&wrapped(&format!(
+            "{}, {} Eve who knows the world ({world}):",
+            r.point, r.adversary
+        )));
+        for (i, b) in r.blocks.iter().enumerate() {
+            let verdict = if b.assumption_exceeds_realised {
+                "EXCEEDS"
+            } else {
+                "within"
+            };
+            out.push_str(&format!(
+                "    block {}: ℓ {} bits, her realised bound {} bits ({verdict}; {} raw bits)\n",
+                i + 1,
+                b.secret_bits,
+                b.realised.secret_bits,
+                b.bits
+            ));
+            if b.assumption_exceeds_realised {
+                out.push_str(&wrapped(&format!(
+                    "WARNING: block {} at {}: ℓ = {} bits exceeds the {} bits the {} \
+                     eavesdropper's realised view supports in a world the parties' \
+                     configuration does not describe: {world}",
+                    i + 1,
+                    r.point,
+                    b.secret_bits,
+                    b.realised.secret_bits,
+                    r.adversary
+                )));
+            }
+        }
     }
     out
 }

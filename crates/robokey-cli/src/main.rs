@@ -17,6 +17,7 @@ mod kme;
 mod logging;
 mod net;
 mod ros2;
+mod world;
 
 use configuration::ConfigOptions;
 use exit::Status;

@@ -21,6 +21,7 @@ use crate::output::write;
 use crate::plot::{BoxGroup, Interval, LineChart, Series, SeriesStyle};
 use crate::reproduce::private_suite::{CAMERA_EXPERIMENT, FRONT_EXPERIMENT, PRIVATE_SENSING_DIR};
 use crate::reproduce::suite::{PAPER_EXPERIMENTS, paper_suite};
+use crate::reproduce::world_suite::{WORLDS_DIR, coarse_suite};
 use crate::reproduce::{EVE_DIR, Reproduction, SECRECY_EXPERIMENTS};
 use crate::run::RunRow;
 use crate::secrecy::Secrecy;
@@ -37,6 +38,9 @@ pub(super) struct PaperStages {
     /// The private-sensing map: against Eve's camera noise, and over Δv.
     camera: MapPart,
     front: MapPart,
+    /// The worlds the parties' configuration does not describe (absent in a reproduction
+    /// made before worlds existed).
+    worlds: Vec<MapPart>,
 }
 
 impl PaperStages {
@@ -100,12 +104,30 @@ impl PaperStages {
                 secrecy,
             })
         };
+        let worlds_dir = out.join(WORLDS_DIR);
+        let worlds = if worlds_dir.exists() {
+            coarse_suite(quick)?
+                .iter()
+                .map(|e| {
+                    let dir = worlds_dir.join(&e.name);
+                    let experiment = read_experiment(&dir, &e.name)?;
+                    let secrecy = Secrecy::read(&dir, &experiment)?;
+                    Ok(MapPart {
+                        experiment,
+                        secrecy,
+                    })
+                })
+                .collect::<Result<_, LabError>>()?
+        } else {
+            Vec::new()
+        };
         Ok(Self {
             quick,
             secrecy,
             campaign: Campaign::read(&out.join(EVE_DIR))?,
             camera: part(CAMERA_EXPERIMENT)?,
             front: part(FRONT_EXPERIMENT)?,
+            worlds,
         })
     }
 }
@@ -232,6 +254,9 @@ pub(super) fn paper_report(
         md.push_str(&section);
         terminal.push_str(&lines);
     }
+    let (section, lines) = super::paper_sections::world_section(&stages.worlds);
+    md.push_str(&section);
+    terminal.push_str(&lines);
     let path = write(&out.join("report.md"), md)?;
     Ok(Report {
         path,

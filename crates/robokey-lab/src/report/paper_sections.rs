@@ -237,3 +237,55 @@ pub(super) fn private_section(
     );
     Ok((md, terminal))
 }
+
+/// The worlds section: in sentences made from the numbers, which of the coarse worlds the
+/// parties' key over-claims against the eavesdroppers who know them (docs/world.md); empty
+/// for a reproduction made before worlds existed. Markdown and terminal lines.
+#[must_use]
+pub(super) fn world_section(worlds: &[MapPart]) -> (String, String) {
+    if worlds.is_empty() {
+        return (String::new(), String::new());
+    }
+    let rows: Vec<super::world::OverClaim> = worlds
+        .iter()
+        .flat_map(|w| super::world::over_claims(&w.experiment, &w.secrecy.results))
+        .collect();
+    // Each world by its experiment's name and whether the camera eavesdropper's view shows
+    // the key over-claimed.
+    let judged: Vec<(&str, bool)> = worlds
+        .iter()
+        .filter_map(|w| {
+            let rows = super::world::over_claims(&w.experiment, &w.secrecy.results);
+            let camera = rows.iter().find(|r| r.adversary == "camera")?;
+            Some((w.experiment.name.as_str(), camera.per_raw_bit > 0.0))
+        })
+        .collect();
+    let over: Vec<&str> = judged.iter().filter(|(_, o)| *o).map(|(n, _)| *n).collect();
+    let mut md = String::from(
+        "\n## The world is not the configuration\n\nThe parties at their defaults (private \
+         sensing: 4 mm of white motion noise, a 0.5 mm controller sensor, Eve's camera of 8 mm \
+         per sample instant), each in a world that differs in one way; the `camera` and \
+         `commands` eavesdroppers know the world and smooth over a window of doublets \
+         (docs/world.md). The over-claim is ℓ minus the ℓ the camera eavesdropper's realised \
+         view supports, before clamping at zero, per raw bit amplified.\n\n",
+    );
+    for sentence in super::world::over_claim_sentences(&rows) {
+        let _ = writeln!(md, "- {sentence}");
+    }
+    let verdict = if over.is_empty() {
+        "no world of the coarse grid is over-claimed".to_owned()
+    } else {
+        format!(
+            "{} of {} worlds are over-claimed ({})",
+            over.len(),
+            judged.len(),
+            over.join(", ")
+        )
+    };
+    let _ = writeln!(
+        md,
+        "\nIn short, {verdict}. The full map is `robokey sweep experiments/worlds.toml` \
+         followed by `robokey secrecy` on its folder; tables: `worlds/*/secrecy.md`."
+    );
+    (md, format!("worlds: {verdict}\n"))
+}

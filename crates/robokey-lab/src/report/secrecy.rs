@@ -399,12 +399,16 @@ pub fn write_secrecy(
             secrecy_markdown(secrecy)
                 + &map.map_or_else(String::new, |m| {
                     map_markdown(m, secrecy.block_bits, secrecy.epsilon)
-                }),
+                })
+                + &super::world::over_claim_markdown(&super::world::over_claims(
+                    experiment, results,
+                )),
         )?,
     ];
     if let Some(map) = map {
         files.extend(write_map(dir, map, secrecy.block_bits, secrecy.epsilon)?);
     }
+    files.extend(super::world::write_over_claims(dir, experiment, results)?);
     let rows = private_rows(results);
     if !rows.is_empty() {
         files.push(write(&dir.join("turn-rates.csv"), turn_rates_csv(&rows))?);

@@ -253,6 +253,7 @@ fn analyze_point(
         assumption: settings.assumption.describe(),
         realised_secret_bits: blocks.iter().map(|b| b.realised.secret_bits).sum(),
         assumption_exceeds_realised: blocks.iter().any(|b| b.assumption_exceeds_realised),
+        world_differences: config.world_model().differences(config),
         q_estimate: blocks.first().map(|b| b.q_estimate),
         q_source: blocks.first().map(|b| b.q_source.clone()),
         sessions: runs.len() as u32,
