@@ -195,7 +195,7 @@ def secrecy(
     blocks: int = 1,
     pooling: Optional[str] = None,
     sample_bits: int = 1000,
-    max_sessions: int = 2000,
+    max_sessions: Optional[int] = None,
     assume_eve_error: Optional[float] = None,
     jobs: int = 0,
 ) -> Dict[str, Any]:
@@ -207,8 +207,8 @@ def secrecy(
     command's options: ``adversaries`` (``"oracle"``, ``"mismatch"``, ``"soft"``,
     ``"identify"``, ``"transcript"``, ``"camera"``, ``"commands"``; default: the sensing
     mode's), ``epsilon`` (``--eps``), ``block_bits`` (``--block``), ``blocks``, ``pooling``
-    (``"confirmed"`` or ``"complete"``), ``sample_bits``, ``max_sessions``,
-    ``assume_eve_error``; unset ones take the sweep's ``[secrecy]`` table, then the defaults.
+    (``"confirmed"`` or ``"complete"``), ``sample_bits``, ``max_sessions`` (default: 2,000 per 10,000 bits of
+    blocks), ``assume_eve_error``; unset ones take the sweep's ``[secrecy]`` table, then the defaults.
 
     Returns a dict: ``table`` (``secrecy.csv``: one row per point and adversary, strongest
     class first — ℓ in ``secret_bits``, the realised bound in ``realised_secret_bits``),

@@ -43,7 +43,7 @@ def secrecy(
     blocks: int = 1,
     pooling: Optional[str] = None,
     sample_bits: int = 1000,
-    max_sessions: int = 2000,
+    max_sessions: Optional[int] = None,
     assume_eve_error: Optional[float] = None,
     jobs: int = 0,
 ) -> Tuple[str, str, Optional[str]]: ...

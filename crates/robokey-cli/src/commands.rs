@@ -10,7 +10,7 @@ use robokey_lab::LabError;
 use robokey_lab::experiment::{Experiment, experiments_from_table};
 use robokey_lab::folder::sweep::{Start, SweepPlan, Swept};
 use robokey_lab::folder::{layout, merge};
-use robokey_lab::output::{prepare_output, write};
+use robokey_lab::output::write;
 use robokey_lab::reproduce::compute_stages;
 use robokey_lab::reproduce::suite::paper_suite;
 use robokey_lab::run::with_jobs;
@@ -19,6 +19,22 @@ use robokey_lab::{metric_table, report, trace};
 use crate::configuration::{FlagOverrides, load_config, read_table};
 use crate::exit::{Status, on_signals, usage};
 use crate::{ConfigArgs, MergeArgs, ReportArgs, ReproduceArgs, RunArgs, SecrecyArgs, SweepArgs};
+
+/// Prepares an output folder (see [`robokey_lab::output::prepare_output`]) and says which
+/// files `--force` kept because robokey did not write them.
+pub fn prepare_output(dir: &Path, force: bool) -> Result<()> {
+    let kept = robokey_lab::output::prepare_output(dir, force)?;
+    if !kept.is_empty() {
+        let names: Vec<String> = kept.iter().map(|p| p.display().to_string()).collect();
+        eprintln!(
+            "{}: --force removed robokey's files and kept {} it did not write: {}",
+            dir.display(),
+            names.len(),
+            names.join(", ")
+        );
+    }
+    Ok(())
+}
 
 pub fn run(args: RunArgs) -> Result<()> {
     let mut overrides = FlagOverrides::new(&args.options.set);
@@ -422,6 +438,11 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             );
         }
         print!("{}", secrecy_table(results));
+        for sentence in robokey_lab::report::world::over_claim_sentences(
+            &robokey_lab::report::world::over_claims(&experiment, results),
+        ) {
+            print!("{}", wrapped(&sentence));
+        }
         if let Some(map) = &map {
             for curve in &map.camera {
                 print!(
@@ -560,6 +581,52 @@ fn secrecy_table(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
              supports ({}): this adversary violates it",
             r.secret_bits, r.point, r.adversary, r.realised_secret_bits
         )));
+    }
+    out.push_str(&world_blocks(results));
+    out
+}
+
+/// Where a point's world is not the parties' (docs/world.md): for each block, ℓ beside the
+/// realised bound of the eavesdropper who knows the world, and a WARNING naming the world's
+/// parameters wherever ℓ exceeds it.
+fn world_blocks(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
+    let mut out = String::new();
+    let camera = robokey::config::EveStrategy::Camera.name();
+    for r in results
+        .iter()
+        .filter(|r| !r.world_differences.is_empty() && r.adversary == camera)
+    {
+        let world = r.world_differences.join("; ");
+        out.push_str(&wrapped(&format!(
+            "{}, {} Eve who knows the world ({world}):",
+            r.point, r.adversary
+        )));
+        for (i, b) in r.blocks.iter().enumerate() {
+            let verdict = if b.assumption_exceeds_realised {
+                "EXCEEDS"
+            } else {
+                "within"
+            };
+            out.push_str(&format!(
+                "    block {}: ℓ {} bits, her realised bound {} bits ({verdict}; {} raw bits)\n",
+                i + 1,
+                b.secret_bits,
+                b.realised.secret_bits,
+                b.bits
+            ));
+            if b.assumption_exceeds_realised {
+                out.push_str(&wrapped(&format!(
+                    "WARNING: block {} at {}: ℓ = {} bits exceeds the {} bits the {} \
+                     eavesdropper's realised view supports in a world the parties' \
+                     configuration does not describe: {world}",
+                    i + 1,
+                    r.point,
+                    b.secret_bits,
+                    b.realised.secret_bits,
+                    r.adversary
+                )));
+            }
+        }
     }
     out
 }

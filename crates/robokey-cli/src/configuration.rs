@@ -115,29 +115,33 @@ impl FlagOverrides {
     }
 }
 
-/// The seed and configuration of an emulated world's noise (`kh4-emulator`, `ros2-sim`).
+/// The world of an emulator (`kh4-emulator`, `ros2-sim`): its seed, the parties'
+/// configuration whose values it takes where it sets none, and `--world`.
 #[derive(Args, Debug)]
 pub struct WorldNoiseArgs {
     /// Seed of the world's noise, drawn from the simulator's random streams of this seed:
-    /// kh4-emulator's wheel slip and sensors (replicate i for the i-th connection),
-    /// ros2-sim's motion capture (replicate 0).
+    /// kh4-emulator's motion and sensors (replicate i for the i-th connection), ros2-sim's
+    /// (replicate 0).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Configuration (TOML) of the world: the sensors' noise (`sensing.controller_std`,
-    /// `eve.camera_std`), kh4-emulator's axle length.
+    /// Configuration (TOML): the parties' values the world takes where it sets none (motion
+    /// noise, the sensors' noise), the wheel geometry (`robot.r`, `robot.D`), a [world].
     #[arg(long, short)]
     config: Option<PathBuf>,
     #[command(flatten)]
     options: ConfigOptions,
+    #[command(flatten)]
+    world: crate::world::WorldSpecArgs,
 }
 
 impl WorldNoiseArgs {
-    /// The configuration, its `run.seed` the seed.
+    /// The configuration with `--world`, its `run.seed` the seed.
     ///
     /// # Errors
-    /// As [`load_config`].
+    /// As [`load_config`], or a `--world` that is neither a preset nor a valid world file.
     pub fn load(&self) -> Result<Config> {
         let mut config = load_config(self.config.as_deref(), &self.options.set)?;
+        self.world.apply(&mut config)?;
         config.run.seed = self.seed;
         Ok(config)
     }

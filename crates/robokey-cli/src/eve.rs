@@ -10,26 +10,30 @@ use robokey::config::EveStrategy;
 use robokey::config::SensingMode;
 use robokey::eve::{ModelErrors, starting_errors};
 use robokey::rng::{Purpose, stream};
+use robokey::world::Camera;
 use robokey_lab::adversary::run_campaigns;
-use robokey_lab::output::{prepare_output, write};
+use robokey_lab::output::write;
 use robokey_lab::report::adversary::{campaign_markdown, write_campaign};
 use robokey_lab::report::private::{PrivateRow, private_markdown, turn_rates_csv};
 use robokey_lab::run::with_jobs;
 use robokey_lab::secrecy::private::eavesdroppers;
 use robokey_net::agent::key_file::read_key_file;
 use robokey_net::capture_eve::{listen, listen_private, read_session};
-use robokey_net::pose_stream::read_log;
+use robokey_net::pose_stream::{CameraLog, read_log};
 
 use crate::StrategyArg;
+use crate::commands::prepare_output;
 use crate::configuration::{ConfigOptions, FlagOverrides};
 use crate::exit::usage;
 
 #[derive(Args, Debug)]
 pub struct EveArgs {
     /// Listen to the session in this capture instead of simulating sessions: pcap or pcapng,
-    /// from `robokey relay --capture`, tcpdump, dumpcap or Wireshark.
+    /// from `robokey relay --capture`, tcpdump, dumpcap or Wireshark. Private sensing:
+    /// repeatable, one capture per session, each with its --camera-log (and --robot-key,
+    /// --controller-key) in the same order.
     #[arg(long)]
-    capture: Option<PathBuf>,
+    capture: Vec<PathBuf>,
     /// Configuration (TOML) of the sessions; defaults when omitted.
     #[arg(long, short)]
     config: Option<PathBuf>,
@@ -62,21 +66,29 @@ pub struct EveArgs {
         requires = "capture"
     )]
     errors: Option<String>,
+    /// Capture, private sensing: the agent report (`--report`, either side's) of the run in
+    /// which a post-processing block ended, its sessions the captures given: her realised
+    /// bound over the block is printed beside the key the agents committed, with a WARNING
+    /// naming the world's parameters where the key exceeds it (docs/world.md).
+    #[arg(long, value_name = "REPORT", requires = "robot_key")]
+    block: Option<PathBuf>,
     /// Master seed (`run.seed`): the sessions and her draws (stream "eve", replicate c in
     /// campaign c; replicate 0 on a capture).
     #[arg(long)]
     seed: Option<u64>,
-    /// Capture: the controller's key file, to measure her disagreement.
+    /// Capture: the controller's key file, to measure her disagreement (one per capture).
     #[arg(long, requires = "capture")]
-    controller_key: Option<PathBuf>,
+    controller_key: Vec<PathBuf>,
     /// Capture, private sensing (required there): her camera's record of the session, a
-    /// pose log written by `robokey record` from the world's camera stream.
+    /// pose log written by `robokey record` from the world's camera stream (one per capture).
     #[arg(long, value_name = "FILE", requires = "capture")]
-    camera_log: Option<PathBuf>,
+    camera_log: Vec<PathBuf>,
     /// Capture, private sensing: the robot's raw bits (its key file), the reference every
-    /// other party's error rate is measured against.
+    /// other party's error rate is measured against (one per capture).
     #[arg(long, value_name = "FILE", requires = "camera_log")]
-    robot_key: Option<PathBuf>,
+    robot_key: Vec<PathBuf>,
+    #[command(flatten)]
+    world: crate::world::WorldSpecArgs,
     /// Output folder (simulation: default robokey-out/eve; capture: writes capture.json
     /// when given).
     #[arg(long, short)]
@@ -84,7 +96,8 @@ pub struct EveArgs {
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
-    /// Overwrite a non-empty output folder.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long)]
     force: bool,
 }
@@ -95,7 +108,8 @@ pub fn eve(args: EveArgs) -> Result<()> {
     overrides.value("--alpha", "eve.alpha", args.alpha);
     overrides.value("--initial-error", "eve.initial_error", args.initial_error);
     overrides.seed(args.seed)?;
-    let config = overrides.load(args.config.as_deref())?;
+    let mut config = overrides.load(args.config.as_deref())?;
+    args.world.apply(&mut config)?;
     let explicit = args.errors.as_deref().map(parse_errors).transpose()?;
     let strategies: Vec<EveStrategy> = args.strategy.iter().map(|&s| s.into()).collect();
     if let Some(s) = strategies.iter().find(|s| s.mode() != config.sensing.mode) {
@@ -110,15 +124,22 @@ pub fn eve(args: EveArgs) -> Result<()> {
                 .join(", ")
         );
     }
-    match (&args.capture, config.sensing.mode) {
-        (Some(capture), SensingMode::Private) => on_private_capture(&args, capture, &config),
-        (Some(_), SensingMode::Odometry) if args.camera_log.is_some() => usage!(
+    match (args.capture.as_slice(), config.sensing.mode) {
+        ([_, ..], SensingMode::Private) => on_private_captures(&args, &config),
+        ([_, ..], SensingMode::Odometry) if !args.camera_log.is_empty() => usage!(
             "--camera-log is her camera's record of a private-sensing session (set \
              sensing.mode=private); in odometry mode she decides from the robot's measurements"
         ),
-        (Some(capture), SensingMode::Odometry) => on_capture(&args, capture, &config, explicit),
-        (None, SensingMode::Odometry) => simulated(&args, &config),
-        (None, SensingMode::Private) => private(&args, &config),
+        ([_, ..], SensingMode::Odometry) if args.block.is_some() => usage!(
+            "--block is a private-sensing block: in odometry mode the key is zero by structure"
+        ),
+        ([capture], SensingMode::Odometry) => on_capture(&args, capture, &config, explicit),
+        ([_, _, ..], SensingMode::Odometry) => usage!(
+            "--capture: one capture at a time in odometry mode (her learning carries over \
+             between sessions only in simulation)"
+        ),
+        ([], SensingMode::Odometry) => simulated(&args, &config),
+        ([], SensingMode::Private) => private(&args, &config),
     }
 }
 
@@ -304,8 +325,8 @@ fn on_capture(
     warn_of_shortfalls(capture, &captured.shortfalls);
     let controller = args
         .controller_key
-        .as_deref()
-        .map(read_key_file)
+        .first()
+        .map(|p| read_key_file(p))
         .transpose()?;
     println!(
         "eve: session {:08x}, {} frames ({} undecodable datagrams)",
@@ -347,7 +368,10 @@ fn on_capture(
                 "; key verified by the confirmation tag after flipping {f} codewords"
             )),
         );
-        let disagreement = match (&controller, args.controller_key.as_deref()) {
+        let disagreement = match (
+            &controller,
+            args.controller_key.first().map(|p| p.as_path()),
+        ) {
             (Some(key), Some(path)) => {
                 if key.len() != result.key.len() {
                     bail!(
@@ -403,31 +427,115 @@ fn on_capture(
     Ok(())
 }
 
-/// Private sensing on a capture: the `camera` and `commands` eavesdroppers on the relay's
-/// frames and her camera log, with the error rates against the robot's raw bits when given.
-fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config) -> Result<()> {
-    let Some(camera_log) = &args.camera_log else {
+/// Private sensing on captures: the `camera` and `commands` eavesdroppers on each relay
+/// capture and her camera log, with the error rates against the robot's raw bits when given;
+/// with `--block`, her realised bound over the block those sessions made.
+fn on_private_captures(args: &EveArgs, config: &Config) -> Result<()> {
+    let n = args.capture.len();
+    if args.camera_log.len() != n {
         usage!(
-            "--capture of a private-sensing session: pass --camera-log FILE too, her camera's \
-             record (`robokey record --from CAMERA_ADDR --out FILE` during the session)"
+            "--capture of a private-sensing session needs her camera's record: one --camera-log \
+             FILE per --capture ({} captures, {} camera logs; `robokey record --from \
+             CAMERA_ADDR --out FILE` during each session)",
+            n,
+            args.camera_log.len()
         );
+    }
+    for (flag, given) in [
+        ("--robot-key", args.robot_key.len()),
+        ("--controller-key", args.controller_key.len()),
+    ] {
+        if given != 0 && given != n {
+            usage!("{flag}: one per --capture ({n} captures, {given} given)");
+        }
+    }
+    let world = config.world_model();
+    for difference in world.differences(config) {
+        println!("eve: the world is not the parties': {difference}");
+    }
+    let mut sessions = Vec::new();
+    let mut block = Vec::new();
+    for i in 0..n {
+        let key = |paths: &[PathBuf]| paths.get(i).map(|p| read_key_file(p)).transpose();
+        let (robot, controller) = (key(&args.robot_key)?, key(&args.controller_key)?);
+        let (json, camera_view) = on_private_capture(
+            args,
+            config,
+            &args.capture[i],
+            &args.camera_log[i],
+            robot.as_ref().map(|k| k.as_slice()),
+            controller.as_ref().map(|k| k.as_slice()),
+        )?;
+        block.extend(camera_view);
+        sessions.push(json);
+    }
+    let verdict = match &args.block {
+        Some(report) => Some(block_verdict(report, &block, config)?),
+        None => None,
     };
+    if let Some(out) = &args.out {
+        std::fs::create_dir_all(out).with_context(|| format!("create {}", out.display()))?;
+        let json = match (sessions.len(), verdict) {
+            (1, None) => sessions.remove(0),
+            (_, verdict) => serde_json::json!({ "sessions": sessions, "block": verdict }),
+        };
+        write(
+            &out.join("capture.json"),
+            serde_json::to_string_pretty(&json)? + "\n",
+        )?;
+    }
+    Ok(())
+}
+
+/// One captured session: prints every adversary's decisions against the raw bits given;
+/// returns its `capture.json` and the camera adversary's posterior error probability of each
+/// of the robot's raw bits given the others (empty without the robot's bits).
+fn on_private_capture(
+    args: &EveArgs,
+    config: &Config,
+    capture: &std::path::Path,
+    camera_log: &std::path::Path,
+    robot: Option<&[u8]>,
+    controller: Option<&[u8]>,
+) -> Result<(serde_json::Value, Vec<f64>)> {
     let strategies = simulated_strategies(args, config.sensing.mode);
     let captured = read_session(capture, config)?;
     warn_of_shortfalls(capture, &captured.shortfalls);
     let camera = read_log(camera_log)?;
-    let heard = listen_private(&captured, &camera, config);
-    let read_key = |path: &Option<PathBuf>| path.as_deref().map(read_key_file).transpose();
-    let (robot, controller) = (read_key(&args.robot_key)?, read_key(&args.controller_key)?);
+    let world = config.world_model();
+    match (&camera, world.camera) {
+        (CameraLog::Frames(_), Camera::Instants { .. }) => usage!(
+            "--camera-log {}: a log of frames between the instants, but the world's camera \
+             films at the instants (give --world with world.camera_fps)",
+            camera_log.display()
+        ),
+        (CameraLog::Instants(_), Camera::Frames { .. }) => usage!(
+            "--camera-log {}: a log of samples at the instants, but the world's camera films \
+             frames at world.camera_fps",
+            camera_log.display()
+        ),
+        _ => {}
+    }
+    let heard = listen_private(&captured, &camera, config, robot);
+    let her_camera = match world.camera {
+        Camera::Instants { std } => format!(
+            "{} mm / {} mrad at the instants",
+            1e3 * std[0],
+            1e3 * std[2]
+        ),
+        Camera::Frames { fps, frame_std } => format!(
+            "{} mm / {} mrad per frame at {fps} frames/s",
+            1e3 * frame_std[0],
+            1e3 * frame_std[2]
+        ),
+    };
     println!(
         "eve: session {:08x}, {} frames ({} undecodable datagrams), {} camera samples; \
-         her camera {} mm / {} mrad",
+         her camera {her_camera}",
         captured.session,
         captured.messages.len(),
         captured.undecodable,
         camera.len(),
-        1e3 * config.eve.camera_std[0],
-        1e3 * config.eve.camera_std[2]
     );
     // `differ(a, b)`: "n of m bits (p %)", or why they cannot be compared.
     let differ = |a: &[u8], b: &[u8]| -> String {
@@ -438,31 +546,37 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
         let pct = 100.0 * n as f64 / a.len().max(1) as f64;
         format!("{n} of {} bits ({pct:.2} %)", a.len())
     };
-    if let (Some(robot), Some(controller)) = (&robot, &controller) {
+    if let (Some(robot), Some(controller)) = (robot, controller) {
         println!(
             "controller: differs from the robot's raw bits on {}",
             differ(robot, controller)
         );
     }
+    let bits = usize::from(config.protocol.bits_per_doublet);
     let mut reports = Vec::new();
+    let mut camera_view = Vec::new();
     for strategy in strategies {
-        let camera_view = strategy != EveStrategy::Commands;
-        let key = if camera_view {
+        let camera_adversary = strategy != EveStrategy::Commands;
+        let key = if camera_adversary {
             &heard.camera_key
         } else {
             &heard.commands_key
         };
-        let bits = usize::from(config.protocol.bits_per_doublet);
         let decided: Vec<serde_json::Value> = heard
             .doublets
             .iter()
             .map(|d| {
-                let evidence = if camera_view { d.camera } else { d.commands };
+                let (evidence, given) = if camera_adversary {
+                    (d.camera, d.camera_given_others)
+                } else {
+                    (d.commands, d.commands_given_others)
+                };
                 let llr = &evidence.llr[..bits];
                 serde_json::json!({
                     "doublet": d.doublet,
                     "llr": llr,
                     "bits": llr.iter().map(|&l| u8::from(l < 0.0)).collect::<Vec<_>>(),
+                    "llr_given_others": given.map(|g| g.llr[..bits].to_vec()),
                 })
             })
             .collect();
@@ -472,38 +586,203 @@ fn on_private_capture(args: &EveArgs, capture: &std::path::Path, config: &Config
             decided.len(),
             key.len()
         );
-        if let Some(robot) = &robot {
+        if let Some(robot) = robot {
             line += &format!(
                 "; differs from the robot's raw bits on {}",
                 differ(robot, key)
             );
         }
-        if let Some(controller) = &controller {
+        if let Some(controller) = controller {
             line += &format!("; from the controller's on {}", differ(controller, key));
         }
         println!("{line}");
+        if let Some(robot) = robot {
+            let view = given_others_view(&heard, robot, bits, camera_adversary);
+            println!(
+                "eve[{}]: her view of the robot's {} raw bits, each given the others: {:.4} bit \
+                 of information per bit; H_min^ε ≥ {:.1} bits at ε = {:e}{}",
+                strategy.name(),
+                view.bits,
+                view.information,
+                robokey_secrecy::posterior_smooth_min_entropy(
+                    &view.error_probabilities,
+                    config.postprocess.epsilon
+                )?
+                .h_min,
+                config.postprocess.epsilon,
+                if view.missing > 0 {
+                    format!(" ({} bits without it: their own LLR counted)", view.missing)
+                } else {
+                    String::new()
+                }
+            );
+            if camera_adversary {
+                camera_view = view.error_probabilities;
+            }
+        }
         reports.push(serde_json::json!({
             "strategy": strategy.name(),
             "doublets": decided,
             "key_bits": key.len(),
         }));
     }
-    if let Some(out) = &args.out {
-        std::fs::create_dir_all(out).with_context(|| format!("create {}", out.display()))?;
-        let json = serde_json::json!({
-            "session": format!("{:08x}", captured.session),
-            "frames": captured.messages.len(),
-            "undecodable": captured.undecodable,
-            "shortfalls": captured.shortfalls,
-            "camera_samples": camera.len(),
-            "strategies": reports,
-        });
-        write(
-            &out.join("capture.json"),
-            serde_json::to_string_pretty(&json)? + "\n",
-        )?;
+    let json = serde_json::json!({
+        "session": format!("{:08x}", captured.session),
+        "frames": captured.messages.len(),
+        "undecodable": captured.undecodable,
+        "shortfalls": captured.shortfalls,
+        "camera_samples": camera.len(),
+        "strategies": reports,
+    });
+    Ok((json, camera_view))
+}
+
+/// A post-processing block as an agent's report tells it (`post.blocks`, the last that made
+/// a key).
+#[derive(serde::Deserialize)]
+struct ReportedBlock {
+    block: u64,
+    sessions: usize,
+    bits: usize,
+    sample_bits: usize,
+    reconciled_bits: usize,
+    leak_ec: u64,
+    leak_confirmation: u64,
+    h_min: f64,
+    length: u64,
+}
+
+/// Her realised bound over the block of `report` (the camera adversary's posterior error
+/// probabilities `q` of its raw bits, in pool order), beside the key the agents committed; a
+/// WARNING naming the world's parameters where the key exceeds it. The disclosed sample's
+/// positions are not in the report: the bound leaves out the `sample_bits` bits she knows
+/// least, so it never credits her uncertainty she may not have. Returns the JSON of it.
+fn block_verdict(
+    report: &std::path::Path,
+    q: &[f64],
+    config: &Config,
+) -> Result<serde_json::Value> {
+    let text = std::fs::read_to_string(report)
+        .with_context(|| format!("read the agent report {}", report.display()))?;
+    let json: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not an agent's JSON report", report.display()))?;
+    let blocks: Vec<ReportedBlock> = serde_json::from_value(json["post"]["blocks"].clone())
+        .with_context(|| format!("{}: no post-processing blocks in it", report.display()))?;
+    let Some(block) = blocks.into_iter().rev().find(|b| b.length > 0) else {
+        usage!(
+            "--block {}: no block of this run made a key (its report's post.blocks)",
+            report.display()
+        );
+    };
+    if q.len() != block.bits {
+        usage!(
+            "--block {}: block {} pooled {} raw bits of {} sessions, the captures' robot keys \
+             hold {}: give the block's sessions, in order",
+            report.display(),
+            block.block,
+            block.bits,
+            block.sessions,
+            q.len()
+        );
     }
-    Ok(())
+    let epsilon = config.postprocess.epsilon;
+    let mut kept: Vec<f64> = q.iter().map(|&p| p.min(1.0 - p)).collect();
+    kept.sort_by(|a, b| b.total_cmp(a));
+    let kept = &kept[block.sample_bits.min(kept.len())..];
+    let h_min = robokey_secrecy::posterior_smooth_min_entropy(kept, epsilon)?.h_min;
+    let realised =
+        robokey_secrecy::output_length(h_min, block.leak_ec, block.leak_confirmation, epsilon)?;
+    println!(
+        "block {}: {} raw bits of {} sessions, {} amplified; the agents committed a key of {} \
+         bits (H_min {:.0} under their assumption); the camera eavesdropper who knows the world \
+         supports {} (H_min {:.0} over the {} bits she knows best, leak {} + {})",
+        block.block,
+        block.bits,
+        block.sessions,
+        block.reconciled_bits,
+        block.length,
+        block.h_min,
+        realised.bits,
+        h_min,
+        kept.len(),
+        block.leak_ec,
+        block.leak_confirmation
+    );
+    let exceeds = block.length > realised.bits;
+    let differences = config.world_model().differences(config);
+    if exceeds {
+        let world = if differences.is_empty() {
+            "the world is the parties' own model".to_owned()
+        } else {
+            format!(
+                "a world the parties' configuration does not describe: {}",
+                differences.join("; ")
+            )
+        };
+        println!(
+            "WARNING: block {}: the committed key of {} bits exceeds the {} bits the camera \
+             eavesdropper's realised view supports, in {world}",
+            block.block, block.length, realised.bits
+        );
+    }
+    Ok(serde_json::json!({
+        "block": block.block,
+        "raw_bits": block.bits,
+        "committed_bits": block.length,
+        "realised_bits": realised.bits,
+        "realised_h_min": h_min,
+        "exceeds": exceeds,
+        "world": differences,
+    }))
+}
+
+/// A private eavesdropper's view of the robot's raw bits of a capture.
+struct GivenOthers {
+    /// Raw bits measured.
+    bits: usize,
+    /// Mean information `1 − S` per bit (bits).
+    information: f64,
+    /// Her posterior error probability of each bit.
+    error_probabilities: Vec<f64>,
+    /// Bits whose view given the others was not measured (their own LLR taken).
+    missing: usize,
+}
+
+/// Her view of each of the robot's raw bits (kept doublets in order, `bits` per doublet) given
+/// the others, from the `camera` or the `commands` adversary.
+fn given_others_view(
+    heard: &robokey_net::capture_eve::PrivateCaptureResult,
+    robot: &[u8],
+    bits: usize,
+    camera: bool,
+) -> GivenOthers {
+    use robokey_secrecy::gaussian_llr::surprisal;
+    let mut view = GivenOthers {
+        bits: 0,
+        information: 0.0,
+        error_probabilities: Vec::new(),
+        missing: 0,
+    };
+    for (&j, truth) in heard.kept.iter().zip(robot.chunks_exact(bits)) {
+        let Some(d) = heard.doublets.iter().find(|d| d.doublet == j) else {
+            continue;
+        };
+        let (own, given) = if camera {
+            (d.camera, d.camera_given_others)
+        } else {
+            (d.commands, d.commands_given_others)
+        };
+        view.missing += usize::from(given.is_none()) * bits;
+        let evidence = given.unwrap_or(own);
+        for (i, &bit) in truth.iter().enumerate() {
+            let llr = evidence.llr[i];
+            view.information += 1.0 - surprisal(if bit == 0 { llr } else { -llr });
+            view.error_probabilities.push(1.0 / (1.0 + llr.abs().exp()));
+            view.bits += 1;
+        }
+    }
+    view.information /= view.bits.max(1) as f64;
+    view
 }
 
 /// Says on stderr what of `capture` could not be read (a cut-off end, packets cut by the

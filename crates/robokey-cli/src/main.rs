@@ -17,6 +17,7 @@ mod kme;
 mod logging;
 mod net;
 mod ros2;
+mod world;
 
 use configuration::ConfigOptions;
 use exit::Status;
@@ -153,7 +154,8 @@ struct RunArgs {
     /// Output folder (refused when not empty, unless --force).
     #[arg(long, short, default_value = "robokey-out/run")]
     out: PathBuf,
-    /// Empty a non-empty output folder of an earlier run first.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long)]
     force: bool,
 }
@@ -173,7 +175,8 @@ struct SweepArgs {
     /// Run only shard m of n (1-based, round-robin over runs); merge with `robokey merge`.
     #[arg(long, value_name = "M/N")]
     shard: Option<Shard>,
-    /// Overwrite a non-empty output folder.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long, conflicts_with = "resume")]
     force: bool,
     /// Continue the interrupted sweep in DIR (instead of --out): run only the runs it does not
@@ -192,7 +195,8 @@ struct MergeArgs {
     /// Output folder.
     #[arg(long, short)]
     out: PathBuf,
-    /// Overwrite a non-empty output folder.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long)]
     force: bool,
 }
@@ -220,7 +224,8 @@ struct ReproduceArgs {
     /// 2,000-bit secrecy blocks instead of 10,000, and a smaller private-sensing map.
     #[arg(long)]
     quick: bool,
-    /// Overwrite a non-empty output folder.
+    /// Write into a non-empty output folder of robokey's: its files are removed first,
+    /// files robokey does not write are kept (and named).
     #[arg(long, conflicts_with = "resume")]
     force: bool,
     /// Continue the reproduction in DIR (instead of --out; with the same --quick): sweep only
@@ -261,9 +266,10 @@ struct SecrecyArgs {
     /// most a tenth of the block).
     #[arg(long, default_value_t = 1_000)]
     sample_bits: usize,
-    /// Most sessions simulated per point and adversary.
-    #[arg(long, default_value_t = 2_000)]
-    max_sessions: u32,
+    /// Most sessions simulated per point and adversary. Default: 2,000 per 10,000 bits the
+    /// blocks need (--blocks × --block), so that a large block is filled, at most 1000000.
+    #[arg(long)]
+    max_sessions: Option<u32>,
     /// State what the key is sized against: Eve's guesses err independently with at least
     /// this probability, in (0, 0.5] (a restricted assumption in odometry mode). Without
     /// it the key length is zero by structure; the realised view of each adversary is

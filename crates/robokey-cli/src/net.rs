@@ -21,7 +21,7 @@ use robokey_net::random::os_rng;
 use robokey_net::relay::{Faults, RelayOptions, run_relay};
 use robokey_net::sensor::SensorSpec;
 use robokey_net::sim_backend::SimBackend;
-use robokey_net::world::{SensorOptions, WorldSensors};
+use robokey_net::world::{StreamAddresses, WorldProcess};
 
 use crate::configuration::{ConfigOptions, WorldNoiseArgs, load_config};
 use crate::exit::{Status, Usage, on_signals, usage};
@@ -259,6 +259,8 @@ pub struct RobotArgs {
     #[command(flatten)]
     world: WorldArgs,
     #[command(flatten)]
+    world_spec: crate::world::WorldSpecArgs,
+    #[command(flatten)]
     session: SessionArgs,
     #[command(flatten)]
     ros2: crate::ros2::Ros2RobotArgs,
@@ -267,21 +269,25 @@ pub struct RobotArgs {
 /// The world's sensor streams (private sensing): what the outside sees of the plant.
 #[derive(Args, Debug, Clone)]
 pub struct WorldArgs {
-    /// Serve the controller's motion capture (noise `sensing.controller_std`) on this TCP
-    /// address (port 0: any; printed). Its link must be private: localhost or a cable.
+    /// Serve the controller's motion capture (the world's controller sensor: noise
+    /// `world.controller_std`, else `sensing.controller_std`) on this TCP address (port 0:
+    /// any; printed). Its link must be private: localhost or a cable.
     #[arg(long, value_name = "ADDR")]
     mocap: Option<SocketAddr>,
-    /// Serve Eve's camera (noise `eve.camera_std`) on this TCP address (port 0: any;
+    /// Serve Eve's camera (the world's camera: at the instants with noise `eve.camera_std`,
+    /// or frames between them at `world.camera_fps`) on this TCP address (port 0: any;
     /// printed); `robokey record` writes it to a camera log.
     #[arg(long, value_name = "ADDR")]
     camera: Option<SocketAddr>,
 }
 
 impl WorldArgs {
-    /// The streams asked for, with `config`'s noise and seed.
-    fn options(&self, config: &robokey::Config) -> Option<SensorOptions> {
-        (self.mocap.is_some() || self.camera.is_some())
-            .then(|| SensorOptions::of(config, self.mocap, self.camera))
+    /// The streams asked for.
+    fn addresses(&self) -> StreamAddresses {
+        StreamAddresses {
+            mocap: self.mocap,
+            camera: self.camera,
+        }
     }
 }
 
@@ -350,7 +356,14 @@ pub fn robot(args: RobotArgs) -> Result<Status> {
     if args.kh4.is_some() && !matches!(args.backend, BackendArg::Kh4) {
         usage!("--kh4 is used only with --backend kh4 (the backend is sim)");
     }
-    if args.world.options(&config).is_some() {
+    if args.world_spec.world.is_some() && !matches!(args.backend, BackendArg::Sim) {
+        usage!(
+            "--world is the simulated robot's (--backend sim): a real robot's world is the room \
+             (with kh4-emulator or ros2-sim, pass --world to the emulator)"
+        );
+    }
+    args.world_spec.apply(&mut config)?;
+    if args.world.addresses().any() {
         if matches!(args.backend, BackendArg::Kh4) {
             usage!(
                 "--mocap and --camera are served by the world: with --backend kh4 pass them to \
@@ -401,12 +414,11 @@ fn finish_robot<R: rand::CryptoRng>(
 ) -> Result<Status> {
     let report = match args.backend {
         BackendArg::Sim => {
-            let mut backend = SimBackend::new(config, 0);
-            if let Some(sensors) = args.world.options(config) {
-                let world = WorldSensors::serve(&sensors)?;
-                println!("{}", world.describe());
-                backend = backend.with_world(world);
+            let world = WorldProcess::new(config, config.sensing.mode, &args.world.addresses())?;
+            if let Some(streams) = world.describe() {
+                println!("{streams}");
             }
+            let mut backend = SimBackend::new(world, config.sensing.mode);
             run_robot(config, &mut backend, key_source, options)?
         }
         BackendArg::Kh4 => {
@@ -564,9 +576,6 @@ pub struct EmulatorArgs {
     /// Virtual time advanced per encoder read (s).
     #[arg(long, default_value_t = 0.2)]
     period: f64,
-    /// Wheel slip: relative std of each wheel's travel per advance (0: exact).
-    #[arg(long, default_value_t = 0.0)]
-    slip: f64,
     #[command(flatten)]
     noise: WorldNoiseArgs,
     #[command(flatten)]
@@ -587,22 +596,16 @@ pub fn kh4_emulator(args: EmulatorArgs) -> Result<()> {
     if !(args.period > 0.0 && args.period.is_finite()) {
         usage!("--period {} is not allowed (allowed: > 0 s)", args.period);
     }
-    if !(args.slip >= 0.0 && args.slip < 1.0) {
-        usage!("--slip {} is not allowed (allowed: [0, 1))", args.slip);
-    }
     let time = match args.time {
         TimeArg::Virtual => TimeMode::Virtual(Duration::from_secs_f64(args.period)),
         TimeArg::Real => TimeMode::Real,
     };
-    let config = args.noise.load()?;
     serve(&EmulatorOptions {
         listen,
         time,
-        slip: args.slip,
-        seed: args.noise.seed,
+        world: args.noise.load()?,
         connections: None,
-        axle_length: config.robot.axle_length,
-        sensors: args.world.options(&config),
+        sensors: args.world.addresses(),
     })?;
     Ok(())
 }
@@ -613,7 +616,8 @@ pub struct RecordArgs {
     /// or of a simulated robot).
     #[arg(long, value_name = "ADDR")]
     from: SocketAddr,
-    /// The log file to create (CSV `step,x,y,theta`; an existing file is refused).
+    /// The log file to create (CSV `step,x,y,theta`, or `time,x,y,theta` for a camera
+    /// filming between the instants; an existing file is refused).
     #[arg(long)]
     out: PathBuf,
 }

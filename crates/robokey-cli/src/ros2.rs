@@ -337,8 +337,6 @@ mod with_ros2 {
                 depth: args.depth,
             },
             frame_id: args.mocap_frame_id,
-            std: config.sensing.controller_std,
-            seed: args.noise.seed,
         });
         let sim = Ros2Sim::start(SimOptions {
             topics: RobotTopics {
@@ -363,6 +361,7 @@ mod with_ros2 {
             frame_id: args.frame_id,
             child_frame_id: args.child_frame_id,
             mocap,
+            world: config,
             idle_exit,
             interrupt: on_signals()?,
         })?;

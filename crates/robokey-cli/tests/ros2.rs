@@ -240,6 +240,8 @@ fn private_session_reads_the_controllers_pose_from_a_ros2_topic_and_keeps_equal_
                 "/mocap/robot/pose",
                 "--seed",
                 "5",
+                "--set",
+                "world.process_std=[0.0, 0.0, 0.0]",
             ],
             &["--seed", "11", "--ros2-odom-qos", "reliable"],
             &[
@@ -274,7 +276,8 @@ fn private_session_reads_the_controllers_pose_from_a_ros2_topic_and_keeps_equal_
     let accepted = robot_report["accepted"].as_u64().unwrap();
     assert!(accepted > 400, "{robot_report}");
     // Same kept positions (confirmed by both session tags), and no bit decided wrong: the
-    // emulator has no motion noise, its motion capture 0.5 mm, and Δv = 0.04 m/s is a whole
+    // emulator's world has no motion noise (set here: the default world is the parties' 4 mm),
+    // its motion capture 0.5 mm, and Δv = 0.04 m/s is a whole
     // number of command quanta, so the truncation shifts both hypotheses alike.
     let key = std::fs::read_to_string(dir.join("robot.key")).unwrap();
     assert!(

@@ -104,6 +104,10 @@ const FIELDS: &[(&str, &str)] = &[
         "eve.camera_std",
         "[m, m, rad]: her camera's std per sample instant (private mode)",
     ),
+    (
+        "eve.smoother_window",
+        "doublets each side of the private eavesdroppers' window smoother (docs/world.md)",
+    ),
     ("run.seed", "master seed of every random stream"),
     ("run.replicates", "runs per configuration (sweep point)"),
     (
@@ -121,6 +125,43 @@ const FIELDS: &[(&str, &str)] = &[
     (
         "postprocess.assumed_eve_error",
         "odometry mode: restricted assumption (Eve never learns the model); keys need --allow-restricted",
+    ),
+    (
+        "world.preset",
+        "the named world whose values fill the fields left out (docs/world.md)",
+    ),
+    (
+        "world.process_std",
+        "[m, m, rad] per step: the true motion noise std",
+    ),
+    ("world.process_rho", "AR(1) correlation of the motion noise"),
+    (
+        "world.slip_std",
+        "fraction: per-wheel slip std (travel × (1 + σ·z) per step)",
+    ),
+    ("world.lag", "s: each wheel's first-order time constant"),
+    ("world.delay", "s: transport delay before a command acts"),
+    (
+        "world.integration",
+        "\"euler\" (the parties' map) or \"continuous\"",
+    ),
+    (
+        "world.command_quantum",
+        "rad/s: wheel-speed command resolution",
+    ),
+    ("world.encoder_quantum", "rad: encoder resolution"),
+    (
+        "world.jitter",
+        "s: std of the sample instants' timing error",
+    ),
+    (
+        "world.controller_std",
+        "[m, m, rad]: the controller's sensor as it really is",
+    ),
+    ("world.camera_fps", "frames/s of Eve's real camera"),
+    (
+        "world.camera_frame_std",
+        "[m, m, rad]: the noise of each of her frames",
     ),
 ];
 
@@ -171,6 +212,12 @@ mod tests {
         let mut config = Config::default();
         // Printed only when set.
         config.postprocess.assumed_eve_error = Some(0.2);
+        config.eve.smoother_window = Some(2);
+        config.world = Some(robokey::world::WorldConfig {
+            preset: Some(robokey::world::WorldPreset::KheperaIv),
+            camera_fps: Some(30.0),
+            ..Default::default()
+        });
         let mut fields = Vec::new();
         leaves(&config.to_toml().parse().unwrap(), "", &mut fields);
         let documented: Vec<&str> = FIELDS.iter().map(|(f, _)| *f).collect();

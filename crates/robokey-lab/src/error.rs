@@ -29,11 +29,14 @@ pub enum LabError {
     #[error(transparent)]
     Sim(#[from] robokey::sim::SimError),
     /// An output folder already holds results.
-    #[error("{0}: the folder is not empty (pass --force to empty it and write anew)")]
+    #[error(
+        "{0}: the folder is not empty (pass --force to remove robokey's files from it and \
+         write anew; files robokey does not write are kept)"
+    )]
     NotEmpty(PathBuf),
     /// `--force` on a folder that does not hold robokey's output.
     #[error(
-        "{0}: --force empties only folders holding robokey's output (a manifest.json, \
+        "{0}: --force clears only folders holding robokey's output (a manifest.json, \
          config.resolved.toml, report.md, metrics.json or secrecy.json); this one has none: \
          choose another --out"
     )]

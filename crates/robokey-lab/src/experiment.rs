@@ -246,6 +246,17 @@ fn reading(field: &str) -> Option<Reading> {
         "eve.camera_std" => ("Eve's camera noise", "mm", 1e3),
         "noise.process_std" => ("motion noise", "mm", 1e3),
         "sensing.controller_std" => ("controller sensor noise", "mm", 1e3),
+        "world.process_std" => ("true motion noise", "mm", 1e3),
+        "world.process_rho" => ("motion noise correlation ρ", "", 1.0),
+        "world.slip_std" => ("wheel slip", "%", 100.0),
+        "world.lag" => ("actuator lag", "ms", 1e3),
+        "world.delay" => ("transport delay", "ms", 1e3),
+        "world.jitter" => ("sample jitter", "ms", 1e3),
+        "world.command_quantum" => ("command resolution", "rad/s", 1.0),
+        "world.encoder_quantum" => ("encoder resolution", "mrad", 1e3),
+        "world.controller_std" => ("true controller sensor noise", "mm", 1e3),
+        "world.camera_fps" => ("Eve's camera rate", "frames/s", 1.0),
+        "world.camera_frame_std" => ("Eve's noise per frame", "mm", 1e3),
         _ => return None,
     };
     Some(Reading { name, unit, scale })

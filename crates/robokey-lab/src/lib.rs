@@ -5,6 +5,7 @@
 
 pub mod adversary;
 pub mod config_doc;
+pub mod csv_field;
 pub mod error;
 pub mod experiment;
 pub mod folder;

@@ -17,7 +17,7 @@ use robokey::protocol::{
 
 use crate::error::NetError;
 use crate::pcap;
-use crate::pose_stream::PoseSample;
+use crate::pose_stream::CameraLog;
 
 /// The frames of one session in a capture, in the order they crossed the network.
 #[derive(Debug)]
@@ -172,28 +172,71 @@ pub struct PrivateCaptureResult {
     pub camera_key: KeyBits,
     /// The `commands` adversary's key.
     pub commands_key: KeyBits,
+    /// The kept doublets (the `Finish` bitmap's), in order: whose bits the keys hold.
+    pub kept: Vec<u32>,
 }
 
-/// Runs the `camera` and `commands` eavesdroppers of private sensing on a captured session
-/// and her camera's record: the same code and decisions as in the simulator.
+/// Runs the `camera` and `commands` eavesdroppers of private sensing — who know the world of
+/// `config` — on a captured session and her camera's record: the same code and decisions as
+/// in the simulator. With the robot's raw bits (`robot_bits`: the kept doublets' bits in
+/// order, as its key file holds them) each doublet's evidence given the rest of the block's
+/// bits is measured too ([`EveDoublet::camera_given_others`]).
 #[must_use]
 pub fn listen_private(
     captured: &CapturedSession,
-    camera: &[PoseSample],
+    camera: &CameraLog,
     config: &Config,
+    robot_bits: Option<&[u8]>,
 ) -> PrivateCaptureResult {
     let mut eve = DoubletEavesdropper::new(config);
-    for sample in camera {
-        eve.film(sample.step, sample.pose);
+    let kept = kept_doublets(captured, config);
+    if let Some(bits) = robot_bits {
+        let per = usize::from(config.protocol.bits_per_doublet);
+        for (&doublet, chunk) in kept.iter().zip(bits.chunks_exact(per)) {
+            eve.reveal(doublet, [chunk[0], chunk.get(1).copied().unwrap_or(0)]);
+        }
+    }
+    match camera {
+        CameraLog::Instants(samples) => {
+            for sample in samples {
+                eve.film(sample.step, sample.pose);
+            }
+        }
+        CameraLog::Frames(frames) => {
+            for frame in frames {
+                eve.film_frame(*frame);
+            }
+        }
     }
     for message in &captured.messages {
         eve.observe(message);
     }
+    eve.finish();
     let mut doublets: Vec<EveDoublet> = std::iter::from_fn(|| eve.poll()).collect();
     doublets.sort_by_key(|d| d.doublet);
     PrivateCaptureResult {
         doublets,
         camera_key: eve.key(true),
         commands_key: eve.key(false),
+        kept,
     }
+}
+
+/// The doublets the session's `Finish` kept, in order (none without one).
+fn kept_doublets(captured: &CapturedSession, config: &Config) -> Vec<u32> {
+    let plan = SessionPlan::from_config(config, captured.session);
+    let Some(bitmap) = captured.messages.iter().find_map(|m| match m {
+        Message::Closing(Closing::Finish { codewords, bitmap }) if *codewords == plan.units() => {
+            Some(bitmap)
+        }
+        _ => None,
+    }) else {
+        return Vec::new();
+    };
+    (0..plan.units())
+        .filter(|&j| {
+            let j = j as usize;
+            bitmap.get(j / 64).is_some_and(|w| w >> (j % 64) & 1 == 1)
+        })
+        .collect()
 }

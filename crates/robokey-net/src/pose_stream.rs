@@ -1,7 +1,10 @@
 //! Pose streams (docs/sensors.md): what the world's sensors serve over TCP and what a
-//! recorder writes to a file, in one format: a header line `step,x,y,theta`, then one line
-//! `k,x,y,θ` per sample instant `t_k` (m, m, rad), numbers in the shortest decimal form that
-//! parses back to the same `f64`, so a reader sees exactly the sampled values.
+//! recorder writes to a file, in one format: a header line, then one line per sample, numbers
+//! in the shortest decimal form that parses back to the same `f64`, so a reader sees exactly
+//! the sampled values. A sensor sampled at the instants sends `step,x,y,theta` and a line
+//! `k,x,y,θ` per sample instant `t_k` (m, m, rad); a camera filming between the instants
+//! (docs/world.md) sends `time,x,y,theta` and a line `t,x,y,θ` per frame (t in s since the
+//! session began).
 
 use std::io::{BufRead, BufReader, BufWriter, ErrorKind, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
@@ -12,11 +15,15 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use robokey::model::Pose;
+use robokey::world::Frame;
 
 use crate::error::NetError;
 
-/// The header line of every pose stream and log.
+/// The header line of a stream or log of samples at the instants.
 pub const HEADER: &str = "step,x,y,theta";
+
+/// The header line of a stream or log of camera frames between the instants.
+pub const FRAME_HEADER: &str = "time,x,y,theta";
 
 /// Longest line a reader accepts (bytes, newline excluded); longer ones are skipped.
 pub const MAX_LINE_BYTES: usize = 256;
@@ -31,7 +38,58 @@ pub const MAX_LOG_SAMPLES: usize = 10_000_001;
 /// How long a server waits for a slow client to take a line before dropping it.
 const WRITE_TIMEOUT: Duration = Duration::from_secs(1);
 
-/// One sample of a pose stream.
+/// One line of a pose stream: a record with its header.
+pub trait StreamRecord: Sized {
+    /// The stream's header line.
+    const HEADER: &'static str;
+    /// Its line, newline included.
+    fn line(&self) -> String;
+    /// Parses a line (without its newline).
+    ///
+    /// # Errors
+    /// What is wrong with it; never panics.
+    fn parse(line: &str) -> Result<Self, &'static str>;
+}
+
+/// The pose after the first field of a line: three finite numbers, nothing more.
+fn parse_pose(fields: &mut std::str::Split<'_, char>) -> Result<Pose, &'static str> {
+    let mut pose = [0.0; 3];
+    for value in &mut pose {
+        *value = fields
+            .next()
+            .and_then(|s| s.parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+            .ok_or("a coordinate is not a finite number")?;
+    }
+    if fields.next().is_some() {
+        return Err("more than four fields");
+    }
+    Ok(pose.into())
+}
+
+impl StreamRecord for Frame {
+    const HEADER: &'static str = FRAME_HEADER;
+
+    fn line(&self) -> String {
+        let p = &self.pose;
+        format!("{:?},{:?},{:?},{:?}\n", self.time, p.x, p.y, p.z)
+    }
+
+    fn parse(line: &str) -> Result<Self, &'static str> {
+        let mut fields = line.trim_end_matches('\r').split(',');
+        let time = fields
+            .next()
+            .and_then(|s| s.parse::<f64>().ok())
+            .filter(|t| t.is_finite() && *t >= 0.0)
+            .ok_or("the time is not a finite number of seconds ≥ 0")?;
+        Ok(Self {
+            time,
+            pose: parse_pose(&mut fields)?,
+        })
+    }
+}
+
+/// One sample of a pose stream at the instants.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PoseSample {
     /// Step k: the sample instant `t_k = k·T`.
@@ -40,38 +98,23 @@ pub struct PoseSample {
     pub pose: Pose,
 }
 
-impl PoseSample {
-    /// Its line, newline included.
-    #[must_use]
-    pub fn line(&self) -> String {
+impl StreamRecord for PoseSample {
+    const HEADER: &'static str = HEADER;
+
+    fn line(&self) -> String {
         let p = &self.pose;
         format!("{},{:?},{:?},{:?}\n", self.step, p.x, p.y, p.z)
     }
 
-    /// Parses a line (without its newline).
-    ///
-    /// # Errors
-    /// What is wrong with it; never panics.
-    pub fn parse(line: &str) -> Result<Self, &'static str> {
+    fn parse(line: &str) -> Result<Self, &'static str> {
         let mut fields = line.trim_end_matches('\r').split(',');
         let step = fields
             .next()
             .and_then(|s| s.parse::<u32>().ok())
             .ok_or("the step is not a whole number")?;
-        let mut pose = [0.0; 3];
-        for value in &mut pose {
-            *value = fields
-                .next()
-                .and_then(|s| s.parse::<f64>().ok())
-                .filter(|v| v.is_finite())
-                .ok_or("a coordinate is not a finite number")?;
-        }
-        if fields.next().is_some() {
-            return Err("more than four fields");
-        }
         Ok(Self {
             step,
-            pose: pose.into(),
+            pose: parse_pose(&mut fields)?,
         })
     }
 }
@@ -100,17 +143,18 @@ impl Shared {
     }
 }
 
-/// Serves one pose stream on TCP to any number of clients: each gets the header, the
-/// session's samples so far, then every new one.
+/// Serves one pose stream of `R`s on TCP to any number of clients: each gets the header,
+/// the session's samples so far, then every new one.
 #[derive(Debug)]
-pub struct PoseServer {
+pub struct PoseServer<R: StreamRecord> {
     address: SocketAddr,
+    record: std::marker::PhantomData<fn(R)>,
     shared: Arc<Mutex<Shared>>,
     stop: Arc<AtomicBool>,
     acceptor: Option<JoinHandle<()>>,
 }
 
-impl PoseServer {
+impl<R: StreamRecord> PoseServer<R> {
     /// Listens on `address` (port 0: any).
     ///
     /// # Errors
@@ -128,10 +172,11 @@ impl PoseServer {
         let stop = Arc::new(AtomicBool::new(false));
         let acceptor = {
             let (shared, stop) = (Arc::clone(&shared), Arc::clone(&stop));
-            std::thread::spawn(move || accept(&listener, &shared, &stop))
+            std::thread::spawn(move || accept(&listener, R::HEADER, &shared, &stop))
         };
         Ok(Self {
             address,
+            record: std::marker::PhantomData,
             shared,
             stop,
             acceptor: Some(acceptor),
@@ -145,7 +190,7 @@ impl PoseServer {
     }
 
     /// Sends a sample to every client.
-    pub fn publish(&self, sample: &PoseSample) {
+    pub fn publish(&self, sample: &R) {
         let line = sample.line();
         let mut shared = self.shared.lock().unwrap_or_else(PoisonError::into_inner);
         if shared.samples < MAX_BACKLOG_SAMPLES {
@@ -165,7 +210,7 @@ impl PoseServer {
     }
 }
 
-impl Drop for PoseServer {
+impl<R: StreamRecord> Drop for PoseServer<R> {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::SeqCst);
         if let Some(acceptor) = self.acceptor.take() {
@@ -175,8 +220,8 @@ impl Drop for PoseServer {
     }
 }
 
-/// Accepts clients until `stop`, polling every 10 ms.
-fn accept(listener: &TcpListener, shared: &Mutex<Shared>, stop: &AtomicBool) {
+/// Accepts clients until `stop`, polling every 10 ms; each gets `header` first.
+fn accept(listener: &TcpListener, header: &str, shared: &Mutex<Shared>, stop: &AtomicBool) {
     while !stop.load(Ordering::SeqCst) {
         match listener.accept() {
             Ok((mut client, _)) => {
@@ -184,7 +229,7 @@ fn accept(listener: &TcpListener, shared: &Mutex<Shared>, stop: &AtomicBool) {
                     && client.set_write_timeout(Some(WRITE_TIMEOUT)).is_ok()
                     && client.set_nodelay(true).is_ok();
                 let mut shared = shared.lock().unwrap_or_else(PoisonError::into_inner);
-                let welcome = format!("{HEADER}\n{}", shared.backlog);
+                let welcome = format!("{header}\n{}", shared.backlog);
                 if ready && client.write_all(welcome.as_bytes()).is_ok() {
                     shared.clients.push(client);
                 }
@@ -254,24 +299,37 @@ impl PoseStreamClient {
         self.malformed
     }
 
-    /// The next sample, waiting until `deadline`.
+    /// The next sample at the instants, waiting until `deadline` (the header and malformed
+    /// lines are skipped).
     ///
     /// # Errors
     /// The socket fails.
     pub fn next_until(&mut self, deadline: Instant) -> Result<Reading, NetError> {
+        loop {
+            match self.next_line_until(deadline)? {
+                Line::Text(text) if text == HEADER => {}
+                Line::Text(text) => match PoseSample::parse(&text) {
+                    Ok(sample) => return Ok(Reading::Sample(sample)),
+                    Err(_) => self.malformed += 1,
+                },
+                Line::Nothing => return Ok(Reading::Nothing),
+                Line::Ended => return Ok(Reading::Ended),
+            }
+        }
+    }
+
+    /// The next line (without its newline or carriage return), waiting until `deadline`;
+    /// lines longer than [`MAX_LINE_BYTES`] are skipped and counted as malformed.
+    ///
+    /// # Errors
+    /// The socket fails.
+    pub fn next_line_until(&mut self, deadline: Instant) -> Result<Line, NetError> {
         let mut chunk = [0u8; 4096];
         loop {
             if let Some(end) = self.pending.iter().position(|&b| b == b'\n') {
                 let line: Vec<u8> = self.pending.drain(..=end).collect();
                 let text = std::str::from_utf8(&line[..end]).unwrap_or("");
-                if text.trim_end_matches('\r') == HEADER {
-                    continue;
-                }
-                match PoseSample::parse(text) {
-                    Ok(sample) => return Ok(Reading::Sample(sample)),
-                    Err(_) => self.malformed += 1,
-                }
-                continue;
+                return Ok(Line::Text(text.trim_end_matches('\r').to_owned()));
             }
             if self.pending.len() > MAX_LINE_BYTES {
                 self.pending.clear();
@@ -280,13 +338,13 @@ impl PoseStreamClient {
             }
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
-                return Ok(Reading::Nothing);
+                return Ok(Line::Nothing);
             }
             self.stream
                 .set_read_timeout(Some(left.max(Duration::from_micros(100))))
                 .map_err(NetError::io("set the pose stream's timeout"))?;
             let n = match self.stream.read(&mut chunk) {
-                Ok(0) => return Ok(Reading::Ended),
+                Ok(0) => return Ok(Line::Ended),
                 Ok(n) => n,
                 Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
                     continue;
@@ -314,14 +372,74 @@ impl PoseStreamClient {
     }
 }
 
+/// A line a client read.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Line {
+    /// A line of text.
+    Text(String),
+    /// Nothing before the deadline.
+    Nothing,
+    /// The stream ended.
+    Ended,
+}
+
+/// A camera's log: samples at the instants, or frames between them.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CameraLog {
+    /// `step,x,y,theta` lines.
+    Instants(Vec<PoseSample>),
+    /// `time,x,y,theta` lines, in time order.
+    Frames(Vec<Frame>),
+}
+
+impl CameraLog {
+    /// How many samples or frames it holds.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        match self {
+            Self::Instants(s) => s.len(),
+            Self::Frames(f) => f.len(),
+        }
+    }
+
+    /// Whether it holds none.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
 /// Records the stream at `address` to a log file at `path` until the stream ends or
 /// `stop()` says so (polled every 50 ms); returns the samples written. The file is created
-/// new (an existing one is refused) and flushed as it grows.
+/// new (an existing one is refused) and flushed as it grows; it starts with the stream's
+/// header (samples at the instants, or frames between them), and a line that does not
+/// parse as the header says is skipped.
 ///
 /// # Errors
-/// The stream cannot be reached, or the file cannot be written.
+/// The stream cannot be reached, does not start with a pose stream's header, or the file
+/// cannot be written.
 pub fn record(address: SocketAddr, path: &Path, stop: impl Fn() -> bool) -> Result<u64, NetError> {
     let mut client = PoseStreamClient::connect(address, Duration::from_secs(5))?;
+    let header = loop {
+        if stop() {
+            return Ok(0);
+        }
+        match client.next_line_until(Instant::now() + Duration::from_millis(50))? {
+            Line::Text(text) if text == HEADER || text == FRAME_HEADER => break text,
+            Line::Text(text) => {
+                return Err(NetError::Usage(format!(
+                    "{address} is not a pose stream: it starts with `{text}`, not `{HEADER}` \
+                     or `{FRAME_HEADER}`"
+                )));
+            }
+            Line::Nothing => {}
+            Line::Ended => return Ok(0),
+        }
+    };
+    let valid = |line: &str| match header.as_str() {
+        HEADER => PoseSample::parse(line).map(|s| s.line()),
+        _ => Frame::parse(line).map(|f| f.line()),
+    };
     let file = std::fs::OpenOptions::new()
         .write(true)
         .create_new(true)
@@ -329,29 +447,31 @@ pub fn record(address: SocketAddr, path: &Path, stop: impl Fn() -> bool) -> Resu
         .map_err(NetError::io(format!("create {}", path.display())))?;
     let write_error = || NetError::io(format!("write {}", path.display()));
     let mut out = BufWriter::new(file);
-    writeln!(out, "{HEADER}").map_err(write_error())?;
+    writeln!(out, "{header}").map_err(write_error())?;
     let mut written = 0;
     while !stop() {
-        match client.next_until(Instant::now() + Duration::from_millis(50))? {
-            Reading::Sample(sample) => {
-                out.write_all(sample.line().as_bytes())
-                    .map_err(write_error())?;
-                written += 1;
+        match client.next_line_until(Instant::now() + Duration::from_millis(50))? {
+            Line::Text(text) => {
+                if let Ok(line) = valid(&text) {
+                    out.write_all(line.as_bytes()).map_err(write_error())?;
+                    written += 1;
+                }
             }
-            Reading::Nothing => out.flush().map_err(write_error())?,
-            Reading::Ended => break,
+            Line::Nothing => out.flush().map_err(write_error())?,
+            Line::Ended => break,
         }
     }
     out.flush().map_err(write_error())?;
     Ok(written)
 }
 
-/// Reads a pose log (e.g. Eve's camera, recorded by [`record`]): its samples in file order.
+/// Reads a pose log (e.g. Eve's camera, recorded by [`record`]): its samples or frames in
+/// file order (frames must be in time order).
 ///
 /// # Errors
-/// The file cannot be read, lacks the header, holds a malformed line (named by its
-/// number), or more than [`MAX_LOG_SAMPLES`] samples.
-pub fn read_log(path: &Path) -> Result<Vec<PoseSample>, NetError> {
+/// The file cannot be read, lacks a header, holds a malformed line (named by its number),
+/// frames out of time order, or more than [`MAX_LOG_SAMPLES`] lines.
+pub fn read_log(path: &Path) -> Result<CameraLog, NetError> {
     let bad = |message: String| NetError::Capture {
         path: path.display().to_string(),
         message,
@@ -361,28 +481,41 @@ pub fn read_log(path: &Path) -> Result<Vec<PoseSample>, NetError> {
     let mut lines =
         BufReader::new(file.take((MAX_LOG_SAMPLES as u64 + 1) * (MAX_LINE_BYTES as u64 + 1)))
             .lines();
-    match lines.next() {
-        Some(Ok(header)) if header.trim_end_matches('\r') == HEADER => {}
+    let frames = match lines.next() {
+        Some(Ok(header)) if header.trim_end_matches('\r') == HEADER => false,
+        Some(Ok(header)) if header.trim_end_matches('\r') == FRAME_HEADER => true,
         _ => {
             return Err(bad(format!(
-                "not a pose log: the first line is not `{HEADER}`"
+                "not a pose log: the first line is neither `{HEADER}` nor `{FRAME_HEADER}`"
             )));
         }
-    }
-    let mut samples = Vec::new();
+    };
+    let mut log = if frames {
+        CameraLog::Frames(Vec::new())
+    } else {
+        CameraLog::Instants(Vec::new())
+    };
     for (number, line) in lines.enumerate() {
         let line = line.map_err(NetError::io(format!("read {}", path.display())))?;
+        let at = |why: &str| bad(format!("line {}: {why}", number + 2));
         if line.len() > MAX_LINE_BYTES {
-            return Err(bad(format!("line {} is too long", number + 2)));
+            return Err(at("too long"));
         }
-        if samples.len() >= MAX_LOG_SAMPLES {
+        if log.len() >= MAX_LOG_SAMPLES {
             return Err(bad(format!("more than {MAX_LOG_SAMPLES} samples")));
         }
-        let sample =
-            PoseSample::parse(&line).map_err(|why| bad(format!("line {}: {why}", number + 2)))?;
-        samples.push(sample);
+        match &mut log {
+            CameraLog::Instants(samples) => samples.push(PoseSample::parse(&line).map_err(at)?),
+            CameraLog::Frames(frames) => {
+                let frame = Frame::parse(&line).map_err(at)?;
+                if frames.last().is_some_and(|last| frame.time <= last.time) {
+                    return Err(at("a frame no later than the one before"));
+                }
+                frames.push(frame);
+            }
+        }
     }
-    Ok(samples)
+    Ok(log)
 }
 
 #[cfg(test)]
@@ -399,7 +532,7 @@ mod tests {
 
     #[test]
     fn a_server_streams_the_backlog_and_new_samples_then_ends() {
-        let server = PoseServer::bind("127.0.0.1:0".parse().unwrap()).unwrap();
+        let server = PoseServer::<PoseSample>::bind("127.0.0.1:0".parse().unwrap()).unwrap();
         server.publish(&sample(0, 0.1));
         let mut client =
             PoseStreamClient::connect(server.address(), Duration::from_secs(1)).unwrap();
@@ -451,7 +584,60 @@ mod tests {
         );
     }
 
+    /// A camera filming between the instants: its frames recorded to a log read back exactly,
+    /// in a log of frames; a log of frames out of time order is refused by line.
+    #[test]
+    fn a_frame_stream_records_to_a_log_of_frames() {
+        let server = PoseServer::<Frame>::bind("127.0.0.1:0".parse().unwrap()).unwrap();
+        let frames: Vec<Frame> = (0..5)
+            .map(|m| Frame {
+                time: 0.013 + f64::from(m) / 30.0,
+                pose: Pose::new(0.1 * f64::from(m), -0.2, 1e-3),
+            })
+            .collect();
+        server.publish(&frames[0]);
+        let dir = std::env::temp_dir().join(format!("robokey-frames-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("camera.csv");
+        let _ = std::fs::remove_file(&path);
+        let (address, target) = (server.address(), path.clone());
+        let recorder = std::thread::spawn(move || record(address, &target, || false));
+        std::thread::sleep(Duration::from_millis(200));
+        for frame in &frames[1..] {
+            server.publish(frame);
+        }
+        std::thread::sleep(Duration::from_millis(100));
+        server.end_session();
+        assert_eq!(recorder.join().unwrap().unwrap(), 5);
+        assert_eq!(read_log(&path).unwrap(), CameraLog::Frames(frames.clone()));
+        let text = format!("{FRAME_HEADER}\n{}{}", frames[1].line(), frames[0].line());
+        std::fs::write(&path, text).unwrap();
+        let error = read_log(&path).unwrap_err().to_string();
+        assert!(
+            error.contains("line 3") && error.contains("no later"),
+            "{error}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     proptest! {
+        #[test]
+        fn frame_lines_round_trip_exactly(time in 0.0..1e7f64, x in -1e3..1e3f64, y in -1e3..1e3f64, z in -1e3..1e3f64) {
+            let f = Frame { time, pose: Pose::new(x, y, z) };
+            let line = f.line();
+            prop_assert!(line.len() <= MAX_LINE_BYTES);
+            let back = Frame::parse(line.trim_end()).unwrap();
+            prop_assert_eq!(back.time.to_bits(), time.to_bits());
+            for i in 0..3 {
+                prop_assert_eq!(back.pose[i].to_bits(), f.pose[i].to_bits());
+            }
+        }
+
+        #[test]
+        fn parsing_arbitrary_frame_text_never_panics(text in ".{0,80}") {
+            let _ = Frame::parse(&text);
+        }
+
         #[test]
         fn lines_round_trip_exactly(step in any::<u32>(), x in proptest::num::f64::NORMAL | proptest::num::f64::SUBNORMAL | proptest::num::f64::ZERO, y in -1e3..1e3f64, z in -1e3..1e3f64) {
             let s = PoseSample { step, pose: Pose::new(x, y, z) };

@@ -54,7 +54,7 @@ fn strategy(name: &str) -> PyResult<EveStrategy> {
 #[pyfunction]
 #[pyo3(signature = (
     sweep, *, seed=None, adversaries=None, epsilon=None, block_bits=None, blocks=1,
-    pooling=None, sample_bits=1_000, max_sessions=2_000, assume_eve_error=None, jobs=0
+    pooling=None, sample_bits=1_000, max_sessions=None, assume_eve_error=None, jobs=0
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn secrecy(
@@ -67,7 +67,7 @@ pub fn secrecy(
     blocks: usize,
     pooling: Option<String>,
     sample_bits: usize,
-    max_sessions: u32,
+    max_sessions: Option<u32>,
     assume_eve_error: Option<f64>,
     jobs: usize,
 ) -> PyResult<(String, String, Option<String>)> {

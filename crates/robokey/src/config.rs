@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::code::{BlockCode, Repetition, hamming74};
 use crate::observer::Variant;
 use crate::trajectory::{SQUARE, Trajectory};
+use crate::world::{WorldConfig, WorldModel};
 
 pub mod source;
 
@@ -42,6 +43,10 @@ pub struct Config {
     pub run: RunConfig,
     /// How the agents turn pooled raw bits into final keys.
     pub postprocess: PostprocessConfig,
+    /// The true physics, apart from what the parties believe (docs/world.md); absent: the
+    /// parties' own model.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub world: Option<WorldConfig>,
 }
 
 /// `[robot]`
@@ -416,6 +421,11 @@ pub struct EveConfig {
     /// Private mode: std of her camera `[m, m, rad]`, her effective noise per sample instant
     /// after her own filtering (a camera averaging M frames per instant has σ/√M).
     pub camera_std: [f64; 3],
+    /// Private mode: doublets each side of the window over which the `camera` and
+    /// `commands` eavesdroppers smooth (docs/world.md). Absent: 2 where the world's boundary
+    /// samples do not screen a doublet from its neighbours, else each doublet on its own.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smoother_window: Option<u32>,
 }
 
 impl Default for EveConfig {
@@ -431,6 +441,7 @@ impl Default for EveConfig {
             window: 200,
             match_tolerance_pp: 0.5,
             camera_std: [0.008; 3],
+            smoother_window: None,
         }
     }
 }
@@ -583,10 +594,15 @@ impl Config {
         // Every field, the optional ones that print only when set included.
         let mut every = Self::default();
         every.postprocess.assumed_eve_error = Some(0.5);
-        let known: toml::Table = every
+        every.eve.smoother_window = Some(0);
+        let mut known: toml::Table = every
             .to_toml()
             .parse()
             .expect("the default config is valid TOML");
+        known.insert(
+            "world".to_owned(),
+            toml::Value::try_from(WorldConfig::every()).expect("a world always serializes"),
+        );
         check_known_fields(&table, &known, "").map_err(|e| e.with_origin(origin))?;
         // Deserializing from text makes toml's error show the offending line and field.
         let text = toml::to_string(&table).map_err(|e| ConfigError::Parse {
@@ -759,6 +775,20 @@ impl Config {
                 &format!("0 to {MAX_TAG_FLIPS}"),
             ));
         }
+        if let Some(half_width) = eve.smoother_window {
+            let bits = u32::from(proto.bits_per_doublet);
+            let most = crate::private::MAX_NUISANCE_BITS / (2 * bits);
+            if half_width > most {
+                return Err(invalid(
+                    "eve.smoother_window",
+                    half_width,
+                    &format!(
+                        "0 to {most} doublets with protocol.bits_per_doublet = {bits} (the \
+                         window's other bits are summed over exactly)"
+                    ),
+                ));
+            }
+        }
         if eve.sessions < 1 {
             return Err(invalid("eve.sessions", eve.sessions, "≥ 1"));
         }
@@ -803,6 +833,16 @@ impl Config {
                 ));
             }
             _ => {}
+        }
+        if let Some(world) = &self.world {
+            world
+                .validate(robot.sample_time)
+                .map_err(|e| ConfigError::Invalid {
+                    origin: String::new(),
+                    field: e.field,
+                    value: e.value,
+                    allowed: e.allowed,
+                })?;
         }
         if !(1..=MAX_REPLICATES).contains(&self.run.replicates) {
             return Err(invalid(
@@ -941,13 +981,23 @@ impl Config {
         Trajectory::new(&t.waypoints, t.side_time, t.laps).expect("validated trajectory")
     }
 
-    /// The configuration as TOML, every field explicit (`code.n_c` resolved).
+    /// The world the simulated plant and sensors live in, and the eavesdroppers know.
+    #[must_use]
+    pub fn world_model(&self) -> WorldModel {
+        WorldModel::of(self)
+    }
+
+    /// The configuration as TOML, every field explicit (`code.n_c` resolved; a `[world]`
+    /// resolved field by field, and left out when it is the parties' own model).
     #[must_use]
     pub fn to_toml(&self) -> String {
         let mut resolved = self.clone();
         resolved.code.n_c = Some(self.code.codeword_length());
         resolved.protocol.delta_omega = Some(self.delta_omega());
         resolved.eve.strategy = Some(self.eve_strategy());
+        let world = self.world_model();
+        resolved.world = (self.world.is_some() && world != WorldModel::ideal(self))
+            .then(|| world.to_table(self.world.as_ref().and_then(|w| w.preset)));
         toml::to_string(&resolved).expect("a config always serializes")
     }
 }
@@ -1122,6 +1172,37 @@ mod tests {
         assert_eq!(field, "controller.wheel_limit");
         // Without the protocol only the controller's limit counts.
         Config::from_toml("[protocol]\nenabled = false\ndelta_v = 35.0\n", "t").unwrap();
+    }
+
+    #[test]
+    fn a_world_is_written_only_when_it_is_not_the_parties() {
+        let plain = Config::default().to_toml();
+        assert!(!plain.contains("[world]"));
+        let ideal = Config::from_toml("[world]\npreset = \"ideal\"\n", "w").unwrap();
+        assert_eq!(ideal.to_toml(), plain);
+        let lagged = Config::from_toml("[world]\nlag = 0.05\n", "w").unwrap();
+        let text = lagged.to_toml();
+        assert!(
+            text.contains("[world]") && text.contains("lag = 0.05"),
+            "{text}"
+        );
+        let back = Config::from_toml(&text, "back").unwrap();
+        assert_eq!(back.world_model(), lagged.world_model());
+        for (toml, names) in [
+            ("[world]\nlag = -0.1\n", ["w.toml", "world.lag"]),
+            ("[world]\npreset = \"mars\"\n", ["mars", "khepera-iv"]),
+            (
+                "[world]\nmass = 1.0\n",
+                ["unknown field `world.mass`", "slip_std"],
+            ),
+            (
+                "[world]\nprocess_rho = -1.0\n",
+                ["world.process_rho", "−1 < ρ < 1"],
+            ),
+        ] {
+            let text = Config::from_toml(toml, "w.toml").unwrap_err().to_string();
+            assert!(names.iter().all(|n| text.contains(n)), "{text}");
+        }
     }
 
     #[test]

@@ -15,7 +15,7 @@ use crate::protocol::{
     Message, Outcome, Robot, RobotInput, RobotOutput, SessionMessage, SessionPlan, TAG_BYTES, Time,
     Timing,
 };
-use crate::sim::{Noise, Plant};
+use crate::world::{PlantStreams, WorldModel, WorldPlant};
 
 /// Arbitrary bytes read front to back; reads past the end give zeros.
 #[derive(Clone, Debug)]
@@ -196,7 +196,7 @@ struct Harness {
     controller: Controller,
     to_robot: VecDeque<Message>,
     to_controller: VecDeque<Message>,
-    plant: Plant,
+    plant: WorldPlant,
     /// The plant's pose is `x(sensed)`.
     sensed: u32,
     now: Time,
@@ -212,13 +212,25 @@ impl Harness {
         let plan = SessionPlan::from_config(&config, session);
         let mut key_source = rand::rngs::ChaCha20Rng::seed_from_u64(bytes.u64());
         let timing = Timing::default();
-        let still = Noise::new(rand::rngs::ChaCha8Rng::seed_from_u64(0), [0.0; 3]);
+        let mut still = WorldModel::ideal(&config);
+        still.process_std = [0.0; 3];
+        let streams = PlantStreams {
+            process: rand::rngs::ChaCha8Rng::seed_from_u64(0),
+            slip: rand::rngs::ChaCha8Rng::seed_from_u64(0),
+        };
         let agreed = &plan.agreed;
         Self {
             focus,
             robot: Robot::new(plan.clone(), timing, &mut key_source, Time::ZERO),
             controller: Controller::new(&config, plan.clone(), timing, Time::ZERO),
-            plant: Plant::new(agreed.drive, agreed.wheel_limit, agreed.sample_time, still),
+            plant: WorldPlant::new(
+                &still,
+                agreed.drive,
+                agreed.wheel_limit,
+                agreed.sample_time,
+                streams,
+                false,
+            ),
             controller_check: ControllerCheck {
                 resolved: vec![false; plan.units() as usize],
                 ..ControllerCheck::default()

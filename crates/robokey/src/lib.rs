@@ -5,9 +5,10 @@
 //! the tracking controller ([`control`]), the unknown-input observer ([`observer`]), block
 //! codes ([`code`]), the protocol endpoints ([`protocol`]), the eavesdroppers ([`eve`]),
 //! private sensing ([`private`]), a side's whole conversation over the network
-//! ([`connection`]), configuration ([`config`]), seeded random streams
-//! ([`rng`]), stop requests ([`interrupt`]), a virtual network ([`pair`]) and the closed-loop
-//! simulation of one run ([`sim`]). Time is an input ([`protocol::Time`]); randomness is
+//! ([`connection`]), configuration ([`config`]), seeded random streams ([`rng`]), stop
+//! requests ([`interrupt`]), a virtual network ([`pair`]), the true physics apart from the
+//! parties' configuration ([`world`]) and the closed-loop simulation of one run ([`sim`]).
+//! Time is an input ([`protocol::Time`]); randomness is
 //! passed in.
 
 pub mod code;
@@ -28,6 +29,7 @@ pub mod protocol;
 pub mod rng;
 pub mod sim;
 pub mod trajectory;
+pub mod world;
 
 pub use config::Config;
 pub use metrics::Metrics;

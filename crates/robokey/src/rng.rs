@@ -22,6 +22,12 @@ pub enum Purpose {
     Channel,
     /// Public randomness (nonces, hash seeds, permutations).
     Public,
+    /// The world's wheel slip (docs/world.md).
+    Slip,
+    /// The world's sample-instant timing errors.
+    Jitter,
+    /// The phase of Eve's camera frames in the world.
+    CameraPhase,
 }
 
 impl Purpose {
@@ -36,6 +42,9 @@ impl Purpose {
             Self::Camera => "camera",
             Self::Channel => "channel",
             Self::Public => "public",
+            Self::Slip => "slip",
+            Self::Jitter => "jitter",
+            Self::CameraPhase => "camera-phase",
         }
     }
 }

@@ -149,7 +149,7 @@ mod through_the_session_layer {
     use robokey::protocol::auth::PairingSecret;
     use robokey::protocol::{Handshake, Message, RobotOutput, Time};
     use robokey::rng::{Purpose, stream};
-    use robokey::sim::{Noise, Plant};
+    use robokey::world::{PlantStreams, WorldPlant};
 
     type RobotSide = Connected<RobotConnection<Address, ChaCha20Rng>, Address>;
     type ControllerSide = Connected<ControllerConnection<Address>, Address>;
@@ -157,7 +157,7 @@ mod through_the_session_layer {
     /// The plant both agents' worlds share, how each side ended, and how many of the
     /// controller's `Ready`s an attacker drops.
     struct World {
-        plant: Plant,
+        plant: WorldPlant,
         private: bool,
         outcomes: [Option<Outcome>; 2],
         closed: [bool; 2],
@@ -255,11 +255,16 @@ mod through_the_session_layer {
         );
         let plan = robokey::protocol::SessionPlan::from_config(config, 0);
         let mut world = World {
-            plant: Plant::new(
+            plant: WorldPlant::new(
+                &config.world_model(),
                 plan.agreed.drive,
                 config.robot.wheel_limit,
                 plan.agreed.sample_time,
-                Noise::new(stream(seed, Purpose::Process, 0), config.noise.process_std),
+                PlantStreams {
+                    process: stream(seed, Purpose::Process, 0),
+                    slip: stream(seed, Purpose::Slip, 0),
+                },
+                false,
             ),
             private: plan.private().is_some(),
             outcomes: [None, None],

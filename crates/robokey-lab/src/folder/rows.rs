@@ -12,49 +12,41 @@ use crate::run::RunRow;
 /// The finished runs of a folder, by run index.
 pub type Rows = BTreeMap<usize, RunRow>;
 
-/// The header line of `runs.csv` (newline included).
-fn header(experiment: &Experiment) -> String {
+/// The columns of `runs.csv`.
+fn columns(experiment: &Experiment) -> Vec<&str> {
     let mut columns: Vec<&str> = experiment.axes.iter().map(|a| a.field.as_str()).collect();
     columns.push("replicate");
     columns.extend(METRICS.iter().map(|m| m.column));
-    columns.join(",") + "\n"
+    columns
 }
 
-/// A parameter's CSV cell: quoted (inner quotes doubled) when it holds a comma or a quote,
-/// as an array value does.
-fn param_cell(text: &str) -> String {
-    if text.contains([',', '"']) {
-        format!("\"{}\"", text.replace('"', "\"\""))
-    } else {
-        text.to_owned()
-    }
-}
-
-/// `runs.csv` of `rows`.
+/// `runs.csv` of `rows`: swept values quoted when they hold a comma, a quote or a line
+/// break (as an array value does), by the `csv` crate.
 #[must_use]
 pub fn runs_csv(experiment: &Experiment, rows: &Rows) -> String {
-    // The swept values' cells, once per point.
-    let points: Vec<String> = experiment
+    let mut csv = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_writer(Vec::new());
+    let points: Vec<Vec<String>> = experiment
         .points
         .iter()
-        .map(|p| {
-            p.params
-                .iter()
-                .map(|(_, v)| param_cell(&value_text(v)) + ",")
-                .collect()
-        })
+        .map(|p| p.params.iter().map(|(_, v)| value_text(v)).collect())
         .collect();
-    let mut csv = header(experiment);
+    // Writing UTF-8 text to memory cannot fail.
+    let written = "CSV text is written to memory";
+    csv.write_record(columns(experiment)).expect(written);
     for row in rows.values() {
-        csv.push_str(&points[row.point]);
-        csv.push_str(&row.replicate.to_string());
-        for metric in &METRICS {
-            csv.push(',');
-            csv.push_str(&metric.value(&row.metrics).cell());
-        }
-        csv.push('\n');
+        let metrics = METRICS.iter().map(|m| m.value(&row.metrics).cell());
+        csv.write_record(
+            points[row.point]
+                .iter()
+                .cloned()
+                .chain(std::iter::once(row.replicate.to_string()))
+                .chain(metrics),
+        )
+        .expect(written);
     }
-    csv
+    String::from_utf8(csv.into_inner().expect(written)).expect(written)
 }
 
 /// Reads the rows of a `runs.csv` (`origin` names it in errors), checking that every row
@@ -72,9 +64,7 @@ pub fn read_runs(
         place: format!("{}:{line}", origin.display()),
         message,
     };
-    if text.lines().next().map(|h| format!("{h}\n")) != Some(header(experiment)) {
-        return Err(bad(1, "header does not match the sweep".into()));
-    }
+
     let axes = experiment.axes.len();
     let point_of: HashMap<Vec<String>, usize> = experiment
         .points
@@ -86,6 +76,9 @@ pub fn read_runs(
     let mut reader = csv::ReaderBuilder::new()
         .flexible(true)
         .from_reader(text.as_bytes());
+    if reader.headers().ok().map(|h| h.iter().collect::<Vec<_>>()) != Some(columns(experiment)) {
+        return Err(bad(1, "header does not match the sweep".into()));
+    }
     reader
         .records()
         .map(|record| {

@@ -3,14 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::glyph::Glyph;
-use super::style::SeriesStyle;
-use super::{
-    Axes, FONT, Figure, PALETTE, PlotError, chart_on, csv_text, legend_corner, padded_range,
-    save_all,
-};
+use super::legend::{Entry, Swatch};
+use super::style::{Marks, SeriesStyle};
+use super::{Axes, Figure, PALETTE, PlotError, chart_on, padded_range, save_all};
+use crate::csv_field::quoted;
 use crate::stats::Summary;
 
 /// One coloured series of boxes: values per x position.
@@ -96,15 +95,43 @@ impl BoxChart {
     /// # Errors
     /// A file cannot be written.
     pub fn save(&self, base: &Path) -> Result<Vec<PathBuf>, PlotError> {
-        save_all(base, (1000, 640), self)
+        save_all(base, self)
+    }
+
+    /// The colour of group `g`, and after the groups, of reference line `g − groups`.
+    fn color(&self, g: usize) -> RGBColor {
+        PALETTE[g % PALETTE.len()]
     }
 }
 
 impl Figure for BoxChart {
-    fn draw<DB: DrawingBackend>(
-        &self,
-        root: &DrawingArea<DB, plotters::coord::Shift>,
-    ) -> Result<(), String> {
+    fn plot_size(&self) -> (u32, u32) {
+        (1000, 640)
+    }
+
+    fn legend(&self) -> Vec<Entry> {
+        let groups = self.groups.iter().enumerate().map(|(g, group)| Entry {
+            label: group.label.clone(),
+            color: self.color(g),
+            swatch: Swatch::Fill,
+        });
+        let lines = self
+            .reference_lines
+            .iter()
+            .enumerate()
+            .map(|(i, (label, _))| Entry {
+                label: label.clone(),
+                color: self.color(self.groups.len() + i),
+                swatch: Swatch::Series {
+                    style: SeriesStyle::Dashed,
+                    marks: Marks::None,
+                    shape: 0,
+                },
+            });
+        groups.chain(lines).collect()
+    }
+
+    fn draw_plot<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<(), String> {
         let geometry = self.geometry();
         let boxes = || geometry.iter().flatten();
         let x_range = padded_range(
@@ -117,9 +144,10 @@ impl Figure for BoxChart {
         );
         let x_values = self.groups.iter().flat_map(|g| g.boxes.iter()).count();
         let mut chart = chart_on(
-            root,
+            area,
             &Axes {
                 title: &self.title,
+                title_size: 24,
                 x_label: &self.x_label,
                 y_label: &self.y_label,
                 x: x_range,
@@ -128,8 +156,8 @@ impl Figure for BoxChart {
                 y_log10: false,
             },
         )?;
-        for (g, (group, shapes)) in self.groups.iter().zip(&geometry).enumerate() {
-            let color = PALETTE[g % PALETTE.len()];
+        for (g, shapes) in geometry.iter().enumerate() {
+            let color = self.color(g);
             let mut elements: Vec<DynElement<'static, DB, (f64, f64)>> = Vec::new();
             for b in shapes {
                 let s = b.summary;
@@ -163,16 +191,10 @@ impl Figure for BoxChart {
                     );
                 }
             }
-            chart
-                .draw_series(elements)
-                .map_err(|e| e.to_string())?
-                .label(&group.label)
-                .legend(move |(x, y)| {
-                    Rectangle::new([(x, y - 6), (x + 20, y + 6)], color.mix(0.5).filled())
-                });
+            chart.draw_series(elements).map_err(|e| e.to_string())?;
         }
-        for (i, (label, y)) in self.reference_lines.iter().enumerate() {
-            let color = PALETTE[(self.groups.len() + i) % PALETTE.len()];
+        for (i, (_, y)) in self.reference_lines.iter().enumerate() {
+            let color = self.color(self.groups.len() + i);
             chart
                 .draw_series(DashedLineSeries::new(
                     [(x_range.0, *y), (x_range.1, *y)],
@@ -180,40 +202,15 @@ impl Figure for BoxChart {
                     6,
                     color.stroke_width(2),
                 ))
-                .map_err(|e| e.to_string())?
-                .label(label)
-                .legend(move |at| Glyph {
-                    at,
-                    shape: None,
-                    color,
-                    grow: 0,
-                    legend: Some(SeriesStyle::Dashed),
-                });
+                .map_err(|e| e.to_string())?;
         }
-        chart
-            .configure_series_labels()
-            .label_font((FONT, 16))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.4))
-            .position(legend_corner(
-                &geometry
-                    .iter()
-                    .flatten()
-                    .flat_map(|b| {
-                        [b.summary.min, b.summary.q1, b.summary.q3, b.summary.max].map(|v| (b.x, v))
-                    })
-                    .collect::<Vec<_>>(),
-                x_range,
-                y_range,
-            ))
-            .draw()
-            .map_err(|e| e.to_string())
+        Ok(())
     }
 
     fn csv(&self) -> String {
         let mut out = String::from("group,x,count,min,q1,median,q3,max,mean\n");
         for (group, boxes) in self.groups.iter().zip(self.geometry()) {
-            let label = csv_text(&group.label);
+            let label = quoted(&group.label);
             // The unshifted x of each box: the group's own x values, in order.
             let xs = group.boxes.iter().filter(|b| Summary::of(&b.1).is_some());
             for ((x, _), b) in xs.zip(boxes) {
@@ -225,7 +222,7 @@ impl Figure for BoxChart {
             }
         }
         for (label, y) in &self.reference_lines {
-            out.push_str(&format!("{},,,,,{y},,,\n", csv_text(label)));
+            out.push_str(&format!("{},,,,,{y},,,\n", quoted(label)));
         }
         out
     }

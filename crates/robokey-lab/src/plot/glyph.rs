@@ -1,31 +1,33 @@
-//! A series' marker, and its legend glyph (a solid or dashed stroke with the marker on it),
-//! as one plotters element drawn with backend primitives.
+//! A series' marker — one of five shapes, or an arrowhead along its path — as one plotters
+//! element drawn with backend primitives.
 
 use plotters::element::{Drawable, PointCollection};
 use plotters::prelude::*;
 use plotters_backend::{BackendCoord, DrawingErrorKind};
 
-use super::style::SeriesStyle;
+/// Marker radius (pixels) of the last series; earlier ones are larger (see `grow`).
+pub(super) const MARKER_SIZE: i32 = 4;
 
-/// Marker radius (pixels) of the last series; earlier ones are larger (see `size`).
-const MARKER_SIZE: i32 = 4;
-/// Legend glyph width (pixels).
-const LEGEND_WIDTH: i32 = 26;
+/// What a marker looks like.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Mark {
+    /// Shape `n` of five, cycled: circle, triangle, square, cross, diamond.
+    Shape(usize),
+    /// An arrowhead pointing along `(dx, dy)` (pixels, y down).
+    Arrow(f64, f64),
+}
 
-/// A marker of shape `shape` (cycled over five) at `at`, or with `legend`, the legend glyph
-/// of a series of that style starting at `at`.
-pub struct Glyph<C> {
+/// A marker at `at`.
+pub(super) struct Glyph<C> {
     /// Where (chart or backend coordinates).
     pub at: C,
-    /// Which shape: circle, triangle, square, cross, diamond; none for a bare stroke.
-    pub shape: Option<usize>,
+    /// Which marker.
+    pub mark: Mark,
     /// Colour.
     pub color: RGBColor,
     /// How much larger than the last series' marker (pixels), so that coinciding markers
     /// stay visible behind each other.
     pub grow: i32,
-    /// Draw the legend glyph of a series of this style instead of a bare marker.
-    pub legend: Option<SeriesStyle>,
 }
 
 impl<'a, C: 'a> PointCollection<'a, C> for &'a Glyph<C> {
@@ -44,42 +46,26 @@ impl<C, DB: DrawingBackend> Drawable<DB> for Glyph<C> {
         backend: &mut DB,
         _: (u32, u32),
     ) -> Result<(), DrawingErrorKind<DB::ErrorType>> {
-        let Some((x, y)) = points.next() else {
-            return Ok(());
-        };
-        let stroke = self.color.stroke_width(2);
-        let centre = match self.legend {
-            None => (x, y),
-            Some(style) => {
-                match style {
-                    SeriesStyle::Line => {
-                        backend.draw_line((x, y), (x + LEGEND_WIDTH, y), &stroke)?
-                    }
-                    SeriesStyle::Dashed => {
-                        backend.draw_line((x, y), (x + 8, y), &stroke)?;
-                        backend.draw_line((x + 18, y), (x + LEGEND_WIDTH, y), &stroke)?;
-                    }
-                    SeriesStyle::Markers => {}
-                }
-                (x + LEGEND_WIDTH / 2, y)
-            }
-        };
-        match self.shape {
-            Some(shape) => marker(backend, centre, shape, MARKER_SIZE + self.grow, self.color),
+        match points.next() {
+            Some(at) => marker(backend, at, self.mark, MARKER_SIZE + self.grow, self.color),
             None => Ok(()),
         }
     }
 }
 
-/// Draws marker `shape` of radius `s` (pixels) centred at `(x, y)`.
-fn marker<DB: DrawingBackend>(
+/// Draws `mark` of radius `s` (pixels) centred at `(x, y)`.
+pub(super) fn marker<DB: DrawingBackend>(
     backend: &mut DB,
     (x, y): BackendCoord,
-    shape: usize,
+    mark: Mark,
     s: i32,
     color: RGBColor,
 ) -> Result<(), DrawingErrorKind<DB::ErrorType>> {
     let (fill, stroke) = (color.filled(), color.stroke_width(2));
+    let shape = match mark {
+        Mark::Shape(shape) => shape,
+        Mark::Arrow(dx, dy) => return arrowhead(backend, (x, y), (dx, dy), s + 3, &fill),
+    };
     match shape % 5 {
         0 => backend.draw_circle((x, y), s as u32, &fill, true),
         1 => backend.fill_polygon(
@@ -101,4 +87,28 @@ fn marker<DB: DrawingBackend>(
             &fill,
         ),
     }
+}
+
+/// A filled arrowhead of length `2·s` (pixels) centred at `(x, y)`, its tip along
+/// `(dx, dy)`; nothing when the direction is undefined.
+fn arrowhead<DB: DrawingBackend>(
+    backend: &mut DB,
+    (x, y): BackendCoord,
+    (dx, dy): (f64, f64),
+    s: i32,
+    fill: &ShapeStyle,
+) -> Result<(), DrawingErrorKind<DB::ErrorType>> {
+    let norm = dx.hypot(dy);
+    if norm == 0.0 || !norm.is_finite() {
+        return Ok(());
+    }
+    let (ux, uy) = (dx / norm, dy / norm);
+    let s = f64::from(s);
+    let at = |along: f64, across: f64| {
+        (
+            x + (along * ux - across * uy).round() as i32,
+            y + (along * uy + across * ux).round() as i32,
+        )
+    };
+    backend.fill_polygon([at(s, 0.0), at(-s, 0.8 * s), at(-s, -0.8 * s)], fill)
 }

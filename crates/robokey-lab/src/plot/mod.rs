@@ -5,19 +5,22 @@
 
 mod boxes;
 mod glyph;
+mod legend;
 mod line;
+mod panels;
 mod style;
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 pub use boxes::{BoxChart, BoxGeometry, BoxGroup};
-pub use line::Interval;
-pub use line::{LineChart, Series};
-pub use style::SeriesStyle;
+pub use line::{Interval, LineChart, Series};
+pub use panels::{Panel, Panels};
+pub use style::{Marks, SeriesStyle};
 
 /// A figure could not be drawn or written.
 #[derive(Debug, thiserror::Error)]
@@ -61,21 +64,41 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(240, 228, 66),
 ];
 
-/// Something drawable on any plotters backend.
+/// A figure: a plot drawable on any plotters backend, its legend, drawn in a column of its
+/// own to the right of the plot, and the data it draws.
 trait Figure {
-    /// Draws the figure on `root`.
-    fn draw<DB: DrawingBackend>(
-        &self,
-        root: &DrawingArea<DB, plotters::coord::Shift>,
-    ) -> Result<(), String>;
+    /// Size of the plot (pixels), the legend's column excluded.
+    fn plot_size(&self) -> (u32, u32);
+
+    /// The legend's entries, in order.
+    fn legend(&self) -> Vec<legend::Entry>;
+
+    /// Draws the plot — title, axes, data — on `area`.
+    fn draw_plot<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<(), String>;
 
     /// The data drawn, as CSV with a header, for people who restyle the figure.
     fn csv(&self) -> String;
 }
 
-/// A CSV text field: quoted, inner quotes doubled.
-fn csv_text(text: &str) -> String {
-    format!("\"{}\"", text.replace('"', "\"\""))
+/// Where the legend's first entry is centred, from the top (pixels): level with the top of
+/// a plot's axes, under its title.
+const LEGEND_TOP: i32 = 76;
+
+/// Draws `figure` on `root`: a white background, the plot, and its legend column (of
+/// `legend_width` pixels) at the right.
+fn draw_figure<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    figure: &impl Figure,
+    legend_width: u32,
+) -> Result<(), String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let entries = figure.legend();
+    if entries.is_empty() {
+        return figure.draw_plot(root);
+    }
+    let (plot, column) = root.split_horizontally(root.dim_in_pixel().0 - legend_width);
+    figure.draw_plot(&plot)?;
+    legend::draw(&column, &entries, LEGEND_TOP)
 }
 
 /// A PDF of `svg` with the bundled font embedded (vector: nothing rasterised).
@@ -93,14 +116,13 @@ fn svg_to_pdf(svg: &str) -> Result<Vec<u8>, String> {
     .map_err(|e| e.to_string())
 }
 
-/// Draws `figure` into `base.svg`, `base.png` (of `size` pixels) and `base.pdf`, and
-/// writes its data to `base.csv`.
-fn save_all(
-    base: &Path,
-    size: (u32, u32),
-    figure: &impl Figure,
-) -> Result<Vec<PathBuf>, PlotError> {
+/// Draws `figure` into `base.svg`, `base.png` and `base.pdf`, and writes its data to
+/// `base.csv`.
+fn save_all(base: &Path, figure: &impl Figure) -> Result<Vec<PathBuf>, PlotError> {
     register_font();
+    let legend_width = legend::width(&figure.legend());
+    let (width, height) = figure.plot_size();
+    let size = (width + legend_width, height);
     let svg = base.with_extension("svg");
     let png = base.with_extension("png");
     let fail = |path: &Path, message: String| PlotError::Draw {
@@ -109,12 +131,12 @@ fn save_all(
     };
     {
         let root = SVGBackend::new(&svg, size).into_drawing_area();
-        figure.draw(&root).map_err(|m| fail(&svg, m))?;
+        draw_figure(&root, figure, legend_width).map_err(|m| fail(&svg, m))?;
         root.present().map_err(|e| fail(&svg, e.to_string()))?;
     }
     {
         let root = BitMapBackend::new(&png, size).into_drawing_area();
-        figure.draw(&root).map_err(|m| fail(&png, m))?;
+        draw_figure(&root, figure, legend_width).map_err(|m| fail(&png, m))?;
         root.present().map_err(|e| fail(&png, e.to_string()))?;
     }
     let pdf = base.with_extension("pdf");
@@ -129,6 +151,8 @@ fn save_all(
 /// The axes every chart shares.
 struct Axes<'a> {
     title: &'a str,
+    /// Title font size (pixels).
+    title_size: u32,
     x_label: &'a str,
     y_label: &'a str,
     x: (f64, f64),
@@ -139,14 +163,13 @@ struct Axes<'a> {
     y_log10: bool,
 }
 
-/// A chart context on `root` with a title, labelled axes and light grid, white background.
+/// A chart context on `area` with a title, labelled axes and a light grid.
 fn chart_on<'a, DB: DrawingBackend>(
-    root: &'a DrawingArea<DB, plotters::coord::Shift>,
+    area: &'a DrawingArea<DB, Shift>,
     axes: &Axes<'_>,
 ) -> Result<ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>, String> {
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let mut chart = ChartBuilder::on(root)
-        .caption(axes.title, (FONT, 24))
+    let mut chart = ChartBuilder::on(area)
+        .caption(axes.title, (FONT, axes.title_size))
         .margin(20)
         .x_label_area_size(55)
         .y_label_area_size(75)
@@ -202,32 +225,6 @@ fn padded_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
         return (lo - pad, hi + pad);
     }
     (lo - 0.05 * span, hi + 0.05 * span)
-}
-
-/// The legend goes in the corner (a 35 % × 30 % region of the plot), or the centre, holding
-/// the fewest of `points`.
-fn legend_corner(points: &[(f64, f64)], x: (f64, f64), y: (f64, f64)) -> SeriesLabelPosition {
-    // Regions as fractions of the axes: (position, x from, x to, y from, y to).
-    let regions = [
-        (SeriesLabelPosition::UpperRight, 0.65, 1.0, 0.7, 1.0),
-        (SeriesLabelPosition::UpperLeft, 0.0, 0.35, 0.7, 1.0),
-        (SeriesLabelPosition::LowerRight, 0.65, 1.0, 0.0, 0.3),
-        (SeriesLabelPosition::LowerLeft, 0.0, 0.35, 0.0, 0.3),
-        (SeriesLabelPosition::MiddleMiddle, 0.3, 0.7, 0.35, 0.65),
-    ];
-    let fraction = |v: f64, r: (f64, f64)| (v - r.0) / (r.1 - r.0);
-    regions
-        .into_iter()
-        .min_by_key(|&(_, x0, x1, y0, y1)| {
-            points
-                .iter()
-                .filter(|&&(px, py)| {
-                    let (fx, fy) = (fraction(px, x), fraction(py, y));
-                    (x0..=x1).contains(&fx) && (y0..=y1).contains(&fy)
-                })
-                .count()
-        })
-        .map_or(SeriesLabelPosition::UpperRight, |r| r.0)
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@ use robokey::config::EveStrategy;
 use crate::adversary::{Campaign, PeriodRecord, StrategyRun, windowed_error_rates};
 use crate::error::LabError;
 use crate::output::write;
-use crate::plot::{LineChart, Series, SeriesStyle};
+use crate::plot::{LineChart, Panel, Panels, Series, SeriesStyle};
 
 fn percent(value: Option<f64>) -> String {
     value.map_or_else(|| "–".into(), |v| format!("{v:.2}"))
@@ -339,19 +339,74 @@ fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
         .runs
         .first()
         .map_or(0, |run| run.periods.last().map_or(0, |p| p.period));
-    let level = |label: String, y: f64| {
-        let points = vec![(1.0, y), (periods_heard as f64, y)];
-        line(label, points, SeriesStyle::Dashed)
-    };
+    let level =
+        |label: String, y: f64| Series::reference(label, vec![(1.0, y), (periods_heard as f64, y)]);
 
-    let mut error_rate = per_strategy(|r| r.1);
-    if let Some(first) = rates.first() {
-        let points = first.iter().map(|r| (r.0 as f64, r.2)).collect();
-        error_rate.push(line("controller".into(), points, SeriesStyle::Dashed));
-    }
-    let mut excess = per_strategy(|r| r.1 - r.2);
+    // One panel per strategy, each with the line she is measured against (the
+    // controller's rate, the tolerance): six step lines in one chart lie on top of each
+    // other, while the question each answers is whether she matches him. The reference
+    // beneath, hers on top in a colour that stands out from it.
+    let panels = |title: String, y_label: &str, hers: Vec<Series>, against: Series| Panels {
+        title,
+        x_label: "periods heard".into(),
+        y_label: y_label.into(),
+        panels: hers
+            .into_iter()
+            .map(|eve| Panel {
+                title: eve.label.clone(),
+                series: vec![
+                    Series {
+                        color: Some(3),
+                        ..against.clone()
+                    },
+                    Series {
+                        color: Some(1),
+                        ..Series::new("Eve", eve.points, SeriesStyle::Line)
+                    },
+                ],
+            })
+            .collect(),
+        log_y: false,
+    };
+    let controller: Vec<(f64, f64)> = rates
+        .first()
+        .map(|first| first.iter().map(|r| (r.0 as f64, r.2)).collect())
+        .unwrap_or_default();
     let tolerance = campaign.config.eve.match_tolerance_pp;
-    excess.push(level(format!("tolerance ({tolerance} pp)"), tolerance));
+    let mut files = Vec::new();
+    for (name, figure) in [
+        (
+            "eve-error-rate",
+            panels(
+                format!("Bit error rate over the last {window} periods"),
+                "error rate (%)",
+                per_strategy(|r| r.1),
+                Series::new("controller", controller, SeriesStyle::Dashed),
+            ),
+        ),
+        (
+            "eve-excess-error",
+            panels(
+                format!("Her error rate minus the controller's, last {window} periods"),
+                "excess error rate (percentage points)",
+                per_strategy(|r| r.1 - r.2),
+                level(format!("tolerance ({tolerance} pp)"), tolerance),
+            ),
+        ),
+    ] {
+        if figure
+            .panels
+            .iter()
+            .flat_map(|p| &p.series)
+            .any(|s| !s.points.is_empty())
+        {
+            let base = dir.join(name);
+            files.extend(figure.save(&base).map_err(|e| LabError::Plot {
+                path: base.clone(),
+                message: e.to_string(),
+            })?);
+        }
+    }
     let learners: Vec<&StrategyRun> = campaign
         .runs
         .iter()
@@ -361,53 +416,55 @@ fn figures(dir: &Path, campaign: &Campaign) -> Result<Vec<PathBuf>, LabError> {
         .iter()
         .flat_map(|run| {
             let name = run.strategy.name();
-            let error_of = |pick: fn(&PeriodRecord) -> f64| {
-                run.periods
+            // Her guess before the first period heard (period 0), then after each period.
+            let error_of = |label: String, style, start: f64, pick: fn(&PeriodRecord) -> f64| {
+                let after = run
+                    .periods
                     .iter()
-                    .map(|p| (p.period as f64, 100.0 * pick(p).abs()))
-                    .collect()
+                    .map(|p| (p.period as f64, 100.0 * pick(p).abs()));
+                let points = std::iter::once((0.0, 100.0 * start.abs()))
+                    .chain(after)
+                    .collect();
+                line(label, points, style)
             };
             [
-                line(
-                    format!("{name}: r"),
-                    error_of(|p| p.r_error),
-                    SeriesStyle::Line,
-                ),
-                line(
+                error_of(format!("{name}: r"), SeriesStyle::Line, run.start[0], |p| {
+                    p.r_error
+                }),
+                error_of(
                     format!("{name}: D"),
-                    error_of(|p| p.d_error),
                     SeriesStyle::Dashed,
+                    run.start[1],
+                    |p| p.d_error,
                 ),
             ]
         })
         .collect();
     if !learners.is_empty() {
+        // Where each learner starts: her guess before the first period (period 0).
+        let mut starts: Vec<(f64, f64)> = Vec::new();
+        for run in &learners {
+            for error in &run.start[..2] {
+                let point = (0.0, 100.0 * error.abs());
+                if !starts.contains(&point) {
+                    starts.push(point);
+                }
+            }
+        }
+        parameters.push(Series::new(
+            "start: her guess before period 1",
+            starts,
+            SeriesStyle::Markers,
+        ));
         parameters.push(level("1 %".into(), 1.0));
     }
-    let charts = [
-        (
-            "eve-error-rate",
-            format!("Bit error rate over the last {window} periods"),
-            "error rate (%)",
-            error_rate,
-            false,
-        ),
-        (
-            "eve-excess-error",
-            format!("Her error rate minus the controller's, last {window} periods"),
-            "excess error rate (percentage points)",
-            excess,
-            false,
-        ),
-        (
-            "eve-parameters",
-            "Identified wheel geometry: |relative error|".to_owned(),
-            "relative error (%, log scale)",
-            parameters,
-            true,
-        ),
-    ];
-    let mut files = Vec::new();
+    let charts = [(
+        "eve-parameters",
+        "Identified wheel geometry: |relative error|".to_owned(),
+        "relative error (%, log scale)",
+        parameters,
+        true,
+    )];
     for (name, title, y_label, series, log_y) in charts {
         if series.iter().all(|s| s.points.is_empty()) {
             continue;

@@ -6,11 +6,12 @@ use std::path::{Path, PathBuf};
 use robokey::sim::TraceRow;
 
 use crate::error::LabError;
-use crate::plot::{BoxChart, BoxGroup, LineChart, Series, SeriesStyle};
+use crate::plot::{BoxChart, BoxGroup, LineChart, Marks, Series, SeriesStyle};
 use crate::stats::Summary;
 
-/// Draws a trajectory figure: the reference of the first trace, then each named robot
-/// path; `steps` limits the figure to the first steps (e.g. one lap).
+/// Draws a trajectory figure: each named robot path with arrowheads along it (the way it
+/// goes), the reference of the first trace, and where the robot starts; `steps` limits the
+/// figure to the first steps (e.g. one lap).
 ///
 /// # Errors
 /// The figure cannot be written.
@@ -22,8 +23,9 @@ pub fn trajectory_figure(
     let take = steps.map_or(usize::MAX, |s| s + 1);
     let mut series: Vec<Series> = paths
         .iter()
-        .map(|(label, rows)| {
-            Series::new(
+        .map(|(label, rows)| Series {
+            marks: Marks::Arrows,
+            ..Series::new(
                 (*label).to_owned(),
                 rows.iter()
                     .take(take)
@@ -43,6 +45,16 @@ pub fn trajectory_figure(
                 .collect(),
             SeriesStyle::Dashed,
         ));
+        if let Some(start) = rows.first() {
+            series.push(Series {
+                notes: vec!["start".to_owned()],
+                ..Series::new(
+                    "start",
+                    vec![(start.pose[0], start.pose[1])],
+                    SeriesStyle::Markers,
+                )
+            });
+        }
     }
     let chart = LineChart {
         title: "Trajectory".into(),

@@ -13,6 +13,7 @@ pub mod paper_sections;
 pub mod private;
 pub mod secrecy;
 pub mod trend;
+pub mod world;
 
 use std::path::{Path, PathBuf};
 

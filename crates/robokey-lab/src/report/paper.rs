@@ -21,6 +21,7 @@ use crate::output::write;
 use crate::plot::{BoxGroup, Interval, LineChart, Series, SeriesStyle};
 use crate::reproduce::private_suite::{CAMERA_EXPERIMENT, FRONT_EXPERIMENT, PRIVATE_SENSING_DIR};
 use crate::reproduce::suite::{PAPER_EXPERIMENTS, paper_suite};
+use crate::reproduce::world_suite::{WORLDS_DIR, coarse_suite};
 use crate::reproduce::{EVE_DIR, Reproduction, SECRECY_EXPERIMENTS};
 use crate::run::RunRow;
 use crate::secrecy::Secrecy;
@@ -37,6 +38,9 @@ pub(super) struct PaperStages {
     /// The private-sensing map: against Eve's camera noise, and over Δv.
     camera: MapPart,
     front: MapPart,
+    /// The worlds the parties' configuration does not describe (absent in a reproduction
+    /// made before worlds existed).
+    worlds: Vec<MapPart>,
 }
 
 impl PaperStages {
@@ -100,12 +104,30 @@ impl PaperStages {
                 secrecy,
             })
         };
+        let worlds_dir = out.join(WORLDS_DIR);
+        let worlds = if worlds_dir.exists() {
+            coarse_suite(quick)?
+                .iter()
+                .map(|e| {
+                    let dir = worlds_dir.join(&e.name);
+                    let experiment = read_experiment(&dir, &e.name)?;
+                    let secrecy = Secrecy::read(&dir, &experiment)?;
+                    Ok(MapPart {
+                        experiment,
+                        secrecy,
+                    })
+                })
+                .collect::<Result<_, LabError>>()?
+        } else {
+            Vec::new()
+        };
         Ok(Self {
             quick,
             secrecy,
             campaign: Campaign::read(&out.join(EVE_DIR))?,
             camera: part(CAMERA_EXPERIMENT)?,
             front: part(FRONT_EXPERIMENT)?,
+            worlds,
         })
     }
 }
@@ -130,13 +152,34 @@ fn column(
         .collect()
 }
 
-/// Eve's error on the accepted key bits per value of `field` (× 100, as %), pooled over the
-/// runs: `(x, rate %, low %, high %)` with a two-sided 95 % Clopper–Pearson interval, from
-/// the joint counts `n_acc` (s, ŝc, ŝa) of each run.
+/// Who decides a bit of the joint counts `n_acc`, indexed s·4 + ŝc·2 + ŝa.
+#[derive(Clone, Copy)]
+enum Decider {
+    /// The controller: ŝc.
+    Controller,
+    /// Eve: ŝa.
+    Eve,
+}
+
+impl Decider {
+    /// Whether the decider is wrong (its bit differs from s) at joint-count index `i`.
+    fn wrong(self, i: usize) -> bool {
+        let decided = match self {
+            Self::Controller => (i >> 1) & 1,
+            Self::Eve => i & 1,
+        };
+        (i >> 2) != decided
+    }
+}
+
+/// The error of `decider` on the accepted key bits per value of `field` (× 100, as %),
+/// pooled over the runs: `(x, rate %, low %, high %)` with a two-sided 95 % Clopper–Pearson
+/// interval, from the joint counts `n_acc` (s, ŝc, ŝa) of each run.
 fn accepted_errors(
     experiment: &Experiment,
     records: &[RunRow],
     field: &str,
+    decider: Decider,
 ) -> Vec<(f64, f64, f64, f64)> {
     let mut pooled: Vec<(f64, u64, u64)> = Vec::new();
     for r in records {
@@ -151,9 +194,8 @@ fn accepted_errors(
         let Some(counts) = r.metrics.n_acc else {
             continue;
         };
-        // Index s·4 + ŝc·2 + ŝa: Eve is wrong where ŝa ≠ s.
         let wrong: u64 = (0..8)
-            .filter(|i| (i >> 2) != (i & 1))
+            .filter(|&i| decider.wrong(i))
             .map(|i| counts[i])
             .sum();
         let total: u64 = counts.iter().sum();
@@ -212,6 +254,9 @@ pub(super) fn paper_report(
         md.push_str(&section);
         terminal.push_str(&lines);
     }
+    let (section, lines) = super::paper_sections::world_section(&stages.worlds);
+    md.push_str(&section);
+    terminal.push_str(&lines);
     let path = write(&out.join("report.md"), md)?;
     Ok(Report {
         path,
@@ -297,22 +342,42 @@ fn sweep_sections(
             .into_iter()
             .map(|(a, d)| (100.0 * a, d))
             .collect();
-    let eve_errors = accepted_errors(eve, eve_runs, alpha_field);
-    LineChart {
-        title: "Eve's error on the accepted key bits against her model error α".into(),
-        x_label: "α (%)".into(),
-        y_label: "Eve wrong on accepted bits (%), 95 % Clopper–Pearson".into(),
-        series: vec![Series {
-            intervals: eve_errors
+    // Side by side at each α (dodged by ±0.15 %), so that neither interval hides the other.
+    let eve_errors = accepted_errors(eve, eve_runs, alpha_field, Decider::Eve);
+    let accepted_series = |decider, label: String, dodge: f64| {
+        let errors = match decider {
+            Decider::Eve => eve_errors.clone(),
+            Decider::Controller => accepted_errors(eve, eve_runs, alpha_field, decider),
+        };
+        Series {
+            intervals: errors
                 .iter()
                 .map(|&(x, _, low, high)| Interval { x, low, high })
                 .collect(),
+            dodge,
             ..Series::new(
-                format!("Eve (pooled over {} runs per α)", eve.replicates()),
-                eve_errors.iter().map(|&(x, rate, ..)| (x, rate)).collect(),
+                label,
+                errors.iter().map(|&(x, rate, ..)| (x, rate)).collect(),
                 SeriesStyle::Line,
             )
-        }],
+        }
+    };
+    LineChart {
+        title: "Error on the accepted key bits against Eve's model error α".into(),
+        x_label: "α (%)".into(),
+        y_label: "wrong on accepted bits (%), 95 % Clopper–Pearson".into(),
+        series: vec![
+            accepted_series(
+                Decider::Eve,
+                format!("Eve (pooled over {} runs per α)", eve.replicates()),
+                -0.15,
+            ),
+            accepted_series(
+                Decider::Controller,
+                format!("controller (pooled over {} runs per α)", eve.replicates()),
+                0.15,
+            ),
+        ],
         equal_aspect: false,
         log_y: false,
     }

@@ -7,7 +7,7 @@ use std::path::Path;
 use robokey::config::EveStrategy;
 
 use super::adversary::{campaign_body, campaigns_summary, write_campaign};
-use super::private::break_even_text;
+use super::private::{break_even_text, pooled_leak_text};
 use super::secrecy::{secrecy_markdown, write_secrecy};
 use crate::adversary::Campaign;
 use crate::error::LabError;
@@ -220,10 +220,12 @@ pub(super) fn private_section(
         let _ = writeln!(
             md,
             "![Pareto front](private-sensing/pareto-v/private-pareto.svg)\n\n\
-             What the public commands leak is charged, not assumed away: the commands \
-             eavesdropper's measured information lies within its 95 % interval of the model's \
-             prediction in {inside} of {bins} turn-rate bins.\n\n\
-             ![leak](private-sensing/pareto-v/private-leak.svg)\n"
+             What the public commands leak is charged as the model predicts it, not assumed \
+             away. Bin by bin, the commands eavesdropper's measured information lies within its \
+             95 % interval of the prediction in {inside} of {bins} turn-rate bins.{}\n\n\
+             ![leak](private-sensing/pareto-v/private-leak.svg)\n",
+            map.pooled_leak()
+                .map_or_else(String::new, |p| format!(" {}", pooled_leak_text(&p)))
         );
     }
     let _ = writeln!(
@@ -234,4 +236,56 @@ pub(super) fn private_section(
          works: docs/private-sensing.md.\n"
     );
     Ok((md, terminal))
+}
+
+/// The worlds section: in sentences made from the numbers, which of the coarse worlds the
+/// parties' key over-claims against the eavesdroppers who know them (docs/world.md); empty
+/// for a reproduction made before worlds existed. Markdown and terminal lines.
+#[must_use]
+pub(super) fn world_section(worlds: &[MapPart]) -> (String, String) {
+    if worlds.is_empty() {
+        return (String::new(), String::new());
+    }
+    let rows: Vec<super::world::OverClaim> = worlds
+        .iter()
+        .flat_map(|w| super::world::over_claims(&w.experiment, &w.secrecy.results))
+        .collect();
+    // Each world by its experiment's name and whether the camera eavesdropper's view shows
+    // the key over-claimed.
+    let judged: Vec<(&str, bool)> = worlds
+        .iter()
+        .filter_map(|w| {
+            let rows = super::world::over_claims(&w.experiment, &w.secrecy.results);
+            let camera = rows.iter().find(|r| r.adversary == "camera")?;
+            Some((w.experiment.name.as_str(), camera.per_raw_bit > 0.0))
+        })
+        .collect();
+    let over: Vec<&str> = judged.iter().filter(|(_, o)| *o).map(|(n, _)| *n).collect();
+    let mut md = String::from(
+        "\n## The world is not the configuration\n\nThe parties at their defaults (private \
+         sensing: 4 mm of white motion noise, a 0.5 mm controller sensor, Eve's camera of 8 mm \
+         per sample instant), each in a world that differs in one way; the `camera` and \
+         `commands` eavesdroppers know the world and smooth over a window of doublets \
+         (docs/world.md). The over-claim is ℓ minus the ℓ the camera eavesdropper's realised \
+         view supports, before clamping at zero, per raw bit amplified.\n\n",
+    );
+    for sentence in super::world::over_claim_sentences(&rows) {
+        let _ = writeln!(md, "- {sentence}");
+    }
+    let verdict = if over.is_empty() {
+        "no world of the coarse grid is over-claimed".to_owned()
+    } else {
+        format!(
+            "{} of {} worlds are over-claimed ({})",
+            over.len(),
+            judged.len(),
+            over.join(", ")
+        )
+    };
+    let _ = writeln!(
+        md,
+        "\nIn short, {verdict}. The full map is `robokey sweep experiments/worlds.toml` \
+         followed by `robokey secrecy` on its folder; tables: `worlds/*/secrecy.md`."
+    );
+    (md, format!("worlds: {verdict}\n"))
 }

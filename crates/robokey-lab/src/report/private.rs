@@ -4,10 +4,12 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::csv_field::quoted;
 use crate::error::LabError;
+use crate::experiment::param_label;
 use crate::plot::{Interval, LineChart, Series, SeriesStyle};
 use crate::secrecy::Rate;
-use crate::secrecy::map::{CameraCurve, ParetoPoint, PrivateMap};
+use crate::secrecy::map::{CameraCurve, ParetoPoint, PooledLeak, PrivateMap};
 use crate::secrecy::private::{Calibration, PrivateFigures};
 
 /// One row to render: where it comes from and its figures.
@@ -121,8 +123,8 @@ pub fn turn_rates_csv(rows: &[PrivateRow]) -> String {
                 .error
                 .map_or(",,".into(), |e| format!("{},{},{}", e.rate, e.low, e.high));
             out.push_str(&format!(
-                "\"{}\",{},{},{},{},{},{},{},{},{}\n",
-                row.point.replace('"', "\"\""),
+                "{},{},{},{},{},{},{},{},{},{}\n",
+                quoted(row.point),
                 row.adversary,
                 bin.from,
                 if bin.to.is_finite() {
@@ -190,6 +192,9 @@ pub fn map_markdown(map: &PrivateMap, block_bits: usize, epsilon: f64) -> String
              measured information per bit against the mean I(d) the model predicts for the \
              same bits. On the diagonal, the residual leak is the one the model charges.\n",
         );
+        if let Some(pooled) = map.pooled_leak() {
+            md.push_str(&format!("\n{}\n", pooled_leak_text(&pooled)));
+        }
     }
     md
 }
@@ -206,6 +211,66 @@ pub fn break_even_text(curve: &CameraCurve) -> String {
     }
 }
 
+/// A point's parameters (`field = value, …`, as [`crate::experiment::describe`] writes
+/// them) for a note beside it, e.g. "Δv 0.035 m/s"; the text itself if it does not read.
+fn point_note(point: &str) -> String {
+    let Ok(table) = format!("point = {{ {point} }}").parse::<toml::Table>() else {
+        return point.to_owned();
+    };
+    let mut labels = Vec::new();
+    let mut stack: Vec<(String, &toml::Value)> = table
+        .get("point")
+        .map(|v| (String::new(), v))
+        .into_iter()
+        .collect();
+    while let Some((field, value)) = stack.pop() {
+        match value {
+            toml::Value::Table(t) => stack.extend(t.iter().map(|(k, v)| {
+                let key = if field.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{field}.{k}")
+                };
+                (key, v)
+            })),
+            _ => labels.push(param_label(&field, value)),
+        }
+    }
+    labels.sort();
+    labels.join(", ")
+}
+
+/// The pooled leak in words: the ratio, its interval, the bins above the identity line and
+/// what that means.
+#[must_use]
+pub fn pooled_leak_text(pooled: &PooledLeak) -> String {
+    let [low, high] = pooled.interval;
+    let meaning = if low > 1.0 {
+        "the commands reveal more than the model predicts: the leak charged for them is too \
+         small by about this factor"
+    } else if high < 1.0 {
+        "the commands reveal less than the model predicts: the leak charged for them is \
+         conservative"
+    } else {
+        "the measurement is consistent with the model's prediction"
+    };
+    let above = if pooled.above > 0 {
+        format!(
+            " ({:.1}–{:.1}× the prediction)",
+            pooled.above_ratios[0], pooled.above_ratios[1]
+        )
+    } else {
+        String::new()
+    };
+    format!(
+        "Pooled over the {} bins (each weighted by its bits), the commands eavesdropper \
+         measured {:.2} × the predicted information (95 % interval {low:.2}–{high:.2}); {} of \
+         {} bins lie above the identity line{above}. Per-bin intervals are wide; the pooled \
+         ratio is what they say together: {meaning}.",
+        pooled.bins, pooled.ratio, pooled.above, pooled.bins
+    )
+}
+
 fn save(chart: &LineChart, base: &Path) -> Result<Vec<PathBuf>, LabError> {
     chart.save(base).map_err(|e| LabError::Plot {
         path: base.to_path_buf(),
@@ -217,7 +282,12 @@ fn save(chart: &LineChart, base: &Path) -> Result<Vec<PathBuf>, LabError> {
 ///
 /// # Errors
 /// A file cannot be written.
-pub fn write_map(dir: &Path, map: &PrivateMap) -> Result<Vec<PathBuf>, LabError> {
+pub fn write_map(
+    dir: &Path,
+    map: &PrivateMap,
+    block_bits: usize,
+    epsilon: f64,
+) -> Result<Vec<PathBuf>, LabError> {
     let mut files = Vec::new();
     let chart = |title: &str, x_label: &str, y_label: &str, series: Vec<Series>| LineChart {
         title: title.into(),
@@ -233,21 +303,30 @@ pub fn write_map(dir: &Path, map: &PrivateMap) -> Result<Vec<PathBuf>, LabError>
             .iter()
             .map(|c| Series::new(c.label.clone(), c.points.clone(), SeriesStyle::Line))
             .collect();
-        let breaks: Vec<(f64, f64)> = map
+        // Each curve's break-even in that curve's colour: a vertical line at the largest
+        // camera noise with a zero rate (the break-even lies within one grid step above).
+        let top = map
             .camera
             .iter()
-            .filter_map(|c| c.break_even.map(|b| (b.zero_at, 0.0)))
-            .collect();
-        if !breaks.is_empty() {
-            series.push(Series::new(
-                "break-even (within one grid step above)",
-                breaks,
-                SeriesStyle::Markers,
-            ));
+            .flat_map(|c| c.points.iter().map(|p| p.1))
+            .fold(0.0, f64::max);
+        for (i, curve) in map.camera.iter().enumerate() {
+            if let Some(b) = curve.break_even {
+                series.push(Series {
+                    color: Some(i),
+                    ..Series::reference(
+                        format!("break-even above {} mm, {}", b.zero_at, curve.label),
+                        vec![(b.zero_at, 0.0), (b.zero_at, top)],
+                    )
+                });
+            }
         }
         files.extend(save(
             &chart(
-                "Secret bits per second against Eve's camera noise",
+                &format!(
+                    "Secret bits per second against Eve's camera noise (ε = {:e}, blocks of {block_bits} bits)",
+                    4.0 * epsilon
+                ),
                 "Eve's camera noise per sample instant (mm)",
                 "secret bits per second",
                 series,
@@ -268,13 +347,17 @@ pub fn write_map(dir: &Path, map: &PrivateMap) -> Result<Vec<PathBuf>, LabError>
             .iter()
             .map(|p| (p.jx_mm, p.bits_per_second))
             .collect();
+        let notes = map.pareto.iter().map(|p| point_note(&p.point)).collect();
         files.extend(save(
             &chart(
                 "Secret rate against tracking cost",
                 "tracking error Jₓ (mm)",
                 "secret bits per second",
                 vec![
-                    Series::new("private sensing, every point", every, SeriesStyle::Markers),
+                    Series {
+                        notes,
+                        ..Series::new("private sensing, every point", every, SeriesStyle::Markers)
+                    },
                     Series::new("Pareto front", front, SeriesStyle::Line),
                     Series::new(
                         "the paper's scheme (0 by structure)",
@@ -311,19 +394,29 @@ pub fn write_map(dir: &Path, map: &PrivateMap) -> Result<Vec<PathBuf>, LabError>
                 SeriesStyle::Markers,
             )
         };
+        let mut series = vec![
+            measured,
+            Series::reference("measured = predicted", vec![(0.0, 0.0), (top, top)]),
+        ];
+        if let Some(pooled) = map.pooled_leak() {
+            let [low, high] = pooled.interval;
+            series.push(Series::reference(
+                format!(
+                    "pooled: measured = {:.2} × predicted (95 % {low:.2}–{high:.2})",
+                    pooled.ratio
+                ),
+                vec![
+                    (0.0, 0.0),
+                    (top / pooled.ratio.max(1.0), top * pooled.ratio.min(1.0)),
+                ],
+            ));
+        }
         files.extend(save(
             &chart(
                 "What the commands leak: measured against the model",
                 "predicted information per bit (bits)",
                 "measured information per bit (bits)",
-                vec![
-                    measured,
-                    Series::new(
-                        "measured = predicted",
-                        vec![(0.0, 0.0), (top, top)],
-                        SeriesStyle::Dashed,
-                    ),
-                ],
+                series,
             ),
             &dir.join("private-leak"),
         )?);

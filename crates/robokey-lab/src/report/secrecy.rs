@@ -5,17 +5,13 @@
 use std::path::{Path, PathBuf};
 
 use super::private::{PrivateRow, map_markdown, private_markdown, turn_rates_csv, write_map};
+use crate::csv_field::quoted;
 use crate::error::LabError;
 use crate::experiment::{Experiment, axis_label, param_label, param_number};
 use crate::output::write;
 use crate::plot::{LineChart, Series, SeriesStyle};
 use crate::secrecy::pipeline::H_MIN_BINOMIAL;
 use crate::secrecy::{Block, PointSecrecy, Pooling, Rate, Secrecy};
-
-/// A CSV field: quoted, inner quotes doubled.
-fn quoted(text: &str) -> String {
-    format!("\"{}\"", text.replace('"', "\"\""))
-}
 
 /// Sums a block field over a row's blocks.
 fn total(r: &PointSecrecy, field: fn(&Block) -> u64) -> u64 {
@@ -194,12 +190,192 @@ fn private_rows(results: &[PointSecrecy]) -> Vec<PrivateRow<'_>> {
         .collect()
 }
 
-/// Adds `point` to the series labelled `label`, starting it (with `style`) if new.
-fn push_point(series: &mut Vec<Series>, label: String, point: (f64, f64), style: SeriesStyle) {
+/// Adds `point` to the series labelled `label`, starting it (with `style` and palette
+/// colour `color`) if new.
+fn push_point(
+    series: &mut Vec<Series>,
+    label: String,
+    point: (f64, f64),
+    (style, color): (SeriesStyle, Option<usize>),
+) {
     match series.iter_mut().find(|s| s.label == label) {
         Some(s) => s.points.push(point),
-        None => series.push(Series::new(label, vec![point], style)),
+        None => series.push(Series {
+            color,
+            ..Series::new(label, vec![point], style)
+        }),
     }
+}
+
+/// One key-length curve: a setting of the other axes, the adversaries that give it, its
+/// points.
+struct KeyCurve {
+    setting: String,
+    adversaries: Vec<String>,
+    points: Vec<(f64, f64)>,
+}
+
+/// `label`, followed by `, setting` when there is one.
+fn with_setting(label: &str, setting: &str) -> String {
+    if setting.is_empty() {
+        label.to_owned()
+    } else {
+        format!("{label}, {setting}")
+    }
+}
+
+/// The figure of secret bits per robot step, or none without a numeric axis.
+///
+/// x is the axis with the most values (the first of those), in the units people read; one
+/// series per setting of the other axes that vary. Drawn once per setting what is the same
+/// for every adversary — the raw agreed bits, and in private sensing the key length, which
+/// the stated assumption sizes whoever listens — and per adversary what differs: her key
+/// length in the odometry scheme (adversaries giving the same curve share one series), her
+/// realised ℓ (from her own view, a diagnostic) in private sensing.
+fn bits_per_step_chart(experiment: &Experiment, secrecy: &Secrecy) -> Option<LineChart> {
+    let results = &secrecy.results;
+    let values = |axis: usize| {
+        let mut values: Vec<String> = experiment
+            .points
+            .iter()
+            .filter_map(|p| p.params.get(axis).map(|(_, v)| v.to_string()))
+            .collect();
+        values.sort();
+        values.dedup();
+        values.len()
+    };
+    let axis = (0..experiment.axes.len()).rev().max_by_key(|&a| values(a));
+    let varying: Vec<usize> = (0..experiment.axes.len())
+        .filter(|&a| Some(a) != axis && values(a) > 1)
+        .collect();
+    let x_of = |r: &PointSecrecy| {
+        let (field, value) = experiment.points[r.point_index].params.get(axis?)?;
+        param_number(field, value)
+    };
+    let setting = |r: &PointSecrecy| {
+        let params = &experiment.points[r.point_index].params;
+        varying
+            .iter()
+            .filter_map(|&a| params.get(a).map(|(f, v)| param_label(f, v)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let per_step =
+        |bits: u64, r: &PointSecrecy| (r.used_steps > 0).then(|| bits as f64 / r.used_steps as f64);
+    let assumed = results.iter().any(|r| r.private.is_some());
+    // Key length: per setting, the adversaries whose curves coincide named together.
+    let mut contexts: Vec<String> = Vec::new();
+    for r in results.iter().filter(|r| x_of(r).is_some()) {
+        let context = setting(r);
+        if !contexts.contains(&context) {
+            contexts.push(context);
+        }
+    }
+    // With several settings, each has one colour (its key length, realised ℓ and raw bits
+    // told apart by line and marker); with one, every series has its own.
+    let colour = |context: &str| {
+        (contexts.len() > 1)
+            .then(|| contexts.iter().position(|c| c == context))
+            .flatten()
+    };
+    let mut keys: Vec<KeyCurve> = Vec::new();
+    for context in contexts.clone() {
+        let mut by_adversary: Vec<Series> = Vec::new();
+        for r in results.iter().filter(|r| setting(r) == context) {
+            if let Some(x) = x_of(r) {
+                let adversary = format!("{} ({})", r.adversary, r.adversary_class.name());
+                let point = (x, r.secret_bits_per_step);
+                push_point(
+                    &mut by_adversary,
+                    adversary,
+                    point,
+                    (SeriesStyle::Line, None),
+                );
+            }
+        }
+        for curve in by_adversary {
+            match keys
+                .iter_mut()
+                .find(|k| k.setting == context && k.points == curve.points)
+            {
+                Some(k) => k.adversaries.push(curve.label),
+                None => keys.push(KeyCurve {
+                    setting: context.clone(),
+                    adversaries: vec![curve.label],
+                    points: curve.points,
+                }),
+            }
+        }
+    }
+    let mut series: Vec<Series> = keys
+        .into_iter()
+        .map(|k| {
+            let label = if assumed {
+                "key length ℓ from the stated assumption (sizes the key, whoever listens)"
+                    .to_owned()
+            } else {
+                format!("vs {} Eve", k.adversaries.join(", "))
+            };
+            Series {
+                color: colour(&k.setting),
+                ..Series::new(
+                    with_setting(&label, &k.setting),
+                    k.points,
+                    SeriesStyle::Line,
+                )
+            }
+        })
+        .collect();
+    if assumed {
+        for r in results {
+            let (Some(x), Some(y)) = (x_of(r), per_step(r.realised_secret_bits, r)) else {
+                continue;
+            };
+            let label = format!(
+                "realised ℓ from {} Eve's own view (diagnostic)",
+                r.adversary
+            );
+            let context = setting(r);
+            push_point(
+                &mut series,
+                with_setting(&label, &context),
+                (x, y),
+                (SeriesStyle::Markers, colour(&context)),
+            );
+        }
+    }
+    for r in results
+        .iter()
+        .filter(|r| r.adversary == results[0].adversary)
+    {
+        if let Some(x) = x_of(r) {
+            let context = setting(r);
+            push_point(
+                &mut series,
+                with_setting("raw agreed bits", &context),
+                (x, r.raw_bits_per_step),
+                (SeriesStyle::Dashed, colour(&context)),
+            );
+        }
+    }
+    series
+        .iter()
+        .any(|s| !s.points.is_empty())
+        .then(|| LineChart {
+            title: format!(
+                "Secret bits per robot step (ε = {:e}, blocks of {} bits)",
+                4.0 * secrecy.epsilon,
+                secrecy.block_bits
+            ),
+            x_label: axis.map_or_else(
+                || "point".to_owned(),
+                |a| axis_label(&experiment.axes[a].field),
+            ),
+            y_label: "bits per robot step".into(),
+            series,
+            equal_aspect: false,
+            log_y: false,
+        })
 }
 
 /// Renders `secrecy` (of `experiment`'s points) into `dir`: `secrecy.csv`, `secrecy.md`, the
@@ -223,86 +399,21 @@ pub fn write_secrecy(
             secrecy_markdown(secrecy)
                 + &map.map_or_else(String::new, |m| {
                     map_markdown(m, secrecy.block_bits, secrecy.epsilon)
-                }),
+                })
+                + &super::world::over_claim_markdown(&super::world::over_claims(
+                    experiment, results,
+                )),
         )?,
     ];
     if let Some(map) = map {
-        files.extend(write_map(dir, map)?);
+        files.extend(write_map(dir, map, secrecy.block_bits, secrecy.epsilon)?);
     }
+    files.extend(super::world::write_over_claims(dir, experiment, results)?);
     let rows = private_rows(results);
     if !rows.is_empty() {
         files.push(write(&dir.join("turn-rates.csv"), turn_rates_csv(&rows))?);
     }
-    // x: the first axis in the units people read; one series per adversary and setting of
-    // the other axes (a multi-axis sweep drawn against its first axis alone is a sawtooth).
-    let axis = experiment.axes.first().map(|a| a.field.as_str());
-    let x_of = |r: &PointSecrecy| {
-        let (field, value) = experiment.points[r.point_index].params.first()?;
-        param_number(field, value)
-    };
-    let setting = |r: &PointSecrecy| {
-        experiment.points[r.point_index].params[1.min(experiment.axes.len())..]
-            .iter()
-            .map(|(f, v)| param_label(f, v))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let mut series: Vec<Series> = Vec::new();
-    for r in results {
-        let context = setting(r);
-        let label = format!(
-            "vs {} Eve ({}){}",
-            r.adversary,
-            r.adversary_class.name(),
-            if context.is_empty() {
-                String::new()
-            } else {
-                format!(", {context}")
-            }
-        );
-        if let Some(x) = x_of(r) {
-            push_point(
-                &mut series,
-                label,
-                (x, r.secret_bits_per_step),
-                SeriesStyle::Line,
-            );
-        }
-    }
-    let mut raw: Vec<Series> = Vec::new();
-    for r in results
-        .iter()
-        .filter(|r| r.adversary == results[0].adversary)
-    {
-        let context = setting(r);
-        let label = if context.is_empty() {
-            "raw agreed bits".to_owned()
-        } else {
-            format!("raw agreed bits, {context}")
-        };
-        if let Some(x) = x_of(r) {
-            push_point(
-                &mut raw,
-                label,
-                (x, r.raw_bits_per_step),
-                SeriesStyle::Dashed,
-            );
-        }
-    }
-    series.extend(raw);
-    if series.iter().any(|s| !s.points.is_empty()) {
-        let chart = LineChart {
-            title: format!(
-                "Secret bits per robot step (ε = {:e}, blocks of {} bits)",
-                4.0 * secrecy.epsilon,
-                secrecy.block_bits
-            ),
-            x_label: axis.map_or_else(|| "point".to_owned(), axis_label),
-            y_label: "bits per robot step".into(),
-            series,
-            equal_aspect: false,
-            log_y: false,
-        };
+    if let Some(chart) = bits_per_step_chart(experiment, secrecy) {
         let base = dir.join("secrecy-bits-per-step");
         files.extend(chart.save(&base).map_err(|e| LabError::Plot {
             path: base.clone(),

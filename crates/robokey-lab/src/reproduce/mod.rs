@@ -1,10 +1,12 @@
 //! `robokey reproduce`: the paper's suite swept ([`suite`]), then the stages computed into
 //! its folder — the secrecy of the Δv and α sweeps, the eavesdropping campaigns, the coarse
-//! private-sensing map ([`private_suite`]) — and `reproduce.json` written last, vouching for
-//! them. `robokey report` then renders the paper's report from the folder alone.
+//! private-sensing map ([`private_suite`]) and the coarse worlds ([`world_suite`]) — and
+//! `reproduce.json` written last, vouching for them. `robokey report` then renders the
+//! paper's report from the folder alone.
 
 pub mod private_suite;
 pub mod suite;
+pub mod world_suite;
 
 use std::path::Path;
 use std::time::Instant;
@@ -81,14 +83,20 @@ pub fn compute_stages(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Stage
         std::fs::remove_file(&record).map_err(io_at(&record))?;
     }
     let suite = suite::paper_suite(quick)?;
-    // The odometry stages share their sessions; the private-sensing map shares nothing with
-    // them, so the two run side by side on the pool.
-    let (odometry, private) = rayon::join(
+    // The odometry stages share their sessions; the private-sensing map and the worlds share
+    // nothing with them, so the three run side by side on the pool.
+    let (odometry, (private, worlds)) = rayon::join(
         || odometry_stages(dir, &suite, quick, stop),
-        || private_stage(dir, quick, stop),
+        || {
+            rayon::join(
+                || private_stage(dir, quick, stop),
+                || worlds_stage(dir, quick, stop),
+            )
+        },
     );
     let mut times = odometry?;
     times.push(("private sensing", private?));
+    times.push(("worlds", worlds?));
     let json = serde_json::to_string_pretty(&Reproduction { quick }).expect("JSON serializes");
     write(&record, json + "\n")?;
     Ok(times)
@@ -154,29 +162,56 @@ fn odometry_stages(
 /// its secrecy. Returns how long it took (s).
 fn private_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabError> {
     timed(stop, || {
-        let out = dir.join(private_suite::PRIVATE_SENSING_DIR);
-        for experiment in private_suite::coarse_suite(quick)? {
-            let plan = SweepPlan {
-                shard: None,
-                resume: false,
-            };
-            let swept = sweep(
-                &out,
-                std::slice::from_ref(&experiment),
-                plan,
-                stop,
-                &mut |_| {},
-                &|| {},
-            )?;
-            if let Some(signal) = swept.interrupted {
-                return Err(LabError::Interrupted(signal));
-            }
-            let options = private_suite::options(&experiment);
-            Secrecy::compute(&experiment, &options, &mut SessionBank::new())?
-                .write(&out.join(&experiment.name))?;
-        }
-        Ok(())
+        sweep_each_then_secrecy(
+            &dir.join(private_suite::PRIVATE_SENSING_DIR),
+            private_suite::coarse_suite(quick)?,
+            private_suite::options,
+            stop,
+        )
     })
+}
+
+/// The coarse worlds: each swept into `dir/worlds`, then its secrecy against the
+/// eavesdroppers who know it. Returns how long it took (s).
+fn worlds_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabError> {
+    timed(stop, || {
+        sweep_each_then_secrecy(
+            &dir.join(world_suite::WORLDS_DIR),
+            world_suite::coarse_suite(quick)?,
+            |experiment| world_suite::options(experiment, quick),
+            stop,
+        )
+    })
+}
+
+/// Sweeps each experiment into `out`, one at a time, then computes and writes its secrecy
+/// with `options(experiment)` into its folder.
+fn sweep_each_then_secrecy(
+    out: &Path,
+    experiments: Vec<Experiment>,
+    options: impl Fn(&Experiment) -> SecrecyOptions,
+    stop: &Interrupt,
+) -> Result<(), LabError> {
+    for experiment in experiments {
+        let plan = SweepPlan {
+            shard: None,
+            resume: false,
+        };
+        let swept = sweep(
+            out,
+            std::slice::from_ref(&experiment),
+            plan,
+            stop,
+            &mut |_| {},
+            &|| {},
+        )?;
+        if let Some(signal) = swept.interrupted {
+            return Err(LabError::Interrupted(signal));
+        }
+        Secrecy::compute(&experiment, &options(&experiment), &mut SessionBank::new())?
+            .write(&out.join(&experiment.name))?;
+    }
+    Ok(())
 }
 
 /// The experiment `name` of the suite.

@@ -57,6 +57,32 @@ fn filled(runs: &[RunOutput], options: &SecrecyOptions, adversary: EveStrategy) 
     )
 }
 
+/// Why no block filled: the raw bits the pooled sessions held against the block's, and how
+/// many sessions a block needs at their rate (or that no session was admitted).
+fn short_of_a_block(runs: &[RunOutput], options: &SecrecyOptions) -> String {
+    let admitted: Vec<&RunOutput> = runs.iter().filter(|r| options.pooling.admits(r)).collect();
+    let bits: usize = admitted.iter().map(|r| r.keys.robot.len()).sum();
+    let pooling = options.pooling.name();
+    let simulated = runs.len();
+    if bits == 0 {
+        return format!(
+            "empty block: none of the {simulated} sessions simulated holds raw bits of \
+             {pooling} sessions (a block needs {} bits)",
+            options.block_bits
+        );
+    }
+    let per_session = bits as f64 / admitted.len() as f64;
+    let needed = (options.block_bits as f64 / bits as f64 * simulated as f64).ceil();
+    format!(
+        "empty block: {bits} raw bits of {pooling} sessions ({} of the {simulated} sessions \
+         simulated, {per_session:.0} bits each) are short of the block's {} bits; at this \
+         rate a block needs about {needed:.0} sessions, and --max-sessions allows {}",
+        admitted.len(),
+        options.block_bits,
+        options.max_sessions
+    )
+}
+
 /// `config` with `adversary` listening.
 fn with_adversary(config: &Config, adversary: EveStrategy) -> Config {
     let mut config = config.clone();
@@ -212,14 +238,7 @@ fn analyze_point(
         blocks
             .iter()
             .find_map(|b| b.reason.clone())
-            .unwrap_or_else(|| {
-                format!(
-                    "fewer than {} raw bits of {} sessions in {} sessions simulated",
-                    options.block_bits,
-                    options.pooling.name(),
-                    runs.len()
-                )
-            })
+            .unwrap_or_else(|| short_of_a_block(runs, options))
     });
     let params = &experiment.points[point].params;
     Ok(PointSecrecy {
@@ -234,11 +253,13 @@ fn analyze_point(
         assumption: settings.assumption.describe(),
         realised_secret_bits: blocks.iter().map(|b| b.realised.secret_bits).sum(),
         assumption_exceeds_realised: blocks.iter().any(|b| b.assumption_exceeds_realised),
+        world_differences: config.world_model().differences(config),
         q_estimate: blocks.first().map(|b| b.q_estimate),
         q_source: blocks.first().map(|b| b.q_source.clone()),
         sessions: runs.len() as u32,
         sessions_pooled: blocks.iter().map(|b| b.sessions).sum(),
         steps,
+        used_steps,
         sample_time: config.robot.sample_time,
         p_c: rate(JointCounts::controller_error_rate),
         p_e: rate(JointCounts::eve_error_rate),
@@ -474,6 +495,7 @@ pub fn analyze_with(
 mod tests {
     use super::*;
     use crate::adversary::overhear;
+    use crate::secrecy::{MAX_SESSIONS, default_max_sessions};
     use robokey::sim::simulate_transcript;
 
     fn experiment(text: &str) -> Experiment {
@@ -511,6 +533,42 @@ mod tests {
                 .contains("zero by structure")
         );
         assert!(r.raw_bits_per_step > 0.25);
+    }
+
+    /// A block the simulated sessions cannot fill says what they held, what the block
+    /// needs, and the session limit that stopped them.
+    #[test]
+    fn an_empty_block_says_how_many_bits_and_sessions_it_had_and_needs() {
+        let mut opts = options(vec![EveStrategy::Mismatch], 100_000);
+        opts.max_sessions = 3;
+        let r = &analyze(&experiment("[run]\nreplicates = 1\n"), &opts).unwrap()[0];
+        assert!(r.blocks.is_empty());
+        let why = r.zero_reason.as_deref().unwrap();
+        assert!(why.starts_with("empty block: "), "{why}");
+        assert!(why.contains("of the 3 sessions simulated"), "{why}");
+        assert!(why.contains("short of the block's 100000 bits"), "{why}");
+        assert!(why.ends_with("--max-sessions allows 3"), "{why}");
+        // About 300 raw bits a session: a 100,000-bit block needs hundreds of them.
+        let needed: f64 = why
+            .split("needs about ")
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap();
+        assert!((200.0..1_000.0).contains(&needed), "{why}");
+        assert!(!why.contains("pooling more can help"), "{why}");
+    }
+
+    /// The default session limit grows with the block, so that the documented
+    /// `--block 1000000` fills its block (about 2,223 sessions of the paper's settings).
+    #[test]
+    fn the_default_session_limit_follows_the_block() {
+        assert_eq!(default_max_sessions(10_000, 1), 2_000);
+        assert_eq!(default_max_sessions(2_000, 1), 2_000);
+        assert_eq!(default_max_sessions(1_000_000, 1), 200_000);
+        assert_eq!(default_max_sessions(1_000_000, 3), 600_000);
+        assert_eq!(default_max_sessions(usize::MAX, 1_000), MAX_SESSIONS);
+        assert_eq!(SecrecyOptions::default().max_sessions, 2_000);
     }
 
     /// Today's agents keep only sessions whose key tags matched, and both tags of every

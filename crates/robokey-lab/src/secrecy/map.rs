@@ -77,6 +77,65 @@ pub struct PrivateMap {
     pub leak: Vec<LeakBin>,
 }
 
+/// The commands eavesdropper's leak pooled over her turn-rate bins.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PooledLeak {
+    /// Measured over predicted information, pooled: Σ nᵢ·mᵢ / Σ nᵢ·pᵢ over the bins (nᵢ
+    /// bits measuring mᵢ where the model predicts pᵢ).
+    pub ratio: f64,
+    /// Its 95 % normal interval: the pooled measurement's standard error is
+    /// √Σ (nᵢ·sᵢ)² / Σ nᵢ·pᵢ, with sᵢ the bin's standard error (its interval's half-width
+    /// / 1.96, from the bits it holds).
+    pub interval: [f64; 2],
+    /// Bins whose measurement lies above the prediction.
+    pub above: usize,
+    /// The smallest and largest measured/predicted ratio among those.
+    pub above_ratios: [f64; 2],
+    /// Bins with a measurement.
+    pub bins: usize,
+}
+
+/// z of a two-sided 95 % normal interval.
+const Z95: f64 = 1.959_963_984_540_054;
+
+impl PrivateMap {
+    /// The leak pooled over the bins with a finite measurement and a positive prediction;
+    /// none without such a bin.
+    #[must_use]
+    pub fn pooled_leak(&self) -> Option<PooledLeak> {
+        let bins: Vec<&LeakBin> = self
+            .leak
+            .iter()
+            .filter(|b| b.measured.iter().all(|m| m.is_finite()) && b.predicted > 0.0)
+            .collect();
+        let predicted: f64 = bins.iter().map(|b| b.bits as f64 * b.predicted).sum();
+        if predicted <= 0.0 {
+            return None;
+        }
+        let measured: f64 = bins.iter().map(|b| b.bits as f64 * b.measured[0]).sum();
+        let variance: f64 = bins
+            .iter()
+            .map(|b| (b.bits as f64 * (b.measured[2] - b.measured[1]) / (2.0 * Z95)).powi(2))
+            .sum();
+        let (ratio, half) = (measured / predicted, Z95 * variance.sqrt() / predicted);
+        let above: Vec<f64> = bins
+            .iter()
+            .filter(|b| b.measured[0] > b.predicted)
+            .map(|b| b.measured[0] / b.predicted)
+            .collect();
+        Some(PooledLeak {
+            ratio,
+            interval: [ratio - half, ratio + half],
+            above: above.len(),
+            above_ratios: [
+                above.iter().copied().fold(f64::INFINITY, f64::min),
+                above.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            ],
+            bins: bins.len(),
+        })
+    }
+}
+
 /// Where a curve of `(camera noise, rate)` sorted by noise reaches zero: the largest noise
 /// with a zero rate and the next one, if both exist.
 fn break_even(points: &[(f64, f64)]) -> Option<BreakEven> {

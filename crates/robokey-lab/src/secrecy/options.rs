@@ -55,7 +55,7 @@ impl Default for SecrecyOptions {
             sample_bits: 1_000,
             assumed_eve_error: None,
             blocks: 1,
-            max_sessions: 2_000,
+            max_sessions: default_max_sessions(10_000, 1),
             bootstrap: 1_000,
         }
     }
@@ -73,3 +73,16 @@ impl SecrecyOptions {
         }
     }
 }
+
+/// Most sessions simulated per point and adversary, by default, for `blocks` blocks of
+/// `block_bits` raw bits: 2,000 per 10,000 bits the blocks need (about 60 times what a
+/// session of the paper's settings pools), at most [`MAX_SESSIONS`].
+#[must_use]
+pub fn default_max_sessions(block_bits: usize, blocks: usize) -> u32 {
+    let needed = (block_bits as u64).saturating_mul(blocks as u64);
+    let sessions = needed.div_ceil(10_000).max(1).saturating_mul(2_000);
+    sessions.min(u64::from(MAX_SESSIONS)) as u32
+}
+
+/// The largest session count `robokey secrecy` simulates per point and adversary.
+pub const MAX_SESSIONS: u32 = 1_000_000;

@@ -18,8 +18,8 @@ use robokey_secrecy::min_entropy::{
     binomial_smooth_min_entropy, output_length, posterior_smooth_min_entropy,
 };
 use robokey_secrecy::postprocess::{
-    Assumption, BlockReport, ControllerInput, ControllerPost, Message, Output, RobotInput,
-    RobotPost, Settings,
+    AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, Message, Output,
+    RobotInput, RobotPost, Settings,
 };
 use serde::{Deserialize, Serialize};
 use zeroize::Zeroizing;
@@ -276,7 +276,7 @@ fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
         realised: realised(pool, &[], n, 0, leak_confirmation, settings.epsilon),
         assumption_exceeds_realised: false,
     };
-    finish(&mut block, settings);
+    finish(&mut block, settings, None);
     block
 }
 
@@ -317,12 +317,19 @@ fn through_endpoints(
     }
     let mut controller_reports = Vec::new();
     let mut robot_reports = BTreeMap::new();
+    // Why the controller ended a block without a key, when it did.
+    let mut aborted: BTreeMap<u64, AbortReason> = BTreeMap::new();
     let mut keys = (Vec::new(), Vec::new());
     let (mut to_robot, mut to_controller): (Vec<Message>, Vec<Message>) = (Vec::new(), Vec::new());
     loop {
         while let Some(output) = controller.poll_output() {
             match output {
-                Output::Transmit(m) => to_robot.push(m),
+                Output::Transmit(m) => {
+                    if let Message::Abort { block, reason, .. } = &m {
+                        aborted.insert(*block, *reason);
+                    }
+                    to_robot.push(m);
+                }
                 Output::BlockEnded(report) => controller_reports.push(report),
                 Output::KeyCommitted(key) => keys.0.push(key),
                 Output::Persist | Output::Ignored(_) => {}
@@ -363,18 +370,21 @@ fn through_endpoints(
                 robot_reports.get(&report.block),
                 pool,
                 consistent,
+                aborted.get(&report.block).copied(),
                 settings,
             )
         })
         .collect()
 }
 
-/// A block from the endpoints' reports.
+/// A block from the endpoints' reports; `aborted`: why the controller ended it without a
+/// key, if it did.
 fn endpoint_block(
     report: &BlockReport,
     robot: Option<&BlockReport>,
     pool: &Pool,
     consistent: bool,
+    aborted: Option<AbortReason>,
     settings: &BlockSettings,
 ) -> Block {
     let leak = report.leak_ec + report.leak_confirmation;
@@ -410,23 +420,33 @@ fn endpoint_block(
         ),
         assumption_exceeds_realised: false,
     };
-    finish(&mut block, settings);
+    finish(&mut block, settings, aborted);
     block
 }
 
 /// Flags an assumption that credits more than the realised view, and adds pooling advice.
-fn finish(block: &mut Block, settings: &BlockSettings) {
+fn finish(block: &mut Block, settings: &BlockSettings, aborted: Option<AbortReason>) {
     block.assumption_exceeds_realised = block.secret_bits > block.realised.secret_bits;
     if block.secret_bits == 0
         && let Some(why) = block.reason.as_mut()
     {
-        why.push_str(&pooling_advice(
-            settings,
-            block.sessions,
-            block.reconciled_bits,
-            block.h_min,
-            block.leak_ec,
-        ));
+        why.push_str(&match aborted {
+            None | Some(AbortReason::NoSecretBits) => pooling_advice(
+                settings,
+                block.sessions,
+                block.reconciled_bits,
+                block.h_min,
+                block.leak_ec,
+            ),
+            Some(AbortReason::Reconciliation) => "; the block failed reconciliation (the two \
+                 sides' keys still differed, or Cascade could not finish): it is discarded, not \
+                 short, so pooling more does not help; the next block starts afresh"
+                .to_owned(),
+            Some(AbortReason::Refused | AbortReason::Restart) => "; the block was ended by the \
+                 protocol (refused or restarted), not for want of secrecy: pooling more does \
+                 not help"
+                .to_owned(),
+        });
     }
 }
 
@@ -533,5 +553,77 @@ fn pooling_advice(
             "; pooling cannot help: Eve's min-entropy ({entropy_rate:.4} bit per raw bit) \
              grows no faster than the leak ({leak_rate:.4} bit per raw bit)"
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A block of `n` agreeing bits (Eve wrong on every other one) finished as the
+    /// controller ended it: `aborted`, with `why`.
+    fn ended(n: usize, why: &str, aborted: Option<AbortReason>) -> Block {
+        let settings = BlockSettings {
+            pooling: Pooling::Complete,
+            epsilon: 1e-6,
+            sample_bits: 0,
+            block_bits: n,
+            assumption: Assumption::IndependentErrors { error_rate: 0.2 },
+        };
+        let bits: Vec<u8> = (0..n).map(|i| (i % 2) as u8).collect();
+        let pool = Pool {
+            eve: Zeroizing::new(bits.iter().map(|b| 1 - b).collect()),
+            robot: Zeroizing::new(bits.clone()),
+            controller: Zeroizing::new(bits),
+            sessions: 1,
+            lengths: vec![n],
+            ..Pool::default()
+        };
+        let mut block = tagged_sessions(&pool, &settings);
+        block.secret_bits = 0;
+        block.reason = Some(why.to_owned());
+        finish(&mut block, &settings, aborted);
+        block
+    }
+
+    #[test]
+    fn a_block_failing_reconciliation_says_so_and_gives_no_pooling_advice() {
+        let block = ended(
+            2_000,
+            "the robot's tag differs: the reconciled keys differ",
+            Some(AbortReason::Reconciliation),
+        );
+        let why = block.reason.unwrap();
+        assert!(why.contains("the robot's tag differs"), "{why}");
+        assert!(why.contains("failed reconciliation"), "{why}");
+        assert!(why.contains("pooling more does not help"), "{why}");
+        assert!(!why.contains("pooling more can help"), "{why}");
+    }
+
+    #[test]
+    fn a_block_refused_by_the_protocol_gives_no_pooling_advice() {
+        let why = ended(
+            2_000,
+            "the robot refused the block",
+            Some(AbortReason::Refused),
+        )
+        .reason
+        .unwrap();
+        assert!(why.contains("not for want of secrecy"), "{why}");
+        assert!(!why.contains("pooling more can help"), "{why}");
+    }
+
+    #[test]
+    fn a_block_too_short_for_its_key_gets_pooling_advice() {
+        // 200 bits with Eve wrong on a fifth of them cannot cover 2·log₂(1/ε) + tags, but
+        // her min-entropy grows with the block while nothing else does.
+        let why = ended(
+            200,
+            "no secret bits: too short",
+            Some(AbortReason::NoSecretBits),
+        )
+        .reason
+        .unwrap();
+        assert!(why.contains("pooling more can help"), "{why}");
     }
 }

@@ -122,6 +122,11 @@ pub struct PointSecrecy {
     /// The assumption credits more than this adversary's realised view supports: the
     /// assumption is violated by this adversary.
     pub assumption_exceeds_realised: bool,
+    /// The world's parameters that differ from what the parties believe
+    /// (`world.FIELD = VALUE (parties: VALUE)`), when the point's world is not theirs: the
+    /// realised view is then the eavesdroppers' who know the world (docs/world.md).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub world_differences: Vec<String>,
     /// The first block's error-rate estimate for reconciliation.
     pub q_estimate: Option<f64>,
     /// Where it comes from.
@@ -132,6 +137,10 @@ pub struct PointSecrecy {
     pub sessions_pooled: u32,
     /// Robot steps over those sessions.
     pub steps: u64,
+    /// Robot steps of the sessions simulated until the last one pooled, dropped ones
+    /// included: the denominator of the per-step rates (0 in files written before it).
+    #[serde(default)]
+    pub used_steps: u64,
     /// Sample time T (s).
     pub sample_time: f64,
     /// Controller's bit error rate over applied bits.

@@ -6,7 +6,7 @@
 
 use robokey::config::{EveStrategy, SensingMode};
 
-use super::options::{SecrecyOptions, default_adversaries};
+use super::options::{MAX_SESSIONS, SecrecyOptions, default_adversaries, default_max_sessions};
 use super::pipeline::Pooling;
 use crate::experiment::{Experiment, MAX_BLOCK_BITS, MIN_BLOCK_BITS};
 
@@ -26,8 +26,9 @@ pub struct SecrecyRequest {
     pub pooling: Option<Pooling>,
     /// Largest sample disclosed to estimate the error rate.
     pub sample_bits: usize,
-    /// Most sessions simulated per point and adversary.
-    pub max_sessions: u32,
+    /// Most sessions simulated per point and adversary (none: [`default_max_sessions`] of the
+    /// block size and blocks).
+    pub max_sessions: Option<u32>,
     /// Eve's least independent error rate that sizes the key (none: no assumption).
     pub assumed_eve_error: Option<f64>,
 }
@@ -42,7 +43,7 @@ impl Default for SecrecyRequest {
             blocks: options.blocks,
             pooling: None,
             sample_bits: options.sample_bits,
-            max_sessions: options.max_sessions,
+            max_sessions: None,
             assumed_eve_error: None,
         }
     }
@@ -138,11 +139,13 @@ impl SecrecyRequest {
         if !(1..=1_000).contains(&self.blocks) {
             return refuse(RequestOption::Blocks, self.blocks.to_string(), "1 to 1000");
         }
-        if !(1..=1_000_000).contains(&self.max_sessions) {
+        if let Some(max) = self.max_sessions
+            && !(1..=MAX_SESSIONS).contains(&max)
+        {
             return refuse(
                 RequestOption::MaxSessions,
-                self.max_sessions.to_string(),
-                "1 to 1000000",
+                max.to_string(),
+                &format!("1 to {MAX_SESSIONS}"),
             );
         }
         if let Some(p) = self.assumed_eve_error
@@ -159,6 +162,10 @@ impl SecrecyRequest {
     pub fn options(&self, experiment: &Experiment) -> SecrecyOptions {
         let defaults = SecrecyOptions::default();
         let mode = experiment.points[0].config.sensing.mode;
+        let block_bits = self
+            .block_bits
+            .or(experiment.secrecy.block_bits)
+            .map_or(defaults.block_bits, |b| b as usize);
         SecrecyOptions {
             adversaries: if self.adversaries.is_empty() {
                 default_adversaries(mode)
@@ -169,10 +176,7 @@ impl SecrecyRequest {
                 .epsilon
                 .or(experiment.secrecy.epsilon)
                 .unwrap_or(defaults.epsilon),
-            block_bits: self
-                .block_bits
-                .or(experiment.secrecy.block_bits)
-                .map_or(defaults.block_bits, |b| b as usize),
+            block_bits,
             pooling: self.pooling.unwrap_or(match mode {
                 SensingMode::Odometry => Pooling::Confirmed,
                 SensingMode::Private => Pooling::Complete,
@@ -180,7 +184,9 @@ impl SecrecyRequest {
             sample_bits: self.sample_bits,
             assumed_eve_error: self.assumed_eve_error,
             blocks: self.blocks,
-            max_sessions: self.max_sessions,
+            max_sessions: self
+                .max_sessions
+                .unwrap_or_else(|| default_max_sessions(block_bits, self.blocks)),
             ..defaults
         }
     }

@@ -1,21 +1,22 @@
 //! A simulated Khepera IV speaking kh4server's line protocol over TCP, so the `kh4`
-//! backend and a whole session can be tested without hardware. With sensor options it is
-//! also the world: at every encoder read (a sample instant) it serves the motion capture and
-//! the camera from its true pose (docs/sensors.md).
+//! backend and a whole session can be tested without hardware. Its robot lives in a world
+//! (docs/world.md: the parties' own model unless given one, e.g. the `khepera-iv` preset):
+//! the speed units it is sent drive the world's wheels, its encoders count the world's wheel
+//! angles (at the world's resolution) in pulses, and at every encoder read (a sample instant)
+//! it serves the motion capture and the camera from its true pose (docs/sensors.md).
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener};
 use std::time::{Duration, Instant};
 
-use rand::rngs::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
-use robokey::model::Pose;
-use robokey::rng::{Purpose, stream as stream_of};
+use robokey::Config;
+use robokey::config::SensingMode;
+use robokey::model::WheelSpeeds;
 use serialport::SerialPort as _;
 
 use super::protocol::{MAX_UNITS, PULSE_M, SPEED_UNIT_M_S};
 use crate::error::{NetError, is_wait_over};
-use crate::world::{SensorOptions, WorldSensors};
+use crate::world::{StreamAddresses, WorldProcess};
 
 /// How the emulated robot's time advances.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -44,65 +45,56 @@ pub struct EmulatorOptions {
     pub listen: Listen,
     /// Time mode.
     pub time: TimeMode,
-    /// Wheel slip: each advance multiplies each wheel's travel by `1 + N(0, σ²)` (0: exact).
-    pub slip: f64,
-    /// Seed of the slip noise.
-    pub seed: u64,
+    /// The robot's world: its `[world]` (the parties' model without one), wheel geometry
+    /// (`robot.r`, `robot.D`), the sensors' noise and `run.seed`. Each connection is a
+    /// session, replicate `i` of every noise for the `i`-th connection.
+    pub world: Config,
     /// Serve this many connections, then return (`None`: forever; a pty is one connection
     /// that lasts as long as the emulator).
     pub connections: Option<usize>,
-    /// The emulated robot's axle length D (m), for its true pose.
-    pub axle_length: f64,
-    /// The world's sensor streams, if served: each connection is a session, replicate
-    /// `i` of their noise for the `i`-th connection.
-    pub sensors: Option<SensorOptions>,
+    /// Where the world serves its sensor streams.
+    pub sensors: StreamAddresses,
 }
 
 /// Longest request line the emulator reads (bytes); a longer one is answered with `$`.
 const MAX_REQUEST_BYTES: usize = 256;
 
-/// The emulated robot: wheel speeds, encoder positions, and where it truly is.
+/// The emulated robot: its speeds in units, its encoders' zero, and its world.
 struct Robot<'w> {
+    /// Speed units, left first (as kh4server takes them).
     speeds: [i64; 2],
-    pulses: [f64; 2],
+    /// Pulse counts at the last reset, left first.
+    zero: [i64; 2],
     last: Instant,
-    slip: f64,
-    noise: ChaCha8Rng,
-    axle_length: f64,
-    /// The true pose (m, m, rad): the wheels' travel, slip included, by midpoint
-    /// integration.
-    truth: Pose,
-    /// Encoder reads so far: the next sample instant.
+    /// Encoder reads so far.
     reads: u32,
-    world: Option<&'w mut WorldSensors>,
+    world: &'w mut WorldProcess,
+    wheel_radius: f64,
+    encoder_quantum: f64,
 }
 
 impl Robot<'_> {
-    fn advance(&mut self, seconds: f64) {
-        let mut travel = [0.0; 2];
-        for ((distance, pulses), speed) in travel.iter_mut().zip(&mut self.pulses).zip(self.speeds)
-        {
-            let factor = if self.slip > 0.0 {
-                let z: f64 = StandardNormal.sample(&mut self.noise);
-                1.0 + self.slip * z
+    /// Each wheel's pulses counted since the world began, left first: its angle (at the
+    /// world's encoder resolution) as travel of the Khepera's pulse.
+    fn counts(&self) -> [i64; 2] {
+        let angles = self.world.plant().wheel_angles();
+        let q = self.encoder_quantum;
+        let pulses = |angle: f64| {
+            let read = if q > 0.0 {
+                (angle / q).round() * q
             } else {
-                1.0
+                angle
             };
-            *distance = speed as f64 * SPEED_UNIT_M_S * seconds * factor;
-            *pulses += *distance / PULSE_M;
-        }
-        let [left, right] = travel;
-        let turn = (right - left) / self.axle_length;
-        let heading = self.truth.z + turn / 2.0;
-        let distance = (left + right) / 2.0;
-        self.truth += Pose::new(distance * heading.cos(), distance * heading.sin(), turn);
+            (read * self.wheel_radius / PULSE_M).round() as i64
+        };
+        [pulses(angles.y), pulses(angles.x)]
     }
 
     /// Answers one request line.
     fn answer(&mut self, line: &str, time: TimeMode) -> String {
         if time == TimeMode::Real {
             let now = Instant::now();
-            self.advance((now - self.last).as_secs_f64());
+            self.world.advance((now - self.last).as_secs_f64());
             self.last = now;
         }
         let mut parts = line.trim().split(',');
@@ -116,27 +108,33 @@ impl Robot<'_> {
                         left.clamp(-MAX_UNITS, MAX_UNITS),
                         right.clamp(-MAX_UNITS, MAX_UNITS),
                     ];
+                    let wheel = |units: i64| units as f64 * SPEED_UNIT_M_S / self.wheel_radius;
+                    self.world.apply(WheelSpeeds::new(
+                        wheel(self.speeds[1]),
+                        wheel(self.speeds[0]),
+                    ));
                     Some("d".to_owned())
                 }
                 _ => None,
             },
             Some("R") => {
-                if let TimeMode::Virtual(period) = time {
-                    self.advance(period.as_secs_f64());
+                if let TimeMode::Virtual(period) = time
+                    && self.reads > 0
+                {
+                    self.world.advance(period.as_secs_f64());
                 }
-                if let Some(world) = self.world.as_mut() {
-                    world.publish(self.reads, &self.truth);
-                }
+                self.world.sample();
                 self.reads = self.reads.saturating_add(1);
+                let counts = self.counts();
                 Some(format!(
                     "r,{},{}",
-                    self.pulses[0].round() as i64,
-                    self.pulses[1].round() as i64
+                    counts[0] - self.zero[0],
+                    counts[1] - self.zero[1]
                 ))
             }
             Some("E") => Some(format!("e,{},{}", self.speeds[0], self.speeds[1])),
             Some("I") => {
-                self.pulses = [0.0; 2];
+                self.zero = self.counts();
                 Some("i".to_owned())
             }
             Some("U") => Some("u".to_owned()),
@@ -154,18 +152,15 @@ impl Robot<'_> {
 fn serve_one(
     stream: &mut (impl Read + Write),
     options: &EmulatorOptions,
-    index: u64,
-    world: Option<&mut WorldSensors>,
+    world: &mut WorldProcess,
 ) -> Result<(), NetError> {
     let mut robot = Robot {
         speeds: [0; 2],
-        pulses: [0.0; 2],
+        zero: [0; 2],
         last: Instant::now(),
-        slip: options.slip,
-        noise: stream_of(options.seed, Purpose::Process, index),
-        axle_length: options.axle_length,
-        truth: Pose::zeros(),
         reads: 0,
+        wheel_radius: options.world.robot.r,
+        encoder_quantum: options.world.world_model().encoder_quantum,
         world,
     };
     let mut pending = Vec::with_capacity(MAX_REQUEST_BYTES);
@@ -210,11 +205,7 @@ fn serve_one(
 /// # Errors
 /// An address cannot be bound, or no pseudo-terminal can be made.
 pub fn serve(options: &EmulatorOptions) -> Result<(), NetError> {
-    let mut world = options
-        .sensors
-        .as_ref()
-        .map(WorldSensors::serve)
-        .transpose()?;
+    let mut world = WorldProcess::new(&options.world, SensingMode::Private, &options.sensors)?;
     match options.listen {
         Listen::Tcp(address) => {
             let listener =
@@ -222,17 +213,13 @@ pub fn serve(options: &EmulatorOptions) -> Result<(), NetError> {
             let address = listener
                 .local_addr()
                 .map_err(NetError::io("local address"))?;
-            announce(&format!("tcp:{address}"), world.as_ref());
+            announce(&format!("tcp:{address}"), &world);
             for (index, client) in listener.incoming().enumerate() {
-                if let Some(world) = world.as_mut() {
-                    world.begin_session(index as u64);
-                }
+                world.begin_session(index as u64);
                 if let Ok(mut client) = client {
-                    serve_one(&mut client, options, index as u64, world.as_mut())?;
+                    serve_one(&mut client, options, &mut world)?;
                 }
-                if let Some(world) = world.as_mut() {
-                    world.end_session();
-                }
+                world.end_session();
                 if options.connections.is_some_and(|n| index + 1 >= n) {
                     break;
                 }
@@ -244,21 +231,19 @@ pub fn serve(options: &EmulatorOptions) -> Result<(), NetError> {
             let device = agent
                 .name()
                 .ok_or_else(|| NetError::Kh4("the pseudo-terminal has no device name".into()))?;
-            announce(&device, world.as_ref());
+            announce(&device, &world);
             // Held open while serving: the agent may close and reopen the device.
             let _agent_end = agent;
-            if let Some(world) = world.as_mut() {
-                world.begin_session(0);
-            }
-            serve_one(&mut emulator, options, 0, world.as_mut())
+            world.begin_session(0);
+            serve_one(&mut emulator, options, &mut world)
         }
     }
 }
 
-fn announce(address: &str, world: Option<&WorldSensors>) {
+fn announce(address: &str, world: &WorldProcess) {
     println!("kh4-emulator listening on {address}");
-    if let Some(world) = world {
-        println!("{}", world.describe());
+    if let Some(streams) = world.describe() {
+        println!("{streams}");
     }
     let _ = std::io::stdout().flush();
 }
@@ -288,11 +273,14 @@ mod tests {
         let options = EmulatorOptions {
             listen: Listen::Tcp(address),
             time: TimeMode::Virtual(Duration::from_millis(200)),
-            slip: 0.0,
-            seed: 1,
+            // Without noise, lag or delay: the backend's conversions alone.
+            world: Config::from_toml(
+                "[world]\nprocess_std = [0.0, 0.0, 0.0]\nintegration = \"continuous\"\n",
+                "test",
+            )
+            .unwrap(),
             connections: Some(1),
-            axle_length: 0.1047,
-            sensors: None,
+            sensors: StreamAddresses::default(),
         };
         let server = std::thread::spawn(move || serve(&options));
         std::thread::sleep(Duration::from_millis(100));

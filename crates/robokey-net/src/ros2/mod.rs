@@ -17,4 +17,4 @@ mod sim;
 pub use backend::{Ros2Backend, Ros2BackendOptions, Ros2Clock, check_quantum, wheels_to_twist};
 pub use node::{Delivery, MAX_DOMAIN_ID, RobotTopics, TopicSpec};
 pub use pose_sensor::{PoseTopicOptions, Ros2PoseSensor};
-pub use sim::{MocapOptions, Ros2Sim, SimOptions, SimStats, SimTime, integrate, quantise};
+pub use sim::{MocapOptions, Ros2Sim, SimOptions, SimStats, SimTime, quantise};

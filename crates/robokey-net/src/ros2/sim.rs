@@ -1,21 +1,24 @@
 //! `robokey ros2-sim`: an emulated ROS 2 differential-drive robot. It subscribes to
-//! `/cmd_vel`, applies each command as a TurtleBot3 does (clamped to its speed limits, then
-//! truncated to the command quantum), integrates the unicycle exactly, and publishes
-//! `/odom`, so the `ros2` backend and a whole session run without hardware or ROS. For
-//! private sensing it also plays the motion capture: the true pose, with the controller's
-//! sensor noise, as `geometry_msgs/PoseStamped`.
+//! `/cmd_vel`, applies each command as a TurtleBot3's firmware does (clamped to its speed
+//! limits, then truncated to the command quantum), drives the wheels of its world with it
+//! (docs/world.md: the parties' own model unless given one, e.g. `turtlebot3-burger`), and
+//! publishes its true pose on `/odom`, so the `ros2` backend and a whole session run without
+//! hardware or ROS. For private sensing it also plays the motion capture: the world's
+//! controller sensor, as `geometry_msgs/PoseStamped`.
 
 use std::time::{Duration, Instant};
 
-use rand::rngs::ChaCha8Rng;
+use robokey::Config;
+use robokey::config::SensingMode;
 use robokey::interrupt::Interrupt;
-use robokey::rng::{Purpose, stream};
+use robokey::model::{DiffDrive, Unicycle};
+use robokey::world::Observed;
 use ros2_client::{Context, Node, Publisher};
 
 use super::msg::{Header, Kind, Odometry, Pose, PoseStamped, Time, Twist, TwistStamped};
 use super::node::{Listener, RobotTopics, TopicSpec, localhost_node, topic};
 use crate::error::NetError;
-use crate::world::gaussian;
+use crate::world::{StreamAddresses, WorldProcess};
 
 /// How the emulated robot's time advances.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -30,19 +33,16 @@ pub enum SimTime {
     Real,
 }
 
-/// The emulated motion capture: the robot's true pose plus Gaussian noise, published as
-/// `geometry_msgs/PoseStamped` with each `/odom` (same stamp). In virtual time the noise is
-/// drawn once per step and the repeats carry the same pose.
+/// The emulated motion capture: the world's controller sensor (noise
+/// `world.controller_std`, the simulator's `measurement` stream of `run.seed`, replicate 0),
+/// published as `geometry_msgs/PoseStamped` with each `/odom` (same stamp). In virtual time
+/// it is sampled once per step and the repeats carry the same pose.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MocapOptions {
     /// The topic and its QoS, e.g. `/mocap/robot/pose`.
     pub topic: TopicSpec,
     /// `header.frame_id` of the poses.
     pub frame_id: String,
-    /// Noise std (m, m, rad): `sensing.controller_std`, as the world's motion capture.
-    pub std: [f64; 3],
-    /// Seed of the noise: the simulator's `measurement` stream of this seed, replicate 0.
-    pub seed: u64,
 }
 
 /// Options of the emulator.
@@ -67,6 +67,9 @@ pub struct SimOptions {
     pub child_frame_id: String,
     /// The motion capture, if published.
     pub mocap: Option<MocapOptions>,
+    /// The robot's world: its `[world]`, wheel geometry (`robot.r`, `robot.D`), the
+    /// controller sensor's noise and `run.seed`.
+    pub world: Config,
     /// Exit after this long without a command (after the first), or without any if none came.
     pub idle_exit: Option<Duration>,
     /// A stop request (SIGINT, SIGTERM).
@@ -128,23 +131,6 @@ pub fn quantise(x: f64, quantum: f64) -> f64 {
     (x * scale).trunc() / scale
 }
 
-/// Advances the pose `(x, y, θ)` by `dt` at constant `(v, ω)`: the exact arc.
-#[must_use]
-pub fn integrate(pose: [f64; 3], v: f64, omega: f64, dt: f64) -> [f64; 3] {
-    let [x, y, theta] = pose;
-    let turn = omega * dt;
-    let (dx, dy) = if turn.abs() < 1e-9 {
-        let mid = theta + turn / 2.0;
-        (v * dt * mid.cos(), v * dt * mid.sin())
-    } else {
-        (
-            v / omega * ((theta + turn).sin() - theta.sin()),
-            -v / omega * ((theta + turn).cos() - theta.cos()),
-        )
-    };
-    [x + dx, y + dy, theta + turn]
-}
-
 /// The emulated robot, joined to the graph.
 pub struct Ros2Sim {
     options: SimOptions,
@@ -177,15 +163,6 @@ impl Ros2Sim {
             return Err(NetError::Usage(format!(
                 "--quantum {} is not allowed (allowed: ≥ 0; 0 for none)",
                 options.quantum
-            )));
-        }
-        if let Some(mocap) = &options.mocap
-            && !mocap.std.iter().all(|s| *s >= 0.0 && s.is_finite())
-        {
-            return Err(NetError::Usage(format!(
-                "sensing.controller_std {:?} is not allowed for the motion capture (allowed: \
-                 each ≥ 0 and finite)",
-                mocap.std
             )));
         }
         if let SimTime::Virtual(period) = options.time
@@ -269,7 +246,9 @@ impl Ros2Sim {
         let mocap = o.mocap.as_ref().map_or_else(String::new, |m| {
             format!(
                 ", motion capture on {} (noise std {:?}, seed {})",
-                m.topic.name, m.std, m.seed
+                m.topic.name,
+                o.world.world_model().controller_std,
+                o.world.run.seed
             )
         });
         format!(
@@ -291,7 +270,7 @@ impl Ros2Sim {
         &self.options.interrupt
     }
 
-    /// What the robot applies for a command: clamped to its limits, then truncated.
+    /// What the robot's firmware makes of a command: clamped to its limits, then truncated.
     fn apply(&self, command: &Command) -> (f64, f64) {
         let o = &self.options;
         (
@@ -300,15 +279,20 @@ impl Ros2Sim {
         )
     }
 
-    /// Publishes `/odom` at the true `pose` and, with a motion capture, its measurement `seen`.
+    /// Publishes `/odom` at the true pose and, with a motion capture, its sample.
     fn publish(
         &self,
-        pose: [f64; 3],
+        observed: &Observed,
         speeds: (f64, f64),
-        seen: [f64; 3],
         stamp: Time,
         stats: &mut SimStats,
     ) -> Result<(), NetError> {
+        let pose = [observed.pose.x, observed.pose.y, observed.pose.z];
+        let seen = [
+            observed.measured.x,
+            observed.measured.y,
+            observed.measured.z,
+        ];
         let o = &self.options;
         let header = Header {
             stamp,
@@ -341,23 +325,24 @@ impl Ros2Sim {
     /// Runs until the idle timeout or a stop request.
     ///
     /// # Errors
-    /// Publishing fails, or the command listener fails.
+    /// Publishing fails, the world's streams cannot be set up, or the command listener fails.
     pub fn run(&self) -> Result<SimStats, NetError> {
         let o = &self.options;
+        let drive = DiffDrive {
+            wheel_radius: o.world.robot.r,
+            axle_length: o.world.robot.axle_length,
+        };
+        let mut world =
+            WorldProcess::new(&o.world, SensingMode::Private, &StreamAddresses::default())?;
         let odom_period = Duration::from_secs_f64(1.0 / o.rate);
         let started = Instant::now();
         let mut stats = SimStats::default();
-        let mut pose = [0.0; 3];
         let mut speeds = (0.0, 0.0);
         let mut virtual_time = 0.0;
         let mut integrated_to = started;
         let mut last_command = started;
         let mut next_odom = started;
-        let mut mocap = o.mocap.as_ref().map(|m| MocapNoise {
-            std: robokey::model::Pose::from(m.std),
-            rng: stream(m.seed, Purpose::Measurement, 0),
-        });
-        let mut seen = see(mocap.as_mut(), pose);
+        let mut observed = world.sample();
         loop {
             if o.interrupt.signal().is_some() {
                 break;
@@ -369,19 +354,14 @@ impl Ros2Sim {
             if now >= next_odom {
                 let stamp = match o.time {
                     SimTime::Real => {
-                        pose = integrate(
-                            pose,
-                            speeds.0,
-                            speeds.1,
-                            (now - integrated_to).as_secs_f64(),
-                        );
+                        world.advance((now - integrated_to).as_secs_f64());
                         integrated_to = now;
-                        seen = see(mocap.as_mut(), pose);
+                        observed = world.sample();
                         Time::now()
                     }
                     SimTime::Virtual(_) => Time::from_secs_f64(virtual_time),
                 };
-                self.publish(pose, speeds, seen, stamp, &mut stats)?;
+                self.publish(&observed, speeds, stamp, &mut stats)?;
                 next_odom += odom_period;
                 if next_odom < now {
                     next_odom = now + odom_period;
@@ -398,17 +378,19 @@ impl Ros2Sim {
                 match o.time {
                     SimTime::Real => {
                         let dt = arrival.at.saturating_duration_since(integrated_to);
-                        pose = integrate(pose, speeds.0, speeds.1, dt.as_secs_f64());
+                        world.advance(dt.as_secs_f64());
                         integrated_to = integrated_to.max(arrival.at);
                         speeds = self.apply(&arrival.value);
+                        world.apply(drive.to_wheels(Unicycle::new(speeds.0, speeds.1)));
                     }
                     SimTime::Virtual(period) => {
                         speeds = self.apply(&arrival.value);
-                        pose = integrate(pose, speeds.0, speeds.1, period);
+                        world.apply(drive.to_wheels(Unicycle::new(speeds.0, speeds.1)));
+                        world.advance(period);
                         virtual_time += period;
-                        seen = see(mocap.as_mut(), pose);
+                        observed = world.sample();
                         let stamp = Time::from_secs_f64(virtual_time);
-                        self.publish(pose, speeds, seen, stamp, &mut stats)?;
+                        self.publish(&observed, speeds, stamp, &mut stats)?;
                     }
                 }
             }
@@ -417,26 +399,9 @@ impl Ros2Sim {
             SimTime::Real => started.elapsed().as_secs_f64(),
             SimTime::Virtual(_) => virtual_time,
         };
-        stats.pose = pose;
+        let pose = world.plant().pose();
+        stats.pose = [pose.x, pose.y, pose.z];
         Ok(stats)
-    }
-}
-
-/// The motion capture's noise and its random stream.
-struct MocapNoise {
-    std: robokey::model::Pose,
-    rng: ChaCha8Rng,
-}
-
-/// What the motion capture sees of the true `pose` (the pose itself without one): one draw
-/// of its noise, as the world's motion capture does (`crate::world`).
-fn see(noise: Option<&mut MocapNoise>, pose: [f64; 3]) -> [f64; 3] {
-    match noise {
-        Some(n) => {
-            let seen = robokey::model::Pose::from(pose) + gaussian(&mut n.rng, &n.std);
-            [seen.x, seen.y, seen.z]
-        }
-        None => pose,
     }
 }
 
@@ -465,40 +430,5 @@ mod tests {
             (up - 0.03).abs() < 1e-12 && (down - 0.04).abs() < 1e-12,
             "{up} {down}"
         );
-    }
-
-    #[test]
-    fn the_motion_capture_draws_the_world_sensors_noise() {
-        // The same numbers as the world's motion capture (`--mocap` of the simulated robot
-        // and the Khepera IV emulator) with this seed: the simulator's measurement stream.
-        let std = [0.0005, 0.001, 0.002];
-        let mut noise = MocapNoise {
-            std: robokey::model::Pose::from(std),
-            rng: stream(7, Purpose::Measurement, 0),
-        };
-        let mut world = stream(7, Purpose::Measurement, 0);
-        let pose = [1.0, -2.0, 10.0];
-        for _ in 0..3 {
-            let seen = see(Some(&mut noise), pose);
-            let expected = gaussian(&mut world, &robokey::model::Pose::from(std));
-            for i in 0..3 {
-                assert_eq!(seen[i], pose[i] + expected[i]);
-            }
-            assert_ne!(seen, pose);
-        }
-        assert_eq!(see(None, pose), pose);
-    }
-
-    #[test]
-    fn the_arc_is_exact() {
-        // A quarter circle of radius 1.
-        let pose = integrate([0.0, 0.0, 0.0], 1.0, 1.0, std::f64::consts::FRAC_PI_2);
-        assert!((pose[0] - 1.0).abs() < 1e-12 && (pose[1] - 1.0).abs() < 1e-12);
-        assert!((pose[2] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
-        // Straight on, and the limit ω → 0 agrees.
-        assert_eq!(integrate([1.0, 2.0, 0.0], 0.5, 0.0, 2.0), [2.0, 2.0, 0.0]);
-        let nearly = integrate([0.0, 0.0, 0.3], 0.2, 1e-7, 0.2);
-        let straight = integrate([0.0, 0.0, 0.3], 0.2, 0.0, 0.2);
-        assert!((nearly[0] - straight[0]).abs() < 1e-9 && (nearly[1] - straight[1]).abs() < 1e-9);
     }
 }

@@ -1,15 +1,25 @@
-//! The private-sensing eavesdroppers (docs/private-sensing.md, "Adversaries") on what they
-//! can record: the frames on the network and, for the `camera` adversary, her own camera.
-//! The simulator feeds them its transcript and camera samples; `robokey eve --capture` a
-//! relay capture and the world's camera log. Same code, same decisions.
+//! The private-sensing eavesdroppers (docs/private-sensing.md, "Adversaries"; docs/world.md)
+//! on what they can record: the frames on the network and, for the `camera` adversary, her
+//! own camera. They know the world: its motion noise, its controller sensor, its camera. The
+//! simulator feeds them its transcript and camera; `robokey eve --capture` a relay capture
+//! and the world's camera log. Same code, same decisions.
+//!
+//! Where the world lets a doublet's boundary samples screen it from its neighbours (white
+//! noise, the Euler map, no lag, delay, slip, quanta or jitter, a camera at the instants),
+//! each doublet is decided from the samples around it; elsewhere — or when
+//! `eve.smoother_window` asks for it — by the [`WindowSmoother`] over `±W` doublets.
 
 use std::collections::{BTreeMap, VecDeque};
 
 use super::doublet::DoubletInputs;
-use super::likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model};
+use super::likelihood::{
+    BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model_with,
+};
+use super::smoother::{Commanded, DEFAULT_HALF_WIDTH, Recorded, WindowSmoother};
 use crate::config::Config;
 use crate::model::Pose;
 use crate::protocol::{Closing, KeyBits, Message, SessionMessage, SessionPlan};
+use crate::world::{Camera, Frame};
 
 /// What both eavesdroppers make of one carrying doublet.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -18,56 +28,108 @@ pub struct EveDoublet {
     pub doublet: u32,
     /// Its public inputs.
     pub inputs: DoubletInputs,
-    /// The `camera` adversary's evidence: her camera at each step of the doublet, fused with
-    /// the controller's boundary samples the commands carry.
+    /// The `camera` adversary's evidence: her camera, fused with the controller's boundary
+    /// samples the commands carry.
     pub camera: BitEvidence,
     /// The `commands` adversary's evidence: the boundary samples alone.
     pub commands: BitEvidence,
+    /// The `camera` adversary's evidence given also the true bits of every other doublet
+    /// acting on its window (revealed for this measurement, never to decide with): her view
+    /// of each bit as if she knew the rest of the block, which errs on her side — the sum
+    /// over a block of `H(B_j | E, B_{≠j})` is at most `H(B | E)`. Where doublets are
+    /// screened it is `camera`; none when those bits were not revealed.
+    pub camera_given_others: Option<BitEvidence>,
+    /// The same for the `commands` adversary.
+    pub commands_given_others: Option<BitEvidence>,
 }
 
-/// What a command revealed about its step.
-#[derive(Clone, Copy, Debug)]
-struct Commanded {
-    /// The controller's sample `y_c(k)`.
-    sample: Pose,
-    /// The inputs of the doublet it starts, if it starts one.
-    inputs: Option<DoubletInputs>,
+/// How the eavesdroppers weigh what they recorded.
+#[derive(Debug)]
+enum View {
+    /// Each doublet from its own samples (a world where they screen it).
+    PerDoublet {
+        model: DoubletModel,
+        controller_std: [f64; 3],
+        camera_std: [f64; 3],
+    },
+    /// Each doublet from a window of its neighbours, in order.
+    Window {
+        smoother: Box<WindowSmoother>,
+        /// Seconds between her frames, when she films between the instants.
+        frame_interval: Option<f64>,
+    },
 }
 
-/// The `camera` and `commands` eavesdroppers of one session: exact model, every frame, and
-/// her camera (`eve.camera_std`, her effective noise per sample instant).
+/// The `camera` and `commands` eavesdroppers of one session: the world's model, every frame
+/// on the network, and her camera.
 #[derive(Debug)]
 pub struct DoubletEavesdropper {
     plan: SessionPlan,
-    model: DoubletModel,
-    controller_std: [f64; 3],
-    camera_std: [f64; 3],
-    /// What the commands revealed, by step (pruned below the last decided doublet).
+    view: View,
+    /// What the commands revealed, by step (pruned below what is still needed).
     commands: BTreeMap<u32, Commanded>,
-    /// Her camera, by step (pruned likewise).
+    /// Her camera at the instants, by step (pruned likewise).
     camera: BTreeMap<u32, Pose>,
+    /// Her frames between the instants, in time order (pruned likewise).
+    frames: Vec<Frame>,
     /// Each doublet's decision `v | ω << 1` under each view, once decided.
     decided: Vec<Option<[u64; 2]>>,
     /// The kept doublets, once a `Finish` was heard.
     kept: Option<Vec<u64>>,
     ready: VecDeque<EveDoublet>,
+    /// The window view: the next doublet to decide.
+    next: u32,
+    /// No more data will come: decide what is left with what there is.
+    finished: bool,
+    /// The robot's true bits of each doublet, where revealed (a measurement: see
+    /// [`EveDoublet::camera_given_others`]).
+    truth: Vec<Option<[u8; 2]>>,
 }
 
 impl DoubletEavesdropper {
-    /// The eavesdroppers of a validated private-sensing configuration.
+    /// The eavesdroppers of a validated private-sensing configuration, in its world.
     #[must_use]
     pub fn new(config: &Config) -> Self {
         let plan = SessionPlan::from_config(config, 0);
+        let world = config.world_model();
+        let view = match (world.camera, config.eve.smoother_window) {
+            (Camera::Instants { std }, None) if world.screens_doublets() => View::PerDoublet {
+                model: doublet_model_with(config, world.process_std),
+                controller_std: world.controller_std,
+                camera_std: std,
+            },
+            (camera, half_width) => View::Window {
+                smoother: Box::new(WindowSmoother::new(
+                    config,
+                    &world,
+                    half_width.unwrap_or(DEFAULT_HALF_WIDTH),
+                )),
+                frame_interval: match camera {
+                    Camera::Frames { fps, .. } => Some(1.0 / fps),
+                    Camera::Instants { .. } => None,
+                },
+            },
+        };
         Self {
             decided: vec![None; plan.units() as usize],
-            model: doublet_model(config),
-            controller_std: config.sensing.controller_std,
-            camera_std: config.eve.camera_std,
+            view,
             commands: BTreeMap::new(),
             camera: BTreeMap::new(),
+            frames: Vec::new(),
             kept: None,
             ready: VecDeque::new(),
+            next: 0,
+            finished: false,
+            truth: vec![None; plan.units() as usize],
             plan,
+        }
+    }
+
+    /// Reveals doublet `j`'s true bits `[v, ω]` — never to decide with: to measure her view
+    /// of each bit given the rest of the block ([`EveDoublet::camera_given_others`]).
+    pub fn reveal(&mut self, j: u32, bits: [u8; 2]) {
+        if let Some(slot) = self.truth.get_mut(j as usize) {
+            *slot = Some(bits);
         }
     }
 
@@ -103,12 +165,30 @@ impl DoubletEavesdropper {
         }
     }
 
-    /// Her camera's sample `y_e(k)`.
+    /// Her camera's sample `y_e(k)` at sample instant `k`.
     pub fn film(&mut self, step: u32, pose: Pose) {
         if step <= self.plan.agreed.steps && pose.iter().all(|v| v.is_finite()) {
             self.camera.entry(step).or_insert(pose);
             self.try_decide(step);
         }
+    }
+
+    /// One frame of her camera filming between the instants (frames come in time order; a
+    /// frame older than the last is ignored).
+    pub fn film_frame(&mut self, frame: Frame) {
+        let end = f64::from(self.plan.agreed.steps) * self.plan.agreed.sample_time;
+        let in_order = self.frames.last().is_none_or(|last| frame.time > last.time);
+        let valid = frame.time.is_finite() && frame.time >= 0.0 && frame.time <= end;
+        if in_order && valid && frame.pose.iter().all(|v| v.is_finite()) {
+            self.frames.push(frame);
+            self.try_decide(self.plan.agreed.steps);
+        }
+    }
+
+    /// No more data will come: decides every doublet left with what was recorded.
+    pub fn finish(&mut self) {
+        self.finished = true;
+        self.try_decide(self.plan.agreed.steps);
     }
 
     /// The next doublet decided, in the order the data completed them.
@@ -135,21 +215,106 @@ impl DoubletEavesdropper {
         key
     }
 
-    /// Decides the doublets that step `step`'s data may have completed (`step` is the
-    /// start, middle or end of at most two).
+    /// Decides the doublets that the data of step `step` may have completed.
     fn try_decide(&mut self, step: u32) {
-        // The earlier doublet first: deciding one prunes what lies before its start.
-        for j in [(step / 2).wrapping_sub(1), step / 2] {
-            if let Some(doublet) = self.decide(j) {
+        if let View::PerDoublet { .. } = self.view {
+            // `step` is the start, middle or end of at most two; the earlier first: deciding
+            // one prunes what lies before its start.
+            for j in [(step / 2).wrapping_sub(1), step / 2] {
+                if let Some(doublet) = self.decide_alone(j) {
+                    self.ready.push_back(doublet);
+                    self.commands = self.commands.split_off(&(2 * j));
+                    self.camera = self.camera.split_off(&(2 * j));
+                }
+            }
+            return;
+        }
+        let doublets = self.plan.units();
+        while self.next < doublets && (self.finished || self.window_complete(self.next)) {
+            let j = self.next;
+            self.next += 1;
+            if let Some(doublet) = self.decide_in_window(j) {
                 self.ready.push_back(doublet);
-                // Nothing before this doublet's start is needed any more.
-                self.commands = self.commands.split_off(&(2 * j));
-                self.camera = self.camera.split_off(&(2 * j));
             }
         }
+        self.prune();
     }
 
-    fn decide(&mut self, j: u32) -> Option<EveDoublet> {
+    /// Whether everything doublet `j`'s full window needs has been recorded: the commands
+    /// of its doublets and of the one after, and her camera up to that instant.
+    fn window_complete(&self, j: u32) -> bool {
+        let View::Window {
+            smoother,
+            frame_interval,
+        } = &self.view
+        else {
+            return false;
+        };
+        let doublets = self.plan.units();
+        let last = (j + smoother.half_width()).min(doublets.saturating_sub(1));
+        let end = 2 * last + 2;
+        let commands = (j..=last).all(|i| self.commands.contains_key(&(2 * i)))
+            && self.commands.contains_key(&end);
+        let filmed = match frame_interval {
+            None => self.camera.contains_key(&end),
+            Some(interval) => {
+                let until = f64::from(end) * self.plan.agreed.sample_time;
+                self.frames
+                    .last()
+                    .is_some_and(|f| f.time + interval >= until - 1e-9)
+            }
+        };
+        commands && filmed
+    }
+
+    /// Drops what no undecided doublet's window needs.
+    fn prune(&mut self) {
+        let View::Window { smoother, .. } = &self.view else {
+            return;
+        };
+        let back = smoother.half_width() + smoother.lead() + 1;
+        let keep = 2 * self.next.saturating_sub(back);
+        self.commands = self.commands.split_off(&keep);
+        self.camera = self.camera.split_off(&keep);
+        let from = f64::from(keep) * self.plan.agreed.sample_time;
+        let stale = self.frames.partition_point(|f| f.time < from);
+        self.frames.drain(..stale);
+    }
+
+    fn decide_in_window(&mut self, j: u32) -> Option<EveDoublet> {
+        let View::Window { smoother, .. } = &self.view else {
+            return None;
+        };
+        let recorded = Recorded {
+            plan: &self.plan,
+            commands: &self.commands,
+            camera: &self.camera,
+            frames: &self.frames,
+        };
+        let inputs = self.commands.get(&(2 * j))?.inputs?;
+        let truth = &self.truth;
+        let revealed = |i: u32| truth.get(i as usize).copied().flatten();
+        let [camera, commands] = smoother.evidence(j, &recorded, &revealed)?;
+        self.decided[j as usize] = Some([camera.own.bits(), commands.own.bits()]);
+        Some(EveDoublet {
+            doublet: j,
+            inputs,
+            camera: camera.own,
+            commands: commands.own,
+            camera_given_others: camera.given_others,
+            commands_given_others: commands.given_others,
+        })
+    }
+
+    fn decide_alone(&mut self, j: u32) -> Option<EveDoublet> {
+        let View::PerDoublet {
+            model,
+            controller_std,
+            camera_std,
+        } = &self.view
+        else {
+            return None;
+        };
         if self.decided.get(j as usize)?.is_some() {
             return None;
         }
@@ -162,9 +327,9 @@ impl DoubletEavesdropper {
             *self.camera.get(&(k + 1))?,
             *self.camera.get(&(k + 2))?,
         ];
-        let c = |pose: Pose| PoseObservation::new(pose, self.controller_std);
-        let e = |i: usize| PoseObservation::new(filmed[i], self.camera_std);
-        let camera = self.model.evidence(
+        let c = |pose: Pose| PoseObservation::new(pose, *controller_std);
+        let e = |i: usize| PoseObservation::new(filmed[i], *camera_std);
+        let camera = model.evidence(
             &inputs,
             &DoubletView {
                 start: c(start.sample).fuse(&e(0)),
@@ -172,7 +337,7 @@ impl DoubletEavesdropper {
                 end: Some(c(end.sample).fuse(&e(2))),
             },
         );
-        let commands = self.model.evidence(
+        let commands = model.evidence(
             &inputs,
             &DoubletView {
                 start: c(start.sample),
@@ -186,6 +351,8 @@ impl DoubletEavesdropper {
             inputs,
             camera,
             commands,
+            camera_given_others: Some(camera),
+            commands_given_others: Some(commands),
         })
     }
 }

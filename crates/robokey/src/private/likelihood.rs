@@ -17,10 +17,17 @@ use super::doublet::{DoubletInputs, Perturbation};
 use crate::config::Config;
 use crate::model::{Pose, Unicycle};
 
-/// The true-noise doublet model of `config`.
+/// The true-noise doublet model of `config`: its parties' motion noise.
 #[must_use]
 pub fn doublet_model(config: &Config) -> DoubletModel {
-    let q = config.noise.process_std.map(|s| s * s);
+    doublet_model_with(config, config.noise.process_std)
+}
+
+/// `config`'s doublet model with motion noise `process_std` (m, m, rad per step): the
+/// world's, for an eavesdropper who knows it.
+#[must_use]
+pub fn doublet_model_with(config: &Config, process_std: [f64; 3]) -> DoubletModel {
+    let q = process_std.map(|s| s * s);
     DoubletModel {
         sample_time: config.robot.sample_time,
         process_covariance: Matrix3::from_diagonal(&q.into()),

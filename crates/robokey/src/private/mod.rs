@@ -8,9 +8,12 @@ pub(crate) mod controller;
 pub mod decision;
 pub mod doublet;
 pub mod eve;
+pub mod gram_filter;
 pub mod likelihood;
 pub mod plan;
 pub(crate) mod robot;
+pub mod smoother;
+pub mod window;
 
 use serde::Serialize;
 
@@ -20,9 +23,12 @@ pub(crate) use controller::PrivateController;
 pub use decision::DoubletDecision;
 pub use doublet::{DoubletInputs, Perturbation};
 pub use eve::{DoubletEavesdropper, EveDoublet};
-pub use likelihood::{BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model};
+pub use likelihood::{
+    BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model, doublet_model_with,
+};
 pub use plan::PrivatePlan;
 pub(crate) use robot::PrivateRobot;
+pub use smoother::{DEFAULT_HALF_WIDTH, MAX_NUISANCE_BITS, WindowSmoother};
 
 /// Which input a bit rides on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

@@ -4,14 +4,12 @@
 //! listening. One loop for both sensing modes.
 
 mod metrics;
-mod plant;
 mod trace;
 mod world;
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
-pub use plant::{Noise, Plant, Sensor};
 pub use trace::TraceRow;
 pub(crate) use trace::TraceRows;
 
@@ -25,6 +23,7 @@ use crate::protocol::{
     Controller, KeyBits, Message, ModePlan, Outcome, Robot, SessionPlan, Time, Timing,
 };
 use crate::rng::{Purpose, stream};
+use crate::world::Scene;
 
 /// Everything one run produced.
 #[derive(Clone, Debug)]
@@ -226,10 +225,6 @@ fn run<'a>(
     let steps = agreed.steps;
     let senses = match &plan.mode {
         ModePlan::Odometry(_) => Senses::Odometry {
-            odometry: Box::new(Sensor::new(Noise::new(
-                stream_of(Purpose::Measurement),
-                config.noise.measurement_std,
-            ))),
             eve: (config.eve.enabled && agreed.enabled).then(|| {
                 let mut eve = eve::build(config, &mut stream_of(Purpose::Eve));
                 eve.begin_session(&plan);
@@ -238,14 +233,6 @@ fn run<'a>(
             transcript,
         },
         ModePlan::Private(_) => Senses::Private(Box::new(PrivateSenses {
-            controller: Sensor::new(Noise::new(
-                stream_of(Purpose::Measurement),
-                config.sensing.controller_std,
-            )),
-            camera: Sensor::new(Noise::new(
-                stream_of(Purpose::Camera),
-                config.eve.camera_std,
-            )),
             eve: DoubletEavesdropper::new(config),
             decided: VecDeque::new(),
             heard: BTreeMap::new(),
@@ -256,12 +243,7 @@ fn run<'a>(
         config,
         trajectory: config.trajectory(),
         sample_time: agreed.sample_time,
-        plant: Plant::new(
-            agreed.drive,
-            config.robot.wheel_limit,
-            agreed.sample_time,
-            Noise::new(stream_of(Purpose::Process), config.noise.process_std),
-        ),
+        scene: Scene::new(config, config.sensing.mode, stream_of),
         senses,
         tracking_error: 0.0,
         log: vec![StepBits::default(); steps as usize + 1],
@@ -285,6 +267,10 @@ fn run<'a>(
     pair.drive(&mut world, limit);
     if let Some(reason) = world.abort {
         return Err(SimError::Aborted { replicate, reason });
+    }
+    if let Senses::Private(p) = &mut world.senses {
+        p.eve.finish();
+        p.collect();
     }
     world.record_private(&pair.robot);
     let mut log = std::mem::take(&mut world.log);

@@ -6,7 +6,6 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use super::StepBits;
-use super::plant::{Plant, Sensor};
 use super::trace::TraceRows;
 use crate::config::{Config, EveStrategy};
 use crate::eve::Eavesdropper;
@@ -19,13 +18,12 @@ use crate::protocol::{
     RobotInput, RobotOutput, SessionMessage, Time,
 };
 use crate::trajectory::Trajectory;
+use crate::world::Scene;
 
 /// What the sensors of a sensing mode observe, and who listens.
 pub(super) enum Senses<'a> {
     /// The robot's odometry; the eavesdropper (if any) hears the messages.
     Odometry {
-        /// The robot's odometry sensor.
-        odometry: Box<Sensor>,
         /// The eavesdropper, when the run has one.
         eve: Option<Box<dyn Eavesdropper>>,
         /// Every message in the order a tap hears it, when asked for.
@@ -37,10 +35,6 @@ pub(super) enum Senses<'a> {
 
 /// Private sensing's sensors, eavesdroppers and bookkeeping.
 pub(super) struct PrivateSenses {
-    /// The controller's own pose sensor.
-    pub(super) controller: Sensor,
-    /// Eve's camera.
-    pub(super) camera: Sensor,
     /// The `camera` and `commands` eavesdroppers.
     pub(super) eve: DoubletEavesdropper,
     /// The controller's decisions, waiting for the eavesdroppers' on the same doublet.
@@ -56,7 +50,8 @@ pub(super) struct World<'a> {
     pub(super) config: &'a Config,
     pub(super) trajectory: Trajectory,
     pub(super) sample_time: f64,
-    pub(super) plant: Plant,
+    /// The plant and its sensors.
+    pub(super) scene: Scene,
     pub(super) senses: Senses<'a>,
     /// `Σ_k ‖p(k) − r(k)‖` over `k = 1…N` (m).
     pub(super) tracking_error: f64,
@@ -75,7 +70,7 @@ impl World<'_> {
     fn sense(&mut self, now: Time, step: u32, robot: &mut Robot, controller: &mut Controller) {
         self.record_private(robot);
         if step > 0 {
-            self.plant.step();
+            self.scene.step();
         }
         // No later step writes the rows before this one (in private sensing, the row before
         // it: a doublet's decision lands on its second step's row).
@@ -84,16 +79,13 @@ impl World<'_> {
             Senses::Private(_) => step.saturating_sub(1),
         };
         self.trace.complete_before(settled as usize);
-        let pose = self.plant.pose();
+        let observed = self.scene.observe();
+        let (pose, measured, filmed) = (observed.pose, observed.measured, observed.filmed);
         let t = f64::from(step) * self.sample_time;
         let reference = self.trajectory.at(t).position;
         if step > 0 {
             self.tracking_error += (pose.xy() - reference).norm();
         }
-        let (measured, filmed) = match &mut self.senses {
-            Senses::Odometry { odometry, .. } => (odometry.sample(&pose), None),
-            Senses::Private(p) => (p.controller.sample(&pose), Some(p.camera.sample(&pose))),
-        };
         if let Some(row) = self.trace.row(step as usize) {
             row.k = step;
             row.t = t;
@@ -109,8 +101,11 @@ impl World<'_> {
             Senses::Private(p) => {
                 if let Some(filmed) = filmed {
                     p.eve.film(step, filmed);
-                    p.collect();
                 }
+                for frame in &observed.frames {
+                    p.eve.film_frame(*frame);
+                }
+                p.collect();
                 // The simulated robot has no odometry of its own: it would send none anyway.
                 robot.handle_input(now, RobotInput::Sample { step, y: pose });
                 controller.handle_input(
@@ -153,7 +148,7 @@ impl World<'_> {
 
 impl PrivateSenses {
     /// Takes the eavesdroppers' decisions.
-    fn collect(&mut self) {
+    pub(super) fn collect(&mut self) {
         while let Some(doublet) = self.eve.poll() {
             self.heard.insert(doublet.doublet, doublet);
         }
@@ -171,7 +166,13 @@ impl Surroundings<Robot, Controller> for World<'_> {
         match output {
             RobotOutput::Sense { step } => self.sense(now, step, robot, controller),
             RobotOutput::Apply(actuation) => {
-                self.plant.apply(actuation.wheels);
+                self.scene.apply(actuation.wheels);
+                if let Senses::Private(p) = &mut self.senses
+                    && actuation.bit.is_some()
+                    && let Some(bits) = robot.carried_bits(actuation.step / 2)
+                {
+                    p.eve.reveal(actuation.step / 2, bits);
+                }
                 if let Some(row) = self.trace.row(actuation.step as usize) {
                     row.bit = actuation.bit;
                     if self.config.protocol.bits_per_doublet == 2
@@ -313,8 +314,8 @@ fn record(
             bit: bits[i],
             turn_rate: d.inputs.turn_rate(),
             controller: d.evidence.llr[i],
-            camera: e.camera.llr[i],
-            commands: e.commands.llr[i],
+            camera: e.camera_given_others.unwrap_or(e.camera).llr[i],
+            commands: e.commands_given_others.unwrap_or(e.commands).llr[i],
             camera_separation: e.camera.separation[i],
             assumed_separation: d.assumed_separation[i],
             commands_separation: e.commands.separation[i],

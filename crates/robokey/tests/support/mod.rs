@@ -13,7 +13,7 @@ use robokey::protocol::{
     RobotInput, RobotOutput, SessionPlan, Time, Timing,
 };
 use robokey::rng::{Purpose, stream};
-use robokey::sim::{Noise, Plant};
+use robokey::world::{PlantStreams, WorldPlant};
 
 /// What a session ended with.
 #[derive(Debug)]
@@ -33,7 +33,7 @@ pub struct Session {
 
 /// The world of one test session.
 struct World<D, B> {
-    plant: Plant,
+    plant: WorldPlant,
     private: bool,
     drop: D,
     blind: B,
@@ -128,14 +128,16 @@ pub fn session(
     );
     let controller = Controller::new(config, plan.clone(), network.timing, Time::ZERO);
     let mut world = World {
-        plant: Plant::new(
+        plant: WorldPlant::new(
+            &config.world_model(),
             agreed.drive,
             config.robot.wheel_limit,
             agreed.sample_time,
-            Noise::new(
-                stream(9, Purpose::Process, network.seed),
-                config.noise.process_std,
-            ),
+            PlantStreams {
+                process: stream(9, Purpose::Process, network.seed),
+                slip: stream(9, Purpose::Slip, network.seed),
+            },
+            false,
         ),
         private: plan.private().is_some(),
         drop,

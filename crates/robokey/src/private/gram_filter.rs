@@ -1,0 +1,243 @@
+//! A Kalman filter with one covariance and many means (docs/world.md, "The window
+//! smoother"): each column is an observation sequence — the residual of what Eve saw, the
+//! effect of a bit — run through the same gains, and the Gram matrix of their whitened
+//! innovations is `cᵀ·Σ⁻¹·c'`, with `Σ` the covariance of all the observations. Then
+//! `ln p(y | s) = −½·(r − G·s)ᵀΣ⁻¹(r − G·s) − ½·ln det Σ + const` for every bit pattern `s`
+//! from one pass.
+//!
+//! Observations of a step come as a batch conditioned at once in information form: with
+//! `J = Σ FᵀR⁻¹F`, `u_c = Σ FᵀR⁻¹y_c`, `S_cc' = Σ y_cᵀR⁻¹y_c'` and the prior `N(m_c, P)`,
+//! the posterior is `P⁺ = (I + P·J)⁻¹P`, `m_c⁺ = m_c + P⁺(u_c − J·m_c)`, and the Gram matrix
+//! gains `S̃_cc' − ũ_cᵀP⁺ũ_c'` (`ũ_c = u_c − J·m_c`, `S̃` the same quadratic about the
+//! means); `ln det Σ` gains `ln det(I + P·J) − Σ ln det R⁻¹`.
+
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+
+/// The filter's state between observations.
+#[derive(Clone, Debug)]
+pub struct GramFilter {
+    cov: DMatrix<f64>,
+    /// One mean per column, `dim × columns`.
+    means: DMatrix<f64>,
+    gram: DMatrix<f64>,
+    log_det: f64,
+    batch: Batch,
+}
+
+/// The observations gathered since the last conditioning.
+#[derive(Clone, Debug)]
+struct Batch {
+    info: DMatrix<f64>,
+    projected: DMatrix<f64>,
+    direct: DMatrix<f64>,
+    log_det_noise: f64,
+    empty: bool,
+}
+
+impl Batch {
+    fn new(dim: usize, columns: usize) -> Self {
+        Self {
+            info: DMatrix::zeros(dim, dim),
+            projected: DMatrix::zeros(dim, columns),
+            direct: DMatrix::zeros(columns, columns),
+            log_det_noise: 0.0,
+            empty: true,
+        }
+    }
+}
+
+impl GramFilter {
+    /// A filter over a state of prior covariance `cov` (every column's mean zero) with
+    /// `columns` observation sequences.
+    #[must_use]
+    pub fn new(cov: DMatrix<f64>, columns: usize) -> Self {
+        let dim = cov.nrows();
+        Self {
+            means: DMatrix::zeros(dim, columns),
+            gram: DMatrix::zeros(columns, columns),
+            log_det: 0.0,
+            batch: Batch::new(dim, columns),
+            cov,
+        }
+    }
+
+    /// The state's dimension.
+    #[must_use]
+    pub fn dim(&self) -> usize {
+        self.cov.nrows()
+    }
+
+    /// Appends `extra` independent unit-variance variables to the state (zero mean in every
+    /// column). Conditions pending observations first.
+    pub fn augment(&mut self, extra: usize) {
+        self.condition();
+        let (dim, columns) = (self.dim(), self.means.ncols());
+        let mut cov = DMatrix::zeros(dim + extra, dim + extra);
+        cov.view_mut((0, 0), (dim, dim)).copy_from(&self.cov);
+        for i in dim..dim + extra {
+            cov[(i, i)] = 1.0;
+        }
+        self.cov = cov;
+        self.means = self.means.clone().resize(dim + extra, columns, 0.0);
+        self.batch = Batch::new(dim + extra, columns);
+    }
+
+    /// A three-dimensional observation `y_c = F·x + ε`, `ε ~ N(0, R)`, given by `F`
+    /// (`3 × dim`), `R⁻¹` and its value in each column. Kept until [`Self::condition`].
+    pub fn observe(
+        &mut self,
+        f: &DMatrix<f64>,
+        noise_inverse: &Matrix3<f64>,
+        values: &[Vector3<f64>],
+    ) {
+        let b = &mut self.batch;
+        let weighted = f.transpose() * noise_inverse; // dim × 3
+        b.info += &weighted * f;
+        for (c, value) in values.iter().enumerate() {
+            let projected = &weighted * value;
+            let mut column = b.projected.column_mut(c);
+            column += projected;
+            let scaled = noise_inverse * value;
+            for (c2, other) in values.iter().enumerate() {
+                b.direct[(c, c2)] += scaled.dot(other);
+            }
+        }
+        b.log_det_noise += noise_inverse.determinant().ln();
+        b.empty = false;
+    }
+
+    /// Conditions the state on the observations gathered since the last call.
+    pub fn condition(&mut self) {
+        if self.batch.empty {
+            return;
+        }
+        let dim = self.dim();
+        let b = std::mem::replace(&mut self.batch, Batch::new(dim, self.means.ncols()));
+        // ũ = u − J·m and S̃ = S − uᵀm − mᵀu + mᵀJm: the batch about the prior means.
+        let about = &b.projected - &b.info * &self.means;
+        let cross = b.projected.transpose() * &self.means;
+        let direct =
+            &b.direct - &cross - cross.transpose() + self.means.transpose() * &b.info * &self.means;
+        let growth = DMatrix::identity(dim, dim) + &self.cov * &b.info;
+        let lu = growth.clone().lu();
+        let posterior = lu
+            .solve(&self.cov)
+            .expect("I + P·J is invertible for P, J positive semi-definite");
+        let posterior = (&posterior + posterior.transpose()) * 0.5;
+        let gain = &posterior * &about;
+        self.gram += direct - about.transpose() * &gain;
+        self.means += gain;
+        self.log_det += lu.determinant().abs().ln() - b.log_det_noise;
+        self.cov = posterior;
+    }
+
+    /// Maps the state through `x ← L·x` (`L` is `new_dim × dim`), conditioning pending
+    /// observations first.
+    pub fn transition(&mut self, l: &DMatrix<f64>) {
+        self.condition();
+        self.cov = l * &self.cov * l.transpose();
+        self.means = l * &self.means;
+        self.batch = Batch::new(l.nrows(), self.means.ncols());
+    }
+
+    /// Adds a known offset to the state's mean in each column (`offsets` is `dim × columns`):
+    /// a deterministic input, e.g. where the path the state deviates from restarts.
+    /// Conditions pending observations first.
+    pub fn shift(&mut self, offsets: &DMatrix<f64>) {
+        self.condition();
+        self.means += offsets;
+    }
+
+    /// The Gram matrix `cᵀΣ⁻¹c'` of the columns and `ln det Σ` (up to a constant common to
+    /// every run with the same observation noises), after conditioning what is pending.
+    pub fn finish(mut self) -> (DMatrix<f64>, f64) {
+        self.condition();
+        (self.gram, self.log_det)
+    }
+}
+
+/// `ln Σ exp(v)` of a vector, 0-safe for −∞ entries.
+#[must_use]
+pub fn ln_sum_exp(values: &DVector<f64>) -> f64 {
+    let max = values.max();
+    if max == f64::NEG_INFINITY {
+        return max;
+    }
+    max + values.iter().map(|v| (v - max).exp()).sum::<f64>().ln()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Against the batch formula: the Gram matrix is `Cᵀ(H·P₀·Hᵀ + R)⁻¹C` and the log
+    /// determinant `ln det(H·P₀·Hᵀ + R)` for a random linear-Gaussian chain.
+    #[test]
+    fn the_gram_matrix_and_log_determinant_are_the_batch_ones() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(5);
+        let mut normal = || -> f64 { StandardNormal.sample(&mut rng) };
+        let (dim, columns, steps) = (4, 3, 3);
+        let p0 = {
+            let a = DMatrix::from_fn(dim, dim, |_, _| normal());
+            &a * a.transpose() + DMatrix::identity(dim, dim) * 0.1
+        };
+        // x₁ = L·[x₀; e] with one extra unit variable per step; observations of x each step.
+        let mut filter = GramFilter::new(p0.clone(), columns);
+        // Batch: latent z = [x₀; e₁; e₂; e₃], x_k = M_k z.
+        let total = dim + steps;
+        let mut m = DMatrix::zeros(dim, total);
+        m.view_mut((0, 0), (dim, dim))
+            .copy_from(&DMatrix::identity(dim, dim));
+        let mut h_rows: Vec<DMatrix<f64>> = Vec::new();
+        let mut r_blocks: Vec<Matrix3<f64>> = Vec::new();
+        let mut values: Vec<Vec<Vector3<f64>>> = Vec::new();
+        for k in 0..steps {
+            for _ in 0..2 {
+                let f = DMatrix::from_fn(3, dim, |_, _| normal());
+                let a = Matrix3::from_fn(|_, _| normal());
+                let r = a * a.transpose() + Matrix3::identity() * 0.5;
+                let vals: Vec<Vector3<f64>> = (0..columns)
+                    .map(|_| Vector3::from_fn(|_, _| normal()))
+                    .collect();
+                filter.observe(&f, &r.try_inverse().unwrap(), &vals);
+                h_rows.push(&f * &m);
+                r_blocks.push(r);
+                values.push(vals);
+            }
+            filter.augment(1);
+            let l = DMatrix::from_fn(dim, dim + 1, |_, _| normal() * 0.5);
+            filter.transition(&l);
+            let mut stacked = DMatrix::zeros(dim + 1, total);
+            stacked.view_mut((0, 0), (dim, total)).copy_from(&m);
+            stacked[(dim, dim + k)] = 1.0;
+            m = &l * stacked;
+        }
+        let (gram, log_det) = filter.finish();
+        let n = 3 * h_rows.len();
+        let mut h = DMatrix::zeros(n, total);
+        let mut r = DMatrix::zeros(n, n);
+        let mut c = DMatrix::zeros(n, columns);
+        for (i, (row, block)) in h_rows.iter().zip(&r_blocks).enumerate() {
+            h.view_mut((3 * i, 0), (3, total)).copy_from(row);
+            r.view_mut((3 * i, 3 * i), (3, 3)).copy_from(block);
+            for (col, value) in values[i].iter().enumerate().take(columns) {
+                c.view_mut((3 * i, col), (3, 1)).copy_from(value);
+            }
+        }
+        let mut prior = DMatrix::identity(total, total);
+        prior.view_mut((0, 0), (dim, dim)).copy_from(&p0);
+        let sigma = &h * prior * h.transpose() + r;
+        let expected = c.transpose() * sigma.clone().lu().solve(&c).unwrap();
+        assert!(
+            (&gram - &expected).amax() < 1e-8 * expected.amax(),
+            "{gram} vs {expected}"
+        );
+        let expected_log_det = sigma.lu().determinant().ln();
+        assert!(
+            (log_det - expected_log_det).abs() < 1e-8,
+            "{log_det} vs {expected_log_det}"
+        );
+    }
+}

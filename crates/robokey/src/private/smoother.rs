@@ -1,0 +1,963 @@
+//! The world-aware eavesdroppers' window smoother (docs/world.md, "The window smoother").
+//!
+//! With correlated noise, lag, delay or slip, or a camera filming between the instants, the
+//! controller's boundary samples no longer screen a doublet from its neighbours. For doublet
+//! `j` Eve takes the doublets `j − W … j + W` (fewer at the session's ends or where commands
+//! are missing) and everything she observed over them: the boundary samples the commands
+//! carry (noise `world.controller_std`, timing error `world.jitter`), and — the `camera`
+//! adversary — every frame of her camera. Her model is the world's, linearised about the
+//! noise-free path she simulates with the world's own code:
+//!
+//! - the pose at the window's start is the controller's sample there, off by its noise;
+//! - each step's noise is a latent vector: the AR(1) innovation `e_k` (carrying `w_{k−1}`
+//!   between steps when ρ ≠ 0) and each wheel's slip `z`;
+//! - the means are the simulated path under the nominal inputs, plus each doublet's bit
+//!   effect; the doublet's own bits are hypotheses (with the slip's covariance of that
+//!   pattern), the window's other bits are summed over exactly, and the bits of the
+//!   doublets before the window — which still act through the lag and the delay — are
+//!   Gaussian with their exact second moment.
+//!
+//! `ln p(y | h) = ln Σ_s exp(−½·(r_h − G·s)ᵀΣ_h⁻¹(r_h − G·s)) − ½·ln det Σ_h`, from the Gram
+//! matrix of a [`GramFilter`] pass per covariance. Calibrated like the per-doublet view (the
+//! tests check it on non-default worlds) and deterministic.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+
+use super::doublet::{DoubletInputs, Perturbation, sign};
+use super::gram_filter::{GramFilter, ln_sum_exp};
+use super::likelihood::BitEvidence;
+use super::window::{Instant, Window, WindowRun, WindowWorld};
+use crate::config::Config;
+use crate::model::{Pose, Unicycle, WheelSpeeds};
+use crate::protocol::SessionPlan;
+use crate::world::{Camera, Frame, SubStep, WorldModel, sinc};
+use robokey_secrecy::special::ln_add_exp;
+
+/// What a command revealed about its step.
+#[derive(Clone, Copy, Debug)]
+pub struct Commanded {
+    /// The controller's sample `y_c(k)` it was computed from.
+    pub sample: Pose,
+    /// The inputs of the doublet it starts, if it starts one.
+    pub inputs: Option<DoubletInputs>,
+}
+
+/// Everything an eavesdropper recorded of a session so far.
+#[derive(Clone, Copy, Debug)]
+pub struct Recorded<'a> {
+    /// The session's public plan.
+    pub plan: &'a SessionPlan,
+    /// What the commands revealed, by step.
+    pub commands: &'a BTreeMap<u32, Commanded>,
+    /// Her camera at the sample instants, by step (a camera at the instants).
+    pub camera: &'a BTreeMap<u32, Pose>,
+    /// Her frames in time order (a camera filming between the instants).
+    pub frames: &'a [Frame],
+}
+
+/// Default half-width `W` of the window, in doublets each side: the information per bit has
+/// converged by then on the worlds of docs/world.md (measured there).
+pub const DEFAULT_HALF_WIDTH: u32 = 2;
+
+/// Most bits of the window's other doublets summed over exactly (`2^12` patterns).
+pub const MAX_NUISANCE_BITS: u32 = 12;
+
+/// The window smoother of one session's world.
+#[derive(Clone, Debug)]
+pub struct WindowSmoother {
+    eve: WindowWorld,
+    perturbation: Perturbation,
+    half_width: u32,
+    /// Doublets before the window whose bits still act on it (lag, delay).
+    lead: u32,
+    sample_time: f64,
+}
+
+/// One observation in the window: when, what she saw, its noise.
+struct Observation {
+    instant: Instant,
+    value: Pose,
+    noise_inverse: Matrix3<f64>,
+}
+
+/// A window simulated under every bit pattern of its carrying doublets.
+struct Simulated {
+    /// Its first doublet.
+    first: u32,
+    /// Its steps.
+    steps: usize,
+    /// The nominal run (no bits).
+    nominal: WindowRun,
+    /// Each carrying doublet's runs, one per bit pattern.
+    runs: Vec<Vec<WindowRun>>,
+    /// The carrying doublets and their positions among the simulated ones.
+    carrying: Vec<(u32, usize)>,
+    /// The target's index among the carrying.
+    target: usize,
+}
+
+/// Doublet `j`'s evidence, on her own and given the other doublets' true bits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Judged {
+    /// From what she recorded alone: her decision.
+    pub own: BitEvidence,
+    /// Given also the true bits of every other doublet acting on the window (when known):
+    /// `P(b_j | view, b_{≠j})`. Over a block, `Σ_j H(B_j | E, B_{≠j}) ≤ H(B | E)`: her
+    /// uncertainty counted this way errs on her side.
+    pub given_others: Option<BitEvidence>,
+}
+
+/// Another carrying doublet acting on the window, and its effect columns with the sign
+/// recipe of each (which of its bits multiply: v, ω, or both).
+struct Other {
+    doublet: u32,
+    in_window: bool,
+    columns: Vec<(usize, Vec<usize>)>,
+}
+
+/// An observation sequence run through the Gram filter: its value at each observation, and
+/// the offset its state takes on entering each window step (where the path restarts).
+struct Column {
+    values: Vec<Vector3<f64>>,
+    shifts: Vec<Vector3<f64>>,
+}
+
+impl Column {
+    fn subtract(&mut self, other: &Self) {
+        for (a, b) in self.values.iter_mut().zip(&other.values) {
+            *a -= b;
+        }
+        for (a, b) in self.shifts.iter_mut().zip(&other.shifts) {
+            *a -= b;
+        }
+    }
+}
+
+/// A column whose sign is summed over: which of the enumerated bits multiply it.
+struct NuisanceColumn {
+    column: usize,
+    bits: Vec<usize>,
+}
+
+/// How the other doublets' bits enter a likelihood: known (their effect taken off the
+/// residual), summed over exactly (the window's), or Gaussian (the lead's).
+struct Treatment {
+    /// The residual as a combination of the columns, without the hypothesis' own.
+    residual: DVector<f64>,
+    nuisance: Vec<NuisanceColumn>,
+    nuisance_bits: usize,
+    gaussian: Vec<usize>,
+}
+
+impl Treatment {
+    /// `known(o)`: the pattern of doublet `o` when known.
+    fn new(others: &[Other], known: impl Fn(&Other) -> Option<usize>, columns: usize) -> Self {
+        let mut residual = DVector::zeros(columns);
+        residual[0] = 1.0;
+        let mut treatment = Self {
+            residual,
+            nuisance: Vec::new(),
+            nuisance_bits: 0,
+            gaussian: Vec::new(),
+        };
+        for other in others {
+            match known(other) {
+                Some(pattern) => {
+                    for (column, recipe) in &other.columns {
+                        treatment.residual[*column] -= pattern_sign(pattern, recipe);
+                    }
+                }
+                None if other.in_window => {
+                    let first_bit = treatment.nuisance_bits;
+                    let mut width = 0;
+                    for (column, recipe) in &other.columns {
+                        width = width.max(recipe.iter().max().map_or(0, |b| b + 1));
+                        treatment.nuisance.push(NuisanceColumn {
+                            column: *column,
+                            bits: recipe.iter().map(|b| first_bit + b).collect(),
+                        });
+                    }
+                    treatment.nuisance_bits += width;
+                }
+                None => treatment
+                    .gaussian
+                    .extend(other.columns.iter().map(|(column, _)| *column)),
+            }
+        }
+        treatment
+    }
+
+    /// `ln p(y | h)` up to a constant common to all hypotheses, `h` the hypothesis' column.
+    fn log_likelihood(&self, gram: &DMatrix<f64>, log_det: f64, hypothesis: usize) -> f64 {
+        let mut residual = self.residual.clone();
+        residual[hypothesis] -= 1.0;
+        log_likelihood(
+            gram,
+            log_det,
+            &residual,
+            &self.nuisance,
+            self.nuisance_bits,
+            &self.gaussian,
+        )
+    }
+}
+
+/// The slip latents of one window step: each wheel's mean speed per update, and its
+/// half-differences under the bits of the step's doublet (when another doublet's).
+struct SlipProfile {
+    mean: Vec<WheelSpeeds>,
+    bit_effects: Vec<Vec<WheelSpeeds>>,
+}
+
+impl WindowSmoother {
+    /// The smoother of `config`'s sessions in `world`, `half_width` doublets each side.
+    #[must_use]
+    pub fn new(config: &Config, world: &WorldModel, half_width: u32) -> Self {
+        let t = config.robot.sample_time;
+        let reach = world.delay + world.lag * 1e4_f64.ln();
+        Self {
+            eve: WindowWorld::new(
+                world,
+                crate::model::DiffDrive {
+                    wheel_radius: config.robot.r,
+                    axle_length: config.robot.axle_length,
+                },
+                config.robot.wheel_limit,
+                t,
+            ),
+            perturbation: Perturbation {
+                delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
+                bits_per_doublet: config.protocol.bits_per_doublet,
+            },
+            half_width,
+            lead: (reach / (2.0 * t)).ceil() as u32,
+            sample_time: t,
+        }
+    }
+
+    /// Doublets each side of the window.
+    #[must_use]
+    pub fn half_width(&self) -> u32 {
+        self.half_width
+    }
+
+    /// Doublets before a window whose bits still act on it.
+    #[must_use]
+    pub fn lead(&self) -> u32 {
+        self.lead
+    }
+
+    /// The doublets `(first, last)` of doublet `j`'s window given what is recorded: at most
+    /// `W` each side, contiguous known commands, and the sample at the last one's end.
+    #[must_use]
+    pub fn window_of(&self, j: u32, rec: &Recorded<'_>) -> Option<(u32, u32)> {
+        let inputs = |i: u32| rec.commands.get(&(2 * i)).and_then(|c| c.inputs);
+        inputs(j)?;
+        let doublets = rec.plan.units();
+        let mut first = j;
+        while first > 0 && j - first < self.half_width && inputs(first - 1).is_some() {
+            first -= 1;
+        }
+        let mut last = j;
+        while last + 1 < doublets && last - j < self.half_width && inputs(last + 1).is_some() {
+            last += 1;
+        }
+        while !rec.commands.contains_key(&(2 * last + 2)) {
+            if last == j {
+                return None;
+            }
+            last -= 1;
+        }
+        Some((first, last))
+    }
+
+    /// The evidence on doublet `j`'s bits from everything recorded over its window, of the
+    /// `camera` adversary (with her camera) and of the `commands` one (from the commands
+    /// alone) — each her own (the window's other bits unknown) and, when `truth` tells the
+    /// true bits of every other doublet that acts on the window, given those. None when `j`
+    /// carries no bits or its own commands are not recorded.
+    #[must_use]
+    pub fn evidence(
+        &self,
+        j: u32,
+        rec: &Recorded<'_>,
+        truth: &dyn Fn(u32) -> Option<[u8; 2]>,
+    ) -> Option<[Judged; 2]> {
+        let (first, last) = self.window_of(j, rec)?;
+        let inputs = |i: u32| rec.commands.get(&(2 * i)).and_then(|c| c.inputs);
+        if !rec.plan.carries(&inputs(j)?) {
+            return None;
+        }
+        let mut lead_first = first;
+        while lead_first > 0 && first - lead_first < self.lead && inputs(lead_first - 1).is_some() {
+            lead_first -= 1;
+        }
+        let before = match lead_first {
+            0 => None,
+            i => Some(inputs(i - 1).map_or_else(|| inputs(i).expect("known").first, |d| d.second)),
+        };
+        let doublets: Vec<(u32, DoubletInputs)> = (lead_first..=last)
+            .map(|i| (i, inputs(i).expect("a window's commands are known")))
+            .collect();
+        let window = Window {
+            lead: 2 * (first - lead_first) as usize,
+            inputs: doublets
+                .iter()
+                .flat_map(|(_, d)| [d.first, d.second])
+                .collect(),
+            before,
+            start: rec.commands[&(2 * first)].sample,
+            anchors: (0..2 * (last - first + 1))
+                .map(|s| (s > 0 && s % 2 == 0).then(|| rec.commands[&(2 * first + s)].sample))
+                .collect(),
+        };
+        let carrying: Vec<(u32, usize)> = doublets
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, d))| rec.plan.carries(d))
+            .map(|(position, (i, _))| (*i, position))
+            .collect();
+        let nominal = self.eve.run(&window, |_| Unicycle::zeros());
+        let patterns = self.perturbation.patterns();
+        // Each carrying doublet's runs, one per bit pattern.
+        let runs: Vec<Vec<WindowRun>> = carrying
+            .iter()
+            .map(|&(_, position)| {
+                (0..patterns)
+                    .map(|h| {
+                        let offset = self.perturbation.offset(h);
+                        self.eve.run(&window, |step| match step {
+                            s if s == 2 * position => offset,
+                            s if s == 2 * position + 1 => -offset,
+                            _ => Unicycle::zeros(),
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        let target = carrying
+            .iter()
+            .position(|&(i, _)| i == j)
+            .expect("j carries");
+        let window = Simulated {
+            first,
+            steps: 2 * (last - first + 1) as usize,
+            nominal,
+            runs,
+            carrying,
+            target,
+        };
+        Some([true, false].map(|camera| self.judge(rec, &window, camera, truth)))
+    }
+
+    /// One adversary's evidence on the window's target doublet from her observations over it.
+    fn judge(
+        &self,
+        rec: &Recorded<'_>,
+        window: &Simulated,
+        camera: bool,
+        truth: &dyn Fn(u32) -> Option<[u8; 2]>,
+    ) -> Judged {
+        let Simulated {
+            first,
+            steps,
+            nominal,
+            runs,
+            carrying,
+            target,
+        } = window;
+        let (first, steps, target) = (*first, *steps, *target);
+        let patterns = self.perturbation.patterns();
+        let observations = self.observations(rec, nominal, 2 * first, steps, camera);
+        // Columns: the residual, the target's hypotheses, the window's other bits, the lead's.
+        // A column is a combination of runs, relative to the nominal one.
+        let derived = |weights: &[(&WindowRun, f64)]| Column {
+            values: observations
+                .iter()
+                .map(|o| {
+                    let base = nominal.at(o.instant);
+                    weights
+                        .iter()
+                        .map(|(run, w)| (run.at(o.instant) - base) * *w)
+                        .sum()
+                })
+                .collect(),
+            shifts: (0..steps)
+                .map(|s| {
+                    -weights
+                        .iter()
+                        .map(|(run, w)| (run.jumps[s] - nominal.jumps[s]) * *w)
+                        .sum::<Vector3<f64>>()
+                })
+                .collect(),
+        };
+        let mean_of = |c: usize| -> Vec<(&WindowRun, f64)> {
+            runs[c]
+                .iter()
+                .map(|run| (run, 1.0 / patterns as f64))
+                .collect()
+        };
+        // The residual about the nominal path and the other doublets' mean effects.
+        let mut residual = Column {
+            values: observations
+                .iter()
+                .map(|o| o.value - nominal.at(o.instant))
+                .collect(),
+            shifts: nominal.jumps.clone(),
+        };
+        for c in (0..carrying.len()).filter(|&c| c != target) {
+            residual.subtract(&derived(&mean_of(c)));
+        }
+        let mut columns: Vec<Column> = vec![residual];
+        for run in &runs[target] {
+            columns.push(derived(&[(run, 1.0)]));
+        }
+        let mut others: Vec<Other> = Vec::new();
+        for (c, &(i, _)) in carrying.iter().enumerate() {
+            if c == target {
+                continue;
+            }
+            let bits = usize::from(self.perturbation.bits_per_doublet);
+            // Sign recipes: v, ω, and v·ω with two bits.
+            let recipes: Vec<Vec<usize>> = match bits {
+                1 => vec![vec![0]],
+                _ => vec![vec![0], vec![1], vec![0, 1]],
+            };
+            let mut other = Other {
+                doublet: i,
+                in_window: i >= first,
+                columns: Vec::new(),
+            };
+            for recipe in recipes {
+                let weights: Vec<(&WindowRun, f64)> = runs[c]
+                    .iter()
+                    .enumerate()
+                    .map(|(h, run)| (run, pattern_sign(h, &recipe) / patterns as f64))
+                    .collect();
+                columns.push(derived(&weights));
+                other.columns.push((columns.len() - 1, recipe));
+            }
+            others.push(other);
+        }
+        // One Gram filter pass per covariance: with slip, per hypothesis of the target and
+        // per what is known of the other doublets (their slip's variance follows their bits).
+        let grams_with = |known: &dyn Fn(usize) -> Option<usize>| -> Vec<(DMatrix<f64>, f64)> {
+            (0..self.covariance_runs(patterns))
+                .map(|h| {
+                    let slips =
+                        self.slip_profiles(nominal, runs, carrying, target, h, known, first, steps);
+                    self.filter(nominal, &observations, &columns, &slips, steps)
+                })
+                .collect()
+        };
+        let evidence_under = |treatment: &Treatment, grams: &[(DMatrix<f64>, f64)]| {
+            let gram_of = |h: usize| &grams[h.min(grams.len() - 1)];
+            let ll: Vec<f64> = (0..patterns)
+                .map(|h| {
+                    let (gram, log_det) = gram_of(h);
+                    treatment.log_likelihood(gram, *log_det, 1 + h)
+                })
+                .collect();
+            let distance = |a: usize, b: usize| {
+                let (gram, _) = gram_of(a);
+                separation(gram, 1 + a, 1 + b, &treatment.gaussian)
+            };
+            self.bit_evidence(&ll, distance)
+        };
+        let unknown = grams_with(&|_| None);
+        let own = evidence_under(&Treatment::new(&others, |_| None, columns.len()), &unknown);
+        let pattern_of = |i: u32| truth(i).map(|b| self.perturbation.pattern(b));
+        let given_others = others.iter().all(|o| truth(o.doublet).is_some()).then(|| {
+            let treatment = Treatment::new(&others, |o| pattern_of(o.doublet), columns.len());
+            if self.eve.world.slip_std > 0.0 {
+                let known = |c: usize| pattern_of(carrying[c].0);
+                evidence_under(&treatment, &grams_with(&known))
+            } else {
+                evidence_under(&treatment, &unknown)
+            }
+        });
+        Judged { own, given_others }
+    }
+
+    /// Runs of the Gram filter needed: one per hypothesis when the slip's covariance depends
+    /// on the bits, else one.
+    fn covariance_runs(&self, patterns: usize) -> usize {
+        if self.eve.world.slip_std > 0.0 {
+            patterns
+        } else {
+            1
+        }
+    }
+
+    /// What she observed over the window, in window-step order.
+    fn observations(
+        &self,
+        rec: &Recorded<'_>,
+        nominal: &WindowRun,
+        k0: u32,
+        steps: usize,
+        camera: bool,
+    ) -> Vec<Observation> {
+        let world = &self.eve.world;
+        let t = self.sample_time;
+        let inverse_of =
+            |std: [f64; 3]| Matrix3::from_diagonal(&Vector3::from(std.map(|s| 1.0 / (s * s))));
+        let controller =
+            Matrix3::from_diagonal(&Vector3::from(world.controller_std.map(|s| s * s)));
+        let mut out = Vec::new();
+        for step in 0..=steps {
+            let k = k0 + step as u32;
+            if step > 0
+                && k.is_multiple_of(2)
+                && let Some(c) = rec.commands.get(&k)
+            {
+                let v = nominal.velocity_before(step);
+                let noise = controller + v * v.transpose() * world.jitter.powi(2);
+                out.push(Observation {
+                    instant: Instant::Sample(step),
+                    value: c.sample,
+                    noise_inverse: noise.try_inverse().unwrap_or_else(Matrix3::zeros),
+                });
+            }
+            if !camera {
+                continue;
+            }
+            match world.camera {
+                Camera::Instants { std } => {
+                    if let Some(pose) = rec.camera.get(&k) {
+                        out.push(Observation {
+                            instant: Instant::Sample(step),
+                            value: *pose,
+                            noise_inverse: inverse_of(std),
+                        });
+                    }
+                }
+                Camera::Frames { frame_std, .. } => {
+                    if step == steps {
+                        continue;
+                    }
+                    let start = f64::from(k) * t;
+                    let from = rec.frames.partition_point(|f| f.time < start);
+                    for frame in rec.frames[from..].iter().take_while(|f| f.time < start + t) {
+                        out.push(Observation {
+                            instant: nominal.locate(step, frame.time - start),
+                            value: frame.pose,
+                            noise_inverse: inverse_of(frame_std),
+                        });
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Each window step's slip profile: the target's steps under hypothesis `h`, other
+    /// carrying doublets' steps under their pattern where `known` tells it, else at their
+    /// mean with the bits' half-differences, the rest at the nominal path.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the window's pieces, each used once"
+    )]
+    fn slip_profiles(
+        &self,
+        nominal: &WindowRun,
+        runs: &[Vec<WindowRun>],
+        carrying: &[(u32, usize)],
+        target: usize,
+        h: usize,
+        known: &dyn Fn(usize) -> Option<usize>,
+        first: u32,
+        steps: usize,
+    ) -> Vec<SlipProfile> {
+        let wheels = |run: &WindowRun, step: usize| -> Vec<WheelSpeeds> {
+            run.updates[step].iter().map(|u| u.wheels).collect()
+        };
+        (0..steps)
+            .map(|step| {
+                let doublet = first + (step / 2) as u32;
+                let owner = carrying.iter().position(|&(i, _)| i == doublet);
+                match owner {
+                    Some(c) if c == target => SlipProfile {
+                        mean: wheels(&runs[c][h], step),
+                        bit_effects: Vec::new(),
+                    },
+                    Some(c) if known(c).is_some() => SlipProfile {
+                        mean: wheels(&runs[c][known(c).expect("known")], step),
+                        bit_effects: Vec::new(),
+                    },
+                    Some(c) => {
+                        let patterns = runs[c].len();
+                        let average = |recipe: &[usize]| -> Vec<WheelSpeeds> {
+                            let mut sum =
+                                vec![WheelSpeeds::zeros(); runs[c][0].updates[step].len()];
+                            for (p, run) in runs[c].iter().enumerate() {
+                                for (s, w) in sum.iter_mut().zip(wheels(run, step)) {
+                                    *s += w * pattern_sign(p, recipe) / patterns as f64;
+                                }
+                            }
+                            sum
+                        };
+                        let bits = usize::from(self.perturbation.bits_per_doublet);
+                        SlipProfile {
+                            mean: average(&[]),
+                            bit_effects: (0..bits).map(|b| average(&[b])).collect(),
+                        }
+                    }
+                    None => SlipProfile {
+                        mean: wheels(nominal, step),
+                        bit_effects: Vec::new(),
+                    },
+                }
+            })
+            .collect()
+    }
+
+    /// One pass of the Gram filter over the window.
+    fn filter(
+        &self,
+        nominal: &WindowRun,
+        observations: &[Observation],
+        columns: &[Column],
+        slips: &[SlipProfile],
+        steps: usize,
+    ) -> (DMatrix<f64>, f64) {
+        let world = &self.eve.world;
+        let correlated = world.process_rho != 0.0;
+        let slipping = world.slip_std > 0.0;
+        // The start pose: the controller's sample, off by its noise and timing error.
+        let first_speed = nominal.velocity_before(1);
+        let mut start = Matrix3::from_diagonal(&Vector3::from(world.controller_std.map(|s| s * s)))
+            + first_speed * first_speed.transpose() * world.jitter.powi(2);
+        start = (start + start.transpose()) * 0.5;
+        let q = Matrix3::from_diagonal(&Vector3::from(world.process_std.map(|s| s * s)));
+        let base = if correlated { 6 } else { 3 };
+        let mut cov = DMatrix::zeros(base, base);
+        cov.view_mut((0, 0), (3, 3)).copy_from(&start);
+        if correlated {
+            cov.view_mut((3, 3), (3, 3)).copy_from(&q);
+        }
+        let mut filter = GramFilter::new(cov, columns.len());
+        let values =
+            |o: usize| -> Vec<Vector3<f64>> { columns.iter().map(|c| c.values[o]).collect() };
+        let mut next = 0;
+        for step in 0..=steps {
+            if step > 0
+                && step < steps
+                && columns.iter().any(|c| c.shifts[step] != Vector3::zeros())
+            {
+                let mut offsets = DMatrix::zeros(filter.dim(), columns.len());
+                for (c, column) in columns.iter().enumerate() {
+                    offsets
+                        .view_mut((0, c), (3, 1))
+                        .copy_from(&column.shifts[step]);
+                }
+                filter.shift(&offsets);
+            }
+            // Observations at the instant that starts this step (or ends the window).
+            while next < observations.len()
+                && matches!(observations[next].instant, Instant::Sample(s) if s == step)
+            {
+                let mut f = DMatrix::zeros(3, filter.dim());
+                f.view_mut((0, 0), (3, 3)).copy_from(&Matrix3::identity());
+                filter.observe(&f, &observations[next].noise_inverse, &values(next));
+                next += 1;
+            }
+            // `slips` holds one profile per step: none past the window's last instant.
+            let Some(slip) = slips.get(step) else {
+                break;
+            };
+            let effects = if slipping { slip.bit_effects.len() } else { 0 };
+            let extra = 3 + if slipping { 2 + 2 * effects } else { 0 };
+            filter.augment(extra);
+            let dim = filter.dim();
+            let tangents = self.tangents(
+                &nominal.updates[step],
+                slip,
+                dim,
+                base,
+                correlated,
+                slipping,
+            );
+            while next < observations.len() {
+                let Instant::Frame {
+                    step: s,
+                    update,
+                    fraction,
+                } = observations[next].instant
+                else {
+                    break;
+                };
+                if s != step {
+                    break;
+                }
+                let f = &tangents.poses[update] * (1.0 - fraction)
+                    + &tangents.poses[update + 1] * fraction;
+                filter.observe(&f, &observations[next].noise_inverse, &values(next));
+                next += 1;
+            }
+            let mut l = DMatrix::zeros(base, dim);
+            l.view_mut((0, 0), (3, dim))
+                .copy_from(tangents.poses.last().expect("an end"));
+            if correlated {
+                l.view_mut((3, 0), (3, dim)).copy_from(&tangents.noise);
+            }
+            filter.transition(&l);
+        }
+        filter.finish()
+    }
+
+    /// The pose's deviation at each update boundary of a step as a linear map of the step's
+    /// state `[δx_k, w_{k−1}?, e_k, z?, z'…]`, and the step's noise `w_k` likewise.
+    fn tangents(
+        &self,
+        updates: &[SubStep],
+        slip: &SlipProfile,
+        dim: usize,
+        base: usize,
+        correlated: bool,
+        slipping: bool,
+    ) -> Tangents {
+        let world = &self.eve.world;
+        let t = self.sample_time;
+        let rho = world.process_rho;
+        // w_k = ρ·w_{k−1} + √(1−ρ²)·S·e_k.
+        let mut noise = DMatrix::zeros(3, dim);
+        let scale = if correlated {
+            (1.0 - rho * rho).sqrt()
+        } else {
+            1.0
+        };
+        for i in 0..3 {
+            if correlated {
+                noise[(i, 3 + i)] = rho;
+            }
+            noise[(i, base + i)] = scale * world.process_std[i];
+        }
+        let drive = self.eve.drive;
+        let h_matrix = drive.h();
+        let mut pose = DMatrix::zeros(3, dim);
+        pose.view_mut((0, 0), (3, 3))
+            .copy_from(&Matrix3::identity());
+        let mut poses = vec![pose.clone()];
+        for (u, update) in updates.iter().enumerate() {
+            let (a, b, d) = jacobians(update, t);
+            // (δv, δω) per slip latent: σ·H·e_i·ω̄_i, and per bit effect σ·H·e_i·Δω̄_i.
+            let mut speeds = DMatrix::zeros(2, dim);
+            if slipping {
+                let sigma = world.slip_std;
+                for wheel in 0..2 {
+                    let column = h_matrix.column(wheel);
+                    let mean = slip.mean[u][wheel];
+                    speeds
+                        .column_mut(base + 3 + wheel)
+                        .copy_from(&(column * (sigma * mean)));
+                    for (e, effect) in slip.bit_effects.iter().enumerate() {
+                        let c = base + 5 + 2 * e + wheel;
+                        speeds
+                            .column_mut(c)
+                            .copy_from(&(column * (sigma * effect[u][wheel])));
+                    }
+                }
+            }
+            pose = to_dynamic3(&a) * &pose + to_dynamic3(&d) * &noise + to_dynamic32(&b) * &speeds;
+            poses.push(pose.clone());
+        }
+        Tangents { poses, noise }
+    }
+
+    /// The LLR and separation of each bit from the hypotheses' log-likelihoods and their
+    /// pairwise distances, as [`super::likelihood::DoubletModel::evidence`] forms them.
+    fn bit_evidence(&self, ll: &[f64], distance: impl Fn(usize, usize) -> f64) -> BitEvidence {
+        if self.perturbation.bits_per_doublet == 2 {
+            BitEvidence {
+                llr: [
+                    ln_add_exp(ll[0], ll[2]) - ln_add_exp(ll[1], ll[3]),
+                    ln_add_exp(ll[0], ll[1]) - ln_add_exp(ll[2], ll[3]),
+                ],
+                separation: [
+                    distance(0, 1).max(distance(2, 3)),
+                    distance(0, 2).max(distance(1, 3)),
+                ],
+            }
+        } else {
+            BitEvidence {
+                llr: [ll[0] - ll[1], 0.0],
+                separation: [distance(0, 1), 0.0],
+            }
+        }
+    }
+}
+
+/// A step's linear maps: the pose deviation at each update boundary, and `w_k`.
+struct Tangents {
+    poses: Vec<DMatrix<f64>>,
+    noise: DMatrix<f64>,
+}
+
+fn to_dynamic3(m: &Matrix3<f64>) -> DMatrix<f64> {
+    DMatrix::from_column_slice(3, 3, m.as_slice())
+}
+
+fn to_dynamic32(m: &nalgebra::Matrix3x2<f64>) -> DMatrix<f64> {
+    DMatrix::from_column_slice(3, 2, m.as_slice())
+}
+
+/// The Jacobians of one pose update at its nominal path: `A = ∂x⁺/∂x`, `B = ∂x⁺/∂(v, ω)`
+/// and `D = ∂x⁺/∂w` (`w` the period's noise, a velocity error `w/T`).
+fn jacobians(update: &SubStep, t: f64) -> (Matrix3<f64>, nalgebra::Matrix3x2<f64>, Matrix3<f64>) {
+    let h = update.duration;
+    let (v, omega) = (update.speeds.x, update.speeds.y);
+    let theta = update.start.z;
+    if update.euler {
+        let (sin, cos) = theta.sin_cos();
+        let a = Matrix3::new(1.0, 0.0, -h * v * sin, 0.0, 1.0, h * v * cos, 0.0, 0.0, 1.0);
+        let b = nalgebra::Matrix3x2::new(h * cos, 0.0, h * sin, 0.0, 0.0, h);
+        (a, b, Matrix3::identity() * (h / t))
+    } else {
+        let half = h * omega / 2.0;
+        let (c, dc) = sinc(half);
+        let (sin, cos) = (theta + half).sin_cos();
+        let a = Matrix3::new(
+            1.0,
+            0.0,
+            -h * v * c * sin,
+            0.0,
+            1.0,
+            h * v * c * cos,
+            0.0,
+            0.0,
+            1.0,
+        );
+        let half_h = h / 2.0;
+        let b = nalgebra::Matrix3x2::new(
+            h * c * cos,
+            h * v * half_h * (dc * cos - c * sin),
+            h * c * sin,
+            h * v * half_h * (dc * sin + c * cos),
+            0.0,
+            h,
+        );
+        let d = Matrix3::new(
+            h / t,
+            0.0,
+            b[(0, 1)] / t,
+            0.0,
+            h / t,
+            b[(1, 1)] / t,
+            0.0,
+            0.0,
+            h / t,
+        );
+        (a, b, d)
+    }
+}
+
+/// `Π s_b` over the bits `recipe` of pattern `h` (`s = +1` for bit 0): the sign a
+/// pattern gives an effect column.
+fn pattern_sign(h: usize, recipe: &[usize]) -> f64 {
+    recipe.iter().map(|&b| sign(((h >> b) & 1) as u8)).product()
+}
+
+/// `ln p(y | h)` up to a constant common to all hypotheses: `residual` the residual under
+/// `h` as a combination of the columns, the `nuisance` columns' bits summed over, the
+/// `gaussian` columns' integrated as unit Gaussians.
+fn log_likelihood(
+    gram: &DMatrix<f64>,
+    log_det: f64,
+    residual: &DVector<f64>,
+    nuisance: &[NuisanceColumn],
+    nuisance_bits: usize,
+    gaussian: &[usize],
+) -> f64 {
+    let g = |a: usize, b: usize| gram[(a, b)];
+    let toward = gram * residual;
+    let rr = residual.dot(&toward);
+    let (fold, gaussian_log_det) = Fold::new(gram, gaussian);
+    let n = nuisance.len();
+    let b_gaussian = DVector::from_iterator(gaussian.len(), gaussian.iter().map(|&p| toward[p]));
+    let rr = rr - fold.quadratic(&b_gaussian, &b_gaussian);
+    let b: Vec<f64> = nuisance
+        .iter()
+        .map(|c| toward[c.column] - fold.quadratic(&fold.cross(gram, c.column), &b_gaussian))
+        .collect();
+    let c: Vec<Vec<f64>> = nuisance
+        .iter()
+        .map(|a| {
+            nuisance
+                .iter()
+                .map(|b| {
+                    g(a.column, b.column)
+                        - fold.quadratic(&fold.cross(gram, a.column), &fold.cross(gram, b.column))
+                })
+                .collect()
+        })
+        .collect();
+    let terms = DVector::from_iterator(
+        1 << nuisance_bits,
+        (0..1usize << nuisance_bits).map(|pattern| {
+            let u: Vec<f64> = nuisance
+                .iter()
+                .map(|col| pattern_sign(pattern, &col.bits))
+                .collect();
+            let mut q = rr;
+            for a in 0..n {
+                q -= 2.0 * u[a] * b[a];
+                for bb in 0..n {
+                    q += u[a] * c[a][bb] * u[bb];
+                }
+            }
+            -0.5 * q
+        }),
+    );
+    ln_sum_exp(&terms) - 0.5 * log_det - 0.5 * gaussian_log_det
+}
+
+/// The lead's Gaussian bits integrated out: `M = (C_LL + I)⁻¹` and `ln det(C_LL + I)`.
+struct Fold {
+    inverse: DMatrix<f64>,
+    lead: Vec<usize>,
+}
+
+impl Fold {
+    fn new(gram: &DMatrix<f64>, lead: &[usize]) -> (Self, f64) {
+        let n = lead.len();
+        let m = DMatrix::from_fn(n, n, |a, b| {
+            gram[(lead[a], lead[b])] + f64::from(u8::from(a == b))
+        });
+        let lu = m.lu();
+        let log_det = if n == 0 { 0.0 } else { lu.determinant().ln() };
+        let inverse = lu.try_inverse().unwrap_or_else(|| DMatrix::zeros(n, n));
+        (
+            Self {
+                inverse,
+                lead: lead.to_vec(),
+            },
+            log_det,
+        )
+    }
+
+    /// `C_{L,a}`: the Gram entries between the lead's columns and column `a`.
+    fn cross(&self, gram: &DMatrix<f64>, a: usize) -> DVector<f64> {
+        DVector::from_iterator(self.lead.len(), self.lead.iter().map(|&p| gram[(p, a)]))
+    }
+
+    /// `xᵀ·M·y`.
+    fn quadratic(&self, x: &DVector<f64>, y: &DVector<f64>) -> f64 {
+        if self.lead.is_empty() {
+            0.0
+        } else {
+            x.dot(&(&self.inverse * y))
+        }
+    }
+}
+
+/// The distance between hypotheses `a` and `b` (columns of the Gram matrix) under `a`'s
+/// covariance, the lead's bits folded into it.
+fn separation(gram: &DMatrix<f64>, a: usize, b: usize, lead: &[usize]) -> f64 {
+    let (fold, _) = Fold::new(gram, lead);
+    let dd = gram[(a, a)] - 2.0 * gram[(a, b)] + gram[(b, b)];
+    let d_lead = fold.cross(gram, b) - fold.cross(gram, a);
+    (dd - fold.quadratic(&d_lead, &d_lead)).max(0.0).sqrt()
+}

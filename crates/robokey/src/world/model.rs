@@ -1,0 +1,285 @@
+//! The world resolved (docs/world.md): every physical parameter of the plant and of the
+//! sensors around it, from `[world]`, its preset and, for what neither sets, the parties'
+//! configuration.
+
+use super::config::{Integration, WorldConfig};
+use crate::config::Config;
+
+/// Eve's real camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Camera {
+    /// One frame at each sample instant, std `[m, m, rad]`.
+    Instants {
+        /// Noise std of each frame.
+        std: [f64; 3],
+    },
+    /// Frames at `fps` with a random phase per session, filming the motion between the
+    /// instants; each frame's noise is white with std `frame_std`.
+    Frames {
+        /// Frames per second.
+        fps: f64,
+        /// Noise std of each frame `[m, m, rad]`.
+        frame_std: [f64; 3],
+    },
+}
+
+/// `σ_e = σ_f / √(2fT/3)`: the per-instant noise a camera of `fps` frames per second with
+/// per-frame noise `σ_f` is worth for a doublet's amplitude at sample time `T` (docs/world.md
+/// derives it: a least-squares fit of the triangle the bit draws between the boundaries).
+#[must_use]
+pub fn per_instant_std(frame_std: f64, fps: f64, sample_time: f64) -> f64 {
+    frame_std / (2.0 * fps * sample_time / 3.0).sqrt()
+}
+
+/// The inverse of [`per_instant_std`]: the per-frame noise worth `σ_e` per instant.
+#[must_use]
+pub fn per_frame_std(instant_std: f64, fps: f64, sample_time: f64) -> f64 {
+    instant_std * (2.0 * fps * sample_time / 3.0).sqrt()
+}
+
+/// Every physical parameter of a world, resolved.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldModel {
+    /// Additive motion noise std per step `[m, m, rad]`.
+    pub process_std: [f64; 3],
+    /// AR(1) correlation of the motion noise between steps.
+    pub process_rho: f64,
+    /// Per-wheel multiplicative slip std (fraction of the wheel's travel per step).
+    pub slip_std: f64,
+    /// Each wheel's first-order lag τ (s; 0: instantaneous).
+    pub lag: f64,
+    /// Transport delay before a command acts (s).
+    pub delay: f64,
+    /// How the unicycle is integrated over a period.
+    pub integration: Integration,
+    /// Wheel-speed command resolution (rad/s; 0: none).
+    pub command_quantum: f64,
+    /// Encoder resolution (rad; 0: none).
+    pub encoder_quantum: f64,
+    /// Std of the sample instants' timing error (s).
+    pub jitter: f64,
+    /// The controller's sensor noise std `[m, m, rad]`.
+    pub controller_std: [f64; 3],
+    /// Eve's camera.
+    pub camera: Camera,
+}
+
+/// Most sub-steps the continuous plant takes per sample period.
+pub const MAX_SUBSTEPS: usize = 256;
+
+impl WorldModel {
+    /// The world the parties of `config` believe in: their motion noise, controller sensor
+    /// and Eve's stated camera at the instants; no correlation, slip, lag, delay, quanta or
+    /// jitter; the Euler map.
+    #[must_use]
+    pub fn ideal(config: &Config) -> Self {
+        Self {
+            process_std: config.noise.process_std,
+            process_rho: 0.0,
+            slip_std: 0.0,
+            lag: 0.0,
+            delay: 0.0,
+            integration: Integration::Euler,
+            command_quantum: 0.0,
+            encoder_quantum: 0.0,
+            jitter: 0.0,
+            controller_std: config.sensing.controller_std,
+            camera: Camera::Instants {
+                std: config.eve.camera_std,
+            },
+        }
+    }
+
+    /// `config`'s world: each field from `[world]`, else from its preset, else the parties'.
+    #[must_use]
+    pub fn of(config: &Config) -> Self {
+        let ideal = Self::ideal(config);
+        let Some(table) = &config.world else {
+            return ideal;
+        };
+        let preset = table.preset.map(|p| p.values()).unwrap_or_default();
+        let w = table.over(&preset);
+        let camera = match (w.camera_fps, w.camera_frame_std) {
+            (None, None) => ideal.camera,
+            (None, Some(std)) => Camera::Instants { std },
+            (Some(fps), frame_std) => Camera::Frames {
+                fps,
+                frame_std: frame_std.unwrap_or_else(|| {
+                    config
+                        .eve
+                        .camera_std
+                        .map(|s| per_frame_std(s, fps, config.robot.sample_time))
+                }),
+            },
+        };
+        Self {
+            process_std: w.process_std.unwrap_or(ideal.process_std),
+            process_rho: w.process_rho.unwrap_or(ideal.process_rho),
+            slip_std: w.slip_std.unwrap_or(ideal.slip_std),
+            lag: w.lag.unwrap_or(ideal.lag),
+            delay: w.delay.unwrap_or(ideal.delay),
+            integration: w.integration.unwrap_or(ideal.integration),
+            command_quantum: w.command_quantum.unwrap_or(ideal.command_quantum),
+            encoder_quantum: w.encoder_quantum.unwrap_or(ideal.encoder_quantum),
+            jitter: w.jitter.unwrap_or(ideal.jitter),
+            controller_std: w.controller_std.unwrap_or(ideal.controller_std),
+            camera,
+        }
+    }
+
+    /// The world as a `[world]` table with every field explicit (and `preset` kept as the
+    /// record of where the values came from).
+    #[must_use]
+    pub fn to_table(&self, preset: Option<super::WorldPreset>) -> WorldConfig {
+        let (camera_fps, camera_frame_std) = match self.camera {
+            Camera::Instants { std } => (None, Some(std)),
+            Camera::Frames { fps, frame_std } => (Some(fps), Some(frame_std)),
+        };
+        WorldConfig {
+            preset,
+            process_std: Some(self.process_std),
+            process_rho: Some(self.process_rho),
+            slip_std: Some(self.slip_std),
+            lag: Some(self.lag),
+            delay: Some(self.delay),
+            integration: Some(self.integration),
+            command_quantum: Some(self.command_quantum),
+            encoder_quantum: Some(self.encoder_quantum),
+            jitter: Some(self.jitter),
+            controller_std: Some(self.controller_std),
+            camera_fps,
+            camera_frame_std,
+        }
+    }
+
+    /// Whether a doublet's boundary samples screen it from its neighbours, so that Eve's
+    /// per-doublet view is her whole view's worth (docs/world.md, "Eavesdroppers"): white
+    /// motion noise, no slip, lag, delay, quanta or jitter, the Euler map, a camera at the
+    /// instants. Otherwise the eavesdroppers smooth over a window of doublets.
+    #[must_use]
+    pub fn screens_doublets(&self) -> bool {
+        self.process_rho == 0.0
+            && self.slip_std == 0.0
+            && self.lag == 0.0
+            && self.delay == 0.0
+            && self.command_quantum == 0.0
+            && self.jitter == 0.0
+            && self.integration == Integration::Euler
+            && matches!(self.camera, Camera::Instants { .. })
+    }
+
+    /// The world's parameters that differ from what the parties of `config` believe, as
+    /// `world.FIELD = VALUE (parties: VALUE)`, in the order of the table.
+    #[must_use]
+    pub fn differences(&self, config: &Config) -> Vec<String> {
+        let ideal = Self::ideal(config);
+        let ours = self.to_table(None);
+        let theirs = ideal.to_table(None);
+        let text = |table: &WorldConfig| -> Vec<(String, String)> {
+            toml::to_string(table)
+                .expect("a world always serializes")
+                .lines()
+                .filter_map(|l| l.split_once(" = "))
+                .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                .collect()
+        };
+        let theirs = text(&theirs);
+        text(&ours)
+            .into_iter()
+            .filter(|(k, v)| !theirs.iter().any(|(tk, tv)| tk == k && tv == v))
+            .map(|(k, v)| {
+                let parties = theirs
+                    .iter()
+                    .find(|(tk, _)| *tk == k)
+                    .map_or("none", |(_, tv)| tv.as_str());
+                format!("world.{k} = {v} (parties: {parties})")
+            })
+            .collect()
+    }
+
+    /// Sub-steps per period of length `sample_time` (s) of the continuous plant: at most
+    /// 25 ms each and at most a quarter of the lag, capped at [`MAX_SUBSTEPS`]; 1 for the
+    /// Euler map.
+    #[must_use]
+    pub fn substeps(&self, sample_time: f64) -> usize {
+        match self.integration {
+            Integration::Euler => 1,
+            Integration::Continuous => {
+                let mut longest = 0.025_f64.min(sample_time);
+                if self.lag > 0.0 {
+                    longest = longest.min(self.lag / 4.0);
+                }
+                ((sample_time / longest).ceil() as usize).clamp(1, MAX_SUBSTEPS)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::WorldPreset;
+
+    fn with_world(text: &str) -> Config {
+        Config::from_toml(text, "test").unwrap()
+    }
+
+    #[test]
+    fn absent_fields_are_the_presets_then_the_parties() {
+        let config = Config::default();
+        assert_eq!(WorldModel::of(&config), WorldModel::ideal(&config));
+        let world = WorldModel::of(&with_world(
+            "[world]\npreset = \"khepera-iv\"\nlag = 0.05\n",
+        ));
+        assert_eq!(world.lag, 0.05);
+        assert_eq!(world.delay, 0.01);
+        assert_eq!(world.controller_std, config.sensing.controller_std);
+        assert!(!world.screens_doublets());
+        assert!(WorldModel::ideal(&config).screens_doublets());
+        let diff = world.differences(&config);
+        assert!(
+            diff.iter().any(|d| d.starts_with("world.lag = 0.05")),
+            "{diff:?}"
+        );
+        assert!(
+            diff.iter().all(|d| !d.contains("controller_std")),
+            "{diff:?}"
+        );
+        assert!(WorldModel::ideal(&config).differences(&config).is_empty());
+    }
+
+    #[test]
+    fn a_camera_at_fps_without_its_frame_noise_is_worth_the_stated_camera() {
+        let config = with_world("[world]\ncamera_fps = 30.0\n");
+        let Camera::Frames { fps, frame_std } = WorldModel::of(&config).camera else {
+            panic!("frames")
+        };
+        assert_eq!(fps, 30.0);
+        // 8 mm per instant ⇔ 16 mm per frame at 30 fps (T = 0.2 s).
+        assert!((frame_std[0] - 0.016).abs() < 1e-12, "{frame_std:?}");
+        assert!((per_instant_std(frame_std[0], fps, 0.2) - 0.008).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_resolved_table_reads_back_as_the_same_world() {
+        for preset in WorldPreset::ALL {
+            let config = with_world(&format!("[world]\npreset = \"{preset}\"\njitter = 0.001\n"));
+            let world = WorldModel::of(&config);
+            let mut back = config.clone();
+            back.world = Some(world.to_table(Some(preset)));
+            assert_eq!(WorldModel::of(&back), world, "{preset}");
+        }
+    }
+
+    #[test]
+    fn substeps_follow_the_lag_and_are_capped() {
+        let mut world = WorldModel::ideal(&Config::default());
+        assert_eq!(world.substeps(0.2), 1);
+        world.integration = Integration::Continuous;
+        assert_eq!(world.substeps(0.2), 8);
+        world.lag = 0.02;
+        assert_eq!(world.substeps(0.2), 40);
+        world.lag = 1e-6;
+        assert_eq!(world.substeps(0.2), MAX_SUBSTEPS);
+    }
+}
