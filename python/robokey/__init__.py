@@ -32,6 +32,10 @@ __version__: str = _native.__version__
 #: and flags.
 METRIC_UNITS: Dict[str, str] = dict(_native.METRIC_UNITS)
 
+#: The names of the world presets (docs/world.md): a configuration's ``{"world": {"preset":
+#: name}}`` simulates that world (its fields, when given, override the preset's).
+WORLD_PRESETS: List[str] = list(_native.WORLD_PRESETS)
+
 Config = Union[None, str, Mapping[str, Any]]
 """A configuration: None (the defaults), a TOML string or a dict."""
 
@@ -45,6 +49,7 @@ __all__ = [
     "InputError",
     "METRIC_UNITS",
     "OptionError",
+    "WORLD_PRESETS",
     "SimulationError",
     "SweepError",
     "read_sweep",

@@ -5,6 +5,7 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 __version__: str
 METRIC_UNITS: Dict[str, str]
+WORLD_PRESETS: List[str]
 
 # (name, unit, description, dtype, data, valid): dtype is numpy's name of the values ("str":
 # data is a list of str), data their native-endian bytes, valid a byte per row (None: all).

@@ -3,6 +3,7 @@
 import json
 
 import pyarrow as pa
+import pytest
 
 import robokey
 
@@ -49,3 +50,17 @@ def test_the_trace_carries_units_and_undefined_cells_are_null():
     assert (k == range(trace.num_rows)).all()
     assert result["metrics"]["codewords_sent"] > 0
     assert robokey.METRIC_UNITS["jx"] == "m"
+
+
+def test_world_presets_are_configurations_as_on_the_cli(cli, tmp_path):
+    assert robokey.WORLD_PRESETS[0] == "ideal" and "khepera-iv" in robokey.WORLD_PRESETS
+    for preset in robokey.WORLD_PRESETS:
+        ours = robokey.run({"world": {"preset": preset}, "trajectory": {"laps": 1}})
+        out = tmp_path / preset
+        flags = ["--set", f"world.preset={preset}", "--set", "trajectory.laps=1"]
+        cli("run", *flags, "--out", str(out))
+        theirs = json.loads((out / "metrics.json").read_text())
+        del theirs["replicate"], theirs["seed"]
+        assert ours["metrics"] == theirs, preset
+    with pytest.raises(robokey.ConfigError, match="unknown variant `mars`, expected one of `ideal`"):
+        robokey.run({"world": {"preset": "mars"}})

@@ -29,11 +29,17 @@ mod _native {
     #[pymodule_export]
     use crate::sweep::sweep;
 
-    /// The version: the crate's and the git commit it was built from.
+    /// The version (the crate's and the git commit it was built from), the metrics' units and
+    /// the world presets' names.
     #[pymodule_init]
     fn init(module: &Bound<'_, PyModule>) -> PyResult<()> {
         module.add("__version__", robokey_lab::VERSION)?;
         module.add("METRIC_UNITS", crate::columns::metric_units(module.py())?)?;
+        let presets: Vec<&str> = robokey::world::WorldPreset::ALL
+            .iter()
+            .map(|p| p.name())
+            .collect();
+        module.add("WORLD_PRESETS", presets)?;
         Ok(())
     }
 }
