@@ -191,3 +191,67 @@ impl SecrecyRequest {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn experiment(text: &str) -> Experiment {
+        Experiment::from_table("", text.parse().unwrap(), "t.toml").unwrap()
+    }
+
+    #[test]
+    fn unset_options_take_the_sweeps_table_then_the_modes_defaults() {
+        let odometry = experiment("[secrecy]\nblock_bits = 2000\n");
+        let options = SecrecyRequest::default().options(&odometry);
+        assert_eq!(options.block_bits, 2000);
+        assert_eq!(options.epsilon, 1e-6);
+        assert_eq!(options.pooling, Pooling::Confirmed);
+        assert_eq!(
+            options.adversaries,
+            default_adversaries(SensingMode::Odometry)
+        );
+        assert_eq!(options.max_sessions, default_max_sessions(2000, 1));
+        let private = experiment("[sensing]\nmode = \"private\"\n");
+        let asked = SecrecyRequest {
+            block_bits: Some(5000),
+            max_sessions: Some(7),
+            ..SecrecyRequest::default()
+        };
+        let options = asked.options(&private);
+        assert_eq!((options.block_bits, options.max_sessions), (5000, 7));
+        assert_eq!(options.pooling, Pooling::Complete);
+        assert_eq!(
+            options.adversaries,
+            default_adversaries(SensingMode::Private)
+        );
+    }
+
+    #[test]
+    fn options_out_of_range_name_themselves_for_each_caller() {
+        let refused = |request: SecrecyRequest| request.validate().unwrap_err();
+        let e = refused(SecrecyRequest {
+            epsilon: Some(1.0),
+            ..SecrecyRequest::default()
+        });
+        assert_eq!(
+            e.message(&format!("{} {}", e.option.flag(), e.value)),
+            "--eps 1 is not allowed (allowed: (0, 1))"
+        );
+        assert_eq!(e.option.keyword(), "epsilon");
+        let e = refused(SecrecyRequest {
+            max_sessions: Some(0),
+            ..SecrecyRequest::default()
+        });
+        assert_eq!(
+            (e.option, e.allowed.as_str()),
+            (RequestOption::MaxSessions, "1 to 1000000")
+        );
+        let e = refused(SecrecyRequest {
+            assumed_eve_error: Some(0.6),
+            ..SecrecyRequest::default()
+        });
+        assert_eq!(e.option.flag(), "--assume-eve-error");
+        assert!(SecrecyRequest::default().validate().is_ok());
+    }
+}
