@@ -713,7 +713,7 @@ fn block_verdict(
     let differences = config.world_model().differences(config);
     if exceeds {
         let world = if differences.is_empty() {
-            "the world is the parties' own model".to_owned()
+            "the parties' own world".to_owned()
         } else {
             format!(
                 "a world the parties' configuration does not describe: {}",
