@@ -2,7 +2,8 @@
 """Runs lockstep sessions between two real agents that pool into their stores, and sums up.
 
     scripts/pooled-sessions.py OUT --sessions N [--mode private|odometry] [--set FIELD=VALUE …]
-                               [--kill-trials K] [--seed S] [-- relay fault options…]
+                               [--kill-trials K] [--seed S] [--eve] [--robot-world PRESET|FILE]
+                               [-- relay fault options…]
 
 Every session: the robot agent (simulated plant; in private mode also the world's motion
 capture and camera), Eve's camera recorder (private mode), the relay with the given faults and a
@@ -12,7 +13,11 @@ second of robot time, leak, ε, `robokey keys list` of both stores (identical ID
 `robokey keys get` equal on both sides.
 
 With --eve (private mode), Eve's camera and commands adversaries run on every session's capture
-and camera log, and their disagreement with the robot's raw bits is summed over all sessions.
+and camera log, and their disagreement with the robot's raw bits is summed over all sessions;
+then, for every block that made a key, `robokey eve --block` on the records of the block's
+sessions prints her realised bound beside the committed key (a WARNING where the key exceeds
+it). With --robot-world, the robot agent's simulated plant is that world (`robot --world`)
+while both parties keep their configuration, and Eve knows the world (`eve --world`).
 With --summary-only, OUT is not run again, only summed up.
 
 With --kill-trials K, K more sessions follow, each of which kills one agent with SIGKILL during
@@ -89,6 +94,8 @@ def session(a, d, index, kill=None):
                   "--report", f"{d}/robot.json"] + common
     if a.mode == "private":
         robot_args += ["--mocap", "127.0.0.1:0", "--camera", "127.0.0.1:0"]
+    if a.robot_world:
+        robot_args += ["--world", a.robot_world]
     robot, _ = start(robot_args, f"{d}/robot.out")
     while "listening on" not in open(f"{d}/robot.out").read():
         time.sleep(0.01)
@@ -221,7 +228,7 @@ def eve_summary(a, folders):
     totals = {}
     for d in folders:
         out = robokey("eve", "--capture", f"{d}/capture.pcap", "--camera-log", f"{d}/camera.csv",
-                      *settings(a), "--robot-key", f"{d}/robot.key",
+                      *settings(a), *world(a), "--robot-key", f"{d}/robot.key",
                       "--controller-key", f"{d}/controller.key", "--out", f"{d}/eve").stdout
         for match in pattern.finditer(out):
             who = match.group(2) or match.group(1)
@@ -233,6 +240,48 @@ def eve_summary(a, folders):
               f"({100 * wrong / max(bits, 1):.2f} %)")
 
 
+def world(a):
+    """Eve's --world option: the robot's world when it has one of its own."""
+    return ["--world", a.robot_world] if a.robot_world else []
+
+
+def block_check(a, folders):
+    """`robokey eve --block` on every block the controller's reports say made a key: the
+    block's sessions are the pooled sessions that end with the one whose report has it,
+    counted back until their raw bits are the block's."""
+    for end, d in enumerate(folders):
+        path = f"{d}/controller.json"
+        if not os.path.exists(path):
+            continue
+        for b in (json.load(open(path)).get("post") or {}).get("blocks", []):
+            if b["length"] == 0:
+                continue
+            members, bits = [], 0
+            for earlier in reversed(folders[:end + 1]):
+                if bits >= b["bits"]:
+                    break
+                report = f"{earlier}/robot.json"
+                pooled = (json.load(open(report)).get("post") or {}).get("session_bits", 0) \
+                    if os.path.exists(report) else 0
+                if pooled:
+                    members.insert(0, earlier)
+                    bits += pooled
+            if bits != b["bits"] or len(members) != b["sessions"]:
+                print(f"block {b['block']}: its {b['bits']} raw bits of {b['sessions']} sessions "
+                      f"are not the last {len(members)} pooled sessions' {bits}: not checked")
+                continue
+            args = ["eve", *settings(a), *world(a), "--block", path]
+            for m in members:
+                args += ["--capture", f"{m}/capture.pcap", "--camera-log", f"{m}/camera.csv",
+                         "--robot-key", f"{m}/robot.key"]
+            print(f"$ robokey eve … --block {path} ({len(members)} sessions: "
+                  f"{os.path.basename(members[0])} … {os.path.basename(members[-1])})")
+            out = robokey(*args).stdout
+            for line in out.splitlines():
+                if line.startswith(("block ", "WARNING", "eve: the world is not")):
+                    print(line)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("out")
@@ -242,6 +291,8 @@ def main():
     p.add_argument("--kill-trials", type=int, default=0)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--eve", action="store_true")
+    p.add_argument("--robot-world", metavar="PRESET|FILE",
+                   help="the robot agent's simulated world (robot --world); Eve is given it")
     p.add_argument("--summary-only", action="store_true")
     p.add_argument("faults", nargs="*")
     a = p.parse_args()
@@ -261,6 +312,7 @@ def main():
     summary(a, folders)
     if a.eve:
         eve_summary(a, folders)
+        block_check(a, folders)
     agree, lists = stores_agree(a)
     print(f"stores agree: {agree}")
     for role in ("robot", "controller"):

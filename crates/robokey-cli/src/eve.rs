@@ -66,10 +66,11 @@ pub struct EveArgs {
         requires = "capture"
     )]
     errors: Option<String>,
-    /// Capture, private sensing: the agent report (`--report`, either side's) of the run in
-    /// which a post-processing block ended, its sessions the captures given: her realised
-    /// bound over the block is printed beside the key the agents committed, with a WARNING
-    /// naming the world's parameters where the key exceeds it (docs/world.md).
+    /// Capture, private sensing: the agent report (`--report`; the controller's says where
+    /// the disclosed sample is, the robot's does not) of the run in which a post-processing
+    /// block ended, its sessions the captures given: her realised bound over the block is
+    /// printed beside the key the agents committed, with a WARNING naming the world's
+    /// parameters where the key exceeds it (docs/world.md).
     #[arg(long, value_name = "REPORT", requires = "robot_key")]
     block: Option<PathBuf>,
     /// Master seed (`run.seed`): the sessions and her draws (stream "eve", replicate c in
@@ -645,6 +646,9 @@ struct ReportedBlock {
     sessions: usize,
     bits: usize,
     sample_bits: usize,
+    /// The sample's positions in the block (the controller's report; absent in the robot's).
+    #[serde(default)]
+    sampled: Vec<u32>,
     reconciled_bits: usize,
     leak_ec: u64,
     leak_confirmation: u64,
@@ -654,9 +658,8 @@ struct ReportedBlock {
 
 /// Her realised bound over the block of `report` (the camera adversary's posterior error
 /// probabilities `q` of its raw bits, in pool order), beside the key the agents committed; a
-/// WARNING naming the world's parameters where the key exceeds it. The disclosed sample's
-/// positions are not in the report: the bound leaves out the `sample_bits` bits she knows
-/// least, so it never credits her uncertainty she may not have. Returns the JSON of it.
+/// WARNING naming the world's parameters where the key exceeds it. Her bound is over the
+/// bits the block amplified ([`amplified_bits`]). Returns the JSON of it.
 fn block_verdict(
     report: &std::path::Path,
     q: &[f64],
@@ -686,16 +689,14 @@ fn block_verdict(
         );
     }
     let epsilon = config.postprocess.epsilon;
-    let mut kept: Vec<f64> = q.iter().map(|&p| p.min(1.0 - p)).collect();
-    kept.sort_by(|a, b| b.total_cmp(a));
-    let kept = &kept[block.sample_bits.min(kept.len())..];
-    let h_min = robokey_secrecy::posterior_smooth_min_entropy(kept, epsilon)?.h_min;
+    let (kept, which) = amplified_bits(q, &block);
+    let h_min = robokey_secrecy::posterior_smooth_min_entropy(&kept, epsilon)?.h_min;
     let realised =
         robokey_secrecy::output_length(h_min, block.leak_ec, block.leak_confirmation, epsilon)?;
     println!(
         "block {}: {} raw bits of {} sessions, {} amplified; the agents committed a key of {} \
          bits (H_min {:.0} under their assumption); the camera eavesdropper who knows the world \
-         supports {} (H_min {:.0} over the {} bits she knows best, leak {} + {})",
+         supports {} (H_min {:.0} over {} bits: {which}; leak {} + {})",
         block.block,
         block.bits,
         block.sessions,
@@ -712,7 +713,7 @@ fn block_verdict(
     let differences = config.world_model().differences(config);
     if exceeds {
         let world = if differences.is_empty() {
-            "the world is the parties' own model".to_owned()
+            "the parties' own world".to_owned()
         } else {
             format!(
                 "a world the parties' configuration does not describe: {}",
@@ -734,6 +735,36 @@ fn block_verdict(
         "exceeds": exceeds,
         "world": differences,
     }))
+}
+
+/// Her posterior error probabilities `q` (pool order) of the bits the block amplified, and
+/// which they are: the bits outside the disclosed sample where the report says where it is
+/// (the controller's), else all but the `sample_bits` bits she knows least — a bound that
+/// never credits her uncertainty she may not have, lower than hers by up to the sample's
+/// share of her uncertainty.
+fn amplified_bits(q: &[f64], block: &ReportedBlock) -> (Vec<f64>, &'static str) {
+    let mut disclosed = vec![false; q.len()];
+    for &i in &block.sampled {
+        if let Some(d) = disclosed.get_mut(i as usize) {
+            *d = true;
+        }
+    }
+    if !block.sampled.is_empty() && disclosed.iter().filter(|&&d| d).count() == block.sample_bits {
+        let kept = q
+            .iter()
+            .zip(&disclosed)
+            .filter(|(_, d)| !**d)
+            .map(|(&p, _)| p)
+            .collect();
+        return (kept, "those outside the disclosed sample");
+    }
+    let mut kept: Vec<f64> = q.iter().map(|&p| p.min(1.0 - p)).collect();
+    kept.sort_by(|a, b| b.total_cmp(a));
+    kept.drain(..block.sample_bits.min(kept.len()));
+    (
+        kept,
+        "the report does not say where the sample is, so those she knows best",
+    )
 }
 
 /// A private eavesdropper's view of the robot's raw bits of a capture.
@@ -795,6 +826,35 @@ pub fn warn_of_shortfalls(capture: &std::path::Path, shortfalls: &[String]) {
 
 #[cfg(test)]
 mod tests {
+    fn block(sample_bits: usize, sampled: Vec<u32>) -> super::ReportedBlock {
+        super::ReportedBlock {
+            block: 0,
+            sessions: 1,
+            bits: 4,
+            sample_bits,
+            sampled,
+            reconciled_bits: 4 - sample_bits,
+            leak_ec: 0,
+            leak_confirmation: 0,
+            h_min: 0.0,
+            length: 1,
+        }
+    }
+
+    #[test]
+    fn her_bound_leaves_out_the_disclosed_sample_where_the_report_says_where_it_is() {
+        let q = [0.1, 0.4, 0.2, 0.3];
+        let (kept, _) = super::amplified_bits(&q, &block(2, vec![0, 3]));
+        assert_eq!(kept, [0.4, 0.2]);
+        // Without positions, the bits she knows least (largest error probability) go.
+        let (kept, which) = super::amplified_bits(&q, &block(2, Vec::new()));
+        assert_eq!(kept, [0.2, 0.1]);
+        assert!(which.contains("does not say"), "{which}");
+        // Positions that do not make the sample (out of range) are not trusted.
+        let (kept, _) = super::amplified_bits(&q, &block(2, vec![0, 9]));
+        assert_eq!(kept, [0.2, 0.1]);
+    }
+
     #[test]
     fn the_terminal_gets_figure_files_instead_of_image_links() {
         let text = super::for_terminal(

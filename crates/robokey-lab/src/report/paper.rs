@@ -254,7 +254,8 @@ pub(super) fn paper_report(
         md.push_str(&section);
         terminal.push_str(&lines);
     }
-    let (section, lines) = super::paper_sections::world_section(&stages.worlds);
+    let (section, lines) =
+        super::paper_sections::world_section(&out.join(WORLDS_DIR), &stages.worlds)?;
     md.push_str(&section);
     terminal.push_str(&lines);
     let path = write(&out.join("report.md"), md)?;

@@ -240,11 +240,18 @@ pub(super) fn private_section(
 
 /// The worlds section: in sentences made from the numbers, which of the coarse worlds the
 /// parties' key over-claims against the eavesdroppers who know them (docs/world.md); empty
-/// for a reproduction made before worlds existed. Markdown and terminal lines.
-#[must_use]
-pub(super) fn world_section(worlds: &[MapPart]) -> (String, String) {
+/// for a reproduction made before worlds existed; each world's tables rendered into its
+/// folder in `out`. Markdown and terminal lines.
+pub(super) fn world_section(out: &Path, worlds: &[MapPart]) -> Result<(String, String), LabError> {
     if worlds.is_empty() {
-        return (String::new(), String::new());
+        return Ok((String::new(), String::new()));
+    }
+    for world in worlds {
+        write_secrecy(
+            &out.join(&world.experiment.name),
+            &world.experiment,
+            &world.secrecy,
+        )?;
     }
     let rows: Vec<super::world::OverClaim> = worlds
         .iter()
@@ -287,5 +294,5 @@ pub(super) fn world_section(worlds: &[MapPart]) -> (String, String) {
         "\nIn short, {verdict}. The full map is `robokey sweep experiments/worlds.toml` \
          followed by `robokey secrecy` on its folder; tables: `worlds/*/secrecy.md`."
     );
-    (md, format!("worlds: {verdict}\n"))
+    Ok((md, format!("worlds: {verdict}\n")))
 }

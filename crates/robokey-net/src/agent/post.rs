@@ -111,6 +111,10 @@ pub struct BlockSummary {
     pub sample_bits: usize,
     /// Disagreements in the sample (controller only).
     pub sample_errors: usize,
+    /// Where the sample is in the block's raw bits, in order: public, as the post-processing
+    /// messages disclose it (controller only; empty on the robot's side).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sampled: Vec<u32>,
     /// Bits reconciled.
     pub reconciled_bits: usize,
     /// Cascade leak (bits).
@@ -134,6 +138,7 @@ impl From<&BlockReport> for BlockSummary {
             bits: r.bits,
             sample_bits: r.sample_bits,
             sample_errors: r.sample_errors,
+            sampled: r.sampled.clone(),
             reconciled_bits: r.reconciled_bits,
             leak_ec: r.leak_ec,
             leak_confirmation: r.leak_confirmation,

@@ -45,13 +45,7 @@ impl WindowWorld {
             drive,
             wheel_limit,
             world: *world,
-            motion: Motion {
-                drive,
-                sample_time,
-                integration: world.integration,
-                substeps: world.substeps(sample_time),
-                lag: world.lag,
-            },
+            motion: Motion::new(drive, sample_time, world),
         }
     }
 }

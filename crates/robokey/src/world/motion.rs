@@ -10,6 +10,7 @@
 
 use super::actuator::{Piece, lagged};
 use super::config::Integration;
+use super::model::WorldModel;
 use crate::model::{DiffDrive, Pose, Unicycle, WheelSpeeds, unicycle_step};
 
 /// The noise of one sample period.
@@ -74,6 +75,19 @@ pub struct Motion {
 }
 
 impl Motion {
+    /// A robot of wheel geometry `drive` sampled every `sample_time` s, moving as `world`
+    /// says (its integration, sub-steps and lag).
+    #[must_use]
+    pub fn new(drive: DiffDrive, sample_time: f64, world: &WorldModel) -> Self {
+        Self {
+            drive,
+            sample_time,
+            integration: world.integration,
+            substeps: world.substeps(sample_time),
+            lag: world.lag,
+        }
+    }
+
     /// Moves `pose` over `pieces` (consecutive, within one period) under `noise`. Each pose
     /// update's end is appended to `trail` as (seconds from the stretch's start, pose); each
     /// update to `steps` when given. Returns the final pose.

@@ -89,13 +89,7 @@ impl WorldPlant {
         trail: bool,
     ) -> Self {
         Self {
-            motion: Motion {
-                drive,
-                sample_time,
-                integration: world.integration,
-                substeps: world.substeps(sample_time),
-                lag: world.lag,
-            },
+            motion: Motion::new(drive, sample_time, world),
             actuator: Actuator::new(world.lag, world.delay, world.command_quantum, wheel_limit),
             pose: Pose::zeros(),
             wheel_angles: WheelSpeeds::zeros(),
