@@ -17,6 +17,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import warnings
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -46,12 +47,16 @@ nothing), False (nothing), True (a tqdm bar, which must be installed) or a calla
 
 __all__ = [
     "ConfigError",
+    "FRAME_SCHEMA",
     "InputError",
+    "KEY_SCHEMA",
     "METRIC_UNITS",
     "OptionError",
     "WORLD_PRESETS",
     "SimulationError",
     "SweepError",
+    "list_keys",
+    "read_capture",
     "read_sweep",
     "read_trace",
     "run",
@@ -273,3 +278,87 @@ def read_trace(path: "os.PathLike[str] | str") -> pa.Table:
     table :func:`run` returns as ``trace``. Raises :class:`InputError` naming the line that
     does not read back."""
     return _table(_native.read_trace(os.fspath(path)))
+
+
+#: The columns of :func:`read_capture`'s table.
+FRAME_SCHEMA = pa.schema(
+    [
+        pa.field("index", pa.int64(), metadata={"description": "the datagram's position in the capture (1 for the first)"}),
+        pa.field("type", pa.uint8(), metadata={"description": "the frame's type byte (header byte 3); null when undecodable"}),
+        pa.field("session", pa.uint32(), metadata={"description": "session number; null when undecodable"}),
+        pa.field("seq", pa.uint32(), metadata={"description": "sequence number; null when undecodable"}),
+        pa.field("step", pa.uint32(), metadata={"description": "control step k (header bytes 12..16); null when undecodable"}),
+        pa.field("numbers", pa.list_(pa.float64()), metadata={"description": "a Measurement's y, a Command's u0 then u1, a DoubletCommand's sample, first and second; empty for other frames"}),
+        pa.field("error", pa.string(), metadata={"description": "why the datagram does not decode as a robokey frame; null when it does"}),
+    ]
+)
+
+
+def read_capture(path: "os.PathLike[str] | str") -> pa.Table:
+    """The robokey frames of a pcap or pcapng capture (the relay's, tcpdump's, dumpcap's), as
+    ``robokey frames`` lists them — one row per UDP datagram in capture order: ``index``,
+    ``type``, ``session``, ``seq``, ``step``, ``numbers`` and, for a datagram that does not
+    decode, ``error`` (the other fields null). MACs are not checked: nothing secret is read.
+
+    What of the capture could not be used (a cut-off end, packets cut by the snap length, link
+    types robokey does not read) is warned of (``UserWarning``, as the command warns on
+    stderr). Raises :class:`InputError` for a file that is not a capture robokey reads,
+    OSError for one that cannot be read.
+    """
+    rows, shortfalls = _native.read_capture(os.fspath(path))
+    for shortfall in shortfalls:
+        warnings.warn(f"{os.fspath(path)}: {shortfall}", stacklevel=2)
+    columns = list(zip(*rows)) if rows else [[] for _ in FRAME_SCHEMA]
+    return pa.Table.from_arrays(
+        [pa.array(list(column), type=field.type) for column, field in zip(columns, FRAME_SCHEMA)],
+        schema=FRAME_SCHEMA,
+    )
+
+
+#: The columns of :func:`list_keys`'s table (``robokey keys list --json``'s fields).
+KEY_SCHEMA = pa.schema(
+    [
+        pa.field("id", pa.string()),
+        pa.field("role", pa.string()),
+        pa.field("block", pa.uint64()),
+        pa.field("bits", pa.uint64(), metadata={"unit": "bit"}),
+        pa.field("available_bits", pa.uint64(), metadata={"unit": "bit"}),
+        pa.field("taken_bits", pa.uint64(), metadata={"unit": "bit"}),
+        pa.field("taken", pa.list_(pa.string())),
+        pa.field("epsilon", pa.float64()),
+        pa.field("label", pa.string()),
+        pa.field("status", pa.string()),
+        pa.field("pending_reason", pa.string()),
+        pa.field("assumption", pa.string()),
+        pa.field("created", pa.string()),
+        pa.field("sessions", pa.list_(pa.uint32())),
+    ]
+)
+
+
+def list_keys(
+    store: "os.PathLike[str] | str",
+    pairing: "os.PathLike[str] | str",
+    *,
+    insecure_pairing_file: bool = False,
+) -> pa.Table:
+    """The final keys of an agent's store, as ``robokey keys list --json`` lists them — never
+    their bits: one row per key with its ``id``, ``role``, ``block``, ``bits``,
+    ``available_bits`` (deliverable once settled), ``taken_bits``, ``taken`` (the IDs of the
+    keys taken from it), ``epsilon``, ``label`` (``physical`` or ``restricted``), ``status``
+    (``settled`` or ``pending``, with ``pending_reason``), ``assumption`` (about Eve),
+    ``created`` and ``sessions``.
+
+    Every key file is verified under a key derived from the pairing file (``pairing``), so a
+    file planted beside the store is refused. ``insecure_pairing_file`` accepts a pairing file
+    open to others (warned of), as ``--insecure-pairing-file`` does. Raises
+    :class:`InputError` for a folder that is not a store, a store of another pairing, a
+    malformed key file or a pairing file that is missing or open to others, OSError for a
+    failed read.
+    """
+    listing, warning = _native.list_keys(
+        os.fspath(store), os.fspath(pairing), insecure_pairing_file
+    )
+    if warning is not None:
+        warnings.warn(warning, stacklevel=2)
+    return pa.Table.from_pylist(json.loads(listing), schema=KEY_SCHEMA)

@@ -10,6 +10,8 @@ def test_the_examples_of_docs_python_md_run(cli, tmp_path, monkeypatch, capsys):
     blocks = re.findall(r"^```python\n(.*?)^```$", text, flags=re.M | re.S)
     assert len(blocks) >= 5
     monkeypatch.chdir(tmp_path)
+    # The examples run from the repository's root, where its test captures are.
+    (tmp_path / "crates").symlink_to(ROOT / "crates")
     monkeypatch.setenv("ROBOKEY_BIN", str(cli.binary))
     namespace: dict = {}
     for i, block in enumerate(blocks):
@@ -18,4 +20,5 @@ def test_the_examples_of_docs_python_md_run(cli, tmp_path, monkeypatch, capsys):
     assert "`protocol.delta_v` = 0.0 is not allowed" in printed
     assert "codewords sent     340" in printed
     assert "camera" in printed and "secret_bits" in printed
+    assert "robokey frames of sessions" in printed and "settled" in printed
     assert "folder" in namespace and (namespace["folder"] / "trace.csv").exists()

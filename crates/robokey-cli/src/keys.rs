@@ -10,10 +10,10 @@ use anyhow::Result;
 use clap::{Args, Subcommand, ValueEnum};
 use robokey::protocol::auth::PairingSecret;
 use robokey_net::key_delivery::{KeyDelivery, Side};
-use robokey_net::key_slice::{DEFAULT_SLICE_BITS, SliceId, Span};
-use robokey_net::key_store::{KeyStatus, KeyStore, StoredKey};
+use robokey_net::key_listing::ListedKey;
+use robokey_net::key_slice::{DEFAULT_SLICE_BITS, SliceId};
+use robokey_net::key_store::KeyStore;
 use robokey_net::post_store::{lock_store, open_keys};
-use serde::Serialize;
 
 use crate::exit::usage;
 
@@ -114,66 +114,11 @@ enum KeysCommand {
     },
 }
 
-/// A key as listed: everything but its bits.
-#[derive(Serialize)]
-struct Listed<'a> {
-    id: &'a str,
-    role: &'a str,
-    block: u64,
-    bits: usize,
-    /// Whole bytes' bits not taken yet, deliverable once settled.
-    available_bits: u64,
-    taken_bits: u64,
-    /// The IDs of the keys taken from it.
-    taken: Vec<String>,
-    epsilon: f64,
-    label: &'static str,
-    status: &'static str,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pending_reason: Option<&'a str>,
-    assumption: &'a str,
-    created: &'a str,
-    sessions: &'a [u32],
-}
-
-impl<'a> From<&'a StoredKey> for Listed<'a> {
-    fn from(key: &'a StoredKey) -> Self {
-        let (status, pending_reason) = match &key.status {
-            KeyStatus::Settled => ("settled", None),
-            KeyStatus::Pending(reason) => ("pending", Some(reason.as_str())),
-        };
-        Self {
-            id: &key.id,
-            role: &key.role,
-            block: key.block,
-            bits: key.bits,
-            available_bits: if key.is_settled() {
-                key.untaken_bits()
-            } else {
-                0
-            },
-            taken_bits: key.taken_bits(),
-            taken: key.taken.iter().map(|span| taken_id(key, *span)).collect(),
-            epsilon: key.epsilon,
-            label: if key.restricted {
-                "restricted"
-            } else {
-                "physical"
-            },
-            status,
-            pending_reason,
-            assumption: &key.assumption,
-            created: &key.created,
-            sessions: &key.sessions,
-        }
-    }
-}
-
 pub fn keys(args: KeysArgs) -> Result<()> {
     match args.command {
         KeysCommand::List { store, json } => {
             let keys = store.keys()?.list()?;
-            let listed: Vec<Listed<'_>> = keys.iter().map(Listed::from).collect();
+            let listed: Vec<ListedKey> = keys.iter().map(ListedKey::from).collect();
             if json {
                 println!("{}", serde_json::to_string_pretty(&listed)?);
             } else {
@@ -250,13 +195,8 @@ fn take(store: &StoreArgs, bits: Option<u32>, id: Option<&str>, format: KeyForma
     Ok(())
 }
 
-/// The ID of the key taken as `span` from `key`.
-fn taken_id(key: &StoredKey, span: Span) -> String {
-    SliceId::new(&key.id, span).map_or_else(|e| e, |id| id.uuid().to_string())
-}
-
 /// One line per key, then each assumption once, then why each pending key is pending.
-fn table(keys: &[Listed<'_>]) -> String {
+fn table(keys: &[ListedKey]) -> String {
     if keys.is_empty() {
         return "no keys\n".to_owned();
     }
@@ -269,7 +209,7 @@ fn table(keys: &[Listed<'_>]) -> String {
         let number = match assumptions.iter().position(|a| *a == key.assumption) {
             Some(i) => i,
             None => {
-                assumptions.push(key.assumption);
+                assumptions.push(&key.assumption);
                 assumptions.len() - 1
             }
         };
@@ -291,7 +231,7 @@ fn table(keys: &[Listed<'_>]) -> String {
         out.push_str(&format!("[{}] {assumption}\n", i + 1));
     }
     for key in keys {
-        if let Some(reason) = key.pending_reason {
+        if let Some(reason) = &key.pending_reason {
             out.push_str(&format!(
                 "{} is pending: {reason}; nothing is taken from it until it settles\n",
                 key.id

@@ -13,6 +13,7 @@ use robokey::rng::{Purpose, stream};
 use robokey_net::agent::controller::{ControllerOptions, run_controller};
 use robokey_net::agent::report::{Ending, SessionReport};
 use robokey_net::agent::robot::{RobotOptions, run_robot};
+use robokey_net::frame_listing::list_frames;
 use robokey_net::khepera::{EmulatorOptions, Kh4Backend, Link, Listen, TimeMode, serve};
 use robokey_net::pairing::{read_pairing, write_pairing};
 use robokey_net::pcap::read as read_capture;
@@ -180,46 +181,20 @@ pub struct FramesArgs {
 /// number, type, session, seq, step, and the numbers a Measurement (`y`), a Command
 /// (`u0D`, `u1D`) or a DoubletCommand (`y_c`, `u`, `u'`) carries. MACs are not checked (no pairing secret needed).
 pub fn frames(args: FramesArgs) -> Result<()> {
-    use robokey::protocol::wire::decode;
-    use robokey::protocol::{Message, SessionMessage};
     let capture = read_capture(&args.capture)?;
     crate::eve::warn_of_shortfalls(&args.capture, &capture.shortfalls);
-    for (i, datagram) in capture.datagrams.iter().enumerate() {
-        let bytes = &datagram.payload;
-        let frame = match decode(bytes) {
-            Ok(frame) => frame,
-            Err(e) => {
-                println!("{}\tundecodable\t\t\t\t{e}", i + 1);
-                continue;
-            }
+    for frame in list_frames(&capture.datagrams) {
+        let (Some(frame_type), Some(session), Some(seq), Some(step)) =
+            (frame.frame_type, frame.session, frame.seq, frame.step)
+        else {
+            let error = frame.error.unwrap_or_default();
+            println!("{}\tundecodable\t\t\t\t{error}", frame.index);
+            continue;
         };
-        let numbers: Vec<f64> = match &frame.message {
-            Message::Session(SessionMessage::Measurement { y, .. }) => y.to_vec(),
-            Message::Session(SessionMessage::Command { u0, u1, .. }) => {
-                u0.iter().chain(u1).copied().collect()
-            }
-            Message::Session(SessionMessage::DoubletCommand {
-                sample,
-                first,
-                second,
-                ..
-            }) => sample
-                .iter()
-                .chain(first)
-                .chain(second.iter().flatten())
-                .copied()
-                .collect(),
-            _ => Vec::new(),
-        };
-        let numbers: Vec<String> = numbers.iter().map(|v| format!("{v:?}")).collect();
-        // A parsed frame has its header: type at byte 3, step at bytes 12..16.
-        let step = u32::from_be_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]);
+        let numbers: Vec<String> = frame.numbers.iter().map(|v| format!("{v:?}")).collect();
         println!(
-            "{}\t{}\t{}\t{}\t{step}\t{}",
-            i + 1,
-            bytes[3],
-            frame.session,
-            frame.seq,
+            "{}\t{frame_type}\t{session}\t{seq}\t{step}\t{}",
+            frame.index,
             numbers.join(",")
         );
     }

@@ -6,10 +6,12 @@ pub mod agent;
 pub mod backend;
 pub mod capture_eve;
 pub mod error;
+pub mod frame_listing;
 #[doc(hidden)]
 pub mod fuzzing;
 pub mod journal;
 pub mod key_delivery;
+pub mod key_listing;
 pub mod key_slice;
 pub mod key_store;
 pub mod khepera;

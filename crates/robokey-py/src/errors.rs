@@ -109,3 +109,18 @@ pub fn option_error(py: Python<'_>, error: &robokey_lab::secrecy::OptionError) -
         ],
     )
 }
+
+/// An error of the network shell (reading a capture or a key store) as the Python exception
+/// of its kind: a file that is not what was asked (a malformed capture, store or pairing
+/// file; a store of another pairing) is [`InputError`], a failed read `OSError`.
+pub fn net_error(error: robokey_net::NetError) -> PyErr {
+    use robokey_net::NetError;
+    let message = error.to_string();
+    match error {
+        NetError::Io { .. } => PyOSError::new_err(message),
+        NetError::Capture { .. } | NetError::Store { .. } | NetError::Usage(_) => {
+            InputError::new_err(message)
+        }
+        _ => PyRuntimeError::new_err(message),
+    }
+}

@@ -1,12 +1,13 @@
 //! robokey from Python: the native module `robokey._native` behind the `robokey` package
 //! (python/robokey, docs/python.md). It calls the library's own functions — configuration,
-//! simulation, sweeps, secrecy, the eavesdroppers, the folder readers — and hands results to
+//! simulation, sweeps, secrecy, the eavesdroppers, the folder, capture and key store readers — and hands results to
 //! Python column by column; the package turns them into Arrow tables and numpy arrays.
 
 mod columns;
 mod config;
 mod errors;
 mod readers;
+mod recorded;
 mod run;
 mod secrecy;
 mod sweep;
@@ -22,6 +23,8 @@ mod _native {
     use crate::errors::{ConfigError, InputError, OptionError, SimulationError, SweepError};
     #[pymodule_export]
     use crate::readers::{read_sweep, read_trace};
+    #[pymodule_export]
+    use crate::recorded::{list_keys, read_capture};
     #[pymodule_export]
     use crate::run::run;
     #[pymodule_export]
