@@ -34,7 +34,8 @@ use exit::Status;
                   accounting and threat model are explained in the repository's docs/.\n\n\
                   Exit codes: 0 success (a session: its key confirmed), 1 error, 2 wrong \
                   command line or input file, 3 a session ended without a key, 4 \
-                  authentication failed, 130/143 stopped by SIGINT/SIGTERM after saving what \
+                  authentication failed, 5 pending (a block or final key left in flight for a \
+                  later session to settle; keys get/delete: the key is pending), 130/143 stopped by SIGINT/SIGTERM after saving what \
                   was done (an interrupted sweep continues with `robokey sweep FILE --resume \
                   DIR`)."
 )]
@@ -66,7 +67,7 @@ enum Command {
     Report(ReportArgs),
     /// Regenerate the paper's experiments, figures and report: `robokey sweep` of
     /// experiments/paper.toml, the stages its report renders (secrecy, eavesdropping
-    /// campaigns, private sensing), then `robokey report`.
+    /// campaigns, private sensing, the coarse worlds), then `robokey report`.
     #[command(allow_negative_numbers = true)]
     Reproduce(ReproduceArgs),
     /// Print the resolved configuration (defaults, file, overrides) as TOML, each field

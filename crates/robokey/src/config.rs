@@ -392,6 +392,10 @@ impl EveStrategy {
 /// Largest `eve.max_flips`: `2^24` tag computations per session.
 pub const MAX_TAG_FLIPS: u32 = 24;
 
+/// Most bits of a window smoother's other doublets, summed over exactly (`2^12` patterns):
+/// bounds `eve.smoother_window`.
+pub const MAX_NUISANCE_BITS: u32 = 12;
+
 /// `[eve]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -777,7 +781,7 @@ impl Config {
         }
         if let Some(half_width) = eve.smoother_window {
             let bits = u32::from(proto.bits_per_doublet);
-            let most = crate::private::MAX_NUISANCE_BITS / (2 * bits);
+            let most = MAX_NUISANCE_BITS / (2 * bits);
             if half_width > most {
                 return Err(invalid(
                     "eve.smoother_window",

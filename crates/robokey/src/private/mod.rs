@@ -28,7 +28,7 @@ pub use likelihood::{
 };
 pub use plan::PrivatePlan;
 pub(crate) use robot::PrivateRobot;
-pub use smoother::{DEFAULT_HALF_WIDTH, MAX_NUISANCE_BITS, WindowSmoother};
+pub use smoother::{DEFAULT_HALF_WIDTH, WindowSmoother};
 
 /// Which input a bit rides on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

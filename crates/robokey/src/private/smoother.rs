@@ -61,9 +61,6 @@ pub struct Recorded<'a> {
 /// converged by then on the worlds of docs/world.md (measured there).
 pub const DEFAULT_HALF_WIDTH: u32 = 2;
 
-/// Most bits of the window's other doublets summed over exactly (`2^12` patterns).
-pub const MAX_NUISANCE_BITS: u32 = 12;
-
 /// The window smoother of one session's world.
 #[derive(Clone, Debug)]
 pub struct WindowSmoother {

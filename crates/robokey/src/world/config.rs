@@ -4,8 +4,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::preset::WorldPreset;
-
 /// How the plant integrates the unicycle over a sample period.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -256,6 +254,50 @@ impl WorldConfig {
             camera_fps: self.camera_fps.or(under.camera_fps),
             camera_frame_std: self.camera_frame_std.or(under.camera_frame_std),
         }
+    }
+}
+
+/// A named world: `world.preset` or `--world NAME`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WorldPreset {
+    /// The parties' own model: every field as they are configured.
+    Ideal,
+    /// A Khepera IV on a lab floor: its speed unit and encoder pulse, an estimated motor lag,
+    /// delay, timing jitter, slip and motion noise.
+    KheperaIv,
+    /// The Khepera IV's mechanics without motion noise, slip or jitter: the world the Khepera
+    /// emulator had before worlds existed.
+    KheperaIvNoiseFree,
+    /// A ROBOTIS TurtleBot3 Burger: its Dynamixel XL430's velocity unit and encoder, and
+    /// estimated lag, delay, jitter, slip and motion noise.
+    Turtlebot3Burger,
+}
+
+impl WorldPreset {
+    /// Every preset, in the order the docs list them.
+    pub const ALL: [Self; 4] = [
+        Self::Ideal,
+        Self::KheperaIv,
+        Self::KheperaIvNoiseFree,
+        Self::Turtlebot3Burger,
+    ];
+
+    /// Its name in configurations and on the command line.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ideal => "ideal",
+            Self::KheperaIv => "khepera-iv",
+            Self::KheperaIvNoiseFree => "khepera-iv-noise-free",
+            Self::Turtlebot3Burger => "turtlebot3-burger",
+        }
+    }
+
+    /// The preset of this name.
+    #[must_use]
+    pub fn named(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
     }
 }
 

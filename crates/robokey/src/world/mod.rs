@@ -18,11 +18,10 @@ pub use actuator::{Actuator, MAX_PENDING, Piece, lagged, quantise};
 pub use camera::{Frame, FrameCamera};
 pub use config::{
     Integration, MAX_CAMERA_FPS, MAX_JITTER_FRACTION, MAX_SLIP_STD, MAX_WORLD_SECONDS, WorldConfig,
-    WorldFieldError,
+    WorldFieldError, WorldPreset,
 };
 pub use model::{Camera, MAX_SUBSTEPS, WorldModel, per_frame_std, per_instant_std};
 pub use motion::{Motion, StepNoise, SubStep, sinc};
 pub use plant::{Noise, PlantStreams, WorldPlant};
-pub use preset::WorldPreset;
 pub use scene::{Observed, Scene};
 pub use sensor::InstantSensor;
