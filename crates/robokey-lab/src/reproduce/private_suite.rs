@@ -80,13 +80,20 @@ pub fn coarse_suite(quick: bool) -> Result<Vec<Experiment>, LabError> {
 /// camera map, the commands one), complete pooling, the block size and ε its file states.
 #[must_use]
 pub fn options(experiment: &Experiment) -> SecrecyOptions {
-    let defaults = SecrecyOptions::default();
     let mut adversaries = vec![EveStrategy::Camera];
     if experiment.name != CAMERA_EXPERIMENT {
         adversaries.push(EveStrategy::Commands);
     }
     SecrecyOptions {
         adversaries,
+        ..as_stated(experiment)
+    }
+}
+
+/// The defaults with complete pooling and the block size and ε `experiment`'s file states.
+pub(super) fn as_stated(experiment: &Experiment) -> SecrecyOptions {
+    let defaults = SecrecyOptions::default();
+    SecrecyOptions {
         pooling: Pooling::Complete,
         block_bits: experiment
             .secrecy

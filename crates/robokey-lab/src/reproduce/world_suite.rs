@@ -7,7 +7,7 @@ use robokey::config::{EveStrategy, parse_table};
 
 use crate::error::LabError;
 use crate::experiment::{Experiment, experiments_from_table};
-use crate::secrecy::{Pooling, SecrecyOptions};
+use crate::secrecy::SecrecyOptions;
 
 /// The full map, embedded: `reproduce` computes a coarse version of it.
 pub const WORLDS_TOML: &str = include_str!("../../../../experiments/worlds.toml");
@@ -80,21 +80,15 @@ pub fn coarse_suite(quick: bool) -> Result<Vec<Experiment>, LabError> {
 /// with `--quick` at most [`QUICK_SESSIONS`] sessions.
 #[must_use]
 pub fn options(experiment: &Experiment, quick: bool) -> SecrecyOptions {
-    let defaults = SecrecyOptions::default();
+    let stated = super::private_suite::as_stated(experiment);
     SecrecyOptions {
         adversaries: vec![EveStrategy::Camera],
         max_sessions: if quick {
             QUICK_SESSIONS
         } else {
-            defaults.max_sessions
+            stated.max_sessions
         },
-        pooling: Pooling::Complete,
-        block_bits: experiment
-            .secrecy
-            .block_bits
-            .map_or(defaults.block_bits, |b| b as usize),
-        epsilon: experiment.secrecy.epsilon.unwrap_or(defaults.epsilon),
-        ..defaults
+        ..stated
     }
 }
 
