@@ -15,6 +15,7 @@ pub mod code;
 pub mod config;
 pub mod connection;
 pub mod control;
+pub mod estimate;
 pub mod eve;
 #[doc(hidden)]
 pub mod fuzzing;

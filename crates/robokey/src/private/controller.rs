@@ -7,7 +7,9 @@ use std::collections::VecDeque;
 
 use super::decision::DoubletDecision;
 use super::doublet::DoubletInputs;
-use super::likelihood::{DoubletModel, DoubletView, PoseObservation, doublet_model};
+use super::likelihood::{
+    DoubletModel, DoubletView, PoseObservation, doublet_model, stated_camera_view,
+};
 use super::plan::PrivatePlan;
 use crate::config::Config;
 use crate::control::ReferenceTracker;
@@ -230,25 +232,19 @@ impl PrivateController {
 
     fn decide(&mut self, life: &mut ControllerLifecycle, p: &Pending, samples: [Pose; 3]) {
         let own = |k: usize| PoseObservation::new(samples[k], self.controller_std);
-        let stated_camera = |k: usize| PoseObservation::new(samples[k], self.camera_std);
         let view = DoubletView {
             start: own(0),
             middle: Some(own(1)),
             end: Some(own(2)),
         };
-        // The camera Eve's view as the controller can model it: her stated noise around
-        // its own samples, fused with the boundary samples the commands reveal.
-        let assumed = DoubletView {
-            start: own(0).fuse(&stated_camera(0)),
-            middle: Some(stated_camera(1)),
-            end: Some(own(2).fuse(&stated_camera(2))),
-        };
+        let assumed = stated_camera_view(samples, self.controller_std, self.camera_std);
         let decision = DoubletDecision {
             doublet: p.doublet,
             step: 2 * p.doublet,
             inputs: p.inputs,
             evidence: self.model.evidence(&p.inputs, &view),
             assumed_separation: self.model.separations(&p.inputs, &assumed),
+            samples,
         };
         self.decided[p.doublet as usize] = decision.evidence.bits();
         life.fates.record(p.doublet, true);

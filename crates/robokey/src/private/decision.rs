@@ -2,6 +2,7 @@
 
 use super::doublet::DoubletInputs;
 use super::likelihood::BitEvidence;
+use crate::model::Pose;
 
 /// What the controller made of one carrying doublet.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -18,4 +19,8 @@ pub struct DoubletDecision {
     /// Each bit's separation under the camera Eve's model as the controller can compute it
     /// — her stated camera noise around its own samples — which sizes the key.
     pub assumed_separation: [f64; 2],
+    /// The controller's samples `y(2j), y(2j+1), y(2j+2)` it decided from (key material:
+    /// they stay with the controller), from which the block's estimate recomputes the
+    /// residual and Eve's modelled view (docs/estimation.md).
+    pub samples: [Pose; 3],
 }

@@ -88,6 +88,21 @@ pub struct DoubletView {
     pub end: Option<PoseObservation>,
 }
 
+/// The camera Eve's view of a doublet as the controller can model it (never her realised
+/// view): her stated per-instant noise `camera_std` around the controller's own `samples`
+/// `y(2j), y(2j+1), y(2j+2)`, fused at the boundaries with the controller's samples of noise
+/// `controller_std`, which the commands reveal to her.
+#[must_use]
+pub fn stated_camera_view(samples: [Pose; 3], controller_std: [f64; 3], camera_std: [f64; 3]) -> DoubletView {
+    let own = |k: usize| PoseObservation::new(samples[k], controller_std);
+    let camera = |k: usize| PoseObservation::new(samples[k], camera_std);
+    DoubletView {
+        start: own(0).fuse(&camera(0)),
+        middle: Some(camera(1)),
+        end: Some(own(2).fuse(&camera(2))),
+    }
+}
+
 /// The true-noise model of a doublet.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DoubletModel {
@@ -121,7 +136,7 @@ impl BitEvidence {
 }
 
 /// `∂f/∂x` of the Euler map at heading `θ` and speed `v` (m/s).
-fn state_jacobian(theta: f64, speed: f64, sample_time: f64) -> Matrix3<f64> {
+pub(crate) fn state_jacobian(theta: f64, speed: f64, sample_time: f64) -> Matrix3<f64> {
     let (sin, cos) = theta.sin_cos();
     Matrix3::new(
         1.0,

@@ -70,6 +70,13 @@ pub struct DoubletBit {
     pub assumed_separation: f64,
     /// Its separation under the commands Eve's model: the residual leak the model predicts.
     pub commands_separation: f64,
+    /// The doublet's public inputs.
+    pub inputs: DoubletInputs,
+    /// The controller's samples `y(2j), y(2j+1), y(2j+2)` (its own: key material).
+    pub samples: [crate::model::Pose; 3],
+    /// The bit pattern the doublet carried, `v | ω << 1` (the robot's bits, which
+    /// reconciliation gives the controller).
+    pub pattern: usize,
 }
 
 impl DoubletBit {

@@ -319,6 +319,9 @@ fn record(
             camera_separation: e.camera.separation[i],
             assumed_separation: d.assumed_separation[i],
             commands_separation: e.commands.separation[i],
+            inputs: d.inputs,
+            samples: d.samples,
+            pattern: usize::from(bits[0] & 1) | usize::from(bits[1] & 1) << 1,
         });
     }
     let decide = |llr: f64| u8::from(llr < 0.0);

@@ -1,0 +1,16 @@
+//! Estimating the plant from the controller's own samples (docs/estimation.md): after
+//! reconciliation, with the reconciled bits, the controller measures the motion noise its
+//! key rests on, bounds it over a (1 − ε_est) confidence region, and sizes Eve's modelled
+//! view — hence ℓ — from the region's worst case. Pure: no clocks, files or randomness.
+//!
+//! The model class covered here is white Gaussian motion noise with a constant 3×3
+//! covariance `Q` in the robot's frame, and a controller sensor of stated covariance `R`
+//! (its calibration).
+
+pub mod motion_noise;
+pub mod residual;
+pub mod worst_case;
+
+pub use motion_noise::{EstimationRefusal, MotionNoiseEstimate, estimate_motion_noise};
+pub use residual::DoubletResidual;
+pub use worst_case::worst_case_separations;
