@@ -407,7 +407,10 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             continue;
         }
         let mode = experiment.points[0].config.sensing.mode;
-        let options = request.options(&experiment);
+        let options = robokey_lab::secrecy::SecrecyOptions {
+            sizing: args.sizing.into(),
+            ..request.options(&experiment)
+        };
         let secrecy = with_jobs(args.jobs, || {
             Secrecy::compute(&experiment, &options, &mut SessionBank::new())
         })??;
@@ -583,6 +586,43 @@ fn secrecy_table(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
         )));
     }
     out.push_str(&world_blocks(results));
+    out.push_str(&measured_blocks(results));
+    out
+}
+
+/// Measured sizing (docs/estimation.md): what the controller measured for each block, and
+/// the separation that sized it, or why the block was refused.
+fn measured_blocks(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
+    let mut out = String::new();
+    for r in results {
+        for (i, b) in r.blocks.iter().enumerate() {
+            let Some(e) = &b.estimate else { continue };
+            let three = |s: [f64; 3]| format!("{:.3} mm, {:.3} mm, {:.3} mrad", s[0], s[1], s[2]);
+            out.push_str(&wrapped(&match &e.refused {
+                Some(why) => format!(
+                    "{}, {}: block {} refused ({} doublets): {why}",
+                    r.point,
+                    r.adversary,
+                    i + 1,
+                    e.doublets
+                ),
+                None => format!(
+                    "{}, {}: block {}: motion noise measured over {} doublets: √Q̂ = {} \
+                     (along-track, lateral, heading); worst case of its (1 − {:e}) region \
+                     √Q_low = {}; Eve's largest separation there {:.4}; ℓ = {} bits",
+                    r.point,
+                    r.adversary,
+                    i + 1,
+                    e.doublets,
+                    three(e.point_std_mm),
+                    e.epsilon,
+                    three(e.lower_std_mm),
+                    e.separation,
+                    b.secret_bits
+                ),
+            }));
+        }
+    }
     out
 }
 

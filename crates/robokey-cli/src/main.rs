@@ -277,9 +277,35 @@ struct SecrecyArgs {
     /// reported beside it either way.
     #[arg(long, value_name = "P")]
     assume_eve_error: Option<f64>,
+    /// Private sensing: what sizes the key. `configured`: Eve's view from the configured
+    /// `noise.process_std` (the paper's; reproduce uses it). `measured`: from the motion
+    /// noise the controller estimates per block from its own samples and the reconciled
+    /// bits, at the worst case of the estimate's (1 − ε_est) region, ε_est = --eps a term of
+    /// the key's ε (the key is then 5ε-secret); a block outside the model class is refused,
+    /// naming the test (docs/estimation.md).
+    #[arg(long, value_enum, default_value_t = SizingArg::Configured)]
+    sizing: SizingArg,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
+}
+
+/// What sizes private sensing's key in `robokey secrecy` (docs/estimation.md).
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum SizingArg {
+    /// The configured motion noise.
+    Configured,
+    /// The motion noise the controller measures per block, at its region's worst case.
+    Measured,
+}
+
+impl From<SizingArg> for robokey_lab::secrecy::Sizing {
+    fn from(s: SizingArg) -> Self {
+        match s {
+            SizingArg::Configured => Self::Configured,
+            SizingArg::Measured => Self::Measured,
+        }
+    }
 }
 
 /// Which sessions `robokey secrecy` pools (docs/secrecy.md).

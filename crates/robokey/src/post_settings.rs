@@ -36,6 +36,40 @@ pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
     }
 }
 
+/// Private sensing's statement about Eve with the plant measured (docs/estimation.md): her
+/// camera noise at least `eve.camera_std`, the exact model and the controller's boundary
+/// samples hers, the motion noise the controller estimates per block from its own samples
+/// (white Gaussian, a 3×3 covariance in the robot's frame; the sensor's calibration
+/// `sensing.controller_std` stated); her view of each bit at most as informative as a
+/// Gaussian LLR of `separation` at the worst case of the estimate's (1 − `estimation_epsilon`)
+/// region.
+#[must_use]
+pub fn measured_camera_assumption(
+    config: &Config,
+    separation: f64,
+    estimation_epsilon: f64,
+) -> Assumption {
+    let mm = |x: f64| 1e3 * x;
+    let (e, r) = (&config.eve.camera_std, &config.sensing.controller_std);
+    Assumption::MeasuredViews {
+        separation,
+        statement: format!(
+            "Eve's camera noise ≥ {} mm, {} mm, {} mrad per sample instant (her effective \
+             noise after her own filtering), motion noise measured by the controller per block \
+             (white Gaussian, 3×3 in the robot's frame, the controller sensor's calibration \
+             {} mm, {} mm, {} mrad stated), exact model, the controller's boundary samples \
+             known to her",
+            mm(e[0]),
+            mm(e[1]),
+            mm(e[2]),
+            mm(r[0]),
+            mm(r[1]),
+            mm(r[2]),
+        ),
+        estimation_epsilon,
+    }
+}
+
 /// The assumption that sizes the agents' keys: private sensing's camera statement (each
 /// block's separation computed by the controller from its samples); in odometry mode none
 /// (ℓ = 0, [`ODOMETRY_ZERO`]) unless `postprocess.assumed_eve_error` states a restricted one.

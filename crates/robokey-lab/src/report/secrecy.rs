@@ -162,10 +162,11 @@ pub fn secrecy_markdown(secrecy: &Secrecy) -> String {
         ""
     };
     md.push_str(&format!(
-        "\nPooling: {pooling}; blocks of at least {} raw bits (whole sessions). Realised H_min: {method}{p_of}. ε_s = ε_PA = ε_PE = {:e} (the key is {:e}-secret). p_c, p_e: 95 % Clopper–Pearson intervals over applied bits. Whom each row holds against: {}. See docs/secrecy.md.\n",
+        "\nPooling: {pooling}; blocks of at least {} raw bits (whole sessions). Realised H_min: {method}{p_of}. {} = {:e} (the key is {:e}-secret). p_c, p_e: 95 % Clopper–Pearson intervals over applied bits. Whom each row holds against: {}. See docs/secrecy.md.\n",
         secrecy.block_bits,
+        secrecy.epsilon_terms(),
         secrecy.epsilon,
-        4.0 * secrecy.epsilon,
+        secrecy.epsilon_total(),
         held.join("; "),
     ));
     let rows = private_rows(results);

@@ -12,7 +12,8 @@ use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
 use robokey_secrecy::{JointCounts, binomial_test};
 
-use super::options::{SecrecyOptions, default_adversaries};
+use super::estimation;
+use super::options::{SecrecyOptions, Sizing, default_adversaries};
 use super::pipeline::{self, BlockSettings, Pooling};
 use super::point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
 use super::private::{self, OffRuns};
@@ -205,12 +206,15 @@ fn analyze_point(
     let robot_bits = zeroize::Zeroizing::new(accepted(|r| &r.keys.robot));
     let ones = robot_bits.iter().filter(|&&b| b == 1).count() as u64;
     let is_private = config.sensing.mode == SensingMode::Private;
-    let settings = BlockSettings {
+    let measured = is_private && options.sizing == Sizing::Measured;
+    let mut settings = BlockSettings {
         pooling: options.pooling,
         epsilon: options.epsilon,
         sample_bits: options.sample_bits,
         block_bits: options.block_bits,
-        assumption: if is_private {
+        assumption: if measured {
+            robokey::post_settings::measured_camera_assumption(config, 0.0, options.epsilon)
+        } else if is_private {
             robokey::post_settings::camera_assumption(config, private::largest_separation(runs))
         } else {
             options.assumption()
@@ -219,7 +223,25 @@ fn analyze_point(
     let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
     let mut pools = pipeline::pools(runs, options.pooling, options.block_bits, adversary);
     pools.truncate(options.blocks);
+    if measured {
+        for pool in &mut pools {
+            let pooled: Vec<&RunOutput> = pool.runs.iter().map(|&i| &runs[i]).collect();
+            let (separations, estimate) =
+                estimation::block_separations(config, &pooled, options.epsilon);
+            pool.separations = separations;
+            pool.estimate = Some(estimate);
+        }
+    }
     let blocks = pipeline::post_process(&pools, &settings, &mut public);
+    if measured {
+        // For people: the largest separation any block was sized with.
+        let largest = blocks
+            .iter()
+            .filter_map(|b| b.estimate.as_ref())
+            .filter(|e| e.refused.is_none())
+            .fold(0.0_f64, |m, e| m.max(e.separation));
+        settings.assumption = settings.assumption.for_block((largest * 1e6).ceil() as u64);
+    }
     // Every session run until the last one pooled cost robot time, dropped ones included.
     let used_steps: u64 = pools.last().map_or(0, |pool| {
         runs[..=pool.last_session]

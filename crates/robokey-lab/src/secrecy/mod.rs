@@ -15,6 +15,7 @@
 //! renders them.
 
 pub mod analyze;
+pub mod estimation;
 pub mod map;
 pub mod options;
 pub mod pipeline;
@@ -24,7 +25,7 @@ pub mod request;
 pub mod stage;
 
 pub use analyze::{analyze, analyze_with};
-pub use options::{MAX_SESSIONS, SecrecyOptions, default_adversaries, default_max_sessions};
+pub use options::{MAX_SESSIONS, SecrecyOptions, Sizing, default_adversaries, default_max_sessions};
 pub use pipeline::{Block, BlockSettings, Pooling};
 pub use point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
 pub use private::PrivateFigures;

@@ -24,6 +24,8 @@ use robokey_secrecy::postprocess::{
 use serde::{Deserialize, Serialize};
 use zeroize::Zeroizing;
 
+use super::estimation::BlockEstimate;
+
 /// Which sessions are pooled, and what was published over their keys.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -111,6 +113,13 @@ pub struct Pool {
     pub eve: Zeroizing<Vec<u8>>,
     /// Private sensing: Eve's calibrated posterior error probability of each bit.
     pub eve_posteriors: Vec<f64>,
+    /// Indices (into the runs) of the sessions pooled, in order.
+    pub runs: Vec<usize>,
+    /// Measured sizing: each pooled session's largest Eve separation at the worst case of
+    /// the block's estimate (empty: the assumption's separation alone sizes the key).
+    pub separations: Vec<f64>,
+    /// Measured sizing: the block's estimate.
+    pub estimate: Option<BlockEstimate>,
 }
 
 /// Groups the admitted sessions of `runs`, in order, into pools of at least `block_bits`
@@ -143,6 +152,7 @@ pub fn pools(
             }));
         }
         pool.sessions += 1;
+        pool.runs.push(index);
         pool.lengths.push(keys.robot.len());
         pool.last_session = index;
         if pool.robot.len() >= block_bits {
@@ -214,6 +224,9 @@ pub struct Block {
     pub realised: Realised,
     /// The assumption credits more than the realised view of this adversary supports.
     pub assumption_exceeds_realised: bool,
+    /// Measured sizing: what the controller measured for the block.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimate: Option<BlockEstimate>,
 }
 
 /// Settings of post-processing in the simulator.
@@ -275,6 +288,7 @@ fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
         reason: length.and_then(|l| l.reason),
         realised: realised(pool, &[], n, 0, leak_confirmation, settings.epsilon),
         assumption_exceeds_realised: false,
+        estimate: None,
     };
     finish(&mut block, settings, None);
     block
@@ -300,8 +314,13 @@ fn through_endpoints(
     ) else {
         return Vec::new();
     };
-    for (id, (robot_bits, controller_bits)) in
-        pools.iter().flat_map(|p| p.session_bits()).enumerate()
+    for (id, ((robot_bits, controller_bits), separation)) in pools
+        .iter()
+        .flat_map(|p| {
+            let separations = p.separations.iter().copied().chain(std::iter::repeat(0.0));
+            p.session_bits().into_iter().zip(separations)
+        })
+        .enumerate()
     {
         let id = id as u32;
         let _ = robot.handle_input(RobotInput::Session {
@@ -311,8 +330,9 @@ fn through_endpoints(
         let _ = controller.handle_input(ControllerInput::Session {
             id,
             bits: controller_bits,
-            // The block's separation is the settings' (the largest over every run).
-            separation: 0.0,
+            // Configured sizing: 0, the block's separation is the settings' (the largest
+            // over every run); measured: the session's at its block's worst case.
+            separation,
         });
     }
     let mut controller_reports = Vec::new();
@@ -419,8 +439,13 @@ fn endpoint_block(
             settings.epsilon,
         ),
         assumption_exceeds_realised: false,
+        estimate: pool.estimate.clone(),
     };
     finish(&mut block, settings, aborted);
+    if let Some(why) = pool.estimate.as_ref().and_then(|e| e.refused.clone()) {
+        // Refused outside the model class: no pooling advice, the class does not cover it.
+        block.reason = Some(format!("block refused: {why}"));
+    }
     block
 }
 

@@ -9,7 +9,7 @@ use serde::Deserialize;
 
 use super::analyze::analyze_with;
 use super::map::{PrivateMap, private_map};
-use super::options::SecrecyOptions;
+use super::options::{SecrecyOptions, Sizing};
 use super::pipeline::Pooling;
 use super::point::PointSecrecy;
 use crate::error::{LabError, io_at};
@@ -31,6 +31,8 @@ pub struct Secrecy {
     pub block_bits: usize,
     /// Which sessions were pooled.
     pub pooling: Pooling,
+    /// What sized private sensing's key.
+    pub sizing: Sizing,
     /// Per point and adversary, strongest class first.
     pub results: Vec<PointSecrecy>,
     /// Private sensing: where it pays ([`private_map`]).
@@ -43,6 +45,8 @@ struct SecrecyFile {
     epsilon: f64,
     block_bits: usize,
     pooling: Pooling,
+    #[serde(default)]
+    sizing: Sizing,
     results: Vec<PointSecrecy>,
 }
 
@@ -64,22 +68,54 @@ impl Secrecy {
             epsilon: options.epsilon,
             block_bits: options.block_bits,
             pooling: options.pooling,
+            sizing: options.sizing,
             results,
             map,
         })
+    }
+
+    /// Whether measured sizing applied: private sensing with `--sizing measured`.
+    fn measured(&self) -> bool {
+        self.sizing == Sizing::Measured
+            && self
+                .results
+                .iter()
+                .any(|r| r.blocks.iter().any(|b| b.estimate.is_some()))
+    }
+
+    /// The named ε terms, for people: "ε_s = ε_PA = ε_PE", and "= ε_est" when the plant
+    /// was measured.
+    #[must_use]
+    pub fn epsilon_terms(&self) -> &'static str {
+        if self.measured() {
+            "ε_s = ε_PA = ε_PE = ε_est"
+        } else {
+            "ε_s = ε_PA = ε_PE"
+        }
+    }
+
+    /// The key's total ε: 2ε_s + ε_PA + ε_PE, + ε_est when the plant was measured.
+    #[must_use]
+    pub fn epsilon_total(&self) -> f64 {
+        let terms = if self.measured() { 5.0 } else { 4.0 };
+        terms * self.epsilon
     }
 
     /// The contents of `secrecy.json`: the settings (`epsilon_total`, for people, is 4ε) and
     /// every result.
     #[must_use]
     pub fn json(&self) -> serde_json::Value {
-        serde_json::json!({
+        let mut json = serde_json::json!({
             "epsilon": self.epsilon,
-            "epsilon_total": 4.0 * self.epsilon,
+            "epsilon_total": self.epsilon_total(),
             "block_bits": self.block_bits,
             "pooling": self.pooling,
             "results": self.results,
-        })
+        });
+        if self.sizing != Sizing::Configured {
+            json["sizing"] = serde_json::json!(self.sizing);
+        }
+        json
     }
 
     /// The contents of `private-map.json`, if the sweep has a map.
@@ -136,6 +172,7 @@ impl Secrecy {
             epsilon: file.epsilon,
             block_bits: file.block_bits,
             pooling: file.pooling,
+            sizing: file.sizing,
             results: file.results,
             map,
         })

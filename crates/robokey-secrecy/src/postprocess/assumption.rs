@@ -33,6 +33,18 @@ pub enum Assumption {
         /// The physical model, for people: e.g. "Eve's camera noise ≥ 8 mm, 8 mrad".
         statement: String,
     },
+    /// [`Self::GaussianViews`] with the plant measured rather than configured: the
+    /// separation is the largest over the block's bits at the worst case of a (1 − ε_est)
+    /// confidence region of the motion noise the controller estimated from its own samples
+    /// (docs/estimation.md). The region's failure probability ε_est is a term of the key's ε.
+    MeasuredViews {
+        /// The largest separation d over the pooled bits at the region's worst case, ≥ 0.
+        separation: f64,
+        /// The camera statement and the measured plant, for people.
+        statement: String,
+        /// ε_est: the probability that the true motion noise lies outside the region.
+        estimation_epsilon: f64,
+    },
 }
 
 /// An assumption out of range.
@@ -45,6 +57,9 @@ pub enum AssumptionError {
     /// A separation that is negative or not finite.
     #[error("assumed separation {0} of Eve's view is out of range (allowed: ≥ 0, finite)")]
     Separation(f64),
+    /// An ε_est outside (0, 1).
+    #[error("ε_est {0} of the measured plant's region is out of range (allowed: (0, 1))")]
+    EstimationEpsilon(f64),
 }
 
 impl Assumption {
@@ -57,10 +72,15 @@ impl Assumption {
             Self::IndependentErrors { error_rate } if !(error_rate > 0.0 && error_rate <= 0.5) => {
                 Err(AssumptionError::ErrorRate(error_rate))
             }
-            Self::GaussianViews { separation, .. }
+            Self::GaussianViews { separation, .. } | Self::MeasuredViews { separation, .. }
                 if !(separation >= 0.0 && separation.is_finite()) =>
             {
                 Err(AssumptionError::Separation(separation))
+            }
+            Self::MeasuredViews {
+                estimation_epsilon, ..
+            } if !(estimation_epsilon > 0.0 && estimation_epsilon < 1.0) => {
+                Err(AssumptionError::EstimationEpsilon(estimation_epsilon))
             }
             _ => Ok(()),
         }
@@ -87,8 +107,42 @@ impl Assumption {
                 separation: separation.max(separation_micros as f64 * 1e-6),
                 statement: statement.clone(),
             },
+            Self::MeasuredViews {
+                separation,
+                statement,
+                estimation_epsilon,
+            } => Self::MeasuredViews {
+                separation: separation.max(separation_micros as f64 * 1e-6),
+                statement: statement.clone(),
+                estimation_epsilon: *estimation_epsilon,
+            },
             Self::NoSecrecy { .. } | Self::IndependentErrors { .. } => self.clone(),
         }
+    }
+
+    /// The named ε terms a key made under this assumption is secret except with, for ε per
+    /// term `epsilon`: 2ε_s + ε_PA + ε_PE, and ε_est when the plant was measured.
+    #[must_use]
+    pub fn epsilon_terms(&self, epsilon: f64) -> Vec<(&'static str, f64)> {
+        let mut terms = vec![
+            ("ε_s", epsilon),
+            ("ε_s", epsilon),
+            ("ε_PA", epsilon),
+            ("ε_PE", epsilon),
+        ];
+        if let Self::MeasuredViews {
+            estimation_epsilon, ..
+        } = self
+        {
+            terms.push(("ε_est", *estimation_epsilon));
+        }
+        terms
+    }
+
+    /// The total ε of [`Self::epsilon_terms`].
+    #[must_use]
+    pub fn total_epsilon(&self, epsilon: f64) -> f64 {
+        self.epsilon_terms(epsilon).iter().map(|t| t.1).sum()
     }
 
     /// For people: what is assumed.
@@ -110,6 +164,18 @@ impl Assumption {
                 gaussian_llr::error_rate(*separation),
                 gaussian_llr::information(*separation),
             ),
+            Self::MeasuredViews {
+                separation,
+                statement,
+                estimation_epsilon,
+            } => format!(
+                "{statement}: at the worst case of the motion noise's (1 − {estimation_epsilon:e}) \
+                 region, Eve's view of each bit is at most a Gaussian likelihood ratio of \
+                 separation {separation:.3} (her error rate ≥ {:.4}, information ≤ {:.4} bit), \
+                 independent across bits; ε_est = {estimation_epsilon:e} is a term of the key's ε",
+                gaussian_llr::error_rate(*separation),
+                gaussian_llr::information(*separation),
+            ),
         }
     }
 
@@ -124,7 +190,7 @@ impl Assumption {
             Self::IndependentErrors { error_rate } => {
                 binomial_smooth_min_entropy(n, error_rate, epsilon).map_or(0.0, |b| b.h_min)
             }
-            Self::GaussianViews { separation, .. } => {
+            Self::GaussianViews { separation, .. } | Self::MeasuredViews { separation, .. } => {
                 gaussian_llr_smooth_min_entropy(n, separation, epsilon).map_or(0.0, |b| b.h_min)
             }
         }
@@ -144,7 +210,9 @@ impl Assumption {
                 reason: Some(format!("no secret bits: {reason}")),
                 ..length
             },
-            Self::IndependentErrors { .. } | Self::GaussianViews { .. } => length,
+            Self::IndependentErrors { .. }
+            | Self::GaussianViews { .. }
+            | Self::MeasuredViews { .. } => length,
         };
         (h_min, length)
     }

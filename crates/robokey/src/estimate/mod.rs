@@ -11,6 +11,8 @@ pub mod motion_noise;
 pub mod residual;
 pub mod worst_case;
 
-pub use motion_noise::{EstimationRefusal, MotionNoiseEstimate, estimate_motion_noise};
+pub use motion_noise::{
+    EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
+};
 pub use residual::DoubletResidual;
 pub use worst_case::worst_case_separations;

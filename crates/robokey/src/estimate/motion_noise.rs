@@ -128,6 +128,13 @@ fn second_moment<'a>(residuals: impl Iterator<Item = &'a DoubletResidual>) -> (u
     (count, sum / count.max(1) as f64)
 }
 
+/// The covariance of independent components of standard deviations `std`: a stated
+/// sensor calibration `R` (m², m², rad²).
+#[must_use]
+pub fn diagonal_covariance(std: [f64; 3]) -> Matrix3<f64> {
+    Matrix3::from_diagonal(&nalgebra::Vector3::from(std.map(|s| s * s)))
+}
+
 /// Names a robot-frame direction for people.
 fn describe_direction(v: &nalgebra::Vector3<f64>) -> String {
     format!(
@@ -247,9 +254,7 @@ mod tests {
         out
     }
 
-    fn covariance(std: [f64; 3]) -> Matrix3<f64> {
-        Matrix3::from_diagonal(&nalgebra::Vector3::from(std.map(|s| s * s)))
-    }
+    use super::diagonal_covariance as covariance;
 
     /// The point estimate is unbiased with the sensor term removed: over 20,000 doublets
     /// each diagonal entry's relative standard error is √(2/n)·(Q + R)/Q ≈ 1 % at 1 mm

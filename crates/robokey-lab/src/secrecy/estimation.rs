@@ -1,0 +1,117 @@
+//! Keys sized from measured motion noise in the simulator (docs/estimation.md): per block,
+//! the controller's estimate from its own samples of the block's sessions and the
+//! reconciled bits, and each session's largest Eve separation at the region's worst case —
+//! what the post-processing endpoints then size ℓ from.
+//!
+//! The reconciled bits are the robot's: a block whose reconciliation or confirmation fails
+//! gives no key, so wherever ℓ matters the controller's corrected bits equal the robot's.
+
+use robokey::Config;
+use robokey::estimate::{
+    DoubletResidual, diagonal_covariance, estimate_motion_noise, worst_case_separations,
+};
+use robokey::private::likelihood::stated_camera_view;
+use robokey::private::{BitKind, DoubletBit, doublet_model};
+use robokey::sim::RunOutput;
+use serde::{Deserialize, Serialize};
+
+/// The separation fed for the sessions of a refused block: Eve is taken to see every bit
+/// (the largest the endpoints accept), so the block gives no key.
+const REFUSED_SEPARATION: f64 = 1e6;
+
+/// What the controller measured for one block, for reports.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BlockEstimate {
+    /// Doublets whose residuals were used.
+    pub doublets: usize,
+    /// The point estimate's standard deviations √Q̂_kk (mm, mm, mrad; robot frame).
+    pub point_std_mm: [f64; 3],
+    /// The region's worst-case vertex's √Q_low,kk (mm, mm, mrad): what sizes Eve's view.
+    pub lower_std_mm: [f64; 3],
+    /// ε_est.
+    pub epsilon: f64,
+    /// The largest separation of Eve's view over the block's bits at the worst case.
+    pub separation: f64,
+    /// Why the block was refused, naming the test and the value.
+    pub refused: Option<String>,
+}
+
+/// Each of `runs`' sessions' largest worst-case separation, and the block's estimate, for
+/// the sessions of one block under the parties' `config` (their stated sensor calibration
+/// and camera) at ε_est = `epsilon`.
+#[must_use]
+pub fn block_separations(
+    config: &Config,
+    runs: &[&RunOutput],
+    epsilon: f64,
+) -> (Vec<f64>, BlockEstimate) {
+    let model = doublet_model(config);
+    let per_doublet = |run: &&RunOutput| -> Vec<DoubletBit> {
+        run.private
+            .as_ref()
+            .map_or(Vec::new(), |p| p.bits.iter().filter(|b| b.kind == BitKind::V).copied().collect())
+    };
+    let residuals: Vec<DoubletResidual> = runs
+        .iter()
+        .flat_map(per_doublet)
+        .map(|b| {
+            DoubletResidual::new(&model, b.step / 2, &b.inputs, &b.samples[0], &b.samples[2], b.pattern)
+        })
+        .collect();
+    let sensor = diagonal_covariance(config.sensing.controller_std);
+    let refuse = |why: String, doublets: usize| {
+        (
+            vec![REFUSED_SEPARATION; runs.len()],
+            BlockEstimate {
+                doublets,
+                point_std_mm: [f64::NAN; 3],
+                lower_std_mm: [f64::NAN; 3],
+                epsilon,
+                separation: REFUSED_SEPARATION,
+                refused: Some(why),
+            },
+        )
+    };
+    let estimate = match estimate_motion_noise(&residuals, &sensor, epsilon) {
+        Ok(e) => e,
+        Err(refusal) => return refuse(refusal.to_string(), residuals.len()),
+    };
+    let bits = usize::from(config.protocol.bits_per_doublet);
+    let mut separations = Vec::with_capacity(runs.len());
+    for run in runs {
+        let mut largest = 0.0_f64;
+        for b in per_doublet(run) {
+            let view = stated_camera_view(b.samples, config.sensing.controller_std, config.eve.camera_std);
+            match worst_case_separations(&model, &estimate.lower, &b.inputs, &view) {
+                Some(d) => largest = d[..bits].iter().fold(largest, |m, &x| m.max(x)),
+                None => {
+                    return refuse(
+                        format!(
+                            "motion-noise estimate: at the region's worst case (Q_low's \
+                             diagonal {:?} m², m², rad²) Eve's modelled covariance is not \
+                             positive definite at doublet {} (allowed: a bound exists)",
+                            [0, 1, 2].map(|k| estimate.lower[(k, k)]),
+                            b.step / 2
+                        ),
+                        residuals.len(),
+                    );
+                }
+            }
+        }
+        separations.push(largest);
+    }
+    let [point, lower] = estimate.stds();
+    let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);
+    let separation = separations.iter().fold(0.0_f64, |m, &x| m.max(x));
+    (
+        separations,
+        BlockEstimate {
+            doublets: estimate.doublets,
+            point_std_mm: mm(point),
+            lower_std_mm: mm(lower),
+            epsilon,
+            separation,
+            refused: None,
+        },
+    )
+}
