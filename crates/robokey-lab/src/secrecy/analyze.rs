@@ -791,6 +791,63 @@ mod tests {
         assert!(figures.jx_mm < 1.5 * figures.jx_off_mm, "{figures:?}");
     }
 
+    /// Seed 2023, blocks of 10⁴ bits, parties at their defaults in a world of 1 mm of motion
+    /// noise: configured sizing over-claims (issue 32 measured ≈ 0.025 bit per amplified
+    /// bit, ≈ 225 bits here); measured sizing stays within the world-aware camera
+    /// eavesdropper's realised bound (729 bits of margin measured, against a standard
+    /// deviation of ≈ 0.30·√n ≈ 29 bits of that bound) and within 10 % of a pair configured
+    /// with the true 1 mm (97.9 % measured).
+    #[test]
+    fn measured_sizing_holds_in_a_quieter_world_and_nearly_matches_a_pair_that_knows_it() {
+        let world = private("[world]\nprocess_std = [0.001, 0.001, 0.001]\n");
+        let camera = || private_options(vec![EveStrategy::Camera]);
+        let measured = SecrecyOptions {
+            sizing: Sizing::Measured,
+            ..camera()
+        };
+        let m = &analyze(&world, &measured).unwrap()[0];
+        let c = &analyze(&world, &camera()).unwrap()[0];
+        let truth = private("[noise]\nprocess_std = [0.001, 0.001, 0.001]\n");
+        let t = &analyze(&truth, &camera()).unwrap()[0];
+        assert!(c.assumption_exceeds_realised, "configured: {c:?}");
+        assert!(!m.assumption_exceeds_realised, "measured: {m:?}");
+        assert!(m.secret_bits <= m.realised_secret_bits);
+        assert!(
+            m.secret_bits as f64 >= 0.9 * t.secret_bits as f64,
+            "{} vs {}",
+            m.secret_bits,
+            t.secret_bits
+        );
+        let e = m.blocks[0].estimate.as_ref().unwrap();
+        assert!(e.refused.is_none());
+        assert!(e.lower_std_mm[0] < e.point_std_mm[0] && e.point_std_mm[0] < 1.1);
+        assert!(m.assumption.contains("measured by the controller"), "{}", m.assumption);
+        assert!(m.assumption.contains("ε_est"), "{}", m.assumption);
+    }
+
+    /// A sensor stated 6× noisier than it is: the residuals vary less than the stated
+    /// calibration alone explains, so the block is refused, naming the test and the field,
+    /// and counted (no key, its sessions' steps in the rate).
+    #[test]
+    fn measured_sizing_refuses_a_block_outside_the_class_by_name() {
+        let e = experiment(
+            "[sensing]\nmode = \"private\"\ncontroller_std = [0.003, 0.003, 0.003]\n\
+             [run]\nreplicates = 2\n\
+             [world]\ncontroller_std = [0.0005, 0.0005, 0.0005]\n\
+             process_std = [0.0001, 0.0001, 0.0001]\n",
+        );
+        let options = SecrecyOptions {
+            sizing: Sizing::Measured,
+            ..private_options(vec![EveStrategy::Camera])
+        };
+        let r = &analyze(&e, &options).unwrap()[0];
+        assert_eq!(r.secret_bits, 0);
+        assert!(r.used_steps > 0 && r.secret_bits_per_step == 0.0);
+        let why = r.blocks[0].reason.as_deref().unwrap();
+        assert!(why.starts_with("block refused"), "{why}");
+        assert!(why.contains("sensing.controller_std"), "{why}");
+    }
+
     #[test]
     fn private_points_refuse_what_does_not_apply() {
         let e = private("");
