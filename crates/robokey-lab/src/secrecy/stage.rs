@@ -97,8 +97,14 @@ impl Secrecy {
     /// The key's total ε: 2ε_s + ε_PA + ε_PE, + ε_est when the plant was measured.
     #[must_use]
     pub fn epsilon_total(&self) -> f64 {
-        let terms = if self.measured() { 5.0 } else { 4.0 };
-        terms * self.epsilon
+        if self.measured() {
+            // Five terms, read back at 12 digits so that 5 × 10⁻⁶ prints as 5e-6.
+            format!("{:.12e}", 5.0 * self.epsilon)
+                .parse()
+                .unwrap_or(5.0 * self.epsilon)
+        } else {
+            4.0 * self.epsilon
+        }
     }
 
     /// The contents of `secrecy.json`: the settings (`epsilon_total`, for people, is 4ε) and
