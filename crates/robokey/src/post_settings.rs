@@ -6,6 +6,7 @@ use robokey_secrecy::cascade::CascadeSchedule;
 use robokey_secrecy::postprocess::{Assumption, Settings};
 
 use crate::config::{Config, SensingMode};
+use crate::estimate::ESTIMATE_LEAK_BITS;
 
 /// Why the odometry mode yields no secret bit against an eavesdropper who learns the model.
 pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything the controller \
@@ -42,7 +43,7 @@ pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
 /// (white Gaussian, a 3×3 covariance in the robot's frame; the sensor's calibration
 /// `sensing.controller_std` stated); her view of each bit at most as informative as a
 /// Gaussian LLR of `separation` at the worst case of the estimate's (1 − `estimation_epsilon`)
-/// region.
+/// region; the published outcome of the estimate charged [`ESTIMATE_LEAK_BITS`].
 #[must_use]
 pub fn measured_camera_assumption(
     config: &Config,
@@ -67,6 +68,7 @@ pub fn measured_camera_assumption(
             mm(r[2]),
         ),
         estimation_epsilon,
+        estimate_leak: ESTIMATE_LEAK_BITS,
     }
 }
 

@@ -794,9 +794,9 @@ mod tests {
     /// Seed 2023, blocks of 10⁴ bits, parties at their defaults in a world of 1 mm of motion
     /// noise: configured sizing over-claims (issue 32 measured ≈ 0.025 bit per amplified
     /// bit, ≈ 225 bits here); measured sizing stays within the world-aware camera
-    /// eavesdropper's realised bound (729 bits of margin measured, against a standard
+    /// eavesdropper's realised bound (754 bits of margin measured, against a standard
     /// deviation of ≈ 0.30·√n ≈ 29 bits of that bound) and within 10 % of a pair configured
-    /// with the true 1 mm (97.9 % measured).
+    /// with the true 1 mm (97.3 % measured).
     #[test]
     fn measured_sizing_holds_in_a_quieter_world_and_nearly_matches_a_pair_that_knows_it() {
         let world = private("[world]\nprocess_std = [0.001, 0.001, 0.001]\n");

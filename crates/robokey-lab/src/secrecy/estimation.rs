@@ -8,7 +8,8 @@
 
 use robokey::Config;
 use robokey::estimate::{
-    DoubletResidual, diagonal_covariance, estimate_motion_noise, worst_case_separations,
+    DoubletResidual, diagonal_covariance, estimate_motion_noise, published_separation,
+    worst_case_separations,
 };
 use robokey::private::likelihood::stated_camera_view;
 use robokey::private::{BitKind, DoubletBit, doublet_model};
@@ -30,13 +31,16 @@ pub struct BlockEstimate {
     pub lower_std_mm: [f64; 3],
     /// ε_est.
     pub epsilon: f64,
-    /// The largest separation of Eve's view over the block's bits at the worst case.
+    /// The largest separation of Eve's view over the block's bits at the worst case, rounded
+    /// up to the published grid (2⁻⁸).
     pub separation: f64,
     /// Why the block was refused, naming the test and the value.
     pub refused: Option<String>,
 }
 
-/// Each of `runs`' sessions' largest worst-case separation, and the block's estimate, for
+/// Each of `runs`' sessions' largest worst-case separation (rounded up to the published
+/// grid: the estimate depends on the bits, and what is published of it is charged by the
+/// assumption), and the block's estimate, for
 /// the sessions of one block under the parties' `config` (their stated sensor calibration
 /// and camera) at ε_est = `epsilon`.
 #[must_use]
@@ -98,7 +102,7 @@ pub fn block_separations(
                 }
             }
         }
-        separations.push(largest);
+        separations.push(published_separation(largest));
     }
     let [point, lower] = estimate.stds();
     let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);

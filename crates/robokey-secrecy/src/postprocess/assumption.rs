@@ -44,6 +44,10 @@ pub enum Assumption {
         statement: String,
         /// ε_est: the probability that the true motion noise lies outside the region.
         estimation_epsilon: f64,
+        /// log₂ of the number of values the published outcome of the estimate can take
+        /// (the quantised separation, or a refusal): the estimate depends on the bits, so
+        /// what is carried of it is charged, `H_min(X | E, F) ≥ H_min(X | E) − log₂|F|`.
+        estimate_leak: f64,
     },
 }
 
@@ -60,6 +64,9 @@ pub enum AssumptionError {
     /// An ε_est outside (0, 1).
     #[error("ε_est {0} of the measured plant's region is out of range (allowed: (0, 1))")]
     EstimationEpsilon(f64),
+    /// A charge for the published estimate that is negative or not finite.
+    #[error("the charge {0} bits for the published estimate is out of range (allowed: ≥ 0, finite)")]
+    EstimateLeak(f64),
 }
 
 impl Assumption {
@@ -81,6 +88,11 @@ impl Assumption {
                 estimation_epsilon, ..
             } if !(estimation_epsilon > 0.0 && estimation_epsilon < 1.0) => {
                 Err(AssumptionError::EstimationEpsilon(estimation_epsilon))
+            }
+            Self::MeasuredViews { estimate_leak, .. }
+                if !(estimate_leak >= 0.0 && estimate_leak.is_finite()) =>
+            {
+                Err(AssumptionError::EstimateLeak(estimate_leak))
             }
             _ => Ok(()),
         }
@@ -111,10 +123,12 @@ impl Assumption {
                 separation,
                 statement,
                 estimation_epsilon,
+                estimate_leak,
             } => Self::MeasuredViews {
                 separation: separation.max(separation_micros as f64 * 1e-6),
                 statement: statement.clone(),
                 estimation_epsilon: *estimation_epsilon,
+                estimate_leak: *estimate_leak,
             },
             Self::NoSecrecy { .. } | Self::IndependentErrors { .. } => self.clone(),
         }
@@ -168,11 +182,13 @@ impl Assumption {
                 separation,
                 statement,
                 estimation_epsilon,
+                estimate_leak,
             } => format!(
                 "{statement}: at the worst case of the motion noise's (1 − {estimation_epsilon:e}) \
                  region, Eve's view of each bit is at most a Gaussian likelihood ratio of \
                  separation {separation:.3} (her error rate ≥ {:.4}, information ≤ {:.4} bit), \
-                 independent across bits; ε_est = {estimation_epsilon:e} is a term of the key's ε",
+                 independent across bits; ε_est = {estimation_epsilon:e} is a term of the key's ε; \
+                 the published estimate is charged {estimate_leak:.1} bits",
                 gaussian_llr::error_rate(*separation),
                 gaussian_llr::information(*separation),
             ),
@@ -190,9 +206,17 @@ impl Assumption {
             Self::IndependentErrors { error_rate } => {
                 binomial_smooth_min_entropy(n, error_rate, epsilon).map_or(0.0, |b| b.h_min)
             }
-            Self::GaussianViews { separation, .. } | Self::MeasuredViews { separation, .. } => {
+            Self::GaussianViews { separation, .. } => {
                 gaussian_llr_smooth_min_entropy(n, separation, epsilon).map_or(0.0, |b| b.h_min)
             }
+            Self::MeasuredViews {
+                separation,
+                estimate_leak,
+                ..
+            } => (gaussian_llr_smooth_min_entropy(n, separation, epsilon)
+                .map_or(0.0, |b| b.h_min)
+                - estimate_leak)
+                .max(0.0),
         }
     }
 
@@ -215,5 +239,47 @@ impl Assumption {
             | Self::MeasuredViews { .. } => length,
         };
         (h_min, length)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn measured(separation: f64, estimation_epsilon: f64, estimate_leak: f64) -> Assumption {
+        Assumption::MeasuredViews {
+            separation,
+            statement: "test".into(),
+            estimation_epsilon,
+            estimate_leak,
+        }
+    }
+
+    /// Measured views are the Gaussian views less the published estimate's charge, with
+    /// ε_est a fifth named term; a configured statement keeps its four.
+    #[test]
+    fn a_measured_plant_charges_its_estimate_and_names_epsilon_est() {
+        let configured = Assumption::GaussianViews {
+            separation: 1.7,
+            statement: "test".into(),
+        };
+        let m = measured(1.7, 1e-6, 16.5);
+        assert!((configured.h_min(10_000, 1e-6) - m.h_min(10_000, 1e-6) - 16.5).abs() < 1e-9);
+        assert_eq!(configured.epsilon_terms(1e-6).len(), 4);
+        let terms = m.epsilon_terms(1e-6);
+        assert_eq!(terms.last(), Some(&("ε_est", 1e-6)));
+        assert!((m.total_epsilon(1e-6) - 5e-6).abs() < 1e-18);
+        assert!(m.describe().contains("ε_est = 1e-6"));
+        assert_eq!(m.for_block(2_000_000), measured(2.0, 1e-6, 16.5));
+        assert!(m.check().is_ok());
+        assert_eq!(
+            measured(1.7, 0.0, 16.5).check(),
+            Err(AssumptionError::EstimationEpsilon(0.0))
+        );
+        assert_eq!(
+            measured(1.7, 1e-6, -1.0).check(),
+            Err(AssumptionError::EstimateLeak(-1.0))
+        );
+        assert_eq!(measured(1e6, 1e-6, 16.5).h_min(10_000, 1e-6), 0.0);
     }
 }

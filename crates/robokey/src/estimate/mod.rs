@@ -15,4 +15,7 @@ pub use motion_noise::{
     EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
 };
 pub use residual::DoubletResidual;
-pub use worst_case::worst_case_separations;
+pub use worst_case::{
+    ESTIMATE_LEAK_BITS, MAX_PUBLISHED_SEPARATION, SEPARATION_QUANTUM, published_separation,
+    worst_case_separations,
+};

@@ -16,6 +16,24 @@ use super::residual::rotation;
 use crate::private::likelihood::{DoubletModel, DoubletView};
 use crate::private::DoubletInputs;
 
+/// The grid a block's worst-case separation is published on: multiples of 2⁻⁸.
+pub const SEPARATION_QUANTUM: f64 = 1.0 / 256.0;
+
+/// The largest separation published; above it Eve is taken to see every bit (ℓ = 0).
+pub const MAX_PUBLISHED_SEPARATION: f64 = 256.0;
+
+/// log₂ of the values the published outcome of a block's estimate can take: 2¹⁶ grid points
+/// of the separation, or a refusal — `log₂(2¹⁶ + 1)` bits, charged against Eve's
+/// min-entropy since the estimate depends on the bits.
+pub const ESTIMATE_LEAK_BITS: f64 = 16.000_022;
+
+/// `d` rounded up to the published grid, at most [`MAX_PUBLISHED_SEPARATION`]: rounding up
+/// only sharpens Eve's modelled view, so the bound stays a bound.
+#[must_use]
+pub fn published_separation(d: f64) -> f64 {
+    ((d / SEPARATION_QUANTUM).ceil() * SEPARATION_QUANTUM).min(MAX_PUBLISHED_SEPARATION)
+}
+
 /// Each bit's separation of Eve's modelled `view` of a doublet with public `inputs`, under
 /// `model` with its motion noise replaced by the region's vertex `lower` (robot frame);
 /// `None` when the bound does not exist.
@@ -49,6 +67,16 @@ mod tests {
     use crate::rng::{Purpose, stream};
     use nalgebra::Vector3;
     use rand::RngExt;
+
+    #[test]
+    fn the_published_grid_rounds_up_and_its_charge_counts_its_values() {
+        assert_eq!(published_separation(1.0), 1.0);
+        assert!(published_separation(1.0001) > 1.0001);
+        assert!(published_separation(1.0001) - 1.0001 < SEPARATION_QUANTUM);
+        assert_eq!(published_separation(1e6), MAX_PUBLISHED_SEPARATION);
+        let values = MAX_PUBLISHED_SEPARATION / SEPARATION_QUANTUM + 1.0;
+        assert!(ESTIMATE_LEAK_BITS >= values.log2() && ESTIMATE_LEAK_BITS - values.log2() < 1e-5);
+    }
 
     /// The vertex dominates the region: 500 random members `Q_low + GGᵀ` (full matrices,
     /// any orientation) never give a larger separation than `Q_low`, nor do the per-entry
