@@ -22,10 +22,10 @@ pub const SEPARATION_QUANTUM: f64 = 1.0 / 256.0;
 /// The largest separation published; above it Eve is taken to see every bit (ℓ = 0).
 pub const MAX_PUBLISHED_SEPARATION: f64 = 256.0;
 
-/// log₂ of the values the published outcome of a block's estimate can take: 2¹⁶ grid points
-/// of the separation, or a refusal — `log₂(2¹⁶ + 1)` bits, charged against Eve's
-/// min-entropy since the estimate depends on the bits.
-pub const ESTIMATE_LEAK_BITS: f64 = 16.000_022;
+/// log₂ of the values the published outcome of a block's estimate can take, rounded up: the
+/// 2¹⁶ + 1 grid points 0, 2⁻⁸, …, 256 of the separation, or a refusal — `log₂(2¹⁶ + 2)` bits,
+/// charged against Eve's min-entropy since the estimate depends on the bits.
+pub const ESTIMATE_LEAK_BITS: f64 = 16.000_045;
 
 /// `d` rounded up to the published grid, at most [`MAX_PUBLISHED_SEPARATION`]: rounding up
 /// only sharpens Eve's modelled view, so the bound stays a bound.
@@ -74,7 +74,8 @@ mod tests {
         assert!(published_separation(1.0001) > 1.0001);
         assert!(published_separation(1.0001) - 1.0001 < SEPARATION_QUANTUM);
         assert_eq!(published_separation(1e6), MAX_PUBLISHED_SEPARATION);
-        let values = MAX_PUBLISHED_SEPARATION / SEPARATION_QUANTUM + 1.0;
+        // The grid 0, 2⁻⁸, …, 256 and a refusal.
+        let values = MAX_PUBLISHED_SEPARATION / SEPARATION_QUANTUM + 2.0;
         assert!(ESTIMATE_LEAK_BITS >= values.log2() && ESTIMATE_LEAK_BITS - values.log2() < 1e-5);
     }
 
