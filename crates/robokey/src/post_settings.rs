@@ -19,22 +19,26 @@ pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything 
 /// hers; her view of each bit at most as informative as a Gaussian LLR of `separation`.
 #[must_use]
 pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
-    let mm = |x: f64| 1e3 * x;
-    let (e, w) = (&config.eve.camera_std, &config.noise.process_std);
     Assumption::GaussianViews {
         separation,
         statement: format!(
-            "Eve's camera noise ≥ {} mm, {} mm, {} mrad per sample instant (her effective \
-             noise after her own filtering), motion noise {} mm, {} mm, {} mrad per step, \
-             exact model, the controller's boundary samples known to her",
-            mm(e[0]),
-            mm(e[1]),
-            mm(e[2]),
-            mm(w[0]),
-            mm(w[1]),
-            mm(w[2]),
+            "Eve's camera noise ≥ {} per sample instant (her effective noise after her own \
+             filtering), motion noise {} per step, exact model, the controller's boundary \
+             samples known to her",
+            millimetres(config.eve.camera_std),
+            millimetres(config.noise.process_std),
         ),
     }
+}
+
+/// A pose's standard deviations (m, m, rad) for people: "a mm, b mm, c mrad".
+fn millimetres(std: [f64; 3]) -> String {
+    format!(
+        "{} mm, {} mm, {} mrad",
+        1e3 * std[0],
+        1e3 * std[1],
+        1e3 * std[2]
+    )
 }
 
 /// Private sensing's statement about Eve with the plant measured (docs/estimation.md): her
@@ -50,22 +54,15 @@ pub fn measured_camera_assumption(
     separation: f64,
     estimation_epsilon: f64,
 ) -> Assumption {
-    let mm = |x: f64| 1e3 * x;
-    let (e, r) = (&config.eve.camera_std, &config.sensing.controller_std);
     Assumption::MeasuredViews {
         separation,
         statement: format!(
-            "Eve's camera noise ≥ {} mm, {} mm, {} mrad per sample instant (her effective \
-             noise after her own filtering), motion noise measured by the controller per block \
-             (white Gaussian, 3×3 in the robot's frame, the controller sensor's calibration \
-             {} mm, {} mm, {} mrad stated), exact model, the controller's boundary samples \
-             known to her",
-            mm(e[0]),
-            mm(e[1]),
-            mm(e[2]),
-            mm(r[0]),
-            mm(r[1]),
-            mm(r[2]),
+            "Eve's camera noise ≥ {} per sample instant (her effective noise after her own \
+             filtering), motion noise measured by the controller per block (white Gaussian, \
+             3×3 in the robot's frame, the controller sensor's calibration {} stated), exact \
+             model, the controller's boundary samples known to her",
+            millimetres(config.eve.camera_std),
+            millimetres(config.sensing.controller_std),
         ),
         estimation_epsilon,
         estimate_leak: ESTIMATE_LEAK_BITS,

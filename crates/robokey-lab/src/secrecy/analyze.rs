@@ -821,7 +821,11 @@ mod tests {
         let e = m.blocks[0].estimate.as_ref().unwrap();
         assert!(e.refused.is_none());
         assert!(e.lower_std_mm[0] < e.point_std_mm[0] && e.point_std_mm[0] < 1.1);
-        assert!(m.assumption.contains("measured by the controller"), "{}", m.assumption);
+        assert!(
+            m.assumption.contains("measured by the controller"),
+            "{}",
+            m.assumption
+        );
         assert!(m.assumption.contains("ε_est"), "{}", m.assumption);
     }
 

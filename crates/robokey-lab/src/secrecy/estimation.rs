@@ -51,15 +51,26 @@ pub fn block_separations(
 ) -> (Vec<f64>, BlockEstimate) {
     let model = doublet_model(config);
     let per_doublet = |run: &&RunOutput| -> Vec<DoubletBit> {
-        run.private
-            .as_ref()
-            .map_or(Vec::new(), |p| p.bits.iter().filter(|b| b.kind == BitKind::V).copied().collect())
+        run.private.as_ref().map_or(Vec::new(), |p| {
+            p.bits
+                .iter()
+                .filter(|b| b.kind == BitKind::V)
+                .copied()
+                .collect()
+        })
     };
     let residuals: Vec<DoubletResidual> = runs
         .iter()
         .flat_map(per_doublet)
         .map(|b| {
-            DoubletResidual::new(&model, b.step / 2, &b.inputs, &b.samples[0], &b.samples[2], b.pattern)
+            DoubletResidual::new(
+                &model,
+                b.step / 2,
+                &b.inputs,
+                &b.samples[0],
+                &b.samples[2],
+                b.pattern,
+            )
         })
         .collect();
     let sensor = diagonal_covariance(config.sensing.controller_std);
@@ -85,7 +96,11 @@ pub fn block_separations(
     for run in runs {
         let mut largest = 0.0_f64;
         for b in per_doublet(run) {
-            let view = stated_camera_view(b.samples, config.sensing.controller_std, config.eve.camera_std);
+            let view = stated_camera_view(
+                b.samples,
+                config.sensing.controller_std,
+                config.eve.camera_std,
+            );
             match worst_case_separations(&model, &estimate.lower, &b.inputs, &view) {
                 Some(d) => largest = d[..bits].iter().fold(largest, |m, &x| m.max(x)),
                 None => {

@@ -25,7 +25,9 @@ pub mod request;
 pub mod stage;
 
 pub use analyze::{analyze, analyze_with};
-pub use options::{MAX_SESSIONS, SecrecyOptions, Sizing, default_adversaries, default_max_sessions};
+pub use options::{
+    MAX_SESSIONS, SecrecyOptions, Sizing, default_adversaries, default_max_sessions,
+};
 pub use pipeline::{Block, BlockSettings, Pooling};
 pub use point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
 pub use private::PrivateFigures;

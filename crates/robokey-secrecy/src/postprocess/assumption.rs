@@ -65,7 +65,9 @@ pub enum AssumptionError {
     #[error("ε_est {0} of the measured plant's region is out of range (allowed: (0, 1))")]
     EstimationEpsilon(f64),
     /// A charge for the published estimate that is negative or not finite.
-    #[error("the charge {0} bits for the published estimate is out of range (allowed: ≥ 0, finite)")]
+    #[error(
+        "the charge {0} bits for the published estimate is out of range (allowed: ≥ 0, finite)"
+    )]
     EstimateLeak(f64),
 }
 
@@ -213,8 +215,7 @@ impl Assumption {
                 separation,
                 estimate_leak,
                 ..
-            } => (gaussian_llr_smooth_min_entropy(n, separation, epsilon)
-                .map_or(0.0, |b| b.h_min)
+            } => (gaussian_llr_smooth_min_entropy(n, separation, epsilon).map_or(0.0, |b| b.h_min)
                 - estimate_leak)
                 .max(0.0),
         }

@@ -104,9 +104,17 @@ fn symmetric(q: &Vector6<f64>) -> Matrix3<f64> {
 fn mean_motion_operator(residuals: &[DoubletResidual]) -> Matrix6<f64> {
     let n = residuals.len() as f64;
     let mut operator = Matrix6::zeros();
-    for (k, q) in (0..6).map(|k| (k, symmetric(&Vector6::from_fn(|i, _| f64::from(u8::from(i == k))))))
-    {
-        let mean: Matrix3<f64> = residuals.iter().map(|r| r.motion_part(&q)).sum::<Matrix3<f64>>() / n;
+    for (k, q) in (0..6).map(|k| {
+        (
+            k,
+            symmetric(&Vector6::from_fn(|i, _| f64::from(u8::from(i == k)))),
+        )
+    }) {
+        let mean: Matrix3<f64> = residuals
+            .iter()
+            .map(|r| r.motion_part(&q))
+            .sum::<Matrix3<f64>>()
+            / n;
         operator.set_column(k, &coordinates(&mean));
     }
     operator
@@ -118,7 +126,9 @@ fn wishart_factor(m: usize, epsilon: f64, sign: f64) -> f64 {
     (1.0 + sign * ((3.0 / m).sqrt() + (2.0 * (2.0 / epsilon).ln() / m).sqrt())).powi(2)
 }
 
-fn second_moment<'a>(residuals: impl Iterator<Item = &'a DoubletResidual>) -> (usize, Matrix3<f64>) {
+fn second_moment<'a>(
+    residuals: impl Iterator<Item = &'a DoubletResidual>,
+) -> (usize, Matrix3<f64>) {
     let mut count = 0;
     let mut sum = Matrix3::zeros();
     for r in residuals {
@@ -156,16 +166,24 @@ pub fn estimate_motion_noise(
     if !(epsilon > 0.0 && epsilon < 1.0) {
         return Err(EstimationRefusal::Epsilon(epsilon));
     }
-    if let Some(r) = residuals.iter().find(|r| !r.value.iter().all(|v| v.is_finite())) {
+    if let Some(r) = residuals
+        .iter()
+        .find(|r| !r.value.iter().all(|v| v.is_finite()))
+    {
         return Err(EstimationRefusal::NotFinite { doublet: r.doublet });
     }
-    let halves = [0, 1].map(|parity| second_moment(residuals.iter().filter(move |r| r.doublet % 2 == parity)));
+    let halves = [0, 1]
+        .map(|parity| second_moment(residuals.iter().filter(move |r| r.doublet % 2 == parity)));
     let fewest = halves.iter().map(|h| h.0).min().unwrap_or(0);
     if fewest < MIN_DOUBLETS_PER_PARITY {
         return Err(EstimationRefusal::TooFewDoublets { have: fewest });
     }
     let n = residuals.len() as f64;
-    let sensor_mean: Matrix3<f64> = residuals.iter().map(|r| r.sensor_part(sensor)).sum::<Matrix3<f64>>() / n;
+    let sensor_mean: Matrix3<f64> = residuals
+        .iter()
+        .map(|r| r.sensor_part(sensor))
+        .sum::<Matrix3<f64>>()
+        / n;
     let operator = mean_motion_operator(residuals);
     let solve = |m: Matrix3<f64>| {
         operator
@@ -227,10 +245,16 @@ mod tests {
     /// Residuals of `doublets` consecutive straight and turning doublets whose controller
     /// samples carry white motion noise `q_std` and sensor noise `r_std` (world frame,
     /// isotropic in position), simulated through the Euler map with the bits that rode.
-    fn residuals(doublets: u32, q_std: [f64; 3], r_std: [f64; 3], seed: u64) -> Vec<DoubletResidual> {
+    fn residuals(
+        doublets: u32,
+        q_std: [f64; 3],
+        r_std: [f64; 3],
+        seed: u64,
+    ) -> Vec<DoubletResidual> {
         let model = doublet_model(&Config::default());
         let mut rng = stream(seed, Purpose::Process, 0);
-        let mut normal = |s: f64| s * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
+        let mut normal =
+            |s: f64| s * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
         let t = model.sample_time;
         let mut x = Pose::new(0.0, 0.0, 0.3);
         let mut y_start = x + Pose::new(normal(r_std[0]), normal(r_std[1]), normal(r_std[2]));
@@ -248,7 +272,9 @@ mod tests {
                     + Pose::new(normal(q_std[0]), normal(q_std[1]), normal(q_std[2]));
             }
             let y_end = x + Pose::new(normal(r_std[0]), normal(r_std[1]), normal(r_std[2]));
-            out.push(DoubletResidual::new(&model, j, &inputs, &y_start, &y_end, pattern));
+            out.push(DoubletResidual::new(
+                &model, j, &inputs, &y_start, &y_end, pattern,
+            ));
             y_start = y_end;
         }
         out
@@ -261,14 +287,21 @@ mod tests {
     /// against 0.5 mm; the tolerance is 5 of them.
     #[test]
     fn the_point_estimate_recovers_q_with_the_sensor_term_removed() {
-        for (q, r) in [([1e-3, 1e-3, 1e-3], [5e-4, 5e-4, 5e-4]), ([4e-3, 4e-3, 4e-3], [5e-4, 5e-4, 5e-4])] {
+        for (q, r) in [
+            ([1e-3, 1e-3, 1e-3], [5e-4, 5e-4, 5e-4]),
+            ([4e-3, 4e-3, 4e-3], [5e-4, 5e-4, 5e-4]),
+        ] {
             let data = residuals(20_000, q, r, 11);
             let e = estimate_motion_noise(&data, &covariance(r), 1e-6).unwrap();
             for k in 0..3 {
                 let (truth, noise) = (q[k] * q[k], r[k] * r[k]);
                 let se = (2.0 / 20_000_f64).sqrt() * (truth + noise) / truth;
                 let rel = e.point[(k, k)] / truth - 1.0;
-                assert!(rel.abs() < 5.0 * se, "{q:?} axis {k}: {} vs {truth} ({rel})", e.point[(k, k)]);
+                assert!(
+                    rel.abs() < 5.0 * se,
+                    "{q:?} axis {k}: {} vs {truth} ({rel})",
+                    e.point[(k, k)]
+                );
             }
             assert!(e.point[(0, 1)].abs() < 5.0 * (2.0 / 20_000_f64).sqrt() * 2.0 * q[0] * q[0]);
         }
@@ -293,7 +326,11 @@ mod tests {
             let above = SymmetricEigen::new(e.upper - truth).eigenvalues.min();
             misses += usize::from(below < 0.0 || above < 0.0);
             for k in 0..3 {
-                assert!(e.lower[(k, k)] > 0.63 * truth[(k, k)], "seed {seed}: {}", e.lower);
+                assert!(
+                    e.lower[(k, k)] > 0.63 * truth[(k, k)],
+                    "seed {seed}: {}",
+                    e.lower
+                );
             }
         }
         assert!(misses <= 2, "{misses} of 40 regions miss the truth");
@@ -308,7 +345,10 @@ mod tests {
         // A sensor stated 4× noisier than it is: no Q ⪰ 0 explains residuals this quiet.
         let quiet = residuals(4_000, [1e-4; 3], r, 2);
         let error = estimate_motion_noise(&quiet, &covariance([2e-3; 3]), 1e-6).unwrap_err();
-        assert!(matches!(error, EstimationRefusal::BelowSensorNoise { .. }), "{error}");
+        assert!(
+            matches!(error, EstimationRefusal::BelowSensorNoise { .. }),
+            "{error}"
+        );
         assert!(error.to_string().contains("sensing.controller_std"));
         assert!(matches!(
             estimate_motion_noise(&quiet, &covariance(r), 1.5),

@@ -23,8 +23,8 @@
 use nalgebra::Matrix3;
 
 use crate::model::Pose;
-use crate::private::likelihood::{DoubletModel, state_jacobian};
 use crate::private::DoubletInputs;
+use crate::private::likelihood::{DoubletModel, state_jacobian};
 
 /// A doublet's residual and the maps that give its covariance.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -77,19 +77,13 @@ impl DoubletResidual {
     /// `B₀QB₀ᵀ + B₁QB₁ᵀ`: the motion noise's part of `Cov(z)` for `Q` in the robot's frame.
     #[must_use]
     pub fn motion_part(&self, q: &Matrix3<f64>) -> Matrix3<f64> {
-        self.motion_maps
-            .iter()
-            .map(|b| b * q * b.transpose())
-            .sum()
+        self.motion_maps.iter().map(|b| b * q * b.transpose()).sum()
     }
 
     /// `C₀RC₀ᵀ + C₁RC₁ᵀ`: the sensor's part of `Cov(z)` for `R` in the world's frame.
     #[must_use]
     pub fn sensor_part(&self, r: &Matrix3<f64>) -> Matrix3<f64> {
-        self.sensor_maps
-            .iter()
-            .map(|c| c * r * c.transpose())
-            .sum()
+        self.sensor_maps.iter().map(|c| c * r * c.transpose()).sum()
     }
 }
 
@@ -137,7 +131,10 @@ mod tests {
         let q = Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 2.0, 3.0));
         let two_q = r.motion_part(&q);
         let coupling = model.sample_time * 0.135;
-        assert!((two_q - 2.0 * q).abs().max() < 3.0 * 3.0 * coupling, "{two_q}");
+        assert!(
+            (two_q - 2.0 * q).abs().max() < 3.0 * 3.0 * coupling,
+            "{two_q}"
+        );
         assert!((two_q[(0, 0)] - 2.0).abs() < 1e-12, "along-track: {two_q}");
     }
 }

@@ -13,8 +13,8 @@
 use nalgebra::Matrix3;
 
 use super::residual::rotation;
-use crate::private::likelihood::{DoubletModel, DoubletView};
 use crate::private::DoubletInputs;
+use crate::private::likelihood::{DoubletModel, DoubletView};
 
 /// The grid a block's worst-case separation is published on: multiples of 2⁻⁸.
 pub const SEPARATION_QUANTUM: f64 = 1.0 / 256.0;
@@ -80,8 +80,8 @@ mod tests {
     }
 
     /// The vertex dominates the region: 500 random members `Q_low + GGᵀ` (full matrices,
-    /// any orientation) never give a larger separation than `Q_low`, nor do the per-entry
-    /// "corners" that lower one diagonal entry and raise another.
+    /// any orientation, off-diagonal entries of either sign) never give a larger separation
+    /// than `Q_low` to either bit.
     #[test]
     fn no_member_of_the_region_gives_eve_a_sharper_view_than_the_vertex() {
         let mut config = Config::default();
@@ -96,7 +96,11 @@ mod tests {
             Pose::new(0.02, 0.02, 0.9),
             Pose::new(0.03, 0.035, 0.97),
         ];
-        let view = stated_camera_view(samples, config.sensing.controller_std, config.eve.camera_std);
+        let view = stated_camera_view(
+            samples,
+            config.sensing.controller_std,
+            config.eve.camera_std,
+        );
         let lower = Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6);
         let vertex = worst_case_separations(&model, &lower, &inputs, &view).unwrap();
         let mut rng = stream(5, Purpose::Public, 0);

@@ -93,7 +93,11 @@ pub struct DoubletView {
 /// `y(2j), y(2j+1), y(2j+2)`, fused at the boundaries with the controller's samples of noise
 /// `controller_std`, which the commands reveal to her.
 #[must_use]
-pub fn stated_camera_view(samples: [Pose; 3], controller_std: [f64; 3], camera_std: [f64; 3]) -> DoubletView {
+pub fn stated_camera_view(
+    samples: [Pose; 3],
+    controller_std: [f64; 3],
+    camera_std: [f64; 3],
+) -> DoubletView {
     let own = |k: usize| PoseObservation::new(samples[k], controller_std);
     let camera = |k: usize| PoseObservation::new(samples[k], camera_std);
     DoubletView {
