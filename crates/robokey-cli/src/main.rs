@@ -246,7 +246,8 @@ struct SecrecyArgs {
     /// sensing (docs/private-sensing.md).
     #[arg(long = "adversary", value_enum)]
     adversaries: Vec<StrategyArg>,
-    /// ε per term (smoothing, amplification, parameter estimation); the key is 4ε-secret.
+    /// ε per term (smoothing, amplification, parameter estimation, and with `--sizing
+    /// measured` the motion-noise region); the key is 4ε-secret (5ε with `--sizing measured`).
     /// Default: the sweep file's `[secrecy] epsilon`, else 1e-6.
     #[arg(long)]
     eps: Option<f64>,
