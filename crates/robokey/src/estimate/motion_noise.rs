@@ -79,6 +79,19 @@ pub enum EstimationRefusal {
         /// Its direction in the robot's frame, for people.
         direction: String,
     },
+    /// Tails that are not Gaussian: Mardia's multivariate kurtosis of the residuals is
+    /// outside the Gaussian range at level ε_est.
+    #[error(
+        "motion-noise estimate: the residuals' multivariate kurtosis {kurtosis:.2} is not \
+         Gaussian (allowed: 15 ± {tolerance:.2} at level ε_est): their tails are outside the \
+         model class, and the region's Wishart bound does not hold"
+    )]
+    NotGaussian {
+        /// Mardia's b₂ of the residuals.
+        kurtosis: f64,
+        /// The allowed distance from 15.
+        tolerance: f64,
+    },
     /// ε_est outside (0, 1).
     #[error("motion-noise estimate: ε_est {0} (allowed: (0, 1))")]
     Epsilon(f64),
@@ -136,6 +149,36 @@ fn second_moment<'a>(
         sum += r.value * r.value.transpose();
     }
     (count, sum / count.max(1) as f64)
+}
+
+/// Mardia's multivariate kurtosis of 3-dimensional Gaussian data, `p(p + 2)` at p = 3.
+const GAUSSIAN_KURTOSIS: f64 = 15.0;
+
+/// Mardia's kurtosis `b₂ = mean((zᵀS⁻¹z)²)` of the residuals, `S` their second moment
+/// (0 when `S` is singular).
+fn mardia_kurtosis(residuals: &[DoubletResidual], second_moment: &Matrix3<f64>) -> f64 {
+    let Some(inverse) = second_moment.try_inverse() else {
+        return 0.0;
+    };
+    residuals
+        .iter()
+        .map(|r| r.value.dot(&(inverse * r.value)).powi(2))
+        .sum::<f64>()
+        / residuals.len().max(1) as f64
+}
+
+/// The two-sided (1 − ε) range of Mardia's b₂ around 15 for n residuals: b₂ is
+/// asymptotically `N(15, 8p(p+2)/n) = N(15, 120/n)` for independent Gaussian data; the
+/// neighbours' MA(1) correlation (at most ½ in every direction) at most doubles the
+/// variance, so `z·√(240/n)` with `z` the normal quantile of ε/2.
+fn kurtosis_tolerance(n: usize, epsilon: f64) -> f64 {
+    normal_upper_quantile(epsilon / 2.0) * (240.0 / n.max(1) as f64).sqrt()
+}
+
+/// `z` with `P[N(0,1) > z] ≤ p` (p ≤ ½): from the tail bound `P[N > z] ≤ e^(−z²/2)/2`,
+/// `z = √(2 ln(1/(2p)))` — a little wider than the exact quantile, never narrower.
+fn normal_upper_quantile(p: f64) -> f64 {
+    (2.0 * (0.5 / p).ln()).max(0.0).sqrt()
 }
 
 /// The covariance of independent components of standard deviations `std`: a stated
@@ -215,6 +258,14 @@ pub fn estimate_motion_noise(
             direction: describe_direction(&eigen.eigenvectors.column(k).into_owned()),
         });
     }
+    let kurtosis = mardia_kurtosis(residuals, &all);
+    let tolerance = kurtosis_tolerance(residuals.len(), epsilon);
+    if (kurtosis - GAUSSIAN_KURTOSIS).abs() > tolerance {
+        return Err(EstimationRefusal::NotGaussian {
+            kurtosis,
+            tolerance,
+        });
+    }
     Ok(MotionNoiseEstimate {
         doublets: residuals.len(),
         point,
@@ -240,6 +291,7 @@ mod tests {
     use crate::model::{Pose, Unicycle};
     use crate::private::{DoubletInputs, doublet_model};
     use crate::rng::{Purpose, stream};
+    use rand::RngExt;
     use rand_distr::{Distribution, StandardNormal};
 
     /// Residuals of `doublets` consecutive straight and turning doublets whose controller
@@ -334,6 +386,34 @@ mod tests {
             }
         }
         assert!(misses <= 2, "{misses} of 40 regions miss the truth");
+    }
+
+    /// Laplace-tailed motion noise (kurtosis 6 per axis, against 3) is refused by the tail
+    /// test at ε_est = 10⁻⁶ over 4,000 doublets (tolerance 4.9·√(240/4000) ≈ 1.3 around 15,
+    /// where the measured b₂ is ≈ 20); Gaussian noise on 20 seeds passes it.
+    #[test]
+    fn heavy_tails_are_refused_and_gaussian_ones_are_not() {
+        let r = [5e-4, 5e-4, 5e-4];
+        for seed in 0..20 {
+            let data = residuals(4_000, [2e-3; 3], r, 300 + seed);
+            assert!(estimate_motion_noise(&data, &covariance(r), 1e-6).is_ok(), "seed {seed}");
+        }
+        let mut rng = stream(9, Purpose::Process, 1);
+        let heavy: Vec<DoubletResidual> = residuals(4_000, [0.0; 3], r, 3)
+            .into_iter()
+            .map(|mut d| {
+                for k in 0..3 {
+                    // A Laplace variate of standard deviation 2 mm: the difference of two
+                    // exponentials.
+                    let u: f64 = rng.random_range(1e-12..1.0);
+                    let v: f64 = rng.random_range(1e-12..1.0);
+                    d.value[k] += 2e-3 / 2f64.sqrt() * (u.ln() - v.ln());
+                }
+                d
+            })
+            .collect();
+        let error = estimate_motion_noise(&heavy, &covariance(r), 1e-6).unwrap_err();
+        assert!(matches!(error, EstimationRefusal::NotGaussian { .. }), "{error}");
     }
 
     #[test]
