@@ -12,7 +12,7 @@ use robokey::estimate::{
     worst_case_separations,
 };
 use robokey::private::likelihood::stated_camera_view;
-use robokey::private::{BitKind, DoubletBit, doublet_model};
+use robokey::private::{DoubletSamples, doublet_model};
 use robokey::sim::RunOutput;
 use serde::{Deserialize, Serialize};
 
@@ -38,6 +38,13 @@ pub struct BlockEstimate {
     pub refused: Option<String>,
 }
 
+/// The controller's samples of every carrying doublet of `run`.
+fn controller_samples(run: &RunOutput) -> &[DoubletSamples] {
+    run.private
+        .as_ref()
+        .map_or(&[][..], |p| &p.controller_samples)
+}
+
 /// Each of `runs`' sessions' largest worst-case separation (rounded up to the published
 /// grid: the estimate depends on the bits, and what is published of it is charged by the
 /// assumption), and the block's estimate, for
@@ -50,22 +57,13 @@ pub fn block_separations(
     epsilon: f64,
 ) -> (Vec<f64>, BlockEstimate) {
     let model = doublet_model(config);
-    let per_doublet = |run: &&RunOutput| -> Vec<DoubletBit> {
-        run.private.as_ref().map_or(Vec::new(), |p| {
-            p.bits
-                .iter()
-                .filter(|b| b.kind == BitKind::V)
-                .copied()
-                .collect()
-        })
-    };
     let residuals: Vec<DoubletResidual> = runs
         .iter()
-        .flat_map(per_doublet)
+        .flat_map(|run| controller_samples(run))
         .map(|b| {
             DoubletResidual::new(
                 &model,
-                b.step / 2,
+                b.doublet,
                 &b.inputs,
                 &b.samples[0],
                 &b.samples[2],
@@ -95,7 +93,7 @@ pub fn block_separations(
     let mut separations = Vec::with_capacity(runs.len());
     for run in runs {
         let mut largest = 0.0_f64;
-        for b in per_doublet(run) {
+        for b in controller_samples(run) {
             let view = stated_camera_view(
                 b.samples,
                 config.sensing.controller_std,
@@ -110,7 +108,7 @@ pub fn block_separations(
                              diagonal {:?} m², m², rad²) Eve's modelled covariance is not \
                              positive definite at doublet {} (allowed: a bound exists)",
                             [0, 1, 2].map(|k| estimate.lower[(k, k)]),
-                            b.step / 2
+                            b.doublet
                         ),
                         residuals.len(),
                     );

@@ -108,6 +108,13 @@ pub enum EstimationRefusal {
         /// Its allowed magnitude.
         limit: f64,
     },
+    /// The doublets' paths leave `Q` undetermined (the mean motion operator 𝓛̄ is singular;
+    /// it is 2·id up to T·v and T·ω, so this takes degenerate input).
+    #[error(
+        "motion-noise estimate: the doublets' paths leave the motion noise undetermined (the \
+         mean motion operator is singular)"
+    )]
+    Singular,
     /// ε_est outside (0, 1).
     #[error("motion-noise estimate: ε_est {0} (allowed: (0, 1))")]
     Epsilon(f64),
@@ -292,10 +299,9 @@ pub fn estimate_motion_noise(
             .sum()
     };
     let all = second_moment(residuals.iter()).1;
-    let singular = EstimationRefusal::NotFinite { doublet: 0 };
-    let point = solve(all).ok_or(singular.clone())?;
-    let lower = solve(weighted(1.0)).ok_or(singular.clone())?;
-    let upper = solve(weighted(-1.0)).ok_or(singular)?;
+    let point = solve(all).ok_or(EstimationRefusal::Singular)?;
+    let lower = solve(weighted(1.0)).ok_or(EstimationRefusal::Singular)?;
+    let upper = solve(weighted(-1.0)).ok_or(EstimationRefusal::Singular)?;
     let eigen = SymmetricEigen::new(upper);
     let (k, &smallest) = eigen
         .eigenvalues

@@ -70,12 +70,20 @@ pub struct DoubletBit {
     pub assumed_separation: f64,
     /// Its separation under the commands Eve's model: the residual leak the model predicts.
     pub commands_separation: f64,
-    /// The doublet's public inputs.
+}
+
+/// What the controller saw of one carrying doublet, kept for the block's estimate of the
+/// motion noise (docs/estimation.md). Key material: never printed.
+#[derive(Clone, Copy, PartialEq)]
+pub struct DoubletSamples {
+    /// Doublet index j.
+    pub doublet: u32,
+    /// Its public inputs.
     pub inputs: DoubletInputs,
-    /// The controller's samples `y(2j), y(2j+1), y(2j+2)` (its own: key material).
+    /// The controller's samples `y(2j), y(2j+1), y(2j+2)`.
     pub samples: [crate::model::Pose; 3],
-    /// The bit pattern the doublet carried, `v | ω << 1` (the robot's bits, which
-    /// reconciliation gives the controller).
+    /// The bit pattern the doublet carried, `v | ω << 1`: the robot's bits, which
+    /// reconciliation gives the controller.
     pub pattern: usize,
 }
 
@@ -100,7 +108,7 @@ impl DoubletBit {
 }
 
 /// What a private session carried, beyond the keys.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Default, PartialEq)]
 pub struct PrivateRun {
     /// Doublets commanded.
     pub doublets: u32,
@@ -108,4 +116,17 @@ pub struct PrivateRun {
     pub gated: u32,
     /// Every bit carried, in order.
     pub bits: Vec<DoubletBit>,
+    /// The controller's samples of every carrying doublet, in order.
+    pub controller_samples: Vec<DoubletSamples>,
+}
+
+impl std::fmt::Debug for PrivateRun {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // The controller's samples are key material: never printed.
+        f.debug_struct("PrivateRun")
+            .field("doublets", &self.doublets)
+            .field("gated", &self.gated)
+            .field("bits", &self.bits)
+            .finish()
+    }
 }

@@ -11,7 +11,8 @@ use crate::config::{Config, EveStrategy};
 use crate::eve::Eavesdropper;
 use crate::pair::{Side, Surroundings};
 use crate::private::{
-    BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, EveDoublet, PrivateRun,
+    BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, DoubletSamples, EveDoublet,
+    PrivateRun,
 };
 use crate::protocol::{
     Controller, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, Robot,
@@ -319,11 +320,14 @@ fn record(
             camera_separation: e.camera.separation[i],
             assumed_separation: d.assumed_separation[i],
             commands_separation: e.commands.separation[i],
-            inputs: d.inputs,
-            samples: d.samples,
-            pattern: usize::from(bits[0] & 1) | usize::from(bits[1] & 1) << 1,
         });
     }
+    run.controller_samples.push(DoubletSamples {
+        doublet: d.doublet,
+        inputs: d.inputs,
+        samples: d.samples,
+        pattern: usize::from(bits[0] & 1) | usize::from(bits[1] & 1) << 1,
+    });
     let decide = |llr: f64| u8::from(llr < 0.0);
     let eve_llr = match config.eve_strategy() {
         EveStrategy::Commands => e.commands.llr[0],
