@@ -23,6 +23,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 import pyarrow as pa
 import pyarrow.csv
+import pyarrow.parquet
 
 from . import _native
 from ._native import ConfigError, InputError, OptionError, SimulationError, SweepError
@@ -255,14 +256,35 @@ def secrecy(
     }
 
 
+def _parquet_runs(folder: str) -> Union[None, pa.Table, Dict[str, pa.Table]]:
+    """The ``runs.parquet`` of a sweep folder, or of each experiment folder of a suite folder
+    (by name); None when there is none."""
+    if os.path.isfile(os.path.join(folder, "runs.parquet")):
+        return pyarrow.parquet.read_table(os.path.join(folder, "runs.parquet"))
+    if not os.path.isdir(folder):
+        return None
+    names = sorted(
+        name for name in os.listdir(folder) if os.path.isfile(os.path.join(folder, name, "runs.parquet"))
+    )
+    if not names:
+        return None
+    return {name: pyarrow.parquet.read_table(os.path.join(folder, name, "runs.parquet")) for name in names}
+
+
 def read_sweep(folder: "os.PathLike[str] | str") -> Union[pa.Table, Dict[str, pa.Table]]:
     """The runs of a sweep folder that ``robokey sweep`` (or ``reproduce``) wrote, read back as
     robokey's reports read them — the same table :func:`sweep` returns for its definition; a
     suite folder gives a dict of tables by experiment name.
 
+    A folder swept with ``--format parquet`` is read from its ``runs.parquet`` (the same
+    columns, units and meanings; written only once the folder holds every run).
+
     Raises :class:`InputError` for a folder that is not a complete sweep's (interrupted, a
     shard only, a file that does not read back), OSError for a file that cannot be read.
     """
+    parquet = _parquet_runs(os.fspath(folder))
+    if parquet is not None:
+        return parquet
     experiments = _native.read_sweep(os.fspath(folder))
     tables = {
         name: _table(columns, {"robokey.sweep": resolved})
@@ -275,8 +297,10 @@ def read_sweep(folder: "os.PathLike[str] | str") -> Union[pa.Table, Dict[str, pa
 
 def read_trace(path: "os.PathLike[str] | str") -> pa.Table:
     """A ``trace.csv`` (of ``robokey run``, or a sweep's ``traces/point-<i>.csv``) as the
-    table :func:`run` returns as ``trace``. Raises :class:`InputError` naming the line that
-    does not read back."""
+    table :func:`run` returns as ``trace``; a ``.parquet`` trace (``--format parquet``) is read
+    as it is. Raises :class:`InputError` naming the line that does not read back."""
+    if os.fspath(path).endswith(".parquet"):
+        return pyarrow.parquet.read_table(os.fspath(path))
     return _table(_native.read_trace(os.fspath(path)))
 
 

@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::parquet_table::TableFormat;
 use super::layout::{experiment_dirs, folder_name, read_experiment, read_rows, write_folder};
 use super::manifest::{planned, read_manifest};
 use super::rows::Rows;
@@ -97,7 +98,7 @@ pub fn merge_sweep(dirs: &[PathBuf], out: &Path) -> Result<Experiment, LabError>
         )));
     }
     shards.sort_by_key(|s| (s.count, s.index));
-    write_folder(out, &experiment, &rows, &shards)?;
+    write_folder(out, &experiment, &rows, &shards, TableFormat::Csv)?;
     for dir in dirs {
         let traces = dir.join("traces");
         if let Ok(entries) = traces.read_dir() {

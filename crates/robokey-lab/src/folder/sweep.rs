@@ -10,6 +10,7 @@ use super::rows::Rows;
 use crate::error::LabError;
 use crate::experiment::Experiment;
 use crate::output::read;
+use crate::parquet_table::TableFormat;
 use crate::run::{Shard, run_experiment};
 use crate::trace::point_trace_path;
 
@@ -20,6 +21,9 @@ pub struct SweepPlan {
     pub shard: Option<Shard>,
     /// Continue the folder of an interrupted sweep: run only what it does not hold yet.
     pub resume: bool,
+    /// The format of the runs table and traces of a complete folder (an incomplete one is
+    /// kept in CSV, which `--resume` reads).
+    pub format: TableFormat,
 }
 
 /// What one experiment of a sweep is about to do, for the caller to announce.
@@ -124,7 +128,7 @@ pub fn sweep(
         })
         .collect::<Result<Vec<_>, _>>()?;
     for (e, f) in experiments.iter().zip(&folders) {
-        write_folder(&f.dir, e, &f.rows, &f.shards)?;
+        write_folder(&f.dir, e, &f.rows, &f.shards, plan.format)?;
     }
     let mut progress = Vec::new();
     for (e, f) in experiments.iter().zip(&mut folders) {
@@ -146,7 +150,7 @@ pub fn sweep(
             // manifest last.
             let rows = run_experiment(e, &f.dir, &to_run, stop, finished)?;
             f.rows.extend(rows.into_iter().map(|r| (r.run, r)));
-            write_folder(&f.dir, e, &f.rows, &f.shards)?;
+            write_folder(&f.dir, e, &f.rows, &f.shards, plan.format)?;
         }
         progress.push(Progress {
             name: e.name.clone(),
@@ -282,10 +286,12 @@ mod tests {
     const FRESH: SweepPlan = SweepPlan {
         shard: None,
         resume: false,
+        format: TableFormat::Csv,
     };
     const RESUME: SweepPlan = SweepPlan {
         shard: None,
         resume: true,
+        format: TableFormat::Csv,
     };
 
     fn suite(text: &str) -> Vec<Experiment> {
@@ -410,6 +416,7 @@ mod tests {
         let shard = SweepPlan {
             shard: Some(Shard { index: 2, count: 3 }),
             resume: false,
+            format: TableFormat::Csv,
         };
         let (whole, stopped) = (scratch("shard-whole"), scratch("shard-stopped"));
         sweep_stopping_after(&whole, &experiments, shard, usize::MAX).unwrap();
@@ -423,6 +430,7 @@ mod tests {
             SweepPlan {
                 shard: Some(Shard { index: 1, count: 3 }),
                 resume: true,
+                format: TableFormat::Csv,
             },
             usize::MAX,
         )

@@ -16,6 +16,7 @@ use robokey::config::EveStrategy;
 use robokey::interrupt::Interrupt;
 use serde::{Deserialize, Serialize};
 
+use crate::parquet_table::TableFormat;
 use crate::adversary::run_campaigns_with;
 use crate::error::{LabError, io_at};
 use crate::experiment::Experiment;
@@ -196,6 +197,7 @@ fn sweep_each_then_secrecy(
         let plan = SweepPlan {
             shard: None,
             resume: false,
+            format: TableFormat::Csv,
         };
         let swept = sweep(
             out,
