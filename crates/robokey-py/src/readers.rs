@@ -26,7 +26,7 @@ pub fn read_sweep(
     loaded
         .into_iter()
         .map(|l| {
-            let columns = to_py(py, run_columns(&l.experiment, l.rows.values()))?;
+            let columns = to_py(py, run_columns(&l.experiment, l.rows.iter()))?;
             Ok((
                 l.experiment.name.clone(),
                 columns,

@@ -439,5 +439,19 @@ mod tests {
                 .unwrap()
                 .starts_with("\"\",oracle,strongest,")
         );
+        // secrecy.parquet's columns are secrecy.csv's, cell for cell.
+        let columns = secrecy_columns(&secrecy.results);
+        let mut reader = csv::Reader::from_reader(csv.as_bytes());
+        let header: Vec<&str> = columns.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(reader.headers().unwrap().iter().collect::<Vec<_>>(), header);
+        for (row, record) in reader.records().enumerate() {
+            let cells: Vec<String> = columns
+                .iter()
+                .map(|c| c.values.cell(row).unwrap())
+                .collect();
+            assert_eq!(record.unwrap().iter().collect::<Vec<_>>(), cells);
+        }
+        let unit = |name: &str| columns.iter().find(|c| c.name == name).unwrap().unit.as_str();
+        assert_eq!((unit("secret_bits"), unit("p_e")), ("bit", "fraction"));
     }
 }
