@@ -332,7 +332,7 @@ def read_capture(path: "os.PathLike[str] | str") -> pa.Table:
     rows, shortfalls = _native.read_capture(os.fspath(path))
     for shortfall in shortfalls:
         warnings.warn(f"{os.fspath(path)}: {shortfall}", stacklevel=2)
-    columns = list(zip(*rows)) if rows else [[] for _ in FRAME_SCHEMA]
+    columns: List[Sequence[Any]] = list(zip(*rows)) if rows else [[] for _ in FRAME_SCHEMA]
     return pa.Table.from_arrays(
         [pa.array(list(column), type=field.type) for column, field in zip(columns, FRAME_SCHEMA)],
         schema=FRAME_SCHEMA,
