@@ -12,10 +12,10 @@ use robokey_lab::folder::sweep::{Start, SweepPlan, Swept};
 use robokey_lab::folder::{layout, merge};
 use robokey_lab::output::write;
 use robokey_lab::parquet_table::{TableFormat, write_parquet};
-use robokey_lab::trace_table::TraceColumns;
 use robokey_lab::reproduce::compute_stages;
 use robokey_lab::reproduce::suite::paper_suite;
 use robokey_lab::run::with_jobs;
+use robokey_lab::trace_table::TraceColumns;
 use robokey_lab::{metric_table, report, trace};
 
 use crate::configuration::{FlagOverrides, load_config, read_table};

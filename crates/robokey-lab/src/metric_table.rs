@@ -5,7 +5,7 @@
 
 use robokey::Metrics;
 
-use crate::table::{Column, Values};
+use crate::table::{Cell, Column, Values};
 
 /// One metric value, typed for CSV and JSON.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,6 +51,16 @@ impl MetricValue {
             Self::Real(x) => x.map_or(Value::Null, Value::from),
             Self::Count(n) => n.map_or(Value::Null, Value::from),
             Self::Flag(b) => b.map_or(Value::Null, Value::from),
+        }
+    }
+}
+
+impl From<MetricValue> for Cell {
+    fn from(value: MetricValue) -> Self {
+        match value {
+            MetricValue::Real(x) => Self::Real(x),
+            MetricValue::Count(n) => Self::Count(n),
+            MetricValue::Flag(b) => Self::Flag(b),
         }
     }
 }
@@ -175,8 +185,14 @@ const fn percent(name: &'static str, file: &'static str, digits: usize) -> Optio
 
 /// Every metric, in column order: the list of docs/experiments.md, then the 16 joint counts.
 pub static METRICS: [Metric; 25] = {
-    let [b0, b1, b2, b3, b4, b5, b6, b7] = joint!(n_bce, "count of applied bits whose (b, controller's b̂, Eve's b̂) is ");
-    let [a0, a1, a2, a3, a4, a5, a6, a7] = joint!(n_acc, "count of accepted key bits whose (robot's s, controller's ŝ, Eve's ŝ) is ");
+    let [b0, b1, b2, b3, b4, b5, b6, b7] = joint!(
+        n_bce,
+        "count of applied bits whose (b, controller's b̂, Eve's b̂) is "
+    );
+    let [a0, a1, a2, a3, a4, a5, a6, a7] = joint!(
+        n_acc,
+        "count of accepted key bits whose (robot's s, controller's ŝ, Eve's ŝ) is "
+    );
     [
         Metric {
             column: "codewords_sent",
@@ -293,38 +309,15 @@ impl Metric {
     }
 }
 
-/// The column of values of `kind`'s type (Python's and Parquet's type of the metric).
-fn metric_values(values: impl Iterator<Item = MetricValue>, kind: MetricValue) -> Values {
-    match kind {
-        MetricValue::Real(_) => Values::Reals(values.map(MetricValue::as_f64).collect()),
-        MetricValue::Count(_) => Values::Counts(
-            values
-                .map(|v| match v {
-                    MetricValue::Count(n) => n,
-                    _ => None,
-                })
-                .collect(),
-        ),
-        MetricValue::Flag(_) => Values::Flags(
-            values
-                .map(|v| match v {
-                    MetricValue::Flag(b) => b,
-                    _ => None,
-                })
-                .collect(),
-        ),
-    }
-}
-
 /// One column per metric of [`METRICS`] (`runs.csv`'s), a row per run.
 #[must_use]
 pub fn metric_columns(runs: &[&Metrics]) -> Vec<Column> {
     METRICS
         .iter()
         .map(|metric| {
-            let values = metric_values(
-                runs.iter().map(|m| metric.value(m)),
-                metric.value(&Metrics::default()),
+            let values = Values::of_cells(
+                &metric.value(&Metrics::default()).into(),
+                runs.iter().map(|m| metric.value(m).into()),
             );
             Column::new(metric.column, metric.unit, metric.meaning, values)
         })

@@ -158,7 +158,10 @@ pub fn read_parquet(path: &Path) -> Result<ParquetTable, LabError> {
                 other => {
                     return Err(malformed(
                         path,
-                        format!("column `{}` is {other}, not a type robokey writes", field.name()),
+                        format!(
+                            "column `{}` is {other}, not a type robokey writes",
+                            field.name()
+                        ),
                     ));
                 }
             };
@@ -175,7 +178,13 @@ pub fn read_parquet(path: &Path) -> Result<ParquetTable, LabError> {
         let batch = batch.map_err(|e| malformed(path, e))?;
         for (column, array) in columns.iter_mut().zip(batch.columns()) {
             extend(&mut column.values, array.as_ref()).ok_or_else(|| {
-                malformed(path, format!("column `{}` holds nulls where robokey writes none", column.name))
+                malformed(
+                    path,
+                    format!(
+                        "column `{}` holds nulls where robokey writes none",
+                        column.name
+                    ),
+                )
             })?;
         }
     }
@@ -195,23 +204,53 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("t.parquet");
         let columns = vec![
-            Column::new("x", "m", "a length", Values::Reals(vec![Some(0.1), None, Some(-2.5)])),
-            Column::new("n", "", "", Values::Counts(vec![Some(1), Some(u64::MAX), None])),
+            Column::new(
+                "x",
+                "m",
+                "a length",
+                Values::Reals(vec![Some(0.1), None, Some(-2.5)]),
+            ),
+            Column::new(
+                "n",
+                "",
+                "",
+                Values::Counts(vec![Some(1), Some(u64::MAX), None]),
+            ),
             Column::new("i", "", "", Values::Integers(vec![-1, 0, 7])),
-            Column::new("f", "", "", Values::Flags(vec![None, Some(true), Some(false)])),
-            Column::new("s", "", "", Values::Texts(vec!["a, \"b\"".into(), String::new(), "ℓ".into()])),
+            Column::new(
+                "f",
+                "",
+                "",
+                Values::Flags(vec![None, Some(true), Some(false)]),
+            ),
+            Column::new(
+                "s",
+                "",
+                "",
+                Values::Texts(vec!["a, \"b\"".into(), String::new(), "ℓ".into()]),
+            ),
         ];
         write_parquet(&path, &columns, &[("robokey.test", "yes".into())]).unwrap();
         let first = std::fs::read(&path).unwrap();
         let table = read_parquet(&path).unwrap();
         assert_eq!(table.columns, columns);
-        assert_eq!(table.metadata.get("robokey.test").map(String::as_str), Some("yes"));
+        assert_eq!(
+            table.metadata.get("robokey.test").map(String::as_str),
+            Some("yes")
+        );
         write_parquet(&path, &columns, &[("robokey.test", "yes".into())]).unwrap();
-        assert_eq!(std::fs::read(&path).unwrap(), first, "the same table, the same bytes");
+        assert_eq!(
+            std::fs::read(&path).unwrap(),
+            first,
+            "the same table, the same bytes"
+        );
         std::fs::write(&path, b"not parquet").unwrap();
         let err = read_parquet(&path).unwrap_err().to_string();
         assert!(err.starts_with(&format!("{}: ", path.display())), "{err}");
-        let short = vec![columns[0].clone(), Column::new("y", "", "", Values::Integers(vec![1]))];
+        let short = vec![
+            columns[0].clone(),
+            Column::new("y", "", "", Values::Integers(vec![1])),
+        ];
         assert!(write_parquet(&path, &short, &[]).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -4,6 +4,60 @@
 //! [`crate::trace_table::TRACE_COLUMNS`], [`crate::secrecy::table::SECRECY_COLUMNS`]), so a
 //! column's name, unit and values are the CSV's.
 
+/// One value of a column, typed: what the column declarations ([`crate::metric_table`],
+/// [`crate::trace_table`], [`crate::secrecy::table`]) give for a row.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Cell {
+    /// A real number, or undefined.
+    Real(Option<f64>),
+    /// A non-negative integer, or undefined.
+    Count(Option<u64>),
+    /// A flag, or undefined.
+    Flag(Option<bool>),
+    /// Text.
+    Text(String),
+}
+
+impl Cell {
+    /// As a real number (counts and flags as numbers, flags 0/1), if defined.
+    #[must_use]
+    pub fn real(self) -> Option<f64> {
+        match self {
+            Self::Real(x) => x,
+            Self::Count(n) => n.map(|n| n as f64),
+            Self::Flag(b) => b.map(|b| f64::from(u8::from(b))),
+            Self::Text(_) => None,
+        }
+    }
+
+    /// As a count, if it is a defined one.
+    #[must_use]
+    pub fn count(self) -> Option<u64> {
+        match self {
+            Self::Count(n) => n,
+            _ => None,
+        }
+    }
+
+    /// As a flag, if it is a defined one.
+    #[must_use]
+    pub fn flag(self) -> Option<bool> {
+        match self {
+            Self::Flag(b) => b,
+            _ => None,
+        }
+    }
+
+    /// As text (empty unless it is text).
+    #[must_use]
+    pub fn text(self) -> String {
+        match self {
+            Self::Text(t) => t,
+            _ => String::new(),
+        }
+    }
+}
+
 /// The values of one column.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Values {
@@ -20,6 +74,17 @@ pub enum Values {
 }
 
 impl Values {
+    /// The column of `cells`, all of the type of `kind` (any value of the column).
+    #[must_use]
+    pub fn of_cells(kind: &Cell, cells: impl Iterator<Item = Cell>) -> Self {
+        match kind {
+            Cell::Real(_) => Self::Reals(cells.map(Cell::real).collect()),
+            Cell::Count(_) => Self::Counts(cells.map(Cell::count).collect()),
+            Cell::Flag(_) => Self::Flags(cells.map(Cell::flag).collect()),
+            Cell::Text(_) => Self::Texts(cells.map(Cell::text).collect()),
+        }
+    }
+
     /// How many rows.
     #[must_use]
     pub fn len(&self) -> usize {
@@ -94,9 +159,21 @@ mod tests {
         assert_eq!(reals.cell(1).as_deref(), Some(""));
         assert_eq!(reals.cell(2).as_deref(), Some("1"));
         assert_eq!(reals.cell(3), None);
-        assert_eq!(Values::Flags(vec![Some(true)]).cell(0).as_deref(), Some("true"));
+        assert_eq!(
+            Values::Flags(vec![Some(true)]).cell(0).as_deref(),
+            Some("true")
+        );
         assert_eq!(Values::Integers(vec![-3]).cell(0).as_deref(), Some("-3"));
         assert_eq!(Values::Counts(vec![None]).cell(0).as_deref(), Some(""));
         assert!(Values::Texts(Vec::new()).is_empty());
+        let cells = [Cell::Count(Some(2)), Cell::Count(None)];
+        assert_eq!(
+            Values::of_cells(&Cell::Real(None), cells.iter().cloned()),
+            Values::Reals(vec![Some(2.0), None])
+        );
+        assert_eq!(
+            Values::of_cells(&Cell::Count(None), cells.into_iter()),
+            Values::Counts(vec![Some(2), None])
+        );
     }
 }

@@ -5,7 +5,7 @@
 
 use robokey::sim::TraceRow;
 
-use crate::table::{Column, Values};
+use crate::table::{Cell, Column, Values};
 
 /// One trace column's value in a row.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,6 +47,15 @@ impl std::fmt::Debug for TraceColumn {
             .field("name", &self.name)
             .field("unit", &self.unit)
             .finish_non_exhaustive()
+    }
+}
+
+impl From<TraceValue> for Cell {
+    fn from(value: TraceValue) -> Self {
+        match value {
+            TraceValue::Real(x) => Self::Real(x),
+            TraceValue::Count(n) => Self::Count(n),
+        }
     }
 }
 
@@ -159,26 +168,10 @@ impl TraceColumns {
             .iter()
             .zip(values)
             .map(|(column, values)| {
-                let values = match column.value(&TraceRow::default()) {
-                    TraceValue::Real(_) => Values::Reals(
-                        values
-                            .into_iter()
-                            .map(|v| match v {
-                                TraceValue::Real(x) => x,
-                                TraceValue::Count(n) => n.map(|n| n as f64),
-                            })
-                            .collect(),
-                    ),
-                    TraceValue::Count(_) => Values::Counts(
-                        values
-                            .into_iter()
-                            .map(|v| match v {
-                                TraceValue::Count(n) => n,
-                                TraceValue::Real(_) => None,
-                            })
-                            .collect(),
-                    ),
-                };
+                let values = Values::of_cells(
+                    &column.value(&TraceRow::default()).into(),
+                    values.into_iter().map(Cell::from),
+                );
                 Column::new(column.name, column.unit, column.meaning, values)
             })
             .collect()

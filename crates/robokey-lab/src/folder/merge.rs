@@ -3,13 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::parquet_table::TableFormat;
 use super::layout::{experiment_dirs, folder_name, read_experiment, read_rows, write_folder};
 use super::manifest::{planned, read_manifest};
 use super::rows::Rows;
 use crate::error::{LabError, io_at};
 use crate::experiment::Experiment;
 use crate::output::read;
+use crate::parquet_table::TableFormat;
 
 /// Merges the folders of a sharded sweep, or of a sharded suite (each experiment's
 /// subfolders), into `out`. Returns each experiment with its number of runs.

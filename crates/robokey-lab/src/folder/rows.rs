@@ -64,8 +64,10 @@ pub fn run_columns<'a>(
         .enumerate()
         .map(|(i, axis)| {
             let meaning = crate::config_doc::doc(&axis.field).unwrap_or_default();
-            let values =
-                param_values(rows.clone().map(|r| &experiment.points[r.point].params[i].1));
+            let values = param_values(
+                rows.clone()
+                    .map(|r| &experiment.points[r.point].params[i].1),
+            );
             Column::new(&axis.field, "", meaning, values)
         })
         .collect();

@@ -415,18 +415,21 @@ mod tests {
             }
         }
         for point in 0..2 {
-            let trace = |dir: &Path, extension| {
-                dir.join(format!("a/traces/point-{point}.{extension}"))
-            };
+            let trace =
+                |dir: &Path, extension| dir.join(format!("a/traces/point-{point}.{extension}"));
             assert!(!trace(&parquet_dir, "csv").exists());
             assert_eq!(
                 parquet_cells(&trace(&parquet_dir, "parquet")),
                 csv_cells(&trace(&csv_dir, "csv"))
             );
         }
-        let table = crate::parquet_table::read_parquet(&parquet_dir.join("a/runs.parquet")).unwrap();
+        let table =
+            crate::parquet_table::read_parquet(&parquet_dir.join("a/runs.parquet")).unwrap();
         let jx = table.columns.iter().find(|c| c.name == "jx").unwrap();
-        assert_eq!((jx.unit.as_str(), jx.description.starts_with("J_x")), ("m", true));
+        assert_eq!(
+            (jx.unit.as_str(), jx.description.starts_with("J_x")),
+            ("m", true)
+        );
         assert_eq!(
             table.metadata.get("robokey.sweep"),
             Some(&experiments[0].resolved_toml())

@@ -9,9 +9,9 @@ use crate::csv_field::quoted;
 use crate::error::LabError;
 use crate::experiment::{Experiment, axis_label, param_label, param_number};
 use crate::output::write;
+use crate::parquet_table::{TableFormat, write_parquet};
 use crate::plot::{LineChart, Series, SeriesStyle};
 use crate::secrecy::pipeline::H_MIN_BINOMIAL;
-use crate::parquet_table::{TableFormat, write_parquet};
 use crate::secrecy::table::{SECRECY_COLUMNS, SecrecyValue, secrecy_columns};
 use crate::secrecy::{Block, PointSecrecy, Pooling, Rate, Secrecy};
 
@@ -451,7 +451,14 @@ mod tests {
                 .collect();
             assert_eq!(record.unwrap().iter().collect::<Vec<_>>(), cells);
         }
-        let unit = |name: &str| columns.iter().find(|c| c.name == name).unwrap().unit.as_str();
+        let unit = |name: &str| {
+            columns
+                .iter()
+                .find(|c| c.name == name)
+                .unwrap()
+                .unit
+                .as_str()
+        };
         assert_eq!((unit("secret_bits"), unit("p_e")), ("bit", "fraction"));
     }
 }

@@ -16,12 +16,12 @@ use robokey::config::EveStrategy;
 use robokey::interrupt::Interrupt;
 use serde::{Deserialize, Serialize};
 
-use crate::parquet_table::TableFormat;
 use crate::adversary::run_campaigns_with;
 use crate::error::{LabError, io_at};
 use crate::experiment::Experiment;
 use crate::folder::sweep::{SweepPlan, sweep};
 use crate::output::{read_json, write};
+use crate::parquet_table::TableFormat;
 use crate::run::sessions::SessionBank;
 use crate::secrecy::{Secrecy, SecrecyOptions};
 

@@ -3,7 +3,7 @@
 //! ([`crate::report::secrecy::secrecy_csv`]), and so is `secrecy.parquet` ([`secrecy_columns`]).
 
 use super::{Block, PointSecrecy, Rate};
-use crate::table::{Column, Values};
+use crate::table::{Cell, Column, Values};
 
 /// One value of a `secrecy.csv` row.
 #[derive(Clone, Debug, PartialEq)]
@@ -18,6 +18,17 @@ pub enum SecrecyValue {
     Name(String),
     /// A text, written quoted.
     Text(String),
+}
+
+impl From<SecrecyValue> for Cell {
+    fn from(value: SecrecyValue) -> Self {
+        match value {
+            SecrecyValue::Real(x) => Self::Real(x),
+            SecrecyValue::Count(n) => Self::Count(Some(n)),
+            SecrecyValue::Flag(b) => Self::Flag(Some(b)),
+            SecrecyValue::Name(t) | SecrecyValue::Text(t) => Self::Text(t),
+        }
+    }
 }
 
 /// One column of `secrecy.csv`.
@@ -71,45 +82,78 @@ macro_rules! column {
 
 /// Every column of `secrecy.csv`, in its order.
 pub static SECRECY_COLUMNS: [SecrecyColumn; 37] = [
-    column!("point", "", "the grid point's parameters, `field = value, …`", |r| {
-        SecrecyValue::Text(r.point.clone())
-    }),
+    column!(
+        "point",
+        "",
+        "the grid point's parameters, `field = value, …`",
+        |r| { SecrecyValue::Text(r.point.clone()) }
+    ),
     column!("adversary", "", "the eavesdropper", |r| {
         SecrecyValue::Name(r.adversary.clone())
     }),
-    column!("adversary_class", "", "her class: strongest, learning or restricted", |r| {
-        SecrecyValue::Name(r.adversary_class.name().to_owned())
-    }),
-    column!("pooling", "", "which sessions were pooled into blocks", |r| {
-        SecrecyValue::Name(r.pooling.name().to_owned())
-    }),
+    column!(
+        "adversary_class",
+        "",
+        "her class: strongest, learning or restricted",
+        |r| { SecrecyValue::Name(r.adversary_class.name().to_owned()) }
+    ),
+    column!(
+        "pooling",
+        "",
+        "which sessions were pooled into blocks",
+        |r| { SecrecyValue::Name(r.pooling.name().to_owned()) }
+    ),
     column!("sessions", "", "sessions simulated", |r| {
         SecrecyValue::Count(u64::from(r.sessions))
     }),
-    column!("sessions_pooled", "", "sessions pooled into the blocks", |r| {
-        SecrecyValue::Count(u64::from(r.sessions_pooled))
-    }),
-    column!("steps", "", "robot steps over the sessions simulated", |r| {
-        SecrecyValue::Count(r.steps)
-    }),
-    column!("p_c", "fraction", "the controller's bit error rate over applied bits", |r| {
-        rate(r.p_c, |x| x.rate)
-    }),
-    column!("p_c_low", "fraction", "p_c's 95 % interval, lower end", |r| {
-        rate(r.p_c, |x| x.low)
-    }),
-    column!("p_c_high", "fraction", "p_c's 95 % interval, upper end", |r| {
-        rate(r.p_c, |x| x.high)
-    }),
-    column!("p_e", "fraction", "Eve's bit error rate over applied bits", |r| {
-        rate(r.p_e, |x| x.rate)
-    }),
-    column!("p_e_low", "fraction", "p_e's 95 % interval, lower end", |r| {
-        rate(r.p_e, |x| x.low)
-    }),
-    column!("p_e_high", "fraction", "p_e's 95 % interval, upper end", |r| {
-        rate(r.p_e, |x| x.high)
-    }),
+    column!(
+        "sessions_pooled",
+        "",
+        "sessions pooled into the blocks",
+        |r| { SecrecyValue::Count(u64::from(r.sessions_pooled)) }
+    ),
+    column!(
+        "steps",
+        "",
+        "robot steps over the sessions simulated",
+        |r| { SecrecyValue::Count(r.steps) }
+    ),
+    column!(
+        "p_c",
+        "fraction",
+        "the controller's bit error rate over applied bits",
+        |r| { rate(r.p_c, |x| x.rate) }
+    ),
+    column!(
+        "p_c_low",
+        "fraction",
+        "p_c's 95 % interval, lower end",
+        |r| { rate(r.p_c, |x| x.low) }
+    ),
+    column!(
+        "p_c_high",
+        "fraction",
+        "p_c's 95 % interval, upper end",
+        |r| { rate(r.p_c, |x| x.high) }
+    ),
+    column!(
+        "p_e",
+        "fraction",
+        "Eve's bit error rate over applied bits",
+        |r| { rate(r.p_e, |x| x.rate) }
+    ),
+    column!(
+        "p_e_low",
+        "fraction",
+        "p_e's 95 % interval, lower end",
+        |r| { rate(r.p_e, |x| x.low) }
+    ),
+    column!(
+        "p_e_high",
+        "fraction",
+        "p_e's 95 % interval, upper end",
+        |r| { rate(r.p_e, |x| x.high) }
+    ),
     column!(
         "info_advantage",
         "bit/step",
@@ -128,15 +172,21 @@ pub static SECRECY_COLUMNS: [SecrecyColumn; 37] = [
         "info_advantage's 95 % bootstrap interval, upper end",
         |r| SecrecyValue::Real(r.information_advantage.map(|x| x[2]))
     ),
-    column!("info_conditional", "bit/step", "plug-in I(B;B̂c|B̂a)", |r| {
-        SecrecyValue::Real(r.information_conditional.map(|x| x[0]))
-    }),
+    column!(
+        "info_conditional",
+        "bit/step",
+        "plug-in I(B;B̂c|B̂a)",
+        |r| { SecrecyValue::Real(r.information_conditional.map(|x| x[0])) }
+    ),
     column!("raw_bits", "bit", "accepted (raw) key bits", |r| {
         SecrecyValue::Count(r.raw_bits)
     }),
-    column!("raw_bits_per_step", "bit/step", "raw agreed bits per robot step", |r| {
-        SecrecyValue::Real(Some(r.raw_bits_per_step))
-    }),
+    column!(
+        "raw_bits_per_step",
+        "bit/step",
+        "raw agreed bits per robot step",
+        |r| { SecrecyValue::Real(Some(r.raw_bits_per_step)) }
+    ),
     column!(
         "eve_error_accepted",
         "fraction",
@@ -164,12 +214,18 @@ pub static SECRECY_COLUMNS: [SecrecyColumn; 37] = [
         "the first block's error-rate estimate for reconciliation",
         |r| SecrecyValue::Real(r.q_estimate)
     ),
-    column!("messages", "", "reconciliation messages over the blocks", |r| {
-        total(r, |b| u64::from(b.messages))
-    }),
-    column!("leak_ec", "bit", "bits disclosed by error correction over the blocks", |r| {
-        total(r, |b| b.leak_ec)
-    }),
+    column!(
+        "messages",
+        "",
+        "reconciliation messages over the blocks",
+        |r| { total(r, |b| u64::from(b.messages)) }
+    ),
+    column!(
+        "leak_ec",
+        "bit",
+        "bits disclosed by error correction over the blocks",
+        |r| { total(r, |b| b.leak_ec) }
+    ),
     column!(
         "leak_confirmation",
         "bit",
@@ -182,18 +238,24 @@ pub static SECRECY_COLUMNS: [SecrecyColumn; 37] = [
         "smooth min-entropy of the blocks under the stated assumption",
         |r| real_total(r, |b| b.h_min)
     ),
-    column!("secret_bits", "bit", "secret key length ℓ over the blocks, under the stated assumption", |r| {
-        SecrecyValue::Count(r.secret_bits)
-    }),
+    column!(
+        "secret_bits",
+        "bit",
+        "secret key length ℓ over the blocks, under the stated assumption",
+        |r| { SecrecyValue::Count(r.secret_bits) }
+    ),
     column!(
         "secret_bits_per_step",
         "bit/step",
         "secret bits per robot step (every session simulated until the last one pooled)",
         |r| SecrecyValue::Real(Some(r.secret_bits_per_step))
     ),
-    column!("secret_bits_per_second", "bit/s", "secret bits per second", |r| {
-        SecrecyValue::Real(Some(r.secret_bits_per_second))
-    }),
+    column!(
+        "secret_bits_per_second",
+        "bit/s",
+        "secret bits per second",
+        |r| { SecrecyValue::Real(Some(r.secret_bits_per_second)) }
+    ),
     column!(
         "realised_h_min",
         "bit",
@@ -215,9 +277,12 @@ pub static SECRECY_COLUMNS: [SecrecyColumn; 37] = [
     column!("zero_reason", "", "why ℓ = 0 (empty when ℓ > 0)", |r| {
         SecrecyValue::Text(r.zero_reason.clone().unwrap_or_default())
     }),
-    column!("assumption", "", "the stated assumption that sizes the key", |r| {
-        SecrecyValue::Text(r.assumption.clone())
-    }),
+    column!(
+        "assumption",
+        "",
+        "the stated assumption that sizes the key",
+        |r| { SecrecyValue::Text(r.assumption.clone()) }
+    ),
     column!(
         "structural_zero",
         "",
@@ -232,41 +297,11 @@ pub fn secrecy_columns(results: &[PointSecrecy]) -> Vec<Column> {
     SECRECY_COLUMNS
         .iter()
         .map(|column| {
-            let cells = results.iter().map(|r| (column.value)(r));
-            let values = match results.first().map(column.value) {
-                Some(SecrecyValue::Real(_)) => Values::Reals(
-                    cells
-                        .map(|v| match v {
-                            SecrecyValue::Real(x) => x,
-                            _ => None,
-                        })
-                        .collect(),
-                ),
-                Some(SecrecyValue::Count(_)) => Values::Counts(
-                    cells
-                        .map(|v| match v {
-                            SecrecyValue::Count(n) => Some(n),
-                            _ => None,
-                        })
-                        .collect(),
-                ),
-                Some(SecrecyValue::Flag(_)) => Values::Flags(
-                    cells
-                        .map(|v| match v {
-                            SecrecyValue::Flag(b) => Some(b),
-                            _ => None,
-                        })
-                        .collect(),
-                ),
-                Some(SecrecyValue::Name(_) | SecrecyValue::Text(_)) | None => Values::Texts(
-                    cells
-                        .map(|v| match v {
-                            SecrecyValue::Name(t) | SecrecyValue::Text(t) => t,
-                            _ => String::new(),
-                        })
-                        .collect(),
-                ),
-            };
+            // Without a row, the type does not matter: a column of no text.
+            let kind = results
+                .first()
+                .map_or(Cell::Text(String::new()), |r| (column.value)(r).into());
+            let values = Values::of_cells(&kind, results.iter().map(|r| (column.value)(r).into()));
             Column::new(column.name, column.unit, column.meaning, values)
         })
         .collect()
