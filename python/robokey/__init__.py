@@ -14,7 +14,6 @@ Tables are :class:`pyarrow.Table` (``.to_pandas()``, ``polars.from_arrow``,
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import warnings
@@ -22,7 +21,6 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.csv
 import pyarrow.parquet
 
 from . import _native
@@ -170,11 +168,6 @@ def sweep(
     return _table(columns, {"robokey.sweep": resolved})
 
 
-def _csv_table(text: str) -> pa.Table:
-    """A CSV that robokey rendered, read into a table (its cells typed as written)."""
-    return pyarrow.csv.read_csv(io.BytesIO(text.encode()))
-
-
 def _block_rows(results: List[Dict[str, Any]]) -> List[Dict[str, Any]]:
     """One row per privacy-amplification block of every point and adversary; the realised
     view's fields prefixed ``realised_``."""
@@ -221,8 +214,10 @@ def secrecy(
     (``"confirmed"`` or ``"complete"``), ``sample_bits``, ``max_sessions`` (default: 2,000 per 10,000 bits of
     blocks), ``assume_eve_error``; unset ones take the sweep's ``[secrecy]`` table, then the defaults.
 
-    Returns a dict: ``table`` (``secrecy.csv``: one row per point and adversary, strongest
-    class first — ℓ in ``secret_bits``, the realised bound in ``realised_secret_bits``),
+    Returns a dict: ``table`` (``secrecy.csv``'s columns and values, as ``secrecy.parquet``
+    types them, each column's unit and meaning in its metadata: one row per point and
+    adversary, strongest class first — ℓ in ``secret_bits``, the realised bound in
+    ``realised_secret_bits``),
     ``blocks`` (one row per privacy-amplification block: its sessions, bits, leak, ℓ and the
     adversary's realised view), ``results`` (``secrecy.json``'s results, every detail),
     ``epsilon``, ``block_bits``, ``pooling`` and ``map`` (private sensing's map, else None).
@@ -231,7 +226,7 @@ def secrecy(
     adversary or pooling or a folder that is not a sweep's, :class:`ConfigError` and
     :class:`SweepError` for a definition that is not valid.
     """
-    secrecy_json, csv_text, map_json = _native.secrecy(
+    secrecy_json, columns, map_json = _native.secrecy(
         sweep,
         seed=seed,
         adversaries=None if adversaries is None else list(adversaries),
@@ -246,7 +241,7 @@ def secrecy(
     )
     data = json.loads(secrecy_json)
     return {
-        "table": _csv_table(csv_text),
+        "table": _table(columns),
         "blocks": pa.Table.from_pylist(_block_rows(data["results"])),
         "results": data["results"],
         "epsilon": data["epsilon"],

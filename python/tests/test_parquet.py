@@ -83,6 +83,7 @@ def test_the_secrecy_table_equals_secrecy_csv(folders):
     assert_rows_equal(table.to_pylist(), read_csv(csv_dir / "secrecy.csv"))
     assert table.schema.field("secret_bits").metadata[b"unit"] == b"bit"
     assert table.schema.metadata[b"robokey.block_bits"] == b"2000"
+    assert table.equals(robokey.secrecy(csv_dir, block_bits=2000)["table"])
 
 
 def test_readers_of_runs_csv_refuse_a_parquet_folder(cli, folders):
@@ -92,3 +93,15 @@ def test_readers_of_runs_csv_refuse_a_parquet_folder(cli, folders):
     assert "runs.parquet (swept with --format parquet)" in done.stderr
     done = cli("merge", str(parquet_dir), "--out", str(parquet_dir.parent / "merged"), check=False)
     assert "runs.parquet" in done.stderr and done.returncode != 0
+
+
+def test_shards_swept_in_csv_merge_into_parquet(cli, folders, tmp_path):
+    sweep = folders[0].parent / "sweep.toml"
+    done = cli("sweep", str(sweep), "--shard", "1/2", "--format", "parquet", "--out", str(tmp_path / "x"), check=False)
+    assert done.returncode == 2 and "--shard with --format parquet" in done.stderr
+    for shard in (1, 2):
+        cli("sweep", str(sweep), "--shard", f"{shard}/2", "--out", str(tmp_path / f"shard{shard}"))
+    cli("merge", str(tmp_path / "shard1"), str(tmp_path / "shard2"), "--out", str(tmp_path / "merged"),
+        "--format", "parquet")
+    for name in ("runs.parquet", "traces/point-0.parquet", "traces/point-1.parquet"):
+        assert (tmp_path / "merged" / name).read_bytes() == (folders[1] / name).read_bytes(), name

@@ -162,6 +162,12 @@ pub fn sweep(args: SweepArgs) -> Result<Status> {
             LabError::Config(e) => LabError::Config(source::blame(e, set)),
             other => other,
         })?;
+    if args.shard.is_some() && matches!(args.format, crate::FormatArg::Parquet) {
+        usage!(
+            "--shard with --format parquet: shards are merged from their runs.csv; sweep the \
+             shards in CSV and give --format parquet to `robokey merge`"
+        );
+    }
     let (out, resume) = output(&args.out, args.resume.as_deref(), args.force)?;
     let stop = on_signals()?;
     let plan = SweepPlan {
@@ -310,7 +316,7 @@ fn shell_word(word: &str) -> String {
 
 pub fn merge(args: MergeArgs) -> Result<()> {
     prepare_output(&args.out, args.force)?;
-    let experiments = merge::merge(&args.dirs, &args.out)?;
+    let experiments = merge::merge(&args.dirs, &args.out, args.format.into())?;
     for e in experiments.iter().filter(|e| !e.name.is_empty()) {
         println!(
             "{}: {} runs → {}",

@@ -210,6 +210,10 @@ struct MergeArgs {
     /// files robokey does not write are kept (and named).
     #[arg(long)]
     force: bool,
+    /// The merged runs table's and traces' format: runs.csv, or runs.parquet (as `sweep
+    /// --format parquet` writes them).
+    #[arg(long, value_enum, default_value_t = FormatArg::Csv)]
+    format: FormatArg,
 }
 
 #[derive(Args, Debug)]
