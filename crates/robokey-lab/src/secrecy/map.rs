@@ -334,7 +334,10 @@ mod tests {
             camera: Vec::new(),
             pareto: Vec::new(),
             paper_jx_mm: 0.0,
-            leak: vec![bin(0, 0.001, 0.0015, 0.001, 1000), bin(0, 0.002, 0.003, 0.001, 1000)],
+            leak: vec![
+                bin(0, 0.001, 0.0015, 0.001, 1000),
+                bin(0, 0.002, 0.003, 0.001, 1000),
+            ],
         };
         let single = one_point.pooled_leak().unwrap();
         assert!((single.ratio - 1.5).abs() < 1e-12);
@@ -342,14 +345,26 @@ mod tests {
         let half = (single.interval[1] - single.interval[0]) / 2.0;
         assert!((half - 2f64.sqrt() / 3.0).abs() < 1e-12, "{half}");
         let twice = PrivateMap {
-            leak: [one_point.leak.clone(), one_point.leak.iter().map(|b| LeakBin { point: 1, ..*b }).collect()]
-                .concat(),
+            leak: [
+                one_point.leak.clone(),
+                one_point
+                    .leak
+                    .iter()
+                    .map(|b| LeakBin { point: 1, ..*b })
+                    .collect(),
+            ]
+            .concat(),
             ..one_point.clone()
         };
         let pooled = twice.pooled_leak().unwrap();
         assert!((pooled.ratio - 1.5).abs() < 1e-12);
         for (a, b) in pooled.interval.iter().zip(single.interval) {
-            assert!((a - b).abs() < 1e-12, "{:?} vs {:?}", pooled.interval, single.interval);
+            assert!(
+                (a - b).abs() < 1e-12,
+                "{:?} vs {:?}",
+                pooled.interval,
+                single.interval
+            );
         }
         assert_eq!((pooled.bins, pooled.above), (4, 4));
     }
@@ -394,7 +409,11 @@ mod tests {
         };
         let pooled = map.pooled_leak().unwrap();
         let [low, high] = pooled.interval;
-        assert!(low <= 1.0 && 1.0 <= high, "{} [{low}, {high}]", pooled.ratio);
+        assert!(
+            low <= 1.0 && 1.0 <= high,
+            "{} [{low}, {high}]",
+            pooled.ratio
+        );
         assert!(high - low < 0.6, "{} [{low}, {high}]", pooled.ratio);
     }
 
