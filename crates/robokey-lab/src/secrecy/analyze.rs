@@ -330,6 +330,7 @@ fn refuse_what_the_commands_reveal(
             .collect();
         if let Some(reason) = commands_check::refusal(&bits, options.epsilon) {
             block.secret_bits = 0;
+            block.assumption_exceeds_realised = false;
             block.reason = Some(reason);
         }
     }
@@ -791,6 +792,7 @@ mod tests {
         );
         assert!(why.contains("along the heading"), "{why}");
         assert!(lagging.blocks.iter().all(|b| b.secret_bits == 0));
+        assert!(!lagging.assumption_exceeds_realised, "nothing credited, nothing over-claimed");
         let still = &analyze(&private(world), &options).unwrap()[0];
         assert!(still.secret_bits > 0, "{still:?}");
         assert!(still.blocks.iter().all(|b| b.reason.is_none()), "{still:?}");
