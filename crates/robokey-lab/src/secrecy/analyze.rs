@@ -792,7 +792,10 @@ mod tests {
         );
         assert!(why.contains("along the heading"), "{why}");
         assert!(lagging.blocks.iter().all(|b| b.secret_bits == 0));
-        assert!(!lagging.assumption_exceeds_realised, "nothing credited, nothing over-claimed");
+        assert!(
+            !lagging.assumption_exceeds_realised,
+            "nothing credited, nothing over-claimed"
+        );
         let still = &analyze(&private(world), &options).unwrap()[0];
         assert!(still.secret_bits > 0, "{still:?}");
         assert!(still.blocks.iter().all(|b| b.reason.is_none()), "{still:?}");
