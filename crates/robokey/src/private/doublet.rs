@@ -199,7 +199,7 @@ mod tests {
 
     #[test]
     fn the_doublet_frame_points_along_the_heading_and_toward_the_turn() {
-        let theta = 0.6;
+        let theta: f64 = 0.6;
         let along = Pose::new(theta.cos(), theta.sin(), 0.0);
         let left = Pose::new(-theta.sin(), theta.cos(), 7.0);
         let close = |a: [f64; 3], b: [f64; 3]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
