@@ -331,7 +331,11 @@ fn refuse_what_the_commands_reveal(
         if let Some(reason) = commands_check::refusal(&bits, options.epsilon) {
             block.secret_bits = 0;
             block.assumption_exceeds_realised = false;
-            block.reason = Some(reason);
+            // A block already without a key keeps its own reason beside the check's.
+            block.reason = Some(match block.reason.take() {
+                Some(earlier) => format!("{earlier}; {reason}"),
+                None => reason,
+            });
         }
     }
 }
