@@ -15,6 +15,7 @@
 //! renders them.
 
 pub mod analyze;
+pub mod commands_check;
 pub mod estimation;
 pub mod map;
 pub mod options;
@@ -23,6 +24,7 @@ pub mod point;
 pub mod private;
 pub mod request;
 pub mod stage;
+pub mod table;
 
 pub use analyze::{analyze, analyze_with};
 pub use options::{
