@@ -18,7 +18,7 @@ use robokey_lab::run::with_jobs;
 use robokey_lab::secrecy::private::eavesdroppers;
 use robokey_net::recorded_eve::{
     BlockVerdict, CaptureReport, Disagreement, Heard, Naming, PrivateCaptureReport, PrivateReport,
-    RecordedSessions, explicit_errors, hear,
+    RecordedSessions, check_strategies, explicit_errors, hear,
 };
 
 use crate::StrategyArg;
@@ -112,18 +112,7 @@ pub fn eve(args: EveArgs) -> Result<()> {
     args.world.apply(&mut config)?;
     let explicit = args.errors.as_deref().map(parse_errors).transpose()?;
     let strategies: Vec<EveStrategy> = args.strategy.iter().map(|&s| s.into()).collect();
-    if let Some(s) = strategies.iter().find(|s| s.mode() != config.sensing.mode) {
-        bail!(
-            "--strategy {}: does not apply in sensing.mode = {} (allowed: {})",
-            s.name(),
-            config.sensing.mode.name(),
-            EveStrategy::of_mode(config.sensing.mode)
-                .iter()
-                .map(|a| a.name())
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-    }
+    check_strategies(&strategies, config.sensing.mode, Naming::Flags)?;
     if args.capture.is_empty() {
         return match config.sensing.mode {
             SensingMode::Odometry => simulated(&args, &config),

@@ -200,6 +200,31 @@ fn hear_private(
     })
 }
 
+/// Checks that every one of `strategies` is an eavesdropper of `mode`.
+///
+/// # Errors
+/// [`NetError::Usage`] naming the strategy (`strategy` as `naming` says) and the mode's.
+pub fn check_strategies(
+    strategies: &[EveStrategy],
+    mode: SensingMode,
+    naming: Naming,
+) -> Result<(), NetError> {
+    match strategies.iter().find(|s| s.mode() != mode) {
+        Some(s) => Err(NetError::Usage(format!(
+            "{} {}: does not apply in sensing.mode = {} (allowed: {})",
+            naming.of("strategy"),
+            s.name(),
+            mode.name(),
+            EveStrategy::of_mode(mode)
+                .iter()
+                .map(|a| a.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// Her starting relative errors on r, D, W, V given explicitly (every strategy but the
 /// oracle starts from them).
 ///
