@@ -20,9 +20,10 @@ SESSION_FLAGS = ["--set", "trajectory.laps=1", "--set", "trajectory.side_time=2"
 ODOMETRY = ["oracle", "mismatch", "soft", "identify", "transcript"]
 
 
-def _command(cli: Any, tmp_path: Path, *args: str) -> Dict[str, Any]:
+def _command(cli: Any, tmp_path: Path, *args: str, session: List[str] = SESSION_FLAGS) -> Dict[str, Any]:
+    """``capture.json`` of ``robokey eve args… --out``, for the captured session's terms."""
     out = tmp_path / "eve"
-    cli("eve", *args, *SESSION_FLAGS, "--out", str(out))
+    cli("eve", *args, *session, "--out", str(out))
     report: Dict[str, Any] = json.loads((out / "capture.json").read_text())
     return report
 
@@ -125,13 +126,14 @@ class _Started:
         import threading
 
         self.process = subprocess.Popen([str(binary), *args], stdout=subprocess.PIPE,
-                                        stderr=subprocess.STDOUT)
+                                        stderr=subprocess.DEVNULL)
         assert self.process.stdout is not None
         self.lines = [self.process.stdout.readline().decode() for _ in range(lines)]
         threading.Thread(target=self.process.stdout.read, daemon=True).start()
 
     def after(self, marker: str, line: int = -1) -> str:
         """The address after ``marker`` in a line read, up to a comma or the end."""
+        assert marker in self.lines[line], self.lines
         return self.lines[line].split(marker)[1].split(",")[0].strip()
 
     def wait(self) -> int:
@@ -178,7 +180,7 @@ def test_the_private_eavesdroppers_hear_a_loopback_session_as_the_command_does(
 ):
     files = _recorded(private_session)
     ours = robokey.eve(files.pop("capture"), PRIVATE, **files)
-    theirs = _command(cli, tmp_path, *_flags(_recorded(private_session)), *PRIVATE_FLAGS)
+    theirs = _command(cli, tmp_path, *_flags(_recorded(private_session)), session=PRIVATE_FLAGS)
     assert ours == theirs
     assert [s["strategy"] for s in ours["strategies"]] == ["camera", "commands"]
     assert all(s["key_bits"] > 0 and s["doublets"] for s in ours["strategies"])
@@ -186,7 +188,7 @@ def test_the_private_eavesdroppers_hear_a_loopback_session_as_the_command_does(
 
 def _block_report(folder: Path, raw_bits: int, length: int) -> Path:
     """An agent report whose one block pooled ``raw_bits`` bits into a key of ``length``."""
-    block = {"block": 0, "sessions": 1, "bits": raw_bits, "sample_bits": 0, "sampled": [],
+    block = {"block": 0, "sessions": 1, "bits": raw_bits, "sample_bits": 0, "sample_errors": 0, "sampled": [],
              "reconciled_bits": raw_bits, "leak_ec": 0, "leak_confirmation": 0, "h_min": 0.0,
              "length": length}
     path = folder / f"report-{raw_bits}-{length}.json"
@@ -204,7 +206,7 @@ def test_her_bound_over_a_block_and_a_block_of_another_size_are_the_commands(
     ours = robokey.eve([capture], PRIVATE, block=report, strategy="camera",
                        **{k: [v] for k, v in files.items()})
     theirs = _command(cli, tmp_path, *_flags(_recorded(private_session)), "--block", str(report),
-                      "--strategy", "camera", *PRIVATE_FLAGS)
+                      "--strategy", "camera", session=PRIVATE_FLAGS)
     assert ours == theirs
     assert ours["block"]["raw_bits"] == raw_bits and ours["block"]["exceeds"] is True
     assert len(ours["sessions"]) == 1

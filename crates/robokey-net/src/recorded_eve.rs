@@ -17,6 +17,7 @@ use serde::ser::SerializeMap;
 use serde::{Serialize, Serializer};
 
 use crate::agent::key_file::read_key_file;
+use crate::agent::post::BlockSummary;
 use crate::capture_eve::{PrivateCaptureResult, listen, listen_private, read_session};
 use crate::error::NetError;
 use crate::pose_stream::{CameraLog, read_log};
@@ -644,33 +645,6 @@ fn given_others_view(
     Ok(view)
 }
 
-/// A post-processing block as an agent's report tells it (`post.blocks`, the last that made
-/// a key).
-#[derive(Clone, Debug, serde::Deserialize)]
-pub struct ReportedBlock {
-    /// Block number.
-    pub block: u64,
-    /// Sessions it pooled.
-    pub sessions: usize,
-    /// Raw bits it pooled.
-    pub bits: usize,
-    /// Bits of the disclosed sample.
-    pub sample_bits: usize,
-    /// The sample's positions in the block (the controller's report; absent in the robot's).
-    #[serde(default)]
-    pub sampled: Vec<u32>,
-    /// Bits reconciled (and amplified).
-    pub reconciled_bits: usize,
-    /// Error-correction leak (bits).
-    pub leak_ec: u64,
-    /// Confirmation tag's leak (bits).
-    pub leak_confirmation: u64,
-    /// `H_min^ε` under the agents' assumption (bits).
-    pub h_min: f64,
-    /// The committed key's length (bits).
-    pub length: u64,
-}
-
 /// Her realised bound over a block beside the key the agents committed.
 #[derive(Debug, Serialize)]
 pub struct BlockVerdict {
@@ -690,7 +664,7 @@ pub struct BlockVerdict {
     pub world: Vec<String>,
     /// The block as the agent's report tells it.
     #[serde(skip)]
-    pub reported: ReportedBlock,
+    pub reported: BlockSummary,
     /// Bits her bound is over.
     #[serde(skip)]
     pub amplified: usize,
@@ -713,7 +687,7 @@ pub fn block_verdict(report: &Path, q: &[f64], config: &Config) -> Result<BlockV
         .map_err(NetError::io(format!("read the agent report {name}")))?;
     let json: serde_json::Value = serde_json::from_str(&text)
         .map_err(|e| NetError::Usage(format!("{name}: not an agent's JSON report: {e}")))?;
-    let blocks: Vec<ReportedBlock> = serde_json::from_value(json["post"]["blocks"].clone())
+    let blocks: Vec<BlockSummary> = serde_json::from_value(json["post"]["blocks"].clone())
         .map_err(|e| NetError::Usage(format!("{name}: no post-processing blocks in it: {e}")))?;
     let Some(block) = blocks.into_iter().rev().find(|b| b.length > 0) else {
         return Err(NetError::Usage(format!(
@@ -758,7 +732,7 @@ pub fn block_verdict(report: &Path, q: &[f64], config: &Config) -> Result<BlockV
 /// (the controller's), else all but the `sample_bits` bits she knows least — a bound that
 /// never credits her uncertainty she may not have, lower than hers by up to the sample's
 /// share of her uncertainty.
-fn amplified_bits(q: &[f64], block: &ReportedBlock) -> (Vec<f64>, &'static str) {
+fn amplified_bits(q: &[f64], block: &BlockSummary) -> (Vec<f64>, &'static str) {
     let mut disclosed = vec![false; q.len()];
     for &i in &block.sampled {
         if let Some(d) = disclosed.get_mut(i as usize) {
@@ -813,18 +787,20 @@ fn disagreement_percent<S: Serializer>(
 
 #[cfg(test)]
 mod tests {
-    fn block(sample_bits: usize, sampled: Vec<u32>) -> super::ReportedBlock {
-        super::ReportedBlock {
+    fn block(sample_bits: usize, sampled: Vec<u32>) -> super::BlockSummary {
+        super::BlockSummary {
             block: 0,
             sessions: 1,
             bits: 4,
             sample_bits,
+            sample_errors: 0,
             sampled,
             reconciled_bits: 4 - sample_bits,
             leak_ec: 0,
             leak_confirmation: 0,
             h_min: 0.0,
             length: 1,
+            reason: None,
         }
     }
 
