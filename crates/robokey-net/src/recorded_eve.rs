@@ -1,7 +1,7 @@
-//! The eavesdroppers on a recorded session, as typed reports: what each made of a relay
-//! capture in odometry sensing ([`hear_capture`]), of private-sensing captures and her
-//! camera's logs ([`hear_private_capture`]), and her realised bound over the post-processing
-//! block those sessions made ([`block_verdict`]). `robokey eve --capture` prints them and
+//! The eavesdroppers on a recorded session, as typed reports ([`hear`]): what each made of a
+//! relay capture in odometry sensing ([`CaptureReport`]), of private-sensing captures and her
+//! camera's logs ([`PrivateCaptureReport`]), and her realised bound over the post-processing
+//! block those sessions made ([`BlockVerdict`]). `robokey eve --capture` prints them and
 //! writes their serde form as `capture.json`; the Python package returns that form.
 
 use std::path::{Path, PathBuf};
@@ -98,9 +98,9 @@ impl Serialize for PrivateReport {
 }
 
 /// Runs the eavesdroppers on recorded sessions, as `config`'s sensing mode says: odometry
-/// sensing, one capture ([`hear_capture`]); private sensing, each capture with her camera's
-/// log ([`hear_private_capture`]) and, with the block's agent report, her bound over the
-/// block ([`block_verdict`]). Errors name the inputs as `naming` says.
+/// sensing, one capture; private sensing, each capture with her camera's log and, with the
+/// block's agent report, her bound over the block ([`block_verdict`]). Errors name the inputs
+/// as `naming` says.
 ///
 /// # Errors
 /// Inputs that do not fit the mode or each other ([`NetError::Usage`]), a file that cannot be
@@ -411,7 +411,7 @@ fn hear_capture(
 /// One private-sensing session's recording: its capture, her camera's log, and the robot's
 /// and the controller's raw bits (their key files) when given.
 #[derive(Clone, Copy, Debug)]
-pub struct PrivateRecording<'a> {
+struct PrivateRecording<'a> {
     /// The relay's (or tcpdump's …) capture of the session.
     pub capture: &'a Path,
     /// Her camera's pose log of it (`robokey record`).
