@@ -1,4 +1,5 @@
-//! `robokey eve`: eavesdroppers on simulated sessions or on a relay capture.
+//! `robokey eve`: eavesdroppers on simulated sessions or on a relay capture (the latter's
+//! reports made by robokey-net's `recorded_eve`, printed here).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -372,14 +373,14 @@ fn print_private(captures: &[PathBuf], report: &PrivateReport, config: &Config) 
     }
 }
 
-/// `a` against `b`: "n of m bits (p %)", or why they cannot be compared.
+/// `a` against `b`: "n of m bits (p %)", or why they cannot be compared (`a` and `b` bits).
 fn differ(disagreement: Option<Disagreement>, a: usize, b: usize) -> String {
     match disagreement {
         Some(d) => format!(
             "{} of {} bits ({:.2} %)",
             d.differing,
             d.bits,
-            100.0 * d.differing as f64 / d.bits.max(1) as f64
+            d.percent().unwrap_or(0.0)
         ),
         None => format!("not comparable: {a} bits against {b}"),
     }
