@@ -54,6 +54,7 @@ __all__ = [
     "WORLD_PRESETS",
     "SimulationError",
     "SweepError",
+    "eve",
     "list_keys",
     "read_capture",
     "read_sweep",
@@ -332,6 +333,75 @@ def read_capture(path: "os.PathLike[str] | str") -> pa.Table:
         [pa.array(list(column), type=field.type) for column, field in zip(columns, FRAME_SCHEMA)],
         schema=FRAME_SCHEMA,
     )
+
+
+_Path = Union[str, "os.PathLike[str]"]
+
+
+def _paths(value: Union[None, _Path, Sequence[_Path]]) -> List[str]:
+    """None, one path or a sequence of paths, as a list of paths."""
+    if value is None:
+        return []
+    if isinstance(value, (str, os.PathLike)):
+        return [os.fspath(value)]
+    return [os.fspath(v) for v in value]
+
+
+def eve(
+    capture: Union[_Path, Sequence[_Path]],
+    config: Config = None,
+    *,
+    camera_log: Union[None, _Path, Sequence[_Path]] = None,
+    robot_key: Union[None, _Path, Sequence[_Path]] = None,
+    controller_key: Union[None, _Path, Sequence[_Path]] = None,
+    block: Optional[_Path] = None,
+    strategy: Union[None, str, Sequence[str]] = None,
+    errors: Optional[Sequence[float]] = None,
+    seed: Optional[int] = None,
+) -> Dict[str, Any]:
+    """The eavesdroppers on a recorded session, as ``robokey eve --capture`` runs them: the
+    dict is the ``capture.json`` the command writes with ``--out`` for the same inputs.
+
+    ``config`` is the sessions' configuration (as :func:`run` takes it; a capture whose
+    ``Hello`` carries other terms raises :class:`InputError` naming them), ``seed`` its
+    ``run.seed`` (her starting errors are drawn from it). In odometry sensing ``capture`` is one
+    pcap or pcapng file; ``strategy`` one name or several (default the configuration's
+    ``eve.strategy``), ``errors`` her starting relative errors ``(r, D, W, V)``, each in
+    (−1, 1) (every strategy but the oracle), ``controller_key`` the controller's key file, to
+    measure her disagreement. The dict has ``session``, ``session_aborted``, ``frames``,
+    ``undecodable``, ``shortfalls`` and per strategy its ``start_errors``, ``end_errors``,
+    ``decisions`` (per step: 0, 1 or None), ``key_bits``, ``tag_flips`` and
+    ``disagreement_pct``.
+
+    In private sensing (``{"sensing": {"mode": "private"}}``) ``capture``, ``camera_log`` (her
+    camera's pose log, ``robokey record``), ``robot_key`` and ``controller_key`` are one per
+    session, in the same order; per strategy (``camera``, ``commands``) every doublet's
+    ``llr``, ``bits`` and ``llr_given_others``. With ``block`` (an agent's ``--report`` of the
+    run in which the sessions' block ended) the dict is ``{"sessions": […], "block": …}``,
+    ``block`` her realised bound (``realised_bits``) beside the key the agents committed
+    (``committed_bits``), ``exceeds`` and how the world differs from the parties' (``world``).
+
+    What of a capture could not be read is warned of (``UserWarning``). Raises
+    :class:`ConfigError` for an invalid configuration, :class:`InputError` for inputs that do not
+    fit the mode or each other (named as these keywords), a file that is not what it should be
+    or a block of another size than the sessions', OSError for a file that cannot be read.
+    """
+    strategies = [strategy] if isinstance(strategy, str) else list(strategy or [])
+    report, shortfalls = _native.eve(
+        _paths(capture),
+        config,
+        camera_log=_paths(camera_log),
+        robot_key=_paths(robot_key),
+        controller_key=_paths(controller_key),
+        block=None if block is None else os.fspath(block),
+        strategy=strategies,
+        errors=None if errors is None else [float(e) for e in errors],
+        seed=seed,
+    )
+    for shortfall in shortfalls:
+        warnings.warn(shortfall, stacklevel=2)
+    result: Dict[str, Any] = json.loads(report)
+    return result
 
 
 #: The columns of :func:`list_keys`'s table (``robokey keys list --json``'s fields).

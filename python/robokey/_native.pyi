@@ -56,6 +56,18 @@ def read_capture(
     List[Tuple[int, Optional[int], Optional[int], Optional[int], Optional[int], List[float], Optional[str]]],
     List[str],
 ]: ...
+def eve(
+    capture: Sequence[str],
+    config: Any = None,
+    *,
+    camera_log: Sequence[str] = ...,
+    robot_key: Sequence[str] = ...,
+    controller_key: Sequence[str] = ...,
+    block: Optional[str] = None,
+    strategy: Sequence[str] = ...,
+    errors: Optional[Sequence[float]] = None,
+    seed: Optional[int] = None,
+) -> Tuple[str, List[str]]: ...
 def list_keys(
     store: Union[str, "PathLike[str]"],
     pairing: Union[str, "PathLike[str]"],

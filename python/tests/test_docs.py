@@ -21,4 +21,5 @@ def test_the_examples_of_docs_python_md_run(cli, tmp_path, monkeypatch, capsys):
     assert "codewords sent     340" in printed
     assert "camera" in printed and "secret_bits" in printed
     assert "robokey frames of sessions" in printed and "settled" in printed
+    assert "identify: 40 steps decided, key 10 bits" in printed
     assert "folder" in namespace and (namespace["folder"] / "trace.csv").exists()

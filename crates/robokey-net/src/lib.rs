@@ -22,6 +22,7 @@ pub mod pcap;
 pub mod pose_stream;
 pub mod post_store;
 pub mod random;
+pub mod recorded_eve;
 pub mod relay;
 #[cfg(feature = "ros2")]
 pub mod ros2;

@@ -6,6 +6,7 @@
 mod columns;
 mod config;
 mod errors;
+mod eve;
 mod readers;
 mod recorded;
 mod run;
@@ -21,6 +22,8 @@ mod _native {
 
     #[pymodule_export]
     use crate::errors::{ConfigError, InputError, OptionError, SimulationError, SweepError};
+    #[pymodule_export]
+    use crate::eve::eve;
     #[pymodule_export]
     use crate::readers::{read_sweep, read_trace};
     #[pymodule_export]

@@ -34,7 +34,7 @@ pub fn experiment_of(
 }
 
 /// A name of [`EveStrategy`], or the error naming the allowed ones.
-fn strategy(name: &str) -> PyResult<EveStrategy> {
+pub(crate) fn strategy(name: &str) -> PyResult<EveStrategy> {
     EveStrategy::ALL
         .into_iter()
         .find(|s| s.name() == name)

@@ -98,8 +98,8 @@ pub struct PostReport {
     pub note: Option<String>,
 }
 
-/// One block, as reported.
-#[derive(Clone, Debug, Serialize)]
+/// One block, as reported (and read back from a report by `robokey eve --block`).
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct BlockSummary {
     /// Block number.
     pub block: u64,
