@@ -19,6 +19,7 @@ pub mod reproduce;
 pub mod run;
 pub mod secrecy;
 pub mod stats;
+pub mod threat;
 pub mod trace;
 pub mod trace_table;
 

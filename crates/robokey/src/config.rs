@@ -8,7 +8,10 @@ use crate::observer::Variant;
 use crate::trajectory::{SQUARE, Trajectory};
 use crate::world::{WorldConfig, WorldModel};
 
+pub mod camera;
 pub mod source;
+
+pub use camera::CameraStatement;
 
 /// Most steps one session may have (a session holds its trace and key in memory).
 pub const MAX_STEPS: u64 = 10_000_000;
@@ -396,6 +399,9 @@ pub const MAX_TAG_FLIPS: u32 = 24;
 /// bounds `eve.smoother_window`.
 pub const MAX_NUISANCE_BITS: u32 = 12;
 
+/// `eve.camera_std`'s default `[m, m, rad]`: 8 mm, 8 mm, 8 mrad per sample instant.
+pub const DEFAULT_CAMERA_STD: [f64; 3] = [0.008; 3];
+
 /// `[eve]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -423,8 +429,19 @@ pub struct EveConfig {
     /// percentage points of the controller's.
     pub match_tolerance_pp: f64,
     /// Private mode: std of her camera `[m, m, rad]`, her effective noise per sample instant
-    /// after her own filtering (a camera averaging M frames per instant has σ/√M).
+    /// after her own filtering (a camera averaging M frames per instant has σ/√M). Not used
+    /// when the camera is stated in frames (`camera_fps`, `camera_frame_std`); a value other
+    /// than its default is then refused as a second statement.
     pub camera_std: [f64; 3],
+    /// Private mode: the camera in camera terms — her frames per second (any phase), given
+    /// together with `camera_frame_std`. Eve's modelled view then uses her frames
+    /// (docs/threat-model.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub camera_fps: Option<f64>,
+    /// Private mode: noise std of each of her frames `[m, m, rad]`, white and independent
+    /// between frames; given together with `camera_fps`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub camera_frame_std: Option<[f64; 3]>,
     /// Private mode: doublets each side of the window over which the `camera` and
     /// `commands` eavesdroppers smooth (docs/world.md). Absent: 2 where the world's boundary
     /// samples do not screen a doublet from its neighbours, else each doublet on its own.
@@ -444,7 +461,9 @@ impl Default for EveConfig {
             sessions: 5,
             window: 200,
             match_tolerance_pp: 0.5,
-            camera_std: [0.008; 3],
+            camera_std: DEFAULT_CAMERA_STD,
+            camera_fps: None,
+            camera_frame_std: None,
             smoother_window: None,
         }
     }
@@ -713,6 +732,7 @@ impl Config {
         for (i, &x) in self.eve.camera_std.iter().enumerate() {
             positive(&format!("eve.camera_std[{i}]"), x)?;
         }
+        self.validate_camera_frames()?;
         match self.sensing.mode {
             SensingMode::Odometry => {
                 if proto.enabled && proto.delta_v == 0.0 && delta_omega == 0.0 {
@@ -963,6 +983,70 @@ impl Config {
         } else {
             self.delta_omega()
         }
+    }
+
+    /// Eve's camera as the key is sized against it: in frames when `eve.camera_fps` and
+    /// `eve.camera_frame_std` are given, else `eve.camera_std` per sample instant.
+    #[must_use]
+    pub fn camera_statement(&self) -> CameraStatement {
+        match (self.eve.camera_fps, self.eve.camera_frame_std) {
+            (Some(fps), Some(frame_std)) => CameraStatement::Frames { fps, frame_std },
+            _ => CameraStatement::PerInstant {
+                std: self.eve.camera_std,
+            },
+        }
+    }
+
+    /// The per-instant camera noise `[m, m, rad]` Eve's modelled view uses: the
+    /// [`camera_statement`](Self::camera_statement) at `robot.T`.
+    #[must_use]
+    pub fn modelled_camera_std(&self) -> [f64; 3] {
+        self.camera_statement()
+            .per_instant_std(self.robot.sample_time)
+    }
+
+    /// The camera in frames: both fields or neither, a frame rate in (0, 1000] frames/s,
+    /// positive frame noise, and `eve.camera_std` left at its default (one statement).
+    fn validate_camera_frames(&self) -> Result<(), ConfigError> {
+        let eve = &self.eve;
+        match (eve.camera_fps, eve.camera_frame_std) {
+            (None, None) => return Ok(()),
+            (Some(fps), None) => {
+                return Err(invalid(
+                    "eve.camera_frame_std",
+                    "(absent)",
+                    &format!("given with eve.camera_fps = {fps} (the noise of each frame, m, m, rad)"),
+                ));
+            }
+            (None, Some(std)) => {
+                return Err(invalid(
+                    "eve.camera_fps",
+                    "(absent)",
+                    &format!("given with eve.camera_frame_std = {std:?} (frames per second)"),
+                ));
+            }
+            (Some(fps), Some(frame_std)) => {
+                if !(fps > 0.0 && fps <= crate::world::MAX_CAMERA_FPS) {
+                    return Err(invalid(
+                        "eve.camera_fps",
+                        fps,
+                        &format!("> 0 and at most {} frames/s", crate::world::MAX_CAMERA_FPS),
+                    ));
+                }
+                for (i, &x) in frame_std.iter().enumerate() {
+                    positive(&format!("eve.camera_frame_std[{i}]"), x)?;
+                }
+            }
+        }
+        if eve.camera_std != DEFAULT_CAMERA_STD {
+            return Err(invalid(
+                "eve.camera_std",
+                eve.camera_std,
+                "its default when the camera is stated in frames (eve.camera_fps, \
+                 eve.camera_frame_std): one statement of her camera, not two",
+            ));
+        }
+        Ok(())
     }
 
     /// Eve's strategy after defaults: as set, else `mismatch` (odometry) or `camera`

@@ -5,7 +5,7 @@
 use robokey_secrecy::cascade::CascadeSchedule;
 use robokey_secrecy::postprocess::{Assumption, Settings};
 
-use crate::config::{Config, SensingMode};
+use crate::config::{CameraStatement, Config, SensingMode};
 
 /// Why the odometry mode yields no secret bit against an eavesdropper who learns the model.
 pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything the controller \
@@ -14,21 +14,34 @@ pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything 
     I(B; controller | Eve) = 0 and no post-processing yields a secret bit";
 
 /// Private sensing's statement about Eve for `config`: her camera noise at least
-/// `eve.camera_std`, the true motion noise, the exact model, the controller's boundary samples
-/// hers; her view of each bit at most as informative as a Gaussian LLR of `separation`.
+/// `eve.camera_std` per instant (or her frames, `eve.camera_fps` and `eve.camera_frame_std`),
+/// the true motion noise, the exact model, the controller's boundary samples hers; her view
+/// of each bit at most as informative as a Gaussian LLR of `separation`.
 #[must_use]
 pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
     let mm = |x: f64| 1e3 * x;
-    let (e, w) = (&config.eve.camera_std, &config.noise.process_std);
+    let w = &config.noise.process_std;
+    let camera = match config.camera_statement() {
+        CameraStatement::PerInstant { .. } => format!(
+            "{} (her effective noise after her own filtering)",
+            config.camera_statement().describe()
+        ),
+        frames @ CameraStatement::Frames { .. } => {
+            let e = config.modelled_camera_std();
+            format!(
+                "{}, any phase (worth {:.2} mm, {:.2} mm, {:.2} mrad per sample instant)",
+                frames.describe(),
+                mm(e[0]),
+                mm(e[1]),
+                mm(e[2]),
+            )
+        }
+    };
     Assumption::GaussianViews {
         separation,
         statement: format!(
-            "Eve's camera noise ≥ {} mm, {} mm, {} mrad per sample instant (her effective \
-             noise after her own filtering), motion noise {} mm, {} mm, {} mrad per step, \
+            "Eve's camera noise ≥ {camera}, motion noise {} mm, {} mm, {} mrad per step, \
              exact model, the controller's boundary samples known to her",
-            mm(e[0]),
-            mm(e[1]),
-            mm(e[2]),
             mm(w[0]),
             mm(w[1]),
             mm(w[2]),

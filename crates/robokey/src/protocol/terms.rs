@@ -1,7 +1,7 @@
 //! The agreement terms: what both sides must hold equal before a session starts, their digest
 //! (carried in `Hello` and `HelloAck`), and how a difference is named.
 
-use crate::config::{Config, SensingMode};
+use crate::config::{CameraStatement, Config, SensingMode};
 
 /// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
 /// budget, Δ, trajectory, protocol on/off; in private sensing also the mode, the bits per
@@ -17,8 +17,11 @@ pub fn agreement_terms(config: &Config) -> String {
         SensingMode::Odometry => String::new(),
         SensingMode::Private => format!(
             "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
-             eve.camera_std = {:?}\n",
-            config.protocol.bits_per_doublet, config.protocol.max_turn_rate, config.eve.camera_std
+             eve.camera_std = {:?}\n{}",
+            config.protocol.bits_per_doublet,
+            config.protocol.max_turn_rate,
+            config.eve.camera_std,
+            camera_frames_terms(config),
         ),
     };
     // What sizes and labels the final keys both stores hold.
@@ -51,6 +54,17 @@ pub fn agreement_terms(config: &Config) -> String {
         post.sample_bits,
         post.epsilon,
     )
+}
+
+/// The camera stated in frames, when it is: `eve.camera_fps` and `eve.camera_frame_std`
+/// lines (absent otherwise, so that a per-instant statement's terms stay as they were).
+fn camera_frames_terms(config: &Config) -> String {
+    match config.camera_statement() {
+        CameraStatement::PerInstant { .. } => String::new(),
+        CameraStatement::Frames { fps, frame_std } => {
+            format!("eve.camera_fps = {fps}\neve.camera_frame_std = {frame_std:?}\n")
+        }
+    }
 }
 
 /// SHA-256 of the [`agreement_terms`].

@@ -3,7 +3,7 @@
 //! configuration.
 
 use super::config::{Integration, WorldConfig};
-use crate::config::Config;
+use crate::config::{CameraStatement, Config};
 
 /// Eve's real camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,8 +84,9 @@ impl WorldModel {
             encoder_quantum: 0.0,
             jitter: 0.0,
             controller_std: config.sensing.controller_std,
-            camera: Camera::Instants {
-                std: config.eve.camera_std,
+            camera: match config.camera_statement() {
+                CameraStatement::PerInstant { std } => Camera::Instants { std },
+                CameraStatement::Frames { fps, frame_std } => Camera::Frames { fps, frame_std },
             },
         }
     }
@@ -104,11 +105,14 @@ impl WorldModel {
             (None, Some(std)) => Camera::Instants { std },
             (Some(fps), frame_std) => Camera::Frames {
                 fps,
-                frame_std: frame_std.unwrap_or_else(|| {
-                    config
-                        .eve
-                        .camera_std
-                        .map(|s| per_frame_std(s, fps, config.robot.sample_time))
+                frame_std: frame_std.unwrap_or_else(|| match config.camera_statement() {
+                    CameraStatement::Frames {
+                        fps: stated,
+                        frame_std,
+                    } if stated == fps => frame_std,
+                    _ => config
+                        .modelled_camera_std()
+                        .map(|s| per_frame_std(s, fps, config.robot.sample_time)),
                 }),
             },
         };
