@@ -618,6 +618,8 @@ impl Config {
         let mut every = Self::default();
         every.postprocess.assumed_eve_error = Some(0.5);
         every.eve.smoother_window = Some(0);
+        every.eve.camera_fps = Some(1.0);
+        every.eve.camera_frame_std = Some([1.0; 3]);
         let mut known: toml::Table = every
             .to_toml()
             .parse()
@@ -1231,6 +1233,48 @@ mod tests {
                 .codeword_length(),
             7
         );
+    }
+
+    #[test]
+    fn the_camera_in_frames_is_one_statement_with_both_fields() {
+        for (toml, field, allowed) in [
+            ("camera_fps = 30.0\n", "eve.camera_frame_std", "given with eve.camera_fps"),
+            (
+                "camera_frame_std = [0.016, 0.016, 0.016]\n",
+                "eve.camera_fps",
+                "given with eve.camera_frame_std",
+            ),
+            (
+                "camera_fps = 0.0\ncamera_frame_std = [0.016, 0.016, 0.016]\n",
+                "eve.camera_fps",
+                "> 0 and at most 1000",
+            ),
+            (
+                "camera_fps = 30.0\ncamera_frame_std = [0.016, 0.0, 0.016]\n",
+                "eve.camera_frame_std[1]",
+                "> 0",
+            ),
+            (
+                "camera_fps = 30.0\ncamera_frame_std = [0.016, 0.016, 0.016]\n\
+                 camera_std = [0.004, 0.004, 0.004]\n",
+                "eve.camera_std",
+                "one statement of her camera",
+            ),
+        ] {
+            let text = Config::from_toml(&format!("[eve]\n{toml}"), "e.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(text.contains(field) && text.contains(allowed), "{text}");
+        }
+        let config = Config::from_toml(
+            "[eve]\ncamera_fps = 30.0\ncamera_frame_std = [0.016, 0.016, 0.016]\n",
+            "f.toml",
+        )
+        .unwrap();
+        // 6 frames per step, the worst phase a frame at each instant: 16 mm / √4.056.
+        let modelled = config.modelled_camera_std();
+        assert!((modelled[0] - 0.016 / (1.0f64 + 110.0 / 36.0).sqrt()).abs() < 1e-12);
+        assert_eq!(Config::default().modelled_camera_std(), DEFAULT_CAMERA_STD);
     }
 
     #[test]
