@@ -369,8 +369,15 @@ mod through_the_session_layer {
         frames.eve.camera_fps = Some(30.0);
         frames.eve.camera_frame_std = Some([0.016; 3]);
         for (controller, named) in [
-            (noise, "noise.process_std: controller has [0.002, 0.002, 0.002], robot has [0.004, 0.004, 0.004]"),
-            (frames, "eve.camera_fps: controller has 30, robot has (missing)"),
+            (
+                noise,
+                "noise.process_std: robot has [0.004, 0.004, 0.004], controller has [0.002, \
+                 0.002, 0.002]",
+            ),
+            (
+                frames,
+                "eve.camera_fps: robot has (missing), controller has 30",
+            ),
         ] {
             let s = conversation_between(&robot, &controller, Network::default(), 0);
             let Some(Outcome::Aborted(why)) = &s.controller_outcome else {
