@@ -157,8 +157,8 @@ mod tests {
         let basis = key_basis(&config).unwrap();
         assert_eq!(
             basis.camera,
-            "16 mm, 16 mm, 16 mrad per frame at 30 frames/s, any phase (worth 7.94 mm, 7.94 mm, \
-             7.94 mrad per sample instant)"
+            "16 mm, 16 mm, 16 mrad per frame at 30 frames/s, any phase (worth 7.95 mm, 7.95 mm, \
+             7.95 mrad per sample instant)"
         );
         assert!(
             camera_assumption(&config, 1.0)
