@@ -62,6 +62,7 @@ __all__ = [
     "run",
     "secrecy",
     "sweep",
+    "threat",
 ]
 
 _Column = Tuple[str, str, str, str, Any, Optional[bytes]]
@@ -253,6 +254,41 @@ def secrecy(
         "pooling": data["pooling"],
         "map": None if map_json is None else json.loads(map_json),
     }
+
+
+def threat(
+    config: Config = None,
+    *,
+    seed: Optional[int] = None,
+    camera_std: Optional[Sequence[float]] = None,
+    fps: Optional[Sequence[float]] = None,
+    frame_std: Optional[Sequence[float]] = None,
+    jobs: int = 0,
+) -> Dict[str, Any]:
+    """What a camera of Eve's leaves of the key at ``config`` (evaluated in private sensing), as
+    ``robokey threat`` computes it (docs/threat-model.md), without printing.
+
+    Cameras: ``camera_std`` (mm per sample instant), or every combination of ``fps``
+    (frames/s) and ``frame_std`` (mm per frame, white), given together; none: the
+    configuration's own statement. Returns a dict: ``cameras`` (per camera its ``statement``,
+    ``per_instant_mm``, ``raw_bits``, ``secret_bits`` ℓ, ``bits_per_step``,
+    ``bits_per_second`` and ``zero_reason``), ``break_even`` (``kind`` ``between`` with
+    ``zero_at_mm`` and ``positive_at_mm`` per instant, or ``below``/``above`` with ``mm``),
+    ``sample_time``, ``block_bits`` and ``epsilon``.
+
+    Raises :class:`ConfigError` for a configuration or camera out of range, :class:`InputError`
+    for ``fps`` without ``frame_std`` or the reverse.
+    """
+    return json.loads(
+        _native.threat(
+            config,
+            seed=seed,
+            camera_std=None if camera_std is None else list(camera_std),
+            fps=None if fps is None else list(fps),
+            frame_std=None if frame_std is None else list(frame_std),
+            jobs=jobs,
+        )
+    )
 
 
 def read_sweep(folder: "os.PathLike[str] | str") -> Union[pa.Table, Dict[str, pa.Table]]:
