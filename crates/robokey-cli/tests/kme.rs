@@ -42,7 +42,9 @@ fn final_key(id: &str, bits: usize, seed: u8) -> FinalKey {
 fn stores(dir: &Path, pairing: &str) -> (PathBuf, PathBuf) {
     let (secret, _) = robokey_net::pairing::read_pairing(Path::new(pairing), false).unwrap();
     let (controller, robot) = (dir.join("controller"), dir.join("robot"));
-    drop(PostStore::<ControllerSnapshot>::open(&controller, &secret, KeyLabels::default()).unwrap());
+    drop(
+        PostStore::<ControllerSnapshot>::open(&controller, &secret, KeyLabels::default()).unwrap(),
+    );
     drop(PostStore::<RobotSnapshot>::open(&robot, &secret, KeyLabels::default()).unwrap());
     for (store, role) in [(&controller, "controller"), (&robot, "robot")] {
         let keys = open_keys(store, &secret).unwrap();

@@ -531,7 +531,10 @@ fn pooled_private_sessions_become_the_same_final_keys_in_both_stores() {
         assert!(assumption.contains("camera noise ≥ 8 mm"), "{assumption}");
         // The record names both assumptions the key rests on.
         let camera = key["basis"]["camera"].as_str().unwrap();
-        assert!(camera.starts_with("8 mm, 8 mm, 8 mrad per sample instant"), "{key}");
+        assert!(
+            camera.starts_with("8 mm, 8 mm, 8 mrad per sample instant"),
+            "{key}"
+        );
         let plant = key["basis"]["plant"].as_str().unwrap();
         assert!(plant.starts_with("white Gaussian motion noise"), "{key}");
     }

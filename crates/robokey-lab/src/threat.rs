@@ -238,7 +238,12 @@ mod tests {
             frame_std: [0.008; 3],
         };
         let frames = camera_threat(&config, slow).unwrap();
-        assert!(frames.per_instant_mm.iter().all(|mm| (mm - 8.0).abs() < 1e-9));
+        assert!(
+            frames
+                .per_instant_mm
+                .iter()
+                .all(|mm| (mm - 8.0).abs() < 1e-9)
+        );
         assert_eq!(frames.secret_bits, eight.secret_bits);
     }
 

@@ -461,9 +461,8 @@ impl<S: Snapshot> PostStore<S> {
         let mut changes = KeyChanges::default();
         let unsettled = snapshot.unsettled();
         let held = unsettled.as_ref().and_then(|u| {
-            u.key.map(|key| {
-                StoredKey::new(key, S::ROLE, &self.labels, status(snapshot, key.block))
-            })
+            u.key
+                .map(|key| StoredKey::new(key, S::ROLE, &self.labels, status(snapshot, key.block)))
         });
         for key in carried.iter().chain(&held) {
             let mut key = key.clone();

@@ -1017,7 +1017,9 @@ impl Config {
                 return Err(invalid(
                     "eve.camera_frame_std",
                     "(absent)",
-                    &format!("given with eve.camera_fps = {fps} (the noise of each frame, m, m, rad)"),
+                    &format!(
+                        "given with eve.camera_fps = {fps} (the noise of each frame, m, m, rad)"
+                    ),
                 ));
             }
             (None, Some(std)) => {
@@ -1238,7 +1240,11 @@ mod tests {
     #[test]
     fn the_camera_in_frames_is_one_statement_with_both_fields() {
         for (toml, field, allowed) in [
-            ("camera_fps = 30.0\n", "eve.camera_frame_std", "given with eve.camera_fps"),
+            (
+                "camera_fps = 30.0\n",
+                "eve.camera_frame_std",
+                "given with eve.camera_fps",
+            ),
             (
                 "camera_frame_std = [0.016, 0.016, 0.016]\n",
                 "eve.camera_fps",

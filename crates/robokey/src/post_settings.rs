@@ -151,7 +151,11 @@ mod tests {
             basis.camera,
             "8 mm, 8 mm, 8 mrad per sample instant (her effective noise after her own filtering)"
         );
-        assert!(basis.plant.starts_with("white Gaussian motion noise 4 mm, 4 mm, 4 mrad"));
+        assert!(
+            basis
+                .plant
+                .starts_with("white Gaussian motion noise 4 mm, 4 mm, 4 mrad")
+        );
         config.eve.camera_fps = Some(30.0);
         config.eve.camera_frame_std = Some([0.016; 3]);
         let basis = key_basis(&config).unwrap();

@@ -306,7 +306,8 @@ fn racing_takers_never_get_the_same_bits() {
 #[test]
 fn an_agent_and_a_taker_on_one_store_do_not_corrupt_each_other() {
     let dir = tempdir("delivery-agent");
-    let (mut store, _) = PostStore::<ControllerSnapshot>::open(&dir, &pairing(), KeyLabels::default()).unwrap();
+    let (mut store, _) =
+        PostStore::<ControllerSnapshot>::open(&dir, &pairing(), KeyLabels::default()).unwrap();
     let delivery = KeyDelivery::open(&dir, &pairing()).unwrap();
     let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
     let taker = std::thread::spawn({
@@ -345,7 +346,12 @@ fn an_agent_and_a_taker_on_one_store_do_not_corrupt_each_other() {
         // Acknowledged: settled, and the key stored again as recovery would.
         state.in_flight = None;
         store.persist(&mut state, &[]).unwrap();
-        let again = StoredKey::new(&key, "controller", &KeyLabels::default(), KeyStatus::Settled);
+        let again = StoredKey::new(
+            &key,
+            "controller",
+            &KeyLabels::default(),
+            KeyStatus::Settled,
+        );
         delivery.keys().store(&again).unwrap();
     }
     done.store(true, std::sync::atomic::Ordering::SeqCst);

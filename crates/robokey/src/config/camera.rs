@@ -40,9 +40,8 @@ impl CameraStatement {
     /// or `16 mm, 16 mm, 16 mrad per frame at 30 frames/s`.
     #[must_use]
     pub fn describe(&self) -> String {
-        let words = |s: &[f64; 3]| {
-            format!("{} mm, {} mm, {} mrad", 1e3 * s[0], 1e3 * s[1], 1e3 * s[2])
-        };
+        let words =
+            |s: &[f64; 3]| format!("{} mm, {} mm, {} mrad", 1e3 * s[0], 1e3 * s[1], 1e3 * s[2]);
         match self {
             Self::PerInstant { std } => format!("{} per sample instant", words(std)),
             Self::Frames { fps, frame_std } => {
@@ -98,7 +97,10 @@ mod tests {
         for fps in [60.0, 240.0, 1000.0] {
             let continuous = 2.0 * fps * 0.2 / 3.0;
             let energy = best_phase_energy(fps, 0.2);
-            assert!(energy >= continuous && energy < continuous + 0.5, "{fps}: {energy}");
+            assert!(
+                energy >= continuous && energy < continuous + 0.5,
+                "{fps}: {energy}"
+            );
         }
     }
 
@@ -108,7 +110,10 @@ mod tests {
             let best = best_phase_energy(fps, 0.2);
             for i in 0..1000 {
                 let phase = f64::from(i) / 1000.0 / fps;
-                assert!(triangle_energy(fps, 0.2, phase) <= best + 1e-12, "{fps} {phase}");
+                assert!(
+                    triangle_energy(fps, 0.2, phase) <= best + 1e-12,
+                    "{fps} {phase}"
+                );
             }
         }
     }
