@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
-use robokey::config::CameraStatement;
 use robokey::config::camera::best_phase_energy;
+use robokey::world::Camera;
 use robokey_lab::run::with_jobs;
 use robokey_lab::threat::{BreakEven, Threat, threat};
 
@@ -77,11 +77,11 @@ fn values(flag: &str, text: &str) -> Result<Vec<f64>> {
 }
 
 /// The cameras the flags name, or the configuration's own statement.
-fn cameras(args: &ThreatArgs, own: CameraStatement) -> Result<Vec<CameraStatement>> {
+fn cameras(args: &ThreatArgs, own: Camera) -> Result<Vec<Camera>> {
     let mut out = Vec::new();
     if let Some(text) = &args.camera_std {
         for mm in values("--camera-std", text)? {
-            out.push(CameraStatement::PerInstant {
+            out.push(Camera::Instants {
                 std: [mm * 1e-3; 3],
             });
         }
@@ -90,7 +90,7 @@ fn cameras(args: &ThreatArgs, own: CameraStatement) -> Result<Vec<CameraStatemen
         let frame_std = values("--frame-std", frame_std)?;
         for f in values("--fps", fps)? {
             for &mm in &frame_std {
-                out.push(CameraStatement::Frames {
+                out.push(Camera::Frames {
                     fps: f,
                     frame_std: [mm * 1e-3; 3],
                 });
@@ -127,7 +127,7 @@ pub fn run(args: &ThreatArgs) -> Result<()> {
 
 /// The figures as text: one line per camera, then the break-even (per instant, and per
 /// frame at each frame rate asked about).
-fn render(figures: &Threat, cameras: &[CameraStatement]) -> String {
+fn render(figures: &Threat, cameras: &[Camera]) -> String {
     let mut text = format!(
         "private sensing at T = {} s; each key sized against the camera of its line: one \
          block of {} raw bits, ε = {:e} per term (the key is 4ε-secret)\n\n",
@@ -162,8 +162,8 @@ fn render(figures: &Threat, cameras: &[CameraStatement]) -> String {
     let mut rates: Vec<f64> = cameras
         .iter()
         .filter_map(|c| match c {
-            CameraStatement::Frames { fps, .. } => Some(*fps),
-            CameraStatement::PerInstant { .. } => None,
+            Camera::Frames { fps, .. } => Some(*fps),
+            Camera::Instants { .. } => None,
         })
         .collect();
     rates.dedup();

@@ -6,7 +6,8 @@
 //! post-processing (complete pooling) at `postprocess.epsilon` per term.
 
 use robokey::Config;
-use robokey::config::{CameraStatement, EveStrategy, SensingMode};
+use robokey::config::{EveStrategy, SensingMode};
+use robokey::world::Camera;
 use serde::Serialize;
 
 use crate::error::LabError;
@@ -82,7 +83,7 @@ pub struct Threat {
 /// # Errors
 /// A camera makes the configuration invalid (named field, value, range), or a session
 /// aborts.
-pub fn threat(config: &Config, cameras: &[CameraStatement]) -> Result<Threat, LabError> {
+pub fn threat(config: &Config, cameras: &[Camera]) -> Result<Threat, LabError> {
     let mut base = config.clone();
     base.sensing.mode = SensingMode::Private;
     let cameras = cameras
@@ -99,15 +100,15 @@ pub fn threat(config: &Config, cameras: &[CameraStatement]) -> Result<Threat, La
 }
 
 /// `config` stating `camera`.
-fn stating(config: &Config, camera: CameraStatement) -> Result<Config, LabError> {
+fn stating(config: &Config, camera: Camera) -> Result<Config, LabError> {
     let mut config = config.clone();
     let eve = &mut config.eve;
     match camera {
-        CameraStatement::PerInstant { std } => {
+        Camera::Instants { std } => {
             eve.camera_std = std;
             (eve.camera_fps, eve.camera_frame_std) = (None, None);
         }
-        CameraStatement::Frames { fps, frame_std } => {
+        Camera::Frames { fps, frame_std } => {
             eve.camera_std = robokey::config::DEFAULT_CAMERA_STD;
             (eve.camera_fps, eve.camera_frame_std) = (Some(fps), Some(frame_std));
         }
@@ -117,7 +118,7 @@ fn stating(config: &Config, camera: CameraStatement) -> Result<Config, LabError>
 }
 
 /// One camera's figures: `robokey secrecy` of `config` stating it, against the camera Eve.
-fn camera_threat(config: &Config, camera: CameraStatement) -> Result<CameraThreat, LabError> {
+fn camera_threat(config: &Config, camera: Camera) -> Result<CameraThreat, LabError> {
     let config = stating(config, camera)?;
     let post = &config.postprocess;
     let options = SecrecyOptions {
@@ -159,7 +160,7 @@ fn camera_threat(config: &Config, camera: CameraStatement) -> Result<CameraThrea
 /// noise where the rate reaches zero, to [`BREAK_EVEN_RESOLUTION`].
 fn break_even(config: &Config) -> Result<BreakEven, LabError> {
     let positive = |noise: f64| -> Result<bool, LabError> {
-        let camera = CameraStatement::PerInstant { std: [noise; 3] };
+        let camera = Camera::Instants { std: [noise; 3] };
         Ok(camera_threat(config, camera)?.secret_bits > 0)
     };
     let [mut zero, mut secret] = BREAK_EVEN_RANGE;
@@ -197,7 +198,7 @@ mod tests {
         // bits per bit, exactly as with 8 mm per instant. The worst phase (a frame at the
         // mid instant, 6 frames per step) is worth 16/√4.056 = 7.94 mm, within 1 %.
         let config = private("");
-        let frames = CameraStatement::Frames {
+        let frames = Camera::Frames {
             fps: 30.0,
             frame_std: [0.016; 3],
         };
@@ -225,7 +226,7 @@ mod tests {
     #[test]
     fn a_better_camera_leaves_fewer_secret_bits_and_an_equivalent_statement_the_same() {
         let config = private("");
-        let per_instant = |mm: f64| CameraStatement::PerInstant {
+        let per_instant = |mm: f64| Camera::Instants {
             std: [mm * 1e-3; 3],
         };
         let eight = camera_threat(&config, per_instant(8.0)).unwrap();
@@ -233,7 +234,7 @@ mod tests {
         assert!(eight.secret_bits > four.secret_bits, "{eight:?} {four:?}");
         assert!((eight.bits_per_second - eight.bits_per_step / 0.2).abs() < 1e-12);
         // 5 frames/s at T = 0.2 s: the worst phase puts one frame at each mid instant.
-        let slow = CameraStatement::Frames {
+        let slow = Camera::Frames {
             fps: 5.0,
             frame_std: [0.008; 3],
         };
@@ -249,7 +250,7 @@ mod tests {
 
     #[test]
     fn a_camera_out_of_range_is_named() {
-        let frames = CameraStatement::Frames {
+        let frames = Camera::Frames {
             fps: 0.0,
             frame_std: [0.008; 3],
         };

@@ -2,7 +2,7 @@
 //! `robokey threat` computes it (docs/threat-model.md), returned instead of printed.
 
 use pyo3::prelude::*;
-use robokey::config::CameraStatement;
+use robokey::world::Camera;
 use robokey_lab::run::with_jobs;
 
 use crate::errors::{InputError, lab_error};
@@ -13,12 +13,12 @@ fn cameras(
     camera_std: Option<Vec<f64>>,
     fps: Option<Vec<f64>>,
     frame_std: Option<Vec<f64>>,
-    own: CameraStatement,
-) -> PyResult<Vec<CameraStatement>> {
-    let mut out: Vec<CameraStatement> = camera_std
+    own: Camera,
+) -> PyResult<Vec<Camera>> {
+    let mut out: Vec<Camera> = camera_std
         .unwrap_or_default()
         .into_iter()
-        .map(|mm| CameraStatement::PerInstant {
+        .map(|mm| Camera::Instants {
             std: [mm * 1e-3; 3],
         })
         .collect();
@@ -26,7 +26,7 @@ fn cameras(
         (None, None) => {}
         (Some(fps), Some(frame_std)) => {
             for f in fps {
-                out.extend(frame_std.iter().map(|&mm| CameraStatement::Frames {
+                out.extend(frame_std.iter().map(|&mm| Camera::Frames {
                     fps: f,
                     frame_std: [mm * 1e-3; 3],
                 }));

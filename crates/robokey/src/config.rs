@@ -6,12 +6,10 @@ use serde::{Deserialize, Serialize};
 use crate::code::{BlockCode, Repetition, hamming74};
 use crate::observer::Variant;
 use crate::trajectory::{SQUARE, Trajectory};
-use crate::world::{WorldConfig, WorldModel};
+use crate::world::{Camera, WorldConfig, WorldModel};
 
 pub mod camera;
 pub mod source;
-
-pub use camera::CameraStatement;
 
 /// Most steps one session may have (a session holds its trace and key in memory).
 pub const MAX_STEPS: u64 = 10_000_000;
@@ -990,10 +988,10 @@ impl Config {
     /// Eve's camera as the key is sized against it: in frames when `eve.camera_fps` and
     /// `eve.camera_frame_std` are given, else `eve.camera_std` per sample instant.
     #[must_use]
-    pub fn camera_statement(&self) -> CameraStatement {
+    pub fn camera_statement(&self) -> Camera {
         match (self.eve.camera_fps, self.eve.camera_frame_std) {
-            (Some(fps), Some(frame_std)) => CameraStatement::Frames { fps, frame_std },
-            _ => CameraStatement::PerInstant {
+            (Some(fps), Some(frame_std)) => Camera::Frames { fps, frame_std },
+            _ => Camera::Instants {
                 std: self.eve.camera_std,
             },
         }

@@ -6,7 +6,8 @@ use robokey_secrecy::cascade::CascadeSchedule;
 use robokey_secrecy::postprocess::{Assumption, Settings};
 use serde::{Deserialize, Serialize};
 
-use crate::config::{CameraStatement, Config, SensingMode};
+use crate::config::{Config, SensingMode};
+use crate::world::Camera;
 
 /// Why the odometry mode yields no secret bit against an eavesdropper who learns the model.
 pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything the controller \
@@ -20,11 +21,11 @@ pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything 
 pub fn camera_words(config: &Config) -> String {
     let statement = config.camera_statement();
     match statement {
-        CameraStatement::PerInstant { .. } => format!(
+        Camera::Instants { .. } => format!(
             "{} (her effective noise after her own filtering)",
             statement.describe()
         ),
-        CameraStatement::Frames { .. } => {
+        Camera::Frames { .. } => {
             let e = config.modelled_camera_std().map(|x| 1e3 * x);
             format!(
                 "{}, any phase (worth {:.2} mm, {:.2} mm, {:.2} mrad per sample instant)",

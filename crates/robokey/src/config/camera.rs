@@ -1,34 +1,19 @@
 //! Eve's camera as the key is sized against it (docs/threat-model.md, docs/world.md): stated
 //! per sample instant (`eve.camera_std`), or in camera terms — frames per second and noise
-//! per frame (`eve.camera_fps`, `eve.camera_frame_std`).
+//! per frame (`eve.camera_fps`, `eve.camera_frame_std`). The statement is a [`Camera`], the
+//! same description as the world's real camera.
 
-/// The camera statement a key rests on.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum CameraStatement {
-    /// One observation per sample instant of noise `std` `[m, m, rad]`, her effective noise
-    /// after her own filtering.
-    PerInstant {
-        /// Noise std per instant `[m, m, rad]`.
-        std: [f64; 3],
-    },
-    /// Frames at `fps`, any phase, each the pose plus white noise `frame_std` `[m, m, rad]`,
-    /// independent between frames.
-    Frames {
-        /// Frames per second.
-        fps: f64,
-        /// Noise std of each frame `[m, m, rad]`.
-        frame_std: [f64; 3],
-    },
-}
+use crate::world::Camera;
 
-impl CameraStatement {
+/// Eve's camera as a key's statement: `eve.camera_std` per instant, or in frames.
+impl Camera {
     /// The per-instant noise `[m, m, rad]` Eve's modelled view uses at sample time `T`
     /// (s): the statement itself, or for frames `σ_f / √E`, `E` = [`triangle_energy`] at
     /// the phase that favours her most.
     #[must_use]
     pub fn per_instant_std(&self, sample_time: f64) -> [f64; 3] {
         match *self {
-            Self::PerInstant { std } => std,
+            Self::Instants { std } => std,
             Self::Frames { fps, frame_std } => {
                 let energy = best_phase_energy(fps, sample_time);
                 frame_std.map(|s| s / energy.sqrt())
@@ -43,7 +28,7 @@ impl CameraStatement {
         let words =
             |s: &[f64; 3]| format!("{} mm, {} mm, {} mrad", 1e3 * s[0], 1e3 * s[1], 1e3 * s[2]);
         match self {
-            Self::PerInstant { std } => format!("{} per sample instant", words(std)),
+            Self::Instants { std } => format!("{} per sample instant", words(std)),
             Self::Frames { fps, frame_std } => {
                 format!("{} per frame at {fps} frames/s", words(frame_std))
             }
@@ -121,7 +106,7 @@ mod tests {
     #[test]
     fn a_slow_camera_is_worth_its_one_frame_at_the_mid_instant() {
         // 5 frames/s at T = 0.2 s: one frame per step; at the mid instant it is one sample.
-        let statement = CameraStatement::Frames {
+        let statement = Camera::Frames {
             fps: 5.0,
             frame_std: [0.004; 3],
         };

@@ -1,7 +1,8 @@
 //! The agreement terms: what both sides must hold equal before a session starts, their digest
 //! (carried in `Hello` and `HelloAck`), and how a difference is named.
 
-use crate::config::{CameraStatement, Config, SensingMode};
+use crate::config::{Config, SensingMode};
+use crate::world::Camera;
 
 /// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
 /// budget, Δ, trajectory, protocol on/off; in private sensing also the mode, the bits per
@@ -64,8 +65,8 @@ pub fn agreement_terms(config: &Config) -> String {
 /// lines (absent otherwise, so that a per-instant statement's terms stay as they were).
 fn camera_frames_terms(config: &Config) -> String {
     match config.camera_statement() {
-        CameraStatement::PerInstant { .. } => String::new(),
-        CameraStatement::Frames { fps, frame_std } => {
+        Camera::Instants { .. } => String::new(),
+        Camera::Frames { fps, frame_std } => {
             format!("eve.camera_fps = {fps}\neve.camera_frame_std = {frame_std:?}\n")
         }
     }

@@ -3,9 +3,10 @@
 //! configuration.
 
 use super::config::{Integration, WorldConfig};
-use crate::config::{CameraStatement, Config};
+use crate::config::Config;
 
-/// Eve's real camera.
+/// Eve's camera: the world's real one, or the one the parties state (`eve.*`, the key's
+/// statement: docs/threat-model.md).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Camera {
     /// One frame at each sample instant, std `[m, m, rad]`.
@@ -84,10 +85,7 @@ impl WorldModel {
             encoder_quantum: 0.0,
             jitter: 0.0,
             controller_std: config.sensing.controller_std,
-            camera: match config.camera_statement() {
-                CameraStatement::PerInstant { std } => Camera::Instants { std },
-                CameraStatement::Frames { fps, frame_std } => Camera::Frames { fps, frame_std },
-            },
+            camera: config.camera_statement(),
         }
     }
 
@@ -106,7 +104,7 @@ impl WorldModel {
             (Some(fps), frame_std) => Camera::Frames {
                 fps,
                 frame_std: frame_std.unwrap_or_else(|| match config.camera_statement() {
-                    CameraStatement::Frames {
+                    Camera::Frames {
                         fps: stated,
                         frame_std,
                     } if stated == fps => frame_std,
