@@ -963,10 +963,21 @@ fn ros2_without_the_feature_says_how_to_build() {
 #[test]
 fn threat_prints_each_cameras_rate_and_the_break_even() {
     let small = ["--set", "postprocess.block_bits=2000"];
-    let mut args = vec!["threat", "--camera-std", "8", "--fps", "5", "--frame-std", "8"];
+    let mut args = vec![
+        "threat",
+        "--camera-std",
+        "8",
+        "--fps",
+        "5",
+        "--frame-std",
+        "8",
+    ];
     args.extend(small);
     let text = ok(&args);
-    assert!(text.contains("8 mm, 8 mm, 8 mrad per sample instant"), "{text}");
+    assert!(
+        text.contains("8 mm, 8 mm, 8 mrad per sample instant"),
+        "{text}"
+    );
     // 5 frames/s at T = 0.2 s: one frame at each mid instant is worth itself.
     let frames = text
         .lines()
@@ -976,9 +987,15 @@ fn threat_prints_each_cameras_rate_and_the_break_even() {
     assert!(text.contains("break-even camera: between "), "{text}");
     assert!(text.contains("at 5 frames/s: between "), "{text}");
     let error = fails_with(2, &["threat", "--camera-std", "0"]);
-    assert!(error.contains("--camera-std 0: 0 is not allowed (allowed: > 0)"), "{error}");
+    assert!(
+        error.contains("--camera-std 0: 0 is not allowed (allowed: > 0)"),
+        "{error}"
+    );
     let error = fails_with(2, &["threat", "--fps", "30"]);
     assert!(error.contains("--frame-std"), "{error}");
     let error = fails_with(2, &["threat", "--fps", "2000", "--frame-std", "8"]);
-    assert!(error.contains("eve.camera_fps") && error.contains("at most 1000"), "{error}");
+    assert!(
+        error.contains("eve.camera_fps") && error.contains("at most 1000"),
+        "{error}"
+    );
 }
