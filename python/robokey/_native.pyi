@@ -47,7 +47,7 @@ def secrecy(
     max_sessions: Optional[int] = None,
     assume_eve_error: Optional[float] = None,
     jobs: int = 0,
-) -> Tuple[str, str, Optional[str]]: ...
+) -> Tuple[str, List[_Column], Optional[str]]: ...
 def threat(
     config: Any = None,
     *,
