@@ -386,6 +386,8 @@ KEY_SCHEMA = pa.schema(
         pa.field("status", pa.string()),
         pa.field("pending_reason", pa.string()),
         pa.field("assumption", pa.string()),
+        # Private sensing: what the key rests on (null in odometry mode and older records).
+        pa.field("basis", pa.struct([pa.field("camera", pa.string()), pa.field("plant", pa.string())])),
         pa.field("created", pa.string()),
         pa.field("sessions", pa.list_(pa.uint32())),
     ]
@@ -403,6 +405,7 @@ def list_keys(
     ``available_bits`` (deliverable once settled), ``taken_bits``, ``taken`` (the IDs of the
     keys taken from it), ``epsilon``, ``label`` (``physical`` or ``restricted``), ``status``
     (``settled`` or ``pending``, with ``pending_reason``), ``assumption`` (about Eve),
+    ``basis`` (private sensing: the ``camera`` and ``plant`` model class it rests on),
     ``created`` and ``sessions``.
 
     Every key file is verified under a key derived from the pairing file (``pairing``), so a
