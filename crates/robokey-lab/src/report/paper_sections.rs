@@ -265,17 +265,31 @@ pub(super) fn world_section(out: &Path, worlds: &[MapPart]) -> Result<(String, S
         .iter()
         .flat_map(|w| super::world::over_claims(&w.experiment, &w.secrecy.results))
         .collect();
-    // Each world by its experiment's name and whether the camera eavesdropper's view shows
-    // the key over-claimed.
-    let judged: Vec<(&str, bool)> = worlds
+    // Each world by its experiment's name, whether the camera eavesdropper's view shows the
+    // assumption over-claimed, and whether a key was committed at all (a block the commands
+    // check refuses keeps none: nothing of it is over-claimed).
+    let judged: Vec<(&str, bool, bool)> = worlds
         .iter()
         .filter_map(|w| {
             let rows = super::world::over_claims(&w.experiment, &w.secrecy.results);
             let camera = rows.iter().find(|r| r.adversary == "camera")?;
-            Some((w.experiment.name.as_str(), camera.per_raw_bit > 0.0))
+            Some((
+                w.experiment.name.as_str(),
+                camera.per_raw_bit > 0.0,
+                camera.secret_bits > 0,
+            ))
         })
         .collect();
-    let over: Vec<&str> = judged.iter().filter(|(_, o)| *o).map(|(n, _)| *n).collect();
+    let over: Vec<&str> = judged
+        .iter()
+        .filter(|(_, o, keyed)| *o && *keyed)
+        .map(|(n, ..)| *n)
+        .collect();
+    let keyless: Vec<&str> = judged
+        .iter()
+        .filter(|(_, o, keyed)| *o && !*keyed)
+        .map(|(n, ..)| *n)
+        .collect();
     let mut md = String::from(
         "\n## The world is not the configuration\n\nThe parties at their defaults (private \
          sensing: 4 mm of white motion noise, a 0.5 mm controller sensor, Eve's camera of 8 mm \
@@ -287,7 +301,7 @@ pub(super) fn world_section(out: &Path, worlds: &[MapPart]) -> Result<(String, S
     for sentence in super::world::over_claim_sentences(&rows) {
         let _ = writeln!(md, "- {sentence}");
     }
-    let verdict = if over.is_empty() {
+    let mut verdict = if over.is_empty() {
         "no world of the coarse grid is over-claimed".to_owned()
     } else {
         format!(
@@ -297,6 +311,13 @@ pub(super) fn world_section(out: &Path, worlds: &[MapPart]) -> Result<(String, S
             over.join(", ")
         )
     };
+    if !keyless.is_empty() {
+        verdict.push_str(&format!(
+            "; where the assumption over-claims in {} the parties commit no key (their \
+             blocks are refused: see their secrecy.md)",
+            keyless.join(", ")
+        ));
+    }
     let _ = writeln!(
         md,
         "\nIn short, {verdict}. The full map is `robokey sweep experiments/worlds.toml` \

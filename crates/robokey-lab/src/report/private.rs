@@ -264,9 +264,10 @@ pub fn pooled_leak_text(pooled: &PooledLeak) -> String {
     };
     format!(
         "Pooled over the {} bins (each weighted by its bits), the commands eavesdropper \
-         measured {:.2} × the predicted information (95 % interval {low:.2}–{high:.2}); {} of \
-         {} bins lie above the identity line{above}. Per-bin intervals are wide; the pooled \
-         ratio is what they say together: {meaning}.",
+         measured {:.2} × the predicted information (95 % interval {low:.2}–{high:.2}, the \
+         points' errors added linearly: a sweep's points share their sessions, so their bins \
+         are not independent); {} of {} bins lie above the identity line{above}. Per-bin \
+         intervals are wide; the pooled ratio is what they say together: {meaning}.",
         pooled.bins, pooled.ratio, pooled.above, pooled.bins
     )
 }

@@ -7,13 +7,15 @@ use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
 use robokey::post_settings::ODOMETRY_ZERO;
+use robokey::private::DoubletBit;
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
 use robokey_secrecy::{JointCounts, binomial_test};
 
+use super::commands_check;
 use super::options::{SecrecyOptions, default_adversaries};
-use super::pipeline::{self, BlockSettings, Pooling};
+use super::pipeline::{self, Block, BlockSettings, Pooling};
 use super::point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
 use super::private::{self, OffRuns};
 use crate::adversary::eavesdropper;
@@ -219,7 +221,10 @@ fn analyze_point(
     let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
     let mut pools = pipeline::pools(runs, options.pooling, options.block_bits, adversary);
     pools.truncate(options.blocks);
-    let blocks = pipeline::post_process(&pools, &settings, &mut public);
+    let mut blocks = pipeline::post_process(&pools, &settings, &mut public);
+    if is_private {
+        refuse_what_the_commands_reveal(runs, options, &pools, &mut blocks);
+    }
     // Every session run until the last one pooled cost robot time, dropped ones included.
     let used_steps: u64 = pools.last().map_or(0, |pool| {
         runs[..=pool.last_session]
@@ -303,6 +308,36 @@ fn analyze_point(
             .then(|| private::figures(config, runs, adversary, off))
             .transpose()?,
     })
+}
+
+/// Private sensing: the commands check of each block's bits at the block's ε (a configured
+/// level: the estimation's ε_est where it exists) — a block whose boundary residuals reveal
+/// more than the model predicts keeps no secret bits, and says why. A pool holds the next
+/// `sessions` admitted runs, in order.
+fn refuse_what_the_commands_reveal(
+    runs: &[RunOutput],
+    options: &SecrecyOptions,
+    pools: &[pipeline::Pool],
+    blocks: &mut [Block],
+) {
+    let mut admitted = runs.iter().filter(|r| options.pooling.admits(r));
+    for (pool, block) in pools.iter().zip(blocks.iter_mut()) {
+        let bits: Vec<&DoubletBit> = admitted
+            .by_ref()
+            .take(pool.sessions as usize)
+            .filter_map(|r| r.private.as_ref())
+            .flat_map(|p| &p.bits)
+            .collect();
+        if let Some(reason) = commands_check::refusal(&bits, options.epsilon) {
+            block.secret_bits = 0;
+            block.assumption_exceeds_realised = false;
+            // A block already without a key keeps its own reason beside the check's.
+            block.reason = Some(match block.reason.take() {
+                Some(earlier) => format!("{earlier}; {reason}"),
+                None => reason,
+            });
+        }
+    }
 }
 
 /// `(step, b, b̂c, b̂a)` of every bit `run` carried that all three hold: the odometry mode's
@@ -737,6 +772,37 @@ mod tests {
         let last_positive = rates.iter().rposition(|r| r.1 > 0.0).unwrap();
         assert!(rates[last_positive].0 > 0.5, "{rates:?}");
         assert_eq!(rates.last().unwrap().1, 0.0, "{rates:?}");
+    }
+
+    /// The commands check: in a world whose wheels lag by 50 ms (1 mm motion noise) the
+    /// two-step doublet leaves ≈ τΔv(1 − e^(−T/τ))² ≈ 1.7 mm along the heading at its end,
+    /// which the parties' model does not predict — every block is refused, naming the check,
+    /// the class and the value, and the rate counts it (zero). Without lag the check passes
+    /// and the key is what it was.
+    #[test]
+    fn a_block_whose_commands_reveal_an_unmodelled_lag_is_refused() {
+        let options = SecrecyOptions {
+            pooling: Pooling::Complete,
+            ..options(vec![EveStrategy::Camera], 4_000)
+        };
+        let world = "[world]\nprocess_std = [0.001, 0.001, 0.001]\n";
+        let lagging = &analyze(&private(&format!("{world}lag = 0.05\n")), &options).unwrap()[0];
+        assert_eq!(lagging.secret_bits, 0, "{lagging:?}");
+        assert!(!lagging.blocks.is_empty());
+        let why = lagging.zero_reason.as_deref().unwrap();
+        assert!(
+            why.contains("the commands check refused the block"),
+            "{why}"
+        );
+        assert!(why.contains("along the heading"), "{why}");
+        assert!(lagging.blocks.iter().all(|b| b.secret_bits == 0));
+        assert!(
+            !lagging.assumption_exceeds_realised,
+            "nothing credited, nothing over-claimed"
+        );
+        let still = &analyze(&private(world), &options).unwrap()[0];
+        assert!(still.secret_bits > 0, "{still:?}");
+        assert!(still.blocks.iter().all(|b| b.reason.is_none()), "{still:?}");
     }
 
     /// Private sensing sizes its key from the camera assumption, runs the endpoints, labels

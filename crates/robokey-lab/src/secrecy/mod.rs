@@ -15,6 +15,7 @@
 //! renders them.
 
 pub mod analyze;
+pub mod commands_check;
 pub mod map;
 pub mod options;
 pub mod pipeline;

@@ -17,8 +17,9 @@ use serde::{Deserialize, Serialize};
 use super::Rate;
 use crate::error::LabError;
 
-/// Upper edges of the turn-rate bins (rad/s); the last bin is open.
-const TURN_EDGES: [f64; 6] = [0.05, 0.1, 0.2, 0.3, 0.5, 1.0];
+/// Upper edges of the turn-rate bins (rad/s); the last bin is open. The commands check
+/// ([`super::commands_check`]) regresses per bin too.
+pub const TURN_EDGES: [f64; 6] = [0.05, 0.1, 0.2, 0.3, 0.5, 1.0];
 
 /// The outcome of a calibration test of one party's LLRs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

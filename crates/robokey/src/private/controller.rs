@@ -6,7 +6,7 @@
 use std::collections::VecDeque;
 
 use super::decision::DoubletDecision;
-use super::doublet::DoubletInputs;
+use super::doublet::{DoubletInputs, in_doublet_frame};
 use super::likelihood::{DoubletModel, DoubletView, PoseObservation, doublet_model};
 use super::plan::PrivatePlan;
 use crate::config::Config;
@@ -243,12 +243,28 @@ impl PrivateController {
             middle: Some(stated_camera(1)),
             end: Some(own(2).fuse(&stated_camera(2))),
         };
+        let evidence = self.model.evidence(&p.inputs, &view);
+        let t = self.model.sample_time;
+        let frame = |delta: &Pose| in_doublet_frame(delta, samples[0].z, p.inputs.first.y);
+        let end = |offset: Unicycle| p.inputs.propagate(&samples[0], offset, t)[1];
+        let perturbation = &self.plan.perturbation;
+        let decided = evidence.bits();
+        let modelled = |kind: usize| {
+            let with = |value: u64| {
+                let bits = (decided & !(1 << kind)) | (value << kind);
+                perturbation.pattern([(bits & 1) as u8, (bits >> 1 & 1) as u8])
+            };
+            let [plus, minus] = [with(0), with(1)].map(|h| end(perturbation.offset(h)));
+            frame(&(0.5 * (plus - minus)))
+        };
         let decision = DoubletDecision {
             doublet: p.doublet,
             step: 2 * p.doublet,
             inputs: p.inputs,
-            evidence: self.model.evidence(&p.inputs, &view),
+            evidence,
             assumed_separation: self.model.separations(&p.inputs, &assumed),
+            revealed: frame(&(samples[2] - end(Unicycle::zeros()))),
+            modelled: [modelled(0), modelled(1)],
         };
         self.decided[p.doublet as usize] = decision.evidence.bits();
         life.fates.record(p.doublet, true);

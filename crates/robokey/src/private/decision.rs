@@ -18,4 +18,12 @@ pub struct DoubletDecision {
     /// Each bit's separation under the camera Eve's model as the controller can compute it
     /// — her stated camera noise around its own samples — which sizes the key.
     pub assumed_separation: [f64; 2],
+    /// What the next commands reveal: the boundary sample's residual from the doublet's
+    /// nominal path, `y_c(2j+2) − f(f(y_c(2j), u), u')`, in the doublet's frame
+    /// ([`super::doublet::in_doublet_frame`]; m, m, rad).
+    pub revealed: [f64; 3],
+    /// The model's part of it per bit for `s = +1`: half the difference of the predicted
+    /// ends of the bit's two values, the other bit as decided (m, m, rad, same frame). The
+    /// residual's regression on `s` is this under the model.
+    pub modelled: [[f64; 3]; 2],
 }

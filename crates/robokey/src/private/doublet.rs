@@ -107,6 +107,22 @@ pub fn omega_residual(
     s * t * t * second_speed * delta_omega * Vector2::new(-theta_1.sin(), theta_1.cos())
 }
 
+/// A pose difference `δ` at a doublet's end in the frame of its start heading `θ`:
+/// `[δ·e(θ), sgn(ω)·δ·e⊥(θ), δθ]` (m, m, rad), `e(θ) = (cos θ, sin θ)`, `e⊥(θ) = (−sin θ,
+/// cos θ)`, the heading difference wrapped to (−π, π]. The cross axis points toward the
+/// first step's turn `ω` (left on a straight segment), so that what the turn leaves adds up
+/// over doublets turning either way.
+#[must_use]
+pub fn in_doublet_frame(delta: &Pose, theta: f64, first_turn_rate: f64) -> [f64; 3] {
+    let (sin, cos) = theta.sin_cos();
+    let toward_turn = if first_turn_rate < 0.0 { -1.0 } else { 1.0 };
+    [
+        delta.x * cos + delta.y * sin,
+        toward_turn * (-delta.x * sin + delta.y * cos),
+        delta.z.sin().atan2(delta.z.cos()),
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -179,6 +195,24 @@ mod tests {
                 assert!((shift - predicted).norm() < bound, "{shift} vs {predicted}");
             }
         }
+    }
+
+    #[test]
+    fn the_doublet_frame_points_along_the_heading_and_toward_the_turn() {
+        let theta: f64 = 0.6;
+        let along = Pose::new(theta.cos(), theta.sin(), 0.0);
+        let left = Pose::new(-theta.sin(), theta.cos(), 7.0);
+        let close = |a: [f64; 3], b: [f64; 3]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
+        assert!(close(in_doublet_frame(&along, theta, 0.3), [1.0, 0.0, 0.0]));
+        let wrapped = 7.0 - 2.0 * std::f64::consts::PI;
+        assert!(close(
+            in_doublet_frame(&left, theta, 0.3),
+            [0.0, 1.0, wrapped]
+        ));
+        assert!(close(
+            in_doublet_frame(&left, theta, -0.3),
+            [0.0, -1.0, wrapped]
+        ));
     }
 
     #[test]

@@ -70,6 +70,12 @@ pub struct DoubletBit {
     pub assumed_separation: f64,
     /// Its separation under the commands Eve's model: the residual leak the model predicts.
     pub commands_separation: f64,
+    /// What the next commands reveal of the doublet's end: the controller's boundary
+    /// residual in the doublet's frame (m, m, rad; [`DoubletDecision::revealed`]).
+    pub revealed: [f64; 3],
+    /// The model's prediction of the residual's regression on this bit's sign `s`
+    /// ([`DoubletDecision::modelled`]).
+    pub modelled: [f64; 3],
 }
 
 impl DoubletBit {

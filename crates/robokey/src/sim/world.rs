@@ -319,6 +319,8 @@ fn record(
             camera_separation: e.camera.separation[i],
             assumed_separation: d.assumed_separation[i],
             commands_separation: e.commands.separation[i],
+            revealed: d.revealed,
+            modelled: d.modelled[i],
         });
     }
     let decide = |llr: f64| u8::from(llr < 0.0);

@@ -1,0 +1,214 @@
+//! The commands check (docs/private-sensing.md, "The commands check"): after reconciliation,
+//! what the public commands reveal — the controller's boundary residuals, which the next
+//! commands carry — is regressed on the reconciled bits, model-free, per bit kind, turn-rate
+//! class and axis, and compared with the model's prediction of the same regression. A block
+//! where the commands reveal more than the model predicts is refused, naming the class.
+
+use robokey::private::doublet::sign;
+use robokey::private::{BitKind, DoubletBit};
+use robokey_secrecy::gaussian_llr::erfc;
+
+use super::private::TURN_EDGES;
+
+/// Classes with fewer bits are not tested: the normal approximation of the regression's
+/// error needs a sample (a class that small carries at most this many of the block's bits).
+pub const MIN_CLASS_BITS: usize = 100;
+
+/// The axes of the doublet frame ([`robokey::private::doublet::in_doublet_frame`]), with the
+/// unit and scale each is reported in.
+const AXES: [(&str, &str, f64); 3] = [
+    ("along the heading", "mm", 1e3),
+    ("across, toward the turn", "mm", 1e3),
+    ("in heading", "mrad", 1e3),
+];
+
+/// One regression of the boundary residual on the bits' signs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Regression {
+    /// The bits' kind.
+    pub kind: BitKind,
+    /// The class's turn rates `[from, to)` (rad/s).
+    pub turn_rate: [f64; 2],
+    /// The axis, an index into the doublet frame.
+    pub axis: usize,
+    /// Bits in the class.
+    pub bits: usize,
+    /// `β̂ = mean sᵢ·rᵢ`: what the residual reveals per bit sign (m or rad).
+    pub measured: f64,
+    /// `mean μᵢ`: the model's prediction of it.
+    pub predicted: f64,
+    /// β̂'s standard error, `sd(sᵢ·rᵢ)/√n`.
+    pub std_error: f64,
+}
+
+impl Regression {
+    /// One-sided p-value of `|β| ≤ |mean μ|` (the commands reveal no more than the model
+    /// predicts): `½·erfc(z/√2)`, `z = (|β̂| − |mean μ|) / SE`.
+    #[must_use]
+    pub fn p_value(&self) -> f64 {
+        let z = (self.measured.abs() - self.predicted.abs()) / self.std_error;
+        if z.is_nan() {
+            return 1.0;
+        }
+        0.5 * erfc(z / std::f64::consts::SQRT_2)
+    }
+
+    /// The regression in words, for a refusal.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let (axis, unit, scale) = AXES[self.axis];
+        let kind = match self.kind {
+            BitKind::V => "v-bits",
+            BitKind::Omega => "ω-bits",
+        };
+        let to = if self.turn_rate[1].is_finite() {
+            format!("{:.2}", self.turn_rate[1])
+        } else {
+            "∞".to_owned()
+        };
+        format!(
+            "{kind} at turn rates {:.2}–{to} rad/s ({} bits): the boundary residual {axis} \
+             reveals {:.3} {unit} per bit sign where the model predicts {:.3} {unit} (standard \
+             error {:.3} {unit})",
+            self.turn_rate[0],
+            self.bits,
+            scale * self.measured,
+            scale * self.predicted,
+            scale * self.std_error,
+        )
+    }
+}
+
+/// Every regression of `bits` (a block's, each with its reconciled value) with at least
+/// [`MIN_CLASS_BITS`] bits: per kind, turn-rate class and axis.
+#[must_use]
+pub fn regressions(bits: &[&DoubletBit]) -> Vec<Regression> {
+    let mut out = Vec::new();
+    for kind in BitKind::ALL {
+        let mut from = 0.0;
+        for &to in TURN_EDGES.iter().chain([f64::INFINITY].iter()) {
+            let class: Vec<&DoubletBit> = bits
+                .iter()
+                .copied()
+                .filter(|b| b.kind == kind && b.turn_rate >= from && b.turn_rate < to)
+                .collect();
+            let n = class.len();
+            if n >= MIN_CLASS_BITS {
+                for axis in 0..AXES.len() {
+                    let x: Vec<f64> = class
+                        .iter()
+                        .map(|b| sign(b.bit) * b.revealed[axis])
+                        .collect();
+                    let mean = x.iter().sum::<f64>() / n as f64;
+                    let variance =
+                        x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+                    out.push(Regression {
+                        kind,
+                        turn_rate: [from, to],
+                        axis,
+                        bits: n,
+                        measured: mean,
+                        predicted: class.iter().map(|b| b.modelled[axis]).sum::<f64>() / n as f64,
+                        std_error: (variance / n as f64).sqrt(),
+                    });
+                }
+            }
+            from = to;
+        }
+    }
+    out
+}
+
+/// The commands check of a block's `bits` at family-wise level `level`: the reason for
+/// refusing the block when some regression reveals more than the model predicts with a
+/// p-value below `level / tests` (Bonferroni over the block's regressions); none when every
+/// one passes.
+#[must_use]
+pub fn refusal(bits: &[&DoubletBit], level: f64) -> Option<String> {
+    let tests = regressions(bits);
+    let threshold = level / tests.len().max(1) as f64;
+    let worst = tests
+        .iter()
+        .map(|r| (r, r.p_value()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    (worst.1 < threshold).then(|| {
+        format!(
+            "the commands check refused the block: {}; p = {:.1e} below {level:.0e} / {} \
+             regressions (the commands reveal more than the model predicts)",
+            worst.0.describe(),
+            worst.1,
+            tests.len()
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_distr::{Distribution, Normal};
+    use robokey::rng::{Purpose, stream};
+
+    /// `n` v-bits on a straight segment with residual noise `noise` (m) per axis, and a
+    /// residual `leak` (m) along the heading per bit sign that the model does not predict.
+    fn block(n: usize, noise: f64, leak: f64, seed: u64) -> Vec<DoubletBit> {
+        let mut rng = stream(seed, Purpose::Public, 0);
+        let normal = Normal::new(0.0, noise).unwrap();
+        (0..n)
+            .map(|i| {
+                let bit = (i % 2) as u8;
+                let mut revealed = [0.0; 3].map(|_| normal.sample(&mut rng));
+                revealed[0] += sign(bit) * leak;
+                DoubletBit {
+                    step: 2 * i as u32,
+                    kind: BitKind::V,
+                    bit,
+                    turn_rate: 0.0,
+                    controller: 0.0,
+                    camera: 0.0,
+                    commands: 0.0,
+                    camera_separation: 0.0,
+                    assumed_separation: 0.0,
+                    commands_separation: 0.0,
+                    revealed,
+                    modelled: [0.0; 3],
+                }
+            })
+            .collect()
+    }
+
+    /// A leak the model does not predict is refused when it stands above the regression's
+    /// error (≈ 0.016 mm at 10⁴ bits with 1.6 mm of residual noise), naming the class, the
+    /// axis and the values; white residuals pass at ε = 10⁻⁶.
+    #[test]
+    fn a_residual_the_model_does_not_predict_refuses_the_block() {
+        let lagging = block(10_000, 0.0016, 0.0017, 1);
+        let refs: Vec<&DoubletBit> = lagging.iter().collect();
+        let why = refusal(&refs, 1e-6).expect("refused");
+        assert!(
+            why.contains("v-bits at turn rates 0.00–0.05 rad/s"),
+            "{why}"
+        );
+        assert!(why.contains("along the heading"), "{why}");
+        assert!(why.contains("reveals 1.7"), "{why}");
+        for seed in 2..6 {
+            let white = block(10_000, 0.0016, 0.0, seed);
+            let refs: Vec<&DoubletBit> = white.iter().collect();
+            assert_eq!(refusal(&refs, 1e-6), None);
+        }
+        // Below the regression's power at this size: 0.02 mm is ≈ 1.25 standard errors.
+        let faint = block(10_000, 0.0016, 0.000_02, 7);
+        let refs: Vec<&DoubletBit> = faint.iter().collect();
+        assert_eq!(refusal(&refs, 1e-6), None);
+    }
+
+    /// What the model predicts is not an excess: a residual equal to its prediction passes.
+    #[test]
+    fn a_predicted_residual_passes() {
+        let mut bits = block(10_000, 0.0016, 0.0017, 8);
+        for b in &mut bits {
+            b.modelled[0] = 0.0017;
+        }
+        let refs: Vec<&DoubletBit> = bits.iter().collect();
+        assert_eq!(refusal(&refs, 1e-6), None);
+    }
+}
