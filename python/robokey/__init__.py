@@ -62,6 +62,7 @@ __all__ = [
     "run",
     "secrecy",
     "sweep",
+    "threat",
 ]
 
 _Column = Tuple[str, str, str, str, Any, Optional[bytes]]
@@ -252,6 +253,42 @@ def secrecy(
     }
 
 
+def threat(
+    config: Config = None,
+    *,
+    seed: Optional[int] = None,
+    camera_std: Optional[Sequence[float]] = None,
+    fps: Optional[Sequence[float]] = None,
+    frame_std: Optional[Sequence[float]] = None,
+    jobs: int = 0,
+) -> Dict[str, Any]:
+    """What a camera of Eve's leaves of the key at ``config`` (evaluated in private sensing), as
+    ``robokey threat`` computes it (docs/threat-model.md), without printing.
+
+    Cameras: ``camera_std`` (mm per sample instant), or every combination of ``fps``
+    (frames/s) and ``frame_std`` (mm per frame, white), given together; none: the
+    configuration's own statement. Returns a dict: ``cameras`` (per camera its ``statement``,
+    ``per_instant_mm``, ``raw_bits``, ``secret_bits`` ℓ, ``bits_per_step``,
+    ``bits_per_second`` and ``zero_reason``), ``break_even`` (``kind`` ``between`` with
+    ``zero_at_mm`` and ``positive_at_mm`` per instant, or ``below``/``above`` with ``mm``),
+    ``sample_time``, ``block_bits`` and ``epsilon``.
+
+    Raises :class:`ConfigError` for a configuration or camera out of range, :class:`InputError`
+    for ``fps`` without ``frame_std`` or the reverse.
+    """
+    figures: Dict[str, Any] = json.loads(
+        _native.threat(
+            config,
+            seed=seed,
+            camera_std=None if camera_std is None else list(camera_std),
+            fps=None if fps is None else list(fps),
+            frame_std=None if frame_std is None else list(frame_std),
+            jobs=jobs,
+        )
+    )
+    return figures
+
+
 def _parquet_runs(folder: str) -> Union[None, pa.Table, Dict[str, pa.Table]]:
     """The ``runs.parquet`` of a sweep folder, or of each experiment folder of a suite folder
     (by name); None when there is none."""
@@ -419,6 +456,8 @@ KEY_SCHEMA = pa.schema(
         pa.field("status", pa.string()),
         pa.field("pending_reason", pa.string()),
         pa.field("assumption", pa.string()),
+        # Private sensing: what the key rests on (null in odometry mode and older records).
+        pa.field("basis", pa.struct([pa.field("camera", pa.string()), pa.field("plant", pa.string())])),
         pa.field("created", pa.string()),
         pa.field("sessions", pa.list_(pa.uint32())),
     ]
@@ -436,6 +475,7 @@ def list_keys(
     ``available_bits`` (deliverable once settled), ``taken_bits``, ``taken`` (the IDs of the
     keys taken from it), ``epsilon``, ``label`` (``physical`` or ``restricted``), ``status``
     (``settled`` or ``pending``, with ``pending_reason``), ``assumption`` (about Eve),
+    ``basis`` (private sensing: the ``camera`` and ``plant`` model class it rests on),
     ``created`` and ``sessions``.
 
     Every key file is verified under a key derived from the pairing file (``pairing``), so a

@@ -48,6 +48,15 @@ def secrecy(
     assume_eve_error: Optional[float] = None,
     jobs: int = 0,
 ) -> Tuple[str, List[_Column], Optional[str]]: ...
+def threat(
+    config: Any = None,
+    *,
+    seed: Optional[int] = None,
+    camera_std: Optional[Sequence[float]] = None,
+    fps: Optional[Sequence[float]] = None,
+    frame_std: Optional[Sequence[float]] = None,
+    jobs: int = 0,
+) -> str: ...
 def read_sweep(folder: Union[str, "PathLike[str]"]) -> List[Tuple[str, List[_Column], str]]: ...
 def read_trace(path: Union[str, "PathLike[str]"]) -> List[_Column]: ...
 def read_capture(

@@ -130,11 +130,15 @@ pub fn run(args: RunArgs) -> Result<()> {
                     strategy.name(),
                     100.0 * eve.initial_error
                 ),
-                EveStrategy::Camera => format!(
-                    "camera Eve ({} mm, {} mrad)",
-                    1e3 * eve.camera_std[0],
-                    1e3 * eve.camera_std[2]
-                ),
+                EveStrategy::Camera => {
+                    // Per instant: her frames' equivalent when the camera is stated in frames.
+                    let camera = config.modelled_camera_std();
+                    format!(
+                        "camera Eve ({} mm, {} mrad)",
+                        1e3 * camera[0],
+                        1e3 * camera[2]
+                    )
+                }
                 EveStrategy::Commands => "commands-only Eve".to_owned(),
             }
         } else {

@@ -182,10 +182,11 @@ fn private(args: &EveArgs, config: &Config) -> Result<()> {
         )?,
     ];
     files.push(write(&out.join("config.resolved.toml"), config.to_toml())?);
+    let camera = config.modelled_camera_std();
     println!(
         "eve: private sensing, {sessions} sessions, Eve's camera {} mm / {} mrad",
-        1e3 * config.eve.camera_std[0],
-        1e3 * config.eve.camera_std[2]
+        1e3 * camera[0],
+        1e3 * camera[2]
     );
     for (s, f) in &measured {
         let pct = |r: Option<&robokey_lab::secrecy::Rate>| r.map_or(f64::NAN, |r| 100.0 * r.rate);

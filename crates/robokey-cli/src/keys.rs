@@ -195,21 +195,26 @@ fn take(store: &StoreArgs, bits: Option<u32>, id: Option<&str>, format: KeyForma
     Ok(())
 }
 
-/// One line per key, then each assumption once, then why each pending key is pending.
+/// One line per key, then each assumption once (with the plant's model class a private
+/// key rests on), then why each pending key is pending.
 fn table(keys: &[ListedKey]) -> String {
     if keys.is_empty() {
         return "no keys\n".to_owned();
     }
-    let mut assumptions: Vec<&str> = Vec::new();
+    let mut assumptions: Vec<(&str, Option<&str>)> = Vec::new();
     let mut out = format!(
         "{:<16}  {:>7}  {:>9}  {:>7}  {:>7}  {:<10}  {:<8}  {:<20}  {:>8}  assumption\n",
         "ID", "bits", "available", "taken", "ε", "label", "status", "created", "sessions"
     );
     for key in keys {
-        let number = match assumptions.iter().position(|a| *a == key.assumption) {
+        let stated = (
+            key.assumption.as_str(),
+            key.basis.as_ref().map(|b| b.plant.as_str()),
+        );
+        let number = match assumptions.iter().position(|a| *a == stated) {
             Some(i) => i,
             None => {
-                assumptions.push(&key.assumption);
+                assumptions.push(stated);
                 assumptions.len() - 1
             }
         };
@@ -227,8 +232,11 @@ fn table(keys: &[ListedKey]) -> String {
             number + 1
         ));
     }
-    for (i, assumption) in assumptions.iter().enumerate() {
+    for (i, (assumption, plant)) in assumptions.iter().enumerate() {
         out.push_str(&format!("[{}] {assumption}\n", i + 1));
+        if let Some(plant) = plant {
+            out.push_str(&format!("    plant model class: {plant}\n"));
+        }
     }
     for key in keys {
         if let Some(reason) = &key.pending_reason {

@@ -17,6 +17,7 @@ mod kme;
 mod logging;
 mod net;
 mod ros2;
+mod threat;
 mod world;
 
 use configuration::ConfigOptions;
@@ -79,6 +80,12 @@ enum Command {
     /// (docs/secrecy.md, docs/postprocessing.md).
     #[command(allow_negative_numbers = true)]
     Secrecy(SecrecyArgs),
+    /// What a camera of Eve's leaves of the key at a configuration (private sensing): for a
+    /// camera per instant (--camera-std) or in frames (--fps, --frame-std), or lists and
+    /// ranges of them, its per-instant equivalent and the secret rate of a key sized against
+    /// it (bits per step and per second); then the break-even camera, where that rate
+    /// reaches zero (docs/threat-model.md). Default camera: the configuration's statement.
+    Threat(threat::ThreatArgs),
     /// Write a pairing secret (`DIR/pairing.key`) to install on a robot and its controller.
     Pair(net::PairArgs),
     /// The robot agent: owns the clock and the key bits, drives the wheels, reports odometry
@@ -435,6 +442,7 @@ fn main() -> ExitCode {
         Command::Reproduce(args) => commands::reproduce(args),
         Command::Config(args) => done(commands::config(args)),
         Command::Secrecy(args) => done(commands::secrecy(args)),
+        Command::Threat(args) => done(threat::run(&args)),
         Command::Pair(args) => done(net::pair(args)),
         Command::Robot(args) => net::robot(args),
         Command::Controller(args) => net::controller(args),

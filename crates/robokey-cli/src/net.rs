@@ -250,8 +250,8 @@ pub struct WorldArgs {
     #[arg(long, value_name = "ADDR")]
     mocap: Option<SocketAddr>,
     /// Serve Eve's camera (the world's camera: at the instants with noise `eve.camera_std`,
-    /// or frames between them at `world.camera_fps`) on this TCP address (port 0: any;
-    /// printed); `robokey record` writes it to a camera log.
+    /// or frames between them at `world.camera_fps`, else at the stated `eve.camera_fps`) on
+    /// this TCP address (port 0: any; printed); `robokey record` writes it to a camera log.
     #[arg(long, value_name = "ADDR")]
     camera: Option<SocketAddr>,
 }

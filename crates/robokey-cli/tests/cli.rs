@@ -958,3 +958,44 @@ fn ros2_without_the_feature_says_how_to_build() {
     let text = fails_with(2, &["ros2-sim"]);
     assert!(text.contains(built), "{text}");
 }
+
+/// `robokey threat`: a camera per instant and in frames, the break-even, and named errors.
+#[test]
+fn threat_prints_each_cameras_rate_and_the_break_even() {
+    let small = ["--set", "postprocess.block_bits=2000"];
+    let mut args = vec![
+        "threat",
+        "--camera-std",
+        "8",
+        "--fps",
+        "5",
+        "--frame-std",
+        "8",
+    ];
+    args.extend(small);
+    let text = ok(&args);
+    assert!(
+        text.contains("8 mm, 8 mm, 8 mrad per sample instant"),
+        "{text}"
+    );
+    // 5 frames/s at T = 0.2 s: one frame at each mid instant is worth itself.
+    let frames = text
+        .lines()
+        .find(|l| l.starts_with("8 mm, 8 mm, 8 mrad per frame at 5 frames/s"))
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(frames.contains(" 8.00 "), "{frames}");
+    assert!(text.contains("break-even camera: between "), "{text}");
+    assert!(text.contains("at 5 frames/s: between "), "{text}");
+    let error = fails_with(2, &["threat", "--camera-std", "0"]);
+    assert!(
+        error.contains("--camera-std 0: 0 is not allowed (allowed: > 0)"),
+        "{error}"
+    );
+    let error = fails_with(2, &["threat", "--fps", "30"]);
+    assert!(error.contains("--frame-std"), "{error}");
+    let error = fails_with(2, &["threat", "--fps", "2000", "--frame-std", "8"]);
+    assert!(
+        error.contains("eve.camera_fps") && error.contains("at most 1000"),
+        "{error}"
+    );
+}

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use common::kme::{CONTROLLER_SAE, Kme, Pki, ROBOT_SAE, curl, have_curl, start_pair};
 use common::{pairing, run_code, s, scratch};
-use robokey_net::key_store::{KeyStatus, StoredKey};
+use robokey_net::key_store::{KeyLabels, KeyStatus, StoredKey};
 use robokey_net::post_store::{PostStore, open_keys};
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{ControllerSnapshot, FinalKey, RobotSnapshot};
@@ -42,8 +42,10 @@ fn final_key(id: &str, bits: usize, seed: u8) -> FinalKey {
 fn stores(dir: &Path, pairing: &str) -> (PathBuf, PathBuf) {
     let (secret, _) = robokey_net::pairing::read_pairing(Path::new(pairing), false).unwrap();
     let (controller, robot) = (dir.join("controller"), dir.join("robot"));
-    drop(PostStore::<ControllerSnapshot>::open(&controller, &secret, false).unwrap());
-    drop(PostStore::<RobotSnapshot>::open(&robot, &secret, false).unwrap());
+    drop(
+        PostStore::<ControllerSnapshot>::open(&controller, &secret, KeyLabels::default()).unwrap(),
+    );
+    drop(PostStore::<RobotSnapshot>::open(&robot, &secret, KeyLabels::default()).unwrap());
     for (store, role) in [(&controller, "controller"), (&robot, "robot")] {
         let keys = open_keys(store, &secret).unwrap();
         for (key, status) in [
@@ -53,7 +55,7 @@ fn stores(dir: &Path, pairing: &str) -> (PathBuf, PathBuf) {
                 KeyStatus::Pending("awaiting the peer's acknowledgement".into()),
             ),
         ] {
-            keys.store(&StoredKey::new(&key, role, false, status))
+            keys.store(&StoredKey::new(&key, role, &KeyLabels::default(), status))
                 .unwrap();
         }
     }

@@ -7,7 +7,9 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
-use common::{address_after, pairing, report, run, run_code, s, scratch, start_lines, wait};
+use common::{
+    address_after, pairing, report, run, run_code, s, scratch, start_lines, wait, wait_code,
+};
 
 use robokey::Config;
 use robokey::private::DoubletBit;
@@ -527,6 +529,14 @@ fn pooled_private_sessions_become_the_same_final_keys_in_both_stores() {
         assert_eq!(key["epsilon"].as_f64(), Some(4e-6));
         let assumption = key["assumption"].as_str().unwrap();
         assert!(assumption.contains("camera noise ≥ 8 mm"), "{assumption}");
+        // The record names both assumptions the key rests on.
+        let camera = key["basis"]["camera"].as_str().unwrap();
+        assert!(
+            camera.starts_with("8 mm, 8 mm, 8 mrad per sample instant"),
+            "{key}"
+        );
+        let plant = key["basis"]["plant"].as_str().unwrap();
+        assert!(plant.starts_with("white Gaussian motion noise"), "{key}");
     }
     // A deleted key is gone from one store only: the IDs still name the same keys.
     let first = controller_keys[0]["id"].as_str().unwrap();
@@ -595,4 +605,53 @@ fn a_key_sized_for_the_robots_own_world_is_not_warned_of() {
     assert_eq!(verdict["exceeds"], false, "{text}");
     assert_eq!(verdict["world"], serde_json::json!([]), "{text}");
     assert!(!text.contains("WARNING"), "{text}");
+}
+
+/// A controller that states Eve's camera in frames where the robot states it per instant is
+/// refused at `Hello`, the term named: the camera statement sizes and labels the keys.
+#[test]
+fn a_camera_statement_that_differs_is_refused_at_hello_naming_it() {
+    let dir = scratch("camera-terms");
+    let pairing = pairing(&dir);
+    let mut robot_args = vec![
+        "robot",
+        "--listen",
+        "127.0.0.1:0",
+        "--pace",
+        "lockstep",
+        "--pairing",
+        &pairing,
+        "--wait",
+        "2",
+        "--mocap",
+        "127.0.0.1:0",
+        "--camera",
+        "127.0.0.1:0",
+    ];
+    robot_args.extend(PRIVATE);
+    let (robot, lines) = start_lines(&robot_args, 2);
+    let sensor = format!("mocap:{}", address_after(&lines[0], "motion capture on "));
+    let mut controller_args = vec![
+        "controller",
+        "--robot",
+        &robot.address,
+        "--pace",
+        "lockstep",
+        "--pairing",
+        &pairing,
+        "--sensor",
+        &sensor,
+        "--set",
+        "eve.camera_fps=30",
+        "--set",
+        "eve.camera_frame_std=[0.016, 0.016, 0.016]",
+    ];
+    controller_args.extend(PRIVATE);
+    let (code, text) = run_code(&controller_args);
+    assert_eq!(code, 3, "{text}");
+    assert!(
+        text.contains("eve.camera_fps: robot has (missing), controller has 30"),
+        "{text}"
+    );
+    assert_eq!(wait_code(robot).0, 3, "no key");
 }

@@ -105,6 +105,14 @@ const FIELDS: &[(&str, &str)] = &[
         "[m, m, rad]: her camera's std per sample instant (private mode)",
     ),
     (
+        "eve.camera_fps",
+        "frames/s: her camera in camera terms, with eve.camera_frame_std (private mode)",
+    ),
+    (
+        "eve.camera_frame_std",
+        "[m, m, rad]: noise of each of her frames, white (private mode)",
+    ),
+    (
         "eve.smoother_window",
         "doublets each side of the private eavesdroppers' window smoother (docs/world.md)",
     ),
@@ -213,6 +221,8 @@ mod tests {
         // Printed only when set.
         config.postprocess.assumed_eve_error = Some(0.2);
         config.eve.smoother_window = Some(2);
+        config.eve.camera_fps = Some(30.0);
+        config.eve.camera_frame_std = Some([0.016; 3]);
         config.world = Some(robokey::world::WorldConfig {
             preset: Some(robokey::world::WorldPreset::KheperaIv),
             camera_fps: Some(30.0),

@@ -244,6 +244,8 @@ fn reading(field: &str) -> Option<Reading> {
         "protocol.bits_per_doublet" => ("bits per doublet", "", 1.0),
         "eve.alpha" => ("Eve's model error α", "%", 100.0),
         "eve.camera_std" => ("Eve's camera noise", "mm", 1e3),
+        "eve.camera_fps" => ("Eve's stated camera rate", "frames/s", 1.0),
+        "eve.camera_frame_std" => ("Eve's stated noise per frame", "mm", 1e3),
         "noise.process_std" => ("motion noise", "mm", 1e3),
         "sensing.controller_std" => ("controller sensor noise", "mm", 1e3),
         "world.process_std" => ("true motion noise", "mm", 1e3),

@@ -21,6 +21,7 @@ pub mod run;
 pub mod secrecy;
 pub mod stats;
 pub mod table;
+pub mod threat;
 pub mod trace;
 pub mod trace_table;
 

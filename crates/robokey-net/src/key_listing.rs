@@ -1,6 +1,7 @@
 //! A key store's listing as `robokey keys list` gives it: everything about each final key
 //! but its bits (docs/postprocessing.md, "Key store"; docs/keys.md).
 
+use robokey::post_settings::KeyBasis;
 use serde::Serialize;
 
 use crate::key_slice::{SliceId, Span};
@@ -34,6 +35,9 @@ pub struct ListedKey {
     pub pending_reason: Option<String>,
     /// The assumption about Eve the key is secret under.
     pub assumption: String,
+    /// Private sensing: what the key rests on, Eve's camera and the plant's model class.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub basis: Option<KeyBasis>,
     /// When the key was made (as the store wrote it).
     pub created: String,
     /// The sessions whose bits it holds.
@@ -67,6 +71,7 @@ impl From<&StoredKey> for ListedKey {
             status,
             pending_reason,
             assumption: key.assumption.clone(),
+            basis: key.basis.clone(),
             created: key.created.clone(),
             sessions: key.sessions.clone(),
         }

@@ -23,6 +23,7 @@ use std::fs::OpenOptions;
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
+use robokey::post_settings::KeyBasis;
 use robokey_secrecy::postprocess::FinalKey;
 use serde::{Deserialize, Serialize};
 use zeroize::{Zeroize, Zeroizing};
@@ -55,6 +56,17 @@ pub enum KeyStatus {
     Pending(String),
 }
 
+/// What a store writes in every key's record besides the key: whether its assumption is
+/// restricted, and what it rests on.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct KeyLabels {
+    /// The assumption is restricted (an operator's statement about an Eve who never learns
+    /// the model), not a physical one.
+    pub restricted: bool,
+    /// Private sensing: Eve's camera and the plant's model class.
+    pub basis: Option<KeyBasis>,
+}
+
 /// One final key as stored. Its `Debug` omits the bits.
 #[derive(Clone, PartialEq, Serialize, Deserialize)]
 pub struct StoredKey {
@@ -75,6 +87,10 @@ pub struct StoredKey {
     /// Whether that assumption is restricted (an operator's statement about an Eve who never
     /// learns the model), not a physical one.
     pub restricted: bool,
+    /// Private sensing: the two assumptions it rests on, Eve's camera and the plant's model
+    /// class (absent in odometry mode and in records written before they were stated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub basis: Option<KeyBasis>,
     /// When it was committed (UTC, RFC 3339).
     pub created: String,
     /// The sessions whose raw bits it came from.
@@ -107,9 +123,9 @@ impl Drop for StoredKey {
 }
 
 impl StoredKey {
-    /// The stored form of `key`, committed (or prepared) now by `role`.
+    /// The stored form of `key`, committed (or prepared) now by `role`, resting on `basis`.
     #[must_use]
-    pub fn new(key: &FinalKey, role: &str, restricted: bool, status: KeyStatus) -> Self {
+    pub fn new(key: &FinalKey, role: &str, labels: &KeyLabels, status: KeyStatus) -> Self {
         let mut bytes = Zeroizing::new(vec![0_u8; key.key.len().div_ceil(8)]);
         for i in 0..key.key.len() {
             if key.key.get(i) == Some(true) {
@@ -126,7 +142,8 @@ impl StoredKey {
             hex,
             epsilon: key.epsilon,
             assumption: key.assumption.clone(),
-            restricted,
+            restricted: labels.restricted,
+            basis: labels.basis.clone(),
             created: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
             sessions: key.sessions.clone(),
             status,
@@ -512,7 +529,7 @@ pub(crate) mod tests {
         let pending = StoredKey::new(
             &final_key(),
             "robot",
-            false,
+            &KeyLabels::default(),
             KeyStatus::Pending("prepared".into()),
         );
         assert_eq!(pending.hex, "b080");
@@ -574,7 +591,12 @@ pub(crate) mod tests {
     fn a_planted_name_is_never_taken_for_the_key() {
         let dir = crate::journal::tests::tempdir("keystore-planted");
         let store = KeyStore::create(&dir, &mac(1, "robot"), "robot").unwrap();
-        let key = StoredKey::new(&final_key(), "robot", false, KeyStatus::Settled);
+        let key = StoredKey::new(
+            &final_key(),
+            "robot",
+            &KeyLabels::default(),
+            KeyStatus::Settled,
+        );
         let path = dir.join("keys").join(format!("{}.key", key.id));
         let victim = dir.join("victim");
         std::fs::write(&victim, b"attacker's bits").unwrap();

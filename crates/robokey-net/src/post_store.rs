@@ -32,7 +32,7 @@ use zeroize::Zeroizing;
 
 use crate::error::NetError;
 use crate::journal::Journal;
-use crate::key_store::{KeyStatus, KeyStore, Stored, StoredKey, create_private_dir};
+use crate::key_store::{KeyLabels, KeyStatus, KeyStore, Stored, StoredKey, create_private_dir};
 use crate::owned_file::{self, WRITABLE_BY_OTHERS};
 use crate::store_keys::StoreKeys;
 
@@ -222,7 +222,7 @@ pub struct PendingKey {
 pub struct PostStore<S> {
     dir: PathBuf,
     fingerprint: String,
-    restricted: bool,
+    labels: KeyLabels,
     _lock: File,
     journal: Journal,
     keys: KeyStore,
@@ -237,7 +237,8 @@ pub struct PostStore<S> {
 
 impl<S: Snapshot> PostStore<S> {
     /// Opens (creating) the store at `dir` for `S::ROLE` and `pairing`, recovers its state
-    /// and compacts it. Keys committed through it are labelled `restricted` as told.
+    /// and compacts it. Keys committed through it carry `labels` (restricted or not, and
+    /// what they rest on).
     ///
     /// # Errors
     /// Another process holds the store; it belongs to the other role or another pairing; a
@@ -246,7 +247,7 @@ impl<S: Snapshot> PostStore<S> {
     pub fn open(
         dir: &Path,
         pairing: &PairingSecret,
-        restricted: bool,
+        labels: KeyLabels,
     ) -> Result<(Self, Recovery<S>), NetError> {
         create_private_dir(dir)?;
         owned_file::check_folder(dir, "store")?;
@@ -275,7 +276,7 @@ impl<S: Snapshot> PostStore<S> {
         let mut store = Self {
             dir: dir.to_owned(),
             fingerprint: fingerprint.clone(),
-            restricted,
+            labels,
             _lock: lock,
             journal,
             keys,
@@ -437,7 +438,7 @@ impl<S: Snapshot> PostStore<S> {
         let pooled: Vec<u32> = pool.iter().map(|(id, _)| *id).collect();
         let stored: Vec<StoredKey> = committed
             .iter()
-            .map(|key| StoredKey::new(key, S::ROLE, self.restricted, status(snapshot, key.block)))
+            .map(|key| StoredKey::new(key, S::ROLE, &self.labels, status(snapshot, key.block)))
             .collect();
         self.journal.append(&encode_state(
             snapshot,
@@ -460,9 +461,8 @@ impl<S: Snapshot> PostStore<S> {
         let mut changes = KeyChanges::default();
         let unsettled = snapshot.unsettled();
         let held = unsettled.as_ref().and_then(|u| {
-            u.key.map(|key| {
-                StoredKey::new(key, S::ROLE, self.restricted, status(snapshot, key.block))
-            })
+            u.key
+                .map(|key| StoredKey::new(key, S::ROLE, &self.labels, status(snapshot, key.block)))
         });
         for key in carried.iter().chain(&held) {
             let mut key = key.clone();

@@ -1,6 +1,6 @@
 //! robokey from Python: the native module `robokey._native` behind the `robokey` package
 //! (python/robokey, docs/python.md). It calls the library's own functions — configuration,
-//! simulation, sweeps, secrecy, the eavesdroppers, the folder, capture and key store readers — and hands results to
+//! simulation, sweeps, secrecy, a camera's threat, the eavesdroppers, the folder, capture and key store readers — and hands results to
 //! Python column by column; the package turns them into Arrow tables and numpy arrays.
 
 mod columns;
@@ -12,6 +12,7 @@ mod recorded;
 mod run;
 mod secrecy;
 mod sweep;
+mod threat;
 
 use pyo3::prelude::*;
 
@@ -34,6 +35,8 @@ mod _native {
     use crate::secrecy::secrecy;
     #[pymodule_export]
     use crate::sweep::sweep;
+    #[pymodule_export]
+    use crate::threat::threat;
 
     /// The version (the crate's and the git commit it was built from), the metrics' units and
     /// the world presets' names.

@@ -6,8 +6,9 @@ use serde::{Deserialize, Serialize};
 use crate::code::{BlockCode, Repetition, hamming74};
 use crate::observer::Variant;
 use crate::trajectory::{SQUARE, Trajectory};
-use crate::world::{WorldConfig, WorldModel};
+use crate::world::{Camera, WorldConfig, WorldModel};
 
+pub mod camera;
 pub mod source;
 
 /// Most steps one session may have (a session holds its trace and key in memory).
@@ -396,6 +397,9 @@ pub const MAX_TAG_FLIPS: u32 = 24;
 /// bounds `eve.smoother_window`.
 pub const MAX_NUISANCE_BITS: u32 = 12;
 
+/// `eve.camera_std`'s default `[m, m, rad]`: 8 mm, 8 mm, 8 mrad per sample instant.
+pub const DEFAULT_CAMERA_STD: [f64; 3] = [0.008; 3];
+
 /// `[eve]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -423,8 +427,19 @@ pub struct EveConfig {
     /// percentage points of the controller's.
     pub match_tolerance_pp: f64,
     /// Private mode: std of her camera `[m, m, rad]`, her effective noise per sample instant
-    /// after her own filtering (a camera averaging M frames per instant has σ/√M).
+    /// after her own filtering (a camera averaging M frames per instant has σ/√M). Not used
+    /// when the camera is stated in frames (`camera_fps`, `camera_frame_std`); a value other
+    /// than its default is then refused as a second statement.
     pub camera_std: [f64; 3],
+    /// Private mode: the camera in camera terms — her frames per second (any phase), given
+    /// together with `camera_frame_std`. Eve's modelled view then uses her frames
+    /// (docs/threat-model.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub camera_fps: Option<f64>,
+    /// Private mode: noise std of each of her frames `[m, m, rad]`, white and independent
+    /// between frames; given together with `camera_fps`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub camera_frame_std: Option<[f64; 3]>,
     /// Private mode: doublets each side of the window over which the `camera` and
     /// `commands` eavesdroppers smooth (docs/world.md). Absent: 2 where the world's boundary
     /// samples do not screen a doublet from its neighbours, else each doublet on its own.
@@ -444,7 +459,9 @@ impl Default for EveConfig {
             sessions: 5,
             window: 200,
             match_tolerance_pp: 0.5,
-            camera_std: [0.008; 3],
+            camera_std: DEFAULT_CAMERA_STD,
+            camera_fps: None,
+            camera_frame_std: None,
             smoother_window: None,
         }
     }
@@ -599,6 +616,8 @@ impl Config {
         let mut every = Self::default();
         every.postprocess.assumed_eve_error = Some(0.5);
         every.eve.smoother_window = Some(0);
+        every.eve.camera_fps = Some(1.0);
+        every.eve.camera_frame_std = Some([1.0; 3]);
         let mut known: toml::Table = every
             .to_toml()
             .parse()
@@ -713,6 +732,7 @@ impl Config {
         for (i, &x) in self.eve.camera_std.iter().enumerate() {
             positive(&format!("eve.camera_std[{i}]"), x)?;
         }
+        self.validate_camera_frames()?;
         match self.sensing.mode {
             SensingMode::Odometry => {
                 if proto.enabled && proto.delta_v == 0.0 && delta_omega == 0.0 {
@@ -965,6 +985,72 @@ impl Config {
         }
     }
 
+    /// Eve's camera as the key is sized against it: in frames when `eve.camera_fps` and
+    /// `eve.camera_frame_std` are given, else `eve.camera_std` per sample instant.
+    #[must_use]
+    pub fn camera_statement(&self) -> Camera {
+        match (self.eve.camera_fps, self.eve.camera_frame_std) {
+            (Some(fps), Some(frame_std)) => Camera::Frames { fps, frame_std },
+            _ => Camera::Instants {
+                std: self.eve.camera_std,
+            },
+        }
+    }
+
+    /// The per-instant camera noise `[m, m, rad]` Eve's modelled view uses: the
+    /// [`camera_statement`](Self::camera_statement) at `robot.T`.
+    #[must_use]
+    pub fn modelled_camera_std(&self) -> [f64; 3] {
+        self.camera_statement()
+            .per_instant_std(self.robot.sample_time)
+    }
+
+    /// The camera in frames: both fields or neither, a frame rate in (0, 1000] frames/s,
+    /// positive frame noise, and `eve.camera_std` left at its default (one statement).
+    fn validate_camera_frames(&self) -> Result<(), ConfigError> {
+        let eve = &self.eve;
+        match (eve.camera_fps, eve.camera_frame_std) {
+            (None, None) => return Ok(()),
+            (Some(fps), None) => {
+                return Err(invalid(
+                    "eve.camera_frame_std",
+                    "(absent)",
+                    &format!(
+                        "given with eve.camera_fps = {fps} (the noise of each frame, m, m, rad)"
+                    ),
+                ));
+            }
+            (None, Some(std)) => {
+                return Err(invalid(
+                    "eve.camera_fps",
+                    "(absent)",
+                    &format!("given with eve.camera_frame_std = {std:?} (frames per second)"),
+                ));
+            }
+            (Some(fps), Some(frame_std)) => {
+                if !(fps > 0.0 && fps <= crate::world::MAX_CAMERA_FPS) {
+                    return Err(invalid(
+                        "eve.camera_fps",
+                        fps,
+                        &format!("> 0 and at most {} frames/s", crate::world::MAX_CAMERA_FPS),
+                    ));
+                }
+                for (i, &x) in frame_std.iter().enumerate() {
+                    positive(&format!("eve.camera_frame_std[{i}]"), x)?;
+                }
+            }
+        }
+        if eve.camera_std != DEFAULT_CAMERA_STD {
+            return Err(invalid(
+                "eve.camera_std",
+                eve.camera_std,
+                "its default when the camera is stated in frames (eve.camera_fps, \
+                 eve.camera_frame_std): one statement of her camera, not two",
+            ));
+        }
+        Ok(())
+    }
+
     /// Eve's strategy after defaults: as set, else `mismatch` (odometry) or `camera`
     /// (private).
     #[must_use]
@@ -1147,6 +1233,52 @@ mod tests {
                 .codeword_length(),
             7
         );
+    }
+
+    #[test]
+    fn the_camera_in_frames_is_one_statement_with_both_fields() {
+        for (toml, field, allowed) in [
+            (
+                "camera_fps = 30.0\n",
+                "eve.camera_frame_std",
+                "given with eve.camera_fps",
+            ),
+            (
+                "camera_frame_std = [0.016, 0.016, 0.016]\n",
+                "eve.camera_fps",
+                "given with eve.camera_frame_std",
+            ),
+            (
+                "camera_fps = 0.0\ncamera_frame_std = [0.016, 0.016, 0.016]\n",
+                "eve.camera_fps",
+                "> 0 and at most 1000",
+            ),
+            (
+                "camera_fps = 30.0\ncamera_frame_std = [0.016, 0.0, 0.016]\n",
+                "eve.camera_frame_std[1]",
+                "> 0",
+            ),
+            (
+                "camera_fps = 30.0\ncamera_frame_std = [0.016, 0.016, 0.016]\n\
+                 camera_std = [0.004, 0.004, 0.004]\n",
+                "eve.camera_std",
+                "one statement of her camera",
+            ),
+        ] {
+            let text = Config::from_toml(&format!("[eve]\n{toml}"), "e.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(text.contains(field) && text.contains(allowed), "{text}");
+        }
+        let config = Config::from_toml(
+            "[eve]\ncamera_fps = 30.0\ncamera_frame_std = [0.016, 0.016, 0.016]\n",
+            "f.toml",
+        )
+        .unwrap();
+        // 6 frames per step, the worst phase a frame at each instant: 16 mm / √4.056.
+        let modelled = config.modelled_camera_std();
+        assert!((modelled[0] - 0.016 / (1.0f64 + 110.0 / 36.0).sqrt()).abs() < 1e-12);
+        assert_eq!(Config::default().modelled_camera_std(), DEFAULT_CAMERA_STD);
     }
 
     #[test]

@@ -4,9 +4,12 @@
 
 use robokey_secrecy::cascade::CascadeSchedule;
 use robokey_secrecy::postprocess::{Assumption, Settings};
+use serde::{Deserialize, Serialize};
 
+use crate::config::camera::millimetres;
 use crate::config::{Config, SensingMode};
 use crate::estimate::ESTIMATE_LEAK_BITS;
+use crate::world::Camera;
 
 /// Why the odometry mode yields no secret bit against an eavesdropper who learns the model.
 pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything the controller \
@@ -14,31 +17,76 @@ pub const ODOMETRY_ZERO: &str = "zero by structure: in odometry mode everything 
     identifying Eve within about one session); she then decides as the controller does, so \
     I(B; controller | Eve) = 0 and no post-processing yields a secret bit";
 
+/// Eve's camera as a key's assumption states it: per instant (her effective noise after her
+/// own filtering), or her frames with what they are worth per instant.
+#[must_use]
+pub fn camera_words(config: &Config) -> String {
+    let statement = config.camera_statement();
+    match statement {
+        Camera::Instants { .. } => format!(
+            "{} (her effective noise after her own filtering)",
+            statement.describe()
+        ),
+        Camera::Frames { .. } => {
+            let e = config.modelled_camera_std().map(|x| 1e3 * x);
+            format!(
+                "{}, any phase (worth {:.2} mm, {:.2} mm, {:.2} mrad per sample instant)",
+                statement.describe(),
+                e[0],
+                e[1],
+                e[2],
+            )
+        }
+    }
+}
+
+/// The plant's model class a private-sensing key rests on, as configured: white Gaussian
+/// motion noise of `noise.process_std` per step, no correlation, slip, lag or delay, the
+/// Euler map.
+#[must_use]
+pub fn plant_words(config: &Config) -> String {
+    format!(
+        "white Gaussian motion noise {} per step as configured (not measured), no \
+         correlation, slip, lag or delay, the Euler map",
+        millimetres(config.noise.process_std)
+    )
+}
+
+/// The two assumptions a private-sensing key rests on, written in its record.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct KeyBasis {
+    /// Eve's camera ([`camera_words`]).
+    pub camera: String,
+    /// The plant's model class ([`plant_words`]).
+    pub plant: String,
+}
+
+/// What `config`'s keys rest on: in private sensing its camera statement and plant model
+/// class; none in odometry mode (its keys rest on `postprocess.assumed_eve_error`, a
+/// restricted assumption, or do not exist).
+#[must_use]
+pub fn key_basis(config: &Config) -> Option<KeyBasis> {
+    (config.sensing.mode == SensingMode::Private).then(|| KeyBasis {
+        camera: camera_words(config),
+        plant: plant_words(config),
+    })
+}
+
 /// Private sensing's statement about Eve for `config`: her camera noise at least
-/// `eve.camera_std`, the true motion noise, the exact model, the controller's boundary samples
-/// hers; her view of each bit at most as informative as a Gaussian LLR of `separation`.
+/// `eve.camera_std` per instant (or her frames, `eve.camera_fps` and `eve.camera_frame_std`),
+/// the true motion noise, the exact model, the controller's boundary samples hers; her view
+/// of each bit at most as informative as a Gaussian LLR of `separation`.
 #[must_use]
 pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
     Assumption::GaussianViews {
         separation,
         statement: format!(
-            "Eve's camera noise ≥ {} per sample instant (her effective noise after her own \
-             filtering), motion noise {} per step, exact model, the controller's boundary \
-             samples known to her",
-            millimetres(config.eve.camera_std),
+            "Eve's camera noise ≥ {}, motion noise {} per step, exact model, the controller's \
+             boundary samples known to her",
+            camera_words(config),
             millimetres(config.noise.process_std),
         ),
     }
-}
-
-/// A pose's standard deviations (m, m, rad) for people: "a mm, b mm, c mrad".
-fn millimetres(std: [f64; 3]) -> String {
-    format!(
-        "{} mm, {} mm, {} mrad",
-        1e3 * std[0],
-        1e3 * std[1],
-        1e3 * std[2]
-    )
 }
 
 /// Private sensing's statement about Eve with the plant measured (docs/estimation.md): her
@@ -57,11 +105,10 @@ pub fn measured_camera_assumption(
     Assumption::MeasuredViews {
         separation,
         statement: format!(
-            "Eve's camera noise ≥ {} per sample instant (her effective noise after her own \
-             filtering), motion noise measured by the controller per block (white Gaussian, \
-             3×3 in the robot's frame, the controller sensor's calibration {} stated), exact \
-             model, the controller's boundary samples known to her",
-            millimetres(config.eve.camera_std),
+            "Eve's camera noise ≥ {}, motion noise measured by the controller per block (white \
+             Gaussian, 3×3 in the robot's frame, the controller sensor's calibration {} stated), \
+             exact model, the controller's boundary samples known to her",
+            camera_words(config),
             millimetres(config.sensing.controller_std),
         ),
         estimation_epsilon,
@@ -117,6 +164,36 @@ mod tests {
                 .assumption
                 .describe()
                 .contains("camera noise ≥ 8 mm")
+        );
+    }
+
+    #[test]
+    fn a_private_keys_basis_names_the_camera_and_the_plant() {
+        let mut config = Config::default();
+        assert_eq!(key_basis(&config), None);
+        config.sensing.mode = SensingMode::Private;
+        let basis = key_basis(&config).unwrap();
+        assert_eq!(
+            basis.camera,
+            "8 mm, 8 mm, 8 mrad per sample instant (her effective noise after her own filtering)"
+        );
+        assert!(
+            basis
+                .plant
+                .starts_with("white Gaussian motion noise 4 mm, 4 mm, 4 mrad")
+        );
+        config.eve.camera_fps = Some(30.0);
+        config.eve.camera_frame_std = Some([0.016; 3]);
+        let basis = key_basis(&config).unwrap();
+        assert_eq!(
+            basis.camera,
+            "16 mm, 16 mm, 16 mrad per frame at 30 frames/s, any phase (worth 7.95 mm, 7.95 mm, \
+             7.95 mrad per sample instant)"
+        );
+        assert!(
+            camera_assumption(&config, 1.0)
+                .describe()
+                .contains(&basis.camera)
         );
     }
 

@@ -230,12 +230,27 @@ mod through_the_session_layer {
         network: Network,
         drop_readies: u32,
     ) -> Session {
+        conversation_between(config, config, network, drop_readies)
+    }
+
+    /// [`conversation_dropping_readies`] between a robot configured with `config` and a
+    /// controller configured with `controller_config` (the world is the robot's).
+    fn conversation_between(
+        config: &Config,
+        controller_config: &Config,
+        network: Network,
+        drop_readies: u32,
+    ) -> Session {
         let seed = network.seed;
         let pairing = PairingSecret::generate(&mut stream(seed, Purpose::Key, 1));
         let setup = Setup {
             config,
             pairing: &pairing,
             timing: network.timing,
+        };
+        let controller_setup = Setup {
+            config: controller_config,
+            ..setup
         };
         let robot = RobotConnection::new(
             setup,
@@ -246,7 +261,7 @@ mod through_the_session_layer {
             Time::ZERO,
         );
         let controller = ControllerConnection::new(
-            setup,
+            controller_setup,
             Address::Robot,
             seed as u32,
             None,
@@ -341,6 +356,36 @@ mod through_the_session_layer {
             panic!("{s:?}");
         };
         assert!(why.contains("never bound"), "{why}");
+    }
+
+    /// What sizes or labels the keys and differs between the agents — the motion noise the
+    /// assumption names, Eve's camera in frames — ends the session at `Hello`, named.
+    #[test]
+    fn terms_that_size_or_label_keys_and_differ_are_refused_by_name() {
+        let robot = short("private");
+        let mut noise = robot.clone();
+        noise.noise.process_std = [0.002; 3];
+        let mut frames = robot.clone();
+        frames.eve.camera_fps = Some(30.0);
+        frames.eve.camera_frame_std = Some([0.016; 3]);
+        for (controller, named) in [
+            (
+                noise,
+                "noise.process_std: robot has [0.004, 0.004, 0.004], controller has [0.002, \
+                 0.002, 0.002]",
+            ),
+            (
+                frames,
+                "eve.camera_fps: robot has (missing), controller has 30",
+            ),
+        ] {
+            let s = conversation_between(&robot, &controller, Network::default(), 0);
+            let Some(Outcome::Aborted(why)) = &s.controller_outcome else {
+                panic!("{named}: {s:?}");
+            };
+            assert!(why.contains(named), "{why}");
+            assert!(s.robot_key.is_empty() && s.controller_key.is_empty());
+        }
     }
 
     #[test]

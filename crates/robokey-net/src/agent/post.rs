@@ -4,13 +4,13 @@
 
 use robokey::Config;
 use robokey::connection::{PostEndpoint, PostLink, PostOutput};
-use robokey::post_settings::post_settings;
+use robokey::post_settings::{key_basis, post_settings};
 use robokey::protocol::auth::{AuthMode, PairingSecret};
 use robokey_secrecy::postprocess::{Assumption, BlockReport, PostError, Settings};
 use serde::Serialize;
 
 use crate::error::NetError;
-use crate::key_store::{KeyStatus, StoredKey};
+use crate::key_store::{KeyLabels, KeyStatus, StoredKey};
 use crate::post_store::{PendingKey, PostStore, Snapshot, StoreRecovery};
 use crate::random::os_rng;
 
@@ -206,7 +206,11 @@ impl<E: StoredEndpoint> AgentStore<E> {
                 config.postprocess.assumed_eve_error.unwrap_or_default()
             )));
         }
-        let (store, recovery) = PostStore::open(dir, pairing, restricted)?;
+        let labels = KeyLabels {
+            restricted,
+            basis: key_basis(config),
+        };
+        let (store, recovery) = PostStore::open(dir, pairing, labels)?;
         let mut seed = [0_u8; 32];
         rand::RngExt::fill(&mut os_rng()?, &mut seed[..]);
         let endpoint = match recovery.snapshot {

@@ -8,6 +8,7 @@ use robokey_secrecy::postprocess::{ControllerSnapshot, FinalKey, InFlight, Robot
 
 use super::*;
 use crate::journal::tests::tempdir;
+use crate::key_store::KeyLabels;
 use crate::post_store::{PostStore, Snapshot};
 
 pub(crate) fn pairing() -> PairingSecret {
@@ -40,7 +41,7 @@ pub(crate) fn store_with<S: Snapshot>(
     keys: &[(FinalKey, bool)],
 ) -> (std::path::PathBuf, KeyDelivery) {
     let dir = tempdir(name);
-    drop(PostStore::<S>::open(&dir, &pairing(), false).unwrap());
+    drop(PostStore::<S>::open(&dir, &pairing(), KeyLabels::default()).unwrap());
     let delivery = KeyDelivery::open(&dir, &pairing()).unwrap();
     for (key, settled) in keys {
         let status = if *settled {
@@ -50,7 +51,7 @@ pub(crate) fn store_with<S: Snapshot>(
         };
         delivery
             .keys()
-            .store(&StoredKey::new(key, S::ROLE, false, status))
+            .store(&StoredKey::new(key, S::ROLE, &KeyLabels::default(), status))
             .unwrap();
     }
     (dir, delivery)
@@ -305,7 +306,8 @@ fn racing_takers_never_get_the_same_bits() {
 #[test]
 fn an_agent_and_a_taker_on_one_store_do_not_corrupt_each_other() {
     let dir = tempdir("delivery-agent");
-    let (mut store, _) = PostStore::<ControllerSnapshot>::open(&dir, &pairing(), false).unwrap();
+    let (mut store, _) =
+        PostStore::<ControllerSnapshot>::open(&dir, &pairing(), KeyLabels::default()).unwrap();
     let delivery = KeyDelivery::open(&dir, &pairing()).unwrap();
     let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
     let taker = std::thread::spawn({
@@ -344,7 +346,12 @@ fn an_agent_and_a_taker_on_one_store_do_not_corrupt_each_other() {
         // Acknowledged: settled, and the key stored again as recovery would.
         state.in_flight = None;
         store.persist(&mut state, &[]).unwrap();
-        let again = StoredKey::new(&key, "controller", false, KeyStatus::Settled);
+        let again = StoredKey::new(
+            &key,
+            "controller",
+            &KeyLabels::default(),
+            KeyStatus::Settled,
+        );
         delivery.keys().store(&again).unwrap();
     }
     done.store(true, std::sync::atomic::Ordering::SeqCst);

@@ -145,6 +145,7 @@ mod tests {
             epsilon: 4e-6,
             assumption: "stated".into(),
             restricted: false,
+            basis: None,
             created: "2026-01-01T00:00:00Z".into(),
             sessions: vec![1],
             status: KeyStatus::Settled,

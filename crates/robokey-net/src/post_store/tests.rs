@@ -12,7 +12,11 @@ fn pairing(seed: u8) -> PairingSecret {
 }
 
 fn open<S: Snapshot>(dir: &Path, seed: u8) -> Result<(PostStore<S>, Recovery<S>), NetError> {
-    PostStore::open(dir, &pairing(seed), true)
+    let labels = KeyLabels {
+        restricted: true,
+        basis: None,
+    };
+    PostStore::open(dir, &pairing(seed), labels)
 }
 
 fn controller(pool: &[(u32, bool)], committed: &[u64]) -> ControllerSnapshot {
@@ -276,7 +280,12 @@ fn a_forged_record_is_refused_and_writes_no_key() {
     drop(store);
     let genuine = std::fs::read(dir.join("journal")).unwrap();
     // The attacker frames the record under a key of their own.
-    let planted = StoredKey::new(&key(7, &[1]), "controller", false, KeyStatus::Settled);
+    let planted = StoredKey::new(
+        &key(7, &[1]),
+        "controller",
+        &KeyLabels::default(),
+        KeyStatus::Settled,
+    );
     let forged = encode_state(&controller(&[], &[7]), &[], &[planted], &[]);
     let owner = format!("controller {}", pairing(1).fingerprint());
     let other = tempdir("post-store-forger");

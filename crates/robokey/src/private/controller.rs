@@ -74,7 +74,7 @@ impl PrivateController {
             tracking: ReferenceTracker::new(config, agreed.drive, agreed.sample_time),
             model: doublet_model(config),
             controller_std: config.sensing.controller_std,
-            camera_std: config.eve.camera_std,
+            camera_std: config.modelled_camera_std(),
             pending: VecDeque::new(),
             next_doublet: 0,
             next_sample: 0,

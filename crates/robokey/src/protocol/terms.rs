@@ -2,12 +2,16 @@
 //! (carried in `Hello` and `HelloAck`), and how a difference is named.
 
 use crate::config::{Config, SensingMode};
+use crate::world::Camera;
 
 /// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
 /// budget, Δ, trajectory, protocol on/off; in private sensing also the mode, the bits per
-/// doublet, the turn gate and Eve's stated camera noise; the `[postprocess]` table, which
-/// sizes the final keys), as `field = value` lines in a fixed order. The robot checks every
-/// command against the agreed Δ, r and D.
+/// doublet, the turn gate, Eve's stated camera — per instant, or in frames when so stated —
+/// and the motion noise the key's assumption names; the `[postprocess]` table, which sizes
+/// the final keys), as `field = value` lines in a fixed order. The robot checks every
+/// command against the agreed Δ, r and D. Not agreed: what only the controller uses
+/// (its gains, its sensor's `sensing.controller_std`: the separations it computes with it
+/// are carried to the robot with each block).
 #[must_use]
 pub fn agreement_terms(config: &Config) -> String {
     let code = &config.code;
@@ -17,8 +21,12 @@ pub fn agreement_terms(config: &Config) -> String {
         SensingMode::Odometry => String::new(),
         SensingMode::Private => format!(
             "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
-             eve.camera_std = {:?}\n",
-            config.protocol.bits_per_doublet, config.protocol.max_turn_rate, config.eve.camera_std
+             eve.camera_std = {:?}\n{}noise.process_std = {:?}\n",
+            config.protocol.bits_per_doublet,
+            config.protocol.max_turn_rate,
+            config.eve.camera_std,
+            camera_frames_terms(config),
+            config.noise.process_std,
         ),
     };
     // What sizes and labels the final keys both stores hold.
@@ -51,6 +59,17 @@ pub fn agreement_terms(config: &Config) -> String {
         post.sample_bits,
         post.epsilon,
     )
+}
+
+/// The camera stated in frames, when it is: `eve.camera_fps` and `eve.camera_frame_std`
+/// lines (absent otherwise, so that a per-instant statement's terms stay as they were).
+fn camera_frames_terms(config: &Config) -> String {
+    match config.camera_statement() {
+        Camera::Instants { .. } => String::new(),
+        Camera::Frames { fps, frame_std } => {
+            format!("eve.camera_fps = {fps}\neve.camera_frame_std = {frame_std:?}\n")
+        }
+    }
 }
 
 /// SHA-256 of the [`agreement_terms`].
@@ -114,5 +133,32 @@ mod tests {
         assert_eq!(text, "robot.T: robot has 0.2, controller has 0.25");
         b.robot.sample_time = 0.2;
         assert_eq!(config_digest(&a), config_digest(&b));
+    }
+
+    #[test]
+    fn the_camera_stated_in_frames_is_agreed_and_a_per_instant_one_unchanged() {
+        let mut a = Config::default();
+        a.sensing.mode = SensingMode::Private;
+        let per_instant = agreement_terms(&a);
+        assert!(!per_instant.contains("camera_fps"), "{per_instant}");
+        let mut b = a.clone();
+        b.eve.camera_fps = Some(30.0);
+        b.eve.camera_frame_std = Some([0.016; 3]);
+        let mut c = b.clone();
+        c.eve.camera_fps = Some(60.0);
+        assert_eq!(
+            terms_difference(
+                &agreement_terms(&b),
+                &agreement_terms(&c),
+                "robot",
+                "controller"
+            ),
+            "eve.camera_fps: robot has 30, controller has 60"
+        );
+        assert_eq!(
+            terms_difference(&per_instant, &agreement_terms(&b), "robot", "controller"),
+            "eve.camera_fps: robot has (missing), controller has 30; eve.camera_frame_std: \
+             robot has (missing), controller has [0.016, 0.016, 0.016]"
+        );
     }
 }

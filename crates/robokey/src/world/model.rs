@@ -5,7 +5,8 @@
 use super::config::{Integration, WorldConfig};
 use crate::config::Config;
 
-/// Eve's real camera.
+/// Eve's camera: the world's real one, or the one the parties state (`eve.*`, the key's
+/// statement: docs/threat-model.md).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Camera {
     /// One frame at each sample instant, std `[m, m, rad]`.
@@ -84,9 +85,7 @@ impl WorldModel {
             encoder_quantum: 0.0,
             jitter: 0.0,
             controller_std: config.sensing.controller_std,
-            camera: Camera::Instants {
-                std: config.eve.camera_std,
-            },
+            camera: config.camera_statement(),
         }
     }
 
@@ -104,11 +103,14 @@ impl WorldModel {
             (None, Some(std)) => Camera::Instants { std },
             (Some(fps), frame_std) => Camera::Frames {
                 fps,
-                frame_std: frame_std.unwrap_or_else(|| {
-                    config
-                        .eve
-                        .camera_std
-                        .map(|s| per_frame_std(s, fps, config.robot.sample_time))
+                frame_std: frame_std.unwrap_or_else(|| match config.camera_statement() {
+                    Camera::Frames {
+                        fps: stated,
+                        frame_std,
+                    } if stated == fps => frame_std,
+                    _ => config
+                        .modelled_camera_std()
+                        .map(|s| per_frame_std(s, fps, config.robot.sample_time)),
                 }),
             },
         };
