@@ -135,3 +135,53 @@ fn the_window_smoother_converges_in_its_width() {
         "ideal: {gain} ± {se}"
     );
 }
+
+/// With motion noise well below the controller's sensor noise (0.15 mm against 0.5 mm) a
+/// doublet's own boundary samples no longer screen it: the neighbours' samples pin its
+/// boundaries and reveal the turn residual. Her information grows with the exact window's
+/// width W = 0 → 4 and converges: the default view (W = 2 and the boundary samples of
+/// `WorldModel::sample_reach` doublets beyond) gives what W = 4 gives, and no less (paired
+/// over the same bits, within 3 standard errors and 0.003 bit). Just above the screening line
+/// (√2·σ_w ≥ σ_c: 0.36 mm) the per-doublet view misses less than 0.003 bit per bit.
+#[test]
+fn below_the_sensor_noise_the_neighbours_samples_are_used_and_converge() {
+    let world = |sigma: f64| format!("[world]\nprocess_std = [{sigma}, {sigma}, {sigma}]\n");
+    let at = |sigma: f64, width: Option<u32>| {
+        let eve = width.map_or(String::new(), |w| format!("[eve]\nsmoother_window = {w}\n"));
+        bits(&private(&format!("{eve}{}", world(sigma))), 10)
+    };
+    let paired = |a: &[DoubletBit], b: &[DoubletBit]| {
+        assert_eq!(a.len(), b.len());
+        let d: Vec<f64> = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| {
+                assert_eq!((x.step, x.bit), (y.step, y.bit));
+                information(x.camera, x.bit) - information(y.camera, y.bit)
+            })
+            .collect();
+        mean_and_error(&d)
+    };
+    let low = 0.000_15;
+    let (w0, w2, w4, default) = (
+        at(low, Some(0)),
+        at(low, Some(2)),
+        at(low, Some(4)),
+        at(low, None),
+    );
+    let (gain, se) = paired(&w4, &w0);
+    assert!(gain > 0.002 && gain > 3.0 * se, "W 4 − 0: {gain} ± {se}");
+    let (gain, se) = paired(&w4, &w2);
+    assert!(gain > -se && gain < 0.003, "W 4 − 2: {gain} ± {se}");
+    let (gain, se) = paired(&default, &w4);
+    assert!(
+        gain > -3.0 * se - 1e-9 && gain.abs() < 0.003,
+        "default − W 4: {gain} ± {se}"
+    );
+    let line = 0.000_36;
+    let (gain, se) = paired(&at(line, Some(4)), &at(line, None));
+    assert!(
+        gain.abs() < 0.003,
+        "at the screening line, W 4 − alone: {gain} ± {se}"
+    );
+}
