@@ -5,9 +5,11 @@
 //! and the world's camera log. Same code, same decisions.
 //!
 //! Where the world lets a doublet's boundary samples screen it from its neighbours (white
-//! noise, the Euler map, no lag, delay, slip, quanta or jitter, a camera at the instants),
-//! each doublet is decided from the samples around it; elsewhere — or when
-//! `eve.smoother_window` asks for it — by the [`WindowSmoother`] over `±W` doublets.
+//! noise of at least the controller's sensor noise over a doublet, the Euler map, no lag,
+//! delay, slip, quanta or jitter, a camera at the instants), each doublet is decided from the
+//! samples around it; elsewhere by the [`WindowSmoother`] over `±2` doublets and, below the
+//! sensor noise, the boundary samples of [`crate::world::WorldModel::sample_reach`] doublets
+//! beyond; when `eve.smoother_window` asks for it, over exactly `±W` doublets.
 
 use std::collections::{BTreeMap, VecDeque};
 

@@ -1,11 +1,14 @@
 //! The world-aware eavesdroppers' window smoother (docs/world.md, "The window smoother").
 //!
-//! With correlated noise, lag, delay or slip, or a camera filming between the instants, the
-//! controller's boundary samples no longer screen a doublet from its neighbours. For doublet
-//! `j` Eve takes the doublets `j − W … j + W` (fewer at the session's ends or where commands
-//! are missing) and everything she observed over them: the boundary samples the commands
-//! carry (noise `world.controller_std`, timing error `world.jitter`), and — the `camera`
-//! adversary — every frame of her camera. Her model is the world's, linearised about the
+//! With correlated noise, lag, delay or slip, a camera filming between the instants, or
+//! motion noise below the controller's sensor noise, the controller's boundary samples no
+//! longer screen a doublet from its neighbours. For doublet `j` Eve takes the doublets
+//! `j − W … j + W` (fewer at the session's ends or where commands are missing) and everything
+//! she observed over them: the boundary samples the commands carry (noise
+//! `world.controller_std`, timing error `world.jitter`), and — the `camera` adversary — every
+//! frame of her camera; and the boundary samples of `reach` doublets beyond each side (their
+//! bits Gaussian like the lead's in her decision, known given the others), a forward and a
+//! backward pass over the samples that pin the window's boundaries. Her model is the world's, linearised about the
 //! noise-free path she simulates with the world's own code:
 //!
 //! - the pose at the window's start is the controller's sample there, off by its noise;

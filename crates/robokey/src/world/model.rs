@@ -302,6 +302,22 @@ mod tests {
     }
 
     #[test]
+    fn doublets_are_screened_only_above_the_sensor_noise() {
+        let mut world = WorldModel::ideal(&Config::default());
+        assert_eq!(world.sample_reach(), 0);
+        // √2·0.36 mm ≥ 0.5 mm: screened.
+        world.process_std = [0.000_36; 3];
+        assert_eq!(world.sample_reach(), 0);
+        assert!(world.screens_doublets());
+        // 0.5 / (√2·0.15) = 2.36 doublets, three times over.
+        world.process_std = [0.000_15; 3];
+        assert_eq!(world.sample_reach(), 8);
+        assert!(!world.screens_doublets());
+        world.process_std = [0.0; 3];
+        assert_eq!(world.sample_reach(), MAX_SAMPLE_REACH);
+    }
+
+    #[test]
     fn substeps_follow_the_lag_and_are_capped() {
         let mut world = WorldModel::ideal(&Config::default());
         assert_eq!(world.substeps(0.2), 1);
