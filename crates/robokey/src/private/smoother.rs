@@ -450,11 +450,8 @@ impl WindowSmoother {
         let (first, steps, target) = (*first, *steps, *target);
         let patterns = self.perturbation.patterns();
         // Her camera over the window proper; the boundary samples over the whole reach.
-        let filmed = if camera {
-            2 * (exact.0 - first) as usize..=2 * (exact.1 - first + 1) as usize
-        } else {
-            1..=0
-        };
+        let filmed =
+            camera.then(|| 2 * (exact.0 - first) as usize..=2 * (exact.1 - first + 1) as usize);
         let observations = self.observations(rec, nominal, 2 * first, steps, &filmed);
         // Columns: the residual, the target's hypotheses, the window's other bits, the lead's.
         // A column is a combination of runs, relative to the nominal one.
@@ -577,14 +574,14 @@ impl WindowSmoother {
     }
 
     /// What she observed over the window, in window-step order: the boundary samples, and
-    /// her camera over the window steps `filmed`.
+    /// her camera (if she has one) over the window steps `filmed`.
     fn observations(
         &self,
         rec: &Recorded<'_>,
         nominal: &WindowRun,
         k0: u32,
         steps: usize,
-        filmed: &std::ops::RangeInclusive<usize>,
+        filmed: &Option<std::ops::RangeInclusive<usize>>,
     ) -> Vec<Observation> {
         let world = &self.eve.world;
         let t = self.sample_time;
@@ -607,9 +604,9 @@ impl WindowSmoother {
                     noise_inverse: noise.try_inverse().unwrap_or_else(Matrix3::zeros),
                 });
             }
-            if !filmed.contains(&step) {
+            let Some(filmed) = filmed.as_ref().filter(|f| f.contains(&step)) else {
                 continue;
-            }
+            };
             match world.camera {
                 Camera::Instants { std } => {
                     if let Some(pose) = rec.camera.get(&k) {
