@@ -52,7 +52,8 @@ fn the_ideal_world_is_no_world_number_for_number() {
 type Llr = fn(&DoubletBit) -> f64;
 
 /// Worlds unlike the parties' — lag, AR(1) noise, slip, delay, a camera between the
-/// instants, and the Khepera IV preset (continuous motion, jitter, quanta, lag, delay, slip):
+/// instants, the Khepera IV preset (continuous motion, jitter, quanta, lag, delay, slip), and
+/// motion noise below the controller's sensor noise (the boundary samples' reach):
 /// the `camera` and `commands` eavesdroppers' LLRs pass the calibration test (10 equal-count
 /// bins, exact Poisson-binomial tails, α = 10⁻³ each), seed 2023, 12 sessions (≈ 5,000 bits)
 /// per world.
@@ -65,6 +66,7 @@ fn the_eavesdroppers_stay_calibrated_in_other_worlds() {
         "delay = 0.02\n",
         "camera_fps = 30.0\ncamera_frame_std = [0.016, 0.016, 0.016]\n",
         "preset = \"khepera-iv\"\n",
+        "process_std = [0.00015, 0.00015, 0.00015]\n",
     ];
     for world in worlds {
         let all = bits(&private(&format!("[world]\n{world}")), 12);
