@@ -95,6 +95,21 @@ fn mean_and_error(values: &[f64]) -> (f64, f64) {
     (mean, (var / n).sqrt())
 }
 
+/// The camera eavesdropper's information per bit from `a` less from `b`, paired over the
+/// same bits: its mean and standard error.
+fn paired_gain(a: &[DoubletBit], b: &[DoubletBit]) -> (f64, f64) {
+    assert_eq!(a.len(), b.len());
+    let d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| {
+            assert_eq!((x.step, x.bit), (y.step, y.bit));
+            information(x.camera, x.bit) - information(y.camera, y.bit)
+        })
+        .collect();
+    mean_and_error(&d)
+}
+
 /// The window smoother converges in its width. With a 50 ms lag (1 mm motion noise) a bit
 /// shows at the next doublet's boundary too: two doublets each side give the camera
 /// eavesdropper what three give (paired over the same bits, within 3 standard errors and
@@ -109,29 +124,17 @@ fn the_window_smoother_converges_in_its_width() {
             10,
         )
     };
-    let paired = |a: &[DoubletBit], b: &[DoubletBit]| {
-        assert_eq!(a.len(), b.len());
-        let d: Vec<f64> = a
-            .iter()
-            .zip(b)
-            .map(|(x, y)| {
-                assert_eq!((x.step, x.bit), (y.step, y.bit));
-                information(x.camera, x.bit) - information(y.camera, y.bit)
-            })
-            .collect();
-        mean_and_error(&d)
-    };
     let (w0, w2, w3) = (at(lag, 0), at(lag, 2), at(lag, 3));
-    let (gain, se) = paired(&w3, &w2);
+    let (gain, se) = paired_gain(&w3, &w2);
     assert!(
         gain.abs() < 3.0 * se + 1e-9 && gain.abs() < 0.003,
         "W 3 − 2: {gain} ± {se}"
     );
-    let (gain, se) = paired(&w2, &w0);
+    let (gain, se) = paired_gain(&w2, &w0);
     assert!(gain > 0.1 && gain > 10.0 * se, "W 2 − 0: {gain} ± {se}");
     let alone = bits(&private(""), 10);
     let window = at("", 2);
-    let (gain, se) = paired(&window, &alone);
+    let (gain, se) = paired_gain(&window, &alone);
     assert!(
         gain.abs() < 3.0 * se + 1e-9 && gain.abs() < 0.003,
         "ideal: {gain} ± {se}"
@@ -152,18 +155,6 @@ fn below_the_sensor_noise_the_neighbours_samples_are_used_and_converge() {
         let eve = width.map_or(String::new(), |w| format!("[eve]\nsmoother_window = {w}\n"));
         bits(&private(&format!("{eve}{}", world(sigma))), 10)
     };
-    let paired = |a: &[DoubletBit], b: &[DoubletBit]| {
-        assert_eq!(a.len(), b.len());
-        let d: Vec<f64> = a
-            .iter()
-            .zip(b)
-            .map(|(x, y)| {
-                assert_eq!((x.step, x.bit), (y.step, y.bit));
-                information(x.camera, x.bit) - information(y.camera, y.bit)
-            })
-            .collect();
-        mean_and_error(&d)
-    };
     let low = 0.000_15;
     let (w0, w2, w4, default) = (
         at(low, Some(0)),
@@ -171,17 +162,17 @@ fn below_the_sensor_noise_the_neighbours_samples_are_used_and_converge() {
         at(low, Some(4)),
         at(low, None),
     );
-    let (gain, se) = paired(&w4, &w0);
+    let (gain, se) = paired_gain(&w4, &w0);
     assert!(gain > 0.002 && gain > 3.0 * se, "W 4 − 0: {gain} ± {se}");
-    let (gain, se) = paired(&w4, &w2);
+    let (gain, se) = paired_gain(&w4, &w2);
     assert!(gain > -se && gain < 0.003, "W 4 − 2: {gain} ± {se}");
-    let (gain, se) = paired(&default, &w4);
+    let (gain, se) = paired_gain(&default, &w4);
     assert!(
         gain > -3.0 * se - 1e-9 && gain.abs() < 0.003,
         "default − W 4: {gain} ± {se}"
     );
     let line = 0.000_36;
-    let (gain, se) = paired(&at(line, Some(4)), &at(line, None));
+    let (gain, se) = paired_gain(&at(line, Some(4)), &at(line, None));
     assert!(
         gain.abs() < 0.003,
         "at the screening line, W 4 − alone: {gain} ± {se}"
