@@ -14,7 +14,6 @@ Tables are :class:`pyarrow.Table` (``.to_pandas()``, ``polars.from_arrow``,
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import warnings
@@ -22,7 +21,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.csv
+import pyarrow.parquet
 
 from . import _native
 from ._native import ConfigError, InputError, OptionError, SimulationError, SweepError
@@ -169,11 +168,6 @@ def sweep(
     return _table(columns, {"robokey.sweep": resolved})
 
 
-def _csv_table(text: str) -> pa.Table:
-    """A CSV that robokey rendered, read into a table (its cells typed as written)."""
-    return pyarrow.csv.read_csv(io.BytesIO(text.encode()))
-
-
 def _block_rows(results: List[Dict[str, Any]]) -> List[Dict[str, Any]]:
     """One row per privacy-amplification block of every point and adversary; the realised
     view's fields prefixed ``realised_``."""
@@ -220,8 +214,10 @@ def secrecy(
     (``"confirmed"`` or ``"complete"``), ``sample_bits``, ``max_sessions`` (default: 2,000 per 10,000 bits of
     blocks), ``assume_eve_error``; unset ones take the sweep's ``[secrecy]`` table, then the defaults.
 
-    Returns a dict: ``table`` (``secrecy.csv``: one row per point and adversary, strongest
-    class first — ℓ in ``secret_bits``, the realised bound in ``realised_secret_bits``),
+    Returns a dict: ``table`` (``secrecy.csv``'s columns and values, as ``secrecy.parquet``
+    types them, each column's unit and meaning in its metadata: one row per point and
+    adversary, strongest class first — ℓ in ``secret_bits``, the realised bound in
+    ``realised_secret_bits``),
     ``blocks`` (one row per privacy-amplification block: its sessions, bits, leak, ℓ and the
     adversary's realised view), ``results`` (``secrecy.json``'s results, every detail),
     ``epsilon``, ``block_bits``, ``pooling`` and ``map`` (private sensing's map, else None).
@@ -230,7 +226,7 @@ def secrecy(
     adversary or pooling or a folder that is not a sweep's, :class:`ConfigError` and
     :class:`SweepError` for a definition that is not valid.
     """
-    secrecy_json, csv_text, map_json = _native.secrecy(
+    secrecy_json, columns, map_json = _native.secrecy(
         sweep,
         seed=seed,
         adversaries=None if adversaries is None else list(adversaries),
@@ -245,7 +241,7 @@ def secrecy(
     )
     data = json.loads(secrecy_json)
     return {
-        "table": _csv_table(csv_text),
+        "table": _table(columns),
         "blocks": pa.Table.from_pylist(_block_rows(data["results"])),
         "results": data["results"],
         "epsilon": data["epsilon"],
@@ -255,14 +251,35 @@ def secrecy(
     }
 
 
+def _parquet_runs(folder: str) -> Union[None, pa.Table, Dict[str, pa.Table]]:
+    """The ``runs.parquet`` of a sweep folder, or of each experiment folder of a suite folder
+    (by name); None when there is none."""
+    if os.path.isfile(os.path.join(folder, "runs.parquet")):
+        return pyarrow.parquet.read_table(os.path.join(folder, "runs.parquet"))
+    if not os.path.isdir(folder):
+        return None
+    names = sorted(
+        name for name in os.listdir(folder) if os.path.isfile(os.path.join(folder, name, "runs.parquet"))
+    )
+    if not names:
+        return None
+    return {name: pyarrow.parquet.read_table(os.path.join(folder, name, "runs.parquet")) for name in names}
+
+
 def read_sweep(folder: "os.PathLike[str] | str") -> Union[pa.Table, Dict[str, pa.Table]]:
     """The runs of a sweep folder that ``robokey sweep`` (or ``reproduce``) wrote, read back as
     robokey's reports read them — the same table :func:`sweep` returns for its definition; a
     suite folder gives a dict of tables by experiment name.
 
+    A folder swept with ``--format parquet`` is read from its ``runs.parquet`` (the same
+    columns, units and meanings; written only once the folder holds every run).
+
     Raises :class:`InputError` for a folder that is not a complete sweep's (interrupted, a
     shard only, a file that does not read back), OSError for a file that cannot be read.
     """
+    parquet = _parquet_runs(os.fspath(folder))
+    if parquet is not None:
+        return parquet
     experiments = _native.read_sweep(os.fspath(folder))
     tables = {
         name: _table(columns, {"robokey.sweep": resolved})
@@ -275,8 +292,10 @@ def read_sweep(folder: "os.PathLike[str] | str") -> Union[pa.Table, Dict[str, pa
 
 def read_trace(path: "os.PathLike[str] | str") -> pa.Table:
     """A ``trace.csv`` (of ``robokey run``, or a sweep's ``traces/point-<i>.csv``) as the
-    table :func:`run` returns as ``trace``. Raises :class:`InputError` naming the line that
-    does not read back."""
+    table :func:`run` returns as ``trace``; a ``.parquet`` trace (``--format parquet``) is read
+    as it is. Raises :class:`InputError` naming the line that does not read back."""
+    if os.fspath(path).endswith(".parquet"):
+        return pyarrow.parquet.read_table(os.fspath(path))
     return _table(_native.read_trace(os.fspath(path)))
 
 
@@ -308,7 +327,7 @@ def read_capture(path: "os.PathLike[str] | str") -> pa.Table:
     rows, shortfalls = _native.read_capture(os.fspath(path))
     for shortfall in shortfalls:
         warnings.warn(f"{os.fspath(path)}: {shortfall}", stacklevel=2)
-    columns = list(zip(*rows)) if rows else [[] for _ in FRAME_SCHEMA]
+    columns: List[Sequence[Any]] = list(zip(*rows)) if rows else [[] for _ in FRAME_SCHEMA]
     return pa.Table.from_arrays(
         [pa.array(list(column), type=field.type) for column, field in zip(columns, FRAME_SCHEMA)],
         schema=FRAME_SCHEMA,

@@ -11,9 +11,11 @@ use robokey_lab::experiment::{Experiment, experiments_from_table};
 use robokey_lab::folder::sweep::{Start, SweepPlan, Swept};
 use robokey_lab::folder::{layout, merge};
 use robokey_lab::output::write;
+use robokey_lab::parquet_table::{TableFormat, write_parquet};
 use robokey_lab::reproduce::compute_stages;
 use robokey_lab::reproduce::suite::paper_suite;
 use robokey_lab::run::with_jobs;
+use robokey_lab::trace_table::TraceColumns;
 use robokey_lab::{metric_table, report, trace};
 
 use crate::configuration::{FlagOverrides, load_config, read_table};
@@ -51,27 +53,41 @@ pub fn run(args: RunArgs) -> Result<()> {
     );
     let config = overrides.load(args.config.as_deref())?;
     prepare_output(&args.out, args.force)?;
-    // The trace goes to disk row by row (memory independent of N); the figure draws a
-    // decimated copy.
-    let trace_path = args.out.join("trace.csv");
-    let file = std::fs::File::create(&trace_path)
-        .with_context(|| format!("{}: cannot create", trace_path.display()))?;
-    let mut csv = trace::TraceCsv::new(std::io::BufWriter::new(file))?;
+    // In CSV the trace goes to disk row by row (memory independent of N); in Parquet it is
+    // collected column by column and written at the end. The figure draws a decimated copy.
+    let format = TableFormat::from(args.format);
+    let trace_path = args.out.join(format!("trace.{}", format.extension()));
+    let mut csv = match format {
+        TableFormat::Csv => {
+            let file = std::fs::File::create(&trace_path)
+                .with_context(|| format!("{}: cannot create", trace_path.display()))?;
+            Some(trace::TraceCsv::new(std::io::BufWriter::new(file))?)
+        }
+        TableFormat::Parquet => None,
+    };
+    let mut columns = TraceColumns::default();
     let mut written = Ok(());
     let mut drawn = trace::DrawnRows::default();
     let plan = robokey::protocol::SessionPlan::from_config(&config, args.replicate);
     let started = Instant::now();
     let output =
         robokey::sim::simulate_plan_streaming(&config, plan, args.replicate, &mut |row| {
-            if written.is_ok() {
-                written = csv.write(&row);
+            match &mut csv {
+                Some(csv) if written.is_ok() => written = csv.write(&row),
+                Some(_) => {}
+                None => columns.push(&row),
             }
             drawn.push(row);
         })?;
     let elapsed = started.elapsed();
-    written
-        .and_then(|()| csv.finish().map(drop))
-        .with_context(|| format!("{}: cannot write", trace_path.display()))?;
+    match csv {
+        Some(csv) => written
+            .and_then(|()| csv.finish().map(drop))
+            .with_context(|| format!("{}: cannot write", trace_path.display()))?,
+        None => {
+            write_parquet(&trace_path, &columns.into_columns(), &[])?;
+        }
+    }
     let mut json = metric_table::metrics_json(&output.metrics);
     json.insert("replicate".into(), args.replicate.into());
     json.insert("seed".into(), config.run.seed.into());
@@ -146,11 +162,18 @@ pub fn sweep(args: SweepArgs) -> Result<Status> {
             LabError::Config(e) => LabError::Config(source::blame(e, set)),
             other => other,
         })?;
+    if args.shard.is_some() && matches!(args.format, crate::FormatArg::Parquet) {
+        usage!(
+            "--shard with --format parquet: shards are merged from their runs.csv; sweep the \
+             shards in CSV and give --format parquet to `robokey merge`"
+        );
+    }
     let (out, resume) = output(&args.out, args.resume.as_deref(), args.force)?;
     let stop = on_signals()?;
     let plan = SweepPlan {
         shard: args.shard,
         resume,
+        format: args.format.into(),
     };
     let swept = sweep_into(&out, &experiments, plan, args.jobs, &stop)?;
     let mut again = vec![
@@ -293,7 +316,7 @@ fn shell_word(word: &str) -> String {
 
 pub fn merge(args: MergeArgs) -> Result<()> {
     prepare_output(&args.out, args.force)?;
-    let experiments = merge::merge(&args.dirs, &args.out)?;
+    let experiments = merge::merge(&args.dirs, &args.out, args.format.into())?;
     for e in experiments.iter().filter(|e| !e.name.is_empty()) {
         println!(
             "{}: {} runs → {}",
@@ -332,6 +355,7 @@ pub fn reproduce(args: ReproduceArgs) -> Result<Status> {
     let plan = SweepPlan {
         shard: None,
         resume,
+        format: TableFormat::Csv,
     };
     let swept = sweep_into(&out, &experiments, plan, args.jobs, &stop)?;
     let mut again = vec!["robokey".to_owned(), "reproduce".into()];
@@ -412,7 +436,12 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             Secrecy::compute(&experiment, &options, &mut SessionBank::new())
         })??;
         let mut files = secrecy.write(&folder)?;
-        files.extend(write_secrecy(&folder, &experiment, &secrecy)?);
+        files.extend(write_secrecy(
+            &folder,
+            &experiment,
+            &secrecy,
+            args.format.into(),
+        )?);
         let (results, map) = (&secrecy.results, &secrecy.map);
         println!("{}:", folder.display());
         if let Some(reason) = results.iter().find_map(|r| r.structural_zero.as_deref()) {

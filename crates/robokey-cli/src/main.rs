@@ -159,6 +159,10 @@ struct RunArgs {
     /// files robokey does not write are kept (and named).
     #[arg(long)]
     force: bool,
+    /// The trace's format: trace.csv, or trace.parquet (each column's unit and meaning in
+    /// its metadata; docs/python.md).
+    #[arg(long, value_enum, default_value_t = FormatArg::Csv)]
+    format: FormatArg,
 }
 
 #[derive(Args, Debug)]
@@ -185,6 +189,12 @@ struct SweepArgs {
     /// folder's. It ends byte-identical to a sweep that was never interrupted.
     #[arg(long, value_name = "DIR", conflicts_with = "out")]
     resume: Option<PathBuf>,
+    /// The runs table's and traces' format: runs.csv, or runs.parquet (each column's unit
+    /// and meaning in its metadata). A folder is written in Parquet once it holds every run
+    /// (an interrupted one stays CSV, to be resumed with the same --format); report, merge
+    /// and --resume do not read runs.parquet.
+    #[arg(long, value_enum, default_value_t = FormatArg::Csv)]
+    format: FormatArg,
 }
 
 #[derive(Args, Debug)]
@@ -200,6 +210,10 @@ struct MergeArgs {
     /// files robokey does not write are kept (and named).
     #[arg(long)]
     force: bool,
+    /// The merged runs table's and traces' format: runs.csv, or runs.parquet (as `sweep
+    /// --format parquet` writes them).
+    #[arg(long, value_enum, default_value_t = FormatArg::Csv)]
+    format: FormatArg,
 }
 
 #[derive(Args, Debug)]
@@ -280,6 +294,28 @@ struct SecrecyArgs {
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
+    /// The secrecy table's format: secrecy.csv, or secrecy.parquet (each column's unit and
+    /// meaning in its metadata).
+    #[arg(long, value_enum, default_value_t = FormatArg::Csv)]
+    format: FormatArg,
+}
+
+/// The format of the tables a command writes.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum FormatArg {
+    /// Comma-separated text.
+    Csv,
+    /// Apache Parquet, each column's unit and meaning in its field's metadata.
+    Parquet,
+}
+
+impl From<FormatArg> for robokey_lab::parquet_table::TableFormat {
+    fn from(format: FormatArg) -> Self {
+        match format {
+            FormatArg::Csv => Self::Csv,
+            FormatArg::Parquet => Self::Parquet,
+        }
+    }
 }
 
 /// Which sessions `robokey secrecy` pools (docs/secrecy.md).

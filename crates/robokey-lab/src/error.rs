@@ -72,6 +72,13 @@ pub enum LabError {
         /// Runs of the sweep.
         total: usize,
     },
+    /// A sweep folder whose runs are in `runs.parquet`, where robokey reads `runs.csv`.
+    #[error(
+        "{0}: its runs are in runs.parquet (swept with --format parquet); robokey's report, \
+         merge and --resume read runs.csv only: sweep into a folder with --format csv \
+         (the default) for those, and read runs.parquet with Arrow/pandas/polars"
+    )]
+    ParquetRuns(PathBuf),
     /// A folder that `--resume` cannot continue with this sweep.
     #[error("{dir}: cannot resume: {message}")]
     Resume {
@@ -144,6 +151,7 @@ impl LabError {
             | Self::NotWhole { .. }
             | Self::Incomplete { .. }
             | Self::Resume { .. }
+            | Self::ParquetRuns(_)
             | Self::Uncomputed { .. }
             | Self::SensingMode(_) => true,
             Self::Io { .. }

@@ -11,6 +11,7 @@ pub mod experiment;
 pub mod folder;
 pub mod metric_table;
 pub mod output;
+pub mod parquet_table;
 pub mod plot;
 pub mod progress;
 pub mod reals;
@@ -19,6 +20,7 @@ pub mod reproduce;
 pub mod run;
 pub mod secrecy;
 pub mod stats;
+pub mod table;
 pub mod trace;
 pub mod trace_table;
 

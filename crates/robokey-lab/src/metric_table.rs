@@ -5,6 +5,8 @@
 
 use robokey::Metrics;
 
+use crate::table::{Cell, Column, Values};
+
 /// One metric value, typed for CSV and JSON.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum MetricValue {
@@ -49,6 +51,16 @@ impl MetricValue {
             Self::Real(x) => x.map_or(Value::Null, Value::from),
             Self::Count(n) => n.map_or(Value::Null, Value::from),
             Self::Flag(b) => b.map_or(Value::Null, Value::from),
+        }
+    }
+}
+
+impl From<MetricValue> for Cell {
+    fn from(value: MetricValue) -> Self {
+        match value {
+            MetricValue::Real(x) => Self::Real(x),
+            MetricValue::Count(n) => Self::Count(n),
+            MetricValue::Flag(b) => Self::Flag(b),
         }
     }
 }
@@ -104,6 +116,8 @@ pub struct Metric {
     pub column: &'static str,
     /// The stored value's unit (empty for counts and flags).
     pub unit: &'static str,
+    /// What it measures (docs/experiments.md, "Metrics of one run").
+    pub meaning: &'static str,
     field: Field,
     /// How reports of any sweep show it (`None`: only in the files).
     pub shown: Option<Shown>,
@@ -135,22 +149,23 @@ macro_rules! real {
 /// The 8 cells of a joint-count table of [`Metrics`], columns `<table>_000` … `<table>_111`
 /// (index `4·first + 2·second + third`).
 macro_rules! joint {
-    ($table:ident) => {
+    ($table:ident, $meaning:literal) => {
         [
-            joint!($table, "000", 0),
-            joint!($table, "001", 1),
-            joint!($table, "010", 2),
-            joint!($table, "011", 3),
-            joint!($table, "100", 4),
-            joint!($table, "101", 5),
-            joint!($table, "110", 6),
-            joint!($table, "111", 7),
+            joint!($table, $meaning, "000", 0),
+            joint!($table, $meaning, "001", 1),
+            joint!($table, $meaning, "010", 2),
+            joint!($table, $meaning, "011", 3),
+            joint!($table, $meaning, "100", 4),
+            joint!($table, $meaning, "101", 5),
+            joint!($table, $meaning, "110", 6),
+            joint!($table, $meaning, "111", 7),
         ]
     };
-    ($table:ident, $bits:literal, $index:literal) => {
+    ($table:ident, $meaning:literal, $bits:literal, $index:literal) => {
         Metric {
             column: concat!(stringify!($table), "_", $bits),
             unit: "",
+            meaning: concat!($meaning, $bits),
             field: Field::Joint(|m| m.$table, |m| &mut m.$table, $index),
             shown: None,
         }
@@ -170,36 +185,47 @@ const fn percent(name: &'static str, file: &'static str, digits: usize) -> Optio
 
 /// Every metric, in column order: the list of docs/experiments.md, then the 16 joint counts.
 pub static METRICS: [Metric; 25] = {
-    let [b0, b1, b2, b3, b4, b5, b6, b7] = joint!(n_bce);
-    let [a0, a1, a2, a3, a4, a5, a6, a7] = joint!(n_acc);
+    let [b0, b1, b2, b3, b4, b5, b6, b7] = joint!(
+        n_bce,
+        "count of applied bits whose (b, controller's b̂, Eve's b̂) is "
+    );
+    let [a0, a1, a2, a3, a4, a5, a6, a7] = joint!(
+        n_acc,
+        "count of accepted key bits whose (robot's s, controller's ŝ, Eve's ŝ) is "
+    );
     [
         Metric {
             column: "codewords_sent",
             unit: "",
+            meaning: "complete codewords of the run",
             field: count!(codewords_sent),
             shown: None,
         },
         Metric {
             column: "accepted",
             unit: "",
+            meaning: "codewords accepted",
             field: count!(accepted),
             shown: None,
         },
         Metric {
             column: "accepted_pct",
             unit: "%",
+            meaning: "codewords accepted / sent · 100",
             field: real!(accepted_pct),
             shown: percent("accepted", "accepted", 1),
         },
         Metric {
             column: "correct_pct",
             unit: "%",
+            meaning: "share of accepted key bits where the controller's key equals the robot's",
             field: real!(correct_pct),
             shown: percent("correct", "correct", 2),
         },
         Metric {
             column: "ber_controller",
             unit: "fraction",
+            meaning: "fraction of applied bits the controller decided wrongly",
             field: real!(ber_controller),
             shown: Some(Shown {
                 name: "controller BER",
@@ -212,12 +238,14 @@ pub static METRICS: [Metric; 25] = {
         Metric {
             column: "ber_eve",
             unit: "fraction",
+            meaning: "fraction of applied bits Eve decided wrongly",
             field: real!(ber_eve),
             shown: None,
         },
         Metric {
             column: "jx",
             unit: "m",
+            meaning: "J_x = (1/N)·Σ ‖(px, py)(k) − (xr, yr)(k)‖₂ on the true pose",
             field: Field::Required(|m| m.jx, |m| &mut m.jx),
             shown: Some(Shown {
                 name: "J_x",
@@ -230,12 +258,14 @@ pub static METRICS: [Metric; 25] = {
         Metric {
             column: "eve_disagreement_pct",
             unit: "%",
+            meaning: "share of key positions where Eve's key differs from the controller's",
             field: real!(eve_disagreement_pct),
             shown: percent("Eve disagreement", "eve-disagreement", 2),
         },
         Metric {
             column: "key_match",
             unit: "",
+            meaning: "whether the controller's key equals the robot's",
             field: Field::Flag(|m| m.key_match, |m| &mut m.key_match),
             shown: None,
         },
@@ -277,6 +307,21 @@ impl Metric {
         let shown = self.shown?;
         Some(shown.scale * self.value(metrics).as_f64()?)
     }
+}
+
+/// One column per metric of [`METRICS`] (`runs.csv`'s), a row per run.
+#[must_use]
+pub fn metric_columns(runs: &[&Metrics]) -> Vec<Column> {
+    METRICS
+        .iter()
+        .map(|metric| {
+            let values = Values::of_cells(
+                &metric.value(&Metrics::default()).into(),
+                runs.iter().map(|m| metric.value(m).into()),
+            );
+            Column::new(metric.column, metric.unit, metric.meaning, values)
+        })
+        .collect()
 }
 
 /// The metrics as a JSON object in column order (`metrics.json`).

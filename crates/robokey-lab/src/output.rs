@@ -27,17 +27,19 @@ fn is_robokey_output(dir: &Path) -> bool {
 }
 
 /// The names of the files robokey writes into its output folders, at any depth.
-const OUTPUT_FILES: [&str; 20] = [
+const OUTPUT_FILES: [&str; 23] = [
     "manifest.json",
     "config.resolved.toml",
     "report.md",
     "metrics.json",
     "secrecy.json",
     "secrecy.csv",
+    "secrecy.parquet",
     "secrecy.md",
     "private-map.json",
     "turn-rates.csv",
     "runs.csv",
+    "runs.parquet",
     "summary.json",
     "periods.csv",
     "sessions.csv",
@@ -45,6 +47,7 @@ const OUTPUT_FILES: [&str; 20] = [
     "campaign.json",
     "reproduce.json",
     "trace.csv",
+    "trace.parquet",
     "eve.json",
     "eve.md",
     "capture.json",
@@ -67,7 +70,7 @@ const FIGURE_EXTENSIONS: [&str; 4] = ["svg", "png", "pdf", "csv"];
 
 /// Whether robokey writes a file at `relative` (a path inside an output folder): one of
 /// its file names, a figure (in a `figures` folder, or by its name), or a trace
-/// (`traces/point-N.csv`). Anything else is someone else's.
+/// (`traces/point-N.csv` or `.parquet`). Anything else is someone else's.
 fn written_by_robokey(relative: &Path) -> bool {
     let Some(name) = relative.file_name().and_then(|n| n.to_str()) else {
         return false;
@@ -83,7 +86,7 @@ fn written_by_robokey(relative: &Path) -> bool {
         .and_then(Path::file_name)
         .and_then(|n| n.to_str());
     let trace = folder == Some("traces")
-        && extension == "csv"
+        && (extension == "csv" || extension == "parquet")
         && stem
             .strip_prefix("point-")
             .is_some_and(|n| n.parse::<usize>().is_ok());
@@ -193,6 +196,8 @@ mod tests {
             "point/manifest.json",
             "point/runs.csv",
             "point/traces/point-3.csv",
+            "point/traces/point-4.parquet",
+            "point/runs.parquet",
             "point/secrecy-bits-per-step.pdf",
             "figures/dv-sweep-accepted.png",
             "report.md",

@@ -7,9 +7,11 @@ use pyo3::prelude::*;
 use robokey_lab::folder::load::load;
 use robokey_lab::trace::read_trace as read_trace_rows;
 
-use crate::columns::{PyColumns, TraceColumns, to_py};
+use robokey_lab::folder::rows::run_columns;
+use robokey_lab::trace_table::TraceColumns;
+
+use crate::columns::{PyColumns, to_py};
 use crate::errors::lab_error;
-use crate::sweep::run_columns;
 
 /// The runs of a complete sweep folder (or of each experiment folder of a suite folder):
 /// `[(name, columns, resolved)]` — the experiment's name (empty for a single sweep), the
@@ -24,7 +26,7 @@ pub fn read_sweep(
     loaded
         .into_iter()
         .map(|l| {
-            let columns = to_py(py, run_columns(&l.experiment, &l.rows))?;
+            let columns = to_py(py, run_columns(&l.experiment, l.rows.iter()))?;
             Ok((
                 l.experiment.name.clone(),
                 columns,

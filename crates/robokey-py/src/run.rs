@@ -7,7 +7,9 @@ use robokey::sim::simulate_plan_streaming;
 use robokey_lab::LabError;
 use robokey_lab::trace::metrics_table;
 
-use crate::columns::{TraceColumns, metrics_dict, to_py};
+use robokey_lab::trace_table::TraceColumns;
+
+use crate::columns::{metrics_dict, to_py};
 use crate::errors::lab_error;
 
 /// One run as `robokey run` makes it, without writing files: a dict with `metrics` (the

@@ -8,11 +8,12 @@ use pyo3::prelude::*;
 use robokey::config::EveStrategy;
 use robokey_lab::experiment::Experiment;
 use robokey_lab::folder::layout::{folder_name, read_experiment};
-use robokey_lab::report::secrecy::secrecy_csv;
 use robokey_lab::run::sessions::SessionBank;
 use robokey_lab::run::with_jobs;
+use robokey_lab::secrecy::table::secrecy_columns;
 use robokey_lab::secrecy::{Pooling, Secrecy, SecrecyRequest};
 
+use crate::columns::{PyColumns, to_py};
 use crate::errors::{InputError, lab_error, option_error};
 
 /// The experiment of `sweep`: a sweep folder (a path-like object) as `robokey secrecy` reads
@@ -48,18 +49,19 @@ fn strategy(name: &str) -> PyResult<EveStrategy> {
 
 /// Analyzes the secrecy of every point of `sweep` (a sweep definition, or a sweep folder as a
 /// `pathlib.Path`) against each adversary, as `robokey secrecy` does, on `jobs` threads with
-/// the GIL released. Returns `(secrecy_json, secrecy_csv, map_json)`: the texts of
-/// `secrecy.json`, `secrecy.csv` and (private sensing) `private-map.json`, which robokey
-/// would write into the folder; nothing is written.
+/// the GIL released. Returns `(secrecy_json, columns, map_json)`: the text of
+/// `secrecy.json`, the columns of `secrecy.csv` (those of `secrecy.parquet`) and the text of
+/// (private sensing) `private-map.json`, which robokey would write into the folder; nothing is
+/// written.
 #[pyfunction]
 #[pyo3(signature = (
     sweep, *, seed=None, adversaries=None, epsilon=None, block_bits=None, blocks=1,
     pooling=None, sample_bits=1_000, max_sessions=None, assume_eve_error=None, jobs=0
 ))]
 #[allow(clippy::too_many_arguments)]
-pub fn secrecy(
-    py: Python<'_>,
-    sweep: &Bound<'_, PyAny>,
+pub fn secrecy<'py>(
+    py: Python<'py>,
+    sweep: &Bound<'py, PyAny>,
     seed: Option<i64>,
     adversaries: Option<Vec<String>>,
     epsilon: Option<f64>,
@@ -70,7 +72,7 @@ pub fn secrecy(
     max_sessions: Option<u32>,
     assume_eve_error: Option<f64>,
     jobs: usize,
-) -> PyResult<(String, String, Option<String>)> {
+) -> PyResult<(String, PyColumns<'py>, Option<String>)> {
     let pooling = pooling
         .map(|name| match name.as_str() {
             "confirmed" => Ok(Pooling::Confirmed),
@@ -112,7 +114,7 @@ pub fn secrecy(
         .map_err(|e| lab_error(py, e))?;
     Ok((
         secrecy.json().to_string(),
-        secrecy_csv(&secrecy.results),
+        to_py(py, secrecy_columns(&secrecy.results))?,
         secrecy.map_json().map(|m| m.to_string()),
     ))
 }

@@ -10,10 +10,11 @@ use pyo3::prelude::*;
 use robokey::config::source;
 use robokey::interrupt::Interrupt;
 use robokey_lab::LabError;
-use robokey_lab::experiment::{Experiment, experiments_from_table, value_text};
+use robokey_lab::experiment::{Experiment, experiments_from_table};
+use robokey_lab::folder::rows::run_columns;
 use robokey_lab::run::{RunRow, run_experiment, with_jobs};
 
-use crate::columns::{Column, PyColumns, Values, metric_columns, to_py};
+use crate::columns::{PyColumns, to_py};
 use crate::config::{ORIGIN, seed_override, table};
 use crate::errors::{SweepError, lab_error};
 
@@ -113,53 +114,6 @@ pub fn run_all(
     rows.and_then(|r| r).map_err(|e| lab_error(py, e))
 }
 
-/// The columns of `runs.csv` for `rows`: one per swept field, `replicate`, the metrics.
-#[must_use]
-pub fn run_columns(experiment: &Experiment, rows: &[RunRow]) -> Vec<Column> {
-    let mut columns: Vec<Column> = experiment
-        .axes
-        .iter()
-        .enumerate()
-        .map(|(i, axis)| Column {
-            name: axis.field.clone(),
-            unit: String::new(),
-            description: robokey_lab::config_doc::doc(&axis.field)
-                .unwrap_or_default()
-                .to_owned(),
-            values: param_values(rows.iter().map(|r| &experiment.points[r.point].params[i].1)),
-        })
-        .collect();
-    columns.push(Column {
-        name: "replicate".into(),
-        unit: String::new(),
-        description: String::new(),
-        values: Values::Counts(rows.iter().map(|r| Some(u64::from(r.replicate))).collect()),
-    });
-    let metrics: Vec<&robokey::Metrics> = rows.iter().map(|r| &r.metrics).collect();
-    columns.extend(metric_columns(&metrics));
-    columns
-}
-
-/// A swept field's values, typed: integers, reals (integers among reals as reals), flags,
-/// else the text `runs.csv` writes (strings, arrays).
-fn param_values<'a>(values: impl Iterator<Item = &'a toml::Value> + Clone) -> Values {
-    use toml::Value;
-    if values.clone().all(Value::is_integer) {
-        return Values::Integers(values.filter_map(Value::as_integer).collect());
-    }
-    if values.clone().all(|v| v.is_integer() || v.is_float()) {
-        return Values::Reals(
-            values
-                .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
-                .collect(),
-        );
-    }
-    if values.clone().all(Value::is_bool) {
-        return Values::Flags(values.map(Value::as_bool).collect());
-    }
-    Values::Texts(values.map(value_text).collect())
-}
-
 /// Sweeps `config` (a configuration with a `[sweep]` table, as `robokey sweep` reads its
 /// file) and returns `(columns, resolved)`: the columns of `runs.csv`, a row per run in run
 /// order, and the resolved sweep definition (TOML) that reproduces them.
@@ -176,7 +130,7 @@ pub fn sweep<'py>(
     experiment.traces = false;
     let rows = run_all(py, &experiment, jobs, progress.filter(|p| !p.is_none()))?;
     Ok((
-        to_py(py, run_columns(&experiment, &rows))?,
+        to_py(py, run_columns(&experiment, rows.iter()))?,
         experiment.resolved_toml(),
     ))
 }

@@ -1,21 +1,29 @@
-//! A sweep folder as a whole: `config.resolved.toml`, `runs.csv`, `summary.json` and
-//! `manifest.json` written together, the rows of its shards read back, and the folders of a
-//! suite.
+//! A sweep folder as a whole: `config.resolved.toml`, `runs.csv` (or, complete and with
+//! `--format parquet`, `runs.parquet`), `summary.json` and `manifest.json` written together,
+//! the rows of its shards read back, and the folders of a suite.
 
 use std::path::{Path, PathBuf};
 
 use super::manifest::{Manifest, manifest, manifest_json};
-use super::rows::{Rows, read_runs, runs_csv};
+use super::rows::{Rows, read_runs, run_columns, runs_csv};
 use super::summary::summary_json;
 use crate::error::{LabError, io_at};
 use crate::experiment::Experiment;
 use crate::output::{read, write};
+use crate::parquet_table::{TableFormat, write_parquet};
 use crate::run::Shard;
+use crate::trace::point_trace_path;
+use crate::trace_table::TraceColumns;
 
 /// Writes the folder of an experiment holding `rows` of `shards`: `config.resolved.toml`,
 /// `runs.csv`, `summary.json` when every run of the shards is done (none otherwise, so no
 /// summary of part of a sweep is mistaken for the whole), and `manifest.json` last. Returns
 /// the manifest written.
+///
+/// With [`TableFormat::Parquet`] a folder that holds every run of its shards gets
+/// `runs.parquet` instead of `runs.csv`, and its traces `traces/point-<i>.parquet` instead of
+/// `.csv` (the CSV files are removed); an incomplete one stays in CSV, so that `--resume`
+/// can continue it.
 ///
 /// # Errors
 /// A file cannot be written.
@@ -24,6 +32,7 @@ pub fn write_folder(
     experiment: &Experiment,
     rows: &Rows,
     shards: &[Shard],
+    format: TableFormat,
 ) -> Result<Manifest, LabError> {
     std::fs::create_dir_all(dir).map_err(io_at(dir))?;
     let manifest = manifest(experiment, shards, rows.len());
@@ -37,7 +46,20 @@ pub fn write_folder(
     } else if summary.exists() {
         std::fs::remove_file(&summary).map_err(io_at(&summary))?;
     }
-    write(&dir.join("runs.csv"), runs_csv(experiment, rows))?;
+    if manifest.complete && format == TableFormat::Parquet {
+        let metadata = [("robokey.sweep", experiment.resolved_toml())];
+        write_parquet(
+            &dir.join("runs.parquet"),
+            &run_columns(experiment, rows.values()),
+            &metadata,
+        )?;
+        remove_if_present(&dir.join("runs.csv"))?;
+        for point in 0..experiment.points.len() {
+            trace_to_parquet(&point_trace_path(dir, point))?;
+        }
+    } else {
+        write(&dir.join("runs.csv"), runs_csv(experiment, rows))?;
+    }
     write(
         &dir.join("manifest.json"),
         manifest_json(experiment, &manifest),
@@ -45,12 +67,41 @@ pub fn write_folder(
     Ok(manifest)
 }
 
+/// Removes `path` if it exists.
+fn remove_if_present(path: &Path) -> Result<(), LabError> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(io_at(path)(e)),
+        _ => Ok(()),
+    }
+}
+
+/// Rewrites the trace `path` (a `.csv`, if the sweep kept it) as the `.parquet` beside it,
+/// its columns' units and meanings in the metadata, and removes the CSV.
+fn trace_to_parquet(path: &Path) -> Result<(), LabError> {
+    if !path.exists() {
+        return Ok(());
+    }
+    let mut trace = TraceColumns::default();
+    let file = std::fs::File::open(path).map_err(io_at(path))?;
+    crate::trace::read_trace(std::io::BufReader::new(file), path, |row| trace.push(&row))?;
+    write_parquet(
+        &path.with_extension(TableFormat::Parquet.extension()),
+        &trace.into_columns(),
+        &[],
+    )?;
+    remove_if_present(path)
+}
+
 /// Reads the rows of `dir/runs.csv` that belong to `shards` (none when there is no such
 /// file: a sweep interrupted before its first run finished).
 ///
 /// # Errors
-/// A row is not on the grid, is outside the shards, or appears twice.
+/// The folder holds `runs.parquet` (a sweep written with `--format parquet`, which robokey
+/// does not read back); a row is not on the grid, is outside the shards, or appears twice.
 pub fn read_rows(experiment: &Experiment, dir: &Path, shards: &[Shard]) -> Result<Rows, LabError> {
+    if dir.join("runs.parquet").exists() {
+        return Err(LabError::ParquetRuns(dir.to_path_buf()));
+    }
     let path = dir.join("runs.csv");
     if !path.exists() {
         return Ok(Rows::new());

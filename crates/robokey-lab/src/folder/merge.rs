@@ -9,18 +9,24 @@ use super::rows::Rows;
 use crate::error::{LabError, io_at};
 use crate::experiment::Experiment;
 use crate::output::read;
+use crate::parquet_table::TableFormat;
 
 /// Merges the folders of a sharded sweep, or of a sharded suite (each experiment's
-/// subfolders), into `out`. Returns each experiment with its number of runs.
+/// subfolders), into `out`, its runs table and traces in `format`. Returns each experiment
+/// with its number of runs.
 ///
 /// # Errors
 /// As [`merge_sweep`]; suite folders with different experiments.
-pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<Vec<Experiment>, LabError> {
+pub fn merge(
+    dirs: &[PathBuf],
+    out: &Path,
+    format: TableFormat,
+) -> Result<Vec<Experiment>, LabError> {
     let first = dirs
         .first()
         .ok_or_else(|| LabError::Merge("no shard folders given".into()))?;
     let Some(subs) = experiment_dirs(first)? else {
-        return Ok(vec![merge_sweep(dirs, out)?]);
+        return Ok(vec![merge_sweep(dirs, out, format)?]);
     };
     let names: Vec<String> = subs.iter().map(|d| folder_name(d)).collect();
     for dir in &dirs[1..] {
@@ -43,19 +49,24 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<Vec<Experiment>, LabError> 
         .iter()
         .map(|name| {
             let shards: Vec<PathBuf> = dirs.iter().map(|d| d.join(name)).collect();
-            merge_sweep(&shards, &out.join(name))
+            merge_sweep(&shards, &out.join(name), format)
         })
         .collect()
 }
 
 /// Merges shard folders of one sweep into `out`: checks they share the resolved config,
-/// are complete and together hold every run exactly once; writes `runs.csv` and
-/// `summary.json` byte-identical to a single-machine sweep, and copies traces.
+/// are complete and together hold every run exactly once; copies traces, and writes
+/// `runs.csv` and `summary.json` byte-identical to a single-machine sweep (in `format`
+/// Parquet, `runs.parquet` and the traces as a single-machine sweep with `--format parquet`).
 ///
 /// # Errors
 /// Shards of different sweeps, an interrupted shard, a missing or duplicated run,
 /// unreadable files.
-pub fn merge_sweep(dirs: &[PathBuf], out: &Path) -> Result<Experiment, LabError> {
+pub fn merge_sweep(
+    dirs: &[PathBuf],
+    out: &Path,
+    format: TableFormat,
+) -> Result<Experiment, LabError> {
     let first = &dirs[0];
     let resolved = read(&first.join("config.resolved.toml"))?;
     for dir in &dirs[1..] {
@@ -97,7 +108,6 @@ pub fn merge_sweep(dirs: &[PathBuf], out: &Path) -> Result<Experiment, LabError>
         )));
     }
     shards.sort_by_key(|s| (s.count, s.index));
-    write_folder(out, &experiment, &rows, &shards)?;
     for dir in dirs {
         let traces = dir.join("traces");
         if let Ok(entries) = traces.read_dir() {
@@ -109,5 +119,6 @@ pub fn merge_sweep(dirs: &[PathBuf], out: &Path) -> Result<Experiment, LabError>
             }
         }
     }
+    write_folder(out, &experiment, &rows, &shards, format)?;
     Ok(experiment)
 }

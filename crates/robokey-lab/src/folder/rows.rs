@@ -1,13 +1,15 @@
 //! `runs.csv`: a column per swept field, `replicate`, then the metrics of
-//! [`crate::metric_table::METRICS`]; one row per finished run, in run order.
+//! [`crate::metric_table::METRICS`]; one row per finished run, in run order. The same table
+//! column by column ([`run_columns`]) is `runs.parquet` and the Python package's sweep table.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 use crate::error::LabError;
 use crate::experiment::{Experiment, value_text};
-use crate::metric_table::{METRICS, read_metrics};
+use crate::metric_table::{METRICS, metric_columns, read_metrics};
 use crate::run::RunRow;
+use crate::table::{Column, Values};
 
 /// The finished runs of a folder, by run index.
 pub type Rows = BTreeMap<usize, RunRow>;
@@ -47,6 +49,57 @@ pub fn runs_csv(experiment: &Experiment, rows: &Rows) -> String {
         .expect(written);
     }
     String::from_utf8(csv.into_inner().expect(written)).expect(written)
+}
+
+/// The columns of `runs.csv` for `rows`, typed: one per swept field (its meaning the field's
+/// documentation), `replicate`, the metrics.
+#[must_use]
+pub fn run_columns<'a>(
+    experiment: &Experiment,
+    rows: impl Iterator<Item = &'a RunRow> + Clone,
+) -> Vec<Column> {
+    let mut columns: Vec<Column> = experiment
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(i, axis)| {
+            let meaning = crate::config_doc::doc(&axis.field).unwrap_or_default();
+            let values = param_values(
+                rows.clone()
+                    .map(|r| &experiment.points[r.point].params[i].1),
+            );
+            Column::new(&axis.field, "", meaning, values)
+        })
+        .collect();
+    columns.push(Column::new(
+        "replicate",
+        "",
+        "the replicate: which of the point's random streams the run used",
+        Values::Counts(rows.clone().map(|r| Some(u64::from(r.replicate))).collect()),
+    ));
+    let metrics: Vec<&robokey::Metrics> = rows.map(|r| &r.metrics).collect();
+    columns.extend(metric_columns(&metrics));
+    columns
+}
+
+/// A swept field's values, typed: integers, reals (integers among reals as reals), flags,
+/// else the text `runs.csv` writes (strings, arrays).
+fn param_values<'a>(values: impl Iterator<Item = &'a toml::Value> + Clone) -> Values {
+    use toml::Value;
+    if values.clone().all(Value::is_integer) {
+        return Values::Integers(values.filter_map(Value::as_integer).collect());
+    }
+    if values.clone().all(|v| v.is_integer() || v.is_float()) {
+        return Values::Reals(
+            values
+                .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+                .collect(),
+        );
+    }
+    if values.clone().all(Value::is_bool) {
+        return Values::Flags(values.map(Value::as_bool).collect());
+    }
+    Values::Texts(values.map(value_text).collect())
 }
 
 /// Reads the rows of a `runs.csv` (`origin` names it in errors), checking that every row

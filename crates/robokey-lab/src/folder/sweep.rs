@@ -10,6 +10,7 @@ use super::rows::Rows;
 use crate::error::LabError;
 use crate::experiment::Experiment;
 use crate::output::read;
+use crate::parquet_table::TableFormat;
 use crate::run::{Shard, run_experiment};
 use crate::trace::point_trace_path;
 
@@ -20,6 +21,9 @@ pub struct SweepPlan {
     pub shard: Option<Shard>,
     /// Continue the folder of an interrupted sweep: run only what it does not hold yet.
     pub resume: bool,
+    /// The format of the runs table and traces of a complete folder (an incomplete one is
+    /// kept in CSV, which `--resume` reads).
+    pub format: TableFormat,
 }
 
 /// What one experiment of a sweep is about to do, for the caller to announce.
@@ -124,7 +128,7 @@ pub fn sweep(
         })
         .collect::<Result<Vec<_>, _>>()?;
     for (e, f) in experiments.iter().zip(&folders) {
-        write_folder(&f.dir, e, &f.rows, &f.shards)?;
+        write_folder(&f.dir, e, &f.rows, &f.shards, plan.format)?;
     }
     let mut progress = Vec::new();
     for (e, f) in experiments.iter().zip(&mut folders) {
@@ -146,7 +150,7 @@ pub fn sweep(
             // manifest last.
             let rows = run_experiment(e, &f.dir, &to_run, stop, finished)?;
             f.rows.extend(rows.into_iter().map(|r| (r.run, r)));
-            write_folder(&f.dir, e, &f.rows, &f.shards)?;
+            write_folder(&f.dir, e, &f.rows, &f.shards, plan.format)?;
         }
         progress.push(Progress {
             name: e.name.clone(),
@@ -282,10 +286,12 @@ mod tests {
     const FRESH: SweepPlan = SweepPlan {
         shard: None,
         resume: false,
+        format: TableFormat::Csv,
     };
     const RESUME: SweepPlan = SweepPlan {
         shard: None,
         resume: true,
+        format: TableFormat::Csv,
     };
 
     fn suite(text: &str) -> Vec<Experiment> {
@@ -350,6 +356,90 @@ mod tests {
         .unwrap()
     }
 
+    /// The cells of a CSV file robokey wrote, header first.
+    fn csv_cells(path: &Path) -> Vec<Vec<String>> {
+        let text = std::fs::read_to_string(path).unwrap();
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(text.as_bytes());
+        reader
+            .records()
+            .map(|r| r.unwrap().iter().map(str::to_owned).collect())
+            .collect()
+    }
+
+    /// A Parquet table's cells as the CSV writes them, header first.
+    fn parquet_cells(path: &Path) -> Vec<Vec<String>> {
+        let table = crate::parquet_table::read_parquet(path).unwrap();
+        let rows = table.columns[0].values.len();
+        let header = table.columns.iter().map(|c| c.name.clone()).collect();
+        std::iter::once(header)
+            .chain((0..rows).map(|row| {
+                table
+                    .columns
+                    .iter()
+                    .map(|c| c.values.cell(row).unwrap())
+                    .collect()
+            }))
+            .collect()
+    }
+
+    #[test]
+    fn a_parquet_sweep_equals_its_csv_cell_for_cell_once_complete() {
+        let experiments = suite(SUITE);
+        let (csv_dir, parquet_dir) = (scratch("pq-csv"), scratch("pq-parquet"));
+        sweep_stopping_after(&csv_dir, &experiments, FRESH, usize::MAX).unwrap();
+        let parquet = |resume| SweepPlan {
+            shard: None,
+            resume,
+            format: TableFormat::Parquet,
+        };
+        // Interrupted, it stays in CSV, and resumes.
+        sweep_stopping_after(&parquet_dir, &experiments, parquet(false), 1).unwrap();
+        assert!(parquet_dir.join("a/runs.csv").exists());
+        assert!(!parquet_dir.join("a/runs.parquet").exists());
+        resume_on_two_threads(&parquet_dir, &experiments, parquet(true));
+        for name in ["a", "b"] {
+            let (theirs, ours) = (csv_dir.join(name), parquet_dir.join(name));
+            assert!(!ours.join("runs.csv").exists());
+            assert_eq!(
+                parquet_cells(&ours.join("runs.parquet")),
+                csv_cells(&theirs.join("runs.csv")),
+                "{name}"
+            );
+            for file in ["summary.json", "manifest.json", "config.resolved.toml"] {
+                assert_eq!(
+                    std::fs::read(ours.join(file)).unwrap(),
+                    std::fs::read(theirs.join(file)).unwrap()
+                );
+            }
+        }
+        for point in 0..2 {
+            let trace =
+                |dir: &Path, extension| dir.join(format!("a/traces/point-{point}.{extension}"));
+            assert!(!trace(&parquet_dir, "csv").exists());
+            assert_eq!(
+                parquet_cells(&trace(&parquet_dir, "parquet")),
+                csv_cells(&trace(&csv_dir, "csv"))
+            );
+        }
+        let table =
+            crate::parquet_table::read_parquet(&parquet_dir.join("a/runs.parquet")).unwrap();
+        let jx = table.columns.iter().find(|c| c.name == "jx").unwrap();
+        assert_eq!(
+            (jx.unit.as_str(), jx.description.starts_with("J_x")),
+            ("m", true)
+        );
+        assert_eq!(
+            table.metadata.get("robokey.sweep"),
+            Some(&experiments[0].resolved_toml())
+        );
+        let err = load(&parquet_dir).unwrap_err();
+        assert!(matches!(err, LabError::ParquetRuns(_)), "{err}");
+        std::fs::remove_dir_all(&csv_dir).unwrap();
+        std::fs::remove_dir_all(&parquet_dir).unwrap();
+    }
+
     #[test]
     fn an_interrupted_sweep_keeps_its_runs_and_resumes_to_the_same_bytes() {
         let experiments = suite(SUITE);
@@ -410,6 +500,7 @@ mod tests {
         let shard = SweepPlan {
             shard: Some(Shard { index: 2, count: 3 }),
             resume: false,
+            format: TableFormat::Csv,
         };
         let (whole, stopped) = (scratch("shard-whole"), scratch("shard-stopped"));
         sweep_stopping_after(&whole, &experiments, shard, usize::MAX).unwrap();
@@ -423,6 +514,7 @@ mod tests {
             SweepPlan {
                 shard: Some(Shard { index: 1, count: 3 }),
                 resume: true,
+                format: TableFormat::Csv,
             },
             usize::MAX,
         )

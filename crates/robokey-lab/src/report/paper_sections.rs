@@ -12,6 +12,7 @@ use super::secrecy::{secrecy_markdown, write_secrecy};
 use crate::adversary::Campaign;
 use crate::error::LabError;
 use crate::experiment::Experiment;
+use crate::parquet_table::TableFormat;
 use crate::progress::thousands;
 use crate::reproduce::EVE_DIR;
 use crate::reproduce::private_suite::BUDGET_SECONDS;
@@ -37,7 +38,12 @@ pub(super) fn secrecy_section(
     ));
     for &(experiment, secrecy, title) in experiments {
         let results = &secrecy.results;
-        write_secrecy(&out.join(&experiment.name), experiment, secrecy)?;
+        write_secrecy(
+            &out.join(&experiment.name),
+            experiment,
+            secrecy,
+            TableFormat::Csv,
+        )?;
         md.push_str(&format!("### {title}\n\n"));
         md.push_str(&secrecy_markdown(secrecy));
         md.push_str(&format!(
@@ -146,6 +152,7 @@ pub(super) fn private_section(
             &out.join(&part.experiment.name),
             &part.experiment,
             &part.secrecy,
+            TableFormat::Csv,
         )?;
     }
     let mut md = String::from("\n## Private sensing: a key that is secret, and against whom\n\n");
@@ -251,6 +258,7 @@ pub(super) fn world_section(out: &Path, worlds: &[MapPart]) -> Result<(String, S
             &out.join(&world.experiment.name),
             &world.experiment,
             &world.secrecy,
+            TableFormat::Csv,
         )?;
     }
     let rows: Vec<super::world::OverClaim> = worlds

@@ -9,8 +9,10 @@ use crate::csv_field::quoted;
 use crate::error::LabError;
 use crate::experiment::{Experiment, axis_label, param_label, param_number};
 use crate::output::write;
+use crate::parquet_table::{TableFormat, write_parquet};
 use crate::plot::{LineChart, Series, SeriesStyle};
 use crate::secrecy::pipeline::H_MIN_BINOMIAL;
+use crate::secrecy::table::{SECRECY_COLUMNS, SecrecyValue, secrecy_columns};
 use crate::secrecy::{Block, PointSecrecy, Pooling, Rate, Secrecy};
 
 /// Sums a block field over a row's blocks.
@@ -18,59 +20,24 @@ fn total(r: &PointSecrecy, field: fn(&Block) -> u64) -> u64 {
     r.blocks.iter().map(field).sum()
 }
 
-/// `secrecy.csv`: one row per point and adversary.
+/// `secrecy.csv`: one row per point and adversary, the columns of [`SECRECY_COLUMNS`].
 #[must_use]
 pub fn secrecy_csv(results: &[PointSecrecy]) -> String {
-    let mut out = String::from(
-        "point,adversary,adversary_class,pooling,sessions,sessions_pooled,steps,p_c,p_c_low,p_c_high,p_e,p_e_low,p_e_high,info_advantage,info_advantage_low,info_advantage_high,info_conditional,raw_bits,raw_bits_per_step,eve_error_accepted,eve_error_accepted_high,acceptance_p,blocks,q_estimate,messages,leak_ec,leak_confirmation,h_min,secret_bits,secret_bits_per_step,secret_bits_per_second,realised_h_min,realised_secret_bits,assumption_exceeds_realised,zero_reason,assumption,structural_zero\n",
-    );
+    let names: Vec<&str> = SECRECY_COLUMNS.iter().map(|c| c.name).collect();
+    let mut out = names.join(",") + "\n";
     for r in results {
-        let rate = |x: &Option<Rate>| {
-            x.map_or(",,".to_owned(), |x| {
-                format!("{},{},{}", x.rate, x.low, x.high)
+        let cells: Vec<String> = SECRECY_COLUMNS
+            .iter()
+            .map(|c| match (c.value)(r) {
+                SecrecyValue::Real(x) => x.map_or_else(String::new, |x| x.to_string()),
+                SecrecyValue::Count(n) => n.to_string(),
+                SecrecyValue::Flag(b) => b.to_string(),
+                SecrecyValue::Name(name) => name,
+                SecrecyValue::Text(text) => quoted(&text),
             })
-        };
-        let info = |x: &Option<[f64; 3]>| {
-            x.map_or(",,".to_owned(), |x| format!("{},{},{}", x[0], x[1], x[2]))
-        };
-        let h_min: f64 = r.blocks.iter().map(|b| b.h_min).sum();
-        let realised: f64 = r.blocks.iter().map(|b| b.realised.h_min).sum();
-        out.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
-            quoted(&r.point),
-            r.adversary,
-            r.adversary_class.name(),
-            r.pooling.name(),
-            r.sessions,
-            r.sessions_pooled,
-            r.steps,
-            rate(&r.p_c),
-            rate(&r.p_e),
-            info(&r.information_advantage),
-            r.information_conditional
-                .map_or(String::new(), |x| x[0].to_string()),
-            r.raw_bits,
-            r.raw_bits_per_step,
-            r.eve_error_accepted
-                .map_or(",".to_owned(), |x| format!("{},{}", x.rate, x.high)),
-            r.acceptance_independence_p
-                .map_or(String::new(), |p| p.to_string()),
-            r.blocks.len(),
-            r.q_estimate.map_or(String::new(), |q| q.to_string()),
-            total(r, |b| u64::from(b.messages)),
-            total(r, |b| b.leak_ec),
-            total(r, |b| b.leak_confirmation),
-            h_min,
-            r.secret_bits,
-            r.secret_bits_per_step,
-            r.secret_bits_per_second,
-            realised,
-            r.realised_secret_bits,
-            r.assumption_exceeds_realised,
-            quoted(r.zero_reason.as_deref().unwrap_or("")),
-            quoted(&r.assumption),
-            quoted(r.structural_zero.as_deref().unwrap_or("")),
-        ));
+            .collect();
+        out.push_str(&cells.join(","));
+        out.push('\n');
     }
     out
 }
@@ -378,9 +345,10 @@ fn bits_per_step_chart(experiment: &Experiment, secrecy: &Secrecy) -> Option<Lin
         })
 }
 
-/// Renders `secrecy` (of `experiment`'s points) into `dir`: `secrecy.csv`, `secrecy.md`, the
-/// figure `secrecy-bits-per-step.{svg,png,pdf,csv}`, and in private sensing the map's
-/// figures and `turn-rates.csv`; returns the files.
+/// Renders `secrecy` (of `experiment`'s points) into `dir`: `secrecy.csv` (or, in
+/// `format` Parquet, `secrecy.parquet`), `secrecy.md`, the figure
+/// `secrecy-bits-per-step.{svg,png,pdf,csv}`, and in private sensing the map's figures and
+/// `turn-rates.csv`; returns the files.
 ///
 /// # Errors
 /// A file cannot be written.
@@ -388,12 +356,25 @@ pub fn write_secrecy(
     dir: &Path,
     experiment: &Experiment,
     secrecy: &Secrecy,
+    format: TableFormat,
 ) -> Result<Vec<PathBuf>, LabError> {
     std::fs::create_dir_all(dir).map_err(crate::error::io_at(dir))?;
     let results = &secrecy.results;
     let map = secrecy.map.as_ref();
+    let table = match format {
+        TableFormat::Csv => write(&dir.join("secrecy.csv"), secrecy_csv(results))?,
+        TableFormat::Parquet => write_parquet(
+            &dir.join("secrecy.parquet"),
+            &secrecy_columns(results),
+            &[
+                ("robokey.epsilon", secrecy.epsilon.to_string()),
+                ("robokey.block_bits", secrecy.block_bits.to_string()),
+                ("robokey.pooling", secrecy.pooling.name().to_owned()),
+            ],
+        )?,
+    };
     let mut files = vec![
-        write(&dir.join("secrecy.csv"), secrecy_csv(results))?,
+        table,
         write(
             &dir.join("secrecy.md"),
             secrecy_markdown(secrecy)
@@ -458,5 +439,26 @@ mod tests {
                 .unwrap()
                 .starts_with("\"\",oracle,strongest,")
         );
+        // secrecy.parquet's columns are secrecy.csv's, cell for cell.
+        let columns = secrecy_columns(&secrecy.results);
+        let mut reader = csv::Reader::from_reader(csv.as_bytes());
+        let header: Vec<&str> = columns.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(reader.headers().unwrap().iter().collect::<Vec<_>>(), header);
+        for (row, record) in reader.records().enumerate() {
+            let cells: Vec<String> = columns
+                .iter()
+                .map(|c| c.values.cell(row).unwrap())
+                .collect();
+            assert_eq!(record.unwrap().iter().collect::<Vec<_>>(), cells);
+        }
+        let unit = |name: &str| {
+            columns
+                .iter()
+                .find(|c| c.name == name)
+                .unwrap()
+                .unit
+                .as_str()
+        };
+        assert_eq!((unit("secret_bits"), unit("p_e")), ("bit", "fraction"));
     }
 }

@@ -21,6 +21,7 @@ use crate::error::{LabError, io_at};
 use crate::experiment::Experiment;
 use crate::folder::sweep::{SweepPlan, sweep};
 use crate::output::{read_json, write};
+use crate::parquet_table::TableFormat;
 use crate::run::sessions::SessionBank;
 use crate::secrecy::{Secrecy, SecrecyOptions};
 
@@ -196,6 +197,7 @@ fn sweep_each_then_secrecy(
         let plan = SweepPlan {
             shard: None,
             resume: false,
+            format: TableFormat::Csv,
         };
         let swept = sweep(
             out,

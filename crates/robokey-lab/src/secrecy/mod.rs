@@ -22,6 +22,7 @@ pub mod point;
 pub mod private;
 pub mod request;
 pub mod stage;
+pub mod table;
 
 pub use analyze::{analyze, analyze_with};
 pub use options::{MAX_SESSIONS, SecrecyOptions, default_adversaries, default_max_sessions};
