@@ -52,7 +52,8 @@ fn the_ideal_world_is_no_world_number_for_number() {
 type Llr = fn(&DoubletBit) -> f64;
 
 /// Worlds unlike the parties' — lag, AR(1) noise, slip, delay, a camera between the
-/// instants, and the Khepera IV preset (continuous motion, jitter, quanta, lag, delay, slip):
+/// instants, the Khepera IV preset (continuous motion, jitter, quanta, lag, delay, slip), and
+/// motion noise below the controller's sensor noise (the boundary samples' reach):
 /// the `camera` and `commands` eavesdroppers' LLRs pass the calibration test (10 equal-count
 /// bins, exact Poisson-binomial tails, α = 10⁻³ each), seed 2023, 12 sessions (≈ 5,000 bits)
 /// per world.
@@ -65,6 +66,7 @@ fn the_eavesdroppers_stay_calibrated_in_other_worlds() {
         "delay = 0.02\n",
         "camera_fps = 30.0\ncamera_frame_std = [0.016, 0.016, 0.016]\n",
         "preset = \"khepera-iv\"\n",
+        "process_std = [0.00015, 0.00015, 0.00015]\n",
     ];
     for world in worlds {
         let all = bits(&private(&format!("[world]\n{world}")), 12);
@@ -93,6 +95,21 @@ fn mean_and_error(values: &[f64]) -> (f64, f64) {
     (mean, (var / n).sqrt())
 }
 
+/// The camera eavesdropper's information per bit from `a` less from `b`, paired over the
+/// same bits: its mean and standard error.
+fn paired_gain(a: &[DoubletBit], b: &[DoubletBit]) -> (f64, f64) {
+    assert_eq!(a.len(), b.len());
+    let d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| {
+            assert_eq!((x.step, x.bit), (y.step, y.bit));
+            information(x.camera, x.bit) - information(y.camera, y.bit)
+        })
+        .collect();
+    mean_and_error(&d)
+}
+
 /// The window smoother converges in its width. With a 50 ms lag (1 mm motion noise) a bit
 /// shows at the next doublet's boundary too: two doublets each side give the camera
 /// eavesdropper what three give (paired over the same bits, within 3 standard errors and
@@ -107,31 +124,57 @@ fn the_window_smoother_converges_in_its_width() {
             10,
         )
     };
-    let paired = |a: &[DoubletBit], b: &[DoubletBit]| {
-        assert_eq!(a.len(), b.len());
-        let d: Vec<f64> = a
-            .iter()
-            .zip(b)
-            .map(|(x, y)| {
-                assert_eq!((x.step, x.bit), (y.step, y.bit));
-                information(x.camera, x.bit) - information(y.camera, y.bit)
-            })
-            .collect();
-        mean_and_error(&d)
-    };
     let (w0, w2, w3) = (at(lag, 0), at(lag, 2), at(lag, 3));
-    let (gain, se) = paired(&w3, &w2);
+    let (gain, se) = paired_gain(&w3, &w2);
     assert!(
         gain.abs() < 3.0 * se + 1e-9 && gain.abs() < 0.003,
         "W 3 − 2: {gain} ± {se}"
     );
-    let (gain, se) = paired(&w2, &w0);
+    let (gain, se) = paired_gain(&w2, &w0);
     assert!(gain > 0.1 && gain > 10.0 * se, "W 2 − 0: {gain} ± {se}");
     let alone = bits(&private(""), 10);
     let window = at("", 2);
-    let (gain, se) = paired(&window, &alone);
+    let (gain, se) = paired_gain(&window, &alone);
     assert!(
         gain.abs() < 3.0 * se + 1e-9 && gain.abs() < 0.003,
         "ideal: {gain} ± {se}"
+    );
+}
+
+/// With motion noise well below the controller's sensor noise (0.15 mm against 0.5 mm) a
+/// doublet's own boundary samples no longer screen it: the neighbours' samples pin its
+/// boundaries and reveal the turn residual. Her information grows with the exact window's
+/// width W = 0 → 4 and converges: the default view (W = 2 and the boundary samples of
+/// `WorldModel::sample_reach` doublets beyond) gives what W = 4 gives, and no less (paired
+/// over the same bits, within 3 standard errors and 0.003 bit). Just above the screening line
+/// (√2·σ_w ≥ σ_c: 0.36 mm) the per-doublet view misses less than 0.003 bit per bit.
+#[test]
+fn below_the_sensor_noise_the_neighbours_samples_are_used_and_converge() {
+    let world = |sigma: f64| format!("[world]\nprocess_std = [{sigma}, {sigma}, {sigma}]\n");
+    let at = |sigma: f64, width: Option<u32>| {
+        let eve = width.map_or(String::new(), |w| format!("[eve]\nsmoother_window = {w}\n"));
+        bits(&private(&format!("{eve}{}", world(sigma))), 10)
+    };
+    let low = 0.000_15;
+    let (w0, w2, w4, default) = (
+        at(low, Some(0)),
+        at(low, Some(2)),
+        at(low, Some(4)),
+        at(low, None),
+    );
+    let (gain, se) = paired_gain(&w4, &w0);
+    assert!(gain > 0.002 && gain > 3.0 * se, "W 4 − 0: {gain} ± {se}");
+    let (gain, se) = paired_gain(&w4, &w2);
+    assert!(gain > -se && gain < 0.003, "W 4 − 2: {gain} ± {se}");
+    let (gain, se) = paired_gain(&default, &w4);
+    assert!(
+        gain > -3.0 * se - 1e-9 && gain.abs() < 0.003,
+        "default − W 4: {gain} ± {se}"
+    );
+    let line = 0.000_36;
+    let (gain, se) = paired_gain(&at(line, Some(4)), &at(line, None));
+    assert!(
+        gain.abs() < 0.003,
+        "at the screening line, W 4 − alone: {gain} ± {se}"
     );
 }

@@ -5,9 +5,11 @@
 //! and the world's camera log. Same code, same decisions.
 //!
 //! Where the world lets a doublet's boundary samples screen it from its neighbours (white
-//! noise, the Euler map, no lag, delay, slip, quanta or jitter, a camera at the instants),
-//! each doublet is decided from the samples around it; elsewhere — or when
-//! `eve.smoother_window` asks for it — by the [`WindowSmoother`] over `±W` doublets.
+//! noise of at least the controller's sensor noise over a doublet, the Euler map, no lag,
+//! delay, slip, quanta or jitter, a camera at the instants), each doublet is decided from the
+//! samples around it; elsewhere by the [`WindowSmoother`] over `±2` doublets and, below the
+//! sensor noise, the boundary samples of [`crate::world::WorldModel::sample_reach`] doublets
+//! beyond; when `eve.smoother_window` asks for it, over exactly `±W` doublets.
 
 use std::collections::{BTreeMap, VecDeque};
 
@@ -99,11 +101,17 @@ impl DoubletEavesdropper {
                 camera_std: std,
             },
             (camera, half_width) => View::Window {
-                smoother: Box::new(WindowSmoother::new(
-                    config,
-                    &world,
-                    half_width.unwrap_or(DEFAULT_HALF_WIDTH),
-                )),
+                // A window asked for is exactly ±W doublets; else ±2 and the boundary
+                // samples as far as they still pin the window's (the motion noise's reach).
+                smoother: Box::new(match half_width {
+                    Some(w) => WindowSmoother::new(config, &world, w, 0),
+                    None => WindowSmoother::new(
+                        config,
+                        &world,
+                        DEFAULT_HALF_WIDTH,
+                        world.sample_reach(),
+                    ),
+                }),
                 frame_interval: match camera {
                     Camera::Frames { fps, .. } => Some(1.0 / fps),
                     Camera::Instants { .. } => None,
@@ -241,7 +249,8 @@ impl DoubletEavesdropper {
     }
 
     /// Whether everything doublet `j`'s full window needs has been recorded: the commands
-    /// of its doublets and of the one after, and her camera up to that instant.
+    /// of its doublets, of those whose boundary samples it reaches, and of the one after,
+    /// and her camera up to that instant.
     fn window_complete(&self, j: u32) -> bool {
         let View::Window {
             smoother,
@@ -251,7 +260,7 @@ impl DoubletEavesdropper {
             return false;
         };
         let doublets = self.plan.units();
-        let last = (j + smoother.half_width()).min(doublets.saturating_sub(1));
+        let last = (j + smoother.half_width() + smoother.reach()).min(doublets.saturating_sub(1));
         let end = 2 * last + 2;
         let commands = (j..=last).all(|i| self.commands.contains_key(&(2 * i)))
             && self.commands.contains_key(&end);
@@ -272,7 +281,7 @@ impl DoubletEavesdropper {
         let View::Window { smoother, .. } = &self.view else {
             return;
         };
-        let back = smoother.half_width() + smoother.lead() + 1;
+        let back = smoother.half_width() + smoother.reach() + smoother.lead() + 1;
         let keep = 2 * self.next.saturating_sub(back);
         self.commands = self.commands.split_off(&keep);
         self.camera = self.camera.split_off(&keep);

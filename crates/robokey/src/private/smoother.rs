@@ -1,11 +1,14 @@
 //! The world-aware eavesdroppers' window smoother (docs/world.md, "The window smoother").
 //!
-//! With correlated noise, lag, delay or slip, or a camera filming between the instants, the
-//! controller's boundary samples no longer screen a doublet from its neighbours. For doublet
-//! `j` Eve takes the doublets `j − W … j + W` (fewer at the session's ends or where commands
-//! are missing) and everything she observed over them: the boundary samples the commands
-//! carry (noise `world.controller_std`, timing error `world.jitter`), and — the `camera`
-//! adversary — every frame of her camera. Her model is the world's, linearised about the
+//! With correlated noise, lag, delay or slip, a camera filming between the instants, or
+//! motion noise below the controller's sensor noise, the controller's boundary samples no
+//! longer screen a doublet from its neighbours. For doublet `j` Eve takes the doublets
+//! `j − W … j + W` (fewer at the session's ends or where commands are missing) and everything
+//! she observed over them: the boundary samples the commands carry (noise
+//! `world.controller_std`, timing error `world.jitter`), and — the `camera` adversary — every
+//! frame of her camera; and the boundary samples of `reach` doublets beyond each side (their
+//! bits Gaussian like the lead's in her decision, known given the others), a forward and a
+//! backward pass over the samples that pin the window's boundaries. Her model is the world's, linearised about the
 //! noise-free path she simulates with the world's own code:
 //!
 //! - the pose at the window's start is the controller's sample there, off by its noise;
@@ -67,6 +70,10 @@ pub struct WindowSmoother {
     eve: WindowWorld,
     perturbation: Perturbation,
     half_width: u32,
+    /// Doublets each side beyond the window whose boundary samples she also takes
+    /// ([`WorldModel::sample_reach`]): their bits Gaussian in her own decision, known given
+    /// the others.
+    reach: u32,
     /// Doublets before the window whose bits still act on it (lag, delay).
     lead: u32,
     sample_time: f64,
@@ -81,8 +88,10 @@ struct Observation {
 
 /// A window simulated under every bit pattern of its carrying doublets.
 struct Simulated {
-    /// Its first doublet.
+    /// Its first doublet (of the samples' reach).
     first: u32,
+    /// The doublets whose bits are summed over exactly: the window proper.
+    exact: (u32, u32),
     /// Its steps.
     steps: usize,
     /// The nominal run (no bits).
@@ -209,11 +218,12 @@ struct SlipProfile {
 }
 
 impl WindowSmoother {
-    /// The smoother of `config`'s sessions in `world`, `half_width` doublets each side.
+    /// The smoother of `config`'s sessions in `world`, `half_width` doublets each side and
+    /// the boundary samples of `reach` doublets beyond them.
     #[must_use]
-    pub fn new(config: &Config, world: &WorldModel, half_width: u32) -> Self {
+    pub fn new(config: &Config, world: &WorldModel, half_width: u32, reach: u32) -> Self {
         let t = config.robot.sample_time;
-        let reach = world.delay + world.lag * 1e4_f64.ln();
+        let memory = world.delay + world.lag * 1e4_f64.ln();
         Self {
             eve: WindowWorld::new(
                 world,
@@ -229,7 +239,8 @@ impl WindowSmoother {
                 bits_per_doublet: config.protocol.bits_per_doublet,
             },
             half_width,
-            lead: (reach / (2.0 * t)).ceil() as u32,
+            reach,
+            lead: (memory / (2.0 * t)).ceil() as u32,
             sample_time: t,
         }
     }
@@ -238,6 +249,12 @@ impl WindowSmoother {
     #[must_use]
     pub fn half_width(&self) -> u32 {
         self.half_width
+    }
+
+    /// Doublets each side beyond the window whose boundary samples she also takes.
+    #[must_use]
+    pub fn reach(&self) -> u32 {
+        self.reach
     }
 
     /// Doublets before a window whose bits still act on it.
@@ -250,19 +267,25 @@ impl WindowSmoother {
     /// `W` each side, contiguous known commands, and the sample at the last one's end.
     #[must_use]
     pub fn window_of(&self, j: u32, rec: &Recorded<'_>) -> Option<(u32, u32)> {
+        self.span_of(j, j, self.half_width, rec)
+    }
+
+    /// The doublets `(first, last)` around `from … to` extended by at most `each` each side
+    /// over contiguous known commands, ending where the sample at the last one's end is.
+    fn span_of(&self, from: u32, to: u32, each: u32, rec: &Recorded<'_>) -> Option<(u32, u32)> {
         let inputs = |i: u32| rec.commands.get(&(2 * i)).and_then(|c| c.inputs);
-        inputs(j)?;
+        inputs(from)?;
         let doublets = rec.plan.units();
-        let mut first = j;
-        while first > 0 && j - first < self.half_width && inputs(first - 1).is_some() {
+        let mut first = from;
+        while first > 0 && from - first < each && inputs(first - 1).is_some() {
             first -= 1;
         }
-        let mut last = j;
-        while last + 1 < doublets && last - j < self.half_width && inputs(last + 1).is_some() {
+        let mut last = to;
+        while last + 1 < doublets && last - to < each && inputs(last + 1).is_some() {
             last += 1;
         }
         while !rec.commands.contains_key(&(2 * last + 2)) {
-            if last == j {
+            if last == from {
                 return None;
             }
             last -= 1;
@@ -282,7 +305,8 @@ impl WindowSmoother {
         rec: &Recorded<'_>,
         truth: &dyn Fn(u32) -> Option<[u8; 2]>,
     ) -> Option<[Judged; 2]> {
-        let (first, last) = self.window_of(j, rec)?;
+        let exact = self.window_of(j, rec)?;
+        let (first, last) = self.span_of(exact.0, exact.1, self.reach, rec)?;
         let inputs = |i: u32| rec.commands.get(&(2 * i)).and_then(|c| c.inputs);
         if !rec.plan.carries(&inputs(j)?) {
             return None;
@@ -319,12 +343,17 @@ impl WindowSmoother {
         let nominal = self.eve.run(&window, |_| Unicycle::zeros());
         let patterns = self.perturbation.patterns();
         // Each carrying doublet's runs, one per bit pattern.
+        // Each carrying doublet's runs, one per bit pattern: the window's and the lead's
+        // simulated whole, those of the samples' reach only where their bits act.
         let runs: Vec<Vec<WindowRun>> = carrying
             .iter()
-            .map(|&(_, position)| {
+            .map(|&(i, position)| {
                 (0..patterns)
                     .map(|h| {
                         let offset = self.perturbation.offset(h);
+                        if i >= first && !(exact.0..=exact.1).contains(&i) {
+                            return self.run_near(&window, &nominal, position, offset);
+                        }
                         self.eve.run(&window, |step| match step {
                             s if s == 2 * position => offset,
                             s if s == 2 * position + 1 => -offset,
@@ -340,6 +369,7 @@ impl WindowSmoother {
             .expect("j carries");
         let window = Simulated {
             first,
+            exact,
             steps: 2 * (last - first + 1) as usize,
             nominal,
             runs,
@@ -347,6 +377,57 @@ impl WindowSmoother {
             target,
         };
         Some([true, false].map(|camera| self.judge(rec, &window, camera, truth)))
+    }
+
+    /// The run of `window` with simulated doublet `position` (lead doublets counted, at or
+    /// after the window's first sample) perturbed by `offset` then `−offset`, simulated only
+    /// where the perturbation acts — from the world's actuator memory (`lead` doublets)
+    /// before it to `lead + 1` doublets after it, the next boundary's restart included —
+    /// and the nominal run elsewhere. Exact without lag or delay; with them the wheels
+    /// entering the stretch are settled on the input before it (the memory the lead bounds).
+    fn run_near(
+        &self,
+        window: &Window,
+        nominal: &WindowRun,
+        position: usize,
+        offset: Unicycle,
+    ) -> WindowRun {
+        let lead = self.lead as usize;
+        let from = position.saturating_sub(lead);
+        let to = (position + lead + 2).min(window.inputs.len() / 2);
+        let start_step = 2 * position - window.lead;
+        let end_step = 2 * to - window.lead;
+        let stretch = Window {
+            lead: 2 * (position - from),
+            inputs: window.inputs[2 * from..2 * to].to_vec(),
+            before: match from {
+                0 => window.before,
+                _ => Some(window.inputs[2 * from - 1]),
+            },
+            start: match start_step {
+                0 => window.start,
+                s => window.anchors[s].unwrap_or(nominal.poses[s][0]),
+            },
+            anchors: std::iter::once(None)
+                .chain(window.anchors[start_step + 1..end_step].iter().copied())
+                .collect(),
+        };
+        let perturbed = stretch.lead;
+        let part = self.eve.run(&stretch, |step| match step {
+            s if s == perturbed => offset,
+            s if s == perturbed + 1 => -offset,
+            _ => Unicycle::zeros(),
+        });
+        let mut run = nominal.clone();
+        for (i, step) in (start_step..end_step).enumerate() {
+            run.poses[step].clone_from(&part.poses[i]);
+            run.offsets[step].clone_from(&part.offsets[i]);
+            run.updates[step].clone_from(&part.updates[i]);
+            if i > 0 {
+                run.jumps[step] = part.jumps[i];
+            }
+        }
+        run
     }
 
     /// One adversary's evidence on the window's target doublet from her observations over it.
@@ -359,6 +440,7 @@ impl WindowSmoother {
     ) -> Judged {
         let Simulated {
             first,
+            exact,
             steps,
             nominal,
             runs,
@@ -367,7 +449,10 @@ impl WindowSmoother {
         } = window;
         let (first, steps, target) = (*first, *steps, *target);
         let patterns = self.perturbation.patterns();
-        let observations = self.observations(rec, nominal, 2 * first, steps, camera);
+        // Her camera over the window proper; the boundary samples over the whole reach.
+        let filmed =
+            camera.then(|| 2 * (exact.0 - first) as usize..=2 * (exact.1 - first + 1) as usize);
+        let observations = self.observations(rec, nominal, 2 * first, steps, &filmed);
         // Columns: the residual, the target's hypotheses, the window's other bits, the lead's.
         // A column is a combination of runs, relative to the nominal one.
         let derived = |weights: &[(&WindowRun, f64)]| Column {
@@ -424,7 +509,7 @@ impl WindowSmoother {
             };
             let mut other = Other {
                 doublet: i,
-                in_window: i >= first,
+                in_window: (exact.0..=exact.1).contains(&i),
                 columns: Vec::new(),
             };
             for recipe in recipes {
@@ -488,14 +573,15 @@ impl WindowSmoother {
         }
     }
 
-    /// What she observed over the window, in window-step order.
+    /// What she observed over the window, in window-step order: the boundary samples, and
+    /// her camera (if she has one) over the window steps `filmed`.
     fn observations(
         &self,
         rec: &Recorded<'_>,
         nominal: &WindowRun,
         k0: u32,
         steps: usize,
-        camera: bool,
+        filmed: &Option<std::ops::RangeInclusive<usize>>,
     ) -> Vec<Observation> {
         let world = &self.eve.world;
         let t = self.sample_time;
@@ -518,9 +604,9 @@ impl WindowSmoother {
                     noise_inverse: noise.try_inverse().unwrap_or_else(Matrix3::zeros),
                 });
             }
-            if !camera {
+            let Some(filmed) = filmed.as_ref().filter(|f| f.contains(&step)) else {
                 continue;
-            }
+            };
             match world.camera {
                 Camera::Instants { std } => {
                     if let Some(pose) = rec.camera.get(&k) {
@@ -532,7 +618,7 @@ impl WindowSmoother {
                     }
                 }
                 Camera::Frames { frame_std, .. } => {
-                    if step == steps {
+                    if step == *filmed.end() {
                         continue;
                     }
                     let start = f64::from(k) * t;

@@ -20,7 +20,9 @@ pub use config::{
     Integration, MAX_CAMERA_FPS, MAX_JITTER_FRACTION, MAX_SLIP_STD, MAX_WORLD_SECONDS, WorldConfig,
     WorldFieldError, WorldPreset,
 };
-pub use model::{Camera, MAX_SUBSTEPS, WorldModel, per_frame_std, per_instant_std};
+pub use model::{
+    Camera, MAX_SAMPLE_REACH, MAX_SUBSTEPS, WorldModel, per_frame_std, per_instant_std,
+};
 pub use motion::{Motion, StepNoise, SubStep, sinc};
 pub use plant::{Noise, PlantStreams, WorldPlant};
 pub use scene::{Observed, Scene};

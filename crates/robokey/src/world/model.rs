@@ -68,6 +68,10 @@ pub struct WorldModel {
 /// Most sub-steps the continuous plant takes per sample period.
 pub const MAX_SUBSTEPS: usize = 256;
 
+/// Most doublets each side beyond the eavesdroppers' window whose boundary samples they take
+/// ([`WorldModel::sample_reach`]).
+pub const MAX_SAMPLE_REACH: u32 = 24;
+
 impl WorldModel {
     /// The world the parties of `config` believe in: their motion noise, controller sensor
     /// and Eve's stated camera at the instants; no correlation, slip, lag, delay, quanta or
@@ -156,11 +160,14 @@ impl WorldModel {
 
     /// Whether a doublet's boundary samples screen it from its neighbours, so that Eve's
     /// per-doublet view is her whole view's worth (docs/world.md, "Eavesdroppers"): white
-    /// motion noise, no slip, lag, delay, quanta or jitter, the Euler map, a camera at the
-    /// instants. Otherwise the eavesdroppers smooth over a window of doublets.
+    /// motion noise at least the controller's sensor noise over a doublet
+    /// (`2·σ_w² ≥ σ_c²` on every axis: [`Self::sample_reach`] is 0), no slip, lag, delay,
+    /// quanta or jitter, the Euler map, a camera at the instants. Otherwise the
+    /// eavesdroppers smooth over a window of doublets.
     #[must_use]
     pub fn screens_doublets(&self) -> bool {
-        self.process_rho == 0.0
+        self.sample_reach() == 0
+            && self.process_rho == 0.0
             && self.slip_std == 0.0
             && self.lag == 0.0
             && self.delay == 0.0
@@ -168,6 +175,29 @@ impl WorldModel {
             && self.jitter == 0.0
             && self.integration == Integration::Euler
             && matches!(self.camera, Camera::Instants { .. })
+    }
+
+    /// Doublets each side whose boundary samples still pin a doublet's boundaries better
+    /// than its own samples do: 0 where the motion noise over a doublet is at least the
+    /// controller's sensor noise on every axis (`2·σ_w² ≥ σ_c²`), else
+    /// `⌈3·max_i σ_c,i / (√2·σ_w,i)⌉` capped at [`MAX_SAMPLE_REACH`]. Over a chain of
+    /// boundary samples (noise σ_c) joined by the noise of a doublet (variance `q = 2σ_w²`)
+    /// the smoother's weights fall by `λ = 1 + r/2 − √(r + r²/4)` per doublet, `r = q/σ_c²`,
+    /// over about `1/(1 − λ) ≈ σ_c/(√2·σ_w)` doublets; three such lengths leave
+    /// `λ^(2n) ≲ e⁻⁶` of the information (docs/world.md).
+    #[must_use]
+    pub fn sample_reach(&self) -> u32 {
+        let ratio = self
+            .process_std
+            .iter()
+            .zip(&self.controller_std)
+            .map(|(w, c)| c / (2.0_f64.sqrt() * w))
+            .fold(0.0_f64, f64::max);
+        if ratio <= 1.0 {
+            0
+        } else {
+            (3.0 * ratio).ceil().min(f64::from(MAX_SAMPLE_REACH)) as u32
+        }
     }
 
     /// The world's parameters that differ from what the parties of `config` believe, as
@@ -271,6 +301,22 @@ mod tests {
             back.world = Some(world.to_table(Some(preset)));
             assert_eq!(WorldModel::of(&back), world, "{preset}");
         }
+    }
+
+    #[test]
+    fn doublets_are_screened_only_above_the_sensor_noise() {
+        let mut world = WorldModel::ideal(&Config::default());
+        assert_eq!(world.sample_reach(), 0);
+        // √2·0.36 mm ≥ 0.5 mm: screened.
+        world.process_std = [0.000_36; 3];
+        assert_eq!(world.sample_reach(), 0);
+        assert!(world.screens_doublets());
+        // 0.5 / (√2·0.15) = 2.36 doublets, three times over.
+        world.process_std = [0.000_15; 3];
+        assert_eq!(world.sample_reach(), 8);
+        assert!(!world.screens_doublets());
+        world.process_std = [0.0; 3];
+        assert_eq!(world.sample_reach(), MAX_SAMPLE_REACH);
     }
 
     #[test]
