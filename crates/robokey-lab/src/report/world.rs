@@ -106,7 +106,7 @@ pub fn over_claim_csv(rows: &[OverClaim]) -> String {
 }
 
 /// One sentence per point, made from the numbers: for the `camera` eavesdropper whether
-/// the key is over-claimed, e.g. "With world.lag = 0.05 (parties: 0.0), the key claims 0.399
+/// the key is over-claimed (or would be, where no key is committed), e.g. "With world.lag = 0.05 (parties: 0.0), the key claims 0.399
 /// bits per raw bit more than the camera eavesdropper's realised view supports (she learns
 /// 0.779 [0.771, 0.786] bits per raw bit, errs on 6.2 %)."; for the `commands` one what the
 /// boundary samples alone give her.
@@ -125,7 +125,13 @@ pub fn over_claim_sentences(rows: &[OverClaim]) -> Vec<String> {
                     100.0 * r.error_rate
                 );
             }
-            let verdict = if r.per_raw_bit > 0.0 {
+            let verdict = if r.per_raw_bit > 0.0 && r.secret_bits == 0 {
+                format!(
+                    "the assumption claims {:.3} bits per raw bit more than the {} \
+                     eavesdropper's realised view supports, but the parties commit no key there",
+                    r.per_raw_bit, r.adversary
+                )
+            } else if r.per_raw_bit > 0.0 {
                 format!(
                     "the key claims {:.3} bits per raw bit more than the {} eavesdropper's \
                      realised view supports",
