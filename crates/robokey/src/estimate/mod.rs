@@ -7,10 +7,12 @@
 //! covariance `Q` in the robot's frame, and a controller sensor of stated covariance `R`
 //! (its calibration).
 
+pub mod homogeneity;
 pub mod motion_noise;
 pub mod residual;
 pub mod worst_case;
 
+pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use motion_noise::{
     EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
 };

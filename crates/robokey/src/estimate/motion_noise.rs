@@ -26,6 +26,7 @@
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
 use thiserror::Error;
 
+use super::homogeneity::{ClassDeparture, speed_class_departure};
 use super::residual::DoubletResidual;
 
 /// Least residuals of each parity the bounds are computed from.
@@ -108,6 +109,23 @@ pub enum EstimationRefusal {
         /// Its allowed magnitude.
         limit: f64,
     },
+    /// The residuals' variance differs between the doublets' speed classes beyond what one
+    /// `Q` explains: slip or speed-dependent noise (the homogeneity test).
+    #[error(
+        "motion-noise estimate: the motion noise differs between speed classes (by \
+         {partition}, class {lo:.3}–{hi:.3}: measured/pooled variance along the {axis} axis \
+         per class {ratios}, statistic {statistic:.1}, allowed: within ±{limit:.1} at level \
+         ε_est): slip or speed-dependent noise, outside the white-noise class this estimator \
+         covers",
+        partition = .0.partition,
+        lo = .0.range[0],
+        hi = .0.range[1],
+        axis = .0.axis,
+        ratios = format_ratios(&.0.ratios),
+        statistic = .0.statistic,
+        limit = .0.limit
+    )]
+    NotHomogeneous(ClassDeparture),
     /// The doublets' paths leave `Q` undetermined (the mean motion operator 𝓛̄ is singular;
     /// it is 2·id up to T·v and T·ω, so this takes degenerate input).
     #[error(
@@ -174,8 +192,14 @@ fn second_moment<'a>(
     (count, sum / count.max(1) as f64)
 }
 
+/// The per-class ratios, slowest class first, for people: "[0.91, 1.02, …]".
+fn format_ratios(ratios: &[f64]) -> String {
+    let parts: Vec<String> = ratios.iter().map(|r| format!("{r:.2}")).collect();
+    format!("[{}]", parts.join(", "))
+}
+
 /// The robot-frame axes, for people.
-const AXES: [&str; 3] = ["along-track", "lateral", "heading"];
+pub(super) const AXES: [&str; 3] = ["along-track", "lateral", "heading"];
 
 /// The whiteness test with the sensor's MA(1) structure: over the pairs of consecutive
 /// doublets (j, j+1), white motion noise leaves only the shared boundary sample,
@@ -235,7 +259,7 @@ fn kurtosis_tolerance(n: usize, epsilon: f64) -> f64 {
 
 /// `z` with `P[N(0,1) > z] ≤ p` (p ≤ ½): from the tail bound `P[N > z] ≤ e^(−z²/2)/2`,
 /// `z = √(2 ln(1/(2p)))` — a little wider than the exact quantile, never narrower.
-fn normal_upper_quantile(p: f64) -> f64 {
+pub(super) fn normal_upper_quantile(p: f64) -> f64 {
     (2.0 * (0.5 / p).ln()).max(0.0).sqrt()
 }
 
@@ -322,6 +346,9 @@ pub fn estimate_motion_noise(
             limit,
         });
     }
+    if let Some(departure) = speed_class_departure(residuals, &point, sensor, epsilon) {
+        return Err(EstimationRefusal::NotHomogeneous(departure));
+    }
     let kurtosis = mardia_kurtosis(residuals, &all);
     let tolerance = kurtosis_tolerance(residuals.len(), epsilon);
     if (kurtosis - GAUSSIAN_KURTOSIS).abs() > tolerance {
@@ -349,7 +376,7 @@ impl MotionNoiseEstimate {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::config::Config;
     use crate::model::{Pose, Unicycle};
@@ -367,27 +394,62 @@ mod tests {
         r_std: [f64; 3],
         seed: u64,
     ) -> Vec<DoubletResidual> {
+        simulated_residuals(
+            doublets,
+            r_std,
+            seed,
+            |j| {
+                let turn = if j % 7 < 3 { 0.0 } else { 0.4 };
+                DoubletInputs {
+                    first: Unicycle::new(0.1, turn),
+                    second: Unicycle::new(0.1, turn),
+                }
+            },
+            |_, _, normal| {
+                Pose::new(
+                    q_std[0] * normal(),
+                    q_std[1] * normal(),
+                    q_std[2] * normal(),
+                )
+            },
+        )
+    }
+
+    /// Residuals of `doublets` consecutive doublets of nominal inputs `inputs(j)`, each step's
+    /// world-frame motion noise `motion(applied input, heading, a standard normal source)`, and
+    /// sensor noise `r_std` (world frame), simulated through the Euler map with the bits that
+    /// rode.
+    pub(in crate::estimate) fn simulated_residuals(
+        doublets: u32,
+        r_std: [f64; 3],
+        seed: u64,
+        inputs: impl Fn(u32) -> DoubletInputs,
+        motion: impl Fn(&Unicycle, f64, &mut dyn FnMut() -> f64) -> Pose,
+    ) -> Vec<DoubletResidual> {
         let model = doublet_model(&Config::default());
         let mut rng = stream(seed, Purpose::Process, 0);
         let mut normal =
-            |s: f64| s * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
+            || <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
         let t = model.sample_time;
         let mut x = Pose::new(0.0, 0.0, 0.3);
-        let mut y_start = x + Pose::new(normal(r_std[0]), normal(r_std[1]), normal(r_std[2]));
+        let sensed = |x: &Pose, normal: &mut dyn FnMut() -> f64| {
+            x + Pose::new(
+                r_std[0] * normal(),
+                r_std[1] * normal(),
+                r_std[2] * normal(),
+            )
+        };
+        let mut y_start = sensed(&x, &mut normal);
         let mut out = Vec::new();
         for j in 0..doublets {
-            let turn = if j % 7 < 3 { 0.0 } else { 0.4 };
-            let inputs = DoubletInputs {
-                first: Unicycle::new(0.1, turn),
-                second: Unicycle::new(0.1, turn),
-            };
+            let inputs = inputs(j);
             let pattern = (j as usize * 5 + 1) % 3 % 2;
             let [a, b] = inputs.applied(model.perturbation.offset(pattern));
             for u in [a, b] {
-                x = crate::model::unicycle_step(&x, &u, t)
-                    + Pose::new(normal(q_std[0]), normal(q_std[1]), normal(q_std[2]));
+                let heading = x.z;
+                x = crate::model::unicycle_step(&x, &u, t) + motion(&u, heading, &mut normal);
             }
-            let y_end = x + Pose::new(normal(r_std[0]), normal(r_std[1]), normal(r_std[2]));
+            let y_end = sensed(&x, &mut normal);
             out.push(DoubletResidual::new(
                 &model, j, &inputs, &y_start, &y_end, pattern,
             ));

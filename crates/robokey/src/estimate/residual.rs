@@ -37,6 +37,8 @@ pub struct DoubletResidual {
     pub motion_maps: [Matrix3<f64>; 2],
     /// `[C₀, C₁]`: how the end and the start sample's sensor noise enter `z`.
     pub sensor_maps: [Matrix3<f64>; 2],
+    /// The doublet's public nominal inputs (what the homogeneity test classes it by).
+    pub inputs: DoubletInputs,
 }
 
 /// The rotation `H(θ)` about the vertical axis: a robot-frame vector to the world's.
@@ -71,6 +73,7 @@ impl DoubletResidual {
             value: h0 * (end - predicted),
             motion_maps: [h0 * a1 * rotation(start.z), h0 * rotation(middle.z)],
             sensor_maps: [h0, h0 * a1 * a0],
+            inputs: *inputs,
         }
     }
 
