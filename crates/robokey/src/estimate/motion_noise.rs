@@ -21,7 +21,9 @@
 //!
 //! **Refusals** (outside the class, named): too few doublets to bound anything; residuals
 //! that vary less than the stated sensor noise alone explains (`Q_high = 𝓛̄⁻¹(S_half/c₋ − N̄)`
-//! has a negative eigenvalue: no `Q ⪰ 0` fits, so the calibration `R` is wrong).
+//! has a negative eigenvalue: no `Q ⪰ 0` fits, so the calibration `R` is wrong); neighbours
+//! correlated beyond the sensor's MA(1) term (not white); a variance that differs between the
+//! doublets' speed or turn classes (`homogeneity`: slip); tails that are not Gaussian.
 
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
 use thiserror::Error;
