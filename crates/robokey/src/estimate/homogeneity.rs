@@ -30,8 +30,8 @@ pub const SPEED_CLASSES: usize = 4;
 /// Least residuals in a class.
 pub const MIN_DOUBLETS_PER_CLASS: usize = 250;
 
-/// The two public partitions: by nominal speed and by nominal turn rate.
-const PARTITIONS: [&str; 2] = ["speed |v|", "turn rate |ω|"];
+/// The two public partitions, by nominal speed and by nominal turn rate, and their units.
+const PARTITIONS: [(&str, &str); 2] = [("speed |v|", "m/s"), ("turn rate |ω|", "rad/s")];
 
 /// One class's departure from the pooled `Q̂`: which partition, class and axis, the class's
 /// nominal range, its ratio of measured to pooled variance, and the standardised statistic.
@@ -39,8 +39,10 @@ const PARTITIONS: [&str; 2] = ["speed |v|", "turn rate |ω|"];
 pub struct ClassDeparture {
     /// "speed |v|" or "turn rate |ω|".
     pub partition: &'static str,
-    /// The class's nominal range (m/s or rad/s), slowest first.
+    /// The class's nominal range, lowest first.
     pub range: [f64; 2],
+    /// Its unit: "m/s" or "rad/s".
+    pub unit: &'static str,
     /// "along-track", "lateral" or "heading".
     pub axis: &'static str,
     /// Every class's ratio `ρ_c,k` on that axis, slowest class first.
@@ -87,7 +89,7 @@ pub fn speed_class_departure(
     let tests = (PARTITIONS.len() * classes * AXES.len()) as f64;
     let limit = normal_upper_quantile(epsilon / (2.0 * tests));
     let mut worst: Option<ClassDeparture> = None;
-    for (partition, name) in PARTITIONS.iter().enumerate() {
+    for (partition, &(name, unit)) in PARTITIONS.iter().enumerate() {
         let mut order: Vec<usize> = (0..residuals.len()).collect();
         order.sort_by(|&a, &b| {
             class_key(partition, &residuals[a]).total_cmp(&class_key(partition, &residuals[b]))
@@ -127,6 +129,7 @@ pub fn speed_class_departure(
                 worst = Some(ClassDeparture {
                     partition: name,
                     range: largest.1,
+                    unit,
                     axis,
                     ratios,
                     statistic: largest.0,

@@ -115,13 +115,14 @@ pub enum EstimationRefusal {
     /// `Q` explains: slip or speed-dependent noise (the homogeneity test).
     #[error(
         "motion-noise estimate: the motion noise differs between speed classes (by \
-         {partition}, class {lo:.3}–{hi:.3}: measured/pooled variance along the {axis} axis \
+         {partition}, class {lo:.3}–{hi:.3} {unit}: measured/pooled variance along the {axis} axis \
          per class {ratios}, statistic {statistic:.1}, allowed: within ±{limit:.1} at level \
          ε_est): slip or speed-dependent noise, outside the white-noise class this estimator \
          covers",
         partition = .0.partition,
         lo = .0.range[0],
         hi = .0.range[1],
+        unit = .0.unit,
         axis = .0.axis,
         ratios = format_ratios(&.0.ratios),
         statistic = .0.statistic,
