@@ -222,7 +222,9 @@ mod tests {
             assert_eq!(departure.partition, "speed |v|", "seed {seed}: {error}");
             assert!(departure.ratios[0] < departure.ratios[3], "{error}");
             assert!(
-                error.to_string().contains("differs between speed classes"),
+                error
+                    .to_string()
+                    .contains("differs between the doublets' classes"),
                 "{error}"
             );
         }

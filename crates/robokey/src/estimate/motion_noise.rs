@@ -111,14 +111,15 @@ pub enum EstimationRefusal {
         /// Its allowed magnitude.
         limit: f64,
     },
-    /// The residuals' variance differs between the doublets' speed classes beyond what one
-    /// `Q` explains: slip or speed-dependent noise (the homogeneity test).
+    /// The residuals' variance differs between the doublets' speed or turn-rate classes beyond
+    /// what one `Q` explains: slip, speed- or turn-dependent noise, or a turn-dependent residual
+    /// the model leaves (the homogeneity test).
     #[error(
-        "motion-noise estimate: the motion noise differs between speed classes (by \
+        "motion-noise estimate: the motion noise differs between the doublets' classes (by \
          {partition}, class {lo:.3}–{hi:.3} {unit}: measured/pooled variance along the {axis} axis \
          per class {ratios}, statistic {statistic:.1}, allowed: within ±{limit:.1} at level \
-         ε_est): slip or speed-dependent noise, outside the white-noise class this estimator \
-         covers",
+         ε_est): slip, noise that depends on the speed or the turn, or a turn-dependent \
+         residual the model leaves — outside the white-noise class this estimator covers",
         partition = .0.partition,
         lo = .0.range[0],
         hi = .0.range[1],
