@@ -13,16 +13,8 @@ use robokey_secrecy::gaussian_llr::{
     error_rate, gaussian_llr_smooth_min_entropy, information, surprisal,
 };
 
-fn private(extra: &str) -> Config {
-    Config::from_toml(&format!("[sensing]\nmode = \"private\"\n{extra}"), "test").unwrap()
-}
-
-/// Every bit of `sessions` seeded sessions.
-fn bits(config: &Config, sessions: u32) -> Vec<DoubletBit> {
-    (0..sessions)
-        .flat_map(|r| simulate(config, r, false).unwrap().private.unwrap().bits)
-        .collect()
-}
+mod private_bits;
+use private_bits::{bits, private};
 
 /// The posterior probability that the decision from `llr` is wrong, and whether it was.
 fn prediction(llr: f64, bit: u8) -> (f64, bool) {

@@ -9,16 +9,8 @@ use robokey::sim::simulate;
 use robokey_secrecy::calibration::check_calibration;
 use robokey_secrecy::gaussian_llr::surprisal;
 
-fn private(extra: &str) -> Config {
-    Config::from_toml(&format!("[sensing]\nmode = \"private\"\n{extra}"), "test").unwrap()
-}
-
-/// Every bit of replicates `0..sessions` of `config`.
-fn bits(config: &Config, sessions: u32) -> Vec<DoubletBit> {
-    (0..sessions)
-        .flat_map(|r| simulate(config, r, false).unwrap().private.unwrap().bits)
-        .collect()
-}
+mod private_bits;
+use private_bits::{bits, private};
 
 /// The information `1 − S` a bit's LLR gives about its true value (bits).
 fn information(llr: f64, bit: u8) -> f64 {
