@@ -7,14 +7,13 @@ use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
 use robokey::post_settings::ODOMETRY_ZERO;
-use robokey::private::DoubletBit;
+use robokey::private::{DoubletBit, DoubletSamples};
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
 use robokey_secrecy::{JointCounts, binomial_test};
 
 use super::commands_check;
-use super::estimation;
 use super::options::{SecrecyOptions, Sizing, default_adversaries};
 use super::pipeline::{self, Block, BlockSettings, Pooling};
 use super::point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
@@ -227,9 +226,18 @@ fn analyze_point(
     pools.truncate(options.blocks);
     if measured {
         for pool in &mut pools {
-            let pooled: Vec<&RunOutput> = pool.runs.iter().map(|&i| &runs[i]).collect();
+            let pooled: Vec<&[DoubletSamples]> = pool
+                .runs
+                .iter()
+                .map(|&i| {
+                    runs[i]
+                        .private
+                        .as_ref()
+                        .map_or(&[][..], |p| &p.controller_samples)
+                })
+                .collect();
             let (separations, estimate) =
-                estimation::block_separations(config, &pooled, options.epsilon);
+                robokey::estimate::block_separations(config, &pooled, options.epsilon);
             pool.separations = separations;
             pool.estimate = Some(estimate);
         }

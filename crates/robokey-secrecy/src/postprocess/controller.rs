@@ -4,14 +4,18 @@
 use rand::rngs::ChaCha20Rng;
 use serde::{Deserialize, Serialize};
 
+use super::estimate::{
+    EstimateOutcome, EstimateRefusal, EstimateRequest, MAX_SEPARATION_STEPS, SessionSamples,
+};
 use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
-    AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, Message, Output,
+    AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, Message, Output,
     Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, key_id, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
+use std::collections::BTreeMap;
 use crate::confirm::ConfirmationTag;
 
 /// What the controller feeds its endpoint.
@@ -26,6 +30,16 @@ pub enum ControllerInput {
         /// The largest separation of Eve's view over these bits under a Gaussian-views
         /// assumption, as the controller computes it from its own samples (0 otherwise).
         separation: f64,
+        /// What the pool keeps of the session for the block's estimate of the plant
+        /// (measured sizing; empty otherwise).
+        samples: SessionSamples,
+    },
+    /// The shell's answer to [`Output::EstimateNeeded`] for `block`.
+    Estimate {
+        /// Block number.
+        block: u64,
+        /// The published outcome: the block's separation in grid steps, or a refusal.
+        outcome: EstimateOutcome,
     },
     /// A message from the robot.
     Frame(Message),
@@ -70,6 +84,10 @@ pub struct ControllerSnapshot {
     pub pool: Vec<(u32, BitString)>,
     /// Their Eve separations, in millionths (only those above 0).
     pub separations: Vec<(u32, u64)>,
+    /// What the pool keeps of them for the block's estimate (measured sizing; only those
+    /// with samples). The store writes them once, beside the sessions' bits.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub samples: Vec<(u32, SessionSamples)>,
     /// Sessions proposed in a block (spent).
     pub spent: Vec<u32>,
     /// The block in flight, if any.
@@ -83,6 +101,9 @@ struct Agreed {
     sessions: Vec<u32>,
     nonces: [[u8; 32]; 2],
     public: PublicRandomness,
+    /// Which positions of the pooled bits were disclosed, and the robot's bits there.
+    mask: Vec<bool>,
+    robot_sample: Vec<bool>,
 }
 
 /// What the controller waits for.
@@ -96,11 +117,17 @@ enum State {
         bob: Box<CascadeBob<ChaCha20Rng>>,
         round: u32,
     },
+    /// Reconciled; the shell estimates the plant (measured sizing).
+    ExpectEstimate {
+        agreed: Agreed,
+        outcome: Reconciliation,
+    },
     ExpectConfirmed {
         agreed: Agreed,
         reconciled: BitString,
         key: BitString,
         length: u64,
+        assumption: Assumption,
     },
     ExpectCommitAck,
     ExpectAbortAck,
@@ -113,8 +140,11 @@ pub struct ControllerPost {
     /// The block in flight: its number, proposed sessions and their bits.
     block: Option<(u64, Vec<u32>, Pool)>,
     /// Pooled sessions' Eve separations (millionths), and the block in flight's largest.
-    separations: std::collections::BTreeMap<u32, u64>,
+    separations: BTreeMap<u32, u64>,
     block_separation: u64,
+    /// Pooled sessions' kept samples, and the block in flight's.
+    samples: BTreeMap<u32, SessionSamples>,
+    block_samples: BTreeMap<u32, SessionSamples>,
     in_flight: Option<InFlight>,
     state: State,
     report: Option<BlockReport>,
@@ -146,8 +176,10 @@ impl ControllerPost {
             ledger,
             next_block,
             block: None,
-            separations: std::collections::BTreeMap::new(),
+            separations: BTreeMap::new(),
             block_separation: 0,
+            samples: BTreeMap::new(),
+            block_samples: BTreeMap::new(),
             in_flight: None,
             state: State::Idle,
             report: None,
@@ -174,6 +206,7 @@ impl ControllerPost {
         )?;
         let mut endpoint = Self::with(ledger, snapshot.next_block);
         endpoint.separations = snapshot.separations.into_iter().collect();
+        endpoint.samples = snapshot.samples.into_iter().collect();
         match snapshot.in_flight {
             None => endpoint.maybe_propose(),
             Some(InFlight::Committed { block, sessions }) => {
@@ -204,6 +237,11 @@ impl ControllerPost {
             next_block: self.next_block,
             pool: self.ledger.stored_pool(),
             separations: self.separations.iter().map(|(&id, &s)| (id, s)).collect(),
+            samples: self
+                .samples
+                .iter()
+                .map(|(&id, s)| (id, s.clone()))
+                .collect(),
             spent: self.ledger.spent.iter().copied().collect(),
             in_flight: self.in_flight.clone(),
             committed: self.ledger.committed.iter().copied().collect(),
@@ -232,6 +270,7 @@ impl ControllerPost {
                 id,
                 bits,
                 separation,
+                samples,
             } => {
                 if !(0.0..=1e6).contains(&separation) {
                     return Err(PostError::Separation { id, separation });
@@ -242,8 +281,12 @@ impl ControllerPost {
                 if micros > 0 {
                     self.separations.insert(id, micros);
                 }
+                if !samples.is_empty() {
+                    self.samples.insert(id, samples);
+                }
                 self.maybe_propose();
             }
+            ControllerInput::Estimate { block, outcome } => self.on_estimate(block, outcome),
             ControllerInput::Timeout => {
                 if let Some(request) = self.last_request.clone() {
                     self.send(request);
@@ -296,6 +339,7 @@ impl ControllerPost {
                     reconciled,
                     key,
                     length,
+                    assumption,
                 },
                 Message::Confirmed { tag, .. },
             ) => {
@@ -303,7 +347,7 @@ impl ControllerPost {
                 let expected =
                     ConfirmationTag::directional(&reconciled, ROBOT_TO_CONTROLLER, &context);
                 if expected.matches(&ConfirmationTag(tag)) {
-                    self.commit(agreed, key);
+                    self.commit(agreed, key, &assumption);
                 } else {
                     self.abort(
                         AbortReason::Reconciliation,
@@ -316,6 +360,7 @@ impl ControllerPost {
             (
                 State::ExpectAgree { .. }
                 | State::ExpectAnswer { .. }
+                | State::ExpectEstimate { .. }
                 | State::ExpectConfirmed { .. },
                 Message::Reject { reason, .. },
             ) => self.abort(
@@ -361,6 +406,10 @@ impl ControllerPost {
             .max()
             .unwrap_or(0);
         self.block_separation = separation_micros;
+        self.block_samples = sessions
+            .iter()
+            .filter_map(|id| self.samples.remove(id).map(|s| (*id, s)))
+            .collect();
         let block = self.next_block;
         self.next_block += 1;
         let nonce = self.ledger.nonce();
@@ -439,6 +488,8 @@ impl ControllerPost {
             sessions: agreed,
             nonces,
             public,
+            mask,
+            robot_sample: sample.to_vec(),
         };
         let started = Cascade::new(self.ledger.settings.schedule, q)
             .and_then(|cascade| CascadeBob::start(cascade, kept, agreed.public.cascade()));
@@ -481,20 +532,110 @@ impl ControllerPost {
         });
     }
 
-    /// Reconciliation is over: ℓ from the assumption, then the controller's tag.
+    /// Reconciliation is over: with the plant measured, the shell estimates it first;
+    /// otherwise ℓ from the assumption at once.
     fn confirm(&mut self, agreed: Agreed, outcome: Reconciliation) {
-        let n = outcome.corrected.len() as u64;
-        let (h_min, length) = self
+        if self.ledger.settings.assumption.is_measured() {
+            let request = self.estimate_request(&agreed, &outcome.corrected);
+            self.state = State::ExpectEstimate { agreed, outcome };
+            // Nothing to repeat while the shell estimates.
+            self.last_request = None;
+            self.ledger
+                .outputs
+                .push_back(Output::EstimateNeeded(request));
+            return;
+        }
+        let assumption = self
             .ledger
             .settings
             .assumption
-            .for_block(self.block_separation)
-            .output_length(n, outcome.leak, self.ledger.settings.epsilon);
+            .for_block(self.block_separation);
+        self.size(agreed, outcome, assumption, None);
+    }
+
+    /// What the shell needs to estimate the plant: each agreed session's kept samples and
+    /// the robot's bits of it — the reconciled bits with the disclosed sample put back.
+    fn estimate_request(&self, agreed: &Agreed, corrected: &BitString) -> EstimateRequest {
+        let (mut kept, mut disclosed) = (0..corrected.len(), agreed.robot_sample.iter());
+        let robot: zeroize::Zeroizing<Vec<bool>> = zeroize::Zeroizing::new(
+            agreed
+                .mask
+                .iter()
+                .map(|&sampled| {
+                    if sampled {
+                        disclosed.next() == Some(&true)
+                    } else {
+                        kept.next().and_then(|i| corrected.get(i)) == Some(true)
+                    }
+                })
+                .collect(),
+        );
+        let lengths = self.block.as_ref().map(|(_, _, pool)| pool);
+        let mut start = 0;
+        let sessions = agreed
+            .sessions
+            .iter()
+            .map(|id| {
+                let len = lengths.and_then(|p| p.get(id)).map_or(0, BitString::len);
+                let end = (start + len).min(robot.len());
+                let bits = BitString::from_bools(&robot[start..end]);
+                start = end;
+                let samples = self.block_samples.get(id).cloned().unwrap_or_default();
+                (*id, samples, bits)
+            })
+            .collect();
+        EstimateRequest {
+            block: self.current(),
+            sessions,
+        }
+    }
+
+    /// The shell's estimate: ℓ from the carried separation, or the block refused.
+    fn on_estimate(&mut self, block: u64, estimate: EstimateOutcome) {
+        if self.block.is_none() || block != self.current() {
+            self.ledger
+                .outputs
+                .push_back(Output::Ignored("an estimate for another block"));
+            return;
+        }
+        match std::mem::replace(&mut self.state, State::Idle) {
+            State::ExpectEstimate { agreed, outcome } => match estimate {
+                Ok(steps) => {
+                    let steps = steps.min(MAX_SEPARATION_STEPS);
+                    let assumption = self.ledger.settings.assumption.with_estimate(steps);
+                    self.size(agreed, outcome, assumption, Some(steps));
+                }
+                Err(EstimateRefusal(why)) => {
+                    self.abort(AbortReason::PlantRefused, format!("block refused: {why}"));
+                }
+            },
+            state => {
+                self.state = state;
+                self.ledger
+                    .outputs
+                    .push_back(Output::Ignored("an estimate the controller does not expect"));
+            }
+        }
+    }
+
+    /// ℓ from the block's `assumption`, then the controller's tag (with the published
+    /// `estimate` when the plant was measured).
+    fn size(
+        &mut self,
+        agreed: Agreed,
+        outcome: Reconciliation,
+        assumption: Assumption,
+        estimate: Option<u32>,
+    ) {
+        let n = outcome.corrected.len() as u64;
+        let (h_min, length) =
+            assumption.output_length(n, outcome.leak, self.ledger.settings.epsilon);
         if let Some(report) = self.report.as_mut() {
             report.questions = outcome.alice_parities;
             report.leak_ec = outcome.leak;
             report.h_min = h_min;
             report.length = length.bits;
+            report.separation_steps = estimate;
         }
         if length.bits == 0 {
             let reason = length.reason.unwrap_or_else(|| "no secret bits".to_owned());
@@ -521,16 +662,18 @@ impl ControllerPost {
             reconciled: outcome.corrected,
             key,
             length: length.bits,
+            assumption,
         };
         self.request(Message::Confirm {
             block,
             length: length.bits,
             tag: tag.0,
+            estimate,
         });
     }
 
     /// The robot's tag proved it prepared the key: commit, durably, then tell it.
-    fn commit(&mut self, agreed: Agreed, key: BitString) {
+    fn commit(&mut self, agreed: Agreed, key: BitString, assumption: &Assumption) {
         let Some((block, proposed, _)) = self.block.as_ref() else {
             return;
         };
@@ -545,13 +688,8 @@ impl ControllerPost {
             block,
             key,
             sessions: agreed.sessions,
-            epsilon: 4.0 * self.ledger.settings.epsilon,
-            assumption: self
-                .ledger
-                .settings
-                .assumption
-                .for_block(self.block_separation)
-                .describe(),
+            epsilon: assumption.total_epsilon(self.ledger.settings.epsilon),
+            assumption: assumption.describe(),
         };
         self.ledger.committed.insert(block);
         self.in_flight = Some(InFlight::Committed {
@@ -593,6 +731,7 @@ impl ControllerPost {
         if let Some((_, sessions, _)) = self.block.take() {
             self.ledger.spent.extend(sessions);
         }
+        self.block_samples.clear();
         self.in_flight = None;
         self.state = State::Idle;
         self.last_request = None;

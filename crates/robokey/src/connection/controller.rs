@@ -6,12 +6,13 @@
 use std::collections::VecDeque;
 
 use rand::rngs::ChaCha20Rng;
-use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot};
+use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot, SessionSamples};
 
 use super::linger::{Courtesy, Linger};
 use super::post::{PostLink, PostOutput};
 use super::{Output, Setup};
-use crate::config::Config;
+use crate::config::{Config, Sizing};
+use crate::estimate::kept_doublet;
 use crate::model::Pose;
 use crate::protocol::auth::{AuthMode, ChannelCounts, ControllerChannel, Delivery, PairingSecret};
 use crate::protocol::timing::earliest;
@@ -75,6 +76,9 @@ pub struct ControllerConnection<A> {
     /// The largest Eve separation the camera statement gives over the decided bits: it sizes
     /// the keys of the blocks this session enters (private sensing).
     separation: f64,
+    /// What the pool keeps of the decided doublets for the block's estimate of the plant
+    /// (`postprocess.sizing = "measured"`; empty otherwise).
+    kept: SessionSamples,
     outputs: VecDeque<ControllerAction<A>>,
 }
 
@@ -120,6 +124,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             endpoint: None,
             post,
             separation: 0.0,
+            kept: SessionSamples::new(),
             outputs: VecDeque::new(),
             channel,
             earlier: ChannelCounts::default(),
@@ -426,6 +431,9 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                         self.separation = decision.assumed_separation[..bits]
                             .iter()
                             .fold(self.separation, |m, &d| m.max(d));
+                        if self.config.postprocess.sizing == Sizing::Measured {
+                            self.kept.push(kept_doublet(decision));
+                        }
                     }
                     self.outputs.push_back(Output::Endpoint(event));
                 }
@@ -447,7 +455,13 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         match &mut self.post {
             Some(post) => {
                 let session = self.channel.session();
-                let pooled = post.pool(session, &outcome, endpoint.key(), self.separation);
+                let pooled = post.pool(
+                    session,
+                    &outcome,
+                    endpoint.key(),
+                    self.separation,
+                    std::mem::take(&mut self.kept),
+                );
                 self.outputs.push_back(Output::Post(pooled));
                 self.stage = Stage::Post {
                     courtesy,

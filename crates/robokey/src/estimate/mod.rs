@@ -7,11 +7,13 @@
 //! covariance `Q` in the robot's frame, and a controller sensor of stated covariance `R`
 //! (its calibration).
 
+pub mod block;
 pub mod homogeneity;
 pub mod motion_noise;
 pub mod residual;
 pub mod worst_case;
 
+pub use block::{BlockEstimate, block_separations, estimate_request, kept_doublet};
 pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use motion_noise::{
     EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,

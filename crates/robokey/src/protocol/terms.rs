@@ -21,12 +21,13 @@ pub fn agreement_terms(config: &Config) -> String {
         SensingMode::Odometry => String::new(),
         SensingMode::Private => format!(
             "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
-             eve.camera_std = {:?}\n{}noise.process_std = {:?}\n",
+             eve.camera_std = {:?}\n{}noise.process_std = {:?}\n{}",
             config.protocol.bits_per_doublet,
             config.protocol.max_turn_rate,
             config.eve.camera_std,
             camera_frames_terms(config),
             config.noise.process_std,
+            sizing_terms(config),
         ),
     };
     // What sizes and labels the final keys both stores hold.
@@ -69,6 +70,16 @@ fn camera_frames_terms(config: &Config) -> String {
         Camera::Frames { fps, frame_std } => {
             format!("eve.camera_fps = {fps}\neve.camera_frame_std = {frame_std:?}\n")
         }
+    }
+}
+
+/// The measured plant's line, `postprocess.sizing = measured` (absent with the configured
+/// physics, so that its terms stay as they were): it sizes and labels the keys.
+fn sizing_terms(config: &Config) -> String {
+    if config.postprocess.sizing.is_configured() {
+        String::new()
+    } else {
+        format!("postprocess.sizing = {}\n", config.postprocess.sizing.name())
     }
 }
 
@@ -159,6 +170,20 @@ mod tests {
             terms_difference(&per_instant, &agreement_terms(&b), "robot", "controller"),
             "eve.camera_fps: robot has (missing), controller has 30; eve.camera_frame_std: \
              robot has (missing), controller has [0.016, 0.016, 0.016]"
+        );
+    }
+
+    #[test]
+    fn a_measured_plant_is_agreed_and_a_configured_one_unchanged() {
+        let mut a = Config::default();
+        a.sensing.mode = SensingMode::Private;
+        let configured = agreement_terms(&a);
+        assert!(!configured.contains("sizing"), "{configured}");
+        let mut b = a.clone();
+        b.postprocess.sizing = crate::config::Sizing::Measured;
+        assert_eq!(
+            terms_difference(&configured, &agreement_terms(&b), "robot", "controller"),
+            "postprocess.sizing: robot has (missing), controller has measured"
         );
     }
 }

@@ -1,0 +1,234 @@
+//! A block's estimate of the plant, one implementation for the simulator and the agents
+//! (docs/estimation.md): per block, the controller's estimate from its own samples of the
+//! block's sessions and the reconciled bits, and each session's largest Eve separation at
+//! the region's worst case — what the post-processing endpoints size ℓ from. The agents'
+//! controller keeps each pooled session's samples ([`kept_doublet`]) and answers its
+//! endpoint's request at block time ([`estimate_request`]); the simulator reads them from
+//! its runs.
+//!
+//! The reconciled bits are the robot's: a block whose reconciliation or confirmation fails
+//! gives no key, so wherever ℓ matters the controller's corrected bits equal the robot's.
+
+use robokey_secrecy::BitString;
+use robokey_secrecy::postprocess::{
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, MAX_SEPARATION_STEPS,
+    SEPARATION_QUANTUM,
+};
+use serde::{Deserialize, Serialize};
+
+use super::{
+    DoubletResidual, diagonal_covariance, estimate_motion_noise, published_separation,
+    worst_case_separations,
+};
+use crate::Config;
+use crate::model::{Pose, Unicycle};
+use crate::private::likelihood::stated_camera_view;
+use crate::private::{DoubletDecision, DoubletInputs, DoubletSamples, doublet_model};
+
+/// The separation fed for the sessions of a refused block: Eve is taken to see every bit
+/// (the largest the endpoints accept), so the block gives no key.
+const REFUSED_SEPARATION: f64 = 1e6;
+
+/// What the controller measured for one block, for reports.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BlockEstimate {
+    /// Doublets whose residuals were used.
+    pub doublets: usize,
+    /// The point estimate's standard deviations √Q̂_kk (mm, mm, mrad; robot frame).
+    pub point_std_mm: [f64; 3],
+    /// The region's worst-case vertex's √Q_low,kk (mm, mm, mrad): what sizes Eve's view.
+    pub lower_std_mm: [f64; 3],
+    /// ε_est.
+    pub epsilon: f64,
+    /// The largest separation of Eve's view over the block's bits at the worst case, rounded
+    /// up to the published grid (2⁻⁸).
+    pub separation: f64,
+    /// Why the block was refused, naming the test and the value.
+    pub refused: Option<String>,
+}
+
+impl BlockEstimate {
+    /// What the controller publishes of it: the separation in grid steps of 2⁻⁸ (it is on
+    /// the grid already), or the refusal.
+    #[must_use]
+    pub fn outcome(&self) -> EstimateOutcome {
+        match &self.refused {
+            Some(why) => Err(EstimateRefusal(why.clone())),
+            None => Ok(((self.separation / SEPARATION_QUANTUM).round() as u32)
+                .min(MAX_SEPARATION_STEPS)),
+        }
+    }
+
+    /// A block refused before any estimate, naming why.
+    fn refused(why: String, doublets: usize, epsilon: f64) -> Self {
+        Self {
+            doublets,
+            point_std_mm: [f64::NAN; 3],
+            lower_std_mm: [f64::NAN; 3],
+            epsilon,
+            separation: REFUSED_SEPARATION,
+            refused: Some(why),
+        }
+    }
+}
+
+/// Each of the block's `sessions`' largest worst-case separation (rounded up to the
+/// published grid: the estimate depends on the bits, and what is published of it is charged
+/// by the assumption), and the block's estimate, for the controller's samples of every
+/// carrying doublet of each session (with the robot's bits) under the parties' `config`
+/// (their stated sensor calibration and camera) at ε_est = `epsilon`.
+#[must_use]
+pub fn block_separations(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    epsilon: f64,
+) -> (Vec<f64>, BlockEstimate) {
+    let model = doublet_model(config);
+    let residuals: Vec<DoubletResidual> = sessions
+        .iter()
+        .flat_map(|session| session.iter())
+        .map(|b| {
+            DoubletResidual::new(
+                &model,
+                b.doublet,
+                &b.inputs,
+                &b.samples[0],
+                &b.samples[2],
+                b.pattern,
+            )
+        })
+        .collect();
+    let sensor = diagonal_covariance(config.sensing.controller_std);
+    let refuse = |why: String, doublets: usize| {
+        (
+            vec![REFUSED_SEPARATION; sessions.len()],
+            BlockEstimate::refused(why, doublets, epsilon),
+        )
+    };
+    let estimate = match estimate_motion_noise(&residuals, &sensor, epsilon) {
+        Ok(e) => e,
+        Err(refusal) => return refuse(refusal.to_string(), residuals.len()),
+    };
+    let bits = usize::from(config.protocol.bits_per_doublet);
+    let mut separations = Vec::with_capacity(sessions.len());
+    for session in sessions {
+        let mut largest = 0.0_f64;
+        for b in session.iter() {
+            let view = stated_camera_view(
+                b.samples,
+                config.sensing.controller_std,
+                config.eve.camera_std,
+            );
+            match worst_case_separations(&model, &estimate.lower, &b.inputs, &view) {
+                Some(d) => largest = d[..bits].iter().fold(largest, |m, &x| m.max(x)),
+                None => {
+                    return refuse(
+                        format!(
+                            "motion-noise estimate: at the region's worst case (Q_low's \
+                             diagonal {:?} m², m², rad²) Eve's modelled covariance is not \
+                             positive definite at doublet {} (allowed: a bound exists)",
+                            [0, 1, 2].map(|k| estimate.lower[(k, k)]),
+                            b.doublet
+                        ),
+                        residuals.len(),
+                    );
+                }
+            }
+        }
+        separations.push(published_separation(largest));
+    }
+    let [point, lower] = estimate.stds();
+    let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);
+    let separation = separations.iter().fold(0.0_f64, |m, &x| m.max(x));
+    (
+        separations,
+        BlockEstimate {
+            doublets: estimate.doublets,
+            point_std_mm: mm(point),
+            lower_std_mm: mm(lower),
+            epsilon,
+            separation,
+            refused: None,
+        },
+    )
+}
+
+/// What the agents' controller keeps of a decided doublet for the block's estimate.
+#[must_use]
+pub fn kept_doublet(decision: &DoubletDecision) -> KeptDoublet {
+    let unicycle = |u: Unicycle| [u.x, u.y];
+    KeptDoublet {
+        doublet: decision.doublet,
+        inputs: [
+            unicycle(decision.inputs.first),
+            unicycle(decision.inputs.second),
+        ],
+        samples: decision.samples.map(|p| [p.x, p.y, p.z]),
+    }
+}
+
+/// One session's kept doublets with the robot's `bits` of it (`bits_per_doublet` per
+/// doublet, in order) as the estimate reads them.
+///
+/// # Errors
+/// The numbers do not match, or a kept value is not finite (a store that kept the wrong
+/// thing), naming the session and the values.
+fn with_bits(
+    id: u32,
+    kept: &[KeptDoublet],
+    bits: &BitString,
+    bits_per_doublet: usize,
+) -> Result<Vec<DoubletSamples>, String> {
+    if kept.len() * bits_per_doublet != bits.len() {
+        return Err(format!(
+            "session {id:08x}: the pool kept {} doublets for its {} raw bits (allowed: one per \
+             {bits_per_doublet} bits; sessions pooled without their samples cannot be measured)",
+            kept.len(),
+            bits.len()
+        ));
+    }
+    kept.iter()
+        .enumerate()
+        .map(|(i, k)| {
+            let finite = k.inputs.iter().flatten().chain(k.samples.iter().flatten());
+            if !finite.into_iter().all(|x| x.is_finite()) {
+                return Err(format!(
+                    "session {id:08x}: doublet {}'s kept samples are not finite",
+                    k.doublet
+                ));
+            }
+            let bit = |j: usize| {
+                usize::from(j < bits_per_doublet && bits.get(i * bits_per_doublet + j) == Some(true))
+            };
+            Ok(DoubletSamples {
+                doublet: k.doublet,
+                inputs: DoubletInputs {
+                    first: Unicycle::new(k.inputs[0][0], k.inputs[0][1]),
+                    second: Unicycle::new(k.inputs[1][0], k.inputs[1][1]),
+                },
+                samples: k.samples.map(|p| Pose::new(p[0], p[1], p[2])),
+                pattern: bit(0) | bit(1) << 1,
+            })
+        })
+        .collect()
+}
+
+/// The agents' controller's estimate of the plant for its endpoint's `request` (the kept
+/// samples and the robot's bits of each session) under `config` at ε_est = `epsilon`: the
+/// same computation as the simulator's [`block_separations`].
+#[must_use]
+pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64) -> BlockEstimate {
+    let bits_per_doublet = usize::from(config.protocol.bits_per_doublet);
+    let sessions: Result<Vec<Vec<DoubletSamples>>, String> = request
+        .sessions
+        .iter()
+        .map(|(id, kept, bits)| with_bits(*id, kept, bits, bits_per_doublet))
+        .collect();
+    match sessions {
+        Ok(sessions) => {
+            let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
+            block_separations(config, &views, epsilon).1
+        }
+        Err(why) => BlockEstimate::refused(format!("motion-noise estimate: {why}"), 0, epsilon),
+    }
+}
