@@ -432,7 +432,11 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                             .iter()
                             .fold(self.separation, |m, &d| m.max(d));
                         if self.config.postprocess.sizing == Sizing::Measured {
-                            self.kept.push(kept_doublet(decision));
+                            self.kept.push(kept_doublet(
+                                decision.doublet,
+                                &decision.inputs,
+                                &decision.samples,
+                            ));
                         }
                     }
                     self.outputs.push_back(Output::Endpoint(event));

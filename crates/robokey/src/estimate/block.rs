@@ -23,7 +23,7 @@ use super::{
 use crate::Config;
 use crate::model::{Pose, Unicycle};
 use crate::private::likelihood::stated_camera_view;
-use crate::private::{DoubletDecision, DoubletInputs, DoubletSamples, doublet_model};
+use crate::private::{DoubletInputs, DoubletSamples, doublet_model};
 
 /// The separation fed for the sessions of a refused block: Eve is taken to see every bit
 /// (the largest the endpoints accept), so the block gives no key.
@@ -153,17 +153,15 @@ pub fn block_separations(
     )
 }
 
-/// What the agents' controller keeps of a decided doublet for the block's estimate.
+/// What the agents' controller keeps of a decided doublet for the block's estimate: its
+/// index, public inputs and the controller's three samples.
 #[must_use]
-pub fn kept_doublet(decision: &DoubletDecision) -> KeptDoublet {
+pub fn kept_doublet(doublet: u32, inputs: &DoubletInputs, samples: &[Pose; 3]) -> KeptDoublet {
     let unicycle = |u: Unicycle| [u.x, u.y];
     KeptDoublet {
-        doublet: decision.doublet,
-        inputs: [
-            unicycle(decision.inputs.first),
-            unicycle(decision.inputs.second),
-        ],
-        samples: decision.samples.map(|p| [p.x, p.y, p.z]),
+        doublet,
+        inputs: [unicycle(inputs.first), unicycle(inputs.second)],
+        samples: samples.map(|p| [p.x, p.y, p.z]),
     }
 }
 
