@@ -14,9 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use common::kme::{CONTROLLER_SAE, Pki, ROBOT_SAE, curl, have_curl, start_pair};
-use common::{
-    address_after, pairing, report, run, run_code, s, scratch, start_lines, wait_code,
-};
+use common::{address_after, pairing, report, run, run_code, s, scratch, start_lines, wait_code};
 use robokey::protocol::{Message, PostFragment};
 use robokey_secrecy::postprocess::{self, Message as Post};
 

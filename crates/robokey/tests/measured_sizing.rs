@@ -5,7 +5,7 @@
 //! carried bits; on worlds the parties' configuration does not describe.
 
 use robokey::Config;
-use robokey::estimate::{block_separations, estimate_request, kept_doublet};
+use robokey::estimate::{BlockEstimate, block_separations, estimate_request, kept_doublet};
 use robokey::private::DoubletSamples;
 use robokey::sim::{RunOutput, simulate};
 use robokey_secrecy::BitString;
@@ -45,13 +45,21 @@ fn request(runs: &[RunOutput]) -> EstimateRequest {
     }
 }
 
+/// The block of 8 simulated sessions of `config` (≈ 2,600 doublets), estimated by the
+/// agents' path and by the simulator's: (agents, simulator).
+fn both_estimates(config: &Config) -> (BlockEstimate, BlockEstimate) {
+    let runs: Vec<RunOutput> = (0..8)
+        .map(|r| simulate(config, r, false).unwrap())
+        .collect();
+    let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+    let (_, simulator) = block_separations(config, &sessions, 1e-6);
+    (estimate_request(config, &request(&runs), 1e-6), simulator)
+}
+
 #[test]
 fn the_agents_measure_the_plant_as_the_simulator_does_in_a_quieter_world() {
     let config = parties_in("process_std = [0.001, 0.001, 0.001]");
-    let runs: Vec<RunOutput> = (0..8).map(|r| simulate(&config, r, false).unwrap()).collect();
-    let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
-    let (_, simulator) = block_separations(&config, &sessions, 1e-6);
-    let agents = estimate_request(&config, &request(&runs), 1e-6);
+    let (agents, simulator) = both_estimates(&config);
     assert_eq!(agents, simulator);
     assert_eq!(agents.refused, None);
     // It measures the world (1 mm), not the parties' 4 mm.
@@ -72,11 +80,11 @@ fn the_agents_measure_the_plant_as_the_simulator_does_in_a_quieter_world() {
 #[test]
 fn the_agents_refuse_what_the_simulator_refuses_by_the_same_name() {
     let config = parties_in("process_std = [0.001, 0.001, 0.001]\nprocess_rho = 0.9");
-    let runs: Vec<RunOutput> = (0..8).map(|r| simulate(&config, r, false).unwrap()).collect();
-    let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
-    let (_, simulator) = block_separations(&config, &sessions, 1e-6);
-    let agents = estimate_request(&config, &request(&runs), 1e-6);
-    let why = simulator.refused.clone().expect("AR(1) noise is outside the class");
+    let (agents, simulator) = both_estimates(&config);
+    let why = simulator
+        .refused
+        .clone()
+        .expect("AR(1) noise is outside the class");
     assert_eq!(agents.refused.as_deref(), Some(why.as_str()));
     assert_eq!(agents.outcome(), simulator.outcome());
     assert!(agents.outcome().is_err());
@@ -86,9 +94,14 @@ fn the_agents_refuse_what_the_simulator_refuses_by_the_same_name() {
 #[test]
 fn a_session_kept_without_its_samples_is_refused_naming_it() {
     let config = parties_in("process_std = [0.001, 0.001, 0.001]");
-    let runs: Vec<RunOutput> = (0..2).map(|r| simulate(&config, r, false).unwrap()).collect();
+    let runs: Vec<RunOutput> = (0..2)
+        .map(|r| simulate(&config, r, false).unwrap())
+        .collect();
     let mut request = request(&runs);
     request.sessions[1].1.clear();
     let refused = estimate_request(&config, &request, 1e-6).refused.unwrap();
-    assert!(refused.contains("session 00000001: the pool kept 0 doublets"), "{refused}");
+    assert!(
+        refused.contains("session 00000001: the pool kept 0 doublets"),
+        "{refused}"
+    );
 }

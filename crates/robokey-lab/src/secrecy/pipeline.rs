@@ -18,9 +18,8 @@ use robokey_secrecy::min_entropy::{
     binomial_smooth_min_entropy, output_length, posterior_smooth_min_entropy,
 };
 use robokey_secrecy::postprocess::{
-    AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, EstimateRefusal, Message,
-    Output,
-    RobotInput, RobotPost, Settings,
+    AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, EstimateRefusal,
+    Message, Output, RobotInput, RobotPost, Settings,
 };
 use serde::{Deserialize, Serialize};
 use zeroize::Zeroizing;

@@ -160,9 +160,9 @@ impl Assumption {
                 estimation_epsilon: *estimation_epsilon,
                 estimate_leak: *estimate_leak,
             },
-            Self::NoSecrecy { .. } | Self::IndependentErrors { .. } | Self::GaussianViews { .. } => {
-                self.clone()
-            }
+            Self::NoSecrecy { .. }
+            | Self::IndependentErrors { .. }
+            | Self::GaussianViews { .. } => self.clone(),
         }
     }
 

@@ -10,13 +10,14 @@ use super::estimate::{
 use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
-    AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, Message, Output,
-    Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, key_id, split_sample, tag_context,
+    AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS,
+    Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, key_id,
+    split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
-use std::collections::BTreeMap;
 use crate::confirm::ConfirmationTag;
+use std::collections::BTreeMap;
 
 /// What the controller feeds its endpoint.
 #[derive(Debug, Clone)]
@@ -611,9 +612,9 @@ impl ControllerPost {
             },
             state => {
                 self.state = state;
-                self.ledger
-                    .outputs
-                    .push_back(Output::Ignored("an estimate the controller does not expect"));
+                self.ledger.outputs.push_back(Output::Ignored(
+                    "an estimate the controller does not expect",
+                ));
             }
         }
     }

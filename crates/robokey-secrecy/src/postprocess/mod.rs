@@ -50,11 +50,11 @@ use crate::cascade::CascadeSchedule;
 
 pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
+pub use encoding::{decode, encode};
 pub use estimate::{
     EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, MAX_SEPARATION_STEPS,
     SEPARATION_QUANTUM, SessionSamples,
 };
-pub use encoding::{decode, encode};
 pub use fragment::{
     FRAGMENT_BYTES, MAX_FRAGMENTS, MAX_MESSAGE_BYTES, Reassembler, fits, fragments,
 };

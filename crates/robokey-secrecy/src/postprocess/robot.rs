@@ -8,9 +8,9 @@ use super::controller::empty_report;
 use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
-    AbortReason, BlockReport, MAX_SEPARATION_STEPS, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, MAX_QUESTIONS, Message, Output,
-    Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate, key_id,
-    split_sample, tag_context,
+    AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, MAX_QUESTIONS,
+    MAX_SEPARATION_STEPS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason,
+    Settings, concatenate, key_id, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::CascadeAlice;

@@ -650,13 +650,17 @@ fn a_measured_plant_is_carried_in_confirm_and_both_sides_size_the_same_key() {
     for request in &pair.requests {
         for (id, _, bits) in &request.sessions {
             let robot = &pool.iter().find(|s| s.0 == *id).unwrap().1;
-            assert_eq!(bits, robot, "session {id}: the robot's bits, sample put back");
+            assert_eq!(
+                bits, robot,
+                "session {id}: the robot's bits, sample put back"
+            );
         }
     }
     let expected = measured_plant().with_estimate(436);
     for (report, key) in pair.reports.iter().zip(&pair.controller_keys) {
         assert_eq!(report.separation_steps, Some(436));
-        let (_, length) = expected.output_length(report.reconciled_bits as u64, report.leak_ec, 1e-6);
+        let (_, length) =
+            expected.output_length(report.reconciled_bits as u64, report.leak_ec, 1e-6);
         assert_eq!(report.length, length.bits);
         assert!((key.epsilon - 5e-6).abs() < 1e-18);
         assert_eq!(key.assumption, expected.describe());
@@ -685,7 +689,13 @@ fn a_refused_estimate_commits_nothing_and_both_reports_say_so() {
         );
     }
     for report in robot_reports {
-        assert!(report.reason.as_deref().unwrap().starts_with("block refused"));
+        assert!(
+            report
+                .reason
+                .as_deref()
+                .unwrap()
+                .starts_with("block refused")
+        );
     }
 }
 

@@ -8,8 +8,8 @@ use std::collections::BTreeSet;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, EstimateOutcome,
-    FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost,
-    RobotSnapshot, SessionSamples,
+    FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot,
+    SessionSamples,
 };
 
 use crate::Config;
@@ -270,11 +270,8 @@ impl<E: PostEndpoint> PostLink<E> {
                 Output::EstimateNeeded(request) => {
                     // At block time, from the samples the pool kept and the robot's bits:
                     // the simulator's computation (`estimate::block`).
-                    let estimate = estimate_request(
-                        &self.config,
-                        &request,
-                        self.config.postprocess.epsilon,
-                    );
+                    let estimate =
+                        estimate_request(&self.config, &request, self.config.postprocess.epsilon);
                     let outcome = estimate.outcome();
                     out.push(PostOutput::Estimated(estimate));
                     self.endpoint.estimated(request.block, outcome);

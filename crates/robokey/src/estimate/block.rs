@@ -54,8 +54,10 @@ impl BlockEstimate {
     pub fn outcome(&self) -> EstimateOutcome {
         match &self.refused {
             Some(why) => Err(EstimateRefusal(why.clone())),
-            None => Ok(((self.separation / SEPARATION_QUANTUM).round() as u32)
-                .min(MAX_SEPARATION_STEPS)),
+            None => {
+                Ok(((self.separation / SEPARATION_QUANTUM).round() as u32)
+                    .min(MAX_SEPARATION_STEPS))
+            }
         }
     }
 
@@ -196,7 +198,9 @@ fn with_bits(
                 ));
             }
             let bit = |j: usize| {
-                usize::from(j < bits_per_doublet && bits.get(i * bits_per_doublet + j) == Some(true))
+                usize::from(
+                    j < bits_per_doublet && bits.get(i * bits_per_doublet + j) == Some(true),
+                )
             };
             Ok(DoubletSamples {
                 doublet: k.doublet,
