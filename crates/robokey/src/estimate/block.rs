@@ -50,7 +50,6 @@ pub struct BlockEstimate {
 impl BlockEstimate {
     /// What the controller publishes of it: the separation in grid steps of 2⁻⁸ (it is on
     /// the grid already), or the refusal.
-    #[must_use]
     pub fn outcome(&self) -> EstimateOutcome {
         match &self.refused {
             Some(why) => Err(EstimateRefusal(why.clone())),
