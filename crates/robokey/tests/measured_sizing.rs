@@ -105,3 +105,26 @@ fn a_session_kept_without_its_samples_is_refused_naming_it() {
         "{refused}"
     );
 }
+
+/// Eve's camera stated in frames sizes the measured block by what her frames are worth per
+/// instant (8 mm per frame at 30 frames/s: ≈ 3.97 mm), as the configured sizing does: a
+/// sharper view than 8 mm per instant, never the per-instant `eve.camera_std` left beside it.
+#[test]
+fn a_camera_stated_in_frames_sizes_the_measured_block_by_its_worth() {
+    let per_instant = parties_in("process_std = [0.001, 0.001, 0.001]");
+    let mut frames = per_instant.clone();
+    frames.eve.camera_fps = Some(30.0);
+    frames.eve.camera_frame_std = Some([0.008; 3]);
+    let runs: Vec<RunOutput> = (0..8)
+        .map(|r| simulate(&per_instant, r, false).unwrap())
+        .collect();
+    let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+    let (_, instant) = block_separations(&per_instant, &sessions, 1e-6);
+    let (_, framed) = block_separations(&frames, &sessions, 1e-6);
+    assert!(
+        framed.separation > 1.5 * instant.separation,
+        "{} against {}",
+        framed.separation,
+        instant.separation
+    );
+}

@@ -115,10 +115,11 @@ pub fn block_separations(
     for session in sessions {
         let mut largest = 0.0_f64;
         for b in session.iter() {
+            // The camera as stated: per instant, or her frames' worth per instant.
             let view = stated_camera_view(
                 b.samples,
                 config.sensing.controller_std,
-                config.eve.camera_std,
+                config.modelled_camera_std(),
             );
             match worst_case_separations(&model, &estimate.lower, &b.inputs, &view) {
                 Some(d) => largest = d[..bits].iter().fold(largest, |m, &x| m.max(x)),
