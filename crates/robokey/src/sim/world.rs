@@ -74,10 +74,14 @@ impl World<'_> {
             self.scene.step();
         }
         // No later step writes the rows before this one (in private sensing, the row before
-        // it: a doublet's decision lands on its second step's row).
-        let settled = match self.senses {
+        // it: a doublet's decision lands on its second step's row — or, while an eavesdropper
+        // who smooths over later doublets has not decided one the controller has, that row).
+        let settled = match &self.senses {
             Senses::Odometry { .. } => step,
-            Senses::Private(_) => step.saturating_sub(1),
+            Senses::Private(p) => {
+                let undecided_by_eve = p.decided.front().map_or(u32::MAX, |d| d.step + 1);
+                step.saturating_sub(1).min(undecided_by_eve)
+            }
         };
         self.trace.complete_before(settled as usize);
         let observed = self.scene.observe();
