@@ -72,6 +72,26 @@ impl Perturbation {
         }
     }
 
+    /// Each step's mean offset speed through a first-order lag `lag` τ (s) from wheels that
+    /// carried no offset before the doublet, for the first step's `offset`: for step offset
+    /// `c` from speed offset `e`, `c + (e − c)·(τ/T)·(1 − d)`, then `e ← c + (e − c)·d`,
+    /// `d = e^(−T/τ)`; [`Self::step_offsets`] without lag. What moves the robot under the
+    /// model's lag: the likelihood's means use it.
+    #[must_use]
+    pub fn mean_offsets(&self, offset: Unicycle, lag: f64, sample_time: f64) -> [Unicycle; 3] {
+        let commanded = self.step_offsets(offset);
+        if lag <= 0.0 {
+            return commanded;
+        }
+        let decay = (-sample_time / lag).exp();
+        let mut speed = Unicycle::zeros();
+        commanded.map(|c| {
+            let mean = c + (speed - c) * (lag / sample_time * (1.0 - decay));
+            speed = c + (speed - c) * decay;
+            mean
+        })
+    }
+
     /// The pattern of bits `[v, ω]` (ω ignored with one bit per doublet).
     #[must_use]
     pub fn pattern(&self, bits: [u8; 2]) -> usize {
@@ -120,22 +140,22 @@ impl DoubletInputs {
         ]
     }
 
-    /// The noise-free poses after each of the doublet's `perturbation.steps()` steps from
-    /// `start` with `offset` on the first step (a two-step doublet's by [`Self::propagate`];
-    /// the third entry repeats the end with two steps).
+    /// The noise-free poses after each of `steps` steps (2 or 3) from `start` with the
+    /// steps' offsets `offsets` (a two-step doublet's, `[o, −o, 0]`, by [`Self::propagate`];
+    /// the third entry then repeats the end).
     #[must_use]
     pub fn propagate_steps(
         &self,
         start: &Pose,
-        perturbation: &Perturbation,
-        offset: Unicycle,
+        offsets: [Unicycle; 3],
+        steps: u32,
         sample_time: f64,
     ) -> [Pose; 3] {
-        if perturbation.settle.is_none() {
-            let [middle, end] = self.propagate(start, offset, sample_time);
+        if steps == 2 {
+            let [middle, end] = self.propagate(start, offsets[0], sample_time);
             return [middle, end, end];
         }
-        let [a, b, c] = self.applied_steps(perturbation.step_offsets(offset));
+        let [a, b, c] = self.applied_steps(offsets);
         let first = unicycle_step(start, &a, sample_time);
         let second = unicycle_step(&first, &b, sample_time);
         [first, second, unicycle_step(&second, &c, sample_time)]

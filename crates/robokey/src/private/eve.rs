@@ -96,7 +96,11 @@ impl DoubletEavesdropper {
         let world = config.world_model();
         let view = match (world.camera, config.eve.smoother_window) {
             (Camera::Instants { std }, None) if world.screens_doublets() => View::PerDoublet {
-                model: doublet_model_with(config, world.process_std),
+                // Her model's lag is the world's (none where doublets are screened).
+                model: DoubletModel {
+                    lag: world.lag,
+                    ..doublet_model_with(config, world.process_std)
+                },
                 controller_std: world.controller_std,
                 camera_std: std,
             },

@@ -47,6 +47,7 @@ pub fn doublet_model_with(config: &Config, process_std: [f64; 3]) -> DoubletMode
             bits_per_doublet: config.protocol.bits_per_doublet,
             settle: config.doublet_settle(),
         },
+        lag: config.private.prior_lag,
     }
 }
 
@@ -134,6 +135,10 @@ pub struct DoubletModel {
     pub process_covariance: Matrix3<f64>,
     /// The bits and their Δ.
     pub perturbation: Perturbation,
+    /// The first-order actuator lag τ (s) a three-step doublet's means assume: the parties'
+    /// prior (`private.prior_lag`), or the world's for an eavesdropper who knows it. Not
+    /// used with two steps.
+    pub lag: f64,
 }
 
 /// What a party can say about each bit of a doublet.
@@ -243,15 +248,16 @@ impl DoubletModel {
     }
 
     /// [`Self::predict`] for a three-step doublet: the means `m₁, m₂, m₃` of
-    /// `x(3j+1), x(3j+2), x(3j+3)` by the Euler map with the steps' offsets, and
+    /// `x(3j+1), x(3j+2), x(3j+3)` by the Euler map with the steps' mean offsets through the
+    /// model's lag ([`Perturbation::mean_offsets`]), and
     /// `Cᵢᵢ = Aᵢ₋₁Cᵢ₋₁,ᵢ₋₁Aᵢ₋₁ᵀ + Q` (`C₀₀ = P₀`), `Cᵢₖ = Cᵢᵢ·(Aₖ₋₁ ⋯ Aᵢ)ᵀ` for `i < k`,
     /// stacked over the observed poses with their covariance `R` added.
     fn predict_three(&self, inputs: &DoubletInputs, view: &DoubletView, pattern: usize) -> Prediction {
         let t = self.sample_time;
-        let offset = self.perturbation.offset(pattern);
-        let applied = inputs.applied_steps(self.perturbation.step_offsets(offset));
+        let offsets = self.mean_offsets(pattern);
+        let applied = inputs.applied_steps(offsets);
         let start = &view.start;
-        let means = inputs.propagate_steps(&start.value, &self.perturbation, offset, t);
+        let means = inputs.propagate_steps(&start.value, offsets, 3, t);
         let before = [start.value, means[0], means[1]];
         let jacobians: [Matrix3<f64>; 3] =
             std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t));
@@ -292,6 +298,23 @@ impl DoubletModel {
             }
         }
         Prediction::Three { mean, covariance }
+    }
+
+    /// Pattern `h`'s mean step offsets under the model ([`Perturbation::mean_offsets`] with
+    /// its lag).
+    #[must_use]
+    pub fn mean_offsets(&self, pattern: usize) -> [Unicycle; 3] {
+        let offset = self.perturbation.offset(pattern);
+        self.perturbation
+            .mean_offsets(offset, self.lag, self.sample_time)
+    }
+
+    /// The noise-free end pose `x(Lj+L)` of pattern `h` from `start` under the model.
+    #[must_use]
+    pub fn end_of(&self, inputs: &DoubletInputs, start: &Pose, pattern: Option<usize>) -> Pose {
+        let offsets = pattern.map_or([Unicycle::zeros(); 3], |h| self.mean_offsets(h));
+        let steps = self.perturbation.steps();
+        inputs.propagate_steps(start, offsets, steps, self.sample_time)[steps as usize - 1]
     }
 
     /// `ln p(view | pattern h)` up to a constant common to all patterns, for every pattern
@@ -346,6 +369,28 @@ impl DoubletModel {
         } else {
             [self.distance(inputs, view, 0, 1), 0.0]
         }
+    }
+
+    /// The separations that size a key from `view`: [`Self::separations`], but for a
+    /// three-step doublet the largest over the lags `0, τ/4, τ/2, 3τ/4, τ` of the model's
+    /// prior τ — the lag smooths the bit's signature (less after the first step, more after
+    /// the second), so neither end of `[0, τ]` is Eve's best view for every bit, and a world
+    /// with less lag than the prior must not make the key over-claim. A grid, not a proof
+    /// over the interval; a world with more lag than the prior is the commands check's.
+    #[must_use]
+    pub fn sizing_separations(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; 2] {
+        if self.perturbation.settle.is_none() {
+            return self.separations(inputs, view);
+        }
+        (0..=4)
+            .map(|i| {
+                let model = Self {
+                    lag: self.lag * f64::from(i) / 4.0,
+                    ..*self
+                };
+                model.separations(inputs, view)
+            })
+            .fold([0.0; 2], |worst, d| [worst[0].max(d[0]), worst[1].max(d[1])])
     }
 
     /// Mahalanobis distance between the predicted observations of patterns `a` and `b`,
