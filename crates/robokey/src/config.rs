@@ -1031,9 +1031,10 @@ impl Config {
     #[must_use]
     pub fn doublet_settle(&self) -> Option<f64> {
         match self.sensing.mode {
-            SensingMode::Private => {
-                crate::private::doublet::settle_share(self.robot.sample_time, self.private.prior_lag)
-            }
+            SensingMode::Private => crate::private::doublet::settle_share(
+                self.robot.sample_time,
+                self.private.prior_lag,
+            ),
             SensingMode::Odometry => None,
         }
     }
@@ -1372,6 +1373,33 @@ mod tests {
         assert_eq!(field, "controller.wheel_limit");
         // Without the protocol only the controller's limit counts.
         Config::from_toml("[protocol]\nenabled = false\ndelta_v = 35.0\n", "t").unwrap();
+    }
+
+    #[test]
+    fn the_prior_lag_is_named_out_of_range_and_its_middle_step_within_the_wheel_limit() {
+        let error = |toml: &str| match Config::from_toml(toml, "t").unwrap_err() {
+            ConfigError::Invalid { field, allowed, .. } => (field, allowed),
+            other => panic!("{other}"),
+        };
+        let private = "[sensing]\nmode = \"private\"\n";
+        for lag in ["-0.01", "1.5", "nan"] {
+            let (field, allowed) = error(&format!("{private}[private]\nprior_lag = {lag}\n"));
+            assert_eq!(field, "private.prior_lag");
+            assert!(allowed.starts_with("0 to 1 s"), "{allowed}");
+        }
+        let (field, allowed) = error("[private]\nprior_lag = 0.05\n");
+        assert_eq!(field, "private.prior_lag");
+        assert!(allowed.contains("odometry mode"), "{allowed}");
+        // With τ = 100 ms the middle step is (1 + e^(−2))·Δv: Δv ≤ 0.62853 / 1.13534.
+        let shaped = format!("{private}[private]\nprior_lag = 0.1\n");
+        let (field, allowed) = error(&format!("{shaped}[protocol]\ndelta_v = 0.5537\n"));
+        assert_eq!(field, "protocol.delta_v");
+        assert!(
+            allowed.starts_with("≤ 0.5536 m/s") && allowed.contains("1.1353·(Δv"),
+            "{allowed}"
+        );
+        let config = Config::from_toml(&format!("{shaped}[protocol]\ndelta_v = 0.5536\n"), "t");
+        assert_eq!(config.unwrap().doublet_settle(), Some((-2.0f64).exp()));
     }
 
     #[test]

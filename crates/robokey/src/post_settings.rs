@@ -205,6 +205,13 @@ mod tests {
                 .describe()
                 .contains(&basis.camera)
         );
+        assert!(basis.plant.contains("no correlation, slip, lag or delay"));
+        config.private.prior_lag = 0.05;
+        let shaped = key_basis(&config).unwrap().plant;
+        assert!(
+            shaped.contains("three-step doublets shaped for a first-order actuator lag of 50 ms"),
+            "{shaped}"
+        );
     }
 
     #[test]

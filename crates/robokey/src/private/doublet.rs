@@ -320,17 +320,25 @@ mod tests {
             };
             let a = p.settle.expect("three steps");
             let run = |steps: &[Unicycle]| {
-                steps.iter().fold((0.0, WheelSpeeds::zeros()), |(moved, speed), u| {
-                    let (mean, end) = lagged(WheelSpeeds::new(u.x, u.x), speed, T, tau);
-                    (moved + mean.x * T, end)
-                })
+                steps
+                    .iter()
+                    .fold((0.0, WheelSpeeds::zeros()), |(moved, speed), u| {
+                        let (mean, end) = lagged(WheelSpeeds::new(u.x, u.x), speed, T, tau);
+                        (moved + mean.x * T, end)
+                    })
             };
             let offsets = p.step_offsets(p.offset(0));
             let (moved, speed) = run(&offsets);
-            assert!(moved.abs() < 1e-15 && speed.x.abs() < 1e-15, "τ {tau}: {moved} {speed}");
+            assert!(
+                moved.abs() < 1e-15 && speed.x.abs() < 1e-15,
+                "τ {tau}: {moved} {speed}"
+            );
             let (two_step, _) = run(&[offsets[0], -offsets[0]]);
             let expected = tau * (1.0 - a) * (1.0 - a);
-            assert!((two_step - expected).abs() < 1e-12, "τ {tau}: {two_step} vs {expected}");
+            assert!(
+                (two_step - expected).abs() < 1e-12,
+                "τ {tau}: {two_step} vs {expected}"
+            );
         }
         assert_eq!(settle_share(T, 0.0), None);
     }

@@ -18,8 +18,8 @@
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{
-    Cholesky, DMatrix, DVector, DefaultAllocator, Dim, Matrix3, Matrix6, OMatrix, OVector,
-    Vector3, Vector6,
+    Cholesky, DMatrix, DVector, DefaultAllocator, Dim, Matrix3, Matrix6, OMatrix, OVector, Vector3,
+    Vector6,
 };
 
 use robokey_secrecy::special::ln_add_exp;
@@ -252,7 +252,12 @@ impl DoubletModel {
     /// model's lag ([`Perturbation::mean_offsets`]), and
     /// `Cᵢᵢ = Aᵢ₋₁Cᵢ₋₁,ᵢ₋₁Aᵢ₋₁ᵀ + Q` (`C₀₀ = P₀`), `Cᵢₖ = Cᵢᵢ·(Aₖ₋₁ ⋯ Aᵢ)ᵀ` for `i < k`,
     /// stacked over the observed poses with their covariance `R` added.
-    fn predict_three(&self, inputs: &DoubletInputs, view: &DoubletView, pattern: usize) -> Prediction {
+    fn predict_three(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+        pattern: usize,
+    ) -> Prediction {
         let t = self.sample_time;
         let offsets = self.mean_offsets(pattern);
         let applied = inputs.applied_steps(offsets);
@@ -390,7 +395,9 @@ impl DoubletModel {
                 };
                 model.separations(inputs, view)
             })
-            .fold([0.0; 2], |worst, d| [worst[0].max(d[0]), worst[1].max(d[1])])
+            .fold([0.0; 2], |worst, d| {
+                [worst[0].max(d[0]), worst[1].max(d[1])]
+            })
     }
 
     /// Mahalanobis distance between the predicted observations of patterns `a` and `b`,

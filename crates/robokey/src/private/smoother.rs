@@ -436,10 +436,12 @@ impl WindowSmoother {
                 .collect(),
         };
         let perturbed = stretch.lead;
-        let part = self.eve.run(&stretch, |step| match step.checked_sub(perturbed) {
-            Some(s) => self.step_offset(s, offset),
-            None => Unicycle::zeros(),
-        });
+        let part = self
+            .eve
+            .run(&stretch, |step| match step.checked_sub(perturbed) {
+                Some(s) => self.step_offset(s, offset),
+                None => Unicycle::zeros(),
+            });
         let mut run = nominal.clone();
         for (i, step) in (start_step..end_step).enumerate() {
             run.poses[step].clone_from(&part.poses[i]);

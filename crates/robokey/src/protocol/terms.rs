@@ -147,35 +147,45 @@ mod tests {
         assert_eq!(config_digest(&a), config_digest(&b));
     }
 
+    /// The terms on which `a` (the robot's) and `b` (the controller's) differ.
+    fn difference(a: &Config, b: &Config) -> String {
+        terms_difference(
+            &agreement_terms(a),
+            &agreement_terms(b),
+            "robot",
+            "controller",
+        )
+    }
+
+    /// The default configuration in private sensing.
+    fn private() -> Config {
+        let mut config = Config::default();
+        config.sensing.mode = SensingMode::Private;
+        config
+    }
+
     #[test]
     fn the_prior_lag_is_agreed_and_its_default_leaves_the_terms_unchanged() {
-        let mut a = Config::default();
-        a.sensing.mode = SensingMode::Private;
+        let a = private();
         let two_steps = agreement_terms(&a);
         assert!(!two_steps.contains("prior_lag"), "{two_steps}");
         let mut b = a.clone();
         b.private.prior_lag = 0.05;
         assert_eq!(
-            terms_difference(&two_steps, &agreement_terms(&b), "robot", "controller"),
+            difference(&a, &b),
             "private.prior_lag: robot has (missing), controller has 0.05"
         );
         let mut c = b.clone();
         c.private.prior_lag = 0.1;
         assert_eq!(
-            terms_difference(
-                &agreement_terms(&b),
-                &agreement_terms(&c),
-                "robot",
-                "controller"
-            ),
+            difference(&b, &c),
             "private.prior_lag: robot has 0.05, controller has 0.1"
         );
     }
 
     #[test]
     fn the_camera_stated_in_frames_is_agreed_and_a_per_instant_one_unchanged() {
-        let mut a = Config::default();
-        a.sensing.mode = SensingMode::Private;
+        let a = private();
         let per_instant = agreement_terms(&a);
         assert!(!per_instant.contains("camera_fps"), "{per_instant}");
         let mut b = a.clone();
@@ -184,16 +194,11 @@ mod tests {
         let mut c = b.clone();
         c.eve.camera_fps = Some(60.0);
         assert_eq!(
-            terms_difference(
-                &agreement_terms(&b),
-                &agreement_terms(&c),
-                "robot",
-                "controller"
-            ),
+            difference(&b, &c),
             "eve.camera_fps: robot has 30, controller has 60"
         );
         assert_eq!(
-            terms_difference(&per_instant, &agreement_terms(&b), "robot", "controller"),
+            difference(&a, &b),
             "eve.camera_fps: robot has (missing), controller has 30; eve.camera_frame_std: \
              robot has (missing), controller has [0.016, 0.016, 0.016]"
         );

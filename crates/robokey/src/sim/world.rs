@@ -180,10 +180,8 @@ impl Surroundings<Robot, Controller> for World<'_> {
                     if self.config.protocol.bits_per_doublet == 2
                         && matches!(self.senses, Senses::Private(_))
                     {
-                        row.bit_omega = actuation
-                            .bit
-                            .and(robot.carried_bits(doublet))
-                            .map(|b| b[1]);
+                        row.bit_omega =
+                            actuation.bit.and(robot.carried_bits(doublet)).map(|b| b[1]);
                     }
                 }
                 if let Senses::Odometry { .. } = self.senses
