@@ -172,21 +172,20 @@ impl Surroundings<Robot, Controller> for World<'_> {
             RobotOutput::Sense { step } => self.sense(now, step, robot, controller),
             RobotOutput::Apply(actuation) => {
                 self.scene.apply(actuation.wheels);
+                let doublet = actuation.step / robot.plan().steps_per_doublet();
                 if let Senses::Private(p) = &mut self.senses
                     && actuation.bit.is_some()
-                    && let Some(bits) = robot.carried_bits(actuation.step / 2)
+                    && let Some(bits) = robot.carried_bits(doublet)
                 {
-                    p.eve.reveal(actuation.step / 2, bits);
+                    p.eve.reveal(doublet, bits);
                 }
                 if let Some(row) = self.trace.row(actuation.step as usize) {
                     row.bit = actuation.bit;
                     if self.config.protocol.bits_per_doublet == 2
                         && matches!(self.senses, Senses::Private(_))
                     {
-                        row.bit_omega = actuation
-                            .bit
-                            .and(robot.carried_bits(actuation.step / 2))
-                            .map(|b| b[1]);
+                        row.bit_omega =
+                            actuation.bit.and(robot.carried_bits(doublet)).map(|b| b[1]);
                     }
                 }
                 if let Senses::Odometry { .. } = self.senses
