@@ -43,23 +43,31 @@ pub fn camera_words(config: &Config) -> String {
 /// The plant's model class a private-sensing key rests on: white Gaussian motion noise of
 /// `noise.process_std` per step as configured, or (`postprocess.sizing = "measured"`) a 3×3
 /// covariance the controller measures per block at the worst case of its (1 − ε_est)
-/// region; no correlation, slip, lag or delay, the Euler map.
+/// region; no correlation, slip, lag or delay, the Euler map; with `private.prior_lag` τ > 0,
+/// the doublets shaped in three steps for a first-order actuator lag of τ (the stated prior).
 #[must_use]
 pub fn plant_words(config: &Config) -> String {
-    match config.postprocess.sizing {
+    let motion = match config.postprocess.sizing {
         Sizing::Configured => format!(
-            "white Gaussian motion noise {} per step as configured (not measured), no \
-             correlation, slip, lag or delay, the Euler map",
+            "white Gaussian motion noise {} per step as configured (not measured)",
             millimetres(config.noise.process_std)
         ),
         Sizing::Measured => format!(
             "white Gaussian motion noise measured by the controller per block (a 3×3 \
              covariance in the robot's frame, sized at the worst case of its (1 − ε_est) \
-             region, ε_est = {:e}; the controller sensor's calibration {} stated), no \
-             correlation, slip, lag or delay, the Euler map",
+             region, ε_est = {:e}; the controller sensor's calibration {} stated)",
             config.postprocess.epsilon,
             millimetres(config.sensing.controller_std)
         ),
+    };
+    if config.private.is_default() {
+        format!("{motion}, no correlation, slip, lag or delay, the Euler map")
+    } else {
+        format!(
+            "{motion}, no correlation, slip or delay, the Euler map; three-step doublets shaped \
+             for a first-order actuator lag of {} ms (private.prior_lag, stated, not measured)",
+            config.private.prior_lag * 1e3
+        )
     }
 }
 
@@ -210,6 +218,13 @@ mod tests {
             camera_assumption(&config, 1.0)
                 .describe()
                 .contains(&basis.camera)
+        );
+        assert!(basis.plant.contains("no correlation, slip, lag or delay"));
+        config.private.prior_lag = 0.05;
+        let shaped = key_basis(&config).unwrap().plant;
+        assert!(
+            shaped.contains("three-step doublets shaped for a first-order actuator lag of 50 ms"),
+            "{shaped}"
         );
     }
 
