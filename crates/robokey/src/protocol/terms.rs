@@ -91,7 +91,10 @@ fn sizing_terms(config: &Config) -> String {
     if config.postprocess.sizing.is_configured() {
         String::new()
     } else {
-        format!("postprocess.sizing = {}\n", config.postprocess.sizing.name())
+        format!(
+            "postprocess.sizing = {}\n",
+            config.postprocess.sizing.name()
+        )
     }
 }
 
