@@ -8,6 +8,7 @@ use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
     AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, Message, Output,
+    RejectReason,
     Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, key_id, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
@@ -313,6 +314,14 @@ impl ControllerPost {
             }
             (State::ExpectCommitAck, Message::CommitAck { .. }) => self.end_block(),
             (State::ExpectAbortAck, Message::AbortAck { .. }) => self.end_block(),
+            (State::ExpectConfirmed { .. }, Message::Reject { reason, .. })
+                if reason == RejectReason::TagMismatch =>
+            {
+                self.abort(
+                    AbortReason::Reconciliation,
+                    "the robot found our tag wrong: the reconciled keys differ".into(),
+                );
+            }
             (
                 State::ExpectAgree { .. }
                 | State::ExpectAnswer { .. }
