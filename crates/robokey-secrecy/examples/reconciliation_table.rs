@@ -83,7 +83,8 @@ fn sigma_for(q: f64) -> f64 {
         let t = 1.0 / (1.0 + 0.327_591_1 * x);
         let poly = t
             * (0.254_829_592
-                + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+                + t * (-0.284_496_736
+                    + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
         0.5 * poly * (-x * x).exp()
     };
     let (mut low, mut high) = (1e-3, 100.0);
@@ -172,7 +173,18 @@ fn main() {
     );
     println!(
         "{:7} {:>8} {:>7} {:>7} {:>7} {:>8} {:>6} {:>6} {:>8} {:>7} {:>7} {:>6} {:>9}",
-        "method", "n", "Q", "Q_real", "H(X|L)", "blocks", "fail", "undet", "FER", "f_soft", "f_hard", "iter",
+        "method",
+        "n",
+        "Q",
+        "Q_real",
+        "H(X|L)",
+        "blocks",
+        "fail",
+        "undet",
+        "FER",
+        "f_soft",
+        "f_hard",
+        "iter",
         "ms/block"
     );
     for (k, &q) in options.rates.iter().enumerate() {

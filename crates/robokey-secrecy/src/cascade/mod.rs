@@ -197,7 +197,9 @@ impl CascadeSchedule {
         if self.biconf_streak == 0 || n <= BICONF_STREAK_CALIBRATED_BITS {
             return self.biconf_streak;
         }
-        let doublings = (n as f64 / BICONF_STREAK_CALIBRATED_BITS as f64).log2().ceil() as u32;
+        let doublings = (n as f64 / BICONF_STREAK_CALIBRATED_BITS as f64)
+            .log2()
+            .ceil() as u32;
         self.biconf_streak + doublings
     }
 }
@@ -334,7 +336,10 @@ mod tests {
         let biconf = CascadeSchedule::BICONF;
         assert_eq!(biconf.biconf_streak_for(10_000), 10);
         assert_eq!(biconf.biconf_streak_for(BICONF_STREAK_CALIBRATED_BITS), 10);
-        assert_eq!(biconf.biconf_streak_for(BICONF_STREAK_CALIBRATED_BITS + 1), 11);
+        assert_eq!(
+            biconf.biconf_streak_for(BICONF_STREAK_CALIBRATED_BITS + 1),
+            11
+        );
         // 10⁶ / 2¹⁴ ≈ 61: six doublings.
         assert_eq!(biconf.biconf_streak_for(1_000_000), 16);
         assert_eq!(CascadeSchedule::ORIGINAL.biconf_streak_for(1_000_000), 0);

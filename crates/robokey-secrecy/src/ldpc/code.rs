@@ -46,7 +46,8 @@ impl ParityCheck {
             return Err(LdpcError::SyndromeLength { syndrome, block });
         }
         let mut rng = ChaCha8Rng::from_seed(seed);
-        let mut degrees = DegreeProfile::for_channel(block, syndrome, bhattacharyya).variable_degrees(block);
+        let mut degrees =
+            DegreeProfile::for_channel(block, syndrome, bhattacharyya).variable_degrees(block);
         degrees.shuffle(&mut rng);
         // Degree-2 variables form a chain through evenly spaced checks (no cycle among
         // them); any beyond m − 1 get degree 3.
@@ -157,24 +158,25 @@ pub(super) fn bit(words: &[u64], i: usize) -> bool {
     (words[i / 64] >> (i % 64)) & 1 == 1
 }
 
-/// Swaps variables repeated within `sockets[start..end]` with random sockets of later checks.
+/// Swaps variables repeated within `sockets[start..end]` with random sockets of later checks
+/// (sorted, so a repeat is a neighbour: O(d log d) per attempt for a check of degree d).
 fn separate_repeats(sockets: &mut [u32], start: usize, end: usize, rng: &mut ChaCha8Rng) {
     let len = sockets.len();
     if end >= len {
         return;
     }
-    for k in start..end {
-        for _ in 0..SWAP_ATTEMPTS {
-            let v = sockets[k];
-            if !sockets[start..end]
-                .iter()
-                .enumerate()
-                .any(|(j, &w)| start + j != k && w == v)
-            {
-                break;
-            }
+    let mut repeats = Vec::new();
+    for _ in 0..SWAP_ATTEMPTS {
+        let check = &mut sockets[start..end];
+        check.sort_unstable();
+        repeats.clear();
+        repeats.extend((1..check.len()).filter(|&k| check[k] == check[k - 1]));
+        if repeats.is_empty() {
+            return;
+        }
+        for &k in &repeats {
             let other = rng.random_range(end..len);
-            sockets.swap(k, other);
+            sockets.swap(start + k, other);
         }
     }
 }

@@ -163,10 +163,10 @@ fn phi(x: f64) -> f64 {
 /// Whether the hard decisions of `posterior` meet the syndrome (packed in `flips`).
 fn meets(code: &ParityCheck, posterior: &[f64], flips: &[u64]) -> bool {
     (0..code.syndrome_bits()).all(|c| {
-        code.check(c)
+        !code
+            .check(c)
             .iter()
             .fold(bit(flips, c), |p, &v| p ^ (posterior[v as usize] < 0.0))
-            == false
     })
 }
 

@@ -77,7 +77,7 @@ mod tests {
         let q: f64 = 0.1;
         let l = ((1.0 - q) / q).ln();
         let b = bhattacharyya(&[l, -l, l]);
-        assert!(b >= 0.6 && b < 0.6 + 1.0 / 1024.0, "{b}");
+        assert!((0.6..0.6 + 1.0 / 1024.0).contains(&b), "{b}");
         assert_eq!(bhattacharyya(&[0.0]), 1.0);
     }
 

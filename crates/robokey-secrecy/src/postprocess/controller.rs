@@ -8,8 +8,8 @@ use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
     AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, Message, Output,
-    RejectReason,
-    Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, key_id, split_sample, tag_context,
+    Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate, key_id,
+    split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
@@ -314,9 +314,13 @@ impl ControllerPost {
             }
             (State::ExpectCommitAck, Message::CommitAck { .. }) => self.end_block(),
             (State::ExpectAbortAck, Message::AbortAck { .. }) => self.end_block(),
-            (State::ExpectConfirmed { .. }, Message::Reject { reason, .. })
-                if reason == RejectReason::TagMismatch =>
-            {
+            (
+                State::ExpectConfirmed { .. },
+                Message::Reject {
+                    reason: RejectReason::TagMismatch,
+                    ..
+                },
+            ) => {
                 self.abort(
                     AbortReason::Reconciliation,
                     "the robot found our tag wrong: the reconciled keys differ".into(),
