@@ -173,8 +173,6 @@ fn meets(code: &ParityCheck, posterior: &[f64], flips: &[u64]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::rngs::ChaCha8Rng;
-    use rand::{RngExt, SeedableRng};
 
     #[test]
     fn the_tabulated_phi_is_within_a_thousandth_of_the_exact_one() {
@@ -196,19 +194,7 @@ mod tests {
     #[test]
     fn a_noisy_copy_is_corrected_at_a_generous_rate() {
         let n = 20_000;
-        let q: f64 = 0.03;
-        let mut rng = ChaCha8Rng::seed_from_u64(11);
-        let x = BitString::random(n, &mut rng);
-        let l = ((1.0 - q) / q).ln();
-        let mut errors = 0;
-        let llrs: Vec<f64> = (0..n)
-            .map(|i| {
-                let flipped = rng.random::<f64>() < q;
-                errors += usize::from(flipped);
-                let y = x.get(i).unwrap() ^ flipped;
-                if y { -l } else { l }
-            })
-            .collect();
+        let (x, llrs, errors) = super::super::test_block::bsc_block(n, 0.03, 11);
         assert!(errors > 400, "{errors}");
         // m = 1.5 · n · h(0.03) ≈ 0.29 n: far above the limit.
         let code = ParityCheck::build(n, 5_900, 0.3, [2; 32]).unwrap();

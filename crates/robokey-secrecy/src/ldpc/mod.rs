@@ -24,6 +24,8 @@ mod decoder;
 mod degrees;
 mod reconcile;
 mod soft_limit;
+#[cfg(test)]
+mod test_block;
 
 use thiserror::Error;
 

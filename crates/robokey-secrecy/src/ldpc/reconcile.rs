@@ -73,22 +73,10 @@ pub fn reconcile(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::rngs::ChaCha8Rng;
-    use rand::{RngExt, SeedableRng};
 
     #[test]
     fn a_bsc_block_is_reconciled_and_the_leak_is_the_syndrome() {
-        let n = 10_000;
-        let q: f64 = 0.02;
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let x = BitString::random(n, &mut rng);
-        let l = ((1.0 - q) / q).ln();
-        let llrs: Vec<f64> = (0..n)
-            .map(|i| {
-                let y = x.get(i).unwrap() ^ (rng.random::<f64>() < q);
-                if y { -l } else { l }
-            })
-            .collect();
+        let (x, llrs, _) = super::super::test_block::bsc_block(10_000, 0.02, 3);
         let settings = LdpcSettings {
             efficiency: 1.4,
             max_iterations: 200,
