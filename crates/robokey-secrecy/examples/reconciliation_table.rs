@@ -12,8 +12,11 @@
 //!     --channel awgn --n 100000 --blocks 1000 --q 0.005,0.0078,0.02,0.05,0.1,0.2,0.3
 //! ```
 //! Options: `--channel bsc|awgn`, `--n BITS`, `--blocks COUNT`, `--q LIST`,
-//! `--efficiency F` (LDPC design f), `--iterations CAP`, `--method ldpc|cascade|both`,
-//! `--seed S`.
+//! `--efficiency F` (LDPC design f), `--iterations CAP`, `--feedback ROUNDS` (LDPC feedback
+//! rounds at most), `--increment SHARE` (of m per feedback round), `--method
+//! ldpc|cascade|both`, `--seed S`. Columns: `undet` counts wrong blocks the decoder took for
+//! right (only the tags catch them); `rounds` is LDPC's mean rounds (Cascade's: its mean
+//! question messages); `iter` LDPC's mean belief-propagation iterations over all rounds.
 
 use std::time::Instant;
 
@@ -62,6 +65,12 @@ fn parse() -> Result<Options, String> {
             }
             "--efficiency" => {
                 options.settings.efficiency = value.parse().map_err(|e| bad(&e))?;
+            }
+            "--feedback" => {
+                options.settings.feedback_rounds = value.parse().map_err(|e| bad(&e))?;
+            }
+            "--increment" => {
+                options.settings.increment = value.parse().map_err(|e| bad(&e))?;
             }
             "--iterations" => {
                 options.settings.max_iterations = value.parse().map_err(|e| bad(&e))?;
@@ -134,6 +143,7 @@ struct Tally {
     soft: f64,
     hard: f64,
     iterations: f64,
+    rounds: f64,
     seconds: f64,
 }
 
@@ -141,7 +151,7 @@ impl Tally {
     fn row(&self, method: &str, options: &Options, q: f64, errors: f64) {
         let b = self.blocks.max(1) as f64;
         println!(
-            "{:7} {:>8} {:>7.4} {:>7.5} {:>7.5} {:>8} {:>6} {:>6} {:>8.4} {:>7.4} {:>7.4} {:>6.1} {:>9.1}",
+            "{:7} {:>8} {:>7.4} {:>7.5} {:>7.5} {:>8} {:>6} {:>6} {:>8.4} {:>7.4} {:>7.4} {:>7.2} {:>6.1} {:>9.1}",
             method,
             options.n,
             q,
@@ -153,6 +163,7 @@ impl Tally {
             self.failures as f64 / b,
             self.leak / self.soft,
             self.leak / self.hard,
+            self.rounds / b,
             self.iterations / b,
             1e3 * self.seconds / b,
         );
@@ -168,8 +179,13 @@ fn main() {
         }
     };
     println!(
-        "# channel {}, LDPC f = {}, ≤ {} iterations, seed {}",
-        options.channel, options.settings.efficiency, options.settings.max_iterations, options.seed
+        "# channel {}, LDPC f = {}, ≤ {} iterations, ≤ {} feedback rounds of {}·m bits, seed {}",
+        options.channel,
+        options.settings.efficiency,
+        options.settings.max_iterations,
+        options.settings.feedback_rounds,
+        options.settings.increment,
+        options.seed
     );
     println!(
         "{:7} {:>8} {:>7} {:>7} {:>7} {:>8} {:>6} {:>6} {:>8} {:>7} {:>7} {:>6} {:>9}",
@@ -208,6 +224,7 @@ fn main() {
                         ldpc.undetected += usize::from(out.converged && out.corrected != x);
                         ldpc.leak += out.leak as f64;
                         ldpc.iterations += f64::from(out.iterations);
+                        ldpc.rounds += f64::from(out.rounds);
                     }
                     Err(e) => {
                         eprintln!("LDPC at Q = {q}: {e}");
@@ -227,7 +244,7 @@ fn main() {
                         cascade.failures += usize::from(out.corrected != x);
                         cascade.undetected += usize::from(out.corrected != x);
                         cascade.leak += out.leak as f64;
-                        cascade.iterations += f64::from(out.messages);
+                        cascade.rounds += f64::from(out.messages);
                     }
                     Err(_) => cascade.failures += 1,
                 }

@@ -109,6 +109,68 @@ impl ParityCheck {
         })
     }
 
+    /// `checks` further checks of `check_degree` distinct variables each, drawn uniformly by
+    /// ChaCha8 from `seed`: the increment of a feedback round, to be [`Self::stacked`] under a
+    /// code whose decoding failed.
+    pub fn extension(
+        block: usize,
+        checks: usize,
+        check_degree: usize,
+        seed: [u8; 32],
+    ) -> Result<Self, LdpcError> {
+        if block == 0 || block > MAX_BLOCK_BITS {
+            return Err(LdpcError::BlockLength(block));
+        }
+        if checks == 0 || checks > block {
+            return Err(LdpcError::SyndromeLength {
+                syndrome: checks,
+                block,
+            });
+        }
+        let degree = check_degree.clamp(1, block);
+        let mut rng = ChaCha8Rng::from_seed(seed);
+        let mut starts = Vec::with_capacity(checks + 1);
+        let mut variables = Vec::with_capacity(checks * degree);
+        let mut check: Vec<u32> = Vec::with_capacity(degree);
+        starts.push(0);
+        for _ in 0..checks {
+            check.clear();
+            while check.len() < degree {
+                check.extend((check.len()..degree).map(|_| rng.random_range(0..block) as u32));
+                check.sort_unstable();
+                check.dedup();
+            }
+            variables.extend_from_slice(&check);
+            starts.push(variables.len());
+        }
+        Ok(Self {
+            block,
+            starts,
+            variables,
+        })
+    }
+
+    /// This code's checks followed by `below`'s (same block length).
+    pub fn stacked(&self, below: &Self) -> Result<Self, LdpcError> {
+        if below.block != self.block {
+            return Err(LdpcError::Length {
+                what: "stacked code",
+                got: below.block,
+                expected: self.block,
+            });
+        }
+        let offset = self.variables.len();
+        let mut starts = self.starts.clone();
+        starts.extend(below.starts[1..].iter().map(|&s| s + offset));
+        let mut variables = self.variables.clone();
+        variables.extend_from_slice(&below.variables);
+        Ok(Self {
+            block: self.block,
+            starts,
+            variables,
+        })
+    }
+
     /// Block length n.
     #[must_use]
     pub fn block(&self) -> usize {
@@ -224,6 +286,28 @@ mod tests {
             .xor(&code.syndrome(&y).unwrap())
             .unwrap();
         assert_eq!(sum, parts);
+    }
+
+    #[test]
+    fn a_stacked_code_checks_both_codes() {
+        let base = ParityCheck::build(2_000, 300, 0.3, [4; 32]).unwrap();
+        let extra = ParityCheck::extension(2_000, 30, 40, [5; 32]).unwrap();
+        assert!((0..30).all(|c| extra.check(c).len() == 40));
+        let both = base.stacked(&extra).unwrap();
+        assert_eq!(both.syndrome_bits(), 330);
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        let x = BitString::random(2_000, &mut rng);
+        let (s, e, b) = (
+            base.syndrome(&x).unwrap(),
+            extra.syndrome(&x).unwrap(),
+            both.syndrome(&x).unwrap(),
+        );
+        assert!((0..300).all(|c| b.get(c) == s.get(c)));
+        assert!((0..30).all(|c| b.get(300 + c) == e.get(c)));
+        assert!(
+            base.stacked(&ParityCheck::build(10, 1, 0.3, [0; 32]).unwrap())
+                .is_err()
+        );
     }
 
     #[test]

@@ -10,11 +10,15 @@
 //! robot sends s = H·x; the controller finds x̂ with H·x̂ = s by log-domain sum-product belief
 //! propagation ([`SyndromeDecoder`], capped iterations). The block tags then verify x̂ = x.
 //!
+//! If decoding fails (the syndrome is not met within the iteration cap), the controller may ask
+//! for ⌈increment · m⌉ more syndrome bits of further random checks, up to
+//! [`LdpcSettings::feedback_rounds`] times, and decodes the stacked code again.
+//!
 //! **Leak.** The transcript is the public seed, m and B (functions of the controller's LLR
-//! magnitudes, not of x), and the m syndrome bits, so
-//! H_min^ε(X | E, transcript) ≥ H_min^ε(X | E) − m: leak_EC = m exactly, one round, no
-//! feedback (log₂ 1 = 0), nothing revealed. A block whose decoding fails (syndrome not met
-//! within the iteration cap) or whose tags differ is discarded like a failed Cascade block.
+//! magnitudes, not of x), every syndrome bit sent, and the number of rounds used, so
+//! H_min^ε(X | E, transcript) ≥ H_min^ε(X | E) − (syndrome bits + ⌈log₂(R + 1)⌉) for at most R
+//! feedback rounds; nothing is revealed. A block still undecoded after the last round, or
+//! whose tags differ, is discarded like a failed Cascade block.
 //!
 //! Sizes are bounded before any work: n ≤ [`MAX_BLOCK_BITS`], m ≤ n, iterations ≤
 //! [`MAX_ITERATIONS`].
@@ -32,7 +36,7 @@ use thiserror::Error;
 pub use code::ParityCheck;
 pub use decoder::{Decoded, SyndromeDecoder};
 pub use degrees::DegreeProfile;
-pub use reconcile::{LdpcReconciliation, LdpcSettings, reconcile};
+pub use reconcile::{LdpcReconciliation, LdpcSettings, MAX_FEEDBACK_ROUNDS, reconcile};
 pub use soft_limit::{bhattacharyya, bit_error_probability, soft_limit_bits, syndrome_length};
 
 /// Largest block one LDPC code may cover (bits): 2²².
@@ -71,6 +75,16 @@ pub enum LdpcError {
         got: usize,
         /// The code's.
         expected: usize,
+    },
+    /// The feedback rounds exceed [`MAX_FEEDBACK_ROUNDS`] or the increment is outside (0, 1].
+    #[error(
+        "LDPC feedback: {rounds} rounds of {increment}·m bits; allowed at most {MAX_FEEDBACK_ROUNDS} rounds, increment in (0, 1]"
+    )]
+    Feedback {
+        /// Requested rounds.
+        rounds: u32,
+        /// Requested increment.
+        increment: f64,
     },
     /// An LLR is NaN.
     #[error("LLR at position {0} is NaN")]
