@@ -168,7 +168,8 @@ impl CascadeSchedule {
         biconf_complement: false,
     };
     /// "biconf" (Demystifying's Cascade mod. (1)): 2 passes, k1 = ⌈0.92/Q⌉, ×3, then BICONF
-    /// on a random half and its complement until 10 rounds in a row find no error.
+    /// on a random half and its complement until 10 rounds in a row find no error (more beyond
+    /// 2¹⁴ bits: [`CascadeSchedule::biconf_streak_for`]).
     pub const BICONF: Self = Self {
         passes: 2,
         first_block_factor: 0.92,
