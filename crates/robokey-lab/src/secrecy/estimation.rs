@@ -27,8 +27,12 @@ pub struct BlockEstimate {
     pub doublets: usize,
     /// The point estimate's standard deviations √Q̂_kk (mm, mm, mrad; robot frame).
     pub point_std_mm: [f64; 3],
-    /// The region's worst-case vertex's √Q_low,kk (mm, mm, mrad): what sizes Eve's view.
+    /// The region's lowest vertex's √Q_low,kk at the correlation's upper end (mm, mm, mrad).
     pub lower_std_mm: [f64; 3],
+    /// The motion noise's AR(1) correlation between steps: the point estimate ρ̂.
+    pub correlation: f64,
+    /// Its (1 − ε_est/2) interval `[ρ_lo, ρ_hi]`, over which Eve's view is sized.
+    pub correlation_interval: [f64; 2],
     /// ε_est.
     pub epsilon: f64,
     /// The largest separation of Eve's view over the block's bits at the worst case, rounded
@@ -79,6 +83,8 @@ pub fn block_separations(
                 doublets,
                 point_std_mm: [f64::NAN; 3],
                 lower_std_mm: [f64::NAN; 3],
+                correlation: f64::NAN,
+                correlation_interval: [f64::NAN; 2],
                 epsilon,
                 separation: REFUSED_SEPARATION,
                 refused: Some(why),
@@ -99,15 +105,18 @@ pub fn block_separations(
                 config.sensing.controller_std,
                 config.eve.camera_std,
             );
-            match worst_case_separations(&model, &estimate.lower, &b.inputs, &view) {
+            match worst_case_separations(&model, &estimate, &b.inputs, &view) {
                 Some(d) => largest = d[..bits].iter().fold(largest, |m, &x| m.max(x)),
                 None => {
                     return refuse(
                         format!(
                             "motion-noise estimate: at the region's worst case (Q_low's \
-                             diagonal {:?} m², m², rad²) Eve's modelled covariance is not \
-                             positive definite at doublet {} (allowed: a bound exists)",
+                             diagonal {:?} m², m², rad², ρ in [{:.3}, {:.3}]) Eve's modelled \
+                             covariance is not positive definite at doublet {} (allowed: a \
+                             bound exists)",
                             [0, 1, 2].map(|k| estimate.lower[(k, k)]),
+                            estimate.correlation.interval[0],
+                            estimate.correlation.interval[1],
                             b.doublet
                         ),
                         residuals.len(),
@@ -126,6 +135,8 @@ pub fn block_separations(
             doublets: estimate.doublets,
             point_std_mm: mm(point),
             lower_std_mm: mm(lower),
+            correlation: estimate.correlation.point,
+            correlation_interval: estimate.correlation.interval,
             epsilon,
             separation,
             refused: None,
