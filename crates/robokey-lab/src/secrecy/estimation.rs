@@ -8,9 +8,10 @@
 
 use robokey::Config;
 use robokey::estimate::{
-    DoubletResidual, diagonal_covariance, estimate_motion_noise, published_separation,
-    worst_case_separations,
+    DoubletResidual, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
+    published_separation, worst_case_separations,
 };
+use robokey::world::WorldModel;
 use robokey::private::likelihood::stated_camera_view;
 use robokey::private::{DoubletSamples, doublet_model};
 use robokey::sim::RunOutput;
@@ -76,25 +77,57 @@ pub fn block_separations(
         })
         .collect();
     let sensor = diagonal_covariance(config.sensing.controller_std);
-    let refuse = |why: String, doublets: usize| {
-        (
-            vec![REFUSED_SEPARATION; runs.len()],
-            BlockEstimate {
-                doublets,
-                point_std_mm: [f64::NAN; 3],
-                lower_std_mm: [f64::NAN; 3],
-                correlation: f64::NAN,
-                correlation_interval: [f64::NAN; 2],
-                epsilon,
-                separation: REFUSED_SEPARATION,
-                refused: Some(why),
-            },
-        )
-    };
-    let estimate = match estimate_motion_noise(&residuals, &sensor, epsilon) {
-        Ok(e) => e,
-        Err(refusal) => return refuse(refusal.to_string(), residuals.len()),
-    };
+    match estimate_motion_noise(&residuals, &sensor, epsilon) {
+        Ok(estimate) => size_block(config, runs, &estimate),
+        Err(refusal) => refused(runs.len(), refusal.to_string(), residuals.len(), epsilon),
+    }
+}
+
+/// The separations and report of a refused block of `sessions` sessions.
+fn refused(sessions: usize, why: String, doublets: usize, epsilon: f64) -> (Vec<f64>, BlockEstimate) {
+    (
+        vec![REFUSED_SEPARATION; sessions],
+        BlockEstimate {
+            doublets,
+            point_std_mm: [f64::NAN; 3],
+            lower_std_mm: [f64::NAN; 3],
+            correlation: f64::NAN,
+            correlation_interval: [f64::NAN; 2],
+            epsilon,
+            separation: REFUSED_SEPARATION,
+            refused: Some(why),
+        },
+    )
+}
+
+/// As [`block_separations`], with the simulated world's own stationary motion noise and
+/// AR(1) correlation in place of the estimate's region: what a pair configured with the
+/// true world sizes (`--sizing world`, the comparison for measured sizing).
+#[must_use]
+pub fn world_block_separations(
+    config: &Config,
+    runs: &[&RunOutput],
+    epsilon: f64,
+) -> (Vec<f64>, BlockEstimate) {
+    let world = WorldModel::of(config);
+    let truth = MotionNoiseEstimate::known(
+        diagonal_covariance(world.process_std),
+        world.process_rho,
+        epsilon,
+    );
+    size_block(config, runs, &truth)
+}
+
+/// Each of `runs`' sessions' largest separation of Eve's view at the worst case of
+/// `estimate`'s region, and the block's report.
+fn size_block(
+    config: &Config,
+    runs: &[&RunOutput],
+    estimate: &MotionNoiseEstimate,
+) -> (Vec<f64>, BlockEstimate) {
+    let model = doublet_model(config);
+    let epsilon = estimate.epsilon;
+    let refuse = |why: String, doublets: usize| refused(runs.len(), why, doublets, epsilon);
     let bits = usize::from(config.protocol.bits_per_doublet);
     let mut separations = Vec::with_capacity(runs.len());
     for run in runs {
@@ -105,7 +138,7 @@ pub fn block_separations(
                 config.sensing.controller_std,
                 config.eve.camera_std,
             );
-            match worst_case_separations(&model, &estimate, &b.inputs, &view) {
+            match worst_case_separations(&model, estimate, &b.inputs, &view) {
                 Some(d) => largest = d[..bits].iter().fold(largest, |m, &x| m.max(x)),
                 None => {
                     return refuse(
@@ -119,7 +152,7 @@ pub fn block_separations(
                             estimate.correlation.interval[1],
                             b.doublet
                         ),
-                        residuals.len(),
+                        estimate.doublets,
                     );
                 }
             }

@@ -23,7 +23,7 @@
 //! **Interval.** The pairs cut into contiguous batches (the AR(1) memory decays by ρ² per
 //! doublet, far within a batch); the pooled ratio's linearised batch terms
 //! `u = Σ_k w_k (ā_k − r_k b̄_k)/b_k` give its standard error `s/√B`. With `s²` bounded
-//! above by its χ²_{B−1} lower quantile at ε/4 (Wilson–Hilferty) and the normal quantile at ε/8
+//! above by its χ²_{B−1} lower quantile at ε/2 (Wilson–Hilferty) and the normal quantile at ε/4
 //! each side, `r ∈ r̂ ± z·σ_up` except with probability ε (asymptotically: the central limit
 //! over batches); `g` is monotone on the class, so `ρ ∈ [g⁻¹(r_lo), g⁻¹(r_hi)]`.
 //!
@@ -53,7 +53,7 @@ pub const HIGHEST_CORRELATION: f64 = 0.999;
 pub const MIN_PAIRS_PER_BATCH: usize = 25;
 
 /// Batches the interval's standard error is computed from, at most.
-pub const MAX_BATCHES: usize = 200;
+pub const MAX_BATCHES: usize = 400;
 
 /// What the controller measured of the motion noise's correlation between steps.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -213,9 +213,9 @@ pub fn estimate_correlation(
     let variance = u.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / dof;
     let spread = 2.0 / (9.0 * dof);
     let lower_quantile =
-        (1.0 - spread - normal_upper_quantile(epsilon / 4.0) * spread.sqrt()).max(1e-3).powi(3);
+        (1.0 - spread - normal_upper_quantile(epsilon / 2.0) * spread.sqrt()).max(1e-3).powi(3);
     let sigma_up = (variance / lower_quantile / batches as f64).sqrt();
-    let z = normal_upper_quantile(epsilon / 8.0);
+    let z = normal_upper_quantile(epsilon / 4.0);
     let point = correlation_of(ratio);
     let interval = [
         correlation_of(ratio - z * sigma_up),

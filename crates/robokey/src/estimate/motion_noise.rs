@@ -148,7 +148,7 @@ pub enum EstimationRefusal {
          {partition}, class {lo:.3}–{hi:.3} {unit}: measured/pooled variance along the {axis} axis \
          per class {ratios}, statistic {statistic:.1}, allowed: within ±{limit:.1} at level \
          ε_est): slip, noise that depends on the speed or the turn, or a turn-dependent \
-         residual the model leaves — outside the white-noise class this estimator covers",
+         residual the model leaves — outside the class this estimator covers (one Q)",
         partition = .0.partition,
         lo = .0.range[0],
         hi = .0.range[1],
@@ -468,6 +468,30 @@ fn step_weights([a, b]: [f64; 2]) -> [[f64; 2]; 2] {
 }
 
 impl MotionNoiseEstimate {
+    /// The degenerate region of a world whose stationary motion noise `q` (robot frame) and
+    /// correlation `rho` are known: every corner at the truth. What a pair configured with
+    /// the true world sizes from, for comparison in the simulator.
+    #[must_use]
+    pub fn known(q: Matrix3<f64>, rho: f64, epsilon: f64) -> Self {
+        let cell = [rho, rho];
+        Self {
+            doublets: 0,
+            point: q,
+            correlation: Correlation {
+                point: rho,
+                interval: cell,
+            },
+            lower: q,
+            upper: q,
+            corners: [Corner {
+                correlation: cell,
+                motion: q,
+                step_weights: step_weights(cell),
+            }; CORRELATION_CELLS],
+            epsilon,
+        }
+    }
+
     /// Standard deviations `√Q_kk` of the point estimate and the lower vertex (m, m, rad;
     /// the vertex's negative diagonal entries read 0), for people.
     #[must_use]
