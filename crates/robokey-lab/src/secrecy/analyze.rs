@@ -909,10 +909,7 @@ mod tests {
     fn measured_sizing_estimates_correlation_and_nearly_matches_the_true_world() {
         let world = private("[world]\nprocess_rho = 0.9\n");
         let camera = || private_options(vec![EveStrategy::Camera]);
-        let sized = |sizing| SecrecyOptions {
-            sizing,
-            ..camera()
-        };
+        let sized = |sizing| SecrecyOptions { sizing, ..camera() };
         let m = &analyze(&world, &sized(Sizing::Measured)).unwrap()[0];
         let t = &analyze(&world, &sized(Sizing::World)).unwrap()[0];
         let c = &analyze(&world, &camera()).unwrap()[0];

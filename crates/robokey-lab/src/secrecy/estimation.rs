@@ -11,10 +11,10 @@ use robokey::estimate::{
     DoubletResidual, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
     published_separation, worst_case_separations,
 };
-use robokey::world::WorldModel;
 use robokey::private::likelihood::stated_camera_view;
 use robokey::private::{DoubletSamples, doublet_model};
 use robokey::sim::RunOutput;
+use robokey::world::WorldModel;
 use serde::{Deserialize, Serialize};
 
 /// The separation fed for the sessions of a refused block: Eve is taken to see every bit
@@ -84,7 +84,12 @@ pub fn block_separations(
 }
 
 /// The separations and report of a refused block of `sessions` sessions.
-fn refused(sessions: usize, why: String, doublets: usize, epsilon: f64) -> (Vec<f64>, BlockEstimate) {
+fn refused(
+    sessions: usize,
+    why: String,
+    doublets: usize,
+    epsilon: f64,
+) -> (Vec<f64>, BlockEstimate) {
     (
         vec![REFUSED_SEPARATION; sessions],
         BlockEstimate {

@@ -125,7 +125,11 @@ pub fn parity_inflation(rho: f64) -> f64 {
 /// One pair's motion products per axis: `[a_k, b_k, N_k]` — the lag-one product with the
 /// shared sample's expectation removed, the mean motion variance of the two, and their mean
 /// sensor variance.
-fn pair_terms(first: &DoubletResidual, second: &DoubletResidual, sensor: &Matrix3<f64>) -> [[f64; 3]; 3] {
+fn pair_terms(
+    first: &DoubletResidual,
+    second: &DoubletResidual,
+    sensor: &Matrix3<f64>,
+) -> [[f64; 3]; 3] {
     let shared = -(first.sensor_maps[0] * sensor * second.sensor_maps[1].transpose());
     let [n1, n2] = [first, second].map(|r| r.sensor_part(sensor));
     std::array::from_fn(|k| {
@@ -139,7 +143,10 @@ fn pair_terms(first: &DoubletResidual, second: &DoubletResidual, sensor: &Matrix
 
 /// The pairs `(j, j+1)` and `(j, j+2)` of doublets within the residuals' sessions (the
 /// indices run on where a session ends, so a pair must be consecutive in the list too).
-fn pairs(residuals: &[DoubletResidual], gap: u32) -> impl Iterator<Item = (&DoubletResidual, &DoubletResidual)> {
+fn pairs(
+    residuals: &[DoubletResidual],
+    gap: u32,
+) -> impl Iterator<Item = (&DoubletResidual, &DoubletResidual)> {
     let gap_usize = gap as usize;
     residuals
         .iter()
@@ -179,7 +186,11 @@ pub fn estimate_correlation(
     let raw = [0, 1, 2].map(|k| {
         let signal = b[k].max(0.0);
         let fraction = signal / (signal + noise[k]);
-        if fraction.is_finite() { fraction * fraction } else { 0.0 }
+        if fraction.is_finite() {
+            fraction * fraction
+        } else {
+            0.0
+        }
     });
     let weight_sum: f64 = raw.iter().sum();
     if !(weight_sum > 0.0) {
@@ -212,8 +223,9 @@ pub fn estimate_correlation(
     let dof = (batches - 1) as f64;
     let variance = u.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / dof;
     let spread = 2.0 / (9.0 * dof);
-    let lower_quantile =
-        (1.0 - spread - normal_upper_quantile(epsilon / 2.0) * spread.sqrt()).max(1e-3).powi(3);
+    let lower_quantile = (1.0 - spread - normal_upper_quantile(epsilon / 2.0) * spread.sqrt())
+        .max(1e-3)
+        .powi(3);
     let sigma_up = (variance / lower_quantile / batches as f64).sqrt();
     let z = normal_upper_quantile(epsilon / 4.0);
     let point = correlation_of(ratio);

@@ -201,10 +201,9 @@ mod tests {
         for seed in 0..40 {
             let data = residuals(2e-3, 0.0, 700 + seed);
             let estimate = estimate_motion_noise(&data, &sensor, 1e-6).unwrap();
-            rejected +=
-                usize::from(
-                    speed_class_departure(&data, &estimate.point, 0.0, 1.5, &sensor, 0.05).is_some(),
-                );
+            rejected += usize::from(
+                speed_class_departure(&data, &estimate.point, 0.0, 1.5, &sensor, 0.05).is_some(),
+            );
         }
         assert!(
             rejected <= 6,

@@ -13,8 +13,8 @@ pub mod motion_noise;
 pub mod residual;
 pub mod worst_case;
 
-pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use correlation::Correlation;
+pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use motion_noise::{
     Corner, EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
 };

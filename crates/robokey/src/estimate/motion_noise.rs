@@ -29,8 +29,8 @@ use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
 use thiserror::Error;
 
 use super::correlation::{
-    Correlation, CorrelationDeparture, LOWEST_CORRELATION, estimate_correlation,
-    parity_inflation, variance_inflation,
+    Correlation, CorrelationDeparture, LOWEST_CORRELATION, estimate_correlation, parity_inflation,
+    variance_inflation,
 };
 use super::homogeneity::{ClassDeparture, speed_class_departure};
 use super::residual::DoubletResidual;
@@ -398,9 +398,14 @@ pub fn estimate_motion_noise(
         step_weights: step_weights(cells[i]),
     });
     let lower = vertices[CORRELATION_CELLS - 1][1];
-    if let Some(departure) =
-        speed_class_departure(residuals, &point, correlation.point, inflation, sensor, epsilon)
-    {
+    if let Some(departure) = speed_class_departure(
+        residuals,
+        &point,
+        correlation.point,
+        inflation,
+        sensor,
+        epsilon,
+    ) {
         return Err(EstimationRefusal::NotHomogeneous(departure));
     }
     let kurtosis = mardia_kurtosis(residuals, &all);
@@ -698,7 +703,11 @@ pub(super) mod tests {
                 let e = estimate_motion_noise(&data, &sensor, 1e-6)
                     .unwrap_or_else(|error| panic!("ρ {rho} seed {seed}: {error}"));
                 let [lo, hi] = e.correlation.interval;
-                assert!(lo <= rho && rho <= hi, "ρ {rho} seed {seed}: {:?}", e.correlation);
+                assert!(
+                    lo <= rho && rho <= hi,
+                    "ρ {rho} seed {seed}: {:?}",
+                    e.correlation
+                );
                 for k in 0..3 {
                     let rel = e.point[(k, k)] / truth[(k, k)] - 1.0;
                     assert!(rel.abs() < 0.1, "ρ {rho} seed {seed} axis {k}: {rel}");

@@ -86,7 +86,9 @@ fn corner_separations(
     let eigen = SymmetricEigen::new(corner.motion);
     let part = |sign: f64| {
         let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
-        h * eigen.eigenvectors * Matrix3::from_diagonal(&kept) * eigen.eigenvectors.transpose()
+        h * eigen.eigenvectors
+            * Matrix3::from_diagonal(&kept)
+            * eigen.eigenvectors.transpose()
             * h.transpose()
     };
     let (positive, negative) = (part(1.0), part(-1.0));
@@ -102,12 +104,15 @@ fn corner_separations(
         let a1 = state_jacobian(m1.z, b.x, t);
         let c11 = a0 * start.covariance * a0.transpose() + own;
         let c12 = c11 * a1.transpose() + across;
-        let c22 = a1 * c11 * a1.transpose() + a1 * across + across.transpose() * a1.transpose() + own;
+        let c22 =
+            a1 * c11 * a1.transpose() + a1 * across + across.transpose() * a1.transpose() + own;
         let mut s = Matrix6::zeros();
-        s.fixed_view_mut::<3, 3>(0, 0).copy_from(&(c11 + middle.covariance));
+        s.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&(c11 + middle.covariance));
         s.fixed_view_mut::<3, 3>(0, 3).copy_from(&c12);
         s.fixed_view_mut::<3, 3>(3, 0).copy_from(&c12.transpose());
-        s.fixed_view_mut::<3, 3>(3, 3).copy_from(&(c22 + end.covariance));
+        s.fixed_view_mut::<3, 3>(3, 3)
+            .copy_from(&(c22 + end.covariance));
         let mut mean = Vector6::zeros();
         mean.fixed_rows_mut::<3>(0).copy_from(&m1);
         mean.fixed_rows_mut::<3>(3).copy_from(&m2);
@@ -194,7 +199,10 @@ mod tests {
         let expected = white_model.separations(&inputs, &view);
         let got = corner_separations(&model, &white(q), &inputs, &view).unwrap();
         for k in 0..2 {
-            assert!((got[k] - expected[k]).abs() <= 1e-6 * expected[k], "{got:?} {expected:?}");
+            assert!(
+                (got[k] - expected[k]).abs() <= 1e-6 * expected[k],
+                "{got:?} {expected:?}"
+            );
         }
     }
 
@@ -229,7 +237,10 @@ mod tests {
                 };
                 let d = corner_separations(&model, &member, &inputs, &view).unwrap();
                 for k in 0..2 {
-                    assert!(d[k] <= vertex[k] + 1e-12, "{cell:?} ρ {rho}: {d:?} > {vertex:?}");
+                    assert!(
+                        d[k] <= vertex[k] + 1e-12,
+                        "{cell:?} ρ {rho}: {d:?} > {vertex:?}"
+                    );
                 }
             }
         }
@@ -252,6 +263,12 @@ mod tests {
             };
             corner_separations(&model, &corner, &inputs, &view).unwrap()[0]
         };
-        assert!(at(0.5) > at(0.0) && at(0.9) > at(0.5), "{} {} {}", at(0.0), at(0.5), at(0.9));
+        assert!(
+            at(0.5) > at(0.0) && at(0.9) > at(0.5),
+            "{} {} {}",
+            at(0.0),
+            at(0.5),
+            at(0.9)
+        );
     }
 }
