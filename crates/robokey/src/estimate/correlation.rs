@@ -193,7 +193,7 @@ pub fn estimate_correlation(
         }
     });
     let weight_sum: f64 = raw.iter().sum();
-    if !(weight_sum > 0.0) {
+    if weight_sum <= 0.0 {
         return Err(CorrelationDeparture::OutsideClass { ratio: f64::NAN });
     }
     let weights = raw.map(|w| w / weight_sum);
