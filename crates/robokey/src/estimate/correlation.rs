@@ -262,9 +262,8 @@ pub fn estimate_correlation(
 pub(super) mod tests {
     use super::*;
     use crate::estimate::diagonal_covariance;
-    use crate::estimate::motion_noise::tests::simulated_residuals;
-    use crate::model::{Pose, Unicycle};
-    use crate::private::DoubletInputs;
+    use crate::estimate::motion_noise::tests::{simulated_residuals, straight_and_turning};
+    use crate::model::Pose;
     use std::cell::RefCell;
 
     const SENSOR: [f64; 3] = [5e-4; 3];
@@ -283,13 +282,7 @@ pub(super) mod tests {
             doublets,
             SENSOR,
             seed,
-            |j| {
-                let turn = if j % 7 < 3 { 0.0 } else { 0.4 };
-                DoubletInputs {
-                    first: Unicycle::new(0.1, turn),
-                    second: Unicycle::new(0.1, turn),
-                }
-            },
+            straight_and_turning,
             |_, heading, normal| {
                 let mut state = state.borrow_mut();
                 let fresh = [0; 3].map(|_| std * normal());

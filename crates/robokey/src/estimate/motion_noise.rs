@@ -528,13 +528,7 @@ pub(super) mod tests {
             doublets,
             r_std,
             seed,
-            |j| {
-                let turn = if j % 7 < 3 { 0.0 } else { 0.4 };
-                DoubletInputs {
-                    first: Unicycle::new(0.1, turn),
-                    second: Unicycle::new(0.1, turn),
-                }
-            },
+            straight_and_turning,
             |_, _, normal| {
                 Pose::new(
                     q_std[0] * normal(),
@@ -543,6 +537,16 @@ pub(super) mod tests {
                 )
             },
         )
+    }
+
+    /// Doublet `j`'s nominal inputs in the tests: 0.1 m/s, straight three doublets in seven,
+    /// turning at 0.4 rad/s the other four.
+    pub(in crate::estimate) fn straight_and_turning(j: u32) -> DoubletInputs {
+        let turn = if j % 7 < 3 { 0.0 } else { 0.4 };
+        DoubletInputs {
+            first: Unicycle::new(0.1, turn),
+            second: Unicycle::new(0.1, turn),
+        }
     }
 
     /// Residuals of `doublets` consecutive doublets of nominal inputs `inputs(j)`, each step's
