@@ -215,7 +215,13 @@ fn analyze_point(
         sample_bits: options.sample_bits,
         block_bits: options.block_bits,
         assumption: if measured {
-            robokey::post_settings::measured_camera_assumption(config, 0.0, options.epsilon)
+            let assumption =
+                robokey::post_settings::measured_camera_assumption(config, 0.0, options.epsilon);
+            if options.sizing == Sizing::World {
+                estimation::world_known(assumption)
+            } else {
+                assumption
+            }
         } else if is_private {
             robokey::post_settings::camera_assumption(config, private::largest_separation(runs))
         } else {
@@ -924,6 +930,7 @@ mod tests {
         let t = &analyze(&world, &sized(Sizing::World)).unwrap()[0];
         let c = &analyze(&world, &camera()).unwrap()[0];
         measured_holds_where_configured_over_claims(m, c, t);
+        assert!(t.assumption.contains("simulated world"), "{}", t.assumption);
         let e = m.blocks[0].estimate.as_ref().unwrap();
         assert!(e.refused.is_none(), "{e:?}");
         let [lo, hi] = e.correlation_interval;

@@ -15,6 +15,7 @@ use robokey::private::likelihood::stated_camera_view;
 use robokey::private::{DoubletSamples, doublet_model};
 use robokey::sim::RunOutput;
 use robokey::world::WorldModel;
+use robokey_secrecy::postprocess::Assumption;
 use serde::{Deserialize, Serialize};
 
 /// The separation fed for the sessions of a refused block: Eve is taken to see every bit
@@ -121,6 +122,31 @@ pub fn world_block_separations(
         epsilon,
     );
     size_block(config, runs, &truth)
+}
+
+/// The measured sizing's `assumption` restated for `--sizing world`: the motion noise and
+/// correlation are the simulated world's, known, not measured.
+#[must_use]
+pub fn world_known(assumption: Assumption) -> Assumption {
+    match assumption {
+        Assumption::MeasuredViews {
+            separation,
+            statement,
+            estimation_epsilon,
+            estimate_leak,
+        } => Assumption::MeasuredViews {
+            separation,
+            statement: statement.replacen(
+                "motion noise measured by the controller per block",
+                "motion noise and its correlation those of the simulated world, known to the \
+                 parties (--sizing world: a pair configured with the true world)",
+                1,
+            ),
+            estimation_epsilon,
+            estimate_leak,
+        },
+        other => other,
+    }
 }
 
 /// Each of `runs`' sessions' largest separation of Eve's view at the worst case of
