@@ -102,7 +102,8 @@ pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
 /// Private sensing's statement about Eve with the plant measured (docs/estimation.md): her
 /// camera noise at least `eve.camera_std`, the exact model and the controller's boundary
 /// samples hers, the motion noise the controller estimates per block from its own samples
-/// (white Gaussian, a 3×3 covariance in the robot's frame; the sensor's calibration
+/// (Gaussian, a 3×3 stationary covariance in the robot's frame and AR(1) correlation
+/// ρ ≥ −½ between steps; the sensor's calibration
 /// `sensing.controller_std` stated); her view of each bit at most as informative as a
 /// Gaussian LLR of `separation` at the worst case of the estimate's (1 − `estimation_epsilon`)
 /// region; the published outcome of the estimate charged [`ESTIMATE_LEAK_BITS`].
@@ -115,9 +116,10 @@ pub fn measured_camera_assumption(
     Assumption::MeasuredViews {
         separation,
         statement: format!(
-            "Eve's camera noise ≥ {}, motion noise measured by the controller per block (white \
-             Gaussian, 3×3 in the robot's frame, the controller sensor's calibration {} stated), \
-             exact model, the controller's boundary samples known to her",
+            "Eve's camera noise ≥ {}, motion noise measured by the controller per block \
+             (Gaussian, 3×3 in the robot's frame, AR(1)-correlated between steps with ρ ≥ −0.5, \
+             the controller sensor's calibration {} stated), exact model, the controller's \
+             boundary samples known to her",
             camera_words(config),
             millimetres(config.sensing.controller_std),
         ),
