@@ -42,14 +42,24 @@ pub fn camera_words(config: &Config) -> String {
 
 /// The plant's model class a private-sensing key rests on, as configured: white Gaussian
 /// motion noise of `noise.process_std` per step, no correlation, slip, lag or delay, the
-/// Euler map.
+/// Euler map; with `private.prior_lag` τ > 0, the doublets shaped in three steps for a
+/// first-order actuator lag of τ (the stated prior).
 #[must_use]
 pub fn plant_words(config: &Config) -> String {
-    format!(
-        "white Gaussian motion noise {} per step as configured (not measured), no \
-         correlation, slip, lag or delay, the Euler map",
-        millimetres(config.noise.process_std)
-    )
+    let noise = millimetres(config.noise.process_std);
+    if config.private.is_default() {
+        format!(
+            "white Gaussian motion noise {noise} per step as configured (not measured), no \
+             correlation, slip, lag or delay, the Euler map"
+        )
+    } else {
+        format!(
+            "white Gaussian motion noise {noise} per step as configured (not measured), no \
+             correlation, slip or delay, the Euler map; three-step doublets shaped for a \
+             first-order actuator lag of {} ms (private.prior_lag, stated, not measured)",
+            config.private.prior_lag * 1e3
+        )
+    }
 }
 
 /// The two assumptions a private-sensing key rests on, written in its record.
@@ -92,7 +102,8 @@ pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
 /// Private sensing's statement about Eve with the plant measured (docs/estimation.md): her
 /// camera noise at least `eve.camera_std`, the exact model and the controller's boundary
 /// samples hers, the motion noise the controller estimates per block from its own samples
-/// (white Gaussian, a 3×3 covariance in the robot's frame; the sensor's calibration
+/// (Gaussian, a 3×3 stationary covariance in the robot's frame and AR(1) correlation
+/// ρ ≥ −½ between steps; the sensor's calibration
 /// `sensing.controller_std` stated); her view of each bit at most as informative as a
 /// Gaussian LLR of `separation` at the worst case of the estimate's (1 − `estimation_epsilon`)
 /// region; the published outcome of the estimate charged [`ESTIMATE_LEAK_BITS`].
@@ -105,9 +116,10 @@ pub fn measured_camera_assumption(
     Assumption::MeasuredViews {
         separation,
         statement: format!(
-            "Eve's camera noise ≥ {}, motion noise measured by the controller per block (white \
-             Gaussian, 3×3 in the robot's frame, the controller sensor's calibration {} stated), \
-             exact model, the controller's boundary samples known to her",
+            "Eve's camera noise ≥ {}, motion noise measured by the controller per block \
+             (Gaussian, 3×3 in the robot's frame, AR(1)-correlated between steps with ρ ≥ −0.5, \
+             the controller sensor's calibration {} stated), exact model, the controller's \
+             boundary samples known to her",
             camera_words(config),
             millimetres(config.sensing.controller_std),
         ),
@@ -194,6 +206,13 @@ mod tests {
             camera_assumption(&config, 1.0)
                 .describe()
                 .contains(&basis.camera)
+        );
+        assert!(basis.plant.contains("no correlation, slip, lag or delay"));
+        config.private.prior_lag = 0.05;
+        let shaped = key_basis(&config).unwrap().plant;
+        assert!(
+            shaped.contains("three-step doublets shaped for a first-order actuator lag of 50 ms"),
+            "{shaped}"
         );
     }
 

@@ -21,6 +21,10 @@ pub enum Sizing {
     /// Eve's modelled view at the worst case of the (1 − ε_est) region of the motion noise
     /// the controller estimates per block; ε_est = ε is a term of the key's ε.
     Measured,
+    /// Eve's modelled view, through the measured sizing's steps, at the world's own motion
+    /// noise and correlation: a pair configured with the true world (simulator only, the
+    /// comparison for `Measured`).
+    World,
 }
 
 impl Sizing {
@@ -30,6 +34,7 @@ impl Sizing {
         match self {
             Self::Configured => "configured",
             Self::Measured => "measured",
+            Self::World => "world",
         }
     }
 }
