@@ -641,15 +641,20 @@ fn measured_blocks(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
                 ),
                 None => format!(
                     "{}, {}: block {}: motion noise measured over {} doublets: √Q̂ = {} \
-                     (along-track, lateral, heading); worst case of its (1 − {:e}) region \
-                     √Q_low = {}; Eve's largest separation there {:.4}; ℓ = {} bits",
+                     (along-track, lateral, heading), AR(1) correlation between steps ρ̂ = \
+                     {:.3}; worst case of its (1 − {:e}) region: ρ in [{:.3}, {:.3}], √Q_low \
+                     = {} at ρ = {:.3}; Eve's largest separation there {:.4}; ℓ = {} bits",
                     r.point,
                     r.adversary,
                     i + 1,
                     e.doublets,
                     three(e.point_std_mm),
+                    e.correlation,
                     e.epsilon,
+                    e.correlation_interval[0],
+                    e.correlation_interval[1],
                     three(e.lower_std_mm),
+                    e.correlation_interval[1],
                     e.separation,
                     b.secret_bits
                 ),

@@ -304,7 +304,9 @@ struct SecrecyArgs {
     /// noise the controller estimates per block from its own samples and the reconciled
     /// bits, at the worst case of the estimate's (1 − ε_est) region, ε_est = --eps a term of
     /// the key's ε (the key is then 5ε-secret); a block outside the model class is refused,
-    /// naming the test (docs/estimation.md).
+    /// naming the test (docs/estimation.md). `world`: as `measured`, at the simulated world's
+    /// own motion noise and correlation instead of an estimate — a pair configured with the
+    /// true world, the comparison for `measured`.
     #[arg(long, value_enum, default_value_t = SizingArg::Configured)]
     sizing: SizingArg,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
@@ -341,6 +343,9 @@ pub enum SizingArg {
     Configured,
     /// The motion noise the controller measures per block, at its region's worst case.
     Measured,
+    /// The simulated world's own motion noise and correlation (a pair configured with the
+    /// true world).
+    World,
 }
 
 impl From<SizingArg> for robokey_lab::secrecy::Sizing {
@@ -348,6 +353,7 @@ impl From<SizingArg> for robokey_lab::secrecy::Sizing {
         match s {
             SizingArg::Configured => Self::Configured,
             SizingArg::Measured => Self::Measured,
+            SizingArg::World => Self::World,
         }
     }
 }

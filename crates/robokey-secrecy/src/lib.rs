@@ -13,6 +13,8 @@
 //! - [`interval`]: Clopper–Pearson intervals and bounds, exact binomial test.
 //! - [`advantage`]: repetition advantage distillation for i.i.d. errors.
 //! - [`cascade`]: Cascade reconciliation; its leak charges both sides' parities.
+//! - [`ldpc`]: one-way LDPC reconciliation, belief propagation on calibrated LLRs; its leak is
+//!   the syndrome.
 //! - [`calibration`]: does a posterior predict the errors it claims? (a posterior feeds
 //!   H_min only if it passes).
 //! - [`confirm`]: 64-bit HMAC-SHA256 key-confirmation tag.
@@ -32,6 +34,7 @@ pub mod entropy;
 pub mod gaussian_llr;
 mod gf2_poly;
 pub mod interval;
+pub mod ldpc;
 pub mod min_entropy;
 pub mod postprocess;
 pub mod special;

@@ -529,6 +529,11 @@ pub enum Sizing {
     /// Eve's modelled view at the worst case of the (1 − ε_est) region of the motion noise
     /// the controller estimates per block; ε_est = ε is a term of the key's ε.
     Measured,
+    /// Eve's modelled view, through the measured sizing's steps, at the simulated world's own
+    /// motion noise and correlation: a pair configured with the true world. Simulator only
+    /// (`robokey secrecy --sizing world`, the comparison for `Measured`): no robot knows its
+    /// true world, so the agents refuse it as `postprocess.sizing`.
+    World,
 }
 
 impl Sizing {
@@ -538,6 +543,7 @@ impl Sizing {
         match self {
             Self::Configured => "configured",
             Self::Measured => "measured",
+            Self::World => "world",
         }
     }
 
@@ -930,6 +936,14 @@ impl Config {
                 ));
             }
             _ => {}
+        }
+        if post.sizing == Sizing::World {
+            return Err(invalid(
+                "postprocess.sizing",
+                "world",
+                "\"configured\" or \"measured\" (\"world\" sizes at the simulated world's \
+                 own physics, which no robot knows: robokey secrecy --sizing world only)",
+            ));
         }
         if post.sizing == Sizing::Measured && self.sensing.mode != SensingMode::Private {
             return Err(invalid(

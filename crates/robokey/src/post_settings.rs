@@ -42,29 +42,44 @@ pub fn camera_words(config: &Config) -> String {
 
 /// The plant's model class a private-sensing key rests on: white Gaussian motion noise of
 /// `noise.process_std` per step as configured, or (`postprocess.sizing = "measured"`) a 3×3
-/// covariance the controller measures per block at the worst case of its (1 − ε_est)
-/// region; no correlation, slip, lag or delay, the Euler map; with `private.prior_lag` τ > 0,
-/// the doublets shaped in three steps for a first-order actuator lag of τ (the stated prior).
+/// stationary covariance and its AR(1) correlation between steps the controller measures per
+/// block, at the worst case of their (1 − ε_est) region; no slip, lag or delay, the Euler map;
+/// with `private.prior_lag` τ > 0, the doublets shaped in three steps for a first-order
+/// actuator lag of τ (the stated prior).
 #[must_use]
 pub fn plant_words(config: &Config) -> String {
-    let motion = match config.postprocess.sizing {
-        Sizing::Configured => format!(
-            "white Gaussian motion noise {} per step as configured (not measured)",
-            millimetres(config.noise.process_std)
+    // What the motion words leave out of the class: the configured noise is white.
+    let (motion, correlation) = match config.postprocess.sizing {
+        Sizing::Configured => (
+            format!(
+                "white Gaussian motion noise {} per step as configured (not measured)",
+                millimetres(config.noise.process_std)
+            ),
+            "correlation, ",
         ),
-        Sizing::Measured => format!(
-            "white Gaussian motion noise measured by the controller per block (a 3×3 \
-             covariance in the robot's frame, sized at the worst case of its (1 − ε_est) \
-             region, ε_est = {:e}; the controller sensor's calibration {} stated)",
-            config.postprocess.epsilon,
-            millimetres(config.sensing.controller_std)
+        Sizing::Measured => (
+            format!(
+                "Gaussian motion noise measured by the controller per block (a 3×3 stationary \
+                 covariance in the robot's frame and its AR(1) correlation between steps, \
+                 ρ ≥ −0.5, sized at the worst case of their (1 − ε_est) region, ε_est = {:e}; \
+                 the controller sensor's calibration {} stated)",
+                config.postprocess.epsilon,
+                millimetres(config.sensing.controller_std)
+            ),
+            "",
+        ),
+        Sizing::World => (
+            "Gaussian motion noise and its AR(1) correlation those of the simulated world, \
+             known (a lab comparison, not a robot's)"
+                .to_owned(),
+            "",
         ),
     };
     if config.private.is_default() {
-        format!("{motion}, no correlation, slip, lag or delay, the Euler map")
+        format!("{motion}, no {correlation}slip, lag or delay, the Euler map")
     } else {
         format!(
-            "{motion}, no correlation, slip or delay, the Euler map; three-step doublets shaped \
+            "{motion}, no {correlation}slip or delay, the Euler map; three-step doublets shaped \
              for a first-order actuator lag of {} ms (private.prior_lag, stated, not measured)",
             config.private.prior_lag * 1e3
         )
@@ -111,7 +126,8 @@ pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
 /// Private sensing's statement about Eve with the plant measured (docs/estimation.md): her
 /// camera noise at least `eve.camera_std`, the exact model and the controller's boundary
 /// samples hers, the motion noise the controller estimates per block from its own samples
-/// (white Gaussian, a 3×3 covariance in the robot's frame; the sensor's calibration
+/// (Gaussian, a 3×3 stationary covariance in the robot's frame and AR(1) correlation
+/// ρ ≥ −½ between steps; the sensor's calibration
 /// `sensing.controller_std` stated); her view of each bit at most as informative as a
 /// Gaussian LLR of `separation` at the worst case of the estimate's (1 − `estimation_epsilon`)
 /// region; the published outcome of the estimate charged [`ESTIMATE_LEAK_BITS`].
@@ -124,9 +140,10 @@ pub fn measured_camera_assumption(
     Assumption::MeasuredViews {
         separation,
         statement: format!(
-            "Eve's camera noise ≥ {}, motion noise measured by the controller per block (white \
-             Gaussian, 3×3 in the robot's frame, the controller sensor's calibration {} stated), \
-             exact model, the controller's boundary samples known to her",
+            "Eve's camera noise ≥ {}, motion noise measured by the controller per block \
+             (Gaussian, 3×3 in the robot's frame, AR(1)-correlated between steps with ρ ≥ −0.5, \
+             the controller sensor's calibration {} stated), exact model, the controller's \
+             boundary samples known to her",
             camera_words(config),
             millimetres(config.sensing.controller_std),
         ),
@@ -244,12 +261,23 @@ mod tests {
             key_basis(&config)
                 .unwrap()
                 .plant
-                .starts_with("white Gaussian motion noise measured by the controller")
+                .starts_with("Gaussian motion noise measured by the controller")
         );
         let error = Config::from_toml("[postprocess]\nsizing = \"measured\"\n", "test")
             .unwrap_err()
             .to_string();
         assert!(error.contains("postprocess.sizing"), "{error}");
+        // The simulated world's own physics is a lab comparison: no robot knows it.
+        let error = Config::from_toml(
+            "[sensing]\nmode = \"private\"\n[postprocess]\nsizing = \"world\"\n",
+            "test",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            error.contains("postprocess.sizing") && error.contains("no robot knows"),
+            "{error}"
+        );
     }
 
     #[test]

@@ -74,9 +74,9 @@ impl Secrecy {
         })
     }
 
-    /// Whether measured sizing applied: private sensing with `--sizing measured`.
+    /// Whether measured sizing applied: private sensing with `--sizing measured` (or `world`).
     fn measured(&self) -> bool {
-        self.sizing == Sizing::Measured
+        self.sizing != Sizing::Configured
             && self
                 .results
                 .iter()

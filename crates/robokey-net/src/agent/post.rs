@@ -315,14 +315,19 @@ impl<E: StoredEndpoint> AgentStore<E> {
                     ),
                     None => println!(
                         "{}: the plant measured over {} doublets: motion noise √Q̂ {:.2} mm, \
-                         {:.2} mm, {:.2} mrad; at the (1 − {:e}) region's worst case {:.2} mm, \
-                         {:.2} mm, {:.2} mrad; Eve's largest separation {:.4} (published)",
+                         {:.2} mm, {:.2} mrad, AR(1) correlation between steps ρ̂ {:.3}; over \
+                         the (1 − {:e}) region, ρ in [{:.3}, {:.3}], lowest {:.2} mm, {:.2} mm, \
+                         {:.2} mrad; Eve's largest separation at its worst case {:.4} \
+                         (published)",
                         self.role,
                         estimate.doublets,
                         estimate.point_std_mm[0],
                         estimate.point_std_mm[1],
                         estimate.point_std_mm[2],
+                        estimate.correlation,
                         estimate.epsilon,
+                        estimate.correlation_interval[0],
+                        estimate.correlation_interval[1],
                         estimate.lower_std_mm[0],
                         estimate.lower_std_mm[1],
                         estimate.lower_std_mm[2],

@@ -225,14 +225,15 @@ impl<R: Rng> CascadeBob<R> {
             }
             Phase::Done => return Ok(false),
         }
-        if self.streak >= schedule.biconf_streak {
+        let streak = schedule.biconf_streak_for(self.key.len());
+        if self.streak >= streak {
             self.phase = Phase::Done;
             return Ok(false);
         }
         // Each round that corrects flips a wrong bit: an honest Alice needs at most
         // (n + 1)·streak rounds.
         let n = self.key.len() as u64;
-        if u64::from(self.rounds) >= (n + 1).saturating_mul(u64::from(schedule.biconf_streak)) {
+        if u64::from(self.rounds) >= (n + 1).saturating_mul(u64::from(streak)) {
             return Err(ReconcileError::OracleInconsistent);
         }
         self.rounds += 1;

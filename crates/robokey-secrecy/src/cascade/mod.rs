@@ -168,7 +168,8 @@ impl CascadeSchedule {
         biconf_complement: false,
     };
     /// "biconf" (Demystifying's Cascade mod. (1)): 2 passes, k1 = ⌈0.92/Q⌉, ×3, then BICONF
-    /// on a random half and its complement until 10 rounds in a row find no error.
+    /// on a random half and its complement until 10 rounds in a row find no error (more beyond
+    /// 2¹⁴ bits: [`CascadeSchedule::biconf_streak_for`]).
     pub const BICONF: Self = Self {
         passes: 2,
         first_block_factor: 0.92,
@@ -176,6 +177,32 @@ impl CascadeSchedule {
         biconf_streak: 10,
         biconf_complement: true,
     };
+}
+
+/// Keys up to this length (bits) end BICONF after the schedule's streak; longer ones need
+/// one error-free round more per doubling (see [`CascadeSchedule::biconf_streak_for`]).
+pub const BICONF_STREAK_CALIBRATED_BITS: usize = 1 << 14;
+
+impl CascadeSchedule {
+    /// BICONF rounds in a row that must find no error before an n-bit key is declared
+    /// reconciled: the schedule's streak s, plus ⌈log₂(n / 2¹⁴)⌉ when n > 2¹⁴ (0 without
+    /// BICONF).
+    ///
+    /// Errors left after the Cascade passes come in pairs (the whole-key parity agrees), and
+    /// a BICONF round finds a pair with probability ½, so BICONF stops with r errors left with
+    /// probability ≈ (r/2)·2⁻ˢ. r grows in proportion to n: the fixed streak of 10, tuned on
+    /// 10⁴-bit keys, left a 10⁶-bit key at Q = 4.7 % unreconciled in 1 block of 20; one round
+    /// more per doubling of n keeps the chance of stopping early where it was at 2¹⁴ bits.
+    #[must_use]
+    pub fn biconf_streak_for(&self, n: usize) -> u32 {
+        if self.biconf_streak == 0 || n <= BICONF_STREAK_CALIBRATED_BITS {
+            return self.biconf_streak;
+        }
+        let doublings = (n as f64 / BICONF_STREAK_CALIBRATED_BITS as f64)
+            .log2()
+            .ceil() as u32;
+        self.biconf_streak + doublings
+    }
 }
 
 /// Cascade with a schedule and the estimated error rate Q that sets its block sizes.
@@ -304,6 +331,20 @@ mod tests {
     use crate::entropy::binary_entropy;
     use rand::rngs::ChaCha8Rng;
     use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn the_biconf_streak_grows_by_one_per_doubling_beyond_the_calibrated_length() {
+        let biconf = CascadeSchedule::BICONF;
+        assert_eq!(biconf.biconf_streak_for(10_000), 10);
+        assert_eq!(biconf.biconf_streak_for(BICONF_STREAK_CALIBRATED_BITS), 10);
+        assert_eq!(
+            biconf.biconf_streak_for(BICONF_STREAK_CALIBRATED_BITS + 1),
+            11
+        );
+        // 10⁶ / 2¹⁴ ≈ 61: six doublings.
+        assert_eq!(biconf.biconf_streak_for(1_000_000), 16);
+        assert_eq!(CascadeSchedule::ORIGINAL.biconf_streak_for(1_000_000), 0);
+    }
 
     /// Alice that records every question and answer.
     struct Recording<'a> {

@@ -11,8 +11,8 @@ use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
     AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS,
-    Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, Settings, concatenate, key_id,
-    split_sample, tag_context,
+    Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate,
+    key_id, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
@@ -358,6 +358,18 @@ impl ControllerPost {
             }
             (State::ExpectCommitAck, Message::CommitAck { .. }) => self.end_block(),
             (State::ExpectAbortAck, Message::AbortAck { .. }) => self.end_block(),
+            (
+                State::ExpectConfirmed { .. },
+                Message::Reject {
+                    reason: RejectReason::TagMismatch,
+                    ..
+                },
+            ) => {
+                self.abort(
+                    AbortReason::Reconciliation,
+                    "the robot found our tag wrong: the reconciled keys differ".into(),
+                );
+            }
             (
                 State::ExpectAgree { .. }
                 | State::ExpectAnswer { .. }

@@ -481,6 +481,6 @@ impl RobotPost {
 #[must_use]
 pub fn max_rounds(n: usize, schedule: &crate::cascade::CascadeSchedule) -> u32 {
     let depth = usize::BITS - n.leading_zeros() + 1;
-    let passes = schedule.passes + schedule.biconf_streak + 1;
+    let passes = schedule.passes + schedule.biconf_streak_for(n) + 1;
     2 * passes * (depth + 1) + 64
 }

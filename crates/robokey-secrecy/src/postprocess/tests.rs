@@ -501,6 +501,37 @@ fn the_robot_refuses_what_an_honest_controller_never_sends() {
     pair.assert_same_keys("after injected messages");
 }
 
+/// The robot finding the controller's tag wrong means reconciliation left the keys different:
+/// the controller aborts for that reason (so nobody advises pooling more), not as a refusal.
+#[test]
+fn a_tag_mismatch_seen_by_the_robot_aborts_as_failed_reconciliation() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let pool = sessions(6, 0.02, &mut rng);
+    let mut pair = Pair::new(settings(weak_eve()), &pool);
+    while !matches!(pair.to_robot.front(), Some(Message::Confirm { .. })) {
+        assert!(pair.deliver(None));
+    }
+    let block = pair.to_robot.pop_front().unwrap().block();
+    pair.controller
+        .handle_input(ControllerInput::Frame(Message::Reject {
+            block,
+            reason: RejectReason::TagMismatch,
+        }))
+        .unwrap();
+    pair.collect();
+    assert!(
+        pair.to_robot.iter().any(|m| matches!(
+            m,
+            Message::Abort {
+                reason: AbortReason::Reconciliation,
+                ..
+            }
+        )),
+        "{:?}",
+        pair.to_robot
+    );
+}
+
 /// The `Commit` lost, and every retransmission of it until the session ends: the controller's
 /// key is pending, the robot's key prepared (pending) and not committed; neither delivers
 /// it. A later session — the controller restarted from its store, or its timer — repeats the

@@ -17,13 +17,15 @@ use robokey_secrecy::postprocess::{
 use serde::{Deserialize, Serialize};
 
 use super::{
-    DoubletResidual, diagonal_covariance, estimate_motion_noise, published_separation,
-    worst_case_separations,
+    DoubletResidual, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
+    published_separation, worst_case_separations,
 };
 use crate::Config;
 use crate::model::{Pose, Unicycle};
 use crate::private::likelihood::stated_camera_view;
 use crate::private::{DoubletInputs, DoubletSamples, doublet_model};
+use crate::world::WorldModel;
+use robokey_secrecy::postprocess::Assumption;
 
 /// The separation fed for the sessions of a refused block: Eve is taken to see every bit
 /// (the largest the endpoints accept), so the block gives no key.
@@ -36,8 +38,12 @@ pub struct BlockEstimate {
     pub doublets: usize,
     /// The point estimate's standard deviations √Q̂_kk (mm, mm, mrad; robot frame).
     pub point_std_mm: [f64; 3],
-    /// The region's worst-case vertex's √Q_low,kk (mm, mm, mrad): what sizes Eve's view.
+    /// The region's lowest vertex's √Q_low,kk at the correlation's upper end (mm, mm, mrad).
     pub lower_std_mm: [f64; 3],
+    /// The motion noise's AR(1) correlation between steps: the point estimate ρ̂.
+    pub correlation: f64,
+    /// Its (1 − ε_est/2) interval `[ρ_lo, ρ_hi]`, over which Eve's view is sized.
+    pub correlation_interval: [f64; 2],
     /// ε_est.
     pub epsilon: f64,
     /// The largest separation of Eve's view over the block's bits at the worst case, rounded
@@ -66,6 +72,8 @@ impl BlockEstimate {
             doublets,
             point_std_mm: [f64::NAN; 3],
             lower_std_mm: [f64::NAN; 3],
+            correlation: f64::NAN,
+            correlation_interval: [f64::NAN; 2],
             epsilon,
             separation: REFUSED_SEPARATION,
             refused: Some(why),
@@ -99,28 +107,105 @@ pub fn block_separations(
             )
         })
         .collect();
-    let sensor = diagonal_covariance(config.sensing.controller_std);
-    let refuse = |why: String, doublets: usize| {
-        (
-            vec![REFUSED_SEPARATION; sessions.len()],
-            BlockEstimate::refused(why, doublets, epsilon),
-        )
-    };
-    if let Some(a) = config.doublet_settle() {
-        return refuse(
-            format!(
-                "motion-noise estimate: it models the two-step doublet's residual, the block's \
-                 doublets have three steps (private.prior_lag = {} s, a = {a:.4}; allowed: \
-                 private.prior_lag = 0 with measured sizing)",
-                config.private.prior_lag
-            ),
-            residuals.len(),
-        );
+    if let Err(why) = two_step_doublets(config) {
+        return refused(sessions.len(), why, residuals.len(), epsilon);
     }
-    let estimate = match estimate_motion_noise(&residuals, &sensor, epsilon) {
-        Ok(e) => e,
-        Err(refusal) => return refuse(refusal.to_string(), residuals.len()),
-    };
+    let sensor = diagonal_covariance(config.sensing.controller_std);
+    match estimate_motion_noise(&residuals, &sensor, epsilon) {
+        Ok(estimate) => size_block(config, sessions, &estimate),
+        Err(refusal) => refused(
+            sessions.len(),
+            refusal.to_string(),
+            residuals.len(),
+            epsilon,
+        ),
+    }
+}
+
+/// As [`block_separations`], with the simulated world's own stationary motion noise and
+/// AR(1) correlation in place of the estimate's region: what a pair configured with the
+/// true world sizes (`robokey secrecy --sizing world`, the comparison for measured sizing;
+/// no robot knows its world, so the agents refuse it).
+#[must_use]
+pub fn world_block_separations(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    epsilon: f64,
+) -> (Vec<f64>, BlockEstimate) {
+    if let Err(why) = two_step_doublets(config) {
+        let doublets = sessions.iter().map(|session| session.len()).sum();
+        return refused(sessions.len(), why, doublets, epsilon);
+    }
+    let world = WorldModel::of(config);
+    let truth = MotionNoiseEstimate::known(
+        diagonal_covariance(world.process_std),
+        world.process_rho,
+        epsilon,
+    );
+    size_block(config, sessions, &truth)
+}
+
+/// The measured sizing's `assumption` restated for `--sizing world`: the motion noise and
+/// correlation are the simulated world's, known, not measured.
+#[must_use]
+pub fn world_known(assumption: Assumption) -> Assumption {
+    match assumption {
+        Assumption::MeasuredViews {
+            separation,
+            statement,
+            estimation_epsilon,
+            estimate_leak,
+        } => Assumption::MeasuredViews {
+            separation,
+            statement: statement.replacen(
+                "motion noise measured by the controller per block",
+                "motion noise and its correlation those of the simulated world, known to the \
+                 parties (--sizing world: a pair configured with the true world)",
+                1,
+            ),
+            estimation_epsilon,
+            estimate_leak,
+        },
+        other => other,
+    }
+}
+
+/// The estimate and Eve's modelled view model the two-step doublet's residual: a block of
+/// three-step doublets (`private.prior_lag` > 0) is refused, naming the setting.
+fn two_step_doublets(config: &Config) -> Result<(), String> {
+    match config.doublet_settle() {
+        None => Ok(()),
+        Some(a) => Err(format!(
+            "motion-noise estimate: it models the two-step doublet's residual, the block's \
+             doublets have three steps (private.prior_lag = {} s, a = {a:.4}; allowed: \
+             private.prior_lag = 0 with measured sizing, or --sizing world)",
+            config.private.prior_lag
+        )),
+    }
+}
+
+/// The separations and report of a refused block of `sessions` sessions.
+fn refused(
+    sessions: usize,
+    why: String,
+    doublets: usize,
+    epsilon: f64,
+) -> (Vec<f64>, BlockEstimate) {
+    (
+        vec![REFUSED_SEPARATION; sessions],
+        BlockEstimate::refused(why, doublets, epsilon),
+    )
+}
+
+/// Each of `sessions`' largest separation of Eve's view at the worst case of `estimate`'s
+/// region, and the block's report.
+fn size_block(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    estimate: &MotionNoiseEstimate,
+) -> (Vec<f64>, BlockEstimate) {
+    let model = doublet_model(config);
+    let epsilon = estimate.epsilon;
     let bits = usize::from(config.protocol.bits_per_doublet);
     let mut separations = Vec::with_capacity(sessions.len());
     for session in sessions {
@@ -132,18 +217,23 @@ pub fn block_separations(
                 config.sensing.controller_std,
                 config.modelled_camera_std(),
             );
-            match worst_case_separations(&model, &estimate.lower, &b.inputs, &view) {
+            match worst_case_separations(&model, estimate, &b.inputs, &view) {
                 Some(d) => largest = d[..bits].iter().fold(largest, |m, &x| m.max(x)),
                 None => {
-                    return refuse(
+                    return refused(
+                        sessions.len(),
                         format!(
                             "motion-noise estimate: at the region's worst case (Q_low's \
-                             diagonal {:?} m², m², rad²) Eve's modelled covariance is not \
-                             positive definite at doublet {} (allowed: a bound exists)",
+                             diagonal {:?} m², m², rad², ρ in [{:.3}, {:.3}]) Eve's modelled \
+                             covariance is not positive definite at doublet {} (allowed: a \
+                             bound exists)",
                             [0, 1, 2].map(|k| estimate.lower[(k, k)]),
+                            estimate.correlation.interval[0],
+                            estimate.correlation.interval[1],
                             b.doublet
                         ),
-                        residuals.len(),
+                        estimate.doublets,
+                        epsilon,
                     );
                 }
             }
@@ -159,6 +249,8 @@ pub fn block_separations(
             doublets: estimate.doublets,
             point_std_mm: mm(point),
             lower_std_mm: mm(lower),
+            correlation: estimate.correlation.point,
+            correlation_interval: estimate.correlation.interval,
             epsilon,
             separation,
             refused: None,

@@ -13,7 +13,8 @@
 //! a class's ratio `ρ_c,k = Σᵢ zᵢ,ₖ² / Σᵢ eᵢ,ₖ` is a weighted sum of squared Gaussians,
 //! ≈ `χ²_ν/ν` with `ν = (Σeᵢ,ₖ)² / Σeᵢ,ₖ²` effective degrees of freedom for independent
 //! residuals; the sensor's MA(1) term correlates neighbours' squares by at most `ρ₁² ≤ ¼`,
-//! which at most multiplies the sum's variance by 1.5, so `ν` is divided by 1.5. By
+//! which at most multiplies the sum's variance by 1.5, so `ν` is divided by 1.5 (by the
+//! correlation's inflation `F` under AR(1) motion noise, `estimate::correlation`). By
 //! Wilson–Hilferty `(ρ^(1/3) − 1 + 2/(9ν)) / √(2/(9ν))` is ≈ N(0, 1); the block is refused
 //! when any class's statistic on any axis exceeds `z(ε_est / (2·tests))` in magnitude
 //! (Bonferroni over both partitions' classes and the three axes, two-sided). Fitting `Q̂` to
@@ -69,12 +70,15 @@ fn wilson_hilferty(ratio: f64, dof: f64) -> f64 {
 }
 
 /// The homogeneity test of `residuals` against the pooled point estimate `point` (robot
-/// frame) with the sensor's stated covariance `sensor` (world frame) at level `epsilon`:
-/// the departure with the largest statistic beyond its limit, if any.
+/// frame) and correlation `rho` between steps, with the sensor's stated covariance `sensor`
+/// (world frame) at level `epsilon`, the squares' variance inflated by `inflation` (≥ 1.5:
+/// the correlation's `F`): the departure with the largest statistic beyond its limit, if any.
 #[must_use]
 pub fn speed_class_departure(
     residuals: &[DoubletResidual],
     point: &Matrix3<f64>,
+    rho: f64,
+    inflation: f64,
     sensor: &Matrix3<f64>,
     epsilon: f64,
 ) -> Option<ClassDeparture> {
@@ -84,7 +88,7 @@ pub fn speed_class_departure(
     }
     let expected: Vec<Matrix3<f64>> = residuals
         .iter()
-        .map(|r| r.motion_part(point) + r.sensor_part(sensor))
+        .map(|r| r.motion_part(point, rho) + r.sensor_part(sensor))
         .collect();
     let tests = (PARTITIONS.len() * classes * AXES.len()) as f64;
     let limit = normal_upper_quantile(epsilon / (2.0 * tests));
@@ -109,7 +113,7 @@ pub fn speed_class_departure(
                     squares += e * e;
                 }
                 let ratio = measured / sum;
-                let dof = sum * sum / squares / 1.5;
+                let dof = sum * sum / squares / inflation.max(1.5);
                 let statistic = wilson_hilferty(ratio, dof);
                 ratios.push(ratio);
                 if statistic.abs() > largest.0.abs() {
@@ -197,8 +201,9 @@ mod tests {
         for seed in 0..40 {
             let data = residuals(2e-3, 0.0, 700 + seed);
             let estimate = estimate_motion_noise(&data, &sensor, 1e-6).unwrap();
-            rejected +=
-                usize::from(speed_class_departure(&data, &estimate.point, &sensor, 0.05).is_some());
+            rejected += usize::from(
+                speed_class_departure(&data, &estimate.point, 0.0, 1.5, &sensor, 0.05).is_some(),
+            );
         }
         assert!(
             rejected <= 6,

@@ -3,20 +3,25 @@
 //! key rests on, bounds it over a (1 − ε_est) confidence region, and sizes Eve's modelled
 //! view — hence ℓ — from the region's worst case. Pure: no clocks, files or randomness.
 //!
-//! The model class covered here is white Gaussian motion noise with a constant 3×3
-//! covariance `Q` in the robot's frame, and a controller sensor of stated covariance `R`
-//! (its calibration).
+//! The model class covered here is Gaussian motion noise with a constant 3×3 stationary
+//! covariance `Q` in the robot's frame and AR(1) correlation `ρ ∈ [−½, 1)` between steps
+//! (white at ρ = 0), and a controller sensor of stated covariance `R` (its calibration).
 
 pub mod block;
+pub mod correlation;
 pub mod homogeneity;
 pub mod motion_noise;
 pub mod residual;
 pub mod worst_case;
 
-pub use block::{BlockEstimate, block_separations, estimate_request, kept_doublet};
+pub use block::{
+    BlockEstimate, block_separations, estimate_request, kept_doublet, world_block_separations,
+    world_known,
+};
+pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use motion_noise::{
-    EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
+    Corner, EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
 };
 pub use residual::DoubletResidual;
 pub use worst_case::{

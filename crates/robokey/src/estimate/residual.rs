@@ -18,7 +18,10 @@
 //!
 //! Consecutive doublets share a boundary sample, so their residuals are correlated (MA(1)
 //! through `η`, lag-1 correlation `−R/(2Q + 2R)` per axis); doublets two apart share
-//! nothing under white motion noise.
+//! nothing under white motion noise. Under AR(1) motion noise of lag-one correlation ρ
+//! between steps (`w_{k+1} = ρw_k + √(1−ρ²)e_k`, stationary covariance `Q`) the two steps of
+//! a doublet correlate too, `Cov(z) = B₀QB₀ᵀ + B₁QB₁ᵀ + ρ(B₀QB₁ᵀ + B₁QB₀ᵀ) + …`
+//! (`correlation` estimates ρ).
 
 use nalgebra::Matrix3;
 
@@ -77,10 +80,14 @@ impl DoubletResidual {
         }
     }
 
-    /// `B₀QB₀ᵀ + B₁QB₁ᵀ`: the motion noise's part of `Cov(z)` for `Q` in the robot's frame.
+    /// `B₀QB₀ᵀ + B₁QB₁ᵀ + ρ·(B₀QB₁ᵀ + B₁QB₀ᵀ)`: the motion noise's part of `Cov(z)` for
+    /// AR(1) motion noise of stationary covariance `Q` in the robot's frame and lag-one
+    /// correlation `rho` between steps (`rho = 0`: white).
     #[must_use]
-    pub fn motion_part(&self, q: &Matrix3<f64>) -> Matrix3<f64> {
-        self.motion_maps.iter().map(|b| b * q * b.transpose()).sum()
+    pub fn motion_part(&self, q: &Matrix3<f64>, rho: f64) -> Matrix3<f64> {
+        let [b0, b1] = &self.motion_maps;
+        let cross = b0 * q * b1.transpose();
+        b0 * q * b0.transpose() + b1 * q * b1.transpose() + rho * (cross + cross.transpose())
     }
 
     /// `C₀RC₀ᵀ + C₁RC₁ᵀ`: the sensor's part of `Cov(z)` for `R` in the world's frame.
@@ -132,7 +139,7 @@ mod tests {
         let start = Pose::new(0.0, 0.0, 0.7);
         let r = DoubletResidual::new(&model, 0, &inputs, &start, &start, 0);
         let q = Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 2.0, 3.0));
-        let two_q = r.motion_part(&q);
+        let two_q = r.motion_part(&q, 0.0);
         let coupling = model.sample_time * 0.135;
         assert!(
             (two_q - 2.0 * q).abs().max() < 3.0 * 3.0 * coupling,

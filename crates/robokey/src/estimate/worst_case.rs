@@ -1,20 +1,37 @@
 //! Eve's modelled view at the region's worst case (docs/estimation.md, "The corner").
 //!
-//! A bit's separation under the camera statement is `d² = δᵀS(Q)⁻¹δ`, with `δ` the
-//! difference of her predicted observations under the bit's two values and
-//! `S(Q) = [I; A₁]·(A₀P₀A₀ᵀ + Q)·[I, A₁ᵀ] + diag(0, Q) + diag(R_e,1, R_e,2)` (her camera
-//! and the boundary samples fused). `S` grows with `Q` in the Loewner order, so `d` shrinks:
-//! over the region `{Q : Q ⪰ Q_low}` the largest separation — the sharpest view Eve may
-//! have — is at the vertex `Q_low` itself, for every bit at once. The corner is not the
-//! per-entry minimum: `Q_low` is a full 3×3 matrix, rotated into the world's frame at each
-//! doublet's heading. If `S(Q_low)` is not positive definite (a vertex so far below zero
-//! that even her camera's noise does not cover it), no finite bound exists: `None`.
+//! A bit's separation under the camera statement is `d² = δᵀS⁻¹δ`, with `δ` the difference
+//! of her predicted observations of the doublet's middle and end under the bit's two values
+//! (the other bit known, the larger over its values) and `S` their covariance: the start
+//! pose's `P₀` (her camera and the boundary sample fused) through the Jacobians `A₀, A₁`,
+//! the two steps' motion noise, and her observation noises `R_e,1, R_e,2`.
+//!
+//! **Correlated steps: her genie view.** Under AR(1) motion noise the doublet's steps
+//! correlate with their neighbours'. Eve is given the noise of the step just before and just
+//! after the doublet (more than the neighbours' bits give her); by the Markov property the
+//! doublet's two steps then have covariance `Q ⊗ [[α, β], [β, α]]` (`correlation`'s cells,
+//! `[1, 0]` for white noise), and nothing else she holds says more about them. With
+//! `K₀ = K₁ = αQ` and `K₀₁ = βQ`: `C₁₁ = A₀P₀A₀ᵀ + K₀`, `C₁₂ = C₁₁A₁ᵀ + K₀₁`,
+//! `C₂₂ = A₁C₁₁A₁ᵀ + A₁K₀₁ + K₀₁ᵀA₁ᵀ + K₁`, and `S = [[C₁₁ + R_e,1, C₁₂], [C₁₂ᵀ, C₂₂ + R_e,2]]`.
+//! What her observations beyond the doublet's boundaries say about its end pose is left out,
+//! as the white model leaves it out (the boundary sample dominates).
+//!
+//! **The corner.** `S` grows in the Loewner order with the steps' covariance, so `d` shrinks:
+//! over each cell of the correlation's interval, whose corner lies below every member of the
+//! joint region there (`Q_cell ⪯ Q_low(ρ)`, the weights below `C(ρ)`), the cell's corner gives
+//! the largest separation — the sharpest view Eve may have — for every bit at once; the block
+//! takes the largest over the cells. Not one-sided in ρ: a larger ρ lowers `Q_low` and the
+//! steps' difference `λ₋`, but not their sum `λ₊` (which peaks near ρ ≈ 0.27). The corner is
+//! not the per-entry minimum: `Q_cell` is a full 3×3 matrix, rotated into the world's frame
+//! at each doublet's heading. If `S` is not positive definite at a corner (a vertex so far
+//! below zero that even her camera's noise does not cover it), no finite bound exists: `None`.
 
-use nalgebra::Matrix3;
+use nalgebra::{Cholesky, Matrix3, Matrix6, SymmetricEigen, Vector6};
 
+use super::motion_noise::{Corner, MotionNoiseEstimate};
 use super::residual::rotation;
 use crate::private::DoubletInputs;
-use crate::private::likelihood::{DoubletModel, DoubletView};
+use crate::private::likelihood::{DoubletModel, DoubletView, state_jacobian};
 
 /// The grid a block's worst-case separation is published on: multiples of 2⁻⁸.
 pub const SEPARATION_QUANTUM: f64 = 1.0 / 256.0;
@@ -35,26 +52,86 @@ pub fn published_separation(d: f64) -> f64 {
 }
 
 /// Each bit's separation of Eve's modelled `view` of a doublet with public `inputs`, under
-/// `model` with its motion noise replaced by the region's vertex `lower` (robot frame);
-/// `None` when the bound does not exist.
+/// `model` (its sample time and bits) with the motion noise at the worst case of `estimate`'s
+/// joint region: the largest over its cells; `None` when the bound does not exist.
 #[must_use]
 pub fn worst_case_separations(
     model: &DoubletModel,
-    lower: &Matrix3<f64>,
+    estimate: &MotionNoiseEstimate,
     inputs: &DoubletInputs,
     view: &DoubletView,
 ) -> Option<[f64; 2]> {
-    let h = rotation(view.start.value.z);
-    let worst = DoubletModel {
-        process_covariance: h * lower * h.transpose(),
-        ..*model
-    };
-    let defined = worst
-        .log_likelihoods(inputs, view)
+    estimate
+        .corners
         .iter()
-        .take(worst.perturbation.patterns())
-        .all(|l| l.is_finite());
-    defined.then(|| worst.separations(inputs, view))
+        .try_fold([0.0_f64; 2], |largest, corner| {
+            let d = corner_separations(model, corner, inputs, view)?;
+            Some([largest[0].max(d[0]), largest[1].max(d[1])])
+        })
+}
+
+/// Each bit's separation at one `corner` (the genie view of the module's doc); `None` when
+/// its covariance is not positive definite or the view lacks the middle or the end.
+fn corner_separations(
+    model: &DoubletModel,
+    corner: &Corner,
+    inputs: &DoubletInputs,
+    view: &DoubletView,
+) -> Option<[f64; 2]> {
+    let (Some(middle), Some(end)) = (&view.middle, &view.end) else {
+        return None;
+    };
+    let t = model.sample_time;
+    let h = rotation(view.start.value.z);
+    let eigen = SymmetricEigen::new(corner.motion);
+    let part = |sign: f64| {
+        let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
+        h * eigen.eigenvectors
+            * Matrix3::from_diagonal(&kept)
+            * eigen.eigenvectors.transpose()
+            * h.transpose()
+    };
+    let (positive, negative) = (part(1.0), part(-1.0));
+    let [[alpha_low, beta_low], [alpha_high, beta_high]] = corner.step_weights;
+    let own = alpha_low * positive - alpha_high * negative;
+    let across = beta_low * positive - beta_high * negative;
+    let predict = |pattern: usize| {
+        let offset = model.perturbation.offset(pattern);
+        let [a, b] = inputs.applied(offset);
+        let start = &view.start;
+        let [m1, m2] = inputs.propagate(&start.value, offset, t);
+        let a0 = state_jacobian(start.value.z, a.x, t);
+        let a1 = state_jacobian(m1.z, b.x, t);
+        let c11 = a0 * start.covariance * a0.transpose() + own;
+        let c12 = c11 * a1.transpose() + across;
+        let c22 =
+            a1 * c11 * a1.transpose() + a1 * across + across.transpose() * a1.transpose() + own;
+        let mut s = Matrix6::zeros();
+        s.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&(c11 + middle.covariance));
+        s.fixed_view_mut::<3, 3>(0, 3).copy_from(&c12);
+        s.fixed_view_mut::<3, 3>(3, 0).copy_from(&c12.transpose());
+        s.fixed_view_mut::<3, 3>(3, 3)
+            .copy_from(&(c22 + end.covariance));
+        let mut mean = Vector6::zeros();
+        mean.fixed_rows_mut::<3>(0).copy_from(&m1);
+        mean.fixed_rows_mut::<3>(3).copy_from(&m2);
+        (mean, s)
+    };
+    let distance = |a: usize, b: usize| -> Option<f64> {
+        let (mean_a, s) = predict(a);
+        let (mean_b, _) = predict(b);
+        let d = mean_b - mean_a;
+        Cholesky::new(s).map(|c| c.solve(&d).dot(&d).sqrt())
+    };
+    if model.perturbation.bits_per_doublet == 2 {
+        Some([
+            distance(0, 1)?.max(distance(2, 3)?),
+            distance(0, 2)?.max(distance(1, 3)?),
+        ])
+    } else {
+        Some([distance(0, 1)?, 0.0])
+    }
 }
 
 #[cfg(test)]
@@ -79,11 +156,8 @@ mod tests {
         assert!(ESTIMATE_LEAK_BITS >= values.log2() && ESTIMATE_LEAK_BITS - values.log2() < 1e-5);
     }
 
-    /// The vertex dominates the region: 500 random members `Q_low + GGᵀ` (full matrices,
-    /// any orientation, off-diagonal entries of either sign) never give a larger separation
-    /// than `Q_low` to either bit.
-    #[test]
-    fn no_member_of_the_region_gives_eve_a_sharper_view_than_the_vertex() {
+    /// The view of a doublet with a turn, both bits, the stated camera.
+    fn turning_doublet() -> (DoubletModel, DoubletInputs, DoubletView) {
         let mut config = Config::default();
         config.protocol.bits_per_doublet = 2;
         let model = doublet_model(&config);
@@ -101,19 +175,100 @@ mod tests {
             config.sensing.controller_std,
             config.eve.camera_std,
         );
+        (model, inputs, view)
+    }
+
+    fn white(motion: Matrix3<f64>) -> Corner {
+        Corner {
+            correlation: [0.0, 0.0],
+            motion,
+            step_weights: [[1.0, 0.0]; 2],
+        }
+    }
+
+    /// At ρ = 0 the genie view is the white doublet model's view, to rounding.
+    #[test]
+    fn the_white_corner_is_the_doublet_models_view() {
+        let (model, inputs, view) = turning_doublet();
+        let q = Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6);
+        let h = rotation(view.start.value.z);
+        let white_model = DoubletModel {
+            process_covariance: h * q * h.transpose(),
+            ..model
+        };
+        let expected = white_model.separations(&inputs, &view);
+        let got = corner_separations(&model, &white(q), &inputs, &view).unwrap();
+        for k in 0..2 {
+            assert!(
+                (got[k] - expected[k]).abs() <= 1e-6 * expected[k],
+                "{got:?} {expected:?}"
+            );
+        }
+    }
+
+    /// The corner dominates its cell of the joint region: 500 random members — `Q_cell + GGᵀ`
+    /// (full matrices, any orientation, off-diagonal entries of either sign) with ρ anywhere in
+    /// the cell and the steps' exact conditional weights at that ρ — never give a larger
+    /// separation than the corner to either bit, on cells at negative, small and large ρ.
+    #[test]
+    fn no_member_of_a_cell_gives_eve_a_sharper_view_than_its_corner() {
+        let (model, inputs, view) = turning_doublet();
         let lower = Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6);
-        let vertex = worst_case_separations(&model, &lower, &inputs, &view).unwrap();
         let mut rng = stream(5, Purpose::Public, 0);
-        for _ in 0..500 {
-            let g = Matrix3::from_fn(|_, _| rng.random_range(-1.5e-3..1.5e-3));
-            let member = lower + g * g.transpose();
-            let d = worst_case_separations(&model, &member, &inputs, &view).unwrap();
-            for k in 0..2 {
-                assert!(d[k] <= vertex[k] + 1e-12, "{d:?} > {vertex:?}");
+        for cell in [[-0.5, -0.3], [0.0, 0.0], [-0.05, 0.4], [0.8, 0.95]] {
+            let corner = Corner {
+                correlation: cell,
+                motion: lower,
+                step_weights: super::super::motion_noise::tests::weights_of(cell),
+            };
+            let vertex = corner_separations(&model, &corner, &inputs, &view).unwrap();
+            for _ in 0..500 {
+                let g = Matrix3::from_fn(|_, _| rng.random_range(-1.5e-3..1.5e-3));
+                let rho = if cell[0] == cell[1] {
+                    cell[0]
+                } else {
+                    rng.random_range(cell[0]..cell[1])
+                };
+                let exact = super::super::motion_noise::tests::weights_of([rho, rho]);
+                let member = Corner {
+                    correlation: [rho, rho],
+                    motion: lower + g * g.transpose(),
+                    step_weights: exact,
+                };
+                let d = corner_separations(&model, &member, &inputs, &view).unwrap();
+                for k in 0..2 {
+                    assert!(
+                        d[k] <= vertex[k] + 1e-12,
+                        "{cell:?} ρ {rho}: {d:?} > {vertex:?}"
+                    );
+                }
             }
         }
         // A vertex more than the camera's noise below zero has no bound.
         let impossible = -Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 1.0));
-        assert!(worst_case_separations(&model, &impossible, &inputs, &view).is_none());
+        assert!(corner_separations(&model, &white(impossible), &inputs, &view).is_none());
+    }
+
+    /// Which way ρ moves her: at a fixed `Q`, positive correlation sharpens Eve's view of the
+    /// v-bit (the bit shows in the steps' difference, whose variance `λ₋` falls with ρ).
+    #[test]
+    fn positive_correlation_sharpens_her_view_at_a_fixed_q() {
+        let (model, inputs, view) = turning_doublet();
+        let q = Matrix3::from_diagonal(&Vector3::new(1e-6, 1e-6, 1e-6));
+        let at = |rho: f64| {
+            let corner = Corner {
+                correlation: [rho, rho],
+                motion: q,
+                step_weights: super::super::motion_noise::tests::weights_of([rho, rho]),
+            };
+            corner_separations(&model, &corner, &inputs, &view).unwrap()[0]
+        };
+        assert!(
+            at(0.5) > at(0.0) && at(0.9) > at(0.5),
+            "{} {} {}",
+            at(0.0),
+            at(0.5),
+            at(0.9)
+        );
     }
 }
