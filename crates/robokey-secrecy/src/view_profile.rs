@@ -242,6 +242,105 @@ pub fn profile_smooth_min_entropy(
     })
 }
 
+/// The grid a bit's separation is grouped on, rounded up: 2⁻⁵ (31,250 millionths), a multiple
+/// of the published 2⁻⁸ grid, so a block's bits fall in at most 32 groups per unit of
+/// separation and its bound costs a few integrals per group.
+pub const GROUP_QUANTUM_MICROS: u64 = 31_250;
+
+/// The grid an equivalent separation is found on: 2⁻⁸ (3,906.25 millionths).
+const EQUIVALENT_STEPS_PER_UNIT: f64 = 256.0;
+
+/// A bit's separation rounded up to the group grid ([`GROUP_QUANTUM_MICROS`]), in millionths.
+#[must_use]
+pub fn grouped_micros(separation: f64) -> u64 {
+    (separation * 1e6 / GROUP_QUANTUM_MICROS as f64).ceil().max(0.0) as u64 * GROUP_QUANTUM_MICROS
+}
+
+/// A session's per-bit separations on the group grid, millionths → bits, for `bits` bits:
+/// the largest `bits` of `separations` (a list of more — every decided doublet's — errs
+/// safe), the bits a shorter list lacks at its largest.
+#[must_use]
+pub fn separation_counts(separations: &[f64], bits: usize) -> BTreeMap<u64, u64> {
+    let mut sorted = separations.to_vec();
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    let largest = sorted.first().copied().unwrap_or(0.0);
+    let mut counts = BTreeMap::new();
+    for i in 0..bits {
+        let d = sorted.get(i).copied().unwrap_or(largest);
+        *counts.entry(grouped_micros(d)).or_default() += 1;
+    }
+    counts
+}
+
+/// One separation that sizes a block of per-bit separations no larger than the per-bit bound
+/// does: the smallest `d` on the 2⁻⁸ grid (in millionths, rounded up) with
+/// `H(n', d) ≤ H(kept)`, where `H` is the Chernoff bound of [`profile_smooth_min_entropy`],
+/// `counts` maps each separation (millionths) to its bits, and `kept` is what remains after
+/// `removed` bits are taken away — the `removed` bits of the smallest separations, the worst
+/// choice at every λ (a smaller separation's `−ln E[e^{−λS}]` is larger), so the result holds
+/// whichever bits a public sample removes. One separation over every kept bit is returned
+/// as it is; none kept, or none above 0, gives 0. Found by bisection: `H(n', ·)` falls with
+/// `d`, and at the largest separation it is below `H(kept)` (every bit raised to it).
+///
+/// # Errors
+/// [`MinEntropyError::InvalidEpsilon`] for ε outside (0, 1).
+pub fn equivalent_separation(
+    counts: &BTreeMap<u64, u64>,
+    removed: u64,
+    epsilon: f64,
+) -> Result<u64, MinEntropyError> {
+    check_epsilon(epsilon)?;
+    let mut to_remove = removed;
+    let mut kept: Vec<(u64, u64)> = Vec::new();
+    for (&micros, &bits) in counts {
+        let gone = to_remove.min(bits);
+        to_remove -= gone;
+        if bits > gone {
+            kept.push((micros, bits - gone));
+        }
+    }
+    let n: u64 = kept.iter().map(|k| k.1).sum();
+    let largest = kept.last().map_or(0, |k| k.0);
+    if largest == 0 || kept.len() == 1 {
+        return Ok(largest);
+    }
+    let groups: Vec<ViewGroup> = kept
+        .iter()
+        .map(|&(micros, bits)| ViewGroup {
+            view: BitView::Gaussian {
+                separation: micros as f64 * 1e-6,
+            },
+            bits,
+        })
+        .collect();
+    let target = profile_smooth_min_entropy(&groups, epsilon)?.h_min;
+    let single = |step: u64| -> Result<f64, MinEntropyError> {
+        let separation = step as f64 / EQUIVALENT_STEPS_PER_UNIT;
+        let group = ViewGroup {
+            view: BitView::Gaussian { separation },
+            bits: n,
+        };
+        Ok(profile_smooth_min_entropy(&[group], epsilon)?.h_min)
+    };
+    let (mut low, mut high) = (
+        0_u64,
+        (largest as f64 * 1e-6 * EQUIVALENT_STEPS_PER_UNIT).ceil() as u64,
+    );
+    if single(high)? > target {
+        return Ok(largest);
+    }
+    while high - low > 1 {
+        let middle = low + (high - low) / 2;
+        if single(middle)? <= target {
+            high = middle;
+        } else {
+            low = middle;
+        }
+    }
+    let micros = (high as f64 * 1e6 / EQUIVALENT_STEPS_PER_UNIT).ceil() as u64;
+    Ok(micros.min(largest))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -302,6 +401,39 @@ mod tests {
             .map(|g| (g.largest_separation(), g.bits))
             .collect();
         assert_eq!(flat, vec![(0.5, 1), (1.0, 2), (2.0, 3)]);
+    }
+
+    /// The equivalent separation lies between the smallest and the largest, sizes no more
+    /// than the per-bit bound of what the sample leaves, and is the separation itself when
+    /// there is one.
+    #[test]
+    fn the_equivalent_separation_never_claims_more() {
+        let counts: BTreeMap<u64, u64> = [(1_000_000, 6_000), (1_500_000, 3_000), (2_500_000, 1_000)]
+            .into_iter()
+            .collect();
+        let d = equivalent_separation(&counts, 1_000, 1e-6).unwrap();
+        assert!(1_000_000 < d && d < 2_500_000, "{d}");
+        let worst_kept = [gaussian(1.0, 5_000), gaussian(1.5, 3_000), gaussian(2.5, 1_000)];
+        let per_bit = profile_smooth_min_entropy(&worst_kept, 1e-6).unwrap().h_min;
+        let sized = gaussian_llr_smooth_min_entropy(9_000, d as f64 * 1e-6, 1e-6)
+            .unwrap()
+            .h_min;
+        assert!(sized <= per_bit, "{sized} > {per_bit}");
+        // Within one step of the grid: a step less would claim more.
+        let step_less = gaussian_llr_smooth_min_entropy(9_000, d as f64 * 1e-6 - 0.004, 1e-6)
+            .unwrap()
+            .h_min;
+        assert!(step_less > per_bit, "{step_less} ≤ {per_bit}");
+        let one: BTreeMap<u64, u64> = [(1_234_567, 500)].into_iter().collect();
+        assert_eq!(equivalent_separation(&one, 50, 1e-6), Ok(1_234_567));
+        assert_eq!(equivalent_separation(&BTreeMap::new(), 0, 1e-6), Ok(0));
+        assert_eq!(grouped_micros(1.0), 1_000_000);
+        assert_eq!(grouped_micros(1.000_001), 1_031_250);
+        assert_eq!(grouped_micros(0.0), 0);
+        let counts: Vec<(u64, u64)> = separation_counts(&[0.5, 2.0, 1.0], 2).into_iter().collect();
+        assert_eq!(counts, vec![(1_000_000, 1), (2_000_000, 1)]);
+        let counts: Vec<(u64, u64)> = separation_counts(&[0.5, 1.0], 4).into_iter().collect();
+        assert_eq!(counts, vec![(500_000, 1), (1_000_000, 3)]);
     }
 
     #[test]

@@ -102,7 +102,7 @@ impl Pair {
                 .handle_input(ControllerInput::Session {
                     id: *id,
                     bits: bits.clone(),
-                    separation: 0.0,
+                    separations: Vec::new(),
                 })
                 .unwrap();
             pair.collect();
