@@ -242,10 +242,11 @@ pub fn profile_smooth_min_entropy(
     })
 }
 
-/// The grid a bit's separation is grouped on, rounded up: 2⁻⁵ (31,250 millionths), a multiple
-/// of the published 2⁻⁸ grid, so a block's bits fall in at most 32 groups per unit of
-/// separation and its bound costs a few integrals per group.
-pub const GROUP_QUANTUM_MICROS: u64 = 31_250;
+/// The grid a bit's separation is grouped on, rounded up: 2⁻⁶ (15,625 millionths, the finest
+/// power of two that is a whole number of millionths), a multiple of the published 2⁻⁸ grid,
+/// so a block's bits fall in at most 64 groups per unit of separation and its bound costs a
+/// few integrals per group.
+pub const GROUP_QUANTUM_MICROS: u64 = 15_625;
 
 /// The grid an equivalent separation is found on: 2⁻⁸ (3,906.25 millionths).
 const EQUIVALENT_STEPS_PER_UNIT: f64 = 256.0;
@@ -428,7 +429,7 @@ mod tests {
         assert_eq!(equivalent_separation(&one, 50, 1e-6), Ok(1_234_567));
         assert_eq!(equivalent_separation(&BTreeMap::new(), 0, 1e-6), Ok(0));
         assert_eq!(grouped_micros(1.0), 1_000_000);
-        assert_eq!(grouped_micros(1.000_001), 1_031_250);
+        assert_eq!(grouped_micros(1.000_001), 1_015_625);
         assert_eq!(grouped_micros(0.0), 0);
         let counts: Vec<(u64, u64)> = separation_counts(&[0.5, 2.0, 1.0], 2).into_iter().collect();
         assert_eq!(counts, vec![(1_000_000, 1), (2_000_000, 1)]);
