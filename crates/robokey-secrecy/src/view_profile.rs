@@ -254,7 +254,10 @@ const EQUIVALENT_STEPS_PER_UNIT: f64 = 256.0;
 /// A bit's separation rounded up to the group grid ([`GROUP_QUANTUM_MICROS`]), in millionths.
 #[must_use]
 pub fn grouped_micros(separation: f64) -> u64 {
-    (separation * 1e6 / GROUP_QUANTUM_MICROS as f64).ceil().max(0.0) as u64 * GROUP_QUANTUM_MICROS
+    (separation * 1e6 / GROUP_QUANTUM_MICROS as f64)
+        .ceil()
+        .max(0.0) as u64
+        * GROUP_QUANTUM_MICROS
 }
 
 /// A session's per-bit separations on the group grid, millionths → bits, for `bits` bits:
@@ -386,10 +389,18 @@ mod tests {
         let (low, high) = (at(&[gaussian(1.2, 10_000)]), at(&[gaussian(2.0, 10_000)]));
         let mixed = at(&[gaussian(1.2, 5_000), gaussian(2.0, 5_000)]);
         assert!(high < mixed && mixed < low, "{high} {mixed} {low}");
-        let split = at(&[gaussian(1.2, 2_500), gaussian(2.0, 5_000), gaussian(1.2, 2_500)]);
+        let split = at(&[
+            gaussian(1.2, 2_500),
+            gaussian(2.0, 5_000),
+            gaussian(1.2, 2_500),
+        ]);
         assert!((split - mixed).abs() < 1e-9 * mixed);
         // Blind bits count in full.
-        let blind = at(&[gaussian(0.0, 1_000), gaussian(1.2, 5_000), gaussian(2.0, 5_000)]);
+        let blind = at(&[
+            gaussian(0.0, 1_000),
+            gaussian(1.2, 5_000),
+            gaussian(2.0, 5_000),
+        ]);
         assert!(blind > mixed + 999.0, "{blind} {mixed}");
         assert_eq!(at(&[gaussian(0.0, 700)]), 700.0);
     }
@@ -409,12 +420,17 @@ mod tests {
     /// there is one.
     #[test]
     fn the_equivalent_separation_never_claims_more() {
-        let counts: BTreeMap<u64, u64> = [(1_000_000, 6_000), (1_500_000, 3_000), (2_500_000, 1_000)]
-            .into_iter()
-            .collect();
+        let counts: BTreeMap<u64, u64> =
+            [(1_000_000, 6_000), (1_500_000, 3_000), (2_500_000, 1_000)]
+                .into_iter()
+                .collect();
         let d = equivalent_separation(&counts, 1_000, 1e-6).unwrap();
         assert!(1_000_000 < d && d < 2_500_000, "{d}");
-        let worst_kept = [gaussian(1.0, 5_000), gaussian(1.5, 3_000), gaussian(2.5, 1_000)];
+        let worst_kept = [
+            gaussian(1.0, 5_000),
+            gaussian(1.5, 3_000),
+            gaussian(2.5, 1_000),
+        ];
         let per_bit = profile_smooth_min_entropy(&worst_kept, 1e-6).unwrap().h_min;
         let sized = gaussian_llr_smooth_min_entropy(9_000, d as f64 * 1e-6, 1e-6)
             .unwrap()

@@ -16,8 +16,8 @@
 //! A bound that over-claims fails the first: the marginal separations of correlated bits
 //! (each bit's view without its neighbours) and half the genie separations are shown to.
 
-use rand::{RngExt, SeedableRng};
 use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robokey_secrecy::view_profile::{BitView, ViewGroup, profile_smooth_min_entropy};
 
@@ -215,7 +215,10 @@ fn bound(views: &[ViewGroup], epsilon: f64) -> f64 {
 /// Asserts both inequalities for the genie bound of `pattern`; returns it.
 fn genie_holds(name: &str, pattern: &Pattern, epsilon: f64, draws: usize) -> f64 {
     let t = bound(&pattern.genie_views(), epsilon);
-    assert!(t > 0.0, "{name}: the bound claims nothing, the check is void");
+    assert!(
+        t > 0.0,
+        "{name}: the bound claims nothing, the check is void"
+    );
     let exact = pattern.exact(t, draws, 2023);
     assert!(
         exact.below as f64 <= allowed(epsilon, exact.draws),
@@ -284,8 +287,18 @@ fn correlated_neighbours() {
 #[test]
 fn lagged_bits() {
     genie_holds("lag", &Pattern::new(12, 0.4, 0.25, 0.0, 0.0), 0.05, 4_000);
-    genie_holds("lag, ρ = 0.5", &Pattern::new(12, 0.4, -0.3, 0.5, 0.0), 0.05, 4_000);
-    genie_holds("lag, 16 bits", &Pattern::new(16, 0.35, 0.2, 0.0, 0.0), 0.1, 400);
+    genie_holds(
+        "lag, ρ = 0.5",
+        &Pattern::new(12, 0.4, -0.3, 0.5, 0.0),
+        0.05,
+        4_000,
+    );
+    genie_holds(
+        "lag, 16 bits",
+        &Pattern::new(16, 0.35, 0.2, 0.0, 0.0),
+        0.1,
+        400,
+    );
 }
 
 /// Slip: the noise's spread depends on the bit; the unequal-noise view integrates it.

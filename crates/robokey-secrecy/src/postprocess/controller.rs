@@ -261,9 +261,7 @@ impl ControllerPost {
                 bits,
                 separations,
             } => {
-                if let Some(&separation) =
-                    separations.iter().find(|d| !(0.0..=1e6).contains(*d))
-                {
+                if let Some(&separation) = separations.iter().find(|d| !(0.0..=1e6).contains(*d)) {
                     return Err(PostError::Separation { id, separation });
                 }
                 let counts = separation_counts(&separations, bits.len());

@@ -645,14 +645,26 @@ fn per_bit_separations_size_both_sides_alike() {
     };
     let (sized, at_largest) = (run(&per_bit), run(&largest));
     let bits = |pair: &Pair| -> usize { pair.controller_keys.iter().map(|k| k.key.len()).sum() };
-    assert!(bits(&sized) > bits(&at_largest), "{} ≤ {}", bits(&sized), bits(&at_largest));
+    assert!(
+        bits(&sized) > bits(&at_largest),
+        "{} ≤ {}",
+        bits(&sized),
+        bits(&at_largest)
+    );
     for report in sized.reports.iter().filter(|r| r.length > 0) {
         // Its bits at 1.5 (the first of every ten of each session); its sample may have
         // removed only 0.5s.
         let high: u64 = report
             .sessions
             .iter()
-            .map(|id| pool.iter().find(|s| s.0 == *id).unwrap().1.len().div_ceil(10) as u64)
+            .map(|id| {
+                pool.iter()
+                    .find(|s| s.0 == *id)
+                    .unwrap()
+                    .1
+                    .len()
+                    .div_ceil(10) as u64
+            })
             .sum();
         let low = report.reconciled_bits as u64 - high;
         let groups = [
@@ -681,4 +693,3 @@ fn per_bit_separations_size_both_sides_alike() {
         "{refused:?}"
     );
 }
-

@@ -24,8 +24,7 @@ pub trait PostEndpoint {
     ///
     /// # Errors
     /// A duplicate session or one of a size out of bounds.
-    fn pool(&mut self, id: u32, bits: BitString, separations: Vec<f64>)
-        -> Result<(), PostError>;
+    fn pool(&mut self, id: u32, bits: BitString, separations: Vec<f64>) -> Result<(), PostError>;
     /// A message from the peer.
     fn frame(&mut self, message: postprocess::Message);
     /// The next output.
