@@ -50,16 +50,22 @@ pub(crate) fn integral(sum: f64) -> f64 {
     sum * h / (2.0 * std::f64::consts::PI).sqrt()
 }
 
-/// `E[g(S)]` for the surprisal `S` of a view with separation `d`.
-pub(crate) fn expect(separation: f64, g: impl Fn(f64) -> f64) -> f64 {
-    integral(terms(separation, g).fold(0.0, |sum, (_, _, term)| sum + term))
+/// `(kernel weight, S)` at each grid point for a view with separation `d`: the terms of
+/// `E[g(S)]` before `g`, `L = d²/2 + d·z` (the same operations as [`terms`], so a sum over
+/// them is the same bit for bit).
+pub(crate) fn surprisal_table(separation: f64) -> Vec<(f64, f64)> {
+    let (mean, std) = (separation * separation / 2.0, separation);
+    grid()
+        .iter()
+        .map(|&(z, kernel)| (kernel, surprisal(mean + std * z)))
+        .collect()
 }
 
 /// A term below this fraction of a positive sum is below a quarter of the sum's last-place
 /// unit, which is more than `2^−53` of it.
 const NEGLIGIBLE: f64 = f64::EPSILON / 8.0;
 
-/// `E[S]`, the same sum as `expect(separation, |s| s)`, bit for bit, without its negligible
+/// `E[S]`, the trapezoid sum over [`surprisal_table`], bit for bit, without its negligible
 /// tail. Past the mean (`z > 0` and `L > 0`) every term is smaller than the one before (the
 /// kernel falls with `z`, `S` with `L`); once a term is below a quarter of the last-place
 /// unit of the sum, each later one is below half of it (rounding errors of a few units in
@@ -231,7 +237,13 @@ mod tests {
     /// to 50, log-spaced, and the private-sensing map's range densely.
     #[test]
     fn the_expected_surprisal_is_the_whole_sum_bit_for_bit() {
-        let whole = |d: f64| expect(d, |s| s);
+        let whole = |d: f64| {
+            integral(
+                surprisal_table(d)
+                    .iter()
+                    .fold(0.0, |sum, &(kernel, s)| sum + kernel * s),
+            )
+        };
         let logspaced = (0..2_000).map(|i| 10f64.powf(-5.0 + 6.7 * f64::from(i) / 2_000.0));
         let dense = (0..2_000).map(|i| 0.8 + 4.2 * f64::from(i) / 2_000.0);
         for d in logspaced.chain(dense) {

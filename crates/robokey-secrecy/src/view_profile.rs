@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use crate::gaussian_llr::{expect, expected_surprisal, grid, integral, surprisal};
+use crate::gaussian_llr::{expected_surprisal, grid, integral, surprisal, surprisal_table};
 use crate::min_entropy::{MinEntropyError, check_epsilon, chernoff_lower_quantile};
 
 /// How Eve sees one bit.
@@ -76,12 +76,15 @@ impl BitView {
         }
     }
 
-    /// `E[g(S)]` for the surprisal `S` of the true bit, the bit uniform. For unequal noise,
-    /// `½·Σ_b ∫ φ(z)·g(S(L_b(z))) dz` with `y = ±gap/2 + σ_b·z` and
-    /// `L_b = ln p_b(y) − ln p_{1−b}(y)` on the Gaussian grid of [`crate::gaussian_llr`].
-    fn expect(&self, g: impl Fn(f64) -> f64) -> f64 {
+    /// The view's surprisals on the quadrature grid of [`crate::gaussian_llr`]: for unequal
+    /// noise, `y = ±gap/2 + σ_b·z` and `L_b = ln p_b(y) − ln p_{1−b}(y)` for each value `b`
+    /// of the bit, integrated separately.
+    fn table(&self) -> SurprisalTable {
         match *self {
-            Self::Gaussian { separation } => expect(separation, g),
+            Self::Gaussian { separation } => SurprisalTable {
+                first: surprisal_table(separation),
+                second: None,
+            },
             Self::UnequalNoise {
                 gap,
                 std_one,
@@ -94,15 +97,20 @@ impl BitView {
                     -0.5 * u * u - std.ln()
                 };
                 let side = |mean: f64, std: f64, other_mean: f64, other_std: f64| {
-                    grid().iter().fold(0.0, |sum, &(z, kernel)| {
-                        let y = mean + std * z;
-                        let llr = -0.5 * z * z - std.ln() - log_density(y, other_mean, other_std);
-                        sum + kernel * g(surprisal(llr))
-                    })
+                    grid()
+                        .iter()
+                        .map(|&(z, kernel)| {
+                            let y = mean + std * z;
+                            let llr =
+                                -0.5 * z * z - std.ln() - log_density(y, other_mean, other_std);
+                            (kernel, surprisal(llr))
+                        })
+                        .collect()
                 };
-                0.5 * integral(
-                    side(half, std_one, -half, std_zero) + side(-half, std_zero, half, std_one),
-                )
+                SurprisalTable {
+                    first: side(half, std_one, -half, std_zero),
+                    second: Some(side(-half, std_zero, half, std_one)),
+                }
             }
         }
     }
@@ -113,7 +121,7 @@ impl BitView {
         match *self {
             _ if self.is_blind() => 1.0,
             Self::Gaussian { separation } => expected_surprisal(separation),
-            Self::UnequalNoise { .. } => self.expect(|s| s),
+            Self::UnequalNoise { .. } => self.table().expect(|s| s),
         }
     }
 
@@ -123,6 +131,34 @@ impl BitView {
         if self.is_blind() {
             return -lambda;
         }
+        self.table().ln_moment(lambda)
+    }
+}
+
+/// A view's `(kernel weight, surprisal)` at each point of the quadrature grid, computed once:
+/// `ln E[e^{−λS}]` at the many λ of the Chernoff search then costs one exponential a point.
+/// `second`: the other value of the bit, for a view whose two values are integrated apart.
+struct SurprisalTable {
+    first: Vec<(f64, f64)>,
+    second: Option<Vec<(f64, f64)>>,
+}
+
+impl SurprisalTable {
+    /// `E[g(S)]`, the bit uniform: the trapezoid sum of each side, halved over two sides.
+    fn expect(&self, g: impl Fn(f64) -> f64) -> f64 {
+        let side = |terms: &[(f64, f64)]| {
+            terms
+                .iter()
+                .fold(0.0, |sum, &(kernel, s)| sum + kernel * g(s))
+        };
+        match &self.second {
+            None => integral(side(&self.first)),
+            Some(second) => 0.5 * integral(side(&self.first) + side(second)),
+        }
+    }
+
+    /// `ln E[e^{−λS}]`.
+    fn ln_moment(&self, lambda: f64) -> f64 {
         self.expect(|s| (-lambda * s).exp()).ln()
     }
 }
@@ -219,13 +255,23 @@ pub fn profile_smooth_min_entropy(
             h_min: nf,
         });
     }
+    let tables: Vec<(f64, SurprisalTable)> = informative
+        .iter()
+        .map(|g| (g.bits as f64, g.view.table()))
+        .collect();
+    let blind: f64 = groups
+        .iter()
+        .filter(|g| g.bits > 0 && g.view.is_blind())
+        .map(|g| g.bits as f64)
+        .sum();
+    // Blind bits' surprisal is 1 bit: `ln E[e^{−λ}] = −λ` each.
     let (t, lambda) = chernoff_lower_quantile(
         |lambda| {
-            groups
+            tables
                 .iter()
-                .filter(|g| g.bits > 0)
-                .map(|g| g.bits as f64 * g.view.ln_moment(lambda))
-                .sum()
+                .map(|(bits, table)| bits * table.ln_moment(lambda))
+                .sum::<f64>()
+                - blind * lambda
         },
         epsilon,
     );
