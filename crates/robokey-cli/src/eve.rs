@@ -25,6 +25,7 @@ use robokey_net::recorded_eve::{
 use crate::StrategyArg;
 use crate::commands::prepare_output;
 use crate::configuration::{ConfigOptions, FlagOverrides};
+use crate::exit::usage;
 
 #[derive(Args, Debug)]
 pub struct EveArgs {
@@ -219,11 +220,13 @@ fn private(args: &EveArgs, config: &Config) -> Result<()> {
 
 /// `--errors r,D,W,V`.
 fn parse_errors(text: &str) -> Result<ModelErrors> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("--errors {text}: expected four numbers r,D,W,V"))?;
+    let mut values = Vec::new();
+    for value in text.split(',') {
+        let Ok(number) = value.trim().parse::<f64>() else {
+            usage!("--errors {text}: {value:?} is not a number (expected four numbers r,D,W,V)");
+        };
+        values.push(number);
+    }
     explicit_errors(&values).map_err(|e| anyhow::Error::new(e).context(format!("--errors {text}")))
 }
 

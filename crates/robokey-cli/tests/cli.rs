@@ -628,14 +628,19 @@ fn private_sensing_runs_end_to_end_from_the_command_line() {
     ]);
     assert!(eve.contains("camera") && eve.contains("predicted"), "{eve}");
     assert!(read(&dir.join("eve/eve.md")).contains("by public turn rate"));
-    let refused = fails(&[
-        "eve",
-        "--set",
-        "sensing.mode=private",
-        "--strategy",
-        "identify",
-    ]);
+    let refused = fails_with(
+        2,
+        &[
+            "eve",
+            "--set",
+            "sensing.mode=private",
+            "--strategy",
+            "identify",
+        ],
+    );
     assert!(refused.contains("identify"), "{refused}");
+    let refused = fails_with(2, &["eve", "--capture", "no.pcap", "--errors", "0.1,x,0,0"]);
+    assert!(refused.contains("\"x\" is not a number"), "{refused}");
 }
 
 /// A suite of two small experiments, one keeping traces.

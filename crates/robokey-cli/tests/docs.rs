@@ -254,7 +254,7 @@ fn every_error_a_console_block_shows_is_the_one_robokey_prints() {
 }
 
 /// Configuration sections, and names after them that are files, not fields.
-const SECTIONS: [&str; 11] = [
+const SECTIONS: [&str; 12] = [
     "robot",
     "noise",
     "sensing",
@@ -266,6 +266,7 @@ const SECTIONS: [&str; 11] = [
     "eve",
     "run",
     "postprocess",
+    "private",
 ];
 const FILE_EXTENSIONS: [&str; 10] = [
     "svg", "png", "pdf", "csv", "json", "key", "toml", "md", "rs", "pcap",

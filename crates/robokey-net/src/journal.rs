@@ -387,6 +387,11 @@ pub(crate) mod tests {
                 let mut torn = whole[..cut].to_vec();
                 if zero_filled {
                     torn.resize(whole.len(), 0);
+                    // The file id is random, so the tag's missing bytes are zero one time in
+                    // 256 per byte: then zero-filling rebuilds the intact record, no tear.
+                    if torn == whole {
+                        continue;
+                    }
                 }
                 std::fs::write(&path, &torn).unwrap();
                 let (mut journal, contents) = open(&path).unwrap();

@@ -44,6 +44,9 @@ pub struct Config {
     pub run: RunConfig,
     /// How the agents turn pooled raw bits into final keys.
     pub postprocess: PostprocessConfig,
+    /// Private sensing's doublet shape (docs/private-sensing.md); absent: the defaults.
+    #[serde(skip_serializing_if = "PrivateConfig::is_default")]
+    pub private: PrivateConfig,
     /// The true physics, apart from what the parties believe (docs/world.md); absent: the
     /// parties' own model.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -467,6 +470,30 @@ impl Default for EveConfig {
     }
 }
 
+/// `[private]`: what the parties state about the plant when shaping a doublet.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PrivateConfig {
+    /// The actuator lag τ (s) the parties assume, a prior of the model class's first-order
+    /// lag: 0 (the default) keeps the two-step doublet; τ > 0 makes it three steps
+    /// `(+1, −(1 + a), +a)·s·Δ`, `a = e^(−T/τ)`, which leaves a first-order lag of τ no
+    /// bit-dependent position or speed at the doublet's end, so that the next commands
+    /// reveal nothing of the bit. At most [`MAX_PRIOR_LAG`]. An agreement term.
+    pub prior_lag: f64,
+}
+
+/// The largest `private.prior_lag` (s): a world's lag is at most this too.
+pub const MAX_PRIOR_LAG: f64 = crate::world::MAX_WORLD_SECONDS;
+
+impl PrivateConfig {
+    /// Whether it is the default (then it is not written out, so that older
+    /// configurations' digests and dumps are unchanged).
+    #[must_use]
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
 /// `[postprocess]`: the agents' pooled post-processing (docs/postprocessing.md). Both
 /// agents must hold the same values: they are part of the configuration digest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -618,6 +645,7 @@ impl Config {
         every.eve.smoother_window = Some(0);
         every.eve.camera_fps = Some(1.0);
         every.eve.camera_frame_std = Some([1.0; 3]);
+        every.private.prior_lag = 1.0;
         let mut known: toml::Table = every
             .to_toml()
             .parse()
@@ -752,6 +780,13 @@ impl Config {
             }
             SensingMode::Private => self.validate_private()?,
         }
+        if self.sensing.mode == SensingMode::Odometry && !self.private.is_default() {
+            return Err(invalid(
+                "private.prior_lag",
+                self.private.prior_lag,
+                "0 in odometry mode (it shapes private sensing's doublets)",
+            ));
+        }
         self.validate_wheel_speeds()?;
         if self.eve_strategy().mode() != self.sensing.mode {
             let allowed = match self.sensing.mode {
@@ -881,6 +916,14 @@ impl Config {
     /// The combinations private sensing refuses (docs/private-sensing.md).
     fn validate_private(&self) -> Result<(), ConfigError> {
         let proto = &self.protocol;
+        let lag = self.private.prior_lag;
+        if !(0.0..=MAX_PRIOR_LAG).contains(&lag) {
+            return Err(invalid(
+                "private.prior_lag",
+                lag,
+                &format!("0 to {MAX_PRIOR_LAG} s (0: the two-step doublet)"),
+            ));
+        }
         if self.controller.feedback == Feedback::Estimate {
             return Err(invalid(
                 "controller.feedback",
@@ -908,7 +951,9 @@ impl Config {
 
     /// Every wheel speed the controller can offer is one the robot applies: the nominal
     /// command, clipped to `controller.wheel_limit` per wheel, plus the largest per-wheel
-    /// offset of the protocol, `(Δv + Δω·D/2)/r` (rad/s), stays within `robot.wheel_limit`.
+    /// offset of the protocol, `k·(Δv + Δω·D/2)/r` (rad/s), stays within `robot.wheel_limit`;
+    /// `k` is the largest step of the doublet's shape: 1, or `1 + a` for the three-step
+    /// doublet's middle step `−(1 + a)·s·Δ` (`private.prior_lag`).
     /// The robot refuses a pair outside its limit, so a larger Δ would make sessions whose
     /// steps are all erased: no bit, and no word why.
     fn validate_wheel_speeds(&self) -> Result<(), ConfigError> {
@@ -919,7 +964,8 @@ impl Config {
             (0.0, 0.0)
         };
         let half_axle = robot.axle_length / 2.0;
-        let offset = (delta_v + delta_omega * half_axle) / robot.r;
+        let largest_step = 1.0 + self.doublet_settle().unwrap_or(0.0);
+        let offset = largest_step * (delta_v + delta_omega * half_axle) / robot.r;
         let room = robot.wheel_limit - controller.wheel_limit;
         if room < 0.0 {
             return Err(invalid(
@@ -936,24 +982,30 @@ impl Config {
         if offset <= room {
             return Ok(());
         }
+        // The three-step doublet's middle step `(1 + a)` scales the offset.
+        let scale = if largest_step > 1.0 {
+            format!("{largest_step:.4}·")
+        } else {
+            String::new()
+        };
         let why = format!(
-            "the offered wheel speeds reach controller.wheel_limit + (Δv + Δω·D/2)/r = {} + \
-             {offset:.4} = {:.4} rad/s, above robot.wheel_limit = {} rad/s, and the robot \
+            "the offered wheel speeds reach controller.wheel_limit + {scale}(Δv + Δω·D/2)/r = \
+             {} + {offset:.4} = {:.4} rad/s, above robot.wheel_limit = {} rad/s, and the robot \
              refuses such pairs, so no step would carry a bit",
             controller.wheel_limit,
             controller.wheel_limit + offset,
             robot.wheel_limit
         );
         // Name Δω when it alone leaves no room, else Δv, with its largest value that fits.
-        Err(if delta_omega * half_axle / robot.r > room {
-            let most = robot.r * room / half_axle;
+        Err(if largest_step * delta_omega * half_axle / robot.r > room {
+            let most = robot.r * room / half_axle / largest_step;
             invalid(
                 "protocol.delta_omega",
                 delta_omega,
                 &format!("≤ {most:.4} rad/s with these limits: {why}"),
             )
         } else {
-            let most = robot.r * room - delta_omega * half_axle;
+            let most = robot.r * room / largest_step - delta_omega * half_axle;
             invalid(
                 "protocol.delta_v",
                 delta_v,
@@ -972,6 +1024,19 @@ impl Config {
                 SensingMode::Private => DOUBLET_DELTA_OMEGA,
                 SensingMode::Odometry => 0.0,
             })
+    }
+
+    /// The three-step doublet's third-step share `a = e^(−T/τ)` for `private.prior_lag`
+    /// τ > 0 in private mode; `None`: the two-step doublet.
+    #[must_use]
+    pub fn doublet_settle(&self) -> Option<f64> {
+        match self.sensing.mode {
+            SensingMode::Private => crate::private::doublet::settle_share(
+                self.robot.sample_time,
+                self.private.prior_lag,
+            ),
+            SensingMode::Odometry => None,
+        }
     }
 
     /// The Δω (rad/s) that perturbs the inputs: [`Self::delta_omega`], but 0 with one bit
@@ -1308,6 +1373,33 @@ mod tests {
         assert_eq!(field, "controller.wheel_limit");
         // Without the protocol only the controller's limit counts.
         Config::from_toml("[protocol]\nenabled = false\ndelta_v = 35.0\n", "t").unwrap();
+    }
+
+    #[test]
+    fn the_prior_lag_is_named_out_of_range_and_its_middle_step_within_the_wheel_limit() {
+        let error = |toml: &str| match Config::from_toml(toml, "t").unwrap_err() {
+            ConfigError::Invalid { field, allowed, .. } => (field, allowed),
+            other => panic!("{other}"),
+        };
+        let private = "[sensing]\nmode = \"private\"\n";
+        for lag in ["-0.01", "1.5", "nan"] {
+            let (field, allowed) = error(&format!("{private}[private]\nprior_lag = {lag}\n"));
+            assert_eq!(field, "private.prior_lag");
+            assert!(allowed.starts_with("0 to 1 s"), "{allowed}");
+        }
+        let (field, allowed) = error("[private]\nprior_lag = 0.05\n");
+        assert_eq!(field, "private.prior_lag");
+        assert!(allowed.contains("odometry mode"), "{allowed}");
+        // With τ = 100 ms the middle step is (1 + e^(−2))·Δv: Δv ≤ 0.62853 / 1.13534.
+        let shaped = format!("{private}[private]\nprior_lag = 0.1\n");
+        let (field, allowed) = error(&format!("{shaped}[protocol]\ndelta_v = 0.5537\n"));
+        assert_eq!(field, "protocol.delta_v");
+        assert!(
+            allowed.starts_with("≤ 0.5536 m/s") && allowed.contains("1.1353·(Δv"),
+            "{allowed}"
+        );
+        let config = Config::from_toml(&format!("{shaped}[protocol]\ndelta_v = 0.5536\n"), "t");
+        assert_eq!(config.unwrap().doublet_settle(), Some((-2.0f64).exp()));
     }
 
     #[test]

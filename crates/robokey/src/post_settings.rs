@@ -42,14 +42,24 @@ pub fn camera_words(config: &Config) -> String {
 
 /// The plant's model class a private-sensing key rests on, as configured: white Gaussian
 /// motion noise of `noise.process_std` per step, no correlation, slip, lag or delay, the
-/// Euler map.
+/// Euler map; with `private.prior_lag` τ > 0, the doublets shaped in three steps for a
+/// first-order actuator lag of τ (the stated prior).
 #[must_use]
 pub fn plant_words(config: &Config) -> String {
-    format!(
-        "white Gaussian motion noise {} per step as configured (not measured), no \
-         correlation, slip, lag or delay, the Euler map",
-        millimetres(config.noise.process_std)
-    )
+    let noise = millimetres(config.noise.process_std);
+    if config.private.is_default() {
+        format!(
+            "white Gaussian motion noise {noise} per step as configured (not measured), no \
+             correlation, slip, lag or delay, the Euler map"
+        )
+    } else {
+        format!(
+            "white Gaussian motion noise {noise} per step as configured (not measured), no \
+             correlation, slip or delay, the Euler map; three-step doublets shaped for a \
+             first-order actuator lag of {} ms (private.prior_lag, stated, not measured)",
+            config.private.prior_lag * 1e3
+        )
+    }
 }
 
 /// The two assumptions a private-sensing key rests on, written in its record.
@@ -194,6 +204,13 @@ mod tests {
             camera_assumption(&config, 1.0)
                 .describe()
                 .contains(&basis.camera)
+        );
+        assert!(basis.plant.contains("no correlation, slip, lag or delay"));
+        config.private.prior_lag = 0.05;
+        let shaped = key_basis(&config).unwrap().plant;
+        assert!(
+            shaped.contains("three-step doublets shaped for a first-order actuator lag of 50 ms"),
+            "{shaped}"
         );
     }
 

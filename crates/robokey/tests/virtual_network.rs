@@ -25,6 +25,13 @@ fn short(mode: &str) -> Config {
     .expect("a valid configuration")
 }
 
+/// A short private session of three-step doublets (`private.prior_lag` = 50 ms).
+fn three_step() -> Config {
+    let mut config = short("private");
+    config.private.prior_lag = 0.05;
+    config
+}
+
 /// The faults of one direction, drawn for a seed: up to 40 % loss, 20 % duplication, 20 %
 /// reordering (held back up to 300 ms), 10 % corruption, latency and jitter up to 40 ms.
 fn faults(rng: &mut ChaCha8Rng) -> LinkFaults {
@@ -84,10 +91,13 @@ fn check(seed: u64, s: &Session) -> bool {
 }
 
 fn property(mode: &str) {
-    let config = short(mode);
+    property_of(mode, &short(mode));
+}
+
+fn property_of(mode: &str, config: &Config) {
     let (mut both, mut bits, mut differ) = (0, 0, 0);
     for seed in 0..SEEDS {
-        let s = session(&config, network(seed), |_, _| false, |_| false);
+        let s = session(config, network(seed), |_, _| false, |_| false);
         both += u64::from(check(seed, &s));
         bits += s.robot_key.len();
         differ += s
@@ -117,9 +127,18 @@ fn over_a_faulty_network_private_sessions_end_and_never_hold_differing_keys() {
 }
 
 #[test]
+fn over_a_faulty_network_three_step_private_sessions_end_and_never_hold_differing_keys() {
+    property_of("private, three steps", &three_step());
+}
+
+#[test]
 fn an_ideal_link_agrees_in_both_modes() {
-    for mode in ["odometry", "private"] {
-        let s = session(&short(mode), Network::default(), |_, _| false, |_| false);
+    for (mode, config) in [
+        ("odometry", short("odometry")),
+        ("private", short("private")),
+        ("private, three steps", three_step()),
+    ] {
+        let s = session(&config, Network::default(), |_, _| false, |_| false);
         assert!(check(0, &s), "{mode}: {s:?}");
         assert!(!s.robot_key.is_empty(), "{mode}");
     }
@@ -359,7 +378,8 @@ mod through_the_session_layer {
     }
 
     /// What sizes or labels the keys and differs between the agents — the motion noise the
-    /// assumption names, Eve's camera in frames — ends the session at `Hello`, named.
+    /// assumption names, Eve's camera in frames, the prior lag that shapes the doublets —
+    /// ends the session at `Hello`, named.
     #[test]
     fn terms_that_size_or_label_keys_and_differ_are_refused_by_name() {
         let robot = short("private");
@@ -369,6 +389,10 @@ mod through_the_session_layer {
         frames.eve.camera_fps = Some(30.0);
         frames.eve.camera_frame_std = Some([0.016; 3]);
         for (controller, named) in [
+            (
+                three_step(),
+                "private.prior_lag: robot has (missing), controller has 0.05",
+            ),
             (
                 noise,
                 "noise.process_std: robot has [0.004, 0.004, 0.004], controller has [0.002, \

@@ -170,3 +170,38 @@ fn below_the_sensor_noise_the_neighbours_samples_are_used_and_converge() {
         "at the screening line, W 4 − alone: {gain} ± {se}"
     );
 }
+
+/// Under a 50 ms lag (1 mm motion noise) the two-step doublet's boundary residual, which
+/// the next commands reveal, carries the v-bit along the heading, `τΔv(1 − e^(−T/τ))²` ≈
+/// 1.686 mm per bit sign on straight doublets; the three-step doublet shaped with the same
+/// prior (`private.prior_lag`) leaves none beyond the model's prediction. Both regressions of
+/// `s·(r − μ)` on straight v-bits within 4 standard errors (from the bits' own spread) of
+/// their theory: 1.686 mm and 0.
+#[test]
+fn the_three_step_doublet_hides_the_bit_from_the_commands_under_a_known_lag() {
+    use robokey::private::BitKind;
+    use robokey::private::doublet::sign;
+    let world = "[world]\nlag = 0.05\nprocess_std = [0.001, 0.001, 0.001]\n";
+    let along = |bits: &[DoubletBit]| {
+        let x: Vec<f64> = bits
+            .iter()
+            .filter(|b| b.kind == BitKind::V && b.turn_rate < 0.05)
+            .map(|b| sign(b.bit) * (b.revealed[0] - b.modelled[0]))
+            .collect();
+        assert!(x.len() > 300, "{} straight bits", x.len());
+        mean_and_error(&x)
+    };
+    let (tau, t, delta_v) = (0.05_f64, 0.2, 0.035);
+    let theory = tau * delta_v * (1.0 - (-t / tau).exp()).powi(2);
+    let (two, two_error) = along(&bits(&private(world), 3));
+    assert!(
+        (two - theory).abs() < 4.0 * two_error,
+        "two steps: {two} ± {two_error} m, theory {theory}"
+    );
+    let shaped = private(&format!("[private]\nprior_lag = 0.05\n{world}"));
+    let (three, three_error) = along(&bits(&shaped, 3));
+    assert!(
+        three.abs() < 4.0 * three_error && three_error < 0.1 * theory,
+        "three steps: {three} ± {three_error} m"
+    );
+}

@@ -86,6 +86,17 @@ pub fn block_separations(
             },
         )
     };
+    if let Some(a) = config.doublet_settle() {
+        return refuse(
+            format!(
+                "motion-noise estimate: it models the two-step doublet's residual, the block's \
+                 doublets have three steps (private.prior_lag = {} s, a = {a:.4}; allowed: \
+                 private.prior_lag = 0 with --sizing measured)",
+                config.private.prior_lag
+            ),
+            residuals.len(),
+        );
+    }
     let estimate = match estimate_motion_noise(&residuals, &sensor, epsilon) {
         Ok(e) => e,
         Err(refusal) => return refuse(refusal.to_string(), residuals.len()),

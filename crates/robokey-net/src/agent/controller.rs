@@ -119,7 +119,7 @@ pub fn run_controller(
             };
             let failed = carry.output(output, connection.post()).map(|event| {
                 if let Some(event) = event {
-                    report.controller_event(&event, plan.agreed.enabled);
+                    report.controller_event(&event, &plan);
                     if let ControllerEvent::Decoded(_) = event {
                         progress.tick(report.steps_done, report.erased_steps);
                     }

@@ -192,8 +192,9 @@ impl SessionReport {
         }
     }
 
-    /// The controller reported `event` in a session whose protocol is on when `enabled`.
-    pub fn controller_event(&mut self, event: &ControllerEvent, enabled: bool) {
+    /// The controller reported `event` in session `plan`.
+    pub fn controller_event(&mut self, event: &ControllerEvent, plan: &SessionPlan) {
+        let enabled = plan.agreed.enabled;
         match event {
             ControllerEvent::Decoded(decision) => {
                 self.steps_done = decision.step + 1;
@@ -206,7 +207,7 @@ impl SessionReport {
                 }
             }
             ControllerEvent::DoubletErased { .. } => {
-                self.erased_steps += 2;
+                self.erased_steps += plan.steps_per_doublet();
                 if let Some(counts) = &mut self.doublets {
                     counts.erased += 1;
                 }

@@ -26,10 +26,11 @@ struct Pending {
     doublet: u32,
     inputs: DoubletInputs,
     carries: bool,
-    /// `y_c(2j)`, `y_c(2j+1)`, `y_c(2j+2)`.
-    samples: [Option<Pose>; 3],
-    /// The robot's reports on steps `2j` and `2j+1`: applied or not, if heard.
-    applied: [Option<bool>; 2],
+    /// `y_c(Lj)` … `y_c(Lj+L)` (`L` steps per doublet; the last entry unused with two).
+    samples: [Option<Pose>; 4],
+    /// The robot's reports on steps `Lj` … `Lj+L−1`: applied or not, if heard (the last
+    /// entry unused with two steps).
+    applied: [Option<bool>; 3],
 }
 
 /// Steps the robot may report beyond a doublet's end before a report of the doublet that
@@ -100,10 +101,11 @@ impl PrivateController {
         }
         life.robot_cursor = life.robot_cursor.max(cursor);
         self.reported = self.reported.max(step + 1);
+        let length = self.plan.steps_per_doublet();
         if let Some(done) = step.checked_sub(1)
-            && let Some(p) = self.pending.iter_mut().find(|p| p.doublet == done / 2)
+            && let Some(p) = self.pending.iter_mut().find(|p| p.doublet == done / length)
         {
-            p.applied[(done % 2) as usize].get_or_insert(applied == Some(done));
+            p.applied[(done % length) as usize].get_or_insert(applied == Some(done));
         }
         self.resolve(agreed, life);
     }
@@ -123,17 +125,19 @@ impl PrivateController {
             return;
         }
         self.next_sample = step + 1;
+        let length = self.plan.steps_per_doublet();
         for p in &mut self.pending {
             if let Some(slot) = step
-                .checked_sub(2 * p.doublet)
+                .checked_sub(length * p.doublet)
+                .filter(|&i| i <= length)
                 .and_then(|i| p.samples.get_mut(i as usize))
             {
                 *slot = Some(pose);
             }
         }
         // Doublets whose first sample never came were never commanded.
-        let doublets = agreed.steps / 2;
-        while self.next_doublet < doublets && 2 * self.next_doublet < step {
+        let doublets = agreed.steps / length;
+        while self.next_doublet < doublets && length * self.next_doublet < step {
             life.fates.record(self.next_doublet, false);
             life.emit(ControllerEvent::DoubletErased {
                 doublet: self.next_doublet,
@@ -146,9 +150,10 @@ impl PrivateController {
 
     fn command(&mut self, agreed: &Agreed, life: &mut ControllerLifecycle, step: u32, pose: Pose) {
         let t = agreed.sample_time;
+        let length = self.plan.steps_per_doublet();
         let (first, second) = if step >= agreed.steps {
             (Unicycle::zeros(), None)
-        } else if step % 2 == 1 {
+        } else if self.plan.is_later_step(step, agreed.steps) {
             return; // mid-doublet: its input went with the first
         } else {
             let first = self.tracking.command(&pose, step);
@@ -157,7 +162,7 @@ impl PrivateController {
                 // A finite but absurd pose (e.g. 1e308 m) overflows the controller's state.
                 return life.abort(format!("step {step}: the tracking command is not finite"));
             }
-            if step + 2 <= agreed.steps {
+            if step + length <= agreed.steps {
                 let predicted = unicycle_step(&pose, &first, t);
                 let second = self.tracking.command(&predicted, step + 1);
                 if !finite(&second) {
@@ -166,13 +171,13 @@ impl PrivateController {
                 let inputs = DoubletInputs { first, second };
                 let carries = self.plan.carries(agreed.enabled, &inputs);
                 self.pending.push_back(Pending {
-                    doublet: step / 2,
+                    doublet: step / length,
                     inputs,
                     carries,
-                    samples: [Some(pose), None, None],
-                    applied: [None; 2],
+                    samples: [Some(pose), None, None, None],
+                    applied: [None; 3],
                 });
-                self.next_doublet = step / 2 + 1;
+                self.next_doublet = step / length + 1;
                 life.emit(ControllerEvent::DoubletCommanded {
                     step,
                     inputs,
@@ -199,19 +204,26 @@ impl PrivateController {
     /// Resolves, in order, every doublet whose samples and measurements are all in or
     /// known lost; once every step is, closes the session.
     fn resolve(&mut self, agreed: &Agreed, life: &mut ControllerLifecycle) {
+        let length = self.plan.steps_per_doublet();
         while let Some(&p) = self.pending.front() {
-            let end = 2 * p.doublet + 2;
-            let reports_settled = p.applied.iter().all(Option::is_some)
+            let end = length * p.doublet + length;
+            let reports = &p.applied[..length as usize];
+            let reports_settled = reports.iter().all(Option::is_some)
                 || self.reported > (end + REORDER_SLACK).min(agreed.steps);
             if self.next_sample <= end || !reports_settled {
                 break;
             }
             self.pending.pop_front();
-            let complete = match p.samples {
-                [Some(start), Some(middle), Some(end)] if p.applied == [Some(true); 2] => {
-                    Some([start, middle, end])
+            let all_applied = reports.iter().all(|r| *r == Some(true));
+            let samples = &p.samples[..=length as usize];
+            let complete = if all_applied && samples.iter().all(Option::is_some) {
+                let mut all = [Pose::zeros(); 4];
+                for (slot, sample) in all.iter_mut().zip(samples.iter().flatten()) {
+                    *slot = *sample;
                 }
-                _ => None,
+                Some(all)
+            } else {
+                None
             };
             match (p.carries, complete) {
                 (false, _) => life.fates.record(p.doublet, false),
@@ -230,37 +242,41 @@ impl PrivateController {
         }
     }
 
-    fn decide(&mut self, life: &mut ControllerLifecycle, p: &Pending, samples: [Pose; 3]) {
+    /// Decides doublet `p` from its samples `y_c(Lj) … y_c(Lj+L)` (the first `L + 1` of
+    /// `samples`).
+    fn decide(&mut self, life: &mut ControllerLifecycle, p: &Pending, samples: [Pose; 4]) {
+        let length = self.plan.steps_per_doublet() as usize;
         let own = |k: usize| PoseObservation::new(samples[k], self.controller_std);
         let view = DoubletView {
             start: own(0),
             middle: Some(own(1)),
-            end: Some(own(2)),
+            late: (length == 3).then(|| own(2)),
+            end: Some(own(length)),
         };
-        let assumed = stated_camera_view(samples, self.controller_std, self.camera_std);
+        let taken = &samples[..=length];
+        let assumed = stated_camera_view(taken, self.controller_std, self.camera_std);
         let evidence = self.model.evidence(&p.inputs, &view);
-        let t = self.model.sample_time;
         let frame = |delta: &Pose| in_doublet_frame(delta, samples[0].z, p.inputs.first.y);
-        let end = |offset: Unicycle| p.inputs.propagate(&samples[0], offset, t)[1];
         let perturbation = &self.plan.perturbation;
+        let end = |pattern: Option<usize>| self.model.end_of(&p.inputs, &samples[0], pattern);
         let decided = evidence.bits();
         let modelled = |kind: usize| {
             let with = |value: u64| {
                 let bits = (decided & !(1 << kind)) | (value << kind);
                 perturbation.pattern([(bits & 1) as u8, (bits >> 1 & 1) as u8])
             };
-            let [plus, minus] = [with(0), with(1)].map(|h| end(perturbation.offset(h)));
+            let [plus, minus] = [with(0), with(1)].map(|h| end(Some(h)));
             frame(&(0.5 * (plus - minus)))
         };
         let decision = DoubletDecision {
             doublet: p.doublet,
-            step: 2 * p.doublet,
+            step: self.plan.steps_per_doublet() * p.doublet,
             inputs: p.inputs,
             evidence,
-            assumed_separation: self.model.separations(&p.inputs, &assumed),
-            revealed: frame(&(samples[2] - end(Unicycle::zeros()))),
+            assumed_separation: self.model.sizing_separations(&p.inputs, &assumed),
+            revealed: frame(&(samples[length] - end(None))),
             modelled: [modelled(0), modelled(1)],
-            samples,
+            samples: [samples[0], samples[1], samples[length]],
         };
         self.decided[p.doublet as usize] = decision.evidence.bits();
         life.fates.record(p.doublet, true);

@@ -9,7 +9,7 @@ use crate::model::Pose;
 pub struct DoubletDecision {
     /// Doublet index j.
     pub doublet: u32,
-    /// Its first step `2j`.
+    /// Its first step `Lj` (`L` steps per doublet).
     pub step: u32,
     /// Its public inputs.
     pub inputs: DoubletInputs,
@@ -19,12 +19,14 @@ pub struct DoubletDecision {
     /// Each bit's separation under the camera Eve's model as the controller can compute it
     /// — her stated camera noise around its own samples — which sizes the key.
     pub assumed_separation: [f64; 2],
-    /// The controller's samples `y(2j), y(2j+1), y(2j+2)` it decided from (key material:
-    /// they stay with the controller), from which the block's estimate recomputes the
-    /// residual and Eve's modelled view (docs/estimation.md).
+    /// The controller's samples `y(Lj), y(Lj+1), y(Lj+L)` at the doublet's start, after its
+    /// first step and at its end (key material: they stay with the controller), from which
+    /// the block's estimate recomputes the residual and Eve's modelled view
+    /// (docs/estimation.md; the estimate models the two-step doublet only).
     pub samples: [Pose; 3],
     /// What the next commands reveal: the boundary sample's residual from the doublet's
-    /// nominal path, `y_c(2j+2) − f(f(y_c(2j), u), u')`, in the doublet's frame
+    /// nominal path, `y_c(Lj+L) − f(… f(y_c(Lj), u) …)` over the doublet's `L` nominal
+    /// inputs, in the doublet's frame
     /// ([`super::doublet::in_doublet_frame`]; m, m, rad).
     pub revealed: [f64; 3],
     /// The model's part of it per bit for `s = +1`: half the difference of the predicted

@@ -1,5 +1,7 @@
 //! A doublet: two steps that carry one or two key bits as `u + s·Δ` then `u' − s·Δ`, so that
-//! the robot returns to its nominal path (docs/private-sensing.md).
+//! the robot returns to its nominal path — or, with a prior actuator lag τ > 0, three steps
+//! `u + s·Δ`, `u' − (1 + a)·s·Δ`, `u' + a·s·Δ` with `a = e^(−T/τ)`, which leave a first-order
+//! lag no position or speed residual at the doublet's end (docs/private-sensing.md).
 
 use nalgebra::Vector2;
 
@@ -18,6 +20,21 @@ pub struct Perturbation {
     pub delta: Unicycle,
     /// 1 (on v) or 2 (on v and ω).
     pub bits_per_doublet: u8,
+    /// The third step's share `a = e^(−T/τ)` of the first step's offset, for a prior
+    /// actuator lag τ > 0 (s): a three-step doublet; `None`: two steps (τ = 0).
+    pub settle: Option<f64>,
+}
+
+/// The three-step doublet's third-step share `a = e^(−T/τ)` for sample time `T` and prior
+/// lag `τ` (s); `None` (two steps) for `τ = 0`.
+///
+/// With a first-order lag `dv/dt = (c − v)/τ`, a step `c` held for `T` from the speed offset
+/// `e₀` ends at `e₁ = c + (e₀ − c)·a` and moves `c·T + (e₀ − c)·τ·(1 − a)`. For offsets
+/// `(1, −(1 + a), a)` from rest: `e₁ = 1 − a`, `e₂ = a − 1`, `e₃ = 0`, and the three
+/// displacements sum to `T·(1 − (1 + a) + a) + τ·(1 − a)·(−1 + 2 − 1) = 0`.
+#[must_use]
+pub fn settle_share(sample_time: f64, prior_lag: f64) -> Option<f64> {
+    (prior_lag > 0.0).then(|| (-sample_time / prior_lag).exp())
 }
 
 impl Perturbation {
@@ -39,6 +56,42 @@ impl Perturbation {
         Unicycle::new(sign((pattern & 1) as u8) * self.delta.x, omega)
     }
 
+    /// Steps a doublet occupies: 2, or 3 with a prior lag.
+    #[must_use]
+    pub fn steps(&self) -> u32 {
+        if self.settle.is_some() { 3 } else { 2 }
+    }
+
+    /// Each step's offset for the first step's offset `offset`: `[o, −o]`, or
+    /// `[o, −(1 + a)·o, a·o]` with a prior lag (the unused third entry zero for two steps).
+    #[must_use]
+    pub fn step_offsets(&self, offset: Unicycle) -> [Unicycle; 3] {
+        match self.settle {
+            None => [offset, -offset, Unicycle::zeros()],
+            Some(a) => [offset, -(1.0 + a) * offset, a * offset],
+        }
+    }
+
+    /// Each step's mean offset speed through a first-order lag `lag` τ (s) from wheels that
+    /// carried no offset before the doublet, for the first step's `offset`: for step offset
+    /// `c` from speed offset `e`, `c + (e − c)·(τ/T)·(1 − d)`, then `e ← c + (e − c)·d`,
+    /// `d = e^(−T/τ)`; [`Self::step_offsets`] without lag. What moves the robot under the
+    /// model's lag: the likelihood's means use it.
+    #[must_use]
+    pub fn mean_offsets(&self, offset: Unicycle, lag: f64, sample_time: f64) -> [Unicycle; 3] {
+        let commanded = self.step_offsets(offset);
+        if lag <= 0.0 {
+            return commanded;
+        }
+        let decay = (-sample_time / lag).exp();
+        let mut speed = Unicycle::zeros();
+        commanded.map(|c| {
+            let mean = c + (speed - c) * (lag / sample_time * (1.0 - decay));
+            speed = c + (speed - c) * decay;
+            mean
+        })
+    }
+
     /// The pattern of bits `[v, ω]` (ω ignored with one bit per doublet).
     #[must_use]
     pub fn pattern(&self, bits: [u8; 2]) -> usize {
@@ -52,7 +105,8 @@ impl Perturbation {
 }
 
 /// The public nominal inputs of a doublet: both come from the controller's sample at its
-/// start, the second through the open-loop prediction with the first.
+/// start, the second through the open-loop prediction with the first. A three-step doublet
+/// holds the second nominal input through its third step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DoubletInputs {
     /// `u(2j)` (m/s, rad/s).
@@ -72,6 +126,39 @@ impl DoubletInputs {
     #[must_use]
     pub fn applied(&self, offset: Unicycle) -> [Unicycle; 2] {
         [self.first + offset, self.second - offset]
+    }
+
+    /// The inputs of each of the doublet's steps for its step offsets
+    /// ([`Perturbation::step_offsets`]): `[u + o₀, u' + o₁, u' + o₂]` (the third unused with
+    /// two steps).
+    #[must_use]
+    pub fn applied_steps(&self, offsets: [Unicycle; 3]) -> [Unicycle; 3] {
+        [
+            self.first + offsets[0],
+            self.second + offsets[1],
+            self.second + offsets[2],
+        ]
+    }
+
+    /// The noise-free poses after each of `steps` steps (2 or 3) from `start` with the
+    /// steps' offsets `offsets` (a two-step doublet's, `[o, −o, 0]`, by [`Self::propagate`];
+    /// the third entry then repeats the end).
+    #[must_use]
+    pub fn propagate_steps(
+        &self,
+        start: &Pose,
+        offsets: [Unicycle; 3],
+        steps: u32,
+        sample_time: f64,
+    ) -> [Pose; 3] {
+        if steps == 2 {
+            let [middle, end] = self.propagate(start, offsets[0], sample_time);
+            return [middle, end, end];
+        }
+        let [a, b, c] = self.applied_steps(offsets);
+        let first = unicycle_step(start, &a, sample_time);
+        let second = unicycle_step(&first, &b, sample_time);
+        [first, second, unicycle_step(&second, &c, sample_time)]
     }
 
     /// The noise-free poses `[x(2j+1), x(2j+2)]` from `start` with `offset` on the first step,
@@ -149,6 +236,7 @@ mod tests {
         let p = Perturbation {
             delta: Unicycle::new(0.035, 0.0),
             bits_per_doublet: 1,
+            settle: None,
         };
         for h in 0..2 {
             let shift = end_shift(&inputs, &Pose::new(0.3, -0.2, 0.7), &p, h);
@@ -170,6 +258,7 @@ mod tests {
             let p = Perturbation {
                 delta: Unicycle::new(0.035, 0.0),
                 bits_per_doublet: 1,
+                settle: None,
             };
             for h in 0..2 {
                 let s = sign(h as u8);
@@ -184,6 +273,7 @@ mod tests {
             let p2 = Perturbation {
                 delta: Unicycle::new(0.0, 0.035),
                 bits_per_doublet: 2,
+                settle: None,
             };
             let theta_1 = start.z + T * omega;
             for h in [0, 2] {
@@ -215,11 +305,50 @@ mod tests {
         ));
     }
 
+    /// Through the world's first-order lag τ, the three-step offsets `(1, −(1 + a), a)` with
+    /// `a = e^(−T/τ)` leave the wheel at rest and no displacement at the doublet's end (to
+    /// rounding), where the two-step doublet leaves `τ·(1 − a)²` per unit offset.
+    #[test]
+    fn the_three_step_doublet_leaves_a_first_order_lag_nothing() {
+        use crate::world::lagged;
+        use nalgebra::Vector2 as WheelSpeeds;
+        for tau in [0.02, 0.05, 0.1, 0.5] {
+            let p = Perturbation {
+                delta: Unicycle::new(1.0, 0.0),
+                bits_per_doublet: 1,
+                settle: settle_share(T, tau),
+            };
+            let a = p.settle.expect("three steps");
+            let run = |steps: &[Unicycle]| {
+                steps
+                    .iter()
+                    .fold((0.0, WheelSpeeds::zeros()), |(moved, speed), u| {
+                        let (mean, end) = lagged(WheelSpeeds::new(u.x, u.x), speed, T, tau);
+                        (moved + mean.x * T, end)
+                    })
+            };
+            let offsets = p.step_offsets(p.offset(0));
+            let (moved, speed) = run(&offsets);
+            assert!(
+                moved.abs() < 1e-15 && speed.x.abs() < 1e-15,
+                "τ {tau}: {moved} {speed}"
+            );
+            let (two_step, _) = run(&[offsets[0], -offsets[0]]);
+            let expected = tau * (1.0 - a) * (1.0 - a);
+            assert!(
+                (two_step - expected).abs() < 1e-12,
+                "τ {tau}: {two_step} vs {expected}"
+            );
+        }
+        assert_eq!(settle_share(T, 0.0), None);
+    }
+
     #[test]
     fn patterns_and_offsets() {
         let two = Perturbation {
             delta: Unicycle::new(0.035, 0.02),
             bits_per_doublet: 2,
+            settle: None,
         };
         assert_eq!(two.patterns(), 4);
         assert_eq!(two.offset(0), Unicycle::new(0.035, 0.02));
@@ -228,6 +357,7 @@ mod tests {
         let one = Perturbation {
             delta: Unicycle::new(0.035, 0.02),
             bits_per_doublet: 1,
+            settle: None,
         };
         assert_eq!(one.offset(1), Unicycle::new(-0.035, 0.0));
         assert_eq!(one.pattern([1, 1]), 1);

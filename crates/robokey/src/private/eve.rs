@@ -96,7 +96,11 @@ impl DoubletEavesdropper {
         let world = config.world_model();
         let view = match (world.camera, config.eve.smoother_window) {
             (Camera::Instants { std }, None) if world.screens_doublets() => View::PerDoublet {
-                model: doublet_model_with(config, world.process_std),
+                // Her model's lag is the world's (none where doublets are screened).
+                model: DoubletModel {
+                    lag: world.lag,
+                    ..doublet_model_with(config, world.process_std)
+                },
                 controller_std: world.controller_std,
                 camera_std: std,
             },
@@ -223,16 +227,22 @@ impl DoubletEavesdropper {
         key
     }
 
+    /// `L`, the steps per doublet.
+    fn doublet_steps(&self) -> u32 {
+        self.plan.steps_per_doublet()
+    }
+
     /// Decides the doublets that the data of step `step` may have completed.
     fn try_decide(&mut self, step: u32) {
         if let View::PerDoublet { .. } = self.view {
-            // `step` is the start, middle or end of at most two; the earlier first: deciding
-            // one prunes what lies before its start.
-            for j in [(step / 2).wrapping_sub(1), step / 2] {
+            // `step` is the start, a middle or the end of at most two; the earlier first:
+            // deciding one prunes what lies before its start.
+            let length = self.doublet_steps();
+            for j in [(step / length).wrapping_sub(1), step / length] {
                 if let Some(doublet) = self.decide_alone(j) {
                     self.ready.push_back(doublet);
-                    self.commands = self.commands.split_off(&(2 * j));
-                    self.camera = self.camera.split_off(&(2 * j));
+                    self.commands = self.commands.split_off(&(length * j));
+                    self.camera = self.camera.split_off(&(length * j));
                 }
             }
             return;
@@ -260,9 +270,10 @@ impl DoubletEavesdropper {
             return false;
         };
         let doublets = self.plan.units();
+        let length = self.doublet_steps();
         let last = (j + smoother.half_width() + smoother.reach()).min(doublets.saturating_sub(1));
-        let end = 2 * last + 2;
-        let commands = (j..=last).all(|i| self.commands.contains_key(&(2 * i)))
+        let end = length * last + length;
+        let commands = (j..=last).all(|i| self.commands.contains_key(&(length * i)))
             && self.commands.contains_key(&end);
         let filmed = match frame_interval {
             None => self.camera.contains_key(&end),
@@ -282,7 +293,7 @@ impl DoubletEavesdropper {
             return;
         };
         let back = smoother.half_width() + smoother.reach() + smoother.lead() + 1;
-        let keep = 2 * self.next.saturating_sub(back);
+        let keep = self.doublet_steps() * self.next.saturating_sub(back);
         self.commands = self.commands.split_off(&keep);
         self.camera = self.camera.split_off(&keep);
         let from = f64::from(keep) * self.plan.agreed.sample_time;
@@ -300,7 +311,7 @@ impl DoubletEavesdropper {
             camera: &self.camera,
             frames: &self.frames,
         };
-        let inputs = self.commands.get(&(2 * j))?.inputs?;
+        let inputs = self.commands.get(&(self.doublet_steps() * j))?.inputs?;
         let truth = &self.truth;
         let revealed = |i: u32| truth.get(i as usize).copied().flatten();
         let [camera, commands] = smoother.evidence(j, &recorded, &revealed)?;
@@ -327,15 +338,16 @@ impl DoubletEavesdropper {
         if self.decided.get(j as usize)?.is_some() {
             return None;
         }
-        let k = 2 * j;
+        let length = self.doublet_steps();
+        let k = length * j;
         let start = self.commands.get(&k)?;
         let inputs = start.inputs.filter(|i| self.plan.carries(i))?;
-        let end = self.commands.get(&(k + 2))?;
-        let filmed = [
-            *self.camera.get(&k)?,
-            *self.camera.get(&(k + 1))?,
-            *self.camera.get(&(k + 2))?,
-        ];
+        let end = self.commands.get(&(k + length))?;
+        let mut filmed = [Pose::zeros(); 4];
+        for (i, slot) in filmed.iter_mut().enumerate().take(length as usize + 1) {
+            *slot = *self.camera.get(&(k + i as u32))?;
+        }
+        let last = length as usize;
         let c = |pose: Pose| PoseObservation::new(pose, *controller_std);
         let e = |i: usize| PoseObservation::new(filmed[i], *camera_std);
         let camera = model.evidence(
@@ -343,7 +355,8 @@ impl DoubletEavesdropper {
             &DoubletView {
                 start: c(start.sample).fuse(&e(0)),
                 middle: Some(e(1)),
-                end: Some(c(end.sample).fuse(&e(2))),
+                late: (last == 3).then(|| e(2)),
+                end: Some(c(end.sample).fuse(&e(last))),
             },
         );
         let commands = model.evidence(
@@ -351,6 +364,7 @@ impl DoubletEavesdropper {
             &DoubletView {
                 start: c(start.sample),
                 middle: None,
+                late: None,
                 end: Some(c(end.sample)),
             },
         );

@@ -8,8 +8,19 @@
 //! covariance is propagated through the Jacobians `Aᵢ = ∂f/∂x` of each pattern's path:
 //! `C₁₁ = A₀P₀A₀ᵀ + Q`, `C₁₂ = C₁₁A₁ᵀ`, `C₂₂ = A₁C₁₁A₁ᵀ + Q`. Never the observer's design
 //! covariances.
+//!
+//! A three-step doublet (`private.prior_lag`) adds `x(3j+3)`: the steps' offsets are
+//! `(+1, −(1 + a), +a)·s·Δ`, so under the model the bit's signature in the samples is
+//! `E[y(3j+1) − x̄] ≈ s·T·Δ`, `E[y(3j+2) − x̄] ≈ −a·s·T·Δ` and `E[y(3j+3) − x̄] ≈ 0` on a
+//! straight segment (`x̄` the nominal path; the turn's residual is in the exact means), with
+//! `C₃₃ = A₂C₂₂A₂ᵀ + Q`, `C₂₃ = C₂₂A₂ᵀ`, `C₁₃ = C₁₂A₂ᵀ`: the same Gaussian likelihood over
+//! the observed poses among the three.
 
-use nalgebra::{Cholesky, Matrix3, Matrix6, SMatrix, SVector, Vector3, Vector6};
+use nalgebra::allocator::Allocator;
+use nalgebra::{
+    Cholesky, DMatrix, DVector, DefaultAllocator, Dim, Matrix3, Matrix6, OMatrix, OVector, Vector3,
+    Vector6,
+};
 
 use robokey_secrecy::special::ln_add_exp;
 
@@ -34,7 +45,9 @@ pub fn doublet_model_with(config: &Config, process_std: [f64; 3]) -> DoubletMode
         perturbation: Perturbation {
             delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
             bits_per_doublet: config.protocol.bits_per_doublet,
+            settle: config.doublet_settle(),
         },
+        lag: config.private.prior_lag,
     }
 }
 
@@ -76,34 +89,40 @@ fn inverse(m: &Matrix3<f64>) -> Matrix3<f64> {
     m.try_inverse().unwrap_or_else(Matrix3::zeros)
 }
 
-/// What one party holds about a doublet: an estimate of its start pose, and observations of
-/// the pose after its first and after its second step, if any.
+/// What one party holds about a doublet of `L` steps: an estimate of its start pose, and
+/// observations of the pose after its first step, after the second of three, and at its
+/// end, if any.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DoubletView {
-    /// `x(2j)`: estimate and its covariance `P₀`.
+    /// `x(Lj)`: estimate and its covariance `P₀`.
     pub start: PoseObservation,
-    /// `x(2j+1)`, if observed.
+    /// `x(Lj+1)`, if observed.
     pub middle: Option<PoseObservation>,
-    /// `x(2j+2)`, if observed.
+    /// `x(3j+2)` of a three-step doublet, if observed (`None` with two steps).
+    pub late: Option<PoseObservation>,
+    /// `x(Lj+L)`, if observed.
     pub end: Option<PoseObservation>,
 }
 
 /// The camera Eve's view of a doublet as the controller can model it (never her realised
 /// view): her stated per-instant noise `camera_std` around the controller's own `samples`
-/// `y(2j), y(2j+1), y(2j+2)`, fused at the boundaries with the controller's samples of noise
-/// `controller_std`, which the commands reveal to her.
+/// `y(Lj) … y(Lj+L)` (`L + 1` of them), fused at the boundaries with the controller's
+/// samples of noise `controller_std`, which the commands reveal to her.
 #[must_use]
 pub fn stated_camera_view(
-    samples: [Pose; 3],
+    samples: impl AsRef<[Pose]>,
     controller_std: [f64; 3],
     camera_std: [f64; 3],
 ) -> DoubletView {
+    let samples = samples.as_ref();
     let own = |k: usize| PoseObservation::new(samples[k], controller_std);
     let camera = |k: usize| PoseObservation::new(samples[k], camera_std);
+    let last = samples.len() - 1;
     DoubletView {
         start: own(0).fuse(&camera(0)),
         middle: Some(camera(1)),
-        end: Some(own(2).fuse(&camera(2))),
+        late: (last == 3).then(|| camera(2)),
+        end: Some(own(last).fuse(&camera(last))),
     }
 }
 
@@ -116,6 +135,10 @@ pub struct DoubletModel {
     pub process_covariance: Matrix3<f64>,
     /// The bits and their Δ.
     pub perturbation: Perturbation,
+    /// The first-order actuator lag τ (s) a three-step doublet's means assume: the parties'
+    /// prior (`private.prior_lag`), or the world's for an eavesdropper who knows it. Not
+    /// used with two steps.
+    pub lag: f64,
 }
 
 /// What a party can say about each bit of a doublet.
@@ -170,11 +193,19 @@ enum Prediction {
         mean: Vector3<f64>,
         covariance: Matrix3<f64>,
     },
+    /// A three-step doublet's observed poses among `x(3j+1), x(3j+2), x(3j+3)`.
+    Three {
+        mean: DVector<f64>,
+        covariance: DMatrix<f64>,
+    },
     None,
 }
 
 impl DoubletModel {
     fn predict(&self, inputs: &DoubletInputs, view: &DoubletView, pattern: usize) -> Prediction {
+        if self.perturbation.settle.is_some() {
+            return self.predict_three(inputs, view, pattern);
+        }
         let t = self.sample_time;
         let offset = self.perturbation.offset(pattern);
         let [a, b] = inputs.applied(offset);
@@ -216,6 +247,81 @@ impl DoubletModel {
         }
     }
 
+    /// [`Self::predict`] for a three-step doublet: the means `m₁, m₂, m₃` of
+    /// `x(3j+1), x(3j+2), x(3j+3)` by the Euler map with the steps' mean offsets through the
+    /// model's lag ([`Perturbation::mean_offsets`]), and
+    /// `Cᵢᵢ = Aᵢ₋₁Cᵢ₋₁,ᵢ₋₁Aᵢ₋₁ᵀ + Q` (`C₀₀ = P₀`), `Cᵢₖ = Cᵢᵢ·(Aₖ₋₁ ⋯ Aᵢ)ᵀ` for `i < k`,
+    /// stacked over the observed poses with their covariance `R` added.
+    fn predict_three(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+        pattern: usize,
+    ) -> Prediction {
+        let t = self.sample_time;
+        let offsets = self.mean_offsets(pattern);
+        let applied = inputs.applied_steps(offsets);
+        let start = &view.start;
+        let means = inputs.propagate_steps(&start.value, offsets, 3, t);
+        let before = [start.value, means[0], means[1]];
+        let jacobians: [Matrix3<f64>; 3] =
+            std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t));
+        let q = &self.process_covariance;
+        let mut diagonal = [Matrix3::zeros(); 3];
+        let mut previous = start.covariance;
+        for (i, a) in jacobians.iter().enumerate() {
+            diagonal[i] = a * previous * a.transpose() + q;
+            previous = diagonal[i];
+        }
+        // Cᵢₖ for i ≤ k: Cᵢᵢ times the transposed Jacobians of the steps between.
+        let cross = |i: usize, k: usize| {
+            (i + 1..=k).fold(diagonal[i], |c, step| c * jacobians[step].transpose())
+        };
+        let observed: Vec<(usize, &PoseObservation)> = [&view.middle, &view.late, &view.end]
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, y)| y.as_ref().map(|y| (i, y)))
+            .collect();
+        if observed.is_empty() {
+            return Prediction::None;
+        }
+        let n = 3 * observed.len();
+        let mut mean = DVector::zeros(n);
+        let mut covariance = DMatrix::zeros(n, n);
+        for (row, &(i, y)) in observed.iter().enumerate() {
+            mean.fixed_rows_mut::<3>(3 * row)
+                .copy_from(&(y.value - means[i]));
+            for (col, &(k, _)) in observed.iter().enumerate() {
+                let block = match i.cmp(&k) {
+                    std::cmp::Ordering::Less => cross(i, k),
+                    std::cmp::Ordering::Greater => cross(k, i).transpose(),
+                    std::cmp::Ordering::Equal => diagonal[i] + y.covariance,
+                };
+                covariance
+                    .fixed_view_mut::<3, 3>(3 * row, 3 * col)
+                    .copy_from(&block);
+            }
+        }
+        Prediction::Three { mean, covariance }
+    }
+
+    /// Pattern `h`'s mean step offsets under the model ([`Perturbation::mean_offsets`] with
+    /// its lag).
+    #[must_use]
+    pub fn mean_offsets(&self, pattern: usize) -> [Unicycle; 3] {
+        let offset = self.perturbation.offset(pattern);
+        self.perturbation
+            .mean_offsets(offset, self.lag, self.sample_time)
+    }
+
+    /// The noise-free end pose `x(Lj+L)` of pattern `h` from `start` under the model.
+    #[must_use]
+    pub fn end_of(&self, inputs: &DoubletInputs, start: &Pose, pattern: Option<usize>) -> Pose {
+        let offsets = pattern.map_or([Unicycle::zeros(); 3], |h| self.mean_offsets(h));
+        let steps = self.perturbation.steps();
+        inputs.propagate_steps(start, offsets, steps, self.sample_time)[steps as usize - 1]
+    }
+
     /// `ln p(view | pattern h)` up to a constant common to all patterns, for every pattern
     /// (2 or 4; unused entries are −∞).
     #[must_use]
@@ -229,6 +335,7 @@ impl DoubletModel {
             *slot = match self.predict(inputs, view, h) {
                 Prediction::Both { mean, covariance } => ln_density(&mean, covariance),
                 Prediction::One { mean, covariance } => ln_density(&mean, covariance),
+                Prediction::Three { mean, covariance } => ln_density(&mean, covariance),
                 Prediction::None => 0.0,
             };
         }
@@ -269,6 +376,30 @@ impl DoubletModel {
         }
     }
 
+    /// The separations that size a key from `view`: [`Self::separations`], but for a
+    /// three-step doublet the largest over the lags `0, τ/4, τ/2, 3τ/4, τ` of the model's
+    /// prior τ — the lag smooths the bit's signature (less after the first step, more after
+    /// the second), so neither end of `[0, τ]` is Eve's best view for every bit, and a world
+    /// with less lag than the prior must not make the key over-claim. A grid, not a proof
+    /// over the interval; a world with more lag than the prior is the commands check's.
+    #[must_use]
+    pub fn sizing_separations(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; 2] {
+        if self.perturbation.settle.is_none() {
+            return self.separations(inputs, view);
+        }
+        (0..=4)
+            .map(|i| {
+                let model = Self {
+                    lag: self.lag * f64::from(i) / 4.0,
+                    ..*self
+                };
+                model.separations(inputs, view)
+            })
+            .fold([0.0; 2], |worst, d| {
+                [worst[0].max(d[0]), worst[1].max(d[1])]
+            })
+    }
+
     /// Mahalanobis distance between the predicted observations of patterns `a` and `b`,
     /// under `a`'s covariance.
     fn distance(&self, inputs: &DoubletInputs, view: &DoubletView, a: usize, b: usize) -> f64 {
@@ -279,6 +410,9 @@ impl DoubletModel {
             (Prediction::One { mean, covariance }, Prediction::One { mean: other, .. }) => {
                 mahalanobis(&(other - mean), covariance)
             }
+            (Prediction::Three { mean, covariance }, Prediction::Three { mean: other, .. }) => {
+                mahalanobis(&(other - mean), covariance)
+            }
             _ => 0.0,
         }
     }
@@ -286,13 +420,19 @@ impl DoubletModel {
 
 /// `−½·(rᵀS⁻¹r + ln det S)`: the Gaussian log-density of residual `r` up to its constant;
 /// −∞ when `S` is not positive definite.
-fn ln_density<const N: usize>(r: &SVector<f64, N>, s: SMatrix<f64, N, N>) -> f64 {
+fn ln_density<D: Dim>(r: &OVector<f64, D>, s: OMatrix<f64, D, D>) -> f64
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<D>,
+{
     Cholesky::new(s).map_or(f64::NEG_INFINITY, |c| {
         -0.5 * (c.solve(r).dot(r) + c.ln_determinant())
     })
 }
 
 /// `√(dᵀS⁻¹d)`; 0 when `S` is not positive definite.
-fn mahalanobis<const N: usize>(d: &SVector<f64, N>, s: SMatrix<f64, N, N>) -> f64 {
+fn mahalanobis<D: Dim>(d: &OVector<f64, D>, s: OMatrix<f64, D, D>) -> f64
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<D>,
+{
     Cholesky::new(s).map_or(0.0, |c| c.solve(d).dot(d).sqrt())
 }

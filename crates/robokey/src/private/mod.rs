@@ -1,6 +1,7 @@
 //! Private sensing (docs/private-sensing.md): the controller decides from its own pose
 //! sensor, the robot sends no pose, and each key bit rides on a doublet (`+s·Δ` then
-//! `−s·Δ`) whose commands come from the doublet's boundary samples. An eavesdropper films
+//! `−s·Δ`, or with a prior lag `+s·Δ`, `−(1 + a)·s·Δ`, `+a·s·Δ`) whose commands come from the
+//! doublet's boundary samples. An eavesdropper films
 //! the robot with her own, noisier camera: the wiretap assumption that makes a secret key
 //! possible.
 
@@ -48,7 +49,7 @@ impl BitKind {
 /// One key bit of a private session and what every party made of it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DoubletBit {
-    /// The doublet's first step `2j`.
+    /// The doublet's first step `Lj` (`L` steps per doublet).
     pub step: u32,
     /// Which input it rides on.
     pub kind: BitKind,
@@ -86,7 +87,7 @@ pub struct DoubletSamples {
     pub doublet: u32,
     /// Its public inputs.
     pub inputs: DoubletInputs,
-    /// The controller's samples `y(2j), y(2j+1), y(2j+2)`.
+    /// The controller's samples `y(Lj), y(Lj+1), y(Lj+L)` (start, after the first step, end).
     pub samples: [crate::model::Pose; 3],
     /// The bit pattern the doublet carried, `v | ω << 1`: the robot's bits, which
     /// reconciliation gives the controller.

@@ -1,6 +1,6 @@
 //! Private sensing's robot (docs/private-sensing.md, docs/protocol.md): applies `u + s·Δ`
-//! then `u' − s·Δ` from each doublet's nominal inputs, and reports which command it applied —
-//! never a pose.
+//! then `u' − s·Δ` (with a prior lag, `u + s·Δ`, `u' − (1 + a)·s·Δ`, `u' + a·s·Δ`) from each
+//! doublet's nominal inputs, and reports which command it applied — never a pose.
 
 use rand::{CryptoRng, RngExt};
 
@@ -21,8 +21,8 @@ pub(crate) struct PrivateRobot {
     bits: zeroize::Zeroizing<Vec<u64>>,
     /// Whether the robot applied doublet j with its bits (not gated, not erased).
     carried: Vec<bool>,
-    /// The input for the second step of the doublet in flight, with its step.
-    second: Option<(u32, Unicycle)>,
+    /// The inputs for the later steps of the doublet in flight, with their steps, in order.
+    later: Vec<(u32, Unicycle)>,
     /// The last nominal input received: held for up to `max_hold` missing steps.
     last_nominal: Option<Unicycle>,
 }
@@ -46,7 +46,7 @@ impl PrivateRobot {
         Self {
             bits: bits.into(),
             carried: vec![false; doublets as usize],
-            second: None,
+            later: Vec::new(),
             last_nominal: None,
             plan,
         }
@@ -69,8 +69,9 @@ impl PrivateRobot {
     }
 
     /// The doublet (or lone last step) starting at `step`: applies `u + s·Δ` now and keeps
-    /// `u' − s·Δ` for the next step. A command whose shape does not fit the step, or any of
-    /// whose derivable inputs is not finite or beyond the wheel limit, is treated as lost.
+    /// the later steps' inputs (`u' − s·Δ`, or `u' − (1 + a)·s·Δ` and `u' + a·s·Δ`) for the
+    /// next steps. A command whose shape does not fit the step, or any of whose derivable
+    /// inputs is not finite or beyond the wheel limit, is treated as lost.
     fn command(
         &mut self,
         agreed: &Agreed,
@@ -79,7 +80,8 @@ impl PrivateRobot {
         first: Unicycle,
         second: Option<Unicycle>,
     ) {
-        let starts_doublet = step.is_multiple_of(2) && step + 2 <= agreed.steps;
+        let length = self.plan.steps_per_doublet();
+        let starts_doublet = step.is_multiple_of(length) && step + length <= agreed.steps;
         let inputs = match second {
             Some(second) if starts_doublet => Some(DoubletInputs { first, second }),
             None if !starts_doublet => None,
@@ -94,7 +96,7 @@ impl PrivateRobot {
             self.last_nominal = Some(first);
             return Self::apply(agreed, life, step, first, None, false);
         };
-        let j = (step / 2) as usize;
+        let j = (step / length) as usize;
         let carries = self.plan.carries(agreed.enabled, &inputs);
         let offset = if carries {
             let pattern = self
@@ -106,11 +108,13 @@ impl PrivateRobot {
             Unicycle::zeros()
         };
         self.carried[j] = carries;
-        let [a, b] = inputs.applied(offset);
-        self.second = Some((step + 1, b));
+        let applied = inputs.applied_steps(self.plan.perturbation.step_offsets(offset));
+        self.later = (1..length)
+            .map(|i| (step + i, applied[i as usize]))
+            .collect();
         self.last_nominal = Some(inputs.second);
-        let bit = self.carried_bits(step / 2).map(|bits| bits[0]);
-        Self::apply(agreed, life, step, a, bit, false);
+        let bit = self.carried_bits(step / length).map(|bits| bits[0]);
+        Self::apply(agreed, life, step, applied[0], bit, false);
     }
 
     /// Whether every input the robot could derive from a command is finite and within its
@@ -128,10 +132,15 @@ impl PrivateRobot {
             return within(first);
         };
         let perturbation = &self.plan.perturbation;
+        let steps = perturbation.steps() as usize;
         (0..perturbation.patterns())
             .map(|h| perturbation.offset(h))
             .chain([Unicycle::zeros()])
-            .all(|offset| inputs.applied(offset).into_iter().all(within))
+            .all(|offset| {
+                inputs.applied_steps(perturbation.step_offsets(offset))[..steps]
+                    .iter()
+                    .all(|&u| within(u))
+            })
     }
 
     /// Records the fates of a window; a doublet the robot did not carry is never kept.
@@ -170,7 +179,7 @@ impl ClosingRules for PrivateRobot {
 }
 
 impl RobotMode for PrivateRobot {
-    /// Reports which command was applied before `t_k`; applies a doublet's second input,
+    /// Reports which command was applied before `t_k`; applies a doublet's later inputs,
     /// or its fallback when the doublet's command never came; at `k = N` stops the wheels
     /// (the robot owns the clock: the stop command only carries the controller's last
     /// sample and fates).
@@ -189,13 +198,15 @@ impl RobotMode for PrivateRobot {
             life.stop_wheels(step);
             life.next_command = step + 1;
             life.end_run();
-        } else if step % 2 == 1 {
-            // The second step of a doublet: its input came with the first.
-            match self.second.take().filter(|(s, _)| *s == step) {
+        } else if self.plan.is_later_step(step, agreed.steps) {
+            // A later step of a doublet: its input came with the first.
+            let next = (!self.later.is_empty()).then(|| self.later.remove(0));
+            match next.filter(|(s, _)| *s == step) {
                 Some((_, input)) => {
                     life.commands_applied += 1;
                     life.command_arrived(step);
-                    let bit = self.carried_bits(step / 2).map(|b| b[0]);
+                    let doublet = step / self.plan.steps_per_doublet();
+                    let bit = self.carried_bits(doublet).map(|b| b[0]);
                     Self::apply(agreed, life, step, input, bit, false);
                 }
                 None => self.on_missing(agreed, life, step),
@@ -216,7 +227,8 @@ impl RobotMode for PrivateRobot {
         };
         if life.expects_command() {
             // Otherwise stale, duplicate, from the future, or not a command step.
-            if step == life.next_command && step < agreed.steps && step % 2 == 0 {
+            let commanded = !self.plan.is_later_step(step, agreed.steps);
+            if step == life.next_command && step < agreed.steps && commanded {
                 self.record(life, fates);
                 self.command(agreed, life, step, first.into(), second.map(Unicycle::from));
             }
@@ -232,10 +244,11 @@ impl RobotMode for PrivateRobot {
         let Some(missing_in_a_row) = life.command_missing(step) else {
             return;
         };
-        if let Some(carried) = self.carried.get_mut((step / 2) as usize) {
+        let doublet = step / self.plan.steps_per_doublet();
+        if let Some(carried) = self.carried.get_mut(doublet as usize) {
             *carried = false;
         }
-        self.second = None;
+        self.later.clear();
         let input = match self.last_nominal {
             Some(u) if missing_in_a_row <= agreed.max_hold => u,
             _ => Unicycle::zeros(),

@@ -224,6 +224,11 @@ impl WindowSmoother {
     pub fn new(config: &Config, world: &WorldModel, half_width: u32, reach: u32) -> Self {
         let t = config.robot.sample_time;
         let memory = world.delay + world.lag * 1e4_f64.ln();
+        let perturbation = Perturbation {
+            delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
+            bits_per_doublet: config.protocol.bits_per_doublet,
+            settle: config.doublet_settle(),
+        };
         Self {
             eve: WindowWorld::new(
                 world,
@@ -234,13 +239,10 @@ impl WindowSmoother {
                 config.robot.wheel_limit,
                 t,
             ),
-            perturbation: Perturbation {
-                delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
-                bits_per_doublet: config.protocol.bits_per_doublet,
-            },
             half_width,
             reach,
-            lead: (memory / (2.0 * t)).ceil() as u32,
+            lead: (memory / (f64::from(perturbation.steps()) * t)).ceil() as u32,
+            perturbation,
             sample_time: t,
         }
     }
@@ -263,6 +265,22 @@ impl WindowSmoother {
         self.lead
     }
 
+    /// `L`, the steps per doublet.
+    fn length(&self) -> u32 {
+        self.perturbation.steps()
+    }
+
+    /// The offset doublet step `s` (0 to `L − 1`) adds for the first step's `offset`; none
+    /// beyond the doublet.
+    fn step_offset(&self, s: usize, offset: Unicycle) -> Unicycle {
+        self.perturbation
+            .step_offsets(offset)
+            .get(s)
+            .filter(|_| s < self.length() as usize)
+            .copied()
+            .unwrap_or_else(Unicycle::zeros)
+    }
+
     /// The doublets `(first, last)` of doublet `j`'s window given what is recorded: at most
     /// `W` each side, contiguous known commands, and the sample at the last one's end.
     #[must_use]
@@ -273,7 +291,8 @@ impl WindowSmoother {
     /// The doublets `(first, last)` around `from … to` extended by at most `each` each side
     /// over contiguous known commands, ending where the sample at the last one's end is.
     fn span_of(&self, from: u32, to: u32, each: u32, rec: &Recorded<'_>) -> Option<(u32, u32)> {
-        let inputs = |i: u32| rec.commands.get(&(2 * i)).and_then(|c| c.inputs);
+        let l = self.length();
+        let inputs = |i: u32| rec.commands.get(&(l * i)).and_then(|c| c.inputs);
         inputs(from)?;
         let doublets = rec.plan.units();
         let mut first = from;
@@ -284,7 +303,7 @@ impl WindowSmoother {
         while last + 1 < doublets && last - to < each && inputs(last + 1).is_some() {
             last += 1;
         }
-        while !rec.commands.contains_key(&(2 * last + 2)) {
+        while !rec.commands.contains_key(&(l * last + l)) {
             if last == from {
                 return None;
             }
@@ -307,7 +326,8 @@ impl WindowSmoother {
     ) -> Option<[Judged; 2]> {
         let exact = self.window_of(j, rec)?;
         let (first, last) = self.span_of(exact.0, exact.1, self.reach, rec)?;
-        let inputs = |i: u32| rec.commands.get(&(2 * i)).and_then(|c| c.inputs);
+        let l = self.length();
+        let inputs = |i: u32| rec.commands.get(&(l * i)).and_then(|c| c.inputs);
         if !rec.plan.carries(&inputs(j)?) {
             return None;
         }
@@ -322,16 +342,17 @@ impl WindowSmoother {
         let doublets: Vec<(u32, DoubletInputs)> = (lead_first..=last)
             .map(|i| (i, inputs(i).expect("a window's commands are known")))
             .collect();
+        // A three-step doublet holds its second nominal input through its third step.
         let window = Window {
-            lead: 2 * (first - lead_first) as usize,
+            lead: (l * (first - lead_first)) as usize,
             inputs: doublets
                 .iter()
-                .flat_map(|(_, d)| [d.first, d.second])
+                .flat_map(|(_, d)| (0..l).map(|s| if s == 0 { d.first } else { d.second }))
                 .collect(),
             before,
-            start: rec.commands[&(2 * first)].sample,
-            anchors: (0..2 * (last - first + 1))
-                .map(|s| (s > 0 && s % 2 == 0).then(|| rec.commands[&(2 * first + s)].sample))
+            start: rec.commands[&(l * first)].sample,
+            anchors: (0..l * (last - first + 1))
+                .map(|s| (s > 0 && s % l == 0).then(|| rec.commands[&(l * first + s)].sample))
                 .collect(),
         };
         let carrying: Vec<(u32, usize)> = doublets
@@ -354,10 +375,10 @@ impl WindowSmoother {
                         if i >= first && !(exact.0..=exact.1).contains(&i) {
                             return self.run_near(&window, &nominal, position, offset);
                         }
-                        self.eve.run(&window, |step| match step {
-                            s if s == 2 * position => offset,
-                            s if s == 2 * position + 1 => -offset,
-                            _ => Unicycle::zeros(),
+                        let at = l as usize * position;
+                        self.eve.run(&window, |step| match step.checked_sub(at) {
+                            Some(s) => self.step_offset(s, offset),
+                            None => Unicycle::zeros(),
                         })
                     })
                     .collect()
@@ -370,7 +391,7 @@ impl WindowSmoother {
         let window = Simulated {
             first,
             exact,
-            steps: 2 * (last - first + 1) as usize,
+            steps: (l * (last - first + 1)) as usize,
             nominal,
             runs,
             carrying,
@@ -380,7 +401,8 @@ impl WindowSmoother {
     }
 
     /// The run of `window` with simulated doublet `position` (lead doublets counted, at or
-    /// after the window's first sample) perturbed by `offset` then `−offset`, simulated only
+    /// after the window's first sample) perturbed by its steps' offsets for `offset`
+    /// ([`Perturbation::step_offsets`]), simulated only
     /// where the perturbation acts — from the world's actuator memory (`lead` doublets)
     /// before it to `lead + 1` doublets after it, the next boundary's restart included —
     /// and the nominal run elsewhere. Exact without lag or delay; with them the wheels
@@ -393,16 +415,17 @@ impl WindowSmoother {
         offset: Unicycle,
     ) -> WindowRun {
         let lead = self.lead as usize;
+        let l = self.length() as usize;
         let from = position.saturating_sub(lead);
-        let to = (position + lead + 2).min(window.inputs.len() / 2);
-        let start_step = 2 * position - window.lead;
-        let end_step = 2 * to - window.lead;
+        let to = (position + lead + 2).min(window.inputs.len() / l);
+        let start_step = l * position - window.lead;
+        let end_step = l * to - window.lead;
         let stretch = Window {
-            lead: 2 * (position - from),
-            inputs: window.inputs[2 * from..2 * to].to_vec(),
+            lead: l * (position - from),
+            inputs: window.inputs[l * from..l * to].to_vec(),
             before: match from {
                 0 => window.before,
-                _ => Some(window.inputs[2 * from - 1]),
+                _ => Some(window.inputs[l * from - 1]),
             },
             start: match start_step {
                 0 => window.start,
@@ -413,11 +436,12 @@ impl WindowSmoother {
                 .collect(),
         };
         let perturbed = stretch.lead;
-        let part = self.eve.run(&stretch, |step| match step {
-            s if s == perturbed => offset,
-            s if s == perturbed + 1 => -offset,
-            _ => Unicycle::zeros(),
-        });
+        let part = self
+            .eve
+            .run(&stretch, |step| match step.checked_sub(perturbed) {
+                Some(s) => self.step_offset(s, offset),
+                None => Unicycle::zeros(),
+            });
         let mut run = nominal.clone();
         for (i, step) in (start_step..end_step).enumerate() {
             run.poses[step].clone_from(&part.poses[i]);
@@ -450,9 +474,10 @@ impl WindowSmoother {
         let (first, steps, target) = (*first, *steps, *target);
         let patterns = self.perturbation.patterns();
         // Her camera over the window proper; the boundary samples over the whole reach.
+        let l = self.length();
         let filmed =
-            camera.then(|| 2 * (exact.0 - first) as usize..=2 * (exact.1 - first + 1) as usize);
-        let observations = self.observations(rec, nominal, 2 * first, steps, &filmed);
+            camera.then(|| (l * (exact.0 - first)) as usize..=(l * (exact.1 - first + 1)) as usize);
+        let observations = self.observations(rec, nominal, l * first, steps, &filmed);
         // Columns: the residual, the target's hypotheses, the window's other bits, the lead's.
         // A column is a combination of runs, relative to the nominal one.
         let derived = |weights: &[(&WindowRun, f64)]| Column {
@@ -593,7 +618,7 @@ impl WindowSmoother {
         for step in 0..=steps {
             let k = k0 + step as u32;
             if step > 0
-                && k.is_multiple_of(2)
+                && k.is_multiple_of(self.length())
                 && let Some(c) = rec.commands.get(&k)
             {
                 let v = nominal.velocity_before(step);
@@ -659,7 +684,7 @@ impl WindowSmoother {
         };
         (0..steps)
             .map(|step| {
-                let doublet = first + (step / 2) as u32;
+                let doublet = first + step as u32 / self.length();
                 let owner = carrying.iter().position(|&(i, _)| i == doublet);
                 match owner {
                     Some(c) if c == target => SlipProfile {

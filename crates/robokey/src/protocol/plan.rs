@@ -138,13 +138,13 @@ impl SessionPlan {
     }
 
     /// Units whose fates the session decides: complete codewords (a trailing partial one is
-    /// dropped; none with the protocol off) or doublets `⌊N/2⌋`.
+    /// dropped; none with the protocol off) or doublets `⌊N/L⌋` (`L` steps per doublet).
     #[must_use]
     pub fn units(&self) -> u32 {
         match &self.mode {
             ModePlan::Odometry(_) if !self.agreed.enabled => 0,
             ModePlan::Odometry(o) => self.agreed.steps / o.code.n() as u32,
-            ModePlan::Private(_) => self.agreed.steps / 2,
+            ModePlan::Private(p) => self.agreed.steps / p.steps_per_doublet(),
         }
     }
 
@@ -183,9 +183,18 @@ impl SessionPlan {
             .is_some_and(|p| p.carries(self.agreed.enabled, inputs))
     }
 
+    /// Steps per doublet in private sensing, `L` (2, or 3 with a prior lag); 2 otherwise.
+    #[must_use]
+    pub fn steps_per_doublet(&self) -> u32 {
+        self.private().map_or(2, PrivatePlan::steps_per_doublet)
+    }
+
     /// Whether step `k` starts a doublet (private sensing; never in odometry mode).
     #[must_use]
     pub fn starts_doublet(&self, step: u32) -> bool {
-        self.private().is_some() && step.is_multiple_of(2) && step + 2 <= self.agreed.steps
+        self.private().is_some_and(|p| {
+            let steps = p.steps_per_doublet();
+            step.is_multiple_of(steps) && step + steps <= self.agreed.steps
+        })
     }
 }

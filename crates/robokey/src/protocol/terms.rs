@@ -6,8 +6,9 @@ use crate::world::Camera;
 
 /// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
 /// budget, Δ, trajectory, protocol on/off; in private sensing also the mode, the bits per
-/// doublet, the turn gate, Eve's stated camera — per instant, or in frames when so stated —
-/// and the motion noise the key's assumption names; the `[postprocess]` table, which sizes
+/// doublet, the turn gate, Eve's stated camera — per instant, or in frames when so stated —,
+/// the motion noise the key's assumption names and the prior lag that shapes the doublet
+/// (when not 0); the `[postprocess]` table, which sizes
 /// the final keys), as `field = value` lines in a fixed order. The robot checks every
 /// command against the agreed Δ, r and D. Not agreed: what only the controller uses
 /// (its gains, its sensor's `sensing.controller_std`: the separations it computes with it
@@ -21,12 +22,13 @@ pub fn agreement_terms(config: &Config) -> String {
         SensingMode::Odometry => String::new(),
         SensingMode::Private => format!(
             "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
-             eve.camera_std = {:?}\n{}noise.process_std = {:?}\n",
+             eve.camera_std = {:?}\n{}noise.process_std = {:?}\n{}",
             config.protocol.bits_per_doublet,
             config.protocol.max_turn_rate,
             config.eve.camera_std,
             camera_frames_terms(config),
             config.noise.process_std,
+            prior_lag_terms(config),
         ),
     };
     // What sizes and labels the final keys both stores hold.
@@ -69,6 +71,16 @@ fn camera_frames_terms(config: &Config) -> String {
         Camera::Frames { fps, frame_std } => {
             format!("eve.camera_fps = {fps}\neve.camera_frame_std = {frame_std:?}\n")
         }
+    }
+}
+
+/// The doublet's shape when it is three steps: a `private.prior_lag` line (absent at 0, so
+/// that the two-step doublet's terms stay as they were).
+fn prior_lag_terms(config: &Config) -> String {
+    if config.private.is_default() {
+        String::new()
+    } else {
+        format!("private.prior_lag = {}\n", config.private.prior_lag)
     }
 }
 
@@ -135,10 +147,45 @@ mod tests {
         assert_eq!(config_digest(&a), config_digest(&b));
     }
 
+    /// The terms on which `a` (the robot's) and `b` (the controller's) differ.
+    fn difference(a: &Config, b: &Config) -> String {
+        terms_difference(
+            &agreement_terms(a),
+            &agreement_terms(b),
+            "robot",
+            "controller",
+        )
+    }
+
+    /// The default configuration in private sensing.
+    fn private() -> Config {
+        let mut config = Config::default();
+        config.sensing.mode = SensingMode::Private;
+        config
+    }
+
+    #[test]
+    fn the_prior_lag_is_agreed_and_its_default_leaves_the_terms_unchanged() {
+        let a = private();
+        let two_steps = agreement_terms(&a);
+        assert!(!two_steps.contains("prior_lag"), "{two_steps}");
+        let mut b = a.clone();
+        b.private.prior_lag = 0.05;
+        assert_eq!(
+            difference(&a, &b),
+            "private.prior_lag: robot has (missing), controller has 0.05"
+        );
+        let mut c = b.clone();
+        c.private.prior_lag = 0.1;
+        assert_eq!(
+            difference(&b, &c),
+            "private.prior_lag: robot has 0.05, controller has 0.1"
+        );
+    }
+
     #[test]
     fn the_camera_stated_in_frames_is_agreed_and_a_per_instant_one_unchanged() {
-        let mut a = Config::default();
-        a.sensing.mode = SensingMode::Private;
+        let a = private();
         let per_instant = agreement_terms(&a);
         assert!(!per_instant.contains("camera_fps"), "{per_instant}");
         let mut b = a.clone();
@@ -147,16 +194,11 @@ mod tests {
         let mut c = b.clone();
         c.eve.camera_fps = Some(60.0);
         assert_eq!(
-            terms_difference(
-                &agreement_terms(&b),
-                &agreement_terms(&c),
-                "robot",
-                "controller"
-            ),
+            difference(&b, &c),
             "eve.camera_fps: robot has 30, controller has 60"
         );
         assert_eq!(
-            terms_difference(&per_instant, &agreement_terms(&b), "robot", "controller"),
+            difference(&a, &b),
             "eve.camera_fps: robot has (missing), controller has 30; eve.camera_frame_std: \
              robot has (missing), controller has [0.016, 0.016, 0.016]"
         );

@@ -441,6 +441,31 @@ mod tests {
         assert_eq!(got.join("\n"), PINNED.trim());
     }
 
+    /// In a lagging world the camera eavesdropper smooths over later doublets and decides a
+    /// doublet after the controller has: that doublet's row stays open until she has, and the
+    /// trace comes out whole and in order.
+    #[test]
+    fn a_trace_waits_for_an_eavesdropper_who_decides_late() {
+        let mut config = Config::default();
+        config.sensing.mode = SensingMode::Private;
+        config.world = Some(crate::world::WorldConfig {
+            lag: Some(0.05),
+            ..Default::default()
+        });
+        config.validate().expect("a valid lagging world");
+        let out = simulate(&config, 0, true).expect("the session runs");
+        let ks: Vec<u32> = out.trace.iter().map(|row| row.k).collect();
+        assert_eq!(ks, (0..ks.len() as u32).collect::<Vec<_>>());
+        let decided = out
+            .trace
+            .iter()
+            .filter(|row| row.bhat_eve.is_some())
+            .count();
+        let bits = out.private.expect("private sensing").bits.len();
+        assert!(bits > 0);
+        assert_eq!(decided, bits);
+    }
+
     const PINNED: &str = "
 default b430a4a2ebbec88f
 m=1 8dfc3212a670aefb

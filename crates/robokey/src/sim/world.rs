@@ -74,10 +74,14 @@ impl World<'_> {
             self.scene.step();
         }
         // No later step writes the rows before this one (in private sensing, the row before
-        // it: a doublet's decision lands on its second step's row).
-        let settled = match self.senses {
+        // it: a doublet's decision lands on its second step's row — or, while an eavesdropper
+        // who smooths over later doublets has not decided one the controller has, that row).
+        let settled = match &self.senses {
             Senses::Odometry { .. } => step,
-            Senses::Private(_) => step.saturating_sub(1),
+            Senses::Private(p) => {
+                let undecided_by_eve = p.decided.front().map_or(u32::MAX, |d| d.step + 1);
+                step.saturating_sub(1).min(undecided_by_eve)
+            }
         };
         self.trace.complete_before(settled as usize);
         let observed = self.scene.observe();
@@ -168,21 +172,20 @@ impl Surroundings<Robot, Controller> for World<'_> {
             RobotOutput::Sense { step } => self.sense(now, step, robot, controller),
             RobotOutput::Apply(actuation) => {
                 self.scene.apply(actuation.wheels);
+                let doublet = actuation.step / robot.plan().steps_per_doublet();
                 if let Senses::Private(p) = &mut self.senses
                     && actuation.bit.is_some()
-                    && let Some(bits) = robot.carried_bits(actuation.step / 2)
+                    && let Some(bits) = robot.carried_bits(doublet)
                 {
-                    p.eve.reveal(actuation.step / 2, bits);
+                    p.eve.reveal(doublet, bits);
                 }
                 if let Some(row) = self.trace.row(actuation.step as usize) {
                     row.bit = actuation.bit;
                     if self.config.protocol.bits_per_doublet == 2
                         && matches!(self.senses, Senses::Private(_))
                     {
-                        row.bit_omega = actuation
-                            .bit
-                            .and(robot.carried_bits(actuation.step / 2))
-                            .map(|b| b[1]);
+                        row.bit_omega =
+                            actuation.bit.and(robot.carried_bits(doublet)).map(|b| b[1]);
                     }
                 }
                 if let Senses::Odometry { .. } = self.senses

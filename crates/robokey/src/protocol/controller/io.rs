@@ -47,9 +47,9 @@ pub enum ControllerEvent {
     /// Private sensing: the doublet starting at `step` was commanded with these public
     /// inputs; it carries bits unless the protocol is off or the turn gate stopped it.
     DoubletCommanded {
-        /// Its first step `2j`.
+        /// Its first step `Lj` (`L` steps per doublet).
         step: u32,
-        /// `u(2j)` and `u'(2j+1)`.
+        /// `u(Lj)` and `u'(Lj+1)` (held through a third step).
         inputs: DoubletInputs,
         /// Whether it carries bits.
         carries: bool,
