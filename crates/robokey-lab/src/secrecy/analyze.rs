@@ -223,7 +223,7 @@ fn analyze_point(
                 assumption
             }
         } else if is_private {
-            robokey::post_settings::camera_assumption(config, private::largest_separation(runs))
+            robokey::post_settings::camera_assumption(config, 0.0)
         } else {
             options.assumption()
         },
@@ -231,6 +231,15 @@ fn analyze_point(
     let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
     let mut pools = pipeline::pools(runs, options.pooling, options.block_bits, adversary);
     pools.truncate(options.blocks);
+    if is_private && !measured {
+        for pool in &mut pools {
+            pool.separations = pool
+                .runs
+                .iter()
+                .map(|&i| private::assumed_separations(&runs[i]))
+                .collect();
+        }
+    }
     if measured {
         for pool in &mut pools {
             let pooled: Vec<&RunOutput> = pool.runs.iter().map(|&i| &runs[i]).collect();
@@ -247,8 +256,13 @@ fn analyze_point(
     if is_private {
         refuse_what_the_commands_reveal(runs, options, &pools, &mut blocks);
     }
+    if is_private && !measured {
+        // For people: the largest separation of any bit.
+        let largest = private::largest_separation(runs);
+        settings.assumption = settings.assumption.for_block((largest * 1e6).ceil() as u64);
+    }
     if measured {
-        // For people: the largest separation any block was sized with.
+        // For people: the largest separation of any bit.
         let largest = blocks
             .iter()
             .filter_map(|b| b.estimate.as_ref())

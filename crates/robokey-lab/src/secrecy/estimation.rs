@@ -1,7 +1,7 @@
 //! Keys sized from measured motion noise in the simulator (docs/estimation.md): per block,
 //! the controller's estimate from its own samples of the block's sessions and the
-//! reconciled bits, and each session's largest Eve separation at the region's worst case —
-//! what the post-processing endpoints then size ℓ from.
+//! reconciled bits, and each session's bits' Eve separations at the region's worst case —
+//! what the post-processing endpoints then size ℓ from, per bit (docs/secrecy.md).
 //!
 //! The reconciled bits are the robot's: a block whose reconciliation or confirmation fails
 //! gives no key, so wherever ℓ matters the controller's corrected bits equal the robot's.
@@ -51,9 +51,10 @@ fn controller_samples(run: &RunOutput) -> &[DoubletSamples] {
         .map_or(&[][..], |p| &p.controller_samples)
 }
 
-/// Each of `runs`' sessions' largest worst-case separation (rounded up to the published
-/// grid: the estimate depends on the bits, and what is published of it is charged by the
-/// assumption), and the block's estimate, for
+/// Each of `runs`' sessions' bits' worst-case separations (each rounded up to the published
+/// grid: the estimate depends on the bits, and what is published of it — the block's
+/// equivalent separation, on the same grid — is charged by the assumption), and the block's
+/// estimate, for
 /// the sessions of one block under the parties' `config` (their stated sensor calibration
 /// and camera) at ε_est = `epsilon`.
 #[must_use]
@@ -61,7 +62,7 @@ pub fn block_separations(
     config: &Config,
     runs: &[&RunOutput],
     epsilon: f64,
-) -> (Vec<f64>, BlockEstimate) {
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     let model = doublet_model(config);
     let residuals: Vec<DoubletResidual> = runs
         .iter()
@@ -107,9 +108,9 @@ fn refused(
     why: String,
     doublets: usize,
     epsilon: f64,
-) -> (Vec<f64>, BlockEstimate) {
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     (
-        vec![REFUSED_SEPARATION; sessions],
+        vec![vec![REFUSED_SEPARATION]; sessions],
         BlockEstimate {
             doublets,
             point_std_mm: [f64::NAN; 3],
@@ -131,7 +132,7 @@ pub fn world_block_separations(
     config: &Config,
     runs: &[&RunOutput],
     epsilon: f64,
-) -> (Vec<f64>, BlockEstimate) {
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     if let Err(why) = two_step_doublets(config) {
         let doublets = runs.iter().flat_map(|run| controller_samples(run)).count();
         return refused(runs.len(), why, doublets, epsilon);
@@ -170,20 +171,20 @@ pub fn world_known(assumption: Assumption) -> Assumption {
     }
 }
 
-/// Each of `runs`' sessions' largest separation of Eve's view at the worst case of
-/// `estimate`'s region, and the block's report.
+/// Each of `runs`' sessions' bits' separations of Eve's view at the worst case of
+/// `estimate`'s region (each rounded up to the published grid), and the block's report.
 fn size_block(
     config: &Config,
     runs: &[&RunOutput],
     estimate: &MotionNoiseEstimate,
-) -> (Vec<f64>, BlockEstimate) {
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     let model = doublet_model(config);
     let epsilon = estimate.epsilon;
     let refuse = |why: String, doublets: usize| refused(runs.len(), why, doublets, epsilon);
     let bits = usize::from(config.protocol.bits_per_doublet);
     let mut separations = Vec::with_capacity(runs.len());
     for run in runs {
-        let mut largest = 0.0_f64;
+        let mut session = Vec::new();
         for b in controller_samples(run) {
             let view = stated_camera_view(
                 b.samples,
@@ -191,7 +192,7 @@ fn size_block(
                 config.eve.camera_std,
             );
             match worst_case_separations(&model, estimate, &b.inputs, &view) {
-                Some(d) => largest = d[..bits].iter().fold(largest, |m, &x| m.max(x)),
+                Some(d) => session.extend(d[..bits].iter().map(|&x| published_separation(x))),
                 None => {
                     return refuse(
                         format!(
@@ -209,11 +210,11 @@ fn size_block(
                 }
             }
         }
-        separations.push(published_separation(largest));
+        separations.push(session);
     }
     let [point, lower] = estimate.stds();
     let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);
-    let separation = separations.iter().fold(0.0_f64, |m, &x| m.max(x));
+    let separation = separations.iter().flatten().fold(0.0_f64, |m, &x| m.max(x));
     (
         separations,
         BlockEstimate {

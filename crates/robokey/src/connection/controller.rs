@@ -72,9 +72,9 @@ pub struct ControllerConnection<A> {
     stage: Stage,
     endpoint: Option<Controller>,
     post: Option<PostLink<ControllerPost>>,
-    /// The largest Eve separation the camera statement gives over the decided bits: it sizes
-    /// the keys of the blocks this session enters (private sensing).
-    separation: f64,
+    /// The Eve separation the camera statement gives each decided bit: they size the keys of
+    /// the blocks this session enters (private sensing).
+    separations: Vec<f64>,
     outputs: VecDeque<ControllerAction<A>>,
 }
 
@@ -119,7 +119,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             },
             endpoint: None,
             post,
-            separation: 0.0,
+            separations: Vec::new(),
             outputs: VecDeque::new(),
             channel,
             earlier: ChannelCounts::default(),
@@ -423,9 +423,8 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                 ControllerOutput::Event(event) => {
                     if let ControllerEvent::DoubletDecided(decision) = &event {
                         let bits = self.plan.bits_per_unit();
-                        self.separation = decision.assumed_separation[..bits]
-                            .iter()
-                            .fold(self.separation, |m, &d| m.max(d));
+                        self.separations
+                            .extend_from_slice(&decision.assumed_separation[..bits]);
                     }
                     self.outputs.push_back(Output::Endpoint(event));
                 }
@@ -447,7 +446,12 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         match &mut self.post {
             Some(post) => {
                 let session = self.channel.session();
-                let pooled = post.pool(session, &outcome, endpoint.key(), self.separation);
+                let pooled = post.pool(
+                    session,
+                    &outcome,
+                    endpoint.key(),
+                    std::mem::take(&mut self.separations),
+                );
                 self.outputs.push_back(Output::Post(pooled));
                 self.stage = Stage::Post {
                     courtesy,

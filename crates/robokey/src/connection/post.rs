@@ -19,12 +19,12 @@ pub trait PostEndpoint {
     type Snapshot;
     /// Its durable state now.
     fn snapshot(&self) -> Self::Snapshot;
-    /// Pools a session's raw bits (`separation`: the controller's largest Eve separation
-    /// over them; the robot ignores it).
+    /// Pools a session's raw bits (`separations`: the controller's Eve separation of each
+    /// decided bit, [`ControllerInput::Session`]; the robot ignores them).
     ///
     /// # Errors
     /// A duplicate session or one of a size out of bounds.
-    fn pool(&mut self, id: u32, bits: BitString, separation: f64) -> Result<(), PostError>;
+    fn pool(&mut self, id: u32, bits: BitString, separations: Vec<f64>) -> Result<(), PostError>;
     /// A message from the peer.
     fn frame(&mut self, message: postprocess::Message);
     /// The next output.
@@ -38,11 +38,11 @@ impl PostEndpoint for ControllerPost {
     fn snapshot(&self) -> ControllerSnapshot {
         ControllerPost::snapshot(self)
     }
-    fn pool(&mut self, id: u32, bits: BitString, separation: f64) -> Result<(), PostError> {
+    fn pool(&mut self, id: u32, bits: BitString, separations: Vec<f64>) -> Result<(), PostError> {
         self.handle_input(ControllerInput::Session {
             id,
             bits,
-            separation,
+            separations,
         })
     }
     fn frame(&mut self, message: postprocess::Message) {
@@ -74,7 +74,7 @@ impl PostEndpoint for RobotPost {
     fn snapshot(&self) -> RobotSnapshot {
         RobotPost::snapshot(self)
     }
-    fn pool(&mut self, id: u32, bits: BitString, _separation: f64) -> Result<(), PostError> {
+    fn pool(&mut self, id: u32, bits: BitString, _separations: Vec<f64>) -> Result<(), PostError> {
         self.handle_input(RobotInput::Session { id, bits })
     }
     fn frame(&mut self, message: postprocess::Message) {
@@ -171,7 +171,7 @@ impl<E: PostEndpoint> PostLink<E> {
         id: u32,
         outcome: &Outcome,
         bits: &[u8],
-        separation: f64,
+        separations: Vec<f64>,
     ) -> PostOutput<E::Snapshot> {
         let refused = |reason: String| PostOutput::NotPooled {
             session: id,
@@ -189,7 +189,7 @@ impl<E: PostEndpoint> PostLink<E> {
             zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());
         match self
             .endpoint
-            .pool(id, BitString::from_bools(&bools), separation)
+            .pool(id, BitString::from_bools(&bools), separations)
         {
             Ok(()) => PostOutput::Pooled {
                 session: id,
