@@ -110,7 +110,7 @@ fuzz_target!(|data: &[u8]| {
             .handle_input(ControllerInput::Session {
                 id,
                 bits,
-                separation: 0.0,
+                separations: Vec::new(),
                 samples: Vec::new(),
             })
             .unwrap();

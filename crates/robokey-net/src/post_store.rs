@@ -148,6 +148,8 @@ impl Snapshot for ControllerSnapshot {
     /// Also forgets the spent sessions' Eve separations and kept samples.
     fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
         self.separations.retain(|(id, _)| !sessions.contains(id));
+        self.separation_counts
+            .retain(|(id, _)| !sessions.contains(id));
         self.samples.retain(|(id, _)| !sessions.contains(id));
         spend_in(&mut self.pool, &mut self.spent, sessions)
     }

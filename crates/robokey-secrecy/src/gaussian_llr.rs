@@ -10,7 +10,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::min_entropy::{MinEntropyError, check_epsilon, chernoff_lower_quantile};
+use crate::min_entropy::{MinEntropyError, check_epsilon};
+use crate::view_profile::{BitView, ViewGroup, profile_smooth_min_entropy};
 
 /// Grid of the standard normal variable for the expectations: `z ∈ [−Z, Z]`.
 const Z: f64 = 12.0;
@@ -19,7 +20,7 @@ const STEPS: usize = 2_400;
 
 /// The grid's points `z` and their trapezoid weights times the Gaussian kernel `e^{−z²/2}`,
 /// which do not depend on the separation: computed once.
-fn grid() -> &'static [(f64, f64)] {
+pub(crate) fn grid() -> &'static [(f64, f64)] {
     static GRID: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock::new();
     GRID.get_or_init(|| {
         let h = 2.0 * Z / STEPS as f64;
@@ -44,21 +45,27 @@ fn terms(separation: f64, g: impl Fn(f64) -> f64) -> impl Iterator<Item = (f64, 
 }
 
 /// A sum of the terms times the trapezoid step and the Gaussian density's constant.
-fn integral(sum: f64) -> f64 {
+pub(crate) fn integral(sum: f64) -> f64 {
     let h = 2.0 * Z / STEPS as f64;
     sum * h / (2.0 * std::f64::consts::PI).sqrt()
 }
 
-/// `E[g(S)]` for the surprisal `S` of a view with separation `d`.
-fn expect(separation: f64, g: impl Fn(f64) -> f64) -> f64 {
-    integral(terms(separation, g).fold(0.0, |sum, (_, _, term)| sum + term))
+/// `(kernel weight, S)` at each grid point for a view with separation `d`: the terms of
+/// `E[g(S)]` before `g`, `L = d²/2 + d·z` (the same operations as [`terms`], so a sum over
+/// them is the same bit for bit).
+pub(crate) fn surprisal_table(separation: f64) -> Vec<(f64, f64)> {
+    let (mean, std) = (separation * separation / 2.0, separation);
+    grid()
+        .iter()
+        .map(|&(z, kernel)| (kernel, surprisal(mean + std * z)))
+        .collect()
 }
 
 /// A term below this fraction of a positive sum is below a quarter of the sum's last-place
 /// unit, which is more than `2^−53` of it.
 const NEGLIGIBLE: f64 = f64::EPSILON / 8.0;
 
-/// `E[S]`, the same sum as `expect(separation, |s| s)`, bit for bit, without its negligible
+/// `E[S]`, the trapezoid sum over [`surprisal_table`], bit for bit, without its negligible
 /// tail. Past the mean (`z > 0` and `L > 0`) every term is smaller than the one before (the
 /// kernel falls with `z`, `S` with `L`); once a term is below a quarter of the last-place
 /// unit of the sum, each later one is below half of it (rounding errors of a few units in
@@ -66,7 +73,7 @@ const NEGLIGIBLE: f64 = f64::EPSILON / 8.0;
 /// nearest): the tail is not computed. It is a sixth to a third of the grid for the
 /// separations of private sensing; every eighth term is checked, so that the check costs
 /// less than it saves.
-fn expected_surprisal(separation: f64) -> f64 {
+pub(crate) fn expected_surprisal(separation: f64) -> f64 {
     let mut sum = 0.0;
     let mut terms = terms(separation, |s| s);
     for (z, llr, term) in terms.by_ref() {
@@ -131,7 +138,7 @@ pub fn erfc(x: f64) -> f64 {
 }
 
 /// The smooth min-entropy bound for `n` bits each seen through an independent view of
-/// separation at most `d`.
+/// separation at most `d` (one group of [`crate::view_profile`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct GaussianMinEntropy {
     /// Bits n.
@@ -176,17 +183,20 @@ pub fn gaussian_llr_smooth_min_entropy(
             h_min: nf,
         });
     }
-    let (t, lambda) = chernoff_lower_quantile(
-        |lambda| nf * expect(separation, |s| (-lambda * s).exp()).ln(),
+    let profile = profile_smooth_min_entropy(
+        &[ViewGroup {
+            view: BitView::Gaussian { separation },
+            bits: n,
+        }],
         epsilon,
-    );
+    )?;
     Ok(GaussianMinEntropy {
         positions: n,
         separation,
         epsilon,
-        shannon: nf * expected_surprisal(separation),
-        lambda,
-        h_min: t.clamp(0.0, nf),
+        shannon: profile.shannon,
+        lambda: profile.lambda,
+        h_min: profile.h_min,
     })
 }
 
@@ -227,7 +237,13 @@ mod tests {
     /// to 50, log-spaced, and the private-sensing map's range densely.
     #[test]
     fn the_expected_surprisal_is_the_whole_sum_bit_for_bit() {
-        let whole = |d: f64| expect(d, |s| s);
+        let whole = |d: f64| {
+            integral(
+                surprisal_table(d)
+                    .iter()
+                    .fold(0.0, |sum, &(kernel, s)| sum + kernel * s),
+            )
+        };
         let logspaced = (0..2_000).map(|i| 10f64.powf(-5.0 + 6.7 * f64::from(i) / 2_000.0));
         let dense = (0..2_000).map(|i| 0.8 + 4.2 * f64::from(i) / 2_000.0);
         for d in logspaced.chain(dense) {

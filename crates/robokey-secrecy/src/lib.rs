@@ -39,6 +39,7 @@ pub mod min_entropy;
 pub mod postprocess;
 pub mod special;
 pub mod toeplitz;
+pub mod view_profile;
 
 pub use advantage::{AdvantageError, RepetitionAdvantage};
 pub use bitstring::{BitString, BitStringError};

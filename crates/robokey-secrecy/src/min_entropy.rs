@@ -22,6 +22,9 @@ pub enum MinEntropyError {
     /// A Gaussian view's separation that is negative or not finite.
     #[error("separation {0} must be finite and non-negative")]
     InvalidSeparation(f64),
+    /// A view's noise standard deviation that is not positive and finite.
+    #[error("noise standard deviation {0} must be finite and positive")]
+    InvalidNoise(f64),
 }
 
 pub(crate) fn check_epsilon(epsilon: f64) -> Result<(), MinEntropyError> {

@@ -9,6 +9,7 @@ use robokey::estimate::{BlockEstimate, block_separations, estimate_request, kept
 use robokey::private::DoubletSamples;
 use robokey::sim::{RunOutput, simulate};
 use robokey_secrecy::BitString;
+use robokey_secrecy::postprocess::public::sample_size;
 use robokey_secrecy::postprocess::{Assumption, EstimateRequest};
 
 /// The parties at the defaults in private sensing, the robot in `world`.
@@ -25,10 +26,17 @@ fn samples(run: &RunOutput) -> &[DoubletSamples] {
     &run.private.as_ref().unwrap().controller_samples
 }
 
+/// The bits a block of `runs` discloses in its sample (at most 1,000, a tenth of the bits).
+fn disclosed(runs: &[RunOutput]) -> u64 {
+    let bits = runs.iter().map(|run| run.keys.robot.len()).sum();
+    sample_size(bits, 1_000) as u64
+}
+
 /// The agents' request for a block of `runs`: each session's kept doublets and the robot's
-/// raw bits.
+/// raw bits, and how many of them the sample disclosed.
 fn request(runs: &[RunOutput]) -> EstimateRequest {
     EstimateRequest {
+        disclosed: disclosed(runs),
         block: 0,
         sessions: runs
             .iter()
@@ -52,7 +60,7 @@ fn both_estimates(config: &Config) -> (BlockEstimate, BlockEstimate) {
         .map(|r| simulate(config, r, false).unwrap())
         .collect();
     let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
-    let (_, simulator) = block_separations(config, &sessions, 1e-6);
+    let (_, simulator) = block_separations(config, &sessions, disclosed(&runs), 1e-6);
     (estimate_request(config, &request(&runs), 1e-6), simulator)
 }
 
@@ -66,6 +74,9 @@ fn the_agents_measure_the_plant_as_the_simulator_does_in_a_quieter_world() {
     for std in agents.point_std_mm {
         assert!((0.8..1.2).contains(&std), "{:?}", agents.point_std_mm);
     }
+    // Sized per bit: the bits' equivalent separation, below the largest (the turning
+    // doublets' bits are the sharpest, and few).
+    assert!(agents.separation < agents.largest, "{agents:?}");
     // The same published outcome, hence the same ℓ on both sides of the comparison.
     let steps = agents.outcome().unwrap();
     assert_eq!(Ok(steps), simulator.outcome());
@@ -133,12 +144,12 @@ fn a_camera_stated_in_frames_sizes_the_measured_block_by_its_worth() {
         .map(|r| simulate(&per_instant, r, false).unwrap())
         .collect();
     let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
-    let (_, instant) = block_separations(&per_instant, &sessions, 1e-6);
-    let (_, framed) = block_separations(&frames, &sessions, 1e-6);
+    let (_, instant) = block_separations(&per_instant, &sessions, disclosed(&runs), 1e-6);
+    let (_, framed) = block_separations(&frames, &sessions, disclosed(&runs), 1e-6);
     assert!(
-        framed.separation > 1.5 * instant.separation,
+        framed.largest > 1.5 * instant.largest,
         "{} against {}",
-        framed.separation,
-        instant.separation
+        framed.largest,
+        instant.largest
     );
 }

@@ -11,6 +11,7 @@ use robokey::private::{DoubletBit, DoubletSamples};
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
+use robokey_secrecy::postprocess::public::sample_size;
 use robokey_secrecy::{JointCounts, binomial_test};
 
 use super::commands_check;
@@ -222,7 +223,7 @@ fn analyze_point(
                 assumption
             }
         } else if is_private {
-            robokey::post_settings::camera_assumption(config, private::largest_separation(runs))
+            robokey::post_settings::camera_assumption(config, 0.0)
         } else {
             options.assumption()
         },
@@ -230,6 +231,15 @@ fn analyze_point(
     let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
     let mut pools = pipeline::pools(runs, options.pooling, options.block_bits, adversary);
     pools.truncate(options.blocks);
+    if is_private && !measured {
+        for pool in &mut pools {
+            pool.separations = pool
+                .runs
+                .iter()
+                .map(|&i| private::assumed_separations(&runs[i]))
+                .collect();
+        }
+    }
     if measured {
         for pool in &mut pools {
             let pooled: Vec<&[DoubletSamples]> = pool
@@ -242,10 +252,17 @@ fn analyze_point(
                         .map_or(&[][..], |p| &p.controller_samples)
                 })
                 .collect();
+            // The bits the block's sample will disclose: its estimate sizes the rest.
+            let disclosed = sample_size(pool.robot.len(), options.sample_bits) as u64;
             let (separations, estimate) = if options.sizing == Sizing::World {
-                robokey::estimate::world_block_separations(config, &pooled, options.epsilon)
+                robokey::estimate::world_block_separations(
+                    config,
+                    &pooled,
+                    disclosed,
+                    options.epsilon,
+                )
             } else {
-                robokey::estimate::block_separations(config, &pooled, options.epsilon)
+                robokey::estimate::block_separations(config, &pooled, disclosed, options.epsilon)
             };
             pool.separations = separations;
             pool.estimate = Some(estimate);
@@ -255,13 +272,18 @@ fn analyze_point(
     if is_private {
         refuse_what_the_commands_reveal(runs, options, &pools, &mut blocks);
     }
+    if is_private && !measured {
+        // For people: the largest separation of any bit.
+        let largest = private::largest_separation(runs);
+        settings.assumption = settings.assumption.for_block((largest * 1e6).ceil() as u64);
+    }
     if measured {
-        // For people: the largest separation any block was sized with.
+        // For people: the largest separation of any bit.
         let largest = blocks
             .iter()
             .filter_map(|b| b.estimate.as_ref())
             .filter(|e| e.refused.is_none())
-            .fold(0.0_f64, |m, e| m.max(e.separation));
+            .fold(0.0_f64, |m, e| m.max(e.largest));
         settings.assumption = settings.assumption.for_block((largest * 1e6).ceil() as u64);
     }
     // Every session run until the last one pooled cost robot time, dropped ones included.

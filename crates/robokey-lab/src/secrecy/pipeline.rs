@@ -21,6 +21,7 @@ use robokey_secrecy::postprocess::{
     AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, EstimateRefusal,
     Message, Output, RobotInput, RobotPost, Settings,
 };
+use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 use zeroize::Zeroizing;
 
@@ -115,9 +116,10 @@ pub struct Pool {
     pub eve_posteriors: Vec<f64>,
     /// Indices (into the runs) of the sessions pooled, in order.
     pub runs: Vec<usize>,
-    /// Measured sizing: each pooled session's largest Eve separation at the worst case of
-    /// the block's estimate (empty: the assumption's separation alone sizes the key).
-    pub separations: Vec<f64>,
+    /// Private sensing: each pooled session's bits' Eve separations — under the camera
+    /// statement, or at the worst case of the block's estimate (measured sizing) — that size
+    /// the key per bit (empty: the assumption's separation alone sizes it).
+    pub separations: Vec<Vec<f64>>,
     /// Measured sizing: the block's estimate.
     pub estimate: Option<BlockEstimate>,
 }
@@ -265,7 +267,10 @@ pub fn post_process(
 fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
     let n = pool.robot.len();
     let leak_confirmation = u64::from(pool.sessions) * SESSION_KEY_TAG_BITS;
-    let h_min = settings.assumption.h_min(n as u64, settings.epsilon);
+    let h_min = settings
+        .assumption
+        .for_block(pool.equivalent_separation(settings.epsilon))
+        .h_min(n as u64, settings.epsilon);
     let length = output_length(h_min, 0, leak_confirmation, settings.epsilon).ok();
     let mut block = Block {
         sessions: pool.sessions,
@@ -314,10 +319,14 @@ fn through_endpoints(
     ) else {
         return Vec::new();
     };
-    for (id, ((robot_bits, controller_bits), separation)) in pools
+    for (id, ((robot_bits, controller_bits), separations)) in pools
         .iter()
         .flat_map(|p| {
-            let separations = p.separations.iter().copied().chain(std::iter::repeat(0.0));
+            let separations = p
+                .separations
+                .iter()
+                .cloned()
+                .chain(std::iter::repeat(Vec::new()));
             p.session_bits().into_iter().zip(separations)
         })
         .enumerate()
@@ -330,10 +339,10 @@ fn through_endpoints(
         let _ = controller.handle_input(ControllerInput::Session {
             id,
             bits: controller_bits,
-            // Configured sizing: 0, the block's separation is the settings' (the largest
-            // over every run); measured: the session's at its block's worst case (the
-            // block's estimate is answered below, when the controller asks).
-            separation,
+            // Configured sizing: the camera statement's per-bit separations; measured: the
+            // bits' at their block's worst case (the block's estimate is answered below,
+            // when the controller asks, and sizes the key).
+            separations,
             samples: Vec::new(),
         });
     }
@@ -552,6 +561,19 @@ fn realised(
 
 impl Pool {
     /// Each pooled session's (robot, controller) bits, in order.
+    /// The equivalent separation of the pool's bits (millionths) at smoothing `epsilon`,
+    /// nothing disclosed: as the controller's endpoint finds it for a block.
+    fn equivalent_separation(&self, epsilon: f64) -> u64 {
+        let mut counts = BTreeMap::new();
+        for (separations, &bits) in self.separations.iter().zip(&self.lengths) {
+            for (d, n) in separation_counts(separations, bits) {
+                *counts.entry(d).or_insert(0_u64) += n;
+            }
+        }
+        let largest = counts.keys().next_back().copied().unwrap_or(0);
+        equivalent_separation(&counts, 0, epsilon).unwrap_or(largest)
+    }
+
     fn session_bits(&self) -> Vec<(BitString, BitString)> {
         let mut out = Vec::new();
         let mut start = 0;

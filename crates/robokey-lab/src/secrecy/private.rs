@@ -93,6 +93,15 @@ pub fn largest_separation(runs: &[RunOutput]) -> f64 {
     bits(runs).fold(0.0, |m, b| m.max(b.assumed_separation))
 }
 
+/// Each bit's separation under the camera assumption in `run`, as the controller computes
+/// them: what sizes its keys per bit.
+#[must_use]
+pub fn assumed_separations(run: &RunOutput) -> Vec<f64> {
+    bits(std::slice::from_ref(run))
+        .map(|b| b.assumed_separation)
+        .collect()
+}
+
 fn bits(runs: &[RunOutput]) -> impl Iterator<Item = &DoubletBit> {
     runs.iter()
         .flat_map(|r| r.private.as_ref().map_or(&[][..], |p| p.bits.as_slice()))

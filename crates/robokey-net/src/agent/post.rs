@@ -317,8 +317,8 @@ impl<E: StoredEndpoint> AgentStore<E> {
                         "{}: the plant measured over {} doublets: motion noise √Q̂ {:.2} mm, \
                          {:.2} mm, {:.2} mrad, AR(1) correlation between steps ρ̂ {:.3}; over \
                          the (1 − {:e}) region, ρ in [{:.3}, {:.3}], lowest {:.2} mm, {:.2} mm, \
-                         {:.2} mrad; Eve's largest separation at its worst case {:.4} \
-                         (published)",
+                         {:.2} mrad; Eve's largest separation at its worst case {:.4}, her \
+                         bits' equivalent {:.4} (published)",
                         self.role,
                         estimate.doublets,
                         estimate.point_std_mm[0],
@@ -331,6 +331,7 @@ impl<E: StoredEndpoint> AgentStore<E> {
                         estimate.lower_std_mm[0],
                         estimate.lower_std_mm[1],
                         estimate.lower_std_mm[2],
+                        estimate.largest,
                         estimate.separation
                     ),
                 }

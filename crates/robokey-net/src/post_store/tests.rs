@@ -27,6 +27,7 @@ fn controller(pool: &[(u32, bool)], committed: &[u64]) -> ControllerSnapshot {
             .map(|&(id, bit)| (id, BitString::from_bools(&[bit; 100])))
             .collect(),
         separations: Vec::new(),
+        separation_counts: Vec::new(),
         samples: Vec::new(),
         spent: Vec::new(),
         in_flight: None,

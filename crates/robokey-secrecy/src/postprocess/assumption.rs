@@ -25,20 +25,21 @@ pub enum Assumption {
     },
     /// Under a stated physical model (private sensing: Eve's camera noise, the motion noise,
     /// the exact model), Eve's view of each pooled bit is at most as informative as a
-    /// consistent Gaussian log-likelihood ratio of Mahalanobis separation `separation`,
-    /// independently across bits (`gaussian_llr`).
+    /// consistent Gaussian log-likelihood ratio of its own Mahalanobis separation,
+    /// independently across bits (`gaussian_llr`); a block is sized with the equivalent
+    /// separation of its bits' separations (`view_profile`).
     GaussianViews {
-        /// The largest separation d over the pooled bits, ≥ 0.
+        /// The separation every bit is sized with at least (the block's equivalent is raised
+        /// to it), ≥ 0.
         separation: f64,
         /// The physical model, for people: e.g. "Eve's camera noise ≥ 8 mm, 8 mrad".
         statement: String,
     },
-    /// [`Self::GaussianViews`] with the plant measured rather than configured: the
-    /// separation is the largest over the block's bits at the worst case of a (1 − ε_est)
-    /// confidence region of the motion noise the controller estimated from its own samples
+    /// [`Self::GaussianViews`] with the plant measured rather than configured: the bits'
+    /// separations are taken at the worst case of a (1 − ε_est) confidence region of the motion noise the controller estimated from its own samples
     /// (docs/estimation.md). The region's failure probability ε_est is a term of the key's ε.
     MeasuredViews {
-        /// The largest separation d over the pooled bits at the region's worst case, ≥ 0.
+        /// The separation every bit is sized with at least, ≥ 0.
         separation: f64,
         /// The camera statement and the measured plant, for people.
         statement: String,
@@ -108,9 +109,9 @@ impl Assumption {
         matches!(self, Self::IndependentErrors { .. })
     }
 
-    /// The assumption for one block whose bits have Eve separations up to
-    /// `separation_micros` millionths: a Gaussian-views separation is raised to it; the
-    /// other assumptions have none.
+    /// The assumption for one block whose bits' Eve separations have the equivalent
+    /// separation `separation_micros` millionths (`view_profile::equivalent_separation`): a
+    /// Gaussian-views separation is raised to it; the other assumptions have none.
     #[must_use]
     pub fn for_block(&self, separation_micros: u64) -> Self {
         match self {
@@ -204,9 +205,10 @@ impl Assumption {
                 separation,
                 statement,
             } => format!(
-                "{statement}: Eve's view of each bit is at most a Gaussian likelihood ratio of \
-                 separation {separation:.3} (her error rate ≥ {:.4}, information ≤ {:.4} bit), \
-                 independent across bits",
+                "{statement}: Eve's views of the bits, each a Gaussian likelihood ratio of its \
+                 own separation, independent across bits, give her no more than views of \
+                 separation {separation:.3} each would (her error rate ≥ {:.4}, information ≤ \
+                 {:.4} bit per bit)",
                 gaussian_llr::error_rate(*separation),
                 gaussian_llr::information(*separation),
             ),
@@ -217,9 +219,10 @@ impl Assumption {
                 estimate_leak,
             } => format!(
                 "{statement}: at the worst case of the motion noise's (1 − {estimation_epsilon:e}) \
-                 region, Eve's view of each bit is at most a Gaussian likelihood ratio of \
-                 separation {separation:.3} (her error rate ≥ {:.4}, information ≤ {:.4} bit), \
-                 independent across bits; ε_est = {estimation_epsilon:e} is a term of the key's ε; \
+                 region, Eve's views of the bits, each a Gaussian likelihood ratio of its own \
+                 separation, independent across bits, give her no more than views of separation \
+                 {separation:.3} each would (her error rate ≥ {:.4}, information ≤ {:.4} bit per \
+                 bit); ε_est = {estimation_epsilon:e} is a term of the key's ε; \
                  the published estimate is charged {estimate_leak:.1} bits",
                 gaussian_llr::error_rate(*separation),
                 gaussian_llr::information(*separation),

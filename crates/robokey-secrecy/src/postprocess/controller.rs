@@ -1,6 +1,8 @@
 //! The controller's post-processing endpoint: it pools its (noisy) session bits, proposes
 //! blocks, corrects its bits by Cascade, and coordinates the two-phase commit.
 
+use std::collections::BTreeMap;
+
 use rand::rngs::ChaCha20Rng;
 use serde::{Deserialize, Serialize};
 
@@ -8,7 +10,7 @@ use super::estimate::{
     EstimateOutcome, EstimateRefusal, EstimateRequest, MAX_SEPARATION_STEPS, SessionSamples,
 };
 use super::ledger::Ledger;
-use super::public::PublicRandomness;
+use super::public::{PublicRandomness, sample_size};
 use super::{
     AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS,
     Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate,
@@ -17,7 +19,7 @@ use super::{
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
 use crate::confirm::ConfirmationTag;
-use std::collections::BTreeMap;
+use crate::view_profile::{equivalent_separation, separation_counts};
 
 /// What the controller feeds its endpoint.
 #[derive(Debug, Clone)]
@@ -28,9 +30,12 @@ pub enum ControllerInput {
         id: u32,
         /// The controller's bits (decisions) of the session.
         bits: BitString,
-        /// The largest separation of Eve's view over these bits under a Gaussian-views
-        /// assumption, as the controller computes it from its own samples (0 otherwise).
-        separation: f64,
+        /// The separation of Eve's view of each bit under a Gaussian-views assumption, as the
+        /// controller computes it from public data or its own samples (empty: 0 for every
+        /// bit). A list longer than the bits counts its largest `bits.len()` (a list of every
+        /// decided doublet's bits errs safe); a shorter one gives the bits it lacks its
+        /// largest.
+        separations: Vec<f64>,
         /// What the pool keeps of the session for the block's estimate of the plant
         /// (measured sizing; empty otherwise).
         samples: SessionSamples,
@@ -83,8 +88,13 @@ pub struct ControllerSnapshot {
     pub next_block: u64,
     /// Sessions pooled and not yet proposed.
     pub pool: Vec<(u32, BitString)>,
-    /// Their Eve separations, in millionths (only those above 0).
+    /// Their largest Eve separations, in millionths (only those above 0).
     pub separations: Vec<(u32, u64)>,
+    /// Their bits' Eve separations rounded up to the group grid (millionths), with how many
+    /// bits have each (only sessions with a separation above 0; a session without falls
+    /// back to its largest for every bit).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub separation_counts: Vec<(u32, Vec<(u64, u64)>)>,
     /// What the pool keeps of them for the block's estimate (measured sizing; only those
     /// with samples). The store writes them once, beside the sessions' bits.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -140,9 +150,14 @@ pub struct ControllerPost {
     next_block: u64,
     /// The block in flight: its number, proposed sessions and their bits.
     block: Option<(u64, Vec<u32>, Pool)>,
-    /// Pooled sessions' Eve separations (millionths), and the block in flight's largest.
+    /// Pooled sessions' largest Eve separations (millionths).
     separations: BTreeMap<u32, u64>,
+    /// Pooled sessions' per-bit Eve separations, grouped: millionths → bits.
+    separation_counts: BTreeMap<u32, BTreeMap<u64, u64>>,
+    /// The block in flight's equivalent separation (what sizes it, sent in `Propose`) and
+    /// its largest, in millionths.
     block_separation: u64,
+    block_largest: u64,
     /// Pooled sessions' kept samples, and the block in flight's.
     samples: BTreeMap<u32, SessionSamples>,
     block_samples: BTreeMap<u32, SessionSamples>,
@@ -178,7 +193,9 @@ impl ControllerPost {
             next_block,
             block: None,
             separations: BTreeMap::new(),
+            separation_counts: BTreeMap::new(),
             block_separation: 0,
+            block_largest: 0,
             samples: BTreeMap::new(),
             block_samples: BTreeMap::new(),
             in_flight: None,
@@ -207,6 +224,11 @@ impl ControllerPost {
         )?;
         let mut endpoint = Self::with(ledger, snapshot.next_block);
         endpoint.separations = snapshot.separations.into_iter().collect();
+        endpoint.separation_counts = snapshot
+            .separation_counts
+            .into_iter()
+            .map(|(id, counts)| (id, counts.into_iter().collect()))
+            .collect();
         endpoint.samples = snapshot.samples.into_iter().collect();
         match snapshot.in_flight {
             None => endpoint.maybe_propose(),
@@ -238,6 +260,11 @@ impl ControllerPost {
             next_block: self.next_block,
             pool: self.ledger.stored_pool(),
             separations: self.separations.iter().map(|(&id, &s)| (id, s)).collect(),
+            separation_counts: self
+                .separation_counts
+                .iter()
+                .map(|(&id, counts)| (id, counts.iter().map(|(&d, &n)| (d, n)).collect()))
+                .collect(),
             samples: self
                 .samples
                 .iter()
@@ -270,17 +297,20 @@ impl ControllerPost {
             ControllerInput::Session {
                 id,
                 bits,
-                separation,
+                separations,
                 samples,
             } => {
-                if !(0.0..=1e6).contains(&separation) {
+                if let Some(&separation) = separations.iter().find(|d| !(0.0..=1e6).contains(*d)) {
                     return Err(PostError::Separation { id, separation });
                 }
+                let counts = separation_counts(&separations, bits.len());
                 self.ledger.add_session(id, bits)?;
                 // Rounded up: the key is sized as if Eve saw a little more, never less.
-                let micros = (separation * 1e6).ceil() as u64;
+                let largest = separations.iter().fold(0.0_f64, |m, &d| m.max(d));
+                let micros = (largest * 1e6).ceil() as u64;
                 if micros > 0 {
                     self.separations.insert(id, micros);
+                    self.separation_counts.insert(id, counts);
                 }
                 if !samples.is_empty() {
                     self.samples.insert(id, samples);
@@ -413,12 +443,30 @@ impl ControllerPost {
             sessions.push(id);
             bits.insert(id, session);
         }
-        let separation_micros = sessions
-            .iter()
-            .filter_map(|id| self.separations.remove(id))
-            .max()
-            .unwrap_or(0);
+        // The block's bits' separations; a session stored without them (an older snapshot)
+        // counts its largest for every bit.
+        let mut counts: BTreeMap<u64, u64> = BTreeMap::new();
+        let mut largest = 0;
+        for id in &sessions {
+            let session_largest = self.separations.remove(id).unwrap_or(0);
+            largest = largest.max(session_largest);
+            let session_bits = bits.get(id).map_or(0, |b| b.len() as u64);
+            let session_counts = self
+                .separation_counts
+                .remove(id)
+                .unwrap_or_else(|| BTreeMap::from([(session_largest, session_bits)]));
+            for (d, n) in session_counts {
+                *counts.entry(d).or_default() += n;
+            }
+        }
+        // What sizes the block whichever bits its sample discloses: the per-bit bound's
+        // equivalent separation, never above the largest.
+        let removed = sample_size(total, self.ledger.settings.sample_bits) as u64;
+        let separation_micros =
+            equivalent_separation(&counts, removed, self.ledger.settings.epsilon)
+                .map_or(largest, |d| d.min(largest));
         self.block_separation = separation_micros;
+        self.block_largest = largest;
         self.block_samples = sessions
             .iter()
             .filter_map(|id| self.samples.remove(id).map(|s| (*id, s)))
@@ -463,6 +511,19 @@ impl ControllerPost {
             return self.abort(
                 AbortReason::Refused,
                 "the robot holds none of the proposed sessions".into(),
+            );
+        }
+        // A measured block's separation is found after reconciliation, over the agreed
+        // sessions only.
+        if agreed.len() < proposed.len()
+            && self.block_separation < self.block_largest
+            && !self.ledger.settings.assumption.is_measured()
+        {
+            return self.abort(
+                AbortReason::Refused,
+                "the robot holds only some of the proposed sessions: the block's equivalent \
+                 separation was found for all of them"
+                    .into(),
             );
         }
         let nonces = [nonce, robot_nonce];
@@ -600,6 +661,7 @@ impl ControllerPost {
         EstimateRequest {
             block: self.current(),
             sessions,
+            disclosed: agreed.robot_sample.len() as u64,
         }
     }
 

@@ -41,12 +41,16 @@ pub struct EstimateRequest {
     /// nothing was kept) and the robot's bits of it — the reconciled key with the disclosed
     /// sample put back (key material).
     pub sessions: Vec<(u32, SessionSamples, BitString)>,
+    /// How many of the block's bits its sample disclosed: the block is sized over the rest,
+    /// whichever they were (the per-bit bound takes the worst choice).
+    pub disclosed: u64,
 }
 
 /// Why the shell's estimate refused a block, naming the test and the value.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct EstimateRefusal(pub String);
 
-/// The published outcome of a block's estimate: its worst-case separation in grid steps
+/// The published outcome of a block's estimate: the equivalent separation of its bits'
+/// worst-case separations in grid steps
 /// ([`SEPARATION_QUANTUM`], at most [`MAX_SEPARATION_STEPS`]), or a refusal.
 pub type EstimateOutcome = Result<u32, EstimateRefusal>;

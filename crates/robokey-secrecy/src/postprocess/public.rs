@@ -45,10 +45,10 @@ impl PublicRandomness {
         rng
     }
 
-    /// Which of `n` positions are disclosed: a uniform subset of min(`most`, ⌊n/10⌋).
+    /// Which of `n` positions are disclosed: a uniform subset of [`sample_size`] of them.
     #[must_use]
     pub fn sample(&self, n: usize, most: usize) -> Vec<bool> {
-        let size = most.min(n / 10);
+        let size = sample_size(n, most);
         let mut disclosed = vec![false; n];
         for i in rand::seq::index::sample(&mut self.stream(0), n, size) {
             disclosed[i] = true;
@@ -69,4 +69,10 @@ impl PublicRandomness {
     pub fn toeplitz(&self, n: usize, length: usize) -> Result<ToeplitzHash, ToeplitzError> {
         ToeplitzHash::random(n, length, &mut self.stream(2))
     }
+}
+
+/// How many of `n` positions a block's sample discloses: min(`most`, ⌊n/10⌋).
+#[must_use]
+pub fn sample_size(n: usize, most: usize) -> usize {
+    most.min(n / 10)
 }

@@ -74,10 +74,21 @@ struct Pair {
 
 impl Pair {
     fn new(settings: Settings, pool: &[(u32, BitString, BitString)]) -> Self {
+        Self::with_separations(settings, pool, &[], &[])
+    }
+
+    /// [`Self::new`] with each session's per-bit Eve separations (none for a session past
+    /// the list) and sessions the robot lacks.
+    fn with_separations(
+        settings: Settings,
+        pool: &[(u32, BitString, BitString)],
+        separations: &[Vec<f64>],
+        robot_lacks: &[u32],
+    ) -> Self {
         let controller = ControllerPost::new(settings.clone(), [1; 32]).unwrap();
         let mut robot = RobotPost::new(settings.clone(), [2; 32]).unwrap();
         // The robot learns of its sessions first, as on the network.
-        for (id, reference, _) in pool {
+        for (id, reference, _) in pool.iter().filter(|s| !robot_lacks.contains(&s.0)) {
             robot
                 .handle_input(RobotInput::Session {
                     id: *id,
@@ -105,12 +116,12 @@ impl Pair {
             robot_reports: Vec::new(),
         };
         pair.collect();
-        for (id, _, bits) in pool {
+        for (i, (id, _, bits)) in pool.iter().enumerate() {
             pair.controller
                 .handle_input(ControllerInput::Session {
                     id: *id,
                     bits: bits.clone(),
-                    separation: 0.0,
+                    separations: separations.get(i).cloned().unwrap_or_default(),
                     samples: SessionSamples::new(),
                 })
                 .unwrap();
@@ -760,4 +771,83 @@ fn the_robot_refuses_a_confirm_whose_estimate_does_not_size_its_length() {
         assert!(pair.settle(100_000, None));
         pair.assert_same_keys("a forged estimate");
     }
+}
+
+/// Per-bit separations (most bits seen at 0.5, every tenth at 1.5): both sides commit the
+/// same keys, longer than when every bit is sized at the largest separation, each no longer
+/// than the per-bit bound of its reconciled bits allows; a robot holding only some of the
+/// sessions gets the block aborted, not sized for bits it lacks.
+#[test]
+fn per_bit_separations_size_both_sides_alike() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let pool = sessions(8, 0.01, &mut rng);
+    let gaussian = Assumption::GaussianViews {
+        separation: 0.0,
+        statement: "test".into(),
+    };
+    let per_bit: Vec<Vec<f64>> = pool
+        .iter()
+        .map(|(_, r, _)| {
+            (0..r.len())
+                .map(|i| if i % 10 == 0 { 1.5 } else { 0.5 })
+                .collect()
+        })
+        .collect();
+    let largest: Vec<Vec<f64>> = pool.iter().map(|_| vec![1.5]).collect();
+    let run = |separations: &[Vec<f64>]| {
+        let mut pair = Pair::with_separations(settings(gaussian.clone()), &pool, separations, &[]);
+        assert!(pair.settle(100_000, None));
+        assert_eq!(pair.controller_keys, pair.robot_keys);
+        assert!(!pair.controller_keys.is_empty());
+        pair
+    };
+    let (sized, at_largest) = (run(&per_bit), run(&largest));
+    let bits = |pair: &Pair| -> usize { pair.controller_keys.iter().map(|k| k.key.len()).sum() };
+    assert!(
+        bits(&sized) > bits(&at_largest),
+        "{} ≤ {}",
+        bits(&sized),
+        bits(&at_largest)
+    );
+    for report in sized.reports.iter().filter(|r| r.length > 0) {
+        // Its bits at 1.5 (the first of every ten of each session); its sample may have
+        // removed only 0.5s.
+        let high: u64 = report
+            .sessions
+            .iter()
+            .map(|id| {
+                pool.iter()
+                    .find(|s| s.0 == *id)
+                    .unwrap()
+                    .1
+                    .len()
+                    .div_ceil(10) as u64
+            })
+            .sum();
+        let low = report.reconciled_bits as u64 - high;
+        let groups = [
+            crate::view_profile::ViewGroup {
+                view: crate::view_profile::BitView::Gaussian { separation: 0.5 },
+                bits: low,
+            },
+            crate::view_profile::ViewGroup {
+                view: crate::view_profile::BitView::Gaussian { separation: 1.5 },
+                bits: high,
+            },
+        ];
+        let bound = crate::view_profile::profile_smooth_min_entropy(&groups, 1e-6)
+            .unwrap()
+            .h_min;
+        assert!(report.h_min <= bound, "{} > {bound}", report.h_min);
+    }
+    let mut partial =
+        Pair::with_separations(settings(gaussian.clone()), &pool, &per_bit, &[pool[0].0]);
+    partial.settle(100_000, None);
+    let refused = partial.reports.first().and_then(|r| r.reason.clone());
+    assert!(
+        refused
+            .as_deref()
+            .is_some_and(|r| r.contains("only some of the proposed sessions")),
+        "{refused:?}"
+    );
 }

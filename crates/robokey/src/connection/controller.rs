@@ -73,9 +73,9 @@ pub struct ControllerConnection<A> {
     stage: Stage,
     endpoint: Option<Controller>,
     post: Option<PostLink<ControllerPost>>,
-    /// The largest Eve separation the camera statement gives over the decided bits: it sizes
-    /// the keys of the blocks this session enters (private sensing).
-    separation: f64,
+    /// The Eve separation the camera statement gives each decided bit: they size the keys of
+    /// the blocks this session enters (private sensing).
+    separations: Vec<f64>,
     /// What the pool keeps of the decided doublets for the block's estimate of the plant
     /// (`postprocess.sizing = "measured"`; empty otherwise).
     kept: SessionSamples,
@@ -123,7 +123,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             },
             endpoint: None,
             post,
-            separation: 0.0,
+            separations: Vec::new(),
             kept: SessionSamples::new(),
             outputs: VecDeque::new(),
             channel,
@@ -428,9 +428,8 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                 ControllerOutput::Event(event) => {
                     if let ControllerEvent::DoubletDecided(decision) = &event {
                         let bits = self.plan.bits_per_unit();
-                        self.separation = decision.assumed_separation[..bits]
-                            .iter()
-                            .fold(self.separation, |m, &d| m.max(d));
+                        self.separations
+                            .extend_from_slice(&decision.assumed_separation[..bits]);
                         if self.config.postprocess.sizing == Sizing::Measured {
                             self.kept.push(kept_doublet(
                                 decision.doublet,
@@ -463,7 +462,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                     session,
                     &outcome,
                     endpoint.key(),
-                    self.separation,
+                    std::mem::take(&mut self.separations),
                     std::mem::take(&mut self.kept),
                 );
                 self.outputs.push_back(Output::Post(pooled));

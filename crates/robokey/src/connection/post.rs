@@ -22,9 +22,9 @@ pub trait PostEndpoint {
     type Snapshot;
     /// Its durable state now.
     fn snapshot(&self) -> Self::Snapshot;
-    /// Pools a session's raw bits (`separation`: the controller's largest Eve separation
-    /// over them; `samples`: what it keeps of them for the block's estimate of the plant;
-    /// the robot ignores both).
+    /// Pools a session's raw bits (`separations`: the controller's Eve separation of each
+    /// decided bit, [`ControllerInput::Session`]; `samples`: what it keeps of them for the
+    /// block's estimate of the plant; the robot ignores both).
     ///
     /// # Errors
     /// A duplicate session or one of a size out of bounds.
@@ -32,7 +32,7 @@ pub trait PostEndpoint {
         &mut self,
         id: u32,
         bits: BitString,
-        separation: f64,
+        separations: Vec<f64>,
         samples: SessionSamples,
     ) -> Result<(), PostError>;
     /// The shell's estimate of the plant for `block`, which the endpoint asked for (the
@@ -55,13 +55,13 @@ impl PostEndpoint for ControllerPost {
         &mut self,
         id: u32,
         bits: BitString,
-        separation: f64,
+        separations: Vec<f64>,
         samples: SessionSamples,
     ) -> Result<(), PostError> {
         self.handle_input(ControllerInput::Session {
             id,
             bits,
-            separation,
+            separations,
             samples,
         })
     }
@@ -102,7 +102,7 @@ impl PostEndpoint for RobotPost {
         &mut self,
         id: u32,
         bits: BitString,
-        _separation: f64,
+        _separations: Vec<f64>,
         _samples: SessionSamples,
     ) -> Result<(), PostError> {
         self.handle_input(RobotInput::Session { id, bits })
@@ -210,7 +210,7 @@ impl<E: PostEndpoint> PostLink<E> {
         id: u32,
         outcome: &Outcome,
         bits: &[u8],
-        separation: f64,
+        separations: Vec<f64>,
         samples: SessionSamples,
     ) -> PostOutput<E::Snapshot> {
         let refused = |reason: String| PostOutput::NotPooled {
@@ -229,7 +229,7 @@ impl<E: PostEndpoint> PostLink<E> {
             zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());
         match self
             .endpoint
-            .pool(id, BitString::from_bools(&bools), separation, samples)
+            .pool(id, BitString::from_bools(&bools), separations, samples)
         {
             Ok(()) => PostOutput::Pooled {
                 session: id,

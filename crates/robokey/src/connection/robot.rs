@@ -293,7 +293,7 @@ impl<A: Copy + PartialEq, K: CryptoRng> RobotConnection<A, K> {
                 session,
                 &outcome,
                 endpoint.key(),
-                0.0,
+                Vec::new(),
                 robokey_secrecy::postprocess::SessionSamples::new(),
             );
             self.outputs.push_back(Output::Post(pooled));

@@ -1,19 +1,22 @@
 //! A block's estimate of the plant, one implementation for the simulator and the agents
 //! (docs/estimation.md): per block, the controller's estimate from its own samples of the
-//! block's sessions and the reconciled bits, and each session's largest Eve separation at
-//! the region's worst case — what the post-processing endpoints size ℓ from. The agents'
-//! controller keeps each pooled session's samples ([`kept_doublet`]) and answers its
-//! endpoint's request at block time ([`estimate_request`]); the simulator reads them from
-//! its runs.
+//! block's sessions and the reconciled bits, each bit's Eve separation at the region's
+//! worst case, and the block's equivalent separation of them (the per-bit bound,
+//! docs/secrecy.md) — what the post-processing endpoints size ℓ from. The agents' controller
+//! keeps each pooled session's samples ([`kept_doublet`]) and answers its endpoint's request
+//! at block time ([`estimate_request`]); the simulator reads them from its runs.
 //!
 //! The reconciled bits are the robot's: a block whose reconciliation or confirmation fails
 //! gives no key, so wherever ℓ matters the controller's corrected bits equal the robot's.
 
+use std::collections::BTreeMap;
+
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, MAX_SEPARATION_STEPS,
-    SEPARATION_QUANTUM,
+    Assumption, EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet,
+    MAX_SEPARATION_STEPS, SEPARATION_QUANTUM,
 };
+use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 
 use super::{
@@ -25,7 +28,6 @@ use crate::model::{Pose, Unicycle};
 use crate::private::likelihood::stated_camera_view;
 use crate::private::{DoubletInputs, DoubletSamples, doublet_model};
 use crate::world::WorldModel;
-use robokey_secrecy::postprocess::Assumption;
 
 /// The separation fed for the sessions of a refused block: Eve is taken to see every bit
 /// (the largest the endpoints accept), so the block gives no key.
@@ -46,9 +48,12 @@ pub struct BlockEstimate {
     pub correlation_interval: [f64; 2],
     /// ε_est.
     pub epsilon: f64,
-    /// The largest separation of Eve's view over the block's bits at the worst case, rounded
-    /// up to the published grid (2⁻⁸).
+    /// What sizes the block, published: the equivalent separation of its bits' worst-case
+    /// separations under the per-bit bound, whichever bits its sample discloses, on the
+    /// published grid (2⁻⁸), at most `largest`.
     pub separation: f64,
+    /// The largest of its bits' worst-case separations (on the grid), for people.
+    pub largest: f64,
     /// Why the block was refused, naming the test and the value.
     pub refused: Option<String>,
 }
@@ -76,22 +81,26 @@ impl BlockEstimate {
             correlation_interval: [f64::NAN; 2],
             epsilon,
             separation: REFUSED_SEPARATION,
+            largest: REFUSED_SEPARATION,
             refused: Some(why),
         }
     }
 }
 
-/// Each of the block's `sessions`' largest worst-case separation (rounded up to the
-/// published grid: the estimate depends on the bits, and what is published of it is charged
-/// by the assumption), and the block's estimate, for the controller's samples of every
-/// carrying doublet of each session (with the robot's bits) under the parties' `config`
-/// (their stated sensor calibration and camera) at ε_est = `epsilon`.
+/// Each of the block's `sessions`' bits' worst-case separations (each rounded up to the
+/// published grid: the estimate depends on the bits, and what is published of it — the
+/// block's equivalent separation, on the same grid — is charged by the assumption), and the
+/// block's estimate, for the controller's samples of every carrying doublet of each session
+/// (with the robot's bits) under the parties' `config` (their stated sensor calibration and
+/// camera) at ε_est = `epsilon`, the smoothing ε as well; `disclosed` bits of the block are
+/// disclosed by its sample.
 #[must_use]
 pub fn block_separations(
     config: &Config,
     sessions: &[&[DoubletSamples]],
+    disclosed: u64,
     epsilon: f64,
-) -> (Vec<f64>, BlockEstimate) {
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     let model = doublet_model(config);
     let residuals: Vec<DoubletResidual> = sessions
         .iter()
@@ -112,7 +121,7 @@ pub fn block_separations(
     }
     let sensor = diagonal_covariance(config.sensing.controller_std);
     match estimate_motion_noise(&residuals, &sensor, epsilon) {
-        Ok(estimate) => size_block(config, sessions, &estimate),
+        Ok(estimate) => size_block(config, sessions, disclosed, &estimate),
         Err(refusal) => refused(
             sessions.len(),
             refusal.to_string(),
@@ -130,8 +139,9 @@ pub fn block_separations(
 pub fn world_block_separations(
     config: &Config,
     sessions: &[&[DoubletSamples]],
+    disclosed: u64,
     epsilon: f64,
-) -> (Vec<f64>, BlockEstimate) {
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     if let Err(why) = two_step_doublets(config) {
         let doublets = sessions.iter().map(|session| session.len()).sum();
         return refused(sessions.len(), why, doublets, epsilon);
@@ -142,7 +152,7 @@ pub fn world_block_separations(
         world.process_rho,
         epsilon,
     );
-    size_block(config, sessions, &truth)
+    size_block(config, sessions, disclosed, &truth)
 }
 
 /// The measured sizing's `assumption` restated for `--sizing world`: the motion noise and
@@ -190,26 +200,28 @@ fn refused(
     why: String,
     doublets: usize,
     epsilon: f64,
-) -> (Vec<f64>, BlockEstimate) {
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     (
-        vec![REFUSED_SEPARATION; sessions],
+        vec![vec![REFUSED_SEPARATION]; sessions],
         BlockEstimate::refused(why, doublets, epsilon),
     )
 }
 
-/// Each of `sessions`' largest separation of Eve's view at the worst case of `estimate`'s
-/// region, and the block's report.
+/// Each of `sessions`' bits' separations of Eve's view at the worst case of `estimate`'s
+/// region (each rounded up to the published grid), and the block's report with its
+/// equivalent separation, `disclosed` of its bits disclosed by the sample.
 fn size_block(
     config: &Config,
     sessions: &[&[DoubletSamples]],
+    disclosed: u64,
     estimate: &MotionNoiseEstimate,
-) -> (Vec<f64>, BlockEstimate) {
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     let model = doublet_model(config);
     let epsilon = estimate.epsilon;
     let bits = usize::from(config.protocol.bits_per_doublet);
     let mut separations = Vec::with_capacity(sessions.len());
     for session in sessions {
-        let mut largest = 0.0_f64;
+        let mut session_separations = Vec::with_capacity(session.len() * bits);
         for b in session.iter() {
             // The camera as stated: per instant, or her frames' worth per instant.
             let view = stated_camera_view(
@@ -218,7 +230,9 @@ fn size_block(
                 config.modelled_camera_std(),
             );
             match worst_case_separations(&model, estimate, &b.inputs, &view) {
-                Some(d) => largest = d[..bits].iter().fold(largest, |m, &x| m.max(x)),
+                Some(d) => {
+                    session_separations.extend(d[..bits].iter().map(|&x| published_separation(x)))
+                }
                 None => {
                     return refused(
                         sessions.len(),
@@ -238,11 +252,12 @@ fn size_block(
                 }
             }
         }
-        separations.push(published_separation(largest));
+        separations.push(session_separations);
     }
     let [point, lower] = estimate.stds();
     let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);
-    let separation = separations.iter().fold(0.0_f64, |m, &x| m.max(x));
+    let largest = separations.iter().flatten().fold(0.0_f64, |m, &x| m.max(x));
+    let separation = equivalent(&separations, disclosed, epsilon, largest);
     (
         separations,
         BlockEstimate {
@@ -253,9 +268,28 @@ fn size_block(
             correlation_interval: estimate.correlation.interval,
             epsilon,
             separation,
+            largest,
             refused: None,
         },
     )
+}
+
+/// The block's equivalent separation (the per-bit bound, `view_profile`) of its sessions'
+/// bits' `separations`, `disclosed` of them taken away (the worst choice), on the published
+/// grid and at most their `largest`; the largest itself where the bound has no answer.
+fn equivalent(separations: &[Vec<f64>], disclosed: u64, epsilon: f64, largest: f64) -> f64 {
+    let mut counts: BTreeMap<u64, u64> = BTreeMap::new();
+    for session in separations {
+        for (d, n) in separation_counts(session, session.len()) {
+            *counts.entry(d).or_default() += n;
+        }
+    }
+    match equivalent_separation(&counts, disclosed, epsilon) {
+        // A grid point rounded up to whole millionths (or a multiple of the 2⁻⁶ group grid):
+        // the whole steps of 2⁻⁸ below it are that grid point.
+        Ok(micros) => ((micros * 256 / 1_000_000) as f64 * SEPARATION_QUANTUM).min(largest),
+        Err(_) => largest,
+    }
 }
 
 /// What the agents' controller keeps of a decided doublet for the block's estimate: its
@@ -332,7 +366,7 @@ pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64
     match sessions {
         Ok(sessions) => {
             let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
-            block_separations(config, &views, epsilon).1
+            block_separations(config, &views, request.disclosed, epsilon).1
         }
         Err(why) => BlockEstimate::refused(format!("motion-noise estimate: {why}"), 0, epsilon),
     }
