@@ -55,6 +55,7 @@ fn message(u: &mut Unstructured<'_>) -> Result<Message> {
             block,
             length: u.arbitrary()?,
             tag: u.arbitrary()?,
+            estimate: u.arbitrary()?,
         },
         5 => Message::Confirmed {
             block,
@@ -70,6 +71,7 @@ fn message(u: &mut Unstructured<'_>) -> Result<Message> {
                 AbortReason::Reconciliation,
                 AbortReason::Restart,
                 AbortReason::Refused,
+                AbortReason::PlantRefused,
             ])?,
         },
         9 => Message::AbortAck { block },
@@ -109,6 +111,7 @@ fuzz_target!(|data: &[u8]| {
                 id,
                 bits,
                 separations: Vec::new(),
+                samples: Vec::new(),
             })
             .unwrap();
     }

@@ -5,8 +5,8 @@
 
 use libfuzzer_sys::fuzz_target;
 use rand::SeedableRng;
-use robokey::protocol::{Closing, Handshake, Message};
 use robokey::protocol::auth::{ControllerChannel, Delivery, PairingSecret, RobotChannel};
+use robokey::protocol::{Closing, Handshake, Message};
 
 const CONTROLLER: u8 = 1;
 const ROBOT: u8 = 2;

@@ -643,7 +643,8 @@ fn measured_blocks(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
                     "{}, {}: block {}: motion noise measured over {} doublets: √Q̂ = {} \
                      (along-track, lateral, heading), AR(1) correlation between steps ρ̂ = \
                      {:.3}; worst case of its (1 − {:e}) region: ρ in [{:.3}, {:.3}], √Q_low \
-                     = {} at ρ = {:.3}; Eve's largest separation there {:.4}; ℓ = {} bits",
+                     = {} at ρ = {:.3}; Eve's largest separation there {:.4}, her bits' \
+                     equivalent {:.4} (published); ℓ = {} bits",
                     r.point,
                     r.adversary,
                     i + 1,
@@ -655,6 +656,7 @@ fn measured_blocks(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
                     e.correlation_interval[1],
                     three(e.lower_std_mm),
                     e.correlation_interval[1],
+                    e.largest,
                     e.separation,
                     b.secret_bits
                 ),

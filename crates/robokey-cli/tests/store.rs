@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use common::kme::{CONTROLLER_SAE, Pki, ROBOT_SAE, curl, have_curl, start_pair};
-use common::{pairing, report, run, run_code, s, scratch, start, wait_code};
+use common::{address_after, pairing, report, run, run_code, s, scratch, start_lines, wait_code};
 use robokey::protocol::{Message, PostFragment};
 use robokey_secrecy::postprocess::{self, Message as Post};
 
@@ -26,6 +26,20 @@ const SETTINGS: [&str; 5] = [
     "--set",
     "postprocess.assumed_eve_error=0.25",
     "--allow-restricted",
+];
+
+/// The agents' settings with the plant measured: private sensing, blocks of 300 raw bits (one
+/// session's ≈ 300 decided doublets, enough for the estimate).
+/// Eve's camera is stated at 50 mm so that a block that small makes a key.
+const MEASURED: [&str; 8] = [
+    "--set",
+    "sensing.mode=private",
+    "--set",
+    "postprocess.block_bits=300",
+    "--set",
+    "postprocess.sizing=measured",
+    "--set",
+    "eve.camera_std=[0.05, 0.05, 0.05]",
 ];
 
 /// What the man in the middle does to post-processing.
@@ -40,6 +54,9 @@ enum Attack {
     /// Reads the key's ID off the clear messages and plants a file of that name in the
     /// robot's `keys/` before the robot prepares the key.
     Plant,
+    /// The plant measured ([`MEASURED`]): changes the estimate a `Confirm` carries in flight
+    /// (its last byte before the frame's MAC), keeping the MAC.
+    TamperEstimate,
 }
 
 /// A UDP relay on loopback between the controller and the robot at `robot`, doing `attack`
@@ -76,6 +93,14 @@ impl Relay {
                     let to_robot = from != robot;
                     if to_robot {
                         controller = Some(from);
+                    }
+                    if let Some(Post::Confirm {
+                        estimate: Some(_), ..
+                    }) = post_message(&buffer[..n])
+                        && attack == Attack::TamperEstimate
+                    {
+                        buffer[n - robokey::protocol::wire::MAC_BYTES - 1] ^= 0x80;
+                        dropped += 1;
                     }
                     let bytes = &buffer[..n];
                     if let Some(message) = post_message(bytes) {
@@ -214,14 +239,22 @@ fn session(
         ]
         .map(str::to_owned)
         .to_vec();
-        args.extend(SETTINGS.map(str::to_owned));
+        if attack == Attack::TamperEstimate {
+            args.extend(MEASURED.map(str::to_owned));
+        } else {
+            args.extend(SETTINGS.map(str::to_owned));
+        }
         args
     };
     let mut robot_args = vec!["robot".to_owned(), "--listen".into(), "127.0.0.1:0".into()];
     robot_args.extend(["--seed".to_owned(), seed.to_string()]);
     robot_args.extend(common("robot"));
+    let private = attack == Attack::TamperEstimate;
+    if private {
+        robot_args.extend(["--mocap".to_owned(), "127.0.0.1:0".to_owned()]);
+    }
     let robot_args: Vec<&str> = robot_args.iter().map(String::as_str).collect();
-    let robot = start(&robot_args);
+    let (robot, lines) = start_lines(&robot_args, if private { 2 } else { 1 });
     let relay = Relay::start(robot.address.parse().unwrap(), attack, &dir.join("robot"));
     let mut controller_args = vec![
         "controller".to_owned(),
@@ -229,11 +262,18 @@ fn session(
         relay.address.to_string(),
     ];
     controller_args.extend(common("controller"));
+    if private {
+        let mocap = address_after(&lines[0], "motion capture on ");
+        controller_args.extend(["--sensor".to_owned(), format!("mocap:{mocap}")]);
+    }
     let controller_args: Vec<&str> = controller_args.iter().map(String::as_str).collect();
     let (controller_code, text) = run_code(&controller_args);
     let (robot_code, robot_text) = wait_code(robot);
     let dropped = relay.finish();
-    if matches!(attack, Attack::DropCommit | Attack::DropCommitAck) {
+    if matches!(
+        attack,
+        Attack::DropCommit | Attack::DropCommitAck | Attack::TamperEstimate
+    ) {
         assert!(dropped > 0, "nothing dropped: {text}\n{robot_text}");
     }
     (
@@ -336,6 +376,25 @@ fn a_lost_commit_leaves_both_keys_pending_until_the_next_session() {
     );
     assert_eq!(robot["post"]["torn_bytes"], 0);
     assert_settled_alike(&dir, &pairing);
+}
+
+/// The plant measured: a `Confirm` whose estimate is changed in flight fails the frame's MAC
+/// and is dropped by the robot, every retransmission alike; neither store commits a key.
+#[test]
+fn an_estimate_changed_in_flight_is_refused_by_the_channel_and_commits_nothing() {
+    let dir = scratch("store-tamper-estimate");
+    let pairing = pairing(&dir);
+    let (_, [robot, controller]) = session(&dir, &pairing, 73, Attack::TamperEstimate);
+    assert!(
+        robot["frames_rejected"]["bad_mac"].as_u64().unwrap() > 0,
+        "{robot}"
+    );
+    for r in [&robot, &controller] {
+        assert!(r["post"]["keys"].as_array().unwrap().is_empty(), "{r}");
+    }
+    for role in ["robot", "controller"] {
+        assert!(listed(&dir, &pairing, role).is_empty(), "{role}");
+    }
 }
 
 /// Every `CommitAck` lost: the robot's key settled, the controller's pending (exit 5 for the

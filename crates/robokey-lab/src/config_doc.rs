@@ -135,6 +135,10 @@ const FIELDS: &[(&str, &str)] = &[
         "odometry mode: restricted assumption (Eve never learns the model); keys need --allow-restricted",
     ),
     (
+        "postprocess.sizing",
+        "private sensing: \"configured\" (default) or \"measured\" — what sizes the keys (docs/estimation.md)",
+    ),
+    (
         "world.preset",
         "the named world whose values fill the fields left out (docs/world.md)",
     ),
@@ -220,6 +224,7 @@ mod tests {
         let mut config = Config::default();
         // Printed only when set.
         config.postprocess.assumed_eve_error = Some(0.2);
+        config.postprocess.sizing = robokey::config::Sizing::Measured;
         config.eve.smoother_window = Some(2);
         config.eve.camera_fps = Some(30.0);
         config.eve.camera_frame_std = Some([0.016; 3]);

@@ -6,7 +6,9 @@
 //! or report something it did not write.
 //!
 //! Records: a header (role, pairing fingerprint), one `session` record per pooled session
-//! (its raw bits, written once), and `state` records (the endpoint's snapshot without the
+//! (its raw bits and, on a controller measuring the plant, the samples it keeps of the
+//! session for the block's estimate — written once; the field is absent otherwise, so older
+//! journals read unchanged), and `state` records (the endpoint's snapshot without the
 //! pool's bits, the IDs pooled, and the keys committed in the same batch). The last intact
 //! `state` record is the durable state; a session not named by it was never pooled. A key is
 //! committed by the `state` record that carries it and then written to `keys/`; recovery
@@ -25,7 +27,9 @@ use std::path::{Path, PathBuf};
 
 use robokey::protocol::auth::PairingSecret;
 use robokey_secrecy::BitString;
-use robokey_secrecy::postprocess::{ControllerSnapshot, FinalKey, InFlight, RobotSnapshot};
+use robokey_secrecy::postprocess::{
+    ControllerSnapshot, FinalKey, InFlight, RobotSnapshot, SessionSamples,
+};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use zeroize::Zeroizing;
@@ -80,6 +84,13 @@ pub trait Snapshot: Serialize + DeserializeOwned {
     fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
         *self.ledger_mut().0 = pool;
     }
+    /// Takes out what the pool keeps of its sessions for the block's estimate (a
+    /// controller measuring the plant; nothing otherwise).
+    fn take_samples(&mut self) -> BTreeMap<u32, SessionSamples> {
+        BTreeMap::new()
+    }
+    /// Puts them back.
+    fn set_samples(&mut self, _samples: BTreeMap<u32, SessionSamples>) {}
     /// Marks `sessions` spent, dropping those pooled; returns how many were.
     fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
         let (pool, spent) = self.ledger_mut();
@@ -134,12 +145,19 @@ impl Snapshot for ControllerSnapshot {
     fn ledger_mut(&mut self) -> (&mut Vec<(u32, BitString)>, &mut Vec<u32>) {
         (&mut self.pool, &mut self.spent)
     }
-    /// Also forgets the spent sessions' Eve separations.
+    /// Also forgets the spent sessions' Eve separations and kept samples.
     fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
         self.separations.retain(|(id, _)| !sessions.contains(id));
         self.separation_counts
             .retain(|(id, _)| !sessions.contains(id));
+        self.samples.retain(|(id, _)| !sessions.contains(id));
         spend_in(&mut self.pool, &mut self.spent, sessions)
+    }
+    fn take_samples(&mut self) -> BTreeMap<u32, SessionSamples> {
+        std::mem::take(&mut self.samples).into_iter().collect()
+    }
+    fn set_samples(&mut self, samples: BTreeMap<u32, SessionSamples>) {
+        self.samples = samples.into_iter().collect();
     }
     fn unsettled(&self) -> Option<Unsettled<'_>> {
         match self.in_flight {
@@ -171,6 +189,10 @@ enum Record<S> {
     Session {
         id: u32,
         bits: BitString,
+        /// What the controller keeps of the session for the block's estimate (absent when
+        /// nothing is kept).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        samples: Option<SessionSamples>,
     },
     State {
         snapshot: S,
@@ -325,8 +347,16 @@ impl<S: Snapshot> PostStore<S> {
                     return Err(store.corrupt(format!("record {i} is a second header")));
                 }
                 _ if i == 0 => return Err(store.corrupt("it does not begin with a header".into())),
-                Record::Session { id, bits } => {
-                    sessions.insert(id, bits);
+                Record::Session { id, bits, samples } => {
+                    let kept = samples.as_ref().map_or(0, Vec::len);
+                    if kept > bits.len() {
+                        return Err(store.corrupt(format!(
+                            "session {id}'s record keeps samples of {kept} doublets for its {} \
+                             raw bits (allowed: at most one doublet per bit)",
+                            bits.len()
+                        )));
+                    }
+                    sessions.insert(id, (bits, samples));
                 }
                 Record::State {
                     snapshot,
@@ -347,15 +377,21 @@ impl<S: Snapshot> PostStore<S> {
                 },
             ));
         };
+        let mut kept = BTreeMap::new();
         let pool = pooled
             .iter()
             .map(|id| {
-                sessions.remove(id).map(|bits| (*id, bits)).ok_or_else(|| {
+                let (bits, samples) = sessions.remove(id).ok_or_else(|| {
                     store.corrupt(format!("session {id} is pooled but its bits are missing"))
-                })
+                })?;
+                if let Some(samples) = samples {
+                    kept.insert(*id, samples);
+                }
+                Ok((*id, bits))
             })
-            .collect::<Result<Vec<_>, _>>()?;
+            .collect::<Result<Vec<_>, NetError>>()?;
         snapshot.set_pool(pool);
+        snapshot.set_samples(kept);
         store.pending = found
             .iter()
             .filter(|(id, _)| known.contains(id))
@@ -417,8 +453,10 @@ impl<S: Snapshot> PostStore<S> {
         committed: &[FinalKey],
     ) -> Result<Vec<StoredKey>, NetError> {
         let pool = snapshot.take_pool();
-        let stored = self.persist_pool(snapshot, &pool, committed);
+        let samples = snapshot.take_samples();
+        let stored = self.persist_pool(snapshot, &pool, &samples, committed);
         snapshot.set_pool(pool);
+        snapshot.set_samples(samples);
         stored
     }
 
@@ -426,6 +464,7 @@ impl<S: Snapshot> PostStore<S> {
         &mut self,
         snapshot: &S,
         pool: &[(u32, BitString)],
+        samples: &BTreeMap<u32, SessionSamples>,
         committed: &[FinalKey],
     ) -> Result<Vec<StoredKey>, NetError> {
         for (id, bits) in pool {
@@ -433,6 +472,7 @@ impl<S: Snapshot> PostStore<S> {
                 self.journal.append(&encode(&Record::<S>::Session {
                     id: *id,
                     bits: bits.clone(),
+                    samples: samples.get(id).cloned(),
                 }))?;
                 self.journaled.insert(*id);
             }
@@ -525,6 +565,7 @@ impl<S: Snapshot> PostStore<S> {
     /// The rewrite fails (the old journal is then intact).
     pub fn compact(&mut self, snapshot: &mut S) -> Result<(), NetError> {
         let pool = snapshot.take_pool();
+        let samples = snapshot.take_samples();
         let pooled: Vec<u32> = pool.iter().map(|(id, _)| *id).collect();
         let mut records = vec![encode(&Record::<S>::Header {
             role: S::ROLE.to_owned(),
@@ -534,10 +575,12 @@ impl<S: Snapshot> PostStore<S> {
             encode(&Record::<S>::Session {
                 id: *id,
                 bits: bits.clone(),
+                samples: samples.get(id).cloned(),
             })
         }));
         records.push(encode_state(snapshot, &pooled, &[], &self.pending_ids()));
         snapshot.set_pool(pool);
+        snapshot.set_samples(samples);
         self.journal.rewrite(&records)?;
         self.journaled = pooled.into_iter().collect();
         Ok(())

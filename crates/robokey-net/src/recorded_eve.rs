@@ -800,6 +800,7 @@ mod tests {
             leak_confirmation: 0,
             h_min: 0.0,
             length: 1,
+            separation: None,
             reason: None,
         }
     }

@@ -510,6 +510,48 @@ pub struct PostprocessConfig {
     /// under it are labelled restricted and need the agents' `--allow-restricted`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub assumed_eve_error: Option<f64>,
+    /// Private sensing: what sizes the keys — the configured physics, or the motion noise
+    /// the controller measures per block (docs/estimation.md). Printed only when measured.
+    #[serde(skip_serializing_if = "Sizing::is_configured")]
+    pub sizing: Sizing,
+}
+
+/// What sizes private sensing's keys: the configured physics, or the motion noise the
+/// controller measures per block (docs/estimation.md). One vocabulary for
+/// `postprocess.sizing` and `robokey secrecy --sizing`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Sizing {
+    /// Eve's modelled view from the configured `noise.process_std` (the paper's; over-claims
+    /// in a world quieter than configured, docs/world.md).
+    #[default]
+    Configured,
+    /// Eve's modelled view at the worst case of the (1 − ε_est) region of the motion noise
+    /// the controller estimates per block; ε_est = ε is a term of the key's ε.
+    Measured,
+    /// Eve's modelled view, through the measured sizing's steps, at the simulated world's own
+    /// motion noise and correlation: a pair configured with the true world. Simulator only
+    /// (`robokey secrecy --sizing world`, the comparison for `Measured`): no robot knows its
+    /// true world, so the agents refuse it as `postprocess.sizing`.
+    World,
+}
+
+impl Sizing {
+    /// The name used in configurations, on the command line and in reports.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Configured => "configured",
+            Self::Measured => "measured",
+            Self::World => "world",
+        }
+    }
+
+    /// Whether it is the configured physics (the default).
+    #[must_use]
+    pub fn is_configured(&self) -> bool {
+        *self == Self::Configured
+    }
 }
 
 impl Default for PostprocessConfig {
@@ -519,6 +561,7 @@ impl Default for PostprocessConfig {
             sample_bits: 1_000,
             epsilon: 1e-6,
             assumed_eve_error: None,
+            sizing: Sizing::Configured,
         }
     }
 }
@@ -642,6 +685,7 @@ impl Config {
         // Every field, the optional ones that print only when set included.
         let mut every = Self::default();
         every.postprocess.assumed_eve_error = Some(0.5);
+        every.postprocess.sizing = Sizing::Measured;
         every.eve.smoother_window = Some(0);
         every.eve.camera_fps = Some(1.0);
         every.eve.camera_frame_std = Some([1.0; 3]);
@@ -892,6 +936,22 @@ impl Config {
                 ));
             }
             _ => {}
+        }
+        if post.sizing == Sizing::World {
+            return Err(invalid(
+                "postprocess.sizing",
+                "world",
+                "\"configured\" or \"measured\" (\"world\" sizes at the simulated world's \
+                 own physics, which no robot knows: robokey secrecy --sizing world only)",
+            ));
+        }
+        if post.sizing == Sizing::Measured && self.sensing.mode != SensingMode::Private {
+            return Err(invalid(
+                "postprocess.sizing",
+                "measured",
+                "\"configured\" in odometry mode (a measured plant sizes private sensing's \
+                 keys; sensing.mode = \"private\")",
+            ));
         }
         if let Some(world) = &self.world {
             world

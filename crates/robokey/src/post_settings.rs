@@ -7,7 +7,7 @@ use robokey_secrecy::postprocess::{Assumption, Settings};
 use serde::{Deserialize, Serialize};
 
 use crate::config::camera::millimetres;
-use crate::config::{Config, SensingMode};
+use crate::config::{Config, SensingMode, Sizing};
 use crate::estimate::ESTIMATE_LEAK_BITS;
 use crate::world::Camera;
 
@@ -40,23 +40,47 @@ pub fn camera_words(config: &Config) -> String {
     }
 }
 
-/// The plant's model class a private-sensing key rests on, as configured: white Gaussian
-/// motion noise of `noise.process_std` per step, no correlation, slip, lag or delay, the
-/// Euler map; with `private.prior_lag` τ > 0, the doublets shaped in three steps for a
-/// first-order actuator lag of τ (the stated prior).
+/// The plant's model class a private-sensing key rests on: white Gaussian motion noise of
+/// `noise.process_std` per step as configured, or (`postprocess.sizing = "measured"`) a 3×3
+/// stationary covariance and its AR(1) correlation between steps the controller measures per
+/// block, at the worst case of their (1 − ε_est) region; no slip, lag or delay, the Euler map;
+/// with `private.prior_lag` τ > 0, the doublets shaped in three steps for a first-order
+/// actuator lag of τ (the stated prior).
 #[must_use]
 pub fn plant_words(config: &Config) -> String {
-    let noise = millimetres(config.noise.process_std);
+    // What the motion words leave out of the class: the configured noise is white.
+    let (motion, correlation) = match config.postprocess.sizing {
+        Sizing::Configured => (
+            format!(
+                "white Gaussian motion noise {} per step as configured (not measured)",
+                millimetres(config.noise.process_std)
+            ),
+            "correlation, ",
+        ),
+        Sizing::Measured => (
+            format!(
+                "Gaussian motion noise measured by the controller per block (a 3×3 stationary \
+                 covariance in the robot's frame and its AR(1) correlation between steps, \
+                 ρ ≥ −0.5, sized at the worst case of their (1 − ε_est) region, ε_est = {:e}; \
+                 the controller sensor's calibration {} stated)",
+                config.postprocess.epsilon,
+                millimetres(config.sensing.controller_std)
+            ),
+            "",
+        ),
+        Sizing::World => (
+            "Gaussian motion noise and its AR(1) correlation those of the simulated world, \
+             known (a lab comparison, not a robot's)"
+                .to_owned(),
+            "",
+        ),
+    };
     if config.private.is_default() {
-        format!(
-            "white Gaussian motion noise {noise} per step as configured (not measured), no \
-             correlation, slip, lag or delay, the Euler map"
-        )
+        format!("{motion}, no {correlation}slip, lag or delay, the Euler map")
     } else {
         format!(
-            "white Gaussian motion noise {noise} per step as configured (not measured), no \
-             correlation, slip or delay, the Euler map; three-step doublets shaped for a \
-             first-order actuator lag of {} ms (private.prior_lag, stated, not measured)",
+            "{motion}, no {correlation}slip or delay, the Euler map; three-step doublets shaped \
+             for a first-order actuator lag of {} ms (private.prior_lag, stated, not measured)",
             config.private.prior_lag * 1e3
         )
     }
@@ -129,11 +153,16 @@ pub fn measured_camera_assumption(
 }
 
 /// The assumption that sizes the agents' keys: private sensing's camera statement (each
-/// block's separation computed by the controller from its samples); in odometry mode none
-/// (ℓ = 0, [`ODOMETRY_ZERO`]) unless `postprocess.assumed_eve_error` states a restricted one.
+/// block's separation computed by the controller from its samples; with
+/// `postprocess.sizing = "measured"` at the worst case of the plant it measures per block,
+/// ε_est = `postprocess.epsilon`); in odometry mode none (ℓ = 0, [`ODOMETRY_ZERO`]) unless
+/// `postprocess.assumed_eve_error` states a restricted one.
 #[must_use]
 pub fn assumption(config: &Config) -> Assumption {
     match (config.sensing.mode, config.postprocess.assumed_eve_error) {
+        (SensingMode::Private, _) if config.postprocess.sizing == Sizing::Measured => {
+            measured_camera_assumption(config, 0.0, config.postprocess.epsilon)
+        }
         (SensingMode::Private, _) => camera_assumption(config, 0.0),
         (SensingMode::Odometry, Some(error_rate)) => Assumption::IndependentErrors { error_rate },
         (SensingMode::Odometry, None) => Assumption::NoSecrecy {
@@ -213,6 +242,41 @@ mod tests {
         assert!(
             shaped.contains("three-step doublets shaped for a first-order actuator lag of 50 ms"),
             "{shaped}"
+        );
+    }
+
+    #[test]
+    fn a_measured_plant_sizes_and_labels_the_agents_keys() {
+        let mut config = Config::default();
+        config.sensing.mode = SensingMode::Private;
+        config.postprocess.sizing = Sizing::Measured;
+        let settings = post_settings(&config);
+        assert!(settings.check().is_ok());
+        assert!(settings.assumption.is_measured());
+        assert_eq!(
+            settings.assumption.epsilon_terms(1e-6).last(),
+            Some(&("ε_est", 1e-6))
+        );
+        assert!(
+            key_basis(&config)
+                .unwrap()
+                .plant
+                .starts_with("Gaussian motion noise measured by the controller")
+        );
+        let error = Config::from_toml("[postprocess]\nsizing = \"measured\"\n", "test")
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("postprocess.sizing"), "{error}");
+        // The simulated world's own physics is a lab comparison: no robot knows it.
+        let error = Config::from_toml(
+            "[sensing]\nmode = \"private\"\n[postprocess]\nsizing = \"world\"\n",
+            "test",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            error.contains("postprocess.sizing") && error.contains("no robot knows"),
+            "{error}"
         );
     }
 

@@ -378,8 +378,8 @@ mod through_the_session_layer {
     }
 
     /// What sizes or labels the keys and differs between the agents — the motion noise the
-    /// assumption names, Eve's camera in frames, the prior lag that shapes the doublets —
-    /// ends the session at `Hello`, named.
+    /// assumption names, Eve's camera in frames, the prior lag that shapes the doublets, the
+    /// measured plant — ends the session at `Hello`, named.
     #[test]
     fn terms_that_size_or_label_keys_and_differ_are_refused_by_name() {
         let robot = short("private");
@@ -388,6 +388,8 @@ mod through_the_session_layer {
         let mut frames = robot.clone();
         frames.eve.camera_fps = Some(30.0);
         frames.eve.camera_frame_std = Some([0.016; 3]);
+        let mut measured = robot.clone();
+        measured.postprocess.sizing = robokey::config::Sizing::Measured;
         for (controller, named) in [
             (
                 three_step(),
@@ -401,6 +403,10 @@ mod through_the_session_layer {
             (
                 frames,
                 "eve.camera_fps: robot has (missing), controller has 30",
+            ),
+            (
+                measured,
+                "postprocess.sizing: robot has (missing), controller has measured",
             ),
         ] {
             let s = conversation_between(&robot, &controller, Network::default(), 0);

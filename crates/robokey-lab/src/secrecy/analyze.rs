@@ -7,14 +7,14 @@ use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
 use robokey::post_settings::ODOMETRY_ZERO;
-use robokey::private::DoubletBit;
+use robokey::private::{DoubletBit, DoubletSamples};
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
+use robokey_secrecy::postprocess::public::sample_size;
 use robokey_secrecy::{JointCounts, binomial_test};
 
 use super::commands_check;
-use super::estimation;
 use super::options::{SecrecyOptions, Sizing, default_adversaries};
 use super::pipeline::{self, Block, BlockSettings, Pooling};
 use super::point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
@@ -218,7 +218,7 @@ fn analyze_point(
             let assumption =
                 robokey::post_settings::measured_camera_assumption(config, 0.0, options.epsilon);
             if options.sizing == Sizing::World {
-                estimation::world_known(assumption)
+                robokey::estimate::world_known(assumption)
             } else {
                 assumption
             }
@@ -242,11 +242,27 @@ fn analyze_point(
     }
     if measured {
         for pool in &mut pools {
-            let pooled: Vec<&RunOutput> = pool.runs.iter().map(|&i| &runs[i]).collect();
+            let pooled: Vec<&[DoubletSamples]> = pool
+                .runs
+                .iter()
+                .map(|&i| {
+                    runs[i]
+                        .private
+                        .as_ref()
+                        .map_or(&[][..], |p| &p.controller_samples)
+                })
+                .collect();
+            // The bits the block's sample will disclose: its estimate sizes the rest.
+            let disclosed = sample_size(pool.robot.len(), options.sample_bits) as u64;
             let (separations, estimate) = if options.sizing == Sizing::World {
-                estimation::world_block_separations(config, &pooled, options.epsilon)
+                robokey::estimate::world_block_separations(
+                    config,
+                    &pooled,
+                    disclosed,
+                    options.epsilon,
+                )
             } else {
-                estimation::block_separations(config, &pooled, options.epsilon)
+                robokey::estimate::block_separations(config, &pooled, disclosed, options.epsilon)
             };
             pool.separations = separations;
             pool.estimate = Some(estimate);
@@ -267,7 +283,7 @@ fn analyze_point(
             .iter()
             .filter_map(|b| b.estimate.as_ref())
             .filter(|e| e.refused.is_none())
-            .fold(0.0_f64, |m, e| m.max(e.separation));
+            .fold(0.0_f64, |m, e| m.max(e.largest));
         settings.assumption = settings.assumption.for_block((largest * 1e6).ceil() as u64);
     }
     // Every session run until the last one pooled cost robot time, dropped ones included.

@@ -16,7 +16,6 @@
 
 pub mod analyze;
 pub mod commands_check;
-pub mod estimation;
 pub mod map;
 pub mod options;
 pub mod pipeline;

@@ -5,39 +5,9 @@ use robokey::config::{EveStrategy, SensingMode};
 use robokey::post_settings::ODOMETRY_ZERO;
 use robokey_secrecy::postprocess::Assumption;
 
-use serde::{Deserialize, Serialize};
-
 use super::pipeline::Pooling;
 
-/// What sizes private sensing's key: the configured physics, or the motion noise the
-/// controller measures per block (docs/estimation.md).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Sizing {
-    /// Eve's modelled view from the configured `noise.process_std` (the paper's; over-claims
-    /// in a world quieter than configured, docs/world.md).
-    #[default]
-    Configured,
-    /// Eve's modelled view at the worst case of the (1 − ε_est) region of the motion noise
-    /// the controller estimates per block; ε_est = ε is a term of the key's ε.
-    Measured,
-    /// Eve's modelled view, through the measured sizing's steps, at the world's own motion
-    /// noise and correlation: a pair configured with the true world (simulator only, the
-    /// comparison for `Measured`).
-    World,
-}
-
-impl Sizing {
-    /// The name used on the command line and in reports.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Configured => "configured",
-            Self::Measured => "measured",
-            Self::World => "world",
-        }
-    }
-}
+pub use robokey::config::Sizing;
 
 /// The adversaries `robokey secrecy` evaluates by default in `mode`.
 #[must_use]

@@ -18,14 +18,14 @@ use robokey_secrecy::min_entropy::{
     binomial_smooth_min_entropy, output_length, posterior_smooth_min_entropy,
 };
 use robokey_secrecy::postprocess::{
-    AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, Message, Output,
-    RobotInput, RobotPost, Settings,
+    AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, EstimateRefusal,
+    Message, Output, RobotInput, RobotPost, Settings,
 };
 use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 use zeroize::Zeroizing;
 
-use super::estimation::BlockEstimate;
+use robokey::estimate::BlockEstimate;
 
 /// Which sessions are pooled, and what was published over their keys.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -339,7 +339,11 @@ fn through_endpoints(
         let _ = controller.handle_input(ControllerInput::Session {
             id,
             bits: controller_bits,
+            // Configured sizing: the camera statement's per-bit separations; measured: the
+            // bits' at their block's worst case (the block's estimate is answered below,
+            // when the controller asks, and sizes the key).
             separations,
+            samples: Vec::new(),
         });
     }
     let mut controller_reports = Vec::new();
@@ -359,6 +363,25 @@ fn through_endpoints(
                 }
                 Output::BlockEnded(report) => controller_reports.push(report),
                 Output::KeyCommitted(key) => keys.0.push(key),
+                Output::EstimateNeeded(request) => {
+                    // The block's estimate, computed from the same samples and robot bits
+                    // before (blocks are the pools, in order).
+                    let outcome = pools
+                        .get(request.block as usize)
+                        .and_then(|pool| pool.estimate.as_ref())
+                        .map_or_else(
+                            || {
+                                Err(EstimateRefusal(
+                                    "no estimate of the plant for the block".into(),
+                                ))
+                            },
+                            BlockEstimate::outcome,
+                        );
+                    let _ = controller.handle_input(ControllerInput::Estimate {
+                        block: request.block,
+                        outcome,
+                    });
+                }
                 Output::Persist | Output::Ignored(_) => {}
             }
         }
@@ -369,7 +392,7 @@ fn through_endpoints(
                     robot_reports.insert(report.block, report);
                 }
                 Output::KeyCommitted(key) => keys.1.push(key),
-                Output::Persist | Output::Ignored(_) => {}
+                Output::Persist | Output::Ignored(_) | Output::EstimateNeeded(_) => {}
             }
         }
         if to_robot.is_empty() && to_controller.is_empty() {
@@ -473,6 +496,9 @@ fn finish(block: &mut Block, settings: &BlockSettings, aborted: Option<AbortReas
             Some(AbortReason::Reconciliation) => "; the block failed reconciliation (the two \
                  sides' keys still differed, or Cascade could not finish): it is discarded, not \
                  short, so pooling more does not help; the next block starts afresh"
+                .to_owned(),
+            Some(AbortReason::PlantRefused) => "; the controller's estimate of the plant refused \
+                 it (outside the model class): pooling more does not help"
                 .to_owned(),
             Some(AbortReason::Refused | AbortReason::Restart) => "; the block was ended by the \
                  protocol (refused or restarted), not for want of secrecy: pooling more does \

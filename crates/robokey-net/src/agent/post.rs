@@ -4,9 +4,12 @@
 
 use robokey::Config;
 use robokey::connection::{PostEndpoint, PostLink, PostOutput};
+use robokey::estimate::BlockEstimate;
 use robokey::post_settings::{key_basis, post_settings};
 use robokey::protocol::auth::{AuthMode, PairingSecret};
-use robokey_secrecy::postprocess::{Assumption, BlockReport, PostError, Settings};
+use robokey_secrecy::postprocess::{
+    Assumption, BlockReport, PostError, SEPARATION_QUANTUM, Settings,
+};
 use serde::Serialize;
 
 use crate::error::NetError;
@@ -78,6 +81,10 @@ pub struct PostReport {
     pub block_bits: usize,
     /// Blocks that ended during this run.
     pub blocks: Vec<BlockSummary>,
+    /// The controller's estimates of the plant during this run, one per block it sized
+    /// (measured sizing; empty otherwise).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub estimates: Vec<BlockEstimate>,
     /// Keys committed during this run (IDs), pending or settled.
     pub keys: Vec<String>,
     /// Keys pending in the store when the run ended: committed or prepared here, not yet
@@ -125,6 +132,10 @@ pub struct BlockSummary {
     pub h_min: f64,
     /// The key length ℓ (0: no key).
     pub length: u64,
+    /// With the plant measured: the block's worst-case separation as published in
+    /// `Confirm` (a multiple of 2⁻⁸), which both sides sized ℓ from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub separation: Option<f64>,
     /// Why no key, if so.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
@@ -144,6 +155,9 @@ impl From<&BlockReport> for BlockSummary {
             leak_confirmation: r.leak_confirmation,
             h_min: r.h_min,
             length: r.length,
+            separation: r
+                .separation_steps
+                .map(|steps| f64::from(steps) * SEPARATION_QUANTUM),
             reason: r.reason.clone(),
         }
     }
@@ -225,6 +239,18 @@ impl<E: StoredEndpoint> AgentStore<E> {
                     "{statement}; each block sized by the largest separation of Eve's view over \
                      its bits, computed by the controller from its samples"
                 ),
+                Assumption::MeasuredViews {
+                    statement,
+                    estimation_epsilon,
+                    estimate_leak,
+                    ..
+                } => format!(
+                    "{statement}; each block sized by the largest separation of Eve's view over \
+                     its bits at the worst case of the (1 − {estimation_epsilon:e}) region of the \
+                     plant the controller measures at block time from its samples, published in \
+                     Confirm and charged {estimate_leak:.1} bits; ε_est = {estimation_epsilon:e} \
+                     is a term of the key's ε"
+                ),
                 other => other.describe(),
             },
             restricted,
@@ -236,7 +262,7 @@ impl<E: StoredEndpoint> AgentStore<E> {
         if let Some(recovered) = report.recovered() {
             eprintln!("store {}: {recovered}", dir.display());
         }
-        let link = PostLink::new(endpoint, store.sources().clone());
+        let link = PostLink::new(endpoint, store.sources().clone(), config);
         let store = Self {
             store,
             role: <E::Snapshot as Snapshot>::ROLE,
@@ -281,6 +307,36 @@ impl<E: StoredEndpoint> AgentStore<E> {
                 self.report.not_pooled = Some(reason);
             }
             PostOutput::BlockEnded(report) => self.block_ended(&report),
+            PostOutput::Estimated(estimate) => {
+                match &estimate.refused {
+                    Some(why) => println!(
+                        "{}: the plant's estimate over {} doublets refuses the block: {why}",
+                        self.role, estimate.doublets
+                    ),
+                    None => println!(
+                        "{}: the plant measured over {} doublets: motion noise √Q̂ {:.2} mm, \
+                         {:.2} mm, {:.2} mrad, AR(1) correlation between steps ρ̂ {:.3}; over \
+                         the (1 − {:e}) region, ρ in [{:.3}, {:.3}], lowest {:.2} mm, {:.2} mm, \
+                         {:.2} mrad; Eve's largest separation at its worst case {:.4}, her \
+                         bits' equivalent {:.4} (published)",
+                        self.role,
+                        estimate.doublets,
+                        estimate.point_std_mm[0],
+                        estimate.point_std_mm[1],
+                        estimate.point_std_mm[2],
+                        estimate.correlation,
+                        estimate.epsilon,
+                        estimate.correlation_interval[0],
+                        estimate.correlation_interval[1],
+                        estimate.lower_std_mm[0],
+                        estimate.lower_std_mm[1],
+                        estimate.lower_std_mm[2],
+                        estimate.largest,
+                        estimate.separation
+                    ),
+                }
+                self.report.estimates.push(estimate);
+            }
             PostOutput::Sent(_) => self.report.messages_sent += 1,
             PostOutput::Received => self.report.messages_received += 1,
             PostOutput::Note(note) => self.report.note = Some(note),

@@ -28,6 +28,7 @@ fn controller(pool: &[(u32, bool)], committed: &[u64]) -> ControllerSnapshot {
             .collect(),
         separations: Vec::new(),
         separation_counts: Vec::new(),
+        samples: Vec::new(),
         spent: Vec::new(),
         in_flight: None,
         committed: committed.to_vec(),

@@ -137,6 +137,36 @@ impl Assumption {
         }
     }
 
+    /// Whether the plant is measured: the block's separation is then the estimate's, carried
+    /// in `Confirm` ([`Self::with_estimate`]).
+    #[must_use]
+    pub fn is_measured(&self) -> bool {
+        matches!(self, Self::MeasuredViews { .. })
+    }
+
+    /// The assumption for one block whose estimate of the plant published `steps` grid
+    /// steps: a measured separation becomes `steps · 2⁻⁸` (what the robot recomputes ℓ
+    /// from); the other assumptions are unchanged.
+    #[must_use]
+    pub fn with_estimate(&self, steps: u32) -> Self {
+        match self {
+            Self::MeasuredViews {
+                statement,
+                estimation_epsilon,
+                estimate_leak,
+                ..
+            } => Self::MeasuredViews {
+                separation: f64::from(steps) * super::SEPARATION_QUANTUM,
+                statement: statement.clone(),
+                estimation_epsilon: *estimation_epsilon,
+                estimate_leak: *estimate_leak,
+            },
+            Self::NoSecrecy { .. }
+            | Self::IndependentErrors { .. }
+            | Self::GaussianViews { .. } => self.clone(),
+        }
+    }
+
     /// The named ε terms a key made under this assumption is secret except with, for ε per
     /// term `epsilon`: 2ε_s + ε_PA + ε_PE, and ε_est when the plant was measured.
     #[must_use]
@@ -275,6 +305,10 @@ mod tests {
         assert!((m.total_epsilon(1e-6) - 5e-6).abs() < 1e-18);
         assert!(m.describe().contains("ε_est = 1e-6"));
         assert_eq!(m.for_block(2_000_000), measured(2.0, 1e-6, 16.5));
+        // The carried estimate replaces the separation; a configured one ignores it.
+        assert!(m.is_measured() && !configured.is_measured());
+        assert_eq!(m.with_estimate(436), measured(436.0 / 256.0, 1e-6, 16.5));
+        assert_eq!(configured.with_estimate(436), configured);
         assert!(m.check().is_ok());
         assert_eq!(
             measured(1.7, 0.0, 16.5).check(),

@@ -6,12 +6,15 @@ use std::collections::BTreeMap;
 use rand::rngs::ChaCha20Rng;
 use serde::{Deserialize, Serialize};
 
+use super::estimate::{
+    EstimateOutcome, EstimateRefusal, EstimateRequest, MAX_SEPARATION_STEPS, SessionSamples,
+};
 use super::ledger::Ledger;
 use super::public::{PublicRandomness, sample_size};
 use super::{
-    AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, Message, Output,
-    Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate, key_id,
-    split_sample, tag_context,
+    AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS,
+    Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate,
+    key_id, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
@@ -33,6 +36,16 @@ pub enum ControllerInput {
         /// decided doublet's bits errs safe); a shorter one gives the bits it lacks its
         /// largest.
         separations: Vec<f64>,
+        /// What the pool keeps of the session for the block's estimate of the plant
+        /// (measured sizing; empty otherwise).
+        samples: SessionSamples,
+    },
+    /// The shell's answer to [`Output::EstimateNeeded`] for `block`.
+    Estimate {
+        /// Block number.
+        block: u64,
+        /// The published outcome: the block's separation in grid steps, or a refusal.
+        outcome: EstimateOutcome,
     },
     /// A message from the robot.
     Frame(Message),
@@ -82,6 +95,10 @@ pub struct ControllerSnapshot {
     /// back to its largest for every bit).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub separation_counts: Vec<(u32, Vec<(u64, u64)>)>,
+    /// What the pool keeps of them for the block's estimate (measured sizing; only those
+    /// with samples). The store writes them once, beside the sessions' bits.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub samples: Vec<(u32, SessionSamples)>,
     /// Sessions proposed in a block (spent).
     pub spent: Vec<u32>,
     /// The block in flight, if any.
@@ -95,6 +112,9 @@ struct Agreed {
     sessions: Vec<u32>,
     nonces: [[u8; 32]; 2],
     public: PublicRandomness,
+    /// Which positions of the pooled bits were disclosed, and the robot's bits there.
+    mask: Vec<bool>,
+    robot_sample: Vec<bool>,
 }
 
 /// What the controller waits for.
@@ -108,11 +128,17 @@ enum State {
         bob: Box<CascadeBob<ChaCha20Rng>>,
         round: u32,
     },
+    /// Reconciled; the shell estimates the plant (measured sizing).
+    ExpectEstimate {
+        agreed: Agreed,
+        outcome: Reconciliation,
+    },
     ExpectConfirmed {
         agreed: Agreed,
         reconciled: BitString,
         key: BitString,
         length: u64,
+        assumption: Assumption,
     },
     ExpectCommitAck,
     ExpectAbortAck,
@@ -132,6 +158,9 @@ pub struct ControllerPost {
     /// its largest, in millionths.
     block_separation: u64,
     block_largest: u64,
+    /// Pooled sessions' kept samples, and the block in flight's.
+    samples: BTreeMap<u32, SessionSamples>,
+    block_samples: BTreeMap<u32, SessionSamples>,
     in_flight: Option<InFlight>,
     state: State,
     report: Option<BlockReport>,
@@ -167,6 +196,8 @@ impl ControllerPost {
             separation_counts: BTreeMap::new(),
             block_separation: 0,
             block_largest: 0,
+            samples: BTreeMap::new(),
+            block_samples: BTreeMap::new(),
             in_flight: None,
             state: State::Idle,
             report: None,
@@ -198,6 +229,7 @@ impl ControllerPost {
             .into_iter()
             .map(|(id, counts)| (id, counts.into_iter().collect()))
             .collect();
+        endpoint.samples = snapshot.samples.into_iter().collect();
         match snapshot.in_flight {
             None => endpoint.maybe_propose(),
             Some(InFlight::Committed { block, sessions }) => {
@@ -233,6 +265,11 @@ impl ControllerPost {
                 .iter()
                 .map(|(&id, counts)| (id, counts.iter().map(|(&d, &n)| (d, n)).collect()))
                 .collect(),
+            samples: self
+                .samples
+                .iter()
+                .map(|(&id, s)| (id, s.clone()))
+                .collect(),
             spent: self.ledger.spent.iter().copied().collect(),
             in_flight: self.in_flight.clone(),
             committed: self.ledger.committed.iter().copied().collect(),
@@ -261,6 +298,7 @@ impl ControllerPost {
                 id,
                 bits,
                 separations,
+                samples,
             } => {
                 if let Some(&separation) = separations.iter().find(|d| !(0.0..=1e6).contains(*d)) {
                     return Err(PostError::Separation { id, separation });
@@ -274,8 +312,12 @@ impl ControllerPost {
                     self.separations.insert(id, micros);
                     self.separation_counts.insert(id, counts);
                 }
+                if !samples.is_empty() {
+                    self.samples.insert(id, samples);
+                }
                 self.maybe_propose();
             }
+            ControllerInput::Estimate { block, outcome } => self.on_estimate(block, outcome),
             ControllerInput::Timeout => {
                 if let Some(request) = self.last_request.clone() {
                     self.send(request);
@@ -328,6 +370,7 @@ impl ControllerPost {
                     reconciled,
                     key,
                     length,
+                    assumption,
                 },
                 Message::Confirmed { tag, .. },
             ) => {
@@ -335,7 +378,7 @@ impl ControllerPost {
                 let expected =
                     ConfirmationTag::directional(&reconciled, ROBOT_TO_CONTROLLER, &context);
                 if expected.matches(&ConfirmationTag(tag)) {
-                    self.commit(agreed, key);
+                    self.commit(agreed, key, &assumption);
                 } else {
                     self.abort(
                         AbortReason::Reconciliation,
@@ -360,6 +403,7 @@ impl ControllerPost {
             (
                 State::ExpectAgree { .. }
                 | State::ExpectAnswer { .. }
+                | State::ExpectEstimate { .. }
                 | State::ExpectConfirmed { .. },
                 Message::Reject { reason, .. },
             ) => self.abort(
@@ -423,6 +467,10 @@ impl ControllerPost {
                 .map_or(largest, |d| d.min(largest));
         self.block_separation = separation_micros;
         self.block_largest = largest;
+        self.block_samples = sessions
+            .iter()
+            .filter_map(|id| self.samples.remove(id).map(|s| (*id, s)))
+            .collect();
         let block = self.next_block;
         self.next_block += 1;
         let nonce = self.ledger.nonce();
@@ -465,7 +513,12 @@ impl ControllerPost {
                 "the robot holds none of the proposed sessions".into(),
             );
         }
-        if agreed.len() < proposed.len() && self.block_separation < self.block_largest {
+        // A measured block's separation is found after reconciliation, over the agreed
+        // sessions only.
+        if agreed.len() < proposed.len()
+            && self.block_separation < self.block_largest
+            && !self.ledger.settings.assumption.is_measured()
+        {
             return self.abort(
                 AbortReason::Refused,
                 "the robot holds only some of the proposed sessions: the block's equivalent \
@@ -509,6 +562,8 @@ impl ControllerPost {
             sessions: agreed,
             nonces,
             public,
+            mask,
+            robot_sample: sample.to_vec(),
         };
         let started = Cascade::new(self.ledger.settings.schedule, q)
             .and_then(|cascade| CascadeBob::start(cascade, kept, agreed.public.cascade()));
@@ -551,20 +606,111 @@ impl ControllerPost {
         });
     }
 
-    /// Reconciliation is over: ℓ from the assumption, then the controller's tag.
+    /// Reconciliation is over: with the plant measured, the shell estimates it first;
+    /// otherwise ℓ from the assumption at once.
     fn confirm(&mut self, agreed: Agreed, outcome: Reconciliation) {
-        let n = outcome.corrected.len() as u64;
-        let (h_min, length) = self
+        if self.ledger.settings.assumption.is_measured() {
+            let request = self.estimate_request(&agreed, &outcome.corrected);
+            self.state = State::ExpectEstimate { agreed, outcome };
+            // Nothing to repeat while the shell estimates.
+            self.last_request = None;
+            self.ledger
+                .outputs
+                .push_back(Output::EstimateNeeded(request));
+            return;
+        }
+        let assumption = self
             .ledger
             .settings
             .assumption
-            .for_block(self.block_separation)
-            .output_length(n, outcome.leak, self.ledger.settings.epsilon);
+            .for_block(self.block_separation);
+        self.size(agreed, outcome, assumption, None);
+    }
+
+    /// What the shell needs to estimate the plant: each agreed session's kept samples and
+    /// the robot's bits of it — the reconciled bits with the disclosed sample put back.
+    fn estimate_request(&self, agreed: &Agreed, corrected: &BitString) -> EstimateRequest {
+        let (mut kept, mut disclosed) = (0..corrected.len(), agreed.robot_sample.iter());
+        let robot: zeroize::Zeroizing<Vec<bool>> = zeroize::Zeroizing::new(
+            agreed
+                .mask
+                .iter()
+                .map(|&sampled| {
+                    if sampled {
+                        disclosed.next() == Some(&true)
+                    } else {
+                        kept.next().and_then(|i| corrected.get(i)) == Some(true)
+                    }
+                })
+                .collect(),
+        );
+        let lengths = self.block.as_ref().map(|(_, _, pool)| pool);
+        let mut start = 0;
+        let sessions = agreed
+            .sessions
+            .iter()
+            .map(|id| {
+                let len = lengths.and_then(|p| p.get(id)).map_or(0, BitString::len);
+                let end = (start + len).min(robot.len());
+                let bits = BitString::from_bools(&robot[start..end]);
+                start = end;
+                let samples = self.block_samples.get(id).cloned().unwrap_or_default();
+                (*id, samples, bits)
+            })
+            .collect();
+        EstimateRequest {
+            block: self.current(),
+            sessions,
+            disclosed: agreed.robot_sample.len() as u64,
+        }
+    }
+
+    /// The shell's estimate: ℓ from the carried separation, or the block refused.
+    fn on_estimate(&mut self, block: u64, estimate: EstimateOutcome) {
+        if self.block.is_none() || block != self.current() {
+            self.ledger
+                .outputs
+                .push_back(Output::Ignored("an estimate for another block"));
+            return;
+        }
+        match std::mem::replace(&mut self.state, State::Idle) {
+            State::ExpectEstimate { agreed, outcome } => match estimate {
+                Ok(steps) => {
+                    let steps = steps.min(MAX_SEPARATION_STEPS);
+                    let assumption = self.ledger.settings.assumption.with_estimate(steps);
+                    self.size(agreed, outcome, assumption, Some(steps));
+                }
+                Err(EstimateRefusal(why)) => {
+                    self.abort(AbortReason::PlantRefused, format!("block refused: {why}"));
+                }
+            },
+            state => {
+                self.state = state;
+                self.ledger.outputs.push_back(Output::Ignored(
+                    "an estimate the controller does not expect",
+                ));
+            }
+        }
+    }
+
+    /// ℓ from the block's `assumption`, then the controller's tag (with the published
+    /// `estimate` when the plant was measured).
+    fn size(
+        &mut self,
+        agreed: Agreed,
+        outcome: Reconciliation,
+        assumption: Assumption,
+        estimate: Option<u32>,
+    ) {
+        let n = outcome.corrected.len() as u64;
+        let (h_min, length) =
+            assumption.output_length(n, outcome.leak, self.ledger.settings.epsilon);
         if let Some(report) = self.report.as_mut() {
             report.questions = outcome.alice_parities;
             report.leak_ec = outcome.leak;
             report.h_min = h_min;
             report.length = length.bits;
+            report.separation_steps = estimate;
         }
         if length.bits == 0 {
             let reason = length.reason.unwrap_or_else(|| "no secret bits".to_owned());
@@ -591,16 +737,18 @@ impl ControllerPost {
             reconciled: outcome.corrected,
             key,
             length: length.bits,
+            assumption,
         };
         self.request(Message::Confirm {
             block,
             length: length.bits,
             tag: tag.0,
+            estimate,
         });
     }
 
     /// The robot's tag proved it prepared the key: commit, durably, then tell it.
-    fn commit(&mut self, agreed: Agreed, key: BitString) {
+    fn commit(&mut self, agreed: Agreed, key: BitString, assumption: &Assumption) {
         let Some((block, proposed, _)) = self.block.as_ref() else {
             return;
         };
@@ -615,13 +763,8 @@ impl ControllerPost {
             block,
             key,
             sessions: agreed.sessions,
-            epsilon: 4.0 * self.ledger.settings.epsilon,
-            assumption: self
-                .ledger
-                .settings
-                .assumption
-                .for_block(self.block_separation)
-                .describe(),
+            epsilon: assumption.total_epsilon(self.ledger.settings.epsilon),
+            assumption: assumption.describe(),
         };
         self.ledger.committed.insert(block);
         self.in_flight = Some(InFlight::Committed {
@@ -663,6 +806,7 @@ impl ControllerPost {
         if let Some((_, sessions, _)) = self.block.take() {
             self.ledger.spent.extend(sessions);
         }
+        self.block_samples.clear();
         self.in_flight = None;
         self.state = State::Idle;
         self.last_request = None;

@@ -88,10 +88,18 @@ impl Codec for Message {
                 w.u32(*round);
                 put_bits(w, parities);
             }
-            Self::Confirm { block, length, tag } => {
+            Self::Confirm {
+                block,
+                length,
+                tag,
+                estimate,
+            } => {
                 head(w, CONFIRM, *block);
                 w.u64(*length);
                 w.bytes(tag);
+                if let Some(steps) = estimate {
+                    w.u32(*steps);
+                }
             }
             Self::Confirmed { block, tag } => {
                 head(w, CONFIRMED, *block);
@@ -146,6 +154,12 @@ impl Codec for Message {
                 block,
                 length: r.u64("length")?,
                 tag: r.array("tag")?,
+                // The last field, present only with the plant measured.
+                estimate: if r.clone().finish().is_ok() {
+                    None
+                } else {
+                    Some(r.u32("estimate")?)
+                },
             },
             CONFIRMED => Self::Confirmed {
                 block,
@@ -251,13 +265,15 @@ impl Codec for BlockQuery {
 }
 
 impl Codec for AbortReason {
-    /// `reason u8`: 0 no secret bits, 1 reconciliation, 2 restart, 3 refused.
+    /// `reason u8`: 0 no secret bits, 1 reconciliation, 2 restart, 3 refused, 4 the plant's
+    /// estimate refused the block.
     fn encode(&self, w: &mut Writer) {
         w.u8(match self {
             Self::NoSecretBits => 0,
             Self::Reconciliation => 1,
             Self::Restart => 2,
             Self::Refused => 3,
+            Self::PlantRefused => 4,
         });
     }
 
@@ -267,11 +283,12 @@ impl Codec for AbortReason {
             1 => Self::Reconciliation,
             2 => Self::Restart,
             3 => Self::Refused,
+            4 => Self::PlantRefused,
             value => {
                 return Err(DecodeError::Invalid {
                     field: "abort reason",
                     value: value.into(),
-                    allowed: "0 to 3",
+                    allowed: "0 to 4",
                 });
             }
         })
@@ -312,6 +329,7 @@ impl Codec for RejectReason {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::postprocess::MAX_SEPARATION_STEPS;
     use rand::rngs::ChaCha8Rng;
     use rand::{RngExt, SeedableRng};
 
@@ -355,6 +373,7 @@ mod tests {
                 block: 3,
                 length: 4096,
                 tag: [0xA5; 8],
+                estimate: None,
             },
             Message::Confirmed {
                 block: 3,
@@ -410,11 +429,20 @@ mod tests {
             AbortReason::Reconciliation,
             AbortReason::Restart,
             AbortReason::Refused,
+            AbortReason::PlantRefused,
         ] {
             messages.push(Message::Abort {
                 block: 1,
                 sessions: Vec::new(),
                 reason,
+            });
+        }
+        for estimate in [None, Some(0), Some(MAX_SEPARATION_STEPS), Some(u32::MAX)] {
+            messages.push(Message::Confirm {
+                block: 1,
+                length: u64::MAX,
+                tag: [0; 8],
+                estimate,
             });
         }
         for reason in [
@@ -476,6 +504,47 @@ mod tests {
 0a0000000000000004
 0b000000000000000504
 ";
+
+    /// With the plant measured, `Confirm` ends with the estimate (`u32`, grid steps of 2⁻⁸);
+    /// a refused block's `Abort` carries reason 4. Checked by hand against the layout.
+    #[test]
+    fn golden_bytes_of_the_measured_plant() {
+        let confirm = Message::Confirm {
+            block: 3,
+            length: 4096,
+            tag: [0xA5; 8],
+            estimate: Some(436),
+        };
+        assert_eq!(
+            hex(&encode(&confirm)),
+            "0500000000000000030000000000001000a5a5a5a5a5a5a5a5000001b4"
+        );
+        let refused = Message::Abort {
+            block: 4,
+            sessions: vec![8, 9],
+            reason: AbortReason::PlantRefused,
+        };
+        assert_eq!(
+            hex(&encode(&refused)),
+            "09000000000000000400000002000000080000000904"
+        );
+        // An estimate cut short is named; bytes after it are trailing.
+        let bytes = encode(&confirm);
+        for cut in 1..4 {
+            assert_eq!(
+                decode(&bytes[..bytes.len() - cut]),
+                Err(DecodeError::Truncated {
+                    field: "estimate",
+                    needed: 4,
+                    left: 4 - cut
+                })
+            );
+        }
+        assert_eq!(
+            decode(&[&bytes[..], &[0]].concat()),
+            Err(DecodeError::TrailingBytes(1))
+        );
+    }
 
     #[test]
     fn typed_errors_name_the_problem() {
@@ -547,12 +616,12 @@ mod tests {
             })
         );
         let mut abort = encode(&examples()[8]);
-        *abort.last_mut().unwrap() = 4;
+        *abort.last_mut().unwrap() = 5;
         assert!(matches!(
             decode(&abort),
             Err(DecodeError::Invalid {
                 field: "abort reason",
-                value: 4,
+                value: 5,
                 ..
             })
         ));
@@ -595,12 +664,35 @@ mod tests {
         assert!(decoded > 0);
         for message in examples().iter().chain(&edge_cases()) {
             let bytes = encode(message);
+            // `Confirm`'s estimate is its optional last field: without it the message is
+            // a whole `Confirm` of the configured plant (which the robot refuses when the
+            // plant is measured), and 1–3 bytes after one are an estimate cut short.
+            let optional = match message {
+                Message::Confirm { estimate, .. } => Some(estimate.is_some()),
+                _ => None,
+            };
             for cut in 0..bytes.len() {
+                if optional == Some(true) && cut == bytes.len() - 4 {
+                    assert!(matches!(
+                        decode(&bytes[..cut]),
+                        Ok(Message::Confirm { estimate: None, .. })
+                    ));
+                    continue;
+                }
                 assert!(decode(&bytes[..cut]).is_err(), "{message:?} cut at {cut}");
             }
             for extra in 1..4 {
                 let longer = [&bytes[..], &vec![0; extra]].concat();
-                assert_eq!(decode(&longer), Err(DecodeError::TrailingBytes(extra)));
+                let expected = if optional == Some(false) {
+                    DecodeError::Truncated {
+                        field: "estimate",
+                        needed: 4,
+                        left: extra,
+                    }
+                } else {
+                    DecodeError::TrailingBytes(extra)
+                };
+                assert_eq!(decode(&longer), Err(expected));
             }
         }
     }

@@ -16,6 +16,9 @@ pub enum AbortReason {
     Restart,
     /// The robot refused the block.
     Refused,
+    /// The block's estimate of the plant refused it (measured sizing): a test of the model
+    /// class failed, or the worst case leaves no bound; nothing is committed.
+    PlantRefused,
 }
 
 /// Why the robot refuses a message.
@@ -88,6 +91,10 @@ pub enum Message {
         length: u64,
         /// Tag over the controller's reconciled key.
         tag: [u8; 8],
+        /// With the plant measured: the block's worst-case separation in steps of
+        /// [`super::SEPARATION_QUANTUM`] (at most [`super::MAX_SEPARATION_STEPS`]), from
+        /// which the robot recomputes ℓ; absent with the configured plant.
+        estimate: Option<u32>,
     },
     /// Robot → controller: its tag; it has prepared the key.
     Confirmed {
@@ -149,7 +156,7 @@ impl Message {
     }
 
     /// Payload bits: the fields as they would be encoded (u64 64, u32 32, bool 1, nonce 256,
-    /// tag 64, a reason 8, a list's length 32), before framing.
+    /// tag 64, a reason 8, a list's length 32, a present optional field its own), before framing.
     #[must_use]
     pub fn payload_bits(&self) -> u64 {
         let list = |items: usize, each: u64| 32 + items as u64 * each;
@@ -160,7 +167,7 @@ impl Message {
             } => list(sessions.len(), 32) + 256 + list(sample.len(), 1),
             Self::Ask { queries, .. } => 32 + list(queries.len(), 96),
             Self::Answer { parities, .. } => 32 + list(parities.len(), 1),
-            Self::Confirm { .. } => 64 + 64,
+            Self::Confirm { estimate, .. } => 64 + 64 + 32 * u64::from(estimate.is_some()),
             Self::Confirmed { .. } => 64,
             Self::Commit { .. } | Self::CommitAck { .. } | Self::AbortAck { .. } => 0,
             Self::Abort { sessions, .. } => list(sessions.len(), 32) + 8,

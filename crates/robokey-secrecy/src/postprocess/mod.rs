@@ -34,6 +34,7 @@
 mod assumption;
 mod controller;
 mod encoding;
+mod estimate;
 mod fragment;
 mod ledger;
 mod message;
@@ -50,6 +51,10 @@ use crate::cascade::CascadeSchedule;
 pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
 pub use encoding::{decode, encode};
+pub use estimate::{
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, MAX_SEPARATION_STEPS,
+    SEPARATION_QUANTUM, SessionSamples,
+};
 pub use fragment::{
     FRAGMENT_BYTES, MAX_FRAGMENTS, MAX_MESSAGE_BYTES, Reassembler, fits, fragments,
 };
@@ -115,6 +120,11 @@ pub struct BlockReport {
     pub h_min: f64,
     /// The final key length ℓ.
     pub length: u64,
+    /// With the plant measured: the published outcome of the block's estimate, its
+    /// worst-case separation in steps of [`SEPARATION_QUANTUM`] (a refused block has none,
+    /// and its reason says why).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub separation_steps: Option<u32>,
     /// Why the block ended without a key, if it did.
     pub reason: Option<String>,
     /// Messages sent by this endpoint for the block (retransmissions included).
@@ -136,7 +146,8 @@ pub struct FinalKey {
     pub key: BitString,
     /// Sessions it came from.
     pub sessions: Vec<u32>,
-    /// Secret against the stated assumption except with probability 4ε.
+    /// Secret against the stated assumption except with this probability: the sum of its ε
+    /// terms ([`Assumption::total_epsilon`]: 4ε, or 4ε + ε_est with the plant measured).
     pub epsilon: f64,
     /// The assumption it is secret under.
     pub assumption: String,
@@ -155,6 +166,9 @@ pub enum Output {
     BlockEnded(BlockReport),
     /// A message was ignored (stale, duplicate, malformed, or from the wrong state).
     Ignored(&'static str),
+    /// The controller (measured sizing) needs the block's estimate of the plant: answer with
+    /// [`ControllerInput::Estimate`].
+    EstimateNeeded(EstimateRequest),
 }
 
 /// Errors of endpoint construction and input.

@@ -8,9 +8,9 @@ use super::controller::empty_report;
 use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::{
-    BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, MAX_QUESTIONS, Message, Output,
-    Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate, key_id,
-    split_sample, tag_context,
+    AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, MAX_QUESTIONS,
+    MAX_SEPARATION_STEPS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason,
+    Settings, concatenate, key_id, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::CascadeAlice;
@@ -186,9 +186,16 @@ impl RobotPost {
                 ..
             } => self.on_propose(block, sessions, nonce, separation_micros),
             Message::Ask { round, queries, .. } => self.on_ask(block, round, &queries),
-            Message::Confirm { length, tag, .. } => self.on_confirm(block, length, tag),
+            Message::Confirm {
+                length,
+                tag,
+                estimate,
+                ..
+            } => self.on_confirm(block, length, tag, estimate),
             Message::Commit { .. } => self.on_commit(block),
-            Message::Abort { sessions, .. } => self.on_abort(block, &sessions),
+            Message::Abort {
+                sessions, reason, ..
+            } => self.on_abort(block, &sessions, reason),
             _ => self.ignore("a message only the robot sends"),
         }
     }
@@ -317,7 +324,7 @@ impl RobotPost {
         }
     }
 
-    fn on_confirm(&mut self, block: u64, length: u64, tag: [u8; 8]) {
+    fn on_confirm(&mut self, block: u64, length: u64, tag: [u8; 8], estimate: Option<u32>) {
         if let Some(prepared) = self.prepared.as_ref().filter(|p| p.block == block) {
             let confirmed = Message::Confirmed {
                 block,
@@ -331,7 +338,16 @@ impl RobotPost {
         };
         let n = r.reference.len() as u64;
         let leak_ec = 2 * r.alice.revealed();
-        let assumption = settings.assumption.for_block(r.separation_micros);
+        // ℓ recomputed from what was carried: with the plant measured, the estimate's
+        // separation (which the robot cannot check, docs/threat-model.md); otherwise the
+        // separation proposed with the block.
+        let assumption = match (settings.assumption.is_measured(), estimate) {
+            (true, Some(steps)) if steps <= MAX_SEPARATION_STEPS => {
+                settings.assumption.with_estimate(steps)
+            }
+            (false, None) => settings.assumption.for_block(r.separation_micros),
+            _ => return self.reject(block, RejectReason::LengthMismatch),
+        };
         let (h_min, expected) = assumption.output_length(n, leak_ec, settings.epsilon);
         if expected.bits != length || length == 0 {
             return self.reject(block, RejectReason::LengthMismatch);
@@ -355,12 +371,13 @@ impl RobotPost {
         report.leak_confirmation = 2 * crate::confirm::TAG_BITS;
         report.h_min = h_min;
         report.length = length;
+        report.separation_steps = estimate;
         let key = FinalKey {
             id: key_id(&context),
             block,
             key,
             sessions: r.sessions.clone(),
-            epsilon: 4.0 * settings.epsilon,
+            epsilon: assumption.total_epsilon(settings.epsilon),
             assumption: assumption.describe(),
         };
         if let Some(done) = self.reconciling.take() {
@@ -394,7 +411,7 @@ impl RobotPost {
         self.send(Message::CommitAck { block });
     }
 
-    fn on_abort(&mut self, block: u64, sessions: &[u32]) {
+    fn on_abort(&mut self, block: u64, sessions: &[u32], reason: AbortReason) {
         if self.ledger.committed.contains(&block) {
             return self.ignore("an abort of a committed block");
         }
@@ -412,7 +429,16 @@ impl RobotPost {
         self.highest_block = self.highest_block.max(Some(block));
         self.ledger.outputs.push_back(Output::Persist);
         if let Some(mut report) = report {
-            report.reason = Some("the controller aborted the block".into());
+            report.reason = Some(match reason {
+                AbortReason::PlantRefused => "block refused: the controller's estimate of the \
+                                              plant refused it (the test and its value are in \
+                                              the controller's report)"
+                    .into(),
+                AbortReason::NoSecretBits
+                | AbortReason::Reconciliation
+                | AbortReason::Restart
+                | AbortReason::Refused => "the controller aborted the block".into(),
+            });
             report.length = 0;
             self.ledger.outputs.push_back(Output::BlockEnded(report));
         }

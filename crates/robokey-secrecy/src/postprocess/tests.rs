@@ -65,6 +65,11 @@ struct Pair {
     robot_keys: Vec<FinalKey>,
     delivered: usize,
     restarts: u8,
+    /// The shell's answer when the controller asks for the plant's estimate (measured
+    /// sizing), and the requests it asked.
+    estimate: EstimateOutcome,
+    requests: Vec<EstimateRequest>,
+    robot_reports: Vec<BlockReport>,
 }
 
 impl Pair {
@@ -106,6 +111,9 @@ impl Pair {
             robot_keys: Vec::new(),
             delivered: 0,
             restarts: 0,
+            estimate: Ok(0),
+            requests: Vec::new(),
+            robot_reports: Vec::new(),
         };
         pair.collect();
         for (i, (id, _, bits)) in pool.iter().enumerate() {
@@ -114,6 +122,7 @@ impl Pair {
                     id: *id,
                     bits: bits.clone(),
                     separations: separations.get(i).cloned().unwrap_or_default(),
+                    samples: SessionSamples::new(),
                 })
                 .unwrap();
             pair.collect();
@@ -129,6 +138,16 @@ impl Pair {
                 Output::Persist => self.controller_snapshot = self.controller.snapshot(),
                 Output::BlockEnded(report) => self.reports.push(report),
                 Output::KeyCommitted(key) => self.controller_keys.push(key),
+                Output::EstimateNeeded(request) => {
+                    let block = request.block;
+                    self.requests.push(request);
+                    self.controller
+                        .handle_input(ControllerInput::Estimate {
+                            block,
+                            outcome: self.estimate.clone(),
+                        })
+                        .unwrap();
+                }
                 Output::Ignored(_) => {}
             }
         }
@@ -137,7 +156,8 @@ impl Pair {
                 Output::Transmit(m) => self.to_controller.push_back(m),
                 Output::Persist => self.robot_snapshot = self.robot.snapshot(),
                 Output::KeyCommitted(key) => self.robot_keys.push(key),
-                Output::BlockEnded(_) | Output::Ignored(_) => {}
+                Output::BlockEnded(report) => self.robot_reports.push(report),
+                Output::Ignored(_) | Output::EstimateNeeded(_) => {}
             }
         }
     }
@@ -467,6 +487,7 @@ fn the_robot_refuses_what_an_honest_controller_never_sends() {
             block,
             length: 5,
             tag: [0; 8],
+            estimate: None,
         },
         Message::Commit { block: block + 1 },
         Message::Agree {
@@ -644,6 +665,112 @@ fn a_controller_asking_beyond_an_honest_schedule_is_refused() {
         }
     }
     panic!("{answered} rounds answered, the bound is at most {high}");
+}
+
+fn measured_plant() -> Assumption {
+    Assumption::MeasuredViews {
+        separation: 0.0,
+        statement: "test".into(),
+        estimation_epsilon: 1e-6,
+        estimate_leak: 16.000_045,
+    }
+}
+
+/// With the plant measured the controller asks its shell after reconciliation, with the
+/// robot's bits of each session (the disclosed sample put back); `Confirm` carries the
+/// published separation and the robot recomputes ℓ from it: the same key and record on both
+/// sides, 5ε-secret with ε_est named.
+#[test]
+fn a_measured_plant_is_carried_in_confirm_and_both_sides_size_the_same_key() {
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let pool = sessions(10, 0.02, &mut rng);
+    let mut pair = Pair::new(settings(measured_plant()), &pool);
+    pair.estimate = Ok(436);
+    assert!(pair.settle(100_000, None));
+    pair.assert_same_keys("measured");
+    assert!(!pair.controller_keys.is_empty());
+    for request in &pair.requests {
+        for (id, _, bits) in &request.sessions {
+            let robot = &pool.iter().find(|s| s.0 == *id).unwrap().1;
+            assert_eq!(
+                bits, robot,
+                "session {id}: the robot's bits, sample put back"
+            );
+        }
+    }
+    let expected = measured_plant().with_estimate(436);
+    for (report, key) in pair.reports.iter().zip(&pair.controller_keys) {
+        assert_eq!(report.separation_steps, Some(436));
+        let (_, length) =
+            expected.output_length(report.reconciled_bits as u64, report.leak_ec, 1e-6);
+        assert_eq!(report.length, length.bits);
+        assert!((key.epsilon - 5e-6).abs() < 1e-18);
+        assert_eq!(key.assumption, expected.describe());
+    }
+    for key in &pair.robot_keys {
+        assert_eq!(key.assumption, expected.describe());
+    }
+}
+
+/// A refused estimate commits nothing on either side; both reports name the refusal.
+#[test]
+fn a_refused_estimate_commits_nothing_and_both_reports_say_so() {
+    let mut rng = ChaCha8Rng::seed_from_u64(22);
+    let pool = sessions(6, 0.02, &mut rng);
+    let mut pair = Pair::new(settings(measured_plant()), &pool);
+    pair.estimate = Err(EstimateRefusal("not white: statistic 9.1".into()));
+    assert!(pair.settle(100_000, None));
+    let robot_reports = &pair.robot_reports;
+    assert!(pair.controller_keys.is_empty() && pair.robot_keys.is_empty());
+    assert!(!pair.reports.is_empty() && !robot_reports.is_empty());
+    for report in &pair.reports {
+        assert_eq!(report.length, 0);
+        assert_eq!(
+            report.reason.as_deref(),
+            Some("block refused: not white: statistic 9.1")
+        );
+    }
+    for report in robot_reports {
+        assert!(
+            report
+                .reason
+                .as_deref()
+                .unwrap()
+                .starts_with("block refused")
+        );
+    }
+}
+
+/// The robot refuses a `Confirm` whose estimate does not give the proposed ℓ (tampered), or
+/// that carries none with the plant measured.
+#[test]
+fn the_robot_refuses_a_confirm_whose_estimate_does_not_size_its_length() {
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let pool = sessions(10, 0.02, &mut rng);
+    for forged in [Some(0), None, Some(MAX_SEPARATION_STEPS + 1)] {
+        let mut pair = Pair::new(settings(measured_plant()), &pool);
+        pair.estimate = Ok(436);
+        while !matches!(pair.to_robot.front(), Some(Message::Confirm { .. })) {
+            assert!(pair.deliver(None));
+        }
+        if let Some(Message::Confirm { estimate, .. }) = pair.to_robot.front_mut() {
+            *estimate = forged;
+        }
+        assert!(pair.deliver(None));
+        assert!(
+            matches!(
+                pair.to_controller.front(),
+                Some(Message::Reject {
+                    reason: RejectReason::LengthMismatch,
+                    ..
+                })
+            ),
+            "{forged:?}: {:?}",
+            pair.to_controller.front()
+        );
+        assert!(pair.settle(100_000, None));
+        pair.assert_same_keys("a forged estimate");
+    }
 }
 
 /// Per-bit separations (most bits seen at 0.5, every tenth at 1.5): both sides commit the

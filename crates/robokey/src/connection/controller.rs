@@ -6,12 +6,13 @@
 use std::collections::VecDeque;
 
 use rand::rngs::ChaCha20Rng;
-use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot};
+use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot, SessionSamples};
 
 use super::linger::{Courtesy, Linger};
 use super::post::{PostLink, PostOutput};
 use super::{Output, Setup};
-use crate::config::Config;
+use crate::config::{Config, Sizing};
+use crate::estimate::kept_doublet;
 use crate::model::Pose;
 use crate::protocol::auth::{AuthMode, ChannelCounts, ControllerChannel, Delivery, PairingSecret};
 use crate::protocol::timing::earliest;
@@ -75,6 +76,9 @@ pub struct ControllerConnection<A> {
     /// The Eve separation the camera statement gives each decided bit: they size the keys of
     /// the blocks this session enters (private sensing).
     separations: Vec<f64>,
+    /// What the pool keeps of the decided doublets for the block's estimate of the plant
+    /// (`postprocess.sizing = "measured"`; empty otherwise).
+    kept: SessionSamples,
     outputs: VecDeque<ControllerAction<A>>,
 }
 
@@ -120,6 +124,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             endpoint: None,
             post,
             separations: Vec::new(),
+            kept: SessionSamples::new(),
             outputs: VecDeque::new(),
             channel,
             earlier: ChannelCounts::default(),
@@ -425,6 +430,13 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                         let bits = self.plan.bits_per_unit();
                         self.separations
                             .extend_from_slice(&decision.assumed_separation[..bits]);
+                        if self.config.postprocess.sizing == Sizing::Measured {
+                            self.kept.push(kept_doublet(
+                                decision.doublet,
+                                &decision.inputs,
+                                &decision.samples,
+                            ));
+                        }
                     }
                     self.outputs.push_back(Output::Endpoint(event));
                 }
@@ -451,6 +463,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                     &outcome,
                     endpoint.key(),
                     std::mem::take(&mut self.separations),
+                    std::mem::take(&mut self.kept),
                 );
                 self.outputs.push_back(Output::Post(pooled));
                 self.stage = Stage::Post {

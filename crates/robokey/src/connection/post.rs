@@ -7,10 +7,13 @@ use std::collections::BTreeSet;
 
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
-    self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, FinalKey, InFlight,
-    Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot,
+    self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, EstimateOutcome,
+    FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot,
+    SessionSamples,
 };
 
+use crate::Config;
+use crate::estimate::{BlockEstimate, estimate_request};
 use crate::protocol::{Outcome, PostFragment};
 
 /// A post-processing endpoint as a connection drives it.
@@ -20,11 +23,21 @@ pub trait PostEndpoint {
     /// Its durable state now.
     fn snapshot(&self) -> Self::Snapshot;
     /// Pools a session's raw bits (`separations`: the controller's Eve separation of each
-    /// decided bit, [`ControllerInput::Session`]; the robot ignores them).
+    /// decided bit, [`ControllerInput::Session`]; `samples`: what it keeps of them for the
+    /// block's estimate of the plant; the robot ignores both).
     ///
     /// # Errors
     /// A duplicate session or one of a size out of bounds.
-    fn pool(&mut self, id: u32, bits: BitString, separations: Vec<f64>) -> Result<(), PostError>;
+    fn pool(
+        &mut self,
+        id: u32,
+        bits: BitString,
+        separations: Vec<f64>,
+        samples: SessionSamples,
+    ) -> Result<(), PostError>;
+    /// The shell's estimate of the plant for `block`, which the endpoint asked for (the
+    /// robot never asks).
+    fn estimated(&mut self, block: u64, outcome: EstimateOutcome);
     /// A message from the peer.
     fn frame(&mut self, message: postprocess::Message);
     /// The next output.
@@ -38,12 +51,23 @@ impl PostEndpoint for ControllerPost {
     fn snapshot(&self) -> ControllerSnapshot {
         ControllerPost::snapshot(self)
     }
-    fn pool(&mut self, id: u32, bits: BitString, separations: Vec<f64>) -> Result<(), PostError> {
+    fn pool(
+        &mut self,
+        id: u32,
+        bits: BitString,
+        separations: Vec<f64>,
+        samples: SessionSamples,
+    ) -> Result<(), PostError> {
         self.handle_input(ControllerInput::Session {
             id,
             bits,
             separations,
+            samples,
         })
+    }
+    fn estimated(&mut self, block: u64, outcome: EstimateOutcome) {
+        // An estimate never fails: only sessions are checked.
+        let _ = self.handle_input(ControllerInput::Estimate { block, outcome });
     }
     fn frame(&mut self, message: postprocess::Message) {
         // A frame never fails: only sessions are checked.
@@ -74,9 +98,16 @@ impl PostEndpoint for RobotPost {
     fn snapshot(&self) -> RobotSnapshot {
         RobotPost::snapshot(self)
     }
-    fn pool(&mut self, id: u32, bits: BitString, _separations: Vec<f64>) -> Result<(), PostError> {
+    fn pool(
+        &mut self,
+        id: u32,
+        bits: BitString,
+        _separations: Vec<f64>,
+        _samples: SessionSamples,
+    ) -> Result<(), PostError> {
         self.handle_input(RobotInput::Session { id, bits })
     }
+    fn estimated(&mut self, _block: u64, _outcome: EstimateOutcome) {}
     fn frame(&mut self, message: postprocess::Message) {
         let _ = self.handle_input(RobotInput::Frame(message));
     }
@@ -128,6 +159,8 @@ pub enum PostOutput<S> {
     },
     /// A block ended (with or without a key).
     BlockEnded(BlockReport),
+    /// The controller estimated the plant for a block (measured sizing), before sizing it.
+    Estimated(BlockEstimate),
     /// A message went out (retransmissions included), as this many fragments.
     Sent(usize),
     /// A whole message came in and went to the endpoint.
@@ -145,17 +178,21 @@ pub struct PostLink<E> {
     next_message: u32,
     /// Sessions a stored key lists as sources: their bits are spent.
     spent: BTreeSet<u32>,
+    /// The parties' configuration, which the controller's estimate of the plant reads
+    /// (measured sizing).
+    config: Config,
 }
 
 impl<E: PostEndpoint> PostLink<E> {
-    /// Drives `endpoint` (fresh, or restored from its store), never pooling a session in
-    /// `spent`.
-    pub fn new(endpoint: E, spent: BTreeSet<u32>) -> Self {
+    /// Drives `endpoint` (fresh, or restored from its store) under `config`, never pooling a
+    /// session in `spent`.
+    pub fn new(endpoint: E, spent: BTreeSet<u32>, config: &Config) -> Self {
         Self {
             endpoint,
             reassembler: Reassembler::new(),
             next_message: 0,
             spent,
+            config: config.clone(),
         }
     }
 
@@ -165,13 +202,16 @@ impl<E: PostEndpoint> PostLink<E> {
     }
 
     /// Pools the raw bits of session `id` (one `u8` 0/1 per bit) if the session ended
-    /// `outcome` confirmed or kept and its bits are not spent; says what happened.
+    /// `outcome` confirmed or kept and its bits are not spent, with what the controller
+    /// keeps of it for the block's estimate (`samples`, empty on the robot); says what
+    /// happened.
     pub fn pool(
         &mut self,
         id: u32,
         outcome: &Outcome,
         bits: &[u8],
         separations: Vec<f64>,
+        samples: SessionSamples,
     ) -> PostOutput<E::Snapshot> {
         let refused = |reason: String| PostOutput::NotPooled {
             session: id,
@@ -189,7 +229,7 @@ impl<E: PostEndpoint> PostLink<E> {
             zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());
         match self
             .endpoint
-            .pool(id, BitString::from_bools(&bools), separations)
+            .pool(id, BitString::from_bools(&bools), separations, samples)
         {
             Ok(()) => PostOutput::Pooled {
                 session: id,
@@ -227,6 +267,15 @@ impl<E: PostEndpoint> PostLink<E> {
         let mut blocks = Vec::new();
         while let Some(output) = self.endpoint.poll_output() {
             match output {
+                Output::EstimateNeeded(request) => {
+                    // At block time, from the samples the pool kept and the robot's bits:
+                    // the simulator's computation (`estimate::block`).
+                    let estimate =
+                        estimate_request(&self.config, &request, self.config.postprocess.epsilon);
+                    let outcome = estimate.outcome();
+                    out.push(PostOutput::Estimated(estimate));
+                    self.endpoint.estimated(request.block, outcome);
+                }
                 Output::Transmit(message) => sends.push(message),
                 Output::Persist => persist = true,
                 Output::KeyCommitted(key) => keys.push(key),

@@ -289,7 +289,13 @@ impl<A: Copy + PartialEq, K: CryptoRng> RobotConnection<A, K> {
             return self.close();
         };
         if let (Some(post), Some((_, session))) = (&mut self.post, self.channel.bound()) {
-            let pooled = post.pool(session, &outcome, endpoint.key(), Vec::new());
+            let pooled = post.pool(
+                session,
+                &outcome,
+                endpoint.key(),
+                Vec::new(),
+                robokey_secrecy::postprocess::SessionSamples::new(),
+            );
             self.outputs.push_back(Output::Post(pooled));
             self.flush_post();
         }

@@ -7,12 +7,17 @@
 //! covariance `Q` in the robot's frame and AR(1) correlation `ρ ∈ [−½, 1)` between steps
 //! (white at ρ = 0), and a controller sensor of stated covariance `R` (its calibration).
 
+pub mod block;
 pub mod correlation;
 pub mod homogeneity;
 pub mod motion_noise;
 pub mod residual;
 pub mod worst_case;
 
+pub use block::{
+    BlockEstimate, block_separations, estimate_request, kept_doublet, world_block_separations,
+    world_known,
+};
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use motion_noise::{

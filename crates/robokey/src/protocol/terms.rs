@@ -22,13 +22,14 @@ pub fn agreement_terms(config: &Config) -> String {
         SensingMode::Odometry => String::new(),
         SensingMode::Private => format!(
             "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
-             eve.camera_std = {:?}\n{}noise.process_std = {:?}\n{}",
+             eve.camera_std = {:?}\n{}noise.process_std = {:?}\n{}{}",
             config.protocol.bits_per_doublet,
             config.protocol.max_turn_rate,
             config.eve.camera_std,
             camera_frames_terms(config),
             config.noise.process_std,
             prior_lag_terms(config),
+            sizing_terms(config),
         ),
     };
     // What sizes and labels the final keys both stores hold.
@@ -81,6 +82,19 @@ fn prior_lag_terms(config: &Config) -> String {
         String::new()
     } else {
         format!("private.prior_lag = {}\n", config.private.prior_lag)
+    }
+}
+
+/// The measured plant's line, `postprocess.sizing = measured` (absent with the configured
+/// physics, so that its terms stay as they were): it sizes and labels the keys.
+fn sizing_terms(config: &Config) -> String {
+    if config.postprocess.sizing.is_configured() {
+        String::new()
+    } else {
+        format!(
+            "postprocess.sizing = {}\n",
+            config.postprocess.sizing.name()
+        )
     }
 }
 
@@ -201,6 +215,20 @@ mod tests {
             difference(&a, &b),
             "eve.camera_fps: robot has (missing), controller has 30; eve.camera_frame_std: \
              robot has (missing), controller has [0.016, 0.016, 0.016]"
+        );
+    }
+
+    #[test]
+    fn a_measured_plant_is_agreed_and_a_configured_one_unchanged() {
+        let mut a = Config::default();
+        a.sensing.mode = SensingMode::Private;
+        let configured = agreement_terms(&a);
+        assert!(!configured.contains("sizing"), "{configured}");
+        let mut b = a.clone();
+        b.postprocess.sizing = crate::config::Sizing::Measured;
+        assert_eq!(
+            terms_difference(&configured, &agreement_terms(&b), "robot", "controller"),
+            "postprocess.sizing: robot has (missing), controller has measured"
         );
     }
 }

@@ -1,0 +1,56 @@
+//! Keys sized from the measured plant between the agents (docs/estimation.md, "In the
+//! agents"): what the controller's endpoint asks of its shell after reconciliation, and what
+//! it carries of the answer. The shell estimates the plant from the samples the pool kept of
+//! each session and the robot's bits (the reconciled key with the disclosed sample put
+//! back); the endpoint publishes the outcome — the block's separation on a 2⁻⁸ grid in
+//! `Confirm`, or a refusal as an `Abort` — and both sides size ℓ from what was carried.
+
+use serde::{Deserialize, Serialize};
+
+use crate::bitstring::BitString;
+
+/// The grid a block's separation is published on: multiples of 2⁻⁸.
+pub const SEPARATION_QUANTUM: f64 = 1.0 / 256.0;
+
+/// The largest published separation in grid steps (separation 256): above it Eve is taken
+/// to see every bit. With the refusal, the published outcome takes 2¹⁶ + 2 values.
+pub const MAX_SEPARATION_STEPS: u32 = 1 << 16;
+
+/// One carrying doublet as the controller keeps it for the block's estimate: key material
+/// (its samples), never sent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct KeptDoublet {
+    /// Doublet index j in its session.
+    pub doublet: u32,
+    /// Its public inputs `u(2j)`, `u'(2j+1)` (m/s, rad/s).
+    pub inputs: [[f64; 2]; 2],
+    /// The controller's samples `y(2j), y(2j+1), y(2j+2)` (m, m, rad).
+    pub samples: [[f64; 3]; 3],
+}
+
+/// What the pool keeps of one session for the estimate: its decided doublets, in the order
+/// of the session's raw bits (one doublet per `bits_per_doublet` bits).
+pub type SessionSamples = Vec<KeptDoublet>;
+
+/// What the controller needs estimated, for one block.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimateRequest {
+    /// Block number.
+    pub block: u64,
+    /// Each agreed session, in block order: its ID, what the pool kept of it (empty if
+    /// nothing was kept) and the robot's bits of it — the reconciled key with the disclosed
+    /// sample put back (key material).
+    pub sessions: Vec<(u32, SessionSamples, BitString)>,
+    /// How many of the block's bits its sample disclosed: the block is sized over the rest,
+    /// whichever they were (the per-bit bound takes the worst choice).
+    pub disclosed: u64,
+}
+
+/// Why the shell's estimate refused a block, naming the test and the value.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct EstimateRefusal(pub String);
+
+/// The published outcome of a block's estimate: the equivalent separation of its bits'
+/// worst-case separations in grid steps
+/// ([`SEPARATION_QUANTUM`], at most [`MAX_SEPARATION_STEPS`]), or a refusal.
+pub type EstimateOutcome = Result<u32, EstimateRefusal>;

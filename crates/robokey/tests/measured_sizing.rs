@@ -1,0 +1,155 @@
+//! The agents' estimate of the plant is the simulator's: from the same sessions, what the
+//! agents' controller keeps of each (its samples, without bits) with the robot's raw bits —
+//! what its store and reconciliation give it at block time — yields the same estimate,
+//! refusal and published separation, hence the same ℓ, as the simulator's samples with their
+//! carried bits; on worlds the parties' configuration does not describe.
+
+use robokey::Config;
+use robokey::estimate::{BlockEstimate, block_separations, estimate_request, kept_doublet};
+use robokey::private::DoubletSamples;
+use robokey::sim::{RunOutput, simulate};
+use robokey_secrecy::BitString;
+use robokey_secrecy::postprocess::public::sample_size;
+use robokey_secrecy::postprocess::{Assumption, EstimateRequest};
+
+/// The parties at the defaults in private sensing, the robot in `world`.
+fn parties_in(world: &str) -> Config {
+    Config::from_toml(
+        &format!("[sensing]\nmode = \"private\"\n[world]\n{world}\n"),
+        "test",
+    )
+    .unwrap()
+}
+
+/// The controller's samples of every decided doublet of `run`, with the robot's bits.
+fn samples(run: &RunOutput) -> &[DoubletSamples] {
+    &run.private.as_ref().unwrap().controller_samples
+}
+
+/// The bits a block of `runs` discloses in its sample (at most 1,000, a tenth of the bits).
+fn disclosed(runs: &[RunOutput]) -> u64 {
+    let bits = runs.iter().map(|run| run.keys.robot.len()).sum();
+    sample_size(bits, 1_000) as u64
+}
+
+/// The agents' request for a block of `runs`: each session's kept doublets and the robot's
+/// raw bits, and how many of them the sample disclosed.
+fn request(runs: &[RunOutput]) -> EstimateRequest {
+    EstimateRequest {
+        disclosed: disclosed(runs),
+        block: 0,
+        sessions: runs
+            .iter()
+            .enumerate()
+            .map(|(id, run)| {
+                let kept = samples(run)
+                    .iter()
+                    .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+                    .collect();
+                let bits: Vec<bool> = run.keys.robot.iter().map(|&b| b == 1).collect();
+                (id as u32, kept, BitString::from_bools(&bits))
+            })
+            .collect(),
+    }
+}
+
+/// The block of 8 simulated sessions of `config` (≈ 2,600 doublets), estimated by the
+/// agents' path and by the simulator's: (agents, simulator).
+fn both_estimates(config: &Config) -> (BlockEstimate, BlockEstimate) {
+    let runs: Vec<RunOutput> = (0..8)
+        .map(|r| simulate(config, r, false).unwrap())
+        .collect();
+    let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+    let (_, simulator) = block_separations(config, &sessions, disclosed(&runs), 1e-6);
+    (estimate_request(config, &request(&runs), 1e-6), simulator)
+}
+
+#[test]
+fn the_agents_measure_the_plant_as_the_simulator_does_in_a_quieter_world() {
+    let config = parties_in("process_std = [0.001, 0.001, 0.001]");
+    let (agents, simulator) = both_estimates(&config);
+    assert_eq!(agents, simulator);
+    assert_eq!(agents.refused, None);
+    // It measures the world (1 mm), not the parties' 4 mm.
+    for std in agents.point_std_mm {
+        assert!((0.8..1.2).contains(&std), "{:?}", agents.point_std_mm);
+    }
+    // Sized per bit: the bits' equivalent separation, below the largest (the turning
+    // doublets' bits are the sharpest, and few).
+    assert!(agents.separation < agents.largest, "{agents:?}");
+    // The same published outcome, hence the same ℓ on both sides of the comparison.
+    let steps = agents.outcome().unwrap();
+    assert_eq!(Ok(steps), simulator.outcome());
+    let measured = robokey::post_settings::measured_camera_assumption(&config, 0.0, 1e-6);
+    let sized = |a: &Assumption| a.output_length(9_000, 500, 1e-6).1.bits;
+    assert_eq!(
+        sized(&measured.with_estimate(steps)),
+        sized(&measured.for_block((simulator.separation * 1e6).ceil() as u64))
+    );
+}
+
+/// AR(1)-correlated noise (ρ = 0.9) is inside the class: both paths measure the same ρ̂ and
+/// interval (≈ 2,600 doublets: an interval of a few hundredths around 0.9 expected) and
+/// publish the same separation.
+#[test]
+fn the_agents_measure_a_correlated_world_as_the_simulator_does() {
+    let config = parties_in("process_std = [0.001, 0.001, 0.001]\nprocess_rho = 0.9");
+    let (agents, simulator) = both_estimates(&config);
+    assert_eq!(agents, simulator);
+    assert_eq!(agents.refused, None);
+    let [lo, hi] = agents.correlation_interval;
+    assert!(lo <= 0.9 && 0.9 <= hi && hi - lo < 0.2, "{agents:?}");
+    assert_eq!(agents.outcome(), simulator.outcome());
+}
+
+#[test]
+fn the_agents_refuse_what_the_simulator_refuses_by_the_same_name() {
+    let config = parties_in("process_std = [0.001, 0.001, 0.001]\nslip_std = 0.2");
+    let (agents, simulator) = both_estimates(&config);
+    let why = simulator
+        .refused
+        .clone()
+        .expect("per-wheel slip is outside the class");
+    assert_eq!(agents.refused.as_deref(), Some(why.as_str()));
+    assert_eq!(agents.outcome(), simulator.outcome());
+    assert!(agents.outcome().is_err());
+}
+
+/// A session pooled without its samples (or with the wrong number) is refused by name.
+#[test]
+fn a_session_kept_without_its_samples_is_refused_naming_it() {
+    let config = parties_in("process_std = [0.001, 0.001, 0.001]");
+    let runs: Vec<RunOutput> = (0..2)
+        .map(|r| simulate(&config, r, false).unwrap())
+        .collect();
+    let mut request = request(&runs);
+    request.sessions[1].1.clear();
+    let refused = estimate_request(&config, &request, 1e-6).refused.unwrap();
+    assert!(
+        refused.contains("session 00000001: the pool kept 0 doublets"),
+        "{refused}"
+    );
+}
+
+/// Eve's camera stated in frames sizes the measured block by what her frames are worth per
+/// instant (8 mm per frame at 30 frames/s: ≈ 3.97 mm), as the configured sizing does: a
+/// sharper view than 8 mm per instant, never the per-instant `eve.camera_std` left beside it.
+#[test]
+fn a_camera_stated_in_frames_sizes_the_measured_block_by_its_worth() {
+    let per_instant = parties_in("process_std = [0.001, 0.001, 0.001]");
+    let mut frames = per_instant.clone();
+    frames.eve.camera_fps = Some(30.0);
+    frames.eve.camera_frame_std = Some([0.008; 3]);
+    let runs: Vec<RunOutput> = (0..8)
+        .map(|r| simulate(&per_instant, r, false).unwrap())
+        .collect();
+    let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+    let (_, instant) = block_separations(&per_instant, &sessions, disclosed(&runs), 1e-6);
+    let (_, framed) = block_separations(&frames, &sessions, disclosed(&runs), 1e-6);
+    assert!(
+        framed.largest > 1.5 * instant.largest,
+        "{} against {}",
+        framed.largest,
+        instant.largest
+    );
+}
