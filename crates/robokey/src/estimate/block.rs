@@ -170,7 +170,8 @@ pub fn world_known(assumption: Assumption) -> Assumption {
             statement: statement.replacen(
                 "motion noise measured by the controller per block",
                 "motion noise and its correlation those of the simulated world, known to the \
-                 parties (--sizing world: a pair configured with the true world)",
+                 parties (--sizing world: a pair configured with the true world, sized and \
+                 charged as measured sizing is, its region the world's values alone)",
                 1,
             ),
             estimation_epsilon,
