@@ -9,9 +9,8 @@ use robokey::model::{Pose, Unicycle, unicycle_step};
 use robokey::private::{BitKind, DoubletBit, PoseObservation};
 use robokey::sim::simulate;
 use robokey_secrecy::calibration::check_calibration;
-use robokey_secrecy::gaussian_llr::{
-    error_rate, gaussian_llr_smooth_min_entropy, information, surprisal,
-};
+use robokey_secrecy::gaussian_llr::{error_rate, information, surprisal};
+use robokey_secrecy::view_profile::gaussian_llr_smooth_min_entropy;
 
 mod private_bits;
 use private_bits::{bits, private};

@@ -5,8 +5,9 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::confirm::TAG_BITS;
-use crate::gaussian_llr::{self, gaussian_llr_smooth_min_entropy};
+use crate::gaussian_llr;
 use crate::min_entropy::{OutputLength, binomial_smooth_min_entropy, output_length};
+use crate::view_profile::gaussian_llr_smooth_min_entropy;
 
 /// An adversary assumption.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -38,7 +38,7 @@
 //! by at most `F = 1 + 2Σ_d r_d²` over independent terms; `F` (at least 1.5, the sensor's
 //! MA(1) term) sizes the Wishart region's effective count and the other tests' variances.
 
-use super::motion_noise::normal_upper_quantile;
+use super::normal_tail::normal_upper_quantile;
 use super::residual::DoubletResidual;
 use nalgebra::Matrix3;
 

@@ -22,8 +22,8 @@
 
 use nalgebra::Matrix3;
 
-use super::motion_noise::{AXES, normal_upper_quantile};
-use super::residual::DoubletResidual;
+use super::normal_tail::normal_upper_quantile;
+use super::residual::{AXES, DoubletResidual};
 
 /// Classes per partition at most.
 pub const SPEED_CLASSES: usize = 4;

@@ -11,6 +11,7 @@ pub mod block;
 pub mod correlation;
 pub mod homogeneity;
 pub mod motion_noise;
+mod normal_tail;
 pub mod residual;
 pub mod worst_case;
 

@@ -33,7 +33,8 @@ use super::correlation::{
     variance_inflation,
 };
 use super::homogeneity::{ClassDeparture, speed_class_departure};
-use super::residual::DoubletResidual;
+use super::normal_tail::normal_upper_quantile;
+use super::residual::{AXES, DoubletResidual};
 
 /// Least residuals of each parity the bounds are computed from.
 pub const MIN_DOUBLETS_PER_PARITY: usize = 100;
@@ -243,9 +244,6 @@ fn format_ratios(ratios: &[f64]) -> String {
     format!("[{}]", parts.join(", "))
 }
 
-/// The robot-frame axes, for people.
-pub(super) const AXES: [&str; 3] = ["along-track", "lateral", "heading"];
-
 /// Mardia's multivariate kurtosis of 3-dimensional Gaussian data, `p(p + 2)` at p = 3.
 const GAUSSIAN_KURTOSIS: f64 = 15.0;
 
@@ -269,12 +267,6 @@ fn mardia_kurtosis(residuals: &[DoubletResidual], second_moment: &Matrix3<f64>) 
 /// `F`), so `z·√(120·max(2, F)/n)` with `z` the normal quantile of ε/2.
 fn kurtosis_tolerance(n: usize, epsilon: f64, inflation: f64) -> f64 {
     normal_upper_quantile(epsilon / 2.0) * (120.0 * inflation.max(2.0) / n.max(1) as f64).sqrt()
-}
-
-/// `z` with `P[N(0,1) > z] ≤ p` (p ≤ ½): from the tail bound `P[N > z] ≤ e^(−z²/2)/2`,
-/// `z = √(2 ln(1/(2p)))` — a little wider than the exact quantile, never narrower.
-pub(super) fn normal_upper_quantile(p: f64) -> f64 {
-    (2.0 * (0.5 / p).ln()).max(0.0).sqrt()
 }
 
 /// The covariance of independent components of standard deviations `std`: a stated

@@ -29,6 +29,9 @@ use crate::model::Pose;
 use crate::private::DoubletInputs;
 use crate::private::likelihood::{DoubletModel, state_jacobian};
 
+/// The robot-frame axes, for people.
+pub(super) const AXES: [&str; 3] = ["along-track", "lateral", "heading"];
+
 /// A doublet's residual and the maps that give its covariance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DoubletResidual {
