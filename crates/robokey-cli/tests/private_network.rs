@@ -578,9 +578,9 @@ const SMALL_BLOCK: [&str; 4] = [
 /// Why a block of ≈ 4,000 bits decides it: her realised H_min is, to first order, the sum of
 /// her per-bit entropies h(q_j) less a smoothing term, so over n amplified bits it varies by
 /// σ_h·√n with σ_h ≈ 0.30 bit (measured on these sessions): ≈ 19 bits at n ≈ 4,000. The
-/// over-claim at 1 mm is ≈ 0.02 bit per bit (docs/world.md), ≈ 80 bits here (measured with
-/// seeds 300–308: 2,144 committed, 2,066 supported), about 4 σ; and in the parties' own world
-/// the key sits ≈ 56 bits inside her bound (1,563 against 1,619), about 3 σ. The seeds are
+/// over-claim at 1 mm is ≈ 0.02 bit per bit (docs/world.md), ≈ 70 bits here (measured with
+/// seeds 300–308: 2,150 committed, 2,078 supported), about 4 σ; and in the parties' own world
+/// the key sits ≈ 46 bits inside her bound (1,569 against 1,615), about 2.5 σ. The seeds are
 /// fixed: clean lockstep sessions are the simulator's runs of those seeds.
 #[test]
 fn a_key_sized_for_a_noisier_world_is_warned_of_naming_the_motion_noise() {
