@@ -137,10 +137,45 @@ pub fn measured_camera_assumption(
     separation: f64,
     estimation_epsilon: f64,
 ) -> Assumption {
+    plant_sized_assumption(
+        config,
+        separation,
+        estimation_epsilon,
+        "motion noise measured by the controller per block",
+    )
+}
+
+/// [`measured_camera_assumption`] for `robokey secrecy --sizing world`: the motion noise and
+/// its correlation are the simulated world's, known to the parties, sized and charged as
+/// the measured sizing is (a lab comparison; no robot knows its world).
+#[must_use]
+pub fn world_camera_assumption(
+    config: &Config,
+    separation: f64,
+    estimation_epsilon: f64,
+) -> Assumption {
+    plant_sized_assumption(
+        config,
+        separation,
+        estimation_epsilon,
+        "motion noise and its correlation those of the simulated world, known to the parties \
+         (--sizing world: a pair configured with the true world, sized and charged as measured \
+         sizing is, its region the world's values alone)",
+    )
+}
+
+/// The statement of [`measured_camera_assumption`] with `motion` saying where the motion
+/// noise comes from.
+fn plant_sized_assumption(
+    config: &Config,
+    separation: f64,
+    estimation_epsilon: f64,
+    motion: &str,
+) -> Assumption {
     Assumption::MeasuredViews {
         separation,
         statement: format!(
-            "Eve's camera noise ≥ {}, motion noise measured by the controller per block \
+            "Eve's camera noise ≥ {}, {motion} \
              (Gaussian, 3×3 in the robot's frame, AR(1)-correlated between steps with ρ ≥ −0.5, \
              the controller sensor's calibration {} stated), exact model, the controller's \
              boundary samples known to her",

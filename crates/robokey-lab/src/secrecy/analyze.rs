@@ -214,14 +214,10 @@ fn analyze_point(
         epsilon: options.epsilon,
         sample_bits: options.sample_bits,
         block_bits: options.block_bits,
-        assumption: if measured {
-            let assumption =
-                robokey::post_settings::measured_camera_assumption(config, 0.0, options.epsilon);
-            if options.sizing == Sizing::World {
-                robokey::estimate::world_known(assumption)
-            } else {
-                assumption
-            }
+        assumption: if measured && options.sizing == Sizing::World {
+            robokey::post_settings::world_camera_assumption(config, 0.0, options.epsilon)
+        } else if measured {
+            robokey::post_settings::measured_camera_assumption(config, 0.0, options.epsilon)
         } else if is_private {
             robokey::post_settings::camera_assumption(config, 0.0)
         } else {

@@ -13,8 +13,8 @@ use std::collections::BTreeMap;
 
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
-    Assumption, EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet,
-    MAX_SEPARATION_STEPS, SEPARATION_QUANTUM,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, MAX_SEPARATION_STEPS,
+    SEPARATION_QUANTUM,
 };
 use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
@@ -153,32 +153,6 @@ pub fn world_block_separations(
         epsilon,
     );
     size_block(config, sessions, disclosed, &truth)
-}
-
-/// The measured sizing's `assumption` restated for `--sizing world`: the motion noise and
-/// correlation are the simulated world's, known, not measured.
-#[must_use]
-pub fn world_known(assumption: Assumption) -> Assumption {
-    match assumption {
-        Assumption::MeasuredViews {
-            separation,
-            statement,
-            estimation_epsilon,
-            estimate_leak,
-        } => Assumption::MeasuredViews {
-            separation,
-            statement: statement.replacen(
-                "motion noise measured by the controller per block",
-                "motion noise and its correlation those of the simulated world, known to the \
-                 parties (--sizing world: a pair configured with the true world, sized and \
-                 charged as measured sizing is, its region the world's values alone)",
-                1,
-            ),
-            estimation_epsilon,
-            estimate_leak,
-        },
-        other => other,
-    }
 }
 
 /// The estimate and Eve's modelled view model the two-step doublet's residual: a block of

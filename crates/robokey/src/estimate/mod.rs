@@ -17,7 +17,6 @@ pub mod worst_case;
 
 pub use block::{
     BlockEstimate, block_separations, estimate_request, kept_doublet, world_block_separations,
-    world_known,
 };
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
