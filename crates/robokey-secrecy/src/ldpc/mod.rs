@@ -27,6 +27,7 @@ mod code;
 mod decoder;
 mod degrees;
 mod reconcile;
+mod rounds;
 mod soft_limit;
 #[cfg(test)]
 mod test_block;
@@ -36,6 +37,7 @@ use thiserror::Error;
 pub use code::ParityCheck;
 pub use decoder::{Decoded, SyndromeDecoder};
 pub use degrees::DegreeProfile;
+pub use rounds::BlockCode;
 pub use reconcile::{LdpcReconciliation, LdpcSettings, MAX_FEEDBACK_ROUNDS, reconcile};
 pub use soft_limit::{bhattacharyya, bit_error_probability, soft_limit_bits, syndrome_length};
 

@@ -17,6 +17,7 @@ fn settings(assumption: Assumption) -> Settings {
         epsilon: 1e-6,
         schedule: CascadeSchedule::BICONF,
         assumption,
+        reconciliation: ReconciliationMethod::Cascade,
     }
 }
 
@@ -85,6 +86,18 @@ impl Pair {
         separations: &[Vec<f64>],
         robot_lacks: &[u32],
     ) -> Self {
+        Self::with_views(settings, pool, separations, robot_lacks, &[])
+    }
+
+    /// [`Self::with_separations`] with each session's controller LLRs (none for a session
+    /// past the list).
+    fn with_views(
+        settings: Settings,
+        pool: &[(u32, BitString, BitString)],
+        separations: &[Vec<f64>],
+        robot_lacks: &[u32],
+        llrs: &[Vec<f64>],
+    ) -> Self {
         let controller = ControllerPost::new(settings.clone(), [1; 32]).unwrap();
         let mut robot = RobotPost::new(settings.clone(), [2; 32]).unwrap();
         // The robot learns of its sessions first, as on the network.
@@ -123,6 +136,7 @@ impl Pair {
                     bits: bits.clone(),
                     separations: separations.get(i).cloned().unwrap_or_default(),
                     samples: SessionSamples::new(),
+                    llrs: llrs.get(i).cloned().unwrap_or_default(),
                 })
                 .unwrap();
             pair.collect();
@@ -851,3 +865,5 @@ fn per_bit_separations_size_both_sides_alike() {
         "{refused:?}"
     );
 }
+
+mod ldpc;
