@@ -725,6 +725,7 @@ impl Config {
         let mut every = Self::default();
         every.postprocess.assumed_eve_error = Some(0.5);
         every.postprocess.sizing = Sizing::Measured;
+        every.postprocess.reconciliation = Reconciliation::Ldpc;
         every.eve.smoother_window = Some(0);
         every.eve.camera_fps = Some(1.0);
         every.eve.camera_frame_std = Some([1.0; 3]);

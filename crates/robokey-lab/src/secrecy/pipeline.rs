@@ -714,6 +714,71 @@ mod tests {
         assert!(!why.contains("pooling more can help"), "{why}");
     }
 
+    /// The lab's `complete` pipeline with LDPC: the controller's LLRs of each session go to
+    /// its endpoint, both sides commit the same key, and the block's leak is the robot's
+    /// syndrome (+ 2 bits for the rounds), far below Cascade's on the same pool.
+    #[test]
+    fn ldpc_in_the_lab_makes_the_same_key_with_less_leak_than_cascade() {
+        use rand::SeedableRng;
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (sessions, length) = (8, 1_500);
+        let mut pool = Pool {
+            sessions,
+            lengths: vec![length; sessions as usize],
+            ..Pool::default()
+        };
+        for _ in 0..sessions {
+            let mut llrs = Vec::new();
+            for _ in 0..length {
+                let bit = u8::from(rng.random::<bool>());
+                // A calibrated LLR erring at 2 %: |L| = ln(0.98/0.02), the sign wrong with
+                // probability 0.02.
+                let wrong = rng.random::<f64>() < 0.02;
+                let magnitude = (0.98_f64 / 0.02).ln();
+                let says_one = (bit == 1) != wrong;
+                llrs.push(if says_one { -magnitude } else { magnitude });
+                pool.robot.push(bit);
+                pool.controller.push(u8::from(says_one));
+                pool.eve.push(bit);
+            }
+            pool.controller_llrs.push(llrs);
+        }
+        let settings = |reconciliation| BlockSettings {
+            pooling: Pooling::Complete,
+            epsilon: 1e-6,
+            sample_bits: 100,
+            block_bits: 10_000,
+            assumption: Assumption::IndependentErrors { error_rate: 0.3 },
+            reconciliation,
+        };
+        let run = |reconciliation| {
+            let blocks = post_process(
+                std::slice::from_ref(&pool),
+                &settings(reconciliation),
+                &mut ChaCha8Rng::seed_from_u64(1),
+            );
+            assert_eq!(blocks.len(), 1);
+            blocks.into_iter().next().unwrap()
+        };
+        let ldpc = run(ReconciliationMethod::Ldpc(
+            robokey_secrecy::ldpc::LdpcSettings::DEFAULT,
+        ));
+        let cascade = run(ReconciliationMethod::Cascade);
+        assert!(ldpc.consistent && ldpc.secret_bits > 0, "{ldpc:?}");
+        let rounds = ldpc.ldpc_rounds.expect("LDPC reports its rounds");
+        assert!((1..=3).contains(&rounds));
+        // m = ⌈1.2 · n · h₂(0.02)⌉ ≈ 0.17 n syndrome bits, at most 20 % more with feedback.
+        let n = ldpc.reconciled_bits as f64;
+        let soft = 1.2 * n * robokey_secrecy::entropy::binary_entropy(0.02);
+        assert!(
+            ldpc.leak_ec as f64 >= soft && (ldpc.leak_ec as f64) <= 1.2 * soft + 3.0,
+            "{} for {soft}",
+            ldpc.leak_ec
+        );
+        assert_eq!(cascade.ldpc_rounds, None);
+        assert!(ldpc.leak_ec < cascade.leak_ec && ldpc.secret_bits > cascade.secret_bits);
+    }
+
     #[test]
     fn a_block_too_short_for_its_key_gets_pooling_advice() {
         // 200 bits with Eve wrong on a fifth of them cannot cover 2·log₂(1/ε) + tags, but
