@@ -80,7 +80,10 @@ enum Attack {
 impl Attack {
     /// Whether the agents run private sensing.
     fn private(self) -> bool {
-        matches!(self, Self::TamperEstimate | Self::Ldpc | Self::TamperSyndrome)
+        matches!(
+            self,
+            Self::TamperEstimate | Self::Ldpc | Self::TamperSyndrome
+        )
     }
 }
 
@@ -445,7 +448,10 @@ fn ldpc_between_the_agents_makes_the_same_key() {
         assert_eq!(r["leak_ec"], c["leak_ec"]);
         assert_eq!(r["length"], c["length"]);
     }
-    assert!(!listed(&dir, &pairing, "controller").is_empty(), "{controller}");
+    assert!(
+        !listed(&dir, &pairing, "controller").is_empty(),
+        "{controller}"
+    );
     assert_settled_alike(&dir, &pairing);
 }
 

@@ -37,8 +37,8 @@ use thiserror::Error;
 pub use code::ParityCheck;
 pub use decoder::{Decoded, SyndromeDecoder};
 pub use degrees::DegreeProfile;
-pub use rounds::BlockCode;
 pub use reconcile::{LdpcReconciliation, LdpcSettings, MAX_FEEDBACK_ROUNDS, reconcile};
+pub use rounds::BlockCode;
 pub use soft_limit::{bhattacharyya, bit_error_probability, soft_limit_bits, syndrome_length};
 
 /// Largest block one LDPC code may cover (bits): 2²².

@@ -292,11 +292,7 @@ impl ControllerPost {
                 .iter()
                 .map(|(&id, s)| (id, s.clone()))
                 .collect(),
-            llrs: self
-                .llrs
-                .iter()
-                .map(|(&id, l)| (id, l.clone()))
-                .collect(),
+            llrs: self.llrs.iter().map(|(&id, l)| (id, l.clone())).collect(),
             spent: self.ledger.spent.iter().copied().collect(),
             in_flight: self.in_flight.clone(),
             committed: self.ledger.committed.iter().copied().collect(),

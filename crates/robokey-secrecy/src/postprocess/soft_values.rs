@@ -33,7 +33,17 @@ mod tests {
 
     #[test]
     fn stored_llrs_are_never_more_confident_and_keep_their_sign() {
-        for llr in [0.0, 1e-4, 0.003, 0.5, 1.0 / 3.0, 7.9, 127.0, 1e6, f64::INFINITY] {
+        for llr in [
+            0.0,
+            1e-4,
+            0.003,
+            0.5,
+            1.0 / 3.0,
+            7.9,
+            127.0,
+            1e6,
+            f64::INFINITY,
+        ] {
             for l in [llr, -llr] {
                 let back = dequantise_llr(quantise_llr(l));
                 assert!(back.abs() <= l.abs(), "{l} → {back}");

@@ -233,10 +233,13 @@ impl<E: PostEndpoint> PostLink<E> {
         }
         let bools: zeroize::Zeroizing<Vec<bool>> =
             zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());
-        match self
-            .endpoint
-            .pool(id, BitString::from_bools(&bools), separations, samples, llrs)
-        {
+        match self.endpoint.pool(
+            id,
+            BitString::from_bools(&bools),
+            separations,
+            samples,
+            llrs,
+        ) {
             Ok(()) => PostOutput::Pooled {
                 session: id,
                 bits: bits.len(),

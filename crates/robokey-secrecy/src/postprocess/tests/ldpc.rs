@@ -21,7 +21,11 @@ fn soft_sessions(
                 // Box–Muller.
                 let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
                 let noise = sigma * (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
-                let sent = if robot.get(i) == Some(true) { -1.0 } else { 1.0 };
+                let sent = if robot.get(i) == Some(true) {
+                    -1.0
+                } else {
+                    1.0
+                };
                 2.0 * (sent + noise) / (sigma * sigma)
             })
             .collect();
@@ -75,7 +79,10 @@ fn ldpc_makes_the_same_keys_and_both_sides_charge_every_syndrome_bit() {
             assert_eq!(robot.ldpc_rounds, report.ldpc_rounds);
         }
     }
-    assert!(blocks >= 4 && committed == blocks, "{committed} keys of {blocks} blocks");
+    assert!(
+        blocks >= 4 && committed == blocks,
+        "{committed} keys of {blocks} blocks"
+    );
 }
 
 #[test]
@@ -87,7 +94,12 @@ fn ldpc_leaks_less_than_cascade_on_the_same_sessions() {
     assert!(cascade.settle(100_000, None) && soft.settle(100_000, None));
     let leak = |pair: &Pair| pair.reports.iter().map(|r| r.leak_ec).sum::<u64>();
     let length = |pair: &Pair| pair.reports.iter().map(|r| r.length).sum::<u64>();
-    assert!(leak(&soft) < leak(&cascade), "{} ≥ {}", leak(&soft), leak(&cascade));
+    assert!(
+        leak(&soft) < leak(&cascade),
+        "{} ≥ {}",
+        leak(&soft),
+        leak(&cascade)
+    );
     assert!(length(&soft) > length(&cascade));
 }
 
@@ -219,7 +231,10 @@ fn the_robot_refuses_syndrome_requests_an_honest_controller_never_sends() {
         pair.to_controller.pop_back(),
         Some(Message::Syndrome { round: 1, .. })
     ));
-    for bad in [ask(2, syndrome_bits + 1, bhattacharyya), ask(4, syndrome_bits, bhattacharyya)] {
+    for bad in [
+        ask(2, syndrome_bits + 1, bhattacharyya),
+        ask(4, syndrome_bits, bhattacharyya),
+    ] {
         pair.robot.handle_input(RobotInput::Frame(bad)).unwrap();
         pair.collect();
         assert!(matches!(
