@@ -64,7 +64,7 @@ enum Answering {
     /// Cascade: it answers parities.
     Cascade(Box<CascadeAlice<ChaCha20Rng>>),
     /// LDPC: it sends syndromes.
-    Ldpc(crate::ldpc::LdpcSettings, SyndromeEncoding),
+    Ldpc(crate::ldpc::LdpcSettings, Box<SyndromeEncoding>),
 }
 
 impl Answering {
@@ -305,7 +305,7 @@ impl RobotPost {
                 public.cascade(),
             ))),
             ReconciliationMethod::Ldpc(settings) => {
-                Answering::Ldpc(settings, SyndromeEncoding::new())
+                Answering::Ldpc(settings, Box::new(SyndromeEncoding::new()))
             }
         };
         self.reconciling = Some(Box::new(Reconciling {
@@ -330,10 +330,7 @@ impl RobotPost {
             return self.unknown(block);
         };
         if round == r.round {
-            return match r.last_answer.clone() {
-                Some(answer) => self.send(answer),
-                None => self.ignore("a repeated question round"),
-            };
+            return self.repeat_answer(block, "a repeated question round");
         }
         if round != r.round + 1 {
             return self.ignore("a question round out of order");
@@ -353,14 +350,14 @@ impl RobotPost {
         }
         match alice.answer(queries) {
             Ok(parities) => {
-                let answer = Message::Answer {
-                    block,
+                self.record_answer(
                     round,
-                    parities,
-                };
-                r.round = round;
-                r.last_answer = Some(answer.clone());
-                self.send(answer);
+                    Message::Answer {
+                        block,
+                        round,
+                        parities,
+                    },
+                );
             }
             Err(_) => self.reject(block, RejectReason::BadQuestions),
         }
@@ -373,10 +370,7 @@ impl RobotPost {
             return self.unknown(block);
         };
         if round == r.round && round > 0 {
-            return match r.last_answer.clone() {
-                Some(answer) => self.send(answer),
-                None => self.ignore("a repeated syndrome round"),
-            };
+            return self.repeat_answer(block, "a repeated syndrome round");
         }
         let seed = r.public.ldpc();
         let Answering::Ldpc(settings, encoding) = &mut r.answering else {
@@ -391,16 +385,35 @@ impl RobotPost {
             settings,
         ) {
             Ok(syndrome) => {
-                let answer = Message::Syndrome {
-                    block,
+                self.record_answer(
                     round,
-                    syndrome,
-                };
-                r.round = round;
-                r.last_answer = Some(answer.clone());
-                self.send(answer);
+                    Message::Syndrome {
+                        block,
+                        round,
+                        syndrome,
+                    },
+                );
             }
             Err(reason) => self.reject(block, reason),
+        }
+    }
+
+    /// Sends the answer to round `round` of the block being reconciled and keeps it for a
+    /// repeated request.
+    fn record_answer(&mut self, round: u32, answer: Message) {
+        if let Some(r) = self.reconciling(answer.block()) {
+            r.round = round;
+            r.last_answer = Some(answer.clone());
+        }
+        self.send(answer);
+    }
+
+    /// Sends again the last answer of the block being reconciled (`what`: a request that has
+    /// none).
+    fn repeat_answer(&mut self, block: u64, what: &'static str) {
+        match self.reconciling(block).and_then(|r| r.last_answer.clone()) {
+            Some(answer) => self.send(answer),
+            None => self.ignore(what),
         }
     }
 

@@ -4,13 +4,13 @@
 use super::*;
 use crate::ldpc::LdpcSettings;
 
+/// Sessions (ID, the robot's bits, the controller's decisions) and the controller's LLRs of
+/// each session's bits.
+type SoftSessions = (Vec<(u32, BitString, BitString)>, Vec<Vec<f64>>);
+
 /// Sessions of 300–700 bits seen by the controller through a binary-input Gaussian channel
 /// of noise σ: y = ±1 + N(0, σ²), its LLR 2y/σ² (calibrated) and its decision the LLR's sign.
-fn soft_sessions(
-    count: u32,
-    sigma: f64,
-    rng: &mut ChaCha8Rng,
-) -> (Vec<(u32, BitString, BitString)>, Vec<Vec<f64>>) {
+fn soft_sessions(count: u32, sigma: f64, rng: &mut ChaCha8Rng) -> SoftSessions {
     let mut pool = Vec::new();
     let mut llrs = Vec::new();
     for id in 0..count {
