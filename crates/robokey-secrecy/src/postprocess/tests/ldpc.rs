@@ -247,3 +247,65 @@ fn the_robot_refuses_syndrome_requests_an_honest_controller_never_sends() {
     }
     assert!(pair.robot_keys.is_empty());
 }
+
+/// LDPC over a lossy, duplicating, reordering channel: repeated `SyndromeAsk`s get the same
+/// syndrome, stale ones are ignored, and both sides end with the same keys.
+#[test]
+fn ldpc_over_a_faulty_channel_never_splits_the_keys() {
+    let mut rng = ChaCha8Rng::seed_from_u64(10);
+    let mut committed = 0;
+    for trial in 0..12 {
+        let (pool, llrs) = soft_sessions(rng.random_range(8..14), 0.5, &mut rng);
+        let faults = Faults {
+            drop: rng.random_range(0.1..0.3),
+            duplicate: 0.1,
+            reorder: 0.1,
+        };
+        let mut pair = Pair::with_views(ldpc(weak_eve()), &pool, &[], &[], &llrs);
+        let mut channel = ChaCha8Rng::seed_from_u64(2000 + trial);
+        assert!(
+            pair.settle(200_000, Some((faults, &mut channel))),
+            "trial {trial} did not settle"
+        );
+        pair.assert_same_keys(&format!("trial {trial}"));
+        committed += pair.controller_keys.len();
+    }
+    assert!(committed >= 6, "only {committed} keys over 12 trials");
+}
+
+/// A crash of either side at every message boundary of LDPC blocks, restarting from the last
+/// stored snapshot (the controller's LLRs restored from it), never leaves one side with a key
+/// the other lacks.
+#[test]
+fn ldpc_with_a_crash_at_any_message_boundary_never_splits_the_keys() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let (pool, llrs) = soft_sessions(14, 0.5, &mut rng);
+    let new = || Pair::with_views(ldpc(weak_eve()), &pool, &[], &[], &llrs);
+    let mut reference = new();
+    assert!(reference.settle(100_000, None));
+    let boundaries = reference.delivered;
+    assert!(
+        reference.controller_keys.len() >= 2,
+        "{:?}",
+        reference.reports
+    );
+    for crash_at in 0..=boundaries {
+        for side in ["controller", "robot", "both"] {
+            let mut pair = new();
+            while pair.delivered < crash_at && pair.deliver(None) {}
+            match side {
+                "controller" => pair.crash_controller(),
+                "robot" => pair.crash_robot(),
+                _ => {
+                    pair.crash_robot();
+                    pair.crash_controller();
+                }
+            }
+            assert!(
+                pair.settle(100_000, None),
+                "{side} crash at {crash_at} did not settle"
+            );
+            pair.assert_same_keys(&format!("{side} crash at boundary {crash_at}"));
+        }
+    }
+}
