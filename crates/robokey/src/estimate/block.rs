@@ -20,7 +20,7 @@ use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 
 use super::{
-    DoubletResidual, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
+    DoubletResidual, MotionNoiseEstimate, diagonal_covariance, estimate_lag, estimate_motion_noise,
     published_separation, worst_case_separations,
 };
 use crate::Config;
@@ -116,7 +116,7 @@ pub fn block_separations(
             )
         })
         .collect();
-    if let Err(why) = two_step_doublets(config) {
+    if let Err(why) = two_step_doublets(config, sessions, epsilon) {
         return refused(sessions.len(), why, residuals.len(), epsilon);
     }
     let sensor = diagonal_covariance(config.sensing.controller_std);
@@ -142,7 +142,7 @@ pub fn world_block_separations(
     disclosed: u64,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    if let Err(why) = two_step_doublets(config) {
+    if let Err(why) = two_step_doublets(config, sessions, epsilon) {
         let doublets = sessions.iter().map(|session| session.len()).sum();
         return refused(sessions.len(), why, doublets, epsilon);
     }
@@ -156,17 +156,34 @@ pub fn world_block_separations(
 }
 
 /// The estimate and Eve's modelled view model the two-step doublet's residual: a block of
-/// three-step doublets (`private.prior_lag` > 0) is refused, naming the setting.
-fn two_step_doublets(config: &Config) -> Result<(), String> {
-    match config.doublet_settle() {
-        None => Ok(()),
-        Some(a) => Err(format!(
-            "motion-noise estimate: it models the two-step doublet's residual, the block's \
-             doublets have three steps (private.prior_lag = {} s, a = {a:.4}; allowed: \
-             private.prior_lag = 0 with measured sizing, or --sizing world)",
-            config.private.prior_lag
-        )),
-    }
+/// three-step doublets (`private.prior_lag` > 0) is refused, naming the setting and the lag
+/// measured from the block's `sessions` at ε_est = `epsilon` ([`estimate_lag`]).
+fn two_step_doublets(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    epsilon: f64,
+) -> Result<(), String> {
+    let Some(a) = config.doublet_settle() else {
+        return Ok(());
+    };
+    let measured = match estimate_lag(
+        sessions.iter().flat_map(|session| session.iter()),
+        config.protocol.delta_v,
+        config.robot.sample_time,
+        epsilon,
+    ) {
+        Ok(lag) => format!(
+            "the lag measured {:.4} s [{:.4}, {:.4}] from {} doublets",
+            lag.point, lag.interval[0], lag.interval[1], lag.doublets
+        ),
+        Err(why) => why,
+    };
+    Err(format!(
+        "motion-noise estimate: it models the two-step doublet's residual, the block's \
+         doublets have three steps (private.prior_lag = {} s, a = {a:.4}; {measured}; \
+         allowed: private.prior_lag = 0 with measured sizing, or --sizing world)",
+        config.private.prior_lag
+    ))
 }
 
 /// The separations and report of a refused block of `sessions` sessions.
