@@ -38,8 +38,10 @@ pub struct LagEstimate {
     pub point: f64,
     /// Its (1 − ε_est) interval `[τ_lo, τ_hi]` (s).
     pub interval: [f64; 2],
-    /// The amplitude's point estimate `ĝ` (1 without lag).
-    pub amplitude: f64,
+    /// The first step's share of the v-bit's travel, `ĝ` (1 without lag).
+    pub share: f64,
+    /// Its (1 − ε_est) interval.
+    pub share_interval: [f64; 2],
     /// Doublets it was measured from.
     pub doublets: usize,
 }
@@ -110,35 +112,32 @@ pub fn estimate_lag<'a>(
         ));
     }
     let count = n as f64;
-    let amplitude = products.iter().sum::<f64>() / count;
-    let variance = products
-        .iter()
-        .map(|p| (p - amplitude).powi(2))
-        .sum::<f64>()
-        / (count - 1.0);
+    let share = products.iter().sum::<f64>() / count;
+    let variance = products.iter().map(|p| (p - share).powi(2)).sum::<f64>() / (count - 1.0);
     let half_width = normal_upper_quantile(epsilon / 2.0) * (variance / count).sqrt();
-    let [low, high] = [amplitude - half_width, amplitude + half_width];
+    let [low, high] = [share - half_width, share + half_width];
     let floor = first_step_share(MAX_LAG, sample_time);
     if low <= floor {
         return Err(format!(
-            "lag estimate: the first step's share of the bit's travel is {amplitude:.4} \
+            "lag estimate: the first step's share of the bit's travel is {share:.4} \
              [{low:.4}, {high:.4}] over {n} doublets, which allows a lag beyond the class \
              (allowed: the interval's lower end above {floor:.4}, the share at τ = {MAX_LAG} s)"
         ));
     }
     Ok(LagEstimate {
-        point: lag_of_share(amplitude, sample_time),
+        point: lag_of_share(share, sample_time),
         interval: [
             lag_of_share(high, sample_time),
             lag_of_share(low, sample_time),
         ],
-        amplitude,
+        share,
+        share_interval: [low, high],
         doublets: n,
     })
 }
 
 #[cfg(test)]
-mod tests {
+pub(in crate::estimate) mod tests {
     use super::*;
     use crate::model::{Pose, Unicycle};
     use crate::private::DoubletInputs;
@@ -162,7 +161,7 @@ mod tests {
     /// `n` doublets of a world with lag `tau`: the mid sample carries the v-bit's lagged
     /// travel, 1 mm of motion noise and 0.5 mm of sensor noise per sample, a bit-free
     /// nominal transient of up to 3 mm and the ω-bit's heading (two bits per doublet).
-    fn doublets(n: u32, tau: f64, seed: u64) -> Vec<DoubletSamples> {
+    pub(in crate::estimate) fn doublets(n: u32, tau: f64, seed: u64) -> Vec<DoubletSamples> {
         let mut rng = stream(seed, Purpose::Process, 0);
         let mut normal =
             || <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
@@ -215,7 +214,7 @@ mod tests {
                 if tau < low || tau > high {
                     misses += 1;
                 }
-                shares.push(estimate.amplitude);
+                shares.push(estimate.share);
             }
             assert!(misses <= 19, "τ = {tau}: {misses} of 200 missed");
             let mean = shares.iter().sum::<f64>() / 200.0;
