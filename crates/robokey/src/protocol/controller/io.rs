@@ -54,10 +54,8 @@ pub enum ControllerEvent {
         /// Whether it carries bits.
         carries: bool,
     },
-    /// Private sensing: a carrying doublet was decided and is kept. Boxed: the largest event
-    /// by far and one per doublet, it would otherwise make every output as large (each
-    /// output is moved through the endpoint's queue).
-    DoubletDecided(Box<DoubletDecision>),
+    /// Private sensing: a carrying doublet was decided and is kept.
+    DoubletDecided(DoubletDecision),
     /// Private sensing: a carrying doublet could not be decided (a sample or a measurement
     /// is missing, or the robot did not apply it): it is dropped on both sides.
     DoubletErased {
