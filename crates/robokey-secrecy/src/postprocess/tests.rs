@@ -453,10 +453,18 @@ fn a_crash_at_any_message_boundary_never_splits_the_keys() {
     let boundaries = reference.delivered;
     assert!(boundaries > 30, "{boundaries}");
     assert!(reference.controller_keys.len() >= 2);
+    let trials = crash_at_every_boundary(boundaries, || Pair::new(settings(weak_eve()), &pool));
+    println!("{trials} crash trials over {} boundaries", boundaries + 1);
+}
+
+/// Crashes the controller, the robot or both at each of the first `boundaries` + 1 message
+/// boundaries of the exchange `new` starts, restarting from the last stored snapshots; every
+/// run must settle with the same keys on both sides. Returns the trials.
+fn crash_at_every_boundary(boundaries: usize, new: impl Fn() -> Pair) -> usize {
     let mut trials = 0;
     for crash_at in 0..=boundaries {
         for side in ["controller", "robot", "both"] {
-            let mut pair = Pair::new(settings(weak_eve()), &pool);
+            let mut pair = new();
             while pair.delivered < crash_at && pair.deliver(None) {}
             match side {
                 "controller" => pair.crash_controller(),
@@ -474,7 +482,7 @@ fn a_crash_at_any_message_boundary_never_splits_the_keys() {
             trials += 1;
         }
     }
-    println!("{trials} crash trials over {} boundaries", boundaries + 1);
+    trials
 }
 
 #[test]

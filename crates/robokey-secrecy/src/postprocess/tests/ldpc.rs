@@ -289,23 +289,5 @@ fn ldpc_with_a_crash_at_any_message_boundary_never_splits_the_keys() {
         "{:?}",
         reference.reports
     );
-    for crash_at in 0..=boundaries {
-        for side in ["controller", "robot", "both"] {
-            let mut pair = new();
-            while pair.delivered < crash_at && pair.deliver(None) {}
-            match side {
-                "controller" => pair.crash_controller(),
-                "robot" => pair.crash_robot(),
-                _ => {
-                    pair.crash_robot();
-                    pair.crash_controller();
-                }
-            }
-            assert!(
-                pair.settle(100_000, None),
-                "{side} crash at {crash_at} did not settle"
-            );
-            pair.assert_same_keys(&format!("{side} crash at boundary {crash_at}"));
-        }
-    }
+    crash_at_every_boundary(boundaries, new);
 }
