@@ -1,15 +1,17 @@
 //! Arbitrary post-processing messages fed to both endpoints (a robot with pooled sessions,
-//! a controller that has proposed a block): nothing may panic, and no key may be committed —
-//! committing needs a tag over the reconciled key, which arbitrary bytes do not forge.
+//! a controller that has proposed a block), reconciling by Cascade or by LDPC as the first
+//! byte says: nothing may panic, and no key may be committed — committing needs a tag over
+//! the reconciled key, which arbitrary bytes do not forge.
 #![no_main]
 
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 use robokey_secrecy::BitString;
 use robokey_secrecy::cascade::{BlockQuery, CascadeSchedule};
+use robokey_secrecy::ldpc::LdpcSettings;
 use robokey_secrecy::postprocess::{
-    AbortReason, Assumption, ControllerInput, ControllerPost, Message, Output, RejectReason,
-    RobotInput, RobotPost, Settings,
+    AbortReason, Assumption, ControllerInput, ControllerPost, Message, Output,
+    ReconciliationMethod, RejectReason, RobotInput, RobotPost, Settings,
 };
 
 fn list<T>(
@@ -22,7 +24,7 @@ fn list<T>(
 
 fn message(u: &mut Unstructured<'_>) -> Result<Message> {
     let block = u.int_in_range(0..=3)?;
-    Ok(match u.int_in_range(0..=10)? {
+    Ok(match u.int_in_range(0..=12)? {
         0 => Message::Propose {
             block,
             sessions: list(u, |u| u.int_in_range(0..=12))?,
@@ -75,6 +77,21 @@ fn message(u: &mut Unstructured<'_>) -> Result<Message> {
             ])?,
         },
         9 => Message::AbortAck { block },
+        11 => Message::SyndromeAsk {
+            block,
+            round: u.int_in_range(0..=4)?,
+            syndrome_bits: if u.arbitrary()? {
+                u.int_in_range(0..=600)?
+            } else {
+                u.arbitrary()?
+            },
+            bhattacharyya: u.arbitrary()?,
+        },
+        12 => Message::Syndrome {
+            block,
+            round: u.int_in_range(0..=4)?,
+            syndrome: list(u, |u| u.arbitrary())?,
+        },
         _ => Message::Reject {
             block,
             reason: *u.choose(&[
@@ -89,12 +106,18 @@ fn message(u: &mut Unstructured<'_>) -> Result<Message> {
 }
 
 fuzz_target!(|data: &[u8]| {
+    let ldpc = data.first().is_some_and(|b| b & 1 == 1);
     let settings = Settings {
         block_bits: 256,
         sample_bits: 20,
         epsilon: 1e-3,
         schedule: CascadeSchedule::BICONF,
         assumption: Assumption::IndependentErrors { error_rate: 0.5 },
+        reconciliation: if ldpc {
+            ReconciliationMethod::Ldpc(LdpcSettings::DEFAULT)
+        } else {
+            ReconciliationMethod::Cascade
+        },
     };
     let mut robot = RobotPost::new(settings.clone(), [1; 32]).unwrap();
     let mut controller = ControllerPost::new(settings, [2; 32]).unwrap();
@@ -112,10 +135,11 @@ fuzz_target!(|data: &[u8]| {
                 bits,
                 separations: Vec::new(),
                 samples: Vec::new(),
+                llrs: vec![if id % 2 == 0 { -3.0 } else { 3.0 }; 100],
             })
             .unwrap();
     }
-    let mut u = Unstructured::new(data);
+    let mut u = Unstructured::new(data.get(1..).unwrap_or_default());
     while !u.is_empty() {
         let Ok(m) = message(&mut u) else { break };
         let to_robot = u.arbitrary::<bool>().unwrap_or(true);

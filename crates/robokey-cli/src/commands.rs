@@ -437,6 +437,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         let mode = experiment.points[0].config.sensing.mode;
         let options = robokey_lab::secrecy::SecrecyOptions {
             sizing: args.sizing.into(),
+            reconciliation: args.reconciliation.into(),
             ..request.options(&experiment)
         };
         let secrecy = with_jobs(args.jobs, || {

@@ -309,6 +309,14 @@ struct SecrecyArgs {
     /// true world, the comparison for `measured`.
     #[arg(long, value_enum, default_value_t = SizingArg::Configured)]
     sizing: SizingArg,
+    /// How `complete` pooling reconciles (docs/postprocessing.md). `cascade`: interactive
+    /// Cascade with BICONF on the controller's decisions, both sides' parities charged
+    /// (reproduce uses it). `ldpc`: the robot's one-way LDPC syndrome decoded by belief
+    /// propagation on the controller's calibrated LLRs (f = 1.2, ≤ 2 feedback rounds), every
+    /// syndrome bit and 2 bits for the rounds charged; private sensing only. The agents'
+    /// `postprocess.reconciliation`.
+    #[arg(long, value_enum, default_value_t = ReconciliationArg::Cascade)]
+    reconciliation: ReconciliationArg,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
@@ -332,6 +340,24 @@ impl From<FormatArg> for robokey_lab::parquet_table::TableFormat {
         match format {
             FormatArg::Csv => Self::Csv,
             FormatArg::Parquet => Self::Parquet,
+        }
+    }
+}
+
+/// How `robokey secrecy` reconciles (docs/postprocessing.md).
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum ReconciliationArg {
+    /// Interactive Cascade on the controller's decisions.
+    Cascade,
+    /// One-way LDPC syndromes decoded on the controller's LLRs (private sensing).
+    Ldpc,
+}
+
+impl From<ReconciliationArg> for robokey_lab::secrecy::Reconciliation {
+    fn from(r: ReconciliationArg) -> Self {
+        match r {
+            ReconciliationArg::Cascade => Self::Cascade,
+            ReconciliationArg::Ldpc => Self::Ldpc,
         }
     }
 }

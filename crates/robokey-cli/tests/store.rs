@@ -42,6 +42,19 @@ const MEASURED: [&str; 8] = [
     "eve.camera_std=[0.05, 0.05, 0.05]",
 ];
 
+/// The agents' settings with LDPC reconciliation: private sensing, blocks of 300 raw bits,
+/// Eve's camera at 50 mm (as [`MEASURED`]).
+const LDPC: [&str; 8] = [
+    "--set",
+    "sensing.mode=private",
+    "--set",
+    "postprocess.block_bits=300",
+    "--set",
+    "postprocess.reconciliation=ldpc",
+    "--set",
+    "eve.camera_std=[0.05, 0.05, 0.05]",
+];
+
 /// What the man in the middle does to post-processing.
 #[derive(Clone, Copy, PartialEq)]
 enum Attack {
@@ -57,6 +70,21 @@ enum Attack {
     /// The plant measured ([`MEASURED`]): changes the estimate a `Confirm` carries in flight
     /// (its last byte before the frame's MAC), keeping the MAC.
     TamperEstimate,
+    /// LDPC reconciliation ([`LDPC`]): forwards everything.
+    Ldpc,
+    /// LDPC reconciliation: changes a syndrome bit of every `Syndrome` in flight (the last
+    /// byte before the frame's MAC), keeping the MAC.
+    TamperSyndrome,
+}
+
+impl Attack {
+    /// Whether the agents run private sensing.
+    fn private(self) -> bool {
+        matches!(
+            self,
+            Self::TamperEstimate | Self::Ldpc | Self::TamperSyndrome
+        )
+    }
 }
 
 /// A UDP relay on loopback between the controller and the robot at `robot`, doing `attack`
@@ -94,11 +122,14 @@ impl Relay {
                     if to_robot {
                         controller = Some(from);
                     }
-                    if let Some(Post::Confirm {
-                        estimate: Some(_), ..
-                    }) = post_message(&buffer[..n])
-                        && attack == Attack::TamperEstimate
-                    {
+                    let tampered = match post_message(&buffer[..n]) {
+                        Some(Post::Confirm {
+                            estimate: Some(_), ..
+                        }) => attack == Attack::TamperEstimate,
+                        Some(Post::Syndrome { .. }) => attack == Attack::TamperSyndrome,
+                        _ => false,
+                    };
+                    if tampered {
                         buffer[n - robokey::protocol::wire::MAC_BYTES - 1] ^= 0x80;
                         dropped += 1;
                     }
@@ -239,17 +270,17 @@ fn session(
         ]
         .map(str::to_owned)
         .to_vec();
-        if attack == Attack::TamperEstimate {
-            args.extend(MEASURED.map(str::to_owned));
-        } else {
-            args.extend(SETTINGS.map(str::to_owned));
+        match attack {
+            Attack::TamperEstimate => args.extend(MEASURED.map(str::to_owned)),
+            Attack::Ldpc | Attack::TamperSyndrome => args.extend(LDPC.map(str::to_owned)),
+            _ => args.extend(SETTINGS.map(str::to_owned)),
         }
         args
     };
     let mut robot_args = vec!["robot".to_owned(), "--listen".into(), "127.0.0.1:0".into()];
     robot_args.extend(["--seed".to_owned(), seed.to_string()]);
     robot_args.extend(common("robot"));
-    let private = attack == Attack::TamperEstimate;
+    let private = attack.private();
     if private {
         robot_args.extend(["--mocap".to_owned(), "127.0.0.1:0".to_owned()]);
     }
@@ -272,7 +303,10 @@ fn session(
     let dropped = relay.finish();
     if matches!(
         attack,
-        Attack::DropCommit | Attack::DropCommitAck | Attack::TamperEstimate
+        Attack::DropCommit
+            | Attack::DropCommitAck
+            | Attack::TamperEstimate
+            | Attack::TamperSyndrome
     ) {
         assert!(dropped > 0, "nothing dropped: {text}\n{robot_text}");
     }
@@ -388,6 +422,49 @@ fn an_estimate_changed_in_flight_is_refused_by_the_channel_and_commits_nothing()
     assert!(
         robot["frames_rejected"]["bad_mac"].as_u64().unwrap() > 0,
         "{robot}"
+    );
+    for r in [&robot, &controller] {
+        assert!(r["post"]["keys"].as_array().unwrap().is_empty(), "{r}");
+    }
+    for role in ["robot", "controller"] {
+        assert!(listed(&dir, &pairing, role).is_empty(), "{role}");
+    }
+}
+
+/// LDPC reconciliation between the agents: the robot's syndrome decoded on the controller's
+/// LLRs; both stores hold the same settled key, and both reports name the reconciliation's
+/// rounds and charge the same leak.
+#[test]
+fn ldpc_between_the_agents_makes_the_same_key() {
+    let dir = scratch("store-ldpc");
+    let pairing = pairing(&dir);
+    let (codes, [robot, controller]) = session(&dir, &pairing, 74, Attack::Ldpc);
+    assert_eq!(codes, [0, 0], "{robot}\n{controller}");
+    let blocks = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().clone();
+    let (robot_blocks, controller_blocks) = (blocks(&robot), blocks(&controller));
+    assert!(!controller_blocks.is_empty(), "{controller}");
+    for (r, c) in robot_blocks.iter().zip(&controller_blocks) {
+        assert!(c["ldpc_rounds"].as_u64().is_some(), "{c}");
+        assert_eq!(r["leak_ec"], c["leak_ec"]);
+        assert_eq!(r["length"], c["length"]);
+    }
+    assert!(
+        !listed(&dir, &pairing, "controller").is_empty(),
+        "{controller}"
+    );
+    assert_settled_alike(&dir, &pairing);
+}
+
+/// A `Syndrome` changed in flight fails the frame's MAC and is dropped by the controller,
+/// every retransmission alike; neither store commits a key.
+#[test]
+fn a_syndrome_changed_in_flight_is_refused_by_the_channel_and_commits_nothing() {
+    let dir = scratch("store-tamper-syndrome");
+    let pairing = pairing(&dir);
+    let (_, [robot, controller]) = session(&dir, &pairing, 75, Attack::TamperSyndrome);
+    assert!(
+        controller["frames_rejected"]["bad_mac"].as_u64().unwrap() > 0,
+        "{controller}"
     );
     for r in [&robot, &controller] {
         assert!(r["post"]["keys"].as_array().unwrap().is_empty(), "{r}");

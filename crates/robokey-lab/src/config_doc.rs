@@ -139,6 +139,10 @@ const FIELDS: &[(&str, &str)] = &[
         "private sensing: \"configured\" (default) or \"measured\" — what sizes the keys (docs/estimation.md)",
     ),
     (
+        "postprocess.reconciliation",
+        "\"cascade\" (default) or \"ldpc\" (private sensing: one-way syndromes decoded on the controller's LLRs; docs/postprocessing.md)",
+    ),
+    (
         "world.preset",
         "the named world whose values fill the fields left out (docs/world.md)",
     ),
@@ -225,6 +229,7 @@ mod tests {
         // Printed only when set.
         config.postprocess.assumed_eve_error = Some(0.2);
         config.postprocess.sizing = robokey::config::Sizing::Measured;
+        config.postprocess.reconciliation = robokey::config::Reconciliation::Ldpc;
         config.eve.smoother_window = Some(2);
         config.eve.camera_fps = Some(30.0);
         config.eve.camera_frame_std = Some([0.016; 3]);

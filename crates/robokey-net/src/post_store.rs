@@ -6,9 +6,9 @@
 //! or report something it did not write.
 //!
 //! Records: a header (role, pairing fingerprint), one `session` record per pooled session
-//! (its raw bits and, on a controller measuring the plant, the samples it keeps of the
-//! session for the block's estimate — written once; the field is absent otherwise, so older
-//! journals read unchanged), and `state` records (the endpoint's snapshot without the
+//! (its raw bits and, on a controller, what it keeps of the session beside them: the samples
+//! for the block's estimate when it measures the plant, its quantised LLRs when it reconciles
+//! by LDPC — written once; the fields are absent otherwise, so older journals read unchanged), and `state` records (the endpoint's snapshot without the
 //! pool's bits, the IDs pooled, and the keys committed in the same batch). The last intact
 //! `state` record is the durable state; a session not named by it was never pooled. A key is
 //! committed by the `state` record that carries it and then written to `keys/`; recovery
@@ -84,18 +84,27 @@ pub trait Snapshot: Serialize + DeserializeOwned {
     fn set_pool(&mut self, pool: Vec<(u32, BitString)>) {
         *self.ledger_mut().0 = pool;
     }
-    /// Takes out what the pool keeps of its sessions for the block's estimate (a
-    /// controller measuring the plant; nothing otherwise).
-    fn take_samples(&mut self) -> BTreeMap<u32, SessionSamples> {
+    /// Takes out what the pool keeps of its sessions beside their bits (a controller's
+    /// samples and LLRs; nothing otherwise).
+    fn take_extras(&mut self) -> BTreeMap<u32, SessionExtras> {
         BTreeMap::new()
     }
     /// Puts them back.
-    fn set_samples(&mut self, _samples: BTreeMap<u32, SessionSamples>) {}
+    fn set_extras(&mut self, _extras: BTreeMap<u32, SessionExtras>) {}
     /// Marks `sessions` spent, dropping those pooled; returns how many were.
     fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
         let (pool, spent) = self.ledger_mut();
         spend_in(pool, spent, sessions)
     }
+}
+
+/// What a controller's pool keeps of a session beside its bits, journaled once with them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SessionExtras {
+    /// The samples for the block's estimate (measured sizing).
+    pub samples: Option<SessionSamples>,
+    /// The quantised LLR of each bit (LDPC reconciliation).
+    pub llrs: Option<Vec<i16>>,
 }
 
 /// Drops `sessions` from `pool` and adds them to `spent`; how many were pooled.
@@ -145,19 +154,34 @@ impl Snapshot for ControllerSnapshot {
     fn ledger_mut(&mut self) -> (&mut Vec<(u32, BitString)>, &mut Vec<u32>) {
         (&mut self.pool, &mut self.spent)
     }
-    /// Also forgets the spent sessions' Eve separations and kept samples.
+    /// Also forgets the spent sessions' Eve separations, kept samples and LLRs.
     fn spend(&mut self, sessions: &BTreeSet<u32>) -> usize {
         self.separations.retain(|(id, _)| !sessions.contains(id));
         self.separation_counts
             .retain(|(id, _)| !sessions.contains(id));
         self.samples.retain(|(id, _)| !sessions.contains(id));
+        self.llrs.retain(|(id, _)| !sessions.contains(id));
         spend_in(&mut self.pool, &mut self.spent, sessions)
     }
-    fn take_samples(&mut self) -> BTreeMap<u32, SessionSamples> {
-        std::mem::take(&mut self.samples).into_iter().collect()
+    fn take_extras(&mut self) -> BTreeMap<u32, SessionExtras> {
+        let mut extras: BTreeMap<u32, SessionExtras> = BTreeMap::new();
+        for (id, samples) in std::mem::take(&mut self.samples) {
+            extras.entry(id).or_default().samples = Some(samples);
+        }
+        for (id, llrs) in std::mem::take(&mut self.llrs) {
+            extras.entry(id).or_default().llrs = Some(llrs);
+        }
+        extras
     }
-    fn set_samples(&mut self, samples: BTreeMap<u32, SessionSamples>) {
-        self.samples = samples.into_iter().collect();
+    fn set_extras(&mut self, extras: BTreeMap<u32, SessionExtras>) {
+        self.samples = extras
+            .iter()
+            .filter_map(|(&id, e)| e.samples.clone().map(|s| (id, s)))
+            .collect();
+        self.llrs = extras
+            .into_iter()
+            .filter_map(|(id, e)| e.llrs.map(|l| (id, l)))
+            .collect();
     }
     fn unsettled(&self) -> Option<Unsettled<'_>> {
         match self.in_flight {
@@ -193,6 +217,9 @@ enum Record<S> {
         /// nothing is kept).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         samples: Option<SessionSamples>,
+        /// The controller's quantised LLR of each bit (absent when it keeps none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        llrs: Option<Vec<i16>>,
     },
     State {
         snapshot: S,
@@ -347,7 +374,12 @@ impl<S: Snapshot> PostStore<S> {
                     return Err(store.corrupt(format!("record {i} is a second header")));
                 }
                 _ if i == 0 => return Err(store.corrupt("it does not begin with a header".into())),
-                Record::Session { id, bits, samples } => {
+                Record::Session {
+                    id,
+                    bits,
+                    samples,
+                    llrs,
+                } => {
                     let kept = samples.as_ref().map_or(0, Vec::len);
                     if kept > bits.len() {
                         return Err(store.corrupt(format!(
@@ -356,7 +388,15 @@ impl<S: Snapshot> PostStore<S> {
                             bits.len()
                         )));
                     }
-                    sessions.insert(id, (bits, samples));
+                    if let Some(llrs) = llrs.as_ref().filter(|l| l.len() != bits.len()) {
+                        return Err(store.corrupt(format!(
+                            "session {id}'s record keeps {} LLRs for its {} raw bits \
+                             (allowed: one per bit)",
+                            llrs.len(),
+                            bits.len()
+                        )));
+                    }
+                    sessions.insert(id, (bits, SessionExtras { samples, llrs }));
                 }
                 Record::State {
                     snapshot,
@@ -381,17 +421,17 @@ impl<S: Snapshot> PostStore<S> {
         let pool = pooled
             .iter()
             .map(|id| {
-                let (bits, samples) = sessions.remove(id).ok_or_else(|| {
+                let (bits, extras) = sessions.remove(id).ok_or_else(|| {
                     store.corrupt(format!("session {id} is pooled but its bits are missing"))
                 })?;
-                if let Some(samples) = samples {
-                    kept.insert(*id, samples);
+                if extras != SessionExtras::default() {
+                    kept.insert(*id, extras);
                 }
                 Ok((*id, bits))
             })
             .collect::<Result<Vec<_>, NetError>>()?;
         snapshot.set_pool(pool);
-        snapshot.set_samples(kept);
+        snapshot.set_extras(kept);
         store.pending = found
             .iter()
             .filter(|(id, _)| known.contains(id))
@@ -453,10 +493,10 @@ impl<S: Snapshot> PostStore<S> {
         committed: &[FinalKey],
     ) -> Result<Vec<StoredKey>, NetError> {
         let pool = snapshot.take_pool();
-        let samples = snapshot.take_samples();
-        let stored = self.persist_pool(snapshot, &pool, &samples, committed);
+        let extras = snapshot.take_extras();
+        let stored = self.persist_pool(snapshot, &pool, &extras, committed);
         snapshot.set_pool(pool);
-        snapshot.set_samples(samples);
+        snapshot.set_extras(extras);
         stored
     }
 
@@ -464,15 +504,17 @@ impl<S: Snapshot> PostStore<S> {
         &mut self,
         snapshot: &S,
         pool: &[(u32, BitString)],
-        samples: &BTreeMap<u32, SessionSamples>,
+        extras: &BTreeMap<u32, SessionExtras>,
         committed: &[FinalKey],
     ) -> Result<Vec<StoredKey>, NetError> {
         for (id, bits) in pool {
             if !self.journaled.contains(id) {
+                let extra = extras.get(id).cloned().unwrap_or_default();
                 self.journal.append(&encode(&Record::<S>::Session {
                     id: *id,
                     bits: bits.clone(),
-                    samples: samples.get(id).cloned(),
+                    samples: extra.samples,
+                    llrs: extra.llrs,
                 }))?;
                 self.journaled.insert(*id);
             }
@@ -565,22 +607,24 @@ impl<S: Snapshot> PostStore<S> {
     /// The rewrite fails (the old journal is then intact).
     pub fn compact(&mut self, snapshot: &mut S) -> Result<(), NetError> {
         let pool = snapshot.take_pool();
-        let samples = snapshot.take_samples();
+        let extras = snapshot.take_extras();
         let pooled: Vec<u32> = pool.iter().map(|(id, _)| *id).collect();
         let mut records = vec![encode(&Record::<S>::Header {
             role: S::ROLE.to_owned(),
             pairing: self.fingerprint.clone(),
         })];
         records.extend(pool.iter().map(|(id, bits)| {
+            let extra = extras.get(id).cloned().unwrap_or_default();
             encode(&Record::<S>::Session {
                 id: *id,
                 bits: bits.clone(),
-                samples: samples.get(id).cloned(),
+                samples: extra.samples,
+                llrs: extra.llrs,
             })
         }));
         records.push(encode_state(snapshot, &pooled, &[], &self.pending_ids()));
         snapshot.set_pool(pool);
-        snapshot.set_samples(samples);
+        snapshot.set_extras(extras);
         self.journal.rewrite(&records)?;
         self.journaled = pooled.into_iter().collect();
         Ok(())

@@ -797,6 +797,7 @@ mod tests {
             sampled,
             reconciled_bits: 4 - sample_bits,
             leak_ec: 0,
+            ldpc_rounds: None,
             leak_confirmation: 0,
             h_min: 0.0,
             length: 1,

@@ -514,6 +514,44 @@ pub struct PostprocessConfig {
     /// the controller measures per block (docs/estimation.md). Printed only when measured.
     #[serde(skip_serializing_if = "Sizing::is_configured")]
     pub sizing: Sizing,
+    /// How the pooled bits are reconciled: `cascade` (interactive, on decisions) or `ldpc`
+    /// (one-way syndromes decoded on the controller's LLRs; private sensing only). An
+    /// agreement term; printed only when `ldpc`.
+    #[serde(skip_serializing_if = "Reconciliation::is_cascade")]
+    pub reconciliation: Reconciliation,
+}
+
+/// How post-processing reconciles the controller's bits with the robot's
+/// (docs/postprocessing.md). One vocabulary for `postprocess.reconciliation` and
+/// `robokey secrecy --reconciliation`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Reconciliation {
+    /// Interactive Cascade with BICONF on the controller's decisions: both sides' parities
+    /// are charged.
+    #[default]
+    Cascade,
+    /// One-way LDPC: the robot's syndrome, decoded by belief propagation on the controller's
+    /// calibrated LLRs (f = 1.2, ≤ 200 iterations, ≤ 2 feedback rounds of 0.1·m): every
+    /// syndrome bit and ⌈log₂ 3⌉ = 2 bits for the rounds are charged.
+    Ldpc,
+}
+
+impl Reconciliation {
+    /// The name used in configurations, on the command line and in reports.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Cascade => "cascade",
+            Self::Ldpc => "ldpc",
+        }
+    }
+
+    /// Whether it is Cascade (the default).
+    #[must_use]
+    pub fn is_cascade(&self) -> bool {
+        *self == Self::Cascade
+    }
 }
 
 /// What sizes private sensing's keys: the configured physics, or the motion noise the
@@ -562,6 +600,7 @@ impl Default for PostprocessConfig {
             epsilon: 1e-6,
             assumed_eve_error: None,
             sizing: Sizing::Configured,
+            reconciliation: Reconciliation::Cascade,
         }
     }
 }
@@ -686,6 +725,7 @@ impl Config {
         let mut every = Self::default();
         every.postprocess.assumed_eve_error = Some(0.5);
         every.postprocess.sizing = Sizing::Measured;
+        every.postprocess.reconciliation = Reconciliation::Ldpc;
         every.eve.smoother_window = Some(0);
         every.eve.camera_fps = Some(1.0);
         every.eve.camera_frame_std = Some([1.0; 3]);
@@ -943,6 +983,23 @@ impl Config {
                 "world",
                 "\"configured\" or \"measured\" (\"world\" sizes at the simulated world's \
                  own physics, which no robot knows: robokey secrecy --sizing world only)",
+            ));
+        }
+        if post.reconciliation == Reconciliation::Ldpc && self.sensing.mode != SensingMode::Private
+        {
+            return Err(invalid(
+                "postprocess.reconciliation",
+                "ldpc",
+                "\"cascade\" in odometry mode (LDPC decodes on the controller's per-bit LLRs, \
+                 which private sensing gives; sensing.mode = \"private\")",
+            ));
+        }
+        if post.reconciliation == Reconciliation::Ldpc && post.block_bits > 1 << 22 {
+            return Err(invalid(
+                "postprocess.block_bits",
+                post.block_bits,
+                "64 to 4194304 (2^22, one LDPC code's block) with postprocess.reconciliation \
+                 = \"ldpc\"",
             ));
         }
         if post.sizing == Sizing::Measured && self.sensing.mode != SensingMode::Private {
@@ -1358,6 +1415,27 @@ mod tests {
                 .codeword_length(),
             7
         );
+    }
+
+    #[test]
+    fn ldpc_reconciliation_needs_private_sensing_and_a_code_sized_block() {
+        let ldpc = "[postprocess]\nreconciliation = \"ldpc\"\n";
+        let text = Config::from_toml(ldpc, "l.toml").unwrap_err().to_string();
+        assert!(
+            text.contains("postprocess.reconciliation") && text.contains("odometry"),
+            "{text}"
+        );
+        let private = format!("[sensing]\nmode = \"private\"\n{ldpc}");
+        let config = Config::from_toml(&private, "p.toml").unwrap();
+        assert_eq!(config.postprocess.reconciliation, Reconciliation::Ldpc);
+        assert!(config.to_toml().contains("reconciliation = \"ldpc\""));
+        let large = format!("{private}block_bits = 5000000\n");
+        let text = Config::from_toml(&large, "b.toml").unwrap_err().to_string();
+        assert!(text.contains("postprocess.block_bits"), "{text}");
+        let text = Config::from_toml("[postprocess]\nreconciliation = \"polar\"\n", "x")
+            .unwrap_err()
+            .to_string();
+        assert!(text.contains("polar"), "{text}");
     }
 
     #[test]

@@ -3,11 +3,12 @@
 //! (docs/postprocessing.md, docs/secrecy.md).
 
 use robokey_secrecy::cascade::CascadeSchedule;
-use robokey_secrecy::postprocess::{Assumption, Settings};
+use robokey_secrecy::ldpc::LdpcSettings;
+use robokey_secrecy::postprocess::{Assumption, ReconciliationMethod, Settings};
 use serde::{Deserialize, Serialize};
 
 use crate::config::camera::millimetres;
-use crate::config::{Config, SensingMode, Sizing};
+use crate::config::{Config, Reconciliation, SensingMode, Sizing};
 use crate::estimate::ESTIMATE_LEAK_BITS;
 use crate::world::Camera;
 
@@ -216,6 +217,17 @@ pub fn post_settings(config: &Config) -> Settings {
         epsilon: post.epsilon,
         schedule: CascadeSchedule::BICONF,
         assumption: assumption(config),
+        reconciliation: reconciliation_method(config.postprocess.reconciliation),
+    }
+}
+
+/// The endpoints' reconciliation for `postprocess.reconciliation`: Cascade, or LDPC with
+/// the library's settings ([`LdpcSettings::DEFAULT`]).
+#[must_use]
+pub fn reconciliation_method(reconciliation: Reconciliation) -> ReconciliationMethod {
+    match reconciliation {
+        Reconciliation::Cascade => ReconciliationMethod::Cascade,
+        Reconciliation::Ldpc => ReconciliationMethod::Ldpc(LdpcSettings::DEFAULT),
     }
 }
 

@@ -379,7 +379,7 @@ mod through_the_session_layer {
 
     /// What sizes or labels the keys and differs between the agents — the motion noise the
     /// assumption names, Eve's camera in frames, the prior lag that shapes the doublets, the
-    /// measured plant — ends the session at `Hello`, named.
+    /// measured plant, the reconciliation — ends the session at `Hello`, named.
     #[test]
     fn terms_that_size_or_label_keys_and_differ_are_refused_by_name() {
         let robot = short("private");
@@ -390,6 +390,8 @@ mod through_the_session_layer {
         frames.eve.camera_frame_std = Some([0.016; 3]);
         let mut measured = robot.clone();
         measured.postprocess.sizing = robokey::config::Sizing::Measured;
+        let mut ldpc = robot.clone();
+        ldpc.postprocess.reconciliation = robokey::config::Reconciliation::Ldpc;
         for (controller, named) in [
             (
                 three_step(),
@@ -407,6 +409,10 @@ mod through_the_session_layer {
             (
                 measured,
                 "postprocess.sizing: robot has (missing), controller has measured",
+            ),
+            (
+                ldpc,
+                "postprocess.reconciliation: robot has (missing), controller has ldpc",
             ),
         ] {
             let s = conversation_between(&robot, &controller, Network::default(), 0);

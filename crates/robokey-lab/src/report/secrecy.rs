@@ -108,8 +108,11 @@ pub fn secrecy_markdown(secrecy: &Secrecy) -> String {
         Pooling::Confirmed => {
             "sessions whose key tags matched (today's agents), each pooled session's two directional 128-bit key tags charged, nothing reconciled"
         }
-        Pooling::Complete => {
+        Pooling::Complete if secrecy.reconciliation.is_cascade() => {
             "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags and committed in two phases"
+        }
+        Pooling::Complete => {
+            "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, one-way LDPC (the robot's syndrome decoded on the controller's LLRs, f = 1.2, at most 2 feedback rounds) with every syndrome bit and 2 bits for the rounds charged, the block confirmed by two 64-bit tags and committed in two phases"
         }
     };
     let mut held: Vec<String> = Vec::new();

@@ -15,7 +15,7 @@ use robokey_secrecy::postprocess::public::sample_size;
 use robokey_secrecy::{JointCounts, binomial_test};
 
 use super::commands_check;
-use super::options::{SecrecyOptions, Sizing, default_adversaries};
+use super::options::{Reconciliation, SecrecyOptions, Sizing, default_adversaries};
 use super::pipeline::{self, Block, BlockSettings, Pooling};
 use super::point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
 use super::private::{self, OffRuns};
@@ -223,6 +223,7 @@ fn analyze_point(
         } else {
             options.assumption()
         },
+        reconciliation: robokey::post_settings::reconciliation_method(options.reconciliation),
     };
     let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
     let mut pools = pipeline::pools(runs, options.pooling, options.block_bits, adversary);
@@ -449,6 +450,12 @@ fn check_fits(
             } else {
                 ""
             }
+        )));
+    }
+    if options.reconciliation == Reconciliation::Ldpc && mode != SensingMode::Private {
+        return Err(LabError::SensingMode(format!(
+            "point {name:?}: --reconciliation ldpc decodes on the controller's per-bit LLRs, \
+             which only private sensing gives; odometry sessions have none (allowed: cascade)"
         )));
     }
     if mode == SensingMode::Private {

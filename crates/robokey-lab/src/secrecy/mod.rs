@@ -27,7 +27,7 @@ pub mod table;
 
 pub use analyze::{analyze, analyze_with};
 pub use options::{
-    MAX_SESSIONS, SecrecyOptions, Sizing, default_adversaries, default_max_sessions,
+    MAX_SESSIONS, Reconciliation, SecrecyOptions, Sizing, default_adversaries, default_max_sessions,
 };
 pub use pipeline::{Block, BlockSettings, Pooling};
 pub use point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};

@@ -7,7 +7,7 @@ use robokey_secrecy::postprocess::Assumption;
 
 use super::pipeline::Pooling;
 
-pub use robokey::config::Sizing;
+pub use robokey::config::{Reconciliation, Sizing};
 
 /// The adversaries `robokey secrecy` evaluates by default in `mode`.
 #[must_use]
@@ -47,6 +47,8 @@ pub struct SecrecyOptions {
     pub bootstrap: usize,
     /// What sizes private sensing's key.
     pub sizing: Sizing,
+    /// How `complete` pooling reconciles (LDPC: private sensing only).
+    pub reconciliation: Reconciliation,
 }
 
 impl Default for SecrecyOptions {
@@ -62,6 +64,7 @@ impl Default for SecrecyOptions {
             max_sessions: default_max_sessions(10_000, 1),
             bootstrap: 1_000,
             sizing: Sizing::Configured,
+            reconciliation: Reconciliation::Cascade,
         }
     }
 }

@@ -19,7 +19,7 @@ use robokey_secrecy::min_entropy::{
 };
 use robokey_secrecy::postprocess::{
     AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, EstimateRefusal,
-    Message, Output, RobotInput, RobotPost, Settings,
+    Message, Output, ReconciliationMethod, RobotInput, RobotPost, Settings,
 };
 use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
@@ -114,6 +114,10 @@ pub struct Pool {
     pub eve: Zeroizing<Vec<u8>>,
     /// Private sensing: Eve's calibrated posterior error probability of each bit.
     pub eve_posteriors: Vec<f64>,
+    /// Private sensing: each pooled session's controller LLRs, one per bit,
+    /// `ln P(view|0) − ln P(view|1)` (empty for a session without), which LDPC
+    /// reconciliation decodes on.
+    pub controller_llrs: Vec<Vec<f64>>,
     /// Indices (into the runs) of the sessions pooled, in order.
     pub runs: Vec<usize>,
     /// Private sensing: each pooled session's bits' Eve separations — under the camera
@@ -153,6 +157,12 @@ pub fn pools(
                 1.0 / (1.0 + llr.abs().exp())
             }));
         }
+        pool.controller_llrs.push(match &run.private {
+            Some(private) if private.bits.len() == keys.robot.len() => {
+                private.bits.iter().map(|b| b.controller).collect()
+            }
+            _ => Vec::new(),
+        });
         pool.sessions += 1;
         pool.runs.push(index);
         pool.lengths.push(keys.robot.len());
@@ -206,8 +216,12 @@ pub struct Block {
     pub messages: u32,
     /// Their payload bits.
     pub message_bits: u64,
-    /// Reconciliation leak: both sides' parities.
+    /// Reconciliation leak: with Cascade both sides' parities; with LDPC every syndrome bit
+    /// and ⌈log₂ 3⌉ = 2 bits for the rounds.
     pub leak_ec: u64,
+    /// With LDPC reconciliation: `ldpc` and the syndrome rounds used (absent with Cascade).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ldpc_rounds: Option<u32>,
     /// Confirmation tags published over pooled key bits (per-session or per-block).
     pub leak_confirmation: u64,
     /// leak_ec + leak_confirmation.
@@ -244,6 +258,8 @@ pub struct BlockSettings {
     pub block_bits: usize,
     /// What is assumed about Eve.
     pub assumption: Assumption,
+    /// How `complete` pooling reconciles.
+    pub reconciliation: ReconciliationMethod,
 }
 
 /// Runs the pools through the pipeline of `settings.pooling`; `public` seeds the
@@ -284,6 +300,7 @@ fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
         messages: 0,
         message_bits: 0,
         leak_ec: 0,
+        ldpc_rounds: None,
         leak_confirmation,
         leak: leak_confirmation,
         consistent: pool.robot == pool.controller,
@@ -312,6 +329,7 @@ fn through_endpoints(
         epsilon: settings.epsilon,
         schedule: CascadeSchedule::BICONF,
         assumption: settings.assumption.clone(),
+        reconciliation: settings.reconciliation,
     };
     let (Ok(mut controller), Ok(mut robot)) = (
         ControllerPost::new(protocol.clone(), public.random()),
@@ -319,7 +337,8 @@ fn through_endpoints(
     ) else {
         return Vec::new();
     };
-    for (id, ((robot_bits, controller_bits), separations)) in pools
+    let ldpc = matches!(settings.reconciliation, ReconciliationMethod::Ldpc(_));
+    for (id, (((robot_bits, controller_bits), separations), llrs)) in pools
         .iter()
         .flat_map(|p| {
             let separations = p
@@ -327,7 +346,14 @@ fn through_endpoints(
                 .iter()
                 .cloned()
                 .chain(std::iter::repeat(Vec::new()));
-            p.session_bits().into_iter().zip(separations)
+            // Only LDPC decodes on them (Cascade's pool would only carry them).
+            let llrs = p
+                .controller_llrs
+                .iter()
+                .filter(|_| ldpc)
+                .cloned()
+                .chain(std::iter::repeat(Vec::new()));
+            p.session_bits().into_iter().zip(separations).zip(llrs)
         })
         .enumerate()
     {
@@ -344,6 +370,7 @@ fn through_endpoints(
             // when the controller asks, and sizes the key).
             separations,
             samples: Vec::new(),
+            llrs,
         });
     }
     let mut controller_reports = Vec::new();
@@ -453,6 +480,7 @@ fn endpoint_block(
         messages: report.messages_sent + robot.map_or(0, |r| r.messages_sent),
         message_bits: report.bits_sent + robot.map_or(0, |r| r.bits_sent),
         leak_ec: report.leak_ec,
+        ldpc_rounds: report.ldpc_rounds,
         leak_confirmation: report.leak_confirmation,
         leak,
         consistent,
@@ -494,8 +522,9 @@ fn finish(block: &mut Block, settings: &BlockSettings, aborted: Option<AbortReas
                 block.leak_ec,
             ),
             Some(AbortReason::Reconciliation) => "; the block failed reconciliation (the two \
-                 sides' keys still differed, or Cascade could not finish): it is discarded, not \
-                 short, so pooling more does not help; the next block starts afresh"
+                 sides' keys still differed, or Cascade could not finish, or LDPC could not \
+                 decode): it is discarded, not short, so pooling more does not help; the next \
+                 block starts afresh"
                 .to_owned(),
             Some(AbortReason::PlantRefused) => "; the controller's estimate of the plant refused \
                  it (outside the model class): pooling more does not help"
@@ -640,6 +669,7 @@ mod tests {
             sample_bits: 0,
             block_bits: n,
             assumption: Assumption::IndependentErrors { error_rate: 0.2 },
+            reconciliation: ReconciliationMethod::Cascade,
         };
         let bits: Vec<u8> = (0..n).map(|i| (i % 2) as u8).collect();
         let pool = Pool {
@@ -682,6 +712,71 @@ mod tests {
         .unwrap();
         assert!(why.contains("not for want of secrecy"), "{why}");
         assert!(!why.contains("pooling more can help"), "{why}");
+    }
+
+    /// The lab's `complete` pipeline with LDPC: the controller's LLRs of each session go to
+    /// its endpoint, both sides commit the same key, and the block's leak is the robot's
+    /// syndrome (+ 2 bits for the rounds), far below Cascade's on the same pool.
+    #[test]
+    fn ldpc_in_the_lab_makes_the_same_key_with_less_leak_than_cascade() {
+        use rand::SeedableRng;
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (sessions, length) = (8, 1_500);
+        let mut pool = Pool {
+            sessions,
+            lengths: vec![length; sessions as usize],
+            ..Pool::default()
+        };
+        for _ in 0..sessions {
+            let mut llrs = Vec::new();
+            for _ in 0..length {
+                let bit = u8::from(rng.random::<bool>());
+                // A calibrated LLR erring at 2 %: |L| = ln(0.98/0.02), the sign wrong with
+                // probability 0.02.
+                let wrong = rng.random::<f64>() < 0.02;
+                let magnitude = (0.98_f64 / 0.02).ln();
+                let says_one = (bit == 1) != wrong;
+                llrs.push(if says_one { -magnitude } else { magnitude });
+                pool.robot.push(bit);
+                pool.controller.push(u8::from(says_one));
+                pool.eve.push(bit);
+            }
+            pool.controller_llrs.push(llrs);
+        }
+        let settings = |reconciliation| BlockSettings {
+            pooling: Pooling::Complete,
+            epsilon: 1e-6,
+            sample_bits: 100,
+            block_bits: 10_000,
+            assumption: Assumption::IndependentErrors { error_rate: 0.3 },
+            reconciliation,
+        };
+        let run = |reconciliation| {
+            let blocks = post_process(
+                std::slice::from_ref(&pool),
+                &settings(reconciliation),
+                &mut ChaCha8Rng::seed_from_u64(1),
+            );
+            assert_eq!(blocks.len(), 1);
+            blocks.into_iter().next().unwrap()
+        };
+        let ldpc = run(ReconciliationMethod::Ldpc(
+            robokey_secrecy::ldpc::LdpcSettings::DEFAULT,
+        ));
+        let cascade = run(ReconciliationMethod::Cascade);
+        assert!(ldpc.consistent && ldpc.secret_bits > 0, "{ldpc:?}");
+        let rounds = ldpc.ldpc_rounds.expect("LDPC reports its rounds");
+        assert!((1..=3).contains(&rounds));
+        // m = ⌈1.2 · n · h₂(0.02)⌉ ≈ 0.17 n syndrome bits, at most 20 % more with feedback.
+        let n = ldpc.reconciled_bits as f64;
+        let soft = 1.2 * n * robokey_secrecy::entropy::binary_entropy(0.02);
+        assert!(
+            ldpc.leak_ec as f64 >= soft && (ldpc.leak_ec as f64) <= 1.2 * soft + 3.0,
+            "{} for {soft}",
+            ldpc.leak_ec
+        );
+        assert_eq!(cascade.ldpc_rounds, None);
+        assert!(ldpc.leak_ec < cascade.leak_ec && ldpc.secret_bits > cascade.secret_bits);
     }
 
     #[test]

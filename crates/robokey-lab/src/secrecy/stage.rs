@@ -9,7 +9,7 @@ use serde::Deserialize;
 
 use super::analyze::analyze_with;
 use super::map::{PrivateMap, private_map};
-use super::options::{SecrecyOptions, Sizing};
+use super::options::{Reconciliation, SecrecyOptions, Sizing};
 use super::pipeline::Pooling;
 use super::point::PointSecrecy;
 use crate::error::{LabError, io_at};
@@ -33,6 +33,8 @@ pub struct Secrecy {
     pub pooling: Pooling,
     /// What sized private sensing's key.
     pub sizing: Sizing,
+    /// How `complete` pooling reconciled.
+    pub reconciliation: Reconciliation,
     /// Per point and adversary, strongest class first.
     pub results: Vec<PointSecrecy>,
     /// Private sensing: where it pays ([`private_map`]).
@@ -47,6 +49,8 @@ struct SecrecyFile {
     pooling: Pooling,
     #[serde(default)]
     sizing: Sizing,
+    #[serde(default)]
+    reconciliation: Reconciliation,
     results: Vec<PointSecrecy>,
 }
 
@@ -69,6 +73,7 @@ impl Secrecy {
             block_bits: options.block_bits,
             pooling: options.pooling,
             sizing: options.sizing,
+            reconciliation: options.reconciliation,
             results,
             map,
         })
@@ -120,6 +125,9 @@ impl Secrecy {
         });
         if self.sizing != Sizing::Configured {
             json["sizing"] = serde_json::json!(self.sizing);
+        }
+        if !self.reconciliation.is_cascade() {
+            json["reconciliation"] = serde_json::json!(self.reconciliation);
         }
         json
     }
@@ -179,6 +187,7 @@ impl Secrecy {
             block_bits: file.block_bits,
             pooling: file.pooling,
             sizing: file.sizing,
+            reconciliation: file.reconciliation,
             results: file.results,
             map,
         })

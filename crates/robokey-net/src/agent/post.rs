@@ -124,8 +124,12 @@ pub struct BlockSummary {
     pub sampled: Vec<u32>,
     /// Bits reconciled.
     pub reconciled_bits: usize,
-    /// Cascade leak (bits).
+    /// Reconciliation leak (bits): Cascade's parities of both sides, or every LDPC syndrome
+    /// bit and 2 bits for the rounds.
     pub leak_ec: u64,
+    /// With LDPC reconciliation: the syndrome rounds used (absent with Cascade).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ldpc_rounds: Option<u32>,
     /// Confirmation tags (bits).
     pub leak_confirmation: u64,
     /// Eve's smooth min-entropy under the assumption (bits).
@@ -152,6 +156,7 @@ impl From<&BlockReport> for BlockSummary {
             sampled: r.sampled.clone(),
             reconciled_bits: r.reconciled_bits,
             leak_ec: r.leak_ec,
+            ldpc_rounds: r.ldpc_rounds,
             leak_confirmation: r.leak_confirmation,
             h_min: r.h_min,
             length: r.length,

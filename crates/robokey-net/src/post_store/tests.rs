@@ -29,6 +29,7 @@ fn controller(pool: &[(u32, bool)], committed: &[u64]) -> ControllerSnapshot {
         separations: Vec::new(),
         separation_counts: Vec::new(),
         samples: Vec::new(),
+        llrs: Vec::new(),
         spent: Vec::new(),
         in_flight: None,
         committed: committed.to_vec(),
@@ -83,6 +84,29 @@ fn the_pool_and_state_survive_reopening_and_the_store_is_exclusive() {
     assert!(error.contains(&pairing(1).fingerprint()), "{error}");
     let error = open_keys(&dir, &pairing(2)).unwrap_err().to_string();
     assert!(error.contains("belongs to the pairing"), "{error}");
+}
+
+/// A controller reconciling by LDPC keeps each pooled session's quantised LLRs: journaled
+/// once with the session's bits, restored on opening, kept through compaction, and forgotten
+/// with the session once spent.
+#[test]
+fn the_pooled_sessions_llrs_survive_reopening_and_compaction() {
+    let dir = tempdir("post-store-llrs");
+    let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    let mut state = controller(&[(1, true), (2, false)], &[]);
+    state.llrs = vec![(1, vec![-512; 100]), (2, vec![300; 100])];
+    store.persist(&mut state, &[]).unwrap();
+    drop(store);
+    let (mut store, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    assert_eq!(recovery.snapshot.as_ref(), Some(&state));
+    state.spend(&BTreeSet::from([1]));
+    store.persist(&mut state, &[]).unwrap();
+    store.compact(&mut state).unwrap();
+    drop(store);
+    let (_, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    let restored = recovery.snapshot.unwrap();
+    assert_eq!(restored.llrs, vec![(2, vec![300; 100])]);
+    assert_eq!(restored, state);
 }
 
 /// A crash after the state that carries a committed key and before its key file: the

@@ -27,6 +27,7 @@ mod code;
 mod decoder;
 mod degrees;
 mod reconcile;
+mod rounds;
 mod soft_limit;
 #[cfg(test)]
 mod test_block;
@@ -37,6 +38,7 @@ pub use code::ParityCheck;
 pub use decoder::{Decoded, SyndromeDecoder};
 pub use degrees::DegreeProfile;
 pub use reconcile::{LdpcReconciliation, LdpcSettings, MAX_FEEDBACK_ROUNDS, reconcile};
+pub use rounds::BlockCode;
 pub use soft_limit::{bhattacharyya, bit_error_probability, soft_limit_bits, syndrome_length};
 
 /// Largest block one LDPC code may cover (bits): 2²².

@@ -1,10 +1,8 @@
 //! One block reconciled in memory: the robot's syndrome, the controller's decoding, the leak.
 
-use rand::rngs::ChaCha8Rng;
-use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use super::{LdpcError, ParityCheck, SyndromeDecoder, bhattacharyya, syndrome_length};
+use super::{BlockCode, LdpcError, SyndromeDecoder, bhattacharyya, syndrome_length};
 use crate::bitstring::BitString;
 
 /// What both sides agree on for LDPC reconciliation.
@@ -44,7 +42,11 @@ impl LdpcSettings {
         )
     }
 
-    fn check(&self) -> Result<(), LdpcError> {
+    /// Checks the feedback's ranges.
+    ///
+    /// # Errors
+    /// [`LdpcError::Feedback`].
+    pub fn check(&self) -> Result<(), LdpcError> {
         if self.feedback_rounds > MAX_FEEDBACK_ROUNDS
             || !(self.increment > 0.0 && self.increment <= 1.0)
         {
@@ -103,29 +105,19 @@ pub fn reconcile(
     let decoder = SyndromeDecoder::new(settings.max_iterations)?;
     let n = bits.len();
     let m = syndrome_length(llrs, settings.efficiency)?;
-    let mut code = ParityCheck::build(n, m, bhattacharyya(llrs), seed)?;
-    let check_degree = code.edges().div_ceil(m);
-    let increment = ((settings.increment * m as f64).ceil() as usize).max(1);
-    let mut seeds = ChaCha8Rng::from_seed(seed);
-    let mut decoded = decoder.decode(&code, llrs, &code.syndrome(bits)?)?;
-    let (mut rounds, mut iterations) = (1, decoded.iterations);
-    while !decoded.converged && rounds <= settings.feedback_rounds {
-        let extra = increment.min(n - code.syndrome_bits());
-        if extra == 0 {
-            break;
-        }
-        let extension = ParityCheck::extension(n, extra, check_degree, seeds.random())?;
-        code = code.stacked(&extension)?;
-        decoded = decoder.decode(&code, llrs, &code.syndrome(bits)?)?;
-        rounds += 1;
+    let mut codes = BlockCode::first(n, m, bhattacharyya(llrs), seed, &settings)?;
+    let mut decoded = decoder.decode(codes.code(), llrs, &codes.code().syndrome(bits)?)?;
+    let mut iterations = decoded.iterations;
+    while !decoded.converged && codes.extend()? {
+        decoded = decoder.decode(codes.code(), llrs, &codes.code().syndrome(bits)?)?;
         iterations += decoded.iterations;
     }
-    let syndrome_bits = code.syndrome_bits() as u64;
+    let syndrome_bits = codes.code().syndrome_bits() as u64;
     Ok(LdpcReconciliation {
         corrected: decoded.bits,
         leak: syndrome_bits + settings.round_count_bits(),
         syndrome_bits,
-        rounds,
+        rounds: codes.rounds(),
         converged: decoded.converged,
         iterations,
     })

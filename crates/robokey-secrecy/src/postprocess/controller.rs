@@ -1,5 +1,6 @@
 //! The controller's post-processing endpoint: it pools its (noisy) session bits, proposes
-//! blocks, corrects its bits by Cascade, and coordinates the two-phase commit.
+//! blocks, corrects its bits by Cascade or by decoding the robot's LDPC syndromes on its
+//! LLRs, and coordinates the two-phase commit.
 
 use std::collections::BTreeMap;
 
@@ -11,13 +12,14 @@ use super::estimate::{
 };
 use super::ledger::Ledger;
 use super::public::{PublicRandomness, sample_size};
+use super::syndromes::{DecodingStep, Reconciled, SyndromeDecoding};
 use super::{
     AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS,
-    Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason, Settings, concatenate,
-    key_id, split_sample, tag_context,
+    Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, ReconciliationMethod, RejectReason,
+    Settings, concatenate, dequantise_llr, key_id, quantise_llr, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
-use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep, Reconciliation};
+use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep};
 use crate::confirm::ConfirmationTag;
 use crate::view_profile::{equivalent_separation, separation_counts};
 
@@ -39,6 +41,11 @@ pub enum ControllerInput {
         /// What the pool keeps of the session for the block's estimate of the plant
         /// (measured sizing; empty otherwise).
         samples: SessionSamples,
+        /// The controller's calibrated LLR of each bit, Lᵢ = ln P(xᵢ = 0)/P(xᵢ = 1) (nats;
+        /// the bit is 1 when negative), one per bit, or empty when it has none (odometry).
+        /// LDPC reconciliation needs them; the pool keeps them quantised
+        /// ([`quantise_llr`]).
+        llrs: Vec<f64>,
     },
     /// The shell's answer to [`Output::EstimateNeeded`] for `block`.
     Estimate {
@@ -99,6 +106,10 @@ pub struct ControllerSnapshot {
     /// with samples). The store writes them once, beside the sessions' bits.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub samples: Vec<(u32, SessionSamples)>,
+    /// Their bits' LLRs in steps of [`super::LLR_QUANTUM`] nat ([`quantise_llr`]; only
+    /// sessions that came with LLRs).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub llrs: Vec<(u32, Vec<i16>)>,
     /// Sessions proposed in a block (spent).
     pub spent: Vec<u32>,
     /// The block in flight, if any.
@@ -128,10 +139,15 @@ enum State {
         bob: Box<CascadeBob<ChaCha20Rng>>,
         round: u32,
     },
+    /// LDPC: the robot's syndrome of the current round.
+    ExpectSyndrome {
+        agreed: Agreed,
+        decoding: Box<SyndromeDecoding>,
+    },
     /// Reconciled; the shell estimates the plant (measured sizing).
     ExpectEstimate {
         agreed: Agreed,
-        outcome: Reconciliation,
+        outcome: Reconciled,
     },
     ExpectConfirmed {
         agreed: Agreed,
@@ -161,6 +177,9 @@ pub struct ControllerPost {
     /// Pooled sessions' kept samples, and the block in flight's.
     samples: BTreeMap<u32, SessionSamples>,
     block_samples: BTreeMap<u32, SessionSamples>,
+    /// Pooled sessions' quantised LLRs, and the block in flight's.
+    llrs: BTreeMap<u32, Vec<i16>>,
+    block_llrs: BTreeMap<u32, Vec<i16>>,
     in_flight: Option<InFlight>,
     state: State,
     report: Option<BlockReport>,
@@ -198,6 +217,8 @@ impl ControllerPost {
             block_largest: 0,
             samples: BTreeMap::new(),
             block_samples: BTreeMap::new(),
+            llrs: BTreeMap::new(),
+            block_llrs: BTreeMap::new(),
             in_flight: None,
             state: State::Idle,
             report: None,
@@ -230,6 +251,7 @@ impl ControllerPost {
             .map(|(id, counts)| (id, counts.into_iter().collect()))
             .collect();
         endpoint.samples = snapshot.samples.into_iter().collect();
+        endpoint.llrs = snapshot.llrs.into_iter().collect();
         match snapshot.in_flight {
             None => endpoint.maybe_propose(),
             Some(InFlight::Committed { block, sessions }) => {
@@ -270,6 +292,7 @@ impl ControllerPost {
                 .iter()
                 .map(|(&id, s)| (id, s.clone()))
                 .collect(),
+            llrs: self.llrs.iter().map(|(&id, l)| (id, l.clone())).collect(),
             spent: self.ledger.spent.iter().copied().collect(),
             in_flight: self.in_flight.clone(),
             committed: self.ledger.committed.iter().copied().collect(),
@@ -290,8 +313,9 @@ impl ControllerPost {
     /// Feeds one input.
     ///
     /// # Errors
-    /// A session that is a duplicate, of a size outside the bounds, or with a separation
-    /// outside [0, 10⁶] (nothing changes).
+    /// A session that is a duplicate, of a size outside the bounds, with a separation
+    /// outside [0, 10⁶], or with LLRs that are not one per bit (or none where LDPC
+    /// reconciliation needs them) (nothing changes).
     pub fn handle_input(&mut self, input: ControllerInput) -> Result<(), PostError> {
         match input {
             ControllerInput::Session {
@@ -299,10 +323,12 @@ impl ControllerPost {
                 bits,
                 separations,
                 samples,
+                llrs,
             } => {
                 if let Some(&separation) = separations.iter().find(|d| !(0.0..=1e6).contains(*d)) {
                     return Err(PostError::Separation { id, separation });
                 }
+                self.check_llrs(id, bits.len(), &llrs)?;
                 let counts = separation_counts(&separations, bits.len());
                 self.ledger.add_session(id, bits)?;
                 // Rounded up: the key is sized as if Eve saw a little more, never less.
@@ -315,6 +341,10 @@ impl ControllerPost {
                 if !samples.is_empty() {
                     self.samples.insert(id, samples);
                 }
+                if !llrs.is_empty() {
+                    self.llrs
+                        .insert(id, llrs.into_iter().map(quantise_llr).collect());
+                }
                 self.maybe_propose();
             }
             ControllerInput::Estimate { block, outcome } => self.on_estimate(block, outcome),
@@ -326,6 +356,29 @@ impl ControllerPost {
             ControllerInput::Frame(message) => self.handle_message(message),
         }
         Ok(())
+    }
+
+    /// A session's LLRs are one per bit and none NaN, or absent where Cascade reconciles.
+    fn check_llrs(&self, id: u32, bits: usize, llrs: &[f64]) -> Result<(), PostError> {
+        let problem = if llrs.is_empty() {
+            matches!(
+                self.ledger.settings.reconciliation,
+                ReconciliationMethod::Ldpc(_)
+            )
+            .then(|| {
+                "has no LLRs: postprocess.reconciliation = \"ldpc\" decodes on the \
+                 controller's per-bit LLRs (private sensing); odometry sessions need \
+                 \"cascade\""
+                    .to_owned()
+            })
+        } else if llrs.len() != bits {
+            Some(format!("has {} LLRs for its {bits} bits", llrs.len()))
+        } else {
+            llrs.iter()
+                .position(|l| l.is_nan())
+                .map(|i| format!("has a NaN LLR at bit {i}"))
+        };
+        problem.map_or(Ok(()), |problem| Err(PostError::Llrs { id, problem }))
     }
 
     fn handle_message(&mut self, message: Message) {
@@ -365,6 +418,30 @@ impl ControllerPost {
                 ),
             },
             (
+                State::ExpectSyndrome {
+                    agreed,
+                    mut decoding,
+                },
+                Message::Syndrome {
+                    round, syndrome, ..
+                },
+            ) if round == decoding.round() => {
+                let block = self.current();
+                match decoding.accept(block, &syndrome) {
+                    Ok(DecodingStep::Done(outcome)) => self.confirm(agreed, outcome),
+                    Ok(DecodingStep::Ask(request)) => {
+                        self.state = State::ExpectSyndrome { agreed, decoding };
+                        self.request(request);
+                    }
+                    Err(why) => {
+                        if let Some(report) = self.report.as_mut() {
+                            report.ldpc_rounds = Some(decoding.round());
+                        }
+                        self.abort(AbortReason::Reconciliation, why);
+                    }
+                }
+            }
+            (
                 State::ExpectConfirmed {
                     agreed,
                     reconciled,
@@ -403,6 +480,7 @@ impl ControllerPost {
             (
                 State::ExpectAgree { .. }
                 | State::ExpectAnswer { .. }
+                | State::ExpectSyndrome { .. }
                 | State::ExpectEstimate { .. }
                 | State::ExpectConfirmed { .. },
                 Message::Reject { reason, .. },
@@ -470,6 +548,10 @@ impl ControllerPost {
         self.block_samples = sessions
             .iter()
             .filter_map(|id| self.samples.remove(id).map(|s| (*id, s)))
+            .collect();
+        self.block_llrs = sessions
+            .iter()
+            .filter_map(|id| self.llrs.remove(id).map(|l| (*id, l)))
             .collect();
         let block = self.next_block;
         self.next_block += 1;
@@ -565,6 +647,9 @@ impl ControllerPost {
             mask,
             robot_sample: sample.to_vec(),
         };
+        if let ReconciliationMethod::Ldpc(settings) = self.ledger.settings.reconciliation {
+            return self.start_ldpc(agreed, settings);
+        }
         let started = Cascade::new(self.ledger.settings.schedule, q)
             .and_then(|cascade| CascadeBob::start(cascade, kept, agreed.public.cascade()));
         match started {
@@ -572,6 +657,49 @@ impl ControllerPost {
             Err(e) => self.abort(
                 AbortReason::Reconciliation,
                 format!("reconciliation could not start: {e}"),
+            ),
+        }
+    }
+
+    /// LDPC: the kept positions' LLRs, then round 1's request for the robot's syndrome.
+    fn start_ldpc(&mut self, agreed: Agreed, settings: crate::ldpc::LdpcSettings) {
+        let mut llrs = Vec::with_capacity(agreed.mask.len());
+        for id in &agreed.sessions {
+            let Some(session) = self.block_llrs.get(id) else {
+                return self.abort(
+                    AbortReason::Reconciliation,
+                    format!(
+                        "session {id} has no LLRs: LDPC reconciliation decodes on the \
+                         controller's per-bit LLRs"
+                    ),
+                );
+            };
+            llrs.extend(session.iter().map(|&l| dequantise_llr(l)));
+        }
+        if llrs.len() != agreed.mask.len() {
+            return self.abort(
+                AbortReason::Reconciliation,
+                "the block's LLRs do not cover its bits".into(),
+            );
+        }
+        let kept: Vec<f64> = llrs
+            .into_iter()
+            .zip(&agreed.mask)
+            .filter(|(_, sampled)| !**sampled)
+            .map(|(l, _)| l)
+            .collect();
+        let block = self.current();
+        match SyndromeDecoding::start(settings, kept, agreed.public.ldpc(), block) {
+            Ok((decoding, request)) => {
+                self.state = State::ExpectSyndrome {
+                    agreed,
+                    decoding: Box::new(decoding),
+                };
+                self.request(request);
+            }
+            Err(why) => self.abort(
+                AbortReason::Reconciliation,
+                format!("LDPC reconciliation could not start: {why}"),
             ),
         }
     }
@@ -586,7 +714,15 @@ impl ControllerPost {
     ) {
         match step {
             CascadeStep::Ask(queries) => self.ask(agreed, bob, round + 1, queries),
-            CascadeStep::Done(outcome) => self.confirm(agreed, outcome),
+            CascadeStep::Done(outcome) => self.confirm(
+                agreed,
+                Reconciled {
+                    corrected: outcome.corrected,
+                    leak: outcome.leak,
+                    questions: outcome.alice_parities,
+                    ldpc_rounds: None,
+                },
+            ),
         }
     }
 
@@ -608,7 +744,7 @@ impl ControllerPost {
 
     /// Reconciliation is over: with the plant measured, the shell estimates it first;
     /// otherwise ℓ from the assumption at once.
-    fn confirm(&mut self, agreed: Agreed, outcome: Reconciliation) {
+    fn confirm(&mut self, agreed: Agreed, outcome: Reconciled) {
         if self.ledger.settings.assumption.is_measured() {
             let request = self.estimate_request(&agreed, &outcome.corrected);
             self.state = State::ExpectEstimate { agreed, outcome };
@@ -698,7 +834,7 @@ impl ControllerPost {
     fn size(
         &mut self,
         agreed: Agreed,
-        outcome: Reconciliation,
+        outcome: Reconciled,
         assumption: Assumption,
         estimate: Option<u32>,
     ) {
@@ -706,8 +842,9 @@ impl ControllerPost {
         let (h_min, length) =
             assumption.output_length(n, outcome.leak, self.ledger.settings.epsilon);
         if let Some(report) = self.report.as_mut() {
-            report.questions = outcome.alice_parities;
+            report.questions = outcome.questions;
             report.leak_ec = outcome.leak;
+            report.ldpc_rounds = outcome.ldpc_rounds;
             report.h_min = h_min;
             report.length = length.bits;
             report.separation_steps = estimate;
@@ -807,6 +944,7 @@ impl ControllerPost {
             self.ledger.spent.extend(sessions);
         }
         self.block_samples.clear();
+        self.block_llrs.clear();
         self.in_flight = None;
         self.state = State::Idle;
         self.last_request = None;

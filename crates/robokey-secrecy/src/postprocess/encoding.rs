@@ -11,7 +11,8 @@ use robokey_codec::{Codec, DecodeError, Reader, Writer};
 use crate::cascade::BlockQuery;
 
 use super::{
-    AbortReason, MAX_BLOCK_SESSIONS, MAX_QUESTIONS, MAX_SAMPLE_BITS, Message, RejectReason,
+    AbortReason, MAX_BLOCK_SESSIONS, MAX_QUESTIONS, MAX_SAMPLE_BITS, MAX_SYNDROME_BITS, Message,
+    RejectReason,
 };
 
 const PROPOSE: u8 = 1;
@@ -25,9 +26,12 @@ const COMMIT_ACK: u8 = 8;
 const ABORT: u8 = 9;
 const ABORT_ACK: u8 = 10;
 const REJECT: u8 = 11;
+const SYNDROME_ASK: u8 = 12;
+const SYNDROME: u8 = 13;
 
 /// Encodes `message`. It never fails; a message whose lists exceed the bounds
-/// ([`MAX_BLOCK_SESSIONS`], [`MAX_QUESTIONS`], [`MAX_SAMPLE_BITS`]), which the endpoints never
+/// ([`MAX_BLOCK_SESSIONS`], [`MAX_QUESTIONS`], [`MAX_SAMPLE_BITS`], [`MAX_SYNDROME_BITS`]),
+/// which the endpoints never
 /// send, encodes but does not decode.
 #[must_use]
 pub fn encode(message: &Message) -> Vec<u8> {
@@ -121,6 +125,26 @@ impl Codec for Message {
                 head(w, REJECT, *block);
                 reason.encode(w);
             }
+            Self::SyndromeAsk {
+                block,
+                round,
+                syndrome_bits,
+                bhattacharyya,
+            } => {
+                head(w, SYNDROME_ASK, *block);
+                w.u32(*round);
+                w.u32(*syndrome_bits);
+                w.u16(*bhattacharyya);
+            }
+            Self::Syndrome {
+                block,
+                round,
+                syndrome,
+            } => {
+                head(w, SYNDROME, *block);
+                w.u32(*round);
+                put_bits(w, syndrome);
+            }
         }
     }
 
@@ -177,11 +201,22 @@ impl Codec for Message {
                 block,
                 reason: RejectReason::decode(r)?,
             },
+            SYNDROME_ASK => Self::SyndromeAsk {
+                block,
+                round: r.u32("round")?,
+                syndrome_bits: r.u32("syndrome_bits")?,
+                bhattacharyya: r.u16("bhattacharyya")?,
+            },
+            SYNDROME => Self::Syndrome {
+                block,
+                round: r.u32("round")?,
+                syndrome: read_bits(r, "syndrome", MAX_SYNDROME_BITS)?,
+            },
             other => {
                 return Err(DecodeError::Invalid {
                     field: "tag",
                     value: other.into(),
-                    allowed: "1 to 11",
+                    allowed: "1 to 13",
                 });
             }
         })
@@ -391,6 +426,19 @@ mod tests {
                 block: 5,
                 reason: RejectReason::BadQuestions,
             },
+            Message::SyndromeAsk {
+                block: 3,
+                round: 1,
+                syndrome_bits: 0x1234,
+                bhattacharyya: 0x0155,
+            },
+            Message::Syndrome {
+                block: 3,
+                round: 2,
+                syndrome: vec![
+                    true, false, true, true, false, false, false, false, true, true,
+                ],
+            },
         ]
     }
 
@@ -421,9 +469,20 @@ mod tests {
             messages.push(Message::Answer {
                 block: len as u64,
                 round: 1,
-                parities: bits,
+                parities: bits.clone(),
+            });
+            messages.push(Message::Syndrome {
+                block: len as u64,
+                round: u32::MAX,
+                syndrome: bits,
             });
         }
+        messages.push(Message::SyndromeAsk {
+            block: u64::MAX,
+            round: u32::MAX,
+            syndrome_bits: u32::MAX,
+            bhattacharyya: u16::MAX,
+        });
         for reason in [
             AbortReason::NoSecretBits,
             AbortReason::Reconciliation,
@@ -460,9 +519,9 @@ mod tests {
     /// Padding bits of a message's bit list (the encoding rounds it up to whole bytes).
     fn padding(message: &Message) -> u64 {
         match message {
-            Message::Agree { sample: bits, .. } | Message::Answer { parities: bits, .. } => {
-                (8 - bits.len() as u64 % 8) % 8
-            }
+            Message::Agree { sample: bits, .. }
+            | Message::Answer { parities: bits, .. }
+            | Message::Syndrome { syndrome: bits, .. } => (8 - bits.len() as u64 % 8) % 8,
             _ => 0,
         }
     }
@@ -481,7 +540,7 @@ mod tests {
             );
         }
         let tags: Vec<u8> = examples().iter().map(|m| encode(m)[0]).collect();
-        assert_eq!(tags, (1..=11).collect::<Vec<u8>>());
+        assert_eq!(tags, (1..=13).collect::<Vec<u8>>());
     }
 
     #[test]
@@ -503,6 +562,8 @@ mod tests {
 09000000000000000400000002000000080000000901
 0a0000000000000004
 0b000000000000000504
+0c000000000000000300000001000012340155
+0d0000000000000003000000020000000ab0c0
 ";
 
     /// With the plant measured, `Confirm` ends with the estimate (`u32`, grid steps of 2⁻⁸);
@@ -560,10 +621,10 @@ mod tests {
         let unknown_tag = |value| DecodeError::Invalid {
             field: "tag",
             value,
-            allowed: "1 to 11",
+            allowed: "1 to 13",
         };
         assert_eq!(decode(&[0; 9]), Err(unknown_tag(0)));
-        assert_eq!(decode(&[12; 9]), Err(unknown_tag(12)));
+        assert_eq!(decode(&[14; 9]), Err(unknown_tag(14)));
         assert_eq!(
             decode(&propose[..propose.len() - 1]),
             Err(DecodeError::Truncated {
@@ -605,6 +666,17 @@ mod tests {
                 ..
             })
         ));
+        // A syndrome longer than one code's block is refused before anything is read.
+        let mut syndrome = encode(&examples()[12]);
+        syndrome[13..17].copy_from_slice(&(MAX_SYNDROME_BITS as u32 + 1).to_be_bytes());
+        assert_eq!(
+            decode(&syndrome),
+            Err(DecodeError::TooLong {
+                field: "syndrome",
+                len: MAX_SYNDROME_BITS as u32 + 1,
+                max: MAX_SYNDROME_BITS
+            })
+        );
         let mut reject = encode(&examples()[10]);
         reject[9] = 5;
         assert_eq!(
@@ -653,7 +725,7 @@ mod tests {
             let mut bytes: Vec<u8> = (0..len).map(|_| rng.random()).collect();
             if let Some(tag) = bytes.first_mut() {
                 // Mostly valid tags, so the fields get read.
-                *tag = rng.random_range(0..13);
+                *tag = rng.random_range(0..15);
             }
             if let Ok(message) = decode(&bytes) {
                 assert_eq!(encode(&message), bytes);

@@ -134,6 +134,29 @@ pub enum Message {
         /// Why.
         reason: RejectReason,
     },
+    /// Controller → robot (LDPC reconciliation): send the syndrome of round `round` of the
+    /// code both sides build from the block's public randomness, m and B.
+    SyndromeAsk {
+        /// Block number.
+        block: u64,
+        /// Round (1, then one per feedback round, at most 1 + the feedback rounds agreed).
+        round: u32,
+        /// The first round's syndrome bits m (1..=n), repeated in every round.
+        syndrome_bits: u32,
+        /// The channel's Bhattacharyya parameter B in 1024ths (1..=1024), repeated in every
+        /// round.
+        bhattacharyya: u16,
+    },
+    /// Robot → controller (LDPC reconciliation): the syndrome bits of the round's new checks,
+    /// in check order.
+    Syndrome {
+        /// Block number.
+        block: u64,
+        /// Round answered.
+        round: u32,
+        /// The syndrome bits.
+        syndrome: Vec<bool>,
+    },
 }
 
 impl Message {
@@ -151,12 +174,15 @@ impl Message {
             | Self::CommitAck { block }
             | Self::Abort { block, .. }
             | Self::AbortAck { block }
-            | Self::Reject { block, .. } => *block,
+            | Self::Reject { block, .. }
+            | Self::SyndromeAsk { block, .. }
+            | Self::Syndrome { block, .. } => *block,
         }
     }
 
     /// Payload bits: the fields as they would be encoded (u64 64, u32 32, bool 1, nonce 256,
-    /// tag 64, a reason 8, a list's length 32, a present optional field its own), before framing.
+    /// tag 64, a reason 8, a list's length 32, a present optional field its own, u16 16),
+    /// before framing.
     #[must_use]
     pub fn payload_bits(&self) -> u64 {
         let list = |items: usize, each: u64| 32 + items as u64 * each;
@@ -172,6 +198,8 @@ impl Message {
             Self::Commit { .. } | Self::CommitAck { .. } | Self::AbortAck { .. } => 0,
             Self::Abort { sessions, .. } => list(sessions.len(), 32) + 8,
             Self::Reject { .. } => 8,
+            Self::SyndromeAsk { .. } => 32 + 32 + 16,
+            Self::Syndrome { syndrome, .. } => 32 + list(syndrome.len(), 1),
         }
     }
 }

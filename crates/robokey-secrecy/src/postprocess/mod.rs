@@ -40,6 +40,8 @@ mod ledger;
 mod message;
 pub mod public;
 mod robot;
+mod soft_values;
+mod syndromes;
 #[cfg(test)]
 mod tests;
 
@@ -47,6 +49,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::bitstring::BitString;
 use crate::cascade::CascadeSchedule;
+use crate::ldpc::LdpcSettings;
 
 pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
@@ -61,6 +64,7 @@ pub use fragment::{
 pub use message::{AbortReason, Message, RejectReason};
 pub use robokey_codec::DecodeError;
 pub use robot::{Prepared, RobotInput, RobotPost, RobotSnapshot};
+pub use soft_values::{LLR_QUANTUM, dequantise_llr, quantise_llr};
 
 /// Largest number of sessions one block may pool (bounds a `Propose`).
 pub const MAX_BLOCK_SESSIONS: usize = 1 << 16;
@@ -73,6 +77,32 @@ pub const MAX_QUESTIONS: usize = 1 << 20;
 
 /// Largest sample one `Agree` discloses (bits); bounds [`Settings::sample_bits`].
 pub const MAX_SAMPLE_BITS: usize = 1 << 20;
+
+/// Largest syndrome one `Syndrome` carries (bits): an LDPC code's block bound.
+pub const MAX_SYNDROME_BITS: usize = crate::ldpc::MAX_BLOCK_BITS;
+
+/// How the controller's bits are made the robot's (docs/postprocessing.md).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub enum ReconciliationMethod {
+    /// Interactive Cascade on the controller's decisions: both sides' parities are leaked.
+    #[default]
+    Cascade,
+    /// One-way LDPC syndromes decoded on the controller's calibrated LLRs
+    /// ([`crate::ldpc`]): every syndrome bit and ⌈log₂(R + 1)⌉ for the rounds are leaked.
+    /// Needs every pooled session's LLRs.
+    Ldpc(LdpcSettings),
+}
+
+impl ReconciliationMethod {
+    /// The name configurations and reports use: `cascade` or `ldpc`.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Cascade => "cascade",
+            Self::Ldpc(_) => "ldpc",
+        }
+    }
+}
 
 /// What both endpoints must agree on (exchanged out of band, like the session terms).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -88,6 +118,9 @@ pub struct Settings {
     pub schedule: CascadeSchedule,
     /// What is assumed about Eve: it sets ℓ.
     pub assumption: Assumption,
+    /// How the bits are reconciled (Cascade unless stated).
+    #[serde(default)]
+    pub reconciliation: ReconciliationMethod,
 }
 
 /// What happened to one block, for reports (both endpoints produce one). Its `Default` is
@@ -110,10 +143,15 @@ pub struct BlockReport {
     pub q_estimate: f64,
     /// Bits reconciled and amplified.
     pub reconciled_bits: usize,
-    /// Cascade questions answered.
+    /// Cascade questions answered (with LDPC: syndrome bits sent).
     pub questions: u64,
-    /// Reconciliation leak: both sides' parities, 2 per question.
+    /// Reconciliation leak: with Cascade both sides' parities, 2 per question; with LDPC
+    /// every syndrome bit sent plus ⌈log₂(R + 1)⌉ for the number of rounds (R feedback
+    /// rounds allowed).
     pub leak_ec: u64,
+    /// With LDPC reconciliation: the syndrome rounds used (absent with Cascade).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ldpc_rounds: Option<u32>,
     /// Confirmation tags published over the block (two 64-bit tags).
     pub leak_confirmation: u64,
     /// Eve's smooth min-entropy bound under the assumption.
@@ -189,6 +227,15 @@ pub enum PostError {
     /// Settings out of range.
     #[error("invalid post-processing settings: {0}")]
     Settings(String),
+    /// A session's LLRs do not match its bits (one per bit, none NaN), or LDPC
+    /// reconciliation needs them and the session has none.
+    #[error("session {id}: {problem}")]
+    Llrs {
+        /// Session ID.
+        id: u32,
+        /// What is wrong.
+        problem: String,
+    },
     /// A session's Eve separation outside [0, 10⁶].
     #[error("session {id} has Eve separation {separation} (allowed: 0 to 10^6)")]
     Separation {
@@ -224,6 +271,24 @@ impl Settings {
                 "epsilon {} (allowed: (0, 1))",
                 self.epsilon
             )));
+        }
+        if let ReconciliationMethod::Ldpc(ldpc) = &self.reconciliation {
+            ldpc.check()
+                .and_then(|()| crate::ldpc::SyndromeDecoder::new(ldpc.max_iterations).map(drop))
+                .map_err(|e| PostError::Settings(format!("reconciliation: {e}")))?;
+            if !(1.0..=10.0).contains(&ldpc.efficiency) {
+                return Err(PostError::Settings(format!(
+                    "reconciliation: LDPC efficiency {} (allowed: 1 to 10)",
+                    ldpc.efficiency
+                )));
+            }
+            if self.block_bits > MAX_SYNDROME_BITS {
+                return Err(PostError::Settings(format!(
+                    "block_bits {} with LDPC reconciliation (allowed: 64 to 2^22, one code's \
+                     block)",
+                    self.block_bits
+                )));
+            }
         }
         self.assumption
             .check()

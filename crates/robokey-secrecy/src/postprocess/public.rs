@@ -4,7 +4,7 @@
 //!
 //! seed = SHA-256("robokey/post-processing/v1" ‖ block ‖ |sessions| ‖ sessions ‖ nonce_c ‖
 //! nonce_r); each use reads its own stream of the ChaCha20 generator keyed by the seed
-//! (stream 0: sample, 1: Cascade, 2: Toeplitz). The Toeplitz matrix is thus drawn by a
+//! (stream 0: sample, 1: Cascade, 2: Toeplitz, 3: the LDPC code's seed). The Toeplitz matrix is thus drawn by a
 //! cryptographic PRG from a uniform 256-bit seed rather than uniformly: the leftover hash
 //! lemma holds for it as long as ChaCha20 is indistinguishable from random (docs/secrecy.md).
 
@@ -60,6 +60,14 @@ impl PublicRandomness {
     #[must_use]
     pub fn cascade(&self) -> ChaCha20Rng {
         self.stream(1)
+    }
+
+    /// The 256-bit seed of the block's LDPC code and its feedback rounds.
+    #[must_use]
+    pub fn ldpc(&self) -> [u8; 32] {
+        let mut seed = [0_u8; 32];
+        rand::Rng::fill_bytes(&mut self.stream(3), &mut seed);
+        seed
     }
 
     /// The Toeplitz hash from `n` to `length` bits.

@@ -7,10 +7,11 @@ use serde::{Deserialize, Serialize};
 use super::controller::empty_report;
 use super::ledger::Ledger;
 use super::public::PublicRandomness;
+use super::syndromes::SyndromeEncoding;
 use super::{
     AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, MAX_QUESTIONS,
-    MAX_SEPARATION_STEPS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, RejectReason,
-    Settings, concatenate, key_id, split_sample, tag_context,
+    MAX_SEPARATION_STEPS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER,
+    ReconciliationMethod, RejectReason, Settings, concatenate, key_id, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::CascadeAlice;
@@ -58,6 +59,33 @@ pub struct RobotSnapshot {
     pub committed: Vec<u64>,
 }
 
+/// The robot's half of reconciliation.
+enum Answering {
+    /// Cascade: it answers parities.
+    Cascade(Box<CascadeAlice<ChaCha20Rng>>),
+    /// LDPC: it sends syndromes.
+    Ldpc(crate::ldpc::LdpcSettings, Box<SyndromeEncoding>),
+}
+
+impl Answering {
+    /// leak_EC so far, as the controller counts it: both sides' parities, or every syndrome
+    /// bit plus the rounds' count.
+    fn leak(&self) -> u64 {
+        match self {
+            Self::Cascade(alice) => 2 * alice.revealed(),
+            Self::Ldpc(settings, encoding) => encoding.sent() + settings.round_count_bits(),
+        }
+    }
+
+    /// Parities answered, or syndrome bits sent.
+    fn questions(&self) -> u64 {
+        match self {
+            Self::Cascade(alice) => alice.revealed(),
+            Self::Ldpc(_, encoding) => encoding.sent(),
+        }
+    }
+}
+
 /// A block the robot agreed to and is reconciling.
 struct Reconciling {
     block: u64,
@@ -65,7 +93,7 @@ struct Reconciling {
     nonces: [[u8; 32]; 2],
     public: PublicRandomness,
     reference: BitString,
-    alice: CascadeAlice<ChaCha20Rng>,
+    answering: Answering,
     agree: Message,
     /// The block's Eve separation the controller stated (millionths).
     separation_micros: u64,
@@ -186,6 +214,12 @@ impl RobotPost {
                 ..
             } => self.on_propose(block, sessions, nonce, separation_micros),
             Message::Ask { round, queries, .. } => self.on_ask(block, round, &queries),
+            Message::SyndromeAsk {
+                round,
+                syndrome_bits,
+                bhattacharyya,
+                ..
+            } => self.on_syndrome_ask(block, round, syndrome_bits, bhattacharyya),
             Message::Confirm {
                 length,
                 tag,
@@ -264,18 +298,23 @@ impl RobotPost {
             nonce: robot_nonce,
             sample,
         };
-        let alice = CascadeAlice::new(
-            reference.clone(),
-            self.ledger.settings.schedule,
-            public.cascade(),
-        );
+        let answering = match self.ledger.settings.reconciliation {
+            ReconciliationMethod::Cascade => Answering::Cascade(Box::new(CascadeAlice::new(
+                reference.clone(),
+                self.ledger.settings.schedule,
+                public.cascade(),
+            ))),
+            ReconciliationMethod::Ldpc(settings) => {
+                Answering::Ldpc(settings, Box::new(SyndromeEncoding::new()))
+            }
+        };
         self.reconciling = Some(Box::new(Reconciling {
             block,
             sessions: agreed,
             nonces,
             public,
             reference,
-            alice,
+            answering,
             agree: agree.clone(),
             separation_micros,
             last_answer: None,
@@ -291,16 +330,16 @@ impl RobotPost {
             return self.unknown(block);
         };
         if round == r.round {
-            return match r.last_answer.clone() {
-                Some(answer) => self.send(answer),
-                None => self.ignore("a repeated question round"),
-            };
+            return self.repeat_answer(block, "a repeated question round");
         }
         if round != r.round + 1 {
             return self.ignore("a question round out of order");
         }
         let n = r.reference.len();
-        let revealed = r.alice.revealed();
+        let Answering::Cascade(alice) = &mut r.answering else {
+            return self.reject(block, RejectReason::BadQuestions);
+        };
+        let revealed = alice.revealed();
         if queries.len() > MAX_QUESTIONS
             || u64::from(round) > u64::from(max_rounds(n, &schedule)) + revealed
             || revealed.saturating_add(queries.len() as u64) > 2 * n as u64
@@ -309,18 +348,72 @@ impl RobotPost {
             // without bound.
             return self.reject(block, RejectReason::BadQuestions);
         }
-        match r.alice.answer(queries) {
+        match alice.answer(queries) {
             Ok(parities) => {
-                let answer = Message::Answer {
-                    block,
+                self.record_answer(
                     round,
-                    parities,
-                };
-                r.round = round;
-                r.last_answer = Some(answer.clone());
-                self.send(answer);
+                    Message::Answer {
+                        block,
+                        round,
+                        parities,
+                    },
+                );
             }
             Err(_) => self.reject(block, RejectReason::BadQuestions),
+        }
+    }
+
+    /// LDPC: the syndrome of the asked round's new checks, once per round (a repeated request
+    /// gets the same answer).
+    fn on_syndrome_ask(&mut self, block: u64, round: u32, syndrome_bits: u32, bhattacharyya: u16) {
+        let Some(r) = self.reconciling(block) else {
+            return self.unknown(block);
+        };
+        if round == r.round && round > 0 {
+            return self.repeat_answer(block, "a repeated syndrome round");
+        }
+        let seed = r.public.ldpc();
+        let Answering::Ldpc(settings, encoding) = &mut r.answering else {
+            return self.reject(block, RejectReason::BadQuestions);
+        };
+        match encoding.answer(
+            round,
+            syndrome_bits,
+            bhattacharyya,
+            &r.reference,
+            seed,
+            settings,
+        ) {
+            Ok(syndrome) => {
+                self.record_answer(
+                    round,
+                    Message::Syndrome {
+                        block,
+                        round,
+                        syndrome,
+                    },
+                );
+            }
+            Err(reason) => self.reject(block, reason),
+        }
+    }
+
+    /// Sends the answer to round `round` of the block being reconciled and keeps it for a
+    /// repeated request.
+    fn record_answer(&mut self, round: u32, answer: Message) {
+        if let Some(r) = self.reconciling(answer.block()) {
+            r.round = round;
+            r.last_answer = Some(answer.clone());
+        }
+        self.send(answer);
+    }
+
+    /// Sends again the last answer of the block being reconciled (`what`: a request that has
+    /// none).
+    fn repeat_answer(&mut self, block: u64, what: &'static str) {
+        match self.reconciling(block).and_then(|r| r.last_answer.clone()) {
+            Some(answer) => self.send(answer),
+            None => self.ignore(what),
         }
     }
 
@@ -337,7 +430,7 @@ impl RobotPost {
             return self.unknown(block);
         };
         let n = r.reference.len() as u64;
-        let leak_ec = 2 * r.alice.revealed();
+        let leak_ec = r.answering.leak();
         // ℓ recomputed from what was carried: with the plant measured, the estimate's
         // separation (which the robot cannot check, docs/threat-model.md); otherwise the
         // separation proposed with the block.
@@ -366,8 +459,11 @@ impl RobotPost {
         };
         let ours = ConfirmationTag::directional(&r.reference, ROBOT_TO_CONTROLLER, &context);
         let mut report = r.report.clone();
-        report.questions = r.alice.revealed();
+        report.questions = r.answering.questions();
         report.leak_ec = leak_ec;
+        if matches!(r.answering, Answering::Ldpc(..)) {
+            report.ldpc_rounds = Some(r.round);
+        }
         report.leak_confirmation = 2 * crate::confirm::TAG_BITS;
         report.h_min = h_min;
         report.length = length;

@@ -17,6 +17,7 @@ fn settings(assumption: Assumption) -> Settings {
         epsilon: 1e-6,
         schedule: CascadeSchedule::BICONF,
         assumption,
+        reconciliation: ReconciliationMethod::Cascade,
     }
 }
 
@@ -85,6 +86,18 @@ impl Pair {
         separations: &[Vec<f64>],
         robot_lacks: &[u32],
     ) -> Self {
+        Self::with_views(settings, pool, separations, robot_lacks, &[])
+    }
+
+    /// [`Self::with_separations`] with each session's controller LLRs (none for a session
+    /// past the list).
+    fn with_views(
+        settings: Settings,
+        pool: &[(u32, BitString, BitString)],
+        separations: &[Vec<f64>],
+        robot_lacks: &[u32],
+        llrs: &[Vec<f64>],
+    ) -> Self {
         let controller = ControllerPost::new(settings.clone(), [1; 32]).unwrap();
         let mut robot = RobotPost::new(settings.clone(), [2; 32]).unwrap();
         // The robot learns of its sessions first, as on the network.
@@ -123,6 +136,7 @@ impl Pair {
                     bits: bits.clone(),
                     separations: separations.get(i).cloned().unwrap_or_default(),
                     samples: SessionSamples::new(),
+                    llrs: llrs.get(i).cloned().unwrap_or_default(),
                 })
                 .unwrap();
             pair.collect();
@@ -439,10 +453,18 @@ fn a_crash_at_any_message_boundary_never_splits_the_keys() {
     let boundaries = reference.delivered;
     assert!(boundaries > 30, "{boundaries}");
     assert!(reference.controller_keys.len() >= 2);
+    let trials = crash_at_every_boundary(boundaries, || Pair::new(settings(weak_eve()), &pool));
+    println!("{trials} crash trials over {} boundaries", boundaries + 1);
+}
+
+/// Crashes the controller, the robot or both at each of the first `boundaries` + 1 message
+/// boundaries of the exchange `new` starts, restarting from the last stored snapshots; every
+/// run must settle with the same keys on both sides. Returns the trials.
+fn crash_at_every_boundary(boundaries: usize, new: impl Fn() -> Pair) -> usize {
     let mut trials = 0;
     for crash_at in 0..=boundaries {
         for side in ["controller", "robot", "both"] {
-            let mut pair = Pair::new(settings(weak_eve()), &pool);
+            let mut pair = new();
             while pair.delivered < crash_at && pair.deliver(None) {}
             match side {
                 "controller" => pair.crash_controller(),
@@ -460,7 +482,7 @@ fn a_crash_at_any_message_boundary_never_splits_the_keys() {
             trials += 1;
         }
     }
-    println!("{trials} crash trials over {} boundaries", boundaries + 1);
+    trials
 }
 
 #[test]
@@ -851,3 +873,5 @@ fn per_bit_separations_size_both_sides_alike() {
         "{refused:?}"
     );
 }
+
+mod ldpc;

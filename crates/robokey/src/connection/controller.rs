@@ -11,7 +11,7 @@ use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot, SessionSa
 use super::linger::{Courtesy, Linger};
 use super::post::{PostLink, PostOutput};
 use super::{Output, Setup};
-use crate::config::{Config, Sizing};
+use crate::config::{Config, Reconciliation, Sizing};
 use crate::estimate::kept_doublet;
 use crate::model::Pose;
 use crate::protocol::auth::{AuthMode, ChannelCounts, ControllerChannel, Delivery, PairingSecret};
@@ -79,6 +79,9 @@ pub struct ControllerConnection<A> {
     /// What the pool keeps of the decided doublets for the block's estimate of the plant
     /// (`postprocess.sizing = "measured"`; empty otherwise).
     kept: SessionSamples,
+    /// The controller's LLR of each decided bit (private sensing), which LDPC reconciliation
+    /// decodes on (`postprocess.reconciliation = "ldpc"`; empty otherwise).
+    llrs: Vec<f64>,
     outputs: VecDeque<ControllerAction<A>>,
 }
 
@@ -125,6 +128,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             post,
             separations: Vec::new(),
             kept: SessionSamples::new(),
+            llrs: Vec::new(),
             outputs: VecDeque::new(),
             channel,
             earlier: ChannelCounts::default(),
@@ -430,6 +434,9 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                         let bits = self.plan.bits_per_unit();
                         self.separations
                             .extend_from_slice(&decision.assumed_separation[..bits]);
+                        if self.config.postprocess.reconciliation == Reconciliation::Ldpc {
+                            self.llrs.extend_from_slice(&decision.evidence.llr[..bits]);
+                        }
                         if self.config.postprocess.sizing == Sizing::Measured {
                             self.kept.push(kept_doublet(
                                 decision.doublet,
@@ -464,6 +471,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                     endpoint.key(),
                     std::mem::take(&mut self.separations),
                     std::mem::take(&mut self.kept),
+                    std::mem::take(&mut self.llrs),
                 );
                 self.outputs.push_back(Output::Post(pooled));
                 self.stage = Stage::Post {

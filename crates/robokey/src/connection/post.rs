@@ -24,7 +24,8 @@ pub trait PostEndpoint {
     fn snapshot(&self) -> Self::Snapshot;
     /// Pools a session's raw bits (`separations`: the controller's Eve separation of each
     /// decided bit, [`ControllerInput::Session`]; `samples`: what it keeps of them for the
-    /// block's estimate of the plant; the robot ignores both).
+    /// block's estimate of the plant; `llrs`: its LLR of each decided bit, for LDPC; the
+    /// robot ignores all three).
     ///
     /// # Errors
     /// A duplicate session or one of a size out of bounds.
@@ -34,6 +35,7 @@ pub trait PostEndpoint {
         bits: BitString,
         separations: Vec<f64>,
         samples: SessionSamples,
+        llrs: Vec<f64>,
     ) -> Result<(), PostError>;
     /// The shell's estimate of the plant for `block`, which the endpoint asked for (the
     /// robot never asks).
@@ -57,12 +59,14 @@ impl PostEndpoint for ControllerPost {
         bits: BitString,
         separations: Vec<f64>,
         samples: SessionSamples,
+        llrs: Vec<f64>,
     ) -> Result<(), PostError> {
         self.handle_input(ControllerInput::Session {
             id,
             bits,
             separations,
             samples,
+            llrs,
         })
     }
     fn estimated(&mut self, block: u64, outcome: EstimateOutcome) {
@@ -104,6 +108,7 @@ impl PostEndpoint for RobotPost {
         bits: BitString,
         _separations: Vec<f64>,
         _samples: SessionSamples,
+        _llrs: Vec<f64>,
     ) -> Result<(), PostError> {
         self.handle_input(RobotInput::Session { id, bits })
     }
@@ -203,8 +208,8 @@ impl<E: PostEndpoint> PostLink<E> {
 
     /// Pools the raw bits of session `id` (one `u8` 0/1 per bit) if the session ended
     /// `outcome` confirmed or kept and its bits are not spent, with what the controller
-    /// keeps of it for the block's estimate (`samples`, empty on the robot); says what
-    /// happened.
+    /// keeps of it for the block's estimate (`samples`) and its LLRs (`llrs`; both empty on
+    /// the robot); says what happened.
     pub fn pool(
         &mut self,
         id: u32,
@@ -212,6 +217,7 @@ impl<E: PostEndpoint> PostLink<E> {
         bits: &[u8],
         separations: Vec<f64>,
         samples: SessionSamples,
+        llrs: Vec<f64>,
     ) -> PostOutput<E::Snapshot> {
         let refused = |reason: String| PostOutput::NotPooled {
             session: id,
@@ -227,10 +233,13 @@ impl<E: PostEndpoint> PostLink<E> {
         }
         let bools: zeroize::Zeroizing<Vec<bool>> =
             zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());
-        match self
-            .endpoint
-            .pool(id, BitString::from_bools(&bools), separations, samples)
-        {
+        match self.endpoint.pool(
+            id,
+            BitString::from_bools(&bools),
+            separations,
+            samples,
+            llrs,
+        ) {
             Ok(()) => PostOutput::Pooled {
                 session: id,
                 bits: bits.len(),

@@ -295,6 +295,7 @@ impl<A: Copy + PartialEq, K: CryptoRng> RobotConnection<A, K> {
                 endpoint.key(),
                 Vec::new(),
                 robokey_secrecy::postprocess::SessionSamples::new(),
+                Vec::new(),
             );
             self.outputs.push_back(Output::Post(pooled));
             self.flush_post();

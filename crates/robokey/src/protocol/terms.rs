@@ -43,7 +43,7 @@ pub fn agreement_terms(config: &Config) -> String {
          code.key_bits = {}\ntrajectory.waypoints = {:?}\ntrajectory.side_time = {}\n\
          trajectory.laps = {}\n{private}postprocess.block_bits = {}\n\
          postprocess.sample_bits = {}\npostprocess.epsilon = {}\n\
-         postprocess.assumed_eve_error = {assumed}\n",
+         postprocess.assumed_eve_error = {assumed}\n{}",
         config.robot.sample_time,
         config.robot.r,
         config.robot.axle_length,
@@ -61,7 +61,21 @@ pub fn agreement_terms(config: &Config) -> String {
         post.block_bits,
         post.sample_bits,
         post.epsilon,
+        reconciliation_terms(config),
     )
+}
+
+/// The reconciliation's line, `postprocess.reconciliation = ldpc` (absent with Cascade, so
+/// that its terms stay as they were): both sides must run the same protocol.
+fn reconciliation_terms(config: &Config) -> String {
+    if config.postprocess.reconciliation.is_cascade() {
+        String::new()
+    } else {
+        format!(
+            "postprocess.reconciliation = {}\n",
+            config.postprocess.reconciliation.name()
+        )
+    }
 }
 
 /// The camera stated in frames, when it is: `eve.camera_fps` and `eve.camera_frame_std`
@@ -229,6 +243,20 @@ mod tests {
         assert_eq!(
             terms_difference(&configured, &agreement_terms(&b), "robot", "controller"),
             "postprocess.sizing: robot has (missing), controller has measured"
+        );
+    }
+
+    #[test]
+    fn ldpc_reconciliation_is_agreed_and_cascade_unchanged() {
+        let mut a = Config::default();
+        a.sensing.mode = SensingMode::Private;
+        let cascade = agreement_terms(&a);
+        assert!(!cascade.contains("reconciliation"), "{cascade}");
+        let mut b = a.clone();
+        b.postprocess.reconciliation = crate::config::Reconciliation::Ldpc;
+        assert_eq!(
+            terms_difference(&cascade, &agreement_terms(&b), "robot", "controller"),
+            "postprocess.reconciliation: robot has (missing), controller has ldpc"
         );
     }
 }
