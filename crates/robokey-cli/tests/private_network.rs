@@ -405,9 +405,9 @@ fn a_private_controller_without_a_sensor_is_a_usage_error_naming_the_flag() {
 }
 
 /// Pools clean sessions into one block of `stores` (seeds from `first_seed`) and runs the
-/// camera eavesdropper who knows the robot's world on their captures, camera logs and raw keys
-/// with `--block` on the controller's report: her verdict (`capture.json`'s `block`) and what
-/// she printed.
+/// camera eavesdropper who knows the robot's world on their captures, camera logs and raw keys,
+/// in the order of the sessions the block's report names, with `--block` on the controller's
+/// report: her verdict (`capture.json`'s `block`) and what she printed.
 fn block_through_the_agents(
     name: &str,
     stores: &Stores,
@@ -428,6 +428,30 @@ fn block_through_the_agents(
         }
         assert!(sessions.len() < 20, "no block in 20 sessions");
     };
+    // The block's order is the pool's, not the order the sessions ran in.
+    let named: Vec<String> = report(&report_of_the_block)["post"]["blocks"][0]["session_ids"]
+        .as_array()
+        .expect("the block names its sessions")
+        .iter()
+        .map(|id| id.as_str().unwrap().to_owned())
+        .collect();
+    let ran: Vec<(String, PathBuf)> = sessions
+        .iter()
+        .map(|dir| {
+            let id = report(&dir.join("controller.json"))["session"].clone();
+            (id.as_str().unwrap().to_owned(), dir.clone())
+        })
+        .collect();
+    let sessions: Vec<PathBuf> = named
+        .iter()
+        .map(|id| {
+            let (_, dir) = ran
+                .iter()
+                .find(|(ran, _)| ran == id)
+                .unwrap_or_else(|| panic!("the block names session {id}, which did not run"));
+            dir.clone()
+        })
+        .collect();
     let out = stores.dir.join("eve");
     let mut args = vec![
         "eve".to_owned(),

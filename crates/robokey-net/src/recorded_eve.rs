@@ -844,6 +844,36 @@ mod tests {
         assert_eq!(kept, [0.2, 0.1]);
     }
 
+    /// A block report that names its sessions is checked against the captures': other
+    /// sessions, or the same in another order, are refused naming both lists; the block's own
+    /// order is accepted.
+    #[test]
+    fn a_block_is_checked_on_the_sessions_its_report_names_in_its_order() {
+        let mut summary = block(0, Vec::new());
+        summary.sessions = 2;
+        summary.session_ids = vec!["0000000b".into(), "0000000a".into()];
+        summary.bits = 2;
+        summary.reconciled_bits = 2;
+        let report = serde_json::json!({ "post": { "blocks": [summary] } });
+        let path = std::env::temp_dir().join(format!(
+            "robokey-block-sessions-{}.json",
+            std::process::id()
+        ));
+        std::fs::write(&path, report.to_string()).unwrap();
+        let config = robokey::Config::default();
+        let q = [0.1, 0.2];
+        let refused = super::block_verdict(&path, &[0xa, 0xb], &q, &config).unwrap_err();
+        assert!(
+            refused.to_string().contains(
+                "pooled sessions 0000000b, 0000000a, the captures are sessions 0000000a, 0000000b"
+            ),
+            "{refused}"
+        );
+        let verdict = super::block_verdict(&path, &[0xb, 0xa], &q, &config);
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(verdict.unwrap().raw_bits, 2);
+    }
+
     #[test]
     fn explicit_errors_are_four_relative_errors_in_the_open_unit_interval() {
         assert!(super::explicit_errors(&[0.05, -0.02, 0.0, 0.0]).is_ok());
