@@ -631,6 +631,57 @@ fn a_key_sized_for_the_robots_own_world_is_not_warned_of() {
     assert!(!text.contains("WARNING"), "{text}");
 }
 
+/// A robot whose wheels follow their commands through a 50 ms lag (1 mm motion noise), the
+/// two-step doublet, the plant measured: the next commands reveal ≈ 1.7 mm per v-bit sign
+/// along the heading, which the parties' model does not predict. The agents' controller runs
+/// the commands check at block time and refuses the block naming it, the class, the axis and
+/// the values in its report; the robot's report says the plant was refused; neither store
+/// holds a key. Blocks of 600 bits: ≈ 400 straight v-bits, the residual ≈ 15 standard errors.
+#[test]
+fn a_lagging_robots_block_is_refused_by_the_commands_check_in_the_agents() {
+    let stores = Stores::new(
+        "lag-commands-check",
+        &[
+            "--set",
+            "postprocess.block_bits=600",
+            "--set",
+            "postprocess.sizing=measured",
+        ],
+    )
+    .with_robot_world("[world]\nprocess_std = [0.001, 0.001, 0.001]\nlag = 0.05\n");
+    let block_of = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().first().cloned();
+    let (controller, robot) = (400..406)
+        .find_map(|seed| {
+            let dir = private_session(
+                &format!("lag-check-{seed}"),
+                seed,
+                &[],
+                false,
+                Some(&stores),
+            );
+            let controller = report(&dir.join("controller.json"));
+            block_of(&controller).map(|block| (block, report(&dir.join("robot.json"))))
+        })
+        .expect("a block within 6 sessions");
+    let reason = controller["reason"].as_str().unwrap();
+    let check = &reason[reason
+        .find("the commands check refused the block: v-bits at turn rates 0.00–0.05 rad/s")
+        .unwrap_or_else(|| panic!("{reason}"))..];
+    assert!(check.contains("along the heading reveals"), "{check}");
+    assert_eq!(controller["length"], 0, "{controller}");
+    let robot_block = block_of(&robot).expect("the robot's report of the block");
+    assert!(
+        robot_block["reason"]
+            .as_str()
+            .unwrap()
+            .contains("the controller's estimate of the plant refused it"),
+        "{robot_block}"
+    );
+    for role in ["robot", "controller"] {
+        assert!(stores.keys(role).is_empty(), "{role}");
+    }
+}
+
 /// A controller that states Eve's camera in frames where the robot states it per instant is
 /// refused at `Hello`, the term named: the camera statement sizes and labels the keys.
 #[test]
