@@ -1,16 +1,22 @@
-//! Speed of one default run (1020 steps, controller and Eve observers, plant noise), of
-//! each eavesdropper strategy listening to one recorded session, and the per-frame cost of
-//! the session layer's authentication.
+//! Speed of one default run (1020 steps, controller and Eve observers, plant noise) beside
+//! its arithmetic alone (the floor of docs/speed.md), of each eavesdropper strategy listening
+//! to one recorded session, and the per-frame cost of the session layer's authentication.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rand::SeedableRng;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
 use robokey::eve::{Eavesdropper, Eve, ModelErrors};
+use robokey::model::DiffDrive;
+use robokey::observer::Observer;
+use robokey::protocol::StepDecoder;
 use robokey::protocol::auth::{ControllerChannel, Delivery, PairingSecret, RobotChannel};
+use robokey::protocol::controller::{command_pair, observer_params};
 use robokey::protocol::wire::{Frame, MAC_BYTES, decode, encode};
 use robokey::protocol::{FateWindow, Message, SessionMessage, SessionPlan};
+use robokey::rng::stream;
 use robokey::sim::{simulate_plan, simulate_transcript};
+use robokey::world::Scene;
 
 fn one_run(c: &mut Criterion) {
     let config = Config::default();
@@ -20,7 +26,60 @@ fn one_run(c: &mut Criterion) {
     group.bench_function("default run (steps)", |b| {
         b.iter(|| simulate_plan(&config, plan.clone(), 0, false).unwrap());
     });
+    group.bench_function("its arithmetic alone (steps)", |b| {
+        b.iter(|| arithmetic_only(&config, &plan));
+    });
     group.finish();
+}
+
+/// The arithmetic of a default run's steps without the protocol around it (the floor of
+/// docs/speed.md): per step the plant with its noise and odometry, the reference the
+/// simulator scores against, the tracking controller and its command pair, and two
+/// observers with their decoders (the controller's, and an eavesdropper's weighing both
+/// hypotheses), in a closed loop; no message, queue, timer or log. Returns the summed
+/// tracking error (m), so that nothing is optimised away.
+fn arithmetic_only(config: &Config, plan: &SessionPlan) -> f64 {
+    let agreed = &plan.agreed;
+    let odometry = plan.odometry().expect("the default run senses odometry");
+    let mut scene = Scene::new(config, SensingMode::Odometry, |purpose| {
+        stream(config.run.seed, purpose, 0)
+    });
+    let trajectory = config.trajectory();
+    let mut tracker =
+        robokey::control::ReferenceTracker::new(config, agreed.drive, agreed.sample_time);
+    let decoder = |drive: DiffDrive| {
+        let observer = Observer::new(&observer_params(config)).expect("a valid observer");
+        StepDecoder::new(drive, observer, odometry.delta, true)
+    };
+    let mut controller = decoder(agreed.drive);
+    let mut eve = decoder(agreed.drive).weighing();
+    let mut key = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut tracking_error = 0.0;
+    for step in 0..=agreed.steps {
+        if step > 0 {
+            scene.step();
+        }
+        let observed = scene.observe();
+        let reference = trajectory.at(f64::from(step) * agreed.sample_time).position;
+        tracking_error += (observed.pose.xy() - reference).norm();
+        let applied = step.checked_sub(1);
+        let decided = controller.on_measurement(step, &observed.measured, applied);
+        let heard = eve.on_measurement(step, &observed.measured, applied);
+        std::hint::black_box((
+            decided.expect("the default run is regular"),
+            heard.expect("the default run is regular"),
+        ));
+        if step == agreed.steps {
+            break;
+        }
+        let nominal = tracker.command(&observed.measured, step);
+        let (u0, u1) = command_pair(agreed, odometry, nominal);
+        controller.on_command(step, nominal, u0, u1);
+        eve.on_command(step, agreed.drive.to_unicycle((u0 + u1) / 2.0), u0, u1);
+        key = key.rotate_left(1);
+        scene.apply(if key & 1 == 1 { u1 } else { u0 });
+    }
+    tracking_error
 }
 
 fn eavesdroppers(c: &mut Criterion) {

@@ -79,6 +79,30 @@ fn the_eavesdroppers_stay_calibrated_in_other_worlds() {
     }
 }
 
+/// With the prior equal to the world's lag (50 and 100 ms) and the parties' own 4 mm of
+/// motion noise, the controller's LLRs pass the calibration test (10 equal-count bins, exact
+/// Poisson-binomial tails, α = 10⁻³), seed 2023, 12 sessions per lag: its likelihood takes
+/// the nominal inputs through the prior lag as well as the bit's offsets.
+#[test]
+fn the_controller_stays_calibrated_under_a_known_lag() {
+    for lag in ["0.05", "0.1"] {
+        let config = private(&format!(
+            "[private]\nprior_lag = {lag}\n[world]\nlag = {lag}\n"
+        ));
+        let all = bits(&config, 12);
+        assert!(all.len() > 3_000, "lag {lag}: {}", all.len());
+        let pairs: Vec<(f64, bool)> = all
+            .iter()
+            .map(|b| {
+                let l = b.controller;
+                (1.0 / (1.0 + l.abs().exp()), (l < 0.0) != (b.bit == 1))
+            })
+            .collect();
+        let report = check_calibration(&pairs, 10, 1e-3).unwrap();
+        assert!(report.passed, "lag {lag}: {report:?}");
+    }
+}
+
 /// The mean over `bits` of `info(b)` and its standard error.
 fn mean_and_error(values: &[f64]) -> (f64, f64) {
     let n = values.len() as f64;

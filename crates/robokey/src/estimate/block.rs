@@ -19,9 +19,10 @@ use robokey_secrecy::postprocess::{
 use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 
+use super::lag::MIN_LAG_DOUBLETS;
 use super::{
-    DoubletResidual, MotionNoiseEstimate, commands_check, diagonal_covariance,
-    estimate_motion_noise, published_separation, worst_case_separations,
+    DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
+    estimate_lag, estimate_motion_noise, published_separation, worst_case_separations,
 };
 use crate::Config;
 use crate::model::{Pose, Unicycle};
@@ -126,7 +127,9 @@ pub fn block_separations(
             )
         })
         .collect();
-    if let Err(why) = two_step_doublets(config) {
+    if let Err(why) = two_step_doublets(config, sessions, epsilon)
+        .and_then(|()| no_measured_lag(config, sessions, epsilon))
+    {
         return refused(sessions.len(), why, residuals.len(), epsilon);
     }
     let sensor = diagonal_covariance(config.sensing.controller_std);
@@ -152,7 +155,7 @@ pub fn world_block_separations(
     disclosed: u64,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    if let Err(why) = two_step_doublets(config) {
+    if let Err(why) = two_step_doublets(config, sessions, epsilon) {
         let doublets = sessions.iter().map(|session| session.len()).sum();
         return refused(sessions.len(), why, doublets, epsilon);
     }
@@ -166,17 +169,71 @@ pub fn world_block_separations(
 }
 
 /// The estimate and Eve's modelled view model the two-step doublet's residual: a block of
-/// three-step doublets (`private.prior_lag` > 0) is refused, naming the setting.
-fn two_step_doublets(config: &Config) -> Result<(), String> {
-    match config.doublet_settle() {
-        None => Ok(()),
-        Some(a) => Err(format!(
-            "motion-noise estimate: it models the two-step doublet's residual, the block's \
-             doublets have three steps (private.prior_lag = {} s, a = {a:.4}; allowed: \
-             private.prior_lag = 0 with measured sizing, or --sizing world)",
-            config.private.prior_lag
-        )),
+/// three-step doublets (`private.prior_lag` > 0) is refused, naming the setting and the lag
+/// measured from the block's `sessions` at ε_est = `epsilon` ([`estimate_lag`]).
+fn two_step_doublets(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    epsilon: f64,
+) -> Result<(), String> {
+    let Some(a) = config.doublet_settle() else {
+        return Ok(());
+    };
+    let measured = match measured_lag(config, sessions, epsilon) {
+        Ok(lag) => format!(
+            "the lag measured {:.4} s [{:.4}, {:.4}] from {} doublets",
+            lag.point, lag.interval[0], lag.interval[1], lag.doublets
+        ),
+        Err(why) => why,
+    };
+    Err(format!(
+        "motion-noise estimate: it models the two-step doublet's residual, the block's \
+         doublets have three steps (private.prior_lag = {} s, a = {a:.4}; {measured}; \
+         allowed: private.prior_lag = 0 with measured sizing, or --sizing world)",
+        config.private.prior_lag
+    ))
+}
+
+/// The lag measured from the block's `sessions` at ε_est = `epsilon` ([`estimate_lag`]).
+fn measured_lag(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    epsilon: f64,
+) -> Result<LagEstimate, String> {
+    estimate_lag(
+        sessions.iter().flat_map(|session| session.iter()),
+        config.protocol.delta_v,
+        config.robot.sample_time,
+        epsilon,
+    )
+}
+
+/// The two-step doublet's estimate models no actuator lag or dead time: a block of two-step
+/// doublets whose first steps carry less of the v-bit's travel than all of it at level
+/// ε_est (the share's interval below 1), or a share beyond the class, is refused, naming the
+/// share and the lag that explains it. Too few doublets to tell are left to the
+/// motion-noise estimate, which needs more.
+fn no_measured_lag(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    epsilon: f64,
+) -> Result<(), String> {
+    let doublets: usize = sessions.iter().map(|session| session.len()).sum();
+    if config.doublet_settle().is_some() || doublets < MIN_LAG_DOUBLETS {
+        return Ok(());
     }
+    let lag = measured_lag(config, sessions, epsilon)?;
+    if lag.interval[0] > 0.0 {
+        let [low, high] = lag.share_interval;
+        return Err(format!(
+            "actuator lag: the doublets' first steps carry {:.4} [{low:.4}, {high:.4}] of the \
+             v-bit's travel over {} doublets, what a lag (or dead time) of {:.4} s [{:.4}, \
+             {:.4}] leaves; the two-step doublet's estimate models none (allowed: a share \
+             whose interval reaches 1; private.prior_lag shapes three-step doublets for a lag)",
+            lag.share, lag.doublets, lag.point, lag.interval[0], lag.interval[1]
+        ));
+    }
+    Ok(())
 }
 
 /// The separations and report of a refused block of `sessions` sessions.
@@ -359,5 +416,26 @@ pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64
             estimate
         }
         Err(why) => BlockEstimate::refused(format!("motion-noise estimate: {why}"), 0, epsilon),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimate::lag::tests::doublets;
+
+    /// A two-step block whose first steps show a 50 ms lag is refused by name (before the
+    /// motion-noise estimate, which models none); one without lag is not refused for it.
+    #[test]
+    fn a_two_step_block_that_shows_a_lag_is_refused_naming_it() {
+        let config = Config::from_toml("[sensing]\nmode = \"private\"\n", "t").unwrap();
+        let refusal = |tau: f64| {
+            let block = doublets(2000, tau, 7);
+            block_separations(&config, &[&block], 0, 1e-6).1.refused
+        };
+        let lagging = refusal(0.05).expect("refused");
+        assert!(lagging.starts_with("actuator lag"), "{lagging}");
+        let still = refusal(0.0).unwrap_or_default();
+        assert!(!still.contains("actuator lag"), "{still}");
     }
 }

@@ -11,6 +11,7 @@ pub mod block;
 pub mod commands_check;
 pub mod correlation;
 pub mod homogeneity;
+pub mod lag;
 pub mod motion_noise;
 mod normal_tail;
 pub mod residual;
@@ -21,6 +22,7 @@ pub use block::{
 };
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
+pub use lag::{LagEstimate, estimate_lag};
 pub use motion_noise::{
     Corner, EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
 };

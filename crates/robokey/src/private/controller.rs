@@ -25,6 +25,8 @@ use crate::protocol::{Outcome, SessionMessage};
 struct Pending {
     doublet: u32,
     inputs: DoubletInputs,
+    /// The wheels' nominal speed at its start under the prior lag (m/s, rad/s).
+    entry: Unicycle,
     carries: bool,
     /// `y_c(Lj)` … `y_c(Lj+L)` (`L` steps per doublet; the last entry unused with two).
     samples: [Option<Pose>; 4],
@@ -54,6 +56,10 @@ pub(crate) struct PrivateController {
     reported: u32,
     /// Each doublet's decided bits `v | ω << 1` (0 when not decided).
     decided: Vec<u64>,
+    /// The wheels' nominal speed after the inputs commanded so far, through the prior lag
+    /// (m/s, rad/s; at rest before the first): what the next doublet starts from. The bits'
+    /// offsets leave none under the three-step shape; with two steps it is not used.
+    wheels: Unicycle,
 }
 
 impl std::fmt::Debug for PrivateController {
@@ -81,6 +87,7 @@ impl PrivateController {
             next_sample: 0,
             reported: 0,
             decided: vec![0; doublets as usize],
+            wheels: Unicycle::zeros(),
             plan,
         }
     }
@@ -170,9 +177,12 @@ impl PrivateController {
                 }
                 let inputs = DoubletInputs { first, second };
                 let carries = self.plan.carries(agreed.enabled, &inputs);
+                let entry = self.wheels;
+                (_, self.wheels) = inputs.nominal_transient(entry, length, self.model.lag, t);
                 self.pending.push_back(Pending {
                     doublet: step / length,
                     inputs,
+                    entry,
                     carries,
                     samples: [Some(pose), None, None, None],
                     applied: [None; 3],
@@ -252,6 +262,7 @@ impl PrivateController {
             middle: Some(own(1)),
             late: (length == 3).then(|| own(2)),
             end: Some(own(length)),
+            entry: Some(p.entry),
         };
         let taken = &samples[..=length];
         let assumed = stated_camera_view(taken, self.controller_std, self.camera_std);

@@ -6,6 +6,7 @@
 use nalgebra::Vector2;
 
 use crate::model::{Pose, Unicycle, unicycle_step};
+use crate::world::lagged;
 
 /// The sign a bit gives its perturbation: `s = +1` for bit 0, `−1` for bit 1.
 #[must_use]
@@ -83,11 +84,10 @@ impl Perturbation {
         if lag <= 0.0 {
             return commanded;
         }
-        let decay = (-sample_time / lag).exp();
         let mut speed = Unicycle::zeros();
         commanded.map(|c| {
-            let mean = c + (speed - c) * (lag / sample_time * (1.0 - decay));
-            speed = c + (speed - c) * decay;
+            let (mean, end) = lagged(c, speed, sample_time, lag);
+            speed = end;
             mean
         })
     }
@@ -138,6 +138,35 @@ impl DoubletInputs {
             self.second + offsets[1],
             self.second + offsets[2],
         ]
+    }
+
+    /// The nominal inputs of each of the doublet's `steps` steps (2 or 3), `[u, u', u']`,
+    /// through a first-order lag `lag` τ (s) from wheels at the nominal speed `entry` (m/s,
+    /// rad/s) at the doublet's start: each step's mean speed less its command, and the speed
+    /// at the doublet's end. For step command `c` from speed `e`, the mean is
+    /// `c + (e − c)·(τ/T)·(1 − d)` and the end `c + (e − c)·d`, `d = e^(−T/τ)` (the lag is
+    /// linear in the wheels, so in `(v, ω)`, and a bit's offsets add to it:
+    /// [`Perturbation::mean_offsets`]). Without lag: no transient, the end at `u'`.
+    #[must_use]
+    pub fn nominal_transient(
+        &self,
+        entry: Unicycle,
+        steps: u32,
+        lag: f64,
+        sample_time: f64,
+    ) -> ([Unicycle; 3], Unicycle) {
+        let mut transient = [Unicycle::zeros(); 3];
+        if lag <= 0.0 {
+            return (transient, self.second);
+        }
+        let mut speed = entry;
+        for (i, slot) in transient.iter_mut().take(steps as usize).enumerate() {
+            let command = if i == 0 { self.first } else { self.second };
+            let (mean, end) = lagged(command, speed, sample_time, lag);
+            *slot = mean - command;
+            speed = end;
+        }
+        (transient, speed)
     }
 
     /// The noise-free poses after each of `steps` steps (2 or 3) from `start` with the
@@ -310,7 +339,6 @@ mod tests {
     /// rounding), where the two-step doublet leaves `τ·(1 − a)²` per unit offset.
     #[test]
     fn the_three_step_doublet_leaves_a_first_order_lag_nothing() {
-        use crate::world::lagged;
         use nalgebra::Vector2 as WheelSpeeds;
         for tau in [0.02, 0.05, 0.1, 0.5] {
             let p = Perturbation {

@@ -357,6 +357,7 @@ impl DoubletEavesdropper {
                 middle: Some(e(1)),
                 late: (last == 3).then(|| e(2)),
                 end: Some(c(end.sample).fuse(&e(last))),
+                entry: None,
             },
         );
         let commands = model.evidence(
@@ -366,6 +367,7 @@ impl DoubletEavesdropper {
                 middle: None,
                 late: None,
                 end: Some(c(end.sample)),
+                entry: None,
             },
         );
         self.decided[j as usize] = Some([camera.bits(), commands.bits()]);
