@@ -14,9 +14,9 @@ second of robot time, leak, ε, `robokey keys list` of both stores (identical ID
 
 With --eve (private mode), Eve's camera and commands adversaries run on every session's capture
 and camera log, and their disagreement with the robot's raw bits is summed over all sessions;
-then, for every block that made a key, `robokey eve --block` on the records of the block's
-sessions prints her realised bound beside the committed key (a WARNING where the key exceeds
-it). With --robot-world, the robot agent's simulated plant is that world (`robot --world`)
+then, for every block that made a key, `robokey eve --block` on the records of the sessions the
+block's report names (`session_ids`, in block order) prints her realised bound beside the
+committed key (a WARNING where the key exceeds it). With --robot-world, the robot agent's simulated plant is that world (`robot --world`)
 while both parties keep their configuration, and Eve knows the world (`eve --world`).
 With --summary-only, OUT is not run again, only summed up.
 
@@ -245,30 +245,44 @@ def world(a):
     return ["--world", a.robot_world] if a.robot_world else []
 
 
+def session_folders(folders):
+    """Each session's folder by its ID (hex, as the agents' reports write it): from the
+    robot's report, else the controller's."""
+    named = {}
+    for d in folders:
+        for role in ("robot", "controller"):
+            path = f"{d}/{role}.json"
+            if os.path.exists(path):
+                named.setdefault(json.load(open(path)).get("session"), d)
+    return named
+
+
+def block_members(block, named):
+    """The folders of the sessions a controller's block report names (`session_ids`, in
+    block order), or why they cannot be found."""
+    ids = block.get("session_ids")
+    if not ids:
+        return None, "its report does not name its sessions (an agent before session_ids)"
+    missing = [i for i in ids if i not in named]
+    if missing:
+        return None, f"sessions {', '.join(missing)} have no folder here"
+    return [named[i] for i in ids], None
+
+
 def block_check(a, folders):
-    """`robokey eve --block` on every block the controller's reports say made a key: the
-    block's sessions are the pooled sessions that end with the one whose report has it,
-    counted back until their raw bits are the block's."""
-    for end, d in enumerate(folders):
+    """`robokey eve --block` on every block the controller's reports say made a key, over
+    the sessions the block report names, in its order."""
+    named = session_folders(folders)
+    for d in folders:
         path = f"{d}/controller.json"
         if not os.path.exists(path):
             continue
         for b in (json.load(open(path)).get("post") or {}).get("blocks", []):
             if b["length"] == 0:
                 continue
-            members, bits = [], 0
-            for earlier in reversed(folders[:end + 1]):
-                if bits >= b["bits"]:
-                    break
-                report = f"{earlier}/robot.json"
-                pooled = (json.load(open(report)).get("post") or {}).get("session_bits", 0) \
-                    if os.path.exists(report) else 0
-                if pooled:
-                    members.insert(0, earlier)
-                    bits += pooled
-            if bits != b["bits"] or len(members) != b["sessions"]:
-                print(f"block {b['block']}: its {b['bits']} raw bits of {b['sessions']} sessions "
-                      f"are not the last {len(members)} pooled sessions' {bits}: not checked")
+            members, why = block_members(b, named)
+            if members is None:
+                print(f"block {b['block']}: {why}: not checked")
                 continue
             args = ["eve", *settings(a), *world(a), "--block", path]
             for m in members:

@@ -69,7 +69,8 @@ pub struct EveArgs {
     errors: Option<String>,
     /// Capture, private sensing: the agent report (`--report`; the controller's says where
     /// the disclosed sample is, the robot's does not) of the run in which a post-processing
-    /// block ended, its sessions the captures given: her realised bound over the block is
+    /// block ended, its sessions the captures given in the block's order (the report's
+    /// `session_ids`; other sessions are refused, naming both): her realised bound over the block is
     /// printed beside the key the agents committed, with a WARNING naming the world's
     /// parameters where the key exceeds it (docs/world.md).
     #[arg(long, value_name = "REPORT", requires = "robot_key")]

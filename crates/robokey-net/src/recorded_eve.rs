@@ -189,10 +189,17 @@ fn hear_private(
         reports.push(report);
     }
     let verdict = match sessions.block {
-        Some(report) => Some(block_verdict(report, &block, config).map_err(|e| match e {
-            NetError::Usage(message) => NetError::Usage(format!("{} {message}", name("block"))),
-            e => e,
-        })?),
+        Some(report) => {
+            let captured: Vec<u32> = reports.iter().map(|r| r.session).collect();
+            Some(
+                block_verdict(report, &captured, &block, config).map_err(|e| match e {
+                    NetError::Usage(message) => {
+                        NetError::Usage(format!("{} {message}", name("block")))
+                    }
+                    e => e,
+                })?,
+            )
+        }
         None => None,
     };
     Ok(PrivateReport {
@@ -674,14 +681,20 @@ pub struct BlockVerdict {
 }
 
 /// Her realised bound over the block of the agent report `report` (the camera adversary's
-/// posterior error probabilities `q` of its raw bits, in pool order, the sessions' in order),
-/// beside the key the agents committed. Her bound is over the bits the block amplified
-/// ([`amplified_bits`]).
+/// posterior error probabilities `q` of its raw bits, in pool order, of the `captured`
+/// sessions in order), beside the key the agents committed. Her bound is over the bits the
+/// block amplified ([`amplified_bits`]).
 ///
 /// # Errors
-/// The report cannot be read or holds no block that made a key, or that block pooled another
-/// number of bits than `q` holds ([`NetError::Usage`]).
-pub fn block_verdict(report: &Path, q: &[f64], config: &Config) -> Result<BlockVerdict, NetError> {
+/// The report cannot be read or holds no block that made a key, that block names other
+/// sessions than `captured` (or another order), or it pooled another number of bits than `q`
+/// holds ([`NetError::Usage`]).
+pub fn block_verdict(
+    report: &Path,
+    captured: &[u32],
+    q: &[f64],
+    config: &Config,
+) -> Result<BlockVerdict, NetError> {
     let name = report.display();
     let text = std::fs::read_to_string(report)
         .map_err(NetError::io(format!("read the agent report {name}")))?;
@@ -694,6 +707,17 @@ pub fn block_verdict(report: &Path, q: &[f64], config: &Config) -> Result<BlockV
             "{name}: no block of this run made a key (its report's post.blocks)"
         )));
     };
+    let captured: Vec<String> = captured.iter().map(|id| format!("{id:08x}")).collect();
+    // A report of an agent before `session_ids` names none: the bit count below checks it.
+    if !block.session_ids.is_empty() && block.session_ids != captured {
+        return Err(NetError::Usage(format!(
+            "{name}: block {} pooled sessions {}, the captures are sessions {}: give the \
+             block's sessions, in its order",
+            block.block,
+            block.session_ids.join(", "),
+            captured.join(", ")
+        )));
+    }
     if q.len() != block.bits {
         return Err(NetError::Usage(format!(
             "{name}: block {} pooled {} raw bits of {} sessions, the captures' robot keys hold \
@@ -791,6 +815,7 @@ mod tests {
         super::BlockSummary {
             block: 0,
             sessions: 1,
+            session_ids: vec!["00000001".into()],
             bits: 4,
             sample_bits,
             sample_errors: 0,
@@ -818,6 +843,36 @@ mod tests {
         // Positions that do not make the sample (out of range) are not trusted.
         let (kept, _) = super::amplified_bits(&q, &block(2, vec![0, 9]));
         assert_eq!(kept, [0.2, 0.1]);
+    }
+
+    /// A block report that names its sessions is checked against the captures': other
+    /// sessions, or the same in another order, are refused naming both lists; the block's own
+    /// order is accepted.
+    #[test]
+    fn a_block_is_checked_on_the_sessions_its_report_names_in_its_order() {
+        let mut summary = block(0, Vec::new());
+        summary.sessions = 2;
+        summary.session_ids = vec!["0000000b".into(), "0000000a".into()];
+        summary.bits = 2;
+        summary.reconciled_bits = 2;
+        let report = serde_json::json!({ "post": { "blocks": [summary] } });
+        let path = std::env::temp_dir().join(format!(
+            "robokey-block-sessions-{}.json",
+            std::process::id()
+        ));
+        std::fs::write(&path, report.to_string()).unwrap();
+        let config = robokey::Config::default();
+        let q = [0.1, 0.2];
+        let refused = super::block_verdict(&path, &[0xa, 0xb], &q, &config).unwrap_err();
+        assert!(
+            refused.to_string().contains(
+                "pooled sessions 0000000b, 0000000a, the captures are sessions 0000000a, 0000000b"
+            ),
+            "{refused}"
+        );
+        let verdict = super::block_verdict(&path, &[0xb, 0xa], &q, &config);
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(verdict.unwrap().raw_bits, 2);
     }
 
     #[test]

@@ -329,9 +329,10 @@ fn private_fingerprint(config: &Config, replicates: u32) -> String {
 /// Private runs keep every number they produce (pinned before the simulator was rewritten
 /// to drive the private-mode endpoints, so that agents and simulator share one
 /// implementation; re-pinned once, unchanged otherwise, when the keys' bits entered the hash,
-/// which had seen only their redacted `Debug` text, and once when each bit's record gained
-/// the commands check's boundary residual and its modelled part — hashed without those two
-/// fields, every run gave its earlier pin): one and two bits per doublet, protocol off, no eavesdropper, the
+/// which had seen only their redacted `Debug` text; each bit's record held the commands
+/// check's boundary residual and its modelled part for a while, which the check now
+/// recomputes from the controller's kept samples, and the pins are again those from before
+/// those two fields): one and two bits per doublet, protocol off, no eavesdropper, the
 /// commands eavesdropper, every doublet gated, and an odd number of steps (a lone last step).
 #[test]
 fn pinned_private_runs_keep_every_number() {
@@ -352,11 +353,11 @@ fn pinned_private_runs_keep_every_number() {
 }
 
 const PINNED_PRIVATE: &str = "
-default a005e7343a2839e6
-two bits 670615d904410b59
+default 2148f649772fcbaa
+two bits b2606817146b5dc0
 off 7f11f24176836d41
-no eve 678717b587811acd
-commands 66610d9ca8bc75c7
+no eve 40d56d2d97aa2d5c
+commands 9b035082a88a0297
 all gated 5b02859dca978155
-odd c1052732bfe196d0
+odd f250a66806d2e967
 ";

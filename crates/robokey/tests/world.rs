@@ -203,11 +203,19 @@ fn below_the_sensor_noise_the_neighbours_samples_are_used_and_converge() {
 /// their theory: 1.686 mm and 0.
 #[test]
 fn the_three_step_doublet_hides_the_bit_from_the_commands_under_a_known_lag() {
-    use robokey::private::BitKind;
+    use robokey::estimate::commands_check::block_residuals;
     use robokey::private::doublet::sign;
+    use robokey::private::{BitKind, DoubletSamples};
     let world = "[world]\nlag = 0.05\nprocess_std = [0.001, 0.001, 0.001]\n";
-    let along = |bits: &[DoubletBit]| {
-        let x: Vec<f64> = bits
+    let along = |config: &Config| {
+        let runs: Vec<_> = (0..3)
+            .map(|r| simulate(config, r, false).unwrap())
+            .collect();
+        let sessions: Vec<&[DoubletSamples]> = runs
+            .iter()
+            .map(|run| run.private.as_ref().unwrap().controller_samples.as_slice())
+            .collect();
+        let x: Vec<f64> = block_residuals(config, &sessions)
             .iter()
             .filter(|b| b.kind == BitKind::V && b.turn_rate < 0.05)
             .map(|b| sign(b.bit) * (b.revealed[0] - b.modelled[0]))
@@ -217,13 +225,13 @@ fn the_three_step_doublet_hides_the_bit_from_the_commands_under_a_known_lag() {
     };
     let (tau, t, delta_v) = (0.05_f64, 0.2, 0.035);
     let theory = tau * delta_v * (1.0 - (-t / tau).exp()).powi(2);
-    let (two, two_error) = along(&bits(&private(world), 3));
+    let (two, two_error) = along(&private(world));
     assert!(
         (two - theory).abs() < 4.0 * two_error,
         "two steps: {two} ± {two_error} m, theory {theory}"
     );
     let shaped = private(&format!("[private]\nprior_lag = 0.05\n{world}"));
-    let (three, three_error) = along(&bits(&shaped, 3));
+    let (three, three_error) = along(&shaped);
     assert!(
         three.abs() < 4.0 * three_error && three_error < 0.1 * theory,
         "three steps: {three} ± {three_error} m"

@@ -6,15 +6,15 @@
 use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
+use robokey::estimate::commands_check::block_refusal;
 use robokey::post_settings::ODOMETRY_ZERO;
-use robokey::private::{DoubletBit, DoubletSamples};
+use robokey::private::DoubletSamples;
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
 use robokey_secrecy::postprocess::public::sample_size;
 use robokey_secrecy::{JointCounts, binomial_test};
 
-use super::commands_check;
 use super::options::{Reconciliation, SecrecyOptions, Sizing, default_adversaries};
 use super::pipeline::{self, Block, BlockSettings, Pooling};
 use super::point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};
@@ -267,7 +267,7 @@ fn analyze_point(
     }
     let mut blocks = pipeline::post_process(&pools, &settings, &mut public);
     if is_private {
-        refuse_what_the_commands_reveal(runs, options, &pools, &mut blocks);
+        refuse_what_the_commands_reveal(config, runs, options, &pools, &mut blocks);
     }
     if is_private && !measured {
         // For people: the largest separation of any bit.
@@ -373,6 +373,7 @@ fn analyze_point(
 /// more than the model predicts keeps no secret bits, and says why. A pool holds the next
 /// `sessions` admitted runs, in order.
 fn refuse_what_the_commands_reveal(
+    config: &Config,
     runs: &[RunOutput],
     options: &SecrecyOptions,
     pools: &[pipeline::Pool],
@@ -380,13 +381,13 @@ fn refuse_what_the_commands_reveal(
 ) {
     let mut admitted = runs.iter().filter(|r| options.pooling.admits(r));
     for (pool, block) in pools.iter().zip(blocks.iter_mut()) {
-        let bits: Vec<&DoubletBit> = admitted
+        let sessions: Vec<&[DoubletSamples]> = admitted
             .by_ref()
             .take(pool.sessions as usize)
             .filter_map(|r| r.private.as_ref())
-            .flat_map(|p| &p.bits)
+            .map(|p| p.controller_samples.as_slice())
             .collect();
-        if let Some(reason) = commands_check::refusal(&bits, options.epsilon) {
+        if let Some(reason) = block_refusal(config, &sessions, options.epsilon) {
             block.secret_bits = 0;
             block.assumption_exceeds_realised = false;
             // A block already without a key keeps its own reason beside the check's.

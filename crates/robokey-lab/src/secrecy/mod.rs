@@ -15,7 +15,6 @@
 //! renders them.
 
 pub mod analyze;
-pub mod commands_check;
 pub mod map;
 pub mod options;
 pub mod pipeline;

@@ -8,6 +8,7 @@ use std::collections::HashMap;
 
 use robokey::Config;
 use robokey::config::{EveConfig, EveStrategy};
+use robokey::estimate::commands_check::TURN_EDGES;
 use robokey::private::DoubletBit;
 use robokey::sim::{RunOutput, simulate};
 use robokey_secrecy::calibration::check_calibration;
@@ -16,10 +17,6 @@ use serde::{Deserialize, Serialize};
 
 use super::Rate;
 use crate::error::LabError;
-
-/// Upper edges of the turn-rate bins (rad/s); the last bin is open. The commands check
-/// ([`super::commands_check`]) regresses per bin too.
-pub const TURN_EDGES: [f64; 6] = [0.05, 0.1, 0.2, 0.3, 0.5, 1.0];
 
 /// The outcome of a calibration test of one party's LLRs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

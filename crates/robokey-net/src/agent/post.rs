@@ -112,6 +112,10 @@ pub struct BlockSummary {
     pub block: u64,
     /// Sessions pooled into it.
     pub sessions: usize,
+    /// Their IDs in block order, in hex as the session reports write them (`session`): which
+    /// sessions' captures and robot keys make the block's raw bits, in that order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub session_ids: Vec<String>,
     /// Raw bits.
     pub bits: usize,
     /// Bits disclosed to estimate the error rate.
@@ -150,6 +154,7 @@ impl From<&BlockReport> for BlockSummary {
         Self {
             block: r.block,
             sessions: r.sessions.len(),
+            session_ids: r.sessions.iter().map(|id| format!("{id:08x}")).collect(),
             bits: r.bits,
             sample_bits: r.sample_bits,
             sample_errors: r.sample_errors,

@@ -21,8 +21,8 @@ use serde::{Deserialize, Serialize};
 
 use super::lag::MIN_LAG_DOUBLETS;
 use super::{
-    DoubletResidual, LagEstimate, MotionNoiseEstimate, diagonal_covariance, estimate_lag,
-    estimate_motion_noise, published_separation, worst_case_separations,
+    DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
+    estimate_lag, estimate_motion_noise, published_separation, worst_case_separations,
 };
 use crate::Config;
 use crate::model::{Pose, Unicycle};
@@ -70,6 +70,16 @@ impl BlockEstimate {
                     .min(MAX_SEPARATION_STEPS))
             }
         }
+    }
+
+    /// Refuses the block for `why` as well (after any earlier reason): it gives no key.
+    pub fn refuse(&mut self, why: String) {
+        self.refused = Some(match self.refused.take() {
+            Some(earlier) => format!("{earlier}; {why}"),
+            None => why,
+        });
+        self.separation = REFUSED_SEPARATION;
+        self.largest = REFUSED_SEPARATION;
     }
 
     /// A block refused before any estimate, naming why.
@@ -386,7 +396,8 @@ fn with_bits(
 
 /// The agents' controller's estimate of the plant for its endpoint's `request` (the kept
 /// samples and the robot's bits of each session) under `config` at ε_est = `epsilon`: the
-/// same computation as the simulator's [`block_separations`].
+/// same computation as the simulator's [`block_separations`], then the commands check at
+/// level ε_est ([`commands_check::block_refusal`]), whose refusal is added to the block's.
 #[must_use]
 pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64) -> BlockEstimate {
     let bits_per_doublet = usize::from(config.protocol.bits_per_doublet);
@@ -398,7 +409,11 @@ pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64
     match sessions {
         Ok(sessions) => {
             let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
-            block_separations(config, &views, request.disclosed, epsilon).1
+            let mut estimate = block_separations(config, &views, request.disclosed, epsilon).1;
+            if let Some(why) = commands_check::block_refusal(config, &views, epsilon) {
+                estimate.refuse(why);
+            }
+            estimate
         }
         Err(why) => BlockEstimate::refused(format!("motion-noise estimate: {why}"), 0, epsilon),
     }

@@ -8,6 +8,7 @@
 //! (white at ρ = 0), and a controller sensor of stated covariance `R` (its calibration).
 
 pub mod block;
+pub mod commands_check;
 pub mod correlation;
 pub mod homogeneity;
 pub mod lag;

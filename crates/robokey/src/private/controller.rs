@@ -6,7 +6,7 @@
 use std::collections::VecDeque;
 
 use super::decision::DoubletDecision;
-use super::doublet::{DoubletInputs, in_doublet_frame};
+use super::doublet::DoubletInputs;
 use super::likelihood::{
     DoubletModel, DoubletView, PoseObservation, doublet_model, stated_camera_view,
 };
@@ -267,26 +267,12 @@ impl PrivateController {
         let taken = &samples[..=length];
         let assumed = stated_camera_view(taken, self.controller_std, self.camera_std);
         let evidence = self.model.evidence(&p.inputs, &view);
-        let frame = |delta: &Pose| in_doublet_frame(delta, samples[0].z, p.inputs.first.y);
-        let perturbation = &self.plan.perturbation;
-        let end = |pattern: Option<usize>| self.model.end_of(&p.inputs, &samples[0], pattern);
-        let decided = evidence.bits();
-        let modelled = |kind: usize| {
-            let with = |value: u64| {
-                let bits = (decided & !(1 << kind)) | (value << kind);
-                perturbation.pattern([(bits & 1) as u8, (bits >> 1 & 1) as u8])
-            };
-            let [plus, minus] = [with(0), with(1)].map(|h| end(Some(h)));
-            frame(&(0.5 * (plus - minus)))
-        };
         let decision = DoubletDecision {
             doublet: p.doublet,
             step: self.plan.steps_per_doublet() * p.doublet,
             inputs: p.inputs,
             evidence,
             assumed_separation: self.model.sizing_separations(&p.inputs, &assumed),
-            revealed: frame(&(samples[length] - end(None))),
-            modelled: [modelled(0), modelled(1)],
             samples: [samples[0], samples[1], samples[length]],
         };
         self.decided[p.doublet as usize] = decision.evidence.bits();

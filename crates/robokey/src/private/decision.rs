@@ -22,15 +22,7 @@ pub struct DoubletDecision {
     /// The controller's samples `y(Lj), y(Lj+1), y(Lj+L)` at the doublet's start, after its
     /// first step and at its end (key material: they stay with the controller), from which
     /// the block's estimate recomputes the residual and Eve's modelled view
-    /// (docs/estimation.md; the estimate models the two-step doublet only).
+    /// (docs/estimation.md; the estimate models the two-step doublet only) and the commands
+    /// check what the next commands revealed ([`crate::estimate::commands_check`]).
     pub samples: [Pose; 3],
-    /// What the next commands reveal: the boundary sample's residual from the doublet's
-    /// nominal path, `y_c(Lj+L) − f(… f(y_c(Lj), u) …)` over the doublet's `L` nominal
-    /// inputs, in the doublet's frame
-    /// ([`super::doublet::in_doublet_frame`]; m, m, rad).
-    pub revealed: [f64; 3],
-    /// The model's part of it per bit for `s = +1`: half the difference of the predicted
-    /// ends of the bit's two values, the other bit as decided (m, m, rad, same frame). The
-    /// residual's regression on `s` is this under the model.
-    pub modelled: [[f64; 3]; 2],
 }

@@ -71,12 +71,6 @@ pub struct DoubletBit {
     pub assumed_separation: f64,
     /// Its separation under the commands Eve's model: the residual leak the model predicts.
     pub commands_separation: f64,
-    /// What the next commands reveal of the doublet's end: the controller's boundary
-    /// residual in the doublet's frame (m, m, rad; [`DoubletDecision::revealed`]).
-    pub revealed: [f64; 3],
-    /// The model's prediction of the residual's regression on this bit's sign `s`
-    /// ([`DoubletDecision::modelled`]).
-    pub modelled: [f64; 3],
 }
 
 /// What the controller saw of one carrying doublet, kept for the block's estimate of the

@@ -323,8 +323,6 @@ fn record(
             camera_separation: e.camera.separation[i],
             assumed_separation: d.assumed_separation[i],
             commands_separation: e.commands.separation[i],
-            revealed: d.revealed,
-            modelled: d.modelled[i],
         });
     }
     run.controller_samples.push(DoubletSamples {

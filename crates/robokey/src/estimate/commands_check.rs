@@ -1,26 +1,103 @@
-//! The commands check (docs/private-sensing.md, "The commands check"): after reconciliation,
-//! what the public commands reveal — the controller's boundary residuals, which the next
-//! commands carry — is regressed on the reconciled bits, model-free, per bit kind, turn-rate
-//! class and axis, and compared with the model's prediction of the same regression. A block
-//! where the commands reveal more than the model predicts is refused, naming the class.
+//! The commands check (docs/private-sensing.md, "The commands check"), one implementation
+//! for the simulator and the agents: after reconciliation, what the public commands reveal —
+//! the controller's boundary residuals, which the next commands carry — is regressed on the
+//! reconciled bits, model-free, per bit kind, turn-rate class and axis, and compared with the
+//! model's prediction of the same regression. A block where the commands reveal more than
+//! the model predicts is refused, naming the class, the axis and the statistic.
+//!
+//! It reads the controller's samples of each carrying doublet with the robot's bits
+//! ([`DoubletSamples`]): the simulator's runs hold them, the agents' controller keeps them in
+//! its pool for the block's estimate ([`super::block::estimate_request`] runs the check).
 
-use robokey::private::doublet::sign;
-use robokey::private::{BitKind, DoubletBit};
 use robokey_secrecy::gaussian_llr::erfc;
 
-use super::private::TURN_EDGES;
+use crate::Config;
+use crate::private::doublet::{in_doublet_frame, sign};
+use crate::private::{BitKind, DoubletModel, DoubletSamples, doublet_model};
+
+/// Upper edges of the turn-rate classes (rad/s); the last class is open. The lab's
+/// `private-leak` figure bins by them too.
+pub const TURN_EDGES: [f64; 6] = [0.05, 0.1, 0.2, 0.3, 0.5, 1.0];
 
 /// Classes with fewer bits are not tested: the normal approximation of the regression's
 /// error needs a sample (a class that small carries at most this many of the block's bits).
 pub const MIN_CLASS_BITS: usize = 100;
 
-/// The axes of the doublet frame ([`robokey::private::doublet::in_doublet_frame`]), with the
-/// unit and scale each is reported in.
+/// The axes of the doublet frame ([`in_doublet_frame`]), with the unit and scale each is
+/// reported in.
 const AXES: [(&str, &str, f64); 3] = [
     ("along the heading", "mm", 1e3),
     ("across, toward the turn", "mm", 1e3),
     ("in heading", "mrad", 1e3),
 ];
+
+/// What the next commands reveal of one bit's doublet, and what the model predicts of it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundaryResidual {
+    /// Which input the bit rides on.
+    pub kind: BitKind,
+    /// The robot's (reconciled) bit.
+    pub bit: u8,
+    /// The doublet's public nominal turn rate (rad/s).
+    pub turn_rate: f64,
+    /// The controller's boundary residual `y_c(Lj+L) − f(… f(y_c(Lj), u) …)` over the
+    /// doublet's `L` nominal inputs, in the doublet's frame (m, m, rad): what the next
+    /// commands reveal.
+    pub revealed: [f64; 3],
+    /// The model's part of it for `s = +1`: half the difference of the predicted ends of the
+    /// bit's two values, the doublet's other bit as reconciled (m, m, rad, same frame). The
+    /// residual's regression on `s` is this under the model.
+    pub modelled: [f64; 3],
+}
+
+/// The boundary residuals of one carrying doublet's `bits_per_doublet` bits under `model`,
+/// from the controller's samples and the robot's bits `samples.pattern`.
+#[must_use]
+pub fn doublet_residuals(
+    model: &DoubletModel,
+    samples: &DoubletSamples,
+    bits_per_doublet: usize,
+) -> Vec<BoundaryResidual> {
+    let start = &samples.samples[0];
+    let frame =
+        |delta: &crate::model::Pose| in_doublet_frame(delta, start.z, samples.inputs.first.y);
+    let end = |pattern: Option<usize>| model.end_of(&samples.inputs, start, pattern);
+    let revealed = frame(&(samples.samples[2] - end(None)));
+    let bits = samples.pattern;
+    BitKind::ALL
+        .iter()
+        .enumerate()
+        .take(bits_per_doublet)
+        .map(|(kind, &bit_kind)| {
+            let with = |value: usize| {
+                let pattern = (bits & !(1 << kind)) | (value << kind);
+                model
+                    .perturbation
+                    .pattern([(pattern & 1) as u8, (pattern >> 1 & 1) as u8])
+            };
+            let [plus, minus] = [with(0), with(1)].map(|h| end(Some(h)));
+            BoundaryResidual {
+                kind: bit_kind,
+                bit: (bits >> kind & 1) as u8,
+                turn_rate: samples.inputs.turn_rate(),
+                revealed,
+                modelled: frame(&(0.5 * (plus - minus))),
+            }
+        })
+        .collect()
+}
+
+/// The boundary residuals of every bit of a block's `sessions` under the parties' `config`.
+#[must_use]
+pub fn block_residuals(config: &Config, sessions: &[&[DoubletSamples]]) -> Vec<BoundaryResidual> {
+    let model = doublet_model(config);
+    let bits_per_doublet = usize::from(config.protocol.bits_per_doublet);
+    sessions
+        .iter()
+        .flat_map(|session| session.iter())
+        .flat_map(|samples| doublet_residuals(&model, samples, bits_per_doublet))
+        .collect()
+}
 
 /// One regression of the boundary residual on the bits' signs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -42,11 +119,18 @@ pub struct Regression {
 }
 
 impl Regression {
+    /// The statistic `z = (|β̂| − |mean μ|) / SE`: standard errors by which the commands
+    /// reveal more than the model predicts.
+    #[must_use]
+    pub fn statistic(&self) -> f64 {
+        (self.measured.abs() - self.predicted.abs()) / self.std_error
+    }
+
     /// One-sided p-value of `|β| ≤ |mean μ|` (the commands reveal no more than the model
-    /// predicts): `½·erfc(z/√2)`, `z = (|β̂| − |mean μ|) / SE`.
+    /// predicts): `½·erfc(z/√2)`.
     #[must_use]
     pub fn p_value(&self) -> f64 {
-        let z = (self.measured.abs() - self.predicted.abs()) / self.std_error;
+        let z = self.statistic();
         if z.is_nan() {
             return 1.0;
         }
@@ -82,14 +166,13 @@ impl Regression {
 /// Every regression of `bits` (a block's, each with its reconciled value) with at least
 /// [`MIN_CLASS_BITS`] bits: per kind, turn-rate class and axis.
 #[must_use]
-pub fn regressions(bits: &[&DoubletBit]) -> Vec<Regression> {
+pub fn regressions(bits: &[BoundaryResidual]) -> Vec<Regression> {
     let mut out = Vec::new();
     for kind in BitKind::ALL {
         let mut from = 0.0;
         for &to in TURN_EDGES.iter().chain([f64::INFINITY].iter()) {
-            let class: Vec<&DoubletBit> = bits
+            let class: Vec<&BoundaryResidual> = bits
                 .iter()
-                .copied()
                 .filter(|b| b.kind == kind && b.turn_rate >= from && b.turn_rate < to)
                 .collect();
             let n = class.len();
@@ -124,7 +207,7 @@ pub fn regressions(bits: &[&DoubletBit]) -> Vec<Regression> {
 /// p-value below `level / tests` (Bonferroni over the block's regressions); none when every
 /// one passes.
 #[must_use]
-pub fn refusal(bits: &[&DoubletBit], level: f64) -> Option<String> {
+pub fn refusal(bits: &[BoundaryResidual], level: f64) -> Option<String> {
     let tests = regressions(bits);
     let threshold = level / tests.len().max(1) as f64;
     let worst = tests
@@ -142,15 +225,26 @@ pub fn refusal(bits: &[&DoubletBit], level: f64) -> Option<String> {
     })
 }
 
+/// The commands check of a block of `sessions` (the controller's samples of each with the
+/// robot's bits) under the parties' `config` at level `level` ([`refusal`]).
+#[must_use]
+pub fn block_refusal(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    level: f64,
+) -> Option<String> {
+    refusal(&block_residuals(config, sessions), level)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::{Purpose, stream};
     use rand_distr::{Distribution, Normal};
-    use robokey::rng::{Purpose, stream};
 
     /// `n` v-bits on a straight segment with residual noise `noise` (m) per axis, and a
     /// residual `leak` (m) along the heading per bit sign that the model does not predict.
-    fn block(n: usize, noise: f64, leak: f64, seed: u64) -> Vec<DoubletBit> {
+    fn block(n: usize, noise: f64, leak: f64, seed: u64) -> Vec<BoundaryResidual> {
         let mut rng = stream(seed, Purpose::Public, 0);
         let normal = Normal::new(0.0, noise).unwrap();
         (0..n)
@@ -158,17 +252,10 @@ mod tests {
                 let bit = (i % 2) as u8;
                 let mut revealed = [0.0; 3].map(|_| normal.sample(&mut rng));
                 revealed[0] += sign(bit) * leak;
-                DoubletBit {
-                    step: 2 * i as u32,
+                BoundaryResidual {
                     kind: BitKind::V,
                     bit,
                     turn_rate: 0.0,
-                    controller: 0.0,
-                    camera: 0.0,
-                    commands: 0.0,
-                    camera_separation: 0.0,
-                    assumed_separation: 0.0,
-                    commands_separation: 0.0,
                     revealed,
                     modelled: [0.0; 3],
                 }
@@ -181,24 +268,22 @@ mod tests {
     /// axis and the values; white residuals pass at ε = 10⁻⁶.
     #[test]
     fn a_residual_the_model_does_not_predict_refuses_the_block() {
-        let lagging = block(10_000, 0.0016, 0.0017, 1);
-        let refs: Vec<&DoubletBit> = lagging.iter().collect();
-        let why = refusal(&refs, 1e-6).expect("refused");
+        let bits = block(10_000, 0.0016, 0.0017, 1);
+        let why = refusal(&bits, 1e-6).expect("refused");
         assert!(
             why.contains("v-bits at turn rates 0.00–0.05 rad/s"),
             "{why}"
         );
         assert!(why.contains("along the heading"), "{why}");
         assert!(why.contains("reveals 1.7"), "{why}");
+        // The statistic: ≈ 1.7 / 0.016 ≈ 106 standard errors along the heading.
+        let along = regressions(&bits)[0];
+        assert!((90.0..125.0).contains(&along.statistic()), "{along:?}");
         for seed in 2..6 {
-            let white = block(10_000, 0.0016, 0.0, seed);
-            let refs: Vec<&DoubletBit> = white.iter().collect();
-            assert_eq!(refusal(&refs, 1e-6), None);
+            assert_eq!(refusal(&block(10_000, 0.0016, 0.0, seed), 1e-6), None);
         }
         // Below the regression's power at this size: 0.02 mm is ≈ 1.25 standard errors.
-        let faint = block(10_000, 0.0016, 0.000_02, 7);
-        let refs: Vec<&DoubletBit> = faint.iter().collect();
-        assert_eq!(refusal(&refs, 1e-6), None);
+        assert_eq!(refusal(&block(10_000, 0.0016, 0.000_02, 7), 1e-6), None);
     }
 
     /// What the model predicts is not an excess: a residual equal to its prediction passes.
@@ -208,7 +293,15 @@ mod tests {
         for b in &mut bits {
             b.modelled[0] = 0.0017;
         }
-        let refs: Vec<&DoubletBit> = bits.iter().collect();
-        assert_eq!(refusal(&refs, 1e-6), None);
+        assert_eq!(refusal(&bits, 1e-6), None);
+    }
+
+    /// Classes below [`MIN_CLASS_BITS`] are not tested: a small block passes however much
+    /// its residuals reveal, and says nothing.
+    #[test]
+    fn classes_too_small_to_test_are_not_tested() {
+        let bits = block(MIN_CLASS_BITS - 1, 0.0016, 0.0017, 9);
+        assert!(regressions(&bits).is_empty());
+        assert_eq!(refusal(&bits, 1e-6), None);
     }
 }
