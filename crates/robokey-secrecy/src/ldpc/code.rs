@@ -130,9 +130,9 @@ impl ParityCheck {
         let mut starts = Vec::with_capacity(self.starts.len() + order.len());
         let mut variables = Vec::with_capacity(self.variables.len());
         starts.push(0);
-        for c in 0..self.syndrome_bits() {
+        for (c, &halved) in split.iter().enumerate() {
             let check = self.check(c);
-            if split[c] {
+            if halved {
                 variables.extend(check.iter().step_by(2));
             } else {
                 variables.extend_from_slice(check);
