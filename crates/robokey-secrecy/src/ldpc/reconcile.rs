@@ -26,7 +26,7 @@ impl LdpcSettings {
     /// f = 1.2, 200 iterations, up to 8 feedback rounds of 0.08·m bits. At 10⁴ bits the
     /// first code's f = 1.2 fails in about 40 % of blocks (finite length); rounds of smaller
     /// increments, split from the code's checks, bring the failure rate below 1 % for a mean
-    /// f_soft ≈ 1.29 (docs/postprocessing.md), and cost 2 bits more for the round count.
+    /// f_soft ≈ 1.28 (docs/postprocessing.md), and cost 2 bits more for the round count.
     pub const DEFAULT: Self = Self {
         efficiency: 1.2,
         max_iterations: 200,
