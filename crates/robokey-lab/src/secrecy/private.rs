@@ -115,6 +115,24 @@ fn predicted_information(informations: impl ExactSizeIterator<Item = f64>) -> f6
     informations.sum::<f64>() / count.max(1) as f64
 }
 
+/// `I(d)` of each of `separations`, in order: one numerical integral per distinct
+/// separation (bit for bit the same value wherever it repeats), computed in parallel on the
+/// current rayon pool.
+fn informations(separations: impl Iterator<Item = f64>) -> Vec<f64> {
+    let separations: Vec<f64> = separations.collect();
+    let mut distinct: Vec<u64> = separations.iter().map(|d| d.to_bits()).collect();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let integrals: HashMap<u64, f64> = distinct
+        .par_iter()
+        .map(|&bits| (bits, information(f64::from_bits(bits))))
+        .collect();
+    separations
+        .iter()
+        .map(|d| integrals[&d.to_bits()])
+        .collect()
+}
+
 /// The error rate of deciding each bit by the sign of `llr`.
 fn error_rate(bits: &[&DoubletBit], llr: impl Fn(&DoubletBit) -> f64) -> Option<Rate> {
     let wrong = bits
@@ -242,10 +260,7 @@ pub fn figures(
         .map(|p| u64::from(p.gated))
         .sum();
     let info_of = |b: &DoubletBit| 1.0 - surprisal(toward_truth(b.llr_of(adversary), b.bit));
-    let predicted: Vec<f64> = all
-        .iter()
-        .map(|b| information(b.separation_of(adversary)))
-        .collect();
+    let predicted = informations(all.iter().map(|b| b.separation_of(adversary)));
     let mut turn_bins = Vec::new();
     let mut from = 0.0;
     for &to in TURN_EDGES.iter().chain([f64::INFINITY].iter()) {

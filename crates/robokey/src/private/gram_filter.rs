@@ -24,7 +24,8 @@ pub struct GramFilter {
     batch: Batch,
 }
 
-/// The observations gathered since the last conditioning.
+/// The observations gathered since the last conditioning: zero when `empty`, and sized for
+/// the state by the first observation after a change of its dimension.
 #[derive(Clone, Debug)]
 struct Batch {
     info: DMatrix<f64>,
@@ -43,6 +44,23 @@ impl Batch {
             log_det_noise: 0.0,
             empty: true,
         }
+    }
+
+    /// Ready for a state of dimension `dim`: reallocated when the dimension changed since
+    /// the last use, else the matrices as they are (zero, the batch being empty).
+    fn fit(&mut self, dim: usize, columns: usize) {
+        if self.info.nrows() != dim {
+            *self = Self::new(dim, columns);
+        }
+    }
+
+    /// Empties the batch in place after its conditioning.
+    fn clear(&mut self) {
+        self.info.fill(0.0);
+        self.projected.fill(0.0);
+        self.direct.fill(0.0);
+        self.log_det_noise = 0.0;
+        self.empty = true;
     }
 }
 
@@ -78,8 +96,11 @@ impl GramFilter {
             cov[(i, i)] = 1.0;
         }
         self.cov = cov;
-        self.means = self.means.clone().resize(dim + extra, columns, 0.0);
-        self.batch = Batch::new(dim + extra, columns);
+        self.means = std::mem::replace(&mut self.means, DMatrix::zeros(0, 0)).resize(
+            dim + extra,
+            columns,
+            0.0,
+        );
     }
 
     /// A three-dimensional observation `y_c = F·x + ε`, `ε ~ N(0, R)`, given by `F`
@@ -90,7 +111,9 @@ impl GramFilter {
         noise_inverse: &Matrix3<f64>,
         values: &[Vector3<f64>],
     ) {
+        let (dim, columns) = (self.dim(), self.means.ncols());
         let b = &mut self.batch;
+        b.fit(dim, columns);
         let weighted = f.transpose() * noise_inverse; // dim × 3
         b.info += &weighted * f;
         for (c, value) in values.iter().enumerate() {
@@ -112,7 +135,7 @@ impl GramFilter {
             return;
         }
         let dim = self.dim();
-        let b = std::mem::replace(&mut self.batch, Batch::new(dim, self.means.ncols()));
+        let b = &self.batch;
         // ũ = u − J·m and S̃ = S − uᵀm − mᵀu + mᵀJm: the batch about the prior means.
         let about = &b.projected - &b.info * &self.means;
         let cross = b.projected.transpose() * &self.means;
@@ -129,6 +152,7 @@ impl GramFilter {
         self.means += gain;
         self.log_det += lu.determinant().abs().ln() - b.log_det_noise;
         self.cov = posterior;
+        self.batch.clear();
     }
 
     /// Maps the state through `x ← L·x` (`L` is `new_dim × dim`), conditioning pending
@@ -137,7 +161,6 @@ impl GramFilter {
         self.condition();
         self.cov = l * &self.cov * l.transpose();
         self.means = l * &self.means;
-        self.batch = Batch::new(l.nrows(), self.means.ncols());
     }
 
     /// Adds a known offset to the state's mean in each column (`offsets` is `dim × columns`):
