@@ -11,7 +11,7 @@
 //! gains `S̃_cc' − ũ_cᵀP⁺ũ_c'` (`ũ_c = u_c − J·m_c`, `S̃` the same quadratic about the
 //! means); `ln det Σ` gains `ln det(I + P·J) − Σ ln det R⁻¹`.
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, MatrixXx3, Vector3};
 
 /// The filter's state between observations.
 #[derive(Clone, Debug)]
@@ -33,6 +33,12 @@ struct Batch {
     direct: DMatrix<f64>,
     log_det_noise: f64,
     empty: bool,
+    /// Work space of one observation, overwritten by each: `Fᵀ`, `FᵀR⁻¹`, `FᵀR⁻¹F`, and
+    /// `FᵀR⁻¹y_c` (the same products as allocating ones, into kept storage).
+    transposed: DMatrix<f64>,
+    weighted: MatrixXx3<f64>,
+    information: DMatrix<f64>,
+    projection: DVector<f64>,
 }
 
 impl Batch {
@@ -43,6 +49,10 @@ impl Batch {
             direct: DMatrix::zeros(columns, columns),
             log_det_noise: 0.0,
             empty: true,
+            transposed: DMatrix::zeros(dim, 3),
+            weighted: MatrixXx3::zeros(dim),
+            information: DMatrix::zeros(dim, dim),
+            projection: DVector::zeros(dim),
         }
     }
 
@@ -114,12 +124,14 @@ impl GramFilter {
         let (dim, columns) = (self.dim(), self.means.ncols());
         let b = &mut self.batch;
         b.fit(dim, columns);
-        let weighted = f.transpose() * noise_inverse; // dim × 3
-        b.info += &weighted * f;
+        f.transpose_to(&mut b.transposed);
+        b.transposed.mul_to(noise_inverse, &mut b.weighted); // dim × 3
+        b.weighted.mul_to(f, &mut b.information);
+        b.info += &b.information;
         for (c, value) in values.iter().enumerate() {
-            let projected = &weighted * value;
+            b.weighted.mul_to(value, &mut b.projection);
             let mut column = b.projected.column_mut(c);
-            column += projected;
+            column += &b.projection;
             let scaled = noise_inverse * value;
             for (c2, other) in values.iter().enumerate() {
                 b.direct[(c, c2)] += scaled.dot(other);

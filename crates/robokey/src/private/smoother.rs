@@ -763,6 +763,8 @@ impl WindowSmoother {
         }
         let mut filter = GramFilter::new(cov, columns.len());
         let mut buffer: Vec<Vector3<f64>> = Vec::with_capacity(columns.len());
+        // A frame's observation map, reused for every frame of a step.
+        let mut frame_map = DMatrix::zeros(0, 0);
         let mut next = 0;
         for step in 0..=steps {
             if step > 0
@@ -815,10 +817,16 @@ impl WindowSmoother {
                 if s != step {
                     break;
                 }
-                let f = &tangents.poses[update] * (1.0 - fraction)
-                    + &tangents.poses[update + 1] * fraction;
+                // F = (1 − f)·F_u + f·F_{u+1}, element by element.
+                let (before, after) = (&tangents.poses[update], &tangents.poses[update + 1]);
+                if frame_map.shape() != before.shape() {
+                    frame_map = DMatrix::zeros(before.nrows(), before.ncols());
+                }
+                frame_map.zip_zip_apply(before, after, |out, a, b| {
+                    *out = a * (1.0 - fraction) + b * fraction;
+                });
                 let values = values_at(&mut buffer, columns, next);
-                filter.observe(&f, &observations[next].noise_inverse, values);
+                filter.observe(&frame_map, &observations[next].noise_inverse, values);
                 next += 1;
             }
             let mut l = DMatrix::zeros(base, dim);
@@ -887,7 +895,8 @@ impl WindowSmoother {
                 }
             }
             let pose = poses.last().expect("the first pose map");
-            let next = to_dynamic3(&a) * pose + to_dynamic3(&d) * &noise + to_dynamic32(&b) * &speeds;
+            let next =
+                to_dynamic3(&a) * pose + to_dynamic3(&d) * &noise + to_dynamic32(&b) * &speeds;
             poses.push(next);
         }
         Tangents { poses, noise }
