@@ -709,9 +709,11 @@ fn an_agent_killed_at_its_commit_leaves_the_stores_agreeing_after_the_next_sessi
         let settings: Vec<&str> = settings.iter().map(String::as_str).collect();
         // The first session fills half a block; the second makes one and is killed.
         session_with_stores(&format!("commit-kill-{victim}-0"), 60, &pairing, &settings);
+        // The survivor ends on the peer's silence after the kill; 3 s leaves a loaded
+        // machine's slow steps (a second or more at a load of 8 on 2 cores) inside it.
         let role_args = |role: &str| -> Vec<String> {
             let mut args: Vec<String> =
-                ["--pace", "lockstep", "--silence-timeout", "1", "--pairing"]
+                ["--pace", "lockstep", "--silence-timeout", "3", "--pairing"]
                     .map(str::to_owned)
                     .to_vec();
             args.push(pairing.clone());

@@ -115,6 +115,68 @@ pub fn information(separation: f64) -> f64 {
     (1.0 - expected_surprisal(separation)).max(0.0)
 }
 
+/// Width of the cells of the interpolated `I(d)` (separation units).
+const CELL_WIDTH: f64 = 0.25;
+/// Cells of the interpolated `I(d)`, covering `0 ≤ d < 20` (above, the integral is
+/// computed: `I` is 1 to the last bit there).
+const CELLS: usize = 80;
+/// Chebyshev nodes, and coefficients, per cell.
+const NODES: usize = 12;
+
+/// The Chebyshev coefficients of `I(d)` on each cell, from [`information`] at the cell's
+/// `NODES` Chebyshev nodes: computed once (960 integrals).
+fn information_cells() -> &'static [[f64; NODES]] {
+    static CELLS_TABLE: std::sync::OnceLock<Vec<[f64; NODES]>> = std::sync::OnceLock::new();
+    CELLS_TABLE.get_or_init(|| {
+        let angle =
+            |j: usize, k: usize| std::f64::consts::PI * j as f64 * (k as f64 + 0.5) / NODES as f64;
+        (0..CELLS)
+            .map(|cell| {
+                let values: Vec<f64> = (0..NODES)
+                    .map(|k| {
+                        let t = angle(1, k).cos();
+                        information(CELL_WIDTH * (cell as f64 + 0.5 * (t + 1.0)))
+                    })
+                    .collect();
+                std::array::from_fn(|j| {
+                    let sum: f64 = (0..NODES).map(|k| values[k] * angle(j, k).cos()).sum();
+                    let scale = if j == 0 { 1.0 } else { 2.0 };
+                    scale * sum / NODES as f64
+                })
+            })
+            .collect()
+    })
+}
+
+/// `I(d)` interpolated: on cells of width 0.25 over `0 ≤ d < 20`, the degree-11 Chebyshev
+/// interpolant of [`information`] at the cell's 12 Chebyshev nodes,
+/// `p(t) = Σ_j c_j·T_j(t)` with `t = 2(d − a)/0.25 − 1` (Clenshaw's recurrence), clamped to
+/// `[0, 1]`; [`information`] itself elsewhere. Its error is the interpolation remainder
+/// `|I⁽¹²⁾(ξ)|·(w/2)¹²/(2¹¹·12!) ≈ 1.5·10⁻²³·|I⁽¹²⁾(ξ)|` (`w = 0.25`), measured at most
+/// 5.1·10⁻¹⁵ over 20,480 points of the domain (a test holds it to `|ΔI| ≤ 10⁻¹²` on every
+/// cell); it costs 12 multiply-adds instead of a 2,401-point sum with an `exp` and a `log1p`
+/// per point. Not bit for bit [`information`]: for the lab's predictions only, never for a
+/// bound that sizes a key.
+#[must_use]
+pub fn information_interpolated(separation: f64) -> f64 {
+    if separation.is_nan() || separation <= 0.0 {
+        return 0.0;
+    }
+    let position = separation / CELL_WIDTH;
+    if position >= CELLS as f64 {
+        return information(separation);
+    }
+    let cell = position as usize;
+    let t = 2.0 * (position - cell as f64) - 1.0;
+    let coefficients = &information_cells()[cell];
+    // Clenshaw: b_j = c_j + 2t·b_{j+1} − b_{j+2}; p = c_0 + t·b_1 − b_2.
+    let (mut next, mut after) = (0.0, 0.0);
+    for &c in coefficients[1..].iter().rev() {
+        (next, after) = (c + 2.0 * t * next - after, next);
+    }
+    (coefficients[0] + t * next - after).clamp(0.0, 1.0)
+}
+
 /// `erfc(x)` with fractional error below 1.2·10⁻⁷ (Chebyshev fit, Numerical Recipes §6.2).
 #[must_use]
 pub fn erfc(x: f64) -> f64 {
@@ -185,5 +247,27 @@ mod tests {
                 "d = {d}"
             );
         }
+    }
+
+    /// The interpolated `I(d)` is within 10⁻¹² of the integral on every cell: 64 points a
+    /// cell, the ends included, over `0 < d < 20`, and the integral itself above.
+    #[test]
+    fn the_interpolated_information_is_the_integral_within_a_picobit() {
+        let mut worst = (0.0_f64, 0.0_f64);
+        for i in 1..(CELLS * 64) {
+            let d = CELL_WIDTH * i as f64 / 64.0;
+            let error = (information_interpolated(d) - information(d)).abs();
+            if error > worst.0 {
+                worst = (error, d);
+            }
+        }
+        assert!(worst.0 <= 1e-12, "|ΔI| = {:e} at d = {}", worst.0, worst.1);
+        for d in [20.0, 25.0, 50.0] {
+            assert_eq!(information_interpolated(d), information(d));
+        }
+        assert_eq!(information_interpolated(0.0), 0.0);
+        assert_eq!(information_interpolated(-1.0), 0.0);
+        assert_eq!(information_interpolated(f64::NAN), 0.0);
+        println!("worst |ΔI| = {:e} at d = {}", worst.0, worst.1);
     }
 }

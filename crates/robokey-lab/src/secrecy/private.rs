@@ -12,7 +12,7 @@ use robokey::estimate::commands_check::TURN_EDGES;
 use robokey::private::DoubletBit;
 use robokey::sim::{RunOutput, simulate};
 use robokey_secrecy::calibration::check_calibration;
-use robokey_secrecy::gaussian_llr::{information, surprisal};
+use robokey_secrecy::gaussian_llr::{information_interpolated, surprisal};
 use serde::{Deserialize, Serialize};
 
 use super::Rate;
@@ -45,7 +45,8 @@ pub struct TurnBin {
     /// Measured information `1 − mean S` (bits per bit) with a 95 % normal interval.
     #[serde(deserialize_with = "crate::reals::nans_if_null")]
     pub information: [f64; 3],
-    /// What the model predicts: `mean I(d)` over the bin's separations.
+    /// What the model predicts: `mean I(d)` over the bin's separations (`I(d)` interpolated,
+    /// within 10⁻¹² bit).
     pub predicted: f64,
 }
 
@@ -70,7 +71,7 @@ pub struct PrivateFigures {
     /// bits).
     #[serde(deserialize_with = "crate::reals::nans_if_null")]
     pub eve_information: [f64; 3],
-    /// The model's prediction of it.
+    /// The model's prediction of it (the same interpolated `I(d)`).
     pub eve_information_predicted: f64,
     /// The same binned by the public turn rate.
     pub turn_bins: Vec<TurnBin>,
@@ -109,10 +110,16 @@ fn toward_truth(llr: f64, bit: u8) -> f64 {
 }
 
 /// The model's prediction of the information per bit: the mean of `I(d)` over bits whose
-/// `I(d)` (one numerical integral each, so computed once per bit) are `informations`.
+/// `I(d)` (computed once per bit) are `informations`.
 fn predicted_information(informations: impl ExactSizeIterator<Item = f64>) -> f64 {
     let count = informations.len();
     informations.sum::<f64>() / count.max(1) as f64
+}
+
+/// `I(d)` of each of `separations`, in order, interpolated
+/// ([`information_interpolated`]: within 10⁻¹² bit of the integral).
+fn informations(separations: impl Iterator<Item = f64>) -> Vec<f64> {
+    separations.map(information_interpolated).collect()
 }
 
 /// The error rate of deciding each bit by the sign of `llr`.
@@ -242,10 +249,7 @@ pub fn figures(
         .map(|p| u64::from(p.gated))
         .sum();
     let info_of = |b: &DoubletBit| 1.0 - surprisal(toward_truth(b.llr_of(adversary), b.bit));
-    let predicted: Vec<f64> = all
-        .iter()
-        .map(|b| information(b.separation_of(adversary)))
-        .collect();
+    let predicted = informations(all.iter().map(|b| b.separation_of(adversary)));
     let mut turn_bins = Vec::new();
     let mut from = 0.0;
     for &to in TURN_EDGES.iter().chain([f64::INFINITY].iter()) {

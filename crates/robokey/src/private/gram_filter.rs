@@ -11,7 +11,7 @@
 //! gains `S̃_cc' − ũ_cᵀP⁺ũ_c'` (`ũ_c = u_c − J·m_c`, `S̃` the same quadratic about the
 //! means); `ln det Σ` gains `ln det(I + P·J) − Σ ln det R⁻¹`.
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, MatrixXx3, Vector3};
 
 /// The filter's state between observations.
 #[derive(Clone, Debug)]
@@ -24,7 +24,8 @@ pub struct GramFilter {
     batch: Batch,
 }
 
-/// The observations gathered since the last conditioning.
+/// The observations gathered since the last conditioning: zero when `empty`, and sized for
+/// the state by the first observation after a change of its dimension.
 #[derive(Clone, Debug)]
 struct Batch {
     info: DMatrix<f64>,
@@ -32,6 +33,12 @@ struct Batch {
     direct: DMatrix<f64>,
     log_det_noise: f64,
     empty: bool,
+    /// Work space of one observation, overwritten by each: `Fᵀ`, `FᵀR⁻¹`, `FᵀR⁻¹F`, and
+    /// `FᵀR⁻¹y_c` (the same products as allocating ones, into kept storage).
+    transposed: DMatrix<f64>,
+    weighted: MatrixXx3<f64>,
+    information: DMatrix<f64>,
+    projection: DVector<f64>,
 }
 
 impl Batch {
@@ -42,7 +49,28 @@ impl Batch {
             direct: DMatrix::zeros(columns, columns),
             log_det_noise: 0.0,
             empty: true,
+            transposed: DMatrix::zeros(dim, 3),
+            weighted: MatrixXx3::zeros(dim),
+            information: DMatrix::zeros(dim, dim),
+            projection: DVector::zeros(dim),
         }
+    }
+
+    /// Ready for a state of dimension `dim`: reallocated when the dimension changed since
+    /// the last use, else the matrices as they are (zero, the batch being empty).
+    fn fit(&mut self, dim: usize, columns: usize) {
+        if self.info.nrows() != dim {
+            *self = Self::new(dim, columns);
+        }
+    }
+
+    /// Empties the batch in place after its conditioning.
+    fn clear(&mut self) {
+        self.info.fill(0.0);
+        self.projected.fill(0.0);
+        self.direct.fill(0.0);
+        self.log_det_noise = 0.0;
+        self.empty = true;
     }
 }
 
@@ -78,8 +106,11 @@ impl GramFilter {
             cov[(i, i)] = 1.0;
         }
         self.cov = cov;
-        self.means = self.means.clone().resize(dim + extra, columns, 0.0);
-        self.batch = Batch::new(dim + extra, columns);
+        self.means = std::mem::replace(&mut self.means, DMatrix::zeros(0, 0)).resize(
+            dim + extra,
+            columns,
+            0.0,
+        );
     }
 
     /// A three-dimensional observation `y_c = F·x + ε`, `ε ~ N(0, R)`, given by `F`
@@ -90,13 +121,17 @@ impl GramFilter {
         noise_inverse: &Matrix3<f64>,
         values: &[Vector3<f64>],
     ) {
+        let (dim, columns) = (self.dim(), self.means.ncols());
         let b = &mut self.batch;
-        let weighted = f.transpose() * noise_inverse; // dim × 3
-        b.info += &weighted * f;
+        b.fit(dim, columns);
+        f.transpose_to(&mut b.transposed);
+        b.transposed.mul_to(noise_inverse, &mut b.weighted); // dim × 3
+        b.weighted.mul_to(f, &mut b.information);
+        b.info += &b.information;
         for (c, value) in values.iter().enumerate() {
-            let projected = &weighted * value;
+            b.weighted.mul_to(value, &mut b.projection);
             let mut column = b.projected.column_mut(c);
-            column += projected;
+            column += &b.projection;
             let scaled = noise_inverse * value;
             for (c2, other) in values.iter().enumerate() {
                 b.direct[(c, c2)] += scaled.dot(other);
@@ -112,7 +147,7 @@ impl GramFilter {
             return;
         }
         let dim = self.dim();
-        let b = std::mem::replace(&mut self.batch, Batch::new(dim, self.means.ncols()));
+        let b = &self.batch;
         // ũ = u − J·m and S̃ = S − uᵀm − mᵀu + mᵀJm: the batch about the prior means.
         let about = &b.projected - &b.info * &self.means;
         let cross = b.projected.transpose() * &self.means;
@@ -129,6 +164,7 @@ impl GramFilter {
         self.means += gain;
         self.log_det += lu.determinant().abs().ln() - b.log_det_noise;
         self.cov = posterior;
+        self.batch.clear();
     }
 
     /// Maps the state through `x ← L·x` (`L` is `new_dim × dim`), conditioning pending
@@ -137,7 +173,6 @@ impl GramFilter {
         self.condition();
         self.cov = l * &self.cov * l.transpose();
         self.means = l * &self.means;
-        self.batch = Batch::new(l.nrows(), self.means.ncols());
     }
 
     /// Adds a known offset to the state's mean in each column (`offsets` is `dim × columns`):

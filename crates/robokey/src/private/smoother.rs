@@ -442,13 +442,28 @@ impl WindowSmoother {
                 Some(s) => self.step_offset(s, offset),
                 None => Unicycle::zeros(),
             });
-        let mut run = nominal.clone();
-        for (i, step) in (start_step..end_step).enumerate() {
-            run.poses[step].clone_from(&part.poses[i]);
-            run.offsets[step].clone_from(&part.offsets[i]);
-            run.updates[step].clone_from(&part.updates[i]);
-            if i > 0 {
-                run.jumps[step] = part.jumps[i];
+        // The nominal run, the stretch's steps taken from `part` (not cloned twice).
+        let mut part = part;
+        let steps = nominal.poses.len();
+        let mut run = WindowRun {
+            poses: Vec::with_capacity(steps),
+            offsets: Vec::with_capacity(steps),
+            updates: Vec::with_capacity(steps),
+            jumps: nominal.jumps.clone(),
+        };
+        for step in 0..steps {
+            if (start_step..end_step).contains(&step) {
+                let i = step - start_step;
+                run.poses.push(std::mem::take(&mut part.poses[i]));
+                run.offsets.push(std::mem::take(&mut part.offsets[i]));
+                run.updates.push(std::mem::take(&mut part.updates[i]));
+                if i > 0 {
+                    run.jumps[step] = part.jumps[i];
+                }
+            } else {
+                run.poses.push(nominal.poses[step].clone());
+                run.offsets.push(nominal.offsets[step].clone());
+                run.updates.push(nominal.updates[step].clone());
             }
         }
         run
@@ -747,8 +762,9 @@ impl WindowSmoother {
             cov.view_mut((3, 3), (3, 3)).copy_from(&q);
         }
         let mut filter = GramFilter::new(cov, columns.len());
-        let values =
-            |o: usize| -> Vec<Vector3<f64>> { columns.iter().map(|c| c.values[o]).collect() };
+        let mut buffer: Vec<Vector3<f64>> = Vec::with_capacity(columns.len());
+        // A frame's observation map, reused for every frame of a step.
+        let mut frame_map = DMatrix::zeros(0, 0);
         let mut next = 0;
         for step in 0..=steps {
             if step > 0
@@ -769,7 +785,8 @@ impl WindowSmoother {
             {
                 let mut f = DMatrix::zeros(3, filter.dim());
                 f.view_mut((0, 0), (3, 3)).copy_from(&Matrix3::identity());
-                filter.observe(&f, &observations[next].noise_inverse, &values(next));
+                let values = values_at(&mut buffer, columns, next);
+                filter.observe(&f, &observations[next].noise_inverse, values);
                 next += 1;
             }
             // `slips` holds one profile per step: none past the window's last instant.
@@ -800,9 +817,16 @@ impl WindowSmoother {
                 if s != step {
                     break;
                 }
-                let f = &tangents.poses[update] * (1.0 - fraction)
-                    + &tangents.poses[update + 1] * fraction;
-                filter.observe(&f, &observations[next].noise_inverse, &values(next));
+                // F = (1 − f)·F_u + f·F_{u+1}, element by element.
+                let (before, after) = (&tangents.poses[update], &tangents.poses[update + 1]);
+                if frame_map.shape() != before.shape() {
+                    frame_map = DMatrix::zeros(before.nrows(), before.ncols());
+                }
+                frame_map.zip_zip_apply(before, after, |out, a, b| {
+                    *out = a * (1.0 - fraction) + b * fraction;
+                });
+                let values = values_at(&mut buffer, columns, next);
+                filter.observe(&frame_map, &observations[next].noise_inverse, values);
                 next += 1;
             }
             let mut l = DMatrix::zeros(base, dim);
@@ -848,7 +872,8 @@ impl WindowSmoother {
         let mut pose = DMatrix::zeros(3, dim);
         pose.view_mut((0, 0), (3, 3))
             .copy_from(&Matrix3::identity());
-        let mut poses = vec![pose.clone()];
+        let mut poses = Vec::with_capacity(updates.len() + 1);
+        poses.push(pose);
         for (u, update) in updates.iter().enumerate() {
             let (a, b, d) = jacobians(update, t);
             // (δv, δω) per slip latent: σ·H·e_i·ω̄_i, and per bit effect σ·H·e_i·Δω̄_i.
@@ -869,8 +894,10 @@ impl WindowSmoother {
                     }
                 }
             }
-            pose = to_dynamic3(&a) * &pose + to_dynamic3(&d) * &noise + to_dynamic32(&b) * &speeds;
-            poses.push(pose.clone());
+            let pose = poses.last().expect("the first pose map");
+            let next =
+                to_dynamic3(&a) * pose + to_dynamic3(&d) * &noise + to_dynamic32(&b) * &speeds;
+            poses.push(next);
         }
         Tangents { poses, noise }
     }
@@ -902,6 +929,17 @@ impl WindowSmoother {
 struct Tangents {
     poses: Vec<DMatrix<f64>>,
     noise: DMatrix<f64>,
+}
+
+/// The columns' values at observation `o`, in `buffer` (one allocation for a whole pass).
+fn values_at<'a>(
+    buffer: &'a mut Vec<Vector3<f64>>,
+    columns: &[Column],
+    o: usize,
+) -> &'a [Vector3<f64>] {
+    buffer.clear();
+    buffer.extend(columns.iter().map(|c| c.values[o]));
+    buffer
 }
 
 fn to_dynamic3(m: &Matrix3<f64>) -> DMatrix<f64> {

@@ -169,7 +169,7 @@ impl WindowWorld {
             }
             run.jumps.push(jump);
             trail.clear();
-            let mut updates = Vec::new();
+            let mut updates = Vec::with_capacity(pieces.len());
             let end = self.motion.integrate(
                 pose,
                 &pieces,
@@ -177,8 +177,10 @@ impl WindowWorld {
                 &mut trail,
                 Some(&mut updates),
             );
-            let mut poses = vec![pose];
-            let mut offsets = vec![0.0];
+            let mut poses = Vec::with_capacity(trail.len() + 1);
+            let mut offsets = Vec::with_capacity(trail.len() + 1);
+            poses.push(pose);
+            offsets.push(0.0);
             for &(t, p) in &trail {
                 offsets.push(t);
                 poses.push(p);
