@@ -458,6 +458,9 @@ KEY_SCHEMA = pa.schema(
         pa.field("assumption", pa.string()),
         # Private sensing: what the key rests on (null in odometry mode and older records).
         pa.field("basis", pa.struct([pa.field("camera", pa.string()), pa.field("plant", pa.string())])),
+        # How the key's block was reconciled (cascade or ldpc) and its leak_EC (null in older records).
+        pa.field("reconciliation", pa.string()),
+        pa.field("leak_ec", pa.uint64(), metadata={"unit": "bit"}),
         pa.field("created", pa.string()),
         pa.field("sessions", pa.list_(pa.uint32())),
     ]
@@ -476,7 +479,8 @@ def list_keys(
     keys taken from it), ``epsilon``, ``label`` (``physical`` or ``restricted``), ``status``
     (``settled`` or ``pending``, with ``pending_reason``), ``assumption`` (about Eve),
     ``basis`` (private sensing: the ``camera`` and ``plant`` model class it rests on),
-    ``created`` and ``sessions``.
+    ``reconciliation`` (``cascade`` or ``ldpc``) and ``leak_ec`` (bits; both null in records
+    written before they were kept), ``created`` and ``sessions``.
 
     Every key file is verified under a key derived from the pairing file (``pairing``), so a
     file planted beside the store is refused. ``insecure_pairing_file`` accepts a pairing file

@@ -64,8 +64,9 @@ enum KeyFormat {
 #[derive(Subcommand, Debug)]
 enum KeysCommand {
     /// List the final keys of a store: ID, length, bits still available to take and bits
-    /// taken, ε, label, status (settled, or pending and why), creation time, sessions, and
-    /// the assumption about Eve each is secret under. Never prints key bits.
+    /// taken, ε, label, status (settled, or pending and why), how its block was reconciled
+    /// (cascade or ldpc) and leak_EC, creation time, sessions, and the assumption about Eve
+    /// each is secret under. Never prints key bits.
     List {
         #[command(flatten)]
         store: StoreArgs,
@@ -203,8 +204,18 @@ fn table(keys: &[ListedKey]) -> String {
     }
     let mut assumptions: Vec<(&str, Option<&str>)> = Vec::new();
     let mut out = format!(
-        "{:<16}  {:>7}  {:>9}  {:>7}  {:>7}  {:<10}  {:<8}  {:<20}  {:>8}  assumption\n",
-        "ID", "bits", "available", "taken", "ε", "label", "status", "created", "sessions"
+        "{:<16}  {:>7}  {:>9}  {:>7}  {:>7}  {:<10}  {:<8}  {:<10}  {:>8}  {:<20}  {:>8}  assumption\n",
+        "ID",
+        "bits",
+        "available",
+        "taken",
+        "ε",
+        "label",
+        "status",
+        "reconciled",
+        "leak_EC",
+        "created",
+        "sessions"
     );
     for key in keys {
         let stated = (
@@ -219,7 +230,7 @@ fn table(keys: &[ListedKey]) -> String {
             }
         };
         out.push_str(&format!(
-            "{:<16}  {:>7}  {:>9}  {:>7}  {:>7.0e}  {:<10}  {:<8}  {:<20}  {:>8}  [{}]\n",
+            "{:<16}  {:>7}  {:>9}  {:>7}  {:>7.0e}  {:<10}  {:<8}  {:<10}  {:>8}  {:<20}  {:>8}  [{}]\n",
             key.id,
             key.bits,
             key.available_bits,
@@ -227,6 +238,8 @@ fn table(keys: &[ListedKey]) -> String {
             key.epsilon,
             key.label,
             key.status,
+            key.reconciliation.as_deref().unwrap_or("-"),
+            key.leak_ec.map_or_else(|| "-".to_owned(), |leak| leak.to_string()),
             key.created,
             key.sessions.len(),
             number + 1

@@ -312,8 +312,8 @@ struct SecrecyArgs {
     /// How `complete` pooling reconciles (docs/postprocessing.md). `cascade`: interactive
     /// Cascade with BICONF on the controller's decisions, both sides' parities charged
     /// (reproduce uses it). `ldpc`: the robot's one-way LDPC syndrome decoded by belief
-    /// propagation on the controller's calibrated LLRs (f = 1.2, ≤ 2 feedback rounds), every
-    /// syndrome bit and 2 bits for the rounds charged; private sensing only. The agents'
+    /// propagation on the controller's calibrated LLRs (f = 1.2, ≤ 8 feedback rounds), every
+    /// syndrome bit and 4 bits for the rounds charged; private sensing only. The agents'
     /// `postprocess.reconciliation`.
     #[arg(long, value_enum, default_value_t = ReconciliationArg::Cascade)]
     reconciliation: ReconciliationArg,

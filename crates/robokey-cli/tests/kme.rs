@@ -34,6 +34,7 @@ fn final_key(id: &str, bits: usize, seed: u8) -> FinalKey {
         sessions: vec![u32::from(seed)],
         epsilon: 4e-6,
         assumption: "stated for the test".into(),
+        reconciliation: None,
     }
 }
 

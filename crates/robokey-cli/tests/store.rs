@@ -452,6 +452,17 @@ fn ldpc_between_the_agents_makes_the_same_key() {
         !listed(&dir, &pairing, "controller").is_empty(),
         "{controller}"
     );
+    // Each key's record names its reconciliation and the leak its block was charged.
+    for role in ["robot", "controller"] {
+        for key in listed(&dir, &pairing, role) {
+            let block = controller_blocks
+                .iter()
+                .find(|b| b["block"] == key["block"])
+                .unwrap_or_else(|| panic!("{role}: no block for {key}"));
+            assert_eq!(key["reconciliation"], "ldpc", "{key}");
+            assert_eq!(key["leak_ec"], block["leak_ec"], "{key}");
+        }
+    }
     assert_settled_alike(&dir, &pairing);
 }
 

@@ -38,6 +38,13 @@ pub struct ListedKey {
     /// Private sensing: what the key rests on, Eve's camera and the plant's model class.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub basis: Option<KeyBasis>,
+    /// How the key's block was reconciled: `cascade` or `ldpc` (absent in records written
+    /// before it was stated).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reconciliation: Option<String>,
+    /// leak_EC of its block (bits): what its length was charged for reconciliation.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub leak_ec: Option<u64>,
     /// When the key was made (as the store wrote it).
     pub created: String,
     /// The sessions whose bits it holds.
@@ -72,6 +79,8 @@ impl From<&StoredKey> for ListedKey {
             pending_reason,
             assumption: key.assumption.clone(),
             basis: key.basis.clone(),
+            reconciliation: key.reconciliation.as_ref().map(|r| r.method.clone()),
+            leak_ec: key.reconciliation.as_ref().map(|r| r.leak_ec),
             created: key.created.clone(),
             sessions: key.sessions.clone(),
         }

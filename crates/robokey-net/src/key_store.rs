@@ -24,7 +24,7 @@ use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use robokey::post_settings::KeyBasis;
-use robokey_secrecy::postprocess::FinalKey;
+use robokey_secrecy::postprocess::{FinalKey, KeyReconciliation};
 use serde::{Deserialize, Serialize};
 use zeroize::{Zeroize, Zeroizing};
 
@@ -91,6 +91,10 @@ pub struct StoredKey {
     /// class (absent in odometry mode and in records written before they were stated).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub basis: Option<KeyBasis>,
+    /// How its block was reconciled (`cascade` or `ldpc`) and leak_EC (absent in records
+    /// written before they were stated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reconciliation: Option<KeyReconciliation>,
     /// When it was committed (UTC, RFC 3339).
     pub created: String,
     /// The sessions whose raw bits it came from.
@@ -144,6 +148,7 @@ impl StoredKey {
             assumption: key.assumption.clone(),
             restricted: labels.restricted,
             basis: labels.basis.clone(),
+            reconciliation: key.reconciliation.clone(),
             created: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
             sessions: key.sessions.clone(),
             status,
@@ -519,7 +524,36 @@ pub(crate) mod tests {
             sessions: vec![7, 9],
             epsilon: 4e-6,
             assumption: "stated".into(),
+            reconciliation: Some(KeyReconciliation {
+                method: "ldpc".into(),
+                leak_ec: 3_616,
+            }),
         }
+    }
+
+    #[test]
+    fn a_record_names_its_reconciliation_and_older_records_load_without_it() {
+        let key = StoredKey::new(
+            &final_key(),
+            "robot",
+            &KeyLabels::default(),
+            KeyStatus::Settled,
+        );
+        let json = serde_json::to_value(&key).unwrap();
+        assert_eq!(json["reconciliation"]["method"], "ldpc");
+        assert_eq!(json["reconciliation"]["leak_ec"], 3_616);
+        let listed = crate::key_listing::ListedKey::from(&key);
+        assert_eq!(listed.reconciliation.as_deref(), Some("ldpc"));
+        assert_eq!(listed.leak_ec, Some(3_616));
+        // A record written before the field existed: it loads, lists nothing for it, and
+        // is written back exactly as it was (the MAC covers the JSON).
+        let mut old = json;
+        old.as_object_mut().unwrap().remove("reconciliation");
+        let loaded: StoredKey = serde_json::from_value(old.clone()).unwrap();
+        assert_eq!(loaded.reconciliation, None);
+        assert_eq!(serde_json::to_value(&loaded).unwrap(), old);
+        let listed = serde_json::to_value(crate::key_listing::ListedKey::from(&loaded)).unwrap();
+        assert!(listed.get("reconciliation").is_none() && listed.get("leak_ec").is_none());
     }
 
     #[test]

@@ -112,7 +112,7 @@ pub fn secrecy_markdown(secrecy: &Secrecy) -> String {
             "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags and committed in two phases"
         }
         Pooling::Complete => {
-            "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, one-way LDPC (the robot's syndrome decoded on the controller's LLRs, f = 1.2, at most 2 feedback rounds) with every syndrome bit and 2 bits for the rounds charged, the block confirmed by two 64-bit tags and committed in two phases"
+            "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, one-way LDPC (the robot's syndrome decoded on the controller's LLRs, f = 1.2, at most 8 feedback rounds of 0.08·m split checks) with every syndrome bit and 4 bits for the rounds charged, the block confirmed by two 64-bit tags and committed in two phases"
         }
     };
     let mut held: Vec<String> = Vec::new();

@@ -129,7 +129,7 @@ pub struct BlockSummary {
     /// Bits reconciled.
     pub reconciled_bits: usize,
     /// Reconciliation leak (bits): Cascade's parities of both sides, or every LDPC syndrome
-    /// bit and 2 bits for the rounds.
+    /// bit and 4 bits for the rounds.
     pub leak_ec: u64,
     /// With LDPC reconciliation: the syndrome rounds used (absent with Cascade).
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -27,6 +27,7 @@ pub(crate) fn final_key(block: u64, bits: usize, seed: u8) -> FinalKey {
         sessions: vec![block as u32],
         epsilon: 4e-6,
         assumption: "stated".into(),
+        reconciliation: None,
     }
 }
 

@@ -146,6 +146,7 @@ mod tests {
             assumption: "stated".into(),
             restricted: false,
             basis: None,
+            reconciliation: None,
             created: "2026-01-01T00:00:00Z".into(),
             sessions: vec![1],
             status: KeyStatus::Settled,

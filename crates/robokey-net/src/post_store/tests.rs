@@ -44,6 +44,7 @@ fn key(block: u64, sessions: &[u32]) -> FinalKey {
         sessions: sessions.to_vec(),
         epsilon: 4e-6,
         assumption: "stated".into(),
+        reconciliation: None,
     }
 }
 

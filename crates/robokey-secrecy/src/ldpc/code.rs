@@ -109,66 +109,46 @@ impl ParityCheck {
         })
     }
 
-    /// `checks` further checks of `check_degree` distinct variables each, drawn uniformly by
-    /// ChaCha8 from `seed`: the increment of a feedback round, to be [`Self::stacked`] under a
-    /// code whose decoding failed.
-    pub fn extension(
-        block: usize,
-        checks: usize,
-        check_degree: usize,
-        seed: [u8; 32],
-    ) -> Result<Self, LdpcError> {
-        if block == 0 || block > MAX_BLOCK_BITS {
-            return Err(LdpcError::BlockLength(block));
+    /// Splits the `count` checks of largest degree (ties: the lower index; degree ≥ 2 only)
+    /// in two: the variables at odd positions of each check's increasing list leave it and
+    /// form a new check. Returns the code with the remainders in place and the halves
+    /// appended, and the split checks' indices in the halves' order. A syndrome bit of each
+    /// half, with the split check's, gives both parts' parities (s_rest = s_check ⊕ s_half):
+    /// the increment of a feedback round, a code of lower check degree instead of extra
+    /// checks stacked over the old ones.
+    #[must_use]
+    pub fn split(&self, count: usize) -> (Self, Vec<u32>) {
+        let mut order: Vec<usize> = (0..self.syndrome_bits())
+            .filter(|&c| self.check(c).len() >= 2)
+            .collect();
+        order.sort_by_key(|&c| (std::cmp::Reverse(self.check(c).len()), c));
+        order.truncate(count);
+        let mut split = vec![false; self.syndrome_bits()];
+        for &c in &order {
+            split[c] = true;
         }
-        if checks == 0 || checks > block {
-            return Err(LdpcError::SyndromeLength {
-                syndrome: checks,
-                block,
-            });
-        }
-        let degree = check_degree.clamp(1, block);
-        let mut rng = ChaCha8Rng::from_seed(seed);
-        let mut starts = Vec::with_capacity(checks + 1);
-        let mut variables = Vec::with_capacity(checks * degree);
-        let mut check: Vec<u32> = Vec::with_capacity(degree);
+        let mut starts = Vec::with_capacity(self.starts.len() + order.len());
+        let mut variables = Vec::with_capacity(self.variables.len());
         starts.push(0);
-        for _ in 0..checks {
-            check.clear();
-            while check.len() < degree {
-                check.extend((check.len()..degree).map(|_| rng.random_range(0..block) as u32));
-                check.sort_unstable();
-                check.dedup();
+        for (c, &halved) in split.iter().enumerate() {
+            let check = self.check(c);
+            if halved {
+                variables.extend(check.iter().step_by(2));
+            } else {
+                variables.extend_from_slice(check);
             }
-            variables.extend_from_slice(&check);
             starts.push(variables.len());
         }
-        Ok(Self {
-            block,
-            starts,
-            variables,
-        })
-    }
-
-    /// This code's checks followed by `below`'s (same block length).
-    pub fn stacked(&self, below: &Self) -> Result<Self, LdpcError> {
-        if below.block != self.block {
-            return Err(LdpcError::Length {
-                what: "stacked code",
-                got: below.block,
-                expected: self.block,
-            });
+        for &c in &order {
+            variables.extend(self.check(c).iter().skip(1).step_by(2));
+            starts.push(variables.len());
         }
-        let offset = self.variables.len();
-        let mut starts = self.starts.clone();
-        starts.extend(below.starts[1..].iter().map(|&s| s + offset));
-        let mut variables = self.variables.clone();
-        variables.extend_from_slice(&below.variables);
-        Ok(Self {
+        let code = Self {
             block: self.block,
             starts,
             variables,
-        })
+        };
+        (code, order.iter().map(|&c| c as u32).collect())
     }
 
     /// Block length n.
@@ -289,25 +269,27 @@ mod tests {
     }
 
     #[test]
-    fn a_stacked_code_checks_both_codes() {
+    fn a_split_check_keeps_its_variables_in_two_halves() {
         let base = ParityCheck::build(2_000, 300, 0.3, [4; 32]).unwrap();
-        let extra = ParityCheck::extension(2_000, 30, 40, [5; 32]).unwrap();
-        assert!((0..30).all(|c| extra.check(c).len() == 40));
-        let both = base.stacked(&extra).unwrap();
-        assert_eq!(both.syndrome_bits(), 330);
+        let (split, parents) = base.split(30);
+        assert_eq!(split.syndrome_bits(), 330);
+        assert_eq!(split.edges(), base.edges());
+        let largest = (0..300).map(|c| base.check(c).len()).max().unwrap();
+        assert_eq!(base.check(parents[0] as usize).len(), largest);
         let mut rng = ChaCha8Rng::seed_from_u64(6);
         let x = BitString::random(2_000, &mut rng);
-        let (s, e, b) = (
-            base.syndrome(&x).unwrap(),
-            extra.syndrome(&x).unwrap(),
-            both.syndrome(&x).unwrap(),
-        );
-        assert!((0..300).all(|c| b.get(c) == s.get(c)));
-        assert!((0..30).all(|c| b.get(300 + c) == e.get(c)));
-        assert!(
-            base.stacked(&ParityCheck::build(10, 1, 0.3, [0; 32]).unwrap())
-                .is_err()
-        );
+        let (whole, parts) = (base.syndrome(&x).unwrap(), split.syndrome(&x).unwrap());
+        for (k, &p) in parents.iter().enumerate() {
+            let p = p as usize;
+            let (rest, half) = (split.check(p), split.check(300 + k));
+            assert!(!rest.is_empty() && !half.is_empty());
+            let mut joined = [rest, half].concat();
+            joined.sort_unstable();
+            assert_eq!(joined, base.check(p));
+            assert_eq!(whole.get(p), Some(parts.get(p) != parts.get(300 + k)));
+        }
+        let unsplit = (0..300).find(|c| !parents.contains(&(*c as u32))).unwrap();
+        assert_eq!(split.check(unsplit), base.check(unsplit));
     }
 
     #[test]

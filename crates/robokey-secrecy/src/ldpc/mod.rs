@@ -11,8 +11,9 @@
 //! propagation ([`SyndromeDecoder`], capped iterations). The block tags then verify x̂ = x.
 //!
 //! If decoding fails (the syndrome is not met within the iteration cap), the controller may ask
-//! for ⌈increment · m⌉ more syndrome bits of further random checks, up to
-//! [`LdpcSettings::feedback_rounds`] times, and decodes the stacked code again.
+//! for ⌈increment · m⌉ more syndrome bits, up to [`LdpcSettings::feedback_rounds`] times: both
+//! sides split that many checks of largest degree in two ([`ParityCheck::split`]), the robot
+//! sends the new halves' parities, and the controller decodes the split code again.
 //!
 //! **Leak.** The transcript is the public seed, m and B (functions of the controller's LLR
 //! magnitudes, not of x), every syndrome bit sent, and the number of rounds used, so

@@ -14,9 +14,10 @@ use super::ledger::Ledger;
 use super::public::{PublicRandomness, sample_size};
 use super::syndromes::{DecodingStep, Reconciled, SyndromeDecoding};
 use super::{
-    AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS,
-    Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, ReconciliationMethod, RejectReason,
-    Settings, concatenate, dequantise_llr, key_id, quantise_llr, split_sample, tag_context,
+    AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, KeyReconciliation,
+    MAX_BLOCK_SESSIONS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER,
+    ReconciliationMethod, RejectReason, Settings, concatenate, dequantise_llr, key_id,
+    quantise_llr, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep};
@@ -155,6 +156,7 @@ enum State {
         key: BitString,
         length: u64,
         assumption: Assumption,
+        leak_ec: u64,
     },
     ExpectCommitAck,
     ExpectAbortAck,
@@ -448,6 +450,7 @@ impl ControllerPost {
                     key,
                     length,
                     assumption,
+                    leak_ec,
                 },
                 Message::Confirmed { tag, .. },
             ) => {
@@ -455,7 +458,7 @@ impl ControllerPost {
                 let expected =
                     ConfirmationTag::directional(&reconciled, ROBOT_TO_CONTROLLER, &context);
                 if expected.matches(&ConfirmationTag(tag)) {
-                    self.commit(agreed, key, &assumption);
+                    self.commit(agreed, key, &assumption, leak_ec);
                 } else {
                     self.abort(
                         AbortReason::Reconciliation,
@@ -875,6 +878,7 @@ impl ControllerPost {
             key,
             length: length.bits,
             assumption,
+            leak_ec: outcome.leak,
         };
         self.request(Message::Confirm {
             block,
@@ -885,7 +889,7 @@ impl ControllerPost {
     }
 
     /// The robot's tag proved it prepared the key: commit, durably, then tell it.
-    fn commit(&mut self, agreed: Agreed, key: BitString, assumption: &Assumption) {
+    fn commit(&mut self, agreed: Agreed, key: BitString, assumption: &Assumption, leak_ec: u64) {
         let Some((block, proposed, _)) = self.block.as_ref() else {
             return;
         };
@@ -902,6 +906,10 @@ impl ControllerPost {
             sessions: agreed.sessions,
             epsilon: assumption.total_epsilon(self.ledger.settings.epsilon),
             assumption: assumption.describe(),
+            reconciliation: Some(KeyReconciliation::new(
+                &self.ledger.settings.reconciliation,
+                leak_ec,
+            )),
         };
         self.ledger.committed.insert(block);
         self.in_flight = Some(InFlight::Committed {

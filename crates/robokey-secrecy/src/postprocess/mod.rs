@@ -189,6 +189,30 @@ pub struct FinalKey {
     pub epsilon: f64,
     /// The assumption it is secret under.
     pub assumption: String,
+    /// How its block was reconciled and what that leaked (absent in keys recorded before
+    /// it was stated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reconciliation: Option<KeyReconciliation>,
+}
+
+/// How a key's block was reconciled, as both sides charged it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct KeyReconciliation {
+    /// `cascade` or `ldpc` ([`ReconciliationMethod::name`]).
+    pub method: String,
+    /// leak_EC (bits): what ℓ was charged for reconciliation, the tags' 128 bits apart.
+    pub leak_ec: u64,
+}
+
+impl KeyReconciliation {
+    /// The record of a block reconciled by `method` with leak_EC `leak_ec` bits.
+    #[must_use]
+    pub fn new(method: &ReconciliationMethod, leak_ec: u64) -> Self {
+        Self {
+            method: method.name().to_owned(),
+            leak_ec,
+        }
+    }
 }
 
 /// What an endpoint asks its shell to do.

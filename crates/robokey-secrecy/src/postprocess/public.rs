@@ -62,7 +62,7 @@ impl PublicRandomness {
         self.stream(1)
     }
 
-    /// The 256-bit seed of the block's LDPC code and its feedback rounds.
+    /// The 256-bit seed of the block's LDPC code (its feedback rounds split that code's checks).
     #[must_use]
     pub fn ldpc(&self) -> [u8; 32] {
         let mut seed = [0_u8; 32];

@@ -9,8 +9,8 @@ use super::ledger::Ledger;
 use super::public::PublicRandomness;
 use super::syndromes::SyndromeEncoding;
 use super::{
-    AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, MAX_BLOCK_SESSIONS, MAX_QUESTIONS,
-    MAX_SEPARATION_STEPS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER,
+    AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, KeyReconciliation, MAX_BLOCK_SESSIONS,
+    MAX_QUESTIONS, MAX_SEPARATION_STEPS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER,
     ReconciliationMethod, RejectReason, Settings, concatenate, key_id, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
@@ -475,6 +475,7 @@ impl RobotPost {
             sessions: r.sessions.clone(),
             epsilon: assumption.total_epsilon(settings.epsilon),
             assumption: assumption.describe(),
+            reconciliation: Some(KeyReconciliation::new(&settings.reconciliation, leak_ec)),
         };
         if let Some(done) = self.reconciling.take() {
             self.ledger.spent.extend(done.sessions);

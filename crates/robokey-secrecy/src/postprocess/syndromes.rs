@@ -33,7 +33,8 @@ pub(super) struct SyndromeDecoding {
     decoder: SyndromeDecoder,
     codes: BlockCode,
     llrs: Vec<f64>,
-    /// The syndrome bits received so far, over the rounds.
+    /// The current code's syndrome: every bit received, each split check's turned into its
+    /// remainder's ([`BlockCode::receive`]).
     syndrome: Vec<bool>,
     first_checks: u32,
     bhattacharyya: u16,
@@ -100,16 +101,17 @@ impl SyndromeDecoding {
     /// A syndrome of the wrong length, or decoding failed after the last round: failed
     /// reconciliation, said with its figures.
     pub(super) fn accept(&mut self, block: u64, syndrome: &[bool]) -> Result<DecodingStep, String> {
-        let checks = self.codes.code().syndrome_bits();
-        if self.syndrome.len() + syndrome.len() != checks {
+        if syndrome.len() != self.codes.round_checks() {
             return Err(format!(
                 "the robot's syndrome of round {} has {} bits, the round has {} checks",
                 self.round(),
                 syndrome.len(),
-                checks - self.syndrome.len()
+                self.codes.round_checks()
             ));
         }
-        self.syndrome.extend_from_slice(syndrome);
+        self.codes
+            .receive(&mut self.syndrome, syndrome)
+            .map_err(|e| e.to_string())?;
         let decoded = self
             .decoder
             .decode(
@@ -128,16 +130,16 @@ impl SyndromeDecoding {
                 ldpc_rounds: Some(self.round()),
             }));
         }
-        match self.codes.extend() {
-            Ok(true) => Ok(DecodingStep::Ask(self.ask(block))),
-            Ok(false) => Err(format!(
+        if self.codes.extend() {
+            Ok(DecodingStep::Ask(self.ask(block)))
+        } else {
+            Err(format!(
                 "failed reconciliation: LDPC decoding did not meet the syndrome after {} \
                  round(s) ({} syndrome bits, {} belief-propagation iterations)",
                 self.round(),
                 self.syndrome.len(),
                 self.iterations
-            )),
-            Err(e) => Err(e.to_string()),
+            ))
         }
     }
 }
@@ -181,7 +183,6 @@ impl SyndromeEncoding {
         seed: [u8; 32],
         settings: &LdpcSettings,
     ) -> Result<Vec<bool>, RejectReason> {
-        let before = self.sent() as usize;
         match &mut self.codes {
             None => {
                 let n = reference.len();
@@ -203,19 +204,15 @@ impl SyndromeEncoding {
                 if round != codes.rounds() + 1
                     || first_checks != self.first_checks
                     || bhattacharyya != self.bhattacharyya
-                    || !codes.extend().map_err(|_| RejectReason::BadQuestions)?
+                    || !codes.extend()
                 {
                     return Err(RejectReason::BadQuestions);
                 }
             }
         }
         let codes = self.codes.as_ref().ok_or(RejectReason::BadQuestions)?;
-        let syndrome = codes
-            .code()
-            .syndrome(reference)
-            .map_err(|_| RejectReason::BadQuestions)?;
-        Ok((before..syndrome.len())
-            .map(|i| syndrome.get(i) == Some(true))
-            .collect())
+        codes
+            .round_syndrome(reference)
+            .map_err(|_| RejectReason::BadQuestions)
     }
 }

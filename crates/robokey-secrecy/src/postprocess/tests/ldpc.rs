@@ -66,9 +66,21 @@ fn ldpc_makes_the_same_keys_and_both_sides_charge_every_syndrome_bit() {
             let rounds = report
                 .ldpc_rounds
                 .unwrap_or_else(|| panic!("trial {trial}: no rounds: {report:?}"));
-            assert!((1..=3).contains(&rounds), "{report:?}");
-            // Every syndrome bit, and ⌈log₂ 3⌉ = 2 bits for the number of rounds.
-            assert_eq!(report.leak_ec, report.questions + 2, "{report:?}");
+            assert!((1..=9).contains(&rounds), "{report:?}");
+            // Every syndrome bit, and ⌈log₂ 9⌉ = 4 bits for the number of rounds.
+            assert_eq!(report.leak_ec, report.questions + 4, "{report:?}");
+            // The key records its reconciliation and leak, the same on both sides.
+            let recorded = Some(crate::postprocess::KeyReconciliation {
+                method: "ldpc".into(),
+                leak_ec: report.leak_ec,
+            });
+            for key in pair
+                .controller_keys
+                .iter()
+                .filter(|k| k.block == report.block)
+            {
+                assert_eq!(key.reconciliation, recorded, "trial {trial}");
+            }
             let robot = pair
                 .robot_reports
                 .iter()
@@ -101,6 +113,17 @@ fn ldpc_leaks_less_than_cascade_on_the_same_sessions() {
         leak(&cascade)
     );
     assert!(length(&soft) > length(&cascade));
+    for (pair, method) in [(&cascade, "cascade"), (&soft, "ldpc")] {
+        assert!(!pair.controller_keys.is_empty(), "{method}");
+        for key in pair.controller_keys.iter().chain(&pair.robot_keys) {
+            let report = pair.reports.iter().find(|r| r.block == key.block).unwrap();
+            let recorded = key.reconciliation.as_ref().unwrap();
+            assert_eq!(
+                (recorded.method.as_str(), recorded.leak_ec),
+                (method, report.leak_ec)
+            );
+        }
+    }
 }
 
 /// LLRs that claim far more confidence than the channel gives ask for too short a syndrome:
