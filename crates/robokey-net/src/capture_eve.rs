@@ -216,7 +216,9 @@ pub fn listen_private(
     doublets.sort_by_key(|d| d.doublet);
     PrivateCaptureResult {
         doublets,
-        camera_key: eve.key(true).expect("the camera eavesdropper is always judged"),
+        camera_key: eve
+            .key(true)
+            .expect("the camera eavesdropper is always judged"),
         commands_key: eve.key(false).expect("both eavesdroppers are judged"),
         kept,
     }

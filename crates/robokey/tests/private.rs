@@ -5,6 +5,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix3};
 use robokey::Config;
+use robokey::config::EveStrategy;
 use robokey::model::{Pose, Unicycle, unicycle_step};
 use robokey::private::{BitKind, DoubletBit, PoseObservation};
 use robokey::sim::simulate;
@@ -46,7 +47,7 @@ fn every_partys_llr_is_calibrated() {
         let parties: [(&str, Llr); 3] = [
             ("controller", |b| b.controller),
             ("camera", |b| b.camera),
-            ("commands", |b| b.commands),
+            ("commands", |b| b.llr_of(EveStrategy::Commands)),
         ];
         for (name, llr) in parties {
             let pairs: Vec<(f64, bool)> =
@@ -72,7 +73,7 @@ fn straight_segment_error_rates_match_the_references() {
     };
     let controller = wrong(&straight, |b| b.controller);
     let camera = wrong(&straight, |b| b.camera);
-    let commands = wrong(&straight, |b| b.commands);
+    let commands = wrong(&straight, |b| b.llr_of(EveStrategy::Commands));
     assert!(within(controller, 0.0078), "controller {controller} of {n}");
     assert!(within(camera, 0.205), "camera {camera} of {n}");
     assert!(within(commands, 0.5), "commands {commands} of {n}");
@@ -103,12 +104,15 @@ fn the_commands_leak_is_the_predicted_residual() {
             .collect();
         let n = bin.len() as f64;
         assert!(n > 1_000.0, "[{low}, {high}): {n}");
-        let values: Vec<f64> = bin.iter().map(|b| info(b, b.commands)).collect();
+        let values: Vec<f64> = bin
+            .iter()
+            .map(|b| info(b, b.llr_of(EveStrategy::Commands)))
+            .collect();
         let mean = values.iter().sum::<f64>() / n;
         let se = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
         let predicted = bin
             .iter()
-            .map(|b| information(b.commands_separation))
+            .map(|b| information(b.separation_of(EveStrategy::Commands)))
             .sum::<f64>()
             / n;
         assert!(
@@ -124,7 +128,10 @@ fn the_commands_leak_is_the_predicted_residual() {
     let mean_info = |llr: fn(&DoubletBit) -> f64| {
         all.iter().map(|b| info(b, llr(b))).sum::<f64>() / all.len() as f64
     };
-    let (commands, camera) = (mean_info(|b| b.commands), mean_info(|b| b.camera));
+    let (commands, camera) = (
+        mean_info(|b| b.llr_of(EveStrategy::Commands)),
+        mean_info(|b| b.camera),
+    );
     assert!(
         commands < camera / 20.0,
         "commands {commands}, camera {camera}"

@@ -136,7 +136,14 @@ pub fn simulate_plan_streaming(
     replicate: u32,
     sink: &mut dyn FnMut(TraceRow),
 ) -> Result<RunOutput, SimError> {
-    run(config, plan, replicate, Some(sink), None, Eavesdroppers::Both)
+    run(
+        config,
+        plan,
+        replicate,
+        Some(sink),
+        None,
+        Eavesdroppers::Both,
+    )
 }
 
 /// [`simulate`] that also returns every message in the order an eavesdropper hears it, so
