@@ -339,7 +339,9 @@ fn private_fingerprint(config: &Config, replicates: u32) -> String {
 /// which had seen only their redacted `Debug` text; each bit's record held the commands
 /// check's boundary residual and its modelled part for a while, which the check now
 /// recomputes from the controller's kept samples, and the pins are again those from before
-/// those two fields): one and two bits per doublet, protocol off, no eavesdropper, the
+/// those two fields; re-pinned when the commands eavesdropper's LLR and separation became
+/// optional — the same numbers, their `Debug` text now `Some(…)`: with those wrappers taken
+/// out of the hashed text the runs gave the previous pins): one and two bits per doublet, protocol off, no eavesdropper, the
 /// commands eavesdropper, every doublet gated, and an odd number of steps (a lone last step).
 #[test]
 fn pinned_private_runs_keep_every_number() {
@@ -360,11 +362,11 @@ fn pinned_private_runs_keep_every_number() {
 }
 
 const PINNED_PRIVATE: &str = "
-default 2148f649772fcbaa
-two bits b2606817146b5dc0
+default 579a6a48d8b36f4c
+two bits bcfd92a423364b52
 off 7f11f24176836d41
-no eve 40d56d2d97aa2d5c
-commands 9b035082a88a0297
+no eve a203bdc078f49a5b
+commands 61eacc646218dcdc
 all gated 5b02859dca978155
-odd f250a66806d2e967
+odd 35be065f9be80498
 ";
