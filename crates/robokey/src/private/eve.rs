@@ -264,14 +264,15 @@ impl DoubletEavesdropper {
         };
         for (j, decided) in self.decided.iter().enumerate() {
             if kept.get(j / 64).is_some_and(|w| w >> (j % 64) & 1 == 1) {
-                let word = decided.and_then(|(camera_word, commands_word)| {
-                    if camera {
-                        Some(camera_word)
-                    } else {
-                        commands_word
-                    }
-                });
-                let word = word.unwrap_or(0);
+                let word = decided
+                    .and_then(|(camera_word, commands_word)| {
+                        if camera {
+                            Some(camera_word)
+                        } else {
+                            commands_word
+                        }
+                    })
+                    .unwrap_or(0);
                 key.extend((0..bits).map(|i| (word >> i & 1) as u8));
             }
         }
