@@ -12,6 +12,7 @@ use common::{
 };
 
 use robokey::Config;
+use robokey::config::EveStrategy;
 use robokey::private::DoubletBit;
 use robokey::sim::{RunOutput, simulate};
 
@@ -299,7 +300,7 @@ fn a_lockstep_private_session_keeps_the_simulators_bits_and_eve_makes_its_decisi
     let strategies = eve["strategies"].as_array().unwrap();
     let llr_of = |b: &DoubletBit, strategy: &str| match strategy {
         "camera" => b.camera,
-        _ => b.commands,
+        _ => b.llr_of(EveStrategy::Commands),
     };
     for strategy in strategies {
         let name = strategy["strategy"].as_str().unwrap();

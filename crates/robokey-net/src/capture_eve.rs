@@ -7,7 +7,7 @@ use robokey::Config;
 use robokey::config::EveStrategy;
 use robokey::eve::{Eavesdropper, Eve, ModelErrors};
 use robokey::model::DiffDrive;
-use robokey::private::{DoubletEavesdropper, EveDoublet};
+use robokey::private::{DoubletEavesdropper, Eavesdroppers, EveDoublet};
 use robokey::protocol::auth::{AuthMode, PairingSecret};
 use robokey::protocol::wire::{Frame, decode};
 use robokey::protocol::{
@@ -188,7 +188,7 @@ pub fn listen_private(
     config: &Config,
     robot_bits: Option<&[u8]>,
 ) -> PrivateCaptureResult {
-    let mut eve = DoubletEavesdropper::new(config);
+    let mut eve = DoubletEavesdropper::new(config, Eavesdroppers::Both);
     let kept = kept_doublets(captured, config);
     if let Some(bits) = robot_bits {
         let per = usize::from(config.protocol.bits_per_doublet);
@@ -216,8 +216,10 @@ pub fn listen_private(
     doublets.sort_by_key(|d| d.doublet);
     PrivateCaptureResult {
         doublets,
-        camera_key: eve.key(true),
-        commands_key: eve.key(false),
+        camera_key: eve
+            .key(true)
+            .expect("the camera eavesdropper is always judged"),
+        commands_key: eve.key(false).expect("both eavesdroppers are judged"),
         kept,
     }
 }

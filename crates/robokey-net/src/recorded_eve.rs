@@ -566,19 +566,15 @@ fn hear_private_capture(
         let doublets = heard
             .doublets
             .iter()
-            .map(|d| {
-                let (evidence, given) = if camera_adversary {
-                    (d.camera, d.camera_given_others)
-                } else {
-                    (d.commands, d.commands_given_others)
-                };
+            .filter_map(|d| {
+                let (evidence, given) = d.of(camera_adversary)?;
                 let llr = evidence.llr[..bits].to_vec();
-                DecidedDoublet {
+                Some(DecidedDoublet {
                     doublet: d.doublet,
                     bits: llr.iter().map(|&l| u8::from(l < 0.0)).collect(),
                     llr,
                     llr_given_others: given.map(|g| g.llr[..bits].to_vec()),
-                }
+                })
             })
             .collect();
         let view = robot
@@ -627,13 +623,13 @@ fn given_others_view(
         h_min: 0.0,
     };
     for (&j, truth) in heard.kept.iter().zip(robot.chunks_exact(bits)) {
-        let Some(d) = heard.doublets.iter().find(|d| d.doublet == j) else {
+        let Some((own, given)) = heard
+            .doublets
+            .iter()
+            .find(|d| d.doublet == j)
+            .and_then(|d| d.of(camera))
+        else {
             continue;
-        };
-        let (own, given) = if camera {
-            (d.camera, d.camera_given_others)
-        } else {
-            (d.commands, d.commands_given_others)
         };
         view.missing += usize::from(given.is_none()) * bits;
         let evidence = given.unwrap_or(own);

@@ -9,6 +9,7 @@ use robokey::config::{EveStrategy, SensingMode};
 use robokey::eve::{Eavesdropper, Eve, ModelErrors};
 use robokey::model::DiffDrive;
 use robokey::observer::Observer;
+use robokey::private::Eavesdroppers;
 use robokey::protocol::StepDecoder;
 use robokey::protocol::auth::{ControllerChannel, Delivery, PairingSecret, RobotChannel};
 use robokey::protocol::controller::{command_pair, observer_params};
@@ -24,7 +25,7 @@ fn one_run(c: &mut Criterion) {
     let mut group = c.benchmark_group("simulate");
     group.throughput(Throughput::Elements(u64::from(plan.agreed.steps)));
     group.bench_function("default run (steps)", |b| {
-        b.iter(|| simulate_plan(&config, plan.clone(), 0, false).unwrap());
+        b.iter(|| simulate_plan(&config, plan.clone(), 0, false, Eavesdroppers::Both).unwrap());
     });
     group.bench_function("its arithmetic alone (steps)", |b| {
         b.iter(|| arithmetic_only(&config, &plan));

@@ -4,6 +4,7 @@
 //! never decide better than their view of each bit with the rest of the block known.
 
 use robokey::Config;
+use robokey::config::EveStrategy;
 use robokey::private::DoubletBit;
 use robokey::sim::simulate;
 use robokey_secrecy::calibration::check_calibration;
@@ -63,8 +64,10 @@ fn the_eavesdroppers_stay_calibrated_in_other_worlds() {
     for world in worlds {
         let all = bits(&private(&format!("[world]\n{world}")), 12);
         assert!(all.len() > 4_500, "{world}: {}", all.len());
-        let adversaries: [(&str, Llr); 2] =
-            [("camera", |b| b.camera), ("commands", |b| b.commands)];
+        let adversaries: [(&str, Llr); 2] = [
+            ("camera", |b| b.camera),
+            ("commands", |b| b.llr_of(EveStrategy::Commands)),
+        ];
         for (name, llr) in adversaries {
             let pairs: Vec<(f64, bool)> = all
                 .iter()

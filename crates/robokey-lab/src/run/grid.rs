@@ -8,6 +8,7 @@ use std::path::Path;
 use rayon::prelude::*;
 use robokey::Config;
 use robokey::interrupt::Interrupt;
+use robokey::private::Eavesdroppers;
 use robokey::protocol::SessionPlan;
 use robokey::sim::{
     RunOutput, replay, simulate_plan, simulate_plan_streaming, simulate_transcript,
@@ -99,7 +100,9 @@ pub fn run_experiment(
                 let output = if experiment.traces && replicate == 0 {
                     streamed(config, plan, &point_trace_path(dir, point))?
                 } else {
-                    simulate_plan(config, plan, replicate, false)?
+                    // A row holds her metrics alone: only her evidence is judged.
+                    let judged = Eavesdroppers::reading(config.eve_strategy());
+                    simulate_plan(config, plan, replicate, false, judged)?
                 };
                 return Ok(vec![record(run, output)]);
             }

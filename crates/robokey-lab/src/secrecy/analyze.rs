@@ -8,7 +8,7 @@ use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
 use robokey::estimate::commands_check::block_refusal;
 use robokey::post_settings::ODOMETRY_ZERO;
-use robokey::private::DoubletSamples;
+use robokey::private::{DoubletSamples, Eavesdroppers};
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
@@ -104,6 +104,7 @@ fn private_sessions(
 ) -> Result<Vec<RunOutput>, LabError> {
     let config = with_adversary(&experiment.points[point].config, adversary);
     let plan = SessionPlan::from_config(&config, 0);
+    let judged = Eavesdroppers::reading(adversary);
     let mut runs: Vec<RunOutput> = Vec::new();
     let count = sessions_needed(experiment.replicates(), options, |n| {
         let more: Vec<RunOutput> = (runs.len() as u32..n)
@@ -111,7 +112,7 @@ fn private_sessions(
             .map(|replicate| {
                 let mut plan = plan.clone();
                 plan.agreed.session = replicate;
-                simulate_plan(&config, plan, replicate, false)
+                simulate_plan(&config, plan, replicate, false, judged)
             })
             .collect::<Result<_, _>>()?;
         runs.extend(more);

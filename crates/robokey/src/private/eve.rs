@@ -18,12 +18,33 @@ use super::likelihood::{
     BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model_with,
 };
 use super::smoother::{Commanded, DEFAULT_HALF_WIDTH, Recorded, WindowSmoother};
-use crate::config::Config;
+use crate::config::{Config, EveStrategy};
 use crate::model::Pose;
 use crate::protocol::{Closing, KeyBits, Message, SessionMessage, SessionPlan};
 use crate::world::{Camera, Frame};
 
-/// What both eavesdroppers make of one carrying doublet.
+/// Whose judgement of each doublet a [`DoubletEavesdropper`] computes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Eavesdroppers {
+    /// The `camera` and the `commands` eavesdroppers'.
+    Both,
+    /// The `camera` eavesdropper's alone, for a caller that never reads the `commands` one's
+    /// (her evidence, decisions and key are then not computed: none, never zeros).
+    Camera,
+}
+
+impl Eavesdroppers {
+    /// What a caller that reads only `strategy`'s evidence, decisions and key needs judged.
+    #[must_use]
+    pub fn reading(strategy: EveStrategy) -> Self {
+        match strategy {
+            EveStrategy::Commands => Self::Both,
+            _ => Self::Camera,
+        }
+    }
+}
+
+/// What the eavesdroppers make of one carrying doublet.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EveDoublet {
     /// Doublet index j.
@@ -33,16 +54,30 @@ pub struct EveDoublet {
     /// The `camera` adversary's evidence: her camera, fused with the controller's boundary
     /// samples the commands carry.
     pub camera: BitEvidence,
-    /// The `commands` adversary's evidence: the boundary samples alone.
-    pub commands: BitEvidence,
+    /// The `commands` adversary's evidence: the boundary samples alone; none when she is not
+    /// judged ([`Eavesdroppers::Camera`]).
+    pub commands: Option<BitEvidence>,
     /// The `camera` adversary's evidence given also the true bits of every other doublet
     /// acting on its window (revealed for this measurement, never to decide with): her view
     /// of each bit as if she knew the rest of the block, which errs on her side — the sum
     /// over a block of `H(B_j | E, B_{≠j})` is at most `H(B | E)`. Where doublets are
     /// screened it is `camera`; none when those bits were not revealed.
     pub camera_given_others: Option<BitEvidence>,
-    /// The same for the `commands` adversary.
+    /// The same for the `commands` adversary (none also when she is not judged).
     pub commands_given_others: Option<BitEvidence>,
+}
+
+impl EveDoublet {
+    /// The `camera` adversary's evidence (`camera`) or the `commands` one's: her own and, when
+    /// the other bits were revealed, given them; none when she was not judged.
+    #[must_use]
+    pub fn of(&self, camera: bool) -> Option<(BitEvidence, Option<BitEvidence>)> {
+        if camera {
+            Some((self.camera, self.camera_given_others))
+        } else {
+            Some((self.commands?, self.commands_given_others))
+        }
+    }
 }
 
 /// How the eavesdroppers weigh what they recorded.
@@ -68,14 +103,17 @@ enum View {
 pub struct DoubletEavesdropper {
     plan: SessionPlan,
     view: View,
+    /// Whose judgements are computed.
+    judged: Eavesdroppers,
     /// What the commands revealed, by step (pruned below what is still needed).
     commands: BTreeMap<u32, Commanded>,
     /// Her camera at the instants, by step (pruned likewise).
     camera: BTreeMap<u32, Pose>,
     /// Her frames between the instants, in time order (pruned likewise).
     frames: Vec<Frame>,
-    /// Each doublet's decision `v | ω << 1` under each view, once decided.
-    decided: Vec<Option<[u64; 2]>>,
+    /// Each doublet's decision `v | ω << 1` by the `camera` and (when judged) the `commands`
+    /// eavesdropper, once decided.
+    decided: Vec<Option<(u64, Option<u64>)>>,
     /// The kept doublets, once a `Finish` was heard.
     kept: Option<Vec<u64>>,
     ready: VecDeque<EveDoublet>,
@@ -89,9 +127,10 @@ pub struct DoubletEavesdropper {
 }
 
 impl DoubletEavesdropper {
-    /// The eavesdroppers of a validated private-sensing configuration, in its world.
+    /// The eavesdroppers of a validated private-sensing configuration, in its world, judging
+    /// each doublet for those `judged` names.
     #[must_use]
-    pub fn new(config: &Config) -> Self {
+    pub fn new(config: &Config, judged: Eavesdroppers) -> Self {
         let plan = SessionPlan::from_config(config, 0);
         let world = config.world_model();
         let view = match (world.camera, config.eve.smoother_window) {
@@ -125,6 +164,7 @@ impl DoubletEavesdropper {
         Self {
             decided: vec![None; plan.units() as usize],
             view,
+            judged,
             commands: BTreeMap::new(),
             camera: BTreeMap::new(),
             frames: Vec::new(),
@@ -210,21 +250,33 @@ impl DoubletEavesdropper {
 
     /// An eavesdropper's key: her decisions on the kept doublets, `[v, ω]` each (a kept
     /// doublet she could not decide counts as 0); empty before a `Finish` was heard.
-    /// `camera` picks the `camera` adversary's decisions, else the `commands` one's.
+    /// `camera` picks the `camera` adversary's decisions, else the `commands` one's: none
+    /// when she is not judged.
     #[must_use]
-    pub fn key(&self, camera: bool) -> KeyBits {
+    pub fn key(&self, camera: bool) -> Option<KeyBits> {
+        if !camera && self.judged == Eavesdroppers::Camera {
+            return None;
+        }
         let bits = self.plan.bits_per_unit();
         let mut key = KeyBits::default();
         let Some(kept) = &self.kept else {
-            return key;
+            return Some(key);
         };
         for (j, decided) in self.decided.iter().enumerate() {
             if kept.get(j / 64).is_some_and(|w| w >> (j % 64) & 1 == 1) {
-                let word = decided.map_or(0, |d| d[usize::from(!camera)]);
+                let word = decided
+                    .and_then(|(camera_word, commands_word)| {
+                        if camera {
+                            Some(camera_word)
+                        } else {
+                            commands_word
+                        }
+                    })
+                    .unwrap_or(0);
                 key.extend((0..bits).map(|i| (word >> i & 1) as u8));
             }
         }
-        key
+        Some(key)
     }
 
     /// `L`, the steps per doublet.
@@ -314,15 +366,16 @@ impl DoubletEavesdropper {
         let inputs = self.commands.get(&(self.doublet_steps() * j))?.inputs?;
         let truth = &self.truth;
         let revealed = |i: u32| truth.get(i as usize).copied().flatten();
-        let [camera, commands] = smoother.evidence(j, &recorded, &revealed)?;
-        self.decided[j as usize] = Some([camera.own.bits(), commands.own.bits()]);
+        let judge_commands = self.judged == Eavesdroppers::Both;
+        let (camera, commands) = smoother.evidence(j, &recorded, &revealed, judge_commands)?;
+        self.decided[j as usize] = Some((camera.own.bits(), commands.map(|c| c.own.bits())));
         Some(EveDoublet {
             doublet: j,
             inputs,
             camera: camera.own,
-            commands: commands.own,
+            commands: commands.map(|c| c.own),
             camera_given_others: camera.given_others,
-            commands_given_others: commands.given_others,
+            commands_given_others: commands.and_then(|c| c.given_others),
         })
     }
 
@@ -360,24 +413,26 @@ impl DoubletEavesdropper {
                 entry: None,
             },
         );
-        let commands = model.evidence(
-            &inputs,
-            &DoubletView {
-                start: c(start.sample),
-                middle: None,
-                late: None,
-                end: Some(c(end.sample)),
-                entry: None,
-            },
-        );
-        self.decided[j as usize] = Some([camera.bits(), commands.bits()]);
+        let commands = (self.judged == Eavesdroppers::Both).then(|| {
+            model.evidence(
+                &inputs,
+                &DoubletView {
+                    start: c(start.sample),
+                    middle: None,
+                    late: None,
+                    end: Some(c(end.sample)),
+                    entry: None,
+                },
+            )
+        });
+        self.decided[j as usize] = Some((camera.bits(), commands.map(|c| c.bits())));
         Some(EveDoublet {
             doublet: j,
             inputs,
             camera,
             commands,
             camera_given_others: Some(camera),
-            commands_given_others: Some(commands),
+            commands_given_others: commands,
         })
     }
 }

@@ -23,7 +23,7 @@ use crate::config::EveStrategy;
 pub(crate) use controller::PrivateController;
 pub use decision::DoubletDecision;
 pub use doublet::{DoubletInputs, Perturbation};
-pub use eve::{DoubletEavesdropper, EveDoublet};
+pub use eve::{DoubletEavesdropper, Eavesdroppers, EveDoublet};
 pub use likelihood::{
     BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model, doublet_model_with,
 };
@@ -61,16 +61,18 @@ pub struct DoubletBit {
     pub controller: f64,
     /// The camera Eve's LLR.
     pub camera: f64,
-    /// The commands Eve's LLR.
-    pub commands: f64,
+    /// The commands Eve's LLR; none when the simulation did not judge her
+    /// ([`Eavesdroppers::Camera`]).
+    pub commands: Option<f64>,
     /// The bit's separation `d` under the camera Eve's model (her LLR ~ N(±d²/2, d²)).
     pub camera_separation: f64,
     /// The camera Eve's separation as the controller can compute it — her stated camera
     /// noise, the controller's own samples for the path — which sizes the key: never from
     /// her realised view.
     pub assumed_separation: f64,
-    /// Its separation under the commands Eve's model: the residual leak the model predicts.
-    pub commands_separation: f64,
+    /// Its separation under the commands Eve's model: the residual leak the model predicts;
+    /// none when she was not judged.
+    pub commands_separation: Option<f64>,
 }
 
 /// What the controller saw of one carrying doublet, kept for the block's estimate of the
@@ -88,21 +90,31 @@ pub struct DoubletSamples {
     pub pattern: usize,
 }
 
+/// Reading the `commands` eavesdropper's evidence from a run that did not judge her is a
+/// caller's error: it simulates for the eavesdroppers it reads.
+const NOT_JUDGED: &str = "the run was simulated with the commands eavesdropper judged";
+
 impl DoubletBit {
     /// The LLR of a private-mode eavesdropper (`camera` for any other strategy).
+    ///
+    /// # Panics
+    /// For the `commands` one, when the simulation did not judge her ([`Eavesdroppers`]).
     #[must_use]
     pub fn llr_of(&self, strategy: EveStrategy) -> f64 {
         match strategy {
-            EveStrategy::Commands => self.commands,
+            EveStrategy::Commands => self.commands.expect(NOT_JUDGED),
             _ => self.camera,
         }
     }
 
     /// The model separation of a private-mode eavesdropper.
+    ///
+    /// # Panics
+    /// As [`Self::llr_of`].
     #[must_use]
     pub fn separation_of(&self, strategy: EveStrategy) -> f64 {
         match strategy {
-            EveStrategy::Commands => self.commands_separation,
+            EveStrategy::Commands => self.commands_separation.expect(NOT_JUDGED),
             _ => self.camera_separation,
         }
     }

@@ -313,17 +313,18 @@ impl WindowSmoother {
     }
 
     /// The evidence on doublet `j`'s bits from everything recorded over its window, of the
-    /// `camera` adversary (with her camera) and of the `commands` one (from the commands
-    /// alone) — each her own (the window's other bits unknown) and, when `truth` tells the
-    /// true bits of every other doublet that acts on the window, given those. None when `j`
-    /// carries no bits or its own commands are not recorded.
+    /// `camera` adversary (with her camera) and, when `judge_commands`, of the `commands` one
+    /// (from the commands alone) — each her own (the window's other bits unknown) and, when
+    /// `truth` tells the true bits of every other doublet that acts on the window, given
+    /// those. None when `j` carries no bits or its own commands are not recorded.
     #[must_use]
     pub fn evidence(
         &self,
         j: u32,
         rec: &Recorded<'_>,
         truth: &dyn Fn(u32) -> Option<[u8; 2]>,
-    ) -> Option<[Judged; 2]> {
+        judge_commands: bool,
+    ) -> Option<(Judged, Option<Judged>)> {
         let exact = self.window_of(j, rec)?;
         let (first, last) = self.span_of(exact.0, exact.1, self.reach, rec)?;
         let l = self.length();
@@ -397,7 +398,9 @@ impl WindowSmoother {
             carrying,
             target,
         };
-        Some([true, false].map(|camera| self.judge(rec, &window, camera, truth)))
+        let camera = self.judge(rec, &window, true, truth);
+        let commands = judge_commands.then(|| self.judge(rec, &window, false, truth));
+        Some((camera, commands))
     }
 
     /// The run of `window` with simulated doublet `position` (lead doublets counted, at or

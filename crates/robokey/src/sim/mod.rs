@@ -18,7 +18,7 @@ use crate::config::{Config, EveStrategy};
 use crate::eve;
 use crate::metrics::Metrics;
 use crate::pair::Pair;
-use crate::private::{DoubletEavesdropper, PrivateRun};
+use crate::private::{DoubletEavesdropper, Eavesdroppers, PrivateRun};
 use crate::protocol::{
     Controller, KeyBits, Message, ModePlan, Outcome, Robot, SessionPlan, Time, Timing,
 };
@@ -91,11 +91,13 @@ pub fn simulate(
     record_trace: bool,
 ) -> Result<RunOutput, SimError> {
     let plan = SessionPlan::from_config(config, replicate);
-    simulate_plan(config, plan, replicate, record_trace)
+    simulate_plan(config, plan, replicate, record_trace, Eavesdroppers::Both)
 }
 
 /// [`simulate`] with a precomputed plan (the config digest is computed once per sweep
-/// point rather than once per run).
+/// point rather than once per run), judging each private-sensing doublet for the
+/// eavesdroppers `judged` names: with [`Eavesdroppers::Camera`] the bits' `commands`
+/// evidence is none, and so are Eve's key and decisions if she is the `commands` one.
 ///
 /// # Errors
 /// [`SimError`] when the session aborts.
@@ -104,9 +106,10 @@ pub fn simulate_plan(
     plan: SessionPlan,
     replicate: u32,
     record_trace: bool,
+    judged: Eavesdroppers,
 ) -> Result<RunOutput, SimError> {
     if !record_trace {
-        return run(config, plan, replicate, None, None);
+        return run(config, plan, replicate, None, None, judged);
     }
     let mut trace = Vec::new();
     let mut output = run(
@@ -115,6 +118,7 @@ pub fn simulate_plan(
         replicate,
         Some(&mut |row| trace.push(row)),
         None,
+        judged,
     )?;
     output.trace = trace;
     Ok(output)
@@ -132,7 +136,14 @@ pub fn simulate_plan_streaming(
     replicate: u32,
     sink: &mut dyn FnMut(TraceRow),
 ) -> Result<RunOutput, SimError> {
-    run(config, plan, replicate, Some(sink), None)
+    run(
+        config,
+        plan,
+        replicate,
+        Some(sink),
+        None,
+        Eavesdroppers::Both,
+    )
 }
 
 /// [`simulate`] that also returns every message in the order an eavesdropper hears it, so
@@ -146,7 +157,14 @@ pub fn simulate_transcript(
 ) -> Result<(RunOutput, Vec<Message>), SimError> {
     let mut transcript = Vec::new();
     let plan = SessionPlan::from_config(config, replicate);
-    let output = run(config, plan, replicate, None, Some(&mut transcript))?;
+    let output = run(
+        config,
+        plan,
+        replicate,
+        None,
+        Some(&mut transcript),
+        Eavesdroppers::Both,
+    )?;
     Ok((output, transcript))
 }
 
@@ -219,6 +237,7 @@ fn run<'a>(
     replicate: u32,
     trace_sink: Option<&'a mut dyn FnMut(TraceRow)>,
     transcript: Option<&'a mut Vec<Message>>,
+    judged: Eavesdroppers,
 ) -> Result<RunOutput, SimError> {
     let stream_of = |purpose| stream(config.run.seed, purpose, u64::from(replicate));
     let agreed = &plan.agreed;
@@ -233,7 +252,7 @@ fn run<'a>(
             transcript,
         },
         ModePlan::Private(_) => Senses::Private(Box::new(PrivateSenses {
-            eve: DoubletEavesdropper::new(config),
+            eve: DoubletEavesdropper::new(config, judged),
             decided: VecDeque::new(),
             heard: BTreeMap::new(),
             run: PrivateRun::default(),
@@ -292,7 +311,8 @@ fn run<'a>(
                 eve: config
                     .eve
                     .enabled
-                    .then(|| p.eve.key(config.eve_strategy() != EveStrategy::Commands)),
+                    .then(|| p.eve.key(config.eve_strategy() != EveStrategy::Commands))
+                    .flatten(),
             },
             Some(p.run),
         ),
@@ -400,10 +420,10 @@ mod tests {
                         real(Some(b.turn_rate)),
                         real(Some(b.controller)),
                         real(Some(b.camera)),
-                        real(Some(b.commands)),
+                        real(b.commands),
                         real(Some(b.camera_separation)),
                         real(Some(b.assumed_separation)),
-                        real(Some(b.commands_separation))
+                        real(b.commands_separation)
                     ));
                 }
             }

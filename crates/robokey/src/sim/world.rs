@@ -319,10 +319,12 @@ fn record(
             turn_rate: d.inputs.turn_rate(),
             controller: d.evidence.llr[i],
             camera: e.camera_given_others.unwrap_or(e.camera).llr[i],
-            commands: e.commands_given_others.unwrap_or(e.commands).llr[i],
+            commands: e
+                .commands
+                .map(|own| e.commands_given_others.unwrap_or(own).llr[i]),
             camera_separation: e.camera.separation[i],
             assumed_separation: d.assumed_separation[i],
-            commands_separation: e.commands.separation[i],
+            commands_separation: e.commands.map(|own| own.separation[i]),
         });
     }
     run.controller_samples.push(DoubletSamples {
@@ -333,13 +335,13 @@ fn record(
     });
     let decide = |llr: f64| u8::from(llr < 0.0);
     let eve_llr = match config.eve_strategy() {
-        EveStrategy::Commands => e.commands.llr[0],
-        _ => e.camera.llr[0],
+        EveStrategy::Commands => e.commands.map(|own| own.llr[0]),
+        _ => Some(e.camera.llr[0]),
     };
     let logged = StepBits {
         bit: Some(bits[0]),
         bhat: Some(decide(d.evidence.llr[0])),
-        bhat_eve: config.eve.enabled.then(|| decide(eve_llr)),
+        bhat_eve: eve_llr.filter(|_| config.eve.enabled).map(decide),
     };
     log[d.step as usize] = logged;
     if let Some(row) = trace.row(d.step as usize + 1) {
