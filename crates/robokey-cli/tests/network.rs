@@ -709,18 +709,24 @@ fn an_agent_killed_at_its_commit_leaves_the_stores_agreeing_after_the_next_sessi
         let settings: Vec<&str> = settings.iter().map(String::as_str).collect();
         // The first session fills half a block; the second makes one and is killed.
         session_with_stores(&format!("commit-kill-{victim}-0"), 60, &pairing, &settings);
-        // The survivor ends on the peer's silence after the kill; 3 s leaves a loaded
-        // machine's slow steps (a second or more at a load of 8 on 2 cores) inside it.
         let role_args = |role: &str| -> Vec<String> {
             let mut args: Vec<String> =
-                ["--pace", "lockstep", "--silence-timeout", "3", "--pairing"]
+                ["--pace", "lockstep", "--silence-timeout", "1", "--pairing"]
                     .map(str::to_owned)
                     .to_vec();
             args.push(pairing.clone());
             args.extend(settings.iter().map(|a| a.replace("ROLE", role)));
             args
         };
-        let mut robot_args = vec!["robot".to_owned(), "--listen".into(), "127.0.0.1:0".into()];
+        // A fixed seed: with a random one the session's raw keys differ now and then (the
+        // confirmation tag catches it, nothing is pooled) and no block is made to kill at.
+        let mut robot_args = vec![
+            "robot".to_owned(),
+            "--listen".into(),
+            "127.0.0.1:0".into(),
+            "--seed".into(),
+            "61".into(),
+        ];
         robot_args.extend(role_args("robot"));
         let robot_args: Vec<&str> = robot_args.iter().map(String::as_str).collect();
         let mut robot = start(&robot_args);
