@@ -54,8 +54,10 @@ pub enum ControllerEvent {
         /// Whether it carries bits.
         carries: bool,
     },
-    /// Private sensing: a carrying doublet was decided and is kept.
-    DoubletDecided(DoubletDecision),
+    /// Private sensing: a carrying doublet was decided and is kept. Boxed: the decision is
+    /// the largest event by far (240 bytes), and every output is moved through the
+    /// endpoint's queue at the size of the largest.
+    DoubletDecided(Box<DoubletDecision>),
     /// Private sensing: a carrying doublet could not be decided (a sample or a measurement
     /// is missing, or the robot did not apply it): it is dropped on both sides.
     DoubletErased {
