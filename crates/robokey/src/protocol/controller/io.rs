@@ -76,3 +76,17 @@ pub enum ControllerOutput {
     /// Something happened.
     Event(ControllerEvent),
 }
+
+#[cfg(test)]
+mod tests {
+    use super::ControllerOutput;
+
+    /// Every output moves through the endpoint's queue and `Pair::drain` at the size of the
+    /// largest: kept within 128 bytes (what a move copies inline, without a `memcpy` call),
+    /// large payloads boxed (docs/speed.md).
+    #[test]
+    fn outputs_stay_small() {
+        let size = std::mem::size_of::<ControllerOutput>();
+        assert!(size <= 128, "a controller output takes {size} bytes");
+    }
+}
