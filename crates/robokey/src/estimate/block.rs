@@ -259,9 +259,9 @@ fn entry_speeds(model: &DoubletModel, session: &[DoubletSamples]) -> Vec<Option<
         let offsets = model
             .perturbation
             .step_offsets(model.perturbation.offset(previous.pattern));
-        let bit = offsets
-            .iter()
-            .fold(Unicycle::zeros(), |speed, &c| lagged(c, speed, t, model.lag).1);
+        let bit = offsets.iter().fold(Unicycle::zeros(), |speed, &c| {
+            lagged(c, speed, t, model.lag).1
+        });
         out[i + 1] = Some(nominal + bit);
     }
     out
@@ -667,8 +667,8 @@ mod tests {
         };
         let residuals = three_step_residuals(&model, sessions);
         let n = residuals.len();
-        let square = [0, 1, 2]
-            .map(|k| residuals.iter().map(|r| r.value[k].powi(2)).sum::<f64>() / n as f64);
+        let square =
+            [0, 1, 2].map(|k| residuals.iter().map(|r| r.value[k].powi(2)).sum::<f64>() / n as f64);
         let sensor = diagonal_covariance(config.sensing.controller_std);
         let estimate = estimate_motion_noise(&residuals, &sensor, 1e-3)
             .map(|e| [0, 1, 2].map(|k| e.point[(k, k)]))
@@ -706,7 +706,10 @@ mod tests {
                     "τ {tau} axis {k}: {with:?}"
                 );
             }
-            assert!(square_without[2] / square_with[2] - 1.0 > tolerance, "τ {tau}");
+            assert!(
+                square_without[2] / square_with[2] - 1.0 > tolerance,
+                "τ {tau}"
+            );
             match without {
                 Ok(q) => assert!(q[2] / 1e-6 - 1.0 > tolerance, "τ {tau}: {q:?}"),
                 // Refused by a class test (homogeneity or whiteness), naming it.
@@ -714,7 +717,10 @@ mod tests {
             }
             let (_, estimate) = block_separations(&config, &views, 0, 1e-6);
             assert_eq!(estimate.refused, None, "τ {tau}");
-            assert!(estimate.separation > 0.0 && estimate.separation < 10.0, "{estimate:?}");
+            assert!(
+                estimate.separation > 0.0 && estimate.separation < 10.0,
+                "{estimate:?}"
+            );
             assert!(estimate.lag.is_some());
         }
     }

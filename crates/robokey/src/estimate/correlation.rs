@@ -146,7 +146,9 @@ pub fn correlation_for(ratio: f64, steps: u32) -> f64 {
 
 /// `|r_1|` at `|ρ| ≤ rho` for `steps` steps: the larger of `|g_L(±|ρ|)|`.
 fn neighbour_correlation(rho: f64, steps: u32) -> f64 {
-    ratio_for(rho, steps).abs().max(ratio_for(-rho, steps).abs())
+    ratio_for(rho, steps)
+        .abs()
+        .max(ratio_for(-rho, steps).abs())
 }
 
 /// [`variance_inflation`] for doublets of `steps` steps: `r_d = |ρ|^(L(d−1))·|r_1|`, so

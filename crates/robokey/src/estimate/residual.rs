@@ -146,7 +146,8 @@ impl DoubletResidual {
     pub fn motion_part(&self, q: &Matrix3<f64>, rho: f64) -> Matrix3<f64> {
         let [b0, b1, b2] = &self.motion_maps;
         let cross = b0 * q * b1.transpose();
-        let two = b0 * q * b0.transpose() + b1 * q * b1.transpose() + rho * (cross + cross.transpose());
+        let two =
+            b0 * q * b0.transpose() + b1 * q * b1.transpose() + rho * (cross + cross.transpose());
         if self.steps == 2 {
             return two;
         }

@@ -104,7 +104,10 @@ pub fn lag_grid([low, high]: [f64; 2]) -> Vec<f64> {
 fn three_step_weights([a, b]: [f64; 2]) -> [f64; 2] {
     let root_two = std::f64::consts::SQRT_2;
     let eigen = |r: f64, sign: f64| (1.0 - r * r) / (1.0 + r * r + sign * root_two * r);
-    let largest = a.abs().max(b.abs()).min(super::correlation::HIGHEST_CORRELATION);
+    let largest = a
+        .abs()
+        .max(b.abs())
+        .min(super::correlation::HIGHEST_CORRELATION);
     let smallest = if a <= 0.0 && b >= 0.0 {
         0.0
     } else {
@@ -344,11 +347,20 @@ mod tests {
     #[test]
     fn the_three_step_weights_bound_every_member_of_the_cell() {
         use nalgebra::Matrix3 as M;
-        for cell in [[-0.5, -0.3], [0.0, 0.0], [-0.05, 0.4], [0.3, 0.5], [0.8, 0.95]] {
+        for cell in [
+            [-0.5, -0.3],
+            [0.0, 0.0],
+            [-0.05, 0.4],
+            [0.3, 0.5],
+            [0.8, 0.95],
+        ] {
             let [low, high] = three_step_weights(cell);
             for i in 0..=200 {
                 let rho = cell[0] + (cell[1] - cell[0]) * f64::from(i) / 200.0;
-                let (d, o) = ((1.0 + rho * rho) / (1.0 - rho * rho), -rho / (1.0 - rho * rho));
+                let (d, o) = (
+                    (1.0 + rho * rho) / (1.0 - rho * rho),
+                    -rho / (1.0 - rho * rho),
+                );
                 let precision = M::new(d, o, 0.0, o, d, o, 0.0, o, d);
                 let w = precision.try_inverse().unwrap();
                 for &x in SymmetricEigen::new(w).eigenvalues.iter() {
