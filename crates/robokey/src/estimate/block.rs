@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 
 use super::lag::{MIN_LAG_DOUBLETS, first_step_share};
 use super::normal_tail::normal_upper_quantile;
-use super::worst_case::{lag_grid, three_step_worst_case};
+use super::worst_case::{lag_grid, three_step_steps, three_step_worst_case};
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
     estimate_lag, estimate_motion_noise, published_separation, worst_case_separations,
@@ -153,7 +153,7 @@ pub fn block_separations(
     }
     let sensor = diagonal_covariance(config.sensing.controller_std);
     match estimate_motion_noise(&residuals, &sensor, epsilon) {
-        Ok(estimate) => size_block(config, sessions, disclosed, &estimate, None),
+        Ok(estimate) => size_block(config, sessions, disclosed, &estimate, None, epsilon),
         Err(refusal) => refused(
             sessions.len(),
             refusal.to_string(),
@@ -191,7 +191,7 @@ pub fn world_block_separations(
             doublets: 0,
         }
     });
-    size_block(config, sessions, disclosed, &truth, lag.as_ref())
+    size_block(config, sessions, disclosed, &truth, lag.as_ref(), epsilon)
 }
 
 /// The share of ε_est the lag's interval takes in a three-step block (the motion noise's
@@ -223,12 +223,7 @@ fn three_step_block(
     let sensor = diagonal_covariance(config.sensing.controller_std);
     let region = (1.0 - LAG_EPSILON_SHARE) * epsilon;
     match estimate_motion_noise(&residuals, &sensor, region) {
-        Ok(estimate) => {
-            let (separations, mut report) =
-                size_block(config, sessions, disclosed, &estimate, Some(&lag));
-            report.epsilon = epsilon;
-            (separations, report)
-        }
+        Ok(estimate) => size_block(config, sessions, disclosed, &estimate, Some(&lag), epsilon),
         Err(refusal) => refused(
             sessions.len(),
             format!(
@@ -420,18 +415,19 @@ fn refused(
 
 /// Each of `sessions`' bits' separations of Eve's view at the worst case of `estimate`'s
 /// region (each rounded up to the published grid), and the block's report with its
-/// equivalent separation, `disclosed` of its bits disclosed by the sample; three-step
-/// doublets over the `lag` measured's interval too.
+/// equivalent separation at the block's ε_est = `epsilon` (the smoothing ε as well),
+/// `disclosed` of its bits disclosed by the sample; three-step doublets over the `lag`
+/// measured's interval too.
 fn size_block(
     config: &Config,
     sessions: &[&[DoubletSamples]],
     disclosed: u64,
     estimate: &MotionNoiseEstimate,
     lag: Option<&LagEstimate>,
+    epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    let lags = lag.map(|lag| lag_grid(lag.interval));
+    let lags = lag.map(|lag| (lag_grid(lag.interval), three_step_steps(estimate)));
     let model = doublet_model(config);
-    let epsilon = estimate.epsilon;
     let bits = usize::from(config.protocol.bits_per_doublet);
     let mut separations = Vec::with_capacity(sessions.len());
     for session in sessions {
@@ -447,7 +443,7 @@ fn size_block(
                     );
                     worst_case_separations(&model, estimate, &b.inputs, &view)
                 }
-                Some(lags) => {
+                Some((lags, steps)) => {
                     // Her view of the three-step doublet's four instants; the late sample
                     // is not kept, and its value does not enter the separation.
                     let [start, middle, end] = b.samples;
@@ -456,7 +452,7 @@ fn size_block(
                         config.sensing.controller_std,
                         config.modelled_camera_std(),
                     );
-                    three_step_worst_case(&model, estimate, lags, &b.inputs, &view)
+                    three_step_worst_case(&model, steps, lags, &b.inputs, &view)
                 }
             };
             match worst {

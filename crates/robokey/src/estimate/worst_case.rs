@@ -121,39 +121,65 @@ fn three_step_weights([a, b]: [f64; 2]) -> [f64; 2] {
     [eigen(largest, 1.0), high]
 }
 
+/// The three steps' noise covariances (robot frame, m², m², rad²) that bound `estimate`'s
+/// cells from below (`μ_low·P₊ − μ_high·P₋` of each corner, the module's doc), those that
+/// another lies below in the Loewner order left out (a lower one gives Eve the sharper view
+/// of every bit at once), each with whether it is positive semidefinite (then her
+/// covariance is positive definite without a check).
+#[must_use]
+pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(Matrix3<f64>, bool)> {
+    let steps: Vec<Matrix3<f64>> = estimate
+        .corners
+        .iter()
+        .map(|corner| {
+            let eigen = SymmetricEigen::new(corner.motion);
+            let part = |sign: f64| {
+                let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
+                eigen.eigenvectors * Matrix3::from_diagonal(&kept) * eigen.eigenvectors.transpose()
+            };
+            let [low, high] = three_step_weights(corner.correlation);
+            low * part(1.0) - high * part(-1.0)
+        })
+        .collect();
+    let least = |m: &Matrix3<f64>| SymmetricEigen::new(*m).eigenvalues.min();
+    let below = |a: &Matrix3<f64>, b: &Matrix3<f64>| least(&(b - a)) >= 0.0;
+    let mut kept: Vec<(Matrix3<f64>, bool)> = Vec::new();
+    for (i, m) in steps.iter().enumerate() {
+        // Left out when another lies below it (the first of equal ones kept).
+        let dominated = steps
+            .iter()
+            .enumerate()
+            .any(|(j, other)| j != i && below(other, m) && (!below(m, other) || j < i));
+        if !dominated {
+            kept.push((*m, least(m) >= 0.0));
+        }
+    }
+    kept
+}
+
 /// Each bit's separation of Eve's modelled `view` of a three-step doublet with public
 /// `inputs` (its `late` observation's value is not used: the separation depends on her
-/// covariances and the means' differences), at the worst case over `estimate`'s corners and
-/// the `lags` τ (s) of the lag's interval (the module's doc); `None` when a bound does not
-/// exist at some corner.
+/// covariances and the means' differences), at the worst case over the steps' covariances
+/// `steps` ([`three_step_steps`]) and the `lags` τ (s) of the lag's interval (the module's
+/// doc); `None` when a bound does not exist at some corner.
 #[must_use]
 pub fn three_step_worst_case(
     model: &DoubletModel,
-    estimate: &MotionNoiseEstimate,
+    steps: &[(Matrix3<f64>, bool)],
     lags: &[f64],
     inputs: &DoubletInputs,
     view: &DoubletView,
 ) -> Option<[f64; 2]> {
     let h = rotation(view.start.value.z);
     let mut worst = [0.0_f64; 2];
-    for corner in &estimate.corners {
-        let eigen = SymmetricEigen::new(corner.motion);
-        let part = |sign: f64| {
-            let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
-            h * eigen.eigenvectors
-                * Matrix3::from_diagonal(&kept)
-                * eigen.eigenvectors.transpose()
-                * h.transpose()
-        };
-        let [low, high] = three_step_weights(corner.correlation);
-        let steps = low * part(1.0) - high * part(-1.0);
+    for (robot_frame, positive) in steps {
         for &lag in lags {
             let at = DoubletModel {
-                process_covariance: steps,
+                process_covariance: h * robot_frame * h.transpose(),
                 lag,
                 ..*model
             };
-            if !at.covariances_positive(inputs, view) {
+            if !positive && !at.covariances_positive(inputs, view) {
                 return None;
             }
             let d = at.separations(inputs, view);
@@ -369,6 +395,35 @@ mod tests {
             }
         }
         assert_eq!(three_step_weights([0.0, 0.0]), [1.0, 1.0]);
+    }
+
+    /// The steps' covariances kept for the three-step worst case bound every corner's from
+    /// below: for each corner's `μ_low·P₊ − μ_high·P₋` some kept one lies below it, and one
+    /// lying below another is what is left out.
+    #[test]
+    fn the_three_step_corners_kept_lie_below_every_corner() {
+        let q = Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6);
+        let mut estimate = MotionNoiseEstimate::known(q, 0.0, 1e-6);
+        let cells = [-0.4, -0.3, -0.2, -0.1, 0.0, 0.1, 0.2, 0.3, 0.4];
+        for (i, corner) in estimate.corners.iter_mut().enumerate() {
+            corner.correlation = [cells[i], cells[i + 1]];
+            corner.motion = q * (1.0 - 0.1 * i as f64);
+        }
+        let kept = three_step_steps(&estimate);
+        assert!(
+            !kept.is_empty() && kept.len() < estimate.corners.len(),
+            "{kept:?}"
+        );
+        for corner in &estimate.corners {
+            let [low, high] = three_step_weights(corner.correlation);
+            let own = low * corner.motion - high * Matrix3::zeros();
+            assert!(
+                kept.iter()
+                    .any(|(m, _)| SymmetricEigen::new(own - m).eigenvalues.min() >= -1e-18),
+                "{corner:?}"
+            );
+        }
+        assert!(kept.iter().all(|&(_, positive)| positive));
     }
 
     /// Which way ρ moves her: at a fixed `Q`, positive correlation sharpens Eve's view of the
