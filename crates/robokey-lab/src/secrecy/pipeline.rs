@@ -767,13 +767,14 @@ mod tests {
         assert!(ldpc.consistent && ldpc.secret_bits > 0, "{ldpc:?}");
         let rounds = ldpc.ldpc_rounds.expect("LDPC reports its rounds");
         assert!((1..=9).contains(&rounds));
-        // m = ⌈1.2 · n · h₂(0.02)⌉ ≈ 0.17 n syndrome bits, at most 8 rounds of ⌈0.08·m⌉ more
-        // (≤ 0.64·m + 8), and 4 bits for the rounds.
+        // m = ⌈1.09 · H + 2 · √H⌉ for H = n · h₂(0.02) ≈ 0.14 n, at most 8 rounds of
+        // ⌈0.04·m⌉ more (≤ 0.32·m + 8), and 4 bits for the rounds.
         let n = ldpc.reconciled_bits as f64;
-        let soft = 1.2 * n * robokey_secrecy::entropy::binary_entropy(0.02);
+        let soft = n * robokey_secrecy::entropy::binary_entropy(0.02);
+        let first = 1.09 * soft + 2.0 * soft.sqrt();
         assert!(
-            ldpc.leak_ec as f64 >= soft && (ldpc.leak_ec as f64) <= 1.64 * soft + 14.0,
-            "{} for {soft}",
+            ldpc.leak_ec as f64 >= first && (ldpc.leak_ec as f64) <= 1.32 * first + 14.0,
+            "{} for {first}",
             ldpc.leak_ec
         );
         assert_eq!(cascade.ldpc_rounds, None);
