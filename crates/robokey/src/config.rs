@@ -533,8 +533,8 @@ pub enum Reconciliation {
     Cascade,
     /// One-way LDPC: the robot's syndrome, decoded by belief propagation on the controller's
     /// calibrated LLRs (`LdpcSettings::DEFAULT`: m = ⌈1.09·H + 2·√H⌉ for the soft limit H,
-    /// ≤ 8 feedback rounds of 0.04·m, ≤ 200 iterations): every syndrome bit and ⌈log₂ 9⌉ = 4
-    /// bits for the rounds are charged.
+    /// ≤ 8 feedback rounds of max(0.04·m, 2·√m), ≤ 200 iterations): every syndrome bit and
+    /// ⌈log₂ 9⌉ = 4 bits for the rounds are charged.
     Ldpc,
 }
 

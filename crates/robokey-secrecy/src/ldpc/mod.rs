@@ -12,7 +12,7 @@
 //! ([`SyndromeDecoder`], capped iterations). The block tags then verify x̂ = x.
 //!
 //! If decoding fails (the syndrome is not met within the iteration cap), the controller may ask
-//! for ⌈increment · m⌉ more syndrome bits, up to [`LdpcSettings::feedback_rounds`] times: both
+//! for ⌈max(increment · m, increment_root · √m)⌉ more syndrome bits, up to [`LdpcSettings::feedback_rounds`] times: both
 //! sides split that many checks of largest degree in two ([`ParityCheck::split`]), the robot
 //! sends the new halves' parities, and the controller decodes the split code again.
 //!
@@ -96,9 +96,10 @@ pub enum LdpcError {
         /// The code's.
         expected: usize,
     },
-    /// The feedback rounds exceed [`MAX_FEEDBACK_ROUNDS`] or the increment is outside (0, 1].
+    /// The feedback rounds exceed [`MAX_FEEDBACK_ROUNDS`], the increment is outside (0, 1] or
+    /// the least increment outside [0, 100]·√m.
     #[error(
-        "LDPC feedback: {rounds} rounds of {increment}·m bits; allowed at most {MAX_FEEDBACK_ROUNDS} rounds, increment in (0, 1]"
+        "LDPC feedback: {rounds} rounds of {increment}·m bits; allowed at most {MAX_FEEDBACK_ROUNDS} rounds, increment in (0, 1], at least [0, 100]·√m"
     )]
     Feedback {
         /// Requested rounds.

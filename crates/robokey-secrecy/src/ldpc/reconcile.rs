@@ -28,10 +28,16 @@ pub struct LdpcSettings {
     #[serde(default = "LdpcSettings::earlier_round_iterations")]
     pub round_iterations: u32,
     /// Feedback rounds at most (0..=[`MAX_FEEDBACK_ROUNDS`]): after a failed decoding the
-    /// controller asks for ⌈increment · m⌉ more syndrome bits and decodes again.
+    /// controller asks for [`Self::round_bits`] more syndrome bits and decodes again.
     pub feedback_rounds: u32,
-    /// Each feedback round's syndrome bits as a share of the first round's m, in (0, 1].
+    /// Each feedback round's syndrome bits as a share of the first round's m, in (0, 1]:
+    /// a round sends ⌈max(increment · m, increment_root · √m)⌉ ([`Self::round_bits`]).
     pub increment: f64,
+    /// The least feedback round in units of √m, in [0, 100]: the spread of the syndrome a
+    /// block needs shrinks as 1/√m in share of m, so short codes take larger steps. Settings
+    /// written before it existed read as 0 (rounds of ⌈increment · m⌉, as they ran).
+    #[serde(default)]
+    pub increment_root: f64,
 }
 
 /// Largest number of feedback rounds.
@@ -51,7 +57,19 @@ impl LdpcSettings {
         round_iterations: 50,
         feedback_rounds: 8,
         increment: 0.04,
+        increment_root: 2.0,
     };
+
+    /// The syndrome bits of each feedback round after a first round of m:
+    /// ⌈max(increment · m, increment_root · √m)⌉, at least 1.
+    #[must_use]
+    pub fn round_bits(&self, syndrome: usize) -> usize {
+        let m = syndrome as f64;
+        ((self.increment * m)
+            .max(self.increment_root * m.sqrt())
+            .ceil() as usize)
+            .max(1)
+    }
 
     /// What every round's decoding ran before [`Self::round_iterations`] existed.
     fn earlier_round_iterations() -> u32 {
@@ -76,13 +94,14 @@ impl LdpcSettings {
     pub fn agreement_term(&self) -> String {
         format!(
             "code v{CODE_VERSION}, syndrome {}·H + {}·√H, {} iterations ({} before a \
-             feedback round), {} rounds of {}·m",
+             feedback round), {} rounds of max({}·m, {}·√m)",
             self.efficiency,
             self.finite_length,
             self.max_iterations,
             self.round_iterations,
             self.feedback_rounds,
-            self.increment
+            self.increment,
+            self.increment_root
         )
     }
 
@@ -120,6 +139,7 @@ impl LdpcSettings {
         }
         if self.feedback_rounds > MAX_FEEDBACK_ROUNDS
             || !(self.increment > 0.0 && self.increment <= 1.0)
+            || !(0.0..=100.0).contains(&self.increment_root)
         {
             return Err(LdpcError::Feedback {
                 rounds: self.feedback_rounds,
@@ -157,7 +177,7 @@ pub struct LdpcReconciliation {
 
 /// Reconciles the controller's view (`llrs`, Lᵢ = ln P(xᵢ = 0)/P(xᵢ = 1)) with the robot's
 /// `bits` through the code from the public `seed`, in memory. Round r > 1 (after a failed
-/// decoding) splits ⌈increment · m⌉ checks of largest degree ([`BlockCode::extend`]), sends
+/// decoding) splits [`LdpcSettings::round_bits`] checks of largest degree ([`BlockCode::extend`]), sends
 /// the parities of their new halves, and decodes the split code afresh; each round's
 /// decoding runs at most [`LdpcSettings::iterations_in_round`] iterations.
 pub fn reconcile(
@@ -265,6 +285,20 @@ mod tests {
             ..LdpcSettings::DEFAULT
         };
         assert_eq!(none.round_count_bits(), 0);
+    }
+
+    #[test]
+    fn short_codes_take_rounds_of_at_least_two_root_m() {
+        let settings = LdpcSettings::DEFAULT;
+        // m = 372 (10⁴ bits at the default world): 2·√372 = 38.6 > 0.04·372 = 14.9.
+        assert_eq!(settings.round_bits(372), 39);
+        // m = 3,500 (10⁵ bits): 0.04·m = 140 > 2·√3500 = 118.3.
+        assert_eq!(settings.round_bits(3_500), 140);
+        let bad = LdpcSettings {
+            increment_root: -1.0,
+            ..LdpcSettings::DEFAULT
+        };
+        assert!(matches!(bad.check(), Err(LdpcError::Feedback { .. })));
     }
 
     #[test]

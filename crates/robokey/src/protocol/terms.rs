@@ -267,10 +267,10 @@ mod tests {
                  postprocess.ldpc: robot has (missing), controller has {settings}"
             )
         );
-        assert!(
-            settings
-                .starts_with("code v1, syndrome 1.09·H + 2·√H, 200 iterations, 8 rounds of 0.04·m"),
-            "{settings}"
+        assert_eq!(
+            settings,
+            "code v1, syndrome 1.09·H + 2·√H, 200 iterations (50 before a feedback round), \
+             8 rounds of max(0.04·m, 2·√m)"
         );
         // A binary whose LDPC codes differ (another construction or settings) is named.
         let other = ldpc.replace("code v", "code v9");
