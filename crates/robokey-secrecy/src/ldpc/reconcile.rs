@@ -87,13 +87,13 @@ impl LdpcSettings {
         }
     }
 
-    /// The settings as the agreement term `postprocess.ldpc` names them: the construction's
+    /// The settings as the agreement term `ldpc.code` names them: the construction's
     /// version ([`CODE_VERSION`]) and every parameter either side uses, so two binaries that
     /// would build or size codes differently refuse each other at the handshake.
     #[must_use]
     pub fn agreement_term(&self) -> String {
         format!(
-            "code v{CODE_VERSION}, syndrome {}·H + {}·√H, {} iterations ({} before a \
+            "v{CODE_VERSION}, syndrome {}·H + {}·√H, {} iterations ({} before a \
              feedback round), {} rounds of max({}·m, {}·√m)",
             self.efficiency,
             self.finite_length,

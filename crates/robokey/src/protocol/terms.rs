@@ -67,13 +67,13 @@ pub fn agreement_terms(config: &Config) -> String {
     )
 }
 
-/// The reconciliation's lines, `postprocess.reconciliation = ldpc` and `postprocess.ldpc =`
-/// the code's version and settings (absent with Cascade, so that its terms stay as they
+/// The reconciliation's lines, `postprocess.reconciliation = ldpc` and `ldpc.code =` the
+/// code's construction version and settings (absent with Cascade, so that its terms stay as they
 /// were): both sides must run the same protocol and build the same codes.
 fn reconciliation_terms(config: &Config) -> String {
     match crate::post_settings::reconciliation_method(config.postprocess.reconciliation) {
         ReconciliationMethod::Ldpc(settings) => format!(
-            "postprocess.reconciliation = {}\npostprocess.ldpc = {}\n",
+            "postprocess.reconciliation = {}\nldpc.code = {}\n",
             config.postprocess.reconciliation.name(),
             settings.agreement_term()
         ),
@@ -264,21 +264,21 @@ mod tests {
             terms_difference(&cascade, &ldpc, "robot", "controller"),
             format!(
                 "postprocess.reconciliation: robot has (missing), controller has ldpc; \
-                 postprocess.ldpc: robot has (missing), controller has {settings}"
+                 ldpc.code: robot has (missing), controller has {settings}"
             )
         );
         assert_eq!(
             settings,
-            "code v1, syndrome 1.09·H + 2·√H, 200 iterations (50 before a feedback round), \
+            "v1, syndrome 1.09·H + 2·√H, 200 iterations (50 before a feedback round), \
              8 rounds of max(0.04·m, 2·√m)"
         );
         // A binary whose LDPC codes differ (another construction or settings) is named.
-        let other = ldpc.replace("code v", "code v9");
+        let other = ldpc.replace("ldpc.code = v1,", "ldpc.code = v9,");
         assert_eq!(
             terms_difference(&other, &ldpc, "robot", "controller"),
             format!(
-                "postprocess.ldpc: robot has code v9{}, controller has {settings}",
-                &settings["code v".len()..],
+                "ldpc.code: robot has v9{}, controller has {settings}",
+                &settings["v1".len()..],
             )
         );
     }
