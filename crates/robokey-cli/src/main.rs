@@ -312,9 +312,9 @@ struct SecrecyArgs {
     /// How `complete` pooling reconciles (docs/postprocessing.md). `cascade`: interactive
     /// Cascade with BICONF on the controller's decisions, both sides' parities charged
     /// (reproduce uses it). `ldpc`: the robot's one-way LDPC syndrome decoded by belief
-    /// propagation on the controller's calibrated LLRs (f = 1.2, ≤ 8 feedback rounds), every
-    /// syndrome bit and 4 bits for the rounds charged; private sensing only. The agents'
-    /// `postprocess.reconciliation`.
+    /// propagation on the controller's calibrated LLRs (m = ⌈1.09·H + 2·√H⌉ for the soft
+    /// limit H, ≤ 8 feedback rounds of max(0.04·m, 2·√m)), every syndrome bit and 4 bits for
+    /// the rounds charged; private sensing only. The agents' `postprocess.reconciliation`.
     #[arg(long, value_enum, default_value_t = ReconciliationArg::Cascade)]
     reconciliation: ReconciliationArg,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.

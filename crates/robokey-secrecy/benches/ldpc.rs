@@ -1,7 +1,8 @@
 //! Time to reconcile one 10⁶-bit block by LDPC at the default world's soft limit (binary-input
-//! Gaussian LLRs with hard-decision error rate 0.78 %, design efficiency 1.15): code
-//! construction, syndrome and belief propagation, on one core (the decoder is sequential, so
-//! two blocks run on two cores in this time).
+//! Gaussian LLRs with hard-decision error rate 0.78 %, the default settings
+//! [`LdpcSettings::DEFAULT`]): code construction, syndrome, belief propagation and any
+//! feedback rounds, on one core (the decoder is sequential, so two blocks run on two cores in
+//! this time).
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -35,7 +36,7 @@ fn ldpc(c: &mut Criterion) {
         let seed: [u8; 32] = rng.random();
         group.throughput(Throughput::Elements(n as u64));
         group.bench_with_input(
-            BenchmarkId::new("default world, f = 1.2, n bits", n),
+            BenchmarkId::new("default world, default settings, n bits", n),
             &(bits, llrs),
             |b, (bits, llrs)| {
                 b.iter(|| reconcile(black_box(bits), llrs, LdpcSettings::DEFAULT, seed).unwrap());

@@ -12,7 +12,9 @@
 //!     --channel awgn --n 100000 --blocks 1000 --q 0.005,0.0078,0.02,0.05,0.1,0.2,0.3
 //! ```
 //! Options: `--channel bsc|awgn`, `--n BITS`, `--blocks COUNT`, `--q LIST`,
-//! `--efficiency F` (LDPC design f), `--iterations CAP`, `--feedback ROUNDS` (LDPC feedback
+//! `--efficiency F` and `--finite-length C` (LDPC's first syndrome, m = ⌈F·H + C·√H⌉ for
+//! the soft limit H), `--iterations CAP` (the last round's), `--round-iterations CAP` (the
+//! rounds' before it), `--feedback ROUNDS` (LDPC feedback
 //! rounds at most), `--increment SHARE` (of m per feedback round), `--method
 //! ldpc|cascade|both`, `--seed S`. Columns: `undet` counts wrong blocks the decoder took for
 //! right (only the tags catch them); `rounds` is LDPC's mean rounds (Cascade's: its mean
@@ -66,6 +68,9 @@ fn parse() -> Result<Options, String> {
             "--efficiency" => {
                 options.settings.efficiency = value.parse().map_err(|e| bad(&e))?;
             }
+            "--finite-length" => {
+                options.settings.finite_length = value.parse().map_err(|e| bad(&e))?;
+            }
             "--feedback" => {
                 options.settings.feedback_rounds = value.parse().map_err(|e| bad(&e))?;
             }
@@ -74,6 +79,9 @@ fn parse() -> Result<Options, String> {
             }
             "--iterations" => {
                 options.settings.max_iterations = value.parse().map_err(|e| bad(&e))?;
+            }
+            "--round-iterations" => {
+                options.settings.round_iterations = value.parse().map_err(|e| bad(&e))?;
             }
             "--method" if ["ldpc", "cascade", "both"].contains(&value.as_str()) => {
                 options.method = value.clone();
@@ -179,12 +187,9 @@ fn main() {
         }
     };
     println!(
-        "# channel {}, LDPC f = {}, ≤ {} iterations, ≤ {} feedback rounds of {}·m bits, seed {}",
+        "# channel {}, LDPC {}, seed {}",
         options.channel,
-        options.settings.efficiency,
-        options.settings.max_iterations,
-        options.settings.feedback_rounds,
-        options.settings.increment,
+        options.settings.agreement_term(),
         options.seed
     );
     println!(

@@ -532,8 +532,9 @@ pub enum Reconciliation {
     #[default]
     Cascade,
     /// One-way LDPC: the robot's syndrome, decoded by belief propagation on the controller's
-    /// calibrated LLRs (f = 1.2, ≤ 200 iterations, ≤ 2 feedback rounds of 0.1·m): every
-    /// syndrome bit and ⌈log₂ 3⌉ = 2 bits for the rounds are charged.
+    /// calibrated LLRs (`LdpcSettings::DEFAULT`: m = ⌈1.09·H + 2·√H⌉ for the soft limit H,
+    /// ≤ 8 feedback rounds of max(0.04·m, 2·√m), ≤ 200 iterations): every syndrome bit and
+    /// ⌈log₂ 9⌉ = 4 bits for the rounds are charged.
     Ldpc,
 }
 

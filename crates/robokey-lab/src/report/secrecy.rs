@@ -106,14 +106,15 @@ pub fn secrecy_markdown(secrecy: &Secrecy) -> String {
     }
     let pooling = match secrecy.pooling {
         Pooling::Confirmed => {
-            "sessions whose key tags matched (today's agents), each pooled session's two directional 128-bit key tags charged, nothing reconciled"
+            "sessions whose key tags matched (today's agents), each pooled session's two directional 128-bit key tags charged, nothing reconciled".to_owned()
         }
         Pooling::Complete if secrecy.reconciliation.is_cascade() => {
-            "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags and committed in two phases"
+            "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, Cascade (biconf) with both sides' parities charged, the block confirmed by two 64-bit tags and committed in two phases".to_owned()
         }
-        Pooling::Complete => {
-            "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, one-way LDPC (the robot's syndrome decoded on the controller's LLRs, f = 1.2, at most 8 feedback rounds of 0.08·m split checks) with every syndrome bit and 4 bits for the rounds charged, the block confirmed by two 64-bit tags and committed in two phases"
-        }
+        Pooling::Complete => format!(
+            "every completed session, through the post-processing endpoints the agents run: error rate from a disclosed random sample removed from the key, one-way LDPC (the robot's syndrome decoded on the controller's LLRs; {}, split checks in the feedback rounds; H the soft limit) with every syndrome bit and 4 bits for the rounds charged, the block confirmed by two 64-bit tags and committed in two phases",
+            robokey_secrecy::ldpc::LdpcSettings::DEFAULT.agreement_term()
+        ),
     };
     let mut held: Vec<String> = Vec::new();
     for r in results {

@@ -767,15 +767,15 @@ mod tests {
         assert!(ldpc.consistent && ldpc.secret_bits > 0, "{ldpc:?}");
         let rounds = ldpc.ldpc_rounds.expect("LDPC reports its rounds");
         assert!((1..=9).contains(&rounds));
-        // m = ⌈1.2 · n · h₂(0.02)⌉ ≈ 0.17 n syndrome bits, at most 8 rounds of ⌈0.08·m⌉ more
-        // (≤ 0.64·m + 8), and 4 bits for the rounds.
+        // m = ⌈1.09 · H + 2 · √H⌉ for H = n · h₂(0.02) ≈ 0.14 n, at most 8 rounds of
+        // ⌈max(0.04·m, 2·√m)⌉ more, and 4 bits for the rounds.
         let n = ldpc.reconciled_bits as f64;
-        let soft = 1.2 * n * robokey_secrecy::entropy::binary_entropy(0.02);
-        assert!(
-            ldpc.leak_ec as f64 >= soft && (ldpc.leak_ec as f64) <= 1.64 * soft + 14.0,
-            "{} for {soft}",
-            ldpc.leak_ec
-        );
+        let soft = n * robokey_secrecy::entropy::binary_entropy(0.02);
+        let first = (1.09 * soft + 2.0 * soft.sqrt()).ceil();
+        let rounds = robokey_secrecy::ldpc::LdpcSettings::DEFAULT.round_bits(first as usize);
+        let most = first + 8.0 * rounds as f64 + 4.0;
+        let leak = ldpc.leak_ec as f64;
+        assert!(leak >= first && leak <= most, "{leak} for {first}..={most}");
         assert_eq!(cascade.ldpc_rounds, None);
         assert!(ldpc.leak_ec < cascade.leak_ec && ldpc.secret_bits > cascade.secret_bits);
     }

@@ -62,13 +62,25 @@ impl SyndromeDecoder {
     }
 
     /// The bits x̂ with H·x̂ = `syndrome` most likely under the LLRs
-    /// Lᵥ = ln P(xᵥ = 0)/P(xᵥ = 1).
+    /// Lᵥ = ln P(xᵥ = 0)/P(xᵥ = 1), within the decoder's iteration cap.
     pub fn decode(
         &self,
         code: &ParityCheck,
         llrs: &[f64],
         syndrome: &BitString,
     ) -> Result<Decoded, LdpcError> {
+        self.decode_within(code, llrs, syndrome, self.max_iterations)
+    }
+
+    /// [`Self::decode`] with at most `iterations` passes (never more than the decoder's cap).
+    pub fn decode_within(
+        &self,
+        code: &ParityCheck,
+        llrs: &[f64],
+        syndrome: &BitString,
+        iterations: u32,
+    ) -> Result<Decoded, LdpcError> {
+        let cap = iterations.min(self.max_iterations);
         if llrs.len() != code.block() {
             return Err(LdpcError::Length {
                 what: "LLRs",
@@ -96,7 +108,7 @@ impl SyndromeDecoder {
         let mut magnitudes: Vec<f64> = Vec::new();
         let mut iterations = 0;
         let mut converged = meets(code, &posterior, flips);
-        while !converged && iterations < self.max_iterations {
+        while !converged && iterations < cap {
             iterations += 1;
             let mut edge = 0;
             for c in 0..code.syndrome_bits() {

@@ -1,5 +1,5 @@
 //! The codes of one block's rounds, as both sides build them from public data alone: the
-//! first code from (n, m, B, seed); after each failed decoding, ⌈increment · m⌉ of the
+//! first code from (n, m, B, seed); after each failed decoding, [`LdpcSettings::round_bits`] of the
 //! current code's checks of largest degree split in two ([`ParityCheck::split`]). The robot
 //! sends the parity of each new half; with the parity already sent for the whole check, the
 //! controller knows both parts' parities. Rounds add syndrome bits and lower the check
@@ -36,7 +36,7 @@ impl BlockCode {
         settings.check()?;
         let code = ParityCheck::build(block, syndrome, bhattacharyya, seed)?;
         Ok(Self {
-            increment: ((settings.increment * syndrome as f64).ceil() as usize).max(1),
+            increment: settings.round_bits(syndrome),
             split: Vec::new(),
             rounds: 1,
             feedback_rounds: settings.feedback_rounds,

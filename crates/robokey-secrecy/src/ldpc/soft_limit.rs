@@ -1,5 +1,5 @@
 //! The soft limit of reconciliation, H(X | L) = Σᵢ h₂(1/(1 + e^{|Lᵢ|})) bits for calibrated
-//! LLRs Lᵢ, and the syndrome length a design efficiency f asks for.
+//! LLRs Lᵢ, and the syndrome length a design efficiency f and finite-length term c ask for.
 
 use super::{LdpcError, MAX_BLOCK_BITS};
 use crate::entropy::binary_entropy;
@@ -38,9 +38,14 @@ pub fn bhattacharyya(llrs: &[f64]) -> f64 {
     ((mean * 1024.0).ceil() / 1024.0).clamp(1.0 / 1024.0, 1.0)
 }
 
-/// m = min(n, max(1, ⌈f · Σᵢ h₂(1/(1 + e^{|Lᵢ|}))⌉)): the syndrome bits for design
-/// efficiency f ∈ [1, 10] on an n-bit block with LLRs `llrs`.
-pub fn syndrome_length(llrs: &[f64], efficiency: f64) -> Result<usize, LdpcError> {
+/// m = min(n, max(1, ⌈f · H + c · √H⌉)) with H = Σᵢ h₂(1/(1 + e^{|Lᵢ|})): the syndrome bits
+/// for design efficiency f ∈ [1, 10] and finite-length term c ∈ [0, 100] on an n-bit block
+/// with LLRs `llrs` (an efficiency of f + c/√H against the soft limit).
+pub fn syndrome_length(
+    llrs: &[f64],
+    efficiency: f64,
+    finite_length: f64,
+) -> Result<usize, LdpcError> {
     let n = llrs.len();
     if n == 0 || n > MAX_BLOCK_BITS {
         return Err(LdpcError::BlockLength(n));
@@ -48,10 +53,14 @@ pub fn syndrome_length(llrs: &[f64], efficiency: f64) -> Result<usize, LdpcError
     if !(1.0..=10.0).contains(&efficiency) {
         return Err(LdpcError::Efficiency(efficiency));
     }
+    if !(0.0..=100.0).contains(&finite_length) {
+        return Err(LdpcError::FiniteLength(finite_length));
+    }
     if let Some(i) = llrs.iter().position(|l| l.is_nan()) {
         return Err(LdpcError::NanLlr(i));
     }
-    let m = (efficiency * soft_limit_bits(llrs)).ceil() as usize;
+    let soft = soft_limit_bits(llrs);
+    let m = (efficiency * soft + finite_length * soft.sqrt()).ceil() as usize;
     Ok(m.clamp(1, n))
 }
 
@@ -67,8 +76,13 @@ mod tests {
         let want = 1000.0 * binary_entropy(q);
         assert!((soft_limit_bits(&llrs) - want).abs() < 1e-9);
         assert_eq!(
-            syndrome_length(&llrs, 1.1).unwrap(),
+            syndrome_length(&llrs, 1.1, 0.0).unwrap(),
             (1.1 * want).ceil() as usize
+        );
+        // c · √H more: 2 · √(1000 h₂(0.05)) ≈ 39.9 bits.
+        assert_eq!(
+            syndrome_length(&llrs, 1.1, 2.0).unwrap(),
+            (1.1 * want + 2.0 * want.sqrt()).ceil() as usize
         );
     }
 
@@ -83,16 +97,23 @@ mod tests {
 
     #[test]
     fn sizes_out_of_range_are_refused() {
-        assert_eq!(syndrome_length(&[], 1.1), Err(LdpcError::BlockLength(0)));
         assert_eq!(
-            syndrome_length(&[1.0], 0.9),
+            syndrome_length(&[], 1.1, 0.0),
+            Err(LdpcError::BlockLength(0))
+        );
+        assert_eq!(
+            syndrome_length(&[1.0], 0.9, 0.0),
             Err(LdpcError::Efficiency(0.9))
         );
         assert_eq!(
-            syndrome_length(&[1.0, f64::NAN], 1.1),
+            syndrome_length(&[1.0], 1.1, -1.0),
+            Err(LdpcError::FiniteLength(-1.0))
+        );
+        assert_eq!(
+            syndrome_length(&[1.0, f64::NAN], 1.1, 0.0),
             Err(LdpcError::NanLlr(1))
         );
         // An LLR of 0 (no information) asks for the whole bit, never more than n.
-        assert_eq!(syndrome_length(&[0.0; 10], 2.0).unwrap(), 10);
+        assert_eq!(syndrome_length(&[0.0; 10], 2.0, 2.0).unwrap(), 10);
     }
 }

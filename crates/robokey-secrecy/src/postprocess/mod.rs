@@ -300,12 +300,6 @@ impl Settings {
             ldpc.check()
                 .and_then(|()| crate::ldpc::SyndromeDecoder::new(ldpc.max_iterations).map(drop))
                 .map_err(|e| PostError::Settings(format!("reconciliation: {e}")))?;
-            if !(1.0..=10.0).contains(&ldpc.efficiency) {
-                return Err(PostError::Settings(format!(
-                    "reconciliation: LDPC efficiency {} (allowed: 1 to 10)",
-                    ldpc.efficiency
-                )));
-            }
             if self.block_bits > MAX_SYNDROME_BITS {
                 return Err(PostError::Settings(format!(
                     "block_bits {} with LDPC reconciliation (allowed: 64 to 2^22, one code's \

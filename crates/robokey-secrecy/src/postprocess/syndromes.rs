@@ -62,7 +62,8 @@ impl SyndromeDecoding {
         block: u64,
     ) -> Result<(Self, Message), String> {
         let decoder = SyndromeDecoder::new(settings.max_iterations).map_err(|e| e.to_string())?;
-        let m = syndrome_length(&llrs, settings.efficiency).map_err(|e| e.to_string())?;
+        let m = syndrome_length(&llrs, settings.efficiency, settings.finite_length)
+            .map_err(|e| e.to_string())?;
         let steps = bhattacharyya_steps(bhattacharyya(&llrs));
         let codes = BlockCode::first(llrs.len(), m, f64::from(steps) / 1024.0, seed, &settings)
             .map_err(|e| e.to_string())?;
@@ -114,10 +115,11 @@ impl SyndromeDecoding {
             .map_err(|e| e.to_string())?;
         let decoded = self
             .decoder
-            .decode(
+            .decode_within(
                 self.codes.code(),
                 &self.llrs,
                 &BitString::from_bools(&self.syndrome),
+                self.settings.iterations_in_round(self.round()),
             )
             .map_err(|e| e.to_string())?;
         self.iterations += decoded.iterations;

@@ -1,6 +1,8 @@
 //! The agreement terms: what both sides must hold equal before a session starts, their digest
 //! (carried in `Hello` and `HelloAck`), and how a difference is named.
 
+use robokey_secrecy::postprocess::ReconciliationMethod;
+
 use crate::config::{Config, SensingMode};
 use crate::world::Camera;
 
@@ -65,16 +67,17 @@ pub fn agreement_terms(config: &Config) -> String {
     )
 }
 
-/// The reconciliation's line, `postprocess.reconciliation = ldpc` (absent with Cascade, so
-/// that its terms stay as they were): both sides must run the same protocol.
+/// The reconciliation's lines, `postprocess.reconciliation = ldpc` and `ldpc.code =` the
+/// code's construction version and settings (absent with Cascade, so that its terms stay as they
+/// were): both sides must run the same protocol and build the same codes.
 fn reconciliation_terms(config: &Config) -> String {
-    if config.postprocess.reconciliation.is_cascade() {
-        String::new()
-    } else {
-        format!(
-            "postprocess.reconciliation = {}\n",
-            config.postprocess.reconciliation.name()
-        )
+    match crate::post_settings::reconciliation_method(config.postprocess.reconciliation) {
+        ReconciliationMethod::Ldpc(settings) => format!(
+            "postprocess.reconciliation = {}\nldpc.code = {}\n",
+            config.postprocess.reconciliation.name(),
+            settings.agreement_term()
+        ),
+        _ => String::new(),
     }
 }
 
@@ -156,6 +159,7 @@ pub fn terms_difference(ours: &str, theirs: &str, we: &str, they: &str) -> Strin
 #[cfg(test)]
 mod tests {
     use super::*;
+    use robokey_secrecy::ldpc::LdpcSettings;
 
     #[test]
     fn differences_are_named() {
@@ -254,9 +258,28 @@ mod tests {
         assert!(!cascade.contains("reconciliation"), "{cascade}");
         let mut b = a.clone();
         b.postprocess.reconciliation = crate::config::Reconciliation::Ldpc;
+        let ldpc = agreement_terms(&b);
+        let settings = LdpcSettings::DEFAULT.agreement_term();
         assert_eq!(
-            terms_difference(&cascade, &agreement_terms(&b), "robot", "controller"),
-            "postprocess.reconciliation: robot has (missing), controller has ldpc"
+            terms_difference(&cascade, &ldpc, "robot", "controller"),
+            format!(
+                "postprocess.reconciliation: robot has (missing), controller has ldpc; \
+                 ldpc.code: robot has (missing), controller has {settings}"
+            )
+        );
+        assert_eq!(
+            settings,
+            "v1, syndrome 1.09·H + 2·√H, 200 iterations (50 before a feedback round), \
+             8 rounds of max(0.04·m, 2·√m)"
+        );
+        // A binary whose LDPC codes differ (another construction or settings) is named.
+        let other = ldpc.replace("ldpc.code = v1,", "ldpc.code = v9,");
+        assert_eq!(
+            terms_difference(&other, &ldpc, "robot", "controller"),
+            format!(
+                "ldpc.code: robot has v9{}, controller has {settings}",
+                &settings["v1".len()..],
+            )
         );
     }
 }
