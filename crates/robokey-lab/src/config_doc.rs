@@ -60,7 +60,16 @@ const FIELDS: &[(&str, &str)] = &[
     ),
     (
         "protocol.bits_per_doublet",
-        "key bits per doublet, 1 or 2 (private mode)",
+        "dimensions a doublet carries, 1 (v) or 2 (v and ω) (private mode)",
+    ),
+    (
+        "protocol.levels",
+        "amplitude levels per dimension, 2, 4 or 8: log₂ levels key bits each, mean power \
+         that of ±Δ (private mode)",
+    ),
+    (
+        "protocol.labeling",
+        "\"natural\" or \"gray\": which bits label which amplitude, levels > 2",
     ),
     (
         "protocol.max_turn_rate",

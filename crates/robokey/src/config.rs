@@ -239,8 +239,17 @@ pub struct ProtocolConfig {
     /// mode, where it carries the second bit of a doublet.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub delta_omega: Option<f64>,
-    /// Key bits per doublet in private mode: 1 (on v) or 2 (a second on ω).
+    /// Dimensions a doublet carries in private mode: 1 (on v) or 2 (a second on ω); each
+    /// carries log₂ [`Self::levels`] key bits.
     pub bits_per_doublet: u8,
+    /// Private mode: amplitude levels per dimension, 2, 4 or 8 — a symbol of log₂ levels
+    /// key bits, the first step's offset `a·Δ` with `a ∈ {±1, ±3, …}/√E`, `E = (levels² −
+    /// 1)/3` the alphabet's mean square, so Δ keeps the binary alphabet's power.
+    #[serde(skip_serializing_if = "ProtocolConfig::is_binary")]
+    pub levels: u8,
+    /// Private mode with `levels > 2`: which bits label which amplitude.
+    #[serde(skip_serializing_if = "Labeling::is_natural")]
+    pub labeling: Labeling,
     /// Private mode: doublets whose public nominal turn rate exceeds this carry no bit (rad/s).
     pub max_turn_rate: f64,
 }
@@ -255,7 +264,61 @@ impl Default for ProtocolConfig {
             delta_v: 0.035,
             delta_omega: None,
             bits_per_doublet: 1,
+            levels: 2,
+            labeling: Labeling::Natural,
             max_turn_rate: 0.5,
+        }
+    }
+}
+
+impl ProtocolConfig {
+    /// Two levels per dimension: one key bit per dimension, the binary doublet.
+    #[must_use]
+    pub fn is_binary(levels: &u8) -> bool {
+        *levels == 2
+    }
+
+    /// Key bits a private-mode doublet carries: `bits_per_doublet · log₂ levels`.
+    #[must_use]
+    pub fn key_bits_per_doublet(&self) -> usize {
+        usize::from(self.bits_per_doublet) * self.levels.max(2).trailing_zeros() as usize
+    }
+}
+
+/// Which label bits pick which of a multilevel alphabet's amplitudes (docs/private-sensing.md,
+/// "Multilevel doublets"). Label `b`'s amplitude index `i` (amplitude `(levels − 1 − 2i)/√E`):
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Labeling {
+    /// `i = b`: the lowest bit alternates between neighbouring amplitudes (the fine slice),
+    /// each higher bit separates sets twice as far apart (set partitioning).
+    Natural,
+    /// `i = gray⁻¹(b)`: neighbouring amplitudes differ in one bit.
+    Gray,
+}
+
+impl Labeling {
+    /// The default, natural labeling.
+    #[must_use]
+    pub fn is_natural(&self) -> bool {
+        *self == Self::Natural
+    }
+
+    /// The amplitude index of label `label`.
+    #[must_use]
+    pub fn index(self, label: usize) -> usize {
+        match self {
+            Self::Natural => label,
+            Self::Gray => {
+                // gray⁻¹: the prefix XOR of the label's bits from the top.
+                let mut index = label;
+                let mut shift = label >> 1;
+                while shift != 0 {
+                    index ^= shift;
+                    shift >>= 1;
+                }
+                index
+            }
         }
     }
 }
@@ -838,6 +901,9 @@ impl Config {
                 "1 (on v) or 2 (on v and ω)",
             ));
         }
+        if ![2, 4, 8].contains(&proto.levels) {
+            return Err(invalid("protocol.levels", proto.levels, "2, 4 or 8"));
+        }
         for (i, &x) in self.sensing.controller_std.iter().enumerate() {
             positive(&format!("sensing.controller_std[{i}]"), x)?;
         }
@@ -1020,11 +1086,43 @@ impl Config {
                     allowed: e.allowed,
                 })?;
         }
+        if self.protocol.levels > 2 && self.sensing.mode == SensingMode::Private {
+            self.validate_multilevel()?;
+        }
         if !(1..=MAX_REPLICATES).contains(&self.run.replicates) {
             return Err(invalid(
                 "run.replicates",
                 self.run.replicates,
                 &format!("1 to {MAX_REPLICATES}"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// What multilevel doublets (`protocol.levels > 2`) refuse: a measured plant (its
+    /// estimate models binary doublets) and a world whose doublets are not screened, where
+    /// the eavesdroppers' window smoother would have to judge them (it enumerates binary
+    /// patterns only).
+    fn validate_multilevel(&self) -> Result<(), ConfigError> {
+        if self.postprocess.sizing == Sizing::Measured {
+            return Err(invalid(
+                "postprocess.sizing",
+                "measured",
+                "\"configured\" with protocol.levels > 2 (the measured plant's estimate models \
+                 binary doublets)",
+            ));
+        }
+        let world = self.world_model();
+        let per_doublet = matches!(world.camera, Camera::Instants { .. })
+            && self.eve.smoother_window.is_none()
+            && world.screens_doublets();
+        if !per_doublet {
+            return Err(invalid(
+                "protocol.levels",
+                self.protocol.levels,
+                "2 in this world (levels 4 and 8 need a world whose doublets are screened, a \
+                 camera at the sample instants and no eve.smoother_window: the eavesdroppers' \
+                 window smoother judges binary doublets only)",
             ));
         }
         Ok(())

@@ -1,6 +1,6 @@
 //! What the controller decided about a carrying doublet.
 
-use super::doublet::DoubletInputs;
+use super::doublet::{DoubletInputs, MAX_BITS};
 use super::likelihood::BitEvidence;
 use crate::model::Pose;
 
@@ -18,7 +18,7 @@ pub struct DoubletDecision {
     pub evidence: BitEvidence,
     /// Each bit's separation under the camera Eve's model as the controller can compute it
     /// — her stated camera noise around its own samples — which sizes the key.
-    pub assumed_separation: [f64; 2],
+    pub assumed_separation: [f64; MAX_BITS],
     /// The controller's samples `y(Lj), y(Lj+1), y(Lj+L)` at the doublet's start, after its
     /// first step and at its end (key material: they stay with the controller), from which
     /// the block's estimate recomputes the residual and Eve's modelled view

@@ -21,9 +21,10 @@ pub fn agreement_terms(config: &Config) -> String {
     let private = match config.sensing.mode {
         SensingMode::Odometry => String::new(),
         SensingMode::Private => format!(
-            "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
+            "sensing.mode = private\nprotocol.bits_per_doublet = {}\n{}protocol.max_turn_rate = {}\n\
              eve.camera_std = {:?}\n{}noise.process_std = {:?}\n{}{}",
             config.protocol.bits_per_doublet,
+            alphabet_terms(config),
             config.protocol.max_turn_rate,
             config.eve.camera_std,
             camera_frames_terms(config),
@@ -86,6 +87,21 @@ fn camera_frames_terms(config: &Config) -> String {
         Camera::Frames { fps, frame_std } => {
             format!("eve.camera_fps = {fps}\neve.camera_frame_std = {frame_std:?}\n")
         }
+    }
+}
+
+/// The alphabet's lines, `protocol.levels` and `protocol.labeling` (absent with binary
+/// doublets, so that their terms stay as they were): both sides must read a doublet's
+/// amplitude as the same label bits.
+fn alphabet_terms(config: &Config) -> String {
+    let protocol = &config.protocol;
+    if protocol.levels == 2 {
+        String::new()
+    } else {
+        format!(
+            "protocol.levels = {}\nprotocol.labeling = {:?}\n",
+            protocol.levels, protocol.labeling
+        )
     }
 }
 
