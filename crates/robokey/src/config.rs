@@ -793,6 +793,8 @@ impl Config {
         every.eve.camera_fps = Some(1.0);
         every.eve.camera_frame_std = Some([1.0; 3]);
         every.private.prior_lag = 1.0;
+        every.protocol.levels = 4;
+        every.protocol.labeling = Labeling::Gray;
         let mut known: toml::Table = every
             .to_toml()
             .parse()

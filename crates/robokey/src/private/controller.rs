@@ -267,12 +267,13 @@ impl PrivateController {
         };
         let taken = &samples[..=length];
         let assumed = stated_camera_view(taken, self.controller_std, self.camera_std);
-        let evidence = self.model.evidence(&p.inputs, &view);
+        let (evidence, log_likelihoods) = self.model.evidence_and_likelihoods(&p.inputs, &view);
         let decision = DoubletDecision {
             doublet: p.doublet,
             step: self.plan.steps_per_doublet() * p.doublet,
             inputs: p.inputs,
             evidence,
+            log_likelihoods,
             assumed_separation: self.model.sizing_separations(&p.inputs, &assumed),
             samples: [samples[0], samples[1], samples[length]],
         };

@@ -1,7 +1,7 @@
 //! What the controller decided about a carrying doublet.
 
 use super::doublet::{DoubletInputs, MAX_BITS};
-use super::likelihood::BitEvidence;
+use super::likelihood::{BitEvidence, MAX_PATTERNS};
 use crate::model::Pose;
 
 /// What the controller made of one carrying doublet.
@@ -16,6 +16,10 @@ pub struct DoubletDecision {
     /// The controller's LLR and separation of each bit; the bit is the LLR's sign
     /// (`ln P(view|0) − ln P(view|1)`, 1 when negative).
     pub evidence: BitEvidence,
+    /// `ln p(view | h)` of every bit pattern `h` (up to a common constant; unused entries
+    /// −∞): with the reconciled bits of the lower slices they give each higher slice's
+    /// LLR ([`super::likelihood::staged_llrs`]).
+    pub log_likelihoods: [f64; MAX_PATTERNS],
     /// Each bit's separation under the camera Eve's model as the controller can compute it
     /// — her stated camera noise around its own samples — which sizes the key.
     pub assumed_separation: [f64; MAX_BITS],

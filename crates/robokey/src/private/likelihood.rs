@@ -206,6 +206,22 @@ pub(crate) fn bit_evidence(
     }
 }
 
+/// Each bit's LLR as multistage reconciliation decodes it: given `word`'s bits of the
+/// symbols' lower slices (bit `j`'s slice is its place `j mod m` in its symbol's label, `m =
+/// log₂ levels`), which the earlier slices' reconciliation gave the controller, the bits of
+/// its own and higher slices marginalised. Binary: the marginal LLRs.
+#[must_use]
+pub fn staged_llrs(ll: &[f64], perturbation: &Perturbation, word: u64) -> [f64; MAX_BITS] {
+    let m = perturbation.bits_per_symbol();
+    let word = perturbation.pattern(word);
+    let lower = |slice: usize| {
+        (0..perturbation.key_bits())
+            .filter(|j| j % m < slice)
+            .fold(0, |mask, j| mask | 1 << j)
+    };
+    bit_llrs(ll, perturbation, |i| (lower(i % m), word))
+}
+
 /// `ln Σ exp(ll[h])` over the patterns `h < patterns` whose bit `bit` is `value`, given
 /// `known`: the patterns must also agree with `word` on the bits of mask `known`.
 fn ln_sum_where(
@@ -431,8 +447,22 @@ impl DoubletModel {
     /// key bits are 0).
     #[must_use]
     pub fn evidence(&self, inputs: &DoubletInputs, view: &DoubletView) -> BitEvidence {
+        self.evidence_and_likelihoods(inputs, view).0
+    }
+
+    /// [`Self::evidence`] with the patterns' log-likelihoods it came from
+    /// ([`Self::log_likelihoods`]).
+    #[must_use]
+    pub fn evidence_and_likelihoods(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+    ) -> (BitEvidence, [f64; MAX_PATTERNS]) {
         let ll = self.log_likelihoods(inputs, view);
-        bit_evidence(&ll, &self.perturbation, |a, b| self.distance(inputs, view, a, b))
+        let evidence = bit_evidence(&ll, &self.perturbation, |a, b| {
+            self.distance(inputs, view, a, b)
+        });
+        (evidence, ll)
     }
 
     /// Each bit's LLR given the true bits before it in the doublet (`word`'s bits `< i`),

@@ -12,7 +12,7 @@ use crate::eve::Eavesdropper;
 use crate::pair::{Side, Surroundings};
 use crate::private::{
     BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, DoubletSamples, EveDoublet,
-    Perturbation, PrivateRun,
+    Perturbation, PrivateRun, likelihood::staged_llrs,
 };
 use crate::protocol::{
     Controller, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, Robot,
@@ -311,13 +311,20 @@ fn record(
     trace: &mut TraceRows<'_>,
 ) {
     let perturbation = Perturbation::of(config);
+    // Multilevel: each slice's LLR given the lower slices, as multistage reconciliation
+    // leaves the controller them; binary: the marginal LLRs.
+    let controller = if perturbation.levels > 2 {
+        staged_llrs(&d.log_likelihoods, &perturbation, word)
+    } else {
+        d.evidence.llr
+    };
     for i in 0..perturbation.key_bits() {
         run.bits.push(DoubletBit {
             step: d.step,
             kind: BitKind::ALL[perturbation.dimension_of(i)],
             bit: (word >> i & 1) as u8,
             turn_rate: d.inputs.turn_rate(),
-            controller: d.evidence.llr[i],
+            controller: controller[i],
             camera: e.camera_given_others.unwrap_or(e.camera).llr[i],
             commands: e
                 .commands
