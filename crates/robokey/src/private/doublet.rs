@@ -427,4 +427,62 @@ mod tests {
         assert_eq!(one.offset(1), Unicycle::new(-0.035, 0.0));
         assert_eq!(one.pattern(0b11), 1);
     }
+
+    fn alphabet(levels: u8, labeling: Labeling) -> Perturbation {
+        Perturbation {
+            delta: Unicycle::new(1.0, 1.0),
+            bits_per_doublet: 2,
+            settle: None,
+            levels,
+            labeling,
+        }
+    }
+
+    /// Every alphabet has the binary alphabet's power (mean square 1), evenly spaced
+    /// amplitudes `2/√E` apart, and its labeling: natural flips the lowest bit between
+    /// neighbours, Gray exactly one bit; binary is `±1`.
+    #[test]
+    fn multilevel_alphabets_keep_the_binary_power_and_their_labeling() {
+        for levels in [2_u8, 4, 8] {
+            let n = usize::from(levels);
+            let step = 2.0 / ((n * n - 1) as f64 / 3.0).sqrt();
+            for labeling in [Labeling::Natural, Labeling::Gray] {
+                let p = alphabet(levels, labeling);
+                let mean_square = (0..n).map(|b| p.amplitude(b).powi(2)).sum::<f64>() / n as f64;
+                assert!((mean_square - 1.0).abs() < 1e-12, "{levels} {labeling:?}");
+                // Labels in order of decreasing amplitude.
+                let mut labels: Vec<usize> = (0..n).collect();
+                labels.sort_by(|&a, &b| p.amplitude(b).total_cmp(&p.amplitude(a)));
+                for pair in labels.windows(2) {
+                    let gap = p.amplitude(pair[0]) - p.amplitude(pair[1]);
+                    assert!((gap - step).abs() < 1e-12, "{levels} {labeling:?}: {gap}");
+                    let differ = pair[0] ^ pair[1];
+                    match labeling {
+                        Labeling::Gray => assert_eq!(differ.count_ones(), 1),
+                        Labeling::Natural => assert_eq!(differ & 1, 1),
+                    }
+                }
+            }
+        }
+        let binary = alphabet(2, Labeling::Natural);
+        assert_eq!([binary.amplitude(0), binary.amplitude(1)], [1.0, -1.0]);
+        assert_eq!(binary.offset(2), Unicycle::new(1.0, -1.0));
+    }
+
+    /// A 4-level doublet on two dimensions: 4 key bits, 16 patterns, the v label in the low
+    /// two bits of the pattern and the ω label in the next two.
+    #[test]
+    fn a_multilevel_pattern_holds_both_labels() {
+        let p = alphabet(4, Labeling::Natural);
+        assert_eq!((p.key_bits(), p.patterns()), (4, 16));
+        let a = |label: usize| p.amplitude(label);
+        assert_eq!(p.offset(0b10_01), Unicycle::new(a(1), a(2)));
+        assert_eq!(p.pattern(0b1_10_01), 0b10_01);
+        assert_eq!(
+            (p.dimension_of(0), p.dimension_of(1), p.dimension_of(2)),
+            (0, 0, 1)
+        );
+        let five = 5.0_f64.sqrt();
+        assert!((a(0) - 3.0 / five).abs() < 1e-15 && (a(3) + 3.0 / five).abs() < 1e-15);
+    }
 }

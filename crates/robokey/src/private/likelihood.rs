@@ -552,6 +552,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::Labeling;
     use crate::private::doublet::settle_share;
 
     const T: f64 = 0.2;
@@ -611,6 +612,108 @@ mod tests {
             let (known, ignored) = (residual(Some(entry)), residual(None));
             assert!(known < 1e-7, "pattern {pattern}: {known} m left");
             assert!(ignored > 1e-3, "pattern {pattern}: {ignored} m left");
+        }
+    }
+
+    fn multilevel_model(levels: u8, dimensions: u8, labeling: Labeling) -> DoubletModel {
+        DoubletModel {
+            sample_time: T,
+            process_covariance: Matrix3::from_diagonal_element(1e-10),
+            perturbation: Perturbation {
+                delta: Unicycle::new(0.035, 0.035),
+                bits_per_doublet: dimensions,
+                settle: None,
+                levels,
+                labeling,
+            },
+            lag: 0.0,
+        }
+    }
+
+    /// The view of pattern `h` without noise (a tiny sensor noise), on a turning segment.
+    fn noise_free_view(model: &DoubletModel, inputs: &DoubletInputs, h: usize) -> DoubletView {
+        let start = Pose::new(0.3, -0.1, 0.4);
+        let [middle, end] = inputs.propagate(&start, model.perturbation.offset(h), T);
+        let seen = |pose: Pose| PoseObservation::new(pose, [1e-6, 1e-6, 1e-6]);
+        DoubletView {
+            start: seen(start),
+            middle: Some(seen(middle)),
+            late: None,
+            end: Some(seen(end)),
+            entry: None,
+        }
+    }
+
+    /// Without noise every symbol of every alphabet, on one and two dimensions, is decided
+    /// right from the marginal LLRs, and the staged and chained LLRs agree with the truth.
+    #[test]
+    fn every_symbol_is_decided_right_without_noise() {
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.1, 0.3),
+            second: Unicycle::new(0.12, 0.25),
+        };
+        for levels in [2_u8, 4, 8] {
+            for dimensions in [1_u8, 2] {
+                for labeling in [Labeling::Natural, Labeling::Gray] {
+                    let model = multilevel_model(levels, dimensions, labeling);
+                    for h in 0..model.perturbation.patterns() {
+                        let view = noise_free_view(&model, &inputs, h);
+                        let (evidence, ll) = model.evidence_and_likelihoods(&inputs, &view);
+                        assert_eq!(evidence.bits(), h as u64, "{levels} {dimensions} {h}");
+                        let word = h as u64;
+                        let staged = staged_llrs(&ll, &model.perturbation, word);
+                        let chained = model.chain_llrs(&inputs, &view, word);
+                        let decided = |llrs: [f64; MAX_BITS]| {
+                            BitEvidence {
+                                llr: llrs,
+                                separation: [0.0; MAX_BITS],
+                            }
+                            .bits()
+                        };
+                        assert_eq!(decided(staged), word);
+                        assert_eq!(decided(chained), word);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The separations the alphabet produces, each bit's with the other bits known (the
+    /// larger over their values), in units of the lowest bit's: natural labeling 1 and 2
+    /// (4 levels) and 1, 2, 4 (8 levels), Gray 1 and 3 (its top bit flips ±3 to ∓3 around
+    /// the middle); on two dimensions the ω bits the same pattern again.
+    #[test]
+    fn each_bits_separation_is_its_labels_distance() {
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.1, 0.0),
+            second: Unicycle::new(0.1, 0.0),
+        };
+        let view = noise_free_view(&multilevel_model(2, 1, Labeling::Natural), &inputs, 0);
+        let view = DoubletView {
+            middle: view.middle.map(|y| PoseObservation::new(y.value, [0.005; 3])),
+            end: view.end.map(|y| PoseObservation::new(y.value, [0.005; 3])),
+            ..view
+        };
+        for (levels, labeling, expected) in [
+            (4, Labeling::Natural, vec![1.0, 2.0]),
+            (8, Labeling::Natural, vec![1.0, 2.0, 4.0]),
+            (4, Labeling::Gray, vec![1.0, 3.0]),
+        ] {
+            let model = multilevel_model(levels, 1, labeling);
+            let d = model.separations(&inputs, &view);
+            for (i, ratio) in expected.iter().enumerate() {
+                let got = d[i] / d[0];
+                assert!((got - ratio).abs() < 1e-6, "{levels} {labeling:?} bit {i}: {got}");
+            }
+            // The ω symbol bends the path a little: the v bits' separations barely move.
+            let both = multilevel_model(levels, 2, labeling).separations(&inputs, &view);
+            let m = expected.len();
+            for (i, ratio) in expected.iter().enumerate() {
+                assert!((both[i] - d[i]).abs() < 1e-3 * d[i], "{levels} v bit {i}");
+                let got = both[m + i] / both[m];
+                assert!((got - ratio).abs() < 1e-3, "{levels} {labeling:?} ω bit {i}: {got}");
+            }
+            assert!(both[2 * m..].iter().all(|&x| x == 0.0));
         }
     }
 }
