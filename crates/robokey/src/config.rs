@@ -304,6 +304,15 @@ impl Labeling {
         *self == Self::Natural
     }
 
+    /// Its name in a configuration file.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Natural => "natural",
+            Self::Gray => "gray",
+        }
+    }
+
     /// The amplitude index of label `label`.
     #[must_use]
     pub fn index(self, label: usize) -> usize {
@@ -1170,7 +1179,8 @@ impl Config {
     /// command, clipped to `controller.wheel_limit` per wheel, plus the largest per-wheel
     /// offset of the protocol, `k·(Δv + Δω·D/2)/r` (rad/s), stays within `robot.wheel_limit`;
     /// `k` is the largest step of the doublet's shape: 1, or `1 + a` for the three-step
-    /// doublet's middle step `−(1 + a)·s·Δ` (`private.prior_lag`).
+    /// doublet's middle step `−(1 + a)·s·Δ` (`private.prior_lag`), times the alphabet's
+    /// largest amplitude `(levels − 1)/√E` (1 for binary doublets).
     /// The robot refuses a pair outside its limit, so a larger Δ would make sessions whose
     /// steps are all erased: no bit, and no word why.
     fn validate_wheel_speeds(&self) -> Result<(), ConfigError> {
@@ -1181,7 +1191,13 @@ impl Config {
             (0.0, 0.0)
         };
         let half_axle = robot.axle_length / 2.0;
-        let largest_step = 1.0 + self.doublet_settle().unwrap_or(0.0);
+        // A multilevel alphabet's outermost symbols reach (levels − 1)/√E times Δ.
+        let peak = if self.sensing.mode == SensingMode::Private {
+            crate::private::Perturbation::of(self).amplitude(0)
+        } else {
+            1.0
+        };
+        let largest_step = (1.0 + self.doublet_settle().unwrap_or(0.0)) * peak;
         let offset = largest_step * (delta_v + delta_omega * half_axle) / robot.r;
         let room = robot.wheel_limit - controller.wheel_limit;
         if room < 0.0 {
@@ -1199,7 +1215,8 @@ impl Config {
         if offset <= room {
             return Ok(());
         }
-        // The three-step doublet's middle step `(1 + a)` scales the offset.
+        // The three-step doublet's middle step `(1 + a)` and the alphabet's largest amplitude
+        // scale the offset.
         let scale = if largest_step > 1.0 {
             format!("{largest_step:.4}·")
         } else {
@@ -1515,6 +1532,43 @@ mod tests {
                 .codeword_length(),
             7
         );
+    }
+
+    /// Multilevel doublets: 2, 4 or 8 levels; refused with a measured plant and where the
+    /// window smoother would judge; the wheel limit counts the outermost amplitude; the
+    /// resolved TOML names the alphabet only when it is not binary.
+    #[test]
+    fn multilevel_doublets_are_checked() {
+        let private = |extra: &str| format!("[sensing]\nmode = \"private\"\n{extra}");
+        let refused = |toml: &str, field: &str| {
+            let text = Config::from_toml(&private(toml), "m.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(text.contains(field), "{toml}: {text}");
+        };
+        refused("[protocol]\nlevels = 3\n", "2, 4 or 8");
+        refused(
+            "[protocol]\nlevels = 4\n[postprocess]\nsizing = \"measured\"\n",
+            "postprocess.sizing",
+        );
+        refused(
+            "[protocol]\nlevels = 4\n[world]\npreset = \"khepera-iv\"\n",
+            "protocol.levels",
+        );
+        refused("[protocol]\nlevels = 4\n[eve]\nsmoother_window = 2\n", "protocol.levels");
+        // Δv = 0.3 m/s: its wheel offset Δv/r = 14.3 rad/s fits the 38 − 22 = 16 rad/s of
+        // room, the 4-level alphabet's outermost 3/√5·Δv/r = 19.2 rad/s does not.
+        let fast = "[controller]\nwheel_limit = 22.0\n[protocol]\ndelta_v = 0.3\n";
+        Config::from_toml(&private(fast), "f").unwrap();
+        refused(&format!("{fast}levels = 4\n"), "protocol.delta_v");
+        let four = Config::from_toml(&private("[protocol]\nlevels = 4\nlabeling = \"gray\"\n"), "g")
+            .unwrap();
+        let text = four.to_toml();
+        assert!(text.contains("levels = 4") && text.contains("labeling = \"gray\""), "{text}");
+        let back = Config::from_toml(&text, "back").unwrap();
+        assert_eq!((back.protocol.levels, back.protocol.labeling), (4, Labeling::Gray));
+        assert!(!Config::default().to_toml().contains("levels"));
+        assert_eq!(four.protocol.key_bits_per_doublet(), 2);
     }
 
     #[test]

@@ -270,7 +270,12 @@ mod tests {
     };
 
     fn robot(seed: u64) -> Robot {
-        let config = Config::from_toml("[sensing]\nmode = \"private\"\n", "test").unwrap();
+        robot_with(seed, "")
+    }
+
+    fn robot_with(seed: u64, extra: &str) -> Robot {
+        let config =
+            Config::from_toml(&format!("[sensing]\nmode = \"private\"\n{extra}"), "test").unwrap();
         let plan = SessionPlan::from_config(&config, 1);
         let mut key_source = rand::rngs::ChaCha20Rng::seed_from_u64(seed);
         Robot::new(
@@ -331,6 +336,21 @@ mod tests {
                 assert_eq!(erased.wheels, held);
                 let _ = offer(&mut robot, [0.1, 0.2], [0.1, 0.2]);
             }
+        }
+    }
+
+    /// With four levels the outermost symbol `±3/√5·Δv` must fit too: v = 0.755 m/s fits
+    /// `v + Δv` (37.6 rad/s) but not `v + 1.342·Δv` (38.2 rad/s), so a binary robot applies
+    /// the doublet and a 4-level one erases it whatever its symbol.
+    #[test]
+    fn every_symbol_of_the_alphabet_is_within_the_wheel_limit() {
+        for seed in 0..8 {
+            let binary = offer(&mut robot(seed), [0.755, 0.0], [0.755, 0.0]);
+            assert!(!binary.erased);
+            let mut four = robot_with(seed, "[protocol]\nlevels = 4\n");
+            let erased = offer(&mut four, [0.755, 0.0], [0.755, 0.0]);
+            assert!(erased.erased && erased.bit.is_none(), "seed {seed}");
+            assert!(!offer(&mut four, [0.1, 0.2], [0.1, 0.2]).erased);
         }
     }
 }

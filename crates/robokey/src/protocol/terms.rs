@@ -99,8 +99,9 @@ fn alphabet_terms(config: &Config) -> String {
         String::new()
     } else {
         format!(
-            "protocol.levels = {}\nprotocol.labeling = {:?}\n",
-            protocol.levels, protocol.labeling
+            "protocol.levels = {}\nprotocol.labeling = {}\n",
+            protocol.levels,
+            protocol.labeling.name()
         )
     }
 }
@@ -206,6 +207,21 @@ mod tests {
         let mut config = Config::default();
         config.sensing.mode = SensingMode::Private;
         config
+    }
+
+    /// The alphabet is agreed: binary doublets' terms are as they were, a 4-level robot and
+    /// a binary controller are told apart by name.
+    #[test]
+    fn the_alphabet_is_a_term() {
+        let binary = private();
+        assert!(!agreement_terms(&binary).contains("levels"));
+        let mut four = private();
+        four.protocol.levels = 4;
+        assert_eq!(
+            difference(&four, &binary),
+            "protocol.levels: robot has 4, controller has (missing); protocol.labeling: robot \
+             has natural, controller has (missing)"
+        );
     }
 
     #[test]
