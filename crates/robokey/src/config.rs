@@ -1555,18 +1555,30 @@ mod tests {
             "[protocol]\nlevels = 4\n[world]\npreset = \"khepera-iv\"\n",
             "protocol.levels",
         );
-        refused("[protocol]\nlevels = 4\n[eve]\nsmoother_window = 2\n", "protocol.levels");
+        refused(
+            "[protocol]\nlevels = 4\n[eve]\nsmoother_window = 2\n",
+            "protocol.levels",
+        );
         // Δv = 0.3 m/s: its wheel offset Δv/r = 14.3 rad/s fits the 38 − 22 = 16 rad/s of
         // room, the 4-level alphabet's outermost 3/√5·Δv/r = 19.2 rad/s does not.
         let fast = "[controller]\nwheel_limit = 22.0\n[protocol]\ndelta_v = 0.3\n";
         Config::from_toml(&private(fast), "f").unwrap();
         refused(&format!("{fast}levels = 4\n"), "protocol.delta_v");
-        let four = Config::from_toml(&private("[protocol]\nlevels = 4\nlabeling = \"gray\"\n"), "g")
-            .unwrap();
+        let four = Config::from_toml(
+            &private("[protocol]\nlevels = 4\nlabeling = \"gray\"\n"),
+            "g",
+        )
+        .unwrap();
         let text = four.to_toml();
-        assert!(text.contains("levels = 4") && text.contains("labeling = \"gray\""), "{text}");
+        assert!(
+            text.contains("levels = 4") && text.contains("labeling = \"gray\""),
+            "{text}"
+        );
         let back = Config::from_toml(&text, "back").unwrap();
-        assert_eq!((back.protocol.levels, back.protocol.labeling), (4, Labeling::Gray));
+        assert_eq!(
+            (back.protocol.levels, back.protocol.labeling),
+            (4, Labeling::Gray)
+        );
         assert!(!Config::default().to_toml().contains("levels"));
         assert_eq!(four.protocol.key_bits_per_doublet(), 2);
     }

@@ -273,7 +273,11 @@ impl PrivateController {
             step: self.plan.steps_per_doublet() * p.doublet,
             inputs: p.inputs,
             evidence,
-            log_likelihoods,
+            log_likelihoods: if self.model.perturbation.levels > 2 {
+                log_likelihoods[..self.model.perturbation.patterns()].to_vec()
+            } else {
+                Vec::new()
+            },
             assumed_separation: self.model.sizing_separations(&p.inputs, &assumed),
             samples: [samples[0], samples[1], samples[length]],
         };

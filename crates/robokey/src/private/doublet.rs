@@ -105,7 +105,9 @@ impl Perturbation {
     #[must_use]
     pub fn amplitude(&self, label: usize) -> f64 {
         let levels = f64::from(self.levels);
-        let index = self.labeling.index(label & usize::from(self.levels).saturating_sub(1)) as f64;
+        let index = self
+            .labeling
+            .index(label & usize::from(self.levels).saturating_sub(1)) as f64;
         let mean_square = (levels * levels - 1.0) / 3.0;
         (levels - 1.0 - 2.0 * index) / mean_square.sqrt()
     }

@@ -419,8 +419,8 @@ impl DoubletEavesdropper {
             entry: None,
         };
         let camera = model.evidence(&inputs, &camera_view);
-        let commands = (self.judged == Eavesdroppers::Both)
-            .then(|| model.evidence(&inputs, &commands_view));
+        let commands =
+            (self.judged == Eavesdroppers::Both).then(|| model.evidence(&inputs, &commands_view));
         self.decided[j as usize] = Some((camera.bits(), commands.map(|c| c.bits())));
         // A multilevel symbol's bits are judged in a chain, each given the true ones before
         // it, so that her realised bound is on the symbols; a binary doublet's bits as they

@@ -250,7 +250,8 @@ fn bit_llrs(
     let patterns = perturbation.patterns();
     let mut llr = [0.0; MAX_BITS];
     for (i, slot) in llr.iter_mut().enumerate().take(perturbation.key_bits()) {
-        *slot = ln_sum_where(ll, patterns, i, 0, known(i)) - ln_sum_where(ll, patterns, i, 1, known(i));
+        *slot =
+            ln_sum_where(ll, patterns, i, 0, known(i)) - ln_sum_where(ll, patterns, i, 1, known(i));
     }
     llr
 }
@@ -426,7 +427,11 @@ impl DoubletModel {
     /// `ln p(view | pattern h)` up to a constant common to all patterns, for every pattern
     /// ([`Perturbation::patterns`]; unused entries are −∞).
     #[must_use]
-    pub fn log_likelihoods(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; MAX_PATTERNS] {
+    pub fn log_likelihoods(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+    ) -> [f64; MAX_PATTERNS] {
         let mut out = [f64::NEG_INFINITY; MAX_PATTERNS];
         for (h, slot) in out
             .iter_mut()
@@ -470,7 +475,12 @@ impl DoubletModel {
     /// `−ln P(symbols | view)` of the doublet's true symbols, so a bound summed over these
     /// is a bound on the symbol string, not on bits judged apart.
     #[must_use]
-    pub fn chain_llrs(&self, inputs: &DoubletInputs, view: &DoubletView, word: u64) -> [f64; MAX_BITS] {
+    pub fn chain_llrs(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+        word: u64,
+    ) -> [f64; MAX_BITS] {
         let ll = self.log_likelihoods(inputs, view);
         let word = self.perturbation.pattern(word);
         bit_llrs(&ll, &self.perturbation, |i| ((1 << i) - 1, word))
@@ -690,7 +700,9 @@ mod tests {
         };
         let view = noise_free_view(&multilevel_model(2, 1, Labeling::Natural), &inputs, 0);
         let view = DoubletView {
-            middle: view.middle.map(|y| PoseObservation::new(y.value, [0.005; 3])),
+            middle: view
+                .middle
+                .map(|y| PoseObservation::new(y.value, [0.005; 3])),
             end: view.end.map(|y| PoseObservation::new(y.value, [0.005; 3])),
             ..view
         };
@@ -703,7 +715,10 @@ mod tests {
             let d = model.separations(&inputs, &view);
             for (i, ratio) in expected.iter().enumerate() {
                 let got = d[i] / d[0];
-                assert!((got - ratio).abs() < 1e-6, "{levels} {labeling:?} bit {i}: {got}");
+                assert!(
+                    (got - ratio).abs() < 1e-6,
+                    "{levels} {labeling:?} bit {i}: {got}"
+                );
             }
             // The ω symbol bends the path a little: the v bits' separations barely move.
             let both = multilevel_model(levels, 2, labeling).separations(&inputs, &view);
@@ -711,7 +726,10 @@ mod tests {
             for (i, ratio) in expected.iter().enumerate() {
                 assert!((both[i] - d[i]).abs() < 1e-3 * d[i], "{levels} v bit {i}");
                 let got = both[m + i] / both[m];
-                assert!((got - ratio).abs() < 1e-3, "{levels} {labeling:?} ω bit {i}: {got}");
+                assert!(
+                    (got - ratio).abs() < 1e-3,
+                    "{levels} {labeling:?} ω bit {i}: {got}"
+                );
             }
             assert!(both[2 * m..].iter().all(|&x| x == 0.0));
         }

@@ -114,7 +114,9 @@ impl PrivateRobot {
             .map(|i| (step + i, applied[i as usize]))
             .collect();
         self.last_nominal = Some(inputs.second);
-        let bit = self.carried_word(step / length).map(|word| (word & 1) as u8);
+        let bit = self
+            .carried_word(step / length)
+            .map(|word| (word & 1) as u8);
         Self::apply(agreed, life, step, applied[0], bit, false);
     }
 

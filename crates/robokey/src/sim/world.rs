@@ -318,13 +318,13 @@ fn record(
     } else {
         d.evidence.llr
     };
-    for i in 0..perturbation.key_bits() {
+    for (i, &controller) in controller.iter().enumerate().take(perturbation.key_bits()) {
         run.bits.push(DoubletBit {
             step: d.step,
             kind: BitKind::ALL[perturbation.dimension_of(i)],
             bit: (word >> i & 1) as u8,
             turn_rate: d.inputs.turn_rate(),
-            controller: controller[i],
+            controller,
             camera: e.camera_given_others.unwrap_or(e.camera).llr[i],
             commands: e
                 .commands
