@@ -247,6 +247,20 @@ fn over_claim_is_caught(name: &str, pattern: &Pattern, views: &[ViewGroup], epsi
     );
 }
 
+/// Half of every bit's genie separation: an over-claim.
+fn halved(pattern: &Pattern) -> Vec<ViewGroup> {
+    pattern
+        .genie_views()
+        .iter()
+        .map(|g| ViewGroup {
+            view: BitView::Gaussian {
+                separation: 0.5 * g.largest_separation(),
+            },
+            bits: 1,
+        })
+        .collect()
+}
+
 /// Independent bits of four different separations (the turn classes of a block).
 #[test]
 fn independent_bits_of_different_separations() {
@@ -257,17 +271,7 @@ fn independent_bits_of_different_separations() {
     for &epsilon in &[0.05, 0.2] {
         genie_holds("independent", &p, epsilon, 4_000);
     }
-    let halved: Vec<ViewGroup> = p
-        .genie_views()
-        .iter()
-        .map(|g| ViewGroup {
-            view: BitView::Gaussian {
-                separation: 0.5 * g.largest_separation(),
-            },
-            bits: 1,
-        })
-        .collect();
-    over_claim_is_caught("half the separations", &p, &halved, 0.05);
+    over_claim_is_caught("half the separations", &p, &halved(&p), 0.05);
 }
 
 /// AR(1) noise along the observations: the genie separation (neighbours given) holds where
@@ -332,16 +336,6 @@ fn multilevel_symbols() {
         for &epsilon in &[0.05, 0.2] {
             genie_holds(&format!("{levels} levels"), &p, epsilon, 4_000);
         }
-        let halved: Vec<ViewGroup> = p
-            .genie_views()
-            .iter()
-            .map(|g| ViewGroup {
-                view: BitView::Gaussian {
-                    separation: 0.5 * g.largest_separation(),
-                },
-                bits: 1,
-            })
-            .collect();
-        over_claim_is_caught(&format!("{levels} levels, halved"), &p, &halved, 0.05);
+        over_claim_is_caught(&format!("{levels} levels, halved"), &p, &halved(&p), 0.05);
     }
 }

@@ -44,17 +44,22 @@ fn every_partys_llr_is_calibrated() {
     for kind in BitKind::ALL {
         let of_kind: Vec<&DoubletBit> = all.iter().filter(|b| b.kind == kind).collect();
         assert!(of_kind.len() > 15_000, "{}", of_kind.len());
-        let parties: [(&str, Llr); 3] = [
-            ("controller", |b| b.controller),
-            ("camera", |b| b.camera),
-            ("commands", |b| b.llr_of(EveStrategy::Commands)),
-        ];
-        for (name, llr) in parties {
-            let pairs: Vec<(f64, bool)> =
-                of_kind.iter().map(|b| prediction(llr(b), b.bit)).collect();
-            let report = check_calibration(&pairs, 10, 1e-3).unwrap();
-            assert!(report.passed, "{kind:?} {name}: {report:?}");
-        }
+        assert_every_party_calibrated(&of_kind, &format!("{kind:?}"));
+    }
+}
+
+/// The controller's, the camera Eve's and the commands Eve's LLRs of `group` pass the
+/// calibration test (10 equal-count bins, exact Poisson-binomial tails, α = 10⁻³).
+fn assert_every_party_calibrated(group: &[&DoubletBit], what: &str) {
+    let parties: [(&str, Llr); 3] = [
+        ("controller", |b| b.controller),
+        ("camera", |b| b.camera),
+        ("commands", |b| b.llr_of(EveStrategy::Commands)),
+    ];
+    for (name, llr) in parties {
+        let pairs: Vec<(f64, bool)> = group.iter().map(|b| prediction(llr(b), b.bit)).collect();
+        let report = check_calibration(&pairs, 10, 1e-3).unwrap();
+        assert!(report.passed, "{what} {name}: {report:?}");
     }
 }
 
@@ -339,17 +344,7 @@ fn multilevel_llrs_are_calibrated() {
                 .map(|(_, b)| b)
                 .collect();
             assert!(group.len() > 5_000, "{}", group.len());
-            let parties: [(&str, Llr); 3] = [
-                ("controller", |b| b.controller),
-                ("camera", |b| b.camera),
-                ("commands", |b| b.llr_of(EveStrategy::Commands)),
-            ];
-            for (name, llr) in parties {
-                let pairs: Vec<(f64, bool)> =
-                    group.iter().map(|b| prediction(llr(b), b.bit)).collect();
-                let report = check_calibration(&pairs, 10, 1e-3).unwrap();
-                assert!(report.passed, "{kind:?} place {place} {name}: {report:?}");
-            }
+            assert_every_party_calibrated(&group, &format!("{kind:?} place {place}"));
         }
     }
 }
