@@ -239,6 +239,8 @@ mod tests {
         config.postprocess.assumed_eve_error = Some(0.2);
         config.postprocess.sizing = robokey::config::Sizing::Measured;
         config.postprocess.reconciliation = robokey::config::Reconciliation::Ldpc;
+        config.protocol.levels = 4;
+        config.protocol.labeling = robokey::config::Labeling::Gray;
         config.eve.smoother_window = Some(2);
         config.eve.camera_fps = Some(30.0);
         config.eve.camera_frame_std = Some([0.016; 3]);
