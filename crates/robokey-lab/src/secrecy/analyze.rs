@@ -6,7 +6,7 @@
 use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
-use robokey::estimate::commands_check::block_refusal;
+use robokey::estimate::commands_check::sized_block_refusal;
 use robokey::post_settings::ODOMETRY_ZERO;
 use robokey::private::{DoubletSamples, Eavesdroppers};
 use robokey::protocol::SessionPlan;
@@ -419,7 +419,9 @@ fn refuse_what_the_commands_reveal(
             .filter_map(|r| r.private.as_ref())
             .map(|p| p.controller_samples.as_slice())
             .collect();
-        let Some(reason) = block_refusal(config, &sessions, options.epsilon) else {
+        let estimate = pool.estimate.as_ref();
+        let Some(reason) = sized_block_refusal(config, &sessions, options.epsilon, estimate)
+        else {
             continue;
         };
         for block in slice_blocks {
