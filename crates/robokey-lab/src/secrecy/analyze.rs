@@ -420,8 +420,7 @@ fn refuse_what_the_commands_reveal(
             .map(|p| p.controller_samples.as_slice())
             .collect();
         let estimate = pool.estimate.as_ref();
-        let Some(reason) = sized_block_refusal(config, &sessions, options.epsilon, estimate)
-        else {
+        let Some(reason) = sized_block_refusal(config, &sessions, options.epsilon, estimate) else {
             continue;
         };
         for block in slice_blocks {
