@@ -60,7 +60,16 @@ const FIELDS: &[(&str, &str)] = &[
     ),
     (
         "protocol.bits_per_doublet",
-        "key bits per doublet, 1 or 2 (private mode)",
+        "dimensions a doublet carries, 1 (v) or 2 (v and ω) (private mode)",
+    ),
+    (
+        "protocol.levels",
+        "amplitude levels per dimension, 2, 4 or 8: log₂ levels key bits each, mean power \
+         that of ±Δ (private mode)",
+    ),
+    (
+        "protocol.labeling",
+        "\"natural\" or \"gray\": which bits label which amplitude, levels > 2",
     ),
     (
         "protocol.max_turn_rate",
@@ -230,6 +239,8 @@ mod tests {
         config.postprocess.assumed_eve_error = Some(0.2);
         config.postprocess.sizing = robokey::config::Sizing::Measured;
         config.postprocess.reconciliation = robokey::config::Reconciliation::Ldpc;
+        config.protocol.levels = 4;
+        config.protocol.labeling = robokey::config::Labeling::Gray;
         config.eve.smoother_window = Some(2);
         config.eve.camera_fps = Some(30.0);
         config.eve.camera_frame_std = Some([0.016; 3]);

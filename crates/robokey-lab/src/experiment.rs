@@ -242,6 +242,7 @@ fn reading(field: &str) -> Option<Reading> {
         "protocol.delta_v" => ("Δv", "m/s", 1.0),
         "protocol.delta_omega" => ("Δω", "rad/s", 1.0),
         "protocol.bits_per_doublet" => ("bits per doublet", "", 1.0),
+        "protocol.levels" => ("levels per dimension", "", 1.0),
         "eve.alpha" => ("Eve's model error α", "%", 100.0),
         "eve.camera_std" => ("Eve's camera noise", "mm", 1e3),
         "eve.camera_fps" => ("Eve's stated camera rate", "frames/s", 1.0),

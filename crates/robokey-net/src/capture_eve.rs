@@ -191,9 +191,13 @@ pub fn listen_private(
     let mut eve = DoubletEavesdropper::new(config, Eavesdroppers::Both);
     let kept = kept_doublets(captured, config);
     if let Some(bits) = robot_bits {
-        let per = usize::from(config.protocol.bits_per_doublet);
+        let per = config.protocol.key_bits_per_doublet();
         for (&doublet, chunk) in kept.iter().zip(bits.chunks_exact(per)) {
-            eve.reveal(doublet, [chunk[0], chunk.get(1).copied().unwrap_or(0)]);
+            let word = chunk
+                .iter()
+                .enumerate()
+                .fold(0, |word, (i, &bit)| word | u64::from(bit & 1) << i);
+            eve.reveal(doublet, word);
         }
     }
     match camera {

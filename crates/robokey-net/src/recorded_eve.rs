@@ -547,7 +547,7 @@ fn hear_private_capture(
     }
     let (robot, controller) = (recording.robot_bits, recording.controller_bits);
     let heard = listen_private(&captured, &camera, config, robot);
-    let bits = usize::from(config.protocol.bits_per_doublet);
+    let bits = config.protocol.key_bits_per_doublet();
     let all = EveStrategy::of_mode(config.sensing.mode);
     let strategies = if strategies.is_empty() {
         &all[..]

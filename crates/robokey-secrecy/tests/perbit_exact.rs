@@ -247,6 +247,20 @@ fn over_claim_is_caught(name: &str, pattern: &Pattern, views: &[ViewGroup], epsi
     );
 }
 
+/// Half of every bit's genie separation: an over-claim.
+fn halved(pattern: &Pattern) -> Vec<ViewGroup> {
+    pattern
+        .genie_views()
+        .iter()
+        .map(|g| ViewGroup {
+            view: BitView::Gaussian {
+                separation: 0.5 * g.largest_separation(),
+            },
+            bits: 1,
+        })
+        .collect()
+}
+
 /// Independent bits of four different separations (the turn classes of a block).
 #[test]
 fn independent_bits_of_different_separations() {
@@ -257,17 +271,7 @@ fn independent_bits_of_different_separations() {
     for &epsilon in &[0.05, 0.2] {
         genie_holds("independent", &p, epsilon, 4_000);
     }
-    let halved: Vec<ViewGroup> = p
-        .genie_views()
-        .iter()
-        .map(|g| ViewGroup {
-            view: BitView::Gaussian {
-                separation: 0.5 * g.largest_separation(),
-            },
-            bits: 1,
-        })
-        .collect();
-    over_claim_is_caught("half the separations", &p, &halved, 0.05);
+    over_claim_is_caught("half the separations", &p, &halved(&p), 0.05);
 }
 
 /// AR(1) noise along the observations: the genie separation (neighbours given) holds where
@@ -307,5 +311,31 @@ fn bit_dependent_noise() {
     for &slip in &[0.2, 0.5] {
         let p = Pattern::new(12, 0.45, 0.0, 0.0, slip);
         genie_holds(&format!("slip κ = {slip}"), &p, 0.05, 4_000);
+    }
+}
+
+/// Multilevel symbols (natural labeling): a 2^m-level amplitude `Σ_b 2^b·s_b·a` on one
+/// observation is m bits of amounts `a, 2a, …` on the same observation, so each bit's genie
+/// separation (the symbol's other bits given) is `2^b` times the lowest's — the separations
+/// a 4- or 8-level doublet produces. Six 4-level and four 8-level symbols (12 bits); half
+/// those separations over-claim and are caught.
+#[test]
+fn multilevel_symbols() {
+    for (levels, a) in [(4_u32, 0.3), (8, 0.15)] {
+        let per_symbol = levels.trailing_zeros() as usize;
+        let symbols = 12 / per_symbol;
+        let effects = (0..symbols * per_symbol)
+            .map(|i| vec![(i / per_symbol, a * f64::from(1_u32 << (i % per_symbol)))])
+            .collect();
+        let p = Pattern {
+            effects,
+            observations: symbols,
+            rho: 0.0,
+            slip: 0.0,
+        };
+        for &epsilon in &[0.05, 0.2] {
+            genie_holds(&format!("{levels} levels"), &p, epsilon, 4_000);
+        }
+        over_claim_is_caught(&format!("{levels} levels, halved"), &p, &halved(&p), 0.05);
     }
 }

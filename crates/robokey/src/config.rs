@@ -239,8 +239,17 @@ pub struct ProtocolConfig {
     /// mode, where it carries the second bit of a doublet.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub delta_omega: Option<f64>,
-    /// Key bits per doublet in private mode: 1 (on v) or 2 (a second on ω).
+    /// Dimensions a doublet carries in private mode: 1 (on v) or 2 (a second on ω); each
+    /// carries log₂ [`Self::levels`] key bits.
     pub bits_per_doublet: u8,
+    /// Private mode: amplitude levels per dimension, 2, 4 or 8 — a symbol of log₂ levels
+    /// key bits, the first step's offset `a·Δ` with `a ∈ {±1, ±3, …}/√E`, `E = (levels² −
+    /// 1)/3` the alphabet's mean square, so Δ keeps the binary alphabet's power.
+    #[serde(skip_serializing_if = "ProtocolConfig::is_binary")]
+    pub levels: u8,
+    /// Private mode with `levels > 2`: which bits label which amplitude.
+    #[serde(skip_serializing_if = "Labeling::is_natural")]
+    pub labeling: Labeling,
     /// Private mode: doublets whose public nominal turn rate exceeds this carry no bit (rad/s).
     pub max_turn_rate: f64,
 }
@@ -255,7 +264,70 @@ impl Default for ProtocolConfig {
             delta_v: 0.035,
             delta_omega: None,
             bits_per_doublet: 1,
+            levels: 2,
+            labeling: Labeling::Natural,
             max_turn_rate: 0.5,
+        }
+    }
+}
+
+impl ProtocolConfig {
+    /// Two levels per dimension: one key bit per dimension, the binary doublet.
+    #[must_use]
+    pub fn is_binary(levels: &u8) -> bool {
+        *levels == 2
+    }
+
+    /// Key bits a private-mode doublet carries: `bits_per_doublet · log₂ levels`.
+    #[must_use]
+    pub fn key_bits_per_doublet(&self) -> usize {
+        usize::from(self.bits_per_doublet) * self.levels.max(2).trailing_zeros() as usize
+    }
+}
+
+/// Which label bits pick which of a multilevel alphabet's amplitudes (docs/private-sensing.md,
+/// "Multilevel doublets"). Label `b`'s amplitude index `i` (amplitude `(levels − 1 − 2i)/√E`):
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Labeling {
+    /// `i = b`: the lowest bit alternates between neighbouring amplitudes (the fine slice),
+    /// each higher bit separates sets twice as far apart (set partitioning).
+    Natural,
+    /// `i = gray⁻¹(b)`: neighbouring amplitudes differ in one bit.
+    Gray,
+}
+
+impl Labeling {
+    /// The default, natural labeling.
+    #[must_use]
+    pub fn is_natural(&self) -> bool {
+        *self == Self::Natural
+    }
+
+    /// Its name in a configuration file.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Natural => "natural",
+            Self::Gray => "gray",
+        }
+    }
+
+    /// The amplitude index of label `label`.
+    #[must_use]
+    pub fn index(self, label: usize) -> usize {
+        match self {
+            Self::Natural => label,
+            Self::Gray => {
+                // gray⁻¹: the prefix XOR of the label's bits from the top.
+                let mut index = label;
+                let mut shift = label >> 1;
+                while shift != 0 {
+                    index ^= shift;
+                    shift >>= 1;
+                }
+                index
+            }
         }
     }
 }
@@ -731,6 +803,8 @@ impl Config {
         every.eve.camera_fps = Some(1.0);
         every.eve.camera_frame_std = Some([1.0; 3]);
         every.private.prior_lag = 1.0;
+        every.protocol.levels = 4;
+        every.protocol.labeling = Labeling::Gray;
         let mut known: toml::Table = every
             .to_toml()
             .parse()
@@ -838,6 +912,9 @@ impl Config {
                 proto.bits_per_doublet,
                 "1 (on v) or 2 (on v and ω)",
             ));
+        }
+        if ![2, 4, 8].contains(&proto.levels) {
+            return Err(invalid("protocol.levels", proto.levels, "2, 4 or 8"));
         }
         for (i, &x) in self.sensing.controller_std.iter().enumerate() {
             positive(&format!("sensing.controller_std[{i}]"), x)?;
@@ -1021,11 +1098,43 @@ impl Config {
                     allowed: e.allowed,
                 })?;
         }
+        if self.protocol.levels > 2 && self.sensing.mode == SensingMode::Private {
+            self.validate_multilevel()?;
+        }
         if !(1..=MAX_REPLICATES).contains(&self.run.replicates) {
             return Err(invalid(
                 "run.replicates",
                 self.run.replicates,
                 &format!("1 to {MAX_REPLICATES}"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// What multilevel doublets (`protocol.levels > 2`) refuse: a measured plant (its
+    /// estimate models binary doublets) and a world whose doublets are not screened, where
+    /// the eavesdroppers' window smoother would have to judge them (it enumerates binary
+    /// patterns only).
+    fn validate_multilevel(&self) -> Result<(), ConfigError> {
+        if self.postprocess.sizing == Sizing::Measured {
+            return Err(invalid(
+                "postprocess.sizing",
+                "measured",
+                "\"configured\" with protocol.levels > 2 (the measured plant's estimate models \
+                 binary doublets)",
+            ));
+        }
+        let world = self.world_model();
+        let per_doublet = matches!(world.camera, Camera::Instants { .. })
+            && self.eve.smoother_window.is_none()
+            && world.screens_doublets();
+        if !per_doublet {
+            return Err(invalid(
+                "protocol.levels",
+                self.protocol.levels,
+                "2 in this world (levels 4 and 8 need a world whose doublets are screened, a \
+                 camera at the sample instants and no eve.smoother_window: the eavesdroppers' \
+                 window smoother judges binary doublets only)",
             ));
         }
         Ok(())
@@ -1071,7 +1180,8 @@ impl Config {
     /// command, clipped to `controller.wheel_limit` per wheel, plus the largest per-wheel
     /// offset of the protocol, `k·(Δv + Δω·D/2)/r` (rad/s), stays within `robot.wheel_limit`;
     /// `k` is the largest step of the doublet's shape: 1, or `1 + a` for the three-step
-    /// doublet's middle step `−(1 + a)·s·Δ` (`private.prior_lag`).
+    /// doublet's middle step `−(1 + a)·s·Δ` (`private.prior_lag`), times the alphabet's
+    /// largest amplitude `(levels − 1)/√E` (1 for binary doublets).
     /// The robot refuses a pair outside its limit, so a larger Δ would make sessions whose
     /// steps are all erased: no bit, and no word why.
     fn validate_wheel_speeds(&self) -> Result<(), ConfigError> {
@@ -1082,7 +1192,13 @@ impl Config {
             (0.0, 0.0)
         };
         let half_axle = robot.axle_length / 2.0;
-        let largest_step = 1.0 + self.doublet_settle().unwrap_or(0.0);
+        // A multilevel alphabet's outermost symbols reach (levels − 1)/√E times Δ.
+        let peak = if self.sensing.mode == SensingMode::Private {
+            crate::private::Perturbation::of(self).amplitude(0)
+        } else {
+            1.0
+        };
+        let largest_step = (1.0 + self.doublet_settle().unwrap_or(0.0)) * peak;
         let offset = largest_step * (delta_v + delta_omega * half_axle) / robot.r;
         let room = robot.wheel_limit - controller.wheel_limit;
         if room < 0.0 {
@@ -1100,7 +1216,8 @@ impl Config {
         if offset <= room {
             return Ok(());
         }
-        // The three-step doublet's middle step `(1 + a)` scales the offset.
+        // The three-step doublet's middle step `(1 + a)` and the alphabet's largest amplitude
+        // scale the offset.
         let scale = if largest_step > 1.0 {
             format!("{largest_step:.4}·")
         } else {
@@ -1416,6 +1533,55 @@ mod tests {
                 .codeword_length(),
             7
         );
+    }
+
+    /// Multilevel doublets: 2, 4 or 8 levels; refused with a measured plant and where the
+    /// window smoother would judge; the wheel limit counts the outermost amplitude; the
+    /// resolved TOML names the alphabet only when it is not binary.
+    #[test]
+    fn multilevel_doublets_are_checked() {
+        let private = |extra: &str| format!("[sensing]\nmode = \"private\"\n{extra}");
+        let refused = |toml: &str, field: &str| {
+            let text = Config::from_toml(&private(toml), "m.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(text.contains(field), "{toml}: {text}");
+        };
+        refused("[protocol]\nlevels = 3\n", "2, 4 or 8");
+        refused(
+            "[protocol]\nlevels = 4\n[postprocess]\nsizing = \"measured\"\n",
+            "postprocess.sizing",
+        );
+        refused(
+            "[protocol]\nlevels = 4\n[world]\npreset = \"khepera-iv\"\n",
+            "protocol.levels",
+        );
+        refused(
+            "[protocol]\nlevels = 4\n[eve]\nsmoother_window = 2\n",
+            "protocol.levels",
+        );
+        // Δv = 0.3 m/s: its wheel offset Δv/r = 14.3 rad/s fits the 38 − 22 = 16 rad/s of
+        // room, the 4-level alphabet's outermost 3/√5·Δv/r = 19.2 rad/s does not.
+        let fast = "[controller]\nwheel_limit = 22.0\n[protocol]\ndelta_v = 0.3\n";
+        Config::from_toml(&private(fast), "f").unwrap();
+        refused(&format!("{fast}levels = 4\n"), "protocol.delta_v");
+        let four = Config::from_toml(
+            &private("[protocol]\nlevels = 4\nlabeling = \"gray\"\n"),
+            "g",
+        )
+        .unwrap();
+        let text = four.to_toml();
+        assert!(
+            text.contains("levels = 4") && text.contains("labeling = \"gray\""),
+            "{text}"
+        );
+        let back = Config::from_toml(&text, "back").unwrap();
+        assert_eq!(
+            (back.protocol.levels, back.protocol.labeling),
+            (4, Labeling::Gray)
+        );
+        assert!(!Config::default().to_toml().contains("levels"));
+        assert_eq!(four.protocol.key_bits_per_doublet(), 2);
     }
 
     #[test]

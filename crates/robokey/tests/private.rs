@@ -44,17 +44,22 @@ fn every_partys_llr_is_calibrated() {
     for kind in BitKind::ALL {
         let of_kind: Vec<&DoubletBit> = all.iter().filter(|b| b.kind == kind).collect();
         assert!(of_kind.len() > 15_000, "{}", of_kind.len());
-        let parties: [(&str, Llr); 3] = [
-            ("controller", |b| b.controller),
-            ("camera", |b| b.camera),
-            ("commands", |b| b.llr_of(EveStrategy::Commands)),
-        ];
-        for (name, llr) in parties {
-            let pairs: Vec<(f64, bool)> =
-                of_kind.iter().map(|b| prediction(llr(b), b.bit)).collect();
-            let report = check_calibration(&pairs, 10, 1e-3).unwrap();
-            assert!(report.passed, "{kind:?} {name}: {report:?}");
-        }
+        assert_every_party_calibrated(&of_kind, &format!("{kind:?}"));
+    }
+}
+
+/// The controller's, the camera Eve's and the commands Eve's LLRs of `group` pass the
+/// calibration test (10 equal-count bins, exact Poisson-binomial tails, α = 10⁻³).
+fn assert_every_party_calibrated(group: &[&DoubletBit], what: &str) {
+    let parties: [(&str, Llr); 3] = [
+        ("controller", |b| b.controller),
+        ("camera", |b| b.camera),
+        ("commands", |b| b.llr_of(EveStrategy::Commands)),
+    ];
+    for (name, llr) in parties {
+        let pairs: Vec<(f64, bool)> = group.iter().map(|b| prediction(llr(b), b.bit)).collect();
+        let report = check_calibration(&pairs, 10, 1e-3).unwrap();
+        assert!(report.passed, "{what} {name}: {report:?}");
     }
 }
 
@@ -141,14 +146,18 @@ fn the_commands_leak_is_the_predicted_residual() {
 /// Doublets per record of the exact-posterior test: 2¹⁰ bit patterns.
 const RECORD: usize = 10;
 
-/// The camera Eve's exact joint posterior over the 2ⁿ bit patterns of a record of n
-/// consecutive doublets, from everything she holds over it: her camera at every step, the
-/// controller's boundary samples, the commands. Linear-Gaussian model of the whole record
-/// (the means are exactly linear in the v-bits; the covariance is propagated along the
-/// nominal path): no factorisation across doublets. Returns the surprisal of the true pattern.
-fn joint_surprisal(config: &Config, rows: &[robokey::sim::TraceRow]) -> f64 {
+/// The camera Eve's exact joint posterior over the `levels`ⁿ symbol patterns of a record of
+/// n = `labels.len()` consecutive doublets (one dimension, on v), from everything she holds
+/// over it: her camera at every step, the controller's boundary samples, the commands.
+/// Linear-Gaussian model of the whole record (the means are exactly linear in the v-offsets;
+/// the covariance is propagated along the nominal path): no factorisation across doublets.
+/// Returns the surprisal (bits) of the true labels `labels`.
+fn joint_surprisal(config: &Config, rows: &[robokey::sim::TraceRow], labels: &[usize]) -> f64 {
+    let record = labels.len();
+    let alphabet = robokey::private::Perturbation::of(config);
+    let levels = usize::from(alphabet.levels);
     let t = config.robot.sample_time;
-    let steps = 2 * RECORD;
+    let steps = 2 * record;
     let q = Matrix3::from_diagonal(&config.noise.process_std.map(|s| s * s).into());
     let start =
         PoseObservation::new(rows[0].measurement.into(), config.sensing.controller_std).fuse(
@@ -169,7 +178,7 @@ fn joint_surprisal(config: &Config, rows: &[robokey::sim::TraceRow]) -> f64 {
         poses
     };
     let base = path(&|_| 0.0);
-    let effect: Vec<Vec<Pose>> = (0..RECORD)
+    let effect: Vec<Vec<Pose>> = (0..record)
         .map(|j| {
             let shifted = path(&|k| match k {
                 _ if k == 2 * j => delta,
@@ -208,7 +217,7 @@ fn joint_surprisal(config: &Config, rows: &[robokey::sim::TraceRow]) -> f64 {
     let mut observed: Vec<(usize, Pose, [f64; 3])> = (1..=steps)
         .map(|k| (k, rows[k].camera.unwrap().into(), config.eve.camera_std))
         .collect();
-    observed.extend((1..=RECORD).map(|j| {
+    observed.extend((1..=record).map(|j| {
         (
             2 * j,
             rows[2 * j].measurement.into(),
@@ -219,13 +228,13 @@ fn joint_surprisal(config: &Config, rows: &[robokey::sim::TraceRow]) -> f64 {
     let mut h = DMatrix::<f64>::zeros(m, dim);
     let mut noise = DMatrix::<f64>::zeros(m, m);
     let mut residual = DVector::<f64>::zeros(m);
-    let mut g = DMatrix::<f64>::zeros(m, RECORD);
+    let mut g = DMatrix::<f64>::zeros(m, record);
     for (row, (k, y, std)) in observed.iter().enumerate() {
         h.view_mut((3 * row, 0), (3, dim)).copy_from(&sens[*k]);
         for i in 0..3 {
             noise[(3 * row + i, 3 * row + i)] = std[i] * std[i];
             residual[3 * row + i] = y[i] - base[*k][i];
-            for j in 0..RECORD {
+            for j in 0..record {
                 g[(3 * row + i, j)] = effect[j][*k][i];
             }
         }
@@ -234,22 +243,25 @@ fn joint_surprisal(config: &Config, rows: &[robokey::sim::TraceRow]) -> f64 {
     let chol = cov.cholesky().expect("positive definite");
     let field = g.transpose() * chol.solve(&residual);
     let coupling = g.transpose() * chol.solve(&g);
-    // ln p(y | s) = const + sᵀ·field − ½·sᵀ·coupling·s, s_j = ±1.
-    let signs = |pattern: usize| {
-        DVector::from_fn(
-            RECORD,
-            |j, _| if pattern >> j & 1 == 0 { 1.0 } else { -1.0 },
-        )
+    // ln p(y | s) = const + sᵀ·field − ½·sᵀ·coupling·s, s_j the amplitude of doublet j's
+    // label (±1 binary); pattern p holds label j as its j-th base-`levels` digit.
+    let amplitudes = |pattern: usize| {
+        DVector::from_fn(record, |j, _| {
+            alphabet.amplitude(pattern / levels.pow(j as u32) % levels)
+        })
     };
-    let ln_p: Vec<f64> = (0..1usize << RECORD)
+    let ln_p: Vec<f64> = (0..levels.pow(record as u32))
         .map(|p| {
-            let s = signs(p);
+            let s = amplitudes(p);
             s.dot(&field) - 0.5 * s.dot(&(&coupling * &s))
         })
         .collect();
     let max = ln_p.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let ln_total = max + ln_p.iter().map(|v| (v - max).exp()).sum::<f64>().ln();
-    let truth = (0..RECORD).fold(0, |acc, j| acc | usize::from(rows[2 * j].bit.unwrap()) << j);
+    let truth = labels
+        .iter()
+        .rev()
+        .fold(0, |acc, &label| acc * levels + label);
     (ln_total - ln_p[truth]) / std::f64::consts::LN_2
 }
 
@@ -272,7 +284,12 @@ fn the_model_bound_holds_against_the_exact_joint_posterior() {
                 .filter_map(|j| by_step.get(&((k + 2 * j) as u32)).copied())
                 .collect();
             if record.len() == RECORD {
-                joint.push(joint_surprisal(&config, &run.trace[k..=k + 2 * RECORD]));
+                let labels: Vec<usize> = record.iter().map(|b| usize::from(b.bit)).collect();
+                joint.push(joint_surprisal(
+                    &config,
+                    &run.trace[k..=k + 2 * RECORD],
+                    &labels,
+                ));
                 factorised.push(
                     record
                         .iter()
@@ -303,6 +320,99 @@ fn the_model_bound_holds_against_the_exact_joint_posterior() {
         joint[low],
         mean(&joint),
         mean(&factorised)
+    );
+    assert!(bound <= joint[low], "{bound} > {}", joint[low]);
+}
+
+/// Four levels per dimension (seed 2023, 20 sessions, two dimensions, ≈ 36,000 bits): the
+/// controller's LLRs given the lower slice (multistage), the camera and commands Eve's given
+/// the bits before (her chain, whose sum is her surprisal of the symbols) pass the
+/// calibration test on each kind and place of bit.
+#[test]
+fn multilevel_llrs_are_calibrated() {
+    let all = bits(
+        &private("[protocol]\nbits_per_doublet = 2\nlevels = 4\n"),
+        20,
+    );
+    for kind in BitKind::ALL {
+        for place in 0..2 {
+            // Four bits per doublet: v's label then ω's, lowest place first.
+            let group: Vec<&DoubletBit> = all
+                .iter()
+                .enumerate()
+                .filter(|(i, b)| b.kind == kind && i % 2 == place)
+                .map(|(_, b)| b)
+                .collect();
+            assert!(group.len() > 5_000, "{}", group.len());
+            assert_every_party_calibrated(&group, &format!("{kind:?} place {place}"));
+        }
+    }
+}
+
+/// Four levels on v (seed 2023, every all-carrying record of 5 doublets, 4⁵ symbol patterns,
+/// of 25 sessions): the key's sizing — the bits' assumed separations folded into one
+/// equivalent separation, as a block's is — may not exceed the empirical ε-quantile of the
+/// camera Eve's exact surprisal of the symbols (ε = 0.05, at its lower 3σ order statistic).
+#[test]
+fn the_multilevel_bound_holds_against_the_exact_joint_posterior() {
+    use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
+    const SYMBOLS: usize = 5;
+    let config = private("[protocol]\nlevels = 4\n");
+    let epsilon = 0.05;
+    let (mut joint, mut bounds) = (Vec::new(), Vec::new());
+    for replicate in 0..25 {
+        let run = simulate(&config, replicate, true).unwrap();
+        let private = run.private.unwrap();
+        let mut by_step: std::collections::HashMap<u32, Vec<&DoubletBit>> =
+            std::collections::HashMap::new();
+        for b in &private.bits {
+            by_step.entry(b.step).or_default().push(b);
+        }
+        let mut k = 0;
+        while k + 2 * SYMBOLS < run.trace.len() {
+            let record: Vec<&Vec<&DoubletBit>> = (0..SYMBOLS)
+                .filter_map(|j| by_step.get(&((k + 2 * j) as u32)))
+                .collect();
+            if record.len() == SYMBOLS {
+                let labels: Vec<usize> = record
+                    .iter()
+                    .map(|bits| usize::from(bits[0].bit) | usize::from(bits[1].bit) << 1)
+                    .collect();
+                joint.push(joint_surprisal(
+                    &config,
+                    &run.trace[k..=k + 2 * SYMBOLS],
+                    &labels,
+                ));
+                let separations: Vec<f64> = record
+                    .iter()
+                    .flat_map(|bits| bits.iter().map(|b| b.assumed_separation))
+                    .collect();
+                let counts = separation_counts(&separations, separations.len());
+                let micros = equivalent_separation(&counts, 0, epsilon).unwrap();
+                bounds.push(
+                    gaussian_llr_smooth_min_entropy(
+                        separations.len() as u64,
+                        micros as f64 * 1e-6,
+                        epsilon,
+                    )
+                    .unwrap()
+                    .h_min,
+                );
+            }
+            k += 2 * SYMBOLS;
+        }
+    }
+    let count = joint.len();
+    assert!(count > 1_000, "{count}");
+    let bound = bounds.iter().copied().fold(0.0_f64, f64::max);
+    joint.sort_by(f64::total_cmp);
+    let m = count as f64;
+    let low = (m * epsilon - 3.0 * (m * epsilon * (1.0 - epsilon)).sqrt()).floor() as usize;
+    println!(
+        "{count} records: largest bound {bound:.3} bits; exact joint surprisal quantile {:.3} \
+         (lower order statistic {:.3})",
+        joint[(m * epsilon) as usize],
+        joint[low]
     );
     assert!(bound <= joint[low], "{bound} > {}", joint[low]);
 }

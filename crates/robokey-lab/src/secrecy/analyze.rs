@@ -266,9 +266,38 @@ fn analyze_point(
             pool.estimate = Some(estimate);
         }
     }
-    let mut blocks = pipeline::post_process(&pools, &settings, &mut public);
+    // Multilevel doublets: each block's slices reconciled one after another, each its own
+    // block through the endpoints (docs/secrecy.md, "Multilevel doublets").
+    let slices = if is_private {
+        robokey::private::Perturbation::of(config).bits_per_symbol()
+    } else {
+        1
+    };
+    let key_bits = config.protocol.key_bits_per_doublet();
+    let sliced: Vec<pipeline::Pool> = if slices > 1 {
+        pools
+            .iter()
+            .flat_map(|pool| pool.slices(key_bits, slices))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut blocks = if slices > 1 {
+        // A slice of a pool of at least B bits has at least ⌈B/m⌉: the endpoints cut the
+        // slices where the pools were cut.
+        let slice_settings = BlockSettings {
+            block_bits: settings.block_bits.div_ceil(slices),
+            ..settings.clone()
+        };
+        pipeline::post_process(&sliced, &slice_settings, &mut public)
+    } else {
+        pipeline::post_process(&pools, &settings, &mut public)
+    };
+    if slices > 1 {
+        pipeline::fail_later_slices(&mut blocks, slices);
+    }
     if is_private {
-        refuse_what_the_commands_reveal(config, runs, options, &pools, &mut blocks);
+        refuse_what_the_commands_reveal(config, runs, options, &pools, &mut blocks, slices);
     }
     if is_private && !measured {
         // For people: the largest separation of any bit.
@@ -379,9 +408,11 @@ fn refuse_what_the_commands_reveal(
     options: &SecrecyOptions,
     pools: &[pipeline::Pool],
     blocks: &mut [Block],
+    slices: usize,
 ) {
     let mut admitted = runs.iter().filter(|r| options.pooling.admits(r));
-    for (pool, block) in pools.iter().zip(blocks.iter_mut()) {
+    // A pool's slices share its sessions, and so its verdict.
+    for (pool, slice_blocks) in pools.iter().zip(blocks.chunks_mut(slices)) {
         let sessions: Vec<&[DoubletSamples]> = admitted
             .by_ref()
             .take(pool.sessions as usize)
@@ -389,13 +420,16 @@ fn refuse_what_the_commands_reveal(
             .map(|p| p.controller_samples.as_slice())
             .collect();
         let estimate = pool.estimate.as_ref();
-        if let Some(reason) = sized_block_refusal(config, &sessions, options.epsilon, estimate) {
+        let Some(reason) = sized_block_refusal(config, &sessions, options.epsilon, estimate) else {
+            continue;
+        };
+        for block in slice_blocks {
             block.secret_bits = 0;
             block.assumption_exceeds_realised = false;
             // A block already without a key keeps its own reason beside the check's.
             block.reason = Some(match block.reason.take() {
                 Some(earlier) => format!("{earlier}; {reason}"),
-                None => reason,
+                None => reason.clone(),
             });
         }
     }
@@ -472,6 +506,14 @@ fn check_fits(
             return Err(LabError::SensingMode(format!(
                 "point {name:?}: --assume-eve-error {p} does not apply in private mode, whose \
                  key is sized from Eve's camera noise (set eve.camera_std in the sweep)"
+            )));
+        }
+        if config.protocol.levels > 2 && options.sizing != Sizing::Configured {
+            return Err(LabError::SensingMode(format!(
+                "point {name:?}: --sizing {} with protocol.levels = {}: the motion-noise \
+                 estimate models binary doublets (allowed: configured)",
+                options.sizing.name(),
+                config.protocol.levels
             )));
         }
     }

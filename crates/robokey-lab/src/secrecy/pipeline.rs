@@ -243,6 +243,10 @@ pub struct Block {
     /// Measured sizing: what the controller measured for the block.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub estimate: Option<BlockEstimate>,
+    /// Whether the block ended for failed reconciliation (so a multilevel block's later
+    /// slices, decoded given it, cannot be either).
+    #[serde(skip)]
+    pub failed_reconciliation: bool,
 }
 
 /// Settings of post-processing in the simulator.
@@ -311,6 +315,7 @@ fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
         realised: realised(pool, &[], n, 0, leak_confirmation, settings.epsilon),
         assumption_exceeds_realised: false,
         estimate: None,
+        failed_reconciliation: false,
     };
     finish(&mut block, settings, None);
     block
@@ -498,6 +503,7 @@ fn endpoint_block(
         ),
         assumption_exceeds_realised: false,
         estimate: pool.estimate.clone(),
+        failed_reconciliation: aborted == Some(AbortReason::Reconciliation),
     };
     finish(&mut block, settings, aborted);
     if let Some(why) = pool.estimate.as_ref().and_then(|e| e.refused.clone()) {
@@ -588,7 +594,82 @@ fn realised(
     }
 }
 
+/// A multilevel block's slices decode given the earlier slices' reconciled bits: when
+/// one of a pool's `slices` consecutive blocks failed reconciliation, the later ones cannot
+/// be decoded and yield no key.
+pub fn fail_later_slices(blocks: &mut [Block], slices: usize) {
+    for group in blocks.chunks_mut(slices) {
+        let Some(first) = group.iter().position(|b| b.failed_reconciliation) else {
+            continue;
+        };
+        for block in &mut group[first + 1..] {
+            block.secret_bits = 0;
+            block.failed_reconciliation = true;
+            block.assumption_exceeds_realised = false;
+            block.reason = Some(
+                "an earlier slice of the block failed reconciliation: this slice's LLRs are \
+                 conditioned on it"
+                    .to_owned(),
+            );
+        }
+    }
+}
+
 impl Pool {
+    /// The pool's multilevel slices (docs/secrecy.md, "Multilevel doublets"): slice `s`
+    /// holds the bits at place `s` of every symbol's label (`m` = `slices` bits per symbol,
+    /// `key_bits` per doublet, bit `i` of a session at place `(i mod key_bits) mod m`),
+    /// each session's in order, with the controller's LLRs given the lower slices and its
+    /// decisions their signs. The first slice counts the pool's sessions, the others none
+    /// (the same sessions).
+    #[must_use]
+    pub fn slices(&self, key_bits: usize, slices: usize) -> Vec<Self> {
+        let place = |i: usize| (i % key_bits) % slices;
+        (0..slices)
+            .map(|slice| {
+                let mut out = Self {
+                    sessions: if slice == 0 { self.sessions } else { 0 },
+                    last_session: self.last_session,
+                    runs: self.runs.clone(),
+                    ..Self::default()
+                };
+                let mut start = 0;
+                for (session, &len) in self.lengths.iter().enumerate() {
+                    let picked: Vec<usize> = (0..len).filter(|&i| place(i) == slice).collect();
+                    let llrs = self.controller_llrs.get(session).filter(|l| l.len() == len);
+                    let pick =
+                        |all: &[u8]| picked.iter().map(|&i| all[start + i]).collect::<Vec<_>>();
+                    out.robot.extend(pick(&self.robot));
+                    out.eve.extend(pick(&self.eve));
+                    match llrs {
+                        Some(llrs) => out
+                            .controller
+                            .extend(picked.iter().map(|&i| u8::from(llrs[i] < 0.0))),
+                        None => out.controller.extend(pick(&self.controller)),
+                    }
+                    if self.eve_posteriors.len() == self.robot.len() {
+                        out.eve_posteriors
+                            .extend(picked.iter().map(|&i| self.eve_posteriors[start + i]));
+                    }
+                    out.controller_llrs.push(
+                        llrs.map(|l| picked.iter().map(|&i| l[i]).collect())
+                            .unwrap_or_default(),
+                    );
+                    if let Some(separations) = self.separations.get(session) {
+                        out.separations.push(if separations.len() == len {
+                            picked.iter().map(|&i| separations[i]).collect()
+                        } else {
+                            separations.clone()
+                        });
+                    }
+                    out.lengths.push(picked.len());
+                    start += len;
+                }
+                out
+            })
+            .collect()
+    }
+
     /// Each pooled session's (robot, controller) bits, in order.
     /// The equivalent separation of the pool's bits (millionths) at smoothing `epsilon`,
     /// nothing disclosed: as the controller's endpoint finds it for a block.

@@ -57,8 +57,8 @@ pub struct PrivateFigures {
     pub doublets: u64,
     /// Fraction of them the turn gate left without a bit.
     pub gated_fraction: f64,
-    /// Bits per doublet.
-    pub bits_per_doublet: u8,
+    /// Key bits per doublet (`protocol.bits_per_doublet · log₂ protocol.levels`).
+    pub bits_per_doublet: usize,
     /// The controller's error rate over the bits carried.
     pub controller_error: Option<Rate>,
     /// The adversary's error rate over the bits carried.
@@ -281,7 +281,7 @@ pub fn figures(
     Ok(PrivateFigures {
         doublets,
         gated_fraction: gated as f64 / doublets.max(1) as f64,
-        bits_per_doublet: config.protocol.bits_per_doublet,
+        bits_per_doublet: config.protocol.key_bits_per_doublet(),
         controller_error: error_rate(&all, |b| b.controller),
         eve_error: error_rate(&all, |b| b.llr_of(adversary)),
         controller_calibration: calibration(&all, |b| b.controller),

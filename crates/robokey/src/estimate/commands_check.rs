@@ -73,9 +73,7 @@ pub fn doublet_residuals(
         .map(|(kind, &bit_kind)| {
             let with = |value: usize| {
                 let pattern = (bits & !(1 << kind)) | (value << kind);
-                model
-                    .perturbation
-                    .pattern([(pattern & 1) as u8, (pattern >> 1 & 1) as u8])
+                model.perturbation.pattern(pattern as u64)
             };
             let [plus, minus] = [with(0), with(1)].map(|h| end(Some(h)));
             BoundaryResidual {

@@ -54,7 +54,7 @@ pub(crate) struct PrivateController {
     next_sample: u32,
     /// One past the latest step the robot reported on.
     reported: u32,
-    /// Each doublet's decided bits `v | ω << 1` (0 when not decided).
+    /// Each doublet's decided bits `v | ω << m` (0 when not decided).
     decided: Vec<u64>,
     /// The wheels' nominal speed after the inputs commanded so far, through the prior lag
     /// (m/s, rad/s; at rest before the first): what the next doublet starts from. The bits'
@@ -246,8 +246,9 @@ impl PrivateController {
         }
         let over = self.next_sample > agreed.steps && self.reported > agreed.steps;
         if life.running() && over && self.pending.is_empty() {
-            let bits_per_doublet = usize::from(self.plan.perturbation.bits_per_doublet);
-            let key = life.fates.accepted_key(&self.decided, bits_per_doublet);
+            let key = life
+                .fates
+                .accepted_key(&self.decided, self.plan.perturbation.key_bits());
             life.close(agreed.confirmer.clone(), key, false, Outcome::Kept);
         }
     }
@@ -266,12 +267,17 @@ impl PrivateController {
         };
         let taken = &samples[..=length];
         let assumed = stated_camera_view(taken, self.controller_std, self.camera_std);
-        let evidence = self.model.evidence(&p.inputs, &view);
+        let (evidence, log_likelihoods) = self.model.evidence_and_likelihoods(&p.inputs, &view);
         let decision = DoubletDecision {
             doublet: p.doublet,
             step: self.plan.steps_per_doublet() * p.doublet,
             inputs: p.inputs,
             evidence,
+            log_likelihoods: if self.model.perturbation.levels > 2 {
+                log_likelihoods[..self.model.perturbation.patterns()].to_vec()
+            } else {
+                Vec::new()
+            },
             assumed_separation: self.model.sizing_separations(&p.inputs, &assumed),
             samples: [samples[0], samples[1], samples[length]],
         };

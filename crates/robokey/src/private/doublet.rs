@@ -5,6 +5,7 @@
 
 use nalgebra::Vector2;
 
+use crate::config::{Config, Labeling};
 use crate::model::{Pose, Unicycle, unicycle_step};
 use crate::world::lagged;
 
@@ -14,16 +15,24 @@ pub fn sign(bit: u8) -> f64 {
     if bit == 0 { 1.0 } else { -1.0 }
 }
 
-/// The key bits a doublet carries: on v, and on ω when two bits ride per doublet.
+/// The most key bits a doublet carries: two dimensions of an 8-level alphabet.
+pub const MAX_BITS: usize = 6;
+
+/// The key bits a doublet carries: a symbol on v and, with two dimensions, one on ω, each
+/// of log₂ `levels` bits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Perturbation {
     /// `Δ = [Δv, Δω]` (m/s, rad/s).
     pub delta: Unicycle,
-    /// 1 (on v) or 2 (on v and ω).
+    /// Dimensions: 1 (on v) or 2 (on v and ω).
     pub bits_per_doublet: u8,
     /// The third step's share `a = e^(−T/τ)` of the first step's offset, for a prior
     /// actuator lag τ > 0 (s): a three-step doublet; `None`: two steps (τ = 0).
     pub settle: Option<f64>,
+    /// Amplitude levels per dimension: 2, 4 or 8.
+    pub levels: u8,
+    /// Which label bits pick which amplitude.
+    pub labeling: Labeling,
 }
 
 /// The three-step doublet's third-step share `a = e^(−T/τ)` for sample time `T` and prior
@@ -39,22 +48,80 @@ pub fn settle_share(sample_time: f64, prior_lag: f64) -> Option<f64> {
 }
 
 impl Perturbation {
-    /// Number of bit patterns a doublet can carry: 2 or 4. Pattern `h` has v-bit `h & 1`
-    /// and ω-bit `h >> 1`.
+    /// A binary doublet: one key bit per dimension.
     #[must_use]
-    pub fn patterns(&self) -> usize {
-        1 << self.bits_per_doublet
+    pub fn binary(delta: Unicycle, bits_per_doublet: u8, settle: Option<f64>) -> Self {
+        Self {
+            delta,
+            bits_per_doublet,
+            settle,
+            levels: 2,
+            labeling: Labeling::Natural,
+        }
     }
 
-    /// The first step's offset `s·Δ` for pattern `h` (the second step applies its negative).
+    /// The doublets of `config`: its Δ (Δω 0 with one dimension), dimensions, shape and
+    /// alphabet.
+    #[must_use]
+    pub fn of(config: &Config) -> Self {
+        Self {
+            delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
+            bits_per_doublet: config.protocol.bits_per_doublet,
+            settle: config.doublet_settle(),
+            levels: config.protocol.levels,
+            labeling: config.protocol.labeling,
+        }
+    }
+
+    /// Key bits per dimension, `log₂ levels`.
+    #[must_use]
+    pub fn bits_per_symbol(&self) -> usize {
+        self.levels.trailing_zeros() as usize
+    }
+
+    /// Key bits per doublet: `bits_per_doublet · log₂ levels` (at most [`MAX_BITS`]).
+    #[must_use]
+    pub fn key_bits(&self) -> usize {
+        usize::from(self.bits_per_doublet) * self.bits_per_symbol()
+    }
+
+    /// Number of bit patterns a doublet can carry, `2^key_bits`. Pattern `h` holds the
+    /// v-symbol's label in its low `m = log₂ levels` bits and the ω-symbol's in the next `m`
+    /// (binary: v-bit `h & 1`, ω-bit `h >> 1`).
+    #[must_use]
+    pub fn patterns(&self) -> usize {
+        1 << self.key_bits()
+    }
+
+    /// The dimension (0: v, 1: ω) key bit `i` of a doublet belongs to.
+    #[must_use]
+    pub fn dimension_of(&self, bit: usize) -> usize {
+        bit / self.bits_per_symbol()
+    }
+
+    /// The amplitude of symbol label `label`: `(levels − 1 − 2i)/√E` with `i` the label's
+    /// amplitude index under the labeling and `E = (levels² − 1)/3` the alphabet's mean
+    /// square (binary: `s = +1` for bit 0, `−1` for bit 1).
+    #[must_use]
+    pub fn amplitude(&self, label: usize) -> f64 {
+        let levels = f64::from(self.levels);
+        let index = self
+            .labeling
+            .index(label & usize::from(self.levels).saturating_sub(1)) as f64;
+        let mean_square = (levels * levels - 1.0) / 3.0;
+        (levels - 1.0 - 2.0 * index) / mean_square.sqrt()
+    }
+
+    /// The first step's offset `a·Δ` for pattern `h` (the later steps apply its shares).
     #[must_use]
     pub fn offset(&self, pattern: usize) -> Unicycle {
+        let m = self.bits_per_symbol();
         let omega = if self.bits_per_doublet == 2 {
-            sign((pattern >> 1) as u8) * self.delta.y
+            self.amplitude(pattern >> m) * self.delta.y
         } else {
             0.0
         };
-        Unicycle::new(sign((pattern & 1) as u8) * self.delta.x, omega)
+        Unicycle::new(self.amplitude(pattern) * self.delta.x, omega)
     }
 
     /// Steps a doublet occupies: 2, or 3 with a prior lag.
@@ -92,15 +159,11 @@ impl Perturbation {
         })
     }
 
-    /// The pattern of bits `[v, ω]` (ω ignored with one bit per doublet).
+    /// The pattern of a doublet's bit word (the robot's `v | ω << m` draws): its low
+    /// [`Self::key_bits`] bits.
     #[must_use]
-    pub fn pattern(&self, bits: [u8; 2]) -> usize {
-        usize::from(bits[0] & 1)
-            | if self.bits_per_doublet == 2 {
-                usize::from(bits[1] & 1) << 1
-            } else {
-                0
-            }
+    pub fn pattern(&self, word: u64) -> usize {
+        (word & ((1 << self.key_bits()) - 1)) as usize
     }
 }
 
@@ -262,11 +325,7 @@ mod tests {
             first: Unicycle::new(0.1, 0.0),
             second: Unicycle::new(0.1, 0.0),
         };
-        let p = Perturbation {
-            delta: Unicycle::new(0.035, 0.0),
-            bits_per_doublet: 1,
-            settle: None,
-        };
+        let p = Perturbation::binary(Unicycle::new(0.035, 0.0), 1, None);
         for h in 0..2 {
             let shift = end_shift(&inputs, &Pose::new(0.3, -0.2, 0.7), &p, h);
             assert!(shift.norm() < 1e-15, "{shift}");
@@ -284,11 +343,7 @@ mod tests {
                 first: Unicycle::new(0.12, omega),
                 second: Unicycle::new(0.1, omega * 0.8),
             };
-            let p = Perturbation {
-                delta: Unicycle::new(0.035, 0.0),
-                bits_per_doublet: 1,
-                settle: None,
-            };
+            let p = Perturbation::binary(Unicycle::new(0.035, 0.0), 1, None);
             for h in 0..2 {
                 let s = sign(h as u8);
                 let predicted = v_residual(start.z, omega, s, 0.035, T);
@@ -299,11 +354,7 @@ mod tests {
                 );
                 assert!(predicted.norm() > 0.5 * T * 0.035 * (T * omega).abs());
             }
-            let p2 = Perturbation {
-                delta: Unicycle::new(0.0, 0.035),
-                bits_per_doublet: 2,
-                settle: None,
-            };
+            let p2 = Perturbation::binary(Unicycle::new(0.0, 0.035), 2, None);
             let theta_1 = start.z + T * omega;
             for h in [0, 2] {
                 let s = sign((h >> 1) as u8);
@@ -341,11 +392,7 @@ mod tests {
     fn the_three_step_doublet_leaves_a_first_order_lag_nothing() {
         use nalgebra::Vector2 as WheelSpeeds;
         for tau in [0.02, 0.05, 0.1, 0.5] {
-            let p = Perturbation {
-                delta: Unicycle::new(1.0, 0.0),
-                bits_per_doublet: 1,
-                settle: settle_share(T, tau),
-            };
+            let p = Perturbation::binary(Unicycle::new(1.0, 0.0), 1, settle_share(T, tau));
             let a = p.settle.expect("three steps");
             let run = |steps: &[Unicycle]| {
                 steps
@@ -373,21 +420,71 @@ mod tests {
 
     #[test]
     fn patterns_and_offsets() {
-        let two = Perturbation {
-            delta: Unicycle::new(0.035, 0.02),
-            bits_per_doublet: 2,
-            settle: None,
-        };
+        let two = Perturbation::binary(Unicycle::new(0.035, 0.02), 2, None);
         assert_eq!(two.patterns(), 4);
         assert_eq!(two.offset(0), Unicycle::new(0.035, 0.02));
         assert_eq!(two.offset(3), Unicycle::new(-0.035, -0.02));
-        assert_eq!(two.pattern([1, 1]), 3);
-        let one = Perturbation {
-            delta: Unicycle::new(0.035, 0.02),
-            bits_per_doublet: 1,
-            settle: None,
-        };
+        assert_eq!(two.pattern(0b111), 3);
+        let one = Perturbation::binary(Unicycle::new(0.035, 0.02), 1, None);
         assert_eq!(one.offset(1), Unicycle::new(-0.035, 0.0));
-        assert_eq!(one.pattern([1, 1]), 1);
+        assert_eq!(one.pattern(0b11), 1);
+    }
+
+    fn alphabet(levels: u8, labeling: Labeling) -> Perturbation {
+        Perturbation {
+            delta: Unicycle::new(1.0, 1.0),
+            bits_per_doublet: 2,
+            settle: None,
+            levels,
+            labeling,
+        }
+    }
+
+    /// Every alphabet has the binary alphabet's power (mean square 1), evenly spaced
+    /// amplitudes `2/√E` apart, and its labeling: natural flips the lowest bit between
+    /// neighbours, Gray exactly one bit; binary is `±1`.
+    #[test]
+    fn multilevel_alphabets_keep_the_binary_power_and_their_labeling() {
+        for levels in [2_u8, 4, 8] {
+            let n = usize::from(levels);
+            let step = 2.0 / ((n * n - 1) as f64 / 3.0).sqrt();
+            for labeling in [Labeling::Natural, Labeling::Gray] {
+                let p = alphabet(levels, labeling);
+                let mean_square = (0..n).map(|b| p.amplitude(b).powi(2)).sum::<f64>() / n as f64;
+                assert!((mean_square - 1.0).abs() < 1e-12, "{levels} {labeling:?}");
+                // Labels in order of decreasing amplitude.
+                let mut labels: Vec<usize> = (0..n).collect();
+                labels.sort_by(|&a, &b| p.amplitude(b).total_cmp(&p.amplitude(a)));
+                for pair in labels.windows(2) {
+                    let gap = p.amplitude(pair[0]) - p.amplitude(pair[1]);
+                    assert!((gap - step).abs() < 1e-12, "{levels} {labeling:?}: {gap}");
+                    let differ = pair[0] ^ pair[1];
+                    match labeling {
+                        Labeling::Gray => assert_eq!(differ.count_ones(), 1),
+                        Labeling::Natural => assert_eq!(differ & 1, 1),
+                    }
+                }
+            }
+        }
+        let binary = alphabet(2, Labeling::Natural);
+        assert_eq!([binary.amplitude(0), binary.amplitude(1)], [1.0, -1.0]);
+        assert_eq!(binary.offset(2), Unicycle::new(1.0, -1.0));
+    }
+
+    /// A 4-level doublet on two dimensions: 4 key bits, 16 patterns, the v label in the low
+    /// two bits of the pattern and the ω label in the next two.
+    #[test]
+    fn a_multilevel_pattern_holds_both_labels() {
+        let p = alphabet(4, Labeling::Natural);
+        assert_eq!((p.key_bits(), p.patterns()), (4, 16));
+        let a = |label: usize| p.amplitude(label);
+        assert_eq!(p.offset(0b10_01), Unicycle::new(a(1), a(2)));
+        assert_eq!(p.pattern(0b1_10_01), 0b10_01);
+        assert_eq!(
+            (p.dimension_of(0), p.dimension_of(1), p.dimension_of(2)),
+            (0, 0, 1)
+        );
+        let five = 5.0_f64.sqrt();
+        assert!((a(0) - 3.0 / five).abs() < 1e-15 && (a(3) + 3.0 / five).abs() < 1e-15);
     }
 }

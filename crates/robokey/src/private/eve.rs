@@ -123,7 +123,7 @@ pub struct DoubletEavesdropper {
     finished: bool,
     /// The robot's true bits of each doublet, where revealed (a measurement: see
     /// [`EveDoublet::camera_given_others`]).
-    truth: Vec<Option<[u8; 2]>>,
+    truth: Vec<Option<u64>>,
 }
 
 impl DoubletEavesdropper {
@@ -177,11 +177,12 @@ impl DoubletEavesdropper {
         }
     }
 
-    /// Reveals doublet `j`'s true bits `[v, ω]` — never to decide with: to measure her view
-    /// of each bit given the rest of the block ([`EveDoublet::camera_given_others`]).
-    pub fn reveal(&mut self, j: u32, bits: [u8; 2]) {
+    /// Reveals doublet `j`'s true bit word (the robot's draws, `v | ω << m`) — never to
+    /// decide with: to measure her view of each bit given the rest of the block
+    /// ([`EveDoublet::camera_given_others`]).
+    pub fn reveal(&mut self, j: u32, word: u64) {
         if let Some(slot) = self.truth.get_mut(j as usize) {
-            *slot = Some(bits);
+            *slot = Some(word);
         }
     }
 
@@ -403,36 +404,47 @@ impl DoubletEavesdropper {
         let last = length as usize;
         let c = |pose: Pose| PoseObservation::new(pose, *controller_std);
         let e = |i: usize| PoseObservation::new(filmed[i], *camera_std);
-        let camera = model.evidence(
-            &inputs,
-            &DoubletView {
-                start: c(start.sample).fuse(&e(0)),
-                middle: Some(e(1)),
-                late: (last == 3).then(|| e(2)),
-                end: Some(c(end.sample).fuse(&e(last))),
-                entry: None,
-            },
-        );
-        let commands = (self.judged == Eavesdroppers::Both).then(|| {
-            model.evidence(
-                &inputs,
-                &DoubletView {
-                    start: c(start.sample),
-                    middle: None,
-                    late: None,
-                    end: Some(c(end.sample)),
-                    entry: None,
-                },
-            )
-        });
+        let camera_view = DoubletView {
+            start: c(start.sample).fuse(&e(0)),
+            middle: Some(e(1)),
+            late: (last == 3).then(|| e(2)),
+            end: Some(c(end.sample).fuse(&e(last))),
+            entry: None,
+        };
+        let commands_view = DoubletView {
+            start: c(start.sample),
+            middle: None,
+            late: None,
+            end: Some(c(end.sample)),
+            entry: None,
+        };
+        let camera = model.evidence(&inputs, &camera_view);
+        let commands =
+            (self.judged == Eavesdroppers::Both).then(|| model.evidence(&inputs, &commands_view));
         self.decided[j as usize] = Some((camera.bits(), commands.map(|c| c.bits())));
+        // A multilevel symbol's bits are judged in a chain, each given the true ones before
+        // it, so that her realised bound is on the symbols; a binary doublet's bits as they
+        // are.
+        let truth = self.truth.get(j as usize).copied().flatten();
+        let chained = model.perturbation.levels > 2;
+        let given = |own: BitEvidence, view: &DoubletView| {
+            if !chained {
+                return Some(own);
+            }
+            truth.map(|word| BitEvidence {
+                llr: model.chain_llrs(&inputs, view, word),
+                separation: own.separation,
+            })
+        };
+        let camera_given_others = given(camera, &camera_view);
+        let commands_given_others = commands.and_then(|own| given(own, &commands_view));
         Some(EveDoublet {
             doublet: j,
             inputs,
             camera,
             commands,
-            camera_given_others: Some(camera),
-            commands_given_others: commands,
+            camera_given_others,
+            commands_given_others,
         })
     }
 }

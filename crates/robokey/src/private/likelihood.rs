@@ -24,7 +24,7 @@ use nalgebra::{
 
 use robokey_secrecy::special::ln_add_exp;
 
-use super::doublet::{DoubletInputs, Perturbation};
+use super::doublet::{DoubletInputs, MAX_BITS, Perturbation};
 use crate::config::Config;
 use crate::model::{Pose, Unicycle};
 
@@ -42,11 +42,7 @@ pub fn doublet_model_with(config: &Config, process_std: [f64; 3]) -> DoubletMode
     DoubletModel {
         sample_time: config.robot.sample_time,
         process_covariance: Matrix3::from_diagonal(&q.into()),
-        perturbation: Perturbation {
-            delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
-            bits_per_doublet: config.protocol.bits_per_doublet,
-            settle: config.doublet_settle(),
-        },
+        perturbation: Perturbation::of(config),
         lag: config.private.prior_lag,
     }
 }
@@ -150,22 +146,114 @@ pub struct DoubletModel {
 /// What a party can say about each bit of a doublet.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BitEvidence {
-    /// `ln P(view | bit 0) − ln P(view | bit 1)`, the other bit marginalised.
-    pub llr: [f64; 2],
+    /// `ln P(view | bit 0) − ln P(view | bit 1)`, the other bits marginalised (uniform);
+    /// entries beyond the doublet's key bits are 0.
+    pub llr: [f64; MAX_BITS],
     /// The Mahalanobis distance between the bit's two hypotheses under the model, the other
-    /// bit known (the larger over its values): the consistent Gaussian LLR has mean `d²/2`
+    /// bits known (the larger over their values): the consistent Gaussian LLR has mean `d²/2`
     /// and variance `d²`, and the error rate is `Q(d/2)`.
-    pub separation: [f64; 2],
+    pub separation: [f64; MAX_BITS],
 }
 
 impl BitEvidence {
-    /// The bits decided by the LLRs' signs, `v | ω << 1` (a bit is 1 when its LLR is
-    /// negative; an absent ω-bit, LLR 0, reads 0).
+    /// The bits decided by the LLRs' signs, bit `i` at `1 << i` (a bit is 1 when its LLR is
+    /// negative; an absent bit, LLR 0, reads 0): binary, `v | ω << 1`.
     #[must_use]
     pub fn bits(&self) -> u64 {
-        let bit = |llr: f64| u64::from(llr < 0.0);
-        bit(self.llr[0]) | bit(self.llr[1]) << 1
+        self.llr
+            .iter()
+            .enumerate()
+            .fold(0, |word, (i, &llr)| word | u64::from(llr < 0.0) << i)
     }
+}
+
+/// The most bit patterns a doublet can carry, `2^MAX_BITS`.
+pub const MAX_PATTERNS: usize = 1 << MAX_BITS;
+
+/// Each bit's separation from the patterns' pairwise `distance`: the largest over the
+/// other bits' values of the distance between the patterns differing in that bit alone; 0
+/// for an absent bit.
+pub(crate) fn separations_by(
+    perturbation: &Perturbation,
+    distance: impl Fn(usize, usize) -> f64,
+) -> [f64; MAX_BITS] {
+    let patterns = perturbation.patterns();
+    let mut separation = [0.0; MAX_BITS];
+    for (i, slot) in separation
+        .iter_mut()
+        .enumerate()
+        .take(perturbation.key_bits())
+    {
+        let mut pairs = (0..patterns)
+            .filter(|h| h >> i & 1 == 0)
+            .map(|h| distance(h, h | 1 << i));
+        let first = pairs.next().unwrap_or(0.0);
+        *slot = pairs.fold(first, f64::max);
+    }
+    separation
+}
+
+/// The evidence of each bit from the patterns' log-likelihoods `ll` (the other bits
+/// marginalised) and their pairwise `distance` ([`separations_by`]).
+pub(crate) fn bit_evidence(
+    ll: &[f64],
+    perturbation: &Perturbation,
+    distance: impl Fn(usize, usize) -> f64,
+) -> BitEvidence {
+    BitEvidence {
+        llr: bit_llrs(ll, perturbation, |_| (0, 0)),
+        separation: separations_by(perturbation, distance),
+    }
+}
+
+/// Each bit's LLR as multistage reconciliation decodes it: given `word`'s bits of the
+/// symbols' lower slices (bit `j`'s slice is its place `j mod m` in its symbol's label, `m =
+/// log₂ levels`), which the earlier slices' reconciliation gave the controller, the bits of
+/// its own and higher slices marginalised. Binary: the marginal LLRs.
+#[must_use]
+pub fn staged_llrs(ll: &[f64], perturbation: &Perturbation, word: u64) -> [f64; MAX_BITS] {
+    let m = perturbation.bits_per_symbol();
+    let word = perturbation.pattern(word);
+    let lower = |slice: usize| {
+        (0..perturbation.key_bits())
+            .filter(|j| j % m < slice)
+            .fold(0, |mask, j| mask | 1 << j)
+    };
+    bit_llrs(ll, perturbation, |i| (lower(i % m), word))
+}
+
+/// `ln Σ exp(ll[h])` over the patterns `h < patterns` whose bit `bit` is `value`, given
+/// `known`: the patterns must also agree with `word` on the bits of mask `known`.
+fn ln_sum_where(
+    ll: &[f64],
+    patterns: usize,
+    bit: usize,
+    value: usize,
+    known: (usize, usize),
+) -> f64 {
+    let (mask, word) = known;
+    let mut terms = (0..patterns)
+        .filter(|h| (h >> bit) & 1 == value && h & mask == word & mask)
+        .map(|h| ll[h]);
+    let first = terms.next().unwrap_or(f64::NEG_INFINITY);
+    terms.fold(first, ln_add_exp)
+}
+
+/// Each bit's LLR from the patterns' log-likelihoods `ll`: `ln Σ_{h: bᵢ=0} p(view|h) −
+/// ln Σ_{h: bᵢ=1} p(view|h)` over the patterns agreeing with `word` on the bits `known`,
+/// the rest marginalised.
+fn bit_llrs(
+    ll: &[f64],
+    perturbation: &Perturbation,
+    known: impl Fn(usize) -> (usize, usize),
+) -> [f64; MAX_BITS] {
+    let patterns = perturbation.patterns();
+    let mut llr = [0.0; MAX_BITS];
+    for (i, slot) in llr.iter_mut().enumerate().take(perturbation.key_bits()) {
+        *slot =
+            ln_sum_where(ll, patterns, i, 0, known(i)) - ln_sum_where(ll, patterns, i, 1, known(i));
+    }
+    llr
 }
 
 /// `∂f/∂x` of the Euler map at heading `θ` and speed `v` (m/s).
@@ -337,10 +425,14 @@ impl DoubletModel {
     }
 
     /// `ln p(view | pattern h)` up to a constant common to all patterns, for every pattern
-    /// (2 or 4; unused entries are −∞).
+    /// ([`Perturbation::patterns`]; unused entries are −∞).
     #[must_use]
-    pub fn log_likelihoods(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; 4] {
-        let mut out = [f64::NEG_INFINITY; 4];
+    pub fn log_likelihoods(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+    ) -> [f64; MAX_PATTERNS] {
+        let mut out = [f64::NEG_INFINITY; MAX_PATTERNS];
         for (h, slot) in out
             .iter_mut()
             .enumerate()
@@ -356,38 +448,50 @@ impl DoubletModel {
         out
     }
 
-    /// The LLR and separation of each bit (the ω entries are 0 with one bit per doublet).
+    /// The LLR and separation of each bit, the other bits marginalised (entries beyond the
+    /// key bits are 0).
     #[must_use]
     pub fn evidence(&self, inputs: &DoubletInputs, view: &DoubletView) -> BitEvidence {
+        self.evidence_and_likelihoods(inputs, view).0
+    }
+
+    /// [`Self::evidence`] with the patterns' log-likelihoods it came from
+    /// ([`Self::log_likelihoods`]).
+    #[must_use]
+    pub fn evidence_and_likelihoods(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+    ) -> (BitEvidence, [f64; MAX_PATTERNS]) {
         let ll = self.log_likelihoods(inputs, view);
-        let two = self.perturbation.bits_per_doublet == 2;
-        let llr = if two {
-            [
-                ln_add_exp(ll[0], ll[2]) - ln_add_exp(ll[1], ll[3]),
-                ln_add_exp(ll[0], ll[1]) - ln_add_exp(ll[2], ll[3]),
-            ]
-        } else {
-            [ll[0] - ll[1], 0.0]
-        };
-        let separation = self.separations(inputs, view);
-        BitEvidence { llr, separation }
+        let evidence = bit_evidence(&ll, &self.perturbation, |a, b| {
+            self.distance(inputs, view, a, b)
+        });
+        (evidence, ll)
+    }
+
+    /// Each bit's LLR given the true bits before it in the doublet (`word`'s bits `< i`),
+    /// the later ones marginalised: by the chain rule `Σᵢ ln(1 + e^{∓Lᵢ})` is the surprisal
+    /// `−ln P(symbols | view)` of the doublet's true symbols, so a bound summed over these
+    /// is a bound on the symbol string, not on bits judged apart.
+    #[must_use]
+    pub fn chain_llrs(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+        word: u64,
+    ) -> [f64; MAX_BITS] {
+        let ll = self.log_likelihoods(inputs, view);
+        let word = self.perturbation.pattern(word);
+        bit_llrs(&ll, &self.perturbation, |i| ((1 << i) - 1, word))
     }
 
     /// Each bit's separation: the Mahalanobis distance between its two hypotheses, the
-    /// other bit known (the larger over its values); 0 for an absent ω-bit. It depends on
+    /// other bits known (the larger over their values); 0 for an absent bit. It depends on
     /// the view's covariances and, through the path's Jacobians, on its start value only.
     #[must_use]
-    pub fn separations(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; 2] {
-        if self.perturbation.bits_per_doublet == 2 {
-            [
-                self.distance(inputs, view, 0, 1)
-                    .max(self.distance(inputs, view, 2, 3)),
-                self.distance(inputs, view, 0, 2)
-                    .max(self.distance(inputs, view, 1, 3)),
-            ]
-        } else {
-            [self.distance(inputs, view, 0, 1), 0.0]
-        }
+    pub fn separations(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; MAX_BITS] {
+        separations_by(&self.perturbation, |a, b| self.distance(inputs, view, a, b))
     }
 
     /// The separations that size a key from `view`: [`Self::separations`], but for a
@@ -397,7 +501,11 @@ impl DoubletModel {
     /// with less lag than the prior must not make the key over-claim. A grid, not a proof
     /// over the interval; a world with more lag than the prior is the commands check's.
     #[must_use]
-    pub fn sizing_separations(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; 2] {
+    pub fn sizing_separations(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+    ) -> [f64; MAX_BITS] {
         if self.perturbation.settle.is_none() {
             return self.separations(inputs, view);
         }
@@ -409,8 +517,8 @@ impl DoubletModel {
                 };
                 model.separations(inputs, view)
             })
-            .fold([0.0; 2], |worst, d| {
-                [worst[0].max(d[0]), worst[1].max(d[1])]
+            .fold([0.0; MAX_BITS], |worst, d| {
+                std::array::from_fn(|i| worst[i].max(d[i]))
             })
     }
 
@@ -466,6 +574,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::Labeling;
     use crate::private::doublet::settle_share;
 
     const T: f64 = 0.2;
@@ -481,11 +590,7 @@ mod tests {
         let model = DoubletModel {
             sample_time: T,
             process_covariance: Matrix3::from_diagonal_element(1e-6),
-            perturbation: Perturbation {
-                delta: Unicycle::new(0.035, 0.0),
-                bits_per_doublet: 1,
-                settle: settle_share(T, tau),
-            },
+            perturbation: Perturbation::binary(Unicycle::new(0.035, 0.0), 1, settle_share(T, tau)),
             lag: tau,
         };
         let inputs = DoubletInputs {
@@ -529,6 +634,116 @@ mod tests {
             let (known, ignored) = (residual(Some(entry)), residual(None));
             assert!(known < 1e-7, "pattern {pattern}: {known} m left");
             assert!(ignored > 1e-3, "pattern {pattern}: {ignored} m left");
+        }
+    }
+
+    fn multilevel_model(levels: u8, dimensions: u8, labeling: Labeling) -> DoubletModel {
+        DoubletModel {
+            sample_time: T,
+            process_covariance: Matrix3::from_diagonal_element(1e-10),
+            perturbation: Perturbation {
+                delta: Unicycle::new(0.035, 0.035),
+                bits_per_doublet: dimensions,
+                settle: None,
+                levels,
+                labeling,
+            },
+            lag: 0.0,
+        }
+    }
+
+    /// The view of pattern `h` without noise (a tiny sensor noise), on a turning segment.
+    fn noise_free_view(model: &DoubletModel, inputs: &DoubletInputs, h: usize) -> DoubletView {
+        let start = Pose::new(0.3, -0.1, 0.4);
+        let [middle, end] = inputs.propagate(&start, model.perturbation.offset(h), T);
+        let seen = |pose: Pose| PoseObservation::new(pose, [1e-6, 1e-6, 1e-6]);
+        DoubletView {
+            start: seen(start),
+            middle: Some(seen(middle)),
+            late: None,
+            end: Some(seen(end)),
+            entry: None,
+        }
+    }
+
+    /// Without noise every symbol of every alphabet, on one and two dimensions, is decided
+    /// right from the marginal LLRs, and the staged and chained LLRs agree with the truth.
+    #[test]
+    fn every_symbol_is_decided_right_without_noise() {
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.1, 0.3),
+            second: Unicycle::new(0.12, 0.25),
+        };
+        for levels in [2_u8, 4, 8] {
+            for dimensions in [1_u8, 2] {
+                for labeling in [Labeling::Natural, Labeling::Gray] {
+                    let model = multilevel_model(levels, dimensions, labeling);
+                    for h in 0..model.perturbation.patterns() {
+                        let view = noise_free_view(&model, &inputs, h);
+                        let (evidence, ll) = model.evidence_and_likelihoods(&inputs, &view);
+                        assert_eq!(evidence.bits(), h as u64, "{levels} {dimensions} {h}");
+                        let word = h as u64;
+                        let staged = staged_llrs(&ll, &model.perturbation, word);
+                        let chained = model.chain_llrs(&inputs, &view, word);
+                        let decided = |llrs: [f64; MAX_BITS]| {
+                            BitEvidence {
+                                llr: llrs,
+                                separation: [0.0; MAX_BITS],
+                            }
+                            .bits()
+                        };
+                        assert_eq!(decided(staged), word);
+                        assert_eq!(decided(chained), word);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The separations the alphabet produces, each bit's with the other bits known (the
+    /// larger over their values), in units of the lowest bit's: natural labeling 1 and 2
+    /// (4 levels) and 1, 2, 4 (8 levels), Gray 1 and 3 (its top bit flips ±3 to ∓3 around
+    /// the middle); on two dimensions the ω bits the same pattern again.
+    #[test]
+    fn each_bits_separation_is_its_labels_distance() {
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.1, 0.0),
+            second: Unicycle::new(0.1, 0.0),
+        };
+        let view = noise_free_view(&multilevel_model(2, 1, Labeling::Natural), &inputs, 0);
+        let view = DoubletView {
+            middle: view
+                .middle
+                .map(|y| PoseObservation::new(y.value, [0.005; 3])),
+            end: view.end.map(|y| PoseObservation::new(y.value, [0.005; 3])),
+            ..view
+        };
+        for (levels, labeling, expected) in [
+            (4, Labeling::Natural, vec![1.0, 2.0]),
+            (8, Labeling::Natural, vec![1.0, 2.0, 4.0]),
+            (4, Labeling::Gray, vec![1.0, 3.0]),
+        ] {
+            let model = multilevel_model(levels, 1, labeling);
+            let d = model.separations(&inputs, &view);
+            for (i, ratio) in expected.iter().enumerate() {
+                let got = d[i] / d[0];
+                assert!(
+                    (got - ratio).abs() < 1e-6,
+                    "{levels} {labeling:?} bit {i}: {got}"
+                );
+            }
+            // The ω symbol bends the path a little: the v bits' separations barely move.
+            let both = multilevel_model(levels, 2, labeling).separations(&inputs, &view);
+            let m = expected.len();
+            for (i, ratio) in expected.iter().enumerate() {
+                assert!((both[i] - d[i]).abs() < 1e-3 * d[i], "{levels} v bit {i}");
+                let got = both[m + i] / both[m];
+                assert!(
+                    (got - ratio).abs() < 1e-3,
+                    "{levels} {labeling:?} ω bit {i}: {got}"
+                );
+            }
+            assert!(both[2 * m..].iter().all(|&x| x == 0.0));
         }
     }
 }

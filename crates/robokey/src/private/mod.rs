@@ -57,7 +57,9 @@ pub struct DoubletBit {
     pub bit: u8,
     /// The doublet's public nominal turn rate (rad/s).
     pub turn_rate: f64,
-    /// The controller's LLR `ln P(view|0) − ln P(view|1)`.
+    /// The controller's LLR `ln P(view|0) − ln P(view|1)`: with `protocol.levels > 2`, given
+    /// the robot's bits of its symbol's lower slices, as multistage reconciliation decodes
+    /// it ([`likelihood::staged_llrs`]).
     pub controller: f64,
     /// The camera Eve's LLR.
     pub camera: f64,

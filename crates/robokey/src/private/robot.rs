@@ -17,7 +17,8 @@ use crate::protocol::{FateLedger, FateWindow, KeyBits, Outcome, SessionMessage};
 /// carried, the doublet in flight and the input it holds through a short gap.
 pub(crate) struct PrivateRobot {
     plan: PrivatePlan,
-    /// Each doublet's bits as `v | ω << 1`, drawn up front.
+    /// Each doublet's bits as `v | ω << m` (`m = log₂ levels` bits per symbol label), drawn
+    /// up front.
     bits: zeroize::Zeroizing<Vec<u64>>,
     /// Whether the robot applied doublet j with its bits (not gated, not erased).
     carried: Vec<bool>,
@@ -28,19 +29,22 @@ pub(crate) struct PrivateRobot {
 }
 
 impl PrivateRobot {
-    /// Draws two bits per doublet (v and ω; the ω bit is used with two bits per doublet)
-    /// for `doublets` doublets from `key_source`, a CSPRNG: the OS generator in deployment,
-    /// a seeded stream in simulation.
+    /// Draws two symbol labels per doublet, each uniform over the alphabet's `levels` (v
+    /// and ω; the ω label is used with two dimensions) for `doublets` doublets from
+    /// `key_source`, a CSPRNG: the OS generator in deployment, a seeded stream in
+    /// simulation.
     pub(crate) fn new<R: CryptoRng + ?Sized>(
         plan: PrivatePlan,
         doublets: u32,
         key_source: &mut R,
     ) -> Self {
+        let levels = plan.perturbation.levels;
+        let m = plan.perturbation.bits_per_symbol();
         let bits: Vec<u64> = (0..doublets)
             .map(|_| {
-                let v = key_source.random_range(0..2u8);
-                let omega = key_source.random_range(0..2u8);
-                u64::from(v | omega << 1)
+                let v = key_source.random_range(0..levels);
+                let omega = key_source.random_range(0..levels);
+                u64::from(v) | u64::from(omega) << m
             })
             .collect();
         Self {
@@ -99,10 +103,7 @@ impl PrivateRobot {
         let j = (step / length) as usize;
         let carries = self.plan.carries(agreed.enabled, &inputs);
         let offset = if carries {
-            let pattern = self
-                .plan
-                .perturbation
-                .pattern([(self.bits[j] & 1) as u8, (self.bits[j] >> 1 & 1) as u8]);
+            let pattern = self.plan.perturbation.pattern(self.bits[j]);
             self.plan.perturbation.offset(pattern)
         } else {
             Unicycle::zeros()
@@ -113,7 +114,9 @@ impl PrivateRobot {
             .map(|i| (step + i, applied[i as usize]))
             .collect();
         self.last_nominal = Some(inputs.second);
-        let bit = self.carried_bits(step / length).map(|bits| bits[0]);
+        let bit = self
+            .carried_word(step / length)
+            .map(|word| (word & 1) as u8);
         Self::apply(agreed, life, step, applied[0], bit, false);
     }
 
@@ -158,10 +161,7 @@ impl ClosingRules for PrivateRobot {
     }
 
     fn key(&self, fates: &FateLedger) -> KeyBits {
-        fates.accepted_key(
-            &self.bits,
-            usize::from(self.plan.perturbation.bits_per_doublet),
-        )
+        fates.accepted_key(&self.bits, self.plan.perturbation.key_bits())
     }
 
     /// Raw bits are confirmed per post-processing block, never per session.
@@ -206,7 +206,7 @@ impl RobotMode for PrivateRobot {
                     life.commands_applied += 1;
                     life.command_arrived(step);
                     let doublet = step / self.plan.steps_per_doublet();
-                    let bit = self.carried_bits(doublet).map(|b| b[0]);
+                    let bit = self.carried_word(doublet).map(|word| (word & 1) as u8);
                     Self::apply(agreed, life, step, input, bit, false);
                 }
                 None => self.on_missing(agreed, life, step),
@@ -256,10 +256,8 @@ impl RobotMode for PrivateRobot {
         Self::apply(agreed, life, step, input, None, true);
     }
 
-    fn carried_bits(&self, doublet: u32) -> Option<[u8; 2]> {
-        let j = doublet as usize;
-        self.keepable(doublet)
-            .then(|| [(self.bits[j] & 1) as u8, (self.bits[j] >> 1 & 1) as u8])
+    fn carried_word(&self, doublet: u32) -> Option<u64> {
+        self.keepable(doublet).then(|| self.bits[doublet as usize])
     }
 }
 
@@ -274,7 +272,12 @@ mod tests {
     };
 
     fn robot(seed: u64) -> Robot {
-        let config = Config::from_toml("[sensing]\nmode = \"private\"\n", "test").unwrap();
+        robot_with(seed, "")
+    }
+
+    fn robot_with(seed: u64, extra: &str) -> Robot {
+        let config =
+            Config::from_toml(&format!("[sensing]\nmode = \"private\"\n{extra}"), "test").unwrap();
         let plan = SessionPlan::from_config(&config, 1);
         let mut key_source = rand::rngs::ChaCha20Rng::seed_from_u64(seed);
         Robot::new(
@@ -335,6 +338,21 @@ mod tests {
                 assert_eq!(erased.wheels, held);
                 let _ = offer(&mut robot, [0.1, 0.2], [0.1, 0.2]);
             }
+        }
+    }
+
+    /// With four levels the outermost symbol `±3/√5·Δv` must fit too: v = 0.755 m/s fits
+    /// `v + Δv` (37.6 rad/s) but not `v + 1.342·Δv` (38.2 rad/s), so a binary robot applies
+    /// the doublet and a 4-level one erases it whatever its symbol.
+    #[test]
+    fn every_symbol_of_the_alphabet_is_within_the_wheel_limit() {
+        for seed in 0..8 {
+            let binary = offer(&mut robot(seed), [0.755, 0.0], [0.755, 0.0]);
+            assert!(!binary.erased);
+            let mut four = robot_with(seed, "[protocol]\nlevels = 4\n");
+            let erased = offer(&mut four, [0.755, 0.0], [0.755, 0.0]);
+            assert!(erased.erased && erased.bit.is_none(), "seed {seed}");
+            assert!(!offer(&mut four, [0.1, 0.2], [0.1, 0.2]).erased);
         }
     }
 }

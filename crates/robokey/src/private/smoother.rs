@@ -36,7 +36,6 @@ use crate::config::Config;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use crate::protocol::SessionPlan;
 use crate::world::{Camera, Frame, SubStep, WorldModel, sinc};
-use robokey_secrecy::special::ln_add_exp;
 
 /// What a command revealed about its step.
 #[derive(Clone, Copy, Debug)]
@@ -224,11 +223,7 @@ impl WindowSmoother {
     pub fn new(config: &Config, world: &WorldModel, half_width: u32, reach: u32) -> Self {
         let t = config.robot.sample_time;
         let memory = world.delay + world.lag * 1e4_f64.ln();
-        let perturbation = Perturbation {
-            delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
-            bits_per_doublet: config.protocol.bits_per_doublet,
-            settle: config.doublet_settle(),
-        };
+        let perturbation = Perturbation::of(config);
         Self {
             eve: WindowWorld::new(
                 world,
@@ -322,7 +317,7 @@ impl WindowSmoother {
         &self,
         j: u32,
         rec: &Recorded<'_>,
-        truth: &dyn Fn(u32) -> Option<[u8; 2]>,
+        truth: &dyn Fn(u32) -> Option<u64>,
         judge_commands: bool,
     ) -> Option<(Judged, Option<Judged>)> {
         let exact = self.window_of(j, rec)?;
@@ -478,7 +473,7 @@ impl WindowSmoother {
         rec: &Recorded<'_>,
         window: &Simulated,
         camera: bool,
-        truth: &dyn Fn(u32) -> Option<[u8; 2]>,
+        truth: &dyn Fn(u32) -> Option<u64>,
     ) -> Judged {
         let Simulated {
             first,
@@ -908,23 +903,7 @@ impl WindowSmoother {
     /// The LLR and separation of each bit from the hypotheses' log-likelihoods and their
     /// pairwise distances, as [`super::likelihood::DoubletModel::evidence`] forms them.
     fn bit_evidence(&self, ll: &[f64], distance: impl Fn(usize, usize) -> f64) -> BitEvidence {
-        if self.perturbation.bits_per_doublet == 2 {
-            BitEvidence {
-                llr: [
-                    ln_add_exp(ll[0], ll[2]) - ln_add_exp(ll[1], ll[3]),
-                    ln_add_exp(ll[0], ll[1]) - ln_add_exp(ll[2], ll[3]),
-                ],
-                separation: [
-                    distance(0, 1).max(distance(2, 3)),
-                    distance(0, 2).max(distance(1, 3)),
-                ],
-            }
-        } else {
-            BitEvidence {
-                llr: [ll[0] - ll[1], 0.0],
-                separation: [distance(0, 1), 0.0],
-            }
-        }
+        super::likelihood::bit_evidence(ll, &self.perturbation, distance)
     }
 }
 

@@ -153,7 +153,7 @@ impl SessionPlan {
     pub fn bits_per_unit(&self) -> usize {
         match &self.mode {
             ModePlan::Odometry(o) => o.code.k(),
-            ModePlan::Private(p) => usize::from(p.perturbation.bits_per_doublet),
+            ModePlan::Private(p) => p.perturbation.key_bits(),
         }
     }
 

@@ -23,9 +23,10 @@ pub fn agreement_terms(config: &Config) -> String {
     let private = match config.sensing.mode {
         SensingMode::Odometry => String::new(),
         SensingMode::Private => format!(
-            "sensing.mode = private\nprotocol.bits_per_doublet = {}\nprotocol.max_turn_rate = {}\n\
+            "sensing.mode = private\nprotocol.bits_per_doublet = {}\n{}protocol.max_turn_rate = {}\n\
              eve.camera_std = {:?}\n{}noise.process_std = {:?}\n{}{}",
             config.protocol.bits_per_doublet,
+            alphabet_terms(config),
             config.protocol.max_turn_rate,
             config.eve.camera_std,
             camera_frames_terms(config),
@@ -89,6 +90,22 @@ fn camera_frames_terms(config: &Config) -> String {
         Camera::Frames { fps, frame_std } => {
             format!("eve.camera_fps = {fps}\neve.camera_frame_std = {frame_std:?}\n")
         }
+    }
+}
+
+/// The alphabet's lines, `protocol.levels` and `protocol.labeling` (absent with binary
+/// doublets, so that their terms stay as they were): both sides must read a doublet's
+/// amplitude as the same label bits.
+fn alphabet_terms(config: &Config) -> String {
+    let protocol = &config.protocol;
+    if protocol.levels == 2 {
+        String::new()
+    } else {
+        format!(
+            "protocol.levels = {}\nprotocol.labeling = {}\n",
+            protocol.levels,
+            protocol.labeling.name()
+        )
     }
 }
 
@@ -194,6 +211,21 @@ mod tests {
         let mut config = Config::default();
         config.sensing.mode = SensingMode::Private;
         config
+    }
+
+    /// The alphabet is agreed: binary doublets' terms are as they were, a 4-level robot and
+    /// a binary controller are told apart by name.
+    #[test]
+    fn the_alphabet_is_a_term() {
+        let binary = private();
+        assert!(!agreement_terms(&binary).contains("levels"));
+        let mut four = private();
+        four.protocol.levels = 4;
+        assert_eq!(
+            difference(&four, &binary),
+            "protocol.levels: robot has 4, controller has (missing); protocol.labeling: robot \
+             has natural, controller has (missing)"
+        );
     }
 
     #[test]

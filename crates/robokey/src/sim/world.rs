@@ -12,7 +12,7 @@ use crate::eve::Eavesdropper;
 use crate::pair::{Side, Surroundings};
 use crate::private::{
     BitKind, DoubletBit, DoubletDecision, DoubletEavesdropper, DoubletSamples, EveDoublet,
-    PrivateRun,
+    Perturbation, PrivateRun, likelihood::staged_llrs,
 };
 use crate::protocol::{
     Controller, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, Robot,
@@ -135,14 +135,14 @@ impl World<'_> {
                 .decided
                 .pop_front()
                 .expect("paired with the front decision");
-            let bits = robot
-                .carried_bits(d.doublet)
+            let word = robot
+                .carried_word(d.doublet)
                 .expect("the robot carried every doublet the simulated controller decides");
             record(
                 self.config,
                 &d,
                 &e,
-                bits,
+                word,
                 &mut p.run,
                 &mut self.log,
                 &mut self.trace,
@@ -175,17 +175,20 @@ impl Surroundings<Robot, Controller> for World<'_> {
                 let doublet = actuation.step / robot.plan().steps_per_doublet();
                 if let Senses::Private(p) = &mut self.senses
                     && actuation.bit.is_some()
-                    && let Some(bits) = robot.carried_bits(doublet)
+                    && let Some(word) = robot.carried_word(doublet)
                 {
-                    p.eve.reveal(doublet, bits);
+                    p.eve.reveal(doublet, word);
                 }
                 if let Some(row) = self.trace.row(actuation.step as usize) {
                     row.bit = actuation.bit;
                     if self.config.protocol.bits_per_doublet == 2
                         && matches!(self.senses, Senses::Private(_))
                     {
-                        row.bit_omega =
-                            actuation.bit.and(robot.carried_bits(doublet)).map(|b| b[1]);
+                        let m = Perturbation::of(self.config).bits_per_symbol();
+                        row.bit_omega = actuation
+                            .bit
+                            .and(robot.carried_word(doublet))
+                            .map(|word| (word >> m & 1) as u8);
                     }
                 }
                 if let Senses::Odometry { .. } = self.senses
@@ -302,22 +305,26 @@ fn record(
     config: &Config,
     d: &DoubletDecision,
     e: &EveDoublet,
-    bits: [u8; 2],
+    word: u64,
     run: &mut PrivateRun,
     log: &mut [StepBits],
     trace: &mut TraceRows<'_>,
 ) {
-    for (i, kind) in BitKind::ALL
-        .iter()
-        .enumerate()
-        .take(usize::from(config.protocol.bits_per_doublet))
-    {
+    let perturbation = Perturbation::of(config);
+    // Multilevel: each slice's LLR given the lower slices, as multistage reconciliation
+    // leaves the controller them; binary: the marginal LLRs.
+    let controller = if perturbation.levels > 2 {
+        staged_llrs(&d.log_likelihoods, &perturbation, word)
+    } else {
+        d.evidence.llr
+    };
+    for (i, &controller) in controller.iter().enumerate().take(perturbation.key_bits()) {
         run.bits.push(DoubletBit {
             step: d.step,
-            kind: *kind,
-            bit: bits[i],
+            kind: BitKind::ALL[perturbation.dimension_of(i)],
+            bit: (word >> i & 1) as u8,
             turn_rate: d.inputs.turn_rate(),
-            controller: d.evidence.llr[i],
+            controller,
             camera: e.camera_given_others.unwrap_or(e.camera).llr[i],
             commands: e
                 .commands
@@ -331,7 +338,8 @@ fn record(
         doublet: d.doublet,
         inputs: d.inputs,
         samples: d.samples,
-        pattern: usize::from(bits[0] & 1) | usize::from(bits[1] & 1) << 1,
+        // Both dimensions' labels, whether or not the ω one rides.
+        pattern: (word & ((1 << (2 * perturbation.bits_per_symbol())) - 1)) as usize,
     });
     let decide = |llr: f64| u8::from(llr < 0.0);
     let eve_llr = match config.eve_strategy() {
@@ -339,7 +347,7 @@ fn record(
         _ => Some(e.camera.llr[0]),
     };
     let logged = StepBits {
-        bit: Some(bits[0]),
+        bit: Some((word & 1) as u8),
         bhat: Some(decide(d.evidence.llr[0])),
         bhat_eve: eve_llr.filter(|_| config.eve.enabled).map(decide),
     };

@@ -221,11 +221,11 @@ impl Robot {
         self.lifecycle.key()
     }
 
-    /// The bits `[v, ω]` doublet `doublet` carries, once the robot applied it with them
-    /// (private sensing).
+    /// The bit word (`v | ω << m`, `m` bits per symbol label) doublet `doublet` carries,
+    /// once the robot applied it with them (private sensing).
     #[must_use]
-    pub fn carried_bits(&self, doublet: u32) -> Option<[u8; 2]> {
-        self.mode.carried_bits(doublet)
+    pub fn carried_word(&self, doublet: u32) -> Option<u64> {
+        self.mode.carried_word(doublet)
     }
 
     /// Whether the session is over.

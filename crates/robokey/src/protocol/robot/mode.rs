@@ -22,7 +22,7 @@ pub(crate) trait RobotMode: ClosingRules + Send {
     /// Step `step`'s command is missing at its deadline: the fallback.
     fn on_missing(&mut self, agreed: &Agreed, life: &mut RobotLifecycle, step: u32);
 
-    /// The bits `[v, ω]` doublet `doublet` carries, once the robot applied it with them
-    /// (private sensing; `None` in odometry mode).
-    fn carried_bits(&self, doublet: u32) -> Option<[u8; 2]>;
+    /// The bit word (`v | ω << m`, `m` bits per symbol label) doublet `doublet` carries,
+    /// once the robot applied it with them (private sensing; `None` in odometry mode).
+    fn carried_word(&self, doublet: u32) -> Option<u64>;
 }

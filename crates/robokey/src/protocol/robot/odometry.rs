@@ -189,7 +189,7 @@ impl RobotMode for OdometryRobot {
         });
     }
 
-    fn carried_bits(&self, _doublet: u32) -> Option<[u8; 2]> {
+    fn carried_word(&self, _doublet: u32) -> Option<u64> {
         None
     }
 }
