@@ -197,7 +197,8 @@ impl GramFilter {
         // ũ = u − J·m and S̃ = S − uᵀm − mᵀu + mᵀJm: the batch about the prior means.
         b.info
             .mul_to(&self.means, shaped(&mut w.about, dim, columns));
-        w.about.zip_apply(&b.projected, |product, u| *product = u - *product);
+        w.about
+            .zip_apply(&b.projected, |product, u| *product = u - *product);
         transpose_into(&b.projected, &mut w.projected_transposed);
         w.projected_transposed
             .mul_to(&self.means, shaped(&mut w.cross, columns, columns));
@@ -231,8 +232,8 @@ impl GramFilter {
             .mul_to(&w.gain, shaped(&mut w.reduction, columns, columns));
         for j in 0..columns {
             for i in 0..columns {
-                let direct = b.direct[(i, j)] - w.cross[(i, j)] - w.cross[(j, i)]
-                    + w.quadratic[(i, j)];
+                let direct =
+                    b.direct[(i, j)] - w.cross[(i, j)] - w.cross[(j, i)] + w.quadratic[(i, j)];
                 self.gram[(i, j)] += direct - w.reduction[(i, j)];
             }
         }
