@@ -207,11 +207,12 @@ impl GramFilter {
             .mul_to(&b.info, shaped(&mut w.means_information, columns, dim));
         w.means_information
             .mul_to(&self.means, shaped(&mut w.quadratic, columns, columns));
-        // I + P·J, each element `δ_ij + (P·J)_ij` as the sum of the identity and the product.
+        // I + P·J: every element gains `δ_ij`, zeros included, as in the sum of the identity
+        // and the product (a rounded sum is the same either way round).
         let mut growth = &self.cov * &b.info;
         for j in 0..dim {
             for i in 0..dim {
-                growth[(i, j)] = f64::from(u8::from(i == j)) + growth[(i, j)];
+                growth[(i, j)] += f64::from(u8::from(i == j));
             }
         }
         let lu = growth.lu();
