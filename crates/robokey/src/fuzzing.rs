@@ -188,6 +188,18 @@ struct ControllerCheck {
     finished: Option<Outcome>,
 }
 
+impl ControllerCheck {
+    /// Doublet `doublet` was decided or erased: once only.
+    fn resolve(&mut self, doublet: u32) {
+        let slot = self
+            .resolved
+            .get_mut(doublet as usize)
+            .expect("a doublet of the session");
+        assert!(!*slot, "doublet {doublet} resolved twice");
+        *slot = true;
+    }
+}
+
 /// Both endpoints, the messages between them, a clock and a noise-free plant.
 struct Harness {
     focus: Focus,
@@ -413,18 +425,11 @@ impl Harness {
                 check.decided += 1;
                 assert!(check.decided <= self.plan.units());
             }
-            ControllerOutput::Event(
-                ControllerEvent::DoubletErased { doublet }
-                | ControllerEvent::DoubletDecided(crate::private::DoubletDecision {
-                    doublet, ..
-                }),
-            ) => {
-                let slot = check
-                    .resolved
-                    .get_mut(*doublet as usize)
-                    .expect("a doublet of the session");
-                assert!(!*slot, "doublet {doublet} resolved twice");
-                *slot = true;
+            ControllerOutput::Event(ControllerEvent::DoubletErased { doublet }) => {
+                check.resolve(*doublet);
+            }
+            ControllerOutput::Event(ControllerEvent::DoubletDecided(decision)) => {
+                check.resolve(decision.doublet);
             }
             ControllerOutput::Event(ControllerEvent::Decoded(decision)) => {
                 assert!(decision.bit.is_none_or(|b| b <= 1));

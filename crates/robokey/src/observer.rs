@@ -125,7 +125,12 @@ impl<const M: usize> Uio<M> {
             .congruence(&psi)
             .plus(&Sym3::gram(&l).scaled(v))
             .minus(&Sym3::sum_with_transpose(&(psi * s * l.transpose())));
-        if !state.iter().chain(&p.0).all(|x| x.is_finite()) {
+        // An array rather than a chain of matrix iterators: unrolled, no iterator state.
+        let [p0, p1, p2, p3, p4, p5] = p.0;
+        if ![state.x, state.y, state.z, p0, p1, p2, p3, p4, p5]
+            .iter()
+            .all(|x| x.is_finite())
+        {
             return Err(ObserverError);
         }
         self.state = state;

@@ -277,7 +277,7 @@ impl PrivateController {
         };
         self.decided[p.doublet as usize] = decision.evidence.bits();
         life.fates.record(p.doublet, true);
-        life.emit(ControllerEvent::DoubletDecided(decision));
+        life.emit(ControllerEvent::DoubletDecided(Box::new(decision)));
     }
 }
 

@@ -242,7 +242,7 @@ impl Surroundings<Robot, Controller> for World<'_> {
             }
             ControllerEvent::DoubletDecided(decision) => {
                 if let Senses::Private(p) = &mut self.senses {
-                    p.decided.push_back(decision);
+                    p.decided.push_back(*decision);
                 }
                 self.record_private(robot);
             }

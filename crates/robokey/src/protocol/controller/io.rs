@@ -54,8 +54,10 @@ pub enum ControllerEvent {
         /// Whether it carries bits.
         carries: bool,
     },
-    /// Private sensing: a carrying doublet was decided and is kept.
-    DoubletDecided(DoubletDecision),
+    /// Private sensing: a carrying doublet was decided and is kept. Boxed: the decision is
+    /// the largest event by far (240 bytes), and every output is moved through the
+    /// endpoint's queue at the size of the largest.
+    DoubletDecided(Box<DoubletDecision>),
     /// Private sensing: a carrying doublet could not be decided (a sample or a measurement
     /// is missing, or the robot did not apply it): it is dropped on both sides.
     DoubletErased {
@@ -73,4 +75,18 @@ pub enum ControllerOutput {
     Transmit(Message),
     /// Something happened.
     Event(ControllerEvent),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ControllerOutput;
+
+    /// Every output moves through the endpoint's queue and `Pair::drain` at the size of the
+    /// largest: kept within 128 bytes (what a move copies inline, without a `memcpy` call),
+    /// large payloads boxed (docs/speed.md).
+    #[test]
+    fn outputs_stay_small() {
+        let size = std::mem::size_of::<ControllerOutput>();
+        assert!(size <= 128, "a controller output takes {size} bytes");
+    }
 }
