@@ -46,7 +46,7 @@ pub fn camera_words(config: &Config) -> String {
 /// stationary covariance and its AR(1) correlation between steps the controller measures per
 /// block, at the worst case of their (1 − ε_est) region; no slip, lag or delay, the Euler map;
 /// with `private.prior_lag` τ > 0, the doublets shaped in three steps for a first-order
-/// actuator lag of τ (the stated prior).
+/// actuator lag of τ (the stated prior), which measured sizing measures per block.
 #[must_use]
 pub fn plant_words(config: &Config) -> String {
     // What the motion words leave out of the class: the configured noise is white.
@@ -78,6 +78,14 @@ pub fn plant_words(config: &Config) -> String {
     };
     if config.private.is_default() {
         format!("{motion}, no {correlation}slip, lag or delay, the Euler map")
+    } else if config.postprocess.sizing == Sizing::Measured {
+        format!(
+            "{motion}, no slip, the Euler map; three-step doublets shaped for a prior actuator \
+             lag of {} ms (private.prior_lag), the wheels' first-order lag measured per block \
+             and sized over its (1 − ε_est/3) interval (a dead time read as the lag that \
+             explains it)",
+            config.private.prior_lag * 1e3
+        )
     } else {
         format!(
             "{motion}, no {correlation}slip or delay, the Euler map; three-step doublets shaped \
@@ -289,6 +297,12 @@ mod tests {
         assert!(
             shaped.contains("three-step doublets shaped for a first-order actuator lag of 50 ms"),
             "{shaped}"
+        );
+        config.postprocess.sizing = Sizing::Measured;
+        let measured = key_basis(&config).unwrap().plant;
+        assert!(
+            measured.contains("the wheels' first-order lag measured per block"),
+            "{measured}"
         );
     }
 

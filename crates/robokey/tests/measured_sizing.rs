@@ -5,7 +5,7 @@
 //! carried bits; on worlds the parties' configuration does not describe.
 
 use robokey::Config;
-use robokey::estimate::commands_check::block_refusal;
+use robokey::estimate::commands_check::sized_block_refusal;
 use robokey::estimate::{BlockEstimate, block_separations, estimate_request, kept_doublet};
 use robokey::private::DoubletSamples;
 use robokey::sim::{RunOutput, simulate};
@@ -63,7 +63,7 @@ fn both_estimates(config: &Config) -> (BlockEstimate, BlockEstimate) {
         .collect();
     let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
     let (_, mut simulator) = block_separations(config, &sessions, disclosed(&runs), 1e-6);
-    if let Some(why) = block_refusal(config, &sessions, 1e-6) {
+    if let Some(why) = sized_block_refusal(config, &sessions, 1e-6, Some(&simulator)) {
         simulator.refuse(why);
     }
     (estimate_request(config, &request(&runs), 1e-6), simulator)
@@ -150,6 +150,20 @@ fn the_agents_commands_check_refuses_a_lagging_world_as_the_simulator_does() {
         / number("standard error ");
     assert!(z > 10.0, "{check}");
     assert!(agents.outcome().is_err());
+}
+
+/// A lagging robot under three-step doublets shaped for its lag (50 ms, 1 mm): both paths
+/// measure the same lag, size the block from it (not refused) and publish the same separation.
+#[test]
+fn the_agents_size_a_lagging_robot_as_the_simulator_does() {
+    let mut config = parties_in("process_std = [0.001, 0.001, 0.001]\nlag = 0.05");
+    config.private.prior_lag = 0.05;
+    let (agents, simulator) = both_estimates(&config);
+    assert_eq!(agents, simulator);
+    assert_eq!(agents.refused, None);
+    let [_, low, high] = agents.lag.expect("the lag measured");
+    assert!(low <= 0.05 && 0.05 <= high, "{agents:?}");
+    assert!(agents.outcome().is_ok());
 }
 
 /// A session pooled without its samples (or with the wrong number) is refused by name.

@@ -6,7 +6,7 @@
 use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
-use robokey::estimate::commands_check::block_refusal;
+use robokey::estimate::commands_check::sized_block_refusal;
 use robokey::post_settings::ODOMETRY_ZERO;
 use robokey::private::{DoubletSamples, Eavesdroppers};
 use robokey::protocol::SessionPlan;
@@ -397,7 +397,8 @@ fn refuse_what_the_commands_reveal(
             .filter_map(|r| r.private.as_ref())
             .map(|p| p.controller_samples.as_slice())
             .collect();
-        if let Some(reason) = block_refusal(config, &sessions, options.epsilon) {
+        let estimate = pool.estimate.as_ref();
+        if let Some(reason) = sized_block_refusal(config, &sessions, options.epsilon, estimate) {
             block.secret_bits = 0;
             block.assumption_exceeds_realised = false;
             // A block already without a key keeps its own reason beside the check's.

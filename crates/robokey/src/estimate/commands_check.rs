@@ -11,6 +11,8 @@
 
 use robokey_secrecy::gaussian_llr::erfc;
 
+use super::BlockEstimate;
+use super::worst_case::lag_grid;
 use crate::Config;
 use crate::private::doublet::{in_doublet_frame, sign};
 use crate::private::{BitKind, DoubletModel, DoubletSamples, doublet_model};
@@ -208,7 +210,11 @@ pub fn regressions(bits: &[BoundaryResidual]) -> Vec<Regression> {
 /// one passes.
 #[must_use]
 pub fn refusal(bits: &[BoundaryResidual], level: f64) -> Option<String> {
-    let tests = regressions(bits);
+    refusal_of(&regressions(bits), level)
+}
+
+/// [`refusal`] of a block's regressions `tests`.
+fn refusal_of(tests: &[Regression], level: f64) -> Option<String> {
     let threshold = level / tests.len().max(1) as f64;
     let worst = tests
         .iter()
@@ -234,6 +240,47 @@ pub fn block_refusal(
     level: f64,
 ) -> Option<String> {
     refusal(&block_residuals(config, sessions), level)
+}
+
+/// The commands check of a block of `sessions` as its estimate sized it: a block of
+/// three-step doublets whose `estimate` measured the lag is checked against the model's
+/// prediction at whichever lag of a grid over its interval predicts the most, per regression
+/// (what the prior's error leaves at the doublet's end is modelled, and in Eve's view at
+/// the same interval); any other block against the parties' prior ([`block_refusal`]).
+#[must_use]
+pub fn sized_block_refusal(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    level: f64,
+    estimate: Option<&BlockEstimate>,
+) -> Option<String> {
+    let Some([_, low, high]) = estimate.and_then(|e| e.lag) else {
+        return block_refusal(config, sessions, level);
+    };
+    let bits_per_doublet = usize::from(config.protocol.bits_per_doublet);
+    let mut merged: Vec<Regression> = Vec::new();
+    for tau in lag_grid([low, high]) {
+        let model = DoubletModel {
+            lag: tau,
+            ..doublet_model(config)
+        };
+        let bits: Vec<BoundaryResidual> = sessions
+            .iter()
+            .flat_map(|session| session.iter())
+            .flat_map(|samples| doublet_residuals(&model, samples, bits_per_doublet))
+            .collect();
+        let tests = regressions(&bits);
+        if merged.is_empty() {
+            merged = tests;
+        } else {
+            for (kept, test) in merged.iter_mut().zip(tests) {
+                if test.predicted.abs() > kept.predicted.abs() {
+                    kept.predicted = test.predicted;
+                }
+            }
+        }
+    }
+    refusal_of(&merged, level)
 }
 
 #[cfg(test)]

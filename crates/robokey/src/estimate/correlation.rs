@@ -32,6 +32,11 @@
 //! is ≈ N(0, 1) under AR(1), `F` the overlap's variance inflation below; refused beyond
 //! `z(ε/6)` on any axis.
 //!
+//! **Three steps** (`private.prior_lag`): with `L` steps per doublet the same moments are
+//! `b = b_L(ρ)·Q`, `b_L = L + 2Σ_{k<L}(L − k)ρ^k`, and `a = ρ·S_L(ρ)²·Q`, `S_L = Σ_{m<L} ρ^m`,
+//! so `g_L(ρ) = ρS_L²/b_L` (`g_2` is the `g` above; `g_3` rises from −0.1875 at ρ = −½ to
+//! 1, inverted by bisection on the same class), and two doublets apart `ρ^L·a`.
+//!
 //! **Dependence.** Residuals `d` doublets apart correlate by at most
 //! `r_d = |ρ|^(2d−1)(1 + |ρ|)/2` (`d ≥ 1`) per axis from the motion, plus the sensor's MA(1)
 //! `≤ ½` at `d = 1`. A sum of squares (or products) of such a series has its variance inflated
@@ -99,6 +104,75 @@ pub fn ratio_of(rho: f64) -> f64 {
 pub fn correlation_of(ratio: f64) -> f64 {
     (0.5 * ((1.0 + 8.0 * ratio).max(0.0).sqrt() - 1.0))
         .clamp(LOWEST_CORRELATION, HIGHEST_CORRELATION)
+}
+
+/// `g_L(ρ) = ρ·S_L(ρ)²/b_L(ρ)` for doublets of `steps` steps (the module's doc; [`ratio_of`]
+/// with two).
+#[must_use]
+pub fn ratio_for(rho: f64, steps: u32) -> f64 {
+    if steps == 2 {
+        return ratio_of(rho);
+    }
+    let l = steps as i32;
+    let sum: f64 = (0..l).map(|m| rho.powi(m)).sum();
+    let variance = f64::from(l) + 2.0 * (1..l).map(|k| f64::from(l - k) * rho.powi(k)).sum::<f64>();
+    rho * sum * sum / variance
+}
+
+/// `g_L⁻¹(r)` on the class `[LOWEST_CORRELATION, HIGHEST_CORRELATION]`, clamped to it
+/// ([`correlation_of`] with two steps; by bisection otherwise, `g_L` rising on the class).
+#[must_use]
+pub fn correlation_for(ratio: f64, steps: u32) -> f64 {
+    if steps == 2 {
+        return correlation_of(ratio);
+    }
+    let (mut low, mut high) = (LOWEST_CORRELATION, HIGHEST_CORRELATION);
+    if ratio <= ratio_for(low, steps) {
+        return low;
+    }
+    if ratio >= ratio_for(high, steps) {
+        return high;
+    }
+    for _ in 0..64 {
+        let middle = 0.5 * (low + high);
+        if ratio_for(middle, steps) < ratio {
+            low = middle;
+        } else {
+            high = middle;
+        }
+    }
+    0.5 * (low + high)
+}
+
+/// `|r_1|` at `|ρ| ≤ rho` for `steps` steps: the larger of `|g_L(±|ρ|)|`.
+fn neighbour_correlation(rho: f64, steps: u32) -> f64 {
+    ratio_for(rho, steps)
+        .abs()
+        .max(ratio_for(-rho, steps).abs())
+}
+
+/// [`variance_inflation`] for doublets of `steps` steps: `r_d = |ρ|^(L(d−1))·|r_1|`, so
+/// `F = max(1.5, 1 + 2r_1²/(1 − ρ^(2L)))`.
+#[must_use]
+pub fn variance_inflation_for(rho: f64, steps: u32) -> f64 {
+    if steps == 2 {
+        return variance_inflation(rho);
+    }
+    let rho = rho.abs().min(HIGHEST_CORRELATION);
+    let first = neighbour_correlation(rho, steps);
+    (1.0 + 2.0 * first * first / (1.0 - rho.powi(2 * steps as i32))).max(1.5)
+}
+
+/// [`parity_inflation`] for doublets of `steps` steps: `1 + 2r_1²ρ^(2L)/(1 − ρ^(4L))`.
+#[must_use]
+pub fn parity_inflation_for(rho: f64, steps: u32) -> f64 {
+    if steps == 2 {
+        return parity_inflation(rho);
+    }
+    let rho = rho.abs().min(HIGHEST_CORRELATION);
+    let first = neighbour_correlation(rho, steps);
+    let l = steps as i32;
+    1.0 + 2.0 * first * first * rho.powi(2 * l) / (1.0 - rho.powi(4 * l))
 }
 
 /// `F = max(1.5, 1 + 2Σ_{d≥1} r_d²)`, `r_d = |ρ|^(2d−1)(1 + |ρ|)/2`: the variance inflation a
@@ -172,6 +246,7 @@ pub fn estimate_correlation(
     sensor: &Matrix3<f64>,
     epsilon: f64,
 ) -> Result<Correlation, CorrelationDeparture> {
+    let steps = residuals.first().map_or(2, |r| r.steps);
     let terms: Vec<[[f64; 3]; 3]> = pairs(residuals, 1)
         .map(|(a, b)| pair_terms(a, b, sensor))
         .collect();
@@ -199,7 +274,7 @@ pub fn estimate_correlation(
     let weights = raw.map(|w| w / weight_sum);
     let axis_ratio = |k: usize| if weights[k] > 0.0 { a[k] / b[k] } else { 0.0 };
     let ratio: f64 = (0..3).map(|k| weights[k] * axis_ratio(k)).sum();
-    if ratio < ratio_of(LOWEST_CORRELATION) {
+    if ratio < ratio_for(LOWEST_CORRELATION, steps) {
         return Err(CorrelationDeparture::OutsideClass { ratio });
     }
     // Batch terms u = Σ_k w_k (ā_k − r_k b̄_k)/b_k.
@@ -228,20 +303,25 @@ pub fn estimate_correlation(
         .powi(3);
     let sigma_up = (variance / lower_quantile / batches as f64).sqrt();
     let z = normal_upper_quantile(epsilon / 4.0);
-    let point = correlation_of(ratio);
+    let point = correlation_for(ratio, steps);
     let interval = [
-        correlation_of(ratio - z * sigma_up),
-        correlation_of(ratio + z * sigma_up),
+        correlation_for(ratio - z * sigma_up, steps),
+        correlation_for(ratio + z * sigma_up, steps),
     ];
-    // The innovations: lag-two products against ρ̂²·ā.
-    let inflation = variance_inflation(interval[0].abs().max(interval[1].abs()));
+    // The innovations: lag-two products against ρ̂^L·ā.
+    let inflation = variance_inflation_for(interval[0].abs().max(interval[1].abs()), steps);
+    let decay = if steps == 2 {
+        point * point
+    } else {
+        point.powi(steps as i32)
+    };
     let limit = normal_upper_quantile(epsilon / 6.0);
     let mut sum = [0.0; 3];
     let mut squares = [0.0; 3];
     for (x, y) in pairs(residuals, 2) {
         for k in 0..3 {
             let product = x.value[k] * y.value[k];
-            sum[k] += product - point * point * a[k];
+            sum[k] += product - decay * a[k];
             squares[k] += product * product;
         }
     }
@@ -309,6 +389,21 @@ pub(super) mod tests {
         assert_eq!(variance_inflation(0.0), 1.5);
         assert!(variance_inflation(0.9) > 4.0 && variance_inflation(0.9) < 6.0);
         assert_eq!(parity_inflation(0.0), 1.0);
+        // Three steps: g_3 rises on the class and inverts; two steps are the closed form.
+        let mut last = f64::NEG_INFINITY;
+        for i in 0..=300 {
+            let rho = LOWEST_CORRELATION
+                + (HIGHEST_CORRELATION - LOWEST_CORRELATION) * f64::from(i) / 300.0;
+            let ratio = ratio_for(rho, 3);
+            assert!(ratio > last, "{rho}");
+            last = ratio;
+            assert!((correlation_for(ratio, 3) - rho).abs() < 1e-9, "{rho}");
+            assert_eq!(ratio_for(rho, 2), ratio_of(rho));
+        }
+        assert!((ratio_for(-0.5, 3) + 0.1875).abs() < 1e-12);
+        assert_eq!(variance_inflation_for(0.0, 3), 1.5);
+        assert_eq!(parity_inflation_for(0.0, 3), 1.0);
+        assert!(variance_inflation_for(0.9, 3) > variance_inflation_for(0.5, 3));
     }
 
     /// ρ̂ recovers ρ and its interval holds it: over 10,000 doublets the ratio's standard

@@ -5,7 +5,9 @@
 //!
 //! The model class covered here is Gaussian motion noise with a constant 3×3 stationary
 //! covariance `Q` in the robot's frame and AR(1) correlation `ρ ∈ [−½, 1)` between steps
-//! (white at ρ = 0), and a controller sensor of stated covariance `R` (its calibration).
+//! (white at ρ = 0), and a controller sensor of stated covariance `R` (its calibration);
+//! with three-step doublets (`private.prior_lag`) a first-order actuator lag τ as well,
+//! measured first (`lag`) and subtracted before `Q` and ρ (`block`).
 
 pub mod block;
 pub mod commands_check;

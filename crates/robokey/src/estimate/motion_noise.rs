@@ -29,8 +29,8 @@ use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
 use thiserror::Error;
 
 use super::correlation::{
-    Correlation, CorrelationDeparture, LOWEST_CORRELATION, estimate_correlation, parity_inflation,
-    variance_inflation,
+    Correlation, CorrelationDeparture, LOWEST_CORRELATION, estimate_correlation,
+    parity_inflation_for, variance_inflation_for,
 };
 use super::homogeneity::{ClassDeparture, speed_class_departure};
 use super::normal_tail::normal_upper_quantile;
@@ -371,10 +371,11 @@ pub fn estimate_motion_noise(
         }
     };
     let [rho_lo, rho_hi] = correlation.interval;
-    let inflation = variance_inflation(rho_lo.abs().max(rho_hi.abs()));
+    let steps = residuals.first().map_or(2, |r| r.steps);
+    let inflation = variance_inflation_for(rho_lo.abs().max(rho_hi.abs()), steps);
     // Within a parity half the residuals' dependence deflates the Wishart count (none for
     // white noise, whose halves are independent).
-    let deflation = parity_inflation(rho_lo.abs().max(rho_hi.abs()));
+    let deflation = parity_inflation_for(rho_lo.abs().max(rho_hi.abs()), steps);
     let all = second_moment(residuals.iter()).1;
     let point = solve(all, correlation.point)?;
     let low_moment = weighted(1.0, deflation);

@@ -22,10 +22,20 @@
 //! between steps (`w_{k+1} = ρw_k + √(1−ρ²)e_k`, stationary covariance `Q`) the two steps of
 //! a doublet correlate too, `Cov(z) = B₀QB₀ᵀ + B₁QB₁ᵀ + ρ(B₀QB₁ᵀ + B₁QB₀ᵀ) + …`
 //! (`correlation` estimates ρ).
+//!
+//! **Three steps** (`private.prior_lag`): the doublet's steps carry `(+1, −(1 + a), +a)·s·Δ`
+//! through the actuator's lag. With the lag τ̂ measured (`lag`), the reconciled bits and the
+//! wheels' speed at the doublet's start (`entry`: the previous doublet's nominal inputs and
+//! bits through τ̂), the means are the steps' mean speeds through τ̂ — the bit's
+//! ([`DoubletModel::mean_offsets`]) and the nominal inputs' own transient
+//! ([`DoubletInputs::nominal_transient`]) — by the Euler map, `m₃ = f(f(f(y(3j), ū₀), ū₁), ū₂)`,
+//! and `r = y(3j+3) − m₃ ≈ A₂A₁w₀ + A₂w₁ + w₂ + η₃ − A₂A₁A₀η₀`: `B₀ = H(θ₀)ᵀA₂A₁H(θ₀)`,
+//! `B₁ = H(θ₀)ᵀA₂H(θ₁)`, `B₂ = H(θ₀)ᵀH(θ₂)`, `C₀ = H(θ₀)ᵀ`, `C₁ = H(θ₀)ᵀA₂A₁A₀`, and under
+//! AR(1) `Cov(z) = Σᵢₖ ρ^|i−k|·BᵢQBₖᵀ + C₀RC₀ᵀ + C₁RC₁ᵀ`.
 
 use nalgebra::Matrix3;
 
-use crate::model::Pose;
+use crate::model::{Pose, Unicycle};
 use crate::private::DoubletInputs;
 use crate::private::likelihood::{DoubletModel, state_jacobian};
 
@@ -39,8 +49,10 @@ pub struct DoubletResidual {
     pub doublet: u32,
     /// `z`: the residual in the robot's frame at the doublet's start (m, m, rad).
     pub value: Pose,
-    /// `[B₀, B₁]`: how each step's motion noise enters `z`.
-    pub motion_maps: [Matrix3<f64>; 2],
+    /// Steps the doublet spans: 2, or 3 with a prior lag.
+    pub steps: u32,
+    /// `[B₀, B₁, B₂]`: how each step's motion noise enters `z` (`B₂ = 0` with two steps).
+    pub motion_maps: [Matrix3<f64>; 3],
     /// `[C₀, C₁]`: how the end and the start sample's sensor noise enter `z`.
     pub sensor_maps: [Matrix3<f64>; 2],
     /// The doublet's public nominal inputs (what the homogeneity test classes it by).
@@ -77,20 +89,73 @@ impl DoubletResidual {
         Self {
             doublet,
             value: h0 * (end - predicted),
-            motion_maps: [h0 * a1 * rotation(start.z), h0 * rotation(middle.z)],
+            steps: 2,
+            motion_maps: [
+                h0 * a1 * rotation(start.z),
+                h0 * rotation(middle.z),
+                Matrix3::zeros(),
+            ],
             sensor_maps: [h0, h0 * a1 * a0],
+            inputs: *inputs,
+        }
+    }
+
+    /// The residual of a three-step doublet (the module's doc) with the steps' mean speeds
+    /// through `model`'s lag τ (s) — the bit's, pattern `pattern`, and the nominal inputs'
+    /// from the wheels' nominal speed `entry` (m/s, rad/s) at its start — from the
+    /// controller's samples `start = y(3j)` and `end = y(3j+3)`.
+    #[must_use]
+    pub fn three_step(
+        model: &DoubletModel,
+        doublet: u32,
+        inputs: &DoubletInputs,
+        [start, end]: [&Pose; 2],
+        pattern: usize,
+        entry: Unicycle,
+    ) -> Self {
+        let t = model.sample_time;
+        let mut offsets = model.mean_offsets(pattern);
+        let (transient, _) = inputs.nominal_transient(entry, 3, model.lag, t);
+        for (offset, nominal) in offsets.iter_mut().zip(transient) {
+            *offset += nominal;
+        }
+        let applied = inputs.applied_steps(offsets);
+        let means = inputs.propagate_steps(start, offsets, 3, t);
+        let before = [*start, means[0], means[1]];
+        let [a0, a1, a2] = std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t));
+        let h0 = rotation(start.z).transpose();
+        Self {
+            doublet,
+            value: h0 * (end - means[2]),
+            steps: 3,
+            motion_maps: [
+                h0 * a2 * a1 * rotation(start.z),
+                h0 * a2 * rotation(means[0].z),
+                h0 * rotation(means[1].z),
+            ],
+            sensor_maps: [h0, h0 * a2 * a1 * a0],
             inputs: *inputs,
         }
     }
 
     /// `B₀QB₀ᵀ + B₁QB₁ᵀ + ρ·(B₀QB₁ᵀ + B₁QB₀ᵀ)`: the motion noise's part of `Cov(z)` for
     /// AR(1) motion noise of stationary covariance `Q` in the robot's frame and lag-one
-    /// correlation `rho` between steps (`rho = 0`: white).
+    /// correlation `rho` between steps (`rho = 0`: white); with three steps
+    /// `Σᵢₖ ρ^|i−k|·BᵢQBₖᵀ`.
     #[must_use]
     pub fn motion_part(&self, q: &Matrix3<f64>, rho: f64) -> Matrix3<f64> {
-        let [b0, b1] = &self.motion_maps;
+        let [b0, b1, b2] = &self.motion_maps;
         let cross = b0 * q * b1.transpose();
-        b0 * q * b0.transpose() + b1 * q * b1.transpose() + rho * (cross + cross.transpose())
+        let two =
+            b0 * q * b0.transpose() + b1 * q * b1.transpose() + rho * (cross + cross.transpose());
+        if self.steps == 2 {
+            return two;
+        }
+        let late = b1 * q * b2.transpose();
+        let far = b0 * q * b2.transpose();
+        two + b2 * q * b2.transpose()
+            + rho * (late + late.transpose())
+            + rho * rho * (far + far.transpose())
     }
 
     /// `C₀RC₀ᵀ + C₁RC₁ᵀ`: the sensor's part of `Cov(z)` for `R` in the world's frame.

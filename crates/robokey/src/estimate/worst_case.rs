@@ -25,6 +25,21 @@
 //! not the per-entry minimum: `Q_cell` is a full 3×3 matrix, rotated into the world's frame
 //! at each doublet's heading. If `S` is not positive definite at a corner (a vertex so far
 //! below zero that even her camera's noise does not cover it), no finite bound exists: `None`.
+//!
+//! **Three steps under a measured lag** (`private.prior_lag`, [`three_step_worst_case`]).
+//! Given the steps just before and after the doublet, its three steps' noise has covariance
+//! `Q ⊗ W(ρ)`, `W(ρ)` the inverse of the AR(1) precision's interior block (tridiagonal,
+//! `(1 + ρ²)/(1 − ρ²)` on the diagonal, `−ρ/(1 − ρ²)` beside it), whose eigenvalues are
+//! `(1 − ρ²)/(1 + ρ² ± √2|ρ| )` and `(1 − ρ²)/(1 + ρ²)`. Over a cell, `μ_low·I ⪯ W(ρ) ⪯ μ_high·I`
+//! with `μ_low` the least eigenvalue at the cell's largest `|ρ|` and `μ_high` the greatest
+//! (it peaks at `|ρ| = √2 − 1`), so `μ_low·P₊ − μ_high·P₋` as independent steps lies below
+//! every member of the cell — coarser than the two-step weights (isotropic in the steps),
+//! never sharper for Eve than the truth. The lag is not monotone in what it gives her (it
+//! smooths the bit after the first step and sharpens it after the second, and a lag other
+//! than the prior leaves the bit at the doublet's end, where the commands reveal it): each
+//! bit's separation is the largest over the corners and a grid of `τ` over its interval
+//! `[τ_lo, τ_hi]`, Eve's means following the doublet's offsets through that `τ` — so ℓ is at
+//! most the least over the grid. A grid, not a proof between its points.
 
 use nalgebra::{Cholesky, Matrix3, Matrix6, SymmetricEigen, Vector6};
 
@@ -68,6 +83,110 @@ pub fn worst_case_separations(
             let d = corner_separations(model, corner, inputs, view)?;
             Some([largest[0].max(d[0]), largest[1].max(d[1])])
         })
+}
+
+/// Points of the grid over the lag's interval Eve's view is sized at.
+pub const LAG_GRID: usize = 5;
+
+/// `LAG_GRID` lags evenly over `[low, high]` (s); one when the interval is a point.
+#[must_use]
+pub fn lag_grid([low, high]: [f64; 2]) -> Vec<f64> {
+    if high <= low {
+        return vec![low];
+    }
+    (0..LAG_GRID)
+        .map(|i| low + (high - low) * i as f64 / (LAG_GRID - 1) as f64)
+        .collect()
+}
+
+/// `[μ_low, μ_high]`: bounds on the eigenvalues of three AR(1) steps' conditional covariance
+/// `W(ρ)` given their neighbours, in units of `Q`, over every ρ in the cell `[a, b]`.
+fn three_step_weights([a, b]: [f64; 2]) -> [f64; 2] {
+    let root_two = std::f64::consts::SQRT_2;
+    let eigen = |r: f64, sign: f64| (1.0 - r * r) / (1.0 + r * r + sign * root_two * r);
+    let largest = a
+        .abs()
+        .max(b.abs())
+        .min(super::correlation::HIGHEST_CORRELATION);
+    let smallest = if a <= 0.0 && b >= 0.0 {
+        0.0
+    } else {
+        a.abs().min(b.abs())
+    };
+    let peak = root_two - 1.0;
+    let mut high = eigen(smallest, -1.0).max(eigen(largest, -1.0));
+    if (smallest..=largest).contains(&peak) {
+        high = high.max(eigen(peak, -1.0));
+    }
+    [eigen(largest, 1.0), high]
+}
+
+/// The three steps' noise covariances (robot frame, m², m², rad²) that bound `estimate`'s
+/// cells from below (`μ_low·P₊ − μ_high·P₋` of each corner, the module's doc), those that
+/// another lies below in the Loewner order left out (a lower one gives Eve the sharper view
+/// of every bit at once), each with whether it is positive semidefinite (then her
+/// covariance is positive definite without a check).
+#[must_use]
+pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(Matrix3<f64>, bool)> {
+    let steps: Vec<Matrix3<f64>> = estimate
+        .corners
+        .iter()
+        .map(|corner| {
+            let eigen = SymmetricEigen::new(corner.motion);
+            let part = |sign: f64| {
+                let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
+                eigen.eigenvectors * Matrix3::from_diagonal(&kept) * eigen.eigenvectors.transpose()
+            };
+            let [low, high] = three_step_weights(corner.correlation);
+            low * part(1.0) - high * part(-1.0)
+        })
+        .collect();
+    let least = |m: &Matrix3<f64>| SymmetricEigen::new(*m).eigenvalues.min();
+    let below = |a: &Matrix3<f64>, b: &Matrix3<f64>| least(&(b - a)) >= 0.0;
+    let mut kept: Vec<(Matrix3<f64>, bool)> = Vec::new();
+    for (i, m) in steps.iter().enumerate() {
+        // Left out when another lies below it (the first of equal ones kept).
+        let dominated = steps
+            .iter()
+            .enumerate()
+            .any(|(j, other)| j != i && below(other, m) && (!below(m, other) || j < i));
+        if !dominated {
+            kept.push((*m, least(m) >= 0.0));
+        }
+    }
+    kept
+}
+
+/// Each bit's separation of Eve's modelled `view` of a three-step doublet with public
+/// `inputs` (its `late` observation's value is not used: the separation depends on her
+/// covariances and the means' differences), at the worst case over the steps' covariances
+/// `steps` ([`three_step_steps`]) and the `lags` τ (s) of the lag's interval (the module's
+/// doc); `None` when a bound does not exist at some corner.
+#[must_use]
+pub fn three_step_worst_case(
+    model: &DoubletModel,
+    steps: &[(Matrix3<f64>, bool)],
+    lags: &[f64],
+    inputs: &DoubletInputs,
+    view: &DoubletView,
+) -> Option<[f64; 2]> {
+    let h = rotation(view.start.value.z);
+    let mut worst = [0.0_f64; 2];
+    for (robot_frame, positive) in steps {
+        for &lag in lags {
+            let at = DoubletModel {
+                process_covariance: h * robot_frame * h.transpose(),
+                lag,
+                ..*model
+            };
+            if !positive && !at.covariances_positive(inputs, view) {
+                return None;
+            }
+            let d = at.separations(inputs, view);
+            worst = [worst[0].max(d[0]), worst[1].max(d[1])];
+        }
+    }
+    Some(worst)
 }
 
 /// Each bit's separation at one `corner` (the genie view of the module's doc); `None` when
@@ -247,6 +366,64 @@ mod tests {
         // A vertex more than the camera's noise below zero has no bound.
         let impossible = -Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 1.0));
         assert!(corner_separations(&model, &white(impossible), &inputs, &view).is_none());
+    }
+
+    /// The three steps' weight bounds hold every member of a cell: the conditional
+    /// covariance's eigenvalues at 200 ρ of each cell lie within `[μ_low, μ_high]`.
+    #[test]
+    fn the_three_step_weights_bound_every_member_of_the_cell() {
+        use nalgebra::Matrix3 as M;
+        for cell in [
+            [-0.5, -0.3],
+            [0.0, 0.0],
+            [-0.05, 0.4],
+            [0.3, 0.5],
+            [0.8, 0.95],
+        ] {
+            let [low, high] = three_step_weights(cell);
+            for i in 0..=200 {
+                let rho = cell[0] + (cell[1] - cell[0]) * f64::from(i) / 200.0;
+                let (d, o) = (
+                    (1.0 + rho * rho) / (1.0 - rho * rho),
+                    -rho / (1.0 - rho * rho),
+                );
+                let precision = M::new(d, o, 0.0, o, d, o, 0.0, o, d);
+                let w = precision.try_inverse().unwrap();
+                for &x in SymmetricEigen::new(w).eigenvalues.iter() {
+                    assert!(low - 1e-12 <= x && x <= high + 1e-12, "{cell:?} {rho}: {x}");
+                }
+            }
+        }
+        assert_eq!(three_step_weights([0.0, 0.0]), [1.0, 1.0]);
+    }
+
+    /// The steps' covariances kept for the three-step worst case bound every corner's from
+    /// below: for each corner's `μ_low·P₊ − μ_high·P₋` some kept one lies below it, and one
+    /// lying below another is what is left out.
+    #[test]
+    fn the_three_step_corners_kept_lie_below_every_corner() {
+        let q = Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6);
+        let mut estimate = MotionNoiseEstimate::known(q, 0.0, 1e-6);
+        let cells = [-0.4, -0.3, -0.2, -0.1, 0.0, 0.1, 0.2, 0.3, 0.4];
+        for (i, corner) in estimate.corners.iter_mut().enumerate() {
+            corner.correlation = [cells[i], cells[i + 1]];
+            corner.motion = q * (1.0 - 0.1 * i as f64);
+        }
+        let kept = three_step_steps(&estimate);
+        assert!(
+            !kept.is_empty() && kept.len() < estimate.corners.len(),
+            "{kept:?}"
+        );
+        for corner in &estimate.corners {
+            let [low, high] = three_step_weights(corner.correlation);
+            let own = low * corner.motion - high * Matrix3::zeros();
+            assert!(
+                kept.iter()
+                    .any(|(m, _)| SymmetricEigen::new(own - m).eigenvalues.min() >= -1e-18),
+                "{corner:?}"
+            );
+        }
+        assert!(kept.iter().all(|&(_, positive)| positive));
     }
 
     /// Which way ρ moves her: at a fixed `Q`, positive correlation sharpens Eve's view of the

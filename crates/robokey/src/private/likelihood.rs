@@ -414,6 +414,18 @@ impl DoubletModel {
             })
     }
 
+    /// Whether every pattern's predicted covariance of `view` is positive definite: only then
+    /// is [`Self::separations`] a distance (it reads 0 otherwise).
+    #[must_use]
+    pub fn covariances_positive(&self, inputs: &DoubletInputs, view: &DoubletView) -> bool {
+        (0..self.perturbation.patterns()).all(|h| match self.predict(inputs, view, h) {
+            Prediction::Both { covariance, .. } => Cholesky::new(covariance).is_some(),
+            Prediction::One { covariance, .. } => Cholesky::new(covariance).is_some(),
+            Prediction::Three { covariance, .. } => Cholesky::new(covariance).is_some(),
+            Prediction::None => false,
+        })
+    }
+
     /// Mahalanobis distance between the predicted observations of patterns `a` and `b`,
     /// under `a`'s covariance.
     fn distance(&self, inputs: &DoubletInputs, view: &DoubletView, a: usize, b: usize) -> f64 {
