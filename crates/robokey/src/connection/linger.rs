@@ -82,14 +82,37 @@ impl Linger {
         self.until
     }
 
-    /// Something this side must answer (a post-processing frame) came at `now`: the quiet
-    /// time starts again.
-    pub(crate) fn busy(&mut self, now: Time) {
-        self.until = now + self.quiet;
+    /// Something this side must answer (a post-processing frame) came at `now`: it stays at
+    /// least `patience` from now — the quiet time, or longer while the peer may be computing
+    /// before its next request (the controller's block-time estimate of the plant).
+    pub(crate) fn busy(&mut self, now: Time, patience: Duration) {
+        self.until = now + self.quiet.max(patience);
     }
 
     /// A closing message from the peer at `now`: what to send back (with `Done`).
     pub(crate) fn answer(&mut self, now: Time, message: &Closing) -> Vec<Message> {
         self.courtesy.answer(now, message, true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::Pace;
+
+    /// A frame answered with a block in flight keeps the side lingering for the patience it
+    /// was given (the silence timeout), not only the quiet time; without it, the quiet time.
+    #[test]
+    fn a_frame_keeps_the_side_for_its_patience_or_the_quiet_time() {
+        let timing = Timing::new(Pace::Lockstep, Duration::from_secs(2));
+        let start = Time::ZERO;
+        let mut linger = Linger::new(Courtesy::new(Vec::new(), &timing), &timing, start);
+        let quiet = timing.linger_quiet();
+        linger.busy(start, Duration::ZERO);
+        assert!(!linger.is_over(start + (quiet - Duration::from_millis(1))));
+        assert!(linger.is_over(start + quiet));
+        linger.busy(start, timing.silence_timeout);
+        assert!(!linger.is_over(start + Duration::from_millis(1_999)));
+        assert!(linger.is_over(start + timing.silence_timeout));
     }
 }
