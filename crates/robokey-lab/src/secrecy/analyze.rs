@@ -94,17 +94,24 @@ fn with_adversary(config: &Config, adversary: EveStrategy) -> Config {
     config
 }
 
-/// Private sensing: the sessions of one point against one adversary, simulated with her
-/// doublet evidence.
+/// Private sensing: the sessions of one point, simulated once for all its `adversaries`
+/// (each has her evidence and key in every run: `adversaries[0]` listens, and the
+/// `commands` eavesdropper is judged when one of them is she). How many sessions a point
+/// needs depends on the keys and outcomes only, never on the eavesdropper: one count serves
+/// every adversary.
 fn private_sessions(
     experiment: &Experiment,
     point: usize,
-    adversary: EveStrategy,
+    adversaries: &[EveStrategy],
     options: &SecrecyOptions,
 ) -> Result<Vec<RunOutput>, LabError> {
-    let config = with_adversary(&experiment.points[point].config, adversary);
+    let config = with_adversary(&experiment.points[point].config, adversaries[0]);
     let plan = SessionPlan::from_config(&config, 0);
-    let judged = Eavesdroppers::reading(adversary);
+    let judged = if adversaries.contains(&EveStrategy::Commands) {
+        Eavesdroppers::Both
+    } else {
+        Eavesdroppers::Camera
+    };
     let mut runs: Vec<RunOutput> = Vec::new();
     let count = sessions_needed(experiment.replicates(), options, |n| {
         let more: Vec<RunOutput> = (runs.len() as u32..n)
@@ -116,7 +123,7 @@ fn private_sessions(
             })
             .collect::<Result<_, _>>()?;
         runs.extend(more);
-        Ok(filled(&runs[..n as usize], options, adversary))
+        Ok(filled(&runs[..n as usize], options, adversaries[0]))
     })?;
     runs.truncate(count as usize);
     Ok(runs)
@@ -196,9 +203,11 @@ fn analyze_point(
     };
     let (controller_bits, eve_bits) = (
         zeroize::Zeroizing::new(accepted(|r| &r.keys.controller)),
-        zeroize::Zeroizing::new(accepted(|r| {
-            r.keys.eve.as_deref().map_or(&[], Vec::as_slice)
-        })),
+        zeroize::Zeroizing::new(
+            runs.iter()
+                .flat_map(|r| pipeline::eve_key(r, adversary).iter().copied())
+                .collect::<Vec<u8>>(),
+        ),
     );
     let raw_bits = controller_bits.len() as u64;
     let eve_wrong = controller_bits
@@ -561,22 +570,30 @@ pub fn analyze_with(
         .collect();
     let private = |p: usize| experiment.points[p].config.sensing.mode == SensingMode::Private;
     let mut results: Vec<Option<PointSecrecy>> = vec![None; jobs.len()];
-    // Private sensing: every adversary's evidence comes from her own simulation.
-    let private_jobs: Vec<usize> = (0..jobs.len()).filter(|&j| private(jobs[j].0)).collect();
-    let sessions = private_jobs
+    // Private sensing: a point's sessions are simulated once, judging every adversary.
+    let private_points: Vec<usize> = (0..experiment.points.len())
+        .filter(|&p| private(p))
+        .collect();
+    let sessions = private_points
         .par_iter()
-        .map(|&j| private_sessions(experiment, jobs[j].0, jobs[j].1, options))
+        .map(|&p| private_sessions(experiment, p, &adversaries, options))
         .collect::<Result<Vec<_>, LabError>>()?;
-    let off = OffRuns::simulate(private_jobs.iter().zip(&sessions).map(|(&j, runs)| {
+    let runs_of = |p: usize| {
+        &sessions[private_points
+            .iter()
+            .position(|&q| q == p)
+            .expect("a private point")]
+    };
+    let private_jobs: Vec<usize> = (0..jobs.len()).filter(|&j| private(jobs[j].0)).collect();
+    let off = OffRuns::simulate(private_jobs.iter().map(|&j| {
         let config = &experiment.points[jobs[j].0].config;
-        (config, private::off_replicates(runs.len()))
+        (config, private::off_replicates(runs_of(jobs[j].0).len()))
     }))?;
     let computed = private_jobs
         .par_iter()
-        .zip(&sessions)
-        .map(|(&j, runs)| {
+        .map(|&j| {
             let (p, a) = jobs[j];
-            analyze_point(experiment, p, a, options, runs, &off)
+            analyze_point(experiment, p, a, options, runs_of(p), &off)
         })
         .collect::<Result<Vec<_>, LabError>>()?;
     for (j, result) in private_jobs.into_iter().zip(computed) {
@@ -916,6 +933,28 @@ mod tests {
 
     /// Private sensing sizes its key from the camera assumption, runs the endpoints, labels
     /// its adversaries, and its measured leak through the commands is the model's.
+    /// One simulation judging both private eavesdroppers carries each one's key as a
+    /// simulation naming her has it: a point's camera and commands analyses share sessions.
+    #[test]
+    fn one_private_simulation_carries_each_eavesdroppers_key() {
+        let config = private("").points[0].config.clone();
+        let run = |strategy, judged| {
+            let config = with_adversary(&config, strategy);
+            let plan = SessionPlan::from_config(&config, 0);
+            simulate_plan(&config, plan, 0, false, judged).unwrap()
+        };
+        let both = run(EveStrategy::Camera, Eavesdroppers::Both);
+        let shared = both.private.as_ref().unwrap();
+        for strategy in [EveStrategy::Camera, EveStrategy::Commands] {
+            let own = run(strategy, Eavesdroppers::reading(strategy));
+            let key = own.keys.eve.as_ref().unwrap();
+            assert!(!key.is_empty(), "{strategy:?}");
+            assert_eq!(shared.eve_key(strategy), Some(key), "{strategy:?}");
+            assert_eq!(pipeline::eve_key(&both, strategy), key.as_slice());
+        }
+        assert_ne!(shared.camera_key, shared.commands_key);
+    }
+
     #[test]
     fn private_points_are_accounted_against_the_camera_and_the_commands() {
         let results = analyze(

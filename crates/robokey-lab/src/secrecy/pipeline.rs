@@ -147,7 +147,7 @@ pub fn pools(
         let keys = &run.keys;
         pool.robot.extend_from_slice(&keys.robot);
         pool.controller.extend_from_slice(&keys.controller);
-        let eve = keys.eve.as_deref().map_or(&[][..], Vec::as_slice);
+        let eve = eve_key(run, adversary);
         // A position Eve made no guess for counts as known to her: the cautious side.
         pool.eve
             .extend((0..keys.robot.len()).map(|i| eve.get(i).copied().unwrap_or(keys.robot[i])));
@@ -172,6 +172,17 @@ pub fn pools(
         }
     }
     full
+}
+
+/// Eve's key of `run` as `adversary` hears it (empty when she has none): in private
+/// sensing that eavesdropper's (one simulation carries both), else the run's.
+#[must_use]
+pub fn eve_key(run: &RunOutput, adversary: EveStrategy) -> &[u8] {
+    match &run.private {
+        Some(private) => private.eve_key(adversary),
+        None => run.keys.eve.as_ref(),
+    }
+    .map_or(&[][..], |key| key.as_slice())
 }
 
 /// Eve's realised view of a block: a diagnostic beside the assumption, never what sizes the

@@ -22,6 +22,46 @@ pub struct GramFilter {
     gram: DMatrix<f64>,
     log_det: f64,
     batch: Batch,
+    work: Conditioning,
+}
+
+/// Work space of [`GramFilter::condition`] and [`GramFilter::transition`], overwritten by
+/// each: the same products as allocating ones (`mul_to` is the `gemm` of `*`), into kept
+/// storage, reallocated only when a shape changes.
+#[derive(Clone, Debug, Default)]
+struct Conditioning {
+    /// `J·m` (`dim × columns`), then `ũ = u − J·m`.
+    about: DMatrix<f64>,
+    /// `uᵀ` and `mᵀ` (`columns × dim`), materialised as the allocating products did.
+    projected_transposed: DMatrix<f64>,
+    means_transposed: DMatrix<f64>,
+    /// `mᵀJ` (`columns × dim`).
+    means_information: DMatrix<f64>,
+    /// `uᵀm`, `mᵀJm` and `ũᵀ·gain` (`columns × columns`).
+    cross: DMatrix<f64>,
+    quadratic: DMatrix<f64>,
+    reduction: DMatrix<f64>,
+    /// `P⁺` before its symmetrisation (`dim × dim`).
+    posterior: DMatrix<f64>,
+    /// `P⁺ũ` (`dim × columns`), then `ũᵀ` (`columns × dim`).
+    gain: DMatrix<f64>,
+    about_transposed: DMatrix<f64>,
+    /// `Lᵀ` (`dim × new_dim`) and `L·P` (`new_dim × dim`) of a transition.
+    map_transposed: DMatrix<f64>,
+    mapped: DMatrix<f64>,
+}
+
+/// `m` as a `rows × columns` matrix of unspecified values: kept when it has that shape.
+fn shaped(m: &mut DMatrix<f64>, rows: usize, columns: usize) -> &mut DMatrix<f64> {
+    if m.shape() != (rows, columns) {
+        *m = DMatrix::zeros(rows, columns);
+    }
+    m
+}
+
+/// `source`ᵀ into `target`, reshaped as needed.
+fn transpose_into(source: &DMatrix<f64>, target: &mut DMatrix<f64>) {
+    source.transpose_to(shaped(target, source.ncols(), source.nrows()));
 }
 
 /// The observations gathered since the last conditioning: zero when `empty`, and sized for
@@ -85,6 +125,7 @@ impl GramFilter {
             gram: DMatrix::zeros(columns, columns),
             log_det: 0.0,
             batch: Batch::new(dim, columns),
+            work: Conditioning::default(),
             cov,
         }
     }
@@ -142,28 +183,63 @@ impl GramFilter {
     }
 
     /// Conditions the state on the observations gathered since the last call.
+    ///
+    /// Each element is computed by the same operations, in the same order, as the
+    /// expressions of the module's documentation written with allocating products:
+    /// `ũ = u − J·m`, `S̃ = S − uᵀm − (uᵀm)ᵀ + (mᵀJ)m`, `P⁺ = (I + P·J)⁻¹P` symmetrised as
+    /// `(P⁺ + P⁺ᵀ)/2`, `gram += S̃ − ũᵀ(P⁺ũ)`, `m += P⁺ũ`.
     pub fn condition(&mut self) {
         if self.batch.empty {
             return;
         }
-        let dim = self.dim();
-        let b = &self.batch;
+        let (dim, columns) = (self.dim(), self.means.ncols());
+        let (b, w) = (&self.batch, &mut self.work);
         // ũ = u − J·m and S̃ = S − uᵀm − mᵀu + mᵀJm: the batch about the prior means.
-        let about = &b.projected - &b.info * &self.means;
-        let cross = b.projected.transpose() * &self.means;
-        let direct =
-            &b.direct - &cross - cross.transpose() + self.means.transpose() * &b.info * &self.means;
-        let growth = DMatrix::identity(dim, dim) + &self.cov * &b.info;
-        let lu = growth.clone().lu();
-        let posterior = lu
-            .solve(&self.cov)
-            .expect("I + P·J is invertible for P, J positive semi-definite");
-        let posterior = (&posterior + posterior.transpose()) * 0.5;
-        let gain = &posterior * &about;
-        self.gram += direct - about.transpose() * &gain;
-        self.means += gain;
+        b.info
+            .mul_to(&self.means, shaped(&mut w.about, dim, columns));
+        w.about
+            .zip_apply(&b.projected, |product, u| *product = u - *product);
+        transpose_into(&b.projected, &mut w.projected_transposed);
+        w.projected_transposed
+            .mul_to(&self.means, shaped(&mut w.cross, columns, columns));
+        transpose_into(&self.means, &mut w.means_transposed);
+        w.means_transposed
+            .mul_to(&b.info, shaped(&mut w.means_information, columns, dim));
+        w.means_information
+            .mul_to(&self.means, shaped(&mut w.quadratic, columns, columns));
+        // I + P·J: every element gains `δ_ij`, zeros included, as in the sum of the identity
+        // and the product (a rounded sum is the same either way round).
+        let mut growth = &self.cov * &b.info;
+        for j in 0..dim {
+            for i in 0..dim {
+                growth[(i, j)] += f64::from(u8::from(i == j));
+            }
+        }
+        let lu = growth.lu();
+        let posterior = shaped(&mut w.posterior, dim, dim);
+        posterior.copy_from(&self.cov);
+        assert!(
+            lu.solve_mut(posterior),
+            "I + P·J is invertible for P, J positive semi-definite"
+        );
+        for j in 0..dim {
+            for i in 0..dim {
+                self.cov[(i, j)] = (posterior[(i, j)] + posterior[(j, i)]) * 0.5;
+            }
+        }
+        self.cov.mul_to(&w.about, shaped(&mut w.gain, dim, columns));
+        transpose_into(&w.about, &mut w.about_transposed);
+        w.about_transposed
+            .mul_to(&w.gain, shaped(&mut w.reduction, columns, columns));
+        for j in 0..columns {
+            for i in 0..columns {
+                let direct =
+                    b.direct[(i, j)] - w.cross[(i, j)] - w.cross[(j, i)] + w.quadratic[(i, j)];
+                self.gram[(i, j)] += direct - w.reduction[(i, j)];
+            }
+        }
+        self.means += &w.gain;
         self.log_det += lu.determinant().abs().ln() - b.log_det_noise;
-        self.cov = posterior;
         self.batch.clear();
     }
 
@@ -171,7 +247,11 @@ impl GramFilter {
     /// observations first.
     pub fn transition(&mut self, l: &DMatrix<f64>) {
         self.condition();
-        self.cov = l * &self.cov * l.transpose();
+        let w = &mut self.work;
+        let (new_dim, dim) = l.shape();
+        transpose_into(l, &mut w.map_transposed);
+        l.mul_to(&self.cov, shaped(&mut w.mapped, new_dim, dim));
+        self.cov = &w.mapped * &w.map_transposed;
         self.means = l * &self.means;
     }
 

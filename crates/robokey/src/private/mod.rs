@@ -19,6 +19,7 @@ pub mod window;
 use serde::Serialize;
 
 use crate::config::EveStrategy;
+use crate::protocol::KeyBits;
 
 pub(crate) use controller::PrivateController;
 pub use decision::DoubletDecision;
@@ -133,6 +134,25 @@ pub struct PrivateRun {
     pub bits: Vec<DoubletBit>,
     /// The controller's samples of every carrying doublet, in order.
     pub controller_samples: Vec<DoubletSamples>,
+    /// The `camera` eavesdropper's key, when Eve listened (key material: never printed).
+    pub camera_key: Option<KeyBits>,
+    /// The `commands` eavesdropper's key, when Eve listened and the simulation judged her
+    /// (key material: never printed). With [`Self::camera_key`], one simulation judging
+    /// [`Eavesdroppers::Both`] serves an analysis of either, whichever the configuration
+    /// names (the run's `keys.eve` is that one's).
+    pub commands_key: Option<KeyBits>,
+}
+
+impl PrivateRun {
+    /// The key of a private-mode eavesdropper (`camera` for any other strategy); none when
+    /// Eve did not listen or, for the `commands` one, was not judged.
+    #[must_use]
+    pub fn eve_key(&self, strategy: EveStrategy) -> Option<&KeyBits> {
+        match strategy {
+            EveStrategy::Commands => self.commands_key.as_ref(),
+            _ => self.camera_key.as_ref(),
+        }
+    }
 }
 
 impl std::fmt::Debug for PrivateRun {

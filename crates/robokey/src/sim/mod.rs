@@ -304,18 +304,21 @@ fn run<'a>(
             },
             None,
         ),
-        Senses::Private(p) => (
-            RunKeys {
-                robot: pair.robot.key().to_vec().into(),
-                controller: pair.controller.key().to_vec().into(),
-                eve: config
-                    .eve
-                    .enabled
-                    .then(|| p.eve.key(config.eve_strategy() != EveStrategy::Commands))
-                    .flatten(),
-            },
-            Some(p.run),
-        ),
+        Senses::Private(p) => {
+            let key = |camera: bool| config.eve.enabled.then(|| p.eve.key(camera)).flatten();
+            (
+                RunKeys {
+                    robot: pair.robot.key().to_vec().into(),
+                    controller: pair.controller.key().to_vec().into(),
+                    eve: key(config.eve_strategy() != EveStrategy::Commands),
+                },
+                Some(PrivateRun {
+                    camera_key: key(true),
+                    commands_key: key(false),
+                    ..p.run
+                }),
+            )
+        }
     };
     let metrics = match &private {
         None => metrics::odometry(&log, jx, &keys, &plan, config.protocol.enabled),
