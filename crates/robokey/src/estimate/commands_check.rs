@@ -52,33 +52,28 @@ pub struct BoundaryResidual {
     pub modelled: [f64; 3],
 }
 
-/// The boundary residuals of one carrying doublet's `bits_per_doublet` bits under `model`,
-/// from the controller's samples and the robot's bits `samples.pattern`.
+/// The boundary residuals of every key bit of one carrying doublet under `model` (each
+/// bit's kind its symbol's dimension), from the controller's samples and the robot's bits
+/// `samples.pattern`.
 #[must_use]
-pub fn doublet_residuals(
-    model: &DoubletModel,
-    samples: &DoubletSamples,
-    bits_per_doublet: usize,
-) -> Vec<BoundaryResidual> {
+pub fn doublet_residuals(model: &DoubletModel, samples: &DoubletSamples) -> Vec<BoundaryResidual> {
     let start = &samples.samples[0];
     let frame =
         |delta: &crate::model::Pose| in_doublet_frame(delta, start.z, samples.inputs.first.y);
     let end = |pattern: Option<usize>| model.end_of(&samples.inputs, start, pattern);
     let revealed = frame(&(samples.samples[2] - end(None)));
     let bits = samples.pattern;
-    BitKind::ALL
-        .iter()
-        .enumerate()
-        .take(bits_per_doublet)
-        .map(|(kind, &bit_kind)| {
+    let perturbation = &model.perturbation;
+    (0..perturbation.key_bits())
+        .map(|index| {
             let with = |value: usize| {
-                let pattern = (bits & !(1 << kind)) | (value << kind);
-                model.perturbation.pattern(pattern as u64)
+                let pattern = (bits & !(1 << index)) | (value << index);
+                perturbation.pattern(pattern as u64)
             };
             let [plus, minus] = [with(0), with(1)].map(|h| end(Some(h)));
             BoundaryResidual {
-                kind: bit_kind,
-                bit: (bits >> kind & 1) as u8,
+                kind: BitKind::ALL[perturbation.dimension_of(index)],
+                bit: (bits >> index & 1) as u8,
                 turn_rate: samples.inputs.turn_rate(),
                 revealed,
                 modelled: frame(&(0.5 * (plus - minus))),
@@ -91,11 +86,10 @@ pub fn doublet_residuals(
 #[must_use]
 pub fn block_residuals(config: &Config, sessions: &[&[DoubletSamples]]) -> Vec<BoundaryResidual> {
     let model = doublet_model(config);
-    let bits_per_doublet = usize::from(config.protocol.bits_per_doublet);
     sessions
         .iter()
         .flat_map(|session| session.iter())
-        .flat_map(|samples| doublet_residuals(&model, samples, bits_per_doublet))
+        .flat_map(|samples| doublet_residuals(&model, samples))
         .collect()
 }
 
@@ -255,7 +249,6 @@ pub fn sized_block_refusal(
     let Some([_, low, high]) = estimate.and_then(|e| e.lag) else {
         return block_refusal(config, sessions, level);
     };
-    let bits_per_doublet = usize::from(config.protocol.bits_per_doublet);
     let mut merged: Vec<Regression> = Vec::new();
     for tau in lag_grid([low, high]) {
         let model = DoubletModel {
@@ -265,7 +258,7 @@ pub fn sized_block_refusal(
         let bits: Vec<BoundaryResidual> = sessions
             .iter()
             .flat_map(|session| session.iter())
-            .flat_map(|samples| doublet_residuals(&model, samples, bits_per_doublet))
+            .flat_map(|samples| doublet_residuals(&model, samples))
             .collect();
         let tests = regressions(&bits);
         if merged.is_empty() {
@@ -311,6 +304,34 @@ mod tests {
     /// A leak the model does not predict is refused when it stands above the regression's
     /// error (≈ 0.016 mm at 10⁴ bits with 1.6 mm of residual noise), naming the class, the
     /// axis and the values; white residuals pass at ε = 10⁻⁶.
+    /// With a 4-level alphabet on v and ω every key bit is checked under its symbol's
+    /// dimension: v's two bits as v-bits, ω's two as ω-bits.
+    #[test]
+    fn every_key_bit_of_a_multilevel_doublet_is_checked_under_its_dimension() {
+        let mut config = Config::default();
+        config.sensing.mode = crate::config::SensingMode::Private;
+        config.protocol.bits_per_doublet = 2;
+        config.protocol.levels = 4;
+        let model = doublet_model(&config);
+        let samples = DoubletSamples {
+            doublet: 0,
+            inputs: crate::private::DoubletInputs {
+                first: crate::model::Unicycle::new(0.1, 0.0),
+                second: crate::model::Unicycle::new(0.1, 0.0),
+            },
+            samples: [crate::model::Pose::zeros(); 3],
+            pattern: 0b1001,
+        };
+        let residuals = doublet_residuals(&model, &samples);
+        let kinds: Vec<BitKind> = residuals.iter().map(|r| r.kind).collect();
+        assert_eq!(
+            kinds,
+            [BitKind::V, BitKind::V, BitKind::Omega, BitKind::Omega]
+        );
+        let bits: Vec<u8> = residuals.iter().map(|r| r.bit).collect();
+        assert_eq!(bits, [1, 0, 0, 1]);
+    }
+
     #[test]
     fn a_residual_the_model_does_not_predict_refuses_the_block() {
         let bits = block(10_000, 0.0016, 0.0017, 1);
