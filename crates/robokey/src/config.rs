@@ -5,6 +5,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::code::{BlockCode, Repetition, hamming74};
 use crate::observer::Variant;
+pub use crate::private::doublet::Labeling;
+use crate::private::doublet::Perturbation;
 use crate::trajectory::{SQUARE, Trajectory};
 use crate::world::{Camera, WorldConfig, WorldModel};
 
@@ -282,53 +284,6 @@ impl ProtocolConfig {
     #[must_use]
     pub fn key_bits_per_doublet(&self) -> usize {
         usize::from(self.bits_per_doublet) * self.levels.max(2).trailing_zeros() as usize
-    }
-}
-
-/// Which label bits pick which of a multilevel alphabet's amplitudes (docs/private-sensing.md,
-/// "Multilevel doublets"). Label `b`'s amplitude index `i` (amplitude `(levels − 1 − 2i)/√E`):
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Labeling {
-    /// `i = b`: the lowest bit alternates between neighbouring amplitudes (the fine slice),
-    /// each higher bit separates sets twice as far apart (set partitioning).
-    Natural,
-    /// `i = gray⁻¹(b)`: neighbouring amplitudes differ in one bit.
-    Gray,
-}
-
-impl Labeling {
-    /// The default, natural labeling.
-    #[must_use]
-    pub fn is_natural(&self) -> bool {
-        *self == Self::Natural
-    }
-
-    /// Its name in a configuration file.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Natural => "natural",
-            Self::Gray => "gray",
-        }
-    }
-
-    /// The amplitude index of label `label`.
-    #[must_use]
-    pub fn index(self, label: usize) -> usize {
-        match self {
-            Self::Natural => label,
-            Self::Gray => {
-                // gray⁻¹: the prefix XOR of the label's bits from the top.
-                let mut index = label;
-                let mut shift = label >> 1;
-                while shift != 0 {
-                    index ^= shift;
-                    shift >>= 1;
-                }
-                index
-            }
-        }
     }
 }
 
@@ -1194,7 +1149,7 @@ impl Config {
         let half_axle = robot.axle_length / 2.0;
         // A multilevel alphabet's outermost symbols reach (levels − 1)/√E times Δ.
         let peak = if self.sensing.mode == SensingMode::Private {
-            crate::private::Perturbation::of(self).amplitude(0)
+            Perturbation::of(self).amplitude(0)
         } else {
             1.0
         };
@@ -1473,6 +1428,26 @@ pub fn parse_value(text: &str) -> toml::Value {
         .ok()
         .and_then(|mut t| t.remove("v"))
         .unwrap_or_else(|| toml::Value::String(text.to_owned()))
+}
+
+/// The doublets a configuration makes (here, beside the fields it reads, so that the doublet
+/// does not depend on the configuration).
+impl Perturbation {
+    /// The doublets of `config`: its Δ (Δω 0 with one dimension), dimensions, shape and
+    /// alphabet.
+    #[must_use]
+    pub fn of(config: &Config) -> Self {
+        Self {
+            delta: crate::model::Unicycle::new(
+                config.protocol.delta_v,
+                config.perturbed_delta_omega(),
+            ),
+            bits_per_doublet: config.protocol.bits_per_doublet,
+            settle: config.doublet_settle(),
+            levels: config.protocol.levels,
+            labeling: config.protocol.labeling,
+        }
+    }
 }
 
 #[cfg(test)]

@@ -5,7 +5,8 @@
 
 use nalgebra::Vector2;
 
-use crate::config::{Config, Labeling};
+use serde::{Deserialize, Serialize};
+
 use crate::model::{Pose, Unicycle, unicycle_step};
 use crate::world::lagged;
 
@@ -57,19 +58,6 @@ impl Perturbation {
             settle,
             levels: 2,
             labeling: Labeling::Natural,
-        }
-    }
-
-    /// The doublets of `config`: its Δ (Δω 0 with one dimension), dimensions, shape and
-    /// alphabet.
-    #[must_use]
-    pub fn of(config: &Config) -> Self {
-        Self {
-            delta: Unicycle::new(config.protocol.delta_v, config.perturbed_delta_omega()),
-            bits_per_doublet: config.protocol.bits_per_doublet,
-            settle: config.doublet_settle(),
-            levels: config.protocol.levels,
-            labeling: config.protocol.labeling,
         }
     }
 
@@ -300,6 +288,53 @@ pub fn in_doublet_frame(delta: &Pose, theta: f64, first_turn_rate: f64) -> [f64;
         toward_turn * (-delta.x * sin + delta.y * cos),
         delta.z.sin().atan2(delta.z.cos()),
     ]
+}
+
+/// Which label bits pick which of a multilevel alphabet's amplitudes (docs/private-sensing.md,
+/// "Multilevel doublets"). Label `b`'s amplitude index `i` (amplitude `(levels − 1 − 2i)/√E`):
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Labeling {
+    /// `i = b`: the lowest bit alternates between neighbouring amplitudes (the fine slice),
+    /// each higher bit separates sets twice as far apart (set partitioning).
+    Natural,
+    /// `i = gray⁻¹(b)`: neighbouring amplitudes differ in one bit.
+    Gray,
+}
+
+impl Labeling {
+    /// The default, natural labeling.
+    #[must_use]
+    pub fn is_natural(&self) -> bool {
+        *self == Self::Natural
+    }
+
+    /// Its name in a configuration file.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Natural => "natural",
+            Self::Gray => "gray",
+        }
+    }
+
+    /// The amplitude index of label `label`.
+    #[must_use]
+    pub fn index(self, label: usize) -> usize {
+        match self {
+            Self::Natural => label,
+            Self::Gray => {
+                // gray⁻¹: the prefix XOR of the label's bits from the top.
+                let mut index = label;
+                let mut shift = label >> 1;
+                while shift != 0 {
+                    index ^= shift;
+                    shift >>= 1;
+                }
+                index
+            }
+        }
+    }
 }
 
 #[cfg(test)]
