@@ -501,7 +501,11 @@ fn endpoint_block(
         leak,
         consistent,
         h_min: report.h_min,
-        h_min_method: settings.assumption.describe(),
+        h_min_method: report
+            .assumption
+            .as_ref()
+            .unwrap_or(&settings.assumption)
+            .describe(),
         secret_bits: report.length,
         reason: report.reason.clone(),
         realised: realised(

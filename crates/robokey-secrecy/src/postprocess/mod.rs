@@ -163,6 +163,11 @@ pub struct BlockReport {
     /// and its reason says why).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub separation_steps: Option<u32>,
+    /// The assumption the block was sized under: the configured one at the block's
+    /// separation. Not serialized (a report's reader has the configured assumption and the
+    /// separation fields).
+    #[serde(skip)]
+    pub assumption: Option<Assumption>,
     /// Why the block ended without a key, if it did.
     pub reason: Option<String>,
     /// Messages sent by this endpoint for the block (retransmissions included).

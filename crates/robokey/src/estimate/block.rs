@@ -629,10 +629,15 @@ mod tests {
     /// 16 simulated sessions of a robot with 1 mm of white motion noise per axis and a lag
     /// `tau` (s), the parties' doublets shaped for `prior` (s).
     fn lagging_block(tau: f64, prior: f64) -> (Config, Vec<Vec<DoubletSamples>>) {
+        delayed_block(0.0, tau, prior)
+    }
+
+    /// [`lagging_block`] with a dead time `delay` (s) before the lag.
+    fn delayed_block(delay: f64, tau: f64, prior: f64) -> (Config, Vec<Vec<DoubletSamples>>) {
         let config = Config::from_toml(
             &format!(
                 "[sensing]\nmode = \"private\"\n[private]\nprior_lag = {prior}\n[world]\n\
-                 process_std = [0.001, 0.001, 0.001]\nlag = {tau}\n"
+                 process_std = [0.001, 0.001, 0.001]\nlag = {tau}\ndelay = {delay}\n"
             ),
             "t",
         )
@@ -724,23 +729,7 @@ mod tests {
     /// time `delay` (s), the doublets shaped for `prior` (s): the block's lag and dead-time
     /// test at ε_est = 10⁻⁶.
     fn shape_test(delay: f64, lag: f64, prior: f64) -> Option<String> {
-        let config = Config::from_toml(
-            &format!(
-                "[sensing]\nmode = \"private\"\n[private]\nprior_lag = {prior}\n[world]\n\
-                 process_std = [0.001, 0.001, 0.001]\nlag = {lag}\ndelay = {delay}\n"
-            ),
-            "t",
-        )
-        .unwrap();
-        let sessions: Vec<Vec<DoubletSamples>> = (0..16)
-            .map(|r| {
-                crate::sim::simulate(&config, r, false)
-                    .unwrap()
-                    .private
-                    .unwrap()
-                    .controller_samples
-            })
-            .collect();
+        let (config, sessions) = delayed_block(delay, lag, prior);
         let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
         let measured = measured_lag(&config, &views, 1e-6 * LAG_EPSILON_SHARE).unwrap();
         lag_shape_refusal(&config, &views, &measured, 1e-6)
