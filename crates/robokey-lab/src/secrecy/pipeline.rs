@@ -503,7 +503,7 @@ fn endpoint_block(
         h_min: report.h_min,
         h_min_method: report
             .assumption
-            .as_ref()
+            .as_deref()
             .unwrap_or(&settings.assumption)
             .describe(),
         secret_bits: report.length,

@@ -851,7 +851,7 @@ impl ControllerPost {
             report.h_min = h_min;
             report.length = length.bits;
             report.separation_steps = estimate;
-            report.assumption = Some(assumption.clone());
+            report.assumption = Some(Box::new(assumption.clone()));
         }
         if length.bits == 0 {
             let reason = length.reason.unwrap_or_else(|| "no secret bits".to_owned());

@@ -167,7 +167,7 @@ pub struct BlockReport {
     /// separation. Not serialized (a report's reader has the configured assumption and the
     /// separation fields).
     #[serde(skip)]
-    pub assumption: Option<Assumption>,
+    pub assumption: Option<Box<Assumption>>,
     /// Why the block ended without a key, if it did.
     pub reason: Option<String>,
     /// Messages sent by this endpoint for the block (retransmissions included).

@@ -468,7 +468,7 @@ impl RobotPost {
         report.h_min = h_min;
         report.length = length;
         report.separation_steps = estimate;
-        report.assumption = Some(assumption.clone());
+        report.assumption = Some(Box::new(assumption.clone()));
         let key = FinalKey {
             id: key_id(&context),
             block,
