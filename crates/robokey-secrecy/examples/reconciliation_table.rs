@@ -5,19 +5,35 @@
 //!
 //! The controller's LLRs come from a binary symmetric channel (`bsc`: Lᵢ = ±ln((1 − Q)/Q)) or a
 //! binary-input Gaussian channel (`awgn`: yᵢ = ±1 + N(0, σ²), Lᵢ = 2yᵢ/σ², σ set so that the
-//! hard decisions err with probability Q). Cascade sees only hard decisions and the true Q.
+//! hard decisions err with probability Q), or a slice of a multilevel symbol (`slice`, below).
+//! Cascade sees only hard decisions and the true Q (for a slice, the block's realised rate).
+//!
+//! **Slices.** `--channel slice --levels L --slice j --scale k [--labeling natural|gray]`: the
+//! robot's label b is uniform on 0..L; the symbol's amplitude is k·(L − 1 − 2i)/√E, i the
+//! label's amplitude index (natural i = b, Gray i = gray⁻¹(b)), E = (L² − 1)/3 (the binary
+//! alphabet's power, as `protocol.levels` keeps Δ's); the controller sees y = amplitude +
+//! N(0, σ²) with σ the binary channel's at Q (so Q names the binary doublet's error rate at
+//! the same Δ, k the multiple of Δ). The block's bits are bit j of each label, and the
+//! controller's LLRs are the staged ones multistage reconciliation decodes with, as
+//! `robokey::private::likelihood::staged_llrs` computes them: the label's lower bits (slices
+//! < j, reconciled earlier) known, its higher ones marginalised,
+//! Lᵢ = ln Σ_{b: b_j = 0, b_{<j} = known} e^{−(y − a_b)²/2σ²} − ln Σ_{b: b_j = 1, …} (same).
+//! It is the one-dimensional, straight-path idealisation of a doublet's symbol (the
+//! separation along the Mahalanobis direction; a turn's residual and the other dimension
+//! ignored). `f_hard` then uses the block's realised error rate.
 //!
 //! ```text
 //! cargo run --release -p robokey-secrecy --example reconciliation_table -- \
 //!     --channel awgn --n 100000 --blocks 1000 --q 0.005,0.0078,0.02,0.05,0.1,0.2,0.3
 //! ```
 //! Options: `--channel bsc|awgn`, `--n BITS`, `--blocks COUNT`, `--q LIST`,
-//! `--efficiency F` and `--finite-length C` (LDPC's first syndrome, m = ⌈F·H + C·√H⌉ for
+//! `--levels`, `--slice`, `--scale`, `--labeling` (slices only), `--efficiency F` and `--finite-length C` (LDPC's first syndrome, m = ⌈F·H + C·√H⌉ for
 //! the soft limit H), `--iterations CAP` (the last round's), `--round-iterations CAP` (the
 //! rounds' before it), `--feedback ROUNDS` (LDPC feedback
 //! rounds at most), `--increment SHARE` (of m per feedback round), `--method
 //! ldpc|cascade|both`, `--seed S`. Columns: `undet` counts wrong blocks the decoder took for
-//! right (only the tags catch them); `rounds` is LDPC's mean rounds (Cascade's: its mean
+//! right (only the tags catch them); `FER95` the failure rate's one-sided 95 % Clopper–Pearson
+//! upper bound; `rounds` is LDPC's mean rounds (Cascade's: its mean
 //! question messages); `iter` LDPC's mean belief-propagation iterations over all rounds.
 
 use std::time::Instant;
@@ -25,8 +41,49 @@ use std::time::Instant;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
+use robokey_secrecy::interval::clopper_pearson_upper;
 use robokey_secrecy::ldpc::{LdpcSettings, reconcile, soft_limit_bits};
+use robokey_secrecy::special::ln_add_exp;
 use robokey_secrecy::{BitString, Cascade, Reconciler, binary_entropy};
+
+/// A slice of a multilevel symbol (see the module docs).
+#[derive(Clone, Copy)]
+struct Slice {
+    /// Amplitude levels L: 2, 4 or 8.
+    levels: usize,
+    /// The label bit j this block carries (0: the fine slice, decoded first).
+    bit: usize,
+    /// The multiple k of the binary Δ.
+    scale: f64,
+    /// Gray labeling instead of natural.
+    gray: bool,
+}
+
+impl Slice {
+    /// Label b's amplitude k·(L − 1 − 2i)/√E.
+    fn amplitude(&self, label: usize) -> f64 {
+        let levels = self.levels as f64;
+        let index = if self.gray {
+            (1..usize::BITS).fold(label, |index, shift| index ^ (label >> shift))
+        } else {
+            label
+        };
+        self.scale * (levels - 1.0 - 2.0 * index as f64) / ((levels * levels - 1.0) / 3.0).sqrt()
+    }
+
+    /// The staged LLR of bit j of `label` from the observation y: lower bits known, higher
+    /// ones marginalised.
+    fn llr(&self, label: usize, y: f64, sigma: f64) -> f64 {
+        let lower = (1 << self.bit) - 1;
+        let ln_sum = |value: usize| {
+            (0..self.levels)
+                .filter(|b| (b >> self.bit) & 1 == value && b & lower == label & lower)
+                .map(|b| -(y - self.amplitude(b)).powi(2) / (2.0 * sigma * sigma))
+                .fold(f64::NEG_INFINITY, ln_add_exp)
+        };
+        ln_sum(0) - ln_sum(1)
+    }
+}
 
 struct Options {
     channel: String,
@@ -36,6 +93,7 @@ struct Options {
     settings: LdpcSettings,
     method: String,
     seed: u64,
+    slice: Slice,
 }
 
 fn parse() -> Result<Options, String> {
@@ -47,6 +105,12 @@ fn parse() -> Result<Options, String> {
         settings: LdpcSettings::DEFAULT,
         method: "both".into(),
         seed: 1,
+        slice: Slice {
+            levels: 4,
+            bit: 0,
+            scale: 1.0,
+            gray: false,
+        },
     };
     let args: Vec<String> = std::env::args().skip(1).collect();
     for pair in args.chunks(2) {
@@ -55,7 +119,17 @@ fn parse() -> Result<Options, String> {
         };
         let bad = |e: &dyn std::fmt::Display| format!("{key} {value}: {e}");
         match key.as_str() {
-            "--channel" if value == "bsc" || value == "awgn" => options.channel = value.clone(),
+            "--channel" if ["bsc", "awgn", "slice"].contains(&value.as_str()) => {
+                options.channel = value.clone();
+            }
+            "--levels" if ["2", "4", "8"].contains(&value.as_str()) => {
+                options.slice.levels = value.parse().map_err(|e| bad(&e))?;
+            }
+            "--slice" => options.slice.bit = value.parse().map_err(|e| bad(&e))?,
+            "--scale" => options.slice.scale = value.parse().map_err(|e| bad(&e))?,
+            "--labeling" if value == "natural" || value == "gray" => {
+                options.slice.gray = value == "gray";
+            }
             "--n" => options.n = value.parse().map_err(|e| bad(&e))?,
             "--blocks" => options.blocks = value.parse().map_err(|e| bad(&e))?,
             "--q" => {
@@ -90,6 +164,18 @@ fn parse() -> Result<Options, String> {
             _ => return Err(format!("unknown option or value: {key} {value}")),
         }
     }
+    let slice = options.slice;
+    if slice.bit >= slice.levels.trailing_zeros() as usize {
+        return Err(format!(
+            "--slice {} outside 0..{} for --levels {}",
+            slice.bit,
+            slice.levels.trailing_zeros(),
+            slice.levels
+        ));
+    }
+    if !(slice.scale.is_finite() && slice.scale > 0.0) {
+        return Err(format!("--scale {} must be a positive number", slice.scale));
+    }
     Ok(options)
 }
 
@@ -119,6 +205,9 @@ fn sigma_for(q: f64) -> f64 {
 /// The robot's bits, the controller's LLRs, and its hard decisions.
 fn block(options: &Options, q: f64, rng: &mut ChaCha8Rng) -> (BitString, Vec<f64>, BitString) {
     let x = BitString::random(options.n, rng);
+    if options.channel == "slice" {
+        return slice_block(options, q, rng);
+    }
     let llrs: Vec<f64> = if options.channel == "bsc" {
         let l = ((1.0 - q) / q).ln();
         (0..options.n)
@@ -141,6 +230,31 @@ fn block(options: &Options, q: f64, rng: &mut ChaCha8Rng) -> (BitString, Vec<f64
     (x, llrs, BitString::from_bools(&hard))
 }
 
+/// A block of one slice: bit j of uniform labels, and the staged LLRs of their symbols seen
+/// through N(0, σ²), σ the binary channel's at `q`.
+fn slice_block(
+    options: &Options,
+    q: f64,
+    rng: &mut ChaCha8Rng,
+) -> (BitString, Vec<f64>, BitString) {
+    let slice = options.slice;
+    let sigma = sigma_for(q);
+    let noise = Normal::new(0.0, sigma).expect("σ > 0");
+    let (bits, llrs): (Vec<bool>, Vec<f64>) = (0..options.n)
+        .map(|_| {
+            let label = rng.random_range(0..slice.levels);
+            let y = slice.amplitude(label) + noise.sample(rng);
+            ((label >> slice.bit) & 1 == 1, slice.llr(label, y, sigma))
+        })
+        .unzip();
+    let hard: Vec<bool> = llrs.iter().map(|&l| l < 0.0).collect();
+    (
+        BitString::from_bools(&bits),
+        llrs,
+        BitString::from_bools(&hard),
+    )
+}
+
 #[derive(Default)]
 struct Tally {
     blocks: usize,
@@ -159,7 +273,7 @@ impl Tally {
     fn row(&self, method: &str, options: &Options, q: f64, errors: f64) {
         let b = self.blocks.max(1) as f64;
         println!(
-            "{:7} {:>8} {:>7.4} {:>7.5} {:>7.5} {:>8} {:>6} {:>6} {:>8.4} {:>7.4} {:>7.4} {:>7.2} {:>6.1} {:>9.1}",
+            "{:7} {:>8} {:>7.4} {:>7.5} {:>7.5} {:>8} {:>6} {:>6} {:>8.4} {:>8.4} {:>7.4} {:>7.4} {:>7.2} {:>6.1} {:>9.1}",
             method,
             options.n,
             q,
@@ -169,6 +283,7 @@ impl Tally {
             self.failures,
             self.undetected,
             self.failures as f64 / b,
+            clopper_pearson_upper(self.failures as u64, self.blocks as u64, 0.05).unwrap_or(1.0),
             self.leak / self.soft,
             self.leak / self.hard,
             self.rounds / b,
@@ -186,14 +301,25 @@ fn main() {
             std::process::exit(2);
         }
     };
+    let channel = if options.channel == "slice" {
+        let s = options.slice;
+        format!(
+            "slice {} of {}-level {} labels at {}×Δ",
+            s.bit,
+            s.levels,
+            if s.gray { "gray" } else { "natural" },
+            s.scale
+        )
+    } else {
+        options.channel.clone()
+    };
     println!(
-        "# channel {}, LDPC {}, seed {}",
-        options.channel,
+        "# channel {channel}, LDPC {}, seed {}",
         options.settings.agreement_term(),
         options.seed
     );
     println!(
-        "{:7} {:>8} {:>7} {:>7} {:>7} {:>8} {:>6} {:>6} {:>8} {:>7} {:>7} {:>7} {:>6} {:>9}",
+        "{:7} {:>8} {:>7} {:>7} {:>7} {:>8} {:>6} {:>6} {:>8} {:>8} {:>7} {:>7} {:>7} {:>6} {:>9}",
         "method",
         "n",
         "Q",
@@ -203,6 +329,7 @@ fn main() {
         "fail",
         "undet",
         "FER",
+        "FER95",
         "f_soft",
         "f_hard",
         "rounds",
@@ -218,7 +345,13 @@ fn main() {
             let wrong = x.hamming_distance(&hard).unwrap_or(0) as f64;
             errors += wrong;
             let soft = soft_limit_bits(&llrs);
-            let hard_limit = options.n as f64 * binary_entropy(q);
+            // A slice's error rate is the block's own; the binary channels' is Q.
+            let rate = if options.channel == "slice" {
+                (wrong / options.n as f64).clamp(1e-9, 0.5)
+            } else {
+                q
+            };
+            let hard_limit = options.n as f64 * binary_entropy(rate);
             if options.method != "cascade" {
                 let seed: [u8; 32] = rng.random();
                 let start = Instant::now();
@@ -242,7 +375,7 @@ fn main() {
             }
             if options.method != "ldpc" {
                 let start = Instant::now();
-                let out = Cascade::biconf(q).and_then(|c| c.reconcile(&x, &hard, &mut rng));
+                let out = Cascade::biconf(rate).and_then(|c| c.reconcile(&x, &hard, &mut rng));
                 cascade.seconds += start.elapsed().as_secs_f64();
                 cascade.blocks += 1;
                 match out {
