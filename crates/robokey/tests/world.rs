@@ -296,11 +296,7 @@ fn the_window_smoother_judges_multilevel_symbols() {
             let eve = private.camera_key.as_ref().unwrap();
             let robot = &run.keys.robot;
             assert_eq!(eve.len(), robot.len(), "{world}");
-            errors += eve
-                .iter()
-                .zip(robot.iter())
-                .filter(|(e, r)| e != r)
-                .count();
+            errors += eve.iter().zip(robot.iter()).filter(|(e, r)| e != r).count();
             bits += robot.len();
         }
         let p: Vec<f64> = all
@@ -310,8 +306,9 @@ fn the_window_smoother_judges_multilevel_symbols() {
         let expected: f64 = p.iter().sum::<f64>() * bits as f64 / p.len() as f64;
         let spread = p.iter().map(|p| p * (1.0 - p)).sum::<f64>().sqrt();
         println!(
-            "{world}: her own errors {errors} of {bits}; her view given the others predicts \
-             {expected:.0} of them"
+            "{}: her own errors {errors} of {bits}; her view given the others predicts \
+             {expected:.0} of them",
+            world.replace('\n', " ")
         );
         assert!(
             errors as f64 >= expected - 3.0 * spread,

@@ -490,7 +490,11 @@ impl DoubletModel {
         view: &DoubletView,
         word: u64,
     ) -> [f64; MAX_BITS] {
-        chained_llrs(&self.log_likelihoods(inputs, view), &self.perturbation, word)
+        chained_llrs(
+            &self.log_likelihoods(inputs, view),
+            &self.perturbation,
+            word,
+        )
     }
 
     /// Each bit's separation: the Mahalanobis distance between its two hypotheses, the

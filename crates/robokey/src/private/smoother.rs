@@ -238,7 +238,9 @@ impl Treatment {
             }
         }
         if !treatment.folded.is_empty() {
-            treatment.folded.splice(0..0, treatment.gaussian.iter().copied());
+            treatment
+                .folded
+                .splice(0..0, treatment.gaussian.iter().copied());
         }
         treatment
     }
@@ -651,11 +653,10 @@ impl WindowSmoother {
         // A multilevel symbol's bits are judged in a chain, each given the true ones before
         // it (her realised bound is then on the symbols); binary bits as they are.
         let chained = self.perturbation.levels > 2;
-        let revealed = others.iter().all(|o| truth(o.doublet).is_some())
-            && (!chained || truth(j).is_some());
+        let revealed =
+            others.iter().all(|o| truth(o.doublet).is_some()) && (!chained || truth(j).is_some());
         let given_others = revealed.then(|| {
-            let treatment =
-                Treatment::new(&others, |o| pattern_of(o.doublet), columns.len(), j, 0);
+            let treatment = Treatment::new(&others, |o| pattern_of(o.doublet), columns.len(), j, 0);
             let (evidence, ll) = if self.eve.world.slip_std > 0.0 {
                 let known = |c: usize| pattern_of(carrying[c].0);
                 evidence_under(&treatment, &grams_with(&known))
