@@ -109,8 +109,10 @@ pub struct Judged {
     /// From what she recorded alone: her decision.
     pub own: BitEvidence,
     /// Given also the true bits of every other doublet acting on the window (when known):
-    /// `P(b_j | view, b_{≠j})`. Over a block, `Σ_j H(B_j | E, B_{≠j}) ≤ H(B | E)`: her
-    /// uncertainty counted this way errs on her side.
+    /// `P(b_j | view, b_{≠j})`; with multilevel symbols each bit's LLR also given the true
+    /// bits before it in its doublet, so that they sum to her surprisal of the symbols.
+    /// Over a block, `Σ_j H(B_j | E, B_{≠j}) ≤ H(B | E)`: her uncertainty counted this way
+    /// errs on her side.
     pub given_others: Option<BitEvidence>,
 }
 
