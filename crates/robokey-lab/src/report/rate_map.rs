@@ -1,7 +1,8 @@
-//! Renders the rate map ([`crate::secrecy::rate_map`]): `private-rates.csv` (one typed row
-//! per point), `private-rates.md` (the table) and the figure `private-rates.{svg,png,pdf,csv}`
-//! — secret bits per step against J_x, one series per alphabet, each point's limit beside it
-//! in its colour, and the 1.1 × protocol-off line.
+//! Renders the rate map ([`crate::secrecy::rate_map`]): `private-rates-table.csv` (one typed
+//! row per point), `private-rates.md` (the table) and the figure
+//! `private-rates.{svg,png,pdf,csv}` (the CSV of what it draws) — secret bits per step against
+//! J_x, one series per alphabet, each point's limit beside it in its colour, and the
+//! 1.1 × protocol-off line.
 
 use std::path::{Path, PathBuf};
 
@@ -17,7 +18,7 @@ pub const TRACKING_ALLOWANCE: f64 = 1.1;
 /// The file stem of the map's figure and tables.
 pub const RATES_STEM: &str = "private-rates";
 
-/// `private-rates.csv`: one line per point.
+/// `private-rates-table.csv`: one line per point.
 #[must_use]
 pub fn rates_csv(map: &RateMap) -> String {
     let mut out = String::from(
@@ -126,13 +127,13 @@ fn rate_row(p: &RatePoint, allowed: f64) -> String {
     )
 }
 
-/// Writes `private-rates.csv`, `private-rates.md` and the figure into `dir`.
+/// Writes `private-rates-table.csv`, `private-rates.md` and the figure into `dir`.
 ///
 /// # Errors
 /// A file cannot be written.
 pub fn write_rates(dir: &Path, map: &RateMap) -> Result<Vec<PathBuf>, LabError> {
     let mut files = vec![
-        write(&dir.join(format!("{RATES_STEM}.csv")), rates_csv(map))?,
+        write(&dir.join(format!("{RATES_STEM}-table.csv")), rates_csv(map))?,
         write(
             &dir.join(format!("{RATES_STEM}.md")),
             rates_markdown(map, &format!("{RATES_STEM}.svg")),
