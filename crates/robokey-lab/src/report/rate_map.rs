@@ -6,6 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::private::save;
 use crate::csv_field::quoted;
 use crate::error::LabError;
 use crate::output::write;
@@ -189,11 +190,7 @@ pub fn write_rates(dir: &Path, map: &RateMap) -> Result<Vec<PathBuf>, LabError> 
         equal_aspect: false,
         log_y: false,
     };
-    let base = dir.join(RATES_STEM);
-    files.extend(chart.save(&base).map_err(|e| LabError::Plot {
-        path: base.clone(),
-        message: e.to_string(),
-    })?);
+    files.extend(save(&chart, &dir.join(RATES_STEM))?);
     Ok(files)
 }
 

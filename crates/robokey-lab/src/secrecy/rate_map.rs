@@ -8,7 +8,7 @@
 
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
-use robokey::model::Pose;
+use robokey::model::{Pose, Unicycle};
 use robokey::private::likelihood::{
     DoubletView, PoseObservation, doublet_model, stated_camera_view,
 };
@@ -119,7 +119,7 @@ pub fn view_snrs(config: &Config) -> [[f64; 2]; 2] {
         })
         .sum::<f64>()
         / instants as f64;
-    let nominal = robokey::model::Unicycle::new(speed, 0.0);
+    let nominal = Unicycle::new(speed, 0.0);
     let inputs = DoubletInputs {
         first: nominal,
         second: nominal,
@@ -127,7 +127,7 @@ pub fn view_snrs(config: &Config) -> [[f64; 2]; 2] {
     let start = Pose::zeros();
     let path = inputs.propagate_steps(
         &start,
-        [robokey::model::Unicycle::zeros(); 3],
+        [Unicycle::zeros(); 3],
         steps,
         config.robot.sample_time,
     );
