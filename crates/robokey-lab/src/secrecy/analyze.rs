@@ -995,13 +995,19 @@ mod tests {
         t: &PointSecrecy,
     ) {
         assert!(c.assumption_exceeds_realised, "configured: {c:?}");
+        holds_and_keeps_nine_tenths_of(m, t);
+    }
+
+    /// Measured sizing `m` stays within the world-aware camera eavesdropper's realised bound
+    /// and keeps at least 90 % of the `reference` sizing's ℓ.
+    fn holds_and_keeps_nine_tenths_of(m: &PointSecrecy, reference: &PointSecrecy) {
         assert!(!m.assumption_exceeds_realised, "measured: {m:?}");
         assert!(m.secret_bits <= m.realised_secret_bits);
         assert!(
-            m.secret_bits as f64 >= 0.9 * t.secret_bits as f64,
+            m.secret_bits as f64 >= 0.9 * reference.secret_bits as f64,
             "{} vs {}",
             m.secret_bits,
-            t.secret_bits
+            reference.secret_bits
         );
     }
 
@@ -1058,18 +1064,20 @@ mod tests {
         assert!(lo <= 0.9 && 0.9 <= hi && hi - lo < 0.1, "{e:?}");
     }
 
-    /// Multilevel symbols sized from the measured plant (seed 2023, blocks of 10⁴ bits,
-    /// LDPC, two dimensions, Δ 1.3× the defaults as in experiments/private-best.toml): at the
-    /// default world — the parties' configuration is the truth — every slice's key is sized
+    /// Multilevel symbols sized from the measured plant (seed 2023, blocks of 5,000 doublets —
+    /// 2·10⁴ bits at 4 levels, 3·10⁴ at 8 —, LDPC, two dimensions, Δ 1.3× the defaults as in
+    /// experiments/private-best.toml; at 10⁴ bits, 1,700 doublets at 8 levels, the region's
+    /// width costs more than a tenth: 1,832 against 2,061 measured): at the default world — the parties' configuration is the truth — every slice's key is sized
     /// from the block's one estimate (not refused), within the camera eavesdropper's realised
     /// bound, and the point's ℓ is at least 90 % of the configured sizing's; in a world of
     /// 1 mm of motion noise at 4 levels configured sizing over-claims and measured sizing
     /// holds, within 10 % of a pair sized at the true world.
     #[test]
     fn measured_sizing_of_multilevel_symbols_holds_and_nearly_matches_the_true_world() {
-        let ldpc = |sizing| SecrecyOptions {
+        let ldpc = |sizing, levels: u8| SecrecyOptions {
             sizing,
             reconciliation: Reconciliation::Ldpc,
+            block_bits: 5_000 * 2 * levels.trailing_zeros() as usize,
             ..private_options(vec![EveStrategy::Camera])
         };
         let symbols = |levels: u8, world: &str| {
@@ -1080,21 +1088,14 @@ mod tests {
         };
         for levels in [4_u8, 8] {
             let e = symbols(levels, "");
-            let m = &analyze(&e, &ldpc(Sizing::Measured)).unwrap()[0];
-            let c = &analyze(&e, &ldpc(Sizing::Configured)).unwrap()[0];
+            let m = &analyze(&e, &ldpc(Sizing::Measured, levels)).unwrap()[0];
+            let c = &analyze(&e, &ldpc(Sizing::Configured, levels)).unwrap()[0];
             eprintln!(
                 "{levels} levels: measured ℓ {} (her realised {}), configured {}",
                 m.secret_bits, m.realised_secret_bits, c.secret_bits
             );
             assert!(m.secret_bits > 0, "{m:?}");
-            assert!(!m.assumption_exceeds_realised, "{m:?}");
-            assert!(m.secret_bits <= m.realised_secret_bits);
-            assert!(
-                m.secret_bits as f64 >= 0.9 * c.secret_bits as f64,
-                "{levels}: {} vs {}",
-                m.secret_bits,
-                c.secret_bits
-            );
+            holds_and_keeps_nine_tenths_of(m, c);
             assert_eq!(m.blocks.len() % levels.trailing_zeros() as usize, 0);
             for block in &m.blocks {
                 let estimate = block.estimate.as_ref().expect("every slice sized");
@@ -1103,9 +1104,9 @@ mod tests {
             }
         }
         let world = symbols(4, "[world]\nprocess_std = [0.001, 0.001, 0.001]\n");
-        let m = &analyze(&world, &ldpc(Sizing::Measured)).unwrap()[0];
-        let c = &analyze(&world, &ldpc(Sizing::Configured)).unwrap()[0];
-        let t = &analyze(&world, &ldpc(Sizing::World)).unwrap()[0];
+        let m = &analyze(&world, &ldpc(Sizing::Measured, 4)).unwrap()[0];
+        let c = &analyze(&world, &ldpc(Sizing::Configured, 4)).unwrap()[0];
+        let t = &analyze(&world, &ldpc(Sizing::World, 4)).unwrap()[0];
         eprintln!(
             "1 mm: measured ℓ {} (her realised {}), configured {} (her {}), world {}",
             m.secret_bits,

@@ -148,21 +148,7 @@ pub fn block_separations(
     disclosed: u64,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    let model = doublet_model(config);
-    let residuals: Vec<DoubletResidual> = sessions
-        .iter()
-        .flat_map(|session| session.iter())
-        .map(|b| {
-            DoubletResidual::new(
-                &model,
-                b.doublet,
-                &b.inputs,
-                &b.samples[0],
-                &b.samples[2],
-                b.pattern,
-            )
-        })
-        .collect();
+    let residuals = two_step_residuals(&doublet_model(config), sessions);
     if config.doublet_settle().is_some() {
         return three_step_block(config, sessions, disclosed, epsilon);
     }
@@ -179,6 +165,28 @@ pub fn block_separations(
             epsilon,
         ),
     }
+}
+
+/// The two-step residuals of every doublet of `sessions`, with the means of the symbols it
+/// carried ([`DoubletResidual::new`]).
+fn two_step_residuals(
+    model: &DoubletModel,
+    sessions: &[&[DoubletSamples]],
+) -> Vec<DoubletResidual> {
+    sessions
+        .iter()
+        .flat_map(|session| session.iter())
+        .map(|b| {
+            DoubletResidual::new(
+                model,
+                b.doublet,
+                &b.inputs,
+                &b.samples[0],
+                &b.samples[2],
+                b.pattern,
+            )
+        })
+        .collect()
 }
 
 /// As [`block_separations`], with the simulated world's own stationary motion noise,
@@ -651,14 +659,15 @@ mod tests {
 
     /// [`lagging_block`] with a dead time `delay` (s) before the lag.
     fn delayed_block(delay: f64, tau: f64, prior: f64) -> (Config, Vec<Vec<DoubletSamples>>) {
-        let config = Config::from_toml(
-            &format!(
-                "[sensing]\nmode = \"private\"\n[private]\nprior_lag = {prior}\n[world]\n\
-                 process_std = [0.001, 0.001, 0.001]\nlag = {tau}\ndelay = {delay}\n"
-            ),
-            "t",
-        )
-        .unwrap();
+        simulated_block(&format!(
+            "[sensing]\nmode = \"private\"\n[private]\nprior_lag = {prior}\n[world]\n\
+             process_std = [0.001, 0.001, 0.001]\nlag = {tau}\ndelay = {delay}\n"
+        ))
+    }
+
+    /// The controller's samples of 16 simulated sessions of the configuration `toml`.
+    fn simulated_block(toml: &str) -> (Config, Vec<Vec<DoubletSamples>>) {
+        let config = Config::from_toml(toml, "t").unwrap();
         let sessions = (0..16)
             .map(|r| {
                 crate::sim::simulate(&config, r, false)
@@ -807,24 +816,10 @@ mod tests {
     /// 16 simulated sessions of a robot with 1 mm (1 mrad) of white motion noise per axis,
     /// the parties at their defaults with two dimensions of a `levels`-level alphabet.
     fn multilevel_block(levels: u8) -> (Config, Vec<Vec<DoubletSamples>>) {
-        let config = Config::from_toml(
-            &format!(
-                "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\n\
-                 levels = {levels}\n[world]\nprocess_std = [0.001, 0.001, 0.001]\n"
-            ),
-            "t",
-        )
-        .unwrap();
-        let sessions = (0..16)
-            .map(|r| {
-                crate::sim::simulate(&config, r, false)
-                    .unwrap()
-                    .private
-                    .unwrap()
-                    .controller_samples
-            })
-            .collect();
-        (config, sessions)
+        simulated_block(&format!(
+            "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\n\
+             levels = {levels}\n[world]\nprocess_std = [0.001, 0.001, 0.001]\n"
+        ))
     }
 
     /// Multilevel symbols: with each symbol's mean subtracted Q̂ is the world's 1 mm² (1
@@ -837,20 +832,7 @@ mod tests {
             let (config, sessions) = multilevel_block(levels);
             let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
             let model = doublet_model(&config);
-            let with: Vec<DoubletResidual> = views
-                .iter()
-                .flat_map(|session| session.iter())
-                .map(|b| {
-                    DoubletResidual::new(
-                        &model,
-                        b.doublet,
-                        &b.inputs,
-                        &b.samples[0],
-                        &b.samples[2],
-                        b.pattern,
-                    )
-                })
-                .collect();
+            let with = two_step_residuals(&model, &views);
             let sensor = diagonal_covariance(config.sensing.controller_std);
             let n = with.len();
             let r = config.sensing.controller_std.map(|s| s * s);
