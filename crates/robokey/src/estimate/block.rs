@@ -835,10 +835,9 @@ mod tests {
             let with = two_step_residuals(&model, &views);
             let sensor = diagonal_covariance(config.sensing.controller_std);
             let n = with.len();
-            let r = config.sensing.controller_std.map(|s| s * s);
             let q_hat = estimate_motion_noise(&with, &sensor, 1e-3).expect("in the class");
-            for k in 0..3 {
-                let tolerance = 4.0 * (3.0 / n as f64).sqrt() * (1e-6 + r[k]) / 1e-6;
+            for (k, std) in config.sensing.controller_std.into_iter().enumerate() {
+                let tolerance = 4.0 * (3.0 / n as f64).sqrt() * (1e-6 + std * std) / 1e-6;
                 let got = q_hat.point[(k, k)] / 1e-6;
                 eprintln!("{levels} levels, axis {k}: Q̂/Q {got:.4} (tolerance {tolerance:.3})");
                 assert!(
