@@ -276,6 +276,25 @@ mod tests {
         );
     }
 
+    /// A key sized from the measured plant is charged the published outcomes of its block's
+    /// estimate: one for binary doublets, one per slice — `m·log₂(2¹⁶ + 2)` bits — for each
+    /// slice of a multilevel block (every outcome depends on every slice's bits).
+    #[test]
+    fn a_measured_key_is_charged_every_slices_published_outcome() {
+        let charged = |levels: u8| {
+            let mut config = Config::default();
+            config.sensing.mode = SensingMode::Private;
+            config.protocol.levels = levels;
+            match measured_camera_assumption(&config, 1.0, 1e-6) {
+                Assumption::MeasuredViews { estimate_leak, .. } => estimate_leak,
+                other => panic!("{other:?}"),
+            }
+        };
+        assert_eq!(charged(2), ESTIMATE_LEAK_BITS);
+        assert_eq!(charged(4), 2.0 * ESTIMATE_LEAK_BITS);
+        assert_eq!(charged(8), 3.0 * ESTIMATE_LEAK_BITS);
+    }
+
     #[test]
     fn a_private_keys_basis_names_the_camera_and_the_plant() {
         let mut config = Config::default();
