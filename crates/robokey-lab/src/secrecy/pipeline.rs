@@ -425,7 +425,8 @@ fn through_endpoints(
                         outcome,
                     });
                 }
-                Output::Persist | Output::Ignored(_) => {}
+                // The lab's slices are pooled whole (`Pool::slices`), none staged.
+                Output::Persist | Output::Ignored(_) | Output::SliceReconciled(_) => {}
             }
         }
         while let Some(output) = robot.poll_output() {
@@ -435,7 +436,10 @@ fn through_endpoints(
                     robot_reports.insert(report.block, report);
                 }
                 Output::KeyCommitted(key) => keys.1.push(key),
-                Output::Persist | Output::Ignored(_) | Output::EstimateNeeded(_) => {}
+                Output::Persist
+                | Output::Ignored(_)
+                | Output::EstimateNeeded(_)
+                | Output::SliceReconciled(_) => {}
             }
         }
         if to_robot.is_empty() && to_controller.is_empty() {
