@@ -643,7 +643,11 @@ impl Pool {
     /// (the same sessions).
     #[must_use]
     pub fn slices(&self, key_bits: usize, slices: usize) -> Vec<Self> {
-        let place = |i: usize| (i % key_bits) % slices;
+        let slicing = robokey_secrecy::postprocess::Slicing {
+            key_bits: key_bits as u8,
+            slices: slices as u8,
+        };
+        let place = |i: usize| slicing.slice_of(i);
         (0..slices)
             .map(|slice| {
                 let mut out = Self {

@@ -91,3 +91,76 @@ pub fn slice_input(config: &Config, staged: StagedSession) -> SliceInput {
         staged,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use rand::rngs::ChaCha8Rng;
+    use rand::{RngExt, SeedableRng};
+
+    use super::*;
+
+    /// Two dimensions of 4 levels, LDPC.
+    fn config() -> Config {
+        let mut config = Config::default();
+        config.sensing.mode = SensingMode::Private;
+        config.protocol.bits_per_doublet = 2;
+        config.protocol.levels = 4;
+        config.postprocess.reconciliation = Reconciliation::Ldpc;
+        config
+    }
+
+    /// The agents' LLRs of each slice — from the kept likelihoods and the robot's bits of
+    /// the lower slices as their blocks reconcile them — are the simulator's
+    /// ([`staged_llrs`] given the robot's word), within the kept likelihoods' quantum, and
+    /// decide alike wherever the simulator's is not within it of 0.
+    #[test]
+    fn the_agents_slices_are_the_simulators() {
+        let config = config();
+        let perturbation = Perturbation::of(&config);
+        let slicing = slicing(&config).expect("4 levels slice");
+        assert_eq!((slicing.key_bits, slicing.slices), (4, 2));
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let doublets = 300;
+        let (mut kept, mut all_ll, mut words) = (Vec::new(), Vec::new(), Vec::new());
+        for _ in 0..doublets {
+            let word: u64 = rng.random_range(0..16);
+            let truth = perturbation.pattern(word);
+            // A noisy view: the true pattern likeliest on average, a few nats of spread.
+            let ll: Vec<f64> = (0..16)
+                .map(|h| {
+                    let far = f64::from(u8::from(h != truth)) * 2.0;
+                    -far + 3.0 * (rng.random::<f64>() - 0.5) + 40.0
+                })
+                .collect();
+            keep_likelihoods(&ll, &mut kept);
+            all_ll.push(ll);
+            words.push(word);
+        }
+        let bits = doublets * 4;
+        let robot: Vec<bool> = (0..bits)
+            .map(|i| words[i / 4] >> (i % 4) & 1 == 1)
+            .collect();
+        let mut staged = first_slice(7, slicing, bits, kept, vec![1.0; bits]);
+        for slice in 0..2 {
+            let input = slice_input(&config, staged.clone());
+            let mut j = 0;
+            for (d, ll) in all_ll.iter().enumerate() {
+                let simulator = staged_llrs(ll, &perturbation, words[d]);
+                for (i, &expected) in simulator.iter().enumerate().take(4) {
+                    if slicing.slice_of(i) != slice {
+                        continue;
+                    }
+                    let agents = input.llrs[j];
+                    assert!((agents - expected).abs() < 0.02, "{agents} vs {expected}");
+                    if expected.abs() > 0.02 {
+                        assert_eq!(input.bits.get(j), Some(expected < 0.0));
+                    }
+                    j += 1;
+                }
+            }
+            assert_eq!(j, input.bits.len());
+            let reference = BitString::from_bools(&slicing.pick(&robot, slice));
+            staged = staged.advanced(&reference);
+        }
+    }
+}
