@@ -80,22 +80,21 @@ pub enum Heard {
 pub struct PrivateReport {
     /// One report per capture, in order.
     pub sessions: Vec<PrivateCaptureReport>,
-    /// Her bound over the block, when its agent report was given.
-    pub block: Option<BlockVerdict>,
-    /// With multilevel symbols, her bound over each block of the sessions' lower slices
-    /// that made a key (docs/postprocessing.md, "Multilevel slices"), in block order.
-    pub lower_slices: Vec<BlockVerdict>,
+    /// Her bound over the block, when its agent report was given — with multilevel symbols
+    /// over each block of the sessions' slices that made a key (docs/postprocessing.md,
+    /// "Multilevel slices"), in block order.
+    pub blocks: Vec<BlockVerdict>,
 }
 
 impl Serialize for PrivateReport {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        match (self.sessions.as_slice(), &self.block) {
+        match (self.sessions.as_slice(), self.blocks.split_last()) {
             ([session], None) => session.serialize(serializer),
-            (sessions, block) => {
+            (sessions, last) => {
                 let mut map = serializer.serialize_map(None)?;
-                map.serialize_entry("block", block)?;
-                if !self.lower_slices.is_empty() {
-                    map.serialize_entry("lower_slices", &self.lower_slices)?;
+                map.serialize_entry("block", &last.map(|(block, _)| block))?;
+                if let Some((_, lower)) = last.filter(|(_, lower)| !lower.is_empty()) {
+                    map.serialize_entry("lower_slices", lower)?;
                 }
                 map.serialize_entry("sessions", sessions)?;
                 map.end()
@@ -195,7 +194,7 @@ fn hear_private(
         block.push(report.camera_error_probabilities.clone());
         reports.push(report);
     }
-    let mut verdicts = match sessions.block {
+    let blocks = match sessions.block {
         Some(report) => {
             let captured: Vec<u32> = reports.iter().map(|r| r.session).collect();
             block_verdicts(report, &captured, &block, config).map_err(|e| match e {
@@ -205,11 +204,9 @@ fn hear_private(
         }
         None => Vec::new(),
     };
-    let verdict = verdicts.pop();
     Ok(PrivateReport {
         sessions: reports,
-        block: verdict,
-        lower_slices: verdicts,
+        blocks,
     })
 }
 

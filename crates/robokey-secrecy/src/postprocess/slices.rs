@@ -39,7 +39,7 @@ impl Slicing {
         if !(1..=MAX_SLICES).contains(&slices) {
             return Err(format!("slices {slices} (allowed: 1 to {MAX_SLICES})"));
         }
-        if !(1..=MAX_KEY_BITS).contains(&key_bits) || key_bits % slices != 0 {
+        if !(1..=MAX_KEY_BITS).contains(&key_bits) || !key_bits.is_multiple_of(slices) {
             return Err(format!(
                 "key bits per doublet {key_bits} (allowed: a multiple of the {slices} slices, \
                  1 to {MAX_KEY_BITS})"
@@ -174,7 +174,7 @@ impl StagedSession {
             ));
         }
         let bits = self.bits();
-        if bits == 0 || bits % key_bits != 0 || bits > super::MAX_SESSION_BITS {
+        if bits == 0 || !bits.is_multiple_of(key_bits) || bits > super::MAX_SESSION_BITS {
             return Err(format!(
                 "{bits} bits (allowed: whole doublets of {key_bits}, up to {})",
                 super::MAX_SESSION_BITS
