@@ -272,7 +272,7 @@ mod tests {
         BitString::from_bools(&SLICING.pick(&bools, slice))
     }
 
-    /// Both endpoints in memory, each robot message through `tamper`; the shell answers
+    /// Both endpoints in memory, each message through `tamper`; the shell answers
     /// every reconciled slice with the robot's bits of the next one (checking that the
     /// endpoint handed it the robot's bits of the reconciled one). Returns both sides' keys,
     /// the blocks reconciled and the robot.
@@ -341,7 +341,8 @@ mod tests {
                 }
             }
             let mut to_controller = Vec::new();
-            for m in to_robot.drain(..) {
+            for mut m in to_robot.drain(..) {
+                tamper(&mut m);
                 robot.handle_input(RobotInput::Frame(m)).unwrap();
             }
             while let Some(output) = robot.poll_output() {
@@ -387,6 +388,25 @@ mod tests {
                 (3, ids(3..6, 1)),
             ]
         );
+    }
+
+    /// A slice block's sessions reordered in flight: the robot's bits would be concatenated
+    /// in another order, so the controller refuses the block (no key on either side) and
+    /// the next sessions go on.
+    #[test]
+    fn a_reordered_slice_block_is_refused() {
+        let (controller, robot, reconciled, _) = run(|m| {
+            if let Message::Propose {
+                block: 1, sessions, ..
+            } = m
+            {
+                sessions.reverse();
+            }
+        });
+        assert_eq!(controller, robot);
+        assert_eq!(reconciled, vec![0, 2]);
+        let blocks: Vec<u64> = controller.iter().map(|k| k.block).collect();
+        assert_eq!(blocks, vec![0, 2, 3]);
     }
 
     /// A tag changed in flight ends the block as failed reconciliation: its sessions' later
