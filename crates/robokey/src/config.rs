@@ -1053,29 +1053,11 @@ impl Config {
                     allowed: e.allowed,
                 })?;
         }
-        if self.protocol.levels > 2 && self.sensing.mode == SensingMode::Private {
-            self.validate_multilevel()?;
-        }
         if !(1..=MAX_REPLICATES).contains(&self.run.replicates) {
             return Err(invalid(
                 "run.replicates",
                 self.run.replicates,
                 &format!("1 to {MAX_REPLICATES}"),
-            ));
-        }
-        Ok(())
-    }
-
-    /// What multilevel doublets (`protocol.levels > 2`) refuse: a measured plant (its
-    /// estimate models binary doublets). Every world is accepted: where doublets are not
-    /// screened the eavesdroppers' window smoother judges symbols (docs/world.md).
-    fn validate_multilevel(&self) -> Result<(), ConfigError> {
-        if self.postprocess.sizing == Sizing::Measured {
-            return Err(invalid(
-                "postprocess.sizing",
-                "measured",
-                "\"configured\" with protocol.levels > 2 (the measured plant's estimate models \
-                 binary doublets)",
             ));
         }
         Ok(())
@@ -1496,8 +1478,8 @@ mod tests {
         );
     }
 
-    /// Multilevel doublets: 2, 4 or 8 levels; refused with a measured plant, accepted in
-    /// every world; the wheel limit counts the outermost amplitude; the
+    /// Multilevel doublets: 2, 4 or 8 levels, with a measured plant and in every world (the
+    /// window smoother judges symbols too); the wheel limit counts the outermost amplitude; the
     /// resolved TOML names the alphabet only when it is not binary.
     #[test]
     fn multilevel_doublets_are_checked() {
@@ -1509,10 +1491,11 @@ mod tests {
             assert!(text.contains(field), "{toml}: {text}");
         };
         refused("[protocol]\nlevels = 3\n", "2, 4 or 8");
-        refused(
-            "[protocol]\nlevels = 4\n[postprocess]\nsizing = \"measured\"\n",
-            "postprocess.sizing",
-        );
+        Config::from_toml(
+            &private("[protocol]\nlevels = 4\n[postprocess]\nsizing = \"measured\"\n"),
+            "measured.toml",
+        )
+        .unwrap();
         // Every world: the window smoother judges symbols too.
         for world in [
             "[world]\npreset = \"khepera-iv\"\n",
