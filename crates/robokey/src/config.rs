@@ -1066,11 +1066,22 @@ impl Config {
         Ok(())
     }
 
-    /// What multilevel doublets (`protocol.levels > 2`) refuse: a world whose doublets are
-    /// not screened, where the eavesdroppers' window smoother would have to judge them (it
-    /// enumerates binary patterns only). A measured plant is not refused: the block's
-    /// estimate subtracts each symbol's mean (docs/estimation.md, "Multilevel symbols").
+    /// What multilevel doublets (`protocol.levels > 2`) refuse: the agents' measured sizing
+    /// (`postprocess.sizing`; the agents key each slice as it reconciles, while the block's
+    /// estimate subtracts whole symbols, which need every slice's bits — the lab's
+    /// `robokey secrecy --sizing measured` sizes them, docs/estimation.md, "Multilevel
+    /// symbols"), and a world whose doublets are not screened, where the eavesdroppers'
+    /// window smoother would have to judge them (it enumerates binary patterns only).
     fn validate_multilevel(&self) -> Result<(), ConfigError> {
+        if self.postprocess.sizing == Sizing::Measured {
+            return Err(invalid(
+                "postprocess.sizing",
+                "measured",
+                "\"configured\" with protocol.levels > 2 (the agents key each slice as it \
+                 reconciles; a measured estimate subtracts whole symbols, which need every \
+                 slice's bits: robokey secrecy --sizing measured sizes multilevel blocks)",
+            ));
+        }
         let world = self.world_model();
         let per_doublet = matches!(world.camera, Camera::Instants { .. })
             && self.eve.smoother_window.is_none()
@@ -1502,7 +1513,7 @@ mod tests {
         );
     }
 
-    /// Multilevel doublets: 2, 4 or 8 levels, with a measured plant too; refused where the
+    /// Multilevel doublets: 2, 4 or 8 levels; refused with the agents' measured sizing and where the
     /// window smoother would judge; the wheel limit counts the outermost amplitude; the
     /// resolved TOML names the alphabet only when it is not binary.
     #[test]
@@ -1515,11 +1526,10 @@ mod tests {
             assert!(text.contains(field), "{toml}: {text}");
         };
         refused("[protocol]\nlevels = 3\n", "2, 4 or 8");
-        Config::from_toml(
-            &private("[protocol]\nlevels = 4\n[postprocess]\nsizing = \"measured\"\n"),
-            "measured.toml",
-        )
-        .unwrap();
+        refused(
+            "[protocol]\nlevels = 4\n[postprocess]\nsizing = \"measured\"\n",
+            "postprocess.sizing",
+        );
         refused(
             "[protocol]\nlevels = 4\n[world]\npreset = \"khepera-iv\"\n",
             "protocol.levels",
