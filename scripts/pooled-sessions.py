@@ -33,6 +33,7 @@ The default relay faults are the README's mix: --loss 0.1 --duplicate 0.05 --reo
 """
 
 import argparse
+import hashlib
 import json
 import os
 import random
@@ -245,15 +246,29 @@ def world(a):
     return ["--world", a.robot_world] if a.robot_world else []
 
 
+def slice_id(session, slice_):
+    """The pool ID of a multilevel session's slice (docs/postprocessing.md, "Multilevel
+    slices"): the session's own for slice 0, else the first 4 bytes of
+    SHA-256("robokey/slice-id/v1" ‖ session u32 ‖ slice u8), as 8 hex digits."""
+    if slice_ == 0:
+        return session
+    digest = hashlib.sha256(b"robokey/slice-id/v1" + bytes.fromhex(session)
+                            + bytes([slice_])).digest()
+    return digest[:4].hex()
+
+
 def session_folders(folders):
     """Each session's folder by its ID (hex, as the agents' reports write it): from the
-    robot's report, else the controller's."""
+    robot's report, else the controller's; also by its multilevel slices' IDs."""
     named = {}
     for d in folders:
         for role in ("robot", "controller"):
             path = f"{d}/{role}.json"
             if os.path.exists(path):
-                named.setdefault(json.load(open(path)).get("session"), d)
+                session = json.load(open(path)).get("session")
+                if session:
+                    for slice_ in range(3):
+                        named.setdefault(slice_id(session, slice_), d)
     return named
 
 
@@ -273,6 +288,8 @@ def block_check(a, folders):
     """`robokey eve --block` on every block the controller's reports say made a key, over
     the sessions the block report names, in its order."""
     named = session_folders(folders)
+    # A multilevel block's slices pool the same sessions: one run checks every slice's block.
+    checked = set()
     for d in folders:
         path = f"{d}/controller.json"
         if not os.path.exists(path):
@@ -284,6 +301,9 @@ def block_check(a, folders):
             if members is None:
                 print(f"block {b['block']}: {why}: not checked")
                 continue
+            if (path, tuple(members)) in checked:
+                continue
+            checked.add((path, tuple(members)))
             args = ["eve", *settings(a), *world(a), "--block", path]
             for m in members:
                 args += ["--capture", f"{m}/capture.pcap", "--camera-log", f"{m}/camera.csv",

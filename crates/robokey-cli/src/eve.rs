@@ -373,7 +373,7 @@ fn print_private(captures: &[PathBuf], report: &PrivateReport, config: &Config) 
         warn_of_shortfalls(capture, &session.shortfalls);
         print_private_capture(session, &her_camera, config.postprocess.epsilon);
     }
-    if let Some(verdict) = &report.block {
+    for verdict in &report.blocks {
         print_block_verdict(verdict);
     }
 }

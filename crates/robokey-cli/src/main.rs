@@ -304,7 +304,8 @@ struct SecrecyArgs {
     /// noise the controller estimates per block from its own samples and the reconciled
     /// bits, at the worst case of the estimate's (1 − ε_est) region, ε_est = --eps a term of
     /// the key's ε (the key is then 5ε-secret); a block outside the model class is refused,
-    /// naming the test (docs/estimation.md). `world`: as `measured`, at the simulated world's
+    /// naming the test (docs/estimation.md); with `protocol.levels` 4 or 8 each slice is sized
+    /// from its own bits under the block's one estimate. `world`: as `measured`, at the simulated world's
     /// own motion noise and correlation instead of an estimate — a pair configured with the
     /// true world, the comparison for `measured`.
     #[arg(long, value_enum, default_value_t = SizingArg::Configured)]

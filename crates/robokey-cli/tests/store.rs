@@ -55,6 +55,23 @@ const LDPC: [&str; 8] = [
     "eve.camera_std=[0.05, 0.05, 0.05]",
 ];
 
+/// [`LDPC`] with two dimensions of 4-level symbols: each session's two slices reconciled in
+/// turn (docs/postprocessing.md, "Multilevel slices").
+const MULTILEVEL: [&str; 12] = [
+    "--set",
+    "sensing.mode=private",
+    "--set",
+    "postprocess.block_bits=300",
+    "--set",
+    "postprocess.reconciliation=ldpc",
+    "--set",
+    "eve.camera_std=[0.05, 0.05, 0.05]",
+    "--set",
+    "protocol.levels=4",
+    "--set",
+    "protocol.bits_per_doublet=2",
+];
+
 /// What the man in the middle does to post-processing.
 #[derive(Clone, Copy, PartialEq)]
 enum Attack {
@@ -75,6 +92,8 @@ enum Attack {
     /// LDPC reconciliation: changes a syndrome bit of every `Syndrome` in flight (the last
     /// byte before the frame's MAC), keeping the MAC.
     TamperSyndrome,
+    /// Multilevel symbols ([`MULTILEVEL`]): forwards everything.
+    Multilevel,
 }
 
 impl Attack {
@@ -82,7 +101,7 @@ impl Attack {
     fn private(self) -> bool {
         matches!(
             self,
-            Self::TamperEstimate | Self::Ldpc | Self::TamperSyndrome
+            Self::TamperEstimate | Self::Ldpc | Self::TamperSyndrome | Self::Multilevel
         )
     }
 }
@@ -273,6 +292,7 @@ fn session(
         match attack {
             Attack::TamperEstimate => args.extend(MEASURED.map(str::to_owned)),
             Attack::Ldpc | Attack::TamperSyndrome => args.extend(LDPC.map(str::to_owned)),
+            Attack::Multilevel => args.extend(MULTILEVEL.map(str::to_owned)),
             _ => args.extend(SETTINGS.map(str::to_owned)),
         }
         args
@@ -462,6 +482,44 @@ fn ldpc_between_the_agents_makes_the_same_key() {
             assert_eq!(key["reconciliation"], "ldpc", "{key}");
             assert_eq!(key["leak_ec"], block["leak_ec"], "{key}");
         }
+    }
+    assert_settled_alike(&dir, &pairing);
+}
+
+/// Multilevel symbols between the agents: the session's fine slice is a block of its own
+/// under the session's ID, then its coarse slice under the derived slice ID, decoded on the
+/// controller's LLRs given the fine slice's reconciled bits; both sides report the same
+/// blocks, and every key either store holds is held alike by the other.
+#[test]
+fn multilevel_sessions_are_reconciled_slice_by_slice_between_the_agents() {
+    let dir = scratch("store-multilevel");
+    let pairing = pairing(&dir);
+    let (codes, [robot, controller]) = session(&dir, &pairing, 76, Attack::Multilevel);
+    assert_eq!(codes, [0, 0], "{robot}\n{controller}");
+    let blocks = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().clone();
+    let (robot_blocks, controller_blocks) = (blocks(&robot), blocks(&controller));
+    assert_eq!(controller_blocks.len(), 2, "{controller}");
+    let session = controller["session"].as_str().unwrap().to_owned();
+    let id = u32::from_str_radix(&session, 16).unwrap();
+    let coarse = format!("{:08x}", robokey_secrecy::postprocess::slice_id(id, 1));
+    assert_eq!(
+        controller_blocks[0]["session_ids"],
+        serde_json::json!([session])
+    );
+    assert_eq!(
+        controller_blocks[1]["session_ids"],
+        serde_json::json!([coarse])
+    );
+    // The coarse slice, given the fine one, decodes with far fewer syndrome bits.
+    let leak = |b: &serde_json::Value| b["leak_ec"].as_u64().unwrap();
+    assert!(leak(&controller_blocks[1]) < leak(&controller_blocks[0]) / 2);
+    assert!(
+        controller_blocks[1]["length"].as_u64().unwrap() > 0,
+        "{controller}"
+    );
+    for (r, c) in robot_blocks.iter().zip(&controller_blocks) {
+        assert_eq!(r["session_ids"], c["session_ids"]);
+        assert_eq!(r["length"], c["length"]);
     }
     assert_settled_alike(&dir, &pairing);
 }

@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 use robokey::protocol::auth::PairingSecret;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
-    ControllerSnapshot, FinalKey, InFlight, RobotSnapshot, SessionSamples,
+    ControllerSnapshot, FinalKey, InFlight, RobotSnapshot, SessionSamples, StagedSession,
 };
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -105,6 +105,9 @@ pub struct SessionExtras {
     pub samples: Option<SessionSamples>,
     /// The quantised LLR of each bit (LDPC reconciliation).
     pub llrs: Option<Vec<i16>>,
+    /// A multilevel slice with a slice after it: what the next slice needs
+    /// (docs/postprocessing.md, "Multilevel slices").
+    pub staged: Option<StagedSession>,
 }
 
 /// Drops `sessions` from `pool` and adds them to `spent`; how many were pooled.
@@ -161,6 +164,7 @@ impl Snapshot for ControllerSnapshot {
             .retain(|(id, _)| !sessions.contains(id));
         self.samples.retain(|(id, _)| !sessions.contains(id));
         self.llrs.retain(|(id, _)| !sessions.contains(id));
+        self.staged.retain(|(id, _)| !sessions.contains(id));
         spend_in(&mut self.pool, &mut self.spent, sessions)
     }
     fn take_extras(&mut self) -> BTreeMap<u32, SessionExtras> {
@@ -171,6 +175,9 @@ impl Snapshot for ControllerSnapshot {
         for (id, llrs) in std::mem::take(&mut self.llrs) {
             extras.entry(id).or_default().llrs = Some(llrs);
         }
+        for (id, staged) in std::mem::take(&mut self.staged) {
+            extras.entry(id).or_default().staged = Some(staged);
+        }
         extras
     }
     fn set_extras(&mut self, extras: BTreeMap<u32, SessionExtras>) {
@@ -179,8 +186,12 @@ impl Snapshot for ControllerSnapshot {
             .filter_map(|(&id, e)| e.samples.clone().map(|s| (id, s)))
             .collect();
         self.llrs = extras
+            .iter()
+            .filter_map(|(&id, e)| e.llrs.clone().map(|l| (id, l)))
+            .collect();
+        self.staged = extras
             .into_iter()
-            .filter_map(|(id, e)| e.llrs.map(|l| (id, l)))
+            .filter_map(|(id, e)| e.staged.map(|s| (id, s)))
             .collect();
     }
     fn unsettled(&self) -> Option<Unsettled<'_>> {
@@ -220,6 +231,10 @@ enum Record<S> {
         /// The controller's quantised LLR of each bit (absent when it keeps none).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         llrs: Option<Vec<i16>>,
+        /// A multilevel slice's staged material (absent for binary sessions and last
+        /// slices; journals written before it read without).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        staged: Option<StagedSession>,
     },
     State {
         snapshot: S,
@@ -379,6 +394,7 @@ impl<S: Snapshot> PostStore<S> {
                     bits,
                     samples,
                     llrs,
+                    staged,
                 } => {
                     let kept = samples.as_ref().map_or(0, Vec::len);
                     if kept > bits.len() {
@@ -396,7 +412,29 @@ impl<S: Snapshot> PostStore<S> {
                             bits.len()
                         )));
                     }
-                    sessions.insert(id, (bits, SessionExtras { samples, llrs }));
+                    if let Some(problem) = staged.as_ref().and_then(|s| {
+                        s.check().err().or_else(|| {
+                            (s.slice_bits() != bits.len()).then(|| {
+                                format!("{} bits for its slice of {}", bits.len(), s.slice_bits())
+                            })
+                        })
+                    }) {
+                        return Err(store.corrupt(format!(
+                            "session {id}'s record keeps staged slices that do not fit: \
+                             {problem}"
+                        )));
+                    }
+                    sessions.insert(
+                        id,
+                        (
+                            bits,
+                            SessionExtras {
+                                samples,
+                                llrs,
+                                staged,
+                            },
+                        ),
+                    );
                 }
                 Record::State {
                     snapshot,
@@ -515,6 +553,7 @@ impl<S: Snapshot> PostStore<S> {
                     bits: bits.clone(),
                     samples: extra.samples,
                     llrs: extra.llrs,
+                    staged: extra.staged,
                 }))?;
                 self.journaled.insert(*id);
             }
@@ -620,6 +659,7 @@ impl<S: Snapshot> PostStore<S> {
                 bits: bits.clone(),
                 samples: extra.samples,
                 llrs: extra.llrs,
+                staged: extra.staged,
             })
         }));
         records.push(encode_state(snapshot, &pooled, &[], &self.pending_ids()));

@@ -12,6 +12,7 @@ use robokey::eve::{ModelErrors, starting_errors};
 use robokey::rng::{Purpose, stream};
 use robokey::world::Camera;
 use robokey_secrecy::gaussian_llr::surprisal;
+use robokey_secrecy::postprocess::slice_id;
 use robokey_secrecy::{output_length, posterior_smooth_min_entropy};
 use serde::ser::SerializeMap;
 use serde::{Serialize, Serializer};
@@ -79,17 +80,22 @@ pub enum Heard {
 pub struct PrivateReport {
     /// One report per capture, in order.
     pub sessions: Vec<PrivateCaptureReport>,
-    /// Her bound over the block, when its agent report was given.
-    pub block: Option<BlockVerdict>,
+    /// Her bound over the block, when its agent report was given — with multilevel symbols
+    /// over each block of the sessions' slices that made a key (docs/postprocessing.md,
+    /// "Multilevel slices"), in block order.
+    pub blocks: Vec<BlockVerdict>,
 }
 
 impl Serialize for PrivateReport {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        match (self.sessions.as_slice(), &self.block) {
+        match (self.sessions.as_slice(), self.blocks.split_last()) {
             ([session], None) => session.serialize(serializer),
-            (sessions, block) => {
-                let mut map = serializer.serialize_map(Some(2))?;
-                map.serialize_entry("block", block)?;
+            (sessions, last) => {
+                let mut map = serializer.serialize_map(None)?;
+                map.serialize_entry("block", &last.map(|(block, _)| block))?;
+                if let Some((_, lower)) = last.filter(|(_, lower)| !lower.is_empty()) {
+                    map.serialize_entry("lower_slices", lower)?;
+                }
                 map.serialize_entry("sessions", sessions)?;
                 map.end()
             }
@@ -99,7 +105,7 @@ impl Serialize for PrivateReport {
 
 /// Runs the eavesdroppers on recorded sessions, as `config`'s sensing mode says: odometry
 /// sensing, one capture; private sensing, each capture with her camera's log and, with the
-/// block's agent report, her bound over the block ([`block_verdict`]). Errors name the inputs
+/// block's agent report, her bound over the block ([`block_verdicts`]). Errors name the inputs
 /// as `naming` says.
 ///
 /// # Errors
@@ -141,7 +147,7 @@ pub fn hear(
     }
 }
 
-/// Private sensing: [`hear_private_capture`] on each session, then [`block_verdict`].
+/// Private sensing: [`hear_private_capture`] on each session, then [`block_verdicts`].
 fn hear_private(
     sessions: RecordedSessions<'_>,
     config: &Config,
@@ -185,26 +191,22 @@ fn hear_private(
             controller_bits: controller.as_ref().map(|k| k.as_slice()),
         };
         let report = hear_private_capture(recording, config, sessions.strategies, naming)?;
-        block.extend_from_slice(&report.camera_error_probabilities);
+        block.push(report.camera_error_probabilities.clone());
         reports.push(report);
     }
-    let verdict = match sessions.block {
+    let blocks = match sessions.block {
         Some(report) => {
             let captured: Vec<u32> = reports.iter().map(|r| r.session).collect();
-            Some(
-                block_verdict(report, &captured, &block, config).map_err(|e| match e {
-                    NetError::Usage(message) => {
-                        NetError::Usage(format!("{} {message}", name("block")))
-                    }
-                    e => e,
-                })?,
-            )
+            block_verdicts(report, &captured, &block, config).map_err(|e| match e {
+                NetError::Usage(message) => NetError::Usage(format!("{} {message}", name("block"))),
+                e => e,
+            })?
         }
-        None => None,
+        None => Vec::new(),
     };
     Ok(PrivateReport {
         sessions: reports,
-        block: verdict,
+        blocks,
     })
 }
 
@@ -676,21 +678,24 @@ pub struct BlockVerdict {
     pub which: &'static str,
 }
 
-/// Her realised bound over the block of the agent report `report` (the camera adversary's
-/// posterior error probabilities `q` of its raw bits, in pool order, of the `captured`
-/// sessions in order), beside the key the agents committed. Her bound is over the bits the
-/// block amplified ([`amplified_bits`]).
+/// Her realised bound over the blocks of the agent report `report` (the camera adversary's
+/// posterior error probabilities `q` of each of the `captured` sessions' raw bits, sessions
+/// in order), each beside the key the agents committed. The blocks are those that made a
+/// key over the captured sessions — with multilevel symbols over one of their slices each,
+/// its bits then the slice's of each session (docs/postprocessing.md, "Multilevel slices")
+/// — in report order, or else the report's last that made a key. Her bound is over the bits
+/// each block amplified ([`amplified_bits`]).
 ///
 /// # Errors
 /// The report cannot be read or holds no block that made a key, that block names other
 /// sessions than `captured` (or another order), or it pooled another number of bits than `q`
 /// holds ([`NetError::Usage`]).
-pub fn block_verdict(
+pub fn block_verdicts(
     report: &Path,
     captured: &[u32],
-    q: &[f64],
+    q: &[Vec<f64>],
     config: &Config,
-) -> Result<BlockVerdict, NetError> {
+) -> Result<Vec<BlockVerdict>, NetError> {
     let name = report.display();
     let text = std::fs::read_to_string(report)
         .map_err(NetError::io(format!("read the agent report {name}")))?;
@@ -698,12 +703,52 @@ pub fn block_verdict(
         .map_err(|e| NetError::Usage(format!("{name}: not an agent's JSON report: {e}")))?;
     let blocks: Vec<BlockSummary> = serde_json::from_value(json["post"]["blocks"].clone())
         .map_err(|e| NetError::Usage(format!("{name}: no post-processing blocks in it: {e}")))?;
-    let Some(block) = blocks.into_iter().rev().find(|b| b.length > 0) else {
-        return Err(NetError::Usage(format!(
-            "{name}: no block of this run made a key (its report's post.blocks)"
-        )));
+    let slicing = robokey::connection::slices::slicing(config);
+    let slices = slicing.map_or(1, |s| usize::from(s.slices));
+    let ids_at = |slice: usize| -> Vec<String> {
+        captured
+            .iter()
+            .map(|&id| format!("{:08x}", slice_id(id, slice)))
+            .collect()
     };
-    let captured: Vec<String> = captured.iter().map(|id| format!("{id:08x}")).collect();
+    let keyed: Vec<BlockSummary> = blocks.into_iter().filter(|b| b.length > 0).collect();
+    let mut over_captured: Vec<(BlockSummary, usize)> = keyed
+        .iter()
+        .filter_map(|b| {
+            (0..slices)
+                .find(|&slice| b.session_ids == ids_at(slice))
+                .map(|slice| (b.clone(), slice))
+        })
+        .collect();
+    if over_captured.is_empty() {
+        let Some(last) = keyed.last() else {
+            return Err(NetError::Usage(format!(
+                "{name}: no block of this run made a key (its report's post.blocks)"
+            )));
+        };
+        over_captured.push((last.clone(), 0));
+    }
+    over_captured
+        .into_iter()
+        .map(|(block, slice)| {
+            let q: Vec<f64> = match slicing {
+                Some(slicing) => q.iter().flat_map(|s| slicing.pick(s, slice)).collect(),
+                None => q.concat(),
+            };
+            verdict_of(&name.to_string(), block, &ids_at(slice), &q, config)
+        })
+        .collect()
+}
+
+/// Her realised bound over `block` (its sessions `captured`, her posteriors `q` of its raw
+/// bits in pool order) beside the key the agents committed; `name` the report's.
+fn verdict_of(
+    name: &str,
+    block: BlockSummary,
+    captured: &[String],
+    q: &[f64],
+    config: &Config,
+) -> Result<BlockVerdict, NetError> {
     // A report of an agent before `session_ids` names none: the bit count below checks it.
     if !block.session_ids.is_empty() && block.session_ids != captured {
         return Err(NetError::Usage(format!(
@@ -858,17 +903,17 @@ mod tests {
         ));
         std::fs::write(&path, report.to_string()).unwrap();
         let config = robokey::Config::default();
-        let q = [0.1, 0.2];
-        let refused = super::block_verdict(&path, &[0xa, 0xb], &q, &config).unwrap_err();
+        let q = [vec![0.1], vec![0.2]];
+        let refused = super::block_verdicts(&path, &[0xa, 0xb], &q, &config).unwrap_err();
         assert!(
             refused.to_string().contains(
                 "pooled sessions 0000000b, 0000000a, the captures are sessions 0000000a, 0000000b"
             ),
             "{refused}"
         );
-        let verdict = super::block_verdict(&path, &[0xb, 0xa], &q, &config);
+        let verdicts = super::block_verdicts(&path, &[0xb, 0xa], &q, &config);
         std::fs::remove_file(&path).unwrap();
-        assert_eq!(verdict.unwrap().raw_bits, 2);
+        assert_eq!(verdicts.unwrap()[0].raw_bits, 2);
     }
 
     #[test]

@@ -23,6 +23,8 @@
 //!   carry-less multiplication (O(n^1.58)).
 //! - [`postprocess`]: the post-processing protocol's two endpoints (pool sync, Cascade,
 //!   confirmation, amplification, two-phase commit), without I/O.
+//! - [`wiretap_limit`]: the secrecy margin I(X;Y_c) − I(X;Y_e) of a PAM or Gaussian alphabet
+//!   through two Gaussian views, the limit a rate map sets beside each point.
 //! - [`bitstring`]: packed, zeroized bit strings; [`special`]: ln Γ and incomplete beta.
 
 pub mod advantage;
@@ -40,6 +42,7 @@ pub mod postprocess;
 pub mod special;
 pub mod toeplitz;
 pub mod view_profile;
+pub mod wiretap_limit;
 
 pub use advantage::{AdvantageError, RepetitionAdvantage};
 pub use bitstring::{BitString, BitStringError};

@@ -1066,30 +1066,20 @@ impl Config {
         Ok(())
     }
 
-    /// What multilevel doublets (`protocol.levels > 2`) refuse: a measured plant (its
-    /// estimate models binary doublets) and a world whose doublets are not screened, where
-    /// the eavesdroppers' window smoother would have to judge them (it enumerates binary
-    /// patterns only).
+    /// What multilevel doublets (`protocol.levels > 2`) refuse: the agents' measured sizing
+    /// (`postprocess.sizing`; the agents key each slice as it reconciles, while the block's
+    /// estimate subtracts whole symbols, which need every slice's bits — the lab's
+    /// `robokey secrecy --sizing measured` sizes them, docs/estimation.md, "Multilevel
+    /// symbols"). Every world is accepted: where doublets are not screened the eavesdroppers'
+    /// window smoother judges symbols (docs/world.md, "Multilevel symbols").
     fn validate_multilevel(&self) -> Result<(), ConfigError> {
         if self.postprocess.sizing == Sizing::Measured {
             return Err(invalid(
                 "postprocess.sizing",
                 "measured",
-                "\"configured\" with protocol.levels > 2 (the measured plant's estimate models \
-                 binary doublets)",
-            ));
-        }
-        let world = self.world_model();
-        let per_doublet = matches!(world.camera, Camera::Instants { .. })
-            && self.eve.smoother_window.is_none()
-            && world.screens_doublets();
-        if !per_doublet {
-            return Err(invalid(
-                "protocol.levels",
-                self.protocol.levels,
-                "2 in this world (levels 4 and 8 need a world whose doublets are screened, a \
-                 camera at the sample instants and no eve.smoother_window: the eavesdroppers' \
-                 window smoother judges binary doublets only)",
+                "\"configured\" with protocol.levels > 2 (the agents key each slice as it \
+                 reconciles; a measured estimate subtracts whole symbols, which need every \
+                 slice's bits: robokey secrecy --sizing measured sizes multilevel blocks)",
             ));
         }
         Ok(())
@@ -1510,8 +1500,9 @@ mod tests {
         );
     }
 
-    /// Multilevel doublets: 2, 4 or 8 levels; refused with a measured plant and where the
-    /// window smoother would judge; the wheel limit counts the outermost amplitude; the
+    /// Multilevel doublets: 2, 4 or 8 levels; refused with the agents' measured sizing,
+    /// accepted in every world (the window smoother judges symbols too); the wheel limit counts
+    /// the outermost amplitude; the
     /// resolved TOML names the alphabet only when it is not binary.
     #[test]
     fn multilevel_doublets_are_checked() {
@@ -1527,14 +1518,13 @@ mod tests {
             "[protocol]\nlevels = 4\n[postprocess]\nsizing = \"measured\"\n",
             "postprocess.sizing",
         );
-        refused(
-            "[protocol]\nlevels = 4\n[world]\npreset = \"khepera-iv\"\n",
-            "protocol.levels",
-        );
-        refused(
-            "[protocol]\nlevels = 4\n[eve]\nsmoother_window = 2\n",
-            "protocol.levels",
-        );
+        // Every world: the window smoother judges symbols too.
+        for world in [
+            "[world]\npreset = \"khepera-iv\"\n",
+            "[eve]\nsmoother_window = 2\n",
+        ] {
+            Config::from_toml(&private(&format!("[protocol]\nlevels = 4\n{world}")), "w").unwrap();
+        }
         // Δv = 0.3 m/s: its wheel offset Δv/r = 14.3 rad/s fits the 38 − 22 = 16 rad/s of
         // room, the 4-level alphabet's outermost 3/√5·Δv/r = 19.2 rad/s does not.
         let fast = "[controller]\nwheel_limit = 22.0\n[protocol]\ndelta_v = 0.3\n";

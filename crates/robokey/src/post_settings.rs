@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::config::camera::millimetres;
 use crate::config::{Config, Reconciliation, SensingMode, Sizing};
 use crate::estimate::ESTIMATE_LEAK_BITS;
+use crate::private::Perturbation;
 use crate::world::Camera;
 
 /// Why the odometry mode yields no secret bit against an eavesdropper who learns the model.
@@ -139,7 +140,9 @@ pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
 /// ρ ≥ −½ between steps; the sensor's calibration
 /// `sensing.controller_std` stated); her view of each bit at most as informative as a
 /// Gaussian LLR of `separation` at the worst case of the estimate's (1 − `estimation_epsilon`)
-/// region; the published outcome of the estimate charged [`ESTIMATE_LEAK_BITS`].
+/// region; the published outcome of the estimate charged [`ESTIMATE_LEAK_BITS`] — per slice
+/// of a multilevel block, each slice's key for all `m = log₂ protocol.levels` slices'
+/// outcomes ([`estimate_leak`]).
 #[must_use]
 pub fn measured_camera_assumption(
     config: &Config,
@@ -192,8 +195,18 @@ fn plant_sized_assumption(
             millimetres(config.sensing.controller_std),
         ),
         estimation_epsilon,
-        estimate_leak: ESTIMATE_LEAK_BITS,
+        estimate_leak: estimate_leak(config),
     }
+}
+
+/// What a key sized from the measured plant is charged for the published outcomes of its
+/// block's estimate (bits): [`ESTIMATE_LEAK_BITS`] for the one outcome of a binary block. A
+/// multilevel block's `m = log₂ protocol.levels` slices each publish the equivalent
+/// separation of their own bits under the block's one estimate, and that estimate depends
+/// on every slice's bits (the residuals subtract whole symbols): each slice's key is charged
+/// all m outcomes, `m·log₂(2¹⁶ + 2)` bits.
+fn estimate_leak(config: &Config) -> f64 {
+    ESTIMATE_LEAK_BITS * Perturbation::of(config).bits_per_symbol() as f64
 }
 
 /// The assumption that sizes the agents' keys: private sensing's camera statement (each
@@ -261,6 +274,25 @@ mod tests {
                 .describe()
                 .contains("camera noise ≥ 8 mm")
         );
+    }
+
+    /// A key sized from the measured plant is charged the published outcomes of its block's
+    /// estimate: one for binary doublets, one per slice — `m·log₂(2¹⁶ + 2)` bits — for each
+    /// slice of a multilevel block (every outcome depends on every slice's bits).
+    #[test]
+    fn a_measured_key_is_charged_every_slices_published_outcome() {
+        let charged = |levels: u8| {
+            let mut config = Config::default();
+            config.sensing.mode = SensingMode::Private;
+            config.protocol.levels = levels;
+            match measured_camera_assumption(&config, 1.0, 1e-6) {
+                Assumption::MeasuredViews { estimate_leak, .. } => estimate_leak,
+                other => panic!("{other:?}"),
+            }
+        };
+        assert_eq!(charged(2), ESTIMATE_LEAK_BITS);
+        assert_eq!(charged(4), 2.0 * ESTIMATE_LEAK_BITS);
+        assert_eq!(charged(8), 3.0 * ESTIMATE_LEAK_BITS);
     }
 
     #[test]

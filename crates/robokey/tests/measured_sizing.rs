@@ -166,6 +166,32 @@ fn the_agents_size_a_lagging_robot_as_the_simulator_does() {
     assert!(agents.outcome().is_ok());
 }
 
+/// Multilevel symbols (two dimensions of 4 levels, 4 key bits per doublet): the agents'
+/// request — the robot's raw bits, four to a kept doublet — yields the simulator's estimate
+/// and published separation, on two-step doublets in a 1 mm world and on three-step ones
+/// shaped for a 50 ms lag; both sized, not refused (the lag measured from the v-symbols'
+/// amplitudes covers the world's).
+#[test]
+fn the_agents_measure_multilevel_symbols_as_the_simulator_does() {
+    for (world, prior) in [
+        ("process_std = [0.001, 0.001, 0.001]", 0.0),
+        ("process_std = [0.001, 0.001, 0.001]\nlag = 0.05", 0.05),
+    ] {
+        let mut config = parties_in(world);
+        config.protocol.levels = 4;
+        config.protocol.bits_per_doublet = 2;
+        config.private.prior_lag = prior;
+        let (agents, simulator) = both_estimates(&config);
+        assert_eq!(agents, simulator, "{world}");
+        assert_eq!(agents.refused, None, "{world}");
+        assert!(agents.outcome().is_ok());
+        if let Some([_, low, high]) = agents.lag {
+            assert!(low <= 0.05 && 0.05 <= high, "{agents:?}");
+        }
+        assert_eq!(agents.lag.is_some(), prior > 0.0);
+    }
+}
+
 /// A session pooled without its samples (or with the wrong number) is refused by name.
 #[test]
 fn a_session_kept_without_its_samples_is_refused_naming_it() {

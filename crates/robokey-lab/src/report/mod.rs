@@ -3,7 +3,7 @@
 //! `experiments/paper.toml` gets the paper's report ([`paper`]), which also renders the
 //! stages `reproduce` computed into it; any other sweep a report of each experiment's
 //! metrics against its axes ([`generic`]). The renderers of the stages ([`secrecy`],
-//! [`private`], [`adversary`]) also serve `robokey secrecy` and `robokey eve`.
+//! [`private`], [`rate_map`], [`adversary`]) also serve `robokey secrecy` and `robokey eve`.
 
 pub mod adversary;
 pub mod figures;
@@ -11,6 +11,7 @@ pub mod generic;
 pub mod paper;
 pub mod paper_sections;
 pub mod private;
+pub mod rate_map;
 pub mod secrecy;
 pub mod trend;
 pub mod world;

@@ -8,6 +8,7 @@ use robokey::config::EveStrategy;
 
 use super::adversary::{campaign_body, campaigns_summary, write_campaign};
 use super::private::{break_even_text, pooled_leak_text};
+use super::rate_map::{RATES_STEM, rates_table};
 use super::secrecy::{secrecy_markdown, write_secrecy};
 use crate::adversary::Campaign;
 use crate::error::LabError;
@@ -17,6 +18,7 @@ use crate::progress::thousands;
 use crate::reproduce::EVE_DIR;
 use crate::reproduce::private_suite::BUDGET_SECONDS;
 use crate::secrecy::Secrecy;
+use crate::secrecy::rate_map::rate_map;
 
 /// The secrecy section: the Δv sweep and the α sweep against the paper's and the oracle Eve,
 /// each with its heading, rendered into its folder in `out`; markdown and terminal lines.
@@ -233,6 +235,18 @@ pub(super) fn private_section(
              ![leak](private-sensing/pareto-v/private-leak.svg)\n",
             map.pooled_leak()
                 .map_or_else(String::new, |p| format!(" {}", pooled_leak_text(&p)))
+        );
+    }
+    if let Some(rates) = rate_map(&front.experiment, &front.secrecy.results) {
+        let _ = writeln!(
+            md,
+            "Each point of the front beside its limit — Σ_dims C × kept fraction ÷ steps per \
+             doublet, C = I(X; Y_c) − I(X; Y_e) its alphabet's secrecy margin per doublet and \
+             dimension through the controller's and the stated camera's views (against the \
+             camera eavesdropper; binary symbols on v only here: the map of every alphabet is \
+             `experiments/private-rates.toml`):\n\n![rate map](private-sensing/{}/{RATES_STEM}.svg)\n\n{}",
+            front.experiment.name,
+            rates_table(&rates)
         );
     }
     let _ = writeln!(

@@ -272,7 +272,8 @@ pub fn pooled_leak_text(pooled: &PooledLeak) -> String {
     )
 }
 
-fn save(chart: &LineChart, base: &Path) -> Result<Vec<PathBuf>, LabError> {
+/// Saves `chart` as `base.{svg,png,pdf,csv}`, its error naming the figure.
+pub(super) fn save(chart: &LineChart, base: &Path) -> Result<Vec<PathBuf>, LabError> {
     chart.save(base).map_err(|e| LabError::Plot {
         path: base.to_path_buf(),
         message: e.to_string(),

@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use super::private::{PrivateRow, map_markdown, private_markdown, turn_rates_csv, write_map};
+use super::rate_map::write_rates;
 use crate::csv_field::quoted;
 use crate::error::LabError;
 use crate::experiment::{Experiment, axis_label, param_label, param_number};
@@ -12,6 +13,7 @@ use crate::output::write;
 use crate::parquet_table::{TableFormat, write_parquet};
 use crate::plot::{LineChart, Series, SeriesStyle};
 use crate::secrecy::pipeline::H_MIN_BINOMIAL;
+use crate::secrecy::rate_map::rate_map;
 use crate::secrecy::table::{SECRECY_COLUMNS, SecrecyValue, secrecy_columns};
 use crate::secrecy::{Block, PointSecrecy, Pooling, Rate, Secrecy};
 
@@ -352,8 +354,9 @@ fn bits_per_step_chart(experiment: &Experiment, secrecy: &Secrecy) -> Option<Lin
 
 /// Renders `secrecy` (of `experiment`'s points) into `dir`: `secrecy.csv` (or, in
 /// `format` Parquet, `secrecy.parquet`), `secrecy.md`, the figure
-/// `secrecy-bits-per-step.{svg,png,pdf,csv}`, and in private sensing the map's figures and
-/// `turn-rates.csv`; returns the files.
+/// `secrecy-bits-per-step.{svg,png,pdf,csv}`, and in private sensing the map's figures,
+/// `turn-rates.csv` and, over a `protocol.*` axis, the rate map (`private-rates.*`); returns
+/// the files.
 ///
 /// # Errors
 /// A file cannot be written.
@@ -393,6 +396,9 @@ pub fn write_secrecy(
     ];
     if let Some(map) = map {
         files.extend(write_map(dir, map, secrecy.block_bits, secrecy.epsilon)?);
+    }
+    if let Some(rates) = rate_map(experiment, results) {
+        files.extend(write_rates(dir, &rates)?);
     }
     files.extend(super::world::write_over_claims(dir, experiment, results)?);
     let rows = private_rows(results);

@@ -1,7 +1,8 @@
 //! The private-sensing map of `reproduce` (docs/private-sensing.md): a coarse version of
 //! `experiments/private-sensing.toml` — the secret rate against Eve's camera noise with its
-//! break-even, and the rate against tracking cost over Δv — and the analysis each of its
-//! experiments gets.
+//! break-even, and the rate against tracking cost over Δv, which the report also draws
+//! beside each point's limit (the binary corner of `experiments/private-rates.toml`) — and
+//! the analysis each of its experiments gets.
 
 use robokey::config::{EveStrategy, parse_table};
 

@@ -20,6 +20,7 @@ pub mod options;
 pub mod pipeline;
 pub mod point;
 pub mod private;
+pub mod rate_map;
 pub mod request;
 pub mod stage;
 pub mod table;

@@ -425,7 +425,8 @@ fn through_endpoints(
                         outcome,
                     });
                 }
-                Output::Persist | Output::Ignored(_) => {}
+                // The lab's slices are pooled whole (`Pool::slices`), none staged.
+                Output::Persist | Output::Ignored(_) | Output::SliceReconciled(_) => {}
             }
         }
         while let Some(output) = robot.poll_output() {
@@ -435,7 +436,10 @@ fn through_endpoints(
                     robot_reports.insert(report.block, report);
                 }
                 Output::KeyCommitted(key) => keys.1.push(key),
-                Output::Persist | Output::Ignored(_) | Output::EstimateNeeded(_) => {}
+                Output::Persist
+                | Output::Ignored(_)
+                | Output::EstimateNeeded(_)
+                | Output::SliceReconciled(_) => {}
             }
         }
         if to_robot.is_empty() && to_controller.is_empty() {
@@ -639,7 +643,11 @@ impl Pool {
     /// (the same sessions).
     #[must_use]
     pub fn slices(&self, key_bits: usize, slices: usize) -> Vec<Self> {
-        let place = |i: usize| (i % key_bits) % slices;
+        let slicing = robokey_secrecy::postprocess::Slicing {
+            key_bits: key_bits as u8,
+            slices: slices as u8,
+        };
+        let place = |i: usize| slicing.slice_of(i);
         (0..slices)
             .map(|slice| {
                 let mut out = Self {

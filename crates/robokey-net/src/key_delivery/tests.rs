@@ -337,6 +337,7 @@ fn an_agent_and_a_taker_on_one_store_do_not_corrupt_each_other() {
             separation_counts: Vec::new(),
             samples: Vec::new(),
             llrs: Vec::new(),
+            staged: Vec::new(),
             spent: Vec::new(),
             in_flight: Some(InFlight::Committed {
                 block,

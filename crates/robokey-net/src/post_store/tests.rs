@@ -30,6 +30,7 @@ fn controller(pool: &[(u32, bool)], committed: &[u64]) -> ControllerSnapshot {
         separation_counts: Vec::new(),
         samples: Vec::new(),
         llrs: Vec::new(),
+        staged: Vec::new(),
         spent: Vec::new(),
         in_flight: None,
         committed: committed.to_vec(),
@@ -108,6 +109,55 @@ fn the_pooled_sessions_llrs_survive_reopening_and_compaction() {
     let restored = recovery.snapshot.unwrap();
     assert_eq!(restored.llrs, vec![(2, vec![300; 100])]);
     assert_eq!(restored, state);
+}
+
+/// A multilevel slice's staged material (docs/postprocessing.md, "Multilevel slices") is
+/// journaled once with its bits, restored on opening, kept through compaction and
+/// forgotten once spent; a record whose material does not fit its bits is refused by name.
+#[test]
+fn staged_slices_survive_reopening_and_compaction_and_must_fit() {
+    use robokey_secrecy::postprocess::{Slicing, StagedSession};
+    let dir = tempdir("post-store-staged");
+    let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    // Sessions of 100 bits at slice 0 of two: 200 bits, 50 doublets of 4 bits.
+    let staged = |session: u32| StagedSession {
+        session,
+        slice: 0,
+        slicing: Slicing::new(4, 2).unwrap(),
+        likelihoods: vec![-100; 50 * 16],
+        separations: vec![1.5; 200],
+        known: BitString::zeros(200),
+    };
+    let mut state = controller(&[(1, true), (2, false)], &[]);
+    state.staged = vec![(1, staged(1)), (2, staged(2))];
+    store.persist(&mut state, &[]).unwrap();
+    drop(store);
+    let (mut store, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    assert_eq!(recovery.snapshot.as_ref(), Some(&state));
+    state.spend(&BTreeSet::from([1]));
+    store.persist(&mut state, &[]).unwrap();
+    store.compact(&mut state).unwrap();
+    drop(store);
+    let (_, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    let restored = recovery.snapshot.unwrap();
+    assert_eq!(restored.staged, vec![(2, staged(2))]);
+    assert_eq!(restored, state);
+    // Material for 300 bits beside a slice of 100: refused, naming the session.
+    let dir = tempdir("post-store-staged-misfit");
+    let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    let mut state = controller(&[(5, true)], &[]);
+    let mut misfit = staged(5);
+    misfit.known = BitString::zeros(300);
+    misfit.separations = vec![1.5; 300];
+    misfit.likelihoods = vec![0; 75 * 16];
+    state.staged = vec![(5, misfit)];
+    store.persist(&mut state, &[]).unwrap();
+    drop(store);
+    let error = open::<ControllerSnapshot>(&dir, 1).unwrap_err().to_string();
+    assert!(
+        error.contains("session 5's record keeps staged slices that do not fit"),
+        "{error}"
+    );
 }
 
 /// A crash after the state that carries a committed key and before its key file: the

@@ -15,9 +15,9 @@ use super::public::{PublicRandomness, sample_size};
 use super::syndromes::{DecodingStep, Reconciled, SyndromeDecoding};
 use super::{
     AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, KeyReconciliation,
-    MAX_BLOCK_SESSIONS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER,
-    ReconciliationMethod, RejectReason, Settings, concatenate, dequantise_llr, key_id,
-    quantise_llr, split_sample, tag_context,
+    MAX_BLOCK_SESSIONS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, ReconciledSlices,
+    ReconciliationMethod, RejectReason, Settings, SliceInput, StagedSession, concatenate,
+    dequantise_llr, key_id, quantise_llr, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep};
@@ -47,6 +47,17 @@ pub enum ControllerInput {
         /// LDPC reconciliation needs them; the pool keeps them quantised
         /// ([`quantise_llr`]).
         llrs: Vec<f64>,
+    },
+    /// Slice 0 of a multilevel session (docs/postprocessing.md, "Multilevel slices"), pooled
+    /// under the session's ID with its staged material.
+    StagedSession(SliceInput),
+    /// The shell's answer to [`Output::SliceReconciled`] for `block`: its sessions' next
+    /// slices, which form the next block (whatever their bits), in order.
+    NextSlices {
+        /// The block reconciled.
+        block: u64,
+        /// The next slices.
+        slices: Vec<SliceInput>,
     },
     /// The shell's answer to [`Output::EstimateNeeded`] for `block`.
     Estimate {
@@ -111,6 +122,9 @@ pub struct ControllerSnapshot {
     /// sessions that came with LLRs).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub llrs: Vec<(u32, Vec<i16>)>,
+    /// Pooled multilevel slices with a slice after them: what their next slice needs.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub staged: Vec<(u32, StagedSession)>,
     /// Sessions proposed in a block (spent).
     pub spent: Vec<u32>,
     /// The block in flight, if any.
@@ -182,6 +196,15 @@ pub struct ControllerPost {
     /// Pooled sessions' quantised LLRs, and the block in flight's.
     llrs: BTreeMap<u32, Vec<i16>>,
     block_llrs: BTreeMap<u32, Vec<i16>>,
+    /// Pooled multilevel slices with a slice after them, and the block in flight's.
+    staged: BTreeMap<u32, StagedSession>,
+    block_staged: BTreeMap<u32, StagedSession>,
+    /// The block in flight's sessions advanced to their next slice, once it is reconciled.
+    next_slices: Option<ReconciledSlices>,
+    /// The block whose next slices the shell computes: nothing is proposed until they come.
+    awaiting_slices: Option<u64>,
+    /// Pooled next slices that form the next block, in order.
+    slice_group: Vec<u32>,
     in_flight: Option<InFlight>,
     state: State,
     report: Option<BlockReport>,
@@ -221,6 +244,11 @@ impl ControllerPost {
             block_samples: BTreeMap::new(),
             llrs: BTreeMap::new(),
             block_llrs: BTreeMap::new(),
+            staged: BTreeMap::new(),
+            block_staged: BTreeMap::new(),
+            next_slices: None,
+            awaiting_slices: None,
+            slice_group: Vec::new(),
             in_flight: None,
             state: State::Idle,
             report: None,
@@ -254,6 +282,7 @@ impl ControllerPost {
             .collect();
         endpoint.samples = snapshot.samples.into_iter().collect();
         endpoint.llrs = snapshot.llrs.into_iter().collect();
+        endpoint.staged = snapshot.staged.into_iter().collect();
         match snapshot.in_flight {
             None => endpoint.maybe_propose(),
             Some(InFlight::Committed { block, sessions }) => {
@@ -295,6 +324,7 @@ impl ControllerPost {
                 .map(|(&id, s)| (id, s.clone()))
                 .collect(),
             llrs: self.llrs.iter().map(|(&id, l)| (id, l.clone())).collect(),
+            staged: self.staged.iter().map(|(&id, s)| (id, s.clone())).collect(),
             spent: self.ledger.spent.iter().copied().collect(),
             in_flight: self.in_flight.clone(),
             committed: self.ledger.committed.iter().copied().collect(),
@@ -327,27 +357,35 @@ impl ControllerPost {
                 samples,
                 llrs,
             } => {
-                if let Some(&separation) = separations.iter().find(|d| !(0.0..=1e6).contains(*d)) {
-                    return Err(PostError::Separation { id, separation });
+                self.pool_session(id, bits, &separations, samples, llrs)?;
+                self.maybe_propose();
+            }
+            ControllerInput::StagedSession(slice) => {
+                self.pool_slice(slice)?;
+                self.maybe_propose();
+            }
+            ControllerInput::NextSlices { block, slices } => {
+                if self.awaiting_slices != Some(block) {
+                    self.ledger
+                        .outputs
+                        .push_back(Output::Ignored("slices of a block not awaited"));
+                    return Ok(());
                 }
-                self.check_llrs(id, bits.len(), &llrs)?;
-                let counts = separation_counts(&separations, bits.len());
-                self.ledger.add_session(id, bits)?;
-                // Rounded up: the key is sized as if Eve saw a little more, never less.
-                let largest = separations.iter().fold(0.0_f64, |m, &d| m.max(d));
-                let micros = (largest * 1e6).ceil() as u64;
-                if micros > 0 {
-                    self.separations.insert(id, micros);
-                    self.separation_counts.insert(id, counts);
-                }
-                if !samples.is_empty() {
-                    self.samples.insert(id, samples);
-                }
-                if !llrs.is_empty() {
-                    self.llrs
-                        .insert(id, llrs.into_iter().map(quantise_llr).collect());
+                self.awaiting_slices = None;
+                let mut first_error = None;
+                for slice in slices {
+                    let id = super::slice_id(slice.staged.session, usize::from(slice.staged.slice));
+                    match self.pool_slice(slice) {
+                        Ok(()) => self.slice_group.push(id),
+                        Err(e) => {
+                            first_error.get_or_insert(e);
+                        }
+                    }
                 }
                 self.maybe_propose();
+                if let Some(e) = first_error {
+                    return Err(e);
+                }
             }
             ControllerInput::Estimate { block, outcome } => self.on_estimate(block, outcome),
             ControllerInput::Timeout => {
@@ -356,6 +394,66 @@ impl ControllerPost {
                 }
             }
             ControllerInput::Frame(message) => self.handle_message(message),
+        }
+        Ok(())
+    }
+
+    /// Pools a session's bits with its Eve separations, kept samples and LLRs.
+    fn pool_session(
+        &mut self,
+        id: u32,
+        bits: BitString,
+        separations: &[f64],
+        samples: SessionSamples,
+        llrs: Vec<f64>,
+    ) -> Result<(), PostError> {
+        if let Some(&separation) = separations.iter().find(|d| !(0.0..=1e6).contains(*d)) {
+            return Err(PostError::Separation { id, separation });
+        }
+        self.check_llrs(id, bits.len(), &llrs)?;
+        let counts = separation_counts(separations, bits.len());
+        self.ledger.add_session(id, bits)?;
+        // Rounded up: the key is sized as if Eve saw a little more, never less.
+        let largest = separations.iter().fold(0.0_f64, |m, &d| m.max(d));
+        let micros = (largest * 1e6).ceil() as u64;
+        if micros > 0 {
+            self.separations.insert(id, micros);
+            self.separation_counts.insert(id, counts);
+        }
+        if !samples.is_empty() {
+            self.samples.insert(id, samples);
+        }
+        if !llrs.is_empty() {
+            self.llrs
+                .insert(id, llrs.into_iter().map(quantise_llr).collect());
+        }
+        Ok(())
+    }
+
+    /// Pools a multilevel session's slice under its slice ID, with its bits' separations
+    /// picked from the session's, and keeps its staged material when a slice follows.
+    fn pool_slice(&mut self, slice: SliceInput) -> Result<(), PostError> {
+        let SliceInput { bits, llrs, staged } = slice;
+        let id = super::slice_id(staged.session, usize::from(staged.slice));
+        staged
+            .check()
+            .map_err(|problem| PostError::Staged { id, problem })?;
+        if bits.len() != staged.slice_bits() {
+            return Err(PostError::Staged {
+                id,
+                problem: format!(
+                    "{} bits for its slice of {}",
+                    bits.len(),
+                    staged.slice_bits()
+                ),
+            });
+        }
+        let separations = staged
+            .slicing
+            .pick(&staged.separations, usize::from(staged.slice));
+        self.pool_session(id, bits, &separations, SessionSamples::new(), llrs)?;
+        if staged.has_next() {
+            self.staged.insert(id, staged);
         }
         Ok(())
     }
@@ -505,24 +603,34 @@ impl ControllerPost {
     }
 
     /// Proposes a block when idle and the pool holds enough bits.
+    /// A reconciled block's next slices come first, as one block whatever their bits.
     fn maybe_propose(&mut self) {
-        if !self.is_idle() || self.block.is_some() {
-            return;
-        }
-        let pooled: usize = self.ledger.pool.values().map(BitString::len).sum();
-        if pooled < self.ledger.settings.block_bits {
+        if !self.is_idle() || self.block.is_some() || self.awaiting_slices.is_some() {
             return;
         }
         let mut sessions = Vec::new();
         let mut bits = Pool::new();
         let mut total = 0;
-        while total < self.ledger.settings.block_bits && sessions.len() < MAX_BLOCK_SESSIONS {
-            let Some((id, session)) = self.ledger.pool.pop_first() else {
-                break;
-            };
-            total += session.len();
-            sessions.push(id);
-            bits.insert(id, session);
+        for id in std::mem::take(&mut self.slice_group) {
+            if let Some(session) = self.ledger.pool.remove(&id) {
+                total += session.len();
+                sessions.push(id);
+                bits.insert(id, session);
+            }
+        }
+        if sessions.is_empty() {
+            let pooled: usize = self.ledger.pool.values().map(BitString::len).sum();
+            if pooled < self.ledger.settings.block_bits {
+                return;
+            }
+            while total < self.ledger.settings.block_bits && sessions.len() < MAX_BLOCK_SESSIONS {
+                let Some((id, session)) = self.ledger.pool.pop_first() else {
+                    break;
+                };
+                total += session.len();
+                sessions.push(id);
+                bits.insert(id, session);
+            }
         }
         // The block's bits' separations; a session stored without them (an older snapshot)
         // counts its largest for every bit.
@@ -555,6 +663,10 @@ impl ControllerPost {
         self.block_llrs = sessions
             .iter()
             .filter_map(|id| self.llrs.remove(id).map(|l| (*id, l)))
+            .collect();
+        self.block_staged = sessions
+            .iter()
+            .filter_map(|id| self.staged.remove(id).map(|l| (*id, l)))
             .collect();
         let block = self.next_block;
         self.next_block += 1;
@@ -748,6 +860,18 @@ impl ControllerPost {
     /// Reconciliation is over: with the plant measured, the shell estimates it first;
     /// otherwise ℓ from the assumption at once.
     fn confirm(&mut self, agreed: Agreed, outcome: Reconciled) {
+        self.next_slices = (!self.block_staged.is_empty()).then(|| ReconciledSlices {
+            block: self.current(),
+            sessions: self
+                .robot_bits(&agreed, &outcome.corrected)
+                .into_iter()
+                .filter_map(|(id, robot)| {
+                    self.block_staged
+                        .get(&id)
+                        .map(|staged| staged.advanced(&robot))
+                })
+                .collect(),
+        });
         if self.ledger.settings.assumption.is_measured() {
             let request = self.estimate_request(&agreed, &outcome.corrected);
             self.state = State::ExpectEstimate { agreed, outcome };
@@ -769,6 +893,24 @@ impl ControllerPost {
     /// What the shell needs to estimate the plant: each agreed session's kept samples and
     /// the robot's bits of it — the reconciled bits with the disclosed sample put back.
     fn estimate_request(&self, agreed: &Agreed, corrected: &BitString) -> EstimateRequest {
+        let sessions = self
+            .robot_bits(agreed, corrected)
+            .into_iter()
+            .map(|(id, bits)| {
+                let samples = self.block_samples.get(&id).cloned().unwrap_or_default();
+                (id, samples, bits)
+            })
+            .collect();
+        EstimateRequest {
+            block: self.current(),
+            sessions,
+            disclosed: agreed.robot_sample.len() as u64,
+        }
+    }
+
+    /// The robot's bits of each agreed session: the reconciled bits with the disclosed
+    /// sample put back.
+    fn robot_bits(&self, agreed: &Agreed, corrected: &BitString) -> Vec<(u32, BitString)> {
         let (mut kept, mut disclosed) = (0..corrected.len(), agreed.robot_sample.iter());
         let robot: zeroize::Zeroizing<Vec<bool>> = zeroize::Zeroizing::new(
             agreed
@@ -785,7 +927,7 @@ impl ControllerPost {
         );
         let lengths = self.block.as_ref().map(|(_, _, pool)| pool);
         let mut start = 0;
-        let sessions = agreed
+        agreed
             .sessions
             .iter()
             .map(|id| {
@@ -793,15 +935,9 @@ impl ControllerPost {
                 let end = (start + len).min(robot.len());
                 let bits = BitString::from_bools(&robot[start..end]);
                 start = end;
-                let samples = self.block_samples.get(id).cloned().unwrap_or_default();
-                (*id, samples, bits)
+                (*id, bits)
             })
-            .collect();
-        EstimateRequest {
-            block: self.current(),
-            sessions,
-            disclosed: agreed.robot_sample.len() as u64,
-        }
+            .collect()
     }
 
     /// The shell's estimate: ℓ from the carried separation, or the block refused.
@@ -928,10 +1064,23 @@ impl ControllerPost {
         let Some((block, proposed, _)) = self.block.as_ref() else {
             return;
         };
-        let (block, sessions) = (*block, proposed.clone());
+        let (block, mut sessions) = (*block, proposed.clone());
         if let Some(report) = self.report.as_mut() {
             report.reason = Some(why);
             report.length = 0;
+        }
+        // Only a block reconciled without a key leaves its later slices decodable; else
+        // they end with it, and the robot drops them from its pool.
+        if reason != AbortReason::NoSecretBits {
+            self.next_slices = None;
+            let later: Vec<u32> = self
+                .block_staged
+                .values()
+                .flat_map(StagedSession::later_ids)
+                .collect();
+            if sessions.len() + later.len() <= MAX_BLOCK_SESSIONS {
+                sessions.extend(later);
+            }
         }
         self.in_flight = Some(InFlight::Aborting {
             block,
@@ -954,12 +1103,19 @@ impl ControllerPost {
         }
         self.block_samples.clear();
         self.block_llrs.clear();
+        self.block_staged.clear();
         self.in_flight = None;
         self.state = State::Idle;
         self.last_request = None;
         self.ledger.outputs.push_back(Output::Persist);
         if let Some(report) = self.report.take() {
             self.ledger.outputs.push_back(Output::BlockEnded(report));
+        }
+        if let Some(next) = self.next_slices.take().filter(|n| !n.sessions.is_empty()) {
+            self.awaiting_slices = Some(next.block);
+            self.ledger
+                .outputs
+                .push_back(Output::SliceReconciled(Box::new(next)));
         }
         self.maybe_propose();
     }

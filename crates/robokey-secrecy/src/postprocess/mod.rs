@@ -40,6 +40,7 @@ mod ledger;
 mod message;
 pub mod public;
 mod robot;
+mod slices;
 mod soft_values;
 mod syndromes;
 #[cfg(test)]
@@ -64,6 +65,9 @@ pub use fragment::{
 pub use message::{AbortReason, Message, RejectReason};
 pub use robokey_codec::DecodeError;
 pub use robot::{Prepared, RobotInput, RobotPost, RobotSnapshot};
+pub use slices::{
+    MAX_KEY_BITS, MAX_SLICES, ReconciledSlices, SliceInput, Slicing, StagedSession, slice_id,
+};
 pub use soft_values::{LLR_QUANTUM, dequantise_llr, quantise_llr};
 
 /// Largest number of sessions one block may pool (bounds a `Propose`).
@@ -236,6 +240,10 @@ pub enum Output {
     /// The controller (measured sizing) needs the block's estimate of the plant: answer with
     /// [`ControllerInput::Estimate`].
     EstimateNeeded(EstimateRequest),
+    /// A block of multilevel slices was reconciled (the robot's bits are known): the shell
+    /// computes the next slice's LLRs of its sessions given them and answers with
+    /// [`ControllerInput::NextSlices`] before anything else is proposed.
+    SliceReconciled(Box<ReconciledSlices>),
 }
 
 /// Errors of endpoint construction and input.
@@ -261,6 +269,14 @@ pub enum PostError {
     #[error("session {id}: {problem}")]
     Llrs {
         /// Session ID.
+        id: u32,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A multilevel session's staged material does not fit its slice.
+    #[error("session {id}: staged slices: {problem}")]
+    Staged {
+        /// Pool ID.
         id: u32,
         /// What is wrong.
         problem: String,

@@ -162,7 +162,7 @@ impl Pair {
                         })
                         .unwrap();
                 }
-                Output::Ignored(_) => {}
+                Output::Ignored(_) | Output::SliceReconciled(_) => {}
             }
         }
         while let Some(output) = self.robot.poll_output() {
@@ -171,7 +171,7 @@ impl Pair {
                 Output::Persist => self.robot_snapshot = self.robot.snapshot(),
                 Output::KeyCommitted(key) => self.robot_keys.push(key),
                 Output::BlockEnded(report) => self.robot_reports.push(report),
-                Output::Ignored(_) | Output::EstimateNeeded(_) => {}
+                Output::Ignored(_) | Output::EstimateNeeded(_) | Output::SliceReconciled(_) => {}
             }
         }
     }

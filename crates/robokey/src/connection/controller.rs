@@ -82,6 +82,9 @@ pub struct ControllerConnection<A> {
     /// The controller's LLR of each decided bit (private sensing), which LDPC reconciliation
     /// decodes on (`postprocess.reconciliation = "ldpc"`; empty otherwise).
     llrs: Vec<f64>,
+    /// Multilevel symbols: each decided doublet's patterns' log-likelihoods as kept
+    /// ([`super::slices::keep_likelihoods`]), from which its later slices' LLRs follow.
+    likelihoods: Vec<i16>,
     outputs: VecDeque<ControllerAction<A>>,
 }
 
@@ -129,6 +132,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             separations: Vec::new(),
             kept: SessionSamples::new(),
             llrs: Vec::new(),
+            likelihoods: Vec::new(),
             outputs: VecDeque::new(),
             channel,
             earlier: ChannelCounts::default(),
@@ -437,6 +441,12 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                         if self.config.postprocess.reconciliation == Reconciliation::Ldpc {
                             self.llrs.extend_from_slice(&decision.evidence.llr[..bits]);
                         }
+                        if !decision.log_likelihoods.is_empty() {
+                            super::slices::keep_likelihoods(
+                                &decision.log_likelihoods,
+                                &mut self.likelihoods,
+                            );
+                        }
                         if self.config.postprocess.sizing == Sizing::Measured {
                             self.kept.push(kept_doublet(
                                 decision.doublet,
@@ -472,6 +482,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                     std::mem::take(&mut self.separations),
                     std::mem::take(&mut self.kept),
                     std::mem::take(&mut self.llrs),
+                    std::mem::take(&mut self.likelihoods),
                 );
                 self.outputs.push_back(Output::Post(pooled));
                 self.stage = Stage::Post {

@@ -9,6 +9,7 @@ pub(crate) mod controller;
 mod linger;
 pub mod post;
 pub(crate) mod robot;
+pub mod slices;
 
 pub use controller::{ControllerAction, ControllerConnection};
 pub use post::{PostEndpoint, PostLink, PostOutput};

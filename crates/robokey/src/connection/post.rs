@@ -9,9 +9,10 @@ use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, EstimateOutcome,
     FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot,
-    SessionSamples,
+    SessionSamples, SliceInput, StagedSession, slice_id,
 };
 
+use super::slices::{first_slice, slice_input, slicing};
 use crate::Config;
 use crate::estimate::{BlockEstimate, estimate_request};
 use crate::protocol::{Outcome, PostFragment};
@@ -37,6 +38,24 @@ pub trait PostEndpoint {
         samples: SessionSamples,
         llrs: Vec<f64>,
     ) -> Result<(), PostError>;
+    /// Pools a multilevel session slice by slice (docs/postprocessing.md, "Multilevel
+    /// slices"): the robot every slice of its `bits` under its slice ID; the controller slice
+    /// 0 with `staged`, its decisions and LLRs from `config` ([`slice_input`]).
+    ///
+    /// # Errors
+    /// A duplicate ID, a size out of bounds, or staged material that does not fit.
+    fn pool_slices(
+        &mut self,
+        bits: &[bool],
+        staged: StagedSession,
+        config: &Config,
+    ) -> Result<(), PostError>;
+    /// The shell's next slices of `block`, which the endpoint asked for (the robot never
+    /// asks).
+    ///
+    /// # Errors
+    /// A slice that does not fit (the others are pooled).
+    fn next_slices(&mut self, block: u64, slices: Vec<SliceInput>) -> Result<(), PostError>;
     /// The shell's estimate of the plant for `block`, which the endpoint asked for (the
     /// robot never asks).
     fn estimated(&mut self, block: u64, outcome: EstimateOutcome);
@@ -68,6 +87,17 @@ impl PostEndpoint for ControllerPost {
             samples,
             llrs,
         })
+    }
+    fn pool_slices(
+        &mut self,
+        _bits: &[bool],
+        staged: StagedSession,
+        config: &Config,
+    ) -> Result<(), PostError> {
+        self.handle_input(ControllerInput::StagedSession(slice_input(config, staged)))
+    }
+    fn next_slices(&mut self, block: u64, slices: Vec<SliceInput>) -> Result<(), PostError> {
+        self.handle_input(ControllerInput::NextSlices { block, slices })
     }
     fn estimated(&mut self, block: u64, outcome: EstimateOutcome) {
         // An estimate never fails: only sessions are checked.
@@ -111,6 +141,24 @@ impl PostEndpoint for RobotPost {
         _llrs: Vec<f64>,
     ) -> Result<(), PostError> {
         self.handle_input(RobotInput::Session { id, bits })
+    }
+    fn pool_slices(
+        &mut self,
+        bits: &[bool],
+        staged: StagedSession,
+        _config: &Config,
+    ) -> Result<(), PostError> {
+        for slice in 0..usize::from(staged.slicing.slices) {
+            let picked = zeroize::Zeroizing::new(staged.slicing.pick(bits, slice));
+            self.handle_input(RobotInput::Session {
+                id: slice_id(staged.session, slice),
+                bits: BitString::from_bools(&picked),
+            })?;
+        }
+        Ok(())
+    }
+    fn next_slices(&mut self, _block: u64, _slices: Vec<SliceInput>) -> Result<(), PostError> {
+        Ok(())
     }
     fn estimated(&mut self, _block: u64, _outcome: EstimateOutcome) {}
     fn frame(&mut self, message: postprocess::Message) {
@@ -208,8 +256,11 @@ impl<E: PostEndpoint> PostLink<E> {
 
     /// Pools the raw bits of session `id` (one `u8` 0/1 per bit) if the session ended
     /// `outcome` confirmed or kept and its bits are not spent, with what the controller
-    /// keeps of it for the block's estimate (`samples`) and its LLRs (`llrs`; both empty on
-    /// the robot); says what happened.
+    /// keeps of it for the block's estimate (`samples`), its LLRs (`llrs`) and, with
+    /// multilevel symbols, each decided doublet's likelihoods as kept (`likelihoods`,
+    /// [`super::slices::keep_likelihoods`]; all three empty on the robot); says what
+    /// happened. Multilevel sessions are pooled slice by slice.
+    #[allow(clippy::too_many_arguments)]
     pub fn pool(
         &mut self,
         id: u32,
@@ -218,6 +269,7 @@ impl<E: PostEndpoint> PostLink<E> {
         separations: Vec<f64>,
         samples: SessionSamples,
         llrs: Vec<f64>,
+        likelihoods: Vec<i16>,
     ) -> PostOutput<E::Snapshot> {
         let refused = |reason: String| PostOutput::NotPooled {
             session: id,
@@ -233,13 +285,26 @@ impl<E: PostEndpoint> PostLink<E> {
         }
         let bools: zeroize::Zeroizing<Vec<bool>> =
             zeroize::Zeroizing::new(bits.iter().map(|&b| b == 1).collect());
-        match self.endpoint.pool(
-            id,
-            BitString::from_bools(&bools),
-            separations,
-            samples,
-            llrs,
-        ) {
+        let pooled = match slicing(&self.config) {
+            Some(slicing) => {
+                // The key's doublets' (the first decided ones) likelihoods and separations.
+                let doublets = bits.len() / usize::from(slicing.key_bits);
+                let mut likelihoods = likelihoods;
+                likelihoods.truncate(doublets * slicing.patterns());
+                let mut separations = separations;
+                separations.truncate(bits.len());
+                let staged = first_slice(id, slicing, bits.len(), likelihoods, separations);
+                self.endpoint.pool_slices(&bools, staged, &self.config)
+            }
+            None => self.endpoint.pool(
+                id,
+                BitString::from_bools(&bools),
+                separations,
+                samples,
+                llrs,
+            ),
+        };
+        match pooled {
             Ok(()) => PostOutput::Pooled {
                 session: id,
                 bits: bits.len(),
@@ -284,6 +349,21 @@ impl<E: PostEndpoint> PostLink<E> {
                     let outcome = estimate.outcome();
                     out.push(PostOutput::Estimated(estimate));
                     self.endpoint.estimated(request.block, outcome);
+                }
+                Output::SliceReconciled(reconciled) => {
+                    // The next slices' LLRs given the robot's bits of the reconciled ones:
+                    // the simulator's computation (`slices::slice_input`).
+                    let slices = reconciled
+                        .sessions
+                        .into_iter()
+                        .map(|staged| slice_input(&self.config, staged))
+                        .collect();
+                    if let Err(e) = self.endpoint.next_slices(reconciled.block, slices) {
+                        out.push(PostOutput::Note(format!(
+                            "a slice after block {} was not pooled: {e}",
+                            reconciled.block
+                        )));
+                    }
                 }
                 Output::Transmit(message) => sends.push(message),
                 Output::Persist => persist = true,

@@ -304,6 +304,7 @@ impl<A: Copy + PartialEq, K: CryptoRng> RobotConnection<A, K> {
                 Vec::new(),
                 robokey_secrecy::postprocess::SessionSamples::new(),
                 Vec::new(),
+                Vec::new(),
             );
             self.outputs.push_back(Output::Post(pooled));
             self.flush_post();

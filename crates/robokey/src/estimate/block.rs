@@ -38,9 +38,8 @@ use super::{
 };
 use crate::Config;
 use crate::model::{Pose, Unicycle};
-use crate::private::doublet::sign;
 use crate::private::likelihood::stated_camera_view;
-use crate::private::{DoubletInputs, DoubletModel, DoubletSamples, doublet_model};
+use crate::private::{DoubletInputs, DoubletModel, DoubletSamples, Perturbation, doublet_model};
 use crate::world::{WorldModel, lagged};
 
 /// The separation fed for the sessions of a refused block: Eve is taken to see every bit
@@ -99,6 +98,25 @@ impl BlockEstimate {
         self.largest = REFUSED_SEPARATION;
     }
 
+    /// What sizes one slice of a multilevel block, sized as a key of its own (docs/estimation.md,
+    /// "Multilevel symbols"): this estimate — its region, worst case and any refusal — with
+    /// the equivalent separation of the slice's bits' worst-case `separations` alone (each
+    /// session's), `disclosed` of them taken away by the slice's own sample, at most their
+    /// largest. The slices share the block's one estimate: the event that its region misses
+    /// the plant (probability ε_est) is one event for all of them.
+    #[must_use]
+    pub fn for_slice(&self, separations: &[Vec<f64>], disclosed: u64) -> Self {
+        if self.refused.is_some() {
+            return self.clone();
+        }
+        let largest = separations.iter().flatten().fold(0.0_f64, |m, &x| m.max(x));
+        Self {
+            separation: equivalent(separations, disclosed, self.epsilon, largest),
+            largest,
+            ..self.clone()
+        }
+    }
+
     /// A block refused before any estimate, naming why.
     fn refused(why: String, doublets: usize, epsilon: f64) -> Self {
         Self {
@@ -130,21 +148,7 @@ pub fn block_separations(
     disclosed: u64,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    let model = doublet_model(config);
-    let residuals: Vec<DoubletResidual> = sessions
-        .iter()
-        .flat_map(|session| session.iter())
-        .map(|b| {
-            DoubletResidual::new(
-                &model,
-                b.doublet,
-                &b.inputs,
-                &b.samples[0],
-                &b.samples[2],
-                b.pattern,
-            )
-        })
-        .collect();
+    let residuals = two_step_residuals(&doublet_model(config), sessions);
     if config.doublet_settle().is_some() {
         return three_step_block(config, sessions, disclosed, epsilon);
     }
@@ -161,6 +165,28 @@ pub fn block_separations(
             epsilon,
         ),
     }
+}
+
+/// The two-step residuals of every doublet of `sessions`, with the means of the symbols it
+/// carried ([`DoubletResidual::new`]).
+fn two_step_residuals(
+    model: &DoubletModel,
+    sessions: &[&[DoubletSamples]],
+) -> Vec<DoubletResidual> {
+    sessions
+        .iter()
+        .flat_map(|session| session.iter())
+        .map(|b| {
+            DoubletResidual::new(
+                model,
+                b.doublet,
+                &b.inputs,
+                &b.samples[0],
+                &b.samples[2],
+                b.pattern,
+            )
+        })
+        .collect()
 }
 
 /// As [`block_separations`], with the simulated world's own stationary motion noise,
@@ -309,7 +335,7 @@ const SHAPE_GRID: usize = 9;
 /// The dead-time test of a three-step block: a first-order lag whose first steps carry the
 /// share measured (`lag`'s interval) also fixes what the v-bit leaves at the doublet's end.
 /// The end residual along the start heading, with the lagged means through τ subtracted,
-/// regressed on the v-bit's sign, `β(τ) = mean sᵢzᵢ`, is 0 under the class at the true τ;
+/// regressed on the v-bit's sign (a multilevel v-symbol's amplitude), `β(τ) = mean sᵢzᵢ`, is 0 under the class at the true τ;
 /// the block is refused when at every τ of a grid over the interval `|β(τ)|` stands more
 /// than `z(ε_est/2)` standard errors from 0, naming the values. A pure dead time `D ≪ T`
 /// leaves, at the sample instants, what a lag `τ = D` leaves up to terms in `e^(−T/D)`: the
@@ -336,7 +362,7 @@ pub fn lag_shape_refusal(
         };
         let x: Vec<f64> = three_step_doublets(&model, sessions)
             .iter()
-            .map(|(r, pattern)| sign((pattern & 1) as u8) * r.value[0])
+            .map(|(r, pattern)| model.perturbation.amplitude(*pattern) * r.value[0])
             .collect();
         let n = x.len().max(2) as f64;
         let mean = x.iter().sum::<f64>() / n;
@@ -366,7 +392,7 @@ fn measured_lag(
 ) -> Result<LagEstimate, String> {
     estimate_lag(
         sessions.iter().flat_map(|session| session.iter()),
-        config.protocol.delta_v,
+        &Perturbation::of(config),
         config.robot.sample_time,
         epsilon,
     )
@@ -428,7 +454,7 @@ fn size_block(
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
     let lags = lag.map(|lag| (lag_grid(lag.interval), three_step_steps(estimate)));
     let model = doublet_model(config);
-    let bits = usize::from(config.protocol.bits_per_doublet);
+    let bits = model.perturbation.key_bits();
     let mut separations = Vec::with_capacity(sessions.len());
     for session in sessions {
         let mut session_separations = Vec::with_capacity(session.len() * bits);
@@ -531,8 +557,8 @@ pub fn kept_doublet(doublet: u32, inputs: &DoubletInputs, samples: &[Pose; 3]) -
     }
 }
 
-/// One session's kept doublets with the robot's `bits` of it (`bits_per_doublet` per
-/// doublet, in order) as the estimate reads them.
+/// One session's kept doublets with the robot's `bits` of it (`key_bits` per doublet, in
+/// order: the v-symbol's label, then the ω-symbol's) as the estimate reads them.
 ///
 /// # Errors
 /// The numbers do not match, or a kept value is not finite (a store that kept the wrong
@@ -541,12 +567,12 @@ fn with_bits(
     id: u32,
     kept: &[KeptDoublet],
     bits: &BitString,
-    bits_per_doublet: usize,
+    key_bits: usize,
 ) -> Result<Vec<DoubletSamples>, String> {
-    if kept.len() * bits_per_doublet != bits.len() {
+    if kept.len() * key_bits != bits.len() {
         return Err(format!(
             "session {id:08x}: the pool kept {} doublets for its {} raw bits (allowed: one per \
-             {bits_per_doublet} bits; sessions pooled without their samples cannot be measured)",
+             {key_bits} bits; sessions pooled without their samples cannot be measured)",
             kept.len(),
             bits.len()
         ));
@@ -561,11 +587,9 @@ fn with_bits(
                     k.doublet
                 ));
             }
-            let bit = |j: usize| {
-                usize::from(
-                    j < bits_per_doublet && bits.get(i * bits_per_doublet + j) == Some(true),
-                )
-            };
+            let pattern = (0..key_bits).fold(0, |pattern, j| {
+                pattern | usize::from(bits.get(i * key_bits + j) == Some(true)) << j
+            });
             Ok(DoubletSamples {
                 doublet: k.doublet,
                 inputs: DoubletInputs {
@@ -573,7 +597,7 @@ fn with_bits(
                     second: Unicycle::new(k.inputs[1][0], k.inputs[1][1]),
                 },
                 samples: k.samples.map(|p| Pose::new(p[0], p[1], p[2])),
-                pattern: bit(0) | bit(1) << 1,
+                pattern,
             })
         })
         .collect()
@@ -585,11 +609,11 @@ fn with_bits(
 /// level ε_est ([`commands_check::block_refusal`]), whose refusal is added to the block's.
 #[must_use]
 pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64) -> BlockEstimate {
-    let bits_per_doublet = usize::from(config.protocol.bits_per_doublet);
+    let key_bits = config.protocol.key_bits_per_doublet();
     let sessions: Result<Vec<Vec<DoubletSamples>>, String> = request
         .sessions
         .iter()
-        .map(|(id, kept, bits)| with_bits(*id, kept, bits, bits_per_doublet))
+        .map(|(id, kept, bits)| with_bits(*id, kept, bits, key_bits))
         .collect();
     match sessions {
         Ok(sessions) => {
@@ -609,6 +633,7 @@ pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimate::MAX_PUBLISHED_SEPARATION;
     use crate::estimate::lag::tests::doublets;
 
     /// A two-step block whose first steps show a 50 ms lag is refused by name (before the
@@ -634,14 +659,15 @@ mod tests {
 
     /// [`lagging_block`] with a dead time `delay` (s) before the lag.
     fn delayed_block(delay: f64, tau: f64, prior: f64) -> (Config, Vec<Vec<DoubletSamples>>) {
-        let config = Config::from_toml(
-            &format!(
-                "[sensing]\nmode = \"private\"\n[private]\nprior_lag = {prior}\n[world]\n\
-                 process_std = [0.001, 0.001, 0.001]\nlag = {tau}\ndelay = {delay}\n"
-            ),
-            "t",
-        )
-        .unwrap();
+        simulated_block(&format!(
+            "[sensing]\nmode = \"private\"\n[private]\nprior_lag = {prior}\n[world]\n\
+             process_std = [0.001, 0.001, 0.001]\nlag = {tau}\ndelay = {delay}\n"
+        ))
+    }
+
+    /// The controller's samples of 16 simulated sessions of the configuration `toml`.
+    fn simulated_block(toml: &str) -> (Config, Vec<Vec<DoubletSamples>>) {
+        let config = Config::from_toml(toml, "t").unwrap();
         let sessions = (0..16)
             .map(|r| {
                 crate::sim::simulate(&config, r, false)
@@ -785,5 +811,47 @@ mod tests {
             assert!((with[k] / 1e-6 - 1.0).abs() < tolerance, "{with:?}");
         }
         assert!(square_prior[2] > square_with[2], "{square_prior:?}");
+    }
+
+    /// 16 simulated sessions of a robot with 1 mm (1 mrad) of white motion noise per axis,
+    /// the parties at their defaults with two dimensions of a `levels`-level alphabet.
+    fn multilevel_block(levels: u8) -> (Config, Vec<Vec<DoubletSamples>>) {
+        simulated_block(&format!(
+            "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\n\
+             levels = {levels}\n[world]\nprocess_std = [0.001, 0.001, 0.001]\n"
+        ))
+    }
+
+    /// Multilevel symbols: with each symbol's mean subtracted Q̂ is the world's 1 mm² (1
+    /// mrad²) per axis at 4 and 8 levels, within 4 of its relative standard errors
+    /// `√(2F/n)·(2Q + 2R)/(2Q)` (F = 1.5 for the neighbours' shared sample), and the block is
+    /// sized, not refused, with a separation for every key bit.
+    #[test]
+    fn multilevel_q_is_unbiased_with_the_symbols_mean_subtracted() {
+        for levels in [4_u8, 8] {
+            let (config, sessions) = multilevel_block(levels);
+            let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
+            let model = doublet_model(&config);
+            let with = two_step_residuals(&model, &views);
+            let sensor = diagonal_covariance(config.sensing.controller_std);
+            let n = with.len();
+            let q_hat = estimate_motion_noise(&with, &sensor, 1e-3).expect("in the class");
+            for (k, std) in config.sensing.controller_std.into_iter().enumerate() {
+                let tolerance = 4.0 * (3.0 / n as f64).sqrt() * (1e-6 + std * std) / 1e-6;
+                let got = q_hat.point[(k, k)] / 1e-6;
+                eprintln!("{levels} levels, axis {k}: Q̂/Q {got:.4} (tolerance {tolerance:.3})");
+                assert!(
+                    (got - 1.0).abs() < tolerance,
+                    "{levels} levels axis {k}: {got}"
+                );
+            }
+            let (separations, estimate) = block_separations(&config, &views, 0, 1e-6);
+            assert_eq!(estimate.refused, None, "{levels} levels");
+            let key_bits = model.perturbation.key_bits();
+            for (session, d) in views.iter().zip(&separations) {
+                assert_eq!(d.len(), session.len() * key_bits);
+                assert!(d.iter().all(|&d| d > 0.0 && d < MAX_PUBLISHED_SEPARATION));
+            }
+        }
     }
 }

@@ -2,9 +2,10 @@
 //!
 //! A bit's separation under the camera statement is `d² = δᵀS⁻¹δ`, with `δ` the difference
 //! of her predicted observations of the doublet's middle and end under the bit's two values
-//! (the other bit known, the larger over its values) and `S` their covariance: the start
-//! pose's `P₀` (her camera and the boundary sample fused) through the Jacobians `A₀, A₁`,
-//! the two steps' motion noise, and her observation noises `R_e,1, R_e,2`.
+//! (the doublet's other bits known, the larger over their values: with `protocol.levels >
+//! 2` the rest of its symbols, as the configured sizing takes them) and `S` their
+//! covariance: the start pose's `P₀` (her camera and the boundary sample fused) through the
+//! Jacobians `A₀, A₁`, the two steps' motion noise, and her observation noises `R_e,1, R_e,2`.
 //!
 //! **Correlated steps: her genie view.** Under AR(1) motion noise the doublet's steps
 //! correlate with their neighbours'. Eve is given the noise of the step just before and just
@@ -46,7 +47,8 @@ use nalgebra::{Cholesky, Matrix3, Matrix6, SymmetricEigen, Vector6};
 use super::motion_noise::{Corner, MotionNoiseEstimate};
 use super::residual::rotation;
 use crate::private::DoubletInputs;
-use crate::private::likelihood::{DoubletModel, DoubletView, state_jacobian};
+use crate::private::doublet::MAX_BITS;
+use crate::private::likelihood::{DoubletModel, DoubletView, separations_by, state_jacobian};
 
 /// The grid a block's worst-case separation is published on: multiples of 2⁻⁸.
 pub const SEPARATION_QUANTUM: f64 = 1.0 / 256.0;
@@ -66,22 +68,23 @@ pub fn published_separation(d: f64) -> f64 {
     ((d / SEPARATION_QUANTUM).ceil() * SEPARATION_QUANTUM).min(MAX_PUBLISHED_SEPARATION)
 }
 
-/// Each bit's separation of Eve's modelled `view` of a doublet with public `inputs`, under
-/// `model` (its sample time and bits) with the motion noise at the worst case of `estimate`'s
-/// joint region: the largest over its cells; `None` when the bound does not exist.
+/// Each key bit's separation of Eve's modelled `view` of a doublet with public `inputs`,
+/// under `model` (its sample time and alphabet) with the motion noise at the worst case of
+/// `estimate`'s joint region: the largest over its cells (entries beyond the doublet's key
+/// bits 0); `None` when the bound does not exist.
 #[must_use]
 pub fn worst_case_separations(
     model: &DoubletModel,
     estimate: &MotionNoiseEstimate,
     inputs: &DoubletInputs,
     view: &DoubletView,
-) -> Option<[f64; 2]> {
+) -> Option<[f64; MAX_BITS]> {
     estimate
         .corners
         .iter()
-        .try_fold([0.0_f64; 2], |largest, corner| {
+        .try_fold([0.0_f64; MAX_BITS], |largest, corner| {
             let d = corner_separations(model, corner, inputs, view)?;
-            Some([largest[0].max(d[0]), largest[1].max(d[1])])
+            Some(std::array::from_fn(|i| largest[i].max(d[i])))
         })
 }
 
@@ -169,9 +172,9 @@ pub fn three_step_worst_case(
     lags: &[f64],
     inputs: &DoubletInputs,
     view: &DoubletView,
-) -> Option<[f64; 2]> {
+) -> Option<[f64; MAX_BITS]> {
     let h = rotation(view.start.value.z);
-    let mut worst = [0.0_f64; 2];
+    let mut worst = [0.0_f64; MAX_BITS];
     for (robot_frame, positive) in steps {
         for &lag in lags {
             let at = DoubletModel {
@@ -183,20 +186,21 @@ pub fn three_step_worst_case(
                 return None;
             }
             let d = at.separations(inputs, view);
-            worst = [worst[0].max(d[0]), worst[1].max(d[1])];
+            worst = std::array::from_fn(|i| worst[i].max(d[i]));
         }
     }
     Some(worst)
 }
 
-/// Each bit's separation at one `corner` (the genie view of the module's doc); `None` when
-/// its covariance is not positive definite or the view lacks the middle or the end.
+/// Each key bit's separation at one `corner` (the genie view of the module's doc; entries
+/// beyond the doublet's key bits 0); `None` when its covariance is not positive definite or
+/// the view lacks the middle or the end.
 fn corner_separations(
     model: &DoubletModel,
     corner: &Corner,
     inputs: &DoubletInputs,
     view: &DoubletView,
-) -> Option<[f64; 2]> {
+) -> Option<[f64; MAX_BITS]> {
     let (Some(middle), Some(end)) = (&view.middle, &view.end) else {
         return None;
     };
@@ -235,22 +239,20 @@ fn corner_separations(
         let mut mean = Vector6::zeros();
         mean.fixed_rows_mut::<3>(0).copy_from(&m1);
         mean.fixed_rows_mut::<3>(3).copy_from(&m2);
-        (mean, s)
+        (mean, Cholesky::new(s))
     };
-    let distance = |a: usize, b: usize| -> Option<f64> {
-        let (mean_a, s) = predict(a);
-        let (mean_b, _) = predict(b);
-        let d = mean_b - mean_a;
-        Cholesky::new(s).map(|c| c.solve(&d).dot(&d).sqrt())
-    };
-    if model.perturbation.bits_per_doublet == 2 {
-        Some([
-            distance(0, 1)?.max(distance(2, 3)?),
-            distance(0, 2)?.max(distance(1, 3)?),
-        ])
-    } else {
-        Some([distance(0, 1)?, 0.0])
+    // Every pattern's prediction once (a multilevel doublet's up to 64 patterns meet in
+    // many pairs); the pairs as the configured sizing takes them ([`separations_by`]: each
+    // bit with the rest of its doublet's bits known, the larger over their values).
+    let predictions: Vec<_> = (0..model.perturbation.patterns()).map(predict).collect();
+    if predictions.iter().any(|(_, s)| s.is_none()) {
+        return None;
     }
+    Some(separations_by(&model.perturbation, |a, b| {
+        let (mean_a, s) = &predictions[a];
+        let d = predictions[b].0 - mean_a;
+        s.as_ref().map_or(0.0, |c| c.solve(&d).dot(&d).sqrt())
+    }))
 }
 
 #[cfg(test)]
@@ -322,6 +324,47 @@ mod tests {
                 (got[k] - expected[k]).abs() <= 1e-6 * expected[k],
                 "{got:?} {expected:?}"
             );
+        }
+    }
+
+    /// Multilevel symbols: at ρ = 0 the corner's separations are the configured sizing's
+    /// ([`DoubletModel::separations`]: each bit with the rest of its doublet's symbols known,
+    /// the larger over their values) for every key bit of 4- and 8-level alphabets on two
+    /// dimensions, natural and Gray, to rounding; and nonzero for exactly the key bits.
+    #[test]
+    fn the_white_corner_is_the_configured_view_of_multilevel_symbols() {
+        let (binary, inputs, view) = turning_doublet();
+        let q = Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6);
+        let h = rotation(view.start.value.z);
+        for levels in [4_u8, 8] {
+            for labeling in [
+                crate::config::Labeling::Natural,
+                crate::config::Labeling::Gray,
+            ] {
+                let model = DoubletModel {
+                    perturbation: crate::private::Perturbation {
+                        delta: Unicycle::new(binary.perturbation.delta.x, 0.035),
+                        levels,
+                        labeling,
+                        ..binary.perturbation
+                    },
+                    ..binary
+                };
+                let configured = DoubletModel {
+                    process_covariance: h * q * h.transpose(),
+                    ..model
+                }
+                .separations(&inputs, &view);
+                let got = corner_separations(&model, &white(q), &inputs, &view).unwrap();
+                let bits = model.perturbation.key_bits();
+                for k in 0..MAX_BITS {
+                    assert!(
+                        (got[k] - configured[k]).abs() <= 1e-6 * configured[k],
+                        "{levels} {labeling:?} bit {k}: {got:?} {configured:?}"
+                    );
+                    assert_eq!(got[k] > 0.0, k < bits, "{levels} bit {k}: {got:?}");
+                }
+            }
         }
     }
 

@@ -222,6 +222,15 @@ pub fn staged_llrs(ll: &[f64], perturbation: &Perturbation, word: u64) -> [f64; 
     bit_llrs(ll, perturbation, |i| (lower(i % m), word))
 }
 
+/// Each bit's LLR from the patterns' log-likelihoods `ll` given `word`'s bits before it in
+/// the doublet, the later ones marginalised ([`DoubletModel::chain_llrs`]): summed over the
+/// bits, `Σᵢ ln(1 + e^{∓Lᵢ}) = −ln P(symbols | view)` of the true symbols `word`.
+#[must_use]
+pub(crate) fn chained_llrs(ll: &[f64], perturbation: &Perturbation, word: u64) -> [f64; MAX_BITS] {
+    let word = perturbation.pattern(word);
+    bit_llrs(ll, perturbation, |i| ((1 << i) - 1, word))
+}
+
 /// `ln Σ exp(ll[h])` over the patterns `h < patterns` whose bit `bit` is `value`, given
 /// `known`: the patterns must also agree with `word` on the bits of mask `known`.
 fn ln_sum_where(
@@ -481,9 +490,11 @@ impl DoubletModel {
         view: &DoubletView,
         word: u64,
     ) -> [f64; MAX_BITS] {
-        let ll = self.log_likelihoods(inputs, view);
-        let word = self.perturbation.pattern(word);
-        bit_llrs(&ll, &self.perturbation, |i| ((1 << i) - 1, word))
+        chained_llrs(
+            &self.log_likelihoods(inputs, view),
+            &self.perturbation,
+            word,
+        )
     }
 
     /// Each bit's separation: the Mahalanobis distance between its two hypotheses, the

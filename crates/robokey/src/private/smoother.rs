@@ -30,7 +30,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use super::doublet::{DoubletInputs, Perturbation, sign};
 use super::gram_filter::{GramFilter, ln_sum_exp};
-use super::likelihood::BitEvidence;
+use super::likelihood::{BitEvidence, chained_llrs};
 use super::window::{Instant, Window, WindowRun, WindowWorld};
 use crate::config::Config;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
@@ -109,8 +109,10 @@ pub struct Judged {
     /// From what she recorded alone: her decision.
     pub own: BitEvidence,
     /// Given also the true bits of every other doublet acting on the window (when known):
-    /// `P(b_j | view, b_{≠j})`. Over a block, `Σ_j H(B_j | E, B_{≠j}) ≤ H(B | E)`: her
-    /// uncertainty counted this way errs on her side.
+    /// `P(b_j | view, b_{≠j})`; with multilevel symbols each bit's LLR also given the true
+    /// bits before it in its doublet, so that they sum to her surprisal of the symbols.
+    /// Over a block, `Σ_j H(B_j | E, B_{≠j}) ≤ H(B | E)`: her uncertainty counted this way
+    /// errs on her side.
     pub given_others: Option<BitEvidence>,
 }
 
@@ -146,19 +148,38 @@ struct NuisanceColumn {
     bits: Vec<usize>,
 }
 
+/// The most bits of the window's other doublets a multilevel likelihood sums over exactly
+/// (`2^8` patterns, a binary two-dimension window's `±2` doublets): beyond, the farther
+/// doublets' symbols are moment-matched.
+const MULTILEVEL_EXACT_BITS: usize = 8;
+
 /// How the other doublets' bits enter a likelihood: known (their effect taken off the
-/// residual), summed over exactly (the window's), or Gaussian (the lead's).
+/// residual), summed over exactly (the window's), or Gaussian (the lead's; and the window's
+/// beyond the exact sum's budget, moment-matched).
 struct Treatment {
     /// The residual as a combination of the columns, without the hypothesis' own.
     residual: DVector<f64>,
     nuisance: Vec<NuisanceColumn>,
     nuisance_bits: usize,
+    /// The lead's columns: folded into the likelihood and the separation.
     gaussian: Vec<usize>,
+    /// The window's columns beyond the exact sum's budget, lead's first: folded into the
+    /// likelihood; known in the separation, as the exactly summed ones are.
+    folded: Vec<usize>,
 }
 
 impl Treatment {
-    /// `known(o)`: the pattern of doublet `o` when known.
-    fn new(others: &[Other], known: impl Fn(&Other) -> Option<usize>, columns: usize) -> Self {
+    /// `known(o)`: the pattern of doublet `o` when known; the unknown ones of the window
+    /// summed over exactly nearest `target` first while their bits total at most
+    /// `exact_bits`, the rest of the window moment-matched (each Walsh coefficient of its
+    /// symbols a unit Gaussian: they have mean 0, variance 1 and no correlation).
+    fn new(
+        others: &[Other],
+        known: impl Fn(&Other) -> Option<usize>,
+        columns: usize,
+        target: u32,
+        exact_bits: usize,
+    ) -> Self {
         let mut residual = DVector::zeros(columns);
         residual[0] = 1.0;
         let mut treatment = Self {
@@ -166,7 +187,31 @@ impl Treatment {
             nuisance: Vec::new(),
             nuisance_bits: 0,
             gaussian: Vec::new(),
+            folded: Vec::new(),
         };
+        let bits_of = |other: &Other| {
+            other
+                .columns
+                .iter()
+                .filter_map(|(_, recipe)| recipe.iter().max())
+                .max()
+                .map_or(0, |b| b + 1)
+        };
+        let mut nearest: Vec<&Other> = others
+            .iter()
+            .filter(|o| o.in_window && known(o).is_none())
+            .collect();
+        nearest.sort_by_key(|o| o.doublet.abs_diff(target));
+        let mut budget = exact_bits;
+        let exact: Vec<u32> = nearest
+            .into_iter()
+            .take_while(|o| {
+                let fits = bits_of(o) <= budget;
+                budget = budget.saturating_sub(bits_of(o));
+                fits
+            })
+            .map(|o| o.doublet)
+            .collect();
         for other in others {
             match known(other) {
                 Some(pattern) => {
@@ -174,6 +219,9 @@ impl Treatment {
                         treatment.residual[*column] -= pattern_sign(pattern, recipe);
                     }
                 }
+                None if other.in_window && !exact.contains(&other.doublet) => treatment
+                    .folded
+                    .extend(other.columns.iter().map(|(column, _)| *column)),
                 None if other.in_window => {
                     let first_bit = treatment.nuisance_bits;
                     let mut width = 0;
@@ -191,7 +239,21 @@ impl Treatment {
                     .extend(other.columns.iter().map(|(column, _)| *column)),
             }
         }
+        if !treatment.folded.is_empty() {
+            treatment
+                .folded
+                .splice(0..0, treatment.gaussian.iter().copied());
+        }
         treatment
+    }
+
+    /// The columns integrated as unit Gaussians in the likelihood.
+    fn integrated(&self) -> &[usize] {
+        if self.folded.is_empty() {
+            &self.gaussian
+        } else {
+            &self.folded
+        }
     }
 
     /// `ln p(y | h)` up to a constant common to all hypotheses, `h` the hypothesis' column.
@@ -204,7 +266,7 @@ impl Treatment {
             &residual,
             &self.nuisance,
             self.nuisance_bits,
-            &self.gaussian,
+            self.integrated(),
         )
     }
 }
@@ -539,18 +601,12 @@ impl WindowSmoother {
             if c == target {
                 continue;
             }
-            let bits = usize::from(self.perturbation.bits_per_doublet);
-            // Sign recipes: v, ω, and v·ω with two bits.
-            let recipes: Vec<Vec<usize>> = match bits {
-                1 => vec![vec![0]],
-                _ => vec![vec![0], vec![1], vec![0, 1]],
-            };
             let mut other = Other {
                 doublet: i,
                 in_window: (exact.0..=exact.1).contains(&i),
                 columns: Vec::new(),
             };
-            for recipe in recipes {
+            for recipe in walsh_recipes(self.perturbation.key_bits()) {
                 let weights: Vec<(&WindowRun, f64)> = runs[c]
                     .iter()
                     .enumerate()
@@ -584,18 +640,37 @@ impl WindowSmoother {
                 let (gram, _) = gram_of(a);
                 separation(gram, 1 + a, 1 + b, &treatment.gaussian)
             };
-            self.bit_evidence(&ll, distance)
+            (self.bit_evidence(&ll, distance), ll)
         };
         let unknown = grams_with(&|_| None);
-        let own = evidence_under(&Treatment::new(&others, |_| None, columns.len()), &unknown);
+        let j = carrying[target].0;
+        let exact_bits = if self.perturbation.levels > 2 {
+            MULTILEVEL_EXACT_BITS
+        } else {
+            usize::MAX
+        };
+        let treatment = Treatment::new(&others, |_| None, columns.len(), j, exact_bits);
+        let own = evidence_under(&treatment, &unknown).0;
         let pattern_of = |i: u32| truth(i).map(|b| self.perturbation.pattern(b));
-        let given_others = others.iter().all(|o| truth(o.doublet).is_some()).then(|| {
-            let treatment = Treatment::new(&others, |o| pattern_of(o.doublet), columns.len());
-            if self.eve.world.slip_std > 0.0 {
+        // A multilevel symbol's bits are judged in a chain, each given the true ones before
+        // it (her realised bound is then on the symbols); binary bits as they are.
+        let chained = self.perturbation.levels > 2;
+        let revealed =
+            others.iter().all(|o| truth(o.doublet).is_some()) && (!chained || truth(j).is_some());
+        let given_others = revealed.then(|| {
+            let treatment = Treatment::new(&others, |o| pattern_of(o.doublet), columns.len(), j, 0);
+            let (evidence, ll) = if self.eve.world.slip_std > 0.0 {
                 let known = |c: usize| pattern_of(carrying[c].0);
                 evidence_under(&treatment, &grams_with(&known))
             } else {
                 evidence_under(&treatment, &unknown)
+            };
+            match truth(j).filter(|_| chained) {
+                Some(word) => BitEvidence {
+                    llr: chained_llrs(&ll, &self.perturbation, word),
+                    ..evidence
+                },
+                None => evidence,
             }
         });
         Judged { own, given_others }
@@ -720,7 +795,7 @@ impl WindowSmoother {
                             }
                             sum
                         };
-                        let bits = usize::from(self.perturbation.bits_per_doublet);
+                        let bits = self.perturbation.key_bits();
                         SlipProfile {
                             mean: average(&[]),
                             bit_effects: (0..bits).map(|b| average(&[b])).collect(),
@@ -982,6 +1057,14 @@ fn jacobians(update: &SubStep, t: f64) -> (Matrix3<f64>, nalgebra::Matrix3x2<f64
     }
 }
 
+/// The sign recipes of a doublet's `bits` key bits: every non-empty subset, by its mask
+/// (binary two dimensions: v, ω, v·ω). A function of the pattern is exactly its mean plus
+/// `Σ_S c_S·Π_{b∈S} s_b` (the Walsh–Hadamard expansion), so an other doublet's effect is its
+/// mean run and one column per recipe.
+fn walsh_recipes(bits: usize) -> impl Iterator<Item = Vec<usize>> {
+    (1..1usize << bits).map(move |mask| (0..bits).filter(|b| mask >> b & 1 == 1).collect())
+}
+
 /// `Π s_b` over the bits `recipe` of pattern `h` (`s = +1` for bit 0): the sign a
 /// pattern gives an effect column.
 fn pattern_sign(h: usize, recipe: &[usize]) -> f64 {
@@ -1010,14 +1093,21 @@ fn log_likelihood(
         .iter()
         .map(|c| toward[c.column] - fold.quadratic(&fold.cross(gram, c.column), &b_gaussian))
         .collect();
+    // `C_{L,a}` and `M·C_{L,b}` once per column: `c_ab = g_ab − C_{L,a}ᵀ·M·C_{L,b}`.
+    let crosses: Vec<DVector<f64>> = nuisance
+        .iter()
+        .map(|a| fold.cross(gram, a.column))
+        .collect();
+    let folded: Vec<Option<DVector<f64>>> = crosses.iter().map(|x| fold.apply(x)).collect();
     let c: Vec<Vec<f64>> = nuisance
         .iter()
-        .map(|a| {
+        .zip(&crosses)
+        .map(|(a, cross_a)| {
             nuisance
                 .iter()
-                .map(|b| {
-                    g(a.column, b.column)
-                        - fold.quadratic(&fold.cross(gram, a.column), &fold.cross(gram, b.column))
+                .zip(&folded)
+                .map(|(b, folded_b)| {
+                    g(a.column, b.column) - folded_b.as_ref().map_or(0.0, |m| cross_a.dot(m))
                 })
                 .collect()
         })
@@ -1071,6 +1161,11 @@ impl Fold {
         DVector::from_iterator(self.lead.len(), self.lead.iter().map(|&p| gram[(p, a)]))
     }
 
+    /// `M·y`; none without lead columns (the quadratic forms are then 0).
+    fn apply(&self, y: &DVector<f64>) -> Option<DVector<f64>> {
+        (!self.lead.is_empty()).then(|| &self.inverse * y)
+    }
+
     /// `xᵀ·M·y`.
     fn quadratic(&self, x: &DVector<f64>, y: &DVector<f64>) -> f64 {
         if self.lead.is_empty() {
@@ -1088,4 +1183,85 @@ fn separation(gram: &DMatrix<f64>, a: usize, b: usize, lead: &[usize]) -> f64 {
     let dd = gram[(a, a)] - 2.0 * gram[(a, b)] + gram[(b, b)];
     let d_lead = fold.cross(gram, b) - fold.cross(gram, a);
     (dd - fold.quadratic(&d_lead, &d_lead)).max(0.0).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::private::doublet::Labeling;
+
+    /// The recipes expand every function of a doublet's pattern exactly — its mean plus one
+    /// coefficient per recipe, `c_S = mean_h f(h)·Π_{b∈S} s_b(h)` — so a known neighbour's
+    /// effect is taken off exactly at any alphabet; binary keeps its order (v, ω, v·ω).
+    #[test]
+    fn the_walsh_recipes_expand_every_function_of_the_pattern() {
+        assert_eq!(walsh_recipes(1).collect::<Vec<_>>(), vec![vec![0]]);
+        assert_eq!(
+            walsh_recipes(2).collect::<Vec<_>>(),
+            vec![vec![0], vec![1], vec![0, 1]]
+        );
+        for bits in 1..=6 {
+            let patterns = 1usize << bits;
+            let f = |h: usize| (1.7 * h as f64 + 0.3).sin() + 0.01 * (h * h) as f64;
+            let mean = (0..patterns).map(f).sum::<f64>() / patterns as f64;
+            let coefficients: Vec<(Vec<usize>, f64)> = walsh_recipes(bits)
+                .map(|recipe| {
+                    let c = (0..patterns)
+                        .map(|h| f(h) * pattern_sign(h, &recipe))
+                        .sum::<f64>()
+                        / patterns as f64;
+                    (recipe, c)
+                })
+                .collect();
+            assert_eq!(coefficients.len(), patterns - 1);
+            for h in 0..patterns {
+                let expanded = mean
+                    + coefficients
+                        .iter()
+                        .map(|(recipe, c)| c * pattern_sign(h, recipe))
+                        .sum::<f64>();
+                assert!((expanded - f(h)).abs() < 1e-12, "{bits} bits, pattern {h}");
+            }
+        }
+    }
+
+    /// The realised bound's per-bit terms are the exact symbol posterior: for any pattern
+    /// log-likelihoods, the chain LLRs given the true bits before each sum to the surprisal
+    /// `Σᵢ ln(1 + e^{∓Lᵢ}) = −ln P(word | view)` of the true symbols, enumerated over all
+    /// `levels^dims` patterns (4 and 8 levels, one and two dimensions, both labelings).
+    #[test]
+    fn the_chained_bits_sum_to_the_exact_symbol_surprisal() {
+        for (levels, dims, labeling) in [
+            (4, 2, Labeling::Natural),
+            (4, 1, Labeling::Gray),
+            (8, 2, Labeling::Gray),
+        ] {
+            let perturbation = Perturbation {
+                levels,
+                bits_per_doublet: dims,
+                labeling,
+                ..Perturbation::binary(Unicycle::new(0.035, 0.035), dims, None)
+            };
+            let patterns = perturbation.patterns();
+            let ll: Vec<f64> = (0..patterns)
+                .map(|h| 3.0 * (0.9 * h as f64 + 0.4).cos())
+                .collect();
+            let total = ll.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let normaliser = total + ll.iter().map(|l| (l - total).exp()).sum::<f64>().ln();
+            for word in 0..patterns {
+                let llr = chained_llrs(&ll, &perturbation, word as u64);
+                let surprisal: f64 = (0..perturbation.key_bits())
+                    .map(|i| {
+                        let signed = if word >> i & 1 == 0 { llr[i] } else { -llr[i] };
+                        (-signed).exp().ln_1p()
+                    })
+                    .sum();
+                let exact = normaliser - ll[word];
+                assert!(
+                    (surprisal - exact).abs() < 1e-9,
+                    "{levels} levels, {dims} dims, word {word}: {surprisal} vs {exact}"
+                );
+            }
+        }
+    }
 }

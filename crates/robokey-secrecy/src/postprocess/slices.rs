@@ -1,0 +1,478 @@
+//! Multilevel slices (docs/postprocessing.md, "Multilevel slices"): a session of symbols of
+//! `m = log₂ levels` bits is reconciled slice by slice, slice `s` holding the bits at place
+//! `s` of every symbol's label. Each slice is its own pool entry and its own block, under an
+//! ID both sides derive from the session's ([`slice_id`]), so the robot, which holds every
+//! slice's reference bits from the start, needs nothing more on the wire. The controller
+//! pools slice 0; once a block of slices is reconciled, the endpoint hands the shell the
+//! robot's bits of it ([`Output::SliceReconciled`](super::Output::SliceReconciled)), the
+//! shell computes the next slice's LLRs given them and answers
+//! [`ControllerInput::NextSlices`](super::ControllerInput::NextSlices), and those entries
+//! form the next block. A block that fails reconciliation ends its sessions' later slices.
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::bitstring::BitString;
+
+/// Most slices per symbol: 8 levels, 3 bits.
+pub const MAX_SLICES: usize = 3;
+
+/// Most key bits per doublet (two dimensions of 8 levels): 2⁶ = 64 patterns.
+pub const MAX_KEY_BITS: usize = 6;
+
+/// How a session's bits fall into slices: bit `i` of a session (`key_bits` per doublet) is
+/// at place `(i mod key_bits) mod slices` of its symbol's label.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Slicing {
+    /// Key bits per doublet (a multiple of `slices`, at most [`MAX_KEY_BITS`]).
+    pub key_bits: u8,
+    /// Slices per symbol, `log₂ levels` (1 to [`MAX_SLICES`]).
+    pub slices: u8,
+}
+
+impl Slicing {
+    /// The slicing of doublets of `key_bits` bits, symbols of `slices` bits.
+    ///
+    /// # Errors
+    /// `slices` outside 1 to 3, or `key_bits` not a multiple of it up to 6 (named).
+    pub fn new(key_bits: usize, slices: usize) -> Result<Self, String> {
+        if !(1..=MAX_SLICES).contains(&slices) {
+            return Err(format!("slices {slices} (allowed: 1 to {MAX_SLICES})"));
+        }
+        if !(1..=MAX_KEY_BITS).contains(&key_bits) || !key_bits.is_multiple_of(slices) {
+            return Err(format!(
+                "key bits per doublet {key_bits} (allowed: a multiple of the {slices} slices, \
+                 1 to {MAX_KEY_BITS})"
+            ));
+        }
+        Ok(Self {
+            key_bits: key_bits as u8,
+            slices: slices as u8,
+        })
+    }
+
+    /// The slice of bit `i` of a session.
+    #[must_use]
+    pub fn slice_of(&self, i: usize) -> usize {
+        (i % usize::from(self.key_bits)) % usize::from(self.slices)
+    }
+
+    /// The entries of `all` (one per bit of a session) in slice `slice`, in order.
+    #[must_use]
+    pub fn pick<T: Copy>(&self, all: &[T], slice: usize) -> Vec<T> {
+        all.iter()
+            .enumerate()
+            .filter(|&(i, _)| self.slice_of(i) == slice)
+            .map(|(_, &x)| x)
+            .collect()
+    }
+
+    /// Bit patterns per doublet, `2^key_bits`.
+    #[must_use]
+    pub fn patterns(&self) -> usize {
+        1 << self.key_bits
+    }
+}
+
+/// The pool ID of slice `slice` of session `session`: the session's own for slice 0 (binary
+/// sessions keep their IDs), else the first 4 bytes, big-endian, of
+/// SHA-256("robokey/slice-id/v1" ‖ session u32 ‖ slice u8). Both sides derive it; a
+/// collision with another pooled ID is refused as a duplicate, as between session IDs.
+#[must_use]
+pub fn slice_id(session: u32, slice: usize) -> u32 {
+    if slice == 0 {
+        return session;
+    }
+    let digest = Sha256::new()
+        .chain_update(b"robokey/slice-id/v1")
+        .chain_update(session.to_be_bytes())
+        .chain_update([slice as u8])
+        .finalize();
+    u32::from_be_bytes([digest[0], digest[1], digest[2], digest[3]])
+}
+
+/// What the controller keeps of a multilevel session for its later slices: its view's
+/// likelihoods, its bits' Eve separations and the robot's bits of the slices reconciled so
+/// far.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StagedSession {
+    /// The session's ID (slice 0's pool ID).
+    pub session: u32,
+    /// The slice this entry holds.
+    pub slice: u8,
+    /// How its bits fall into slices.
+    pub slicing: Slicing,
+    /// `ln p(view | h)` of every bit pattern `h` of every doublet, `2^key_bits` per doublet,
+    /// each doublet's largest at 0, in steps of [`super::LLR_QUANTUM`] nat
+    /// ([`super::quantise_llr`]: toward zero, so at most ≈ 128 nats below the largest).
+    pub likelihoods: Vec<i16>,
+    /// The Eve separation of every bit of the session, in order.
+    pub separations: Vec<f64>,
+    /// The robot's bits of the session at the positions of the slices below `slice` (as
+    /// reconciled), 0 elsewhere.
+    pub known: BitString,
+}
+
+impl StagedSession {
+    /// Bits of the session (all slices).
+    #[must_use]
+    pub fn bits(&self) -> usize {
+        self.known.len()
+    }
+
+    /// Bits of its slice.
+    #[must_use]
+    pub fn slice_bits(&self) -> usize {
+        (0..self.bits())
+            .filter(|&i| self.slicing.slice_of(i) == usize::from(self.slice))
+            .count()
+    }
+
+    /// Whether a slice follows this one.
+    #[must_use]
+    pub fn has_next(&self) -> bool {
+        self.slice + 1 < self.slicing.slices
+    }
+
+    /// The pool IDs of the slices after this one.
+    pub fn later_ids(&self) -> impl Iterator<Item = u32> + '_ {
+        (usize::from(self.slice) + 1..usize::from(self.slicing.slices))
+            .map(|s| slice_id(self.session, s))
+    }
+
+    /// The entry for the next slice once `robot` (the robot's bits of this slice, in order)
+    /// is reconciled.
+    #[must_use]
+    pub fn advanced(&self, robot: &BitString) -> Self {
+        let mut known = self.known.clone();
+        let mut next = (0..robot.len()).map(|j| robot.get(j) == Some(true));
+        for i in 0..known.len() {
+            if self.slicing.slice_of(i) == usize::from(self.slice) {
+                let _ = known.set(i, next.next() == Some(true));
+            }
+        }
+        Self {
+            slice: self.slice + 1,
+            known,
+            ..self.clone()
+        }
+    }
+
+    /// Checks the sizes: whole doublets, one separation per bit in [0, 10⁶], one likelihood
+    /// per pattern per doublet, a slice below the slices.
+    ///
+    /// # Errors
+    /// What is wrong, named.
+    pub fn check(&self) -> Result<(), String> {
+        let key_bits = usize::from(self.slicing.key_bits);
+        Slicing::new(key_bits, usize::from(self.slicing.slices))?;
+        if self.slice >= self.slicing.slices {
+            return Err(format!(
+                "slice {} (allowed: 0 to {})",
+                self.slice,
+                self.slicing.slices - 1
+            ));
+        }
+        let bits = self.bits();
+        if bits == 0 || !bits.is_multiple_of(key_bits) || bits > super::MAX_SESSION_BITS {
+            return Err(format!(
+                "{bits} bits (allowed: whole doublets of {key_bits}, up to {})",
+                super::MAX_SESSION_BITS
+            ));
+        }
+        if self.separations.len() != bits {
+            return Err(format!(
+                "{} separations for its {bits} bits",
+                self.separations.len()
+            ));
+        }
+        if let Some(d) = self.separations.iter().find(|d| !(0.0..=1e6).contains(*d)) {
+            return Err(format!("Eve separation {d} (allowed: 0 to 10^6)"));
+        }
+        let expected = bits / key_bits * self.slicing.patterns();
+        if self.likelihoods.len() != expected {
+            return Err(format!(
+                "{} likelihoods for its {} doublets of {} patterns",
+                self.likelihoods.len(),
+                bits / key_bits,
+                self.slicing.patterns()
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One reconciled block's multilevel sessions, each advanced to its next slice
+/// ([`StagedSession::advanced`]): the shell computes their LLRs and answers with them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReconciledSlices {
+    /// The block reconciled.
+    pub block: u64,
+    /// Its sessions with a slice after the block's, advanced to it.
+    pub sessions: Vec<StagedSession>,
+}
+
+/// A slice of a multilevel session as the controller pools it: its decisions and LLRs of
+/// the slice's bits, given the lower slices' reconciled bits.
+#[derive(Clone, Debug)]
+pub struct SliceInput {
+    /// The controller's decisions of the slice's bits, in order.
+    pub bits: BitString,
+    /// Their LLRs (empty where Cascade reconciles).
+    pub llrs: Vec<f64>,
+    /// The session's staged material, at this slice.
+    pub staged: StagedSession,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cascade::CascadeSchedule;
+    use crate::postprocess::{
+        Assumption, ControllerInput, ControllerPost, FinalKey, Message, Output,
+        ReconciliationMethod, RobotInput, RobotPost, Settings,
+    };
+    use rand::rngs::ChaCha8Rng;
+    use rand::{RngExt, SeedableRng};
+
+    /// Two dimensions of 4 levels: 4 key bits per doublet, 2 slices.
+    const SLICING: Slicing = Slicing {
+        key_bits: 4,
+        slices: 2,
+    };
+
+    /// Sessions of 400 doublets: the robot's bits, and the controller's first slice with
+    /// errors at 3 %.
+    fn sessions(rng: &mut ChaCha8Rng) -> Vec<(BitString, BitString)> {
+        (0..6)
+            .map(|_| {
+                let robot = BitString::random(1_600, rng);
+                let own: Vec<bool> = (0..1_600)
+                    .filter(|&i| SLICING.slice_of(i) == 0)
+                    .map(|i| (robot.get(i) == Some(true)) != (rng.random::<f64>() < 0.03))
+                    .collect();
+                (robot, BitString::from_bools(&own))
+            })
+            .collect()
+    }
+
+    fn staged(session: u32) -> StagedSession {
+        StagedSession {
+            session,
+            slice: 0,
+            slicing: SLICING,
+            likelihoods: vec![0; 400 * SLICING.patterns()],
+            separations: vec![0.5; 1_600],
+            known: BitString::zeros(1_600),
+        }
+    }
+
+    fn bits_of(all: &BitString, slice: usize) -> BitString {
+        let bools: Vec<bool> = (0..all.len()).map(|i| all.get(i) == Some(true)).collect();
+        BitString::from_bools(&SLICING.pick(&bools, slice))
+    }
+
+    /// Both endpoints in memory, each message through `tamper`; the shell answers
+    /// every reconciled slice with the robot's bits of the next one (checking that the
+    /// endpoint handed it the robot's bits of the reconciled one). Returns both sides' keys,
+    /// the blocks reconciled and the robot.
+    fn run(tamper: impl Fn(&mut Message)) -> (Vec<FinalKey>, Vec<FinalKey>, Vec<u64>, RobotPost) {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let pool = sessions(&mut rng);
+        let settings = Settings {
+            block_bits: 2_000,
+            sample_bits: 100,
+            epsilon: 1e-6,
+            schedule: CascadeSchedule::BICONF,
+            assumption: Assumption::IndependentErrors { error_rate: 0.3 },
+            reconciliation: ReconciliationMethod::Cascade,
+        };
+        let mut controller = ControllerPost::new(settings.clone(), [1; 32]).unwrap();
+        let mut robot = RobotPost::new(settings, [2; 32]).unwrap();
+        for (id, (reference, own)) in pool.iter().enumerate() {
+            for slice in 0..2 {
+                robot
+                    .handle_input(RobotInput::Session {
+                        id: slice_id(id as u32, slice),
+                        bits: bits_of(reference, slice),
+                    })
+                    .unwrap();
+            }
+            controller
+                .handle_input(ControllerInput::StagedSession(SliceInput {
+                    bits: own.clone(),
+                    llrs: Vec::new(),
+                    staged: staged(id as u32),
+                }))
+                .unwrap();
+        }
+        let (mut keys, mut reconciled) = ((Vec::new(), Vec::new()), Vec::new());
+        loop {
+            let mut to_robot = Vec::new();
+            while let Some(output) = controller.poll_output() {
+                match output {
+                    Output::Transmit(m) => to_robot.push(m),
+                    Output::KeyCommitted(key) => keys.0.push(key),
+                    Output::SliceReconciled(r) => {
+                        reconciled.push(r.block);
+                        let slices = r
+                            .sessions
+                            .iter()
+                            .map(|next| {
+                                let reference = &pool[next.session as usize].0;
+                                for i in (0..1_600).filter(|&i| SLICING.slice_of(i) == 0) {
+                                    assert_eq!(next.known.get(i), reference.get(i), "bit {i}");
+                                }
+                                SliceInput {
+                                    bits: bits_of(reference, 1),
+                                    llrs: Vec::new(),
+                                    staged: next.clone(),
+                                }
+                            })
+                            .collect();
+                        controller
+                            .handle_input(ControllerInput::NextSlices {
+                                block: r.block,
+                                slices,
+                            })
+                            .unwrap();
+                    }
+                    _ => {}
+                }
+            }
+            let mut to_controller = Vec::new();
+            for mut m in to_robot.drain(..) {
+                tamper(&mut m);
+                robot.handle_input(RobotInput::Frame(m)).unwrap();
+            }
+            while let Some(output) = robot.poll_output() {
+                match output {
+                    Output::Transmit(mut m) => {
+                        tamper(&mut m);
+                        to_controller.push(m);
+                    }
+                    Output::KeyCommitted(key) => keys.1.push(key),
+                    _ => {}
+                }
+            }
+            if to_controller.is_empty() {
+                break;
+            }
+            for m in to_controller {
+                controller.handle_input(ControllerInput::Frame(m)).unwrap();
+            }
+        }
+        (keys.0, keys.1, reconciled, robot)
+    }
+
+    /// Slice 0 of three sessions, then their slice 1 as the next block, then the same for
+    /// the next three: four keys, the same on both sides, slice 1's under the slice IDs.
+    #[test]
+    fn each_slice_is_keyed_after_the_one_below_it() {
+        let (controller, robot, reconciled, _) = run(|_| {});
+        assert_eq!(reconciled, vec![0, 2]);
+        assert_eq!(controller, robot);
+        let blocks: Vec<(u64, Vec<u32>)> = controller
+            .iter()
+            .map(|k| (k.block, k.sessions.clone()))
+            .collect();
+        let ids = |range: std::ops::Range<u32>, slice| -> Vec<u32> {
+            range.map(|s| slice_id(s, slice)).collect()
+        };
+        assert_eq!(
+            blocks,
+            vec![
+                (0, ids(0..3, 0)),
+                (1, ids(0..3, 1)),
+                (2, ids(3..6, 0)),
+                (3, ids(3..6, 1)),
+            ]
+        );
+    }
+
+    /// A slice block's sessions reordered in flight: the robot's bits would be concatenated
+    /// in another order, so the controller refuses the block (no key on either side) and
+    /// the next sessions go on.
+    #[test]
+    fn a_reordered_slice_block_is_refused() {
+        let (controller, robot, reconciled, _) = run(|m| {
+            if let Message::Propose {
+                block: 1, sessions, ..
+            } = m
+            {
+                sessions.reverse();
+            }
+        });
+        assert_eq!(controller, robot);
+        assert_eq!(reconciled, vec![0, 2]);
+        let blocks: Vec<u64> = controller.iter().map(|k| k.block).collect();
+        assert_eq!(blocks, vec![0, 2, 3]);
+    }
+
+    /// A tag changed in flight ends the block as failed reconciliation: its sessions' later
+    /// slices end with it (never proposed, dropped from the robot's pool), and the next
+    /// sessions go on.
+    #[test]
+    fn a_tampered_tag_ends_the_blocks_later_slices() {
+        let (controller, robot, reconciled, robot_post) = run(|m| {
+            if let Message::Confirmed { block: 0, tag } = m {
+                tag[0] ^= 1;
+            }
+        });
+        assert_eq!(controller, robot);
+        assert_eq!(reconciled, vec![1]);
+        let blocks: Vec<u64> = controller.iter().map(|k| k.block).collect();
+        assert_eq!(blocks, vec![1, 2]);
+        let pooled: Vec<u32> = robot_post
+            .snapshot()
+            .pool
+            .iter()
+            .map(|(id, _)| *id)
+            .collect();
+        assert!(pooled.is_empty(), "{pooled:?}");
+    }
+
+    #[test]
+    fn slices_take_each_symbols_bits_by_place() {
+        // Two dimensions of 4 levels: v's label in bits 0–1, ω's in 2–3.
+        let slicing = Slicing::new(4, 2).unwrap();
+        let all: Vec<usize> = (0..8).collect();
+        assert_eq!(slicing.pick(&all, 0), vec![0, 2, 4, 6]);
+        assert_eq!(slicing.pick(&all, 1), vec![1, 3, 5, 7]);
+        assert!(Slicing::new(5, 2).is_err() && Slicing::new(6, 4).is_err());
+    }
+
+    #[test]
+    fn slice_ids_keep_the_first_and_differ_for_the_others() {
+        assert_eq!(slice_id(7, 0), 7);
+        assert_ne!(slice_id(7, 1), slice_id(7, 2));
+        assert_ne!(slice_id(7, 1), slice_id(8, 1));
+        assert_eq!(slice_id(7, 1), slice_id(7, 1));
+    }
+
+    #[test]
+    fn advancing_fills_the_reconciled_slice_and_checks_sizes() {
+        let slicing = Slicing::new(2, 2).unwrap();
+        let staged = StagedSession {
+            session: 3,
+            slice: 0,
+            slicing,
+            likelihoods: vec![0; 3 * 4],
+            separations: vec![1.0; 6],
+            known: BitString::zeros(6),
+        };
+        assert_eq!(staged.check(), Ok(()));
+        assert_eq!(staged.slice_bits(), 3);
+        let next = staged.advanced(&BitString::from_bools(&[true, false, true]));
+        assert_eq!(next.slice, 1);
+        let known: Vec<bool> = (0..6).map(|i| next.known.get(i) == Some(true)).collect();
+        assert_eq!(known, vec![true, false, false, false, true, false]);
+        assert!(!next.has_next() && next.later_ids().next().is_none());
+        assert_eq!(staged.later_ids().collect::<Vec<_>>(), vec![slice_id(3, 1)]);
+        let short = StagedSession {
+            likelihoods: vec![0; 5],
+            ..staged
+        };
+        assert!(short.check().unwrap_err().contains("likelihoods"));
+    }
+}
