@@ -1260,7 +1260,9 @@ mod tests {
     }
 
     thread_local! {
+        /// The multilevel exact-sum cap this thread's test set (none: the smoother's own).
         static EXACT_BITS: Cell<Option<usize>> = const { Cell::new(None) };
+        /// The judgements this thread's test collects (none: it does not collect).
         static COLLECTED: RefCell<Option<Vec<Collected>>> = const { RefCell::new(None) };
     }
 
