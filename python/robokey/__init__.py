@@ -214,7 +214,9 @@ def secrecy(
     ``"identify"``, ``"transcript"``, ``"camera"``, ``"commands"``; default: the sensing
     mode's), ``epsilon`` (``--eps``), ``block_bits`` (``--block``), ``blocks``, ``pooling``
     (``"confirmed"`` or ``"complete"``), ``sample_bits``, ``max_sessions`` (default: 2,000 per 10,000 bits of
-    blocks), ``assume_eve_error``; unset ones take the sweep's ``[secrecy]`` table, then the defaults.
+    blocks), ``assume_eve_error``; unset ones take the sweep's ``[secrecy]`` table, then the defaults
+    (the reconciliation and sizing too: the table's ``reconciliation`` and ``sizing``, else
+    Cascade and the configured plant).
 
     Returns a dict: ``table`` (``secrecy.csv``'s columns and values, as ``secrecy.parquet``
     types them, each column's unit and meaning in its metadata: one row per point and

@@ -420,6 +420,8 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         sample_bits: args.sample_bits,
         max_sessions: args.max_sessions,
         assumed_eve_error: args.assume_eve_error,
+        sizing: args.sizing.map(Into::into),
+        reconciliation: args.reconciliation.map(Into::into),
     };
     if let Err(e) = request.validate() {
         usage!("{}", e.message(&format!("{} {}", e.option.flag(), e.value)));
@@ -435,11 +437,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
             continue;
         }
         let mode = experiment.points[0].config.sensing.mode;
-        let options = robokey_lab::secrecy::SecrecyOptions {
-            sizing: args.sizing.into(),
-            reconciliation: args.reconciliation.into(),
-            ..request.options(&experiment)
-        };
+        let options = request.options(&experiment);
         let secrecy = with_jobs(args.jobs, || {
             Secrecy::compute(&experiment, &options, &mut SessionBank::new())
         })??;

@@ -307,17 +307,19 @@ struct SecrecyArgs {
     /// naming the test (docs/estimation.md); with `protocol.levels` 4 or 8 each slice is sized
     /// from its own bits under the block's one estimate. `world`: as `measured`, at the simulated world's
     /// own motion noise and correlation instead of an estimate — a pair configured with the
-    /// true world, the comparison for `measured`.
-    #[arg(long, value_enum, default_value_t = SizingArg::Configured)]
-    sizing: SizingArg,
+    /// true world, the comparison for `measured`. Default: the sweep file's `[secrecy]
+    /// sizing`, else configured.
+    #[arg(long, value_enum)]
+    sizing: Option<SizingArg>,
     /// How `complete` pooling reconciles (docs/postprocessing.md). `cascade`: interactive
     /// Cascade with BICONF on the controller's decisions, both sides' parities charged
     /// (reproduce uses it). `ldpc`: the robot's one-way LDPC syndrome decoded by belief
     /// propagation on the controller's calibrated LLRs (m = ⌈1.09·H + 2·√H⌉ for the soft
     /// limit H, ≤ 8 feedback rounds of max(0.04·m, 2·√m)), every syndrome bit and 4 bits for
     /// the rounds charged; private sensing only. The agents' `postprocess.reconciliation`.
-    #[arg(long, value_enum, default_value_t = ReconciliationArg::Cascade)]
-    reconciliation: ReconciliationArg,
+    /// Default: the sweep file's `[secrecy] reconciliation`, else cascade.
+    #[arg(long, value_enum)]
+    reconciliation: Option<ReconciliationArg>,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,

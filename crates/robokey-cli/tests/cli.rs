@@ -617,6 +617,38 @@ fn private_sensing_runs_end_to_end_from_the_command_line() {
         "{refused}"
     );
 
+    // The file may state the reconciliation and the sizing; a flag overrides the file; a value
+    // outside the vocabulary is refused, naming the file, the field, the value and what is
+    // allowed.
+    let stated = dir.join("private-ldpc.toml");
+    std::fs::write(
+        &stated,
+        "[sensing]\nmode = \"private\"\n[run]\nreplicates = 2\n[secrecy]\nblock_bits = 3000\n\
+         reconciliation = \"ldpc\"\nsizing = \"world\"\n",
+    )
+    .unwrap();
+    let stated_sweep = dir.join("sweep-ldpc");
+    ok(&["sweep", s(&stated), "--out", s(&stated_sweep)]);
+    let settings = |args: &[&str]| {
+        ok(&[&["secrecy", s(&stated_sweep)], args].concat());
+        let json: serde_json::Value =
+            serde_json::from_str(&read(&stated_sweep.join("secrecy.json"))).unwrap();
+        (json["reconciliation"].clone(), json["sizing"].clone())
+    };
+    assert_eq!(settings(&[]), ("ldpc".into(), "world".into()));
+    assert_eq!(
+        settings(&["--reconciliation", "cascade", "--sizing", "configured"]),
+        (serde_json::Value::Null, serde_json::Value::Null)
+    );
+    std::fs::write(&stated, "[secrecy]\nreconciliation = \"turbo\"\n").unwrap();
+    let refused = fails_with(2, &["sweep", s(&stated), "--out", s(&dir.join("turbo"))]);
+    assert!(
+        refused.contains("private-ldpc.toml")
+            && refused.contains("[secrecy] reconciliation = \"turbo\" is not allowed")
+            && refused.contains("(allowed: \"cascade\", \"ldpc\")"),
+        "{refused}"
+    );
+
     let eve = ok(&[
         "eve",
         "--set",

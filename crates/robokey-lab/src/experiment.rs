@@ -2,7 +2,7 @@
 //! multi-experiment suites (`[experiment.NAME]`) that `reproduce` runs.
 
 use robokey::Config;
-use robokey::config::set_path;
+use robokey::config::{Reconciliation, Sizing, set_path};
 
 use crate::error::LabError;
 
@@ -50,8 +50,9 @@ pub struct Experiment {
     pub secrecy: SecrecyDefaults,
 }
 
-/// `[secrecy]` of a sweep file: the block size and ε a map is computed with, so that they
-/// are written beside the grid they belong to.
+/// `[secrecy]` of a sweep file: the block size, ε, reconciliation and sizing a map is
+/// computed with, so that they are written beside the grid they belong to (each one a default
+/// the matching `robokey secrecy` flag overrides).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SecrecyDefaults {
@@ -61,6 +62,34 @@ pub struct SecrecyDefaults {
     /// ε per term, in (0, 1).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub epsilon: Option<f64>,
+    /// How `complete` pooling reconciles: `cascade` or `ldpc` (private sensing only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reconciliation: Option<Reconciliation>,
+    /// What sizes private sensing's key: `configured`, `measured` or `world`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sizing: Option<Sizing>,
+}
+
+/// What `[secrecy] reconciliation` allows.
+const RECONCILIATIONS: [Reconciliation; 2] = [Reconciliation::Cascade, Reconciliation::Ldpc];
+/// What `[secrecy] sizing` allows.
+const SIZINGS: [Sizing; 3] = [Sizing::Configured, Sizing::Measured, Sizing::World];
+
+/// Refuses `[secrecy] field` unless it is absent or one of `allowed`, naming the field, its
+/// value and the allowed names.
+fn check_name(table: &toml::Value, field: &str, allowed: &[&str]) -> Result<(), String> {
+    match table.get(field) {
+        None => Ok(()),
+        Some(toml::Value::String(name)) if allowed.contains(&name.as_str()) => Ok(()),
+        Some(value) => Err(format!(
+            "[secrecy] {field} = {value} is not allowed (allowed: {})",
+            allowed
+                .iter()
+                .map(|name| format!("{name:?}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
+    }
 }
 
 /// Smallest block `[secrecy] block_bits` and `--block` allow.
@@ -70,6 +99,12 @@ pub const MAX_BLOCK_BITS: u64 = 10_000_000;
 
 impl SecrecyDefaults {
     fn from_value(value: toml::Value) -> Result<Self, String> {
+        check_name(
+            &value,
+            "reconciliation",
+            &RECONCILIATIONS.map(Reconciliation::name),
+        )?;
+        check_name(&value, "sizing", &SIZINGS.map(Sizing::name))?;
         let defaults: Self = value
             .try_into()
             .map_err(|e: toml::de::Error| format!("[secrecy]: {}", e.message()))?;
@@ -487,6 +522,38 @@ mod tests {
         let z = experiment("[sweep]\nmode = \"zip\"\n\"controller.kp\" = [1.0, 1.1]\n\"controller.kd\" = [0.7, 0.8]\n").unwrap();
         assert_eq!(z.points.len(), 2);
         assert_eq!(z.points[1].config.controller.kd, 0.8);
+    }
+
+    #[test]
+    fn the_secrecy_table_states_reconciliation_and_sizing_or_is_refused_by_name() {
+        let e =
+            experiment("[secrecy]\nreconciliation = \"ldpc\"\nsizing = \"measured\"\n").unwrap();
+        assert_eq!(e.secrecy.reconciliation, Some(Reconciliation::Ldpc));
+        assert_eq!(e.secrecy.sizing, Some(Sizing::Measured));
+        let resolved = e.resolved_toml();
+        assert!(
+            resolved.contains("reconciliation = \"ldpc\"")
+                && resolved.contains("sizing = \"measured\""),
+            "{resolved}"
+        );
+        assert_eq!(experiment("").unwrap().secrecy.reconciliation, None);
+        let err = experiment("[secrecy]\nreconciliation = \"turbo\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("test.toml")
+                && err.contains("[secrecy] reconciliation = \"turbo\" is not allowed")
+                && err.contains("(allowed: \"cascade\", \"ldpc\")"),
+            "{err}"
+        );
+        let err = experiment("[secrecy]\nsizing = 1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("[secrecy] sizing = 1 is not allowed")
+                && err.contains("\"configured\", \"measured\", \"world\""),
+            "{err}"
+        );
     }
 
     #[test]

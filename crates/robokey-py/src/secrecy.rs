@@ -95,6 +95,8 @@ pub fn secrecy<'py>(
         sample_bits,
         max_sessions,
         assumed_eve_error: assume_eve_error,
+        sizing: None,
+        reconciliation: None,
     };
     request.validate().map_err(|e| option_error(py, &e))?;
     let experiment = experiment_of(py, sweep, seed)?;

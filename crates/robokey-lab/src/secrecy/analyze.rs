@@ -512,8 +512,9 @@ fn check_fits(
     }
     if options.reconciliation == Reconciliation::Ldpc && mode != SensingMode::Private {
         return Err(LabError::SensingMode(format!(
-            "point {name:?}: --reconciliation ldpc decodes on the controller's per-bit LLRs, \
-             which only private sensing gives; odometry sessions have none (allowed: cascade)"
+            "point {name:?}: reconciliation ldpc (`--reconciliation` or the sweep file's \
+             `[secrecy] reconciliation`) decodes on the controller's per-bit LLRs, which only \
+             private sensing gives; odometry sessions have none (allowed: cascade)"
         )));
     }
     if mode == SensingMode::Private {

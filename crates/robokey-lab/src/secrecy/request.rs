@@ -6,7 +6,9 @@
 
 use robokey::config::{EveStrategy, SensingMode};
 
-use super::options::{MAX_SESSIONS, SecrecyOptions, default_adversaries, default_max_sessions};
+use super::options::{
+    MAX_SESSIONS, Reconciliation, SecrecyOptions, Sizing, default_adversaries, default_max_sessions,
+};
 use super::pipeline::Pooling;
 use crate::experiment::{Experiment, MAX_BLOCK_BITS, MIN_BLOCK_BITS};
 
@@ -31,6 +33,12 @@ pub struct SecrecyRequest {
     pub max_sessions: Option<u32>,
     /// Eve's least independent error rate that sizes the key (none: no assumption).
     pub assumed_eve_error: Option<f64>,
+    /// What sizes private sensing's key (none: the sweep's `[secrecy] sizing`, else
+    /// configured).
+    pub sizing: Option<Sizing>,
+    /// How `complete` pooling reconciles (none: the sweep's `[secrecy] reconciliation`, else
+    /// Cascade).
+    pub reconciliation: Option<Reconciliation>,
 }
 
 impl Default for SecrecyRequest {
@@ -45,6 +53,8 @@ impl Default for SecrecyRequest {
             sample_bits: options.sample_bits,
             max_sessions: None,
             assumed_eve_error: None,
+            sizing: None,
+            reconciliation: None,
         }
     }
 }
@@ -187,6 +197,14 @@ impl SecrecyRequest {
             max_sessions: self
                 .max_sessions
                 .unwrap_or_else(|| default_max_sessions(block_bits, self.blocks)),
+            sizing: self
+                .sizing
+                .or(experiment.secrecy.sizing)
+                .unwrap_or(defaults.sizing),
+            reconciliation: self
+                .reconciliation
+                .or(experiment.secrecy.reconciliation)
+                .unwrap_or(defaults.reconciliation),
             ..defaults
         }
     }
@@ -212,6 +230,10 @@ mod tests {
             default_adversaries(SensingMode::Odometry)
         );
         assert_eq!(options.max_sessions, default_max_sessions(2000, 1));
+        assert_eq!(
+            (options.reconciliation, options.sizing),
+            (Reconciliation::Cascade, Sizing::Configured)
+        );
         let private = experiment("[sensing]\nmode = \"private\"\n");
         let asked = SecrecyRequest {
             block_bits: Some(5000),
@@ -224,6 +246,29 @@ mod tests {
         assert_eq!(
             options.adversaries,
             default_adversaries(SensingMode::Private)
+        );
+    }
+
+    #[test]
+    fn the_sweeps_reconciliation_and_sizing_are_defaults_the_request_overrides() {
+        let stated = experiment(
+            "[sensing]\nmode = \"private\"\n[secrecy]\nreconciliation = \"ldpc\"\n\
+             sizing = \"measured\"\n",
+        );
+        let options = SecrecyRequest::default().options(&stated);
+        assert_eq!(
+            (options.reconciliation, options.sizing),
+            (Reconciliation::Ldpc, Sizing::Measured)
+        );
+        let asked = SecrecyRequest {
+            reconciliation: Some(Reconciliation::Cascade),
+            sizing: Some(Sizing::World),
+            ..SecrecyRequest::default()
+        };
+        let options = asked.options(&stated);
+        assert_eq!(
+            (options.reconciliation, options.sizing),
+            (Reconciliation::Cascade, Sizing::World)
         );
     }
 

@@ -93,22 +93,33 @@ fn the_pool_and_state_survive_reopening_and_the_store_is_exclusive() {
 /// with the session once spent.
 #[test]
 fn the_pooled_sessions_llrs_survive_reopening_and_compaction() {
-    let dir = tempdir("post-store-llrs");
-    let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
     let mut state = controller(&[(1, true), (2, false)], &[]);
     state.llrs = vec![(1, vec![-512; 100]), (2, vec![300; 100])];
-    store.persist(&mut state, &[]).unwrap();
+    let restored = reopen_spend_and_compact("post-store-llrs", &mut state, 1);
+    assert_eq!(restored.llrs, vec![(2, vec![300; 100])]);
+}
+
+/// Persists `state` in a fresh store, checks that reopening restores it, spends session
+/// `spent`, compacts, reopens again and checks the snapshot equals `state`; returns it.
+fn reopen_spend_and_compact(
+    name: &str,
+    state: &mut ControllerSnapshot,
+    spent: u32,
+) -> ControllerSnapshot {
+    let dir = tempdir(name);
+    let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    store.persist(state, &[]).unwrap();
     drop(store);
     let (mut store, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
-    assert_eq!(recovery.snapshot.as_ref(), Some(&state));
-    state.spend(&BTreeSet::from([1]));
-    store.persist(&mut state, &[]).unwrap();
-    store.compact(&mut state).unwrap();
+    assert_eq!(recovery.snapshot.as_ref(), Some(&*state));
+    state.spend(&BTreeSet::from([spent]));
+    store.persist(state, &[]).unwrap();
+    store.compact(state).unwrap();
     drop(store);
     let (_, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
     let restored = recovery.snapshot.unwrap();
-    assert_eq!(restored.llrs, vec![(2, vec![300; 100])]);
-    assert_eq!(restored, state);
+    assert_eq!(&restored, &*state);
+    restored
 }
 
 /// A multilevel slice's staged material (docs/postprocessing.md, "Multilevel slices") is
@@ -117,8 +128,6 @@ fn the_pooled_sessions_llrs_survive_reopening_and_compaction() {
 #[test]
 fn staged_slices_survive_reopening_and_compaction_and_must_fit() {
     use robokey_secrecy::postprocess::{Slicing, StagedSession};
-    let dir = tempdir("post-store-staged");
-    let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
     // Sessions of 100 bits at slice 0 of two: 200 bits, 50 doublets of 4 bits.
     let staged = |session: u32| StagedSession {
         session,
@@ -130,18 +139,8 @@ fn staged_slices_survive_reopening_and_compaction_and_must_fit() {
     };
     let mut state = controller(&[(1, true), (2, false)], &[]);
     state.staged = vec![(1, staged(1)), (2, staged(2))];
-    store.persist(&mut state, &[]).unwrap();
-    drop(store);
-    let (mut store, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
-    assert_eq!(recovery.snapshot.as_ref(), Some(&state));
-    state.spend(&BTreeSet::from([1]));
-    store.persist(&mut state, &[]).unwrap();
-    store.compact(&mut state).unwrap();
-    drop(store);
-    let (_, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
-    let restored = recovery.snapshot.unwrap();
+    let restored = reopen_spend_and_compact("post-store-staged", &mut state, 1);
     assert_eq!(restored.staged, vec![(2, staged(2))]);
-    assert_eq!(restored, state);
     // Material for 300 bits beside a slice of 100: refused, naming the session.
     let dir = tempdir("post-store-staged-misfit");
     let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
