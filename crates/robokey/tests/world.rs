@@ -44,6 +44,27 @@ fn the_ideal_world_is_no_world_number_for_number() {
 /// An eavesdropper's log-likelihood ratio of a bit.
 type Llr = fn(&DoubletBit) -> f64;
 
+/// The `camera` and `commands` eavesdroppers' LLRs of `bits` pass the calibration test (10
+/// equal-count bins, exact Poisson-binomial tails, α = 10⁻³ each); `what` names the case.
+fn assert_both_calibrated<'a>(bits: impl IntoIterator<Item = &'a DoubletBit> + Clone, what: &str) {
+    let adversaries: [(&str, Llr); 2] = [
+        ("camera", |b| b.camera),
+        ("commands", |b| b.llr_of(EveStrategy::Commands)),
+    ];
+    for (name, llr) in adversaries {
+        let pairs: Vec<(f64, bool)> = bits
+            .clone()
+            .into_iter()
+            .map(|b| {
+                let l = llr(b);
+                (1.0 / (1.0 + l.abs().exp()), (l < 0.0) != (b.bit == 1))
+            })
+            .collect();
+        let report = check_calibration(&pairs, 10, 1e-3).unwrap();
+        assert!(report.passed, "{what} {name}: {report:?}");
+    }
+}
+
 /// Worlds unlike the parties' — lag, AR(1) noise, slip, delay, a camera between the
 /// instants, the Khepera IV preset (continuous motion, jitter, quanta, lag, delay, slip), and
 /// motion noise below the controller's sensor noise (the boundary samples' reach):
@@ -64,21 +85,7 @@ fn the_eavesdroppers_stay_calibrated_in_other_worlds() {
     for world in worlds {
         let all = bits(&private(&format!("[world]\n{world}")), 12);
         assert!(all.len() > 4_500, "{world}: {}", all.len());
-        let adversaries: [(&str, Llr); 2] = [
-            ("camera", |b| b.camera),
-            ("commands", |b| b.llr_of(EveStrategy::Commands)),
-        ];
-        for (name, llr) in adversaries {
-            let pairs: Vec<(f64, bool)> = all
-                .iter()
-                .map(|b| {
-                    let l = llr(b);
-                    (1.0 / (1.0 + l.abs().exp()), (l < 0.0) != (b.bit == 1))
-                })
-                .collect();
-            let report = check_calibration(&pairs, 10, 1e-3).unwrap();
-            assert!(report.passed, "{world} {name}: {report:?}");
-        }
+        assert_both_calibrated(all.iter(), world);
     }
 }
 
@@ -266,10 +273,6 @@ fn the_window_smoother_judges_multilevel_symbols() {
             .iter()
             .flat_map(|run| &run.private.as_ref().unwrap().bits)
             .collect();
-        let adversaries: [(&str, Llr); 2] = [
-            ("camera", |b| b.camera),
-            ("commands", |b| b.llr_of(EveStrategy::Commands)),
-        ];
         for place in 0..4 {
             let group: Vec<&DoubletBit> = all
                 .iter()
@@ -278,17 +281,7 @@ fn the_window_smoother_judges_multilevel_symbols() {
                 .map(|(_, b)| *b)
                 .collect();
             assert!(group.len() > 2_000, "{world}: {}", group.len());
-            for (name, llr) in adversaries {
-                let pairs: Vec<(f64, bool)> = group
-                    .iter()
-                    .map(|b| {
-                        let l = llr(b);
-                        (1.0 / (1.0 + l.abs().exp()), (l < 0.0) != (b.bit == 1))
-                    })
-                    .collect();
-                let report = check_calibration(&pairs, 10, 1e-3).unwrap();
-                assert!(report.passed, "{world} place {place} {name}: {report:?}");
-            }
+            assert_both_calibrated(group, &format!("{world} place {place}"));
         }
         let (mut errors, mut bits) = (0_usize, 0_usize);
         for run in &runs {
