@@ -640,26 +640,32 @@ fn a_key_sized_for_the_robots_own_world_is_not_warned_of() {
 /// holds a key. Blocks of 600 bits: ≈ 400 straight v-bits, the residual ≈ 15 standard errors.
 #[test]
 fn a_lagging_robots_block_is_refused_by_the_commands_check_in_the_agents() {
+    lagging_block_is_refused("lag-commands-check", "measured");
+}
+
+/// The same robot with the plant configured (the default sizing): the controller keeps its
+/// samples all the same and runs the same check on the robot's bits after reconciliation,
+/// refusing the block by name. (In the parties' own world the check accepts the block:
+/// `a_key_sized_for_the_robots_own_world_is_not_warned_of` commits its key.)
+#[test]
+fn a_lagging_robots_configured_block_is_refused_by_the_commands_check_in_the_agents() {
+    lagging_block_is_refused("lag-commands-check-configured", "configured");
+}
+
+/// The first block of a 50 ms lag world's sessions (seeds from 400) with `postprocess.sizing`
+/// = `sizing`, refused by the commands check in the agents: named in the controller's report,
+/// the plant refusal in the robot's, no key in either store.
+fn lagging_block_is_refused(name: &str, sizing: &str) {
+    let sizing = format!("postprocess.sizing={sizing}");
     let stores = Stores::new(
-        "lag-commands-check",
-        &[
-            "--set",
-            "postprocess.block_bits=600",
-            "--set",
-            "postprocess.sizing=measured",
-        ],
+        name,
+        &["--set", "postprocess.block_bits=600", "--set", &sizing],
     )
     .with_robot_world("[world]\nprocess_std = [0.001, 0.001, 0.001]\nlag = 0.05\n");
     let block_of = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().first().cloned();
     let (controller, robot) = (400..406)
         .find_map(|seed| {
-            let dir = private_session(
-                &format!("lag-check-{seed}"),
-                seed,
-                &[],
-                false,
-                Some(&stores),
-            );
+            let dir = private_session(&format!("{name}-{seed}"), seed, &[], false, Some(&stores));
             let controller = report(&dir.join("controller.json"));
             block_of(&controller).map(|block| (block, report(&dir.join("robot.json"))))
         })

@@ -101,7 +101,7 @@ pub trait Snapshot: Serialize + DeserializeOwned {
 /// What a controller's pool keeps of a session beside its bits, journaled once with them.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SessionExtras {
-    /// The samples for the block's estimate (measured sizing).
+    /// The samples for the block's estimate (measured sizing) or commands check (configured).
     pub samples: Option<SessionSamples>,
     /// The quantised LLR of each bit (LDPC reconciliation).
     pub llrs: Option<Vec<i16>>,

@@ -6,12 +6,14 @@
 
 use robokey::Config;
 use robokey::estimate::commands_check::sized_block_refusal;
-use robokey::estimate::{BlockEstimate, block_separations, estimate_request, kept_doublet};
+use robokey::estimate::{
+    BlockEstimate, block_separations, check_request, estimate_request, kept_doublet,
+};
 use robokey::private::DoubletSamples;
 use robokey::sim::{RunOutput, simulate};
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::public::sample_size;
-use robokey_secrecy::postprocess::{Assumption, EstimateRequest};
+use robokey_secrecy::postprocess::{Assumption, EstimateRefusal, EstimateRequest};
 
 /// The parties at the defaults in private sensing, the robot in `world`.
 fn parties_in(world: &str) -> Config {
@@ -150,6 +152,39 @@ fn the_agents_commands_check_refuses_a_lagging_world_as_the_simulator_does() {
         / number("standard error ");
     assert!(z > 10.0, "{check}");
     assert!(agents.outcome().is_err());
+}
+
+/// Configured sizing: the agents' check alone ([`check_request`], from the kept samples and
+/// the robot's bits) gives the simulator's verdict (`sized_block_refusal` with no estimate,
+/// as the lab's `refuse_what_the_commands_reveal` calls it) on the same sessions: the 50 ms
+/// lag world refused by name, the parties' own world accepted.
+#[test]
+fn the_agents_check_a_configured_block_as_the_simulator_does() {
+    for (world, refused) in [
+        ("process_std = [0.001, 0.001, 0.001]\nlag = 0.05", true),
+        ("", false),
+    ] {
+        let config = parties_in(world);
+        let runs: Vec<RunOutput> = (0..8)
+            .map(|r| simulate(&config, r, false).unwrap())
+            .collect();
+        let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+        let simulator = sized_block_refusal(&config, &sessions, 1e-6, None);
+        let agents = check_request(&config, &request(&runs), 1e-6);
+        assert_eq!(
+            agents,
+            simulator
+                .clone()
+                .map_or(Ok(0), |why| Err(EstimateRefusal(why)))
+        );
+        assert_eq!(simulator.is_some(), refused, "{world}: {simulator:?}");
+        if let Some(why) = simulator {
+            assert!(
+                why.contains("the commands check refused the block: v-bits"),
+                "{why}"
+            );
+        }
+    }
 }
 
 /// A lagging robot under three-step doublets shaped for its lag (50 ms, 1 mm): both paths

@@ -40,7 +40,7 @@ pub enum ControllerInput {
         /// largest.
         separations: Vec<f64>,
         /// What the pool keeps of the session for the block's estimate of the plant
-        /// (measured sizing; empty otherwise).
+        /// (measured sizing) or its commands check (configured; empty: not checked).
         samples: SessionSamples,
         /// The controller's calibrated LLR of each bit, Lᵢ = ln P(xᵢ = 0)/P(xᵢ = 1) (nats;
         /// the bit is 1 when negative), one per bit, or empty when it has none (odometry).
@@ -114,7 +114,7 @@ pub struct ControllerSnapshot {
     /// back to its largest for every bit).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub separation_counts: Vec<(u32, Vec<(u64, u64)>)>,
-    /// What the pool keeps of them for the block's estimate (measured sizing; only those
+    /// What the pool keeps of them for the block's estimate or commands check (only those
     /// with samples). The store writes them once, beside the sessions' bits.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub samples: Vec<(u32, SessionSamples)>,
@@ -159,7 +159,8 @@ enum State {
         agreed: Agreed,
         decoding: Box<SyndromeDecoding>,
     },
-    /// Reconciled; the shell estimates the plant (measured sizing).
+    /// Reconciled; the shell estimates the plant (measured sizing) or runs the commands
+    /// check (configured sizing, sessions pooled with their samples).
     ExpectEstimate {
         agreed: Agreed,
         outcome: Reconciled,
@@ -857,8 +858,9 @@ impl ControllerPost {
         });
     }
 
-    /// Reconciliation is over: with the plant measured, the shell estimates it first;
-    /// otherwise ℓ from the assumption at once.
+    /// Reconciliation is over: with the plant measured, the shell estimates it first; with
+    /// it configured and the block's sessions pooled with their samples, the shell runs the
+    /// commands check on them first; otherwise ℓ from the assumption at once.
     fn confirm(&mut self, agreed: Agreed, outcome: Reconciled) {
         self.next_slices = (!self.block_staged.is_empty()).then(|| ReconciledSlices {
             block: self.current(),
@@ -872,7 +874,12 @@ impl ControllerPost {
                 })
                 .collect(),
         });
-        if self.ledger.settings.assumption.is_measured() {
+        let checked = self.block_staged.is_empty()
+            && agreed
+                .sessions
+                .iter()
+                .any(|id| self.block_samples.get(id).is_some_and(|s| !s.is_empty()));
+        if self.ledger.settings.assumption.is_measured() || checked {
             let request = self.estimate_request(&agreed, &outcome.corrected);
             self.state = State::ExpectEstimate { agreed, outcome };
             // Nothing to repeat while the shell estimates.
@@ -940,7 +947,9 @@ impl ControllerPost {
             .collect()
     }
 
-    /// The shell's estimate: ℓ from the carried separation, or the block refused.
+    /// The shell's estimate: ℓ from the carried separation (measured sizing) or from the
+    /// assumption (configured sizing, the block accepted by the commands check), or the
+    /// block refused.
     fn on_estimate(&mut self, block: u64, estimate: EstimateOutcome) {
         if self.block.is_none() || block != self.current() {
             self.ledger
@@ -950,10 +959,18 @@ impl ControllerPost {
         }
         match std::mem::replace(&mut self.state, State::Idle) {
             State::ExpectEstimate { agreed, outcome } => match estimate {
-                Ok(steps) => {
+                Ok(steps) if self.ledger.settings.assumption.is_measured() => {
                     let steps = steps.min(MAX_SEPARATION_STEPS);
                     let assumption = self.ledger.settings.assumption.with_estimate(steps);
                     self.size(agreed, outcome, assumption, Some(steps));
+                }
+                Ok(_) => {
+                    let assumption = self
+                        .ledger
+                        .settings
+                        .assumption
+                        .for_block(self.block_separation);
+                    self.size(agreed, outcome, assumption, None);
                 }
                 Err(EstimateRefusal(why)) => {
                     self.abort(AbortReason::PlantRefused, format!("block refused: {why}"));

@@ -52,5 +52,7 @@ pub struct EstimateRefusal(pub String);
 
 /// The published outcome of a block's estimate: the equivalent separation of its bits'
 /// worst-case separations in grid steps
-/// ([`SEPARATION_QUANTUM`], at most [`MAX_SEPARATION_STEPS`]), or a refusal.
+/// ([`SEPARATION_QUANTUM`], at most [`MAX_SEPARATION_STEPS`]), or a refusal. Under
+/// configured sizing the shell answers the commands check only: `Ok` (the value unused, the
+/// block sized from the assumption as configured) or the refusal.
 pub type EstimateOutcome = Result<u32, EstimateRefusal>;

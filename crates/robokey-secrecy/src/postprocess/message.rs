@@ -16,8 +16,9 @@ pub enum AbortReason {
     Restart,
     /// The robot refused the block.
     Refused,
-    /// The block's estimate of the plant refused it (measured sizing): a test of the model
-    /// class failed, or the worst case leaves no bound; nothing is committed.
+    /// The block's estimate of the plant refused it (measured sizing: a test of the model
+    /// class failed, or the worst case leaves no bound), or its commands check did (either
+    /// sizing); nothing is committed.
     PlantRefused,
 }
 

@@ -237,7 +237,8 @@ pub enum Output {
     BlockEnded(BlockReport),
     /// A message was ignored (stale, duplicate, malformed, or from the wrong state).
     Ignored(&'static str),
-    /// The controller (measured sizing) needs the block's estimate of the plant: answer with
+    /// The controller needs the block's estimate of the plant (measured sizing) or its
+    /// commands check (configured sizing, sessions pooled with samples): answer with
     /// [`ControllerInput::Estimate`].
     EstimateNeeded(EstimateRequest),
     /// A block of multilevel slices was reconciled (the robot's bits are known): the shell

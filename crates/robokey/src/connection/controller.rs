@@ -11,7 +11,7 @@ use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot, SessionSa
 use super::linger::{Courtesy, Linger};
 use super::post::{PostLink, PostOutput};
 use super::{Output, Setup};
-use crate::config::{Config, Reconciliation, Sizing};
+use crate::config::{Config, Reconciliation, SensingMode, Sizing};
 use crate::estimate::kept_doublet;
 use crate::model::Pose;
 use crate::protocol::auth::{AuthMode, ChannelCounts, ControllerChannel, Delivery, PairingSecret};
@@ -76,8 +76,8 @@ pub struct ControllerConnection<A> {
     /// The Eve separation the camera statement gives each decided bit: they size the keys of
     /// the blocks this session enters (private sensing).
     separations: Vec<f64>,
-    /// What the pool keeps of the decided doublets for the block's estimate of the plant
-    /// (`postprocess.sizing = "measured"`; empty otherwise).
+    /// What the pool keeps of the decided doublets for the block's estimate of the plant or
+    /// its commands check ([`keeps_samples`]; empty otherwise).
     kept: SessionSamples,
     /// The controller's LLR of each decided bit (private sensing), which LDPC reconciliation
     /// decodes on (`postprocess.reconciliation = "ldpc"`; empty otherwise).
@@ -447,7 +447,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                                 &mut self.likelihoods,
                             );
                         }
-                        if self.config.postprocess.sizing == Sizing::Measured {
+                        if keeps_samples(&self.config) {
                             self.kept.push(kept_doublet(
                                 decision.doublet,
                                 &decision.inputs,
@@ -559,5 +559,20 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
     fn close(&mut self) {
         self.stage = Stage::Closed;
         self.outputs.push_back(Output::Closed);
+    }
+}
+
+/// Whether the controller keeps each decided doublet (its inputs and samples) for its
+/// blocks: the block's estimate under `postprocess.sizing = "measured"`; under
+/// `"configured"` in private sensing with binary symbols, the commands check on the robot's
+/// bits (docs/estimation.md, "The commands check"). Multilevel slices are keyed one by one
+/// and the check regresses whole symbols: their blocks are not checked by the agents.
+fn keeps_samples(config: &Config) -> bool {
+    match config.postprocess.sizing {
+        Sizing::Measured => true,
+        Sizing::Configured => {
+            config.sensing.mode == SensingMode::Private && config.protocol.levels <= 2
+        }
+        Sizing::World => false,
     }
 }

@@ -14,7 +14,8 @@ use robokey_secrecy::postprocess::{
 
 use super::slices::{first_slice, slice_input, slicing};
 use crate::Config;
-use crate::estimate::{BlockEstimate, estimate_request};
+use crate::config::Sizing;
+use crate::estimate::{BlockEstimate, check_request, estimate_request};
 use crate::protocol::{Outcome, PostFragment};
 
 /// A post-processing endpoint as a connection drives it.
@@ -231,8 +232,8 @@ pub struct PostLink<E> {
     next_message: u32,
     /// Sessions a stored key lists as sources: their bits are spent.
     spent: BTreeSet<u32>,
-    /// The parties' configuration, which the controller's estimate of the plant reads
-    /// (measured sizing).
+    /// The parties' configuration, which the controller's estimate of the plant (measured
+    /// sizing) and its commands check read.
     config: Config,
 }
 
@@ -343,11 +344,17 @@ impl<E: PostEndpoint> PostLink<E> {
             match output {
                 Output::EstimateNeeded(request) => {
                     // At block time, from the samples the pool kept and the robot's bits:
-                    // the simulator's computation (`estimate::block`).
-                    let estimate =
-                        estimate_request(&self.config, &request, self.config.postprocess.epsilon);
-                    let outcome = estimate.outcome();
-                    out.push(PostOutput::Estimated(estimate));
+                    // the simulator's computation (`estimate::block`); configured sizing
+                    // runs its commands check only (a refusal ends the block as an abort).
+                    let epsilon = self.config.postprocess.epsilon;
+                    let outcome = if self.config.postprocess.sizing == Sizing::Measured {
+                        let estimate = estimate_request(&self.config, &request, epsilon);
+                        let outcome = estimate.outcome();
+                        out.push(PostOutput::Estimated(estimate));
+                        outcome
+                    } else {
+                        check_request(&self.config, &request, epsilon)
+                    };
                     self.endpoint.estimated(request.block, outcome);
                 }
                 Output::SliceReconciled(reconciled) => {

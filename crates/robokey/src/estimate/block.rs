@@ -609,13 +609,7 @@ fn with_bits(
 /// level ε_est ([`commands_check::block_refusal`]), whose refusal is added to the block's.
 #[must_use]
 pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64) -> BlockEstimate {
-    let key_bits = config.protocol.key_bits_per_doublet();
-    let sessions: Result<Vec<Vec<DoubletSamples>>, String> = request
-        .sessions
-        .iter()
-        .map(|(id, kept, bits)| with_bits(*id, kept, bits, key_bits))
-        .collect();
-    match sessions {
+    match request_sessions(config, request) {
         Ok(sessions) => {
             let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
             let mut estimate = block_separations(config, &views, request.disclosed, epsilon).1;
@@ -628,6 +622,37 @@ pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64
         }
         Err(why) => BlockEstimate::refused(format!("motion-noise estimate: {why}"), 0, epsilon),
     }
+}
+
+/// The commands check alone for a configured block's `request` (the agents' controller
+/// under `postprocess.sizing = "configured"`): the simulator's
+/// [`commands_check::sized_block_refusal`] with no estimate, at level ε_est = `epsilon`, on
+/// the kept samples and the robot's bits. `Ok(0)`: accepted (the block is sized from the
+/// configured assumption); otherwise the refusal, naming the check.
+///
+/// # Errors
+/// The check's refusal, or the kept samples not matching the robot's bits.
+pub fn check_request(config: &Config, request: &EstimateRequest, epsilon: f64) -> EstimateOutcome {
+    let sessions = request_sessions(config, request)
+        .map_err(|why| EstimateRefusal(format!("commands check: {why}")))?;
+    let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
+    match commands_check::sized_block_refusal(config, &views, epsilon, None) {
+        Some(why) => Err(EstimateRefusal(why)),
+        None => Ok(0),
+    }
+}
+
+/// Each session of `request` as the estimate and the check read it ([`with_bits`]).
+fn request_sessions(
+    config: &Config,
+    request: &EstimateRequest,
+) -> Result<Vec<Vec<DoubletSamples>>, String> {
+    let key_bits = config.protocol.key_bits_per_doublet();
+    request
+        .sessions
+        .iter()
+        .map(|(id, kept, bits)| with_bits(*id, kept, bits, key_bits))
+        .collect()
 }
 
 #[cfg(test)]

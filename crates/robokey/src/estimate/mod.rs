@@ -20,7 +20,8 @@ pub mod residual;
 pub mod worst_case;
 
 pub use block::{
-    BlockEstimate, block_separations, estimate_request, kept_doublet, world_block_separations,
+    BlockEstimate, block_separations, check_request, estimate_request, kept_doublet,
+    world_block_separations,
 };
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
