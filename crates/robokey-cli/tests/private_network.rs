@@ -622,7 +622,8 @@ fn a_key_sized_for_a_noisier_world_is_warned_of_naming_the_motion_noise() {
     assert!(warning.contains("world.process_std"), "{text}");
 }
 
-/// The same sessions with the robot in the parties' own world: no WARNING.
+/// The same sessions with the robot in the parties' own world: no WARNING; the block passes
+/// the commands check the configured pair runs and both stores hold its key.
 #[test]
 fn a_key_sized_for_the_robots_own_world_is_not_warned_of() {
     let stores = Stores::new("world-own-block", &SMALL_BLOCK);
@@ -630,6 +631,9 @@ fn a_key_sized_for_the_robots_own_world_is_not_warned_of() {
     assert_eq!(verdict["exceeds"], false, "{text}");
     assert_eq!(verdict["world"], serde_json::json!([]), "{text}");
     assert!(!text.contains("WARNING"), "{text}");
+    for role in ["robot", "controller"] {
+        assert!(!stores.keys(role).is_empty(), "{role}: {text}");
+    }
 }
 
 /// A robot whose wheels follow their commands through a 50 ms lag (1 mm motion noise), the

@@ -889,6 +889,11 @@ impl ControllerPost {
                 .push_back(Output::EstimateNeeded(request));
             return;
         }
+        self.size_as_configured(agreed, outcome);
+    }
+
+    /// ℓ from the configured assumption at the block's equivalent separation.
+    fn size_as_configured(&mut self, agreed: Agreed, outcome: Reconciled) {
         let assumption = self
             .ledger
             .settings
@@ -964,14 +969,7 @@ impl ControllerPost {
                     let assumption = self.ledger.settings.assumption.with_estimate(steps);
                     self.size(agreed, outcome, assumption, Some(steps));
                 }
-                Ok(_) => {
-                    let assumption = self
-                        .ledger
-                        .settings
-                        .assumption
-                        .for_block(self.block_separation);
-                    self.size(agreed, outcome, assumption, None);
-                }
+                Ok(_) => self.size_as_configured(agreed, outcome),
                 Err(EstimateRefusal(why)) => {
                     self.abort(AbortReason::PlantRefused, format!("block refused: {why}"));
                 }
