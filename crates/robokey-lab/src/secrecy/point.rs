@@ -122,8 +122,9 @@ pub struct PointSecrecy {
     /// The assumption credits more than this adversary's realised view supports: the
     /// assumption is violated by this adversary.
     pub assumption_exceeds_realised: bool,
-    /// The world's parameters that differ from what the parties believe
-    /// (`world.FIELD = VALUE (parties: VALUE)`), when the point's world is not theirs: the
+    /// The world's parameters that differ from what the parties believe, their stated
+    /// `private.prior_lag` included (`world.FIELD = VALUE (parties: VALUE)`,
+    /// [`robokey::world::WorldModel::differences`]), when the point's world is not theirs: the
     /// realised view is then the eavesdroppers' who know the world (docs/world.md).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub world_differences: Vec<String>,

@@ -45,7 +45,8 @@ pub struct WorldConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub slip_std: Option<f64>,
     /// First-order time constant τ of each wheel's speed response to its command (s;
-    /// parties: 0, instantaneous).
+    /// parties: `private.prior_lag`, 0 by default; absent: 0, instantaneous, whatever
+    /// they state).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lag: Option<f64>,
     /// Transport delay (dead time) before a command acts (s; parties: 0).

@@ -200,13 +200,24 @@ impl WorldModel {
         }
     }
 
-    /// The world's parameters that differ from what the parties of `config` believe, as
-    /// `world.FIELD = VALUE (parties: VALUE)`, in the order of the table.
+    /// What the parties of `config` believe of the world: [`Self::ideal`] with the lag they
+    /// state, `private.prior_lag` (s; 0 unless their doublets are three steps). A belief
+    /// only: an absent `world.lag` is still 0 ([`Self::of`]).
+    fn believed(config: &Config) -> Self {
+        Self {
+            lag: config.private.prior_lag,
+            ..Self::ideal(config)
+        }
+    }
+
+    /// The world's parameters that differ from what the parties of `config` believe
+    /// (their motion noise, controller sensor, Eve's stated camera and `private.prior_lag`;
+    /// the other fields' belief is none of them), as `world.FIELD = VALUE (parties: VALUE)`,
+    /// in the order of the table. Empty when the world is what they believe.
     #[must_use]
     pub fn differences(&self, config: &Config) -> Vec<String> {
-        let ideal = Self::ideal(config);
         let ours = self.to_table(None);
-        let theirs = ideal.to_table(None);
+        let theirs = Self::believed(config).to_table(None);
         let text = |table: &WorldConfig| -> Vec<(String, String)> {
             toml::to_string(table)
                 .expect("a world always serializes")
@@ -278,6 +289,26 @@ mod tests {
             "{diff:?}"
         );
         assert!(WorldModel::ideal(&config).differences(&config).is_empty());
+    }
+
+    #[test]
+    fn the_parties_stated_lag_is_their_belief_in_the_differences() {
+        let private = |prior: f64, world: &str| {
+            with_world(&format!(
+                "[sensing]\nmode = \"private\"\n[private]\nprior_lag = {prior}\n[world]\n{world}"
+            ))
+        };
+        let differences = |config: &Config| WorldModel::of(config).differences(config);
+        let stated = private(0.05, "lag = 0.05\n");
+        assert_eq!(differences(&stated), Vec::<String>::new());
+        let wrong = private(0.05, "lag = 0.1\n");
+        assert_eq!(differences(&wrong), ["world.lag = 0.1 (parties: 0.05)"]);
+        let unstated = private(0.0, "lag = 0.05\n");
+        assert_eq!(differences(&unstated), ["world.lag = 0.05 (parties: 0.0)"]);
+        // The prior is a belief: an absent world.lag stays 0, which differs from it.
+        let lagless = private(0.05, "jitter = 0.0\n");
+        assert_eq!(WorldModel::of(&lagless).lag, 0.0);
+        assert_eq!(differences(&lagless), ["world.lag = 0.0 (parties: 0.05)"]);
     }
 
     #[test]
