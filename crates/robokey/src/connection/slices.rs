@@ -1,8 +1,9 @@
 //! Multilevel sessions reconciled slice by slice (docs/postprocessing.md, "Multilevel
-//! slices"), the controller's side of the computation, shared by the agents and the lab:
-//! what the controller keeps of each decided doublet (its patterns' log-likelihoods), and
-//! each slice's decisions and LLRs given the robot's bits of the lower slices
-//! ([`staged_llrs`]) once their blocks are reconciled.
+//! slices"), the agents' controller's side of the computation: what it keeps of each
+//! decided doublet (its patterns' log-likelihoods), and each slice's decisions and LLRs given
+//! the robot's bits of the lower slices once their blocks are reconciled — [`staged_llrs`],
+//! the function the simulator uses for the lab's slices (which it conditions on the robot's
+//! bits directly, not through this hand-off).
 
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
