@@ -55,17 +55,9 @@ const LDPC: [&str; 8] = [
     "eve.camera_std=[0.05, 0.05, 0.05]",
 ];
 
-/// [`LDPC`] with two dimensions of 4-level symbols: each session's two slices reconciled in
-/// turn (docs/postprocessing.md, "Multilevel slices").
-const MULTILEVEL: [&str; 12] = [
-    "--set",
-    "sensing.mode=private",
-    "--set",
-    "postprocess.block_bits=300",
-    "--set",
-    "postprocess.reconciliation=ldpc",
-    "--set",
-    "eve.camera_std=[0.05, 0.05, 0.05]",
+/// Added to [`LDPC`]: two dimensions of 4-level symbols, each session's two slices
+/// reconciled in turn (docs/postprocessing.md, "Multilevel slices").
+const MULTILEVEL: [&str; 4] = [
     "--set",
     "protocol.levels=4",
     "--set",
@@ -292,7 +284,9 @@ fn session(
         match attack {
             Attack::TamperEstimate => args.extend(MEASURED.map(str::to_owned)),
             Attack::Ldpc | Attack::TamperSyndrome => args.extend(LDPC.map(str::to_owned)),
-            Attack::Multilevel => args.extend(MULTILEVEL.map(str::to_owned)),
+            Attack::Multilevel => {
+                args.extend(LDPC.iter().chain(&MULTILEVEL).map(|&a| a.to_owned()));
+            }
             _ => args.extend(SETTINGS.map(str::to_owned)),
         }
         args
