@@ -1447,7 +1447,10 @@ mod tests {
         let bits = |run: &WindowRun| -> Vec<u64> {
             let poses = run.poses.iter().flatten().chain(&run.jumps);
             let updates = run.updates.iter().flatten().flat_map(|u| {
-                [u.duration, u.wheels.x, u.wheels.y, u.speeds.x, u.speeds.y, u.start.x, u.start.y, u.start.z]
+                [
+                    u.duration, u.wheels.x, u.wheels.y, u.speeds.x, u.speeds.y, u.start.x,
+                    u.start.y, u.start.z,
+                ]
             });
             poses
                 .flat_map(|p| p.iter().copied().collect::<Vec<_>>())
@@ -1460,10 +1463,12 @@ mod tests {
             for h in 0..smoother.perturbation.patterns() {
                 let offset = smoother.perturbation.offset(h);
                 let at = l * position;
-                let whole = smoother.eve.run(&window, |step| match step.checked_sub(at) {
-                    Some(s) => smoother.step_offset(s, offset),
-                    None => Unicycle::zeros(),
-                });
+                let whole = smoother
+                    .eve
+                    .run(&window, |step| match step.checked_sub(at) {
+                        Some(s) => smoother.step_offset(s, offset),
+                        None => Unicycle::zeros(),
+                    });
                 let near = smoother.run_near(&window, &nominal, position, offset);
                 assert_eq!(bits(&near), bits(&whole), "doublet {position}, pattern {h}");
             }
