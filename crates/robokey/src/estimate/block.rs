@@ -148,7 +148,7 @@ pub fn block_separations(
     disclosed: u64,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    let residuals = two_step_residuals(&doublet_model(config), sessions);
+    let residuals = two_step_residuals(&doublet_model(config), config.robot.axle_length, sessions);
     if config.doublet_settle().is_some() {
         return three_step_block(config, sessions, disclosed, epsilon);
     }
@@ -171,6 +171,7 @@ pub fn block_separations(
 /// carried ([`DoubletResidual::new`]).
 fn two_step_residuals(
     model: &DoubletModel,
+    axle: f64,
     sessions: &[&[DoubletSamples]],
 ) -> Vec<DoubletResidual> {
     sessions
@@ -179,6 +180,7 @@ fn two_step_residuals(
         .map(|b| {
             DoubletResidual::new(
                 model,
+                axle,
                 b.doublet,
                 &b.inputs,
                 &b.samples[0],
@@ -242,7 +244,7 @@ fn three_step_block(
         lag: lag.point,
         ..doublet_model(config)
     };
-    let residuals = three_step_residuals(&at_point, sessions);
+    let residuals = three_step_residuals(&at_point, config.robot.axle_length, sessions);
     if let Some(why) = lag_shape_refusal(config, sessions, &lag, epsilon) {
         return refused(sessions.len(), why, residuals.len(), epsilon);
     }
@@ -289,12 +291,14 @@ fn entry_speeds(model: &DoubletModel, session: &[DoubletSamples]) -> Vec<Option<
 }
 
 /// The three-step residuals of every doublet of `sessions` whose entry speed is known, with
-/// the lagged means through `model`'s lag ([`DoubletResidual::three_step`]).
+/// the lagged means through `model`'s lag ([`DoubletResidual::three_step`]), on wheels
+/// `axle` D (m) apart.
 fn three_step_residuals(
     model: &DoubletModel,
+    axle: f64,
     sessions: &[&[DoubletSamples]],
 ) -> Vec<DoubletResidual> {
-    three_step_doublets(model, sessions)
+    three_step_doublets(model, axle, sessions)
         .into_iter()
         .map(|(residual, _)| residual)
         .collect()
@@ -303,6 +307,7 @@ fn three_step_residuals(
 /// [`three_step_residuals`] with the pattern each doublet carried.
 fn three_step_doublets(
     model: &DoubletModel,
+    axle: f64,
     sessions: &[&[DoubletSamples]],
 ) -> Vec<(DoubletResidual, usize)> {
     sessions
@@ -315,6 +320,7 @@ fn three_step_doublets(
                     entry.map(|entry| {
                         let residual = DoubletResidual::three_step(
                             model,
+                            axle,
                             b.doublet,
                             &b.inputs,
                             [&b.samples[0], &b.samples[2]],
@@ -360,7 +366,7 @@ pub fn lag_shape_refusal(
             lag: tau,
             ..doublet_model(config)
         };
-        let x: Vec<f64> = three_step_doublets(&model, sessions)
+        let x: Vec<f64> = three_step_doublets(&model, config.robot.axle_length, sessions)
             .iter()
             .map(|(r, pattern)| model.perturbation.amplitude(*pattern) * r.value[0])
             .collect();
@@ -716,7 +722,7 @@ mod tests {
             lag,
             ..doublet_model(config)
         };
-        let residuals = three_step_residuals(&model, sessions);
+        let residuals = three_step_residuals(&model, config.robot.axle_length, sessions);
         let n = residuals.len();
         let square =
             [0, 1, 2].map(|k| residuals.iter().map(|r| r.value[k].powi(2)).sum::<f64>() / n as f64);
@@ -857,7 +863,7 @@ mod tests {
             let (config, sessions) = multilevel_block(levels);
             let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
             let model = doublet_model(&config);
-            let with = two_step_residuals(&model, &views);
+            let with = two_step_residuals(&model, config.robot.axle_length, &views);
             let sensor = diagonal_covariance(config.sensing.controller_std);
             let n = with.len();
             let q_hat = estimate_motion_noise(&with, &sensor, 1e-3).expect("in the class");
