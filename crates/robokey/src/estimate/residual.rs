@@ -266,4 +266,37 @@ mod tests {
         );
         assert!((two_q[(0, 0)] - 2.0).abs() < 1e-12, "along-track: {two_q}");
     }
+
+    /// On a straight doublet the slip map's along-track and heading entries are exact: each
+    /// step's wheels travel `d = v·T` at its applied speed (the bit's offset included), so
+    /// `M_along = Σ d²/2` and `M_heading = Σ 2d²/D²` over the two steps, and nothing crosses
+    /// between them.
+    #[test]
+    fn the_slip_map_follows_each_steps_wheel_travel() {
+        let model = doublet_model(&Config::default());
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.1, 0.0),
+            second: Unicycle::new(0.1, 0.0),
+        };
+        let start = Pose::new(0.0, 0.0, 0.7);
+        for pattern in 0..2 {
+            let r = DoubletResidual::new(&model, AXLE, 0, &inputs, &start, &start, pattern);
+            let t = model.sample_time;
+            let [a, b] = inputs.applied(model.perturbation.offset(pattern));
+            let squares = (a.x * t).powi(2) + (b.x * t).powi(2);
+            assert!(
+                (r.slip_map[(0, 0)] - squares / 2.0).abs() < 1e-15,
+                "{}",
+                r.slip_map
+            );
+            let heading = 2.0 * squares / (AXLE * AXLE);
+            assert!(
+                (r.slip_map[(2, 2)] / heading - 1.0).abs() < 1e-12,
+                "{}",
+                r.slip_map
+            );
+            assert!(r.slip_map[(0, 2)].abs() < 1e-15, "{}", r.slip_map);
+            assert_eq!(r.slip_part(0.0025), 0.0025 * r.slip_map);
+        }
+    }
 }
