@@ -73,6 +73,12 @@ pub struct BlockEstimate {
     /// view is sized over; none with two steps.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lag: Option<[f64; 3]>,
+    /// Per-wheel slip fitted beside `Q`, `[σ̂, σ_lo, σ_hi]` as fractions of each wheel's
+    /// travel, on a block that was sized: its interval reaches 0 (a block that measures slip
+    /// is refused), so up to `σ_hi` of slip may go unseen, and the key is not sized for it
+    /// (docs/estimation.md, "Per-wheel slip"); none where not fitted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slip: Option<[f64; 3]>,
 }
 
 impl BlockEstimate {
@@ -130,6 +136,7 @@ impl BlockEstimate {
             largest: REFUSED_SEPARATION,
             refused: Some(why),
             lag: None,
+            slip: None,
         }
     }
 }
@@ -529,6 +536,7 @@ fn size_block(
             largest,
             refused: None,
             lag: lag.map(|lag| [lag.point, lag.interval[0], lag.interval[1]]),
+            slip: estimate.slip.map(|slip| slip.stds()),
         },
     )
 }
@@ -856,7 +864,8 @@ mod tests {
     /// Multilevel symbols: with each symbol's mean subtracted Q̂ is the world's 1 mm² (1
     /// mrad²) per axis at 4 and 8 levels, within 4 of its relative standard errors
     /// `√(2F/n)·(2Q + 2R)/(2Q)` (F = 1.5 for the neighbours' shared sample), and the block is
-    /// sized, not refused, with a separation for every key bit.
+    /// sized, not refused, with a separation for every key bit; the slip fitted beside `Q`
+    /// shows none (its interval reaches 0, its upper end below 2 % of the wheels' travel).
     #[test]
     fn multilevel_q_is_unbiased_with_the_symbols_mean_subtracted() {
         for levels in [4_u8, 8] {
@@ -878,6 +887,12 @@ mod tests {
             }
             let (separations, estimate) = block_separations(&config, &views, 0, 1e-6);
             assert_eq!(estimate.refused, None, "{levels} levels");
+            let [_, low, high] = estimate.slip.expect("the slip fitted beside Q");
+            assert!(
+                low == 0.0 && high < 0.02,
+                "{levels} levels: {:?}",
+                estimate.slip
+            );
             let key_bits = model.perturbation.key_bits();
             for (session, d) in views.iter().zip(&separations) {
                 assert_eq!(d.len(), session.len() * key_bits);

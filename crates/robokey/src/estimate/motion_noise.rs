@@ -80,6 +80,10 @@ pub struct MotionNoiseEstimate {
     pub corners: [Corner; CORRELATION_CELLS],
     /// The region's failure probability ε_est.
     pub epsilon: f64,
+    /// Per-wheel slip fitted beside `Q` (`slip`); its interval reaches 0 on an estimate that
+    /// is returned (a block that measures slip is refused). None where the block's speeds do
+    /// not identify it, or for a known world.
+    pub slip: Option<SlipEstimate>,
 }
 
 /// Why a block's motion noise could not be bounded: the class does not cover its data.
@@ -414,8 +418,8 @@ pub fn estimate_motion_noise(
     // Slip at level ε_est: where the block measures it, the homogeneity test is against the
     // joint fit (departures beyond slip are refused as such), and then the slip is refused
     // by name; otherwise against the white fit, as without slip.
-    let slip =
-        estimate_slip(residuals, sensor, correlation.point, epsilon).filter(SlipEstimate::measured);
+    let slip_fit = estimate_slip(residuals, sensor, correlation.point, epsilon);
+    let slip = slip_fit.filter(SlipEstimate::measured);
     let (tested, slip_variance) = slip.map_or((point, 0.0), |s| (s.motion, s.point));
     if let Some(departure) = speed_class_departure(
         residuals,
@@ -447,6 +451,7 @@ pub fn estimate_motion_noise(
         upper,
         corners,
         epsilon,
+        slip: slip_fit,
     })
 }
 
@@ -517,6 +522,7 @@ impl MotionNoiseEstimate {
                 step_weights: step_weights(cell),
             }; CORRELATION_CELLS],
             epsilon,
+            slip: None,
         }
     }
 
