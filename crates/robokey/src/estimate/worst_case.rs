@@ -42,13 +42,17 @@
 //! `[τ_lo, τ_hi]`, Eve's means following the doublet's offsets through that `τ` — so ℓ is at
 //! most the least over the grid. A grid, not a proof between its points.
 
-use nalgebra::{Cholesky, Matrix3, Matrix6, SymmetricEigen, Vector6};
+use nalgebra::{
+    Cholesky, DMatrix, DVector, Matrix3, Matrix6, SMatrix, SymmetricEigen, Vector3, Vector6,
+};
 
 use super::motion_noise::{Corner, MotionNoiseEstimate};
 use super::residual::rotation;
 use crate::private::DoubletInputs;
 use crate::private::doublet::MAX_BITS;
-use crate::private::likelihood::{DoubletModel, DoubletView, separations_by, state_jacobian};
+use crate::private::likelihood::{
+    DoubletModel, DoubletView, PoseObservation, separations_by, state_jacobian,
+};
 
 /// The grid a block's worst-case separation is published on: multiples of 2⁻⁸.
 pub const SEPARATION_QUANTUM: f64 = 1.0 / 256.0;
@@ -88,7 +92,7 @@ pub fn worst_case_separations(
         })
 }
 
-/// Points of the grid over the lag's interval Eve's view is sized at.
+/// Points of the grid over the lag's interval Eve's view is first sized at.
 pub const LAG_GRID: usize = 5;
 
 /// `LAG_GRID` lags evenly over `[low, high]` (s); one when the interval is a point.
@@ -102,51 +106,99 @@ pub fn lag_grid([low, high]: [f64; 2]) -> Vec<f64> {
         .collect()
 }
 
-/// `[μ_low, μ_high]`: bounds on the eigenvalues of three AR(1) steps' conditional covariance
-/// `W(ρ)` given their neighbours, in units of `Q`, over every ρ in the cell `[a, b]`.
-fn three_step_weights([a, b]: [f64; 2]) -> [f64; 2] {
-    let root_two = std::f64::consts::SQRT_2;
-    let eigen = |r: f64, sign: f64| (1.0 - r * r) / (1.0 + r * r + sign * root_two * r);
-    let largest = a
-        .abs()
-        .max(b.abs())
-        .min(super::correlation::HIGHEST_CORRELATION);
-    let smallest = if a <= 0.0 && b >= 0.0 {
-        0.0
-    } else {
-        a.abs().min(b.abs())
-    };
-    let peak = root_two - 1.0;
-    let mut high = eigen(smallest, -1.0).max(eigen(largest, -1.0));
-    if (smallest..=largest).contains(&peak) {
-        high = high.max(eigen(peak, -1.0));
-    }
-    [eigen(largest, 1.0), high]
+/// Neighbouring lags of the refined grid whose separations differ by more than this are
+/// split (and the slack added to the grid's largest): a quarter of the published quantum.
+pub const LAG_SLACK: f64 = SEPARATION_QUANTUM / 4.0;
+
+/// The most halvings of a grid interval of the lag.
+const LAG_REFINEMENTS: u32 = 6;
+
+/// The three steps' noise covariance, 9×9 over their (x, y, θ) noises: block `(i, k)` is
+/// step `i`'s noise with step `k`'s (m², m·rad, rad²).
+pub type StepCovariance = SMatrix<f64, 9, 9>;
+
+/// The eigenvalues `λ` of `J` (ones beside the diagonal of a 3×3 matrix) and their unit
+/// eigenvectors: `√2, (1, √2, 1)/2`; `0, (1, 0, −1)/√2`; `−√2, (1, −√2, 1)/2`.
+fn step_modes() -> [(f64, Vector3<f64>); 3] {
+    let r = std::f64::consts::SQRT_2;
+    [
+        (r, Vector3::new(0.5, 0.5 * r, 0.5)),
+        (0.0, Vector3::new(1.0 / r, 0.0, -1.0 / r)),
+        (-r, Vector3::new(0.5, -0.5 * r, 0.5)),
+    ]
 }
 
-/// The three steps' noise covariances (robot frame, m², m², rad²) that bound `estimate`'s
-/// cells from below (`μ_low·P₊ − μ_high·P₋` of each corner, the module's doc), those that
-/// another lies below in the Loewner order left out (a lower one gives Eve the sharper view
-/// of every bit at once), each with whether it is positive semidefinite (then her
-/// covariance is positive definite without a check).
+/// `W(ρ)`'s eigenvalue along `J`'s mode `λ`: `(1 − ρ²)/(1 + ρ² − λρ)`.
+fn mode_weight(rho: f64, lambda: f64) -> f64 {
+    (1.0 - rho * rho) / (1.0 + rho * rho - lambda * rho)
+}
+
+/// `[W_low, W_high]`: Loewner bounds on three AR(1) steps' conditional covariance `W(ρ)`
+/// given their neighbours, in units of `Q`, over every ρ in the cell `[a, b]` (the module's
+/// doc): along each of `J`'s modes the least and the greatest of its eigenvalue over the
+/// cell. `W(ρ)` itself for a point cell.
+fn three_step_weights([a, b]: [f64; 2]) -> [Matrix3<f64>; 2] {
+    let top = super::correlation::HIGHEST_CORRELATION;
+    let (a, b) = (a.clamp(-top, top), b.clamp(-top, top));
+    let peak_of = |lambda: f64| {
+        // The root of λρ² − 4ρ + λ in (−1, 1): the eigenvalue's one maximum there.
+        if lambda == 0.0 {
+            0.0
+        } else {
+            (2.0 - (4.0 - lambda * lambda).sqrt()) / lambda
+        }
+    };
+    let mut bounds = [Matrix3::zeros(); 2];
+    for (lambda, v) in step_modes() {
+        let ends = [mode_weight(a, lambda), mode_weight(b, lambda)];
+        let low = ends[0].min(ends[1]);
+        let peak = peak_of(lambda);
+        let mut high = ends[0].max(ends[1]);
+        if (a..=b).contains(&peak) {
+            high = high.max(mode_weight(peak, lambda));
+        }
+        let projector = v * v.transpose();
+        bounds[0] += low * projector;
+        bounds[1] += high * projector;
+    }
+    bounds
+}
+
+/// `P₊ ⊗ W_low − P₋ ⊗ W_high` of one corner (robot frame): block `(i, k)` is
+/// `W_low,ik·P₊ − W_high,ik·P₋`, `P₊ − P₋ = Q_cell` its positive and negative parts.
+fn three_step_covariance(corner: &Corner) -> StepCovariance {
+    let eigen = SymmetricEigen::new(corner.motion);
+    let part = |sign: f64| {
+        let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
+        eigen.eigenvectors * Matrix3::from_diagonal(&kept) * eigen.eigenvectors.transpose()
+    };
+    let (positive, negative) = (part(1.0), part(-1.0));
+    let [low, high] = three_step_weights(corner.correlation);
+    let mut k = StepCovariance::zeros();
+    for i in 0..3 {
+        for j in 0..3 {
+            k.fixed_view_mut::<3, 3>(3 * i, 3 * j)
+                .copy_from(&(low[(i, j)] * positive - high[(i, j)] * negative));
+        }
+    }
+    k
+}
+
+/// The three steps' noise covariances (robot frame) that bound `estimate`'s cells from
+/// below (`P₊ ⊗ W_low − P₋ ⊗ W_high` of each corner, the module's doc), those that another
+/// lies below in the Loewner order left out (a lower one gives Eve the sharper view of
+/// every bit at once), each with whether it is positive semidefinite (then her covariance
+/// is positive definite without a check).
 #[must_use]
-pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(Matrix3<f64>, bool)> {
-    let steps: Vec<Matrix3<f64>> = estimate
+pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(StepCovariance, bool)> {
+    let steps: Vec<StepCovariance> = estimate
         .corners
         .iter()
-        .map(|corner| {
-            let eigen = SymmetricEigen::new(corner.motion);
-            let part = |sign: f64| {
-                let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
-                eigen.eigenvectors * Matrix3::from_diagonal(&kept) * eigen.eigenvectors.transpose()
-            };
-            let [low, high] = three_step_weights(corner.correlation);
-            low * part(1.0) - high * part(-1.0)
-        })
+        .map(three_step_covariance)
         .collect();
-    let least = |m: &Matrix3<f64>| SymmetricEigen::new(*m).eigenvalues.min();
-    let below = |a: &Matrix3<f64>, b: &Matrix3<f64>| least(&(b - a)) >= 0.0;
-    let mut kept: Vec<(Matrix3<f64>, bool)> = Vec::new();
+    let least = |m: &StepCovariance| SymmetricEigen::new(*m).eigenvalues.min();
+    let below = |a: &StepCovariance, b: &StepCovariance| least(&(b - a)) >= 0.0;
+    let mut kept: Vec<(StepCovariance, bool)> = Vec::new();
     for (i, m) in steps.iter().enumerate() {
         // Left out when another lies below it (the first of equal ones kept).
         let dominated = steps
@@ -163,33 +215,121 @@ pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(Matrix3<f64>, bo
 /// Each bit's separation of Eve's modelled `view` of a three-step doublet with public
 /// `inputs` (its `late` observation's value is not used: the separation depends on her
 /// covariances and the means' differences), at the worst case over the steps' covariances
-/// `steps` ([`three_step_steps`]) and the `lags` τ (s) of the lag's interval (the module's
-/// doc); `None` when a bound does not exist at some corner.
+/// `steps` ([`three_step_steps`]) and the lag's `interval` `[τ_lo, τ_hi]` (s): the largest
+/// over a refined grid of it plus [`LAG_SLACK`] (the module's doc); `None` when a bound
+/// does not exist at some corner.
 #[must_use]
 pub fn three_step_worst_case(
     model: &DoubletModel,
-    steps: &[(Matrix3<f64>, bool)],
-    lags: &[f64],
+    steps: &[(StepCovariance, bool)],
+    interval: [f64; 2],
     inputs: &DoubletInputs,
     view: &DoubletView,
 ) -> Option<[f64; MAX_BITS]> {
     let h = rotation(view.start.value.z);
-    let mut worst = [0.0_f64; MAX_BITS];
-    for (robot_frame, positive) in steps {
-        for &lag in lags {
-            let at = DoubletModel {
-                process_covariance: h * robot_frame * h.transpose(),
-                lag,
-                ..*model
-            };
-            if !positive && !at.covariances_positive(inputs, view) {
-                return None;
-            }
-            let d = at.separations(inputs, view);
-            worst = std::array::from_fn(|i| worst[i].max(d[i]));
-        }
+    let mut frame = StepCovariance::zeros();
+    for i in 0..3 {
+        frame.fixed_view_mut::<3, 3>(3 * i, 3 * i).copy_from(&h);
     }
-    Some(worst)
+    let world: Vec<(StepCovariance, bool)> = steps
+        .iter()
+        .map(|(k, positive)| (frame * k * frame.transpose(), *positive))
+        .collect();
+    let at = |lag: f64| {
+        let model = DoubletModel { lag, ..*model };
+        world
+            .iter()
+            .try_fold([0.0_f64; MAX_BITS], |worst, (k, positive)| {
+                let d = three_step_separations(&model, k, *positive, inputs, view)?;
+                Some(std::array::from_fn(|i| worst[i].max(d[i])))
+            })
+    };
+    let grid = lag_grid(interval);
+    let values = grid.iter().map(|&lag| at(lag)).collect::<Option<Vec<_>>>()?;
+    let mut worst = values
+        .iter()
+        .fold([0.0_f64; MAX_BITS], |m, d| std::array::from_fn(|i| m[i].max(d[i])));
+    // Halve each grid interval whose ends differ by more than the slack in some bit.
+    let mut pending: Vec<(f64, [f64; MAX_BITS], f64, [f64; MAX_BITS], u32)> = grid
+        .windows(2)
+        .zip(values.windows(2))
+        .map(|(t, d)| (t[0], d[0], t[1], d[1], 0))
+        .collect();
+    while let Some((low, d_low, high, d_high, depth)) = pending.pop() {
+        let apart = (0..MAX_BITS).any(|i| (d_low[i] - d_high[i]).abs() > LAG_SLACK);
+        if !apart || depth == LAG_REFINEMENTS {
+            continue;
+        }
+        let middle = 0.5 * (low + high);
+        let d_middle = at(middle)?;
+        worst = std::array::from_fn(|i| worst[i].max(d_middle[i]));
+        pending.push((low, d_low, middle, d_middle, depth + 1));
+        pending.push((middle, d_middle, high, d_high, depth + 1));
+    }
+    Some(worst.map(|d| if d > 0.0 { d + LAG_SLACK } else { 0.0 }))
+}
+
+/// Each key bit's separation of Eve's `view` of a three-step doublet under `model` (its lag
+/// and alphabet) with the steps' noise covariance `k` (world frame, possibly correlated
+/// between the steps): the observed poses' covariance `F·P₀·Fᵀ + G·K·Gᵀ + R` along each
+/// pattern's mean path, `F` stacking `A₀, A₁A₀, A₂A₁A₀` and `G` the block lower-triangular
+/// map of the steps' noises (`Gᵢₖ = Aᵢ ⋯ Aₖ₊₁`, `Gᵢᵢ = I`); `None` when a covariance is not
+/// positive definite (checked only when `k` is not known to be `positive`) or the view
+/// observes no pose.
+fn three_step_separations(
+    model: &DoubletModel,
+    k: &StepCovariance,
+    positive: bool,
+    inputs: &DoubletInputs,
+    view: &DoubletView,
+) -> Option<[f64; MAX_BITS]> {
+    let observed: Vec<(usize, &PoseObservation)> = [&view.middle, &view.late, &view.end]
+        .into_iter()
+        .enumerate()
+        .filter_map(|(i, y)| y.as_ref().map(|y| (i, y)))
+        .collect();
+    if observed.is_empty() {
+        return None;
+    }
+    let n = 3 * observed.len();
+    let predict = |pattern: usize| {
+        let (means, a) = model.three_step_path(inputs, view, pattern);
+        let mut f = SMatrix::<f64, 9, 3>::zeros();
+        let mut g = StepCovariance::identity();
+        let mut through = Matrix3::identity();
+        for i in 0..3 {
+            through = a[i] * through;
+            f.fixed_view_mut::<3, 3>(3 * i, 0).copy_from(&through);
+            let mut carried = Matrix3::identity();
+            for j in (0..i).rev() {
+                carried *= a[j + 1];
+                g.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&carried);
+            }
+        }
+        let c = f * view.start.covariance * f.transpose() + g * k * g.transpose();
+        let mut mean = DVector::zeros(n);
+        let mut s = DMatrix::zeros(n, n);
+        for (row, &(i, y)) in observed.iter().enumerate() {
+            mean.fixed_rows_mut::<3>(3 * row).copy_from(&means[i]);
+            for (col, &(j, _)) in observed.iter().enumerate() {
+                let mut block: Matrix3<f64> = c.fixed_view::<3, 3>(3 * i, 3 * j).into();
+                if i == j {
+                    block += y.covariance;
+                }
+                s.fixed_view_mut::<3, 3>(3 * row, 3 * col).copy_from(&block);
+            }
+        }
+        (mean, Cholesky::new(s))
+    };
+    let predictions: Vec<_> = (0..model.perturbation.patterns()).map(predict).collect();
+    if !positive && predictions.iter().any(|(_, s)| s.is_none()) {
+        return None;
+    }
+    Some(separations_by(&model.perturbation, |a, b| {
+        let (mean_a, s) = &predictions[a];
+        let d = &predictions[b].0 - mean_a;
+        s.as_ref().map_or(0.0, |c| c.solve(&d).dot(&d).sqrt())
+    }))
 }
 
 /// Each key bit's separation at one `corner` (the genie view of the module's doc; entries
@@ -411,37 +551,50 @@ mod tests {
         assert!(corner_separations(&model, &white(impossible), &inputs, &view).is_none());
     }
 
-    /// The three steps' weight bounds hold every member of a cell: the conditional
-    /// covariance's eigenvalues at 200 ρ of each cell lie within `[μ_low, μ_high]`.
+    /// `W(ρ)`: three AR(1) steps' conditional covariance given their neighbours (units of
+    /// `Q`), the inverse of the precision's interior block.
+    fn exact_weights(rho: f64) -> Matrix3<f64> {
+        let (d, o) = (
+            (1.0 + rho * rho) / (1.0 - rho * rho),
+            -rho / (1.0 - rho * rho),
+        );
+        Matrix3::new(d, o, 0.0, o, d, o, 0.0, o, d)
+            .try_inverse()
+            .unwrap()
+    }
+
+    /// The three steps' weight bounds hold every member of a cell in the Loewner order:
+    /// `W_low ⪯ W(ρ) ⪯ W_high` at 200 ρ of each cell; a point cell's bounds are `W(ρ)` itself
+    /// (white: the identity).
     #[test]
     fn the_three_step_weights_bound_every_member_of_the_cell() {
-        use nalgebra::Matrix3 as M;
+        let least = |m: Matrix3<f64>| SymmetricEigen::new(m).eigenvalues.min();
         for cell in [
             [-0.5, -0.3],
             [0.0, 0.0],
             [-0.05, 0.4],
             [0.3, 0.5],
             [0.8, 0.95],
+            [0.06, 0.1],
         ] {
             let [low, high] = three_step_weights(cell);
             for i in 0..=200 {
                 let rho = cell[0] + (cell[1] - cell[0]) * f64::from(i) / 200.0;
-                let (d, o) = (
-                    (1.0 + rho * rho) / (1.0 - rho * rho),
-                    -rho / (1.0 - rho * rho),
-                );
-                let precision = M::new(d, o, 0.0, o, d, o, 0.0, o, d);
-                let w = precision.try_inverse().unwrap();
-                for &x in SymmetricEigen::new(w).eigenvalues.iter() {
-                    assert!(low - 1e-12 <= x && x <= high + 1e-12, "{cell:?} {rho}: {x}");
-                }
+                let w = exact_weights(rho);
+                assert!(least(w - low) >= -1e-12, "{cell:?} {rho}: {low} ⋠ {w}");
+                assert!(least(high - w) >= -1e-12, "{cell:?} {rho}: {w} ⋠ {high}");
             }
         }
-        assert_eq!(three_step_weights([0.0, 0.0]), [1.0, 1.0]);
+        for rho in [0.0, -0.3, 0.5] {
+            let [low, high] = three_step_weights([rho, rho]);
+            assert!((low - exact_weights(rho)).abs().max() < 1e-12, "{rho}: {low}");
+            assert!((high - exact_weights(rho)).abs().max() < 1e-12, "{rho}: {high}");
+        }
+        assert!((three_step_weights([0.0, 0.0])[0] - Matrix3::identity()).abs().max() < 1e-15);
     }
 
     /// The steps' covariances kept for the three-step worst case bound every corner's from
-    /// below: for each corner's `μ_low·P₊ − μ_high·P₋` some kept one lies below it, and one
+    /// below: for each corner's `P₊ ⊗ W_low − P₋ ⊗ W_high` some kept one lies below it, and one
     /// lying below another is what is left out.
     #[test]
     fn the_three_step_corners_kept_lie_below_every_corner() {
@@ -455,11 +608,11 @@ mod tests {
         let kept = three_step_steps(&estimate);
         assert!(
             !kept.is_empty() && kept.len() < estimate.corners.len(),
-            "{kept:?}"
+            "{}",
+            kept.len()
         );
         for corner in &estimate.corners {
-            let [low, high] = three_step_weights(corner.correlation);
-            let own = low * corner.motion - high * Matrix3::zeros();
+            let own = three_step_covariance(corner);
             assert!(
                 kept.iter()
                     .any(|(m, _)| SymmetricEigen::new(own - m).eigenvalues.min() >= -1e-18),
@@ -467,6 +620,157 @@ mod tests {
             );
         }
         assert!(kept.iter().all(|&(_, positive)| positive));
+    }
+
+    /// A three-step doublet with a turn, both bits, the stated camera, doublets shaped for
+    /// a 50 ms lag.
+    fn three_step_doublet() -> (DoubletModel, DoubletInputs, DoubletView) {
+        let mut config = Config::default();
+        config.protocol.bits_per_doublet = 2;
+        config.sensing.mode = crate::config::SensingMode::Private;
+        config.private.prior_lag = 0.05;
+        let model = doublet_model(&config);
+        assert!(model.perturbation.settle.is_some());
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.1, 0.45),
+            second: Unicycle::new(0.1, 0.4),
+        };
+        let samples = [
+            Pose::new(0.0, 0.0, 0.8),
+            Pose::new(0.02, 0.02, 0.9),
+            Pose::new(0.02, 0.02, 0.9),
+            Pose::new(0.03, 0.035, 0.97),
+        ];
+        let view = stated_camera_view(
+            samples,
+            config.sensing.controller_std,
+            config.eve.camera_std,
+        );
+        (model, inputs, view)
+    }
+
+    /// `Q ⊗ W` in the world frame at the doublet's heading.
+    fn kron(q: &Matrix3<f64>, w: &Matrix3<f64>, theta: f64) -> StepCovariance {
+        let h = rotation(theta);
+        let mut k = StepCovariance::zeros();
+        for i in 0..3 {
+            for j in 0..3 {
+                k.fixed_view_mut::<3, 3>(3 * i, 3 * j)
+                    .copy_from(&(w[(i, j)] * h * q * h.transpose()));
+            }
+        }
+        k
+    }
+
+    /// White steps (`W = I`): the three-step separation with the steps' covariance stacked
+    /// is the doublet model's own, at lags within and beyond the prior.
+    #[test]
+    fn white_three_steps_are_the_doublet_models_view() {
+        let (model, inputs, view) = three_step_doublet();
+        let q = Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6);
+        let h = rotation(view.start.value.z);
+        for lag in [0.0, 0.03, 0.05, 0.1] {
+            let at = DoubletModel {
+                process_covariance: h * q * h.transpose(),
+                lag,
+                ..model
+            };
+            let expected = at.separations(&inputs, &view);
+            let k = kron(&q, &Matrix3::identity(), view.start.value.z);
+            let got = three_step_separations(&at, &k, true, &inputs, &view).unwrap();
+            for b in 0..2 {
+                assert!(
+                    expected[b] > 0.0 && (got[b] - expected[b]).abs() <= 1e-9 * expected[b],
+                    "{lag}: {got:?} {expected:?}"
+                );
+            }
+        }
+    }
+
+    /// The three-step corner dominates its cell: 300 random members of each cell — `Q_cell +
+    /// GGᵀ` (full matrices, any orientation) with ρ anywhere in the cell and the steps'
+    /// exact conditional covariance `Q ⊗ W(ρ)` — never give either bit a larger separation
+    /// than the corner's `P₊ ⊗ W_low − P₋ ⊗ W_high`, at a vertex with a negative eigenvalue
+    /// too; and a point cell at ρ = 0 is the white view.
+    #[test]
+    fn no_member_of_a_cell_gives_eve_a_sharper_three_step_view() {
+        let (model, inputs, view) = three_step_doublet();
+        let theta = view.start.value.z;
+        let mut rng = stream(7, Purpose::Public, 0);
+        for lower in [
+            Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6),
+            Matrix3::new(1e-6, 0.0, 0.0, 0.0, -2e-8, 0.0, 0.0, 0.0, 1e-6),
+        ] {
+            for cell in [[-0.5, -0.3], [0.0, 0.0], [-0.05, 0.1], [0.06, 0.1], [0.8, 0.95]] {
+                let corner = Corner {
+                    correlation: cell,
+                    motion: lower,
+                    step_weights: super::super::motion_noise::tests::weights_of(cell),
+                };
+                let bound = three_step_covariance(&corner);
+                let h = rotation(theta);
+                let mut frame = StepCovariance::zeros();
+                for i in 0..3 {
+                    frame.fixed_view_mut::<3, 3>(3 * i, 3 * i).copy_from(&h);
+                }
+                let vertex = three_step_separations(
+                    &model,
+                    &(frame * bound * frame.transpose()),
+                    false,
+                    &inputs,
+                    &view,
+                )
+                .unwrap();
+                for _ in 0..300 {
+                    let g = Matrix3::from_fn(|_, _| rng.random_range(-1.5e-3..1.5e-3));
+                    let rho = if cell[0] == cell[1] {
+                        cell[0]
+                    } else {
+                        rng.random_range(cell[0]..cell[1])
+                    };
+                    let member = kron(&(lower + g * g.transpose()), &exact_weights(rho), theta);
+                    let d = three_step_separations(&model, &member, false, &inputs, &view).unwrap();
+                    for k in 0..2 {
+                        assert!(
+                            d[k] <= vertex[k] * (1.0 + 1e-12),
+                            "{cell:?} ρ {rho}: {d:?} > {vertex:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// The bound holds between the lag's grid points: on intervals around the prior, below
+    /// and above it, and on a wide one, the worst case is at least the separation at each of
+    /// 400 lags sampled evenly over the interval, for each bit and two noise levels.
+    #[test]
+    fn the_lag_bound_holds_for_every_lag_in_the_interval() {
+        let (model, inputs, view) = three_step_doublet();
+        let theta = view.start.value.z;
+        for q_std in [1e-3, 4e-3] {
+            let q = Matrix3::from_diagonal(&Vector3::new(q_std * q_std, q_std * q_std, q_std * q_std));
+            let estimate = MotionNoiseEstimate::known(q, 0.0, 1e-6);
+            let steps = three_step_steps(&estimate);
+            for interval in [[0.0435, 0.0573], [0.0, 0.03], [0.08, 0.12], [0.0, 0.3]] {
+                let bound =
+                    three_step_worst_case(&model, &steps, interval, &inputs, &view).unwrap();
+                let k = kron(&q, &Matrix3::identity(), theta);
+                for i in 0..=400 {
+                    let lag = interval[0] + (interval[1] - interval[0]) * f64::from(i) / 400.0;
+                    let at = DoubletModel { lag, ..model };
+                    let d = three_step_separations(&at, &k, true, &inputs, &view).unwrap();
+                    for b in 0..2 {
+                        assert!(
+                            d[b] <= bound[b],
+                            "{q_std} {interval:?} τ {lag}: bit {b} {} > {}",
+                            d[b],
+                            bound[b]
+                        );
+                    }
+                }
+            }
+        }
     }
 
     /// Which way ρ moves her: at a fixed `Q`, positive correlation sharpens Eve's view of the
