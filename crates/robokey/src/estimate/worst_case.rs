@@ -106,12 +106,13 @@ pub fn lag_grid([low, high]: [f64; 2]) -> Vec<f64> {
         .collect()
 }
 
-/// Neighbouring lags of the refined grid whose separations differ by more than this are
-/// split (and the slack added to the grid's largest): a quarter of the published quantum.
+/// The largest concavity slack a bit's bound over the lag's interval takes before its grid
+/// is refined ([`largest_over_lags`]): a quarter of the published quantum.
 pub const LAG_SLACK: f64 = SEPARATION_QUANTUM / 4.0;
 
-/// The most halvings of a grid interval of the lag.
-const LAG_REFINEMENTS: u32 = 6;
+/// The most lags the grid over the lag's interval is refined to (its spacing halved from
+/// [`LAG_GRID`] points four times).
+const MAX_LAG_POINTS: usize = 65;
 
 /// The three steps' noise covariance, 9×9 over their (x, y, θ) noises: block `(i, k)` is
 /// step `i`'s noise with step `k`'s (m², m·rad, rad²).
@@ -191,11 +192,7 @@ fn three_step_covariance(corner: &Corner) -> StepCovariance {
 /// is positive definite without a check).
 #[must_use]
 pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(StepCovariance, bool)> {
-    let steps: Vec<StepCovariance> = estimate
-        .corners
-        .iter()
-        .map(three_step_covariance)
-        .collect();
+    let steps: Vec<StepCovariance> = estimate.corners.iter().map(three_step_covariance).collect();
     let least = |m: &StepCovariance| SymmetricEigen::new(*m).eigenvalues.min();
     let below = |a: &StepCovariance, b: &StepCovariance| least(&(b - a)) >= 0.0;
     let mut kept: Vec<(StepCovariance, bool)> = Vec::new();
@@ -216,8 +213,8 @@ pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(StepCovariance, 
 /// `inputs` (its `late` observation's value is not used: the separation depends on her
 /// covariances and the means' differences), at the worst case over the steps' covariances
 /// `steps` ([`three_step_steps`]) and the lag's `interval` `[τ_lo, τ_hi]` (s): the largest
-/// over a refined grid of it plus [`LAG_SLACK`] (the module's doc); `None` when a bound
-/// does not exist at some corner.
+/// over a grid of it plus a concavity slack ([`largest_over_lags`], the module's doc);
+/// `None` when a bound does not exist at some corner.
 #[must_use]
 pub fn three_step_worst_case(
     model: &DoubletModel,
@@ -244,29 +241,51 @@ pub fn three_step_worst_case(
                 Some(std::array::from_fn(|i| worst[i].max(d[i])))
             })
     };
-    let grid = lag_grid(interval);
-    let values = grid.iter().map(|&lag| at(lag)).collect::<Option<Vec<_>>>()?;
-    let mut worst = values
-        .iter()
-        .fold([0.0_f64; MAX_BITS], |m, d| std::array::from_fn(|i| m[i].max(d[i])));
-    // Halve each grid interval whose ends differ by more than the slack in some bit.
-    let mut pending: Vec<(f64, [f64; MAX_BITS], f64, [f64; MAX_BITS], u32)> = grid
-        .windows(2)
-        .zip(values.windows(2))
-        .map(|(t, d)| (t[0], d[0], t[1], d[1], 0))
-        .collect();
-    while let Some((low, d_low, high, d_high, depth)) = pending.pop() {
-        let apart = (0..MAX_BITS).any(|i| (d_low[i] - d_high[i]).abs() > LAG_SLACK);
-        if !apart || depth == LAG_REFINEMENTS {
-            continue;
-        }
-        let middle = 0.5 * (low + high);
-        let d_middle = at(middle)?;
-        worst = std::array::from_fn(|i| worst[i].max(d_middle[i]));
-        pending.push((low, d_low, middle, d_middle, depth + 1));
-        pending.push((middle, d_middle, high, d_high, depth + 1));
+    largest_over_lags(interval, at)
+}
+
+/// Each bit's largest of `at(τ)` over every τ in `interval` `[τ_lo, τ_hi]` (s): the largest
+/// over [`LAG_GRID`] evenly spaced lags plus each bit's concavity slack — a quarter of its
+/// most negative second difference along the grid, 0 where none is negative — the spacing
+/// halved while a slack exceeds [`LAG_SLACK`] (at most [`MAX_LAG_POINTS`] lags). A
+/// function whose second derivative stays above twice its most negative second difference
+/// over the spacing² (the module's doc) lies below this everywhere in the interval. `None`
+/// when `at` has no answer at some lag; `at(τ_lo)` itself for a point.
+fn largest_over_lags(
+    [low, high]: [f64; 2],
+    at: impl Fn(f64) -> Option<[f64; MAX_BITS]>,
+) -> Option<[f64; MAX_BITS]> {
+    if high <= low {
+        return at(low);
     }
-    Some(worst.map(|d| if d > 0.0 { d + LAG_SLACK } else { 0.0 }))
+    let mut values = lag_grid([low, high])
+        .iter()
+        .map(|&lag| at(lag))
+        .collect::<Option<Vec<_>>>()?;
+    loop {
+        let slack: [f64; MAX_BITS] = std::array::from_fn(|b| {
+            values
+                .windows(3)
+                .map(|w| (2.0 * w[1][b] - w[0][b] - w[2][b]).max(0.0) / 4.0)
+                .fold(0.0, f64::max)
+        });
+        if slack.iter().all(|&x| x <= LAG_SLACK) || values.len() >= MAX_LAG_POINTS {
+            let largest = values.iter().fold([0.0_f64; MAX_BITS], |m, d| {
+                std::array::from_fn(|i| m[i].max(d[i]))
+            });
+            return Some(std::array::from_fn(|b| largest[b] + slack[b]));
+        }
+        // Halve the spacing: a new lag between every two neighbours.
+        let spacing = (high - low) / (values.len() - 1) as f64;
+        let mut finer = Vec::with_capacity(2 * values.len() - 1);
+        for (i, d) in values.iter().enumerate() {
+            if i > 0 {
+                finer.push(at(low + spacing * (i as f64 - 0.5))?);
+            }
+            finer.push(*d);
+        }
+        values = finer;
+    }
 }
 
 /// Each key bit's separation of Eve's `view` of a three-step doublet under `model` (its lag
@@ -587,10 +606,21 @@ mod tests {
         }
         for rho in [0.0, -0.3, 0.5] {
             let [low, high] = three_step_weights([rho, rho]);
-            assert!((low - exact_weights(rho)).abs().max() < 1e-12, "{rho}: {low}");
-            assert!((high - exact_weights(rho)).abs().max() < 1e-12, "{rho}: {high}");
+            assert!(
+                (low - exact_weights(rho)).abs().max() < 1e-12,
+                "{rho}: {low}"
+            );
+            assert!(
+                (high - exact_weights(rho)).abs().max() < 1e-12,
+                "{rho}: {high}"
+            );
         }
-        assert!((three_step_weights([0.0, 0.0])[0] - Matrix3::identity()).abs().max() < 1e-15);
+        assert!(
+            (three_step_weights([0.0, 0.0])[0] - Matrix3::identity())
+                .abs()
+                .max()
+                < 1e-15
+        );
     }
 
     /// The steps' covariances kept for the three-step worst case bound every corner's from
@@ -701,7 +731,13 @@ mod tests {
             Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6),
             Matrix3::new(1e-6, 0.0, 0.0, 0.0, -2e-8, 0.0, 0.0, 0.0, 1e-6),
         ] {
-            for cell in [[-0.5, -0.3], [0.0, 0.0], [-0.05, 0.1], [0.06, 0.1], [0.8, 0.95]] {
+            for cell in [
+                [-0.5, -0.3],
+                [0.0, 0.0],
+                [-0.05, 0.1],
+                [0.06, 0.1],
+                [0.8, 0.95],
+            ] {
                 let corner = Corner {
                     correlation: cell,
                     motion: lower,
@@ -742,35 +778,93 @@ mod tests {
     }
 
     /// The bound holds between the lag's grid points: on intervals around the prior, below
-    /// and above it, and on a wide one, the worst case is at least the separation at each of
-    /// 400 lags sampled evenly over the interval, for each bit and two noise levels.
+    /// and above it, and on wide ones, the worst case is at least the separation at each of
+    /// 400 lags sampled evenly over the interval, for each bit and two noise levels, and its
+    /// slack is below a quantum.
     #[test]
     fn the_lag_bound_holds_for_every_lag_in_the_interval() {
         let (model, inputs, view) = three_step_doublet();
         let theta = view.start.value.z;
         for q_std in [1e-3, 4e-3] {
-            let q = Matrix3::from_diagonal(&Vector3::new(q_std * q_std, q_std * q_std, q_std * q_std));
+            let q =
+                Matrix3::from_diagonal(&Vector3::new(q_std * q_std, q_std * q_std, q_std * q_std));
             let estimate = MotionNoiseEstimate::known(q, 0.0, 1e-6);
             let steps = three_step_steps(&estimate);
-            for interval in [[0.0435, 0.0573], [0.0, 0.03], [0.08, 0.12], [0.0, 0.3]] {
+            for interval in [
+                [0.0435, 0.0573],
+                [0.0, 0.03],
+                [0.08, 0.12],
+                [0.0, 0.3],
+                [0.02, 0.5],
+            ] {
                 let bound =
                     three_step_worst_case(&model, &steps, interval, &inputs, &view).unwrap();
                 let k = kron(&q, &Matrix3::identity(), theta);
+                let separation = |lag: f64| {
+                    let at = DoubletModel { lag, ..model };
+                    three_step_separations(&at, &k, true, &inputs, &view).unwrap()
+                };
+                let grid = lag_grid(interval)
+                    .into_iter()
+                    .map(separation)
+                    .fold([0.0_f64; MAX_BITS], |m, d| {
+                        std::array::from_fn(|i| m[i].max(d[i]))
+                    });
                 for i in 0..=400 {
                     let lag = interval[0] + (interval[1] - interval[0]) * f64::from(i) / 400.0;
-                    let at = DoubletModel { lag, ..model };
-                    let d = three_step_separations(&at, &k, true, &inputs, &view).unwrap();
+                    let d = separation(lag);
                     for b in 0..2 {
                         assert!(
-                            d[b] <= bound[b],
-                            "{q_std} {interval:?} τ {lag}: bit {b} {} > {}",
+                            d[b] <= bound[b] * (1.0 + 1e-12)
+                                && bound[b] - grid[b] <= SEPARATION_QUANTUM,
+                            "{q_std} {interval:?} τ {lag}: bit {b} {} > {} (grid {})",
                             d[b],
-                            bound[b]
+                            bound[b],
+                            grid[b]
                         );
                     }
                 }
             }
         }
+    }
+
+    /// Between the grid's points: for separations that peak inside a grid interval (one
+    /// bit a bump of width 0.08 s, the other a sine), the grid's largest alone misses the
+    /// peak, and the bound with its concavity slack is at least every one of 2,000 samples;
+    /// a convex function takes no slack (its largest is at a grid point or an end).
+    #[test]
+    fn the_concavity_slack_covers_a_peak_between_grid_points() {
+        let interval = [0.0, 0.4];
+        let at = |t: f64| -> [f64; MAX_BITS] {
+            let mut d = [0.0; MAX_BITS];
+            d[0] = 1.0 + 0.2 * (-((t - 0.15) / 0.08).powi(2)).exp();
+            d[1] = 1.3 + 0.1 * (t * 13.0).sin();
+            d
+        };
+        let bound = largest_over_lags(interval, |t| Some(at(t))).unwrap();
+        let grid = lag_grid(interval)
+            .into_iter()
+            .map(at)
+            .fold([0.0_f64; MAX_BITS], |m, d| {
+                std::array::from_fn(|i| m[i].max(d[i]))
+            });
+        let samples: Vec<[f64; MAX_BITS]> = (0..=2000)
+            .map(|i| at(interval[0] + (interval[1] - interval[0]) * f64::from(i) / 2000.0))
+            .collect();
+        for b in 0..2 {
+            let peak = samples.iter().map(|d| d[b]).fold(0.0, f64::max);
+            assert!(
+                grid[b] < peak && peak <= bound[b],
+                "bit {b}: {grid:?} {peak} {bound:?}"
+            );
+        }
+        let convex = largest_over_lags(interval, |t| {
+            let mut d = [0.0; MAX_BITS];
+            d[0] = 1.0 + (t - 0.13).powi(2);
+            Some(d)
+        })
+        .unwrap();
+        assert_eq!(convex[0], 1.0 + (0.4_f64 - 0.13).powi(2));
     }
 
     /// Which way ρ moves her: at a fixed `Q`, positive correlation sharpens Eve's view of the
