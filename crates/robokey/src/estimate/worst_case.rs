@@ -72,9 +72,7 @@ use super::motion_noise::{Corner, MotionNoiseEstimate};
 use super::residual::rotation;
 use crate::private::DoubletInputs;
 use crate::private::doublet::MAX_BITS;
-use crate::private::likelihood::{
-    DoubletModel, DoubletView, PoseObservation, separations_by, state_jacobian,
-};
+use crate::private::likelihood::{DoubletModel, DoubletView, separations_by, state_jacobian};
 
 /// The grid a block's worst-case separation is published on: multiples of 2⁻⁸.
 pub const SEPARATION_QUANTUM: f64 = 1.0 / 256.0;
@@ -324,11 +322,7 @@ fn three_step_separations(
     inputs: &DoubletInputs,
     view: &DoubletView,
 ) -> Option<[f64; MAX_BITS]> {
-    let observed: Vec<(usize, &PoseObservation)> = [&view.middle, &view.late, &view.end]
-        .into_iter()
-        .enumerate()
-        .filter_map(|(i, y)| y.as_ref().map(|y| (i, y)))
-        .collect();
+    let observed = view.three_step_observed();
     if observed.is_empty() {
         return None;
     }
@@ -460,18 +454,31 @@ mod tests {
 
     /// The view of a doublet with a turn, both bits, the stated camera.
     fn turning_doublet() -> (DoubletModel, DoubletInputs, DoubletView) {
+        turning_doublet_under(0.0)
+    }
+
+    /// [`turning_doublet`] in private sensing with doublets shaped for `prior_lag` (s; above 0:
+    /// three steps, private sensing, her view of the four instants, the late one at the
+    /// middle's value).
+    fn turning_doublet_under(prior_lag: f64) -> (DoubletModel, DoubletInputs, DoubletView) {
         let mut config = Config::default();
         config.protocol.bits_per_doublet = 2;
+        config.sensing.mode = crate::config::SensingMode::Private;
+        config.private.prior_lag = prior_lag;
         let model = doublet_model(&config);
+        assert_eq!(model.perturbation.settle.is_some(), prior_lag > 0.0);
         let inputs = DoubletInputs {
             first: Unicycle::new(0.1, 0.45),
             second: Unicycle::new(0.1, 0.4),
         };
-        let samples = [
+        let mut samples = vec![
             Pose::new(0.0, 0.0, 0.8),
             Pose::new(0.02, 0.02, 0.9),
             Pose::new(0.03, 0.035, 0.97),
         ];
+        if prior_lag > 0.0 {
+            samples.insert(2, samples[1]);
+        }
         let view = stated_camera_view(
             samples,
             config.sensing.controller_std,
@@ -674,33 +681,6 @@ mod tests {
         assert!(kept.iter().all(|&(_, positive)| positive));
     }
 
-    /// A three-step doublet with a turn, both bits, the stated camera, doublets shaped for
-    /// a 50 ms lag.
-    fn three_step_doublet() -> (DoubletModel, DoubletInputs, DoubletView) {
-        let mut config = Config::default();
-        config.protocol.bits_per_doublet = 2;
-        config.sensing.mode = crate::config::SensingMode::Private;
-        config.private.prior_lag = 0.05;
-        let model = doublet_model(&config);
-        assert!(model.perturbation.settle.is_some());
-        let inputs = DoubletInputs {
-            first: Unicycle::new(0.1, 0.45),
-            second: Unicycle::new(0.1, 0.4),
-        };
-        let samples = [
-            Pose::new(0.0, 0.0, 0.8),
-            Pose::new(0.02, 0.02, 0.9),
-            Pose::new(0.02, 0.02, 0.9),
-            Pose::new(0.03, 0.035, 0.97),
-        ];
-        let view = stated_camera_view(
-            samples,
-            config.sensing.controller_std,
-            config.eve.camera_std,
-        );
-        (model, inputs, view)
-    }
-
     /// `Q ⊗ W` in the world frame at the doublet's heading.
     fn kron(q: &Matrix3<f64>, w: &Matrix3<f64>, theta: f64) -> StepCovariance {
         let h = rotation(theta);
@@ -718,7 +698,7 @@ mod tests {
     /// is the doublet model's own, at lags within and beyond the prior.
     #[test]
     fn white_three_steps_are_the_doublet_models_view() {
-        let (model, inputs, view) = three_step_doublet();
+        let (model, inputs, view) = turning_doublet_under(0.05);
         let q = Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6);
         let h = rotation(view.start.value.z);
         for lag in [0.0, 0.03, 0.05, 0.1] {
@@ -746,7 +726,7 @@ mod tests {
     /// too; and a point cell at ρ = 0 is the white view.
     #[test]
     fn no_member_of_a_cell_gives_eve_a_sharper_three_step_view() {
-        let (model, inputs, view) = three_step_doublet();
+        let (model, inputs, view) = turning_doublet_under(0.05);
         let theta = view.start.value.z;
         let mut rng = stream(7, Purpose::Public, 0);
         for lower in [
@@ -805,7 +785,7 @@ mod tests {
     /// slack is below a quantum.
     #[test]
     fn the_lag_bound_holds_for_every_lag_in_the_interval() {
-        let (model, inputs, view) = three_step_doublet();
+        let (model, inputs, view) = turning_doublet_under(0.05);
         let theta = view.start.value.z;
         for q_std in [1e-3, 4e-3] {
             let q =

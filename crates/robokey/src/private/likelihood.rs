@@ -105,6 +105,18 @@ pub struct DoubletView {
     pub entry: Option<Unicycle>,
 }
 
+impl DoubletView {
+    /// A three-step doublet's observed poses among `x(3j+1), x(3j+2), x(3j+3)`, each with its
+    /// index among the three.
+    pub(crate) fn three_step_observed(&self) -> Vec<(usize, &PoseObservation)> {
+        [&self.middle, &self.late, &self.end]
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, y)| y.as_ref().map(|y| (i, y)))
+            .collect()
+    }
+}
+
 /// The camera Eve's view of a doublet as the controller can model it (never her realised
 /// view): her stated per-instant noise `camera_std` around the controller's own `samples`
 /// `y(Lj) … y(Lj+L)` (`L + 1` of them), fused at the boundaries with the controller's
@@ -376,11 +388,7 @@ impl DoubletModel {
         let cross = |i: usize, k: usize| {
             (i + 1..=k).fold(diagonal[i], |c, step| c * jacobians[step].transpose())
         };
-        let observed: Vec<(usize, &PoseObservation)> = [&view.middle, &view.late, &view.end]
-            .into_iter()
-            .enumerate()
-            .filter_map(|(i, y)| y.as_ref().map(|y| (i, y)))
-            .collect();
+        let observed = view.three_step_observed();
         if observed.is_empty() {
             return Prediction::None;
         }
