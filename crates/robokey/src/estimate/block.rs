@@ -16,7 +16,7 @@
 //! inputs and bits through τ̂, so a doublet whose predecessor was not kept is left out), a
 //! check that a first-order lag explains the doublets' ends as well as their middles (the
 //! dead-time test, [`lag_shape_refusal`]), then Q and ρ (at the other 2ε_est/3), and Eve's
-//! view at the worst case over the corners and a grid of τ's interval
+//! view at the worst case over the corners and every τ of its interval
 //! ([`three_step_worst_case`]).
 
 use std::collections::BTreeMap;
