@@ -8,6 +8,7 @@ use robokey::Config;
 use robokey::estimate::commands_check::sized_block_refusal;
 use robokey::estimate::{
     BlockEstimate, block_separations, check_request, estimate_request, kept_doublet,
+    world_block_separations,
 };
 use robokey::private::DoubletSamples;
 use robokey::sim::{RunOutput, simulate};
@@ -199,6 +200,39 @@ fn the_agents_size_a_lagging_robot_as_the_simulator_does() {
     let [_, low, high] = agents.lag.expect("the lag measured");
     assert!(low <= 0.05 && 0.05 <= high, "{agents:?}");
     assert!(agents.outcome().is_ok());
+}
+
+/// Three-step doublets shaped for the world's lag, at 1 and 4 mm with 20 and 50 ms: the
+/// block's published separation measured (its worst case over τ's interval, the region's
+/// ρ cells and `Q_low`) is never sharper for Eve than the pair configured with the true
+/// world's (its motion noise, white, its lag: `world_block_separations`), and at most
+/// 5 % (1 mm) or 16 % (4 mm) above it — what the lag's interval and the motion noise's region cost on ≈ 2,600
+/// doublets (issue 33's comparison; docs/estimation.md, "The lag").
+#[test]
+fn a_lagging_block_measured_is_never_sharper_than_the_truth_and_near_it() {
+    for (world, lag, slack) in [
+        ("process_std = [0.001, 0.001, 0.001]", 0.02, 0.05),
+        ("process_std = [0.001, 0.001, 0.001]", 0.05, 0.05),
+        ("process_std = [0.004, 0.004, 0.004]", 0.02, 0.16),
+        ("process_std = [0.004, 0.004, 0.004]", 0.05, 0.16),
+    ] {
+        let mut config = parties_in(&format!("{world}\nlag = {lag}"));
+        config.private.prior_lag = lag;
+        let runs: Vec<RunOutput> = (0..8)
+            .map(|r| simulate(&config, r, false).unwrap())
+            .collect();
+        let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+        let (_, measured) = block_separations(&config, &sessions, disclosed(&runs), 1e-6);
+        let (_, truth) = world_block_separations(&config, &sessions, disclosed(&runs), 1e-6);
+        assert_eq!(measured.refused, None, "{world} {lag}");
+        assert!(
+            truth.separation <= measured.separation
+                && measured.separation <= truth.separation * (1.0 + slack),
+            "{world} {lag}: measured {} truth {}",
+            measured.separation,
+            truth.separation
+        );
+    }
 }
 
 /// Multilevel symbols (two dimensions of 4 levels, 4 key bits per doublet): the agents'

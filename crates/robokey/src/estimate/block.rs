@@ -16,7 +16,7 @@
 //! inputs and bits through τ̂, so a doublet whose predecessor was not kept is left out), a
 //! check that a first-order lag explains the doublets' ends as well as their middles (the
 //! dead-time test, [`lag_shape_refusal`]), then Q and ρ (at the other 2ε_est/3), and Eve's
-//! view at the worst case over the corners and a grid of τ's interval
+//! view at the worst case over the corners and every τ of its interval
 //! ([`three_step_worst_case`]).
 
 use std::collections::BTreeMap;
@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 
 use super::lag::{MIN_LAG_DOUBLETS, first_step_share};
 use super::normal_tail::normal_upper_quantile;
-use super::worst_case::{lag_grid, three_step_steps, three_step_worst_case};
+use super::worst_case::{three_step_steps, three_step_worst_case};
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
     estimate_lag, estimate_motion_noise, published_separation, worst_case_separations,
@@ -465,7 +465,7 @@ fn size_block(
     lag: Option<&LagEstimate>,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    let lags = lag.map(|lag| (lag_grid(lag.interval), three_step_steps(estimate)));
+    let lags = lag.map(|lag| (lag.interval, three_step_steps(estimate)));
     let model = doublet_model(config);
     let bits = model.perturbation.key_bits();
     let mut separations = Vec::with_capacity(sessions.len());
@@ -491,7 +491,7 @@ fn size_block(
                         config.sensing.controller_std,
                         config.modelled_camera_std(),
                     );
-                    three_step_worst_case(&model, steps, lags, &b.inputs, &view)
+                    three_step_worst_case(&model, steps, *lags, &b.inputs, &view)
                 }
             };
             match worst {
