@@ -313,16 +313,20 @@ def doublet_llrs(world: World, trace: Trace) -> tuple[np.ndarray, np.ndarray, np
         camera = trace.camera[first + 1 : first + steps].reshape(-1)
         obs = np.concatenate([camera, trace.pose[first + steps], trace.pose[first + count]])
         logp = []
+        jac = np.zeros((3 * count, 5 * count))
         for hypothesis in (0, 1):
             mean = session.run(first, count, hypothesis, latent_mean)
-            jac = np.zeros((3 * count, 5 * count))
-            for c in range(5 * count):
-                h = 1e-6
-                step = np.zeros(5 * count)
-                step[c] = h
-                plus = session.run(first, count, hypothesis, latent_mean + step)
-                minus = session.run(first, count, hypothesis, latent_mean - step)
-                jac[:, c] = (plus - minus) / (2.0 * h)
+            # Forward differences (the map is linear in w but for the heading's turn of the
+            # next steps' travel). Only slip makes the Jacobian depend on the bit (its
+            # columns scale with the wheel speeds); otherwise the first hypothesis's serves.
+            if hypothesis == 0 or world.slip_std > 0.0:
+                for c in range(5 * count):
+                    if c % 5 >= 3 and world.slip_std == 0.0:
+                        continue  # without slip its latent moves nothing
+                    h = 1e-7
+                    step = np.zeros(5 * count)
+                    step[c] = h
+                    jac[:, c] = (session.run(first, count, hypothesis, latent_mean + step) - mean) / h
             g = jac[rows]
             sigma = g @ latent_cov @ g.T
             sigma[: len(interior), : len(interior)] += np.diag(np.tile(world.camera_std**2, steps - 1))
