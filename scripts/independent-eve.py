@@ -2,31 +2,32 @@
 """An independent camera eavesdropper for private sensing (docs/threat-model.md).
 
 It shares no code with robokey's eavesdroppers: it reads the `trace.csv` files that
-`robokey run` writes (the true poses, her camera samples, the public nominal commands, the
-bits) and the run's `config.resolved.toml` (the world's parameters), and computes from first
-principles (docs/world.md for the plant, docs/secrecy.md for the bound) each bit's posterior
-given a **genie-aided** view, then her realised smooth min-entropy of the bits.
+`robokey run` writes (the true poses, the controller's samples, her camera samples, the public
+nominal commands, the bits) and the run's `config.resolved.toml` (the world's parameters), and
+computes from first principles (docs/world.md for the plant, docs/secrecy.md for the bound)
+each bit's posterior given a **genie-aided** view, then her realised smooth min-entropy.
 
-The genie. For the bit of doublet j (steps k = 2j and k + 1) she is given the true pose at
-every sample instant except the doublet's middle one, every other bit, the world's parameters
-and her own camera sample of the middle pose. That is at least as much as robokey's camera
-eavesdropper holds: her camera samples elsewhere and the controller's boundary samples are the
-true poses plus noise independent of the bit (a sample-instant jitter, which moves a sample by
-its time error times the pose's rate, is the one exception, left out: 1–5 ms of jitter move a
-sample by at most 0.1–0.5 mm against her 8 mm camera). Given those poses the plant is a
-linear-Gaussian model of the doublet's two steps, exact up to the heading's linearisation in the
-second step (a second-order term below 0.1 µm at the grid's motion noise):
-
-    x1 = x0 + T·[v₁cos θ0, v₁sin θ0, ω₁] + n0
-    x2 = x1 + T·[v₂cos θ1, v₂sin θ1, ω₂] + n1   ≈ m2 + A·n0 + n1,
-    A  = I + T·v₂·[[0, 0, −sin θ1], [0, 0, cos θ1], [0, 0, 0]]
-
-with (v₁, ω₁) = nominal(k) + a·(Δv, 0), (v₂, ω₂) = nominal(k + 1) − a·(Δv, 0), a = 1 − 2b,
-each wheel's speed rounded to the world's command quantum; n = w + d, w the AR(1) motion
-noise conditioned on the neighbouring steps' noise (which the given poses fix), d the wheels'
-slip (each wheel's travel × (1 + σz): a velocity error whose covariance follows the
-hypothesis's wheel speeds). She observes o = [x1 + e, x2], e ~ N(0, σ_e²), and the bit's
-log-likelihood ratio is ln N(o; μ₀, Σ₀) − ln N(o; μ₁, Σ₁).
+The genie. For the bit of the doublet starting at step k (L = 2 steps, or 3 with a prior lag)
+she is given the true pose at every sample instant outside the doublet's own instants
+k … k + L, every other bit, and the world's parameters; at the doublet's instants she holds
+her camera samples and, at its two boundaries, the controller's samples (`--boundaries
+samples`, the default) or the true poses (`--boundaries true`, a stronger genie). That is at
+least as much as the issue's camera eavesdropper holds (her camera, the controller's boundary
+samples, the public commands): everything else she observes is the true poses elsewhere plus
+noise independent of the bit. She models the doublet's L steps, the step before (from the
+given pose) and the one after (a delay, or a lag other than the prior, carries the bit into
+it), each step with the world's plant (docs/world.md): the wheels' first-order lag τ and
+transport delay D (a period's stretches [0, D) under the previous command, then the new one,
+each with the lag's mean wheel speeds, moving along the heading the period starts with), the
+command quantum, the per-wheel slip as a latent velocity error, the AR(1) motion noise
+conditioned on the neighbouring steps' noise (which the given poses fix), the Euler map. The
+poses are linearised about each hypothesis's noise-free run (forward differences in the noise,
+exact but for the heading's turn of later travel: below 0.1 µm at the grid's noise), so her
+observations are Gaussian under each value of the bit and her log-likelihood ratio is
+ln N(o; μ₀, Σ₀) − ln N(o; μ₁, Σ₁): a Kalman smoother around each doublet, written as the batch
+Gaussian. A sample's jitter j moves it by j·ẋ (ẋ the nominal rate): jitter²·ẋẋᵀ is added to
+the controller sample's covariance. Checked on noise-free traces: the model reproduces the
+simulator's poses to 4 µm under lag, delay and command quantum.
 
 The bound. With P_i her posterior of the true bit i and S = −Σ log₂ P_i her surprisal of the
 true string (the bits' views are independent given the genie), Chernoff's bound gives for any
@@ -34,17 +35,19 @@ true string (the bits' views are independent given the genie), Chernoff's bound 
 (q_i her error probability), so H_min^ε ≥ t = max_λ (−Σ ln E[P_i^λ] − ln(1/ε)) / (λ·ln 2),
 and the key her view supports is ℓ = ⌊t − leak_EC − 128 − 2·log₂(1/ε) + 2⌋⁺ (docs/secrecy.md).
 
-Not covered: three-step doublets and the actuator lag or dead time (`private.prior_lag`,
-`world.lag`, `world.delay`), two bits or multilevel symbols per doublet, continuous
-integration, cameras in frames (`world.camera_fps`); such points are reported as not covered.
+Not covered (reported as such): two bits or multilevel symbols per doublet, continuous
+integration, cameras in frames (`world.camera_fps`), a delay of a period or more.
 
-Usage:
-    python3 scripts/independent-eve.py GRID_FOLDER [--robokey BIN] [--out grid-eve.md]
+Usage (after `robokey sweep experiments/grid.toml -o G` and `robokey secrecy G` with each
+sizing, docs/estimation.md "The grid"):
 
-GRID_FOLDER is a sweep folder after `robokey secrecy` (e.g. of experiments/grid.toml): for
-every point the script simulates sessions with `robokey run` at the point's configuration
-(the same seed, replicates 0, 1, …) until it holds as many bits as the point's block, and
-prints per point her bound beside robokey's camera eavesdropper's realised bound and ℓ.
+    python3 scripts/independent-eve.py G/measured --world G/world --configured G/configured \
+        --robokey target/release/robokey --out G/grid.md
+
+For every point it simulates the block's sessions again with `robokey run` (the sweep's seed,
+replicates 0, 1, … are the sessions `robokey secrecy` pooled), runs her on them and prints per
+point ℓ under each sizing, robokey's camera eavesdropper's realised H_min^ε and ℓ, hers, and
+whether ℓ is within both.
 """
 
 from __future__ import annotations
@@ -84,6 +87,8 @@ class World:
     lag: float
     delay: float
     command_quantum: float
+    jitter: float
+    controller_std: np.ndarray
     camera_std: np.ndarray
 
     @staticmethod
@@ -118,6 +123,8 @@ class World:
             lag=world.get("lag", 0.0),
             delay=world.get("delay", 0.0),
             command_quantum=world.get("command_quantum", 0.0),
+            jitter=world.get("jitter", 0.0),
+            controller_std=np.array(world.get("controller_std", config["sensing"]["controller_std"])),
             camera_std=np.array(world.get("camera_frame_std", config["eve"]["camera_std"])),
         )
 
@@ -177,6 +184,7 @@ class Trace:
     """The columns of one trace.csv the eavesdropper reads."""
 
     pose: np.ndarray
+    measurement: np.ndarray
     camera: np.ndarray
     nominal: np.ndarray
     bit: np.ndarray
@@ -196,6 +204,7 @@ class Trace:
 
         return Trace(
             pose=reals("px", "py", "theta"),
+            measurement=reals("meas_x", "meas_y", "meas_theta"),
             camera=reals("eve_x", "eve_y", "eve_theta"),
             nominal=reals("v_nom", "omega_nom"),
             bit=ints("b"),
@@ -256,15 +265,15 @@ class Session:
             return np.zeros(2)
         return self.world.wheels(nominal[0] + self.offset(k, bit), nominal[1])
 
-    def run(self, first: int, count: int, bit: int, latent: np.ndarray) -> np.ndarray:
-        """Poses x(first + 1 … first + count) from the true x(first), the doublet's steps under
-        `bit`, latent = [w (3), z (2)] per step."""
+    def run(self, doublet: int, first: int, count: int, bit: int, latent: np.ndarray) -> np.ndarray:
+        """Poses x(first + 1 … first + count) from the true x(first), the steps of the doublet
+        starting at `doublet` under `bit`, latent = [w (3), z (2)] per step."""
         world, pose = self.world, self.trace.pose[first]
         speed = self.entry[first]
         previous = self.command[first]
         out = []
         for i, k in enumerate(range(first, first + count)):
-            same_doublet = k - k % world.steps == first
+            same_doublet = k - k % world.steps == doublet
             command = self.applied(k, bit) if same_doublet else self.command[k + 1]
             pieces, speed = world.period_pieces(speed, previous, command)
             pose = world.move(pose, pieces, latent[5 * i : 5 * i + 3], latent[5 * i + 3 : 5 * i + 5])
@@ -276,16 +285,21 @@ class Session:
         """w_k as the given poses fix it (slip-free worlds): x(k+1) − F(x(k), no noise)."""
         if k < 0 or k + 1 > self.last:
             return None
-        return self.trace.pose[k + 1] - self.run(k, 1, self.trace.bit[k], np.zeros(5))
+        return self.trace.pose[k + 1] - self.run(k - k % self.world.steps, k, 1, self.trace.bit[k], np.zeros(5))
 
 
-def doublet_llrs(world: World, trace: Trace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def doublet_llrs(
+    world: World, trace: Trace, boundaries: str = "samples"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per carrying doublet: the true bit, her LLR ln p(o|b=0)/p(o|b=1), robokey's decision.
 
     She models the doublet's L steps and the one after it (a delay or a lag other than the
-    prior carries the bit into it), linearised about each hypothesis's noise-free run; her
-    observations are her camera at the L − 1 interior instants and the given true poses at
-    the doublet's end and one step later.
+    prior carries the bit into it), linearised about each hypothesis's noise-free run. The
+    genie gives her the true pose at every instant but the doublet's own; she observes her
+    camera at the doublet's instants and, at its two boundaries, the controller's samples
+    (`boundaries = "samples"`: the issue's camera eavesdropper's view of the doublet) or the
+    true poses (`"true"`: a stronger genie). A sample's jitter j moves it by j·ẋ: its
+    covariance jitter²·ẋẋᵀ (ẋ the step's nominal rate) is added to the sample's.
     """
     session = Session(world, trace)
     steps, last = world.steps, session.last
@@ -294,42 +308,60 @@ def doublet_llrs(world: World, trace: Trace) -> tuple[np.ndarray, np.ndarray, np
     for first in range(0, last - count + 1, steps):
         if trace.bit[first] < 0:
             continue
+        start = first - 1 if boundaries == "samples" and first > 0 else first
+        n = first + count - start
         mean_w, cov_w = ar1_conditional(
-            world.rho, count, session.noise(first - 1), session.noise(first + count), world.process_std
+            world.rho, n, session.noise(start - 1), session.noise(start + n), world.process_std
         )
         if world.rho == 0.0:
-            mean_w = np.zeros((count, 3))
-        latent_mean = np.zeros(5 * count)
-        latent_cov = np.zeros((5 * count, 5 * count))
-        for i in range(count):
+            mean_w = np.zeros((n, 3))
+        latent_mean = np.zeros(5 * n)
+        latent_cov = np.zeros((5 * n, 5 * n))
+        for i in range(n):
             latent_mean[5 * i : 5 * i + 3] = mean_w[i]
             latent_cov[5 * i + 3 : 5 * i + 5, 5 * i + 3 : 5 * i + 5] = np.eye(2)
-            for j in range(count):
+            for j in range(n):
                 for axis in range(3):
                     latent_cov[5 * i + axis, 5 * j + axis] = cov_w[axis][i, j]
-        interior = [3 * i + a for i in range(steps - 1) for a in range(3)]
-        ends = [3 * i + a for i in (steps - 1, steps) for a in range(3)]
-        rows = interior + ends
-        camera = trace.camera[first + 1 : first + steps].reshape(-1)
-        obs = np.concatenate([camera, trace.pose[first + steps], trace.pose[first + count]])
+        # What she observes: (instant, value, covariance) — every camera sample of the
+        # doublet, the boundaries' controller samples or true poses, the true pose at the end.
+        observed = []
+        for instant in range(start + 1, first + count + 1):
+            if instant == first + count:
+                observed.append((instant, trace.pose[instant], np.zeros((3, 3))))
+                continue
+            observed.append((instant, trace.camera[instant], np.diag(world.camera_std**2)))
+            if instant in (first, first + steps):
+                if boundaries == "samples":
+                    v, omega = trace.nominal[instant - 1]
+                    heading = trace.camera[instant][2]
+                    rate = np.array([v * math.cos(heading), v * math.sin(heading), omega])
+                    spread = np.diag(world.controller_std**2) + world.jitter**2 * np.outer(rate, rate)
+                    observed.append((instant, trace.measurement[instant], spread))
+                else:
+                    observed.append((instant, trace.pose[instant], np.zeros((3, 3))))
+        rows = [3 * (instant - start - 1) + a for instant, _, _ in observed for a in range(3)]
+        obs = np.concatenate([value for _, value, _ in observed])
+        noise = np.zeros((len(rows), len(rows)))
+        for o, (_, _, cov) in enumerate(observed):
+            noise[3 * o : 3 * o + 3, 3 * o : 3 * o + 3] = cov
         logp = []
-        jac = np.zeros((3 * count, 5 * count))
+        jac = np.zeros((3 * n, 5 * n))
         for hypothesis in (0, 1):
-            mean = session.run(first, count, hypothesis, latent_mean)
+            mean = session.run(first, start, n, hypothesis, latent_mean)
             # Forward differences (the map is linear in w but for the heading's turn of the
             # next steps' travel). Only slip makes the Jacobian depend on the bit (its
             # columns scale with the wheel speeds); otherwise the first hypothesis's serves.
             if hypothesis == 0 or world.slip_std > 0.0:
-                for c in range(5 * count):
+                for c in range(5 * n):
                     if c % 5 >= 3 and world.slip_std == 0.0:
                         continue  # without slip its latent moves nothing
                     h = 1e-7
-                    step = np.zeros(5 * count)
+                    step = np.zeros(5 * n)
                     step[c] = h
-                    jac[:, c] = (session.run(first, count, hypothesis, latent_mean + step) - mean) / h
+                    jac[:, c] = (session.run(first, start, n, hypothesis, latent_mean + step) - mean) / h
             g = jac[rows]
-            sigma = g @ latent_cov @ g.T
-            sigma[: len(interior), : len(interior)] += np.diag(np.tile(world.camera_std**2, steps - 1))
+            sigma = g @ latent_cov @ g.T + noise
             r = obs - mean[rows]
             _, logdet = np.linalg.slogdet(sigma)
             logp.append(-0.5 * (r @ np.linalg.solve(sigma, r) + logdet))
@@ -392,7 +424,7 @@ def point_config(folder: Path, out: Path) -> Path:
     return path
 
 
-def collect(robokey: str, config: Path, sets: list[str], bits: int, out: Path):
+def collect(robokey: str, config: Path, sets: list[str], bits: int, out: Path, boundaries: str):
     """Sessions until `bits` carried bits: the truth and her LLRs."""
     truth, llr = [], []
     replicate, world = 0, None
@@ -400,7 +432,7 @@ def collect(robokey: str, config: Path, sets: list[str], bits: int, out: Path):
         folder = simulate(robokey, config, sets, replicate, out)
         if world is None:
             world = World.of(tomllib.loads((folder / "config.resolved.toml").read_text()))
-        t, l, _ = doublet_llrs(world, Trace.read(folder / "trace.csv"))
+        t, l, _ = doublet_llrs(world, Trace.read(folder / "trace.csv"), boundaries)
         truth.append(t)
         llr.append(l)
         replicate += 1
@@ -421,7 +453,9 @@ def blocks(folder: Path) -> dict[tuple[str, str], dict]:
     return found
 
 
-def grid(folder: Path, robokey: str, world: Path | None, configured: Path | None) -> list[dict]:
+def grid(
+    folder: Path, robokey: str, world: Path | None, configured: Path | None, boundaries: str
+) -> list[dict]:
     """Every point of every experiment under `folder` (measured sizing), beside the same
     points sized at the true world and as configured when their folders are given."""
     at_world = blocks(world) if world else {}
@@ -444,7 +478,7 @@ def grid(folder: Path, robokey: str, world: Path | None, configured: Path | None
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp)
             try:
-                truth, llr = collect(robokey, point_config(folder / experiment, out), point_sets(point), block["bits"], out)
+                truth, llr = collect(robokey, point_config(folder / experiment, out), point_sets(point), block["bits"], out, boundaries)
             except NotCovered as why:
                 row["not_covered"] = str(why)
                 rows.append(row)
@@ -502,10 +536,16 @@ def main() -> int:
     parser.add_argument("folder", type=Path, help="a sweep folder after `robokey secrecy --sizing measured`")
     parser.add_argument("--world", type=Path, help="the same sweep after `robokey secrecy --sizing world`")
     parser.add_argument("--configured", type=Path, help="the same sweep after `--sizing configured`")
+    parser.add_argument(
+        "--boundaries",
+        choices=("samples", "true"),
+        default="samples",
+        help="what she holds at each doublet's boundaries: the controller's samples, or the true poses",
+    )
     parser.add_argument("--robokey", default=os.environ.get("ROBOKEY_BIN", "robokey"))
     parser.add_argument("--out", type=Path, help="write the table (markdown) here, its rows beside it (.json)")
     args = parser.parse_args()
-    rows = grid(args.folder, args.robokey, args.world, args.configured)
+    rows = grid(args.folder, args.robokey, args.world, args.configured, args.boundaries)
     text = table(rows)
     print(text)
     if args.out:
