@@ -501,7 +501,9 @@ mod tests {
             lag: Some(0.05),
             ..Default::default()
         });
-        config.validate().expect("a valid lagging world with its prior");
+        config
+            .validate()
+            .expect("a valid lagging world with its prior");
         let out = simulate(&config, 0, true).expect("the session runs");
         let ks: Vec<u32> = out.trace.iter().map(|row| row.k).collect();
         assert_eq!(ks, (0..ks.len() as u32).collect::<Vec<_>>());

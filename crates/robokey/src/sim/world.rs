@@ -240,7 +240,11 @@ impl Surroundings<Robot, Controller> for World<'_> {
                 }
                 // The second nominal input holds over a three-step doublet's last two steps.
                 for k in step..step + robot.plan().steps_per_doublet() {
-                    let nominal = if k == step { inputs.first } else { inputs.second };
+                    let nominal = if k == step {
+                        inputs.first
+                    } else {
+                        inputs.second
+                    };
                     if let Some(row) = self.trace.row(k as usize) {
                         row.nominal = Some(nominal.into());
                     }
