@@ -86,6 +86,9 @@ enum Attack {
     TamperSyndrome,
     /// Multilevel symbols ([`MULTILEVEL`]): forwards everything.
     Multilevel,
+    /// Multilevel symbols with the plant measured ([`MULTILEVEL`], `sizing = measured`):
+    /// forwards everything.
+    MultilevelMeasured,
 }
 
 impl Attack {
@@ -93,7 +96,11 @@ impl Attack {
     fn private(self) -> bool {
         matches!(
             self,
-            Self::TamperEstimate | Self::Ldpc | Self::TamperSyndrome | Self::Multilevel
+            Self::TamperEstimate
+                | Self::Ldpc
+                | Self::TamperSyndrome
+                | Self::Multilevel
+                | Self::MultilevelMeasured
         )
     }
 }
@@ -286,6 +293,10 @@ fn session(
             Attack::Ldpc | Attack::TamperSyndrome => args.extend(LDPC.map(str::to_owned)),
             Attack::Multilevel => {
                 args.extend(LDPC.iter().chain(&MULTILEVEL).map(|&a| a.to_owned()));
+            }
+            Attack::MultilevelMeasured => {
+                args.extend(LDPC.iter().chain(&MULTILEVEL).map(|&a| a.to_owned()));
+                args.extend(["--set", "postprocess.sizing=measured"].map(str::to_owned));
             }
             _ => args.extend(SETTINGS.map(str::to_owned)),
         }
@@ -515,6 +526,44 @@ fn multilevel_sessions_are_reconciled_slice_by_slice_between_the_agents() {
         assert_eq!(r["session_ids"], c["session_ids"]);
         assert_eq!(r["length"], c["length"]);
     }
+    assert_settled_alike(&dir, &pairing);
+}
+
+/// Multilevel symbols with the plant measured: the fine slice's block is held reconciled
+/// until the coarse slice's is; the controller then estimates the plant on whole symbols
+/// once, sizes each slice from it with its own separation, and confirms and commits them in
+/// turn. Both sides report each slice's published separation and the same lengths (the
+/// robot recomputing ℓ from what was carried), and both stores hold the same settled keys.
+#[test]
+fn multilevel_blocks_are_sized_from_the_measured_plant_between_the_agents() {
+    let dir = scratch("store-multilevel-measured");
+    let pairing = pairing(&dir);
+    let (codes, [robot, controller]) = session(&dir, &pairing, 77, Attack::MultilevelMeasured);
+    assert_eq!(codes, [0, 0], "{robot}\n{controller}");
+    let blocks = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().clone();
+    let (robot_blocks, controller_blocks) = (blocks(&robot), blocks(&controller));
+    assert_eq!(controller_blocks.len(), 2, "{controller}");
+    assert_eq!(robot_blocks.len(), 2, "{robot}");
+    // One estimate per slice, of the one block: the same plant, each slice's separation.
+    let estimates = controller["post"]["estimates"].as_array().unwrap();
+    assert_eq!(estimates.len(), 2, "{controller}");
+    assert_eq!(estimates[0]["point_std_mm"], estimates[1]["point_std_mm"]);
+    for (r, c) in robot_blocks.iter().zip(&controller_blocks) {
+        assert_eq!(r["session_ids"], c["session_ids"]);
+        assert_eq!(r["length"], c["length"]);
+        assert!(c["separation"].as_f64().is_some(), "{c}");
+        assert_eq!(r["separation"], c["separation"]);
+    }
+    assert_ne!(
+        controller_blocks[0]["separation"], controller_blocks[1]["separation"],
+        "{controller}"
+    );
+    assert!(
+        controller_blocks
+            .iter()
+            .all(|b| b["length"].as_u64().unwrap() > 0),
+        "{controller}"
+    );
     assert_settled_alike(&dir, &pairing);
 }
 
