@@ -548,20 +548,22 @@ fn multilevel_blocks_are_sized_from_the_measured_plant_between_the_agents() {
     let estimates = controller["post"]["estimates"].as_array().unwrap();
     assert_eq!(estimates.len(), 2, "{controller}");
     assert_eq!(estimates[0]["point_std_mm"], estimates[1]["point_std_mm"]);
+    // Each slice sized from its own published separation; a slice too short for a key (the
+    // fine one of a single session: ℓ = 0) ends alone, the robot never confirming it.
     for (r, c) in robot_blocks.iter().zip(&controller_blocks) {
         assert_eq!(r["session_ids"], c["session_ids"]);
         assert_eq!(r["length"], c["length"]);
         assert!(c["separation"].as_f64().is_some(), "{c}");
-        assert_eq!(r["separation"], c["separation"]);
+        if c["length"].as_u64().unwrap() > 0 {
+            assert_eq!(r["separation"], c["separation"]);
+        }
     }
     assert_ne!(
         controller_blocks[0]["separation"], controller_blocks[1]["separation"],
         "{controller}"
     );
     assert!(
-        controller_blocks
-            .iter()
-            .all(|b| b["length"].as_u64().unwrap() > 0),
+        controller_blocks[1]["length"].as_u64().unwrap() > 0,
         "{controller}"
     );
     assert_settled_alike(&dir, &pairing);
