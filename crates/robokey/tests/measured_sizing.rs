@@ -297,7 +297,8 @@ fn the_agents_size_multilevel_slices_as_the_simulator_does() {
         };
         let per_slice: Vec<u64> = (0..slices).map(slice_disclosed).collect();
         // The lab: one estimate of the block, the commands check, each slice's own.
-        let (separations, mut block) = block_separations(&config, &sessions, disclosed(&runs), 1e-6);
+        let (separations, mut block) =
+            block_separations(&config, &sessions, disclosed(&runs), 1e-6);
         if let Some(why) = sized_block_refusal(&config, &sessions, 1e-6, Some(&block)) {
             block.refuse(why);
         }
@@ -325,13 +326,19 @@ fn the_agents_size_multilevel_slices_as_the_simulator_does() {
                     first_slice(id as u32, slicing, bits, likelihoods, vec![0.0; bits], kept);
                 let robot: Vec<bool> = run.keys.robot.iter().map(|&b| b == 1).collect();
                 for slice in 0..slices {
-                    session = session.advanced(&BitString::from_bools(&slicing.pick(&robot, slice)));
+                    session =
+                        session.advanced(&BitString::from_bools(&slicing.pick(&robot, slice)));
                 }
                 session
             })
             .collect();
         let agents = slice_estimates(&config, &staged, &per_slice, 1e-6);
-        assert_eq!(agents[0].refused.is_some(), refused, "{world}: {:?}", agents[0].refused);
+        assert_eq!(
+            agents[0].refused.is_some(),
+            refused,
+            "{world}: {:?}",
+            agents[0].refused
+        );
         if refused {
             // A refused estimate's NaNs compare unequal: the reasons and outcomes.
             let published = |e: &[BlockEstimate]| -> Vec<_> {

@@ -16,9 +16,8 @@ use super::syndromes::{DecodingStep, Reconciled, SyndromeDecoding};
 use super::{
     AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, KeyReconciliation,
     MAX_BLOCK_SESSIONS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, ReconciledSlices,
-    ReconciliationMethod, RejectReason, Settings, SliceInput, SlicesEstimateRequest,
-    StagedSession, concatenate,
-    dequantise_llr, key_id, quantise_llr, split_sample, tag_context,
+    ReconciliationMethod, RejectReason, Settings, SliceInput, SlicesEstimateRequest, StagedSession,
+    concatenate, dequantise_llr, key_id, quantise_llr, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep};
@@ -927,8 +926,7 @@ impl ControllerPost {
         });
         // Multilevel sessions pooled with their samples: the block is sized on whole
         // symbols once its last slice is reconciled; the lower slices wait.
-        let whole_symbols =
-            !advanced.is_empty() && advanced.iter().all(|s| !s.samples.is_empty());
+        let whole_symbols = !advanced.is_empty() && advanced.iter().all(|s| !s.samples.is_empty());
         if whole_symbols {
             return if advanced.iter().any(|s| s.slice < s.slicing.slices) {
                 self.hold(agreed, outcome)
@@ -1033,11 +1031,13 @@ impl ControllerPost {
         self.last_request = None;
         self.ledger
             .outputs
-            .push_back(Output::SlicesEstimateNeeded(Box::new(SlicesEstimateRequest {
-                block,
-                sessions,
-                disclosed,
-            })));
+            .push_back(Output::SlicesEstimateNeeded(Box::new(
+                SlicesEstimateRequest {
+                    block,
+                    sessions,
+                    disclosed,
+                },
+            )));
     }
 
     /// The shell's estimate of a multilevel block: a refusal (or a count that does not
@@ -1075,9 +1075,11 @@ impl ControllerPost {
             return self.abort(AbortReason::PlantRefused, why);
         }
         let measured = self.ledger.settings.assumption.is_measured();
-        let steps = outcomes
-            .into_iter()
-            .map(|o| o.ok().filter(|_| measured).map(|s| s.min(MAX_SEPARATION_STEPS)));
+        let steps = outcomes.into_iter().map(|o| {
+            o.ok()
+                .filter(|_| measured)
+                .map(|s| s.min(MAX_SEPARATION_STEPS))
+        });
         let Some((block, proposed, pool)) = self.block.take() else {
             return;
         };
@@ -1341,9 +1343,11 @@ impl ControllerPost {
                 sessions.extend(later);
             }
             let why = self.report.as_ref().and_then(|r| r.reason.clone());
-            let others = std::mem::take(&mut self.held)
-                .into_iter()
-                .chain(std::mem::take(&mut self.releasing).into_iter().map(|(h, _)| h));
+            let others = std::mem::take(&mut self.held).into_iter().chain(
+                std::mem::take(&mut self.releasing)
+                    .into_iter()
+                    .map(|(h, _)| h),
+            );
             for held in others {
                 let mut report = held.report.unwrap_or_else(|| empty_report(held.block));
                 report.reason.clone_from(&why);

@@ -66,7 +66,7 @@ pub use message::{AbortReason, Message, RejectReason};
 pub use robokey_codec::DecodeError;
 pub use robot::{Prepared, RobotInput, RobotPost, RobotSnapshot};
 pub use slices::{
-    MAX_KEY_BITS, MAX_SLICES, ReconciledSlices, SliceInput, Slicing, SlicesEstimateRequest,
+    MAX_KEY_BITS, MAX_SLICES, ReconciledSlices, SliceInput, SlicesEstimateRequest, Slicing,
     StagedSession, slice_id,
 };
 pub use soft_values::{LLR_QUANTUM, dequantise_llr, quantise_llr};

@@ -10,8 +10,9 @@ use super::public::PublicRandomness;
 use super::syndromes::SyndromeEncoding;
 use super::{
     AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, KeyReconciliation, MAX_BLOCK_SESSIONS,
-    MAX_QUESTIONS, MAX_SEPARATION_STEPS, MAX_SLICES, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER,
-    ReconciliationMethod, RejectReason, Settings, concatenate, key_id, split_sample, tag_context,
+    MAX_QUESTIONS, MAX_SEPARATION_STEPS, MAX_SLICES, Message, Output, Pool, PostError,
+    ROBOT_TO_CONTROLLER, ReconciliationMethod, RejectReason, Settings, concatenate, key_id,
+    split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::CascadeAlice;
@@ -564,9 +565,10 @@ impl RobotPost {
             self.ledger.spent.extend(r.sessions.iter().copied());
             reports.push(r.report);
         }
-        if let Some(r) = self.reconciling.take_if(|r| {
-            r.block == block || r.sessions.iter().any(|id| sessions.contains(id))
-        }) {
+        if let Some(r) = self
+            .reconciling
+            .take_if(|r| r.block == block || r.sessions.iter().any(|id| sessions.contains(id)))
+        {
             self.ledger.spent.extend(r.sessions.iter().copied());
             reports.push(r.report);
         }

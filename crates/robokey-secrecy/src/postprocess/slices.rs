@@ -260,9 +260,9 @@ mod tests {
     use super::*;
     use crate::cascade::CascadeSchedule;
     use crate::postprocess::{
-        Assumption, BlockReport, ControllerInput, ControllerPost, EstimateOutcome,
-        EstimateRefusal, FinalKey, KeptDoublet, Message, Output, ReconciliationMethod,
-        RobotInput, RobotPost, Settings,
+        Assumption, BlockReport, ControllerInput, ControllerPost, EstimateOutcome, EstimateRefusal,
+        FinalKey, KeptDoublet, Message, Output, ReconciliationMethod, RobotInput, RobotPost,
+        Settings,
     };
     use rand::rngs::ChaCha8Rng;
     use rand::{RngExt, SeedableRng};
@@ -303,7 +303,11 @@ mod tests {
             likelihoods: vec![0; 400 * SLICING.patterns()],
             separations: vec![0.5; 1_600],
             known: BitString::zeros(1_600),
-            samples: if whole { (0..400).map(kept).collect() } else { Vec::new() },
+            samples: if whole {
+                (0..400).map(kept).collect()
+            } else {
+                Vec::new()
+            },
         }
     }
 
@@ -508,7 +512,13 @@ mod tests {
                 assert_eq!(report.length, 0);
             }
         }
-        assert!(ran.controller_reports[0].reason.as_deref().unwrap().contains("the test refuses"));
+        assert!(
+            ran.controller_reports[0]
+                .reason
+                .as_deref()
+                .unwrap()
+                .contains("the test refuses")
+        );
         let snapshot = ran.robot_post.snapshot();
         assert!(snapshot.pool.is_empty() && snapshot.prepared.is_none());
     }
