@@ -491,19 +491,38 @@ fn ldpc_between_the_agents_makes_the_same_key() {
     assert_settled_alike(&dir, &pairing);
 }
 
+/// One multilevel session between the agents (`attack`'s settings, `seed`) in the scratch
+/// folder `name`: both exit 0 and the controller reports two blocks, one per slice. Returns
+/// the folder, the pairing file, the controller's report and both sides' blocks (robot,
+/// controller).
+fn multilevel_session(
+    name: &str,
+    seed: u64,
+    attack: Attack,
+) -> (
+    std::path::PathBuf,
+    String,
+    serde_json::Value,
+    [Vec<serde_json::Value>; 2],
+) {
+    let dir = scratch(name);
+    let pairing = pairing(&dir);
+    let (codes, [robot, controller]) = session(&dir, &pairing, seed, attack);
+    assert_eq!(codes, [0, 0], "{robot}\n{controller}");
+    let blocks = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().clone();
+    let both = [blocks(&robot), blocks(&controller)];
+    assert_eq!(both[1].len(), 2, "{controller}");
+    (dir, pairing, controller, both)
+}
+
 /// Multilevel symbols between the agents: the session's fine slice is a block of its own
 /// under the session's ID, then its coarse slice under the derived slice ID, decoded on the
 /// controller's LLRs given the fine slice's reconciled bits; both sides report the same
 /// blocks, and every key either store holds is held alike by the other.
 #[test]
 fn multilevel_sessions_are_reconciled_slice_by_slice_between_the_agents() {
-    let dir = scratch("store-multilevel");
-    let pairing = pairing(&dir);
-    let (codes, [robot, controller]) = session(&dir, &pairing, 76, Attack::Multilevel);
-    assert_eq!(codes, [0, 0], "{robot}\n{controller}");
-    let blocks = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().clone();
-    let (robot_blocks, controller_blocks) = (blocks(&robot), blocks(&controller));
-    assert_eq!(controller_blocks.len(), 2, "{controller}");
+    let (dir, pairing, controller, [robot_blocks, controller_blocks]) =
+        multilevel_session("store-multilevel", 76, Attack::Multilevel);
     let session = controller["session"].as_str().unwrap().to_owned();
     let id = u32::from_str_radix(&session, 16).unwrap();
     let coarse = format!("{:08x}", robokey_secrecy::postprocess::slice_id(id, 1));
@@ -536,14 +555,9 @@ fn multilevel_sessions_are_reconciled_slice_by_slice_between_the_agents() {
 /// robot recomputing ℓ from what was carried), and both stores hold the same settled keys.
 #[test]
 fn multilevel_blocks_are_sized_from_the_measured_plant_between_the_agents() {
-    let dir = scratch("store-multilevel-measured");
-    let pairing = pairing(&dir);
-    let (codes, [robot, controller]) = session(&dir, &pairing, 77, Attack::MultilevelMeasured);
-    assert_eq!(codes, [0, 0], "{robot}\n{controller}");
-    let blocks = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().clone();
-    let (robot_blocks, controller_blocks) = (blocks(&robot), blocks(&controller));
-    assert_eq!(controller_blocks.len(), 2, "{controller}");
-    assert_eq!(robot_blocks.len(), 2, "{robot}");
+    let (dir, pairing, controller, [robot_blocks, controller_blocks]) =
+        multilevel_session("store-multilevel-measured", 77, Attack::MultilevelMeasured);
+    assert_eq!(robot_blocks.len(), 2, "{robot_blocks:?}");
     // One estimate per slice, of the one block: the same plant, each slice's separation.
     let estimates = controller["post"]["estimates"].as_array().unwrap();
     assert_eq!(estimates.len(), 2, "{controller}");

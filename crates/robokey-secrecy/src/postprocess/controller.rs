@@ -955,9 +955,6 @@ impl ControllerPost {
     /// A lower slice reconciled: held (nothing sent; the robot holds it when the next slice
     /// is proposed), its sessions' next slices computed by the shell.
     fn hold(&mut self, agreed: Agreed, outcome: Reconciled) {
-        let Some((block, proposed, pool)) = self.block.take() else {
-            return;
-        };
         let sessions = agreed
             .sessions
             .iter()
@@ -968,16 +965,11 @@ impl ControllerPost {
             .values()
             .flat_map(StagedSession::later_ids)
             .collect();
-        self.held.push(HeldSlice {
-            block,
-            proposed,
-            pool,
-            agreed,
-            outcome,
-            report: self.report.take(),
-            separation: self.block_separation,
-            sessions,
-        });
+        let Some(held) = self.take_block(agreed, outcome, sessions) else {
+            return;
+        };
+        let block = held.block;
+        self.held.push(held);
         // A crash now aborts the block's every slice: the held ones and those to come.
         let mut group = self.group_sessions(&[]);
         group.extend(later);
@@ -997,6 +989,27 @@ impl ControllerPost {
                 .outputs
                 .push_back(Output::SliceReconciled(Box::new(next)));
         }
+    }
+
+    /// The block in flight, reconciled, taken out to be held or released (`sessions`: the
+    /// sessions its slices belong to).
+    fn take_block(
+        &mut self,
+        agreed: Agreed,
+        outcome: Reconciled,
+        sessions: Vec<u32>,
+    ) -> Option<HeldSlice> {
+        let (block, proposed, pool) = self.block.take()?;
+        Some(HeldSlice {
+            block,
+            proposed,
+            pool,
+            agreed,
+            outcome,
+            report: self.report.take(),
+            separation: self.block_separation,
+            sessions,
+        })
     }
 
     /// The last slice reconciled: the shell estimates the block on whole symbols, every
@@ -1080,18 +1093,8 @@ impl ControllerPost {
                 .filter(|_| measured)
                 .map(|s| s.min(MAX_SEPARATION_STEPS))
         });
-        let Some((block, proposed, pool)) = self.block.take() else {
+        let Some(last) = self.take_block(agreed, outcome, Vec::new()) else {
             return;
-        };
-        let last = HeldSlice {
-            block,
-            proposed,
-            pool,
-            agreed,
-            outcome,
-            report: self.report.take(),
-            separation: self.block_separation,
-            sessions: Vec::new(),
         };
         self.releasing = std::mem::take(&mut self.held)
             .into_iter()
