@@ -111,7 +111,8 @@ def session(a, d, index, kill=None):
     faults = ["--delay", "2"] if kill else a.faults
     relay, relay_text = start(["relay", "--listen", "127.0.0.1:0", "--forward",
                                address_after(robot_text, "listening on "), "--seed", str(index),
-                               "--idle-exit", "3", "--capture", f"{d}/capture.pcap"] + faults,
+                               "--idle-exit", str(a.silence_timeout + 1),
+                               "--capture", f"{d}/capture.pcap"] + faults,
                               f"{d}/relay.out")
     controller_args = ["controller", "--robot", address_after(relay_text, "on "),
                        "--store", os.path.join(a.out, "controller"),
@@ -329,9 +330,10 @@ def main():
     p.add_argument("--eve", action="store_true")
     p.add_argument("--robot-world", metavar="PRESET|FILE",
                    help="the robot agent's simulated world (robot --world); Eve is given it")
-    p.add_argument("--silence-timeout", type=float, default=2,
-                   help="both agents' --silence-timeout (s): longer than the controller's "
-                        "block-time estimate (a multilevel block's takes seconds)")
+    p.add_argument("--silence-timeout", type=int, default=2,
+                   help="both agents' --silence-timeout (s; the relay outlives it by 1 s): "
+                        "longer than the controller's block-time estimate (a multilevel "
+                        "block's takes seconds)")
     p.add_argument("--summary-only", action="store_true")
     p.add_argument("faults", nargs="*")
     a = p.parse_args()

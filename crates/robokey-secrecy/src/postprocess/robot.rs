@@ -113,7 +113,7 @@ pub struct RobotPost {
     /// estimated (docs/postprocessing.md, "Multilevel slices"); at most `MAX_SLICES − 1`,
     /// the oldest beyond them dropped with its sessions spent. Not durable, as the block
     /// being reconciled.
-    held: Vec<Box<Reconciling>>,
+    held: Vec<Reconciling>,
     prepared: Option<Prepared>,
 }
 
@@ -261,10 +261,7 @@ impl RobotPost {
         if self.reconciling.as_ref().is_some_and(|r| r.block == block) {
             return self.reconciling.as_deref_mut();
         }
-        self.held
-            .iter_mut()
-            .find(|r| r.block == block)
-            .map(|r| &mut **r)
+        self.held.iter_mut().find(|r| r.block == block)
     }
 
     /// The block `block` being reconciled or held, taken out.
@@ -273,7 +270,7 @@ impl RobotPost {
             return Some(r);
         }
         let at = self.held.iter().position(|r| r.block == block)?;
-        Some(self.held.remove(at))
+        Some(Box::new(self.held.remove(at)))
     }
 
     fn on_propose(
@@ -300,7 +297,7 @@ impl RobotPost {
         // later); the oldest beyond what one block's slices need is dropped, its sessions
         // spent (they were disclosed).
         if let Some(old) = self.reconciling.take() {
-            self.held.push(old);
+            self.held.push(*old);
             if self.held.len() >= MAX_SLICES {
                 let oldest = self.held.remove(0);
                 self.ledger.spent.extend(oldest.sessions);
