@@ -167,6 +167,8 @@ struct HeldSlice {
     separation: u64,
     /// The sessions its slices belong to (slice 0's IDs), in block order.
     sessions: Vec<u32>,
+    /// The pool IDs of its sessions' later slices.
+    later: Vec<u32>,
 }
 
 /// What the controller waits for.
@@ -417,7 +419,11 @@ impl ControllerPost {
                         }
                     }
                 }
-                self.maybe_propose();
+                if self.slice_group.is_empty() && !self.held.is_empty() {
+                    self.abort_held();
+                } else {
+                    self.maybe_propose();
+                }
                 if let Some(e) = first_error {
                     return Err(e);
                 }
@@ -965,9 +971,10 @@ impl ControllerPost {
             .values()
             .flat_map(StagedSession::later_ids)
             .collect();
-        let Some(held) = self.take_block(agreed, outcome, sessions) else {
+        let Some(mut held) = self.take_block(agreed, outcome, sessions) else {
             return;
         };
+        held.later.clone_from(&later);
         let block = held.block;
         self.held.push(held);
         // A crash now aborts the block's every slice: the held ones and those to come.
@@ -991,6 +998,24 @@ impl ControllerPost {
         }
     }
 
+    /// No next slice of held slices could be pooled: the held block ends as refused (its
+    /// `Abort` lists every slice's sessions; the robot drops what it holds of them).
+    fn abort_held(&mut self) {
+        let Some(last) = self.held.pop() else {
+            return;
+        };
+        // Its sessions' later slices end with it.
+        let mut sessions = last.proposed;
+        sessions.extend(last.later);
+        self.block = Some((last.block, sessions, last.pool));
+        self.report = last.report;
+        self.abort(
+            AbortReason::Refused,
+            "no next slice of the block could be pooled: its symbols cannot be estimated whole"
+                .into(),
+        );
+    }
+
     /// The block in flight, reconciled, taken out to be held or released (`sessions`: the
     /// sessions its slices belong to).
     fn take_block(
@@ -1009,6 +1034,7 @@ impl ControllerPost {
             report: self.report.take(),
             separation: self.block_separation,
             sessions,
+            later: Vec::new(),
         })
     }
 

@@ -340,7 +340,7 @@ mod tests {
     /// every reconciled slice with the robot's bits of the next one (checking that the
     /// endpoint handed it the robot's bits of the reconciled one). Returns both sides' keys,
     /// the blocks reconciled and the robot.
-    fn run(estimates: Estimates, tamper: impl Fn(&mut Message)) -> Ran {
+    fn run(estimates: Estimates, next_fits: bool, tamper: impl Fn(&mut Message)) -> Ran {
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         let pool = sessions(&mut rng);
         let settings = Settings {
@@ -413,19 +413,23 @@ mod tests {
                                 for i in (0..1_600).filter(|&i| SLICING.slice_of(i) == 0) {
                                     assert_eq!(next.known.get(i), reference.get(i), "bit {i}");
                                 }
+                                // A shell's slice that does not fit: one bit too few.
+                                let mut bits = bits_of(reference, 1);
+                                if !next_fits {
+                                    bits = BitString::from_bools(&vec![false; bits.len() - 1]);
+                                }
                                 SliceInput {
-                                    bits: bits_of(reference, 1),
+                                    bits,
                                     llrs: Vec::new(),
                                     staged: next.clone(),
                                 }
                             })
                             .collect();
-                        controller
-                            .handle_input(ControllerInput::NextSlices {
-                                block: r.block,
-                                slices,
-                            })
-                            .unwrap();
+                        let pooled = controller.handle_input(ControllerInput::NextSlices {
+                            block: r.block,
+                            slices,
+                        });
+                        assert_eq!(pooled.is_ok(), next_fits, "{pooled:?}");
                     }
                     _ => {}
                 }
@@ -480,7 +484,7 @@ mod tests {
     /// outcome (the robot recomputing ℓ from what was carried), the same on both sides.
     #[test]
     fn held_slices_are_keyed_after_the_blocks_estimate() {
-        let ran = run(Some(sized), |_| {});
+        let ran = run(Some(sized), true, |_| {});
         assert_eq!(ran.controller, ran.robot);
         assert_eq!(ran.reconciled, vec![0, 2]);
         // No key of a block before its estimate: none at the first, two at the second.
@@ -501,7 +505,7 @@ mod tests {
     /// refusal in every slice's report on both sides, and spends its sessions.
     #[test]
     fn a_refused_multilevel_block_writes_no_key() {
-        let ran = run(Some(refused), |_| {});
+        let ran = run(Some(refused), true, |_| {});
         assert!(ran.controller.is_empty() && ran.robot.is_empty());
         assert_eq!(ran.keys_at_estimates, vec![0, 0]);
         for reports in [&ran.controller_reports, &ran.robot_reports] {
@@ -523,11 +527,28 @@ mod tests {
         assert!(snapshot.pool.is_empty() && snapshot.prepared.is_none());
     }
 
+    /// No next slice of held slices can be pooled (the shell's do not fit): the held block
+    /// ends refused, no key on either side, the robot dropping what it holds; the next
+    /// sessions' block fares the same, and nothing stays pooled.
+    #[test]
+    fn held_slices_without_a_next_slice_end_the_block() {
+        let ran = run(Some(sized), false, |_| {});
+        assert!(ran.controller.is_empty() && ran.robot.is_empty());
+        assert!(ran.keys_at_estimates.is_empty());
+        for report in &ran.controller_reports {
+            let why = report.reason.as_deref().unwrap_or_default();
+            assert!(why.contains("no next slice"), "{why}");
+        }
+        assert_eq!(ran.controller_reports.len(), 2);
+        let snapshot = ran.robot_post.snapshot();
+        assert!(snapshot.pool.is_empty(), "{:?}", snapshot.pool);
+    }
+
     /// A held slice's tag changed in flight as it is confirmed: the block ends without a key
     /// of any slice on either side; the next sessions' block is keyed.
     #[test]
     fn a_tampered_held_slice_ends_the_block() {
-        let ran = run(Some(sized), |m| {
+        let ran = run(Some(sized), true, |m| {
             if let Message::Confirmed { block: 0, tag } = m {
                 tag[0] ^= 1;
             }
@@ -547,7 +568,7 @@ mod tests {
             robot,
             reconciled,
             ..
-        } = run(None, |_| {});
+        } = run(None, true, |_| {});
         assert_eq!(reconciled, vec![0, 2]);
         assert_eq!(controller, robot);
         let blocks: Vec<(u64, Vec<u32>)> = controller
@@ -578,7 +599,7 @@ mod tests {
             robot,
             reconciled,
             ..
-        } = run(None, |m| {
+        } = run(None, true, |m| {
             if let Message::Propose {
                 block: 1, sessions, ..
             } = m
@@ -603,7 +624,7 @@ mod tests {
             reconciled,
             robot_post,
             ..
-        } = run(None, |m| {
+        } = run(None, true, |m| {
             if let Message::Confirmed { block: 0, tag } = m {
                 tag[0] ^= 1;
             }
