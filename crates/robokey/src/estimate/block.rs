@@ -623,18 +623,34 @@ fn with_bits(
 /// level ε_est ([`commands_check::block_refusal`]), whose refusal is added to the block's.
 #[must_use]
 pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64) -> BlockEstimate {
+    request_separations(config, request, epsilon).1
+}
+
+/// [`estimate_request`] with each session's bits' worst-case separations (as
+/// [`block_separations`] gives them; none when the request does not match its samples):
+/// what sizes each slice of a multilevel block ([`BlockEstimate::for_slice`]).
+#[must_use]
+pub fn request_separations(
+    config: &Config,
+    request: &EstimateRequest,
+    epsilon: f64,
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     match request_sessions(config, request) {
         Ok(sessions) => {
             let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
-            let mut estimate = block_separations(config, &views, request.disclosed, epsilon).1;
+            let (separations, mut estimate) =
+                block_separations(config, &views, request.disclosed, epsilon);
             if let Some(why) =
                 commands_check::sized_block_refusal(config, &views, epsilon, Some(&estimate))
             {
                 estimate.refuse(why);
             }
-            estimate
+            (separations, estimate)
         }
-        Err(why) => BlockEstimate::refused(format!("motion-noise estimate: {why}"), 0, epsilon),
+        Err(why) => (
+            Vec::new(),
+            BlockEstimate::refused(format!("motion-noise estimate: {why}"), 0, epsilon),
+        ),
     }
 }
 

@@ -24,7 +24,7 @@ pub mod worst_case;
 
 pub use block::{
     BlockEstimate, block_separations, check_request, estimate_request, kept_doublet,
-    world_block_separations,
+    request_separations, world_block_separations,
 };
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
