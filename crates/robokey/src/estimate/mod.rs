@@ -20,6 +20,7 @@ pub mod motion_noise;
 mod normal_tail;
 pub mod residual;
 pub mod slip;
+mod symmetric_coordinates;
 pub mod worst_case;
 
 pub use block::{

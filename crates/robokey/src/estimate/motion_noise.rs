@@ -37,6 +37,7 @@ use super::homogeneity::{ClassDeparture, speed_class_departure};
 use super::normal_tail::normal_upper_quantile;
 use super::residual::{AXES, DoubletResidual};
 use super::slip::{SlipEstimate, estimate_slip};
+use super::symmetric_coordinates::{ENTRIES, coordinates, symmetric};
 
 /// Least residuals of each parity the bounds are computed from.
 pub const MIN_DOUBLETS_PER_PARITY: usize = 100;
@@ -205,22 +206,6 @@ pub enum EstimationRefusal {
     /// ε_est outside (0, 1).
     #[error("motion-noise estimate: ε_est {0} (allowed: (0, 1))")]
     Epsilon(f64),
-}
-
-/// The entries `(i, j)` of a symmetric 3×3 matrix, in the order of its six coordinates.
-pub(super) const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
-
-pub(super) fn coordinates(m: &Matrix3<f64>) -> Vector6<f64> {
-    Vector6::from_iterator(ENTRIES.iter().map(|&(i, j)| 0.5 * (m[(i, j)] + m[(j, i)])))
-}
-
-pub(super) fn symmetric(q: &Vector6<f64>) -> Matrix3<f64> {
-    let mut m = Matrix3::zeros();
-    for (&(i, j), &v) in ENTRIES.iter().zip(q.iter()) {
-        m[(i, j)] = v;
-        m[(j, i)] = v;
-    }
-    m
 }
 
 /// `𝓛̄_ρ` as a 6×6 matrix on the coordinates: column k is `𝓛̄_ρ(E_k)`, the mean motion

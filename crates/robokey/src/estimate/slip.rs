@@ -24,7 +24,7 @@
 use nalgebra::{Matrix3, SMatrix, SVector};
 
 use super::correlation::{MAX_BATCHES, MIN_PAIRS_PER_BATCH};
-use super::motion_noise::{ENTRIES, coordinates, symmetric};
+use super::symmetric_coordinates::{ENTRIES, coordinates, symmetric};
 use super::normal_tail::normal_upper_quantile;
 use super::residual::DoubletResidual;
 
