@@ -10,6 +10,10 @@ const FIELDS: &[(&str, &str)] = &[
     ("robot.D", "m: axle length"),
     ("robot.wheel_limit", "rad/s: the plant's wheel speed limit"),
     (
+        "robot.command_quantum",
+        "rad/s: the stated resolution each wheel's command rounds to (0: none; ≤ 1)",
+    ),
+    (
         "noise.process_std",
         "[m, m, rad] per step: true process noise std",
     ),
