@@ -1685,9 +1685,11 @@ mod tests {
             }
         }
         let private = "[sensing]\nmode = \"private\"\n";
-        let stated =
-            Config::from_toml(&format!("{private}[robot]\ncommand_quantum = 0.0323\n"), "t")
-                .unwrap();
+        let stated = Config::from_toml(
+            &format!("{private}[robot]\ncommand_quantum = 0.0323\n"),
+            "t",
+        )
+        .unwrap();
         let plain = Config::from_toml(private, "t").unwrap();
         let line = "robot.command_quantum = 0.0323\n";
         assert!(crate::protocol::agreement_terms(&stated).contains(line));

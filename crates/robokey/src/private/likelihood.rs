@@ -427,8 +427,7 @@ impl DoubletModel {
     #[must_use]
     pub fn step_offsets(&self, inputs: &DoubletInputs, pattern: Option<usize>) -> [Unicycle; 3] {
         let offsets = pattern.map_or([Unicycle::zeros(); 3], |h| {
-            self.perturbation
-                .step_offsets(self.perturbation.offset(h))
+            self.perturbation.step_offsets(self.perturbation.offset(h))
         });
         inputs.rounded(offsets, self.rounding.as_ref())
     }
