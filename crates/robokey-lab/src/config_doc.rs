@@ -241,6 +241,7 @@ mod tests {
         let mut config = Config::default();
         // Printed only when set.
         config.postprocess.assumed_eve_error = Some(0.2);
+        config.robot.command_quantum = 0.0323;
         config.postprocess.sizing = robokey::config::Sizing::Measured;
         config.postprocess.reconciliation = robokey::config::Reconciliation::Ldpc;
         config.protocol.levels = 4;
