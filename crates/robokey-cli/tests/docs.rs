@@ -268,8 +268,8 @@ const SECTIONS: [&str; 12] = [
     "postprocess",
     "private",
 ];
-const FILE_EXTENSIONS: [&str; 10] = [
-    "svg", "png", "pdf", "csv", "json", "key", "toml", "md", "rs", "pcap",
+const FILE_EXTENSIONS: [&str; 12] = [
+    "svg", "png", "pdf", "csv", "json", "key", "toml", "md", "rs", "pcap", "py", "sh",
 ];
 
 /// Every `section.field` in `span` (a section name that starts a word, a field that is not

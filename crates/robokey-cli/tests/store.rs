@@ -86,6 +86,9 @@ enum Attack {
     TamperSyndrome,
     /// Multilevel symbols ([`MULTILEVEL`]): forwards everything.
     Multilevel,
+    /// Multilevel symbols with the plant measured ([`MULTILEVEL`], `sizing = measured`):
+    /// forwards everything.
+    MultilevelMeasured,
 }
 
 impl Attack {
@@ -93,7 +96,11 @@ impl Attack {
     fn private(self) -> bool {
         matches!(
             self,
-            Self::TamperEstimate | Self::Ldpc | Self::TamperSyndrome | Self::Multilevel
+            Self::TamperEstimate
+                | Self::Ldpc
+                | Self::TamperSyndrome
+                | Self::Multilevel
+                | Self::MultilevelMeasured
         )
     }
 }
@@ -286,6 +293,10 @@ fn session(
             Attack::Ldpc | Attack::TamperSyndrome => args.extend(LDPC.map(str::to_owned)),
             Attack::Multilevel => {
                 args.extend(LDPC.iter().chain(&MULTILEVEL).map(|&a| a.to_owned()));
+            }
+            Attack::MultilevelMeasured => {
+                args.extend(LDPC.iter().chain(&MULTILEVEL).map(|&a| a.to_owned()));
+                args.extend(["--set", "postprocess.sizing=measured"].map(str::to_owned));
             }
             _ => args.extend(SETTINGS.map(str::to_owned)),
         }
@@ -480,19 +491,38 @@ fn ldpc_between_the_agents_makes_the_same_key() {
     assert_settled_alike(&dir, &pairing);
 }
 
+/// One multilevel session between the agents (`attack`'s settings, `seed`) in the scratch
+/// folder `name`: both exit 0 and the controller reports two blocks, one per slice. Returns
+/// the folder, the pairing file, the controller's report and both sides' blocks (robot,
+/// controller).
+fn multilevel_session(
+    name: &str,
+    seed: u64,
+    attack: Attack,
+) -> (
+    std::path::PathBuf,
+    String,
+    serde_json::Value,
+    [Vec<serde_json::Value>; 2],
+) {
+    let dir = scratch(name);
+    let pairing = pairing(&dir);
+    let (codes, [robot, controller]) = session(&dir, &pairing, seed, attack);
+    assert_eq!(codes, [0, 0], "{robot}\n{controller}");
+    let blocks = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().clone();
+    let both = [blocks(&robot), blocks(&controller)];
+    assert_eq!(both[1].len(), 2, "{controller}");
+    (dir, pairing, controller, both)
+}
+
 /// Multilevel symbols between the agents: the session's fine slice is a block of its own
 /// under the session's ID, then its coarse slice under the derived slice ID, decoded on the
 /// controller's LLRs given the fine slice's reconciled bits; both sides report the same
 /// blocks, and every key either store holds is held alike by the other.
 #[test]
 fn multilevel_sessions_are_reconciled_slice_by_slice_between_the_agents() {
-    let dir = scratch("store-multilevel");
-    let pairing = pairing(&dir);
-    let (codes, [robot, controller]) = session(&dir, &pairing, 76, Attack::Multilevel);
-    assert_eq!(codes, [0, 0], "{robot}\n{controller}");
-    let blocks = |r: &serde_json::Value| r["post"]["blocks"].as_array().unwrap().clone();
-    let (robot_blocks, controller_blocks) = (blocks(&robot), blocks(&controller));
-    assert_eq!(controller_blocks.len(), 2, "{controller}");
+    let (dir, pairing, controller, [robot_blocks, controller_blocks]) =
+        multilevel_session("store-multilevel", 76, Attack::Multilevel);
     let session = controller["session"].as_str().unwrap().to_owned();
     let id = u32::from_str_radix(&session, 16).unwrap();
     let coarse = format!("{:08x}", robokey_secrecy::postprocess::slice_id(id, 1));
@@ -515,6 +545,41 @@ fn multilevel_sessions_are_reconciled_slice_by_slice_between_the_agents() {
         assert_eq!(r["session_ids"], c["session_ids"]);
         assert_eq!(r["length"], c["length"]);
     }
+    assert_settled_alike(&dir, &pairing);
+}
+
+/// Multilevel symbols with the plant measured: the fine slice's block is held reconciled
+/// until the coarse slice's is; the controller then estimates the plant on whole symbols
+/// once, sizes each slice from it with its own separation, and confirms and commits them in
+/// turn. Both sides report each slice's published separation and the same lengths (the
+/// robot recomputing ℓ from what was carried), and both stores hold the same settled keys.
+#[test]
+fn multilevel_blocks_are_sized_from_the_measured_plant_between_the_agents() {
+    let (dir, pairing, controller, [robot_blocks, controller_blocks]) =
+        multilevel_session("store-multilevel-measured", 77, Attack::MultilevelMeasured);
+    assert_eq!(robot_blocks.len(), 2, "{robot_blocks:?}");
+    // One estimate per slice, of the one block: the same plant, each slice's separation.
+    let estimates = controller["post"]["estimates"].as_array().unwrap();
+    assert_eq!(estimates.len(), 2, "{controller}");
+    assert_eq!(estimates[0]["point_std_mm"], estimates[1]["point_std_mm"]);
+    // Each slice sized from its own published separation; a slice too short for a key (the
+    // fine one of a single session: ℓ = 0) ends alone, the robot never confirming it.
+    for (r, c) in robot_blocks.iter().zip(&controller_blocks) {
+        assert_eq!(r["session_ids"], c["session_ids"]);
+        assert_eq!(r["length"], c["length"]);
+        assert!(c["separation"].as_f64().is_some(), "{c}");
+        if c["length"].as_u64().unwrap() > 0 {
+            assert_eq!(r["separation"], c["separation"]);
+        }
+    }
+    assert_ne!(
+        controller_blocks[0]["separation"], controller_blocks[1]["separation"],
+        "{controller}"
+    );
+    assert!(
+        controller_blocks[1]["length"].as_u64().unwrap() > 0,
+        "{controller}"
+    );
     assert_settled_alike(&dir, &pairing);
 }
 

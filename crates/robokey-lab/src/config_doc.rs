@@ -149,7 +149,7 @@ const FIELDS: &[(&str, &str)] = &[
     ),
     (
         "postprocess.sizing",
-        "private sensing: \"configured\" (default) or \"measured\" (binary symbols: levels 2) — what sizes the agents' keys (docs/estimation.md)",
+        "private sensing: \"configured\" (default) or \"measured\" — what sizes the agents' keys (multilevel slices sized together on whole symbols; docs/estimation.md)",
     ),
     (
         "postprocess.reconciliation",

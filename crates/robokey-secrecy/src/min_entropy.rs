@@ -191,10 +191,19 @@ pub fn posterior_smooth_min_entropy(
 /// (no bound).
 pub(crate) fn chernoff_lower_quantile(ln_mgf: impl Fn(f64) -> f64, epsilon: f64) -> (f64, f64) {
     let ln_inv_eps = -epsilon.ln();
+    // The golden-section points often land on a λ already evaluated, bit for bit (about a
+    // third of them): each λ's `t` is computed once and looked up after.
+    let evaluated = std::cell::RefCell::new(Vec::<(u64, f64)>::with_capacity(160));
     // A λ whose moment underflowed proves nothing: −∞, never +∞.
     let t_of = |lambda: f64| {
+        let key = lambda.to_bits();
+        if let Some(&(_, t)) = evaluated.borrow().iter().find(|(k, _)| *k == key) {
+            return t;
+        }
         let t = (-ln_mgf(lambda) - ln_inv_eps) / lambda;
-        if t.is_finite() { t } else { f64::NEG_INFINITY }
+        let t = if t.is_finite() { t } else { f64::NEG_INFINITY };
+        evaluated.borrow_mut().push((key, t));
+        t
     };
     let grid: Vec<f64> = (0..=70)
         .map(|i| 10f64.powf(-4.0 + 7.0 * f64::from(i) / 70.0))
@@ -432,6 +441,29 @@ mod tests {
                 .product();
             assert!((p - direct).abs() < 1e-15);
         }
+    }
+
+    /// The search evaluates each λ once: the golden-section points that land on one
+    /// already evaluated are looked up, and the result is what evaluating them again gives.
+    #[test]
+    fn the_chernoff_search_evaluates_each_lambda_once() {
+        let calls = std::cell::RefCell::new(Vec::new());
+        let ln_mgf = |lambda: f64| -> f64 {
+            calls.borrow_mut().push(lambda.to_bits());
+            // A sum of 200 Bernoulli surprisals, q = 0.1, in log space.
+            let mu = lambda / std::f64::consts::LN_2;
+            200.0 * ln_add_exp((1.0 + mu) * 0.9_f64.ln(), (1.0 + mu) * 0.1_f64.ln())
+        };
+        let (t, lambda) = chernoff_lower_quantile(ln_mgf, 1e-6);
+        let mut distinct = calls.borrow().clone();
+        let evaluations = distinct.len();
+        distinct.sort_unstable();
+        distinct.dedup();
+        assert_eq!(distinct.len(), evaluations, "a λ evaluated twice");
+        // 71 grid points, 2 per golden-section round, the final λ: fewer when some repeat.
+        assert!(evaluations < 71 + 2 * 40 + 1, "{evaluations} evaluations");
+        let direct = (-ln_mgf(lambda) - 1e-6_f64.ln().abs()) / lambda;
+        assert!(t >= direct, "{t} < {direct} at λ = {lambda}");
     }
 
     #[test]

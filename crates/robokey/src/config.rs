@@ -1079,33 +1079,11 @@ impl Config {
                     allowed: e.allowed,
                 })?;
         }
-        if self.protocol.levels > 2 && self.sensing.mode == SensingMode::Private {
-            self.validate_multilevel()?;
-        }
         if !(1..=MAX_REPLICATES).contains(&self.run.replicates) {
             return Err(invalid(
                 "run.replicates",
                 self.run.replicates,
                 &format!("1 to {MAX_REPLICATES}"),
-            ));
-        }
-        Ok(())
-    }
-
-    /// What multilevel doublets (`protocol.levels > 2`) refuse: the agents' measured sizing
-    /// (`postprocess.sizing`; the agents key each slice as it reconciles, while the block's
-    /// estimate subtracts whole symbols, which need every slice's bits — the lab's
-    /// `robokey secrecy --sizing measured` sizes them, docs/estimation.md, "Multilevel
-    /// symbols"). Every world is accepted: where doublets are not screened the eavesdroppers'
-    /// window smoother judges symbols (docs/world.md, "Multilevel symbols").
-    fn validate_multilevel(&self) -> Result<(), ConfigError> {
-        if self.postprocess.sizing == Sizing::Measured {
-            return Err(invalid(
-                "postprocess.sizing",
-                "measured",
-                "\"configured\" with protocol.levels > 2 (the agents key each slice as it \
-                 reconciles; a measured estimate subtracts whole symbols, which need every \
-                 slice's bits: robokey secrecy --sizing measured sizes multilevel blocks)",
             ));
         }
         Ok(())
@@ -1526,8 +1504,9 @@ mod tests {
         );
     }
 
-    /// Multilevel doublets: 2, 4 or 8 levels; refused with the agents' measured sizing,
-    /// accepted in every world (the window smoother judges symbols too); the wheel limit counts
+    /// Multilevel doublets: 2, 4 or 8 levels; accepted with measured sizing (the agents
+    /// size a block's slices together) and in every world (the window smoother judges
+    /// symbols too); the wheel limit counts
     /// the outermost amplitude; the
     /// resolved TOML names the alphabet only when it is not binary.
     #[test]
@@ -1540,10 +1519,11 @@ mod tests {
             assert!(text.contains(field), "{toml}: {text}");
         };
         refused("[protocol]\nlevels = 3\n", "2, 4 or 8");
-        refused(
-            "[protocol]\nlevels = 4\n[postprocess]\nsizing = \"measured\"\n",
-            "postprocess.sizing",
-        );
+        Config::from_toml(
+            &private("[protocol]\nlevels = 4\n[postprocess]\nsizing = \"measured\"\n"),
+            "m",
+        )
+        .unwrap();
         // Every world: the window smoother judges symbols too.
         for world in [
             "[world]\npreset = \"khepera-iv\"\n",

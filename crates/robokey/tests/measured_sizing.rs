@@ -8,6 +8,7 @@ use robokey::Config;
 use robokey::estimate::commands_check::sized_block_refusal;
 use robokey::estimate::{
     BlockEstimate, block_separations, check_request, estimate_request, kept_doublet,
+    world_block_separations,
 };
 use robokey::private::DoubletSamples;
 use robokey::sim::{RunOutput, simulate};
@@ -201,6 +202,39 @@ fn the_agents_size_a_lagging_robot_as_the_simulator_does() {
     assert!(agents.outcome().is_ok());
 }
 
+/// Three-step doublets shaped for the world's lag, at 1 and 4 mm with 20 and 50 ms: the
+/// block's published separation measured (its worst case over τ's interval, the region's
+/// ρ cells and `Q_low`) is never sharper for Eve than the pair configured with the true
+/// world's (its motion noise, white, its lag: `world_block_separations`), and at most
+/// 5 % (1 mm) or 16 % (4 mm) above it — what the lag's interval and the motion noise's region cost on ≈ 2,600
+/// doublets (issue 33's comparison; docs/estimation.md, "The lag").
+#[test]
+fn a_lagging_block_measured_is_never_sharper_than_the_truth_and_near_it() {
+    for (world, lag, slack) in [
+        ("process_std = [0.001, 0.001, 0.001]", 0.02, 0.05),
+        ("process_std = [0.001, 0.001, 0.001]", 0.05, 0.05),
+        ("process_std = [0.004, 0.004, 0.004]", 0.02, 0.16),
+        ("process_std = [0.004, 0.004, 0.004]", 0.05, 0.16),
+    ] {
+        let mut config = parties_in(&format!("{world}\nlag = {lag}"));
+        config.private.prior_lag = lag;
+        let runs: Vec<RunOutput> = (0..8)
+            .map(|r| simulate(&config, r, false).unwrap())
+            .collect();
+        let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+        let (_, measured) = block_separations(&config, &sessions, disclosed(&runs), 1e-6);
+        let (_, truth) = world_block_separations(&config, &sessions, disclosed(&runs), 1e-6);
+        assert_eq!(measured.refused, None, "{world} {lag}");
+        assert!(
+            truth.separation <= measured.separation
+                && measured.separation <= truth.separation * (1.0 + slack),
+            "{world} {lag}: measured {} truth {}",
+            measured.separation,
+            truth.separation
+        );
+    }
+}
+
 /// Multilevel symbols (two dimensions of 4 levels, 4 key bits per doublet): the agents'
 /// request — the robot's raw bits, four to a kept doublet — yields the simulator's estimate
 /// and published separation, on two-step doublets in a 1 mm world and on three-step ones
@@ -264,4 +298,92 @@ fn a_camera_stated_in_frames_sizes_the_measured_block_by_its_worth() {
         framed.largest,
         instant.largest
     );
+}
+
+/// Multilevel symbols (4 levels, two dimensions, a 1 mm world): the agents' controller,
+/// holding each session's kept doublets through its slices and the robot's bits of every
+/// slice as the slices' blocks reconcile them ([`slice_estimates`]), estimates the block on
+/// whole symbols and sizes each slice exactly as the lab does (`block_separations`, the
+/// commands check, then each slice's own separations less its own sample,
+/// `BlockEstimate::for_slice`); under a 50 ms lag both refuse every slice by the same name.
+#[test]
+fn the_agents_size_multilevel_slices_as_the_simulator_does() {
+    use robokey::connection::slices::{first_slice, slice_estimates, slicing};
+    for (world, refused) in [
+        ("process_std = [0.001, 0.001, 0.001]", false),
+        ("process_std = [0.001, 0.001, 0.001]\nlag = 0.05", true),
+    ] {
+        let mut config = parties_in(world);
+        config.protocol.levels = 4;
+        config.protocol.bits_per_doublet = 2;
+        let slicing = slicing(&config).expect("4 levels slice");
+        let runs: Vec<RunOutput> = (0..4)
+            .map(|r| simulate(&config, r, false).unwrap())
+            .collect();
+        let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+        let slices = usize::from(slicing.slices);
+        let slice_disclosed = |slice: usize| -> u64 {
+            let bits = runs
+                .iter()
+                .map(|run| slicing.pick(&run.keys.robot, slice).len())
+                .sum();
+            sample_size(bits, 1_000) as u64
+        };
+        let per_slice: Vec<u64> = (0..slices).map(slice_disclosed).collect();
+        // The lab: one estimate of the block, the commands check, each slice's own.
+        let (separations, mut block) =
+            block_separations(&config, &sessions, disclosed(&runs), 1e-6);
+        if let Some(why) = sized_block_refusal(&config, &sessions, 1e-6, Some(&block)) {
+            block.refuse(why);
+        }
+        let simulator: Vec<BlockEstimate> = (0..slices)
+            .map(|slice| {
+                let picked: Vec<Vec<f64>> =
+                    separations.iter().map(|s| slicing.pick(s, slice)).collect();
+                block.for_slice(&picked, per_slice[slice])
+            })
+            .collect();
+        // The agents: each session staged with its kept doublets, advanced slice by slice
+        // with the robot's bits of each.
+        let staged: Vec<_> = runs
+            .iter()
+            .enumerate()
+            .map(|(id, run)| {
+                let bits = run.keys.robot.len();
+                let doublets = bits / usize::from(slicing.key_bits);
+                let kept = samples(run)
+                    .iter()
+                    .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+                    .collect();
+                let likelihoods = vec![0; doublets * slicing.patterns()];
+                let mut session =
+                    first_slice(id as u32, slicing, bits, likelihoods, vec![0.0; bits], kept);
+                let robot: Vec<bool> = run.keys.robot.iter().map(|&b| b == 1).collect();
+                for slice in 0..slices {
+                    session =
+                        session.advanced(&BitString::from_bools(&slicing.pick(&robot, slice)));
+                }
+                session
+            })
+            .collect();
+        let agents = slice_estimates(&config, &staged, &per_slice, 1e-6);
+        assert_eq!(
+            agents[0].refused.is_some(),
+            refused,
+            "{world}: {:?}",
+            agents[0].refused
+        );
+        if refused {
+            // A refused estimate's NaNs compare unequal: the reasons and outcomes.
+            let published = |e: &[BlockEstimate]| -> Vec<_> {
+                e.iter().map(|e| (e.refused.clone(), e.outcome())).collect()
+            };
+            assert_eq!(published(&agents), published(&simulator), "{world}");
+            assert!(agents.iter().all(|e| e.outcome().is_err()));
+        } else {
+            assert_eq!(agents, simulator, "{world}");
+            // Each slice its own separation (the coarse slice's bits are the sharper).
+            assert_ne!(agents[0].separation, agents[1].separation, "{agents:?}");
+        }
+    }
 }

@@ -426,7 +426,10 @@ fn through_endpoints(
                     });
                 }
                 // The lab's slices are pooled whole (`Pool::slices`), none staged.
-                Output::Persist | Output::Ignored(_) | Output::SliceReconciled(_) => {}
+                Output::Persist
+                | Output::Ignored(_)
+                | Output::SliceReconciled(_)
+                | Output::SlicesEstimateNeeded(_) => {}
             }
         }
         while let Some(output) = robot.poll_output() {
@@ -439,7 +442,8 @@ fn through_endpoints(
                 Output::Persist
                 | Output::Ignored(_)
                 | Output::EstimateNeeded(_)
-                | Output::SliceReconciled(_) => {}
+                | Output::SliceReconciled(_)
+                | Output::SlicesEstimateNeeded(_) => {}
             }
         }
         if to_robot.is_empty() && to_controller.is_empty() {

@@ -136,6 +136,7 @@ fn staged_slices_survive_reopening_and_compaction_and_must_fit() {
         likelihoods: vec![-100; 50 * 16],
         separations: vec![1.5; 200],
         known: BitString::zeros(200),
+        samples: Vec::new(),
     };
     let mut state = controller(&[(1, true), (2, false)], &[]);
     state.staged = vec![(1, staged(1)), (2, staged(2))];

@@ -2,7 +2,7 @@
 //! blocks, corrects its bits by Cascade or by decoding the robot's LDPC syndromes on its
 //! LLRs, and coordinates the two-phase commit.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
 use rand::rngs::ChaCha20Rng;
 use serde::{Deserialize, Serialize};
@@ -16,8 +16,8 @@ use super::syndromes::{DecodingStep, Reconciled, SyndromeDecoding};
 use super::{
     AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, KeyReconciliation,
     MAX_BLOCK_SESSIONS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, ReconciledSlices,
-    ReconciliationMethod, RejectReason, Settings, SliceInput, StagedSession, concatenate,
-    dequantise_llr, key_id, quantise_llr, split_sample, tag_context,
+    ReconciliationMethod, RejectReason, Settings, SliceInput, SlicesEstimateRequest, StagedSession,
+    concatenate, dequantise_llr, key_id, quantise_llr, split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep};
@@ -58,6 +58,15 @@ pub enum ControllerInput {
         block: u64,
         /// The next slices.
         slices: Vec<SliceInput>,
+    },
+    /// The shell's answer to [`Output::SlicesEstimateNeeded`] for `block` (the last slice's):
+    /// each slice's published outcome, slice 0 first — its separation in grid steps (measured
+    /// sizing; any value under configured sizing), or a refusal, which refuses the block.
+    SliceEstimates {
+        /// The last slice's block number.
+        block: u64,
+        /// One outcome per slice.
+        outcomes: Vec<EstimateOutcome>,
     },
     /// The shell's answer to [`Output::EstimateNeeded`] for `block`.
     Estimate {
@@ -143,6 +152,25 @@ struct Agreed {
     robot_sample: Vec<bool>,
 }
 
+/// A multilevel block's lower slice, reconciled and held until the last slice is: the block
+/// is estimated on whole symbols, then each held slice sized, confirmed and committed in turn
+/// (docs/postprocessing.md, "Multilevel slices").
+struct HeldSlice {
+    block: u64,
+    /// Sessions proposed, and their bits.
+    proposed: Vec<u32>,
+    pool: Pool,
+    agreed: Agreed,
+    outcome: Reconciled,
+    report: Option<BlockReport>,
+    /// Its equivalent separation (configured sizing), millionths.
+    separation: u64,
+    /// The sessions its slices belong to (slice 0's IDs), in block order.
+    sessions: Vec<u32>,
+    /// The pool IDs of its sessions' later slices.
+    later: Vec<u32>,
+}
+
 /// What the controller waits for.
 enum State {
     Idle,
@@ -206,6 +234,12 @@ pub struct ControllerPost {
     awaiting_slices: Option<u64>,
     /// Pooled next slices that form the next block, in order.
     slice_group: Vec<u32>,
+    /// A multilevel block's lower slices, reconciled and held until its last slice is
+    /// (sessions pooled with samples: sized on whole symbols), slice 0 first.
+    held: Vec<HeldSlice>,
+    /// The block's slices estimated, confirmed and committed one after another, each with
+    /// its published separation in grid steps (measured sizing).
+    releasing: VecDeque<(HeldSlice, Option<u32>)>,
     in_flight: Option<InFlight>,
     state: State,
     report: Option<BlockReport>,
@@ -250,6 +284,8 @@ impl ControllerPost {
             next_slices: None,
             awaiting_slices: None,
             slice_group: Vec::new(),
+            held: Vec::new(),
+            releasing: VecDeque::new(),
             in_flight: None,
             state: State::Idle,
             report: None,
@@ -383,12 +419,19 @@ impl ControllerPost {
                         }
                     }
                 }
-                self.maybe_propose();
+                if self.slice_group.is_empty() && !self.held.is_empty() {
+                    self.abort_held();
+                } else {
+                    self.maybe_propose();
+                }
                 if let Some(e) = first_error {
                     return Err(e);
                 }
             }
             ControllerInput::Estimate { block, outcome } => self.on_estimate(block, outcome),
+            ControllerInput::SliceEstimates { block, outcomes } => {
+                self.on_slice_estimates(block, outcomes);
+            }
             ControllerInput::Timeout => {
                 if let Some(request) = self.last_request.clone() {
                     self.send(request);
@@ -453,7 +496,8 @@ impl ControllerPost {
             .slicing
             .pick(&staged.separations, usize::from(staged.slice));
         self.pool_session(id, bits, &separations, SessionSamples::new(), llrs)?;
-        if staged.has_next() {
+        // The last slice's material too when the block is sized on whole symbols.
+        if staged.has_next() || !staged.samples.is_empty() {
             self.staged.insert(id, staged);
         }
         Ok(())
@@ -672,9 +716,16 @@ impl ControllerPost {
         let block = self.next_block;
         self.next_block += 1;
         let nonce = self.ledger.nonce();
+        // A crash aborts the block with its multilevel sessions' other slices.
+        let mut group = self.group_sessions(&sessions);
+        group.extend(
+            self.block_staged
+                .values()
+                .flat_map(StagedSession::later_ids),
+        );
         self.in_flight = Some(InFlight::Started {
             block,
-            sessions: sessions.clone(),
+            sessions: group,
         });
         self.block = Some((block, sessions.clone(), bits));
         self.report = Some(empty_report(block));
@@ -862,18 +913,33 @@ impl ControllerPost {
     /// it configured and the block's sessions pooled with their samples, the shell runs the
     /// commands check on them first; otherwise ℓ from the assumption at once.
     fn confirm(&mut self, agreed: Agreed, outcome: Reconciled) {
+        let advanced: Vec<StagedSession> = self
+            .robot_bits(&agreed, &outcome.corrected)
+            .into_iter()
+            .filter_map(|(id, robot)| {
+                self.block_staged
+                    .get(&id)
+                    .map(|staged| staged.advanced(&robot))
+            })
+            .collect();
         self.next_slices = (!self.block_staged.is_empty()).then(|| ReconciledSlices {
             block: self.current(),
-            sessions: self
-                .robot_bits(&agreed, &outcome.corrected)
-                .into_iter()
-                .filter_map(|(id, robot)| {
-                    self.block_staged
-                        .get(&id)
-                        .map(|staged| staged.advanced(&robot))
-                })
+            sessions: advanced
+                .iter()
+                .filter(|s| s.slice < s.slicing.slices)
+                .cloned()
                 .collect(),
         });
+        // Multilevel sessions pooled with their samples: the block is sized on whole
+        // symbols once its last slice is reconciled; the lower slices wait.
+        let whole_symbols = !advanced.is_empty() && advanced.iter().all(|s| !s.samples.is_empty());
+        if whole_symbols {
+            return if advanced.iter().any(|s| s.slice < s.slicing.slices) {
+                self.hold(agreed, outcome)
+            } else {
+                self.request_slice_estimates(agreed, outcome, advanced)
+            };
+        }
         let checked = self.block_staged.is_empty()
             && agreed
                 .sessions
@@ -890,6 +956,213 @@ impl ControllerPost {
             return;
         }
         self.size_as_configured(agreed, outcome);
+    }
+
+    /// A lower slice reconciled: held (nothing sent; the robot holds it when the next slice
+    /// is proposed), its sessions' next slices computed by the shell.
+    fn hold(&mut self, agreed: Agreed, outcome: Reconciled) {
+        let sessions = agreed
+            .sessions
+            .iter()
+            .map(|id| self.block_staged.get(id).map_or(*id, |s| s.session))
+            .collect();
+        let later: Vec<u32> = self
+            .block_staged
+            .values()
+            .flat_map(StagedSession::later_ids)
+            .collect();
+        let Some(mut held) = self.take_block(agreed, outcome, sessions) else {
+            return;
+        };
+        held.later.clone_from(&later);
+        let block = held.block;
+        self.held.push(held);
+        // A crash now aborts the block's every slice: the held ones and those to come.
+        let mut group = self.group_sessions(&[]);
+        group.extend(later);
+        self.in_flight = Some(InFlight::Started {
+            block,
+            sessions: group,
+        });
+        self.block_samples.clear();
+        self.block_llrs.clear();
+        self.block_staged.clear();
+        self.state = State::Idle;
+        self.last_request = None;
+        self.ledger.outputs.push_back(Output::Persist);
+        if let Some(next) = self.next_slices.take().filter(|n| !n.sessions.is_empty()) {
+            self.awaiting_slices = Some(next.block);
+            self.ledger
+                .outputs
+                .push_back(Output::SliceReconciled(Box::new(next)));
+        }
+    }
+
+    /// No next slice of held slices could be pooled: the held block ends as refused (its
+    /// `Abort` lists every slice's sessions; the robot drops what it holds of them).
+    fn abort_held(&mut self) {
+        let Some(last) = self.held.pop() else {
+            return;
+        };
+        // Its sessions' later slices end with it.
+        let mut sessions = last.proposed;
+        sessions.extend(last.later);
+        self.block = Some((last.block, sessions, last.pool));
+        self.report = last.report;
+        self.abort(
+            AbortReason::Refused,
+            "no next slice of the block could be pooled: its symbols cannot be estimated whole"
+                .into(),
+        );
+    }
+
+    /// The block in flight, reconciled, taken out to be held or released (`sessions`: the
+    /// sessions its slices belong to).
+    fn take_block(
+        &mut self,
+        agreed: Agreed,
+        outcome: Reconciled,
+        sessions: Vec<u32>,
+    ) -> Option<HeldSlice> {
+        let (block, proposed, pool) = self.block.take()?;
+        Some(HeldSlice {
+            block,
+            proposed,
+            pool,
+            agreed,
+            outcome,
+            report: self.report.take(),
+            separation: self.block_separation,
+            sessions,
+            later: Vec::new(),
+        })
+    }
+
+    /// The last slice reconciled: the shell estimates the block on whole symbols, every
+    /// slice's bits known. Every slice must hold the same sessions (else their symbols are
+    /// not whole: refused).
+    fn request_slice_estimates(
+        &mut self,
+        agreed: Agreed,
+        outcome: Reconciled,
+        sessions: Vec<StagedSession>,
+    ) {
+        let ids: Vec<u32> = sessions.iter().map(|s| s.session).collect();
+        let slices = sessions
+            .first()
+            .map_or(0, |s| usize::from(s.slicing.slices));
+        if self.held.len() + 1 != slices || self.held.iter().any(|h| h.sessions != ids) {
+            return self.abort(
+                AbortReason::Refused,
+                "the block's slices do not hold the same sessions (one dropped out between                  slices): its symbols cannot be estimated whole"
+                    .into(),
+            );
+        }
+        let disclosed = self
+            .held
+            .iter()
+            .map(|h| h.agreed.robot_sample.len() as u64)
+            .chain([agreed.robot_sample.len() as u64])
+            .collect();
+        let block = self.current();
+        self.state = State::ExpectEstimate { agreed, outcome };
+        // Nothing to repeat while the shell estimates.
+        self.last_request = None;
+        self.ledger
+            .outputs
+            .push_back(Output::SlicesEstimateNeeded(Box::new(
+                SlicesEstimateRequest {
+                    block,
+                    sessions,
+                    disclosed,
+                },
+            )));
+    }
+
+    /// The shell's estimate of a multilevel block: a refusal (or a count that does not
+    /// match the slices) refuses every slice; otherwise each slice, held ones first, is
+    /// sized from its outcome, confirmed and committed in turn.
+    fn on_slice_estimates(&mut self, block: u64, outcomes: Vec<EstimateOutcome>) {
+        if self.block.is_none() || block != self.current() {
+            self.ledger
+                .outputs
+                .push_back(Output::Ignored("an estimate for another block"));
+            return;
+        }
+        let (agreed, outcome) = match std::mem::replace(&mut self.state, State::Idle) {
+            State::ExpectEstimate { agreed, outcome } => (agreed, outcome),
+            state => {
+                self.state = state;
+                self.ledger.outputs.push_back(Output::Ignored(
+                    "an estimate the controller does not expect",
+                ));
+                return;
+            }
+        };
+        if outcomes.len() != self.held.len() + 1 {
+            return self.abort(
+                AbortReason::PlantRefused,
+                format!(
+                    "block refused: {} slice estimates for {} slices",
+                    outcomes.len(),
+                    self.held.len() + 1
+                ),
+            );
+        }
+        if let Some(Err(EstimateRefusal(why))) = outcomes.iter().find(|o| o.is_err()) {
+            let why = format!("block refused: {why}");
+            return self.abort(AbortReason::PlantRefused, why);
+        }
+        let measured = self.ledger.settings.assumption.is_measured();
+        let steps = outcomes.into_iter().map(|o| {
+            o.ok()
+                .filter(|_| measured)
+                .map(|s| s.min(MAX_SEPARATION_STEPS))
+        });
+        let Some(last) = self.take_block(agreed, outcome, Vec::new()) else {
+            return;
+        };
+        self.releasing = std::mem::take(&mut self.held)
+            .into_iter()
+            .chain([last])
+            .zip(steps)
+            .collect();
+        self.release_next();
+    }
+
+    /// The next estimated slice: sized from its outcome and confirmed (measured sizing) or
+    /// from its own equivalent separation (configured).
+    fn release_next(&mut self) {
+        let Some((held, steps)) = self.releasing.pop_front() else {
+            return;
+        };
+        self.block = Some((held.block, held.proposed.clone(), held.pool));
+        self.report = held.report;
+        self.block_separation = held.separation;
+        self.in_flight = Some(InFlight::Started {
+            block: held.block,
+            sessions: self.group_sessions(&held.proposed),
+        });
+        match steps {
+            Some(steps) => {
+                let assumption = self.ledger.settings.assumption.with_estimate(steps);
+                self.size(held.agreed, held.outcome, assumption, Some(steps));
+            }
+            None => self.size_as_configured(held.agreed, held.outcome),
+        }
+    }
+
+    /// `proposed` with the sessions of the multilevel block's other slices, held or being
+    /// released: what a crash or an abort ends with the block in flight.
+    fn group_sessions(&self, proposed: &[u32]) -> Vec<u32> {
+        let mut sessions: Vec<u32> = self
+            .held
+            .iter()
+            .chain(self.releasing.iter().map(|(h, _)| h))
+            .flat_map(|h| h.proposed.iter().copied())
+            .collect();
+        sessions.extend_from_slice(proposed);
+        sessions
     }
 
     /// ℓ from the configured assumption at the block's equivalent separation.
@@ -1066,7 +1339,7 @@ impl ControllerPost {
         self.ledger.committed.insert(block);
         self.in_flight = Some(InFlight::Committed {
             block,
-            sessions: proposed,
+            sessions: self.group_sessions(&proposed),
         });
         self.state = State::ExpectCommitAck;
         self.ledger.outputs.push_back(Output::Persist);
@@ -1085,16 +1358,30 @@ impl ControllerPost {
             report.length = 0;
         }
         // Only a block reconciled without a key leaves its later slices decodable; else
-        // they end with it, and the robot drops them from its pool.
+        // they end with it, and the robot drops them from its pool — with the slices held or
+        // being released of a block sized on whole symbols (their reports end here).
         if reason != AbortReason::NoSecretBits {
             self.next_slices = None;
-            let later: Vec<u32> = self
+            let mut later: Vec<u32> = self
                 .block_staged
                 .values()
                 .flat_map(StagedSession::later_ids)
                 .collect();
+            later.extend(self.group_sessions(&[]));
             if sessions.len() + later.len() <= MAX_BLOCK_SESSIONS {
                 sessions.extend(later);
+            }
+            let why = self.report.as_ref().and_then(|r| r.reason.clone());
+            let others = std::mem::take(&mut self.held).into_iter().chain(
+                std::mem::take(&mut self.releasing)
+                    .into_iter()
+                    .map(|(h, _)| h),
+            );
+            for held in others {
+                let mut report = held.report.unwrap_or_else(|| empty_report(held.block));
+                report.reason.clone_from(&why);
+                report.length = 0;
+                self.ledger.outputs.push_back(Output::BlockEnded(report));
             }
         }
         self.in_flight = Some(InFlight::Aborting {
@@ -1114,6 +1401,17 @@ impl ControllerPost {
     /// The robot acknowledged: the block's sessions are spent; propose the next.
     fn end_block(&mut self) {
         if let Some((_, sessions, _)) = self.block.take() {
+            // A restored or aborted block may list slices pooled since: none is proposed.
+            for id in &sessions {
+                if self.ledger.pool.remove(id).is_some() {
+                    self.separations.remove(id);
+                    self.separation_counts.remove(id);
+                    self.samples.remove(id);
+                    self.llrs.remove(id);
+                    self.staged.remove(id);
+                    self.slice_group.retain(|s| s != id);
+                }
+            }
             self.ledger.spent.extend(sessions);
         }
         self.block_samples.clear();
@@ -1125,6 +1423,9 @@ impl ControllerPost {
         self.ledger.outputs.push_back(Output::Persist);
         if let Some(report) = self.report.take() {
             self.ledger.outputs.push_back(Output::BlockEnded(report));
+        }
+        if !self.releasing.is_empty() {
+            return self.release_next();
         }
         if let Some(next) = self.next_slices.take().filter(|n| !n.sessions.is_empty()) {
             self.awaiting_slices = Some(next.block);

@@ -66,7 +66,8 @@ pub use message::{AbortReason, Message, RejectReason};
 pub use robokey_codec::DecodeError;
 pub use robot::{Prepared, RobotInput, RobotPost, RobotSnapshot};
 pub use slices::{
-    MAX_KEY_BITS, MAX_SLICES, ReconciledSlices, SliceInput, Slicing, StagedSession, slice_id,
+    MAX_KEY_BITS, MAX_SLICES, ReconciledSlices, SliceInput, SlicesEstimateRequest, Slicing,
+    StagedSession, slice_id,
 };
 pub use soft_values::{LLR_QUANTUM, dequantise_llr, quantise_llr};
 
@@ -245,6 +246,11 @@ pub enum Output {
     /// computes the next slice's LLRs of its sessions given them and answers with
     /// [`ControllerInput::NextSlices`] before anything else is proposed.
     SliceReconciled(Box<ReconciledSlices>),
+    /// A multilevel block's last slice was reconciled, its lower slices held reconciled:
+    /// the shell estimates the plant on whole symbols (measured sizing) or runs the commands
+    /// check on them (configured), for every slice, and answers with
+    /// [`ControllerInput::SliceEstimates`]. No slice's key is proposed before.
+    SlicesEstimateNeeded(Box<SlicesEstimateRequest>),
 }
 
 /// Errors of endpoint construction and input.

@@ -10,8 +10,9 @@ use super::public::PublicRandomness;
 use super::syndromes::SyndromeEncoding;
 use super::{
     AbortReason, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, KeyReconciliation, MAX_BLOCK_SESSIONS,
-    MAX_QUESTIONS, MAX_SEPARATION_STEPS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER,
-    ReconciliationMethod, RejectReason, Settings, concatenate, key_id, split_sample, tag_context,
+    MAX_QUESTIONS, MAX_SEPARATION_STEPS, MAX_SLICES, Message, Output, Pool, PostError,
+    ROBOT_TO_CONTROLLER, ReconciliationMethod, RejectReason, Settings, concatenate, key_id,
+    split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::CascadeAlice;
@@ -107,6 +108,12 @@ pub struct RobotPost {
     ledger: Ledger,
     highest_block: Option<u64>,
     reconciling: Option<Box<Reconciling>>,
+    /// Blocks the controller left reconciled when it proposed the next: a multilevel block's
+    /// lower slices, which it confirms once the last slice is reconciled and the block
+    /// estimated (docs/postprocessing.md, "Multilevel slices"); at most `MAX_SLICES − 1`,
+    /// the oldest beyond them dropped with its sessions spent. Not durable, as the block
+    /// being reconciled.
+    held: Vec<Reconciling>,
     prepared: Option<Prepared>,
 }
 
@@ -135,6 +142,7 @@ impl RobotPost {
             ledger,
             highest_block,
             reconciling: None,
+            held: Vec::new(),
             prepared,
         }
     }
@@ -248,6 +256,23 @@ impl RobotPost {
         self.reconciling.as_deref_mut().filter(|r| r.block == block)
     }
 
+    /// The block `block` being reconciled or held.
+    fn reconciled(&mut self, block: u64) -> Option<&mut Reconciling> {
+        if self.reconciling.as_ref().is_some_and(|r| r.block == block) {
+            return self.reconciling.as_deref_mut();
+        }
+        self.held.iter_mut().find(|r| r.block == block)
+    }
+
+    /// The block `block` being reconciled or held, taken out.
+    fn take_reconciled(&mut self, block: u64) -> Option<Box<Reconciling>> {
+        if let Some(r) = self.reconciling.take_if(|r| r.block == block) {
+            return Some(r);
+        }
+        let at = self.held.iter().position(|r| r.block == block)?;
+        Some(Box::new(self.held.remove(at)))
+    }
+
     fn on_propose(
         &mut self,
         block: u64,
@@ -268,9 +293,15 @@ impl RobotPost {
         if proposed.len() > MAX_BLOCK_SESSIONS {
             return self.ignore("a proposal with too many sessions");
         }
-        // An abandoned block's sessions were disclosed: spent.
+        // The block left reconciling is held (a multilevel block's lower slice, confirmed
+        // later); the oldest beyond what one block's slices need is dropped, its sessions
+        // spent (they were disclosed).
         if let Some(old) = self.reconciling.take() {
-            self.ledger.spent.extend(old.sessions);
+            self.held.push(*old);
+            if self.held.len() >= MAX_SLICES {
+                let oldest = self.held.remove(0);
+                self.ledger.spent.extend(oldest.sessions);
+            }
         }
         self.highest_block = Some(block);
         let mut agreed = Vec::new();
@@ -425,8 +456,12 @@ impl RobotPost {
             };
             return self.send(confirmed);
         }
+        if self.prepared.is_some() {
+            // One key prepared at a time: the held slices are confirmed one after another.
+            return self.reject(block, RejectReason::Busy);
+        }
         let settings = self.ledger.settings.clone();
-        let Some(r) = self.reconciling(block) else {
+        let Some(r) = self.reconciled(block) else {
             return self.unknown(block);
         };
         let n = r.reference.len() as u64;
@@ -478,7 +513,7 @@ impl RobotPost {
             assumption: assumption.describe(),
             reconciliation: Some(KeyReconciliation::new(&settings.reconciliation, leak_ec)),
         };
-        if let Some(done) = self.reconciling.take() {
+        if let Some(done) = self.take_reconciled(block) {
             self.ledger.spent.extend(done.sessions);
         }
         self.prepared = Some(Prepared {
@@ -513,12 +548,26 @@ impl RobotPost {
         if self.ledger.committed.contains(&block) {
             return self.ignore("an abort of a committed block");
         }
-        let mut report = None;
+        let mut reports = Vec::new();
         if self.prepared.as_ref().is_some_and(|p| p.block == block) {
-            report = self.prepared.take().map(|p| p.report);
+            reports.extend(self.prepared.take().map(|p| p.report));
         }
-        if self.reconciling.as_ref().is_some_and(|r| r.block == block) {
-            report = self.reconciling.take().map(|r| r.report);
+        // Held slices of the aborted block's symbols end with it (the controller lists
+        // their sessions), in block order.
+        let (ended, kept): (Vec<_>, Vec<_>) = std::mem::take(&mut self.held)
+            .into_iter()
+            .partition(|r| r.block == block || r.sessions.iter().any(|id| sessions.contains(id)));
+        self.held = kept;
+        for r in ended {
+            self.ledger.spent.extend(r.sessions.iter().copied());
+            reports.push(r.report);
+        }
+        if let Some(r) = self
+            .reconciling
+            .take_if(|r| r.block == block || r.sessions.iter().any(|id| sessions.contains(id)))
+        {
+            self.ledger.spent.extend(r.sessions.iter().copied());
+            reports.push(r.report);
         }
         for id in sessions {
             self.ledger.pool.remove(id);
@@ -526,7 +575,7 @@ impl RobotPost {
         }
         self.highest_block = self.highest_block.max(Some(block));
         self.ledger.outputs.push_back(Output::Persist);
-        if let Some(mut report) = report {
+        for mut report in reports {
             report.reason = Some(match reason {
                 AbortReason::PlantRefused => "block refused: the controller's estimate of the \
                                               plant refused it (the test and its value are in \

@@ -12,6 +12,7 @@
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
+use super::SessionSamples;
 use crate::bitstring::BitString;
 
 /// Most slices per symbol: 8 levels, 3 bits.
@@ -111,6 +112,11 @@ pub struct StagedSession {
     /// The robot's bits of the session at the positions of the slices below `slice` (as
     /// reconciled), 0 elsewhere.
     pub known: BitString,
+    /// What the controller keeps of the session's doublets for the block's estimate of the
+    /// plant on whole symbols (docs/estimation.md, "Multilevel symbols"; empty when nothing
+    /// is kept; journals written before it read without).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub samples: SessionSamples,
 }
 
 impl StagedSession {
@@ -159,7 +165,8 @@ impl StagedSession {
     }
 
     /// Checks the sizes: whole doublets, one separation per bit in [0, 10⁶], one likelihood
-    /// per pattern per doublet, a slice below the slices.
+    /// per pattern per doublet, no kept doublets or one per doublet, a slice below the
+    /// slices.
     ///
     /// # Errors
     /// What is wrong, named.
@@ -198,6 +205,13 @@ impl StagedSession {
                 self.slicing.patterns()
             ));
         }
+        if !self.samples.is_empty() && self.samples.len() != bits / key_bits {
+            return Err(format!(
+                "{} kept doublets for its {} doublets (allowed: none, or one per doublet)",
+                self.samples.len(),
+                bits / key_bits
+            ));
+        }
         Ok(())
     }
 }
@@ -210,6 +224,23 @@ pub struct ReconciledSlices {
     pub block: u64,
     /// Its sessions with a slice after the block's, advanced to it.
     pub sessions: Vec<StagedSession>,
+}
+
+/// What the controller needs estimated once a multilevel block's last slice is reconciled,
+/// its lower slices' blocks held reconciled (docs/postprocessing.md, "Multilevel slices"):
+/// the block's sessions advanced past their last slice — `known` holds the robot's bits of
+/// every slice, `samples` what the controller kept of each doublet — and the bits each
+/// slice's block disclosed in its sample. The shell estimates the plant on whole symbols,
+/// sizes each slice from that one estimate and answers
+/// [`ControllerInput::SliceEstimates`](super::ControllerInput::SliceEstimates).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SlicesEstimateRequest {
+    /// The last slice's block number.
+    pub block: u64,
+    /// The sessions, in block order, advanced past their last slice (key material).
+    pub sessions: Vec<StagedSession>,
+    /// Bits disclosed by each slice's block, slice 0 first.
+    pub disclosed: Vec<u64>,
 }
 
 /// A slice of a multilevel session as the controller pools it: its decisions and LLRs of
@@ -229,8 +260,9 @@ mod tests {
     use super::*;
     use crate::cascade::CascadeSchedule;
     use crate::postprocess::{
-        Assumption, ControllerInput, ControllerPost, FinalKey, Message, Output,
-        ReconciliationMethod, RobotInput, RobotPost, Settings,
+        Assumption, BlockReport, ControllerInput, ControllerPost, EstimateOutcome, EstimateRefusal,
+        FinalKey, KeptDoublet, Message, Output, ReconciliationMethod, RobotInput, RobotPost,
+        Settings,
     };
     use rand::rngs::ChaCha8Rng;
     use rand::{RngExt, SeedableRng};
@@ -256,7 +288,14 @@ mod tests {
             .collect()
     }
 
-    fn staged(session: u32) -> StagedSession {
+    /// Session `session`'s first slice, with a kept doublet per doublet when `whole` (the
+    /// block sized on whole symbols).
+    fn staged(session: u32, whole: bool) -> StagedSession {
+        let kept = |doublet| KeptDoublet {
+            doublet,
+            inputs: [[0.0; 2]; 2],
+            samples: [[0.0; 3]; 3],
+        };
         StagedSession {
             session,
             slice: 0,
@@ -264,8 +303,33 @@ mod tests {
             likelihoods: vec![0; 400 * SLICING.patterns()],
             separations: vec![0.5; 1_600],
             known: BitString::zeros(1_600),
+            samples: if whole {
+                (0..400).map(kept).collect()
+            } else {
+                Vec::new()
+            },
         }
     }
+
+    /// What an in-memory run gives.
+    struct Ran {
+        /// Each side's keys, in the order committed.
+        controller: Vec<FinalKey>,
+        robot: Vec<FinalKey>,
+        /// The blocks whose next slices the shell computed.
+        reconciled: Vec<u64>,
+        /// Keys the controller had committed when each block was estimated on whole
+        /// symbols.
+        keys_at_estimates: Vec<usize>,
+        /// Each side's reports of blocks ended.
+        controller_reports: Vec<BlockReport>,
+        robot_reports: Vec<BlockReport>,
+        robot_post: RobotPost,
+    }
+
+    /// How the shell answers a block sized on whole symbols (each slice's outcome), or
+    /// `None`: sessions pooled without samples, each slice keyed as it reconciles.
+    type Estimates = Option<fn(&SlicesEstimateRequest) -> Vec<EstimateOutcome>>;
 
     fn bits_of(all: &BitString, slice: usize) -> BitString {
         let bools: Vec<bool> = (0..all.len()).map(|i| all.get(i) == Some(true)).collect();
@@ -276,7 +340,7 @@ mod tests {
     /// every reconciled slice with the robot's bits of the next one (checking that the
     /// endpoint handed it the robot's bits of the reconciled one). Returns both sides' keys,
     /// the blocks reconciled and the robot.
-    fn run(tamper: impl Fn(&mut Message)) -> (Vec<FinalKey>, Vec<FinalKey>, Vec<u64>, RobotPost) {
+    fn run(estimates: Estimates, next_fits: bool, tamper: impl Fn(&mut Message)) -> Ran {
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         let pool = sessions(&mut rng);
         let settings = Settings {
@@ -284,7 +348,15 @@ mod tests {
             sample_bits: 100,
             epsilon: 1e-6,
             schedule: CascadeSchedule::BICONF,
-            assumption: Assumption::IndependentErrors { error_rate: 0.3 },
+            assumption: match estimates {
+                None => Assumption::IndependentErrors { error_rate: 0.3 },
+                Some(_) => Assumption::MeasuredViews {
+                    separation: 0.0,
+                    statement: "test".into(),
+                    estimation_epsilon: 1e-6,
+                    estimate_leak: 34.0,
+                },
+            },
             reconciliation: ReconciliationMethod::Cascade,
         };
         let mut controller = ControllerPost::new(settings.clone(), [1; 32]).unwrap();
@@ -302,17 +374,35 @@ mod tests {
                 .handle_input(ControllerInput::StagedSession(SliceInput {
                     bits: own.clone(),
                     llrs: Vec::new(),
-                    staged: staged(id as u32),
+                    staged: staged(id as u32, estimates.is_some()),
                 }))
                 .unwrap();
         }
         let (mut keys, mut reconciled) = ((Vec::new(), Vec::new()), Vec::new());
+        let (mut keys_at_estimates, mut reports) = (Vec::new(), (Vec::new(), Vec::new()));
         loop {
             let mut to_robot = Vec::new();
             while let Some(output) = controller.poll_output() {
                 match output {
                     Output::Transmit(m) => to_robot.push(m),
                     Output::KeyCommitted(key) => keys.0.push(key),
+                    Output::BlockEnded(report) => reports.0.push(report),
+                    Output::SlicesEstimateNeeded(r) => {
+                        // Every slice's robot bits, every session's kept doublets.
+                        for next in &r.sessions {
+                            assert_eq!(next.known, pool[next.session as usize].0);
+                            assert_eq!(next.samples.len(), 400);
+                        }
+                        assert_eq!(r.disclosed.len(), 2);
+                        keys_at_estimates.push(keys.0.len());
+                        let outcomes = estimates.expect("sized on whole symbols")(&r);
+                        controller
+                            .handle_input(ControllerInput::SliceEstimates {
+                                block: r.block,
+                                outcomes,
+                            })
+                            .unwrap();
+                    }
                     Output::SliceReconciled(r) => {
                         reconciled.push(r.block);
                         let slices = r
@@ -323,19 +413,23 @@ mod tests {
                                 for i in (0..1_600).filter(|&i| SLICING.slice_of(i) == 0) {
                                     assert_eq!(next.known.get(i), reference.get(i), "bit {i}");
                                 }
+                                // A shell's slice that does not fit: one bit too few.
+                                let mut bits = bits_of(reference, 1);
+                                if !next_fits {
+                                    bits = BitString::from_bools(&vec![false; bits.len() - 1]);
+                                }
                                 SliceInput {
-                                    bits: bits_of(reference, 1),
+                                    bits,
                                     llrs: Vec::new(),
                                     staged: next.clone(),
                                 }
                             })
                             .collect();
-                        controller
-                            .handle_input(ControllerInput::NextSlices {
-                                block: r.block,
-                                slices,
-                            })
-                            .unwrap();
+                        let pooled = controller.handle_input(ControllerInput::NextSlices {
+                            block: r.block,
+                            slices,
+                        });
+                        assert_eq!(pooled.is_ok(), next_fits, "{pooled:?}");
                     }
                     _ => {}
                 }
@@ -352,6 +446,7 @@ mod tests {
                         to_controller.push(m);
                     }
                     Output::KeyCommitted(key) => keys.1.push(key),
+                    Output::BlockEnded(report) => reports.1.push(report),
                     _ => {}
                 }
             }
@@ -362,14 +457,118 @@ mod tests {
                 controller.handle_input(ControllerInput::Frame(m)).unwrap();
             }
         }
-        (keys.0, keys.1, reconciled, robot)
+        Ran {
+            controller: keys.0,
+            robot: keys.1,
+            reconciled,
+            keys_at_estimates,
+            controller_reports: reports.0,
+            robot_reports: reports.1,
+            robot_post: robot,
+        }
+    }
+
+    /// Each slice's outcome: slice 0 at separation 0.5, slice 1 at 1 (grid steps of 2⁻⁸).
+    fn sized(r: &SlicesEstimateRequest) -> Vec<EstimateOutcome> {
+        assert_eq!(r.disclosed, vec![100, 100]);
+        vec![Ok(128), Ok(256)]
+    }
+
+    /// The block's estimate refuses it.
+    fn refused(_: &SlicesEstimateRequest) -> Vec<EstimateOutcome> {
+        vec![Err(EstimateRefusal("the test refuses".into())); 2]
+    }
+
+    /// Sized on whole symbols: slice 0's block is held reconciled (no key) until slice 1's
+    /// is reconciled and the block estimated; then both are keyed, each from its own
+    /// outcome (the robot recomputing ℓ from what was carried), the same on both sides.
+    #[test]
+    fn held_slices_are_keyed_after_the_blocks_estimate() {
+        let ran = run(Some(sized), true, |_| {});
+        assert_eq!(ran.controller, ran.robot);
+        assert_eq!(ran.reconciled, vec![0, 2]);
+        // No key of a block before its estimate: none at the first, two at the second.
+        assert_eq!(ran.keys_at_estimates, vec![0, 2]);
+        let blocks: Vec<u64> = ran.controller.iter().map(|k| k.block).collect();
+        assert_eq!(blocks, vec![0, 1, 2, 3]);
+        // Each slice from its own published separation, as both sides sized it.
+        let steps: Vec<Option<u32>> = ran
+            .robot_reports
+            .iter()
+            .map(|r| r.separation_steps)
+            .collect();
+        assert_eq!(steps, vec![Some(128), Some(256), Some(128), Some(256)]);
+        assert!(ran.robot_post.snapshot().pool.is_empty());
+    }
+
+    /// A block the estimate refuses writes no key of any slice on either side, names the
+    /// refusal in every slice's report on both sides, and spends its sessions.
+    #[test]
+    fn a_refused_multilevel_block_writes_no_key() {
+        let ran = run(Some(refused), true, |_| {});
+        assert!(ran.controller.is_empty() && ran.robot.is_empty());
+        assert_eq!(ran.keys_at_estimates, vec![0, 0]);
+        for reports in [&ran.controller_reports, &ran.robot_reports] {
+            assert_eq!(reports.len(), 4, "{reports:?}");
+            for report in reports {
+                let why = report.reason.as_deref().unwrap_or_default();
+                assert!(why.contains("block refused"), "{why}");
+                assert_eq!(report.length, 0);
+            }
+        }
+        assert!(
+            ran.controller_reports[0]
+                .reason
+                .as_deref()
+                .unwrap()
+                .contains("the test refuses")
+        );
+        let snapshot = ran.robot_post.snapshot();
+        assert!(snapshot.pool.is_empty() && snapshot.prepared.is_none());
+    }
+
+    /// No next slice of held slices can be pooled (the shell's do not fit): the held block
+    /// ends refused, no key on either side, the robot dropping what it holds; the next
+    /// sessions' block fares the same, and nothing stays pooled.
+    #[test]
+    fn held_slices_without_a_next_slice_end_the_block() {
+        let ran = run(Some(sized), false, |_| {});
+        assert!(ran.controller.is_empty() && ran.robot.is_empty());
+        assert!(ran.keys_at_estimates.is_empty());
+        for report in &ran.controller_reports {
+            let why = report.reason.as_deref().unwrap_or_default();
+            assert!(why.contains("no next slice"), "{why}");
+        }
+        assert_eq!(ran.controller_reports.len(), 2);
+        let snapshot = ran.robot_post.snapshot();
+        assert!(snapshot.pool.is_empty(), "{:?}", snapshot.pool);
+    }
+
+    /// A held slice's tag changed in flight as it is confirmed: the block ends without a key
+    /// of any slice on either side; the next sessions' block is keyed.
+    #[test]
+    fn a_tampered_held_slice_ends_the_block() {
+        let ran = run(Some(sized), true, |m| {
+            if let Message::Confirmed { block: 0, tag } = m {
+                tag[0] ^= 1;
+            }
+        });
+        assert_eq!(ran.controller, ran.robot);
+        let blocks: Vec<u64> = ran.controller.iter().map(|k| k.block).collect();
+        assert_eq!(blocks, vec![2, 3]);
+        assert!(ran.robot_post.snapshot().pool.is_empty());
     }
 
     /// Slice 0 of three sessions, then their slice 1 as the next block, then the same for
     /// the next three: four keys, the same on both sides, slice 1's under the slice IDs.
     #[test]
     fn each_slice_is_keyed_after_the_one_below_it() {
-        let (controller, robot, reconciled, _) = run(|_| {});
+        let Ran {
+            controller,
+            robot,
+            reconciled,
+            ..
+        } = run(None, true, |_| {});
         assert_eq!(reconciled, vec![0, 2]);
         assert_eq!(controller, robot);
         let blocks: Vec<(u64, Vec<u32>)> = controller
@@ -395,7 +594,12 @@ mod tests {
     /// the next sessions go on.
     #[test]
     fn a_reordered_slice_block_is_refused() {
-        let (controller, robot, reconciled, _) = run(|m| {
+        let Ran {
+            controller,
+            robot,
+            reconciled,
+            ..
+        } = run(None, true, |m| {
             if let Message::Propose {
                 block: 1, sessions, ..
             } = m
@@ -414,7 +618,13 @@ mod tests {
     /// sessions go on.
     #[test]
     fn a_tampered_tag_ends_the_blocks_later_slices() {
-        let (controller, robot, reconciled, robot_post) = run(|m| {
+        let Ran {
+            controller,
+            robot,
+            reconciled,
+            robot_post,
+            ..
+        } = run(None, true, |m| {
             if let Message::Confirmed { block: 0, tag } = m {
                 tag[0] ^= 1;
             }
@@ -460,6 +670,7 @@ mod tests {
             likelihoods: vec![0; 3 * 4],
             separations: vec![1.0; 6],
             known: BitString::zeros(6),
+            samples: SessionSamples::new(),
         };
         assert_eq!(staged.check(), Ok(()));
         assert_eq!(staged.slice_bits(), 3);

@@ -162,7 +162,9 @@ impl Pair {
                         })
                         .unwrap();
                 }
-                Output::Ignored(_) | Output::SliceReconciled(_) => {}
+                Output::Ignored(_)
+                | Output::SliceReconciled(_)
+                | Output::SlicesEstimateNeeded(_) => {}
             }
         }
         while let Some(output) = self.robot.poll_output() {
@@ -171,7 +173,10 @@ impl Pair {
                 Output::Persist => self.robot_snapshot = self.robot.snapshot(),
                 Output::KeyCommitted(key) => self.robot_keys.push(key),
                 Output::BlockEnded(report) => self.robot_reports.push(report),
-                Output::Ignored(_) | Output::EstimateNeeded(_) | Output::SliceReconciled(_) => {}
+                Output::Ignored(_)
+                | Output::EstimateNeeded(_)
+                | Output::SliceReconciled(_)
+                | Output::SlicesEstimateNeeded(_) => {}
             }
         }
     }

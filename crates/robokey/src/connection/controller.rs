@@ -564,15 +564,13 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
 
 /// Whether the controller keeps each decided doublet (its inputs and samples) for its
 /// blocks: the block's estimate under `postprocess.sizing = "measured"`; under
-/// `"configured"` in private sensing with binary symbols, the commands check on the robot's
-/// bits (docs/estimation.md, "The commands check"). Multilevel slices are keyed one by one
-/// and the check regresses whole symbols: their blocks are not checked by the agents.
+/// `"configured"` in private sensing, the commands check on the robot's bits
+/// (docs/estimation.md, "The commands check"). A multilevel block's slices are then held
+/// until the last is reconciled, and the block estimated or checked on whole symbols.
 fn keeps_samples(config: &Config) -> bool {
     match config.postprocess.sizing {
         Sizing::Measured => true,
-        Sizing::Configured => {
-            config.sensing.mode == SensingMode::Private && config.protocol.levels <= 2
-        }
+        Sizing::Configured => config.sensing.mode == SensingMode::Private,
         Sizing::World => false,
     }
 }

@@ -8,11 +8,11 @@ use std::collections::BTreeSet;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, EstimateOutcome,
-    FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot,
-    SessionSamples, SliceInput, StagedSession, slice_id,
+    EstimateRequest, FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost,
+    RobotSnapshot, SessionSamples, SliceInput, SlicesEstimateRequest, StagedSession, slice_id,
 };
 
-use super::slices::{first_slice, slice_input, slicing};
+use super::slices::{first_slice, slice_estimates, slice_input, slicing};
 use crate::Config;
 use crate::config::Sizing;
 use crate::estimate::{BlockEstimate, check_request, estimate_request};
@@ -60,6 +60,9 @@ pub trait PostEndpoint {
     /// The shell's estimate of the plant for `block`, which the endpoint asked for (the
     /// robot never asks).
     fn estimated(&mut self, block: u64, outcome: EstimateOutcome);
+    /// The shell's estimate of a multilevel block on whole symbols, one outcome per slice,
+    /// which the endpoint asked for with `block`, its last slice's (the robot never asks).
+    fn slices_estimated(&mut self, block: u64, outcomes: Vec<EstimateOutcome>);
     /// A message from the peer.
     fn frame(&mut self, message: postprocess::Message);
     /// The next output.
@@ -103,6 +106,10 @@ impl PostEndpoint for ControllerPost {
     fn estimated(&mut self, block: u64, outcome: EstimateOutcome) {
         // An estimate never fails: only sessions are checked.
         let _ = self.handle_input(ControllerInput::Estimate { block, outcome });
+    }
+    fn slices_estimated(&mut self, block: u64, outcomes: Vec<EstimateOutcome>) {
+        // An estimate never fails: only sessions are checked.
+        let _ = self.handle_input(ControllerInput::SliceEstimates { block, outcomes });
     }
     fn frame(&mut self, message: postprocess::Message) {
         // A frame never fails: only sessions are checked.
@@ -162,6 +169,7 @@ impl PostEndpoint for RobotPost {
         Ok(())
     }
     fn estimated(&mut self, _block: u64, _outcome: EstimateOutcome) {}
+    fn slices_estimated(&mut self, _block: u64, _outcomes: Vec<EstimateOutcome>) {}
     fn frame(&mut self, message: postprocess::Message) {
         let _ = self.handle_input(RobotInput::Frame(message));
     }
@@ -294,7 +302,10 @@ impl<E: PostEndpoint> PostLink<E> {
                 likelihoods.truncate(doublets * slicing.patterns());
                 let mut separations = separations;
                 separations.truncate(bits.len());
-                let staged = first_slice(id, slicing, bits.len(), likelihoods, separations);
+                let mut samples = samples;
+                samples.truncate(doublets);
+                let staged =
+                    first_slice(id, slicing, bits.len(), likelihoods, separations, samples);
                 self.endpoint.pool_slices(&bools, staged, &self.config)
             }
             None => self.endpoint.pool(
@@ -357,6 +368,13 @@ impl<E: PostEndpoint> PostLink<E> {
                     };
                     self.endpoint.estimated(request.block, outcome);
                 }
+                Output::SlicesEstimateNeeded(request) => {
+                    // A multilevel block on whole symbols once its last slice is reconciled:
+                    // the lab's estimate and commands check, each slice sized from them
+                    // (`slices::slice_estimates`); configured sizing the check alone.
+                    let outcomes = self.slice_outcomes(&request, out);
+                    self.endpoint.slices_estimated(request.block, outcomes);
+                }
                 Output::SliceReconciled(reconciled) => {
                     // The next slices' LLRs given the robot's bits of the reconciled ones:
                     // the simulator's computation (`slices::slice_input`).
@@ -415,6 +433,42 @@ impl<E: PostEndpoint> PostLink<E> {
             out.push(PostOutput::Sent(fragments.len() - before));
         }
         Ok(fragments)
+    }
+}
+
+impl<E> PostLink<E> {
+    /// Each slice's published outcome for a multilevel block's `request`: under measured
+    /// sizing the block's estimate on whole symbols sized per slice (each reported in `out`);
+    /// under configured sizing the commands check on whole symbols, its verdict for every
+    /// slice.
+    fn slice_outcomes<S>(
+        &self,
+        request: &SlicesEstimateRequest,
+        out: &mut Vec<PostOutput<S>>,
+    ) -> Vec<EstimateOutcome> {
+        let epsilon = self.config.postprocess.epsilon;
+        if self.config.postprocess.sizing == Sizing::Measured {
+            slice_estimates(&self.config, &request.sessions, &request.disclosed, epsilon)
+                .into_iter()
+                .map(|estimate| {
+                    let outcome = estimate.outcome();
+                    out.push(PostOutput::Estimated(estimate));
+                    outcome
+                })
+                .collect()
+        } else {
+            let whole = EstimateRequest {
+                block: request.block,
+                sessions: request
+                    .sessions
+                    .iter()
+                    .map(|s| (s.session, s.samples.clone(), s.known.clone()))
+                    .collect(),
+                disclosed: request.disclosed.iter().sum(),
+            };
+            let verdict = check_request(&self.config, &whole, epsilon);
+            vec![verdict; request.disclosed.len()]
+        }
     }
 }
 

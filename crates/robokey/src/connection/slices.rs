@@ -3,14 +3,18 @@
 //! decided doublet (its patterns' log-likelihoods), and each slice's decisions and LLRs given
 //! the robot's bits of the lower slices once their blocks are reconciled — [`staged_llrs`],
 //! the function the simulator uses for the lab's slices (which it conditions on the robot's
-//! bits directly, not through this hand-off).
+//! bits directly, not through this hand-off) — and a block's estimate of the plant on whole
+//! symbols once every slice is reconciled ([`slice_estimates`]), each slice sized from it as
+//! the lab sizes it.
 
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
-    SliceInput, Slicing, StagedSession, dequantise_llr, quantise_llr,
+    EstimateRequest, SessionSamples, SliceInput, Slicing, StagedSession, dequantise_llr,
+    quantise_llr,
 };
 
 use crate::config::{Config, Reconciliation, SensingMode};
+use crate::estimate::{BlockEstimate, request_separations};
 use crate::private::Perturbation;
 use crate::private::likelihood::staged_llrs;
 
@@ -35,7 +39,9 @@ pub fn keep_likelihoods(log_likelihoods: &[f64], kept: &mut Vec<i16>) {
 }
 
 /// The staged material of a session's first slice: `likelihoods` as kept
-/// ([`keep_likelihoods`]) and `separations` (one per bit, `bits` of them).
+/// ([`keep_likelihoods`]), `separations` (one per bit, `bits` of them) and what the
+/// controller keeps of its doublets for the block's estimate (`samples`, one per doublet, or
+/// none).
 #[must_use]
 pub fn first_slice(
     session: u32,
@@ -43,6 +49,7 @@ pub fn first_slice(
     bits: usize,
     likelihoods: Vec<i16>,
     separations: Vec<f64>,
+    samples: SessionSamples,
 ) -> StagedSession {
     StagedSession {
         session,
@@ -51,7 +58,47 @@ pub fn first_slice(
         likelihoods,
         separations,
         known: BitString::zeros(bits),
+        samples,
     }
+}
+
+/// A multilevel block's estimate of the plant once its last slice is reconciled, and what
+/// sizes each slice (docs/estimation.md, "Multilevel symbols"): `sessions` advanced past
+/// their last slice (`known` holds the robot's bits of every slice, `samples` what the
+/// controller kept), `disclosed[s]` the bits slice `s`'s block disclosed in its sample. The
+/// block is estimated on whole symbols by the simulator's computation
+/// ([`request_separations`]: the estimate, then the commands check), every slice sized from
+/// that one estimate with its own bits' worst-case separations less its own sample
+/// ([`BlockEstimate::for_slice`]), as `robokey secrecy --sizing measured` sizes the lab's
+/// slices. A refusal refuses every slice. Returns one estimate per slice.
+#[must_use]
+pub fn slice_estimates(
+    config: &Config,
+    sessions: &[StagedSession],
+    disclosed: &[u64],
+    epsilon: f64,
+) -> Vec<BlockEstimate> {
+    let request = EstimateRequest {
+        block: 0,
+        sessions: sessions
+            .iter()
+            .map(|s| (s.session, s.samples.clone(), s.known.clone()))
+            .collect(),
+        disclosed: disclosed.iter().sum(),
+    };
+    let (separations, estimate) = request_separations(config, &request, epsilon);
+    disclosed
+        .iter()
+        .enumerate()
+        .map(|(slice, &disclosed)| {
+            let picked: Vec<Vec<f64>> = sessions
+                .iter()
+                .zip(&separations)
+                .map(|(staged, all)| staged.slicing.pick(all, slice))
+                .collect();
+            estimate.for_slice(&picked, disclosed)
+        })
+        .collect()
 }
 
 /// The controller's decisions and LLRs of `staged`'s slice: each bit's LLR given the robot's
@@ -141,7 +188,7 @@ mod tests {
         let robot: Vec<bool> = (0..bits)
             .map(|i| words[i / 4] >> (i % 4) & 1 == 1)
             .collect();
-        let mut staged = first_slice(7, slicing, bits, kept, vec![1.0; bits]);
+        let mut staged = first_slice(7, slicing, bits, kept, vec![1.0; bits], Vec::new());
         for slice in 0..2 {
             let input = slice_input(&config, staged.clone());
             let mut j = 0;

@@ -16,7 +16,7 @@
 //! inputs and bits through τ̂, so a doublet whose predecessor was not kept is left out), a
 //! check that a first-order lag explains the doublets' ends as well as their middles (the
 //! dead-time test, [`lag_shape_refusal`]), then Q and ρ (at the other 2ε_est/3), and Eve's
-//! view at the worst case over the corners and a grid of τ's interval
+//! view at the worst case over the corners and every τ of its interval
 //! ([`three_step_worst_case`]).
 
 use std::collections::BTreeMap;
@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 
 use super::lag::{MIN_LAG_DOUBLETS, first_step_share};
 use super::normal_tail::normal_upper_quantile;
-use super::worst_case::{lag_grid, three_step_steps, three_step_worst_case};
+use super::worst_case::{three_step_steps, three_step_worst_case};
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
     estimate_lag, estimate_motion_noise, published_separation, worst_case_separations,
@@ -73,6 +73,12 @@ pub struct BlockEstimate {
     /// view is sized over; none with two steps.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lag: Option<[f64; 3]>,
+    /// Per-wheel slip fitted beside `Q`, `[σ̂, σ_lo, σ_hi]` as fractions of each wheel's
+    /// travel, on a block that was sized: its interval reaches 0 (a block that measures slip
+    /// is refused), so up to `σ_hi` of slip may go unseen, and the key is not sized for it
+    /// (docs/estimation.md, "Per-wheel slip"); none where not fitted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slip: Option<[f64; 3]>,
 }
 
 impl BlockEstimate {
@@ -130,6 +136,7 @@ impl BlockEstimate {
             largest: REFUSED_SEPARATION,
             refused: Some(why),
             lag: None,
+            slip: None,
         }
     }
 }
@@ -148,7 +155,7 @@ pub fn block_separations(
     disclosed: u64,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    let residuals = two_step_residuals(&doublet_model(config), sessions);
+    let residuals = two_step_residuals(&doublet_model(config), config.robot.axle_length, sessions);
     if config.doublet_settle().is_some() {
         return three_step_block(config, sessions, disclosed, epsilon);
     }
@@ -171,6 +178,7 @@ pub fn block_separations(
 /// carried ([`DoubletResidual::new`]).
 fn two_step_residuals(
     model: &DoubletModel,
+    axle: f64,
     sessions: &[&[DoubletSamples]],
 ) -> Vec<DoubletResidual> {
     sessions
@@ -179,6 +187,7 @@ fn two_step_residuals(
         .map(|b| {
             DoubletResidual::new(
                 model,
+                axle,
                 b.doublet,
                 &b.inputs,
                 &b.samples[0],
@@ -242,7 +251,7 @@ fn three_step_block(
         lag: lag.point,
         ..doublet_model(config)
     };
-    let residuals = three_step_residuals(&at_point, sessions);
+    let residuals = three_step_residuals(&at_point, config.robot.axle_length, sessions);
     if let Some(why) = lag_shape_refusal(config, sessions, &lag, epsilon) {
         return refused(sessions.len(), why, residuals.len(), epsilon);
     }
@@ -287,12 +296,14 @@ fn entry_speeds(model: &DoubletModel, session: &[DoubletSamples]) -> Vec<Option<
 }
 
 /// The three-step residuals of every doublet of `sessions` whose entry speed is known, with
-/// the lagged means through `model`'s lag ([`DoubletResidual::three_step`]).
+/// the lagged means through `model`'s lag ([`DoubletResidual::three_step`]), on wheels
+/// `axle` D (m) apart.
 fn three_step_residuals(
     model: &DoubletModel,
+    axle: f64,
     sessions: &[&[DoubletSamples]],
 ) -> Vec<DoubletResidual> {
-    three_step_doublets(model, sessions)
+    three_step_doublets(model, axle, sessions)
         .into_iter()
         .map(|(residual, _)| residual)
         .collect()
@@ -301,6 +312,7 @@ fn three_step_residuals(
 /// [`three_step_residuals`] with the pattern each doublet carried.
 fn three_step_doublets(
     model: &DoubletModel,
+    axle: f64,
     sessions: &[&[DoubletSamples]],
 ) -> Vec<(DoubletResidual, usize)> {
     sessions
@@ -313,6 +325,7 @@ fn three_step_doublets(
                     entry.map(|entry| {
                         let residual = DoubletResidual::three_step(
                             model,
+                            axle,
                             b.doublet,
                             &b.inputs,
                             [&b.samples[0], &b.samples[2]],
@@ -358,7 +371,7 @@ pub fn lag_shape_refusal(
             lag: tau,
             ..doublet_model(config)
         };
-        let x: Vec<f64> = three_step_doublets(&model, sessions)
+        let x: Vec<f64> = three_step_doublets(&model, config.robot.axle_length, sessions)
             .iter()
             .map(|(r, pattern)| model.perturbation.amplitude(*pattern) * r.value[0])
             .collect();
@@ -450,7 +463,7 @@ fn size_block(
     lag: Option<&LagEstimate>,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    let lags = lag.map(|lag| (lag_grid(lag.interval), three_step_steps(estimate)));
+    let lags = lag.map(|lag| (lag.interval, three_step_steps(estimate)));
     let model = doublet_model(config);
     let bits = model.perturbation.key_bits();
     let mut separations = Vec::with_capacity(sessions.len());
@@ -476,7 +489,7 @@ fn size_block(
                         config.sensing.controller_std,
                         config.modelled_camera_std(),
                     );
-                    three_step_worst_case(&model, steps, lags, &b.inputs, &view)
+                    three_step_worst_case(&model, steps, *lags, &b.inputs, &view)
                 }
             };
             match worst {
@@ -521,6 +534,7 @@ fn size_block(
             largest,
             refused: None,
             lag: lag.map(|lag| [lag.point, lag.interval[0], lag.interval[1]]),
+            slip: estimate.slip.map(|slip| slip.stds()),
         },
     )
 }
@@ -607,18 +621,34 @@ fn with_bits(
 /// level ε_est ([`commands_check::block_refusal`]), whose refusal is added to the block's.
 #[must_use]
 pub fn estimate_request(config: &Config, request: &EstimateRequest, epsilon: f64) -> BlockEstimate {
+    request_separations(config, request, epsilon).1
+}
+
+/// [`estimate_request`] with each session's bits' worst-case separations (as
+/// [`block_separations`] gives them; none when the request does not match its samples):
+/// what sizes each slice of a multilevel block ([`BlockEstimate::for_slice`]).
+#[must_use]
+pub fn request_separations(
+    config: &Config,
+    request: &EstimateRequest,
+    epsilon: f64,
+) -> (Vec<Vec<f64>>, BlockEstimate) {
     match request_sessions(config, request) {
         Ok(sessions) => {
             let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
-            let mut estimate = block_separations(config, &views, request.disclosed, epsilon).1;
+            let (separations, mut estimate) =
+                block_separations(config, &views, request.disclosed, epsilon);
             if let Some(why) =
                 commands_check::sized_block_refusal(config, &views, epsilon, Some(&estimate))
             {
                 estimate.refuse(why);
             }
-            estimate
+            (separations, estimate)
         }
-        Err(why) => BlockEstimate::refused(format!("motion-noise estimate: {why}"), 0, epsilon),
+        Err(why) => (
+            Vec::new(),
+            BlockEstimate::refused(format!("motion-noise estimate: {why}"), 0, epsilon),
+        ),
     }
 }
 
@@ -714,7 +744,7 @@ mod tests {
             lag,
             ..doublet_model(config)
         };
-        let residuals = three_step_residuals(&model, sessions);
+        let residuals = three_step_residuals(&model, config.robot.axle_length, sessions);
         let n = residuals.len();
         let square =
             [0, 1, 2].map(|k| residuals.iter().map(|r| r.value[k].powi(2)).sum::<f64>() / n as f64);
@@ -848,14 +878,15 @@ mod tests {
     /// Multilevel symbols: with each symbol's mean subtracted Q̂ is the world's 1 mm² (1
     /// mrad²) per axis at 4 and 8 levels, within 4 of its relative standard errors
     /// `√(2F/n)·(2Q + 2R)/(2Q)` (F = 1.5 for the neighbours' shared sample), and the block is
-    /// sized, not refused, with a separation for every key bit.
+    /// sized, not refused, with a separation for every key bit; the slip fitted beside `Q`
+    /// shows none (its interval reaches 0, its upper end below 2 % of the wheels' travel).
     #[test]
     fn multilevel_q_is_unbiased_with_the_symbols_mean_subtracted() {
         for levels in [4_u8, 8] {
             let (config, sessions) = multilevel_block(levels);
             let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
             let model = doublet_model(&config);
-            let with = two_step_residuals(&model, &views);
+            let with = two_step_residuals(&model, config.robot.axle_length, &views);
             let sensor = diagonal_covariance(config.sensing.controller_std);
             let n = with.len();
             let q_hat = estimate_motion_noise(&with, &sensor, 1e-3).expect("in the class");
@@ -870,6 +901,12 @@ mod tests {
             }
             let (separations, estimate) = block_separations(&config, &views, 0, 1e-6);
             assert_eq!(estimate.refused, None, "{levels} levels");
+            let [_, low, high] = estimate.slip.expect("the slip fitted beside Q");
+            assert!(
+                low == 0.0 && high < 0.02,
+                "{levels} levels: {:?}",
+                estimate.slip
+            );
             let key_bits = model.perturbation.key_bits();
             for (session, d) in views.iter().zip(&separations) {
                 assert_eq!(d.len(), session.len() * key_bits);

@@ -7,7 +7,9 @@
 //! covariance `Q` in the robot's frame and AR(1) correlation `ρ ∈ [−½, 1)` between steps
 //! (white at ρ = 0), and a controller sensor of stated covariance `R` (its calibration);
 //! with three-step doublets (`private.prior_lag`) a first-order actuator lag τ as well,
-//! measured first (`lag`) and subtracted before `Q` and ρ (`block`).
+//! measured first (`lag`) and subtracted before `Q` and ρ (`block`). Per-wheel slip is
+//! measured jointly with `Q` (`slip`) and refused by name where the block shows it: Eve's
+//! view of bits whose noise depends on them is not sized yet.
 
 pub mod block;
 pub mod commands_check;
@@ -17,11 +19,12 @@ pub mod lag;
 pub mod motion_noise;
 mod normal_tail;
 pub mod residual;
+pub mod slip;
 pub mod worst_case;
 
 pub use block::{
     BlockEstimate, block_separations, check_request, estimate_request, kept_doublet,
-    world_block_separations,
+    request_separations, world_block_separations,
 };
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
@@ -30,6 +33,7 @@ pub use motion_noise::{
     Corner, EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
 };
 pub use residual::DoubletResidual;
+pub use slip::{SlipEstimate, estimate_slip};
 pub use worst_case::{
     ESTIMATE_LEAK_BITS, MAX_PUBLISHED_SEPARATION, SEPARATION_QUANTUM, published_separation,
     worst_case_separations,

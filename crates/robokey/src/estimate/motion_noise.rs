@@ -23,7 +23,8 @@
 //! that vary less than the stated sensor noise alone explains (`Q_high = 𝓛̄⁻¹(S_half/c₋ − N̄)`
 //! has a negative eigenvalue: no `Q ⪰ 0` fits, so the calibration `R` is wrong); neighbours
 //! correlated beyond the sensor's MA(1) term (not white); a variance that differs between the
-//! doublets' speed or turn classes (`homogeneity`: slip); tails that are not Gaussian.
+//! doublets' speed or turn classes beyond what the fitted model explains (`homogeneity`);
+//! per-wheel slip, measured (`slip`) but not yet sized; tails that are not Gaussian.
 
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
 use thiserror::Error;
@@ -35,6 +36,7 @@ use super::correlation::{
 use super::homogeneity::{ClassDeparture, speed_class_departure};
 use super::normal_tail::normal_upper_quantile;
 use super::residual::{AXES, DoubletResidual};
+use super::slip::{SlipEstimate, estimate_slip};
 
 /// Least residuals of each parity the bounds are computed from.
 pub const MIN_DOUBLETS_PER_PARITY: usize = 100;
@@ -78,6 +80,10 @@ pub struct MotionNoiseEstimate {
     pub corners: [Corner; CORRELATION_CELLS],
     /// The region's failure probability ε_est.
     pub epsilon: f64,
+    /// Per-wheel slip fitted beside `Q` (`slip`); its interval reaches 0 on an estimate that
+    /// is returned (a block that measures slip is refused). None where the block's speeds do
+    /// not identify it, or for a known world.
+    pub slip: Option<SlipEstimate>,
 }
 
 /// Why a block's motion noise could not be bounded: the class does not cover its data.
@@ -142,14 +148,16 @@ pub enum EstimationRefusal {
         limit: f64,
     },
     /// The residuals' variance differs between the doublets' speed or turn-rate classes beyond
-    /// what one `Q` explains: slip, speed- or turn-dependent noise, or a turn-dependent residual
-    /// the model leaves (the homogeneity test).
+    /// what the fitted model (one `Q`, and per-wheel slip where the block measures it)
+    /// explains: speed- or turn-dependent noise, or a turn-dependent residual the model
+    /// leaves (the homogeneity test).
     #[error(
         "motion-noise estimate: the motion noise differs between the doublets' classes (by \
          {partition}, class {lo:.3}–{hi:.3} {unit}: measured/pooled variance along the {axis} axis \
          per class {ratios}, statistic {statistic:.1}, allowed: within ±{limit:.1} at level \
-         ε_est): slip, noise that depends on the speed or the turn, or a turn-dependent \
-         residual the model leaves — outside the class this estimator covers (one Q)",
+         ε_est): noise that depends on the speed or the turn beyond per-wheel slip, or a \
+         turn-dependent residual the model leaves — outside the class this estimator covers \
+         (one Q and per-wheel slip)",
         partition = .0.partition,
         lo = .0.range[0],
         hi = .0.range[1],
@@ -160,6 +168,22 @@ pub enum EstimationRefusal {
         limit = .0.limit
     )]
     NotHomogeneous(ClassDeparture),
+    /// Per-wheel slip measured: σ²'s interval lies above 0. Its noise depends on the bits
+    /// (they set the wheels' travel), and Eve's modelled view of such bits is not sized yet.
+    #[error(
+        "motion-noise estimate: per-wheel slip measured: σ̂ = {point:.2} % of each wheel's \
+         travel, interval [{lo:.2} %, {hi:.2} %] at level ε_est (√Q̂ fitted with it \
+         {q0:.3} mm, {q1:.3} mm, {q2:.3} mrad); the slip's noise depends on the bits (they set \
+         the wheels' travel) and a bound on Eve's view of such bits is not implemented: \
+         refused, not sized",
+        point = 100.0 * .0.stds()[0],
+        lo = 100.0 * .0.stds()[1],
+        hi = 100.0 * .0.stds()[2],
+        q0 = 1e3 * .0.motion[(0, 0)].max(0.0).sqrt(),
+        q1 = 1e3 * .0.motion[(1, 1)].max(0.0).sqrt(),
+        q2 = 1e3 * .0.motion[(2, 2)].max(0.0).sqrt()
+    )]
+    SlipMeasured(SlipEstimate),
     /// Neighbouring doublets' residuals anti-correlated beyond what AR(1) motion noise of
     /// ρ ≥ −½ explains (below −½ the two-step residual cannot identify ρ).
     #[error(
@@ -184,13 +208,13 @@ pub enum EstimationRefusal {
 }
 
 /// The entries `(i, j)` of a symmetric 3×3 matrix, in the order of its six coordinates.
-const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+pub(super) const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
-fn coordinates(m: &Matrix3<f64>) -> Vector6<f64> {
+pub(super) fn coordinates(m: &Matrix3<f64>) -> Vector6<f64> {
     Vector6::from_iterator(ENTRIES.iter().map(|&(i, j)| 0.5 * (m[(i, j)] + m[(j, i)])))
 }
 
-fn symmetric(q: &Vector6<f64>) -> Matrix3<f64> {
+pub(super) fn symmetric(q: &Vector6<f64>) -> Matrix3<f64> {
     let mut m = Matrix3::zeros();
     for (&(i, j), &v) in ENTRIES.iter().zip(q.iter()) {
         m[(i, j)] = v;
@@ -391,15 +415,25 @@ pub fn estimate_motion_noise(
         step_weights: step_weights(cells[i]),
     });
     let lower = vertices[CORRELATION_CELLS - 1][1];
+    // Slip at level ε_est: where the block measures it, the homogeneity test is against the
+    // joint fit (departures beyond slip are refused as such), and then the slip is refused
+    // by name; otherwise against the white fit, as without slip.
+    let slip_fit = estimate_slip(residuals, sensor, correlation.point, epsilon);
+    let slip = slip_fit.filter(SlipEstimate::measured);
+    let (tested, slip_variance) = slip.map_or((point, 0.0), |s| (s.motion, s.point));
     if let Some(departure) = speed_class_departure(
         residuals,
-        &point,
+        &tested,
         correlation.point,
+        slip_variance,
         inflation,
         sensor,
         epsilon,
     ) {
         return Err(EstimationRefusal::NotHomogeneous(departure));
+    }
+    if let Some(slip) = slip {
+        return Err(EstimationRefusal::SlipMeasured(slip));
     }
     let kurtosis = mardia_kurtosis(residuals, &all);
     let tolerance = kurtosis_tolerance(residuals.len(), epsilon, inflation);
@@ -417,6 +451,7 @@ pub fn estimate_motion_noise(
         upper,
         corners,
         epsilon,
+        slip: slip_fit,
     })
 }
 
@@ -487,6 +522,7 @@ impl MotionNoiseEstimate {
                 step_weights: step_weights(cell),
             }; CORRELATION_CELLS],
             epsilon,
+            slip: None,
         }
     }
 
@@ -578,7 +614,13 @@ pub(super) mod tests {
             }
             let y_end = sensed(&x, &mut normal);
             out.push(DoubletResidual::new(
-                &model, j, &inputs, &y_start, &y_end, pattern,
+                &model,
+                Config::default().robot.axle_length,
+                j,
+                &inputs,
+                &y_start,
+                &y_end,
+                pattern,
             ));
             y_start = y_end;
         }

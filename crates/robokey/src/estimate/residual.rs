@@ -32,6 +32,14 @@
 //! and `r = y(3j+3) − m₃ ≈ A₂A₁w₀ + A₂w₁ + w₂ + η₃ − A₂A₁A₀η₀`: `B₀ = H(θ₀)ᵀA₂A₁H(θ₀)`,
 //! `B₁ = H(θ₀)ᵀA₂H(θ₁)`, `B₂ = H(θ₀)ᵀH(θ₂)`, `C₀ = H(θ₀)ᵀ`, `C₁ = H(θ₀)ᵀA₂A₁A₀`, and under
 //! AR(1) `Cov(z) = Σᵢₖ ρ^|i−k|·BᵢQBₖᵀ + C₀RC₀ᵀ + C₁RC₁ᵀ`.
+//!
+//! **Per-wheel slip** (docs/world.md, "Noise"): each wheel's travel in step k,
+//! `d_r,l = (v_k ± ω_k·D/2)·T` at the step's applied (mean) speeds, is multiplied by
+//! `1 + σ·z`, `z ~ N(0, 1)` per wheel and step — a velocity error constant over the step,
+//! like the additive noise, in the robot's frame at the step's heading. Its covariance there
+//! is `σ²·Wₖ`, `Wₖ = G·diag(d_r², d_l²)·Gᵀ`, `G = [[½, ½], [0, 0], [1/D, −1/D]]` (along-track,
+//! lateral, heading per unit of the wheels' travel noise), independent between steps, so the
+//! residual's covariance gains `σ²·M`, `M = Σₖ BₖWₖBₖᵀ` (the slip map), linear in σ².
 
 use nalgebra::Matrix3;
 
@@ -55,8 +63,35 @@ pub struct DoubletResidual {
     pub motion_maps: [Matrix3<f64>; 3],
     /// `[C₀, C₁]`: how the end and the start sample's sensor noise enter `z`.
     pub sensor_maps: [Matrix3<f64>; 2],
+    /// `M = Σₖ BₖWₖBₖᵀ`: the residual's covariance per unit of the slip's variance σ²
+    /// (m², m², rad²; the module's doc).
+    pub slip_map: Matrix3<f64>,
     /// The doublet's public nominal inputs (what the homogeneity test classes it by).
     pub inputs: DoubletInputs,
+}
+
+/// `Wₖ = G·diag(d_r², d_l²)·Gᵀ`: one step's slip covariance per unit σ² in the robot's frame
+/// at the step's heading, for applied speeds `u` (m/s, rad/s) over `sample_time` T (s) on
+/// wheels `axle` D (m) apart; `d_r,l = (v ± ω·D/2)·T`.
+#[must_use]
+pub fn step_slip_covariance(u: &Unicycle, sample_time: f64, axle: f64) -> Matrix3<f64> {
+    let right = (u.x + 0.5 * axle * u.y) * sample_time;
+    let left = (u.x - 0.5 * axle * u.y) * sample_time;
+    let g = nalgebra::Matrix3x2::new(0.5, 0.5, 0.0, 0.0, 1.0 / axle, -1.0 / axle);
+    g * nalgebra::Matrix2::new(right * right, 0.0, 0.0, left * left) * g.transpose()
+}
+
+/// `Σₖ BₖWₖBₖᵀ` over the steps' `maps` and applied speeds `applied`.
+fn slip_map(
+    maps: &[Matrix3<f64>],
+    applied: &[Unicycle],
+    sample_time: f64,
+    axle: f64,
+) -> Matrix3<f64> {
+    maps.iter()
+        .zip(applied)
+        .map(|(b, u)| b * step_slip_covariance(u, sample_time, axle) * b.transpose())
+        .sum()
 }
 
 /// The rotation `H(θ)` about the vertical axis: a robot-frame vector to the world's.
@@ -69,10 +104,12 @@ pub fn rotation(theta: f64) -> Matrix3<f64> {
 impl DoubletResidual {
     /// The residual of doublet `doublet` with public `inputs`, the controller's samples
     /// `start = y(2j)` and `end = y(2j+2)`, and the reconciled bit pattern `pattern`
-    /// (v-bit `pattern & 1`, ω-bit `pattern >> 1`), under `model`'s sample time and Δ.
+    /// (v-bit `pattern & 1`, ω-bit `pattern >> 1`), under `model`'s sample time and Δ, on
+    /// wheels `axle` D (m) apart (the slip map's).
     #[must_use]
     pub fn new(
         model: &DoubletModel,
+        axle: f64,
         doublet: u32,
         inputs: &DoubletInputs,
         start: &Pose,
@@ -86,16 +123,18 @@ impl DoubletResidual {
         let a0 = state_jacobian(start.z, a.x, t);
         let a1 = state_jacobian(middle.z, b.x, t);
         let h0 = rotation(start.z).transpose();
+        let motion_maps = [
+            h0 * a1 * rotation(start.z),
+            h0 * rotation(middle.z),
+            Matrix3::zeros(),
+        ];
         Self {
             doublet,
             value: h0 * (end - predicted),
             steps: 2,
-            motion_maps: [
-                h0 * a1 * rotation(start.z),
-                h0 * rotation(middle.z),
-                Matrix3::zeros(),
-            ],
+            motion_maps,
             sensor_maps: [h0, h0 * a1 * a0],
+            slip_map: slip_map(&motion_maps[..2], &[a, b], t, axle),
             inputs: *inputs,
         }
     }
@@ -103,10 +142,11 @@ impl DoubletResidual {
     /// The residual of a three-step doublet (the module's doc) with the steps' mean speeds
     /// through `model`'s lag τ (s) — the bit's, pattern `pattern`, and the nominal inputs'
     /// from the wheels' nominal speed `entry` (m/s, rad/s) at its start — from the
-    /// controller's samples `start = y(3j)` and `end = y(3j+3)`.
+    /// controller's samples `start = y(3j)` and `end = y(3j+3)`, on wheels `axle` D (m) apart.
     #[must_use]
     pub fn three_step(
         model: &DoubletModel,
+        axle: f64,
         doublet: u32,
         inputs: &DoubletInputs,
         [start, end]: [&Pose; 2],
@@ -124,16 +164,18 @@ impl DoubletResidual {
         let before = [*start, means[0], means[1]];
         let [a0, a1, a2] = std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t));
         let h0 = rotation(start.z).transpose();
+        let motion_maps = [
+            h0 * a2 * a1 * rotation(start.z),
+            h0 * a2 * rotation(means[0].z),
+            h0 * rotation(means[1].z),
+        ];
         Self {
             doublet,
             value: h0 * (end - means[2]),
             steps: 3,
-            motion_maps: [
-                h0 * a2 * a1 * rotation(start.z),
-                h0 * a2 * rotation(means[0].z),
-                h0 * rotation(means[1].z),
-            ],
+            motion_maps,
             sensor_maps: [h0, h0 * a2 * a1 * a0],
+            slip_map: slip_map(&motion_maps, &applied, t, axle),
             inputs: *inputs,
         }
     }
@@ -158,6 +200,12 @@ impl DoubletResidual {
             + rho * rho * (far + far.transpose())
     }
 
+    /// `σ²·M`: per-wheel slip's part of `Cov(z)` for the slip's variance `slip_variance` σ².
+    #[must_use]
+    pub fn slip_part(&self, slip_variance: f64) -> Matrix3<f64> {
+        slip_variance * self.slip_map
+    }
+
     /// `C₀RC₀ᵀ + C₁RC₁ᵀ`: the sensor's part of `Cov(z)` for `R` in the world's frame.
     #[must_use]
     pub fn sensor_part(&self, r: &Matrix3<f64>) -> Matrix3<f64> {
@@ -171,6 +219,9 @@ mod tests {
     use crate::config::Config;
     use crate::model::Unicycle;
     use crate::private::doublet_model;
+
+    /// The default robot's axle length D (m).
+    const AXLE: f64 = 0.1047;
 
     /// A noise-free doublet leaves no residual whatever its bits and turn, when the
     /// residual is formed with the bits that rode on it.
@@ -187,10 +238,10 @@ mod tests {
         for pattern in 0..4 {
             let offset = model.perturbation.offset(pattern);
             let end = inputs.propagate(&start, offset, model.sample_time)[1];
-            let r = DoubletResidual::new(&model, 3, &inputs, &start, &end, pattern);
+            let r = DoubletResidual::new(&model, AXLE, 3, &inputs, &start, &end, pattern);
             assert!(r.value.norm() < 1e-15, "{pattern}: {}", r.value);
             // With the wrong pattern the bit's 14 mm (or its turn residual) remains.
-            let wrong = DoubletResidual::new(&model, 3, &inputs, &start, &end, pattern ^ 1);
+            let wrong = DoubletResidual::new(&model, AXLE, 3, &inputs, &start, &end, pattern ^ 1);
             assert!(wrong.value.norm() > 1e-4, "{pattern}: {}", wrong.value);
         }
     }
@@ -205,7 +256,7 @@ mod tests {
             second: Unicycle::new(0.1, 0.0),
         };
         let start = Pose::new(0.0, 0.0, 0.7);
-        let r = DoubletResidual::new(&model, 0, &inputs, &start, &start, 0);
+        let r = DoubletResidual::new(&model, AXLE, 0, &inputs, &start, &start, 0);
         let q = Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 2.0, 3.0));
         let two_q = r.motion_part(&q, 0.0);
         let coupling = model.sample_time * 0.135;
@@ -214,5 +265,38 @@ mod tests {
             "{two_q}"
         );
         assert!((two_q[(0, 0)] - 2.0).abs() < 1e-12, "along-track: {two_q}");
+    }
+
+    /// On a straight doublet the slip map's along-track and heading entries are exact: each
+    /// step's wheels travel `d = v·T` at its applied speed (the bit's offset included), so
+    /// `M_along = Σ d²/2` and `M_heading = Σ 2d²/D²` over the two steps, and nothing crosses
+    /// between them.
+    #[test]
+    fn the_slip_map_follows_each_steps_wheel_travel() {
+        let model = doublet_model(&Config::default());
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.1, 0.0),
+            second: Unicycle::new(0.1, 0.0),
+        };
+        let start = Pose::new(0.0, 0.0, 0.7);
+        for pattern in 0..2 {
+            let r = DoubletResidual::new(&model, AXLE, 0, &inputs, &start, &start, pattern);
+            let t = model.sample_time;
+            let [a, b] = inputs.applied(model.perturbation.offset(pattern));
+            let squares = (a.x * t).powi(2) + (b.x * t).powi(2);
+            assert!(
+                (r.slip_map[(0, 0)] - squares / 2.0).abs() < 1e-15,
+                "{}",
+                r.slip_map
+            );
+            let heading = 2.0 * squares / (AXLE * AXLE);
+            assert!(
+                (r.slip_map[(2, 2)] / heading - 1.0).abs() < 1e-12,
+                "{}",
+                r.slip_map
+            );
+            assert!(r.slip_map[(0, 2)].abs() < 1e-15, "{}", r.slip_map);
+            assert_eq!(r.slip_part(0.0025), 0.0025 * r.slip_map);
+        }
     }
 }

@@ -29,20 +29,44 @@
 //!
 //! **Three steps under a measured lag** (`private.prior_lag`, [`three_step_worst_case`]).
 //! Given the steps just before and after the doublet, its three steps' noise has covariance
-//! `Q ⊗ W(ρ)`, `W(ρ)` the inverse of the AR(1) precision's interior block (tridiagonal,
-//! `(1 + ρ²)/(1 − ρ²)` on the diagonal, `−ρ/(1 − ρ²)` beside it), whose eigenvalues are
-//! `(1 − ρ²)/(1 + ρ² ± √2|ρ| )` and `(1 − ρ²)/(1 + ρ²)`. Over a cell, `μ_low·I ⪯ W(ρ) ⪯ μ_high·I`
-//! with `μ_low` the least eigenvalue at the cell's largest `|ρ|` and `μ_high` the greatest
-//! (it peaks at `|ρ| = √2 − 1`), so `μ_low·P₊ − μ_high·P₋` as independent steps lies below
-//! every member of the cell — coarser than the two-step weights (isotropic in the steps),
-//! never sharper for Eve than the truth. The lag is not monotone in what it gives her (it
-//! smooths the bit after the first step and sharpens it after the second, and a lag other
-//! than the prior leaves the bit at the doublet's end, where the commands reveal it): each
-//! bit's separation is the largest over the corners and a grid of `τ` over its interval
-//! `[τ_lo, τ_hi]`, Eve's means following the doublet's offsets through that `τ` — so ℓ is at
-//! most the least over the grid. A grid, not a proof between its points.
+//! `Q ⊗ W(ρ)`, `W(ρ) = Λ(ρ)⁻¹` with `Λ(ρ) = ((1 + ρ²)·I − ρ·J)/(1 − ρ²)` the AR(1) precision's
+//! interior block (`J` the 3×3 matrix with ones beside the diagonal). Every `Λ(ρ)` is a
+//! combination of `I` and `J`, so all `W(ρ)` share `J`'s eigenvectors
+//! `u₊ = (1, √2, 1)/2, u₀ = (1, 0, −1)/√2, u₋ = (1, −√2, 1)/2` (eigenvalues `λ = √2, 0, −√2`):
+//! `W(ρ) = Σ_λ w_λ(ρ)·u_λu_λᵀ`, `w_λ(ρ) = (1 − ρ²)/(1 + ρ² − λρ)`. Each `w_λ` is unimodal on
+//! (−1, 1) (its derivative has the sign of `λρ² − 4ρ + λ`, one root there: `√2 − 1`, 0,
+//! `1 − √2`), so over a cell `[a, b]` its least is at an end and its greatest at an end or
+//! that root. With `W_low = Σ min w_λ·u_λu_λᵀ` and `W_high = Σ max w_λ·u_λu_λᵀ`,
+//! `W(ρ) − W_low = Σ (w_λ(ρ) − min w_λ)·u_λu_λᵀ ⪰ 0` and `W_high − W(ρ) ⪰ 0` for every ρ of
+//! the cell, and both equal `W(ρ)` at a point cell (the identity at ρ = 0: the white view).
+//! With `Q_cell = P₊ − P₋` (its positive and negative parts) and `Q_cell ⪯ Q`,
+//! `Q ⊗ W(ρ) − (P₊ ⊗ W_low − P₋ ⊗ W_high) = (Q − Q_cell) ⊗ W(ρ) + P₊ ⊗ (W(ρ) − W_low) +
+//! P₋ ⊗ (W_high − W(ρ)) ⪰ 0` (Kronecker products of positive semidefinite matrices are), so
+//! `K = P₊ ⊗ W_low − P₋ ⊗ W_high` lies below every member of the cell, and Eve's covariance
+//! of the observed poses `F·P₀·Fᵀ + G·K·Gᵀ + R` (`F`, `G` the steps' Jacobians) with it: her
+//! sharpest view over the cell, never sharper than the truth's.
+//!
+//! **The lag between grid points.** The lag is not monotone in what it gives her (it smooths
+//! the bit after the first step and sharpens it after the second, and a lag other than the
+//! prior leaves the bit at the doublet's end, where the commands reveal it): each bit's
+//! separation `d(τ)` is bounded over the lag's whole interval `[τ_lo, τ_hi]`, Eve's means
+//! following the doublet's offsets through τ ([`largest_over_lags`]). On a grid of spacing
+//! `h`, between neighbours `τ_j, τ_j+1` a function with `d'' ≥ −M` there lies below its
+//! chord plus `M·h²/8`, so below `max(d_j, d_j+1) + M·h²/8`; the bound takes
+//! `M = 2·max(0, −min_j Δ²d_j)/h²` — twice the most negative second difference `Δ²d_j =
+//! d_j−1 − 2d_j + d_j+1` seen on the grid (each is `h²·d''` somewhere between its points) — and
+//! adds `max(0, −min_j Δ²d_j)/4`, halving the spacing while that exceeds a quarter of the
+//! published quantum. This is a bound for every τ under that stated curvature assumption
+//! (concavity between points at most twice what the grid shows); it is not a proof against
+//! a separation that bends faster than the grid resolves. The tests sample `d` at 400 lags
+//! on each of several intervals and a peak between grid points: every sample lies below it.
+//! In the simulated worlds `d(τ)` is convex near the prior (its least lies between 0.1 and
+//! 0.15 s at 1 mm, beyond 0.3 s at 4 mm), so the slack is 0 there and the bound is the
+//! grid's largest, at an end of the interval.
 
-use nalgebra::{Cholesky, Matrix3, Matrix6, SymmetricEigen, Vector6};
+use nalgebra::{
+    Cholesky, DMatrix, DVector, Matrix3, Matrix6, SMatrix, SymmetricEigen, Vector3, Vector6,
+};
 
 use super::motion_noise::{Corner, MotionNoiseEstimate};
 use super::residual::rotation;
@@ -88,7 +112,7 @@ pub fn worst_case_separations(
         })
 }
 
-/// Points of the grid over the lag's interval Eve's view is sized at.
+/// Points of the grid over the lag's interval Eve's view is first sized at.
 pub const LAG_GRID: usize = 5;
 
 /// `LAG_GRID` lags evenly over `[low, high]` (s); one when the interval is a point.
@@ -102,51 +126,96 @@ pub fn lag_grid([low, high]: [f64; 2]) -> Vec<f64> {
         .collect()
 }
 
-/// `[μ_low, μ_high]`: bounds on the eigenvalues of three AR(1) steps' conditional covariance
-/// `W(ρ)` given their neighbours, in units of `Q`, over every ρ in the cell `[a, b]`.
-fn three_step_weights([a, b]: [f64; 2]) -> [f64; 2] {
-    let root_two = std::f64::consts::SQRT_2;
-    let eigen = |r: f64, sign: f64| (1.0 - r * r) / (1.0 + r * r + sign * root_two * r);
-    let largest = a
-        .abs()
-        .max(b.abs())
-        .min(super::correlation::HIGHEST_CORRELATION);
-    let smallest = if a <= 0.0 && b >= 0.0 {
-        0.0
-    } else {
-        a.abs().min(b.abs())
-    };
-    let peak = root_two - 1.0;
-    let mut high = eigen(smallest, -1.0).max(eigen(largest, -1.0));
-    if (smallest..=largest).contains(&peak) {
-        high = high.max(eigen(peak, -1.0));
-    }
-    [eigen(largest, 1.0), high]
+/// The largest concavity slack a bit's bound over the lag's interval takes before its grid
+/// is refined ([`largest_over_lags`]): a quarter of the published quantum.
+pub const LAG_SLACK: f64 = SEPARATION_QUANTUM / 4.0;
+
+/// The most lags the grid over the lag's interval is refined to (its spacing halved from
+/// [`LAG_GRID`] points four times).
+const MAX_LAG_POINTS: usize = 65;
+
+/// The three steps' noise covariance, 9×9 over their (x, y, θ) noises: block `(i, k)` is
+/// step `i`'s noise with step `k`'s (m², m·rad, rad²).
+pub type StepCovariance = SMatrix<f64, 9, 9>;
+
+/// The eigenvalues `λ` of `J` (ones beside the diagonal of a 3×3 matrix) and their unit
+/// eigenvectors: `√2, (1, √2, 1)/2`; `0, (1, 0, −1)/√2`; `−√2, (1, −√2, 1)/2`.
+fn step_modes() -> [(f64, Vector3<f64>); 3] {
+    let r = std::f64::consts::SQRT_2;
+    [
+        (r, Vector3::new(0.5, 0.5 * r, 0.5)),
+        (0.0, Vector3::new(1.0 / r, 0.0, -1.0 / r)),
+        (-r, Vector3::new(0.5, -0.5 * r, 0.5)),
+    ]
 }
 
-/// The three steps' noise covariances (robot frame, m², m², rad²) that bound `estimate`'s
-/// cells from below (`μ_low·P₊ − μ_high·P₋` of each corner, the module's doc), those that
-/// another lies below in the Loewner order left out (a lower one gives Eve the sharper view
-/// of every bit at once), each with whether it is positive semidefinite (then her
-/// covariance is positive definite without a check).
+/// `W(ρ)`'s eigenvalue along `J`'s mode `λ`: `(1 − ρ²)/(1 + ρ² − λρ)`.
+fn mode_weight(rho: f64, lambda: f64) -> f64 {
+    (1.0 - rho * rho) / (1.0 + rho * rho - lambda * rho)
+}
+
+/// `[W_low, W_high]`: Loewner bounds on three AR(1) steps' conditional covariance `W(ρ)`
+/// given their neighbours, in units of `Q`, over every ρ in the cell `[a, b]` (the module's
+/// doc): along each of `J`'s modes the least and the greatest of its eigenvalue over the
+/// cell. `W(ρ)` itself for a point cell.
+fn three_step_weights([a, b]: [f64; 2]) -> [Matrix3<f64>; 2] {
+    let top = super::correlation::HIGHEST_CORRELATION;
+    let (a, b) = (a.clamp(-top, top), b.clamp(-top, top));
+    let peak_of = |lambda: f64| {
+        // The root of λρ² − 4ρ + λ in (−1, 1): the eigenvalue's one maximum there.
+        if lambda == 0.0 {
+            0.0
+        } else {
+            (2.0 - (4.0 - lambda * lambda).sqrt()) / lambda
+        }
+    };
+    let mut bounds = [Matrix3::zeros(); 2];
+    for (lambda, v) in step_modes() {
+        let ends = [mode_weight(a, lambda), mode_weight(b, lambda)];
+        let low = ends[0].min(ends[1]);
+        let peak = peak_of(lambda);
+        let mut high = ends[0].max(ends[1]);
+        if (a..=b).contains(&peak) {
+            high = high.max(mode_weight(peak, lambda));
+        }
+        let projector = v * v.transpose();
+        bounds[0] += low * projector;
+        bounds[1] += high * projector;
+    }
+    bounds
+}
+
+/// `P₊ ⊗ W_low − P₋ ⊗ W_high` of one corner (robot frame): block `(i, k)` is
+/// `W_low,ik·P₊ − W_high,ik·P₋`, `P₊ − P₋ = Q_cell` its positive and negative parts.
+fn three_step_covariance(corner: &Corner) -> StepCovariance {
+    let eigen = SymmetricEigen::new(corner.motion);
+    let part = |sign: f64| {
+        let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
+        eigen.eigenvectors * Matrix3::from_diagonal(&kept) * eigen.eigenvectors.transpose()
+    };
+    let (positive, negative) = (part(1.0), part(-1.0));
+    let [low, high] = three_step_weights(corner.correlation);
+    let mut k = StepCovariance::zeros();
+    for i in 0..3 {
+        for j in 0..3 {
+            k.fixed_view_mut::<3, 3>(3 * i, 3 * j)
+                .copy_from(&(low[(i, j)] * positive - high[(i, j)] * negative));
+        }
+    }
+    k
+}
+
+/// The three steps' noise covariances (robot frame) that bound `estimate`'s cells from
+/// below (`P₊ ⊗ W_low − P₋ ⊗ W_high` of each corner, the module's doc), those that another
+/// lies below in the Loewner order left out (a lower one gives Eve the sharper view of
+/// every bit at once), each with whether it is positive semidefinite (then her covariance
+/// is positive definite without a check).
 #[must_use]
-pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(Matrix3<f64>, bool)> {
-    let steps: Vec<Matrix3<f64>> = estimate
-        .corners
-        .iter()
-        .map(|corner| {
-            let eigen = SymmetricEigen::new(corner.motion);
-            let part = |sign: f64| {
-                let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
-                eigen.eigenvectors * Matrix3::from_diagonal(&kept) * eigen.eigenvectors.transpose()
-            };
-            let [low, high] = three_step_weights(corner.correlation);
-            low * part(1.0) - high * part(-1.0)
-        })
-        .collect();
-    let least = |m: &Matrix3<f64>| SymmetricEigen::new(*m).eigenvalues.min();
-    let below = |a: &Matrix3<f64>, b: &Matrix3<f64>| least(&(b - a)) >= 0.0;
-    let mut kept: Vec<(Matrix3<f64>, bool)> = Vec::new();
+pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(StepCovariance, bool)> {
+    let steps: Vec<StepCovariance> = estimate.corners.iter().map(three_step_covariance).collect();
+    let least = |m: &StepCovariance| SymmetricEigen::new(*m).eigenvalues.min();
+    let below = |a: &StepCovariance, b: &StepCovariance| least(&(b - a)) >= 0.0;
+    let mut kept: Vec<(StepCovariance, bool)> = Vec::new();
     for (i, m) in steps.iter().enumerate() {
         // Left out when another lies below it (the first of equal ones kept).
         let dominated = steps
@@ -163,33 +232,139 @@ pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(Matrix3<f64>, bo
 /// Each bit's separation of Eve's modelled `view` of a three-step doublet with public
 /// `inputs` (its `late` observation's value is not used: the separation depends on her
 /// covariances and the means' differences), at the worst case over the steps' covariances
-/// `steps` ([`three_step_steps`]) and the `lags` τ (s) of the lag's interval (the module's
-/// doc); `None` when a bound does not exist at some corner.
+/// `steps` ([`three_step_steps`]) and the lag's `interval` `[τ_lo, τ_hi]` (s): the largest
+/// over a grid of it plus a concavity slack ([`largest_over_lags`], the module's doc);
+/// `None` when a bound does not exist at some corner.
 #[must_use]
 pub fn three_step_worst_case(
     model: &DoubletModel,
-    steps: &[(Matrix3<f64>, bool)],
-    lags: &[f64],
+    steps: &[(StepCovariance, bool)],
+    interval: [f64; 2],
     inputs: &DoubletInputs,
     view: &DoubletView,
 ) -> Option<[f64; MAX_BITS]> {
     let h = rotation(view.start.value.z);
-    let mut worst = [0.0_f64; MAX_BITS];
-    for (robot_frame, positive) in steps {
-        for &lag in lags {
-            let at = DoubletModel {
-                process_covariance: h * robot_frame * h.transpose(),
-                lag,
-                ..*model
-            };
-            if !positive && !at.covariances_positive(inputs, view) {
-                return None;
-            }
-            let d = at.separations(inputs, view);
-            worst = std::array::from_fn(|i| worst[i].max(d[i]));
-        }
+    let mut frame = StepCovariance::zeros();
+    for i in 0..3 {
+        frame.fixed_view_mut::<3, 3>(3 * i, 3 * i).copy_from(&h);
     }
-    Some(worst)
+    let world: Vec<(StepCovariance, bool)> = steps
+        .iter()
+        .map(|(k, positive)| (frame * k * frame.transpose(), *positive))
+        .collect();
+    let at = |lag: f64| {
+        let model = DoubletModel { lag, ..*model };
+        world
+            .iter()
+            .try_fold([0.0_f64; MAX_BITS], |worst, (k, positive)| {
+                let d = three_step_separations(&model, k, *positive, inputs, view)?;
+                Some(std::array::from_fn(|i| worst[i].max(d[i])))
+            })
+    };
+    largest_over_lags(interval, at)
+}
+
+/// Each bit's largest of `at(τ)` over every τ in `interval` `[τ_lo, τ_hi]` (s): the largest
+/// over [`LAG_GRID`] evenly spaced lags plus each bit's concavity slack — a quarter of its
+/// most negative second difference along the grid, 0 where none is negative — the spacing
+/// halved while a slack exceeds [`LAG_SLACK`] (at most [`MAX_LAG_POINTS`] lags). A
+/// function whose second derivative stays above twice its most negative second difference
+/// over the spacing² (the module's doc) lies below this everywhere in the interval. `None`
+/// when `at` has no answer at some lag; `at(τ_lo)` itself for a point.
+fn largest_over_lags(
+    [low, high]: [f64; 2],
+    at: impl Fn(f64) -> Option<[f64; MAX_BITS]>,
+) -> Option<[f64; MAX_BITS]> {
+    if high <= low {
+        return at(low);
+    }
+    let mut values = lag_grid([low, high])
+        .iter()
+        .map(|&lag| at(lag))
+        .collect::<Option<Vec<_>>>()?;
+    loop {
+        let slack: [f64; MAX_BITS] = std::array::from_fn(|b| {
+            values
+                .windows(3)
+                .map(|w| (2.0 * w[1][b] - w[0][b] - w[2][b]).max(0.0) / 4.0)
+                .fold(0.0, f64::max)
+        });
+        if slack.iter().all(|&x| x <= LAG_SLACK) || values.len() >= MAX_LAG_POINTS {
+            let largest = values.iter().fold([0.0_f64; MAX_BITS], |m, d| {
+                std::array::from_fn(|i| m[i].max(d[i]))
+            });
+            return Some(std::array::from_fn(|b| largest[b] + slack[b]));
+        }
+        // Halve the spacing: a new lag between every two neighbours.
+        let spacing = (high - low) / (values.len() - 1) as f64;
+        let mut finer = Vec::with_capacity(2 * values.len() - 1);
+        for (i, d) in values.iter().enumerate() {
+            if i > 0 {
+                finer.push(at(low + spacing * (i as f64 - 0.5))?);
+            }
+            finer.push(*d);
+        }
+        values = finer;
+    }
+}
+
+/// Each key bit's separation of Eve's `view` of a three-step doublet under `model` (its lag
+/// and alphabet) with the steps' noise covariance `k` (world frame, possibly correlated
+/// between the steps): the observed poses' covariance `F·P₀·Fᵀ + G·K·Gᵀ + R` along each
+/// pattern's mean path, `F` stacking `A₀, A₁A₀, A₂A₁A₀` and `G` the block lower-triangular
+/// map of the steps' noises (`Gᵢₖ = Aᵢ ⋯ Aₖ₊₁`, `Gᵢᵢ = I`); `None` when a covariance is not
+/// positive definite (checked only when `k` is not known to be `positive`) or the view
+/// observes no pose.
+fn three_step_separations(
+    model: &DoubletModel,
+    k: &StepCovariance,
+    positive: bool,
+    inputs: &DoubletInputs,
+    view: &DoubletView,
+) -> Option<[f64; MAX_BITS]> {
+    let observed = view.three_step_observed();
+    if observed.is_empty() {
+        return None;
+    }
+    let n = 3 * observed.len();
+    let predict = |pattern: usize| {
+        let (means, a) = model.three_step_path(inputs, view, pattern);
+        let mut f = SMatrix::<f64, 9, 3>::zeros();
+        let mut g = StepCovariance::identity();
+        let mut through = Matrix3::identity();
+        for i in 0..3 {
+            through = a[i] * through;
+            f.fixed_view_mut::<3, 3>(3 * i, 0).copy_from(&through);
+            let mut carried = Matrix3::identity();
+            for j in (0..i).rev() {
+                carried *= a[j + 1];
+                g.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&carried);
+            }
+        }
+        let c = f * view.start.covariance * f.transpose() + g * k * g.transpose();
+        let mut mean = DVector::zeros(n);
+        let mut s = DMatrix::zeros(n, n);
+        for (row, &(i, y)) in observed.iter().enumerate() {
+            mean.fixed_rows_mut::<3>(3 * row).copy_from(&means[i]);
+            for (col, &(j, _)) in observed.iter().enumerate() {
+                let mut block: Matrix3<f64> = c.fixed_view::<3, 3>(3 * i, 3 * j).into();
+                if i == j {
+                    block += y.covariance;
+                }
+                s.fixed_view_mut::<3, 3>(3 * row, 3 * col).copy_from(&block);
+            }
+        }
+        (mean, Cholesky::new(s))
+    };
+    let predictions: Vec<_> = (0..model.perturbation.patterns()).map(predict).collect();
+    if !positive && predictions.iter().any(|(_, s)| s.is_none()) {
+        return None;
+    }
+    Some(separations_by(&model.perturbation, |a, b| {
+        let (mean_a, s) = &predictions[a];
+        let d = &predictions[b].0 - mean_a;
+        s.as_ref().map_or(0.0, |c| c.solve(&d).dot(&d).sqrt())
+    }))
 }
 
 /// Each key bit's separation at one `corner` (the genie view of the module's doc; entries
@@ -279,18 +454,31 @@ mod tests {
 
     /// The view of a doublet with a turn, both bits, the stated camera.
     fn turning_doublet() -> (DoubletModel, DoubletInputs, DoubletView) {
+        turning_doublet_under(0.0)
+    }
+
+    /// [`turning_doublet`] in private sensing with doublets shaped for `prior_lag` (s; above 0:
+    /// three steps, private sensing, her view of the four instants, the late one at the
+    /// middle's value).
+    fn turning_doublet_under(prior_lag: f64) -> (DoubletModel, DoubletInputs, DoubletView) {
         let mut config = Config::default();
         config.protocol.bits_per_doublet = 2;
+        config.sensing.mode = crate::config::SensingMode::Private;
+        config.private.prior_lag = prior_lag;
         let model = doublet_model(&config);
+        assert_eq!(model.perturbation.settle.is_some(), prior_lag > 0.0);
         let inputs = DoubletInputs {
             first: Unicycle::new(0.1, 0.45),
             second: Unicycle::new(0.1, 0.4),
         };
-        let samples = [
+        let mut samples = vec![
             Pose::new(0.0, 0.0, 0.8),
             Pose::new(0.02, 0.02, 0.9),
             Pose::new(0.03, 0.035, 0.97),
         ];
+        if prior_lag > 0.0 {
+            samples.insert(2, samples[1]);
+        }
         let view = stated_camera_view(
             samples,
             config.sensing.controller_std,
@@ -411,37 +599,61 @@ mod tests {
         assert!(corner_separations(&model, &white(impossible), &inputs, &view).is_none());
     }
 
-    /// The three steps' weight bounds hold every member of a cell: the conditional
-    /// covariance's eigenvalues at 200 ρ of each cell lie within `[μ_low, μ_high]`.
+    /// `W(ρ)`: three AR(1) steps' conditional covariance given their neighbours (units of
+    /// `Q`), the inverse of the precision's interior block.
+    fn exact_weights(rho: f64) -> Matrix3<f64> {
+        let (d, o) = (
+            (1.0 + rho * rho) / (1.0 - rho * rho),
+            -rho / (1.0 - rho * rho),
+        );
+        Matrix3::new(d, o, 0.0, o, d, o, 0.0, o, d)
+            .try_inverse()
+            .unwrap()
+    }
+
+    /// The three steps' weight bounds hold every member of a cell in the Loewner order:
+    /// `W_low ⪯ W(ρ) ⪯ W_high` at 200 ρ of each cell; a point cell's bounds are `W(ρ)` itself
+    /// (white: the identity).
     #[test]
     fn the_three_step_weights_bound_every_member_of_the_cell() {
-        use nalgebra::Matrix3 as M;
+        let least = |m: Matrix3<f64>| SymmetricEigen::new(m).eigenvalues.min();
         for cell in [
             [-0.5, -0.3],
             [0.0, 0.0],
             [-0.05, 0.4],
             [0.3, 0.5],
             [0.8, 0.95],
+            [0.06, 0.1],
         ] {
             let [low, high] = three_step_weights(cell);
             for i in 0..=200 {
                 let rho = cell[0] + (cell[1] - cell[0]) * f64::from(i) / 200.0;
-                let (d, o) = (
-                    (1.0 + rho * rho) / (1.0 - rho * rho),
-                    -rho / (1.0 - rho * rho),
-                );
-                let precision = M::new(d, o, 0.0, o, d, o, 0.0, o, d);
-                let w = precision.try_inverse().unwrap();
-                for &x in SymmetricEigen::new(w).eigenvalues.iter() {
-                    assert!(low - 1e-12 <= x && x <= high + 1e-12, "{cell:?} {rho}: {x}");
-                }
+                let w = exact_weights(rho);
+                assert!(least(w - low) >= -1e-12, "{cell:?} {rho}: {low} ⋠ {w}");
+                assert!(least(high - w) >= -1e-12, "{cell:?} {rho}: {w} ⋠ {high}");
             }
         }
-        assert_eq!(three_step_weights([0.0, 0.0]), [1.0, 1.0]);
+        for rho in [0.0, -0.3, 0.5] {
+            let [low, high] = three_step_weights([rho, rho]);
+            assert!(
+                (low - exact_weights(rho)).abs().max() < 1e-12,
+                "{rho}: {low}"
+            );
+            assert!(
+                (high - exact_weights(rho)).abs().max() < 1e-12,
+                "{rho}: {high}"
+            );
+        }
+        assert!(
+            (three_step_weights([0.0, 0.0])[0] - Matrix3::identity())
+                .abs()
+                .max()
+                < 1e-15
+        );
     }
 
     /// The steps' covariances kept for the three-step worst case bound every corner's from
-    /// below: for each corner's `μ_low·P₊ − μ_high·P₋` some kept one lies below it, and one
+    /// below: for each corner's `P₊ ⊗ W_low − P₋ ⊗ W_high` some kept one lies below it, and one
     /// lying below another is what is left out.
     #[test]
     fn the_three_step_corners_kept_lie_below_every_corner() {
@@ -455,11 +667,11 @@ mod tests {
         let kept = three_step_steps(&estimate);
         assert!(
             !kept.is_empty() && kept.len() < estimate.corners.len(),
-            "{kept:?}"
+            "{}",
+            kept.len()
         );
         for corner in &estimate.corners {
-            let [low, high] = three_step_weights(corner.correlation);
-            let own = low * corner.motion - high * Matrix3::zeros();
+            let own = three_step_covariance(corner);
             assert!(
                 kept.iter()
                     .any(|(m, _)| SymmetricEigen::new(own - m).eigenvalues.min() >= -1e-18),
@@ -467,6 +679,194 @@ mod tests {
             );
         }
         assert!(kept.iter().all(|&(_, positive)| positive));
+    }
+
+    /// `Q ⊗ W` in the world frame at the doublet's heading.
+    fn kron(q: &Matrix3<f64>, w: &Matrix3<f64>, theta: f64) -> StepCovariance {
+        let h = rotation(theta);
+        let mut k = StepCovariance::zeros();
+        for i in 0..3 {
+            for j in 0..3 {
+                k.fixed_view_mut::<3, 3>(3 * i, 3 * j)
+                    .copy_from(&(w[(i, j)] * h * q * h.transpose()));
+            }
+        }
+        k
+    }
+
+    /// White steps (`W = I`): the three-step separation with the steps' covariance stacked
+    /// is the doublet model's own, at lags within and beyond the prior.
+    #[test]
+    fn white_three_steps_are_the_doublet_models_view() {
+        let (model, inputs, view) = turning_doublet_under(0.05);
+        let q = Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6);
+        let h = rotation(view.start.value.z);
+        for lag in [0.0, 0.03, 0.05, 0.1] {
+            let at = DoubletModel {
+                process_covariance: h * q * h.transpose(),
+                lag,
+                ..model
+            };
+            let expected = at.separations(&inputs, &view);
+            let k = kron(&q, &Matrix3::identity(), view.start.value.z);
+            let got = three_step_separations(&at, &k, true, &inputs, &view).unwrap();
+            for b in 0..2 {
+                assert!(
+                    expected[b] > 0.0 && (got[b] - expected[b]).abs() <= 1e-9 * expected[b],
+                    "{lag}: {got:?} {expected:?}"
+                );
+            }
+        }
+    }
+
+    /// The three-step corner dominates its cell: 300 random members of each cell — `Q_cell +
+    /// GGᵀ` (full matrices, any orientation) with ρ anywhere in the cell and the steps'
+    /// exact conditional covariance `Q ⊗ W(ρ)` — never give either bit a larger separation
+    /// than the corner's `P₊ ⊗ W_low − P₋ ⊗ W_high`, at a vertex with a negative eigenvalue
+    /// too; and a point cell at ρ = 0 is the white view.
+    #[test]
+    fn no_member_of_a_cell_gives_eve_a_sharper_three_step_view() {
+        let (model, inputs, view) = turning_doublet_under(0.05);
+        let theta = view.start.value.z;
+        let mut rng = stream(7, Purpose::Public, 0);
+        for lower in [
+            Matrix3::new(1e-6, 2e-7, 0.0, 2e-7, 8e-7, 1e-8, 0.0, 1e-8, 1e-6),
+            Matrix3::new(1e-6, 0.0, 0.0, 0.0, -2e-8, 0.0, 0.0, 0.0, 1e-6),
+        ] {
+            for cell in [
+                [-0.5, -0.3],
+                [0.0, 0.0],
+                [-0.05, 0.1],
+                [0.06, 0.1],
+                [0.8, 0.95],
+            ] {
+                let corner = Corner {
+                    correlation: cell,
+                    motion: lower,
+                    step_weights: super::super::motion_noise::tests::weights_of(cell),
+                };
+                let bound = three_step_covariance(&corner);
+                let h = rotation(theta);
+                let mut frame = StepCovariance::zeros();
+                for i in 0..3 {
+                    frame.fixed_view_mut::<3, 3>(3 * i, 3 * i).copy_from(&h);
+                }
+                let vertex = three_step_separations(
+                    &model,
+                    &(frame * bound * frame.transpose()),
+                    false,
+                    &inputs,
+                    &view,
+                )
+                .unwrap();
+                for _ in 0..300 {
+                    let g = Matrix3::from_fn(|_, _| rng.random_range(-1.5e-3..1.5e-3));
+                    let rho = if cell[0] == cell[1] {
+                        cell[0]
+                    } else {
+                        rng.random_range(cell[0]..cell[1])
+                    };
+                    let member = kron(&(lower + g * g.transpose()), &exact_weights(rho), theta);
+                    let d = three_step_separations(&model, &member, false, &inputs, &view).unwrap();
+                    for k in 0..2 {
+                        assert!(
+                            d[k] <= vertex[k] * (1.0 + 1e-12),
+                            "{cell:?} ρ {rho}: {d:?} > {vertex:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// The bound holds between the lag's grid points: on intervals around the prior, below
+    /// and above it, and on wide ones, the worst case is at least the separation at each of
+    /// 400 lags sampled evenly over the interval, for each bit and two noise levels, and its
+    /// slack is below a quantum.
+    #[test]
+    fn the_lag_bound_holds_for_every_lag_in_the_interval() {
+        let (model, inputs, view) = turning_doublet_under(0.05);
+        let theta = view.start.value.z;
+        for q_std in [1e-3, 4e-3] {
+            let q =
+                Matrix3::from_diagonal(&Vector3::new(q_std * q_std, q_std * q_std, q_std * q_std));
+            let estimate = MotionNoiseEstimate::known(q, 0.0, 1e-6);
+            let steps = three_step_steps(&estimate);
+            for interval in [
+                [0.0435, 0.0573],
+                [0.0, 0.03],
+                [0.08, 0.12],
+                [0.0, 0.3],
+                [0.02, 0.5],
+            ] {
+                let bound =
+                    three_step_worst_case(&model, &steps, interval, &inputs, &view).unwrap();
+                let k = kron(&q, &Matrix3::identity(), theta);
+                let separation = |lag: f64| {
+                    let at = DoubletModel { lag, ..model };
+                    three_step_separations(&at, &k, true, &inputs, &view).unwrap()
+                };
+                let grid = lag_grid(interval)
+                    .into_iter()
+                    .map(separation)
+                    .fold([0.0_f64; MAX_BITS], |m, d| {
+                        std::array::from_fn(|i| m[i].max(d[i]))
+                    });
+                for i in 0..=400 {
+                    let lag = interval[0] + (interval[1] - interval[0]) * f64::from(i) / 400.0;
+                    let d = separation(lag);
+                    for b in 0..2 {
+                        assert!(
+                            d[b] <= bound[b] * (1.0 + 1e-12)
+                                && bound[b] - grid[b] <= SEPARATION_QUANTUM,
+                            "{q_std} {interval:?} τ {lag}: bit {b} {} > {} (grid {})",
+                            d[b],
+                            bound[b],
+                            grid[b]
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// Between the grid's points: for separations that peak inside a grid interval (one
+    /// bit a bump of width 0.08 s, the other a sine), the grid's largest alone misses the
+    /// peak, and the bound with its concavity slack is at least every one of 2,000 samples;
+    /// a convex function takes no slack (its largest is at a grid point or an end).
+    #[test]
+    fn the_concavity_slack_covers_a_peak_between_grid_points() {
+        let interval = [0.0, 0.4];
+        let at = |t: f64| -> [f64; MAX_BITS] {
+            let mut d = [0.0; MAX_BITS];
+            d[0] = 1.0 + 0.2 * (-((t - 0.15) / 0.08).powi(2)).exp();
+            d[1] = 1.3 + 0.1 * (t * 13.0).sin();
+            d
+        };
+        let bound = largest_over_lags(interval, |t| Some(at(t))).unwrap();
+        let grid = lag_grid(interval)
+            .into_iter()
+            .map(at)
+            .fold([0.0_f64; MAX_BITS], |m, d| {
+                std::array::from_fn(|i| m[i].max(d[i]))
+            });
+        let samples: Vec<[f64; MAX_BITS]> = (0..=2000)
+            .map(|i| at(interval[0] + (interval[1] - interval[0]) * f64::from(i) / 2000.0))
+            .collect();
+        for b in 0..2 {
+            let peak = samples.iter().map(|d| d[b]).fold(0.0, f64::max);
+            assert!(
+                grid[b] < peak && peak <= bound[b],
+                "bit {b}: {grid:?} {peak} {bound:?}"
+            );
+        }
+        let convex = largest_over_lags(interval, |t| {
+            let mut d = [0.0; MAX_BITS];
+            d[0] = 1.0 + (t - 0.13).powi(2);
+            Some(d)
+        })
+        .unwrap();
+        assert_eq!(convex[0], 1.0 + (0.4_f64 - 0.13).powi(2));
     }
 
     /// Which way ρ moves her: at a fixed `Q`, positive correlation sharpens Eve's view of the

@@ -106,6 +106,18 @@ pub struct DoubletView {
     pub entry: Option<Unicycle>,
 }
 
+impl DoubletView {
+    /// A three-step doublet's observed poses among `x(3j+1), x(3j+2), x(3j+3)`, each with its
+    /// index among the three.
+    pub(crate) fn three_step_observed(&self) -> Vec<(usize, &PoseObservation)> {
+        [&self.middle, &self.late, &self.end]
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, y)| y.as_ref().map(|y| (i, y)))
+            .collect()
+    }
+}
+
 /// The camera Eve's view of a doublet as the controller can model it (never her realised
 /// view): her stated per-instant noise `camera_std` around the controller's own `samples`
 /// `y(Lj) … y(Lj+L)` (`L + 1` of them), fused at the boundaries with the controller's
@@ -368,6 +380,7 @@ impl DoubletModel {
         view: &DoubletView,
         pattern: usize,
     ) -> Prediction {
+<<<<<<< HEAD
         let t = self.sample_time;
         let mut offsets = self.mean_offsets(inputs, Some(pattern));
         if let Some(entry) = view.entry {
@@ -377,11 +390,10 @@ impl DoubletModel {
             }
         }
         let applied = inputs.applied_steps(offsets);
+=======
+>>>>>>> main
         let start = &view.start;
-        let means = inputs.propagate_steps(&start.value, offsets, 3, t);
-        let before = [start.value, means[0], means[1]];
-        let jacobians: [Matrix3<f64>; 3] =
-            std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t));
+        let (means, jacobians) = self.three_step_path(inputs, view, pattern);
         let q = &self.process_covariance;
         let mut diagonal = [Matrix3::zeros(); 3];
         let mut previous = start.covariance;
@@ -393,11 +405,7 @@ impl DoubletModel {
         let cross = |i: usize, k: usize| {
             (i + 1..=k).fold(diagonal[i], |c, step| c * jacobians[step].transpose())
         };
-        let observed: Vec<(usize, &PoseObservation)> = [&view.middle, &view.late, &view.end]
-            .into_iter()
-            .enumerate()
-            .filter_map(|(i, y)| y.as_ref().map(|y| (i, y)))
-            .collect();
+        let observed = view.three_step_observed();
         if observed.is_empty() {
             return Prediction::None;
         }
@@ -421,9 +429,40 @@ impl DoubletModel {
         Prediction::Three { mean, covariance }
     }
 
+<<<<<<< HEAD
     /// The steps' commanded offsets of pattern `h` (`None`: the nominal inputs alone) with
     /// `inputs`, as the wheels receive them under the model's rounding
     /// ([`Perturbation::step_offsets`], [`DoubletInputs::rounded`]).
+=======
+    /// A three-step doublet's mean path for `pattern`: the means `m₁, m₂, m₃` of
+    /// `x(3j+1), x(3j+2), x(3j+3)` ([`Self::predict_three`]) and the steps' Jacobians
+    /// `A₀, A₁, A₂` along it.
+    pub(crate) fn three_step_path(
+        &self,
+        inputs: &DoubletInputs,
+        view: &DoubletView,
+        pattern: usize,
+    ) -> ([Pose; 3], [Matrix3<f64>; 3]) {
+        let t = self.sample_time;
+        let mut offsets = self.mean_offsets(pattern);
+        if let Some(entry) = view.entry {
+            let (transient, _) = inputs.nominal_transient(entry, 3, self.lag, t);
+            for (offset, nominal) in offsets.iter_mut().zip(transient) {
+                *offset += nominal;
+            }
+        }
+        let applied = inputs.applied_steps(offsets);
+        let start = &view.start;
+        let means = inputs.propagate_steps(&start.value, offsets, 3, t);
+        let before = [start.value, means[0], means[1]];
+        let jacobians: [Matrix3<f64>; 3] =
+            std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t));
+        (means, jacobians)
+    }
+
+    /// Pattern `h`'s mean step offsets under the model ([`Perturbation::mean_offsets`] with
+    /// its lag).
+>>>>>>> main
     #[must_use]
     pub fn step_offsets(&self, inputs: &DoubletInputs, pattern: Option<usize>) -> [Unicycle; 3] {
         let offsets = pattern.map_or([Unicycle::zeros(); 3], |h| {

@@ -433,16 +433,19 @@ impl WindowSmoother {
             .collect();
         let nominal = self.eve.run(&window, |_| Unicycle::zeros());
         let patterns = self.perturbation.patterns();
-        // Each carrying doublet's runs, one per bit pattern.
-        // Each carrying doublet's runs, one per bit pattern: the window's and the lead's
-        // simulated whole, those of the samples' reach only where their bits act.
+        // Each carrying doublet's runs, one per bit pattern: those of the samples' reach
+        // simulated only where their bits act, and — in a world whose wheels remember no
+        // earlier input (no lag, no delay: no lead doublets), where that is the same
+        // arithmetic as the whole run — the window's too; the window's and the lead's
+        // simulated whole otherwise.
+        let memoryless = self.lead == 0;
         let runs: Vec<Vec<WindowRun>> = carrying
             .iter()
             .map(|&(i, position)| {
                 (0..patterns)
                     .map(|h| {
                         let offset = self.perturbation.offset(h);
-                        if i >= first && !(exact.0..=exact.1).contains(&i) {
+                        if i >= first && (memoryless || !(exact.0..=exact.1).contains(&i)) {
                             return self.run_near(&window, &nominal, position, offset);
                         }
                         let at = l as usize * position;
@@ -477,8 +480,10 @@ impl WindowSmoother {
     /// ([`Perturbation::step_offsets`]), simulated only
     /// where the perturbation acts — from the world's actuator memory (`lead` doublets)
     /// before it to `lead + 1` doublets after it, the next boundary's restart included —
-    /// and the nominal run elsewhere. Exact without lag or delay; with them the wheels
-    /// entering the stretch are settled on the input before it (the memory the lead bounds).
+    /// and the nominal run elsewhere. Without lag or delay it is the whole run's arithmetic,
+    /// bit for bit: each doublet restarts from its anchor, and wheels without memory enter the
+    /// stretch as they would in the whole run. With them the wheels entering the stretch are
+    /// settled on the input before it (the memory the lead bounds).
     fn run_near(
         &self,
         window: &Window,
@@ -1405,6 +1410,69 @@ mod tests {
         let mean = values.iter().sum::<f64>() / n;
         let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
         (mean, (variance / n).sqrt())
+    }
+
+    /// In a world whose wheels remember no earlier input, a doublet's run simulated only
+    /// where its bits act is the whole window's run, bit for bit, at every position and
+    /// pattern (the smoother takes it for the window's doublets there); with a lag the
+    /// smoother has lead doublets and simulates the window's whole.
+    #[test]
+    fn a_memoryless_worlds_stretch_is_the_whole_run_bit_for_bit() {
+        let config = Config::from_toml(
+            "[sensing]\nmode = \"private\"\n[world]\nprocess_std = [0.002, 0.002, 0.002]\n\
+             slip_std = 0.1\n",
+            "test",
+        )
+        .expect("a valid configuration");
+        let smoother = WindowSmoother::new(&config, &config.world_model(), 2, 1);
+        assert_eq!(smoother.lead(), 0);
+        let lagging = Config::from_toml("[world]\nlag = 0.05\n", "test").expect("valid");
+        assert!(WindowSmoother::new(&lagging, &lagging.world_model(), 2, 1).lead() > 0);
+        let l = smoother.length() as usize;
+        let doublets = 7;
+        let inputs: Vec<Unicycle> = (0..doublets * l)
+            .map(|k| Unicycle::new(0.05 + 0.004 * (k % 5) as f64, 0.3 - 0.07 * (k % 4) as f64))
+            .collect();
+        let pose = |k: usize| Pose::new(0.01 * k as f64, 0.002 * k as f64, 0.05 * k as f64);
+        let window = Window {
+            lead: 0,
+            inputs,
+            before: Some(Unicycle::new(0.04, 0.1)),
+            start: pose(0),
+            anchors: (0..doublets * l)
+                .map(|s| (s > 0 && s % l == 0).then(|| pose(s) + Pose::new(1e-4, -2e-4, 3e-3)))
+                .collect(),
+        };
+        let nominal = smoother.eve.run(&window, |_| Unicycle::zeros());
+        let bits = |run: &WindowRun| -> Vec<u64> {
+            let poses = run.poses.iter().flatten().chain(&run.jumps);
+            let updates = run.updates.iter().flatten().flat_map(|u| {
+                [
+                    u.duration, u.wheels.x, u.wheels.y, u.speeds.x, u.speeds.y, u.start.x,
+                    u.start.y, u.start.z,
+                ]
+            });
+            poses
+                .flat_map(|p| p.iter().copied().collect::<Vec<_>>())
+                .chain(run.offsets.iter().flatten().copied())
+                .chain(updates)
+                .map(f64::to_bits)
+                .collect()
+        };
+        for position in 0..doublets {
+            for h in 0..smoother.perturbation.patterns() {
+                let offset = smoother.perturbation.offset(h);
+                let at = l * position;
+                let whole = smoother
+                    .eve
+                    .run(&window, |step| match step.checked_sub(at) {
+                        Some(s) => smoother.step_offset(s, offset),
+                        None => Unicycle::zeros(),
+                    });
+                let near = smoother.run_near(&window, &nominal, position, offset);
+                assert_eq!(bits(&near), bits(&whole), "doublet {position}, pattern {h}");
+            }
+        }
     }
 
     /// The recipes expand every function of a doublet's pattern exactly — its mean plus one

@@ -489,6 +489,35 @@ mod tests {
         assert_eq!(decided, bits);
     }
 
+    /// Three-step doublets (a prior lag): the trace comes out whole and in order (it panicked
+    /// before), every step of a doublet has its nominal input, and each decision lands on its
+    /// doublet's last row.
+    #[test]
+    fn a_trace_of_three_step_doublets_is_whole() {
+        let mut config = Config::default();
+        config.sensing.mode = SensingMode::Private;
+        config.private.prior_lag = 0.05;
+        config.world = Some(crate::world::WorldConfig {
+            lag: Some(0.05),
+            ..Default::default()
+        });
+        config
+            .validate()
+            .expect("a valid lagging world with its prior");
+        let out = simulate(&config, 0, true).expect("the session runs");
+        let ks: Vec<u32> = out.trace.iter().map(|row| row.k).collect();
+        assert_eq!(ks, (0..ks.len() as u32).collect::<Vec<_>>());
+        let last = out.trace.len() - 1;
+        assert!(out.trace[..last].iter().all(|row| row.nominal.is_some()));
+        let decided: Vec<usize> = (0..out.trace.len())
+            .filter(|&k| out.trace[k].bhat.is_some())
+            .collect();
+        let bits = out.private.expect("private sensing").bits.len();
+        assert!(bits > 0);
+        assert_eq!(decided.len(), bits);
+        assert!(decided.iter().all(|k| k % 3 == 2), "{decided:?}");
+    }
+
     const PINNED: &str = "
 default b430a4a2ebbec88f
 m=1 8dfc3212a670aefb

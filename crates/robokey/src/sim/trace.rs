@@ -73,8 +73,8 @@ impl TraceRow {
 }
 
 /// The rows of a trace still being filled in, between the simulation and its sink. Each
-/// step writes its own row and, in private mode, its neighbours (a doublet spans two steps
-/// and is decided at the sample after it); [`TraceRows::complete_before`] hands over the
+/// step writes its own row and, in private mode, its neighbours (a doublet spans two or three
+/// steps and is decided at the sample after it); [`TraceRows::complete_before`] hands over the
 /// rows no later step writes.
 pub(crate) struct TraceRows<'a> {
     sink: Option<&'a mut dyn FnMut(TraceRow)>,

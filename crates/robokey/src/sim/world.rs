@@ -74,12 +74,13 @@ impl World<'_> {
             self.scene.step();
         }
         // No later step writes the rows before this one (in private sensing, the row before
-        // it: a doublet's decision lands on its second step's row — or, while an eavesdropper
+        // it: a doublet's decision lands on its last step's row — or, while an eavesdropper
         // who smooths over later doublets has not decided one the controller has, that row).
         let settled = match &self.senses {
             Senses::Odometry { .. } => step,
             Senses::Private(p) => {
-                let undecided_by_eve = p.decided.front().map_or(u32::MAX, |d| d.step + 1);
+                let last = robot.plan().steps_per_doublet() - 1;
+                let undecided_by_eve = p.decided.front().map_or(u32::MAX, |d| d.step + last);
                 step.saturating_sub(1).min(undecided_by_eve)
             }
         };
@@ -237,7 +238,13 @@ impl Surroundings<Robot, Controller> for World<'_> {
                     p.run.doublets += 1;
                     p.run.gated += u32::from(self.config.protocol.enabled && !carries);
                 }
-                for (k, nominal) in [(step, inputs.first), (step + 1, inputs.second)] {
+                // The second nominal input holds over a three-step doublet's last two steps.
+                for k in step..step + robot.plan().steps_per_doublet() {
+                    let nominal = if k == step {
+                        inputs.first
+                    } else {
+                        inputs.second
+                    };
                     if let Some(row) = self.trace.row(k as usize) {
                         row.nominal = Some(nominal.into());
                     }
@@ -352,7 +359,7 @@ fn record(
         bhat_eve: eve_llr.filter(|_| config.eve.enabled).map(decide),
     };
     log[d.step as usize] = logged;
-    if let Some(row) = trace.row(d.step as usize + 1) {
+    if let Some(row) = trace.row((d.step + perturbation.steps() - 1) as usize) {
         row.bhat = logged.bhat;
         row.bhat_eve = logged.bhat_eve;
     }
