@@ -380,18 +380,6 @@ impl DoubletModel {
         view: &DoubletView,
         pattern: usize,
     ) -> Prediction {
-<<<<<<< HEAD
-        let t = self.sample_time;
-        let mut offsets = self.mean_offsets(inputs, Some(pattern));
-        if let Some(entry) = view.entry {
-            let (transient, _) = inputs.nominal_transient(entry, 3, self.lag, t);
-            for (offset, nominal) in offsets.iter_mut().zip(transient) {
-                *offset += nominal;
-            }
-        }
-        let applied = inputs.applied_steps(offsets);
-=======
->>>>>>> main
         let start = &view.start;
         let (means, jacobians) = self.three_step_path(inputs, view, pattern);
         let q = &self.process_covariance;
@@ -429,11 +417,6 @@ impl DoubletModel {
         Prediction::Three { mean, covariance }
     }
 
-<<<<<<< HEAD
-    /// The steps' commanded offsets of pattern `h` (`None`: the nominal inputs alone) with
-    /// `inputs`, as the wheels receive them under the model's rounding
-    /// ([`Perturbation::step_offsets`], [`DoubletInputs::rounded`]).
-=======
     /// A three-step doublet's mean path for `pattern`: the means `m₁, m₂, m₃` of
     /// `x(3j+1), x(3j+2), x(3j+3)` ([`Self::predict_three`]) and the steps' Jacobians
     /// `A₀, A₁, A₂` along it.
@@ -444,7 +427,7 @@ impl DoubletModel {
         pattern: usize,
     ) -> ([Pose; 3], [Matrix3<f64>; 3]) {
         let t = self.sample_time;
-        let mut offsets = self.mean_offsets(pattern);
+        let mut offsets = self.mean_offsets(inputs, Some(pattern));
         if let Some(entry) = view.entry {
             let (transient, _) = inputs.nominal_transient(entry, 3, self.lag, t);
             for (offset, nominal) in offsets.iter_mut().zip(transient) {
@@ -460,9 +443,9 @@ impl DoubletModel {
         (means, jacobians)
     }
 
-    /// Pattern `h`'s mean step offsets under the model ([`Perturbation::mean_offsets`] with
-    /// its lag).
->>>>>>> main
+    /// The steps' commanded offsets of pattern `h` (`None`: the nominal inputs alone) with
+    /// `inputs`, as the wheels receive them under the model's rounding
+    /// ([`Perturbation::step_offsets`], [`DoubletInputs::rounded`]).
     #[must_use]
     pub fn step_offsets(&self, inputs: &DoubletInputs, pattern: Option<usize>) -> [Unicycle; 3] {
         let offsets = pattern.map_or([Unicycle::zeros(); 3], |h| {
