@@ -10,6 +10,10 @@ const FIELDS: &[(&str, &str)] = &[
     ("robot.D", "m: axle length"),
     ("robot.wheel_limit", "rad/s: the plant's wheel speed limit"),
     (
+        "robot.command_quantum",
+        "rad/s: the stated resolution each wheel's command rounds to (0: none; ≤ 1)",
+    ),
+    (
         "noise.process_std",
         "[m, m, rad] per step: true process noise std",
     ),
@@ -237,6 +241,7 @@ mod tests {
         let mut config = Config::default();
         // Printed only when set.
         config.postprocess.assumed_eve_error = Some(0.2);
+        config.robot.command_quantum = 0.0323;
         config.postprocess.sizing = robokey::config::Sizing::Measured;
         config.postprocess.reconciliation = robokey::config::Reconciliation::Ldpc;
         config.protocol.levels = 4;

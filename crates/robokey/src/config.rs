@@ -69,6 +69,23 @@ pub struct RobotConfig {
     pub axle_length: f64,
     /// The plant's per-wheel speed limit (rad/s).
     pub wheel_limit: f64,
+    /// The resolution the robot's actuator rounds each wheel's speed command to, `q·round(ω/q)`
+    /// (rad/s; 0, the default: none): a stated calibration of the model class, which the
+    /// parties' likelihood and Eve's modelled view apply to every bit pattern's wheel commands
+    /// (docs/estimation.md, "Command quantum"). At most [`MAX_COMMAND_QUANTUM`]. An agreement
+    /// term when not 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub command_quantum: f64,
+}
+
+/// The largest `robot.command_quantum` (rad/s): a coarser rounding swamps the doublet's wheel
+/// offsets (Δv/r = 1.67 rad/s at the defaults).
+pub const MAX_COMMAND_QUANTUM: f64 = 1.0;
+
+/// Whether a stated value is 0 (then it is not written out, so that older configurations'
+/// digests and dumps are unchanged).
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 impl Default for RobotConfig {
@@ -78,6 +95,7 @@ impl Default for RobotConfig {
             r: 0.021,
             axle_length: 0.1047,
             wheel_limit: 38.0,
+            command_quantum: 0.0,
         }
     }
 }
@@ -758,6 +776,7 @@ impl Config {
         every.eve.camera_fps = Some(1.0);
         every.eve.camera_frame_std = Some([1.0; 3]);
         every.private.prior_lag = 1.0;
+        every.robot.command_quantum = 1.0;
         every.protocol.levels = 4;
         every.protocol.labeling = Labeling::Gray;
         let mut known: toml::Table = every
@@ -793,6 +812,13 @@ impl Config {
         positive("robot.r", robot.r)?;
         positive("robot.D", robot.axle_length)?;
         positive("robot.wheel_limit", robot.wheel_limit)?;
+        if !(0.0..=MAX_COMMAND_QUANTUM).contains(&robot.command_quantum) {
+            return Err(invalid(
+                "robot.command_quantum",
+                robot.command_quantum,
+                &format!("0 ≤ q ≤ {MAX_COMMAND_QUANTUM} rad/s (0: none)"),
+            ));
+        }
         for (i, &x) in self.noise.process_std.iter().enumerate() {
             non_negative(&format!("noise.process_std[{i}]"), x)?;
         }
@@ -1623,6 +1649,33 @@ mod tests {
         assert_eq!(field, "controller.wheel_limit");
         // Without the protocol only the controller's limit counts.
         Config::from_toml("[protocol]\nenabled = false\ndelta_v = 35.0\n", "t").unwrap();
+    }
+
+    /// The stated command quantum: 0 to 1 rad/s, named when outside; an agreement term only
+    /// when not 0, and not written out at 0.
+    #[test]
+    fn the_command_quantum_is_bounded_and_an_agreement_term_when_stated() {
+        for q in ["-0.01", "1.5", "nan"] {
+            match Config::from_toml(&format!("[robot]\ncommand_quantum = {q}\n"), "t") {
+                Err(ConfigError::Invalid { field, allowed, .. }) => {
+                    assert_eq!(field, "robot.command_quantum");
+                    assert!(allowed.starts_with("0 ≤ q ≤ 1 rad/s"), "{allowed}");
+                }
+                other => panic!("{q}: {other:?}"),
+            }
+        }
+        let private = "[sensing]\nmode = \"private\"\n";
+        let stated = Config::from_toml(
+            &format!("{private}[robot]\ncommand_quantum = 0.0323\n"),
+            "t",
+        )
+        .unwrap();
+        let plain = Config::from_toml(private, "t").unwrap();
+        let line = "robot.command_quantum = 0.0323\n";
+        assert!(crate::protocol::agreement_terms(&stated).contains(line));
+        assert!(!crate::protocol::agreement_terms(&plain).contains("command_quantum"));
+        assert!(!plain.to_toml().contains("command_quantum"));
+        assert!(stated.to_toml().contains("command_quantum = 0.0323"));
     }
 
     #[test]

@@ -47,9 +47,22 @@ pub fn camera_words(config: &Config) -> String {
 /// stationary covariance and its AR(1) correlation between steps the controller measures per
 /// block, at the worst case of their (1 − ε_est) region; no slip, lag or delay, the Euler map;
 /// with `private.prior_lag` τ > 0, the doublets shaped in three steps for a first-order
-/// actuator lag of τ (the stated prior), which measured sizing measures per block.
+/// actuator lag of τ (the stated prior), which measured sizing measures per block; with
+/// `robot.command_quantum` q > 0, each wheel's command rounded to q (stated).
 #[must_use]
 pub fn plant_words(config: &Config) -> String {
+    let class = plant_class_words(config);
+    match config.robot.command_quantum {
+        0.0 => class,
+        quantum => format!(
+            "{class}; each wheel's speed command rounded to {quantum} rad/s \
+             (robot.command_quantum, stated)"
+        ),
+    }
+}
+
+/// [`plant_words`] without the command quantum.
+fn plant_class_words(config: &Config) -> String {
     // What the motion words leave out of the class: the configured noise is white.
     let (motion, correlation) = match config.postprocess.sizing {
         Sizing::Configured => (

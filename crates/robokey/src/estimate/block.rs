@@ -286,9 +286,7 @@ fn entry_speeds(model: &DoubletModel, session: &[DoubletSamples]) -> Vec<Option<
         }
         let inputs = &previous.inputs;
         let (_, nominal) = inputs.nominal_transient(inputs.first, 3, model.lag, t);
-        let offsets = model
-            .perturbation
-            .step_offsets(model.perturbation.offset(previous.pattern));
+        let offsets = model.step_offsets(inputs, Some(previous.pattern));
         let bit = offsets.iter().fold(Unicycle::zeros(), |speed, &c| {
             lagged(c, speed, t, model.lag).1
         });

@@ -117,9 +117,9 @@ impl DoubletResidual {
         pattern: usize,
     ) -> Self {
         let t = model.sample_time;
-        let offset = model.perturbation.offset(pattern);
-        let [a, b] = inputs.applied(offset);
-        let [middle, predicted] = inputs.propagate(start, offset, t);
+        let offsets = model.step_offsets(inputs, Some(pattern));
+        let [a, b, _] = inputs.applied_steps(offsets);
+        let [middle, predicted, _] = inputs.propagate_steps(start, offsets, 2, t);
         let a0 = state_jacobian(start.z, a.x, t);
         let a1 = state_jacobian(middle.z, b.x, t);
         let h0 = rotation(start.z).transpose();
@@ -154,7 +154,7 @@ impl DoubletResidual {
         entry: Unicycle,
     ) -> Self {
         let t = model.sample_time;
-        let mut offsets = model.mean_offsets(pattern);
+        let mut offsets = model.mean_offsets(inputs, Some(pattern));
         let (transient, _) = inputs.nominal_transient(entry, 3, model.lag, t);
         for (offset, nominal) in offsets.iter_mut().zip(transient) {
             *offset += nominal;

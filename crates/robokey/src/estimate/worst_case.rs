@@ -394,10 +394,10 @@ fn corner_separations(
     let own = alpha_low * positive - alpha_high * negative;
     let across = beta_low * positive - beta_high * negative;
     let predict = |pattern: usize| {
-        let offset = model.perturbation.offset(pattern);
-        let [a, b] = inputs.applied(offset);
+        let offsets = model.step_offsets(inputs, Some(pattern));
+        let [a, b, _] = inputs.applied_steps(offsets);
         let start = &view.start;
-        let [m1, m2] = inputs.propagate(&start.value, offset, t);
+        let [m1, m2, _] = inputs.propagate_steps(&start.value, offsets, 2, t);
         let a0 = state_jacobian(start.value.z, a.x, t);
         let a1 = state_jacobian(m1.z, b.x, t);
         let c11 = a0 * start.covariance * a0.transpose() + own;

@@ -7,8 +7,9 @@ use nalgebra::Vector2;
 
 use serde::{Deserialize, Serialize};
 
-use crate::model::{Pose, Unicycle, unicycle_step};
-use crate::world::lagged;
+use crate::config::Config;
+use crate::model::{DiffDrive, Pose, Unicycle, unicycle_step};
+use crate::world::{lagged, quantise};
 
 /// The sign a bit gives its perturbation: `s = +1` for bit 0, `−1` for bit 1.
 #[must_use]
@@ -129,13 +130,18 @@ impl Perturbation {
     }
 
     /// Each step's mean offset speed through a first-order lag `lag` τ (s) from wheels that
-    /// carried no offset before the doublet, for the first step's `offset`: for step offset
-    /// `c` from speed offset `e`, `c + (e − c)·(τ/T)·(1 − d)`, then `e ← c + (e − c)·d`,
-    /// `d = e^(−T/τ)`; [`Self::step_offsets`] without lag. What moves the robot under the
-    /// model's lag: the likelihood's means use it.
+    /// carried no offset before the doublet, for the steps' commanded offsets `commanded`
+    /// ([`Self::step_offsets`], rounded as the wheels receive them by
+    /// [`DoubletInputs::rounded`]): for step offset `c` from speed offset `e`,
+    /// `c + (e − c)·(τ/T)·(1 − d)`, then `e ← c + (e − c)·d`, `d = e^(−T/τ)`; `commanded`
+    /// without lag. What moves the robot under the model's lag: the likelihood's means use it.
     #[must_use]
-    pub fn mean_offsets(&self, offset: Unicycle, lag: f64, sample_time: f64) -> [Unicycle; 3] {
-        let commanded = self.step_offsets(offset);
+    pub fn mean_offsets(
+        &self,
+        commanded: [Unicycle; 3],
+        lag: f64,
+        sample_time: f64,
+    ) -> [Unicycle; 3] {
         if lag <= 0.0 {
             return commanded;
         }
@@ -152,6 +158,45 @@ impl Perturbation {
     #[must_use]
     pub fn pattern(&self, word: u64) -> usize {
         (word & ((1 << self.key_bits()) - 1)) as usize
+    }
+}
+
+/// How the robot's actuator rounds each wheel's speed command (docs/world.md,
+/// `command_quantum`), as the parties state it (`robot.command_quantum`): an input `u` reaches
+/// the wheels as `H·q·round(H⁻¹·u/q)` ([`quantise`], the world actuator's own rounding).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CommandRounding {
+    /// The wheels' geometry `H`.
+    pub drive: DiffDrive,
+    /// The resolution `q` (rad/s per wheel), > 0.
+    pub quantum: f64,
+}
+
+impl CommandRounding {
+    /// The rounding of `drive`'s wheels to `quantum` (rad/s); `None` for 0 (no rounding).
+    #[must_use]
+    pub fn new(drive: DiffDrive, quantum: f64) -> Option<Self> {
+        (quantum > 0.0).then_some(Self { drive, quantum })
+    }
+
+    /// The rounding of `config`'s wheels (`robot.r`, `robot.D`) to `quantum` (rad/s): the
+    /// parties' is `robot.command_quantum`.
+    #[must_use]
+    pub fn of(config: &Config, quantum: f64) -> Option<Self> {
+        Self::new(
+            DiffDrive {
+                wheel_radius: config.robot.r,
+                axle_length: config.robot.axle_length,
+            },
+            quantum,
+        )
+    }
+
+    /// The input `u` (m/s, rad/s) as the wheels receive it: `H·q·round(H⁻¹·u/q)`.
+    #[must_use]
+    pub fn round(&self, input: Unicycle) -> Unicycle {
+        self.drive
+            .to_unicycle(quantise(self.drive.to_wheels(input), self.quantum))
     }
 }
 
@@ -177,6 +222,24 @@ impl DoubletInputs {
     #[must_use]
     pub fn applied(&self, offset: Unicycle) -> [Unicycle; 2] {
         [self.first + offset, self.second - offset]
+    }
+
+    /// The steps' offsets `offsets` ([`Perturbation::step_offsets`]) as the wheels receive
+    /// them under `rounding`: `õᵢ = R(uᵢ + oᵢ) − uᵢ` with `u = [u, u', u']` and `R` the
+    /// rounding ([`CommandRounding::round`]), so that `uᵢ + õᵢ` is the rounded command. Each
+    /// wheel rounds on its own, so `õ` differs between the bit's values in more than sign
+    /// and moves the heading too. `offsets` unchanged without rounding.
+    #[must_use]
+    pub fn rounded(
+        &self,
+        offsets: [Unicycle; 3],
+        rounding: Option<&CommandRounding>,
+    ) -> [Unicycle; 3] {
+        let Some(rounding) = rounding else {
+            return offsets;
+        };
+        let nominal = [self.first, self.second, self.second];
+        std::array::from_fn(|i| rounding.round(nominal[i] + offsets[i]) - nominal[i])
     }
 
     /// The inputs of each of the doublet's steps for its step offsets
@@ -221,8 +284,8 @@ impl DoubletInputs {
     }
 
     /// The noise-free poses after each of `steps` steps (2 or 3) from `start` with the
-    /// steps' offsets `offsets` (a two-step doublet's, `[o, −o, 0]`, by [`Self::propagate`];
-    /// the third entry then repeats the end).
+    /// steps' offsets `offsets` ([`Self::applied_steps`]; with two steps the third entry
+    /// repeats the end).
     #[must_use]
     pub fn propagate_steps(
         &self,
@@ -231,13 +294,12 @@ impl DoubletInputs {
         steps: u32,
         sample_time: f64,
     ) -> [Pose; 3] {
-        if steps == 2 {
-            let [middle, end] = self.propagate(start, offsets[0], sample_time);
-            return [middle, end, end];
-        }
         let [a, b, c] = self.applied_steps(offsets);
         let first = unicycle_step(start, &a, sample_time);
         let second = unicycle_step(&first, &b, sample_time);
+        if steps == 2 {
+            return [first, second, second];
+        }
         [first, second, unicycle_step(&second, &c, sample_time)]
     }
 
@@ -451,6 +513,59 @@ mod tests {
             );
         }
         assert_eq!(settle_share(T, 0.0), None);
+    }
+
+    const DRIVE: DiffDrive = DiffDrive {
+        wheel_radius: 0.021,
+        axle_length: 0.1047,
+    };
+
+    /// The rounded offsets are the world actuator's rounding: a noise-free plant with
+    /// `command_quantum` q, driven by the doublet's unrounded wheel commands, lands where the
+    /// model's rounded steps put it, step by step. The bit's two values then move the
+    /// heading differently (each wheel rounds on its own), which the unrounded `±o` misses;
+    /// without a quantum the offsets are untouched.
+    #[test]
+    fn rounded_offsets_follow_the_world_actuator() {
+        use crate::Config;
+        use crate::rng::{Purpose, stream};
+        use crate::world::{PlantStreams, WorldConfig, WorldModel, WorldPlant};
+        let q = 0.1;
+        let config = Config {
+            world: Some(WorldConfig {
+                process_std: Some([0.0; 3]),
+                command_quantum: Some(q),
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let world = WorldModel::of(&config);
+        let rounding = CommandRounding::new(DRIVE, q).expect("q > 0");
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.1013, 0.237),
+            second: Unicycle::new(0.0987, 0.211),
+        };
+        let p = Perturbation::binary(Unicycle::new(0.035, 0.0), 1, None);
+        let mut turns = [0.0; 2];
+        for (h, turn) in turns.iter_mut().enumerate() {
+            let commanded = p.step_offsets(p.offset(h));
+            assert_eq!(inputs.rounded(commanded, None), commanded);
+            let offsets = inputs.rounded(commanded, Some(&rounding));
+            let model = inputs.propagate_steps(&Pose::zeros(), offsets, 2, T);
+            let streams = PlantStreams {
+                process: stream(1, Purpose::Process, 0),
+                slip: stream(1, Purpose::Slip, 0),
+            };
+            let mut plant = WorldPlant::new(&world, DRIVE, 38.0, T, streams, false);
+            for (k, u) in inputs.applied_steps(commanded)[..2].iter().enumerate() {
+                plant.apply(DRIVE.to_wheels(*u));
+                plant.step();
+                assert!((plant.pose() - model[k]).norm() < 1e-12, "h {h} step {k}");
+            }
+            *turn = offsets[0].y + offsets[1].y;
+        }
+        // The bit's values leave different net turns (T·Σω̃ differs by a wheel step's worth).
+        assert!((turns[0] - turns[1]).abs() > 0.5 * q * DRIVE.wheel_radius / DRIVE.axle_length);
     }
 
     #[test]

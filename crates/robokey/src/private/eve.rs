@@ -13,7 +13,7 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use super::doublet::DoubletInputs;
+use super::doublet::{CommandRounding, DoubletInputs};
 use super::likelihood::{
     BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model_with,
 };
@@ -135,9 +135,11 @@ impl DoubletEavesdropper {
         let world = config.world_model();
         let view = match (world.camera, config.eve.smoother_window) {
             (Camera::Instants { std }, None) if world.screens_doublets() => View::PerDoublet {
-                // Her model's lag is the world's (none where doublets are screened).
+                // Her model's lag and rounding are the world's (none where doublets are
+                // screened).
                 model: DoubletModel {
                     lag: world.lag,
+                    rounding: CommandRounding::of(config, world.command_quantum),
                     ..doublet_model_with(config, world.process_std)
                 },
                 controller_std: world.controller_std,

@@ -24,7 +24,7 @@ use nalgebra::{
 
 use robokey_secrecy::special::ln_add_exp;
 
-use super::doublet::{DoubletInputs, MAX_BITS, Perturbation};
+use super::doublet::{CommandRounding, DoubletInputs, MAX_BITS, Perturbation};
 use crate::config::Config;
 use crate::model::{Pose, Unicycle};
 
@@ -44,6 +44,7 @@ pub fn doublet_model_with(config: &Config, process_std: [f64; 3]) -> DoubletMode
         process_covariance: Matrix3::from_diagonal(&q.into()),
         perturbation: Perturbation::of(config),
         lag: config.private.prior_lag,
+        rounding: CommandRounding::of(config, config.robot.command_quantum),
     }
 }
 
@@ -153,6 +154,10 @@ pub struct DoubletModel {
     /// prior (`private.prior_lag`), or the world's for an eavesdropper who knows it. Not
     /// used with two steps.
     pub lag: f64,
+    /// How the wheels round each step's command (`robot.command_quantum`, or the world's for
+    /// an eavesdropper who knows it): every pattern's means and Jacobians follow the rounded
+    /// commands ([`DoubletInputs::rounded`]); `None`: no rounding.
+    pub rounding: Option<CommandRounding>,
 }
 
 /// What a party can say about each bit of a doublet.
@@ -322,10 +327,10 @@ impl DoubletModel {
             return self.predict_three(inputs, view, pattern);
         }
         let t = self.sample_time;
-        let offset = self.perturbation.offset(pattern);
-        let [a, b] = inputs.applied(offset);
+        let offsets = self.step_offsets(inputs, Some(pattern));
+        let [a, b, _] = inputs.applied_steps(offsets);
         let start = &view.start;
-        let [m1, m2] = inputs.propagate(&start.value, offset, t);
+        let [m1, m2, _] = inputs.propagate_steps(&start.value, offsets, 2, t);
         let a0 = state_jacobian(start.value.z, a.x, t);
         let a1 = state_jacobian(m1.z, b.x, t);
         let q = &self.process_covariance;
@@ -422,7 +427,7 @@ impl DoubletModel {
         pattern: usize,
     ) -> ([Pose; 3], [Matrix3<f64>; 3]) {
         let t = self.sample_time;
-        let mut offsets = self.mean_offsets(pattern);
+        let mut offsets = self.mean_offsets(inputs, Some(pattern));
         if let Some(entry) = view.entry {
             let (transient, _) = inputs.nominal_transient(entry, 3, self.lag, t);
             for (offset, nominal) in offsets.iter_mut().zip(transient) {
@@ -438,19 +443,33 @@ impl DoubletModel {
         (means, jacobians)
     }
 
-    /// Pattern `h`'s mean step offsets under the model ([`Perturbation::mean_offsets`] with
-    /// its lag).
+    /// The steps' commanded offsets of pattern `h` (`None`: the nominal inputs alone) with
+    /// `inputs`, as the wheels receive them under the model's rounding
+    /// ([`Perturbation::step_offsets`], [`DoubletInputs::rounded`]).
     #[must_use]
-    pub fn mean_offsets(&self, pattern: usize) -> [Unicycle; 3] {
-        let offset = self.perturbation.offset(pattern);
-        self.perturbation
-            .mean_offsets(offset, self.lag, self.sample_time)
+    pub fn step_offsets(&self, inputs: &DoubletInputs, pattern: Option<usize>) -> [Unicycle; 3] {
+        let offsets = pattern.map_or([Unicycle::zeros(); 3], |h| {
+            self.perturbation.step_offsets(self.perturbation.offset(h))
+        });
+        inputs.rounded(offsets, self.rounding.as_ref())
+    }
+
+    /// Pattern `h`'s mean step offsets under the model (`None`: the nominal inputs'): its
+    /// rounded commanded offsets ([`Self::step_offsets`]) through its lag
+    /// ([`Perturbation::mean_offsets`]).
+    #[must_use]
+    pub fn mean_offsets(&self, inputs: &DoubletInputs, pattern: Option<usize>) -> [Unicycle; 3] {
+        self.perturbation.mean_offsets(
+            self.step_offsets(inputs, pattern),
+            self.lag,
+            self.sample_time,
+        )
     }
 
     /// The noise-free end pose `x(Lj+L)` of pattern `h` from `start` under the model.
     #[must_use]
     pub fn end_of(&self, inputs: &DoubletInputs, start: &Pose, pattern: Option<usize>) -> Pose {
-        let offsets = pattern.map_or([Unicycle::zeros(); 3], |h| self.mean_offsets(h));
+        let offsets = self.mean_offsets(inputs, pattern);
         let steps = self.perturbation.steps();
         inputs.propagate_steps(start, offsets, steps, self.sample_time)[steps as usize - 1]
     }
@@ -625,6 +644,7 @@ mod tests {
             process_covariance: Matrix3::from_diagonal_element(1e-6),
             perturbation: Perturbation::binary(Unicycle::new(0.035, 0.0), 1, settle_share(T, tau)),
             lag: tau,
+            rounding: None,
         };
         let inputs = DoubletInputs {
             first: Unicycle::new(0.12, 0.0),
@@ -682,6 +702,7 @@ mod tests {
                 labeling,
             },
             lag: 0.0,
+            rounding: None,
         }
     }
 

@@ -23,7 +23,7 @@ use crate::protocol::KeyBits;
 
 pub(crate) use controller::PrivateController;
 pub use decision::DoubletDecision;
-pub use doublet::{DoubletInputs, Perturbation};
+pub use doublet::{CommandRounding, DoubletInputs, Perturbation};
 pub use eve::{DoubletEavesdropper, Eavesdroppers, EveDoublet};
 pub use likelihood::{
     BitEvidence, DoubletModel, DoubletView, PoseObservation, doublet_model, doublet_model_with,

@@ -9,8 +9,8 @@ use crate::world::Camera;
 /// The terms both endpoints must agree on (T, wheel geometry r and D, code, n_c, k_c, key
 /// budget, Δ, trajectory, protocol on/off; in private sensing also the mode, the bits per
 /// doublet, the turn gate, Eve's stated camera — per instant, or in frames when so stated —,
-/// the motion noise the key's assumption names and the prior lag that shapes the doublet
-/// (when not 0); the `[postprocess]` table, which sizes
+/// the motion noise the key's assumption names, the prior lag that shapes the doublet and
+/// the stated command quantum (each when not 0); the `[postprocess]` table, which sizes
 /// the final keys), as `field = value` lines in a fixed order. The robot checks every
 /// command against the agreed Δ, r and D. Not agreed: what only the controller uses
 /// (its gains, its sensor's `sensing.controller_std`: the separations it computes with it
@@ -24,7 +24,7 @@ pub fn agreement_terms(config: &Config) -> String {
         SensingMode::Odometry => String::new(),
         SensingMode::Private => format!(
             "sensing.mode = private\nprotocol.bits_per_doublet = {}\n{}protocol.max_turn_rate = {}\n\
-             eve.camera_std = {:?}\n{}noise.process_std = {:?}\n{}{}",
+             eve.camera_std = {:?}\n{}noise.process_std = {:?}\n{}{}{}",
             config.protocol.bits_per_doublet,
             alphabet_terms(config),
             config.protocol.max_turn_rate,
@@ -32,6 +32,7 @@ pub fn agreement_terms(config: &Config) -> String {
             camera_frames_terms(config),
             config.noise.process_std,
             prior_lag_terms(config),
+            command_quantum_terms(config),
             sizing_terms(config),
         ),
     };
@@ -116,6 +117,16 @@ fn prior_lag_terms(config: &Config) -> String {
         String::new()
     } else {
         format!("private.prior_lag = {}\n", config.private.prior_lag)
+    }
+}
+
+/// The stated command quantum's line, `robot.command_quantum = q` (absent at 0, so that the
+/// terms stay as they were): it shapes every pattern's means, hence Eve's modelled view and ℓ.
+fn command_quantum_terms(config: &Config) -> String {
+    if config.robot.command_quantum == 0.0 {
+        String::new()
+    } else {
+        format!("robot.command_quantum = {}\n", config.robot.command_quantum)
     }
 }
 
