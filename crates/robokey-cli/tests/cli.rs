@@ -923,7 +923,10 @@ fn arguments_read_as_users_write_them() {
         "{err}"
     );
     let help = ok(&["robot", "--help"]);
-    assert!(help.contains("--block-timeout") && help.contains("[default: 30]"), "{help}");
+    assert!(
+        help.contains("--block-timeout") && help.contains("[default: 30]"),
+        "{help}"
+    );
     let help = ok(&["secrecy", "--help"]);
     assert!(
         help.contains("<SWEEP_DIR>") && !help.contains("RUN_DIR"),

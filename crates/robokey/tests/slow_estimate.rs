@@ -95,7 +95,9 @@ impl Peer for SlowController {
                 Polled::Output(Output::Post(PostOutput::Estimated(estimate))) => {
                     self.estimates += 1;
                     self.busy_until = Some(self.now + self.compute);
-                    return Some(Polled::Output(Output::Post(PostOutput::Estimated(estimate))));
+                    return Some(Polled::Output(Output::Post(PostOutput::Estimated(
+                        estimate,
+                    ))));
                 }
                 Polled::Transmit(bytes) if self.busy_until.is_some() => self.held.push_back(bytes),
                 other => return Some(other),
