@@ -20,21 +20,11 @@ use robokey::post_settings::post_settings;
 use robokey::protocol::auth::PairingSecret;
 use robokey::protocol::{RobotOutput, SessionPlan, Time, Timing};
 use robokey::rng::{Purpose, stream};
-use robokey::world::{PlantStreams, WorldPlant};
+use robokey::world::WorldPlant;
 use robokey_secrecy::postprocess::{ControllerPost, FinalKey, RobotPost};
+use support::{Address, connection_plant, sensed};
 
-/// The two sides' addresses on the virtual network.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Address {
-    Robot,
-    Controller,
-}
-
-impl std::fmt::Display for Address {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{self:?}")
-    }
-}
+mod support;
 
 type RobotSide = Connected<RobotConnection<Address, ChaCha20Rng>, Address>;
 type ControllerSide = Connected<ControllerConnection<Address>, Address>;
@@ -124,10 +114,7 @@ impl Surroundings<RobotSide, SlowController> for World {
     ) {
         match output {
             Output::Endpoint(RobotOutput::Sense { step }) => {
-                if step > 0 {
-                    self.plant.step();
-                }
-                let pose = self.plant.pose();
+                let pose = sensed(&mut self.plant, step);
                 robot.connection.handle_sample(now, step, pose);
                 controller.inner.connection.handle_sensor(now, step, pose);
             }
@@ -202,17 +189,7 @@ fn conversation(compute: Duration) -> (Pair<RobotSide, SlowController>, Ending, 
     );
     let plan = SessionPlan::from_config(&config, 0);
     let mut world = World {
-        plant: WorldPlant::new(
-            &config.world_model(),
-            plan.agreed.drive,
-            config.robot.wheel_limit,
-            plan.agreed.sample_time,
-            PlantStreams {
-                process: stream(seed, Purpose::Process, 0),
-                slip: stream(seed, Purpose::Slip, 0),
-            },
-            false,
-        ),
+        plant: connection_plant(&config, seed),
         keys: [Vec::new(), Vec::new()],
         notes: Vec::new(),
         closed: [false; 2],
