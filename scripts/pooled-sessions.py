@@ -3,7 +3,6 @@
 
     scripts/pooled-sessions.py OUT --sessions N [--mode private|odometry] [--set FIELD=VALUE …]
                                [--kill-trials K] [--seed S] [--eve] [--robot-world PRESET|FILE]
-                               [--silence-timeout S]
                                [-- relay fault options…]
 
 Every session: the robot agent (simulated plant; in private mode also the world's motion
@@ -48,6 +47,9 @@ import time
 BIN = os.environ.get("ROBOKEY", "target/release/robokey")
 MIX = ["--loss", "0.1", "--duplicate", "0.05", "--reorder", "0.05", "--corrupt", "0.01",
        "--delay", "1±1"]
+# The relay's idle exit (s): past the robot's default --block-timeout (30 s), so that it never
+# leaves during the controller's block-time estimate; it is stopped once both agents end.
+RELAY_IDLE_EXIT = 31
 
 
 def robokey(*args, check=True):
@@ -89,8 +91,7 @@ def session(a, d, index, kill=None):
     """One session in folder d; with kill = (victim, delay s), SIGKILL the victim that long
     after the controller pooled the session. Returns what the kill hit, if it did."""
     os.makedirs(d, exist_ok=True)
-    common = ["--pace", "lockstep", "--pairing", a.pairing,
-              "--silence-timeout", str(a.silence_timeout)]
+    common = ["--pace", "lockstep", "--pairing", a.pairing]
     common += settings(a)
     robot_args = ["robot", "--listen", "127.0.0.1:0", "--step-timeout-ms", "20",
                   "--store", os.path.join(a.out, "robot"), "--key-out", f"{d}/robot.key",
@@ -111,7 +112,7 @@ def session(a, d, index, kill=None):
     faults = ["--delay", "2"] if kill else a.faults
     relay, relay_text = start(["relay", "--listen", "127.0.0.1:0", "--forward",
                                address_after(robot_text, "listening on "), "--seed", str(index),
-                               "--idle-exit", str(a.silence_timeout + 1),
+                               "--idle-exit", str(RELAY_IDLE_EXIT),
                                "--capture", f"{d}/capture.pcap"] + faults,
                               f"{d}/relay.out")
     controller_args = ["controller", "--robot", address_after(relay_text, "on "),
@@ -148,6 +149,8 @@ def session(a, d, index, kill=None):
                 break
     controller.wait()
     robot.wait()
+    # Both agents ended: nothing more to forward.
+    relay.send_signal(signal.SIGINT)
     relay.wait()
     if recorder:
         recorder.wait()
@@ -330,10 +333,6 @@ def main():
     p.add_argument("--eve", action="store_true")
     p.add_argument("--robot-world", metavar="PRESET|FILE",
                    help="the robot agent's simulated world (robot --world); Eve is given it")
-    p.add_argument("--silence-timeout", type=int, default=2,
-                   help="both agents' --silence-timeout (s; the relay outlives it by 1 s): "
-                        "longer than the controller's block-time estimate (a multilevel "
-                        "block's takes seconds)")
     p.add_argument("--summary-only", action="store_true")
     p.add_argument("faults", nargs="*")
     a = p.parse_args()

@@ -231,6 +231,12 @@ pub struct RobotArgs {
     /// Seconds to wait for a controller.
     #[arg(long, default_value_t = 60.0)]
     wait: f64,
+    /// With --store: seconds to wait, with a post-processing block in flight, for the
+    /// controller's next request; it may follow the controller's estimate of the plant for
+    /// the block (seconds for a multilevel block of 10⁴ bits), longer than --silence-timeout.
+    /// After it the robot leaves and the block ends without a key in the next session.
+    #[arg(long, default_value_t = Timing::DEFAULT_BLOCK.as_secs_f64())]
+    block_timeout: f64,
     #[command(flatten)]
     world: WorldArgs,
     #[command(flatten)]
@@ -327,7 +333,8 @@ pub struct RelayArgs {
 
 pub fn robot(args: RobotArgs) -> Result<Status> {
     let mut config = load_config(args.session.config.as_deref(), &args.session.options.set)?;
-    let timing = args.session.timing()?;
+    let mut timing = args.session.timing()?;
+    timing.block_timeout = seconds("block-timeout", args.block_timeout, 0.001)?;
     if args.kh4.is_some() && !matches!(args.backend, BackendArg::Kh4) {
         usage!("--kh4 is used only with --backend kh4 (the backend is sim)");
     }

@@ -916,6 +916,17 @@ fn arguments_read_as_users_write_them() {
     );
     let err = fails_with(2, &["secrecy", s(&sweep), "--eps", "-0.1"]);
     assert!(err.contains("--eps -0.1 is not allowed"), "{err}");
+    let robot = ["robot", "--listen", "127.0.0.1:0", "--unauthenticated"];
+    let err = fails_with(2, &[&robot[..], &["--block-timeout", "0"]].concat());
+    assert!(
+        err.contains("--block-timeout 0 is not allowed (allowed: 0.001 to 86400 seconds)"),
+        "{err}"
+    );
+    let help = ok(&["robot", "--help"]);
+    assert!(
+        help.contains("--block-timeout") && help.contains("[default: 30]"),
+        "{help}"
+    );
     let help = ok(&["secrecy", "--help"]);
     assert!(
         help.contains("<SWEEP_DIR>") && !help.contains("RUN_DIR"),

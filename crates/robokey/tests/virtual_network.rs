@@ -9,7 +9,7 @@ use rand::{RngExt, SeedableRng};
 use robokey::Config;
 use robokey::pair::{Ending, LinkFaults};
 use robokey::protocol::{Outcome, Timing};
-use support::{Network, Session, session};
+use support::{Address, Network, Session, connection_plant, sensed, session};
 
 mod support;
 
@@ -144,19 +144,6 @@ fn an_ideal_link_agrees_in_both_modes() {
     }
 }
 
-/// The two sides' addresses on the virtual network.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Address {
-    Robot,
-    Controller,
-}
-
-impl std::fmt::Display for Address {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{self:?}")
-    }
-}
-
 mod through_the_session_layer {
     use super::*;
     use rand::rngs::ChaCha20Rng;
@@ -168,7 +155,7 @@ mod through_the_session_layer {
     use robokey::protocol::auth::PairingSecret;
     use robokey::protocol::{Handshake, Message, RobotOutput, Time};
     use robokey::rng::{Purpose, stream};
-    use robokey::world::{PlantStreams, WorldPlant};
+    use robokey::world::WorldPlant;
 
     type RobotSide = Connected<RobotConnection<Address, ChaCha20Rng>, Address>;
     type ControllerSide = Connected<ControllerConnection<Address>, Address>;
@@ -193,10 +180,7 @@ mod through_the_session_layer {
         ) {
             match output {
                 Output::Endpoint(RobotOutput::Sense { step }) => {
-                    if step > 0 {
-                        self.plant.step();
-                    }
-                    let pose = self.plant.pose();
+                    let pose = sensed(&mut self.plant, step);
                     robot.connection.handle_sample(now, step, pose);
                     if self.private {
                         controller.connection.handle_sensor(now, step, pose);
@@ -289,17 +273,7 @@ mod through_the_session_layer {
         );
         let plan = robokey::protocol::SessionPlan::from_config(config, 0);
         let mut world = World {
-            plant: WorldPlant::new(
-                &config.world_model(),
-                plan.agreed.drive,
-                config.robot.wheel_limit,
-                plan.agreed.sample_time,
-                PlantStreams {
-                    process: stream(seed, Purpose::Process, 0),
-                    slip: stream(seed, Purpose::Slip, 0),
-                },
-                false,
-            ),
+            plant: connection_plant(config, seed),
             private: plan.private().is_some(),
             outcomes: [None, None],
             closed: [false; 2],

@@ -45,11 +45,14 @@ enum Stage {
         readies: u32,
     },
     /// After the outcome: post-processing until no block is in flight, its retransmission
-    /// timer, and when the robot last answered it.
+    /// timer, when the robot last answered it, and whether the last flush computed a block's
+    /// estimate (the robot's silence then restarts at the next wake-up, when the answer has
+    /// left: the controller's own computing is not the robot's silence).
     Post {
         courtesy: Courtesy,
         timer: Time,
         heard: Time,
+        computed: bool,
     },
     /// `Done` sent: answering until the robot's `Done` or quiet.
     Linger(Linger),
@@ -489,6 +492,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                     courtesy,
                     timer: now + self.timing.retransmit_interval(),
                     heard: now,
+                    computed: false,
                 };
             }
             None => self.linger(now, courtesy),
@@ -498,7 +502,13 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
     /// Moves post-processing on after an input or a timer: flushes the endpoint (store, then
     /// send), and ends it when no block is in flight or the robot fell silent.
     fn after(&mut self, now: Time) {
-        let Stage::Post { timer, heard, .. } = &mut self.stage else {
+        let Stage::Post {
+            timer,
+            heard,
+            computed,
+            ..
+        } = &mut self.stage
+        else {
             if let Stage::Linger(linger) = &self.stage
                 && linger.is_over(now)
             {
@@ -506,11 +516,15 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             }
             return;
         };
+        if *computed {
+            *heard = (*heard).max(now);
+        }
         let Some(post) = &mut self.post else {
             return;
         };
         let mut out = Vec::new();
         let flushed = post.flush(&mut out);
+        *computed = post.computed();
         self.outputs.extend(out.into_iter().map(Output::Post));
         let fragments = match flushed {
             Ok(fragments) => fragments,

@@ -84,7 +84,8 @@ impl Linger {
 
     /// Something this side must answer (a post-processing frame) came at `now`: it stays at
     /// least `patience` from now — the quiet time, or longer while the peer may be computing
-    /// before its next request (the controller's block-time estimate of the plant).
+    /// before its next request (the block timeout, for the controller's block-time estimate
+    /// of the plant).
     pub(crate) fn busy(&mut self, now: Time, patience: Duration) {
         self.until = now + self.quiet.max(patience);
     }
@@ -101,7 +102,7 @@ mod tests {
     use crate::protocol::Pace;
 
     /// A frame answered with a block in flight keeps the side lingering for the patience it
-    /// was given (the silence timeout), not only the quiet time; without it, the quiet time.
+    /// was given (the block timeout), not only the quiet time; without it, the quiet time.
     #[test]
     fn a_frame_keeps_the_side_for_its_patience_or_the_quiet_time() {
         let timing = Timing::new(Pace::Lockstep, Duration::from_secs(2));
@@ -111,8 +112,9 @@ mod tests {
         linger.busy(start, Duration::ZERO);
         assert!(!linger.is_over(start + (quiet - Duration::from_millis(1))));
         assert!(linger.is_over(start + quiet));
-        linger.busy(start, timing.silence_timeout);
-        assert!(!linger.is_over(start + Duration::from_millis(1_999)));
-        assert!(linger.is_over(start + timing.silence_timeout));
+        linger.busy(start, timing.block_timeout);
+        let block = timing.block_timeout;
+        assert!(!linger.is_over(start + (block - Duration::from_millis(1))));
+        assert!(linger.is_over(start + block));
     }
 }

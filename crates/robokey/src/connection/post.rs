@@ -243,6 +243,9 @@ pub struct PostLink<E> {
     /// The parties' configuration, which the controller's estimate of the plant (measured
     /// sizing) and its commands check read.
     config: Config,
+    /// Whether the last [`Self::flush`] ran a block-time computation (the estimate of the
+    /// plant or the commands check): the time it took is this side's, not the peer's silence.
+    computed: bool,
 }
 
 impl<E: PostEndpoint> PostLink<E> {
@@ -255,7 +258,15 @@ impl<E: PostEndpoint> PostLink<E> {
             next_message: 0,
             spent,
             config: config.clone(),
+            computed: false,
         }
+    }
+
+    /// Whether the last flush ran a block-time computation (its answer leaves when the shell
+    /// next runs, however long the computation took).
+    #[must_use]
+    pub fn computed(&self) -> bool {
+        self.computed
     }
 
     /// The endpoint.
@@ -351,6 +362,7 @@ impl<E: PostEndpoint> PostLink<E> {
     ) -> Result<Vec<PostFragment>, String> {
         let (mut persist, mut keys, mut sends, mut ended) = (false, Vec::new(), Vec::new(), false);
         let mut blocks = Vec::new();
+        self.computed = false;
         while let Some(output) = self.endpoint.poll_output() {
             match output {
                 Output::EstimateNeeded(request) => {
@@ -367,6 +379,7 @@ impl<E: PostEndpoint> PostLink<E> {
                         check_request(&self.config, &request, epsilon)
                     };
                     self.endpoint.estimated(request.block, outcome);
+                    self.computed = true;
                 }
                 Output::SlicesEstimateNeeded(request) => {
                     // A multilevel block on whole symbols once its last slice is reconciled:
@@ -374,6 +387,7 @@ impl<E: PostEndpoint> PostLink<E> {
                     // (`slices::slice_estimates`); configured sizing the check alone.
                     let outcomes = self.slice_outcomes(&request, out);
                     self.endpoint.slices_estimated(request.block, outcomes);
+                    self.computed = true;
                 }
                 Output::SliceReconciled(reconciled) => {
                     // The next slices' LLRs given the robot's bits of the reconciled ones:

@@ -251,16 +251,16 @@ impl<A: Copy + PartialEq, K: CryptoRng> RobotConnection<A, K> {
             }
             (Stage::Linger(linger), Message::Post(fragment)) => {
                 // With a block in flight the controller's next request may follow its
-                // block-time estimate of the plant: the robot waits for it as long as the
-                // controller waits for the robot (the silence timeout), not only the quiet
-                // time (0.3 s in lockstep).
+                // block-time estimate of the plant (seconds for a multilevel block): the
+                // robot waits for it the block timeout, not only the quiet time (0.3 s in
+                // lockstep) nor the silence timeout.
                 let mut patience = Duration::ZERO;
                 if let Some(post) = &mut self.post {
                     let mut out = Vec::new();
                     post.receive(&fragment, &mut out);
                     self.outputs.extend(out.into_iter().map(Output::Post));
                     if post.endpoint().block_in_flight().is_some() {
-                        patience = self.timing.silence_timeout;
+                        patience = self.timing.block_timeout;
                     }
                 }
                 linger.busy(now, patience);

@@ -61,13 +61,23 @@ pub struct Timing {
     pub deadline_fraction: f64,
     /// A side that hears no valid frame for this long aborts.
     pub silence_timeout: Duration,
+    /// How long the robot, lingering with a post-processing block in flight, waits for the
+    /// controller's next request: longer than the silence timeout, because that request may
+    /// follow the controller's block-time estimate of the plant (seconds for a multilevel
+    /// block of 10⁴ bits). Without a block in flight the robot waits the quiet time.
+    pub block_timeout: Duration,
 }
 
 impl Timing {
     /// Default silence timeout: 2 s.
     pub const DEFAULT_SILENCE: Duration = Duration::from_secs(2);
 
-    /// The defaults for a pace: deadline `T/2`, lockstep timeout 50 ms, silence `silence`.
+    /// Default block timeout: 30 s, about six times the longest multilevel block-time
+    /// estimate measured on a loaded 2-core machine (5 s, 10⁴-bit blocks, 4 levels).
+    pub const DEFAULT_BLOCK: Duration = Duration::from_secs(30);
+
+    /// The defaults for a pace: deadline `T/2`, lockstep timeout 50 ms, silence `silence`,
+    /// block timeout [`Self::DEFAULT_BLOCK`].
     #[must_use]
     pub fn new(pace: Pace, silence_timeout: Duration) -> Self {
         Self {
@@ -75,6 +85,7 @@ impl Timing {
             step_timeout: Duration::from_millis(50),
             deadline_fraction: 0.5,
             silence_timeout,
+            block_timeout: Self::DEFAULT_BLOCK,
         }
     }
 

@@ -170,3 +170,42 @@ pub fn session(
         ending,
     }
 }
+
+/// The two sides' addresses on the virtual network, for tests of whole connections.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Address {
+    Robot,
+    Controller,
+}
+
+impl std::fmt::Display for Address {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{self:?}")
+    }
+}
+
+/// The plant of a conversation of `config` between two connections, its process noise and
+/// slip from streams of `seed`.
+pub fn connection_plant(config: &Config, seed: u64) -> WorldPlant {
+    let agreed = SessionPlan::from_config(config, 0).agreed;
+    WorldPlant::new(
+        &config.world_model(),
+        agreed.drive,
+        config.robot.wheel_limit,
+        agreed.sample_time,
+        PlantStreams {
+            process: stream(seed, Purpose::Process, 0),
+            slip: stream(seed, Purpose::Slip, 0),
+        },
+        false,
+    )
+}
+
+/// The robot asked for sample `step`: the plant moves on one period (after the first) and
+/// its true pose is what the sensors read.
+pub fn sensed(plant: &mut WorldPlant, step: u32) -> robokey::model::Pose {
+    if step > 0 {
+        plant.step();
+    }
+    plant.pose()
+}
