@@ -37,7 +37,7 @@ use super::homogeneity::{ClassDeparture, speed_class_departure};
 use super::normal_tail::normal_upper_quantile;
 use super::residual::{AXES, DoubletResidual};
 use super::slip::{SlipEstimate, estimate_slip};
-use super::symmetric_coordinates::{ENTRIES, coordinates, symmetric};
+use super::symmetric_coordinates::{coordinates, symmetric};
 
 /// Least residuals of each parity the bounds are computed from.
 pub const MIN_DOUBLETS_PER_PARITY: usize = 100;

@@ -24,9 +24,9 @@
 use nalgebra::{Matrix3, SMatrix, SVector};
 
 use super::correlation::{MAX_BATCHES, MIN_PAIRS_PER_BATCH};
-use super::symmetric_coordinates::{ENTRIES, coordinates, symmetric};
 use super::normal_tail::normal_upper_quantile;
 use super::residual::DoubletResidual;
+use super::symmetric_coordinates::{ENTRIES, coordinates, symmetric};
 
 /// The seven unknowns: `Q`'s six coordinates, then σ².
 type Parameters = SVector<f64, 7>;
