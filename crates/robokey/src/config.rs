@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::code::{BlockCode, Repetition, hamming74};
+use crate::model::DiffDrive;
 use crate::observer::Variant;
 pub use crate::private::doublet::Labeling;
 use crate::private::doublet::Perturbation;
@@ -86,6 +87,17 @@ pub const MAX_COMMAND_QUANTUM: f64 = 1.0;
 /// digests and dumps are unchanged).
 fn is_zero(x: &f64) -> bool {
     *x == 0.0
+}
+
+impl RobotConfig {
+    /// The wheels' geometry `H` (`r`, `D`).
+    #[must_use]
+    pub fn drive(&self) -> DiffDrive {
+        DiffDrive {
+            wheel_radius: self.r,
+            axle_length: self.axle_length,
+        }
+    }
 }
 
 impl Default for RobotConfig {

@@ -7,7 +7,6 @@ use nalgebra::Vector2;
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::Config;
 use crate::model::{DiffDrive, Pose, Unicycle, unicycle_step};
 use crate::world::{lagged, quantise};
 
@@ -177,19 +176,6 @@ impl CommandRounding {
     #[must_use]
     pub fn new(drive: DiffDrive, quantum: f64) -> Option<Self> {
         (quantum > 0.0).then_some(Self { drive, quantum })
-    }
-
-    /// The rounding of `config`'s wheels (`robot.r`, `robot.D`) to `quantum` (rad/s): the
-    /// parties' is `robot.command_quantum`.
-    #[must_use]
-    pub fn of(config: &Config, quantum: f64) -> Option<Self> {
-        Self::new(
-            DiffDrive {
-                wheel_radius: config.robot.r,
-                axle_length: config.robot.axle_length,
-            },
-            quantum,
-        )
     }
 
     /// The input `u` (m/s, rad/s) as the wheels receive it: `H·q·round(H⁻¹·u/q)`.

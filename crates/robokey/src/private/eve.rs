@@ -139,7 +139,7 @@ impl DoubletEavesdropper {
                 // screened).
                 model: DoubletModel {
                     lag: world.lag,
-                    rounding: CommandRounding::of(config, world.command_quantum),
+                    rounding: CommandRounding::new(config.robot.drive(), world.command_quantum),
                     ..doublet_model_with(config, world.process_std)
                 },
                 controller_std: world.controller_std,

@@ -44,7 +44,7 @@ pub fn doublet_model_with(config: &Config, process_std: [f64; 3]) -> DoubletMode
         process_covariance: Matrix3::from_diagonal(&q.into()),
         perturbation: Perturbation::of(config),
         lag: config.private.prior_lag,
-        rounding: CommandRounding::of(config, config.robot.command_quantum),
+        rounding: CommandRounding::new(config.robot.drive(), config.robot.command_quantum),
     }
 }
 
