@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 33's Done-when grid in one command (docs/estimation.md, "The grid"):
+# The measured-sizing grid over every plant axis in one command (docs/estimation.md, "The grid"):
 #
 #   scripts/grid.sh OUT [ROBOKEY]
 #

@@ -12,7 +12,7 @@ she is given the true pose at every sample instant outside the doublet's own ins
 k … k + L, every other bit, and the world's parameters; at the doublet's instants she holds
 her camera samples and, at its two boundaries, the controller's samples (`--boundaries
 samples`, the default) or the true poses (`--boundaries true`, a stronger genie). That is at
-least as much as the issue's camera eavesdropper holds (her camera, the controller's boundary
+least as much as the key's camera eavesdropper holds (her camera, the controller's boundary
 samples, the public commands): everything else she observes is the true poses elsewhere plus
 noise independent of the bit. She models the doublet's L steps, the step before (from the
 given pose) and the one after (a delay, or a lag other than the prior, carries the bit into
@@ -297,7 +297,7 @@ def doublet_llrs(
     prior carries the bit into it), linearised about each hypothesis's noise-free run. The
     genie gives her the true pose at every instant but the doublet's own; she observes her
     camera at the doublet's instants and, at its two boundaries, the controller's samples
-    (`boundaries = "samples"`: the issue's camera eavesdropper's view of the doublet) or the
+    (`boundaries = "samples"`: the key's camera eavesdropper's view of the doublet) or the
     true poses (`"true"`: a stronger genie). A sample's jitter j moves it by j·ẋ: its
     covariance jitter²·ẋẋᵀ (ẋ the step's nominal rate) is added to the sample's.
     """
