@@ -18,16 +18,13 @@ use robokey::connection::{
 use robokey::pair::{Connected, Ending, Pair, Peer, Polled, Surroundings};
 use robokey::post_settings::post_settings;
 use robokey::protocol::auth::PairingSecret;
-use robokey::protocol::{RobotOutput, SessionPlan, Time, Timing};
+use robokey::protocol::{SessionPlan, Time, Timing};
 use robokey::rng::{Purpose, stream};
 use robokey::world::WorldPlant;
 use robokey_secrecy::postprocess::{ControllerPost, FinalKey, RobotPost};
-use support::{Address, connection_plant, sensed};
+use support::{Address, ControllerSide, RobotSide, connection_plant, drive_plant};
 
 mod support;
-
-type RobotSide = Connected<RobotConnection<Address, ChaCha20Rng>, Address>;
-type ControllerSide = Connected<ControllerConnection<Address>, Address>;
 
 /// The controller with its estimates taking `compute` of virtual time: from the moment it
 /// reports one, it takes no input and its sends wait until the computation ends; then they
@@ -113,12 +110,15 @@ impl Surroundings<RobotSide, SlowController> for World {
         controller: &mut SlowController,
     ) {
         match output {
-            Output::Endpoint(RobotOutput::Sense { step }) => {
-                let pose = sensed(&mut self.plant, step);
-                robot.connection.handle_sample(now, step, pose);
-                controller.inner.connection.handle_sensor(now, step, pose);
+            Output::Endpoint(event) => {
+                drive_plant(
+                    &mut self.plant,
+                    now,
+                    event,
+                    robot,
+                    Some(&mut controller.inner),
+                );
             }
-            Output::Endpoint(RobotOutput::Apply(a)) => self.plant.apply(a.wheels),
             Output::Post(PostOutput::Persist { keys, .. }) => self.keys[0].extend(keys),
             Output::Closed => self.closed[0] = true,
             _ => {}

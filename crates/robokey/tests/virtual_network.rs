@@ -9,7 +9,9 @@ use rand::{RngExt, SeedableRng};
 use robokey::Config;
 use robokey::pair::{Ending, LinkFaults};
 use robokey::protocol::{Outcome, Timing};
-use support::{Address, Network, Session, connection_plant, sensed, session};
+use support::{
+    Address, ControllerSide, Network, RobotSide, Session, connection_plant, drive_plant, session,
+};
 
 mod support;
 
@@ -153,12 +155,9 @@ mod through_the_session_layer {
     use robokey::pair::Side;
     use robokey::pair::{Connected, Pair, Surroundings};
     use robokey::protocol::auth::PairingSecret;
-    use robokey::protocol::{Handshake, Message, RobotOutput, Time};
+    use robokey::protocol::{Handshake, Message, Time};
     use robokey::rng::{Purpose, stream};
     use robokey::world::WorldPlant;
-
-    type RobotSide = Connected<RobotConnection<Address, ChaCha20Rng>, Address>;
-    type ControllerSide = Connected<ControllerConnection<Address>, Address>;
 
     /// The plant both agents' worlds share, how each side ended, and how many of the
     /// controller's `Ready`s an attacker drops.
@@ -179,14 +178,10 @@ mod through_the_session_layer {
             controller: &mut ControllerSide,
         ) {
             match output {
-                Output::Endpoint(RobotOutput::Sense { step }) => {
-                    let pose = sensed(&mut self.plant, step);
-                    robot.connection.handle_sample(now, step, pose);
-                    if self.private {
-                        controller.connection.handle_sensor(now, step, pose);
-                    }
+                Output::Endpoint(event) => {
+                    let sensor = self.private.then_some(controller);
+                    drive_plant(&mut self.plant, now, event, robot, sensor);
                 }
-                Output::Endpoint(RobotOutput::Apply(a)) => self.plant.apply(a.wheels),
                 Output::Finished(outcome) => self.outcomes[0] = Some(outcome),
                 Output::Closed => self.closed[0] = true,
                 _ => {}

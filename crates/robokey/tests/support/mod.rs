@@ -6,8 +6,10 @@
 
 use std::time::Duration;
 
+use rand::rngs::ChaCha20Rng;
 use robokey::Config;
-use robokey::pair::{Ending, LinkFaults, Pair, Side, Surroundings};
+use robokey::connection::{ControllerConnection, RobotConnection};
+use robokey::pair::{Connected, Ending, LinkFaults, Pair, Side, Surroundings};
 use robokey::protocol::{
     Controller, ControllerEvent, ControllerInput, ControllerOutput, Message, Outcome, Robot,
     RobotInput, RobotOutput, SessionPlan, Time, Timing,
@@ -208,4 +210,33 @@ pub fn sensed(plant: &mut WorldPlant, step: u32) -> robokey::model::Pose {
         plant.step();
     }
     plant.pose()
+}
+
+/// The connection layer's robot on the virtual network (its keys drawn from ChaCha20).
+pub type RobotSide = Connected<RobotConnection<Address, ChaCha20Rng>, Address>;
+
+/// The connection layer's controller on the virtual network.
+pub type ControllerSide = Connected<ControllerConnection<Address>, Address>;
+
+/// The plant's part of the robot endpoint's `event`: a `Sense` reads the true pose for the
+/// robot and, when given, the controller's sensor (private sensing); an `Apply` turns the
+/// wheels. The endpoint's other events are not the plant's.
+pub fn drive_plant(
+    plant: &mut WorldPlant,
+    now: Time,
+    event: RobotOutput,
+    robot: &mut RobotSide,
+    controller_sensor: Option<&mut ControllerSide>,
+) {
+    match event {
+        RobotOutput::Sense { step } => {
+            let pose = sensed(plant, step);
+            robot.connection.handle_sample(now, step, pose);
+            if let Some(controller) = controller_sensor {
+                controller.connection.handle_sensor(now, step, pose);
+            }
+        }
+        RobotOutput::Apply(a) => plant.apply(a.wheels),
+        _ => {}
+    }
 }
