@@ -550,27 +550,41 @@ fn size_block(
         }
         separations.push(session_separations);
     }
-    let [point, lower] = estimate.stds();
-    let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);
     let largest = separations.iter().flatten().fold(0.0_f64, |m, &x| m.max(x));
     let separation = equivalent(&separations, disclosed, epsilon, largest);
+    let lag = lag.map(|lag| [lag.point, lag.interval[0], lag.interval[1]]);
     (
         separations,
-        BlockEstimate {
-            doublets: estimate.doublets,
-            point_std_mm: mm(point),
-            lower_std_mm: mm(lower),
-            correlation: estimate.correlation.point,
-            correlation_interval: estimate.correlation.interval,
-            epsilon,
-            separation,
-            largest,
-            refused: None,
-            lag: lag.map(|lag| [lag.point, lag.interval[0], lag.interval[1]]),
-            slip: estimate.slip.map(|slip| slip.stds()),
-            slip_sized: false,
-        },
+        sized_report(estimate, epsilon, [separation, largest], lag, false),
     )
+}
+
+/// The report of a block sized from `estimate` at ε_est = `epsilon`: its published
+/// `[separation, largest]`, the lag measured (three-step doublets), whether the slip
+/// measured sized it.
+fn sized_report(
+    estimate: &MotionNoiseEstimate,
+    epsilon: f64,
+    [separation, largest]: [f64; 2],
+    lag: Option<[f64; 3]>,
+    slip_sized: bool,
+) -> BlockEstimate {
+    let [point, lower] = estimate.stds();
+    let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);
+    BlockEstimate {
+        doublets: estimate.doublets,
+        point_std_mm: mm(point),
+        lower_std_mm: mm(lower),
+        correlation: estimate.correlation.point,
+        correlation_interval: estimate.correlation.interval,
+        epsilon,
+        separation,
+        largest,
+        refused: None,
+        lag,
+        slip: estimate.slip.map(|slip| slip.stds()),
+        slip_sized,
+    }
 }
 
 /// A block whose estimate measured per-wheel slip (its `points` of the slip's interval,
@@ -671,27 +685,12 @@ fn size_slip_block(
         }
         Err(why) => return named(format!("per-wheel slip: {why}")),
     };
-    let [point, lower] = estimate.stds();
-    let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);
     (
         sessions
             .iter()
             .map(|session| vec![separation; session.len() * model.perturbation.key_bits()])
             .collect(),
-        BlockEstimate {
-            doublets: estimate.doublets,
-            point_std_mm: mm(point),
-            lower_std_mm: mm(lower),
-            correlation: estimate.correlation.point,
-            correlation_interval: estimate.correlation.interval,
-            epsilon,
-            separation,
-            largest: separation,
-            refused: None,
-            lag: None,
-            slip,
-            slip_sized: true,
-        },
+        sized_report(estimate, epsilon, [separation; 2], None, true),
     )
 }
 
