@@ -501,8 +501,8 @@ fn corner_predictions(
 
 /// Each key bit's view of the doublet under per-wheel slip of variance `slip_variance` (σ²)
 /// at `corner`, on wheels `axle` D (m) apart: for each value of the doublet's other bits
-/// (given to Eve, as [`separations_by`] takes them), the pair of her Gaussian views of the
-/// bit's two values, each with its own covariance ([`corner_predictions`]), diagonalised
+/// (given to Eve, as `separations_by` takes them), the pair of her Gaussian views of the
+/// bit's two values, each with its own covariance (`corner_predictions`), diagonalised
 /// together ([`CovariancePair`]: whitened by the first value's `S`, rotated onto the
 /// eigenvectors of the second's). `None` where a covariance is not positive definite (no
 /// bound exists at the corner).
