@@ -12,6 +12,7 @@
 //! view of bits whose noise depends on them is not sized yet.
 
 pub mod block;
+pub mod block_llrs;
 pub mod commands_check;
 pub mod correlation;
 pub mod homogeneity;
@@ -27,6 +28,7 @@ pub use block::{
     BlockEstimate, block_separations, check_request, estimate_request, kept_doublet,
     request_separations, world_block_separations,
 };
+pub use block_llrs::{doublet_llrs, recomputed_llrs, recomputes_llrs};
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use lag::{LagEstimate, estimate_lag};

@@ -293,19 +293,16 @@ fn describe_direction(v: &nalgebra::Vector3<f64>) -> String {
     )
 }
 
-/// Estimates `Q` and its (1 − `epsilon`) region from `residuals` (each formed with the
-/// reconciled bits) and the sensor's stated covariance `sensor` (`R`, world frame).
+/// Each parity half's residual count and second moment, and the sensor's mean part of the
+/// residuals' covariance, `(1/n) Σ S_R` (world frame `sensor` = `R`): what every fit of `Q`
+/// starts from.
 ///
 /// # Errors
-/// [`EstimationRefusal`] naming the test and the value when the data fall outside the class.
-pub fn estimate_motion_noise(
+/// A residual not finite, or fewer than [`MIN_DOUBLETS_PER_PARITY`] of a parity.
+fn fit_inputs(
     residuals: &[DoubletResidual],
     sensor: &Matrix3<f64>,
-    epsilon: f64,
-) -> Result<MotionNoiseEstimate, EstimationRefusal> {
-    if !(epsilon > 0.0 && epsilon < 1.0) {
-        return Err(EstimationRefusal::Epsilon(epsilon));
-    }
+) -> Result<([(usize, Matrix3<f64>); 2], Matrix3<f64>), EstimationRefusal> {
     if let Some(r) = residuals
         .iter()
         .find(|r| !r.value.iter().all(|v| v.is_finite()))
@@ -324,13 +321,60 @@ pub fn estimate_motion_noise(
         .map(|r| r.sensor_part(sensor))
         .sum::<Matrix3<f64>>()
         / n;
-    let solve = |m: Matrix3<f64>, rho: f64| {
-        mean_motion_operator(residuals, rho)
-            .lu()
-            .solve(&coordinates(&(m - sensor_mean)))
-            .map(|q| symmetric(&q))
-            .ok_or(EstimationRefusal::Singular)
-    };
+    Ok((halves, sensor_mean))
+}
+
+/// `Q` (robot frame) whose mean motion operator at correlation `rho` explains the second
+/// moment `m` beyond `sensor_mean`: `vech Q = A(ρ)⁻¹ vech(m − (1/n) Σ S_R)`.
+fn solve_motion(
+    residuals: &[DoubletResidual],
+    sensor_mean: &Matrix3<f64>,
+    m: Matrix3<f64>,
+    rho: f64,
+) -> Result<Matrix3<f64>, EstimationRefusal> {
+    mean_motion_operator(residuals, rho)
+        .lu()
+        .solve(&coordinates(&(m - sensor_mean)))
+        .map(|q| symmetric(&q))
+        .ok_or(EstimationRefusal::Singular)
+}
+
+/// `Q̂` (robot frame) fitted to `residuals` as white noise (ρ = 0): the covariance under
+/// which a white doublet model's residuals have the second moment observed — what the
+/// controller's white likelihood of those doublets uses when its LLRs are recomputed at
+/// block time (docs/estimation.md, "Causality"). No region, no class checks.
+///
+/// # Errors
+/// A residual not finite, too few of a parity, or a singular fit.
+pub fn white_motion_noise(
+    residuals: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+) -> Result<Matrix3<f64>, EstimationRefusal> {
+    let (_, sensor_mean) = fit_inputs(residuals, sensor)?;
+    solve_motion(
+        residuals,
+        &sensor_mean,
+        second_moment(residuals.iter()).1,
+        0.0,
+    )
+}
+
+/// Estimates `Q` and its (1 − `epsilon`) region from `residuals` (each formed with the
+/// reconciled bits) and the sensor's stated covariance `sensor` (`R`, world frame).
+///
+/// # Errors
+/// [`EstimationRefusal`] naming the test and the value when the data fall outside the class.
+pub fn estimate_motion_noise(
+    residuals: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+    epsilon: f64,
+) -> Result<MotionNoiseEstimate, EstimationRefusal> {
+    if !(epsilon > 0.0 && epsilon < 1.0) {
+        return Err(EstimationRefusal::Epsilon(epsilon));
+    }
+    let (halves, sensor_mean) = fit_inputs(residuals, sensor)?;
+    let n = residuals.len() as f64;
+    let solve = |m: Matrix3<f64>, rho: f64| solve_motion(residuals, &sensor_mean, m, rho);
     // The Wishart bound on each parity half at ε_est/2 (the other half of ε_est is the
     // correlation's interval), its count divided by `deflation`.
     let weighted = |factor: f64, deflation: f64| -> Matrix3<f64> {
