@@ -36,6 +36,14 @@ fn soft_sessions(count: u32, sigma: f64, rng: &mut ChaCha8Rng) -> SoftSessions {
     (pool, llrs)
 }
 
+/// Each LLR's sign at a confidence of 12 nats (an error probability of 6·10⁻⁶), far above
+/// what the channel gives.
+fn overconfident(llrs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    llrs.iter()
+        .map(|s| s.iter().map(|l| 12.0 * l.signum()).collect())
+        .collect()
+}
+
 fn ldpc(assumption: Assumption) -> Settings {
     Settings {
         reconciliation: ReconciliationMethod::Ldpc(LdpcSettings::DEFAULT),
@@ -133,10 +141,7 @@ fn ldpc_leaks_less_than_cascade_on_the_same_sessions() {
 fn a_block_ldpc_fails_to_decode_aborts_as_failed_reconciliation() {
     let mut rng = ChaCha8Rng::seed_from_u64(6);
     let (pool, llrs) = soft_sessions(6, 0.9, &mut rng);
-    let overconfident: Vec<Vec<f64>> = llrs
-        .iter()
-        .map(|s| s.iter().map(|l| 12.0 * l.signum()).collect())
-        .collect();
+    let overconfident = overconfident(&llrs);
     let mut pair = Pair::with_views(ldpc(weak_eve()), &pool, &[], &[], &overconfident);
     assert!(pair.settle(100_000, None));
     assert!(pair.controller_keys.is_empty() && pair.robot_keys.is_empty());
@@ -160,10 +165,7 @@ fn a_block_ldpc_fails_to_decode_aborts_as_failed_reconciliation() {
 fn ldpc_decodes_on_the_llrs_the_shell_recomputes_at_block_time() {
     let mut rng = ChaCha8Rng::seed_from_u64(8);
     let (pool, llrs) = soft_sessions(14, 0.55, &mut rng);
-    let overconfident: Vec<Vec<f64>> = llrs
-        .iter()
-        .map(|s| s.iter().map(|l| 12.0 * l.signum()).collect())
-        .collect();
+    let overconfident = overconfident(&llrs);
     let settings = Settings {
         block_bits: 6_000,
         ..ldpc(weak_eve())
