@@ -235,9 +235,7 @@ fn wishart_factor(m: f64, epsilon: f64, sign: f64) -> f64 {
     (1.0 + sign * ((3.0 / m).sqrt() + (2.0 * (2.0 / epsilon).ln() / m).sqrt())).powi(2)
 }
 
-fn second_moment<'a>(
-    residuals: impl Iterator<Item = &'a DoubletResidual>,
-) -> (usize, Matrix3<f64>) {
+fn second_moment<'a>(residuals: impl Iterator<Item = &'a DoubletResidual>) -> Moment {
     let mut count = 0;
     let mut sum = Matrix3::zeros();
     for r in residuals {
@@ -293,6 +291,9 @@ fn describe_direction(v: &nalgebra::Vector3<f64>) -> String {
     )
 }
 
+/// A set of residuals' count and second moment `(1/m) Σ r rᵀ`.
+type Moment = (usize, Matrix3<f64>);
+
 /// Each parity half's residual count and second moment, and the sensor's mean part of the
 /// residuals' covariance, `(1/n) Σ S_R` (world frame `sensor` = `R`): what every fit of `Q`
 /// starts from.
@@ -302,7 +303,7 @@ fn describe_direction(v: &nalgebra::Vector3<f64>) -> String {
 fn fit_inputs(
     residuals: &[DoubletResidual],
     sensor: &Matrix3<f64>,
-) -> Result<([(usize, Matrix3<f64>); 2], Matrix3<f64>), EstimationRefusal> {
+) -> Result<([Moment; 2], Matrix3<f64>), EstimationRefusal> {
     if let Some(r) = residuals
         .iter()
         .find(|r| !r.value.iter().all(|v| v.is_finite()))
