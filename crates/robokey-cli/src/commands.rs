@@ -422,6 +422,7 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
         assumed_eve_error: args.assume_eve_error,
         sizing: args.sizing.map(Into::into),
         reconciliation: args.reconciliation.map(Into::into),
+        llrs: args.llrs.map(Into::into),
     };
     if let Err(e) = request.validate() {
         usage!("{}", e.message(&format!("{} {}", e.option.flag(), e.value)));

@@ -325,6 +325,13 @@ struct SecrecyArgs {
     /// Default: the sweep file's `[secrecy] reconciliation`, else cascade.
     #[arg(long, value_enum)]
     reconciliation: Option<ReconciliationArg>,
+    /// With LDPC, which model the controller's LLRs are computed with (docs/estimation.md,
+    /// "Causality"). `prior`: online, with the configured motion noise. `measured`: at
+    /// block time from the kept samples, with the motion noise estimated from the disclosed
+    /// sample's doublets. `world`: with the simulated world's own motion noise (an oracle
+    /// bound, simulator only). Default: each point's `postprocess.llrs`, else prior.
+    #[arg(long, value_enum)]
+    llrs: Option<LlrsArg>,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
     #[arg(long, short, default_value_t = 0)]
     jobs: usize,
@@ -388,6 +395,28 @@ impl From<SizingArg> for robokey_lab::secrecy::Sizing {
             SizingArg::Configured => Self::Configured,
             SizingArg::Measured => Self::Measured,
             SizingArg::World => Self::World,
+        }
+    }
+}
+
+/// Which model the controller's LLRs are computed with in `robokey secrecy`
+/// (docs/estimation.md, "Causality").
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum LlrsArg {
+    /// The configured motion noise, online.
+    Prior,
+    /// The motion noise estimated at block time from the disclosed sample.
+    Measured,
+    /// The simulated world's own motion noise (an oracle bound).
+    World,
+}
+
+impl From<LlrsArg> for robokey_lab::secrecy::LlrModel {
+    fn from(l: LlrsArg) -> Self {
+        match l {
+            LlrsArg::Prior => Self::Prior,
+            LlrsArg::Measured => Self::Measured,
+            LlrsArg::World => Self::World,
         }
     }
 }

@@ -97,6 +97,7 @@ pub fn secrecy<'py>(
         assumed_eve_error: assume_eve_error,
         sizing: None,
         reconciliation: None,
+        llrs: None,
     };
     request.validate().map_err(|e| option_error(py, &e))?;
     let experiment = experiment_of(py, sweep, seed)?;

@@ -576,6 +576,49 @@ pub struct PostprocessConfig {
     /// agreement term; printed only when `ldpc`.
     #[serde(skip_serializing_if = "Reconciliation::is_cascade")]
     pub reconciliation: Reconciliation,
+    /// Private sensing with LDPC: which model the LLRs LDPC decodes on are computed with —
+    /// the prior's, online (the default), or the motion noise measured at block time from
+    /// the disclosed sample (docs/estimation.md, "Causality"). The controller's alone (the
+    /// robot never sees LLRs); printed only when not the prior.
+    #[serde(skip_serializing_if = "LlrModel::is_prior")]
+    pub llrs: LlrModel,
+}
+
+/// Which model the controller's LLRs that LDPC decodes on are computed with
+/// (docs/estimation.md, "Causality"). One vocabulary for `postprocess.llrs` and
+/// `robokey secrecy --llrs`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LlrModel {
+    /// The prior (`noise.process_std`), online as each doublet is decided.
+    #[default]
+    Prior,
+    /// Recomputed at block time from the kept samples with the motion noise's point
+    /// estimate Q̂ from the disclosed sample's doublets (public bits); the prior where the
+    /// sample holds too few whole doublets or the estimate refuses them.
+    Measured,
+    /// Recomputed at block time with the simulated world's own motion noise: an oracle
+    /// bound on what recomputation can gain. Simulator only (`robokey secrecy --llrs
+    /// world`): no robot knows its true world.
+    World,
+}
+
+impl LlrModel {
+    /// The name used in configurations, on the command line and in reports.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Prior => "prior",
+            Self::Measured => "measured",
+            Self::World => "world",
+        }
+    }
+
+    /// Whether it is the prior (the default).
+    #[must_use]
+    pub fn is_prior(&self) -> bool {
+        *self == Self::Prior
+    }
 }
 
 /// How post-processing reconciles the controller's bits with the robot's
@@ -659,6 +702,7 @@ impl Default for PostprocessConfig {
             assumed_eve_error: None,
             sizing: Sizing::Configured,
             reconciliation: Reconciliation::Cascade,
+            llrs: LlrModel::Prior,
         }
     }
 }
@@ -784,6 +828,7 @@ impl Config {
         every.postprocess.assumed_eve_error = Some(0.5);
         every.postprocess.sizing = Sizing::Measured;
         every.postprocess.reconciliation = Reconciliation::Ldpc;
+        every.postprocess.llrs = LlrModel::Measured;
         every.eve.smoother_window = Some(0);
         every.eve.camera_fps = Some(1.0);
         every.eve.camera_frame_std = Some([1.0; 3]);
@@ -1054,6 +1099,14 @@ impl Config {
                 "world",
                 "\"configured\" or \"measured\" (\"world\" sizes at the simulated world's \
                  own physics, which no robot knows: robokey secrecy --sizing world only)",
+            ));
+        }
+        if post.llrs == LlrModel::World {
+            return Err(invalid(
+                "postprocess.llrs",
+                "world",
+                "\"prior\" or \"measured\" (\"world\" computes the LLRs with the simulated \
+                 world's own physics, which no robot knows: robokey secrecy --llrs world only)",
             ));
         }
         if post.reconciliation == Reconciliation::Ldpc && self.sensing.mode != SensingMode::Private

@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
 use robokey::estimate::commands_check::sized_block_refusal;
+use robokey::estimate::kept_doublet;
 use robokey::post_settings::ODOMETRY_ZERO;
 use robokey::private::{DoubletSamples, Eavesdroppers};
 use robokey::protocol::SessionPlan;
@@ -234,10 +235,31 @@ fn analyze_point(
             options.assumption()
         },
         reconciliation: robokey::post_settings::reconciliation_method(options.reconciliation),
+        block_llrs: None,
     };
     let mut public = stream(config.run.seed, Purpose::Public, (1 << 32) | point as u64);
     let mut pools = pipeline::pools(runs, options.pooling, options.block_bits, adversary);
     pools.truncate(options.blocks);
+    // LDPC on LLRs recomputed at block time: the pools keep each session's samples as the
+    // agents' pool does.
+    let llrs = options.llrs.unwrap_or(config.postprocess.llrs);
+    if is_private && options.reconciliation == Reconciliation::Ldpc && !llrs.is_prior() {
+        settings.block_llrs = Some((config.clone(), llrs));
+        for pool in &mut pools {
+            pool.kept = pool
+                .runs
+                .iter()
+                .map(|&i| {
+                    runs[i].private.as_ref().map_or_else(Vec::new, |p| {
+                        p.controller_samples
+                            .iter()
+                            .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+                            .collect()
+                    })
+                })
+                .collect();
+        }
+    }
     if is_private && !measured {
         for pool in &mut pools {
             pool.separations = pool

@@ -27,7 +27,8 @@ pub mod table;
 
 pub use analyze::{analyze, analyze_with};
 pub use options::{
-    MAX_SESSIONS, Reconciliation, SecrecyOptions, Sizing, default_adversaries, default_max_sessions,
+    LlrModel, MAX_SESSIONS, Reconciliation, SecrecyOptions, Sizing, default_adversaries,
+    default_max_sessions,
 };
 pub use pipeline::{Block, BlockSettings, Pooling};
 pub use point::{AdversaryClass, PointSecrecy, PositionErrors, Rate, holds_against};

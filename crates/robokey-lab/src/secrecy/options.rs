@@ -7,7 +7,7 @@ use robokey_secrecy::postprocess::Assumption;
 
 use super::pipeline::Pooling;
 
-pub use robokey::config::{Reconciliation, Sizing};
+pub use robokey::config::{LlrModel, Reconciliation, Sizing};
 
 /// The adversaries `robokey secrecy` evaluates by default in `mode`.
 #[must_use]
@@ -49,6 +49,9 @@ pub struct SecrecyOptions {
     pub sizing: Sizing,
     /// How `complete` pooling reconciles (LDPC: private sensing only).
     pub reconciliation: Reconciliation,
+    /// LDPC: which model the controller's LLRs are computed with (none: each point's
+    /// `postprocess.llrs`, the prior's by default).
+    pub llrs: Option<LlrModel>,
 }
 
 impl Default for SecrecyOptions {
@@ -65,6 +68,7 @@ impl Default for SecrecyOptions {
             bootstrap: 1_000,
             sizing: Sizing::Configured,
             reconciliation: Reconciliation::Cascade,
+            llrs: None,
         }
     }
 }

@@ -19,13 +19,15 @@ use robokey_secrecy::min_entropy::{
 };
 use robokey_secrecy::postprocess::{
     AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, EstimateRefusal,
-    Message, Output, ReconciliationMethod, RobotInput, RobotPost, Settings,
+    Message, Output, ReconciliationMethod, RobotInput, RobotPost, SessionSamples, Settings,
 };
 use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 use zeroize::Zeroizing;
 
-use robokey::estimate::BlockEstimate;
+use robokey::Config;
+use robokey::config::LlrModel;
+use robokey::estimate::{BlockEstimate, recomputed_llrs};
 
 /// Which sessions are pooled, and what was published over their keys.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -126,6 +128,9 @@ pub struct Pool {
     pub separations: Vec<Vec<f64>>,
     /// Measured sizing: the block's estimate.
     pub estimate: Option<BlockEstimate>,
+    /// LLRs recomputed at block time: what the controller keeps of each pooled session's
+    /// doublets (empty otherwise), as the agents' pool keeps them.
+    pub kept: Vec<SessionSamples>,
 }
 
 /// Groups the admitted sessions of `runs`, in order, into pools of at least `block_bits`
@@ -275,6 +280,10 @@ pub struct BlockSettings {
     pub assumption: Assumption,
     /// How `complete` pooling reconciles.
     pub reconciliation: ReconciliationMethod,
+    /// LDPC: the LLRs recomputed at block time from the pools' kept samples with this
+    /// model under the parties' configuration (docs/estimation.md, "Causality"); none: the
+    /// prior's, pooled with the sessions.
+    pub block_llrs: Option<(Config, LlrModel)>,
 }
 
 /// Runs the pools through the pipeline of `settings.pooling`; `public` seeds the
@@ -354,6 +363,12 @@ fn through_endpoints(
         return Vec::new();
     };
     let ldpc = matches!(settings.reconciliation, ReconciliationMethod::Ldpc(_));
+    controller.recompute_llrs(ldpc && settings.block_llrs.is_some());
+    // What the controller kept of each session, by its ID (the sessions in order).
+    let kept: Vec<Option<&SessionSamples>> = pools
+        .iter()
+        .flat_map(|p| (0..p.lengths.len()).map(|i| p.kept.get(i)))
+        .collect();
     for (id, (((robot_bits, controller_bits), separations), llrs)) in pools
         .iter()
         .flat_map(|p| {
@@ -406,6 +421,23 @@ fn through_endpoints(
                 }
                 Output::BlockEnded(report) => controller_reports.push(report),
                 Output::KeyCommitted(key) => keys.0.push(key),
+                Output::LlrsNeeded(mut request) => {
+                    // The agents' computation on what their pool keeps
+                    // (`estimate::block_llrs`): the lab's pools keep the samples beside.
+                    for (id, _, samples) in &mut request.sessions {
+                        if let Some(Some(session)) = kept.get(*id as usize) {
+                            samples.clone_from(session);
+                        }
+                    }
+                    let llrs = settings
+                        .block_llrs
+                        .as_ref()
+                        .and_then(|(config, basis)| recomputed_llrs(config, &request, *basis).ok());
+                    let _ = controller.handle_input(ControllerInput::Llrs {
+                        block: request.block,
+                        llrs,
+                    });
+                }
                 Output::EstimateNeeded(request) => {
                     // The block's estimate, computed from the same samples and robot bits
                     // before (blocks are the pools, in order).
@@ -442,6 +474,7 @@ fn through_endpoints(
                 Output::Persist
                 | Output::Ignored(_)
                 | Output::EstimateNeeded(_)
+                | Output::LlrsNeeded(_)
                 | Output::SliceReconciled(_)
                 | Output::SlicesEstimateNeeded(_) => {}
             }
@@ -778,6 +811,7 @@ mod tests {
             block_bits: n,
             assumption: Assumption::IndependentErrors { error_rate: 0.2 },
             reconciliation: ReconciliationMethod::Cascade,
+            block_llrs: None,
         };
         let bits: Vec<u8> = (0..n).map(|i| (i % 2) as u8).collect();
         let pool = Pool {
@@ -858,6 +892,7 @@ mod tests {
             block_bits: 10_000,
             assumption: Assumption::IndependentErrors { error_rate: 0.3 },
             reconciliation,
+            block_llrs: None,
         };
         let run = |reconciliation| {
             let blocks = post_process(

@@ -7,7 +7,8 @@
 use robokey::config::{EveStrategy, SensingMode};
 
 use super::options::{
-    MAX_SESSIONS, Reconciliation, SecrecyOptions, Sizing, default_adversaries, default_max_sessions,
+    LlrModel, MAX_SESSIONS, Reconciliation, SecrecyOptions, Sizing, default_adversaries,
+    default_max_sessions,
 };
 use super::pipeline::Pooling;
 use crate::experiment::{Experiment, MAX_BLOCK_BITS, MIN_BLOCK_BITS};
@@ -39,6 +40,9 @@ pub struct SecrecyRequest {
     /// How `complete` pooling reconciles (none: the sweep's `[secrecy] reconciliation`, else
     /// Cascade).
     pub reconciliation: Option<Reconciliation>,
+    /// LDPC: which model the controller's LLRs are computed with (none: each point's
+    /// `postprocess.llrs`).
+    pub llrs: Option<LlrModel>,
 }
 
 impl Default for SecrecyRequest {
@@ -55,6 +59,7 @@ impl Default for SecrecyRequest {
             assumed_eve_error: None,
             sizing: None,
             reconciliation: None,
+            llrs: None,
         }
     }
 }
@@ -205,6 +210,7 @@ impl SecrecyRequest {
                 .reconciliation
                 .or(experiment.secrecy.reconciliation)
                 .unwrap_or(defaults.reconciliation),
+            llrs: self.llrs,
             ..defaults
         }
     }

@@ -8,7 +8,8 @@ use rand::rngs::ChaCha20Rng;
 use serde::{Deserialize, Serialize};
 
 use super::estimate::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, MAX_SEPARATION_STEPS, SessionSamples,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, LlrRequest, MAX_SEPARATION_STEPS,
+    SessionSamples,
 };
 use super::ledger::Ledger;
 use super::public::{PublicRandomness, sample_size};
@@ -67,6 +68,15 @@ pub enum ControllerInput {
         block: u64,
         /// One outcome per slice.
         outcomes: Vec<EstimateOutcome>,
+    },
+    /// The shell's answer to [`Output::LlrsNeeded`] for `block`: the LLR of each of the
+    /// block's raw bits, in block order (nats, `ln P(view | 0) − ln P(view | 1)`), or none to
+    /// decode on the LLRs pooled with the sessions (the prior's).
+    Llrs {
+        /// Block number.
+        block: u64,
+        /// One LLR per raw bit of the block, or none.
+        llrs: Option<Vec<f64>>,
     },
     /// The shell's answer to [`Output::EstimateNeeded`] for `block`.
     Estimate {
@@ -182,6 +192,11 @@ enum State {
         bob: Box<CascadeBob<ChaCha20Rng>>,
         round: u32,
     },
+    /// LDPC with LLRs recomputed at block time: the shell's LLRs of the block.
+    ExpectLlrs {
+        agreed: Agreed,
+        settings: crate::ldpc::LdpcSettings,
+    },
     /// LDPC: the robot's syndrome of the current round.
     ExpectSyndrome {
         agreed: Agreed,
@@ -244,6 +259,8 @@ pub struct ControllerPost {
     state: State,
     report: Option<BlockReport>,
     last_request: Option<Message>,
+    /// LDPC decodes on LLRs the shell recomputes at block time ([`Self::recompute_llrs`]).
+    recompute_llrs: bool,
 }
 
 impl std::fmt::Debug for ControllerPost {
@@ -290,7 +307,16 @@ impl ControllerPost {
             state: State::Idle,
             report: None,
             last_request: None,
+            recompute_llrs: false,
         }
+    }
+
+    /// Whether LDPC decodes on LLRs the shell recomputes at block time from the kept samples
+    /// and the disclosed sample ([`Output::LlrsNeeded`]; docs/estimation.md, "Causality")
+    /// rather than on those pooled with the sessions (the default). Not durable: the shell
+    /// sets it on every endpoint it makes or restores.
+    pub fn recompute_llrs(&mut self, recompute: bool) {
+        self.recompute_llrs = recompute;
     }
 
     /// The endpoint after a crash, from its last stored snapshot: an uncommitted block is
@@ -429,6 +455,7 @@ impl ControllerPost {
                 }
             }
             ControllerInput::Estimate { block, outcome } => self.on_estimate(block, outcome),
+            ControllerInput::Llrs { block, llrs } => self.on_llrs(block, llrs),
             ControllerInput::SliceEstimates { block, outcomes } => {
                 self.on_slice_estimates(block, outcomes);
             }
@@ -626,6 +653,7 @@ impl ControllerPost {
             (
                 State::ExpectAgree { .. }
                 | State::ExpectAnswer { .. }
+                | State::ExpectLlrs { .. }
                 | State::ExpectSyndrome { .. }
                 | State::ExpectEstimate { .. }
                 | State::ExpectConfirmed { .. },
@@ -815,7 +843,17 @@ impl ControllerPost {
             robot_sample: sample.to_vec(),
         };
         if let ReconciliationMethod::Ldpc(settings) = self.ledger.settings.reconciliation {
-            return self.start_ldpc(agreed, settings);
+            if self.recompute_llrs {
+                let request = self.llr_request(&agreed);
+                self.state = State::ExpectLlrs { agreed, settings };
+                // Nothing to repeat while the shell recomputes.
+                self.last_request = None;
+                self.ledger
+                    .outputs
+                    .push_back(Output::LlrsNeeded(Box::new(request)));
+                return;
+            }
+            return self.start_ldpc(agreed, settings, None);
         }
         let started = Cascade::new(self.ledger.settings.schedule, q)
             .and_then(|cascade| CascadeBob::start(cascade, kept, agreed.public.cascade()));
@@ -828,10 +866,76 @@ impl ControllerPost {
         }
     }
 
-    /// LDPC: the kept positions' LLRs, then round 1's request for the robot's syndrome.
-    fn start_ldpc(&mut self, agreed: Agreed, settings: crate::ldpc::LdpcSettings) {
+    /// What the shell needs to recompute the block's LLRs: the agreed sessions' kept
+    /// samples and bit counts, and the disclosed sample with the robot's bits.
+    fn llr_request(&self, agreed: &Agreed) -> LlrRequest {
+        let bits = |id: &u32| {
+            self.block
+                .as_ref()
+                .and_then(|(_, _, pool)| pool.get(id))
+                .map_or(0, BitString::len)
+        };
+        LlrRequest {
+            block: self.current(),
+            sessions: agreed
+                .sessions
+                .iter()
+                .map(|id| {
+                    let samples = self.block_samples.get(id).cloned().unwrap_or_default();
+                    (*id, bits(id), samples)
+                })
+                .collect(),
+            disclosed: (0..agreed.mask.len() as u32)
+                .filter(|&i| agreed.mask[i as usize])
+                .zip(agreed.robot_sample.iter().copied())
+                .collect(),
+        }
+    }
+
+    /// The shell's recomputed LLRs of the block: LDPC starts on them.
+    fn on_llrs(&mut self, block: u64, llrs: Option<Vec<f64>>) {
+        if self.block.is_none() || block != self.current() {
+            self.ledger
+                .outputs
+                .push_back(Output::Ignored("LLRs for another block"));
+            return;
+        }
+        match std::mem::replace(&mut self.state, State::Idle) {
+            State::ExpectLlrs { agreed, settings } => self.start_ldpc(agreed, settings, llrs),
+            state => {
+                self.state = state;
+                self.ledger
+                    .outputs
+                    .push_back(Output::Ignored("LLRs the controller does not expect"));
+            }
+        }
+    }
+
+    /// LDPC: the kept positions' LLRs — `recomputed` (one per raw bit of the block) or
+    /// else those pooled with the sessions — then round 1's request for the robot's syndrome.
+    fn start_ldpc(
+        &mut self,
+        agreed: Agreed,
+        settings: crate::ldpc::LdpcSettings,
+        recomputed: Option<Vec<f64>>,
+    ) {
         let mut llrs = Vec::with_capacity(agreed.mask.len());
-        for id in &agreed.sessions {
+        let pooled = recomputed.is_none();
+        if let Some(recomputed) = recomputed {
+            if recomputed.len() != agreed.mask.len() || recomputed.iter().any(|l| l.is_nan()) {
+                return self.abort(
+                    AbortReason::Reconciliation,
+                    format!(
+                        "the recomputed LLRs do not cover the block's {} bits ({} given, or \
+                         one is not a number)",
+                        agreed.mask.len(),
+                        recomputed.len()
+                    ),
+                );
+            }
+            llrs = recomputed;
+        }
+        for id in agreed.sessions.iter().filter(|_| pooled) {
             let Some(session) = self.block_llrs.get(id) else {
                 return self.abort(
                     AbortReason::Reconciliation,

@@ -56,3 +56,20 @@ pub struct EstimateRefusal(pub String);
 /// configured sizing the shell answers the commands check only: `Ok` (the value unused, the
 /// block sized from the assumption as configured) or the refusal.
 pub type EstimateOutcome = Result<u32, EstimateRefusal>;
+
+/// What the controller asks of its shell before LDPC decodes a block whose LLRs are
+/// recomputed at block time (docs/estimation.md, "Causality"): every agreed session's kept
+/// samples and the disclosed sample — public bits — from which the shell estimates the
+/// motion model and recomputes every bit's LLR. Nothing in it depends on bits that are not
+/// public yet.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LlrRequest {
+    /// Block number.
+    pub block: u64,
+    /// Each agreed session, in block order: its ID, its raw bits' count and what the pool
+    /// kept of it (empty if nothing was kept).
+    pub sessions: Vec<(u32, usize, SessionSamples)>,
+    /// The disclosed sample: each sampled position in the block's raw bits (in order) with
+    /// the robot's bit there, as the robot published it.
+    pub disclosed: Vec<(u32, bool)>,
+}

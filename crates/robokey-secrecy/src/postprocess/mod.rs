@@ -56,8 +56,8 @@ pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
 pub use encoding::{decode, encode};
 pub use estimate::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, MAX_SEPARATION_STEPS,
-    SEPARATION_QUANTUM, SessionSamples,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, LlrRequest,
+    MAX_SEPARATION_STEPS, SEPARATION_QUANTUM, SessionSamples,
 };
 pub use fragment::{
     FRAGMENT_BYTES, MAX_FRAGMENTS, MAX_MESSAGE_BYTES, Reassembler, fits, fragments,
@@ -251,6 +251,10 @@ pub enum Output {
     /// check on them (configured), for every slice, and answers with
     /// [`ControllerInput::SliceEstimates`]. No slice's key is proposed before.
     SlicesEstimateNeeded(Box<SlicesEstimateRequest>),
+    /// LDPC with LLRs recomputed at block time ([`ControllerPost::recompute_llrs`]): the
+    /// disclosed sample is known, reconciliation has not started; the shell recomputes the
+    /// block's LLRs from the kept samples and answers with [`ControllerInput::Llrs`].
+    LlrsNeeded(Box<LlrRequest>),
 }
 
 /// Errors of endpoint construction and input.

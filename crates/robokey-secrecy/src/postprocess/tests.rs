@@ -71,6 +71,10 @@ struct Pair {
     estimate: EstimateOutcome,
     requests: Vec<EstimateRequest>,
     robot_reports: Vec<BlockReport>,
+    /// LLRs recomputed at block time: the shell's LLRs of each session (by ID; none: it
+    /// answers with none), and the requests the controller asked.
+    recomputed: Vec<Vec<f64>>,
+    llr_requests: Vec<LlrRequest>,
 }
 
 impl Pair {
@@ -127,6 +131,8 @@ impl Pair {
             estimate: Ok(0),
             requests: Vec::new(),
             robot_reports: Vec::new(),
+            recomputed: Vec::new(),
+            llr_requests: Vec::new(),
         };
         pair.collect();
         for (i, (id, _, bits)) in pool.iter().enumerate() {
@@ -162,6 +168,19 @@ impl Pair {
                         })
                         .unwrap();
                 }
+                Output::LlrsNeeded(request) => {
+                    let llrs = request
+                        .sessions
+                        .iter()
+                        .map(|(id, ..)| self.recomputed.get(*id as usize).cloned())
+                        .collect::<Option<Vec<_>>>()
+                        .map(|l| l.concat());
+                    let block = request.block;
+                    self.llr_requests.push(*request);
+                    self.controller
+                        .handle_input(ControllerInput::Llrs { block, llrs })
+                        .unwrap();
+                }
                 Output::Ignored(_)
                 | Output::SliceReconciled(_)
                 | Output::SlicesEstimateNeeded(_) => {}
@@ -175,6 +194,7 @@ impl Pair {
                 Output::BlockEnded(report) => self.robot_reports.push(report),
                 Output::Ignored(_)
                 | Output::EstimateNeeded(_)
+                | Output::LlrsNeeded(_)
                 | Output::SliceReconciled(_)
                 | Output::SlicesEstimateNeeded(_) => {}
             }

@@ -15,7 +15,9 @@ use robokey_secrecy::postprocess::{
 use super::slices::{first_slice, slice_estimates, slice_input, slicing};
 use crate::Config;
 use crate::config::Sizing;
-use crate::estimate::{BlockEstimate, check_request, estimate_request};
+use crate::estimate::{
+    BlockEstimate, check_request, estimate_request, recomputed_llrs, recomputes_llrs,
+};
 use crate::protocol::{Outcome, PostFragment};
 
 /// A post-processing endpoint as a connection drives it.
@@ -57,6 +59,12 @@ pub trait PostEndpoint {
     /// # Errors
     /// A slice that does not fit (the others are pooled).
     fn next_slices(&mut self, block: u64, slices: Vec<SliceInput>) -> Result<(), PostError>;
+    /// Whether LDPC decodes on LLRs recomputed at block time (the controller's
+    /// [`ControllerPost::recompute_llrs`]; the robot has no LLRs).
+    fn recompute_llrs(&mut self, recompute: bool);
+    /// The shell's recomputed LLRs of `block`, which the endpoint asked for (none: the
+    /// pooled ones; the robot never asks).
+    fn llrs_recomputed(&mut self, block: u64, llrs: Option<Vec<f64>>);
     /// The shell's estimate of the plant for `block`, which the endpoint asked for (the
     /// robot never asks).
     fn estimated(&mut self, block: u64, outcome: EstimateOutcome);
@@ -102,6 +110,13 @@ impl PostEndpoint for ControllerPost {
     }
     fn next_slices(&mut self, block: u64, slices: Vec<SliceInput>) -> Result<(), PostError> {
         self.handle_input(ControllerInput::NextSlices { block, slices })
+    }
+    fn recompute_llrs(&mut self, recompute: bool) {
+        ControllerPost::recompute_llrs(self, recompute);
+    }
+    fn llrs_recomputed(&mut self, block: u64, llrs: Option<Vec<f64>>) {
+        // Never fails: only sessions are checked.
+        let _ = self.handle_input(ControllerInput::Llrs { block, llrs });
     }
     fn estimated(&mut self, block: u64, outcome: EstimateOutcome) {
         // An estimate never fails: only sessions are checked.
@@ -168,6 +183,8 @@ impl PostEndpoint for RobotPost {
     fn next_slices(&mut self, _block: u64, _slices: Vec<SliceInput>) -> Result<(), PostError> {
         Ok(())
     }
+    fn recompute_llrs(&mut self, _recompute: bool) {}
+    fn llrs_recomputed(&mut self, _block: u64, _llrs: Option<Vec<f64>>) {}
     fn estimated(&mut self, _block: u64, _outcome: EstimateOutcome) {}
     fn slices_estimated(&mut self, _block: u64, _outcomes: Vec<EstimateOutcome>) {}
     fn frame(&mut self, message: postprocess::Message) {
@@ -251,7 +268,8 @@ pub struct PostLink<E> {
 impl<E: PostEndpoint> PostLink<E> {
     /// Drives `endpoint` (fresh, or restored from its store) under `config`, never pooling a
     /// session in `spent`.
-    pub fn new(endpoint: E, spent: BTreeSet<u32>, config: &Config) -> Self {
+    pub fn new(mut endpoint: E, spent: BTreeSet<u32>, config: &Config) -> Self {
+        endpoint.recompute_llrs(recomputes_llrs(config));
         Self {
             endpoint,
             reassembler: Reassembler::new(),
@@ -379,6 +397,15 @@ impl<E: PostEndpoint> PostLink<E> {
                         check_request(&self.config, &request, epsilon)
                     };
                     self.endpoint.estimated(request.block, outcome);
+                    self.computed = true;
+                }
+                Output::LlrsNeeded(request) => {
+                    // Before LDPC, from the kept samples and the disclosed sample: the
+                    // simulator's computation (`estimate::block_llrs`); where it keeps the
+                    // prior's LLRs (a sample too small, three steps, multilevel), those.
+                    let llrs =
+                        recomputed_llrs(&self.config, &request, self.config.postprocess.llrs);
+                    self.endpoint.llrs_recomputed(request.block, llrs.ok());
                     self.computed = true;
                 }
                 Output::SlicesEstimateNeeded(request) => {

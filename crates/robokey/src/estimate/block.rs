@@ -199,7 +199,7 @@ pub fn block_separations(
 
 /// The two-step residuals of every doublet of `sessions`, with the means of the symbols it
 /// carried ([`DoubletResidual::new`]).
-fn two_step_residuals(
+pub(crate) fn two_step_residuals(
     model: &DoubletModel,
     axle: f64,
     sessions: &[&[DoubletSamples]],
@@ -757,17 +757,22 @@ fn with_bits(
             let pattern = (0..key_bits).fold(0, |pattern, j| {
                 pattern | usize::from(bits.get(i * key_bits + j) == Some(true)) << j
             });
-            Ok(DoubletSamples {
-                doublet: k.doublet,
-                inputs: DoubletInputs {
-                    first: Unicycle::new(k.inputs[0][0], k.inputs[0][1]),
-                    second: Unicycle::new(k.inputs[1][0], k.inputs[1][1]),
-                },
-                samples: k.samples.map(|p| Pose::new(p[0], p[1], p[2])),
-                pattern,
-            })
+            Ok(doublet_samples(k, pattern))
         })
         .collect()
+}
+
+/// A kept doublet as the estimate reads it, with the bit `pattern` it carried.
+pub(crate) fn doublet_samples(k: &KeptDoublet, pattern: usize) -> DoubletSamples {
+    DoubletSamples {
+        doublet: k.doublet,
+        inputs: DoubletInputs {
+            first: Unicycle::new(k.inputs[0][0], k.inputs[0][1]),
+            second: Unicycle::new(k.inputs[1][0], k.inputs[1][1]),
+        },
+        samples: k.samples.map(|p| Pose::new(p[0], p[1], p[2])),
+        pattern,
+    }
 }
 
 /// The agents' controller's estimate of the plant for its endpoint's `request` (the kept

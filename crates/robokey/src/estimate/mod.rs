@@ -13,6 +13,7 @@
 //! at points of the slip's interval (`motion_noise`, `block`).
 
 pub mod block;
+pub mod block_llrs;
 pub mod commands_check;
 pub mod correlation;
 pub mod homogeneity;
@@ -28,6 +29,7 @@ pub use block::{
     BlockEstimate, block_separations, check_request, estimate_request, kept_doublet,
     request_separations, world_block_separations,
 };
+pub use block_llrs::{doublet_llrs, recomputed_llrs, recomputes_llrs};
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use lag::{LagEstimate, estimate_lag};

@@ -270,9 +270,7 @@ fn wishart_factor(m: f64, epsilon: f64, sign: f64) -> f64 {
     (1.0 + sign * ((3.0 / m).sqrt() + (2.0 * (2.0 / epsilon).ln() / m).sqrt())).powi(2)
 }
 
-fn second_moment<'a>(
-    residuals: impl Iterator<Item = &'a DoubletResidual>,
-) -> (usize, Matrix3<f64>) {
+fn second_moment<'a>(residuals: impl Iterator<Item = &'a DoubletResidual>) -> Moment {
     let mut count = 0;
     let mut sum = Matrix3::zeros();
     for r in residuals {
@@ -340,6 +338,75 @@ fn describe_direction(v: &nalgebra::Vector3<f64>) -> String {
     )
 }
 
+/// A set of residuals' count and second moment `(1/m) Σ r rᵀ`.
+type Moment = (usize, Matrix3<f64>);
+
+/// Each parity half's residual count and second moment, and the sensor's mean part of the
+/// residuals' covariance, `(1/n) Σ S_R` (world frame `sensor` = `R`): what every fit of `Q`
+/// starts from.
+///
+/// # Errors
+/// A residual not finite, or fewer than [`MIN_DOUBLETS_PER_PARITY`] of a parity.
+fn fit_inputs(
+    residuals: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+) -> Result<([Moment; 2], Matrix3<f64>), EstimationRefusal> {
+    if let Some(r) = residuals
+        .iter()
+        .find(|r| !r.value.iter().all(|v| v.is_finite()))
+    {
+        return Err(EstimationRefusal::NotFinite { doublet: r.doublet });
+    }
+    let halves = [0, 1]
+        .map(|parity| second_moment(residuals.iter().filter(move |r| r.doublet % 2 == parity)));
+    let fewest = halves.iter().map(|h| h.0).min().unwrap_or(0);
+    if fewest < MIN_DOUBLETS_PER_PARITY {
+        return Err(EstimationRefusal::TooFewDoublets { have: fewest });
+    }
+    let n = residuals.len() as f64;
+    let sensor_mean: Matrix3<f64> = residuals
+        .iter()
+        .map(|r| r.sensor_part(sensor))
+        .sum::<Matrix3<f64>>()
+        / n;
+    Ok((halves, sensor_mean))
+}
+
+/// `Q` (robot frame) whose mean motion operator at correlation `rho` explains the second
+/// moment `m` beyond `sensor_mean`: `vech Q = A(ρ)⁻¹ vech(m − (1/n) Σ S_R)`.
+fn solve_motion(
+    residuals: &[DoubletResidual],
+    sensor_mean: &Matrix3<f64>,
+    m: Matrix3<f64>,
+    rho: f64,
+) -> Result<Matrix3<f64>, EstimationRefusal> {
+    mean_motion_operator(residuals, rho)
+        .lu()
+        .solve(&coordinates(&(m - sensor_mean)))
+        .map(|q| symmetric(&q))
+        .ok_or(EstimationRefusal::Singular)
+}
+
+/// `Q̂` (robot frame) fitted to `residuals` as white noise (ρ = 0): the covariance under
+/// which a white doublet model's residuals have the second moment observed — what the
+/// controller's white likelihood of those doublets uses when its LLRs are recomputed at
+/// block time (docs/estimation.md, "Causality"). No region, no class checks.
+///
+/// # Errors
+/// A residual not finite, too few of a parity, or a singular fit.
+pub fn white_motion_noise(
+    residuals: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+) -> Result<Matrix3<f64>, EstimationRefusal> {
+    let (_, sensor_mean) = fit_inputs(residuals, sensor)?;
+    solve_motion(
+        residuals,
+        &sensor_mean,
+        second_moment(residuals.iter()).1,
+        0.0,
+    )
+}
+
 /// Estimates `Q` and its (1 − `epsilon`) region from `residuals` (each formed with the
 /// reconciled bits) and the sensor's stated covariance `sensor` (`R`, world frame).
 ///
@@ -366,31 +433,9 @@ fn region_estimate(
     if !(epsilon > 0.0 && epsilon < 1.0) {
         return Err(EstimationRefusal::Epsilon(epsilon));
     }
-    if let Some(r) = residuals
-        .iter()
-        .find(|r| !r.value.iter().all(|v| v.is_finite()))
-    {
-        return Err(EstimationRefusal::NotFinite { doublet: r.doublet });
-    }
-    let halves = [0, 1]
-        .map(|parity| second_moment(residuals.iter().filter(move |r| r.doublet % 2 == parity)));
-    let fewest = halves.iter().map(|h| h.0).min().unwrap_or(0);
-    if fewest < MIN_DOUBLETS_PER_PARITY {
-        return Err(EstimationRefusal::TooFewDoublets { have: fewest });
-    }
+    let (halves, sensor_mean) = fit_inputs(residuals, sensor)?;
     let n = residuals.len() as f64;
-    let sensor_mean: Matrix3<f64> = residuals
-        .iter()
-        .map(|r| r.sensor_part(sensor))
-        .sum::<Matrix3<f64>>()
-        / n;
-    let solve = |m: Matrix3<f64>, rho: f64| {
-        mean_motion_operator(residuals, rho)
-            .lu()
-            .solve(&coordinates(&(m - sensor_mean)))
-            .map(|q| symmetric(&q))
-            .ok_or(EstimationRefusal::Singular)
-    };
+    let solve = |m: Matrix3<f64>, rho: f64| solve_motion(residuals, &sensor_mean, m, rho);
     // The Wishart bound on each parity half at ε_est/2 (the other half of ε_est is the
     // correlation's interval), its count divided by `deflation`.
     let weighted = |factor: f64, deflation: f64| -> Matrix3<f64> {

@@ -36,6 +36,14 @@ fn soft_sessions(count: u32, sigma: f64, rng: &mut ChaCha8Rng) -> SoftSessions {
     (pool, llrs)
 }
 
+/// Each LLR's sign at a confidence of 12 nats (an error probability of 6·10⁻⁶), far above
+/// what the channel gives.
+fn overconfident(llrs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    llrs.iter()
+        .map(|s| s.iter().map(|l| 12.0 * l.signum()).collect())
+        .collect()
+}
+
 fn ldpc(assumption: Assumption) -> Settings {
     Settings {
         reconciliation: ReconciliationMethod::Ldpc(LdpcSettings::DEFAULT),
@@ -133,10 +141,7 @@ fn ldpc_leaks_less_than_cascade_on_the_same_sessions() {
 fn a_block_ldpc_fails_to_decode_aborts_as_failed_reconciliation() {
     let mut rng = ChaCha8Rng::seed_from_u64(6);
     let (pool, llrs) = soft_sessions(6, 0.9, &mut rng);
-    let overconfident: Vec<Vec<f64>> = llrs
-        .iter()
-        .map(|s| s.iter().map(|l| 12.0 * l.signum()).collect())
-        .collect();
+    let overconfident = overconfident(&llrs);
     let mut pair = Pair::with_views(ldpc(weak_eve()), &pool, &[], &[], &overconfident);
     assert!(pair.settle(100_000, None));
     assert!(pair.controller_keys.is_empty() && pair.robot_keys.is_empty());
@@ -149,6 +154,59 @@ fn a_block_ldpc_fails_to_decode_aborts_as_failed_reconciliation() {
         );
         assert_eq!(report.length, 0);
     }
+}
+
+/// LLRs recomputed at block time (docs/estimation.md, "Causality"): the controller asks its
+/// shell after the robot's sample and before the first syndrome, with every agreed session's
+/// bit count and the disclosed positions with the robot's bits; decoding on the shell's
+/// calibrated LLRs makes the keys that the pooled, overconfident ones fail to; an answer that
+/// does not cover the block ends it naming why.
+#[test]
+fn ldpc_decodes_on_the_llrs_the_shell_recomputes_at_block_time() {
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let (pool, llrs) = soft_sessions(14, 0.55, &mut rng);
+    let overconfident = overconfident(&llrs);
+    let settings = Settings {
+        block_bits: 6_000,
+        ..ldpc(weak_eve())
+    };
+    let recomputing = |answer: Vec<Vec<f64>>| {
+        let mut pair = Pair::with_views(settings.clone(), &pool, &[], &[], &overconfident);
+        pair.controller.recompute_llrs(true);
+        pair.recomputed = answer;
+        // The block was proposed as the sessions were pooled: the switch acts at the
+        // robot's Agree.
+        assert!(pair.settle(100_000, None));
+        pair
+    };
+    let pair = recomputing(llrs.clone());
+    assert!(!pair.llr_requests.is_empty() && !pair.controller_keys.is_empty());
+    pair.assert_same_keys("recomputed LLRs");
+    for (request, report) in pair.llr_requests.iter().zip(&pair.reports) {
+        assert_eq!(request.block, report.block);
+        let sampled: Vec<u32> = request.disclosed.iter().map(|&(i, _)| i).collect();
+        assert_eq!(sampled, report.sampled);
+        let robot: Vec<bool> = request
+            .sessions
+            .iter()
+            .flat_map(|(id, bits, kept)| {
+                assert!(kept.is_empty());
+                let reference = &pool[*id as usize].1;
+                assert_eq!(*bits, reference.len());
+                (0..*bits).map(move |i| reference.get(i) == Some(true))
+            })
+            .collect();
+        for &(i, bit) in &request.disclosed {
+            assert_eq!(robot[i as usize], bit, "disclosed bit {i}");
+        }
+    }
+    let pooled = recomputing(Vec::new());
+    assert!(pooled.controller_keys.is_empty() && !pooled.llr_requests.is_empty());
+    let short: Vec<Vec<f64>> = llrs.iter().map(|s| s[1..].to_vec()).collect();
+    let ended = recomputing(short);
+    assert!(ended.controller_keys.is_empty() && ended.robot_keys.is_empty());
+    let reason = ended.reports[0].reason.as_deref().unwrap_or_default();
+    assert!(reason.contains("recomputed LLRs do not cover"), "{reason}");
 }
 
 /// A syndrome changed in flight decodes to other bits (or none): the tags differ and neither

@@ -1,0 +1,158 @@
+//! The agents' LLRs recomputed at block time are the simulator's (docs/estimation.md,
+//! "Causality"): the same sessions of a world the parties' configuration does not describe,
+//! pooled under the same IDs into endpoints seeded alike, give the same LDPC leak, rounds and
+//! key length through the agents' post-processing link as through the lab's pipeline; and
+//! there the prior's LLRs fail where the recomputed ones key.
+
+use std::collections::BTreeSet;
+
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use robokey::Config;
+use robokey::config::EveStrategy;
+use robokey::connection::{PostLink, PostOutput};
+use robokey::estimate::kept_doublet;
+use robokey::post_settings::post_settings;
+use robokey::protocol::Outcome;
+use robokey::sim::{RunOutput, simulate};
+use robokey_lab::secrecy::pipeline::{self, Block, BlockSettings, Pooling};
+use robokey_lab::secrecy::private::assumed_separations;
+use robokey_secrecy::postprocess::{BlockReport, ControllerPost, RobotPost, SessionSamples};
+
+/// The parties at the defaults with LDPC on `llrs`, one 10⁴-bit block, the robot in an
+/// 8 mm world (twice the 4 mm they believe).
+fn parties(llrs: &str) -> Config {
+    Config::from_toml(
+        &format!(
+            "[sensing]\nmode = \"private\"\n[postprocess]\nreconciliation = \"ldpc\"\n\
+             llrs = \"{llrs}\"\n[world]\nprocess_std = [0.008, 0.008, 0.008]\n"
+        ),
+        "test",
+    )
+    .unwrap()
+}
+
+fn kept(run: &RunOutput) -> SessionSamples {
+    let private = run.private.as_ref().unwrap();
+    private
+        .controller_samples
+        .iter()
+        .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+        .collect()
+}
+
+/// The lab's block of `runs` (the first pool of 10⁴ bits) and the agents' report of the same
+/// sessions, both endpoints seeded from `seed`.
+fn both(config: &Config, runs: &[RunOutput], seed: u64) -> (Block, BlockReport) {
+    let mut pools = pipeline::pools(runs, Pooling::Complete, 10_000, EveStrategy::Camera);
+    pools.truncate(1);
+    let pool = &mut pools[0];
+    pool.separations = pool
+        .runs
+        .iter()
+        .map(|&i| assumed_separations(&runs[i]))
+        .collect();
+    pool.kept = pool.runs.iter().map(|&i| kept(&runs[i])).collect();
+    let endpoints = post_settings(config);
+    let settings = BlockSettings {
+        pooling: Pooling::Complete,
+        epsilon: endpoints.epsilon,
+        sample_bits: endpoints.sample_bits,
+        block_bits: endpoints.block_bits,
+        assumption: endpoints.assumption.clone(),
+        reconciliation: endpoints.reconciliation,
+        block_llrs: (!config.postprocess.llrs.is_prior())
+            .then(|| (config.clone(), config.postprocess.llrs)),
+    };
+    let lab = pipeline::post_process(&pools, &settings, &mut ChaCha8Rng::seed_from_u64(seed))
+        .into_iter()
+        .next()
+        .expect("a block");
+    // The lab's endpoints draw their seeds from the same stream, the controller's first.
+    let mut public = ChaCha8Rng::seed_from_u64(seed);
+    let (controller_seed, robot_seed): ([u8; 32], [u8; 32]) = (public.random(), public.random());
+    let mut controller = PostLink::new(
+        ControllerPost::new(endpoints.clone(), controller_seed).unwrap(),
+        BTreeSet::new(),
+        config,
+    );
+    let mut robot = PostLink::new(
+        RobotPost::new(endpoints, robot_seed).unwrap(),
+        BTreeSet::new(),
+        config,
+    );
+    // The robot holds every session before the controller proposes.
+    let sessions: Vec<(u32, &RunOutput)> = pools[0]
+        .runs
+        .iter()
+        .enumerate()
+        .map(|(id, &i)| (id as u32, &runs[i]))
+        .collect();
+    for &(id, run) in &sessions {
+        robot.pool(
+            id,
+            &Outcome::Kept,
+            &run.keys.robot,
+            vec![],
+            vec![],
+            vec![],
+            vec![],
+        );
+    }
+    for &(id, run) in &sessions {
+        let private = run.private.as_ref().unwrap();
+        controller.pool(
+            id,
+            &Outcome::Kept,
+            &run.keys.controller,
+            assumed_separations(run),
+            kept(run),
+            private.bits.iter().map(|b| b.controller).collect(),
+            vec![],
+        );
+    }
+    let mut ended = Vec::new();
+    for _ in 0..200 {
+        let mut out = Vec::new();
+        let to_robot = controller.flush(&mut out).unwrap();
+        let mut robot_out = Vec::new();
+        for fragment in &to_robot {
+            robot.receive(fragment, &mut robot_out);
+        }
+        let to_controller = robot.flush(&mut robot_out).unwrap();
+        for fragment in &to_controller {
+            controller.receive(fragment, &mut out);
+        }
+        ended.extend(out.into_iter().filter_map(|o| match o {
+            PostOutput::BlockEnded(report) => Some(report),
+            _ => None,
+        }));
+        if to_robot.is_empty() && to_controller.is_empty() && !ended.is_empty() {
+            break;
+        }
+    }
+    (
+        lab,
+        ended.into_iter().next().expect("the agents ended a block"),
+    )
+}
+
+#[test]
+fn the_agents_recompute_the_llrs_as_the_simulator_does_in_a_noisier_world() {
+    let measured = parties("measured");
+    let runs: Vec<RunOutput> = (0..32)
+        .map(|r| simulate(&measured, r, false).unwrap())
+        .collect();
+    let (lab, agents) = both(&measured, &runs, 11);
+    assert!(lab.consistent && lab.secret_bits > 0, "{lab:?}");
+    assert_eq!(
+        (Some(agents.leak_ec), agents.ldpc_rounds, agents.length),
+        (Some(lab.leak_ec), lab.ldpc_rounds, lab.secret_bits),
+        "agents {agents:?}, lab {lab:?}"
+    );
+    // The prior's LLRs (the configured 4 mm) on the same sessions: overconfident, LDPC's
+    // syndrome is too short and the block fails in the lab and through the agents alike.
+    let (lab, agents) = both(&parties("prior"), &runs, 11);
+    assert_eq!(lab.secret_bits, 0, "{lab:?}");
+    assert_eq!(agents.length, 0, "{agents:?}");
+}

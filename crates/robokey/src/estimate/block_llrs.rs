@@ -1,0 +1,255 @@
+//! The controller's LLRs recomputed at block time (docs/estimation.md, "Causality"), one
+//! implementation for the simulator and the agents. Online, each doublet is decided with
+//! the prior (`noise.process_std`); LDPC's code rate and its decoding follow the LLRs'
+//! magnitudes, which the prior's scale sets. Before reconciliation the block's estimate
+//! cannot be used (it needs the reconciled bits), but the disclosed sample's bits are
+//! public: the motion noise fitted to the doublets the sample discloses whole (the
+//! estimate's own residuals and fit, white: [`white_motion_noise`]) leaks nothing new, and
+//! every pooled bit's LLR is recomputed from the kept samples with it,
+//! `Lᵢ = ln P(y | bᵢ = 0; Q̂) − ln P(y | bᵢ = 1; Q̂)` (the other bits marginalised; `Q̂` in
+//! the robot's frame, turned to each doublet's start heading).
+//!
+//! Covered: two-step doublets with one symbol per dimension (binary levels). Elsewhere, or
+//! when the sample discloses fewer than
+//! [`MIN_DOUBLETS_PER_PARITY`](super::motion_noise::MIN_DOUBLETS_PER_PARITY) whole doublets
+//! of each parity or their fit is not positive definite, the prior's LLRs stay, and the
+//! reason is returned.
+
+use nalgebra::Matrix3;
+use robokey_secrecy::postprocess::LlrRequest;
+
+use super::block::{doublet_samples, two_step_residuals};
+use super::diagonal_covariance;
+use super::motion_noise::white_motion_noise;
+use super::residual::rotation;
+use crate::Config;
+use crate::config::LlrModel;
+use crate::private::{
+    DoubletModel, DoubletSamples, DoubletView, Perturbation, PoseObservation, doublet_model,
+    doublet_model_with,
+};
+use crate::world::WorldModel;
+
+/// The LLRs of `request`'s block (one per raw bit, in block order) recomputed with `basis`
+/// under the parties' `config`.
+///
+/// # Errors
+/// Why the prior's LLRs stay: `basis` is the prior, the doublets are not covered (three
+/// steps, multilevel), a session was pooled without its samples, or the sample is too small
+/// for the fit or its fit not positive definite — each naming the value.
+pub fn recomputed_llrs(
+    config: &Config,
+    request: &LlrRequest,
+    basis: LlrModel,
+) -> Result<Vec<f64>, String> {
+    let key_bits = config.protocol.key_bits_per_doublet();
+    if basis == LlrModel::Prior {
+        return Err("postprocess.llrs = \"prior\"".into());
+    }
+    if config.doublet_settle().is_some() {
+        return Err(
+            "three-step doublets: the kept samples lack the doublet's third sample and entry \
+             speed"
+                .into(),
+        );
+    }
+    if Perturbation::of(config).levels > 2 {
+        return Err(
+            "multilevel symbols: each slice's LLRs are conditioned on the lower slices".into(),
+        );
+    }
+    let mut disclosed = request.disclosed.iter().peekable();
+    let (mut all, mut whole) = (Vec::new(), Vec::new());
+    let mut offset = 0_usize;
+    for (id, bits, kept) in &request.sessions {
+        if kept.len() * key_bits != *bits {
+            return Err(format!(
+                "session {id:08x}: the pool kept {} doublets for its {bits} raw bits",
+                kept.len()
+            ));
+        }
+        for (i, k) in kept.iter().enumerate() {
+            let start = offset + i * key_bits;
+            let (mut pattern, mut known) = (0, 0);
+            while let Some(&&(position, bit)) = disclosed.peek() {
+                let position = position as usize;
+                if position >= start + key_bits {
+                    break;
+                }
+                disclosed.next();
+                if position >= start {
+                    pattern |= usize::from(bit) << (position - start);
+                    known += 1;
+                }
+            }
+            let samples = doublet_samples(k, pattern);
+            if known == key_bits {
+                whole.push(samples);
+            }
+            all.push(samples);
+        }
+        offset += bits;
+    }
+    let prior = doublet_model(config);
+    let motion = match basis {
+        LlrModel::World => Motion::World(doublet_model_with(
+            config,
+            WorldModel::of(config).process_std,
+        )),
+        _ => Motion::RobotFrame(measured_motion(config, &prior, &whole)?),
+    };
+    Ok(all
+        .iter()
+        .flat_map(|d| {
+            let model = match &motion {
+                Motion::World(model) => *model,
+                Motion::RobotFrame(q) => {
+                    let h = rotation(d.samples[0].z);
+                    DoubletModel {
+                        process_covariance: h * q * h.transpose(),
+                        ..prior
+                    }
+                }
+            };
+            doublet_llrs(config, &model, d)
+        })
+        .collect())
+}
+
+/// The motion noise the LLRs are recomputed with.
+enum Motion {
+    /// The world's own doublet model (white, world frame).
+    World(DoubletModel),
+    /// `Q̂` in the robot's frame, turned to each doublet's start heading.
+    RobotFrame(Matrix3<f64>),
+}
+
+/// The motion noise's white fit `Q̂` (robot frame) from the `whole` doublets the sample
+/// discloses (their patterns the robot's published bits): the estimate's own residuals and
+/// fit ([`white_motion_noise`]) — a white likelihood's covariance, whatever the correlation.
+fn measured_motion(
+    config: &Config,
+    prior: &DoubletModel,
+    whole: &[DoubletSamples],
+) -> Result<Matrix3<f64>, String> {
+    let residuals = two_step_residuals(prior, config.robot.axle_length, &[whole]);
+    let sensor = diagonal_covariance(config.sensing.controller_std);
+    let q = white_motion_noise(&residuals, &sensor)
+        .map_err(|refusal| format!("the disclosed sample's fit: {refusal}"))?;
+    if q.symmetric_eigenvalues().iter().any(|&e| e <= 0.0) {
+        return Err(format!(
+            "the disclosed sample's white fit Q̂ is not positive definite (diagonal {:.3e}, \
+             {:.3e}, {:.3e})",
+            q[(0, 0)],
+            q[(1, 1)],
+            q[(2, 2)]
+        ));
+    }
+    Ok(q)
+}
+
+/// One doublet's key bits' LLRs under `model`, from the controller's own samples (stated
+/// sensor noise `sensing.controller_std`), as the online decision computes them.
+#[must_use]
+pub fn doublet_llrs(config: &Config, model: &DoubletModel, d: &DoubletSamples) -> Vec<f64> {
+    let own = |pose| PoseObservation::new(pose, config.sensing.controller_std);
+    let view = DoubletView {
+        start: own(d.samples[0]),
+        middle: Some(own(d.samples[1])),
+        late: None,
+        end: Some(own(d.samples[2])),
+        entry: None,
+    };
+    let (evidence, _) = model.evidence_and_likelihoods(&d.inputs, &view);
+    evidence.llr[..config.protocol.key_bits_per_doublet()].to_vec()
+}
+
+/// Whether `config` asks for LLRs recomputed at block time.
+#[must_use]
+pub fn recomputes_llrs(config: &Config) -> bool {
+    config.postprocess.llrs != LlrModel::Prior
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimate::kept_doublet;
+
+    fn private(world: &str) -> Config {
+        Config::from_toml(&format!("[sensing]\nmode = \"private\"\n{world}"), "t").unwrap()
+    }
+
+    /// `sessions` simulated sessions of `config`' as the controller's endpoint asks for
+    /// their LLRs, every `stride`-th bit disclosed with the robot's bit; and the online LLRs.
+    fn request(config: &Config, sessions: u32, stride: usize) -> (LlrRequest, Vec<f64>) {
+        let runs: Vec<_> = (0..sessions)
+            .map(|r| crate::sim::simulate(config, r, false).unwrap())
+            .collect();
+        let mut request = LlrRequest {
+            block: 0,
+            sessions: Vec::new(),
+            disclosed: Vec::new(),
+        };
+        let (mut online, mut offset) = (Vec::new(), 0);
+        for (id, run) in runs.iter().enumerate() {
+            let private = run.private.as_ref().unwrap();
+            let kept = private
+                .controller_samples
+                .iter()
+                .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+                .collect();
+            request.sessions.push((id as u32, private.bits.len(), kept));
+            for (i, bit) in private.bits.iter().enumerate() {
+                if (offset + i) % stride == 0 {
+                    request.disclosed.push(((offset + i) as u32, bit.bit == 1));
+                }
+            }
+            online.extend(private.bits.iter().map(|b| b.controller));
+            offset += private.bits.len();
+        }
+        (request, online)
+    }
+
+    /// With the prior's own model the recomputation gives the online LLRs; a sample too
+    /// small for the estimate keeps the prior's, naming why.
+    #[test]
+    fn the_prior_model_recomputes_the_online_llrs() {
+        let config = private("");
+        let run = crate::sim::simulate(&config, 0, false).unwrap();
+        let private = run.private.as_ref().expect("private sensing");
+        let online: Vec<f64> = private.bits.iter().map(|b| b.controller).collect();
+        let model = doublet_model(&config);
+        let again: Vec<f64> = private
+            .controller_samples
+            .iter()
+            .flat_map(|d| doublet_llrs(&config, &model, d))
+            .collect();
+        assert_eq!(online.len(), again.len());
+        for (a, b) in online.iter().zip(&again) {
+            assert!((a - b).abs() <= 1e-9 * a.abs().max(1.0), "{a} vs {b}");
+        }
+        let (small, _) = request(&config, 1, 50);
+        let why = recomputed_llrs(&config, &small, LlrModel::Measured).unwrap_err();
+        assert!(
+            why.contains("disclosed sample") && why.contains("of one parity"),
+            "{why}"
+        );
+        assert!(recomputed_llrs(&config, &small, LlrModel::Prior).is_err());
+    }
+
+    /// In a 1 mm world (the prior 4 mm) the LLRs recomputed with Q̂ from a disclosed quarter
+    /// of the bits are as large as the world's own model gives (mean |L| within 10 %), and
+    /// larger than the prior's online ones.
+    #[test]
+    fn a_quieter_world_recomputes_to_the_worlds_llrs() {
+        let config = private("[world]\nprocess_std = [0.001, 0.001, 0.001]\n");
+        let (request, online) = request(&config, 8, 4);
+        let mean = |l: &[f64]| l.iter().map(|x| x.abs()).sum::<f64>() / l.len() as f64;
+        let measured = recomputed_llrs(&config, &request, LlrModel::Measured).unwrap();
+        let world = recomputed_llrs(&config, &request, LlrModel::World).unwrap();
+        assert_eq!(measured.len(), online.len());
+        let (m, w, p) = (mean(&measured), mean(&world), mean(&online));
+        assert!((m / w - 1.0).abs() < 0.1, "measured {m}, world {w}");
+        assert!(m > 1.5 * p, "measured {m}, prior {p}");
+    }
+}
