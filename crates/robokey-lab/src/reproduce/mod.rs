@@ -11,10 +11,10 @@ pub mod world_suite;
 use std::path::Path;
 use std::time::Instant;
 
+use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::EveStrategy;
 use robokey::interrupt::Interrupt;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::adversary::run_campaigns_with;

@@ -595,6 +595,11 @@ fn log_likelihoods_of(factored: &[Factored]) -> [f64; MAX_PATTERNS] {
 
 /// A pattern's [`Prediction`] with its covariance's Cholesky factor (`None` when it is not
 /// positive definite).
+#[allow(
+    clippy::large_enum_variant,
+    reason = "held per pattern of one view on the decision path, as `Prediction` is: boxing \
+              would allocate per pattern"
+)]
 enum Factored {
     Both(Gaussian<nalgebra::U6>),
     One(Gaussian<nalgebra::U3>),
@@ -645,9 +650,7 @@ impl Factored {
         match prediction {
             Prediction::Both { mean, covariance } => Self::Both(Gaussian::new(mean, covariance)),
             Prediction::One { mean, covariance } => Self::One(Gaussian::new(mean, covariance)),
-            Prediction::Three { mean, covariance } => {
-                Self::Three(Gaussian::new(mean, covariance))
-            }
+            Prediction::Three { mean, covariance } => Self::Three(Gaussian::new(mean, covariance)),
             Prediction::None => Self::None,
         }
     }

@@ -970,7 +970,10 @@ fn same_profile(a: Option<&SlipProfile>, b: Option<&SlipProfile>) -> bool {
         (Some(a), Some(b)) => {
             same(&a.mean, &b.mean)
                 && a.bit_effects.len() == b.bit_effects.len()
-                && a.bit_effects.iter().zip(&b.bit_effects).all(|(x, y)| same(x, y))
+                && a.bit_effects
+                    .iter()
+                    .zip(&b.bit_effects)
+                    .all(|(x, y)| same(x, y))
         }
         _ => false,
     }
