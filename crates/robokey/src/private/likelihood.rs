@@ -593,7 +593,7 @@ fn log_likelihoods_of(factored: &[Factored]) -> [f64; MAX_PATTERNS] {
     out
 }
 
-/// A pattern's [`Prediction`] with its covariance's Cholesky factor (`None` when it is not
+/// A pattern's `Prediction` with its covariance's Cholesky factor (`None` when it is not
 /// positive definite).
 #[allow(
     clippy::large_enum_variant,
