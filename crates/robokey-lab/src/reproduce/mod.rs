@@ -11,6 +11,7 @@ pub mod world_suite;
 use std::path::Path;
 use std::time::Instant;
 
+use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::EveStrategy;
 use robokey::interrupt::Interrupt;
@@ -85,13 +86,14 @@ pub fn compute_stages(dir: &Path, quick: bool, stop: &Interrupt) -> Result<Stage
     }
     let suite = suite::paper_suite(quick)?;
     // The odometry stages share their sessions; the private-sensing map and the worlds share
-    // nothing with them, so the three run side by side on the pool.
-    let (odometry, (private, worlds)) = rayon::join(
-        || odometry_stages(dir, &suite, quick, stop),
+    // nothing with them, so the three run side by side on the pool. The worlds, the longest,
+    // start first, so that what they do one at a time overlaps the other stages.
+    let (worlds, (odometry, private)) = rayon::join(
+        || worlds_stage(dir, quick, stop),
         || {
             rayon::join(
+                || odometry_stages(dir, &suite, quick, stop),
                 || private_stage(dir, quick, stop),
-                || worlds_stage(dir, quick, stop),
             )
         },
     );
@@ -185,15 +187,16 @@ fn worlds_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabErr
     })
 }
 
-/// Sweeps each experiment into `out`, one at a time, then computes and writes its secrecy
-/// with `options(experiment)` into its folder.
+/// Sweeps each experiment into its folder of `out`, then computes and writes its secrecy
+/// with `options(experiment)` there; the experiments side by side on the pool (each has its
+/// own folder and sessions).
 fn sweep_each_then_secrecy(
     out: &Path,
     experiments: Vec<Experiment>,
-    options: impl Fn(&Experiment) -> SecrecyOptions,
+    options: impl Fn(&Experiment) -> SecrecyOptions + Sync,
     stop: &Interrupt,
 ) -> Result<(), LabError> {
-    for experiment in experiments {
+    experiments.par_iter().try_for_each(|experiment| {
         let plan = SweepPlan {
             shard: None,
             resume: false,
@@ -201,7 +204,7 @@ fn sweep_each_then_secrecy(
         };
         let swept = sweep(
             out,
-            std::slice::from_ref(&experiment),
+            std::slice::from_ref(experiment),
             plan,
             stop,
             &mut |_| {},
@@ -210,10 +213,10 @@ fn sweep_each_then_secrecy(
         if let Some(signal) = swept.interrupted {
             return Err(LabError::Interrupted(signal));
         }
-        Secrecy::compute(&experiment, &options(&experiment), &mut SessionBank::new())?
+        Secrecy::compute(experiment, &options(experiment), &mut SessionBank::new())?
             .write(&out.join(&experiment.name))?;
-    }
-    Ok(())
+        Ok(())
+    })
 }
 
 /// The experiment `name` of the suite.

@@ -482,20 +482,15 @@ impl DoubletModel {
         inputs: &DoubletInputs,
         view: &DoubletView,
     ) -> [f64; MAX_PATTERNS] {
-        let mut out = [f64::NEG_INFINITY; MAX_PATTERNS];
-        for (h, slot) in out
-            .iter_mut()
-            .enumerate()
-            .take(self.perturbation.patterns())
-        {
-            *slot = match self.predict(inputs, view, h) {
-                Prediction::Both { mean, covariance } => ln_density(&mean, covariance),
-                Prediction::One { mean, covariance } => ln_density(&mean, covariance),
-                Prediction::Three { mean, covariance } => ln_density(&mean, covariance),
-                Prediction::None => 0.0,
-            };
-        }
-        out
+        log_likelihoods_of(&self.factored(inputs, view))
+    }
+
+    /// Every pattern's prediction of `view`, its covariance factored once for both its
+    /// log-likelihood and its distances to the others.
+    fn factored(&self, inputs: &DoubletInputs, view: &DoubletView) -> Vec<Factored> {
+        (0..self.perturbation.patterns())
+            .map(|h| Factored::of(self.predict(inputs, view, h)))
+            .collect()
     }
 
     /// The LLR and separation of each bit, the other bits marginalised (entries beyond the
@@ -513,9 +508,10 @@ impl DoubletModel {
         inputs: &DoubletInputs,
         view: &DoubletView,
     ) -> (BitEvidence, [f64; MAX_PATTERNS]) {
-        let ll = self.log_likelihoods(inputs, view);
+        let factored = self.factored(inputs, view);
+        let ll = log_likelihoods_of(&factored);
         let evidence = bit_evidence(&ll, &self.perturbation, |a, b| {
-            self.distance(inputs, view, a, b)
+            factored[a].distance_to(&factored[b])
         });
         (evidence, ll)
     }
@@ -543,7 +539,10 @@ impl DoubletModel {
     /// the view's covariances and, through the path's Jacobians, on its start value only.
     #[must_use]
     pub fn separations(&self, inputs: &DoubletInputs, view: &DoubletView) -> [f64; MAX_BITS] {
-        separations_by(&self.perturbation, |a, b| self.distance(inputs, view, a, b))
+        let factored = self.factored(inputs, view);
+        separations_by(&self.perturbation, |a, b| {
+            factored[a].distance_to(&factored[b])
+        })
     }
 
     /// The separations that size a key from `view`: [`Self::separations`], but for a
@@ -578,49 +577,112 @@ impl DoubletModel {
     /// is [`Self::separations`] a distance (it reads 0 otherwise).
     #[must_use]
     pub fn covariances_positive(&self, inputs: &DoubletInputs, view: &DoubletView) -> bool {
-        (0..self.perturbation.patterns()).all(|h| match self.predict(inputs, view, h) {
-            Prediction::Both { covariance, .. } => Cholesky::new(covariance).is_some(),
-            Prediction::One { covariance, .. } => Cholesky::new(covariance).is_some(),
-            Prediction::Three { covariance, .. } => Cholesky::new(covariance).is_some(),
-            Prediction::None => false,
+        self.factored(inputs, view)
+            .iter()
+            .all(Factored::positive_definite)
+    }
+}
+
+/// `ln p(view | pattern h)` of every pattern from its factored prediction (unused entries
+/// −∞; a pattern the view does not observe, 0).
+fn log_likelihoods_of(factored: &[Factored]) -> [f64; MAX_PATTERNS] {
+    let mut out = [f64::NEG_INFINITY; MAX_PATTERNS];
+    for (slot, prediction) in out.iter_mut().zip(factored) {
+        *slot = prediction.ln_density();
+    }
+    out
+}
+
+/// A pattern's `Prediction` with its covariance's Cholesky factor (`None` when it is not
+/// positive definite).
+#[allow(
+    clippy::large_enum_variant,
+    reason = "held per pattern of one view on the decision path, as `Prediction` is: boxing \
+              would allocate per pattern"
+)]
+enum Factored {
+    Both(Gaussian<nalgebra::U6>),
+    One(Gaussian<nalgebra::U3>),
+    Three(Gaussian<nalgebra::Dyn>),
+    None,
+}
+
+/// A predicted residual `r` and the factor of its covariance `S`.
+struct Gaussian<D: Dim>
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<D>,
+{
+    mean: OVector<f64, D>,
+    factor: Option<Cholesky<f64, D>>,
+}
+
+impl<D: Dim> Gaussian<D>
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<D>,
+{
+    fn new(mean: OVector<f64, D>, covariance: OMatrix<f64, D, D>) -> Self {
+        Self {
+            mean,
+            factor: Cholesky::new(covariance),
+        }
+    }
+
+    /// `−½·(rᵀS⁻¹r + ln det S)`: the Gaussian log-density of the residual up to its
+    /// constant; −∞ when `S` is not positive definite.
+    fn ln_density(&self) -> f64 {
+        self.factor.as_ref().map_or(f64::NEG_INFINITY, |c| {
+            -0.5 * (c.solve(&self.mean).dot(&self.mean) + c.ln_determinant())
         })
     }
 
-    /// Mahalanobis distance between the predicted observations of patterns `a` and `b`,
-    /// under `a`'s covariance.
-    fn distance(&self, inputs: &DoubletInputs, view: &DoubletView, a: usize, b: usize) -> f64 {
-        match (self.predict(inputs, view, a), self.predict(inputs, view, b)) {
-            (Prediction::Both { mean, covariance }, Prediction::Both { mean: other, .. }) => {
-                mahalanobis(&(other - mean), covariance)
-            }
-            (Prediction::One { mean, covariance }, Prediction::One { mean: other, .. }) => {
-                mahalanobis(&(other - mean), covariance)
-            }
-            (Prediction::Three { mean, covariance }, Prediction::Three { mean: other, .. }) => {
-                mahalanobis(&(other - mean), covariance)
-            }
-            _ => 0.0,
-        }
+    /// `√(dᵀS⁻¹d)` with `d = other − r`, under this covariance; 0 when `S` is not positive
+    /// definite.
+    fn distance_to(&self, other: &OVector<f64, D>) -> f64 {
+        self.factor.as_ref().map_or(0.0, |c| {
+            let d = other - &self.mean;
+            c.solve(&d).dot(&d).sqrt()
+        })
     }
 }
 
-/// `−½·(rᵀS⁻¹r + ln det S)`: the Gaussian log-density of residual `r` up to its constant;
-/// −∞ when `S` is not positive definite.
-fn ln_density<D: Dim>(r: &OVector<f64, D>, s: OMatrix<f64, D, D>) -> f64
-where
-    DefaultAllocator: Allocator<D, D> + Allocator<D>,
-{
-    Cholesky::new(s).map_or(f64::NEG_INFINITY, |c| {
-        -0.5 * (c.solve(r).dot(r) + c.ln_determinant())
-    })
-}
+impl Factored {
+    fn of(prediction: Prediction) -> Self {
+        match prediction {
+            Prediction::Both { mean, covariance } => Self::Both(Gaussian::new(mean, covariance)),
+            Prediction::One { mean, covariance } => Self::One(Gaussian::new(mean, covariance)),
+            Prediction::Three { mean, covariance } => Self::Three(Gaussian::new(mean, covariance)),
+            Prediction::None => Self::None,
+        }
+    }
 
-/// `√(dᵀS⁻¹d)`; 0 when `S` is not positive definite.
-fn mahalanobis<D: Dim>(d: &OVector<f64, D>, s: OMatrix<f64, D, D>) -> f64
-where
-    DefaultAllocator: Allocator<D, D> + Allocator<D>,
-{
-    Cholesky::new(s).map_or(0.0, |c| c.solve(d).dot(d).sqrt())
+    fn ln_density(&self) -> f64 {
+        match self {
+            Self::Both(g) => g.ln_density(),
+            Self::One(g) => g.ln_density(),
+            Self::Three(g) => g.ln_density(),
+            Self::None => 0.0,
+        }
+    }
+
+    /// Mahalanobis distance between this pattern's predicted observations and `other`'s,
+    /// under this one's covariance (0 between views of different shapes).
+    fn distance_to(&self, other: &Self) -> f64 {
+        match (self, other) {
+            (Self::Both(g), Self::Both(o)) => g.distance_to(&o.mean),
+            (Self::One(g), Self::One(o)) => g.distance_to(&o.mean),
+            (Self::Three(g), Self::Three(o)) => g.distance_to(&o.mean),
+            _ => 0.0,
+        }
+    }
+
+    fn positive_definite(&self) -> bool {
+        match self {
+            Self::Both(g) => g.factor.is_some(),
+            Self::One(g) => g.factor.is_some(),
+            Self::Three(g) => g.factor.is_some(),
+            Self::None => false,
+        }
+    }
 }
 
 #[cfg(test)]

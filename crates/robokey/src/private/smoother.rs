@@ -285,6 +285,7 @@ impl Treatment {
 
 /// The slip latents of one window step: each wheel's mean speed per update, and its
 /// half-differences under the bits of the step's doublet (when another doublet's).
+#[derive(Clone, Debug)]
 struct SlipProfile {
     mean: Vec<WheelSpeeds>,
     bit_effects: Vec<Vec<WheelSpeeds>>,
@@ -637,13 +638,12 @@ impl WindowSmoother {
         // One Gram filter pass per covariance: with slip, per hypothesis of the target and
         // per what is known of the other doublets (their slip's variance follows their bits).
         let grams_with = |known: &dyn Fn(usize) -> Option<usize>| -> Vec<(DMatrix<f64>, f64)> {
-            (0..self.covariance_runs(patterns))
+            let slips: Vec<Vec<SlipProfile>> = (0..self.covariance_runs(patterns))
                 .map(|h| {
-                    let slips =
-                        self.slip_profiles(nominal, runs, carrying, target, h, known, first, steps);
-                    self.filter(nominal, &observations, &columns, &slips, steps)
+                    self.slip_profiles(nominal, runs, carrying, target, h, known, first, steps)
                 })
-                .collect()
+                .collect();
+            self.filter(nominal, &observations, &columns, &slips, steps)
         };
         let evidence_under = |treatment: &Treatment, grams: &[(DMatrix<f64>, f64)]| {
             let gram_of = |h: usize| &grams[h.min(grams.len() - 1)];
@@ -841,107 +841,43 @@ impl WindowSmoother {
             .collect()
     }
 
-    /// One pass of the Gram filter over the window.
+    /// One pass of the Gram filter over the window per slip profile sequence in `slips` (one
+    /// per covariance), its Gram matrix and log-determinant each. The passes are the same
+    /// arithmetic up to the first step whose profiles differ, so they run as one up to it.
     fn filter(
         &self,
         nominal: &WindowRun,
         observations: &[Observation],
         columns: &[Column],
-        slips: &[SlipProfile],
+        slips: &[Vec<SlipProfile>],
         steps: usize,
-    ) -> (DMatrix<f64>, f64) {
-        let world = &self.eve.world;
-        let correlated = world.process_rho != 0.0;
-        let slipping = world.slip_std > 0.0;
-        // The start pose: the controller's sample, off by its noise and timing error.
-        let first_speed = nominal.velocity_before(1);
-        let mut start = Matrix3::from_diagonal(&Vector3::from(world.controller_std.map(|s| s * s)))
-            + first_speed * first_speed.transpose() * world.jitter.powi(2);
-        start = (start + start.transpose()) * 0.5;
-        let q = Matrix3::from_diagonal(&Vector3::from(world.process_std.map(|s| s * s)));
-        let base = if correlated { 6 } else { 3 };
-        let mut cov = DMatrix::zeros(base, base);
-        cov.view_mut((0, 0), (3, 3)).copy_from(&start);
-        if correlated {
-            cov.view_mut((3, 3), (3, 3)).copy_from(&q);
-        }
-        let mut filter = GramFilter::new(cov, columns.len());
-        let mut buffer: Vec<Vector3<f64>> = Vec::with_capacity(columns.len());
-        // A frame's observation map, reused for every frame of a step.
-        let mut frame_map = DMatrix::zeros(0, 0);
-        let mut next = 0;
-        for step in 0..=steps {
-            if step > 0
-                && step < steps
-                && columns.iter().any(|c| c.shifts[step] != Vector3::zeros())
-            {
-                let mut offsets = DMatrix::zeros(filter.dim(), columns.len());
-                for (c, column) in columns.iter().enumerate() {
-                    offsets
-                        .view_mut((0, c), (3, 1))
-                        .copy_from(&column.shifts[step]);
-                }
-                filter.shift(&offsets);
-            }
-            // Observations at the instant that starts this step (or ends the window).
-            while next < observations.len()
-                && matches!(observations[next].instant, Instant::Sample(s) if s == step)
-            {
-                let mut f = DMatrix::zeros(3, filter.dim());
-                f.view_mut((0, 0), (3, 3)).copy_from(&Matrix3::identity());
-                let values = values_at(&mut buffer, columns, next);
-                filter.observe(&f, &observations[next].noise_inverse, values);
-                next += 1;
-            }
-            // `slips` holds one profile per step: none past the window's last instant.
-            let Some(slip) = slips.get(step) else {
+    ) -> Vec<(DMatrix<f64>, f64)> {
+        let shared = (0..=steps)
+            .take_while(|&step| {
+                let first = slips[0].get(step);
+                slips[1..]
+                    .iter()
+                    .all(|other| same_profile(first, other.get(step)))
+            })
+            .count();
+        let mut pass = Pass::start(self, nominal, columns);
+        for step in 0..shared {
+            if !pass.step(self, nominal, observations, columns, step, &slips[0]) {
                 break;
-            };
-            let effects = if slipping { slip.bit_effects.len() } else { 0 };
-            let extra = 3 + if slipping { 2 + 2 * effects } else { 0 };
-            filter.augment(extra);
-            let dim = filter.dim();
-            let tangents = self.tangents(
-                &nominal.updates[step],
-                slip,
-                dim,
-                base,
-                correlated,
-                slipping,
-            );
-            while next < observations.len() {
-                let Instant::Frame {
-                    step: s,
-                    update,
-                    fraction,
-                } = observations[next].instant
-                else {
-                    break;
-                };
-                if s != step {
-                    break;
-                }
-                // F = (1 − f)·F_u + f·F_{u+1}, element by element.
-                let (before, after) = (&tangents.poses[update], &tangents.poses[update + 1]);
-                if frame_map.shape() != before.shape() {
-                    frame_map = DMatrix::zeros(before.nrows(), before.ncols());
-                }
-                frame_map.zip_zip_apply(before, after, |out, a, b| {
-                    *out = a * (1.0 - fraction) + b * fraction;
-                });
-                let values = values_at(&mut buffer, columns, next);
-                filter.observe(&frame_map, &observations[next].noise_inverse, values);
-                next += 1;
             }
-            let mut l = DMatrix::zeros(base, dim);
-            l.view_mut((0, 0), (3, dim))
-                .copy_from(tangents.poses.last().expect("an end"));
-            if correlated {
-                l.view_mut((3, 0), (3, dim)).copy_from(&tangents.noise);
-            }
-            filter.transition(&l);
         }
-        filter.finish()
+        slips
+            .iter()
+            .map(|slip| {
+                let mut own = pass.clone();
+                for step in shared..=steps {
+                    if !own.step(self, nominal, observations, columns, step, slip) {
+                        break;
+                    }
+                }
+                own.filter.finish()
+            })
+            .collect()
     }
 
     /// The pose's deviation at each update boundary of a step as a linear map of the step's
@@ -1017,6 +953,161 @@ impl WindowSmoother {
 struct Tangents {
     poses: Vec<DMatrix<f64>>,
     noise: DMatrix<f64>,
+}
+
+/// Two steps' slip profiles (absent past the window's last instant) are the same bit for bit.
+fn same_profile(a: Option<&SlipProfile>, b: Option<&SlipProfile>) -> bool {
+    let same = |x: &[WheelSpeeds], y: &[WheelSpeeds]| {
+        x.len() == y.len()
+            && x.iter().zip(y).all(|(p, q)| {
+                p.iter()
+                    .zip(q.iter())
+                    .all(|(u, v)| u.to_bits() == v.to_bits())
+            })
+    };
+    match (a, b) {
+        (None, None) => true,
+        (Some(a), Some(b)) => {
+            same(&a.mean, &b.mean)
+                && a.bit_effects.len() == b.bit_effects.len()
+                && a.bit_effects
+                    .iter()
+                    .zip(&b.bit_effects)
+                    .all(|(x, y)| same(x, y))
+        }
+        _ => false,
+    }
+}
+
+/// A Gram filter pass over a window, between steps: the filter, the next observation, and
+/// the state's dimension between steps.
+#[derive(Clone)]
+struct Pass {
+    filter: GramFilter,
+    next: usize,
+    base: usize,
+}
+
+impl Pass {
+    /// The filter at the window's start: the start pose, the controller's sample, off by its
+    /// noise and timing error; with correlated noise, the noise carried into the window.
+    fn start(smoother: &WindowSmoother, nominal: &WindowRun, columns: &[Column]) -> Self {
+        let world = &smoother.eve.world;
+        let correlated = world.process_rho != 0.0;
+        let first_speed = nominal.velocity_before(1);
+        let mut start = Matrix3::from_diagonal(&Vector3::from(world.controller_std.map(|s| s * s)))
+            + first_speed * first_speed.transpose() * world.jitter.powi(2);
+        start = (start + start.transpose()) * 0.5;
+        let q = Matrix3::from_diagonal(&Vector3::from(world.process_std.map(|s| s * s)));
+        let base = if correlated { 6 } else { 3 };
+        let mut cov = DMatrix::zeros(base, base);
+        cov.view_mut((0, 0), (3, 3)).copy_from(&start);
+        if correlated {
+            cov.view_mut((3, 3), (3, 3)).copy_from(&q);
+        }
+        Self {
+            filter: GramFilter::new(cov, columns.len()),
+            next: 0,
+            base,
+        }
+    }
+
+    /// Window step `step`: the shift of the means where the path restarts, the
+    /// observations at its start, then — unless it is the window's end (no profile in
+    /// `slips`) — the step's noise and slip latents, the frames within it and the transition
+    /// to its end. Returns whether the window goes on.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the window's pieces, each used once"
+    )]
+    fn step(
+        &mut self,
+        smoother: &WindowSmoother,
+        nominal: &WindowRun,
+        observations: &[Observation],
+        columns: &[Column],
+        step: usize,
+        slips: &[SlipProfile],
+    ) -> bool {
+        let world = &smoother.eve.world;
+        let correlated = world.process_rho != 0.0;
+        let slipping = world.slip_std > 0.0;
+        let (filter, base) = (&mut self.filter, self.base);
+        let mut buffer: Vec<Vector3<f64>> = Vec::with_capacity(columns.len());
+        // `slips` holds one profile per window step: `step < slips.len()` is a step within.
+        if step > 0
+            && step < slips.len()
+            && columns.iter().any(|c| c.shifts[step] != Vector3::zeros())
+        {
+            let mut offsets = DMatrix::zeros(filter.dim(), columns.len());
+            for (c, column) in columns.iter().enumerate() {
+                offsets
+                    .view_mut((0, c), (3, 1))
+                    .copy_from(&column.shifts[step]);
+            }
+            filter.shift(&offsets);
+        }
+        // Observations at the instant that starts this step (or ends the window).
+        while self.next < observations.len()
+            && matches!(observations[self.next].instant, Instant::Sample(s) if s == step)
+        {
+            let mut f = DMatrix::zeros(3, filter.dim());
+            f.view_mut((0, 0), (3, 3)).copy_from(&Matrix3::identity());
+            let values = values_at(&mut buffer, columns, self.next);
+            filter.observe(&f, &observations[self.next].noise_inverse, values);
+            self.next += 1;
+        }
+        // `slips` holds one profile per step: none past the window's last instant.
+        let Some(slip) = slips.get(step) else {
+            return false;
+        };
+        let effects = if slipping { slip.bit_effects.len() } else { 0 };
+        let extra = 3 + if slipping { 2 + 2 * effects } else { 0 };
+        filter.augment(extra);
+        let dim = filter.dim();
+        let tangents = smoother.tangents(
+            &nominal.updates[step],
+            slip,
+            dim,
+            base,
+            correlated,
+            slipping,
+        );
+        // A frame's observation map, reused for every frame of the step.
+        let mut frame_map = DMatrix::zeros(0, 0);
+        while self.next < observations.len() {
+            let Instant::Frame {
+                step: s,
+                update,
+                fraction,
+            } = observations[self.next].instant
+            else {
+                break;
+            };
+            if s != step {
+                break;
+            }
+            // F = (1 − f)·F_u + f·F_{u+1}, element by element.
+            let (before, after) = (&tangents.poses[update], &tangents.poses[update + 1]);
+            if frame_map.shape() != before.shape() {
+                frame_map = DMatrix::zeros(before.nrows(), before.ncols());
+            }
+            frame_map.zip_zip_apply(before, after, |out, a, b| {
+                *out = a * (1.0 - fraction) + b * fraction;
+            });
+            let values = values_at(&mut buffer, columns, self.next);
+            filter.observe(&frame_map, &observations[self.next].noise_inverse, values);
+            self.next += 1;
+        }
+        let mut l = DMatrix::zeros(base, dim);
+        l.view_mut((0, 0), (3, dim))
+            .copy_from(tangents.poses.last().expect("an end"));
+        if correlated {
+            l.view_mut((3, 0), (3, dim)).copy_from(&tangents.noise);
+        }
+        filter.transition(&l);
+        true
+    }
 }
 
 /// The columns' values at observation `o`, in `buffer` (one allocation for a whole pass).
