@@ -37,14 +37,16 @@
 use super::normal_tail::normal_upper_quantile;
 use crate::Config;
 use crate::config::MAX_COMMAND_QUANTUM;
-use crate::model::{DiffDrive, Unicycle};
-use crate::private::doublet::{CommandRounding, sign};
+use crate::model::{DiffDrive, Unicycle, WheelSpeeds};
+use crate::private::doublet::sign;
 use crate::private::{DoubletModel, DoubletSamples, doublet_model};
+use crate::world::quantise;
 
 /// The finest candidate quantum tested (rad/s per wheel): a finer rounding than stated is
-/// not looked for. At the defaults, a world rounding at 0.0323 rad/s that nobody states
-/// leaves ℓ within the camera eavesdropper's realised bound (docs/estimation.md).
-pub const FINEST_CANDIDATE: f64 = 0.02;
+/// not looked for. At the defaults, a world rounding at 0.03 rad/s that nobody states
+/// leaves ℓ within the camera eavesdropper's realised bound (docs/estimation.md, "The
+/// quantum check").
+pub const FINEST_CANDIDATE: f64 = 0.03;
 
 /// Blocks with fewer doublets are not tested (the regression's normal approximation).
 pub const MIN_CHECK_DOUBLETS: usize = 200;
@@ -58,17 +60,18 @@ pub const MIN_SIGNED_DOUBLETS: usize = 100;
 /// that exists is at least `T·q·r/D` ≈ 4·10⁻⁴ rad at the finest candidate.
 const SIGNATURE_FLOOR: f64 = 1e-9;
 
-/// One wheel command of a doublet's step for one value of one bit, with its weight in the
-/// doublet's rounding signature: the signature at `q` sums `weight·ω(R_q(input))`.
+/// One step's wheel commands of a doublet for one value of one bit, with their weight in the
+/// doublet's rounding signature: the signature at `q` sums `weight·(w_q,1 − w_q,2)`, the
+/// wheels rounded to `q` (`ω = r·(w₁ − w₂)/D`).
 #[derive(Clone, Copy, Debug)]
 struct SignatureTerm {
     /// The doublet's index in the block.
     doublet: usize,
-    /// `s_b · ±½ · T · W_k` (s): the bit's sign, the half difference's side, the step's
-    /// lag weight.
+    /// `s_b · ±½ · T · W_k · r/D` (s): the bit's sign, the half difference's side, the
+    /// step's lag weight, the wheels' turn per unit of their difference.
     weight: f64,
-    /// The step's commanded input `u_k + o_k` for that value of the bit (m/s, rad/s).
-    input: Unicycle,
+    /// The wheels' speeds `H⁻¹(u_k + o_k)` the step commands for that value of the bit (rad/s).
+    wheels: WheelSpeeds,
 }
 
 /// A block's doublets as the check reads them: each one's heading residual (rad) under the
@@ -76,7 +79,6 @@ struct SignatureTerm {
 struct CheckData {
     residuals: Vec<f64>,
     terms: Vec<SignatureTerm>,
-    drive: DiffDrive,
 }
 
 /// The stated model's part of the regression: its signature `x_s = Σ_b s_b·(h_b(q_s) −
@@ -85,6 +87,7 @@ struct CheckData {
 struct Stated {
     signature: Vec<f64>,
     squares: f64,
+    leverage: Vec<f64>,
     unrounded: Vec<f64>,
     residuals: Vec<f64>,
 }
@@ -179,7 +182,7 @@ fn lag_weights(model: &DoubletModel) -> [f64; 3] {
 /// The check's view of a block's `sessions` under the stated `model`.
 fn check_data(model: &DoubletModel, drive: DiffDrive, sessions: &[&[DoubletSamples]]) -> CheckData {
     let perturbation = &model.perturbation;
-    let t = model.sample_time;
+    let turn = model.sample_time * drive.wheel_radius / drive.axle_length;
     let weights = lag_weights(model);
     let steps = perturbation.steps() as usize;
     let mut residuals = Vec::new();
@@ -198,18 +201,14 @@ fn check_data(model: &DoubletModel, drive: DiffDrive, sessions: &[&[DoubletSampl
                 for k in 0..steps {
                     terms.push(SignatureTerm {
                         doublet,
-                        weight: s * side * t * weights[k],
-                        input: nominal[k] + offsets[k],
+                        weight: s * side * turn * weights[k],
+                        wheels: drive.to_wheels(nominal[k] + offsets[k]),
                     });
                 }
             }
         }
     }
-    CheckData {
-        residuals,
-        terms,
-        drive,
-    }
+    CheckData { residuals, terms }
 }
 
 /// `Σ aᵢbᵢ`.
@@ -232,13 +231,13 @@ fn regressed_out(values: &[f64], on: &[f64], on_squares: f64) -> Vec<f64> {
 }
 
 impl CheckData {
-    /// Each doublet's signature sum `Σ weight·ω(R_q(input))` at quantum `q` (0: unrounded).
+    /// Each doublet's signature sum `Σ weight·(w_q,1 − w_q,2)` at quantum `q` (0: unrounded),
+    /// the wheels rounded by the world actuator's own [`quantise`].
     fn signatures(&self, quantum: f64) -> Vec<f64> {
-        let rounding = CommandRounding::new(self.drive, quantum);
         let mut out = vec![0.0; self.residuals.len()];
         for term in &self.terms {
-            let applied = rounding.map_or(term.input, |r| r.round(term.input));
-            out[term.doublet] += term.weight * applied.y;
+            let rounded = quantise(term.wheels, quantum);
+            out[term.doublet] += term.weight * (rounded.x - rounded.y);
         }
         out
     }
@@ -253,10 +252,21 @@ impl CheckData {
             .map(|(q, u)| q - u)
             .collect();
         let squares = dot(&signature, &signature);
+        let leverage = signature
+            .iter()
+            .map(|on| {
+                if squares > 0.0 {
+                    on * on / squares
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         Stated {
             residuals: regressed_out(&self.residuals, &signature, squares),
             signature,
             squares,
+            leverage,
             unrounded,
         }
     }
@@ -282,13 +292,8 @@ impl CheckData {
         let spread: f64 = x
             .iter()
             .zip(&stated.residuals)
-            .zip(&stated.signature)
-            .map(|((a, r), on)| {
-                let fitted = if stated.squares > 0.0 {
-                    on * on / stated.squares
-                } else {
-                    0.0
-                };
+            .zip(&stated.leverage)
+            .map(|((a, r), fitted)| {
                 let leverage = (fitted + a * a / sxx).min(1.0 - 1e-9);
                 (a * (r - slope * a) / (1.0 - leverage)).powi(2)
             })
@@ -305,7 +310,7 @@ impl CheckData {
     fn fastest_wheel(&self) -> f64 {
         self.terms
             .iter()
-            .map(|t| self.drive.to_wheels(t.input).abs().max())
+            .map(|t| t.wheels.abs().max())
             .fold(0.0, f64::max)
     }
 }
@@ -380,6 +385,7 @@ mod tests {
     use super::*;
     use crate::model::Pose;
     use crate::private::DoubletInputs;
+    use crate::private::doublet::CommandRounding;
     use crate::rng::{Purpose, stream};
     use rand::RngExt;
     use rand_distr::{Distribution, Normal};
@@ -484,6 +490,10 @@ mod tests {
             assert!((gap - 1.0 / 28.0).abs() < 1e-9, "{pair:?}");
         }
         let unstated = candidates(0.0, 7.0);
+        assert!(
+            unstated.iter().all(|&q| q >= FINEST_CANDIDATE),
+            "{unstated:?}"
+        );
         assert!(
             (unstated[0] - FINEST_CANDIDATE).abs() < 1e-3,
             "{unstated:?}"
