@@ -1004,6 +1004,38 @@ mod tests {
         assert_eq!(sized, None);
     }
 
+    /// The commands check's prediction over the lag measured is its largest over the whole
+    /// interval: at 40 lags spread over `[τ_lo, τ_hi]` (a 100 ms world, 50 ms prior) no
+    /// regression's prediction exceeds it.
+    #[test]
+    fn the_commands_check_predicts_its_largest_over_the_whole_interval() {
+        let (config, sessions) = lagging_block(0.1, 0.05);
+        let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
+        let (_, estimate) = block_separations(&config, &views, 0, 1e-6);
+        let [_, low, high] = estimate.lag.expect("three-step");
+        assert!(high > low, "{:?}", estimate.lag);
+        let bound = commands_check::regressions_over_lags(&config, &views, [low, high]);
+        assert!(!bound.is_empty());
+        for i in 0..40 {
+            let tau = low + (high - low) * f64::from(i) / 39.0;
+            let model = DoubletModel {
+                lag: tau,
+                ..doublet_model(&config)
+            };
+            let bits: Vec<commands_check::BoundaryResidual> = views
+                .iter()
+                .flat_map(|session| session.iter())
+                .flat_map(|samples| commands_check::doublet_residuals(&model, samples))
+                .collect();
+            for (at, largest) in commands_check::regressions(&bits).iter().zip(&bound) {
+                assert!(
+                    at.predicted.abs() <= largest.predicted + 1e-15,
+                    "τ {tau}: {at:?} above {largest:?}"
+                );
+            }
+        }
+    }
+
     /// A wrong prior (50 ms shaped, 20 ms in the world): with τ̂ subtracted Q̂ is the world's;
     /// at the prior the residuals' mean square along the track and in heading is larger.
     #[test]

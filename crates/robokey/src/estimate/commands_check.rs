@@ -12,7 +12,8 @@
 use robokey_secrecy::gaussian_llr::erfc;
 
 use super::BlockEstimate;
-use super::worst_case::lag_grid;
+use super::quantum_check::quantum_refusal;
+use super::worst_case::largest_of_each_over_lags;
 use crate::Config;
 use crate::private::doublet::{in_doublet_frame, sign};
 use crate::private::{BitKind, DoubletModel, DoubletSamples, doublet_model};
@@ -106,7 +107,8 @@ pub struct Regression {
     pub bits: usize,
     /// `β̂ = mean sᵢ·rᵢ`: what the residual reveals per bit sign (m or rad).
     pub measured: f64,
-    /// `mean μᵢ`: the model's prediction of it.
+    /// `mean μᵢ`: the model's prediction of it (a three-step block sized over τ's interval:
+    /// its largest magnitude there).
     pub predicted: f64,
     /// β̂'s standard error, `sd(sᵢ·rᵢ)/√n`.
     pub std_error: f64,
@@ -234,11 +236,53 @@ pub fn block_refusal(
     refusal(&block_residuals(config, sessions), level)
 }
 
-/// The commands check of a block of `sessions` as its estimate sized it: a block of
-/// three-step doublets whose `estimate` measured the lag is checked against the model's
-/// prediction at whichever lag of a grid over its interval predicts the most, per regression
-/// (what the prior's error leaves at the doublet's end is modelled, and in Eve's view at
-/// the same interval); any other block against the parties' prior ([`block_refusal`]).
+/// The largest slack of the model's prediction over τ's interval before its grid is
+/// refined, in standard errors of the regression it predicts.
+const PREDICTION_SLACK: f64 = 0.1;
+
+/// The regressions of a block of `sessions` against the model's largest prediction over the
+/// lag's whole `interval` `[τ_lo, τ_hi]` (s), per regression: its magnitude on the grid Eve's
+/// view is sized on, refined while a concavity slack exceeds [`PREDICTION_SLACK`] standard
+/// errors, plus that slack ([`largest_of_each_over_lags`]). The measured side is the
+/// regression's at `τ_lo` (what the next commands reveal does not depend on τ).
+#[must_use]
+pub fn regressions_over_lags(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    [low, high]: [f64; 2],
+) -> Vec<Regression> {
+    let prior = doublet_model(config);
+    let tests_at = |tau: f64| {
+        let model = DoubletModel { lag: tau, ..prior };
+        let bits: Vec<BoundaryResidual> = sessions
+            .iter()
+            .flat_map(|session| session.iter())
+            .flat_map(|samples| doublet_residuals(&model, samples))
+            .collect();
+        regressions(&bits)
+    };
+    let mut tests = tests_at(low);
+    let slack_limit: Vec<f64> = tests
+        .iter()
+        .map(|r| PREDICTION_SLACK * r.std_error)
+        .collect();
+    if let Some(largest) = largest_of_each_over_lags([low, high], &slack_limit, |tau| {
+        Some(tests_at(tau).iter().map(|r| r.predicted.abs()).collect())
+    }) {
+        for (test, predicted) in tests.iter_mut().zip(largest) {
+            test.predicted = predicted;
+        }
+    }
+    tests
+}
+
+/// The commands check of a block of `sessions` as its estimate sized it, then the
+/// command-quantum check ([`quantum_refusal`]) at the same level: a block of three-step
+/// doublets whose `estimate` measured the lag is checked against the model's largest
+/// prediction over τ's whole interval ([`regressions_over_lags`]: what the prior's error
+/// leaves at the doublet's end is modelled, and in Eve's view over the same interval, on
+/// the same grid), and its quantum at τ̂; any other block against the parties' prior
+/// ([`block_refusal`]).
 #[must_use]
 pub fn sized_block_refusal(
     config: &Config,
@@ -246,32 +290,12 @@ pub fn sized_block_refusal(
     level: f64,
     estimate: Option<&BlockEstimate>,
 ) -> Option<String> {
-    let Some([_, low, high]) = estimate.and_then(|e| e.lag) else {
-        return block_refusal(config, sessions, level);
+    let Some([point, low, high]) = estimate.and_then(|e| e.lag) else {
+        return block_refusal(config, sessions, level)
+            .or_else(|| quantum_refusal(config, sessions, doublet_model(config).lag, level));
     };
-    let mut merged: Vec<Regression> = Vec::new();
-    for tau in lag_grid([low, high]) {
-        let model = DoubletModel {
-            lag: tau,
-            ..doublet_model(config)
-        };
-        let bits: Vec<BoundaryResidual> = sessions
-            .iter()
-            .flat_map(|session| session.iter())
-            .flat_map(|samples| doublet_residuals(&model, samples))
-            .collect();
-        let tests = regressions(&bits);
-        if merged.is_empty() {
-            merged = tests;
-        } else {
-            for (kept, test) in merged.iter_mut().zip(tests) {
-                if test.predicted.abs() > kept.predicted.abs() {
-                    kept.predicted = test.predicted;
-                }
-            }
-        }
-    }
-    refusal_of(&merged, level)
+    refusal_of(&regressions_over_lags(config, sessions, [low, high]), level)
+        .or_else(|| quantum_refusal(config, sessions, point, level))
 }
 
 #[cfg(test)]

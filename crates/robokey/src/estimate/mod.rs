@@ -20,6 +20,7 @@ pub mod homogeneity;
 pub mod lag;
 pub mod motion_noise;
 mod normal_tail;
+pub mod quantum_check;
 pub mod residual;
 pub mod slip;
 mod symmetric_coordinates;

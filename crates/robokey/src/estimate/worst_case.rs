@@ -298,36 +298,56 @@ pub fn three_step_worst_case(
     largest_over_lags(interval, at)
 }
 
-/// Each bit's largest of `at(τ)` over every τ in `interval` `[τ_lo, τ_hi]` (s): the largest
-/// over [`LAG_GRID`] evenly spaced lags plus each bit's concavity slack — a quarter of its
-/// most negative second difference along the grid, 0 where none is negative — the spacing
-/// halved while a slack exceeds [`LAG_SLACK`] (at most [`MAX_LAG_POINTS`] lags). A
-/// function whose second derivative stays above twice its most negative second difference
-/// over the spacing² (the module's doc) lies below this everywhere in the interval. `None`
-/// when `at` has no answer at some lag; `at(τ_lo)` itself for a point.
+/// Each bit's largest of `at(τ)` over every τ in `interval` `[τ_lo, τ_hi]` (s)
+/// ([`largest_of_each_over_lags`] with a slack of at most [`LAG_SLACK`] per bit).
 fn largest_over_lags(
-    [low, high]: [f64; 2],
+    interval: [f64; 2],
     at: impl Fn(f64) -> Option<[f64; MAX_BITS]>,
 ) -> Option<[f64; MAX_BITS]> {
+    let largest = largest_of_each_over_lags(interval, &[LAG_SLACK; MAX_BITS], |lag| {
+        at(lag).map(Vec::from)
+    })?;
+    Some(std::array::from_fn(|b| largest[b]))
+}
+
+/// Each component's largest of `at(τ)` (one value per entry of `slack_limit`) over every τ in
+/// `interval` `[τ_lo, τ_hi]` (s): the largest over [`LAG_GRID`] evenly spaced lags plus each
+/// component's concavity slack — a quarter of its most negative second difference along the
+/// grid, 0 where none is negative — the spacing halved while a component's slack exceeds its
+/// `slack_limit` (at most [`MAX_LAG_POINTS`] lags). A function whose second derivative
+/// stays above twice its most negative second difference over the spacing² (the module's
+/// doc) lies below this everywhere in the interval. `None` when `at` has no answer at some
+/// lag; `at(τ_lo)` itself for a point. Eve's view ([`three_step_worst_case`]) and the
+/// commands check's prediction over τ's interval share it.
+pub(crate) fn largest_of_each_over_lags(
+    [low, high]: [f64; 2],
+    slack_limit: &[f64],
+    at: impl Fn(f64) -> Option<Vec<f64>>,
+) -> Option<Vec<f64>> {
     if high <= low {
         return at(low);
     }
+    let components = slack_limit.len();
     let mut values = lag_grid([low, high])
         .iter()
         .map(|&lag| at(lag))
         .collect::<Option<Vec<_>>>()?;
     loop {
-        let slack: [f64; MAX_BITS] = std::array::from_fn(|b| {
-            values
-                .windows(3)
-                .map(|w| (2.0 * w[1][b] - w[0][b] - w[2][b]).max(0.0) / 4.0)
-                .fold(0.0, f64::max)
-        });
-        if slack.iter().all(|&x| x <= LAG_SLACK) || values.len() >= MAX_LAG_POINTS {
-            let largest = values.iter().fold([0.0_f64; MAX_BITS], |m, d| {
-                std::array::from_fn(|i| m[i].max(d[i]))
+        let slack: Vec<f64> = (0..components)
+            .map(|b| {
+                values
+                    .windows(3)
+                    .map(|w| (2.0 * w[1][b] - w[0][b] - w[2][b]).max(0.0) / 4.0)
+                    .fold(0.0, f64::max)
+            })
+            .collect();
+        if slack.iter().zip(slack_limit).all(|(x, limit)| x <= limit)
+            || values.len() >= MAX_LAG_POINTS
+        {
+            let largest = values.iter().fold(vec![0.0_f64; components], |m, d| {
+                m.iter().zip(d).map(|(a, b)| a.max(*b)).collect()
             });
-            return Some(std::array::from_fn(|b| largest[b] + slack[b]));
+            return Some(largest.iter().zip(&slack).map(|(l, s)| l + s).collect());
         }
         // Halve the spacing: a new lag between every two neighbours.
         let spacing = (high - low) / (values.len() - 1) as f64;
@@ -336,7 +356,7 @@ fn largest_over_lags(
             if i > 0 {
                 finer.push(at(low + spacing * (i as f64 - 0.5))?);
             }
-            finer.push(*d);
+            finer.push(d.clone());
         }
         values = finer;
     }

@@ -1,0 +1,503 @@
+//! The command-quantum check (docs/estimation.md, "Command quantum"), one implementation for
+//! the simulator and the agents: after reconciliation, does the robot round its wheel
+//! commands more coarsely than the parties state (`robot.command_quantum`)? An understated
+//! quantum over-claims — the bit's rounding moves the heading, Eve reads it from the public
+//! commands, and the stated model credits her too little — so a block that shows one is
+//! refused, naming the candidate quantum, the slope and its error.
+//!
+//! For a quantum `q`, each doublet's **rounding signature** is what the rounding adds to the
+//! bits' effect on its heading at the doublet's end: `x(q) = Σ_b s_b·(h_b(q) − h_b(0))`,
+//! with `h_b(q)` half the difference of bit `b`'s two values' heading ends under rounding at
+//! `q` (the doublet's other bits as reconciled) and `s_b = ±1` its sign. Under the model's
+//! Euler map the end heading is `T·Σ_k W_k·c_k,ω` over the steps' rounded commanded offsets
+//! `c_k` (lagged through the model's τ: `W_k` the lag's weight of step `k` on the doublet's
+//! travel), so `x(q)` is exact arithmetic on the public commands and the bits. The heading
+//! residual the stated model leaves, `rᵢ = θ_c(end) − θ̂_stated(end)` (the controller's end
+//! sample less the stated model's end for the reconciled pattern), holds `x(q_w) − x(q_s)`
+//! when the world rounds at `q_w`. For a candidate `q_c` coarser than the stated `q_s`, `r`
+//! is regressed on `x(q_c)` with `x(q_s)` regressed out of both (so a statement coarser than
+//! the world, which leaves `−x(q_s)`, is not read as a coarser world): the slope is 1 where
+//! the world rounds at `q_c`, 0 where the statement is right. Its standard error scales
+//! each doublet's residual by its leverage (`√(Σ x'²e²/(1 − hᵢ)²) / Σ x'²`), so a few
+//! doublets carrying the whole signature cannot shrink it. The signature is a function of
+//! the public commands and the bits, and the bits are independent of the noise, so the
+//! test's level needs no model of the noise.
+//!
+//! **Candidates.** Rounding errors at two quanta agree only while the wheel speeds `w` span
+//! less than about a cycle of their difference: `w·|1/q₁ − 1/q₂| ≲ ¼`. The candidates are
+//! therefore evenly spaced in `1/q`, `1/(4·w_max)` apart (`w_max` the block's largest wheel
+//! command, rad/s), from the stated quantum (or [`FINEST_CANDIDATE`] when finer, or none
+//! stated) up to [`MAX_COMMAND_QUANTUM`]: a world quantum between two candidates is at most
+//! ⅛ of a cycle from one at the fastest wheel. The block is refused when some candidate's
+//! `b̂/SE` exceeds `z(ε_est / N)` — one-sided (a coarser world gives a positive slope),
+//! Bonferroni over the `N` candidates — at level ε_est, as the commands check and the
+//! dead-time test: a refusal gives no key, so the level is the rate of false refusals, not
+//! a term of the key's ε. Rounding finer than [`FINEST_CANDIDATE`] is not tested.
+
+use super::normal_tail::normal_upper_quantile;
+use crate::Config;
+use crate::config::MAX_COMMAND_QUANTUM;
+use crate::model::{DiffDrive, Unicycle, WheelSpeeds};
+use crate::private::doublet::sign;
+use crate::private::{DoubletModel, DoubletSamples, doublet_model};
+use crate::world::quantise;
+
+/// The finest candidate quantum tested (rad/s per wheel): a finer rounding than stated is
+/// not looked for. At the defaults, a world rounding at 0.03 rad/s that nobody states
+/// leaves ℓ within the camera eavesdropper's realised bound (docs/estimation.md, "The
+/// quantum check").
+pub const FINEST_CANDIDATE: f64 = 0.03;
+
+/// Blocks with fewer doublets are not tested (the regression's normal approximation).
+pub const MIN_CHECK_DOUBLETS: usize = 200;
+
+/// A candidate is tested only where at least this many doublets carry its signature (at a
+/// quantum that divides the bit's wheel offset `2Δv/r` the bit's two values round alike and
+/// the signature vanishes: nothing to regress on, and nothing for Eve to read).
+pub const MIN_SIGNED_DOUBLETS: usize = 100;
+
+/// A signature below this (rad) is none: rounding arithmetic's residue, where a signature
+/// that exists is at least `T·q·r/D` ≈ 4·10⁻⁴ rad at the finest candidate.
+const SIGNATURE_FLOOR: f64 = 1e-9;
+
+/// One step's wheel commands of a doublet for one value of one bit, with their weight in the
+/// doublet's rounding signature: the signature at `q` sums `weight·(w_q,1 − w_q,2)`, the
+/// wheels rounded to `q` (`ω = r·(w₁ − w₂)/D`).
+#[derive(Clone, Copy, Debug)]
+struct SignatureTerm {
+    /// The doublet's index in the block.
+    doublet: usize,
+    /// `s_b · ±½ · T · W_k · r/D` (s): the bit's sign, the half difference's side, the
+    /// step's lag weight, the wheels' turn per unit of their difference.
+    weight: f64,
+    /// The wheels' speeds `H⁻¹(u_k + o_k)` the step commands for that value of the bit (rad/s).
+    wheels: WheelSpeeds,
+}
+
+/// A block's doublets as the check reads them: each one's heading residual (rad) under the
+/// stated model, with every signature term.
+struct CheckData {
+    residuals: Vec<f64>,
+    terms: Vec<SignatureTerm>,
+}
+
+/// The stated model's part of the regression: its signature `x_s = Σ_b s_b·(h_b(q_s) −
+/// h_b(0))` per doublet (0 when none is stated), the unrounded signature `Σ_b s_b·h_b(0)`,
+/// and the residuals with `x_s` regressed out.
+struct Stated {
+    signature: Vec<f64>,
+    squares: f64,
+    leverage: Vec<f64>,
+    unrounded: Vec<f64>,
+    residuals: Vec<f64>,
+}
+
+/// The regression of the stated model's heading residual on one candidate's signature.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QuantumSlope {
+    /// The candidate quantum `q_c` (rad/s per wheel).
+    pub candidate: f64,
+    /// The slope `b̂`: 1 where the world rounds at `q_c`, 0 where the statement is right.
+    pub slope: f64,
+    /// Its standard error.
+    pub std_error: f64,
+}
+
+impl QuantumSlope {
+    /// `b̂ / SE`.
+    #[must_use]
+    pub fn statistic(&self) -> f64 {
+        self.slope / self.std_error
+    }
+}
+
+/// The outcome of the check on a block: every candidate's slope and the threshold.
+#[derive(Clone, Debug, PartialEq)]
+pub struct QuantumCheck {
+    /// The stated quantum `q_s` (rad/s per wheel; 0: none).
+    pub stated: f64,
+    /// Each candidate's regression, finest first.
+    pub slopes: Vec<QuantumSlope>,
+    /// The one-sided threshold `z(level / N)` on `b̂/SE`.
+    pub limit: f64,
+    /// The level it was run at.
+    pub level: f64,
+}
+
+impl QuantumCheck {
+    /// The candidate whose statistic is largest.
+    #[must_use]
+    pub fn largest(&self) -> Option<&QuantumSlope> {
+        self.slopes
+            .iter()
+            .max_by(|a, b| a.statistic().total_cmp(&b.statistic()))
+    }
+
+    /// The reason for refusing the block, naming the candidate, the slope and its error; none
+    /// when every candidate's statistic stays within the threshold.
+    #[must_use]
+    pub fn refusal(&self) -> Option<String> {
+        let worst = self.largest()?;
+        (worst.statistic() > self.limit).then(|| {
+            let [finest, coarsest] =
+                [self.slopes[0], self.slopes[self.slopes.len() - 1]].map(|s| s.candidate);
+            format!(
+                "command quantum: the heading the stated model leaves at the doublets' ends \
+                 (robot.command_quantum = {}) regresses on the bits' rounding signature at \
+                 {:.4} rad/s per wheel with slope {:.3} (standard error {:.3}, {:.1} of them; \
+                 allowed: within {:.1} at level {:.0e} over {} candidate quanta {finest:.4}–\
+                 {coarsest:.4} rad/s): the wheels round their commands more coarsely than \
+                 stated",
+                self.stated,
+                worst.candidate,
+                worst.slope,
+                worst.std_error,
+                worst.statistic(),
+                self.limit,
+                self.level,
+                self.slopes.len(),
+            )
+        })
+    }
+}
+
+/// The lag weights `W_k` of a doublet's steps under `model`: how much of step `k`'s
+/// commanded offset the doublet's steps carry by its end, `Σ_j ∂mean_j/∂c_k` through the
+/// model's first-order lag (1 without lag).
+fn lag_weights(model: &DoubletModel) -> [f64; 3] {
+    let steps = model.perturbation.steps() as usize;
+    std::array::from_fn(|k| {
+        if k >= steps {
+            return 0.0;
+        }
+        let mut unit = [Unicycle::zeros(); 3];
+        unit[k] = Unicycle::new(0.0, 1.0);
+        let means = model
+            .perturbation
+            .mean_offsets(unit, model.lag, model.sample_time);
+        means[..steps].iter().map(|m| m.y).sum()
+    })
+}
+
+/// The check's view of a block's `sessions` under the stated `model`.
+fn check_data(model: &DoubletModel, drive: DiffDrive, sessions: &[&[DoubletSamples]]) -> CheckData {
+    let perturbation = &model.perturbation;
+    let turn = model.sample_time * drive.wheel_radius / drive.axle_length;
+    let weights = lag_weights(model);
+    let steps = perturbation.steps() as usize;
+    let mut residuals = Vec::new();
+    let mut terms = Vec::new();
+    for samples in sessions.iter().flat_map(|session| session.iter()) {
+        let doublet = residuals.len();
+        let inputs = &samples.inputs;
+        let end = model.end_of(inputs, &samples.samples[0], Some(samples.pattern));
+        residuals.push(samples.samples[2].z - end.z);
+        let nominal = [inputs.first, inputs.second, inputs.second];
+        for bit in 0..perturbation.key_bits() {
+            let s = sign((samples.pattern >> bit & 1) as u8);
+            for (value, side) in [(0, 0.5), (1, -0.5)] {
+                let pattern = (samples.pattern & !(1 << bit)) | (value << bit);
+                let offsets = perturbation.step_offsets(perturbation.offset(pattern));
+                for k in 0..steps {
+                    terms.push(SignatureTerm {
+                        doublet,
+                        weight: s * side * turn * weights[k],
+                        wheels: drive.to_wheels(nominal[k] + offsets[k]),
+                    });
+                }
+            }
+        }
+    }
+    CheckData { residuals, terms }
+}
+
+/// `Σ aᵢbᵢ`.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// `values` less their projection on `on` (`on_squares = Σ onᵢ²`; unchanged when 0).
+fn regressed_out(values: &[f64], on: &[f64], on_squares: f64) -> Vec<f64> {
+    let coefficient = if on_squares > 0.0 {
+        dot(values, on) / on_squares
+    } else {
+        0.0
+    };
+    values
+        .iter()
+        .zip(on)
+        .map(|(v, o)| v - coefficient * o)
+        .collect()
+}
+
+impl CheckData {
+    /// Each doublet's signature sum `Σ weight·(w_q,1 − w_q,2)` at quantum `q` (0: unrounded),
+    /// the wheels rounded by the world actuator's own [`quantise`].
+    fn signatures(&self, quantum: f64) -> Vec<f64> {
+        let mut out = vec![0.0; self.residuals.len()];
+        for term in &self.terms {
+            let rounded = quantise(term.wheels, quantum);
+            out[term.doublet] += term.weight * (rounded.x - rounded.y);
+        }
+        out
+    }
+
+    /// The stated quantum's part of the regression.
+    fn stated(&self, quantum: f64) -> Stated {
+        let unrounded = self.signatures(0.0);
+        let signature: Vec<f64> = self
+            .signatures(quantum)
+            .iter()
+            .zip(&unrounded)
+            .map(|(q, u)| q - u)
+            .collect();
+        let squares = dot(&signature, &signature);
+        let leverage = signature
+            .iter()
+            .map(|on| {
+                if squares > 0.0 {
+                    on * on / squares
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        Stated {
+            residuals: regressed_out(&self.residuals, &signature, squares),
+            signature,
+            squares,
+            leverage,
+            unrounded,
+        }
+    }
+
+    /// The regression of the residuals on the signature at `candidate`, `x_c = Σ_b s_b·(h_b(q_c)
+    /// − h_b(0))`, with the stated signature regressed out of both (Frisch–Waugh): the slope
+    /// `b̂ = Σ x'r' / Σ x'²` and its standard error `√(Σ x'²e²/(1 − hᵢ)²) / Σ x'²`, `e = r' −
+    /// b̂x'`, each doublet's residual scaled by its leverage `hᵢ = x_s,ᵢ²/Σx_s² + x'ᵢ²/Σx'²`
+    /// (so that a few doublets carrying the whole signature cannot shrink the error).
+    fn slope(&self, stated: &Stated, candidate: f64) -> Option<QuantumSlope> {
+        let x: Vec<f64> = self
+            .signatures(candidate)
+            .iter()
+            .zip(&stated.unrounded)
+            .map(|(c, u)| c - u)
+            .collect();
+        if x.iter().filter(|v| v.abs() > SIGNATURE_FLOOR).count() < MIN_SIGNED_DOUBLETS {
+            return None;
+        }
+        let x = regressed_out(&x, &stated.signature, stated.squares);
+        let sxx = dot(&x, &x);
+        let slope = dot(&x, &stated.residuals) / sxx;
+        let spread: f64 = x
+            .iter()
+            .zip(&stated.residuals)
+            .zip(&stated.leverage)
+            .map(|((a, r), fitted)| {
+                let leverage = (fitted + a * a / sxx).min(1.0 - 1e-9);
+                (a * (r - slope * a) / (1.0 - leverage)).powi(2)
+            })
+            .sum();
+        let std_error = spread.sqrt() / sxx;
+        (std_error > 0.0 && slope.is_finite()).then_some(QuantumSlope {
+            candidate,
+            slope,
+            std_error,
+        })
+    }
+
+    /// The largest wheel command of the block (rad/s).
+    fn fastest_wheel(&self) -> f64 {
+        self.terms
+            .iter()
+            .map(|t| t.wheels.abs().max())
+            .fold(0.0, f64::max)
+    }
+}
+
+/// The candidate quanta for a stated quantum `stated` and a block whose fastest wheel
+/// command is `fastest` (rad/s): evenly spaced in `1/q`, `1/(4·fastest)` apart, every one
+/// coarser than `stated` and [`FINEST_CANDIDATE`], the coarsest [`MAX_COMMAND_QUANTUM`];
+/// finest first.
+#[must_use]
+pub fn candidates(stated: f64, fastest: f64) -> Vec<f64> {
+    let finest = stated.max(FINEST_CANDIDATE);
+    let step = 1.0 / (4.0 * fastest.max(1.0));
+    let top = 1.0 / MAX_COMMAND_QUANTUM;
+    let count = ((1.0 / finest - top) / step).floor() as usize;
+    // From just coarser than `finest` to the coarsest.
+    (0..=count)
+        .rev()
+        .map(|i| 1.0 / (top + step * i as f64))
+        .filter(|&q| q > finest || (stated < FINEST_CANDIDATE && q >= finest))
+        .collect()
+}
+
+/// The check of a block's `sessions` (the controller's samples of each carrying doublet
+/// with the robot's bits) under the parties' `config`, its lag at `lag` (s; the measured τ̂
+/// of a three-step block, else the prior), at level `level`; none for a block too small to
+/// test ([`MIN_CHECK_DOUBLETS`]).
+#[must_use]
+pub fn quantum_check(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    lag: f64,
+    level: f64,
+) -> Option<QuantumCheck> {
+    let model = DoubletModel {
+        lag,
+        ..doublet_model(config)
+    };
+    let data = check_data(&model, config.robot.drive(), sessions);
+    if data.residuals.len() < MIN_CHECK_DOUBLETS {
+        return None;
+    }
+    let stated_quantum = config.robot.command_quantum;
+    let stated = data.stated(stated_quantum);
+    let slopes: Vec<QuantumSlope> = candidates(stated_quantum, data.fastest_wheel())
+        .into_iter()
+        .filter_map(|q| data.slope(&stated, q))
+        .collect();
+    if slopes.is_empty() {
+        return None;
+    }
+    Some(QuantumCheck {
+        stated: stated_quantum,
+        limit: normal_upper_quantile(level / slopes.len() as f64),
+        level,
+        slopes,
+    })
+}
+
+/// [`quantum_check`]'s refusal, if any.
+#[must_use]
+pub fn quantum_refusal(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    lag: f64,
+    level: f64,
+) -> Option<String> {
+    quantum_check(config, sessions, lag, level)?.refusal()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Pose;
+    use crate::private::DoubletInputs;
+    use crate::private::doublet::CommandRounding;
+    use crate::rng::{Purpose, stream};
+    use rand::RngExt;
+    use rand_distr::{Distribution, Normal};
+
+    /// The parties at their defaults in private sensing, stating `stated`.
+    fn stating(stated: f64) -> Config {
+        let mut config = Config::default();
+        config.sensing.mode = crate::config::SensingMode::Private;
+        config.robot.command_quantum = stated;
+        config
+    }
+
+    /// `n` doublets of a world whose wheels round at `world` (rad/s; 0: none): nominal speeds
+    /// 0.08–0.12 m/s and turns of ±0.5 rad/s, each doublet's end where the world's model puts
+    /// it plus 6 mrad of heading noise (what the default world's residual holds).
+    fn block(config: &Config, world: f64, n: usize, seed: u64) -> Vec<DoubletSamples> {
+        let mut rng = stream(seed, Purpose::Process, 0);
+        let noise = Normal::new(0.0, 6e-3).unwrap();
+        let model = DoubletModel {
+            rounding: CommandRounding::new(config.robot.drive(), world),
+            ..doublet_model(config)
+        };
+        (0..n)
+            .map(|j| {
+                let mut input =
+                    || Unicycle::new(rng.random_range(0.08..0.12), rng.random_range(-0.5..0.5));
+                let inputs = DoubletInputs {
+                    first: input(),
+                    second: input(),
+                };
+                let pattern = usize::from(rng.random::<bool>());
+                let start = Pose::new(0.0, 0.0, 0.3);
+                let end = model.end_of(&inputs, &start, Some(pattern));
+                let sensed = end + Pose::new(0.0, 0.0, noise.sample(&mut rng));
+                DoubletSamples {
+                    doublet: j as u32,
+                    inputs,
+                    samples: [start, sensed, sensed],
+                    pattern,
+                }
+            })
+            .collect()
+    }
+
+    /// A world rounding at 0.1 rad/s where the parties state none, or 0.0323, is refused at
+    /// ε_est = 10⁻⁶ on 10⁴ doublets, naming a candidate near 0.1 with a slope near 1; stated
+    /// right it passes.
+    #[test]
+    fn an_understated_quantum_is_refused_and_a_right_one_passes() {
+        for stated in [0.0, 0.0323] {
+            let config = stating(stated);
+            let doublets = block(&config, 0.1, 10_000, 1);
+            let check = quantum_check(&config, &[&doublets], 0.0, 1e-6).expect("tested");
+            let worst = check.largest().unwrap();
+            assert!(
+                (worst.candidate - 0.1).abs() < 0.003,
+                "stated {stated}: {worst:?}"
+            );
+            assert!(
+                (worst.slope - 1.0).abs() < 0.2,
+                "stated {stated}: {worst:?}"
+            );
+            let why = check.refusal().expect("refused");
+            assert!(why.contains("command quantum"), "{why}");
+            assert!(
+                why.contains(&format!("robot.command_quantum = {stated}")),
+                "{why}"
+            );
+        }
+        let config = stating(0.1);
+        let doublets = block(&config, 0.1, 10_000, 1);
+        assert_eq!(quantum_refusal(&config, &[&doublets], 0.0, 1e-6), None);
+    }
+
+    /// False refusals at a right statement: over 200 seeded blocks of 1,000 doublets at
+    /// level 0.05, a world rounding as stated (0 and 0.0323) is refused at most 5 % of the
+    /// time plus 3 binomial deviations (√(200·0.05·0.95) ≈ 3.1: at most 19 refusals).
+    #[test]
+    fn a_right_statement_is_refused_no_more_often_than_the_level() {
+        for stated in [0.0, 0.0323] {
+            let config = stating(stated);
+            let refused = (0..200)
+                .filter(|&seed| {
+                    let doublets = block(&config, stated, 1_000, 100 + seed);
+                    quantum_refusal(&config, &[&doublets], 0.0, 0.05).is_some()
+                })
+                .count();
+            eprintln!("stated {stated}: {refused} of 200 refused at level 0.05");
+            assert!(refused <= 19, "stated {stated}: {refused} of 200 refused");
+        }
+    }
+
+    /// The candidates are evenly spaced in 1/q, a quarter cycle of the fastest wheel apart,
+    /// each coarser than the statement, up to the class's largest quantum.
+    #[test]
+    fn the_candidates_cover_the_class_above_the_statement() {
+        let list = candidates(0.0323, 7.0);
+        assert!(list[0] > 0.0323 && list[0] < 0.0323 * 1.01, "{list:?}");
+        assert_eq!(*list.last().unwrap(), MAX_COMMAND_QUANTUM);
+        for pair in list.windows(2) {
+            let gap = 1.0 / pair[0] - 1.0 / pair[1];
+            assert!((gap - 1.0 / 28.0).abs() < 1e-9, "{pair:?}");
+        }
+        let unstated = candidates(0.0, 7.0);
+        assert!(
+            unstated.iter().all(|&q| q >= FINEST_CANDIDATE),
+            "{unstated:?}"
+        );
+        assert!(
+            (unstated[0] - FINEST_CANDIDATE).abs() < 1e-3,
+            "{unstated:?}"
+        );
+        assert!(candidates(MAX_COMMAND_QUANTUM, 7.0).is_empty());
+    }
+}
