@@ -806,6 +806,43 @@ mod tests {
         k
     }
 
+    /// The next doublet's entry (1 mm of white motion noise, the shape for 50 ms): at the
+    /// prior the bits' offsets leave the wheels at rest and the next doublet's poses say
+    /// nothing of them; under a 100 ms lag they leave a speed whose travel through the next
+    /// doublet her view takes (0.34 for each bit). With it the bound costs little at the
+    /// prior (her view with the end pose given exactly: 0.012 of the v-bit's 1.52) and lies
+    /// above her view of the doublet alone by more under the wrong lag (0.055 of 1.30).
+    #[test]
+    fn the_next_doublets_entry_enters_her_view_where_the_lag_is_not_the_prior() {
+        let (model, inputs, view) = turning_doublet_under(0.05);
+        let q = Matrix3::from_diagonal_element(1e-6);
+        let k = kron(&q, &Matrix3::identity(), view.start.value.z);
+        let next_view = DoubletView {
+            start: view.end.unwrap(),
+            ..view
+        };
+        let entry = |lag: f64| {
+            let at = DoubletModel { lag, ..model };
+            entry_separations(&at, &k, true, &inputs, &inputs, &next_view).unwrap()
+        };
+        let [at_prior, wrong] = [entry(0.05), entry(0.1)];
+        eprintln!("entry separations: at the prior {at_prior:?}, at 100 ms {wrong:?}");
+        assert!(at_prior[..2].iter().all(|&d| d < 1e-6), "{at_prior:?}");
+        assert!(wrong[0] > 0.1, "{wrong:?}");
+        let steps = three_step_steps(&MotionNoiseEstimate::known(q, 0.0, 1e-6));
+        let [cost_at_prior, cost_wrong] = [0.05, 0.1].map(|lag| {
+            let interval = [lag, lag];
+            let alone = three_step_worst_case(&model, &steps, interval, &inputs, &view, None);
+            let next = Some((&inputs, &next_view));
+            let with = three_step_worst_case(&model, &steps, interval, &inputs, &view, next);
+            let [alone, with] = [alone.unwrap(), with.unwrap()];
+            eprintln!("τ {lag}: alone {alone:?}, with the next doublet's entry {with:?}");
+            assert!(with[0] >= alone[0] && with[1] >= alone[1]);
+            with[0] - alone[0]
+        });
+        assert!(cost_at_prior < 0.015 && cost_wrong > 0.04, "{cost_at_prior} {cost_wrong}");
+    }
+
     /// White steps (`W = I`): the three-step separation with the steps' covariance stacked
     /// is the doublet model's own, at lags within and beyond the prior.
     #[test]
