@@ -840,7 +840,10 @@ mod tests {
             assert!(with[0] >= alone[0] && with[1] >= alone[1]);
             with[0] - alone[0]
         });
-        assert!(cost_at_prior < 0.015 && cost_wrong > 0.04, "{cost_at_prior} {cost_wrong}");
+        assert!(
+            cost_at_prior < 0.015 && cost_wrong > 0.04,
+            "{cost_at_prior} {cost_wrong}"
+        );
     }
 
     /// White steps (`W = I`): the three-step separation with the steps' covariance stacked
