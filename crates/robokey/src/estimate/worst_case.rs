@@ -244,7 +244,7 @@ pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(StepCovariance, 
 /// what a lag other than the prior leaves of the bits in the next doublet's entry speed too
 /// (the module's doc, "The next doublet's entry"): per bit `√(d_end² + d_next²)`, `d_end`
 /// her view with the doublet's end pose given to her exactly and `d_next` what the next
-/// doublet's observed poses say from that end pose ([`entry_separations`]).
+/// doublet's observed poses say from that end pose (`entry_separations`).
 #[must_use]
 pub fn three_step_worst_case(
     model: &DoubletModel,
