@@ -684,7 +684,7 @@ pub struct BlockVerdict {
 /// key over the captured sessions — with multilevel symbols over one of their slices each,
 /// its bits then the slice's of each session (docs/postprocessing.md, "Multilevel slices")
 /// — in report order, or else the report's last that made a key. Her bound is over the bits
-/// each block amplified ([`amplified_bits`]).
+/// each block amplified (`amplified_bits`).
 ///
 /// # Errors
 /// The report cannot be read or holds no block that made a key, that block names other

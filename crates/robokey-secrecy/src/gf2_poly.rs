@@ -1,4 +1,4 @@
-//! Products of binary polynomials (GF(2)[z], carry-less) packed in u64 words.
+//! Products of binary polynomials (`GF(2)[z]`, carry-less) packed in u64 words.
 //!
 //! A polynomial is a word slice: coefficient of z^i is bit i mod 64 of word i / 64. Word
 //! products use a portable 6-bit-window table (no CLMUL, safe Rust); slices below

@@ -155,7 +155,7 @@ pub fn camera_assumption(config: &Config, separation: f64) -> Assumption {
 /// Gaussian LLR of `separation` at the worst case of the estimate's (1 − `estimation_epsilon`)
 /// region; the published outcome of the estimate charged [`ESTIMATE_LEAK_BITS`] — per slice
 /// of a multilevel block, each slice's key for all `m = log₂ protocol.levels` slices'
-/// outcomes ([`estimate_leak`]).
+/// outcomes (`estimate_leak`).
 #[must_use]
 pub fn measured_camera_assumption(
     config: &Config,

@@ -106,7 +106,7 @@ impl Link {
     /// (firmware version) until a `b,…` reply comes. Returns that reply.
     ///
     /// # Errors
-    /// No `b,` reply within [`SYNC_ATTEMPTS`] requests.
+    /// No `b,` reply within `SYNC_ATTEMPTS` requests.
     pub fn synchronise(&mut self) -> Result<String, NetError> {
         self.send("\n")?;
         for _ in 0..SYNC_ATTEMPTS {

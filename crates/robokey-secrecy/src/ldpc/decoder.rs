@@ -5,7 +5,7 @@
 //! r_{c→v} = (−1)^{s_c} · Π_{w≠v} sgn q_{w→c} · φ(Σ_{w≠v} φ(|q_{w→c}|)) with
 //! φ(x) = −ln tanh(x/2) = ln(1 + e^{−x}) − ln(1 − e^{−x}) (its own inverse), and Λᵥ is
 //! updated at once (Hocevar's layered schedule, which converges in about half the iterations
-//! of flooding). After each pass over the checks the hard decisions x̂ᵥ = [Λᵥ < 0] are tested
+//! of flooding). After each pass over the checks the hard decisions `x̂ᵥ = [Λᵥ < 0]` are tested
 //! against the syndrome; decoding stops when they meet it or after the iteration cap.
 
 use super::code::{ParityCheck, bit};

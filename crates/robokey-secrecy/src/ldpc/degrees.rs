@@ -21,14 +21,14 @@ const MAX_DEGREE2_EDGES: f64 = 0.30;
 /// Edge fraction on degree-3 variables.
 const DEGREE3_EDGES: f64 = 0.35;
 
-/// Fractions of *variables* of degree 2, 3 and [`HIGH_DEGREE`] (they sum to 1).
+/// Fractions of *variables* of degree 2, 3 and `HIGH_DEGREE` (they sum to 1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DegreeProfile {
     /// Variables of degree 2.
     pub degree2: f64,
     /// Variables of degree 3.
     pub degree3: f64,
-    /// Variables of degree [`HIGH_DEGREE`].
+    /// Variables of degree `HIGH_DEGREE`.
     pub high: f64,
 }
 

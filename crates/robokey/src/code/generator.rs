@@ -16,7 +16,7 @@ pub struct GeneratorCode {
 
 impl GeneratorCode {
     /// Builds a code from rows written as strings of `0`/`1` (bit `j` = character `j`).
-    /// `None` when rows are empty, of unequal length, longer than [`MAX_TABLE_BITS`], or
+    /// `None` when rows are empty, of unequal length, longer than `MAX_TABLE_BITS`, or
     /// contain other characters.
     #[must_use]
     pub fn from_rows(name: &str, rows: &[&str]) -> Option<Self> {

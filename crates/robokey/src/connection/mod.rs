@@ -1,7 +1,7 @@
 //! A whole conversation of one side over the network, sans I/O (docs/protocol.md, "On a
 //! network"): the session layer's handshake and sealing ([`crate::protocol::auth`]), the
 //! session endpoint, post-processing after it ([`post`]) and the courtesy of a side that has
-//! its outcome ([`linger`]). An agent is one loop around a connection: wait for a datagram
+//! its outcome (`linger`). An agent is one loop around a connection: wait for a datagram
 //! until [`ControllerConnection::poll_timeout`] (or the robot's), feed it or the timeout, and
 //! carry out the outputs — send bytes, sample or drive the robot, write the store, report.
 

@@ -1,6 +1,6 @@
 //! The controller endpoint (docs/protocol.md): tracks the reference, commands the robot,
 //! decides each unit's fate and the key, and closes the session — in either sensing mode
-//! ([`ControllerMode`]). Time is an input: it says when it must be woken
+//! (`ControllerMode`). Time is an input: it says when it must be woken
 //! ([`Controller::poll_timeout`]): to retransmit its closing, to give up on a silent robot or
 //! a silent sensor.
 

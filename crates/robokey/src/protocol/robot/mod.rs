@@ -1,6 +1,6 @@
 //! The robot endpoint (docs/protocol.md): owns the key bits and the clock, applies the offered
 //! command its key picks (or the fallback) each step, reports each sample, and closes the
-//! session — in either sensing mode ([`RobotMode`]). Time is an input: it says when it must be
+//! session — in either sensing mode (`RobotMode`). Time is an input: it says when it must be
 //! woken ([`Robot::poll_timeout`]) and asks the shell for each sample ([`RobotOutput::Sense`]).
 
 pub(crate) mod io;
