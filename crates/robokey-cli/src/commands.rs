@@ -638,31 +638,49 @@ fn measured_blocks(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
                     i + 1,
                     e.doublets
                 ),
-                None => format!(
-                    "{}, {}: block {}: motion noise measured over {} doublets: √Q̂ = {} \
+                None => {
+                    format!(
+                        "{}, {}: block {}: motion noise measured over {} doublets: √Q̂ = {} \
                      (along-track, lateral, heading), AR(1) correlation between steps ρ̂ = \
                      {:.3}; worst case of its (1 − {:e}) region: ρ in [{:.3}, {:.3}], √Q_low \
                      = {} at ρ = {:.3}; Eve's largest separation there {:.4}, her bits' \
                      equivalent {:.4} (published); ℓ = {} bits",
-                    r.point,
-                    r.adversary,
-                    i + 1,
-                    e.doublets,
-                    three(e.point_std_mm),
-                    e.correlation,
-                    e.epsilon,
-                    e.correlation_interval[0],
-                    e.correlation_interval[1],
-                    three(e.lower_std_mm),
-                    e.correlation_interval[1],
-                    e.largest,
-                    e.separation,
-                    b.secret_bits
-                ),
+                        r.point,
+                        r.adversary,
+                        i + 1,
+                        e.doublets,
+                        three(e.point_std_mm),
+                        e.correlation,
+                        e.epsilon,
+                        e.correlation_interval[0],
+                        e.correlation_interval[1],
+                        three(e.lower_std_mm),
+                        e.correlation_interval[1],
+                        e.largest,
+                        e.separation,
+                        b.secret_bits
+                    ) + &slip_record(e)
+                }
             }));
         }
     }
     out
+}
+
+/// A block sized with the slip it measured (docs/estimation.md, "Per-wheel slip"): the slip
+/// and its interval; nothing for the others.
+fn slip_record(e: &robokey::estimate::BlockEstimate) -> String {
+    match e.slip {
+        Some([point, low, high]) if e.slip_sized => format!(
+            "; per-wheel slip measured σ̂ = {:.2} % of each wheel's travel [{:.2} %, {:.2} %] at \
+             ε_est/3, Eve's bits sized as pairs of Gaussians with their own covariances (the \
+             published separation bounds no more than they do)",
+            100.0 * point,
+            100.0 * low,
+            100.0 * high
+        ),
+        _ => String::new(),
+    }
 }
 
 /// Where a point's world is not the parties' (docs/world.md): for each block, ℓ beside the

@@ -32,6 +32,7 @@ pub mod bitstring;
 pub mod calibration;
 pub mod cascade;
 pub mod confirm;
+pub mod covariance_pair;
 pub mod entropy;
 pub mod gaussian_llr;
 mod gf2_poly;

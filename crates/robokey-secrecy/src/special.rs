@@ -5,10 +5,10 @@
 //! P[Bin(n, p) ≤ k] = I_{1−p}(n − k, k + 1) and P[Bin(n, p) ≥ k] = I_p(k, n − k + 1).
 
 /// Lanczos approximation parameter g (with the nine coefficients below: ~1e-15 relative error).
-const LANCZOS_G: f64 = 7.0;
+pub(crate) const LANCZOS_G: f64 = 7.0;
 
 /// Lanczos coefficients for g = 7, n = 9.
-const LANCZOS_COEFFICIENTS: [f64; 9] = [
+pub(crate) const LANCZOS_COEFFICIENTS: [f64; 9] = [
     0.999_999_999_999_809_9,
     676.520_368_121_885_1,
     -1_259.139_216_722_402_8,

@@ -427,6 +427,23 @@ pub fn equivalent_separation(
         })
         .collect();
     let target = profile_smooth_min_entropy(&groups, epsilon)?.h_min;
+    gaussian_separation_within(n, target, largest, epsilon)
+}
+
+/// The smallest separation `d` on the 2⁻⁸ grid (in millionths, rounded up) at which `n` bits
+/// of one Gaussian view have a bound [`profile_smooth_min_entropy`] no larger than `target`,
+/// at most `largest` (millionths; returned where even it bounds more than `target`): one
+/// separation that sizes `n` bits no larger than a bound `target` on their min-entropy does.
+/// By bisection: the bound falls with `d`.
+///
+/// # Errors
+/// [`MinEntropyError::InvalidEpsilon`] for ε outside (0, 1).
+pub fn gaussian_separation_within(
+    n: u64,
+    target: f64,
+    largest: u64,
+    epsilon: f64,
+) -> Result<u64, MinEntropyError> {
     let single = |step: u64| -> Result<f64, MinEntropyError> {
         let separation = step as f64 / EQUIVALENT_STEPS_PER_UNIT;
         let group = ViewGroup {

@@ -23,16 +23,23 @@
 use std::collections::BTreeMap;
 
 use robokey_secrecy::BitString;
+use robokey_secrecy::covariance_pair::{PairedBit, candidate_lambdas, paired_smooth_min_entropy};
 use robokey_secrecy::postprocess::{
     EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, MAX_SEPARATION_STEPS,
     SEPARATION_QUANTUM,
 };
-use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
+use robokey_secrecy::view_profile::{
+    equivalent_separation, gaussian_separation_within, separation_counts,
+};
 use serde::{Deserialize, Serialize};
 
 use super::lag::{MIN_LAG_DOUBLETS, estimate_lag_jointly, first_step_share};
+use super::motion_noise::{Corner, SlipCorners};
 use super::normal_tail::normal_upper_quantile;
-use super::worst_case::{three_step_steps, three_step_worst_case};
+use super::worst_case::{
+    MAX_PUBLISHED_SEPARATION, slip_pairs, three_step_steps, three_step_worst_case,
+    whole_interval_corner,
+};
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
     estimate_lag, estimate_motion_noise, published_separation, worst_case_separations,
@@ -75,11 +82,17 @@ pub struct BlockEstimate {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lag: Option<[f64; 3]>,
     /// Per-wheel slip fitted beside `Q`, `[σ̂, σ_lo, σ_hi]` as fractions of each wheel's
-    /// travel, on a block that was sized: its interval reaches 0 (a block that measures slip
-    /// is refused), so up to `σ_hi` of slip may go unseen, and the key is not sized for it
-    /// (docs/estimation.md, "Per-wheel slip"); none where not fitted.
+    /// travel: where the block measures slip (`slip_sized`), the interval at ε_est/3 its key
+    /// is sized over; otherwise the fit at level ε_est, whose interval reaches 0, so up to
+    /// `σ_hi` of slip may go unseen and the key is not sized for it (docs/estimation.md,
+    /// "Per-wheel slip"); none where not fitted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub slip: Option<[f64; 3]>,
+    /// Whether Eve's view was sized with the slip measured (bits whose noise depends on
+    /// them: `separation` is then one Gaussian separation that bounds no more than the
+    /// bit-dependent views do, for the whole block only).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub slip_sized: bool,
 }
 
 impl BlockEstimate {
@@ -116,6 +129,15 @@ impl BlockEstimate {
         if self.refused.is_some() {
             return self.clone();
         }
+        if self.slip_sized {
+            let mut refused = self.clone();
+            refused.refuse(
+                "per-wheel slip: the block's separation bounds its bits together, not a slice \
+                 of them (allowed: slices of blocks without measured slip)"
+                    .to_owned(),
+            );
+            return refused;
+        }
         let largest = separations.iter().flatten().fold(0.0_f64, |m, &x| m.max(x));
         Self {
             separation: equivalent(separations, disclosed, self.epsilon, largest),
@@ -138,6 +160,7 @@ impl BlockEstimate {
             refused: Some(why),
             lag: None,
             slip: None,
+            slip_sized: false,
         }
     }
 }
@@ -211,11 +234,18 @@ pub fn world_block_separations(
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
     let world = WorldModel::of(config);
-    let truth = MotionNoiseEstimate::known(
-        diagonal_covariance(world.process_std),
-        world.process_rho,
-        epsilon,
-    );
+    let q = diagonal_covariance(world.process_std);
+    // The world's slip, where it has any: Eve's view sized with it at its one value.
+    let truth = if world.slip_std > 0.0 {
+        MotionNoiseEstimate::known_with_slip(
+            q,
+            world.process_rho,
+            world.slip_std * world.slip_std,
+            epsilon,
+        )
+    } else {
+        MotionNoiseEstimate::known(q, world.process_rho, epsilon)
+    };
     // Three-step doublets at the world's own lag (its dead time not modelled).
     let lag = config.doublet_settle().map(|_| {
         let share = first_step_share(world.lag, config.robot.sample_time);
@@ -509,6 +539,9 @@ fn size_block(
     lag: Option<&LagEstimate>,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
+    if let Some(points) = &estimate.slip_corners {
+        return size_slip_block(points, config, sessions, disclosed, estimate, lag, epsilon);
+    }
     let lags = lag.map(|lag| (lag.interval, three_step_steps(estimate)));
     let model = doublet_model(config);
     let bits = model.perturbation.key_bits();
@@ -586,25 +619,147 @@ fn size_block(
         }
         separations.push(session_separations);
     }
-    let [point, lower] = estimate.stds();
-    let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);
     let largest = separations.iter().flatten().fold(0.0_f64, |m, &x| m.max(x));
     let separation = equivalent(&separations, disclosed, epsilon, largest);
+    let lag = lag.map(|lag| [lag.point, lag.interval[0], lag.interval[1]]);
     (
         separations,
-        BlockEstimate {
-            doublets: estimate.doublets,
-            point_std_mm: mm(point),
-            lower_std_mm: mm(lower),
-            correlation: estimate.correlation.point,
-            correlation_interval: estimate.correlation.interval,
-            epsilon,
-            separation,
-            largest,
-            refused: None,
-            lag: lag.map(|lag| [lag.point, lag.interval[0], lag.interval[1]]),
-            slip: estimate.slip.map(|slip| slip.stds()),
-        },
+        sized_report(estimate, epsilon, [separation, largest], lag, false),
+    )
+}
+
+/// The report of a block sized from `estimate` at ε_est = `epsilon`: its published
+/// `[separation, largest]`, the lag measured (three-step doublets), whether the slip
+/// measured sized it.
+fn sized_report(
+    estimate: &MotionNoiseEstimate,
+    epsilon: f64,
+    [separation, largest]: [f64; 2],
+    lag: Option<[f64; 3]>,
+    slip_sized: bool,
+) -> BlockEstimate {
+    let [point, lower] = estimate.stds();
+    let mm = |s: [f64; 3]| s.map(|x| 1e3 * x);
+    BlockEstimate {
+        doublets: estimate.doublets,
+        point_std_mm: mm(point),
+        lower_std_mm: mm(lower),
+        correlation: estimate.correlation.point,
+        correlation_interval: estimate.correlation.interval,
+        epsilon,
+        separation,
+        largest,
+        refused: None,
+        lag,
+        slip: estimate.slip.map(|slip| slip.stds()),
+        slip_sized,
+    }
+}
+
+/// A block whose estimate measured per-wheel slip (its `points` of the slip's interval,
+/// `estimate.slip_corners`), sized with
+/// each bit's view through the pair of Gaussians of its two values, each with its own
+/// covariance (docs/estimation.md, "Per-wheel slip"): at each point of the slip's interval
+/// the corner below the whole correlation interval (every cell's `Q_cell` and step weights
+/// at once, [`whole_interval_corner`]), each bit's pairs ([`slip_pairs`]), the bound of
+/// [`paired_smooth_min_entropy`] with `disclosed` bits removed; the least over the points,
+/// published as the smallest Gaussian separation whose bound is no larger
+/// ([`gaussian_separation_within`]). Every bit's entry is that separation. Three-step
+/// doublets under slip are refused, naming it.
+fn size_slip_block(
+    points: &[SlipCorners],
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    disclosed: u64,
+    estimate: &MotionNoiseEstimate,
+    lag: Option<&LagEstimate>,
+    epsilon: f64,
+) -> (Vec<Vec<f64>>, BlockEstimate) {
+    let slip = estimate.slip.map(|s| s.stds());
+    let named = |why: String| {
+        let (separations, mut block) = refused(sessions.len(), why, estimate.doublets, epsilon);
+        block.slip = slip;
+        (separations, block)
+    };
+    if lag.is_some() {
+        return named(
+            "per-wheel slip measured in a block of three-step doublets: Eve's view of them \
+             under slip is not sized (allowed: slip with two-step doublets)"
+                .to_owned(),
+        );
+    }
+    let model = doublet_model(config);
+    let axle = config.robot.axle_length;
+    let bits: usize =
+        sessions.iter().map(|s| s.len()).sum::<usize>() * model.perturbation.key_bits();
+    let mut least = f64::INFINITY;
+    for (i, point) in points.iter().enumerate() {
+        if i > 0 && points[i - 1] == *point {
+            continue; // a known world's one point, repeated
+        }
+        let corner = whole_interval_corner(&point.corners);
+        // Q ⪰ 0 always: where the region's vertex leaves Eve's covariance without a bound
+        // (slip's share of the spread, uncertain, swamps a small Q along the heading), her
+        // view at Q = 0 bounds it.
+        let floor = Corner {
+            motion: nalgebra::Matrix3::zeros(),
+            ..corner
+        };
+        let mut paired: Vec<PairedBit> = Vec::with_capacity(bits);
+        for b in sessions.iter().flat_map(|session| session.iter()) {
+            let view = stated_camera_view(
+                b.samples,
+                config.sensing.controller_std,
+                config.modelled_camera_std(),
+            );
+            let pairs = slip_pairs(&model, &corner, point.variance, axle, &b.inputs, &view)
+                .or_else(|| slip_pairs(&model, &floor, point.variance, axle, &b.inputs, &view));
+            match pairs {
+                Some(pairs) => paired.extend(pairs),
+                None => {
+                    return named(format!(
+                        "per-wheel slip: at σ² = {:.3e} and the region's corner Eve's modelled \
+                         covariance is not positive definite at doublet {} (allowed: a bound \
+                         exists)",
+                        point.variance, b.doublet
+                    ));
+                }
+            }
+        }
+        let kept = (paired.len() as u64).saturating_sub(disclosed);
+        let proxy = (paired
+            .iter()
+            .filter_map(|bit| bit.first())
+            .map(|pair| {
+                pair.coordinates()
+                    .iter()
+                    .map(|c| c.shift * c.shift)
+                    .sum::<f64>()
+            })
+            .sum::<f64>()
+            / paired.len().max(1) as f64)
+            .sqrt();
+        let bound = candidate_lambdas(kept.max(1), proxy, epsilon)
+            .and_then(|lambdas| paired_smooth_min_entropy(&paired, disclosed, epsilon, &lambdas));
+        match bound {
+            Ok(bound) => least = least.min(bound.h_min),
+            Err(why) => return named(format!("per-wheel slip: {why}")),
+        }
+    }
+    let kept = (bits as u64).saturating_sub(disclosed);
+    let largest_micros = (MAX_PUBLISHED_SEPARATION * 1e6) as u64;
+    let separation = match gaussian_separation_within(kept, least, largest_micros, epsilon) {
+        Ok(micros) => {
+            ((micros * 256 / 1_000_000) as f64 * SEPARATION_QUANTUM).min(MAX_PUBLISHED_SEPARATION)
+        }
+        Err(why) => return named(format!("per-wheel slip: {why}")),
+    };
+    (
+        sessions
+            .iter()
+            .map(|session| vec![separation; session.len() * model.perturbation.key_bits()])
+            .collect(),
+        sized_report(estimate, epsilon, [separation; 2], None, true),
     )
 }
 

@@ -261,23 +261,37 @@ pub(in crate::estimate) mod tests {
         }
     }
 
-    /// Slip is measured and named, not taken for a departure: the estimate refuses 5 % and
-    /// 20 % slip (on 4 seeds each) as slip measured, its σ̂ within 20 % of the truth, with
-    /// the text naming the slip and its interval.
+    /// Slip is measured and sized, not taken for a departure: the estimate of 5 % and 20 %
+    /// slip (on 4 seeds each) carries the slip fitted at ε_est/3, σ̂ within 20 % of the truth
+    /// and its interval covering it, with the region's corners at the interval's ends and
+    /// midpoint, the vertex lower at the larger slip; slip beyond the class's range (60 %) is
+    /// refused, naming it.
     #[test]
-    fn slip_is_named_as_slip() {
+    fn slip_is_measured_and_sized() {
         let sensor = diagonal_covariance(SENSOR);
         for slip in [0.05, 0.2] {
             for seed in 0..4 {
                 let data = slipping_residuals(2e-3, slip, 950 + seed);
-                let error = estimate_motion_noise(&data, &sensor, 1e-6).unwrap_err();
-                let EstimationRefusal::SlipMeasured(estimate) = &error else {
-                    panic!("{slip} seed {seed}: {error}");
-                };
-                assert!((estimate.stds()[0] / slip - 1.0).abs() < 0.2, "{error}");
-                assert!(error.to_string().contains("per-wheel slip"), "{error}");
+                let estimate = estimate_motion_noise(&data, &sensor, 1e-6).unwrap();
+                let fit = estimate.slip.unwrap();
+                assert!(fit.measured(), "{slip} seed {seed}: {fit:?}");
+                assert!((fit.stds()[0] / slip - 1.0).abs() < 0.2, "{fit:?}");
+                assert!(fit.stds()[1] <= slip && slip <= fit.stds()[2], "{fit:?}");
+                assert!((estimate.epsilon - 1e-6).abs() < 1e-18);
+                let grid = estimate.slip_corners.unwrap();
+                assert_eq!(grid[0].variance, fit.interval[0].max(0.0));
+                assert_eq!(grid[2].variance, fit.interval[1]);
+                let along = |k: usize| grid[k].corners[0].motion[(0, 0)];
+                assert!(along(2) < along(0), "{slip} seed {seed}");
             }
         }
+        let data = slipping_residuals(2e-3, 0.6, 990);
+        let error = estimate_motion_noise(&data, &sensor, 1e-6).unwrap_err();
+        assert!(
+            matches!(error, EstimationRefusal::SlipBeyondClass(_)),
+            "{error}"
+        );
+        assert!(error.to_string().contains("the class's range"), "{error}");
     }
 
     /// Power beyond slip: a lateral noise growing with the turn rate (0.05 m per rad/s·T,

@@ -8,8 +8,9 @@
 //! (white at ρ = 0), and a controller sensor of stated covariance `R` (its calibration);
 //! with three-step doublets (`private.prior_lag`) a first-order actuator lag τ as well,
 //! measured first (`lag`) and subtracted before `Q` and ρ (`block`). Per-wheel slip is
-//! measured jointly with `Q` (`slip`) and refused by name where the block shows it: Eve's
-//! view of bits whose noise depends on them is not sized yet.
+//! measured jointly with `Q` (`slip`), and where the block shows it Eve's view of each bit is
+//! a pair of Gaussians whose covariances depend on the bit (`worst_case::slip_pairs`), sized
+//! at points of the slip's interval (`motion_noise`, `block`).
 
 pub mod block;
 pub mod commands_check;

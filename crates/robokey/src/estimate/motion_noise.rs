@@ -24,7 +24,19 @@
 //! has a negative eigenvalue: no `Q ⪰ 0` fits, so the calibration `R` is wrong); neighbours
 //! correlated beyond the sensor's MA(1) term (not white); a variance that differs between the
 //! doublets' speed or turn classes beyond what the fitted model explains (`homogeneity`);
-//! per-wheel slip, measured (`slip`) but not yet sized; tails that are not Gaussian.
+//! tails that are not Gaussian; per-wheel slip beyond the class's range.
+//!
+//! **Per-wheel slip, sized.** Where the block measures slip (`slip`, its interval above 0 at
+//! level ε_est), the estimate is made again with ε_est split in three: the correlation's
+//! interval and the Wishart bound at ε_est/3 each, the slip's interval `[σ²_lo, σ²_hi]` at
+//! ε_est/3. The residuals' covariance is then `𝓛ᵢ(Q) + Nᵢ + σ²Mᵢ`, so the region is
+//! `𝓛̄(Q) ⪰ Σ_low − N̄ − σ²M̄` (`M̄` the mean slip map), jointly with σ² in its interval:
+//! the vertex `Q_low(σ²)` falls as σ² rises, while the slip's own part of Eve's view rises —
+//! not one-sided, so the corners are computed at [`SLIP_GRID`] points of σ²'s interval
+//! ([`SlipCorners`]) and Eve's view is sized at each (`worst_case`). The residuals' spread
+//! now differs between doublets (the slip's part follows the wheel speeds): the Wishart count
+//! is deflated by `m·Σv²/(Σv)²` (the largest over the axes, `v` each residual's fitted
+//! variance) and the kurtosis is taken of each residual whitened by its own fitted covariance.
 
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
 use thiserror::Error;
@@ -38,6 +50,7 @@ use super::normal_tail::normal_upper_quantile;
 use super::residual::{AXES, DoubletResidual};
 use super::slip::{SlipEstimate, estimate_slip};
 use super::symmetric_coordinates::{coordinates, symmetric};
+use crate::world::MAX_SLIP_STD;
 
 /// Least residuals of each parity the bounds are computed from.
 pub const MIN_DOUBLETS_PER_PARITY: usize = 100;
@@ -81,10 +94,30 @@ pub struct MotionNoiseEstimate {
     pub corners: [Corner; CORRELATION_CELLS],
     /// The region's failure probability ε_est.
     pub epsilon: f64,
-    /// Per-wheel slip fitted beside `Q` (`slip`); its interval reaches 0 on an estimate that
-    /// is returned (a block that measures slip is refused). None where the block's speeds do
-    /// not identify it, or for a known world.
+    /// Per-wheel slip fitted beside `Q` (`slip`): where the block measures it, the interval
+    /// at ε_est/3 that `slip_corners` cover; otherwise the fit at level ε_est, whose interval
+    /// reaches 0 (the slip that may go unseen). None where the block's speeds do not identify
+    /// it; for a known world, its slip.
     pub slip: Option<SlipEstimate>,
+    /// The region's lower bounds at points of the slip's interval, where the block measures
+    /// slip (Eve's view is then sized at each; a known world's are one point repeated); none
+    /// otherwise, and `corners` size it.
+    pub slip_corners: Option<[SlipCorners; SLIP_GRID]>,
+}
+
+/// Points of the slip variance's interval the region's corners are computed at: its ends and
+/// midpoint (a bound at those points; between them the view's dependence on σ² is taken as
+/// no sharper than at the grid's largest — a stated assumption, not a proof).
+pub const SLIP_GRID: usize = 3;
+
+/// The joint region's lower bounds at one value of the slip variance σ².
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlipCorners {
+    /// σ² (a fraction of each wheel's travel, squared).
+    pub variance: f64,
+    /// The corners with `σ²M̄` subtracted: `Q_low(ρ, σ²) = 𝓛̄_ρ⁻¹(Σ_low − N̄ − σ²M̄)` over each
+    /// cell of the correlation's interval.
+    pub corners: [Corner; CORRELATION_CELLS],
 }
 
 /// Why a block's motion noise could not be bounded: the class does not cover its data.
@@ -169,22 +202,24 @@ pub enum EstimationRefusal {
         limit = .0.limit
     )]
     NotHomogeneous(ClassDeparture),
-    /// Per-wheel slip measured: σ²'s interval lies above 0. Its noise depends on the bits
-    /// (they set the wheels' travel), and Eve's modelled view of such bits is not sized yet.
+    /// Per-wheel slip measured beyond the class's range: σ²'s upper end above
+    /// [`MAX_SLIP_STD`]².
     #[error(
         "motion-noise estimate: per-wheel slip measured: σ̂ = {point:.2} % of each wheel's \
-         travel, interval [{lo:.2} %, {hi:.2} %] at level ε_est (√Q̂ fitted with it \
-         {q0:.3} mm, {q1:.3} mm, {q2:.3} mrad); the slip's noise depends on the bits (they set \
-         the wheels' travel) and a bound on Eve's view of such bits is not implemented: \
-         refused, not sized",
+         travel, interval [{lo:.2} %, {hi:.2} %] at level ε_est/3 (allowed: up to {max:.0} %, \
+         the class's range)",
         point = 100.0 * .0.stds()[0],
         lo = 100.0 * .0.stds()[1],
         hi = 100.0 * .0.stds()[2],
-        q0 = 1e3 * .0.motion[(0, 0)].max(0.0).sqrt(),
-        q1 = 1e3 * .0.motion[(1, 1)].max(0.0).sqrt(),
-        q2 = 1e3 * .0.motion[(2, 2)].max(0.0).sqrt()
+        max = 100.0 * MAX_SLIP_STD
     )]
-    SlipMeasured(SlipEstimate),
+    SlipBeyondClass(SlipEstimate),
+    /// The residuals identify the slip's presence but not its interval at ε_est/3.
+    #[error(
+        "motion-noise estimate: per-wheel slip measured at level ε_est, but the doublets' \
+         speeds leave it unidentified at ε_est/3 (allowed: an identified interval)"
+    )]
+    SlipUnidentified,
     /// Neighbouring doublets' residuals anti-correlated beyond what AR(1) motion noise of
     /// ρ ≥ −½ explains (below −½ the two-step residual cannot identify ρ).
     #[error(
@@ -262,11 +297,23 @@ fn mardia_kurtosis(residuals: &[DoubletResidual], second_moment: &Matrix3<f64>) 
     let Some(inverse) = second_moment.try_inverse() else {
         return 0.0;
     };
-    residuals
-        .iter()
-        .map(|r| r.value.dot(&(inverse * r.value)).powi(2))
-        .sum::<f64>()
-        / residuals.len().max(1) as f64
+    kurtosis_whitened(residuals, |_| Some(inverse))
+}
+
+/// `mean((zᵢᵀWᵢzᵢ)²)` with `Wᵢ = inverse(rᵢ)`, each residual's inverse covariance (0 when one
+/// has none).
+fn kurtosis_whitened(
+    residuals: &[DoubletResidual],
+    inverse: impl Fn(&DoubletResidual) -> Option<Matrix3<f64>>,
+) -> f64 {
+    let mut sum = 0.0;
+    for r in residuals {
+        let Some(w) = inverse(r) else {
+            return 0.0;
+        };
+        sum += r.value.dot(&(w * r.value)).powi(2);
+    }
+    sum / residuals.len().max(1) as f64
 }
 
 /// The two-sided (1 − ε) range of Mardia's b₂ around 15 for n residuals: b₂ is
@@ -302,6 +349,19 @@ pub fn estimate_motion_noise(
     residuals: &[DoubletResidual],
     sensor: &Matrix3<f64>,
     epsilon: f64,
+) -> Result<MotionNoiseEstimate, EstimationRefusal> {
+    region_estimate(residuals, sensor, epsilon, None)
+}
+
+/// [`estimate_motion_noise`] with its region at `epsilon` (the Wishart bound and the
+/// correlation's interval at half of it each); `slip_epsilon`: none to detect slip at level
+/// `epsilon` (a block that measures it is estimated again, ε_est split in three: the module
+/// doc), or the level its interval is sized at.
+fn region_estimate(
+    residuals: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+    epsilon: f64,
+    slip_epsilon: Option<f64>,
 ) -> Result<MotionNoiseEstimate, EstimationRefusal> {
     if !(epsilon > 0.0 && epsilon < 1.0) {
         return Err(EstimationRefusal::Epsilon(epsilon));
@@ -387,24 +447,90 @@ pub fn estimate_motion_noise(
     let deflation = parity_inflation_for(rho_lo.abs().max(rho_hi.abs()), steps);
     let all = second_moment(residuals.iter()).1;
     let point = solve(all, correlation.point)?;
-    let low_moment = weighted(1.0, deflation);
     let upper = highest(rho_lo)?;
     let cells = correlation_cells(correlation.interval);
-    let vertices = cells
-        .iter()
-        .map(|&[a, b]| Ok([solve(low_moment, a)?, solve(low_moment, b)?]))
-        .collect::<Result<Vec<[Matrix3<f64>; 2]>, EstimationRefusal>>()?;
-    let corners: [Corner; CORRELATION_CELLS] = std::array::from_fn(|i| Corner {
-        correlation: cells[i],
-        motion: loewner_below_both(&vertices[i][0], &vertices[i][1]),
-        step_weights: step_weights(cells[i]),
+    // Slip: detected at level ε_est (where the block measures it, estimated again with ε_est
+    // split in three), or sized at its share. The homogeneity test is against the joint fit
+    // where slip is measured (departures beyond slip are refused as such), otherwise against
+    // the white fit, as without slip.
+    let slip_fit = estimate_slip(
+        residuals,
+        sensor,
+        correlation.point,
+        slip_epsilon.unwrap_or(epsilon),
+    );
+    if slip_epsilon.is_none() && slip_fit.is_some_and(|s| s.measured()) {
+        return region_estimate(residuals, sensor, 2.0 * epsilon / 3.0, Some(epsilon / 3.0));
+    }
+    let slip = match (slip_epsilon, slip_fit) {
+        (None, _) => None,
+        (Some(_), None) => return Err(EstimationRefusal::SlipUnidentified),
+        (Some(_), Some(fit)) if fit.stds()[2] > MAX_SLIP_STD => {
+            return Err(EstimationRefusal::SlipBeyondClass(fit));
+        }
+        (Some(_), Some(fit)) => Some(fit),
+    };
+    let fitted = |r: &DoubletResidual, s: &SlipEstimate| {
+        r.motion_part(&s.motion, correlation.point) + r.sensor_part(sensor) + r.slip_part(s.point)
+    };
+    let spread = slip.map_or(1.0, |s| {
+        heterogeneity_deflation(residuals, |r| fitted(r, &s))
     });
-    let lower = vertices[CORRELATION_CELLS - 1][1];
-    // Slip at level ε_est: where the block measures it, the homogeneity test is against the
-    // joint fit (departures beyond slip are refused as such), and then the slip is refused
-    // by name; otherwise against the white fit, as without slip.
-    let slip_fit = estimate_slip(residuals, sensor, correlation.point, epsilon);
-    let slip = slip_fit.filter(SlipEstimate::measured);
+    let low_moment = weighted(1.0, deflation * spread);
+    let vertices_at = |variance: f64| {
+        let slip_mean: Matrix3<f64> = residuals
+            .iter()
+            .map(|r| r.slip_part(variance))
+            .sum::<Matrix3<f64>>()
+            / n;
+        cells
+            .iter()
+            .map(|&[a, b]| {
+                Ok([
+                    solve(low_moment - slip_mean, a)?,
+                    solve(low_moment - slip_mean, b)?,
+                ])
+            })
+            .collect::<Result<Vec<[Matrix3<f64>; 2]>, EstimationRefusal>>()
+    };
+    let corners_of = |vertices: &[[Matrix3<f64>; 2]]| -> [Corner; CORRELATION_CELLS] {
+        std::array::from_fn(|i| Corner {
+            correlation: cells[i],
+            motion: loewner_below_both(&vertices[i][0], &vertices[i][1]),
+            step_weights: step_weights(cells[i]),
+        })
+    };
+    let (corners, lower, slip_corners) = match slip {
+        None => {
+            let vertices = cells
+                .iter()
+                .map(|&[a, b]| Ok([solve(low_moment, a)?, solve(low_moment, b)?]))
+                .collect::<Result<Vec<[Matrix3<f64>; 2]>, EstimationRefusal>>()?;
+            (
+                corners_of(&vertices),
+                vertices[CORRELATION_CELLS - 1][1],
+                None,
+            )
+        }
+        Some(s) => {
+            let [low, high] = s.interval.map(|v| v.max(0.0));
+            let grid = (0..SLIP_GRID)
+                .map(|i| {
+                    let variance = low + (high - low) * i as f64 / (SLIP_GRID - 1) as f64;
+                    Ok(SlipCorners {
+                        variance,
+                        corners: corners_of(&vertices_at(variance)?),
+                    })
+                })
+                .collect::<Result<Vec<SlipCorners>, EstimationRefusal>>()?;
+            let highest_slip = vertices_at(high)?;
+            (
+                grid[SLIP_GRID - 1].corners,
+                highest_slip[CORRELATION_CELLS - 1][1],
+                Some(std::array::from_fn(|i| grid[i])),
+            )
+        }
+    };
     let (tested, slip_variance) = slip.map_or((point, 0.0), |s| (s.motion, s.point));
     if let Some(departure) = speed_class_departure(
         residuals,
@@ -417,10 +543,10 @@ pub fn estimate_motion_noise(
     ) {
         return Err(EstimationRefusal::NotHomogeneous(departure));
     }
-    if let Some(slip) = slip {
-        return Err(EstimationRefusal::SlipMeasured(slip));
-    }
-    let kurtosis = mardia_kurtosis(residuals, &all);
+    let kurtosis = match slip {
+        None => mardia_kurtosis(residuals, &all),
+        Some(s) => kurtosis_whitened(residuals, |r| fitted(r, &s).try_inverse()),
+    };
     let tolerance = kurtosis_tolerance(residuals.len(), epsilon, inflation);
     if (kurtosis - GAUSSIAN_KURTOSIS).abs() > tolerance {
         return Err(EstimationRefusal::NotGaussian {
@@ -435,9 +561,34 @@ pub fn estimate_motion_noise(
         lower,
         upper,
         corners,
-        epsilon,
+        epsilon: epsilon + slip_epsilon.unwrap_or(0.0),
         slip: slip_fit,
+        slip_corners,
     })
+}
+
+/// How much heteroscedastic residuals deflate the Wishart count: `m·Σvᵢ²/(Σvᵢ)²` (≥ 1), the
+/// largest over the three axes, `vᵢ` the axis's entry of residual i's covariance
+/// `covariance(rᵢ)` — for one axis exactly the variance ratio of a sum of squares of
+/// independent Gaussians with spreads `vᵢ` to one of equal spreads; applied to the matrix
+/// bound as an effective count (a stated approximation, not a proof).
+fn heterogeneity_deflation(
+    residuals: &[DoubletResidual],
+    covariance: impl Fn(&DoubletResidual) -> Matrix3<f64>,
+) -> f64 {
+    let m = residuals.len() as f64;
+    let (mut sum, mut squares) = ([0.0; 3], [0.0; 3]);
+    for r in residuals {
+        let c = covariance(r);
+        for k in 0..3 {
+            sum[k] += c[(k, k)];
+            squares[k] += c[(k, k)] * c[(k, k)];
+        }
+    }
+    (0..3)
+        .map(|k| m * squares[k] / (sum[k] * sum[k]))
+        .filter(|x| x.is_finite())
+        .fold(1.0, f64::max)
 }
 
 /// The correlation's interval cut into [`CORRELATION_CELLS`] equal cells.
@@ -450,7 +601,7 @@ fn correlation_cells([lo, hi]: [f64; 2]) -> [[f64; 2]; CORRELATION_CELLS] {
 /// negative part of `M` (so it equals `a − [a − b]₊` too). With `𝓛̄_ρ ≈ 2(1 + ρ)·id`,
 /// `Q_low(ρ)` moves monotonically between a cell's ends along each eigenvector of
 /// `Σ_low − N̄`, so this bounds it over the whole cell.
-fn loewner_below_both(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<f64> {
+pub(crate) fn loewner_below_both(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<f64> {
     let eigen = SymmetricEigen::new(a - b);
     let negative = eigen.eigenvalues.map(|x| x.min(0.0));
     b + eigen.eigenvectors * Matrix3::from_diagonal(&negative) * eigen.eigenvectors.transpose()
@@ -508,6 +659,28 @@ impl MotionNoiseEstimate {
             }; CORRELATION_CELLS],
             epsilon,
             slip: None,
+            slip_corners: None,
+        }
+    }
+
+    /// [`Self::known`] with per-wheel slip of known variance `slip_variance` (σ²): the
+    /// region's corners at the truth, sized with the slip at that one point.
+    #[must_use]
+    pub fn known_with_slip(q: Matrix3<f64>, rho: f64, slip_variance: f64, epsilon: f64) -> Self {
+        let known = Self::known(q, rho, epsilon);
+        Self {
+            slip: Some(SlipEstimate {
+                point: slip_variance,
+                interval: [slip_variance; 2],
+                motion: q,
+            }),
+            slip_corners: Some(
+                [SlipCorners {
+                    variance: slip_variance,
+                    corners: known.corners,
+                }; SLIP_GRID],
+            ),
+            ..known
         }
     }
 

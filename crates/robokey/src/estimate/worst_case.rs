@@ -68,8 +68,10 @@ use nalgebra::{
     Cholesky, DMatrix, DVector, Matrix3, Matrix6, SMatrix, SymmetricEigen, Vector3, Vector6,
 };
 
-use super::motion_noise::{Corner, MotionNoiseEstimate};
-use super::residual::rotation;
+use super::motion_noise::{Corner, MotionNoiseEstimate, loewner_below_both};
+use robokey_secrecy::covariance_pair::{Coordinate, CovariancePair, PairedBit};
+
+use super::residual::{rotation, step_slip_covariance};
 use crate::model::{Pose, Unicycle};
 use crate::private::doublet::MAX_BITS;
 use crate::private::likelihood::{
@@ -114,6 +116,38 @@ pub fn worst_case_separations(
             let d = corner_separations(model, corner, inputs, view)?;
             Some(std::array::from_fn(|i| largest[i].max(d[i])))
         })
+}
+
+/// One corner below every corner of `corners` (the cells of one correlation interval): `Q`
+/// below each cell's (`loewner_below_both` folded), and the step weights whose eigenvalues
+/// `λ± = α ± β` (eigenvectors `(1, ±1)`, shared by every cell) are the least, and the
+/// greatest, over the cells. With `Q = P₊ − P₋`, `P₊ ⊗ C_least − P₋ ⊗ C_greatest` lies below
+/// every cell's own, hence below the steps' conditional covariance at every ρ of the
+/// interval: one view, sharper than every cell's, for a sizing that is costly per corner
+/// (per-wheel slip).
+#[must_use]
+pub fn whole_interval_corner(corners: &[Corner]) -> Corner {
+    let eigenvalues = |[alpha, beta]: [f64; 2]| [alpha + beta, alpha - beta];
+    let weights = |[plus, minus]: [f64; 2]| [0.5 * (plus + minus), 0.5 * (plus - minus)];
+    let first = corners[0];
+    corners.iter().skip(1).fold(first, |low, c| {
+        let [least, other_least] = [low.step_weights[0], c.step_weights[0]].map(eigenvalues);
+        let [greatest, other_greatest] = [low.step_weights[1], c.step_weights[1]].map(eigenvalues);
+        Corner {
+            correlation: [
+                low.correlation[0].min(c.correlation[0]),
+                low.correlation[1].max(c.correlation[1]),
+            ],
+            motion: loewner_below_both(&low.motion, &c.motion),
+            step_weights: [
+                weights([least[0].min(other_least[0]), least[1].min(other_least[1])]),
+                weights([
+                    greatest[0].max(other_greatest[0]),
+                    greatest[1].max(other_greatest[1]),
+                ]),
+            ],
+        }
+    })
 }
 
 /// Points of the grid over the lag's interval Eve's view is first sized at.
@@ -488,6 +522,35 @@ fn corner_separations(
     inputs: &DoubletInputs,
     view: &DoubletView,
 ) -> Option<[f64; MAX_BITS]> {
+    // Every pattern's prediction once (a multilevel doublet's up to 64 patterns meet in
+    // many pairs); the pairs as the configured sizing takes them ([`separations_by`]: each
+    // bit with the rest of its doublet's bits known, the larger over their values).
+    let predictions: Vec<_> = corner_predictions(model, corner, None, inputs, view)?
+        .into_iter()
+        .map(|(mean, s)| (mean, Cholesky::new(s)))
+        .collect();
+    if predictions.iter().any(|(_, s)| s.is_none()) {
+        return None;
+    }
+    Some(separations_by(&model.perturbation, |a, b| {
+        let (mean_a, s) = &predictions[a];
+        let d = predictions[b].0 - mean_a;
+        s.as_ref().map_or(0.0, |c| c.solve(&d).dot(&d).sqrt())
+    }))
+}
+
+/// Eve's predicted observation of the doublet's middle and end, and its covariance `S`, under
+/// each pattern, at `corner` (the module doc); with `slip = Some((σ², D))` each step's
+/// per-wheel slip as well, `σ²·R(θ)·Wₖ·R(θ)ᵀ` (`Wₖ` [`step_slip_covariance`] at the step's
+/// applied speeds under the pattern, wheels `D` apart, at the step's start heading θ): the
+/// bit then moves the covariance too. `None` without a middle and an end in her view.
+fn corner_predictions(
+    model: &DoubletModel,
+    corner: &Corner,
+    slip: Option<(f64, f64)>,
+    inputs: &DoubletInputs,
+    view: &DoubletView,
+) -> Option<Vec<(Vector6<f64>, Matrix6<f64>)>> {
     let (Some(middle), Some(end)) = (&view.middle, &view.end) else {
         return None;
     };
@@ -512,10 +575,27 @@ fn corner_separations(
         let [m1, m2, _] = inputs.propagate_steps(&start.value, offsets, 2, t);
         let a0 = state_jacobian(start.value.z, a.x, t);
         let a1 = state_jacobian(m1.z, b.x, t);
+        let [slip_first, slip_second] = match slip {
+            None => [Matrix3::zeros(); 2],
+            Some((variance, axle)) => [(a, start.value.z), (b, m1.z)].map(|(u, heading)| {
+                let r = rotation(heading);
+                variance * r * step_slip_covariance(&u, t, axle) * r.transpose()
+            }),
+        };
         let c11 = a0 * start.covariance * a0.transpose() + own;
+        let c11 = if slip.is_some() {
+            c11 + slip_first
+        } else {
+            c11
+        };
         let c12 = c11 * a1.transpose() + across;
         let c22 =
             a1 * c11 * a1.transpose() + a1 * across + across.transpose() * a1.transpose() + own;
+        let c22 = if slip.is_some() {
+            c22 + slip_second
+        } else {
+            c22
+        };
         let mut s = Matrix6::zeros();
         s.fixed_view_mut::<3, 3>(0, 0)
             .copy_from(&(c11 + middle.covariance));
@@ -526,20 +606,48 @@ fn corner_separations(
         let mut mean = Vector6::zeros();
         mean.fixed_rows_mut::<3>(0).copy_from(&m1);
         mean.fixed_rows_mut::<3>(3).copy_from(&m2);
-        (mean, Cholesky::new(s))
+        (mean, s)
     };
-    // Every pattern's prediction once (a multilevel doublet's up to 64 patterns meet in
-    // many pairs); the pairs as the configured sizing takes them ([`separations_by`]: each
-    // bit with the rest of its doublet's bits known, the larger over their values).
-    let predictions: Vec<_> = (0..model.perturbation.patterns()).map(predict).collect();
-    if predictions.iter().any(|(_, s)| s.is_none()) {
-        return None;
-    }
-    Some(separations_by(&model.perturbation, |a, b| {
-        let (mean_a, s) = &predictions[a];
-        let d = predictions[b].0 - mean_a;
-        s.as_ref().map_or(0.0, |c| c.solve(&d).dot(&d).sqrt())
-    }))
+    Some((0..model.perturbation.patterns()).map(predict).collect())
+}
+
+/// Each key bit's view of the doublet under per-wheel slip of variance `slip_variance` (σ²)
+/// at `corner`, on wheels `axle` D (m) apart: for each value of the doublet's other bits
+/// (given to Eve, as `separations_by` takes them), the pair of her Gaussian views of the
+/// bit's two values, each with its own covariance (`corner_predictions`), diagonalised
+/// together ([`CovariancePair`]: whitened by the first value's `S`, rotated onto the
+/// eigenvectors of the second's). `None` where a covariance is not positive definite (no
+/// bound exists at the corner).
+#[must_use]
+pub fn slip_pairs(
+    model: &DoubletModel,
+    corner: &Corner,
+    slip_variance: f64,
+    axle: f64,
+    inputs: &DoubletInputs,
+    view: &DoubletView,
+) -> Option<Vec<PairedBit>> {
+    let predictions = corner_predictions(model, corner, Some((slip_variance, axle)), inputs, view)?;
+    let patterns = model.perturbation.patterns();
+    (0..model.perturbation.key_bits())
+        .map(|i| {
+            (0..patterns)
+                .filter(|p| p >> i & 1 == 0)
+                .map(|p| {
+                    let (mean_a, s_a) = &predictions[p];
+                    let (mean_b, s_b) = &predictions[p | 1 << i];
+                    let root = Cholesky::new(*s_a)?.l().try_inverse()?;
+                    let eigen = SymmetricEigen::new(root * s_b * root.transpose());
+                    let shift = eigen.eigenvectors.transpose() * root * (mean_b - mean_a);
+                    CovariancePair::new((0..6).map(|k| Coordinate {
+                        shift: shift[k],
+                        variance: eigen.eigenvalues[k],
+                    }))
+                    .ok()
+                })
+                .collect::<Option<PairedBit>>()
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -1,0 +1,539 @@
+//! A bit seen through a Gaussian observation whose covariance depends on the bit
+//! (docs/secrecy.md, "Bit-dependent covariance"): per-wheel slip, whose noise grows with the
+//! wheel speeds the bit sets.
+//!
+//! Under one value of the bit Eve's observation is `N(μ₀, Σ₀)`, under the other
+//! `N(μ₁, Σ₁)`. Whitened by `Σ₀` and rotated onto the eigenvectors of `Σ₀^(−½)Σ₁Σ₀^(−½)`
+//! (the caller's linear algebra), the pair is a set of independent coordinates, `N(0, 1)`
+//! under the first value and `N(m_k, v_k)` under the second ([`Coordinate`]). Her
+//! log-likelihood ratio `L` in favour of the true bit is a quadratic form, not Gaussian; what
+//! the min-entropy bound ([`crate::view_profile`]) needs of her surprisal
+//! `S = log₂(1 + e^(−L))` is its moment `E[e^(−λS)] = E[(1 + e^(−L))^(−μ)]`, `μ = λ/ln 2`.
+//!
+//! **The moment as one integral.** For `0 < Re s < μ`,
+//! `∫₀^∞ u^(s−1)(1 + u)^(−μ) du = B(s, μ − s)`; inverted at `u = e^(−L)`,
+//! `(1 + e^(−L))^(−μ) = (1/2πi)∫_(c−i∞)^(c+i∞) B(s, μ − s)·e^(sL) ds`, so
+//! `E_t[(1 + e^(−L))^(−μ)] = (1/π)∫₀^∞ Re[B(c + iω, μ − c − iω)·K_t(c + iω)] dω`, where
+//! `K_t(s) = E_t[e^(sL)] = ∫p_t^(1+s)·p_o^(−s)` is the pair's Chernoff coefficient at
+//! `α = 1 + s` (`t` the true value, `o` the other), closed form for Gaussians: per coordinate
+//! with true `(m_t, v_t)`, other `(m_o, v_o)` and `w = (1 + s)·v_o − s·v_t`,
+//! `ln K = −½·[ln w − (1 + s)·ln v_o + s·ln v_t] + ½·s(1 + s)·(m_t − m_o)²/w` (the Mahalanobis
+//! term under `(1 + s)Σ_o − sΣ_t` and the log-determinant ratio), analytic where `Re w > 0`.
+//! Equal variances give `K = e^(s(1+s)d²/2)`: the consistent Gaussian `L ~ N(d²/2, d²)`.
+//!
+//! **Numerics.** `c` is the integrand's saddle on the real axis (its least there, found by a
+//! golden-section search inside the strip where every `Re w > 0`), which keeps the integral
+//! free of cancellation; the integrand falls as `e^(−πω)` and peaks over a width of at most
+//! `c`, so it is a trapezoid sum over `ω = κ·sinh(u)` (`κ` the smaller of `c`, `μ − c` and the
+//! saddle's width), to `ω = max(30, 60·width)`. Checked against the Gaussian quadrature of
+//! [`crate::gaussian_llr`] and against direct integration in one and two dimensions (tests,
+//! |Δ ln E| < 10⁻⁹ for λ ≤ [`LARGEST_LAMBDA`]).
+
+use serde::{Deserialize, Serialize};
+
+use crate::min_entropy::{MinEntropyError, check_epsilon};
+use crate::special::{LANCZOS_COEFFICIENTS, LANCZOS_G};
+use crate::view_profile::BitView;
+
+/// The largest Chernoff parameter λ the moment is evaluated at (checked up to it).
+pub const LARGEST_LAMBDA: f64 = 10.0;
+
+/// The smallest Chernoff parameter λ tried.
+const SMALLEST_LAMBDA: f64 = 1e-4;
+
+/// One coordinate of a pair of Gaussian hypotheses diagonalised together: `N(0, 1)` under
+/// the bit's first value, `N(shift, variance)` under its second.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Coordinate {
+    /// The second value's mean, in units of the first's spread.
+    pub shift: f64,
+    /// The second value's variance over the first's, > 0.
+    pub variance: f64,
+}
+
+/// A bit's view through a pair of Gaussian hypotheses with their own covariances: the
+/// independent coordinates of the pair diagonalised together (module doc).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CovariancePair {
+    coordinates: Vec<Coordinate>,
+}
+
+impl CovariancePair {
+    /// The pair of its `coordinates`; those that tell nothing (shift 0, variance 1) are
+    /// dropped.
+    ///
+    /// # Errors
+    /// [`MinEntropyError::InvalidSeparation`] for a shift that is not finite,
+    /// [`MinEntropyError::InvalidNoise`] for a variance that is not positive and finite.
+    pub fn new(coordinates: impl IntoIterator<Item = Coordinate>) -> Result<Self, MinEntropyError> {
+        let mut kept = Vec::new();
+        for c in coordinates {
+            if !c.shift.is_finite() {
+                return Err(MinEntropyError::InvalidSeparation(c.shift));
+            }
+            if !(c.variance > 0.0 && c.variance.is_finite()) {
+                return Err(MinEntropyError::InvalidNoise(c.variance));
+            }
+            if c.shift != 0.0 || c.variance != 1.0 {
+                kept.push(c);
+            }
+        }
+        Ok(Self { coordinates: kept })
+    }
+
+    /// The coordinates kept.
+    #[must_use]
+    pub fn coordinates(&self) -> &[Coordinate] {
+        &self.coordinates
+    }
+
+    /// `ln E[e^(−λS)]` over the uniform bit (both values true in turn), `0 < λ ≤`
+    /// [`LARGEST_LAMBDA`]: the Bromwich integral of the module doc. A pair of equal
+    /// variances is the consistent Gaussian view, computed as
+    /// [`crate::view_profile::BitView::Gaussian`] computes it.
+    #[must_use]
+    pub fn ln_moment(&self, lambda: f64) -> f64 {
+        if self.coordinates.is_empty() {
+            return -lambda;
+        }
+        if self.coordinates.iter().all(|c| c.variance == 1.0) {
+            let d2: f64 = self.coordinates.iter().map(|c| c.shift * c.shift).sum();
+            return BitView::Gaussian {
+                separation: d2.sqrt(),
+            }
+            .ln_moment(lambda);
+        }
+        let mu = lambda / std::f64::consts::LN_2;
+        // The strip where every coordinate's `Re w > 0` under either value true.
+        let strip = self
+            .coordinates
+            .iter()
+            .map(|c| {
+                let v = c.variance;
+                if v < 1.0 {
+                    v / (1.0 - v)
+                } else if v > 1.0 {
+                    1.0 / (v - 1.0)
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .fold(mu, f64::min);
+        let on_axis = |c: f64| self.ln_integrand(Complex::real(c), mu).re;
+        let (mut a, mut b) = (1e-9 * strip, (1.0 - 1e-9) * strip);
+        let ratio = (5f64.sqrt() - 1.0) / 2.0;
+        for _ in 0..40 {
+            let (x1, x2) = (b - ratio * (b - a), a + ratio * (b - a));
+            if on_axis(x1) < on_axis(x2) {
+                b = x2;
+            } else {
+                a = x1;
+            }
+        }
+        let c = 0.5 * (a + b);
+        let e = 1e-4 * c.min(strip - c);
+        let curvature = (on_axis(c + e) - 2.0 * on_axis(c) + on_axis(c - e)) / (e * e);
+        let width = if curvature > 0.0 {
+            curvature.sqrt().recip()
+        } else {
+            c
+        };
+        let scale = c.min(mu - c).min(width);
+        let reach = 30f64.max(60.0 * width);
+        let end = (reach / scale).asinh();
+        let steps = (end / TRAPEZOID_STEP).ceil().max(1.0);
+        let h = end / steps;
+        let steps = steps as usize;
+        let sum: f64 = (0..=steps)
+            .map(|k| {
+                let u = h * k as f64;
+                let omega = scale * u.sinh();
+                let weight = if k == 0 || k == steps { 0.5 } else { 1.0 };
+                weight * scale * u.cosh() * self.ln_integrand(Complex::new(c, omega), mu).exp().re
+            })
+            .sum();
+        (sum * h / std::f64::consts::PI).ln()
+    }
+
+    /// `ln[B(s, μ − s)·½(K₀(s) + K₁(s))]` (module doc; `K_b` with value `b` true).
+    fn ln_integrand(&self, s: Complex, mu: f64) -> Complex {
+        let beta = ln_gamma(s) + ln_gamma(Complex::real(mu) - s) - ln_gamma(Complex::real(mu));
+        let one = Complex::real(1.0);
+        let (mut first, mut second) = (Complex::real(0.0), Complex::real(0.0));
+        for c in &self.coordinates {
+            let ln_v = c.variance.ln();
+            let gap = s * (s + one) * (0.5 * c.shift * c.shift);
+            // First value true: v_t = 1, v_o = v.
+            let w = (s + one) * c.variance - s;
+            first = first + gap / w - (w.ln() - (s + one) * ln_v) * 0.5;
+            // Second value true: v_t = v, v_o = 1.
+            let w = (s + one) - s * c.variance;
+            second = second + gap / w - (w.ln() + s * ln_v) * 0.5;
+        }
+        // ln(½(e^first + e^second)), the larger factored out.
+        let (high, low) = if first.re >= second.re {
+            (first, second)
+        } else {
+            (second, first)
+        };
+        beta + high + ((low - high).exp() + one).ln() - Complex::real(std::f64::consts::LN_2)
+    }
+}
+
+/// Step of the trapezoid sum in `u` (`ω = κ·sinh(u)`).
+const TRAPEZOID_STEP: f64 = 0.06;
+
+/// A bit of a block seen through covariance pairs: one per value of its doublet's other bits
+/// (given to Eve), the most informative of them at each λ.
+pub type PairedBit = Vec<CovariancePair>;
+
+/// `−ln E[e^(−λS)]` of `bit`: the least over its pairs (no pair: Eve sees nothing, `λ`).
+fn surprisal_exponent(bit: &PairedBit, lambda: f64) -> f64 {
+    bit.iter()
+        .map(|pair| -pair.ln_moment(lambda))
+        .fold(f64::INFINITY, f64::min)
+        .min(lambda)
+}
+
+/// The bound of [`paired_smooth_min_entropy`] and where it was reached.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PairedMinEntropy {
+    /// Bits kept (those of the block less the removed ones).
+    pub positions: u64,
+    /// The Chernoff parameter λ that attains the bound.
+    pub lambda: f64,
+    /// `H_min^ε ≥ t` (bits), `[0, positions]`.
+    pub h_min: f64,
+}
+
+/// `H_min^ε(X|E) ≥ t` for `bits` seen through covariance pairs (their surprisals
+/// independent, as under the genie view), `removed` of them taken away — at each λ the ones
+/// whose `−ln E[e^(−λS)]` is largest, the worst choice: `t = max_λ (Σ_kept −ln E_i[e^(−λS)] −
+/// ln(1/ε))/λ` over the `lambdas` given (each in (0, [`LARGEST_LAMBDA`]]; every λ gives a
+/// bound, the choice only sharpens it: [`candidate_lambdas`]).
+///
+/// # Errors
+/// [`MinEntropyError::InvalidEpsilon`] for ε outside (0, 1).
+pub fn paired_smooth_min_entropy(
+    bits: &[PairedBit],
+    removed: u64,
+    epsilon: f64,
+    lambdas: &[f64],
+) -> Result<PairedMinEntropy, MinEntropyError> {
+    check_epsilon(epsilon)?;
+    let removed = usize::try_from(removed)
+        .unwrap_or(usize::MAX)
+        .min(bits.len());
+    let positions = (bits.len() - removed) as u64;
+    let ln_inv_eps = -epsilon.ln();
+    let bound_at = |lambda: f64| {
+        let mut exponents: Vec<f64> = bits
+            .iter()
+            .map(|bit| surprisal_exponent(bit, lambda))
+            .collect();
+        exponents.sort_by(f64::total_cmp);
+        let kept: f64 = exponents[..exponents.len() - removed].iter().sum();
+        let t = (kept - ln_inv_eps) / lambda;
+        if t.is_finite() { t } else { f64::NEG_INFINITY }
+    };
+    let (lambda, t) = lambdas
+        .iter()
+        .filter(|&&l| l > 0.0 && l <= LARGEST_LAMBDA)
+        .map(|&l| (l, bound_at(l)))
+        .fold((0.0, f64::NEG_INFINITY), |best, x| {
+            if x.1 > best.1 { x } else { best }
+        });
+    Ok(PairedMinEntropy {
+        positions,
+        lambda,
+        h_min: t.clamp(0.0, positions as f64),
+    })
+}
+
+/// Chernoff parameters worth trying for `n` bits of views near separation `d`: the λ that
+/// attains [`crate::view_profile::gaussian_llr_smooth_min_entropy`]'s bound there, and that λ
+/// times 2^(±½), 2^(±1) (within `[10⁻⁴, LARGEST_LAMBDA]`).
+///
+/// # Errors
+/// [`MinEntropyError`] for ε outside (0, 1) or a separation that is negative or not finite.
+pub fn candidate_lambdas(n: u64, d: f64, epsilon: f64) -> Result<Vec<f64>, MinEntropyError> {
+    let centre = crate::view_profile::gaussian_llr_smooth_min_entropy(n, d, epsilon)?.lambda;
+    Ok([-1.0, -0.5, 0.0, 0.5, 1.0]
+        .iter()
+        .map(|&e| (centre * 2f64.powf(e)).clamp(SMALLEST_LAMBDA, LARGEST_LAMBDA))
+        .collect())
+}
+
+/// A complex number, for the Bromwich integral.
+#[derive(Debug, Clone, Copy)]
+struct Complex {
+    re: f64,
+    im: f64,
+}
+
+impl Complex {
+    fn new(re: f64, im: f64) -> Self {
+        Self { re, im }
+    }
+
+    fn real(re: f64) -> Self {
+        Self { re, im: 0.0 }
+    }
+
+    /// The principal logarithm.
+    fn ln(self) -> Self {
+        Self::new(self.re.hypot(self.im).ln(), self.im.atan2(self.re))
+    }
+
+    fn exp(self) -> Self {
+        let r = self.re.exp();
+        Self::new(r * self.im.cos(), r * self.im.sin())
+    }
+}
+
+impl std::ops::Add for Complex {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self::new(self.re + o.re, self.im + o.im)
+    }
+}
+
+impl std::ops::Sub for Complex {
+    type Output = Self;
+    fn sub(self, o: Self) -> Self {
+        Self::new(self.re - o.re, self.im - o.im)
+    }
+}
+
+impl std::ops::Mul for Complex {
+    type Output = Self;
+    fn mul(self, o: Self) -> Self {
+        Self::new(
+            self.re * o.re - self.im * o.im,
+            self.re * o.im + self.im * o.re,
+        )
+    }
+}
+
+impl std::ops::Mul<f64> for Complex {
+    type Output = Self;
+    fn mul(self, k: f64) -> Self {
+        Self::new(self.re * k, self.im * k)
+    }
+}
+
+impl std::ops::Div for Complex {
+    type Output = Self;
+    fn div(self, o: Self) -> Self {
+        let n = o.re * o.re + o.im * o.im;
+        Self::new(
+            (self.re * o.re + self.im * o.im) / n,
+            (self.im * o.re - self.re * o.im) / n,
+        )
+    }
+}
+
+/// ln Γ(z) for `Re z > 0` (Lanczos, g = 7, the coefficients of [`crate::special`]; below
+/// `Re z = ½` through Γ(z) = Γ(z + 1)/z), up to a multiple of 2πi (the integrand is
+/// exponentiated).
+fn ln_gamma(z: Complex) -> Complex {
+    if z.re < 0.5 {
+        return ln_gamma(z + Complex::real(1.0)) - z.ln();
+    }
+    let x = z - Complex::real(1.0);
+    let mut series = Complex::real(LANCZOS_COEFFICIENTS[0]);
+    for (i, &c) in LANCZOS_COEFFICIENTS.iter().enumerate().skip(1) {
+        series = series + Complex::real(c) / (x + Complex::real(i as f64));
+    }
+    let t = x + Complex::real(LANCZOS_G + 0.5);
+    Complex::real(0.5 * (2.0 * std::f64::consts::PI).ln()) + (x + Complex::real(0.5)) * t.ln() - t
+        + series.ln()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pair(coordinates: &[(f64, f64)]) -> CovariancePair {
+        CovariancePair::new(
+            coordinates
+                .iter()
+                .map(|&(shift, variance)| Coordinate { shift, variance }),
+        )
+        .unwrap()
+    }
+
+    /// The complex ln Γ agrees with the real one on the axis and with Γ(z + 1) = z·Γ(z).
+    #[test]
+    fn complex_ln_gamma_is_gamma() {
+        for x in [0.01, 0.3, 1.0, 2.5, 17.0] {
+            let real = crate::special::ln_gamma(x).unwrap();
+            assert!((ln_gamma(Complex::real(x)).re - real).abs() < 1e-12, "{x}");
+        }
+        for (re, im) in [(0.2, 0.7), (1.3, -4.0), (0.01, 25.0)] {
+            let z = Complex::new(re, im);
+            let step = ln_gamma(z + Complex::real(1.0)) - ln_gamma(z) - z.ln();
+            let wrapped = step.im.rem_euclid(2.0 * std::f64::consts::PI);
+            assert!(step.re.abs() < 1e-11, "{re} {im}: {step:?}");
+            assert!(
+                wrapped.min(2.0 * std::f64::consts::PI - wrapped) < 1e-10,
+                "{re} {im}: {step:?}"
+            );
+        }
+    }
+
+    /// The Bromwich integral of a pair whose variances are equal but handled as unequal (a
+    /// coordinate of variance 1 beside one of variance 1 + 10⁻⁹) is the Gaussian view's
+    /// quadrature; one unequal coordinate is [`BitView::UnequalNoise`]'s quadrature.
+    #[test]
+    fn the_integral_matches_the_one_dimensional_quadratures() {
+        for d in [0.05, 0.3, 1.0, 2.0, 4.0, 8.0] {
+            for lambda in [1e-4, 0.01, 0.05, 0.5, 3.0, LARGEST_LAMBDA] {
+                let integral = pair(&[(d, 1.0), (0.0, 1.0 + 1e-9)]).ln_moment(lambda);
+                let gaussian = BitView::Gaussian { separation: d }.ln_moment(lambda);
+                assert!(
+                    (integral - gaussian).abs() < 1e-9,
+                    "d {d} λ {lambda}: {integral} vs {gaussian}"
+                );
+            }
+        }
+        for (gap, variance) in [(1.0, 2.0), (0.5, 0.3), (2.5, 4.0), (0.0, 6.0), (3.0, 0.2)] {
+            for lambda in [1e-3, 0.05, 0.5, 3.0] {
+                let integral = pair(&[(gap, variance)]).ln_moment(lambda);
+                // UnequalNoise: y ~ N(±gap/2, σ²) — the same pair, translated.
+                let quadrature = BitView::UnequalNoise {
+                    gap,
+                    std_one: variance.sqrt(),
+                    std_zero: 1.0,
+                }
+                .ln_moment(lambda);
+                assert!(
+                    (integral - quadrature).abs() < 1e-9,
+                    "gap {gap} v {variance} λ {lambda}: {integral} vs {quadrature}"
+                );
+            }
+        }
+    }
+
+    /// Two coordinates, integrated directly on a 2-D grid: `E[(1 + e^(−L))^(−μ)]` =
+    /// `½∫(p₀^(1+μ) + p₁^(1+μ))/(p₀ + p₁)^μ`.
+    #[test]
+    fn the_integral_matches_a_two_dimensional_quadrature() {
+        let cases = [
+            [(1.5, 1.0), (0.2, 3.0)],
+            [(0.8, 0.5), (0.0, 2.5)],
+            [(2.0, 0.25), (1.0, 4.0)],
+        ];
+        for coordinates in cases {
+            for lambda in [0.01, 0.2, 1.0] {
+                let mu = lambda / std::f64::consts::LN_2;
+                let points = 601;
+                let axis = |m: f64, v: f64| {
+                    let (lo, hi) = (
+                        (-12.0_f64).min(m - 12.0 * v.sqrt()),
+                        12.0_f64.max(m + 12.0 * v.sqrt()),
+                    );
+                    (0..points)
+                        .map(move |i| lo + (hi - lo) * i as f64 / (points - 1) as f64)
+                        .collect::<Vec<f64>>()
+                };
+                let [(m0, v0), (m1, v1)] = coordinates;
+                let (xs, ys) = (axis(m0, v0), axis(m1, v1));
+                let (hx, hy) = (xs[1] - xs[0], ys[1] - ys[0]);
+                let mut sum = 0.0;
+                for &x in &xs {
+                    for &y in &ys {
+                        let p0 = (-0.5 * (x * x + y * y)).exp();
+                        let p1 = (-0.5 * ((x - m0).powi(2) / v0 + (y - m1).powi(2) / v1)).exp()
+                            / (v0 * v1).sqrt();
+                        if p0 + p1 > 0.0 {
+                            sum +=
+                                0.5 * (p0.powf(1.0 + mu) + p1.powf(1.0 + mu)) / (p0 + p1).powf(mu);
+                        }
+                    }
+                }
+                let direct = (sum * hx * hy / (2.0 * std::f64::consts::PI)).ln();
+                let integral = pair(&coordinates).ln_moment(lambda);
+                assert!(
+                    (integral - direct).abs() < 1e-9,
+                    "{coordinates:?} λ {lambda}: {integral} vs {direct}"
+                );
+            }
+        }
+    }
+
+    /// A pair with no information is the blind view; invalid coordinates are refused.
+    #[test]
+    fn blind_and_invalid_pairs() {
+        assert_eq!(pair(&[(0.0, 1.0)]).ln_moment(0.3), -0.3);
+        assert!(
+            CovariancePair::new([Coordinate {
+                shift: f64::NAN,
+                variance: 1.0
+            }])
+            .is_err()
+        );
+        assert!(
+            CovariancePair::new([Coordinate {
+                shift: 0.0,
+                variance: 0.0
+            }])
+            .is_err()
+        );
+    }
+
+    /// Equal-variance pairs give the Gaussian profile's bound (to the search's resolution);
+    /// more information (larger shifts, a spread that moves more with the bit) never raises
+    /// it; removing bits removes at least their Shannon share.
+    #[test]
+    fn the_paired_bound_is_the_profile_bound_for_equal_variances_and_monotone() {
+        use crate::view_profile::{ViewGroup, profile_smooth_min_entropy};
+        let bits: Vec<PairedBit> = (0..2_000)
+            .map(|i| vec![pair(&[(if i % 2 == 0 { 0.8 } else { 1.6 }, 1.0)])])
+            .collect();
+        let lambdas = candidate_lambdas(2_000, 1.2, 1e-6).unwrap();
+        let paired = paired_smooth_min_entropy(&bits, 0, 1e-6, &lambdas).unwrap();
+        let profile = profile_smooth_min_entropy(
+            &[
+                ViewGroup {
+                    view: BitView::Gaussian { separation: 0.8 },
+                    bits: 1_000,
+                },
+                ViewGroup {
+                    view: BitView::Gaussian { separation: 1.6 },
+                    bits: 1_000,
+                },
+            ],
+            1e-6,
+        )
+        .unwrap();
+        assert!(
+            paired.h_min <= profile.h_min + 1e-6,
+            "{paired:?} {profile:?}"
+        );
+        assert!(paired.h_min > profile.h_min - 2.0, "{paired:?} {profile:?}");
+        let spread: Vec<PairedBit> = (0..2_000)
+            .map(|i| {
+                vec![pair(&[
+                    (if i % 2 == 0 { 0.8 } else { 1.6 }, 1.0),
+                    (0.0, 3.0),
+                ])]
+            })
+            .collect();
+        let with_spread = paired_smooth_min_entropy(&spread, 0, 1e-6, &lambdas).unwrap();
+        assert!(with_spread.h_min < paired.h_min, "{with_spread:?}");
+        let fewer = paired_smooth_min_entropy(&bits, 100, 1e-6, &lambdas).unwrap();
+        assert_eq!(fewer.positions, 1_900);
+        assert!(fewer.h_min < paired.h_min - 100.0 * 0.3, "{fewer:?}");
+        // A bit with two pairs is sized at the more informative.
+        let two: Vec<PairedBit> = (0..2_000)
+            .map(|_| vec![pair(&[(0.8, 1.0)]), pair(&[(1.6, 1.0)])])
+            .collect();
+        let sharp: Vec<PairedBit> = (0..2_000).map(|_| vec![pair(&[(1.6, 1.0)])]).collect();
+        let (two, sharp) = (
+            paired_smooth_min_entropy(&two, 0, 1e-6, &lambdas).unwrap(),
+            paired_smooth_min_entropy(&sharp, 0, 1e-6, &lambdas).unwrap(),
+        );
+        assert!((two.h_min - sharp.h_min).abs() < 1e-9, "{two:?} {sharp:?}");
+    }
+}
