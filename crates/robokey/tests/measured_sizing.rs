@@ -391,6 +391,34 @@ fn the_agents_size_multilevel_slices_as_the_simulator_does() {
     }
 }
 
+/// A wrong prior (three-step doublets shaped for 50 ms on a 100 ms robot, 1 mm): the shape
+/// leaves each doublet's bits a wheel speed that moves the robot through the next doublet,
+/// which Eve's view takes (docs/estimation.md, "The next doublet's entry"). Both paths
+/// measure the lag and publish the same separation, never sharper for Eve than the pair
+/// configured with the true world (whose view takes the entry at the world's own lag).
+#[test]
+fn a_wrong_prior_is_sized_with_the_next_doublets_entry_by_both_paths() {
+    let mut config = parties_in("process_std = [0.001, 0.001, 0.001]\nlag = 0.1");
+    config.private.prior_lag = 0.05;
+    let (agents, simulator) = both_estimates(&config);
+    assert_eq!(simulator.refused, None);
+    assert_eq!(agents.separation, simulator.separation);
+    assert_eq!(agents.lag, simulator.lag);
+    let [_, low, high] = simulator.lag.expect("three-step doublets");
+    assert!(low <= 0.1 && 0.1 <= high, "{:?}", simulator.lag);
+    let runs: Vec<RunOutput> = (0..8)
+        .map(|r| simulate(&config, r, false).unwrap())
+        .collect();
+    let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+    let (_, truth) = world_block_separations(&config, &sessions, disclosed(&runs), 1e-6);
+    assert!(
+        truth.separation <= simulator.separation,
+        "measured {} truth {}",
+        simulator.separation,
+        truth.separation
+    );
+}
+
 /// Per-wheel slip (5 % and 20 %, 1 mm of motion noise): the agents' request yields the
 /// simulator's estimate, sized with the slip (not refused), its interval covering the
 /// world's; the published separation is never sharper for Eve than the pair configured with

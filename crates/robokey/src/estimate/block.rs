@@ -10,7 +10,8 @@
 //! gives no key, so wherever ℓ matters the controller's corrected bits equal the robot's.
 //!
 //! **Three-step doublets** (`private.prior_lag`) are sized from the lag measured: first τ̂
-//! and its interval ([`estimate_lag`], at ε_est/3), then the residuals with the bit's and
+//! from the first steps ([`estimate_lag`]), then τ̂ and its interval at ε_est/3 from the
+//! first steps and the ends jointly ([`estimate_lag_jointly`]), then the residuals with the bit's and
 //! the nominal inputs' lagged means through τ̂ subtracted ([`DoubletResidual::three_step`];
 //! the wheels' speed at a doublet's start recomputed from the previous doublet's nominal
 //! inputs and bits through τ̂, so a doublet whose predecessor was not kept is left out), a
@@ -32,7 +33,7 @@ use robokey_secrecy::view_profile::{
 };
 use serde::{Deserialize, Serialize};
 
-use super::lag::{MIN_LAG_DOUBLETS, first_step_share};
+use super::lag::{MIN_LAG_DOUBLETS, estimate_lag_jointly, first_step_share};
 use super::motion_noise::{Corner, SlipCorners};
 use super::normal_tail::normal_upper_quantile;
 use super::worst_case::{
@@ -45,7 +46,7 @@ use super::{
 };
 use crate::Config;
 use crate::model::{Pose, Unicycle};
-use crate::private::likelihood::stated_camera_view;
+use crate::private::likelihood::{DoubletView, stated_camera_view};
 use crate::private::{DoubletInputs, DoubletModel, DoubletSamples, Perturbation, doublet_model};
 use crate::world::{WorldModel, lagged};
 
@@ -273,8 +274,13 @@ fn three_step_block(
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
     let doublets: usize = sessions.iter().map(|session| session.len()).sum();
-    let lag = match measured_lag(config, sessions, LAG_EPSILON_SHARE * epsilon) {
-        Ok(lag) => lag,
+    let lag_epsilon = LAG_EPSILON_SHARE * epsilon;
+    let products = |tau: f64| lag_residual_products(config, sessions, tau);
+    let (first, lag) = match measured_lag(config, sessions, lag_epsilon).and_then(|first| {
+        estimate_lag_jointly(&first, &products, config.robot.sample_time, lag_epsilon)
+            .map(|lag| (first, lag))
+    }) {
+        Ok(lags) => lags,
         Err(why) => return refused(sessions.len(), why, doublets, epsilon),
     };
     let at_point = DoubletModel {
@@ -282,7 +288,7 @@ fn three_step_block(
         ..doublet_model(config)
     };
     let residuals = three_step_residuals(&at_point, config.robot.axle_length, sessions);
-    if let Some(why) = lag_shape_refusal(config, sessions, &lag, epsilon) {
+    if let Some(why) = lag_shape_refusal(config, sessions, &first, epsilon) {
         return refused(sessions.len(), why, residuals.len(), epsilon);
     }
     let sensor = diagonal_covariance(config.sensing.controller_std);
@@ -336,6 +342,46 @@ fn three_step_residuals(
     three_step_doublets(model, axle, sessions)
         .into_iter()
         .map(|(residual, _)| residual)
+        .collect()
+}
+
+/// Each three-step doublet's residuals after its first step and at its end, along its start
+/// heading, with the lagged means through `lag` (s) subtracted
+/// ([`DoubletResidual::three_step_means`]), times its v-amplitude (m): what
+/// [`estimate_lag_jointly`] measures τ from. A doublet whose predecessor is not kept is left
+/// out (its entry speed is not known).
+fn lag_residual_products(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    lag: f64,
+) -> Vec<[f64; 2]> {
+    let model = DoubletModel {
+        lag,
+        ..doublet_model(config)
+    };
+    sessions
+        .iter()
+        .flat_map(|session| {
+            entry_speeds(&model, session)
+                .into_iter()
+                .zip(session.iter())
+                .filter_map(|(entry, b)| {
+                    let [start, middle, end] = &b.samples;
+                    let (_, means) = DoubletResidual::three_step_means(
+                        &model, &b.inputs, start, b.pattern, entry?,
+                    );
+                    let (sin, cos) = start.z.sin_cos();
+                    let along = |sample: &Pose, mean: &Pose| {
+                        (sample.x - mean.x) * cos + (sample.y - mean.y) * sin
+                    };
+                    let amplitude = model.perturbation.amplitude(b.pattern);
+                    Some([
+                        amplitude * along(middle, &means[0]),
+                        amplitude * along(end, &means[2]),
+                    ])
+                })
+                .collect::<Vec<_>>()
+        })
         .collect()
 }
 
@@ -502,7 +548,17 @@ fn size_block(
     let mut separations = Vec::with_capacity(sessions.len());
     for session in sessions {
         let mut session_separations = Vec::with_capacity(session.len() * bits);
-        for b in session.iter() {
+        // Her view of a three-step doublet's four instants; the late sample is not kept,
+        // and its value does not enter the separation.
+        let three_step_view = |b: &DoubletSamples| {
+            let [start, middle, end] = b.samples;
+            stated_camera_view(
+                [start, middle, middle, end],
+                config.sensing.controller_std,
+                config.modelled_camera_std(),
+            )
+        };
+        for (i, b) in session.iter().enumerate() {
             // The camera as stated: per instant, or her frames' worth per instant.
             let worst = match &lags {
                 None => {
@@ -514,15 +570,28 @@ fn size_block(
                     worst_case_separations(&model, estimate, &b.inputs, &view)
                 }
                 Some((lags, steps)) => {
-                    // Her view of the three-step doublet's four instants; the late sample
-                    // is not kept, and its value does not enter the separation.
-                    let [start, middle, end] = b.samples;
-                    let view = stated_camera_view(
-                        [start, middle, middle, end],
-                        config.sensing.controller_std,
-                        config.modelled_camera_std(),
-                    );
-                    three_step_worst_case(&model, steps, *lags, &b.inputs, &view)
+                    // The next doublet's entry: her view of the kept successor, or where
+                    // none is kept (she still sees the robot move on) this doublet's own
+                    // inputs and view from its end.
+                    let view = three_step_view(b);
+                    let next = match session.get(i + 1).filter(|n| n.doublet == b.doublet + 1) {
+                        Some(next) => (next.inputs, three_step_view(next)),
+                        None => (
+                            b.inputs,
+                            DoubletView {
+                                start: view.end.unwrap_or(view.start),
+                                ..view
+                            },
+                        ),
+                    };
+                    three_step_worst_case(
+                        &model,
+                        steps,
+                        *lags,
+                        &b.inputs,
+                        &view,
+                        Some((&next.0, &next.1)),
+                    )
                 }
             };
             match worst {

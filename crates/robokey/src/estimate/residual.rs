@@ -154,13 +154,7 @@ impl DoubletResidual {
         entry: Unicycle,
     ) -> Self {
         let t = model.sample_time;
-        let mut offsets = model.mean_offsets(inputs, Some(pattern));
-        let (transient, _) = inputs.nominal_transient(entry, 3, model.lag, t);
-        for (offset, nominal) in offsets.iter_mut().zip(transient) {
-            *offset += nominal;
-        }
-        let applied = inputs.applied_steps(offsets);
-        let means = inputs.propagate_steps(start, offsets, 3, t);
+        let (applied, means) = Self::three_step_means(model, inputs, start, pattern, entry);
         let before = [*start, means[0], means[1]];
         let [a0, a1, a2] = std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t));
         let h0 = rotation(start.z).transpose();
@@ -178,6 +172,30 @@ impl DoubletResidual {
             slip_map: slip_map(&motion_maps, &applied, t, axle),
             inputs: *inputs,
         }
+    }
+
+    /// A three-step doublet's steps at their mean speeds through `model`'s lag τ (m/s,
+    /// rad/s: the nominal inputs, the bit's offsets of pattern `pattern` and the nominal
+    /// inputs' own transient from the wheels' speed `entry`), and the poses they predict
+    /// after each step from `start` by the Euler map, `[m₁, m₂, m₃]`.
+    #[must_use]
+    pub fn three_step_means(
+        model: &DoubletModel,
+        inputs: &DoubletInputs,
+        start: &Pose,
+        pattern: usize,
+        entry: Unicycle,
+    ) -> ([Unicycle; 3], [Pose; 3]) {
+        let t = model.sample_time;
+        let mut offsets = model.mean_offsets(inputs, Some(pattern));
+        let (transient, _) = inputs.nominal_transient(entry, 3, model.lag, t);
+        for (offset, nominal) in offsets.iter_mut().zip(transient) {
+            *offset += nominal;
+        }
+        (
+            inputs.applied_steps(offsets),
+            inputs.propagate_steps(start, offsets, 3, t),
+        )
     }
 
     /// `B₀QB₀ᵀ + B₁QB₁ᵀ + ρ·(B₀QB₁ᵀ + B₁QB₀ᵀ)`: the motion noise's part of `Cov(z)` for

@@ -72,9 +72,13 @@ use super::motion_noise::{Corner, MotionNoiseEstimate, loewner_below_both};
 use robokey_secrecy::covariance_pair::{Coordinate, CovariancePair, PairedBit};
 
 use super::residual::{rotation, step_slip_covariance};
-use crate::private::DoubletInputs;
+use crate::model::{Pose, Unicycle};
 use crate::private::doublet::MAX_BITS;
-use crate::private::likelihood::{DoubletModel, DoubletView, separations_by, state_jacobian};
+use crate::private::likelihood::{
+    DoubletModel, DoubletView, PoseObservation, separations_by, state_jacobian,
+};
+use crate::private::{DoubletInputs, Perturbation};
+use crate::world::lagged;
 
 /// The grid a block's worst-case separation is published on: multiples of 2⁻⁸.
 pub const SEPARATION_QUANTUM: f64 = 1.0 / 256.0;
@@ -269,6 +273,12 @@ pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(StepCovariance, 
 /// `steps` ([`three_step_steps`]) and the lag's `interval` `[τ_lo, τ_hi]` (s): the largest
 /// over a grid of it plus a concavity slack ([`largest_over_lags`], the module's doc);
 /// `None` when a bound does not exist at some corner.
+///
+/// With `next` (the following doublet's public inputs and Eve's view of it) her view takes
+/// what a lag other than the prior leaves of the bits in the next doublet's entry speed too
+/// (the module's doc, "The next doublet's entry"): per bit `√(d_end² + d_next²)`, `d_end`
+/// her view with the doublet's end pose given to her exactly and `d_next` what the next
+/// doublet's observed poses say from that end pose (`entry_separations`).
 #[must_use]
 pub fn three_step_worst_case(
     model: &DoubletModel,
@@ -276,26 +286,107 @@ pub fn three_step_worst_case(
     interval: [f64; 2],
     inputs: &DoubletInputs,
     view: &DoubletView,
+    next: Option<(&DoubletInputs, &DoubletView)>,
 ) -> Option<[f64; MAX_BITS]> {
-    let h = rotation(view.start.value.z);
-    let mut frame = StepCovariance::zeros();
-    for i in 0..3 {
-        frame.fixed_view_mut::<3, 3>(3 * i, 3 * i).copy_from(&h);
-    }
-    let world: Vec<(StepCovariance, bool)> = steps
-        .iter()
-        .map(|(k, positive)| (frame * k * frame.transpose(), *positive))
-        .collect();
+    let world = |theta: f64| -> Vec<(StepCovariance, bool)> {
+        let h = rotation(theta);
+        let mut frame = StepCovariance::zeros();
+        for i in 0..3 {
+            frame.fixed_view_mut::<3, 3>(3 * i, 3 * i).copy_from(&h);
+        }
+        steps
+            .iter()
+            .map(|(k, positive)| (frame * k * frame.transpose(), *positive))
+            .collect()
+    };
+    let here = world(view.start.value.z);
+    let following = next.map(|(next_inputs, next_view)| {
+        let exact_end = DoubletView {
+            end: Some(PoseObservation {
+                covariance: Matrix3::zeros(),
+                ..view.end.unwrap_or(next_view.start)
+            }),
+            ..*view
+        };
+        (
+            exact_end,
+            next_inputs,
+            next_view,
+            world(next_view.start.value.z),
+        )
+    });
     let at = |lag: f64| {
         let model = DoubletModel { lag, ..*model };
-        world
-            .iter()
-            .try_fold([0.0_f64; MAX_BITS], |worst, (k, positive)| {
-                let d = three_step_separations(&model, k, *positive, inputs, view)?;
+        here.iter()
+            .enumerate()
+            .try_fold([0.0_f64; MAX_BITS], |worst, (c, (k, positive))| {
+                let d = match &following {
+                    None => three_step_separations(&model, k, *positive, inputs, view)?,
+                    Some((exact_end, next_inputs, next_view, next_world)) => {
+                        let own = three_step_separations(&model, k, *positive, inputs, exact_end)?;
+                        let (next_k, next_positive) = &next_world[c];
+                        let entry = entry_separations(
+                            &model,
+                            next_k,
+                            *next_positive,
+                            inputs,
+                            next_inputs,
+                            next_view,
+                        )?;
+                        std::array::from_fn(|i| own[i].hypot(entry[i]))
+                    }
+                };
                 Some(std::array::from_fn(|i| worst[i].max(d[i])))
             })
     };
     largest_over_lags(interval, at)
+}
+
+/// Each key bit's separation of what the next doublet's observed poses (`next_view`'s, the
+/// next doublet's public `next_inputs`) say of this doublet's bits given its end pose
+/// exactly: the wheels leave this doublet (`inputs`) at the speed its bit's offsets reach
+/// through `model`'s lag, 0 at the prior, decaying by `e^(−T/τ)` per step of the next
+/// doublet; its means follow that speed's mean over each step from `next_view`'s start
+/// pose, its covariance is `G·K·Gᵀ + R` with the next doublet's steps' `k` (world frame)
+/// and no start uncertainty. `None` when a covariance is not positive definite (checked
+/// only when `k` is not known to be `positive`).
+fn entry_separations(
+    model: &DoubletModel,
+    k: &StepCovariance,
+    positive: bool,
+    inputs: &DoubletInputs,
+    next_inputs: &DoubletInputs,
+    next_view: &DoubletView,
+) -> Option<[f64; MAX_BITS]> {
+    let t = model.sample_time;
+    let start = next_view.start.value;
+    path_separations(
+        &model.perturbation,
+        k,
+        positive,
+        &Matrix3::zeros(),
+        &next_view.three_step_observed(),
+        |pattern| {
+            let mut speed = model
+                .step_offsets(inputs, Some(pattern))
+                .iter()
+                .fold(Unicycle::zeros(), |speed, &c| {
+                    lagged(c, speed, t, model.lag).1
+                });
+            let offsets: [Unicycle; 3] = std::array::from_fn(|_| {
+                let (mean, end) = lagged(Unicycle::zeros(), speed, t, model.lag);
+                speed = end;
+                mean
+            });
+            let applied = next_inputs.applied_steps(offsets);
+            let means = next_inputs.propagate_steps(&start, offsets, 3, t);
+            let before = [start, means[0], means[1]];
+            (
+                means,
+                std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t)),
+            )
+        },
+    )
 }
 
 /// Each bit's largest of `at(τ)` over every τ in `interval` `[τ_lo, τ_hi]` (s)
@@ -376,13 +467,34 @@ fn three_step_separations(
     inputs: &DoubletInputs,
     view: &DoubletView,
 ) -> Option<[f64; MAX_BITS]> {
-    let observed = view.three_step_observed();
+    path_separations(
+        &model.perturbation,
+        k,
+        positive,
+        &view.start.covariance,
+        &view.three_step_observed(),
+        |pattern| model.three_step_path(inputs, view, pattern),
+    )
+}
+
+/// Each key bit of `perturbation`: the separation of three steps' `observed` poses (each
+/// with its index among the three) whose mean path and Jacobians under each pattern are
+/// `path(pattern)`, from a start pose of covariance `start_covariance` through steps of
+/// covariance `k` ([`three_step_separations`]).
+fn path_separations(
+    perturbation: &Perturbation,
+    k: &StepCovariance,
+    positive: bool,
+    start_covariance: &Matrix3<f64>,
+    observed: &[(usize, &PoseObservation)],
+    path: impl Fn(usize) -> ([Pose; 3], [Matrix3<f64>; 3]),
+) -> Option<[f64; MAX_BITS]> {
     if observed.is_empty() {
         return None;
     }
     let n = 3 * observed.len();
     let predict = |pattern: usize| {
-        let (means, a) = model.three_step_path(inputs, view, pattern);
+        let (means, a) = path(pattern);
         let mut f = SMatrix::<f64, 9, 3>::zeros();
         let mut g = StepCovariance::identity();
         let mut through = Matrix3::identity();
@@ -395,7 +507,7 @@ fn three_step_separations(
                 g.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&carried);
             }
         }
-        let c = f * view.start.covariance * f.transpose() + g * k * g.transpose();
+        let c = f * start_covariance * f.transpose() + g * k * g.transpose();
         let mut mean = DVector::zeros(n);
         let mut s = DMatrix::zeros(n, n);
         for (row, &(i, y)) in observed.iter().enumerate() {
@@ -410,11 +522,11 @@ fn three_step_separations(
         }
         (mean, Cholesky::new(s))
     };
-    let predictions: Vec<_> = (0..model.perturbation.patterns()).map(predict).collect();
+    let predictions: Vec<_> = (0..perturbation.patterns()).map(predict).collect();
     if !positive && predictions.iter().any(|(_, s)| s.is_none()) {
         return None;
     }
-    Some(separations_by(&model.perturbation, |a, b| {
+    Some(separations_by(perturbation, |a, b| {
         let (mean_a, s) = &predictions[a];
         let d = &predictions[b].0 - mean_a;
         s.as_ref().map_or(0.0, |c| c.solve(&d).dot(&d).sqrt())
@@ -822,6 +934,46 @@ mod tests {
         k
     }
 
+    /// The next doublet's entry (1 mm of white motion noise, the shape for 50 ms): at the
+    /// prior the bits' offsets leave the wheels at rest and the next doublet's poses say
+    /// nothing of them; under a 100 ms lag they leave a speed whose travel through the next
+    /// doublet her view takes (0.34 for each bit). With it the bound costs little at the
+    /// prior (her view with the end pose given exactly: 0.012 of the v-bit's 1.52) and lies
+    /// above her view of the doublet alone by more under the wrong lag (0.055 of 1.30).
+    #[test]
+    fn the_next_doublets_entry_enters_her_view_where_the_lag_is_not_the_prior() {
+        let (model, inputs, view) = turning_doublet_under(0.05);
+        let q = Matrix3::from_diagonal_element(1e-6);
+        let k = kron(&q, &Matrix3::identity(), view.start.value.z);
+        let next_view = DoubletView {
+            start: view.end.unwrap(),
+            ..view
+        };
+        let entry = |lag: f64| {
+            let at = DoubletModel { lag, ..model };
+            entry_separations(&at, &k, true, &inputs, &inputs, &next_view).unwrap()
+        };
+        let [at_prior, wrong] = [entry(0.05), entry(0.1)];
+        eprintln!("entry separations: at the prior {at_prior:?}, at 100 ms {wrong:?}");
+        assert!(at_prior[..2].iter().all(|&d| d < 1e-6), "{at_prior:?}");
+        assert!(wrong[0] > 0.1, "{wrong:?}");
+        let steps = three_step_steps(&MotionNoiseEstimate::known(q, 0.0, 1e-6));
+        let [cost_at_prior, cost_wrong] = [0.05, 0.1].map(|lag| {
+            let interval = [lag, lag];
+            let alone = three_step_worst_case(&model, &steps, interval, &inputs, &view, None);
+            let next = Some((&inputs, &next_view));
+            let with = three_step_worst_case(&model, &steps, interval, &inputs, &view, next);
+            let [alone, with] = [alone.unwrap(), with.unwrap()];
+            eprintln!("τ {lag}: alone {alone:?}, with the next doublet's entry {with:?}");
+            assert!(with[0] >= alone[0] && with[1] >= alone[1]);
+            with[0] - alone[0]
+        });
+        assert!(
+            cost_at_prior < 0.015 && cost_wrong > 0.04,
+            "{cost_at_prior} {cost_wrong}"
+        );
+    }
+
     /// White steps (`W = I`): the three-step separation with the steps' covariance stacked
     /// is the doublet model's own, at lags within and beyond the prior.
     #[test]
@@ -928,7 +1080,7 @@ mod tests {
                 [0.02, 0.5],
             ] {
                 let bound =
-                    three_step_worst_case(&model, &steps, interval, &inputs, &view).unwrap();
+                    three_step_worst_case(&model, &steps, interval, &inputs, &view, None).unwrap();
                 let k = kron(&q, &Matrix3::identity(), theta);
                 let separation = |lag: f64| {
                     let at = DoubletModel { lag, ..model };
