@@ -169,12 +169,15 @@ fn listener_key(config: &Config, adversary: EveStrategy) -> String {
 /// sessions (indices into the point's runs) and the block's estimate.
 type VerdictKey = (usize, Vec<usize>, Option<BlockEstimate>);
 
+/// A verdict (the refusal's reason, if any), set once by whoever computes it first.
+type SharedVerdict = Arc<OnceLock<Option<String>>>;
+
 /// The commands check's verdicts of one analysis, each computed once: the adversaries of a
 /// point pool the same sessions, and the verdict does not depend on who listens. A verdict
 /// being computed is waited for, not computed again.
 #[derive(Default)]
 struct CommandVerdicts {
-    verdicts: Mutex<Vec<(VerdictKey, Arc<OnceLock<Option<String>>>)>>,
+    verdicts: Mutex<Vec<(VerdictKey, SharedVerdict)>>,
 }
 
 impl CommandVerdicts {

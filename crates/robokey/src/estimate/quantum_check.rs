@@ -184,7 +184,7 @@ fn check_data(model: &DoubletModel, drive: DiffDrive, sessions: &[&[DoubletSampl
     let turn = model.sample_time * drive.wheel_radius / drive.axle_length;
     let weights = lag_weights(model);
     let steps = perturbation.steps() as usize;
-    let per_doublet = perturbation.key_bits() as usize * 2 * steps;
+    let per_doublet = perturbation.key_bits() * 2 * steps;
     let mut residuals = Vec::new();
     let mut terms = Vec::new();
     for samples in sessions.iter().flat_map(|session| session.iter()) {
