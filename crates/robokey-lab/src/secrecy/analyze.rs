@@ -3,9 +3,12 @@
 //! rates, informations and per-position errors, and the blocks of the post-processing the
 //! agents run.
 
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+
 use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveStrategy, SensingMode};
+use robokey::estimate::BlockEstimate;
 use robokey::estimate::commands_check::sized_block_refusal;
 use robokey::estimate::kept_doublet;
 use robokey::post_settings::ODOMETRY_ZERO;
@@ -162,7 +165,41 @@ fn listener_key(config: &Config, adversary: EveStrategy) -> String {
     format!("{} {} {start}", adversary.name(), eve.max_flips)
 }
 
-/// Analyzes one point against one adversary.
+/// What the commands check of a pool depends on besides the point's configuration and ε: the
+/// sessions (indices into the point's runs) and the block's estimate.
+type VerdictKey = (usize, Vec<usize>, Option<BlockEstimate>);
+
+/// A verdict (the refusal's reason, if any), set once by whoever computes it first.
+type SharedVerdict = Arc<OnceLock<Option<String>>>;
+
+/// The commands check's verdicts of one analysis, each computed once: the adversaries of a
+/// point pool the same sessions, and the verdict does not depend on who listens. A verdict
+/// being computed is waited for, not computed again.
+#[derive(Default)]
+struct CommandVerdicts {
+    verdicts: Mutex<Vec<(VerdictKey, SharedVerdict)>>,
+}
+
+impl CommandVerdicts {
+    /// The verdict of `key`, from `check` the first time.
+    fn verdict(&self, key: VerdictKey, check: impl FnOnce() -> Option<String>) -> Option<String> {
+        let cell = {
+            let mut verdicts = self.verdicts.lock().unwrap_or_else(PoisonError::into_inner);
+            match verdicts.iter().find(|(k, _)| *k == key) {
+                Some((_, cell)) => Arc::clone(cell),
+                None => {
+                    let cell = Arc::new(OnceLock::new());
+                    verdicts.push((key, Arc::clone(&cell)));
+                    cell
+                }
+            }
+        };
+        cell.get_or_init(check).clone()
+    }
+}
+
+/// Analyzes one point against one adversary, its commands checks' verdicts shared through
+/// `verdicts`.
 fn analyze_point(
     experiment: &Experiment,
     point: usize,
@@ -170,6 +207,7 @@ fn analyze_point(
     options: &SecrecyOptions,
     runs: &[RunOutput],
     off: &OffRuns,
+    verdicts: &CommandVerdicts,
 ) -> Result<PointSecrecy, LabError> {
     let config = &experiment.points[point].config;
     let lap_steps = (config.trajectory.waypoints.len().saturating_sub(1) as f64
@@ -340,7 +378,14 @@ fn analyze_point(
         pipeline::fail_later_slices(&mut blocks, slices);
     }
     if is_private {
-        refuse_what_the_commands_reveal(config, runs, options, &pools, &mut blocks, slices);
+        let check = CommandsCheck {
+            config,
+            runs,
+            options,
+            point,
+            verdicts,
+        };
+        check.refuse_what_the_commands_reveal(&pools, &mut blocks, slices);
     }
     if is_private && !measured {
         // For people: the largest separation of any bit.
@@ -441,39 +486,53 @@ fn analyze_point(
     })
 }
 
-/// Private sensing: the commands check of each block's bits at the block's ε (a configured
-/// level: the estimation's ε_est where it exists) — a block whose boundary residuals reveal
-/// more than the model predicts keeps no secret bits, and says why. A pool holds the next
-/// `sessions` admitted runs, in order.
-fn refuse_what_the_commands_reveal(
-    config: &Config,
-    runs: &[RunOutput],
-    options: &SecrecyOptions,
-    pools: &[pipeline::Pool],
-    blocks: &mut [Block],
-    slices: usize,
-) {
-    let mut admitted = runs.iter().filter(|r| options.pooling.admits(r));
-    // A pool's slices share its sessions, and so its verdict.
-    for (pool, slice_blocks) in pools.iter().zip(blocks.chunks_mut(slices)) {
-        let sessions: Vec<&[DoubletSamples]> = admitted
-            .by_ref()
-            .take(pool.sessions as usize)
-            .filter_map(|r| r.private.as_ref())
-            .map(|p| p.controller_samples.as_slice())
-            .collect();
-        let estimate = pool.estimate.as_ref();
-        let Some(reason) = sized_block_refusal(config, &sessions, options.epsilon, estimate) else {
-            continue;
-        };
-        for block in slice_blocks {
-            block.secret_bits = 0;
-            block.assumption_exceeds_realised = false;
-            // A block already without a key keeps its own reason beside the check's.
-            block.reason = Some(match block.reason.take() {
-                Some(earlier) => format!("{earlier}; {reason}"),
-                None => reason.clone(),
+/// The commands check of one point's sessions.
+struct CommandsCheck<'a> {
+    config: &'a Config,
+    runs: &'a [RunOutput],
+    options: &'a SecrecyOptions,
+    point: usize,
+    verdicts: &'a CommandVerdicts,
+}
+
+impl CommandsCheck<'_> {
+    /// Private sensing: the commands check of each block's bits at the block's ε (a
+    /// configured level: the estimation's ε_est where it exists) — a block whose boundary
+    /// residuals reveal more than the model predicts keeps no secret bits, and says why. A
+    /// pool holds the next `sessions` admitted runs, in order.
+    fn refuse_what_the_commands_reveal(
+        &self,
+        pools: &[pipeline::Pool],
+        blocks: &mut [Block],
+        slices: usize,
+    ) {
+        let (config, options) = (self.config, self.options);
+        let mut admitted = (0..self.runs.len()).filter(|&i| options.pooling.admits(&self.runs[i]));
+        // A pool's slices share its sessions, and so its verdict.
+        for (pool, slice_blocks) in pools.iter().zip(blocks.chunks_mut(slices)) {
+            let taken: Vec<usize> = admitted.by_ref().take(pool.sessions as usize).collect();
+            let estimate = pool.estimate.as_ref();
+            let sessions: Vec<&[DoubletSamples]> = taken
+                .iter()
+                .filter_map(|&i| self.runs[i].private.as_ref())
+                .map(|p| p.controller_samples.as_slice())
+                .collect();
+            let key = (self.point, taken, estimate.cloned());
+            let verdict = self.verdicts.verdict(key, || {
+                sized_block_refusal(config, &sessions, options.epsilon, estimate)
             });
+            let Some(reason) = verdict else {
+                continue;
+            };
+            for block in slice_blocks {
+                block.secret_bits = 0;
+                block.assumption_exceeds_realised = false;
+                // A block already without a key keeps its own reason beside the check's.
+                block.reason = Some(match block.reason.take() {
+                    Some(earlier) => format!("{earlier}; {reason}"),
+                    None => reason.clone(),
+                });
+            }
         }
     }
 }
@@ -612,6 +671,7 @@ pub fn analyze_with(
             .expect("a private point")]
     };
     let private_jobs: Vec<usize> = (0..jobs.len()).filter(|&j| private(jobs[j].0)).collect();
+    let verdicts = CommandVerdicts::default();
     let off = OffRuns::simulate(private_jobs.iter().map(|&j| {
         let config = &experiment.points[jobs[j].0].config;
         (config, private::off_replicates(runs_of(jobs[j].0).len()))
@@ -620,7 +680,7 @@ pub fn analyze_with(
         .par_iter()
         .map(|&j| {
             let (p, a) = jobs[j];
-            analyze_point(experiment, p, a, options, runs_of(p), &off)
+            analyze_point(experiment, p, a, options, runs_of(p), &off, &verdicts)
         })
         .collect::<Result<Vec<_>, LabError>>()?;
     for (j, result) in private_jobs.into_iter().zip(computed) {
@@ -664,7 +724,15 @@ pub fn analyze_with(
         let computed = listener_of
             .par_iter()
             .map(|&((p, a), l)| {
-                analyze_point(experiment, p, a, options, &runs[l], &OffRuns::default())
+                analyze_point(
+                    experiment,
+                    p,
+                    a,
+                    options,
+                    &runs[l],
+                    &OffRuns::default(),
+                    &verdicts,
+                )
             })
             .collect::<Result<Vec<_>, LabError>>()?;
         for (((p, a), _), result) in listener_of.iter().zip(computed) {

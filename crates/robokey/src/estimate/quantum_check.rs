@@ -65,8 +65,6 @@ const SIGNATURE_FLOOR: f64 = 1e-9;
 /// wheels rounded to `q` (`ω = r·(w₁ − w₂)/D`).
 #[derive(Clone, Copy, Debug)]
 struct SignatureTerm {
-    /// The doublet's index in the block.
-    doublet: usize,
     /// `s_b · ±½ · T · W_k · r/D` (s): the bit's sign, the half difference's side, the
     /// step's lag weight, the wheels' turn per unit of their difference.
     weight: f64,
@@ -75,10 +73,11 @@ struct SignatureTerm {
 }
 
 /// A block's doublets as the check reads them: each one's heading residual (rad) under the
-/// stated model, with every signature term.
+/// stated model, with every signature term, doublet after doublet, `per_doublet` each.
 struct CheckData {
     residuals: Vec<f64>,
     terms: Vec<SignatureTerm>,
+    per_doublet: usize,
 }
 
 /// The stated model's part of the regression: its signature `x_s = Σ_b s_b·(h_b(q_s) −
@@ -185,10 +184,10 @@ fn check_data(model: &DoubletModel, drive: DiffDrive, sessions: &[&[DoubletSampl
     let turn = model.sample_time * drive.wheel_radius / drive.axle_length;
     let weights = lag_weights(model);
     let steps = perturbation.steps() as usize;
+    let per_doublet = perturbation.key_bits() * 2 * steps;
     let mut residuals = Vec::new();
     let mut terms = Vec::new();
     for samples in sessions.iter().flat_map(|session| session.iter()) {
-        let doublet = residuals.len();
         let inputs = &samples.inputs;
         let end = model.end_of(inputs, &samples.samples[0], Some(samples.pattern));
         residuals.push(samples.samples[2].z - end.z);
@@ -200,7 +199,6 @@ fn check_data(model: &DoubletModel, drive: DiffDrive, sessions: &[&[DoubletSampl
                 let offsets = perturbation.step_offsets(perturbation.offset(pattern));
                 for k in 0..steps {
                     terms.push(SignatureTerm {
-                        doublet,
                         weight: s * side * turn * weights[k],
                         wheels: drive.to_wheels(nominal[k] + offsets[k]),
                     });
@@ -208,7 +206,11 @@ fn check_data(model: &DoubletModel, drive: DiffDrive, sessions: &[&[DoubletSampl
             }
         }
     }
-    CheckData { residuals, terms }
+    CheckData {
+        residuals,
+        terms,
+        per_doublet,
+    }
 }
 
 /// `Σ aᵢbᵢ`.
@@ -216,41 +218,48 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// `values` less their projection on `on` (`on_squares = Σ onᵢ²`; unchanged when 0).
-fn regressed_out(values: &[f64], on: &[f64], on_squares: f64) -> Vec<f64> {
+/// `values` less their projection on `on`, in place (`on_squares = Σ onᵢ²`; unchanged when 0).
+fn regress_out(values: &mut [f64], on: &[f64], on_squares: f64) {
     let coefficient = if on_squares > 0.0 {
         dot(values, on) / on_squares
     } else {
         0.0
     };
-    values
-        .iter()
-        .zip(on)
-        .map(|(v, o)| v - coefficient * o)
-        .collect()
+    for (v, o) in values.iter_mut().zip(on) {
+        *v -= coefficient * o;
+    }
 }
 
 impl CheckData {
-    /// Each doublet's signature sum `Σ weight·(w_q,1 − w_q,2)` at quantum `q` (0: unrounded),
-    /// the wheels rounded by the world actuator's own [`quantise`].
+    /// Each doublet's signature sum `Σ weight·(w_q,1 − w_q,2)` at quantum `q` (0: unrounded)
+    /// into `out` (one per doublet), the wheels rounded by the world actuator's own
+    /// [`quantise`]; each doublet's terms summed in order.
+    fn signatures_into(&self, quantum: f64, out: &mut [f64]) {
+        for (sum, terms) in out
+            .iter_mut()
+            .zip(self.terms.chunks_exact(self.per_doublet.max(1)))
+        {
+            *sum = terms.iter().fold(0.0, |acc, term| {
+                let rounded = quantise(term.wheels, quantum);
+                acc + term.weight * (rounded.x - rounded.y)
+            });
+        }
+    }
+
+    /// [`Self::signatures_into`] a new vector.
     fn signatures(&self, quantum: f64) -> Vec<f64> {
         let mut out = vec![0.0; self.residuals.len()];
-        for term in &self.terms {
-            let rounded = quantise(term.wheels, quantum);
-            out[term.doublet] += term.weight * (rounded.x - rounded.y);
-        }
+        self.signatures_into(quantum, &mut out);
         out
     }
 
     /// The stated quantum's part of the regression.
     fn stated(&self, quantum: f64) -> Stated {
         let unrounded = self.signatures(0.0);
-        let signature: Vec<f64> = self
-            .signatures(quantum)
-            .iter()
-            .zip(&unrounded)
-            .map(|(q, u)| q - u)
-            .collect();
+        let mut signature = self.signatures(quantum);
+        for (q, u) in signature.iter_mut().zip(&unrounded) {
+            *q -= u;
+        }
         let squares = dot(&signature, &signature);
         let leverage = signature
             .iter()
@@ -262,8 +271,10 @@ impl CheckData {
                 }
             })
             .collect();
+        let mut residuals = self.residuals.clone();
+        regress_out(&mut residuals, &signature, squares);
         Stated {
-            residuals: regressed_out(&self.residuals, &signature, squares),
+            residuals,
             signature,
             squares,
             leverage,
@@ -275,20 +286,20 @@ impl CheckData {
     /// − h_b(0))`, with the stated signature regressed out of both (Frisch–Waugh): the slope
     /// `b̂ = Σ x'r' / Σ x'²` and its standard error `√(Σ x'²e²/(1 − hᵢ)²) / Σ x'²`, `e = r' −
     /// b̂x'`, each doublet's residual scaled by its leverage `hᵢ = x_s,ᵢ²/Σx_s² + x'ᵢ²/Σx'²`
-    /// (so that a few doublets carrying the whole signature cannot shrink the error).
-    fn slope(&self, stated: &Stated, candidate: f64) -> Option<QuantumSlope> {
-        let x: Vec<f64> = self
-            .signatures(candidate)
-            .iter()
-            .zip(&stated.unrounded)
-            .map(|(c, u)| c - u)
-            .collect();
+    /// (so that a few doublets carrying the whole signature cannot shrink the error). `x` is
+    /// scratch of one value per doublet, reused across candidates.
+    fn slope(&self, stated: &Stated, candidate: f64, x: &mut [f64]) -> Option<QuantumSlope> {
+        self.signatures_into(candidate, x);
+        for (c, u) in x.iter_mut().zip(&stated.unrounded) {
+            *c -= u;
+        }
         if x.iter().filter(|v| v.abs() > SIGNATURE_FLOOR).count() < MIN_SIGNED_DOUBLETS {
             return None;
         }
-        let x = regressed_out(&x, &stated.signature, stated.squares);
-        let sxx = dot(&x, &x);
-        let slope = dot(&x, &stated.residuals) / sxx;
+        regress_out(x, &stated.signature, stated.squares);
+        let x = &*x;
+        let sxx = dot(x, x);
+        let slope = dot(x, &stated.residuals) / sxx;
         let spread: f64 = x
             .iter()
             .zip(&stated.residuals)
@@ -354,9 +365,10 @@ pub fn quantum_check(
     }
     let stated_quantum = config.robot.command_quantum;
     let stated = data.stated(stated_quantum);
+    let mut scratch = vec![0.0; data.residuals.len()];
     let slopes: Vec<QuantumSlope> = candidates(stated_quantum, data.fastest_wheel())
         .into_iter()
-        .filter_map(|q| data.slope(&stated, q))
+        .filter_map(|q| data.slope(&stated, q, &mut scratch))
         .collect();
     if slopes.is_empty() {
         return None;
