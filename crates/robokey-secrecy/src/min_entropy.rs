@@ -130,7 +130,7 @@ pub struct PosteriorMinEntropy {
 /// √(2 ln(1/ε) · Σ q_i λ_i²) (A. Maurer, JIPAM 4(1) 2003). With s = ∞ it is the plain
 /// min-entropy H₀. The exact lower-tail Chernoff bound on the total surprisal
 /// S = Σ S_i, with E[e^{−μ·ln2·S_i}] = (1 − q_i)^{1+μ} + q_i^{1+μ}, is another valid cut
-/// ([`chernoff_lower_quantile`]); the larger of the two is returned. For constant q it is
+/// (`chernoff_lower_quantile`); the larger of the two is returned. For constant q it is
 /// below the exact [`binomial_smooth_min_entropy`].
 pub fn posterior_smooth_min_entropy(
     error_probabilities: &[f64],

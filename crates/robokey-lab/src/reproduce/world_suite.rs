@@ -77,7 +77,7 @@ pub fn coarse_suite(quick: bool) -> Result<Vec<Experiment>, LabError> {
 
 /// The analysis of one world: the camera eavesdropper who knows it (the strongest; the
 /// full map adds the commands one), complete pooling, the block size and ε its file states;
-/// with `--quick` at most [`QUICK_SESSIONS`] sessions.
+/// with `--quick` at most `QUICK_SESSIONS` sessions.
 #[must_use]
 pub fn options(experiment: &Experiment, quick: bool) -> SecrecyOptions {
     let stated = super::private_suite::as_stated(experiment);

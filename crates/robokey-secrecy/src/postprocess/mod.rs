@@ -5,7 +5,7 @@
 //!
 //! The robot ([`RobotPost`]) holds the reference bits and only answers; the controller
 //! ([`ControllerPost`]) corrects its bits, drives every exchange and retransmits on
-//! [`ControllerPost::timeout`]. One block at a time:
+//! a [`ControllerInput::Timeout`]. One block at a time:
 //!
 //! 1. `Propose` (controller): the sessions of the block, in order, and a fresh nonce.
 //! 2. `Agree` (robot): the proposed sessions it holds, in that order, its nonce, and its bits

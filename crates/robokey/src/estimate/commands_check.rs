@@ -242,8 +242,8 @@ const PREDICTION_SLACK: f64 = 0.1;
 
 /// The regressions of a block of `sessions` against the model's largest prediction over the
 /// lag's whole `interval` `[τ_lo, τ_hi]` (s), per regression: its magnitude on the grid Eve's
-/// view is sized on, refined while a concavity slack exceeds [`PREDICTION_SLACK`] standard
-/// errors, plus that slack ([`largest_of_each_over_lags`]). The measured side is the
+/// view is sized on, refined while a concavity slack exceeds `PREDICTION_SLACK` standard
+/// errors, plus that slack (`largest_of_each_over_lags`). The measured side is the
 /// regression's at `τ_lo` (what the next commands reveal does not depend on τ).
 #[must_use]
 pub fn regressions_over_lags(

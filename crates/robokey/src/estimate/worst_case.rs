@@ -50,7 +50,7 @@
 //! the bit after the first step and sharpens it after the second, and a lag other than the
 //! prior leaves the bit at the doublet's end, where the commands reveal it): each bit's
 //! separation `d(τ)` is bounded over the lag's whole interval `[τ_lo, τ_hi]`, Eve's means
-//! following the doublet's offsets through τ ([`largest_over_lags`]). On a grid of spacing
+//! following the doublet's offsets through τ (`largest_over_lags`). On a grid of spacing
 //! `h`, between neighbours `τ_j, τ_j+1` a function with `d'' ≥ −M` there lies below its
 //! chord plus `M·h²/8`, so below `max(d_j, d_j+1) + M·h²/8`; the bound takes
 //! `M = 2·max(0, −min_j Δ²d_j)/h²` — twice the most negative second difference `Δ²d_j =
@@ -165,7 +165,7 @@ pub fn lag_grid([low, high]: [f64; 2]) -> Vec<f64> {
 }
 
 /// The largest concavity slack a bit's bound over the lag's interval takes before its grid
-/// is refined ([`largest_over_lags`]): a quarter of the published quantum.
+/// is refined (`largest_over_lags`): a quarter of the published quantum.
 pub const LAG_SLACK: f64 = SEPARATION_QUANTUM / 4.0;
 
 /// The most lags the grid over the lag's interval is refined to (its spacing halved from
@@ -271,7 +271,7 @@ pub fn three_step_steps(estimate: &MotionNoiseEstimate) -> Vec<(StepCovariance, 
 /// `inputs` (its `late` observation's value is not used: the separation depends on her
 /// covariances and the means' differences), at the worst case over the steps' covariances
 /// `steps` ([`three_step_steps`]) and the lag's `interval` `[τ_lo, τ_hi]` (s): the largest
-/// over a grid of it plus a concavity slack ([`largest_over_lags`], the module's doc);
+/// over a grid of it plus a concavity slack (`largest_over_lags`, the module's doc);
 /// `None` when a bound does not exist at some corner.
 ///
 /// With `next` (the following doublet's public inputs and Eve's view of it) her view takes
