@@ -1475,7 +1475,12 @@ impl ControllerPost {
             if sessions.len() + later.len() <= MAX_BLOCK_SESSIONS {
                 sessions.extend(later);
             }
-            let why = self.report.as_ref().and_then(|r| r.reason.clone());
+            // The other slices' reports say theirs ended with this one, and why it did.
+            let why = self
+                .report
+                .as_ref()
+                .and_then(|r| r.reason.as_ref())
+                .map(|why| format!("another slice of the same symbols ended without a key: {why}"));
             let others = std::mem::take(&mut self.held).into_iter().chain(
                 std::mem::take(&mut self.releasing)
                     .into_iter()
