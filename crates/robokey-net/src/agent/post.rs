@@ -85,6 +85,10 @@ pub struct PostReport {
     /// (measured sizing; empty otherwise).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub estimates: Vec<BlockEstimate>,
+    /// The wall time (s) of each block-time computation during this run (the controller's
+    /// estimate of the plant, commands check or LLRs, on its worker thread).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub computing_seconds: Vec<f64>,
     /// Keys committed during this run (IDs), pending or settled.
     pub keys: Vec<String>,
     /// Keys pending in the store when the run ended: committed or prepared here, not yet

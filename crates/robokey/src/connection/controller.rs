@@ -8,6 +8,7 @@ use std::collections::VecDeque;
 use rand::rngs::ChaCha20Rng;
 use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot, SessionSamples};
 
+use super::computation::{BlockComputation, Computed};
 use super::linger::{Courtesy, Linger};
 use super::post::{PostLink, PostOutput};
 use super::{Output, Setup};
@@ -45,14 +46,17 @@ enum Stage {
         readies: u32,
     },
     /// After the outcome: post-processing until no block is in flight, its retransmission
-    /// timer, when the robot last answered it, and whether the last flush computed a block's
+    /// timer, when the robot last answered it, whether the last flush computed a block's
     /// estimate (the robot's silence then restarts at the next wake-up, when the answer has
-    /// left: the controller's own computing is not the robot's silence).
+    /// left: the controller's own computing is not the robot's silence), and since when a
+    /// computation handed to the shell is outstanding (the robot, silent meanwhile, waits for
+    /// its answer the block timeout).
     Post {
         courtesy: Courtesy,
         timer: Time,
         heard: Time,
         computed: bool,
+        computing: Option<Time>,
     },
     /// `Done` sent: answering until the robot's `Done` or quiet.
     Linger(Linger),
@@ -233,9 +237,12 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                 let ready = (!endpoint.is_some_and(Controller::robot_heard)).then_some(*ready_at);
                 earliest(ready, endpoint.and_then(Controller::poll_timeout))
             }
-            Stage::Post { timer, heard, .. } => {
-                Some((*timer).min(*heard + self.timing.silence_timeout))
-            }
+            Stage::Post {
+                timer,
+                heard,
+                computing,
+                ..
+            } => Some((*timer).min(gives_up(&self.timing, *heard, *computing))),
             Stage::Linger(linger) => Some(linger.deadline()),
             Stage::Closed => None,
         }
@@ -289,6 +296,26 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
     #[must_use]
     pub fn post(&self) -> Option<&PostLink<ControllerPost>> {
         self.post.as_ref()
+    }
+
+    /// The block-time computation post-processing waits for, once, with a link that defers
+    /// them ([`PostLink::deferring`]): the shell runs it and hands its answer to
+    /// [`Self::handle_computed`], answering the network meanwhile.
+    pub fn take_computation(&mut self) -> Option<BlockComputation> {
+        self.post.as_mut()?.take_computation()
+    }
+
+    /// The shell's answer to the computation it took, at `now`: post-processing carries on
+    /// (an answer after the controller gave up waiting is dropped).
+    pub fn handle_computed(&mut self, now: Time, computed: Computed) {
+        if let (Stage::Post { heard, .. }, Some(post)) = (&mut self.stage, &mut self.post) {
+            let mut out = Vec::new();
+            post.answer(computed, &mut out);
+            self.outputs.extend(out.into_iter().map(Output::Post));
+            // The robot's silence counts from now: it waited for this answer.
+            *heard = (*heard).max(now);
+        }
+        self.after(now);
     }
 
     /// Whether the conversation is over.
@@ -493,6 +520,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                     timer: now + self.timing.retransmit_interval(),
                     heard: now,
                     computed: false,
+                    computing: None,
                 };
             }
             None => self.linger(now, courtesy),
@@ -506,6 +534,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             timer,
             heard,
             computed,
+            computing,
             ..
         } = &mut self.stage
         else {
@@ -536,17 +565,32 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         if !fragments.is_empty() {
             *timer = now + self.timing.retransmit_interval();
         }
-        let (idle, silent) = (post.is_idle(), now >= *heard + self.timing.silence_timeout);
+        *computing = match (post.is_computing(), *computing) {
+            (true, since) => Some(since.unwrap_or(now)),
+            (false, _) => None,
+        };
+        let deadline = gives_up(&self.timing, *heard, *computing);
+        let (idle, silent) = (post.is_idle(), now >= deadline);
+        let waited = computing.is_some();
         for fragment in fragments {
             self.send(fragment.into());
         }
         if silent && !idle {
-            self.outputs
-                .push_back(Output::Post(PostOutput::Note(format!(
+            let note = if waited {
+                format!(
+                    "the block's computation outlasted the {:.1} s the robot waits for the \
+                     controller's next request (the block timeout): the block in flight is \
+                     settled in the next session",
+                    self.timing.block_timeout.as_secs_f64()
+                )
+            } else {
+                format!(
                     "the robot did not answer post-processing for {:.1} s (does it run with \
-                 --store?): the block in flight is settled in the next session",
+                     --store?): the block in flight is settled in the next session",
                     self.timing.silence_timeout.as_secs_f64()
-                ))));
+                )
+            };
+            self.outputs.push_back(Output::Post(PostOutput::Note(note)));
         }
         if (idle || silent)
             && let Stage::Post { courtesy, .. } = std::mem::replace(&mut self.stage, Stage::Closed)
@@ -573,6 +617,16 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
     fn close(&mut self) {
         self.stage = Stage::Closed;
         self.outputs.push_back(Output::Closed);
+    }
+}
+
+/// When post-processing gives the robot up: `timing`'s silence timeout after it last answered
+/// (`heard`), or, while a computation handed to the shell is outstanding since `computing`,
+/// the block timeout after that — how long the robot waits for the controller's next request.
+fn gives_up(timing: &Timing, heard: Time, computing: Option<Time>) -> Time {
+    match computing {
+        Some(since) => since + timing.block_timeout,
+        None => heard + timing.silence_timeout,
     }
 }
 
