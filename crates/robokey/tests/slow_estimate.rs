@@ -6,8 +6,8 @@
 //! thread), the connection takes input and fires its timers meanwhile and the answer comes
 //! that much later. Longer than the silence timeout but shorter than the robot's block
 //! timeout, both stores get the same key; longer than the block timeout, the robot leaves
-//! first and neither side keys — and a deferring controller notices it at its block timeout,
-//! while it still computes.
+//! an inline controller first and neither side keys, while a deferring controller keeps it
+//! waiting (it repeats its last fragment, 6 times per block timeout) and both key.
 
 use std::collections::{BTreeSet, VecDeque};
 use std::time::Duration;
@@ -51,6 +51,8 @@ struct SlowController {
     answer: Option<(Time, Computed)>,
     /// Deferred: the inputs (datagrams and timers) the connection took while computing.
     inputs_while_computing: u32,
+    /// Deferred: the datagrams it sent while computing.
+    sent_while_computing: u32,
 }
 
 impl SlowController {
@@ -124,6 +126,10 @@ impl Peer for SlowController {
                     ))));
                 }
                 Polled::Transmit(bytes) if self.busy_until.is_some() => self.held.push_back(bytes),
+                Polled::Transmit(bytes) => {
+                    self.sent_while_computing += u32::from(self.answer.is_some());
+                    return Some(Polled::Transmit(bytes));
+                }
                 other => return Some(other),
             }
         }
@@ -258,6 +264,7 @@ fn conversation(
             estimates: 0,
             answer: None,
             inputs_while_computing: 0,
+            sent_while_computing: 0,
         },
     );
     // The session, the estimate, and every timer after it, with room to spare.
@@ -266,6 +273,18 @@ fn conversation(
         + timing.block_timeout * 2;
     let ending = pair.drive(&mut world, limit);
     (pair, ending, world)
+}
+
+/// Both stores committed the same keys, at least one, and nothing was noted.
+fn assert_both_keyed(world: &World) {
+    let [robot, controller] = &world.keys;
+    assert!(!controller.is_empty(), "no key: {:?}", world.notes);
+    let ids = |keys: &[FinalKey]| keys.iter().map(|k| k.id.clone()).collect::<Vec<_>>();
+    assert_eq!(ids(robot), ids(controller));
+    for (r, c) in robot.iter().zip(controller) {
+        assert_eq!(r.key, c.key, "key {}", r.id);
+    }
+    assert!(world.notes.is_empty(), "{:?}", world.notes);
 }
 
 /// An estimate of 5 s — longer than the 2 s silence timeout, shorter than the robot's 30 s
@@ -281,42 +300,40 @@ fn an_estimate_longer_than_the_silence_timeout_still_keys_both_stores() {
         let (pair, ending, world) = conversation(compute, deferred);
         assert_eq!(ending, Ending::Done, "{:?}", world.notes);
         assert_eq!(pair.controller.estimates, 1);
-        let [robot, controller] = &world.keys;
-        assert!(!controller.is_empty(), "no key: {:?}", world.notes);
-        let ids = |keys: &[FinalKey]| keys.iter().map(|k| k.id.clone()).collect::<Vec<_>>();
-        assert_eq!(ids(robot), ids(controller));
-        for (r, c) in robot.iter().zip(controller) {
-            assert_eq!(r.key, c.key, "key {}", r.id);
-        }
-        assert!(world.notes.is_empty(), "{:?}", world.notes);
+        assert_both_keyed(&world);
         // The retransmission timer, every 100 ms in lockstep, over 5 s.
         let live = pair.controller.inputs_while_computing;
         assert_eq!(live > 10, deferred, "{live} inputs while computing");
     }
 }
 
-/// An estimate longer than the robot's block timeout: the robot leaves with the block in
-/// flight. Inline, the controller's `Confirm` goes unanswered and it leaves after its silence
-/// timeout (saying so); deferred, it gives up at its block timeout while still computing
-/// (saying so) and drops the late answer. Neither store commits a key, and both still hold
-/// the block in flight for the next session to settle.
+/// An estimate longer than the robot's block timeout. Inline, the robot leaves with the
+/// block in flight, the controller's `Confirm` goes unanswered and it leaves after its silence
+/// timeout (saying so); neither store commits a key, and both still hold the block in flight
+/// for the next session to settle. Deferred, the controller repeats its last fragment every
+/// 5 s while it computes, the robot waits, and both stores commit the same key.
 #[test]
-fn an_estimate_longer_than_the_block_timeout_ends_without_a_key() {
+fn an_estimate_longer_than_the_block_timeout_keys_only_a_deferring_controller() {
     let timing = Timing::default();
     let compute = timing.block_timeout + Duration::from_secs(10);
-    for (deferred, note) in [(false, "did not answer"), (true, "outlasted")] {
-        let (pair, ending, world) = conversation(compute, deferred);
-        assert_eq!(ending, Ending::Done, "{:?}", world.notes);
-        assert_eq!(pair.controller.estimates, u32::from(!deferred));
-        assert_eq!(world.keys, [Vec::new(), Vec::new()]);
-        assert!(
-            world.notes.iter().any(|n| n.contains(note)),
-            "{:?}",
-            world.notes
-        );
-        let robot_post = pair.robot.connection.post().expect("a store");
-        assert!(robot_post.endpoint().block_in_flight().is_some());
-        let controller_post = pair.controller.inner.connection.post().expect("a store");
-        assert!(!controller_post.is_idle());
-    }
+    let (pair, ending, world) = conversation(compute, false);
+    assert_eq!(ending, Ending::Done, "{:?}", world.notes);
+    assert_eq!(pair.controller.estimates, 1);
+    assert_eq!(world.keys, [Vec::new(), Vec::new()]);
+    assert!(
+        world.notes.iter().any(|n| n.contains("did not answer")),
+        "{:?}",
+        world.notes
+    );
+    let robot_post = pair.robot.connection.post().expect("a store");
+    assert!(robot_post.endpoint().block_in_flight().is_some());
+    let controller_post = pair.controller.inner.connection.post().expect("a store");
+    assert!(!controller_post.is_idle());
+
+    let (pair, ending, world) = conversation(compute, true);
+    assert_eq!(ending, Ending::Done, "{:?}", world.notes);
+    assert_eq!(pair.controller.estimates, 1);
+    assert_both_keyed(&world);
+    // Over 40 s, one repeat every 5 s: at 5, 10, …, 35 s.
+    assert_eq!(pair.controller.sent_while_computing, 7);
 }

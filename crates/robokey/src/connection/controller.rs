@@ -19,7 +19,7 @@ use crate::protocol::auth::{AuthMode, ChannelCounts, ControllerChannel, Delivery
 use crate::protocol::timing::earliest;
 use crate::protocol::{
     Closing, Controller, ControllerEvent, ControllerInput, ControllerOutput, Handshake, Message,
-    Outcome, SessionPlan, Time, Timing, agreement_terms, config_digest,
+    Outcome, PostFragment, SessionPlan, Time, Timing, agreement_terms, config_digest,
 };
 
 /// How many `Ready`s go unanswered before the controller starts a fresh handshake.
@@ -27,6 +27,13 @@ const READY_TRIES: u32 = 10;
 
 /// Most handshakes one conversation starts.
 const HANDSHAKES: u32 = 3;
+
+/// While a computation handed to the shell is outstanding, the controller repeats its last
+/// post-processing fragment this many times per block timeout: the robot waits the block
+/// timeout after each fragment it receives (a duplicate, which it otherwise ignores,
+/// included), so it stays for as long as the controller computes, unless all of them are
+/// lost (probability `p⁶` at a loss rate `p`).
+const KEEPALIVES_PER_BLOCK_TIMEOUT: u32 = 6;
 
 /// What the controller's shell is asked to do.
 pub type ControllerAction<A> = Output<A, ControllerEvent, ControllerSnapshot>;
@@ -48,15 +55,15 @@ enum Stage {
     /// After the outcome: post-processing until no block is in flight, its retransmission
     /// timer, when the robot last answered it, whether the last flush computed a block's
     /// estimate (the robot's silence then restarts at the next wake-up, when the answer has
-    /// left: the controller's own computing is not the robot's silence), and since when a
-    /// computation handed to the shell is outstanding (the robot, silent meanwhile, waits for
-    /// its answer the block timeout).
+    /// left: the controller's own computing is not the robot's silence), and, while a
+    /// computation handed to the shell is outstanding (the robot silent, waiting for its
+    /// answer), when the last fragment is next repeated to keep the robot waiting.
     Post {
         courtesy: Courtesy,
         timer: Time,
         heard: Time,
         computed: bool,
-        computing: Option<Time>,
+        keepalive: Option<Time>,
     },
     /// `Done` sent: answering until the robot's `Done` or quiet.
     Linger(Linger),
@@ -92,6 +99,9 @@ pub struct ControllerConnection<A> {
     /// Multilevel symbols: each decided doublet's patterns' log-likelihoods as kept
     /// ([`super::slices::keep_likelihoods`]), from which its later slices' LLRs follow.
     likelihoods: Vec<i16>,
+    /// The last post-processing fragment sent, which keeps the robot waiting while the shell
+    /// computes.
+    last_fragment: Option<PostFragment>,
     outputs: VecDeque<ControllerAction<A>>,
 }
 
@@ -140,6 +150,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             kept: SessionSamples::new(),
             llrs: Vec::new(),
             likelihoods: Vec::new(),
+            last_fragment: None,
             outputs: VecDeque::new(),
             channel,
             earlier: ChannelCounts::default(),
@@ -211,11 +222,21 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                 }
                 self.drain(now);
             }
-            Stage::Post { timer, .. } => {
+            Stage::Post {
+                timer, keepalive, ..
+            } => {
                 if now >= *timer {
                     *timer = now + self.timing.retransmit_interval();
                     if let Some(post) = &mut self.post {
                         post.on_timeout();
+                    }
+                }
+                if let Some(at) = keepalive
+                    && now >= *at
+                {
+                    *at = now + keepalive_interval(&self.timing);
+                    if let Some(fragment) = self.last_fragment.clone() {
+                        self.send(fragment.into());
                     }
                 }
             }
@@ -240,9 +261,9 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             Stage::Post {
                 timer,
                 heard,
-                computing,
+                keepalive,
                 ..
-            } => Some((*timer).min(gives_up(&self.timing, *heard, *computing))),
+            } => Some((*timer).min(keepalive.unwrap_or(*heard + self.timing.silence_timeout))),
             Stage::Linger(linger) => Some(linger.deadline()),
             Stage::Closed => None,
         }
@@ -306,7 +327,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
     }
 
     /// The shell's answer to the computation it took, at `now`: post-processing carries on
-    /// (an answer after the controller gave up waiting is dropped).
+    /// (an answer after the conversation ended, stopped, is dropped).
     pub fn handle_computed(&mut self, now: Time, computed: Computed) {
         if let (Stage::Post { heard, .. }, Some(post)) = (&mut self.stage, &mut self.post) {
             let mut out = Vec::new();
@@ -520,7 +541,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                     timer: now + self.timing.retransmit_interval(),
                     heard: now,
                     computed: false,
-                    computing: None,
+                    keepalive: None,
                 };
             }
             None => self.linger(now, courtesy),
@@ -534,7 +555,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             timer,
             heard,
             computed,
-            computing,
+            keepalive,
             ..
         } = &mut self.stage
         else {
@@ -565,32 +586,26 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         if !fragments.is_empty() {
             *timer = now + self.timing.retransmit_interval();
         }
-        *computing = match (post.is_computing(), *computing) {
-            (true, since) => Some(since.unwrap_or(now)),
+        // While the shell computes, the robot waits for its answer: its silence is expected.
+        *keepalive = match (post.is_computing(), *keepalive) {
+            (true, at) => Some(at.unwrap_or(now + keepalive_interval(&self.timing))),
             (false, _) => None,
         };
-        let deadline = gives_up(&self.timing, *heard, *computing);
-        let (idle, silent) = (post.is_idle(), now >= deadline);
-        let waited = computing.is_some();
+        let idle = post.is_idle();
+        let silent = keepalive.is_none() && now >= *heard + self.timing.silence_timeout;
+        if let Some(last) = fragments.last() {
+            self.last_fragment = Some(last.clone());
+        }
         for fragment in fragments {
             self.send(fragment.into());
         }
         if silent && !idle {
-            let note = if waited {
-                format!(
-                    "the block's computation outlasted the {:.1} s the robot waits for the \
-                     controller's next request (the block timeout): the block in flight is \
-                     settled in the next session",
-                    self.timing.block_timeout.as_secs_f64()
-                )
-            } else {
-                format!(
+            self.outputs
+                .push_back(Output::Post(PostOutput::Note(format!(
                     "the robot did not answer post-processing for {:.1} s (does it run with \
-                     --store?): the block in flight is settled in the next session",
+                 --store?): the block in flight is settled in the next session",
                     self.timing.silence_timeout.as_secs_f64()
-                )
-            };
-            self.outputs.push_back(Output::Post(PostOutput::Note(note)));
+                ))));
         }
         if (idle || silent)
             && let Stage::Post { courtesy, .. } = std::mem::replace(&mut self.stage, Stage::Closed)
@@ -620,14 +635,10 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
     }
 }
 
-/// When post-processing gives the robot up: `timing`'s silence timeout after it last answered
-/// (`heard`), or, while a computation handed to the shell is outstanding since `computing`,
-/// the block timeout after that — how long the robot waits for the controller's next request.
-fn gives_up(timing: &Timing, heard: Time, computing: Option<Time>) -> Time {
-    match computing {
-        Some(since) => since + timing.block_timeout,
-        None => heard + timing.silence_timeout,
-    }
+/// How often the controller repeats its last post-processing fragment while the shell
+/// computes: `timing`'s block timeout over [`KEEPALIVES_PER_BLOCK_TIMEOUT`] (5 s by default).
+fn keepalive_interval(timing: &Timing) -> std::time::Duration {
+    timing.block_timeout / KEEPALIVES_PER_BLOCK_TIMEOUT
 }
 
 /// Whether the controller keeps each decided doublet (its inputs and samples) for its
