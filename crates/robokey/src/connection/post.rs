@@ -272,7 +272,7 @@ pub struct PostLink<E> {
 /// A deferred computation, before and after the shell took it.
 #[derive(Debug)]
 enum Computing {
-    Asked(BlockComputation),
+    Asked(Box<BlockComputation>),
     Taken(u64),
 }
 
@@ -309,7 +309,7 @@ impl<E: PostEndpoint> PostLink<E> {
         match self.computing.take()? {
             Computing::Asked(job) => {
                 self.computing = Some(Computing::Taken(job.block()));
-                Some(job)
+                Some(*job)
             }
             taken @ Computing::Taken(_) => {
                 self.computing = Some(taken);
@@ -339,7 +339,7 @@ impl<E: PostEndpoint> PostLink<E> {
     /// back.
     fn compute(&mut self, job: BlockComputation, out: &mut Vec<PostOutput<E::Snapshot>>) {
         if self.defer {
-            self.computing = Some(Computing::Asked(job));
+            self.computing = Some(Computing::Asked(Box::new(job)));
         } else {
             let computed = job.run();
             self.hand(computed, out);
