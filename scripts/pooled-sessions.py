@@ -48,7 +48,8 @@ BIN = os.environ.get("ROBOKEY", "target/release/robokey")
 MIX = ["--loss", "0.1", "--duplicate", "0.05", "--reorder", "0.05", "--corrupt", "0.01",
        "--delay", "1±1"]
 # The relay's idle exit (s): past the robot's default --block-timeout (30 s), so that it never
-# leaves during the controller's block-time estimate; it is stopped once both agents end.
+# leaves while the robot waits for the controller (which repeats its last fragment every 5 s
+# while it computes a block's estimate); it is stopped once both agents end.
 RELAY_IDLE_EXIT = 31
 
 

@@ -232,9 +232,10 @@ pub struct RobotArgs {
     #[arg(long, default_value_t = 60.0)]
     wait: f64,
     /// With --store: seconds to wait, with a post-processing block in flight, for the
-    /// controller's next request; it may follow the controller's estimate of the plant for
-    /// the block (seconds for a multilevel block of 10⁴ bits), longer than --silence-timeout.
-    /// After it the robot leaves and the block ends without a key in the next session.
+    /// controller's next post-processing frame; its next request may follow its estimate of
+    /// the plant for the block (seconds for a multilevel block of 10⁴ bits or one with slip),
+    /// during which it repeats its last frame every 5 s. After it the robot leaves and the
+    /// block ends without a key in the next session.
     #[arg(long, default_value_t = Timing::DEFAULT_BLOCK.as_secs_f64())]
     block_timeout: f64,
     #[command(flatten)]

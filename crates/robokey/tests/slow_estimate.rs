@@ -1,9 +1,13 @@
 //! A controller whose block-time estimate of the plant is slow, on the virtual network: the
 //! estimate runs between the block's reconciliation and its `Confirm`, while the robot lingers
-//! with the block in flight. Its duration is modelled by holding the controller (no input, its
-//! sends held back) for that long of virtual time, as a shell computing it synchronously does.
-//! Longer than the silence timeout but shorter than the robot's block timeout, both stores get
-//! the same key; longer than the block timeout, the robot leaves first and neither side keys.
+//! with the block in flight. Computed inline, its duration is modelled by holding the
+//! controller (no input, its sends held back) for that long of virtual time, as a shell
+//! computing it synchronously does; deferred (`PostLink::deferring`, the agents' worker
+//! thread), the connection takes input and fires its timers meanwhile and the answer comes
+//! that much later. Longer than the silence timeout but shorter than the robot's block
+//! timeout, both stores get the same key; longer than the block timeout, the robot leaves
+//! an inline controller first and neither side keys, while a deferring controller keeps it
+//! waiting (it repeats its last fragment, 6 times per block timeout) and both key.
 
 use std::collections::{BTreeSet, VecDeque};
 use std::time::Duration;
@@ -12,7 +16,7 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha20Rng;
 use robokey::Config;
 use robokey::connection::{
-    ControllerAction, ControllerConnection, Output, PostLink, PostOutput, RobotAction,
+    Computed, ControllerAction, ControllerConnection, Output, PostLink, PostOutput, RobotAction,
     RobotConnection, Setup,
 };
 use robokey::pair::{Connected, Ending, Pair, Peer, Polled, Surroundings};
@@ -26,12 +30,16 @@ use support::{Address, ControllerSide, RobotSide, connection_plant, drive_plant}
 
 mod support;
 
-/// The controller with its estimates taking `compute` of virtual time: from the moment it
-/// reports one, it takes no input and its sends wait until the computation ends; then they
-/// leave, what arrived meanwhile is delivered, and its timers run.
+/// The controller with its estimates taking `compute` of virtual time. Inline: from the
+/// moment it reports one, it takes no input and its sends wait until the computation ends;
+/// then they leave, what arrived meanwhile is delivered, and its timers run. Deferred: its
+/// link hands the computation out, which answers `compute` after it was taken, the
+/// connection live meanwhile.
 struct SlowController {
     inner: ControllerSide,
     compute: Duration,
+    /// Whether its link defers the computation.
+    deferred: bool,
     /// The time of the last input.
     now: Time,
     busy_until: Option<Time>,
@@ -39,6 +47,22 @@ struct SlowController {
     released: VecDeque<Vec<u8>>,
     arrived: Vec<Vec<u8>>,
     estimates: u32,
+    /// Deferred: the computation's answer and when it comes.
+    answer: Option<(Time, Computed)>,
+    /// Deferred: the inputs (datagrams and timers) the connection took while computing.
+    inputs_while_computing: u32,
+    /// Deferred: the datagrams it sent while computing.
+    sent_while_computing: u32,
+}
+
+impl SlowController {
+    /// Deferred: takes the computation its link asks for, computes it now and holds the
+    /// answer `compute` long.
+    fn take_computation(&mut self) {
+        if let Some(job) = self.inner.connection.take_computation() {
+            self.answer = Some((self.now + self.compute, job.run()));
+        }
+    }
 }
 
 impl Peer for SlowController {
@@ -47,6 +71,7 @@ impl Peer for SlowController {
 
     fn handle_datagram(&mut self, now: Time, bytes: &Vec<u8>) {
         self.now = now;
+        self.inputs_while_computing += u32::from(self.answer.is_some());
         if self.busy_until.is_some() {
             self.arrived.push(bytes.clone());
         } else {
@@ -56,6 +81,14 @@ impl Peer for SlowController {
 
     fn handle_timeout(&mut self, now: Time) {
         self.now = now;
+        if let Some((at, _)) = &self.answer {
+            if now >= *at {
+                let (_, computed) = self.answer.take().expect("an answer");
+                self.inner.connection.handle_computed(now, computed);
+            } else {
+                self.inputs_while_computing += 1;
+            }
+        }
         if let Some(until) = self.busy_until {
             if now < until {
                 return;
@@ -70,23 +103,33 @@ impl Peer for SlowController {
     }
 
     fn poll_timeout(&self) -> Option<Time> {
-        self.busy_until.or_else(|| self.inner.poll_timeout())
+        let answer = self.answer.as_ref().map(|(at, _)| *at);
+        let inner = self.busy_until.or_else(|| self.inner.poll_timeout());
+        [answer, inner].into_iter().flatten().min()
     }
 
     fn poll(&mut self) -> Option<Polled<Vec<u8>, Self::Output>> {
         if let Some(bytes) = self.released.pop_front() {
             return Some(Polled::Transmit(bytes));
         }
+        self.take_computation();
         loop {
             match self.inner.poll()? {
                 Polled::Output(Output::Post(PostOutput::Estimated(estimate))) => {
                     self.estimates += 1;
-                    self.busy_until = Some(self.now + self.compute);
+                    // Inline, the estimate was computed just now; deferred, its answer came.
+                    if !self.deferred {
+                        self.busy_until = Some(self.now + self.compute);
+                    }
                     return Some(Polled::Output(Output::Post(PostOutput::Estimated(
                         estimate,
                     ))));
                 }
                 Polled::Transmit(bytes) if self.busy_until.is_some() => self.held.push_back(bytes),
+                Polled::Transmit(bytes) => {
+                    self.sent_while_computing += u32::from(self.answer.is_some());
+                    return Some(Polled::Transmit(bytes));
+                }
                 other => return Some(other),
             }
         }
@@ -156,9 +199,12 @@ fn measured() -> Config {
     .expect("a valid configuration")
 }
 
-/// One conversation with fresh stores, the controller's estimate taking `compute`: the
-/// pair, how it ended, and the world.
-fn conversation(compute: Duration) -> (Pair<RobotSide, SlowController>, Ending, World) {
+/// One conversation with fresh stores, the controller's estimate taking `compute`, computed
+/// inline or `deferred`: the pair, how it ended, and the world.
+fn conversation(
+    compute: Duration,
+    deferred: bool,
+) -> (Pair<RobotSide, SlowController>, Ending, World) {
     let config = measured();
     let seed = 7;
     let timing = Timing::default();
@@ -179,11 +225,15 @@ fn conversation(compute: Duration) -> (Pair<RobotSide, SlowController>, Ending, 
         ChaCha20Rng::seed_from_u64(!seed),
         Time::ZERO,
     );
+    let mut controller_link = PostLink::new(controller_post, BTreeSet::new(), &config);
+    if deferred {
+        controller_link = controller_link.deferring();
+    }
     let controller = ControllerConnection::new(
         setup,
         Address::Robot,
         seed as u32,
-        Some(PostLink::new(controller_post, BTreeSet::new(), &config)),
+        Some(controller_link),
         ChaCha20Rng::seed_from_u64(seed ^ 0x5eed),
         Time::ZERO,
     );
@@ -205,12 +255,16 @@ fn conversation(compute: Duration) -> (Pair<RobotSide, SlowController>, Ending, 
                 peer: Address::Robot,
             },
             compute,
+            deferred,
             now: Time::ZERO,
             busy_until: None,
             held: VecDeque::new(),
             released: VecDeque::new(),
             arrived: Vec::new(),
             estimates: 0,
+            answer: None,
+            inputs_while_computing: 0,
+            sent_while_computing: 0,
         },
     );
     // The session, the estimate, and every timer after it, with room to spare.
@@ -221,17 +275,8 @@ fn conversation(compute: Duration) -> (Pair<RobotSide, SlowController>, Ending, 
     (pair, ending, world)
 }
 
-/// An estimate of 5 s — longer than the 2 s silence timeout, shorter than the robot's 30 s
-/// block timeout: the robot waits for the `Confirm`, the controller does not count its own
-/// computing as the robot's silence, and both stores commit the same key.
-#[test]
-fn an_estimate_longer_than_the_silence_timeout_still_keys_both_stores() {
-    let timing = Timing::default();
-    let compute = Duration::from_secs(5);
-    assert!(timing.silence_timeout < compute && compute < timing.block_timeout);
-    let (pair, ending, world) = conversation(compute);
-    assert_eq!(ending, Ending::Done, "{:?}", world.notes);
-    assert_eq!(pair.controller.estimates, 1);
+/// Both stores committed the same keys, at least one, and nothing was noted.
+fn assert_both_keyed(world: &World) {
     let [robot, controller] = &world.keys;
     assert!(!controller.is_empty(), "no key: {:?}", world.notes);
     let ids = |keys: &[FinalKey]| keys.iter().map(|k| k.id.clone()).collect::<Vec<_>>();
@@ -242,15 +287,36 @@ fn an_estimate_longer_than_the_silence_timeout_still_keys_both_stores() {
     assert!(world.notes.is_empty(), "{:?}", world.notes);
 }
 
-/// An estimate longer than the robot's block timeout: the robot leaves with the block in
-/// flight, the controller's `Confirm` goes unanswered and it leaves after its silence timeout
-/// (saying so); neither store commits a key, and both still hold the block in flight for the
-/// next session to settle.
+/// An estimate of 5 s — longer than the 2 s silence timeout, shorter than the robot's 30 s
+/// block timeout, inline or deferred: the robot waits for the `Confirm`, the controller does
+/// not count its own computing as the robot's silence, and both stores commit the same key.
+/// Deferred, the connection's timers fire while it computes.
 #[test]
-fn an_estimate_longer_than_the_block_timeout_ends_without_a_key() {
+fn an_estimate_longer_than_the_silence_timeout_still_keys_both_stores() {
+    let timing = Timing::default();
+    let compute = Duration::from_secs(5);
+    assert!(timing.silence_timeout < compute && compute < timing.block_timeout);
+    for deferred in [false, true] {
+        let (pair, ending, world) = conversation(compute, deferred);
+        assert_eq!(ending, Ending::Done, "{:?}", world.notes);
+        assert_eq!(pair.controller.estimates, 1);
+        assert_both_keyed(&world);
+        // The retransmission timer, every 100 ms in lockstep, over 5 s.
+        let live = pair.controller.inputs_while_computing;
+        assert_eq!(live > 10, deferred, "{live} inputs while computing");
+    }
+}
+
+/// An estimate longer than the robot's block timeout. Inline, the robot leaves with the
+/// block in flight, the controller's `Confirm` goes unanswered and it leaves after its silence
+/// timeout (saying so); neither store commits a key, and both still hold the block in flight
+/// for the next session to settle. Deferred, the controller repeats its last fragment every
+/// 5 s while it computes, the robot waits, and both stores commit the same key.
+#[test]
+fn an_estimate_longer_than_the_block_timeout_keys_only_a_deferring_controller() {
     let timing = Timing::default();
     let compute = timing.block_timeout + Duration::from_secs(10);
-    let (pair, ending, world) = conversation(compute);
+    let (pair, ending, world) = conversation(compute, false);
     assert_eq!(ending, Ending::Done, "{:?}", world.notes);
     assert_eq!(pair.controller.estimates, 1);
     assert_eq!(world.keys, [Vec::new(), Vec::new()]);
@@ -263,4 +329,11 @@ fn an_estimate_longer_than_the_block_timeout_ends_without_a_key() {
     assert!(robot_post.endpoint().block_in_flight().is_some());
     let controller_post = pair.controller.inner.connection.post().expect("a store");
     assert!(!controller_post.is_idle());
+
+    let (pair, ending, world) = conversation(compute, true);
+    assert_eq!(ending, Ending::Done, "{:?}", world.notes);
+    assert_eq!(pair.controller.estimates, 1);
+    assert_both_keyed(&world);
+    // Over 40 s, one repeat every 5 s: at 5, 10, …, 35 s.
+    assert_eq!(pair.controller.sent_while_computing, 7);
 }

@@ -9,7 +9,7 @@ use std::time::Duration;
 use rand::RngExt;
 use robokey::Config;
 use robokey::config::SensingMode;
-use robokey::connection::{ControllerConnection, Setup};
+use robokey::connection::{ControllerConnection, PostLink, Setup};
 use robokey::interrupt::Interrupt;
 use robokey::protocol::auth::PairingSecret;
 use robokey::protocol::{ControllerEvent, SessionPlan, Timing};
@@ -18,6 +18,7 @@ use robokey_secrecy::postprocess::ControllerPost;
 use super::post::AgentStore;
 use super::report::{Progress, SessionReport};
 use super::socket::Socket;
+use super::worker::{ANSWER_POLL, Worker};
 use super::{Carry, Counted, Run, finish};
 use crate::error::NetError;
 use crate::random::os_rng;
@@ -74,6 +75,13 @@ pub fn run_controller(
         options.allow_restricted,
     )?
     .unzip();
+    // Block-time computations (seconds with slip) run on a worker thread while the loop goes
+    // on answering the robot.
+    let link = link.map(PostLink::deferring);
+    let mut worker = match link {
+        Some(_) => Some(Worker::start()?),
+        None => None,
+    };
     let sensor = match (config.sensing.mode, &options.sensor) {
         (SensingMode::Private, Some(spec)) => Some(SensorFeed::start(spec.open()?)),
         (SensingMode::Private, None) => {
@@ -131,17 +139,26 @@ pub fn run_controller(
                 break;
             }
         }
+        if let (Some(worker), Some(job)) = (worker.as_mut(), connection.take_computation())
+            && let Err(error) = worker.submit(job)
+        {
+            run.stop(error, true);
+        }
         if connection.is_closed() || run.halted {
             break;
         }
         let Some(deadline) = connection.poll_timeout() else {
             break;
         };
-        // With a sensor, the socket is left every millisecond to take its samples.
-        let wake = match &sensor {
+        // With a sensor, the socket is left every millisecond to take its samples; with a
+        // computation out, every few to take its answer.
+        let mut wake = match &sensor {
             Some(_) => deadline.min(socket.now() + SENSOR_POLL),
             None => deadline,
         };
+        if worker.as_ref().is_some_and(Worker::is_busy) {
+            wake = wake.min(socket.now() + ANSWER_POLL);
+        }
         let mut woke = false;
         match socket.recv_until(wake) {
             Ok(Some((from, now, bytes))) => connection.handle_datagram(now, from, bytes),
@@ -166,6 +183,23 @@ pub fn run_controller(
                 }
                 SensorEvent::Stopped(why) => connection.handle_sensor_stopped(socket.now(), why),
             }
+        }
+        match worker.as_mut().map(Worker::try_answer).transpose() {
+            Ok(Some(Some(answered))) => {
+                let block = answered.computed.block();
+                let seconds = answered.took.as_secs_f64();
+                println!(
+                    "controller: block {block}: {} took {seconds:.1} s (on a worker thread, the \
+                     link answered meanwhile)",
+                    answered.what
+                );
+                if let Some(store) = store.as_mut() {
+                    store.report.computing_seconds.push(seconds);
+                }
+                connection.handle_computed(socket.now(), answered.computed);
+            }
+            Ok(_) => {}
+            Err(error) => run.stop(error, true),
         }
     }
     let counted = Counted {

@@ -9,6 +9,7 @@ pub mod post;
 pub mod report;
 pub mod robot;
 pub mod socket;
+mod worker;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;

@@ -85,6 +85,10 @@ pub struct PostReport {
     /// (measured sizing; empty otherwise).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub estimates: Vec<BlockEstimate>,
+    /// The wall time (s) of each block-time computation during this run (the controller's
+    /// estimate of the plant, commands check or LLRs, on its worker thread).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub computing_seconds: Vec<f64>,
     /// Keys committed during this run (IDs), pending or settled.
     pub keys: Vec<String>,
     /// Keys pending in the store when the run ended: committed or prepared here, not yet
@@ -327,7 +331,7 @@ impl<E: StoredEndpoint> AgentStore<E> {
                         "{}: the plant measured over {} doublets: motion noise √Q̂ {:.2} mm, \
                          {:.2} mm, {:.2} mrad, AR(1) correlation between steps ρ̂ {:.3}; over \
                          the (1 − {:e}) region, ρ in [{:.3}, {:.3}], lowest {:.2} mm, {:.2} mm, \
-                         {:.2} mrad; Eve's largest separation at its worst case {:.4}, her \
+                         {:.2} mrad{}; Eve's largest separation at its worst case {:.4}, her \
                          bits' equivalent {:.4} (published)",
                         self.role,
                         estimate.doublets,
@@ -341,6 +345,7 @@ impl<E: StoredEndpoint> AgentStore<E> {
                         estimate.lower_std_mm[0],
                         estimate.lower_std_mm[1],
                         estimate.lower_std_mm[2],
+                        lag_and_slip(&estimate),
                         estimate.largest,
                         estimate.separation
                     ),
@@ -399,6 +404,29 @@ impl<E: StoredEndpoint> AgentStore<E> {
         }
         self.report.blocks.push(summary);
     }
+}
+
+/// The lag and the slip an estimate measured, as clauses of the agent's line: the lag's
+/// interval (three-step doublets), and the slip's with whether the block was sized with it.
+fn lag_and_slip(estimate: &BlockEstimate) -> String {
+    let mut clauses = String::new();
+    if let Some([tau, low, high]) = estimate.lag {
+        clauses += &format!("; lag τ̂ {tau:.4} s [{low:.4}, {high:.4}]");
+    }
+    if let Some([sigma, low, high]) = estimate.slip {
+        let sized = if estimate.slip_sized {
+            "sized with it"
+        } else {
+            "not sized: not seen"
+        };
+        clauses += &format!(
+            "; per-wheel slip σ̂ {:.2} % [{:.2} %, {:.2} %], {sized}",
+            100.0 * sigma,
+            100.0 * low,
+            100.0 * high
+        );
+    }
+    clauses
 }
 
 /// Raw bits in a snapshot's pool.

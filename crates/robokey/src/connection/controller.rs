@@ -8,6 +8,7 @@ use std::collections::VecDeque;
 use rand::rngs::ChaCha20Rng;
 use robokey_secrecy::postprocess::{ControllerPost, ControllerSnapshot, SessionSamples};
 
+use super::computation::{BlockComputation, Computed};
 use super::linger::{Courtesy, Linger};
 use super::post::{PostLink, PostOutput};
 use super::{Output, Setup};
@@ -18,7 +19,7 @@ use crate::protocol::auth::{AuthMode, ChannelCounts, ControllerChannel, Delivery
 use crate::protocol::timing::earliest;
 use crate::protocol::{
     Closing, Controller, ControllerEvent, ControllerInput, ControllerOutput, Handshake, Message,
-    Outcome, SessionPlan, Time, Timing, agreement_terms, config_digest,
+    Outcome, PostFragment, SessionPlan, Time, Timing, agreement_terms, config_digest,
 };
 
 /// How many `Ready`s go unanswered before the controller starts a fresh handshake.
@@ -26,6 +27,13 @@ const READY_TRIES: u32 = 10;
 
 /// Most handshakes one conversation starts.
 const HANDSHAKES: u32 = 3;
+
+/// While a computation handed to the shell is outstanding, the controller repeats its last
+/// post-processing fragment this many times per block timeout: the robot waits the block
+/// timeout after each fragment it receives (a duplicate, which it otherwise ignores,
+/// included), so it stays for as long as the controller computes, unless all of them are
+/// lost (probability `p⁶` at a loss rate `p`).
+const KEEPALIVES_PER_BLOCK_TIMEOUT: u32 = 6;
 
 /// What the controller's shell is asked to do.
 pub type ControllerAction<A> = Output<A, ControllerEvent, ControllerSnapshot>;
@@ -45,14 +53,17 @@ enum Stage {
         readies: u32,
     },
     /// After the outcome: post-processing until no block is in flight, its retransmission
-    /// timer, when the robot last answered it, and whether the last flush computed a block's
+    /// timer, when the robot last answered it, whether the last flush computed a block's
     /// estimate (the robot's silence then restarts at the next wake-up, when the answer has
-    /// left: the controller's own computing is not the robot's silence).
+    /// left: the controller's own computing is not the robot's silence), and, while a
+    /// computation handed to the shell is outstanding (the robot silent, waiting for its
+    /// answer), when the last fragment is next repeated to keep the robot waiting.
     Post {
         courtesy: Courtesy,
         timer: Time,
         heard: Time,
         computed: bool,
+        keepalive: Option<Time>,
     },
     /// `Done` sent: answering until the robot's `Done` or quiet.
     Linger(Linger),
@@ -88,6 +99,9 @@ pub struct ControllerConnection<A> {
     /// Multilevel symbols: each decided doublet's patterns' log-likelihoods as kept
     /// ([`super::slices::keep_likelihoods`]), from which its later slices' LLRs follow.
     likelihoods: Vec<i16>,
+    /// The last post-processing fragment sent, which keeps the robot waiting while the shell
+    /// computes.
+    last_fragment: Option<PostFragment>,
     outputs: VecDeque<ControllerAction<A>>,
 }
 
@@ -136,6 +150,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             kept: SessionSamples::new(),
             llrs: Vec::new(),
             likelihoods: Vec::new(),
+            last_fragment: None,
             outputs: VecDeque::new(),
             channel,
             earlier: ChannelCounts::default(),
@@ -207,11 +222,21 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                 }
                 self.drain(now);
             }
-            Stage::Post { timer, .. } => {
+            Stage::Post {
+                timer, keepalive, ..
+            } => {
                 if now >= *timer {
                     *timer = now + self.timing.retransmit_interval();
                     if let Some(post) = &mut self.post {
                         post.on_timeout();
+                    }
+                }
+                if let Some(at) = keepalive
+                    && now >= *at
+                {
+                    *at = now + keepalive_interval(&self.timing);
+                    if let Some(fragment) = self.last_fragment.clone() {
+                        self.send(fragment.into());
                     }
                 }
             }
@@ -233,9 +258,12 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                 let ready = (!endpoint.is_some_and(Controller::robot_heard)).then_some(*ready_at);
                 earliest(ready, endpoint.and_then(Controller::poll_timeout))
             }
-            Stage::Post { timer, heard, .. } => {
-                Some((*timer).min(*heard + self.timing.silence_timeout))
-            }
+            Stage::Post {
+                timer,
+                heard,
+                keepalive,
+                ..
+            } => Some((*timer).min(keepalive.unwrap_or(*heard + self.timing.silence_timeout))),
             Stage::Linger(linger) => Some(linger.deadline()),
             Stage::Closed => None,
         }
@@ -289,6 +317,26 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
     #[must_use]
     pub fn post(&self) -> Option<&PostLink<ControllerPost>> {
         self.post.as_ref()
+    }
+
+    /// The block-time computation post-processing waits for, once, with a link that defers
+    /// them ([`PostLink::deferring`]): the shell runs it and hands its answer to
+    /// [`Self::handle_computed`], answering the network meanwhile.
+    pub fn take_computation(&mut self) -> Option<BlockComputation> {
+        self.post.as_mut()?.take_computation()
+    }
+
+    /// The shell's answer to the computation it took, at `now`: post-processing carries on
+    /// (an answer after the conversation ended, stopped, is dropped).
+    pub fn handle_computed(&mut self, now: Time, computed: Computed) {
+        if let (Stage::Post { heard, .. }, Some(post)) = (&mut self.stage, &mut self.post) {
+            let mut out = Vec::new();
+            post.answer(computed, &mut out);
+            self.outputs.extend(out.into_iter().map(Output::Post));
+            // The robot's silence counts from now: it waited for this answer.
+            *heard = (*heard).max(now);
+        }
+        self.after(now);
     }
 
     /// Whether the conversation is over.
@@ -493,6 +541,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                     timer: now + self.timing.retransmit_interval(),
                     heard: now,
                     computed: false,
+                    keepalive: None,
                 };
             }
             None => self.linger(now, courtesy),
@@ -506,6 +555,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
             timer,
             heard,
             computed,
+            keepalive,
             ..
         } = &mut self.stage
         else {
@@ -536,7 +586,16 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         if !fragments.is_empty() {
             *timer = now + self.timing.retransmit_interval();
         }
-        let (idle, silent) = (post.is_idle(), now >= *heard + self.timing.silence_timeout);
+        // While the shell computes, the robot waits for its answer: its silence is expected.
+        *keepalive = match (post.is_computing(), *keepalive) {
+            (true, at) => Some(at.unwrap_or(now + keepalive_interval(&self.timing))),
+            (false, _) => None,
+        };
+        let idle = post.is_idle();
+        let silent = keepalive.is_none() && now >= *heard + self.timing.silence_timeout;
+        if let Some(last) = fragments.last() {
+            self.last_fragment = Some(last.clone());
+        }
         for fragment in fragments {
             self.send(fragment.into());
         }
@@ -574,6 +633,12 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
         self.stage = Stage::Closed;
         self.outputs.push_back(Output::Closed);
     }
+}
+
+/// How often the controller repeats its last post-processing fragment while the shell
+/// computes: `timing`'s block timeout over [`KEEPALIVES_PER_BLOCK_TIMEOUT`] (5 s by default).
+fn keepalive_interval(timing: &Timing) -> std::time::Duration {
+    timing.block_timeout / KEEPALIVES_PER_BLOCK_TIMEOUT
 }
 
 /// Whether the controller keeps each decided doublet (its inputs and samples) for its

@@ -5,12 +5,14 @@
 //! until [`ControllerConnection::poll_timeout`] (or the robot's), feed it or the timeout, and
 //! carry out the outputs — send bytes, sample or drive the robot, write the store, report.
 
+pub mod computation;
 pub(crate) mod controller;
 mod linger;
 pub mod post;
 pub(crate) mod robot;
 pub mod slices;
 
+pub use computation::{BlockComputation, Computed};
 pub use controller::{ControllerAction, ControllerConnection};
 pub use post::{PostEndpoint, PostLink, PostOutput};
 pub use robot::{RobotAction, RobotConnection};

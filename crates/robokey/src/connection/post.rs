@@ -8,16 +8,14 @@ use std::collections::BTreeSet;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, EstimateOutcome,
-    EstimateRequest, FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost,
-    RobotSnapshot, SessionSamples, SliceInput, SlicesEstimateRequest, StagedSession, slice_id,
+    FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot,
+    SessionSamples, SliceInput, StagedSession, slice_id,
 };
 
-use super::slices::{first_slice, slice_estimates, slice_input, slicing};
+use super::computation::{Answer, BlockComputation, Computed};
+use super::slices::{first_slice, slice_input, slicing};
 use crate::Config;
-use crate::config::Sizing;
-use crate::estimate::{
-    BlockEstimate, check_request, estimate_request, recomputed_llrs, recomputes_llrs,
-};
+use crate::estimate::{BlockEstimate, recomputes_llrs};
 use crate::protocol::{Outcome, PostFragment};
 
 /// A post-processing endpoint as a connection drives it.
@@ -263,6 +261,19 @@ pub struct PostLink<E> {
     /// Whether the last [`Self::flush`] ran a block-time computation (the estimate of the
     /// plant or the commands check): the time it took is this side's, not the peer's silence.
     computed: bool,
+    /// Whether block-time computations go to the shell ([`Self::deferring`]) rather than
+    /// running inside [`Self::flush`].
+    defer: bool,
+    /// The deferred computation asked for and not answered yet: the job until the shell
+    /// takes it, then only its block.
+    computing: Option<Computing>,
+}
+
+/// A deferred computation, before and after the shell took it.
+#[derive(Debug)]
+enum Computing {
+    Asked(Box<BlockComputation>),
+    Taken(u64),
 }
 
 impl<E: PostEndpoint> PostLink<E> {
@@ -277,6 +288,81 @@ impl<E: PostEndpoint> PostLink<E> {
             spent,
             config: config.clone(),
             computed: false,
+            defer: false,
+            computing: None,
+        }
+    }
+
+    /// The same link, its block-time computations handed to the shell
+    /// ([`Self::take_computation`], answered with [`Self::answer`]) instead of run inside
+    /// [`Self::flush`]: an agent runs them on a worker thread while it keeps answering the
+    /// network.
+    #[must_use]
+    pub fn deferring(mut self) -> Self {
+        self.defer = true;
+        self
+    }
+
+    /// The computation the endpoint waits for, once: the shell runs it
+    /// ([`BlockComputation::run`]) and hands back its answer.
+    pub fn take_computation(&mut self) -> Option<BlockComputation> {
+        match self.computing.take()? {
+            Computing::Asked(job) => {
+                self.computing = Some(Computing::Taken(job.block()));
+                Some(*job)
+            }
+            taken @ Computing::Taken(_) => {
+                self.computing = Some(taken);
+                None
+            }
+        }
+    }
+
+    /// Whether a deferred computation is asked for and not answered yet.
+    #[must_use]
+    pub fn is_computing(&self) -> bool {
+        self.computing.is_some()
+    }
+
+    /// The shell's answer to a computation: the endpoint takes it (one for another block is
+    /// dropped); the estimates behind it are reported in `out`. The next [`Self::flush`]
+    /// carries on.
+    pub fn answer(&mut self, computed: Computed, out: &mut Vec<PostOutput<E::Snapshot>>) {
+        match self.computing {
+            Some(Computing::Taken(block)) if block == computed.block => self.computing = None,
+            _ => return,
+        }
+        self.hand(computed, out);
+    }
+
+    /// A computation the endpoint asked for: deferred to the shell, or run now and handed
+    /// back.
+    fn compute(&mut self, job: BlockComputation, out: &mut Vec<PostOutput<E::Snapshot>>) {
+        if self.defer {
+            self.computing = Some(Computing::Asked(Box::new(job)));
+        } else {
+            let computed = job.run();
+            self.hand(computed, out);
+            self.computed = true;
+        }
+    }
+
+    /// Hands the endpoint a computation's answer, reporting the estimates behind it.
+    fn hand(&mut self, computed: Computed, out: &mut Vec<PostOutput<E::Snapshot>>) {
+        let block = computed.block;
+        match computed.answer {
+            Answer::Estimate { estimate, outcome } => {
+                out.extend(estimate.map(PostOutput::Estimated));
+                self.endpoint.estimated(block, outcome);
+            }
+            Answer::Llrs(llrs) => self.endpoint.llrs_recomputed(block, llrs),
+            Answer::Slices {
+                estimates,
+                outcomes,
+            } => {
+                out.extend(estimates.into_iter().map(PostOutput::Estimated));
+                self.endpoint.slices_estimated(block, outcomes);
+            }
         }
     }
 
@@ -383,38 +469,16 @@ impl<E: PostEndpoint> PostLink<E> {
         self.computed = false;
         while let Some(output) = self.endpoint.poll_output() {
             match output {
+                // Block-time computations, from the samples the pool kept and the robot's
+                // bits: run now, or handed to the shell (`Self::deferring`).
                 Output::EstimateNeeded(request) => {
-                    // At block time, from the samples the pool kept and the robot's bits:
-                    // the simulator's computation (`estimate::block`); configured sizing
-                    // runs its commands check only (a refusal ends the block as an abort).
-                    let epsilon = self.config.postprocess.epsilon;
-                    let outcome = if self.config.postprocess.sizing == Sizing::Measured {
-                        let estimate = estimate_request(&self.config, &request, epsilon);
-                        let outcome = estimate.outcome();
-                        out.push(PostOutput::Estimated(estimate));
-                        outcome
-                    } else {
-                        check_request(&self.config, &request, epsilon)
-                    };
-                    self.endpoint.estimated(request.block, outcome);
-                    self.computed = true;
+                    self.compute(BlockComputation::estimate(&self.config, request), out);
                 }
                 Output::LlrsNeeded(request) => {
-                    // Before LDPC, from the kept samples and the disclosed sample: the
-                    // simulator's computation (`estimate::block_llrs`); where it keeps the
-                    // prior's LLRs (a sample too small, three steps, multilevel), those.
-                    let llrs =
-                        recomputed_llrs(&self.config, &request, self.config.postprocess.llrs);
-                    self.endpoint.llrs_recomputed(request.block, llrs.ok());
-                    self.computed = true;
+                    self.compute(BlockComputation::llrs(&self.config, request), out);
                 }
                 Output::SlicesEstimateNeeded(request) => {
-                    // A multilevel block on whole symbols once its last slice is reconciled:
-                    // the lab's estimate and commands check, each slice sized from them
-                    // (`slices::slice_estimates`); configured sizing the check alone.
-                    let outcomes = self.slice_outcomes(&request, out);
-                    self.endpoint.slices_estimated(request.block, outcomes);
-                    self.computed = true;
+                    self.compute(BlockComputation::slices(&self.config, request), out);
                 }
                 Output::SliceReconciled(reconciled) => {
                     // The next slices' LLRs given the robot's bits of the reconciled ones:
@@ -474,42 +538,6 @@ impl<E: PostEndpoint> PostLink<E> {
             out.push(PostOutput::Sent(fragments.len() - before));
         }
         Ok(fragments)
-    }
-}
-
-impl<E> PostLink<E> {
-    /// Each slice's published outcome for a multilevel block's `request`: under measured
-    /// sizing the block's estimate on whole symbols sized per slice (each reported in `out`);
-    /// under configured sizing the commands check on whole symbols, its verdict for every
-    /// slice.
-    fn slice_outcomes<S>(
-        &self,
-        request: &SlicesEstimateRequest,
-        out: &mut Vec<PostOutput<S>>,
-    ) -> Vec<EstimateOutcome> {
-        let epsilon = self.config.postprocess.epsilon;
-        if self.config.postprocess.sizing == Sizing::Measured {
-            slice_estimates(&self.config, &request.sessions, &request.disclosed, epsilon)
-                .into_iter()
-                .map(|estimate| {
-                    let outcome = estimate.outcome();
-                    out.push(PostOutput::Estimated(estimate));
-                    outcome
-                })
-                .collect()
-        } else {
-            let whole = EstimateRequest {
-                block: request.block,
-                sessions: request
-                    .sessions
-                    .iter()
-                    .map(|s| (s.session, s.samples.clone(), s.known.clone()))
-                    .collect(),
-                disclosed: request.disclosed.iter().sum(),
-            };
-            let verdict = check_request(&self.config, &whole, epsilon);
-            vec![verdict; request.disclosed.len()]
-        }
     }
 }
 

@@ -253,7 +253,9 @@ impl<A: Copy + PartialEq, K: CryptoRng> RobotConnection<A, K> {
                 // With a block in flight the controller's next request may follow its
                 // block-time estimate of the plant (seconds for a multilevel block): the
                 // robot waits for it the block timeout, not only the quiet time (0.3 s in
-                // lockstep) nor the silence timeout.
+                // lockstep) nor the silence timeout — after every fragment, a duplicate the
+                // reassembler drops included: the controller repeats its last one while it
+                // computes.
                 let mut patience = Duration::ZERO;
                 if let Some(post) = &mut self.post {
                     let mut out = Vec::new();
