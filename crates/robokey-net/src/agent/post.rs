@@ -134,6 +134,15 @@ pub struct BlockSummary {
     /// With LDPC reconciliation: the syndrome rounds used (absent with Cascade).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ldpc_rounds: Option<u32>,
+    /// With LDPC reconciliation, on the controller: the LLRs it decoded on — `prior`
+    /// (online, with the prior) or the model they were recomputed with at block time
+    /// (`measured`); absent with Cascade.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub llrs: Option<String>,
+    /// Why the prior's LLRs stayed where `postprocess.llrs` asked for them recomputed, if
+    /// they did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub llrs_fallback: Option<String>,
     /// Confirmation tags (bits).
     pub leak_confirmation: u64,
     /// Eve's smooth min-entropy under the assumption (bits).
@@ -162,6 +171,8 @@ impl From<&BlockReport> for BlockSummary {
             reconciled_bits: r.reconciled_bits,
             leak_ec: r.leak_ec,
             ldpc_rounds: r.ldpc_rounds,
+            llrs: r.llrs.clone(),
+            llrs_fallback: r.llrs_fallback.clone(),
             leak_confirmation: r.leak_confirmation,
             h_min: r.h_min,
             length: r.length,
@@ -396,6 +407,12 @@ impl<E: StoredEndpoint> AgentStore<E> {
                 "{}: block {}: {} raw bits of {} sessions, no key: {reason}",
                 self.role, summary.block, summary.bits, summary.sessions
             ),
+        }
+        if let Some(why) = &summary.llrs_fallback {
+            println!(
+                "{}: block {}: LDPC decoded on the prior's LLRs, not recomputed: {why}",
+                self.role, summary.block
+            );
         }
         self.report.blocks.push(summary);
     }

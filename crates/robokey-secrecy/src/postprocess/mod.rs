@@ -56,7 +56,8 @@ pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
 pub use encoding::{decode, encode};
 pub use estimate::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, LlrRequest,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, LlrAnswer, LlrRequest,
+    RecomputedLlrs,
     MAX_SEPARATION_STEPS, SEPARATION_QUANTUM, SessionSamples,
 };
 pub use fragment::{
@@ -157,6 +158,16 @@ pub struct BlockReport {
     /// With LDPC reconciliation: the syndrome rounds used (absent with Cascade).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ldpc_rounds: Option<u32>,
+    /// With LDPC reconciliation, on the controller: the LLRs it decoded on — `prior` (each
+    /// doublet's, computed online with the prior and pooled with its session) or the model
+    /// the shell recomputed them with at block time (`measured`, `world`; docs/estimation.md,
+    /// "Causality"). Absent with Cascade, which reads no LLRs, and on the robot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub llrs: Option<String>,
+    /// Why the prior's LLRs stayed where the shell was asked to recompute them (the fallback's
+    /// reason, naming the value), if they did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub llrs_fallback: Option<String>,
     /// Confirmation tags published over the block (two 64-bit tags).
     pub leak_confirmation: u64,
     /// Eve's smooth min-entropy bound under the assumption.

@@ -8,7 +8,7 @@ use std::collections::BTreeSet;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, EstimateOutcome,
-    EstimateRequest, FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost,
+    EstimateRequest, FinalKey, InFlight, LlrAnswer, Output, PostError, Reassembler, RobotInput, RobotPost,
     RobotSnapshot, SessionSamples, SliceInput, SlicesEstimateRequest, StagedSession, slice_id,
 };
 
@@ -16,7 +16,7 @@ use super::slices::{first_slice, slice_estimates, slice_input, slicing};
 use crate::Config;
 use crate::config::Sizing;
 use crate::estimate::{
-    BlockEstimate, check_request, estimate_request, recomputed_llrs, recomputes_llrs,
+    BlockEstimate, check_request, estimate_request, llr_answer, recomputes_llrs,
 };
 use crate::protocol::{Outcome, PostFragment};
 
@@ -64,7 +64,7 @@ pub trait PostEndpoint {
     fn recompute_llrs(&mut self, recompute: bool);
     /// The shell's recomputed LLRs of `block`, which the endpoint asked for (none: the
     /// pooled ones; the robot never asks).
-    fn llrs_recomputed(&mut self, block: u64, llrs: Option<Vec<f64>>);
+    fn llrs_recomputed(&mut self, block: u64, llrs: LlrAnswer);
     /// The shell's estimate of the plant for `block`, which the endpoint asked for (the
     /// robot never asks).
     fn estimated(&mut self, block: u64, outcome: EstimateOutcome);
@@ -114,7 +114,7 @@ impl PostEndpoint for ControllerPost {
     fn recompute_llrs(&mut self, recompute: bool) {
         ControllerPost::recompute_llrs(self, recompute);
     }
-    fn llrs_recomputed(&mut self, block: u64, llrs: Option<Vec<f64>>) {
+    fn llrs_recomputed(&mut self, block: u64, llrs: LlrAnswer) {
         // Never fails: only sessions are checked.
         let _ = self.handle_input(ControllerInput::Llrs { block, llrs });
     }
@@ -184,7 +184,7 @@ impl PostEndpoint for RobotPost {
         Ok(())
     }
     fn recompute_llrs(&mut self, _recompute: bool) {}
-    fn llrs_recomputed(&mut self, _block: u64, _llrs: Option<Vec<f64>>) {}
+    fn llrs_recomputed(&mut self, _block: u64, _llrs: LlrAnswer) {}
     fn estimated(&mut self, _block: u64, _outcome: EstimateOutcome) {}
     fn slices_estimated(&mut self, _block: u64, _outcomes: Vec<EstimateOutcome>) {}
     fn frame(&mut self, message: postprocess::Message) {
@@ -400,12 +400,12 @@ impl<E: PostEndpoint> PostLink<E> {
                     self.computed = true;
                 }
                 Output::LlrsNeeded(request) => {
-                    // Before LDPC, from the kept samples and the disclosed sample: the
-                    // simulator's computation (`estimate::block_llrs`); where it keeps the
-                    // prior's LLRs (a sample too small, three steps, multilevel), those.
-                    let llrs =
-                        recomputed_llrs(&self.config, &request, self.config.postprocess.llrs);
-                    self.endpoint.llrs_recomputed(request.block, llrs.ok());
+                    // Before LDPC, from the kept samples, the disclosed sample and a
+                    // slice's staged material: the simulator's computation
+                    // (`estimate::block_llrs`); where it keeps the prior's LLRs (a sample
+                    // too small, three steps), those, the report saying why.
+                    let answer = llr_answer(&self.config, &request, self.config.postprocess.llrs);
+                    self.endpoint.llrs_recomputed(request.block, answer);
                     self.computed = true;
                 }
                 Output::SlicesEstimateNeeded(request) => {
