@@ -759,11 +759,11 @@ impl Pool {
                             slicing,
                             likelihoods: Vec::new(),
                             separations: Vec::new(),
-                            known: BitString::from_bools(
-                                &(0..len)
+                            known: BitString::from_bools(&Zeroizing::new(
+                                (0..len)
                                     .map(|i| place(i) < slice && self.robot[start + i] == 1)
-                                    .collect::<Zeroizing<Vec<bool>>>(),
-                            ),
+                                    .collect::<Vec<bool>>(),
+                            )),
                             samples: kept.clone(),
                         });
                     }
