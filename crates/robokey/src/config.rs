@@ -1647,7 +1647,9 @@ mod tests {
         assert!(text.contains("postprocess.block_bits"), "{text}");
         // Cascade reads the decisions, never the LLRs: recomputing them is refused.
         let cascade = "[sensing]\nmode = \"private\"\n[postprocess]\nllrs = \"measured\"\n";
-        let text = Config::from_toml(cascade, "c.toml").unwrap_err().to_string();
+        let text = Config::from_toml(cascade, "c.toml")
+            .unwrap_err()
+            .to_string();
         assert!(
             text.contains("c.toml")
                 && text.contains("postprocess.llrs")

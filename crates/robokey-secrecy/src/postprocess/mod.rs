@@ -57,8 +57,7 @@ pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlig
 pub use encoding::{decode, encode};
 pub use estimate::{
     EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, LlrAnswer, LlrRequest,
-    RecomputedLlrs,
-    MAX_SEPARATION_STEPS, SEPARATION_QUANTUM, SessionSamples,
+    MAX_SEPARATION_STEPS, RecomputedLlrs, SEPARATION_QUANTUM, SessionSamples,
 };
 pub use fragment::{
     FRAGMENT_BYTES, MAX_FRAGMENTS, MAX_MESSAGE_BYTES, Reassembler, fits, fragments,

@@ -8,8 +8,9 @@ use std::collections::BTreeSet;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, EstimateOutcome,
-    EstimateRequest, FinalKey, InFlight, LlrAnswer, Output, PostError, Reassembler, RobotInput, RobotPost,
-    RobotSnapshot, SessionSamples, SliceInput, SlicesEstimateRequest, StagedSession, slice_id,
+    EstimateRequest, FinalKey, InFlight, LlrAnswer, Output, PostError, Reassembler, RobotInput,
+    RobotPost, RobotSnapshot, SessionSamples, SliceInput, SlicesEstimateRequest, StagedSession,
+    slice_id,
 };
 
 use super::slices::{first_slice, slice_estimates, slice_input, slicing};

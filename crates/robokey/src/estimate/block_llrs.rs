@@ -56,8 +56,7 @@ pub fn recomputed_llrs(
     }
     if Perturbation::of(config).levels > 2 {
         return Err(
-            "multilevel symbols: each slice's LLRs are staged, recomputed per slice's block"
-                .into(),
+            "multilevel symbols: each slice's LLRs are staged, recomputed per slice's block".into(),
         );
     }
     let mut disclosed = request.disclosed.iter().peekable();

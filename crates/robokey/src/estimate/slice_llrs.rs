@@ -30,7 +30,9 @@ use super::residual::{DoubletResidual, rotation};
 use crate::Config;
 use crate::config::LlrModel;
 use crate::private::likelihood::staged_llrs;
-use crate::private::{DoubletModel, DoubletSamples, Perturbation, doublet_model, doublet_model_with};
+use crate::private::{
+    DoubletModel, DoubletSamples, Perturbation, doublet_model, doublet_model_with,
+};
 use crate::world::WorldModel;
 
 /// Most EM iterations of a slice's fit.
@@ -115,7 +117,8 @@ pub fn recomputed_slice_llrs(
     };
     let mut llrs = Vec::with_capacity(doublets.len() * key_bits / m);
     for d in &doublets {
-        let ll = model_of(&d.samples).log_likelihoods(&d.samples.inputs, &own_view(config, &d.samples));
+        let ll =
+            model_of(&d.samples).log_likelihoods(&d.samples.inputs, &own_view(config, &d.samples));
         let staged = staged_llrs(&ll, &perturbation, d.word as u64);
         llrs.extend((0..key_bits).filter(|i| i % m == slice).map(|i| staged[i]));
     }
@@ -408,7 +411,10 @@ mod tests {
             )
             .unwrap();
             let (m, p) = (mean_magnitude(&measured), mean_magnitude(&online));
-            assert!((m / p - 1.0).abs() < 0.05, "slice {slice}: measured {m}, prior {p}");
+            assert!(
+                (m / p - 1.0).abs() < 0.05,
+                "slice {slice}: measured {m}, prior {p}"
+            );
         }
     }
 
@@ -430,7 +436,10 @@ mod tests {
                 mean_magnitude(&llrs(LlrModel::World)),
                 mean_magnitude(&online),
             );
-            assert!((m / w - 1.0).abs() < 0.1, "slice {slice}: measured {m}, world {w}");
+            assert!(
+                (m / w - 1.0).abs() < 0.1,
+                "slice {slice}: measured {m}, world {w}"
+            );
             assert!(p > 1.5 * m, "slice {slice}: prior {p}, measured {m}");
         }
     }
