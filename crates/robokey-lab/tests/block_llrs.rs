@@ -17,7 +17,9 @@ use robokey::protocol::Outcome;
 use robokey::sim::{RunOutput, simulate};
 use robokey_lab::secrecy::pipeline::{self, Block, BlockSettings, Pooling};
 use robokey_lab::secrecy::private::assumed_separations;
-use robokey_secrecy::postprocess::{BlockReport, ControllerPost, RobotPost, SessionSamples};
+use robokey_secrecy::postprocess::{
+    BlockReport, ControllerPost, LlrProvenance, RobotPost, SessionSamples,
+};
 
 /// The parties at the defaults with LDPC on `llrs`, one 10⁴-bit block, the robot in an
 /// 8 mm world (twice the 4 mm they believe).
@@ -151,16 +153,19 @@ fn the_agents_recompute_the_llrs_as_the_simulator_does_in_a_noisier_world() {
         "agents {agents:?}, lab {lab:?}"
     );
     // Both reports say which LLRs LDPC decoded on.
-    let measured = Some("measured".to_owned());
-    assert_eq!((&lab.llrs, &agents.llrs), (&measured, &measured));
-    assert_eq!((&lab.llrs_fallback, &agents.llrs_fallback), (&None, &None));
+    let named = |model: &str| LlrProvenance {
+        model: model.into(),
+        fallback: None,
+    };
+    assert_eq!(lab.llrs, Some(named("measured")));
+    assert_eq!(agents.llrs.as_deref(), Some(&named("measured")));
     // The prior's LLRs (the configured 4 mm) on the same sessions: overconfident, LDPC's
     // syndrome is too short and the block fails in the lab and through the agents alike.
     let (lab, agents) = both(&parties("prior"), &runs, 11);
     assert_eq!(lab.secret_bits, 0, "{lab:?}");
     assert_eq!(agents.length, 0, "{agents:?}");
-    let prior = Some("prior".to_owned());
-    assert_eq!((&lab.llrs, &agents.llrs), (&prior, &prior));
+    assert_eq!(lab.llrs, Some(named("prior")));
+    assert_eq!(agents.llrs.as_deref(), Some(&named("prior")));
 }
 
 /// A multilevel block (two dimensions of 4 levels) in an 8 mm world, the parties believing
@@ -230,9 +235,17 @@ fn a_multilevel_blocks_slices_recompute_their_staged_llrs() {
             m.leak_ec,
             w.leak_ec
         );
-        assert_eq!(m.llrs.as_deref(), Some("measured"));
-        assert_eq!(w.llrs.as_deref(), Some("world"));
-        assert_eq!(m.llrs_fallback, None);
+        let model = |b: &Block| {
+            b.llrs
+                .as_ref()
+                .map(|l| (l.model.clone(), l.fallback.clone()))
+        };
+        assert_eq!(model(m), Some(("measured".into(), None)));
+        assert_eq!(model(w), Some(("world".into(), None)));
     }
-    assert!(prior.iter().all(|b| b.llrs.as_deref() == Some("prior")));
+    assert!(
+        prior
+            .iter()
+            .all(|b| b.llrs.as_ref().is_some_and(|l| l.model == "prior"))
+    );
 }

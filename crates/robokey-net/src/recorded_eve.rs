@@ -865,7 +865,6 @@ mod tests {
             leak_ec: 0,
             ldpc_rounds: None,
             llrs: None,
-            llrs_fallback: None,
             leak_confirmation: 0,
             h_min: 0.0,
             length: 1,

@@ -19,8 +19,8 @@ use robokey_secrecy::min_entropy::{
 };
 use robokey_secrecy::postprocess::{
     AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, EstimateRefusal,
-    Message, Output, ReconciliationMethod, RobotInput, RobotPost, SessionSamples, Settings,
-    StagedSession,
+    LlrProvenance, Message, Output, ReconciliationMethod, RobotInput, RobotPost, SessionSamples,
+    Settings, StagedSession,
 };
 use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
@@ -246,12 +246,10 @@ pub struct Block {
     pub ldpc_rounds: Option<u32>,
     /// With LDPC reconciliation: the LLRs the controller decoded on — `prior` (online, with
     /// the prior) or the model they were recomputed with at block time (`measured`,
-    /// `world`); absent with Cascade, which reads no LLRs.
+    /// `world`), and why the prior's stayed where recomputation was asked for; absent with
+    /// Cascade, which reads no LLRs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub llrs: Option<String>,
-    /// Why the prior's LLRs stayed where recomputation was asked for, if they did.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub llrs_fallback: Option<String>,
+    pub llrs: Option<LlrProvenance>,
     /// Confirmation tags published over pooled key bits (per-session or per-block).
     pub leak_confirmation: u64,
     /// leak_ec + leak_confirmation.
@@ -340,7 +338,6 @@ fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
         leak_ec: 0,
         ldpc_rounds: None,
         llrs: None,
-        llrs_fallback: None,
         leak_confirmation,
         leak: leak_confirmation,
         consistent: pool.robot == pool.controller,
@@ -565,8 +562,7 @@ fn endpoint_block(
         message_bits: report.bits_sent + robot.map_or(0, |r| r.bits_sent),
         leak_ec: report.leak_ec,
         ldpc_rounds: report.ldpc_rounds,
-        llrs: report.llrs.clone(),
-        llrs_fallback: report.llrs_fallback.clone(),
+        llrs: report.llrs.as_deref().cloned(),
         leak_confirmation: report.leak_confirmation,
         leak,
         consistent,

@@ -16,9 +16,10 @@ use super::public::{PublicRandomness, sample_size};
 use super::syndromes::{DecodingStep, Reconciled, SyndromeDecoding};
 use super::{
     AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, KeyReconciliation,
-    MAX_BLOCK_SESSIONS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, ReconciledSlices,
-    ReconciliationMethod, RejectReason, Settings, SliceInput, SlicesEstimateRequest, StagedSession,
-    concatenate, dequantise_llr, key_id, quantise_llr, split_sample, tag_context,
+    LlrProvenance, MAX_BLOCK_SESSIONS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER,
+    ReconciledSlices, ReconciliationMethod, RejectReason, Settings, SliceInput,
+    SlicesEstimateRequest, StagedSession, concatenate, dequantise_llr, key_id, quantise_llr,
+    split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep};
@@ -908,20 +909,25 @@ impl ControllerPost {
         }
         match std::mem::replace(&mut self.state, State::Idle) {
             State::ExpectLlrs { agreed, settings } => {
-                let llrs = match answer {
-                    Ok(recomputed) => {
-                        if let Some(report) = self.report.as_mut() {
-                            report.llrs = Some(recomputed.model);
-                        }
-                        Some(recomputed.llrs)
-                    }
-                    Err(why) => {
-                        if let Some(report) = self.report.as_mut() {
-                            report.llrs_fallback = Some(why);
-                        }
-                        None
-                    }
+                let (provenance, llrs) = match answer {
+                    Ok(recomputed) => (
+                        LlrProvenance {
+                            model: recomputed.model,
+                            fallback: None,
+                        },
+                        Some(recomputed.llrs),
+                    ),
+                    Err(why) => (
+                        LlrProvenance {
+                            model: "prior".into(),
+                            fallback: Some(why),
+                        },
+                        None,
+                    ),
                 };
+                if let Some(report) = self.report.as_mut() {
+                    report.llrs = Some(Box::new(provenance));
+                }
                 self.start_ldpc(agreed, settings, llrs);
             }
             state => {
@@ -943,8 +949,11 @@ impl ControllerPost {
     ) {
         let mut llrs = Vec::with_capacity(agreed.mask.len());
         let pooled = recomputed.is_none();
-        if let (true, Some(report)) = (pooled, self.report.as_mut()) {
-            report.llrs = Some("prior".into());
+        if let Some(report) = self.report.as_mut().filter(|r| r.llrs.is_none()) {
+            report.llrs = Some(Box::new(LlrProvenance {
+                model: "prior".into(),
+                fallback: None,
+            }));
         }
         if let Some(recomputed) = recomputed {
             if recomputed.len() != agreed.mask.len() || recomputed.iter().any(|l| l.is_nan()) {
