@@ -9,7 +9,7 @@ use std::collections::BTreeSet;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use robokey::Config;
-use robokey::config::EveStrategy;
+use robokey::config::{EveStrategy, LlrModel};
 use robokey::connection::{PostLink, PostOutput};
 use robokey::estimate::kept_doublet;
 use robokey::post_settings::post_settings;
@@ -17,7 +17,9 @@ use robokey::protocol::Outcome;
 use robokey::sim::{RunOutput, simulate};
 use robokey_lab::secrecy::pipeline::{self, Block, BlockSettings, Pooling};
 use robokey_lab::secrecy::private::assumed_separations;
-use robokey_secrecy::postprocess::{BlockReport, ControllerPost, RobotPost, SessionSamples};
+use robokey_secrecy::postprocess::{
+    BlockReport, ControllerPost, LlrProvenance, RobotPost, SessionSamples,
+};
 
 /// The parties at the defaults with LDPC on `llrs`, one 10⁴-bit block, the robot in an
 /// 8 mm world (twice the 4 mm they believe).
@@ -150,9 +152,100 @@ fn the_agents_recompute_the_llrs_as_the_simulator_does_in_a_noisier_world() {
         (Some(lab.leak_ec), lab.ldpc_rounds, lab.secret_bits),
         "agents {agents:?}, lab {lab:?}"
     );
+    // Both reports say which LLRs LDPC decoded on.
+    let named = |model: &str| LlrProvenance {
+        model: model.into(),
+        fallback: None,
+    };
+    assert_eq!(lab.llrs, Some(named("measured")));
+    assert_eq!(agents.llrs.as_deref(), Some(&named("measured")));
     // The prior's LLRs (the configured 4 mm) on the same sessions: overconfident, LDPC's
     // syndrome is too short and the block fails in the lab and through the agents alike.
     let (lab, agents) = both(&parties("prior"), &runs, 11);
     assert_eq!(lab.secret_bits, 0, "{lab:?}");
     assert_eq!(agents.length, 0, "{agents:?}");
+    assert_eq!(lab.llrs, Some(named("prior")));
+    assert_eq!(agents.llrs.as_deref(), Some(&named("prior")));
+}
+
+/// A multilevel block (two dimensions of 4 levels) in an 8 mm world, the parties believing
+/// 4 mm, through the lab's pipeline slice by slice: on the prior's overconfident staged LLRs
+/// its fine slice fails, and the coarse slice with it; recomputed at each slice's block
+/// time both slices reconcile, each within the leak of the world's own LLRs (the oracle)
+/// plus a tenth, and the coarse slice keys (the fine one, at 39 % errors, leaks more than
+/// its length under the oracle's LLRs too); each block's report names the LLRs it decoded
+/// on.
+#[test]
+fn a_multilevel_blocks_slices_recompute_their_staged_llrs() {
+    let config = |llrs: &str| {
+        Config::from_toml(
+            &format!(
+                "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\nlevels = 4\n\
+                 [postprocess]\nreconciliation = \"ldpc\"\nllrs = \"{llrs}\"\n[world]\n\
+                 process_std = [0.008, 0.008, 0.008]\n"
+            ),
+            "test",
+        )
+        .unwrap()
+    };
+    let measured = config("measured");
+    let runs: Vec<RunOutput> = (0..16)
+        .map(|r| simulate(&measured, r, false).unwrap())
+        .collect();
+    let slices = |basis: Option<LlrModel>| -> Vec<Block> {
+        let mut pools = pipeline::pools(&runs, Pooling::Complete, 10_000, EveStrategy::Camera);
+        pools.truncate(1);
+        let pool = &mut pools[0];
+        pool.separations = pool
+            .runs
+            .iter()
+            .map(|&i| assumed_separations(&runs[i]))
+            .collect();
+        if basis.is_some() {
+            pool.kept = pool.runs.iter().map(|&i| kept(&runs[i])).collect();
+        }
+        let parts = pool.slices(4, 2);
+        let endpoints = post_settings(&measured);
+        let settings = BlockSettings {
+            pooling: Pooling::Complete,
+            epsilon: endpoints.epsilon,
+            sample_bits: endpoints.sample_bits,
+            block_bits: endpoints.block_bits.div_ceil(2),
+            assumption: endpoints.assumption.clone(),
+            reconciliation: endpoints.reconciliation,
+            block_llrs: basis.map(|b| (measured.clone(), b)),
+        };
+        let mut blocks =
+            pipeline::post_process(&parts, &settings, &mut ChaCha8Rng::seed_from_u64(3));
+        pipeline::fail_later_slices(&mut blocks, 2);
+        assert_eq!(blocks.len(), 2);
+        blocks
+    };
+    let prior = slices(None);
+    assert!(prior.iter().all(|b| b.secret_bits == 0), "prior {prior:?}");
+    assert!(prior[0].failed_reconciliation, "{:?}", prior[0]);
+    let world = slices(Some(LlrModel::World));
+    let recomputed = slices(Some(LlrModel::Measured));
+    assert!(recomputed[1].secret_bits > 0, "{:?}", recomputed[1]);
+    for (m, w) in recomputed.iter().zip(&world) {
+        assert!(m.consistent && !m.failed_reconciliation, "measured {m:?}");
+        assert!(
+            (m.leak_ec as f64) < 1.1 * w.leak_ec as f64,
+            "measured {} vs the world's {}",
+            m.leak_ec,
+            w.leak_ec
+        );
+        let model = |b: &Block| {
+            b.llrs
+                .as_ref()
+                .map(|l| (l.model.clone(), l.fallback.clone()))
+        };
+        assert_eq!(model(m), Some(("measured".into(), None)));
+        assert_eq!(model(w), Some(("world".into(), None)));
+    }
+    assert!(
+        prior
+            .iter()
+            .all(|b| b.llrs.as_ref().is_some_and(|l| l.model == "prior"))
+    );
 }

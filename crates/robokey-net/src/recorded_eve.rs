@@ -864,6 +864,7 @@ mod tests {
             reconciled_bits: 4 - sample_bits,
             leak_ec: 0,
             ldpc_rounds: None,
+            llrs: None,
             leak_confirmation: 0,
             h_min: 0.0,
             length: 1,

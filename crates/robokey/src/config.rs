@@ -1118,6 +1118,16 @@ impl Config {
                  which private sensing gives; sensing.mode = \"private\")",
             ));
         }
+        if post.llrs == LlrModel::Measured && post.reconciliation == Reconciliation::Cascade {
+            return Err(invalid(
+                "postprocess.llrs",
+                "measured",
+                "\"prior\" with postprocess.reconciliation = \"cascade\" (Cascade reconciles \
+                 the controller's hard decisions, made online with the prior, and reads no \
+                 LLRs: recomputed LLRs would change nothing; postprocess.reconciliation = \
+                 \"ldpc\" decodes on them)",
+            ));
+        }
         if post.reconciliation == Reconciliation::Ldpc && post.block_bits > 1 << 22 {
             return Err(invalid(
                 "postprocess.block_bits",
@@ -1635,6 +1645,20 @@ mod tests {
         let large = format!("{private}block_bits = 5000000\n");
         let text = Config::from_toml(&large, "b.toml").unwrap_err().to_string();
         assert!(text.contains("postprocess.block_bits"), "{text}");
+        // Cascade reads the decisions, never the LLRs: recomputing them is refused.
+        let cascade = "[sensing]\nmode = \"private\"\n[postprocess]\nllrs = \"measured\"\n";
+        let text = Config::from_toml(cascade, "c.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            text.contains("c.toml")
+                && text.contains("postprocess.llrs")
+                && text.contains("measured")
+                && text.contains("Cascade reconciles"),
+            "{text}"
+        );
+        let measured = Config::from_toml(&format!("{private}llrs = \"measured\"\n"), "m").unwrap();
+        assert_eq!(measured.postprocess.llrs, LlrModel::Measured);
         let text = Config::from_toml("[postprocess]\nreconciliation = \"polar\"\n", "x")
             .unwrap_err()
             .to_string();

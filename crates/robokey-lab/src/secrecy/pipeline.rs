@@ -19,7 +19,8 @@ use robokey_secrecy::min_entropy::{
 };
 use robokey_secrecy::postprocess::{
     AbortReason, Assumption, BlockReport, ControllerInput, ControllerPost, EstimateRefusal,
-    Message, Output, ReconciliationMethod, RobotInput, RobotPost, SessionSamples, Settings,
+    LlrProvenance, Message, Output, ReconciliationMethod, RobotInput, RobotPost, SessionSamples,
+    Settings, StagedSession,
 };
 use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
@@ -27,7 +28,7 @@ use zeroize::Zeroizing;
 
 use robokey::Config;
 use robokey::config::LlrModel;
-use robokey::estimate::{BlockEstimate, recomputed_llrs};
+use robokey::estimate::{BlockEstimate, llr_answer};
 
 /// Which sessions are pooled, and what was published over their keys.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -131,6 +132,11 @@ pub struct Pool {
     /// LLRs recomputed at block time: what the controller keeps of each pooled session's
     /// doublets (empty otherwise), as the agents' pool keeps them.
     pub kept: Vec<SessionSamples>,
+    /// LLRs recomputed at block time for a multilevel slice ([`Self::slices`]): each pooled
+    /// session's staged material as the agents' controller holds it at the slice's block
+    /// (the lower slices' bits — the robot's, which a reconciled slice gives the controller —
+    /// and the kept doublets; empty otherwise).
+    pub staged: Vec<StagedSession>,
 }
 
 /// Groups the admitted sessions of `runs`, in order, into pools of at least `block_bits`
@@ -238,6 +244,12 @@ pub struct Block {
     /// With LDPC reconciliation: `ldpc` and the syndrome rounds used (absent with Cascade).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ldpc_rounds: Option<u32>,
+    /// With LDPC reconciliation: the LLRs the controller decoded on — `prior` (online, with
+    /// the prior) or the model they were recomputed with at block time (`measured`,
+    /// `world`), and why the prior's stayed where recomputation was asked for; absent with
+    /// Cascade, which reads no LLRs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub llrs: Option<LlrProvenance>,
     /// Confirmation tags published over pooled key bits (per-session or per-block).
     pub leak_confirmation: u64,
     /// leak_ec + leak_confirmation.
@@ -325,6 +337,7 @@ fn tagged_sessions(pool: &Pool, settings: &BlockSettings) -> Block {
         message_bits: 0,
         leak_ec: 0,
         ldpc_rounds: None,
+        llrs: None,
         leak_confirmation,
         leak: leak_confirmation,
         consistent: pool.robot == pool.controller,
@@ -364,10 +377,15 @@ fn through_endpoints(
     };
     let ldpc = matches!(settings.reconciliation, ReconciliationMethod::Ldpc(_));
     controller.recompute_llrs(ldpc && settings.block_llrs.is_some());
-    // What the controller kept of each session, by its ID (the sessions in order).
+    // What the controller kept of each session, and a slice's staged material, by its ID
+    // (the sessions in order).
     let kept: Vec<Option<&SessionSamples>> = pools
         .iter()
         .flat_map(|p| (0..p.lengths.len()).map(|i| p.kept.get(i)))
+        .collect();
+    let staged: Vec<Option<&StagedSession>> = pools
+        .iter()
+        .flat_map(|p| (0..p.lengths.len()).map(|i| p.staged.get(i)))
         .collect();
     for (id, (((robot_bits, controller_bits), separations), llrs)) in pools
         .iter()
@@ -429,10 +447,16 @@ fn through_endpoints(
                             samples.clone_from(session);
                         }
                     }
-                    let llrs = settings
-                        .block_llrs
-                        .as_ref()
-                        .and_then(|(config, basis)| recomputed_llrs(config, &request, *basis).ok());
+                    request.staged = request
+                        .sessions
+                        .iter()
+                        .filter_map(|(id, ..)| staged.get(*id as usize).copied().flatten())
+                        .cloned()
+                        .collect();
+                    let llrs = settings.block_llrs.as_ref().map_or_else(
+                        || Err("no model to recompute the LLRs with".to_owned()),
+                        |(config, basis)| llr_answer(config, &request, *basis),
+                    );
                     let _ = controller.handle_input(ControllerInput::Llrs {
                         block: request.block,
                         llrs,
@@ -538,6 +562,7 @@ fn endpoint_block(
         message_bits: report.bits_sent + robot.map_or(0, |r| r.bits_sent),
         leak_ec: report.leak_ec,
         ldpc_rounds: report.ldpc_rounds,
+        llrs: report.llrs.as_deref().cloned(),
         leak_confirmation: report.leak_confirmation,
         leak,
         consistent,
@@ -677,7 +702,8 @@ impl Pool {
     /// `key_bits` per doublet, bit `i` of a session at place `(i mod key_bits) mod m`),
     /// each session's in order, with the controller's LLRs given the lower slices and its
     /// decisions their signs. The first slice counts the pool's sessions, the others none
-    /// (the same sessions).
+    /// (the same sessions). With the pool's kept doublets each slice carries its sessions'
+    /// staged material, for LLRs recomputed at block time.
     #[must_use]
     pub fn slices(&self, key_bits: usize, slices: usize) -> Vec<Self> {
         let slicing = robokey_secrecy::postprocess::Slicing {
@@ -720,6 +746,21 @@ impl Pool {
                             picked.iter().map(|&i| separations[i]).collect()
                         } else {
                             separations.clone()
+                        });
+                    }
+                    if let Some(kept) = self.kept.get(session) {
+                        out.staged.push(StagedSession {
+                            session: session as u32,
+                            slice: slice as u8,
+                            slicing,
+                            likelihoods: Vec::new(),
+                            separations: Vec::new(),
+                            known: BitString::from_bools(&Zeroizing::new(
+                                (0..len)
+                                    .map(|i| place(i) < slice && self.robot[start + i] == 1)
+                                    .collect::<Vec<bool>>(),
+                            )),
+                            samples: kept.clone(),
                         });
                     }
                     out.lengths.push(picked.len());

@@ -8,7 +8,7 @@ use robokey::estimate::BlockEstimate;
 use robokey::post_settings::{key_basis, post_settings};
 use robokey::protocol::auth::{AuthMode, PairingSecret};
 use robokey_secrecy::postprocess::{
-    Assumption, BlockReport, PostError, SEPARATION_QUANTUM, Settings,
+    Assumption, BlockReport, LlrProvenance, PostError, SEPARATION_QUANTUM, Settings,
 };
 use serde::Serialize;
 
@@ -138,6 +138,12 @@ pub struct BlockSummary {
     /// With LDPC reconciliation: the syndrome rounds used (absent with Cascade).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ldpc_rounds: Option<u32>,
+    /// With LDPC reconciliation, on the controller: the LLRs it decoded on — `prior`
+    /// (online, with the prior) or the model they were recomputed with at block time
+    /// (`measured`), and why the prior's stayed where `postprocess.llrs` asked for them
+    /// recomputed; absent with Cascade.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub llrs: Option<LlrProvenance>,
     /// Confirmation tags (bits).
     pub leak_confirmation: u64,
     /// Eve's smooth min-entropy under the assumption (bits).
@@ -166,6 +172,7 @@ impl From<&BlockReport> for BlockSummary {
             reconciled_bits: r.reconciled_bits,
             leak_ec: r.leak_ec,
             ldpc_rounds: r.ldpc_rounds,
+            llrs: r.llrs.as_deref().cloned(),
             leak_confirmation: r.leak_confirmation,
             h_min: r.h_min,
             length: r.length,
@@ -401,6 +408,12 @@ impl<E: StoredEndpoint> AgentStore<E> {
                 "{}: block {}: {} raw bits of {} sessions, no key: {reason}",
                 self.role, summary.block, summary.bits, summary.sessions
             ),
+        }
+        if let Some(why) = summary.llrs.as_ref().and_then(|l| l.fallback.as_ref()) {
+            println!(
+                "{}: block {}: LDPC decoded on the prior's LLRs, not recomputed: {why}",
+                self.role, summary.block
+            );
         }
         self.report.blocks.push(summary);
     }

@@ -8,7 +8,7 @@ use rand::rngs::ChaCha20Rng;
 use serde::{Deserialize, Serialize};
 
 use super::estimate::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, LlrRequest, MAX_SEPARATION_STEPS,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, LlrAnswer, LlrRequest, MAX_SEPARATION_STEPS,
     SessionSamples,
 };
 use super::ledger::Ledger;
@@ -16,9 +16,10 @@ use super::public::{PublicRandomness, sample_size};
 use super::syndromes::{DecodingStep, Reconciled, SyndromeDecoding};
 use super::{
     AbortReason, Assumption, BlockReport, CONTROLLER_TO_ROBOT, FinalKey, KeyReconciliation,
-    MAX_BLOCK_SESSIONS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER, ReconciledSlices,
-    ReconciliationMethod, RejectReason, Settings, SliceInput, SlicesEstimateRequest, StagedSession,
-    concatenate, dequantise_llr, key_id, quantise_llr, split_sample, tag_context,
+    LlrProvenance, MAX_BLOCK_SESSIONS, Message, Output, Pool, PostError, ROBOT_TO_CONTROLLER,
+    ReconciledSlices, ReconciliationMethod, RejectReason, Settings, SliceInput,
+    SlicesEstimateRequest, StagedSession, concatenate, dequantise_llr, key_id, quantise_llr,
+    split_sample, tag_context,
 };
 use crate::bitstring::BitString;
 use crate::cascade::{BlockQuery, Cascade, CascadeBob, CascadeStep};
@@ -70,13 +71,14 @@ pub enum ControllerInput {
         outcomes: Vec<EstimateOutcome>,
     },
     /// The shell's answer to [`Output::LlrsNeeded`] for `block`: the LLR of each of the
-    /// block's raw bits, in block order (nats, `ln P(view | 0) − ln P(view | 1)`), or none to
-    /// decode on the LLRs pooled with the sessions (the prior's).
+    /// block's raw bits, in block order, with the model they were recomputed with; or why
+    /// LDPC decodes on the LLRs pooled with the sessions (the prior's). Either goes into the
+    /// block's report.
     Llrs {
         /// Block number.
         block: u64,
-        /// One LLR per raw bit of the block, or none.
-        llrs: Option<Vec<f64>>,
+        /// The recomputed LLRs, or why the prior's stay.
+        llrs: LlrAnswer,
     },
     /// The shell's answer to [`Output::EstimateNeeded`] for `block`.
     Estimate {
@@ -889,11 +891,16 @@ impl ControllerPost {
                 .filter(|&i| agreed.mask[i as usize])
                 .zip(agreed.robot_sample.iter().copied())
                 .collect(),
+            staged: agreed
+                .sessions
+                .iter()
+                .filter_map(|id| self.block_staged.get(id).cloned())
+                .collect(),
         }
     }
 
     /// The shell's recomputed LLRs of the block: LDPC starts on them.
-    fn on_llrs(&mut self, block: u64, llrs: Option<Vec<f64>>) {
+    fn on_llrs(&mut self, block: u64, answer: LlrAnswer) {
         if self.block.is_none() || block != self.current() {
             self.ledger
                 .outputs
@@ -901,7 +908,28 @@ impl ControllerPost {
             return;
         }
         match std::mem::replace(&mut self.state, State::Idle) {
-            State::ExpectLlrs { agreed, settings } => self.start_ldpc(agreed, settings, llrs),
+            State::ExpectLlrs { agreed, settings } => {
+                let (provenance, llrs) = match answer {
+                    Ok(recomputed) => (
+                        LlrProvenance {
+                            model: recomputed.model,
+                            fallback: None,
+                        },
+                        Some(recomputed.llrs),
+                    ),
+                    Err(why) => (
+                        LlrProvenance {
+                            model: "prior".into(),
+                            fallback: Some(why),
+                        },
+                        None,
+                    ),
+                };
+                if let Some(report) = self.report.as_mut() {
+                    report.llrs = Some(Box::new(provenance));
+                }
+                self.start_ldpc(agreed, settings, llrs);
+            }
             state => {
                 self.state = state;
                 self.ledger
@@ -921,6 +949,12 @@ impl ControllerPost {
     ) {
         let mut llrs = Vec::with_capacity(agreed.mask.len());
         let pooled = recomputed.is_none();
+        if let Some(report) = self.report.as_mut().filter(|r| r.llrs.is_none()) {
+            report.llrs = Some(Box::new(LlrProvenance {
+                model: "prior".into(),
+                fallback: None,
+            }));
+        }
         if let Some(recomputed) = recomputed {
             if recomputed.len() != agreed.mask.len() || recomputed.iter().any(|l| l.is_nan()) {
                 return self.abort(

@@ -60,8 +60,9 @@ pub type EstimateOutcome = Result<u32, EstimateRefusal>;
 /// What the controller asks of its shell before LDPC decodes a block whose LLRs are
 /// recomputed at block time (docs/estimation.md, "Causality"): every agreed session's kept
 /// samples and the disclosed sample — public bits — from which the shell estimates the
-/// motion model and recomputes every bit's LLR. Nothing in it depends on bits that are not
-/// public yet.
+/// motion model and recomputes every bit's LLR; for a multilevel slice's block, each
+/// session's staged material as well (the lower slices' bits the controller reconciled
+/// before). Nothing in it depends on bits the controller does not hold yet.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LlrRequest {
     /// Block number.
@@ -72,4 +73,21 @@ pub struct LlrRequest {
     /// The disclosed sample: each sampled position in the block's raw bits (in order) with
     /// the robot's bit there, as the robot published it.
     pub disclosed: Vec<(u32, bool)>,
+    /// A multilevel slice's block: each agreed session's staged material, in block order
+    /// (its slice, the lower slices' reconciled bits and what the pool kept of its doublets);
+    /// empty for binary sessions.
+    pub staged: Vec<super::StagedSession>,
 }
+
+/// The LLRs the shell recomputed for an [`LlrRequest`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecomputedLlrs {
+    /// The model they were computed with, for the block's report (`measured`, `world`).
+    pub model: String,
+    /// One per raw bit of the block, in block order (nats, `ln P(view | 0) − ln P(view | 1)`).
+    pub llrs: Vec<f64>,
+}
+
+/// The shell's answer to an [`LlrRequest`]: the recomputed LLRs, or why the prior's (those
+/// pooled with the sessions) stay — recorded in the block's report.
+pub type LlrAnswer = Result<RecomputedLlrs, String>;

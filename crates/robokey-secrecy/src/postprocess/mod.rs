@@ -56,8 +56,8 @@ pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
 pub use encoding::{decode, encode};
 pub use estimate::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, LlrRequest,
-    MAX_SEPARATION_STEPS, SEPARATION_QUANTUM, SessionSamples,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, LlrAnswer, LlrRequest,
+    MAX_SEPARATION_STEPS, RecomputedLlrs, SEPARATION_QUANTUM, SessionSamples,
 };
 pub use fragment::{
     FRAGMENT_BYTES, MAX_FRAGMENTS, MAX_MESSAGE_BYTES, Reassembler, fits, fragments,
@@ -157,6 +157,10 @@ pub struct BlockReport {
     /// With LDPC reconciliation: the syndrome rounds used (absent with Cascade).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ldpc_rounds: Option<u32>,
+    /// With LDPC reconciliation, on the controller: the LLRs it decoded on. Absent with
+    /// Cascade, which reads no LLRs, and on the robot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub llrs: Option<Box<LlrProvenance>>,
     /// Confirmation tags published over the block (two 64-bit tags).
     pub leak_confirmation: u64,
     /// Eve's smooth min-entropy bound under the assumption.
@@ -179,6 +183,18 @@ pub struct BlockReport {
     pub messages_sent: u32,
     /// Their payload bits (fields, before framing).
     pub bits_sent: u64,
+}
+
+/// Which LLRs a block's LDPC decoding used (docs/estimation.md, "Causality").
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LlrProvenance {
+    /// `prior` (each doublet's, computed online with the prior and pooled with its session)
+    /// or the model the shell recomputed them with at block time (`measured`, `world`).
+    pub model: String,
+    /// Why the prior's LLRs stayed where the shell was asked to recompute them (naming the
+    /// value), if they did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fallback: Option<String>,
 }
 
 /// A final key, committed on both sides.

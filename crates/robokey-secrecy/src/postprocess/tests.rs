@@ -174,7 +174,11 @@ impl Pair {
                         .iter()
                         .map(|(id, ..)| self.recomputed.get(*id as usize).cloned())
                         .collect::<Option<Vec<_>>>()
-                        .map(|l| l.concat());
+                        .map(|l| RecomputedLlrs {
+                            model: "measured".into(),
+                            llrs: l.concat(),
+                        })
+                        .ok_or_else(|| "a session without recomputed LLRs".to_owned());
                     let block = request.block;
                     self.llr_requests.push(*request);
                     self.controller

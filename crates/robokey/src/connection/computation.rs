@@ -6,13 +6,13 @@
 //! (the agents: an estimate with slip in it takes seconds) — and hand back the [`Computed`].
 
 use robokey_secrecy::postprocess::{
-    EstimateOutcome, EstimateRequest, LlrRequest, SlicesEstimateRequest,
+    EstimateOutcome, EstimateRequest, LlrAnswer, LlrRequest, SlicesEstimateRequest,
 };
 
 use super::slices::slice_estimates;
 use crate::Config;
 use crate::config::Sizing;
-use crate::estimate::{BlockEstimate, check_request, estimate_request, recomputed_llrs};
+use crate::estimate::{BlockEstimate, check_request, estimate_request, llr_answer};
 
 /// A computation post-processing asks for, with the parties' configuration it reads.
 #[derive(Clone, Debug)]
@@ -49,8 +49,8 @@ pub(crate) enum Answer {
         estimate: Option<BlockEstimate>,
         outcome: EstimateOutcome,
     },
-    /// The recomputed LLRs (none: decode on the pooled ones).
-    Llrs(Option<Vec<f64>>),
+    /// The recomputed LLRs, or why the pooled ones stay (the block's report records either).
+    Llrs(LlrAnswer),
     /// One outcome per slice, with the estimates behind them (measured sizing).
     Slices {
         estimates: Vec<BlockEstimate>,
@@ -124,10 +124,9 @@ impl BlockComputation {
                 estimate: None,
                 outcome: check_request(config, &request, epsilon),
             },
+            // The recomputed LLRs, or why the prior's stay (the block's report says).
             Request::Llrs(request) => {
-                // Where it keeps the prior's LLRs (a sample too small, three steps,
-                // multilevel), none.
-                Answer::Llrs(recomputed_llrs(config, &request, config.postprocess.llrs).ok())
+                Answer::Llrs(llr_answer(config, &request, config.postprocess.llrs))
             }
             Request::Slices(request) if measured => {
                 let estimates =

@@ -8,8 +8,8 @@ use std::collections::BTreeSet;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::{
     self, BlockReport, ControllerInput, ControllerPost, ControllerSnapshot, EstimateOutcome,
-    FinalKey, InFlight, Output, PostError, Reassembler, RobotInput, RobotPost, RobotSnapshot,
-    SessionSamples, SliceInput, StagedSession, slice_id,
+    FinalKey, InFlight, LlrAnswer, Output, PostError, Reassembler, RobotInput, RobotPost,
+    RobotSnapshot, SessionSamples, SliceInput, StagedSession, slice_id,
 };
 
 use super::computation::{Answer, BlockComputation, Computed};
@@ -62,7 +62,7 @@ pub trait PostEndpoint {
     fn recompute_llrs(&mut self, recompute: bool);
     /// The shell's recomputed LLRs of `block`, which the endpoint asked for (none: the
     /// pooled ones; the robot never asks).
-    fn llrs_recomputed(&mut self, block: u64, llrs: Option<Vec<f64>>);
+    fn llrs_recomputed(&mut self, block: u64, llrs: LlrAnswer);
     /// The shell's estimate of the plant for `block`, which the endpoint asked for (the
     /// robot never asks).
     fn estimated(&mut self, block: u64, outcome: EstimateOutcome);
@@ -112,7 +112,7 @@ impl PostEndpoint for ControllerPost {
     fn recompute_llrs(&mut self, recompute: bool) {
         ControllerPost::recompute_llrs(self, recompute);
     }
-    fn llrs_recomputed(&mut self, block: u64, llrs: Option<Vec<f64>>) {
+    fn llrs_recomputed(&mut self, block: u64, llrs: LlrAnswer) {
         // Never fails: only sessions are checked.
         let _ = self.handle_input(ControllerInput::Llrs { block, llrs });
     }
@@ -182,7 +182,7 @@ impl PostEndpoint for RobotPost {
         Ok(())
     }
     fn recompute_llrs(&mut self, _recompute: bool) {}
-    fn llrs_recomputed(&mut self, _block: u64, _llrs: Option<Vec<f64>>) {}
+    fn llrs_recomputed(&mut self, _block: u64, _llrs: LlrAnswer) {}
     fn estimated(&mut self, _block: u64, _outcome: EstimateOutcome) {}
     fn slices_estimated(&mut self, _block: u64, _outcomes: Vec<EstimateOutcome>) {}
     fn frame(&mut self, message: postprocess::Message) {

@@ -16,12 +16,13 @@
 //! reason is returned.
 
 use nalgebra::Matrix3;
-use robokey_secrecy::postprocess::LlrRequest;
+use robokey_secrecy::postprocess::{LlrAnswer, LlrRequest, RecomputedLlrs};
 
 use super::block::{doublet_samples, two_step_residuals};
 use super::diagonal_covariance;
 use super::motion_noise::white_motion_noise;
 use super::residual::rotation;
+use super::slice_llrs::{SliceSession, recomputed_slice_llrs};
 use crate::Config;
 use crate::config::LlrModel;
 use crate::private::{
@@ -55,7 +56,7 @@ pub fn recomputed_llrs(
     }
     if Perturbation::of(config).levels > 2 {
         return Err(
-            "multilevel symbols: each slice's LLRs are conditioned on the lower slices".into(),
+            "multilevel symbols: each slice's LLRs are staged, recomputed per slice's block".into(),
         );
     }
     let mut disclosed = request.disclosed.iter().peekable();
@@ -152,16 +153,79 @@ fn measured_motion(
 /// sensor noise `sensing.controller_std`), as the online decision computes them.
 #[must_use]
 pub fn doublet_llrs(config: &Config, model: &DoubletModel, d: &DoubletSamples) -> Vec<f64> {
+    let (evidence, _) = model.evidence_and_likelihoods(&d.inputs, &own_view(config, d));
+    evidence.llr[..config.protocol.key_bits_per_doublet()].to_vec()
+}
+
+/// A two-step doublet as the controller saw it: its kept samples, each with the stated
+/// sensor noise `sensing.controller_std`.
+pub(crate) fn own_view(config: &Config, d: &DoubletSamples) -> DoubletView {
     let own = |pose| PoseObservation::new(pose, config.sensing.controller_std);
-    let view = DoubletView {
+    DoubletView {
         start: own(d.samples[0]),
         middle: Some(own(d.samples[1])),
         late: None,
         end: Some(own(d.samples[2])),
         entry: None,
+    }
+}
+
+/// The shell's answer to `request` under the parties' `config` with `basis`: a multilevel
+/// slice's block through [`recomputed_slice_llrs`] (each session's staged material), every
+/// other block through [`recomputed_llrs`]; the LLRs with `basis`' name, or why the prior's
+/// stay (the block's report records either).
+///
+/// # Errors
+/// Why the prior's LLRs stay, naming the value.
+pub fn llr_answer(config: &Config, request: &LlrRequest, basis: LlrModel) -> LlrAnswer {
+    let llrs = if Perturbation::of(config).levels > 2 {
+        slice_block_llrs(config, request, basis)
+    } else {
+        recomputed_llrs(config, request, basis)
     };
-    let (evidence, _) = model.evidence_and_likelihoods(&d.inputs, &view);
-    evidence.llr[..config.protocol.key_bits_per_doublet()].to_vec()
+    llrs.map(|llrs| RecomputedLlrs {
+        model: basis.name().into(),
+        llrs,
+    })
+}
+
+/// A multilevel slice's block: every session with its staged material, all of one slice.
+fn slice_block_llrs(
+    config: &Config,
+    request: &LlrRequest,
+    basis: LlrModel,
+) -> Result<Vec<f64>, String> {
+    if request.staged.len() != request.sessions.len() {
+        return Err(format!(
+            "{} of the slice's {} sessions were pooled with their staged material (the kept \
+             samples and the lower slices' bits)",
+            request.staged.len(),
+            request.sessions.len()
+        ));
+    }
+    let slice = request.staged.first().map_or(0, |s| s.slice);
+    let mut sessions = Vec::with_capacity(request.staged.len());
+    for (staged, (id, bits, _)) in request.staged.iter().zip(&request.sessions) {
+        if staged.slice != slice || staged.slice_bits() != *bits {
+            return Err(format!(
+                "session {id:08x}: staged slice {} of {} bits in a block of slice {slice} \
+                 pooling {bits} of its bits",
+                staged.slice,
+                staged.slice_bits()
+            ));
+        }
+        sessions.push(SliceSession {
+            kept: &staged.samples,
+            bits: &staged.known,
+        });
+    }
+    recomputed_slice_llrs(
+        config,
+        usize::from(slice),
+        &sessions,
+        &request.disclosed,
+        basis,
+    )
 }
 
 /// Whether `config` asks for LLRs recomputed at block time.
@@ -189,6 +253,7 @@ mod tests {
             block: 0,
             sessions: Vec::new(),
             disclosed: Vec::new(),
+            staged: Vec::new(),
         };
         let (mut online, mut offset) = (Vec::new(), 0);
         for (id, run) in runs.iter().enumerate() {

@@ -22,6 +22,7 @@ pub mod motion_noise;
 mod normal_tail;
 pub mod quantum_check;
 pub mod residual;
+pub mod slice_llrs;
 pub mod slip;
 mod symmetric_coordinates;
 pub mod worst_case;
@@ -30,7 +31,7 @@ pub use block::{
     BlockEstimate, block_separations, check_request, estimate_request, kept_doublet,
     request_separations, world_block_separations,
 };
-pub use block_llrs::{doublet_llrs, recomputed_llrs, recomputes_llrs};
+pub use block_llrs::{doublet_llrs, llr_answer, recomputed_llrs, recomputes_llrs};
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use lag::{LagEstimate, estimate_lag};
@@ -38,6 +39,7 @@ pub use motion_noise::{
     Corner, EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
 };
 pub use residual::DoubletResidual;
+pub use slice_llrs::{SliceSession, recomputed_slice_llrs};
 pub use slip::{SlipEstimate, estimate_slip};
 pub use worst_case::{
     ESTIMATE_LEAK_BITS, MAX_PUBLISHED_SEPARATION, SEPARATION_QUANTUM, published_separation,

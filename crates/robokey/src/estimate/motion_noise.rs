@@ -398,13 +398,67 @@ pub fn white_motion_noise(
     residuals: &[DoubletResidual],
     sensor: &Matrix3<f64>,
 ) -> Result<Matrix3<f64>, EstimationRefusal> {
-    let (_, sensor_mean) = fit_inputs(residuals, sensor)?;
-    solve_motion(
-        residuals,
-        &sensor_mean,
-        second_moment(residuals.iter()).1,
-        0.0,
-    )
+    weighted_white_motion_noise(residuals, &vec![1.0; residuals.len()], sensor)
+}
+
+/// [`white_motion_noise`] with residual `i` weighted by `weights[i]`: `Q̂` (robot frame)
+/// solving the weighted moment equation `Σᵢ wᵢ (zᵢzᵢᵀ − S_R,ᵢ − M_ρ=0,ᵢ(Q̂)) = 0`. With a
+/// doublet's residual formed under each bit pattern its bits leave open and weighted by the
+/// pattern's posterior probability (summing to 1 over the doublet), this is the moment fit
+/// with each doublet's `zzᵀ` replaced by its conditional expectation given the view — the
+/// estimating equation of an EM iteration (docs/estimation.md, "Causality"). A parity's
+/// doublets count as the sum of its weights.
+///
+/// # Errors
+/// A residual or weight not finite or a weight negative, too few doublets of a parity, or a
+/// singular fit.
+pub fn weighted_white_motion_noise(
+    residuals: &[DoubletResidual],
+    weights: &[f64],
+    sensor: &Matrix3<f64>,
+) -> Result<Matrix3<f64>, EstimationRefusal> {
+    if let Some((r, _)) = residuals
+        .iter()
+        .zip(weights)
+        .find(|(r, w)| !(r.value.iter().all(|v| v.is_finite()) && w.is_finite() && **w >= 0.0))
+    {
+        return Err(EstimationRefusal::NotFinite { doublet: r.doublet });
+    }
+    let weight_of = |parity: u32| -> f64 {
+        residuals
+            .iter()
+            .zip(weights)
+            .filter(|(r, _)| r.doublet % 2 == parity)
+            .map(|(_, w)| w)
+            .sum()
+    };
+    let fewest = weight_of(0).min(weight_of(1));
+    if fewest < MIN_DOUBLETS_PER_PARITY as f64 {
+        return Err(EstimationRefusal::TooFewDoublets {
+            have: fewest.floor() as usize,
+        });
+    }
+    let total: f64 = weights.iter().sum();
+    let mean = |part: &dyn Fn(&DoubletResidual) -> Matrix3<f64>| -> Matrix3<f64> {
+        residuals
+            .iter()
+            .zip(weights)
+            .map(|(r, w)| part(r) * *w)
+            .sum::<Matrix3<f64>>()
+            / total
+    };
+    let sensor_mean = mean(&|r| r.sensor_part(sensor));
+    let moment = mean(&|r| r.value * r.value.transpose());
+    let mut operator = Matrix6::zeros();
+    for k in 0..6 {
+        let q = symmetric(&Vector6::from_fn(|i, _| f64::from(u8::from(i == k))));
+        operator.set_column(k, &coordinates(&mean(&|r| r.motion_part(&q, 0.0))));
+    }
+    operator
+        .lu()
+        .solve(&coordinates(&(moment - sensor_mean)))
+        .map(|q| symmetric(&q))
+        .ok_or(EstimationRefusal::Singular)
 }
 
 /// Estimates `Q` and its (1 − `epsilon`) region from `residuals` (each formed with the
