@@ -20,6 +20,7 @@ pub mod homogeneity;
 pub mod lag;
 pub mod motion_noise;
 mod normal_tail;
+mod rounding_sweep;
 pub mod quantum_check;
 pub mod residual;
 pub mod slip;
