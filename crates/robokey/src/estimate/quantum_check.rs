@@ -34,8 +34,8 @@
 //! dead-time test: a refusal gives no key, so the level is the rate of false refusals, not
 //! a term of the key's ε. Rounding finer than [`FINEST_CANDIDATE`] is not tested.
 
+use super::half_away::{EXACT_BELOW, round_half_away};
 use super::normal_tail::normal_upper_quantile;
-use super::rounding_sweep::QuantumSweep;
 use crate::Config;
 use crate::config::MAX_COMMAND_QUANTUM;
 use crate::model::{DiffDrive, Unicycle, WheelSpeeds};
@@ -293,20 +293,29 @@ impl CheckData {
     /// signature cannot shrink the error). A candidate where fewer than
     /// [`MIN_SIGNED_DOUBLETS`] doublets carry a signature, or whose error vanishes, gives none.
     ///
-    /// The wheels are rounded at their events only ([`QuantumSweep`]), and [`LANES`]
-    /// candidates are regressed at once, each lane's arithmetic that of its candidate alone
-    /// in the same order: every slope and error is the one-candidate computation's, bit for
-    /// bit.
+    /// [`LANES`] candidates are computed at once, each lane's arithmetic that of its
+    /// candidate alone in the same order — the wheels rounded as [`quantise`] rounds them
+    /// (by [`round_half_away`], the same numbers, where every `|w/q|` is below
+    /// [`EXACT_BELOW`]), each sum over the doublets in their order — so every slope and
+    /// error is the one-candidate computation's, bit for bit.
     fn slopes(&self, stated: &Stated, quanta: &[f64]) -> Vec<QuantumSlope> {
-        let sweep = QuantumSweep::new(quanta);
-        let Some(mut roundings) = self
-            .terms
-            .iter()
-            .map(|term| Some([sweep.start(term.wheels.x)?, sweep.start(term.wheels.y)?]))
-            .collect::<Option<Vec<_>>>()
-        else {
-            return Vec::new();
-        };
+        match quanta.first() {
+            Some(&finest) if self.fastest_wheel() / finest < EXACT_BELOW => {
+                self.slopes_rounding(stated, quanta, round_half_away)
+            }
+            Some(_) => self.slopes_rounding(stated, quanta, f64::round),
+            None => Vec::new(),
+        }
+    }
+
+    /// [`Self::slopes`] with `round` rounding each `w/q` to its multiple (`f64::round`, or
+    /// a function equal to it on every `w/q` of the block).
+    fn slopes_rounding(
+        &self,
+        stated: &Stated,
+        quanta: &[f64],
+        round: impl Fn(f64) -> f64,
+    ) -> Vec<QuantumSlope> {
         let per_doublet = self.per_doublet.max(1);
         let mut rows = vec![[0.0; LANES]; self.residuals.len()];
         let mut slopes = Vec::new();
@@ -317,20 +326,17 @@ impl CheckData {
             // x = signature at q − unrounded; the doublets carrying one; Σ x·x_s.
             let mut signed = [0_usize; LANES];
             let mut along = [SUM_START; LANES];
-            for (((row, terms), wheels), (unrounded, on)) in rows
+            for ((row, terms), (unrounded, on)) in rows
                 .iter_mut()
                 .zip(self.terms.chunks_exact(per_doublet))
-                .zip(roundings.chunks_exact_mut(per_doublet))
                 .zip(stated.unrounded.iter().zip(&stated.signature))
             {
                 let mut sum = [0.0; LANES];
-                for (term, [left, right]) in terms.iter().zip(wheels) {
-                    let mut m1 = [0.0; LANES];
-                    let mut m2 = [0.0; LANES];
-                    sweep.fill(left, first, &mut m1);
-                    sweep.fill(right, first, &mut m2);
+                for term in terms {
+                    let [left, right] = [term.wheels.x, term.wheels.y];
                     for k in 0..LANES {
-                        sum[k] += term.weight * (m1[k] * q[k] - m2[k] * q[k]);
+                        let rounded = [left, right].map(|w| round(w / q[k]) * q[k]);
+                        sum[k] += term.weight * (rounded[0] - rounded[1]);
                     }
                 }
                 for k in 0..LANES {
@@ -436,10 +442,7 @@ pub fn quantum_check(
     }
     let stated_quantum = config.robot.command_quantum;
     let stated = data.stated(stated_quantum);
-    let slopes = data.slopes(
-        &stated,
-        &candidates(stated_quantum, data.fastest_wheel()),
-    );
+    let slopes = data.slopes(&stated, &candidates(stated_quantum, data.fastest_wheel()));
     if slopes.is_empty() {
         return None;
     }
