@@ -1,17 +1,17 @@
 //! Rounding half away from zero without a call: [`f64::round`] is a library call the
 //! compiler cannot vectorise, and the command-quantum check (`quantum_check`) rounds every
-//! wheel command at every candidate quantum. [`round_half_away`] is the same function, bit
-//! for bit, on `|y| <` [`EXACT_BELOW`], from additions alone.
+//! wheel command at every candidate quantum. `round_half_away` is the same function, bit
+//! for bit, on `|y| <` `EXACT_BELOW`, from additions alone.
 
 /// `1.5·2⁵²`: adding it to `|y| < 2⁵¹` leaves a number in `[2⁵², 2⁵³)`, whose spacing is 1,
 /// so the addition rounds `y` to an integer (ties to even, the hardware's rounding).
 const SHIFT: f64 = 6_755_399_441_055_744.0;
 
-/// The magnitude below which [`round_half_away`] equals [`f64::round`]: `2⁵¹`.
+/// The magnitude below which `round_half_away` equals [`f64::round`]: `2⁵¹`.
 pub(super) const EXACT_BELOW: f64 = 2_251_799_813_685_248.0;
 
 /// `y.round()` — the nearest integer, halves away from zero, the sign of `y` kept (−0.3 →
-/// −0) — for `|y| <` [`EXACT_BELOW`] (and a NaN for a NaN). With `a = |y|`,
+/// −0) — for `|y| <` `EXACT_BELOW` (and a NaN for a NaN). With `a = |y|`,
 /// `(a + 1.5·2⁵²) − 1.5·2⁵²` is `a`'s nearest integer with ties to even, both operations
 /// exact but the first's rounding; `a` less it is exact (at most ½, a multiple of `a`'s unit
 /// in the last place), and is +½ only at a tie that went down, which goes up instead; the

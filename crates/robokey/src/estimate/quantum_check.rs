@@ -293,10 +293,10 @@ impl CheckData {
     /// signature cannot shrink the error). A candidate where fewer than
     /// [`MIN_SIGNED_DOUBLETS`] doublets carry a signature, or whose error vanishes, gives none.
     ///
-    /// [`LANES`] candidates are computed at once, each lane's arithmetic that of its
+    /// `LANES` candidates are computed at once, each lane's arithmetic that of its
     /// candidate alone in the same order — the wheels rounded as [`quantise`] rounds them
-    /// (by [`round_half_away`], the same numbers, where every `|w/q|` is below
-    /// [`EXACT_BELOW`]), each sum over the doublets in their order — so every slope and
+    /// (by `round_half_away`, the same numbers, where every `|w/q|` is below
+    /// `EXACT_BELOW`), each sum over the doublets in their order — so every slope and
     /// error is the one-candidate computation's, bit for bit.
     fn slopes(&self, stated: &Stated, quanta: &[f64]) -> Vec<QuantumSlope> {
         match quanta.first() {
@@ -308,7 +308,7 @@ impl CheckData {
         }
     }
 
-    /// [`Self::slopes`] with `round` rounding each `w/q` to its multiple (`f64::round`, or
+    /// `Self::slopes` with `round` rounding each `w/q` to its multiple (`f64::round`, or
     /// a function equal to it on every `w/q` of the block).
     fn slopes_rounding(
         &self,
@@ -517,7 +517,7 @@ mod tests {
 
     /// The regression at one candidate computed directly: every wheel rounded by
     /// [`quantise`] at `candidate`, the sums over the doublets one after the other (the
-    /// reference the event-driven, lane-wise [`CheckData::slopes`] must equal).
+    /// reference the event-driven, lane-wise `CheckData::slopes` must equal).
     fn direct_slope(data: &CheckData, stated: &Stated, candidate: f64) -> Option<QuantumSlope> {
         let mut x = data.signatures(candidate);
         for (c, u) in x.iter_mut().zip(&stated.unrounded) {
