@@ -16,6 +16,7 @@ pub mod block;
 pub mod block_llrs;
 pub mod commands_check;
 pub mod correlation;
+mod half_away;
 pub mod homogeneity;
 pub mod lag;
 pub mod motion_noise;

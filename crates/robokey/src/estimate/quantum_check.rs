@@ -34,6 +34,7 @@
 //! dead-time test: a refusal gives no key, so the level is the rate of false refusals, not
 //! a term of the key's ε. Rounding finer than [`FINEST_CANDIDATE`] is not tested.
 
+use super::half_away::{EXACT_BELOW, round_half_away};
 use super::normal_tail::normal_upper_quantile;
 use crate::Config;
 use crate::config::MAX_COMMAND_QUANTUM;
@@ -230,27 +231,29 @@ fn regress_out(values: &mut [f64], on: &[f64], on_squares: f64) {
     }
 }
 
-impl CheckData {
-    /// Each doublet's signature sum `Σ weight·(w_q,1 − w_q,2)` at quantum `q` (0: unrounded)
-    /// into `out` (one per doublet), the wheels rounded by the world actuator's own
-    /// [`quantise`]; each doublet's terms summed in order.
-    fn signatures_into(&self, quantum: f64, out: &mut [f64]) {
-        for (sum, terms) in out
-            .iter_mut()
-            .zip(self.terms.chunks_exact(self.per_doublet.max(1)))
-        {
-            *sum = terms.iter().fold(0.0, |acc, term| {
-                let rounded = quantise(term.wheels, quantum);
-                acc + term.weight * (rounded.x - rounded.y)
-            });
-        }
-    }
+/// Consecutive candidates regressed together: each doublet's signatures at this many
+/// candidates sit side by side, so that every sum over the doublets runs as this many
+/// independent lanes (each lane's sum in the doublets' order, as one candidate alone).
+const LANES: usize = 16;
 
-    /// [`Self::signatures_into`] a new vector.
+/// The start of a sum as [`Iterator::sum`] starts one for `f64` (−0), so that a lane's sum
+/// is the iterator's, bit for bit, even where it is zero.
+const SUM_START: f64 = -0.0;
+
+impl CheckData {
+    /// Each doublet's signature sum `Σ weight·(w_q,1 − w_q,2)` at quantum `q` (0: unrounded),
+    /// one per doublet, the wheels rounded by the world actuator's own [`quantise`]; each
+    /// doublet's terms summed in order.
     fn signatures(&self, quantum: f64) -> Vec<f64> {
-        let mut out = vec![0.0; self.residuals.len()];
-        self.signatures_into(quantum, &mut out);
-        out
+        self.terms
+            .chunks_exact(self.per_doublet.max(1))
+            .map(|terms| {
+                terms.iter().fold(0.0, |acc, term| {
+                    let rounded = quantise(term.wheels, quantum);
+                    acc + term.weight * (rounded.x - rounded.y)
+                })
+            })
+            .collect()
     }
 
     /// The stated quantum's part of the regression.
@@ -282,39 +285,113 @@ impl CheckData {
         }
     }
 
-    /// The regression of the residuals on the signature at `candidate`, `x_c = Σ_b s_b·(h_b(q_c)
-    /// − h_b(0))`, with the stated signature regressed out of both (Frisch–Waugh): the slope
-    /// `b̂ = Σ x'r' / Σ x'²` and its standard error `√(Σ x'²e²/(1 − hᵢ)²) / Σ x'²`, `e = r' −
-    /// b̂x'`, each doublet's residual scaled by its leverage `hᵢ = x_s,ᵢ²/Σx_s² + x'ᵢ²/Σx'²`
-    /// (so that a few doublets carrying the whole signature cannot shrink the error). `x` is
-    /// scratch of one value per doublet, reused across candidates.
-    fn slope(&self, stated: &Stated, candidate: f64, x: &mut [f64]) -> Option<QuantumSlope> {
-        self.signatures_into(candidate, x);
-        for (c, u) in x.iter_mut().zip(&stated.unrounded) {
-            *c -= u;
+    /// The regression of the residuals on the signature at each of the `quanta` (increasing),
+    /// `x_c = Σ_b s_b·(h_b(q_c) − h_b(0))`, with the stated signature regressed out of both
+    /// (Frisch–Waugh): the slope `b̂ = Σ x'r' / Σ x'²` and its standard error
+    /// `√(Σ x'²e²/(1 − hᵢ)²) / Σ x'²`, `e = r' − b̂x'`, each doublet's residual scaled by its
+    /// leverage `hᵢ = x_s,ᵢ²/Σx_s² + x'ᵢ²/Σx'²` (so that a few doublets carrying the whole
+    /// signature cannot shrink the error). A candidate where fewer than
+    /// [`MIN_SIGNED_DOUBLETS`] doublets carry a signature, or whose error vanishes, gives none.
+    ///
+    /// `LANES` candidates are computed at once, each lane's arithmetic that of its
+    /// candidate alone in the same order — the wheels rounded as [`quantise`] rounds them
+    /// (by `round_half_away`, the same numbers, where every `|w/q|` is below
+    /// `EXACT_BELOW`), each sum over the doublets in their order — so every slope and
+    /// error is the one-candidate computation's, bit for bit.
+    fn slopes(&self, stated: &Stated, quanta: &[f64]) -> Vec<QuantumSlope> {
+        match quanta.first() {
+            Some(&finest) if self.fastest_wheel() / finest < EXACT_BELOW => {
+                self.slopes_rounding(stated, quanta, round_half_away)
+            }
+            Some(_) => self.slopes_rounding(stated, quanta, f64::round),
+            None => Vec::new(),
         }
-        if x.iter().filter(|v| v.abs() > SIGNATURE_FLOOR).count() < MIN_SIGNED_DOUBLETS {
-            return None;
+    }
+
+    /// `Self::slopes` with `round` rounding each `w/q` to its multiple (`f64::round`, or
+    /// a function equal to it on every `w/q` of the block).
+    fn slopes_rounding(
+        &self,
+        stated: &Stated,
+        quanta: &[f64],
+        round: impl Fn(f64) -> f64,
+    ) -> Vec<QuantumSlope> {
+        let per_doublet = self.per_doublet.max(1);
+        let mut rows = vec![[0.0; LANES]; self.residuals.len()];
+        let mut slopes = Vec::new();
+        for first in (0..quanta.len()).step_by(LANES) {
+            let lanes = (quanta.len() - first).min(LANES);
+            let mut q = [quanta[quanta.len() - 1]; LANES];
+            q[..lanes].copy_from_slice(&quanta[first..first + lanes]);
+            // x = signature at q − unrounded; the doublets carrying one; Σ x·x_s.
+            let mut signed = [0_usize; LANES];
+            let mut along = [SUM_START; LANES];
+            for ((row, terms), (unrounded, on)) in rows
+                .iter_mut()
+                .zip(self.terms.chunks_exact(per_doublet))
+                .zip(stated.unrounded.iter().zip(&stated.signature))
+            {
+                let mut sum = [0.0; LANES];
+                for term in terms {
+                    let [left, right] = [term.wheels.x, term.wheels.y];
+                    for k in 0..LANES {
+                        let rounded = [left, right].map(|w| round(w / q[k]) * q[k]);
+                        sum[k] += term.weight * (rounded[0] - rounded[1]);
+                    }
+                }
+                for k in 0..LANES {
+                    row[k] = sum[k] - unrounded;
+                    signed[k] += usize::from(row[k].abs() > SIGNATURE_FLOOR);
+                    along[k] += row[k] * on;
+                }
+            }
+            let tested: [bool; LANES] =
+                std::array::from_fn(|k| k < lanes && signed[k] >= MIN_SIGNED_DOUBLETS);
+            if !tested.contains(&true) {
+                continue;
+            }
+            // x' = x − (Σ x·x_s / Σ x_s²)·x_s; Σ x'², Σ x'r'.
+            let coefficient: [f64; LANES] = std::array::from_fn(|k| {
+                if stated.squares > 0.0 {
+                    along[k] / stated.squares
+                } else {
+                    0.0
+                }
+            });
+            let mut sxx = [SUM_START; LANES];
+            let mut sxr = [SUM_START; LANES];
+            for (row, (on, r)) in rows
+                .iter_mut()
+                .zip(stated.signature.iter().zip(&stated.residuals))
+            {
+                for k in 0..LANES {
+                    row[k] -= coefficient[k] * on;
+                    sxx[k] += row[k] * row[k];
+                    sxr[k] += row[k] * r;
+                }
+            }
+            let slope: [f64; LANES] = std::array::from_fn(|k| sxr[k] / sxx[k]);
+            let mut spread = [SUM_START; LANES];
+            for (row, (r, fitted)) in rows
+                .iter()
+                .zip(stated.residuals.iter().zip(&stated.leverage))
+            {
+                for k in 0..LANES {
+                    let a = row[k];
+                    let leverage = (fitted + a * a / sxx[k]).min(1.0 - 1e-9);
+                    spread[k] += (a * (r - slope[k] * a) / (1.0 - leverage)).powi(2);
+                }
+            }
+            slopes.extend((0..lanes).filter_map(|k| {
+                let std_error = spread[k].sqrt() / sxx[k];
+                (tested[k] && std_error > 0.0 && slope[k].is_finite()).then_some(QuantumSlope {
+                    candidate: q[k],
+                    slope: slope[k],
+                    std_error,
+                })
+            }));
         }
-        regress_out(x, &stated.signature, stated.squares);
-        let x = &*x;
-        let sxx = dot(x, x);
-        let slope = dot(x, &stated.residuals) / sxx;
-        let spread: f64 = x
-            .iter()
-            .zip(&stated.residuals)
-            .zip(&stated.leverage)
-            .map(|((a, r), fitted)| {
-                let leverage = (fitted + a * a / sxx).min(1.0 - 1e-9);
-                (a * (r - slope * a) / (1.0 - leverage)).powi(2)
-            })
-            .sum();
-        let std_error = spread.sqrt() / sxx;
-        (std_error > 0.0 && slope.is_finite()).then_some(QuantumSlope {
-            candidate,
-            slope,
-            std_error,
-        })
+        slopes
     }
 
     /// The largest wheel command of the block (rad/s).
@@ -365,11 +442,7 @@ pub fn quantum_check(
     }
     let stated_quantum = config.robot.command_quantum;
     let stated = data.stated(stated_quantum);
-    let mut scratch = vec![0.0; data.residuals.len()];
-    let slopes: Vec<QuantumSlope> = candidates(stated_quantum, data.fastest_wheel())
-        .into_iter()
-        .filter_map(|q| data.slope(&stated, q, &mut scratch))
-        .collect();
+    let slopes = data.slopes(&stated, &candidates(stated_quantum, data.fastest_wheel()));
     if slopes.is_empty() {
         return None;
     }
@@ -440,6 +513,137 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// The regression at one candidate computed directly: every wheel rounded by
+    /// [`quantise`] at `candidate`, the sums over the doublets one after the other (the
+    /// reference the event-driven, lane-wise `CheckData::slopes` must equal).
+    fn direct_slope(data: &CheckData, stated: &Stated, candidate: f64) -> Option<QuantumSlope> {
+        let mut x = data.signatures(candidate);
+        for (c, u) in x.iter_mut().zip(&stated.unrounded) {
+            *c -= u;
+        }
+        if x.iter().filter(|v| v.abs() > SIGNATURE_FLOOR).count() < MIN_SIGNED_DOUBLETS {
+            return None;
+        }
+        regress_out(&mut x, &stated.signature, stated.squares);
+        let sxx = dot(&x, &x);
+        let slope = dot(&x, &stated.residuals) / sxx;
+        let spread: f64 = x
+            .iter()
+            .zip(&stated.residuals)
+            .zip(&stated.leverage)
+            .map(|((a, r), fitted)| {
+                let leverage = (fitted + a * a / sxx).min(1.0 - 1e-9);
+                (a * (r - slope * a) / (1.0 - leverage)).powi(2)
+            })
+            .sum();
+        let std_error = spread.sqrt() / sxx;
+        (std_error > 0.0 && slope.is_finite()).then_some(QuantumSlope {
+            candidate,
+            slope,
+            std_error,
+        })
+    }
+
+    /// `data`'s slopes at every candidate for `fastest`, lane-wise and directly, stating
+    /// `stated`: the same list, every number bit for bit.
+    fn assert_slopes_exact(data: &CheckData, stated: f64, fastest: f64) {
+        let quanta = candidates(stated, fastest);
+        let part = data.stated(stated);
+        let swept = data.slopes(&part, &quanta);
+        let direct: Vec<QuantumSlope> = quanta
+            .iter()
+            .filter_map(|&q| direct_slope(data, &part, q))
+            .collect();
+        assert!(!direct.is_empty(), "stated {stated}: some candidate tested");
+        let bits = |list: &[QuantumSlope]| -> Vec<[u64; 3]> {
+            list.iter()
+                .map(|s| [s.candidate, s.slope, s.std_error].map(f64::to_bits))
+                .collect()
+        };
+        assert_eq!(bits(&swept), bits(&direct), "stated {stated}");
+    }
+
+    /// Seeded random blocks of signature terms — wheels of either sign up to the fastest,
+    /// zero wheels of both signs, wheels at exact half-integers of a candidate (where
+    /// rounding goes away from zero), terms whose wheels round alike — with random residuals:
+    /// the event-driven, lane-wise regression equals the direct one at every candidate, bit
+    /// for bit, stating none and stating a quantum.
+    #[test]
+    fn the_swept_slopes_equal_the_direct_ones_on_random_blocks() {
+        let fastest = 7.0;
+        let quanta = candidates(0.0, fastest);
+        for seed in 0..6 {
+            let mut rng = stream(40 + seed, Purpose::Process, 0);
+            let per_doublet = if seed % 2 == 0 { 8 } else { 16 };
+            let doublets = 300;
+            let wheel = |rng: &mut rand::rngs::ChaCha8Rng| -> f64 {
+                match rng.random_range(0..10) {
+                    0 => 0.0,
+                    1 => -0.0,
+                    2 | 3 => {
+                        let q = quanta[rng.random_range(0..quanta.len())];
+                        let half = rng.random_range(-20..20) as f64 + 0.5;
+                        let w = half * q;
+                        if w / q == half && w.abs() <= fastest {
+                            w
+                        } else {
+                            0.5 * q
+                        }
+                    }
+                    _ => rng.random_range(-fastest..fastest),
+                }
+            };
+            let terms = (0..doublets * per_doublet)
+                .map(|_| {
+                    let left = wheel(&mut rng);
+                    let right = if rng.random_range(0..8) == 0 {
+                        left
+                    } else {
+                        wheel(&mut rng)
+                    };
+                    SignatureTerm {
+                        weight: rng.random_range(-0.01..0.01),
+                        wheels: WheelSpeeds::new(left, right),
+                    }
+                })
+                .collect();
+            let residuals = (0..doublets)
+                .map(|_| rng.random_range(-0.01..0.01))
+                .collect();
+            let data = CheckData {
+                residuals,
+                terms,
+                per_doublet,
+            };
+            for stated in [0.0, 0.0323, 0.2] {
+                assert_slopes_exact(&data, stated, fastest);
+            }
+        }
+    }
+
+    /// A simulated block (a world rounding at 0.1 rad/s, the parties stating none or a finer
+    /// quantum, one lag): the slopes the check reports are the direct ones, bit for bit.
+    #[test]
+    fn the_checked_slopes_equal_the_direct_ones_on_a_simulated_block() {
+        for stated in [0.0, 0.0323] {
+            let config = stating(stated);
+            let doublets = block(&config, 0.1, 2_000, 3);
+            let model = DoubletModel {
+                lag: 0.05,
+                ..doublet_model(&config)
+            };
+            let data = check_data(&model, config.robot.drive(), &[&doublets]);
+            assert_slopes_exact(&data, stated, data.fastest_wheel());
+            let check = quantum_check(&config, &[&doublets], 0.05, 1e-6).expect("tested");
+            let part = data.stated(stated);
+            let direct: Vec<QuantumSlope> = candidates(stated, data.fastest_wheel())
+                .into_iter()
+                .filter_map(|q| direct_slope(&data, &part, q))
+                .collect();
+            assert_eq!(check.slopes, direct, "stated {stated}");
+        }
     }
 
     /// A world rounding at 0.1 rad/s where the parties state none, or 0.0323, is refused at
