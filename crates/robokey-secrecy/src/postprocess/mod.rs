@@ -56,7 +56,7 @@ pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
 pub use encoding::{decode, encode};
 pub use estimate::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, LlrRequest,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, KeptLate, LlrRequest,
     MAX_SEPARATION_STEPS, SEPARATION_QUANTUM, SessionSamples,
 };
 pub use fragment::{

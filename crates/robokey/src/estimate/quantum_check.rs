@@ -437,6 +437,7 @@ mod tests {
                     inputs,
                     samples: [start, sensed, sensed],
                     pattern,
+                    late: None,
                 }
             })
             .collect()

@@ -30,4 +30,7 @@ pub struct DoubletDecision {
     /// (docs/estimation.md; the estimate models the two-step doublet only) and the commands
     /// check what the next commands revealed ([`crate::estimate::commands_check`]).
     pub samples: [Pose; 3],
+    /// A three-step doublet's sample after its second step and its entry speed under the
+    /// prior lag (`None` with two steps).
+    pub late: Option<super::LateSample>,
 }
