@@ -186,7 +186,10 @@ fn three_step_samples_survive_reopening_and_older_records_still_read() {
     let read = recovery.snapshot.unwrap();
     assert_eq!(
         read.samples,
-        vec![(1, kept_doublets(100, false)), (2, kept_doublets(100, false))]
+        vec![
+            (1, kept_doublets(100, false)),
+            (2, kept_doublets(100, false))
+        ]
     );
     // Some doublets of a session with the later sample, some without: refused by name.
     let dir = tempdir("post-store-late-mixed");

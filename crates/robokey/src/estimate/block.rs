@@ -11,7 +11,8 @@
 //!
 //! **Three-step doublets** (`private.prior_lag`) are sized from the lag measured: first τ̂
 //! from the first steps ([`estimate_lag`]), then τ̂ and its interval at ε_est/3 from the
-//! first steps and the ends jointly ([`estimate_lag_jointly`]), then the residuals with the bit's and
+//! first steps, the samples after the second steps (where the pool kept them) and the ends
+//! jointly ([`estimate_lag_jointly`]), then the residuals with the bit's and
 //! the nominal inputs' lagged means through τ̂ subtracted ([`DoubletResidual::three_step`];
 //! the wheels' speed at a doublet's start recomputed from the previous doublet's nominal
 //! inputs and bits through τ̂, so a doublet whose predecessor was not kept is left out), a
@@ -25,8 +26,8 @@ use std::collections::BTreeMap;
 use robokey_secrecy::BitString;
 use robokey_secrecy::covariance_pair::{PairedBit, candidate_lambdas, paired_smooth_min_entropy};
 use robokey_secrecy::postprocess::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, KeptLate,
-    MAX_SEPARATION_STEPS, SEPARATION_QUANTUM,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, KeptLate, MAX_SEPARATION_STEPS,
+    SEPARATION_QUANTUM,
 };
 use robokey_secrecy::view_profile::{
     equivalent_separation, gaussian_separation_within, separation_counts,
@@ -279,7 +280,9 @@ fn three_step_block(
     let lag_epsilon = LAG_EPSILON_SHARE * epsilon;
     // The sample after the second step where every doublet kept it (a block holding
     // sessions pooled before it was kept is measured from the first step and the end).
-    let late = sessions.iter().all(|session| session.iter().all(|b| b.late.is_some()));
+    let late = sessions
+        .iter()
+        .all(|session| session.iter().all(|b| b.late.is_some()));
     let products = |tau: f64| lag_residual_products(config, sessions, tau, late);
     let (first, lag) = match measured_lag(config, sessions, lag_epsilon).and_then(|first| {
         estimate_lag_jointly(&first, &products, config.robot.sample_time, lag_epsilon)

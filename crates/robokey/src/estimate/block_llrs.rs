@@ -305,7 +305,12 @@ mod tests {
         let config = private(lag);
         let run = crate::sim::simulate(&config, 0, false).unwrap();
         let private_run = run.private.as_ref().expect("private sensing");
-        assert!(private_run.controller_samples.iter().all(|d| d.late.is_some()));
+        assert!(
+            private_run
+                .controller_samples
+                .iter()
+                .all(|d| d.late.is_some())
+        );
         let online: Vec<f64> = private_run.bits.iter().map(|b| b.controller).collect();
         let model = doublet_model(&config);
         let again: Vec<f64> = private_run
@@ -321,7 +326,10 @@ mod tests {
         let (matched, online) = request(&config, 8, 4);
         let recomputed = recomputed_llrs(&config, &matched, LlrModel::Measured).unwrap();
         let (m, p) = (mean(&recomputed), mean(&online));
-        assert!((m / p - 1.0).abs() < 0.1, "matched: measured {m}, prior {p}");
+        assert!(
+            (m / p - 1.0).abs() < 0.1,
+            "matched: measured {m}, prior {p}"
+        );
         let quiet = private(&format!("{lag}process_std = [0.001, 0.001, 0.001]\n"));
         let (request, online) = request(&quiet, 8, 4);
         let measured = recomputed_llrs(&quiet, &request, LlrModel::Measured).unwrap();
@@ -343,6 +351,9 @@ mod tests {
             }
         }
         let why = recomputed_llrs(&config, &old, LlrModel::Measured).unwrap_err();
-        assert!(why.contains("session 00000000") && why.contains("after the second step"), "{why}");
+        assert!(
+            why.contains("session 00000000") && why.contains("after the second step"),
+            "{why}"
+        );
     }
 }

@@ -23,11 +23,12 @@
 //! explains the amplitude, not the lag and the dead time apart.
 //!
 //! **Three-step doublets** carry the bit through τ in their second and third steps too: the
-//! residual at the doublet's end, conditioned on the reconciled bits, shares the first
-//! step's noise and moves with τ nearly opposite to it, so the pair measures τ better than
-//! the first step alone. [`estimate_lag_jointly`] inverts a weighted score of both
-//! (`Ŝ⁻¹v`, their covariance and slope in τ) into τ's interval; the first step's estimate
-//! gives its starting point and the dead-time test's interval.
+//! residuals after the second step (where the pool kept that sample) and at the doublet's
+//! end, conditioned on the reconciled bits, share the first step's noise and move with τ,
+//! so together they measure τ better than the first step alone. [`estimate_lag_jointly`]
+//! inverts a weighted score of them (`Ŝ⁻¹v`, their covariance and slope in τ) into τ's
+//! interval; the first step's estimate gives its starting point and the dead-time test's
+//! interval.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -618,8 +619,7 @@ pub(in crate::estimate) mod tests {
             let truth = first_step_share(tau, T);
             for k in 0..2 {
                 let mean = shares[k].iter().sum::<f64>() / 200.0;
-                let deviation = (shares[k].iter().map(|s| (s - mean).powi(2)).sum::<f64>()
-                    / 199.0)
+                let deviation = (shares[k].iter().map(|s| (s - mean).powi(2)).sum::<f64>() / 199.0)
                     .sqrt()
                     / 200_f64.sqrt();
                 eprintln!(
