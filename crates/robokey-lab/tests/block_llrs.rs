@@ -39,7 +39,7 @@ fn kept(run: &RunOutput) -> SessionSamples {
     private
         .controller_samples
         .iter()
-        .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+        .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples, d.late.as_ref()))
         .collect()
 }
 

@@ -7,8 +7,10 @@
 //!
 //! Records: a header (role, pairing fingerprint), one `session` record per pooled session
 //! (its raw bits and, on a controller, what it keeps of the session beside them: the samples
-//! for the block's estimate when it measures the plant, its quantised LLRs when it reconciles
-//! by LDPC — written once; the fields are absent otherwise, so older journals read unchanged), and `state` records (the endpoint's snapshot without the
+//! for the block's estimate when it measures the plant — a three-step doublet's sample after
+//! its second step and entry speed among them —, its quantised LLRs when it reconciles by
+//! LDPC — written once; the fields are absent otherwise, so older journals read unchanged),
+//! and `state` records (the endpoint's snapshot without the
 //! pool's bits, the IDs pooled, and the keys committed in the same batch). The last intact
 //! `state` record is the durable state; a session not named by it was never pooled. A key is
 //! committed by the `state` record that carries it and then written to `keys/`; recovery
@@ -225,7 +227,9 @@ enum Record<S> {
         id: u32,
         bits: BitString,
         /// What the controller keeps of the session for the block's estimate (absent when
-        /// nothing is kept).
+        /// nothing is kept). A three-step doublet's sample after its second step and entry
+        /// speed (`late`) are absent from records written before they were kept: such a
+        /// session reads unchanged and is sized from its three samples.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         samples: Option<SessionSamples>,
         /// The controller's quantised LLR of each bit (absent when it keeps none).
@@ -402,6 +406,16 @@ impl<S: Snapshot> PostStore<S> {
                             "session {id}'s record keeps samples of {kept} doublets for its {} \
                              raw bits (allowed: at most one doublet per bit)",
                             bits.len()
+                        )));
+                    }
+                    let late = samples
+                        .as_ref()
+                        .map_or(0, |s| s.iter().filter(|k| k.late.is_some()).count());
+                    if late != 0 && late != kept {
+                        return Err(store.corrupt(format!(
+                            "session {id}'s record keeps the sample after the second step \
+                             (samples[].late) of {late} of its {kept} doublets (allowed: all \
+                             of them, three-step doublets, or none)"
                         )));
                     }
                     if let Some(llrs) = llrs.as_ref().filter(|l| l.len() != bits.len()) {

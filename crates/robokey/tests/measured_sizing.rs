@@ -48,7 +48,7 @@ fn request(runs: &[RunOutput]) -> EstimateRequest {
             .map(|(id, run)| {
                 let kept = samples(run)
                     .iter()
-                    .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+                    .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples, d.late.as_ref()))
                     .collect();
                 let bits: Vec<bool> = run.keys.robot.iter().map(|&b| b == 1).collect();
                 (id as u32, kept, BitString::from_bools(&bits))
@@ -356,7 +356,7 @@ fn the_agents_size_multilevel_slices_as_the_simulator_does() {
                 let doublets = bits / usize::from(slicing.key_bits);
                 let kept = samples(run)
                     .iter()
-                    .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+                    .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples, d.late.as_ref()))
                     .collect();
                 let likelihoods = vec![0; doublets * slicing.patterns()];
                 let mut session =

@@ -291,7 +291,9 @@ fn analyze_point(
                     runs[i].private.as_ref().map_or_else(Vec::new, |p| {
                         p.controller_samples
                             .iter()
-                            .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+                            .map(|d| {
+                                kept_doublet(d.doublet, &d.inputs, &d.samples, d.late.as_ref())
+                            })
                             .collect()
                     })
                 })

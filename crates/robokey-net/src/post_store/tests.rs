@@ -122,6 +122,93 @@ fn reopen_spend_and_compact(
     restored
 }
 
+/// `n` kept doublets, each with a sample after its second step when `late`.
+fn kept_doublets(n: u32, late: bool) -> robokey_secrecy::postprocess::SessionSamples {
+    use robokey_secrecy::postprocess::{KeptDoublet, KeptLate};
+    (0..n)
+        .map(|doublet| KeptDoublet {
+            doublet,
+            inputs: [[0.1, 0.2], [0.1, -0.2]],
+            samples: [[f64::from(doublet), 0.5, 0.25]; 3],
+            late: late.then_some(KeptLate {
+                sample: [f64::from(doublet), 0.75, 0.125],
+                entry: [0.1, 0.05],
+            }),
+        })
+        .collect()
+}
+
+/// Three-step doublets' samples after their second step and entry speeds are journaled
+/// with the session and restored; a journal written before they were kept (its session
+/// records' doublets without `late`) still reads, each doublet's three samples as they were
+/// and no later sample; a record that keeps it for some of a session's doublets only is
+/// refused, naming the field.
+#[test]
+fn three_step_samples_survive_reopening_and_older_records_still_read() {
+    let mut state = controller(&[(1, true), (2, false)], &[]);
+    state.samples = vec![(1, kept_doublets(100, true)), (2, kept_doublets(100, true))];
+    let restored = reopen_spend_and_compact("post-store-late", &mut state, 1);
+    assert_eq!(restored.samples, vec![(2, kept_doublets(100, true))]);
+    // The format before: the same journal with every `late` field taken out.
+    let dir = tempdir("post-store-late-older");
+    let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    let mut state = controller(&[(1, true), (2, false)], &[]);
+    state.samples = vec![(1, kept_doublets(100, true)), (2, kept_doublets(100, true))];
+    store.persist(&mut state, &[]).unwrap();
+    drop(store);
+    let secrets = StoreKeys::new(&pairing(1), "controller");
+    let owner = format!("controller {}", pairing(1).fingerprint());
+    let path = dir.join("journal");
+    let (mut journal, contents) = Journal::open(&path, &secrets.journal, &owner)
+        .unwrap()
+        .unwrap();
+    let mut stripped = 0;
+    let older: Vec<Zeroizing<Vec<u8>>> = contents
+        .records
+        .iter()
+        .map(|payload| {
+            let mut record: serde_json::Value = serde_json::from_slice(payload).unwrap();
+            if let Some(samples) = record.get_mut("samples").and_then(|s| s.as_array_mut()) {
+                for doublet in samples {
+                    let fields = doublet.as_object_mut().unwrap();
+                    stripped += usize::from(fields.remove("late").is_some());
+                    let names: Vec<&str> = fields.keys().map(String::as_str).collect();
+                    assert_eq!(names, ["doublet", "inputs", "samples"]);
+                }
+            }
+            Zeroizing::new(serde_json::to_vec(&record).unwrap())
+        })
+        .collect();
+    assert_eq!(stripped, 200);
+    journal.rewrite(&older).unwrap();
+    drop(journal);
+    let (_, recovery) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    let read = recovery.snapshot.unwrap();
+    assert_eq!(
+        read.samples,
+        vec![
+            (1, kept_doublets(100, false)),
+            (2, kept_doublets(100, false))
+        ]
+    );
+    // Some doublets of a session with the later sample, some without: refused by name.
+    let dir = tempdir("post-store-late-mixed");
+    let (mut store, _) = open::<ControllerSnapshot>(&dir, 1).unwrap();
+    let mut state = controller(&[(5, true)], &[]);
+    let mut mixed = kept_doublets(100, true);
+    mixed[7].late = None;
+    state.samples = vec![(5, mixed)];
+    store.persist(&mut state, &[]).unwrap();
+    drop(store);
+    let error = open::<ControllerSnapshot>(&dir, 1).unwrap_err().to_string();
+    assert!(
+        error.contains("session 5's record keeps the sample after the second step")
+            && error.contains("samples[].late")
+            && error.contains("99 of its 100"),
+        "{error}"
+    );
+}
+
 /// A multilevel slice's staged material (docs/postprocessing.md, "Multilevel slices") is
 /// journaled once with its bits, restored on opening, kept through compaction and
 /// forgotten once spent; a record whose material does not fit its bits is refused by name.

@@ -24,8 +24,25 @@ pub struct KeptDoublet {
     pub doublet: u32,
     /// Its public inputs `u(2j)`, `u'(2j+1)` (m/s, rad/s).
     pub inputs: [[f64; 2]; 2],
-    /// The controller's samples `y(2j), y(2j+1), y(2j+2)` (m, m, rad).
+    /// The controller's samples `y(Lj), y(Lj+1), y(Lj+L)` (m, m, rad): the start, after the
+    /// first step, the end (`L` = 2, or 3 with a prior lag).
     pub samples: [[f64; 3]; 3],
+    /// A three-step doublet's sample after its second step and entry speed. Absent with
+    /// two steps, and in what the format before it kept: such records read unchanged and
+    /// a block holding any of them is sized from the three samples alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub late: Option<KeptLate>,
+}
+
+/// What a three-step doublet keeps beyond its three samples (docs/estimation.md, "The
+/// lag"): key material, never sent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct KeptLate {
+    /// The controller's sample `y(3j+2)` after the shape's second step (m, m, rad).
+    pub sample: [f64; 3],
+    /// The wheels' nominal speed at the doublet's start under the prior lag (m/s, rad/s),
+    /// with which the online decision took the doublet.
+    pub entry: [f64; 2],
 }
 
 /// What the pool keeps of one session for the estimate: its decided doublets, in the order

@@ -56,8 +56,8 @@ pub use assumption::{Assumption, AssumptionError};
 pub use controller::{ControllerInput, ControllerPost, ControllerSnapshot, InFlight};
 pub use encoding::{decode, encode};
 pub use estimate::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, LlrAnswer, LlrRequest,
-    MAX_SEPARATION_STEPS, RecomputedLlrs, SEPARATION_QUANTUM, SessionSamples,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, KeptLate, LlrAnswer,
+    LlrRequest, MAX_SEPARATION_STEPS, RecomputedLlrs, SEPARATION_QUANTUM, SessionSamples,
 };
 pub use fragment::{
     FRAGMENT_BYTES, MAX_FRAGMENTS, MAX_MESSAGE_BYTES, Reassembler, fits, fragments,

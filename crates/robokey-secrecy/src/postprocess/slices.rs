@@ -295,6 +295,7 @@ mod tests {
             doublet,
             inputs: [[0.0; 2]; 2],
             samples: [[0.0; 3]; 3],
+            late: None,
         };
         StagedSession {
             session,

@@ -503,6 +503,7 @@ impl<A: Copy + PartialEq + std::fmt::Display> ControllerConnection<A> {
                                 decision.doublet,
                                 &decision.inputs,
                                 &decision.samples,
+                                decision.late.as_ref(),
                             ));
                         }
                     }

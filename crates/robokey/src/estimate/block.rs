@@ -11,7 +11,8 @@
 //!
 //! **Three-step doublets** (`private.prior_lag`) are sized from the lag measured: first τ̂
 //! from the first steps ([`estimate_lag`]), then τ̂ and its interval at ε_est/3 from the
-//! first steps and the ends jointly ([`estimate_lag_jointly`]), then the residuals with the bit's and
+//! first steps, the samples after the second steps (where the pool kept them) and the ends
+//! jointly ([`estimate_lag_jointly`]), then the residuals with the bit's and
 //! the nominal inputs' lagged means through τ̂ subtracted ([`DoubletResidual::three_step`];
 //! the wheels' speed at a doublet's start recomputed from the previous doublet's nominal
 //! inputs and bits through τ̂, so a doublet whose predecessor was not kept is left out), a
@@ -25,7 +26,7 @@ use std::collections::BTreeMap;
 use robokey_secrecy::BitString;
 use robokey_secrecy::covariance_pair::{PairedBit, candidate_lambdas, paired_smooth_min_entropy};
 use robokey_secrecy::postprocess::{
-    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, MAX_SEPARATION_STEPS,
+    EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, KeptLate, MAX_SEPARATION_STEPS,
     SEPARATION_QUANTUM,
 };
 use robokey_secrecy::view_profile::{
@@ -47,7 +48,9 @@ use super::{
 use crate::Config;
 use crate::model::{Pose, Unicycle};
 use crate::private::likelihood::{DoubletView, stated_camera_view};
-use crate::private::{DoubletInputs, DoubletModel, DoubletSamples, Perturbation, doublet_model};
+use crate::private::{
+    DoubletInputs, DoubletModel, DoubletSamples, LateSample, Perturbation, doublet_model,
+};
 use crate::world::{WorldModel, lagged};
 
 /// The separation fed for the sessions of a refused block: Eve is taken to see every bit
@@ -275,7 +278,12 @@ fn three_step_block(
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
     let doublets: usize = sessions.iter().map(|session| session.len()).sum();
     let lag_epsilon = LAG_EPSILON_SHARE * epsilon;
-    let products = |tau: f64| lag_residual_products(config, sessions, tau);
+    // The sample after the second step where every doublet kept it (a block holding
+    // sessions pooled before it was kept is measured from the first step and the end).
+    let late = sessions
+        .iter()
+        .all(|session| session.iter().all(|b| b.late.is_some()));
+    let products = |tau: f64| lag_residual_products(config, sessions, tau, late);
     let (first, lag) = match measured_lag(config, sessions, lag_epsilon).and_then(|first| {
         estimate_lag_jointly(&first, &products, config.robot.sample_time, lag_epsilon)
             .map(|lag| (first, lag))
@@ -345,16 +353,18 @@ fn three_step_residuals(
         .collect()
 }
 
-/// Each three-step doublet's residuals after its first step and at its end, along its start
-/// heading, with the lagged means through `lag` (s) subtracted
-/// ([`DoubletResidual::three_step_means`]), times its v-amplitude (m): what
-/// [`estimate_lag_jointly`] measures τ from. A doublet whose predecessor is not kept is left
-/// out (its entry speed is not known).
+/// Each three-step doublet's residuals along its start heading after its first step, after
+/// its second (with `late`: the kept sample `y(3j+2)`) and at its end, with the lagged means
+/// through `lag` (s) subtracted ([`DoubletResidual::three_step_means`]), times its
+/// v-amplitude (m): what [`estimate_lag_jointly`] measures τ from. A doublet whose
+/// predecessor is not kept is left out (its entry speed is not known), and with `late` one
+/// that did not keep the sample after its second step.
 fn lag_residual_products(
     config: &Config,
     sessions: &[&[DoubletSamples]],
     lag: f64,
-) -> Vec<[f64; 2]> {
+    late: bool,
+) -> Vec<Vec<f64>> {
     let model = DoubletModel {
         lag,
         ..doublet_model(config)
@@ -371,14 +381,21 @@ fn lag_residual_products(
                         &model, &b.inputs, start, b.pattern, entry?,
                     );
                     let (sin, cos) = start.z.sin_cos();
-                    let along = |sample: &Pose, mean: &Pose| {
-                        (sample.x - mean.x) * cos + (sample.y - mean.y) * sin
-                    };
                     let amplitude = model.perturbation.amplitude(b.pattern);
-                    Some([
-                        amplitude * along(middle, &means[0]),
-                        amplitude * along(end, &means[2]),
-                    ])
+                    let along = |sample: &Pose, mean: &Pose| {
+                        amplitude * ((sample.x - mean.x) * cos + (sample.y - mean.y) * sin)
+                    };
+                    let second = match (late, b.late) {
+                        (false, _) => None,
+                        (true, Some(kept)) => Some(along(&kept.sample, &means[1])),
+                        (true, None) => return None,
+                    };
+                    Some(
+                        std::iter::once(along(middle, &means[0]))
+                            .chain(second)
+                            .chain(std::iter::once(along(end, &means[2])))
+                            .collect(),
+                    )
                 })
                 .collect::<Vec<_>>()
         })
@@ -782,14 +799,25 @@ fn equivalent(separations: &[Vec<f64>], disclosed: u64, epsilon: f64, largest: f
 }
 
 /// What the agents' controller keeps of a decided doublet for the block's estimate: its
-/// index, public inputs and the controller's three samples.
+/// index, public inputs, the controller's three samples and, for a three-step doublet, its
+/// sample after the second step and entry speed (`late`).
 #[must_use]
-pub fn kept_doublet(doublet: u32, inputs: &DoubletInputs, samples: &[Pose; 3]) -> KeptDoublet {
+pub fn kept_doublet(
+    doublet: u32,
+    inputs: &DoubletInputs,
+    samples: &[Pose; 3],
+    late: Option<&LateSample>,
+) -> KeptDoublet {
     let unicycle = |u: Unicycle| [u.x, u.y];
+    let pose = |p: &Pose| [p.x, p.y, p.z];
     KeptDoublet {
         doublet,
         inputs: [unicycle(inputs.first), unicycle(inputs.second)],
-        samples: samples.map(|p| [p.x, p.y, p.z]),
+        samples: samples.each_ref().map(pose),
+        late: late.map(|l| KeptLate {
+            sample: pose(&l.sample),
+            entry: unicycle(l.entry),
+        }),
     }
 }
 
@@ -816,8 +844,9 @@ fn with_bits(
     kept.iter()
         .enumerate()
         .map(|(i, k)| {
+            let late = k.late.iter().flat_map(|l| l.sample.iter().chain(&l.entry));
             let finite = k.inputs.iter().flatten().chain(k.samples.iter().flatten());
-            if !finite.into_iter().all(|x| x.is_finite()) {
+            if !finite.chain(late).all(|x| x.is_finite()) {
                 return Err(format!(
                     "session {id:08x}: doublet {}'s kept samples are not finite",
                     k.doublet
@@ -841,6 +870,10 @@ pub(crate) fn doublet_samples(k: &KeptDoublet, pattern: usize) -> DoubletSamples
         },
         samples: k.samples.map(|p| Pose::new(p[0], p[1], p[2])),
         pattern,
+        late: k.late.map(|l| LateSample {
+            sample: Pose::new(l.sample[0], l.sample[1], l.sample[2]),
+            entry: Unicycle::new(l.entry[0], l.entry[1]),
+        }),
     }
 }
 

@@ -345,6 +345,7 @@ mod tests {
             },
             samples: [crate::model::Pose::zeros(); 3],
             pattern: 0b1001,
+            late: None,
         };
         let residuals = doublet_residuals(&model, &samples);
         let kinds: Vec<BitKind> = residuals.iter().map(|r| r.kind).collect();

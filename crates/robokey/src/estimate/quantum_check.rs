@@ -510,6 +510,7 @@ mod tests {
                     inputs,
                     samples: [start, sensed, sensed],
                     pattern,
+                    late: None,
                 }
             })
             .collect()

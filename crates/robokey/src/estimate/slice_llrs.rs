@@ -317,7 +317,7 @@ mod tests {
                 private
                     .controller_samples
                     .iter()
-                    .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples))
+                    .map(|d| kept_doublet(d.doublet, &d.inputs, &d.samples, d.late.as_ref()))
                     .collect(),
             );
             let bits: Vec<bool> = private.bits.iter().map(|b| b.bit == 1).collect();

@@ -5,6 +5,7 @@
 
 use std::collections::VecDeque;
 
+use super::LateSample;
 use super::decision::DoubletDecision;
 use super::doublet::DoubletInputs;
 use super::likelihood::{
@@ -280,6 +281,10 @@ impl PrivateController {
             },
             assumed_separation: self.model.sizing_separations(&p.inputs, &assumed),
             samples: [samples[0], samples[1], samples[length]],
+            late: (length == 3).then(|| LateSample {
+                sample: samples[2],
+                entry: p.entry,
+            }),
         };
         self.decided[p.doublet as usize] = decision.evidence.bits();
         life.fates.record(p.doublet, true);

@@ -27,7 +27,10 @@ pub struct DoubletDecision {
     /// The controller's samples `y(Lj), y(Lj+1), y(Lj+L)` at the doublet's start, after its
     /// first step and at its end (key material: they stay with the controller), from which
     /// the block's estimate recomputes the residual and Eve's modelled view
-    /// (docs/estimation.md; the estimate models the two-step doublet only) and the commands
+    /// (docs/estimation.md) and the commands
     /// check what the next commands revealed ([`crate::estimate::commands_check`]).
     pub samples: [Pose; 3],
+    /// A three-step doublet's sample after its second step and its entry speed under the
+    /// prior lag (`None` with two steps).
+    pub late: Option<super::LateSample>,
 }

@@ -91,6 +91,23 @@ pub struct DoubletSamples {
     /// The bit pattern the doublet carried, `v | ω << 1`: the robot's bits, which
     /// reconciliation gives the controller.
     pub pattern: usize,
+    /// A three-step doublet's sample after its second step and its entry speed (`None`
+    /// with two steps, and where the pool kept only the three samples above).
+    pub late: Option<LateSample>,
+}
+
+/// What a three-step doublet keeps beyond its start, first-step and end samples: the
+/// controller's sample `y(3j+2)` after the shape's second step, where the bit's travel
+/// through the lag is largest, and the wheels' nominal speed at the doublet's start
+/// through the prior lag, with which the online decision took it (docs/estimation.md,
+/// "The lag" and "Causality").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LateSample {
+    /// `y(3j+2)` (m, m, rad).
+    pub sample: crate::model::Pose,
+    /// The wheels' nominal speed at the doublet's start under `private.prior_lag` (m/s,
+    /// rad/s): [`DoubletView::entry`] of the online decision.
+    pub entry: crate::model::Unicycle,
 }
 
 /// Reading the `commands` eavesdropper's evidence from a run that did not judge her is a

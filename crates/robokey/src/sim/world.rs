@@ -345,6 +345,7 @@ fn record(
         doublet: d.doublet,
         inputs: d.inputs,
         samples: d.samples,
+        late: d.late,
         // Both dimensions' labels, whether or not the ω one rides.
         pattern: (word & ((1 << (2 * perturbation.bits_per_symbol())) - 1)) as usize,
     });
