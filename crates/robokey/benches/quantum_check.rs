@@ -38,6 +38,7 @@ fn block(config: &Config) -> Vec<DoubletSamples> {
                 inputs,
                 samples: [start, sensed, sensed],
                 pattern,
+                late: None,
             }
         })
         .collect()
