@@ -715,9 +715,10 @@ fn size_slip_block(
             continue; // a known world's one point, repeated
         }
         let corner = whole_interval_corner(&point.corners);
-        // Q ⪰ 0 always: where the region's vertex leaves Eve's covariance without a bound
-        // (slip's share of the spread, uncertain, swamps a small Q along the heading), her
-        // view at Q = 0 bounds it.
+        // Q ⪰ 0 always, so her view at Q = 0 bounds it as the region's vertex does: each
+        // doublet is sized at whichever of the two leaves her less (the vertex's heading
+        // entry, below 0 where the slip's uncertain share swamps a small Q along the
+        // heading, can leave her covariance near singular or without a bound).
         let floor = Corner {
             motion: nalgebra::Matrix3::zeros(),
             ..corner
@@ -729,8 +730,10 @@ fn size_slip_block(
                 config.sensing.controller_std,
                 config.modelled_camera_std(),
             );
-            let pairs = slip_pairs(&model, &corner, point.variance, axle, &b.inputs, &view)
-                .or_else(|| slip_pairs(&model, &floor, point.variance, axle, &b.inputs, &view));
+            let pairs = blunter(
+                slip_pairs(&model, &corner, point.variance, axle, &b.inputs, &view),
+                slip_pairs(&model, &floor, point.variance, axle, &b.inputs, &view),
+            );
             match pairs {
                 Some(pairs) => paired.extend(pairs),
                 None => {
@@ -778,6 +781,28 @@ fn size_slip_block(
             .collect(),
         sized_report(estimate, epsilon, [separation; 2], None, true),
     )
+}
+
+/// Of two views of one doublet's bits, each from a matrix below every `Q` of the region (so
+/// each bounds what she sees), the one that tells her less: the larger sum over its bits of
+/// `−ln E[e^(−S/2)]` (the Bhattacharyya exponent, each bit's least over its pairs); the one
+/// that exists where the other has no bound. Sizing each doublet at either keeps the block's
+/// bound, since each bit's surprisal enters it on its own (docs/estimation.md, "Per-wheel
+/// slip").
+fn blunter(a: Option<Vec<PairedBit>>, b: Option<Vec<PairedBit>>) -> Option<Vec<PairedBit>> {
+    let exponent = |bits: &[PairedBit]| -> f64 {
+        bits.iter()
+            .map(|bit| {
+                bit.iter()
+                    .map(|pair| -pair.ln_moment(0.5))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .sum()
+    };
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if exponent(&a) >= exponent(&b) { a } else { b }),
+        (a, b) => a.or(b),
+    }
 }
 
 /// The block's equivalent separation (the per-bit bound, `view_profile`) of its sessions'
@@ -950,6 +975,31 @@ mod tests {
     use super::*;
     use crate::estimate::MAX_PUBLISHED_SEPARATION;
     use crate::estimate::lag::tests::doublets;
+
+    /// Of two views of a doublet the one that tells Eve less is kept: a pair further apart
+    /// (a larger shift, or a variance further from the other value's) loses to a closer one
+    /// whichever comes first, and a view without a bound gives way to one with it.
+    #[test]
+    fn the_blunter_view_of_a_doublet_is_kept() {
+        use robokey_secrecy::covariance_pair::{Coordinate, CovariancePair};
+        let bits = |shift: f64, variance: f64| {
+            vec![vec![
+                CovariancePair::new([Coordinate { shift, variance }]).unwrap(),
+            ]]
+        };
+        let (sharp, blunt) = (bits(2.0, 1.0), bits(1.0, 1.0));
+        for (a, b) in [(&sharp, &blunt), (&blunt, &sharp)] {
+            assert_eq!(
+                blunter(Some(a.clone()), Some(b.clone())),
+                Some(blunt.clone())
+            );
+        }
+        let (spread, close) = (bits(1.0, 9.0), bits(1.0, 1.5));
+        assert_eq!(blunter(Some(spread), Some(close.clone())), Some(close));
+        assert_eq!(blunter(None, Some(sharp.clone())), Some(sharp.clone()));
+        assert_eq!(blunter(Some(sharp.clone()), None), Some(sharp));
+        assert_eq!(blunter(None, None), None);
+    }
 
     /// A two-step block whose first steps show a 50 ms lag is refused by name (before the
     /// motion-noise estimate, which models none); one without lag is not refused for it.
