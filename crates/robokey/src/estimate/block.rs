@@ -49,7 +49,8 @@ use crate::Config;
 use crate::model::{Pose, Unicycle};
 use crate::private::likelihood::{DoubletView, stated_camera_view};
 use crate::private::{
-    DoubletInputs, DoubletModel, DoubletSamples, LateSample, Perturbation, doublet_model,
+    DoubletInputs, DoubletModel, DoubletSamples, LateSample, Perturbation, PoseObservation,
+    doublet_model,
 };
 use crate::world::{WorldModel, lagged};
 
@@ -899,6 +900,19 @@ pub(crate) fn doublet_samples(k: &KeptDoublet, pattern: usize) -> DoubletSamples
             sample: Pose::new(l.sample[0], l.sample[1], l.sample[2]),
             entry: Unicycle::new(l.entry[0], l.entry[1]),
         }),
+    }
+}
+
+/// A doublet as the controller saw it: its kept samples (a three-step doublet's late one and
+/// entry speed too), each with the stated sensor noise `sensing.controller_std`.
+pub(crate) fn own_view(config: &Config, d: &DoubletSamples) -> DoubletView {
+    let own = |pose| PoseObservation::new(pose, config.sensing.controller_std);
+    DoubletView {
+        start: own(d.samples[0]),
+        middle: Some(own(d.samples[1])),
+        late: d.late.map(|l| own(l.sample)),
+        end: Some(own(d.samples[2])),
+        entry: d.late.map(|l| l.entry),
     }
 }
 

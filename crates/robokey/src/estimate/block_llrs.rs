@@ -24,7 +24,7 @@
 use nalgebra::Matrix3;
 use robokey_secrecy::postprocess::{LlrAnswer, LlrRequest, RecomputedLlrs};
 
-use super::block::{doublet_samples, two_step_residuals};
+use super::block::{doublet_samples, own_view, two_step_residuals};
 use super::diagonal_covariance;
 use super::motion_noise::white_motion_noise;
 use super::residual::{DoubletResidual, rotation};
@@ -32,8 +32,7 @@ use super::slice_llrs::{SliceSession, recomputed_slice_llrs};
 use crate::Config;
 use crate::config::LlrModel;
 use crate::private::{
-    DoubletModel, DoubletSamples, DoubletView, Perturbation, PoseObservation, doublet_model,
-    doublet_model_with,
+    DoubletModel, DoubletSamples, Perturbation, doublet_model, doublet_model_with,
 };
 use crate::world::WorldModel;
 
@@ -196,19 +195,6 @@ fn measured_motion(
 pub fn doublet_llrs(config: &Config, model: &DoubletModel, d: &DoubletSamples) -> Vec<f64> {
     let (evidence, _) = model.evidence_and_likelihoods(&d.inputs, &own_view(config, d));
     evidence.llr[..config.protocol.key_bits_per_doublet()].to_vec()
-}
-
-/// A doublet as the controller saw it: its kept samples (a three-step doublet's late one and
-/// entry speed too), each with the stated sensor noise `sensing.controller_std`.
-pub(crate) fn own_view(config: &Config, d: &DoubletSamples) -> DoubletView {
-    let own = |pose| PoseObservation::new(pose, config.sensing.controller_std);
-    DoubletView {
-        start: own(d.samples[0]),
-        middle: Some(own(d.samples[1])),
-        late: d.late.map(|l| own(l.sample)),
-        end: Some(own(d.samples[2])),
-        entry: d.late.map(|l| l.entry),
-    }
 }
 
 /// The shell's answer to `request` under the parties' `config` with `basis`: a multilevel

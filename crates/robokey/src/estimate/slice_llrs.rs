@@ -22,8 +22,7 @@ use nalgebra::Matrix3;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::KeptDoublet;
 
-use super::block::doublet_samples;
-use super::block_llrs::own_view;
+use super::block::{doublet_samples, own_view};
 use super::diagonal_covariance;
 use super::motion_noise::weighted_white_motion_noise;
 use super::residual::{DoubletResidual, rotation};
