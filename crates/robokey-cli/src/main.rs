@@ -329,7 +329,8 @@ struct SecrecyArgs {
     /// "Causality"). `prior`: online, with the configured motion noise. `measured`: at
     /// block time from the kept samples, with the motion noise estimated from the disclosed
     /// sample's doublets. `world`: with the simulated world's own motion noise (an oracle
-    /// bound, simulator only). Default: each point's `postprocess.llrs`, else prior.
+    /// bound, simulator only). Default: each point's `postprocess.llrs`, else prior. Cascade
+    /// reads no LLRs: with `--reconciliation cascade` (the default) it changes nothing.
     #[arg(long, value_enum)]
     llrs: Option<LlrsArg>,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.
