@@ -304,22 +304,34 @@ mod tests {
 
     /// With the prior's own model the recomputation gives the online LLRs; a sample too
     /// small for the estimate keeps the prior's, naming why.
-    #[test]
-    fn the_prior_model_recomputes_the_online_llrs() {
-        let config = private("");
-        let run = crate::sim::simulate(&config, 0, false).unwrap();
-        let private = run.private.as_ref().expect("private sensing");
+    /// Run 0 of `config`: its kept samples give the online LLRs again under the prior's own
+    /// model (to 10⁻⁹ relative); its kept samples are returned.
+    fn online_llrs_again(config: &Config) -> Vec<DoubletSamples> {
+        let run = crate::sim::simulate(config, 0, false).unwrap();
+        let private = run.private.expect("private sensing");
         let online: Vec<f64> = private.bits.iter().map(|b| b.controller).collect();
-        let model = doublet_model(&config);
+        let model = doublet_model(config);
         let again: Vec<f64> = private
             .controller_samples
             .iter()
-            .flat_map(|d| doublet_llrs(&config, &model, d))
+            .flat_map(|d| doublet_llrs(config, &model, d))
             .collect();
         assert_eq!(online.len(), again.len());
         for (a, b) in online.iter().zip(&again) {
             assert!((a - b).abs() <= 1e-9 * a.abs().max(1.0), "{a} vs {b}");
         }
+        private.controller_samples
+    }
+
+    /// The mean magnitude of `llrs`.
+    fn mean_magnitude(llrs: &[f64]) -> f64 {
+        llrs.iter().map(|x| x.abs()).sum::<f64>() / llrs.len() as f64
+    }
+
+    #[test]
+    fn the_prior_model_recomputes_the_online_llrs() {
+        let config = private("");
+        online_llrs_again(&config);
         let (small, _) = request(&config, 1, 50);
         let why = recomputed_llrs(&config, &small, LlrModel::Measured).unwrap_err();
         assert!(
@@ -336,11 +348,14 @@ mod tests {
     fn a_quieter_world_recomputes_to_the_worlds_llrs() {
         let config = private("[world]\nprocess_std = [0.001, 0.001, 0.001]\n");
         let (request, online) = request(&config, 8, 4);
-        let mean = |l: &[f64]| l.iter().map(|x| x.abs()).sum::<f64>() / l.len() as f64;
         let measured = recomputed_llrs(&config, &request, LlrModel::Measured).unwrap();
         let world = recomputed_llrs(&config, &request, LlrModel::World).unwrap();
         assert_eq!(measured.len(), online.len());
-        let (m, w, p) = (mean(&measured), mean(&world), mean(&online));
+        let (m, w, p) = (
+            mean_magnitude(&measured),
+            mean_magnitude(&world),
+            mean_magnitude(&online),
+        );
         assert!((m / w - 1.0).abs() < 0.1, "measured {m}, world {w}");
         assert!(m > 1.5 * p, "measured {m}, prior {p}");
     }
@@ -354,29 +369,10 @@ mod tests {
     fn three_step_llrs_are_recomputed_from_the_kept_samples() {
         let lag = "[private]\nprior_lag = 0.05\n[world]\nlag = 0.05\n";
         let config = private(lag);
-        let run = crate::sim::simulate(&config, 0, false).unwrap();
-        let private_run = run.private.as_ref().expect("private sensing");
-        assert!(
-            private_run
-                .controller_samples
-                .iter()
-                .all(|d| d.late.is_some())
-        );
-        let online: Vec<f64> = private_run.bits.iter().map(|b| b.controller).collect();
-        let model = doublet_model(&config);
-        let again: Vec<f64> = private_run
-            .controller_samples
-            .iter()
-            .flat_map(|d| doublet_llrs(&config, &model, d))
-            .collect();
-        assert_eq!(online.len(), again.len());
-        for (a, b) in online.iter().zip(&again) {
-            assert!((a - b).abs() <= 1e-9 * a.abs().max(1.0), "{a} vs {b}");
-        }
-        let mean = |l: &[f64]| l.iter().map(|x| x.abs()).sum::<f64>() / l.len() as f64;
+        assert!(online_llrs_again(&config).iter().all(|d| d.late.is_some()));
         let (matched, online) = request(&config, 8, 4);
         let recomputed = recomputed_llrs(&config, &matched, LlrModel::Measured).unwrap();
-        let (m, p) = (mean(&recomputed), mean(&online));
+        let (m, p) = (mean_magnitude(&recomputed), mean_magnitude(&online));
         assert!(
             (m / p - 1.0).abs() < 0.1,
             "matched: measured {m}, prior {p}"
@@ -385,7 +381,11 @@ mod tests {
         let (request, online) = request(&quiet, 8, 4);
         let measured = recomputed_llrs(&quiet, &request, LlrModel::Measured).unwrap();
         let world = recomputed_llrs(&quiet, &request, LlrModel::World).unwrap();
-        let (m, w, p) = (mean(&measured), mean(&world), mean(&online));
+        let (m, w, p) = (
+            mean_magnitude(&measured),
+            mean_magnitude(&world),
+            mean_magnitude(&online),
+        );
         assert!((m / w - 1.0).abs() < 0.1, "measured {m}, world {w}");
         assert!(m > 1.5 * p, "measured {m}, prior {p}");
     }
