@@ -43,7 +43,7 @@
 
 use nalgebra::Matrix3;
 
-use crate::model::{Pose, Unicycle};
+use crate::model::{Pose, Unicycle, unicycle_step};
 use crate::private::DoubletInputs;
 use crate::private::likelihood::{DoubletModel, state_jacobian};
 
@@ -53,11 +53,13 @@ pub(super) const AXES: [&str; 3] = ["along-track", "lateral", "heading"];
 /// A doublet's residual and the maps that give its covariance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DoubletResidual {
-    /// Doublet index j (residuals of doublets of the same parity are independent).
+    /// Doublet index j, or a three-step doublet's step index `3j + k` for its one-step
+    /// residuals (residuals of the same parity are independent).
     pub doublet: u32,
     /// `z`: the residual in the robot's frame at the doublet's start (m, m, rad).
     pub value: Pose,
-    /// Steps the doublet spans: 2, or 3 with a prior lag.
+    /// Steps the residual spans: 2, or 3 with a prior lag (1: one step of a three-step
+    /// doublet).
     pub steps: u32,
     /// `[B₀, B₁, B₂]`: how each step's motion noise enters `z` (`B₂ = 0` with two steps).
     pub motion_maps: [Matrix3<f64>; 3],
@@ -174,6 +176,44 @@ impl DoubletResidual {
         }
     }
 
+    /// The three one-step residuals of a three-step doublet ([`Self::three_step`]'s model):
+    /// from each of the controller's samples `[y(3j), y(3j+1), y(3j+2)]` to the next
+    /// (`y(3j+3)` the end), the step predicted by the Euler map at its mean speed through
+    /// `model`'s lag τ (s) — the bit's offsets of pattern `pattern` and the nominal inputs'
+    /// transient from the wheels' nominal speed `entry` (m/s, rad/s) — in the robot's frame
+    /// at the step's start sample: `z₃ⱼ₊ₖ = H(θ)ᵀ(y(3j+k+1) − f(y(3j+k), u_k)) ≈ w + η' − Aη`,
+    /// covariance `Q + C₀RC₀ᵀ + C₁RC₁ᵀ`. Indexed by step, `3j + k`: residuals two steps apart
+    /// share no sample, so each parity half is independent under white noise, as the two-step
+    /// doublets' halves are. On wheels `axle` D (m) apart.
+    #[must_use]
+    pub fn three_step_split(
+        model: &DoubletModel,
+        axle: f64,
+        doublet: u32,
+        inputs: &DoubletInputs,
+        samples: [&Pose; 4],
+        pattern: usize,
+        entry: Unicycle,
+    ) -> [Self; 3] {
+        let t = model.sample_time;
+        let (applied, _) = Self::three_step_means(model, inputs, samples[0], pattern, entry);
+        std::array::from_fn(|k| {
+            let from = samples[k];
+            let h = rotation(from.z).transpose();
+            let a = state_jacobian(from.z, applied[k].x, t);
+            let motion_maps = [Matrix3::identity(), Matrix3::zeros(), Matrix3::zeros()];
+            Self {
+                doublet: 3 * doublet + k as u32,
+                value: h * (samples[k + 1] - unicycle_step(from, &applied[k], t)),
+                steps: 1,
+                motion_maps,
+                sensor_maps: [h, h * a],
+                slip_map: slip_map(&motion_maps[..1], &applied[k..=k], t, axle),
+                inputs: *inputs,
+            }
+        })
+    }
+
     /// A three-step doublet's steps at their mean speeds through `model`'s lag τ (m/s,
     /// rad/s: the nominal inputs, the bit's offsets of pattern `pattern` and the nominal
     /// inputs' own transient from the wheels' speed `entry`), and the poses they predict
@@ -205,6 +245,9 @@ impl DoubletResidual {
     #[must_use]
     pub fn motion_part(&self, q: &Matrix3<f64>, rho: f64) -> Matrix3<f64> {
         let [b0, b1, b2] = &self.motion_maps;
+        if self.steps == 1 {
+            return b0 * q * b0.transpose();
+        }
         let cross = b0 * q * b1.transpose();
         let two =
             b0 * q * b0.transpose() + b1 * q * b1.transpose() + rho * (cross + cross.transpose());
