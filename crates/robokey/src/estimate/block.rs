@@ -298,25 +298,36 @@ fn three_step_block(
         lag: lag.point,
         ..doublet_model(config)
     };
-    let residuals = if late {
-        split_residuals(&at_point, config.robot.axle_length, sessions)
+    // Each doublet's three one-step residuals where every doublet kept the sample after
+    // its second step, its start-to-end residual otherwise.
+    let (residuals, per_doublet) = if late {
+        let split = split_residuals(&at_point, config.robot.axle_length, sessions);
+        (split, 3)
     } else {
-        three_step_residuals(&at_point, config.robot.axle_length, sessions)
+        let whole = three_step_residuals(&at_point, config.robot.axle_length, sessions);
+        (whole, 1)
     };
+    let used = residuals.len() / per_doublet;
     if let Some(why) = lag_shape_refusal(config, sessions, &first, epsilon) {
-        return refused(sessions.len(), why, residuals.len(), epsilon);
+        return refused(sessions.len(), why, used, epsilon);
     }
     let sensor = diagonal_covariance(config.sensing.controller_std);
     let region = (1.0 - LAG_EPSILON_SHARE) * epsilon;
     match estimate_motion_noise(&residuals, &sensor, region) {
-        Ok(estimate) => size_block(config, sessions, disclosed, &estimate, Some(&lag), epsilon),
+        Ok(estimate) => {
+            let estimate = MotionNoiseEstimate {
+                doublets: used,
+                ..estimate
+            };
+            size_block(config, sessions, disclosed, &estimate, Some(&lag), epsilon)
+        }
         Err(refusal) => refused(
             sessions.len(),
             format!(
                 "{refusal} (three-step doublets, the lag measured {:.4} s [{:.4}, {:.4}])",
                 lag.point, lag.interval[0], lag.interval[1]
             ),
-            residuals.len(),
+            used,
             epsilon,
         ),
     }

@@ -78,7 +78,7 @@ pub struct Corner {
 /// What the controller measured of the motion noise, and its bound.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MotionNoiseEstimate {
-    /// Residuals used.
+    /// Residuals used (a three-step block reports its doublets: three one-step residuals each).
     pub doublets: usize,
     /// `Q̂` in the robot's frame (m², m², rad²; along-track, lateral, heading): the
     /// stationary covariance per step, for the controller's own likelihood and error estimate.
