@@ -430,15 +430,26 @@ pub fn secrecy(args: SecrecyArgs) -> Result<()> {
     // A sweep folder, or a suite folder whose subfolders are sweeps.
     let folders =
         layout::experiment_dirs(&args.sweep_dir)?.unwrap_or_else(|| vec![args.sweep_dir.clone()]);
-    let started = Instant::now();
+    // Every folder's options resolved, and refused, before any is computed.
+    let mut analyses = Vec::with_capacity(folders.len());
     for folder in folders {
         let experiment = layout::read_experiment(&folder, &layout::folder_name(&folder))?;
+        match request.options(&experiment) {
+            Ok(options) => analyses.push((folder, experiment, options)),
+            Err(e) => usage!(
+                "{}: {}",
+                folder.display(),
+                e.message(&format!("{} {}", e.option.flag(), e.value))
+            ),
+        }
+    }
+    let started = Instant::now();
+    for (folder, experiment, options) in analyses {
         if !experiment.points[0].config.protocol.enabled {
             println!("{}: protocol off, no key: skipped", folder.display());
             continue;
         }
         let mode = experiment.points[0].config.sensing.mode;
-        let options = request.options(&experiment);
         let secrecy = with_jobs(args.jobs, || {
             Secrecy::compute(&experiment, &options, &mut SessionBank::new())
         })??;

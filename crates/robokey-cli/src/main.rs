@@ -330,7 +330,8 @@ struct SecrecyArgs {
     /// block time from the kept samples, with the motion noise estimated from the disclosed
     /// sample's doublets. `world`: with the simulated world's own motion noise (an oracle
     /// bound, simulator only). Default: each point's `postprocess.llrs`, else prior. Cascade
-    /// reads no LLRs: with `--reconciliation cascade` (the default) it changes nothing.
+    /// reads no LLRs: `measured` and `world` are refused where it reconciles
+    /// (`--reconciliation cascade`, the sweep file's, or the default).
     #[arg(long, value_enum)]
     llrs: Option<LlrsArg>,
     /// Worker threads (0: one per core; at most one per core). Results do not depend on it.

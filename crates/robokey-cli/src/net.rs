@@ -68,6 +68,15 @@ pub struct SessionArgs {
     /// Lockstep: milliseconds to wait for each command before treating it as missing.
     #[arg(long, default_value_t = 50)]
     step_timeout_ms: u64,
+    /// With --store: the block timeout (s). The robot waits this long, with a
+    /// post-processing block in flight, for the controller's next post-processing frame,
+    /// which may follow the controller's estimate of the plant for the block (seconds for a
+    /// multilevel block of 10⁴ bits or one with slip); after it the robot leaves and the block
+    /// ends without a key in the next session. The controller, while it computes, repeats its
+    /// last post-processing frame every sixth of its own block timeout (5 s by default): give
+    /// both agents the same value.
+    #[arg(long, default_value_t = Timing::DEFAULT_BLOCK.as_secs_f64())]
+    block_timeout: f64,
     /// The pairing file written by `robokey pair`, installed on the robot and the
     /// controller: every frame of the session is authenticated with it.
     #[arg(long, value_name = "FILE")]
@@ -116,6 +125,10 @@ impl SessionArgs {
         };
         let mut timing = Timing::new(pace, silence);
         timing.step_timeout = Duration::from_millis(self.step_timeout_ms);
+        // Each agent's own, not an agreement term: it sizes and labels no key, and agents that
+        // state it differently cost at most the block in flight (a robot that waits less than
+        // the controller's repeat leaves it), never a key either side would not have made.
+        timing.block_timeout = seconds("block-timeout", self.block_timeout, 0.001)?;
         Ok(timing)
     }
 
@@ -231,13 +244,6 @@ pub struct RobotArgs {
     /// Seconds to wait for a controller.
     #[arg(long, default_value_t = 60.0)]
     wait: f64,
-    /// With --store: seconds to wait, with a post-processing block in flight, for the
-    /// controller's next post-processing frame; its next request may follow its estimate of
-    /// the plant for the block (seconds for a multilevel block of 10⁴ bits or one with slip),
-    /// during which it repeats its last frame every 5 s. After it the robot leaves and the
-    /// block ends without a key in the next session.
-    #[arg(long, default_value_t = Timing::DEFAULT_BLOCK.as_secs_f64())]
-    block_timeout: f64,
     #[command(flatten)]
     world: WorldArgs,
     #[command(flatten)]
@@ -334,8 +340,7 @@ pub struct RelayArgs {
 
 pub fn robot(args: RobotArgs) -> Result<Status> {
     let mut config = load_config(args.session.config.as_deref(), &args.session.options.set)?;
-    let mut timing = args.session.timing()?;
-    timing.block_timeout = seconds("block-timeout", args.block_timeout, 0.001)?;
+    let timing = args.session.timing()?;
     if args.kh4.is_some() && !matches!(args.backend, BackendArg::Kh4) {
         usage!("--kh4 is used only with --backend kh4 (the backend is sim)");
     }
@@ -618,4 +623,44 @@ pub fn record(args: RecordArgs) -> Result<Status> {
         Some(signal) => Status::Interrupted(signal),
         None => Status::Success,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+    use std::time::Duration;
+
+    /// The controller's `--block-timeout`: parsed into its timing (which its repeat while it
+    /// computes is a sixth of), 30 s by default, refused out of range naming the option, the
+    /// value and the range.
+    #[test]
+    fn the_controllers_block_timeout_is_parsed_and_bounded() {
+        let timing = |extra: &[&str]| {
+            let base = [
+                "robokey",
+                "controller",
+                "--robot",
+                "127.0.0.1:7000",
+                "--unauthenticated",
+            ];
+            let cli = crate::Cli::try_parse_from([&base[..], extra].concat()).unwrap();
+            let crate::Command::Controller(args) = cli.command else {
+                panic!("not the controller: {:?}", cli.command)
+            };
+            args.session.timing()
+        };
+        assert_eq!(timing(&[]).unwrap().block_timeout, Duration::from_secs(30));
+        assert_eq!(
+            timing(&["--block-timeout", "12.5"]).unwrap().block_timeout,
+            Duration::from_millis(12_500)
+        );
+        for bad in ["0", "-1", "86401", "NaN"] {
+            let refused = timing(&["--block-timeout", bad]).unwrap_err();
+            assert!(refused.is::<crate::exit::Usage>(), "{refused}");
+            assert_eq!(
+                refused.to_string(),
+                format!("--block-timeout {bad} is not allowed (allowed: 0.001 to 86400 seconds)")
+            );
+        }
+    }
 }

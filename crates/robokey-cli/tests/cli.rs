@@ -617,6 +617,17 @@ fn private_sensing_runs_end_to_end_from_the_command_line() {
         "{refused}"
     );
 
+    // Cascade reads no LLRs: a model to compute them with is refused where it reconciles
+    // (here by default), before anything is computed or written.
+    let before = read(&sweep.join("secrecy.json"));
+    let refused = fails_with(2, &["secrecy", s(&sweep), "--llrs", "measured"]);
+    assert!(
+        refused.contains("--llrs measured is not allowed")
+            && refused.contains("prior with reconciliation cascade (the default)"),
+        "{refused}"
+    );
+    assert_eq!(read(&sweep.join("secrecy.json")), before);
+
     // The file may state the reconciliation and the sizing; a flag overrides the file; a value
     // outside the vocabulary is refused, naming the file, the field, the value and what is
     // allowed.
@@ -639,6 +650,22 @@ fn private_sensing_runs_end_to_end_from_the_command_line() {
     assert_eq!(
         settings(&["--reconciliation", "cascade", "--sizing", "configured"]),
         (serde_json::Value::Null, serde_json::Value::Null)
+    );
+    let refused = fails_with(
+        2,
+        &[
+            "secrecy",
+            s(&stated_sweep),
+            "--reconciliation",
+            "cascade",
+            "--llrs",
+            "world",
+        ],
+    );
+    assert!(
+        refused.contains("--llrs world is not allowed")
+            && refused.contains("reconciliation cascade (asked for)"),
+        "{refused}"
     );
     std::fs::write(&stated, "[secrecy]\nreconciliation = \"turbo\"\n").unwrap();
     let refused = fails_with(2, &["sweep", s(&stated), "--out", s(&dir.join("turbo"))]);

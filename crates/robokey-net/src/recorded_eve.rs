@@ -917,6 +917,36 @@ mod tests {
         assert_eq!(verdicts.unwrap()[0].raw_bits, 2);
     }
 
+    /// The verdict's `world` (capture.json's `block.world`, and the WARNING's words) names
+    /// what differs from the parties' statement: a command quantum they state is theirs.
+    #[test]
+    fn a_blocks_world_names_the_command_quantum_the_parties_state() {
+        let world_of = |stated: f64, world: f64| {
+            let config = robokey::Config::from_toml(
+                &format!(
+                    "[sensing]\nmode = \"private\"\n[robot]\ncommand_quantum = {stated}\n\
+                     [world]\ncommand_quantum = {world}\n"
+                ),
+                "t",
+            )
+            .unwrap();
+            let verdict = super::verdict_of(
+                "r",
+                block(0, Vec::new()),
+                &["00000001".into()],
+                &[0.5; 4],
+                &config,
+            )
+            .unwrap();
+            serde_json::to_value(&verdict).unwrap()["world"].clone()
+        };
+        assert_eq!(world_of(0.1, 0.1), serde_json::json!([]));
+        assert_eq!(
+            world_of(0.1, 0.0323),
+            serde_json::json!(["world.command_quantum = 0.0323 (parties: 0.1)"])
+        );
+    }
+
     #[test]
     fn explicit_errors_are_four_relative_errors_in_the_open_unit_interval() {
         assert!(super::explicit_errors(&[0.05, -0.02, 0.0, 0.0]).is_ok());

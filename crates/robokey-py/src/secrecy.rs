@@ -106,7 +106,9 @@ pub fn secrecy<'py>(
             "the sweep runs with protocol.enabled = false: no key to analyze",
         ));
     }
-    let options = request.options(&experiment);
+    let options = request
+        .options(&experiment)
+        .map_err(|e| option_error(py, &e))?;
     let secrecy = py
         .detach(|| {
             with_jobs(jobs, || {

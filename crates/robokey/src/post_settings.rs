@@ -45,9 +45,10 @@ pub fn camera_words(config: &Config) -> String {
 /// The plant's model class a private-sensing key rests on: white Gaussian motion noise of
 /// `noise.process_std` per step as configured, or (`postprocess.sizing = "measured"`) a 3×3
 /// stationary covariance and its AR(1) correlation between steps the controller measures per
-/// block, at the worst case of their (1 − ε_est) region; no slip, lag or delay, the Euler map;
-/// with `private.prior_lag` τ > 0, the doublets shaped in three steps for a first-order
-/// actuator lag of τ (the stated prior), which measured sizing measures per block; with
+/// block, at the worst case of their (1 − ε_est) region, with per-wheel slip measured beside
+/// them and sized where the estimate sees it; no lag or delay, the Euler map; with
+/// `private.prior_lag` τ > 0, the doublets shaped in three steps for a first-order actuator
+/// lag of τ (the stated prior), which measured sizing measures per block (and no slip); with
 /// `robot.command_quantum` q > 0, each wheel's command rounded to q (stated).
 #[must_use]
 pub fn plant_words(config: &Config) -> String {
@@ -90,8 +91,14 @@ fn plant_class_words(config: &Config) -> String {
             "",
         ),
     };
-    if config.private.is_default() {
+    if config.private.is_default() && config.postprocess.sizing != Sizing::Measured {
         format!("{motion}, no {correlation}slip, lag or delay, the Euler map")
+    } else if config.private.is_default() {
+        format!(
+            "{motion}, per-wheel slip measured with it per block and, where the estimate sees \
+             it, sized with it (each bit's view then two Gaussians with covariances of their \
+             own; above 50 % refused), no lag or delay, the Euler map"
+        )
     } else if config.postprocess.sizing == Sizing::Measured {
         format!(
             "{motion}, no slip, the Euler map; three-step doublets shaped for a prior actuator \
@@ -347,6 +354,15 @@ mod tests {
         let measured = key_basis(&config).unwrap().plant;
         assert!(
             measured.contains("the wheels' first-order lag measured per block"),
+            "{measured}"
+        );
+        // Two-step doublets sized from the measured plant: slip is in the class, measured and
+        // sized where seen (under three-step doublets it is refused, so not in their class).
+        config.private = Config::default().private;
+        let measured = key_basis(&config).unwrap().plant;
+        assert!(
+            measured.contains("per-wheel slip measured with it per block and, where the estimate sees it, sized with it")
+                && measured.ends_with("no lag or delay, the Euler map"),
             "{measured}"
         );
     }

@@ -77,6 +77,8 @@ pub enum RequestOption {
     MaxSessions,
     /// [`SecrecyRequest::assumed_eve_error`].
     AssumedEveError,
+    /// [`SecrecyRequest::llrs`].
+    Llrs,
 }
 
 impl RequestOption {
@@ -89,6 +91,7 @@ impl RequestOption {
             Self::Blocks => "--blocks",
             Self::MaxSessions => "--max-sessions",
             Self::AssumedEveError => "--assume-eve-error",
+            Self::Llrs => "--llrs",
         }
     }
 
@@ -101,6 +104,7 @@ impl RequestOption {
             Self::Blocks => "blocks",
             Self::MaxSessions => "max_sessions",
             Self::AssumedEveError => "assume_eve_error",
+            Self::Llrs => "llrs",
         }
     }
 }
@@ -173,15 +177,44 @@ impl SecrecyRequest {
 
     /// The options for `experiment`: what was asked, else the sweep's `[secrecy]` table, else
     /// the defaults of its sensing mode.
-    #[must_use]
-    pub fn options(&self, experiment: &Experiment) -> SecrecyOptions {
+    ///
+    /// # Errors
+    /// LLRs other than the prior's asked for where the resolved reconciliation is Cascade,
+    /// which reconciles the controller's hard decisions and reads no LLRs (as the
+    /// configuration refuses `postprocess.llrs = "measured"` with Cascade).
+    pub fn options(&self, experiment: &Experiment) -> Result<SecrecyOptions, OptionError> {
         let defaults = SecrecyOptions::default();
         let mode = experiment.points[0].config.sensing.mode;
         let block_bits = self
             .block_bits
             .or(experiment.secrecy.block_bits)
             .map_or(defaults.block_bits, |b| b as usize);
-        SecrecyOptions {
+        let reconciliation = self
+            .reconciliation
+            .or(experiment.secrecy.reconciliation)
+            .unwrap_or(defaults.reconciliation);
+        if let Some(llrs) = self.llrs
+            && !llrs.is_prior()
+            && reconciliation == Reconciliation::Cascade
+        {
+            return Err(OptionError {
+                option: RequestOption::Llrs,
+                value: llrs.name().to_owned(),
+                allowed: format!(
+                    "prior with reconciliation cascade ({}): Cascade reconciles the \
+                     controller's hard decisions, made online with the prior, and reads no \
+                     LLRs; reconciliation ldpc decodes on them",
+                    if self.reconciliation.is_some() {
+                        "asked for"
+                    } else if experiment.secrecy.reconciliation.is_some() {
+                        "the sweep's [secrecy] reconciliation"
+                    } else {
+                        "the default"
+                    }
+                ),
+            });
+        }
+        Ok(SecrecyOptions {
             adversaries: if self.adversaries.is_empty() {
                 default_adversaries(mode)
             } else {
@@ -206,13 +239,10 @@ impl SecrecyRequest {
                 .sizing
                 .or(experiment.secrecy.sizing)
                 .unwrap_or(defaults.sizing),
-            reconciliation: self
-                .reconciliation
-                .or(experiment.secrecy.reconciliation)
-                .unwrap_or(defaults.reconciliation),
+            reconciliation,
             llrs: self.llrs,
             ..defaults
-        }
+        })
     }
 }
 
@@ -227,7 +257,7 @@ mod tests {
     #[test]
     fn unset_options_take_the_sweeps_table_then_the_modes_defaults() {
         let odometry = experiment("[secrecy]\nblock_bits = 2000\n");
-        let options = SecrecyRequest::default().options(&odometry);
+        let options = SecrecyRequest::default().options(&odometry).unwrap();
         assert_eq!(options.block_bits, 2000);
         assert_eq!(options.epsilon, 1e-6);
         assert_eq!(options.pooling, Pooling::Confirmed);
@@ -246,7 +276,7 @@ mod tests {
             max_sessions: Some(7),
             ..SecrecyRequest::default()
         };
-        let options = asked.options(&private);
+        let options = asked.options(&private).unwrap();
         assert_eq!((options.block_bits, options.max_sessions), (5000, 7));
         assert_eq!(options.pooling, Pooling::Complete);
         assert_eq!(
@@ -261,7 +291,7 @@ mod tests {
             "[sensing]\nmode = \"private\"\n[secrecy]\nreconciliation = \"ldpc\"\n\
              sizing = \"measured\"\n",
         );
-        let options = SecrecyRequest::default().options(&stated);
+        let options = SecrecyRequest::default().options(&stated).unwrap();
         assert_eq!(
             (options.reconciliation, options.sizing),
             (Reconciliation::Ldpc, Sizing::Measured)
@@ -271,10 +301,62 @@ mod tests {
             sizing: Some(Sizing::World),
             ..SecrecyRequest::default()
         };
-        let options = asked.options(&stated);
+        let options = asked.options(&stated).unwrap();
         assert_eq!(
             (options.reconciliation, options.sizing),
             (Reconciliation::Cascade, Sizing::World)
+        );
+    }
+
+    #[test]
+    fn llrs_other_than_the_priors_are_refused_where_cascade_reconciles() {
+        let private = experiment("[sensing]\nmode = \"private\"\n");
+        let measured = SecrecyRequest {
+            llrs: Some(LlrModel::Measured),
+            ..SecrecyRequest::default()
+        };
+        let e = measured.options(&private).unwrap_err();
+        assert_eq!(
+            e.message(&format!("{} {}", e.option.flag(), e.value)),
+            "--llrs measured is not allowed (allowed: prior with reconciliation cascade (the \
+             default): Cascade reconciles the controller's hard decisions, made online with the \
+             prior, and reads no LLRs; reconciliation ldpc decodes on them)"
+        );
+        let world = SecrecyRequest {
+            llrs: Some(LlrModel::World),
+            reconciliation: Some(Reconciliation::Cascade),
+            ..SecrecyRequest::default()
+        };
+        let e = world.options(&private).unwrap_err();
+        assert_eq!((e.option, e.value.as_str()), (RequestOption::Llrs, "world"));
+        assert!(e.allowed.contains("(asked for)"), "{}", e.allowed);
+        let stated =
+            experiment("[sensing]\nmode = \"private\"\n[secrecy]\nreconciliation = \"cascade\"\n");
+        let e = measured.options(&stated).unwrap_err();
+        assert!(
+            e.allowed.contains("(the sweep's [secrecy] reconciliation)"),
+            "{}",
+            e.allowed
+        );
+        // The prior, and any model where LDPC decodes, are what they say.
+        let prior = SecrecyRequest {
+            llrs: Some(LlrModel::Prior),
+            ..SecrecyRequest::default()
+        };
+        assert_eq!(prior.options(&private).unwrap().llrs, Some(LlrModel::Prior));
+        let ldpc = SecrecyRequest {
+            reconciliation: Some(Reconciliation::Ldpc),
+            ..measured.clone()
+        };
+        assert_eq!(
+            ldpc.options(&private).unwrap().llrs,
+            Some(LlrModel::Measured)
+        );
+        let sweeps_ldpc =
+            experiment("[sensing]\nmode = \"private\"\n[secrecy]\nreconciliation = \"ldpc\"\n");
+        assert_eq!(
+            measured.options(&sweeps_ldpc).unwrap().llrs,
+            Some(LlrModel::Measured)
         );
     }
 

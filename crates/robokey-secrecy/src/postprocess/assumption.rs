@@ -53,6 +53,14 @@ pub enum Assumption {
     },
 }
 
+/// What each bit's view is under [`Assumption::MeasuredViews`], as its text states it: the
+/// block's estimate decides which (its `slip_sized`, in the controller's report and the lab's
+/// block estimates), and the separation published bounds either (docs/estimation.md,
+/// "Per-wheel slip").
+const MEASURED_VIEWS: &str = "each a Gaussian likelihood ratio of its own separation or, in a \
+    block whose estimate measured per-wheel slip and was sized with it, the likelihood ratio of \
+    two Gaussians with covariances of their own (the slip's noise depends on the bit)";
+
 /// An assumption out of range.
 #[non_exhaustive]
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -220,11 +228,11 @@ impl Assumption {
                 estimate_leak,
             } => format!(
                 "{statement}: at the worst case of the motion noise's (1 − {estimation_epsilon:e}) \
-                 region, Eve's views of the bits, each a Gaussian likelihood ratio of its own \
-                 separation, independent across bits, give her no more than views of separation \
-                 {separation:.3} each would (her error rate ≥ {:.4}, information ≤ {:.4} bit per \
-                 bit); ε_est = {estimation_epsilon:e} is a term of the key's ε; \
-                 the published estimate is charged {estimate_leak:.1} bits",
+                 region, Eve's views of the bits, {MEASURED_VIEWS}, independent across bits, give \
+                 her no more than Gaussian views of separation {separation:.3} each would (her \
+                 error rate ≥ {:.4}, information ≤ {:.4} bit per bit); ε_est = \
+                 {estimation_epsilon:e} is a term of the key's ε; the published estimate is \
+                 charged {estimate_leak:.1} bits",
                 gaussian_llr::error_rate(*separation),
                 gaussian_llr::information(*separation),
             ),
@@ -305,6 +313,20 @@ mod tests {
         assert_eq!(terms.last(), Some(&("ε_est", 1e-6)));
         assert!((m.total_epsilon(1e-6) - 5e-6).abs() < 1e-18);
         assert!(m.describe().contains("ε_est = 1e-6"));
+        // A block sized under per-wheel slip is bounded through pairs of covariances, not
+        // Gaussian likelihood ratios: the text names both views the estimate sizes with.
+        assert!(
+            m.describe().contains(
+                "in a block whose estimate measured per-wheel slip and was sized with it, the \
+                 likelihood ratio of two Gaussians with covariances of their own"
+            ),
+            "{}",
+            m.describe()
+        );
+        assert!(
+            m.describe()
+                .contains("no more than Gaussian views of separation 1.700")
+        );
         assert_eq!(m.for_block(2_000_000), measured(2.0, 1e-6, 16.5));
         // The carried estimate replaces the separation; a configured one ignores it.
         assert!(m.is_measured() && !configured.is_measured());

@@ -201,18 +201,21 @@ impl WorldModel {
     }
 
     /// What the parties of `config` believe of the world: [`Self::ideal`] with the lag they
-    /// state, `private.prior_lag` (s; 0 unless their doublets are three steps). A belief
-    /// only: an absent `world.lag` is still 0 ([`Self::of`]).
+    /// state, `private.prior_lag` (s; 0 unless their doublets are three steps), and the
+    /// command resolution they state, `robot.command_quantum` (rad/s; 0: none). Beliefs
+    /// only: an absent `world.lag` or `world.command_quantum` is still 0 ([`Self::of`]).
     fn believed(config: &Config) -> Self {
         Self {
             lag: config.private.prior_lag,
+            command_quantum: config.robot.command_quantum,
             ..Self::ideal(config)
         }
     }
 
     /// The world's parameters that differ from what the parties of `config` believe
-    /// (their motion noise, controller sensor, Eve's stated camera and `private.prior_lag`;
-    /// the other fields' belief is none of them), as `world.FIELD = VALUE (parties: VALUE)`,
+    /// (their motion noise, controller sensor, Eve's stated camera, `private.prior_lag` and
+    /// `robot.command_quantum`; the other fields' belief is none of them), as
+    /// `world.FIELD = VALUE (parties: VALUE)`,
     /// in the order of the table. Empty when the world is what they believe.
     #[must_use]
     pub fn differences(&self, config: &Config) -> Vec<String> {
@@ -309,6 +312,36 @@ mod tests {
         let lagless = private(0.05, "jitter = 0.0\n");
         assert_eq!(WorldModel::of(&lagless).lag, 0.0);
         assert_eq!(differences(&lagless), ["world.lag = 0.0 (parties: 0.05)"]);
+    }
+
+    #[test]
+    fn the_parties_stated_command_quantum_is_their_belief_in_the_differences() {
+        let stating = |quantum: f64, world: &str| {
+            with_world(&format!(
+                "[sensing]\nmode = \"private\"\n[robot]\ncommand_quantum = {quantum}\n\
+                 [world]\n{world}"
+            ))
+        };
+        let differences = |config: &Config| WorldModel::of(config).differences(config);
+        let stated = stating(0.1, "command_quantum = 0.1\n");
+        assert_eq!(differences(&stated), Vec::<String>::new());
+        let wrong = stating(0.0323, "command_quantum = 0.1\n");
+        assert_eq!(
+            differences(&wrong),
+            ["world.command_quantum = 0.1 (parties: 0.0323)"]
+        );
+        let unstated = stating(0.0, "command_quantum = 0.1\n");
+        assert_eq!(
+            differences(&unstated),
+            ["world.command_quantum = 0.1 (parties: 0.0)"]
+        );
+        // A belief: an absent world.command_quantum stays 0, which differs from it.
+        let exact = stating(0.1, "jitter = 0.0\n");
+        assert_eq!(WorldModel::of(&exact).command_quantum, 0.0);
+        assert_eq!(
+            differences(&exact),
+            ["world.command_quantum = 0.0 (parties: 0.1)"]
+        );
     }
 
     #[test]
