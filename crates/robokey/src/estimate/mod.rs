@@ -20,6 +20,7 @@ mod half_away;
 pub mod homogeneity;
 pub mod lag;
 pub mod motion_noise;
+mod pattern_fit;
 mod normal_tail;
 pub mod quantum_check;
 pub mod residual;
