@@ -339,7 +339,10 @@ mod tests {
                 mean_magnitude(&world_llrs),
                 mean_magnitude(&online),
             );
-            assert!((m / w - 1.0).abs() < 0.1, "{world}: measured {m}, world {w}");
+            assert!(
+                (m / w - 1.0).abs() < 0.1,
+                "{world}: measured {m}, world {w}"
+            );
             if quieter {
                 assert!(m > 1.5 * p, "{world}: measured {m}, prior {p}");
             } else {

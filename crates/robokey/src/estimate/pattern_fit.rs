@@ -169,8 +169,9 @@ mod tests {
 
     /// On doublets known whole the fit is the white fit on their residuals, to the bit; with
     /// one bit of each two-bit doublet open it still finds the world's `Q` (1 mm, the prior
-    /// 4 mm: each diagonal entry within 15 % of the world's 10⁻⁶, the fit from ≈ 600
-    /// doublets having a relative standard error of ≈ 6 %).
+    /// 4 mm): each diagonal entry within 15 % of the world's 10⁻⁶ — the two sessions' ≈ 1,000
+    /// doublets give a variance's relative standard error `√(2/n)` ≈ 4.5 % before the
+    /// sensor's share, so 15 % is over three of them.
     #[test]
     fn whole_doublets_give_the_white_fit_and_open_bits_the_worlds_q() {
         let config = Config::from_toml(
