@@ -21,17 +21,26 @@ use robokey_secrecy::postprocess::{
     BlockReport, ControllerPost, LlrProvenance, RobotPost, SessionSamples,
 };
 
-/// The parties at the defaults with LDPC on `llrs`, one 10⁴-bit block, the robot in an
-/// 8 mm world (twice the 4 mm they believe).
-fn parties(llrs: &str) -> Config {
+/// The parties at the defaults with LDPC on `llrs` and `bits` binary bits per doublet, one
+/// 10⁴-bit block, the robot in an 8 mm world (twice the 4 mm they believe).
+fn parties(llrs: &str, bits: u8) -> Config {
     Config::from_toml(
         &format!(
-            "[sensing]\nmode = \"private\"\n[postprocess]\nreconciliation = \"ldpc\"\n\
-             llrs = \"{llrs}\"\n[world]\nprocess_std = [0.008, 0.008, 0.008]\n"
+            "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = {bits}\n\
+             [postprocess]\nreconciliation = \"ldpc\"\nllrs = \"{llrs}\"\n[world]\n\
+             process_std = [0.008, 0.008, 0.008]\n"
         ),
         "test",
     )
     .unwrap()
+}
+
+/// A block report's provenance: decoded on `model`'s LLRs, no fallback.
+fn named(model: &str) -> LlrProvenance {
+    LlrProvenance {
+        model: model.into(),
+        fallback: None,
+    }
 }
 
 fn kept(run: &RunOutput) -> SessionSamples {
@@ -141,7 +150,7 @@ fn both(config: &Config, runs: &[RunOutput], seed: u64) -> (Block, BlockReport) 
 
 #[test]
 fn the_agents_recompute_the_llrs_as_the_simulator_does_in_a_noisier_world() {
-    let measured = parties("measured");
+    let measured = parties("measured", 1);
     let runs: Vec<RunOutput> = (0..32)
         .map(|r| simulate(&measured, r, false).unwrap())
         .collect();
@@ -153,19 +162,36 @@ fn the_agents_recompute_the_llrs_as_the_simulator_does_in_a_noisier_world() {
         "agents {agents:?}, lab {lab:?}"
     );
     // Both reports say which LLRs LDPC decoded on.
-    let named = |model: &str| LlrProvenance {
-        model: model.into(),
-        fallback: None,
-    };
     assert_eq!(lab.llrs, Some(named("measured")));
     assert_eq!(agents.llrs.as_deref(), Some(&named("measured")));
     // The prior's LLRs (the configured 4 mm) on the same sessions: overconfident, LDPC's
     // syndrome is too short and the block fails in the lab and through the agents alike.
-    let (lab, agents) = both(&parties("prior"), &runs, 11);
+    let (lab, agents) = both(&parties("prior", 1), &runs, 11);
     assert_eq!(lab.secret_bits, 0, "{lab:?}");
     assert_eq!(agents.length, 0, "{agents:?}");
     assert_eq!(lab.llrs, Some(named("prior")));
     assert_eq!(agents.llrs.as_deref(), Some(&named("prior")));
+}
+
+/// Two binary bits per doublet (v and ω) in the same 8 mm world: the sample discloses a
+/// doublet whole too rarely for a fit on whole doublets, and the fit over the patterns its
+/// disclosed bit leaves open gives the lab and the agents the same block, keyed on the
+/// measured LLRs (no fallback in either report).
+#[test]
+fn the_agents_recompute_two_bit_llrs_as_the_simulator_does() {
+    let measured = parties("measured", 2);
+    let runs: Vec<RunOutput> = (0..32)
+        .map(|r| simulate(&measured, r, false).unwrap())
+        .collect();
+    let (lab, agents) = both(&measured, &runs, 11);
+    assert!(lab.consistent && lab.secret_bits > 0, "{lab:?}");
+    assert_eq!(
+        (Some(agents.leak_ec), agents.ldpc_rounds, agents.length),
+        (Some(lab.leak_ec), lab.ldpc_rounds, lab.secret_bits),
+        "agents {agents:?}, lab {lab:?}"
+    );
+    assert_eq!(lab.llrs, Some(named("measured")));
+    assert_eq!(agents.llrs.as_deref(), Some(&named("measured")));
 }
 
 /// A multilevel block (two dimensions of 4 levels) in an 8 mm world, the parties believing

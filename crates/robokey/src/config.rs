@@ -594,8 +594,8 @@ pub enum LlrModel {
     #[default]
     Prior,
     /// Recomputed at block time from the kept samples with the motion noise's point
-    /// estimate Q̂ from the disclosed sample's doublets (public bits); the prior where the
-    /// sample holds too few whole doublets or the estimate refuses them.
+    /// estimate Q̂ from the doublets the disclosed sample holds a bit of (public bits); the
+    /// prior where the sample touches too few doublets or the fit refuses them.
     Measured,
     /// Recomputed at block time with the simulated world's own motion noise: an oracle
     /// bound on what recomputation can gain. Simulator only (`robokey secrecy --llrs

@@ -21,6 +21,7 @@ pub mod homogeneity;
 pub mod lag;
 pub mod motion_noise;
 mod normal_tail;
+mod pattern_fit;
 pub mod quantum_check;
 pub mod residual;
 pub mod slice_llrs;

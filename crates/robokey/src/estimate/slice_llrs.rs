@@ -9,23 +9,14 @@
 //! The fit uses what the controller holds when the slice's block is reconciled: every
 //! doublet's kept samples, the lower slices' reconciled bits, and this slice's disclosed
 //! sample (the robot's published bits). A symbol is almost never known whole then (its
-//! higher slices are not reconciled yet), so `Q̂` is the fixed point of an EM iteration on
-//! the white moment fit ([`weighted_white_motion_noise`]): each doublet's two-step residual
-//! is formed under every bit pattern its known bits leave open, weighted by the pattern's
-//! posterior probability given the residual under the current `Q̂` (Gaussian, covariance
-//! `S_R + M(Q̂)`, the patterns uniform), and the moment equation solved with the weighted
-//! `zzᵀ`. At the true white `Q` the weights are the patterns' true conditional
-//! probabilities, so by the tower rule the weighted equation has the complete-data one's
-//! expectation, zero: the fit is unbiased to first order, as the fit on whole doublets is.
+//! higher slices are not reconciled yet), so `Q̂` is the EM fit over the patterns each
+//! doublet's known bits leave open (`pattern_fit`), every kept doublet of the block in it.
 
-use nalgebra::Matrix3;
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::KeptDoublet;
 
 use super::block::{doublet_samples, own_view};
-use super::diagonal_covariance;
-use super::motion_noise::weighted_white_motion_noise;
-use super::residual::{DoubletResidual, rotation};
+use super::pattern_fit::{PartlyKnown, open_pattern_motion_noise, turned};
 use crate::Config;
 use crate::config::LlrModel;
 use crate::private::likelihood::staged_llrs;
@@ -33,17 +24,6 @@ use crate::private::{
     DoubletModel, DoubletSamples, Perturbation, doublet_model, doublet_model_with,
 };
 use crate::world::WorldModel;
-
-/// Most EM iterations of a slice's fit.
-pub const EM_ITERATIONS: usize = 50;
-
-/// The fit stops once no diagonal entry of `Q̂` moves by more than this share in an
-/// iteration.
-pub const EM_TOLERANCE: f64 = 1e-4;
-
-/// A pattern weight below which its residual leaves the fit (its share of the moment is
-/// below the fit's own rounding).
-const NEGLIGIBLE_WEIGHT: f64 = 1e-12;
 
 /// One session of a slice's block as the controller holds it.
 #[derive(Clone, Copy, Debug)]
@@ -54,13 +34,6 @@ pub struct SliceSession<'a> {
     /// ω-symbol's), of which only the lower slices' are read: the controller's reconciled
     /// bits of those slices' blocks.
     pub bits: &'a BitString,
-}
-
-/// A kept doublet with what is known of its bits: those of `mask`, valued as in `word`.
-struct Known {
-    samples: DoubletSamples,
-    mask: usize,
-    word: usize,
 }
 
 /// The LLRs of slice `slice`'s block (one per bit of the slice, in block order: each
@@ -110,7 +83,7 @@ pub fn recomputed_slice_llrs(
             Box::new(move |_| world)
         }
         _ => {
-            let q = slice_motion_noise(config, &prior, &doublets)?;
+            let q = open_pattern_motion_noise(config, &prior, &doublets, "the slice")?;
             Box::new(move |d| turned(&prior, &q, d))
         }
     };
@@ -124,16 +97,6 @@ pub fn recomputed_slice_llrs(
     Ok(llrs)
 }
 
-/// The prior's doublet model with motion noise `q` (robot frame) turned to `d`'s start
-/// heading.
-fn turned(prior: &DoubletModel, q: &Matrix3<f64>, d: &DoubletSamples) -> DoubletModel {
-    let h = rotation(d.samples[0].z);
-    DoubletModel {
-        process_covariance: h * q * h.transpose(),
-        ..*prior
-    }
-}
-
 /// Every kept doublet of `sessions` with its known bits: the lower slices' (from each
 /// session's bits) and slice `slice`'s where `disclosed` holds them.
 fn known_doublets(
@@ -142,7 +105,7 @@ fn known_doublets(
     key_bits: usize,
     sessions: &[SliceSession<'_>],
     disclosed: &[(u32, bool)],
-) -> Result<Vec<Known>, String> {
+) -> Result<Vec<PartlyKnown>, String> {
     let lower = (0..key_bits)
         .filter(|i| i % m < slice)
         .fold(0, |mask, i| mask | 1 << i);
@@ -180,7 +143,7 @@ fn known_doublets(
                 }
                 position += 1;
             }
-            out.push(Known {
+            out.push(PartlyKnown {
                 samples: doublet_samples(k, 0),
                 mask,
                 word,
@@ -193,89 +156,6 @@ fn known_doublets(
         ));
     }
     Ok(out)
-}
-
-/// `Q̂` (robot frame) for a slice's block: the EM fixed point of the white moment fit over
-/// the patterns each doublet's known bits leave open (the module's doc), from the prior's
-/// `Q` for at most [`EM_ITERATIONS`] iterations.
-fn slice_motion_noise(
-    config: &Config,
-    prior: &DoubletModel,
-    doublets: &[Known],
-) -> Result<Matrix3<f64>, String> {
-    let patterns = Perturbation::of(config).patterns();
-    let axle = config.robot.axle_length;
-    // Each doublet's residuals under its open patterns; they do not depend on Q.
-    let mut residuals = Vec::new();
-    let mut open = Vec::with_capacity(doublets.len());
-    for d in doublets {
-        let before = residuals.len();
-        let s = &d.samples;
-        residuals.extend(
-            (0..patterns)
-                .filter(|h| h & d.mask == d.word & d.mask)
-                .map(|h| {
-                    DoubletResidual::new(
-                        prior,
-                        axle,
-                        s.doublet,
-                        &s.inputs,
-                        &s.samples[0],
-                        &s.samples[2],
-                        h,
-                    )
-                }),
-        );
-        open.push(before..residuals.len());
-    }
-    let sensor = diagonal_covariance(config.sensing.controller_std);
-    let mut q = prior.process_covariance;
-    let mut weights = vec![0.0; residuals.len()];
-    for _ in 0..EM_ITERATIONS {
-        for range in &open {
-            let ll: Vec<f64> = residuals[range.clone()]
-                .iter()
-                .map(|r| gaussian_log_density(r, &q, &sensor))
-                .collect();
-            let top = ll.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let total: f64 = ll.iter().map(|l| (l - top).exp()).sum();
-            for (w, l) in weights[range.clone()].iter_mut().zip(&ll) {
-                let p = (l - top).exp() / total;
-                *w = if p < NEGLIGIBLE_WEIGHT { 0.0 } else { p };
-            }
-        }
-        let next = weighted_white_motion_noise(&residuals, &weights, &sensor)
-            .map_err(|refusal| format!("the slice's fit: {refusal}"))?;
-        if next.symmetric_eigenvalues().iter().any(|&e| e <= 0.0) {
-            return Err(format!(
-                "the slice's white fit Q̂ is not positive definite (diagonal {:.3e}, {:.3e}, \
-                 {:.3e})",
-                next[(0, 0)],
-                next[(1, 1)],
-                next[(2, 2)]
-            ));
-        }
-        let moved = (0..3)
-            .map(|i| ((next[(i, i)] - q[(i, i)]) / next[(i, i)]).abs())
-            .fold(0.0, f64::max);
-        q = next;
-        if moved < EM_TOLERANCE {
-            break;
-        }
-    }
-    Ok(q)
-}
-
-/// `ln N(z; 0, S_R + M(q))` of a residual under white motion noise `q` (robot frame) and
-/// the sensor's `sensor` (world frame), up to the constant `−(3/2)·ln 2π`; −∞ where the
-/// covariance is not positive definite.
-fn gaussian_log_density(r: &DoubletResidual, q: &Matrix3<f64>, sensor: &Matrix3<f64>) -> f64 {
-    let covariance = r.motion_part(q, 0.0) + r.sensor_part(sensor);
-    covariance.cholesky().map_or(f64::NEG_INFINITY, |c| {
-        let solved = c.solve(&r.value);
-        let log_det: f64 = c.l().diagonal().iter().map(|d| d.ln()).sum();
-        -0.5 * r.value.dot(&solved) - log_det
-    })
 }
 
 #[cfg(test)]
