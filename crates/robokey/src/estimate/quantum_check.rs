@@ -34,7 +34,7 @@
 //! dead-time test: a refusal gives no key, so the level is the rate of false refusals, not
 //! a term of the key's ε. Rounding finer than [`FINEST_CANDIDATE`] is not tested.
 
-use super::half_away::{EXACT_BELOW, round_half_away};
+use super::half_away::{round_product, round_quotient};
 use super::normal_tail::normal_upper_quantile;
 use crate::Config;
 use crate::config::MAX_COMMAND_QUANTUM;
@@ -295,27 +295,10 @@ impl CheckData {
     ///
     /// `LANES` candidates are computed at once, each lane's arithmetic that of its
     /// candidate alone in the same order — the wheels rounded as [`quantise`] rounds them
-    /// (by `round_half_away`, the same numbers, where every `|w/q|` is below
-    /// `EXACT_BELOW`), each sum over the doublets in their order — so every slope and
+    /// (`lane_multiples`: the same numbers, bit for bit, from products by `1/q` but near
+    /// a half-integer), each sum over the doublets in their order — so every slope and
     /// error is the one-candidate computation's, bit for bit.
     fn slopes(&self, stated: &Stated, quanta: &[f64]) -> Vec<QuantumSlope> {
-        match quanta.first() {
-            Some(&finest) if self.fastest_wheel() / finest < EXACT_BELOW => {
-                self.slopes_rounding(stated, quanta, round_half_away)
-            }
-            Some(_) => self.slopes_rounding(stated, quanta, f64::round),
-            None => Vec::new(),
-        }
-    }
-
-    /// `Self::slopes` with `round` rounding each `w/q` to its multiple (`f64::round`, or
-    /// a function equal to it on every `w/q` of the block).
-    fn slopes_rounding(
-        &self,
-        stated: &Stated,
-        quanta: &[f64],
-        round: impl Fn(f64) -> f64,
-    ) -> Vec<QuantumSlope> {
         let per_doublet = self.per_doublet.max(1);
         let mut rows = vec![[0.0; LANES]; self.residuals.len()];
         let mut slopes = Vec::new();
@@ -323,6 +306,7 @@ impl CheckData {
             let lanes = (quanta.len() - first).min(LANES);
             let mut q = [quanta[quanta.len() - 1]; LANES];
             q[..lanes].copy_from_slice(&quanta[first..first + lanes]);
+            let reciprocal = q.map(|q| 1.0 / q);
             // x = signature at q − unrounded; the doublets carrying one; Σ x·x_s.
             let mut signed = [0_usize; LANES];
             let mut along = [SUM_START; LANES];
@@ -333,9 +317,9 @@ impl CheckData {
             {
                 let mut sum = [0.0; LANES];
                 for term in terms {
-                    let [left, right] = [term.wheels.x, term.wheels.y];
+                    let multiples = lane_multiples([term.wheels.x, term.wheels.y], &q, &reciprocal);
                     for k in 0..LANES {
-                        let rounded = [left, right].map(|w| round(w / q[k]) * q[k]);
+                        let rounded = [multiples[0][k] * q[k], multiples[1][k] * q[k]];
                         sum[k] += term.weight * (rounded[0] - rounded[1]);
                     }
                 }
@@ -401,6 +385,36 @@ impl CheckData {
             .map(|t| t.wheels.abs().max())
             .fold(0.0, f64::max)
     }
+}
+
+/// Each of `wheels`' multiples `(w / q).round()` of every lane's quantum `q` (rad/s per
+/// wheel: every candidate lies in `[0.03, 1]`; `reciprocal` holds each `1/q`), as
+/// [`quantise`] forms them, bit for bit: from the products `w·(1/q)` where they lie far
+/// enough from a half-integer to round as the quotients do (`round_product`; the bound and
+/// its argument at `round_quotient`), and by the division in a lane where either wheel's
+/// does not — in practice at exact ties `w = (k + ½)·q` and their nearest neighbours only.
+fn lane_multiples(
+    wheels: [f64; 2],
+    q: &[f64; LANES],
+    reciprocal: &[f64; LANES],
+) -> [[f64; LANES]; 2] {
+    let mut multiples = [[0.0; LANES]; 2];
+    let mut clear = [true; LANES];
+    for (side, &w) in wheels.iter().enumerate() {
+        for k in 0..LANES {
+            let (multiple, certain) = round_product(w * reciprocal[k]);
+            multiples[side][k] = multiple;
+            clear[k] &= certain;
+        }
+    }
+    if clear.contains(&false) {
+        for k in (0..LANES).filter(|&k| !clear[k]) {
+            for (side, &w) in wheels.iter().enumerate() {
+                multiples[side][k] = round_quotient(w, q[k], reciprocal[k]).0;
+            }
+        }
+    }
+    multiples
 }
 
 /// The candidate quanta for a stated quantum `stated` and a block whose fastest wheel
@@ -518,7 +532,7 @@ mod tests {
 
     /// The regression at one candidate computed directly: every wheel rounded by
     /// [`quantise`] at `candidate`, the sums over the doublets one after the other (the
-    /// reference the event-driven, lane-wise `CheckData::slopes` must equal).
+    /// reference the lane-wise `CheckData::slopes` must equal).
     fn direct_slope(data: &CheckData, stated: &Stated, candidate: f64) -> Option<QuantumSlope> {
         let mut x = data.signatures(candidate);
         for (c, u) in x.iter_mut().zip(&stated.unrounded) {
@@ -568,9 +582,10 @@ mod tests {
 
     /// Seeded random blocks of signature terms — wheels of either sign up to the fastest,
     /// zero wheels of both signs, wheels at exact half-integers of a candidate (where
-    /// rounding goes away from zero), terms whose wheels round alike — with random residuals:
-    /// the event-driven, lane-wise regression equals the direct one at every candidate, bit
-    /// for bit, stating none and stating a quantum.
+    /// rounding goes away from zero) and a few units in the last place either side of one
+    /// (where the product by `1/q` and the quotient can round apart), terms whose wheels
+    /// round alike — with random residuals: the lane-wise regression equals the direct one
+    /// at every candidate, bit for bit, stating none and stating a quantum.
     #[test]
     fn the_swept_slopes_equal_the_direct_ones_on_random_blocks() {
         let fastest = 7.0;
@@ -592,6 +607,32 @@ mod tests {
                         } else {
                             0.5 * q
                         }
+                    }
+                    4 => {
+                        let q = quanta[rng.random_range(0..quanta.len())];
+                        let half = rng.random_range(-20..20) as f64 + 0.5;
+                        let mut w = half * q;
+                        for _ in 0..rng.random_range(1..8) {
+                            w = if half > 0.0 {
+                                w.next_down()
+                            } else {
+                                w.next_up()
+                            };
+                        }
+                        w.clamp(-fastest, fastest)
+                    }
+                    5 => {
+                        let q = quanta[rng.random_range(0..quanta.len())];
+                        let half = rng.random_range(-20..20) as f64 + 0.5;
+                        let mut w = half * q;
+                        for _ in 0..rng.random_range(1..8) {
+                            w = if half > 0.0 {
+                                w.next_up()
+                            } else {
+                                w.next_down()
+                            };
+                        }
+                        w.clamp(-fastest, fastest)
                     }
                     _ => rng.random_range(-fastest..fastest),
                 }
