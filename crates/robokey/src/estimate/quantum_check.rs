@@ -34,7 +34,7 @@
 //! dead-time test: a refusal gives no key, so the level is the rate of false refusals, not
 //! a term of the key's ε. Rounding finer than [`FINEST_CANDIDATE`] is not tested.
 
-use super::half_away::{round_product, round_quotient};
+use super::half_away::{product_bound, round_product};
 use super::normal_tail::normal_upper_quantile;
 use crate::Config;
 use crate::config::MAX_COMMAND_QUANTUM;
@@ -295,11 +295,12 @@ impl CheckData {
     ///
     /// `LANES` candidates are computed at once, each lane's arithmetic that of its
     /// candidate alone in the same order — the wheels rounded as [`quantise`] rounds them
-    /// (`lane_multiples`: the same numbers, bit for bit, from products by `1/q` but near
+    /// (`signature_lanes`: the same numbers, bit for bit, from products by `1/q` but near
     /// a half-integer), each sum over the doublets in their order — so every slope and
     /// error is the one-candidate computation's, bit for bit.
     fn slopes(&self, stated: &Stated, quanta: &[f64]) -> Vec<QuantumSlope> {
         let per_doublet = self.per_doublet.max(1);
+        let fastest = self.fastest_wheel();
         let mut rows = vec![[0.0; LANES]; self.residuals.len()];
         let mut slopes = Vec::new();
         for first in (0..quanta.len()).step_by(LANES) {
@@ -307,6 +308,7 @@ impl CheckData {
             let mut q = [quanta[quanta.len() - 1]; LANES];
             q[..lanes].copy_from_slice(&quanta[first..first + lanes]);
             let reciprocal = q.map(|q| 1.0 / q);
+            let bound = reciprocal.map(|r| product_bound(fastest, r));
             // x = signature at q − unrounded; the doublets carrying one; Σ x·x_s.
             let mut signed = [0_usize; LANES];
             let mut along = [SUM_START; LANES];
@@ -315,14 +317,7 @@ impl CheckData {
                 .zip(self.terms.chunks_exact(per_doublet))
                 .zip(stated.unrounded.iter().zip(&stated.signature))
             {
-                let mut sum = [0.0; LANES];
-                for term in terms {
-                    let multiples = lane_multiples([term.wheels.x, term.wheels.y], &q, &reciprocal);
-                    for k in 0..LANES {
-                        let rounded = [multiples[0][k] * q[k], multiples[1][k] * q[k]];
-                        sum[k] += term.weight * (rounded[0] - rounded[1]);
-                    }
-                }
+                let sum = signature_lanes(terms, &q, &reciprocal, &bound);
                 for k in 0..LANES {
                     row[k] = sum[k] - unrounded;
                     signed[k] += usize::from(row[k].abs() > SIGNATURE_FLOOR);
@@ -387,34 +382,40 @@ impl CheckData {
     }
 }
 
-/// Each of `wheels`' multiples `(w / q).round()` of every lane's quantum `q` (rad/s per
-/// wheel: every candidate lies in `[0.03, 1]`; `reciprocal` holds each `1/q`), as
-/// [`quantise`] forms them, bit for bit: from the products `w·(1/q)` where they lie far
-/// enough from a half-integer to round as the quotients do (`round_product`; the bound and
-/// its argument at `round_quotient`), and by the division in a lane where either wheel's
-/// does not — in practice at exact ties `w = (k + ½)·q` and their nearest neighbours only.
-fn lane_multiples(
-    wheels: [f64; 2],
+/// One doublet's signature sum `Σ weight·(w_q,1 − w_q,2)` over its `terms` at each lane's
+/// quantum `q` (rad/s per wheel; `reciprocal` holds each `1/q` and `bound` each
+/// `product_bound` for the block's fastest wheel), the terms in order, each wheel's
+/// multiple `(w / q).round()` as [`quantise`] forms it, bit for bit: from the product
+/// `w·(1/q)` where `round_product` accepts it (the bound and its argument at
+/// `product_bound`), and in a lane where some wheel's is not accepted — in practice at
+/// exact ties `w = (k + ½)·q` and their nearest neighbours only — the lane's sum again,
+/// dividing.
+fn signature_lanes(
+    terms: &[SignatureTerm],
     q: &[f64; LANES],
     reciprocal: &[f64; LANES],
-) -> [[f64; LANES]; 2] {
-    let mut multiples = [[0.0; LANES]; 2];
-    let mut clear = [true; LANES];
-    for (side, &w) in wheels.iter().enumerate() {
+    bound: &[f64; LANES],
+) -> [f64; LANES] {
+    let mut sum = [0.0; LANES];
+    let mut refused = [0_u64; LANES];
+    for term in terms {
+        let [left, right] = [term.wheels.x, term.wheels.y];
         for k in 0..LANES {
-            let (multiple, certain) = round_product(w * reciprocal[k]);
-            multiples[side][k] = multiple;
-            clear[k] &= certain;
+            let (left_multiple, left_accepted) = round_product(left * reciprocal[k], bound[k]);
+            let (right_multiple, right_accepted) = round_product(right * reciprocal[k], bound[k]);
+            refused[k] |= u64::from(!(left_accepted & right_accepted));
+            sum[k] += term.weight * (left_multiple * q[k] - right_multiple * q[k]);
         }
     }
-    if clear.contains(&false) {
-        for k in (0..LANES).filter(|&k| !clear[k]) {
-            for (side, &w) in wheels.iter().enumerate() {
-                multiples[side][k] = round_quotient(w, q[k], reciprocal[k]).0;
-            }
+    if refused.iter().fold(0, |any, lane| any | lane) != 0 {
+        for k in (0..LANES).filter(|&k| refused[k] != 0) {
+            sum[k] = terms.iter().fold(0.0, |acc, term| {
+                let rounded = [term.wheels.x, term.wheels.y].map(|w| (w / q[k]).round() * q[k]);
+                acc + term.weight * (rounded[0] - rounded[1])
+            });
         }
     }
-    multiples
+    sum
 }
 
 /// The candidate quanta for a stated quantum `stated` and a block whose fastest wheel
