@@ -34,7 +34,7 @@
 //! dead-time test: a refusal gives no key, so the level is the rate of false refusals, not
 //! a term of the key's ε. Rounding finer than [`FINEST_CANDIDATE`] is not tested.
 
-use super::half_away::{EXACT_BELOW, round_half_away};
+use super::half_away::{product_bound, round_product};
 use super::normal_tail::normal_upper_quantile;
 use crate::Config;
 use crate::config::MAX_COMMAND_QUANTUM;
@@ -295,34 +295,20 @@ impl CheckData {
     ///
     /// `LANES` candidates are computed at once, each lane's arithmetic that of its
     /// candidate alone in the same order — the wheels rounded as [`quantise`] rounds them
-    /// (by `round_half_away`, the same numbers, where every `|w/q|` is below
-    /// `EXACT_BELOW`), each sum over the doublets in their order — so every slope and
+    /// (`signature_lanes`: the same numbers, bit for bit, from products by `1/q` but near
+    /// a half-integer), each sum over the doublets in their order — so every slope and
     /// error is the one-candidate computation's, bit for bit.
     fn slopes(&self, stated: &Stated, quanta: &[f64]) -> Vec<QuantumSlope> {
-        match quanta.first() {
-            Some(&finest) if self.fastest_wheel() / finest < EXACT_BELOW => {
-                self.slopes_rounding(stated, quanta, round_half_away)
-            }
-            Some(_) => self.slopes_rounding(stated, quanta, f64::round),
-            None => Vec::new(),
-        }
-    }
-
-    /// `Self::slopes` with `round` rounding each `w/q` to its multiple (`f64::round`, or
-    /// a function equal to it on every `w/q` of the block).
-    fn slopes_rounding(
-        &self,
-        stated: &Stated,
-        quanta: &[f64],
-        round: impl Fn(f64) -> f64,
-    ) -> Vec<QuantumSlope> {
         let per_doublet = self.per_doublet.max(1);
+        let fastest = self.fastest_wheel();
         let mut rows = vec![[0.0; LANES]; self.residuals.len()];
         let mut slopes = Vec::new();
         for first in (0..quanta.len()).step_by(LANES) {
             let lanes = (quanta.len() - first).min(LANES);
             let mut q = [quanta[quanta.len() - 1]; LANES];
             q[..lanes].copy_from_slice(&quanta[first..first + lanes]);
+            let reciprocal = q.map(|q| 1.0 / q);
+            let bound = reciprocal.map(|r| product_bound(fastest, r));
             // x = signature at q − unrounded; the doublets carrying one; Σ x·x_s.
             let mut signed = [0_usize; LANES];
             let mut along = [SUM_START; LANES];
@@ -331,14 +317,7 @@ impl CheckData {
                 .zip(self.terms.chunks_exact(per_doublet))
                 .zip(stated.unrounded.iter().zip(&stated.signature))
             {
-                let mut sum = [0.0; LANES];
-                for term in terms {
-                    let [left, right] = [term.wheels.x, term.wheels.y];
-                    for k in 0..LANES {
-                        let rounded = [left, right].map(|w| round(w / q[k]) * q[k]);
-                        sum[k] += term.weight * (rounded[0] - rounded[1]);
-                    }
-                }
+                let sum = signature_lanes(terms, &q, &reciprocal, &bound);
                 for k in 0..LANES {
                     row[k] = sum[k] - unrounded;
                     signed[k] += usize::from(row[k].abs() > SIGNATURE_FLOOR);
@@ -401,6 +380,42 @@ impl CheckData {
             .map(|t| t.wheels.abs().max())
             .fold(0.0, f64::max)
     }
+}
+
+/// One doublet's signature sum `Σ weight·(w_q,1 − w_q,2)` over its `terms` at each lane's
+/// quantum `q` (rad/s per wheel; `reciprocal` holds each `1/q` and `bound` each
+/// `product_bound` for the block's fastest wheel), the terms in order, each wheel's
+/// multiple `(w / q).round()` as [`quantise`] forms it, bit for bit: from the product
+/// `w·(1/q)` where `round_product` accepts it (the bound and its argument at
+/// `product_bound`), and in a lane where some wheel's is not accepted — in practice at
+/// exact ties `w = (k + ½)·q` and their nearest neighbours only — the lane's sum again,
+/// dividing.
+fn signature_lanes(
+    terms: &[SignatureTerm],
+    q: &[f64; LANES],
+    reciprocal: &[f64; LANES],
+    bound: &[f64; LANES],
+) -> [f64; LANES] {
+    let mut sum = [0.0; LANES];
+    let mut refused = [0_u64; LANES];
+    for term in terms {
+        let [left, right] = [term.wheels.x, term.wheels.y];
+        for k in 0..LANES {
+            let (left_multiple, left_accepted) = round_product(left * reciprocal[k], bound[k]);
+            let (right_multiple, right_accepted) = round_product(right * reciprocal[k], bound[k]);
+            refused[k] |= u64::from(!(left_accepted & right_accepted));
+            sum[k] += term.weight * (left_multiple * q[k] - right_multiple * q[k]);
+        }
+    }
+    if refused.iter().fold(0, |any, lane| any | lane) != 0 {
+        for k in (0..LANES).filter(|&k| refused[k] != 0) {
+            sum[k] = terms.iter().fold(0.0, |acc, term| {
+                let rounded = [term.wheels.x, term.wheels.y].map(|w| (w / q[k]).round() * q[k]);
+                acc + term.weight * (rounded[0] - rounded[1])
+            });
+        }
+    }
+    sum
 }
 
 /// The candidate quanta for a stated quantum `stated` and a block whose fastest wheel
@@ -518,7 +533,7 @@ mod tests {
 
     /// The regression at one candidate computed directly: every wheel rounded by
     /// [`quantise`] at `candidate`, the sums over the doublets one after the other (the
-    /// reference the event-driven, lane-wise `CheckData::slopes` must equal).
+    /// reference the lane-wise `CheckData::slopes` must equal).
     fn direct_slope(data: &CheckData, stated: &Stated, candidate: f64) -> Option<QuantumSlope> {
         let mut x = data.signatures(candidate);
         for (c, u) in x.iter_mut().zip(&stated.unrounded) {
@@ -568,9 +583,10 @@ mod tests {
 
     /// Seeded random blocks of signature terms — wheels of either sign up to the fastest,
     /// zero wheels of both signs, wheels at exact half-integers of a candidate (where
-    /// rounding goes away from zero), terms whose wheels round alike — with random residuals:
-    /// the event-driven, lane-wise regression equals the direct one at every candidate, bit
-    /// for bit, stating none and stating a quantum.
+    /// rounding goes away from zero) and a few units in the last place either side of one
+    /// (where the product by `1/q` and the quotient can round apart), terms whose wheels
+    /// round alike — with random residuals: the lane-wise regression equals the direct one
+    /// at every candidate, bit for bit, stating none and stating a quantum.
     #[test]
     fn the_swept_slopes_equal_the_direct_ones_on_random_blocks() {
         let fastest = 7.0;
@@ -592,6 +608,32 @@ mod tests {
                         } else {
                             0.5 * q
                         }
+                    }
+                    4 => {
+                        let q = quanta[rng.random_range(0..quanta.len())];
+                        let half = rng.random_range(-20..20) as f64 + 0.5;
+                        let mut w = half * q;
+                        for _ in 0..rng.random_range(1..8) {
+                            w = if half > 0.0 {
+                                w.next_down()
+                            } else {
+                                w.next_up()
+                            };
+                        }
+                        w.clamp(-fastest, fastest)
+                    }
+                    5 => {
+                        let q = quanta[rng.random_range(0..quanta.len())];
+                        let half = rng.random_range(-20..20) as f64 + 0.5;
+                        let mut w = half * q;
+                        for _ in 0..rng.random_range(1..8) {
+                            w = if half > 0.0 {
+                                w.next_up()
+                            } else {
+                                w.next_down()
+                            };
+                        }
+                        w.clamp(-fastest, fastest)
                     }
                     _ => rng.random_range(-fastest..fastest),
                 }
