@@ -731,7 +731,13 @@ fn size_slip_block(
         // those views leaves her less (the corner's heading entry, below 0 where the slip's
         // uncertain share swamps a small Q along the heading, can leave her covariance near
         // singular or without a bound at the corner itself).
-        let views: Vec<Corner> = VERTEX_SHARES
+        // A corner above 0 lies above each of its shares: alone, it is the bluntest.
+        let shares: &[f64] = if corner.motion.symmetric_eigenvalues().min() >= 0.0 {
+            &[1.0]
+        } else {
+            &VERTEX_SHARES
+        };
+        let views: Vec<Corner> = shares
             .iter()
             .map(|&share| Corner {
                 motion: corner.motion * share,
