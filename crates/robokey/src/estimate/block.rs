@@ -724,12 +724,22 @@ fn sized_report(
     }
 }
 
+/// The shares λ of the region's corner `Q_c` at which each slip doublet's view is tried
+/// (docs/estimation.md, "Per-wheel slip"). Every member `Q` of the region at one point of
+/// σ² lies above the corner and above 0 in the Loewner order, so above each convex
+/// combination: `Q − λQ_c = λ(Q − Q_c) + (1 − λ)Q ⪰ 0` for λ in [0, 1] (with the step
+/// weights: `λ·(P₊ ⊗ C_least − P₋ ⊗ C_greatest)` lies below the steps' covariance `Q ⊗ C(ρ)`
+/// as the corner's own view and 0 do). Each share's view therefore bounds what every member
+/// shows her; the corner's heading entry, below 0 under slip, is what a share below 1 blunts.
+const VERTEX_SHARES: [f64; 6] = [0.0, 0.125, 0.25, 0.5, 0.75, 1.0];
+
 /// A block whose estimate measured per-wheel slip (its `points` of the slip's interval,
 /// `estimate.slip_corners`), sized with
 /// each bit's view through the pair of Gaussians of its two values, each with its own
 /// covariance (docs/estimation.md, "Per-wheel slip"): at each point of the slip's interval
 /// the corner below the whole correlation interval (every cell's `Q_cell` and step weights
-/// at once, [`whole_interval_corner`]), each bit's pairs ([`slip_pairs`]), the bound of
+/// at once, [`whole_interval_corner`]), each bit's pairs ([`slip_pairs`]) at whichever of
+/// the corner's shares (`VERTEX_SHARES`) tells her least about the doublet, the bound of
 /// [`paired_smooth_min_entropy`] with `disclosed` bits removed; the least over the points,
 /// published as the smallest Gaussian separation whose bound is no larger
 /// ([`gaussian_separation_within`]). Every bit's entry is that separation. Three-step
@@ -766,14 +776,24 @@ fn size_slip_block(
             continue; // a known world's one point, repeated
         }
         let corner = whole_interval_corner(&point.corners);
-        // Q ⪰ 0 always, so her view at Q = 0 bounds it as the region's vertex does: each
-        // doublet is sized at whichever of the two leaves her less (the vertex's heading
-        // entry, below 0 where the slip's uncertain share swamps a small Q along the
-        // heading, can leave her covariance near singular or without a bound).
-        let floor = Corner {
-            motion: nalgebra::Matrix3::zeros(),
-            ..corner
+        // Every member Q of the region lies above the corner and above 0, hence above each
+        // share λ of the corner (`VERTEX_SHARES`): each doublet is sized at whichever of
+        // those views leaves her less (the corner's heading entry, below 0 where the slip's
+        // uncertain share swamps a small Q along the heading, can leave her covariance near
+        // singular or without a bound at the corner itself).
+        // A corner above 0 lies above each of its shares: alone, it is the bluntest.
+        let shares: &[f64] = if corner.motion.symmetric_eigenvalues().min() >= 0.0 {
+            &[1.0]
+        } else {
+            &VERTEX_SHARES
         };
+        let views: Vec<Corner> = shares
+            .iter()
+            .map(|&share| Corner {
+                motion: corner.motion * share,
+                ..corner
+            })
+            .collect();
         let mut paired: Vec<PairedBit> = Vec::with_capacity(bits);
         for b in sessions.iter().flat_map(|session| session.iter()) {
             let view = stated_camera_view(
@@ -781,10 +801,12 @@ fn size_slip_block(
                 config.sensing.controller_std,
                 config.modelled_camera_std(),
             );
-            let pairs = blunter(
-                slip_pairs(&model, &corner, point.variance, axle, &b.inputs, &view),
-                slip_pairs(&model, &floor, point.variance, axle, &b.inputs, &view),
-            );
+            let pairs = views.iter().fold(None, |kept, share| {
+                blunter(
+                    kept,
+                    slip_pairs(&model, share, point.variance, axle, &b.inputs, &view),
+                )
+            });
             match pairs {
                 Some(pairs) => paired.extend(pairs),
                 None => {
@@ -1067,6 +1089,136 @@ mod tests {
 
     /// A two-step block whose first steps show a 50 ms lag is refused by name (before the
     /// motion-noise estimate, which models none); one without lag is not refused for it.
+    /// Every share of the corner bounds what every member of the region shows Eve, and so
+    /// does the doublet's blunter view over the shares. At a corner whose heading entry is
+    /// below 0 as slip leaves it (5 % slip at 4 mm: `Q_c` ≈ diag(12, 12.5, −26)·10⁻⁶, σ² at
+    /// its interval's upper end 2.85·10⁻³), on a turning doublet of two bits, white and over
+    /// a correlation cell [0.3, 0.5]: 300 seeded members `Q ⪰ 0, Q ⪰ Q_c` — each minimal
+    /// member `Q_c + xxᵀ` (`xᵀQ_c⁻¹x = −1`: along-track and lateral noise correlated with the
+    /// heading's, up to ten times `Q_c`'s own, where every Loewner vertex above 0 fails),
+    /// half of them with a random positive part added, ρ anywhere in the cell — give her on
+    /// every bit no larger moment `E[e^(−λS)]` (λ = ¼, ½, 1; each bit's least exponent over
+    /// its pairs) than each share's view does, to 10⁻⁹ of it; and some of them give her more
+    /// than the corner's positive part (diag(12, 12.5, 0)·10⁻⁶, a member but no bound) does,
+    /// so the members reach where a vertex above 0 would over-claim.
+    #[test]
+    fn every_share_of_the_corner_bounds_the_members_of_the_region() {
+        use crate::estimate::motion_noise::tests::weights_of;
+        use crate::estimate::worst_case::slip_pairs;
+        use crate::rng::{Purpose, stream};
+        use nalgebra::{Matrix3, Vector3};
+        use rand::RngExt;
+        let mut config = Config::default();
+        config.protocol.bits_per_doublet = 2;
+        config.sensing.mode = crate::config::SensingMode::Private;
+        let model = doublet_model(&config);
+        let inputs = crate::private::DoubletInputs {
+            first: Unicycle::new(0.08, 0.3),
+            second: Unicycle::new(0.08, 0.25),
+        };
+        let view = stated_camera_view(
+            vec![
+                Pose::new(0.0, 0.0, 0.8),
+                Pose::new(0.011, 0.012, 0.86),
+                Pose::new(0.021, 0.025, 0.91),
+            ],
+            config.sensing.controller_std,
+            config.eve.camera_std,
+        );
+        let (slip, axle) = (2.85e-3, config.robot.axle_length);
+        let [a1, a2, c] = [12e-6, 12.5e-6, 26e-6];
+        let corner_motion = Matrix3::from_diagonal(&Vector3::new(a1, a2, -c));
+        let exponents = |bits: &[PairedBit], lambda: f64| -> Vec<f64> {
+            bits.iter()
+                .map(|bit| {
+                    bit.iter()
+                        .map(|pair| -pair.ln_moment(lambda))
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .collect()
+        };
+        let mut rng = stream(41, Purpose::Process, 0);
+        for cell in [[0.0, 0.0], [0.3, 0.5]] {
+            let corner = Corner {
+                correlation: cell,
+                motion: corner_motion,
+                step_weights: weights_of(cell),
+            };
+            let shares: Vec<Vec<PairedBit>> = VERTEX_SHARES
+                .iter()
+                .filter_map(|&share| {
+                    let view_at = Corner {
+                        motion: corner_motion * share,
+                        ..corner
+                    };
+                    slip_pairs(&model, &view_at, slip, axle, &inputs, &view)
+                })
+                .collect();
+            assert!(
+                shares.len() >= 2,
+                "too few shares with a bound: {}",
+                shares.len()
+            );
+            let kept = shares
+                .iter()
+                .cloned()
+                .fold(None, |kept, bits| blunter(kept, Some(bits)))
+                .unwrap();
+            // Not a bound: the corner's positive part, which the members below defeat.
+            let positive = Corner {
+                motion: Matrix3::from_diagonal(&Vector3::new(a1, a2, 0.0)),
+                ..corner
+            };
+            let positive = slip_pairs(&model, &positive, slip, axle, &inputs, &view).unwrap();
+            let mut defeated = 0;
+            for trial in 0..150 {
+                let scale = 10f64.powf(rng.random_range(-3.0..1.0));
+                let [t1, t2]: [f64; 2] =
+                    [a1, a2].map(|a| (scale * a).sqrt() * rng.random_range(-1.0..1.0));
+                let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                let s = sign * (c * (1.0 + t1 * t1 / a1 + t2 * t2 / a2)).sqrt();
+                let x = Vector3::new(t1, t2, s);
+                let mut motion = corner_motion + x * x.transpose();
+                if trial % 2 == 1 {
+                    let y = Vector3::from_fn(|k, _| {
+                        [a1, a2, c][k].sqrt() * rng.random_range(-0.5..0.5)
+                    });
+                    motion += y * y.transpose();
+                }
+                let min_eigenvalue = motion.symmetric_eigenvalues().min();
+                assert!(
+                    min_eigenvalue > -1e-12 * c,
+                    "not a member: {min_eigenvalue}"
+                );
+                let rho = rng.random_range(cell[0]..=cell[1]);
+                let member = Corner {
+                    correlation: [rho, rho],
+                    motion,
+                    step_weights: weights_of([rho, rho]),
+                };
+                let seen = slip_pairs(&model, &member, slip, axle, &inputs, &view).unwrap();
+                for lambda in [0.25, 0.5, 1.0] {
+                    let truth = exponents(&seen, lambda);
+                    let above = exponents(&positive, lambda);
+                    defeated += usize::from(above.iter().zip(&truth).any(|(p, t)| p > t));
+                    for bound in shares.iter().chain([&kept]) {
+                        for (b, t) in exponents(bound, lambda).iter().zip(&truth) {
+                            assert!(
+                                *b <= t + 1e-9 * t.abs(),
+                                "cell {cell:?} trial {trial} λ {lambda}: bound {b} above the \
+                                 member's {t}"
+                            );
+                        }
+                    }
+                }
+            }
+            assert!(
+                defeated > 0,
+                "cell {cell:?}: no member below the positive part's view"
+            );
+        }
+    }
+
     #[test]
     fn a_two_step_block_that_shows_a_lag_is_refused_naming_it() {
         let config = Config::from_toml("[sensing]\nmode = \"private\"\n", "t").unwrap();
