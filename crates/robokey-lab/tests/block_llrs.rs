@@ -148,9 +148,11 @@ fn both(config: &Config, runs: &[RunOutput], seed: u64) -> (Block, BlockReport) 
     )
 }
 
-#[test]
-fn the_agents_recompute_the_llrs_as_the_simulator_does_in_a_noisier_world() {
-    let measured = parties("measured", 1);
+/// 32 sessions of the parties recomputing their LLRs (`bits` per doublet) in the 8 mm world,
+/// keyed in the lab and through the agents alike — the same leak, LDPC rounds and length, both
+/// reports naming the measured LLRs; returns the sessions.
+fn keyed_alike_on_measured_llrs(bits: u8) -> Vec<RunOutput> {
+    let measured = parties("measured", bits);
     let runs: Vec<RunOutput> = (0..32)
         .map(|r| simulate(&measured, r, false).unwrap())
         .collect();
@@ -161,9 +163,14 @@ fn the_agents_recompute_the_llrs_as_the_simulator_does_in_a_noisier_world() {
         (Some(lab.leak_ec), lab.ldpc_rounds, lab.secret_bits),
         "agents {agents:?}, lab {lab:?}"
     );
-    // Both reports say which LLRs LDPC decoded on.
     assert_eq!(lab.llrs, Some(named("measured")));
     assert_eq!(agents.llrs.as_deref(), Some(&named("measured")));
+    runs
+}
+
+#[test]
+fn the_agents_recompute_the_llrs_as_the_simulator_does_in_a_noisier_world() {
+    let runs = keyed_alike_on_measured_llrs(1);
     // The prior's LLRs (the configured 4 mm) on the same sessions: overconfident, LDPC's
     // syndrome is too short and the block fails in the lab and through the agents alike.
     let (lab, agents) = both(&parties("prior", 1), &runs, 11);
@@ -179,19 +186,7 @@ fn the_agents_recompute_the_llrs_as_the_simulator_does_in_a_noisier_world() {
 /// measured LLRs (no fallback in either report).
 #[test]
 fn the_agents_recompute_two_bit_llrs_as_the_simulator_does() {
-    let measured = parties("measured", 2);
-    let runs: Vec<RunOutput> = (0..32)
-        .map(|r| simulate(&measured, r, false).unwrap())
-        .collect();
-    let (lab, agents) = both(&measured, &runs, 11);
-    assert!(lab.consistent && lab.secret_bits > 0, "{lab:?}");
-    assert_eq!(
-        (Some(agents.leak_ec), agents.ldpc_rounds, agents.length),
-        (Some(lab.leak_ec), lab.ldpc_rounds, lab.secret_bits),
-        "agents {agents:?}, lab {lab:?}"
-    );
-    assert_eq!(lab.llrs, Some(named("measured")));
-    assert_eq!(agents.llrs.as_deref(), Some(&named("measured")));
+    keyed_alike_on_measured_llrs(2);
 }
 
 /// A multilevel block (two dimensions of 4 levels) in an 8 mm world, the parties believing

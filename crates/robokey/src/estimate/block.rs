@@ -380,25 +380,38 @@ fn split_residuals(
     axle: f64,
     sessions: &[&[DoubletSamples]],
 ) -> Vec<DoubletResidual> {
+    with_entry_speed(model, sessions, |b, entry| {
+        let [start, middle, end] = &b.samples;
+        Some(DoubletResidual::three_step_split(
+            model,
+            axle,
+            b.doublet,
+            &b.inputs,
+            [start, middle, &b.late?.sample, end],
+            b.pattern,
+            entry,
+        ))
+    })
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
+/// `per_doublet` of every doublet of `sessions` whose entry speed is known (its predecessor
+/// kept: [`entry_speeds`] through `model`'s lag), given that speed; `None` leaves it out.
+fn with_entry_speed<T>(
+    model: &DoubletModel,
+    sessions: &[&[DoubletSamples]],
+    per_doublet: impl Fn(&DoubletSamples, Unicycle) -> Option<T>,
+) -> Vec<T> {
+    let per_doublet = &per_doublet;
     sessions
         .iter()
         .flat_map(|session| {
             entry_speeds(model, session)
                 .into_iter()
                 .zip(session.iter())
-                .filter_map(|(entry, b)| {
-                    let [start, middle, end] = &b.samples;
-                    Some(DoubletResidual::three_step_split(
-                        model,
-                        axle,
-                        b.doublet,
-                        &b.inputs,
-                        [start, middle, &b.late?.sample, end],
-                        b.pattern,
-                        entry?,
-                    ))
-                })
-                .flatten()
+                .filter_map(|(entry, b)| per_doublet(b, entry?))
                 .collect::<Vec<_>>()
         })
         .collect()
@@ -420,37 +433,27 @@ fn lag_residual_products(
         lag,
         ..doublet_model(config)
     };
-    sessions
-        .iter()
-        .flat_map(|session| {
-            entry_speeds(&model, session)
-                .into_iter()
-                .zip(session.iter())
-                .filter_map(|(entry, b)| {
-                    let [start, middle, end] = &b.samples;
-                    let (_, means) = DoubletResidual::three_step_means(
-                        &model, &b.inputs, start, b.pattern, entry?,
-                    );
-                    let (sin, cos) = start.z.sin_cos();
-                    let amplitude = model.perturbation.amplitude(b.pattern);
-                    let along = |sample: &Pose, mean: &Pose| {
-                        amplitude * ((sample.x - mean.x) * cos + (sample.y - mean.y) * sin)
-                    };
-                    let second = match (late, b.late) {
-                        (false, _) => None,
-                        (true, Some(kept)) => Some(along(&kept.sample, &means[1])),
-                        (true, None) => return None,
-                    };
-                    Some(
-                        std::iter::once(along(middle, &means[0]))
-                            .chain(second)
-                            .chain(std::iter::once(along(end, &means[2])))
-                            .collect(),
-                    )
-                })
-                .collect::<Vec<_>>()
-        })
-        .collect()
+    with_entry_speed(&model, sessions, |b, entry| {
+        let [start, middle, end] = &b.samples;
+        let (_, means) =
+            DoubletResidual::three_step_means(&model, &b.inputs, start, b.pattern, entry);
+        let (sin, cos) = start.z.sin_cos();
+        let amplitude = model.perturbation.amplitude(b.pattern);
+        let along = |sample: &Pose, mean: &Pose| {
+            amplitude * ((sample.x - mean.x) * cos + (sample.y - mean.y) * sin)
+        };
+        let second = match (late, b.late) {
+            (false, _) => None,
+            (true, Some(kept)) => Some(along(&kept.sample, &means[1])),
+            (true, None) => return None,
+        };
+        Some(
+            std::iter::once(along(middle, &means[0]))
+                .chain(second)
+                .chain(std::iter::once(along(end, &means[2])))
+                .collect(),
+        )
+    })
 }
 
 /// [`three_step_residuals`] with the pattern each doublet carried.
@@ -459,29 +462,18 @@ fn three_step_doublets(
     axle: f64,
     sessions: &[&[DoubletSamples]],
 ) -> Vec<(DoubletResidual, usize)> {
-    sessions
-        .iter()
-        .flat_map(|session| {
-            entry_speeds(model, session)
-                .into_iter()
-                .zip(session.iter())
-                .filter_map(|(entry, b)| {
-                    entry.map(|entry| {
-                        let residual = DoubletResidual::three_step(
-                            model,
-                            axle,
-                            b.doublet,
-                            &b.inputs,
-                            [&b.samples[0], &b.samples[2]],
-                            b.pattern,
-                            entry,
-                        );
-                        (residual, b.pattern)
-                    })
-                })
-                .collect::<Vec<_>>()
-        })
-        .collect()
+    with_entry_speed(model, sessions, |b, entry| {
+        let residual = DoubletResidual::three_step(
+            model,
+            axle,
+            b.doublet,
+            &b.inputs,
+            [&b.samples[0], &b.samples[2]],
+            b.pattern,
+            entry,
+        );
+        Some((residual, b.pattern))
+    })
 }
 
 /// Lags the dead-time test tries over the lag's interval.
