@@ -1079,8 +1079,6 @@ mod tests {
         assert_eq!(blunter(None, None), None);
     }
 
-    /// A two-step block whose first steps show a 50 ms lag is refused by name (before the
-    /// motion-noise estimate, which models none); one without lag is not refused for it.
     /// Every share of the corner bounds what every member of the region shows Eve, and so
     /// does the doublet's blunter view over the shares. At a corner whose heading entry is
     /// below 0 as slip leaves it (5 % slip at 4 mm: `Q_c` ≈ diag(12, 12.5, −26)·10⁻⁶, σ² at
@@ -1211,6 +1209,8 @@ mod tests {
         }
     }
 
+    /// A two-step block whose first steps show a 50 ms lag is refused by name (before the
+    /// motion-noise estimate, which models none); one without lag is not refused for it.
     #[test]
     fn a_two_step_block_that_shows_a_lag_is_refused_naming_it() {
         let config = Config::from_toml("[sensing]\nmode = \"private\"\n", "t").unwrap();

@@ -1084,8 +1084,9 @@ pub(super) mod tests {
     /// white motion noise against the sensor's 0.5 mm and at 4 mm with ρ = 0.5, `Q − Q_low`
     /// and `Q_high − Q` are positive semidefinite and ρ's interval holds the truth in all but
     /// at most 19 of those the class tests size (10 expected were the bound exact; 19 is 3
-    /// binomial standard deviations above; at this ε the tests refuse some). The lower vertex is as tight as the bound says: at 1,500 residuals per parity
-    /// `1/c₊ = 0.796`, so along position `Q_low/Q ≈ ((Q + 2R)/c₊ − 2R)/Q`, 0.790 at 4 mm and
+    /// binomial standard deviations above; at this ε the tests refuse some). The lower vertex
+    /// is as tight as the bound says: at 1,500 residuals per parity `1/c₊ = 0.796`, so along
+    /// position `Q_low/Q ≈ ((Q + 2R)/c₊ − 2R)/Q`, 0.790 at 4 mm and
     /// 0.388 at 0.5 mm, with the sample second moment's standard error
     /// `√(2/3000)·(Q + 2R)/Q` (2.6 % and 7.7 %; the shared samples inflate it by at most
     /// `√(1 + 2/9)`): the mean over the blocks within 4 of those errors divided by √200.
