@@ -286,6 +286,21 @@ mod tests {
         llrs.iter().map(|x| x.abs()).sum::<f64>() / llrs.len() as f64
     }
 
+    /// Mean |L| of the LLRs recomputed from 8 sessions of `config` (a bit in `stride`
+    /// disclosed) with the block's measured `Q̂`, with the world's own model, and of the
+    /// online ones (as many of each).
+    fn measured_world_online(config: &Config, stride: usize) -> (f64, f64, f64) {
+        let (request, online) = request(config, 8, stride);
+        let measured = recomputed_llrs(config, &request, LlrModel::Measured).unwrap();
+        let world = recomputed_llrs(config, &request, LlrModel::World).unwrap();
+        assert_eq!(measured.len(), online.len());
+        (
+            mean_magnitude(&measured),
+            mean_magnitude(&world),
+            mean_magnitude(&online),
+        )
+    }
+
     #[test]
     fn the_prior_model_recomputes_the_online_llrs() {
         let config = private("");
@@ -305,15 +320,7 @@ mod tests {
     #[test]
     fn a_quieter_world_recomputes_to_the_worlds_llrs() {
         let config = private("[world]\nprocess_std = [0.001, 0.001, 0.001]\n");
-        let (request, online) = request(&config, 8, 4);
-        let measured = recomputed_llrs(&config, &request, LlrModel::Measured).unwrap();
-        let world = recomputed_llrs(&config, &request, LlrModel::World).unwrap();
-        assert_eq!(measured.len(), online.len());
-        let (m, w, p) = (
-            mean_magnitude(&measured),
-            mean_magnitude(&world),
-            mean_magnitude(&online),
-        );
+        let (m, w, p) = measured_world_online(&config, 4);
         assert!((m / w - 1.0).abs() < 0.1, "measured {m}, world {w}");
         assert!(m > 1.5 * p, "measured {m}, prior {p}");
     }
@@ -330,15 +337,7 @@ mod tests {
                 "[protocol]\nbits_per_doublet = 2\n[world]\nprocess_std = [{world}, {world}, \
                  {world}]\n"
             ));
-            let (request, online) = request(&config, 8, 10);
-            let measured = recomputed_llrs(&config, &request, LlrModel::Measured).unwrap();
-            let world_llrs = recomputed_llrs(&config, &request, LlrModel::World).unwrap();
-            assert_eq!(measured.len(), online.len());
-            let (m, w, p) = (
-                mean_magnitude(&measured),
-                mean_magnitude(&world_llrs),
-                mean_magnitude(&online),
-            );
+            let (m, w, p) = measured_world_online(&config, 10);
             assert!(
                 (m / w - 1.0).abs() < 0.1,
                 "{world}: measured {m}, world {w}"
@@ -369,14 +368,7 @@ mod tests {
             "matched: measured {m}, prior {p}"
         );
         let quiet = private(&format!("{lag}process_std = [0.001, 0.001, 0.001]\n"));
-        let (request, online) = request(&quiet, 8, 4);
-        let measured = recomputed_llrs(&quiet, &request, LlrModel::Measured).unwrap();
-        let world = recomputed_llrs(&quiet, &request, LlrModel::World).unwrap();
-        let (m, w, p) = (
-            mean_magnitude(&measured),
-            mean_magnitude(&world),
-            mean_magnitude(&online),
-        );
+        let (m, w, p) = measured_world_online(&quiet, 4);
         assert!((m / w - 1.0).abs() < 0.1, "measured {m}, world {w}");
         assert!(m > 1.5 * p, "measured {m}, prior {p}");
     }
