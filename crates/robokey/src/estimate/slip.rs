@@ -16,7 +16,7 @@
 //! part, σ̂² at least 0): `Lᵢ⁻¹(zzᵀ − Nᵢ)Lᵢ⁻ᵀ` is regressed on `Lᵢ⁻¹(·)Lᵢ⁻ᵀ` of the columns,
 //! off-diagonal coordinates times √2 (the Frobenius norm) — Gaussian quasi-likelihood's
 //! weighting, one step from a consistent start; its estimating equations have mean 0 at the
-//! truth whatever the weights, which sets only its efficiency. Doublets of one speed leave σ²
+//! truth for any fixed weights, which set only its efficiency. Doublets of one speed leave σ²
 //! and `Q` apart only through their turn; a block whose design is singular identifies no slip
 //! (`None`). ρ is the correlation's point estimate; the sensor's MA(1) term (neighbours share
 //! a sample) and the AR(1) memory correlate neighbouring terms, which the interval's batches
