@@ -80,9 +80,16 @@ pub fn run_all(
             // `ended` is dropped when the sweep ends, however it ends.
             let _ended = ended;
             with_jobs(jobs, || {
-                run_experiment(experiment, std::path::Path::new(""), runs, stop, &|| {
-                    done.fetch_add(1, Ordering::Relaxed);
-                })
+                run_experiment(
+                    experiment,
+                    std::path::Path::new(""),
+                    runs,
+                    stop,
+                    &|| {
+                        done.fetch_add(1, Ordering::Relaxed);
+                    },
+                    None,
+                )
             })
         });
         loop {

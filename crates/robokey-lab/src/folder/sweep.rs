@@ -11,6 +11,7 @@ use crate::error::LabError;
 use crate::experiment::Experiment;
 use crate::output::read;
 use crate::parquet_table::TableFormat;
+use crate::run::sessions::KeptSessions;
 use crate::run::{Shard, run_experiment};
 use crate::trace::point_trace_path;
 
@@ -100,6 +101,24 @@ pub fn sweep(
     on_start: &mut (dyn FnMut(&Start) + Send),
     finished: &(dyn Fn() + Sync),
 ) -> Result<Swept, LabError> {
+    sweep_keeping(out, experiments, plan, stop, on_start, finished, None)
+}
+
+/// [`sweep`], filing each run simulated alone in `kept` (if given) for a later consumer of
+/// the same sessions ([`KeptSessions`]: `reproduce` hands a stage's sweep runs to its
+/// secrecy analysis).
+///
+/// # Errors
+/// As [`sweep`].
+pub fn sweep_keeping(
+    out: &Path,
+    experiments: &[Experiment],
+    plan: SweepPlan,
+    stop: &Interrupt,
+    on_start: &mut (dyn FnMut(&Start) + Send),
+    finished: &(dyn Fn() + Sync),
+    kept: Option<&KeptSessions>,
+) -> Result<Swept, LabError> {
     let single = matches!(experiments, [e] if e.name.is_empty());
     let dir_of = |e: &Experiment| {
         if single {
@@ -148,7 +167,7 @@ pub fn sweep(
             });
             // Traces (written as the runs go) before the rows that vouch for them, the
             // manifest last.
-            let rows = run_experiment(e, &f.dir, &to_run, stop, finished)?;
+            let rows = run_experiment(e, &f.dir, &to_run, stop, finished, kept)?;
             f.rows.extend(rows.into_iter().map(|r| (r.run, r)));
             write_folder(&f.dir, e, &f.rows, &f.shards, plan.format)?;
         }

@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 use crate::adversary::run_campaigns_with;
 use crate::error::{LabError, io_at};
 use crate::experiment::Experiment;
-use crate::folder::sweep::{SweepPlan, sweep};
+use crate::folder::sweep::{SweepPlan, sweep_keeping};
 use crate::output::{read_json, write};
 use crate::parquet_table::TableFormat;
 use crate::run::sessions::SessionBank;
@@ -189,7 +189,9 @@ fn worlds_stage(dir: &Path, quick: bool, stop: &Interrupt) -> Result<f64, LabErr
 
 /// Sweeps each experiment into its folder of `out`, then computes and writes its secrecy
 /// with `options(experiment)` there; the experiments side by side on the pool (each has its
-/// own folder and sessions).
+/// own folder and sessions). The sweep's runs are filed for the secrecy, which takes those
+/// simulated with its own settings (the same configuration, replicate and judged
+/// eavesdroppers) as its first sessions instead of simulating them again.
 fn sweep_each_then_secrecy(
     out: &Path,
     experiments: Vec<Experiment>,
@@ -202,18 +204,20 @@ fn sweep_each_then_secrecy(
             resume: false,
             format: TableFormat::Csv,
         };
-        let swept = sweep(
+        let mut bank = SessionBank::new();
+        let swept = sweep_keeping(
             out,
             std::slice::from_ref(experiment),
             plan,
             stop,
             &mut |_| {},
             &|| {},
+            Some(bank.kept_sessions()),
         )?;
         if let Some(signal) = swept.interrupted {
             return Err(LabError::Interrupted(signal));
         }
-        Secrecy::compute(experiment, &options(experiment), &mut SessionBank::new())?
+        Secrecy::compute(experiment, &options(experiment), &mut bank)?
             .write(&out.join(&experiment.name))?;
         Ok(())
     })

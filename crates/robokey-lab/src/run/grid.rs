@@ -15,7 +15,7 @@ use robokey::sim::{
 };
 
 use super::row::RunRow;
-use super::sessions::physical_key;
+use super::sessions::{KeptSessions, physical_key};
 use crate::error::{LabError, io_at};
 use crate::experiment::Experiment;
 use crate::progress::progress_bar;
@@ -25,8 +25,9 @@ use crate::trace::{TraceCsv, point_trace_path};
 /// current rayon pool, starting none once `stop` is requested; `finished` is called after
 /// each run. When the experiment keeps traces, replicate 0 of each point streams its trace
 /// into `dir`'s `traces/point-<i>.csv` as it runs (complete files only: a run stopped
-/// half-way leaves none). Returns the runs that finished, in run order: all of them unless
-/// stopped.
+/// half-way leaves none). A run simulated alone (not traced, not shared between points)
+/// is filed in `kept`, if given, for a later consumer of the same session. Returns the runs
+/// that finished, in run order: all of them unless stopped.
 ///
 /// # Errors
 /// The first run whose session aborted, or a trace that cannot be written.
@@ -36,6 +37,7 @@ pub fn run_experiment(
     runs: &[usize],
     stop: &Interrupt,
     finished: &(dyn Fn() + Sync),
+    kept: Option<&KeptSessions>,
 ) -> Result<Vec<RunRow>, LabError> {
     let replicates = experiment.replicates() as usize;
     let plans: Vec<SessionPlan> = experiment
@@ -82,14 +84,14 @@ pub fn run_experiment(
             if stop.is_requested() {
                 return Ok(Vec::new());
             }
-            let record = |run: usize, output: RunOutput| {
+            let record = |run: usize, output: &RunOutput| {
                 bar.inc(1);
                 finished();
                 RunRow {
                     run,
                     point: run / replicates,
                     replicate: (run % replicates) as u32,
-                    metrics: output.metrics,
+                    metrics: output.metrics.clone(),
                 }
             };
             let (point, replicate) = (session[0] / replicates, (session[0] % replicates) as u32);
@@ -97,14 +99,18 @@ pub fn run_experiment(
             let mut plan = plans[point].clone();
             plan.agreed.session = replicate;
             if let [run] = session[..] {
-                let output = if experiment.traces && replicate == 0 {
-                    streamed(config, plan, &point_trace_path(dir, point))?
-                } else {
-                    // A row holds her metrics alone: only her evidence is judged.
-                    let judged = Eavesdroppers::reading(config.eve_strategy());
-                    simulate_plan(config, plan, replicate, false, judged)?
-                };
-                return Ok(vec![record(run, output)]);
+                if experiment.traces && replicate == 0 {
+                    let output = streamed(config, plan, &point_trace_path(dir, point))?;
+                    return Ok(vec![record(run, &output)]);
+                }
+                // A row holds her metrics alone: only her evidence is judged.
+                let judged = Eavesdroppers::reading(config.eve_strategy());
+                let output = simulate_plan(config, plan, replicate, false, judged)?;
+                let row = record(run, &output);
+                if let Some(kept) = kept {
+                    kept.keep(config, replicate, judged, output);
+                }
+                return Ok(vec![row]);
             }
             let mut silent = config.clone();
             silent.eve.enabled = false;
@@ -113,7 +119,7 @@ pub fn run_experiment(
                 .iter()
                 .map(|&run| {
                     let config = &experiment.points[run / replicates].config;
-                    record(run, replay(config, replicate, &output, &transcript))
+                    record(run, &replay(config, replicate, &output, &transcript))
                 })
                 .collect())
         })

@@ -8,10 +8,12 @@
 //! which gives bit for bit the run she would have heard live.
 
 use std::collections::{HashMap, HashSet};
+use std::sync::{Mutex, PoisonError};
 
 use rayon::prelude::*;
 use robokey::Config;
 use robokey::config::{EveConfig, SensingMode};
+use robokey::private::Eavesdroppers;
 use robokey::protocol::Message;
 use robokey::sim::{RunOutput, simulate_transcript};
 
@@ -84,6 +86,44 @@ struct Group {
     transcripts: Vec<Vec<Message>>,
 }
 
+/// Sessions simulated by one consumer for a later one (a sweep's private-sensing replicates
+/// for the secrecy analysis of the same points), each filed under what it is a pure
+/// function of: its whole configuration as TOML (`[eve]` included, `run.replicates` left
+/// out), its replicate (the session's id and streams) and whose judgement it computed. A
+/// session taken from here is therefore the one the taker would have simulated, bit for bit.
+#[derive(Default)]
+pub struct KeptSessions {
+    runs: Mutex<HashMap<(String, u32), RunOutput>>,
+}
+
+impl KeptSessions {
+    /// What a session is a pure function of, besides its replicate.
+    fn key(config: &Config, judged: Eavesdroppers) -> String {
+        let mut config = config.clone();
+        config.run.replicates = Config::default().run.replicates;
+        format!("{judged:?}\n{}", config.to_toml())
+    }
+
+    /// Files `run`, replicate `replicate` of `config` simulated judging `judged`.
+    pub fn keep(&self, config: &Config, replicate: u32, judged: Eavesdroppers, run: RunOutput) {
+        self.runs
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .insert((Self::key(config, judged), replicate), run);
+    }
+
+    /// Takes the filed replicates `0, 1, …` of `config` simulated judging `judged`, up to
+    /// the first one not filed.
+    #[must_use]
+    pub fn take(&self, config: &Config, judged: Eavesdroppers) -> Vec<RunOutput> {
+        let key = Self::key(config, judged);
+        let mut runs = self.runs.lock().unwrap_or_else(PoisonError::into_inner);
+        (0..)
+            .map_while(|replicate| runs.remove(&(key.clone(), replicate)))
+            .collect()
+    }
+}
+
 /// The sessions simulated so far, per physical configuration. Sessions are pure functions
 /// of the configuration and the replicate, so the bank changes how often they are
 /// simulated, never what they are.
@@ -91,6 +131,7 @@ struct Group {
 pub struct SessionBank {
     groups: HashMap<String, Group>,
     kept: HashSet<String>,
+    sessions: KeptSessions,
 }
 
 impl SessionBank {
@@ -138,6 +179,13 @@ impl SessionBank {
             runs: &group.runs[..count],
             transcripts: &group.transcripts[..count],
         })
+    }
+
+    /// The sessions filed for a later consumer: a sweep files its private-sensing runs
+    /// here, the secrecy analysis of the same points takes them.
+    #[must_use]
+    pub fn kept_sessions(&self) -> &KeptSessions {
+        &self.sessions
     }
 
     /// Forgets `config`'s sessions unless they are kept.

@@ -98,25 +98,37 @@ fn with_adversary(config: &Config, adversary: EveStrategy) -> Config {
     config
 }
 
-/// Private sensing: the sessions of one point, simulated once for all its `adversaries`
-/// (each has her evidence and key in every run: `adversaries[0]` listens, and the
-/// `commands` eavesdropper is judged when one of them is she). How many sessions a point
-/// needs depends on the keys and outcomes only, never on the eavesdropper: one count serves
-/// every adversary.
-fn private_sessions(
+/// Private sensing: the configuration a point's sessions are simulated with for all its
+/// `adversaries` (`adversaries[0]` listens), and whose judgement they compute (the
+/// `commands` eavesdropper's too when one of them is she).
+fn private_setting(
     experiment: &Experiment,
     point: usize,
     adversaries: &[EveStrategy],
-    options: &SecrecyOptions,
-) -> Result<Vec<RunOutput>, LabError> {
+) -> (Config, Eavesdroppers) {
     let config = with_adversary(&experiment.points[point].config, adversaries[0]);
-    let plan = SessionPlan::from_config(&config, 0);
     let judged = if adversaries.contains(&EveStrategy::Commands) {
         Eavesdroppers::Both
     } else {
         Eavesdroppers::Camera
     };
-    let mut runs: Vec<RunOutput> = Vec::new();
+    (config, judged)
+}
+
+/// Private sensing: the sessions of one point, simulated once for all its `adversaries`
+/// (each has her evidence and key in every run: `private_setting`), continuing from
+/// `runs`, its first sessions as an earlier consumer simulated them. How many sessions a
+/// point needs depends on the keys and outcomes only, never on the eavesdropper: one count
+/// serves every adversary.
+fn private_sessions(
+    experiment: &Experiment,
+    point: usize,
+    adversaries: &[EveStrategy],
+    options: &SecrecyOptions,
+    mut runs: Vec<RunOutput>,
+) -> Result<Vec<RunOutput>, LabError> {
+    let (config, judged) = private_setting(experiment, point, adversaries);
+    let plan = SessionPlan::from_config(&config, 0);
     let count = sessions_needed(experiment.replicates(), options, |n| {
         let more: Vec<RunOutput> = (runs.len() as u32..n)
             .into_par_iter()
@@ -662,9 +674,18 @@ pub fn analyze_with(
     let private_points: Vec<usize> = (0..experiment.points.len())
         .filter(|&p| private(p))
         .collect();
+    // Sessions an earlier consumer (the points' sweep) simulated with the same settings.
+    let earlier: Vec<Vec<RunOutput>> = private_points
+        .iter()
+        .map(|&p| {
+            let (config, judged) = private_setting(experiment, p, &adversaries);
+            bank.kept_sessions().take(&config, judged)
+        })
+        .collect();
     let sessions = private_points
         .par_iter()
-        .map(|&p| private_sessions(experiment, p, &adversaries, options))
+        .zip(earlier)
+        .map(|(&p, runs)| private_sessions(experiment, p, &adversaries, options, runs))
         .collect::<Result<Vec<_>, LabError>>()?;
     let runs_of = |p: usize| {
         &sessions[private_points
@@ -1267,5 +1288,74 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(error.contains("camera"), "{error}");
+    }
+
+    /// `reproduce` hands each world's sweep runs to the world's secrecy: the sweep files
+    /// them under the secrecy's own settings (so they are taken), and each is the session
+    /// the secrecy would have simulated, bit for bit.
+    #[test]
+    fn a_worlds_sweep_runs_are_its_secrecys_first_sessions() {
+        use crate::reproduce::world_suite;
+        use crate::run::run_experiment;
+        use robokey::interrupt::Interrupt;
+        let experiment = world_suite::coarse_suite(true)
+            .unwrap()
+            .into_iter()
+            .find(|e| e.name == "slip")
+            .unwrap();
+        let options = world_suite::options(&experiment, true);
+        let replicates = experiment.replicates();
+        let bank = SessionBank::new();
+        let all: Vec<usize> = (0..replicates as usize).collect();
+        let stop = Interrupt::new();
+        let kept = Some(bank.kept_sessions());
+        run_experiment(
+            &experiment,
+            std::path::Path::new(""),
+            &all,
+            &stop,
+            &|| {},
+            kept,
+        )
+        .unwrap();
+        let (config, judged) = private_setting(&experiment, 0, &options.adversaries);
+        let swept = bank.kept_sessions().take(&config, judged);
+        assert_eq!(swept.len(), replicates as usize);
+        assert!(bank.kept_sessions().take(&config, judged).is_empty());
+        let own = SecrecyOptions {
+            max_sessions: replicates,
+            ..options.clone()
+        };
+        let simulated =
+            private_sessions(&experiment, 0, &options.adversaries, &own, Vec::new()).unwrap();
+        assert_eq!(simulated.len(), swept.len());
+        for (a, b) in swept.iter().zip(&simulated) {
+            assert_eq!(format!("{:?}", a.metrics), format!("{:?}", b.metrics));
+            assert_eq!(a.steps, b.steps);
+            assert_eq!(*a.keys.robot, *b.keys.robot);
+            assert_eq!(*a.keys.controller, *b.keys.controller);
+            assert_eq!(a.keys.eve.as_deref(), b.keys.eve.as_deref());
+            assert_eq!(
+                format!("{:?} {:?}", a.robot_outcome, a.controller_outcome),
+                format!("{:?} {:?}", b.robot_outcome, b.controller_outcome)
+            );
+            assert!(a.private.is_some());
+            assert!(a.private == b.private, "the private runs differ");
+        }
+        // Filed under another judgement, they are not this secrecy's sessions.
+        run_experiment(
+            &experiment,
+            std::path::Path::new(""),
+            &all,
+            &stop,
+            &|| {},
+            kept,
+        )
+        .unwrap();
+        assert!(
+            bank.kept_sessions()
+                .take(&config, Eavesdroppers::Both)
+                .is_empty()
+        );
     }
 }
