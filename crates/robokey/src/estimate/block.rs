@@ -483,7 +483,9 @@ const MIN_TURN_SLOPE: f64 = 1e-9;
 /// The inputs come from the controller's sample at the doublet's start and the slope from the
 /// prior, so under white noise `a` is independent of that residual's noise (the motion noise
 /// of the second and third steps, the heading samples after the first step and at the end):
-/// the products are martingale differences. None where the block's path carries no turns.
+/// the products are martingale differences (under AR(1) noise the second step's noise
+/// correlates by ρ² with the step before the start sample, which the controller read: a bias
+/// of that order, not bounded apart). None where the block's path carries no turns.
 fn heading_slopes(config: &Config, sessions: &[&[DoubletSamples]], late: bool) -> Option<Vec<f64>> {
     let prior = config.private.prior_lag;
     let [below, above] = [(prior - TURN_SLOPE_STEP).max(0.0), prior + TURN_SLOPE_STEP];
