@@ -11,12 +11,12 @@
 //!
 //! **Three-step doublets** (`private.prior_lag`) are sized from the lag measured: first τ̂
 //! from the first steps ([`estimate_lag`]), then τ̂ and its interval at ε_est/3 from the
-//! first steps, the samples after the second steps (where the pool kept them) and the ends
-//! jointly ([`estimate_lag_jointly`]), then the residuals with the bit's and
-//! the nominal inputs' lagged means through τ̂ subtracted ([`DoubletResidual::three_step`];
-//! the wheels' speed at a doublet's start recomputed from the previous doublet's nominal
-//! inputs and bits through τ̂, so a doublet whose predecessor was not kept is left out), a
-//! check that a first-order lag explains the doublets' ends as well as their middles (the
+//! first steps, the samples after the second steps (where the pool kept them), the ends and
+//! the turns over the second and third steps jointly ([`estimate_lag_jointly`]), then the
+//! residuals with the bit's and the nominal inputs' lagged means through τ̂ subtracted
+//! ([`DoubletResidual::three_step`]; the wheels' speed at a doublet's start recomputed from
+//! the previous doublet's nominal inputs and bits through τ̂, so a doublet whose predecessor
+//! was not kept is left out), a check that a first-order lag explains the doublets' ends as well as their middles (the
 //! dead-time test, [`lag_shape_refusal`]), then Q and ρ (at the other 2ε_est/3) from each
 //! doublet's three one-step residuals where the pool kept the sample after the second step
 //! ([`DoubletResidual::three_step_split`]; from its start-to-end residual otherwise), and Eve's
@@ -286,7 +286,8 @@ fn three_step_block(
     let late = sessions
         .iter()
         .all(|session| session.iter().all(|b| b.late.is_some()));
-    let products = |tau: f64| lag_residual_products(config, sessions, tau, late);
+    let turns = heading_slopes(config, sessions, late);
+    let products = |tau: f64| lag_residual_products(config, sessions, tau, late, turns.as_deref());
     let (first, lag) = match measured_lag(config, sessions, lag_epsilon).and_then(|first| {
         estimate_lag_jointly(&first, &products, config.robot.sample_time, lag_epsilon)
             .map(|lag| (first, lag))
@@ -420,39 +421,108 @@ fn with_entry_speed<T>(
 /// Each three-step doublet's residuals along its start heading after its first step, after
 /// its second (with `late`: the kept sample `y(3j+2)`) and at its end, with the lagged means
 /// through `lag` (s) subtracted ([`DoubletResidual::three_step_means`]), times its
-/// v-amplitude (m): what [`estimate_lag_jointly`] measures τ from. A doublet whose
-/// predecessor is not kept is left out (its entry speed is not known), and with `late` one
-/// that did not keep the sample after its second step.
+/// v-amplitude (m); with `turns` (`heading_slopes`, one per doublet measured) also its
+/// heading residual over its second and third steps, `θ(3j+3) − θ(3j+1)` less the lagged
+/// means' turn, times that slope (rad²/s): what [`estimate_lag_jointly`] measures τ from. A
+/// doublet whose predecessor is not kept is left out (its entry speed is not known), and
+/// with `late` one that did not keep the sample after its second step.
 fn lag_residual_products(
     config: &Config,
     sessions: &[&[DoubletSamples]],
     lag: f64,
     late: bool,
+    turns: Option<&[f64]>,
 ) -> Vec<Vec<f64>> {
     let model = DoubletModel {
         lag,
         ..doublet_model(config)
     };
-    with_entry_speed(&model, sessions, |b, entry| {
+    let measured = lag_doublets(&model, sessions, late, |b, means| {
         let [start, middle, end] = &b.samples;
-        let (_, means) =
-            DoubletResidual::three_step_means(&model, &b.inputs, start, b.pattern, entry);
         let (sin, cos) = start.z.sin_cos();
         let amplitude = model.perturbation.amplitude(b.pattern);
         let along = |sample: &Pose, mean: &Pose| {
             amplitude * ((sample.x - mean.x) * cos + (sample.y - mean.y) * sin)
         };
-        let second = match (late, b.late) {
-            (false, _) => None,
-            (true, Some(kept)) => Some(along(&kept.sample, &means[1])),
-            (true, None) => return None,
+        let second = b
+            .late
+            .filter(|_| late)
+            .map(|kept| along(&kept.sample, &means[1]));
+        let products: Vec<f64> = std::iter::once(along(middle, &means[0]))
+            .chain(second)
+            .chain(std::iter::once(along(end, &means[2])))
+            .collect();
+        (products, end.z - middle.z - (means[2].z - means[0].z))
+    });
+    measured
+        .into_iter()
+        .enumerate()
+        .map(|(i, (mut products, turn))| {
+            if let Some(turns) = turns {
+                products.push(turns[i] * turn);
+            }
+            products
+        })
+        .collect()
+}
+
+/// The lag step (s) of the heading's numerical slope in τ.
+const TURN_SLOPE_STEP: f64 = 1e-3;
+
+/// The least root-mean-square heading slope (rad/s per s of lag) `heading_slopes` reads as
+/// nominal turns, far above the numerical difference's rounding (≈ 10⁻¹³) and far below
+/// what a path that turns carries (0.13 in the grid's square).
+const MIN_TURN_SLOPE: f64 = 1e-9;
+
+/// Each doublet's turn over its second and third steps through the lag at `private.prior_lag`
+/// `τ_p`: its slope in τ there, `a = ∂(θ̄₃ − θ̄₁)/∂τ` (rad/s; a central difference, the entry
+/// speed recomputed at each τ), per doublet `lag_residual_products` measures. The nominal
+/// inputs change between and within doublets (the path turns; the controller corrects), and
+/// through τ each change leaves a transient in the turn that τ scales: `a·(θ(3j+3) − θ(3j+1)
+/// − (θ̄₃ − θ̄₁)(τ))` has mean 0 at the true τ, as the v-bit's products do, and moves with τ.
+/// The inputs come from the controller's sample at the doublet's start and the slope from the
+/// prior, so under white noise `a` is independent of that residual's noise (the motion noise
+/// of the second and third steps, the heading samples after the first step and at the end):
+/// the products are martingale differences (under AR(1) noise the second step's noise
+/// correlates by ρ² with the step before the start sample, which the controller read: a bias
+/// of that order, not bounded apart). None where the block's path carries no turns.
+fn heading_slopes(config: &Config, sessions: &[&[DoubletSamples]], late: bool) -> Option<Vec<f64>> {
+    let prior = config.private.prior_lag;
+    let [below, above] = [(prior - TURN_SLOPE_STEP).max(0.0), prior + TURN_SLOPE_STEP];
+    let [low, high] = [below, above].map(|lag| {
+        let model = DoubletModel {
+            lag,
+            ..doublet_model(config)
         };
-        Some(
-            std::iter::once(along(middle, &means[0]))
-                .chain(second)
-                .chain(std::iter::once(along(end, &means[2])))
-                .collect(),
-        )
+        lag_doublets(&model, sessions, late, |_, means| means[2].z - means[0].z)
+    });
+    let slopes: Vec<f64> = low
+        .iter()
+        .zip(&high)
+        .map(|(l, h)| (h - l) / (above - below))
+        .collect();
+    let mean_square = slopes.iter().map(|a| a * a).sum::<f64>() / slopes.len().max(1) as f64;
+    (mean_square.sqrt() > MIN_TURN_SLOPE).then_some(slopes)
+}
+
+/// `per_doublet` of each three-step doublet of `sessions` the lag is measured from, given
+/// the lagged means of its poses after each step through `model`'s lag
+/// ([`DoubletResidual::three_step_means`], the entry speed from its kept predecessor): every
+/// doublet whose predecessor is kept, with `late` only those that kept the sample after
+/// their second step.
+fn lag_doublets<T>(
+    model: &DoubletModel,
+    sessions: &[&[DoubletSamples]],
+    late: bool,
+    per_doublet: impl Fn(&DoubletSamples, &[Pose; 3]) -> T,
+) -> Vec<T> {
+    with_entry_speed(model, sessions, |b, entry| {
+        if late && b.late.is_none() {
+            return None;
+        }
+        let (_, means) =
+            DoubletResidual::three_step_means(model, &b.inputs, &b.samples[0], b.pattern, entry);
+        Some(per_doublet(b, &means))
     })
 }
 
