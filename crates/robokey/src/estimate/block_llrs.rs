@@ -359,6 +359,25 @@ mod tests {
         }
     }
 
+    /// AR(1)-correlated motion noise at the parties' 4 mm (ρ = 0.9 between steps), one and two
+    /// bits per doublet, a quarter of the bits disclosed: the LLRs recomputed with `Q̂` and ρ̂
+    /// have a mean |L| within 10 % of the world's own correlated model's, and above 1.5 times
+    /// the white prior's (which overstates the middle sample's motion noise given the end).
+    #[test]
+    fn correlated_noise_recomputes_to_the_worlds_correlated_llrs() {
+        for bits in [1, 2] {
+            let config = private(&format!(
+                "[protocol]\nbits_per_doublet = {bits}\n[world]\nprocess_rho = 0.9\n"
+            ));
+            let (m, w, p) = measured_world_online(&config, 4);
+            assert!(
+                (m / w - 1.0).abs() < 0.1,
+                "{bits} bits: measured {m}, world {w}"
+            );
+            assert!(m > 1.5 * p, "{bits} bits: measured {m}, prior {p}");
+        }
+    }
+
     /// Three-step doublets (50 ms of lag, stated as the prior): with the prior's own model
     /// the kept samples — the sample after the second step and the entry speed included —
     /// give the online LLRs again; at a matched prior (the world's 4 mm) the recomputed

@@ -112,7 +112,12 @@ pub(crate) fn open_pattern_fit(
     what: &str,
 ) -> Result<MotionFit, String> {
     let refused = |refusal: EstimationRefusal| format!("{what}'s fit: {refusal}");
-    let parity = |p: u32| doublets.iter().filter(|d| d.samples.doublet % 2 == p).count();
+    let parity = |p: u32| {
+        doublets
+            .iter()
+            .filter(|d| d.samples.doublet % 2 == p)
+            .count()
+    };
     let fewest = parity(0).min(parity(1));
     if fewest < MIN_DOUBLETS_PER_PARITY {
         return Err(refused(EstimationRefusal::TooFewDoublets { have: fewest }));

@@ -855,8 +855,7 @@ mod tests {
             // Aₚ⋯Aᵢ₊₁ for i = p, p − 1, …, 0, then Aₚ⋯A₀.
             let mut product = Matrix3::identity();
             for i in (0..=p).rev() {
-                map.view_mut((3 * p, 3 + 3 * i), (3, 3))
-                    .copy_from(&product);
+                map.view_mut((3 * p, 3 + 3 * i), (3, 3)).copy_from(&product);
                 product *= jacobians[i];
             }
             map.view_mut((3 * p, 0), (3, 3)).copy_from(&product);
@@ -904,7 +903,9 @@ mod tests {
             2e-6, 9e-6, -1e-6, //
             1e-6, -1e-6, 25e-6,
         );
-        let observed = |x: f64, y: f64, z: f64| Some(PoseObservation::new(Pose::new(x, y, z), [5e-4, 7e-4, 2e-3]));
+        let observed = |x: f64, y: f64, z: f64| {
+            Some(PoseObservation::new(Pose::new(x, y, z), [5e-4, 7e-4, 2e-3]))
+        };
         for lag in [0.0, 0.05] {
             for rho in [0.0, -0.4, 0.5, 0.9] {
                 let model = DoubletModel {
@@ -935,7 +936,8 @@ mod tests {
                 };
                 for view in [full, middle_only] {
                     let ll = model.log_likelihoods(&inputs, &view);
-                    for h in 0..model.perturbation.patterns() {
+                    let patterns = model.perturbation.patterns();
+                    for (h, &got) in ll.iter().enumerate().take(patterns) {
                         let (means, jacobians) = if three {
                             let (m, a) = model.three_step_path(&inputs, &view, h);
                             (m.to_vec(), a.to_vec())
@@ -953,9 +955,8 @@ mod tests {
                         };
                         let expected = stacked_log_density(&model, &view, &means, &jacobians);
                         assert!(
-                            (ll[h] - expected).abs() <= 1e-9 * expected.abs().max(1.0),
-                            "lag {lag} ρ {rho} pattern {h}: {} vs {expected}",
-                            ll[h]
+                            (got - expected).abs() <= 1e-9 * expected.abs().max(1.0),
+                            "lag {lag} ρ {rho} pattern {h}: {got} vs {expected}"
                         );
                     }
                 }
