@@ -197,7 +197,8 @@ pub(crate) fn open_pattern_fit(
 }
 
 /// The posterior probabilities of a doublet's open patterns (`moments`, uniform a priori)
-/// given its samples `d` under `fit`; a pattern below [`NEGLIGIBLE_WEIGHT`] gets 0.
+/// given its samples `d` under `fit`; a pattern below [`NEGLIGIBLE_WEIGHT`] gets 0, and where
+/// no pattern's covariance is positive definite (every likelihood 0) they stay uniform.
 fn posterior(
     config: &Config,
     prior: &DoubletModel,
@@ -210,6 +211,9 @@ fn posterior(
         .iter()
         .map(|m| ll[m.pattern])
         .fold(f64::NEG_INFINITY, f64::max);
+    if top == f64::NEG_INFINITY {
+        return vec![1.0 / moments.len() as f64; moments.len()];
+    }
     let total: f64 = moments.iter().map(|m| (ll[m.pattern] - top).exp()).sum();
     moments
         .iter()
