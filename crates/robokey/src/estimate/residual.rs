@@ -195,23 +195,69 @@ impl DoubletResidual {
         pattern: usize,
         entry: Unicycle,
     ) -> [Self; 3] {
-        let t = model.sample_time;
         let (applied, _) = Self::three_step_means(model, inputs, samples[0], pattern, entry);
         std::array::from_fn(|k| {
-            let from = samples[k];
-            let h = rotation(from.z).transpose();
-            let a = state_jacobian(from.z, applied[k].x, t);
-            let motion_maps = [Matrix3::identity(), Matrix3::zeros(), Matrix3::zeros()];
-            Self {
-                doublet: 3 * doublet + k as u32,
-                value: h * (samples[k + 1] - unicycle_step(from, &applied[k], t)),
-                steps: 1,
-                motion_maps,
-                sensor_maps: [h, h * a],
-                slip_map: slip_map(&motion_maps[..1], &applied[k..=k], t, axle),
-                inputs: *inputs,
-            }
+            Self::one_step(
+                model.sample_time,
+                axle,
+                3 * doublet + k as u32,
+                inputs,
+                [samples[k], samples[k + 1]],
+                &applied[k],
+            )
         })
+    }
+
+    /// The two one-step residuals of a two-step doublet ([`Self::new`]'s model), from the
+    /// controller's samples `[y(2j), y(2j+1), y(2j+2)]` at the steps' applied speeds of
+    /// pattern `pattern`, as [`Self::three_step_split`]'s: covariance `Q + C₀RC₀ᵀ + C₁RC₁ᵀ`
+    /// whatever the steps' correlation, indexed by step, `2j + k`.
+    #[must_use]
+    pub fn two_step_split(
+        model: &DoubletModel,
+        axle: f64,
+        doublet: u32,
+        inputs: &DoubletInputs,
+        samples: [&Pose; 3],
+        pattern: usize,
+    ) -> [Self; 2] {
+        let applied = inputs.applied_steps(model.step_offsets(inputs, Some(pattern)));
+        std::array::from_fn(|k| {
+            Self::one_step(
+                model.sample_time,
+                axle,
+                2 * doublet + k as u32,
+                inputs,
+                [samples[k], samples[k + 1]],
+                &applied[k],
+            )
+        })
+    }
+
+    /// One step's residual `H(θ)ᵀ(to − f(from, applied))` at applied speed `applied` (m/s,
+    /// rad/s) over `sample_time` T (s), in the robot's frame at the sample `from`'s heading θ;
+    /// on wheels `axle` D (m) apart; `index` its step index.
+    fn one_step(
+        sample_time: f64,
+        axle: f64,
+        index: u32,
+        inputs: &DoubletInputs,
+        [from, to]: [&Pose; 2],
+        applied: &Unicycle,
+    ) -> Self {
+        let t = sample_time;
+        let h = rotation(from.z).transpose();
+        let a = state_jacobian(from.z, applied.x, t);
+        let motion_maps = [Matrix3::identity(), Matrix3::zeros(), Matrix3::zeros()];
+        Self {
+            doublet: index,
+            value: h * (to - unicycle_step(from, applied, t)),
+            steps: 1,
+            motion_maps,
+            sensor_maps: [h, h * a],
+            slip_map: slip_map(&motion_maps[..1], std::slice::from_ref(applied), t, axle),
+            inputs: *inputs,
+        }
     }
 
     /// A three-step doublet's steps at their mean speeds through `model`'s lag τ (m/s,

@@ -3,27 +3,26 @@
 //! simulator and the agents. A slice's LLRs are staged ([`staged_llrs`]): the symbols' lower
 //! slices known (the controller's reconciled bits of their blocks), the slice's own and
 //! higher bits summed over. Online they come from the prior's pattern likelihoods; here
-//! every kept doublet's pattern likelihoods are recomputed with the motion noise `Q̂`
-//! fitted at the slice's block time, and the staged LLRs taken from them.
+//! every kept doublet's pattern likelihoods are recomputed with the motion noise `Q̂` and its
+//! correlation ρ̂ between steps fitted at the slice's block time, and the staged LLRs taken
+//! from them.
 //!
 //! The fit uses what the controller holds when the slice's block is reconciled: every
 //! doublet's kept samples, the lower slices' reconciled bits, and this slice's disclosed
 //! sample (the robot's published bits). A symbol is almost never known whole then (its
-//! higher slices are not reconciled yet), so `Q̂` is the EM fit over the patterns each
+//! higher slices are not reconciled yet), so `Q̂` and ρ̂ are the EM fit over the patterns each
 //! doublet's known bits leave open (`pattern_fit`), every kept doublet of the block in it.
 
 use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::KeptDoublet;
 
 use super::block::{doublet_samples, own_view};
-use super::pattern_fit::{PartlyKnown, open_pattern_motion_noise, turned};
+use super::block_llrs::world_llr_model;
+use super::pattern_fit::{PartlyKnown, open_pattern_fit, turned};
 use crate::Config;
 use crate::config::LlrModel;
 use crate::private::likelihood::staged_llrs;
-use crate::private::{
-    DoubletModel, DoubletSamples, Perturbation, doublet_model, doublet_model_with,
-};
-use crate::world::WorldModel;
+use crate::private::{DoubletModel, DoubletSamples, Perturbation, doublet_model};
 
 /// One session of a slice's block as the controller holds it.
 #[derive(Clone, Copy, Debug)]
@@ -79,12 +78,12 @@ pub fn recomputed_slice_llrs(
     let prior = doublet_model(config);
     let model_of: Box<dyn Fn(&DoubletSamples) -> DoubletModel> = match basis {
         LlrModel::World => {
-            let world = doublet_model_with(config, WorldModel::of(config).process_std);
+            let world = world_llr_model(config);
             Box::new(move |_| world)
         }
         _ => {
-            let q = open_pattern_motion_noise(config, &prior, &doublets, "the slice")?;
-            Box::new(move |d| turned(&prior, &q, d))
+            let fit = open_pattern_fit(config, &prior, &doublets, "the slice")?;
+            Box::new(move |d| turned(&prior, &fit, d))
         }
     };
     let mut llrs = Vec::with_capacity(doublets.len() * key_bits / m);

@@ -1,20 +1,32 @@
 //! The true-noise likelihood of a doublet's bits given what one party observed
 //! (docs/private-sensing.md, "Decisions").
 //!
-//! Model: `x(k+1) = f(x(k), u(k)) + w(k)`, `w ~ N(0, Q)` with `Q` the true motion noise, and
+//! Model: `x(k+1) = f(x(k), u(k)) + w(k)`, `w ~ N(0, Q)` with `Q` the true motion noise,
+//! AR(1)-correlated between steps at `ρ` (`Cov(wᵢ, wₖ) = ρ^|i−k|·Q`; white at `ρ = 0`), and
 //! observations `y = x + η`, `η ~ N(0, R)` of the party's sensor. For each bit pattern `h`
 //! the means `m₁(h), m₂(h)` of `x(2j+1), x(2j+2)` are propagated exactly (the Euler map, from
 //! the start estimate, so the residual a bit leaves through a turn is in them); the
 //! covariance is propagated through the Jacobians `Aᵢ = ∂f/∂x` of each pattern's path:
-//! `C₁₁ = A₀P₀A₀ᵀ + Q`, `C₁₂ = C₁₁A₁ᵀ`, `C₂₂ = A₁C₁₁A₁ᵀ + Q`. Never the observer's design
-//! covariances.
+//! `C₁₁ = A₀P₀A₀ᵀ + Q`, `C₁₂ = C₁₁A₁ᵀ + ρQ`, `C₂₂ = A₁C₁₁A₁ᵀ + Q + ρ(A₁Q + QA₁ᵀ)`. Never the
+//! observer's design covariances.
+//!
+//! **The start and the steps' correlation.** The start estimate's error `x(Lj) − ŷ` (covariance
+//! `P₀`) is taken as uncorrelated with every step's noise: the view's start is a sample (or
+//! samples fused), whose error is sensor noise, and the likelihood conditions on it alone, the
+//! pose itself diffuse beyond it. The previous step's noise `w(Lj−1)`, which correlates with
+//! `w(Lj)` by `ρQ`, is in `x(Lj)`, not in the estimate's error, so `w(Lj)` enters marginally,
+//! `N(0, Q)`: what the previous doublet's samples say of it is left out (a marginal likelihood,
+//! valid, not the sharpest). With `Sₖ = Cov(δₖ, wₖ)` the pose error's correlation with the next
+//! step's noise (`S₀ = 0`), `Sₖ₊₁ = ρ(AₖSₖ + Q)`, and
+//! `Cₖ₊₁,ₖ₊₁ = AₖCₖₖAₖᵀ + Q + AₖSₖ + SₖᵀAₖᵀ`, `Cᵢₖ = Cᵢ,ₖ₋₁Aₖ₋₁ᵀ + ρ^(k−1−i)·Sᵢ` (`i < k`).
 //!
 //! A three-step doublet (`private.prior_lag`) adds `x(3j+3)`: the steps' offsets are
 //! `(+1, −(1 + a), +a)·s·Δ`, so under the model the bit's signature in the samples is
 //! `E[y(3j+1) − x̄] ≈ s·T·Δ`, `E[y(3j+2) − x̄] ≈ −a·s·T·Δ` and `E[y(3j+3) − x̄] ≈ 0` on a
 //! straight segment (`x̄` the nominal path; the turn's residual is in the exact means), with
-//! `C₃₃ = A₂C₂₂A₂ᵀ + Q`, `C₂₃ = C₂₂A₂ᵀ`, `C₁₃ = C₁₂A₂ᵀ`: the same Gaussian likelihood over
-//! the observed poses among the three.
+//! `C₃₃`, `C₂₃`, `C₁₃` by the same recursion (`C₃₃ = A₂C₂₂A₂ᵀ + Q`, `C₂₃ = C₂₂A₂ᵀ`,
+//! `C₁₃ = C₁₂A₂ᵀ` when white): the same Gaussian likelihood over the observed poses among the
+//! three.
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{
@@ -28,13 +40,13 @@ use super::doublet::{CommandRounding, DoubletInputs, MAX_BITS, Perturbation};
 use crate::config::Config;
 use crate::model::{Pose, Unicycle};
 
-/// The true-noise doublet model of `config`: its parties' motion noise.
+/// The true-noise doublet model of `config`: its parties' motion noise, white.
 #[must_use]
 pub fn doublet_model(config: &Config) -> DoubletModel {
     doublet_model_with(config, config.noise.process_std)
 }
 
-/// `config`'s doublet model with motion noise `process_std` (m, m, rad per step): the
+/// `config`'s doublet model with white motion noise `process_std` (m, m, rad per step): the
 /// world's, for an eavesdropper who knows it.
 #[must_use]
 pub fn doublet_model_with(config: &Config, process_std: [f64; 3]) -> DoubletModel {
@@ -42,6 +54,7 @@ pub fn doublet_model_with(config: &Config, process_std: [f64; 3]) -> DoubletMode
     DoubletModel {
         sample_time: config.robot.sample_time,
         process_covariance: Matrix3::from_diagonal(&q.into()),
+        correlation: 0.0,
         perturbation: Perturbation::of(config),
         lag: config.private.prior_lag,
         rounding: CommandRounding::new(config.robot.drive(), config.robot.command_quantum),
@@ -148,6 +161,10 @@ pub struct DoubletModel {
     pub sample_time: f64,
     /// Motion noise covariance `Q` per step.
     pub process_covariance: Matrix3<f64>,
+    /// ρ: the motion noise's lag-one correlation between steps, `Cov(wᵢ, wₖ) = ρ^|i−k|·Q`
+    /// (AR(1); the module's doc). 0, white, for the parties' prior and every eavesdropper's
+    /// model; the controller's LLRs recomputed at block time fit it.
+    pub correlation: f64,
     /// The bits and their Δ.
     pub perturbation: Perturbation,
     /// The first-order actuator lag τ (s) a three-step doublet's means assume: the parties'
@@ -298,6 +315,65 @@ pub(crate) fn state_jacobian(theta: f64, speed: f64, sample_time: f64) -> Matrix
     )
 }
 
+/// The covariances of the poses after each of a doublet's `N` steps (the module's doc): from
+/// a start of covariance `P₀` uncorrelated with the steps' noise, through the steps'
+/// Jacobians `Aₖ`, under motion noise `Cov(wᵢ, wₖ) = ρ^|i−k|·Q`. At `ρ = 0` the white
+/// recursion `Cₖ₊₁,ₖ₊₁ = AₖCₖₖAₖᵀ + Q`, `Cᵢₖ = Cᵢᵢ·(Aₖ₋₁ ⋯ Aᵢ)ᵀ`, term for term.
+struct PathCovariance<const N: usize> {
+    /// `Aₖ`, step `k`'s Jacobian.
+    jacobians: [Matrix3<f64>; N],
+    /// The pose after step `k`'s covariance `Cₖ₊₁,ₖ₊₁`.
+    diagonal: [Matrix3<f64>; N],
+    /// The pose after step `k`'s covariance with step `k + 1`'s noise, `Sₖ₊₁`.
+    carried: [Matrix3<f64>; N],
+    /// ρ.
+    correlation: f64,
+}
+
+impl<const N: usize> PathCovariance<N> {
+    fn new(
+        start: &Matrix3<f64>,
+        jacobians: [Matrix3<f64>; N],
+        q: &Matrix3<f64>,
+        correlation: f64,
+    ) -> Self {
+        let mut diagonal = [Matrix3::zeros(); N];
+        let mut carried = [Matrix3::zeros(); N];
+        let (mut previous, mut s) = (*start, Matrix3::zeros());
+        for (k, a) in jacobians.iter().enumerate() {
+            diagonal[k] = a * previous * a.transpose() + q;
+            if correlation != 0.0 {
+                let a_s = a * s;
+                diagonal[k] += a_s + a_s.transpose();
+                s = correlation * (a_s + q);
+                carried[k] = s;
+            }
+            previous = diagonal[k];
+        }
+        Self {
+            jacobians,
+            diagonal,
+            carried,
+            correlation,
+        }
+    }
+
+    /// The covariance of the poses after steps `i` and `k`.
+    fn block(&self, i: usize, k: usize) -> Matrix3<f64> {
+        if i > k {
+            return self.block(k, i).transpose();
+        }
+        (i + 1..=k).fold(self.diagonal[i], |c, step| {
+            let c = c * self.jacobians[step].transpose();
+            if self.correlation == 0.0 {
+                c
+            } else {
+                c + self.correlation.powi((step - i - 1) as i32) * self.carried[i]
+            }
+        })
+    }
+}
+
 /// One pattern's predicted observations: the residuals' mean and covariance, stacked over
 /// the observed poses.
 #[allow(
@@ -331,12 +407,16 @@ impl DoubletModel {
         let [a, b, _] = inputs.applied_steps(offsets);
         let start = &view.start;
         let [m1, m2, _] = inputs.propagate_steps(&start.value, offsets, 2, t);
-        let a0 = state_jacobian(start.value.z, a.x, t);
-        let a1 = state_jacobian(m1.z, b.x, t);
-        let q = &self.process_covariance;
-        let c11 = a0 * start.covariance * a0.transpose() + q;
-        let c12 = c11 * a1.transpose();
-        let c22 = a1 * c11 * a1.transpose() + q;
+        let path = PathCovariance::new(
+            &start.covariance,
+            [
+                state_jacobian(start.value.z, a.x, t),
+                state_jacobian(m1.z, b.x, t),
+            ],
+            &self.process_covariance,
+            self.correlation,
+        );
+        let (c11, c12, c22) = (path.block(0, 0), path.block(0, 1), path.block(1, 1));
         match (&view.middle, &view.end) {
             (Some(y1), Some(y2)) => {
                 let mut covariance = Matrix6::zeros();
@@ -371,8 +451,7 @@ impl DoubletModel {
     /// `x(3j+1), x(3j+2), x(3j+3)` by the Euler map with the steps' mean offsets through the
     /// model's lag ([`Perturbation::mean_offsets`]) plus, when the view knows the wheels'
     /// speed at the start, the nominal inputs' own transient through it
-    /// ([`DoubletInputs::nominal_transient`]), and
-    /// `Cᵢᵢ = Aᵢ₋₁Cᵢ₋₁,ᵢ₋₁Aᵢ₋₁ᵀ + Q` (`C₀₀ = P₀`), `Cᵢₖ = Cᵢᵢ·(Aₖ₋₁ ⋯ Aᵢ)ᵀ` for `i < k`,
+    /// ([`DoubletInputs::nominal_transient`]), and their covariances `Cᵢₖ` (`PathCovariance`),
     /// stacked over the observed poses with their covariance `R` added.
     fn predict_three(
         &self,
@@ -382,17 +461,12 @@ impl DoubletModel {
     ) -> Prediction {
         let start = &view.start;
         let (means, jacobians) = self.three_step_path(inputs, view, pattern);
-        let q = &self.process_covariance;
-        let mut diagonal = [Matrix3::zeros(); 3];
-        let mut previous = start.covariance;
-        for (i, a) in jacobians.iter().enumerate() {
-            diagonal[i] = a * previous * a.transpose() + q;
-            previous = diagonal[i];
-        }
-        // Cᵢₖ for i ≤ k: Cᵢᵢ times the transposed Jacobians of the steps between.
-        let cross = |i: usize, k: usize| {
-            (i + 1..=k).fold(diagonal[i], |c, step| c * jacobians[step].transpose())
-        };
+        let path = PathCovariance::new(
+            &start.covariance,
+            jacobians,
+            &self.process_covariance,
+            self.correlation,
+        );
         let observed = view.three_step_observed();
         if observed.is_empty() {
             return Prediction::None;
@@ -404,10 +478,10 @@ impl DoubletModel {
             mean.fixed_rows_mut::<3>(3 * row)
                 .copy_from(&(y.value - means[i]));
             for (col, &(k, _)) in observed.iter().enumerate() {
-                let block = match i.cmp(&k) {
-                    std::cmp::Ordering::Less => cross(i, k),
-                    std::cmp::Ordering::Greater => cross(k, i).transpose(),
-                    std::cmp::Ordering::Equal => diagonal[i] + y.covariance,
+                let block = if i == k {
+                    path.block(i, i) + y.covariance
+                } else {
+                    path.block(i, k)
                 };
                 covariance
                     .fixed_view_mut::<3, 3>(3 * row, 3 * col)
@@ -704,6 +778,7 @@ mod tests {
         let model = DoubletModel {
             sample_time: T,
             process_covariance: Matrix3::from_diagonal_element(1e-6),
+            correlation: 0.0,
             perturbation: Perturbation::binary(Unicycle::new(0.035, 0.0), 1, settle_share(T, tau)),
             lag: tau,
             rounding: None,
@@ -752,10 +827,148 @@ mod tests {
         }
     }
 
+    /// The brute-force Gaussian of a doublet's stacked poses: `x = Φ·(δ₀, w₀, …, w_{L−1})`
+    /// with `δ₀ ~ N(0, P₀)` and the steps' noise `Cov(wᵢ, wₖ) = ρ^|i−k|·Q`, independent of
+    /// `δ₀` (row block `p`, the pose after step `p`: `Aₚ⋯A₀` on `δ₀`, `Aₚ⋯Aᵢ₊₁` on `wᵢ`,
+    /// `i ≤ p`), plus the observations' `R`: `−½(rᵀS⁻¹r + ln det S)` of the residual `r`.
+    fn stacked_log_density(
+        model: &DoubletModel,
+        view: &DoubletView,
+        means: &[Pose],
+        jacobians: &[Matrix3<f64>],
+    ) -> f64 {
+        let steps = jacobians.len();
+        let mut noise = DMatrix::<f64>::zeros(3 * (steps + 1), 3 * (steps + 1));
+        noise
+            .view_mut((0, 0), (3, 3))
+            .copy_from(&view.start.covariance);
+        for i in 0..steps {
+            for k in 0..steps {
+                let c = model.correlation.powi(i.abs_diff(k) as i32);
+                noise
+                    .view_mut((3 + 3 * i, 3 + 3 * k), (3, 3))
+                    .copy_from(&(model.process_covariance * c));
+            }
+        }
+        let mut map = DMatrix::<f64>::zeros(3 * steps, 3 * (steps + 1));
+        for p in 0..steps {
+            // Aₚ⋯Aᵢ₊₁ for i = p, p − 1, …, 0, then Aₚ⋯A₀.
+            let mut product = Matrix3::identity();
+            for i in (0..=p).rev() {
+                map.view_mut((3 * p, 3 + 3 * i), (3, 3)).copy_from(&product);
+                product *= jacobians[i];
+            }
+            map.view_mut((3 * p, 0), (3, 3)).copy_from(&product);
+        }
+        let observed: Vec<(usize, &PoseObservation)> = if steps == 3 {
+            view.three_step_observed()
+        } else {
+            [(0, view.middle.as_ref()), (1, view.end.as_ref())]
+                .into_iter()
+                .filter_map(|(i, y)| y.map(|y| (i, y)))
+                .collect()
+        };
+        let full = &map * noise * map.transpose();
+        let n = 3 * observed.len();
+        let (mut covariance, mut residual) = (DMatrix::zeros(n, n), DVector::zeros(n));
+        for (row, &(p, y)) in observed.iter().enumerate() {
+            residual
+                .rows_mut(3 * row, 3)
+                .copy_from(&(y.value - means[p]));
+            for (col, &(k, _)) in observed.iter().enumerate() {
+                covariance
+                    .view_mut((3 * row, 3 * col), (3, 3))
+                    .copy_from(&full.view((3 * p, 3 * k), (3, 3)));
+            }
+            let mut diagonal = covariance.view_mut((3 * row, 3 * row), (3, 3));
+            diagonal += y.covariance;
+        }
+        let factor = Cholesky::new(covariance).expect("positive definite");
+        -0.5 * (factor.solve(&residual).dot(&residual) + factor.ln_determinant())
+    }
+
+    /// Under correlated motion noise every pattern's log-likelihood is the brute-force
+    /// Gaussian of the stacked poses ([`stacked_log_density`]), on two- and three-step
+    /// doublets of two bits on a turning segment, with a `Q` whose axes correlate, at
+    /// ρ = 0, −0.4, 0.5 and 0.9, every pose observed and the middle alone: to 10⁻⁹ of the
+    /// log-likelihood's scale.
+    #[test]
+    fn the_correlated_likelihood_is_the_stacked_gaussian() {
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.11, 0.4),
+            second: Unicycle::new(0.09, 0.3),
+        };
+        let q = Matrix3::new(
+            16e-6, 2e-6, 1e-6, //
+            2e-6, 9e-6, -1e-6, //
+            1e-6, -1e-6, 25e-6,
+        );
+        let observed = |x: f64, y: f64, z: f64| {
+            Some(PoseObservation::new(Pose::new(x, y, z), [5e-4, 7e-4, 2e-3]))
+        };
+        for lag in [0.0, 0.05] {
+            for rho in [0.0, -0.4, 0.5, 0.9] {
+                let model = DoubletModel {
+                    sample_time: T,
+                    process_covariance: q,
+                    correlation: rho,
+                    perturbation: Perturbation::binary(
+                        Unicycle::new(0.035, 0.035),
+                        2,
+                        settle_share(T, lag),
+                    ),
+                    lag,
+                    rounding: None,
+                };
+                let three = lag > 0.0;
+                let start = Pose::new(0.3, -0.1, 0.4);
+                let full = DoubletView {
+                    start: PoseObservation::new(start, [6e-4, 5e-4, 1e-3]),
+                    middle: observed(0.32, -0.09, 0.47),
+                    late: three.then(|| observed(0.335, -0.082, 0.53)).flatten(),
+                    end: observed(0.351, -0.07, 0.6),
+                    entry: None,
+                };
+                let middle_only = DoubletView {
+                    late: None,
+                    end: None,
+                    ..full
+                };
+                for view in [full, middle_only] {
+                    let ll = model.log_likelihoods(&inputs, &view);
+                    let patterns = model.perturbation.patterns();
+                    for (h, &got) in ll.iter().enumerate().take(patterns) {
+                        let (means, jacobians) = if three {
+                            let (m, a) = model.three_step_path(&inputs, &view, h);
+                            (m.to_vec(), a.to_vec())
+                        } else {
+                            let offsets = model.step_offsets(&inputs, Some(h));
+                            let [a, b, _] = inputs.applied_steps(offsets);
+                            let [m1, m2, _] = inputs.propagate_steps(&start, offsets, 2, T);
+                            (
+                                vec![m1, m2],
+                                vec![
+                                    state_jacobian(start.z, a.x, T),
+                                    state_jacobian(m1.z, b.x, T),
+                                ],
+                            )
+                        };
+                        let expected = stacked_log_density(&model, &view, &means, &jacobians);
+                        assert!(
+                            (got - expected).abs() <= 1e-9 * expected.abs().max(1.0),
+                            "lag {lag} ρ {rho} pattern {h}: {got} vs {expected}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     fn multilevel_model(levels: u8, dimensions: u8, labeling: Labeling) -> DoubletModel {
         DoubletModel {
             sample_time: T,
             process_covariance: Matrix3::from_diagonal_element(1e-10),
+            correlation: 0.0,
             perturbation: Perturbation {
                 delta: Unicycle::new(0.035, 0.035),
                 bits_per_doublet: dimensions,
