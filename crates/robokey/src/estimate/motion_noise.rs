@@ -28,9 +28,11 @@
 //!
 //! **Per-wheel slip, sized.** Where the block measures slip (`slip`, its interval above 0 at
 //! level ε_est), the estimate is made again with ε_est split in three: the correlation's
-//! interval and the Wishart bound at ε_est/3 each, the slip's interval `[σ²_lo, σ²_hi]` at
-//! ε_est/3. The residuals' covariance is then `𝓛ᵢ(Q) + Nᵢ + σ²Mᵢ`, so the region is
-//! `𝓛̄(Q) ⪰ Σ_low − N̄ − σ²M̄` (`M̄` the mean slip map), jointly with σ² in its interval:
+//! interval and the Wishart bound at ε_est/3 each (the bound's two sides, `c₊` and `c₋`, at
+//! ε_est/6 each), the slip's interval `[σ²_lo, σ²_hi]` at ε_est/3. The residuals' covariance
+//! is then `𝓛ᵢ(Q) + Nᵢ + σ²Mᵢ`, so the region is `Σ_high − N̄ − σ²M̄ ⪰ 𝓛̄(Q) ⪰ Σ_low − N̄ −
+//! σ²M̄` (`M̄` the mean slip map; the upper side bounds Eve's view too), jointly with σ² in
+//! its interval:
 //! the vertex `Q_low(σ²)` falls as σ² rises, while the slip's own part of Eve's view rises —
 //! not one-sided, so the corners are computed at [`SLIP_GRID`] points of σ²'s interval
 //! ([`SlipCorners`]) and Eve's view is sized at each (`worst_case`). The residuals' spread
