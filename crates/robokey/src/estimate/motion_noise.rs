@@ -503,7 +503,8 @@ fn region_estimate(
     let solve = |m: Matrix3<f64>, rho: f64| solve_motion(residuals, &sensor_mean, m, rho);
     // The Wishart bound on each parity half at ε_est/2 (the other half of ε_est is the
     // correlation's interval), its count divided by `deflation`; where slip is sized, its
-    // two sides (`Q_low` and `Q_high`, both bounding Eve's view) at ε_est/4 each.
+    // two sides (`Q_low` and `Q_high`, both bounding Eve's view) at a quarter of `epsilon`
+    // each.
     let wishart_level = if slip_epsilon.is_some() {
         epsilon / 4.0
     } else {
@@ -741,7 +742,7 @@ pub(crate) fn loewner_below_both(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<
 
 /// A matrix above both `a` and `b` in the Loewner order: `b + [a − b]₊`, with `[M]₊` the
 /// positive part of `M` — `Q_high(ρ)` over a cell, as [`loewner_below_both`] bounds `Q_low`.
-pub(crate) fn loewner_above_both(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<f64> {
+fn loewner_above_both(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<f64> {
     -loewner_below_both(&-a, &-b)
 }
 
