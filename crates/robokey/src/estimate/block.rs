@@ -40,8 +40,8 @@ use super::lag::{MIN_LAG_DOUBLETS, estimate_lag_jointly, first_step_share};
 use super::motion_noise::{Corner, SlipCorners};
 use super::normal_tail::normal_upper_quantile;
 use super::worst_case::{
-    MAX_PUBLISHED_SEPARATION, slip_pairs, three_step_steps, three_step_worst_case,
-    whole_interval_corner,
+    MAX_PUBLISHED_SEPARATION, below_the_region, slip_pairs, three_step_steps,
+    three_step_worst_case, whole_interval_corner,
 };
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
@@ -786,22 +786,14 @@ fn sized_report(
     }
 }
 
-/// The shares λ of the region's corner `Q_c` at which each slip doublet's view is tried
-/// (docs/estimation.md, "Per-wheel slip"). Every member `Q` of the region at one point of
-/// σ² lies above the corner and above 0 in the Loewner order, so above each convex
-/// combination: `Q − λQ_c = λ(Q − Q_c) + (1 − λ)Q ⪰ 0` for λ in [0, 1] (with the step
-/// weights: `λ·(P₊ ⊗ C_least − P₋ ⊗ C_greatest)` lies below the steps' covariance `Q ⊗ C(ρ)`
-/// as the corner's own view and 0 do). Each share's view therefore bounds what every member
-/// shows her; the corner's heading entry, below 0 under slip, is what a share below 1 blunts.
-const VERTEX_SHARES: [f64; 6] = [0.0, 0.125, 0.25, 0.5, 0.75, 1.0];
-
 /// A block whose estimate measured per-wheel slip (its `points` of the slip's interval,
 /// `estimate.slip_corners`), sized with
 /// each bit's view through the pair of Gaussians of its two values, each with its own
 /// covariance (docs/estimation.md, "Per-wheel slip"): at each point of the slip's interval
 /// the corner below the whole correlation interval (every cell's `Q_cell` and step weights
 /// at once, [`whole_interval_corner`]), each bit's pairs ([`slip_pairs`]) at whichever of
-/// the corner's shares (`VERTEX_SHARES`) tells her least about the doublet, the bound of
+/// the matrices below the region ([`below_the_region`]: shares of the corner, raised by
+/// the region's upper bound) tells her least about the doublet, the bound of
 /// [`paired_smooth_min_entropy`] with `disclosed` bits removed; the least over the points,
 /// published as the smallest Gaussian separation whose bound is no larger
 /// ([`gaussian_separation_within`]). Every bit's entry is that separation. Three-step
@@ -838,23 +830,14 @@ fn size_slip_block(
             continue; // a known world's one point, repeated
         }
         let corner = whole_interval_corner(&point.corners);
-        // Every member Q of the region lies above the corner and above 0, hence above each
-        // share λ of the corner (`VERTEX_SHARES`): each doublet is sized at whichever of
-        // those views leaves her less (the corner's heading entry, below 0 where the slip's
-        // uncertain share swamps a small Q along the heading, can leave her covariance near
-        // singular or without a bound at the corner itself).
-        // A corner above 0 lies above each of its shares: alone, it is the bluntest.
-        let shares: &[f64] = if corner.motion.symmetric_eigenvalues().min() >= 0.0 {
-            &[1.0]
-        } else {
-            &VERTEX_SHARES
-        };
-        let views: Vec<Corner> = shares
-            .iter()
-            .map(|&share| Corner {
-                motion: corner.motion * share,
-                ..corner
-            })
+        // Every member Q of the region lies above the corner and above 0, and below its
+        // upper bound, hence above each of `below_the_region`'s matrices: each doublet is
+        // sized at whichever of those views leaves her less (the corner's heading entry,
+        // below 0 where the slip's uncertain share swamps a small Q along the heading, can
+        // leave her covariance near singular or without a bound at the corner itself).
+        let views: Vec<Corner> = below_the_region(&corner.motion, point.upper.as_ref())
+            .into_iter()
+            .map(|motion| Corner { motion, ..corner })
             .collect();
         let mut paired: Vec<PairedBit> = Vec::with_capacity(bits);
         for b in sessions.iter().flat_map(|session| session.iter()) {
@@ -1204,7 +1187,7 @@ mod tests {
                 motion: corner_motion,
                 step_weights: weights_of(cell),
             };
-            let shares: Vec<Vec<PairedBit>> = VERTEX_SHARES
+            let shares: Vec<Vec<PairedBit>> = crate::estimate::worst_case::VERTEX_SHARES
                 .iter()
                 .filter_map(|&share| {
                     let view_at = Corner {

@@ -28,9 +28,11 @@
 //!
 //! **Per-wheel slip, sized.** Where the block measures slip (`slip`, its interval above 0 at
 //! level ε_est), the estimate is made again with ε_est split in three: the correlation's
-//! interval and the Wishart bound at ε_est/3 each, the slip's interval `[σ²_lo, σ²_hi]` at
-//! ε_est/3. The residuals' covariance is then `𝓛ᵢ(Q) + Nᵢ + σ²Mᵢ`, so the region is
-//! `𝓛̄(Q) ⪰ Σ_low − N̄ − σ²M̄` (`M̄` the mean slip map), jointly with σ² in its interval:
+//! interval and the Wishart bound at ε_est/3 each (the bound's two sides, `c₊` and `c₋`, at
+//! ε_est/6 each), the slip's interval `[σ²_lo, σ²_hi]` at ε_est/3. The residuals' covariance
+//! is then `𝓛ᵢ(Q) + Nᵢ + σ²Mᵢ`, so the region is `Σ_high − N̄ − σ²M̄ ⪰ 𝓛̄(Q) ⪰ Σ_low − N̄ −
+//! σ²M̄` (`M̄` the mean slip map; the upper side bounds Eve's view too), jointly with σ² in
+//! its interval:
 //! the vertex `Q_low(σ²)` falls as σ² rises, while the slip's own part of Eve's view rises —
 //! not one-sided, so the corners are computed at [`SLIP_GRID`] points of σ²'s interval
 //! ([`SlipCorners`]) and Eve's view is sized at each (`worst_case`). The residuals' spread
@@ -118,6 +120,10 @@ pub struct SlipCorners {
     /// The corners with `σ²M̄` subtracted: `Q_low(ρ, σ²) = 𝓛̄_ρ⁻¹(Σ_low − N̄ − σ²M̄)` over each
     /// cell of the correlation's interval.
     pub corners: [Corner; CORRELATION_CELLS],
+    /// A matrix above `Q_high(ρ, σ²) = 𝓛̄_ρ⁻¹(Σ_high − N̄ − σ²M̄)` at every ρ of the
+    /// correlation's interval (robot frame; m², m², rad²): every member of the region at σ²
+    /// lies below it. None where the Wishart count is too small for an upper side.
+    pub upper: Option<Matrix3<f64>>,
 }
 
 /// Why a block's motion noise could not be bounded: the class does not cover its data.
@@ -267,7 +273,12 @@ fn mean_motion_operator(residuals: &[DoubletResidual], rho: f64) -> Matrix6<f64>
 /// `(1 ± √(3/m) ± √(2 ln(2/ε)/m))²`: the Wishart eigenvalue bounds for `m` independent
 /// residuals (an effective count when they are not).
 fn wishart_factor(m: f64, epsilon: f64, sign: f64) -> f64 {
-    (1.0 + sign * ((3.0 / m).sqrt() + (2.0 * (2.0 / epsilon).ln() / m).sqrt())).powi(2)
+    (1.0 + sign * wishart_deviation(m, epsilon)).powi(2)
+}
+
+/// `√(3/m) + √(2 ln(2/ε)/m)`: how far the Wishart bounds' roots lie from 1.
+fn wishart_deviation(m: f64, epsilon: f64) -> f64 {
+    (3.0 / m).sqrt() + (2.0 * (2.0 / epsilon).ln() / m).sqrt()
 }
 
 fn second_moment<'a>(residuals: impl Iterator<Item = &'a DoubletResidual>) -> Moment {
@@ -417,13 +428,20 @@ fn region_estimate(
     let n = residuals.len() as f64;
     let solve = |m: Matrix3<f64>, rho: f64| solve_motion(residuals, &sensor_mean, m, rho);
     // The Wishart bound on each parity half at ε_est/2 (the other half of ε_est is the
-    // correlation's interval), its count divided by `deflation`.
+    // correlation's interval), its count divided by `deflation`; where slip is sized, its
+    // two sides (`Q_low` and `Q_high`, both bounding Eve's view) at a quarter of `epsilon`
+    // each.
+    let wishart_level = if slip_epsilon.is_some() {
+        epsilon / 4.0
+    } else {
+        epsilon / 2.0
+    };
     let weighted = |factor: f64, deflation: f64| -> Matrix3<f64> {
         halves
             .iter()
             .map(|(m, s)| {
                 let effective = *m as f64 / deflation;
-                s * (*m as f64 / n) * wishart_factor(effective, epsilon / 2.0, factor).recip()
+                s * (*m as f64 / n) * wishart_factor(effective, wishart_level, factor).recip()
             })
             .sum()
     };
@@ -502,21 +520,36 @@ fn region_estimate(
         heterogeneity_deflation(residuals, |r| fitted(r, &s))
     });
     let low_moment = weighted(1.0, deflation * spread);
-    let vertices_at = |variance: f64| {
-        let slip_mean: Matrix3<f64> = residuals
+    let slip_mean = |variance: f64| -> Matrix3<f64> {
+        residuals
             .iter()
             .map(|r| r.slip_part(variance))
             .sum::<Matrix3<f64>>()
-            / n;
+            / n
+    };
+    let vertices_at = |variance: f64| {
+        let moment = low_moment - slip_mean(variance);
         cells
             .iter()
-            .map(|&[a, b]| {
-                Ok([
-                    solve(low_moment - slip_mean, a)?,
-                    solve(low_moment - slip_mean, b)?,
-                ])
-            })
+            .map(|&[a, b]| Ok([solve(moment, a)?, solve(moment, b)?]))
             .collect::<Result<Vec<[Matrix3<f64>; 2]>, EstimationRefusal>>()
+    };
+    // `Q_high(ρ, σ²)` above every cell's ends (as `Q_low` below them); none where the
+    // Wishart bound's lower side has no room (its factor's root at or below 0).
+    let upper_at = |variance: f64| -> Result<Option<Matrix3<f64>>, EstimationRefusal> {
+        let room = halves
+            .iter()
+            .all(|(m, _)| wishart_deviation(*m as f64 / (deflation * spread), wishart_level) < 1.0);
+        if !room {
+            return Ok(None);
+        }
+        let moment = weighted(-1.0, deflation * spread) - slip_mean(variance);
+        let mut ends = cells.iter().flat_map(|&[a, b]| [a, b]);
+        let first = solve(moment, ends.next().unwrap_or(rho_lo))?;
+        ends.try_fold(first, |above, rho| {
+            Ok(loewner_above_both(&above, &solve(moment, rho)?))
+        })
+        .map(Some)
     };
     let corners_of = |vertices: &[[Matrix3<f64>; 2]]| -> [Corner; CORRELATION_CELLS] {
         std::array::from_fn(|i| Corner {
@@ -545,6 +578,7 @@ fn region_estimate(
                     Ok(SlipCorners {
                         variance,
                         corners: corners_of(&vertices_at(variance)?),
+                        upper: upper_at(variance)?,
                     })
                 })
                 .collect::<Result<Vec<SlipCorners>, EstimationRefusal>>()?;
@@ -632,6 +666,12 @@ pub(crate) fn loewner_below_both(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<
     b + eigen.eigenvectors * Matrix3::from_diagonal(&negative) * eigen.eigenvectors.transpose()
 }
 
+/// A matrix above both `a` and `b` in the Loewner order: `b + [a − b]₊`, with `[M]₊` the
+/// positive part of `M` — `Q_high(ρ)` over a cell, as [`loewner_below_both`] bounds `Q_low`.
+fn loewner_above_both(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<f64> {
+    -loewner_below_both(&-a, &-b)
+}
+
 /// `[α, β]` below (`[0]`) and above (`[1]`) the two steps' conditional covariance for every
 /// ρ in `[ρ_a, ρ_b]`.
 ///
@@ -703,6 +743,7 @@ impl MotionNoiseEstimate {
                 [SlipCorners {
                     variance: slip_variance,
                     corners: known.corners,
+                    upper: Some(q),
                 }; SLIP_GRID],
             ),
             ..known

@@ -631,6 +631,79 @@ fn corner_predictions(
     Some((0..model.perturbation.patterns()).map(predict).collect())
 }
 
+/// The shares λ of the region's corner at which each slip doublet's view is tried
+/// ([`below_the_region`]; docs/estimation.md, "Per-wheel slip").
+pub const VERTEX_SHARES: [f64; 6] = [0.0, 0.125, 0.25, 0.5, 0.75, 1.0];
+
+/// Matrices below every member of the region `{Q ⪰ 0, Q ⪰ Q_c, Q ⪯ U}` in the Loewner order
+/// (robot frame; m², m², rad²), `Q_c` its `corner`, `U` its `upper` bound where one is
+/// known: Eve's view at any of them is at least as sharp as at every member. `Q_c` alone
+/// where it lies above 0 (then above each of the others); otherwise one per share λ of
+/// [`VERTEX_SHARES`],
+///
+/// `L(λ) = θ(λ)·P₊ − λ·P₋`,  `θ(λ) = λ(1 + μ)/(μ + λ)`,
+///
+/// `P₊ − P₋ = Q_c` its positive and negative parts, `μ ≥ 0` the least with
+/// `VᵀUV ⪯ (1 + μ)·A₊` (`A₊` the corner's positive eigenvalues on their eigenvectors `V`):
+/// how far the upper bound lies above the corner's positive part, relatively. θ(λ) ≥ λ, so
+/// each `L(λ)` lies above the share `λ·Q_c` and gives her the blunter view. Without an upper
+/// bound (or where `Q_c` has other than two positive eigenvalues and one negative) μ is
+/// infinite and `L(λ) = λ·Q_c`, the shares: `Q − λQ_c = λ(Q − Q_c) + (1 − λ)Q ⪰ 0`.
+///
+/// Proof (`−c` the negative eigenvalue, `n` its eigenvector, `z = λc`; in `Q_c`'s eigenbasis
+/// a member is `Q = [[Q_uu, q], [qᵀ, y]]`, `X = Q_uu − A₊`): `Q − L ⪰ 0` iff
+/// `X + (1 − θ)A₊ ⪰ qqᵀ/(y + z)`. The region gives `X ⪰ qqᵀ/(y + c)` (`Q ⪰ Q_c`),
+/// `X + A₊ ⪰ qqᵀ/y` (`Q ⪰ 0`) and `μA₊ − X ⪰ 0` (`Q_uu ⪯ VᵀUV`). Where `y ≥ μc`,
+/// `X + (1 − θ)A₊ = αX + ((1 − θ)/μ)(μA₊ − X) ⪰ α·qqᵀ/(y + c)` with `α = (1 + μ − θ)/μ`, and
+/// `α(y + z) ≥ y + c` there; where `y ≤ μc`, `X + (1 − θ)A₊ = θX + (1 − θ)(X + A₊) ⪰
+/// (θ/(y + c) + (1 − θ)/y)·qqᵀ`, at least `qqᵀ/(y + z)` iff `y(θc − z) ≤ (1 − θ)cz`, i.e.
+/// `y ≤ μc` (μ = 0: `X = 0`, so `q = 0`). The cases meet at `y = μc`, where a member on both
+/// boundaries makes the bound tight. With the step weights, `L₊ ⊗ C_least − L₋ ⊗ C_greatest`
+/// lies below `Q ⊗ C(ρ)` as the corner's own does.
+#[must_use]
+pub fn below_the_region(corner: &Matrix3<f64>, upper: Option<&Matrix3<f64>>) -> Vec<Matrix3<f64>> {
+    let eigen = SymmetricEigen::new(*corner);
+    if eigen.eigenvalues.min() >= 0.0 {
+        return vec![*corner];
+    }
+    let part = |sign: f64| {
+        let kept = eigen.eigenvalues.map(|x| (sign * x).max(0.0));
+        eigen.eigenvectors * Matrix3::from_diagonal(&kept) * eigen.eigenvectors.transpose()
+    };
+    let (positive, negative) = (part(1.0), part(-1.0));
+    let excess = upper.and_then(|u| upper_excess(&eigen, u));
+    VERTEX_SHARES
+        .iter()
+        .map(|&share| raised_share(share, excess) * positive - share * negative)
+        .collect()
+}
+
+/// θ(λ) of [`below_the_region`] for `share` λ and the upper bound's `excess` μ (λ itself
+/// without one).
+fn raised_share(share: f64, excess: Option<f64>) -> f64 {
+    match excess {
+        Some(mu) if share > 0.0 => share * (1.0 + mu) / (mu + share),
+        _ => share,
+    }
+}
+
+/// μ of [`below_the_region`]: the largest eigenvalue of `A₊^(−½)·VᵀUV·A₊^(−½)` less
+/// 1, at least 0; none unless the corner (its `eigen` decomposition) has two positive
+/// eigenvalues and one negative.
+fn upper_excess(eigen: &SymmetricEigen<f64, nalgebra::U3>, upper: &Matrix3<f64>) -> Option<f64> {
+    let positive: Vec<usize> = (0..3).filter(|&k| eigen.eigenvalues[k] > 0.0).collect();
+    if positive.len() != 2 {
+        return None;
+    }
+    let scaled = nalgebra::Matrix3x2::from_fn(|r, c| {
+        let k = positive[c];
+        eigen.eigenvectors[(r, k)] / eigen.eigenvalues[k].sqrt()
+    });
+    let relative = scaled.transpose() * upper * scaled;
+    let largest = SymmetricEigen::new(relative).eigenvalues.max();
+    largest.is_finite().then(|| (largest - 1.0).max(0.0))
+}
+
 /// Each key bit's view of the doublet under per-wheel slip of variance `slip_variance` (σ²)
 /// at `corner`, on wheels `axle` D (m) apart: for each value of the doublet's other bits
 /// (given to Eve, as `separations_by` takes them), the pair of her Gaussian views of the
@@ -1170,5 +1243,225 @@ mod tests {
             at(0.5),
             at(0.9)
         );
+    }
+
+    /// The raised shares lie below every member of the bounded region, tightly. Corners as
+    /// slip leaves them at 4 mm (`Q_c` = diag(12, 12.5, −26)·10⁻⁶ and the same turned into a
+    /// seeded random frame, so that along-track, lateral and heading mix), with an upper bound
+    /// `U` whose positive block lies `(1 + μ)`, μ = 0.8, above the corner's: a loose `U` (its
+    /// heading 5c) and a tight one, `U = Q* + diag(0, μb, 10⁻⁹)` with `Q*` the member on both
+    /// of the proof's boundaries (`Q₁₁ = a(1 + μ)`, `Q₃₃ = μc`, its along-track and heading
+    /// noise perfectly correlated). μ is recovered from `U`; each matrix lies above its share
+    /// `λQ_c`; each of the seeded members `Q ⪰ 0`, `Q ⪰ Q_c`, `Q ⪯ U` (minimal ones
+    /// `Q_c + xxᵀ` and ones `U − GGᵀ`, kept where they are members) lies above every matrix
+    /// to 10⁻¹⁸ m², while some lie not above a matrix with θ taken from a μ of half the
+    /// true one; and at `Q*` θ raised by 10⁻³ of itself fails on each share strictly between
+    /// 0 and 1 (the bound cannot be raised). Without `U` the matrices are the shares; a
+    /// corner above 0 is its own one matrix.
+    #[test]
+    fn every_raised_share_lies_below_the_members_of_the_bounded_region() {
+        use nalgebra::Rotation3;
+        let (a, b, c, mu) = (12e-6, 12.5e-6, 26e-6, 0.8_f64);
+        let least = |m: Matrix3<f64>| SymmetricEigen::new(m).eigenvalues.min();
+        let mut rng = stream(43, Purpose::Public, 0);
+        let axis = Vector3::from_fn(|_, _| rng.random_range(-1.0..1.0));
+        let s = (a * (1.0 + mu) * mu * c).sqrt();
+        let tight_member = Matrix3::new(a * (1.0 + mu), 0.0, s, 0.0, b, 0.0, s, 0.0, mu * c);
+        let mut over_claimed = 0;
+        for frame in [
+            Matrix3::identity(),
+            *Rotation3::from_scaled_axis(axis).matrix(),
+        ] {
+            let turn = |m: Matrix3<f64>| frame * m * frame.transpose();
+            let corner = turn(Matrix3::from_diagonal(&Vector3::new(a, b, -c)));
+            let n = frame * Vector3::z();
+            let positive = corner + c * n * n.transpose();
+            let loose = turn(Matrix3::from_diagonal(&Vector3::new(
+                a * (1.0 + mu),
+                b * (1.0 + mu),
+                5.0 * c,
+            )));
+            let tight =
+                turn(tight_member + Matrix3::from_diagonal(&Vector3::new(0.0, mu * b, 1e-9)));
+            let shares: Vec<Matrix3<f64>> = VERTEX_SHARES.iter().map(|&l| l * corner).collect();
+            let plain = below_the_region(&corner, None);
+            assert!(
+                plain
+                    .iter()
+                    .zip(&shares)
+                    .all(|(l, share)| (l - share).abs().max() < 1e-18),
+                "{plain:?}"
+            );
+            let eigen = SymmetricEigen::new(corner);
+            let recovered = upper_excess(&eigen, &loose).unwrap();
+            assert!((recovered - mu).abs() < 1e-9, "μ {recovered}");
+            // What a μ of half the true one would claim: no bound.
+            let over: Vec<Matrix3<f64>> = VERTEX_SHARES
+                .iter()
+                .map(|&l| raised_share(l, Some(mu / 2.0)) * positive - l * c * n * n.transpose())
+                .collect();
+            for upper in [loose, tight] {
+                let bounds = below_the_region(&corner, Some(&upper));
+                for (l, share) in bounds.iter().zip(&shares) {
+                    assert!(least(l - share) >= -1e-18, "{l} below its share {share}");
+                }
+                let mut members = Vec::new();
+                for trial in 0..4000 {
+                    let candidate = if trial % 2 == 0 {
+                        let [t1, t2] =
+                            [a, b].map(|x| (mu * x).sqrt() * rng.random_range(-1.2..1.2));
+                        let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                        let t3 = sign * (c * (1.0 + t1 * t1 / a + t2 * t2 / b)).sqrt();
+                        let x = frame * Vector3::new(t1, t2, t3);
+                        corner + x * x.transpose()
+                    } else {
+                        let g = Matrix3::from_fn(|_, _| rng.random_range(-1.0..1.0))
+                            * (10f64.powf(rng.random_range(-4.0..0.2)) * a).sqrt();
+                        upper - g * g.transpose()
+                    };
+                    if least(candidate) >= -1e-18
+                        && least(candidate - corner) >= -1e-18
+                        && least(upper - candidate) >= -1e-18
+                    {
+                        members.push(candidate);
+                    }
+                }
+                if upper == tight {
+                    members.push(turn(tight_member));
+                }
+                // The tight region is thin (`U − Q*` is 0 along-track): `Q*` and a few.
+                let wanted = if upper == tight { 1 } else { 200 };
+                assert!(members.len() > wanted, "{} members", members.len());
+                for member in &members {
+                    for l in &bounds {
+                        assert!(least(member - l) >= -1e-18, "{member} not above {l}");
+                    }
+                    over_claimed += over.iter().filter(|l| least(member - *l) < -1e-12).count();
+                }
+                if upper == tight {
+                    for (l, &share) in bounds.iter().zip(&VERTEX_SHARES) {
+                        let raised = (l + share * c * n * n.transpose()) * 1.001
+                            - share * c * n * n.transpose();
+                        let at_tight = least(turn(tight_member) - raised);
+                        if share > 0.0 && share < 1.0 {
+                            assert!(at_tight < -1e-12, "λ {share}: {at_tight}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(over_claimed > 0, "no member below the over-raised shares");
+        let above = Matrix3::from_diagonal(&Vector3::new(a, b, c));
+        assert_eq!(below_the_region(&above, Some(&above)), vec![above]);
+    }
+
+    /// What Eve sees at each raised share bounds what every member of the bounded region
+    /// shows her, with the slip's bit-dependent covariance: on a turning doublet of two bits
+    /// at σ² = 2.85·10⁻³, white and over a correlation cell [0.3, 0.5], 60 seeded members of
+    /// `{Q ⪰ 0, Q ⪰ Q_c, Q ⪯ U}` (`Q_c` = diag(12, 12.5, −26)·10⁻⁶, `U` = diag(21.6, 22.5,
+    /// 130)·10⁻⁶, ρ anywhere in the cell) give her on every bit no larger moment
+    /// `E[e^(−λS)]` (λ = ¼, ½, 1; each bit's least exponent over its pairs) than each raised
+    /// share's view, to 10⁻⁹ of it; and the raised shares' bluntest view tells her less than
+    /// the plain shares' (a larger Bhattacharyya exponent summed over the bits).
+    #[test]
+    fn the_raised_shares_bound_what_the_members_show_her() {
+        use super::super::motion_noise::tests::weights_of;
+        let mut config = Config::default();
+        config.protocol.bits_per_doublet = 2;
+        config.sensing.mode = crate::config::SensingMode::Private;
+        let model = doublet_model(&config);
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.08, 0.3),
+            second: Unicycle::new(0.08, 0.25),
+        };
+        let view = stated_camera_view(
+            vec![
+                Pose::new(0.0, 0.0, 0.8),
+                Pose::new(0.011, 0.012, 0.86),
+                Pose::new(0.021, 0.025, 0.91),
+            ],
+            config.sensing.controller_std,
+            config.eve.camera_std,
+        );
+        let (slip, axle) = (2.85e-3, config.robot.axle_length);
+        let (a, b, c) = (12e-6, 12.5e-6, 26e-6);
+        let corner_motion = Matrix3::from_diagonal(&Vector3::new(a, b, -c));
+        let upper = Matrix3::from_diagonal(&Vector3::new(1.8 * a, 1.8 * b, 5.0 * c));
+        let least = |m: Matrix3<f64>| SymmetricEigen::new(m).eigenvalues.min();
+        let exponents = |bits: &[PairedBit], lambda: f64| -> Vec<f64> {
+            bits.iter()
+                .map(|bit| {
+                    bit.iter()
+                        .map(|pair| -pair.ln_moment(lambda))
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .collect()
+        };
+        let sum = |bits: &[PairedBit]| exponents(bits, 0.5).iter().sum::<f64>();
+        let mut rng = stream(47, Purpose::Public, 0);
+        for cell in [[0.0, 0.0], [0.3, 0.5]] {
+            let corner = Corner {
+                correlation: cell,
+                motion: corner_motion,
+                step_weights: weights_of(cell),
+            };
+            let pairs_at = |motion: Matrix3<f64>| {
+                slip_pairs(
+                    &model,
+                    &Corner { motion, ..corner },
+                    slip,
+                    axle,
+                    &inputs,
+                    &view,
+                )
+            };
+            let raised: Vec<Vec<PairedBit>> = below_the_region(&corner_motion, Some(&upper))
+                .into_iter()
+                .filter_map(pairs_at)
+                .collect();
+            let plain: Vec<Vec<PairedBit>> = below_the_region(&corner_motion, None)
+                .into_iter()
+                .filter_map(pairs_at)
+                .collect();
+            let bluntest =
+                |views: &[Vec<PairedBit>]| views.iter().map(|v| sum(v)).fold(f64::MIN, f64::max);
+            assert!(
+                bluntest(&raised) > bluntest(&plain),
+                "{} ≤ {}",
+                bluntest(&raised),
+                bluntest(&plain)
+            );
+            let mut members = 0;
+            while members < 60 {
+                let [t1, t2] = [a, b].map(|x| (0.8 * x).sqrt() * rng.random_range(-1.0..1.0));
+                let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                let t3 = sign * (c * (1.0 + t1 * t1 / a + t2 * t2 / b)).sqrt();
+                let x = Vector3::new(t1, t2, t3);
+                let g = Matrix3::from_fn(|_, _| rng.random_range(-0.3..0.3)) * a.sqrt();
+                let motion = corner_motion + x * x.transpose() + g * g.transpose();
+                if least(upper - motion) < 0.0 {
+                    continue;
+                }
+                members += 1;
+                let rho = rng.random_range(cell[0]..=cell[1]);
+                let member = Corner {
+                    correlation: [rho, rho],
+                    motion,
+                    step_weights: weights_of([rho, rho]),
+                };
+                let seen = slip_pairs(&model, &member, slip, axle, &inputs, &view).unwrap();
+                for lambda in [0.25, 0.5, 1.0] {
+                    let truth = exponents(&seen, lambda);
+                    for bound in &raised {
+                        for (d, t) in exponents(bound, lambda).iter().zip(&truth) {
+                            assert!(
+                                *d <= t + 1e-9 * t.abs(),
+                                "cell {cell:?} λ {lambda}: bound {d} above the member's {t}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 }
