@@ -202,10 +202,19 @@ fn private(args: &EveArgs, config: &Config) -> Result<()> {
             f.eve_information[1],
             f.eve_information[2],
             f.eve_information_predicted,
-            if f.eve_calibration.passed {
-                "yes"
-            } else {
-                "NO"
+            match (f.eve_calibration.passed, f.eve_calibration.worst_bin) {
+                (true, _) => "yes".to_string(),
+                (false, Some(bin)) => format!(
+                    "NO ({} errors where {:.1} predicted in the worst bin, {})",
+                    bin.observed,
+                    bin.predicted,
+                    if bin.under_confident() {
+                        "under-confident: she learns more than her model says"
+                    } else {
+                        "over-confident"
+                    }
+                ),
+                (false, None) => "NO".to_string(),
             },
         );
     }

@@ -37,12 +37,24 @@ fn interval(x: &[f64; 3]) -> String {
     format!("{:.5} [{:.5}, {:.5}]", x[0], x[1], x[2])
 }
 
+/// "pass (worst p …)", or on a failure which way the worst bin fails: its errors against
+/// the LLRs' prediction.
 fn calibrated(c: &Calibration) -> String {
-    format!(
-        "{} (worst p {:.3})",
-        if c.passed { "pass" } else { "**FAIL**" },
-        c.worst_p
-    )
+    match (c.passed, c.worst_bin) {
+        (true, _) => format!("pass (worst p {:.3})", c.worst_p),
+        (false, Some(bin)) => format!(
+            "**FAIL** (worst p {:.3}: {} errors where {:.1} predicted, {})",
+            c.worst_p,
+            bin.observed,
+            bin.predicted,
+            if bin.under_confident() {
+                "under-confident"
+            } else {
+                "over-confident"
+            }
+        ),
+        (false, None) => format!("**FAIL** (worst p {:.3})", c.worst_p),
+    }
 }
 
 /// The markdown section: one summary row per (point, adversary), then each row's
@@ -78,7 +90,10 @@ pub fn private_markdown(rows: &[PrivateRow]) -> String {
          posterior (95 % normal interval); predicted is the mean of I(d) over the model's \
          separations d of the same bits. Error rates: 95 % Clopper–Pearson intervals. \
          Calibration: 10 equal-count bins, exact Poisson-binomial tails, family-wise \
-         α = 10⁻³. See docs/private-sensing.md.\n",
+         α = 10⁻³; a failure names its worst bin's errors against the prediction: \
+         under-confident LLRs (fewer errors) are conservative for the controller and, \
+         for an eavesdropper, understate what she learns; over-confident ones the \
+         reverse. See docs/private-sensing.md.\n",
     );
     for row in rows {
         md.push_str(&format!(
@@ -424,4 +439,35 @@ pub fn write_map(
         )?);
     }
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::secrecy::private::BinErrors;
+
+    #[test]
+    fn a_failure_is_rendered_with_its_worst_bin_and_direction() {
+        let mut c = Calibration {
+            bits: 2_000,
+            passed: false,
+            worst_p: 1e-9,
+            worst_bin: Some(BinErrors {
+                observed: 1,
+                predicted: 60.64,
+            }),
+        };
+        assert_eq!(
+            calibrated(&c),
+            "**FAIL** (worst p 0.000: 1 errors where 60.6 predicted, under-confident)"
+        );
+        c.worst_bin = Some(BinErrors {
+            observed: 90,
+            predicted: 60.0,
+        });
+        assert!(calibrated(&c).ends_with("over-confident)"));
+        c.passed = true;
+        c.worst_p = 0.147;
+        assert_eq!(calibrated(&c), "pass (worst p 0.147)");
+    }
 }

@@ -28,6 +28,29 @@ pub struct Calibration {
     /// The smallest per-bin p-value (NaN when the test could not run).
     #[serde(deserialize_with = "crate::reals::nan_if_null")]
     pub worst_p: f64,
+    /// The errors of the bin with that p-value against its prediction (`None` when the test
+    /// could not run, or in a folder written before it was recorded).
+    #[serde(default)]
+    pub worst_bin: Option<BinErrors>,
+}
+
+/// One calibration bin's errors: what occurred against `Σ qᵢ`, what the LLRs predicted.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BinErrors {
+    /// Errors that occurred.
+    pub observed: u64,
+    /// Errors the LLRs predicted, `Σ 1/(1 + e^|Lᵢ|)`.
+    pub predicted: f64,
+}
+
+impl BinErrors {
+    /// Fewer errors than predicted: the LLRs are timid (under-confident). For the controller
+    /// that is conservative (a longer syndrome); for an eavesdropper it would understate
+    /// what she learns.
+    #[must_use]
+    pub fn under_confident(&self) -> bool {
+        (self.observed as f64) < self.predicted
+    }
 }
 
 /// The adversary's information on the bits of one turn-rate bin.
@@ -140,11 +163,16 @@ fn calibration(bits: &[&DoubletBit], llr: impl Fn(&DoubletBit) -> f64) -> Calibr
         })
         .collect();
     let report = check_calibration(&pairs, 10, 1e-3).ok();
+    let worst = report
+        .as_ref()
+        .and_then(|r| r.bins.iter().min_by(|a, b| a.p_value.total_cmp(&b.p_value)));
     Calibration {
         bits: pairs.len() as u64,
         passed: report.as_ref().is_some_and(|r| r.passed),
-        worst_p: report.map_or(f64::NAN, |r| {
-            r.bins.iter().map(|b| b.p_value).fold(1.0, f64::min)
+        worst_p: worst.map_or(f64::NAN, |b| b.p_value.min(1.0)),
+        worst_bin: worst.map(|b| BinErrors {
+            observed: b.observed_errors,
+            predicted: b.predicted_errors,
         }),
     }
 }
@@ -323,4 +351,51 @@ pub fn eavesdroppers(
         .iter()
         .map(|&s| Ok((s, figures(config, &runs, s, &off)?)))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robokey::private::BitKind;
+
+    fn bit(bit: u8, controller: f64) -> DoubletBit {
+        DoubletBit {
+            step: 0,
+            kind: BitKind::V,
+            bit,
+            turn_rate: 0.0,
+            controller,
+            camera: 0.0,
+            commands: None,
+            camera_separation: 0.0,
+            assumed_separation: 0.0,
+            commands_separation: None,
+        }
+    }
+
+    /// LLRs of magnitude 2 (q = 0.119 each) that are never wrong fail the test as
+    /// under-confident, naming the worst bin's errors against its prediction; the same
+    /// magnitudes wrong half the time fail as over-confident; wrong at q's rate, they pass.
+    #[test]
+    fn a_failed_calibration_names_its_worst_bin_and_direction() {
+        let q = 1.0 / (1.0 + 2f64.exp());
+        let check = |wrong_every: usize| {
+            let bits: Vec<DoubletBit> = (0..2_000)
+                .map(|i| {
+                    let wrong = wrong_every > 0 && i % wrong_every == 0;
+                    bit(u8::from(wrong), 2.0)
+                })
+                .collect();
+            calibration(&bits.iter().collect::<Vec<_>>(), |b| b.controller)
+        };
+        let timid = check(0);
+        let worst = timid.worst_bin.unwrap();
+        assert!(!timid.passed && worst.under_confident());
+        assert_eq!(worst.observed, 0);
+        assert!((worst.predicted - 200.0 * q).abs() < 1e-9, "{worst:?}");
+        let bold = check(2);
+        assert!(!bold.passed && !bold.worst_bin.unwrap().under_confident());
+        // Every 8th wrong: 25 of 200 per bin against 23.8 predicted.
+        assert!(check(8).passed);
+    }
 }
