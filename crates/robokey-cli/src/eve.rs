@@ -205,13 +205,11 @@ fn private(args: &EveArgs, config: &Config) -> Result<()> {
             match (f.eve_calibration.passed, f.eve_calibration.worst_bin) {
                 (true, _) => "yes".to_string(),
                 (false, Some(bin)) => format!(
-                    "NO ({} errors where {:.1} predicted in the worst bin, {})",
-                    bin.observed,
-                    bin.predicted,
+                    "NO (worst bin: {bin}{})",
                     if bin.under_confident() {
-                        "under-confident: she learns more than her model says"
+                        ": she learns more than her model says"
                     } else {
-                        "over-confident"
+                        ""
                     }
                 ),
                 (false, None) => "NO".to_string(),

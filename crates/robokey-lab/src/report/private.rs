@@ -42,17 +42,7 @@ fn interval(x: &[f64; 3]) -> String {
 fn calibrated(c: &Calibration) -> String {
     match (c.passed, c.worst_bin) {
         (true, _) => format!("pass (worst p {:.3})", c.worst_p),
-        (false, Some(bin)) => format!(
-            "**FAIL** (worst p {:.3}: {} errors where {:.1} predicted, {})",
-            c.worst_p,
-            bin.observed,
-            bin.predicted,
-            if bin.under_confident() {
-                "under-confident"
-            } else {
-                "over-confident"
-            }
-        ),
+        (false, Some(bin)) => format!("**FAIL** (worst p {:.3}: {bin})", c.worst_p),
         (false, None) => format!("**FAIL** (worst p {:.3})", c.worst_p),
     }
 }
@@ -459,7 +449,7 @@ mod tests {
         };
         assert_eq!(
             calibrated(&c),
-            "**FAIL** (worst p 0.000: 1 errors where 60.6 predicted, under-confident)"
+            "**FAIL** (worst p 0.000: 1 error where 60.6 predicted, under-confident)"
         );
         c.worst_bin = Some(BinErrors {
             observed: 90,

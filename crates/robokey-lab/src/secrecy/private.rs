@@ -53,6 +53,24 @@ impl BinErrors {
     }
 }
 
+impl std::fmt::Display for BinErrors {
+    /// "1 error where 42.6 predicted, under-confident".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} error{} where {:.1} predicted, {}-confident",
+            self.observed,
+            if self.observed == 1 { "" } else { "s" },
+            self.predicted,
+            if self.under_confident() {
+                "under"
+            } else {
+                "over"
+            }
+        )
+    }
+}
+
 /// The adversary's information on the bits of one turn-rate bin.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TurnBin {
