@@ -1309,15 +1309,18 @@ mod tests {
         let all: Vec<usize> = (0..replicates as usize).collect();
         let stop = Interrupt::new();
         let kept = Some(bank.kept_sessions());
-        run_experiment(
-            &experiment,
-            std::path::Path::new(""),
-            &all,
-            &stop,
-            &|| {},
-            kept,
-        )
-        .unwrap();
+        let sweep = || {
+            run_experiment(
+                &experiment,
+                std::path::Path::new(""),
+                &all,
+                &stop,
+                &|| {},
+                kept,
+            )
+            .unwrap();
+        };
+        sweep();
         let (config, judged) = private_setting(&experiment, 0, &options.adversaries);
         let swept = bank.kept_sessions().take(&config, judged);
         assert_eq!(swept.len(), replicates as usize);
@@ -1343,15 +1346,7 @@ mod tests {
             assert!(a.private == b.private, "the private runs differ");
         }
         // Filed under another judgement, they are not this secrecy's sessions.
-        run_experiment(
-            &experiment,
-            std::path::Path::new(""),
-            &all,
-            &stop,
-            &|| {},
-            kept,
-        )
-        .unwrap();
+        sweep();
         assert!(
             bank.kept_sessions()
                 .take(&config, Eavesdroppers::Both)

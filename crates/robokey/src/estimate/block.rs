@@ -1148,38 +1148,14 @@ mod tests {
     fn every_share_of_the_corner_bounds_the_members_of_the_region() {
         use crate::estimate::motion_noise::tests::weights_of;
         use crate::estimate::worst_case::slip_pairs;
+        use crate::estimate::worst_case::tests::{exponents, turning_two_bit_doublet};
         use crate::rng::{Purpose, stream};
         use nalgebra::{Matrix3, Vector3};
         use rand::RngExt;
-        let mut config = Config::default();
-        config.protocol.bits_per_doublet = 2;
-        config.sensing.mode = crate::config::SensingMode::Private;
-        let model = doublet_model(&config);
-        let inputs = crate::private::DoubletInputs {
-            first: Unicycle::new(0.08, 0.3),
-            second: Unicycle::new(0.08, 0.25),
-        };
-        let view = stated_camera_view(
-            vec![
-                Pose::new(0.0, 0.0, 0.8),
-                Pose::new(0.011, 0.012, 0.86),
-                Pose::new(0.021, 0.025, 0.91),
-            ],
-            config.sensing.controller_std,
-            config.eve.camera_std,
-        );
+        let (config, model, inputs, view) = turning_two_bit_doublet();
         let (slip, axle) = (2.85e-3, config.robot.axle_length);
         let [a1, a2, c] = [12e-6, 12.5e-6, 26e-6];
         let corner_motion = Matrix3::from_diagonal(&Vector3::new(a1, a2, -c));
-        let exponents = |bits: &[PairedBit], lambda: f64| -> Vec<f64> {
-            bits.iter()
-                .map(|bit| {
-                    bit.iter()
-                        .map(|pair| -pair.ln_moment(lambda))
-                        .fold(f64::INFINITY, f64::min)
-                })
-                .collect()
-        };
         let mut rng = stream(41, Purpose::Process, 0);
         for cell in [[0.0, 0.0], [0.3, 0.5]] {
             let corner = Corner {

@@ -27,14 +27,11 @@
 use robokey_secrecy::postprocess::{LlrAnswer, LlrRequest, RecomputedLlrs};
 
 use super::block::{doublet_samples, own_view};
-use super::pattern_fit::{MotionFit, PartlyKnown, open_pattern_fit, turned};
+use super::pattern_fit::{MotionFit, PartlyKnown, open_pattern_fit, turned, world_llr_model};
 use super::slice_llrs::{SliceSession, recomputed_slice_llrs};
 use crate::Config;
 use crate::config::LlrModel;
-use crate::private::{
-    DoubletModel, DoubletSamples, Perturbation, doublet_model, doublet_model_with,
-};
-use crate::world::WorldModel;
+use crate::private::{DoubletModel, DoubletSamples, Perturbation, doublet_model};
 
 /// The LLRs of `request`'s block (one per raw bit, in block order) recomputed with `basis`
 /// under the parties' `config`.
@@ -139,21 +136,10 @@ pub fn recomputed_llrs(
 
 /// The motion noise the LLRs are recomputed with.
 enum Motion {
-    /// The world's own doublet model ([`world_llr_model`]).
+    /// The world's own doublet model (`world_llr_model`).
     World(DoubletModel),
     /// `Q̂` in the robot's frame, turned to each doublet's start heading, and ρ̂.
     Fitted(MotionFit),
-}
-
-/// The doublet model of LLRs recomputed with the world's own motion noise (`"world"`, an
-/// oracle): its `Q` (world frame) and its correlation between steps; the parties' lag and
-/// rounding.
-pub(crate) fn world_llr_model(config: &Config) -> DoubletModel {
-    let world = WorldModel::of(config);
-    DoubletModel {
-        correlation: world.process_rho,
-        ..doublet_model_with(config, world.process_std)
-    }
 }
 
 /// One doublet's key bits' LLRs under `model`, from the controller's own samples (stated

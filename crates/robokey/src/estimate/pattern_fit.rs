@@ -36,7 +36,8 @@ use super::diagonal_covariance;
 use super::motion_noise::{EstimationRefusal, MIN_DOUBLETS_PER_PARITY};
 use super::residual::{DoubletResidual, rotation};
 use crate::Config;
-use crate::private::{DoubletModel, DoubletSamples};
+use crate::private::{DoubletModel, DoubletSamples, doublet_model_with};
+use crate::world::WorldModel;
 
 /// Most EM iterations of a fit.
 pub const EM_ITERATIONS: usize = 50;
@@ -267,6 +268,17 @@ pub(crate) fn turned(prior: &DoubletModel, fit: &MotionFit, d: &DoubletSamples) 
         process_covariance: h * fit.q * h.transpose(),
         correlation: fit.correlation,
         ..*prior
+    }
+}
+
+/// The doublet model of LLRs recomputed with the world's own motion noise (`"world"`, an
+/// oracle): its `Q` (world frame) and its correlation between steps; the parties' lag and
+/// rounding.
+pub(crate) fn world_llr_model(config: &Config) -> DoubletModel {
+    let world = WorldModel::of(config);
+    DoubletModel {
+        correlation: world.process_rho,
+        ..doublet_model_with(config, world.process_std)
     }
 }
 

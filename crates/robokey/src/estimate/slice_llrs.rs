@@ -17,8 +17,7 @@ use robokey_secrecy::BitString;
 use robokey_secrecy::postprocess::KeptDoublet;
 
 use super::block::{doublet_samples, own_view};
-use super::block_llrs::world_llr_model;
-use super::pattern_fit::{PartlyKnown, open_pattern_fit, turned};
+use super::pattern_fit::{PartlyKnown, open_pattern_fit, turned, world_llr_model};
 use crate::Config;
 use crate::config::LlrModel;
 use crate::private::likelihood::staged_llrs;

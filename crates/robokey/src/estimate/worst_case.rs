@@ -744,7 +744,7 @@ pub fn slip_pairs(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::config::Config;
     use crate::model::{Pose, Unicycle};
@@ -753,6 +753,45 @@ mod tests {
     use crate::rng::{Purpose, stream};
     use nalgebra::Vector3;
     use rand::RngExt;
+
+    /// A turning doublet of two bits in private sensing at the default configuration, seen
+    /// by the stated camera: the slip tests' doublet (parties' config, model, inputs, view).
+    pub(crate) fn turning_two_bit_doublet() -> (
+        Config,
+        crate::private::DoubletModel,
+        DoubletInputs,
+        DoubletView,
+    ) {
+        let mut config = Config::default();
+        config.protocol.bits_per_doublet = 2;
+        config.sensing.mode = crate::config::SensingMode::Private;
+        let model = doublet_model(&config);
+        let inputs = DoubletInputs {
+            first: Unicycle::new(0.08, 0.3),
+            second: Unicycle::new(0.08, 0.25),
+        };
+        let view = stated_camera_view(
+            vec![
+                Pose::new(0.0, 0.0, 0.8),
+                Pose::new(0.011, 0.012, 0.86),
+                Pose::new(0.021, 0.025, 0.91),
+            ],
+            config.sensing.controller_std,
+            config.eve.camera_std,
+        );
+        (config, model, inputs, view)
+    }
+
+    /// Each bit's least exponent `−ln E[e^(−λS)]` over its pairs.
+    pub(crate) fn exponents(bits: &[PairedBit], lambda: f64) -> Vec<f64> {
+        bits.iter()
+            .map(|bit| {
+                bit.iter()
+                    .map(|pair| -pair.ln_moment(lambda))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect()
+    }
 
     #[test]
     fn the_published_grid_rounds_up_and_its_charge_counts_its_values() {
@@ -1366,37 +1405,12 @@ mod tests {
     #[test]
     fn the_raised_shares_bound_what_the_members_show_her() {
         use super::super::motion_noise::tests::weights_of;
-        let mut config = Config::default();
-        config.protocol.bits_per_doublet = 2;
-        config.sensing.mode = crate::config::SensingMode::Private;
-        let model = doublet_model(&config);
-        let inputs = DoubletInputs {
-            first: Unicycle::new(0.08, 0.3),
-            second: Unicycle::new(0.08, 0.25),
-        };
-        let view = stated_camera_view(
-            vec![
-                Pose::new(0.0, 0.0, 0.8),
-                Pose::new(0.011, 0.012, 0.86),
-                Pose::new(0.021, 0.025, 0.91),
-            ],
-            config.sensing.controller_std,
-            config.eve.camera_std,
-        );
+        let (config, model, inputs, view) = turning_two_bit_doublet();
         let (slip, axle) = (2.85e-3, config.robot.axle_length);
         let (a, b, c) = (12e-6, 12.5e-6, 26e-6);
         let corner_motion = Matrix3::from_diagonal(&Vector3::new(a, b, -c));
         let upper = Matrix3::from_diagonal(&Vector3::new(1.8 * a, 1.8 * b, 5.0 * c));
         let least = |m: Matrix3<f64>| SymmetricEigen::new(m).eigenvalues.min();
-        let exponents = |bits: &[PairedBit], lambda: f64| -> Vec<f64> {
-            bits.iter()
-                .map(|bit| {
-                    bit.iter()
-                        .map(|pair| -pair.ln_moment(lambda))
-                        .fold(f64::INFINITY, f64::min)
-                })
-                .collect()
-        };
         let sum = |bits: &[PairedBit]| exponents(bits, 0.5).iter().sum::<f64>();
         let mut rng = stream(47, Purpose::Public, 0);
         for cell in [[0.0, 0.0], [0.3, 0.5]] {
