@@ -16,12 +16,12 @@
 //! residuals with the bit's and the nominal inputs' lagged means through τ̂ subtracted
 //! ([`DoubletResidual::three_step`]; the wheels' speed at a doublet's start recomputed from
 //! the previous doublet's nominal inputs and bits through τ̂, so a doublet whose predecessor
-//! was not kept is left out), a check that a first-order lag explains the doublets' ends as well as their middles (the
-//! dead-time test, [`lag_shape_refusal`]), then Q and ρ (at the other 2ε_est/3) from each
-//! doublet's three one-step residuals where the pool kept the sample after the second step
-//! ([`DoubletResidual::three_step_split`]; from its start-to-end residual otherwise), and Eve's
-//! view at the worst case over the corners and every τ of its interval
-//! ([`three_step_worst_case`]).
+//! was not kept is left out), a check that a first-order lag explains the doublets' ends as
+//! well as their middles (the dead-time test, [`lag_shape_refusal`]), then Q and ρ (at the
+//! other 2ε_est/3) from each doublet's three one-step residuals where the pool kept the
+//! sample after the second step ([`DoubletResidual::three_step_split`]; from its start-to-end
+//! residual otherwise), and Eve's view at the worst case over the corners and every τ of its
+//! interval ([`three_step_worst_case`]).
 
 use std::collections::BTreeMap;
 
