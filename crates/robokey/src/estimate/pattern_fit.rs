@@ -3,7 +3,8 @@
 //! use, for a binary block (the doublets its sample discloses a bit of, whole with one bit per
 //! doublet, in part with two) and for a multilevel slice (`slice_llrs`). It fits the motion
 //! noise's covariance `Q̂` and its AR(1) correlation ρ̂ between steps, which the likelihood
-//! then models (`DoubletModel::correlation`).
+//! then models (`DoubletModel::correlation`); beside it, the model the `world` basis
+//! recomputes with instead (`world_llr_model`).
 //!
 //! **Moments.** A doublet's one-step residuals under pattern `h`,
 //! `zₖ = H(θₖ)ᵀ(y(Lj+k+1) − f(y(Lj+k), uₖ(h)))` (robot frame at the step's start sample `θₖ`;
