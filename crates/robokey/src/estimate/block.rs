@@ -1149,7 +1149,7 @@ mod tests {
         use crate::estimate::motion_noise::tests::weights_of;
         use crate::estimate::worst_case::slip_pairs;
         use crate::estimate::worst_case::tests::{
-            assert_blunter, exponents, turning_two_bit_doublet,
+            assert_blunter, exponents, member, turning_two_bit_doublet,
         };
         use crate::rng::{Purpose, stream};
         use nalgebra::{Matrix3, Vector3};
@@ -1212,12 +1212,8 @@ mod tests {
                     "not a member: {min_eigenvalue}"
                 );
                 let rho = rng.random_range(cell[0]..=cell[1]);
-                let member = Corner {
-                    correlation: [rho, rho],
-                    motion,
-                    step_weights: weights_of([rho, rho]),
-                };
-                let seen = slip_pairs(&model, &member, slip, axle, &inputs, &view).unwrap();
+                let seen =
+                    slip_pairs(&model, &member(motion, rho), slip, axle, &inputs, &view).unwrap();
                 for lambda in [0.25, 0.5, 1.0] {
                     let truth = exponents(&seen, lambda);
                     let above = exponents(&positive, lambda);

@@ -793,6 +793,15 @@ pub(crate) mod tests {
             .collect()
     }
 
+    /// A member of a correlation cell: motion noise `motion` at correlation ρ between steps.
+    pub(crate) fn member(motion: Matrix3<f64>, rho: f64) -> Corner {
+        Corner {
+            correlation: [rho, rho],
+            motion,
+            step_weights: crate::estimate::motion_noise::tests::weights_of([rho, rho]),
+        }
+    }
+
     /// Asserts that `bound`'s view tells her no more than the member's exponents `truth`
     /// at λ on any bit (each bound exponent at most the member's, to 10⁻⁹ of it); `case`
     /// names the draw in the message.
@@ -1470,12 +1479,8 @@ pub(crate) mod tests {
                 }
                 members += 1;
                 let rho = rng.random_range(cell[0]..=cell[1]);
-                let member = Corner {
-                    correlation: [rho, rho],
-                    motion,
-                    step_weights: weights_of([rho, rho]),
-                };
-                let seen = slip_pairs(&model, &member, slip, axle, &inputs, &view).unwrap();
+                let seen =
+                    slip_pairs(&model, &member(motion, rho), slip, axle, &inputs, &view).unwrap();
                 for lambda in [0.25, 0.5, 1.0] {
                     let truth = exponents(&seen, lambda);
                     for bound in &raised {
