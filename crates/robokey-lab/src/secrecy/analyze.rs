@@ -7,12 +7,12 @@ use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
 use rayon::prelude::*;
 use robokey::Config;
-use robokey::config::{EveStrategy, SensingMode};
+use robokey::config::{EveConfig, EveStrategy, SensingMode};
 use robokey::estimate::BlockEstimate;
 use robokey::estimate::commands_check::sized_block_refusal;
 use robokey::estimate::kept_doublet;
 use robokey::post_settings::ODOMETRY_ZERO;
-use robokey::private::{DoubletSamples, Eavesdroppers};
+use robokey::private::{DoubletInputs, DoubletSamples, Eavesdroppers, LateSample};
 use robokey::protocol::SessionPlan;
 use robokey::rng::{Purpose, stream};
 use robokey::sim::{RunOutput, overheard, replay, simulate_plan};
@@ -177,27 +177,86 @@ fn listener_key(config: &Config, adversary: EveStrategy) -> String {
     format!("{} {} {start}", adversary.name(), eve.max_flips)
 }
 
-/// What the commands check of a pool depends on besides the point's configuration and ε: the
-/// sessions (indices into the point's runs) and the block's estimate.
-type VerdictKey = (usize, Vec<usize>, Option<BlockEstimate>);
+/// What the commands check of a pool reads: the parties' configuration (the point's
+/// without Eve's settings: `VerdictKey::parties`, the only one the check is given), the
+/// pool's sessions and the block's estimate (ε is the analysis's).
+struct VerdictKey<'a> {
+    /// The parties' configuration, written out in full (`Debug`: every number's bits).
+    parties: String,
+    /// The controller's samples of each session of the pool, in order.
+    sessions: Vec<&'a [DoubletSamples]>,
+    /// The block's estimate.
+    estimate: Option<BlockEstimate>,
+}
+
+impl VerdictKey<'_> {
+    /// `config` without Eve's settings: the commands check is the parties', so it neither
+    /// reads nor is given what Eve does, and points that differ only there (a map over her
+    /// camera) share their verdicts where their sessions agree.
+    fn parties(config: &Config) -> Config {
+        Config {
+            eve: EveConfig::default(),
+            ..config.clone()
+        }
+    }
+
+    /// The same configuration and estimate, and the same sessions bit for bit (a signed
+    /// zero or a NaN's payload tells two samples apart, as the check might).
+    fn same(&self, other: &Self) -> bool {
+        self.parties == other.parties
+            && self.estimate == other.estimate
+            && self.sessions.len() == other.sessions.len()
+            && self.sessions.iter().zip(&other.sessions).all(|(a, b)| {
+                a.len() == b.len() && a.iter().zip(b.iter()).all(|(a, b)| same_samples(a, b))
+            })
+    }
+}
+
+/// Whether two doublets' samples hold the same bits.
+fn same_samples(a: &DoubletSamples, b: &DoubletSamples) -> bool {
+    let numbers = |d: &DoubletSamples| {
+        let DoubletSamples {
+            doublet,
+            inputs: DoubletInputs { first, second },
+            samples,
+            pattern,
+            late,
+        } = *d;
+        let late = late.map(|LateSample { sample, entry }| (sample, entry));
+        let reals = first
+            .iter()
+            .chain(second.iter())
+            .chain(samples.iter().flat_map(|s| s.iter()))
+            .chain(late.iter().flat_map(|(s, e)| s.iter().chain(e.iter())))
+            .map(|v| v.to_bits())
+            .collect::<Vec<u64>>();
+        (doublet, pattern, late.is_some(), reals)
+    };
+    numbers(a) == numbers(b)
+}
 
 /// A verdict (the refusal's reason, if any), set once by whoever computes it first.
 type SharedVerdict = Arc<OnceLock<Option<String>>>;
 
 /// The commands check's verdicts of one analysis, each computed once: the adversaries of a
-/// point pool the same sessions, and the verdict does not depend on who listens. A verdict
-/// being computed is waited for, not computed again.
+/// point pool the same sessions, points that differ in Eve's settings alone often too, and
+/// the verdict does not depend on who listens. A verdict being computed is waited for, not
+/// computed again.
 #[derive(Default)]
-struct CommandVerdicts {
-    verdicts: Mutex<Vec<(VerdictKey, SharedVerdict)>>,
+struct CommandVerdicts<'a> {
+    verdicts: Mutex<Vec<(VerdictKey<'a>, SharedVerdict)>>,
 }
 
-impl CommandVerdicts {
+impl<'a> CommandVerdicts<'a> {
     /// The verdict of `key`, from `check` the first time.
-    fn verdict(&self, key: VerdictKey, check: impl FnOnce() -> Option<String>) -> Option<String> {
+    fn verdict(
+        &self,
+        key: VerdictKey<'a>,
+        check: impl FnOnce() -> Option<String>,
+    ) -> Option<String> {
         let cell = {
             let mut verdicts = self.verdicts.lock().unwrap_or_else(PoisonError::into_inner);
-            match verdicts.iter().find(|(k, _)| *k == key) {
+            match verdicts.iter().find(|(k, _)| k.same(&key)) {
                 Some((_, cell)) => Arc::clone(cell),
                 None => {
                     let cell = Arc::new(OnceLock::new());
@@ -212,14 +271,14 @@ impl CommandVerdicts {
 
 /// Analyzes one point against one adversary, its commands checks' verdicts shared through
 /// `verdicts`.
-fn analyze_point(
+fn analyze_point<'a>(
     experiment: &Experiment,
     point: usize,
     adversary: EveStrategy,
     options: &SecrecyOptions,
-    runs: &[RunOutput],
+    runs: &'a [RunOutput],
     off: &OffRuns,
-    verdicts: &CommandVerdicts,
+    verdicts: &CommandVerdicts<'a>,
 ) -> Result<PointSecrecy, LabError> {
     let config = &experiment.points[point].config;
     let lap_steps = (config.trajectory.waypoints.len().saturating_sub(1) as f64
@@ -396,7 +455,6 @@ fn analyze_point(
             config,
             runs,
             options,
-            point,
             verdicts,
         };
         check.refuse_what_the_commands_reveal(&pools, &mut blocks, slices);
@@ -501,15 +559,14 @@ fn analyze_point(
 }
 
 /// The commands check of one point's sessions.
-struct CommandsCheck<'a> {
-    config: &'a Config,
-    runs: &'a [RunOutput],
-    options: &'a SecrecyOptions,
-    point: usize,
-    verdicts: &'a CommandVerdicts,
+struct CommandsCheck<'c, 's> {
+    config: &'c Config,
+    runs: &'s [RunOutput],
+    options: &'c SecrecyOptions,
+    verdicts: &'c CommandVerdicts<'s>,
 }
 
-impl CommandsCheck<'_> {
+impl CommandsCheck<'_, '_> {
     /// Private sensing: the commands check of each block's bits at the block's ε (a
     /// configured level: the estimation's ε_est where it exists) — a block whose boundary
     /// residuals reveal more than the model predicts keeps no secret bits, and says why. A
@@ -521,6 +578,7 @@ impl CommandsCheck<'_> {
         slices: usize,
     ) {
         let (config, options) = (self.config, self.options);
+        let parties = VerdictKey::parties(config);
         let mut admitted = (0..self.runs.len()).filter(|&i| options.pooling.admits(&self.runs[i]));
         // A pool's slices share its sessions, and so its verdict.
         for (pool, slice_blocks) in pools.iter().zip(blocks.chunks_mut(slices)) {
@@ -531,9 +589,13 @@ impl CommandsCheck<'_> {
                 .filter_map(|&i| self.runs[i].private.as_ref())
                 .map(|p| p.controller_samples.as_slice())
                 .collect();
-            let key = (self.point, taken, estimate.cloned());
+            let key = VerdictKey {
+                parties: format!("{parties:?}"),
+                sessions: sessions.clone(),
+                estimate: estimate.cloned(),
+            };
             let verdict = self.verdicts.verdict(key, || {
-                sized_block_refusal(config, &sessions, options.epsilon, estimate)
+                sized_block_refusal(&parties, &sessions, options.epsilon, estimate)
             });
             let Some(reason) = verdict else {
                 continue;
@@ -754,7 +816,8 @@ pub fn analyze_with(
                     options,
                     &runs[l],
                     &OffRuns::default(),
-                    &verdicts,
+                    // Odometry runs no commands check.
+                    &CommandVerdicts::default(),
                 )
             })
             .collect::<Result<Vec<_>, LabError>>()?;
