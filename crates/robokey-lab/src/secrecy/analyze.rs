@@ -1416,4 +1416,59 @@ mod tests {
                 .is_empty()
         );
     }
+
+    /// The commands check's verdict is computed once for points whose parties'
+    /// configuration, sessions and estimate agree — whatever Eve's settings, and with the
+    /// sessions held apart in memory — and again where the robot's settings differ or one
+    /// sample's bits do (a signed zero); the check is given the configuration without Eve's.
+    /// The verdict key of `sessions` under `config`, without an estimate.
+    fn verdict_key<'s>(config: &Config, sessions: &'s [Vec<DoubletSamples>]) -> VerdictKey<'s> {
+        VerdictKey {
+            parties: format!("{:?}", VerdictKey::parties(config)),
+            sessions: sessions.iter().map(Vec::as_slice).collect(),
+            estimate: None,
+        }
+    }
+
+    #[test]
+    fn a_commands_verdict_is_shared_where_only_eves_settings_differ() {
+        let doublet = |heading: f64| DoubletSamples {
+            doublet: 3,
+            inputs: DoubletInputs {
+                first: robokey::model::Unicycle::new(0.1, 0.2),
+                second: robokey::model::Unicycle::new(0.1, -0.2),
+            },
+            samples: [robokey::model::Pose::new(1.0, 2.0, heading); 3],
+            pattern: 1,
+            late: Some(LateSample {
+                sample: robokey::model::Pose::new(1.0, 2.0, 0.5),
+                entry: robokey::model::Unicycle::new(0.1, 0.0),
+            }),
+        };
+        let sessions = [vec![doublet(0.0), doublet(0.3)], vec![doublet(0.0)]];
+        let apart = sessions.clone();
+        let signed = [vec![doublet(-0.0), doublet(0.3)], vec![doublet(0.0)]];
+        let mut config = Config::default();
+        config.sensing.mode = SensingMode::Private;
+        let mut filmed = config.clone();
+        filmed.eve.camera_std = [0.002; 3];
+        let mut slower = config.clone();
+        slower.robot.sample_time *= 2.0;
+        assert_ne!(filmed, config);
+        assert_eq!(VerdictKey::parties(&filmed), VerdictKey::parties(&config));
+        let verdicts = CommandVerdicts::default();
+        let checks = std::cell::Cell::new(0);
+        let verdict = |key| {
+            verdicts.verdict(key, || {
+                checks.set(checks.get() + 1);
+                Some(format!("check {}", checks.get()))
+            })
+        };
+        let first = verdict(verdict_key(&config, &sessions));
+        assert_eq!(verdict(verdict_key(&filmed, &apart)), first);
+        assert_eq!(checks.get(), 1);
+        assert_ne!(verdict(verdict_key(&slower, &sessions)), first);
+        assert_ne!(verdict(verdict_key(&config, &signed)), first);
+        assert_eq!(checks.get(), 3);
+    }
 }
