@@ -52,6 +52,7 @@ use super::normal_tail::normal_upper_quantile;
 use super::residual::{AXES, DoubletResidual};
 use super::slip::{SlipEstimate, estimate_slip};
 use super::symmetric_coordinates::{coordinates, symmetric};
+use super::wishart::wishart_bounds;
 use crate::world::MAX_SLIP_STD;
 
 /// Least residuals of each parity the bounds are computed from.
@@ -270,17 +271,6 @@ fn mean_motion_operator(residuals: &[DoubletResidual], rho: f64) -> Matrix6<f64>
     operator
 }
 
-/// `(1 ± √(3/m) ± √(2 ln(2/ε)/m))²`: the Wishart eigenvalue bounds for `m` independent
-/// residuals (an effective count when they are not).
-fn wishart_factor(m: f64, epsilon: f64, sign: f64) -> f64 {
-    (1.0 + sign * wishart_deviation(m, epsilon)).powi(2)
-}
-
-/// `√(3/m) + √(2 ln(2/ε)/m)`: how far the Wishart bounds' roots lie from 1.
-fn wishart_deviation(m: f64, epsilon: f64) -> f64 {
-    (3.0 / m).sqrt() + (2.0 * (2.0 / epsilon).ln() / m).sqrt()
-}
-
 fn second_moment<'a>(residuals: impl Iterator<Item = &'a DoubletResidual>) -> Moment {
     let mut count = 0;
     let mut sum = Matrix3::zeros();
@@ -430,25 +420,38 @@ fn region_estimate(
     // The Wishart bound on each parity half at ε_est/2 (the other half of ε_est is the
     // correlation's interval), its count divided by `deflation`; where slip is sized, its
     // two sides (`Q_low` and `Q_high`, both bounding Eve's view) at a quarter of `epsilon`
-    // each.
+    // each. Each half's `[c₋, c₊]` at its level (`wishart_bounds`: each side at half of it).
     let wishart_level = if slip_epsilon.is_some() {
         epsilon / 4.0
     } else {
         epsilon / 2.0
     };
-    let weighted = |factor: f64, deflation: f64| -> Matrix3<f64> {
+    let bounds_at = |deflation: f64| -> [[f64; 2]; 2] {
+        halves.map(|(m, _)| wishart_bounds(m as f64 / deflation, wishart_level))
+    };
+    // `Σ_low` (over `c₊`, side 1) and `Σ_high` (over `c₋`, side 0): the halves' weighted
+    // means; `Σ_high` none where a half's lower side has no room (`c₋ ≤ 0`).
+    let weighted = |bounds: &[[f64; 2]; 2], side: usize| -> Matrix3<f64> {
         halves
             .iter()
-            .map(|(m, s)| {
-                let effective = *m as f64 / deflation;
-                s * (*m as f64 / n) * wishart_factor(effective, wishart_level, factor).recip()
-            })
+            .zip(bounds)
+            .map(|((m, s), c)| s * (*m as f64 / n) / c[side])
             .sum()
+    };
+    let high = |bounds: &[[f64; 2]; 2]| {
+        bounds
+            .iter()
+            .all(|c| c[0] > 0.0)
+            .then(|| weighted(bounds, 0))
     };
     // Residuals quieter than the sensor explains at every (Q ⪰ 0, ρ) of the class: the
     // upper bound at the lowest ρ (where the doublet's steps cancel most) has a negative
-    // eigenvalue. Checked before ρ, which such residuals do not identify.
-    let highest = |rho: f64| solve(weighted(-1.0, 1.0), rho);
+    // eigenvalue. Checked before ρ, which such residuals do not identify; where the counts
+    // leave no upper bound, nothing is refused and `Q_high` is unbounded (infinite entries).
+    let plain = bounds_at(1.0);
+    let highest = |rho: f64| {
+        high(&plain).map_or(Ok(Matrix3::repeat(f64::INFINITY)), |m| solve(m, rho))
+    };
     let eigen = SymmetricEigen::new(highest(LOWEST_CORRELATION)?);
     let (k, &smallest) = eigen
         .eigenvalues
@@ -519,7 +522,8 @@ fn region_estimate(
     let spread = slip.map_or(1.0, |s| {
         heterogeneity_deflation(residuals, |r| fitted(r, &s))
     });
-    let low_moment = weighted(1.0, deflation * spread);
+    let deflated = bounds_at(deflation * spread);
+    let low_moment = weighted(&deflated, 1);
     let slip_mean = |variance: f64| -> Matrix3<f64> {
         residuals
             .iter()
@@ -535,15 +539,12 @@ fn region_estimate(
             .collect::<Result<Vec<[Matrix3<f64>; 2]>, EstimationRefusal>>()
     };
     // `Q_high(ρ, σ²)` above every cell's ends (as `Q_low` below them); none where the
-    // Wishart bound's lower side has no room (its factor's root at or below 0).
+    // Wishart bound's lower side has no room (`c₋ ≤ 0`).
     let upper_at = |variance: f64| -> Result<Option<Matrix3<f64>>, EstimationRefusal> {
-        let room = halves
-            .iter()
-            .all(|(m, _)| wishart_deviation(*m as f64 / (deflation * spread), wishart_level) < 1.0);
-        if !room {
+        let Some(moment) = high(&deflated) else {
             return Ok(None);
-        }
-        let moment = weighted(-1.0, deflation * spread) - slip_mean(variance);
+        };
+        let moment = moment - slip_mean(variance);
         let mut ends = cells.iter().flat_map(|&[a, b]| [a, b]);
         let first = solve(moment, ends.next().unwrap_or(rho_lo))?;
         ends.try_fold(first, |above, rho| {
@@ -1086,7 +1087,7 @@ pub(super) mod tests {
             );
             assert!(refused <= 50, "Q {q_std} ρ {rho}: {refused} of 200 refused");
             if rho == 0.0 {
-                let c = wishart_factor(1_500.0, 0.025, 1.0);
+                let c = wishart_bounds(1_500.0, 0.025)[1];
                 let predicted = ((q + 2.0 * r) / c - 2.0 * r) / q;
                 let error =
                     (2.0 / 3_000_f64).sqrt() * (q + 2.0 * r) / q * (1.0 + 2.0 / 9.0_f64).sqrt();
