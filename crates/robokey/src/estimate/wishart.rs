@@ -45,9 +45,7 @@ pub(super) fn wishart_bounds(m: f64, epsilon: f64) -> [f64; 2] {
         .fold(f64::INFINITY, f64::min);
     let lower = FACE_CUTS
         .iter()
-        .map(|&k| {
-            (lower_quantile(m, ln_side - lines(k)) / m - upper * sin2(k)) / (1.0 - sin2(k))
-        })
+        .map(|&k| (lower_quantile(m, ln_side - lines(k)) / m - upper * sin2(k)) / (1.0 - sin2(k)))
         .fold(f64::NEG_INFINITY, f64::max);
     [lower, upper]
 }
@@ -75,7 +73,9 @@ mod tests {
                     davidson_szarek(m, epsilon, -1.0),
                     davidson_szarek(m, epsilon, 1.0),
                 );
-                eprintln!("m {m} ε {epsilon}: [{lower:.4}, {upper:.4}] against [{ds_lower:.4}, {ds_upper:.4}]");
+                eprintln!(
+                    "m {m} ε {epsilon}: [{lower:.4}, {upper:.4}] against [{ds_lower:.4}, {ds_upper:.4}]"
+                );
                 assert!(upper <= ds_upper, "m {m} ε {epsilon}: {upper} > {ds_upper}");
                 // Davidson–Szarek's lower side is only a bound while its root is positive.
                 if (3.0 / m).sqrt() + (2.0 * (2.0 / epsilon).ln() / m).sqrt() < 1.0 {
@@ -95,7 +95,8 @@ mod tests {
         let (m, epsilon, draws) = (40, 0.02, 20_000);
         let [lower, upper] = wishart_bounds(f64::from(m), epsilon);
         let mut rng = stream(21, Purpose::Process, 0);
-        let mut normal = || <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
+        let mut normal =
+            || <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
         let (mut above, mut below) = (0, 0);
         for _ in 0..draws {
             let mut w = Matrix3::zeros();
