@@ -14,6 +14,7 @@
 
 pub mod block;
 pub mod block_llrs;
+mod chi_square;
 pub mod commands_check;
 pub mod correlation;
 mod half_away;
@@ -27,6 +28,7 @@ pub mod residual;
 pub mod slice_llrs;
 pub mod slip;
 mod symmetric_coordinates;
+mod wishart;
 pub mod worst_case;
 
 pub use block::{

@@ -8,11 +8,12 @@
 //! **Region.** Residuals of doublets of one parity are independent (the MA(1) structure
 //! links neighbours only). For each parity half of `m` residuals, treated as `N(0, Σ̄)` with
 //! `Σ̄` the mean covariance, `Σ̄^(−½)·S_half·Σ̄^(−½)` is a Wishart matrix `W₃(I, m)/m`; its
-//! largest eigenvalue is below `c₊ = (1 + √(3/m) + √(2 ln(2/ε_est)/m))²` and its smallest
-//! above `c₋ = (1 − √(3/m) − √(2 ln(2/ε_est)/m))²`, each except with probability ε_est/2
-//! (Davidson–Szarek: the extreme singular values of a Gaussian m×3 matrix lie within
-//! `√m ± (√3 + t)` except with probability `e^(−t²/2)`). So, except with probability ε_est,
-//! `Σ̄ ⪰ S_half/c₊` for both halves, in the Loewner order — every direction at once. Their
+//! largest eigenvalue is below `c₊` and its smallest above `c₋` (`wishart`: each direction's
+//! exact χ²_m tail over a net of directions, never looser than Davidson–Szarek's
+//! `(1 ± √(3/m) ± √(2 ln(1/ε_side)/m))²`), the upper side except with probability ε_side and
+//! the lower one except with ε_side more; with ε_side = ε_est/4 per half, except with
+//! probability ε_est/2, `Σ̄ ⪰ S_half/c₊` for both halves, in the Loewner order — every
+//! direction at once (`Q_high`, from `c₋`, holds with both sides). Their
 //! weighted mean `Σ_low` is again a lower bound, and with `R` at its stated value
 //! `𝓛̄(Q) ⪰ Σ_low − N̄`. The region is `{Q ⪰ 0 : 𝓛̄(Q) ⪰ Σ_low − N̄}`; its Loewner vertex
 //! `Q_low = 𝓛̄⁻¹(Σ_low − N̄)` lies below every member (𝓛̄ is `2·id` up to the heading's
@@ -29,16 +30,16 @@
 //! **Per-wheel slip, sized.** Where the block measures slip (`slip`, its interval above 0 at
 //! level ε_est), the estimate is made again with ε_est split in three: the correlation's
 //! interval and the Wishart bound at ε_est/3 each (the bound's two sides, `c₊` and `c₋`, at
-//! ε_est/6 each), the slip's interval `[σ²_lo, σ²_hi]` at ε_est/3. The residuals' covariance
-//! is then `𝓛ᵢ(Q) + Nᵢ + σ²Mᵢ`, so the region is `Σ_high − N̄ − σ²M̄ ⪰ 𝓛̄(Q) ⪰ Σ_low − N̄ −
-//! σ²M̄` (`M̄` the mean slip map; the upper side bounds Eve's view too), jointly with σ² in
-//! its interval:
-//! the vertex `Q_low(σ²)` falls as σ² rises, while the slip's own part of Eve's view rises —
+//! ε_est/12 per half each), the slip's interval `[σ²_lo, σ²_hi]` at ε_est/3. The residuals'
+//! covariance is then `𝓛ᵢ(Q) + Nᵢ + σ²Mᵢ`, so the region is
+//! `Σ_high − N̄ − σ²M̄ ⪰ 𝓛̄(Q) ⪰ Σ_low − N̄ − σ²M̄` (`M̄` the mean slip map; the upper side
+//! bounds Eve's view too), jointly with σ² in its interval: the vertex `Q_low(σ²)` falls as σ² rises, while the slip's own part of Eve's view rises —
 //! not one-sided, so the corners are computed at [`SLIP_GRID`] points of σ²'s interval
 //! ([`SlipCorners`]) and Eve's view is sized at each (`worst_case`). The residuals' spread
 //! now differs between doublets (the slip's part follows the wheel speeds): the Wishart count
 //! is deflated by `m·Σv²/(Σv)²` (the largest over the axes, `v` each residual's fitted
-//! variance) and the kurtosis is taken of each residual whitened by its own fitted covariance.
+//! variance; `heterogeneity_deflation`, an approximation) and the kurtosis is taken of each
+//! residual whitened by its own fitted covariance.
 
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
 use thiserror::Error;
@@ -52,6 +53,7 @@ use super::normal_tail::normal_upper_quantile;
 use super::residual::{AXES, DoubletResidual};
 use super::slip::{SlipEstimate, estimate_slip};
 use super::symmetric_coordinates::{coordinates, symmetric};
+use super::wishart::wishart_bounds;
 use crate::world::MAX_SLIP_STD;
 
 /// Least residuals of each parity the bounds are computed from.
@@ -270,17 +272,6 @@ fn mean_motion_operator(residuals: &[DoubletResidual], rho: f64) -> Matrix6<f64>
     operator
 }
 
-/// `(1 ± √(3/m) ± √(2 ln(2/ε)/m))²`: the Wishart eigenvalue bounds for `m` independent
-/// residuals (an effective count when they are not).
-fn wishart_factor(m: f64, epsilon: f64, sign: f64) -> f64 {
-    (1.0 + sign * wishart_deviation(m, epsilon)).powi(2)
-}
-
-/// `√(3/m) + √(2 ln(2/ε)/m)`: how far the Wishart bounds' roots lie from 1.
-fn wishart_deviation(m: f64, epsilon: f64) -> f64 {
-    (3.0 / m).sqrt() + (2.0 * (2.0 / epsilon).ln() / m).sqrt()
-}
-
 fn second_moment<'a>(residuals: impl Iterator<Item = &'a DoubletResidual>) -> Moment {
     let mut count = 0;
     let mut sum = Matrix3::zeros();
@@ -430,25 +421,37 @@ fn region_estimate(
     // The Wishart bound on each parity half at ε_est/2 (the other half of ε_est is the
     // correlation's interval), its count divided by `deflation`; where slip is sized, its
     // two sides (`Q_low` and `Q_high`, both bounding Eve's view) at a quarter of `epsilon`
-    // each.
+    // each. Each half's `[c₋, c₊]` at its level (`wishart_bounds`: each side at half of it).
     let wishart_level = if slip_epsilon.is_some() {
         epsilon / 4.0
     } else {
         epsilon / 2.0
     };
-    let weighted = |factor: f64, deflation: f64| -> Matrix3<f64> {
+    let bounds_at = |deflation: f64| -> [[f64; 2]; 2] {
+        halves.map(|(m, _)| wishart_bounds(m as f64 / deflation, wishart_level))
+    };
+    // `Σ_low` (over `c₊`, side 1) and `Σ_high` (over `c₋`, side 0): the halves' weighted
+    // means; `Σ_high` none where a half's lower side has no room (`c₋ ≤ 0`).
+    let weighted = |bounds: &[[f64; 2]; 2], side: usize| -> Matrix3<f64> {
         halves
             .iter()
-            .map(|(m, s)| {
-                let effective = *m as f64 / deflation;
-                s * (*m as f64 / n) * wishart_factor(effective, wishart_level, factor).recip()
-            })
+            .zip(bounds)
+            .map(|((m, s), c)| s * (*m as f64 / n) / c[side])
             .sum()
+    };
+    let high = |bounds: &[[f64; 2]; 2]| {
+        bounds
+            .iter()
+            .all(|c| c[0] > 0.0)
+            .then(|| weighted(bounds, 0))
     };
     // Residuals quieter than the sensor explains at every (Q ⪰ 0, ρ) of the class: the
     // upper bound at the lowest ρ (where the doublet's steps cancel most) has a negative
-    // eigenvalue. Checked before ρ, which such residuals do not identify.
-    let highest = |rho: f64| solve(weighted(-1.0, 1.0), rho);
+    // eigenvalue. Checked before ρ, which such residuals do not identify; where the counts
+    // leave no upper bound, nothing is refused and `Q_high` is unbounded (infinite entries).
+    let plain = bounds_at(1.0);
+    let highest =
+        |rho: f64| high(&plain).map_or(Ok(Matrix3::repeat(f64::INFINITY)), |m| solve(m, rho));
     let eigen = SymmetricEigen::new(highest(LOWEST_CORRELATION)?);
     let (k, &smallest) = eigen
         .eigenvalues
@@ -519,7 +522,8 @@ fn region_estimate(
     let spread = slip.map_or(1.0, |s| {
         heterogeneity_deflation(residuals, |r| fitted(r, &s))
     });
-    let low_moment = weighted(1.0, deflation * spread);
+    let deflated = bounds_at(deflation * spread);
+    let low_moment = weighted(&deflated, 1);
     let slip_mean = |variance: f64| -> Matrix3<f64> {
         residuals
             .iter()
@@ -535,15 +539,12 @@ fn region_estimate(
             .collect::<Result<Vec<[Matrix3<f64>; 2]>, EstimationRefusal>>()
     };
     // `Q_high(ρ, σ²)` above every cell's ends (as `Q_low` below them); none where the
-    // Wishart bound's lower side has no room (its factor's root at or below 0).
+    // Wishart bound's lower side has no room (`c₋ ≤ 0`).
     let upper_at = |variance: f64| -> Result<Option<Matrix3<f64>>, EstimationRefusal> {
-        let room = halves
-            .iter()
-            .all(|(m, _)| wishart_deviation(*m as f64 / (deflation * spread), wishart_level) < 1.0);
-        if !room {
+        let Some(moment) = high(&deflated) else {
             return Ok(None);
-        }
-        let moment = weighted(-1.0, deflation * spread) - slip_mean(variance);
+        };
+        let moment = moment - slip_mean(variance);
         let mut ends = cells.iter().flat_map(|&[a, b]| [a, b]);
         let first = solve(moment, ends.next().unwrap_or(rho_lo))?;
         ends.try_fold(first, |above, rho| {
@@ -630,7 +631,12 @@ fn region_estimate(
 /// largest over the three axes, `vᵢ` the axis's entry of residual i's covariance
 /// `covariance(rᵢ)` — for one axis exactly the variance ratio of a sum of squares of
 /// independent Gaussians with spreads `vᵢ` to one of equal spreads; applied to the matrix
-/// bound as an effective count (a stated approximation, not a proof).
+/// bound as an effective count (a stated approximation, not a proof). Not conservative in
+/// general: along a direction the whitened second moment is `(1/m)Σ wᵢξᵢ²` (mean weight 1),
+/// whose third cumulant `8Σwᵢ³/m³` is at least the matched χ²'s `8(Σwᵢ²)²/m⁴`
+/// (Cauchy–Schwarz), so its upper tail may be heavier; a bound at given weights (a Chernoff
+/// bound of the weighted sum over the net) needs the weights, which are the unknown
+/// covariances' own ratios, fitted from the same residuals.
 fn heterogeneity_deflation(
     residuals: &[DoubletResidual],
     covariance: impl Fn(&DoubletResidual) -> Matrix3<f64>,
@@ -887,9 +893,9 @@ pub(super) mod tests {
     /// smallest eigenvalue of Q − Q_low ≥ 0) and below the upper one, on 40 seeds at
     /// ε_est = 0.05 (a failure every 20 blocks at most; the Wishart bound is conservative,
     /// so none is expected), and the lower vertex is as tight as the bound says: at 4,000
-    /// doublets (2,000 per parity) `1/c₊ = 0.797`, so along position
-    /// `Q_low/Q ≈ ((2Q + 2R)/c₊ − 2R)/(2Q) = 0.746` at Q = 1 mm², R = 0.25 mm², with a
-    /// sampling standard error of `√(2/4000)·(Q + R)/Q ≈ 2.8 %`: asserted above 0.746 − 4·0.028
+    /// doublets (2,000 per parity) `1/c₊ = 0.873`, so along position
+    /// `Q_low/Q ≈ ((2Q + 2R)/c₊ − 2R)/(2Q) = 0.841` at Q = 1 mm², R = 0.25 mm², with a
+    /// sampling standard error of `√(2/4000)·(Q + R)/Q ≈ 2.8 %`: asserted above 0.841 − 4·0.028
     /// once the correlation's share is taken out (the lowest vertex sits at `ρ_hi`).
     #[test]
     fn the_region_contains_the_truth_and_is_tight() {
@@ -906,7 +912,7 @@ pub(super) mod tests {
             let shrink = 1.0 + e.correlation.interval[1];
             for k in 0..3 {
                 assert!(
-                    e.lower[(k, k)] * shrink > 0.63 * truth[(k, k)],
+                    e.lower[(k, k)] * shrink > 0.729 * truth[(k, k)],
                     "seed {seed}: {} {:?}",
                     e.lower,
                     e.correlation
@@ -1052,9 +1058,9 @@ pub(super) mod tests {
     /// and `Q_high − Q` are positive semidefinite and ρ's interval holds the truth in all but
     /// at most 19 of those the class tests size (10 expected were the bound exact; 19 is 3
     /// binomial standard deviations above; at this ε the tests refuse some). The lower vertex
-    /// is as tight as the bound says: at 1,500 residuals per parity `1/c₊ = 0.796`, so along
-    /// position `Q_low/Q ≈ ((Q + 2R)/c₊ − 2R)/Q`, 0.790 at 4 mm and
-    /// 0.388 at 0.5 mm, with the sample second moment's standard error
+    /// is as tight as the bound says: at 1,500 residuals per parity `1/c₊ = 0.856`, so along
+    /// position `Q_low/Q ≈ ((Q + 2R)/c₊ − 2R)/Q`, 0.852 at 4 mm and
+    /// 0.568 at 0.5 mm, with the sample second moment's standard error
     /// `√(2/3000)·(Q + 2R)/Q` (2.6 % and 7.7 %; the shared samples inflate it by at most
     /// `√(1 + 2/9)`): the mean over the blocks within 4 of those errors divided by √200.
     #[test]
@@ -1086,7 +1092,7 @@ pub(super) mod tests {
             );
             assert!(refused <= 50, "Q {q_std} ρ {rho}: {refused} of 200 refused");
             if rho == 0.0 {
-                let c = wishart_factor(1_500.0, 0.025, 1.0);
+                let c = wishart_bounds(1_500.0, 0.025)[1];
                 let predicted = ((q + 2.0 * r) / c - 2.0 * r) / q;
                 let error =
                     (2.0 / 3_000_f64).sqrt() * (q + 2.0 * r) / q * (1.0 + 2.0 / 9.0_f64).sqrt();
