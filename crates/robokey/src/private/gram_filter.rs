@@ -11,7 +11,7 @@
 //! gains `S̃_cc' − ũ_cᵀP⁺ũ_c'` (`ũ_c = u_c − J·m_c`, `S̃` the same quadratic about the
 //! means); `ln det Σ` gains `ln det(I + P·J) − Σ ln det R⁻¹`.
 
-use nalgebra::{DMatrix, DVector, Matrix3, MatrixXx3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, MatrixXx3, Vector3};
 
 /// The filter's state between observations.
 #[derive(Clone, Debug)]
@@ -73,12 +73,14 @@ struct Batch {
     direct: DMatrix<f64>,
     log_det_noise: f64,
     empty: bool,
-    /// Work space of one observation, overwritten by each: `Fᵀ`, `FᵀR⁻¹`, `FᵀR⁻¹F`, and
-    /// `FᵀR⁻¹y_c` (the same products as allocating ones, into kept storage).
+    /// Work space of one observation, overwritten by each: `Fᵀ`, `FᵀR⁻¹`, `FᵀR⁻¹F`,
+    /// `FᵀR⁻¹y_c` and each column's `R⁻¹y_c` (the same products as allocating ones, into
+    /// kept storage).
     transposed: DMatrix<f64>,
     weighted: MatrixXx3<f64>,
     information: DMatrix<f64>,
     projection: DVector<f64>,
+    scaled: Vec<Vector3<f64>>,
 }
 
 impl Batch {
@@ -93,6 +95,7 @@ impl Batch {
             weighted: MatrixXx3::zeros(dim),
             information: DMatrix::zeros(dim, dim),
             projection: DVector::zeros(dim),
+            scaled: Vec::with_capacity(columns),
         }
     }
 
@@ -158,7 +161,7 @@ impl GramFilter {
     /// (`3 × dim`), `R⁻¹` and its value in each column. Kept until [`Self::condition`].
     pub fn observe(
         &mut self,
-        f: &DMatrix<f64>,
+        f: &Matrix3xX<f64>,
         noise_inverse: &Matrix3<f64>,
         values: &[Vector3<f64>],
     ) {
@@ -173,9 +176,13 @@ impl GramFilter {
             b.weighted.mul_to(value, &mut b.projection);
             let mut column = b.projected.column_mut(c);
             column += &b.projection;
-            let scaled = noise_inverse * value;
-            for (c2, other) in values.iter().enumerate() {
-                b.direct[(c, c2)] += scaled.dot(other);
+        }
+        // `S_cc' += (R⁻¹y_c)·y_c'`, column `c'` of `S` at a time.
+        b.scaled.clear();
+        b.scaled.extend(values.iter().map(|value| noise_inverse * value));
+        for (other, mut direct) in values.iter().zip(b.direct.column_iter_mut()) {
+            for (entry, scaled) in direct.iter_mut().zip(&b.scaled) {
+                *entry += scaled.dot(other);
             }
         }
         b.log_det_noise += noise_inverse.determinant().ln();
@@ -305,12 +312,12 @@ mod tests {
         let mut m = DMatrix::zeros(dim, total);
         m.view_mut((0, 0), (dim, dim))
             .copy_from(&DMatrix::identity(dim, dim));
-        let mut h_rows: Vec<DMatrix<f64>> = Vec::new();
+        let mut h_rows: Vec<Matrix3xX<f64>> = Vec::new();
         let mut r_blocks: Vec<Matrix3<f64>> = Vec::new();
         let mut values: Vec<Vec<Vector3<f64>>> = Vec::new();
         for k in 0..steps {
             for _ in 0..2 {
-                let f = DMatrix::from_fn(3, dim, |_, _| normal());
+                let f = Matrix3xX::from_fn(dim, |_, _| normal());
                 let a = Matrix3::from_fn(|_, _| normal());
                 let r = a * a.transpose() + Matrix3::identity() * 0.5;
                 let vals: Vec<Vector3<f64>> = (0..columns)
