@@ -22,6 +22,9 @@ pub struct GramFilter {
     gram: DMatrix<f64>,
     log_det: f64,
     batch: Batch,
+    /// The batch of the other dimension the state alternates with (augmented within a
+    /// step, reduced at its end), kept empty for its return.
+    set_aside: Option<Batch>,
     work: Conditioning,
 }
 
@@ -49,6 +52,10 @@ struct Conditioning {
     /// `Lᵀ` (`dim × new_dim`) and `L·P` (`new_dim × dim`) of a transition.
     map_transposed: DMatrix<f64>,
     mapped: DMatrix<f64>,
+    /// The covariance and means of the previous dimension, the storage the next change of
+    /// dimension writes into (then swapped with the state's).
+    spare_cov: DMatrix<f64>,
+    spare_means: DMatrix<f64>,
 }
 
 /// `m` as a `rows × columns` matrix of unspecified values: kept when it has that shape.
@@ -99,14 +106,6 @@ impl Batch {
         }
     }
 
-    /// Ready for a state of dimension `dim`: reallocated when the dimension changed since
-    /// the last use, else the matrices as they are (zero, the batch being empty).
-    fn fit(&mut self, dim: usize, columns: usize) {
-        if self.info.nrows() != dim {
-            *self = Self::new(dim, columns);
-        }
-    }
-
     /// Empties the batch in place after its conditioning.
     fn clear(&mut self) {
         self.info.fill(0.0);
@@ -128,6 +127,7 @@ impl GramFilter {
             gram: DMatrix::zeros(columns, columns),
             log_det: 0.0,
             batch: Batch::new(dim, columns),
+            set_aside: None,
             work: Conditioning::default(),
             cov,
         }
@@ -144,17 +144,20 @@ impl GramFilter {
     pub fn augment(&mut self, extra: usize) {
         self.condition();
         let (dim, columns) = (self.dim(), self.means.ncols());
-        let mut cov = DMatrix::zeros(dim + extra, dim + extra);
+        let w = &mut self.work;
+        let cov = shaped(&mut w.spare_cov, dim + extra, dim + extra);
+        cov.fill(0.0);
         cov.view_mut((0, 0), (dim, dim)).copy_from(&self.cov);
         for i in dim..dim + extra {
             cov[(i, i)] = 1.0;
         }
-        self.cov = cov;
-        self.means = std::mem::replace(&mut self.means, DMatrix::zeros(0, 0)).resize(
-            dim + extra,
-            columns,
-            0.0,
-        );
+        std::mem::swap(&mut self.cov, &mut w.spare_cov);
+        let means = shaped(&mut w.spare_means, dim + extra, columns);
+        means.fill(0.0);
+        means
+            .view_mut((0, 0), (dim, columns))
+            .copy_from(&self.means);
+        std::mem::swap(&mut self.means, &mut w.spare_means);
     }
 
     /// A three-dimensional observation `y_c = F·x + ε`, `ε ~ N(0, R)`, given by `F`
@@ -166,8 +169,16 @@ impl GramFilter {
         values: &[Vector3<f64>],
     ) {
         let (dim, columns) = (self.dim(), self.means.ncols());
+        if self.batch.info.nrows() != dim {
+            // Empty (a change of dimension conditions first): set aside for its return.
+            let kept = self
+                .set_aside
+                .take()
+                .filter(|b| b.info.nrows() == dim)
+                .unwrap_or_else(|| Batch::new(dim, columns));
+            self.set_aside = Some(std::mem::replace(&mut self.batch, kept));
+        }
         let b = &mut self.batch;
-        b.fit(dim, columns);
         f.transpose_to(&mut b.transposed);
         b.transposed.mul_to(noise_inverse, &mut b.weighted); // dim × 3
         b.weighted.mul_to(f, &mut b.information);
@@ -256,10 +267,14 @@ impl GramFilter {
         self.condition();
         let w = &mut self.work;
         let (new_dim, dim) = l.shape();
+        let columns = self.means.ncols();
         transpose_into(l, &mut w.map_transposed);
         l.mul_to(&self.cov, shaped(&mut w.mapped, new_dim, dim));
-        self.cov = &w.mapped * &w.map_transposed;
-        self.means = l * &self.means;
+        w.mapped
+            .mul_to(&w.map_transposed, shaped(&mut w.spare_cov, new_dim, new_dim));
+        std::mem::swap(&mut self.cov, &mut w.spare_cov);
+        l.mul_to(&self.means, shaped(&mut w.spare_means, new_dim, columns));
+        std::mem::swap(&mut self.means, &mut w.spare_means);
     }
 
     /// Adds a known offset to the state's mean in each column (`offsets` is `dim × columns`):
