@@ -190,7 +190,8 @@ impl GramFilter {
         }
         // `S_cc' += (R⁻¹y_c)·y_c'`, column `c'` of `S` at a time.
         b.scaled.clear();
-        b.scaled.extend(values.iter().map(|value| noise_inverse * value));
+        b.scaled
+            .extend(values.iter().map(|value| noise_inverse * value));
         for (other, mut direct) in values.iter().zip(b.direct.column_iter_mut()) {
             for (entry, scaled) in direct.iter_mut().zip(&b.scaled) {
                 *entry += scaled.dot(other);
@@ -270,8 +271,10 @@ impl GramFilter {
         let columns = self.means.ncols();
         transpose_into(l, &mut w.map_transposed);
         l.mul_to(&self.cov, shaped(&mut w.mapped, new_dim, dim));
-        w.mapped
-            .mul_to(&w.map_transposed, shaped(&mut w.spare_cov, new_dim, new_dim));
+        w.mapped.mul_to(
+            &w.map_transposed,
+            shaped(&mut w.spare_cov, new_dim, new_dim),
+        );
         std::mem::swap(&mut self.cov, &mut w.spare_cov);
         l.mul_to(&self.means, shaped(&mut w.spare_means, new_dim, columns));
         std::mem::swap(&mut self.means, &mut w.spare_means);

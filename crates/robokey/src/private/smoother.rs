@@ -173,7 +173,12 @@ impl Column {
                 .map(|o| weights.iter().map(|(d, w)| d.values[o] * *w).sum())
                 .collect(),
             shifts: (0..steps)
-                .map(|s| -weights.iter().map(|(d, w)| d.jumps[s] * *w).sum::<Vector3<f64>>())
+                .map(|s| {
+                    -weights
+                        .iter()
+                        .map(|(d, w)| d.jumps[s] * *w)
+                        .sum::<Vector3<f64>>()
+                })
                 .collect(),
         }
     }
