@@ -11,7 +11,7 @@
 //! gains `S̃_cc' − ũ_cᵀP⁺ũ_c'` (`ũ_c = u_c − J·m_c`, `S̃` the same quadratic about the
 //! means); `ln det Σ` gains `ln det(I + P·J) − Σ ln det R⁻¹`.
 
-use nalgebra::{DMatrix, DVector, Matrix3, MatrixXx3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, MatrixXx3, Vector3};
 
 /// The filter's state between observations.
 #[derive(Clone, Debug)]
@@ -22,6 +22,9 @@ pub struct GramFilter {
     gram: DMatrix<f64>,
     log_det: f64,
     batch: Batch,
+    /// The batch of the other dimension the state alternates with (augmented within a
+    /// step, reduced at its end), kept empty for its return.
+    set_aside: Option<Batch>,
     work: Conditioning,
 }
 
@@ -49,6 +52,10 @@ struct Conditioning {
     /// `Lᵀ` (`dim × new_dim`) and `L·P` (`new_dim × dim`) of a transition.
     map_transposed: DMatrix<f64>,
     mapped: DMatrix<f64>,
+    /// The covariance and means of the previous dimension, the storage the next change of
+    /// dimension writes into (then swapped with the state's).
+    spare_cov: DMatrix<f64>,
+    spare_means: DMatrix<f64>,
 }
 
 /// `m` as a `rows × columns` matrix of unspecified values: kept when it has that shape.
@@ -73,12 +80,14 @@ struct Batch {
     direct: DMatrix<f64>,
     log_det_noise: f64,
     empty: bool,
-    /// Work space of one observation, overwritten by each: `Fᵀ`, `FᵀR⁻¹`, `FᵀR⁻¹F`, and
-    /// `FᵀR⁻¹y_c` (the same products as allocating ones, into kept storage).
+    /// Work space of one observation, overwritten by each: `Fᵀ`, `FᵀR⁻¹`, `FᵀR⁻¹F`,
+    /// `FᵀR⁻¹y_c` and each column's `R⁻¹y_c` (the same products as allocating ones, into
+    /// kept storage).
     transposed: DMatrix<f64>,
     weighted: MatrixXx3<f64>,
     information: DMatrix<f64>,
     projection: DVector<f64>,
+    scaled: Vec<Vector3<f64>>,
 }
 
 impl Batch {
@@ -93,14 +102,7 @@ impl Batch {
             weighted: MatrixXx3::zeros(dim),
             information: DMatrix::zeros(dim, dim),
             projection: DVector::zeros(dim),
-        }
-    }
-
-    /// Ready for a state of dimension `dim`: reallocated when the dimension changed since
-    /// the last use, else the matrices as they are (zero, the batch being empty).
-    fn fit(&mut self, dim: usize, columns: usize) {
-        if self.info.nrows() != dim {
-            *self = Self::new(dim, columns);
+            scaled: Vec::with_capacity(columns),
         }
     }
 
@@ -125,6 +127,7 @@ impl GramFilter {
             gram: DMatrix::zeros(columns, columns),
             log_det: 0.0,
             batch: Batch::new(dim, columns),
+            set_aside: None,
             work: Conditioning::default(),
             cov,
         }
@@ -141,30 +144,41 @@ impl GramFilter {
     pub fn augment(&mut self, extra: usize) {
         self.condition();
         let (dim, columns) = (self.dim(), self.means.ncols());
-        let mut cov = DMatrix::zeros(dim + extra, dim + extra);
+        let w = &mut self.work;
+        let cov = shaped(&mut w.spare_cov, dim + extra, dim + extra);
+        cov.fill(0.0);
         cov.view_mut((0, 0), (dim, dim)).copy_from(&self.cov);
         for i in dim..dim + extra {
             cov[(i, i)] = 1.0;
         }
-        self.cov = cov;
-        self.means = std::mem::replace(&mut self.means, DMatrix::zeros(0, 0)).resize(
-            dim + extra,
-            columns,
-            0.0,
-        );
+        std::mem::swap(&mut self.cov, &mut w.spare_cov);
+        let means = shaped(&mut w.spare_means, dim + extra, columns);
+        means.fill(0.0);
+        means
+            .view_mut((0, 0), (dim, columns))
+            .copy_from(&self.means);
+        std::mem::swap(&mut self.means, &mut w.spare_means);
     }
 
     /// A three-dimensional observation `y_c = F·x + ε`, `ε ~ N(0, R)`, given by `F`
     /// (`3 × dim`), `R⁻¹` and its value in each column. Kept until [`Self::condition`].
     pub fn observe(
         &mut self,
-        f: &DMatrix<f64>,
+        f: &Matrix3xX<f64>,
         noise_inverse: &Matrix3<f64>,
         values: &[Vector3<f64>],
     ) {
         let (dim, columns) = (self.dim(), self.means.ncols());
+        if self.batch.info.nrows() != dim {
+            // Empty (a change of dimension conditions first): set aside for its return.
+            let kept = self
+                .set_aside
+                .take()
+                .filter(|b| b.info.nrows() == dim)
+                .unwrap_or_else(|| Batch::new(dim, columns));
+            self.set_aside = Some(std::mem::replace(&mut self.batch, kept));
+        }
         let b = &mut self.batch;
-        b.fit(dim, columns);
         f.transpose_to(&mut b.transposed);
         b.transposed.mul_to(noise_inverse, &mut b.weighted); // dim × 3
         b.weighted.mul_to(f, &mut b.information);
@@ -173,9 +187,14 @@ impl GramFilter {
             b.weighted.mul_to(value, &mut b.projection);
             let mut column = b.projected.column_mut(c);
             column += &b.projection;
-            let scaled = noise_inverse * value;
-            for (c2, other) in values.iter().enumerate() {
-                b.direct[(c, c2)] += scaled.dot(other);
+        }
+        // `S_cc' += (R⁻¹y_c)·y_c'`, column `c'` of `S` at a time.
+        b.scaled.clear();
+        b.scaled
+            .extend(values.iter().map(|value| noise_inverse * value));
+        for (other, mut direct) in values.iter().zip(b.direct.column_iter_mut()) {
+            for (entry, scaled) in direct.iter_mut().zip(&b.scaled) {
+                *entry += scaled.dot(other);
             }
         }
         b.log_det_noise += noise_inverse.determinant().ln();
@@ -249,10 +268,16 @@ impl GramFilter {
         self.condition();
         let w = &mut self.work;
         let (new_dim, dim) = l.shape();
+        let columns = self.means.ncols();
         transpose_into(l, &mut w.map_transposed);
         l.mul_to(&self.cov, shaped(&mut w.mapped, new_dim, dim));
-        self.cov = &w.mapped * &w.map_transposed;
-        self.means = l * &self.means;
+        w.mapped.mul_to(
+            &w.map_transposed,
+            shaped(&mut w.spare_cov, new_dim, new_dim),
+        );
+        std::mem::swap(&mut self.cov, &mut w.spare_cov);
+        l.mul_to(&self.means, shaped(&mut w.spare_means, new_dim, columns));
+        std::mem::swap(&mut self.means, &mut w.spare_means);
     }
 
     /// Adds a known offset to the state's mean in each column (`offsets` is `dim × columns`):
@@ -305,12 +330,12 @@ mod tests {
         let mut m = DMatrix::zeros(dim, total);
         m.view_mut((0, 0), (dim, dim))
             .copy_from(&DMatrix::identity(dim, dim));
-        let mut h_rows: Vec<DMatrix<f64>> = Vec::new();
+        let mut h_rows: Vec<Matrix3xX<f64>> = Vec::new();
         let mut r_blocks: Vec<Matrix3<f64>> = Vec::new();
         let mut values: Vec<Vec<Vector3<f64>>> = Vec::new();
         for k in 0..steps {
             for _ in 0..2 {
-                let f = DMatrix::from_fn(3, dim, |_, _| normal());
+                let f = Matrix3xX::from_fn(dim, |_, _| normal());
                 let a = Matrix3::from_fn(|_, _| normal());
                 let r = a * a.transpose() + Matrix3::identity() * 0.5;
                 let vals: Vec<Vector3<f64>> = (0..columns)

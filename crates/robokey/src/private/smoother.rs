@@ -26,7 +26,7 @@
 
 use std::collections::BTreeMap;
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, Vector3};
 
 use super::doublet::{DoubletInputs, Perturbation, sign};
 use super::gram_filter::{GramFilter, ln_sum_exp};
@@ -131,7 +131,58 @@ struct Column {
     shifts: Vec<Vector3<f64>>,
 }
 
+/// A run's deviation from the nominal one: at each observation, and in its jump where each
+/// window step restarts.
+struct Deviation {
+    values: Vec<Vector3<f64>>,
+    jumps: Vec<Vector3<f64>>,
+}
+
+impl Deviation {
+    /// `run − nominal` at the observations (the nominal poses there given as `bases`) and
+    /// in the jumps.
+    fn of(
+        run: &WindowRun,
+        nominal: &WindowRun,
+        observations: &[Observation],
+        bases: &[Pose],
+    ) -> Self {
+        Self {
+            values: observations
+                .iter()
+                .zip(bases)
+                .map(|(o, base)| run.at(o.instant) - base)
+                .collect(),
+            jumps: run
+                .jumps
+                .iter()
+                .zip(&nominal.jumps)
+                .map(|(jump, base)| jump - base)
+                .collect(),
+        }
+    }
+}
+
 impl Column {
+    /// The column of a combination of runs, `Σ w·(run − nominal)` over `weights` in order
+    /// (from zero) at each of the `observations`, its shifts the negated combination of the
+    /// jumps over the window's `steps`.
+    fn derived(weights: &[(&Deviation, f64)], observations: usize, steps: usize) -> Self {
+        Self {
+            values: (0..observations)
+                .map(|o| weights.iter().map(|(d, w)| d.values[o] * *w).sum())
+                .collect(),
+            shifts: (0..steps)
+                .map(|s| {
+                    -weights
+                        .iter()
+                        .map(|(d, w)| d.jumps[s] * *w)
+                        .sum::<Vector3<f64>>()
+                })
+                .collect(),
+        }
+    }
+
     fn subtract(&mut self, other: &Self) {
         for (a, b) in self.values.iter_mut().zip(&other.values) {
             *a -= b;
@@ -572,47 +623,40 @@ impl WindowSmoother {
             camera.then(|| (l * (exact.0 - first)) as usize..=(l * (exact.1 - first + 1)) as usize);
         let observations = self.observations(rec, nominal, l * first, steps, &filmed);
         // Columns: the residual, the target's hypotheses, the window's other bits, the lead's.
-        // A column is a combination of runs, relative to the nominal one.
-        let derived = |weights: &[(&WindowRun, f64)]| Column {
-            values: observations
+        // A column is a combination of runs, relative to the nominal one: each run's
+        // deviation from it taken once, each column its weighted sum.
+        let observed = observations.len();
+        let bases: Vec<Pose> = observations.iter().map(|o| nominal.at(o.instant)).collect();
+        let deviations: Vec<Vec<Deviation>> = runs
+            .iter()
+            .map(|patterns| {
+                patterns
+                    .iter()
+                    .map(|run| Deviation::of(run, nominal, &observations, &bases))
+                    .collect()
+            })
+            .collect();
+        let mean_of = |c: usize| -> Vec<(&Deviation, f64)> {
+            deviations[c]
                 .iter()
-                .map(|o| {
-                    let base = nominal.at(o.instant);
-                    weights
-                        .iter()
-                        .map(|(run, w)| (run.at(o.instant) - base) * *w)
-                        .sum()
-                })
-                .collect(),
-            shifts: (0..steps)
-                .map(|s| {
-                    -weights
-                        .iter()
-                        .map(|(run, w)| (run.jumps[s] - nominal.jumps[s]) * *w)
-                        .sum::<Vector3<f64>>()
-                })
-                .collect(),
-        };
-        let mean_of = |c: usize| -> Vec<(&WindowRun, f64)> {
-            runs[c]
-                .iter()
-                .map(|run| (run, 1.0 / patterns as f64))
+                .map(|deviation| (deviation, 1.0 / patterns as f64))
                 .collect()
         };
         // The residual about the nominal path and the other doublets' mean effects.
         let mut residual = Column {
             values: observations
                 .iter()
-                .map(|o| o.value - nominal.at(o.instant))
+                .zip(&bases)
+                .map(|(o, base)| o.value - base)
                 .collect(),
             shifts: nominal.jumps.clone(),
         };
         for c in (0..carrying.len()).filter(|&c| c != target) {
-            residual.subtract(&derived(&mean_of(c)));
+            residual.subtract(&Column::derived(&mean_of(c), observed, steps));
         }
         let mut columns: Vec<Column> = vec![residual];
-        for run in &runs[target] {
-            columns.push(derived(&[(run, 1.0)]));
+        for deviation in &deviations[target] {
+            columns.push(Column::derived(&[(deviation, 1.0)], observed, steps));
         }
         let mut others: Vec<Other> = Vec::new();
         for (c, &(i, _)) in carrying.iter().enumerate() {
@@ -625,12 +669,12 @@ impl WindowSmoother {
                 columns: Vec::new(),
             };
             for recipe in walsh_recipes(self.perturbation.key_bits()) {
-                let weights: Vec<(&WindowRun, f64)> = runs[c]
+                let weights: Vec<(&Deviation, f64)> = deviations[c]
                     .iter()
                     .enumerate()
-                    .map(|(h, run)| (run, pattern_sign(h, &recipe) / patterns as f64))
+                    .map(|(h, deviation)| (deviation, pattern_sign(h, &recipe) / patterns as f64))
                     .collect();
-                columns.push(derived(&weights));
+                columns.push(Column::derived(&weights, observed, steps));
                 other.columns.push((columns.len() - 1, recipe));
             }
             others.push(other);
@@ -909,7 +953,7 @@ impl WindowSmoother {
         }
         let drive = self.eve.drive;
         let h_matrix = drive.h();
-        let mut pose = DMatrix::zeros(3, dim);
+        let mut pose = Matrix3xX::zeros(dim);
         pose.view_mut((0, 0), (3, 3))
             .copy_from(&Matrix3::identity());
         let mut poses = Vec::with_capacity(updates.len() + 1);
@@ -935,8 +979,7 @@ impl WindowSmoother {
                 }
             }
             let pose = poses.last().expect("the first pose map");
-            let next =
-                to_dynamic3(&a) * pose + to_dynamic3(&d) * &noise + to_dynamic32(&b) * &speeds;
+            let next = a * pose + d * &noise + b * &speeds;
             poses.push(next);
         }
         Tangents { poses, noise }
@@ -951,7 +994,7 @@ impl WindowSmoother {
 
 /// A step's linear maps: the pose deviation at each update boundary, and `w_k`.
 struct Tangents {
-    poses: Vec<DMatrix<f64>>,
+    poses: Vec<Matrix3xX<f64>>,
     noise: DMatrix<f64>,
 }
 
@@ -1051,7 +1094,7 @@ impl Pass {
         while self.next < observations.len()
             && matches!(observations[self.next].instant, Instant::Sample(s) if s == step)
         {
-            let mut f = DMatrix::zeros(3, filter.dim());
+            let mut f = Matrix3xX::zeros(filter.dim());
             f.view_mut((0, 0), (3, 3)).copy_from(&Matrix3::identity());
             let values = values_at(&mut buffer, columns, self.next);
             filter.observe(&f, &observations[self.next].noise_inverse, values);
@@ -1074,7 +1117,7 @@ impl Pass {
             slipping,
         );
         // A frame's observation map, reused for every frame of the step.
-        let mut frame_map = DMatrix::zeros(0, 0);
+        let mut frame_map = Matrix3xX::zeros(0);
         while self.next < observations.len() {
             let Instant::Frame {
                 step: s,
@@ -1090,7 +1133,7 @@ impl Pass {
             // F = (1 − f)·F_u + f·F_{u+1}, element by element.
             let (before, after) = (&tangents.poses[update], &tangents.poses[update + 1]);
             if frame_map.shape() != before.shape() {
-                frame_map = DMatrix::zeros(before.nrows(), before.ncols());
+                frame_map = Matrix3xX::zeros(before.ncols());
             }
             frame_map.zip_zip_apply(before, after, |out, a, b| {
                 *out = a * (1.0 - fraction) + b * fraction;
@@ -1119,14 +1162,6 @@ fn values_at<'a>(
     buffer.clear();
     buffer.extend(columns.iter().map(|c| c.values[o]));
     buffer
-}
-
-fn to_dynamic3(m: &Matrix3<f64>) -> DMatrix<f64> {
-    DMatrix::from_column_slice(3, 3, m.as_slice())
-}
-
-fn to_dynamic32(m: &nalgebra::Matrix3x2<f64>) -> DMatrix<f64> {
-    DMatrix::from_column_slice(3, 2, m.as_slice())
 }
 
 /// The Jacobians of one pose update at its nominal path: `A = ∂x⁺/∂x`, `B = ∂x⁺/∂(v, ω)`
