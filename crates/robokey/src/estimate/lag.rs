@@ -69,6 +69,17 @@ pub fn first_step_share(lag: f64, sample_time: f64) -> f64 {
     1.0 - lag / sample_time * (1.0 - (-sample_time / lag).exp())
 }
 
+/// `g′(τ) = e^(−T/τ)/τ − (1 − e^(−T/τ))/T`: the slope in `lag` τ (s) of
+/// [`first_step_share`] at sample time `sample_time` T (1/s; below 0, 0 at τ = 0).
+#[must_use]
+pub fn first_step_share_slope(lag: f64, sample_time: f64) -> f64 {
+    if lag <= 0.0 {
+        return 0.0;
+    }
+    let decay = (-sample_time / lag).exp();
+    decay / lag - (1.0 - decay) / sample_time
+}
+
 /// The lag in `[0, MAX_LAG]` whose [`first_step_share`] is `share`, by bisection (`g` is
 /// decreasing): 0 for a share of 1 or more, [`MAX_LAG`] for one at or below `g(MAX_LAG)`.
 fn lag_of_share(share: f64, sample_time: f64) -> f64 {
@@ -187,9 +198,9 @@ const SLOPE_STEP: f64 = 1e-3;
 /// `residuals(τ)` gives, per doublet, its residuals along its start heading with the lagged
 /// means through τ subtracted, times its v-amplitude: `uᵢ(τ) = sᵢ·(z₁ᵢ(τ), z₃ᵢ(τ))` (m)
 /// after the first step and at the end, or `sᵢ·(z₁ᵢ(τ), z₂ᵢ(τ), z₃ᵢ(τ))` with the sample
-/// after the second step, and possibly one more component of mean 0 at the true τ that moves
+/// after the second step, and possibly up to two more of mean 0 at the true τ that move
 /// with it (the turns' products of a three-step block; every doublet the same components, 2
-/// to 4). Each has mean 0 at the true τ (the amplitudes are independent of everything but
+/// to 5). Each has mean 0 at the true τ (the amplitudes are independent of everything but
 /// their own travel). The later ones add
 /// what the second and third steps carry of the bit through τ: after the second step the
 /// bit's travel through τ is largest (the shape's `−(1 + a)` step, lagged, has not undone
@@ -197,10 +208,14 @@ const SLOPE_STEP: f64 = 1e-3;
 /// step's noise. With `Ŝ` the products' sample covariance and `v = ∂ū/∂τ` at `first`'s
 /// point (a central difference), the weights `c = Ŝ⁻¹v` make
 ///
-/// `t(τ) = mean(c·uᵢ(τ)) / (sd(c·uᵢ(τ))/√n)`
+/// `t(τ) = mean(qᵢ) / √((γ₀ + 2γ₁)/n)`, `qᵢ = c·uᵢ(τ)`,
 ///
 /// standard normal at the true τ (the normal approximation of a mean, as for the first
-/// step; the products' covariances vanish between doublets, `E[sᵢsⱼ] = 0`), so
+/// step), `γ₀` the `qᵢ`'s sample variance and `γ₁` their sample covariance with the next
+/// in the order given: the v-amplitudes' products are uncorrelated between doublets
+/// (`E[sᵢsⱼ] = 0`), but a doublet's first-step turn shares its start sample with the end
+/// of the turn its predecessor measured, so consecutive products may correlate, and none
+/// further apart do (a 1-dependent sequence; `γ₁` estimates 0 where nothing is shared). So
 /// `{τ : |t(τ)| ≤ z(ε_est/2)}` covers it with probability about 1 − ε_est. `t` rises with
 /// τ (`cᵀv = vᵀŜ⁻¹v > 0`): the interval is that set's hull within a bracket — `first`'s
 /// interval, widened until `t` lies below `−z` at its lower end (or τ = 0) and above `z`
@@ -210,8 +225,8 @@ const SLOPE_STEP: f64 = 1e-3;
 /// assumption.
 ///
 /// # Errors
-/// Fewer than [`MIN_LAG_DOUBLETS`] doublets, doublets with other than 2 or 3 components,
-/// residuals without slope in τ, a set beyond the class (τ above [`MAX_LAG`]) or an empty
+/// Fewer than [`MIN_LAG_DOUBLETS`] doublets, doublets with other than 2 to 5 components,
+/// residuals without slope in τ, a statistic whose variance estimate is not positive, a set beyond the class (τ above [`MAX_LAG`]) or an empty
 /// one (the doublets carry more of the bit than no lag does), naming the values.
 pub fn estimate_lag_jointly(
     first: &LagEstimate,
@@ -228,10 +243,10 @@ pub fn estimate_lag_jointly(
         ));
     }
     let components = at_first[0].len();
-    if !(2..=4).contains(&components) || at_first.iter().any(|u| u.len() != components) {
+    if !(2..=5).contains(&components) || at_first.iter().any(|u| u.len() != components) {
         return Err(format!(
             "lag estimate: doublets with {components} residuals, or differing counts \
-             (allowed: 2 to 4 each, the same for every doublet)"
+             (allowed: 2 to 5 each, the same for every doublet)"
         ));
     }
     let covariance = product_covariance(&at_first);
@@ -258,15 +273,32 @@ pub fn estimate_lag_jointly(
             ));
         }
     };
-    let statistic = |tau: f64| {
-        let q: Vec<f64> = residuals(tau)
+    // `(mean(qᵢ), (γ₀ + 2γ₁)/n)` of the weighted products.
+    let moments = |products: &[Vec<f64>]| {
+        let q: Vec<f64> = products
             .iter()
             .map(|u| u.iter().zip(weights.iter()).map(|(x, c)| x * c).sum())
             .collect();
         let count = q.len() as f64;
         let mean = q.iter().sum::<f64>() / count;
         let variance = q.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (count - 1.0);
-        mean / (variance / count).sqrt()
+        let next = q
+            .windows(2)
+            .map(|pair| (pair[0] - mean) * (pair[1] - mean))
+            .sum::<f64>()
+            / (count - 1.0);
+        (mean, (variance + 2.0 * next) / count)
+    };
+    let (_, spread) = moments(&at_first);
+    if spread.is_nan() || spread <= 0.0 {
+        return Err(format!(
+            "lag estimate: the weighted residuals' variance with their neighbours' covariance \
+             is {spread:.3e} (allowed: above 0)"
+        ));
+    }
+    let statistic = |tau: f64| {
+        let (mean, spread) = moments(&residuals(tau));
+        mean / spread.max(0.0).sqrt()
     };
     let limit = normal_upper_quantile(epsilon / 2.0);
     let [mut low, mut high] = first.interval;
