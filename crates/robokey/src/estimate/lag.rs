@@ -28,8 +28,10 @@
 //! so together they measure τ better than the first step alone. [`estimate_lag_jointly`]
 //! inverts a weighted score of them (`Ŝ⁻¹v`, their covariance and slope in τ) into τ's
 //! interval, with the doublets' turns beside them where the path turns (the heading's
-//! transient through τ over the second and third steps, estimate/block.rs); the first
-//! step's estimate gives its starting point and the dead-time test's interval.
+//! transient through τ over the second and third steps, and over the first with its
+//! weight's bias from the start sample removed through the controller's own gain,
+//! estimate/block.rs); the first step's estimate gives its starting point and the
+//! dead-time test's interval.
 
 use nalgebra::{DMatrix, DVector};
 
