@@ -36,7 +36,9 @@ use robokey_secrecy::view_profile::{
 };
 use serde::{Deserialize, Serialize};
 
-use super::lag::{MIN_LAG_DOUBLETS, estimate_lag_jointly, first_step_share};
+use super::lag::{
+    MIN_LAG_DOUBLETS, estimate_lag_jointly, first_step_share, first_step_share_slope,
+};
 use super::motion_noise::{Corner, SlipCorners};
 use super::normal_tail::normal_upper_quantile;
 use super::worst_case::{
@@ -287,7 +289,11 @@ fn three_step_block(
         .iter()
         .all(|session| session.iter().all(|b| b.late.is_some()));
     let turns = heading_slopes(config, sessions, late);
-    let products = |tau: f64| lag_residual_products(config, sessions, tau, late, turns.as_deref());
+    let first_turns = first_turn_weights(config, sessions, late);
+    let products = |tau: f64| {
+        let (turns, first_turns) = (turns.as_deref(), first_turns.as_deref());
+        lag_residual_products(config, sessions, tau, late, turns, first_turns)
+    };
     let (first, lag) = match measured_lag(config, sessions, lag_epsilon).and_then(|first| {
         estimate_lag_jointly(&first, &products, config.robot.sample_time, lag_epsilon)
             .map(|lag| (first, lag))
@@ -423,15 +429,19 @@ fn with_entry_speed<T>(
 /// through `lag` (s) subtracted ([`DoubletResidual::three_step_means`]), times its
 /// v-amplitude (m); with `turns` (`heading_slopes`, one per doublet measured) also its
 /// heading residual over its second and third steps, `θ(3j+3) − θ(3j+1)` less the lagged
-/// means' turn, times that slope (rad²/s): what [`estimate_lag_jointly`] measures τ from. A
-/// doublet whose predecessor is not kept is left out (its entry speed is not known), and
-/// with `late` one that did not keep the sample after its second step.
+/// means' turn, times that slope (rad²/s); with `first_turns` (`first_turn_weights`) its heading
+/// residual over its first step, `θ(3j+1) − θ(3j)` less the lagged means' turn, times that
+/// weight `a`, plus the weight's correction `R_θ·∂a/∂θ̂` (rad²/s): what
+/// [`estimate_lag_jointly`] measures τ from. A doublet whose predecessor is not kept is left
+/// out (its entry speed is not known), and with `late` one that did not keep the sample
+/// after its second step.
 fn lag_residual_products(
     config: &Config,
     sessions: &[&[DoubletSamples]],
     lag: f64,
     late: bool,
     turns: Option<&[f64]>,
+    first_turns: Option<&[[f64; 2]]>,
 ) -> Vec<Vec<f64>> {
     let model = DoubletModel {
         lag,
@@ -452,18 +462,82 @@ fn lag_residual_products(
             .chain(second)
             .chain(std::iter::once(along(end, &means[2])))
             .collect();
-        (products, end.z - middle.z - (means[2].z - means[0].z))
+        let first = middle.z - means[0].z;
+        (
+            products,
+            end.z - middle.z - (means[2].z - means[0].z),
+            first,
+        )
     });
     measured
         .into_iter()
         .enumerate()
-        .map(|(i, (mut products, turn))| {
+        .map(|(i, (mut products, turn, first))| {
             if let Some(turns) = turns {
                 products.push(turns[i] * turn);
+            }
+            if let Some(weights) = first_turns {
+                let [weight, correction] = weights[i];
+                products.push(weight * first + correction);
             }
             products
         })
         .collect()
+}
+
+/// Each doublet's weight on its first step's turn and that weight's correction, `[a, R_θ·∂a/∂θ̂]`
+/// (rad/s, rad²/s), per doublet `lag_residual_products` measures: `a = −T·g′(τ_p)·(ω_e − ω₁)`
+/// the slope in τ of the first step's lagged turn `T·(ω₁ + (ω_e − ω₁)·(1 − g(τ)))` at the
+/// prior `private.prior_lag` τ_p ([`first_step_share_slope`]; ω₁ the first nominal input, ω_e
+/// the wheels' entry speed through τ_p, rad/s). The controller set ω₁ from its sample at the
+/// doublet's start, whose heading noise `η₀` (variance `R_θ`, `sensing.controller_std`) the
+/// turn's residual carries as `−η₀`: `E[a·(−η₀)] = −R_θ·E[∂a/∂η₀]` (Stein's identity: Gaussian
+/// `η₀`, `a` differentiable in it), so `a·r₁ + R_θ·∂a/∂θ̂` has mean 0 at the true τ, with
+/// `∂a/∂θ̂ = T·g′(τ_p)·∂ω₁/∂θ̂` the controller's own gain
+/// ([`crate::control::TrackingGains::heading_gain`], from ω₁'s command and the predecessor's
+/// second, whose speed is the integrator ξ the law held). The rest of the residual, the first
+/// step's motion noise and the heading sample after it, is independent of `a` under white
+/// noise. Under AR(1) motion noise of correlation ρ the step's noise also correlates with the
+/// heading the controller read (ρ·Q_θ/(1 − ρ) beside `R_θ`, to first order), a bias not
+/// corrected. None where the block's path carries no turns or where any doublet's command or
+/// its predecessor's lies at the wheel limit or at the controller's guard (the gain is not
+/// the law's there).
+fn first_turn_weights(
+    config: &Config,
+    sessions: &[&[DoubletSamples]],
+    late: bool,
+) -> Option<Vec<[f64; 2]>> {
+    let model = doublet_model(config);
+    let t = model.sample_time;
+    let gains = crate::control::TrackingGains::of(&config.controller);
+    let drive = config.robot.drive();
+    let noise = config.sensing.controller_std[2].powi(2);
+    let slope = -t * first_step_share_slope(model.lag, t);
+    let weights = sessions
+        .iter()
+        .flat_map(|session| {
+            let entries = entry_speeds(&model, session);
+            session
+                .iter()
+                .zip(entries)
+                .enumerate()
+                .filter_map(|(i, (b, entry))| {
+                    let entry = entry?;
+                    if late && b.late.is_none() {
+                        return None;
+                    }
+                    let previous = session[i - 1].inputs.second;
+                    let gain = gains.heading_gain(&drive, previous, b.inputs.first, t);
+                    Some(gain.map(|gain| {
+                        let weight = slope * (entry.y - b.inputs.first.y);
+                        [weight, -noise * slope * gain]
+                    }))
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect::<Option<Vec<_>>>()?;
+    let mean_square = weights.iter().map(|[a, _]| a * a).sum::<f64>() / weights.len().max(1) as f64;
+    (mean_square.sqrt() > MIN_TURN_SLOPE).then_some(weights)
 }
 
 /// The lag step (s) of the heading's numerical slope in τ.
