@@ -848,27 +848,25 @@ fn size_slip_block(
             .flat_map(|session| (0..session.len()).map(move |i| (*session, i)));
         for (session, i) in doublets {
             let b = &session[i];
-            let pairs_at = |share: &Corner| match lag {
-                None => {
-                    let view = stated_camera_view(
-                        b.samples,
-                        config.sensing.controller_std,
-                        config.modelled_camera_std(),
-                    );
-                    slip_pairs(&model, share, point.variance, axle, &b.inputs, &view)
-                }
-                Some(lag) => {
-                    let (view, (next_inputs, next_view)) = three_step_views(config, session, i);
-                    three_step_slip_pairs(
-                        &model,
-                        share,
-                        (point.variance, axle),
-                        lag.interval,
-                        &b.inputs,
-                        &view,
-                        Some((&next_inputs, &next_view)),
-                    )
-                }
+            // Her view of the doublet: two steps' three instants, or (the lag measured) three
+            // steps' four and the next doublet's entry.
+            let view = stated_camera_view(
+                b.samples,
+                config.sensing.controller_std,
+                config.modelled_camera_std(),
+            );
+            let three_step = lag.map(|lag| (lag.interval, three_step_views(config, session, i)));
+            let pairs_at = |share: &Corner| match &three_step {
+                None => slip_pairs(&model, share, point.variance, axle, &b.inputs, &view),
+                Some((interval, (view, (next_inputs, next_view)))) => three_step_slip_pairs(
+                    &model,
+                    share,
+                    (point.variance, axle),
+                    *interval,
+                    &b.inputs,
+                    view,
+                    Some((next_inputs, next_view)),
+                ),
             };
             let pairs = views
                 .iter()
