@@ -462,3 +462,33 @@ fn slip_is_measured_and_sized_as_the_simulator_does() {
         );
     }
 }
+
+/// Lag and per-wheel slip together (a 50 ms lag, the parties' prior, and 5 % slip at 1 mm):
+/// three-step doublets sized with the slip measured over the lag measured (not refused), by
+/// the agents' request as by the simulator, both intervals holding the world's, and never
+/// sharper for Eve than the pair configured with the true world (its slip and lag modelled).
+#[test]
+fn lag_and_slip_are_sized_together_as_the_simulator_does() {
+    let mut config = parties_in("process_std = [0.001, 0.001, 0.001]\nslip_std = 0.05\nlag = 0.05");
+    config.private.prior_lag = 0.05;
+    let (agents, simulator) = both_estimates(&config);
+    assert_eq!(agents, simulator);
+    assert_eq!(agents.refused, None, "{agents:?}");
+    assert!(agents.slip_sized, "{agents:?}");
+    let [_, low, high] = agents.slip.expect("the slip measured");
+    assert!(low <= 0.05 && 0.05 <= high, "{agents:?}");
+    let [_, low, high] = agents.lag.expect("three-step doublets");
+    assert!(low <= 0.05 && 0.05 <= high, "{agents:?}");
+    let runs: Vec<RunOutput> = (0..8)
+        .map(|r| simulate(&config, r, false).unwrap())
+        .collect();
+    let sessions: Vec<&[DoubletSamples]> = runs.iter().map(samples).collect();
+    let (_, truth) = world_block_separations(&config, &sessions, disclosed(&runs), 1e-6);
+    assert!(truth.slip_sized, "{truth:?}");
+    assert!(
+        truth.separation <= agents.separation,
+        "measured {} truth {}",
+        agents.separation,
+        truth.separation
+    );
+}

@@ -42,8 +42,8 @@ use super::lag::{
 use super::motion_noise::{Corner, SlipCorners};
 use super::normal_tail::normal_upper_quantile;
 use super::worst_case::{
-    MAX_PUBLISHED_SEPARATION, below_the_region, slip_pairs, three_step_steps,
-    three_step_worst_case, whole_interval_corner,
+    MAX_PUBLISHED_SEPARATION, below_the_region, slip_pairs, three_step_slip_pairs,
+    three_step_steps, three_step_worst_case, whole_interval_corner,
 };
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
@@ -752,16 +752,6 @@ fn size_block(
     let mut separations = Vec::with_capacity(sessions.len());
     for session in sessions {
         let mut session_separations = Vec::with_capacity(session.len() * bits);
-        // Her view of a three-step doublet's four instants; the late sample is not kept,
-        // and its value does not enter the separation.
-        let three_step_view = |b: &DoubletSamples| {
-            let [start, middle, end] = b.samples;
-            stated_camera_view(
-                [start, middle, middle, end],
-                config.sensing.controller_std,
-                config.modelled_camera_std(),
-            )
-        };
         for (i, b) in session.iter().enumerate() {
             // The camera as stated: per instant, or her frames' worth per instant.
             let worst = match &lags {
@@ -774,20 +764,7 @@ fn size_block(
                     worst_case_separations(&model, estimate, &b.inputs, &view)
                 }
                 Some((lags, steps)) => {
-                    // The next doublet's entry: her view of the kept successor, or where
-                    // none is kept (she still sees the robot move on) this doublet's own
-                    // inputs and view from its end.
-                    let view = three_step_view(b);
-                    let next = match session.get(i + 1).filter(|n| n.doublet == b.doublet + 1) {
-                        Some(next) => (next.inputs, three_step_view(next)),
-                        None => (
-                            b.inputs,
-                            DoubletView {
-                                start: view.end.unwrap_or(view.start),
-                                ..view
-                            },
-                        ),
-                    };
+                    let (view, next) = three_step_views(config, session, i);
                     three_step_worst_case(
                         &model,
                         steps,
@@ -832,6 +809,38 @@ fn size_block(
     )
 }
 
+/// Eve's stated camera view of `session`'s three-step doublet `i` (its four instants; the
+/// late sample is not kept, and its value does not enter her separations) and of the next
+/// doublet's entry: the kept successor's inputs and view, or where none is kept (she still
+/// sees the robot move on) this doublet's own inputs and view from its end.
+fn three_step_views(
+    config: &Config,
+    session: &[DoubletSamples],
+    i: usize,
+) -> (DoubletView, (DoubletInputs, DoubletView)) {
+    let of = |b: &DoubletSamples| {
+        let [start, middle, end] = b.samples;
+        stated_camera_view(
+            [start, middle, middle, end],
+            config.sensing.controller_std,
+            config.modelled_camera_std(),
+        )
+    };
+    let b = &session[i];
+    let view = of(b);
+    let next = match session.get(i + 1).filter(|n| n.doublet == b.doublet + 1) {
+        Some(next) => (next.inputs, of(next)),
+        None => (
+            b.inputs,
+            DoubletView {
+                start: view.end.unwrap_or(view.start),
+                ..view
+            },
+        ),
+    };
+    (view, next)
+}
+
 /// The report of a block sized from `estimate` at ε_est = `epsilon`: its published
 /// `[separation, largest]`, the lag measured (three-step doublets), whether the slip
 /// measured sized it.
@@ -871,7 +880,8 @@ fn sized_report(
 /// [`paired_smooth_min_entropy`] with `disclosed` bits removed; the least over the points,
 /// published as the smallest Gaussian separation whose bound is no larger
 /// ([`gaussian_separation_within`]). Every bit's entry is that separation. Three-step
-/// doublets under slip are refused, naming it.
+/// doublets (the `lag` measured) are seen through their four instants and the next
+/// doublet's entry, over the lag's interval ([`three_step_slip_pairs`]).
 fn size_slip_block(
     points: &[SlipCorners],
     config: &Config,
@@ -887,13 +897,6 @@ fn size_slip_block(
         block.slip = slip;
         (separations, block)
     };
-    if lag.is_some() {
-        return named(
-            "per-wheel slip measured in a block of three-step doublets: Eve's view of them \
-             under slip is not sized (allowed: slip with two-step doublets)"
-                .to_owned(),
-        );
-    }
     let model = doublet_model(config);
     let axle = config.robot.axle_length;
     let bits: usize =
@@ -914,18 +917,34 @@ fn size_slip_block(
             .map(|motion| Corner { motion, ..corner })
             .collect();
         let mut paired: Vec<PairedBit> = Vec::with_capacity(bits);
-        for b in sessions.iter().flat_map(|session| session.iter()) {
+        let doublets = sessions
+            .iter()
+            .flat_map(|session| (0..session.len()).map(move |i| (*session, i)));
+        for (session, i) in doublets {
+            let b = &session[i];
+            // Her view of the doublet: two steps' three instants, or (the lag measured) three
+            // steps' four and the next doublet's entry.
             let view = stated_camera_view(
                 b.samples,
                 config.sensing.controller_std,
                 config.modelled_camera_std(),
             );
-            let pairs = views.iter().fold(None, |kept, share| {
-                blunter(
-                    kept,
-                    slip_pairs(&model, share, point.variance, axle, &b.inputs, &view),
-                )
-            });
+            let three_step = lag.map(|lag| (lag.interval, three_step_views(config, session, i)));
+            let pairs_at = |share: &Corner| match &three_step {
+                None => slip_pairs(&model, share, point.variance, axle, &b.inputs, &view),
+                Some((interval, (view, (next_inputs, next_view)))) => three_step_slip_pairs(
+                    &model,
+                    share,
+                    (point.variance, axle),
+                    *interval,
+                    &b.inputs,
+                    view,
+                    Some((next_inputs, next_view)),
+                ),
+            };
+            let pairs = views
+                .iter()
+                .fold(None, |kept, share| blunter(kept, pairs_at(share)));
             match pairs {
                 Some(pairs) => paired.extend(pairs),
                 None => {
@@ -971,7 +990,13 @@ fn size_slip_block(
             .iter()
             .map(|session| vec![separation; session.len() * model.perturbation.key_bits()])
             .collect(),
-        sized_report(estimate, epsilon, [separation; 2], None, true),
+        sized_report(
+            estimate,
+            epsilon,
+            [separation; 2],
+            lag.map(|lag| [lag.point, lag.interval[0], lag.interval[1]]),
+            true,
+        ),
     )
 }
 
@@ -1336,8 +1361,17 @@ mod tests {
 
     /// The controller's samples of 16 simulated sessions of the configuration `toml`.
     fn simulated_block(toml: &str) -> (Config, Vec<Vec<DoubletSamples>>) {
+        simulated_sessions(toml, 0..16)
+    }
+
+    /// The controller's samples of the simulated sessions `replicates` of the configuration
+    /// `toml`.
+    fn simulated_sessions(
+        toml: &str,
+        replicates: std::ops::Range<u32>,
+    ) -> (Config, Vec<Vec<DoubletSamples>>) {
         let config = Config::from_toml(toml, "t").unwrap();
-        let sessions = (0..16)
+        let sessions = replicates
             .map(|r| {
                 crate::sim::simulate(&config, r, false)
                     .unwrap()
@@ -1449,6 +1483,62 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// σ² from three-step doublets' one-step residuals (the lag subtracted through τ̂, each
+    /// step's slip map at its mean wheel travel through τ̂): over 10 seeded blocks of 16
+    /// simulated sessions each (≈ 4,900 doublets; a 50 ms lag, the parties' prior, 5 %
+    /// per-wheel slip and 1 mm of white motion noise) the interval at ε = 0.1 misses the
+    /// world's σ² = 2.5·10⁻³ in at most 4 (Binomial(10, 0.1): 5 or more with probability
+    /// 0.0016), and the blocks' mean σ̂² lies within 4 of its standard errors (their spread
+    /// over √10) of it. The first block is sized with the slip over the lag measured (not
+    /// refused), its interval at ε_est = 10⁻⁶ holding the world's slip and lag.
+    #[test]
+    fn slip_is_measured_from_three_step_doublets_at_its_level() {
+        use crate::estimate::slip::estimate_slip;
+        let (world, blocks) = (2.5e-3, 10);
+        let toml = "[sensing]\nmode = \"private\"\n[private]\nprior_lag = 0.05\n[world]\n\
+                    process_std = [0.001, 0.001, 0.001]\nlag = 0.05\nslip_std = 0.05\n";
+        let mut points = Vec::with_capacity(blocks);
+        let mut misses = 0;
+        for block in 0..blocks as u32 {
+            let (config, sessions) = simulated_sessions(toml, 16 * block..16 * (block + 1));
+            let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
+            let lag = measured_lag(&config, &views, 1e-3).unwrap();
+            let model = DoubletModel {
+                lag: lag.point,
+                ..doublet_model(&config)
+            };
+            let residuals = split_residuals(&model, config.robot.axle_length, &views);
+            let sensor = diagonal_covariance(config.sensing.controller_std);
+            let fit = estimate_slip(&residuals, &sensor, 0.0, 0.1).expect("identified");
+            let [low, high] = fit.interval;
+            eprintln!(
+                "block {block}: τ̂ {:.4}, {} residuals, σ̂² {:.4e} [{low:.4e}, {high:.4e}]",
+                lag.point,
+                residuals.len(),
+                fit.point
+            );
+            misses += usize::from(!(low <= world && world <= high));
+            points.push(fit.point);
+            if block == 0 {
+                let (_, estimate) = block_separations(&config, &views, 0, 1e-6);
+                assert_eq!(estimate.refused, None, "{estimate:?}");
+                assert!(estimate.slip_sized, "{estimate:?}");
+                let [_, low, high] = estimate.slip.expect("the slip measured");
+                assert!(low <= 0.05 && 0.05 <= high, "{estimate:?}");
+                let [_, low, high] = estimate.lag.expect("three-step doublets");
+                assert!(low <= 0.05 && 0.05 <= high, "{estimate:?}");
+            }
+        }
+        let n = blocks as f64;
+        let mean = points.iter().sum::<f64>() / n;
+        let spread = (points.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        assert!(misses <= 4, "{misses} of {blocks} intervals miss σ² at 0.1");
+        assert!(
+            (mean - world).abs() < 4.0 * spread / n.sqrt(),
+            "mean σ̂² {mean:.4e}, spread {spread:.4e}"
+        );
     }
 
     /// 16 simulated sessions of a robot with 1 mm of white motion noise, a `lag` and a dead

@@ -64,8 +64,10 @@
 //! 0.15 s at 1 mm, beyond 0.3 s at 4 mm), so the slack is 0 there and the bound is the
 //! grid's largest, at an end of the interval.
 
+use nalgebra::allocator::Allocator;
 use nalgebra::{
-    Cholesky, DMatrix, DVector, Matrix3, Matrix6, SMatrix, SymmetricEigen, Vector3, Vector6,
+    Cholesky, DMatrix, DVector, DefaultAllocator, DimDiff, DimMin, DimSub, Matrix3, Matrix6,
+    OMatrix, OVector, SMatrix, SymmetricEigen, U1, Vector3, Vector6,
 };
 
 use super::motion_noise::{Corner, MotionNoiseEstimate, loewner_below_both};
@@ -289,27 +291,15 @@ pub fn three_step_worst_case(
     next: Option<(&DoubletInputs, &DoubletView)>,
 ) -> Option<[f64; MAX_BITS]> {
     let world = |theta: f64| -> Vec<(StepCovariance, bool)> {
-        let h = rotation(theta);
-        let mut frame = StepCovariance::zeros();
-        for i in 0..3 {
-            frame.fixed_view_mut::<3, 3>(3 * i, 3 * i).copy_from(&h);
-        }
         steps
             .iter()
-            .map(|(k, positive)| (frame * k * frame.transpose(), *positive))
+            .map(|(k, positive)| (in_world_frame(k, theta), *positive))
             .collect()
     };
     let here = world(view.start.value.z);
     let following = next.map(|(next_inputs, next_view)| {
-        let exact_end = DoubletView {
-            end: Some(PoseObservation {
-                covariance: Matrix3::zeros(),
-                ..view.end.unwrap_or(next_view.start)
-            }),
-            ..*view
-        };
         (
-            exact_end,
+            with_exact_end(view, next_view),
             next_inputs,
             next_view,
             world(next_view.start.value.z),
@@ -342,6 +332,30 @@ pub fn three_step_worst_case(
     largest_over_lags(interval, at)
 }
 
+/// The three steps' noise covariance `k` (robot frame at the doublet's start) in the world's
+/// frame at its start heading `theta` (rad): each step's block rotated by `H(θ)`.
+fn in_world_frame(k: &StepCovariance, theta: f64) -> StepCovariance {
+    let h = rotation(theta);
+    let mut frame = StepCovariance::zeros();
+    for i in 0..3 {
+        frame.fixed_view_mut::<3, 3>(3 * i, 3 * i).copy_from(&h);
+    }
+    frame * k * frame.transpose()
+}
+
+/// `view` with the doublet's end pose given to Eve exactly (the next doublet's entry is then
+/// bounded apart: the module's doc of [`three_step_worst_case`]); where `view` observes no
+/// end, `next_view`'s start stands for it.
+fn with_exact_end(view: &DoubletView, next_view: &DoubletView) -> DoubletView {
+    DoubletView {
+        end: Some(PoseObservation {
+            covariance: Matrix3::zeros(),
+            ..view.end.unwrap_or(next_view.start)
+        }),
+        ..*view
+    }
+}
+
 /// Each key bit's separation of what the next doublet's observed poses (`next_view`'s, the
 /// next doublet's public `next_inputs`) say of this doublet's bits given its end pose
 /// exactly: the wheels leave this doublet (`inputs`) at the speed its bit's offsets reach
@@ -358,34 +372,47 @@ fn entry_separations(
     next_inputs: &DoubletInputs,
     next_view: &DoubletView,
 ) -> Option<[f64; MAX_BITS]> {
-    let t = model.sample_time;
-    let start = next_view.start.value;
     path_separations(
         &model.perturbation,
         k,
         positive,
         &Matrix3::zeros(),
         &next_view.three_step_observed(),
-        |pattern| {
-            let mut speed = model
-                .step_offsets(inputs, Some(pattern))
-                .iter()
-                .fold(Unicycle::zeros(), |speed, &c| {
-                    lagged(c, speed, t, model.lag).1
-                });
-            let offsets: [Unicycle; 3] = std::array::from_fn(|_| {
-                let (mean, end) = lagged(Unicycle::zeros(), speed, t, model.lag);
-                speed = end;
-                mean
-            });
-            let applied = next_inputs.applied_steps(offsets);
-            let means = next_inputs.propagate_steps(&start, offsets, 3, t);
-            let before = [start, means[0], means[1]];
-            (
-                means,
-                std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t)),
-            )
-        },
+        |pattern| entry_path(model, inputs, next_inputs, &next_view.start.value, pattern),
+    )
+}
+
+/// The next doublet's mean path (`next_inputs`, from its start pose `start` exactly) under
+/// this doublet's (`inputs`) `pattern`: the wheels leave this doublet at the speed its bit's
+/// offsets reach through `model`'s lag, which decays by `e^(−T/τ)` per step of the next
+/// doublet; its poses after each step, the steps' Jacobians and applied mean speeds
+/// ([`DoubletModel::three_step_path`]'s).
+fn entry_path(
+    model: &DoubletModel,
+    inputs: &DoubletInputs,
+    next_inputs: &DoubletInputs,
+    start: &Pose,
+    pattern: usize,
+) -> StepPath {
+    let t = model.sample_time;
+    let mut speed = model
+        .step_offsets(inputs, Some(pattern))
+        .iter()
+        .fold(Unicycle::zeros(), |speed, &c| {
+            lagged(c, speed, t, model.lag).1
+        });
+    let offsets: [Unicycle; 3] = std::array::from_fn(|_| {
+        let (mean, end) = lagged(Unicycle::zeros(), speed, t, model.lag);
+        speed = end;
+        mean
+    });
+    let applied = next_inputs.applied_steps(offsets);
+    let means = next_inputs.propagate_steps(start, offsets, 3, t);
+    let before = [*start, means[0], means[1]];
+    (
+        means,
+        std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t)),
+        applied,
     )
 }
 
@@ -477,6 +504,22 @@ fn three_step_separations(
     )
 }
 
+/// A three-step mean path under one pattern: the poses after each step, the steps'
+/// Jacobians along it and their applied mean speeds (m/s, rad/s).
+type StepPath = ([Pose; 3], [Matrix3<f64>; 3], [Unicycle; 3]);
+
+/// Per-wheel slip in Eve's view of three steps: its variance σ², the wheels `axle` D (m)
+/// apart, over steps of `sample_time` T (s) from a path starting at heading `start_heading`
+/// (rad). Each step's noise gains `σ²·R(θₖ)·Wₖ·R(θₖ)ᵀ` ([`step_slip_covariance`] at the
+/// step's applied mean speeds under the pattern, `θₖ` the heading at its start).
+#[derive(Clone, Copy, Debug)]
+struct StepSlip {
+    variance: f64,
+    axle: f64,
+    sample_time: f64,
+    start_heading: f64,
+}
+
 /// Each key bit of `perturbation`: the separation of three steps' `observed` poses (each
 /// with its index among the three) whose mean path and Jacobians under each pattern are
 /// `path(pattern)`, from a start pose of covariance `start_covariance` through steps of
@@ -487,14 +530,42 @@ fn path_separations(
     positive: bool,
     start_covariance: &Matrix3<f64>,
     observed: &[(usize, &PoseObservation)],
-    path: impl Fn(usize) -> ([Pose; 3], [Matrix3<f64>; 3]),
+    path: impl Fn(usize) -> StepPath,
 ) -> Option<[f64; MAX_BITS]> {
     if observed.is_empty() {
         return None;
     }
+    let predictions: Vec<_> =
+        path_predictions(perturbation, k, start_covariance, observed, path, None)
+            .into_iter()
+            .map(|(mean, s)| (mean, Cholesky::new(s)))
+            .collect();
+    if !positive && predictions.iter().any(|(_, s)| s.is_none()) {
+        return None;
+    }
+    Some(separations_by(perturbation, |a, b| {
+        let (mean_a, s) = &predictions[a];
+        let d = &predictions[b].0 - mean_a;
+        s.as_ref().map_or(0.0, |c| c.solve(&d).dot(&d).sqrt())
+    }))
+}
+
+/// Each pattern's mean of three steps' `observed` poses and their covariance
+/// `F·P₀·Fᵀ + G·K·Gᵀ + R` ([`three_step_separations`]), the path under each pattern
+/// `path(pattern)`, from a start pose of covariance `start_covariance` through steps of
+/// covariance `k` (world frame); with `slip`, each step's own slip at the pattern's applied
+/// speeds added to `K`'s diagonal blocks (then the pattern moves the covariance too).
+fn path_predictions(
+    perturbation: &Perturbation,
+    k: &StepCovariance,
+    start_covariance: &Matrix3<f64>,
+    observed: &[(usize, &PoseObservation)],
+    path: impl Fn(usize) -> StepPath,
+    slip: Option<StepSlip>,
+) -> Vec<(DVector<f64>, DMatrix<f64>)> {
     let n = 3 * observed.len();
     let predict = |pattern: usize| {
-        let (means, a) = path(pattern);
+        let (means, a, applied) = path(pattern);
         let mut f = SMatrix::<f64, 9, 3>::zeros();
         let mut g = StepCovariance::identity();
         let mut through = Matrix3::identity();
@@ -507,7 +578,23 @@ fn path_separations(
                 g.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&carried);
             }
         }
-        let c = f * start_covariance * f.transpose() + g * k * g.transpose();
+        let c = match slip {
+            None => f * start_covariance * f.transpose() + g * k * g.transpose(),
+            Some(slip) => {
+                let mut slipped = *k;
+                let headings = [slip.start_heading, means[0].z, means[1].z];
+                for i in 0..3 {
+                    let r = rotation(headings[i]);
+                    let own = step_slip_covariance(&applied[i], slip.sample_time, slip.axle);
+                    let block: Matrix3<f64> = slipped.fixed_view::<3, 3>(3 * i, 3 * i).into_owned()
+                        + slip.variance * r * own * r.transpose();
+                    slipped
+                        .fixed_view_mut::<3, 3>(3 * i, 3 * i)
+                        .copy_from(&block);
+                }
+                f * start_covariance * f.transpose() + g * slipped * g.transpose()
+            }
+        };
         let mut mean = DVector::zeros(n);
         let mut s = DMatrix::zeros(n, n);
         for (row, &(i, y)) in observed.iter().enumerate() {
@@ -520,17 +607,9 @@ fn path_separations(
                 s.fixed_view_mut::<3, 3>(3 * row, 3 * col).copy_from(&block);
             }
         }
-        (mean, Cholesky::new(s))
+        (mean, s)
     };
-    let predictions: Vec<_> = (0..perturbation.patterns()).map(predict).collect();
-    if !positive && predictions.iter().any(|(_, s)| s.is_none()) {
-        return None;
-    }
-    Some(separations_by(perturbation, |a, b| {
-        let (mean_a, s) = &predictions[a];
-        let d = &predictions[b].0 - mean_a;
-        s.as_ref().map_or(0.0, |c| c.solve(&d).dot(&d).sqrt())
-    }))
+    (0..perturbation.patterns()).map(predict).collect()
 }
 
 /// Each key bit's separation at one `corner` (the genie view of the module's doc; entries
@@ -721,26 +800,148 @@ pub fn slip_pairs(
     view: &DoubletView,
 ) -> Option<Vec<PairedBit>> {
     let predictions = corner_predictions(model, corner, Some((slip_variance, axle)), inputs, view)?;
-    let patterns = model.perturbation.patterns();
-    (0..model.perturbation.key_bits())
+    paired_bits(&model.perturbation, |a, b| {
+        let [(mean_a, s_a), (mean_b, s_b)] = [&predictions[a], &predictions[b]];
+        covariance_pair(mean_a, s_a, mean_b, s_b)
+    })
+}
+
+/// Each key bit of `perturbation`: for each value of the doublet's other bits (given to
+/// Eve, as `separations_by` takes them), `pair(p, q)` of the bit's two values' patterns
+/// `p` (the bit 0) and `q` (the bit 1); `None` where a pair has none.
+fn paired_bits(
+    perturbation: &Perturbation,
+    pair: impl Fn(usize, usize) -> Option<CovariancePair>,
+) -> Option<Vec<PairedBit>> {
+    let patterns = perturbation.patterns();
+    (0..perturbation.key_bits())
         .map(|i| {
             (0..patterns)
                 .filter(|p| p >> i & 1 == 0)
-                .map(|p| {
-                    let (mean_a, s_a) = &predictions[p];
-                    let (mean_b, s_b) = &predictions[p | 1 << i];
-                    let root = Cholesky::new(*s_a)?.l().try_inverse()?;
-                    let eigen = SymmetricEigen::new(root * s_b * root.transpose());
-                    let shift = eigen.eigenvectors.transpose() * root * (mean_b - mean_a);
-                    CovariancePair::new((0..6).map(|k| Coordinate {
-                        shift: shift[k],
-                        variance: eigen.eigenvalues[k],
-                    }))
-                    .ok()
-                })
+                .map(|p| pair(p, p | 1 << i))
                 .collect::<Option<PairedBit>>()
         })
         .collect()
+}
+
+/// Her views `N(mean_a, s_a)` and `N(mean_b, s_b)` of a bit's two values diagonalised
+/// together ([`CovariancePair`]): whitened by `s_a` (`L⁻¹`, `s_a = LLᵀ`), rotated onto the
+/// eigenvectors `V` of `L⁻¹·s_b·L⁻ᵀ`: coordinate k has shift `(VᵀL⁻¹(mean_b − mean_a))ₖ` and
+/// variance that eigenvalue. `None` where `s_a` is not positive definite or a coordinate's
+/// variance is not.
+fn covariance_pair<D>(
+    mean_a: &OVector<f64, D>,
+    s_a: &OMatrix<f64, D, D>,
+    mean_b: &OVector<f64, D>,
+    s_b: &OMatrix<f64, D, D>,
+) -> Option<CovariancePair>
+where
+    D: DimSub<U1> + DimMin<D, Output = D>,
+    DefaultAllocator: Allocator<D, D> + Allocator<D> + Allocator<DimDiff<D, U1>>,
+{
+    let root = Cholesky::new(s_a.clone())?.l().try_inverse()?;
+    let eigen = SymmetricEigen::new(&root * s_b * root.transpose());
+    let shift = eigen.eigenvectors.transpose() * root * (mean_b - mean_a);
+    CovariancePair::new((0..shift.len()).map(|k| Coordinate {
+        shift: shift[k],
+        variance: eigen.eigenvalues[k],
+    }))
+    .ok()
+}
+
+/// Each key bit's view of a three-step doublet (public `inputs`, Eve's `view`) under per-wheel
+/// slip `slip = (σ², D)` (its variance, the wheels D m apart), at `corner` (a matrix below
+/// every member of the region and the correlation interval's step weights: its steps'
+/// `P₊ ⊗ W_low − P₋ ⊗ W_high`, the module's doc) over the lag's `interval` `[τ_lo, τ_hi]`
+/// (s): at each lag of its grid ([`lag_grid`]) the pair of her Gaussian views of the bit's
+/// two values, each step's noise with its own slip at that value's applied mean speeds
+/// through τ (`σ²·R(θₖ)·Wₖ·R(θₖ)ᵀ`), and with `next` (the following doublet's public
+/// inputs and her view of it) what its observed poses say from the doublet's end given to
+/// her exactly (`entry_path`), its steps with their own slip likewise: given the end pose
+/// the two views are independent (the Markov property), so their coordinates join in one
+/// pair. Each bit keeps every lag's pairs: its moment is the least over them at every λ,
+/// so the bound holds at whichever lag of the grid is the plant's (between grid points not
+/// proved). `None` where a covariance is not positive definite (no bound at the corner).
+#[must_use]
+pub fn three_step_slip_pairs(
+    model: &DoubletModel,
+    corner: &Corner,
+    (slip_variance, axle): (f64, f64),
+    interval: [f64; 2],
+    inputs: &DoubletInputs,
+    view: &DoubletView,
+    next: Option<(&DoubletInputs, &DoubletView)>,
+) -> Option<Vec<PairedBit>> {
+    let k = three_step_covariance(corner);
+    let here = in_world_frame(&k, view.start.value.z);
+    let following = next.map(|(next_inputs, next_view)| {
+        (
+            with_exact_end(view, next_view),
+            next_inputs,
+            next_view,
+            in_world_frame(&k, next_view.start.value.z),
+        )
+    });
+    let own_view = following.as_ref().map_or(view, |(exact, ..)| exact);
+    let observed = own_view.three_step_observed();
+    if observed.is_empty() {
+        return None;
+    }
+    let perturbation = &model.perturbation;
+    let mut bits: Vec<PairedBit> = vec![Vec::new(); perturbation.key_bits()];
+    for lag in lag_grid(interval) {
+        let model = DoubletModel { lag, ..*model };
+        let slip = |start_heading: f64| StepSlip {
+            variance: slip_variance,
+            axle,
+            sample_time: model.sample_time,
+            start_heading,
+        };
+        let own = path_predictions(
+            perturbation,
+            &here,
+            &own_view.start.covariance,
+            &observed,
+            |pattern| model.three_step_path(inputs, own_view, pattern),
+            Some(slip(view.start.value.z)),
+        );
+        let entry = following
+            .as_ref()
+            .filter(|(_, _, next_view, _)| !next_view.three_step_observed().is_empty())
+            .map(|(_, next_inputs, next_view, next_k)| {
+                let start = next_view.start.value;
+                path_predictions(
+                    perturbation,
+                    next_k,
+                    &Matrix3::zeros(),
+                    &next_view.three_step_observed(),
+                    |pattern| entry_path(&model, inputs, next_inputs, &start, pattern),
+                    Some(slip(start.z)),
+                )
+            });
+        let at_lag = paired_bits(perturbation, |a, b| {
+            let [(mean_a, s_a), (mean_b, s_b)] = [&own[a], &own[b]];
+            let pair = covariance_pair(mean_a, s_a, mean_b, s_b)?;
+            match &entry {
+                None => Some(pair),
+                Some(entry) => {
+                    let [(mean_a, s_a), (mean_b, s_b)] = [&entry[a], &entry[b]];
+                    let after = covariance_pair(mean_a, s_a, mean_b, s_b)?;
+                    CovariancePair::new(
+                        pair.coordinates()
+                            .iter()
+                            .chain(after.coordinates())
+                            .copied(),
+                    )
+                    .ok()
+                }
+            }
+        })?;
+        for (kept, more) in bits.iter_mut().zip(at_lag) {
+            kept.extend(more);
+        }
+    }
+    Some(bits)
 }
 
 #[cfg(test)]

@@ -460,7 +460,7 @@ impl DoubletModel {
         pattern: usize,
     ) -> Prediction {
         let start = &view.start;
-        let (means, jacobians) = self.three_step_path(inputs, view, pattern);
+        let (means, jacobians, _) = self.three_step_path(inputs, view, pattern);
         let path = PathCovariance::new(
             &start.covariance,
             jacobians,
@@ -492,14 +492,14 @@ impl DoubletModel {
     }
 
     /// A three-step doublet's mean path for `pattern`: the means `m₁, m₂, m₃` of
-    /// `x(3j+1), x(3j+2), x(3j+3)` ([`Self::predict_three`]) and the steps' Jacobians
-    /// `A₀, A₁, A₂` along it.
+    /// `x(3j+1), x(3j+2), x(3j+3)` ([`Self::predict_three`]), the steps' Jacobians
+    /// `A₀, A₁, A₂` along it and the steps' applied mean speeds (m/s, rad/s).
     pub(crate) fn three_step_path(
         &self,
         inputs: &DoubletInputs,
         view: &DoubletView,
         pattern: usize,
-    ) -> ([Pose; 3], [Matrix3<f64>; 3]) {
+    ) -> ([Pose; 3], [Matrix3<f64>; 3], [Unicycle; 3]) {
         let t = self.sample_time;
         let mut offsets = self.mean_offsets(inputs, Some(pattern));
         if let Some(entry) = view.entry {
@@ -514,7 +514,7 @@ impl DoubletModel {
         let before = [start.value, means[0], means[1]];
         let jacobians: [Matrix3<f64>; 3] =
             std::array::from_fn(|i| state_jacobian(before[i].z, applied[i].x, t));
-        (means, jacobians)
+        (means, jacobians, applied)
     }
 
     /// The steps' commanded offsets of pattern `h` (`None`: the nominal inputs alone) with
@@ -939,7 +939,7 @@ mod tests {
                     let patterns = model.perturbation.patterns();
                     for (h, &got) in ll.iter().enumerate().take(patterns) {
                         let (means, jacobians) = if three {
-                            let (m, a) = model.three_step_path(&inputs, &view, h);
+                            let (m, a, _) = model.three_step_path(&inputs, &view, h);
                             (m.to_vec(), a.to_vec())
                         } else {
                             let offsets = model.step_offsets(&inputs, Some(h));
