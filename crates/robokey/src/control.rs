@@ -147,8 +147,8 @@ mod tests {
     use crate::model::unicycle_step;
     use crate::trajectory::Trajectory;
 
-    #[test]
-    fn noise_free_tracking_error_is_below_two_millimetres() {
+    /// The Khepera's drive and the paper's tracking gains.
+    fn khepera() -> (DiffDrive, TrackingGains) {
         let drive = DiffDrive {
             wheel_radius: 0.021,
             axle_length: 0.1047,
@@ -159,6 +159,12 @@ mod tests {
             xi_eps: 1e-3,
             wheel_limit: 8.07,
         };
+        (drive, gains)
+    }
+
+    #[test]
+    fn noise_free_tracking_error_is_below_two_millimetres() {
+        let (drive, gains) = khepera();
         let traj = Trajectory::paper_square();
         let mut ctl = TrackingController::new(gains, drive, 0.2);
         let mut pose = Pose::zeros();
@@ -180,16 +186,7 @@ mod tests {
     /// difference's truncation, `O(h²)` of ω's third derivative, and rounding, `O(10⁻¹⁶/h)`).
     #[test]
     fn the_heading_gain_is_the_laws_derivative() {
-        let drive = DiffDrive {
-            wheel_radius: 0.021,
-            axle_length: 0.1047,
-        };
-        let gains = TrackingGains {
-            kp: 1.1,
-            kd: 0.8,
-            xi_eps: 1e-3,
-            wheel_limit: 8.07,
-        };
+        let (drive, gains) = khepera();
         let traj = Trajectory::paper_square();
         let mut ctl = TrackingController::new(gains, drive, 0.1);
         let mut pose = Pose::new(0.01, -0.02, 0.05);
