@@ -28,9 +28,7 @@ impl TrackingGains {
             wheel_limit: c.wheel_limit,
         }
     }
-}
 
-impl TrackingGains {
     /// `∂ω/∂θ̂`: how the turn rate ω (rad/s) [`TrackingController::command`] returns moves
     /// with the heading θ̂ (rad) of the pose it is given, the reference and ξ before the
     /// command held (rad/s per rad), read from the command `command` (m/s, rad/s) and the
