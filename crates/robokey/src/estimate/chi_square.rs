@@ -99,37 +99,41 @@ pub(super) fn ln_lower_tail(nu: f64, x: f64) -> f64 {
     }
 }
 
+/// Halves `[below, above]` around the `x` where `ln_tail(x)` crosses `ln_p` to a relative
+/// width of 10⁻¹³: where the tail still exceeds `ln_p` at the midpoint, the crossing lies
+/// above it for a `falling` tail (the upper one) and below it for a rising one.
+fn bisect(
+    mut below: f64,
+    mut above: f64,
+    ln_tail: impl Fn(f64) -> f64,
+    ln_p: f64,
+    falling: bool,
+) -> [f64; 2] {
+    while above - below > QUANTILE_WIDTH * above {
+        let mid = 0.5 * (below + above);
+        if (ln_tail(mid) > ln_p) == falling {
+            below = mid;
+        } else {
+            above = mid;
+        }
+    }
+    [below, above]
+}
+
 /// The least `x` found with `P[χ²_ν > x] ≤ e^ln_p` (`ln_p < ln ½`): the bracket's upper end
-/// after halving it to a relative width of 10⁻¹³, so never below the exact quantile.
+/// after halving it, so never below the exact quantile.
 pub(super) fn upper_quantile(nu: f64, ln_p: f64) -> f64 {
     let (mut below, mut above) = (nu, 2.0 * nu + 2.0);
     while ln_upper_tail(nu, above) > ln_p {
         (below, above) = (above, 2.0 * above);
     }
-    while above - below > QUANTILE_WIDTH * above {
-        let mid = 0.5 * (below + above);
-        if ln_upper_tail(nu, mid) > ln_p {
-            below = mid;
-        } else {
-            above = mid;
-        }
-    }
-    above
+    bisect(below, above, |x| ln_upper_tail(nu, x), ln_p, true)[1]
 }
 
 /// The greatest `x` found with `P[χ²_ν < x] ≤ e^ln_p` (`ln_p < ln ½`): the bracket's lower
 /// end, so never above the exact quantile.
 pub(super) fn lower_quantile(nu: f64, ln_p: f64) -> f64 {
-    let (mut below, mut above) = (0.0, nu);
-    while above - below > QUANTILE_WIDTH * above {
-        let mid = 0.5 * (below + above);
-        if ln_lower_tail(nu, mid) > ln_p {
-            above = mid;
-        } else {
-            below = mid;
-        }
-    }
-    below
+    bisect(0.0, nu, |x| ln_lower_tail(nu, x), ln_p, false)[0]
 }
 
 #[cfg(test)]
