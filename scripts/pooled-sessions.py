@@ -315,8 +315,8 @@ def block_check(a, folders):
             for m in members:
                 args += ["--capture", f"{m}/capture.pcap", "--camera-log", f"{m}/camera.csv",
                          "--robot-key", f"{m}/robot.key"]
-            print(f"$ robokey eve … --block {path} ({len(members)} sessions: "
-                  f"{os.path.basename(members[0])} … {os.path.basename(members[-1])})")
+            names = ", ".join(sorted(os.path.basename(m) for m in members))
+            print(f"$ robokey eve … --block {path} ({len(members)} sessions: {names})")
             out = robokey(*args).stdout
             for line in out.splitlines():
                 if line.startswith(("block ", "WARNING", "eve: the world is not")):
