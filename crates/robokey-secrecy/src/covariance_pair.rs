@@ -187,12 +187,21 @@ const TRAPEZOID_STEP: f64 = 0.06;
 /// (given to Eve), the most informative of them at each λ.
 pub type PairedBit = Vec<CovariancePair>;
 
-/// `−ln E[e^(−λS)]` of `bit`: the least over its pairs (no pair: Eve sees nothing, `λ`).
-fn surprisal_exponent(bit: &PairedBit, lambda: f64) -> f64 {
-    bit.iter()
-        .map(|pair| -pair.ln_moment(lambda))
-        .fold(f64::INFINITY, f64::min)
-        .min(lambda)
+/// What the bound of [`paired_smooth_min_entropy`] needs of a bit's view: a lower bound on
+/// `−ln E[e^(−λS)]` of Eve's surprisal `S` (bits) at Chernoff parameter λ.
+pub trait SurprisalExponent {
+    /// `−ln E[e^(−λS)]` at `lambda`, or a lower bound on it (at most λ: `S ≤ 1` bit).
+    fn surprisal_exponent(&self, lambda: f64) -> f64;
+}
+
+impl SurprisalExponent for PairedBit {
+    /// The least over the bit's pairs (no pair: Eve sees nothing, `λ`).
+    fn surprisal_exponent(&self, lambda: f64) -> f64 {
+        self.iter()
+            .map(|pair| -pair.ln_moment(lambda))
+            .fold(f64::INFINITY, f64::min)
+            .min(lambda)
+    }
 }
 
 /// The bound of [`paired_smooth_min_entropy`] and where it was reached.
@@ -210,12 +219,13 @@ pub struct PairedMinEntropy {
 /// independent, as under the genie view), `removed` of them taken away — at each λ the ones
 /// whose `−ln E[e^(−λS)]` is largest, the worst choice: `t = max_λ (Σ_kept −ln E_i[e^(−λS)] −
 /// ln(1/ε))/λ` over the `lambdas` given (each in (0, [`LARGEST_LAMBDA`]]; every λ gives a
-/// bound, the choice only sharpens it: [`candidate_lambdas`]).
+/// bound, the choice only sharpens it: [`candidate_lambdas`]). Each bit's exponent is its
+/// [`SurprisalExponent`] (a lower bound keeps the bound a bound).
 ///
 /// # Errors
 /// [`MinEntropyError::InvalidEpsilon`] for ε outside (0, 1).
-pub fn paired_smooth_min_entropy(
-    bits: &[PairedBit],
+pub fn paired_smooth_min_entropy<B: SurprisalExponent>(
+    bits: &[B],
     removed: u64,
     epsilon: f64,
     lambdas: &[f64],
@@ -229,7 +239,7 @@ pub fn paired_smooth_min_entropy(
     let bound_at = |lambda: f64| {
         let mut exponents: Vec<f64> = bits
             .iter()
-            .map(|bit| surprisal_exponent(bit, lambda))
+            .map(|bit| bit.surprisal_exponent(lambda))
             .collect();
         exponents.sort_by(f64::total_cmp);
         let kept: f64 = exponents[..exponents.len() - removed].iter().sum();

@@ -22,6 +22,7 @@ pub mod homogeneity;
 pub mod lag;
 pub mod motion_noise;
 mod normal_tail;
+pub mod pairs_over_lags;
 mod pattern_fit;
 pub mod quantum_check;
 pub mod residual;

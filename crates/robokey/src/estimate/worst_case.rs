@@ -62,7 +62,9 @@
 //! on each of several intervals and a peak between grid points: every sample lies below it.
 //! In the simulated worlds `d(τ)` is convex near the prior (its least lies between 0.1 and
 //! 0.15 s at 1 mm, beyond 0.3 s at 4 mm), so the slack is 0 there and the bound is the
-//! grid's largest, at an end of the interval.
+//! grid's largest, at an end of the interval. Under per-wheel slip ([`three_step_slip_pairs`])
+//! the same slack, mirrored, bounds each bit's exponent from below between the grid's lags
+//! (estimate/pairs_over_lags.rs).
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{
@@ -71,6 +73,7 @@ use nalgebra::{
 };
 
 use super::motion_noise::{Corner, MotionNoiseEstimate, loewner_below_both};
+use super::pairs_over_lags::PairsOverLags;
 use robokey_secrecy::covariance_pair::{Coordinate, CovariancePair, PairedBit};
 
 use super::residual::{rotation, step_slip_covariance};
@@ -859,9 +862,10 @@ where
 /// inputs and her view of it) what its observed poses say from the doublet's end given to
 /// her exactly (`entry_path`), its steps with their own slip likewise: given the end pose
 /// the two views are independent (the Markov property), so their coordinates join in one
-/// pair. Each bit keeps every lag's pairs: its moment is the least over them at every λ,
-/// so the bound holds at whichever lag of the grid is the plant's (between grid points not
-/// proved). `None` where a covariance is not positive definite (no bound at the corner).
+/// pair. Each bit keeps every lag's pairs ([`PairsOverLags`]): its exponent at every λ is
+/// the least over the grid less a convexity slack, a bound at every τ of the interval under
+/// the stated curvature assumption (that module's doc). `None` where a covariance is not
+/// positive definite (no bound at the corner).
 #[must_use]
 pub fn three_step_slip_pairs(
     model: &DoubletModel,
@@ -871,7 +875,7 @@ pub fn three_step_slip_pairs(
     inputs: &DoubletInputs,
     view: &DoubletView,
     next: Option<(&DoubletInputs, &DoubletView)>,
-) -> Option<Vec<PairedBit>> {
+) -> Option<Vec<PairsOverLags>> {
     let k = three_step_covariance(corner);
     let here = in_world_frame(&k, view.start.value.z);
     let following = next.map(|(next_inputs, next_view)| {
@@ -888,7 +892,7 @@ pub fn three_step_slip_pairs(
         return None;
     }
     let perturbation = &model.perturbation;
-    let mut bits: Vec<PairedBit> = vec![Vec::new(); perturbation.key_bits()];
+    let mut bits: Vec<Vec<PairedBit>> = vec![Vec::new(); perturbation.key_bits()];
     for lag in lag_grid(interval) {
         let model = DoubletModel { lag, ..*model };
         let slip = |start_heading: f64| StepSlip {
@@ -937,11 +941,11 @@ pub fn three_step_slip_pairs(
                 }
             }
         })?;
-        for (kept, more) in bits.iter_mut().zip(at_lag) {
-            kept.extend(more);
+        for (lags, pairs) in bits.iter_mut().zip(at_lag) {
+            lags.push(pairs);
         }
     }
-    Some(bits)
+    bits.into_iter().map(PairsOverLags::over_grid).collect()
 }
 
 #[cfg(test)]
