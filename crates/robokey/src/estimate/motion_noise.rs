@@ -36,10 +36,10 @@
 //! bounds Eve's view too), jointly with σ² in its interval: the vertex `Q_low(σ²)` falls as σ² rises, while the slip's own part of Eve's view rises —
 //! not one-sided, so the corners are computed at [`SLIP_GRID`] points of σ²'s interval
 //! ([`SlipCorners`]) and Eve's view is sized at each (`worst_case`). The residuals' spread
-//! now differs between doublets (the slip's part follows the wheel speeds): the Wishart count
-//! is deflated by `m·Σv²/(Σv)²` (the largest over the axes, `v` each residual's fitted
-//! variance; `heterogeneity_deflation`, an approximation) and the kurtosis is taken of each
-//! residual whitened by its own fitted covariance.
+//! now differs between doublets (the slip's part follows the wheel speeds): along each
+//! direction the whitened second moment is a weighted χ², bounded over every weight vector
+//! the data and σ²'s upper end allow (`slip_wishart_bounds`, a fixed point), and the kurtosis
+//! is taken of each residual whitened by its own fitted covariance.
 
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
 use thiserror::Error;
@@ -522,7 +522,7 @@ fn region_estimate(
     };
     // Where slip is sized, each half's bound over the residuals' unequal covariances
     // (`slip_wishart_bounds`), at σ²'s upper end.
-    let deflated = match slip {
+    let region_bounds = match slip {
         None => bounds_at(deflation),
         Some(s) => [0, 1].map(|parity| {
             let half = residuals.iter().filter(|r| r.doublet % 2 == parity);
@@ -539,7 +539,7 @@ fn region_estimate(
             )
         }),
     };
-    let low_moment = weighted(&deflated, 1);
+    let low_moment = weighted(&region_bounds, 1);
     let slip_mean = |variance: f64| -> Matrix3<f64> {
         residuals
             .iter()
@@ -557,7 +557,7 @@ fn region_estimate(
     // `Q_high(ρ, σ²)` above every cell's ends (as `Q_low` below them); none where the
     // Wishart bound's lower side has no room (`c₋ ≤ 0`).
     let upper_at = |variance: f64| -> Result<Option<Matrix3<f64>>, EstimationRefusal> {
-        let Some(moment) = high(&deflated) else {
+        let Some(moment) = high(&region_bounds) else {
             return Ok(None);
         };
         let moment = moment - slip_mean(variance);
@@ -651,33 +651,33 @@ const FIXED_POINT_ROUNDS: usize = 40;
 /// The fixed point's relative step at which it stops.
 const FIXED_POINT_TOLERANCE: f64 = 1e-6;
 
-/// `[c₋, c₊]` for one parity half `half` (second moment `moment`) where the block sizes slip:
-/// `c₋ ≤ λ_min(W) ≤ λ_max(W) ≤ c₊` for `W = Σ̄^(−½)·S_half·Σ̄^(−½)`, each side failing with
-/// probability at most `level/2` (the lower where the upper holds), given σ² ≤ `slip_high`
-/// (σ²'s interval, its own share of ε_est) and the sensor's stated `R` (`sensor`).
+/// `[c₋, c₊]` for one parity half of residuals with slip maps `slip_maps` (`Mᵢ`), mean sensor
+/// part `sensor_mean` (`N̄`) and second moment `moment` (`S_half`), where the block sizes
+/// slip: `c₋ ≤ λ_min(W) ≤ λ_max(W) ≤ c₊` for `W = Σ̄^(−½)·S_half·Σ̄^(−½)`, each side failing
+/// with probability at most `level/2` (the lower where the upper holds), given σ² ≤
+/// `slip_high` (σ²'s interval, its own share of ε_est) and the sensor's stated `R`;
+/// `dependence` the parity halves' count deflation under AR(1) (1 when white).
 ///
-/// With slip each residual's covariance is `Σᵢ = P + σ²Mᵢ` (`P` the motion and sensor
-/// part, taken common to the half as without slip, `Mᵢ` the slip map at the doublet's wheel
-/// speeds), so along a standardised direction `v` (`a = Σ̄^(−½)v` in the robot's frame)
-/// `m·vᵀWv = Σᵢ wᵢξᵢ²`, ξᵢ independent standard normals, with weights
-/// `wᵢ = aᵀΣᵢa/aᵀΣ̄a = 1 + σ²·aᵀ(Mᵢ − M̄)a/aᵀΣ̄a` (mean 1): a weighted χ², bounded over a
-/// box of weights by `weighted_chi_square`, the net (`wishart::net_bounds`) taking each
-/// line's quantile from it. The box holds every direction's weights: `wᵢ − 1` lies between
-/// 0 and `σ²_hi·aᵀDᵢa/ℓ(a)`, `Dᵢ = Mᵢ − M̄`, for any `ℓ(a) ≤ aᵀΣ̄a/σ²·σ²_hi` — its size
-/// grows with σ² and falls with `aᵀΣ̄a`. Two such floors: `N̄ + σ²_hi·M̄` (`P ⪰ N̄`, the
-/// sensor's mean part, since the motion's part is a covariance; `σ²/(n + σ²μ̄)` rises with
-/// σ²), and `S_half/c` for a `c` above the truth's `c₊` (where `λ_max(W) ≤ c₊`,
-/// `Σ̄ ⪰ S_half/c₊`). Over every direction `aᵀDᵢa/aᵀLa` lies within the generalised
-/// eigenvalues of `(Dᵢ, L)`, so `wᵢ ∈ [1 + min(0, σ²_hi·λ_min), 1 + max(0, σ²_hi·λ_max)]`
-/// (the floors' tighter end each; at least 0).
+/// Each residual's covariance is `Σᵢ = P + σ²Mᵢ` (`P` the motion and sensor part, taken
+/// common to the half as without slip), so along a standardised direction `v`
+/// (`a = Σ̄^(−½)v`) `m·vᵀWv = Σᵢ wᵢξᵢ²`, ξᵢ independent standard normals, with weights
+/// `wᵢ = aᵀΣᵢa/aᵀΣ̄a = 1 + σ²·aᵀDᵢa/aᵀΣ̄a`, `Dᵢ = Mᵢ − M̄` (mean 1): a weighted χ², bounded
+/// over a box of weights (`weighted_chi_square`), the net (`wishart::net_bounds`) taking each
+/// line's quantile from it. The box holds every direction's weights: `wᵢ − 1` lies between 0
+/// and `σ²_hi·aᵀDᵢa/ℓ(a)` for a floor `ℓ(a) = aᵀLa` with `σ²·ℓ(a) ≤ σ²_hi·aᵀΣ̄a`. Two
+/// floors: `L = N̄ + σ²_hi·M̄` (`Σ̄ ⪰ N̄ + σ²M̄`, the motion's part being a covariance, and
+/// `σ²/(n + σ²μ̄)` rises with σ²), and `L = S_half/c` for a `c` above the truth's `c₊`
+/// (where `λ_max(W) ≤ c₊`, `Σ̄ ⪰ S_half/c₊`). Over every direction `aᵀDᵢa/aᵀLa` lies within
+/// the generalised eigenvalues of `(Dᵢ, L)`, so `wᵢ ∈ [1 + min(0, σ²_hi·λ_min),
+/// 1 + max(0, σ²_hi·λ_max)]` (the floors' tighter ends; at least 0).
 ///
-/// The circle — `c₊` from a box that needs a bound on `Σ̄` — is broken by a fixed point:
-/// let `g(L)` be the bound from the box over all `Σ̄ ⪰ L` (and σ² ≤ σ²_hi); `g` falls as `L`
-/// rises. The event `λ_max(W) ≤ g(Σ̄)` (the box at the truth's own `Σ̄` and σ², no data in
-/// it) has probability at least `1 − level/2`; on it `Σ̄ ⪰ S_half/g(Σ̄)`, and if
-/// `Σ̄ ⪰ S_half/c` then `g(Σ̄) ≤ g(S_half/c) = c'`, so `Σ̄ ⪰ S_half/c'`: starting from the
-/// sensor's floor alone, every round's `c` is a valid bound on the one event — no further
-/// share of ε — and they fall towards the largest fixed point.
+/// The circle — `c₊` from a box that needs a floor under `Σ̄` — is broken by a fixed point:
+/// let `g(L)` be the bound from the box over every `Σ̄ ⪰ L` (σ² ≤ σ²_hi); `g` falls as `L`
+/// rises. The event `λ_max(W) ≤ g(Σ̄)` (the box at the truth's own `Σ̄`, no data in it) has
+/// probability at least `1 − level/2`; on it `Σ̄ ⪰ S_half/g(Σ̄)`, and if `Σ̄ ⪰ S_half/c` then
+/// `g(Σ̄) ≤ g(S_half/c) = c'`, so `Σ̄ ⪰ S_half/c'`. Starting from the sensor's floor alone,
+/// every round's `c` is a bound on that one event — no further share of ε — and the rounds
+/// fall towards the largest fixed point.
 fn slip_wishart_bounds(
     slip_maps: &[Matrix3<f64>],
     sensor_mean: &Matrix3<f64>,
