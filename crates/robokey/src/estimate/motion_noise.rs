@@ -644,7 +644,7 @@ fn region_estimate(
 }
 
 /// Rounds of the slip path's fixed point at most (`slip_wishart_bounds`); it stops earlier
-/// once `c₊` moves by less than [`FIXED_POINT_TOLERANCE`] of itself (every round's bound
+/// once `c₊` moves by less than `FIXED_POINT_TOLERANCE` of itself (every round's bound
 /// holds, so where it stops sets only how tight the bound is).
 const FIXED_POINT_ROUNDS: usize = 40;
 
