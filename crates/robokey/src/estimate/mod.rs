@@ -29,6 +29,7 @@ pub mod residual;
 pub mod slice_llrs;
 pub mod slip;
 mod symmetric_coordinates;
+mod weighted_chi_square;
 mod wishart;
 pub mod worst_case;
 

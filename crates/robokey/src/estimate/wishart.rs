@@ -36,18 +36,37 @@ const FACE_CUTS: [u32; 15] = [2, 3, 4, 6, 8, 11, 16, 23, 32, 45, 64, 91, 128, 18
 /// with probability at most `epsilon/2` and the lower side at most `epsilon/2` beyond it
 /// (module doc). `c₋` may be ≤ 0: too few residuals for a lower side.
 pub(super) fn wishart_bounds(m: f64, epsilon: f64) -> [f64; 2] {
+    net_bounds(
+        m,
+        epsilon,
+        |ln_p| upper_quantile(m, ln_p),
+        |ln_p| lower_quantile(m, ln_p),
+    )
+}
+
+/// `[c₋, c₊]` over the net (module doc) for any law of `m·uᵀWu` along each line: `upper(ln_p)`
+/// a `q₊` with `P[m·uᵀWu > q₊] ≤ e^ln_p` and `lower(ln_p)` a `q₋` with
+/// `P[m·uᵀWu < q₋] ≤ e^ln_p`, for every line of the net; each side fails with probability at
+/// most `epsilon/2` (the lower one where the upper holds). `wishart_bounds` with χ²_m's
+/// quantiles; the slip path's weighted χ² (`weighted_chi_square`) with its Chernoff ones.
+pub(super) fn net_bounds(
+    m: f64,
+    epsilon: f64,
+    upper: impl Fn(f64) -> f64,
+    lower: impl Fn(f64) -> f64,
+) -> [f64; 2] {
     let ln_side = (0.5 * epsilon).ln();
     let lines = |k: u32| (3.0 * f64::from(k) * f64::from(k)).ln();
     let sin2 = |k: u32| 2.0 / f64::from(k * k);
-    let upper = FACE_CUTS
+    let most = FACE_CUTS
         .iter()
-        .map(|&k| upper_quantile(m, ln_side - lines(k)) / (m * (1.0 - sin2(k))))
+        .map(|&k| upper(ln_side - lines(k)) / (m * (1.0 - sin2(k))))
         .fold(f64::INFINITY, f64::min);
-    let lower = FACE_CUTS
+    let least = FACE_CUTS
         .iter()
-        .map(|&k| (lower_quantile(m, ln_side - lines(k)) / m - upper * sin2(k)) / (1.0 - sin2(k)))
+        .map(|&k| (lower(ln_side - lines(k)) / m - most * sin2(k)) / (1.0 - sin2(k)))
         .fold(f64::NEG_INFINITY, f64::max);
-    [lower, upper]
+    [least, most]
 }
 
 #[cfg(test)]
