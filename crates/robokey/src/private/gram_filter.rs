@@ -13,6 +13,8 @@
 
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, MatrixXx3, Vector3};
 
+use super::product::product_to;
+
 /// The filter's state between observations.
 #[derive(Clone, Debug)]
 pub struct GramFilter {
@@ -180,11 +182,11 @@ impl GramFilter {
         }
         let b = &mut self.batch;
         f.transpose_to(&mut b.transposed);
-        b.transposed.mul_to(noise_inverse, &mut b.weighted); // dim × 3
-        b.weighted.mul_to(f, &mut b.information);
+        product_to(&b.transposed, noise_inverse, &mut b.weighted); // dim × 3
+        product_to(&b.weighted, f, &mut b.information);
         b.info += &b.information;
         for (c, value) in values.iter().enumerate() {
-            b.weighted.mul_to(value, &mut b.projection);
+            product_to(&b.weighted, value, &mut b.projection);
             let mut column = b.projected.column_mut(c);
             column += &b.projection;
         }
@@ -214,21 +216,30 @@ impl GramFilter {
         let (dim, columns) = (self.dim(), self.means.ncols());
         let (b, w) = (&self.batch, &mut self.work);
         // ũ = u − J·m and S̃ = S − uᵀm − mᵀu + mᵀJm: the batch about the prior means.
-        b.info
-            .mul_to(&self.means, shaped(&mut w.about, dim, columns));
+        product_to(&b.info, &self.means, shaped(&mut w.about, dim, columns));
         w.about
             .zip_apply(&b.projected, |product, u| *product = u - *product);
         transpose_into(&b.projected, &mut w.projected_transposed);
-        w.projected_transposed
-            .mul_to(&self.means, shaped(&mut w.cross, columns, columns));
+        product_to(
+            &w.projected_transposed,
+            &self.means,
+            shaped(&mut w.cross, columns, columns),
+        );
         transpose_into(&self.means, &mut w.means_transposed);
-        w.means_transposed
-            .mul_to(&b.info, shaped(&mut w.means_information, columns, dim));
-        w.means_information
-            .mul_to(&self.means, shaped(&mut w.quadratic, columns, columns));
+        product_to(
+            &w.means_transposed,
+            &b.info,
+            shaped(&mut w.means_information, columns, dim),
+        );
+        product_to(
+            &w.means_information,
+            &self.means,
+            shaped(&mut w.quadratic, columns, columns),
+        );
         // I + P·J: every element gains `δ_ij`, zeros included, as in the sum of the identity
         // and the product (a rounded sum is the same either way round).
-        let mut growth = &self.cov * &b.info;
+        let mut growth = DMatrix::zeros(dim, dim);
+        product_to(&self.cov, &b.info, &mut growth);
         for j in 0..dim {
             for i in 0..dim {
                 growth[(i, j)] += f64::from(u8::from(i == j));
@@ -246,10 +257,13 @@ impl GramFilter {
                 self.cov[(i, j)] = (posterior[(i, j)] + posterior[(j, i)]) * 0.5;
             }
         }
-        self.cov.mul_to(&w.about, shaped(&mut w.gain, dim, columns));
+        product_to(&self.cov, &w.about, shaped(&mut w.gain, dim, columns));
         transpose_into(&w.about, &mut w.about_transposed);
-        w.about_transposed
-            .mul_to(&w.gain, shaped(&mut w.reduction, columns, columns));
+        product_to(
+            &w.about_transposed,
+            &w.gain,
+            shaped(&mut w.reduction, columns, columns),
+        );
         for j in 0..columns {
             for i in 0..columns {
                 let direct =
@@ -270,13 +284,14 @@ impl GramFilter {
         let (new_dim, dim) = l.shape();
         let columns = self.means.ncols();
         transpose_into(l, &mut w.map_transposed);
-        l.mul_to(&self.cov, shaped(&mut w.mapped, new_dim, dim));
-        w.mapped.mul_to(
+        product_to(l, &self.cov, shaped(&mut w.mapped, new_dim, dim));
+        product_to(
+            &w.mapped,
             &w.map_transposed,
             shaped(&mut w.spare_cov, new_dim, new_dim),
         );
         std::mem::swap(&mut self.cov, &mut w.spare_cov);
-        l.mul_to(&self.means, shaped(&mut w.spare_means, new_dim, columns));
+        product_to(l, &self.means, shaped(&mut w.spare_means, new_dim, columns));
         std::mem::swap(&mut self.means, &mut w.spare_means);
     }
 
