@@ -13,6 +13,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, MatrixXx3, Vector3};
 
+use super::lu::Lu;
 use super::product::product_to;
 
 /// The filter's state between observations.
@@ -46,6 +47,8 @@ struct Conditioning {
     cross: DMatrix<f64>,
     quadratic: DMatrix<f64>,
     reduction: DMatrix<f64>,
+    /// `I + P·J`, then its LU factors.
+    growth: Lu,
     /// `P⁺` before its symmetrisation (`dim × dim`).
     posterior: DMatrix<f64>,
     /// `P⁺ũ` (`dim × columns`), then `ũᵀ` (`columns × dim`).
@@ -238,18 +241,18 @@ impl GramFilter {
         );
         // I + P·J: every element gains `δ_ij`, zeros included, as in the sum of the identity
         // and the product (a rounded sum is the same either way round).
-        let mut growth = DMatrix::zeros(dim, dim);
-        product_to(&self.cov, &b.info, &mut growth);
+        let growth = w.growth.matrix(dim);
+        product_to(&self.cov, &b.info, growth);
         for j in 0..dim {
             for i in 0..dim {
                 growth[(i, j)] += f64::from(u8::from(i == j));
             }
         }
-        let lu = growth.lu();
+        w.growth.factor();
         let posterior = shaped(&mut w.posterior, dim, dim);
         posterior.copy_from(&self.cov);
         assert!(
-            lu.solve_mut(posterior),
+            w.growth.solve_mut(posterior),
             "I + P·J is invertible for P, J positive semi-definite"
         );
         for j in 0..dim {
@@ -272,7 +275,7 @@ impl GramFilter {
             }
         }
         self.means += &w.gain;
-        self.log_det += lu.determinant().abs().ln() - b.log_det_noise;
+        self.log_det += w.growth.determinant().abs().ln() - b.log_det_noise;
         self.batch.clear();
     }
 

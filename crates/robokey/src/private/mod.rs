@@ -12,6 +12,7 @@ pub mod eve;
 pub mod gram_filter;
 pub mod likelihood;
 pub mod plan;
+mod lu;
 mod product;
 pub(crate) mod robot;
 pub mod smoother;
