@@ -14,7 +14,7 @@
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, MatrixXx3, Vector3};
 
 use super::lu::Lu;
-use super::product::product_to;
+use super::product::{product_to, transposed_product_to};
 
 /// The filter's state between observations.
 #[derive(Clone, Debug)]
@@ -32,15 +32,15 @@ pub struct GramFilter {
 }
 
 /// Work space of [`GramFilter::condition`] and [`GramFilter::transition`], overwritten by
-/// each: the same products as allocating ones (`mul_to` is the `gemm` of `*`), into kept
-/// storage, reallocated only when a shape changes.
+/// each: the same products as allocating ones (`product_to` rounds as `nalgebra`'s `*`), into
+/// kept storage, reallocated only when a shape changes.
 #[derive(Clone, Debug, Default)]
 struct Conditioning {
     /// `J·m` (`dim × columns`), then `ũ = u − J·m`.
     about: DMatrix<f64>,
-    /// `uᵀ` and `mᵀ` (`columns × dim`), materialised as the allocating products did.
-    projected_transposed: DMatrix<f64>,
-    means_transposed: DMatrix<f64>,
+    /// `uᵀ`, `mᵀ` or `ũᵀ` (`columns × dim`), materialised where a product of them goes to
+    /// `matrixmultiply` (`transposed_product_to`).
+    transposed: DMatrix<f64>,
     /// `mᵀJ` (`columns × dim`).
     means_information: DMatrix<f64>,
     /// `uᵀm`, `mᵀJm` and `ũᵀ·gain` (`columns × columns`).
@@ -51,9 +51,8 @@ struct Conditioning {
     growth: Lu,
     /// `P⁺` before its symmetrisation (`dim × dim`).
     posterior: DMatrix<f64>,
-    /// `P⁺ũ` (`dim × columns`), then `ũᵀ` (`columns × dim`).
+    /// `P⁺ũ` (`dim × columns`).
     gain: DMatrix<f64>,
-    about_transposed: DMatrix<f64>,
     /// `Lᵀ` (`dim × new_dim`) and `L·P` (`new_dim × dim`) of a transition.
     map_transposed: DMatrix<f64>,
     mapped: DMatrix<f64>,
@@ -222,17 +221,17 @@ impl GramFilter {
         product_to(&b.info, &self.means, shaped(&mut w.about, dim, columns));
         w.about
             .zip_apply(&b.projected, |product, u| *product = u - *product);
-        transpose_into(&b.projected, &mut w.projected_transposed);
-        product_to(
-            &w.projected_transposed,
+        transposed_product_to(
+            &b.projected,
             &self.means,
             shaped(&mut w.cross, columns, columns),
+            &mut w.transposed,
         );
-        transpose_into(&self.means, &mut w.means_transposed);
-        product_to(
-            &w.means_transposed,
+        transposed_product_to(
+            &self.means,
             &b.info,
             shaped(&mut w.means_information, columns, dim),
+            &mut w.transposed,
         );
         product_to(
             &w.means_information,
@@ -261,11 +260,11 @@ impl GramFilter {
             }
         }
         product_to(&self.cov, &w.about, shaped(&mut w.gain, dim, columns));
-        transpose_into(&w.about, &mut w.about_transposed);
-        product_to(
-            &w.about_transposed,
+        transposed_product_to(
+            &w.about,
             &w.gain,
             shaped(&mut w.reduction, columns, columns),
+            &mut w.transposed,
         );
         for j in 0..columns {
             for i in 0..columns {

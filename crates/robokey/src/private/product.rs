@@ -15,7 +15,7 @@
 //! observation's `Fᵀ·R⁻¹`, a three-dimensional state) held in registers: the same operations
 //! in the same order, so the same bits. The dimensions that decide the path are `nalgebra`'s.
 
-use nalgebra::{Dim, Dyn, IsContiguous, Matrix, RawStorage, Storage, StorageMut};
+use nalgebra::{DMatrix, Dim, Dyn, IsContiguous, Matrix, RawStorage, Storage, StorageMut};
 
 /// `nalgebra`'s threshold: products with every dimension above it go to `matrixmultiply`.
 pub const SMALL_DIM: usize = 5;
@@ -62,14 +62,69 @@ pub fn product_to<R1, C1, SA, R2, C2, SB, R3, C3, SC>(
         a.mul_to(b, out);
         return;
     }
-    column_by_column(
-        slice(a),
-        m,
-        k,
-        slice(b),
-        n,
-        out.as_mut_slice(),
+    column_by_column(slice(a), m, k, slice(b), n, out.as_mut_slice());
+}
+
+/// `out = aᵀ·b` (`a` is `k × m`, `b` is `k × n`, `out` is `m × n`), bit for bit as `aᵀ`
+/// materialised and multiplied by [`product_to`]: on `nalgebra`'s `gemv` path each element is
+/// `a_0i·b_0j`, then `a_pi·b_pj +` it for `p = 1, 2, …` — a chain down two contiguous columns,
+/// with no transpose; on its `dgemm` path `aᵀ` is written into `spare` first.
+///
+/// # Panics
+///
+/// If the shapes do not match.
+pub fn transposed_product_to(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    out: &mut DMatrix<f64>,
+    spare: &mut DMatrix<f64>,
+) {
+    let (k, m) = a.shape();
+    let n = b.ncols();
+    assert!(
+        b.nrows() == k && out.shape() == (m, n),
+        "product of ({k}×{m})ᵀ and {}×{n} into {:?}",
+        b.nrows(),
+        out.shape()
     );
+    if m > SMALL_DIM && n > SMALL_DIM && k > SMALL_DIM {
+        if spare.shape() != (m, k) {
+            *spare = DMatrix::zeros(m, k);
+        }
+        a.transpose_to(spare);
+        spare.mul_to(b, out);
+        return;
+    }
+    if k == 0 {
+        out.fill(0.0);
+        return;
+    }
+    let (a, b) = (a.as_slice(), b.as_slice());
+    if k == 3 {
+        for (c, bc) in out
+            .as_mut_slice()
+            .chunks_exact_mut(m)
+            .zip(b.chunks_exact(3))
+        {
+            for (y, ac) in c.iter_mut().zip(a.chunks_exact(3)) {
+                *y = ac[2] * bc[2] + (ac[1] * bc[1] + ac[0] * bc[0]);
+            }
+        }
+        return;
+    }
+    for (c, bc) in out
+        .as_mut_slice()
+        .chunks_exact_mut(m)
+        .zip(b.chunks_exact(k))
+    {
+        for (y, ac) in c.iter_mut().zip(a.chunks_exact(k)) {
+            let mut sum = ac[0] * bc[0];
+            for (&p, &q) in ac.iter().zip(bc).skip(1) {
+                sum = p * q + sum;
+            }
+            *y = sum;
+        }
+    }
 }
 
 /// A contiguous matrix's elements, column after column.
@@ -128,7 +183,7 @@ fn column_by_column(a: &[f64], m: usize, k: usize, b: &[f64], n: usize, out: &mu
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, MatrixXx3, Vector3};
+    use nalgebra::{DVector, Matrix3, Matrix3xX, MatrixXx3, Vector3};
     use rand::{RngExt, SeedableRng};
 
     /// Values that exercise the rounding: wide exponents, exact zeros of both signs.
@@ -162,6 +217,31 @@ mod tests {
                         assert!(
                             same(expected.as_slice(), got.as_slice()),
                             "{m}×{k}×{n}: {expected} vs {got}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// `aᵀ·b` against `a.transpose()` multiplied by `mul_to`, every shape up to 9 × 9 × 9.
+    #[test]
+    fn a_transposed_product_is_the_transpose_multiplied_bit_for_bit() {
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(14);
+        let mut spare = DMatrix::zeros(0, 0);
+        for m in 0..=9 {
+            for k in 0..=9 {
+                for n in 0..=9 {
+                    for _ in 0..4 {
+                        let a = DMatrix::from_fn(k, m, |_, _| value(&mut rng));
+                        let b = DMatrix::from_fn(k, n, |_, _| value(&mut rng));
+                        let mut expected = DMatrix::from_element(m, n, f64::NAN);
+                        a.transpose().mul_to(&b, &mut expected);
+                        let mut got = DMatrix::from_element(m, n, f64::NAN);
+                        transposed_product_to(&a, &b, &mut got, &mut spare);
+                        assert!(
+                            same(expected.as_slice(), got.as_slice()),
+                            "({k}×{m})ᵀ×{n}: {expected} vs {got}"
                         );
                     }
                 }
