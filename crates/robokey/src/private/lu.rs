@@ -60,13 +60,16 @@ impl Lu {
                 }
             }
             let inverse = 1.0 / diag;
-            for r in i + 1..n {
-                a[r + i * n] *= inverse;
+            let (done, later) = a.split_at_mut((i + 1) * n);
+            let multipliers = &mut done[i * n + i + 1..];
+            for m in multipliers.iter_mut() {
+                *m *= inverse;
             }
-            for k in i + 1..n {
-                let scale = -a[i + k * n];
-                for r in i + 1..n {
-                    a[r + k * n] = scale * a[r + i * n] + a[r + k * n];
+            for column in later.chunks_exact_mut(n) {
+                let (top, below) = column.split_at_mut(i + 1);
+                let scale = -top[i];
+                for (y, &m) in below.iter_mut().zip(&*multipliers) {
+                    *y = scale * m + *y;
                 }
             }
         }
@@ -82,24 +85,26 @@ impl Lu {
             b.swap_rows(i, r);
         }
         for column in b.as_mut_slice().chunks_exact_mut(n) {
-            for i in 0..n.saturating_sub(1) {
-                let scale = -column[i];
-                for r in i + 1..n {
-                    column[r] = scale * a[r + i * n] + column[r];
+            for (i, factor) in a.chunks_exact(n).enumerate().take(n.saturating_sub(1)) {
+                let (top, below) = column.split_at_mut(i + 1);
+                let scale = -top[i];
+                for (y, &l) in below.iter_mut().zip(&factor[i + 1..]) {
+                    *y = scale * l + *y;
                 }
             }
         }
         for column in b.as_mut_slice().chunks_exact_mut(n) {
-            for i in (0..n).rev() {
-                let diag = a[i + i * n];
+            for (i, factor) in a.chunks_exact(n).enumerate().rev() {
+                let diag = factor[i];
                 if diag == 0.0 {
                     return false;
                 }
-                let value = column[i] / diag;
-                column[i] = value;
+                let (above, rest) = column.split_at_mut(i);
+                let value = rest[0] / diag;
+                rest[0] = value;
                 let scale = -value;
-                for r in 0..i {
-                    column[r] = scale * a[r + i * n] + column[r];
+                for (y, &u) in above.iter_mut().zip(&factor[..i]) {
+                    *y = scale * u + *y;
                 }
             }
         }

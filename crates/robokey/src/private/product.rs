@@ -95,6 +95,9 @@ pub fn transposed_product_to(
         spare.mul_to(b, out);
         return;
     }
+    if m == 0 || n == 0 {
+        return;
+    }
     if k == 0 {
         out.fill(0.0);
         return;
