@@ -69,7 +69,7 @@ impl Lu {
                 let (top, below) = column.split_at_mut(i + 1);
                 let scale = -top[i];
                 for (y, &m) in below.iter_mut().zip(&*multipliers) {
-                    *y = scale * m + *y;
+                    *y += scale * m;
                 }
             }
         }
@@ -89,7 +89,7 @@ impl Lu {
                 let (top, below) = column.split_at_mut(i + 1);
                 let scale = -top[i];
                 for (y, &l) in below.iter_mut().zip(&factor[i + 1..]) {
-                    *y = scale * l + *y;
+                    *y += scale * l;
                 }
             }
         }
@@ -104,7 +104,7 @@ impl Lu {
                 rest[0] = value;
                 let scale = -value;
                 for (y, &u) in above.iter_mut().zip(&factor[..i]) {
-                    *y = scale * u + *y;
+                    *y += scale * u;
                 }
             }
         }
@@ -116,7 +116,11 @@ impl Lu {
     pub fn determinant(&self) -> f64 {
         let n = self.matrix.nrows();
         let a = self.matrix.as_slice();
-        let sign = if self.swaps.len() % 2 == 0 { 1.0 } else { -1.0 };
+        let sign = if self.swaps.len().is_multiple_of(2) {
+            1.0
+        } else {
+            -1.0
+        };
         (0..n).fold(1.0, |product, i| product * a[i + i * n]) * sign
     }
 }

@@ -8,7 +8,8 @@
 //!   (with FMA, the AVX-512 and AVX2 kernels: `c_ij = fma(a_i,k−1, b_k−1,j, … fma(a_i0, b_0j,
 //!   +0))`, `k` ascending) — left to `nalgebra` here;
 //! - otherwise column by column (`gemv`): `c_ij = a_i0·b_0j`, then `c_ij = a_ik·b_kj + c_ij`
-//!   for `k = 1, 2, …`, each product and each sum rounded, no fused multiply-add.
+//!   for `k = 1, 2, …`, each product and each sum rounded, no fused multiply-add (written
+//!   `c_ij += a_ik·b_kj` here: a rounded sum is the same either way round).
 //!
 //! The second path is written here over contiguous columns, with the three-row left factor
 //! (a transition's `L`, a three-dimensional state) and the three-term inner dimension (an
@@ -123,7 +124,7 @@ pub fn transposed_product_to(
         for (y, ac) in c.iter_mut().zip(a.chunks_exact(k)) {
             let mut sum = ac[0] * bc[0];
             for (&p, &q) in ac.iter().zip(bc).skip(1) {
-                sum = p * q + sum;
+                sum += p * q;
             }
             *y = sum;
         }
@@ -153,9 +154,9 @@ fn column_by_column(a: &[f64], m: usize, k: usize, b: &[f64], n: usize, out: &mu
             let first = bc[0];
             let (mut y0, mut y1, mut y2) = (a[0] * first, a[1] * first, a[2] * first);
             for (ac, &x) in a.chunks_exact(3).zip(bc).skip(1) {
-                y0 = ac[0] * x + y0;
-                y1 = ac[1] * x + y1;
-                y2 = ac[2] * x + y2;
+                y0 += ac[0] * x;
+                y1 += ac[1] * x;
+                y2 += ac[2] * x;
             }
             c.copy_from_slice(&[y0, y1, y2]);
         }
@@ -176,7 +177,7 @@ fn column_by_column(a: &[f64], m: usize, k: usize, b: &[f64], n: usize, out: &mu
             }
             for (ac, &x) in a.chunks_exact(m).zip(bc).skip(1) {
                 for (y, &p) in c.iter_mut().zip(ac) {
-                    *y = p * x + *y;
+                    *y += p * x;
                 }
             }
         }
