@@ -13,6 +13,9 @@
 
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, MatrixXx3, Vector3};
 
+use super::lu::Lu;
+use super::product::{product_to, transposed_product_to};
+
 /// The filter's state between observations.
 #[derive(Clone, Debug)]
 pub struct GramFilter {
@@ -29,26 +32,27 @@ pub struct GramFilter {
 }
 
 /// Work space of [`GramFilter::condition`] and [`GramFilter::transition`], overwritten by
-/// each: the same products as allocating ones (`mul_to` is the `gemm` of `*`), into kept
-/// storage, reallocated only when a shape changes.
+/// each: the same products as allocating ones (`product_to` rounds as `nalgebra`'s `*`), into
+/// kept storage, reallocated only when a shape changes.
 #[derive(Clone, Debug, Default)]
 struct Conditioning {
     /// `J·m` (`dim × columns`), then `ũ = u − J·m`.
     about: DMatrix<f64>,
-    /// `uᵀ` and `mᵀ` (`columns × dim`), materialised as the allocating products did.
-    projected_transposed: DMatrix<f64>,
-    means_transposed: DMatrix<f64>,
+    /// `uᵀ`, `mᵀ` or `ũᵀ` (`columns × dim`), materialised where a product of them goes to
+    /// `matrixmultiply` (`transposed_product_to`).
+    transposed: DMatrix<f64>,
     /// `mᵀJ` (`columns × dim`).
     means_information: DMatrix<f64>,
     /// `uᵀm`, `mᵀJm` and `ũᵀ·gain` (`columns × columns`).
     cross: DMatrix<f64>,
     quadratic: DMatrix<f64>,
     reduction: DMatrix<f64>,
+    /// `I + P·J`, then its LU factors.
+    growth: Lu,
     /// `P⁺` before its symmetrisation (`dim × dim`).
     posterior: DMatrix<f64>,
-    /// `P⁺ũ` (`dim × columns`), then `ũᵀ` (`columns × dim`).
+    /// `P⁺ũ` (`dim × columns`).
     gain: DMatrix<f64>,
-    about_transposed: DMatrix<f64>,
     /// `Lᵀ` (`dim × new_dim`) and `L·P` (`new_dim × dim`) of a transition.
     map_transposed: DMatrix<f64>,
     mapped: DMatrix<f64>,
@@ -180,11 +184,11 @@ impl GramFilter {
         }
         let b = &mut self.batch;
         f.transpose_to(&mut b.transposed);
-        b.transposed.mul_to(noise_inverse, &mut b.weighted); // dim × 3
-        b.weighted.mul_to(f, &mut b.information);
+        product_to(&b.transposed, noise_inverse, &mut b.weighted); // dim × 3
+        product_to(&b.weighted, f, &mut b.information);
         b.info += &b.information;
         for (c, value) in values.iter().enumerate() {
-            b.weighted.mul_to(value, &mut b.projection);
+            product_to(&b.weighted, value, &mut b.projection);
             let mut column = b.projected.column_mut(c);
             column += &b.projection;
         }
@@ -214,31 +218,40 @@ impl GramFilter {
         let (dim, columns) = (self.dim(), self.means.ncols());
         let (b, w) = (&self.batch, &mut self.work);
         // ũ = u − J·m and S̃ = S − uᵀm − mᵀu + mᵀJm: the batch about the prior means.
-        b.info
-            .mul_to(&self.means, shaped(&mut w.about, dim, columns));
+        product_to(&b.info, &self.means, shaped(&mut w.about, dim, columns));
         w.about
             .zip_apply(&b.projected, |product, u| *product = u - *product);
-        transpose_into(&b.projected, &mut w.projected_transposed);
-        w.projected_transposed
-            .mul_to(&self.means, shaped(&mut w.cross, columns, columns));
-        transpose_into(&self.means, &mut w.means_transposed);
-        w.means_transposed
-            .mul_to(&b.info, shaped(&mut w.means_information, columns, dim));
-        w.means_information
-            .mul_to(&self.means, shaped(&mut w.quadratic, columns, columns));
+        transposed_product_to(
+            &b.projected,
+            &self.means,
+            shaped(&mut w.cross, columns, columns),
+            &mut w.transposed,
+        );
+        transposed_product_to(
+            &self.means,
+            &b.info,
+            shaped(&mut w.means_information, columns, dim),
+            &mut w.transposed,
+        );
+        product_to(
+            &w.means_information,
+            &self.means,
+            shaped(&mut w.quadratic, columns, columns),
+        );
         // I + P·J: every element gains `δ_ij`, zeros included, as in the sum of the identity
         // and the product (a rounded sum is the same either way round).
-        let mut growth = &self.cov * &b.info;
+        let growth = w.growth.matrix(dim);
+        product_to(&self.cov, &b.info, growth);
         for j in 0..dim {
             for i in 0..dim {
                 growth[(i, j)] += f64::from(u8::from(i == j));
             }
         }
-        let lu = growth.lu();
+        w.growth.factor();
         let posterior = shaped(&mut w.posterior, dim, dim);
         posterior.copy_from(&self.cov);
         assert!(
-            lu.solve_mut(posterior),
+            w.growth.solve_mut(posterior),
             "I + P·J is invertible for P, J positive semi-definite"
         );
         for j in 0..dim {
@@ -246,10 +259,13 @@ impl GramFilter {
                 self.cov[(i, j)] = (posterior[(i, j)] + posterior[(j, i)]) * 0.5;
             }
         }
-        self.cov.mul_to(&w.about, shaped(&mut w.gain, dim, columns));
-        transpose_into(&w.about, &mut w.about_transposed);
-        w.about_transposed
-            .mul_to(&w.gain, shaped(&mut w.reduction, columns, columns));
+        product_to(&self.cov, &w.about, shaped(&mut w.gain, dim, columns));
+        transposed_product_to(
+            &w.about,
+            &w.gain,
+            shaped(&mut w.reduction, columns, columns),
+            &mut w.transposed,
+        );
         for j in 0..columns {
             for i in 0..columns {
                 let direct =
@@ -258,7 +274,7 @@ impl GramFilter {
             }
         }
         self.means += &w.gain;
-        self.log_det += lu.determinant().abs().ln() - b.log_det_noise;
+        self.log_det += w.growth.determinant().abs().ln() - b.log_det_noise;
         self.batch.clear();
     }
 
@@ -270,13 +286,14 @@ impl GramFilter {
         let (new_dim, dim) = l.shape();
         let columns = self.means.ncols();
         transpose_into(l, &mut w.map_transposed);
-        l.mul_to(&self.cov, shaped(&mut w.mapped, new_dim, dim));
-        w.mapped.mul_to(
+        product_to(l, &self.cov, shaped(&mut w.mapped, new_dim, dim));
+        product_to(
+            &w.mapped,
             &w.map_transposed,
             shaped(&mut w.spare_cov, new_dim, new_dim),
         );
         std::mem::swap(&mut self.cov, &mut w.spare_cov);
-        l.mul_to(&self.means, shaped(&mut w.spare_means, new_dim, columns));
+        product_to(l, &self.means, shaped(&mut w.spare_means, new_dim, columns));
         std::mem::swap(&mut self.means, &mut w.spare_means);
     }
 
