@@ -781,11 +781,7 @@ pub(in crate::estimate) mod tests {
             let (mut misses, mut shares, mut widths) = ([0; 2], [Vec::new(), Vec::new()], [0.0; 3]);
             for block in 0..200 {
                 let doublets = shape_block(1000, tau, prior, 4e-3, 5000 * i as u64 + block);
-                let first: Vec<(f64, f64)> = doublets
-                    .iter()
-                    .map(|(s, z)| (*s, s * z[0] / (DELTA_V * T)))
-                    .collect();
-                let first = lag_of_products(&first, T, 0.05).expect("inside the class");
+                let first = first_step_lag(&doublets);
                 widths[0] += first.interval[1] - first.interval[0];
                 for (k, late) in [false, true].into_iter().enumerate() {
                     let products = |lag: f64| shape_products(&doublets, prior, lag, late);
@@ -855,6 +851,36 @@ pub(in crate::estimate) mod tests {
     /// `(ω₁, ω₂)`, the controller's gain `∂ω₁/∂θ̂` and its sensed headings at its start, after
     /// each of its steps (rad/s, rad/s per rad, rad).
     type Turning = Vec<([f64; 2], f64, [f64; 4])>;
+
+    /// The lag from the first steps alone: `lag_of_products` of each doublet's `s·z₁/(Δv·T)`.
+    fn first_step_lag(doublets: &[(f64, [f64; 3])]) -> LagEstimate {
+        let first: Vec<(f64, f64)> = doublets
+            .iter()
+            .map(|(s, z)| (*s, s * z[0] / (DELTA_V * T)))
+            .collect();
+        lag_of_products(&first, T, 0.05).expect("inside the class")
+    }
+
+    /// Each doublet's shape products (`shape_products`, late ones included) followed by its
+    /// turn products (`turn_products` with `kinds`).
+    fn joined_products(
+        doublets: &[(f64, [f64; 3])],
+        turning: &Turning,
+        prior: f64,
+        lag: f64,
+        sensor: f64,
+        kinds: [bool; 3],
+    ) -> Vec<Vec<f64>> {
+        let turns = turn_products(turning, prior, lag, sensor, kinds);
+        shape_products(doublets, prior, lag, true)
+            .into_iter()
+            .zip(turns)
+            .map(|(mut u, turn)| {
+                u.extend(turn);
+                u
+            })
+            .collect()
+    }
 
     /// `n` doublets' heading, turned by a controller that reads the sensed heading at each
     /// doublet's start: the first input `ω₁ = cⱼ − 0.2·sin θ̂(3j)/ξⱼ` (`cⱼ = 0.3·tanh ζ` rad/s
@@ -976,23 +1002,10 @@ pub(in crate::estimate) mod tests {
                 let seed = 9000 + 1000 * i as u64 + block;
                 let doublets = shape_block(1000, tau, tau, 4e-3, seed);
                 let turning = turning_block(1000, tau, [4e-3, 0.0], 5e-4, seed);
-                let first: Vec<(f64, f64)> = doublets
-                    .iter()
-                    .map(|(s, z)| (*s, s * z[0] / (DELTA_V * T)))
-                    .collect();
-                let first = lag_of_products(&first, T, 0.05).expect("inside the class");
+                let first = first_step_lag(&doublets);
                 let along = |lag: f64| shape_products(&doublets, tau, lag, true);
-                let with_turns = |lag: f64| {
-                    let turns = turn_products(&turning, tau, lag, 5e-4, [false; 3]);
-                    along(lag)
-                        .into_iter()
-                        .zip(turns)
-                        .map(|(mut u, turn)| {
-                            u.extend(turn);
-                            u
-                        })
-                        .collect()
-                };
+                let with_turns =
+                    |lag: f64| joined_products(&doublets, &turning, tau, lag, 5e-4, [false; 3]);
                 let alone = estimate_lag_jointly(&first, &along, &TurnCorrections::NONE, T, 0.05)
                     .expect("class");
                 let joint =
@@ -1046,21 +1059,9 @@ pub(in crate::estimate) mod tests {
                 let seed = 12_000 + 1000 * i as u64 + block;
                 let doublets = shape_block(1000, tau, tau, 4e-3, seed);
                 let turning = turning_block(1000, tau, [4e-3, 0.0], sensor, seed);
-                let first: Vec<(f64, f64)> = doublets
-                    .iter()
-                    .map(|(s, z)| (*s, s * z[0] / (DELTA_V * T)))
-                    .collect();
-                let first = lag_of_products(&first, T, 0.05).expect("inside the class");
-                let products = |lag: f64, kinds: [bool; 3]| -> Vec<Vec<f64>> {
-                    let turns = turn_products(&turning, tau, lag, sensor, kinds);
-                    shape_products(&doublets, tau, lag, true)
-                        .into_iter()
-                        .zip(turns)
-                        .map(|(mut u, turn)| {
-                            u.extend(turn);
-                            u
-                        })
-                        .collect()
+                let first = first_step_lag(&doublets);
+                let products = |lag: f64, kinds: [bool; 3]| {
+                    joined_products(&doublets, &turning, tau, lag, sensor, kinds)
                 };
                 let later = |lag: f64| products(lag, [false; 3]);
                 let both = |lag: f64| products(lag, [true, true, false]);
@@ -1142,21 +1143,10 @@ pub(in crate::estimate) mod tests {
                 let seed = 16_000 + 1000 * i as u64 + block;
                 let doublets = shape_block(1000, tau, tau, 4e-3, seed);
                 let turning = turning_block(1000, tau, [4e-3, rho], 5e-4, seed);
-                let first: Vec<(f64, f64)> = doublets
-                    .iter()
-                    .map(|(s, z)| (*s, s * z[0] / (DELTA_V * T)))
-                    .collect();
-                let first = lag_of_products(&first, T, 0.05).expect("inside the class");
-                let products = |lag: f64, straddles: bool| -> Vec<Vec<f64>> {
-                    let turns = turn_products(&turning, tau, lag, 5e-4, [true, true, straddles]);
-                    shape_products(&doublets, tau, lag, true)
-                        .into_iter()
-                        .zip(turns)
-                        .map(|(mut u, turn)| {
-                            u.extend(turn);
-                            u
-                        })
-                        .collect()
+                let first = first_step_lag(&doublets);
+                let products = |lag: f64, straddles: bool| {
+                    let kinds = [true, true, straddles];
+                    joined_products(&doublets, &turning, tau, lag, 5e-4, kinds)
                 };
                 let plain = |lag: f64| products(lag, false);
                 let straddled = |lag: f64| products(lag, true);
