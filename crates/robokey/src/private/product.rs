@@ -203,24 +203,34 @@ mod tests {
         x.len() == y.len() && x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits())
     }
 
-    /// Every shape up to 9 × 9 × 9, on both of `nalgebra`'s paths, against `mul_to` bit for
-    /// bit (signed zeros included).
-    #[test]
-    fn every_element_is_nalgebras_bit_for_bit() {
-        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(11);
+    /// Four products of random factors `a` (`m × k`, or `k × m` where `transposed`) and `b`
+    /// (`k × n`) for every `m`, `k`, `n` up to 9: `expected` by `nalgebra`'s `mul_to` of `a`
+    /// (transposed first where `transposed`) and `b`, `got` by `product`, compared bit for bit
+    /// (signed zeros included).
+    fn every_shape_bit_for_bit(
+        seed: u64,
+        transposed: bool,
+        mut product: impl FnMut(&DMatrix<f64>, &DMatrix<f64>, &mut DMatrix<f64>),
+    ) {
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
         for m in 0..=9 {
             for k in 0..=9 {
                 for n in 0..=9 {
                     for _ in 0..4 {
-                        let a = DMatrix::from_fn(m, k, |_, _| value(&mut rng));
+                        let (rows, columns) = if transposed { (k, m) } else { (m, k) };
+                        let a = DMatrix::from_fn(rows, columns, |_, _| value(&mut rng));
                         let b = DMatrix::from_fn(k, n, |_, _| value(&mut rng));
                         let mut expected = DMatrix::from_element(m, n, f64::NAN);
-                        a.mul_to(&b, &mut expected);
+                        if transposed {
+                            a.transpose().mul_to(&b, &mut expected);
+                        } else {
+                            a.mul_to(&b, &mut expected);
+                        }
                         let mut got = DMatrix::from_element(m, n, f64::NAN);
-                        product_to(&a, &b, &mut got);
+                        product(&a, &b, &mut got);
                         assert!(
                             same(expected.as_slice(), got.as_slice()),
-                            "{m}×{k}×{n}: {expected} vs {got}"
+                            "{m}×{k}×{n} (a transposed: {transposed}): {expected} vs {got}"
                         );
                     }
                 }
@@ -228,29 +238,19 @@ mod tests {
         }
     }
 
+    /// Every shape up to 9 × 9 × 9, on both of `nalgebra`'s paths.
+    #[test]
+    fn every_element_is_nalgebras_bit_for_bit() {
+        every_shape_bit_for_bit(11, false, product_to);
+    }
+
     /// `aᵀ·b` against `a.transpose()` multiplied by `mul_to`, every shape up to 9 × 9 × 9.
     #[test]
     fn a_transposed_product_is_the_transpose_multiplied_bit_for_bit() {
-        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(14);
         let mut spare = DMatrix::zeros(0, 0);
-        for m in 0..=9 {
-            for k in 0..=9 {
-                for n in 0..=9 {
-                    for _ in 0..4 {
-                        let a = DMatrix::from_fn(k, m, |_, _| value(&mut rng));
-                        let b = DMatrix::from_fn(k, n, |_, _| value(&mut rng));
-                        let mut expected = DMatrix::from_element(m, n, f64::NAN);
-                        a.transpose().mul_to(&b, &mut expected);
-                        let mut got = DMatrix::from_element(m, n, f64::NAN);
-                        transposed_product_to(&a, &b, &mut got, &mut spare);
-                        assert!(
-                            same(expected.as_slice(), got.as_slice()),
-                            "({k}×{m})ᵀ×{n}: {expected} vs {got}"
-                        );
-                    }
-                }
-            }
-        }
+        every_shape_bit_for_bit(14, true, |a, b, got| {
+            transposed_product_to(a, b, got, &mut spare);
+        });
     }
 
     /// The mixed static and dynamic shapes the filter multiplies.
