@@ -299,12 +299,8 @@ fn three_step_block(
     let late = sessions
         .iter()
         .all(|session| session.iter().all(|b| b.late.is_some()));
-    let turns = late
-        .then(|| heading_slopes(config, sessions, late))
-        .flatten();
-    let first_turns = late
-        .then(|| first_turn_weights(config, sessions, late))
-        .flatten();
+    let turns = late.then(|| heading_slopes(config, sessions)).flatten();
+    let first_turns = late.then(|| first_turn_weights(config, sessions)).flatten();
     let products = |tau: f64| {
         let (turns, first_turns) = (turns.as_deref(), first_turns.as_deref());
         lag_residual_products(config, sessions, tau, late, turns, first_turns)
@@ -640,11 +636,7 @@ fn straddle_turns(model: &DoubletModel, sessions: &[&[DoubletSamples]]) -> Vec<O
 /// (`straddle_turns`, [`TurnCorrection`]). None where the block's path carries no turns or where any doublet's command or
 /// its predecessor's lies at the wheel limit or at the controller's guard (the gain is not
 /// the law's there).
-fn first_turn_weights(
-    config: &Config,
-    sessions: &[&[DoubletSamples]],
-    late: bool,
-) -> Option<Vec<[f64; 2]>> {
+fn first_turn_weights(config: &Config, sessions: &[&[DoubletSamples]]) -> Option<Vec<[f64; 2]>> {
     let model = doublet_model(config);
     let t = model.sample_time;
     let gains = crate::control::TrackingGains::of(&config.controller);
@@ -661,9 +653,6 @@ fn first_turn_weights(
                 .enumerate()
                 .filter_map(|(i, (b, entry))| {
                     let entry = entry?;
-                    if late && b.late.is_none() {
-                        return None;
-                    }
                     let previous = session[i - 1].inputs.second;
                     let gain = gains.heading_gain(&drive, previous, b.inputs.first, t);
                     Some(gain.map(|gain| {
@@ -699,7 +688,7 @@ const MIN_TURN_SLOPE: f64 = 1e-9;
 /// noise follows the step before the start sample, which the controller read, by ρ² and ρ³:
 /// the product's mean is `ρ²·(1 + ρ)·E[a·w(3j−1)]`, corrected over ρ's interval with the
 /// straddle residual, [`TurnCorrection`]). None where the block's path carries no turns.
-fn heading_slopes(config: &Config, sessions: &[&[DoubletSamples]], late: bool) -> Option<Vec<f64>> {
+fn heading_slopes(config: &Config, sessions: &[&[DoubletSamples]]) -> Option<Vec<f64>> {
     let prior = config.private.prior_lag;
     let [below, above] = [(prior - TURN_SLOPE_STEP).max(0.0), prior + TURN_SLOPE_STEP];
     let [low, high] = [below, above].map(|lag| {
@@ -707,7 +696,7 @@ fn heading_slopes(config: &Config, sessions: &[&[DoubletSamples]], late: bool) -
             lag,
             ..doublet_model(config)
         };
-        lag_doublets(&model, sessions, late, |_, means| means[2].z - means[0].z)
+        lag_doublets(&model, sessions, true, |_, means| means[2].z - means[0].z)
     });
     let slopes: Vec<f64> = low
         .iter()
