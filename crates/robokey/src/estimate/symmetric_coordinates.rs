@@ -11,13 +11,6 @@ pub(super) fn coordinates(m: &Matrix3<f64>) -> Vector6<f64> {
     Vector6::from_iterator(ENTRIES.iter().map(|&(i, j)| 0.5 * (m[(i, j)] + m[(j, i)])))
 }
 
-/// `m`'s six coordinates scaled so that their dot product is the Frobenius one, `tr(AB)`:
-/// the diagonal, then `√2` times the upper triangle (so `b⊗b`'s are `bbᵀ`'s, of norm `|b|²`).
-pub(super) fn frobenius_coordinates(m: &Matrix3<f64>) -> Vector6<f64> {
-    let sqrt2 = std::f64::consts::SQRT_2;
-    coordinates(m).component_mul(&Vector6::new(1.0, 1.0, 1.0, sqrt2, sqrt2, sqrt2))
-}
-
 /// The symmetric matrix with coordinates `q`.
 pub(super) fn symmetric(q: &Vector6<f64>) -> Matrix3<f64> {
     let mut m = Matrix3::zeros();

@@ -1,7 +1,6 @@
 //! Tails of a weighted χ², `X = Σᵢ wᵢξᵢ²` (ξᵢ independent standard normals, `Σᵢ wᵢ = m`),
-//! bounded at once for every weight vector in a box `wᵢ ∈ [lᵢ, hᵢ]` whose spread
-//! `Σᵢ(wᵢ − 1)²` is at most `V` (docs/estimation.md, "Per-wheel slip": the Wishart bound where
-//! slip makes the residuals' covariances unequal).
+//! bounded at once for every weight vector in a box `wᵢ ∈ [lᵢ, hᵢ]` (docs/estimation.md,
+//! "Per-wheel slip": the Wishart bound where slip makes the residuals' covariances unequal).
 //!
 //! **Tilting.** For `0 < λ < 1/(2·max wᵢ)`, `E[e^(λX)] = Πᵢ(1 − 2λwᵢ)^(−½)`, and under the
 //! law tilted by `e^(λX)` the terms are again independent, `wᵢξᵢ²` with
@@ -24,8 +23,7 @@
 //! `Σwᵢ² ≥ m` give `Σw̃ᵢ² ≥ m/(1 + 2λh)²` (h = max hᵢ); with `Σw̃³ ≤ max w̃·Σw̃²`,
 //! `β/σ³ ≤ κ·max w̃/(2^(3/2)·(Σw̃²)^(½))`. A probability `e^(ln_p)` is reached at
 //! `q₊ = m + (Σφ_λ + ln J₊ − ln p)/λ` and `q₋ = m − (Σψ_λ + ln J₋ − ln p)/λ`, each λ giving a
-//! valid quantile (the best of a geometric grid of λ is taken; its choice depends on the box
-//! and `V` only).
+//! valid quantile (the best of a fixed geometric grid of λ is taken).
 //!
 //! **Over the box.** φ_λ and ψ_λ are convex, so on `[lᵢ, hᵢ]` each lies below its chord:
 //! `φ(wᵢ) ≤ φ(lᵢ) + sᵢ(wᵢ − lᵢ)`, `sᵢ` the chord's slope. With `Σwᵢ = m` fixed,
@@ -33,13 +31,6 @@
 //! the capacities `hᵢ − lᵢ` in order of falling slope — whose optimum bounds every weight
 //! vector of the box (the chord is exact at the box's ends, so at equal weights, a box of
 //! width 0, this is χ²_m's own exponent).
-//!
-//! **Over the spread.** Taylor's theorem at `w = 1` with `Σ(wᵢ − 1) = 0`:
-//! `Σφ(wᵢ) = m·φ(1) + Σ½φ''(ζᵢ)(wᵢ − 1)² ≤ m·φ(1) + ½·max φ''·V`, the largest `φ''` over the
-//! box (`φ'' = 2λ²/(1 − 2λw)²` rises with w: at h; `ψ'' = 2λ²/(1 + 2λw)²` falls: at
-//! `l = min lᵢ`). Each λ takes the smaller of the two bounds. The box alone lets every weight
-//! sit at an end of its own range at once; the spread bounds how far one direction's weights
-//! can be from 1 together (the caller's `V` is a bound over every direction).
 //!
 //! **Dependence.** Where neighbouring terms are dependent (AR(1) motion noise within a
 //! parity half) the terms are taken as `m/F` independent ones of `F` times the weight — the
@@ -49,11 +40,17 @@
 
 /// λ's grids: from the largest value down by factors `2^(1/12)`, this many points (a factor
 /// `2^20` in all; near the optimum the exponent is flat, and the step costs at most 0.2 % of
-/// `q − m` in the tests, 0.04 % where the tail is near-Gaussian).
+/// `q − m` in the tests, 0.04 % where the tail is near-Gaussian). The grids are fixed (in
+/// units of `1/F`), so a wider box never gives a smaller quantile: the upper one
+/// only drops the points where `2λF·max hᵢ ≥ 1`.
 const LAMBDA_POINTS: usize = 240;
 
 /// The lower tail's largest λ (in units of `1/F`): `2^(LOWER_TOP/12)`.
 const LOWER_TOP: i32 = 72;
+
+/// The upper tail's largest λ (in units of `1/F`): `2^(UPPER_TOP/12) = ½·2^(−1/12)`, just
+/// below `1/(2F)`, beyond which no box is feasible (`λ < 1/(2F·max hᵢ)`, `max hᵢ ≥ 1`).
+const UPPER_TOP: i32 = -13;
 
 /// Shevtsova's Berry–Esseen constant for sums of independent, not identically distributed
 /// terms: `sup|F − Φ| ≤ C₀·Σᵢ E|Yᵢ − EYᵢ|³/σ³`.
@@ -64,8 +61,7 @@ const BERRY_ESSEEN: f64 = 0.5600;
 /// `I₀ = erf(1/√2)`, `Iₖ = (k − 1)·Iₖ₋₂ − 2φ(1)`): 8.691563….
 const THIRD_ABSOLUTE_MOMENT: f64 = 8.6916;
 
-/// A box of weights, a bound on their spread, and the tails' exponents over them on a grid
-/// of λ.
+/// A box of weights and the tails' exponents over it on a grid of λ.
 #[derive(Clone, Debug)]
 pub(super) struct WeightedChiSquare {
     /// `m = Σwᵢ`.
@@ -111,45 +107,35 @@ fn ln_berry_esseen_factor(lambda: f64, sigma: f64, ratio: f64) -> f64 {
 
 impl WeightedChiSquare {
     /// The tails' exponents over the box `boxes` (each `[lᵢ, hᵢ]`, `0 ≤ lᵢ ≤ 1 ≤ hᵢ`, the
-    /// weights' mean 1) and the spread bound `spread` (`Σᵢ(wᵢ − 1)² ≤ spread`; ∞ where none
-    /// is known) for terms of effective dependence `dependence` (F ≥ 1, module doc). An
-    /// infinite `hᵢ` leaves the upper tail unbounded.
-    pub(super) fn new(boxes: &[[f64; 2]], spread: f64, dependence: f64) -> Self {
+    /// weights' mean 1) for terms of effective dependence `dependence` (F ≥ 1, module doc).
+    /// An infinite `hᵢ` leaves the upper tail unbounded.
+    pub(super) fn new(boxes: &[[f64; 2]], dependence: f64) -> Self {
         let f = dependence;
         let count = boxes.len() as f64;
         let widest = boxes.iter().map(|b| b[1]).fold(1.0, f64::max);
-        let narrowest = boxes.iter().map(|b| b[0]).fold(1.0, f64::min);
-        let step = 2f64.powf(-1.0 / 12.0);
-        let top = 0.5 / (f * widest);
         // `κ·√F/(2^(3/2)·√m)`: `β/σ³` per unit of `max w̃/√(Σw̃²/m)` (module doc).
         let skew = THIRD_ABSOLUTE_MOMENT * f.sqrt() / (8f64.sqrt() * count.sqrt());
-        let upper = if top > 0.0 {
-            (1..=LAMBDA_POINTS)
-                .map(|j| {
-                    let lambda = top * step.powi(j as i32);
-                    let phi =
-                        |w: f64| (-0.5 * (-2.0 * lambda * f * w).ln_1p() - lambda * f * w) / f;
-                    let curvature = 2.0 * lambda * lambda * f / (1.0 - 2.0 * lambda * f * widest).powi(2);
-                    let exponent =
-                        chord_maximum(boxes, phi).min(count * phi(1.0) + 0.5 * curvature * spread);
-                    let at_mean = 1.0 - 2.0 * lambda * f;
-                    let sigma = (2.0 * f * count).sqrt() / at_mean;
-                    let ratio = skew * widest / (1.0 - 2.0 * lambda * f * widest) * at_mean;
-                    [lambda, exponent + ln_berry_esseen_factor(lambda, sigma, ratio)]
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
+        let upper = (0..LAMBDA_POINTS)
+            .map(|j| 2f64.powf(f64::from(UPPER_TOP - j as i32) / 12.0) / f)
+            .filter(|lambda| 2.0 * lambda * f * widest < 1.0)
+            .map(|lambda| {
+                let phi = |w: f64| (-0.5 * (-2.0 * lambda * f * w).ln_1p() - lambda * f * w) / f;
+                let exponent = chord_maximum(boxes, phi);
+                let at_mean = 1.0 - 2.0 * lambda * f;
+                let sigma = (2.0 * f * count).sqrt() / at_mean;
+                let ratio = skew * widest / (1.0 - 2.0 * lambda * f * widest) * at_mean;
+                [
+                    lambda,
+                    exponent + ln_berry_esseen_factor(lambda, sigma, ratio),
+                ]
+            })
+            .collect();
         let lower = (0..LAMBDA_POINTS)
             .map(|j| {
                 let lambda = 2f64.powf(f64::from(LOWER_TOP - j as i32) / 12.0) / f;
                 let psi = |w: f64| (-0.5 * (2.0 * lambda * f * w).ln_1p() + lambda * f * w) / f;
-                let curvature =
-                    2.0 * lambda * lambda * f / (1.0 + 2.0 * lambda * f * narrowest).powi(2);
-                let exponent =
-                    chord_maximum(boxes, psi).min(count * psi(1.0) + 0.5 * curvature * spread);
-                // Infinite `widest`: the tilted scales are at most 1/(2λF) and Σw̃² ≥ … → 0.
+                let exponent = chord_maximum(boxes, psi);
+                // An infinite `widest` bounds neither σ below nor β/σ³ above: Chernoff's J ≤ 1.
                 let ln_factor = if widest.is_finite() {
                     let at_widest = 1.0 + 2.0 * lambda * f * widest;
                     let sigma = (2.0 * f * count).sqrt() / at_widest;
@@ -207,19 +193,20 @@ mod tests {
         m * 0.5 * (a + b)
     }
 
-    /// At equal weights (a box of width 0, spread 0) the bound is never inside χ²_m's exact
+    /// At equal weights (a box of width 0) the bound is never inside χ²_m's exact
     /// quantile — from 3 terms, where the Berry–Esseen term is large, to 5,000 — and never
     /// outside its Chernoff quantile (beyond λ's grid step, 0.2 % of `|q − m|`); at m = 5,000
     /// and p = 10⁻⁸ it recovers at least 60 % of Chernoff's slack on each side.
     #[test]
     fn equal_weights_lie_between_the_exact_and_the_chernoff_quantiles() {
         for m in [3usize, 10, 40, 1_000, 5_000] {
-            let tails = WeightedChiSquare::new(&vec![[1.0, 1.0]; m], 0.0, 1.0);
+            let tails = WeightedChiSquare::new(&vec![[1.0, 1.0]; m], 1.0);
             let n = m as f64;
             for ln_p in [0.01f64.ln(), 1e-8f64.ln(), 1e-12f64.ln()] {
                 let (exact_up, exact_down) = (upper_quantile(n, ln_p), lower_quantile(n, ln_p));
                 let (up, down) = (tails.upper_quantile(ln_p), tails.lower_quantile(ln_p));
-                let (chernoff_up, chernoff_down) = (chernoff(n, ln_p, true), chernoff(n, ln_p, false));
+                let (chernoff_up, chernoff_down) =
+                    (chernoff(n, ln_p, true), chernoff(n, ln_p, false));
                 eprintln!(
                     "m {m} ln p {ln_p:.1}: up {up:.2} (exact {exact_up:.2}, Chernoff \
                      {chernoff_up:.2}), down {down:.2} (exact {exact_down:.2}, Chernoff \
@@ -227,7 +214,10 @@ mod tests {
                 );
                 assert!(up >= exact_up && down <= exact_down, "m {m} ln p {ln_p}");
                 assert!(up <= chernoff_up + 2e-3 * (up - n), "m {m} ln p {ln_p}");
-                assert!(down >= chernoff_down - 2e-3 * (n - down), "m {m} ln p {ln_p}");
+                assert!(
+                    down >= chernoff_down - 2e-3 * (n - down),
+                    "m {m} ln p {ln_p}"
+                );
                 if m == 5_000 && ln_p < -18.0 && ln_p > -19.0 {
                     assert!(chernoff_up - up > 0.6 * (chernoff_up - exact_up));
                     assert!(down - chernoff_down > 0.6 * (exact_down - chernoff_down));
@@ -253,25 +243,21 @@ mod tests {
         assert!(moment < THIRD_ABSOLUTE_MOMENT && THIRD_ABSOLUTE_MOMENT - moment < 1e-4);
     }
 
-    /// The bound over a box and a spread holds for weight vectors in them, where a
-    /// Gaussian tail does not: over 40,000 seeded draws of `Σwᵢξᵢ²` with 200 weights, one
-    /// in ten at 5.5 and the rest at 0.5 (mean 1, spread `Σ(wᵢ − 1)²` = 450), the quantiles
-    /// at p = 10⁻³ of the box `[0.5, 5.5]` with that spread are exceeded at most
-    /// 40 + 4·√40 ≈ 65 times on each side, while the normal approximation's upper quantile
-    /// (`m + z·√(2Σwᵢ²)`) is exceeded more often than that — the count can catch a tail
-    /// that under-covers; a wider box (`[0, 8]`, no spread known) gives quantiles further out.
+    /// The bound over a box holds for weight vectors in it, where a Gaussian tail does not:
+    /// over 40,000 seeded draws of `Σwᵢξᵢ²` with 200 weights, one in ten at 5.5 and the rest
+    /// at 0.5 (mean 1), the quantiles at p = 10⁻³ of the box `[0.5, 5.5]` are exceeded at
+    /// most 40 + 4·√40 ≈ 65 times on each side, while the normal approximation's upper
+    /// quantile (`m + z·√(2Σwᵢ²)`) is exceeded more often than that — the count catches a
+    /// tail that under-covers; a wider box (`[0, 8]`) gives quantiles further out.
     #[test]
     fn the_bound_over_a_box_holds_for_its_members() {
         let weights: Vec<f64> = (0..200)
             .map(|i| if i % 10 == 0 { 5.5 } else { 0.5 })
             .collect();
-        let spread: f64 = weights.iter().map(|w| (w - 1.0) * (w - 1.0)).sum();
-        let tight = WeightedChiSquare::new(&vec![[0.5, 5.5]; 200], spread, 1.0);
-        let box_only = WeightedChiSquare::new(&vec![[0.5, 5.5]; 200], f64::INFINITY, 1.0);
-        let wide = WeightedChiSquare::new(&vec![[0.0, 8.0]; 200], f64::INFINITY, 1.0);
+        let tight = WeightedChiSquare::new(&vec![[0.5, 5.5]; 200], 1.0);
+        let wide = WeightedChiSquare::new(&vec![[0.0, 8.0]; 200], 1.0);
         let ln_p = 1e-3f64.ln();
         let (up, down) = (tight.upper_quantile(ln_p), tight.lower_quantile(ln_p));
-        assert!(box_only.upper_quantile(ln_p) >= up && box_only.lower_quantile(ln_p) <= down);
         assert!(wide.upper_quantile(ln_p) > up && wide.lower_quantile(ln_p) < down);
         let gaussian = 200.0 + 3.0902 * (2.0 * weights.iter().map(|w| w * w).sum::<f64>()).sqrt();
         let mut rng = stream(33, Purpose::Process, 0);
