@@ -1260,9 +1260,10 @@ pub(super) mod tests {
     }
 
     /// The weighted bound contains the χ² net bound at equal covariances (`Mᵢ` all alike: a
-    /// box of width 0, where it is χ²_m's Chernoff bound over the same net), and lies within
-    /// the Chernoff bound's slack of it: at m = 5,000 and ε = 10⁻⁷ `c₊ − 1` and `1 − c₋` are
-    /// 6.6 % and 6.2 % wider (asserted below 8 %).
+    /// box of width 0, where it is χ²_m's Chernoff bound sharpened by Berry–Esseen over the
+    /// same net), and lies within that tail's slack of it: at m = 5,000 and ε = 10⁻⁷
+    /// `c₊ − 1` and `1 − c₋` are 1.5 % and 1.4 % wider (asserted below 3 %; Chernoff's
+    /// alone, 6.6 % and 6.2 %).
     #[test]
     fn equal_covariances_give_the_chi_square_net_bound_or_wider() {
         for (m, epsilon) in [(100, 0.02), (5_000, 1e-7)] {
@@ -1274,8 +1275,8 @@ pub(super) mod tests {
             eprintln!("m {m} ε {epsilon}: χ² {exact:?}, weighted {weighted:?}");
             assert!(weighted[0] <= exact[0] && exact[1] <= weighted[1]);
             if m == 5_000 {
-                assert!(weighted[1] - 1.0 < 1.08 * (exact[1] - 1.0));
-                assert!(1.0 - weighted[0] < 1.08 * (1.0 - exact[0]));
+                assert!(weighted[1] - 1.0 < 1.03 * (exact[1] - 1.0));
+                assert!(1.0 - weighted[0] < 1.03 * (1.0 - exact[0]));
             }
         }
     }

@@ -48,7 +48,8 @@ pub(super) fn wishart_bounds(m: f64, epsilon: f64) -> [f64; 2] {
 /// a `q₊` with `P[m·uᵀWu > q₊] ≤ e^ln_p` and `lower(ln_p)` a `q₋` with
 /// `P[m·uᵀWu < q₋] ≤ e^ln_p`, for every line of the net; each side fails with probability at
 /// most `epsilon/2` (the lower one where the upper holds). `wishart_bounds` with χ²_m's
-/// quantiles; the slip path's weighted χ² (`weighted_chi_square`) with its Chernoff ones.
+/// quantiles; the slip path's weighted χ² (`weighted_chi_square`) with its tilted-tail ones
+/// (Chernoff's sharpened by Berry–Esseen).
 pub(super) fn net_bounds(
     m: f64,
     epsilon: f64,
