@@ -234,6 +234,32 @@ impl DoubletResidual {
         })
     }
 
+    /// Two consecutive one-step residuals ([`Self::two_step_split`],
+    /// [`Self::three_step_split`]) joined into one over both steps, in the first's frame:
+    /// `z = z_k + H(θ_k)ᵀH(θ_{k+1})·z_{k+1} ≈ w_k + w_{k+1} + η_{k+2} − Aη_k`, motion maps
+    /// `[I, H(θ_k)ᵀH(θ_{k+1})]`, indexed by the first's step. The shared sample's noise enters
+    /// as `H(θ_k)ᵀ(I − A_{k+1})η_{k+1}`, which the two sensor maps leave out: `I − A` is the
+    /// heading's lateral coupling `T·v` (0.02 m/rad at the defaults, a variance of 4·10⁻⁴ of
+    /// the sensor's lateral one at 0.5 mm and 0.5 mrad).
+    #[must_use]
+    pub fn joined(&self, next: &Self) -> Self {
+        let turn = self.sensor_maps[0] * next.sensor_maps[0].transpose();
+        let motion_maps = [
+            self.motion_maps[0],
+            turn * next.motion_maps[0],
+            Matrix3::zeros(),
+        ];
+        Self {
+            doublet: self.doublet,
+            value: self.value + turn * next.value,
+            steps: 2,
+            motion_maps,
+            sensor_maps: [turn * next.sensor_maps[0], self.sensor_maps[1]],
+            slip_map: self.slip_map + turn * next.slip_map * turn.transpose(),
+            inputs: self.inputs,
+        }
+    }
+
     /// One step's residual `H(θ)ᵀ(to − f(from, applied))` at applied speed `applied` (m/s,
     /// rad/s) over `sample_time` T (s), in the robot's frame at the sample `from`'s heading θ;
     /// on wheels `axle` D (m) apart; `index` its step index.
