@@ -185,7 +185,8 @@ impl BlockEstimate {
 /// block's estimate, for the controller's samples of every carrying doublet of each session
 /// (with the robot's bits) under the parties' `config` (their stated sensor calibration and
 /// camera) at ε_est = `epsilon`, the smoothing ε as well; `disclosed` bits of the block are
-/// disclosed by its sample.
+/// disclosed by its sample. Two-step doublets: `Q` from their residuals, ρ from their
+/// one-step residuals split at the middle samples ([`estimate_motion_noise_split`]).
 #[must_use]
 pub fn block_separations(
     config: &Config,

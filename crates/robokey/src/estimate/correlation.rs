@@ -37,6 +37,13 @@
 //! so `g_L(ρ) = ρS_L²/b_L` (`g_2` is the `g` above; `g_3` rises from −0.1875 at ρ = −½ to
 //! 1, inverted by bisection on the same class), and two doublets apart `ρ^L·a`.
 //!
+//! **One step** (a two-step doublet split at its middle sample, or a three-step one at its
+//! samples): `L = 1`, `g_1(ρ) = ρ`, each residual one step's motion `Q` against two samples'
+//! noise, neighbours sharing a sample (`E_s`, −R per position axis). A two-step block takes ρ
+//! from its one-step residuals twice ([`estimate_correlation_split`]): their lag-one ratio,
+//! and the steps joined in pairs at every step (`g_2` over overlapping pairs), each at ε/2,
+//! the interval the two intervals' intersection.
+//!
 //! **Dependence.** Residuals `d` doublets apart correlate by at most
 //! `r_d = |ρ|^(2d−1)(1 + |ρ|)/2` (`d ≥ 1`) per axis from the motion, plus the sensor's MA(1)
 //! `≤ ½` at `d = 1`. A sum of squares (or products) of such a series has its variance inflated
