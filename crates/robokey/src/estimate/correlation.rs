@@ -393,13 +393,20 @@ pub fn estimate_correlation_split(
     sensor: &Matrix3<f64>,
     epsilon: f64,
 ) -> Result<Correlation, CorrelationDeparture> {
-    let lag_one = correlation_over(steps, sensor, epsilon / 2.0, 1)?;
+    // Pairs of steps, two for each pair of doublets: reported as the doublets' pairs.
+    let per_doublet = |departure| match departure {
+        CorrelationDeparture::TooFewPairs { have } => {
+            CorrelationDeparture::TooFewPairs { have: have / 2 }
+        }
+        other => other,
+    };
+    let lag_one = correlation_over(steps, sensor, epsilon / 2.0, 1).map_err(per_doublet)?;
     let joined: Vec<DoubletResidual> = steps
         .windows(2)
         .filter(|w| w[1].doublet == w[0].doublet + 1)
         .map(|w| w[0].joined(&w[1]))
         .collect();
-    let two_step = correlation_over(&joined, sensor, epsilon / 2.0, 2)?;
+    let two_step = correlation_over(&joined, sensor, epsilon / 2.0, 2).map_err(per_doublet)?;
     let interval = [
         lag_one.interval[0].max(two_step.interval[0]),
         lag_one.interval[1].min(two_step.interval[1]),

@@ -246,8 +246,8 @@ pub enum EstimationRefusal {
     #[error(
         "motion-noise estimate: the motion noise's correlation between steps measured from the \
          one-step residuals' lag-one ratio, [{:.3}, {:.3}], and from the steps joined in pairs, \
-         [{:.3}, {:.3}], do not meet (allowed: intervals that meet, at level ε_est/4 each); \
-         outside the model class",
+         [{:.3}, {:.3}], do not meet (allowed: intervals that meet, each at half the level of ρ's \
+         interval); outside the model class",
         lag_one[0], lag_one[1], joined[0], joined[1]
     )]
     CorrelationDisjoint {
