@@ -52,7 +52,8 @@ use super::worst_case::{
 };
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
-    estimate_lag, estimate_motion_noise, published_separation, worst_case_separations,
+    estimate_lag, estimate_motion_noise, estimate_motion_noise_split, published_separation,
+    worst_case_separations,
 };
 use crate::Config;
 use crate::model::{Pose, Unicycle};
@@ -184,7 +185,8 @@ impl BlockEstimate {
 /// block's estimate, for the controller's samples of every carrying doublet of each session
 /// (with the robot's bits) under the parties' `config` (their stated sensor calibration and
 /// camera) at ε_est = `epsilon`, the smoothing ε as well; `disclosed` bits of the block are
-/// disclosed by its sample.
+/// disclosed by its sample. Two-step doublets: `Q` from their residuals, ρ from their
+/// one-step residuals split at the middle samples ([`estimate_motion_noise_split`]).
 #[must_use]
 pub fn block_separations(
     config: &Config,
@@ -192,7 +194,8 @@ pub fn block_separations(
     disclosed: u64,
     epsilon: f64,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
-    let residuals = two_step_residuals(&doublet_model(config), config.robot.axle_length, sessions);
+    let model = doublet_model(config);
+    let residuals = two_step_residuals(&model, config.robot.axle_length, sessions);
     if config.doublet_settle().is_some() {
         return three_step_block(config, sessions, disclosed, epsilon);
     }
@@ -200,7 +203,8 @@ pub fn block_separations(
         return refused(sessions.len(), why, residuals.len(), epsilon);
     }
     let sensor = diagonal_covariance(config.sensing.controller_std);
-    match estimate_motion_noise(&residuals, &sensor, epsilon) {
+    let steps = two_step_split_residuals(&model, config.robot.axle_length, sessions);
+    match estimate_motion_noise_split(&residuals, &steps, &sensor, epsilon) {
         Ok(estimate) => size_block(config, sessions, disclosed, &estimate, None, epsilon),
         Err(refusal) => refused(
             sessions.len(),
@@ -229,6 +233,31 @@ pub(crate) fn two_step_residuals(
                 &b.inputs,
                 &b.samples[0],
                 &b.samples[2],
+                b.pattern,
+            )
+        })
+        .collect()
+}
+
+/// The one-step residuals of every doublet of `sessions`, split at its middle sample with
+/// the steps of the symbols it carried ([`DoubletResidual::two_step_split`]): what ρ is
+/// measured from in a two-step block.
+fn two_step_split_residuals(
+    model: &DoubletModel,
+    axle: f64,
+    sessions: &[&[DoubletSamples]],
+) -> Vec<DoubletResidual> {
+    sessions
+        .iter()
+        .flat_map(|session| session.iter())
+        .flat_map(|b| {
+            let [start, middle, end] = &b.samples;
+            DoubletResidual::two_step_split(
+                model,
+                axle,
+                b.doublet,
+                &b.inputs,
+                [start, middle, end],
                 b.pattern,
             )
         })

@@ -43,6 +43,7 @@ pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use lag::{LagEstimate, estimate_lag};
 pub use motion_noise::{
     Corner, EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
+    estimate_motion_noise_split,
 };
 pub use residual::DoubletResidual;
 pub use slice_llrs::{SliceSession, recomputed_slice_llrs};

@@ -46,7 +46,7 @@ use thiserror::Error;
 
 use super::correlation::{
     Correlation, CorrelationDeparture, LOWEST_CORRELATION, estimate_correlation,
-    parity_inflation_for, variance_inflation_for,
+    estimate_correlation_split, parity_inflation_for, variance_inflation_for,
 };
 use super::homogeneity::{ClassDeparture, speed_class_departure};
 use super::normal_tail::normal_upper_quantile;
@@ -240,6 +240,22 @@ pub enum EstimationRefusal {
         /// The pooled ratio of the lag-one motion product to the motion variance.
         ratio: f64,
     },
+    /// ρ's two intervals from the one-step residuals split at the middle samples (their
+    /// lag-one ratio, and the ratio of the steps joined in pairs) do not meet: one of them
+    /// misses, which the AR(1) model gives probability at most ε_est/2.
+    #[error(
+        "motion-noise estimate: the motion noise's correlation between steps measured from the \
+         one-step residuals' lag-one ratio, [{:.3}, {:.3}], and from the steps joined in pairs, \
+         [{:.3}, {:.3}], do not meet (allowed: intervals that meet, each at half the level of ρ's \
+         interval); outside the model class",
+        lag_one[0], lag_one[1], joined[0], joined[1]
+    )]
+    CorrelationDisjoint {
+        /// The lag-one ratio's interval `[ρ_lo, ρ_hi]`.
+        lag_one: [f64; 2],
+        /// The joined pairs' interval.
+        joined: [f64; 2],
+    },
     /// The doublets' paths leave `Q` undetermined (the mean motion operator 𝓛̄ is singular;
     /// it is 2·id up to T·v and T·ω, so this takes degenerate input).
     #[error(
@@ -400,15 +416,33 @@ pub fn estimate_motion_noise(
     sensor: &Matrix3<f64>,
     epsilon: f64,
 ) -> Result<MotionNoiseEstimate, EstimationRefusal> {
-    region_estimate(residuals, sensor, epsilon, None)
+    region_estimate(residuals, None, sensor, epsilon, None)
+}
+
+/// [`estimate_motion_noise`] for a two-step block with ρ, its interval and the AR(1) model's
+/// whiteness tests from `steps`, its doublets' one-step residuals split at their middle
+/// samples ([`DoubletResidual::two_step_split`], `estimate_correlation_split`;
+/// docs/estimation.md, "Correlated motion noise"); `Q` from the doublets' `residuals`.
+///
+/// # Errors
+/// [`EstimationRefusal`] naming the test and the value when the data fall outside the class.
+pub fn estimate_motion_noise_split(
+    residuals: &[DoubletResidual],
+    steps: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+    epsilon: f64,
+) -> Result<MotionNoiseEstimate, EstimationRefusal> {
+    region_estimate(residuals, Some(steps), sensor, epsilon, None)
 }
 
 /// [`estimate_motion_noise`] with its region at `epsilon` (the Wishart bound and the
-/// correlation's interval at half of it each); `slip_epsilon`: none to detect slip at level
-/// `epsilon` (a block that measures it is estimated again, ε_est split in three: the module
-/// doc), or the level its interval is sized at.
+/// correlation's interval at half of it each), ρ from `residuals` or, where given, their
+/// doublets' one-step residuals `split`; `slip_epsilon`: none to detect slip
+/// at level `epsilon` (a block that measures it is estimated again, ε_est split in three:
+/// the module doc), or the level its interval is sized at.
 fn region_estimate(
     residuals: &[DoubletResidual],
+    split: Option<&[DoubletResidual]>,
     sensor: &Matrix3<f64>,
     epsilon: f64,
     slip_epsilon: Option<f64>,
@@ -466,10 +500,17 @@ fn region_estimate(
             direction: describe_direction(&eigen.eigenvectors.column(k).into_owned()),
         });
     }
-    let correlation = match estimate_correlation(residuals, sensor, epsilon / 2.0) {
+    let measured = match split {
+        Some(steps) => estimate_correlation_split(steps, sensor, epsilon / 2.0),
+        None => estimate_correlation(residuals, sensor, epsilon / 2.0),
+    };
+    let correlation = match measured {
         Ok(c) => c,
         Err(CorrelationDeparture::TooFewPairs { have }) => {
             return Err(EstimationRefusal::TooFewDoublets { have: have / 2 });
+        }
+        Err(CorrelationDeparture::Disjoint { lag_one, joined }) => {
+            return Err(EstimationRefusal::CorrelationDisjoint { lag_one, joined });
         }
         Err(CorrelationDeparture::OutsideClass { ratio }) => {
             return Err(EstimationRefusal::CorrelationOutsideClass { ratio });
@@ -507,7 +548,13 @@ fn region_estimate(
         slip_epsilon.unwrap_or(epsilon),
     );
     if slip_epsilon.is_none() && slip_fit.is_some_and(|s| s.measured()) {
-        return region_estimate(residuals, sensor, 2.0 * epsilon / 3.0, Some(epsilon / 3.0));
+        return region_estimate(
+            residuals,
+            split,
+            sensor,
+            2.0 * epsilon / 3.0,
+            Some(epsilon / 3.0),
+        );
     }
     let slip = match (slip_epsilon, slip_fit) {
         (None, _) => None,
@@ -896,10 +943,28 @@ pub(super) mod tests {
         inputs: impl Fn(u32) -> DoubletInputs,
         motion: impl Fn(&Unicycle, f64, &mut dyn FnMut() -> f64) -> Pose,
     ) -> Vec<DoubletResidual> {
+        simulated_doublets(doublets, r_std, seed, inputs, motion).0
+    }
+
+    /// [`simulated_residuals`] and the same doublets' one-step residuals split at their
+    /// middle samples ([`DoubletResidual::two_step_split`], two per doublet), the middle
+    /// samples' sensor noise drawn from a stream of their own (the doublets' residuals are
+    /// `simulated_residuals`' draw for draw).
+    pub(in crate::estimate) fn simulated_doublets(
+        doublets: u32,
+        r_std: [f64; 3],
+        seed: u64,
+        inputs: impl Fn(u32) -> DoubletInputs,
+        motion: impl Fn(&Unicycle, f64, &mut dyn FnMut() -> f64) -> Pose,
+    ) -> (Vec<DoubletResidual>, Vec<DoubletResidual>) {
         let model = doublet_model(&Config::default());
+        let axle = Config::default().robot.axle_length;
         let mut rng = stream(seed, Purpose::Process, 0);
         let mut normal =
             || <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
+        let mut middle_rng = stream(seed, Purpose::Measurement, 0);
+        let mut middle_normal =
+            || <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut middle_rng);
         let t = model.sample_time;
         let mut x = Pose::new(0.0, 0.0, 0.3);
         let sensed = |x: &Pose, normal: &mut dyn FnMut() -> f64| {
@@ -910,28 +975,34 @@ pub(super) mod tests {
             )
         };
         let mut y_start = sensed(&x, &mut normal);
-        let mut out = Vec::new();
+        let (mut whole, mut split) = (Vec::new(), Vec::new());
         for j in 0..doublets {
             let inputs = inputs(j);
             let pattern = (j as usize * 5 + 1) % 3 % 2;
             let [a, b] = inputs.applied(model.perturbation.offset(pattern));
-            for u in [a, b] {
+            let mut y_middle = x;
+            for (k, u) in [a, b].iter().enumerate() {
                 let heading = x.z;
-                x = crate::model::unicycle_step(&x, &u, t) + motion(&u, heading, &mut normal);
+                x = crate::model::unicycle_step(&x, u, t) + motion(u, heading, &mut normal);
+                if k == 0 {
+                    y_middle = sensed(&x, &mut middle_normal);
+                }
             }
             let y_end = sensed(&x, &mut normal);
-            out.push(DoubletResidual::new(
+            whole.push(DoubletResidual::new(
+                &model, axle, j, &inputs, &y_start, &y_end, pattern,
+            ));
+            split.extend(DoubletResidual::two_step_split(
                 &model,
-                Config::default().robot.axle_length,
+                axle,
                 j,
                 &inputs,
-                &y_start,
-                &y_end,
+                [&y_start, &y_middle, &y_end],
                 pattern,
             ));
             y_start = y_end;
         }
-        out
+        (whole, split)
     }
 
     use super::diagonal_covariance as covariance;
