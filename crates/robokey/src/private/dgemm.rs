@@ -67,7 +67,7 @@ impl Accumulation {
             a.len() == m * k
                 && m > 0
                 && k > 0
-                && b.len() % k == 0
+                && b.len().is_multiple_of(k)
                 && out.len() == m * (b.len() / k),
             "product of {m}×{k} ({} elements) and {} elements into {}",
             a.len(),
