@@ -7,6 +7,7 @@
 
 pub(crate) mod controller;
 pub mod decision;
+mod dgemm;
 pub mod doublet;
 pub mod eve;
 pub mod gram_filter;

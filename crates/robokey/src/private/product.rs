@@ -6,7 +6,8 @@
 //! - when a dimension is dynamic and `C`'s rows and columns and `A`'s columns all exceed
 //!   [`SMALL_DIM`], `matrixmultiply`'s `dgemm`, whose kernel the CPU decides at run time
 //!   (with FMA, the AVX-512 and AVX2 kernels: `c_ij = fma(a_i,k−1, b_k−1,j, … fma(a_i0, b_0j,
-//!   +0))`, `k` ascending) — left to `nalgebra` here;
+//!   +0))`, `k` ascending) — computed by `dgemm`'s `Accumulation`, the same chain on this
+//!   CPU, where it has one (else `nalgebra`'s);
 //! - otherwise column by column (`gemv`): `c_ij = a_i0·b_0j`, then `c_ij = a_ik·b_kj + c_ij`
 //!   for `k = 1, 2, …`, each product and each sum rounded, no fused multiply-add (written
 //!   `c_ij += a_ik·b_kj` here: a rounded sum is the same either way round).
@@ -17,6 +18,8 @@
 //! in the same order, so the same bits. The dimensions that decide the path are `nalgebra`'s.
 
 use nalgebra::{DMatrix, Dim, Dyn, IsContiguous, Matrix, RawStorage, Storage, StorageMut};
+
+use super::dgemm::Accumulation;
 
 /// `nalgebra`'s threshold: products with every dimension above it go to `matrixmultiply`.
 pub const SMALL_DIM: usize = 5;
@@ -60,7 +63,12 @@ pub fn product_to<R1, C1, SA, R2, C2, SB, R3, C3, SC>(
         || R3::is::<Dyn>()
         || C3::is::<Dyn>();
     if dynamic && m > SMALL_DIM && n > SMALL_DIM && k > SMALL_DIM {
-        a.mul_to(b, out);
+        match Accumulation::of(k) {
+            Some(accumulation) => {
+                accumulation.product_to(slice(a), m, k, slice(b), out.as_mut_slice())
+            }
+            None => a.mul_to(b, out),
+        }
         return;
     }
     column_by_column(slice(a), m, k, slice(b), n, out.as_mut_slice());
@@ -93,7 +101,7 @@ pub fn transposed_product_to(
             *spare = DMatrix::zeros(m, k);
         }
         a.transpose_to(spare);
-        spare.mul_to(b, out);
+        product_to(spare, b, out);
         return;
     }
     if m == 0 || n == 0 {
