@@ -343,7 +343,7 @@ fn the_agents_size_multilevel_slices_as_the_simulator_does() {
             .map(|slice| {
                 let picked: Vec<Vec<f64>> =
                     separations.iter().map(|s| slicing.pick(s, slice)).collect();
-                block.for_slice(&picked, per_slice[slice])
+                block.for_slice(slice, &picked, per_slice[slice])
             })
             .collect();
         // The agents: each session staged with its kept doublets, advanced slice by slice
