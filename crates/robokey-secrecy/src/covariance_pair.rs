@@ -648,4 +648,48 @@ mod tests {
         );
         assert!((two.h_min - sharp.h_min).abs() < 1e-9, "{two:?} {sharp:?}");
     }
+
+    /// Each bit's exponents evaluated once and kept: the bound of one part is
+    /// [`paired_smooth_min_entropy`]'s number for number, with any count removed; parts joined
+    /// are the whole (the same bound); each part's bound is the function's on its own bits at
+    /// the same λ; λ outside (0, LARGEST_LAMBDA] are dropped; parts at other λ do not join.
+    #[test]
+    fn exponents_kept_and_split_give_the_same_bounds() {
+        let bits: Vec<PairedBit> = (0..600)
+            .map(|i| {
+                let d = 0.3 + 0.002 * f64::from(i % 97);
+                vec![
+                    pair(&[(d, 1.0 + 0.001 * f64::from(i % 13))]),
+                    pair(&[(0.8 * d, 1.2)]),
+                ]
+            })
+            .collect();
+        let lambdas = [0.0, 0.05, 0.2, 0.7, 11.0];
+        let whole = ChernoffExponents::of(&bits, &lambdas);
+        assert_eq!(whole.bits(), 600);
+        assert_eq!(whole.at.len(), 3);
+        for removed in [0, 1, 60, 600, 700] {
+            assert_eq!(
+                whole.smooth_min_entropy(removed, 1e-6).unwrap(),
+                paired_smooth_min_entropy(&bits, removed, 1e-6, &lambdas).unwrap()
+            );
+        }
+        let parts = ChernoffExponents::split(&bits, &lambdas, 3, |i| i % 3);
+        assert_eq!(ChernoffExponents::joined(&parts).unwrap(), whole);
+        for (k, part) in parts.iter().enumerate() {
+            let own: Vec<PairedBit> = bits.iter().skip(k).step_by(3).cloned().collect();
+            assert_eq!(part.bits(), 200);
+            assert_eq!(
+                part.smooth_min_entropy(20, 1e-6).unwrap(),
+                paired_smooth_min_entropy(&own, 20, 1e-6, &lambdas).unwrap()
+            );
+        }
+        let other = ChernoffExponents::of(&bits, &[0.3]);
+        assert_eq!(ChernoffExponents::joined(&[whole, other]), None);
+        assert!(
+            ChernoffExponents::of(&bits, &lambdas)
+                .smooth_min_entropy(0, 1.5)
+                .is_err()
+        );
+    }
 }

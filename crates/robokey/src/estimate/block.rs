@@ -1835,6 +1835,96 @@ mod tests {
         ))
     }
 
+    /// Multilevel symbols under measured slip (two dimensions of 4 levels, 5 % per-wheel slip
+    /// on 1 mm of white motion noise, 8 seeded sessions): the block is sized with the slip,
+    /// and each slice from its own bits' pairs, not refused. The slices' bits partition the
+    /// block's (each slice's count the bits at its place of every label); the block's bound is
+    /// the union's of its slices' exponents at every point of σ²'s grid, number for number
+    /// (its published separation recomputed from them); the fine slice is sized below the
+    /// coarse one. What is outside holds the slices refused by name: an estimate without the
+    /// slices' exponents (one read back from a report), a slice of another size, a refused
+    /// block.
+    #[test]
+    fn multilevel_slices_under_slip_are_sized_from_their_own_bits() {
+        let (config, sessions) = simulated_sessions(
+            "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\nlevels = 4\n\
+             [world]\nprocess_std = [0.001, 0.001, 0.001]\nslip_std = 0.05\n",
+            0..8,
+        );
+        let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
+        let model = doublet_model(&config);
+        let slicing = Slicing::new(
+            model.perturbation.key_bits(),
+            model.perturbation.bits_per_symbol(),
+        )
+        .unwrap();
+        let bits: usize = views.iter().map(|s| s.len()).sum::<usize>() * 4;
+        let disclosed = (bits / 10) as u64;
+        let (separations, block) = block_separations(&config, &views, disclosed, 1e-6);
+        assert_eq!(block.refused, None, "{block:?}");
+        assert!(block.slip_sized, "{block:?}");
+        let kept = block.slip_slices.as_deref().expect("the slices' exponents");
+        // The partition: every bit in one slice, each slice its place's bits.
+        let picked: Vec<Vec<Vec<f64>>> = (0..2)
+            .map(|slice| separations.iter().map(|s| slicing.pick(s, slice)).collect())
+            .collect();
+        assert_eq!(kept.slices(), 2);
+        for (slice, own) in picked.iter().enumerate() {
+            let count: usize = own.iter().map(Vec::len).sum();
+            assert_eq!(kept.bits(slice), count);
+            assert_eq!(count, bits / 2);
+        }
+        // The block's bound from its slices' exponents joined, at each point.
+        let least = kept
+            .points()
+            .iter()
+            .map(|slices| {
+                let joined = ChernoffExponents::joined(slices).unwrap();
+                assert_eq!(joined.bits(), bits);
+                joined.smooth_min_entropy(disclosed, 1e-6).unwrap().h_min
+            })
+            .fold(f64::INFINITY, f64::min);
+        let union = paired_separation(bits as u64 - disclosed, least, 1e-6).unwrap();
+        assert_eq!(union, block.separation);
+        // Each slice sized, from its own bits.
+        let own: Vec<BlockEstimate> = picked
+            .iter()
+            .enumerate()
+            .map(|(slice, own)| block.for_slice(slice, own, disclosed / 2))
+            .collect();
+        eprintln!(
+            "slip {:?}: block {} (H_min^ε at least {least:.1} of {bits} bits), slices {} and {}",
+            block.slip, block.separation, own[0].separation, own[1].separation
+        );
+        for slice in &own {
+            assert_eq!(slice.refused, None, "{slice:?}");
+            assert!(slice.slip_sized && slice.slip_slices.is_none());
+            assert!(slice.separation > 0.0 && slice.separation < MAX_PUBLISHED_SEPARATION);
+            assert_eq!(slice.largest, slice.separation);
+            assert_eq!(
+                slice.outcome().unwrap() as f64 * SEPARATION_QUANTUM,
+                slice.separation
+            );
+        }
+        assert!(own[0].separation < own[1].separation, "{own:?}");
+        // Outside what was sized: refused, naming it.
+        let read: BlockEstimate = toml::from_str(&toml::to_string(&block).unwrap()).unwrap();
+        let why = read.for_slice(0, &picked[0], 0).refused.unwrap();
+        assert!(why.contains("kept no slice's exponents"), "{why}");
+        let why = block.for_slice(1, &picked[0][..1], 0).refused.unwrap();
+        assert!(
+            why.starts_with("per-wheel slip: slice 1: slice 1 holds"),
+            "{why}"
+        );
+        let why = block.for_slice(2, &[], 0).refused.unwrap();
+        assert!(why.contains("slice 2 of 2"), "{why}");
+        let mut refused = block.clone();
+        refused.refuse("a test's reason".to_owned());
+        let slice = refused.for_slice(0, &picked[0], 0);
+        assert_eq!(slice.refused.as_deref(), Some("a test's reason"));
+        assert!(slice.outcome().is_err());
+    }
+
     /// Multilevel symbols: with each symbol's mean subtracted Q̂ is the world's 1 mm² (1
     /// mrad²) per axis at 4 and 8 levels, within 4 of its relative standard errors
     /// `√(2F/n)·(2Q + 2R)/(2Q)` (F = 1.5 for the neighbours' shared sample), and the block is

@@ -48,6 +48,12 @@ impl SlipSlices {
         self.points.push(slices);
     }
 
+    /// Each point's slices' exponents, for the tests' own bounds over them.
+    #[cfg(test)]
+    pub(crate) fn points(&self) -> &[Vec<ChernoffExponents>] {
+        &self.points
+    }
+
     /// Slices held (none before a point is kept).
     #[must_use]
     pub fn slices(&self) -> usize {
