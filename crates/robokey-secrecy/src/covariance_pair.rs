@@ -231,33 +231,135 @@ pub fn paired_smooth_min_entropy<B: SurprisalExponent>(
     lambdas: &[f64],
 ) -> Result<PairedMinEntropy, MinEntropyError> {
     check_epsilon(epsilon)?;
-    let removed = usize::try_from(removed)
-        .unwrap_or(usize::MAX)
-        .min(bits.len());
-    let positions = (bits.len() - removed) as u64;
-    let ln_inv_eps = -epsilon.ln();
-    let bound_at = |lambda: f64| {
-        let mut exponents: Vec<f64> = bits
+    ChernoffExponents::of(bits, lambdas).smooth_min_entropy(removed, epsilon)
+}
+
+/// A set of bits' exponents `−ln E[e^(−λS)]` ([`SurprisalExponent`]) at each of a few
+/// Chernoff parameters λ, each λ's sorted ascending: all that the bound of
+/// [`paired_smooth_min_entropy`] reads of the bits. Kept, it gives the bound with any number
+/// of them removed without evaluating a moment again; [`Self::split`] evaluates each bit's
+/// moments once and partitions them (a multilevel block's slices), [`Self::joined`] puts
+/// parts back together (the sorted union: the same bound as the whole, number for number).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ChernoffExponents {
+    /// Bits held.
+    bits: usize,
+    /// Each λ in (0, [`LARGEST_LAMBDA`]] with the bits' exponents there, ascending.
+    at: Vec<(f64, Vec<f64>)>,
+}
+
+impl ChernoffExponents {
+    /// `bits`' exponents at each of `lambdas` in (0, [`LARGEST_LAMBDA`]] (the others give no
+    /// bound and are dropped).
+    #[must_use]
+    pub fn of<B: SurprisalExponent>(bits: &[B], lambdas: &[f64]) -> Self {
+        Self::split(bits, lambdas, 1, |_| 0)
+            .pop()
+            .unwrap_or_default()
+    }
+
+    /// `bits`' exponents at each of `lambdas` (as [`Self::of`]), each bit's evaluated once,
+    /// in `parts` parts: bit `i` in part `part_of(i)` (values from `parts` on are dropped).
+    #[must_use]
+    pub fn split<B: SurprisalExponent>(
+        bits: &[B],
+        lambdas: &[f64],
+        parts: usize,
+        part_of: impl Fn(usize) -> usize,
+    ) -> Vec<Self> {
+        let lambdas: Vec<f64> = lambdas
             .iter()
-            .map(|bit| bit.surprisal_exponent(lambda))
+            .copied()
+            .filter(|&l| l > 0.0 && l <= LARGEST_LAMBDA)
             .collect();
-        exponents.sort_by(f64::total_cmp);
-        let kept: f64 = exponents[..exponents.len() - removed].iter().sum();
-        let t = (kept - ln_inv_eps) / lambda;
-        if t.is_finite() { t } else { f64::NEG_INFINITY }
-    };
-    let (lambda, t) = lambdas
-        .iter()
-        .filter(|&&l| l > 0.0 && l <= LARGEST_LAMBDA)
-        .map(|&l| (l, bound_at(l)))
-        .fold((0.0, f64::NEG_INFINITY), |best, x| {
-            if x.1 > best.1 { x } else { best }
-        });
-    Ok(PairedMinEntropy {
-        positions,
-        lambda,
-        h_min: t.clamp(0.0, positions as f64),
-    })
+        let mut out: Vec<Self> = (0..parts)
+            .map(|_| Self {
+                bits: 0,
+                at: lambdas.iter().map(|&l| (l, Vec::new())).collect(),
+            })
+            .collect();
+        for (i, bit) in bits.iter().enumerate() {
+            if let Some(part) = out.get_mut(part_of(i)) {
+                part.bits += 1;
+                for (lambda, exponents) in &mut part.at {
+                    exponents.push(bit.surprisal_exponent(*lambda));
+                }
+            }
+        }
+        for part in &mut out {
+            for (_, exponents) in &mut part.at {
+                exponents.sort_by(f64::total_cmp);
+            }
+        }
+        out
+    }
+
+    /// The bits of every one of `parts` together (each taken at the first part's λ; parts at
+    /// other λ are not joined: none).
+    #[must_use]
+    pub fn joined(parts: &[Self]) -> Option<Self> {
+        let first = parts.first()?;
+        let same = |p: &Self| {
+            p.at.len() == first.at.len() && p.at.iter().zip(&first.at).all(|(a, b)| a.0 == b.0)
+        };
+        if !parts.iter().all(same) {
+            return None;
+        }
+        let at = (0..first.at.len())
+            .map(|k| {
+                let mut exponents: Vec<f64> = parts
+                    .iter()
+                    .flat_map(|p| p.at[k].1.iter().copied())
+                    .collect();
+                exponents.sort_by(f64::total_cmp);
+                (first.at[k].0, exponents)
+            })
+            .collect();
+        Some(Self {
+            bits: parts.iter().map(|p| p.bits).sum(),
+            at,
+        })
+    }
+
+    /// Bits held.
+    #[must_use]
+    pub fn bits(&self) -> usize {
+        self.bits
+    }
+
+    /// The bound of [`paired_smooth_min_entropy`] on the bits held, `removed` of them taken
+    /// away (at each λ the ones whose exponent is largest, the worst choice).
+    ///
+    /// # Errors
+    /// [`MinEntropyError::InvalidEpsilon`] for ε outside (0, 1).
+    pub fn smooth_min_entropy(
+        &self,
+        removed: u64,
+        epsilon: f64,
+    ) -> Result<PairedMinEntropy, MinEntropyError> {
+        check_epsilon(epsilon)?;
+        let removed = usize::try_from(removed)
+            .unwrap_or(usize::MAX)
+            .min(self.bits);
+        let positions = (self.bits - removed) as u64;
+        let ln_inv_eps = -epsilon.ln();
+        let (lambda, t) = self
+            .at
+            .iter()
+            .map(|(lambda, exponents)| {
+                let kept: f64 = exponents[..exponents.len() - removed].iter().sum();
+                let t = (kept - ln_inv_eps) / lambda;
+                (*lambda, if t.is_finite() { t } else { f64::NEG_INFINITY })
+            })
+            .fold((0.0, f64::NEG_INFINITY), |best, x| {
+                if x.1 > best.1 { x } else { best }
+            });
+        Ok(PairedMinEntropy {
+            positions,
+            lambda,
+            h_min: t.clamp(0.0, positions as f64),
+        })
+    }
 }
 
 /// Chernoff parameters worth trying for `n` bits of views near separation `d`: the λ that
@@ -545,5 +647,49 @@ mod tests {
             paired_smooth_min_entropy(&sharp, 0, 1e-6, &lambdas).unwrap(),
         );
         assert!((two.h_min - sharp.h_min).abs() < 1e-9, "{two:?} {sharp:?}");
+    }
+
+    /// Each bit's exponents evaluated once and kept: the bound of one part is
+    /// [`paired_smooth_min_entropy`]'s number for number, with any count removed; parts joined
+    /// are the whole (the same bound); each part's bound is the function's on its own bits at
+    /// the same λ; λ outside (0, LARGEST_LAMBDA] are dropped; parts at other λ do not join.
+    #[test]
+    fn exponents_kept_and_split_give_the_same_bounds() {
+        let bits: Vec<PairedBit> = (0..600)
+            .map(|i| {
+                let d = 0.3 + 0.002 * f64::from(i % 97);
+                vec![
+                    pair(&[(d, 1.0 + 0.001 * f64::from(i % 13))]),
+                    pair(&[(0.8 * d, 1.2)]),
+                ]
+            })
+            .collect();
+        let lambdas = [0.0, 0.05, 0.2, 0.7, 11.0];
+        let whole = ChernoffExponents::of(&bits, &lambdas);
+        assert_eq!(whole.bits(), 600);
+        assert_eq!(whole.at.len(), 3);
+        for removed in [0, 1, 60, 600, 700] {
+            assert_eq!(
+                whole.smooth_min_entropy(removed, 1e-6).unwrap(),
+                paired_smooth_min_entropy(&bits, removed, 1e-6, &lambdas).unwrap()
+            );
+        }
+        let parts = ChernoffExponents::split(&bits, &lambdas, 3, |i| i % 3);
+        assert_eq!(ChernoffExponents::joined(&parts).unwrap(), whole);
+        for (k, part) in parts.iter().enumerate() {
+            let own: Vec<PairedBit> = bits.iter().skip(k).step_by(3).cloned().collect();
+            assert_eq!(part.bits(), 200);
+            assert_eq!(
+                part.smooth_min_entropy(20, 1e-6).unwrap(),
+                paired_smooth_min_entropy(&own, 20, 1e-6, &lambdas).unwrap()
+            );
+        }
+        let other = ChernoffExponents::of(&bits, &[0.3]);
+        assert_eq!(ChernoffExponents::joined(&[whole, other]), None);
+        assert!(
+            ChernoffExponents::of(&bits, &lambdas)
+                .smooth_min_entropy(0, 1.5)
+                .is_err()
+        );
     }
 }

@@ -308,12 +308,18 @@ fn a_camera_stated_in_frames_sizes_the_measured_block_by_its_worth() {
 /// slice as the slices' blocks reconcile them ([`slice_estimates`]), estimates the block on
 /// whole symbols and sizes each slice exactly as the lab does (`block_separations`, the
 /// commands check, then each slice's own separations less its own sample,
-/// `BlockEstimate::for_slice`); under a 50 ms lag both refuse every slice by the same name.
+/// `BlockEstimate::for_slice`); with 5 % per-wheel slip the block is sized with the slip
+/// and each slice from its own bits' pairs by both; under a 50 ms lag both refuse every
+/// slice by the same name.
 #[test]
 fn the_agents_size_multilevel_slices_as_the_simulator_does() {
     use robokey::connection::slices::{first_slice, slice_estimates, slicing};
     for (world, refused) in [
         ("process_std = [0.001, 0.001, 0.001]", false),
+        (
+            "process_std = [0.001, 0.001, 0.001]\nslip_std = 0.05",
+            false,
+        ),
         ("process_std = [0.001, 0.001, 0.001]\nlag = 0.05", true),
     ] {
         let mut config = parties_in(world);
@@ -339,11 +345,16 @@ fn the_agents_size_multilevel_slices_as_the_simulator_does() {
         if let Some(why) = sized_block_refusal(&config, &sessions, 1e-6, Some(&block)) {
             block.refuse(why);
         }
+        assert_eq!(
+            block.slip_sized,
+            world.contains("slip"),
+            "{world}: {block:?}"
+        );
         let simulator: Vec<BlockEstimate> = (0..slices)
             .map(|slice| {
                 let picked: Vec<Vec<f64>> =
                     separations.iter().map(|s| slicing.pick(s, slice)).collect();
-                block.for_slice(&picked, per_slice[slice])
+                block.for_slice(slice, &picked, per_slice[slice])
             })
             .collect();
         // The agents: each session staged with its kept doublets, advanced slice by slice

@@ -424,10 +424,10 @@ fn analyze_point<'a>(
                 // Measured sizing: each slice's key sized from its own bits' worst-case
                 // separations under the block's one estimate, less its own sample.
                 if let Some(estimate) = &pool.estimate {
-                    for part in &mut parts {
+                    for (slice, part) in parts.iter_mut().enumerate() {
                         let disclosed = sample_size(part.robot.len(), options.sample_bits);
                         part.estimate =
-                            Some(estimate.for_slice(&part.separations, disclosed as u64));
+                            Some(estimate.for_slice(slice, &part.separations, disclosed as u64));
                     }
                 }
                 parts

@@ -96,7 +96,7 @@ pub fn slice_estimates(
                 .zip(&separations)
                 .map(|(staged, all)| staged.slicing.pick(all, slice))
                 .collect();
-            estimate.for_slice(&picked, disclosed)
+            estimate.for_slice(slice, &picked, disclosed)
         })
         .collect()
 }

@@ -24,18 +24,15 @@
 //! interval ([`three_step_worst_case`]).
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use robokey_secrecy::BitString;
-use robokey_secrecy::covariance_pair::{
-    SurprisalExponent, candidate_lambdas, paired_smooth_min_entropy,
-};
+use robokey_secrecy::covariance_pair::{ChernoffExponents, SurprisalExponent, candidate_lambdas};
 use robokey_secrecy::postprocess::{
     EstimateOutcome, EstimateRefusal, EstimateRequest, KeptDoublet, KeptLate, MAX_SEPARATION_STEPS,
-    SEPARATION_QUANTUM,
+    SEPARATION_QUANTUM, Slicing,
 };
-use robokey_secrecy::view_profile::{
-    equivalent_separation, gaussian_separation_within, separation_counts,
-};
+use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 
 use super::correlation::estimate_correlation;
@@ -46,9 +43,10 @@ use super::lag::{
 use super::motion_noise::{Corner, SlipCorners};
 use super::normal_tail::normal_upper_quantile;
 use super::pairs_over_lags::PairsOverLags;
+use super::slip_slices::{SlipSlices, equivalent_separation as paired_separation};
 use super::worst_case::{
-    MAX_PUBLISHED_SEPARATION, below_the_region, slip_pairs, three_step_slip_pairs,
-    three_step_steps, three_step_worst_case, whole_interval_corner,
+    below_the_region, slip_pairs, three_step_slip_pairs, three_step_steps, three_step_worst_case,
+    whole_interval_corner,
 };
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
@@ -104,9 +102,13 @@ pub struct BlockEstimate {
     pub slip: Option<[f64; 3]>,
     /// Whether Eve's view was sized with the slip measured (bits whose noise depends on
     /// them: `separation` is then one Gaussian separation that bounds no more than the
-    /// bit-dependent views do, for the whole block only).
+    /// bit-dependent views do, for the bits it was computed over: the block's, or a slice's).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub slip_sized: bool,
+    /// A multilevel block sized with the slip measured: each slice's bits' exponents, kept
+    /// to size each slice ([`Self::for_slice`]); not reported, and none in a slice's own.
+    #[serde(skip)]
+    slip_slices: Option<Arc<SlipSlices>>,
 }
 
 impl BlockEstimate {
@@ -130,33 +132,62 @@ impl BlockEstimate {
         });
         self.separation = REFUSED_SEPARATION;
         self.largest = REFUSED_SEPARATION;
+        self.slip_slices = None;
     }
 
-    /// What sizes one slice of a multilevel block, sized as a key of its own (docs/estimation.md,
-    /// "Multilevel symbols"): this estimate — its region, worst case and any refusal — with
-    /// the equivalent separation of the slice's bits' worst-case `separations` alone (each
-    /// session's), `disclosed` of them taken away by the slice's own sample, at most their
-    /// largest. The slices share the block's one estimate: the event that its region misses
-    /// the plant (probability ε_est) is one event for all of them.
+    /// What sizes slice `slice` of a multilevel block, sized as a key of its own
+    /// (docs/estimation.md, "Multilevel symbols"): this estimate — its region, worst case and
+    /// any refusal — with the equivalent separation of the slice's bits' worst-case
+    /// `separations` alone (each session's), `disclosed` of them taken away by the slice's own
+    /// sample, at most their largest. Where the block was sized with the slip measured, the
+    /// slice's bits' own bound through their pairs instead, at every point of σ²'s grid the
+    /// block was sized at ([`SlipSlices::separation`]; `separations` then only counts them).
+    /// The slices share the block's one estimate: the event that its region misses the plant
+    /// (probability ε_est) is one event for all of them.
     #[must_use]
-    pub fn for_slice(&self, separations: &[Vec<f64>], disclosed: u64) -> Self {
-        if self.refused.is_some() {
-            return self.clone();
+    pub fn for_slice(&self, slice: usize, separations: &[Vec<f64>], disclosed: u64) -> Self {
+        let own = Self {
+            slip_slices: None,
+            ..self.clone()
+        };
+        if own.refused.is_some() {
+            return own;
         }
         if self.slip_sized {
-            let mut refused = self.clone();
-            refused.refuse(
-                "per-wheel slip: the block's separation bounds its bits together, not a slice \
-                 of them (allowed: slices of blocks without measured slip)"
-                    .to_owned(),
-            );
-            return refused;
+            let bits: usize = separations.iter().map(Vec::len).sum();
+            let sized = match self.slip_slices.as_deref() {
+                Some(slices) if slices.bits(slice) == bits => {
+                    slices.separation(slice, disclosed, self.epsilon)
+                }
+                Some(slices) => Err(format!(
+                    "slice {slice} holds {bits} bits where the block's sizing kept {} of it \
+                     (allowed: the slice of the block sized)",
+                    slices.bits(slice)
+                )),
+                None => Err(
+                    "the block's sizing kept no slice's exponents (allowed: the \
+                             estimate of a multilevel block as sized)"
+                        .to_owned(),
+                ),
+            };
+            return match sized {
+                Ok(separation) => Self {
+                    separation,
+                    largest: separation,
+                    ..own
+                },
+                Err(why) => {
+                    let mut refused = own;
+                    refused.refuse(format!("per-wheel slip: slice {slice}: {why}"));
+                    refused
+                }
+            };
         }
         let largest = separations.iter().flatten().fold(0.0_f64, |m, &x| m.max(x));
         Self {
             separation: equivalent(separations, disclosed, self.epsilon, largest),
             largest,
-            ..self.clone()
+            ..own
         }
     }
 
@@ -175,6 +206,7 @@ impl BlockEstimate {
             lag: None,
             slip: None,
             slip_sized: false,
+            slip_slices: None,
         }
     }
 }
@@ -1023,6 +1055,7 @@ fn sized_report(
         lag,
         slip: estimate.slip.map(|slip| slip.stds()),
         slip_sized,
+        slip_slices: None,
     }
 }
 
@@ -1034,11 +1067,13 @@ fn sized_report(
 /// at once, [`whole_interval_corner`]), each bit's pairs ([`slip_pairs`]) at whichever of
 /// the matrices below the region ([`below_the_region`]: shares of the corner, raised by
 /// the region's upper bound) tells her least about the doublet, the bound of
-/// [`paired_smooth_min_entropy`] with `disclosed` bits removed; the least over the points,
-/// published as the smallest Gaussian separation whose bound is no larger
-/// ([`gaussian_separation_within`]). Every bit's entry is that separation. Three-step
+/// `covariance_pair::paired_smooth_min_entropy` with `disclosed` bits removed; the least over
+/// the points, published as the smallest Gaussian separation whose bound is no larger
+/// (`slip_slices::equivalent_separation`). Every bit's entry is that separation. Three-step
 /// doublets (the `lag` measured) are seen through their four instants and the next
-/// doublet's entry, over the lag's interval ([`three_step_slip_pairs`]).
+/// doublet's entry, over the lag's interval ([`three_step_slip_pairs`]). A multilevel block
+/// keeps each slice's bits' exponents at every point (evaluated once, for the block's bound:
+/// [`ChernoffExponents::split`]), from which each slice is sized ([`BlockEstimate::for_slice`]).
 fn size_slip_block(
     points: &[SlipCorners],
     config: &Config,
@@ -1058,6 +1093,19 @@ fn size_slip_block(
     let axle = config.robot.axle_length;
     let bits: usize =
         sessions.iter().map(|s| s.len()).sum::<usize>() * model.perturbation.key_bits();
+    // Multilevel symbols: each slice's bits (every session holds whole doublets, so a bit's
+    // place in the block is its place in its session modulo the doublet's key bits).
+    let slicing = (model.perturbation.bits_per_symbol() > 1)
+        .then(|| {
+            Slicing::new(
+                model.perturbation.key_bits(),
+                model.perturbation.bits_per_symbol(),
+            )
+            .ok()
+        })
+        .flatten();
+    let parts = slicing.map_or(1, |s| usize::from(s.slices));
+    let mut slip_slices = SlipSlices::default();
     let mut least = f64::INFINITY;
     for (i, point) in points.iter().enumerate() {
         if i > 0 && points[i - 1] == *point {
@@ -1128,33 +1176,44 @@ fn size_slip_block(
             .sum::<f64>()
             / paired.len().max(1) as f64)
             .sqrt();
-        let bound = candidate_lambdas(kept.max(1), proxy, epsilon)
-            .and_then(|lambdas| paired_smooth_min_entropy(&paired, disclosed, epsilon, &lambdas));
+        // Each bit's exponents at the block's λ, evaluated once and kept by slice; the
+        // block's bound is their union's.
+        let slices = match candidate_lambdas(kept.max(1), proxy, epsilon) {
+            Ok(lambdas) => ChernoffExponents::split(&paired, &lambdas, parts, |i| {
+                slicing.map_or(0, |s| s.slice_of(i))
+            }),
+            Err(why) => return named(format!("per-wheel slip: {why}")),
+        };
+        let bound = ChernoffExponents::joined(&slices)
+            .unwrap_or_default()
+            .smooth_min_entropy(disclosed, epsilon);
         match bound {
             Ok(bound) => least = least.min(bound.h_min),
             Err(why) => return named(format!("per-wheel slip: {why}")),
         }
+        if slicing.is_some() {
+            slip_slices.push(slices);
+        }
     }
     let kept = (bits as u64).saturating_sub(disclosed);
-    let largest_micros = (MAX_PUBLISHED_SEPARATION * 1e6) as u64;
-    let separation = match gaussian_separation_within(kept, least, largest_micros, epsilon) {
-        Ok(micros) => {
-            ((micros * 256 / 1_000_000) as f64 * SEPARATION_QUANTUM).min(MAX_PUBLISHED_SEPARATION)
-        }
+    let separation = match paired_separation(kept, least, epsilon) {
+        Ok(separation) => separation,
         Err(why) => return named(format!("per-wheel slip: {why}")),
     };
+    let mut report = sized_report(
+        estimate,
+        epsilon,
+        [separation; 2],
+        lag.map(|lag| [lag.point, lag.interval[0], lag.interval[1]]),
+        true,
+    );
+    report.slip_slices = slicing.map(|_| Arc::new(slip_slices));
     (
         sessions
             .iter()
             .map(|session| vec![separation; session.len() * model.perturbation.key_bits()])
             .collect(),
-        sized_report(
-            estimate,
-            epsilon,
-            [separation; 2],
-            lag.map(|lag| [lag.point, lag.interval[0], lag.interval[1]]),
-            true,
-        ),
+        report,
     )
 }
 
@@ -1803,6 +1862,96 @@ mod tests {
             "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\n\
              levels = {levels}\n[world]\nprocess_std = [0.001, 0.001, 0.001]\n"
         ))
+    }
+
+    /// Multilevel symbols under measured slip (two dimensions of 4 levels, 5 % per-wheel slip
+    /// on 1 mm of white motion noise, 8 seeded sessions): the block is sized with the slip,
+    /// and each slice from its own bits' pairs, not refused. The slices' bits partition the
+    /// block's (each slice's count the bits at its place of every label); the block's bound is
+    /// the union's of its slices' exponents at every point of σ²'s grid, number for number
+    /// (its published separation recomputed from them); the fine slice is sized below the
+    /// coarse one. What is outside holds the slices refused by name: an estimate without the
+    /// slices' exponents (one read back from a report), a slice of another size, a refused
+    /// block.
+    #[test]
+    fn multilevel_slices_under_slip_are_sized_from_their_own_bits() {
+        let (config, sessions) = simulated_sessions(
+            "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\nlevels = 4\n\
+             [world]\nprocess_std = [0.001, 0.001, 0.001]\nslip_std = 0.05\n",
+            0..8,
+        );
+        let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
+        let model = doublet_model(&config);
+        let slicing = Slicing::new(
+            model.perturbation.key_bits(),
+            model.perturbation.bits_per_symbol(),
+        )
+        .unwrap();
+        let bits: usize = views.iter().map(|s| s.len()).sum::<usize>() * 4;
+        let disclosed = (bits / 10) as u64;
+        let (separations, block) = block_separations(&config, &views, disclosed, 1e-6);
+        assert_eq!(block.refused, None, "{block:?}");
+        assert!(block.slip_sized, "{block:?}");
+        let kept = block.slip_slices.as_deref().expect("the slices' exponents");
+        // The partition: every bit in one slice, each slice its place's bits.
+        let picked: Vec<Vec<Vec<f64>>> = (0..2)
+            .map(|slice| separations.iter().map(|s| slicing.pick(s, slice)).collect())
+            .collect();
+        assert_eq!(kept.slices(), 2);
+        for (slice, own) in picked.iter().enumerate() {
+            let count: usize = own.iter().map(Vec::len).sum();
+            assert_eq!(kept.bits(slice), count);
+            assert_eq!(count, bits / 2);
+        }
+        // The block's bound from its slices' exponents joined, at each point.
+        let least = kept
+            .points()
+            .iter()
+            .map(|slices| {
+                let joined = ChernoffExponents::joined(slices).unwrap();
+                assert_eq!(joined.bits(), bits);
+                joined.smooth_min_entropy(disclosed, 1e-6).unwrap().h_min
+            })
+            .fold(f64::INFINITY, f64::min);
+        let union = paired_separation(bits as u64 - disclosed, least, 1e-6).unwrap();
+        assert_eq!(union, block.separation);
+        // Each slice sized, from its own bits.
+        let own: Vec<BlockEstimate> = picked
+            .iter()
+            .enumerate()
+            .map(|(slice, own)| block.for_slice(slice, own, disclosed / 2))
+            .collect();
+        eprintln!(
+            "slip {:?}: block {} (H_min^ε at least {least:.1} of {bits} bits), slices {} and {}",
+            block.slip, block.separation, own[0].separation, own[1].separation
+        );
+        for slice in &own {
+            assert_eq!(slice.refused, None, "{slice:?}");
+            assert!(slice.slip_sized && slice.slip_slices.is_none());
+            assert!(slice.separation > 0.0 && slice.separation < MAX_PUBLISHED_SEPARATION);
+            assert_eq!(slice.largest, slice.separation);
+            assert_eq!(
+                slice.outcome().unwrap() as f64 * SEPARATION_QUANTUM,
+                slice.separation
+            );
+        }
+        assert!(own[0].separation < own[1].separation, "{own:?}");
+        // Outside what was sized: refused, naming it.
+        let read: BlockEstimate = toml::from_str(&toml::to_string(&block).unwrap()).unwrap();
+        let why = read.for_slice(0, &picked[0], 0).refused.unwrap();
+        assert!(why.contains("kept no slice's exponents"), "{why}");
+        let why = block.for_slice(1, &picked[0][..1], 0).refused.unwrap();
+        assert!(
+            why.starts_with("per-wheel slip: slice 1: slice 1 holds"),
+            "{why}"
+        );
+        let why = block.for_slice(2, &[], 0).refused.unwrap();
+        assert!(why.contains("slice 2 of 2"), "{why}");
+        let mut refused = block.clone();
+        refused.refuse("a test's reason".to_owned());
+        let slice = refused.for_slice(0, &picked[0], 0);
+        assert_eq!(slice.refused.as_deref(), Some("a test's reason"));
+        assert!(slice.outcome().is_err());
     }
 
     /// Multilevel symbols: with each symbol's mean subtracted Q̂ is the world's 1 mm² (1

@@ -28,6 +28,7 @@ pub mod quantum_check;
 pub mod residual;
 pub mod slice_llrs;
 pub mod slip;
+pub mod slip_slices;
 mod symmetric_coordinates;
 mod weighted_chi_square;
 mod wishart;
