@@ -1865,7 +1865,7 @@ mod tests {
     }
 
     /// Multilevel symbols under measured slip (two dimensions of 4 levels, 5 % per-wheel slip
-    /// on 1 mm of white motion noise, 8 seeded sessions): the block is sized with the slip,
+    /// on 1 mm of white motion noise, 2 seeded sessions): the block is sized with the slip,
     /// and each slice from its own bits' pairs, not refused. The slices' bits partition the
     /// block's (each slice's count the bits at its place of every label); the block's bound is
     /// the union's of its slices' exponents at every point of σ²'s grid, number for number
@@ -1878,7 +1878,7 @@ mod tests {
         let (config, sessions) = simulated_sessions(
             "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\nlevels = 4\n\
              [world]\nprocess_std = [0.001, 0.001, 0.001]\nslip_std = 0.05\n",
-            0..8,
+            0..2,
         );
         let views: Vec<&[DoubletSamples]> = sessions.iter().map(Vec::as_slice).collect();
         let model = doublet_model(&config);

@@ -228,17 +228,9 @@ fn lanes(x: &[f64]) -> f64x4 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::private::product::tests::value;
     use nalgebra::DMatrix;
     use rand::{RngExt, SeedableRng};
-
-    /// Values that exercise the rounding: wide exponents, exact zeros of both signs.
-    fn value(rng: &mut rand::rngs::ChaCha8Rng) -> f64 {
-        match rng.random_range(0..8) {
-            0 => 0.0,
-            1 => -0.0,
-            _ => (rng.random::<f64>() - 0.5) * 2f64.powi(rng.random_range(-30..30)),
-        }
-    }
 
     fn random(rng: &mut rand::rngs::ChaCha8Rng, rows: usize, columns: usize) -> DMatrix<f64> {
         DMatrix::from_fn(rows, columns, |_, _| value(rng))

@@ -193,13 +193,13 @@ fn column_by_column(a: &[f64], m: usize, k: usize, b: &[f64], n: usize, out: &mu
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use nalgebra::{DVector, Matrix3, Matrix3xX, MatrixXx3, Vector3};
     use rand::{RngExt, SeedableRng};
 
     /// Values that exercise the rounding: wide exponents, exact zeros of both signs.
-    fn value(rng: &mut rand::rngs::ChaCha8Rng) -> f64 {
+    pub(crate) fn value(rng: &mut rand::rngs::ChaCha8Rng) -> f64 {
         match rng.random_range(0..8) {
             0 => 0.0,
             1 => -0.0,
