@@ -315,7 +315,7 @@ impl CheckData {
         self.slopes_in_order(stated, quanta)
     }
 
-    /// [`Self::slopes`], inlined where it is called.
+    /// `slopes`, inlined where it is called.
     #[inline(always)]
     fn slopes_in_order(&self, stated: &Stated, quanta: &[f64]) -> Vec<QuantumSlope> {
         let per_doublet = self.per_doublet.max(1);
@@ -401,7 +401,7 @@ impl CheckData {
     }
 }
 
-/// [`CheckData::slopes`]'s operands, run by `pulp` in a function compiled for x86-64-v3.
+/// `CheckData::slopes`'s operands, run by `pulp` in a function compiled for x86-64-v3.
 #[cfg(target_arch = "x86_64")]
 struct Slopes<'a> {
     data: &'a CheckData,
