@@ -1426,7 +1426,7 @@ pub(super) mod tests {
         let sensed = covariance(sensor);
         for (name, q_std, slip, blocks, allowed, block) in worlds {
             let q = covariance([q_std; 3]);
-            let (mut missed, mut refused, mut above) = ([0, 0], 0, 0);
+            let (mut missed, mut refused, mut unlike, mut above) = ([0, 0], 0, 0, 0);
             let mut gains: Vec<[f64; 3]> = Vec::new();
             for seed in 0..blocks {
                 let (whole, split) = block(2_000 + seed as u64);
@@ -1436,9 +1436,16 @@ pub(super) mod tests {
                     refused += 1;
                     continue;
                 };
-                assert_eq!(new.slip_corners.is_some(), slip > 0.0, "{name} {seed}");
+                assert!(slip == 0.0 || new.slip_corners.is_some(), "{name} {seed}");
                 missed[0] += usize::from(misses(&new, &q, slip * slip));
                 missed[1] += usize::from(misses(&old, &q, slip * slip));
+                // A white block may show slip at this level: its region then misses σ² = 0
+                // (counted above), and where one estimate sizes slip and the other does not,
+                // their vertices are not comparable.
+                if new.slip_corners.is_some() != old.slip_corners.is_some() {
+                    unlike += 1;
+                    continue;
+                }
                 let difference = new.lower - old.lower;
                 above += usize::from(SymmetricEigen::new(difference).eigenvalues.min() >= 0.0);
                 gains.push(std::array::from_fn(|k| difference[(k, k)] / q[(k, k)]));
@@ -1451,11 +1458,15 @@ pub(super) mod tests {
                 (spread / (n - 1.0) / n).sqrt()
             });
             eprintln!(
-                "{name}: misses {missed:?} (new, old) of {n}, {refused} refused, new ⪰ old in \
-                 {above}; Q_low new − old per axis, of Q: {mean:.4?} ± {error:.4?}"
+                "{name}: misses {missed:?} (new, old) of {blocks}, {refused} refused, {unlike} \
+                 sized with slip by one alone; new ⪰ old in {above} of {n}; Q_low new − old \
+                 per axis, of Q: {mean:.4?} ± {error:.4?}"
             );
-            assert!(missed[0] <= allowed, "{name}: {missed:?} misses of {n}");
-            assert!(refused <= blocks / 10, "{name}: {refused} of {blocks} refused");
+            assert!(missed[0] <= allowed, "{name}: {missed:?} misses of {blocks}");
+            assert!(
+                refused + unlike <= blocks / 10,
+                "{name}: {refused} refused, {unlike} unlike, of {blocks}"
+            );
             for k in 0..3 {
                 let least = if slip > 0.0 && k == 2 { -4.0 } else { 4.0 };
                 assert!(
