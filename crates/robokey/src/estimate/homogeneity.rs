@@ -194,19 +194,25 @@ pub(in crate::estimate) mod tests {
         turning: f64,
         seed: u64,
     ) -> (Vec<DoubletResidual>, Vec<DoubletResidual>) {
-        simulated_doublets(doublets, SENSOR, seed, varied_inputs, |u, heading, normal| {
-            let right = (u.x + 0.5 * AXLE * u.y) * T * slip * normal();
-            let left = (u.x - 0.5 * AXLE * u.y) * T * slip * normal();
-            let along = 0.5 * (right + left) + std * normal();
-            let lateral = std * normal() + turning * u.y.abs() * T * normal();
-            let turn = (right - left) / AXLE + std * normal();
-            let (sin, cos) = heading.sin_cos();
-            Pose::new(
-                cos * along - sin * lateral,
-                sin * along + cos * lateral,
-                turn,
-            )
-        })
+        simulated_doublets(
+            doublets,
+            SENSOR,
+            seed,
+            varied_inputs,
+            |u, heading, normal| {
+                let right = (u.x + 0.5 * AXLE * u.y) * T * slip * normal();
+                let left = (u.x - 0.5 * AXLE * u.y) * T * slip * normal();
+                let along = 0.5 * (right + left) + std * normal();
+                let lateral = std * normal() + turning * u.y.abs() * T * normal();
+                let turn = (right - left) / AXLE + std * normal();
+                let (sin, cos) = heading.sin_cos();
+                Pose::new(
+                    cos * along - sin * lateral,
+                    sin * along + cos * lateral,
+                    turn,
+                )
+            },
+        )
     }
 
     /// [`noisy_residuals`] without the turn-dependent part: white noise of `std` and slip.

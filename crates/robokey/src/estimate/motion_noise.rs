@@ -1407,13 +1407,9 @@ pub(super) mod tests {
         let epsilon = 0.05;
         let sensor = [5e-4; 3];
         let white = |q_std: f64, seed: u64| -> Block {
-            simulated_doublets(
-                1_000,
-                sensor,
-                seed,
-                straight_and_turning,
-                |_, _, normal| Pose::new(q_std * normal(), q_std * normal(), q_std * normal()),
-            )
+            simulated_doublets(1_000, sensor, seed, straight_and_turning, |_, _, normal| {
+                Pose::new(q_std * normal(), q_std * normal(), q_std * normal())
+            })
         };
         let four = |seed| white(4e-3, seed);
         let one = |seed| white(1e-3, seed);
@@ -1462,7 +1458,10 @@ pub(super) mod tests {
                  sized with slip by one alone; new ⪰ old in {above} of {n}; Q_low new − old \
                  per axis, of Q: {mean:.4?} ± {error:.4?}"
             );
-            assert!(missed[0] <= allowed, "{name}: {missed:?} misses of {blocks}");
+            assert!(
+                missed[0] <= allowed,
+                "{name}: {missed:?} misses of {blocks}"
+            );
             assert!(
                 refused + unlike <= blocks / 10,
                 "{name}: {refused} refused, {unlike} unlike, of {blocks}"
