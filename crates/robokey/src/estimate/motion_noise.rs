@@ -1414,7 +1414,9 @@ pub(super) mod tests {
         let four = |seed| white(4e-3, seed);
         let one = |seed| white(1e-3, seed);
         let slipping = |seed| slipping_doublets(1_000, 2e-3, 0.05, seed);
-        let worlds: [(&str, f64, f64, usize, usize, &dyn Fn(u64) -> Block); 3] = [
+        // Name, `√Q` per axis (m), slip, blocks, misses allowed, the block's residuals.
+        type World<'a> = (&'a str, f64, f64, usize, usize, &'a dyn Fn(u64) -> Block);
+        let worlds: [World; 3] = [
             ("4 mm", 4e-3, 0.0, 200, 19, &four),
             ("1 mm", 1e-3, 0.0, 200, 19, &one),
             ("5 % slip", 2e-3, 0.05, 40, 6, &slipping),
