@@ -154,7 +154,7 @@ pub fn speed_class_departure(
 pub(in crate::estimate) mod tests {
     use super::*;
     use crate::estimate::diagonal_covariance;
-    use crate::estimate::motion_noise::tests::simulated_residuals;
+    use crate::estimate::motion_noise::tests::simulated_doublets;
     use crate::estimate::slip::estimate_slip;
     use crate::estimate::{EstimationRefusal, estimate_motion_noise};
     use crate::model::{Pose, Unicycle};
@@ -182,19 +182,37 @@ pub(in crate::estimate) mod tests {
     /// lateral noise growing with the turn rate, `turning·|ω|·T` (m per rad/s), besides:
     /// 4,000 doublets.
     fn noisy_residuals(std: f64, slip: f64, turning: f64, seed: u64) -> Vec<DoubletResidual> {
-        simulated_residuals(4_000, SENSOR, seed, varied_inputs, |u, heading, normal| {
-            let right = (u.x + 0.5 * AXLE * u.y) * T * slip * normal();
-            let left = (u.x - 0.5 * AXLE * u.y) * T * slip * normal();
-            let along = 0.5 * (right + left) + std * normal();
-            let lateral = std * normal() + turning * u.y.abs() * T * normal();
-            let turn = (right - left) / AXLE + std * normal();
-            let (sin, cos) = heading.sin_cos();
-            Pose::new(
-                cos * along - sin * lateral,
-                sin * along + cos * lateral,
-                turn,
-            )
-        })
+        noisy_doublets(4_000, std, slip, turning, seed).0
+    }
+
+    /// [`noisy_residuals`] over `doublets` doublets, with their one-step residuals split at
+    /// the middle samples ([`simulated_doublets`]).
+    fn noisy_doublets(
+        doublets: u32,
+        std: f64,
+        slip: f64,
+        turning: f64,
+        seed: u64,
+    ) -> (Vec<DoubletResidual>, Vec<DoubletResidual>) {
+        simulated_doublets(
+            doublets,
+            SENSOR,
+            seed,
+            varied_inputs,
+            |u, heading, normal| {
+                let right = (u.x + 0.5 * AXLE * u.y) * T * slip * normal();
+                let left = (u.x - 0.5 * AXLE * u.y) * T * slip * normal();
+                let along = 0.5 * (right + left) + std * normal();
+                let lateral = std * normal() + turning * u.y.abs() * T * normal();
+                let turn = (right - left) / AXLE + std * normal();
+                let (sin, cos) = heading.sin_cos();
+                Pose::new(
+                    cos * along - sin * lateral,
+                    sin * along + cos * lateral,
+                    turn,
+                )
+            },
+        )
     }
 
     /// [`noisy_residuals`] without the turn-dependent part: white noise of `std` and slip.
@@ -204,6 +222,17 @@ pub(in crate::estimate) mod tests {
         seed: u64,
     ) -> Vec<DoubletResidual> {
         noisy_residuals(std, slip, 0.0, seed)
+    }
+
+    /// [`slipping_residuals`] over `doublets` doublets, with their one-step residuals split at
+    /// the middle samples.
+    pub(in crate::estimate) fn slipping_doublets(
+        doublets: u32,
+        std: f64,
+        slip: f64,
+        seed: u64,
+    ) -> (Vec<DoubletResidual>, Vec<DoubletResidual>) {
+        noisy_doublets(doublets, std, slip, 0.0, seed)
     }
 
     /// Size: on white noise of 2 mm (the slip world's additive part) the test rejects at
