@@ -35,7 +35,7 @@ use robokey_secrecy::postprocess::{
 use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 
-use super::correlation::estimate_correlation;
+use super::correlation::{SlipShare, estimate_correlation};
 use super::lag::{
     MIN_LAG_DOUBLETS, TurnCorrection, TurnCorrections, estimate_lag_jointly, first_step_share,
     first_step_share_slope, first_turn_factor, later_turn_factor,
@@ -390,7 +390,7 @@ fn three_step_block(
         plain.point
     } else {
         let (residuals, _) = residuals_at(plain.point);
-        match estimate_correlation(&residuals, &sensor, region / 2.0) {
+        match estimate_correlation(&residuals, &sensor, region / 2.0, SlipShare::NONE) {
             Ok(correlation) => {
                 joint(&first, [correlation.point; 2]).map_or(plain.point, |l| l.point)
             }

@@ -44,6 +44,13 @@
 //! and the steps joined in pairs at every step (`g_2` over overlapping pairs), each at ε/2,
 //! the interval the two intervals' intersection.
 //!
+//! **Under slip.** Per-wheel slip is independent between steps: it adds `σ²·Mᵢ` to each
+//! residual's variance and nothing to the lag-one products, so with the slip in `b` the
+//! ratios lean towards 0. Where the block measures slip ([`SlipShare`]) each pair's `b` is
+//! taken with `σ²·M̄` moved to the noise beside it (`N`, in the weights too): `ρ̂` and the
+//! whiteness test at σ̂², the interval the hull of the intervals at [`SLIP_POINTS`] points of
+//! σ²'s interval (`motion_noise` takes the two intervals jointly).
+//!
 //! **Dependence.** Residuals `d` doublets apart correlate by at most
 //! `r_d = |ρ|^(2d−1)(1 + |ρ|)/2` (`d ≥ 1`) per axis from the motion, plus the sensor's MA(1)
 //! `≤ ½` at `d = 1`. A sum of squares (or products) of such a series has its variance inflated
@@ -212,14 +219,18 @@ pub fn parity_inflation(rho: f64) -> f64 {
     1.0 + 2.0 * half * half * rho.powi(6) / (1.0 - rho.powi(8))
 }
 
-/// One pair's motion products per axis: `[a_k, b_k, N_k]` — the lag-one product with the
-/// shared sample's expectation removed, the mean motion variance of the two, and their mean
-/// sensor variance.
+/// One pair's motion products per axis: `[a_k, b_k, N_k, M_k]` — the lag-one product with
+/// the shared sample's expectation removed, the mean motion variance of the two (with the
+/// slip's, which `without_slip` takes out), their mean sensor variance, and their mean
+/// slip map (the slip's variance per unit σ²).
+type PairTerms = [[f64; 4]; 3];
+
+/// [`PairTerms`] of a pair of residuals.
 fn pair_terms(
     first: &DoubletResidual,
     second: &DoubletResidual,
     sensor: &Matrix3<f64>,
-) -> [[f64; 3]; 3] {
+) -> PairTerms {
     let shared = -(first.sensor_maps[0] * sensor * second.sensor_maps[1].transpose());
     let [n1, n2] = [first, second].map(|r| r.sensor_part(sensor));
     std::array::from_fn(|k| {
@@ -227,8 +238,17 @@ fn pair_terms(
             first.value[k] * second.value[k] - shared[(k, k)],
             0.5 * (first.value[k].powi(2) - n1[(k, k)] + second.value[k].powi(2) - n2[(k, k)]),
             0.5 * (n1[(k, k)] + n2[(k, k)]),
+            0.5 * (first.slip_map[(k, k)] + second.slip_map[(k, k)]),
         ]
     })
+}
+
+/// `[a_k, b_k − σ²·M_k, N_k + σ²·M_k]`: a pair's terms with the slip's share of the motion
+/// variance at slip variance `slip_variance` moved to the noise beside it (slip is
+/// independent between steps, so it adds to each residual's variance and nothing to the
+/// lag-one product; like the sensor's noise it lowers the axis's weight).
+fn without_slip(terms: &PairTerms, slip_variance: f64) -> [[f64; 3]; 3] {
+    terms.map(|[a, b, n, m]| [a, b - slip_variance * m, n + slip_variance * m])
 }
 
 /// The pairs `(j, j+1)` and `(j, j+2)` of doublets within the residuals' sessions (the
@@ -251,9 +271,49 @@ fn pairs(
         .map(|(_, pair)| pair)
 }
 
+/// The per-wheel slip's variance σ² the correlation's statistics take out of the residuals'
+/// motion variance: its point, at which `ρ̂` and the whiteness test are taken, and its
+/// interval, over which `ρ`'s interval is taken (the hull of the intervals at
+/// [`SLIP_POINTS`] evenly spaced points, its ends included).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlipShare {
+    /// σ̂² (a fraction of each wheel's travel, squared).
+    pub point: f64,
+    /// `[σ²_lo, σ²_hi]`.
+    pub interval: [f64; 2],
+}
+
+impl SlipShare {
+    /// No slip: the statistics as without a slip model.
+    pub const NONE: Self = Self {
+        point: 0.0,
+        interval: [0.0, 0.0],
+    };
+
+    /// σ² at `point` alone.
+    #[must_use]
+    pub fn at(point: f64) -> Self {
+        Self {
+            point,
+            interval: [point, point],
+        }
+    }
+
+    /// The points of the interval the correlation's interval is taken over.
+    fn grid(&self) -> impl Iterator<Item = f64> + '_ {
+        let [low, high] = self.interval;
+        (0..SLIP_POINTS).map(move |i| low + (high - low) * i as f64 / (SLIP_POINTS - 1) as f64)
+    }
+}
+
+/// Points of σ²'s interval the correlation's interval is taken at ([`SlipShare`]): between
+/// them its ends are not proved to lie within the hull.
+pub const SLIP_POINTS: usize = 9;
+
 /// `ρ̂` and its (1 − `epsilon`) interval from `residuals` (each formed with the reconciled
-/// bits) and the sensor's stated covariance `sensor`, and the whiteness test of the AR(1)
-/// model's innovations at level `epsilon`.
+/// bits) and the sensor's stated covariance `sensor`, the slip's share `slip` of their
+/// variance taken out, and the whiteness test of the AR(1) model's innovations at level
+/// `epsilon`.
 ///
 /// # Errors
 /// [`CorrelationDeparture`] naming what falls outside the class.
@@ -261,34 +321,24 @@ pub fn estimate_correlation(
     residuals: &[DoubletResidual],
     sensor: &Matrix3<f64>,
     epsilon: f64,
+    slip: SlipShare,
 ) -> Result<Correlation, CorrelationDeparture> {
-    correlation_over(residuals, sensor, epsilon, 1)
+    correlation_over(residuals, sensor, epsilon, 1, slip)
 }
 
-/// [`estimate_correlation`] over residuals that overlap by `stride − 1` of every `stride`
-/// (one per step, each spanning `stride` steps: [`DoubletResidual::joined`]): the lag-one
-/// pairs are `stride` apart, the lag-two ones `2·stride`, the batches at least `stride` times
-/// as long, and the whiteness test's variance inflated `stride` times more (a sum over
-/// `stride` interleaved phases has at most `stride²` times one phase's variance, by
-/// Cauchy–Schwarz, and `stride` times its sum of squares).
-fn correlation_over(
-    residuals: &[DoubletResidual],
-    sensor: &Matrix3<f64>,
+/// The pooled ratio `r̂` of `terms` (slip taken out) over `batches` batches, and its
+/// (1 − `epsilon`) interval `r̂ ± z(ε/4)·σ_up`, for doublets of `steps` steps.
+fn ratio_interval(
+    terms: &[[[f64; 3]; 3]],
+    batches: usize,
+    steps: u32,
     epsilon: f64,
-    stride: u32,
-) -> Result<Correlation, CorrelationDeparture> {
-    let steps = residuals.first().map_or(2, |r| r.steps);
-    let terms: Vec<[[f64; 3]; 3]> = pairs(residuals, stride)
-        .map(|(a, b)| pair_terms(a, b, sensor))
-        .collect();
-    let batches = (terms.len() / (MIN_PAIRS_PER_BATCH * stride as usize)).min(MAX_BATCHES);
-    if batches < 2 {
-        return Err(CorrelationDeparture::TooFewPairs { have: terms.len() });
-    }
+) -> Result<[f64; 3], CorrelationDeparture> {
     let n = terms.len() as f64;
     let total = |k: usize, which: usize| terms.iter().map(|t| t[k][which]).sum::<f64>() / n;
     let [a, b, noise] = [0, 1, 2].map(|which| [0, 1, 2].map(|k| total(k, which)));
-    // Weights (b/(b + N))², normalised; an axis without motion variance weighs nothing.
+    // Weights (b/(b + N))², normalised (N the sensor's noise and the slip's taken out of b);
+    // an axis without motion variance weighs nothing.
     let raw = [0, 1, 2].map(|k| {
         let signal = b[k].max(0.0);
         let fraction = signal / (signal + noise[k]);
@@ -334,12 +384,82 @@ fn correlation_over(
         .powi(3);
     let sigma_up = (variance / lower_quantile / batches as f64).sqrt();
     let z = normal_upper_quantile(epsilon / 4.0);
-    let point = correlation_for(ratio, steps);
-    let interval = [
-        correlation_for(ratio - z * sigma_up, steps),
-        correlation_for(ratio + z * sigma_up, steps),
-    ];
-    // The innovations: lag-two products against ρ̂^L·ā.
+    Ok([ratio, ratio - z * sigma_up, ratio + z * sigma_up])
+}
+
+/// [`estimate_correlation`] over residuals that overlap by `stride − 1` of every `stride`
+/// (one per step, each spanning `stride` steps: [`DoubletResidual::joined`]): the lag-one
+/// pairs are `stride` apart, the lag-two ones `2·stride`, the batches at least `stride` times
+/// as long, and the whiteness test's variance inflated `stride` times more (a sum over
+/// `stride` interleaved phases has at most `stride²` times one phase's variance, by
+/// Cauchy–Schwarz, and `stride` times its sum of squares). The slip's share `slip` is taken
+/// out of each pair's motion variance: `ρ̂` at its point, `ρ`'s interval the hull of the
+/// intervals over its interval's [`SLIP_POINTS`] (the lag-one and lag-two products carry no
+/// slip, which is independent between steps).
+fn correlation_over(
+    residuals: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+    epsilon: f64,
+    stride: u32,
+    slip: SlipShare,
+) -> Result<Correlation, CorrelationDeparture> {
+    let (correlation, lag_one) = ratio_statistic(residuals, sensor, epsilon, stride, slip)?;
+    innovations(residuals, epsilon, stride, &correlation, lag_one)?;
+    Ok(correlation)
+}
+
+/// [`correlation_over`]'s ratio without the whiteness test: `ρ̂`, its interval, and the mean
+/// lag-one products `ā` per axis.
+fn ratio_statistic(
+    residuals: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+    epsilon: f64,
+    stride: u32,
+    slip: SlipShare,
+) -> Result<(Correlation, [f64; 3]), CorrelationDeparture> {
+    let steps = residuals.first().map_or(2, |r| r.steps);
+    let terms: Vec<PairTerms> = pairs(residuals, stride)
+        .map(|(a, b)| pair_terms(a, b, sensor))
+        .collect();
+    let batches = (terms.len() / (MIN_PAIRS_PER_BATCH * stride as usize)).min(MAX_BATCHES);
+    if batches < 2 {
+        return Err(CorrelationDeparture::TooFewPairs { have: terms.len() });
+    }
+    let at = |variance: f64| {
+        let corrected: Vec<[[f64; 3]; 3]> =
+            terms.iter().map(|t| without_slip(t, variance)).collect();
+        ratio_interval(&corrected, batches, steps, epsilon)
+    };
+    let [ratio, _, _] = at(slip.point)?;
+    let [ratio_lo, ratio_hi] =
+        slip.grid()
+            .try_fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], variance| {
+                let [_, low, high] = at(variance)?;
+                Ok([lo.min(low), hi.max(high)])
+            })?;
+    let n = terms.len() as f64;
+    let lag_one = [0, 1, 2].map(|k| terms.iter().map(|t| t[k][0]).sum::<f64>() / n);
+    let correlation = Correlation {
+        point: correlation_for(ratio, steps),
+        interval: [
+            correlation_for(ratio_lo, steps),
+            correlation_for(ratio_hi, steps),
+        ],
+    };
+    Ok((correlation, lag_one))
+}
+
+/// The whiteness test of the AR(1) model's innovations at level `epsilon`: the lag-two
+/// products (`2·stride` apart) against `ρ̂^L·ā`, `lag_one` the mean lag-one products `ā`.
+fn innovations(
+    residuals: &[DoubletResidual],
+    epsilon: f64,
+    stride: u32,
+    correlation: &Correlation,
+    lag_one: [f64; 3],
+) -> Result<(), CorrelationDeparture> {
+    let steps = residuals.first().map_or(2, |r| r.steps);
+    let (point, interval) = (correlation.point, correlation.interval);
     let inflation =
         f64::from(stride) * variance_inflation_for(interval[0].abs().max(interval[1].abs()), steps);
     let decay = if steps == 2 {
@@ -353,45 +473,52 @@ fn correlation_over(
     for (x, y) in pairs(residuals, 2 * stride) {
         for k in 0..3 {
             let product = x.value[k] * y.value[k];
-            sum[k] += product - decay * a[k];
+            sum[k] += product - decay * lag_one[k];
             squares[k] += product * product;
         }
     }
-    if let Some((axis, statistic)) = (0..3)
+    match (0..3)
         .map(|k| (k, sum[k] / (inflation * squares[k]).sqrt()))
         .find(|(_, s)| s.abs() > limit)
     {
-        return Err(CorrelationDeparture::NotAr1 {
+        Some((axis, statistic)) => Err(CorrelationDeparture::NotAr1 {
             axis,
             statistic,
             limit,
-        });
+        }),
+        None => Ok(()),
     }
-    Ok(Correlation { point, interval })
 }
 
-/// `ρ̂` and its (1 − `epsilon`) interval from one-step residuals `steps`, one per step (a
-/// two-step block's doublets split at their middle samples, [`DoubletResidual::two_step_split`]),
-/// from two statistics at `epsilon/2` each, the interval their intersection (both hold except
-/// with probability `epsilon`, and so does the intersection):
-///
-/// - the lag-one ratio of the one-step residuals, `g₁(ρ) = ρ`: each residual's motion
-///   variance `Q` against the sensor's `2R`, their neighbours' MA(1) term `−R` subtracted at
-///   the stated `R` — the sharper at small ρ;
-/// - the lag-one ratio of the steps joined in pairs at every step ([`DoubletResidual::joined`],
-///   the doublets' own two-step residuals and the ones straddling their boundaries), pairs two
-///   steps apart, `g₂(ρ) = ρ(1 + ρ)/2`, whose slope `ρ + ½` makes it the sharper at large ρ.
-///
-/// Each statistic runs its own whiteness test at `epsilon/2`. `ρ̂` is the narrower
-/// statistic's point, within the intersection.
+/// The correlation's point and interval as [`estimate_correlation`] (`split` none) or
+/// [`estimate_correlation_split`] (`split` the one-step residuals) take them, without their
+/// whiteness tests: what the joint region of ρ and the slip's σ² iterates on
+/// (`motion_noise`), the tests made once on its last round.
 ///
 /// # Errors
-/// [`CorrelationDeparture`] naming what falls outside the class, from either statistic, or
-/// [`CorrelationDeparture::Disjoint`] where their intervals do not meet.
-pub fn estimate_correlation_split(
-    steps: &[DoubletResidual],
+/// [`CorrelationDeparture`] naming what falls outside the class (never `NotAr1`).
+pub fn correlation_untested(
+    residuals: &[DoubletResidual],
+    split: Option<&[DoubletResidual]>,
     sensor: &Matrix3<f64>,
     epsilon: f64,
+    slip: SlipShare,
+) -> Result<Correlation, CorrelationDeparture> {
+    let statistic = |r: &[DoubletResidual], level: f64, stride: u32| {
+        ratio_statistic(r, sensor, level, stride, slip).map(|(c, _)| c)
+    };
+    match split {
+        Some(steps) => both_statistics(steps, |r, stride| statistic(r, epsilon / 2.0, stride)),
+        None => statistic(residuals, epsilon, 1),
+    }
+}
+
+/// The two statistics of one-step residuals `steps` (`statistic(residuals, stride)`: their
+/// lag-one ratio at stride 1, the joined steps' at stride 2) and their intersection
+/// ([`estimate_correlation_split`]).
+fn both_statistics(
+    steps: &[DoubletResidual],
+    statistic: impl Fn(&[DoubletResidual], u32) -> Result<Correlation, CorrelationDeparture>,
 ) -> Result<Correlation, CorrelationDeparture> {
     // Pairs of steps, two for each pair of doublets: reported as the doublets' pairs.
     let per_doublet = |departure| match departure {
@@ -400,13 +527,13 @@ pub fn estimate_correlation_split(
         }
         other => other,
     };
-    let lag_one = correlation_over(steps, sensor, epsilon / 2.0, 1).map_err(per_doublet)?;
+    let lag_one = statistic(steps, 1).map_err(per_doublet)?;
     let joined: Vec<DoubletResidual> = steps
         .windows(2)
         .filter(|w| w[1].doublet == w[0].doublet + 1)
         .map(|w| w[0].joined(&w[1]))
         .collect();
-    let two_step = correlation_over(&joined, sensor, epsilon / 2.0, 2).map_err(per_doublet)?;
+    let two_step = statistic(&joined, 2).map_err(per_doublet)?;
     let interval = [
         lag_one.interval[0].max(two_step.interval[0]),
         lag_one.interval[1].min(two_step.interval[1]),
@@ -429,10 +556,41 @@ pub fn estimate_correlation_split(
     })
 }
 
+/// `ρ̂` and its (1 − `epsilon`) interval from one-step residuals `steps`, one per step (a
+/// two-step block's doublets split at their middle samples, [`DoubletResidual::two_step_split`]),
+/// from two statistics at `epsilon/2` each, the interval their intersection (both hold except
+/// with probability `epsilon`, and so does the intersection):
+///
+/// - the lag-one ratio of the one-step residuals, `g₁(ρ) = ρ`: each residual's motion
+///   variance `Q` against the sensor's `2R`, their neighbours' MA(1) term `−R` subtracted at
+///   the stated `R` — the sharper at small ρ;
+/// - the lag-one ratio of the steps joined in pairs at every step ([`DoubletResidual::joined`],
+///   the doublets' own two-step residuals and the ones straddling their boundaries), pairs two
+///   steps apart, `g₂(ρ) = ρ(1 + ρ)/2`, whose slope `ρ + ½` makes it the sharper at large ρ.
+///
+/// Each statistic runs its own whiteness test at `epsilon/2`, and each takes the slip's
+/// share `slip` out of its residuals' variance ([`estimate_correlation`]). `ρ̂` is the
+/// narrower statistic's point, within the intersection.
+///
+/// # Errors
+/// [`CorrelationDeparture`] naming what falls outside the class, from either statistic, or
+/// [`CorrelationDeparture::Disjoint`] where their intervals do not meet.
+pub fn estimate_correlation_split(
+    steps: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+    epsilon: f64,
+    slip: SlipShare,
+) -> Result<Correlation, CorrelationDeparture> {
+    both_statistics(steps, |residuals, stride| {
+        correlation_over(residuals, sensor, epsilon / 2.0, stride, slip)
+    })
+}
+
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
     use crate::estimate::diagonal_covariance;
+    use crate::estimate::homogeneity::tests::varied_inputs;
     use crate::estimate::motion_noise::tests::{simulated_doublets, straight_and_turning};
     use crate::model::Pose;
     use std::cell::RefCell;
@@ -481,6 +639,46 @@ pub(super) mod tests {
         )
     }
 
+    /// The doublets' residuals and their one-step residuals split at the middle samples
+    /// ([`ar1_doublets`]) of `doublets` doublets over speeds 0.01–0.16 m/s and turn rates
+    /// ±0.4 rad/s (`homogeneity`'s varied inputs), whose steps carry AR(1) motion noise of
+    /// stationary standard deviation `std` per axis and correlation `rho` (robot frame) and,
+    /// independent between steps, per-wheel slip of `slip` (a fraction of each wheel's
+    /// travel `(v ± ωD/2)·T`).
+    pub(in crate::estimate) fn slipping_ar1_doublets(
+        doublets: u32,
+        std: f64,
+        rho: f64,
+        slip: f64,
+        seed: u64,
+    ) -> (Vec<DoubletResidual>, Vec<DoubletResidual>) {
+        let (t, axle) = (0.2, 0.1047);
+        let state = RefCell::new(None::<[f64; 3]>);
+        simulated_doublets(
+            doublets,
+            SENSOR,
+            seed,
+            varied_inputs,
+            |u, heading, normal| {
+                let mut state = state.borrow_mut();
+                let fresh = [0; 3].map(|_| std * normal());
+                let w = match *state {
+                    None => fresh,
+                    Some(last) => {
+                        std::array::from_fn(|k| rho * last[k] + (1.0 - rho * rho).sqrt() * fresh[k])
+                    }
+                };
+                *state = Some(w);
+                let right = (u.x + 0.5 * axle * u.y) * t * slip * normal();
+                let left = (u.x - 0.5 * axle * u.y) * t * slip * normal();
+                let along = w[0] + 0.5 * (right + left);
+                let turn = w[2] + (right - left) / axle;
+                let (sin, cos) = heading.sin_cos();
+                Pose::new(cos * along - sin * w[1], sin * along + cos * w[1], turn)
+            },
+        )
+    }
+
     #[test]
     fn the_ratio_and_its_inverse_agree_on_the_class() {
         for rho in [-0.5, -0.3, 0.0, 0.2, 0.5, 0.9] {
@@ -518,7 +716,7 @@ pub(super) mod tests {
         for rho in [0.0, 0.5, 0.9] {
             for seed in 0..10 {
                 let data = ar1_residuals(10_000, 1e-3, rho, 40 + seed);
-                let c = estimate_correlation(&data, &sensor, 0.01).unwrap();
+                let c = estimate_correlation(&data, &sensor, 0.01, SlipShare::NONE).unwrap();
                 assert!((c.point - rho).abs() < 0.08, "ρ {rho} seed {seed}: {c:?}");
                 assert!(
                     c.interval[0] <= rho && rho <= c.interval[1],
@@ -541,7 +739,7 @@ pub(super) mod tests {
         for (j, r) in data.iter_mut().enumerate().skip(1) {
             r.value += 1.2 * original[j - 1];
         }
-        let error = estimate_correlation(&data, &sensor, 1e-6).unwrap_err();
+        let error = estimate_correlation(&data, &sensor, 1e-6, SlipShare::NONE).unwrap_err();
         assert!(
             matches!(error, CorrelationDeparture::NotAr1 { .. }),
             "{error:?}"
@@ -573,17 +771,19 @@ pub(super) mod tests {
             let missed = |c: &Correlation| usize::from(rho < c.interval[0] || rho > c.interval[1]);
             for seed in 0..blocks {
                 let (whole, split) = ar1_doublets(2_000, 1e-3, rho, 900 + seed);
-                let alone = estimate_correlation(&split, &sensor, level);
-                let block = estimate_correlation_split(&split, &sensor, level);
+                let alone = estimate_correlation(&split, &sensor, level, SlipShare::NONE);
+                let block = estimate_correlation_split(&split, &sensor, level, SlipShare::NONE);
                 for (k, c) in [alone, block].iter().enumerate() {
                     match c {
                         Ok(c) => misses[k] += missed(c),
                         Err(_) => refused[k] += 1,
                     }
                 }
-                if let (Ok(alone), Ok(block), Ok(old)) =
-                    (alone, block, estimate_correlation(&whole, &sensor, level))
-                {
+                if let (Ok(alone), Ok(block), Ok(old)) = (
+                    alone,
+                    block,
+                    estimate_correlation(&whole, &sensor, level, SlipShare::NONE),
+                ) {
                     widths[0] += width(&alone);
                     widths[1] += width(&block);
                     widths[2] += width(&old);

@@ -168,7 +168,7 @@ pub(in crate::estimate) mod tests {
     pub(in crate::estimate) const SENSOR: [f64; 3] = [5e-4; 3];
 
     /// Nominal inputs that sweep speeds 0.01–0.16 m/s and turn rates −0.4–0.4 rad/s.
-    fn varied_inputs(j: u32) -> DoubletInputs {
+    pub(in crate::estimate) fn varied_inputs(j: u32) -> DoubletInputs {
         let v = 0.01 + 0.15 * f64::from((j * 37) % 101) / 100.0;
         let omega = 0.8 * f64::from((j * 53) % 41) / 40.0 - 0.4;
         DoubletInputs {
