@@ -590,7 +590,7 @@ pub fn estimate_correlation_split(
 pub(super) mod tests {
     use super::*;
     use crate::estimate::diagonal_covariance;
-    use crate::estimate::homogeneity::tests::varied_inputs;
+    use crate::estimate::homogeneity::tests::{varied_inputs, wheel_slips};
     use crate::estimate::motion_noise::tests::{simulated_doublets, straight_and_turning};
     use crate::model::Pose;
     use std::cell::RefCell;
@@ -609,6 +609,27 @@ pub(super) mod tests {
         ar1_doublets(doublets, std, rho, seed).0
     }
 
+    /// The next step's AR(1) motion noise per axis (stationary standard deviation `std`,
+    /// correlation `rho`) after the one `state` holds (none: a fresh stationary draw),
+    /// stored back in `state`.
+    fn ar1_next(
+        state: &RefCell<Option<[f64; 3]>>,
+        std: f64,
+        rho: f64,
+        normal: &mut dyn FnMut() -> f64,
+    ) -> [f64; 3] {
+        let mut state = state.borrow_mut();
+        let fresh = [0; 3].map(|_| std * normal());
+        let w = match *state {
+            None => fresh,
+            Some(last) => {
+                std::array::from_fn(|k| rho * last[k] + (1.0 - rho * rho).sqrt() * fresh[k])
+            }
+        };
+        *state = Some(w);
+        w
+    }
+
     /// [`ar1_residuals`] and the same doublets' one-step residuals split at their middle
     /// samples ([`DoubletResidual::two_step_split`]).
     pub(in crate::estimate) fn ar1_doublets(
@@ -624,15 +645,7 @@ pub(super) mod tests {
             seed,
             straight_and_turning,
             |_, heading, normal| {
-                let mut state = state.borrow_mut();
-                let fresh = [0; 3].map(|_| std * normal());
-                let w = match *state {
-                    None => fresh,
-                    Some(last) => {
-                        std::array::from_fn(|k| rho * last[k] + (1.0 - rho * rho).sqrt() * fresh[k])
-                    }
-                };
-                *state = Some(w);
+                let w = ar1_next(&state, std, rho, normal);
                 let (sin, cos) = heading.sin_cos();
                 Pose::new(cos * w[0] - sin * w[1], sin * w[0] + cos * w[1], w[2])
             },
@@ -652,7 +665,6 @@ pub(super) mod tests {
         slip: f64,
         seed: u64,
     ) -> (Vec<DoubletResidual>, Vec<DoubletResidual>) {
-        let (t, axle) = (0.2, 0.1047);
         let state = RefCell::new(None::<[f64; 3]>);
         simulated_doublets(
             doublets,
@@ -660,19 +672,10 @@ pub(super) mod tests {
             seed,
             varied_inputs,
             |u, heading, normal| {
-                let mut state = state.borrow_mut();
-                let fresh = [0; 3].map(|_| std * normal());
-                let w = match *state {
-                    None => fresh,
-                    Some(last) => {
-                        std::array::from_fn(|k| rho * last[k] + (1.0 - rho * rho).sqrt() * fresh[k])
-                    }
-                };
-                *state = Some(w);
-                let right = (u.x + 0.5 * axle * u.y) * t * slip * normal();
-                let left = (u.x - 0.5 * axle * u.y) * t * slip * normal();
-                let along = w[0] + 0.5 * (right + left);
-                let turn = w[2] + (right - left) / axle;
+                let w = ar1_next(&state, std, rho, normal);
+                let [slip_along, slip_turn] = wheel_slips(u, slip, normal);
+                let along = w[0] + slip_along;
+                let turn = w[2] + slip_turn;
                 let (sin, cos) = heading.sin_cos();
                 Pose::new(cos * along - sin * w[1], sin * along + cos * w[1], turn)
             },

@@ -185,6 +185,19 @@ pub(in crate::estimate) mod tests {
         noisy_doublets(4_000, std, slip, turning, seed).0
     }
 
+    /// One step's per-wheel slip at input `u` (m/s, rad/s): each wheel's travel
+    /// `(v ± ωD/2)·T` times `slip·N(0, 1)`, as `[along-track (m), heading (rad)]` — the mean
+    /// of the wheels' and their difference over the axle.
+    pub(in crate::estimate) fn wheel_slips(
+        u: &Unicycle,
+        slip: f64,
+        normal: &mut dyn FnMut() -> f64,
+    ) -> [f64; 2] {
+        let right = (u.x + 0.5 * AXLE * u.y) * T * slip * normal();
+        let left = (u.x - 0.5 * AXLE * u.y) * T * slip * normal();
+        [0.5 * (right + left), (right - left) / AXLE]
+    }
+
     /// [`noisy_residuals`] over `doublets` doublets, with their one-step residuals split at
     /// the middle samples ([`simulated_doublets`]).
     fn noisy_doublets(
@@ -200,11 +213,10 @@ pub(in crate::estimate) mod tests {
             seed,
             varied_inputs,
             |u, heading, normal| {
-                let right = (u.x + 0.5 * AXLE * u.y) * T * slip * normal();
-                let left = (u.x - 0.5 * AXLE * u.y) * T * slip * normal();
-                let along = 0.5 * (right + left) + std * normal();
+                let [slip_along, slip_turn] = wheel_slips(u, slip, normal);
+                let along = slip_along + std * normal();
                 let lateral = std * normal() + turning * u.y.abs() * T * normal();
-                let turn = (right - left) / AXLE + std * normal();
+                let turn = slip_turn + std * normal();
                 let (sin, cos) = heading.sin_cos();
                 Pose::new(
                     cos * along - sin * lateral,
