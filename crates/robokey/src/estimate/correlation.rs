@@ -299,10 +299,12 @@ impl SlipShare {
         }
     }
 
-    /// The points of the interval the correlation's interval is taken over.
+    /// The points of the interval the correlation's interval is taken over (one where the
+    /// interval is a point, as without slip).
     fn grid(&self) -> impl Iterator<Item = f64> + '_ {
         let [low, high] = self.interval;
-        (0..SLIP_POINTS).map(move |i| low + (high - low) * i as f64 / (SLIP_POINTS - 1) as f64)
+        let points = if low == high { 1 } else { SLIP_POINTS };
+        (0..points).map(move |i| low + (high - low) * i as f64 / (SLIP_POINTS - 1) as f64)
     }
 }
 
