@@ -594,6 +594,7 @@ pub(super) mod tests {
     use crate::estimate::diagonal_covariance;
     use crate::estimate::homogeneity::tests::{varied_inputs, wheel_slips};
     use crate::estimate::motion_noise::tests::{simulated_doublets, straight_and_turning};
+    use crate::estimate::residual::rotation;
     use crate::model::Pose;
     use std::cell::RefCell;
 
@@ -646,11 +647,7 @@ pub(super) mod tests {
             SENSOR,
             seed,
             straight_and_turning,
-            |_, heading, normal| {
-                let w = ar1_next(&state, std, rho, normal);
-                let (sin, cos) = heading.sin_cos();
-                Pose::new(cos * w[0] - sin * w[1], sin * w[0] + cos * w[1], w[2])
-            },
+            |_, heading, normal| rotation(heading) * Pose::from(ar1_next(&state, std, rho, normal)),
         )
     }
 
@@ -676,10 +673,7 @@ pub(super) mod tests {
             |u, heading, normal| {
                 let w = ar1_next(&state, std, rho, normal);
                 let [slip_along, slip_turn] = wheel_slips(u, slip, normal);
-                let along = w[0] + slip_along;
-                let turn = w[2] + slip_turn;
-                let (sin, cos) = heading.sin_cos();
-                Pose::new(cos * along - sin * w[1], sin * along + cos * w[1], turn)
+                rotation(heading) * Pose::new(w[0] + slip_along, w[1], w[2] + slip_turn)
             },
         )
     }

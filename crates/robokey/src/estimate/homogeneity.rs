@@ -155,6 +155,7 @@ pub(in crate::estimate) mod tests {
     use super::*;
     use crate::estimate::diagonal_covariance;
     use crate::estimate::motion_noise::tests::simulated_doublets;
+    use crate::estimate::residual::rotation;
     use crate::estimate::slip::estimate_slip;
     use crate::estimate::{EstimationRefusal, estimate_motion_noise};
     use crate::model::{Pose, Unicycle};
@@ -217,12 +218,7 @@ pub(in crate::estimate) mod tests {
                 let along = slip_along + std * normal();
                 let lateral = std * normal() + turning * u.y.abs() * T * normal();
                 let turn = slip_turn + std * normal();
-                let (sin, cos) = heading.sin_cos();
-                Pose::new(
-                    cos * along - sin * lateral,
-                    sin * along + cos * lateral,
-                    turn,
-                )
+                rotation(heading) * Pose::new(along, lateral, turn)
             },
         )
     }
