@@ -7,8 +7,8 @@
 # each point's secret bits against the camera eavesdropper under the sizing of its folder,
 # then runs the independent eavesdropper (scripts/independent-eve.py, needs numpy) on the
 # measured folder's blocks and writes the table to OUT/grid.md (its rows to OUT/grid.json).
-# ROBOKEY: the binary (default target/release/robokey). About 3 CPU-minutes for the secrecy
-# runs and 5 for the independent eavesdropper on 2 cores.
+# ROBOKEY: the binary (default target/release/robokey). About 8 CPU-minutes for the secrecy
+# runs (the measured sizing's slip blocks most of it), and the independent eavesdropper's after.
 set -euo pipefail
 out=${1:?usage: scripts/grid.sh OUT [ROBOKEY]}
 robokey=${2:-target/release/robokey}
