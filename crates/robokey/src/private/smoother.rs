@@ -1111,7 +1111,7 @@ struct Pass {
     work: PassWork,
 }
 
-/// Work space of [`Pass::step`], overwritten by each step: the columns' values at an
+/// Work space of `Pass::step`, overwritten by each step: the columns' values at an
 /// observation, the observation maps of a sample and of a frame, the step's tangents and
 /// its transition.
 #[derive(Clone, Default)]
