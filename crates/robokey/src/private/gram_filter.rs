@@ -70,6 +70,35 @@ fn shaped(m: &mut DMatrix<f64>, rows: usize, columns: usize) -> &mut DMatrix<f64
     m
 }
 
+/// `source` as the top left corner of `target`, zeros elsewhere (`target` has at least as
+/// many rows and columns).
+fn embed(source: &DMatrix<f64>, target: &mut DMatrix<f64>) {
+    let (rows, target_rows) = (source.nrows(), target.nrows());
+    if rows == 0 {
+        target.fill(0.0);
+        return;
+    }
+    let mut columns = target.as_mut_slice().chunks_exact_mut(target_rows);
+    // The source first: `zip` stops on it without taking a column of the target.
+    for (from, to) in source.as_slice().chunks_exact(rows).zip(columns.by_ref()) {
+        let (top, below) = to.split_at_mut(rows);
+        top.copy_from_slice(from);
+        below.fill(0.0);
+    }
+    columns.for_each(|to| to.fill(0.0));
+}
+
+/// `(A + Aᵀ)/2` of the `n × n` column-major `a` into `out`: element `(i, j)` is
+/// `(a_ij + a_ji)·0.5`, `a_ji` read along row `j`.
+fn symmetrised(a: &[f64], n: usize, out: &mut [f64]) {
+    let n = n.max(1); // an empty matrix has no columns
+    for (j, (out, column)) in out.chunks_exact_mut(n).zip(a.chunks_exact(n)).enumerate() {
+        for ((y, &x), &x_t) in out.iter_mut().zip(column).zip(a[j..].iter().step_by(n)) {
+            *y = (x + x_t) * 0.5;
+        }
+    }
+}
+
 /// `source`ᵀ into `target`, reshaped as needed.
 fn transpose_into(source: &DMatrix<f64>, target: &mut DMatrix<f64>) {
     source.transpose_to(shaped(target, source.ncols(), source.nrows()));
@@ -84,13 +113,15 @@ struct Batch {
     direct: DMatrix<f64>,
     log_det_noise: f64,
     empty: bool,
-    /// Work space of one observation, overwritten by each: `Fᵀ`, `FᵀR⁻¹`, `FᵀR⁻¹F`,
-    /// `FᵀR⁻¹y_c` and each column's `R⁻¹y_c` (the same products as allocating ones, into
-    /// kept storage).
+    /// Work space of one observation, overwritten by each: `Fᵀ`, `FᵀR⁻¹`, `FᵀR⁻¹F`, the
+    /// columns' values `y_c` side by side (`3 × columns`), every column's `FᵀR⁻¹y_c` at once
+    /// (`dim × columns`) and each column's `R⁻¹y_c` (the same products as allocating ones,
+    /// into kept storage).
     transposed: DMatrix<f64>,
     weighted: MatrixXx3<f64>,
     information: DMatrix<f64>,
-    projection: DVector<f64>,
+    values: Matrix3xX<f64>,
+    projection: DMatrix<f64>,
     scaled: Vec<Vector3<f64>>,
 }
 
@@ -105,7 +136,8 @@ impl Batch {
             transposed: DMatrix::zeros(dim, 3),
             weighted: MatrixXx3::zeros(dim),
             information: DMatrix::zeros(dim, dim),
-            projection: DVector::zeros(dim),
+            values: Matrix3xX::zeros(columns),
+            projection: DMatrix::zeros(dim, columns),
             scaled: Vec::with_capacity(columns),
         }
     }
@@ -150,17 +182,15 @@ impl GramFilter {
         let (dim, columns) = (self.dim(), self.means.ncols());
         let w = &mut self.work;
         let cov = shaped(&mut w.spare_cov, dim + extra, dim + extra);
-        cov.fill(0.0);
-        cov.view_mut((0, 0), (dim, dim)).copy_from(&self.cov);
+        embed(&self.cov, cov);
         for i in dim..dim + extra {
             cov[(i, i)] = 1.0;
         }
         std::mem::swap(&mut self.cov, &mut w.spare_cov);
-        let means = shaped(&mut w.spare_means, dim + extra, columns);
-        means.fill(0.0);
-        means
-            .view_mut((0, 0), (dim, columns))
-            .copy_from(&self.means);
+        embed(
+            &self.means,
+            shaped(&mut w.spare_means, dim + extra, columns),
+        );
         std::mem::swap(&mut self.means, &mut w.spare_means);
     }
 
@@ -187,18 +217,24 @@ impl GramFilter {
         product_to(&b.transposed, noise_inverse, &mut b.weighted); // dim × 3
         product_to(&b.weighted, f, &mut b.information);
         b.info += &b.information;
-        for (c, value) in values.iter().enumerate() {
-            product_to(&b.weighted, value, &mut b.projection);
-            let mut column = b.projected.column_mut(c);
-            column += &b.projection;
+        // `FᵀR⁻¹y_c` of every column in one product: on `nalgebra`'s `gemv` path (an inner
+        // dimension of 3) each element is the one the column's own product gives.
+        for (mut column, value) in b.values.column_iter_mut().zip(values) {
+            column.copy_from(value);
         }
+        product_to(&b.weighted, &b.values, &mut b.projection);
+        b.projected += &b.projection;
         // `S_cc' += (R⁻¹y_c)·y_c'`, column `c'` of `S` at a time.
         b.scaled.clear();
         b.scaled
             .extend(values.iter().map(|value| noise_inverse * value));
-        for (other, mut direct) in values.iter().zip(b.direct.column_iter_mut()) {
+        // Each term `(s₀y₀ + s₁y₁) + s₂y₂`, as `nalgebra`'s three-element `dot` sums it.
+        for (other, direct) in values
+            .iter()
+            .zip(b.direct.as_mut_slice().chunks_exact_mut(columns.max(1)))
+        {
             for (entry, scaled) in direct.iter_mut().zip(&b.scaled) {
-                *entry += scaled.dot(other);
+                *entry += scaled.x * other.x + scaled.y * other.y + scaled.z * other.z;
             }
         }
         b.log_det_noise += noise_inverse.determinant().ln();
@@ -242,9 +278,13 @@ impl GramFilter {
         // and the product (a rounded sum is the same either way round).
         let growth = w.growth.matrix(dim);
         product_to(&self.cov, &b.info, growth);
-        for j in 0..dim {
-            for i in 0..dim {
-                growth[(i, j)] += f64::from(u8::from(i == j));
+        for (j, column) in growth
+            .as_mut_slice()
+            .chunks_exact_mut(dim.max(1))
+            .enumerate()
+        {
+            for (i, element) in column.iter_mut().enumerate() {
+                *element += f64::from(u8::from(i == j));
             }
         }
         w.growth.factor();
@@ -254,11 +294,7 @@ impl GramFilter {
             w.growth.solve_mut(posterior),
             "I + P·J is invertible for P, J positive semi-definite"
         );
-        for j in 0..dim {
-            for i in 0..dim {
-                self.cov[(i, j)] = (posterior[(i, j)] + posterior[(j, i)]) * 0.5;
-            }
-        }
+        symmetrised(posterior.as_slice(), dim, self.cov.as_mut_slice());
         product_to(&self.cov, &w.about, shaped(&mut w.gain, dim, columns));
         transposed_product_to(
             &w.about,
@@ -266,11 +302,29 @@ impl GramFilter {
             shaped(&mut w.reduction, columns, columns),
             &mut w.transposed,
         );
-        for j in 0..columns {
-            for i in 0..columns {
-                let direct =
-                    b.direct[(i, j)] - w.cross[(i, j)] - w.cross[(j, i)] + w.quadratic[(i, j)];
-                self.gram[(i, j)] += direct - w.reduction[(i, j)];
+        // Element (i, j) gains `((S_ij − X_ij) − X_ji + Q_ij) − R_ij` (`X = uᵀm`, `Q = mᵀJm`,
+        // `R = ũᵀP⁺ũ`), column by column, `X_ji` read along row `j`.
+        let (cross, stride) = (w.cross.as_slice(), columns.max(1));
+        for (j, ((((gram, direct), cross_j), quadratic), reduction)) in self
+            .gram
+            .as_mut_slice()
+            .chunks_exact_mut(stride)
+            .zip(b.direct.as_slice().chunks_exact(stride))
+            .zip(cross.chunks_exact(stride))
+            .zip(w.quadratic.as_slice().chunks_exact(stride))
+            .zip(w.reduction.as_slice().chunks_exact(stride))
+            .enumerate()
+        {
+            let row_j = cross[j..].iter().step_by(stride);
+            for (((((g, &s), &x), &x_t), &q), &r) in gram
+                .iter_mut()
+                .zip(direct)
+                .zip(cross_j)
+                .zip(row_j)
+                .zip(quadratic)
+                .zip(reduction)
+            {
+                *g += s - x - x_t + q - r;
             }
         }
         self.means += &w.gain;

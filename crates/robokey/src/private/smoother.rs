@@ -31,7 +31,8 @@ use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, Vector3};
 use super::doublet::{DoubletInputs, Perturbation, sign};
 use super::gram_filter::{GramFilter, ln_sum_exp};
 use super::likelihood::{BitEvidence, chained_llrs};
-use super::window::{Instant, Window, WindowRun, WindowWorld};
+use super::product::product_to;
+use super::window::{Instant, Window, WindowRun, WindowWorld, pose_at};
 use crate::config::Config;
 use crate::model::{Pose, Unicycle, WheelSpeeds};
 use crate::protocol::SessionPlan;
@@ -96,7 +97,7 @@ struct Simulated {
     /// The nominal run (no bits).
     nominal: WindowRun,
     /// Each carrying doublet's runs, one per bit pattern.
-    runs: Vec<Vec<WindowRun>>,
+    runs: Vec<Vec<Perturbed>>,
     /// The carrying doublets and their positions among the simulated ones.
     carrying: Vec<(u32, usize)>,
     /// The target's index among the carrying.
@@ -131,6 +132,53 @@ struct Column {
     shifts: Vec<Vector3<f64>>,
 }
 
+/// The window's run under one doublet's bit pattern: its steps from `from` on simulated
+/// (`part`, as many steps as it has), the nominal run's elsewhere — read from the nominal run
+/// rather than copied.
+struct Perturbed {
+    from: usize,
+    part: WindowRun,
+    /// Per window step, as [`WindowRun::jumps`].
+    jumps: Vec<Pose>,
+}
+
+impl Perturbed {
+    /// A run of the whole window.
+    fn whole(mut run: WindowRun) -> Self {
+        Self {
+            from: 0,
+            jumps: std::mem::take(&mut run.jumps),
+            part: run,
+        }
+    }
+
+    /// The run holding window step `step`, and the step's index in it.
+    fn source<'a>(&'a self, nominal: &'a WindowRun, step: usize) -> (&'a WindowRun, usize) {
+        match step.checked_sub(self.from) {
+            Some(i) if i < self.part.poses.len() => (&self.part, i),
+            _ => (nominal, step),
+        }
+    }
+
+    /// Window step `step`'s pose updates.
+    fn updates<'a>(&'a self, nominal: &'a WindowRun, step: usize) -> &'a [SubStep] {
+        let (run, i) = self.source(nominal, step);
+        &run.updates[i]
+    }
+
+    /// The pose at an observation.
+    fn at(&self, nominal: &WindowRun, instant: Instant) -> Pose {
+        pose_at(
+            nominal.poses.len(),
+            |step| {
+                let (run, i) = self.source(nominal, step);
+                &run.poses[i]
+            },
+            instant,
+        )
+    }
+}
+
 /// A run's deviation from the nominal one: at each observation, and in its jump where each
 /// window step restarts.
 struct Deviation {
@@ -142,7 +190,7 @@ impl Deviation {
     /// `run − nominal` at the observations (the nominal poses there given as `bases`) and
     /// in the jumps.
     fn of(
-        run: &WindowRun,
+        run: &Perturbed,
         nominal: &WindowRun,
         observations: &[Observation],
         bases: &[Pose],
@@ -151,7 +199,7 @@ impl Deviation {
             values: observations
                 .iter()
                 .zip(bases)
-                .map(|(o, base)| run.at(o.instant) - base)
+                .map(|(o, base)| run.at(nominal, o.instant) - base)
                 .collect(),
             jumps: run
                 .jumps
@@ -491,7 +539,7 @@ impl WindowSmoother {
         // arithmetic as the whole run — the window's too; the window's and the lead's
         // simulated whole otherwise.
         let memoryless = self.lead == 0;
-        let runs: Vec<Vec<WindowRun>> = carrying
+        let runs: Vec<Vec<Perturbed>> = carrying
             .iter()
             .map(|&(i, position)| {
                 (0..patterns)
@@ -501,10 +549,10 @@ impl WindowSmoother {
                             return self.run_near(&window, &nominal, position, offset);
                         }
                         let at = l as usize * position;
-                        self.eve.run(&window, |step| match step.checked_sub(at) {
+                        Perturbed::whole(self.eve.run(&window, |step| match step.checked_sub(at) {
                             Some(s) => self.step_offset(s, offset),
                             None => Unicycle::zeros(),
-                        })
+                        }))
                     })
                     .collect()
             })
@@ -542,7 +590,7 @@ impl WindowSmoother {
         nominal: &WindowRun,
         position: usize,
         offset: Unicycle,
-    ) -> WindowRun {
+    ) -> Perturbed {
         let lead = self.lead as usize;
         let l = self.length() as usize;
         let from = position.saturating_sub(lead);
@@ -571,31 +619,20 @@ impl WindowSmoother {
                 Some(s) => self.step_offset(s, offset),
                 None => Unicycle::zeros(),
             });
-        // The nominal run, the stretch's steps taken from `part` (not cloned twice).
-        let mut part = part;
-        let steps = nominal.poses.len();
-        let mut run = WindowRun {
-            poses: Vec::with_capacity(steps),
-            offsets: Vec::with_capacity(steps),
-            updates: Vec::with_capacity(steps),
-            jumps: nominal.jumps.clone(),
-        };
-        for step in 0..steps {
-            if (start_step..end_step).contains(&step) {
-                let i = step - start_step;
-                run.poses.push(std::mem::take(&mut part.poses[i]));
-                run.offsets.push(std::mem::take(&mut part.offsets[i]));
-                run.updates.push(std::mem::take(&mut part.updates[i]));
-                if i > 0 {
-                    run.jumps[step] = part.jumps[i];
-                }
-            } else {
-                run.poses.push(nominal.poses[step].clone());
-                run.offsets.push(nominal.offsets[step].clone());
-                run.updates.push(nominal.updates[step].clone());
-            }
+        // The nominal run's jumps, the stretch's own where its doublets restart.
+        let mut jumps = nominal.jumps.clone();
+        for (jump, &own) in jumps[start_step..end_step]
+            .iter_mut()
+            .zip(&part.jumps)
+            .skip(1)
+        {
+            *jump = own;
         }
-        run
+        Perturbed {
+            from: start_step,
+            part,
+            jumps,
+        }
     }
 
     /// One adversary's evidence on the window's target doublet from her observations over it.
@@ -834,7 +871,7 @@ impl WindowSmoother {
     fn slip_profiles(
         &self,
         nominal: &WindowRun,
-        runs: &[Vec<WindowRun>],
+        runs: &[Vec<Perturbed>],
         carrying: &[(u32, usize)],
         target: usize,
         h: usize,
@@ -842,8 +879,8 @@ impl WindowSmoother {
         first: u32,
         steps: usize,
     ) -> Vec<SlipProfile> {
-        let wheels = |run: &WindowRun, step: usize| -> Vec<WheelSpeeds> {
-            run.updates[step].iter().map(|u| u.wheels).collect()
+        let wheels = |updates: &[SubStep]| -> Vec<WheelSpeeds> {
+            updates.iter().map(|u| u.wheels).collect()
         };
         (0..steps)
             .map(|step| {
@@ -851,20 +888,21 @@ impl WindowSmoother {
                 let owner = carrying.iter().position(|&(i, _)| i == doublet);
                 match owner {
                     Some(c) if c == target => SlipProfile {
-                        mean: wheels(&runs[c][h], step),
+                        mean: wheels(runs[c][h].updates(nominal, step)),
                         bit_effects: Vec::new(),
                     },
                     Some(c) if known(c).is_some() => SlipProfile {
-                        mean: wheels(&runs[c][known(c).expect("known")], step),
+                        mean: wheels(runs[c][known(c).expect("known")].updates(nominal, step)),
                         bit_effects: Vec::new(),
                     },
                     Some(c) => {
                         let patterns = runs[c].len();
                         let average = |recipe: &[usize]| -> Vec<WheelSpeeds> {
                             let mut sum =
-                                vec![WheelSpeeds::zeros(); runs[c][0].updates[step].len()];
+                                vec![WheelSpeeds::zeros(); runs[c][0].updates(nominal, step).len()];
                             for (p, run) in runs[c].iter().enumerate() {
-                                for (s, w) in sum.iter_mut().zip(wheels(run, step)) {
+                                for (s, w) in sum.iter_mut().zip(wheels(run.updates(nominal, step)))
+                                {
                                     *s += w * pattern_sign(p, recipe) / patterns as f64;
                                 }
                             }
@@ -877,7 +915,7 @@ impl WindowSmoother {
                         }
                     }
                     None => SlipProfile {
-                        mean: wheels(nominal, step),
+                        mean: wheels(&nominal.updates[step]),
                         bit_effects: Vec::new(),
                     },
                 }
@@ -925,7 +963,13 @@ impl WindowSmoother {
     }
 
     /// The pose's deviation at each update boundary of a step as a linear map of the step's
-    /// state `[δx_k, w_{k−1}?, e_k, z?, z'…]`, and the step's noise `w_k` likewise.
+    /// state `[δx_k, w_{k−1}?, e_k, z?, z'…]`, and the step's noise `w_k` likewise, into
+    /// `out` (its storage kept from step to step). Each pose map is
+    /// `(A·pose + D·noise) + B·speeds`, every product rounded as `nalgebra`'s `*`.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the step's pieces, each used once"
+    )]
     fn tangents(
         &self,
         updates: &[SubStep],
@@ -934,12 +978,13 @@ impl WindowSmoother {
         base: usize,
         correlated: bool,
         slipping: bool,
-    ) -> Tangents {
+        out: &mut Tangents,
+    ) {
         let world = &self.eve.world;
         let t = self.sample_time;
         let rho = world.process_rho;
         // w_k = ρ·w_{k−1} + √(1−ρ²)·S·e_k.
-        let mut noise = DMatrix::zeros(3, dim);
+        let noise = zeroed(&mut out.noise, 3, dim);
         let scale = if correlated {
             (1.0 - rho * rho).sqrt()
         } else {
@@ -953,15 +998,19 @@ impl WindowSmoother {
         }
         let drive = self.eve.drive;
         let h_matrix = drive.h();
-        let mut pose = Matrix3xX::zeros(dim);
-        pose.view_mut((0, 0), (3, 3))
-            .copy_from(&Matrix3::identity());
-        let mut poses = Vec::with_capacity(updates.len() + 1);
-        poses.push(pose);
+        let count = updates.len() + 1;
+        out.poses.truncate(count);
+        out.poses.resize_with(count, || Matrix3xX::zeros(dim));
+        let first = &mut out.poses[0];
+        if first.ncols() != dim {
+            *first = Matrix3xX::zeros(dim);
+        }
+        first.fill(0.0);
+        first.fill_diagonal(1.0);
         for (u, update) in updates.iter().enumerate() {
             let (a, b, d) = jacobians(update, t);
             // (δv, δω) per slip latent: σ·H·e_i·ω̄_i, and per bit effect σ·H·e_i·Δω̄_i.
-            let mut speeds = DMatrix::zeros(2, dim);
+            let speeds = zeroed(&mut out.speeds, 2, dim);
             if slipping {
                 let sigma = world.slip_std;
                 for wheel in 0..2 {
@@ -978,11 +1027,18 @@ impl WindowSmoother {
                     }
                 }
             }
-            let pose = poses.last().expect("the first pose map");
-            let next = a * pose + d * &noise + b * &speeds;
-            poses.push(next);
+            let (done, later) = out.poses.split_at_mut(u + 1);
+            let next = &mut later[0];
+            if next.ncols() != dim {
+                *next = Matrix3xX::zeros(dim);
+            }
+            product_to(&a, &done[u], next);
+            let term = shaped3(&mut out.term, dim);
+            product_to(&d, &out.noise, term);
+            *next += &*term;
+            product_to(&b, &out.speeds, term);
+            *next += &*term;
         }
-        Tangents { poses, noise }
     }
 
     /// The LLR and separation of each bit from the hypotheses' log-likelihoods and their
@@ -992,10 +1048,33 @@ impl WindowSmoother {
     }
 }
 
-/// A step's linear maps: the pose deviation at each update boundary, and `w_k`.
+/// A step's linear maps: the pose deviation at each update boundary, and `w_k`; with the
+/// work space that forms them (`(δv, δω)` per latent, and one product).
+#[derive(Clone, Default)]
 struct Tangents {
     poses: Vec<Matrix3xX<f64>>,
     noise: DMatrix<f64>,
+    speeds: DMatrix<f64>,
+    term: Matrix3xX<f64>,
+}
+
+/// `m` as a `rows × columns` matrix of zeros, its storage kept when it has that shape.
+fn zeroed(m: &mut DMatrix<f64>, rows: usize, columns: usize) -> &mut DMatrix<f64> {
+    if m.shape() == (rows, columns) {
+        m.fill(0.0);
+    } else {
+        *m = DMatrix::zeros(rows, columns);
+    }
+    m
+}
+
+/// `m` as a `3 × columns` matrix of unspecified values, its storage kept when it has that
+/// shape.
+fn shaped3(m: &mut Matrix3xX<f64>, columns: usize) -> &mut Matrix3xX<f64> {
+    if m.ncols() != columns {
+        *m = Matrix3xX::zeros(columns);
+    }
+    m
 }
 
 /// Two steps' slip profiles (absent past the window's last instant) are the same bit for bit.
@@ -1029,6 +1108,19 @@ struct Pass {
     filter: GramFilter,
     next: usize,
     base: usize,
+    work: PassWork,
+}
+
+/// Work space of `Pass::step`, overwritten by each step: the columns' values at an
+/// observation, the observation maps of a sample and of a frame, the step's tangents and
+/// its transition.
+#[derive(Clone, Default)]
+struct PassWork {
+    values: Vec<Vector3<f64>>,
+    sample_map: Matrix3xX<f64>,
+    frame_map: Matrix3xX<f64>,
+    tangents: Tangents,
+    transition: DMatrix<f64>,
 }
 
 impl Pass {
@@ -1052,6 +1144,7 @@ impl Pass {
             filter: GramFilter::new(cov, columns.len()),
             next: 0,
             base,
+            work: PassWork::default(),
         }
     }
 
@@ -1075,8 +1168,7 @@ impl Pass {
         let world = &smoother.eve.world;
         let correlated = world.process_rho != 0.0;
         let slipping = world.slip_std > 0.0;
-        let (filter, base) = (&mut self.filter, self.base);
-        let mut buffer: Vec<Vector3<f64>> = Vec::with_capacity(columns.len());
+        let (filter, base, work) = (&mut self.filter, self.base, &mut self.work);
         // `slips` holds one profile per window step: `step < slips.len()` is a step within.
         if step > 0
             && step < slips.len()
@@ -1090,14 +1182,17 @@ impl Pass {
             }
             filter.shift(&offsets);
         }
-        // Observations at the instant that starts this step (or ends the window).
+        // Observations at the instant that starts this step (or ends the window): `F = [I 0]`.
         while self.next < observations.len()
             && matches!(observations[self.next].instant, Instant::Sample(s) if s == step)
         {
-            let mut f = Matrix3xX::zeros(filter.dim());
-            f.view_mut((0, 0), (3, 3)).copy_from(&Matrix3::identity());
-            let values = values_at(&mut buffer, columns, self.next);
-            filter.observe(&f, &observations[self.next].noise_inverse, values);
+            let f = &mut work.sample_map;
+            if f.ncols() != filter.dim() {
+                *f = Matrix3xX::zeros(filter.dim());
+                f.fill_diagonal(1.0);
+            }
+            let values = values_at(&mut work.values, columns, self.next);
+            filter.observe(f, &observations[self.next].noise_inverse, values);
             self.next += 1;
         }
         // `slips` holds one profile per step: none past the window's last instant.
@@ -1108,16 +1203,18 @@ impl Pass {
         let extra = 3 + if slipping { 2 + 2 * effects } else { 0 };
         filter.augment(extra);
         let dim = filter.dim();
-        let tangents = smoother.tangents(
+        let tangents = &mut work.tangents;
+        smoother.tangents(
             &nominal.updates[step],
             slip,
             dim,
             base,
             correlated,
             slipping,
+            tangents,
         );
         // A frame's observation map, reused for every frame of the step.
-        let mut frame_map = Matrix3xX::zeros(0);
+        let frame_map = &mut work.frame_map;
         while self.next < observations.len() {
             let Instant::Frame {
                 step: s,
@@ -1133,27 +1230,28 @@ impl Pass {
             // F = (1 − f)·F_u + f·F_{u+1}, element by element.
             let (before, after) = (&tangents.poses[update], &tangents.poses[update + 1]);
             if frame_map.shape() != before.shape() {
-                frame_map = Matrix3xX::zeros(before.ncols());
+                *frame_map = Matrix3xX::zeros(before.ncols());
             }
             frame_map.zip_zip_apply(before, after, |out, a, b| {
                 *out = a * (1.0 - fraction) + b * fraction;
             });
-            let values = values_at(&mut buffer, columns, self.next);
-            filter.observe(&frame_map, &observations[self.next].noise_inverse, values);
+            let values = values_at(&mut work.values, columns, self.next);
+            filter.observe(frame_map, &observations[self.next].noise_inverse, values);
             self.next += 1;
         }
-        let mut l = DMatrix::zeros(base, dim);
+        let l = zeroed(&mut work.transition, base, dim);
         l.view_mut((0, 0), (3, dim))
             .copy_from(tangents.poses.last().expect("an end"));
         if correlated {
             l.view_mut((3, 0), (3, dim)).copy_from(&tangents.noise);
         }
-        filter.transition(&l);
+        filter.transition(l);
         true
     }
 }
 
-/// The columns' values at observation `o`, in `buffer` (one allocation for a whole pass).
+/// The columns' values at observation `o`, in `buffer` (its storage kept from observation to
+/// observation).
 fn values_at<'a>(
     buffer: &'a mut Vec<Vector3<f64>>,
     columns: &[Column],
@@ -1570,17 +1668,26 @@ mod tests {
                 .collect(),
         };
         let nominal = smoother.eve.run(&window, |_| Unicycle::zeros());
-        let bits = |run: &WindowRun| -> Vec<u64> {
-            let poses = run.poses.iter().flatten().chain(&run.jumps);
-            let updates = run.updates.iter().flatten().flat_map(|u| {
-                [
-                    u.duration, u.wheels.x, u.wheels.y, u.speeds.x, u.speeds.y, u.start.x,
-                    u.start.y, u.start.z,
-                ]
-            });
+        // Every pose, offset, update and jump of a run, step by step (each step read from
+        // the run that holds it).
+        let bits = |steps: &[(&WindowRun, usize)], jumps: &[Pose]| -> Vec<u64> {
+            let poses = steps
+                .iter()
+                .flat_map(|&(run, i)| &run.poses[i])
+                .chain(jumps);
+            let offsets = steps.iter().flat_map(|&(run, i)| &run.offsets[i]);
+            let updates = steps
+                .iter()
+                .flat_map(|&(run, i)| &run.updates[i])
+                .flat_map(|u| {
+                    [
+                        u.duration, u.wheels.x, u.wheels.y, u.speeds.x, u.speeds.y, u.start.x,
+                        u.start.y, u.start.z,
+                    ]
+                });
             poses
                 .flat_map(|p| p.iter().copied().collect::<Vec<_>>())
-                .chain(run.offsets.iter().flatten().copied())
+                .chain(offsets.copied())
                 .chain(updates)
                 .map(f64::to_bits)
                 .collect()
@@ -1596,7 +1703,14 @@ mod tests {
                         None => Unicycle::zeros(),
                     });
                 let near = smoother.run_near(&window, &nominal, position, offset);
-                assert_eq!(bits(&near), bits(&whole), "doublet {position}, pattern {h}");
+                let steps = 0..nominal.poses.len();
+                let near_steps: Vec<_> = steps.clone().map(|s| near.source(&nominal, s)).collect();
+                let whole_steps: Vec<_> = steps.map(|s| (&whole, s)).collect();
+                assert_eq!(
+                    bits(&near_steps, &near.jumps),
+                    bits(&whole_steps, &whole.jumps),
+                    "doublet {position}, pattern {h}"
+                );
             }
         }
     }

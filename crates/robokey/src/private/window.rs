@@ -85,22 +85,7 @@ impl WindowRun {
     /// The pose at an observation.
     #[must_use]
     pub fn at(&self, instant: Instant) -> Pose {
-        match instant {
-            Instant::Sample(step) => match self.poses.get(step) {
-                Some(poses) => poses[0],
-                None => *self.poses[step - 1]
-                    .last()
-                    .expect("a step has its end pose"),
-            },
-            Instant::Frame {
-                step,
-                update,
-                fraction,
-            } => {
-                let poses = &self.poses[step];
-                poses[update] + (poses[update + 1] - poses[update]) * fraction
-            }
-        }
+        pose_at(self.poses.len(), |step| &self.poses[step], instant)
     }
 
     /// The pose's rate over the update that ends at window instant `step` (m/s, m/s,
@@ -126,6 +111,24 @@ impl WindowRun {
             step,
             update,
             fraction: ((offset - t0) / (t1 - t0)).clamp(0.0, 1.0),
+        }
+    }
+}
+
+/// The pose at an observation of a run of `steps` window steps whose poses at step `k`
+/// (before each update and after the last) are `poses(k)`: a sample's the step's first (the
+/// last step's last at the window's end), a frame's interpolated within its update.
+pub fn pose_at<'a>(steps: usize, poses: impl Fn(usize) -> &'a [Pose], instant: Instant) -> Pose {
+    match instant {
+        Instant::Sample(step) if step < steps => poses(step)[0],
+        Instant::Sample(step) => *poses(step - 1).last().expect("a step has its end pose"),
+        Instant::Frame {
+            step,
+            update,
+            fraction,
+        } => {
+            let poses = poses(step);
+            poses[update] + (poses[update + 1] - poses[update]) * fraction
         }
     }
 }
