@@ -60,6 +60,33 @@ pub(super) fn wishart_bounds(m: f64, epsilon: f64) -> [f64; 2] {
     )
 }
 
+/// `[c₋, c₊]` where `c₊` alone must hold except with probability `epsilon`: the joint nets'
+/// bound at `epsilon` (`wishart_bounds`, `c₋` on the same event) or, where it is tighter, the
+/// upper side alone at `epsilon` with only `λ_min ≥ 0` (`c₊ = a/(1 − s₁)`, the best k of the
+/// ladder) and `c₋` from a lower net at `epsilon` more, holding where both do. The upper side
+/// alone wins with few residuals, where the lower side's net gains less than halving each
+/// side's probability costs: below about 1,000 at ε = 2.5·10⁻⁷. The choice is by m and ε
+/// alone.
+pub(super) fn wishart_upper_bounds(m: f64, epsilon: f64) -> [f64; 2] {
+    let joint = wishart_bounds(m, epsilon);
+    let ln_p = |k: u32| epsilon.ln() - net(k).1;
+    let most = FACE_CUTS
+        .iter()
+        .map(|&k| upper_quantile(m, ln_p(k)) / (m * (1.0 - net(k).0)))
+        .fold(f64::INFINITY, f64::min);
+    if joint[1] <= most {
+        return joint;
+    }
+    let least = FACE_CUTS
+        .iter()
+        .map(|&k| {
+            let s = net(k).0;
+            (lower_quantile(m, ln_p(k)) / m - most * s) / (1.0 - s)
+        })
+        .fold(f64::NEG_INFINITY, f64::max);
+    [least, most]
+}
+
 /// `sin²θ`'s bound for the net of `k` squares per face side, `s = 2/k²`, and the log of its
 /// line count, `ln 3k²`.
 fn net(k: u32) -> (f64, f64) {
@@ -192,6 +219,26 @@ mod tests {
         let limit = f64::from(draws) * epsilon
             + 4.0 * (f64::from(draws) * epsilon * (1.0 - epsilon)).sqrt();
         assert!(f64::from(above + below) <= limit, "{above} above c₊ {upper}, {below} below c₋ {lower}");
+    }
+
+    /// Where only `c₊` must hold, the choice is never looser than either form: from 30 to 10⁶
+    /// residuals at ε = 2.5·10⁻⁷, `c₊` is the joint nets' at ε or the upper side's alone at ε,
+    /// whichever is smaller — the upper side alone below 1,000 residuals, the joint nets from
+    /// 2,000 on.
+    #[test]
+    fn where_only_the_upper_side_counts_the_tighter_form_is_taken() {
+        let epsilon = 2.5e-7;
+        for m in [30.0, 100.0, 500.0, 2_000.0, 14_319.0, 1e6] {
+            let [_, chosen] = wishart_upper_bounds(m, epsilon);
+            let [_, joint] = wishart_bounds(m, epsilon);
+            let alone = FACE_CUTS
+                .iter()
+                .map(|&k| upper_quantile(m, epsilon.ln() - net(k).1) / (m * (1.0 - net(k).0)))
+                .fold(f64::INFINITY, f64::min);
+            eprintln!("m {m}: chosen {chosen:.5}, joint {joint:.5}, upper side alone {alone:.5}");
+            assert_eq!(chosen, joint.min(alone), "m {m}");
+            assert_eq!(chosen == alone, m < 1_000.0, "m {m}");
+        }
     }
 
     /// `covered` is the linear programme's optimum: over a 400×400 grid of `(λ_min, λ_max)`
