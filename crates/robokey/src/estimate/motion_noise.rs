@@ -62,7 +62,7 @@ use super::residual::{AXES, DoubletResidual};
 use super::slip::{SlipEstimate, estimate_slip};
 use super::symmetric_coordinates::{coordinates, symmetric};
 use super::weighted_chi_square::WeightedChiSquare;
-use super::wishart::{net_bounds, wishart_bounds, wishart_upper_bounds};
+use super::wishart::{net_bounds, wishart_upper_bounds};
 use crate::world::MAX_SLIP_STD;
 
 /// Least residuals of each parity the bounds are computed from.
@@ -1043,6 +1043,7 @@ impl MotionNoiseEstimate {
 
 #[cfg(test)]
 pub(super) mod tests {
+    use super::super::wishart::wishart_bounds;
     use super::*;
     use crate::config::Config;
     use crate::model::{Pose, Unicycle};
