@@ -1482,9 +1482,18 @@ pub(super) mod tests {
             let expected = f64::from(draws) * level;
             expected + 4.0 * (expected * (1.0 - level)).sqrt()
         };
-        assert!((old[0] + old[1]) as f64 > limit(epsilon), "deflated: {old:?}");
-        assert!(old.iter().all(|&k| k as f64 > limit(epsilon / 2.0)), "deflated: {old:?}");
-        assert!((new[0] + new[1]) as f64 <= limit(epsilon), "weighted: {new:?}");
+        assert!(
+            (old[0] + old[1]) as f64 > limit(epsilon),
+            "deflated: {old:?}"
+        );
+        assert!(
+            old.iter().all(|&k| k as f64 > limit(epsilon / 2.0)),
+            "deflated: {old:?}"
+        );
+        assert!(
+            (new[0] + new[1]) as f64 <= limit(epsilon),
+            "weighted: {new:?}"
+        );
     }
 
     /// The weighted bound contains the χ² net bound at equal covariances (`Mᵢ` all alike: a

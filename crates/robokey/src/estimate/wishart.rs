@@ -218,7 +218,10 @@ mod tests {
         );
         let limit = f64::from(draws) * epsilon
             + 4.0 * (f64::from(draws) * epsilon * (1.0 - epsilon)).sqrt();
-        assert!(f64::from(above + below) <= limit, "{above} above c₊ {upper}, {below} below c₋ {lower}");
+        assert!(
+            f64::from(above + below) <= limit,
+            "{above} above c₊ {upper}, {below} below c₋ {lower}"
+        );
     }
 
     /// Where only `c₊` must hold, the choice is never looser than either form: from 30 to 10⁶
@@ -258,7 +261,8 @@ mod tests {
             for i in 0..=400 {
                 for j in i..=400 {
                     let (low, high) = (f64::from(i) * step, f64::from(j) * step);
-                    if high * (1.0 - s[0]) + low * s[0] <= a && low * (1.0 - s[1]) + high * s[1] >= b
+                    if high * (1.0 - s[0]) + low * s[0] <= a
+                        && low * (1.0 - s[1]) + high * s[1] >= b
                     {
                         top = top.max(high);
                         bottom = bottom.min(low);
@@ -266,7 +270,10 @@ mod tests {
                 }
             }
             eprintln!("a {a} b {b} s {s:?}: [{least:.4}, {most:.4}], grid [{bottom:.4}, {top:.4}]");
-            assert!(top <= most && most - top < 2.0 * step, "{top} against {most}");
+            assert!(
+                top <= most && most - top < 2.0 * step,
+                "{top} against {most}"
+            );
             assert!(bottom >= least.max(0.0) - 1e-12 && bottom - least.max(0.0) < 2.0 * step);
             assert!(most < a / (1.0 - s[0]) || b * (1.0 - s[0]) <= a * s[1]);
         }
