@@ -27,20 +27,21 @@
 //! second where both constraints meet. Both bounds hold on the one event, so
 //! `c₋ ≤ λ_min(W) ≤ λ_max(W) ≤ c₊` except with probability ε. Where only `W ⪰ 0` is used
 //! (`λ_min ≥ 0`), `c₊ = a/(1 − s₁)`: the lower side's net tightens the upper bound by
-//! `(a·s₂ − b·(1 − s₁))·s₁/((1 − s₁)(1 − s₁ − s₂))`, the covering's cost falling from
+//! `(b·(1 − s₁) − a·s₂)·s₁/((1 − s₁)(1 − s₁ − s₂))`, the covering's cost falling from
 //! `c₊·s₁` to about `(c₊ − c₋)·s₁`.
 //!
 //! The nets: each of the cube's three face pairs `{|x_a| = 1}` (a line meets one of them
 //! where its largest coordinate is ±1) cut into k×k squares, their centres the net's `3k²`
 //! lines. A line through a face point `p` (`|p| ≥ 1`) lies within `h/√2 = √2/k` of a centre
 //! `g` (half a square's diagonal, `h = 2/k`), so `sin θ ≤ |p − g|/|p| ≤ √2/k`: `s = 2/k²`. The
-//! pair `(k₁, k₂)` is the one of a ladder's that gives χ²_m's tightest `c₊`; it depends on m
+//! pair `(k₁, k₂)` is the ladder's pair that gives χ²_m's tightest `c₊`; it depends on m
 //! and ε only, never on the data, so its event is one fixed event.
 //!
-//! At m = 14,319 and ε ≈ 3.3·10⁻⁷ per half this gives c₊ ≈ 1.078 (1.080 with `λ_min ≥ 0`
-//! alone at twice the upper side's share), where Davidson–Szarek's
-//! `(1 + √(3/m) + √(2 ln(2/ε)/m))²` is 1.126. For a non-integer m (an effective count) the
-//! χ² is the Gamma distribution of that shape, the count's own approximation unchanged.
+//! At m = 14,319 and ε ≈ 1.7·10⁻⁷ (a three-step block's share per half at ε_est = 10⁻⁶) this
+//! gives c₊ ≈ 1.078 (1.080 from the upper side alone at the whole ε with `λ_min ≥ 0`), where
+//! Davidson–Szarek's `(1 + √(3/m) + √(2 ln(2/ε)/m))²` is 1.128. For a non-integer m (an
+//! effective count) the χ² is the Gamma distribution of that shape, the count's own
+//! approximation unchanged.
 
 use super::chi_square::{lower_quantile, upper_quantile};
 
