@@ -231,7 +231,7 @@ fn pair_terms(
     second: &DoubletResidual,
     sensor: &Matrix3<f64>,
 ) -> PairTerms {
-    let shared = -(first.sensor_maps[0] * sensor * second.sensor_maps[1].transpose());
+    let shared = first.shared_sensor_product(second, sensor);
     let [n1, n2] = [first, second].map(|r| r.sensor_part(sensor));
     std::array::from_fn(|k| {
         [
