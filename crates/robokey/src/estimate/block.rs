@@ -51,7 +51,7 @@ use super::worst_case::{
 };
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
-    estimate_lag, estimate_motion_noise, estimate_motion_noise_split, published_separation,
+    estimate_lag, estimate_motion_noise, estimate_motion_noise_timed, published_separation,
     worst_case_separations,
 };
 use nalgebra::Vector3;
@@ -230,7 +230,7 @@ impl BlockEstimate {
 /// disclosed by its sample. Two-step doublets: the samples' timing jitter from their
 /// one-step residuals split at the middle samples at ε_est/10 ([`estimate_jitter`]), then
 /// `Q`, per-wheel slip and ρ from those residuals with the sensor's part at the jitter's
-/// upper end, at the rest of ε_est ([`estimate_motion_noise_split`]), and Eve's view of the
+/// upper end, at the rest of ε_est ([`estimate_motion_noise_timed`]), and Eve's view of the
 /// controller's samples at its lower end.
 #[must_use]
 pub fn block_separations(
@@ -288,7 +288,7 @@ pub fn block_separations(
         .map(|r| r.with_jitter(jitter.upper()))
         .collect();
     let region_epsilon = epsilon * (1.0 - JITTER_EPSILON_SHARE);
-    match estimate_motion_noise_split(&region, &sensor, region_epsilon) {
+    match estimate_motion_noise_timed(&region, &sensor, region_epsilon, jitter.point.max(0.0)) {
         Ok(estimate) => {
             let estimate = MotionNoiseEstimate {
                 doublets,
@@ -1542,8 +1542,8 @@ fn request_sessions(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimate::MAX_PUBLISHED_SEPARATION;
     use crate::estimate::lag::tests::doublets;
+    use crate::estimate::{MAX_PUBLISHED_SEPARATION, estimate_motion_noise_split};
 
     /// Of two views of a doublet the one that tells Eve less is kept: a pair further apart
     /// (a larger shift, or a variance further from the other value's) loses to a closer one
