@@ -699,8 +699,8 @@ fn slip_record(e: &robokey::estimate::BlockEstimate) -> String {
 /// A two-step block's sample-timing jitter measured (docs/estimation.md, "Sample-timing
 /// jitter"): its point and interval; nothing for three-step blocks.
 fn jitter_record(e: &robokey::estimate::BlockEstimate) -> String {
-    match e.jitter {
-        Some([point, low, high]) => format!(
+    match e.jitter.as_deref() {
+        Some(&[point, low, high]) => format!(
             "; the controller's sample-timing jitter ĵ = {:.2} ms [{:.2} ms, {:.2} ms] at \
              ε_est/10, its upper end under Q, its lower end in Eve's view",
             1e3 * point,

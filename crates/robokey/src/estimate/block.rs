@@ -111,9 +111,10 @@ pub struct BlockEstimate {
     /// Two-step doublets: the controller's sample-timing jitter measured, `[ĵ, j_lo, j_hi]`
     /// (s) at ε_est/10 — `Q`'s bound and the class tests taken with the sensor's part at
     /// `j_hi`, Eve's view of the controller's samples at `j_lo` (docs/estimation.md,
-    /// "Sample-timing jitter"); none with three steps.
+    /// "Sample-timing jitter"); none with three steps. Boxed: the estimate rides in the
+    /// connection's outputs, whose variants stay of a size.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub jitter: Option<[f64; 3]>,
+    pub jitter: Option<Box<[f64; 3]>>,
     /// A multilevel block sized with the slip measured: each slice's bits' exponents, kept
     /// to size each slice ([`Self::for_slice`]); not reported, and none in a slice's own.
     #[serde(skip)]
@@ -263,7 +264,7 @@ pub fn block_separations(
         );
     };
     let timed = |(separations, mut block): (Vec<Vec<f64>>, BlockEstimate)| {
-        block.jitter = Some(jitter.stds());
+        block.jitter = Some(Box::new(jitter.stds()));
         (separations, block)
     };
     let [point, low, high] = jitter.stds();
