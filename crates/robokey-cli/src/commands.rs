@@ -672,6 +672,7 @@ fn measured_blocks(results: &[robokey_lab::secrecy::PointSecrecy]) -> String {
                         e.separation,
                         b.secret_bits
                     ) + &slip_record(e)
+                        + &jitter_record(e)
                 }
             }));
         }
@@ -692,6 +693,21 @@ fn slip_record(e: &robokey::estimate::BlockEstimate) -> String {
             100.0 * high
         ),
         _ => String::new(),
+    }
+}
+
+/// A two-step block's sample-timing jitter measured (docs/estimation.md, "Sample-timing
+/// jitter"): its point and interval; nothing for three-step blocks.
+fn jitter_record(e: &robokey::estimate::BlockEstimate) -> String {
+    match e.jitter.as_deref() {
+        Some(&[point, low, high]) => format!(
+            "; the controller's sample-timing jitter ĵ = {:.2} ms [{:.2} ms, {:.2} ms] at \
+             ε_est/10, its upper end under Q, its lower end in Eve's view",
+            1e3 * point,
+            1e3 * low,
+            1e3 * high
+        ),
+        None => String::new(),
     }
 }
 

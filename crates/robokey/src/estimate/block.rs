@@ -35,7 +35,8 @@ use robokey_secrecy::postprocess::{
 use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 
-use super::correlation::{SlipShare, estimate_correlation};
+use super::correlation::{MIN_PAIRS_PER_BATCH, SlipShare, estimate_correlation};
+use super::jitter::{JITTER_EPSILON_SHARE, MAX_JITTER_FRACTION, estimate_jitter};
 use super::lag::{
     MIN_LAG_DOUBLETS, TurnCorrection, TurnCorrections, estimate_lag_jointly, first_step_share,
     first_step_share_slope, first_turn_factor, later_turn_factor,
@@ -50,9 +51,11 @@ use super::worst_case::{
 };
 use super::{
     DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
-    estimate_lag, estimate_motion_noise, estimate_motion_noise_split, published_separation,
+    estimate_lag, estimate_motion_noise, estimate_motion_noise_timed, published_separation,
     worst_case_separations,
 };
+use nalgebra::Vector3;
+
 use crate::Config;
 use crate::model::{Pose, Unicycle};
 use crate::private::likelihood::{DoubletView, stated_camera_view};
@@ -105,6 +108,13 @@ pub struct BlockEstimate {
     /// bit-dependent views do, for the bits it was computed over: the block's, or a slice's).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub slip_sized: bool,
+    /// Two-step doublets: the controller's sample-timing jitter measured, `[ĵ, j_lo, j_hi]`
+    /// (s) at ε_est/10 — `Q`'s bound and the class tests taken with the sensor's part at
+    /// `j_hi`, Eve's view of the controller's samples at `j_lo` (docs/estimation.md,
+    /// "Sample-timing jitter"); none with three steps. Boxed: the estimate rides in the
+    /// connection's outputs, whose variants stay of a size.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jitter: Option<Box<[f64; 3]>>,
     /// A multilevel block sized with the slip measured: each slice's bits' exponents, kept
     /// to size each slice ([`Self::for_slice`]); not reported, and none in a slice's own.
     #[serde(skip)]
@@ -206,6 +216,7 @@ impl BlockEstimate {
             lag: None,
             slip: None,
             slip_sized: false,
+            jitter: None,
             slip_slices: None,
         }
     }
@@ -217,8 +228,11 @@ impl BlockEstimate {
 /// block's estimate, for the controller's samples of every carrying doublet of each session
 /// (with the robot's bits) under the parties' `config` (their stated sensor calibration and
 /// camera) at ε_est = `epsilon`, the smoothing ε as well; `disclosed` bits of the block are
-/// disclosed by its sample. Two-step doublets: `Q`, per-wheel slip and ρ from their
-/// one-step residuals split at the middle samples ([`estimate_motion_noise_split`]).
+/// disclosed by its sample. Two-step doublets: the samples' timing jitter from their
+/// one-step residuals split at the middle samples at ε_est/10 ([`estimate_jitter`]), then
+/// `Q`, per-wheel slip and ρ from those residuals with the sensor's part at the jitter's
+/// upper end, at the rest of ε_est ([`estimate_motion_noise_timed`]), and Eve's view of the
+/// controller's samples at its lower end.
 #[must_use]
 pub fn block_separations(
     config: &Config,
@@ -236,16 +250,118 @@ pub fn block_separations(
     let model = doublet_model(config);
     let sensor = diagonal_covariance(config.sensing.controller_std);
     let steps = two_step_split_residuals(&model, config.robot.axle_length, sessions);
-    match estimate_motion_noise_split(&steps, &sensor, epsilon) {
+    let Some(jitter) = estimate_jitter(&steps, &sensor, epsilon * JITTER_EPSILON_SHARE) else {
+        return refused(
+            sessions.len(),
+            format!(
+                "sample-timing jitter: not identified from {} one-step residuals (allowed: at \
+                 least {} consecutive pairs whose shared samples' rates differ)",
+                steps.len(),
+                2 * MIN_PAIRS_PER_BATCH
+            ),
+            doublets,
+            epsilon,
+        );
+    };
+    let timed = |(separations, mut block): (Vec<Vec<f64>>, BlockEstimate)| {
+        block.jitter = Some(Box::new(jitter.stds()));
+        (separations, block)
+    };
+    let [point, low, high] = jitter.stds();
+    let largest = MAX_JITTER_FRACTION * config.robot.sample_time;
+    if high > largest {
+        return timed(refused(
+            sessions.len(),
+            format!(
+                "sample-timing jitter beyond the class: ĵ = {:.2} ms, interval [{:.2}, {:.2}] ms \
+                 (allowed: at most {:.1} ms, a tenth of robot.T)",
+                1e3 * point,
+                1e3 * low,
+                1e3 * high,
+                1e3 * largest
+            ),
+            doublets,
+            epsilon,
+        ));
+    }
+    let region: Vec<DoubletResidual> = steps
+        .iter()
+        .map(|r| r.with_jitter(jitter.upper()))
+        .collect();
+    let region_epsilon = epsilon * (1.0 - JITTER_EPSILON_SHARE);
+    match estimate_motion_noise_timed(&region, &sensor, region_epsilon, jitter.point.max(0.0)) {
         Ok(estimate) => {
             let estimate = MotionNoiseEstimate {
                 doublets,
                 ..estimate
             };
-            size_block(config, sessions, disclosed, &estimate, None, epsilon)
+            // Eve's view of each doublet's start and end samples at the jitter's lower end:
+            // their rates from the first step's start and the second step's end.
+            let rates: Vec<[Vector3<f64>; 2]> = steps
+                .chunks_exact(2)
+                .map(|pair| [pair[0].sample_velocities[1], pair[1].sample_velocities[0]])
+                .collect();
+            let timing = SampleTiming {
+                rates: &rates,
+                variance: jitter.lower(),
+            };
+            timed(size_block(
+                config,
+                sessions,
+                disclosed,
+                &estimate,
+                None,
+                epsilon,
+                Some(&timing),
+            ))
         }
-        Err(refusal) => refused(sessions.len(), refusal.to_string(), doublets, epsilon),
+        Err(refusal) => timed(refused(
+            sessions.len(),
+            refusal.to_string(),
+            doublets,
+            epsilon,
+        )),
     }
+}
+
+/// The controller's samples' timing noise in Eve's view of two-step doublets: each
+/// doublet's start and end sample rates (world frame, m/s, m/s, rad/s; in the block's order)
+/// and the timing variance j² (s²) they are taken at.
+struct SampleTiming<'a> {
+    rates: &'a [[Vector3<f64>; 2]],
+    variance: f64,
+}
+
+/// Eve's stated camera view of a two-step doublet's `samples` (start, middle, end) with the
+/// controller's start and end samples' noise `R + j²uuᵀ` at their `rates` (world frame) and
+/// j² = `variance` (s²): [`stated_camera_view`] itself where `variance` is 0.
+fn timed_camera_view(
+    config: &Config,
+    samples: [Pose; 3],
+    rates: [Vector3<f64>; 2],
+    variance: f64,
+) -> DoubletView {
+    let mut view = stated_camera_view(
+        samples,
+        config.sensing.controller_std,
+        config.modelled_camera_std(),
+    );
+    if variance > 0.0 {
+        let sensor = diagonal_covariance(config.sensing.controller_std);
+        let at = |k: usize, u: Vector3<f64>| {
+            PoseObservation {
+                value: samples[k],
+                covariance: sensor + variance * u * u.transpose(),
+            }
+            .fuse(&PoseObservation::new(
+                samples[k],
+                config.modelled_camera_std(),
+            ))
+        };
+        view.start = at(0, rates[0]);
+        view.end = Some(at(2, rates[1]));
+    }
+    view
 }
 
 /// The one-step residuals of every doublet of `sessions`, split at its middle sample with
@@ -256,7 +372,7 @@ fn two_step_split_residuals(
     axle: f64,
     sessions: &[&[DoubletSamples]],
 ) -> Vec<DoubletResidual> {
-    sessions
+    let mut steps: Vec<DoubletResidual> = sessions
         .iter()
         .flat_map(|session| session.iter())
         .flat_map(|b| {
@@ -270,7 +386,12 @@ fn two_step_split_residuals(
                 b.pattern,
             )
         })
-        .collect()
+        .collect();
+    for k in 1..steps.len() {
+        let previous = steps[k - 1];
+        steps[k].enter_from(&previous);
+    }
+    steps
 }
 
 /// As [`block_separations`], with the simulated world's own stationary motion noise,
@@ -308,7 +429,15 @@ pub fn world_block_separations(
             doublets: 0,
         }
     });
-    size_block(config, sessions, disclosed, &truth, lag.as_ref(), epsilon)
+    size_block(
+        config,
+        sessions,
+        disclosed,
+        &truth,
+        lag.as_ref(),
+        epsilon,
+        None,
+    )
 }
 
 /// The share of ε_est the lag's interval takes in a three-step block (the motion noise's
@@ -416,7 +545,15 @@ fn three_step_block(
                     Err(why) => return refused(sessions.len(), why, used, epsilon),
                 }
             };
-            size_block(config, sessions, disclosed, &estimate, Some(&lag), epsilon)
+            size_block(
+                config,
+                sessions,
+                disclosed,
+                &estimate,
+                Some(&lag),
+                epsilon,
+                None,
+            )
         }
         Err(refusal) => refused(
             sessions.len(),
@@ -908,6 +1045,7 @@ fn size_block(
     estimate: &MotionNoiseEstimate,
     lag: Option<&LagEstimate>,
     epsilon: f64,
+    timing: Option<&SampleTiming<'_>>,
 ) -> (Vec<Vec<f64>>, BlockEstimate) {
     if let Some(points) = &estimate.slip_corners {
         return size_slip_block(points, config, sessions, disclosed, estimate, lag, epsilon);
@@ -916,17 +1054,25 @@ fn size_block(
     let model = doublet_model(config);
     let bits = model.perturbation.key_bits();
     let mut separations = Vec::with_capacity(sessions.len());
+    let mut kept = 0;
     for session in sessions {
         let mut session_separations = Vec::with_capacity(session.len() * bits);
         for (i, b) in session.iter().enumerate() {
-            // The camera as stated: per instant, or her frames' worth per instant.
+            kept += 1;
+            // The camera as stated: per instant, or her frames' worth per instant; the
+            // controller's samples with their timing noise where it is measured.
             let worst = match &lags {
                 None => {
-                    let view = stated_camera_view(
-                        b.samples,
-                        config.sensing.controller_std,
-                        config.modelled_camera_std(),
-                    );
+                    let view = match timing {
+                        Some(t) => {
+                            timed_camera_view(config, b.samples, t.rates[kept - 1], t.variance)
+                        }
+                        None => stated_camera_view(
+                            b.samples,
+                            config.sensing.controller_std,
+                            config.modelled_camera_std(),
+                        ),
+                    };
                     worst_case_separations(&model, estimate, &b.inputs, &view)
                 }
                 Some((lags, steps)) => {
@@ -1032,6 +1178,7 @@ fn sized_report(
         lag,
         slip: estimate.slip.map(|slip| slip.stds()),
         slip_sized,
+        jitter: None,
         slip_slices: None,
     }
 }
@@ -1396,8 +1543,8 @@ fn request_sessions(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimate::MAX_PUBLISHED_SEPARATION;
     use crate::estimate::lag::tests::doublets;
+    use crate::estimate::{MAX_PUBLISHED_SEPARATION, estimate_motion_noise_split};
 
     /// Of two views of a doublet the one that tells Eve less is kept: a pair further apart
     /// (a larger shift, or a variance further from the other value's) loses to a closer one

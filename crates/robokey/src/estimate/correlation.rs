@@ -231,7 +231,7 @@ fn pair_terms(
     second: &DoubletResidual,
     sensor: &Matrix3<f64>,
 ) -> PairTerms {
-    let shared = -(first.sensor_maps[0] * sensor * second.sensor_maps[1].transpose());
+    let shared = first.shared_sensor_product(second, sensor);
     let [n1, n2] = [first, second].map(|r| r.sensor_part(sensor));
     std::array::from_fn(|k| {
         [
@@ -572,7 +572,11 @@ fn both_statistics(
 ///
 /// Each statistic runs its own whiteness test at `epsilon/2`, and each takes the slip's
 /// share `slip` out of its residuals' variance ([`estimate_correlation`]). `ρ̂` is the
-/// narrower statistic's point, within the intersection.
+/// narrower statistic's point, within the intersection. Where the steps' sensor part holds
+/// a timing jitter j² ([`DoubletResidual::jitter_variance`], the upper end of its interval),
+/// each statistic's interval is the hull of its intervals at that j² and at 0 (the shared
+/// sample's MA(1) term grows with j², and the ratios with it; between the two ends not
+/// proved), and `ρ̂` is taken at the upper end.
 ///
 /// # Errors
 /// [`CorrelationDeparture`] naming what falls outside the class, from either statistic, or
@@ -583,8 +587,34 @@ pub fn estimate_correlation_split(
     epsilon: f64,
     slip: SlipShare,
 ) -> Result<Correlation, CorrelationDeparture> {
+    let untimed: Option<Vec<DoubletResidual>> = steps
+        .iter()
+        .any(|r| r.jitter_variance > 0.0)
+        .then(|| steps.iter().map(|r| r.with_jitter(0.0)).collect());
     both_statistics(steps, |residuals, stride| {
-        correlation_over(residuals, sensor, epsilon / 2.0, stride, slip)
+        let timed = correlation_over(residuals, sensor, epsilon / 2.0, stride, slip)?;
+        let Some(untimed) = &untimed else {
+            return Ok(timed);
+        };
+        // The same statistic without the jitter's share: the steps (stride 1) or the
+        // steps joined in pairs (stride 2).
+        let plain: Vec<DoubletResidual> = if stride == 1 {
+            untimed.clone()
+        } else {
+            untimed
+                .windows(2)
+                .filter(|w| w[1].doublet == w[0].doublet + 1)
+                .map(|w| w[0].joined(&w[1]))
+                .collect()
+        };
+        let other = correlation_over(&plain, sensor, epsilon / 2.0, stride, slip)?;
+        Ok(Correlation {
+            point: timed.point,
+            interval: [
+                timed.interval[0].min(other.interval[0]),
+                timed.interval[1].max(other.interval[1]),
+            ],
+        })
     })
 }
 

@@ -10,7 +10,9 @@
 //! measured first (`lag`) and subtracted before `Q` and ρ (`block`). Per-wheel slip is
 //! measured jointly with `Q` (`slip`), and where the block shows it Eve's view of each bit is
 //! a pair of Gaussians whose covariances depend on the bit (`worst_case::slip_pairs`), sized
-//! at points of the slip's interval (`motion_noise`, `block`).
+//! at points of the slip's interval (`motion_noise`, `block`). Two-step blocks measure the
+//! controller's sample-timing jitter first (`jitter`): each sample's noise `R + j²·uuᵀ`, its
+//! rate `u` public, with j²'s interval's upper end under `Q` and its lower end in Eve's view.
 
 pub mod block;
 pub mod block_llrs;
@@ -19,6 +21,7 @@ pub mod commands_check;
 pub mod correlation;
 mod half_away;
 pub mod homogeneity;
+pub mod jitter;
 pub mod lag;
 pub mod motion_noise;
 mod normal_tail;
@@ -41,10 +44,11 @@ pub use block::{
 pub use block_llrs::{doublet_llrs, llr_answer, recomputed_llrs, recomputes_llrs};
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
+pub use jitter::{JitterEstimate, estimate_jitter};
 pub use lag::{LagEstimate, estimate_lag};
 pub use motion_noise::{
     Corner, EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
-    estimate_motion_noise_split,
+    estimate_motion_noise_split, estimate_motion_noise_timed,
 };
 pub use residual::DoubletResidual;
 pub use slice_llrs::{SliceSession, recomputed_slice_llrs};

@@ -440,7 +440,7 @@ pub fn estimate_motion_noise(
     sensor: &Matrix3<f64>,
     epsilon: f64,
 ) -> Result<MotionNoiseEstimate, EstimationRefusal> {
-    region_estimate(residuals, None, sensor, epsilon, None)
+    region_estimate(residuals, None, sensor, epsilon, None, 0.0)
 }
 
 /// [`estimate_motion_noise`] for a two-step block from `steps`, its doublets' one-step
@@ -459,7 +459,25 @@ pub fn estimate_motion_noise_split(
     sensor: &Matrix3<f64>,
     epsilon: f64,
 ) -> Result<MotionNoiseEstimate, EstimationRefusal> {
-    region_estimate(steps, Some(steps), sensor, epsilon, None)
+    region_estimate(steps, Some(steps), sensor, epsilon, None, 0.0)
+}
+
+/// [`estimate_motion_noise_split`] for `steps` whose sensor's part is taken at the timing
+/// jitter's upper end ([`DoubletResidual::jitter_variance`]; `Q`'s bound and ρ's MA(1)
+/// share), with the class tests — the speed and turn classes' homogeneity and the tails'
+/// kurtosis, each residual whitened by its own modelled covariance — judged against the
+/// model at the jitter's point `tested_jitter` j² (s², at least 0; docs/estimation.md,
+/// "Sample-timing jitter").
+///
+/// # Errors
+/// [`EstimationRefusal`] naming the test and the value when the data fall outside the class.
+pub fn estimate_motion_noise_timed(
+    steps: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+    epsilon: f64,
+    tested_jitter: f64,
+) -> Result<MotionNoiseEstimate, EstimationRefusal> {
+    region_estimate(steps, Some(steps), sensor, epsilon, None, tested_jitter)
 }
 
 /// [`estimate_motion_noise`] with its region at `epsilon` (the Wishart bound and the
@@ -467,13 +485,16 @@ pub fn estimate_motion_noise_split(
 /// given, from one-step residuals `split` ([`estimate_motion_noise_split`]); `slip_epsilon`:
 /// none to detect slip
 /// at level `epsilon` (a block that measures it is estimated again, ε_est split in three:
-/// the module doc), or the level its interval is sized at.
+/// the module doc), or the level its interval is sized at; `tested_jitter`: the timing
+/// jitter's j² (s²) the class tests judge the residuals at where above 0
+/// ([`estimate_motion_noise_timed`]).
 fn region_estimate(
     residuals: &[DoubletResidual],
     split: Option<&[DoubletResidual]>,
     sensor: &Matrix3<f64>,
     epsilon: f64,
     slip_epsilon: Option<f64>,
+    tested_jitter: f64,
 ) -> Result<MotionNoiseEstimate, EstimationRefusal> {
     if !(epsilon > 0.0 && epsilon < 1.0) {
         return Err(EstimationRefusal::Epsilon(epsilon));
@@ -550,6 +571,7 @@ fn region_estimate(
                     sensor,
                     2.0 * epsilon / 3.0,
                     Some(epsilon / 3.0),
+                    tested_jitter,
                 );
             }
             (measured, slip_fit)
@@ -672,9 +694,29 @@ fn region_estimate(
             )
         }
     };
-    let (tested, slip_variance) = slip.map_or((point, 0.0), |s| (s.motion, s.point));
+    // Where the block measures jitter, the class tests judge the residuals at its point
+    // (without slip, `Q̂` solved again with the sensor's part there); the slip's joint fit
+    // keeps the upper end's.
+    let timed: Option<(Vec<DoubletResidual>, Matrix3<f64>)> = match slip {
+        None if tested_jitter > 0.0 => {
+            let at_point: Vec<DoubletResidual> = residuals
+                .iter()
+                .map(|r| r.with_jitter(tested_jitter))
+                .collect();
+            let (_, mean) = fit_inputs(&at_point, sensor)?;
+            let q = solve_motion(&at_point, &mean, all, correlation.point)?;
+            Some((at_point, q))
+        }
+        _ => None,
+    };
+    let tested_residuals = timed.as_ref().map_or(residuals, |(r, _)| r.as_slice());
+    let (tested, slip_variance) = match (&timed, slip) {
+        (Some((_, q)), _) => (*q, 0.0),
+        (None, None) => (point, 0.0),
+        (None, Some(s)) => (s.motion, s.point),
+    };
     if let Some(departure) = speed_class_departure(
-        residuals,
+        tested_residuals,
         &tested,
         correlation.point,
         slip_variance,
@@ -684,9 +726,12 @@ fn region_estimate(
     ) {
         return Err(EstimationRefusal::NotHomogeneous(departure));
     }
-    let kurtosis = match slip {
-        None => mardia_kurtosis(residuals, &all),
-        Some(s) => kurtosis_whitened(residuals, |r| fitted(r, &s).try_inverse()),
+    let kurtosis = match (&timed, slip) {
+        (Some((at_point, q)), _) => kurtosis_whitened(at_point, |r| {
+            (r.motion_part(q, correlation.point) + r.sensor_part(sensor)).try_inverse()
+        }),
+        (None, None) => mardia_kurtosis(residuals, &all),
+        (None, Some(s)) => kurtosis_whitened(residuals, |r| fitted(r, &s).try_inverse()),
     };
     let tolerance = kurtosis_tolerance(residuals.len(), epsilon, inflation);
     if (kurtosis - GAUSSIAN_KURTOSIS).abs() > tolerance {
@@ -1587,7 +1632,7 @@ pub(super) mod tests {
             for seed in 0..blocks {
                 let (whole, split) = block(2_000 + seed as u64);
                 let new = estimate_motion_noise_split(&split, &sensed, epsilon);
-                let old = region_estimate(&whole, Some(&split), &sensed, epsilon, None);
+                let old = region_estimate(&whole, Some(&split), &sensed, epsilon, None, 0.0);
                 let (Ok(new), Ok(old)) = (new, old) else {
                     refused += 1;
                     continue;

@@ -41,7 +41,7 @@
 //! lateral, heading per unit of the wheels' travel noise), independent between steps, so the
 //! residual's covariance gains `σ²·M`, `M = Σₖ BₖWₖBₖᵀ` (the slip map), linear in σ².
 
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 
 use crate::model::{Pose, Unicycle, unicycle_step};
 use crate::private::DoubletInputs;
@@ -70,6 +70,13 @@ pub struct DoubletResidual {
     pub slip_map: Matrix3<f64>,
     /// The doublet's public nominal inputs (what the homogeneity test classes it by).
     pub inputs: DoubletInputs,
+    /// `[u₀, u₁]`: the pose's rate at the end and at the start sample (world frame; m/s,
+    /// m/s, rad/s), what moves a sample taken off its instant: each step's applied speed
+    /// along the heading sampled after it; zero where the jitter is not modelled.
+    pub sample_velocities: [Vector3<f64>; 2],
+    /// `j²` (s²): the variance of each sample instant's timing error the sensor's part is
+    /// taken at ([`Self::sensor_part`]); 0 without jitter.
+    pub jitter_variance: f64,
 }
 
 /// `Wₖ = G·diag(d_r², d_l²)·Gᵀ`: one step's slip covariance per unit σ² in the robot's frame
@@ -94,6 +101,13 @@ fn slip_map(
         .zip(applied)
         .map(|(b, u)| b * step_slip_covariance(u, sample_time, axle) * b.transpose())
         .sum()
+}
+
+/// The pose's rate in the world's frame at heading `theta` (rad) for applied speed `u`
+/// (m/s, rad/s): `(v·cos θ, v·sin θ, ω)`.
+fn sample_velocity(u: &Unicycle, theta: f64) -> Vector3<f64> {
+    let (sin, cos) = theta.sin_cos();
+    Vector3::new(u.x * cos, u.x * sin, u.y)
 }
 
 /// The rotation `H(θ)` about the vertical axis: a robot-frame vector to the world's.
@@ -138,6 +152,8 @@ impl DoubletResidual {
             sensor_maps: [h0, h0 * a1 * a0],
             slip_map: slip_map(&motion_maps[..2], &[a, b], t, axle),
             inputs: *inputs,
+            sample_velocities: [Vector3::zeros(); 2],
+            jitter_variance: 0.0,
         }
     }
 
@@ -173,6 +189,8 @@ impl DoubletResidual {
             sensor_maps: [h0, h0 * a2 * a1 * a0],
             slip_map: slip_map(&motion_maps, &applied, t, axle),
             inputs: *inputs,
+            sample_velocities: [Vector3::zeros(); 2],
+            jitter_variance: 0.0,
         }
     }
 
@@ -222,7 +240,7 @@ impl DoubletResidual {
         pattern: usize,
     ) -> [Self; 2] {
         let applied = inputs.applied_steps(model.step_offsets(inputs, Some(pattern)));
-        std::array::from_fn(|k| {
+        let mut steps: [Self; 2] = std::array::from_fn(|k| {
             Self::one_step(
                 model.sample_time,
                 axle,
@@ -231,7 +249,27 @@ impl DoubletResidual {
                 [samples[k], samples[k + 1]],
                 &applied[k],
             )
-        })
+        });
+        steps[1].sample_velocities[1] = steps[0].sample_velocities[0];
+        steps
+    }
+
+    /// This one-step residual's start sample's rate taken from `previous`, the residual of
+    /// the step before it ([`Self::sample_velocities`]), where `previous` is that step:
+    /// without it the start sample's rate is taken as this step's own applied speed.
+    pub fn enter_from(&mut self, previous: &Self) {
+        if self.steps == 1 && previous.steps == 1 && previous.doublet + 1 == self.doublet {
+            self.sample_velocities[1] = previous.sample_velocities[0];
+        }
+    }
+
+    /// This residual with the sensor's part taken at timing variance `jitter_variance` j² (s²).
+    #[must_use]
+    pub fn with_jitter(self, jitter_variance: f64) -> Self {
+        Self {
+            jitter_variance,
+            ..self
+        }
     }
 
     /// Two consecutive one-step residuals ([`Self::two_step_split`],
@@ -257,6 +295,8 @@ impl DoubletResidual {
             sensor_maps: [turn * next.sensor_maps[0], self.sensor_maps[1]],
             slip_map: self.slip_map + turn * next.slip_map * turn.transpose(),
             inputs: self.inputs,
+            sample_velocities: [next.sample_velocities[0], self.sample_velocities[1]],
+            jitter_variance: self.jitter_variance,
         }
     }
 
@@ -283,6 +323,8 @@ impl DoubletResidual {
             sensor_maps: [h, h * a],
             slip_map: slip_map(&motion_maps[..1], std::slice::from_ref(applied), t, axle),
             inputs: *inputs,
+            sample_velocities: [to.z, from.z].map(|theta| sample_velocity(applied, theta)),
+            jitter_variance: 0.0,
         }
     }
 
@@ -339,10 +381,50 @@ impl DoubletResidual {
         slip_variance * self.slip_map
     }
 
-    /// `C₀RC₀ᵀ + C₁RC₁ᵀ`: the sensor's part of `Cov(z)` for `R` in the world's frame.
+    /// `C₀(R + j²u₀u₀ᵀ)C₀ᵀ + C₁(R + j²u₁u₁ᵀ)C₁ᵀ`: the sensor's part of `Cov(z)` for `R` in
+    /// the world's frame, each sample moved by its timing error along its rate `uᵢ`
+    /// ([`Self::sample_velocities`], j² = [`Self::jitter_variance`]).
     #[must_use]
     pub fn sensor_part(&self, r: &Matrix3<f64>) -> Matrix3<f64> {
-        self.sensor_maps.iter().map(|c| c * r * c.transpose()).sum()
+        let plain: Matrix3<f64> = self.sensor_maps.iter().map(|c| c * r * c.transpose()).sum();
+        if self.jitter_variance == 0.0 {
+            return plain;
+        }
+        plain + self.jitter_variance * self.jitter_map()
+    }
+
+    /// `C₀u₀u₀ᵀC₀ᵀ + C₁u₁u₁ᵀC₁ᵀ`: the sensor's part of `Cov(z)` per unit of the timing
+    /// variance j² (m²/s², m²/s², rad²/s²).
+    #[must_use]
+    pub fn jitter_map(&self) -> Matrix3<f64> {
+        self.sensor_maps
+            .iter()
+            .zip(&self.sample_velocities)
+            .map(|(c, u)| {
+                let moved = c * u;
+                moved * moved.transpose()
+            })
+            .sum()
+    }
+
+    /// `E[z zₙₑₓₜᵀ]`'s sensor part for `next`, the residual after this one, which shares
+    /// this one's end sample as its start: `−C₀(R + j²u₀u₀ᵀ)C₁,ₙₑₓₜᵀ` (the MA(1) term; `R`
+    /// in the world's frame, j² this residual's).
+    #[must_use]
+    pub fn shared_sensor_product(&self, next: &Self, r: &Matrix3<f64>) -> Matrix3<f64> {
+        let plain = -(self.sensor_maps[0] * r * next.sensor_maps[1].transpose());
+        if self.jitter_variance == 0.0 {
+            return plain;
+        }
+        plain - self.jitter_variance * self.shared_jitter_product(next)
+    }
+
+    /// `(C₀u₀)(C₁,ₙₑₓₜu₀)ᵀ`: the shared sample's timing error's part of
+    /// `−E[z zₙₑₓₜᵀ]` per unit of j² (m²/s², rad²/s² on the diagonal).
+    #[must_use]
+    pub fn shared_jitter_product(&self, next: &Self) -> Matrix3<f64> {
+        let u = self.sample_velocities[0];
+        (self.sensor_maps[0] * u) * (next.sensor_maps[1] * u).transpose()
     }
 }
 

@@ -1,0 +1,317 @@
+//! The controller's sample-timing jitter, measured from the one-step residuals' lag-one
+//! products (docs/estimation.md, "Sample-timing jitter").
+//!
+//! **Model.** A sample taken `t` off its instant (`t ~ N(0, j²)`, independent between
+//! samples and of the noise) is off by `t·u` to first order, `u` the pose's rate there
+//! ([`DoubletResidual::sample_velocities`]: public, the commands with the reconciled bits), so
+//! the sample's noise is `R + j²·uuᵀ`. Two consecutive one-step residuals share the sample
+//! between them, which enters the first as `C₀η` and the second as `−C₁'η`, so
+//!
+//! `E[z_k z_{k+1}ᵀ] = ρ·Q' − C₀RC₁'ᵀ − j²·(C₀u)(C₁'u)ᵀ`,
+//!
+//! `ρ·Q'` the motion noise's lag-one product (the AR(1) memory; the same for every pair, in
+//! each step's own frame) and per-wheel slip's none (independent between steps). On the
+//! along-track and heading axes the jitter's part grows with the shared sample's `v²` and
+//! `ω²` while the motion's does not: that — and the MA(1) sign, which slip lacks — is what
+//! tells it apart. (The lateral axis sees no rate.)
+//!
+//! **Fit.** Per pair and axis `a` ∈ {along-track, heading},
+//! `y = (z_k,a·z_{k+1},a + (C₀RC₁'ᵀ)_aa)/S_aa = α_a/S_aa − j²·((C₀u)_a(C₁'u)_a)/S_aa`
+//! (`S` the residuals' pooled second moment, so metres and radians weigh alike), least squares
+//! on the three unknowns `(α_along, α_heading, j²)`; the sandwich over contiguous batches of
+//! pairs (as the slip's, [`super::slip`]) gives ĵ²'s standard error and
+//! `ĵ² ± z(ε/2)·se` covers j² except with probability about ε (a central-limit statement
+//! over the batches). The rate's own noise (the plant's rate over its last update carries the
+//! step's motion noise) adds `j²·E[νν]` to every pair alike, which the intercepts take.
+
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+
+use super::correlation::{MAX_BATCHES, MIN_PAIRS_PER_BATCH};
+use super::normal_tail::normal_upper_quantile;
+use super::residual::DoubletResidual;
+
+/// The share of ε_est the jitter's interval takes in a two-step block (the motion noise's
+/// region takes the rest).
+pub const JITTER_EPSILON_SHARE: f64 = 0.1;
+
+/// The class's largest timing std, as a fraction of the sample time `robot.T` (the world's
+/// own bound; the first-order model `t·u` assumes `t ≪ T`).
+pub const MAX_JITTER_FRACTION: f64 = 0.1;
+
+/// The axes the fit reads: along-track and heading.
+const AXES: [usize; 2] = [0, 2];
+
+/// The three unknowns: the two intercepts, then j².
+type Parameters = SVector<f64, 3>;
+
+/// What the controller measured of its samples' timing jitter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JitterEstimate {
+    /// ĵ² (s²; may be negative by chance when there is none).
+    pub point: f64,
+    /// `[j²_lo, j²_hi]` (s²): its (1 − ε) interval.
+    pub interval: [f64; 2],
+}
+
+impl JitterEstimate {
+    /// `[ĵ, j_lo, j_hi]` (s; negative variances read 0).
+    #[must_use]
+    pub fn stds(&self) -> [f64; 3] {
+        [self.point, self.interval[0], self.interval[1]].map(|v| v.max(0.0).sqrt())
+    }
+
+    /// The interval's upper end, at least 0 (s²): the sensor's part where more of it is the
+    /// conservative side (`Q`'s bound, ρ's lag-one share, the class tests).
+    #[must_use]
+    pub fn upper(&self) -> f64 {
+        self.interval[1].max(0.0)
+    }
+
+    /// The interval's lower end, at least 0 (s²): the controller's samples' timing noise in
+    /// Eve's view, where less of it sharpens her view.
+    #[must_use]
+    pub fn lower(&self) -> f64 {
+        self.interval[0].max(0.0)
+    }
+}
+
+/// One pair's two rows (the module doc): design and observation per axis.
+fn rows(
+    first: &DoubletResidual,
+    second: &DoubletResidual,
+    sensor: &Matrix3<f64>,
+    scale: &Vector3<f64>,
+) -> [(SVector<f64, 3>, f64); 2] {
+    let plain = first.with_jitter(0.0).shared_sensor_product(second, sensor);
+    let timing = first.shared_jitter_product(second);
+    std::array::from_fn(|i| {
+        let a = AXES[i];
+        let mut design = SVector::<f64, 3>::zeros();
+        design[i] = scale[a];
+        design[2] = -timing[(a, a)] * scale[a];
+        (
+            design,
+            (first.value[a] * second.value[a] - plain[(a, a)]) * scale[a],
+        )
+    })
+}
+
+/// j² and its (1 − `epsilon`) interval from one-step `steps` (in step order; consecutive
+/// indices share a sample) and the sensor's stated covariance `sensor` (`R`, world frame);
+/// `None` where fewer pairs than two batches' worth, or a design that does not identify j²
+/// (every shared sample at one rate).
+#[must_use]
+pub fn estimate_jitter(
+    steps: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+    epsilon: f64,
+) -> Option<JitterEstimate> {
+    let n = steps.len() as f64;
+    let pooled: Matrix3<f64> = steps
+        .iter()
+        .map(|r| r.value * r.value.transpose())
+        .sum::<Matrix3<f64>>()
+        / n;
+    let scale = Vector3::from_fn(|a, _| pooled[(a, a)].recip());
+    if !scale.iter().all(|s| s.is_finite()) {
+        return None;
+    }
+    let pairs: Vec<[(SVector<f64, 3>, f64); 2]> = steps
+        .windows(2)
+        .filter(|w| w[0].steps == 1 && w[1].steps == 1 && w[1].doublet == w[0].doublet + 1)
+        .map(|w| rows(&w[0], &w[1], sensor, &scale))
+        .collect();
+    let batches = (pairs.len() / MIN_PAIRS_PER_BATCH).min(MAX_BATCHES);
+    if batches < 2 {
+        return None;
+    }
+    let (gram, moment) = pairs.iter().flatten().fold(
+        (SMatrix::<f64, 3, 3>::zeros(), Parameters::zeros()),
+        |(g, m), (a, y)| (g + a * a.transpose(), m + a * *y),
+    );
+    let inverse = gram.try_inverse()?;
+    let fit = inverse * moment;
+    let per_batch = pairs.len() / batches;
+    let meat = (0..batches).fold(SMatrix::<f64, 3, 3>::zeros(), |sum, b| {
+        let score: Parameters = pairs[b * per_batch..(b + 1) * per_batch]
+            .iter()
+            .flatten()
+            .map(|(a, y)| a * (y - a.dot(&fit)))
+            .sum();
+        sum + score * score.transpose()
+    });
+    let covariance = inverse * meat * inverse * batches as f64 / (batches - 1) as f64;
+    let half_width = normal_upper_quantile(epsilon / 2.0) * covariance[(2, 2)].max(0.0).sqrt();
+    let point = fit[2];
+    (point.is_finite() && half_width.is_finite()).then_some(JitterEstimate {
+        point,
+        interval: [point - half_width, point + half_width],
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::SymmetricEigen;
+    use rand_distr::{Distribution, StandardNormal};
+
+    use super::*;
+    use crate::config::Config;
+    use crate::estimate::diagonal_covariance;
+    use crate::estimate::homogeneity::tests::{SENSOR, varied_inputs, wheel_slips};
+    use crate::estimate::motion_noise::estimate_motion_noise_split;
+    use crate::estimate::residual::rotation;
+    use crate::model::{Pose, unicycle_step};
+    use crate::private::doublet_model;
+    use crate::rng::{Purpose, stream};
+
+    /// The one-step residuals of `doublets` two-step doublets of [`varied_inputs`] (speeds
+    /// 0.01–0.16 m/s, turns ±0.4 rad/s) whose steps carry AR(1) motion noise of `q_std` per
+    /// axis and correlation `rho` (robot frame at the step's heading) and per-wheel slip
+    /// `slip`, and whose samples carry the sensor's [`SENSOR`] and a timing error of std
+    /// `jitter` (s) along the pose's rate over the step before them, simulated through the
+    /// Euler map with the bits that rode; each step's start rate taken from the step before.
+    fn jittered_steps(
+        doublets: u32,
+        q_std: f64,
+        rho: f64,
+        slip: f64,
+        jitter: f64,
+        seed: u64,
+    ) -> Vec<DoubletResidual> {
+        let config = Config::default();
+        let model = doublet_model(&config);
+        let t = model.sample_time;
+        let mut rng = stream(seed, Purpose::Process, 0);
+        let mut normal =
+            || <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
+        let innovation = (1.0 - rho * rho).sqrt();
+        let mut w = Pose::from_fn(|_, _| q_std * normal());
+        let mut x = Pose::new(0.0, 0.0, 0.3);
+        let first = varied_inputs(0).first;
+        let rate = |u: &crate::model::Unicycle, theta: f64| {
+            Pose::new(u.x * theta.cos(), u.x * theta.sin(), u.y)
+        };
+        let sample = |x: &Pose, u: Pose, normal: &mut dyn FnMut() -> f64| {
+            x + Pose::from_fn(|k, _| SENSOR[k] * normal()) + u * (jitter * normal())
+        };
+        let mut start = sample(&x, rate(&first, x.z), &mut normal);
+        let mut steps = Vec::new();
+        for j in 0..doublets {
+            let inputs = varied_inputs(j);
+            let pattern = (j as usize * 5 + 1) % 3 % 2;
+            let applied = inputs.applied(model.perturbation.offset(pattern));
+            let mut samples = [start; 3];
+            for (k, u) in applied.iter().enumerate() {
+                let [slip_along, slip_turn] = wheel_slips(u, slip, &mut normal);
+                let noise = w + Pose::new(slip_along, 0.0, slip_turn);
+                x = unicycle_step(&x, u, t) + rotation(x.z) * noise;
+                w = w * rho + Pose::from_fn(|_, _| innovation * q_std * normal());
+                samples[k + 1] = sample(&x, rate(u, x.z), &mut normal);
+            }
+            steps.extend(DoubletResidual::two_step_split(
+                &model,
+                config.robot.axle_length,
+                j,
+                &inputs,
+                [&samples[0], &samples[1], &samples[2]],
+                pattern,
+            ));
+            start = samples[2];
+        }
+        for k in 1..steps.len() {
+            let previous = steps[k - 1];
+            steps[k].enter_from(&previous);
+        }
+        steps
+    }
+
+    /// j²'s interval covers at its level: over 100 seeded blocks of 1,000 doublets (2,000
+    /// one-step residuals) per world at ε = 0.05 — no jitter and 1 ms at 1 mm of motion
+    /// noise, 5 ms at the parties' 4 mm, and no jitter under 5 % slip with ρ = 0.5 (the
+    /// speed-dependent noise and the motion's lag-one product the fit must not take for
+    /// jitter) — the interval misses j² in at most 11 blocks (5 expected were it exact; 11 is
+    /// 3 binomial standard deviations `√(100·0.05·0.95)` above).
+    #[test]
+    fn the_jitter_interval_covers_at_its_level() {
+        let sensor = diagonal_covariance(SENSOR);
+        let (blocks, level, allowed) = (100_u64, 0.05, 11);
+        // Name, √Q per axis, ρ, slip, jitter (s).
+        let worlds: [(&str, f64, f64, f64, f64); 4] = [
+            ("none, 1 mm", 1e-3, 0.0, 0.0, 0.0),
+            ("1 ms, 1 mm", 1e-3, 0.0, 0.0, 1e-3),
+            ("5 ms, 4 mm", 4e-3, 0.0, 0.0, 5e-3),
+            ("none, 5 % slip, ρ 0.5, 4 mm", 4e-3, 0.5, 0.05, 0.0),
+        ];
+        for (name, q_std, rho, slip, jitter) in worlds {
+            let truth = jitter * jitter;
+            let (mut missed, mut widths) = (0, Vec::new());
+            for seed in 0..blocks {
+                let steps = jittered_steps(1_000, q_std, rho, slip, jitter, 4_100 + seed);
+                let fit = estimate_jitter(&steps, &sensor, level).expect(name);
+                missed += usize::from(!(fit.interval[0] <= truth && truth <= fit.interval[1]));
+                widths.push(fit.stds()[2] - fit.stds()[1]);
+            }
+            let width = widths.iter().sum::<f64>() / widths.len() as f64;
+            eprintln!(
+                "{name}: missed {missed} of {blocks}; mean width of [j_lo, j_hi] {:.3} ms",
+                1e3 * width
+            );
+            assert!(missed <= allowed, "{name}: missed {missed} of {blocks}");
+        }
+    }
+
+    /// Without jitter nothing assumes j² = 0: the region is taken with the sensor's part at
+    /// j²'s upper end. Over 40 seeded white blocks of 1,000 doublets at 1 mm (ε = 0.05, the
+    /// jitter at a tenth of it) the region so taken still holds the truth in all but at most
+    /// 6 (2 expected were it exact; 3 binomial standard deviations above), and `Q_low` moves
+    /// down, never up, on the along-track and heading axes where the samples' rates are (what
+    /// moved is printed: `Q_low`'s diagonal and ρ's interval, on average).
+    #[test]
+    fn without_jitter_the_region_moves_only_by_the_upper_end() {
+        let sensor = diagonal_covariance(SENSOR);
+        let q = diagonal_covariance([1e-3; 3]);
+        let (blocks, epsilon) = (40_u64, 0.05);
+        let (mut missed, mut refused) = (0, 0);
+        let mut moved = [0.0; 5];
+        for seed in 0..blocks {
+            let steps = jittered_steps(1_000, 1e-3, 0.0, 0.0, 0.0, 6_100 + seed);
+            let jitter = estimate_jitter(&steps, &sensor, JITTER_EPSILON_SHARE * epsilon)
+                .expect("identified");
+            let timed: Vec<DoubletResidual> = steps
+                .iter()
+                .map(|r| r.with_jitter(jitter.upper()))
+                .collect();
+            let region = (1.0 - JITTER_EPSILON_SHARE) * epsilon;
+            let (Ok(without), Ok(with)) = (
+                estimate_motion_noise_split(&steps, &sensor, region),
+                estimate_motion_noise_split(&timed, &sensor, region),
+            ) else {
+                refused += 1;
+                continue;
+            };
+            missed += usize::from(SymmetricEigen::new(q - with.lower).eigenvalues.min() < 0.0);
+            for k in [0, 2] {
+                assert!(
+                    with.lower[(k, k)] <= without.lower[(k, k)],
+                    "{seed} axis {k}: {} > {}",
+                    with.lower[(k, k)],
+                    without.lower[(k, k)]
+                );
+            }
+            for k in 0..3 {
+                moved[k] += (with.lower[(k, k)] - without.lower[(k, k)]) / q[(k, k)];
+            }
+            moved[3] += with.correlation.interval[0] - without.correlation.interval[0];
+            moved[4] += with.correlation.interval[1] - without.correlation.interval[1];
+        }
+        let sized = (blocks - refused) as f64;
+        eprintln!(
+            "no jitter, 1 mm: {missed} misses, {refused} refused of {blocks}; mean moves: \
+             Q_low per axis of Q {:.4?}, ρ's ends {:.4?}",
+            &moved[..3].iter().map(|m| m / sized).collect::<Vec<_>>(),
+            &moved[3..].iter().map(|m| m / sized).collect::<Vec<_>>()
+        );
+        assert!(missed <= 6, "{missed} misses of {blocks}");
+        assert!(refused <= 4, "{refused} refused of {blocks}");
+    }
+}
