@@ -1706,9 +1706,19 @@ mod tests {
         ] {
             let parsed = config(&post);
             assert_eq!(parsed.postprocess.llr_model(), model, "{post}");
+            // What the agents' controller asks its shell for at block time.
+            assert_eq!(
+                crate::estimate::recomputes_llrs(&parsed),
+                model == LlrModel::Measured,
+                "{post}"
+            );
             // A stated model is written out, an unset one is not: a dump reads back the same.
             let dumped = parsed.to_toml();
-            assert_eq!(dumped.contains("llrs ="), post.contains("llrs ="), "{dumped}");
+            assert_eq!(
+                dumped.contains("llrs ="),
+                post.contains("llrs ="),
+                "{dumped}"
+            );
             let again = Config::from_toml(&dumped, "dump").unwrap();
             assert_eq!(again.postprocess.llr_model(), model, "{dumped}");
         }
