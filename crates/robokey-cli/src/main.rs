@@ -329,7 +329,9 @@ struct SecrecyArgs {
     /// "Causality"). `prior`: online, with the configured motion noise. `measured`: at
     /// block time from the kept samples, with the motion noise estimated from the disclosed
     /// sample's doublets. `world`: with the simulated world's own motion noise (an oracle
-    /// bound, simulator only). Default: each point's `postprocess.llrs`, else prior. Cascade
+    /// bound, simulator only). Default: each point's `postprocess.llrs`, else following the
+    /// sizing — `measured` under `--sizing measured` or `world` with LDPC, `prior` under
+    /// `--sizing configured`. Cascade
     /// reads no LLRs: `measured` and `world` are refused where it reconciles
     /// (`--reconciliation cascade`, the sweep file's, or the default).
     #[arg(long, value_enum)]

@@ -577,21 +577,32 @@ pub struct PostprocessConfig {
     #[serde(skip_serializing_if = "Reconciliation::is_cascade")]
     pub reconciliation: Reconciliation,
     /// Private sensing with LDPC: which model the LLRs LDPC decodes on are computed with —
-    /// the prior's, online (the default), or the motion noise measured at block time from
-    /// the disclosed sample (docs/estimation.md, "Causality"). The controller's alone (the
-    /// robot never sees LLRs); printed only when not the prior.
-    #[serde(skip_serializing_if = "LlrModel::is_prior")]
-    pub llrs: LlrModel,
+    /// the prior's, online, or the motion noise measured at block time from the disclosed
+    /// sample (docs/estimation.md, "Causality"). Unset, it follows the sizing
+    /// ([`LlrModel::following`]: measured under the measured sizing with LDPC, else the
+    /// prior); [`Self::llr_model`] resolves it. The controller's alone (the robot never sees
+    /// LLRs); printed only when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub llrs: Option<LlrModel>,
+}
+
+impl PostprocessConfig {
+    /// The LLRs' model the controller decodes on: `llrs` where set, else
+    /// [`LlrModel::following`] this table's sizing and reconciliation.
+    #[must_use]
+    pub fn llr_model(&self) -> LlrModel {
+        self.llrs
+            .unwrap_or_else(|| LlrModel::following(self.sizing, self.reconciliation))
+    }
 }
 
 /// Which model the controller's LLRs that LDPC decodes on are computed with
 /// (docs/estimation.md, "Causality"). One vocabulary for `postprocess.llrs` and
-/// `robokey secrecy --llrs`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// `robokey secrecy --llrs`; unset, [`LlrModel::following`] the sizing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LlrModel {
     /// The prior (`noise.process_std`), online as each doublet is decided.
-    #[default]
     Prior,
     /// Recomputed at block time from the kept samples with the motion noise's point
     /// estimate Q̂ from the doublets the disclosed sample holds a bit of (public bits); the
@@ -614,10 +625,25 @@ impl LlrModel {
         }
     }
 
-    /// Whether it is the prior (the default).
+    /// Whether it is the prior.
     #[must_use]
     pub fn is_prior(&self) -> bool {
         *self == Self::Prior
+    }
+
+    /// The default that follows what sizes the key and how the bits are reconciled:
+    /// [`Self::Measured`] where LDPC decodes and the sizing is not the configured physics
+    /// (the measured sizing trusts the block's own motion noise for the key, so its LDPC
+    /// decodes on it too; the world sizing, the measured one's comparison, decodes as it
+    /// does), else [`Self::Prior`] (the configured sizing trusts the prior, and Cascade
+    /// reads no LLRs).
+    #[must_use]
+    pub fn following(sizing: Sizing, reconciliation: Reconciliation) -> Self {
+        if reconciliation == Reconciliation::Ldpc && sizing != Sizing::Configured {
+            Self::Measured
+        } else {
+            Self::Prior
+        }
     }
 }
 
@@ -702,7 +728,7 @@ impl Default for PostprocessConfig {
             assumed_eve_error: None,
             sizing: Sizing::Configured,
             reconciliation: Reconciliation::Cascade,
-            llrs: LlrModel::Prior,
+            llrs: None,
         }
     }
 }
@@ -828,7 +854,7 @@ impl Config {
         every.postprocess.assumed_eve_error = Some(0.5);
         every.postprocess.sizing = Sizing::Measured;
         every.postprocess.reconciliation = Reconciliation::Ldpc;
-        every.postprocess.llrs = LlrModel::Measured;
+        every.postprocess.llrs = Some(LlrModel::Measured);
         every.eve.smoother_window = Some(0);
         every.eve.camera_fps = Some(1.0);
         every.eve.camera_frame_std = Some([1.0; 3]);
@@ -1101,7 +1127,7 @@ impl Config {
                  own physics, which no robot knows: robokey secrecy --sizing world only)",
             ));
         }
-        if post.llrs == LlrModel::World {
+        if post.llrs == Some(LlrModel::World) {
             return Err(invalid(
                 "postprocess.llrs",
                 "world",
@@ -1118,7 +1144,7 @@ impl Config {
                  which private sensing gives; sensing.mode = \"private\")",
             ));
         }
-        if post.llrs == LlrModel::Measured && post.reconciliation == Reconciliation::Cascade {
+        if post.llrs == Some(LlrModel::Measured) && post.reconciliation == Reconciliation::Cascade {
             return Err(invalid(
                 "postprocess.llrs",
                 "measured",
@@ -1658,7 +1684,51 @@ mod tests {
             "{text}"
         );
         let measured = Config::from_toml(&format!("{private}llrs = \"measured\"\n"), "m").unwrap();
-        assert_eq!(measured.postprocess.llrs, LlrModel::Measured);
+        assert_eq!(measured.postprocess.llrs, Some(LlrModel::Measured));
+        assert_eq!(measured.postprocess.llr_model(), LlrModel::Measured);
+    }
+
+    #[test]
+    fn unset_llrs_follow_the_sizing_and_a_stated_model_stays() {
+        let config = |post: &str| {
+            let text = format!("[sensing]\nmode = \"private\"\n[postprocess]\n{post}");
+            Config::from_toml(&text, "p.toml").unwrap()
+        };
+        let ldpc = "reconciliation = \"ldpc\"\n";
+        let sized = "sizing = \"measured\"\n";
+        for (post, model) in [
+            (format!("{ldpc}{sized}"), LlrModel::Measured),
+            (ldpc.to_owned(), LlrModel::Prior),
+            (sized.to_owned(), LlrModel::Prior),
+            (String::new(), LlrModel::Prior),
+            (format!("{ldpc}{sized}llrs = \"prior\"\n"), LlrModel::Prior),
+            (format!("{ldpc}llrs = \"measured\"\n"), LlrModel::Measured),
+        ] {
+            let parsed = config(&post);
+            assert_eq!(parsed.postprocess.llr_model(), model, "{post}");
+            // What the agents' controller asks its shell for at block time.
+            assert_eq!(
+                crate::estimate::recomputes_llrs(&parsed),
+                model == LlrModel::Measured,
+                "{post}"
+            );
+            // A stated model is written out, an unset one is not: a dump reads back the same.
+            let dumped = parsed.to_toml();
+            assert_eq!(
+                dumped.contains("llrs ="),
+                post.contains("llrs ="),
+                "{dumped}"
+            );
+            let again = Config::from_toml(&dumped, "dump").unwrap();
+            assert_eq!(again.postprocess.llr_model(), model, "{dumped}");
+        }
+        // Not an agreement term: the robot never sees LLRs.
+        let unset = config(&format!("{ldpc}{sized}"));
+        let stated = config(&format!("{ldpc}{sized}llrs = \"prior\"\n"));
+        assert_eq!(
+            crate::protocol::config_digest(&unset),
+            crate::protocol::config_digest(&stated)
+        );
         let text = Config::from_toml("[postprocess]\nreconciliation = \"polar\"\n", "x")
             .unwrap_err()
             .to_string();

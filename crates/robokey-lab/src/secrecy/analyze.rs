@@ -351,7 +351,9 @@ fn analyze_point<'a>(
     pools.truncate(options.blocks);
     // LDPC on LLRs recomputed at block time: the pools keep each session's samples as the
     // agents' pool does.
-    let llrs = options.llrs.unwrap_or(config.postprocess.llrs);
+    let llrs = options.llrs.or(config.postprocess.llrs).unwrap_or_else(|| {
+        robokey::config::LlrModel::following(options.sizing, options.reconciliation)
+    });
     if is_private && options.reconciliation == Reconciliation::Ldpc && !llrs.is_prior() {
         settings.block_llrs = Some((config.clone(), llrs));
         for pool in &mut pools {

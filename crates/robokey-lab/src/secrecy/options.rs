@@ -50,7 +50,8 @@ pub struct SecrecyOptions {
     /// How `complete` pooling reconciles (LDPC: private sensing only).
     pub reconciliation: Reconciliation,
     /// LDPC: which model the controller's LLRs are computed with (none: each point's
-    /// `postprocess.llrs`, the prior's by default).
+    /// `postprocess.llrs`, else `LlrModel::following` this analysis's sizing and
+    /// reconciliation — measured under the measured and world sizings, else the prior).
     pub llrs: Option<LlrModel>,
 }
 

@@ -41,7 +41,7 @@ pub struct SecrecyRequest {
     /// Cascade).
     pub reconciliation: Option<Reconciliation>,
     /// LDPC: which model the controller's LLRs are computed with (none: each point's
-    /// `postprocess.llrs`).
+    /// `postprocess.llrs`, else following the sizing).
     pub llrs: Option<LlrModel>,
 }
 

@@ -126,7 +126,7 @@ impl BlockComputation {
             },
             // The recomputed LLRs, or why the prior's stay (the block's report says).
             Request::Llrs(request) => {
-                Answer::Llrs(llr_answer(config, &request, config.postprocess.llrs))
+                Answer::Llrs(llr_answer(config, &request, config.postprocess.llr_model()))
             }
             Request::Slices(request) if measured => {
                 let estimates =

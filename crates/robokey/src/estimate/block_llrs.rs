@@ -208,10 +208,11 @@ fn slice_block_llrs(
     )
 }
 
-/// Whether `config` asks for LLRs recomputed at block time.
+/// Whether `config` asks for LLRs recomputed at block time (`postprocess.llrs`, or unset
+/// under the measured sizing with LDPC).
 #[must_use]
 pub fn recomputes_llrs(config: &Config) -> bool {
-    config.postprocess.llrs != LlrModel::Prior
+    config.postprocess.llr_model() != LlrModel::Prior
 }
 
 #[cfg(test)]
