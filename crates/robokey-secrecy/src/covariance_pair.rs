@@ -493,48 +493,6 @@ mod tests {
         .unwrap()
     }
 
-    /// The integrand with ln Γ(μ) and the coordinates' `ln v` computed once per moment is
-    /// the integrand with them computed at every point, bit for bit.
-    #[test]
-    fn the_shared_terms_leave_the_integrand_bit_for_bit() {
-        let pair = pair(&[(0.7, 1.8), (-1.2, 0.4), (0.0, 3.5), (2.1, 1.0)]);
-        for mu in [1e-3, 0.2, 1.5, LARGEST_LAMBDA / std::f64::consts::LN_2] {
-            let shared = Shared {
-                ln_gamma_mu: ln_gamma(Complex::real(mu)),
-                ln_variances: pair.coordinates.iter().map(|c| c.variance.ln()).collect(),
-            };
-            for (re, im) in [(0.1, 0.0), (0.3, -2.0), (0.05, 40.0), (0.2, 1e-3)] {
-                let s = Complex::new(re * mu, im);
-                // Computed at the point, as before the terms were shared.
-                let beta =
-                    ln_gamma(s) + ln_gamma(Complex::real(mu) - s) - ln_gamma(Complex::real(mu));
-                let one = Complex::real(1.0);
-                let (mut first, mut second) = (Complex::real(0.0), Complex::real(0.0));
-                for c in &pair.coordinates {
-                    let ln_v = c.variance.ln();
-                    let gap = s * (s + one) * (0.5 * c.shift * c.shift);
-                    let w = (s + one) * c.variance - s;
-                    first = first + gap / w - (w.ln() - (s + one) * ln_v) * 0.5;
-                    let w = (s + one) - s * c.variance;
-                    second = second + gap / w - (w.ln() + s * ln_v) * 0.5;
-                }
-                let (high, low) = if first.re >= second.re {
-                    (first, second)
-                } else {
-                    (second, first)
-                };
-                let at_point = beta + high + ((low - high).exp() + one).ln()
-                    - Complex::real(std::f64::consts::LN_2);
-                let got = pair.ln_integrand(s, mu, &shared);
-                assert_eq!(
-                    (got.re.to_bits(), got.im.to_bits()),
-                    (at_point.re.to_bits(), at_point.im.to_bits()),
-                    "μ {mu} s {s:?}"
-                );
-            }
-        }
-    }
-
     /// The complex ln Γ agrees with the real one on the axis and with Γ(z + 1) = z·Γ(z).
     #[test]
     fn complex_ln_gamma_is_gamma() {
