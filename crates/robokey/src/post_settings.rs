@@ -46,9 +46,10 @@ pub fn camera_words(config: &Config) -> String {
 /// `noise.process_std` per step as configured, or (`postprocess.sizing = "measured"`) a 3×3
 /// stationary covariance and its AR(1) correlation between steps the controller measures per
 /// block, at the worst case of their (1 − ε_est) region, with per-wheel slip measured beside
-/// them and sized where the estimate sees it; no lag or delay, the Euler map; with
-/// `private.prior_lag` τ > 0, the doublets shaped in three steps for a first-order actuator
-/// lag of τ (the stated prior), which measured sizing measures per block (and no slip); with
+/// them and sized where the estimate sees it, and the controller's sample-timing jitter
+/// measured per block; no lag or delay, the Euler map; with `private.prior_lag` τ > 0, the
+/// doublets shaped in three steps for a first-order actuator lag of τ (the stated prior),
+/// which measured sizing measures per block (and no slip or jitter); with
 /// `robot.command_quantum` q > 0, each wheel's command rounded to q (stated).
 #[must_use]
 pub fn plant_words(config: &Config) -> String {
@@ -97,11 +98,15 @@ fn plant_class_words(config: &Config) -> String {
         format!(
             "{motion}, per-wheel slip measured with it per block and, where the estimate sees \
              it, sized with it (each bit's view then two Gaussians with covariances of their \
-             own; above 50 % refused), no lag or delay, the Euler map"
+             own; above 50 % refused), the controller's sample-timing jitter measured per \
+             block (each sample's noise R + j²·uuᵀ at its public rate u; its interval's upper end \
+             bounds the motion noise, its lower end Eve's view; above a tenth of \
+             robot.T refused), no lag or delay, the Euler map"
         )
     } else if config.postprocess.sizing == Sizing::Measured {
         format!(
-            "{motion}, no slip, the Euler map; three-step doublets shaped for a prior actuator \
+            "{motion}, no slip or sample-timing jitter, the Euler map; three-step doublets \
+             shaped for a prior actuator \
              lag of {} ms (private.prior_lag), the wheels' first-order lag measured per block \
              and sized over its (1 − ε_est/3) interval (a dead time read as the lag that \
              explains it)",
