@@ -50,9 +50,9 @@ use super::worst_case::{
     whole_interval_corner,
 };
 use super::{
-    DoubletResidual, LagEstimate, MotionNoiseEstimate, commands_check, diagonal_covariance,
-    estimate_lag, estimate_motion_noise, estimate_motion_noise_timed, published_separation,
-    worst_case_separations,
+    DoubletResidual, JitterVariances, LagEstimate, MotionNoiseEstimate, commands_check,
+    diagonal_covariance, estimate_lag, estimate_motion_noise, estimate_motion_noise_timed,
+    published_separation, worst_case_separations,
 };
 use nalgebra::Vector3;
 
@@ -289,7 +289,11 @@ pub fn block_separations(
         .map(|r| r.with_jitter(jitter.upper()))
         .collect();
     let region_epsilon = epsilon * (1.0 - JITTER_EPSILON_SHARE);
-    match estimate_motion_noise_timed(&region, &sensor, region_epsilon, jitter.point.max(0.0)) {
+    let variances = JitterVariances {
+        point: jitter.point.max(0.0),
+        lower: jitter.lower(),
+    };
+    match estimate_motion_noise_timed(&region, &sensor, region_epsilon, variances) {
         Ok(estimate) => {
             let estimate = MotionNoiseEstimate {
                 doublets,

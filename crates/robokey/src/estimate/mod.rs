@@ -47,8 +47,8 @@ pub use homogeneity::{ClassDeparture, speed_class_departure};
 pub use jitter::{JitterEstimate, estimate_jitter};
 pub use lag::{LagEstimate, estimate_lag};
 pub use motion_noise::{
-    Corner, EstimationRefusal, MotionNoiseEstimate, diagonal_covariance, estimate_motion_noise,
-    estimate_motion_noise_split, estimate_motion_noise_timed,
+    Corner, EstimationRefusal, JitterVariances, MotionNoiseEstimate, diagonal_covariance,
+    estimate_motion_noise, estimate_motion_noise_split, estimate_motion_noise_timed,
 };
 pub use residual::DoubletResidual;
 pub use slice_llrs::{SliceSession, recomputed_slice_llrs};

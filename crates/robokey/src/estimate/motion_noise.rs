@@ -440,7 +440,14 @@ pub fn estimate_motion_noise(
     sensor: &Matrix3<f64>,
     epsilon: f64,
 ) -> Result<MotionNoiseEstimate, EstimationRefusal> {
-    region_estimate(residuals, None, sensor, epsilon, None, 0.0)
+    region_estimate(
+        residuals,
+        None,
+        sensor,
+        epsilon,
+        None,
+        JitterVariances::default(),
+    )
 }
 
 /// [`estimate_motion_noise`] for a two-step block from `steps`, its doublets' one-step
@@ -459,15 +466,23 @@ pub fn estimate_motion_noise_split(
     sensor: &Matrix3<f64>,
     epsilon: f64,
 ) -> Result<MotionNoiseEstimate, EstimationRefusal> {
-    region_estimate(steps, Some(steps), sensor, epsilon, None, 0.0)
+    region_estimate(
+        steps,
+        Some(steps),
+        sensor,
+        epsilon,
+        None,
+        JitterVariances::default(),
+    )
 }
 
 /// [`estimate_motion_noise_split`] for `steps` whose sensor's part is taken at the timing
 /// jitter's upper end ([`DoubletResidual::jitter_variance`]; `Q`'s bound and ρ's MA(1)
 /// share), with the class tests — the speed and turn classes' homogeneity and the tails'
 /// kurtosis, each residual whitened by its own modelled covariance — judged against the
-/// model at the jitter's point `tested_jitter` j² (s², at least 0; docs/estimation.md,
-/// "Sample-timing jitter").
+/// model at the jitter's point `jitter.point` j² (s², at least 0), and slip's σ² fitted at
+/// both the upper end `steps` carry and the lower end `jitter.lower`, its interval the hull
+/// (docs/estimation.md, "Sample-timing jitter").
 ///
 /// # Errors
 /// [`EstimationRefusal`] naming the test and the value when the data fall outside the class.
@@ -475,9 +490,20 @@ pub fn estimate_motion_noise_timed(
     steps: &[DoubletResidual],
     sensor: &Matrix3<f64>,
     epsilon: f64,
-    tested_jitter: f64,
+    jitter: JitterVariances,
 ) -> Result<MotionNoiseEstimate, EstimationRefusal> {
-    region_estimate(steps, Some(steps), sensor, epsilon, None, tested_jitter)
+    region_estimate(steps, Some(steps), sensor, epsilon, None, jitter)
+}
+
+/// The timing jitter's variances (s², each at least 0) a two-step block's estimate takes
+/// beside the upper end its residuals carry ([`DoubletResidual::jitter_variance`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct JitterVariances {
+    /// The point j²: the class tests judge the residuals at it.
+    pub point: f64,
+    /// The interval's lower end: slip's σ² is fitted there too (less of the residuals'
+    /// variance the sensor's, more left to slip), its interval the hull over both ends.
+    pub lower: f64,
 }
 
 /// [`estimate_motion_noise`] with its region at `epsilon` (the Wishart bound and the
@@ -485,16 +511,15 @@ pub fn estimate_motion_noise_timed(
 /// given, from one-step residuals `split` ([`estimate_motion_noise_split`]); `slip_epsilon`:
 /// none to detect slip
 /// at level `epsilon` (a block that measures it is estimated again, ε_est split in three:
-/// the module doc), or the level its interval is sized at; `tested_jitter`: the timing
-/// jitter's j² (s²) the class tests judge the residuals at where above 0
-/// ([`estimate_motion_noise_timed`]).
+/// the module doc), or the level its interval is sized at; `jitter`: the timing jitter's
+/// point and lower end ([`estimate_motion_noise_timed`]; zeros where it is not modelled).
 fn region_estimate(
     residuals: &[DoubletResidual],
     split: Option<&[DoubletResidual]>,
     sensor: &Matrix3<f64>,
     epsilon: f64,
     slip_epsilon: Option<f64>,
-    tested_jitter: f64,
+    jitter: JitterVariances,
 ) -> Result<MotionNoiseEstimate, EstimationRefusal> {
     if !(epsilon > 0.0 && epsilon < 1.0) {
         return Err(EstimationRefusal::Epsilon(epsilon));
@@ -546,6 +571,15 @@ fn region_estimate(
             direction: describe_direction(&eigen.eigenvectors.column(k).into_owned()),
         });
     }
+    // Slip's share is fitted beside the sensor's, which the residuals carry at the jitter's
+    // upper end: the fit leaves slip the least there and the most at the lower end, so slip
+    // is detected where either end shows it and σ²'s interval is the hull over both (the
+    // fit's point affine in j², as the sensor's part is).
+    let carried = residuals.first().map_or(0.0, |r| r.jitter_variance);
+    let lowered = |rs: &[DoubletResidual]| -> Vec<DoubletResidual> {
+        rs.iter().map(|r| r.with_jitter(jitter.lower)).collect()
+    };
+    let lowered_residuals = (jitter.lower < carried).then(|| lowered(residuals));
     let (measured, slip_fit) = match slip_epsilon {
         // Slip detected at level ε_est with ρ at its point, the slip's share not taken out —
         // the untested statistic's where the tested one departs: slip's share of the variance
@@ -563,22 +597,35 @@ fn region_estimate(
                     correlation_point(residuals, split, sensor, epsilon / 2.0, SlipShare::NONE).ok()
                 }
             };
-            let slip_fit = point.and_then(|rho| estimate_slip(residuals, sensor, rho, epsilon));
-            if slip_fit.is_some_and(|s| s.measured()) {
+            let shows_slip = |rs: &[DoubletResidual]| {
+                point
+                    .and_then(|rho| estimate_slip(rs, sensor, rho, epsilon))
+                    .is_some_and(|s| s.measured())
+            };
+            if shows_slip(residuals) || lowered_residuals.as_deref().is_some_and(shows_slip) {
                 return region_estimate(
                     residuals,
                     split,
                     sensor,
                     2.0 * epsilon / 3.0,
                     Some(epsilon / 3.0),
-                    tested_jitter,
+                    jitter,
                 );
             }
-            (measured, slip_fit)
+            (measured, None)
         }
         Some(level) => {
-            let (correlation, slip_fit) =
+            let (correlation, mut slip_fit) =
                 joint_region(residuals, split, sensor, epsilon / 2.0, level)?;
+            if let Some(low) = &lowered_residuals {
+                let low_split = split.map(lowered);
+                let (_, at_lower) =
+                    joint_region(low, low_split.as_deref(), sensor, epsilon / 2.0, level)?;
+                slip_fit.interval = [
+                    slip_fit.interval[0].min(at_lower.interval[0]),
+                    slip_fit.interval[1].max(at_lower.interval[1]),
+                ];
+            }
             (Ok(correlation), Some(slip_fit))
         }
     };
@@ -698,10 +745,10 @@ fn region_estimate(
     // (without slip, `Q̂` solved again with the sensor's part there); the slip's joint fit
     // keeps the upper end's.
     let timed: Option<(Vec<DoubletResidual>, Matrix3<f64>)> = match slip {
-        None if tested_jitter > 0.0 => {
+        None if jitter.point > 0.0 => {
             let at_point: Vec<DoubletResidual> = residuals
                 .iter()
-                .map(|r| r.with_jitter(tested_jitter))
+                .map(|r| r.with_jitter(jitter.point))
                 .collect();
             let (_, mean) = fit_inputs(&at_point, sensor)?;
             let q = solve_motion(&at_point, &mean, all, correlation.point)?;
@@ -1632,7 +1679,14 @@ pub(super) mod tests {
             for seed in 0..blocks {
                 let (whole, split) = block(2_000 + seed as u64);
                 let new = estimate_motion_noise_split(&split, &sensed, epsilon);
-                let old = region_estimate(&whole, Some(&split), &sensed, epsilon, None, 0.0);
+                let old = region_estimate(
+                    &whole,
+                    Some(&split),
+                    &sensed,
+                    epsilon,
+                    None,
+                    JitterVariances::default(),
+                );
                 let (Ok(new), Ok(old)) = (new, old) else {
                     refused += 1;
                     continue;
