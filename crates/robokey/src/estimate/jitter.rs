@@ -225,6 +225,23 @@ mod tests {
         steps
     }
 
+    /// A block's jitter measured at its share of `epsilon` as the estimate does, its
+    /// residuals with the sensor's part at the jitter's upper end, and the region's level
+    /// (the rest of `epsilon`).
+    fn timed_region(
+        steps: &[DoubletResidual],
+        sensor: &Matrix3<f64>,
+        epsilon: f64,
+    ) -> (JitterEstimate, Vec<DoubletResidual>, f64) {
+        let jitter =
+            estimate_jitter(steps, sensor, JITTER_EPSILON_SHARE * epsilon).expect("identified");
+        let timed = steps
+            .iter()
+            .map(|r| r.with_jitter(jitter.upper()))
+            .collect();
+        (jitter, timed, (1.0 - JITTER_EPSILON_SHARE) * epsilon)
+    }
+
     /// j²'s interval covers at its level: over 100 seeded blocks of 1,000 doublets (2,000
     /// one-step residuals) per world at ε = 0.05 — no jitter and 1 ms at 1 mm of motion
     /// noise, 5 ms at the parties' 4 mm, and no jitter under 5 % slip with ρ = 0.5 (the
@@ -275,13 +292,7 @@ mod tests {
         let mut moved = [0.0; 5];
         for seed in 0..blocks {
             let steps = jittered_steps(1_000, 1e-3, 0.0, 0.0, 0.0, 6_100 + seed);
-            let jitter = estimate_jitter(&steps, &sensor, JITTER_EPSILON_SHARE * epsilon)
-                .expect("identified");
-            let timed: Vec<DoubletResidual> = steps
-                .iter()
-                .map(|r| r.with_jitter(jitter.upper()))
-                .collect();
-            let region = (1.0 - JITTER_EPSILON_SHARE) * epsilon;
+            let (_, timed, region) = timed_region(&steps, &sensor, epsilon);
             let (Ok(without), Ok(with)) = (
                 estimate_motion_noise_split(&steps, &sensor, region),
                 estimate_motion_noise_split(&timed, &sensor, region),
@@ -330,13 +341,7 @@ mod tests {
         let (mut missed, mut missed_upper, mut sized) = (0, 0, 0);
         for seed in 0..blocks {
             let steps = jittered_steps(1_000, 1e-3, 0.0, slip, 0.0, 7_100 + seed);
-            let jitter = estimate_jitter(&steps, &sensor, JITTER_EPSILON_SHARE * epsilon)
-                .expect("identified");
-            let timed: Vec<DoubletResidual> = steps
-                .iter()
-                .map(|r| r.with_jitter(jitter.upper()))
-                .collect();
-            let region = (1.0 - JITTER_EPSILON_SHARE) * epsilon;
+            let (jitter, timed, region) = timed_region(&steps, &sensor, epsilon);
             let at = |lower: f64| {
                 let variances = JitterVariances {
                     point: jitter.point.max(0.0),
@@ -365,7 +370,10 @@ mod tests {
              upper end alone in {missed_upper}, of {sized} sized blocks ({blocks} drawn)"
         );
         // The region's class tests at ε = 0.05 refuse some blocks by chance (5 of these 30).
-        assert!(2 * sized >= blocks, "only {sized} of {blocks} blocks sized slip");
+        assert!(
+            2 * sized >= blocks,
+            "only {sized} of {blocks} blocks sized slip"
+        );
         assert!(missed <= 3, "missed {missed} of {sized}");
     }
 }
