@@ -597,12 +597,16 @@ fn region_estimate(
                     correlation_point(residuals, split, sensor, epsilon / 2.0, SlipShare::NONE).ok()
                 }
             };
-            let shows_slip = |rs: &[DoubletResidual]| {
-                point
-                    .and_then(|rho| estimate_slip(rs, sensor, rho, epsilon))
-                    .is_some_and(|s| s.measured())
+            let fit_at = |rs: &[DoubletResidual]| {
+                point.and_then(|rho| estimate_slip(rs, sensor, rho, epsilon))
             };
-            if shows_slip(residuals) || lowered_residuals.as_deref().is_some_and(shows_slip) {
+            let shows_slip = |fit: Option<SlipEstimate>| fit.is_some_and(|s| s.measured());
+            let slip_fit = fit_at(residuals);
+            if shows_slip(slip_fit)
+                || lowered_residuals
+                    .as_deref()
+                    .is_some_and(|low| shows_slip(fit_at(low)))
+            {
                 return region_estimate(
                     residuals,
                     split,
@@ -612,7 +616,7 @@ fn region_estimate(
                     jitter,
                 );
             }
-            (measured, None)
+            (measured, slip_fit)
         }
         Some(level) => {
             let (correlation, mut slip_fit) =
