@@ -515,6 +515,16 @@ pub fn correlation_untested(
     }
 }
 
+/// Every two consecutive one-step residuals (indices one apart) joined into a two-step
+/// residual (`DoubletResidual::joined`): the joined steps' statistic reads these.
+fn joined_steps(steps: &[DoubletResidual]) -> Vec<DoubletResidual> {
+    steps
+        .windows(2)
+        .filter(|w| w[1].doublet == w[0].doublet + 1)
+        .map(|w| w[0].joined(&w[1]))
+        .collect()
+}
+
 /// The two statistics of one-step residuals `steps` (`statistic(residuals, stride)`: their
 /// lag-one ratio at stride 1, the joined steps' at stride 2) and their intersection
 /// ([`estimate_correlation_split`]).
@@ -530,12 +540,7 @@ fn both_statistics(
         other => other,
     };
     let lag_one = statistic(steps, 1).map_err(per_doublet)?;
-    let joined: Vec<DoubletResidual> = steps
-        .windows(2)
-        .filter(|w| w[1].doublet == w[0].doublet + 1)
-        .map(|w| w[0].joined(&w[1]))
-        .collect();
-    let two_step = statistic(&joined, 2).map_err(per_doublet)?;
+    let two_step = statistic(&joined_steps(steps), 2).map_err(per_doublet)?;
     let interval = [
         lag_one.interval[0].max(two_step.interval[0]),
         lag_one.interval[1].min(two_step.interval[1]),
@@ -598,14 +603,10 @@ pub fn estimate_correlation_split(
         };
         // The same statistic without the jitter's share: the steps (stride 1) or the
         // steps joined in pairs (stride 2).
-        let plain: Vec<DoubletResidual> = if stride == 1 {
+        let plain = if stride == 1 {
             untimed.clone()
         } else {
-            untimed
-                .windows(2)
-                .filter(|w| w[1].doublet == w[0].doublet + 1)
-                .map(|w| w[0].joined(&w[1]))
-                .collect()
+            joined_steps(untimed)
         };
         let other = correlation_over(&plain, sensor, epsilon / 2.0, stride, slip)?;
         Ok(Correlation {
