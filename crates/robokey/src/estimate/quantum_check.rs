@@ -186,8 +186,9 @@ fn check_data(model: &DoubletModel, drive: DiffDrive, sessions: &[&[DoubletSampl
     let weights = lag_weights(model);
     let steps = perturbation.steps() as usize;
     let per_doublet = perturbation.key_bits() * 2 * steps;
-    let mut residuals = Vec::new();
-    let mut terms = Vec::new();
+    let doublets: usize = sessions.iter().map(|session| session.len()).sum();
+    let mut residuals = Vec::with_capacity(doublets);
+    let mut terms = Vec::with_capacity(doublets * per_doublet);
     for samples in sessions.iter().flat_map(|session| session.iter()) {
         let inputs = &samples.inputs;
         let end = model.end_of(inputs, &samples.samples[0], Some(samples.pattern));

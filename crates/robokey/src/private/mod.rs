@@ -164,6 +164,19 @@ pub struct PrivateRun {
 }
 
 impl PrivateRun {
+    /// An empty run whose bits and samples are sized for a session of `steps` steps under
+    /// `plan`, so that they are not copied as they grow: at most `⌊N / L⌋` carrying
+    /// doublets, each with `key_bits` bits.
+    #[must_use]
+    pub fn sized_for(plan: &PrivatePlan, steps: u32) -> Self {
+        let doublets = (steps / plan.steps_per_doublet()) as usize;
+        Self {
+            bits: Vec::with_capacity(doublets * plan.perturbation.key_bits()),
+            controller_samples: Vec::with_capacity(doublets),
+            ..Self::default()
+        }
+    }
+
     /// The key of a private-mode eavesdropper (`camera` for any other strategy); none when
     /// Eve did not listen or, for the `commands` one, was not judged.
     #[must_use]

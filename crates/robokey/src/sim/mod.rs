@@ -146,6 +146,17 @@ pub fn simulate_plan_streaming(
     )
 }
 
+/// Messages of a session's handshake and closing, besides its steps' (measured: 6).
+const FRAMING_MESSAGES: usize = 8;
+
+/// What a session of `steps` steps' transcript is sized for up front, so that it is not
+/// copied as it grows: `2·N + 8` — a command and a measurement per step, and the
+/// handshake's and the closing's messages (a default session: 2,046 messages of 1,020
+/// steps; a longer transcript grows as before).
+fn transcript_capacity(steps: u32) -> usize {
+    2 * steps as usize + FRAMING_MESSAGES
+}
+
 /// [`simulate`] that also returns every message in the order an eavesdropper hears it, so
 /// that several eavesdroppers can be fed the same session.
 ///
@@ -155,8 +166,8 @@ pub fn simulate_transcript(
     config: &Config,
     replicate: u32,
 ) -> Result<(RunOutput, Vec<Message>), SimError> {
-    let mut transcript = Vec::new();
     let plan = SessionPlan::from_config(config, replicate);
+    let mut transcript = Vec::with_capacity(transcript_capacity(plan.agreed.steps));
     let output = run(
         config,
         plan,
@@ -251,11 +262,11 @@ fn run<'a>(
             }),
             transcript,
         },
-        ModePlan::Private(_) => Senses::Private(Box::new(PrivateSenses {
+        ModePlan::Private(private) => Senses::Private(Box::new(PrivateSenses {
             eve: DoubletEavesdropper::new(config, judged),
             decided: VecDeque::new(),
             heard: BTreeMap::new(),
-            run: PrivateRun::default(),
+            run: PrivateRun::sized_for(private, steps),
         })),
     };
     let mut world = World {
