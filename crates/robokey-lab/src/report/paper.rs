@@ -235,7 +235,7 @@ pub(super) fn paper_report(
         .map(|(experiment, secrecy, title)| (experiment, secrecy, *title))
         .collect();
     let private_out = out.join(PRIVATE_SENSING_DIR);
-    let ((sweeps, secrecy), (adversaries, private)) = rayon::join(
+    let ((sweeps, secrecy), ((adversaries, private), worlds)) = rayon::join(
         || {
             rayon::join(
                 || sweep_sections(out, loaded, stages.quick),
@@ -244,20 +244,21 @@ pub(super) fn paper_report(
         },
         || {
             rayon::join(
-                || adversary_section(&out.join(EVE_DIR), &stages.campaign),
-                || private_section(&private_out, &stages.camera, &stages.front),
+                || {
+                    rayon::join(
+                        || adversary_section(&out.join(EVE_DIR), &stages.campaign),
+                        || private_section(&private_out, &stages.camera, &stages.front),
+                    )
+                },
+                || super::paper_sections::world_section(&out.join(WORLDS_DIR), &stages.worlds),
             )
         },
     );
     let (mut md, mut terminal) = (String::new(), String::new());
-    for (section, lines) in [sweeps?, secrecy?, adversaries?, private?] {
+    for (section, lines) in [sweeps?, secrecy?, adversaries?, private?, worlds?] {
         md.push_str(&section);
         terminal.push_str(&lines);
     }
-    let (section, lines) =
-        super::paper_sections::world_section(&out.join(WORLDS_DIR), &stages.worlds)?;
-    md.push_str(&section);
-    terminal.push_str(&lines);
     let path = write(&out.join("report.md"), md)?;
     Ok(Report {
         path,
