@@ -30,9 +30,9 @@
 //!
 //! each divided by its predicted standard deviation (weighted least squares): `√2·v_k,a` for
 //! the square, `√(v_k−1,a·v_k,a)` for the product, `v_k,a` the step's predicted variance
-//! under a first fit weighted per axis by its pooled second moment (at least its sensor part) — so the slow doublets, whose
-//! residuals the slip and jitter leave small, weigh more, as their products and squares vary
-//! less. The sandwich over contiguous batches of pairs (as the slip's, [`super::slip`]) gives
+//! under a first fit weighted per axis by its pooled second moment (at least its sensor
+//! part) — so the slow doublets, whose residuals the slip and jitter leave small, weigh
+//! more, as their products and squares vary less. The sandwich over contiguous batches of pairs (as the slip's, [`super::slip`]) gives
 //! ĵ²'s standard error and `ĵ² ± z(ε/2)·se` covers j² except with probability about ε (a
 //! central-limit statement over the batches; the fit is unbiased under the class whatever
 //! the weights, and the sandwich holds for any weights fixed by the first fit, whose
