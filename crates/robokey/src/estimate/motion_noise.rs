@@ -61,7 +61,7 @@ use super::normal_tail::normal_upper_quantile;
 use super::residual::{AXES, DoubletResidual};
 use super::slip::{SlipEstimate, estimate_slip};
 use super::symmetric_coordinates::{coordinates, symmetric};
-use super::weighted_chi_square::WeightedChiSquare;
+use super::weighted_chi_square::{Cap, DirectionalChiSquare};
 use super::wishart::{net_bounds, wishart_upper_bounds};
 use crate::world::MAX_SLIP_STD;
 
@@ -944,6 +944,10 @@ const FIXED_POINT_ROUNDS: usize = 40;
 /// The fixed point's relative step at which it stops.
 const FIXED_POINT_TOLERANCE: f64 = 1e-6;
 
+/// The slip path's caps of directions: the cube's face squares, this many per side
+/// (`3k²` caps of `sin²θ = 2/k²`, `weighted_chi_square::Cap::of_faces`).
+const SLIP_CAP_CUTS: u32 = 4;
+
 /// `[c₋, c₊]` for one parity half of residuals with slip maps `slip_maps` (`Mᵢ`), mean sensor
 /// part `sensor_mean` (`N̄`) and second moment `moment` (`S_half`), where the block sizes
 /// slip: `c₋ ≤ λ_min(W) ≤ λ_max(W) ≤ c₊` for `W = Σ̄^(−½)·S_half·Σ̄^(−½)`, both failing
@@ -954,26 +958,32 @@ const FIXED_POINT_TOLERANCE: f64 = 1e-6;
 /// Each residual's covariance is `Σᵢ = P + σ²Mᵢ` (`P` the motion and sensor part, taken
 /// common to the half as without slip), so along a standardised direction `v`
 /// (`a = Σ̄^(−½)v`) `m·vᵀWv = Σᵢ wᵢξᵢ²`, ξᵢ independent standard normals, with weights
-/// `wᵢ = aᵀΣᵢa/aᵀΣ̄a = 1 + σ²·aᵀDᵢa/aᵀΣ̄a`, `Dᵢ = Mᵢ − M̄` (mean 1): a weighted χ², bounded
-/// over a box of weights (`weighted_chi_square`), the net (`wishart::net_bounds`) taking each
-/// line's quantile from it. The box holds every direction's weights: `wᵢ − 1` lies between 0
-/// and `σ²_hi·aᵀDᵢa/ℓ(a)` for a floor `ℓ(a) = aᵀLa` with `σ²·ℓ(a) ≤ σ²_hi·aᵀΣ̄a`. Two
-/// floors: `L = N̄ + σ²_hi·M̄` (`Σ̄ ⪰ N̄ + σ²M̄`, the motion's part being a covariance, and
-/// `σ²/(n + σ²μ̄)` rises with σ²), and `L = S_half/c` for a `c` above the truth's `c₊`
-/// (where `λ_max(W) ≤ c₊`, `Σ̄ ⪰ S_half/c₊`). Over every direction `aᵀDᵢa/aᵀLa` lies within
-/// the generalised eigenvalues of `(Dᵢ, L)`, so `wᵢ ∈ [1 + min(0, σ²_hi·λ_min),
-/// 1 + max(0, σ²_hi·λ_max)]` (the floors' tighter ends; at least 0).
+/// `wᵢ = aᵀΣᵢa/aᵀΣ̄a = 1 + σ²·aᵀDᵢa/aᵀΣ̄a`, `Dᵢ = Mᵢ − M̄` (mean 1): a weighted χ² whose
+/// weights all come from one direction. For a floor `L = CCᵀ` with `σ²·aᵀLa ≤ σ²_hi·aᵀΣ̄a`
+/// and `b = Cᵀa/|Cᵀa|`,
 ///
-/// The circle — `c₊` from a box that needs a floor under `Σ̄` — is broken by a fixed point:
-/// let `g(L)` be the bound from the box over every `Σ̄ ⪰ L` (σ² ≤ σ²_hi); `g` falls as `L`
-/// rises (a wider box raises the upper quantile and lowers the lower one, and the nets are
-/// χ²_m's choice, fixed by m and the level). The nets' event at the truth's own `Σ̄` (the
-/// box there, no data in it) has probability at least `1 − level`; on it
-/// `λ_max(W) ≤ g(Σ̄)`, so `Σ̄ ⪰ S_half/g(Σ̄)`, and if `Σ̄ ⪰ S_half/c` then
-/// `g(Σ̄) ≤ g(S_half/c) = c'`, so `Σ̄ ⪰ S_half/c'`. Starting from the sensor's floor alone,
-/// every round's `c` is a bound on that one event — no further share of ε — and the rounds
-/// fall towards the largest fixed point. On the same event `λ_min(W)` lies above the lower
-/// side's bound at the truth's box, hence above it at any wider box: `c₋` at the last round.
+/// ```text
+/// wᵢ = 1 + t·bᵀEᵢb,   Eᵢ = σ²_hi·C⁻¹DᵢC⁻ᵀ,   t = σ²·aᵀLa/(σ²_hi·aᵀΣ̄a) ∈ [0, 1],
+/// ```
+///
+/// one `b` and one `t` for every term (`ΣEᵢ = 0`): `DirectionalChiSquare` bounds the tails
+/// over every `t` and every `b` in a cap (`weighted_chi_square`), and each net line's
+/// quantile (`wishart::net_bounds`) is at most the most extreme over the `3k²` caps of the
+/// cube's face squares (`SLIP_CAP_CUTS`), which hold every line. Two floors, each a bound of
+/// its own (the least upper and the greatest lower quantile of the two taken): `L = N̄ +
+/// σ²_hi·M̄` (`Σ̄ ⪰ N̄ + σ²M̄`, the motion's part being a covariance, and `σ²/(n + σ²μ̄)`
+/// rises with σ²), and `L = S_half/c` for a `c` above the truth's `c₊` (where
+/// `λ_max(W) ≤ c₊`, `Σ̄ ⪰ S_half/c₊`).
+///
+/// The circle — `c₊` from weights that need a floor under `Σ̄` — is broken by a fixed point
+/// on one event: `E`, every line of the nets within its exact quantiles at the truth's own
+/// weights (the nets χ²_m's choice, fixed by m and the level; no data in it), of probability
+/// at least `1 − level`. For any valid floor `L` the truth's weights are among those the caps
+/// and t allow, so the computed quantiles lie outside the exact ones and, on `E`,
+/// `λ_min(W) ≥ c₋(L)` and `λ_max(W) ≤ c₊(L)` (`covered` rises with the upper quantile and
+/// falls with the lower). The sensor's floor is valid without data; on `E` each round's
+/// `c₊` makes `Σ̄ ⪰ S_half/c₊` valid for the next, so every round's `[c₋, c₊]` is a bound on
+/// that one event — no further share of ε — and the last is kept.
 fn slip_wishart_bounds(
     slip_maps: &[Matrix3<f64>],
     sensor_mean: &Matrix3<f64>,
@@ -989,29 +999,31 @@ fn slip_wishart_bounds(
         .iter()
         .map(|map| slip_high * (map - mean_slip))
         .collect();
+    let caps = Cap::of_faces(SLIP_CAP_CUTS);
     let bounds_over = |floors: &[Matrix3<f64>]| -> [f64; 2] {
-        let whiteners: Vec<Matrix3<f64>> = floors
+        let families: Vec<DirectionalChiSquare> = floors
             .iter()
             .filter_map(|l| l.cholesky().and_then(|c| c.l().try_inverse()))
-            .collect();
-        let boxes: Vec<[f64; 2]> = spreads
-            .iter()
-            .map(|d| {
-                let (mut most, mut least) = (f64::INFINITY, f64::NEG_INFINITY);
-                for w in &whiteners {
-                    let e = SymmetricEigen::new(w * d * w.transpose()).eigenvalues;
-                    most = most.min(e.max());
-                    least = least.max(e.min());
-                }
-                [(1.0 + least.min(0.0)).max(0.0), 1.0 + most.max(0.0)]
+            .map(|w| {
+                let whitened = spreads.iter().map(|d| w * d * w.transpose()).collect();
+                DirectionalChiSquare::new(whitened, dependence)
             })
             .collect();
-        let tails = WeightedChiSquare::new(&boxes, dependence);
         net_bounds(
             m,
             level,
-            |ln_p| tails.upper_quantile(ln_p),
-            |ln_p| tails.lower_quantile(ln_p),
+            |ln_p| {
+                families
+                    .iter()
+                    .map(|f| f.upper_quantile(&caps, ln_p))
+                    .fold(f64::INFINITY, f64::min)
+            },
+            |ln_p| {
+                families
+                    .iter()
+                    .map(|f| f.lower_quantile(&caps, ln_p))
+                    .fold(f64::NEG_INFINITY, f64::max)
+            },
         )
     };
     let mut bounds = bounds_over(&[sensor_floor]);
@@ -1590,6 +1602,61 @@ pub(super) mod tests {
             (new[0] + new[1]) as f64 <= limit(epsilon),
             "weighted: {new:?}"
         );
+    }
+
+    /// The bound holds with the fixed point on each draw's own data: 100 residuals whose slip
+    /// parts turn with their heading and couple it with the heading's noise, as a turning
+    /// doublet's do (`Mᵢ = 0.1s²·(uᵢuᵢᵀ + ½vᵢvᵢᵀ)`, `uᵢ = (cos θ, sin θ, 0.8·sin 3θ)`, `vᵢ ⊥` in
+    /// the plane, θ spread by the golden angle, s from 0.4 to 1.6), over a sensor part of
+    /// 0.05·I and a motion part of 0.3·I that the bound is not told (so that its floor
+    /// `S_half/c`, the data's, sets it), σ² = σ²_hi = 1. Over 800 seeded draws, each bounded
+    /// from its own `S_half`, `λ_max(W) > c₊` or `λ_min(W) < c₋` in at most level 0.1's 80
+    /// plus 4 binomial standard deviations (`√(800·0.1·0.9) ≈ 8.5`): 113.
+    #[test]
+    fn the_directional_bound_covers_turning_slip_on_its_own_data() {
+        let (m, epsilon, draws) = (100, 0.1, 800);
+        let maps: Vec<Matrix3<f64>> = (0..m)
+            .map(|i| {
+                let theta = 2.399_963 * i as f64;
+                let s = 0.4 + 1.2 * (i % 7) as f64 / 6.0;
+                let (sin, cos) = theta.sin_cos();
+                let u = nalgebra::Vector3::new(cos, sin, 0.8 * (3.0 * theta).sin());
+                let v = nalgebra::Vector3::new(-sin, cos, 0.0);
+                0.1 * s * s * (u * u.transpose() + 0.5 * v * v.transpose())
+            })
+            .collect();
+        let sensor = Matrix3::identity() * 0.05;
+        let motion = Matrix3::identity() * 0.3;
+        let covariances: Vec<Matrix3<f64>> = maps.iter().map(|map| sensor + motion + map).collect();
+        let mean = covariances.iter().sum::<Matrix3<f64>>() / m as f64;
+        let whiten = mean.cholesky().unwrap().l().try_inverse().unwrap();
+        let factors: Vec<Matrix3<f64>> = covariances
+            .iter()
+            .map(|c| c.cholesky().unwrap().l())
+            .collect();
+        let mut rng = stream(78, Purpose::Process, 0);
+        let mut normal =
+            || <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
+        let (mut misses, mut widest) = (0, [f64::INFINITY, 0.0f64]);
+        for _ in 0..draws {
+            let mut s = Matrix3::zeros();
+            for l in &factors {
+                let z = l * nalgebra::Vector3::new(normal(), normal(), normal());
+                s += z * z.transpose();
+            }
+            let s = s / m as f64;
+            let e = SymmetricEigen::new(whiten * s * whiten.transpose()).eigenvalues;
+            let [least, most] = slip_wishart_bounds(&maps, &sensor, &s, 1.0, 1.0, epsilon);
+            misses += usize::from(e.max() > most || e.min() < least);
+            widest = [widest[0].min(least), widest[1].max(most)];
+        }
+        let at_truth = slip_wishart_bounds(&maps, &sensor, &mean, 1.0, 1.0, epsilon);
+        eprintln!(
+            "{misses} misses of {draws}; [c₋, c₊] at the mean {at_truth:.4?}, over the draws \
+             within {widest:.4?}"
+        );
+        let expected = f64::from(draws) * epsilon;
+        assert!(misses as f64 <= expected + 4.0 * (expected * (1.0 - epsilon)).sqrt());
     }
 
     /// The weighted bound contains the χ² net bound at equal covariances (`Mᵢ` all alike: a

@@ -1,6 +1,7 @@
 //! Tails of a weighted χ², `X = Σᵢ wᵢξᵢ²` (ξᵢ independent standard normals, `Σᵢ wᵢ = m`),
-//! bounded at once for every weight vector in a box `wᵢ ∈ [lᵢ, hᵢ]` (docs/estimation.md,
-//! "Per-wheel slip": the Wishart bound where slip makes the residuals' covariances unequal).
+//! bounded at once for every weight vector `wᵢ = 1 + t·bᵀEᵢb` of a direction `b` in a cap
+//! (docs/estimation.md, "Per-wheel slip": the Wishart bound where slip makes the residuals'
+//! covariances unequal).
 //!
 //! **Tilting.** For `0 < λ < 1/(2·max wᵢ)`, `E[e^(λX)] = Πᵢ(1 − 2λwᵢ)^(−½)`, and under the
 //! law tilted by `e^(λX)` the terms are again independent, `wᵢξᵢ²` with
@@ -20,17 +21,26 @@
 //! `y/(σ√(2π)) + 2C₀β/σ³`; hence `J ≤ 1/(λσ√(2π)) + 2C₀β/σ³`, for every λ and q (no saddle
 //! point needed). Over the weights: under `e^(λX)` the scale `w/(1 − 2λw)` is convex and
 //! rising, so by Jensen `Σw̃ᵢ² ≥ m/(1 − 2λ)²`; under `e^(−λX)`, `w̃ᵢ ≥ wᵢ/(1 + 2λh)` and
-//! `Σwᵢ² ≥ m` give `Σw̃ᵢ² ≥ m/(1 + 2λh)²` (h = max hᵢ); with `Σw̃³ ≤ max w̃·Σw̃²`,
+//! `Σwᵢ² ≥ m` give `Σw̃ᵢ² ≥ m/(1 + 2λh)²` (h at least every weight); with `Σw̃³ ≤ max w̃·Σw̃²`,
 //! `β/σ³ ≤ κ·max w̃/(2^(3/2)·(Σw̃²)^(½))`. A probability `e^(ln_p)` is reached at
 //! `q₊ = m + (Σφ_λ + ln J₊ − ln p)/λ` and `q₋ = m − (Σψ_λ + ln J₋ − ln p)/λ`, each λ giving a
-//! valid quantile (the best of a fixed geometric grid of λ is taken).
+//! valid quantile (the best found on a fixed geometric grid of λ, descending from χ²_m's
+//! best point: any λ is a bound, so the search sets only how tight).
 //!
-//! **Over the box.** φ_λ and ψ_λ are convex, so on `[lᵢ, hᵢ]` each lies below its chord:
-//! `φ(wᵢ) ≤ φ(lᵢ) + sᵢ(wᵢ − lᵢ)`, `sᵢ` the chord's slope. With `Σwᵢ = m` fixed,
-//! `Σᵢ sᵢ(wᵢ − lᵢ)` over the box is a fractional knapsack — the budget `m − Σlᵢ` filled with
-//! the capacities `hᵢ − lᵢ` in order of falling slope — whose optimum bounds every weight
-//! vector of the box (the chord is exact at the box's ends, so at equal weights, a box of
-//! width 0, this is χ²_m's own exponent).
+//! **Over a cap of directions.** The weights are `wᵢ = 1 + t·eᵢ(b)`, `eᵢ(b) = bᵀEᵢb` for a
+//! unit direction `b` in a cap (every line within θ of a centre `c`, θ ≤ π/4) and one
+//! `t ∈ [0, 1]` common to all terms, with `ΣᵢEᵢ = 0` (so `Σwᵢ = m`) and `wᵢ ≥ 0`. Let `g` be φ_λ
+//! (ψ_λ) at `max(w, 0)`: convex, `g'(1)` common to all terms, and equal to φ_λ (ψ_λ) at every
+//! weight allowed. Along t, `Σg(1 + t·eᵢ)` is convex with slope `g'(1)·Σeᵢ = 0` at 0, so
+//! its largest value on `[0, 1]` is at t = 1. Within the cap, writing `b = cos α·c + sin α·u`
+//! (`u ⊥ c`, α ≤ θ), `eᵢ(b) = eᵢ(c) + sin²α·(uᵀEᵢu − eᵢ(c)) + sin 2α·cᵀEᵢu`, so `eᵢ` lies in
+//! `[αᵢ, βᵢ]`: `eᵢ(c) ± sin 2θ·|Eᵢc − eᵢ(c)c|` moved by `sin²θ` towards `Eᵢ`'s least
+//! (greatest) eigenvalue, within those eigenvalues (the whole sphere: the eigenvalues
+//! themselves). On it `g` lies below its chord, `g(1 + eᵢ) ≤ g(1 + αᵢ) + sᵢ·(eᵢ − αᵢ)`, and
+//! the chords' sum is `K + bᵀAb`, `K = Σ(g(1 + αᵢ) − sᵢαᵢ)`, `A = ΣsᵢEᵢ`, whose largest value
+//! over the cap is bounded as `eᵢ`'s (`λ_max(A)` at most): a bound for every weight vector the
+//! cap and t allow, the terms tied by their one direction (at equal weights, `Eᵢ = 0`, χ²_m's
+//! own exponent). The weights are at most `1 + max(0, βᵢ)` (the Berry–Esseen terms' `h`).
 //!
 //! **Dependence.** Where neighbouring terms are dependent (AR(1) motion noise within a
 //! parity half) the terms are taken as `m/F` independent ones of `F` times the weight — the
@@ -38,18 +48,19 @@
 //! becomes `Σφ_λ(F·wᵢ)/F`, and the tilted moments `σ² = 2F·Σw̃ᵢ²`, `β = κF²·Σw̃ᵢ³` (with
 //! `w̃ᵢ = wᵢ/(1 ∓ 2λFwᵢ)`): the same at F = 1; a stated approximation, as there.
 
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+
 /// λ's grids: from the largest value down by factors `2^(1/12)`, this many points (a factor
 /// `2^20` in all; near the optimum the exponent is flat, and the step costs at most 0.2 % of
-/// `q − m` in the tests, 0.04 % where the tail is near-Gaussian). The grids are fixed (in
-/// units of `1/F`), so a wider box never gives a smaller quantile: the upper one
-/// only drops the points where `2λF·max hᵢ ≥ 1`.
+/// `q − m` in the tests, 0.04 % where the tail is near-Gaussian). The upper one drops the
+/// points where `2λF·max hᵢ ≥ 1`.
 const LAMBDA_POINTS: usize = 240;
 
 /// The lower tail's largest λ (in units of `1/F`): `2^(LOWER_TOP/12)`.
 const LOWER_TOP: i32 = 72;
 
 /// The upper tail's largest λ (in units of `1/F`): `2^(UPPER_TOP/12) = ½·2^(−1/12)`, just
-/// below `1/(2F)`, beyond which no box is feasible (`λ < 1/(2F·max hᵢ)`, `max hᵢ ≥ 1`).
+/// below `1/(2F)`, beyond which no weights are feasible (`λ < 1/(2F·max hᵢ)`, `max hᵢ ≥ 1`).
 const UPPER_TOP: i32 = -13;
 
 /// Shevtsova's Berry–Esseen constant for sums of independent, not identically distributed
@@ -61,41 +72,85 @@ const BERRY_ESSEEN: f64 = 0.5600;
 /// `I₀ = erf(1/√2)`, `Iₖ = (k − 1)·Iₖ₋₂ − 2φ(1)`): 8.691563….
 const THIRD_ABSOLUTE_MOMENT: f64 = 8.6916;
 
-/// A box of weights and the tails' exponents over it on a grid of λ.
-#[derive(Clone, Debug)]
-pub(super) struct WeightedChiSquare {
-    /// `m = Σwᵢ`.
-    count: f64,
-    /// `(λ, max over the weights of Σφ_λ(wᵢ) + ln J₊)` for the upper tail.
-    upper: Vec<[f64; 2]>,
-    /// `(λ, max over the weights of Σψ_λ(wᵢ) + ln J₋)` for the lower tail.
-    lower: Vec<[f64; 2]>,
+/// A cap of lines: those within θ of the unit `centre`, `sin²θ = sin_sq` (θ ≤ π/4, or
+/// `sin_sq ≥ ½` for every line).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Cap {
+    /// `c`, a unit vector.
+    pub(super) centre: Vector3<f64>,
+    /// `sin²θ`.
+    pub(super) sin_sq: f64,
 }
 
-/// `max Σᵢ g(wᵢ)` over `wᵢ ∈ [lᵢ, hᵢ]`, `Σwᵢ = Σᵢ 1`, bounded by the chords (module doc):
-/// `g` convex, `boxes` each `[lᵢ, hᵢ]` with `lᵢ ≤ 1 ≤ hᵢ`.
-fn chord_maximum(boxes: &[[f64; 2]], g: impl Fn(f64) -> f64) -> f64 {
-    let mut base = 0.0;
-    let mut budget = boxes.len() as f64;
-    let mut chords = Vec::with_capacity(boxes.len());
-    for &[l, h] in boxes {
-        let at_low = g(l);
-        base += at_low;
-        budget -= l;
-        if h > l {
-            chords.push([(g(h) - at_low) / (h - l), h - l]);
+impl Cap {
+    /// The `3k²` caps of the cube's face squares (`k ≥ 2` per side): a line meets a face
+    /// `|x_a| = 1` in a square of side `2/k` and lies within `sin θ ≤ √2/k` of its centre
+    /// (`wishart`'s nets), so they cover every line.
+    pub(super) fn of_faces(k: u32) -> Vec<Self> {
+        let side = 2.0 / f64::from(k);
+        let at = |i: u32| -1.0 + side * (f64::from(i) + 0.5);
+        (0..3)
+            .flat_map(|axis| {
+                (0..k).flat_map(move |i| {
+                    (0..k).map(move |j| {
+                        let mut centre = Vector3::zeros();
+                        centre[axis] = 1.0;
+                        centre[(axis + 1) % 3] = at(i);
+                        centre[(axis + 2) % 3] = at(j);
+                        Self {
+                            centre: centre.normalize(),
+                            sin_sq: side * side / 2.0,
+                        }
+                    })
+                })
+            })
+            .collect()
+    }
+
+    /// `[least, greatest]` of `bᵀEb` over the cap's lines, for `E` with extreme eigenvalues
+    /// `[μ₁, μ₃]` (module doc): `e(c) ∓ sin²θ·(e(c) − μ₁ | μ₃ − e(c)) ∓ sin 2θ·|Ec − e(c)c|`.
+    fn range(&self, e: &Matrix3<f64>, [least, greatest]: [f64; 2]) -> [f64; 2] {
+        if self.sin_sq >= 0.5 {
+            return [least, greatest];
+        }
+        let image = e * self.centre;
+        let at = self.centre.dot(&image);
+        let across = (image - at * self.centre).norm();
+        let sin_double = 2.0 * (self.sin_sq * (1.0 - self.sin_sq)).sqrt();
+        [
+            (at - self.sin_sq * (at - least) - sin_double * across).max(least),
+            (at + self.sin_sq * (greatest - at) + sin_double * across).min(greatest),
+        ]
+    }
+}
+
+/// The weights `wᵢ = 1 + t·bᵀEᵢb` (`ΣEᵢ = 0`, t ∈ [0, 1], `b` a unit direction) and their
+/// tails' quantiles over a cap of directions (module doc).
+#[derive(Clone, Debug)]
+pub(super) struct DirectionalChiSquare {
+    /// `Eᵢ`.
+    spreads: Vec<Matrix3<f64>>,
+    /// Each `Eᵢ`'s least and greatest eigenvalue.
+    extremes: Vec<[f64; 2]>,
+    /// `F ≥ 1` (module doc).
+    dependence: f64,
+}
+
+/// The tail: its grid of λ and its exponent's sign.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Tail {
+    Upper,
+    Lower,
+}
+
+impl Tail {
+    /// +1 for the upper tail, −1 for the lower.
+    fn sign(self) -> f64 {
+        match self {
+            Self::Upper => 1.0,
+            Self::Lower => -1.0,
         }
     }
-    chords.sort_unstable_by(|a, b| b[0].total_cmp(&a[0]));
-    for [slope, capacity] in chords {
-        if budget <= 0.0 {
-            break;
-        }
-        let take = capacity.min(budget);
-        base += slope * take;
-        budget -= take;
-    }
-    base
 }
 
 /// `ln J` (module doc): `ln min(1, 1/(λσ√(2π)) + 2C₀·ratio)`, for tilted standard deviation
@@ -105,69 +160,156 @@ fn ln_berry_esseen_factor(lambda: f64, sigma: f64, ratio: f64) -> f64 {
     (density + 2.0 * BERRY_ESSEEN * ratio).min(1.0).ln()
 }
 
-impl WeightedChiSquare {
-    /// The tails' exponents over the box `boxes` (each `[lᵢ, hᵢ]`, `0 ≤ lᵢ ≤ 1 ≤ hᵢ`, the
-    /// weights' mean 1) for terms of effective dependence `dependence` (F ≥ 1, module doc).
-    /// An infinite `hᵢ` leaves the upper tail unbounded.
-    pub(super) fn new(boxes: &[[f64; 2]], dependence: f64) -> Self {
-        let f = dependence;
-        let count = boxes.len() as f64;
-        let widest = boxes.iter().map(|b| b[1]).fold(1.0, f64::max);
-        // `κ·√F/(2^(3/2)·√m)`: `β/σ³` per unit of `max w̃/√(Σw̃²/m)` (module doc).
-        let skew = THIRD_ABSOLUTE_MOMENT * f.sqrt() / (8f64.sqrt() * count.sqrt());
-        let upper = (0..LAMBDA_POINTS)
-            .map(|j| 2f64.powf(f64::from(UPPER_TOP - j as i32) / 12.0) / f)
-            .filter(|lambda| 2.0 * lambda * f * widest < 1.0)
-            .map(|lambda| {
-                let phi = |w: f64| (-0.5 * (-2.0 * lambda * f * w).ln_1p() - lambda * f * w) / f;
-                let exponent = chord_maximum(boxes, phi);
-                let at_mean = 1.0 - 2.0 * lambda * f;
-                let sigma = (2.0 * f * count).sqrt() / at_mean;
-                let ratio = skew * widest / (1.0 - 2.0 * lambda * f * widest) * at_mean;
-                [
-                    lambda,
-                    exponent + ln_berry_esseen_factor(lambda, sigma, ratio),
-                ]
-            })
-            .collect();
-        let lower = (0..LAMBDA_POINTS)
-            .map(|j| {
-                let lambda = 2f64.powf(f64::from(LOWER_TOP - j as i32) / 12.0) / f;
-                let psi = |w: f64| (-0.5 * (2.0 * lambda * f * w).ln_1p() + lambda * f * w) / f;
-                let exponent = chord_maximum(boxes, psi);
-                // An infinite `widest` bounds neither σ below nor β/σ³ above: Chernoff's J ≤ 1.
-                let ln_factor = if widest.is_finite() {
-                    let at_widest = 1.0 + 2.0 * lambda * f * widest;
-                    let sigma = (2.0 * f * count).sqrt() / at_widest;
-                    ln_berry_esseen_factor(lambda, sigma, skew * widest)
-                } else {
-                    0.0
-                };
-                [lambda, exponent + ln_factor]
+/// A grid point (within `0..LAMBDA_POINTS`) where `value` is locally least: from `start`
+/// (first up the grid while `value` is infinite, towards the upper tail's smaller λ), then
+/// walking each way while a neighbour is smaller: `(value, index)`.
+fn descend(start: usize, value: impl Fn(usize) -> f64) -> (f64, usize) {
+    let mut best = (value(start), start);
+    while best.0.is_infinite() && best.1 + 1 < LAMBDA_POINTS {
+        best = (value(best.1 + 1), best.1 + 1);
+    }
+    for step in [1isize, -1] {
+        while let Some(next) = best
+            .1
+            .checked_add_signed(step)
+            .filter(|&j| j < LAMBDA_POINTS)
+        {
+            let v = value(next);
+            if v >= best.0 {
+                break;
+            }
+            best = (v, next);
+        }
+    }
+    best
+}
+
+impl DirectionalChiSquare {
+    /// The weights of spreads `spreads` (`Eᵢ`, summing to 0) for terms of effective
+    /// dependence `dependence` (F ≥ 1, module doc).
+    pub(super) fn new(spreads: Vec<Matrix3<f64>>, dependence: f64) -> Self {
+        let extremes = spreads
+            .iter()
+            .map(|e| {
+                let values = SymmetricEigen::new(*e).eigenvalues;
+                [values.min(), values.max()]
             })
             .collect();
         Self {
-            count,
-            upper,
-            lower,
+            spreads,
+            extremes,
+            dependence,
         }
     }
 
-    /// A `q` with `P[X ≥ q] ≤ e^ln_p` for every weight vector allowed (∞ where none).
-    pub(super) fn upper_quantile(&self, ln_p: f64) -> f64 {
-        self.upper
-            .iter()
-            .map(|[lambda, exponent]| self.count + (exponent - ln_p) / lambda)
-            .fold(f64::INFINITY, f64::min)
+    /// λ at grid point `j` of `tail`.
+    fn lambda(&self, tail: Tail, j: usize) -> f64 {
+        let top = match tail {
+            Tail::Upper => UPPER_TOP,
+            Tail::Lower => LOWER_TOP,
+        };
+        2f64.powf(f64::from(top - j as i32) / 12.0) / self.dependence
     }
 
-    /// A `q` with `P[X ≤ q] ≤ e^ln_p` for every weight vector allowed (may be ≤ 0: no
-    /// lower side).
-    pub(super) fn lower_quantile(&self, ln_p: f64) -> f64 {
-        self.lower
-            .iter()
-            .map(|[lambda, exponent]| self.count - (exponent - ln_p) / lambda)
-            .fold(f64::NEG_INFINITY, f64::max)
+    /// `g` (module doc) of `tail` at λ, scaled for dependence `F`: `(−½ln(1 ∓ 2λFw⁺) ∓ λFw⁺)/F`.
+    fn exponent_term(&self, tail: Tail, lambda: f64) -> impl Fn(f64) -> f64 {
+        let (f, sign) = (self.dependence, tail.sign());
+        move |w: f64| {
+            let x = lambda * f * w.max(0.0);
+            (-0.5 * (-2.0 * sign * x).ln_1p() - sign * x) / f
+        }
+    }
+
+    /// `m ± (exponent + ln J − ln p)/λ` for `tail` at grid point `j`, weights at most
+    /// `widest` (module doc); ∞ (−∞ for the lower tail) where λ is too large for them.
+    fn quantile_of(&self, tail: Tail, j: usize, exponent: f64, widest: f64, ln_p: f64) -> f64 {
+        let f = self.dependence;
+        let count = self.spreads.len() as f64;
+        let lambda = self.lambda(tail, j);
+        // `κ·√F/(2^(3/2)·√m)`: `β/σ³` per unit of `max w̃/√(Σw̃²/m)` (module doc).
+        let skew = THIRD_ABSOLUTE_MOMENT * f.sqrt() / (8f64.sqrt() * count.sqrt());
+        let ln_factor = match tail {
+            Tail::Upper => {
+                if 2.0 * lambda * f * widest >= 1.0 {
+                    return f64::INFINITY;
+                }
+                let at_mean = 1.0 - 2.0 * lambda * f;
+                let sigma = (2.0 * f * count).sqrt() / at_mean;
+                let ratio = skew * widest / (1.0 - 2.0 * lambda * f * widest) * at_mean;
+                ln_berry_esseen_factor(lambda, sigma, ratio)
+            }
+            Tail::Lower => {
+                let sigma = (2.0 * f * count).sqrt() / (1.0 + 2.0 * lambda * f * widest);
+                ln_berry_esseen_factor(lambda, sigma, skew * widest)
+            }
+        };
+        count + tail.sign() * (exponent + ln_factor - ln_p) / lambda
+    }
+
+    /// The quantile of `tail` at `e^ln_p` at grid point `j` over the cap `cap`, whose ranges
+    /// of `eᵢ` are `ranges` (each `[αᵢ, βᵢ]`): the exponent `K + max bᵀAb` (module doc).
+    fn quantile_at(&self, tail: Tail, cap: &Cap, ranges: &[[f64; 2]], ln_p: f64, j: usize) -> f64 {
+        let widest = ranges.iter().map(|r| 1.0 + r[1]).fold(1.0, f64::max);
+        if tail == Tail::Upper && 2.0 * self.lambda(tail, j) * self.dependence * widest >= 1.0 {
+            return f64::INFINITY;
+        }
+        let g = self.exponent_term(tail, self.lambda(tail, j));
+        let (mut base, mut a) = (0.0, Matrix3::zeros());
+        for (e, &[low, high]) in self.spreads.iter().zip(ranges) {
+            let at_low = g(1.0 + low);
+            let slope = if high > low {
+                (g(1.0 + high) - at_low) / (high - low)
+            } else {
+                0.0
+            };
+            base += at_low - slope * low;
+            a += slope * e;
+        }
+        let values = SymmetricEigen::new(a).eigenvalues;
+        let exponent = base + cap.range(&a, [values.min(), values.max()])[1];
+        self.quantile_of(tail, j, exponent, widest, ln_p)
+    }
+
+    /// The most extreme over `caps` (covering the lines that count) of `tail`'s quantile at
+    /// `e^ln_p` (upper: the largest; lower: the least), each cap's found by [`descend`] from
+    /// the previous cap's grid point, the first from equal weights' best.
+    fn over(&self, tail: Tail, caps: &[Cap], ln_p: f64) -> f64 {
+        let sign = tail.sign();
+        let count = self.spreads.len() as f64;
+        let mut start = (0..LAMBDA_POINTS)
+            .map(|j| {
+                let exponent = count * self.exponent_term(tail, self.lambda(tail, j))(1.0);
+                (sign * self.quantile_of(tail, j, exponent, 1.0, ln_p), j)
+            })
+            .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a })
+            .1;
+        let mut most = f64::NEG_INFINITY;
+        for cap in caps {
+            let ranges: Vec<[f64; 2]> = self
+                .spreads
+                .iter()
+                .zip(&self.extremes)
+                .map(|(e, &extremes)| cap.range(e, extremes))
+                .collect();
+            let (value, at) = descend(start, |j| {
+                sign * self.quantile_at(tail, cap, &ranges, ln_p, j)
+            });
+            start = at;
+            most = most.max(value);
+        }
+        sign * most
+    }
+
+    /// A `q` with `P[X ≥ q] ≤ e^ln_p` for every direction in `caps` and every t (∞ where
+    /// none).
+    pub(super) fn upper_quantile(&self, caps: &[Cap], ln_p: f64) -> f64 {
+        self.over(Tail::Upper, caps, ln_p)
+    }
+
+    /// A `q` with `P[X ≤ q] ≤ e^ln_p` for every direction in `caps` and every t (may be ≤ 0:
+    /// no lower side).
+    pub(super) fn lower_quantile(&self, caps: &[Cap], ln_p: f64) -> f64 {
+        self.over(Tail::Lower, caps, ln_p)
     }
 }
 
@@ -193,7 +335,13 @@ mod tests {
         m * 0.5 * (a + b)
     }
 
-    /// At equal weights (a box of width 0) the bound is never inside χ²_m's exact
+    /// Every line: one cap of `sin²θ = 1`.
+    const WHOLE: Cap = Cap {
+        centre: Vector3::new(1.0, 0.0, 0.0),
+        sin_sq: 1.0,
+    };
+
+    /// At equal weights (`Eᵢ = 0`) the bound is never inside χ²_m's exact
     /// quantile — from 3 terms, where the Berry–Esseen term is large, to 5,000 — and, from
     /// 40 terms, never outside its Chernoff quantile (beyond λ's grid step, 0.2 % of
     /// `|q − m|`; below 40 the lower tail's optimum λ can lie above the grid, which only
@@ -202,11 +350,14 @@ mod tests {
     #[test]
     fn equal_weights_lie_between_the_exact_and_the_chernoff_quantiles() {
         for m in [3usize, 10, 40, 1_000, 5_000] {
-            let tails = WeightedChiSquare::new(&vec![[1.0, 1.0]; m], 1.0);
+            let tails = DirectionalChiSquare::new(vec![Matrix3::zeros(); m], 1.0);
             let n = m as f64;
             for ln_p in [0.01f64.ln(), 1e-8f64.ln(), 1e-12f64.ln()] {
                 let (exact_up, exact_down) = (upper_quantile(n, ln_p), lower_quantile(n, ln_p));
-                let (up, down) = (tails.upper_quantile(ln_p), tails.lower_quantile(ln_p));
+                let (up, down) = (
+                    tails.upper_quantile(&[WHOLE], ln_p),
+                    tails.lower_quantile(&[WHOLE], ln_p),
+                );
                 let (chernoff_up, chernoff_down) =
                     (chernoff(n, ln_p, true), chernoff(n, ln_p, false));
                 eprintln!(
@@ -247,22 +398,54 @@ mod tests {
         assert!(moment < THIRD_ABSOLUTE_MOMENT && THIRD_ABSOLUTE_MOMENT - moment < 1e-4);
     }
 
-    /// The bound over a box holds for weight vectors in it, where a Gaussian tail does not:
-    /// over 40,000 seeded draws of `Σwᵢξᵢ²` with 200 weights, one in ten at 5.5 and the rest
-    /// at 0.5 (mean 1), the quantiles at p = 10⁻³ of the box `[0.5, 5.5]` are exceeded at
-    /// most 40 + 4·√40 ≈ 65 times on each side, while the normal approximation's upper
-    /// quantile (`m + z·√(2Σwᵢ²)`) is exceeded more often than that — the count catches a
-    /// tail that under-covers; a wider box (`[0, 8]`) gives quantiles further out.
+    /// The bound over the caps holds for the weights of a direction in them, where a
+    /// Gaussian tail does not: 200 terms whose spreads point along a tetrahedron's four
+    /// directions `uₖ` in turn, `Eᵢ = 3·(uₖuₖᵀ − I/3)` (summing to 0), so that along `u₀`
+    /// the weights are 3 for one in four and ⅓ for the rest (mean 1). Over 40,000 seeded
+    /// draws of `Σwᵢξᵢ²` at those weights, the quantiles at p = 10⁻³ over the faces' caps
+    /// (k = 4) are exceeded at most 40 + 4·√40 ≈ 65 times on each side, while the normal
+    /// approximation's upper quantile (`m + z·√(2Σwᵢ²)`) is exceeded more often than that —
+    /// the count catches a tail that under-covers. The whole sphere's bound (each `eᵢ` over
+    /// all its eigenvalues, every term's in another direction) lies further out than the
+    /// caps', and the caps' lies beyond the one direction's own (a cap of θ = 0, where the
+    /// chords are exact).
     #[test]
-    fn the_bound_over_a_box_holds_for_its_members() {
-        let weights: Vec<f64> = (0..200)
-            .map(|i| if i % 10 == 0 { 5.5 } else { 0.5 })
+    fn the_bound_over_caps_holds_for_their_directions() {
+        let directions = [
+            [1.0, 1.0, 1.0],
+            [1.0, -1.0, -1.0],
+            [-1.0, 1.0, -1.0],
+            [-1.0, -1.0, 1.0],
+        ]
+        .map(|u| Vector3::from(u) / 3f64.sqrt());
+        let spreads = (0..200)
+            .map(|i| {
+                let u = directions[i % 4];
+                3.0 * (u * u.transpose()) - Matrix3::identity()
+            })
             .collect();
-        let tight = WeightedChiSquare::new(&vec![[0.5, 5.5]; 200], 1.0);
-        let wide = WeightedChiSquare::new(&vec![[0.0, 8.0]; 200], 1.0);
+        let tails = DirectionalChiSquare::new(spreads, 1.0);
         let ln_p = 1e-3f64.ln();
-        let (up, down) = (tight.upper_quantile(ln_p), tight.lower_quantile(ln_p));
-        assert!(wide.upper_quantile(ln_p) > up && wide.lower_quantile(ln_p) < down);
+        let caps = Cap::of_faces(4);
+        let (up, down) = (
+            tails.upper_quantile(&caps, ln_p),
+            tails.lower_quantile(&caps, ln_p),
+        );
+        let whole = [
+            tails.upper_quantile(&[WHOLE], ln_p),
+            tails.lower_quantile(&[WHOLE], ln_p),
+        ];
+        let along = Cap {
+            centre: directions[0],
+            sin_sq: 0.0,
+        };
+        let own = [
+            tails.upper_quantile(&[along], ln_p),
+            tails.lower_quantile(&[along], ln_p),
+        ];
+        let weights: Vec<f64> = (0..200)
+            .map(|i| if i % 4 == 0 { 3.0 } else { 1.0 / 3.0 })
+            .collect();
         let gaussian = 200.0 + 3.0902 * (2.0 * weights.iter().map(|w| w * w).sum::<f64>()).sqrt();
         let mut rng = stream(33, Purpose::Process, 0);
         let mut normal =
@@ -276,11 +459,14 @@ mod tests {
             beyond_gaussian += u32::from(x > gaussian);
         }
         eprintln!(
-            "[{down:.1}, {up:.1}]: {below} below, {above} above of {draws}; above the \
-             normal approximation's {gaussian:.1}: {beyond_gaussian}"
+            "caps [{down:.1}, {up:.1}], whole sphere {whole:.1?}, the direction's own \
+             {own:.1?}: {below} below, {above} above of {draws}; above the normal \
+             approximation's {gaussian:.1}: {beyond_gaussian}"
         );
         let limit = f64::from(draws) * 1e-3 + 4.0 * (f64::from(draws) * 1e-3).sqrt();
         assert!(f64::from(above) <= limit && f64::from(below) <= limit);
         assert!(f64::from(beyond_gaussian) > limit);
+        assert!(whole[0] > up && whole[1] < down);
+        assert!(own[0] <= up && own[1] >= down);
     }
 }
