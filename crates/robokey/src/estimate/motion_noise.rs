@@ -1545,13 +1545,7 @@ pub(super) mod tests {
     /// ε/2's 200: it under-covers — and the weighted bound's misses stay within it.
     #[test]
     fn unequal_covariances_defeat_the_deflated_count_and_not_the_weighted_bound() {
-        let directions = [
-            [1.0, 1.0, 1.0],
-            [1.0, -1.0, -1.0],
-            [-1.0, 1.0, -1.0],
-            [-1.0, -1.0, 1.0],
-        ]
-        .map(|u| nalgebra::Vector3::from(u) / 3f64.sqrt());
+        let directions = crate::estimate::weighted_chi_square::tests::tetrahedron_directions();
         let (epsilon, draws) = (0.02, 20_000);
         let maps: Vec<Matrix3<f64>> = (0..100)
             .map(|i| directions[i % 4] * directions[i % 4].transpose())

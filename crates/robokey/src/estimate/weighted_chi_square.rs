@@ -314,11 +314,23 @@ impl DirectionalChiSquare {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::super::chi_square::{lower_quantile, upper_quantile};
     use super::*;
     use crate::rng::{Purpose, stream};
     use rand_distr::{Distribution, StandardNormal};
+
+    /// The four unit directions of a regular tetrahedron, `(±1, ±1, ±1)/√3` with an even
+    /// number of minus signs: `Σₖ uₖuₖᵀ = (4/3)·I`.
+    pub(in crate::estimate) fn tetrahedron_directions() -> [Vector3<f64>; 4] {
+        [
+            [1.0, 1.0, 1.0],
+            [1.0, -1.0, -1.0],
+            [-1.0, 1.0, -1.0],
+            [-1.0, -1.0, 1.0],
+        ]
+        .map(|u| Vector3::from(u) / 3f64.sqrt())
+    }
 
     /// χ²_m's Chernoff quantile, `m(x − 1 − ln x)/2 = ln(1/p)`, solved by bisection.
     fn chernoff(m: f64, ln_p: f64, above: bool) -> f64 {
@@ -411,13 +423,7 @@ mod tests {
     /// chords are exact).
     #[test]
     fn the_bound_over_caps_holds_for_their_directions() {
-        let directions = [
-            [1.0, 1.0, 1.0],
-            [1.0, -1.0, -1.0],
-            [-1.0, 1.0, -1.0],
-            [-1.0, -1.0, 1.0],
-        ]
-        .map(|u| Vector3::from(u) / 3f64.sqrt());
+        let directions = tetrahedron_directions();
         let spreads = (0..200)
             .map(|i| {
                 let u = directions[i % 4];
