@@ -696,13 +696,19 @@ fn slip_record(e: &robokey::estimate::BlockEstimate) -> String {
     }
 }
 
-/// A two-step block's sample-timing jitter measured (docs/estimation.md, "Sample-timing
-/// jitter"): its point and interval; nothing for three-step blocks.
+/// A block's sample-timing jitter measured (docs/estimation.md, "Sample-timing jitter"):
+/// its point and interval, and where each end went (a three-step block's Eve's view takes
+/// the controller's samples with the sensor's noise alone, below the lower end).
 fn jitter_record(e: &robokey::estimate::BlockEstimate) -> String {
+    let view = if e.lag.is_some() {
+        "Eve's view with none (below its lower end)"
+    } else {
+        "its lower end in Eve's view"
+    };
     match e.jitter.as_deref() {
         Some(&[point, low, high]) => format!(
             "; the controller's sample-timing jitter ĵ = {:.2} ms [{:.2} ms, {:.2} ms] at \
-             ε_est/10, its upper end under Q, its lower end in Eve's view",
+             ε_est/10, its upper end under Q, {view}",
             1e3 * point,
             1e3 * low,
             1e3 * high

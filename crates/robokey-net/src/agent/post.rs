@@ -352,7 +352,7 @@ impl<E: StoredEndpoint> AgentStore<E> {
                         estimate.lower_std_mm[0],
                         estimate.lower_std_mm[1],
                         estimate.lower_std_mm[2],
-                        lag_and_slip(&estimate),
+                        measured_clauses(&estimate),
                         estimate.largest,
                         estimate.separation
                     ),
@@ -419,9 +419,10 @@ impl<E: StoredEndpoint> AgentStore<E> {
     }
 }
 
-/// The lag and the slip an estimate measured, as clauses of the agent's line: the lag's
-/// interval (three-step doublets), and the slip's with whether the block was sized with it.
-fn lag_and_slip(estimate: &BlockEstimate) -> String {
+/// What an estimate measured beside `Q` and ρ, as clauses of the agent's line: the lag's
+/// interval (three-step doublets), the slip's with whether the block was sized with it, and
+/// the sample-timing jitter's (docs/estimation.md, "Sample-timing jitter").
+fn measured_clauses(estimate: &BlockEstimate) -> String {
     let mut clauses = String::new();
     if let Some([tau, low, high]) = estimate.lag {
         clauses += &format!("; lag τ̂ {tau:.4} s [{low:.4}, {high:.4}]");
@@ -437,6 +438,14 @@ fn lag_and_slip(estimate: &BlockEstimate) -> String {
             100.0 * sigma,
             100.0 * low,
             100.0 * high
+        );
+    }
+    if let Some(&[point, low, high]) = estimate.jitter.as_deref() {
+        clauses += &format!(
+            "; sample-timing jitter ĵ {:.2} ms [{:.2} ms, {:.2} ms]",
+            1e3 * point,
+            1e3 * low,
+            1e3 * high
         );
     }
     clauses
@@ -502,5 +511,32 @@ impl PostReport {
             line += &format!("; {recovered}");
         }
         line
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The agent's line names each estimate measured beside `Q` and ρ with its interval, the
+    /// jitter in milliseconds; nothing for what the block did not measure.
+    #[test]
+    fn the_line_names_the_lag_the_slip_and_the_jitter_measured() {
+        let mut estimate: BlockEstimate = serde_json::from_str(
+            r#"{"doublets": 4000, "point_std_mm": [1.0, 1.0, 1.0],
+                "lower_std_mm": [0.9, 0.9, 0.9], "correlation": 0.0,
+                "correlation_interval": [-0.02, 0.03], "epsilon": 1e-6,
+                "separation": 0.5, "largest": 0.6}"#,
+        )
+        .unwrap();
+        assert_eq!(measured_clauses(&estimate), "");
+        estimate.lag = Some([0.0499, 0.0481, 0.0513]);
+        estimate.slip = Some([0.0, 0.0, 0.012]);
+        estimate.jitter = Some(Box::new([0.00470, 0.0, 0.00693]));
+        assert_eq!(
+            measured_clauses(&estimate),
+            "; lag τ̂ 0.0499 s [0.0481, 0.0513]; per-wheel slip σ̂ 0.00 % [0.00 %, 1.20 %], \
+             not sized: not seen; sample-timing jitter ĵ 4.70 ms [0.00 ms, 6.93 ms]"
+        );
     }
 }

@@ -315,7 +315,10 @@ pub const SLIP_POINTS: usize = 9;
 /// `ρ̂` and its (1 − `epsilon`) interval from `residuals` (each formed with the reconciled
 /// bits) and the sensor's stated covariance `sensor`, the slip's share `slip` of their
 /// variance taken out, and the whiteness test of the AR(1) model's innovations at level
-/// `epsilon`.
+/// `epsilon`. Where the residuals' sensor part holds a timing jitter j²
+/// ([`DoubletResidual::jitter_variance`], the upper end of its interval: a three-step
+/// block's one-step residuals), the interval is the hull of the statistic's at that j² and
+/// at 0 ([`over_the_jitter`]), as [`estimate_correlation_split`]'s is.
 ///
 /// # Errors
 /// [`CorrelationDeparture`] naming what falls outside the class.
@@ -325,7 +328,27 @@ pub fn estimate_correlation(
     epsilon: f64,
     slip: SlipShare,
 ) -> Result<Correlation, CorrelationDeparture> {
-    correlation_over(residuals, sensor, epsilon, 1, slip)
+    let timed = correlation_over(residuals, sensor, epsilon, 1, slip)?;
+    if !residuals.iter().any(|r| r.jitter_variance > 0.0) {
+        return Ok(timed);
+    }
+    let untimed: Vec<DoubletResidual> = residuals.iter().map(|r| r.with_jitter(0.0)).collect();
+    let other = correlation_over(&untimed, sensor, epsilon, 1, slip)?;
+    Ok(over_the_jitter(timed, &other))
+}
+
+/// A statistic's interval over the timing jitter's `[0, j²_hi]`: the hull of its intervals
+/// at the upper end (`timed`, whose point it keeps) and at 0 (`untimed`). The shared
+/// sample's MA(1) term `−C₀(R + j²uuᵀ)C₁'ᵀ` grows with j² and the lag-one ratios with it;
+/// between the two ends not proved.
+fn over_the_jitter(timed: Correlation, untimed: &Correlation) -> Correlation {
+    Correlation {
+        point: timed.point,
+        interval: [
+            timed.interval[0].min(untimed.interval[0]),
+            timed.interval[1].max(untimed.interval[1]),
+        ],
+    }
 }
 
 /// The pooled ratio `r̂` of `terms` (slip taken out) over `batches` batches, and its
@@ -609,13 +632,7 @@ pub fn estimate_correlation_split(
             joined_steps(untimed)
         };
         let other = correlation_over(&plain, sensor, epsilon / 2.0, stride, slip)?;
-        Ok(Correlation {
-            point: timed.point,
-            interval: [
-                timed.interval[0].min(other.interval[0]),
-                timed.interval[1].max(other.interval[1]),
-            ],
-        })
+        Ok(over_the_jitter(timed, &other))
     })
 }
 

@@ -495,6 +495,22 @@ pub fn estimate_motion_noise_timed(
     region_estimate(steps, Some(steps), sensor, epsilon, None, jitter)
 }
 
+/// [`estimate_motion_noise_timed`] for a three-step block's one-step residuals `steps`
+/// ([`DoubletResidual::three_step_split`], the lagged means subtracted), ρ from their
+/// lag-one ratio alone as [`estimate_motion_noise`] takes it, its interval the hull over
+/// the jitter's `[0, j²_hi]` ([`estimate_correlation`]).
+///
+/// # Errors
+/// [`EstimationRefusal`] naming the test and the value when the data fall outside the class.
+pub fn estimate_three_step_motion_noise_timed(
+    steps: &[DoubletResidual],
+    sensor: &Matrix3<f64>,
+    epsilon: f64,
+    jitter: JitterVariances,
+) -> Result<MotionNoiseEstimate, EstimationRefusal> {
+    region_estimate(steps, None, sensor, epsilon, None, jitter)
+}
+
 /// The timing jitter's variances (s², each at least 0) a two-step block's estimate takes
 /// beside the upper end its residuals carry ([`DoubletResidual::jitter_variance`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
