@@ -36,7 +36,9 @@ use robokey_secrecy::view_profile::{equivalent_separation, separation_counts};
 use serde::{Deserialize, Serialize};
 
 use super::correlation::{MIN_PAIRS_PER_BATCH, SlipShare, estimate_correlation};
-use super::jitter::{JITTER_EPSILON_SHARE, JitterEstimate, MAX_JITTER_FRACTION, estimate_jitter};
+use super::jitter::{
+    JITTER_EPSILON_SHARE, JitterEstimate, JitterRows, MAX_JITTER_FRACTION, estimate_jitter,
+};
 use super::lag::{
     MIN_LAG_DOUBLETS, TurnCorrection, TurnCorrections, estimate_lag_jointly, first_step_share,
     first_step_share_slope, first_turn_factor, later_turn_factor,
@@ -250,7 +252,7 @@ pub fn block_separations(
     let model = doublet_model(config);
     let sensor = diagonal_covariance(config.sensing.controller_std);
     let steps = two_step_split_residuals(&model, config.robot.axle_length, sessions);
-    let jitter = match measured_jitter(config, &steps, epsilon) {
+    let jitter = match measured_jitter(config, &steps, epsilon, JitterRows::Both) {
         Ok(jitter) => jitter,
         Err((why, jitter)) => {
             return timed(
@@ -309,14 +311,15 @@ pub fn block_separations(
 /// docs/estimation.md, "Sample-timing jitter"), or the refusal naming it, with the estimate
 /// where there is one: not identified (too few consecutive pairs, or every shared sample at
 /// one rate), or `j_hi` above a tenth of `robot.T` ([`MAX_JITTER_FRACTION`], the world's own
-/// bound: the first-order model `t·u` assumes `t ≪ T`).
+/// bound: the first-order model `t·u` assumes `t ≪ T`); `rows` the observations the fit reads.
 fn measured_jitter(
     config: &Config,
     steps: &[DoubletResidual],
     epsilon: f64,
+    rows: JitterRows,
 ) -> Result<JitterEstimate, (String, Option<JitterEstimate>)> {
     let sensor = diagonal_covariance(config.sensing.controller_std);
-    let Some(jitter) = estimate_jitter(steps, &sensor, epsilon * JITTER_EPSILON_SHARE) else {
+    let Some(jitter) = estimate_jitter(steps, &sensor, epsilon * JITTER_EPSILON_SHARE, rows) else {
         return Err((
             format!(
                 "sample-timing jitter: not identified from {} one-step residuals (allowed: at \
@@ -583,7 +586,7 @@ fn three_step_block(
             epsilon,
         );
     }
-    let jitter = match measured_jitter(config, &residuals, epsilon) {
+    let jitter = match measured_jitter(config, &residuals, epsilon, JitterRows::Products) {
         Ok(jitter) => jitter,
         Err((why, jitter)) => {
             return timed(refused(sessions.len(), why, used, epsilon), jitter.as_ref());
@@ -2152,7 +2155,8 @@ mod tests {
                     ..doublet_model(&config)
                 };
                 let steps = split_residuals(&model, config.robot.axle_length, &views);
-                let estimate = estimate_jitter(&steps, &sensor, level).expect("identified");
+                let estimate = estimate_jitter(&steps, &sensor, level, JitterRows::Products)
+                    .expect("identified");
                 let [low, high] = estimate.interval;
                 misses += usize::from(jitter * jitter < low || jitter * jitter > high);
                 let [_, lo, hi] = estimate.stds();
@@ -2208,7 +2212,7 @@ mod tests {
     }
 
     /// Multilevel symbols under measured slip (two dimensions of 4 levels, 20 % per-wheel slip
-    /// on 1 mm of white motion noise, the first 150 doublets of a seeded session: the sizing's
+    /// on 1 mm of white motion noise, the first 200 doublets of a seeded session: the sizing's
     /// cost grows with the doublets, and 20 % is measured from few), the block is sized with the slip,
     /// and each slice from its own bits' pairs, not refused. The slices' bits partition the
     /// block's (each slice's count the bits at its place of every label); the block's bound is
@@ -2224,7 +2228,7 @@ mod tests {
              [world]\nprocess_std = [0.001, 0.001, 0.001]\nslip_std = 0.2\n",
             0..1,
         );
-        let views: Vec<&[DoubletSamples]> = sessions.iter().map(|s| &s[..150]).collect();
+        let views: Vec<&[DoubletSamples]> = sessions.iter().map(|s| &s[..200]).collect();
         let model = doublet_model(&config);
         let slicing = Slicing::new(
             model.perturbation.key_bits(),

@@ -44,7 +44,7 @@ pub use block::{
 pub use block_llrs::{doublet_llrs, llr_answer, recomputed_llrs, recomputes_llrs};
 pub use correlation::Correlation;
 pub use homogeneity::{ClassDeparture, speed_class_departure};
-pub use jitter::{JitterEstimate, estimate_jitter};
+pub use jitter::{JitterEstimate, JitterRows, estimate_jitter};
 pub use lag::{LagEstimate, estimate_lag};
 pub use motion_noise::{
     Corner, EstimationRefusal, JitterVariances, MotionNoiseEstimate, diagonal_covariance,
