@@ -39,7 +39,9 @@
 //! estimates converge). The rate's own noise (the plant's rate over its last update carries
 //! the step's motion noise) adds `j²·E[νν]` to every square and product alike, which the
 //! intercepts take; so do a misstated `R`'s constant share and ρ's (`Q` in the squares is
-//! the stationary one).
+//! the stationary one). Which rows a block reads, and how two fits' intervals combine, is
+//! [`JitterRows`]'s: a three-step block the products alone, a two-step block both fits
+//! intersected.
 
 use nalgebra::{Matrix3, SMatrix, SVector};
 

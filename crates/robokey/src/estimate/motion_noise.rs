@@ -511,7 +511,7 @@ pub fn estimate_three_step_motion_noise_timed(
     region_estimate(steps, None, sensor, epsilon, None, jitter)
 }
 
-/// The timing jitter's variances (s², each at least 0) a two-step block's estimate takes
+/// The timing jitter's variances (s², each at least 0) a block's estimate takes
 /// beside the upper end its residuals carry ([`DoubletResidual::jitter_variance`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct JitterVariances {
