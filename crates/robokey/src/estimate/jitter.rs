@@ -33,8 +33,9 @@
 //! under a first fit weighted per axis by its pooled second moment (at least its sensor
 //! part) — so the slow doublets, whose residuals the slip and jitter leave small, weigh
 //! more, as their products and squares vary less. The sandwich over contiguous batches of pairs (as the slip's, [`super::slip`]) gives
-//! ĵ²'s standard error and `ĵ² ± z(ε/2)·se` covers j² except with probability about ε (a
-//! central-limit statement over the batches; the fit is unbiased under the class whatever
+//! ĵ²'s standard error and `ĵ² ± t(ε/2)·se` covers j² except with probability about ε (a
+//! central-limit statement over the batches, `t` the studentized quantile with B − 1 degrees
+//! of freedom; the fit is unbiased under the class whatever
 //! the weights, and the sandwich holds for any weights fixed by the first fit, whose
 //! estimates converge). The rate's own noise (the plant's rate over its last update carries
 //! the step's motion noise) adds `j²·E[νν]` to every square and product alike, which the
@@ -46,7 +47,7 @@
 use nalgebra::{Matrix3, SMatrix, SVector};
 
 use super::correlation::{MAX_BATCHES, MIN_PAIRS_PER_BATCH};
-use super::normal_tail::normal_upper_quantile;
+use super::normal_tail::studentized_upper_quantile;
 use super::residual::DoubletResidual;
 
 /// The share of ε_est the jitter's interval takes in a two-step block (the motion noise's
@@ -316,8 +317,8 @@ fn fit_jitter(
         sum + score * score.transpose()
     });
     let covariance = inverse * meat * inverse * batches as f64 / (batches - 1) as f64;
-    let half_width =
-        normal_upper_quantile(epsilon / 2.0) * covariance[(JITTER, JITTER)].max(0.0).sqrt();
+    let half_width = studentized_upper_quantile(epsilon / 2.0, batches - 1)
+        * covariance[(JITTER, JITTER)].max(0.0).sqrt();
     let point = fit[JITTER];
     (point.is_finite() && half_width.is_finite()).then_some(JitterEstimate {
         point,

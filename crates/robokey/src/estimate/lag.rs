@@ -17,7 +17,9 @@
 //! (`σ̂` the deviation of what remains, `zᵢ − ĝ·sᵢ·Δv·T`; the products' covariances vanish
 //! between doublets, `E[sᵢsⱼ] = 0`) covers it with
 //! probability about 1 − ε_est — the normal approximation of the mean, the quantile taken
-//! from the normal tail's bound, wider than the exact one. `g` is monotone, so the interval
+//! from the normal tail's bound, wider than the exact one, or from Student's `t` with
+//! `n − 1` degrees of freedom where that is wider (σ̂ is estimated; below about 130
+//! doublets). `g` is monotone, so the interval
 //! maps to `[τ_lo, τ_hi]` through its inverse. A dead time `D` shortens the first step's
 //! travel as a lag does (`g = 1 − D/T` for a pure delay): the estimate is the lag that
 //! explains the amplitude, not the lag and the dead time apart.
@@ -36,7 +38,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::normal_tail::normal_upper_quantile;
+use super::normal_tail::studentized_upper_quantile;
 use crate::model::unicycle_step;
 use crate::private::DoubletSamples;
 use crate::private::doublet::Perturbation;
@@ -162,7 +164,7 @@ fn lag_of_products(
         .map(|(s, p)| s * s * (p / (s * s) - share).powi(2))
         .sum::<f64>()
         / (count - 1.0);
-    let half_width = normal_upper_quantile(epsilon / 2.0) * (variance / weight).sqrt();
+    let half_width = studentized_upper_quantile(epsilon / 2.0, n - 1) * (variance / weight).sqrt();
     let [low, high] = [share - half_width, share + half_width];
     let floor = first_step_share(MAX_LAG, sample_time);
     if low <= floor {
@@ -302,7 +304,8 @@ const SLOPE_STEP: f64 = 1e-3;
 /// (`E[sᵢsⱼ] = 0`), but a doublet's first-step turn shares its start sample with the end
 /// of the turn its predecessor measured, so consecutive products may correlate, and none
 /// further apart do (a 1-dependent sequence; `γ₁` estimates 0 where nothing is shared). So
-/// `{τ : |t(τ)| ≤ z(ε_est/2)}` covers it with probability about 1 − ε_est. `t` rises with
+/// `{τ : |t(τ)| ≤ z(ε_est/2)}` covers it with probability about 1 − ε_est (`z` the
+/// studentized quantile with `n − 1` degrees of freedom). `t` rises with
 /// τ (`cᵀv = vᵀŜ⁻¹v > 0`): the interval is that set's hull within a bracket — `first`'s
 /// interval, widened until `t` lies below `−z` at its lower end (or τ = 0) and above `z`
 /// at its upper — located on a 17-point grid and bisected at the crossings, each end
@@ -446,7 +449,7 @@ pub fn estimate_lag_jointly(
         let (mean, spread) = moments(&corrected(&residuals(tau), &middle));
         mean / spread.max(0.0).sqrt()
     };
-    let limit = normal_upper_quantile(epsilon / 2.0);
+    let limit = studentized_upper_quantile(epsilon / 2.0, n - 1);
     let [mut low, mut high] = first.interval;
     let mut widen = (high - low).max(SLOPE_STEP);
     while low > 0.0 && highest(low) > -limit {

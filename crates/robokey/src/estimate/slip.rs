@@ -25,15 +25,16 @@
 //! **Interval.** The residuals are cut into contiguous batches (as the correlation's are);
 //! the sandwich `V = H⁻¹(Σ_b g_b g_bᵀ)H⁻¹·B/(B − 1)`, `H = ΣAᵢᵀAᵢ`, `g_b` the batch's sum of
 //! `Aᵢᵀ(yᵢ − Aᵢθ̂)` (the second stage's rows), gives σ̂²'s standard error, and
-//! `σ̂² ± z(ε/2)·√V₇₇` covers σ² except with probability about ε (a central-limit statement
+//! `σ̂² ± t(ε/2)·√V₇₇` covers σ² except with probability about ε (a central-limit statement
 //! over the batches, as ρ's interval; the weights, fitted on the same residuals, enter it
-//! only beyond first order).
+//! only beyond first order; `t` the studentized quantile with B − 1 degrees of freedom, as
+//! the error is itself estimated from the batches).
 //! The slip is **measured** when the interval lies above 0.
 
 use nalgebra::{Matrix3, SMatrix, SVector};
 
 use super::correlation::{MAX_BATCHES, MIN_PAIRS_PER_BATCH};
-use super::normal_tail::normal_upper_quantile;
+use super::normal_tail::studentized_upper_quantile;
 use super::residual::DoubletResidual;
 use super::symmetric_coordinates::{ENTRIES, coordinates, symmetric};
 
@@ -196,7 +197,8 @@ pub fn estimate_slip(
         Some(rows) => least_squares(&rows, batches)?,
         None => (first, first_covariance),
     };
-    let half_width = normal_upper_quantile(epsilon / 2.0) * covariance[(6, 6)].max(0.0).sqrt();
+    let half_width =
+        studentized_upper_quantile(epsilon / 2.0, batches - 1) * covariance[(6, 6)].max(0.0).sqrt();
     let point = fit[6];
     Some(SlipEstimate {
         point,
@@ -215,6 +217,7 @@ fn positive_part(m: &Matrix3<f64>) -> Matrix3<f64> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::normal_tail::normal_upper_quantile;
     use super::*;
     use crate::estimate::diagonal_covariance;
     use crate::estimate::homogeneity::tests::{SENSOR, slipping_residuals};
