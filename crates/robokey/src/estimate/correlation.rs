@@ -861,4 +861,74 @@ pub(super) mod tests {
             );
         }
     }
+    /// Each statistic's interval over the timing jitter's `[0, j²_hi]` against the hull of
+    /// its ends ([`over_the_jitter`]): over 8 seeded blocks of 1,000 two-step doublets per
+    /// world (the one-step residuals, `jitter`'s simulation), `j_hi` the jitter's upper end
+    /// at ε = 0.05, the lag-one ratio (stride 1) and the joined steps' (stride 2) at ε = 0.05,
+    /// each evaluated at 15 interior points of 17 evenly spaced over `[0, j²_hi]`: no end
+    /// steps beyond the hull (the closest approach is printed, negative inside: −7·10⁻⁴,
+    /// −2·10⁻³, … when this was written — the ends move nearly linearly in j², and a grid
+    /// point one sixteenth in sits about that far inside). A check, not a proof: the
+    /// pooled ratio is `P(j²)/D(j²)`, two quadratics (the axis weights `(b_k/c_k)²` hold
+    /// `b_k`, affine in j², while `c_k = b_k + N_k` does not move), and `σ_up` the root of a
+    /// quartic over `D`, neither of which the convexity arguments cover.
+    #[test]
+    fn the_intervals_over_the_jitter_lie_within_the_ends_hull() {
+        use crate::estimate::jitter::tests::jittered_steps;
+        use crate::estimate::jitter::{JitterRows, estimate_jitter};
+        let sensor = diagonal_covariance(crate::estimate::homogeneity::tests::SENSOR);
+        let (blocks, epsilon, points) = (8_u64, 0.05, 17);
+        // Name, √Q per axis, ρ, slip, jitter (s).
+        let worlds: [(&str, f64, f64, f64, f64); 4] = [
+            ("none, 1 mm", 1e-3, 0.0, 0.0, 0.0),
+            ("5 ms, 4 mm", 4e-3, 0.0, 0.0, 5e-3),
+            ("5 ms, ρ 0.5, 4 mm", 4e-3, 0.5, 0.0, 5e-3),
+            ("5 ms, 5 % slip, ρ 0.5, 4 mm", 4e-3, 0.5, 0.05, 5e-3),
+        ];
+        let mut beyond_all = f64::NEG_INFINITY;
+        for (name, q_std, rho, slip, jitter) in worlds {
+            let (mut beyond, mut checked) = (f64::NEG_INFINITY, 0);
+            for seed in 0..blocks {
+                let steps = jittered_steps(1_000, q_std, rho, slip, jitter, 8_300 + seed);
+                let Some(fit) = estimate_jitter(&steps, &sensor, epsilon, JitterRows::Both) else {
+                    continue;
+                };
+                let high = fit.interval[1].max(0.0);
+                for stride in [1, 2] {
+                    let at = |variance: f64| {
+                        let timed: Vec<DoubletResidual> =
+                            steps.iter().map(|r| r.with_jitter(variance)).collect();
+                        let residuals = if stride == 1 {
+                            timed
+                        } else {
+                            joined_steps(&timed)
+                        };
+                        ratio_statistic(&residuals, &sensor, epsilon, stride, SlipShare::NONE)
+                            .ok()
+                            .map(|(c, _)| c.interval)
+                    };
+                    let (Some(low_end), Some(high_end)) = (at(0.0), at(high)) else {
+                        continue;
+                    };
+                    let hull = [low_end[0].min(high_end[0]), low_end[1].max(high_end[1])];
+                    for i in 1..points - 1 {
+                        let variance = high * i as f64 / (points - 1) as f64;
+                        let Some([lo, hi]) = at(variance) else {
+                            continue;
+                        };
+                        beyond = beyond.max(hull[0] - lo).max(hi - hull[1]);
+                        checked += 1;
+                    }
+                }
+            }
+            eprintln!(
+                "{name}: closest approach to the ends' hull {beyond:.3e} over {checked} points"
+            );
+            beyond_all = beyond_all.max(beyond);
+        }
+        assert!(
+            beyond_all <= 0.0,
+            "an interior j² reaches {beyond_all:.3e} beyond the hull"
+        );
+    }
 }
