@@ -421,7 +421,7 @@ fn interval_quantiles(batches: usize, epsilon: f64) -> [f64; 2] {
 }
 
 /// Pieces the timing jitter's `[0, j²_hi]` is cut into for [`ratio_interval_between`].
-pub const JITTER_PIECES: usize = 8;
+const JITTER_PIECES: usize = 8;
 
 /// `[min, max]` bounds of a quadratic over a piece from its values at the piece's start,
 /// middle and end: the range of its Bernstein coefficients `p(s₀)`, `2p(s_m) − (p(s₀) +
