@@ -589,8 +589,10 @@ fn region_estimate(
     }
     // Slip's share is fitted beside the sensor's, which the residuals carry at the jitter's
     // upper end: the fit leaves slip the least there and the most at the lower end, so slip
-    // is detected where either end shows it and σ²'s interval is the hull over both (the
-    // fit's point affine in j², as the sensor's part is).
+    // is detected where either end shows it and σ²'s interval is the hull over both (at
+    // fixed weights and ρ the fit's point is affine in j² and its standard error convex, so
+    // the hull holds between the ends; each end here takes its own weights and ρ̂, which
+    // that argument does not cover: docs/estimation.md, "Sample-timing jitter").
     let carried = residuals.first().map_or(0.0, |r| r.jitter_variance);
     let lowered = |rs: &[DoubletResidual]| -> Vec<DoubletResidual> {
         rs.iter().map(|r| r.with_jitter(jitter.lower)).collect()
