@@ -1002,6 +1002,7 @@ pub(super) mod tests {
             );
         }
     }
+
     /// [`ratio_interval_between`] bounds the ratio's interval at every j² of `[0, j²_hi]`:
     /// over 8 seeded blocks of 1,000 two-step doublets per world (the one-step residuals,
     /// `jitter`'s simulation), `j_hi` the jitter's upper end at ε = 0.05, both statistics

@@ -563,6 +563,7 @@ pub(in crate::estimate) mod tests {
         );
         assert!(missed <= 3, "missed {missed} of {sized}");
     }
+
     /// σ²'s interval under slip at every j² of the jitter's interval against the hull of its
     /// fits at the ends (`estimate_motion_noise_timed`): over 6 seeded blocks of 1,000
     /// doublets per world with 20 % slip (ε = 0.05 as above), the fit at each of 15 interior
