@@ -13,7 +13,7 @@ pub(super) fn normal_upper_quantile(p: f64) -> f64 {
 /// error's variance was itself estimated with `ν = degrees_of_freedom` degrees of freedom
 /// (batches − 1, or samples − 1): `max(z, t_ν(p))`, `z` from [`normal_upper_quantile`].
 ///
-/// A studentised mean of Gaussian terms is Student's `t_ν`, whose tail is heavier than the
+/// A studentized mean of Gaussian terms is Student's `t_ν`, whose tail is heavier than the
 /// normal's: at `p = 5·10⁻⁸` its quantile is 45 at ν = 5, 6.5 at ν = 39 and 5.75 at ν = 99,
 /// against `z`'s 5.68 — a standard error from few batches read through `z` alone gives an
 /// interval too narrow. `t_ν(p)` solves `½·I_x(ν/2, ½) = p`, `x = ν/(ν + t²)`; the bisection's
@@ -71,7 +71,7 @@ mod tests {
 
     /// Where the slip's standard error comes from three batches (75 doublets, ν = 2), its
     /// interval at ε = 0.02 misses σ² on about Binomial(400, 0.02) of 400 seeded blocks at
-    /// 20 % slip — mean 8, above 20 with probability < 10⁻⁴, asserted ≤ 20 — with the
+    /// 20 % slip — mean 8, above 20 with probability 7.6·10⁻⁵, asserted ≤ 20 — with the
     /// studentized quantile (t₂ = 6.96; 9 on these seeds), where the normal bound's 2.80
     /// alone misses 65 (printed, not asserted).
     #[test]
