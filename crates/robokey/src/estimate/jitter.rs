@@ -607,9 +607,10 @@ pub(in crate::estimate) mod tests {
                     let Some([lo, hi]) = slip_at(&carried, variance) else {
                         continue;
                     };
+                    let width = hull[1] - hull[0];
                     beyond = beyond
-                        .max((hull[0] - lo) / hull[0])
-                        .max((hi - hull[1]) / hull[1]);
+                        .max((hull[0] - lo) / width)
+                        .max((hi - hull[1]) / width);
                     checked += 1;
                 }
             }
