@@ -48,8 +48,9 @@
 //! residual's variance and nothing to the lag-one products, so with the slip in `b` the
 //! ratios lean towards 0. Where the block measures slip ([`SlipShare`]) each pair's `b` is
 //! taken with `σ²·M̄` moved to the noise beside it (`N`, in the weights too): `ρ̂` and the
-//! whiteness test at σ̂², the interval the hull of the intervals at [`SLIP_POINTS`] points of
-//! σ²'s interval (`motion_noise` takes the two intervals jointly).
+//! whiteness test at σ̂², the interval a bound on the intervals at every σ² of σ²'s interval
+//! (and every j² of the jitter's, jointly: `b` and `N` are affine in both, `b + N` moves with
+//! neither; [`ratio_interval_over`]). `motion_noise` takes the two intervals jointly.
 //!
 //! **Dependence.** Residuals `d` doublets apart correlate by at most
 //! `r_d = |ρ|^(2d−1)(1 + |ρ|)/2` (`d ≥ 1`) per axis from the motion, plus the sensor's MA(1)
@@ -88,8 +89,14 @@ pub struct Correlation {
 pub enum CorrelationDeparture {
     /// The pooled ratio `r̂ = a/b` below `g(−½) = −⅛`: correlation the class does not cover.
     OutsideClass {
-        /// `ρ̂` if `g` were continued (or the ratio's value).
+        /// The pooled ratio `r̂`.
         ratio: f64,
+    },
+    /// No axis keeps motion variance once the slip's and the timing jitter's shares are taken
+    /// out (at some σ² or j² of their intervals): the ratio has nothing to weigh.
+    NoMotionVariance {
+        /// The motion variance `b_k` left per axis where it was found (m², m², rad²).
+        motion_variance: [f64; 3],
     },
     /// Too few pairs of consecutive doublets for the interval's batches.
     TooFewPairs {
@@ -273,8 +280,8 @@ fn pairs(
 
 /// The per-wheel slip's variance σ² the correlation's statistics take out of the residuals'
 /// motion variance: its point, at which `ρ̂` and the whiteness test are taken, and its
-/// interval, over which `ρ`'s interval is taken (the hull of the intervals at
-/// [`SLIP_POINTS`] evenly spaced points, its ends included).
+/// interval, at every σ² of which `ρ`'s interval bounds the statistic's
+/// ([`ratio_interval_over`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SlipShare {
     /// σ̂² (a fraction of each wheel's travel, squared).
@@ -298,19 +305,7 @@ impl SlipShare {
             interval: [point, point],
         }
     }
-
-    /// The points of the interval the correlation's interval is taken over (one where the
-    /// interval is a point, as without slip).
-    fn grid(&self) -> impl Iterator<Item = f64> + '_ {
-        let [low, high] = self.interval;
-        let points = if low == high { 1 } else { SLIP_POINTS };
-        (0..points).map(move |i| low + (high - low) * i as f64 / (SLIP_POINTS - 1) as f64)
-    }
 }
-
-/// Points of σ²'s interval the correlation's interval is taken at ([`SlipShare`]): between
-/// them its ends are not proved to lie within the hull.
-pub const SLIP_POINTS: usize = 9;
 
 /// `ρ̂` and its (1 − `epsilon`) interval from `residuals` (each formed with the reconciled
 /// bits) and the sensor's stated covariance `sensor`, the slip's share `slip` of their
@@ -318,7 +313,7 @@ pub const SLIP_POINTS: usize = 9;
 /// `epsilon`. Where the residuals' sensor part holds a timing jitter j²
 /// ([`DoubletResidual::jitter_variance`], the upper end of its interval: a three-step
 /// block's one-step residuals), the interval bounds the statistic's at every j² from 0 to
-/// that ([`ratio_interval_between`], [`over_the_jitter`]), as [`estimate_correlation_split`]'s
+/// that ([`ratio_interval_over`], [`over_the_jitter`]), as [`estimate_correlation_split`]'s
 /// does.
 ///
 /// # Errors
@@ -340,7 +335,7 @@ pub fn estimate_correlation(
 
 /// A statistic's interval over the timing jitter's `[0, j²_hi]`: the hull of its intervals
 /// with the residuals carrying the upper end (`timed`, whose point it keeps; its interval
-/// already bounds every j² of the range, [`ratio_interval_between`]) and at 0 (`untimed`,
+/// already bounds every j² of the range, [`ratio_interval_over`]) and at 0 (`untimed`,
 /// whose whiteness test and class check are the block's too).
 fn over_the_jitter(timed: Correlation, untimed: &Correlation) -> Correlation {
     Correlation {
@@ -376,7 +371,7 @@ fn ratio_interval(
     });
     let weight_sum: f64 = raw.iter().sum();
     if weight_sum <= 0.0 {
-        return Err(CorrelationDeparture::OutsideClass { ratio: f64::NAN });
+        return Err(CorrelationDeparture::NoMotionVariance { motion_variance: b });
     }
     let weights = raw.map(|w| w / weight_sum);
     let axis_ratio = |k: usize| if weights[k] > 0.0 { a[k] / b[k] } else { 0.0 };
@@ -420,119 +415,218 @@ fn interval_quantiles(batches: usize, epsilon: f64) -> [f64; 2] {
     [lower_quantile, normal_upper_quantile(epsilon / 4.0)]
 }
 
-/// Pieces the timing jitter's `[0, j²_hi]` is cut into for [`ratio_interval_between`].
-const JITTER_PIECES: usize = 8;
+/// Pieces each side of the rectangle of slip and timing jitter `[σ²_lo, σ²_hi] × [0, j²_hi]`
+/// is cut into for [`ratio_interval_over`] (one where a side is a point).
+const PIECES: usize = 16;
 
-/// `[min, max]` bounds of a quadratic over a piece from its values at the piece's start,
-/// middle and end: the range of its Bernstein coefficients `p(s₀)`, `2p(s_m) − (p(s₀) +
-/// p(s₁))/2`, `p(s₁)`, which the quadratic, their convex combination, never leaves.
-fn quadratic_range([start, middle, end]: [f64; 3]) -> [f64; 2] {
-    let inner = 2.0 * middle - 0.5 * (start + end);
-    [start.min(inner).min(end), start.max(inner).max(end)]
+/// Times a cell that an axis's zero line crosses is halved (each side that is not a point)
+/// before [`ratio_interval_over`] bounds it with and without that axis.
+const HALVINGS: u32 = 4;
+
+/// The Bernstein coefficients `p(s₀)`, `2p(s_m) − (p(s₀) + p(s₁))/2`, `p(s₁)` of a quadratic
+/// over a piece from its values at the piece's start, middle and end.
+fn bernstein([start, middle, end]: [f64; 3]) -> [f64; 3] {
+    [start, 2.0 * middle - 0.5 * (start + end), end]
 }
 
-/// Bounds on [`ratio_interval`]'s interval `[r − zσ_up, r + zσ_up]` at every timing jitter
-/// between the two ends whose terms `ends` holds (`[at 0, at j²_hi]`, pairs alike). Each
-/// pair's `a_k`, `b_k` and `N_k` are affine in j² and `c_k = b_k + N_k` does not move, so
-/// with the axis weights `(b_k/c_k)²/D`, `D = Σ_k b_k²/c_k²` (the axes with `b_k > 0`):
+/// `[min, max]` bounds over a cell of a polynomial of degree at most 2 in each of two
+/// variables from its values `values[i][j]` on the cell's 3 × 3 grid (the first variable's
+/// start, middle and end by the second's): the range of its tensor-product Bernstein
+/// coefficients ([`bernstein`] along each variable), which the polynomial, their convex
+/// combination (weights `B_i(x)·B_j(y) ≥ 0` summing to 1), never leaves.
+fn biquadratic_range(values: [[f64; 3]; 3]) -> [f64; 2] {
+    let rows = values.map(bernstein);
+    [0, 1, 2]
+        .map(|j| bernstein(rows.map(|row| row[j])))
+        .as_flattened()
+        .iter()
+        .fold([f64::INFINITY, f64::NEG_INFINITY], |[low, high], &x| {
+            [low.min(x), high.max(x)]
+        })
+}
+
+/// A value at each point of a cell's 3 × 3 grid ([`biquadratic_range`]).
+type OnCell<T> = [[T; 3]; 3];
+
+/// Per axis `[a_k, b_k, N_k, M_k]` averaged over `terms`.
+fn mean_terms(terms: &[PairTerms]) -> PairTerms {
+    let m = terms.len() as f64;
+    std::array::from_fn(|k| std::array::from_fn(|w| terms.iter().map(|t| t[k][w]).sum::<f64>() / m))
+}
+
+/// Bounds on [`ratio_interval`]'s interval `[r − zσ_up, r + zσ_up]` at every slip variance
+/// σ² of `slip` `[σ²_lo, σ²_hi]` and, where `untimed` holds the pairs' terms without the
+/// timing jitter whose upper end j²_hi `timed` carries, every j² of `[0, j²_hi]` jointly.
+/// Each pair's `a_k` and `N_k` are affine in j² and (slip moved to the noise,
+/// [`without_slip`]) `b_k − σ²M_k` and `N_k + σ²M_k` affine in (σ², j²) jointly — `M_k` does
+/// not depend on j² — while `c_k = b_k + N_k` moves with neither. With the axis weights
+/// `(b_k/c_k)²/D`, `D = Σ_k b_k²/c_k²` (the axes with `b_k > 0`):
 ///
 /// `r = P/D`, `P = Σ_k a_k b_k/c_k²`; each batch's term `u_i = E_i/D`,
 /// `E_i = Σ_k (ā_ik b_k − a_k b̄_ik)/c_k²`; so `r ± zσ_up = (P ± zκ√W)/D`,
 /// `W = Σ_i (E_i − Ē)²`, `κ² = 1/((B − 1)·q·B)` —
 ///
-/// `P`, `D` and each `E_i − Ē` quadratics in j², a ratio of which is neither monotone nor
-/// convex in general. On each of [`JITTER_PIECES`] pieces (cut where an axis's `b_k`
-/// changes sign, as its weight's support does) each quadratic lies within its Bernstein
-/// range ([`quadratic_range`]), so there `r + zσ_up ≤ (P_max + zκ√W_max)/D` at `D_min`
-/// (the numerator at least 0) or `D_max`, `W_max = Σ_i max|E_i − Ē|²`, and the lower end
-/// alike: a bound at every j² of the range, not only at its ends.
+/// `P`, `D` and each `E_i − Ē` polynomials of total degree 2 in (σ², j²) (sums of products
+/// of two affine terms; `a_k b_k` holds a σ²·j² term), so of degree at most 2 in each, a
+/// ratio of which is neither monotone nor convex in general. On each cell of a
+/// [`PIECES`] × [`PIECES`] grid each lies within its tensor-product Bernstein range
+/// ([`biquadratic_range`]), so there `r + zσ_up ≤ (P_max + zκ√W_max)/D` at `D_min` (the
+/// numerator at least 0; no bound where `D_min ≤ 0`) or `D_max`, `W_max = Σ_i max|E_i − Ē|²`,
+/// and the lower end alike. An axis whose `b_k` (affine: its extremes at the cell's corners)
+/// changes sign within a cell weighs there on one side of its zero line and not on the
+/// other: such a cell is halved [`HALVINGS`] times, then its bound is the hull of the bounds
+/// with and without the axis, each a bound over the whole cell of the ratio its axes give. So the bound holds at every (σ², j²) of the
+/// rectangle, not only at its corners.
 ///
 /// # Errors
-/// [`CorrelationDeparture::OutsideClass`] where a piece has no axis with motion variance.
-fn ratio_interval_between(
-    ends: [&[[[f64; 3]; 3]]; 2],
+/// [`CorrelationDeparture::NoMotionVariance`] where a cell may hold a point with no axis of
+/// motion variance (named: the corner whose largest `b_k` is least), the statistic undefined.
+fn ratio_interval_over(
+    timed: &[PairTerms],
+    untimed: Option<&[PairTerms]>,
+    slip: [f64; 2],
     batches: usize,
     epsilon: f64,
 ) -> Result<[f64; 2], CorrelationDeparture> {
-    // Means per axis of [a, b, N] over the pairs and over each batch, at each end.
-    let mean = |terms: &[[[f64; 3]; 3]]| -> [[f64; 3]; 3] {
-        let m = terms.len() as f64;
-        std::array::from_fn(|k| {
-            std::array::from_fn(|w| terms.iter().map(|t| t[k][w]).sum::<f64>() / m)
-        })
-    };
-    let per_batch = ends[0].len() / batches;
-    let totals = ends.map(mean);
-    let batch_means = ends.map(|terms| {
-        (0..batches)
-            .map(|i| mean(&terms[i * per_batch..(i + 1) * per_batch]))
-            .collect::<Vec<_>>()
-    });
-    let at = |x: [f64; 2], s: f64| (1.0 - s) * x[0] + s * x[1];
-    let total = |k: usize, w: usize, s: f64| at([totals[0][k][w], totals[1][k][w]], s);
-    let c = [0, 1, 2].map(|k| totals[1][k][1] + totals[1][k][2]);
-    // The pieces' ends in s = j²/j²_hi: evenly spaced, and where a b_k changes sign.
-    let mut cuts: Vec<f64> = (0..=JITTER_PIECES)
-        .map(|i| i as f64 / JITTER_PIECES as f64)
+    // Means per axis of [a, b, N, M] over the pairs and over each batch, at j² = 0 and j²_hi.
+    let ends = [untimed.unwrap_or(timed), timed];
+    let per_batch = timed.len() / batches;
+    let totals = ends.map(mean_terms);
+    let batch_means: Vec<[PairTerms; 2]> = (0..batches)
+        .map(|i| ends.map(|terms| mean_terms(&terms[i * per_batch..(i + 1) * per_batch])))
         .collect();
-    cuts.extend(
-        totals[0]
-            .iter()
-            .zip(&totals[1])
-            .map(|(start, end)| [start[1], end[1]])
-            .filter(|[b0, b1]| b0 * b1 < 0.0)
-            .map(|[b0, b1]| b0 / (b0 - b1)),
-    );
-    cuts.sort_by(f64::total_cmp);
+    // The terms at (u, s) of the unit square: σ² = σ²_lo + u·(σ²_hi − σ²_lo), j² = s·j²_hi.
+    let at = |means: &[PairTerms; 2], [u, s]: [f64; 2]| -> [[f64; 3]; 3] {
+        let mixed: PairTerms = std::array::from_fn(|k| {
+            std::array::from_fn(|w| (1.0 - s) * means[0][k][w] + s * means[1][k][w])
+        });
+        without_slip(&mixed, (1.0 - u) * slip[0] + u * slip[1])
+    };
+    let c = [0, 1, 2].map(|k| totals[1][k][1] + totals[1][k][2]);
+    let cuts =
+        |pieces: usize| -> Vec<f64> { (0..=pieces).map(|i| i as f64 / pieces as f64).collect() };
+    let slip_cuts = cuts(if slip[0] < slip[1] { PIECES } else { 1 });
+    let jitter_cuts = cuts(if untimed.is_some() { PIECES } else { 1 });
     let [lower_quantile, z] = interval_quantiles(batches, epsilon);
-    let kappa = (1.0 / ((batches - 1) as f64 * lower_quantile * batches as f64)).sqrt();
+    let scale = z * (1.0 / ((batches - 1) as f64 * lower_quantile * batches as f64)).sqrt();
+    let mut cells: Vec<([f64; 2], [f64; 2], u32)> = slip_cuts
+        .windows(2)
+        .flat_map(|u| {
+            jitter_cuts
+                .windows(2)
+                .map(move |s| ([u[0], u[1]], [s[0], s[1]], 0))
+        })
+        .collect();
     let mut bounds = [f64::INFINITY, f64::NEG_INFINITY];
-    for piece in cuts.windows(2) {
-        let points = [piece[0], 0.5 * (piece[0] + piece[1]), piece[1]];
-        let used: Vec<usize> = (0..3)
-            .filter(|&k| total(k, 1, points[1]) > 0.0 && c[k] > 0.0)
-            .collect();
-        if used.is_empty() {
-            return Err(CorrelationDeparture::OutsideClass { ratio: f64::NAN });
-        }
-        let sum = |f: &dyn Fn(usize, f64) -> f64, s: f64| -> f64 {
-            used.iter().map(|&k| f(k, s) / (c[k] * c[k])).sum()
-        };
-        let p = quadratic_range(points.map(|s| sum(&|k, s| total(k, 0, s) * total(k, 1, s), s)));
-        let d = quadratic_range(points.map(|s| sum(&|k, s| total(k, 1, s).powi(2), s)));
-        let batch_term = |i: usize, s: f64| {
-            let batch =
-                |k: usize, w: usize| at([batch_means[0][i][k][w], batch_means[1][i][k][w]], s);
-            sum(
-                &|k, s| batch(k, 0) * total(k, 1, s) - total(k, 0, s) * batch(k, 1),
-                s,
-            )
-        };
-        let terms = points.map(|s| (0..batches).map(|i| batch_term(i, s)).collect::<Vec<f64>>());
-        let centre = terms
-            .clone()
-            .map(|e| e.iter().sum::<f64>() / batches as f64);
-        let w_max: f64 = (0..batches)
-            .map(|i| {
-                let [low, high] = quadratic_range([0, 1, 2].map(|j| terms[j][i] - centre[j]));
-                low.abs().max(high.abs()).powi(2)
-            })
-            .sum();
-        let spread = z * kappa * w_max.sqrt();
-        let divide = |numerator: f64, upper: bool| {
-            let denominator = if (numerator >= 0.0) == upper {
-                d[0]
-            } else {
-                d[1]
+    while let Some((u, s, halvings)) = cells.pop() {
+        let three = |[start, end]: [f64; 2]| [start, 0.5 * (start + end), end];
+        let points: OnCell<[f64; 2]> = three(u).map(|u| three(s).map(|s| [u, s]));
+        let total = points.map(|row| row.map(|p| at(&totals, p)));
+        let corners = [total[0][0], total[0][2], total[2][0], total[2][2]];
+        let positive = |k: usize| corners.iter().filter(|t| t[k][1] > 0.0).count();
+        let [sure, unsure] = [4..=4, 1..=3].map(|count| {
+            (0..3)
+                .filter(|&k| c[k] > 0.0 && count.contains(&positive(k)))
+                .collect::<Vec<usize>>()
+        });
+        if !unsure.is_empty() && halvings < HALVINGS {
+            // Halve the cell where an axis's zero line crosses it.
+            let halves = |[start, end]: [f64; 2]| {
+                let middle = 0.5 * (start + end);
+                if start < end {
+                    vec![[start, middle], [middle, end]]
+                } else {
+                    vec![[start, end]]
+                }
             };
-            numerator / denominator
-        };
-        bounds = [
-            bounds[0].min(divide(p[0] - spread, false)),
-            bounds[1].max(divide(p[1] + spread, true)),
-        ];
+            for u in halves(u) {
+                cells.extend(halves(s).into_iter().map(|s| (u, s, halvings + 1)));
+            }
+            continue;
+        }
+        let batch: Vec<OnCell<[[f64; 3]; 3]>> = batch_means
+            .iter()
+            .map(|means| points.map(|row| row.map(|p| at(means, p))))
+            .collect();
+        for choice in 0..1_usize << unsure.len() {
+            let chosen = unsure
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| choice >> i & 1 == 1)
+                .map(|(_, &k)| k);
+            let used: Vec<usize> = sure.iter().copied().chain(chosen).collect();
+            if used.is_empty() {
+                let least = corners
+                    .iter()
+                    .min_by(|x, y| {
+                        let largest = |t: &[[f64; 3]; 3]| t[0][1].max(t[1][1]).max(t[2][1]);
+                        largest(x).total_cmp(&largest(y))
+                    })
+                    .map_or([0.0; 3], |t| t.map(|axis| axis[1]));
+                return Err(CorrelationDeparture::NoMotionVariance {
+                    motion_variance: least,
+                });
+            }
+            let [low, high] = cell_bound(&used, c, &total, &batch, scale);
+            bounds = [bounds[0].min(low), bounds[1].max(high)];
+        }
     }
     Ok(bounds)
+}
+
+/// [`ratio_interval_over`]'s bound on one cell whose grid holds the terms `[a_k, b_k, N_k]`
+/// over all pairs (`total`) and over each batch (`batch`), the axes `used` weighing (`c_k`
+/// their `b_k + N_k`), `scale` = `zκ`: `[(P_min − zκ√W_max)/D, (P_max + zκ√W_max)/D]`, each
+/// at `D_min` or `D_max` as its numerator's sign asks (infinite where that is `D_min ≤ 0`).
+fn cell_bound(
+    used: &[usize],
+    c: [f64; 3],
+    total: &OnCell<[[f64; 3]; 3]>,
+    batch: &[OnCell<[[f64; 3]; 3]>],
+    scale: f64,
+) -> [f64; 2] {
+    let sum =
+        |f: &dyn Fn(usize) -> f64| -> f64 { used.iter().map(|&k| f(k) / (c[k] * c[k])).sum() };
+    let p = biquadratic_range(total.map(|row| row.map(|t| sum(&|k| t[k][0] * t[k][1]))));
+    let d = biquadratic_range(total.map(|row| row.map(|t| sum(&|k| t[k][1] * t[k][1]))));
+    let terms: Vec<OnCell<f64>> = batch
+        .iter()
+        .map(|m| {
+            std::array::from_fn(|i| {
+                std::array::from_fn(|j| {
+                    let (t, m) = (total[i][j], m[i][j]);
+                    sum(&|k| m[k][0] * t[k][1] - t[k][0] * m[k][1])
+                })
+            })
+        })
+        .collect();
+    let count = terms.len() as f64;
+    let centre: OnCell<f64> = std::array::from_fn(|i| {
+        std::array::from_fn(|j| terms.iter().map(|e| e[i][j]).sum::<f64>() / count)
+    });
+    let w_max: f64 = terms
+        .iter()
+        .map(|e| {
+            let deviation =
+                std::array::from_fn(|i| std::array::from_fn(|j| e[i][j] - centre[i][j]));
+            let [low, high] = biquadratic_range(deviation);
+            low.abs().max(high.abs()).powi(2)
+        })
+        .sum();
+    let spread = scale * w_max.sqrt();
+    let divide = |numerator: f64, upper: bool| {
+        let denominator = if (numerator >= 0.0) == upper {
+            d[0]
+        } else {
+            d[1]
+        };
+        match (denominator > 0.0, upper) {
+            (true, _) => numerator / denominator,
+            (false, true) => f64::INFINITY,
+            (false, false) => f64::NEG_INFINITY,
+        }
+    };
+    [divide(p[0] - spread, false), divide(p[1] + spread, true)]
 }
 
 /// [`estimate_correlation`] over residuals that overlap by `stride − 1` of every `stride`
@@ -541,9 +635,9 @@ fn ratio_interval_between(
 /// as long, and the whiteness test's variance inflated `stride` times more (a sum over
 /// `stride` interleaved phases has at most `stride²` times one phase's variance, by
 /// Cauchy–Schwarz, and `stride` times its sum of squares). The slip's share `slip` is taken
-/// out of each pair's motion variance: `ρ̂` at its point, `ρ`'s interval the hull of the
-/// intervals over its interval's [`SLIP_POINTS`] (the lag-one and lag-two products carry no
-/// slip, which is independent between steps).
+/// out of each pair's motion variance: `ρ̂` at its point, `ρ`'s interval a bound on the
+/// intervals at every σ² of its interval ([`ratio_interval_over`]; the lag-one and lag-two
+/// products carry no slip, which is independent between steps).
 fn correlation_over(
     residuals: &[DoubletResidual],
     sensor: &Matrix3<f64>,
@@ -557,9 +651,10 @@ fn correlation_over(
 }
 
 /// [`correlation_over`]'s ratio without the whiteness test: `ρ̂`, its interval, and the mean
-/// lag-one products `ā` per axis. Where the residuals carry a timing jitter j²
-/// ([`DoubletResidual::jitter_variance`]), the interval bounds the ratio's at every j² from
-/// 0 to that ([`ratio_interval_between`]) as well as at its end.
+/// lag-one products `ā` per axis. The interval bounds the ratio's at every σ² of the slip's
+/// interval and, where the residuals carry a timing jitter j²
+/// ([`DoubletResidual::jitter_variance`]), every j² from 0 to that jointly
+/// ([`ratio_interval_over`]), its intervals at σ²'s ends (at that j²) included.
 fn ratio_statistic(
     residuals: &[DoubletResidual],
     sensor: &Matrix3<f64>,
@@ -586,23 +681,22 @@ fn ratio_statistic(
                 .map(|(a, b)| pair_terms(a, b, sensor))
                 .collect()
         });
-    let corrected = |terms: &[PairTerms], variance: f64| -> Vec<[[f64; 3]; 3]> {
-        terms.iter().map(|t| without_slip(t, variance)).collect()
+    let at = |variance: f64| {
+        let corrected: Vec<[[f64; 3]; 3]> =
+            terms.iter().map(|t| without_slip(t, variance)).collect();
+        ratio_interval(&corrected, batches, steps, epsilon)
     };
-    let at = |variance: f64| ratio_interval(&corrected(&terms, variance), batches, steps, epsilon);
     let [ratio, _, _] = at(slip.point)?;
-    let [ratio_lo, ratio_hi] =
-        slip.grid()
-            .try_fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], variance| {
-                let [_, mut low, mut high] = at(variance)?;
-                if let Some(untimed) = &untimed {
-                    let ends = [corrected(untimed, variance), corrected(&terms, variance)];
-                    let [below, above] =
-                        ratio_interval_between([&ends[0], &ends[1]], batches, epsilon)?;
-                    (low, high) = (low.min(below), high.max(above));
-                }
-                Ok([lo.min(low), hi.max(high)])
-            })?;
+    // The intervals at σ²'s ends (j²_hi), and where σ² or j² has a range the bound over it.
+    let [low_end, high_end] = slip.interval.map(at);
+    let [_, mut ratio_lo, mut ratio_hi] = low_end?;
+    let [_, low, high] = high_end?;
+    (ratio_lo, ratio_hi) = (ratio_lo.min(low), ratio_hi.max(high));
+    if slip.interval[0] < slip.interval[1] || untimed.is_some() {
+        let [below, above] =
+            ratio_interval_over(&terms, untimed.as_deref(), slip.interval, batches, epsilon)?;
+        (ratio_lo, ratio_hi) = (ratio_lo.min(below), ratio_hi.max(above));
+    }
     let n = terms.len() as f64;
     let lag_one = [0, 1, 2].map(|k| terms.iter().map(|t| t[k][0]).sum::<f64>() / n);
     let correlation = Correlation {
@@ -744,7 +838,7 @@ fn both_statistics(
 /// narrower statistic's point, within the intersection. Where the steps' sensor part holds
 /// a timing jitter j² ([`DoubletResidual::jitter_variance`], the upper end of its interval),
 /// each statistic's interval bounds its intervals at every j² from 0 to that (the shared
-/// sample's MA(1) term grows with j², and the ratios with it: [`ratio_interval_between`]),
+/// sample's MA(1) term grows with j², and the ratios with it: [`ratio_interval_over`]),
 /// and `ρ̂` is taken at the upper end.
 ///
 /// # Errors
@@ -1003,35 +1097,55 @@ pub(super) mod tests {
         }
     }
 
-    /// [`ratio_interval_between`] bounds the ratio's interval at every j² of `[0, j²_hi]`:
-    /// over 8 seeded blocks of 1,000 two-step doublets per world (the one-step residuals,
-    /// `jitter`'s simulation), `j_hi` the jitter's upper end at ε = 0.05, both statistics
-    /// (the lag-one ratio, stride 1, and the joined steps', stride 2) at ε = 0.05, the
-    /// interval at each of 17 evenly spaced j² lies within the bound. Printed: the closest
-    /// approach (negative inside) and the bound's mean widening over the ends' hull, both in
-    /// the ratio `r`.
+    /// [`ratio_interval_over`] bounds the ratio's interval at every (σ², j²) of the slip's and
+    /// the jitter's rectangle: over 8 seeded blocks of 1,000 two-step doublets per world (the
+    /// one-step residuals, `jitter`'s simulation), `j_hi` the jitter's upper end at ε = 0.05
+    /// where the world has jitter (else j² = 0; four worlds with 5 % and 20 % of slip, 1 and
+    /// 4 mm, with and without 5 ms, and two with jitter alone), σ²'s interval `[(0.8σ)², (1.2σ)²]` about the
+    /// world's slip σ (a wider band than a block's, so more curvature to bound), both
+    /// statistics (the lag-one ratio, stride 1, and the joined steps', stride 2) at ε = 0.05,
+    /// the interval at each point of a 17 × 17 grid (17 where one side is a point) lies within
+    /// the bound (with the intervals at σ²'s ends, as `ratio_statistic` takes it). Printed: the closest approach (negative inside) and the bound's mean
+    /// widening over the hull of the intervals at 9 evenly spaced σ² at j² = 0 and `j²_hi`
+    /// (what ρ's interval was before the bound), both in the ratio `r`.
     #[test]
-    fn the_ratios_interval_between_the_jitters_ends_is_bounded() {
+    fn the_ratios_interval_over_the_slip_and_the_jitter_is_bounded() {
         use crate::estimate::jitter::tests::jittered_steps;
         use crate::estimate::jitter::{JitterRows, estimate_jitter};
         let sensor = diagonal_covariance(crate::estimate::homogeneity::tests::SENSOR);
         let (blocks, epsilon, points) = (8_u64, 0.05, 17);
         // Name, √Q per axis, ρ, slip, jitter (s).
-        let worlds: [(&str, f64, f64, f64, f64); 4] = [
-            ("none, 1 mm", 1e-3, 0.0, 0.0, 0.0),
-            ("5 ms, 4 mm", 4e-3, 0.0, 0.0, 5e-3),
+        let worlds: [(&str, f64, f64, f64, f64); 8] = [
+            ("5 ms, 1 mm", 1e-3, 0.0, 0.0, 5e-3),
             ("5 ms, ρ 0.5, 4 mm", 4e-3, 0.5, 0.0, 5e-3),
+            ("5 % slip, ρ 0.5, 1 mm", 1e-3, 0.5, 0.05, 0.0),
+            ("5 % slip, ρ 0.5, 4 mm", 4e-3, 0.5, 0.05, 0.0),
+            ("20 % slip, ρ 0.5, 1 mm", 1e-3, 0.5, 0.2, 0.0),
+            ("20 % slip, 4 mm", 4e-3, 0.0, 0.2, 0.0),
             ("5 ms, 5 % slip, ρ 0.5, 4 mm", 4e-3, 0.5, 0.05, 5e-3),
+            ("5 ms, 20 % slip, ρ 0.5, 1 mm", 1e-3, 0.5, 0.2, 5e-3),
         ];
         for (name, q_std, rho, slip, jitter) in worlds {
             let (mut beyond, mut checked, mut widening, mut bounded) =
                 (f64::NEG_INFINITY, 0, 0.0, 0);
+            let variances = [0.8, 1.2].map(|f| (f * slip).powi(2));
+            let grid = |[low, high]: [f64; 2], count: usize| -> Vec<f64> {
+                let count = if low < high { count } else { 1 };
+                (0..count)
+                    .map(|i| low + (high - low) * i as f64 / (count - 1).max(1) as f64)
+                    .collect()
+            };
             for seed in 0..blocks {
                 let steps = jittered_steps(1_000, q_std, rho, slip, jitter, 8_300 + seed);
-                let Some(fit) = estimate_jitter(&steps, &sensor, epsilon, JitterRows::Both) else {
-                    continue;
+                let high = if jitter > 0.0 {
+                    let Some(fit) = estimate_jitter(&steps, &sensor, epsilon, JitterRows::Both)
+                    else {
+                        continue;
+                    };
+                    fit.interval[1].max(0.0)
+                } else {
+                    0.0
                 };
-                let high = fit.interval[1].max(0.0);
                 for stride in [1, 2] {
                     let terms_at = |variance: f64| {
                         let timed: Vec<DoubletResidual> =
@@ -1041,8 +1155,8 @@ pub(super) mod tests {
                         } else {
                             joined_steps(&timed)
                         };
-                        let terms: Vec<[[f64; 3]; 3]> = pairs(&residuals, stride)
-                            .map(|(a, b)| without_slip(&pair_terms(a, b, &sensor), 0.0))
+                        let terms: Vec<PairTerms> = pairs(&residuals, stride)
+                            .map(|(a, b)| pair_terms(a, b, &sensor))
                             .collect();
                         (terms, residuals[0].steps)
                     };
@@ -1050,37 +1164,54 @@ pub(super) mod tests {
                     let (high_end, _) = terms_at(high);
                     let batches =
                         (low_end.len() / (MIN_PAIRS_PER_BATCH * stride as usize)).min(MAX_BATCHES);
-                    let interval = |terms: &[[[f64; 3]; 3]]| {
-                        ratio_interval(terms, batches, steps_per, epsilon).ok()
+                    let interval = |terms: &[PairTerms], variance: f64| {
+                        let corrected: Vec<[[f64; 3]; 3]> =
+                            terms.iter().map(|t| without_slip(t, variance)).collect();
+                        ratio_interval(&corrected, batches, steps_per, epsilon).ok()
                     };
-                    let (Some([_, lo0, hi0]), Some([_, lo1, hi1]), Ok(bound)) = (
-                        interval(&low_end),
-                        interval(&high_end),
-                        ratio_interval_between([&low_end, &high_end], batches, epsilon),
-                    ) else {
+                    let untimed = (high > 0.0).then_some(low_end.as_slice());
+                    let Ok(mut bound) =
+                        ratio_interval_over(&high_end, untimed, variances, batches, epsilon)
+                    else {
                         continue;
                     };
-                    widening += (bound[1] - bound[0]) - (hi0.max(hi1) - lo0.min(lo1));
+                    let mut hull = [f64::INFINITY, f64::NEG_INFINITY];
+                    for terms in [&low_end, &high_end] {
+                        for variance in grid(variances, 9) {
+                            if let Some([_, lo, hi]) = interval(terms, variance) {
+                                hull = [hull[0].min(lo), hull[1].max(hi)];
+                            }
+                        }
+                        // With the intervals at σ²'s ends, as `ratio_statistic` takes it.
+                        for variance in variances {
+                            if let Some([_, lo, hi]) = interval(terms, variance) {
+                                bound = [bound[0].min(lo), bound[1].max(hi)];
+                            }
+                        }
+                    }
+                    widening += (bound[1] - bound[0]) - (hull[1] - hull[0]);
                     bounded += 1;
-                    for i in 0..points {
-                        let variance = high * i as f64 / (points - 1) as f64;
-                        let Some([_, lo, hi]) = interval(&terms_at(variance).0) else {
-                            continue;
-                        };
-                        beyond = beyond.max(bound[0] - lo).max(hi - bound[1]);
-                        checked += 1;
+                    for j2 in grid([0.0, high], points) {
+                        let terms = terms_at(j2).0;
+                        for variance in grid(variances, points) {
+                            let Some([_, lo, hi]) = interval(&terms, variance) else {
+                                continue;
+                            };
+                            beyond = beyond.max(bound[0] - lo).max(hi - bound[1]);
+                            checked += 1;
+                        }
                     }
                 }
             }
             eprintln!(
                 "{name}: closest approach to the bound {beyond:.3e} over {checked} points; \
-                 the bound wider than the ends' hull by {:.3e} on average",
+                 the bound wider than the 9-point hull by {:.3e} on average over {bounded}",
                 widening / f64::from(bounded)
             );
             assert!(checked > 0, "{name}: no block evaluated");
             assert!(
                 beyond <= 0.0,
-                "{name}: a j² reaches {beyond:.3e} beyond the bound"
+                "{name}: a point reaches {beyond:.3e} beyond the bound"
             );
         }
     }

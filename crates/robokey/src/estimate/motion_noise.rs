@@ -248,6 +248,18 @@ pub enum EstimationRefusal {
         /// The pooled ratio of the lag-one motion product to the motion variance.
         ratio: f64,
     },
+    /// The slip's or the timing jitter's share, somewhere in its interval, leaves no axis any
+    /// motion variance for ρ's ratio to weigh.
+    #[error(
+        "motion-noise estimate: no axis keeps motion variance for the correlation between steps \
+         once the slip's and the timing jitter's shares are taken out (left per axis: \
+         {:.3e} m², {:.3e} m², {:.3e} rad²; allowed: one above 0); outside the model class",
+        motion_variance[0], motion_variance[1], motion_variance[2]
+    )]
+    CorrelationWithoutMotion {
+        /// The motion variance left per axis where it was found (m², m², rad²).
+        motion_variance: [f64; 3],
+    },
     /// ρ's two intervals from the one-step residuals split at the middle samples (their
     /// lag-one ratio, and the ratio of the steps joined in pairs) do not meet: one of them
     /// misses, which the AR(1) model gives probability at most ε_est/2.
@@ -833,6 +845,9 @@ fn correlation_refusal(departure: CorrelationDeparture) -> EstimationRefusal {
         }
         CorrelationDeparture::OutsideClass { ratio } => {
             EstimationRefusal::CorrelationOutsideClass { ratio }
+        }
+        CorrelationDeparture::NoMotionVariance { motion_variance } => {
+            EstimationRefusal::CorrelationWithoutMotion { motion_variance }
         }
         CorrelationDeparture::NotAr1 {
             axis,
