@@ -1215,4 +1215,34 @@ pub(super) mod tests {
             );
         }
     }
+
+    /// Where the slip's share takes all the motion variance, the refusal names what each axis
+    /// kept, finite (it named the ratio NaN before): 200 pairs whose axes each hold motion
+    /// variance `b` ≈ 10⁻⁶ against a slip map of 10⁻⁴ per unit σ², so every axis's `b` falls
+    /// to 0 at σ² ≈ 0.01 — the bound over `[0, 0.005]` is finite, over `[0, 0.02]` refused, as
+    /// is the interval at 0.02 alone.
+    #[test]
+    fn no_motion_variance_left_is_refused_by_name() {
+        let terms: Vec<PairTerms> = (0..200)
+            .map(|i| {
+                let wobble = 1e-7 * ((i % 7) as f64 - 3.0);
+                [0, 1, 2].map(|_| [0.2e-6 + wobble, 1e-6 - wobble, 1e-7, 1e-4])
+            })
+            .collect();
+        let batches = 4;
+        let bound = ratio_interval_over(&terms, None, [0.0, 0.005], batches, 0.05).unwrap();
+        assert!(bound.iter().all(|x| x.is_finite()), "{bound:?}");
+        let refused = |result: Result<_, CorrelationDeparture>| match result {
+            Err(CorrelationDeparture::NoMotionVariance { motion_variance }) => {
+                assert!(
+                    motion_variance.iter().all(|b| b.is_finite() && *b <= 0.0),
+                    "{motion_variance:?}"
+                );
+            }
+            other => panic!("{other:?}"),
+        };
+        refused(ratio_interval_over(&terms, None, [0.0, 0.02], batches, 0.05).map(|_| ()));
+        let at_end: Vec<[[f64; 3]; 3]> = terms.iter().map(|t| without_slip(t, 0.02)).collect();
+        refused(ratio_interval(&at_end, batches, 2, 0.05).map(|_| ()));
+    }
 }
