@@ -95,7 +95,8 @@ pub enum CorrelationDeparture {
     /// No axis keeps motion variance once the slip's and the timing jitter's shares are taken
     /// out (at some σ² or j² of their intervals): the ratio has nothing to weigh.
     NoMotionVariance {
-        /// The motion variance `b_k` left per axis where it was found (m², m², rad²).
+        /// The motion variance `b_k` left per axis at the point examined where its largest is
+        /// least (m², m², rad²).
         motion_variance: [f64; 3],
     },
     /// Too few pairs of consecutive doublets for the interval's batches.
@@ -475,8 +476,8 @@ fn mean_terms(terms: &[PairTerms]) -> PairTerms {
 /// and the lower end alike. An axis whose `b_k` (affine: its extremes at the cell's corners)
 /// changes sign within a cell weighs there on one side of its zero line and not on the
 /// other: such a cell is halved [`HALVINGS`] times, then its bound is the hull of the bounds
-/// with and without the axis, each a bound over the whole cell of the ratio its axes give. So the bound holds at every (σ², j²) of the
-/// rectangle, not only at its corners.
+/// with and without the axis, each a bound over the whole cell of the ratio its axes give.
+/// So the bound holds at every (σ², j²) of the rectangle, not only at its corners.
 ///
 /// # Errors
 /// [`CorrelationDeparture::NoMotionVariance`] where a cell may hold a point with no axis of

@@ -251,13 +251,14 @@ pub enum EstimationRefusal {
     /// The slip's or the timing jitter's share, somewhere in its interval, leaves no axis any
     /// motion variance for ρ's ratio to weigh.
     #[error(
-        "motion-noise estimate: no axis keeps motion variance for the correlation between steps \
-         once the slip's and the timing jitter's shares are taken out (left per axis: \
-         {:.3e} m², {:.3e} m², {:.3e} rad²; allowed: one above 0); outside the model class",
+        "motion-noise estimate: no axis may keep motion variance for the correlation between \
+         steps once the slip's and the timing jitter's shares are taken out at some point of \
+         their intervals (left per axis where least: {:.3e} m², {:.3e} m², {:.3e} rad²; \
+         allowed: an axis above 0 at every point); outside the model class",
         motion_variance[0], motion_variance[1], motion_variance[2]
     )]
     CorrelationWithoutMotion {
-        /// The motion variance left per axis where it was found (m², m², rad²).
+        /// The motion variance left per axis where its largest is least (m², m², rad²).
         motion_variance: [f64; 3],
     },
     /// ρ's two intervals from the one-step residuals split at the middle samples (their
