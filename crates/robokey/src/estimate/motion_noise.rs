@@ -59,7 +59,7 @@ use super::correlation::{
 use super::homogeneity::{ClassDeparture, speed_class_departure};
 use super::normal_tail::normal_upper_quantile;
 use super::residual::{AXES, DoubletResidual};
-use super::slip::{SlipEstimate, estimate_slip};
+use super::slip::{SlipEstimate, estimate_slip, estimate_slip_over_jitter};
 use super::symmetric_coordinates::{coordinates, symmetric};
 use super::weighted_chi_square::{Cap, DirectionalChiSquare};
 use super::wishart::{net_bounds, wishart_upper_bounds};
@@ -602,15 +602,11 @@ fn region_estimate(
     }
     // Slip's share is fitted beside the sensor's, which the residuals carry at the jitter's
     // upper end: the fit leaves slip the least there and the most at the lower end, so slip
-    // is detected where either end shows it and σ²'s interval is the hull over both (at
-    // fixed weights and ρ the fit's point is affine in j² and its standard error convex, so
-    // the hull holds between the ends; each end here takes its own weights and ρ̂, which
-    // that argument does not cover: docs/estimation.md, "Sample-timing jitter").
+    // is detected where either end shows it and σ²'s interval is the hull over both, each
+    // end fitted with the upper end's weights and at one ρ, so that the hull holds at every
+    // j² between (`estimate_slip_over_jitter`; docs/estimation.md, "Sample-timing jitter").
     let carried = residuals.first().map_or(0.0, |r| r.jitter_variance);
-    let lowered = |rs: &[DoubletResidual]| -> Vec<DoubletResidual> {
-        rs.iter().map(|r| r.with_jitter(jitter.lower)).collect()
-    };
-    let lowered_residuals = (jitter.lower < carried).then(|| lowered(residuals));
+    let lower = (jitter.lower < carried).then_some(jitter.lower);
     let (measured, slip_fit) = match slip_epsilon {
         // Slip detected at level ε_est with ρ at its point, the slip's share not taken out —
         // the untested statistic's where the tested one departs: slip's share of the variance
@@ -628,16 +624,12 @@ fn region_estimate(
                     correlation_point(residuals, split, sensor, epsilon / 2.0, SlipShare::NONE).ok()
                 }
             };
-            let fit_at = |rs: &[DoubletResidual]| {
-                point.and_then(|rho| estimate_slip(rs, sensor, rho, epsilon))
-            };
-            let shows_slip = |fit: Option<SlipEstimate>| fit.is_some_and(|s| s.measured());
-            let slip_fit = fit_at(residuals);
-            if shows_slip(slip_fit)
-                || lowered_residuals
-                    .as_deref()
-                    .is_some_and(|low| shows_slip(fit_at(low)))
-            {
+            let ends = point.and_then(|rho| match lower {
+                Some(j2) => estimate_slip_over_jitter(residuals, sensor, rho, epsilon, j2)
+                    .map(|e| [e.upper, e.lower]),
+                None => estimate_slip(residuals, sensor, rho, epsilon).map(|e| [e, e]),
+            });
+            if ends.is_some_and(|e| e.iter().any(SlipEstimate::measured)) {
                 return region_estimate(
                     residuals,
                     split,
@@ -647,20 +639,11 @@ fn region_estimate(
                     jitter,
                 );
             }
-            (measured, slip_fit)
+            (measured, ends.map(|[upper, _]| upper))
         }
         Some(level) => {
-            let (correlation, mut slip_fit) =
-                joint_region(residuals, split, sensor, epsilon / 2.0, level)?;
-            if let Some(low) = &lowered_residuals {
-                let low_split = split.map(lowered);
-                let (_, at_lower) =
-                    joint_region(low, low_split.as_deref(), sensor, epsilon / 2.0, level)?;
-                slip_fit.interval = [
-                    slip_fit.interval[0].min(at_lower.interval[0]),
-                    slip_fit.interval[1].max(at_lower.interval[1]),
-                ];
-            }
+            let (correlation, slip_fit) =
+                joint_region(residuals, split, sensor, epsilon / 2.0, level, lower)?;
             (Ok(correlation), Some(slip_fit))
         }
     };
@@ -889,13 +872,19 @@ const JOINT_ROUNDS: usize = 2;
 /// slip (docs/estimation.md, "Correlated motion noise", "Under slip"). Slip is independent
 /// between steps: it adds `σ²·Mᵢ` to each residual's variance and nothing to the lag-one
 /// product, so ρ's statistics take it out over σ²'s interval ([`SlipShare`]); σ²'s fit takes
-/// ρ at a point (`estimate_slip`), its interval `I_σ(ρ)`. On the events `ρ ∈ I_ρ(σ²)` and
-/// `σ² ∈ I_σ(ρ)` at the truth's own values (probability `1 − epsilon − slip_epsilon`), the
-/// truth lies in every round's region: from the class `P₀ = [−½, 0.999]`, `S_n` is the hull
-/// of `I_σ` at `P_{n−1}`'s ends and its point (between them not proved: `I_σ` is taken
-/// monotone in ρ), and `P_n = P_{n−1} ∩ I_ρ(S_n)`. The last round runs the AR(1) model's
-/// whiteness tests at σ̂² ([`estimate_correlation`]); σ̂² and ρ̂ are points, at no level.
-/// The slip estimate returned is σ̂² at ρ̂ with the hull `S_n` as its interval.
+/// ρ at a point (`estimate_slip`), its interval `I_σ(ρ)` — over the timing jitter's
+/// `[lower, j²_hi]` where `lower` is given, the hull of its two ends at one set of weights
+/// (`estimate_slip_over_jitter`). On the events `ρ ∈ I_ρ(σ²)` and `σ² ∈ I_σ(ρ)` at the
+/// truth's own values (probability `1 − epsilon − slip_epsilon`), the truth lies in every
+/// round's region: from the class `P₀ = [−½, 0.999]`, `S_n ⊇ I_σ(ρ)` for every ρ in
+/// `P_{n−1}`, and `P_n = P_{n−1} ∩ I_ρ(S_n)`. One-step residuals (every block's: two-step
+/// blocks' split at their middle samples, three-step blocks') have `𝓛ᵢ,ρ(Q) = B₀QB₀ᵀ`, a
+/// design free of ρ, so `I_σ(ρ)` is one interval at every ρ and `S_n` is it, exactly; over
+/// residuals of two or three steps the columns are polynomials in ρ and `S_n` is the hull of
+/// `I_σ` at `P_{n−1}`'s ends and its point (between them not proved: `I_σ` is taken
+/// monotone in ρ). The last round runs the AR(1) model's whiteness tests at σ̂²
+/// ([`estimate_correlation`]); σ̂² and ρ̂ are points, at no level. The slip estimate returned
+/// is σ̂² at ρ̂ (the jitter's upper end) with `S_n` as its interval.
 ///
 /// # Errors
 /// [`EstimationRefusal::SlipUnidentified`] where σ²'s fit is singular at a point of ρ,
@@ -908,26 +897,44 @@ fn joint_region(
     sensor: &Matrix3<f64>,
     epsilon: f64,
     slip_epsilon: f64,
+    lower: Option<f64>,
 ) -> Result<(Correlation, SlipEstimate), EstimationRefusal> {
     let untested = |slip: SlipShare| {
         correlation_untested(residuals, split, sensor, epsilon, slip).map_err(correlation_refusal)
     };
-    let fit = |rho: f64| {
-        estimate_slip(residuals, sensor, rho, slip_epsilon)
-            .ok_or(EstimationRefusal::SlipUnidentified)
+    let fit_at = |rho: f64| {
+        match lower {
+            Some(j2) => estimate_slip_over_jitter(residuals, sensor, rho, slip_epsilon, j2)
+                .map(|ends| ends.hull()),
+            None => estimate_slip(residuals, sensor, rho, slip_epsilon),
+        }
+        .ok_or(EstimationRefusal::SlipUnidentified)
     };
-    // σ² over the region's ends and at its point: the share ρ's statistics take out, and
-    // the slip estimate (σ̂² at ρ̂, the hull as its interval).
+    // One-step residuals: σ²'s fit is the same at every ρ, fitted once.
+    let free_of_rho = residuals
+        .iter()
+        .all(|r| r.steps == 1)
+        .then(|| fit_at(0.0))
+        .transpose()?;
+    let fit = |rho: f64| free_of_rho.map_or_else(|| fit_at(rho), Ok);
+    // σ² over the region (its ends and point where the fit moves with ρ): the share ρ's
+    // statistics take out, and the slip estimate (σ̂² at ρ̂, `S_n` as its interval).
     let share_over = |[lo, hi]: [f64; 2], point: f64| {
-        let (low, middle, high) = (fit(lo)?, fit(point)?, fit(hi)?);
-        let interval = [
-            low.interval[0]
-                .min(middle.interval[0])
-                .min(high.interval[0]),
-            low.interval[1]
-                .max(middle.interval[1])
-                .max(high.interval[1]),
-        ];
+        let middle = fit(point)?;
+        let interval = match free_of_rho {
+            Some(_) => middle.interval,
+            None => {
+                let (low, high) = (fit(lo)?, fit(hi)?);
+                [
+                    low.interval[0]
+                        .min(middle.interval[0])
+                        .min(high.interval[0]),
+                    low.interval[1]
+                        .max(middle.interval[1])
+                        .max(high.interval[1]),
+                ]
+            }
+        };
         Ok::<_, EstimationRefusal>((
             SlipShare {
                 point: middle.point,
@@ -1857,7 +1864,8 @@ pub(super) mod tests {
             let holds = |[lo, hi]: [f64; 2], x: f64| lo <= x && x <= hi;
             for seed in 0..blocks {
                 let (_, split) = slipping_ar1_doublets(2_000, 1e-3, rho, slip, 300 + seed);
-                let (c, s) = joint_region(&split, Some(&split), &sensor, level, level).unwrap();
+                let (c, s) =
+                    joint_region(&split, Some(&split), &sensor, level, level, None).unwrap();
                 missed += usize::from(!holds(c.interval, rho));
                 missed_slip += usize::from(!holds(s.interval, slip * slip));
                 let plain =
