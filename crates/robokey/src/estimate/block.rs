@@ -46,7 +46,6 @@ use super::lag::{
 use super::motion_noise::{Corner, SlipCorners, estimate_three_step_motion_noise_timed};
 use super::normal_tail::normal_upper_quantile;
 use super::pairs_over_lags::PairsOverLags;
-use super::region_cover::{Cell, MinimalMembers};
 use super::slip_slices::{SlipSlices, equivalent_separation as paired_separation};
 use super::worst_case::{
     below_the_region, slip_pairs, three_step_slip_pairs, three_step_steps, three_step_worst_case,
@@ -1307,87 +1306,8 @@ fn size_slip_block(
         })
         .flatten();
     let parts = slicing.map_or(1, |s| usize::from(s.slices));
-    // Each doublet's view at the best of `views` (matrices below every member of a part of
-    // the region at σ² = `variance`), or of what `before` chose for it on a larger part: per
-    // doublet that choice and its exponent, and the part's bound and slices.
-    let size_part = |variance: f64,
-                     views: &[Corner],
-                     before: Option<&[Chosen]>|
-     -> Result<(Vec<Chosen>, f64, Vec<ChernoffExponents>), String> {
-        let doublets = sessions
-            .iter()
-            .flat_map(|session| (0..session.len()).map(move |i| (*session, i)));
-        let mut chosen: Vec<Chosen> = Vec::with_capacity(before.map_or(bits, <[Chosen]>::len));
-        for (k, (session, i)) in doublets.enumerate() {
-            let b = &session[i];
-            // Her view of the doublet: two steps' three instants, or (the lag measured) three
-            // steps' four and the next doublet's entry.
-            let view = stated_camera_view(
-                b.samples,
-                config.sensing.controller_std,
-                config.modelled_camera_std(),
-            );
-            let three_step = lag.map(|lag| (lag.interval, three_step_views(config, session, i)));
-            let pairs_at = |share: &Corner| match &three_step {
-                None => slip_pairs(&model, share, variance, axle, &b.inputs, &view)
-                    .map(|bits| bits.into_iter().map(PairsOverLags::at_one_lag).collect()),
-                Some((interval, (view, (next_inputs, next_view)))) => three_step_slip_pairs(
-                    &model,
-                    share,
-                    (variance, axle),
-                    *interval,
-                    &b.inputs,
-                    view,
-                    Some((next_inputs, next_view)),
-                ),
-            };
-            let start = before.map(|before| before[k].clone());
-            match views
-                .iter()
-                .fold(start, |kept, share| blunter(kept, pairs_at(share)))
-            {
-                Some(pairs) => chosen.push(pairs),
-                None => {
-                    return Err(format!(
-                        "at σ² = {variance:.3e} and the region's corner Eve's modelled \
-                         covariance is not positive definite at doublet {} (allowed: a bound \
-                         exists)",
-                        b.doublet
-                    ));
-                }
-            }
-        }
-        let paired: Vec<PairsOverLags> = chosen
-            .iter()
-            .flat_map(|(_, pairs)| pairs.iter().cloned())
-            .collect();
-        let kept = (paired.len() as u64).saturating_sub(disclosed);
-        let proxy = (paired
-            .iter()
-            .filter_map(PairsOverLags::first_pair)
-            .map(|pair| {
-                pair.coordinates()
-                    .iter()
-                    .map(|c| c.shift * c.shift)
-                    .sum::<f64>()
-            })
-            .sum::<f64>()
-            / paired.len().max(1) as f64)
-            .sqrt();
-        // Each bit's exponents at the part's λ, evaluated once and kept by slice; the part's
-        // bound is their union's.
-        let lambdas =
-            candidate_lambdas(kept.max(1), proxy, epsilon).map_err(|why| why.to_string())?;
-        let slices = ChernoffExponents::split(&paired, &lambdas, parts, |i| {
-            slicing.map_or(0, |s| s.slice_of(i))
-        });
-        let bound = ChernoffExponents::joined(&slices)
-            .unwrap_or_default()
-            .smooth_min_entropy(disclosed, epsilon)
-            .map_err(|why| why.to_string())?;
-        Ok((chosen, bound.h_min, slices))
-    };
-    let mut parts_sized: Vec<Part> = Vec::with_capacity(points.len() + COVER_CELLS);
+    let mut slip_slices = SlipSlices::default();
+    let mut least = f64::INFINITY;
     for (i, point) in points.iter().enumerate() {
         if i > 0 && points[i - 1] == *point {
             continue; // a known world's one point, repeated
@@ -1402,67 +1322,78 @@ fn size_slip_block(
             .into_iter()
             .map(|motion| Corner { motion, ..corner })
             .collect();
-        let (chosen, bound, slices) = match size_part(point.variance, &views, None) {
-            Ok(sized) => sized,
+        let mut paired: Vec<PairsOverLags> = Vec::with_capacity(bits);
+        let doublets = sessions
+            .iter()
+            .flat_map(|session| (0..session.len()).map(move |i| (*session, i)));
+        for (session, i) in doublets {
+            let b = &session[i];
+            // Her view of the doublet: two steps' three instants, or (the lag measured) three
+            // steps' four and the next doublet's entry.
+            let view = stated_camera_view(
+                b.samples,
+                config.sensing.controller_std,
+                config.modelled_camera_std(),
+            );
+            let three_step = lag.map(|lag| (lag.interval, three_step_views(config, session, i)));
+            let pairs_at = |share: &Corner| match &three_step {
+                None => slip_pairs(&model, share, point.variance, axle, &b.inputs, &view)
+                    .map(|bits| bits.into_iter().map(PairsOverLags::at_one_lag).collect()),
+                Some((interval, (view, (next_inputs, next_view)))) => three_step_slip_pairs(
+                    &model,
+                    share,
+                    (point.variance, axle),
+                    *interval,
+                    &b.inputs,
+                    view,
+                    Some((next_inputs, next_view)),
+                ),
+            };
+            let pairs = views
+                .iter()
+                .fold(None, |kept, share| blunter(kept, pairs_at(share)));
+            match pairs {
+                Some((_, pairs)) => paired.extend(pairs),
+                None => {
+                    return named(format!(
+                        "per-wheel slip: at σ² = {:.3e} and the region's corner Eve's modelled \
+                         covariance is not positive definite at doublet {} (allowed: a bound \
+                         exists)",
+                        point.variance, b.doublet
+                    ));
+                }
+            }
+        }
+        let kept = (paired.len() as u64).saturating_sub(disclosed);
+        let proxy = (paired
+            .iter()
+            .filter_map(PairsOverLags::first_pair)
+            .map(|pair| {
+                pair.coordinates()
+                    .iter()
+                    .map(|c| c.shift * c.shift)
+                    .sum::<f64>()
+            })
+            .sum::<f64>()
+            / paired.len().max(1) as f64)
+            .sqrt();
+        // Each bit's exponents at the block's λ, evaluated once and kept by slice; the
+        // block's bound is their union's.
+        let slices = match candidate_lambdas(kept.max(1), proxy, epsilon) {
+            Ok(lambdas) => ChernoffExponents::split(&paired, &lambdas, parts, |i| {
+                slicing.map_or(0, |s| s.slice_of(i))
+            }),
             Err(why) => return named(format!("per-wheel slip: {why}")),
         };
-        let members = point
-            .upper
-            .as_ref()
-            .and_then(|upper| MinimalMembers::new(&corner.motion, upper));
-        parts_sized.push(Part {
-            variance: point.variance,
-            corner,
-            members,
-            cell: None,
-            chosen,
-            bound,
-            slices,
-        });
-    }
-    // The cover (`region_cover`): the part with the least bound is cut into cells, each
-    // doublet sized at the better of the part's choice and the cell's matrix below its
-    // members, while cells remain in the budget. Every member of the region at a point lies
-    // in one of its cells, so the least over the parts is a bound at every stage.
-    let mut cells_left = COVER_CELLS;
-    while let Some(worst) = (0..parts_sized.len())
-        .min_by(|&a, &b| parts_sized[a].bound.total_cmp(&parts_sized[b].bound))
-    {
-        let part = &parts_sized[worst];
-        let Some(members) = part.members else { break };
-        let cells = members.split(&part.cell.unwrap_or_else(|| members.whole()));
-        if cells.len() > cells_left {
-            break;
+        let bound = ChernoffExponents::joined(&slices)
+            .unwrap_or_default()
+            .smooth_min_entropy(disclosed, epsilon);
+        match bound {
+            Ok(bound) => least = least.min(bound.h_min),
+            Err(why) => return named(format!("per-wheel slip: {why}")),
         }
-        cells_left -= cells.len();
-        let part = parts_sized.swap_remove(worst);
-        for cell in cells {
-            let view = Corner {
-                motion: members.below(&cell),
-                ..part.corner
-            };
-            let (chosen, bound, slices) =
-                match size_part(part.variance, &[view], Some(&part.chosen)) {
-                    Ok(sized) => sized,
-                    Err(why) => return named(format!("per-wheel slip: {why}")),
-                };
-            parts_sized.push(Part {
-                cell: Some(cell),
-                chosen,
-                bound,
-                slices,
-                ..part
-            });
-        }
-    }
-    let least = parts_sized
-        .iter()
-        .map(|part| part.bound)
-        .fold(f64::INFINITY, f64::min);
-    let mut slip_slices = SlipSlices::default();
-    if slicing.is_some() {
-        for part in parts_sized {
-            slip_slices.push(part.slices);
+        if slicing.is_some() {
+            slip_slices.push(slices);
         }
     }
     let kept = (bits as u64).saturating_sub(disclosed);
@@ -1485,32 +1416,6 @@ fn size_slip_block(
             .collect(),
         report,
     )
-}
-
-/// Cells of the region's cover sized per block at most (`region_cover`; docs/estimation.md,
-/// "Per-wheel slip"): each costs one view of every doublet.
-const COVER_CELLS: usize = 27;
-
-/// One doublet's chosen view: its Bhattacharyya exponent and its bits' pairs.
-type Chosen = (f64, Vec<PairsOverLags>);
-
-/// A part of the slip region sized: a point of σ²'s grid, or a cell of its cover.
-#[derive(Clone)]
-struct Part {
-    /// σ² (a fraction of each wheel's travel, squared).
-    variance: f64,
-    /// The corner below the whole correlation interval at σ².
-    corner: Corner,
-    /// The region's minimal members at σ², where it has a cover.
-    members: Option<MinimalMembers>,
-    /// The cell of the cover, none for the whole region at σ².
-    cell: Option<Cell>,
-    /// Each doublet's view.
-    chosen: Vec<Chosen>,
-    /// `H_min^ε` of the block's kept bits over the part (bits).
-    bound: f64,
-    /// Each slice's bits' exponents.
-    slices: Vec<ChernoffExponents>,
 }
 
 /// Of the view of one doublet's bits `kept` so far (with its exponent) and an `other`, each

@@ -28,7 +28,6 @@ mod normal_tail;
 pub mod pairs_over_lags;
 mod pattern_fit;
 pub mod quantum_check;
-mod region_cover;
 pub mod residual;
 pub mod slice_llrs;
 pub mod slip;
