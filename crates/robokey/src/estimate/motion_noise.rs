@@ -119,8 +119,10 @@ pub struct MotionNoiseEstimate {
 }
 
 /// Points of the slip variance's interval the region's corners are computed at: its ends and
-/// midpoint (a bound at those points; between them the view's dependence on σ² is taken as
-/// no sharper than at the grid's largest — a stated assumption, not a proof).
+/// midpoint (a bound at those points; between them not proved: the corner falls in the
+/// Loewner order as σ² rises, but the slip's own, bit-dependent part of Eve's view rises with
+/// it. On the grid's slip blocks 9 and 17 points gave the same least H_min^ε, which fell
+/// strictly in σ²: docs/estimation.md, "What is not done yet").
 pub const SLIP_GRID: usize = 3;
 
 /// The joint region's lower bounds at one value of the slip variance σ².
