@@ -1100,15 +1100,16 @@ pub(super) mod tests {
 
     /// [`ratio_interval_over`] bounds the ratio's interval at every (σ², j²) of the slip's and
     /// the jitter's rectangle: over 8 seeded blocks of 1,000 two-step doublets per world (the
-    /// one-step residuals, `jitter`'s simulation), `j_hi` the jitter's upper end at ε = 0.05
-    /// where the world has jitter (else j² = 0; four worlds with 5 % and 20 % of slip, 1 and
-    /// 4 mm, with and without 5 ms, and two with jitter alone), σ²'s interval `[(0.8σ)², (1.2σ)²]` about the
-    /// world's slip σ (a wider band than a block's, so more curvature to bound), both
-    /// statistics (the lag-one ratio, stride 1, and the joined steps', stride 2) at ε = 0.05,
-    /// the interval at each point of a 17 × 17 grid (17 where one side is a point) lies within
-    /// the bound (with the intervals at σ²'s ends, as `ratio_statistic` takes it). Printed: the closest approach (negative inside) and the bound's mean
-    /// widening over the hull of the intervals at 9 evenly spaced σ² at j² = 0 and `j²_hi`
-    /// (what ρ's interval was before the bound), both in the ratio `r`.
+    /// one-step residuals, `jitter`'s simulation; six worlds with 5 % or 20 % of slip at 1 or
+    /// 4 mm, two of them with 5 ms of jitter, and two with 5 ms of jitter alone), `j_hi` the
+    /// jitter's upper end at ε = 0.05 where the world has jitter (else j² = 0), σ²'s interval
+    /// `[(0.8σ)², (1.2σ)²]` about the world's slip σ (a wider band than a block's, so more
+    /// curvature to bound), both statistics (the lag-one ratio, stride 1, and the joined
+    /// steps', stride 2) at ε = 0.05, the interval at each point of a 17 × 17 grid (17 where
+    /// one side is a point) lies within the bound (with the intervals at σ²'s ends, as
+    /// `ratio_statistic` takes it). Printed: the closest approach (negative inside) and the
+    /// bound's mean widening over the hull of the intervals at 9 evenly spaced σ² at j² = 0
+    /// and `j²_hi` (what ρ's interval was before the bound), both in the ratio `r`.
     #[test]
     fn the_ratios_interval_over_the_slip_and_the_jitter_is_bounded() {
         use crate::estimate::jitter::tests::jittered_steps;
