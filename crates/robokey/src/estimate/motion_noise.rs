@@ -45,8 +45,8 @@
 //! direction the whitened second moment is a weighted χ², bounded over every weight vector
 //! the data and σ²'s upper end allow (`slip_wishart_bounds`, a fixed point), and the kurtosis
 //! is taken of each residual whitened by its own fitted covariance. ρ's interval takes the
-//! slip's share out over σ²'s interval, and σ²'s fit takes ρ at a point, so the two are
-//! taken jointly (`joint_region`), from ρ's whole class down, with no circular claim.
+//! slip's share out over σ²'s interval, which holds at every ρ (its fit free of ρ), so the
+//! two are taken jointly (`joint_region`) with no circular claim.
 
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
 use thiserror::Error;
