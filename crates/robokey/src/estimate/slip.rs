@@ -40,7 +40,8 @@
 //! there at the same weights: σ²'s interval from that fit covers σ² at level ε for every ρ of
 //! the class at once — one interval, no ρ in it. The weights are the fit's at the ρ given (a
 //! function of the data), and so are the point σ̂² and `Q̂` reported (at no level: `Q` and
-//! `ρQ` are nearly collinear over whole doublets, so the free fit's own `Q̂` is not one).
+//! `ρQ` are nearly collinear over whole doublets, so the free fit's own `Q̂` is not one; over
+//! doublets that all go straight their along-track columns coincide and the fit is `None`).
 
 use nalgebra::{Matrix3, SMatrix, SVector};
 
