@@ -48,8 +48,8 @@ use super::normal_tail::normal_upper_quantile;
 use super::pairs_over_lags::PairsOverLags;
 use super::slip_slices::{SlipSlices, equivalent_separation as paired_separation};
 use super::worst_case::{
-    SlipCell, below_the_region, slip_pairs, three_step_slip_pairs, three_step_steps,
-    three_step_worst_case, whole_interval_corner,
+    below_the_region, slip_pairs, three_step_slip_pairs, three_step_steps, three_step_worst_case,
+    whole_interval_corner,
 };
 use super::{
     DoubletResidual, JitterVariances, LagEstimate, MotionNoiseEstimate, commands_check,
@@ -1260,37 +1260,20 @@ fn sized_report(
     }
 }
 
-/// Cells σ²'s interval is cut into at most (bisecting the one whose bound is least).
-pub const MOST_SLIP_CELLS: usize = 8;
-
-/// The least gain (bits) of a bisection for the cells to be bisected again.
-const SLIP_CELL_GAIN: f64 = 1.0;
-
-/// Shares α of her camera's noise a cell's product view is tried at (`SlipCell`), each
-/// doublet at whichever tells her least.
-pub const CAMERA_SHARES: [f64; 3] = [1.0 / 64.0, 1.0 / 16.0, 0.25];
-
 /// A block whose estimate measured per-wheel slip (its `points` of the slip's interval,
-/// `estimate.slip_corners`), sized with each bit's view through the pair of Gaussians of its
-/// two values, each with its own covariance (docs/estimation.md, "Per-wheel slip"), over
-/// every σ² of the interval. The interval is cut into cells `[t_a, t_b]` between points. At
-/// every σ² = t of a cell each member Q of the region lies above the corner at `t_b` and
-/// below the upper bound at `t_a` (`𝓛̄(Q) ⪰ Σ_low − N̄ − t·M̄ ⪰ Σ_low − N̄ − t_b·M̄`, and
-/// likewise above, `M̄ ⪰ 0`), so above each of the matrices [`below_the_region`] builds from
-/// those two (the corner below the whole correlation interval, [`whole_interval_corner`]).
-/// Each doublet's bits are seen through their pairs over the cell ([`slip_pairs`]'s product
-/// view: at least what she sees at every t of the cell) at whichever matrix and camera share
-/// α of [`CAMERA_SHARES`] tells her least about the doublet; the bound of
-/// `covariance_pair::paired_smooth_min_entropy` with `disclosed` bits removed holds over the
-/// cell, and the least over the cells over the interval. The cells start as the whole
-/// interval; the one with the least bound is halved while that gains more than
-/// [`SLIP_CELL_GAIN`] bits, up to [`MOST_SLIP_CELLS`] (halves that gain nothing are not
-/// kept). A known world's one point (its points all alike) is sized at that point. The
-/// least is published as the smallest Gaussian separation whose bound is no larger
+/// `estimate.slip_corners`), sized with
+/// each bit's view through the pair of Gaussians of its two values, each with its own
+/// covariance (docs/estimation.md, "Per-wheel slip"): at each point of the slip's interval
+/// the corner below the whole correlation interval (every cell's `Q_cell` and step weights
+/// at once, [`whole_interval_corner`]), each bit's pairs ([`slip_pairs`]) at whichever of
+/// the matrices below the region ([`below_the_region`]: shares of the corner, raised by
+/// the region's upper bound) tells her least about the doublet, the bound of
+/// `covariance_pair::paired_smooth_min_entropy` with `disclosed` bits removed; the least over
+/// the points, published as the smallest Gaussian separation whose bound is no larger
 /// (`slip_slices::equivalent_separation`). Every bit's entry is that separation. Three-step
 /// doublets (the `lag` measured) are seen through their four instants and the next
 /// doublet's entry, over the lag's interval ([`three_step_slip_pairs`]). A multilevel block
-/// keeps each slice's bits' exponents in every cell (evaluated once, for the block's bound:
+/// keeps each slice's bits' exponents at every point (evaluated once, for the block's bound:
 /// [`ChernoffExponents::split`]), from which each slice is sized ([`BlockEstimate::for_slice`]).
 fn size_slip_block(
     points: &[SlipCorners],
@@ -1323,32 +1306,22 @@ fn size_slip_block(
         })
         .flatten();
     let parts = slicing.map_or(1, |s| usize::from(s.slices));
-    // The bound over the cell between points `[i, j]` (a point where `i = j`), with each
-    // slice's exponents.
-    let bound_over = |[i, j]: [usize; 2]| -> Result<(f64, Vec<ChernoffExponents>), String> {
-        let corner = whole_interval_corner(&points[j].corners);
-        // Every member Q of the region over the cell lies above the corner and above 0, and
-        // below the upper bound, hence above each of `below_the_region`'s matrices: each
-        // doublet is sized at whichever of those views leaves her less (the corner's heading
-        // entry, below 0 where the slip's uncertain share swamps a small Q along the
-        // heading, can leave her covariance near singular or without a bound at the corner
-        // itself).
-        let views: Vec<Corner> = below_the_region(&corner.motion, points[i].upper.as_ref())
+    let mut slip_slices = SlipSlices::default();
+    let mut least = f64::INFINITY;
+    for (i, point) in points.iter().enumerate() {
+        if i > 0 && points[i - 1] == *point {
+            continue; // a known world's one point, repeated
+        }
+        let corner = whole_interval_corner(&point.corners);
+        // Every member Q of the region lies above the corner and above 0, and below its
+        // upper bound, hence above each of `below_the_region`'s matrices: each doublet is
+        // sized at whichever of those views leaves her less (the corner's heading entry,
+        // below 0 where the slip's uncertain share swamps a small Q along the heading, can
+        // leave her covariance near singular or without a bound at the corner itself).
+        let views: Vec<Corner> = below_the_region(&corner.motion, point.upper.as_ref())
             .into_iter()
             .map(|motion| Corner { motion, ..corner })
             .collect();
-        let variances = [points[i].variance, points[j].variance];
-        let cells: Vec<SlipCell> = if i == j {
-            vec![SlipCell::point(variances[0])]
-        } else {
-            CAMERA_SHARES
-                .iter()
-                .map(|&camera_share| SlipCell {
-                    variances,
-                    camera_share,
-                })
-                .collect()
-        };
         let mut paired: Vec<PairsOverLags> = Vec::with_capacity(bits);
         let doublets = sessions
             .iter()
@@ -1363,13 +1336,13 @@ fn size_slip_block(
                 config.modelled_camera_std(),
             );
             let three_step = lag.map(|lag| (lag.interval, three_step_views(config, session, i)));
-            let pairs_at = |share: &Corner, cell: SlipCell| match &three_step {
-                None => slip_pairs(&model, share, cell, axle, &b.inputs, &view)
+            let pairs_at = |share: &Corner| match &three_step {
+                None => slip_pairs(&model, share, point.variance, axle, &b.inputs, &view)
                     .map(|bits| bits.into_iter().map(PairsOverLags::at_one_lag).collect()),
                 Some((interval, (view, (next_inputs, next_view)))) => three_step_slip_pairs(
                     &model,
                     share,
-                    (cell, axle),
+                    (point.variance, axle),
                     *interval,
                     &b.inputs,
                     view,
@@ -1378,18 +1351,15 @@ fn size_slip_block(
             };
             let pairs = views
                 .iter()
-                .flat_map(|share| cells.iter().map(move |&cell| (share, cell)))
-                .fold(None, |kept, (share, cell)| {
-                    blunter(kept, pairs_at(share, cell))
-                });
+                .fold(None, |kept, share| blunter(kept, pairs_at(share)));
             match pairs {
                 Some((_, pairs)) => paired.extend(pairs),
                 None => {
-                    return Err(format!(
-                        "at σ² in [{:.3e}, {:.3e}] and the region's corner Eve's modelled \
+                    return named(format!(
+                        "per-wheel slip: at σ² = {:.3e} and the region's corner Eve's modelled \
                          covariance is not positive definite at doublet {} (allowed: a bound \
                          exists)",
-                        variances[0], variances[1], b.doublet
+                        point.variance, b.doublet
                     ));
                 }
             }
@@ -1409,56 +1379,20 @@ fn size_slip_block(
             .sqrt();
         // Each bit's exponents at the block's λ, evaluated once and kept by slice; the
         // block's bound is their union's.
-        let lambdas = candidate_lambdas(kept.max(1), proxy, epsilon).map_err(|e| e.to_string())?;
-        let slices = ChernoffExponents::split(&paired, &lambdas, parts, |i| {
-            slicing.map_or(0, |s| s.slice_of(i))
-        });
+        let slices = match candidate_lambdas(kept.max(1), proxy, epsilon) {
+            Ok(lambdas) => ChernoffExponents::split(&paired, &lambdas, parts, |i| {
+                slicing.map_or(0, |s| s.slice_of(i))
+            }),
+            Err(why) => return named(format!("per-wheel slip: {why}")),
+        };
         let bound = ChernoffExponents::joined(&slices)
             .unwrap_or_default()
-            .smooth_min_entropy(disclosed, epsilon)
-            .map_err(|e| e.to_string())?;
-        Ok((bound.h_min, slices))
-    };
-    let last = points.len().saturating_sub(1);
-    let first_cell = if points.first() == points.last() {
-        [last, last]
-    } else {
-        [0, last]
-    };
-    let mut cells = match bound_over(first_cell) {
-        Ok((h_min, slices)) => vec![(first_cell, h_min, slices)],
-        Err(why) => return named(format!("per-wheel slip: {why}")),
-    };
-    while cells.len() < MOST_SLIP_CELLS {
-        let Some(worst) = (0..cells.len()).min_by(|&a, &b| cells[a].1.total_cmp(&cells[b].1))
-        else {
-            break;
-        };
-        let [i, j] = cells[worst].0;
-        let least = cells[worst].1;
-        if j - i < 2 {
-            break;
+            .smooth_min_entropy(disclosed, epsilon);
+        match bound {
+            Ok(bound) => least = least.min(bound.h_min),
+            Err(why) => return named(format!("per-wheel slip: {why}")),
         }
-        let middle = (i + j) / 2;
-        let mut halves = Vec::with_capacity(2);
-        for half in [[i, middle], [middle, j]] {
-            match bound_over(half) {
-                Ok((h_min, slices)) => halves.push((half, h_min, slices)),
-                Err(why) => return named(format!("per-wheel slip: {why}")),
-            }
-        }
-        let gain = halves.iter().map(|h| h.1).fold(f64::INFINITY, f64::min) - least;
-        if gain > 0.0 {
-            cells.splice(worst..=worst, halves);
-        }
-        if gain <= SLIP_CELL_GAIN {
-            break;
-        }
-    }
-    let least = cells.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
-    let mut slip_slices = SlipSlices::default();
-    if slicing.is_some() {
-        for (_, _, slices) in cells {
+        if slicing.is_some() {
             slip_slices.push(slices);
         }
     }
@@ -1759,14 +1693,7 @@ mod tests {
                         motion: corner_motion * share,
                         ..corner
                     };
-                    slip_pairs(
-                        &model,
-                        &view_at,
-                        SlipCell::point(slip),
-                        axle,
-                        &inputs,
-                        &view,
-                    )
+                    slip_pairs(&model, &view_at, slip, axle, &inputs, &view)
                 })
                 .collect();
             assert!(
@@ -1785,15 +1712,7 @@ mod tests {
                 motion: Matrix3::from_diagonal(&Vector3::new(a1, a2, 0.0)),
                 ..corner
             };
-            let positive = slip_pairs(
-                &model,
-                &positive,
-                SlipCell::point(slip),
-                axle,
-                &inputs,
-                &view,
-            )
-            .unwrap();
+            let positive = slip_pairs(&model, &positive, slip, axle, &inputs, &view).unwrap();
             let mut defeated = 0;
             for trial in 0..150 {
                 let scale = 10f64.powf(rng.random_range(-3.0..1.0));
@@ -1815,15 +1734,8 @@ mod tests {
                     "not a member: {min_eigenvalue}"
                 );
                 let rho = rng.random_range(cell[0]..=cell[1]);
-                let seen = slip_pairs(
-                    &model,
-                    &member(motion, rho),
-                    SlipCell::point(slip),
-                    axle,
-                    &inputs,
-                    &view,
-                )
-                .unwrap();
+                let seen =
+                    slip_pairs(&model, &member(motion, rho), slip, axle, &inputs, &view).unwrap();
                 for lambda in [0.25, 0.5, 1.0] {
                     let truth = exponents(&seen, lambda);
                     let above = exponents(&positive, lambda);
