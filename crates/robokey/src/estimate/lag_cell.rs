@@ -393,6 +393,18 @@ impl CentredView {
             remainder,
         })
     }
+
+    /// The view of covariance `covariance` at a point (a cell of no width: nothing moves);
+    /// `None` where it is not positive definite.
+    pub(crate) fn point(covariance: &DMatrix<f64>) -> Option<Self> {
+        Some(Self {
+            factor: Cholesky::new(covariance.clone())?,
+            inverse: DMatrix::zeros(0, 0),
+            eta: 0.0,
+            moves: DMatrix::zeros(covariance.nrows(), 0),
+            remainder: DVector::zeros(0),
+        })
+    }
 }
 
 /// The separation of pattern `b`'s mean from `a`'s in `a`'s view at the cell's centre,
@@ -415,6 +427,9 @@ pub(crate) fn separation_bound(
     [up, down]: &[[f64; MONOMIALS]; 2],
 ) -> [f64; 2] {
     let centre = a.factor.solve(difference).dot(difference).sqrt();
+    if a.moves.ncols() == 0 || b.moves.ncols() == 0 {
+        return [centre; 2];
+    }
     let Some(z) = a.factor.l().solve_lower_triangular(difference) else {
         return [centre, f64::INFINITY];
     };
@@ -471,4 +486,46 @@ pub(crate) fn observed_radius(
         }
     }
     (moved, remainder, s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A speed's range over a cell holds it at each of 201 lags of the cell: three steps'
+    /// mean speeds from an entry speed and three more decaying after them, on cells near 0,
+    /// around 50 ms and wide.
+    #[test]
+    fn a_speeds_range_holds_it_over_the_cell() {
+        let constant = |v: f64, w: f64| LagPolynomial::constant(Unicycle::new(v, w));
+        let mut speed = constant(0.09, 0.5);
+        let mut means = Vec::new();
+        for command in [
+            constant(0.12, 0.3),
+            constant(0.05, 0.6),
+            constant(0.1, 0.2),
+            constant(0.0, 0.0),
+            constant(0.0, 0.0),
+            constant(0.0, 0.0),
+        ] {
+            let (mean, end) = LagPolynomial::lagged(command, speed);
+            means.push(mean);
+            speed = end;
+        }
+        for [low, high] in [[0.0, 0.03], [0.045, 0.055], [0.1, 0.4]] {
+            for mean in &means {
+                let [least, greatest] = mean.range([low, high], 0.2);
+                for i in 0..=200 {
+                    let tau = low + (high - low) * f64::from(i) / 200.0;
+                    let [at, _] = mean.range([tau; 2], 0.2);
+                    for axis in 0..2 {
+                        assert!(
+                            least[axis] - 1e-15 <= at[axis] && at[axis] <= greatest[axis] + 1e-15,
+                            "τ {tau}: {at} outside [{least}, {greatest}]"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }

@@ -157,8 +157,8 @@ pub fn whole_interval_corner(corners: &[Corner]) -> Corner {
     })
 }
 
-/// Points of the grid over the lag's interval Eve's view is first sized at (its first
-/// cells' ends), and the commands check's prediction.
+/// Points of the grid over the lag's interval the commands check's prediction and, under
+/// slip, Eve's view are first sized at.
 pub const LAG_GRID: usize = 5;
 
 /// `LAG_GRID` lags evenly over `[low, high]` (s); one when the interval is a point.
@@ -461,17 +461,16 @@ impl OverCell {
     }
 }
 
-/// The most cells the lag's interval is cut into for Eve's view (from [`LAG_GRID`] − 1 by
-/// halving).
+/// The most cells the lag's interval is cut into for Eve's view (by halving).
 const MAX_LAG_CELLS: usize = 64;
 
 /// Each bit's largest separation over every τ in `interval` `[τ_lo, τ_hi]` (s), from
 /// `over(cell)`'s bound on each cell (estimate/lag_cell.rs: a bound at every τ of the
 /// cell, no assumption on how `d` bends): the largest of the cells' bounds. The interval is
-/// cut into [`LAG_GRID`] − 1 cells, and each cell whose bound exceeds by more than
-/// [`LAG_SLACK`] what the separation is known to reach — its largest at the interval's
-/// ends and the cells' centres — is halved, while there are at most [`MAX_LAG_CELLS`].
-/// `None` when `over` has no answer on some cell; `over([τ_lo, τ_lo])`'s value for a point.
+/// one cell at first, and each cell whose bound exceeds by more than [`LAG_SLACK`] what the
+/// separation is known to reach — its largest at the interval's ends and the cells'
+/// centres — is halved, while there are at most [`MAX_LAG_CELLS`]. `None` when `over` has
+/// no answer on some cell; `over([τ_lo, τ_lo])`'s value for a point.
 fn largest_over_lags(
     [low, high]: [f64; 2],
     over: impl Fn([f64; 2]) -> Option<OverCell>,
@@ -480,16 +479,7 @@ fn largest_over_lags(
         return over([low, low]).map(|point| point.centre);
     }
     let mut reached = over([low, low])?.max(&over([high, high])?).centre;
-    let pieces = LAG_GRID - 1;
-    let mut cells = (0..pieces)
-        .map(|i| {
-            let cell = [
-                low + (high - low) * i as f64 / pieces as f64,
-                low + (high - low) * (i + 1) as f64 / pieces as f64,
-            ];
-            over(cell).map(|d| (cell, d))
-        })
-        .collect::<Option<Vec<_>>>()?;
+    let mut cells = vec![([low, high], over([low, high])?)];
     loop {
         for (_, d) in &cells {
             reached = std::array::from_fn(|i| reached[i].max(d.centre[i]));
@@ -646,6 +636,9 @@ fn path_separations(
         .iter()
         .enumerate()
         .map(|(pattern, (_, s))| {
+            if cell[0] == cell[1] {
+                return CentredView::point(s);
+            }
             let (means, jacobians, applied) = path(pattern);
             let speeds = speeds(pattern);
             let radius = path_radius(&applied, &speeds, cell, sample_time);
