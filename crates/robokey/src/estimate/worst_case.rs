@@ -59,7 +59,7 @@
 //! assumption on how `d` bends. A cell whose bound exceeds by more than [`LAG_SLACK`] what
 //! the interval's ends and the cells' centres show is halved (at most [`MAX_LAG_CELLS`]);
 //! the bound is the cells' largest. The bound is second order in a cell's width, so near
-//! the prior, where `d` falls with τ, it is the lower end's value plus about 10⁻³. Under
+//! the prior, where `d` falls with τ, it is the lower end's value plus at most 2.5·10⁻⁴. Under
 //! per-wheel slip ([`three_step_slip_pairs`]) each bit's exponent is still bounded between
 //! the grid's lags by a convexity slack, a stated curvature assumption
 //! (estimate/pairs_over_lags.rs).
@@ -173,9 +173,10 @@ pub fn lag_grid([low, high]: [f64; 2]) -> Vec<f64> {
 }
 
 /// How far a bit's bound over the lag's interval may lie above what its cells' centres and
-/// the interval's ends show before a cell is halved (`largest_over_lags`): a quarter of the
-/// published quantum.
-pub const LAG_SLACK: f64 = SEPARATION_QUANTUM / 4.0;
+/// the interval's ends show before a cell is halved (`largest_over_lags`): a sixteenth of
+/// the published quantum (a quarter cost 13 bits more on one of the grid's lag blocks at a
+/// third less CPU: docs/estimation.md, "The lag" item 5).
+pub const LAG_SLACK: f64 = SEPARATION_QUANTUM / 16.0;
 
 /// The most lags the commands check's grid over the lag's interval is refined to (its
 /// spacing halved from [`LAG_GRID`] points four times).
