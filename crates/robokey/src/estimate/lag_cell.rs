@@ -22,20 +22,28 @@
 //! is enclosed entrywise by midpoint-radius products: `X ∈ ⟨X_c, r_X⟩`, `Y ∈ ⟨Y_c, r_Y⟩`
 //! give `XY ∈ ⟨X_cY_c, |X_c|·r_Y + r_X·|Y_c| + r_X·r_Y⟩` ([`covariance_radius`]).
 //!
-//! **The separation** ([`separation_bound`]). With `|S(τ) − S_c| ≤ r_S` and
-//! `|δ(τ) − δ_c| ≤ r_δ` entrywise on the cell, `D = diag(S_c)^(−½)`, and
-//! `η = λ_max(D·r̄_S·D)/λ_min(D·S_c·D)` (`r̄_S` the larger of `r_S` and its transpose):
-//! `xᵀ(S − S_c)x ≥ −|x|ᵀr̄_S|x| ≥ −η·xᵀS_c x`, so `S ⪰ (1 − η)·S_c` and, where `η < 1`,
+//! **The means.** The poses move with the speeds by the Euler map's derivative `J` at the
+//! centre's path plus a remainder of at most `T·(r_v·r_θ + |v_c|·r_θ²/2)` per step on the
+//! positions (none on the heading, linear in the turn rates), and the speeds by
+//! `Σᵢ Δfᵢ·Cᵢ` exactly (`Δfᵢ` monomial `i`'s move, `Cᵢ` its coefficients): a bit's
+//! difference of two patterns' means is `δ = δ_c + Σᵢ Δfᵢ·wᵢ + e`, `wᵢ = J_a·C_a,i −
+//! J_b·C_b,i` ([`monomial_moves`]), every `Δfᵢ` of τ − τ_c's sign ([`monomial_spans`]).
 //!
-//! `d(τ) = ‖S^(−½)δ‖ ≤ (‖S_c^(−½)δ_c‖ + √(r_δᵀ·|S_c⁻¹|·r_δ)) / √(1 − η)`
+//! **The separation** ([`separation_bound`]). With `|S(τ) − S_c| ≤ r_S` entrywise on the
+//! cell, `D = diag(S_c)^(−½)` and `η = λ_max(D·r̄_S·D)/λ_min(D·S_c·D)` (`r̄_S` the larger
+//! of `r_S` and its transpose; both bounded by row sums): `xᵀ(S − S_c)x ≥ −|x|ᵀr̄_S|x| ≥
+//! −η·xᵀS_c x`, so `S ⪰ (1 − η)·S_c`, and expanding `‖S_c^(−½)δ‖²` (`z = S_c^(−½)δ_c`,
+//! `pᵢ = zᵀS_c^(−½)wᵢ`, `r_e = √(ρᵀ|S_c⁻¹|ρ)` with `ρ ≥ |e|`), where `η < 1`,
 //!
-//! (the triangle inequality in `S_c`'s norm, and `eᵀS_c⁻¹e ≤ |e|ᵀ|S_c⁻¹||e|`); where
-//! `η ≥ 1` the cell has no bound (∞: the cell is split). It also shows `S` positive definite
-//! over the whole cell where `S_c` is. The bound is first order in the cell's width: it
-//! exceeds `d`'s largest on the cell by about `|d′|` times the half-width (times the losses
-//! of the entrywise radii), so the cells are split until it lies within a stated slack of
-//! what the centres and the interval's ends show (`worst_case`'s `largest_over_lags`).
-//! Floating-point rounding is not enclosed (it is 10⁻¹⁶ relative, far below that slack).
+//! `d(τ)²·(1 − η) ≤ ‖z‖² + 2·(max(Σᵢ upᵢ·pᵢ⁺, Σᵢ downᵢ·pᵢ⁻) + ‖z‖·r_e) + (Σᵢ sᵢ·‖S_c^(−½)wᵢ‖ + r_e)²`
+//!
+//! (`upᵢ`, `downᵢ` the monomial's span above and below the centre, `sᵢ` the larger);
+//! where `η ≥ 1` the cell has no bound (∞: it is split). It also shows `S` positive
+//! definite over the whole cell where `S_c` is. The cross term is exact to first order, so
+//! the bound exceeds `d`'s largest on the cell only at second order in its width; the cells
+//! are split until it lies within a stated slack of what the centres and the interval's
+//! ends show (`worst_case`'s `largest_over_lags`). Floating-point rounding is not enclosed
+//! (it is 10⁻¹⁶ relative, far below that slack).
 
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn, Matrix3, SMatrix, Vector3};
 
