@@ -244,7 +244,9 @@ const PREDICTION_SLACK: f64 = 0.1;
 /// lag's whole `interval` `[τ_lo, τ_hi]` (s), per regression: its magnitude on the grid Eve's
 /// view is sized on, refined while a concavity slack exceeds `PREDICTION_SLACK` standard
 /// errors, plus that slack (`largest_of_each_over_lags`). The measured side is the
-/// regression's at `τ_lo` (what the next commands reveal does not depend on τ).
+/// regression's at `τ_lo` (what the next commands reveal does not depend on τ). A
+/// prediction that bends faster than the grid resolves is under-predicted there, which
+/// only refuses more blocks: this check need not bound it as Eve's view does.
 #[must_use]
 pub fn regressions_over_lags(
     config: &Config,

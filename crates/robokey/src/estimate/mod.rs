@@ -23,6 +23,7 @@ mod half_away;
 pub mod homogeneity;
 pub mod jitter;
 pub mod lag;
+mod lag_cell;
 pub mod motion_noise;
 mod normal_tail;
 pub mod pairs_over_lags;

@@ -16,10 +16,12 @@
 //!
 //! `min_j e_k(τ_j) − max(0, max_j Δ²e_k,j)/4`
 //!
-//! for every τ of the interval: the Gaussian path's concavity slack (`worst_case`'s module
-//! doc), mirrored — there the separation is bounded above, here the exponent below. It rests
-//! on the same stated curvature assumption (convexity between points at most twice what the
-//! grid shows): an exponent that bends faster than the grid resolves is not covered. The
+//! for every τ of the interval: the concavity slack the Gaussian path took before its cells
+//! were bounded (estimate/lag_cell.rs), mirrored — there the separation was bounded above,
+//! here the exponent below. It rests on a stated curvature assumption (convexity between
+//! points at most twice what the grid shows): an exponent that bends faster than the grid
+//! resolves is not covered (the Gaussian path's cell bound is not carried over to the
+//! exponent: docs/estimation.md, "What is not done yet"). The
 //! slack is taken at every λ the bound tries, from the same moments the least over the grid
 //! takes (no further evaluation); a grid of one lag (a point interval, or two-step doublets)
 //! takes none.
