@@ -485,7 +485,8 @@ fn block_through_the_agents(
 
 /// Private sessions pooled in both agents' stores become final keys: both stores list the
 /// same IDs, `keys get` gives the same bits on both sides, and each key states its length,
-/// ε and the camera assumption it is secret under.
+/// ε and the camera assumption it is secret under. The plant configured (stated: unset,
+/// private sensing sizes from the measured plant): the stores' mechanics, not the sizing.
 #[test]
 fn pooled_private_sessions_become_the_same_final_keys_in_both_stores() {
     let stores = Stores::new(
@@ -495,6 +496,8 @@ fn pooled_private_sessions_become_the_same_final_keys_in_both_stores() {
             "postprocess.block_bits=1500",
             "--set",
             "postprocess.sample_bits=150",
+            "--set",
+            "postprocess.sizing=configured",
         ],
     );
     let mut blocks = Vec::new();
@@ -588,12 +591,15 @@ fn pooled_private_sessions_become_the_same_final_keys_in_both_stores() {
     assert!(text.contains("no key"), "{text}");
 }
 
-/// The post-processing of the block tests: a block of about nine clean sessions.
-const SMALL_BLOCK: [&str; 4] = [
+/// The post-processing of the block tests: a block of about nine clean sessions, the plant
+/// configured (stated: unset, private sensing sizes from the measured plant).
+const SMALL_BLOCK: [&str; 6] = [
     "--set",
     "postprocess.block_bits=4000",
     "--set",
     "postprocess.sample_bits=200",
+    "--set",
+    "postprocess.sizing=configured",
 ];
 
 /// A robot whose plant has 1 mm of motion noise while both parties assume the default 4 mm:
@@ -647,7 +653,7 @@ fn a_lagging_robots_block_is_refused_by_the_commands_check_in_the_agents() {
     lagging_block_is_refused("lag-commands-check", "measured");
 }
 
-/// The same robot with the plant configured (the default sizing): the controller keeps its
+/// The same robot with the plant configured (`sizing = "configured"`): the controller keeps its
 /// samples all the same and runs the same check on the robot's bits after reconciliation,
 /// refusing the block by name. (In the parties' own world the check accepts the block:
 /// `a_key_sized_for_the_robots_own_world_is_not_warned_of` commits its key.)

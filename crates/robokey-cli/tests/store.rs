@@ -43,8 +43,9 @@ const MEASURED: [&str; 8] = [
 ];
 
 /// The agents' settings with LDPC reconciliation: private sensing, blocks of 300 raw bits,
-/// Eve's camera at 50 mm (as [`MEASURED`]).
-const LDPC: [&str; 8] = [
+/// Eve's camera at 50 mm (as [`MEASURED`]), the plant configured (stated: unset, private
+/// sensing sizes from the measured plant).
+const LDPC: [&str; 10] = [
     "--set",
     "sensing.mode=private",
     "--set",
@@ -53,6 +54,8 @@ const LDPC: [&str; 8] = [
     "postprocess.reconciliation=ldpc",
     "--set",
     "eve.camera_std=[0.05, 0.05, 0.05]",
+    "--set",
+    "postprocess.sizing=configured",
 ];
 
 /// Added to [`LDPC`]: two dimensions of 4-level symbols, each session's two slices

@@ -149,7 +149,7 @@ const FIELDS: &[(&str, &str)] = &[
     ),
     (
         "postprocess.sizing",
-        "private sensing: \"configured\" (default) or \"measured\" — what sizes the agents' keys (multilevel slices sized together on whole symbols; docs/estimation.md)",
+        "\"configured\" or \"measured\" (private sensing) — what sizes the agents' keys; unset, it follows sensing.mode: measured under private sensing, configured in odometry mode (multilevel slices sized together on whole symbols; robokey secrecy keeps its own default, configured; docs/estimation.md)",
     ),
     (
         "postprocess.reconciliation",
@@ -242,7 +242,7 @@ mod tests {
         // Printed only when set.
         config.postprocess.assumed_eve_error = Some(0.2);
         config.robot.command_quantum = 0.0323;
-        config.postprocess.sizing = robokey::config::Sizing::Measured;
+        config.postprocess.sizing = Some(robokey::config::Sizing::Measured);
         config.postprocess.reconciliation = robokey::config::Reconciliation::Ldpc;
         config.protocol.levels = 4;
         config.protocol.labeling = robokey::config::Labeling::Gray;

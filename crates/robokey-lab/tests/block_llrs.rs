@@ -72,8 +72,7 @@ fn both(config: &Config, runs: &[RunOutput], seed: u64) -> (Block, BlockReport) 
         block_bits: endpoints.block_bits,
         assumption: endpoints.assumption.clone(),
         reconciliation: endpoints.reconciliation,
-        block_llrs: (!config.postprocess.llr_model().is_prior())
-            .then(|| (config.clone(), config.postprocess.llr_model())),
+        block_llrs: (!config.llr_model().is_prior()).then(|| (config.clone(), config.llr_model())),
     };
     let lab = pipeline::post_process(&pools, &settings, &mut ChaCha8Rng::seed_from_u64(seed))
         .into_iter()

@@ -568,9 +568,11 @@ pub struct PostprocessConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub assumed_eve_error: Option<f64>,
     /// Private sensing: what sizes the keys — the configured physics, or the motion noise
-    /// the controller measures per block (docs/estimation.md). Printed only when measured.
-    #[serde(skip_serializing_if = "Sizing::is_configured")]
-    pub sizing: Sizing,
+    /// the controller measures per block (docs/estimation.md). Unset, it follows the sensing
+    /// mode ([`Sizing::following`]: measured under private sensing, else configured);
+    /// [`Config::sizing`] resolves it. Printed only when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sizing: Option<Sizing>,
     /// How the pooled bits are reconciled: `cascade` (interactive, on decisions) or `ldpc`
     /// (one-way syndromes decoded on the controller's LLRs; private sensing only). An
     /// agreement term; printed only when `ldpc`.
@@ -580,20 +582,10 @@ pub struct PostprocessConfig {
     /// the prior's, online, or the motion noise measured at block time from the disclosed
     /// sample (docs/estimation.md, "Causality"). Unset, it follows the sizing
     /// ([`LlrModel::following`]: measured under the measured sizing with LDPC, else the
-    /// prior); [`Self::llr_model`] resolves it. The controller's alone (the robot never sees
+    /// prior); [`Config::llr_model`] resolves it. The controller's alone (the robot never sees
     /// LLRs); printed only when set.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub llrs: Option<LlrModel>,
-}
-
-impl PostprocessConfig {
-    /// The LLRs' model the controller decodes on: `llrs` where set, else
-    /// [`LlrModel::following`] this table's sizing and reconciliation.
-    #[must_use]
-    pub fn llr_model(&self) -> LlrModel {
-        self.llrs
-            .unwrap_or_else(|| LlrModel::following(self.sizing, self.reconciliation))
-    }
 }
 
 /// Which model the controller's LLRs that LDPC decodes on are computed with
@@ -712,10 +704,23 @@ impl Sizing {
         }
     }
 
-    /// Whether it is the configured physics (the default).
+    /// Whether it is the configured physics.
     #[must_use]
     pub fn is_configured(&self) -> bool {
         *self == Self::Configured
+    }
+
+    /// The agents' sizing where `postprocess.sizing` is unset: [`Self::Measured`] under
+    /// private sensing (its controller sees the robot's own physics through its private
+    /// sensor, so the key rests on what it measures, not on `noise.process_std`), else
+    /// [`Self::Configured`] (odometry mode measures nothing private). The simulator's
+    /// `robokey secrecy --sizing` keeps its own default, configured (the lab's comparison).
+    #[must_use]
+    pub fn following(mode: SensingMode) -> Self {
+        match mode {
+            SensingMode::Private => Self::Measured,
+            SensingMode::Odometry => Self::Configured,
+        }
     }
 }
 
@@ -726,7 +731,7 @@ impl Default for PostprocessConfig {
             sample_bits: 1_000,
             epsilon: 1e-6,
             assumed_eve_error: None,
-            sizing: Sizing::Configured,
+            sizing: None,
             reconciliation: Reconciliation::Cascade,
             llrs: None,
         }
@@ -852,7 +857,7 @@ impl Config {
         // Every field, the optional ones that print only when set included.
         let mut every = Self::default();
         every.postprocess.assumed_eve_error = Some(0.5);
-        every.postprocess.sizing = Sizing::Measured;
+        every.postprocess.sizing = Some(Sizing::Measured);
         every.postprocess.reconciliation = Reconciliation::Ldpc;
         every.postprocess.llrs = Some(LlrModel::Measured);
         every.eve.smoother_window = Some(0);
@@ -1119,7 +1124,7 @@ impl Config {
             }
             _ => {}
         }
-        if post.sizing == Sizing::World {
+        if post.sizing == Some(Sizing::World) {
             return Err(invalid(
                 "postprocess.sizing",
                 "world",
@@ -1162,7 +1167,7 @@ impl Config {
                  = \"ldpc\"",
             ));
         }
-        if post.sizing == Sizing::Measured && self.sensing.mode != SensingMode::Private {
+        if post.sizing == Some(Sizing::Measured) && self.sensing.mode != SensingMode::Private {
             return Err(invalid(
                 "postprocess.sizing",
                 "measured",
@@ -1309,6 +1314,25 @@ impl Config {
                 SensingMode::Private => DOUBLET_DELTA_OMEGA,
                 SensingMode::Odometry => 0.0,
             })
+    }
+
+    /// What sizes the agents' keys: `postprocess.sizing` as set, else
+    /// [`Sizing::following`] the sensing mode (measured under private sensing, configured in
+    /// odometry mode). Every reader of the agents' sizing goes through it.
+    #[must_use]
+    pub fn sizing(&self) -> Sizing {
+        self.postprocess
+            .sizing
+            .unwrap_or_else(|| Sizing::following(self.sensing.mode))
+    }
+
+    /// The LLRs' model the controller decodes on: `postprocess.llrs` where set, else
+    /// [`LlrModel::following`] the [`sizing`](Self::sizing) and the reconciliation.
+    #[must_use]
+    pub fn llr_model(&self) -> LlrModel {
+        self.postprocess
+            .llrs
+            .unwrap_or_else(|| LlrModel::following(self.sizing(), self.postprocess.reconciliation))
     }
 
     /// The three-step doublet's third-step share `a = e^(−T/τ)` for `private.prior_lag`
@@ -1685,27 +1709,79 @@ mod tests {
         );
         let measured = Config::from_toml(&format!("{private}llrs = \"measured\"\n"), "m").unwrap();
         assert_eq!(measured.postprocess.llrs, Some(LlrModel::Measured));
-        assert_eq!(measured.postprocess.llr_model(), LlrModel::Measured);
+        assert_eq!(measured.llr_model(), LlrModel::Measured);
+    }
+
+    /// Every sensing mode × `postprocess.sizing` unset or stated: unset follows the mode
+    /// (private → measured, odometry → configured); a stated value stays and is written out
+    /// (an unset one is not), so a dump reads back to the same sizing; measured in odometry
+    /// mode and world anywhere are refused, naming the field.
+    #[test]
+    fn the_sizing_follows_the_sensing_mode_unless_stated() {
+        for (mode, sizing, resolved) in [
+            ("odometry", "", Some(Sizing::Configured)),
+            ("odometry", "configured", Some(Sizing::Configured)),
+            ("odometry", "measured", None),
+            ("odometry", "world", None),
+            ("private", "", Some(Sizing::Measured)),
+            ("private", "configured", Some(Sizing::Configured)),
+            ("private", "measured", Some(Sizing::Measured)),
+            ("private", "world", None),
+        ] {
+            let stated = if sizing.is_empty() {
+                String::new()
+            } else {
+                format!("[postprocess]\nsizing = \"{sizing}\"\n")
+            };
+            let text = format!("[sensing]\nmode = \"{mode}\"\n{stated}");
+            let case = format!("{mode}, sizing {sizing:?}");
+            match (Config::from_toml(&text, "s.toml"), resolved) {
+                (Ok(config), Some(resolved)) => {
+                    assert_eq!(config.sizing(), resolved, "{case}");
+                    let dumped = config.to_toml();
+                    assert_eq!(dumped.contains("sizing"), !sizing.is_empty(), "{case}");
+                    let again = Config::from_toml(&dumped, "dump").unwrap();
+                    assert_eq!(
+                        again.postprocess.sizing, config.postprocess.sizing,
+                        "{case}"
+                    );
+                }
+                (Err(error), None) => {
+                    let error = error.to_string();
+                    assert!(
+                        error.contains("postprocess.sizing") && error.contains(sizing),
+                        "{case}: {error}"
+                    );
+                }
+                (got, want) => panic!("{case}: {got:?}, expected {want:?}"),
+            }
+        }
     }
 
     #[test]
-    fn unset_llrs_follow_the_sizing_and_a_stated_model_stays() {
+    fn unset_llrs_follow_the_resolved_sizing_and_a_stated_model_stays() {
         let config = |post: &str| {
             let text = format!("[sensing]\nmode = \"private\"\n[postprocess]\n{post}");
             Config::from_toml(&text, "p.toml").unwrap()
         };
         let ldpc = "reconciliation = \"ldpc\"\n";
         let sized = "sizing = \"measured\"\n";
+        let configured = "sizing = \"configured\"\n";
         for (post, model) in [
             (format!("{ldpc}{sized}"), LlrModel::Measured),
-            (ldpc.to_owned(), LlrModel::Prior),
+            // Unset, the sizing follows private sensing: measured.
+            (ldpc.to_owned(), LlrModel::Measured),
+            (format!("{ldpc}{configured}"), LlrModel::Prior),
             (sized.to_owned(), LlrModel::Prior),
             (String::new(), LlrModel::Prior),
             (format!("{ldpc}{sized}llrs = \"prior\"\n"), LlrModel::Prior),
-            (format!("{ldpc}llrs = \"measured\"\n"), LlrModel::Measured),
+            (
+                format!("{ldpc}{configured}llrs = \"measured\"\n"),
+                LlrModel::Measured,
+            ),
         ] {
             let parsed = config(&post);
-            assert_eq!(parsed.postprocess.llr_model(), model, "{post}");
+            assert_eq!(parsed.llr_model(), model, "{post}");
             // What the agents' controller asks its shell for at block time.
             assert_eq!(
                 crate::estimate::recomputes_llrs(&parsed),
@@ -1720,7 +1796,7 @@ mod tests {
                 "{dumped}"
             );
             let again = Config::from_toml(&dumped, "dump").unwrap();
-            assert_eq!(again.postprocess.llr_model(), model, "{dumped}");
+            assert_eq!(again.llr_model(), model, "{dumped}");
         }
         // Not an agreement term: the robot never sees LLRs.
         let unset = config(&format!("{ldpc}{sized}"));

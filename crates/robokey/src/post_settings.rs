@@ -66,7 +66,7 @@ pub fn plant_words(config: &Config) -> String {
 /// [`plant_words`] without the command quantum.
 fn plant_class_words(config: &Config) -> String {
     // What the motion words leave out of the class: the configured noise is white.
-    let (motion, correlation) = match config.postprocess.sizing {
+    let (motion, correlation) = match config.sizing() {
         Sizing::Configured => (
             format!(
                 "white Gaussian motion noise {} per step as configured (not measured)",
@@ -92,7 +92,7 @@ fn plant_class_words(config: &Config) -> String {
             "",
         ),
     };
-    if config.private.is_default() && config.postprocess.sizing != Sizing::Measured {
+    if config.private.is_default() && config.sizing() != Sizing::Measured {
         format!("{motion}, no {correlation}slip, lag or delay, the Euler map")
     } else if config.private.is_default() {
         format!(
@@ -103,7 +103,7 @@ fn plant_class_words(config: &Config) -> String {
              bounds the motion noise, its lower end Eve's view; above a tenth of \
              robot.T refused), no lag or delay, the Euler map"
         )
-    } else if config.postprocess.sizing == Sizing::Measured {
+    } else if config.sizing() == Sizing::Measured {
         format!(
             "{motion}, no slip or sample-timing jitter, the Euler map; three-step doublets \
              shaped for a prior actuator \
@@ -242,7 +242,7 @@ fn estimate_leak(config: &Config) -> f64 {
 #[must_use]
 pub fn assumption(config: &Config) -> Assumption {
     match (config.sensing.mode, config.postprocess.assumed_eve_error) {
-        (SensingMode::Private, _) if config.postprocess.sizing == Sizing::Measured => {
+        (SensingMode::Private, _) if config.sizing() == Sizing::Measured => {
             measured_camera_assumption(config, 0.0, config.postprocess.epsilon)
         }
         (SensingMode::Private, _) => camera_assumption(config, 0.0),
@@ -325,6 +325,7 @@ mod tests {
         let mut config = Config::default();
         assert_eq!(key_basis(&config), None);
         config.sensing.mode = SensingMode::Private;
+        config.postprocess.sizing = Some(Sizing::Configured);
         let basis = key_basis(&config).unwrap();
         assert_eq!(
             basis.camera,
@@ -355,7 +356,8 @@ mod tests {
             shaped.contains("three-step doublets shaped for a first-order actuator lag of 50 ms"),
             "{shaped}"
         );
-        config.postprocess.sizing = Sizing::Measured;
+        // Unset under private sensing, the sizing is the measured one.
+        config.postprocess.sizing = None;
         let measured = key_basis(&config).unwrap().plant;
         assert!(
             measured.contains("the wheels' first-order lag measured per block"),
@@ -372,11 +374,19 @@ mod tests {
         );
     }
 
+    /// Private sensing's default: the key rests on the measured plant, as with an explicit
+    /// `sizing = "measured"`.
     #[test]
     fn a_measured_plant_sizes_and_labels_the_agents_keys() {
         let mut config = Config::default();
         config.sensing.mode = SensingMode::Private;
-        config.postprocess.sizing = Sizing::Measured;
+        let mut explicit = config.clone();
+        explicit.postprocess.sizing = Some(Sizing::Measured);
+        assert_eq!(
+            assumption(&config).describe(),
+            assumption(&explicit).describe()
+        );
+        assert_eq!(key_basis(&config), key_basis(&explicit));
         let settings = post_settings(&config);
         assert!(settings.check().is_ok());
         assert!(settings.assumption.is_measured());

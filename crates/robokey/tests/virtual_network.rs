@@ -348,22 +348,27 @@ mod through_the_session_layer {
 
     /// What sizes or labels the keys and differs between the agents — the motion noise the
     /// assumption names, Eve's camera in frames, the prior lag that shapes the doublets, the
-    /// measured plant, the reconciliation — ends the session at `Hello`, named.
+    /// measured plant (here a robot stating `sizing = "configured"` against a controller
+    /// that leaves it unset, hence measured under private sensing), the reconciliation —
+    /// ends the session at `Hello`, named.
     #[test]
     fn terms_that_size_or_label_keys_and_differ_are_refused_by_name() {
-        let robot = short("private");
+        let mut robot = short("private");
+        robot.postprocess.sizing = Some(robokey::config::Sizing::Configured);
+        let mut lag = robot.clone();
+        lag.private.prior_lag = 0.05;
         let mut noise = robot.clone();
         noise.noise.process_std = [0.002; 3];
         let mut frames = robot.clone();
         frames.eve.camera_fps = Some(30.0);
         frames.eve.camera_frame_std = Some([0.016; 3]);
         let mut measured = robot.clone();
-        measured.postprocess.sizing = robokey::config::Sizing::Measured;
+        measured.postprocess.sizing = None;
         let mut ldpc = robot.clone();
         ldpc.postprocess.reconciliation = robokey::config::Reconciliation::Ldpc;
         for (controller, named) in [
             (
-                three_step(),
+                lag,
                 "private.prior_lag: robot has (missing), controller has 0.05",
             ),
             (
@@ -391,6 +396,18 @@ mod through_the_session_layer {
             assert!(why.contains(named), "{why}");
             assert!(s.robot_key.is_empty() && s.controller_key.is_empty());
         }
+    }
+
+    /// Agreement is on the effective sizing: a robot that leaves `postprocess.sizing` unset
+    /// under private sensing (measured) and a controller that states `"measured"` confirm.
+    #[test]
+    fn an_unset_sizing_agrees_with_its_explicit_value() {
+        let robot = short("private");
+        let mut controller = robot.clone();
+        controller.postprocess.sizing = Some(robokey::config::Sizing::Measured);
+        let s = conversation_between(&robot, &controller, Network::default(), 0);
+        assert!(check(0, &s), "{s:?}");
+        assert!(!s.robot_key.is_empty());
     }
 
     #[test]

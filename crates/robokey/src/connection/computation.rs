@@ -93,7 +93,7 @@ impl BlockComputation {
     /// What it computes, in words (for the agent's output).
     #[must_use]
     pub fn describe(&self) -> &'static str {
-        let measured = self.config.postprocess.sizing == Sizing::Measured;
+        let measured = self.config.sizing() == Sizing::Measured;
         match (&self.request, measured) {
             (Request::Estimate(_), true) => "the estimate of the plant",
             (Request::Slices(_), true) => "the estimate of the plant on whole symbols",
@@ -109,7 +109,7 @@ impl BlockComputation {
     pub fn run(self) -> Computed {
         let config = &self.config;
         let epsilon = config.postprocess.epsilon;
-        let measured = config.postprocess.sizing == Sizing::Measured;
+        let measured = config.sizing() == Sizing::Measured;
         let block = self.block();
         let answer = match self.request {
             Request::Estimate(request) if measured => {
@@ -126,7 +126,7 @@ impl BlockComputation {
             },
             // The recomputed LLRs, or why the prior's stay (the block's report says).
             Request::Llrs(request) => {
-                Answer::Llrs(llr_answer(config, &request, config.postprocess.llr_model()))
+                Answer::Llrs(llr_answer(config, &request, config.llr_model()))
             }
             Request::Slices(request) if measured => {
                 let estimates =

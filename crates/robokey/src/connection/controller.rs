@@ -643,12 +643,12 @@ fn keepalive_interval(timing: &Timing) -> std::time::Duration {
 }
 
 /// Whether the controller keeps each decided doublet (its inputs and samples) for its
-/// blocks: the block's estimate under `postprocess.sizing = "measured"`; under
+/// blocks: the block's estimate under the measured [`Config::sizing`]; under
 /// `"configured"` in private sensing, the commands check on the robot's bits
 /// (docs/estimation.md, "The commands check"). A multilevel block's slices are then held
 /// until the last is reconciled, and the block estimated or checked on whole symbols.
 fn keeps_samples(config: &Config) -> bool {
-    match config.postprocess.sizing {
+    match config.sizing() {
         Sizing::Measured => true,
         Sizing::Configured => config.sensing.mode == SensingMode::Private,
         Sizing::World => false,

@@ -212,7 +212,7 @@ fn slice_block_llrs(
 /// under the measured sizing with LDPC).
 #[must_use]
 pub fn recomputes_llrs(config: &Config) -> bool {
-    config.postprocess.llr_model() != LlrModel::Prior
+    config.llr_model() != LlrModel::Prior
 }
 
 #[cfg(test)]

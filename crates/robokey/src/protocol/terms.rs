@@ -131,15 +131,14 @@ fn command_quantum_terms(config: &Config) -> String {
 }
 
 /// The measured plant's line, `postprocess.sizing = measured` (absent with the configured
-/// physics, so that its terms stay as they were): it sizes and labels the keys.
+/// physics, so that its terms stay as they were): it sizes and labels the keys. The
+/// resolved [`Config::sizing`], so that an unset field and its explicit value agree.
 fn sizing_terms(config: &Config) -> String {
-    if config.postprocess.sizing.is_configured() {
+    let sizing = config.sizing();
+    if sizing.is_configured() {
         String::new()
     } else {
-        format!(
-            "postprocess.sizing = {}\n",
-            config.postprocess.sizing.name()
-        )
+        format!("postprocess.sizing = {}\n", sizing.name())
     }
 }
 
@@ -279,17 +278,31 @@ mod tests {
         );
     }
 
+    /// The terms carry the resolved sizing: an unset field agrees with its explicit value
+    /// (measured under private sensing, configured in odometry mode), the configured
+    /// physics' terms keep no sizing line, and a differing effective sizing is named.
     #[test]
-    fn a_measured_plant_is_agreed_and_a_configured_one_unchanged() {
-        let mut a = Config::default();
-        a.sensing.mode = SensingMode::Private;
-        let configured = agreement_terms(&a);
+    fn the_resolved_sizing_is_agreed_and_a_configured_one_unchanged() {
+        use crate::config::Sizing;
+        let with = |mode, sizing| {
+            let mut config = Config::default();
+            config.sensing.mode = mode;
+            config.postprocess.sizing = sizing;
+            agreement_terms(&config)
+        };
+        let configured = with(SensingMode::Private, Some(Sizing::Configured));
         assert!(!configured.contains("sizing"), "{configured}");
-        let mut b = a.clone();
-        b.postprocess.sizing = crate::config::Sizing::Measured;
+        let unset = with(SensingMode::Private, None);
+        assert_eq!(unset, with(SensingMode::Private, Some(Sizing::Measured)));
         assert_eq!(
-            terms_difference(&configured, &agreement_terms(&b), "robot", "controller"),
+            terms_difference(&configured, &unset, "robot", "controller"),
             "postprocess.sizing: robot has (missing), controller has measured"
+        );
+        let odometry = with(SensingMode::Odometry, None);
+        assert!(!odometry.contains("sizing"), "{odometry}");
+        assert_eq!(
+            odometry,
+            with(SensingMode::Odometry, Some(Sizing::Configured))
         );
     }
 
