@@ -10,8 +10,9 @@ fn the_demo_ends_with_the_same_settled_key_in_both_stores_and_never_prints_it() 
     let dir = scratch("demo");
     let out = dir.join("demo");
     // Two bits per doublet (a session pools about 600 raw bits through the relay's faults)
-    // and 1,600-bit blocks: a block after three sessions, whose key (475 bits in a trial;
-    // six 1,200-bit blocks gave 49 to 229) is long enough to look for in the output.
+    // and 1,600-bit blocks: a block after three sessions, whose key (319 bits in a trial,
+    // sized from the measured plant, private sensing's default; 475 in an earlier trial with
+    // the plant configured) is long enough to look for in the output.
     let (code, text) = run_code(&[
         "demo",
         "--out",
@@ -46,6 +47,27 @@ fn the_demo_ends_with_the_same_settled_key_in_both_stores_and_never_prints_it() 
         bits.push(hex.trim().to_owned());
     }
     assert_eq!(bits[0], bits[1]);
+    // The default sizing under private sensing: the key rests on the plant the controller
+    // measured, not on the configured noise.
+    let (code, listed) = run_code(&[
+        "keys",
+        "list",
+        "--store",
+        &s(&out.join("controller")),
+        "--pairing",
+        &pairing,
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{listed}");
+    let keys: Vec<serde_json::Value> = serde_json::from_str(&listed).unwrap();
+    assert!(!keys.is_empty(), "{listed}");
+    for key in &keys {
+        let plant = key["basis"]["plant"].as_str().unwrap();
+        assert!(
+            plant.starts_with("Gaussian motion noise measured by the controller"),
+            "{key}"
+        );
+    }
     // Eight hex digits or more: a chance match in the output has odds below 1e-6.
     let probe = &bits[0][..bits[0].len().min(16)];
     assert!(probe.len() >= 8, "a key of {} hex digits", bits[0].len());
