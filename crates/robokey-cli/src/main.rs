@@ -313,7 +313,9 @@ struct SecrecyArgs {
     /// from its own bits under the block's one estimate. `world`: as `measured`, at the simulated world's
     /// own motion noise and correlation instead of an estimate — a pair configured with the
     /// true world, the comparison for `measured`. Default: the sweep file's `[secrecy]
-    /// sizing`, else configured.
+    /// sizing`, else configured — the lab's comparison and `reproduce`'s figures; the agents'
+    /// `postprocess.sizing` has its own default, following `sensing.mode` (measured under
+    /// private sensing).
     #[arg(long, value_enum)]
     sizing: Option<SizingArg>,
     /// How `complete` pooling reconciles (docs/postprocessing.md). `cascade`: interactive

@@ -10,8 +10,8 @@ fn the_demo_ends_with_the_same_settled_key_in_both_stores_and_never_prints_it() 
     let dir = scratch("demo");
     let out = dir.join("demo");
     // Two bits per doublet (a session pools about 600 raw bits through the relay's faults)
-    // and 1,600-bit blocks: a block after three sessions, whose key (319 bits in a trial,
-    // sized from the measured plant, private sensing's default; 475 in an earlier trial with
+    // and 1,600-bit blocks: a block after three sessions, whose key (319 to 400 bits in three
+    // runs, sized from the measured plant, private sensing's default; 292 and 525 in two with
     // the plant configured) is long enough to look for in the output.
     let (code, text) = run_code(&[
         "demo",

@@ -22,13 +22,15 @@ use robokey_secrecy::postprocess::{
 };
 
 /// The parties at the defaults with LDPC on `llrs` and `bits` binary bits per doublet, one
-/// 10⁴-bit block, the robot in an 8 mm world (twice the 4 mm they believe).
+/// 10⁴-bit block, the robot in an 8 mm world (twice the 4 mm they believe). The plant
+/// configured (stated: unset, private sensing sizes from the measured plant): these tests
+/// compare the LLRs, the lab's pipeline sizing from the configured assumption.
 fn parties(llrs: &str, bits: u8) -> Config {
     Config::from_toml(
         &format!(
             "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = {bits}\n\
-             [postprocess]\nreconciliation = \"ldpc\"\nllrs = \"{llrs}\"\n[world]\n\
-             process_std = [0.008, 0.008, 0.008]\n"
+             [postprocess]\nreconciliation = \"ldpc\"\nllrs = \"{llrs}\"\nsizing = \"configured\"\n\
+             [world]\nprocess_std = [0.008, 0.008, 0.008]\n"
         ),
         "test",
     )
@@ -201,8 +203,8 @@ fn a_multilevel_blocks_slices_recompute_their_staged_llrs() {
         Config::from_toml(
             &format!(
                 "[sensing]\nmode = \"private\"\n[protocol]\nbits_per_doublet = 2\nlevels = 4\n\
-                 [postprocess]\nreconciliation = \"ldpc\"\nllrs = \"{llrs}\"\n[world]\n\
-                 process_std = [0.008, 0.008, 0.008]\n"
+                 [postprocess]\nreconciliation = \"ldpc\"\nllrs = \"{llrs}\"\n\
+                 sizing = \"configured\"\n[world]\nprocess_std = [0.008, 0.008, 0.008]\n"
             ),
             "test",
         )
