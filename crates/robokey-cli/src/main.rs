@@ -88,8 +88,10 @@ enum Command {
     /// What a camera of Eve's leaves of the key at a configuration (private sensing): for a
     /// camera per instant (--camera-std) or in frames (--fps, --frame-std), or lists and
     /// ranges of them, its per-instant equivalent and the secret rate of a key sized against
-    /// it (bits per step and per second); then the break-even camera, where that rate
-    /// reaches zero (docs/threat-model.md). Default camera: the configuration's statement.
+    /// it from the configured physics, as `robokey secrecy` sizes by default (bits per step
+    /// and per second; the agents under private sensing size from the measured plant by
+    /// default); then the break-even camera, where that rate reaches zero
+    /// (docs/threat-model.md). Default camera: the configuration's statement.
     Threat(threat::ThreatArgs),
     /// Write a pairing secret (`DIR/pairing.key`) to install on a robot and its controller.
     Pair(net::PairArgs),

@@ -1,7 +1,9 @@
 //! `robokey threat` (docs/threat-model.md, "Eve's camera"): what a camera of Eve's leaves of
-//! the key at a configuration — its per-instant equivalent, the secret rate the agents' key
-//! has when it is sized against that camera, and the break-even camera where that rate
-//! reaches zero. Each rate is `robokey secrecy`'s for one point: the configuration's
+//! the key at a configuration — its per-instant equivalent, the secret rate a key has when
+//! it is sized against that camera from the configured physics (`robokey secrecy`'s default
+//! sizing; the agents' default under private sensing is the measured plant), and the
+//! break-even camera where that rate reaches zero. Each rate is `robokey secrecy`'s for one
+//! point: the configuration's
 //! sessions simulated, one block of `postprocess.block_bits` raw bits through the agents'
 //! post-processing (complete pooling) at `postprocess.epsilon` per term.
 
