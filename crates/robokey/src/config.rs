@@ -675,7 +675,8 @@ impl Reconciliation {
 
 /// What sizes private sensing's keys: the configured physics, or the motion noise the
 /// controller measures per block (docs/estimation.md). One vocabulary for
-/// `postprocess.sizing` and `robokey secrecy --sizing`.
+/// `postprocess.sizing` and `robokey secrecy --sizing`, whose defaults differ: the agents'
+/// [`Sizing::following`] the sensing mode; the lab's, [`Default`], [`Sizing::Configured`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Sizing {
