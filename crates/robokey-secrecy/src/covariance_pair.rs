@@ -27,7 +27,10 @@
 //! `c`, so it is a trapezoid sum over `ω = κ·sinh(u)` (`κ` the smaller of `c`, `μ − c` and the
 //! saddle's width), to `ω = max(30, 60·width)`. Checked against the Gaussian quadrature of
 //! [`crate::gaussian_llr`] and against direct integration in one and two dimensions (tests,
-//! |Δ ln E| < 10⁻⁹ for λ ≤ [`LARGEST_LAMBDA`]).
+//! |Δ ln E| < 10⁻⁹ for λ ≤ [`LARGEST_LAMBDA`]). Each point of the sum takes six complex
+//! logarithms whatever the dimension: the coordinates' `Σ ln w` under each value is one
+//! logarithm of their product with its turns around 0 counted (`ln_coordinate_sum`), the two
+//! ln Γ's take one each and share one for their series, and one adds the two values.
 
 use serde::{Deserialize, Serialize};
 
@@ -122,17 +125,24 @@ impl CovariancePair {
         // What every evaluation of the integrand shares, computed once per moment.
         let shared = Shared {
             ln_gamma_mu: ln_gamma(Complex::real(mu)),
-            ln_variances: self.coordinates.iter().map(|c| c.variance.ln()).collect(),
+            sum_ln_variances: self.coordinates.iter().map(|c| c.variance.ln()).sum(),
         };
         let on_axis = |c: f64| self.ln_integrand(Complex::real(c), mu, &shared).re;
-        let (mut a, mut b) = (1e-9 * strip, (1.0 - 1e-9) * strip);
+        // Golden-section search for the least on the axis, each step reusing the inner point
+        // it keeps.
         let ratio = (5f64.sqrt() - 1.0) / 2.0;
+        let (mut a, mut b) = (1e-9 * strip, (1.0 - 1e-9) * strip);
+        let (mut x1, mut x2) = (b - ratio * (b - a), a + ratio * (b - a));
+        let (mut f1, mut f2) = (on_axis(x1), on_axis(x2));
         for _ in 0..40 {
-            let (x1, x2) = (b - ratio * (b - a), a + ratio * (b - a));
-            if on_axis(x1) < on_axis(x2) {
-                b = x2;
+            if f1 < f2 {
+                (b, x2, f2) = (x2, x1, f1);
+                x1 = b - ratio * (b - a);
+                f1 = on_axis(x1);
             } else {
-                a = x1;
+                (a, x1, f1) = (x1, x2, f2);
+                x2 = a + ratio * (b - a);
+                f2 = on_axis(x2);
             }
         }
         let c = 0.5 * (a + b);
@@ -154,33 +164,27 @@ impl CovariancePair {
                 let u = h * k as f64;
                 let omega = scale * u.sinh();
                 let weight = if k == 0 || k == steps { 0.5 } else { 1.0 };
-                weight
-                    * scale
-                    * u.cosh()
-                    * self
-                        .ln_integrand(Complex::new(c, omega), mu, &shared)
-                        .exp()
-                        .re
+                let ln_value = self.ln_integrand(Complex::new(c, omega), mu, &shared);
+                weight * scale * u.cosh() * ln_value.re.exp() * ln_value.im.cos()
             })
             .sum();
         (sum * h / std::f64::consts::PI).ln()
     }
 
-    /// `ln[B(s, μ − s)·½(K₀(s) + K₁(s))]` (module doc; `K_b` with value `b` true), with
-    /// ln Γ(μ) and each coordinate's `ln v` from `shared`.
+    /// `ln[B(s, μ − s)·½(K₀(s) + K₁(s))]` (module doc; `K_b` with value `b` true), up to a
+    /// multiple of 2πi (it is exponentiated), with ln Γ(μ) and `Σ ln v` from `shared`:
+    /// `ln K₀ = Σₖ[gₖ/wₖ − ½ ln wₖ] + ½(1 + s)·Σ ln v`, `wₖ = (1 + s)vₖ − s`, and
+    /// `ln K₁ = Σₖ[gₖ/wₖ − ½ ln wₖ] − ½s·Σ ln v`, `wₖ = 1 + s − s·vₖ`, with
+    /// `gₖ = ½s(1 + s)·shiftₖ²` ([`Self::ln_coordinate_sum`]).
     fn ln_integrand(&self, s: Complex, mu: f64, shared: &Shared) -> Complex {
-        let beta = ln_gamma(s) + ln_gamma(Complex::real(mu) - s) - shared.ln_gamma_mu;
+        let (gamma_s, factor_s) = lanczos(s);
+        let (gamma_rest, factor_rest) = lanczos(Complex::real(mu) - s);
+        let beta = gamma_s + gamma_rest + (factor_s * factor_rest).ln() - shared.ln_gamma_mu;
         let one = Complex::real(1.0);
-        let (mut first, mut second) = (Complex::real(0.0), Complex::real(0.0));
-        for (c, &ln_v) in self.coordinates.iter().zip(&shared.ln_variances) {
-            let gap = s * (s + one) * (0.5 * c.shift * c.shift);
-            // First value true: v_t = 1, v_o = v.
-            let w = (s + one) * c.variance - s;
-            first = first + gap / w - (w.ln() - (s + one) * ln_v) * 0.5;
-            // Second value true: v_t = v, v_o = 1.
-            let w = (s + one) - s * c.variance;
-            second = second + gap / w - (w.ln() + s * ln_v) * 0.5;
-        }
+        let first = self.ln_coordinate_sum(s, |v| (s + one) * v - s)
+            + (s + one) * (0.5 * shared.sum_ln_variances);
+        let second =
+            self.ln_coordinate_sum(s, |v| (s + one) - s * v) - s * (0.5 * shared.sum_ln_variances);
         // ln(½(e^first + e^second)), the larger factored out.
         let (high, low) = if first.re >= second.re {
             (first, second)
@@ -189,13 +193,52 @@ impl CovariancePair {
         };
         beta + high + ((low - high).exp() + one).ln() - Complex::real(std::f64::consts::LN_2)
     }
+
+    /// `Σₖ [gₖ/wₖ − ½ ln wₖ]` up to a multiple of 2πi, `gₖ = ½s(1 + s)·shiftₖ²`, `wₖ = w(vₖ)`.
+    /// Inside the strip every `Re wₖ > 0`, so each `Arg wₖ` lies in (−π/2, π/2) and the
+    /// product `Πₖ wₖ` turns by less than π/2 at each factor: it crosses the negative real
+    /// axis exactly where its principal argument jumps by ∓2π, and counting those crossings
+    /// (`n`) gives `Σₖ ln wₖ = ln|Π wₖ| + i(Arg Π wₖ + 2πn)` exactly — halved, one
+    /// logarithm for all coordinates (the product's modulus folded into it wherever it
+    /// leaves [10⁻¹⁵⁰, 10¹⁵⁰], so it neither overflows nor underflows).
+    fn ln_coordinate_sum(&self, s: Complex, w: impl Fn(f64) -> Complex) -> Complex {
+        let half_gap = s * (s + Complex::real(1.0)) * 0.5;
+        let (mut gaps, mut product) = (Complex::real(0.0), Complex::real(1.0));
+        let (mut ln_modulus, mut turns) = (0.0, 0.0);
+        for c in &self.coordinates {
+            let w = w(c.variance);
+            gaps = gaps + half_gap * w.recip() * (c.shift * c.shift);
+            let next = product * w;
+            // Across the negative real axis the sign of the imaginary part flips (atan2
+            // takes its sign: +0 → π, −0 → −π).
+            if next.re < 0.0 && product.im.is_sign_negative() != next.im.is_sign_negative() {
+                turns += if next.im.is_sign_negative() {
+                    1.0
+                } else {
+                    -1.0
+                };
+            }
+            product = next;
+            let size = product.norm_squared();
+            if !(1e-300..=1e300).contains(&size) {
+                let modulus = size.sqrt();
+                ln_modulus += modulus.ln();
+                product = product * modulus.recip();
+            }
+        }
+        let argument = product.im.atan2(product.re) + 2.0 * std::f64::consts::PI * turns;
+        gaps - Complex::new(
+            0.5 * (ln_modulus + 0.5 * product.norm_squared().ln()),
+            0.5 * argument,
+        )
+    }
 }
 
 /// What the integrand of one moment (`CovariancePair::ln_moment` at one μ) takes the same at
-/// every point `s`: ln Γ(μ), and each coordinate's `ln v` in order.
+/// every point `s`: ln Γ(μ) and `Σ ln v` over the coordinates.
 struct Shared {
     ln_gamma_mu: Complex,
-    ln_variances: Vec<f64>,
+    sum_ln_variances: f64,
 }
 
 /// Step of the trapezoid sum in `u` (`ω = κ·sinh(u)`).
@@ -419,6 +462,17 @@ impl Complex {
         let r = self.re.exp();
         Self::new(r * self.im.cos(), r * self.im.sin())
     }
+
+    /// `|z|²`.
+    fn norm_squared(self) -> f64 {
+        self.re * self.re + self.im * self.im
+    }
+
+    /// `1/z`.
+    fn recip(self) -> Self {
+        let n = self.norm_squared().recip();
+        Self::new(self.re * n, -self.im * n)
+    }
 }
 
 impl std::ops::Add for Complex {
@@ -463,12 +517,22 @@ impl std::ops::Div for Complex {
     }
 }
 
-/// ln Γ(z) for `Re z > 0` (Lanczos, g = 7, the coefficients of [`crate::special`]; below
-/// `Re z = ½` through Γ(z) = Γ(z + 1)/z), up to a multiple of 2πi (the integrand is
+/// ln Γ(z) for `Re z > 0` ([`lanczos`]), up to a multiple of 2πi (the integrand is
 /// exponentiated).
 fn ln_gamma(z: Complex) -> Complex {
+    let (principal, factor) = lanczos(z);
+    principal + factor.ln()
+}
+
+/// ln Γ(z) for `Re z > 0` as `(p, f)` with `ln Γ(z) = p + ln f` up to a multiple of 2πi:
+/// Lanczos (g = 7, the coefficients of [`crate::special`]), `p = ½ ln 2π + (x + ½)·ln t − t`
+/// (`x = z − 1`, `t = x + g + ½`, the principal logarithm: it is multiplied) and `f` the
+/// series; below `Re z = ½` through Γ(z) = Γ(z + 1)/z, `f` divided by `z`. Kept apart, the
+/// factors of several Γ share one logarithm.
+fn lanczos(z: Complex) -> (Complex, Complex) {
     if z.re < 0.5 {
-        return ln_gamma(z + Complex::real(1.0)) - z.ln();
+        let (principal, factor) = lanczos(z + Complex::real(1.0));
+        return (principal, factor / z);
     }
     let x = z - Complex::real(1.0);
     let mut series = Complex::real(LANCZOS_COEFFICIENTS[0]);
@@ -476,8 +540,11 @@ fn ln_gamma(z: Complex) -> Complex {
         series = series + Complex::real(c) / (x + Complex::real(i as f64));
     }
     let t = x + Complex::real(LANCZOS_G + 0.5);
-    Complex::real(0.5 * (2.0 * std::f64::consts::PI).ln()) + (x + Complex::real(0.5)) * t.ln() - t
-        + series.ln()
+    (
+        Complex::real(0.5 * (2.0 * std::f64::consts::PI).ln()) + (x + Complex::real(0.5)) * t.ln()
+            - t,
+        series,
+    )
 }
 
 #[cfg(test)]
@@ -590,6 +657,58 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The coordinates' sum with one logarithm is the sum of each coordinate's principal
+    /// logarithms up to a multiple of 2πi (the same exponential), where the product of 24
+    /// coordinates' `w` winds around 0 (their arguments add beyond π) and where that of 400
+    /// leaves the floating-point range (its modulus folded).
+    #[test]
+    fn one_logarithm_for_all_coordinates_is_the_sum_of_each() {
+        let one = Complex::real(1.0);
+        let mut wound = false;
+        for dimension in [1, 3, 24, 400] {
+            let p = pair(
+                &(0..dimension)
+                    .map(|k| {
+                        let x = f64::from(k) / f64::from(dimension);
+                        (2.0 * x - 0.7, (4.0 * (x * 5.0).fract() - 2.0).exp())
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            let strip = p
+                .coordinates()
+                .iter()
+                .map(|c| 1.0 / (c.variance - 1.0).abs().max(1e-300) * c.variance.min(1.0))
+                .fold(5.0, f64::min);
+            for c in [1e-3 * strip, 0.5 * strip, 0.999 * strip] {
+                for omega in [0.0, 0.3, 4.0, 60.0, 2_000.0] {
+                    let s = Complex::new(c, omega);
+                    let forms: [&dyn Fn(f64) -> Complex; 2] =
+                        [&|v| (s + one) * v - s, &|v| (s + one) - s * v];
+                    for w in forms {
+                        let gap = s * (s + one) * 0.5;
+                        let (mut direct, mut arguments) = (Complex::real(0.0), 0.0);
+                        for c in p.coordinates() {
+                            let w = w(c.variance);
+                            assert!(w.re > 0.0, "outside the strip");
+                            direct = direct + gap * (c.shift * c.shift) / w - w.ln() * 0.5;
+                            arguments += w.im.atan2(w.re);
+                        }
+                        wound |= arguments.abs() > std::f64::consts::PI;
+                        let fast = p.ln_coordinate_sum(s, w);
+                        let scale = 1.0 + direct.re.abs() + direct.im.abs();
+                        let turns = (fast.im - direct.im) / (2.0 * std::f64::consts::PI);
+                        assert!(
+                            (fast.re - direct.re).abs() < 1e-12 * scale
+                                && (turns - turns.round()).abs() < 1e-12 * scale,
+                            "{dimension} at {s:?}: {fast:?} vs {direct:?}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(wound, "no case winds around 0");
     }
 
     /// A pair with no information is the blind view; invalid coordinates are refused.
