@@ -124,10 +124,10 @@ impl CovariancePair {
             .fold(mu, f64::min);
         // What every evaluation of the integrand shares, computed once per moment.
         let shared = Shared {
-            ln_gamma_mu: ln_gamma(Complex::real(mu)),
+            ln_gamma_mu: ln_gamma(mu),
             sum_ln_variances: self.coordinates.iter().map(|c| c.variance.ln()).sum(),
         };
-        let on_axis = |c: f64| self.ln_integrand(Complex::real(c), mu, &shared).re;
+        let on_axis = |c: f64| self.ln_integrand(c, mu, &shared);
         // Golden-section search for the least on the axis, each step reusing the inner point
         // it keeps.
         let ratio = (5f64.sqrt() - 1.0) / 2.0;
@@ -175,23 +175,25 @@ impl CovariancePair {
     /// multiple of 2πi (it is exponentiated), with ln Γ(μ) and `Σ ln v` from `shared`:
     /// `ln K₀ = Σₖ[gₖ/wₖ − ½ ln wₖ] + ½(1 + s)·Σ ln v`, `wₖ = (1 + s)vₖ − s`, and
     /// `ln K₁ = Σₖ[gₖ/wₖ − ½ ln wₖ] − ½s·Σ ln v`, `wₖ = 1 + s − s·vₖ`, with
-    /// `gₖ = ½s(1 + s)·shiftₖ²` ([`Self::ln_coordinate_sum`]).
-    fn ln_integrand(&self, s: Complex, mu: f64, shared: &Shared) -> Complex {
+    /// `gₖ = ½s(1 + s)·shiftₖ²` ([`Self::ln_coordinate_sum`]). On the real axis (the saddle's
+    /// search) in real arithmetic, off it in complex.
+    fn ln_integrand<S: Scalar>(&self, s: S, mu: f64, shared: &Shared) -> S {
         let (gamma_s, factor_s) = lanczos(s);
-        let (gamma_rest, factor_rest) = lanczos(Complex::real(mu) - s);
-        let beta = gamma_s + gamma_rest + (factor_s * factor_rest).ln() - shared.ln_gamma_mu;
-        let one = Complex::real(1.0);
+        let (gamma_rest, factor_rest) = lanczos(S::real(mu) - s);
+        let beta =
+            gamma_s + gamma_rest + (factor_s * factor_rest).ln() - S::real(shared.ln_gamma_mu);
+        let one = S::real(1.0);
         let first = self.ln_coordinate_sum(s, |v| (s + one) * v - s)
             + (s + one) * (0.5 * shared.sum_ln_variances);
         let second =
             self.ln_coordinate_sum(s, |v| (s + one) - s * v) - s * (0.5 * shared.sum_ln_variances);
         // ln(½(e^first + e^second)), the larger factored out.
-        let (high, low) = if first.re >= second.re {
+        let (high, low) = if first.re() >= second.re() {
             (first, second)
         } else {
             (second, first)
         };
-        beta + high + ((low - high).exp() + one).ln() - Complex::real(std::f64::consts::LN_2)
+        beta + high + ((low - high).exp() + one).ln() - S::real(std::f64::consts::LN_2)
     }
 
     /// `Σₖ [gₖ/wₖ − ½ ln wₖ]` up to a multiple of 2πi, `gₖ = ½s(1 + s)·shiftₖ²`, `wₖ = w(vₖ)`.
@@ -201,23 +203,15 @@ impl CovariancePair {
     /// (`n`) gives `Σₖ ln wₖ = ln|Π wₖ| + i(Arg Π wₖ + 2πn)` exactly — halved, one
     /// logarithm for all coordinates (the product's modulus folded into it wherever it
     /// leaves [10⁻¹⁵⁰, 10¹⁵⁰], so it neither overflows nor underflows).
-    fn ln_coordinate_sum(&self, s: Complex, w: impl Fn(f64) -> Complex) -> Complex {
-        let half_gap = s * (s + Complex::real(1.0)) * 0.5;
-        let (mut gaps, mut product) = (Complex::real(0.0), Complex::real(1.0));
+    fn ln_coordinate_sum<S: Scalar>(&self, s: S, w: impl Fn(f64) -> S) -> S {
+        let half_gap = s * (s + S::real(1.0)) * 0.5;
+        let (mut gaps, mut product) = (S::real(0.0), S::real(1.0));
         let (mut ln_modulus, mut turns) = (0.0, 0.0);
         for c in &self.coordinates {
             let w = w(c.variance);
             gaps = gaps + half_gap * w.recip() * (c.shift * c.shift);
             let next = product * w;
-            // Across the negative real axis the sign of the imaginary part flips (atan2
-            // takes its sign: +0 → π, −0 → −π).
-            if next.re < 0.0 && product.im.is_sign_negative() != next.im.is_sign_negative() {
-                turns += if next.im.is_sign_negative() {
-                    1.0
-                } else {
-                    -1.0
-                };
-            }
+            turns += S::turn(product, next);
             product = next;
             let size = product.norm_squared();
             if !(1e-300..=1e300).contains(&size) {
@@ -226,18 +220,14 @@ impl CovariancePair {
                 product = product * modulus.recip();
             }
         }
-        let argument = product.im.atan2(product.re) + 2.0 * std::f64::consts::PI * turns;
-        gaps - Complex::new(
-            0.5 * (ln_modulus + 0.5 * product.norm_squared().ln()),
-            0.5 * argument,
-        )
+        gaps - (product.ln().turned(turns) + S::real(ln_modulus)) * 0.5
     }
 }
 
 /// What the integrand of one moment (`CovariancePair::ln_moment` at one μ) takes the same at
 /// every point `s`: ln Γ(μ) and `Σ ln v` over the coordinates.
 struct Shared {
-    ln_gamma_mu: Complex,
+    ln_gamma_mu: f64,
     sum_ln_variances: f64,
 }
 
@@ -437,6 +427,69 @@ pub fn candidate_lambdas(n: u64, d: f64, epsilon: f64) -> Result<Vec<f64>, MinEn
         .collect())
 }
 
+/// What the integrand is computed in: `f64` on the real axis, [`Complex`] off it.
+trait Scalar:
+    Copy
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Mul<f64, Output = Self>
+{
+    /// `x` on the real axis.
+    fn real(x: f64) -> Self;
+    /// The real part.
+    fn re(self) -> f64;
+    /// `|z|²`.
+    fn norm_squared(self) -> f64;
+    /// `1/z`.
+    fn recip(self) -> Self;
+    /// `e^z`.
+    fn exp(self) -> Self;
+    /// The principal logarithm, its modulus as `½ ln |z|²`: every `z` it is taken of here
+    /// has `|z|²` within the floating-point range (`ln_coordinate_sum` folds its product's).
+    fn ln(self) -> Self;
+    /// `z + 2πi·turns`.
+    fn turned(self, turns: f64) -> Self;
+    /// The turns the principal argument misses from `before` to `after` (`|Arg(after/before)|
+    /// < π/2`): ±1 where it crosses the negative real axis, where the sign of the imaginary
+    /// part flips (atan2 takes that sign: +0 → π, −0 → −π), else 0.
+    fn turn(before: Self, after: Self) -> f64;
+}
+
+impl Scalar for f64 {
+    fn real(x: f64) -> Self {
+        x
+    }
+
+    fn re(self) -> f64 {
+        self
+    }
+
+    fn norm_squared(self) -> f64 {
+        self * self
+    }
+
+    fn recip(self) -> Self {
+        f64::recip(self)
+    }
+
+    fn exp(self) -> Self {
+        f64::exp(self)
+    }
+
+    fn ln(self) -> Self {
+        f64::ln(self)
+    }
+
+    fn turned(self, _: f64) -> Self {
+        self
+    }
+
+    fn turn(_: Self, _: Self) -> f64 {
+        0.0
+    }
+}
+
 /// A complex number, for the Bromwich integral.
 #[derive(Debug, Clone, Copy)]
 struct Complex {
@@ -448,14 +501,24 @@ impl Complex {
     fn new(re: f64, im: f64) -> Self {
         Self { re, im }
     }
+}
 
+impl Scalar for Complex {
     fn real(re: f64) -> Self {
         Self { re, im: 0.0 }
     }
 
-    /// The principal logarithm.
-    fn ln(self) -> Self {
-        Self::new(self.re.hypot(self.im).ln(), self.im.atan2(self.re))
+    fn re(self) -> f64 {
+        self.re
+    }
+
+    fn norm_squared(self) -> f64 {
+        self.re * self.re + self.im * self.im
+    }
+
+    fn recip(self) -> Self {
+        let n = self.norm_squared().recip();
+        Self::new(self.re * n, -self.im * n)
     }
 
     fn exp(self) -> Self {
@@ -463,15 +526,24 @@ impl Complex {
         Self::new(r * self.im.cos(), r * self.im.sin())
     }
 
-    /// `|z|²`.
-    fn norm_squared(self) -> f64 {
-        self.re * self.re + self.im * self.im
+    fn ln(self) -> Self {
+        Self::new(0.5 * self.norm_squared().ln(), self.im.atan2(self.re))
     }
 
-    /// `1/z`.
-    fn recip(self) -> Self {
-        let n = self.norm_squared().recip();
-        Self::new(self.re * n, -self.im * n)
+    fn turned(self, turns: f64) -> Self {
+        Self::new(self.re, self.im + 2.0 * std::f64::consts::PI * turns)
+    }
+
+    fn turn(before: Self, after: Self) -> f64 {
+        if after.re < 0.0 && before.im.is_sign_negative() != after.im.is_sign_negative() {
+            if after.im.is_sign_negative() {
+                1.0
+            } else {
+                -1.0
+            }
+        } else {
+            0.0
+        }
     }
 }
 
@@ -506,20 +578,9 @@ impl std::ops::Mul<f64> for Complex {
     }
 }
 
-impl std::ops::Div for Complex {
-    type Output = Self;
-    fn div(self, o: Self) -> Self {
-        let n = o.re * o.re + o.im * o.im;
-        Self::new(
-            (self.re * o.re + self.im * o.im) / n,
-            (self.im * o.re - self.re * o.im) / n,
-        )
-    }
-}
-
 /// ln Γ(z) for `Re z > 0` ([`lanczos`]), up to a multiple of 2πi (the integrand is
 /// exponentiated).
-fn ln_gamma(z: Complex) -> Complex {
+fn ln_gamma<S: Scalar>(z: S) -> S {
     let (principal, factor) = lanczos(z);
     principal + factor.ln()
 }
@@ -529,20 +590,19 @@ fn ln_gamma(z: Complex) -> Complex {
 /// (`x = z − 1`, `t = x + g + ½`, the principal logarithm: it is multiplied) and `f` the
 /// series; below `Re z = ½` through Γ(z) = Γ(z + 1)/z, `f` divided by `z`. Kept apart, the
 /// factors of several Γ share one logarithm.
-fn lanczos(z: Complex) -> (Complex, Complex) {
-    if z.re < 0.5 {
-        let (principal, factor) = lanczos(z + Complex::real(1.0));
-        return (principal, factor / z);
+fn lanczos<S: Scalar>(z: S) -> (S, S) {
+    if z.re() < 0.5 {
+        let (principal, factor) = lanczos(z + S::real(1.0));
+        return (principal, factor * z.recip());
     }
-    let x = z - Complex::real(1.0);
-    let mut series = Complex::real(LANCZOS_COEFFICIENTS[0]);
+    let x = z - S::real(1.0);
+    let mut series = S::real(LANCZOS_COEFFICIENTS[0]);
     for (i, &c) in LANCZOS_COEFFICIENTS.iter().enumerate().skip(1) {
-        series = series + Complex::real(c) / (x + Complex::real(i as f64));
+        series = series + (x + S::real(i as f64)).recip() * c;
     }
-    let t = x + Complex::real(LANCZOS_G + 0.5);
+    let t = x + S::real(LANCZOS_G + 0.5);
     (
-        Complex::real(0.5 * (2.0 * std::f64::consts::PI).ln()) + (x + Complex::real(0.5)) * t.ln()
-            - t,
+        S::real(0.5 * (2.0 * std::f64::consts::PI).ln()) + (x + S::real(0.5)) * t.ln() - t,
         series,
     )
 }
@@ -565,6 +625,7 @@ mod tests {
     fn complex_ln_gamma_is_gamma() {
         for x in [0.01, 0.3, 1.0, 2.5, 17.0] {
             let real = crate::special::ln_gamma(x).unwrap();
+            assert!((ln_gamma(x) - real).abs() < 1e-12, "{x}");
             assert!((ln_gamma(Complex::real(x)).re - real).abs() < 1e-12, "{x}");
         }
         for (re, im) in [(0.2, 0.7), (1.3, -4.0), (0.01, 25.0)] {
@@ -692,7 +753,7 @@ mod tests {
                         for c in p.coordinates() {
                             let w = w(c.variance);
                             assert!(w.re > 0.0, "outside the strip");
-                            direct = direct + gap * (c.shift * c.shift) / w - w.ln() * 0.5;
+                            direct = direct + gap * (c.shift * c.shift) * w.recip() - w.ln() * 0.5;
                             arguments += w.im.atan2(w.re);
                         }
                         wound |= arguments.abs() > std::f64::consts::PI;
