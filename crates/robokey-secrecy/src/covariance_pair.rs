@@ -27,10 +27,10 @@
 //! `c`, so it is a trapezoid sum over `ω = κ·sinh(u)` (`κ` the smaller of `c`, `μ − c` and the
 //! saddle's width), to `ω = max(30, 60·width)`. Checked against the Gaussian quadrature of
 //! [`crate::gaussian_llr`] and against direct integration in one and two dimensions (tests,
-//! |Δ ln E| < 10⁻⁹ for λ ≤ [`LARGEST_LAMBDA`]). Each point of the sum takes six complex
-//! logarithms whatever the dimension: the coordinates' `Σ ln w` under each value is one
-//! logarithm of their product with its turns around 0 counted (`ln_coordinate_sum`), the two
-//! ln Γ's take one each and share one for their series, and one adds the two values.
+//! |Δ ln E| < 10⁻⁹ for λ ≤ [`LARGEST_LAMBDA`]). Each point of the sum takes two complex
+//! logarithms whatever the dimension (one per ln Γ): the coordinates' `e^(−½Σ ln w)` under
+//! each value is the reciprocal root of their product with its turns around 0 counted
+//! (`coordinate_sum`), and the ln Γ's series and those roots stay factors.
 
 use serde::{Deserialize, Serialize};
 
@@ -127,7 +127,12 @@ impl CovariancePair {
             ln_gamma_mu: ln_gamma(mu),
             sum_ln_variances: self.coordinates.iter().map(|c| c.variance.ln()).sum(),
         };
-        let on_axis = |c: f64| self.ln_integrand(c, mu, &shared);
+        // ln(½(e^first + e^second)) of the integrand's two terms, the larger factored out.
+        let on_axis = |c: f64| {
+            let [first, second] = self.terms(c, mu, &shared).map(|t| t.ln + t.factor.ln());
+            let (high, low) = (first.max(second), first.min(second));
+            high + (low - high).exp().ln_1p() - std::f64::consts::LN_2
+        };
         // Golden-section search for the least on the axis, each step reusing the inner point
         // it keeps.
         let ratio = (5f64.sqrt() - 1.0) / 2.0;
@@ -164,49 +169,54 @@ impl CovariancePair {
                 let u = h * k as f64;
                 let omega = scale * u.sinh();
                 let weight = if k == 0 || k == steps { 0.5 } else { 1.0 };
-                let ln_value = self.ln_integrand(Complex::new(c, omega), mu, &shared);
-                weight * scale * u.cosh() * ln_value.re.exp() * ln_value.im.cos()
+                let terms = self.terms(Complex::new(c, omega), mu, &shared);
+                let value: f64 = terms.iter().map(Term::value).sum();
+                weight * scale * u.cosh() * 0.5 * value
             })
             .sum();
         (sum * h / std::f64::consts::PI).ln()
     }
 
-    /// `ln[B(s, μ − s)·½(K₀(s) + K₁(s))]` (module doc; `K_b` with value `b` true), up to a
-    /// multiple of 2πi (it is exponentiated), with ln Γ(μ) and `Σ ln v` from `shared`:
+    /// `B(s, μ − s)·K_b(s)` for each value `b` true (module doc; the integrand is the two
+    /// terms' mean), with ln Γ(μ) and `Σ ln v` from `shared`:
     /// `ln K₀ = Σₖ[gₖ/wₖ − ½ ln wₖ] + ½(1 + s)·Σ ln v`, `wₖ = (1 + s)vₖ − s`, and
     /// `ln K₁ = Σₖ[gₖ/wₖ − ½ ln wₖ] − ½s·Σ ln v`, `wₖ = 1 + s − s·vₖ`, with
-    /// `gₖ = ½s(1 + s)·shiftₖ²` ([`Self::ln_coordinate_sum`]). On the real axis (the saddle's
-    /// search) in real arithmetic, off it in complex.
-    fn ln_integrand<S: Scalar>(&self, s: S, mu: f64, shared: &Shared) -> S {
-        let (gamma_s, factor_s) = lanczos(s);
-        let (gamma_rest, factor_rest) = lanczos(S::real(mu) - s);
-        let beta =
-            gamma_s + gamma_rest + (factor_s * factor_rest).ln() - S::real(shared.ln_gamma_mu);
-        let one = S::real(1.0);
-        let first = self.ln_coordinate_sum(s, |v| (s + one) * v - s)
-            + (s + one) * (0.5 * shared.sum_ln_variances);
-        let second =
-            self.ln_coordinate_sum(s, |v| (s + one) - s * v) - s * (0.5 * shared.sum_ln_variances);
-        // ln(½(e^first + e^second)), the larger factored out.
-        let (high, low) = if first.re() >= second.re() {
-            (first, second)
-        } else {
-            (second, first)
+    /// `gₖ = ½s(1 + s)·shiftₖ²` ([`Self::coordinate_sum`]), and the ln Γ's series a factor
+    /// ([`lanczos`]). On the real axis (the saddle's search) in real arithmetic, off it in
+    /// complex.
+    fn terms<S: Scalar>(&self, s: S, mu: f64, shared: &Shared) -> [Term<S>; 2] {
+        let (gamma_s, series_s) = lanczos(s);
+        let (gamma_rest, series_rest) = lanczos(S::real(mu) - s);
+        let beta = Term {
+            ln: gamma_s + gamma_rest - S::real(shared.ln_gamma_mu),
+            factor: series_s * series_rest,
         };
-        beta + high + ((low - high).exp() + one).ln() - S::real(std::f64::consts::LN_2)
+        let one = S::real(1.0);
+        let first = self.coordinate_sum(s, |v| (s + one) * v - s);
+        let second = self.coordinate_sum(s, |v| (s + one) - s * v);
+        [
+            Term {
+                ln: beta.ln + first.ln + (s + one) * (0.5 * shared.sum_ln_variances),
+                factor: beta.factor * first.factor,
+            },
+            Term {
+                ln: beta.ln + second.ln - s * (0.5 * shared.sum_ln_variances),
+                factor: beta.factor * second.factor,
+            },
+        ]
     }
 
-    /// `Σₖ [gₖ/wₖ − ½ ln wₖ]` up to a multiple of 2πi, `gₖ = ½s(1 + s)·shiftₖ²`, `wₖ = w(vₖ)`.
-    /// Inside the strip every `Re wₖ > 0`, so each `Arg wₖ` lies in (−π/2, π/2) and the
-    /// product `Πₖ wₖ` turns by less than π/2 at each factor: it crosses the negative real
+    /// `exp(Σₖ [gₖ/wₖ − ½ ln wₖ])`, `gₖ = ½s(1 + s)·shiftₖ²`, `wₖ = w(vₖ)`, with no logarithm:
+    /// inside the strip every `Re wₖ > 0`, so each `Arg wₖ` lies in (−π/2, π/2) and the
+    /// product `p = Πₖ wₖ` turns by less than π/2 at each factor: it crosses the negative real
     /// axis exactly where its principal argument jumps by ∓2π, and counting those crossings
-    /// (`n`) gives `Σₖ ln wₖ = ln|Π wₖ| + i(Arg Π wₖ + 2πn)` exactly — halved, one
-    /// logarithm for all coordinates (the product's modulus folded into it wherever it
-    /// leaves [10⁻¹⁵⁰, 10¹⁵⁰], so it neither overflows nor underflows).
-    fn ln_coordinate_sum<S: Scalar>(&self, s: S, w: impl Fn(f64) -> S) -> S {
+    /// (`n`) gives `Σₖ ln wₖ = Ln p + 2πin` exactly, so `exp(−½Σₖ ln wₖ) = (−1)ⁿ/√p` (the
+    /// principal root). The product's modulus is folded into the logarithm wherever it leaves
+    /// [10⁻¹⁵⁰, 10¹⁵⁰], so it neither overflows nor underflows.
+    fn coordinate_sum<S: Scalar>(&self, s: S, w: impl Fn(f64) -> S) -> Term<S> {
         let half_gap = s * (s + S::real(1.0)) * 0.5;
         let (mut gaps, mut product) = (S::real(0.0), S::real(1.0));
-        let (mut ln_modulus, mut turns) = (0.0, 0.0);
+        let (mut ln_modulus, mut turns) = (0.0, 0i32);
         for c in &self.coordinates {
             let w = w(c.variance);
             gaps = gaps + half_gap * w.recip() * (c.shift * c.shift);
@@ -220,7 +230,27 @@ impl CovariancePair {
                 product = product * modulus.recip();
             }
         }
-        gaps - (product.ln().turned(turns) + S::real(ln_modulus)) * 0.5
+        let sign = if turns % 2 == 0 { 1.0 } else { -1.0 };
+        Term {
+            ln: gaps - S::real(0.5 * ln_modulus),
+            factor: product.inverse_sqrt() * sign,
+        }
+    }
+}
+
+/// A number kept as `e^ln·factor`: the integrand's terms, whose factors (the ln Γ's series,
+/// the coordinates' roots) need no logarithm off the real axis.
+#[derive(Clone, Copy)]
+struct Term<S> {
+    ln: S,
+    factor: S,
+}
+
+impl Term<Complex> {
+    /// `Re(e^ln·factor)`.
+    fn value(&self) -> f64 {
+        let (sin, cos) = self.ln.im.sin_cos();
+        self.ln.re.exp() * (cos * self.factor.re - sin * self.factor.im)
     }
 }
 
@@ -443,17 +473,15 @@ trait Scalar:
     fn norm_squared(self) -> f64;
     /// `1/z`.
     fn recip(self) -> Self;
-    /// `e^z`.
-    fn exp(self) -> Self;
     /// The principal logarithm, its modulus as `½ ln |z|²`: every `z` it is taken of here
-    /// has `|z|²` within the floating-point range (`ln_coordinate_sum` folds its product's).
+    /// has `|z|²` within the floating-point range (`coordinate_sum` folds its product's).
     fn ln(self) -> Self;
-    /// `z + 2πi·turns`.
-    fn turned(self, turns: f64) -> Self;
+    /// `z^(−½)`, the principal root's reciprocal (for `f64`, `z > 0`).
+    fn inverse_sqrt(self) -> Self;
     /// The turns the principal argument misses from `before` to `after` (`|Arg(after/before)|
     /// < π/2`): ±1 where it crosses the negative real axis, where the sign of the imaginary
     /// part flips (atan2 takes that sign: +0 → π, −0 → −π), else 0.
-    fn turn(before: Self, after: Self) -> f64;
+    fn turn(before: Self, after: Self) -> i32;
 }
 
 impl Scalar for f64 {
@@ -473,20 +501,16 @@ impl Scalar for f64 {
         f64::recip(self)
     }
 
-    fn exp(self) -> Self {
-        f64::exp(self)
-    }
-
     fn ln(self) -> Self {
         f64::ln(self)
     }
 
-    fn turned(self, _: f64) -> Self {
-        self
+    fn inverse_sqrt(self) -> Self {
+        self.sqrt().recip()
     }
 
-    fn turn(_: Self, _: Self) -> f64 {
-        0.0
+    fn turn(_: Self, _: Self) -> i32 {
+        0
     }
 }
 
@@ -521,28 +545,31 @@ impl Scalar for Complex {
         Self::new(self.re * n, -self.im * n)
     }
 
-    fn exp(self) -> Self {
-        let r = self.re.exp();
-        Self::new(r * self.im.cos(), r * self.im.sin())
-    }
-
     fn ln(self) -> Self {
         Self::new(0.5 * self.norm_squared().ln(), self.im.atan2(self.re))
     }
 
-    fn turned(self, turns: f64) -> Self {
-        Self::new(self.re, self.im + 2.0 * std::f64::consts::PI * turns)
+    /// `√z = (r, im/2r)`, `r = √((|z| + re)/2)`, where `re ≥ 0`; `(|im|/2t, ±t)`,
+    /// `t = √((|z| − re)/2)` with the sign of `im`, where `re < 0` (no cancellation either
+    /// way; on the cut the sign of a zero `im` picks the side, as atan2 does); `1/√z =
+    /// conj(√z)/|z|`.
+    fn inverse_sqrt(self) -> Self {
+        let modulus = self.norm_squared().sqrt();
+        let root = if self.re >= 0.0 {
+            let r = (0.5 * (modulus + self.re)).sqrt();
+            Self::new(r, 0.5 * self.im / r)
+        } else {
+            let t = (0.5 * (modulus - self.re)).sqrt();
+            Self::new(0.5 * self.im.abs() / t, t.copysign(self.im))
+        };
+        Self::new(root.re / modulus, -root.im / modulus)
     }
 
-    fn turn(before: Self, after: Self) -> f64 {
+    fn turn(before: Self, after: Self) -> i32 {
         if after.re < 0.0 && before.im.is_sign_negative() != after.im.is_sign_negative() {
-            if after.im.is_sign_negative() {
-                1.0
-            } else {
-                -1.0
-            }
+            if after.im.is_sign_negative() { 1 } else { -1 }
         } else {
-            0.0
+            0
         }
     }
 }
@@ -589,7 +616,7 @@ fn ln_gamma<S: Scalar>(z: S) -> S {
 /// Lanczos (g = 7, the coefficients of [`crate::special`]), `p = ½ ln 2π + (x + ½)·ln t − t`
 /// (`x = z − 1`, `t = x + g + ½`, the principal logarithm: it is multiplied) and `f` the
 /// series; below `Re z = ½` through Γ(z) = Γ(z + 1)/z, `f` divided by `z`. Kept apart, the
-/// factors of several Γ share one logarithm.
+/// series needs no logarithm off the real axis (the integrand's terms keep it a factor).
 fn lanczos<S: Scalar>(z: S) -> (S, S) {
     if z.re() < 0.5 {
         let (principal, factor) = lanczos(z + S::real(1.0));
@@ -720,12 +747,12 @@ mod tests {
         }
     }
 
-    /// The coordinates' sum with one logarithm is the sum of each coordinate's principal
+    /// The coordinates' sum without a logarithm is the sum of each coordinate's principal
     /// logarithms up to a multiple of 2πi (the same exponential), where the product of 24
     /// coordinates' `w` winds around 0 (their arguments add beyond π) and where that of 400
     /// leaves the floating-point range (its modulus folded).
     #[test]
-    fn one_logarithm_for_all_coordinates_is_the_sum_of_each() {
+    fn one_root_for_all_coordinates_is_the_sum_of_their_logarithms() {
         let one = Complex::real(1.0);
         let mut wound = false;
         for dimension in [1, 3, 24, 400] {
@@ -757,7 +784,8 @@ mod tests {
                             arguments += w.im.atan2(w.re);
                         }
                         wound |= arguments.abs() > std::f64::consts::PI;
-                        let fast = p.ln_coordinate_sum(s, w);
+                        let term = p.coordinate_sum(s, w);
+                        let fast = term.ln + term.factor.ln();
                         let scale = 1.0 + direct.re.abs() + direct.im.abs();
                         let turns = (fast.im - direct.im) / (2.0 * std::f64::consts::PI);
                         assert!(
