@@ -27,7 +27,10 @@
 //! `c`, so it is a trapezoid sum over `ω = κ·sinh(u)` (`κ` the smaller of `c`, `μ − c` and the
 //! saddle's width), to `ω = max(30, 60·width)`. Checked against the Gaussian quadrature of
 //! [`crate::gaussian_llr`] and against direct integration in one and two dimensions (tests,
-//! |Δ ln E| < 10⁻⁹ for λ ≤ [`LARGEST_LAMBDA`]).
+//! |Δ ln E| < 10⁻⁹ for λ ≤ [`LARGEST_LAMBDA`]). Each point of the sum takes two complex
+//! logarithms whatever the dimension (one per ln Γ): the coordinates' `e^(−½Σ ln w)` under
+//! each value is the reciprocal root of their product with its turns around 0 counted
+//! (`coordinate_sum`), and the ln Γ's series and those roots stay factors.
 
 use serde::{Deserialize, Serialize};
 
@@ -121,18 +124,30 @@ impl CovariancePair {
             .fold(mu, f64::min);
         // What every evaluation of the integrand shares, computed once per moment.
         let shared = Shared {
-            ln_gamma_mu: ln_gamma(Complex::real(mu)),
-            ln_variances: self.coordinates.iter().map(|c| c.variance.ln()).collect(),
+            ln_gamma_mu: ln_gamma(mu),
+            sum_ln_variances: self.coordinates.iter().map(|c| c.variance.ln()).sum(),
         };
-        let on_axis = |c: f64| self.ln_integrand(Complex::real(c), mu, &shared).re;
-        let (mut a, mut b) = (1e-9 * strip, (1.0 - 1e-9) * strip);
+        // ln(½(e^first + e^second)) of the integrand's two terms, the larger factored out.
+        let on_axis = |c: f64| {
+            let [first, second] = self.terms(c, mu, &shared).map(|t| t.ln + t.factor.ln());
+            let (high, low) = (first.max(second), first.min(second));
+            high + (low - high).exp().ln_1p() - std::f64::consts::LN_2
+        };
+        // Golden-section search for the least on the axis, each step reusing the inner point
+        // it keeps.
         let ratio = (5f64.sqrt() - 1.0) / 2.0;
+        let (mut a, mut b) = (1e-9 * strip, (1.0 - 1e-9) * strip);
+        let (mut x1, mut x2) = (b - ratio * (b - a), a + ratio * (b - a));
+        let (mut f1, mut f2) = (on_axis(x1), on_axis(x2));
         for _ in 0..40 {
-            let (x1, x2) = (b - ratio * (b - a), a + ratio * (b - a));
-            if on_axis(x1) < on_axis(x2) {
-                b = x2;
+            if f1 < f2 {
+                (b, x2, f2) = (x2, x1, f1);
+                x1 = b - ratio * (b - a);
+                f1 = on_axis(x1);
             } else {
-                a = x1;
+                (a, x1, f1) = (x1, x2, f2);
+                x2 = a + ratio * (b - a);
+                f2 = on_axis(x2);
             }
         }
         let c = 0.5 * (a + b);
@@ -154,48 +169,96 @@ impl CovariancePair {
                 let u = h * k as f64;
                 let omega = scale * u.sinh();
                 let weight = if k == 0 || k == steps { 0.5 } else { 1.0 };
-                weight
-                    * scale
-                    * u.cosh()
-                    * self
-                        .ln_integrand(Complex::new(c, omega), mu, &shared)
-                        .exp()
-                        .re
+                let terms = self.terms(Complex::new(c, omega), mu, &shared);
+                let value: f64 = terms.iter().map(Term::value).sum();
+                weight * scale * u.cosh() * 0.5 * value
             })
             .sum();
         (sum * h / std::f64::consts::PI).ln()
     }
 
-    /// `ln[B(s, μ − s)·½(K₀(s) + K₁(s))]` (module doc; `K_b` with value `b` true), with
-    /// ln Γ(μ) and each coordinate's `ln v` from `shared`.
-    fn ln_integrand(&self, s: Complex, mu: f64, shared: &Shared) -> Complex {
-        let beta = ln_gamma(s) + ln_gamma(Complex::real(mu) - s) - shared.ln_gamma_mu;
-        let one = Complex::real(1.0);
-        let (mut first, mut second) = (Complex::real(0.0), Complex::real(0.0));
-        for (c, &ln_v) in self.coordinates.iter().zip(&shared.ln_variances) {
-            let gap = s * (s + one) * (0.5 * c.shift * c.shift);
-            // First value true: v_t = 1, v_o = v.
-            let w = (s + one) * c.variance - s;
-            first = first + gap / w - (w.ln() - (s + one) * ln_v) * 0.5;
-            // Second value true: v_t = v, v_o = 1.
-            let w = (s + one) - s * c.variance;
-            second = second + gap / w - (w.ln() + s * ln_v) * 0.5;
-        }
-        // ln(½(e^first + e^second)), the larger factored out.
-        let (high, low) = if first.re >= second.re {
-            (first, second)
-        } else {
-            (second, first)
+    /// `B(s, μ − s)·K_b(s)` for each value `b` true (module doc; the integrand is the two
+    /// terms' mean), with ln Γ(μ) and `Σ ln v` from `shared`:
+    /// `ln K₀ = Σₖ[gₖ/wₖ − ½ ln wₖ] + ½(1 + s)·Σ ln v`, `wₖ = (1 + s)vₖ − s`, and
+    /// `ln K₁ = Σₖ[gₖ/wₖ − ½ ln wₖ] − ½s·Σ ln v`, `wₖ = 1 + s − s·vₖ`, with
+    /// `gₖ = ½s(1 + s)·shiftₖ²` ([`Self::coordinate_sum`]), and the ln Γ's series a factor
+    /// ([`lanczos`]). On the real axis (the saddle's search) in real arithmetic, off it in
+    /// complex.
+    fn terms<S: Scalar>(&self, s: S, mu: f64, shared: &Shared) -> [Term<S>; 2] {
+        let (gamma_s, series_s) = lanczos(s);
+        let (gamma_rest, series_rest) = lanczos(S::real(mu) - s);
+        let beta = Term {
+            ln: gamma_s + gamma_rest - S::real(shared.ln_gamma_mu),
+            factor: series_s * series_rest,
         };
-        beta + high + ((low - high).exp() + one).ln() - Complex::real(std::f64::consts::LN_2)
+        let one = S::real(1.0);
+        let first = self.coordinate_sum(s, |v| (s + one) * v - s);
+        let second = self.coordinate_sum(s, |v| (s + one) - s * v);
+        [
+            Term {
+                ln: beta.ln + first.ln + (s + one) * (0.5 * shared.sum_ln_variances),
+                factor: beta.factor * first.factor,
+            },
+            Term {
+                ln: beta.ln + second.ln - s * (0.5 * shared.sum_ln_variances),
+                factor: beta.factor * second.factor,
+            },
+        ]
+    }
+
+    /// `exp(Σₖ [gₖ/wₖ − ½ ln wₖ])`, `gₖ = ½s(1 + s)·shiftₖ²`, `wₖ = w(vₖ)`, with no logarithm:
+    /// inside the strip every `Re wₖ > 0`, so each `Arg wₖ` lies in (−π/2, π/2) and the
+    /// product `p = Πₖ wₖ` turns by less than π/2 at each factor: it crosses the negative real
+    /// axis exactly where its principal argument jumps by ∓2π, and counting those crossings
+    /// (`n`) gives `Σₖ ln wₖ = Ln p + 2πin` exactly, so `exp(−½Σₖ ln wₖ) = (−1)ⁿ/√p` (the
+    /// principal root). The product's modulus is folded into the logarithm wherever it leaves
+    /// [10⁻¹⁵⁰, 10¹⁵⁰], so it neither overflows nor underflows.
+    fn coordinate_sum<S: Scalar>(&self, s: S, w: impl Fn(f64) -> S) -> Term<S> {
+        let half_gap = s * (s + S::real(1.0)) * 0.5;
+        let (mut gaps, mut product) = (S::real(0.0), S::real(1.0));
+        let (mut ln_modulus, mut turns) = (0.0, 0i32);
+        for c in &self.coordinates {
+            let w = w(c.variance);
+            gaps = gaps + half_gap * w.recip() * (c.shift * c.shift);
+            let next = product * w;
+            turns += S::turn(product, next);
+            product = next;
+            let size = product.norm_squared();
+            if !(1e-300..=1e300).contains(&size) {
+                let modulus = size.sqrt();
+                ln_modulus += modulus.ln();
+                product = product * modulus.recip();
+            }
+        }
+        let sign = if turns % 2 == 0 { 1.0 } else { -1.0 };
+        Term {
+            ln: gaps - S::real(0.5 * ln_modulus),
+            factor: product.inverse_sqrt() * sign,
+        }
+    }
+}
+
+/// A number kept as `e^ln·factor`: the integrand's terms, whose factors (the ln Γ's series,
+/// the coordinates' roots) need no logarithm off the real axis.
+#[derive(Clone, Copy)]
+struct Term<S> {
+    ln: S,
+    factor: S,
+}
+
+impl Term<Complex> {
+    /// `Re(e^ln·factor)`.
+    fn value(&self) -> f64 {
+        let (sin, cos) = self.ln.im.sin_cos();
+        self.ln.re.exp() * (cos * self.factor.re - sin * self.factor.im)
     }
 }
 
 /// What the integrand of one moment (`CovariancePair::ln_moment` at one μ) takes the same at
-/// every point `s`: ln Γ(μ), and each coordinate's `ln v` in order.
+/// every point `s`: ln Γ(μ) and `Σ ln v` over the coordinates.
 struct Shared {
-    ln_gamma_mu: Complex,
-    ln_variances: Vec<f64>,
+    ln_gamma_mu: f64,
+    sum_ln_variances: f64,
 }
 
 /// Step of the trapezoid sum in `u` (`ω = κ·sinh(u)`).
@@ -394,6 +457,63 @@ pub fn candidate_lambdas(n: u64, d: f64, epsilon: f64) -> Result<Vec<f64>, MinEn
         .collect())
 }
 
+/// What the integrand is computed in: `f64` on the real axis, [`Complex`] off it.
+trait Scalar:
+    Copy
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Mul<f64, Output = Self>
+{
+    /// `x` on the real axis.
+    fn real(x: f64) -> Self;
+    /// The real part.
+    fn re(self) -> f64;
+    /// `|z|²`.
+    fn norm_squared(self) -> f64;
+    /// `1/z`.
+    fn recip(self) -> Self;
+    /// The principal logarithm, its modulus as `½ ln |z|²`: every `z` it is taken of here
+    /// has `|z|²` within the floating-point range (`coordinate_sum` folds its product's).
+    fn ln(self) -> Self;
+    /// `z^(−½)`, the principal root's reciprocal (for `f64`, `z > 0`).
+    fn inverse_sqrt(self) -> Self;
+    /// The turns the principal argument misses from `before` to `after` (`|Arg(after/before)|
+    /// < π/2`): ±1 where it crosses the negative real axis, where the sign of the imaginary
+    /// part flips (atan2 takes that sign: +0 → π, −0 → −π), else 0.
+    fn turn(before: Self, after: Self) -> i32;
+}
+
+impl Scalar for f64 {
+    fn real(x: f64) -> Self {
+        x
+    }
+
+    fn re(self) -> f64 {
+        self
+    }
+
+    fn norm_squared(self) -> f64 {
+        self * self
+    }
+
+    fn recip(self) -> Self {
+        f64::recip(self)
+    }
+
+    fn ln(self) -> Self {
+        f64::ln(self)
+    }
+
+    fn inverse_sqrt(self) -> Self {
+        self.sqrt().recip()
+    }
+
+    fn turn(_: Self, _: Self) -> i32 {
+        0
+    }
+}
+
 /// A complex number, for the Bromwich integral.
 #[derive(Debug, Clone, Copy)]
 struct Complex {
@@ -405,19 +525,52 @@ impl Complex {
     fn new(re: f64, im: f64) -> Self {
         Self { re, im }
     }
+}
 
+impl Scalar for Complex {
     fn real(re: f64) -> Self {
         Self { re, im: 0.0 }
     }
 
-    /// The principal logarithm.
-    fn ln(self) -> Self {
-        Self::new(self.re.hypot(self.im).ln(), self.im.atan2(self.re))
+    fn re(self) -> f64 {
+        self.re
     }
 
-    fn exp(self) -> Self {
-        let r = self.re.exp();
-        Self::new(r * self.im.cos(), r * self.im.sin())
+    fn norm_squared(self) -> f64 {
+        self.re * self.re + self.im * self.im
+    }
+
+    fn recip(self) -> Self {
+        let n = self.norm_squared().recip();
+        Self::new(self.re * n, -self.im * n)
+    }
+
+    fn ln(self) -> Self {
+        Self::new(0.5 * self.norm_squared().ln(), self.im.atan2(self.re))
+    }
+
+    /// `√z = (r, im/2r)`, `r = √((|z| + re)/2)`, where `re ≥ 0`; `(|im|/2t, ±t)`,
+    /// `t = √((|z| − re)/2)` with the sign of `im`, where `re < 0` (no cancellation either
+    /// way; on the cut the sign of a zero `im` picks the side, as atan2 does); `1/√z =
+    /// conj(√z)/|z|`.
+    fn inverse_sqrt(self) -> Self {
+        let modulus = self.norm_squared().sqrt();
+        let root = if self.re >= 0.0 {
+            let r = (0.5 * (modulus + self.re)).sqrt();
+            Self::new(r, 0.5 * self.im / r)
+        } else {
+            let t = (0.5 * (modulus - self.re)).sqrt();
+            Self::new(0.5 * self.im.abs() / t, t.copysign(self.im))
+        };
+        Self::new(root.re / modulus, -root.im / modulus)
+    }
+
+    fn turn(before: Self, after: Self) -> i32 {
+        if after.re < 0.0 && before.im.is_sign_negative() != after.im.is_sign_negative() {
+            if after.im.is_sign_negative() { 1 } else { -1 }
+        } else {
+            0
+        }
     }
 }
 
@@ -452,32 +605,33 @@ impl std::ops::Mul<f64> for Complex {
     }
 }
 
-impl std::ops::Div for Complex {
-    type Output = Self;
-    fn div(self, o: Self) -> Self {
-        let n = o.re * o.re + o.im * o.im;
-        Self::new(
-            (self.re * o.re + self.im * o.im) / n,
-            (self.im * o.re - self.re * o.im) / n,
-        )
-    }
+/// ln Γ(z) for `Re z > 0` ([`lanczos`]), up to a multiple of 2πi (the integrand is
+/// exponentiated).
+fn ln_gamma<S: Scalar>(z: S) -> S {
+    let (principal, factor) = lanczos(z);
+    principal + factor.ln()
 }
 
-/// ln Γ(z) for `Re z > 0` (Lanczos, g = 7, the coefficients of [`crate::special`]; below
-/// `Re z = ½` through Γ(z) = Γ(z + 1)/z), up to a multiple of 2πi (the integrand is
-/// exponentiated).
-fn ln_gamma(z: Complex) -> Complex {
-    if z.re < 0.5 {
-        return ln_gamma(z + Complex::real(1.0)) - z.ln();
+/// ln Γ(z) for `Re z > 0` as `(p, f)` with `ln Γ(z) = p + ln f` up to a multiple of 2πi:
+/// Lanczos (g = 7, the coefficients of [`crate::special`]), `p = ½ ln 2π + (x + ½)·ln t − t`
+/// (`x = z − 1`, `t = x + g + ½`, the principal logarithm: it is multiplied) and `f` the
+/// series; below `Re z = ½` through Γ(z) = Γ(z + 1)/z, `f` divided by `z`. Kept apart, the
+/// series needs no logarithm off the real axis (the integrand's terms keep it a factor).
+fn lanczos<S: Scalar>(z: S) -> (S, S) {
+    if z.re() < 0.5 {
+        let (principal, factor) = lanczos(z + S::real(1.0));
+        return (principal, factor * z.recip());
     }
-    let x = z - Complex::real(1.0);
-    let mut series = Complex::real(LANCZOS_COEFFICIENTS[0]);
+    let x = z - S::real(1.0);
+    let mut series = S::real(LANCZOS_COEFFICIENTS[0]);
     for (i, &c) in LANCZOS_COEFFICIENTS.iter().enumerate().skip(1) {
-        series = series + Complex::real(c) / (x + Complex::real(i as f64));
+        series = series + (x + S::real(i as f64)).recip() * c;
     }
-    let t = x + Complex::real(LANCZOS_G + 0.5);
-    Complex::real(0.5 * (2.0 * std::f64::consts::PI).ln()) + (x + Complex::real(0.5)) * t.ln() - t
-        + series.ln()
+    let t = x + S::real(LANCZOS_G + 0.5);
+    (
+        S::real(0.5 * (2.0 * std::f64::consts::PI).ln()) + (x + S::real(0.5)) * t.ln() - t,
+        series,
+    )
 }
 
 #[cfg(test)]
@@ -498,6 +652,7 @@ mod tests {
     fn complex_ln_gamma_is_gamma() {
         for x in [0.01, 0.3, 1.0, 2.5, 17.0] {
             let real = crate::special::ln_gamma(x).unwrap();
+            assert!((ln_gamma(x) - real).abs() < 1e-12, "{x}");
             assert!((ln_gamma(Complex::real(x)).re - real).abs() < 1e-12, "{x}");
         }
         for (re, im) in [(0.2, 0.7), (1.3, -4.0), (0.01, 25.0)] {
@@ -590,6 +745,59 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The coordinates' sum without a logarithm is the sum of each coordinate's principal
+    /// logarithms up to a multiple of 2πi (the same exponential), where the product of 24
+    /// coordinates' `w` winds around 0 (their arguments add beyond π) and where that of 400
+    /// leaves the floating-point range (its modulus folded).
+    #[test]
+    fn one_root_for_all_coordinates_is_the_sum_of_their_logarithms() {
+        let one = Complex::real(1.0);
+        let mut wound = false;
+        for dimension in [1, 3, 24, 400] {
+            let p = pair(
+                &(0..dimension)
+                    .map(|k| {
+                        let x = f64::from(k) / f64::from(dimension);
+                        (2.0 * x - 0.7, (4.0 * (x * 5.0).fract() - 2.0).exp())
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            let strip = p
+                .coordinates()
+                .iter()
+                .map(|c| 1.0 / (c.variance - 1.0).abs().max(1e-300) * c.variance.min(1.0))
+                .fold(5.0, f64::min);
+            for c in [1e-3 * strip, 0.5 * strip, 0.999 * strip] {
+                for omega in [0.0, 0.3, 4.0, 60.0, 2_000.0] {
+                    let s = Complex::new(c, omega);
+                    let forms: [&dyn Fn(f64) -> Complex; 2] =
+                        [&|v| (s + one) * v - s, &|v| (s + one) - s * v];
+                    for w in forms {
+                        let gap = s * (s + one) * 0.5;
+                        let (mut direct, mut arguments) = (Complex::real(0.0), 0.0);
+                        for c in p.coordinates() {
+                            let w = w(c.variance);
+                            assert!(w.re > 0.0, "outside the strip");
+                            direct = direct + gap * (c.shift * c.shift) * w.recip() - w.ln() * 0.5;
+                            arguments += w.im.atan2(w.re);
+                        }
+                        wound |= arguments.abs() > std::f64::consts::PI;
+                        let term = p.coordinate_sum(s, w);
+                        let fast = term.ln + term.factor.ln();
+                        let scale = 1.0 + direct.re.abs() + direct.im.abs();
+                        let turns = (fast.im - direct.im) / (2.0 * std::f64::consts::PI);
+                        assert!(
+                            (fast.re - direct.re).abs() < 1e-12 * scale
+                                && (turns - turns.round()).abs() < 1e-12 * scale,
+                            "{dimension} at {s:?}: {fast:?} vs {direct:?}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(wound, "no case winds around 0");
     }
 
     /// A pair with no information is the blind view; invalid coordinates are refused.
