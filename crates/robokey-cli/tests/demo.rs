@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{run_code, s, scratch};
+use common::{assert_sized_from_the_measured_plant, run_code, s, scratch};
 
 #[test]
 fn the_demo_ends_with_the_same_settled_key_in_both_stores_and_never_prints_it() {
@@ -61,13 +61,7 @@ fn the_demo_ends_with_the_same_settled_key_in_both_stores_and_never_prints_it() 
     assert_eq!(code, 0, "{listed}");
     let keys: Vec<serde_json::Value> = serde_json::from_str(&listed).unwrap();
     assert!(!keys.is_empty(), "{listed}");
-    for key in &keys {
-        let plant = key["basis"]["plant"].as_str().unwrap();
-        assert!(
-            plant.starts_with("Gaussian motion noise measured by the controller"),
-            "{key}"
-        );
-    }
+    assert_sized_from_the_measured_plant(&keys);
     // Eight hex digits or more: a chance match in the output has odds below 1e-6.
     let probe = &bits[0][..bits[0].len().min(16)];
     assert!(probe.len() >= 8, "a key of {} hex digits", bits[0].len());

@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
 use common::{
-    address_after, pairing, report, run, run_code, s, scratch, start_lines, wait, wait_code,
+    address_after, assert_sized_from_the_measured_plant, pairing, report, run, run_code, s,
+    scratch, start_lines, wait, wait_code,
 };
 
 use robokey::Config;
@@ -660,13 +661,7 @@ fn a_key_sized_by_default_from_the_measured_plant_holds_in_a_quieter_world() {
     for role in ["robot", "controller"] {
         let keys = stores.keys(role);
         assert!(!keys.is_empty(), "{role}: {text}");
-        for key in &keys {
-            let plant = key["basis"]["plant"].as_str().unwrap();
-            assert!(
-                plant.starts_with("Gaussian motion noise measured by the controller"),
-                "{key}"
-            );
-        }
+        assert_sized_from_the_measured_plant(&keys);
     }
 }
 

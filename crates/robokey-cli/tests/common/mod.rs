@@ -117,6 +117,18 @@ pub fn report(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
+/// Asserts that every key of a `keys list --json` rests on the plant the controller measured
+/// (its record's `basis.plant`), not on the configured motion noise.
+pub fn assert_sized_from_the_measured_plant(keys: &[serde_json::Value]) {
+    for key in keys {
+        let plant = key["basis"]["plant"].as_str().unwrap();
+        assert!(
+            plant.starts_with("Gaussian motion noise measured by the controller"),
+            "{key}"
+        );
+    }
+}
+
 /// Set in the re-executed test: the body runs.
 const INSIDE: &str = "ROBOKEY_TEST_NETNS";
 /// Longest a namespaced test may take.
