@@ -765,7 +765,7 @@ fn a_camera_statement_that_differs_is_refused_at_hello_naming_it() {
     let (code, text) = run_code(&controller_args);
     assert_eq!(code, 3, "{text}");
     assert!(
-        text.contains("eve.camera_fps: robot has (missing), controller has 30"),
+        text.contains("eve.camera_fps: robot has none (a per-instant camera), controller has 30"),
         "{text}"
     );
     assert_eq!(wait_code(robot).0, 3, "no key");

@@ -367,10 +367,7 @@ mod through_the_session_layer {
         let mut ldpc = robot.clone();
         ldpc.postprocess.reconciliation = robokey::config::Reconciliation::Ldpc;
         for (controller, named) in [
-            (
-                lag,
-                "private.prior_lag: robot has (missing), controller has 0.05",
-            ),
+            (lag, "private.prior_lag: robot has 0, controller has 0.05"),
             (
                 noise,
                 "noise.process_std: robot has [0.004, 0.004, 0.004], controller has [0.002, \
@@ -378,15 +375,15 @@ mod through_the_session_layer {
             ),
             (
                 frames,
-                "eve.camera_fps: robot has (missing), controller has 30",
+                "eve.camera_fps: robot has none (a per-instant camera), controller has 30",
             ),
             (
                 measured,
-                "postprocess.sizing: robot has (missing), controller has measured",
+                "postprocess.sizing: robot has configured, controller has measured",
             ),
             (
                 ldpc,
-                "postprocess.reconciliation: robot has (missing), controller has ldpc",
+                "postprocess.reconciliation: robot has cascade, controller has ldpc",
             ),
         ] {
             let s = conversation_between(&robot, &controller, Network::default(), 0);

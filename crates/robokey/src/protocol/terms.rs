@@ -149,8 +149,29 @@ pub fn config_digest(config: &Config) -> [u8; 32] {
     sha2::Sha256::digest(agreement_terms(config).as_bytes()).into()
 }
 
+/// What a side holds where its terms have no line for `key`: the value whose line the terms
+/// omit so that older terms stay as they were, or what the line does not apply to.
+fn omitted(key: &str) -> &'static str {
+    match key {
+        "sensing.mode" => "odometry",
+        "protocol.bits_per_doublet"
+        | "protocol.max_turn_rate"
+        | "eve.camera_std"
+        | "noise.process_std" => "none (odometry mode)",
+        "protocol.levels" => "2",
+        "protocol.labeling" => "none (binary doublets)",
+        "eve.camera_fps" | "eve.camera_frame_std" => "none (a per-instant camera)",
+        "private.prior_lag" | "robot.command_quantum" => "0",
+        "postprocess.sizing" => "configured",
+        "postprocess.reconciliation" => "cascade",
+        "ldpc.code" => "none (Cascade)",
+        _ => "(missing)",
+    }
+}
+
 /// Names the terms on which two [`agreement_terms`] texts differ, e.g.
-/// `robot.T: robot has 0.25, controller has 0.2`.
+/// `robot.T: robot has 0.25, controller has 0.2`; a side without a line has
+/// [`omitted`]'s value.
 #[must_use]
 pub fn terms_difference(ours: &str, theirs: &str, we: &str, they: &str) -> String {
     let parse = |text: &str| -> Vec<(String, String)> {
@@ -166,7 +187,7 @@ pub fn terms_difference(ours: &str, theirs: &str, we: &str, they: &str) -> Strin
             let peer = theirs
                 .iter()
                 .find(|(k, _)| k == key)
-                .map_or("(missing)", |(_, v)| v.as_str());
+                .map_or(omitted(key), |(_, v)| v.as_str());
             (peer != value).then(|| format!("{key}: {we} has {value}, {they} has {peer}"))
         })
         .collect();
@@ -174,7 +195,7 @@ pub fn terms_difference(ours: &str, theirs: &str, we: &str, they: &str) -> Strin
         theirs
             .iter()
             .filter(|(k, _)| !ours.iter().any(|(o, _)| o == k))
-            .map(|(k, v)| format!("{k}: {we} has (missing), {they} has {v}")),
+            .map(|(k, v)| format!("{k}: {we} has {}, {they} has {v}", omitted(k))),
     );
     if differences.is_empty() {
         "the configuration digests differ".to_owned()
@@ -207,6 +228,34 @@ mod tests {
     }
 
     /// The terms on which `a` (the robot's) and `b` (the controller's) differ.
+    /// Every line the terms can omit — those of a configuration with every optional term set
+    /// that the default configuration's terms lack — names what its absence holds.
+    #[test]
+    fn every_omitted_line_names_its_value() {
+        let mut every = private();
+        every.protocol.levels = 4;
+        every.eve.camera_fps = Some(30.0);
+        every.eve.camera_frame_std = Some([0.016; 3]);
+        every.private.prior_lag = 0.05;
+        every.robot.command_quantum = 0.1;
+        every.postprocess.reconciliation = crate::config::Reconciliation::Ldpc;
+        let default = agreement_terms(&Config::default());
+        let keys = |terms: &str| -> Vec<String> {
+            terms
+                .lines()
+                .filter_map(|l| l.split_once(" = ").map(|(k, _)| k.to_owned()))
+                .collect()
+        };
+        let omissible: Vec<String> = keys(&agreement_terms(&every))
+            .into_iter()
+            .filter(|k| !keys(&default).contains(k))
+            .collect();
+        assert_eq!(omissible.len(), 14, "{omissible:?}");
+        for key in &omissible {
+            assert_ne!(omitted(key), "(missing)", "{key}");
+        }
+    }
+
     fn difference(a: &Config, b: &Config) -> String {
         terms_difference(
             &agreement_terms(a),
@@ -233,8 +282,8 @@ mod tests {
         four.protocol.levels = 4;
         assert_eq!(
             difference(&four, &binary),
-            "protocol.levels: robot has 4, controller has (missing); protocol.labeling: robot \
-             has natural, controller has (missing)"
+            "protocol.levels: robot has 4, controller has 2; protocol.labeling: robot has natural, \
+             controller has none (binary doublets)"
         );
     }
 
@@ -247,7 +296,7 @@ mod tests {
         b.private.prior_lag = 0.05;
         assert_eq!(
             difference(&a, &b),
-            "private.prior_lag: robot has (missing), controller has 0.05"
+            "private.prior_lag: robot has 0, controller has 0.05"
         );
         let mut c = b.clone();
         c.private.prior_lag = 0.1;
@@ -273,8 +322,9 @@ mod tests {
         );
         assert_eq!(
             difference(&a, &b),
-            "eve.camera_fps: robot has (missing), controller has 30; eve.camera_frame_std: \
-             robot has (missing), controller has [0.016, 0.016, 0.016]"
+            "eve.camera_fps: robot has none (a per-instant camera), controller has 30; \
+             eve.camera_frame_std: robot has none (a per-instant camera), controller has \
+             [0.016, 0.016, 0.016]"
         );
     }
 
@@ -296,7 +346,7 @@ mod tests {
         assert_eq!(unset, with(SensingMode::Private, Some(Sizing::Measured)));
         assert_eq!(
             terms_difference(&configured, &unset, "robot", "controller"),
-            "postprocess.sizing: robot has (missing), controller has measured"
+            "postprocess.sizing: robot has configured, controller has measured"
         );
         let odometry = with(SensingMode::Odometry, None);
         assert!(!odometry.contains("sizing"), "{odometry}");
@@ -319,8 +369,8 @@ mod tests {
         assert_eq!(
             terms_difference(&cascade, &ldpc, "robot", "controller"),
             format!(
-                "postprocess.reconciliation: robot has (missing), controller has ldpc; \
-                 ldpc.code: robot has (missing), controller has {settings}"
+                "postprocess.reconciliation: robot has cascade, controller has ldpc; \
+                 ldpc.code: robot has none (Cascade), controller has {settings}"
             )
         );
         assert_eq!(
