@@ -188,6 +188,16 @@ fn configuration(words: &[String]) -> Option<Vec<String>> {
         }
         i += 1;
     }
+    // `scripts/pooled-sessions.py` runs both agents in private sensing unless told
+    // `--mode odometry`, after the `--set`s it is given.
+    let pooled = words.iter().any(|w| w.ends_with("pooled-sessions.py"));
+    if pooled
+        && !words
+            .windows(2)
+            .any(|w| w[0] == "--mode" && w[1] == "odometry")
+    {
+        options.extend(["--set".to_owned(), "sensing.mode=private".to_owned()]);
+    }
     let placeholder = options
         .iter()
         .any(|o| o.contains('…') || o.contains("FIELD") || o.contains('{'));

@@ -1090,8 +1090,9 @@ fn no_measured_lag(
             "actuator lag: the doublets' first steps carry {:.4} [{low:.4}, {high:.4}] of the \
              v-bit's travel over {} doublets, what a lag (or dead time) of {:.4} s [{:.4}, \
              {:.4}] leaves; the two-step doublet's estimate models none (allowed: a share \
-             whose interval reaches 1; private.prior_lag shapes three-step doublets for a lag)",
-            lag.share, lag.doublets, lag.point, lag.interval[0], lag.interval[1]
+             whose interval reaches 1; to key under this lag, state it as the prior on both \
+             agents, `--set private.prior_lag={:.4}`, which shapes three-step doublets)",
+            lag.share, lag.doublets, lag.point, lag.interval[0], lag.interval[1], lag.point
         ));
     }
     Ok(())
@@ -1764,6 +1765,20 @@ mod tests {
         };
         let lagging = refusal(0.05).expect("refused");
         assert!(lagging.starts_with("actuator lag"), "{lagging}");
+        // It names the prior to state, a value the configuration accepts.
+        let (_, prior) = lagging
+            .split_once("--set private.prior_lag=")
+            .expect("names the prior");
+        let prior = prior.split('`').next().unwrap();
+        let shaped = Config::from_toml(
+            &format!("[sensing]\nmode = \"private\"\n[private]\nprior_lag = {prior}\n"),
+            "t",
+        )
+        .unwrap();
+        assert!(
+            shaped.doublet_settle().is_some(),
+            "three-step doublets: {prior}"
+        );
         let still = refusal(0.0).unwrap_or_default();
         assert!(!still.contains("actuator lag"), "{still}");
     }
