@@ -32,6 +32,7 @@
 //! each value is the reciprocal root of their product with its turns around 0 counted
 //! (`coordinate_sum`), and the ln Γ's series and those roots stay factors.
 
+use rayon::iter::{IntoParallelRefIterator, ParallelIterator};
 use serde::{Deserialize, Serialize};
 
 use crate::min_entropy::{MinEntropyError, check_epsilon};
@@ -305,7 +306,7 @@ pub struct PairedMinEntropy {
 ///
 /// # Errors
 /// [`MinEntropyError::InvalidEpsilon`] for ε outside (0, 1).
-pub fn paired_smooth_min_entropy<B: SurprisalExponent>(
+pub fn paired_smooth_min_entropy<B: SurprisalExponent + Sync>(
     bits: &[B],
     removed: u64,
     epsilon: f64,
@@ -333,7 +334,7 @@ impl ChernoffExponents {
     /// `bits`' exponents at each of `lambdas` in (0, [`LARGEST_LAMBDA`]] (the others give no
     /// bound and are dropped).
     #[must_use]
-    pub fn of<B: SurprisalExponent>(bits: &[B], lambdas: &[f64]) -> Self {
+    pub fn of<B: SurprisalExponent + Sync>(bits: &[B], lambdas: &[f64]) -> Self {
         Self::split(bits, lambdas, 1, |_| 0)
             .pop()
             .unwrap_or_default()
@@ -341,8 +342,12 @@ impl ChernoffExponents {
 
     /// `bits`' exponents at each of `lambdas` (as [`Self::of`]), each bit's evaluated once,
     /// in `parts` parts: bit `i` in part `part_of(i)` (values from `parts` on are dropped).
+    ///
+    /// The bits are evaluated on rayon's current pool (the global one outside `install`),
+    /// each bit's exponents on one thread and placed in the bits' order before the sort: the
+    /// result is the sequential one, number for number, on any number of threads.
     #[must_use]
-    pub fn split<B: SurprisalExponent>(
+    pub fn split<B: SurprisalExponent + Sync>(
         bits: &[B],
         lambdas: &[f64],
         parts: usize,
@@ -359,12 +364,21 @@ impl ChernoffExponents {
                 at: lambdas.iter().map(|&l| (l, Vec::new())).collect(),
             })
             .collect();
-        for (i, bit) in bits.iter().enumerate() {
-            if let Some(part) = out.get_mut(part_of(i)) {
-                part.bits += 1;
-                for (lambda, exponents) in &mut part.at {
-                    exponents.push(bit.surprisal_exponent(*lambda));
-                }
+        let placed: Vec<(&B, usize)> = bits
+            .iter()
+            .enumerate()
+            .map(|(i, bit)| (bit, part_of(i)))
+            .filter(|&(_, part)| part < parts)
+            .collect();
+        let evaluated: Vec<Vec<f64>> = placed
+            .par_iter()
+            .map(|(bit, _)| lambdas.iter().map(|&l| bit.surprisal_exponent(l)).collect())
+            .collect();
+        for ((_, part), exponents) in placed.into_iter().zip(evaluated) {
+            let part = &mut out[part];
+            part.bits += 1;
+            for ((_, at), exponent) in part.at.iter_mut().zip(exponents) {
+                at.push(exponent);
             }
         }
         for part in &mut out {
@@ -917,5 +931,56 @@ mod tests {
                 .smooth_min_entropy(0, 1.5)
                 .is_err()
         );
+    }
+
+    /// [`ChernoffExponents::split`] evaluates the bits on rayon's pool: in a pool of one
+    /// thread and in one of two, each part's exponents at each λ are bit for bit each of its
+    /// bits' exponent evaluated in turn and sorted (a bit whose part is beyond `parts` is
+    /// dropped).
+    #[test]
+    fn split_is_the_sequential_evaluation_on_any_number_of_threads() {
+        let bits: Vec<PairedBit> = (0..400)
+            .map(|i| {
+                let d = 0.3 + 0.003 * f64::from(i % 89);
+                vec![pair(&[
+                    (d, 1.0 + 0.002 * f64::from(i % 11)),
+                    (0.5 * d, 0.9),
+                ])]
+            })
+            .collect();
+        let lambdas = [0.05, 0.2, 0.7];
+        let sequential: Vec<Vec<Vec<u64>>> = (0..3)
+            .map(|part| {
+                lambdas
+                    .iter()
+                    .map(|&l| {
+                        let mut at: Vec<f64> = (part..bits.len())
+                            .step_by(4)
+                            .map(|i| bits[i].surprisal_exponent(l))
+                            .collect();
+                        at.sort_by(f64::total_cmp);
+                        at.iter().map(|x| x.to_bits()).collect()
+                    })
+                    .collect()
+            })
+            .collect();
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let parts = pool.install(|| ChernoffExponents::split(&bits, &lambdas, 3, |i| i % 4));
+            let evaluated: Vec<Vec<Vec<u64>>> = parts
+                .iter()
+                .map(|part| {
+                    part.at
+                        .iter()
+                        .map(|(_, at)| at.iter().map(|x| x.to_bits()).collect())
+                        .collect()
+                })
+                .collect();
+            assert_eq!(evaluated, sequential, "{threads} threads");
+            assert!(parts.iter().all(|part| part.bits() == 100));
+        }
     }
 }
