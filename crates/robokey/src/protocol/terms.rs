@@ -227,7 +227,6 @@ mod tests {
         assert_eq!(config_digest(&a), config_digest(&b));
     }
 
-    /// The terms on which `a` (the robot's) and `b` (the controller's) differ.
     /// Every line the terms can omit — those of a configuration with every optional term set
     /// that the default configuration's terms lack — names what its absence holds.
     #[test]
@@ -256,6 +255,7 @@ mod tests {
         }
     }
 
+    /// The terms on which `a` (the robot's) and `b` (the controller's) differ.
     fn difference(a: &Config, b: &Config) -> String {
         terms_difference(
             &agreement_terms(a),
