@@ -294,6 +294,10 @@ pub struct ControllerArgs {
     /// Local address to bind.
     #[arg(long, value_parser = socket_address)]
     bind: Option<SocketAddr>,
+    /// Threads of a block's estimate at block time (0: one per core; at most one per core),
+    /// started with the session. The keys do not depend on it.
+    #[arg(long, short, default_value_t = 0)]
+    jobs: usize,
     #[command(flatten)]
     session: SessionArgs,
     #[command(flatten)]
@@ -456,6 +460,7 @@ pub fn controller(args: ControllerArgs) -> Result<Status> {
         sensor,
         store: args.session.store.clone(),
         allow_restricted: args.session.allow_restricted,
+        jobs: args.jobs,
     };
     let report = run_controller(&config, &options)?;
     args.session.finish(&report, &options.interrupt)

@@ -178,6 +178,7 @@ struct Stores {
     pairing: String,
     set: Vec<String>,
     robot_world: Option<String>,
+    controller_only: Vec<String>,
 }
 
 impl Stores {
@@ -189,7 +190,14 @@ impl Stores {
             pairing,
             set: set.iter().map(|&x| x.to_owned()).collect(),
             robot_world: None,
+            controller_only: Vec::new(),
         }
+    }
+
+    /// Flags of the controller agent alone.
+    fn with_controller_args(mut self, args: &[&str]) -> Self {
+        self.controller_only = args.iter().map(|&x| x.to_owned()).collect();
+        self
     }
 
     /// The robot agent's plant in the `[world]` of `toml` (`robot --world`), the parties
@@ -211,6 +219,9 @@ impl Stores {
         args.extend(self.set.iter().cloned());
         if let (Some(world), "robot") = (&self.robot_world, role) {
             args.extend(["--world".to_owned(), world.clone()]);
+        }
+        if role == "controller" {
+            args.extend(self.controller_only.iter().cloned());
         }
         args
     }
@@ -653,8 +664,10 @@ fn a_key_sized_for_the_robots_own_world_is_not_warned_of() {
 /// configured pair commits 2,150 on them.
 #[test]
 fn a_key_sized_by_default_from_the_measured_plant_holds_in_a_quieter_world() {
+    // The block's estimate on one thread (`--jobs 1`); the other agents' tests use every core.
     let stores = Stores::new("world-1mm-default", &SMALL_BLOCK[..4])
-        .with_robot_world("[world]\nprocess_std = [0.001, 0.001, 0.001]\n");
+        .with_robot_world("[world]\nprocess_std = [0.001, 0.001, 0.001]\n")
+        .with_controller_args(&["--jobs", "1"]);
     let (verdict, text) = block_through_the_agents("world-1mm-default", &stores, 300);
     assert_eq!(verdict["exceeds"], false, "{text}");
     assert!(!text.contains("WARNING"), "{text}");

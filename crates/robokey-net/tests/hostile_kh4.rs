@@ -219,6 +219,7 @@ fn agent_session(
             sensor: None,
             store: None,
             allow_restricted: false,
+            jobs: 1,
         },
     )
     .unwrap();

@@ -52,6 +52,9 @@ pub struct ControllerOptions {
     pub store: Option<PathBuf>,
     /// Make keys under a restricted assumption (`--allow-restricted`).
     pub allow_restricted: bool,
+    /// Threads of the block's estimate (`--jobs`; 0: one per core, never more than one per
+    /// core). The keys do not depend on it.
+    pub jobs: usize,
 }
 
 /// Runs one session as the controller. Every way out after the socket is bound returns a
@@ -79,7 +82,7 @@ pub fn run_controller(
     // on answering the robot.
     let link = link.map(PostLink::deferring);
     let mut worker = match link {
-        Some(_) => Some(Worker::start()?),
+        Some(_) => Some(Worker::start(options.jobs)?),
         None => None,
     };
     let sensor = match (config.sensing.mode, &options.sensor) {

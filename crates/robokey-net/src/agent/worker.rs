@@ -3,7 +3,8 @@
 //! seconds, during which the agent's loop must go on answering the robot and noticing its
 //! timeouts. The loop hands the worker one job at a time over a bounded channel and polls
 //! for the answer; the computation itself is the core's, pure
-//! ([`robokey::connection::BlockComputation::run`]).
+//! ([`robokey::connection::BlockComputation::run`]), and spreads one block over the worker's
+//! own pool of threads (the same result on any number of them).
 
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, sync_channel};
 use std::thread::JoinHandle;
@@ -33,11 +34,30 @@ pub(crate) struct Worker {
 }
 
 impl Worker {
-    /// Starts the worker thread.
+    /// Starts the worker thread and its pool of `threads` computing threads (0: one per
+    /// core; never more than one per core), both before the session starts, so that a
+    /// machine that cannot give them is told at once rather than when the first block is
+    /// computed.
     ///
     /// # Errors
-    /// The thread cannot be started.
-    pub(crate) fn start() -> Result<Self, NetError> {
+    /// The threads cannot be started (the system's thread limit, memory).
+    pub(crate) fn start(threads: usize) -> Result<Self, NetError> {
+        let cores = std::thread::available_parallelism().map_or(1, usize::from);
+        let threads = if threads == 0 {
+            cores
+        } else {
+            threads.min(cores)
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("block-estimate-{i}"))
+            .build()
+            .map_err(|e| {
+                cannot_start(
+                    &format!("the block estimate's {threads} threads (--jobs 1: one)"),
+                    e,
+                )
+            })?;
         // One job at a time: the endpoint waits for each answer before it asks again.
         let (jobs, inbox) = sync_channel::<BlockComputation>(1);
         let (outbox, answers) = sync_channel::<Answered>(1);
@@ -46,7 +66,7 @@ impl Worker {
             .spawn(move || {
                 for job in inbox {
                     let (what, started) = (job.describe(), Instant::now());
-                    let computed = job.run();
+                    let computed = pool.install(|| job.run());
                     let answered = Answered {
                         computed,
                         what,
@@ -58,7 +78,7 @@ impl Worker {
                     }
                 }
             })
-            .map_err(|e| NetError::Usage(format!("cannot start the worker thread: {e}")))?;
+            .map_err(|e| cannot_start("the block computation's thread", e))?;
         Ok(Self {
             jobs: Some(jobs),
             answers,
@@ -121,6 +141,14 @@ impl Drop for Worker {
         {
             let _ = thread.join();
         }
+    }
+}
+
+/// The error of threads that could not be started (a runtime failure, exit 1).
+fn cannot_start(what: &str, error: impl std::fmt::Display) -> NetError {
+    NetError::Io {
+        context: format!("cannot start {what}"),
+        error: std::io::Error::other(error.to_string()),
     }
 }
 
