@@ -16,6 +16,7 @@ mod keys;
 mod kme;
 mod logging;
 mod net;
+mod prior;
 mod ros2;
 mod threat;
 mod world;
@@ -93,6 +94,12 @@ enum Command {
     /// default); then the break-even camera, where that rate reaches zero
     /// (docs/threat-model.md). Default camera: the configuration's statement.
     Threat(threat::ThreatArgs),
+    /// The prior a calibration run measured: the parties' configuration with what the last
+    /// block estimate in the controller's session reports names — the motion noise √Q̂
+    /// (`noise.process_std`) and an actuator lag (`private.prior_lag`) — to state on both
+    /// agents for the blocks to come, each change and its measurement as comments
+    /// (docs/estimation.md, "Causality").
+    Prior(prior::PriorArgs),
     /// Write a pairing secret (`DIR/pairing.key`) to install on a robot and its controller.
     Pair(net::PairArgs),
     /// The robot agent: owns the clock and the key bits, drives the wheels, reports odometry
@@ -520,6 +527,7 @@ fn main() -> ExitCode {
         Command::Config(args) => done(commands::config(args)),
         Command::Secrecy(args) => done(commands::secrecy(args)),
         Command::Threat(args) => done(threat::run(&args)),
+        Command::Prior(args) => done(prior::run(&args)),
         Command::Pair(args) => done(net::pair(args)),
         Command::Robot(args) => net::robot(args),
         Command::Controller(args) => net::controller(args),

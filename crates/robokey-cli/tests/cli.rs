@@ -1074,3 +1074,68 @@ fn threat_prints_each_cameras_rate_and_the_break_even() {
         "{error}"
     );
 }
+
+/// `robokey prior`: a calibration run's reports become the configuration to state — a
+/// two-step block refused for a lag (its unmeasured noise written as `null`) names the lag,
+/// a later three-step block the noise and the lag; the output loads as a configuration; a
+/// robot's report and reports without an estimate are usage errors naming the file.
+#[test]
+fn prior_states_what_the_controllers_last_block_estimate_measured() {
+    let dir = scratch("prior");
+    let report = |name: &str, role: &str, estimates: &str| {
+        let path = dir.join(name);
+        let text = format!(r#"{{"role": "{role}", "post": {{"estimates": [{estimates}]}}}}"#);
+        std::fs::write(&path, text).unwrap();
+        path.display().to_string()
+    };
+    let common = r#""lower_std_mm": [null, null, null], "correlation": null,
+        "correlation_interval": [null, null], "epsilon": 1e-6, "separation": 1000000.0,
+        "largest": 1000000.0"#;
+    let refused = report(
+        "refused.json",
+        "controller",
+        &format!(
+            r#"{{"doublets": 4187, "point_std_mm": [null, null, null], {common},
+            "refused": "actuator lag: …", "unmodelled_lag": [0.0498, 0.0446, 0.0551]}}"#
+        ),
+    );
+    let measured = report(
+        "measured.json",
+        "controller",
+        r#"{"doublets": 2212, "point_std_mm": [0.9632, 1.0114, 0.9514],
+        "lower_std_mm": [0.844, 0.897, 0.832], "correlation": 0.022,
+        "correlation_interval": [-0.1, 0.124], "epsilon": 1e-6, "separation": 1.40234375,
+        "largest": 1.62109375, "refused": null, "lag": [0.04965, 0.04759, 0.05173]}"#,
+    );
+    let text = ok(&["prior", &refused]);
+    assert!(
+        text.contains("private.prior_lag = 0.0498 (was 0): the two-step block was refused"),
+        "{text}"
+    );
+    assert!(!text.contains("noise.process_std ="), "unmeasured: {text}");
+    assert!(
+        text.contains("That block was refused: actuator lag"),
+        "{text}"
+    );
+    // The last estimate of the reports given, oldest first.
+    let text = ok(&["prior", &refused, &measured]);
+    let stated = dir.join("prior.toml");
+    std::fs::write(&stated, &text).unwrap();
+    let loaded = ok(&["config", "-c", &stated.display().to_string()]);
+    for line in [
+        "mode = \"private\"",
+        "prior_lag = 0.0497",
+        "process_std = [0.000963, 0.001011, 0.000951]",
+    ] {
+        assert!(loaded.contains(line), "{line}: {loaded}");
+    }
+    let robot = report("robot.json", "robot", "");
+    let error = fails_with(2, &["prior", &robot]);
+    assert!(error.contains("robot.json: role \"robot\""), "{error}");
+    let empty = report("empty.json", "controller", "");
+    let error = fails_with(2, &["prior", &empty]);
+    assert!(
+        error.contains("no block estimate in") && error.contains("empty.json"),
+        "{error}"
+    );
+}

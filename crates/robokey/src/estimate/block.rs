@@ -72,18 +72,40 @@ use crate::world::{WorldModel, lagged};
 /// (the largest the endpoints accept), so the block gives no key.
 const REFUSED_SEPARATION: f64 = 1e6;
 
+/// A report's JSON writes a float that is not finite (a refused block's unmeasured `Q`)
+/// as `null`; read back, that is NaN again.
+mod null_as_nan {
+    use serde::{Deserialize, Deserializer};
+
+    pub(super) fn scalar<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
+
+    pub(super) fn pair<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+        Ok(<[Option<f64>; 2]>::deserialize(d)?.map(|x| x.unwrap_or(f64::NAN)))
+    }
+
+    pub(super) fn triple<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+        Ok(<[Option<f64>; 3]>::deserialize(d)?.map(|x| x.unwrap_or(f64::NAN)))
+    }
+}
+
 /// What the controller measured for one block, for reports.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BlockEstimate {
     /// Doublets whose residuals were used.
     pub doublets: usize,
     /// The point estimate's standard deviations √Q̂_kk (mm, mm, mrad; robot frame).
+    #[serde(deserialize_with = "null_as_nan::triple")]
     pub point_std_mm: [f64; 3],
     /// The region's lowest vertex's √Q_low,kk at the correlation's upper end (mm, mm, mrad).
+    #[serde(deserialize_with = "null_as_nan::triple")]
     pub lower_std_mm: [f64; 3],
     /// The motion noise's AR(1) correlation between steps: the point estimate ρ̂.
+    #[serde(deserialize_with = "null_as_nan::scalar")]
     pub correlation: f64,
     /// Its (1 − ε_est/2) interval `[ρ_lo, ρ_hi]`, over which Eve's view is sized.
+    #[serde(deserialize_with = "null_as_nan::pair")]
     pub correlation_interval: [f64; 2],
     /// ε_est.
     pub epsilon: f64,
@@ -99,6 +121,11 @@ pub struct BlockEstimate {
     /// view is sized over; none with two steps.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lag: Option<[f64; 3]>,
+    /// Two-step doublets refused for an actuator lag: the lag measured, `[τ̂, τ_lo, τ_hi]`
+    /// (s), which the refusal names as the prior to state (`robokey prior`); none otherwise.
+    /// Boxed, as `jitter`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unmodelled_lag: Option<Box<[f64; 3]>>,
     /// Per-wheel slip fitted beside `Q`, `[σ̂, σ_lo, σ_hi]` as fractions of each wheel's
     /// travel: where the block measures slip (`slip_sized`), the interval at ε_est/3 its key
     /// is sized over; otherwise the fit at level ε_est, whose interval reaches 0, so up to
@@ -217,6 +244,7 @@ impl BlockEstimate {
             largest: REFUSED_SEPARATION,
             refused: Some(why),
             lag: None,
+            unmodelled_lag: None,
             slip: None,
             slip_sized: false,
             jitter: None,
@@ -247,8 +275,15 @@ pub fn block_separations(
         return three_step_block(config, sessions, disclosed, epsilon);
     }
     let doublets: usize = sessions.iter().map(|session| session.len()).sum();
-    if let Err(why) = no_measured_lag(config, sessions, epsilon) {
-        return refused(sessions.len(), why, doublets, epsilon);
+    if let Err((why, lag)) = no_measured_lag(config, sessions, epsilon) {
+        let (separations, estimate) = refused(sessions.len(), why, doublets, epsilon);
+        return (
+            separations,
+            BlockEstimate {
+                unmodelled_lag: lag.map(Box::new),
+                ..estimate
+            },
+        );
     }
     let model = doublet_model(config);
     let sensor = diagonal_covariance(config.sensing.controller_std);
@@ -1073,28 +1108,30 @@ fn measured_lag(
 /// The two-step doublet's estimate models no actuator lag or dead time: a block of two-step
 /// doublets whose first steps carry less of the v-bit's travel than all of it at level
 /// ε_est (the share's interval below 1), or a share beyond the class, is refused, naming the
-/// share and the lag that explains it. Too few doublets to tell are left to the
-/// motion-noise estimate, which needs more.
+/// share and the lag that explains it (`[τ̂, τ_lo, τ_hi]`, s, with the reason, where it was
+/// measured). Too few doublets to tell are left to the motion-noise estimate, which needs
+/// more.
 fn no_measured_lag(
     config: &Config,
     sessions: &[&[DoubletSamples]],
     epsilon: f64,
-) -> Result<(), String> {
+) -> Result<(), (String, Option<[f64; 3]>)> {
     let doublets: usize = sessions.iter().map(|session| session.len()).sum();
     if config.doublet_settle().is_some() || doublets < MIN_LAG_DOUBLETS {
         return Ok(());
     }
-    let lag = measured_lag(config, sessions, epsilon)?;
+    let lag = measured_lag(config, sessions, epsilon).map_err(|why| (why, None))?;
     if lag.interval[0] > 0.0 {
         let [low, high] = lag.share_interval;
-        return Err(format!(
+        let why = format!(
             "actuator lag: the doublets' first steps carry {:.4} [{low:.4}, {high:.4}] of the \
              v-bit's travel over {} doublets, what a lag (or dead time) of {:.4} s [{:.4}, \
              {:.4}] leaves; the two-step doublet's estimate models none (allowed: a share \
              whose interval reaches 1; to key under this lag, state it as the prior on both \
              agents, `--set private.prior_lag={:.4}`, which shapes three-step doublets)",
             lag.share, lag.doublets, lag.point, lag.interval[0], lag.interval[1], lag.point
-        ));
+        );
+        return Err((why, Some([lag.point, lag.interval[0], lag.interval[1]])));
     }
     Ok(())
 }
@@ -1269,6 +1306,7 @@ fn sized_report(
         largest,
         refused: None,
         lag,
+        unmodelled_lag: None,
         slip: estimate.slip.map(|slip| slip.stds()),
         slip_sized,
         jitter: None,
@@ -1777,15 +1815,18 @@ mod tests {
     }
 
     /// A two-step block whose first steps show a 50 ms lag is refused by name (before the
-    /// motion-noise estimate, which models none); one without lag is not refused for it.
+    /// motion-noise estimate, which models none), its estimate carrying the lag it names;
+    /// one without lag is not refused for it.
     #[test]
     fn a_two_step_block_that_shows_a_lag_is_refused_naming_it() {
         let config = Config::from_toml("[sensing]\nmode = \"private\"\n", "t").unwrap();
-        let refusal = |tau: f64| {
+        let estimate = |tau: f64| {
             let block = doublets(2000, tau, 7);
-            block_separations(&config, &[&block], 0, 1e-6).1.refused
+            block_separations(&config, &[&block], 0, 1e-6).1
         };
-        let lagging = refusal(0.05).expect("refused");
+        let refusal = |tau: f64| estimate(tau).refused;
+        let refused = estimate(0.05);
+        let lagging = refused.refused.clone().expect("refused");
         assert!(lagging.starts_with("actuator lag"), "{lagging}");
         // It names the prior to state, a value the configuration accepts.
         let (_, prior) = lagging
@@ -1801,6 +1842,10 @@ mod tests {
             shaped.doublet_settle().is_some(),
             "three-step doublets: {prior}"
         );
+        let [tau, low, high] = *refused.unmodelled_lag.expect("the lag it names");
+        assert_eq!(format!("{tau:.4}"), prior);
+        assert!(low < tau && tau < high && low > 0.0, "{low} {tau} {high}");
+        assert_eq!(refused.lag, None, "no three-step lag");
         let still = refusal(0.0).unwrap_or_default();
         assert!(!still.contains("actuator lag"), "{still}");
     }

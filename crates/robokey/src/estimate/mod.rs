@@ -28,6 +28,7 @@ pub mod motion_noise;
 mod normal_tail;
 pub mod pairs_over_lags;
 mod pattern_fit;
+pub mod prior;
 pub mod quantum_check;
 pub mod residual;
 pub mod slice_llrs;
