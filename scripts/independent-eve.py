@@ -27,15 +27,30 @@ observations are Gaussian under each value of the bit and her log-likelihood rat
 ln N(o; μ₀, Σ₀) − ln N(o; μ₁, Σ₁): a Kalman smoother around each doublet, written as the batch
 Gaussian. A sample's jitter j moves it by j·ẋ (ẋ the nominal rate): jitter²·ẋẋᵀ is added to
 the controller sample's covariance. Checked on noise-free traces: the model reproduces the
-simulator's poses to 4 µm under lag, delay and command quantum.
+simulator's poses to 4 µm under lag, delay and command quantum (and, with two bits per doublet,
+to 10⁻⁹ without motion noise, a test).
 
-The bound. With P_i her posterior of the true bit i and S = −Σ log₂ P_i her surprisal of the
-true string (the bits' views are independent given the genie), Chernoff's bound gives for any
-λ > 0, P[S ≤ t] ≤ e^{λt·ln2} Π_i E[P_i^λ] with E[P_i^λ] = (1 − q_i)^{1+λ} + q_i^{1+λ}
-(q_i her error probability), so H_min^ε ≥ t = max_λ (−Σ ln E[P_i^λ] − ln(1/ε)) / (λ·ln 2),
-and the key her view supports is ℓ = ⌊t − leak_EC − 128 − 2·log₂(1/ε) + 2⌋⁺ (docs/secrecy.md).
+Two bits per doublet (`protocol.bits_per_doublet = 2`: the v bit on Δv, the ω bit on Δω, each
+with the doublet's shape, docs/private-sensing.md). She computes her likelihood under each of
+the doublet's four patterns; her LLR of each bit is the Gaussian log-likelihood ratio under its
+two values **with the doublet's other bit at its true value** — robokey's genie (docs/secrecy.md:
+each bit's view with every other bit given), so her bits are sized as robokey's sizing sizes
+them. That gives her the other bit, which robokey's camera eavesdropper marginalises over (a
+binary doublet's bits are judged as they are, not chained): for bits B given her view E, the
+chain rule and conditioning give Σ_i H(B_i | E, B_≠i) ≤ H(B | E), so a bound over the genie
+bits errs on her side (in expectation; the exact bound beside it checks each block). Beside it she reports the doublets' exact bound, which needs no genie
+inside the doublet: each doublet's posterior over its four patterns (given its disclosed bit
+where the public sample holds one), the Chernoff cut below taken over doublets.
 
-Not covered (reported as such): two bits or multilevel symbols per doublet, continuous
+The bound. With P_i her posterior of the true value of unit i (a bit, or a doublet's pair)
+and S = −Σ log₂ P_i her surprisal of the true string (the units' views are independent given
+the genie), Chernoff's bound gives for any λ > 0, P[S ≤ t] ≤ e^{λt·ln2} Π_i E[P_i^λ] with
+E[P_i^λ] = Σ_x P_i(x)^{1+λ} (the true value drawn from her posterior; a bit's is
+(1 − q_i)^{1+λ} + q_i^{1+λ}, q_i her error probability), so
+H_min^ε ≥ t = max_λ (−Σ ln E[P_i^λ] − ln(1/ε)) / (λ·ln 2), and the key her view supports is
+ℓ = ⌊t − leak_EC − 128 − 2·log₂(1/ε) + 2⌋⁺ (docs/secrecy.md).
+
+Not covered (reported as such): multilevel symbols (`protocol.levels` 4 or 8), continuous
 integration, cameras in frames (`world.camera_fps`), a delay of a period or more.
 
 Usage (after `robokey sweep experiments/grid.toml -o G` and `robokey secrecy G` with each
@@ -47,7 +62,9 @@ sizing, docs/estimation.md "The grid"):
 For every point it simulates the block's sessions again with `robokey run` (the sweep's seed,
 replicates 0, 1, … are the sessions `robokey secrecy` pooled), runs her on them and prints per
 point ℓ under each sizing, robokey's camera eavesdropper's realised H_min^ε and ℓ, hers, and
-whether ℓ is within both.
+whether ℓ is within both (with two bits per doublet her doublets' exact bound beside it, in the
+log and the .json rows). A sweep without experiments (`experiments/private.toml`): pass the
+folder that holds its output folder.
 """
 
 from __future__ import annotations
