@@ -37,10 +37,11 @@ two values **with the doublet's other bit at its true value** — robokey's geni
 each bit's view with every other bit given), so her bits are sized as robokey's sizing sizes
 them. That gives her the other bit, which robokey's camera eavesdropper marginalises over (a
 binary doublet's bits are judged as they are, not chained): for bits B given her view E, the
-chain rule and conditioning give Σ_i H(B_i | E, B_≠i) ≤ H(B | E), so a bound over the genie
-bits errs on her side (in expectation; the exact bound beside it checks each block). Beside it she reports the doublets' exact bound, which needs no genie
-inside the doublet: each doublet's posterior over its four patterns (given its disclosed bit
-where the public sample holds one), the Chernoff cut below taken over doublets.
+chain rule and conditioning give Σ_i H(B_i | E, B_≠i) ≤ H(B | E), so counting the genie bits'
+uncertainty errs on her side — for Shannon entropy; for the smooth min-entropy she reports
+beside it the doublets' exact bound, which needs no genie inside the doublet: each doublet's
+posterior over its four patterns (given its disclosed bit where the public sample holds
+one), the Chernoff cut below taken over doublets.
 
 The bound. With P_i her posterior of the true value of unit i (a bit, or a doublet's pair)
 and S = −Σ log₂ P_i her surprisal of the true string (the units' views are independent given
