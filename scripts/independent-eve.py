@@ -27,15 +27,31 @@ observations are Gaussian under each value of the bit and her log-likelihood rat
 ln N(o; μ₀, Σ₀) − ln N(o; μ₁, Σ₁): a Kalman smoother around each doublet, written as the batch
 Gaussian. A sample's jitter j moves it by j·ẋ (ẋ the nominal rate): jitter²·ẋẋᵀ is added to
 the controller sample's covariance. Checked on noise-free traces: the model reproduces the
-simulator's poses to 4 µm under lag, delay and command quantum.
+simulator's poses to 4 µm under lag, delay and command quantum (and, with two bits per doublet,
+to 10⁻⁹ without motion noise, a test).
 
-The bound. With P_i her posterior of the true bit i and S = −Σ log₂ P_i her surprisal of the
-true string (the bits' views are independent given the genie), Chernoff's bound gives for any
-λ > 0, P[S ≤ t] ≤ e^{λt·ln2} Π_i E[P_i^λ] with E[P_i^λ] = (1 − q_i)^{1+λ} + q_i^{1+λ}
-(q_i her error probability), so H_min^ε ≥ t = max_λ (−Σ ln E[P_i^λ] − ln(1/ε)) / (λ·ln 2),
-and the key her view supports is ℓ = ⌊t − leak_EC − 128 − 2·log₂(1/ε) + 2⌋⁺ (docs/secrecy.md).
+Two bits per doublet (`protocol.bits_per_doublet = 2`: the v bit on Δv, the ω bit on Δω, each
+with the doublet's shape, docs/private-sensing.md). She computes her likelihood under each of
+the doublet's four patterns; her LLR of each bit is the Gaussian log-likelihood ratio under its
+two values **with the doublet's other bit at its true value** — robokey's genie (docs/secrecy.md:
+each bit's view with every other bit given), so her bits are sized as robokey's sizing sizes
+them. That gives her the other bit, which robokey's camera eavesdropper marginalises over (a
+binary doublet's bits are judged as they are, not chained): for bits B given her view E, the
+chain rule and conditioning give Σ_i H(B_i | E, B_≠i) ≤ H(B | E), so counting the genie bits'
+uncertainty errs on her side — for Shannon entropy; for the smooth min-entropy she reports
+beside it the doublets' exact bound, which needs no genie inside the doublet: each doublet's
+posterior over its four patterns (given its disclosed bit where the public sample holds
+one), the Chernoff cut below taken over doublets.
 
-Not covered (reported as such): two bits or multilevel symbols per doublet, continuous
+The bound. With P_i her posterior of the true value of unit i (a bit, or a doublet's pair)
+and S = −Σ log₂ P_i her surprisal of the true string (the units' views are independent given
+the genie), Chernoff's bound gives for any λ > 0, P[S ≤ t] ≤ e^{λt·ln2} Π_i E[P_i^λ] with
+E[P_i^λ] = Σ_x P_i(x)^{1+λ} (the true value drawn from her posterior; a bit's is
+(1 − q_i)^{1+λ} + q_i^{1+λ}, q_i her error probability), so
+H_min^ε ≥ t = max_λ (−Σ ln E[P_i^λ] − ln(1/ε)) / (λ·ln 2), and the key her view supports is
+ℓ = ⌊t − leak_EC − 128 − 2·log₂(1/ε) + 2⌋⁺ (docs/secrecy.md).
+
+Not covered (reported as such): multilevel symbols (`protocol.levels` 4 or 8), continuous
 integration, cameras in frames (`world.camera_fps`), a delay of a period or more.
 
 Usage (after `robokey sweep experiments/grid.toml -o G` and `robokey secrecy G` with each
@@ -47,7 +63,9 @@ sizing, docs/estimation.md "The grid"):
 For every point it simulates the block's sessions again with `robokey run` (the sweep's seed,
 replicates 0, 1, … are the sessions `robokey secrecy` pooled), runs her on them and prints per
 point ℓ under each sizing, robokey's camera eavesdropper's realised H_min^ε and ℓ, hers, and
-whether ℓ is within both.
+whether ℓ is within both (with two bits per doublet her doublets' exact bound beside it, in the
+log and the .json rows). A sweep without experiments (`experiments/private.toml`): pass the
+folder that holds its output folder.
 """
 
 from __future__ import annotations
@@ -79,6 +97,8 @@ class World:
     axle: float
     wheel_limit: float
     delta_v: float
+    delta_omega: float
+    bits: int
     steps: int
     settle: float
     process_std: np.ndarray
@@ -103,8 +123,8 @@ class World:
             refusals.append("world.camera_fps")
         if world.get("delay", 0.0) >= config["robot"]["T"]:
             refusals.append("world.delay of a period or more")
-        if protocol.get("bits_per_doublet", 1) != 1 or protocol.get("levels", 2) != 2:
-            refusals.append("more than one bit per doublet")
+        if protocol.get("levels", 2) != 2:
+            refusals.append("multilevel symbols")
         if refusals:
             raise NotCovered(", ".join(refusals))
         prior_lag = config.get("private", {}).get("prior_lag", 0.0)
@@ -115,6 +135,8 @@ class World:
             axle=config["robot"]["D"],
             wheel_limit=config["robot"]["wheel_limit"],
             delta_v=protocol["delta_v"],
+            delta_omega=protocol.get("delta_omega", 0.0),
+            bits=protocol.get("bits_per_doublet", 1),
             steps=3 if prior_lag > 0.0 else 2,
             settle=math.exp(-period / prior_lag) if prior_lag > 0.0 else 0.0,
             process_std=np.array(world.get("process_std", config["noise"]["process_std"])),
@@ -188,6 +210,7 @@ class Trace:
     camera: np.ndarray
     nominal: np.ndarray
     bit: np.ndarray
+    bit_omega: np.ndarray
     robokey_eve: np.ndarray
 
     @staticmethod
@@ -208,6 +231,7 @@ class Trace:
             camera=reals("eve_x", "eve_y", "eve_theta"),
             nominal=reals("v_nom", "omega_nom"),
             bit=ints("b"),
+            bit_omega=ints("b_omega"),
             robokey_eve=ints("bhat_eve"),
         )
 
@@ -244,37 +268,49 @@ class Session:
         speed = np.zeros(2)
         for k in range(self.last):
             self.entry.append(speed)
-            self.command.append(self.applied(k, trace.bit[k]))
+            self.command.append(self.applied(k, self.pattern(k)))
             _, speed = world.period_pieces(speed, self.command[k], self.command[k + 1])
 
-    def offset(self, k: int, bit: int) -> float:
-        """Step k's v offset for its doublet's bit: (+1, −1)·aΔv, or (+1, −(1 + α), +α)·aΔv
-        with three steps, a = 1 − 2b (docs/private-sensing.md)."""
-        if bit < 0:
-            return 0.0
-        a = (1.0 - 2.0 * bit) * self.world.delta_v
+    def pattern(self, k: int) -> tuple[int, ...]:
+        """The true bits of step k's doublet, its v bit then (two bits per doublet) its ω bit;
+        () where the doublet carries none."""
+        if self.trace.bit[k] < 0:
+            return ()
+        return (int(self.trace.bit[k]), int(self.trace.bit_omega[k]))[: self.world.bits]
+
+    def offset(self, k: int, pattern: tuple[int, ...]) -> np.ndarray:
+        """Step k's (v, ω) offset for its doublet's bits: (+1, −1)·s∘Δ, or (+1, −(1 + α), +α)·s∘Δ
+        with three steps, Δ = (Δv, Δω), s = 1 − 2b per carried bit (0 on ω with one bit per
+        doublet; docs/private-sensing.md)."""
+        if not pattern:
+            return np.zeros(2)
+        signs = np.zeros(2)
+        signs[: len(pattern)] = [1.0 - 2.0 * b for b in pattern]
         within = k % self.world.steps
         if self.world.steps == 2:
-            return a if within == 0 else -a
-        return (a, -(1.0 + self.world.settle) * a, self.world.settle * a)[within]
+            shape = 1.0 if within == 0 else -1.0
+        else:
+            shape = (1.0, -(1.0 + self.world.settle), self.world.settle)[within]
+        return shape * signs * np.array([self.world.delta_v, self.world.delta_omega])
 
-    def applied(self, k: int, bit: int) -> np.ndarray:
-        """Step k's wheel command under `bit` for its doublet (`command[k + 1]`)."""
+    def applied(self, k: int, pattern: tuple[int, ...]) -> np.ndarray:
+        """Step k's wheel command under `pattern` for its doublet (`command[k + 1]`)."""
         nominal = self.trace.nominal[k]
         if math.isnan(nominal[0]):
             return np.zeros(2)
-        return self.world.wheels(nominal[0] + self.offset(k, bit), nominal[1])
+        offset = self.offset(k, pattern)
+        return self.world.wheels(nominal[0] + offset[0], nominal[1] + offset[1])
 
-    def run(self, doublet: int, first: int, count: int, bit: int, latent: np.ndarray) -> np.ndarray:
+    def run(self, doublet: int, first: int, count: int, pattern: tuple[int, ...], latent: np.ndarray) -> np.ndarray:
         """Poses x(first + 1 … first + count) from the true x(first), the steps of the doublet
-        starting at `doublet` under `bit`, latent = [w (3), z (2)] per step."""
+        starting at `doublet` under `pattern`, latent = [w (3), z (2)] per step."""
         world, pose = self.world, self.trace.pose[first]
         speed = self.entry[first]
         previous = self.command[first]
         out = []
         for i, k in enumerate(range(first, first + count)):
             same_doublet = k - k % world.steps == doublet
-            command = self.applied(k, bit) if same_doublet else self.command[k + 1]
+            command = self.applied(k, pattern) if same_doublet else self.command[k + 1]
             pieces, speed = world.period_pieces(speed, previous, command)
             pose = world.move(pose, pieces, latent[5 * i : 5 * i + 3], latent[5 * i + 3 : 5 * i + 5])
             previous = command
@@ -285,13 +321,20 @@ class Session:
         """w_k as the given poses fix it (slip-free worlds): x(k+1) − F(x(k), no noise)."""
         if k < 0 or k + 1 > self.last:
             return None
-        return self.trace.pose[k + 1] - self.run(k - k % self.world.steps, k, 1, self.trace.bit[k], np.zeros(5))
+        return self.trace.pose[k + 1] - self.run(k - k % self.world.steps, k, 1, self.pattern(k), np.zeros(5))
 
 
-def doublet_llrs(
+def patterns(bits: int) -> list[tuple[int, ...]]:
+    """A doublet's bit patterns, pattern p's bit i being bit i of p: (v,) or (v, ω)."""
+    return [tuple((p >> i) & 1 for i in range(bits)) for p in range(1 << bits)]
+
+
+def doublet_likelihoods(
     world: World, trace: Trace, boundaries: str = "samples"
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per carrying doublet: the true bit, her LLR ln p(o|b=0)/p(o|b=1), robokey's decision.
+    """Per carrying doublet: its true bits (doublets × bits: v, then ω), her log-likelihood
+    ln p(o | pattern) of her observations under each of its `patterns` (doublets × 2^bits),
+    and robokey's camera eavesdropper's decision of its v bit.
 
     She models the doublet's L steps and the one after it (a delay or a lag other than the
     prior carries the bit into it), linearised about each hypothesis's noise-free run. The
@@ -304,7 +347,7 @@ def doublet_llrs(
     session = Session(world, trace)
     steps, last = world.steps, session.last
     count = steps + 1
-    truth, llr, robokey = [], [], []
+    truth, loglik, robokey = [], [], []
     for first in range(0, last - count + 1, steps):
         if trace.bit[first] < 0:
             continue
@@ -347,28 +390,53 @@ def doublet_llrs(
             noise[3 * o : 3 * o + 3, 3 * o : 3 * o + 3] = cov
         logp = []
         jac = np.zeros((3 * n, 5 * n))
-        for hypothesis in (0, 1):
-            mean = session.run(first, start, n, hypothesis, latent_mean)
+        for index, pattern in enumerate(patterns(world.bits)):
+            mean = session.run(first, start, n, pattern, latent_mean)
             # Forward differences (the map is linear in w but for the heading's turn of the
-            # next steps' travel). Only slip makes the Jacobian depend on the bit (its
-            # columns scale with the wheel speeds); otherwise the first hypothesis's serves.
-            if hypothesis == 0 or world.slip_std > 0.0:
+            # next steps' travel). Only slip makes the Jacobian depend on the bits (its
+            # columns scale with the wheel speeds); otherwise the first pattern's serves.
+            if index == 0 or world.slip_std > 0.0:
                 for c in range(5 * n):
                     if c % 5 >= 3 and world.slip_std == 0.0:
                         continue  # without slip its latent moves nothing
                     h = 1e-7
                     step = np.zeros(5 * n)
                     step[c] = h
-                    jac[:, c] = (session.run(first, start, n, hypothesis, latent_mean + step) - mean) / h
+                    jac[:, c] = (session.run(first, start, n, pattern, latent_mean + step) - mean) / h
             g = jac[rows]
             sigma = g @ latent_cov @ g.T + noise
             r = obs - mean[rows]
             _, logdet = np.linalg.slogdet(sigma)
             logp.append(-0.5 * (r @ np.linalg.solve(sigma, r) + logdet))
-        truth.append(trace.bit[first])
-        llr.append(logp[0] - logp[1])
+        truth.append(session.pattern(first))
+        loglik.append(logp)
         robokey.append(trace.robokey_eve[first + steps - 1])
-    return np.array(truth), np.array(llr), np.array(robokey)
+    return np.array(truth).reshape(-1, world.bits), np.array(loglik), np.array(robokey)
+
+
+def genie_llrs(truth: np.ndarray, loglik: np.ndarray) -> np.ndarray:
+    """Each bit's LLR ln p(o | b = 0, b_≠) − ln p(o | b = 1, b_≠), the doublet's other bit b_≠
+    at its true value (robokey's genie, docs/secrecy.md): doublets × bits, like `truth`."""
+    weights = 1 << np.arange(truth.shape[1])
+    index = truth @ weights
+    rows = np.arange(len(truth))
+    llr = np.empty(truth.shape)
+    for i, weight in enumerate(weights):
+        zero = index & ~weight
+        llr[:, i] = loglik[rows, zero] - loglik[rows, zero | weight]
+    return llr
+
+
+def doublet_llrs(
+    world: World, trace: Trace, boundaries: str = "samples"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per carried bit (a doublet's v bit, then its ω bit): the true bit, her genie LLR
+    ln p(o|b=0)/p(o|b=1) and robokey's camera eavesdropper's decision (−1 where the trace
+    holds none: its ω bits)."""
+    truth, loglik, robokey = doublet_likelihoods(world, trace, boundaries)
+    decisions = np.full(truth.shape, -1)
+    decisions[:, 0] = robokey
+    return truth.reshape(-1), genie_llrs(truth, loglik).reshape(-1), decisions.reshape(-1)
 
 
 def error_probabilities(truth: np.ndarray, llr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -379,14 +447,36 @@ def error_probabilities(truth: np.ndarray, llr: np.ndarray) -> tuple[np.ndarray,
     return q, p_true
 
 
-def smooth_min_entropy(q: np.ndarray, epsilon: float) -> float:
-    """t = max_λ (−Σ ln((1−q)^{1+λ} + q^{1+λ}) − ln(1/ε)) / (λ ln 2), in bits (module doc)."""
-    q = np.clip(q, 1e-300, 0.5)
+def smooth_min_entropy(posteriors: np.ndarray, epsilon: float) -> float:
+    """t = max_λ (−Σ_u ln Σ_x P_u(x)^{1+λ} − ln(1/ε)) / (λ ln 2), in bits (module doc), for
+    independent units u (bits or doublets), P_u her posterior over unit u's values: rows of
+    `posteriors` (a bit's is (1 − q, q)). E[P_u(X)^λ | view] = Σ_x P_u(x)^{1+λ}."""
     best = 0.0
     for lam in np.exp(np.linspace(math.log(1e-4), math.log(50.0), 400)):
-        moment = np.sum(np.log((1.0 - q) ** (1.0 + lam) + q ** (1.0 + lam)))
+        moment = np.sum(np.log(np.sum(posteriors ** (1.0 + lam), axis=1)))
         best = max(best, (-moment - math.log(1.0 / epsilon)) / (lam * math.log(2.0)))
     return best
+
+
+def bit_posteriors(q: np.ndarray) -> np.ndarray:
+    """Independent bits' posteriors (1 − q, q) for `smooth_min_entropy`."""
+    return np.column_stack([1.0 - q, q])
+
+
+def pair_posteriors(truth: np.ndarray, loglik: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """Her exact posterior over each two-bit doublet's kept bits (`kept`: doublets × bits, the
+    bits not disclosed): over its four patterns where both are kept, over the kept bit's two
+    values (0, 1, then zeros) with the disclosed one at its true value where one is; doublets
+    with no kept bit left out."""
+    posteriors = np.exp(loglik - loglik.max(axis=1, keepdims=True))
+    posteriors /= posteriors.sum(axis=1, keepdims=True)
+    llr = genie_llrs(truth, loglik)
+    for i in range(truth.shape[1]):
+        alone = kept[:, i] & ~kept[:, 1 - i]
+        zero = 1.0 / (1.0 + np.exp(-llr[alone, i]))
+        posteriors[alone] = 0.0
+        posteriors[alone, 0], posteriors[alone, 1] = zero, 1.0 - zero
+    return posteriors[kept.any(axis=1)]
 
 
 def output_length(h_min: float, leak_ec: int, epsilon: float) -> int:
@@ -425,18 +515,20 @@ def point_config(folder: Path, out: Path) -> Path:
 
 
 def collect(robokey: str, config: Path, sets: list[str], bits: int, out: Path, boundaries: str):
-    """Sessions until `bits` carried bits: the truth and her LLRs."""
-    truth, llr = [], []
-    replicate, world = 0, None
-    while sum(len(t) for t in truth) < bits:
+    """Sessions until `bits` carried bits: per doublet the truth and her log-likelihoods of
+    its patterns (`doublet_likelihoods`)."""
+    truth, loglik = [], []
+    replicate, carried = 0, 0
+    while carried < bits:
         folder = simulate(robokey, config, sets, replicate, out)
-        if world is None:
-            world = World.of(tomllib.loads((folder / "config.resolved.toml").read_text()))
-        t, l, _ = doublet_llrs(world, Trace.read(folder / "trace.csv"), boundaries)
+        world = World.of(tomllib.loads((folder / "config.resolved.toml").read_text()))
+        t, l, _ = doublet_likelihoods(world, Trace.read(folder / "trace.csv"), boundaries)
         truth.append(t)
-        llr.append(l)
+        loglik.append(l)
+        carried += t.size
         replicate += 1
-    return np.concatenate(truth)[:bits], np.concatenate(llr)[:bits]
+    doublets = bits // truth[0].shape[1]
+    return np.concatenate(truth)[:doublets], np.concatenate(loglik)[:doublets]
 
 
 def blocks(folder: Path) -> dict[tuple[str, str], dict]:
@@ -478,7 +570,7 @@ def grid(
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp)
             try:
-                truth, llr = collect(robokey, point_config(folder / experiment, out), point_sets(point), block["bits"], out, boundaries)
+                truth, loglik = collect(robokey, point_config(folder / experiment, out), point_sets(point), block["bits"], out, boundaries)
             except NotCovered as why:
                 row["not_covered"] = str(why)
                 rows.append(row)
@@ -486,18 +578,25 @@ def grid(
         # The block's sessions are `robokey run`'s replicates 0, 1, … at the sweep's seed, so
         # these are the block's raw bits; the disclosed sample's positions are not exported:
         # a seeded random choice of the kept count stands in for them.
-        kept = np.sort(np.random.default_rng(0).choice(len(truth), size=row["n"], replace=False))
-        truth, llr = truth[kept], llr[kept]
-        q, _ = error_probabilities(truth, llr)
-        h = smooth_min_entropy(q, epsilon)
+        kept = np.zeros(truth.size, dtype=bool)
+        kept[np.random.default_rng(0).choice(truth.size, size=row["n"], replace=False)] = True
+        kept = kept.reshape(truth.shape)
+        bits, llr = truth[kept], genie_llrs(truth, loglik)[kept]
+        q, _ = error_probabilities(bits, llr)
+        h = smooth_min_entropy(bit_posteriors(q), epsilon)
         row["independent_h_min"] = h
-        row["independent_error"] = float(np.mean((llr < 0) != (truth == 1)))
+        row["independent_error"] = float(np.mean((llr < 0) != (bits == 1)))
         row["independent_ell"] = output_length(h, row["leak_ec"], epsilon)
+        pair = ""
+        if truth.shape[1] == 2:
+            row["pair_h_min"] = smooth_min_entropy(pair_posteriors(truth, loglik, kept), epsilon)
+            row["pair_ell"] = output_length(row["pair_h_min"], row["leak_ec"], epsilon)
+            pair = f"; the doublets' exact pairs: H {row['pair_h_min']:.0f}, ℓ {row['pair_ell']}"
         rows.append(row)
         print(
             f"{experiment}: {point}: ℓ {row['ell']}; robokey's camera Eve: H {row['robokey_h_min']:.0f}, "
             f"ℓ {row['robokey_ell']}; independent: H {h:.0f}, ℓ {row['independent_ell']}, "
-            f"errs {row['independent_error']:.3f} on {len(q)} bits",
+            f"errs {row['independent_error']:.3f} on {len(q)} bits{pair}",
             file=sys.stderr,
         )
     return rows
