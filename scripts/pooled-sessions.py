@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Runs lockstep sessions between two real agents that pool into their stores, and sums up.
 
-    scripts/pooled-sessions.py OUT --sessions N [--mode private|odometry] [--set FIELD=VALUE …]
-                               [--kill-trials K] [--seed S] [--eve] [--robot-world PRESET|FILE]
+    scripts/pooled-sessions.py OUT --sessions N [--mode private|odometry] [--config FILE]
+                               [--set FIELD=VALUE …] [--kill-trials K] [--seed S] [--eve] [--robot-world PRESET|FILE]
                                [-- relay fault options…]
 
 Every session: the robot agent (simulated plant; in private mode also the world's motion
@@ -81,8 +81,10 @@ def address_after(text, marker):
 
 
 def settings(a):
-    """The --set options every process of a session gets: the user's, then the mode."""
-    options = [x for s in a.set for x in ("--set", s)]
+    """The configuration every process of a session gets: the user's file and --set options,
+    then the mode."""
+    options = ["--config", a.config] if a.config else []
+    options += [x for s in a.set for x in ("--set", s)]
     if a.mode == "private":
         options += ["--set", "sensing.mode=private"]
     return options
@@ -328,6 +330,7 @@ def main():
     p.add_argument("out")
     p.add_argument("--sessions", type=int, required=True)
     p.add_argument("--mode", choices=["private", "odometry"], default="private")
+    p.add_argument("--config", metavar="FILE")
     p.add_argument("--set", action="append", default=[])
     p.add_argument("--kill-trials", type=int, default=0)
     p.add_argument("--seed", type=int, default=1)
