@@ -786,10 +786,11 @@ fn joined_steps(steps: &[DoubletResidual]) -> Vec<DoubletResidual> {
 
 /// The two statistics of one-step residuals `steps` (`statistic(residuals, stride)`: their
 /// lag-one ratio at stride 1, the joined steps' at stride 2) and their intersection
-/// ([`estimate_correlation_split`]).
+/// ([`estimate_correlation_split`]). The two are independent: `rayon::join` computes them
+/// on the current pool, the lag-one ratio's departure reported first as before.
 fn both_statistics(
     steps: &[DoubletResidual],
-    statistic: impl Fn(&[DoubletResidual], u32) -> Result<Correlation, CorrelationDeparture>,
+    statistic: impl Fn(&[DoubletResidual], u32) -> Result<Correlation, CorrelationDeparture> + Sync,
 ) -> Result<Correlation, CorrelationDeparture> {
     // Pairs of steps, two for each pair of doublets: reported as the doublets' pairs.
     let per_doublet = |departure| match departure {
@@ -798,8 +799,12 @@ fn both_statistics(
         }
         other => other,
     };
-    let lag_one = statistic(steps, 1).map_err(per_doublet)?;
-    let two_step = statistic(&joined_steps(steps), 2).map_err(per_doublet)?;
+    let (lag_one, two_step) = rayon::join(
+        || statistic(steps, 1),
+        || statistic(&joined_steps(steps), 2),
+    );
+    let lag_one = lag_one.map_err(per_doublet)?;
+    let two_step = two_step.map_err(per_doublet)?;
     let interval = [
         lag_one.interval[0].max(two_step.interval[0]),
         lag_one.interval[1].min(two_step.interval[1]),

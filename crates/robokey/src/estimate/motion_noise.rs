@@ -49,6 +49,7 @@
 //! two are taken jointly (`joint_region`) with no circular claim.
 
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector6};
+use rayon::iter::{IntoParallelIterator, ParallelIterator};
 use thiserror::Error;
 
 use super::correlation::{
@@ -743,7 +744,9 @@ fn region_estimate(
         }
         Some(s) => {
             let [low, high] = s.interval.map(|v| v.max(0.0));
+            // The grid's points on rayon's pool, the first refusal in the grid's order.
             let grid = (0..SLIP_GRID)
+                .into_par_iter()
                 .map(|i| {
                     let variance = low + (high - low) * i as f64 / (SLIP_GRID - 1) as f64;
                     Ok(SlipCorners {
@@ -752,6 +755,8 @@ fn region_estimate(
                         upper: upper_at(variance)?,
                     })
                 })
+                .collect::<Vec<Result<SlipCorners, EstimationRefusal>>>()
+                .into_iter()
                 .collect::<Result<Vec<SlipCorners>, EstimationRefusal>>()?;
             let highest_slip = vertices_at(high)?;
             (
@@ -1855,6 +1860,40 @@ pub(super) mod tests {
                 plain_missed > allowed,
                 "slip {slip}: {plain_missed} of {blocks}"
             );
+        }
+    }
+
+    /// The region is the same number for number on one thread and on two (the slip's
+    /// Wishart nets' two sides, ρ's two statistics and the slip grid's points are computed on
+    /// rayon's pool): a seeded block of 1,000 doublets under 5 % per-wheel slip on 2 mm of
+    /// white motion noise and one of 4 mm without slip, each estimated in a pool of one
+    /// thread and in one of two: the same estimate (its `Debug` form prints every number's
+    /// shortest round trip), the slip's block with its slip grid's corners.
+    #[test]
+    fn the_region_is_alike_on_one_thread_and_on_two() {
+        use crate::estimate::homogeneity::tests::slipping_doublets;
+        let sensed = covariance([5e-4; 3]);
+        let white = simulated_doublets(1_000, [5e-4; 3], 7, straight_and_turning, |_, _, n| {
+            Pose::new(4e-3 * n(), 4e-3 * n(), 4e-3 * n())
+        });
+        for (slip, (_, split)) in [
+            (true, slipping_doublets(1_000, 2e-3, 0.05, 2_000)),
+            (false, white),
+        ] {
+            let on = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                format!(
+                    "{:?}",
+                    pool.install(|| estimate_motion_noise_split(&split, &sensed, 1e-6))
+                )
+            };
+            let one = on(1);
+            assert!(one.starts_with("Ok("), "{one}");
+            assert_eq!(one.contains("slip_corners: Some("), slip, "{one}");
+            assert_eq!(one, on(2));
         }
     }
 

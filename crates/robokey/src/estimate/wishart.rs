@@ -136,20 +136,21 @@ fn chosen_nets(m: f64, epsilon: f64) -> [u32; 2] {
 /// (`chosen_nets`), whatever `upper` and `lower` are, so that the event is fixed by m and ε.
 /// `wishart_bounds` with χ²_m's quantiles; the slip path's weighted χ²
 /// (`weighted_chi_square`) with its tilted-tail ones (Chernoff's sharpened by Berry–Esseen).
+/// The two sides are independent: `rayon::join` evaluates them on the current pool (the slip
+/// path's quantiles, each over every cap of directions, are the largest part of a slip
+/// block's region).
 pub(super) fn net_bounds(
     m: f64,
     epsilon: f64,
-    upper: impl Fn(f64) -> f64,
-    lower: impl Fn(f64) -> f64,
+    upper: impl Fn(f64) -> f64 + Sync,
+    lower: impl Fn(f64) -> f64 + Sync,
 ) -> [f64; 2] {
     let ln_side = (0.5 * epsilon).ln();
     let [k1, k2] = chosen_nets(m, epsilon);
     let (s1, lines1) = net(k1);
     let (s2, lines2) = net(k2);
-    covered(
-        [upper(ln_side - lines1) / m, lower(ln_side - lines2) / m],
-        [s1, s2],
-    )
+    let (q_upper, q_lower) = rayon::join(|| upper(ln_side - lines1), || lower(ln_side - lines2));
+    covered([q_upper / m, q_lower / m], [s1, s2])
 }
 
 #[cfg(test)]
