@@ -130,7 +130,7 @@ pub fn run(args: &PriorArgs) -> Result<()> {
     }
     let flags: Vec<String> = changes
         .iter()
-        .map(|c| format!("--set {}={}", c.field, c.measured.replace(' ', "")))
+        .map(|c| format!("--set {}={}", c.field, c.measured.replace([' ', '"'], "")))
         .collect();
     if !flags.is_empty() {
         out += &comment(&format!("As flags: {}", flags.join(" ")));

@@ -25,13 +25,13 @@ pub struct PriorChange {
 
 /// The prior named by `estimate` (a controller's block estimate under measured sizing) for
 /// parties configured as `config`: `config` in private sensing with the fields it measured
-/// set, and each change. The motion noise: the point estimate `√Q̂` (m, m, rad; the likelihood's, not the
-/// region's worst case, which only sizes the key). The lag: `τ̂` where the block measured one
-/// — a two-step block refused for it, or a three-step block whose interval excludes 0 — and
-/// 0 where a three-step block's interval reaches 0 (two-step doublets then carry more bits a
-/// session; a lag they cannot model is refused, naming it). What the estimate did not
-/// measure (the noise of a block refused before it, a two-step block's lag it saw none of)
-/// stays as stated.
+/// set, and each change. The motion noise: the point estimate `√Q̂` (m, m, rad; the
+/// likelihood's, not the region's worst case, which only sizes the key). The lag: `τ̂` where
+/// the block measured one — a two-step block refused for it, or a three-step block whose
+/// interval excludes 0 — and 0 where a three-step block's interval reaches 0 (two-step
+/// doublets then carry more bits a session; a lag they cannot model is refused, naming it).
+/// What the estimate did not measure (the noise of a block refused before it, a two-step
+/// block's lag it saw none of) stays as stated.
 #[must_use]
 pub fn measured_prior(config: &Config, estimate: &BlockEstimate) -> (Config, Vec<PriorChange>) {
     let mut prior = config.clone();
