@@ -511,8 +511,10 @@ fn multilevel_session(
     // A block of ≈ 900 bits decoded by LDPC meets its syndrome with a wrong word about 3 times
     // in 100 (measured over 100 sessions of each test below; the sample's positions and the
     // code come from the agents' random generator, not the seed): only the tags catch it, and
-    // the block ends without a key. That outcome is checked here (nothing committed on either
-    // side) and the session run again in a fresh pair of stores, at most `ATTEMPTS` times.
+    // the block ends without a key. That outcome is checked here — the slice whose tags differ
+    // keeps no key on either side, and a slice committed before it stands, held by both
+    // (docs/postprocessing.md, "Multilevel slices") — and the session run again in a fresh
+    // pair of stores, at most `ATTEMPTS` times.
     const ATTEMPTS: usize = 3;
     const TAGS_DIFFER: &str = "the robot found our tag wrong: the reconciled keys differ";
     for attempt in 1..=ATTEMPTS {
@@ -526,8 +528,15 @@ fn multilevel_session(
         if both[1].iter().all(|b| b["reason"] != TAGS_DIFFER) {
             return (dir, pairing, controller, both);
         }
+        let keyed: Vec<&serde_json::Value> = both[1]
+            .iter()
+            .filter(|b| b["reason"].is_null() && b["length"].as_u64().unwrap_or(0) > 0)
+            .map(|b| &b["block"])
+            .collect();
         for role in ["robot", "controller"] {
-            assert!(statuses(&dir, &pairing, role).is_empty(), "{controller}");
+            let held = listed(&dir, &pairing, role);
+            let held: Vec<&serde_json::Value> = held.iter().map(|k| &k["block"]).collect();
+            assert_eq!(held, keyed, "{role}: {controller}");
         }
     }
     panic!("{ATTEMPTS} sessions in a row ended on differing reconciled keys");
