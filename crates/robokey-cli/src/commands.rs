@@ -541,20 +541,7 @@ const TERMINAL_COLUMNS: usize = 100;
 /// A sentence wrapped to [`TERMINAL_COLUMNS`], indented by two spaces (four after its
 /// first line).
 fn wrapped(text: &str) -> String {
-    let mut out = String::new();
-    let mut line = String::from(" ");
-    for word in text.split_whitespace() {
-        if line.chars().count() + 1 + word.chars().count() > TERMINAL_COLUMNS && line.trim() != "" {
-            out.push_str(&line);
-            out.push('\n');
-            line = String::from("   ");
-        }
-        line.push(' ');
-        line.push_str(word);
-    }
-    out.push_str(&line);
-    out.push('\n');
-    out
+    crate::wrap::wrap(text, " ", "   ", TERMINAL_COLUMNS)
 }
 
 /// The secrecy results for the terminal: one line per point and adversary, each reason why

@@ -20,6 +20,7 @@ mod prior;
 mod ros2;
 mod threat;
 mod world;
+mod wrap;
 
 use configuration::ConfigOptions;
 use exit::Status;

@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::Args;
 use robokey::estimate::BlockEstimate;
 use robokey::estimate::prior::measured_prior;
+use robokey_net::agent::report::read_report;
 
 use crate::configuration::{ConfigOptions, load_config};
 use crate::exit::usage;
@@ -40,14 +41,7 @@ fn estimates(path: &Path) -> Result<Vec<BlockEstimate>> {
     if size > MAX_REPORT_BYTES {
         usage!("{name}: {size} bytes (allowed: a session report of at most {MAX_REPORT_BYTES})");
     }
-    let text = match std::fs::read_to_string(path) {
-        Ok(text) => text,
-        Err(e) => usage!("{name}: cannot read the report: {e}"),
-    };
-    let report: serde_json::Value = match serde_json::from_str(&text) {
-        Ok(report) => report,
-        Err(e) => usage!("{name}: not an agent's JSON report: {e}"),
-    };
+    let report = read_report(path)?;
     if report["role"] != "controller" {
         usage!(
             "{name}: role {} (allowed: a controller's report; only the controller estimates \
@@ -64,20 +58,9 @@ fn estimates(path: &Path) -> Result<Vec<BlockEstimate>> {
     }
 }
 
-/// `# ` before each line of `text` wrapped at 95 columns.
+/// `text` as comment lines of at most 95 characters.
 fn comment(text: &str) -> String {
-    let mut out = String::new();
-    let mut line = String::from("#");
-    for word in text.split_whitespace() {
-        if line.len() + 1 + word.len() > 95 && line.len() > 1 {
-            out += &line;
-            out.push('\n');
-            line = String::from("#");
-        }
-        line.push(' ');
-        line += word;
-    }
-    out + &line + "\n"
+    crate::wrap::wrap(text, "#", "#", 95)
 }
 
 /// Prints the parties' configuration with the prior the reports' last block estimate names,

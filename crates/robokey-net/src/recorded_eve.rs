@@ -19,6 +19,7 @@ use serde::{Serialize, Serializer};
 
 use crate::agent::key_file::read_key_file;
 use crate::agent::post::BlockSummary;
+use crate::agent::report::read_report;
 use crate::capture_eve::{PrivateCaptureResult, listen, listen_private, read_session};
 use crate::error::NetError;
 use crate::pose_stream::{CameraLog, read_log};
@@ -697,10 +698,7 @@ pub fn block_verdicts(
     config: &Config,
 ) -> Result<Vec<BlockVerdict>, NetError> {
     let name = report.display();
-    let text = std::fs::read_to_string(report)
-        .map_err(NetError::io(format!("read the agent report {name}")))?;
-    let json: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| NetError::Usage(format!("{name}: not an agent's JSON report: {e}")))?;
+    let json = read_report(report)?;
     let blocks: Vec<BlockSummary> = serde_json::from_value(json["post"]["blocks"].clone())
         .map_err(|e| NetError::Usage(format!("{name}: no post-processing blocks in it: {e}")))?;
     let slicing = robokey::connection::slices::slicing(config);

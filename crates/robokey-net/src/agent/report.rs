@@ -336,6 +336,18 @@ fn hex_id<S: serde::Serializer>(session: &u32, serializer: S) -> Result<S::Ok, S
     serializer.serialize_str(&format!("{session:08x}"))
 }
 
+/// An agent's session report (the JSON `--report` writes), read back.
+///
+/// # Errors
+/// The file cannot be read, or is not JSON ([`NetError::Usage`], naming the file).
+pub fn read_report(path: &Path) -> Result<serde_json::Value, NetError> {
+    let name = path.display();
+    let text = std::fs::read_to_string(path)
+        .map_err(NetError::io(format!("read the agent report {name}")))?;
+    serde_json::from_str(&text)
+        .map_err(|e| NetError::Usage(format!("{name}: not an agent's JSON report: {e}")))
+}
+
 /// How a report names a session's authentication.
 #[must_use]
 pub fn authentication_label(secret: &PairingSecret) -> String {
